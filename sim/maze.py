@@ -1,0 +1,123 @@
+"""`Maze`: the label grid of one tabletop maze, from a benchmark PNG or the generator.
+
+Nothing else constructs mazes. A maze keeps two grids, as the benchmark does:
+`labels` (walls and the three objects, `maze.map-fixed.png`), used for observations and
+renders, and `walls` (walls only, `maze.map.png`), on which the navigation graph is built
+so that objects are walkable.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from sim.geometry import MAP_HEIGHT_PX, MAP_WIDTH_PX, pixel_to_world
+from sim.labels import LABEL_BGR, OBJECT_LABELS, PALETTE_BGR, Label
+
+FIXED_MAP = "maze.map-fixed.png"
+WALLS_MAP = "maze.map.png"
+
+
+class MazeError(ValueError):
+    """A map that cannot be a maze; the message names the file and the problem."""
+
+
+@dataclass(frozen=True, eq=False)
+class Maze:
+    name: str
+    labels: np.ndarray  # (H, W) uint8 Label values, walls and objects
+    walls: np.ndarray  # (H, W) uint8 Label values, walls only
+    objects: dict[str, tuple[float, float]] = field(default_factory=dict)  # centroid, metres
+
+    @property
+    def content_hash(self) -> str:
+        """Hash of both grids: the key of everything cached per maze."""
+        h = hashlib.sha256()
+        h.update(np.ascontiguousarray(self.walls).tobytes())
+        h.update(np.ascontiguousarray(self.labels).tobytes())
+        return h.hexdigest()[:16]
+
+    # -- construction -------------------------------------------------------------
+    @classmethod
+    def from_labels(cls, labels: np.ndarray, name: str, walls: np.ndarray | None = None,
+                    source: str | None = None) -> "Maze":
+        """A maze from label grids; `walls` defaults to `labels` with the objects removed."""
+        where = source or name
+        labels = np.asarray(labels, dtype=np.uint8)
+        if labels.shape != (MAP_HEIGHT_PX, MAP_WIDTH_PX):
+            raise MazeError(f"{where}: map is {labels.shape[1]}x{labels.shape[0]} pixels, "
+                            f"expected {MAP_WIDTH_PX}x{MAP_HEIGHT_PX}")
+        if walls is None:
+            walls = np.where(np.isin(labels, OBJECT_LABELS), Label.FLOOR, labels).astype(np.uint8)
+        elif walls.shape != labels.shape:
+            raise MazeError(f"{where}: walls map and object map differ in size")
+        if np.isin(walls, OBJECT_LABELS).any():
+            raise MazeError(f"{where}: the walls-only map contains object colours")
+        objects = {}
+        for label in OBJECT_LABELS:
+            rows, cols = np.nonzero(labels == label)
+            if rows.size == 0:
+                raise MazeError(f"{where}: object {label.word!r} is missing from the map")
+            x, y = pixel_to_world(cols.mean(), rows.mean())
+            objects[label.word] = (float(x), float(y))
+        return cls(name=name, labels=labels, walls=np.asarray(walls, dtype=np.uint8), objects=objects)
+
+    @classmethod
+    def from_png(cls, fixed_path: str | Path, walls_path: str | Path | None = None,
+                 name: str | None = None) -> "Maze":
+        """Read a benchmark-style map: `maze.map-fixed.png` (+ optional `maze.map.png`)."""
+        fixed_path = Path(fixed_path)
+        labels = read_label_png(fixed_path)
+        walls = read_label_png(Path(walls_path)) if walls_path is not None else None
+        if walls is not None and walls.shape != labels.shape:
+            raise MazeError(f"{walls_path}: size differs from {fixed_path}")
+        return cls.from_labels(labels, name or fixed_path.parent.parent.name, walls,
+                               source=str(fixed_path))
+
+    @classmethod
+    def from_dir(cls, run_dir: str | Path, name: str | None = None) -> "Maze":
+        """A maze in the benchmark's layout: `RUN_DIR/maze/maze.map-fixed.png` and `maze.map.png`."""
+        run_dir = Path(run_dir)
+        fixed = run_dir / "maze" / FIXED_MAP
+        walls = run_dir / "maze" / WALLS_MAP
+        if not fixed.exists():
+            raise MazeError(f"{fixed}: no such map file")
+        return cls.from_png(fixed, walls if walls.exists() else None, name=name or run_dir.name)
+
+    # -- output -------------------------------------------------------------------
+    def image(self, walls_only: bool = False) -> np.ndarray:
+        """The map as a BGR image in the benchmark's colours."""
+        return PALETTE_BGR[self.walls if walls_only else self.labels]
+
+    def save(self, run_dir: str | Path) -> Path:
+        """Write the maze in the benchmark's layout; returns the `maze/` folder."""
+        folder = Path(run_dir) / "maze"
+        folder.mkdir(parents=True, exist_ok=True)
+        cv2.imwrite(str(folder / FIXED_MAP), self.image())
+        cv2.imwrite(str(folder / WALLS_MAP), self.image(walls_only=True))
+        return folder
+
+
+def read_label_png(path: Path) -> np.ndarray:
+    """A benchmark PNG to a label grid; unknown colours are an error naming a pixel."""
+    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if image is None:
+        raise MazeError(f"{path}: not a readable image")
+    if image.shape[:2] != (MAP_HEIGHT_PX, MAP_WIDTH_PX):
+        raise MazeError(f"{path}: map is {image.shape[1]}x{image.shape[0]} pixels, "
+                        f"expected {MAP_WIDTH_PX}x{MAP_HEIGHT_PX}")
+    packed = (image[..., 0].astype(np.uint32) << 16) | (image[..., 1].astype(np.uint32) << 8) | image[..., 2]
+    labels = np.full(packed.shape, 255, dtype=np.uint8)
+    for label, (b, g, r) in LABEL_BGR.items():
+        labels[packed == ((b << 16) | (g << 8) | r)] = label
+    unknown = np.argwhere(labels == 255)
+    if unknown.size:
+        row, col = unknown[0]
+        b, g, r = image[row, col]
+        raise MazeError(f"{path}: {len(unknown)} pixels of unknown colour, first at column {col}, "
+                        f"row {row}: BGR ({b}, {g}, {r})")
+    return labels
