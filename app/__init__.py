@@ -1,0 +1,1 @@
+"""The RobotSlang server: settings, database, trial protocol, websockets, pages and CLI."""

@@ -1,0 +1,27 @@
+"""The `robotslang` command line: one root that mounts each package's commands.
+
+Each package owns its commands (sim/cli.py, models/cli.py, app/commands.py); this module only
+assembles them, so that `robotslang --help` starts fast and torch is imported only by the
+commands that need it.
+"""
+
+from __future__ import annotations
+
+import typer
+
+from app import commands as app_commands
+from models import cli as model_commands
+from sim import cli as sim_commands
+
+root = typer.Typer(help="RobotSlang: dialog-guided robot localization and navigation.",
+                   no_args_is_help=True, add_completion=False)
+eval_app = typer.Typer(help="Evaluate agents on the benchmark's NDH instances.", no_args_is_help=True)
+
+sim_commands.register(root, eval_app)
+model_commands.register(root, eval_app)
+app_commands.register(root)
+root.add_typer(eval_app, name="eval")
+
+
+def main() -> None:
+    root()

@@ -1,0 +1,1 @@
+"""Learning: NDH datasets, the seq2seq Driver agent, training, evaluation and statistics."""

@@ -1,0 +1,9 @@
+"""`robotslang eval baselines`, `robotslang mazes ...`, `robotslang sim ...`."""
+
+from __future__ import annotations
+
+import typer
+
+
+def register(root: typer.Typer, eval_app: typer.Typer) -> None:
+    """Mount the simulator's commands on the root CLI."""

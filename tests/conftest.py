@@ -1,0 +1,31 @@
+"""Shared fixtures: where the benchmark is, and a private cache and data directory per test run."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def benchmark_root() -> Path:
+    """The benchmark clone: ROBOTSLANG_BENCHMARK, else ../shared/robotslang beside the checkout."""
+    env = os.environ.get("ROBOTSLANG_BENCHMARK")
+    return Path(env) if env else REPO.parent / "shared" / "robotslang"
+
+
+@pytest.fixture(scope="session")
+def benchmark_path() -> Path:
+    root = benchmark_root()
+    if not (root / "NDH-data" / "val_seen.json").exists():
+        pytest.skip(f"RobotSlang benchmark not found at {root} (set ROBOTSLANG_BENCHMARK to a clone)")
+    return root
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _private_cache(tmp_path_factory) -> None:
+    # Tests never write into the user's ~/.cache; one cache per run keeps them independent.
+    if "ROBOTSLANG_CACHE_DIR" not in os.environ:
+        os.environ["ROBOTSLANG_CACHE_DIR"] = str(tmp_path_factory.mktemp("cache"))
