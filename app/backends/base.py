@@ -1,0 +1,59 @@
+"""`RobotBackend`: the robot seat of a trial.
+
+The trial runtime only talks to this protocol; the simulator (`app.backends.sim`) and the
+remote rover (`app.backends.remote`) implement it. Actions are the Driver's three moves.
+"""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from dataclasses import dataclass
+from typing import Literal, Protocol, runtime_checkable
+
+MoveAction = Literal["forward", "left", "right"]
+MOVE_ACTIONS: tuple[str, ...] = ("forward", "left", "right")
+
+
+@dataclass(frozen=True)
+class MoveOutcome:
+    """What became of one move: `ok`, `collision` (the robot did not move) or `refused`."""
+
+    action: str
+    outcome: Literal["ok", "collision", "refused"]
+    reason: str | None = None
+
+    @property
+    def collision(self) -> bool:
+        return self.outcome == "collision"
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One encoded camera image and when it was captured (server clock, nanoseconds)."""
+
+    jpeg: bytes
+    capture_ns: int
+    width: int
+    height: int
+
+
+class BackendUnavailable(RuntimeError):
+    """The robot cannot be reached (not connected, or lost); the message says which and why."""
+
+
+@runtime_checkable
+class RobotBackend(Protocol):
+    """The robot seat. `execute` returns once the move is done (or refused); each executed
+    move is followed by at least one frame on `frames()`."""
+
+    async def connect(self) -> None: ...
+
+    async def execute(self, action: str) -> MoveOutcome: ...
+
+    def frames(self) -> AsyncIterator[Frame]: ...
+
+    def pose(self) -> tuple[float, float, float] | None:
+        """True pose (x, y, theta) in metres/radians where known (simulator, overhead tracker)."""
+        ...
+
+    async def close(self) -> None: ...
