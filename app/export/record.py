@@ -1,0 +1,50 @@
+"""`TrialRecord`: one trial as the exports read it, the event log and where its frames are.
+
+Exports are pure reads of the log; this is the only shape they need, so that MCAP and NDH
+writers can be tested on events alone and the database adapter (`app.export.source`) stays
+small.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+
+class ExportError(RuntimeError):
+    """A trial that cannot be exported; the message names the trial and what is missing."""
+
+
+@dataclass(frozen=True)
+class Event:
+    seq: int
+    kind: str
+    t_ns: int
+    payload: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class TrialRecord:
+    trial_id: str
+    team: str
+    maze: str
+    targets: tuple[str, ...]
+    events: tuple[Event, ...]
+    frames_root: Path  # frame payload `path`s are relative to this folder
+    info: dict[str, str] = field(default_factory=dict)  # anything else worth keeping as metadata
+
+    def of_kind(self, *kinds: str) -> list[Event]:
+        return [e for e in self.events if e.kind in kinds]
+
+    def frame_bytes(self, event: Event) -> bytes:
+        """The encoded image a `frame` event points at."""
+        rel = event.payload.get("path")
+        if not rel:
+            raise ExportError(f"trial {self.trial_id}: frame event {event.seq} has no file path")
+        path = Path(rel) if Path(rel).is_absolute() else self.frames_root / rel
+        try:
+            return path.read_bytes()
+        except OSError as err:
+            raise ExportError(f"trial {self.trial_id}: frame {event.payload.get('frame_id')} "
+                              f"(event {event.seq}) cannot be read from {path}: {err.strerror}") from None

@@ -1,0 +1,125 @@
+"""MCAP export: read the file back with mcap's own reader, as Foxglove would."""
+
+from __future__ import annotations
+
+import base64
+import json
+
+import cv2
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+
+from app.export.mcap import CHANNELS, write_mcap
+from app.export.record import Event, ExportError, TrialRecord
+from sim.labels import Label
+from sim.maze import Maze
+
+
+def small_maze() -> Maze:
+    labels = np.zeros((1175, 1401), np.uint8)
+    labels[:12, :], labels[-12:, :] = Label.RED, Label.BLUE
+    labels[:, :12], labels[:, -12:] = Label.GREEN, Label.YELLOW
+    labels[300:330, 200:230], labels[800:830, 900:930] = Label.JAR, Label.MUG
+    labels[500:530, 1200:1230] = Label.PADDLE
+    return Maze.from_labels(labels, "test-maze")
+
+
+def jpeg(shade: int) -> bytes:
+    image = np.full((48, 64, 3), shade, np.uint8)
+    return cv2.imencode(".jpg", image)[1].tobytes()
+
+
+@pytest.fixture
+def record(tmp_path) -> TrialRecord:
+    (tmp_path / "frames").mkdir()
+    raw = [
+        ("trial_created", {"maze": "test-maze", "targets": ["mug", "jar", "paddle"],
+                           "backend": "sim", "driver": "human"}),
+        ("connect", {"role": "commander"}), ("connect", {"role": "driver"}),
+        ("phase", {"phase": "localizing", "target_index": 0}),
+        ("pose", {"x": 0.5, "y": 0.6, "heading": np.pi / 2, "source": "sim"}),
+        ("frame", {"frame_id": 1, "source": "driver", "path": "frames/1.jpg",
+                   "capture_ns": None, "width": 64, "height": 48, "mime": "image/jpeg"}),
+        ("chat", {"role": "commander", "text": "what do you see?"}),
+        ("chat", {"role": "driver", "text": "a red wall"}),
+        ("move_requested", {"move_id": 1, "action": "forward"}),
+        ("move_executed", {"move_id": 1, "action": "forward", "outcome": "ok", "collision": False}),
+        ("pose", {"x": 0.5, "y": 0.67, "heading": np.pi / 2, "source": "sim"}),
+        ("frame", {"frame_id": 2, "source": "driver", "path": "frames/2.jpg",
+                   "capture_ns": None, "width": 64, "height": 48, "mime": "image/jpeg"}),
+        ("frame", {"frame_id": 3, "source": "overhead", "path": "frames/3.jpg",
+                   "capture_ns": None, "width": 64, "height": 48, "mime": "image/jpeg"}),
+        ("localization", {"x": 0.55, "y": 0.6, "heading": None}),
+        ("phase", {"phase": "navigating", "target_index": 0}),
+    ]
+    events, t0 = [], 1_700_000_000_000_000_000
+    for seq, (kind, payload) in enumerate(raw, start=1):
+        t = t0 + seq * 10_000_000
+        if kind == "frame":
+            payload = {**payload, "capture_ns": t - 4_000_000}
+            (tmp_path / payload["path"]).write_bytes(jpeg(40 * payload["frame_id"]))
+        events.append(Event(seq=seq, kind=kind, t_ns=t, payload=payload))
+    # The log is stored by seq; a writer must not rely on arrival order matching the clock.
+    events[5], events[6] = events[6], events[5]
+    return TrialRecord(trial_id="7", team="blue team", maze="test-maze",
+                       targets=("mug", "jar", "paddle"), events=tuple(events), frames_root=tmp_path)
+
+
+def test_every_event_once_in_log_time_order_on_its_channel(record, tmp_path):
+    path = write_mcap(record, small_maze(), tmp_path / "trial.mcap")
+    with path.open("rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        assert sorted(c.topic for c in summary.channels.values()) == sorted(CHANNELS)
+        messages = list(reader.iter_messages(log_time_order=True))
+    seqs = [m.sequence for _, _, m in messages]
+    assert sorted(seqs) == [e.seq for e in sorted(record.events, key=lambda e: e.seq)]
+    log_times = [m.log_time for _, _, m in messages]
+    assert log_times == sorted(log_times)
+    by_seq = {m.sequence: (c.topic, s.name, json.loads(m.data), m) for s, c, m in messages}
+    events = {e.seq: e for e in record.events}
+    assert by_seq[7][:2] == ("/chat", "foxglove.Log")
+    assert by_seq[7][2]["message"] == "what do you see?" and by_seq[7][2]["name"] == "commander"
+    assert by_seq[10][:2] == ("/driver/cmd", "robotslang.DriverCommand")
+    assert by_seq[10][2]["outcome"] == "ok" and by_seq[10][2]["stage"] == "executed"
+    topic, schema, pose, _ = by_seq[11]
+    assert (topic, schema) == ("/robot/pose", "foxglove.PoseInFrame")
+    assert pose["pose"]["position"]["y"] == pytest.approx(0.67)
+    assert pose["pose"]["orientation"]["z"] == pytest.approx(np.sin(np.pi / 4))
+    assert by_seq[14][:2] == ("/trial/event", "robotslang.TrialEvent")
+    assert by_seq[14][2]["payload"] == {"x": 0.55, "y": 0.6, "heading": None}
+    for seq in (6, 12, 13):
+        topic, schema, image, m = by_seq[seq]
+        assert schema == "foxglove.CompressedImage" and image["format"] == "jpeg"
+        assert topic == ("/overhead/camera" if seq == 13 else "/driver/camera")
+        assert m.log_time == events[seq].t_ns
+        assert m.publish_time == events[seq].payload["capture_ns"] < m.log_time
+        decoded = cv2.imdecode(np.frombuffer(base64.b64decode(image["data"]), np.uint8), cv2.IMREAD_COLOR)
+        assert decoded.shape == (48, 64, 3)
+        assert abs(int(decoded.mean()) - 40 * events[seq].payload["frame_id"]) <= 2
+
+
+def test_trial_metadata_and_maze_maps_attached(record, tmp_path):
+    maze = small_maze()
+    path = write_mcap(record, maze, tmp_path / "trial.mcap")
+    with path.open("rb") as f:
+        reader = make_reader(f)
+        metadata = {m.name: m.metadata for m in reader.iter_metadata()}
+        attachments = {a.name: a for a in reader.iter_attachments()}
+    assert metadata["trial"]["trial_id"] == "7"
+    assert metadata["trial"]["team"] == "blue team"
+    assert metadata["trial"]["maze"] == "test-maze"
+    assert metadata["trial"]["targets"] == "mug,jar,paddle"
+    assert set(attachments) == {"maze.map-fixed.png", "maze.map.png"}
+    fixed = cv2.imdecode(np.frombuffer(attachments["maze.map-fixed.png"].data, np.uint8), cv2.IMREAD_COLOR)
+    assert np.array_equal(fixed, maze.image())
+    assert attachments["maze.map.png"].media_type == "image/png"
+
+
+def test_missing_frame_file_names_the_frame_and_writes_nothing(record, tmp_path):
+    (tmp_path / "frames" / "2.jpg").unlink()
+    out = tmp_path / "trial.mcap"
+    with pytest.raises(ExportError, match=r"trial 7: frame 2 .*frames/2\.jpg"):
+        write_mcap(record, small_maze(), out)
+    assert not out.exists() and not (tmp_path / "trial.mcap.part").exists()
