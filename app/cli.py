@@ -25,3 +25,7 @@ root.add_typer(eval_app, name="eval")
 
 def main() -> None:
     root()
+
+
+if __name__ == "__main__":
+    main()

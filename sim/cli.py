@@ -7,3 +7,6 @@ import typer
 
 def register(root: typer.Typer, eval_app: typer.Typer) -> None:
     """Mount the simulator's commands on the root CLI."""
+    from sim import eval_cli
+
+    eval_app.command("baselines")(eval_cli.eval_baselines)

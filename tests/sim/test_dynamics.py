@@ -1,0 +1,85 @@
+"""Agent dynamics: snapping, turns, forward moves, collisions and the teacher."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sim.benchmark import Benchmark
+from sim.dynamics import Action, Pose, snap_pose, step, teacher_action
+from sim.evaluation import run_episode
+from sim.baselines import ShortestAgent
+from sim.geometry import GRID_STEP_M
+from sim.maze import Maze
+from sim.navgraph import NavGraph
+from tests.sim.helpers import open_table, wall_at_x
+
+
+@pytest.fixture(scope="module")
+def walled():
+    return NavGraph.build(Maze.from_labels(wall_at_x(open_table(), 1.0), "walled"), use_cache=False)
+
+
+def test_snap_to_nearest_node_and_45_degrees(walled):
+    pose = snap_pose(walled, 0.52, 0.68, np.radians(100))
+    assert np.allclose(walled.nodes[pose.node], [0.49, 0.7])
+    assert pose.heading == 2  # 100 degrees -> 90
+    assert snap_pose(walled, 0.52, 0.68, np.radians(-50)).heading == 7  # -45 degrees
+
+
+def test_turns_are_counter_clockwise_left(walled):
+    pose = Pose(walled.nearest_node(0.5, 0.7), 0)
+    left, collided = step(walled, pose, Action.LEFT)
+    assert left.heading == 1 and left.node == pose.node and not collided
+    assert step(walled, pose, Action.RIGHT)[0].heading == 7
+
+
+def test_forward_moves_one_grid_step_straight_or_diagonal(walled):
+    start = Pose(walled.nearest_node(0.49, 0.7), 0)
+    ahead, collided = step(walled, start, Action.FORWARD)
+    assert not collided
+    assert np.linalg.norm(walled.nodes[ahead.node] - walled.nodes[start.node]) == pytest.approx(GRID_STEP_M)
+    diag, _ = step(walled, Pose(start.node, 1), Action.FORWARD)
+    assert np.linalg.norm(walled.nodes[diag.node] - walled.nodes[start.node]) == pytest.approx(0.099, abs=1e-3)
+
+
+def test_forward_into_a_wall_is_a_collision_and_leaves_the_pose(walled):
+    # The last column of nodes before the wall at x = 1.0 m, facing it.
+    xs = walled.nodes[:, 0]
+    edge = walled.nearest_node(xs[xs < 1.0].max(), 1.0)
+    pose = Pose(edge, 0)
+    after, collided = step(walled, pose, Action.FORWARD)
+    assert collided and after == pose
+
+
+def test_stop_changes_nothing(walled):
+    pose = Pose(3, 5)
+    assert step(walled, pose, Action.STOP) == (pose, False)
+
+
+def test_teacher_turns_by_the_smaller_turn_and_stops_at_goal(walled):
+    here = walled.nearest_node(0.49, 0.7)
+    east = walled.nearest_node(0.49 + 5 * 0.07, 0.7)
+    assert teacher_action(walled, Pose(here, 0), east) == Action.FORWARD
+    assert teacher_action(walled, Pose(here, 1), east) == Action.RIGHT
+    assert teacher_action(walled, Pose(here, 7), east) == Action.LEFT
+    assert teacher_action(walled, Pose(here, 3), east) == Action.RIGHT  # 135 degrees left -> turn right
+    assert teacher_action(walled, Pose(east, 4), east) == Action.STOP
+    across = walled.nearest_node(1.5, 1.0)  # behind the wall: no path
+    assert teacher_action(walled, Pose(here, 0), across) == Action.STOP
+
+
+def test_teacher_reaches_every_goal_within_the_action_limit_when_a_path_allows(benchmark_path):
+    bench = Benchmark(benchmark_path)
+    rng = np.random.default_rng(1)
+    for run in ("Run_318", "Run_135"):
+        g = bench.graph(run)
+        for start, goal in rng.integers(0, g.n, size=(60, 2)):
+            pose = Pose(int(start), int(rng.integers(8)))
+            nodes, moves = run_episode(g, pose, int(goal), ShortestAgent(), rng, max_actions=10_000)
+            if np.isfinite(g.dist[start, goal]):
+                assert nodes[-1] == goal
+                if moves <= 120:
+                    assert run_episode(g, pose, int(goal), ShortestAgent(), rng)[0][-1] == goal
+            else:
+                assert moves == 0
