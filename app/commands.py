@@ -1,9 +1,84 @@
-"""`robotslang serve|admin|db|export|demo`."""
+"""`robotslang serve|admin|db` (and `export`/`demo`, mounted from their packages)."""
 
 from __future__ import annotations
 
+import importlib
+from typing import Optional
+
 import typer
+
+# Packages under app/ that bring their own commands: module -> has `register(root)`.
+MOUNTED = ("app.export.cli", "app.demo.cli")
+
+
+def serve(host: str = typer.Option("127.0.0.1", help="Interface to listen on."),
+          port: int = typer.Option(8000, help="TCP port.")) -> None:
+    """Serve the platform (pages, trial sockets) on HOST:PORT."""
+    import uvicorn
+
+    from app.main import create_app
+    from app.settings import Settings
+
+    settings = Settings()
+    app = create_app(settings)
+    typer.echo(f"RobotSlang on http://{host}:{port} (data in {settings.data_dir.resolve()})")
+    # Frames and claims are sent inline; keep the transport limit above the message limit so an
+    # oversized message gets an error reply instead of a closed socket.
+    uvicorn.run(app, host=host, port=port, log_level="warning",
+                ws_max_size=max(65536, 4 * settings.max_message_bytes))
+
+
+def admin_create(name: str = typer.Argument(..., help="The experimenter's login name."),
+                 password: Optional[str] = typer.Option(None, help="Prompted for when not given.")) -> None:
+    """Create an experimenter account (or set the password of an existing one)."""
+    from sqlalchemy import select
+
+    from app.db.engine import make_engine, make_sessionmaker, upgrade
+    from app.db.models import Experimenter
+    from app.security import hash_password
+    from app.settings import Settings
+
+    if not name.strip() or len(name) > 80:
+        raise typer.BadParameter("must be 1 to 80 characters", param_hint="NAME")
+    if password is None:
+        password = typer.prompt("Password", hide_input=True, confirmation_prompt=True)
+    if len(password) < 8:
+        raise typer.BadParameter("must be at least 8 characters", param_hint="--password")
+    settings = Settings()
+    engine = make_engine(settings)
+    upgrade(settings, engine)
+    with make_sessionmaker(engine).begin() as db:
+        user = db.scalar(select(Experimenter).where(Experimenter.name == name))
+        if user is None:
+            db.add(Experimenter(name=name, password_hash=hash_password(password)))
+            typer.echo(f"experimenter {name!r} created")
+        else:
+            user.password_hash = hash_password(password)
+            typer.echo(f"experimenter {name!r}: password changed")
+
+
+def db_upgrade() -> None:
+    """Bring the database (ROBOTSLANG_DATABASE_URL, else the SQLite file in the data dir) up to date."""
+    from app.db.engine import upgrade
+    from app.settings import Settings
+
+    settings = Settings()
+    upgrade(settings)
+    typer.echo(f"database at {settings.url.split('@')[-1]} is up to date")
 
 
 def register(root: typer.Typer) -> None:
     """Mount the server's commands on the root CLI."""
+    root.command("serve")(serve)
+    admin = typer.Typer(help="Experimenter accounts.", no_args_is_help=True)
+    admin.command("create")(admin_create)
+    root.add_typer(admin, name="admin")
+    db = typer.Typer(help="The database.", no_args_is_help=True)
+    db.command("upgrade")(db_upgrade)
+    root.add_typer(db, name="db")
+    for module in MOUNTED:
+        try:
+            importlib.import_module(module).register(root)
+        except ModuleNotFoundError as err:
+            if err.name != module:
+                raise

@@ -1,0 +1,70 @@
+"""`SimulatorBackend`: the replay simulator in the robot seat.
+
+Moves follow the grid dynamics of `sim.dynamics` (0.07 m forward, 45 degree turns, a
+collision leaves the robot where it was); after each move the first-person render of the
+new pose is the camera frame.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import AsyncIterator
+
+import cv2
+import numpy as np
+
+from app.backends.base import Frame, MoveOutcome
+from app.clock import ServerClock
+from sim.dynamics import Action, Pose, step
+from sim.geometry import heading_angle
+from sim.maze import Maze
+from sim.navgraph import NavGraph
+
+FRAME_SIZE = (320, 240)
+JPEG_QUALITY = 80
+
+
+class SimulatorBackend:
+    def __init__(self, maze: Maze, graph: NavGraph, start: Pose, clock: ServerClock) -> None:
+        self.maze, self.graph, self.clock = maze, graph, clock
+        self._pose = start
+        self._frames: asyncio.Queue[Frame | None] = asyncio.Queue()
+
+    @property
+    def grid_pose(self) -> Pose:
+        return self._pose
+
+    async def connect(self) -> None:
+        await self._capture()
+
+    async def execute(self, action: str) -> MoveOutcome:
+        self._pose, collided = step(self.graph, self._pose, Action.parse(action))
+        await self._capture()
+        return MoveOutcome(action, "collision" if collided else "ok")
+
+    async def frames(self) -> AsyncIterator[Frame]:
+        while (frame := await self._frames.get()) is not None:
+            yield frame
+
+    def pose(self) -> tuple[float, float, float]:
+        x, y = self.graph.nodes[self._pose.node]
+        return float(x), float(y), float(heading_angle(self._pose.heading))
+
+    async def close(self) -> None:
+        self._frames.put_nowait(None)
+
+    async def _capture(self) -> None:
+        x, y, theta = self.pose()
+        # Rendering and encoding release the GIL: off the event loop, other trials keep moving.
+        jpeg = await asyncio.to_thread(render_jpeg, self.maze, x, y, theta)
+        self._frames.put_nowait(Frame(jpeg, self.clock.now_ns(), *FRAME_SIZE))
+
+
+def render_jpeg(maze: Maze, x: float, y: float, theta: float) -> bytes:
+    from sim.render import first_person  # written alongside; imported when the first frame is taken
+
+    image = first_person(maze, x, y, theta, size=FRAME_SIZE)
+    ok, buffer = cv2.imencode(".jpg", np.ascontiguousarray(image), [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+    if not ok:
+        raise RuntimeError("JPEG encoding of a simulator frame failed")
+    return buffer.tobytes()

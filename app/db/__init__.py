@@ -1,0 +1,1 @@
+"""The database: tables (`app.db.models`) and engine/session setup (`app.db.engine`)."""

@@ -1,0 +1,90 @@
+"""The tables. The event log is the truth; `trial`'s phase/score columns are a cache of it
+kept for the leaderboard and dashboard, rewritten with each phase change."""
+
+from __future__ import annotations
+
+from datetime import datetime, timezone
+
+from sqlalchemy import JSON, BigInteger, DateTime, Float, ForeignKey, Integer, String, Text, UniqueConstraint
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
+
+
+def utcnow() -> datetime:
+    return datetime.now(timezone.utc)
+
+
+class Base(DeclarativeBase):
+    pass
+
+
+class Experimenter(Base):
+    __tablename__ = "experimenter"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    name: Mapped[str] = mapped_column(String(80), unique=True)
+    password_hash: Mapped[str] = mapped_column(String(255))
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class Participant(Base):
+    __tablename__ = "participant"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    name: Mapped[str] = mapped_column(String(80), unique=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class Team(Base):
+    __tablename__ = "team"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    name: Mapped[str] = mapped_column(String(80), unique=True)
+    member_a_id: Mapped[int] = mapped_column(ForeignKey("participant.id"))
+    member_b_id: Mapped[int] = mapped_column(ForeignKey("participant.id"))
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class Robot(Base):
+    __tablename__ = "robot"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    name: Mapped[str] = mapped_column(String(80), unique=True)
+    token_hash: Mapped[str] = mapped_column(String(255))
+    role: Mapped[str] = mapped_column(String(16))  # 'driver' (the rover) or 'overhead' (tracker camera)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class Trial(Base):
+    __tablename__ = "trial"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    team_id: Mapped[int] = mapped_column(ForeignKey("team.id"))
+    maze: Mapped[str] = mapped_column(String(80))
+    targets: Mapped[list] = mapped_column(JSON)  # the three objects, in the order to reach them
+    backend: Mapped[str] = mapped_column(String(40))  # 'sim' or 'robot:<id>'
+    driver: Mapped[str] = mapped_column(String(40))  # 'human' or 'agent:<name>'
+    commander_id: Mapped[int | None] = mapped_column(ForeignKey("participant.id"), nullable=True)
+    driver_id: Mapped[int | None] = mapped_column(ForeignKey("participant.id"), nullable=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    # Cache of the event log (see module docstring).
+    phase: Mapped[str] = mapped_column(String(16), default="waiting")
+    active_s: Mapped[float | None] = mapped_column(Float, nullable=True)  # start to last confirmation
+    moves: Mapped[int] = mapped_column(Integer, default=0)
+
+
+class Event(Base):
+    __tablename__ = "event"
+    __table_args__ = (UniqueConstraint("trial_id", "seq", name="uq_event_trial_seq"),)
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    trial_id: Mapped[int] = mapped_column(ForeignKey("trial.id"), index=True)
+    seq: Mapped[int] = mapped_column(Integer)
+    kind: Mapped[str] = mapped_column(String(32))
+    t_ns: Mapped[int] = mapped_column(BigInteger)
+    payload: Mapped[dict] = mapped_column(JSON)
+
+
+class Frame(Base):
+    __tablename__ = "frame"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    trial_id: Mapped[int] = mapped_column(ForeignKey("trial.id"), index=True)
+    seq: Mapped[int] = mapped_column(Integer)  # the `frame` event's seq
+    source: Mapped[str] = mapped_column(String(16))  # 'driver' (robot camera) or 'overhead'
+    path: Mapped[str] = mapped_column(Text)  # relative to data_dir/frames
+    capture_ns: Mapped[int] = mapped_column(BigInteger)
+    width: Mapped[int] = mapped_column(Integer)
+    height: Mapped[int] = mapped_column(Integer)

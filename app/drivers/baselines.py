@@ -1,0 +1,51 @@
+"""Baseline Drivers: `random` (uniform moves, claims now and then) and `shortest` (an oracle that
+follows the navigation graph's shortest path to the current target using the true pose)."""
+
+from __future__ import annotations
+
+import random
+from typing import Any
+
+from app.drivers.registry import register_driver
+from app.settings import Settings
+from sim.dynamics import Action, snap_pose, teacher_action
+
+RANDOM_CLAIM_P = 0.02
+
+
+class RandomDriver:
+    def __init__(self, seed: int = 0) -> None:
+        self.rng = random.Random(seed)
+
+    def reset(self, info: dict[str, Any]) -> None:
+        self.rng.seed(info.get("trial_id", 0))
+
+    def act(self, dialog, observation) -> str:
+        if self.rng.random() < RANDOM_CLAIM_P:
+            return "stop"
+        return self.rng.choice(("forward", "left", "right"))
+
+
+class ShortestPathDriver:
+    """Needs the true pose (simulator); without one it claims at once."""
+
+    def __init__(self, settings: Settings) -> None:
+        self.settings = settings
+        self.maze = self.graph = None
+
+    def reset(self, info: dict[str, Any]) -> None:
+        from app.mazes import Mazes
+
+        mazes = Mazes(self.settings)
+        self.maze, self.graph = mazes.load(info["maze"]), mazes.graph(info["maze"])
+
+    def act(self, dialog, observation) -> str:
+        pose = observation.get("pose")
+        if pose is None:
+            return "stop"
+        goal = self.graph.nearest_node(*self.maze.objects[observation["target"]])
+        return teacher_action(self.graph, snap_pose(self.graph, *pose), goal).word
+
+
+register_driver("random", lambda info, settings: RandomDriver())
+register_driver("shortest", lambda info, settings: ShortestPathDriver(settings))

@@ -1,0 +1,97 @@
+"""`AgentSeat`: a `DriverPolicy` in the Driver's seat of a live trial.
+
+It joins the trial like a browser Driver and hears the same filtered events (dialog and
+frames, never the map); its moves go through the same refusal rules and event log. "stop"
+becomes a claim, announced in the chat; after a rejection it keeps driving.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import base64
+import contextlib
+import logging
+from typing import Any
+
+from app.drivers.base import DRIVER_ACTIONS
+from app.drivers.registry import create_driver
+from app.trial.runtime import TrialError
+
+logger = logging.getLogger(__name__)
+
+
+class AgentSeat:
+    role = "driver"
+
+    def __init__(self, runtime) -> None:
+        self.runtime = runtime
+        self.name = runtime.state.driver.split(":", 1)[1]
+        self.dialog: list[dict[str, str]] = []
+        self.frame: bytes | None = None
+        self.frame_id: int | None = None
+        self.rejected = 0
+        self.task: asyncio.Task | None = None
+
+    # What a browser Driver would receive.
+    def deliver(self, message: dict[str, Any]) -> None:
+        if message.get("type") == "welcome":
+            self.dialog = [{"role": e["payload"]["role"], "text": e["payload"]["text"]}
+                           for e in message["history"] if e["kind"] == "chat"]
+            if "frame" in message:
+                self.frame_id, self.frame = message["frame"]["frame_id"], base64.b64decode(message["frame"]["jpeg"])
+            return
+        if message.get("type") != "event":
+            return
+        kind, payload = message["kind"], message["payload"]
+        if kind == "chat":
+            self.dialog.append({"role": payload["role"], "text": payload["text"]})
+        elif kind == "frame" and "jpeg" in message:
+            self.frame_id, self.frame = payload["frame_id"], base64.b64decode(message["jpeg"])
+        elif kind == "target_rejected":
+            self.rejected += 1
+        elif kind == "target_confirmed":
+            self.rejected = 0
+
+    def start(self) -> None:
+        self.task = asyncio.get_running_loop().create_task(self._run())
+
+    async def stop(self) -> None:
+        if self.task is not None and self.task is not asyncio.current_task():
+            self.task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self.task
+
+    async def _run(self) -> None:
+        runtime = self.runtime
+        state, settings = runtime.state, runtime.settings
+        info = {"trial_id": runtime.trial_id, "maze": state.maze, "targets": list(state.targets),
+                "backend": state.backend}
+        policy = await asyncio.to_thread(create_driver, self.name, info, settings)
+        await asyncio.to_thread(policy.reset, info)
+        runtime.join(self)
+        while not runtime.state.over:
+            await asyncio.sleep(settings.agent_move_interval_s)
+            s = runtime.state
+            if not s.running or s.pending_claim is not None or s.current_target is None:
+                continue
+            observation = {"frame": self.frame, "frame_id": self.frame_id, "target": s.current_target,
+                           "target_index": s.target_index, "rejected": self.rejected,
+                           "pose": runtime.backend.pose() if runtime.backend is not None else None}
+            action = await asyncio.to_thread(policy.act, list(self.dialog), observation)
+            await self._act(action)
+
+    async def _act(self, action: str) -> None:
+        runtime, s = self.runtime, self.runtime.state
+        if action not in DRIVER_ACTIONS:
+            runtime.record("bad_message", {"role": "driver", "error": f"agent {self.name!r} returned {action!r}"})
+            return
+        if action != "stop":
+            await runtime.move(action)
+            return
+        if s.phase != "navigating" or s.pending_claim is not None or not s.running:
+            return
+        try:
+            runtime.record("chat", {"role": "driver", "text": f"I think I found the {s.current_target}"})
+            runtime.claim()
+        except TrialError as err:
+            logger.info("agent %s: claim refused: %s", self.name, err)

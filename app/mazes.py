@@ -1,0 +1,108 @@
+"""The mazes trials run in: the library (bundled + benchmark), their graphs, start poses and the
+pictures the Commander sees (the walls-only map and the image of the next target)."""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import cv2
+import numpy as np
+
+from app.settings import Settings
+from sim.dynamics import Pose
+from sim.geometry import world_to_pixel
+from sim.labels import Label
+from sim.maze import Maze
+from sim.navgraph import NavGraph
+
+TARGET_VIEW_DISTANCE_M = 0.35
+MIN_START_DISTANCE_M = 0.5
+
+
+class UnknownMaze(LookupError):
+    pass
+
+
+class Mazes:
+    def __init__(self, settings: Settings) -> None:
+        self.settings = settings
+        self._library = None
+        self.load = lru_cache(maxsize=64)(self._load)
+        self.graph = lru_cache(maxsize=64)(self._graph)
+        self.map_png = lru_cache(maxsize=64)(self._map_png)
+        self.target_jpeg = lru_cache(maxsize=192)(self._target_jpeg)
+
+    @property
+    def library(self):
+        if self._library is None:
+            from sim.library import MazeLibrary
+
+            self._library = MazeLibrary(benchmark=self.settings.benchmark)
+        return self._library
+
+    def names(self) -> list[str]:
+        return list(self.library.names())
+
+    def _load(self, name: str) -> Maze:
+        if name not in self.names():
+            raise UnknownMaze(f"unknown maze {name!r}")
+        return self.library.load(name)
+
+    def _graph(self, name: str) -> NavGraph:
+        return NavGraph.build(self.load(name), cache_dir=self.settings.cache_dir)
+
+    def _map_png(self, name: str) -> bytes:
+        """Walls only: the Commander's map never marks the objects."""
+        return _encode(".png", self.load(name).image(walls_only=True))
+
+    def full_map_png(self, name: str) -> bytes:
+        """Walls and objects: for the experimenter only."""
+        return _encode(".png", self.load(name).image())
+
+    def start_pose(self, name: str, first_target: str, seed: int) -> Pose:
+        """A random pose away from the first target, from which it can be reached."""
+        maze, graph = self.load(name), self.graph(name)
+        goal = graph.nearest_node(*maze.objects[first_target])
+        rng = np.random.default_rng(seed)
+        far = np.nonzero((graph.dist[:, goal] >= MIN_START_DISTANCE_M) & np.isfinite(graph.dist[:, goal]))[0]
+        candidates = far if far.size else np.nonzero(np.isfinite(graph.dist[:, goal]))[0]
+        return Pose(int(rng.choice(candidates)), int(rng.integers(8)))
+
+    def _target_jpeg(self, name: str, target: str) -> bytes:
+        """The target as the robot's camera would see it from a nearby free spot."""
+        from sim.render import first_person
+
+        maze, graph = self.load(name), self.graph(name)
+        ox, oy = maze.objects[target]
+        x, y = _view_point(maze, graph, ox, oy)
+        theta = math.atan2(oy - y, ox - x)
+        return _encode(".jpg", first_person(maze, x, y, theta, size=(320, 240)))
+
+
+def _view_point(maze: Maze, graph: NavGraph, ox: float, oy: float) -> tuple[float, float]:
+    """The node nearest TARGET_VIEW_DISTANCE_M from the object with no wall between."""
+    d = np.hypot(graph.nodes[:, 0] - ox, graph.nodes[:, 1] - oy)
+    for i in np.argsort(np.abs(d - TARGET_VIEW_DISTANCE_M)):
+        x, y = graph.nodes[i]
+        if _clear_line(maze, x, y, ox, oy):
+            return float(x), float(y)
+    x, y = graph.nodes[int(np.argmin(d))]
+    return float(x), float(y)
+
+
+def _clear_line(maze: Maze, x0: float, y0: float, x1: float, y1: float) -> bool:
+    t = np.linspace(0.0, 0.85, 40)  # stop short of the object itself
+    cols, rows = world_to_pixel(x0 + (x1 - x0) * t, y0 + (y1 - y0) * t)
+    h, w = maze.labels.shape
+    rows = np.clip(np.round(rows).astype(int), 0, h - 1)
+    cols = np.clip(np.round(cols).astype(int), 0, w - 1)
+    return bool(np.all(maze.walls[rows, cols] == Label.FLOOR))
+
+
+def _encode(ext: str, image: np.ndarray) -> bytes:
+    ok, buffer = cv2.imencode(ext, np.ascontiguousarray(image))
+    if not ok:
+        raise RuntimeError(f"could not encode a {ext} image")
+    return buffer.tobytes()
+

@@ -1,0 +1,146 @@
+"""Experimenter pages (behind login): participants, teams, trials with their join links, and the
+live dashboard with the true pose, pause, resume and abort."""
+
+from __future__ import annotations
+
+import random
+
+from fastapi import APIRouter, Depends, Form, HTTPException, Request
+from fastapi.responses import HTMLResponse, RedirectResponse, Response
+from sqlalchemy import select
+
+from app.backends.registry import backend_kinds
+from app.db.models import Participant, Robot, Team, Trial
+from app.drivers.registry import driver_names
+from app.routes.pages import render
+from app.security import SESSION_COOKIE
+from app.trial.setup import (TrialSetupError, create_participant, create_team, create_trial, parse_targets,
+                             suggest_maze)
+from app.trial.state import fold
+
+
+class LoginRequired(Exception):
+    """Raised by `experimenter` for anonymous requests; create_app answers with a redirect home."""
+
+
+def experimenter(request: Request) -> int:
+    services = request.app.state.services
+    user = services.sessions.verify(request.cookies.get(SESSION_COOKIE))
+    if user is None:
+        raise LoginRequired()
+    return user
+
+
+router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter)])
+
+
+def join_links(request: Request, trial: Trial) -> dict[str, str]:
+    seats = request.app.state.services.seats
+    roles = ["commander"] + (["driver"] if trial.driver == "human" else [])
+    return {role: str(request.url_for("play", token=seats.issue(trial.id, role))) for role in roles}
+
+
+@router.get("", response_class=HTMLResponse)
+def dashboard(request: Request, error: str | None = None):
+    services = request.app.state.services
+    with services.db() as db:
+        participants = db.scalars(select(Participant).order_by(Participant.name)).all()
+        teams = db.scalars(select(Team).order_by(Team.name)).all()
+        trials = db.scalars(select(Trial).order_by(Trial.id.desc()).limit(100)).all()
+        robots = db.scalars(select(Robot).where(Robot.role == "driver").order_by(Robot.name)).all()
+        names = {p.id: p.name for p in participants}
+        team_names = {t.id: t.name for t in teams}
+        maze_names = services.mazes.names()
+        suggestions = {t.id: suggest_maze(db, t, maze_names) for t in teams}
+    backends = ["sim"] + [f"robot:{r.id}" for r in robots] if "robot" in backend_kinds() else ["sim"]
+    return render(request, "experimenter.html", participants=participants, teams=teams, trials=trials,
+                  names=names, team_names=team_names, mazes=maze_names, suggestions=suggestions,
+                  backends=backends, drivers=["human"] + [f"agent:{n}" for n in driver_names()],
+                  links={t.id: join_links(request, t) for t in trials}, error=error)
+
+
+def _redirect(error: str | None = None) -> RedirectResponse:
+    from urllib.parse import quote
+
+    return RedirectResponse("/experimenter" + (f"?error={quote(error)}" if error else ""), status_code=303)
+
+
+@router.post("/participants")
+def add_participant(request: Request, name: str = Form(max_length=80)):
+    try:
+        with request.app.state.services.db.begin() as db:
+            create_participant(db, name)
+    except TrialSetupError as err:
+        return _redirect(str(err))
+    return _redirect()
+
+
+@router.post("/teams")
+def add_team(request: Request, name: str = Form(max_length=80), member_a: int = Form(), member_b: int = Form()):
+    try:
+        with request.app.state.services.db.begin() as db:
+            create_team(db, name, member_a, member_b)
+    except TrialSetupError as err:
+        return _redirect(str(err))
+    return _redirect()
+
+
+@router.post("/trials")
+def add_trial(request: Request, team_id: int = Form(), maze: str = Form(""), targets: str = Form("random"),
+              backend: str = Form("sim"), driver: str = Form("human"), commander_id: int | None = Form(None)):
+    services = request.app.state.services
+    names = services.mazes.names()
+    try:
+        if driver != "human" and driver.removeprefix("agent:") not in driver_names():
+            raise TrialSetupError(f"driver {driver!r} is neither 'human' nor a known agent")
+        if backend != "sim" and not backend.startswith("robot:"):
+            raise TrialSetupError(f"backend {backend!r} is neither 'sim' nor 'robot:<id>'")
+        with services.db.begin() as db:
+            team = db.get(Team, team_id)
+            if team is None:
+                raise TrialSetupError(f"team {team_id} does not exist")
+            maze = maze or suggest_maze(db, team, names) or ""
+            if not maze:
+                raise TrialSetupError(f"team {team.name!r} has seen every maze in the library")
+            create_trial(db, team_id=team_id, maze=maze, targets=parse_targets(targets, random.Random()),
+                         backend=backend, driver=driver, commander_id=commander_id, maze_names=names,
+                         now_ns=services.clock.now_ns())
+    except TrialSetupError as err:
+        return _redirect(str(err))
+    return _redirect()
+
+
+@router.post("/trials/{trial_id}/{action}")
+async def control(request: Request, trial_id: int, action: str):
+    if action not in ("pause", "resume", "abort"):
+        raise HTTPException(404, f"unknown trial action {action!r}")
+    runtime = await request.app.state.services.hub.get(trial_id)
+    getattr(runtime, action)()
+    return _redirect()
+
+
+@router.get("/api/trials")
+def live(request: Request):
+    """Every trial this server has open: phase, clock, moves, seats and the true pose."""
+    return {"trials": [r.snapshot() for r in request.app.state.services.hub.live()]}
+
+
+@router.get("/trials/{trial_id}", response_class=HTMLResponse)
+def watch(request: Request, trial_id: int):
+    services = request.app.state.services
+    with services.db() as db:
+        trial = db.get(Trial, trial_id)
+    if trial is None:
+        raise HTTPException(404, f"trial {trial_id} does not exist")
+    state = fold(services.log.load(trial_id))
+    return render(request, "watch.html", trial=trial, state=state, links=join_links(request, trial))
+
+
+@router.get("/trials/{trial_id}/map.png")
+def full_map(request: Request, trial_id: int):
+    services = request.app.state.services
+    with services.db() as db:
+        trial = db.get(Trial, trial_id)
+    if trial is None:
+        raise HTTPException(404, f"trial {trial_id} does not exist")
+    return Response(services.mazes.full_map_png(trial.maze), media_type="image/png")

@@ -1,0 +1,106 @@
+"""Public pages: home (log in), the seat pages behind join links, and the leaderboard."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Form, HTTPException, Request
+from fastapi.responses import HTMLResponse, RedirectResponse, Response
+from sqlalchemy import select
+
+from app.db.models import Experimenter, Trial
+from app.leaderboard import standings
+from app.security import SESSION_COOKIE, SESSION_MAX_AGE_S, InvalidToken, Seat, verify_password
+
+router = APIRouter()
+
+
+def render(request: Request, template: str, **context) -> HTMLResponse:
+    return request.app.state.templates.TemplateResponse(request, template, context)
+
+
+def seat_of(request: Request, token: str) -> Seat:
+    try:
+        return request.app.state.services.seats.verify(token)
+    except InvalidToken as err:
+        raise HTTPException(403, str(err)) from None
+
+
+@router.get("/", response_class=HTMLResponse)
+def home(request: Request):
+    services = request.app.state.services
+    if services.sessions.verify(request.cookies.get(SESSION_COOKIE)) is not None:
+        return RedirectResponse("/experimenter", status_code=303)
+    return render(request, "home.html", error=None)
+
+
+@router.post("/login")
+def login(request: Request, name: str = Form(max_length=80), password: str = Form(max_length=200)):
+    services = request.app.state.services
+    with services.db() as db:
+        user = db.scalar(select(Experimenter).where(Experimenter.name == name))
+    if user is None or not verify_password(password, user.password_hash):
+        return render(request, "home.html", error="unknown name or wrong password")
+    response = RedirectResponse("/experimenter", status_code=303)
+    response.set_cookie(SESSION_COOKIE, services.sessions.issue(user.id), max_age=SESSION_MAX_AGE_S,
+                        httponly=True, samesite="strict")
+    return response
+
+
+@router.post("/logout")
+def logout():
+    response = RedirectResponse("/", status_code=303)
+    response.delete_cookie(SESSION_COOKIE)
+    return response
+
+
+@router.get("/leaderboard", response_class=HTMLResponse)
+def leaderboard(request: Request):
+    services = request.app.state.services
+    with services.db() as db:
+        rows = standings(db, services.settings.move_penalty_s)
+    return render(request, "leaderboard.html", rows=rows, penalty=services.settings.move_penalty_s)
+
+
+@router.get("/play/{token}", response_class=HTMLResponse)
+def play(request: Request, token: str):
+    seat = seat_of(request, token)
+    services = request.app.state.services
+    with services.db() as db:
+        trial = db.get(Trial, seat.trial_id)
+    if trial is None:
+        raise HTTPException(404, f"trial {seat.trial_id} does not exist")
+    return render(request, f"{seat.role}.html", token=token, trial=trial)
+
+
+@router.get("/play/{token}/map.png")
+def commander_map(request: Request, token: str):
+    """The walls-only map, for the Commander alone."""
+    seat = seat_of(request, token)
+    if seat.role != "commander":
+        raise HTTPException(403, "only the Commander sees the map")
+    trial = _trial(request, seat.trial_id)
+    return Response(request.app.state.services.mazes.map_png(trial.maze), media_type="image/png",
+                    headers={"Cache-Control": "private, max-age=3600"})
+
+
+@router.get("/play/{token}/target/{index}.jpg")
+def target_image(request: Request, token: str, index: int):
+    """The image of a target the Commander has reached or is looking for (never a later one)."""
+    seat = seat_of(request, token)
+    if seat.role != "commander":
+        raise HTTPException(403, "only the Commander sees the target images")
+    services = request.app.state.services
+    trial = _trial(request, seat.trial_id)
+    runtime = services.hub.peek(trial.id)
+    reached = runtime.state.target_index if runtime is not None else 0
+    if not 0 <= index < len(trial.targets) or index > reached:
+        raise HTTPException(404, f"target {index} is not available")
+    return Response(services.mazes.target_jpeg(trial.maze, trial.targets[index]), media_type="image/jpeg",
+                    headers={"Cache-Control": "private, max-age=3600"})
+
+
+def _trial(request: Request, trial_id: int) -> Trial:
+    with request.app.state.services.db() as db:
+        trial = db.get(Trial, trial_id)
+    if trial is None:
+        raise HTTPException(404, f"trial {trial_id} does not exist")
+    return trial

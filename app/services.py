@@ -1,0 +1,32 @@
+"""`Services`: what one server instance shares between requests (no module-level state)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from sqlalchemy import Engine
+from sqlalchemy.orm import sessionmaker
+
+from app.clock import ServerClock
+from app.mazes import Mazes
+from app.security import SeatTokens, Sessions
+from app.settings import Settings
+from app.trial.log import EventLog
+
+if TYPE_CHECKING:
+    from app.trial.hub import TrialHub
+
+
+@dataclass
+class Services:
+    settings: Settings
+    engine: Engine
+    db: sessionmaker
+    clock: ServerClock
+    log: EventLog
+    seats: SeatTokens
+    sessions: Sessions
+    mazes: Mazes
+    hub: "TrialHub" = None  # type: ignore[assignment]
+    extras: dict[str, Any] = field(default_factory=dict)  # room for plug-ins (e.g. connected robots)

@@ -1,0 +1,49 @@
+"""`Settings`: the server's one settings object, read from `ROBOTSLANG_*` environment variables."""
+
+from __future__ import annotations
+
+import secrets
+from pathlib import Path
+
+from pydantic import Field
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+
+class Settings(BaseSettings):
+    model_config = SettingsConfigDict(env_prefix="ROBOTSLANG_", extra="ignore")
+
+    data_dir: Path = Path("./var")
+    database_url: str | None = None  # overrides the SQLite file in data_dir
+    benchmark: Path | None = None  # adds the benchmark's mazes to the bundled ones
+    cache_dir: Path = Field(default_factory=lambda: Path.home() / ".cache" / "robotslang")
+    secret_key: str | None = None  # generated once and kept in data_dir when not set
+    move_penalty_s: float = 1.0  # leaderboard: seconds added per executed move
+    grace_period_s: float = 120.0  # a disconnected seat may rejoin within this, else the trial aborts
+    min_move_interval_s: float = 0.25  # moves closer together than this are refused
+    max_message_bytes: int = 4096  # a websocket message larger than this is refused
+    agent_move_interval_s: float = 1.0  # pace of an agent Driver
+    redis_url: str | None = None  # fan-out between processes; in-process when unset
+    allowed_origins: list[str] = Field(default_factory=list)  # extra websocket origins beside the page's own
+
+    @property
+    def sqlite_path(self) -> Path:
+        return self.data_dir / "robotslang.db"
+
+    @property
+    def frames_dir(self) -> Path:
+        return self.data_dir / "frames"
+
+    @property
+    def url(self) -> str:
+        return self.database_url or f"sqlite:///{self.sqlite_path.resolve()}"
+
+    def signing_key(self) -> str:
+        """`secret_key`, else the key generated at first start and kept in `data_dir/secret_key`."""
+        if self.secret_key:
+            return self.secret_key
+        path = self.data_dir / "secret_key"
+        if not path.exists():
+            self.data_dir.mkdir(parents=True, exist_ok=True)
+            path.write_text(secrets.token_urlsafe(48))
+            path.chmod(0o600)
+        return path.read_text().strip()

@@ -1,0 +1,36 @@
+"""`EventLog`: the one place events are written. An event is committed before anyone hears of it."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from sqlalchemy import select
+from sqlalchemy.orm import sessionmaker
+
+from app.db import models
+from app.trial.state import LoggedEvent
+
+
+class EventLog:
+    def __init__(self, sessions: sessionmaker) -> None:
+        self.sessions = sessions
+
+    def load(self, trial_id: int) -> list[LoggedEvent]:
+        with self.sessions() as db:
+            rows = db.scalars(select(models.Event).where(models.Event.trial_id == trial_id)
+                              .order_by(models.Event.seq))
+            return [LoggedEvent(r.seq, r.kind, r.t_ns, r.payload) for r in rows]
+
+    def append(self, trial_id: int, event: LoggedEvent, *, frame: dict[str, Any] | None = None,
+               trial_cache: dict[str, Any] | None = None) -> None:
+        """Commit one event, with its frame row and the trial's cached columns in the same
+        transaction; raises (and writes nothing) if the seq is already taken."""
+        with self.sessions.begin() as db:
+            db.add(models.Event(trial_id=trial_id, seq=event.seq, kind=event.kind, t_ns=event.t_ns,
+                                payload=event.payload))
+            if frame is not None:
+                db.add(models.Frame(trial_id=trial_id, seq=event.seq, **frame))
+            if trial_cache:
+                trial = db.get(models.Trial, trial_id)
+                for key, value in trial_cache.items():
+                    setattr(trial, key, value)

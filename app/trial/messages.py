@@ -1,0 +1,63 @@
+"""What a seat may send over its socket: one pydantic model per message, a discriminated union.
+
+Every message carries the seat's token (checked on each message, not only at connect).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, Union
+
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
+
+from sim.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M
+
+MAX_CHAT_CHARS = 500
+
+
+class _Message(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    token: str = Field(max_length=512)
+
+
+class Chat(_Message):
+    type: Literal["chat"]
+    text: str = Field(min_length=1, max_length=MAX_CHAT_CHARS)
+
+
+class Move(_Message):
+    type: Literal["move"]
+    action: Literal["forward", "left", "right"]
+    move_id: str | None = Field(default=None, max_length=64)
+
+
+class Localize(_Message):
+    type: Literal["localize"]
+    x: float = Field(ge=0.0, le=TABLE_WIDTH_M)
+    y: float = Field(ge=0.0, le=TABLE_HEIGHT_M)
+    heading: float | None = Field(default=None, ge=-7.0, le=7.0)  # radians
+
+
+class Claim(_Message):
+    type: Literal["claim"]
+
+
+class Confirm(_Message):
+    type: Literal["confirm"]
+
+
+class Reject(_Message):
+    type: Literal["reject"]
+
+
+class Ping(_Message):
+    type: Literal["ping"]
+
+
+SeatMessage = Annotated[Union[Chat, Move, Localize, Claim, Confirm, Reject, Ping], Field(discriminator="type")]
+seat_message = TypeAdapter(SeatMessage)
+
+# Which role may send which message.
+ALLOWED = {
+    "commander": {"chat", "localize", "confirm", "reject", "ping"},
+    "driver": {"chat", "move", "claim", "ping"},
+}
