@@ -10,3 +10,6 @@ def register(root: typer.Typer, eval_app: typer.Typer) -> None:
     from sim import eval_cli
 
     eval_app.command("baselines")(eval_cli.eval_baselines)
+    from sim import bench_cli
+
+    bench_cli.register(root)
