@@ -1,0 +1,228 @@
+"""The replay simulation's observations: 13 rays over a 78 degree field of view.
+
+Each ray starts at the agent's exact position and returns the label of the first non-floor
+pixel it meets on the maze's `labels` grid (walls and objects, `maze.map-fixed.png`), its
+distance in metres, and whether that wall is too close to move toward. With the
+forward-blocked flag of the navigation graph, that is the observation of the paper's agent.
+Everything is static per (node, heading), so `RayTable` precomputes it for a whole graph.
+
+Rays are marched over the map's pixels one pixel (1.8 mm) at a time, jumping across open floor
+as far as the map's distance transform guarantees no wall pixel is skipped; each hit is then
+placed to within a quarter pixel (0.44 mm).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+import weakref
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from sim.cache import cache_dir as default_cache_dir
+from sim.geometry import (
+    GRID_STEP_M, HEADINGS, MAP_HEIGHT_PX, MAP_WIDTH_PX, TABLE_HEIGHT_M, TABLE_WIDTH_M, TURN_RAD,
+)
+from sim.labels import N_LABELS, Label
+from sim.maze import Maze
+from sim.navgraph import WALL_CLEARANCE_PX, NavGraph
+
+N_RAYS = 13
+FOV_DEG = 78.0
+RAY_OFFSETS = np.deg2rad(np.linspace(-FOV_DEG / 2, FOV_DEG / 2, N_RAYS))  # left of heading is +
+
+# Pixels per metre along each axis (the raster is very slightly anisotropic).
+PX_PER_M_X = (MAP_WIDTH_PX - 1) / TABLE_WIDTH_M
+PX_PER_M_Y = (MAP_HEIGHT_PX - 1) / TABLE_HEIGHT_M
+
+# The navigation graph removes grid points within 40 pixels of a wall, so a forward move
+# collides when it would end that close to one. A ray is "too close" when one forward move
+# along it would end within that clearance: depth < step + clearance, the simulator's own
+# collision rule. (The robot's half length, 0.127 m, is larger than the graph's clearance, so
+# a threshold built on it would flag walls the simulator lets the agent drive up to.)
+WALL_CLEARANCE_M = WALL_CLEARANCE_PX / PX_PER_M_X
+STEP_M = np.where(np.arange(HEADINGS) % 2 == 0, 1.0, np.sqrt(2)) * GRID_STEP_M  # per heading
+TOO_CLOSE_M = STEP_M + WALL_CLEARANCE_M  # (8,) threshold per heading
+
+# Flat feature vector per (node, heading): one-hot label per ray, depth per ray (metres),
+# too-close per ray, forward blocked.
+OBS_FEATURES = N_RAYS * N_LABELS + N_RAYS + N_RAYS + 1
+
+HIT_RESOLUTION_PX = 0.25  # a hit is placed within this much of where the ray enters it
+_SAFE_PX = 1.5  # a point rounds to a pixel at most sqrt(2)/2 px away, on both ends of a step
+_CACHE_VERSION = 1
+
+
+class RayCaster:
+    """Casts rays on one label grid, from any continuous pose."""
+
+    def __init__(self, labels: np.ndarray):
+        self.labels = np.ascontiguousarray(labels, dtype=np.uint8)
+        # Distance (px) from each pixel centre to the nearest non-floor pixel centre.
+        self.clearance = cv2.distanceTransform((self.labels == Label.FLOOR).astype(np.uint8),
+                                               cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+
+    def cast(self, x, y, angles, step_px: float = 1.0, window: int = 1,
+             resolution_px: float = HIT_RESOLUTION_PX):
+        """Rays from (x, y) metres at absolute angles (radians, broadcast together).
+
+        Returns (labels uint8, depth float64 metres) shaped like the broadcast. A ray that
+        leaves the table without meeting anything returns FLOOR and the distance to the edge.
+        Each round samples `window` points `step_px` apart (so a ray grazing a wall still
+        advances) and then jumps as far as the distance transform allows; a hit is then placed
+        to within `resolution_px` of where the ray enters the pixel.
+        """
+        x, y, angles = np.broadcast_arrays(np.asarray(x, np.float64), np.asarray(y, np.float64),
+                                           np.asarray(angles, np.float64))
+        shape = x.shape
+        x, y, angles = x.ravel(), y.ravel(), angles.ravel()
+        outside = (x < 0) | (x > TABLE_WIDTH_M) | (y < 0) | (y > TABLE_HEIGHT_M)
+        if outside.any():
+            i = int(np.argmax(outside))
+            raise ValueError(f"ray origin ({x[i]:.3f}, {y[i]:.3f}) m is off the "
+                             f"{TABLE_WIDTH_M} x {TABLE_HEIGHT_M} m table")
+        h, w = self.labels.shape
+        # Positions are kept shifted by half a pixel, so truncation is rounding to a pixel.
+        col0 = x * PX_PER_M_X + 0.5
+        row0 = (h - 0.5) - y * PX_PER_M_Y
+        dc = np.cos(angles) * PX_PER_M_X
+        dr = -np.sin(angles) * PX_PER_M_Y
+        px_per_m = np.hypot(dc, dr)  # pixels travelled per metre along each ray
+        uc, ur = dc / px_per_m, dr / px_per_m
+        t_exit = np.minimum(_exit_time(col0, uc, w), _exit_time(row0, ur, h))
+        flat_labels, flat_clear = self.labels.ravel(), self.clearance.ravel()
+
+        def pixels(rays, ts):  # flat pixel index of the points at distances ts (R, K)
+            ci = (col0[rays, None] + uc[rays, None] * ts).astype(np.int64)
+            ri = (row0[rays, None] + ur[rays, None] * ts).astype(np.int64)
+            return ri * w + ci
+
+        n = x.size
+        t = np.zeros(n)
+        hit_label = np.zeros(n, dtype=np.uint8)
+        hit_t = np.zeros(n)
+        offsets = np.arange(window) * step_px
+        active = np.arange(n)
+        while active.size:
+            te = t_exit[active, None]
+            ts = np.minimum(t[active, None] + offsets, te)  # (R, window)
+            flat = pixels(active, ts)
+            label = flat_labels[flat]
+            stop = (label != 0) | (ts >= te)
+            first = stop.argmax(axis=1)
+            done = stop[np.arange(active.size), first]
+            rows = np.nonzero(done)[0]
+            hit_label[active[rows]] = label[rows, first[rows]]
+            hit_t[active[rows]] = ts[rows, first[rows]]
+            go = ~done
+            jump = (ts[go] + flat_clear[flat[go]] - _SAFE_PX).max(axis=1)
+            active = active[go]
+            t[active] = np.maximum(ts[go, -1] + step_px, jump)
+
+        # Every point up to one step before a hit is known to be floor: search that last step.
+        fine = np.arange(resolution_px - step_px, 0, resolution_px)
+        hits = np.nonzero((hit_label != 0) & (hit_t > 0))[0]
+        if fine.size and hits.size:
+            ts = np.maximum(hit_t[hits, None] + fine, 0)
+            label = flat_labels[pixels(hits, ts)]
+            stop = label != 0
+            first = stop.argmax(axis=1)
+            rows = np.nonzero(stop[np.arange(hits.size), first])[0]
+            hit_label[hits[rows]] = label[rows, first[rows]]
+            hit_t[hits[rows]] = ts[rows, first[rows]]
+        return hit_label.reshape(shape), (hit_t / px_per_m).reshape(shape)
+
+
+def _exit_time(p0: np.ndarray, u: np.ndarray, size: int) -> np.ndarray:
+    """Distance along unit direction u from p0 (shifted half a pixel) to the raster's edge."""
+    inside = 1e-6  # stop just short of the edge, so truncation stays a valid index
+    with np.errstate(divide="ignore"):
+        t_hi = np.where(u > 0, (size - inside - p0) / u, np.inf)
+        t_lo = np.where(u < 0, (inside - p0) / u, np.inf)
+    return np.minimum(t_hi, t_lo)
+
+
+_casters: "weakref.WeakKeyDictionary[Maze, RayCaster]" = weakref.WeakKeyDictionary()
+
+
+def ray_caster(maze: Maze) -> RayCaster:
+    """The maze's caster on its `labels` grid (objects visible), built once per maze."""
+    caster = _casters.get(maze)
+    if caster is None:
+        caster = _casters[maze] = RayCaster(maze.labels)
+    return caster
+
+
+def cast_rays(maze: Maze, x: float, y: float, theta: float, offsets=RAY_OFFSETS):
+    """The observation rays from a continuous pose: (labels (13,), depth (13,) metres)."""
+    return ray_caster(maze).cast(x, y, theta + np.asarray(offsets))
+
+
+def too_close(depth, heading) -> np.ndarray:
+    """Whether a forward move at `heading` (index 0..7) toward a wall `depth` metres away would
+    end within the navigation graph's wall clearance."""
+    return np.asarray(depth) < TOO_CLOSE_M[np.asarray(heading) % HEADINGS]
+
+
+@dataclass(frozen=True, eq=False)
+class RayTable:
+    labels: np.ndarray  # (N, 8, 13) uint8 Label of the first non-floor pixel per ray
+    depth: np.ndarray  # (N, 8, 13) float32 metres
+    too_close: np.ndarray  # (N, 8, 13) bool
+    forward_blocked: np.ndarray  # (N, 8) bool
+
+    @classmethod
+    def build(cls, maze: Maze, graph: NavGraph, cache_dir: str | Path | None = None,
+              use_cache: bool = True) -> "RayTable":
+        """Every (node, heading) observation of `graph` on `maze`, cached by maze and nodes."""
+        key = hashlib.sha256(np.ascontiguousarray(graph.nodes).tobytes()).hexdigest()[:12]
+        path = (default_cache_dir(cache_dir) / "rays"
+                / f"{maze.content_hash}-{key}-v{_CACHE_VERSION}.npz")
+        labels = depth = None
+        if use_cache and path.exists():
+            try:
+                with np.load(path) as data:
+                    labels, depth = data["labels"], data["depth"]
+            except (OSError, ValueError, KeyError):
+                labels = None  # a torn or stale cache file is rebuilt below
+        if labels is None or labels.shape != (graph.n, HEADINGS, N_RAYS):
+            labels, depth = node_rays(maze, graph.nodes)
+            if use_cache:
+                _save(path, labels=labels, depth=depth)
+        return cls(labels=labels, depth=depth,
+                   too_close=too_close(depth, np.arange(HEADINGS)[None, :, None]),
+                   forward_blocked=graph.forward < 0)
+
+    def features(self) -> np.ndarray:
+        """(N, 8, OBS_FEATURES) float32: one-hot labels (13 x 10), depths, too-close, blocked."""
+        n = self.labels.shape[0]
+        out = np.zeros((n, HEADINGS, OBS_FEATURES), dtype=np.float32)
+        onehot = out[..., : N_RAYS * N_LABELS].reshape(n, HEADINGS, N_RAYS, N_LABELS)
+        np.put_along_axis(onehot, self.labels[..., None].astype(np.int64), 1.0, axis=-1)
+        start = N_RAYS * N_LABELS
+        out[..., start : start + N_RAYS] = self.depth
+        out[..., start + N_RAYS : start + 2 * N_RAYS] = self.too_close
+        out[..., -1] = self.forward_blocked
+        return out
+
+
+def node_rays(maze: Maze, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rays for every node position and heading: labels (N, 8, 13) uint8, depth float32."""
+    angles = np.arange(HEADINGS)[:, None] * TURN_RAD + RAY_OFFSETS[None, :]  # (8, 13)
+    nodes = np.asarray(nodes, dtype=np.float64)
+    labels, depth = ray_caster(maze).cast(nodes[:, 0, None, None], nodes[:, 1, None, None],
+                                          angles[None])
+    return labels, depth.astype(np.float32)
+
+
+def _save(path: Path, **arrays) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    # Write then rename, so concurrent builders never read a half-written file.
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
+    os.close(fd)
+    np.savez(tmp, **arrays)
+    os.replace(tmp, path)
