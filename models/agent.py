@@ -1,0 +1,98 @@
+"""The NDH seq2seq Driver: a dialog encoder and an action decoder over ray observations.
+
+Encoder: word embeddings (128) -> LSTM (128) over the dialog tokens. Its final state starts the
+decoder LSTM (128), which at each step reads the encoded ray observation and the embedding (8)
+of the previous action, and scores forward/left/right/stop. Forward is masked wherever it
+would collide. Two options go beyond the paper's model: attention over the dialog at each step,
+and a progress monitor (an auxiliary head predicting how much of the way is done).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import torch
+from torch import nn
+
+N_ACTIONS = 4  # sim.dynamics.Action: FORWARD, LEFT, RIGHT, STOP
+FORWARD, LEFT, RIGHT, STOP = range(N_ACTIONS)
+START = N_ACTIONS  # the "previous action" at the first step
+NEG_INF = -1e9
+
+
+@dataclass
+class AgentConfig:
+    vocab_size: int
+    obs_features: int
+    embed: int = 128
+    hidden: int = 128
+    obs_hidden: int = 128
+    action_embed: int = 8
+    dropout: float = 0.5
+    attention: bool = False
+    progress_monitor: bool = False
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+class Seq2SeqAgent(nn.Module):
+    def __init__(self, config: AgentConfig):
+        super().__init__()
+        self.config = config
+        c = config
+        self.embedding = nn.Embedding(c.vocab_size, c.embed, padding_idx=0)
+        self.encoder = nn.LSTM(c.embed, c.hidden, batch_first=True)
+        self.drop = nn.Dropout(c.dropout)
+        self.obs_encoder = nn.Sequential(nn.Linear(c.obs_features, c.obs_hidden), nn.ReLU())
+        self.action_embedding = nn.Embedding(N_ACTIONS + 1, c.action_embed)
+        self.decoder = nn.LSTMCell(c.obs_hidden + c.action_embed, c.hidden)
+        if c.attention:
+            self.attn_query = nn.Linear(c.hidden, c.hidden, bias=False)
+            self.attn_out = nn.Linear(2 * c.hidden, c.hidden)
+        self.policy = nn.Linear(c.hidden, N_ACTIONS)
+        if c.progress_monitor:
+            self.progress = nn.Linear(c.hidden, 1)
+
+    def encode(self, tokens: torch.Tensor, lengths: torch.Tensor):
+        """(B, T) ids, (B,) lengths -> context (B, T, H), its mask (B, T), initial state.
+
+        A dialog of length 0 (the language-blind ablation) gets a zero state and no context.
+        """
+        empty = lengths == 0
+        safe = lengths.clamp(min=1)
+        emb = self.drop(self.embedding(tokens))
+        packed = nn.utils.rnn.pack_padded_sequence(emb, safe.cpu(), batch_first=True, enforce_sorted=False)
+        out, (h, c) = self.encoder(packed)
+        ctx, _ = nn.utils.rnn.pad_packed_sequence(out, batch_first=True, total_length=tokens.shape[1])
+        keep = (~empty).float().unsqueeze(1)
+        h, c = h[0] * keep, c[0] * keep
+        ctx_mask = torch.arange(tokens.shape[1]).unsqueeze(0) < lengths.unsqueeze(1)
+        return ctx * ctx_mask.unsqueeze(2).float(), ctx_mask, (h, c)
+
+    def step(self, obs: torch.Tensor, prev_action: torch.Tensor, state, ctx, ctx_mask,
+             forward_blocked: torch.Tensor, stop_allowed: torch.Tensor | None = None):
+        """One decision: logits (B, 4) with the impossible actions masked, the new state, progress (B,) or None."""
+        x = torch.cat([self.obs_encoder(obs), self.action_embedding(prev_action)], dim=1)
+        h, c = self.decoder(self.drop(x), state)
+        out = h
+        if self.config.attention:
+            scores = torch.bmm(ctx, self.attn_query(h).unsqueeze(2)).squeeze(2)
+            scores = scores.masked_fill(~ctx_mask, NEG_INF)
+            weights = torch.softmax(scores, dim=1) * ctx_mask.any(dim=1, keepdim=True).float()
+            attended = torch.bmm(weights.unsqueeze(1), ctx).squeeze(1)
+            out = torch.tanh(self.attn_out(torch.cat([h, attended], dim=1)))
+        logits = self.policy(self.drop(out))
+        logits = mask_logits(logits, forward_blocked, stop_allowed)
+        progress = torch.sigmoid(self.progress(out)).squeeze(1) if self.config.progress_monitor else None
+        return logits, (h, c), progress
+
+
+def mask_logits(logits: torch.Tensor, forward_blocked: torch.Tensor,
+                stop_allowed: torch.Tensor | None = None) -> torch.Tensor:
+    """Forward is impossible where it would collide; stop, where given, only where allowed."""
+    mask = torch.zeros_like(logits, dtype=torch.bool)
+    mask[:, FORWARD] = forward_blocked
+    if stop_allowed is not None:
+        mask[:, STOP] = ~stop_allowed
+    return logits.masked_fill(mask, NEG_INF)

@@ -1,0 +1,64 @@
+"""Scoring a trained Driver on a split with the benchmark's metrics (sim.metrics).
+
+The agent acts greedily (argmax, forward masked where it would collide) from the episode start
+pose, at most 120 actions; each trajectory is scored by `sim.metrics.score_trajectory` on the
+maze's benchmark graph, exactly as the baselines are.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from models.agent import STOP, Seq2SeqAgent
+from models.data import EpisodeSet, World
+from models.rollout import run_episodes
+from sim.benchmark import Benchmark
+from sim.geometry import heading_angle
+from sim.metrics import EpisodeResult, score_trajectory
+
+EVAL_BATCH = 100
+
+
+def agent_name(train_config: dict) -> str:
+    """'seq2seq-baseline-student-none': model, feedback and ablation of a checkpoint."""
+    return f"seq2seq-{train_config['model']}-{train_config['feedback']}-{train_config['blind']}"
+
+
+@torch.no_grad()
+def evaluate_agent(agent: Seq2SeqAgent, bench: Benchmark, world: World, episodes: EpisodeSet,
+                   blind: str, name: str, seed: int = 0, max_actions: int = 120) -> list[EpisodeResult]:
+    agent.eval()
+    results = []
+    for lo in range(0, len(episodes), EVAL_BATCH):
+        idx = np.arange(lo, min(lo + EVAL_BATCH, len(episodes)))
+        roll = run_episodes(agent, world, episodes, idx, "argmax", blind, max_actions)
+        for row, k in enumerate(idx):
+            inst = episodes.instances[k]
+            off = world.offset[episodes.run[k]]
+            moves = int(((roll.actions[row] >= 0) & (roll.actions[row] != STOP)).sum())
+            local = roll.nodes[row, :moves + 1] - off
+            graph = bench.graph(inst.run)
+            score = score_trajectory(graph, local, int(episodes.goal_node[k] - off))
+            sx, sy = graph.nodes[local[0]]
+            results.append(EpisodeResult(
+                split=episodes.split, inst_idx=inst.inst_idx, agent=name, seed=seed,
+                start_x=float(sx), start_y=float(sy),
+                start_heading=float(heading_angle(int(episodes.start_heading[k]))),
+                goal_x=float(inst.target_pose[0]), goal_y=float(inst.target_pose[1]),
+                td=score.td, otd=score.otd, steps=moves, success=score.success, spl=score.spl))
+    return results
+
+
+def evaluate_checkpoint(bench: Benchmark, world: World, checkpoint: str | Path, split: str,
+                        name: str | None = None) -> list[EpisodeResult]:
+    """Per-instance results of a checkpoint on `split`, under its own tokenizer and ablation."""
+    from models.train import load_agent
+
+    agent, tokenizer, ckpt = load_agent(checkpoint)
+    cfg = ckpt["train_config"]
+    episodes = EpisodeSet.build(bench, world, split, tokenizer)
+    return evaluate_agent(agent, bench, world, episodes, cfg["blind"], name or agent_name(cfg),
+                          seed=int(cfg["seed"]), max_actions=int(cfg["max_actions"]))

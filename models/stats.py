@@ -1,0 +1,69 @@
+"""Significance of differences between Driver configurations, as the paper tests them.
+
+Pairs are NDH instances: each configuration's metric is first averaged over its seeds per
+instance (the per-trajectory micro-average), then two configurations are compared with a
+paired t-test, and the p-values of the whole family of comparisons are corrected with
+Benjamini-Yekutieli (which holds under any dependence between the tests).
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from scipy import stats
+
+from sim.metrics import EpisodeResult
+
+ALPHA = 0.05
+
+
+@dataclass(frozen=True)
+class Comparison:
+    a: str
+    b: str
+    metric: str
+    n: int
+    mean_a: float
+    mean_b: float
+    t: float
+    p: float
+    p_adjusted: float
+    significant: bool
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def per_instance(results: list[EpisodeResult], metric: str) -> dict[str, dict[int, float]]:
+    """{agent: {inst_idx: metric averaged over seeds}}."""
+    values: dict[str, dict[int, list[float]]] = defaultdict(lambda: defaultdict(list))
+    for r in results:
+        values[r.agent][r.inst_idx].append(float(getattr(r, metric)))
+    return {agent: {k: float(np.mean(v)) for k, v in by_inst.items()} for agent, by_inst in values.items()}
+
+
+def paired_tests(results: list[EpisodeResult], pairs: list[tuple[str, str]],
+                 metrics: tuple[str, ...] = ("td",), alpha: float = ALPHA) -> list[Comparison]:
+    """Paired t-tests of each (a, b) pair on each metric, BY-corrected over all of them."""
+    raw = []
+    for metric in metrics:
+        table = per_instance(results, metric)
+        for a, b in pairs:
+            for name in (a, b):
+                if name not in table:
+                    raise ValueError(f"no results for configuration {name!r}; have {', '.join(sorted(table))}")
+            common = sorted(set(table[a]) & set(table[b]))
+            x = np.array([table[a][k] for k in common])
+            y = np.array([table[b][k] for k in common])
+            finite = np.isfinite(x) & np.isfinite(y)
+            x, y = x[finite], y[finite]
+            if len(x) < 2:
+                raise ValueError(f"{a} vs {b}: fewer than two instances in common")
+            t, p = stats.ttest_rel(x, y)
+            if np.isnan(p):  # identical columns: no evidence of any difference
+                t, p = 0.0, 1.0
+            raw.append((a, b, metric, len(x), float(x.mean()), float(y.mean()), float(t), float(p)))
+    adjusted = stats.false_discovery_control([r[-1] for r in raw], method="by") if raw else []
+    return [Comparison(*r, p_adjusted=float(q), significant=bool(q < alpha)) for r, q in zip(raw, adjusted)]
