@@ -214,8 +214,10 @@ def node_rays(maze: Maze, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rays for every node position and heading: labels (N, 8, 13) uint8, depth float32."""
     angles = np.arange(HEADINGS)[:, None] * TURN_RAD + RAY_OFFSETS[None, :]  # (8, 13)
     nodes = np.asarray(nodes, dtype=np.float64)
-    labels, depth = ray_caster(maze).cast(nodes[:, 0, None, None], nodes[:, 1, None, None],
-                                          angles[None])
+    # A caster of its own: tables are built for many mazes at once, and the distance
+    # transform (6.6 MB) need not outlive the table.
+    labels, depth = RayCaster(maze.labels).cast(nodes[:, 0, None, None], nodes[:, 1, None, None],
+                                                angles[None])
     return labels, depth.astype(np.float32)
 
 
