@@ -1,0 +1,155 @@
+"""The Driver's camera and the top-down view, painted from the map."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sim.geometry import world_to_pixel
+from sim.labels import LABEL_BGR, WALL_LABELS, Label
+from sim.maze import Maze
+from sim.navgraph import NavGraph
+from sim.observations import N_RAYS, PX_PER_M_X, RayTable, cast_rays
+from sim.render import HORIZON, first_person, top_down
+from tests.sim.synthetic import synthetic_maze
+
+WALL_COL = 800  # a wide wall's face is the left edge of this column
+
+
+def _hue_matches(image: np.ndarray, label: Label, tolerance: float = 0.06) -> np.ndarray:
+    """Pixels whose colour points the way of `label`'s colour (any brightness above dim)."""
+    px = image.astype(np.float64)
+    norm = np.linalg.norm(px, axis=-1)
+    ref = np.array(LABEL_BGR[label], dtype=np.float64)
+    ref /= np.linalg.norm(ref)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        direction = px / norm[..., None]
+    return (norm > 40) & (np.linalg.norm(direction - ref, axis=-1) < tolerance)
+
+
+def _wall_label(pixel: np.ndarray) -> Label:
+    """The wall colour a pixel is a shade of."""
+    px = pixel.astype(np.float64) / max(np.linalg.norm(pixel), 1e-9)
+    refs = [np.array(LABEL_BGR[w], dtype=np.float64) / np.linalg.norm(LABEL_BGR[w]) for w in WALL_LABELS]
+    return WALL_LABELS[int(np.argmin([np.linalg.norm(px - r) for r in refs]))]
+
+
+def _pose_facing_wall(distance_m: float):
+    """(x, y) at `distance_m` left of the face of a wall at column WALL_COL, mid-table."""
+    x_face = (WALL_COL - 0.5) / PX_PER_M_X
+    return x_face - distance_m, 1.0
+
+
+def test_frame_is_bgr_uint8_of_the_requested_size():
+    maze = synthetic_maze()
+    image = first_person(maze, 1.0, 1.0, 0.3)
+    assert image.shape == (240, 320, 3) and image.dtype == np.uint8
+    assert first_person(maze, 1.0, 1.0, 0.3, size=(640, 480)).shape == (480, 640, 3)
+
+
+def test_a_silly_size_is_refused():
+    with pytest.raises(ValueError, match="too small"):
+        first_person(synthetic_maze(), 1.0, 1.0, 0.0, size=(4, 3))
+
+
+@pytest.mark.parametrize("label", WALL_LABELS)
+def test_a_close_wall_fills_the_centre_in_its_colour(label):
+    maze = synthetic_maze([(label, WALL_COL, 100, WALL_COL + 11, 1100)])
+    x, y = _pose_facing_wall(0.15)
+    image = first_person(maze, x, y, 0.0)
+    centre = image[int(HORIZON * 240), 160]
+    assert _wall_label(centre) == label
+    # A wall this close covers most of the picture's height in every column.
+    column = image[:, 160]
+    assert (column == centre).all(axis=1).mean() > 0.5
+
+
+def test_walls_shrink_with_distance():
+    maze = synthetic_maze([(Label.RED, WALL_COL, 100, WALL_COL + 11, 1100)])
+    heights = []
+    for distance in (0.2, 0.8):
+        image = first_person(maze, *_pose_facing_wall(distance), 0.0)
+        heights.append(_hue_matches(image[:, 150:170], Label.RED).any(axis=1).sum())
+    # Apparent height goes as 1 / distance: four times nearer, four times taller.
+    assert 3.5 < heights[0] / heights[1] < 4.5
+
+
+@pytest.mark.parametrize("label", [Label.JAR, Label.MUG, Label.PADDLE])
+def test_objects_are_drawn_where_they_stand(label):
+    maze = synthetic_maze(objects={label: (700, 600)})
+    ox, oy = maze.objects[label.word]
+    image = first_person(maze, ox - 0.4, oy, 0.0)
+    seen = _hue_matches(image, label)
+    assert seen.sum() > 300
+    cols = np.nonzero(seen.any(axis=0))[0]
+    assert cols.min() < 160 < cols.max()  # straight ahead
+    # Turned away, it is out of view.
+    assert not _hue_matches(first_person(maze, ox - 0.4, oy, np.pi), label).any()
+
+
+def test_a_wall_in_between_hides_an_object():
+    open_maze = synthetic_maze(objects={Label.JAR: (700, 600)})
+    ox, oy = open_maze.objects["jar"]
+    c, r = (int(v) for v in world_to_pixel(ox - 0.2, oy))
+    blocked = synthetic_maze([(Label.RED, c, r - 150, c + 11, r + 150)], objects={Label.JAR: (700, 600)})
+    assert _hue_matches(first_person(open_maze, ox - 0.5, oy, 0.0), Label.JAR).sum() > 100
+    assert not _hue_matches(first_person(blocked, ox - 0.5, oy, 0.0), Label.JAR).any()
+
+
+# -- the benchmark's maps ------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def run_318(benchmark_path):
+    maze = Maze.from_dir(benchmark_path / "mazedata" / "Run_318")
+    graph = NavGraph.build(maze)
+    return maze, graph, RayTable.build(maze, graph)
+
+
+@pytest.mark.parametrize("ij, k, label", [((15, 22), 2, Label.RED), ((15, 22), 6, Label.BLUE),
+                                          ((10, 15), 4, Label.GREEN)])
+def test_the_wall_ahead_on_run_318_is_the_centre_of_the_frame(run_318, ij, k, label):
+    maze, graph, _ = run_318
+    x, y = graph.nodes[graph.node_grid[ij]]
+    image = first_person(maze, x, y, k * np.pi / 4)
+    assert _wall_label(image[int(HORIZON * 240), 160]) == label
+
+
+@pytest.mark.parametrize("label", [Label.JAR, Label.MUG, Label.PADDLE])
+def test_each_object_of_run_318_shows_when_the_rays_see_it(run_318, label):
+    maze, graph, table = run_318
+    centre = N_RAYS // 2
+    sees = np.argwhere((table.labels[:, :, centre] == label) & (table.depth[:, :, centre] > 0.15))
+    node, k = sees[0]
+    x, y = graph.nodes[node]
+    seen = _hue_matches(first_person(maze, x, y, k * np.pi / 4), label)
+    assert seen[:, 140:180].sum() > 50
+
+
+# -- top-down ------------------------------------------------------------------------------
+
+def test_top_down_is_the_map_scaled():
+    maze = synthetic_maze()
+    assert top_down(maze).shape == (588, 700, 3)
+    assert top_down(maze, scale=1.0).shape == (1175, 1401, 3)
+    with pytest.raises(ValueError, match="scale"):
+        top_down(maze, scale=0)
+
+
+def test_top_down_draws_agent_path_and_rays():
+    maze = synthetic_maze([(Label.RED, WALL_COL, 100, WALL_COL + 11, 1100)])
+    x, y = _pose_facing_wall(0.5)
+    plain = top_down(maze, scale=1.0)
+    image = top_down(maze, pose=(x, y, 0.0), path=[(x - 0.6, y - 0.3), (x - 0.3, y), (x, y)],
+                     rays=True, scale=1.0)
+
+    def at(px, py):
+        c, r = world_to_pixel(px, py)
+        return image[int(round(float(r))), int(round(float(c)))]
+
+    assert tuple(at(x + 0.03, y)) == (255, 255, 255)  # the arrow, pointing along +x
+    assert tuple(at(x - 0.45, y - 0.15)) == (40, 170, 255)  # on the path
+    labels, depth = cast_rays(maze, x, y, 0.0)
+    assert labels[N_RAYS // 2] == Label.RED
+    # The centre ray's end is marked in the colour of the wall it hits.
+    assert tuple(at(x + depth[N_RAYS // 2] - 0.002, y)) == LABEL_BGR[Label.RED]
+    assert (image != plain).any(axis=-1).sum() > 500
