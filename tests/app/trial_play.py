@@ -1,0 +1,49 @@
+"""Playing a trial as its two seats, with the shortest path choosing the Driver's moves."""
+
+from __future__ import annotations
+
+import itertools
+
+from sim.dynamics import Action, snap_pose, teacher_action
+
+_ids = itertools.count()
+
+
+def oracle_action(services, trial_id: int) -> Action:
+    """The shortest-path move toward the current target, from the simulator's true pose."""
+    runtime = services.hub.peek(trial_id)
+    state = runtime.state
+    graph, maze = services.mazes.graph(state.maze), services.mazes.load(state.maze)
+    goal = graph.nearest_node(*maze.objects[state.current_target])
+    return teacher_action(graph, snap_pose(graph, *runtime.backend.pose()), goal)
+
+
+async def move(driver, action: str) -> dict:
+    move_id = f"m{next(_ids)}"
+    await driver.send("move", action=action, move_id=move_id)
+    return await driver.event("move_executed", move_id=move_id)
+
+
+async def drive_to_target(services, trial_id: int, driver, max_moves: int = 400) -> int:
+    for n in range(max_moves):
+        action = oracle_action(services, trial_id)
+        if action == Action.STOP:
+            return n
+        executed = await move(driver, action.word)
+        assert executed["payload"]["outcome"] == "ok", executed
+    raise AssertionError(f"target not reached in {max_moves} moves")
+
+
+async def start_trial(commander, driver) -> None:
+    await commander.event("phase", phase="localizing")
+    await driver.event("phase", phase="localizing")
+
+
+async def claim_and_decide(commander, driver, confirm: bool) -> dict:
+    start_c, start_d = len(commander.received), len(driver.received)
+    await driver.send("claim")
+    claimed = await commander.event("target_claimed", start=start_c)
+    await commander.send("confirm" if confirm else "reject")
+    kind = "target_confirmed" if confirm else "target_rejected"
+    await driver.event(kind, start=start_d)
+    return claimed
