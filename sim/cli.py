@@ -13,3 +13,6 @@ def register(root: typer.Typer, eval_app: typer.Typer) -> None:
     from sim import bench_cli
 
     bench_cli.register(root)
+    from sim import play
+
+    play.register(root)
