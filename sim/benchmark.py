@@ -64,10 +64,10 @@ class NDHInstance:
 
     @property
     def previous_object(self) -> tuple[float, float] | None:
-        """The object the agent starts beside (mug: the jar; paddle: the mug); None for jar."""
-        order = ("jar", "mug", "paddle")
-        k = order.index(self.target)
-        return self.all_targets[k - 1] if k > 0 else None
+        """The object the agent starts beside (the previous target: mug after jar, paddle after mug
+        in the benchmark); None for a trial's first target. The benchmark gives it as the two-element
+        `agent_pose`, which also holds for exports of trials with other target orders."""
+        return None if len(self.agent_pose) > 2 else (self.agent_pose[0], self.agent_pose[1])
 
 
 class Benchmark:
