@@ -1,0 +1,197 @@
+"""The scripted Commander and Driver, each on its own websocket exactly as a browser is.
+
+Both know the robot's true start pose (the demo reads it from the log, as the experimenter
+could): the Commander turns the shortest route into words, and the Driver follows it by dead
+reckoning on the move outcomes the server reports, with a few deliberate mistakes and
+questions so that the recordings look like people's.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import random
+from dataclasses import dataclass, field
+from typing import Any
+
+from websockets.asyncio.client import ClientConnection, connect
+
+from app.demo.script import OBJECT_WORDS, describe_view, plan_leg
+from sim.dynamics import Action, Pose, step, teacher_action
+from sim.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M, heading_angle
+from sim.maze import Maze
+from sim.navgraph import NavGraph
+
+WAIT_S = 60.0  # longest a player waits for its partner or the server before giving up
+QUESTIONS = ("should i keep going this way?", "is this the right way?", "which way now?",
+             "do i turn here?")
+ANSWERS = ("yes, keep going", "yes, you're on the right track", "keep following the walls as i said")
+
+
+class DemoError(RuntimeError):
+    """A scripted trial that could not go on; the message names the trial and what was missing."""
+
+
+@dataclass
+class Seat:
+    """One player's socket: sends messages with its token, and waits for the events it hears."""
+
+    role: str
+    trial_id: int
+    token: str
+    ws: ClientConnection
+    inbox: asyncio.Queue = field(default_factory=asyncio.Queue)
+    reader: asyncio.Task | None = None
+
+    @classmethod
+    async def open(cls, server: str, trial_id: int, role: str, token: str) -> "Seat":
+        url = server.replace("http://", "ws://").replace("https://", "wss://").rstrip("/")
+        ws = await connect(f"{url}/ws/play?token={token}", max_size=2**24)
+        seat = cls(role=role, trial_id=trial_id, token=token, ws=ws)
+        seat.reader = asyncio.get_running_loop().create_task(seat._read())
+        return seat
+
+    async def _read(self) -> None:
+        try:
+            async for text in self.ws:
+                await self.inbox.put(json.loads(text))
+        finally:
+            await self.inbox.put({"type": "closed"})
+
+    async def send(self, type_: str, **fields: Any) -> None:
+        await self.ws.send(json.dumps({"type": type_, "token": self.token, **fields}))
+
+    async def say(self, text: str) -> None:
+        await self.send("chat", text=text)
+
+    async def until(self, accept, what: str) -> dict:
+        """The next message for which `accept(message)` is true."""
+        try:
+            async with asyncio.timeout(WAIT_S):
+                while True:
+                    message = await self.inbox.get()
+                    if message.get("type") == "closed":
+                        raise DemoError(f"trial {self.trial_id}: the server closed the {self.role}'s "
+                                        f"socket while waiting for {what}")
+                    if accept(message):
+                        return message
+        except TimeoutError:
+            raise DemoError(f"trial {self.trial_id}: the {self.role} waited {WAIT_S:.0f} s "
+                            f"for {what}") from None
+
+    async def event(self, kind: str, **match: Any) -> dict:
+        def accept(m: dict) -> bool:
+            return (m.get("type") == "event" and m.get("kind") == kind
+                    and all(m["payload"].get(k) == v for k, v in match.items()))
+        return await self.until(accept, f"a {kind!r} event {match or ''}".strip())
+
+    async def close(self) -> None:
+        await self.ws.close()
+        if self.reader is not None:
+            await asyncio.gather(self.reader, return_exceptions=True)
+
+
+def _is_phase(message: dict, phase: str, index: int | None = None) -> bool:
+    return (message.get("type") == "event" and message.get("kind") == "phase"
+            and message["payload"].get("phase") == phase
+            and (index is None or message["payload"].get("target_index") == index))
+
+
+class ScriptedCommander:
+    def __init__(self, maze: Maze, graph: NavGraph, targets: list[str], rng: random.Random,
+                 pace_s: float = 0.0) -> None:
+        self.maze, self.graph, self.targets, self.rng, self.pace_s = maze, graph, targets, rng, pace_s
+
+    async def play(self, seat: Seat, start: Pose) -> None:
+        await seat.until(lambda m: _is_phase(m, "localizing"), "the localizing phase")
+        await seat.say("hi! what do you see around you?")
+        await seat.until(self._driver_chat, "the driver's description")
+        await self._localize(seat, start)
+        pose = start
+        for k, target in enumerate(self.targets):
+            await seat.until(lambda m, k=k: _is_phase(m, "navigating", k), f"navigating to target {k}")
+            leg = plan_leg(self.maze, self.graph, pose, target)
+            await seat.say(f"now find the {OBJECT_WORDS[target]}")
+            for line in leg.instructions:
+                await asyncio.sleep(self.pace_s)
+                await seat.say(line)
+            pose = leg.end
+            while True:  # answer questions until the Driver claims the target
+                message = await seat.until(lambda m: self._driver_chat(m) or _claim(m),
+                                           f"the driver's claim of the {target}")
+                if _claim(message):
+                    break
+                if message["payload"]["text"].endswith("?"):
+                    await seat.say(self.rng.choice(ANSWERS))
+            await seat.send("confirm")
+        await seat.until(lambda m: _is_phase(m, "finished"), "the end of the trial")
+
+    async def _localize(self, seat: Seat, start: Pose) -> None:
+        # The Commander's estimate: close to the truth, as a good team's is.
+        x, y = self.graph.nodes[start.node]
+        x = min(max(x + self.rng.gauss(0.0, 0.04), 0.0), TABLE_WIDTH_M)
+        y = min(max(y + self.rng.gauss(0.0, 0.04), 0.0), TABLE_HEIGHT_M)
+        heading = float(heading_angle(start.heading)) if self.rng.random() < 0.7 else None
+        await seat.say("ok, i think i know where you are")
+        await seat.send("localize", x=float(x), y=float(y), heading=heading)
+
+    @staticmethod
+    def _driver_chat(message: dict) -> bool:
+        return (message.get("type") == "event" and message.get("kind") == "chat"
+                and message["payload"].get("role") == "driver")
+
+
+def _claim(message: dict) -> bool:
+    return message.get("type") == "event" and message.get("kind") == "target_claimed"
+
+
+class ScriptedDriver:
+    """Follows the shortest path, with a wrong move now and then (`mistake_rate` per move) and a
+    question now and then (`question_rate` per move)."""
+
+    def __init__(self, maze: Maze, graph: NavGraph, targets: list[str], rng: random.Random,
+                 pace_s: float = 0.0, mistake_rate: float = 0.03, question_rate: float = 0.03) -> None:
+        self.maze, self.graph, self.targets, self.rng = maze, graph, targets, rng
+        self.pace_s, self.mistake_rate, self.question_rate = pace_s, mistake_rate, question_rate
+        self.moves = 0
+
+    async def play(self, seat: Seat, start: Pose) -> None:
+        await seat.until(lambda m: _is_phase(m, "localizing"), "the localizing phase")
+        await seat.event("chat", role="commander")
+        await seat.say(describe_view(self.maze, self.graph, start))
+        pose = start
+        for k, target in enumerate(self.targets):
+            await seat.until(lambda m, k=k: _is_phase(m, "navigating", k), f"navigating to target {k}")
+            pose = await self._drive_to(seat, pose, self.graph.nearest_node(*self.maze.objects[target]))
+            await seat.say(f"i think i found the {OBJECT_WORDS[target]}")
+            await seat.send("claim")
+            await seat.event("target_confirmed", target_index=k)
+
+    async def _drive_to(self, seat: Seat, pose: Pose, goal: int) -> Pose:
+        for _ in range(4 * self.graph.n):
+            action = teacher_action(self.graph, pose, goal)
+            if action == Action.STOP:
+                return pose
+            if self.rng.random() < self.question_rate:
+                await seat.say(self.rng.choice(QUESTIONS))
+            if self.rng.random() < self.mistake_rate:
+                action = self.rng.choice([a for a in (Action.FORWARD, Action.LEFT, Action.RIGHT) if a != action])
+            pose = await self._move(seat, pose, action)
+        raise DemoError(f"trial {seat.trial_id}: the driver could not reach node {goal}")
+
+    async def _move(self, seat: Seat, pose: Pose, action: Action) -> Pose:
+        while True:
+            await asyncio.sleep(self.pace_s)
+            move_id = f"d{self.moves}"
+            self.moves += 1
+            await seat.send("move", action=action.word, move_id=move_id)
+            done = await seat.event("move_executed", move_id=move_id)
+            outcome = done["payload"]["outcome"]
+            if outcome == "ok":
+                return step(self.graph, pose, action)[0]
+            if outcome == "collision":
+                await seat.say("oops, i bumped into a wall")
+                return pose
+            # Refused (too soon, or paused): wait a moment and try again, as a person would.
+            await asyncio.sleep(max(self.pace_s, 0.3))
+

@@ -1,0 +1,150 @@
+"""What the scripted players say and do: routes in words from the shortest path and the walls.
+
+Pure functions of the maze, its navigation graph and a pose, so that the words can be checked
+without a server. The Commander plans each leg with the teacher (the shortest path) and turns
+it into instructions such as "turn left at the red wall" and "go forward until you see the
+mug"; the Driver describes what is around it from the map's rays, as a person would from the
+camera.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.dynamics import Action, Pose, step, teacher_action
+from sim.geometry import GRID_STEP_M, heading_angle
+from sim.labels import OBJECT_LABELS, Label
+from sim.maze import Maze
+from sim.navgraph import NavGraph
+from sim.observations import RAY_OFFSETS, ray_caster
+
+NEAR_WALL_M = 0.35  # a wall this close ahead is "reached"
+VISIBLE_M = 1.2  # walls further away are not worth mentioning
+TURN_WORDS = {1: "turn slightly {d}", 2: "turn {d}", 3: "turn sharply {d}", 4: "turn around"}
+OBJECT_WORDS = {"jar": "jar of blocks", "mug": "coffee mug", "paddle": "ping-pong paddle"}
+MAX_LEG_ACTIONS = 400
+CORNER_TOLERANCE_M = 0.1
+
+
+def _xy_theta(graph: NavGraph, pose: Pose) -> tuple[float, float, float]:
+    x, y = graph.nodes[pose.node]
+    return float(x), float(y), float(heading_angle(pose.heading))
+
+
+def what_is_at(maze: Maze, x: float, y: float, angle: float) -> tuple[Label, float]:
+    """The first wall or object seen from (x, y) along `angle`, and how far away it is."""
+    labels, depth = ray_caster(maze).cast(x, y, angle)
+    return Label(int(labels)), float(depth)
+
+
+def _wall_name(label: Label) -> str:
+    return OBJECT_WORDS[label.word] if label in OBJECT_LABELS else f"{label.word} wall"
+
+
+def leg_actions(graph: NavGraph, start: Pose, goal_node: int) -> tuple[list[Action], list[Pose]]:
+    """The teacher's moves from `start` to the goal node, and the pose after each."""
+    actions, poses, pose = [], [], start
+    for _ in range(MAX_LEG_ACTIONS):
+        action = teacher_action(graph, pose, goal_node)
+        if action == Action.STOP:
+            break
+        pose, _ = step(graph, pose, action)
+        actions.append(action)
+        poses.append(pose)
+    return actions, poses
+
+
+def corners(points: np.ndarray, tolerance_m: float = CORNER_TOLERANCE_M) -> list[int]:
+    """Indices of the path's corners (Douglas-Peucker): the grid's 45 degree zig-zags are not
+    turns a person would name."""
+    keep = {0, len(points) - 1}
+    stack = [(0, len(points) - 1)]
+    while stack:
+        a, b = stack.pop()
+        if b - a < 2:
+            continue
+        chord = points[b] - points[a]
+        rel = points[a + 1:b] - points[a]
+        norm = np.hypot(*chord)
+        off = np.abs(chord[0] * rel[:, 1] - chord[1] * rel[:, 0]) / norm if norm else np.hypot(rel[:, 0], rel[:, 1])
+        k = int(np.argmax(off))
+        if off[k] > tolerance_m:
+            keep.add(a + 1 + k)
+            stack += [(a, a + 1 + k), (a + 1 + k, b)]
+    return sorted(keep)
+
+
+def _turn_phrase(turn: float) -> str | None:
+    """A turn in radians (counter-clockwise positive) in words, None when it is no turn."""
+    eighths = int(round(turn / (math.pi / 4)))
+    if eighths == 0:
+        return None
+    return TURN_WORDS[min(abs(eighths), 4)].format(d="left" if eighths > 0 else "right")
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2 * math.pi) - math.pi
+
+
+@dataclass(frozen=True)
+class Leg:
+    target: str
+    start: Pose
+    end: Pose
+    actions: tuple[Action, ...]
+    instructions: tuple[str, ...]
+
+
+def plan_leg(maze: Maze, graph: NavGraph, start: Pose, target: str) -> Leg:
+    """The shortest way from `start` to `target`, as moves and as the Commander's words."""
+    goal = graph.nearest_node(*maze.objects[target])
+    actions, poses = leg_actions(graph, start, goal)
+    thing = OBJECT_WORDS[target]
+    nodes = [start.node] + [p.node for p in poses]
+    nodes = [n for i, n in enumerate(nodes) if i == 0 or n != nodes[i - 1]]
+    if len(nodes) < 2:
+        return Leg(target, start, poses[-1] if poses else start, tuple(actions),
+                   (f"the {thing} should be right there",))
+    points = graph.nodes[nodes]
+    idx = corners(points)
+    words = []
+    heading = float(heading_angle(start.heading))
+    for n, (a, b) in enumerate(zip(idx, idx[1:])):
+        direction = math.atan2(*(points[b] - points[a])[::-1])
+        turn = _turn_phrase(_wrap(direction - heading))
+        if n == 0 and turn:
+            words.append(turn)
+        length = float(np.hypot(*(points[b] - points[a])))
+        steps = max(1, int(round(length / GRID_STEP_M)))
+        if b == idx[-1]:
+            words.append(f"go forward until you see the {thing}")
+            break
+        after = math.atan2(*(points[idx[n + 2]] - points[b])[::-1])
+        next_turn = _turn_phrase(_wrap(after - direction)) or "keep going"
+        label, depth = what_is_at(maze, *points[b], direction)
+        if label != Label.FLOOR and depth < 2 * NEAR_WALL_M:
+            words.append(f"{next_turn} at the {_wall_name(label)}")
+        else:
+            words.append(f"go forward about {steps} steps, then {next_turn}")
+        heading = direction
+    return Leg(target, start, poses[-1], tuple(actions), tuple(words))
+
+
+def describe_view(maze: Maze, graph: NavGraph, pose: Pose) -> str:
+    """The Driver's answer to "what do you see?": ahead, left and right, and any object in view."""
+    parts = []
+    x, y, theta = _xy_theta(graph, pose)
+    for offset, where in ((0.0, "in front of me"), (math.pi / 2, "on my left"), (-math.pi / 2, "on my right")):
+        label, depth = what_is_at(maze, x, y, theta + offset)
+        if label != Label.FLOOR and depth < VISIBLE_M:
+            near = "close " if depth < NEAR_WALL_M else ""
+            parts.append(f"a {near}{_wall_name(label)} {where}")
+    seen, _ = ray_caster(maze).cast(x, y, theta + RAY_OFFSETS)
+    objects = sorted({Label(int(v)).word for v in np.unique(seen) if Label(int(v)) in OBJECT_LABELS})
+    sentence = "i see " + (", ".join(parts) if parts else "open floor all around")
+    if objects:
+        sentence += " and i can see the " + " and the ".join(OBJECT_WORDS[o] for o in objects)
+    return sentence

@@ -1,0 +1,80 @@
+"""`robotslang export TRIAL_ID|all --format mcap|ndh --out PATH`."""
+
+from __future__ import annotations
+
+from enum import Enum
+from pathlib import Path
+
+import typer
+from rich.console import Console
+from rich.progress import track
+
+from app.export.record import ExportError
+
+console = Console(stderr=True)
+
+
+class Format(str, Enum):
+    mcap = "mcap"
+    ndh = "ndh"
+
+
+def register(root: typer.Typer) -> None:
+    root.command("export")(export)
+
+
+def export(
+    trial: str = typer.Argument(..., metavar="TRIAL_ID|all",
+                                help="A trial's id, or `all` for every finished trial."),
+    format: Format = typer.Option(..., "--format", help="mcap (Foxglove) or ndh (benchmark JSON)."),
+    out: Path = typer.Option(..., "--out", help="MCAP: a file (one trial) or a folder; "
+                                                "NDH: the folder to write the benchmark layout into."),
+) -> None:
+    """Export recorded trials from the data directory (ROBOTSLANG_DATA_DIR)."""
+    from app.db.engine import make_engine, make_sessionmaker
+    from app.export.source import finished_trial_ids, load_trial
+    from app.mazes import Mazes, UnknownMaze
+    from app.settings import Settings
+
+    settings = Settings()
+    if settings.database_url is None and not settings.sqlite_path.exists():
+        _fail(f"no database at {settings.sqlite_path}: set ROBOTSLANG_DATA_DIR to the data "
+              f"directory of a server that recorded trials (or run `robotslang demo`)")
+    sessions = make_sessionmaker(make_engine(settings))
+    mazes = Mazes(settings)
+    with sessions() as session:
+        ids = finished_trial_ids(session) if trial == "all" else [trial]
+        if not ids:
+            _fail(f"no finished trials in {settings.url}")
+        try:
+            records = [load_trial(session, settings, i) for i in ids]
+            loaded = [(r, mazes.load(r.maze)) for r in records]
+        except (ExportError, UnknownMaze) as err:
+            _fail(str(err).strip("'\""))
+    try:
+        if format is Format.ndh:
+            from app.export.ndh import write_benchmark
+
+            summary = write_benchmark(track(loaded, description="NDH export", console=console), out)
+            console.print(f"{summary.trials} trial(s) -> {out}: NDH {summary.ndh}, LDH {summary.ldh}")
+        else:
+            _export_mcap(loaded, out, single=trial != "all")
+    except ExportError as err:
+        _fail(str(err))
+
+
+def _export_mcap(loaded, out: Path, single: bool) -> None:
+    from app.export.mcap import write_mcap
+
+    if single and not out.is_dir():
+        (record, maze), = loaded
+        console.print(f"trial {record.trial_id} -> {write_mcap(record, maze, out)}")
+        return
+    for record, maze in track(loaded, description="MCAP export", console=console):
+        write_mcap(record, maze, out / f"trial-{record.trial_id}.mcap")
+    console.print(f"{len(loaded)} trial(s) -> {out}")
+
+
+def _fail(message: str) -> None:
+    console.print(f"[red]error:[/red] {message}")
+    raise typer.Exit(1)

@@ -1,0 +1,34 @@
+"""Trials from the database as `TrialRecord`s: the one place exports touch the tables."""
+
+from __future__ import annotations
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.db.models import Event as EventRow
+from app.db.models import Team, Trial
+from app.export.record import Event, ExportError, TrialRecord
+from app.settings import Settings
+
+
+def load_trial(session: Session, settings: Settings, trial_id: int | str) -> TrialRecord:
+    """The trial's row and its whole event log, in `seq` order."""
+    try:
+        key = int(trial_id)
+    except ValueError:
+        raise ExportError(f"trial id {trial_id!r} is not a number") from None
+    trial = session.get(Trial, key)
+    if trial is None:
+        raise ExportError(f"no trial {key} in {settings.url}")
+    team = session.get(Team, trial.team_id)
+    rows = session.scalars(select(EventRow).where(EventRow.trial_id == key).order_by(EventRow.seq))
+    events = tuple(Event(seq=r.seq, kind=r.kind, t_ns=r.t_ns, payload=dict(r.payload)) for r in rows)
+    return TrialRecord(
+        trial_id=str(key), team=team.name if team else "", maze=trial.maze,
+        targets=tuple(trial.targets), events=events, frames_root=settings.frames_dir,
+        info={"backend": trial.backend, "driver": trial.driver, "phase": trial.phase,
+              "created_at": trial.created_at.isoformat() if trial.created_at else ""})
+
+
+def finished_trial_ids(session: Session) -> list[int]:
+    return list(session.scalars(select(Trial.id).where(Trial.phase == "finished").order_by(Trial.id)))
