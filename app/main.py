@@ -27,7 +27,7 @@ from app.trial.log import EventLog
 
 ROOT = Path(__file__).resolve().parent.parent
 logger = logging.getLogger("robotslang")
-OPTIONAL_ROUTERS = ("app.routes.robot_ws",)  # the rover's socket, where that module exists
+OPTIONAL_ROUTERS = ("app.routes.robot_ws", "app.routes.replay")  # the rover's socket; replays
 
 
 def build_services(settings: Settings) -> Services:

@@ -57,7 +57,9 @@ def leaderboard(request: Request):
     services = request.app.state.services
     with services.db() as db:
         rows = standings(db, services.settings.move_penalty_s)
-    return render(request, "leaderboard.html", rows=rows, penalty=services.settings.move_penalty_s)
+    is_experimenter = services.sessions.verify(request.cookies.get(SESSION_COOKIE)) is not None
+    return render(request, "leaderboard.html", rows=rows, penalty=services.settings.move_penalty_s,
+                  experimenter=is_experimenter)
 
 
 @router.get("/play/{token}", response_class=HTMLResponse)

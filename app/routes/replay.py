@@ -1,0 +1,75 @@
+"""Replays of recorded trials, for experimenters: the page, its event log and the frames.
+
+The page (`templates/replay.html`, `static/replay.js`) plays the log back on one timeline: the
+chat as it unfolded, the Driver's frames, and the full map with the true pose trace and the
+Commander's estimates. Like every other reader, it reads only the event log.
+"""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Depends, HTTPException, Request
+from fastapi.responses import FileResponse, HTMLResponse
+from sqlalchemy import select
+
+from app.db.models import Frame, Team, Trial
+from app.routes.experimenter import experimenter
+from app.routes.pages import render
+
+router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter)])
+REPLAYABLE = ("finished", "aborted")
+
+
+def _trial(request: Request, trial_id: int) -> tuple[Trial, str]:
+    with request.app.state.services.db() as db:
+        trial = db.get(Trial, trial_id)
+        if trial is None:
+            raise HTTPException(404, f"trial {trial_id} does not exist")
+        team = db.get(Team, trial.team_id)
+        return trial, team.name if team else ""
+
+
+@router.get("/replays", response_class=HTMLResponse)
+def replays(request: Request, team: str | None = None):
+    """Finished and aborted trials (of one team, when `team` is given), newest first."""
+    with request.app.state.services.db() as db:
+        query = (select(Trial, Team.name).join(Team, Team.id == Trial.team_id)
+                 .where(Trial.phase.in_(REPLAYABLE)).order_by(Trial.id.desc()))
+        if team:
+            query = query.where(Team.name == team)
+        rows = db.execute(query.limit(500)).all()
+    return render(request, "replays.html", rows=rows, team=team)
+
+
+@router.get("/trials/{trial_id}/replay", response_class=HTMLResponse)
+def replay(request: Request, trial_id: int):
+    trial, team = _trial(request, trial_id)
+    return render(request, "replay.html", trial=trial, team=team)
+
+
+@router.get("/trials/{trial_id}/replay.json")
+def replay_log(request: Request, trial_id: int):
+    """The whole event log, with each frame's file replaced by the URL that serves it."""
+    trial, team = _trial(request, trial_id)
+    events = []
+    for e in request.app.state.services.log.load(trial_id):
+        payload = dict(e.payload)
+        if e.kind == "frame":
+            payload.pop("path", None)
+            payload["url"] = f"/experimenter/trials/{trial_id}/frames/{payload['frame_id']}.jpg"
+        events.append({"seq": e.seq, "kind": e.kind, "t_ns": e.t_ns, "payload": payload})
+    return {"trial": {"id": trial.id, "team": team, "maze": trial.maze, "targets": trial.targets,
+                      "phase": trial.phase, "backend": trial.backend, "driver": trial.driver},
+            "events": events}
+
+
+@router.get("/trials/{trial_id}/frames/{frame_id}.jpg")
+def frame(request: Request, trial_id: int, frame_id: int):
+    services = request.app.state.services
+    with services.db() as db:
+        rel = db.scalar(select(Frame.path).where(Frame.trial_id == trial_id, Frame.seq == frame_id))
+    if rel is None:
+        raise HTTPException(404, f"trial {trial_id} has no frame {frame_id}")
+    path = services.settings.frames_dir / rel
+    if not path.is_file():
+        raise HTTPException(404, f"frame {frame_id} of trial {trial_id}: file {rel} is missing")
+    return FileResponse(path, media_type="image/jpeg", headers={"Cache-Control": "private, max-age=86400"})
