@@ -119,7 +119,8 @@ class BatchNavEnv:
         for w in set(worlds.tolist()):
             rows = np.flatnonzero(worlds == w)
             graph = self.graphs[w]
-            self._to_goal[rows, : graph.n] = graph.dist[goals[rows]]  # symmetric: row = column
+            # Columns, not the transposed rows: Dijkstra's sums differ in the last bit.
+            self._to_goal[rows, : graph.n] = graph.dist[:, goals[rows]].T
             hop = graph.next_hop[:, goals[rows]].T
             self._hop[rows, : graph.n] = np.where(hop >= 0, hop + self.offsets[w], -1)
         self._rows = np.arange(b)
