@@ -1,0 +1,73 @@
+"""An agent in the Driver's seat plays through the same protocol and log as a person."""
+
+from __future__ import annotations
+
+import asyncio
+
+from sqlalchemy import select
+
+from app.db.models import Event
+from app.drivers.registry import driver_names, register_driver
+from tests.app.live import SeatClient, ServerThread, make_trial
+
+
+def test_shortest_path_agent_drives_and_claims_each_target(settings):
+    with ServerThread(settings) as server:
+        services = server.services
+        trial_id = make_trial(services, services.mazes.names()[0], driver="agent:shortest")
+        token = services.seats.issue(trial_id, "commander")
+
+        async def command():
+            async with SeatClient(server.ws_url, token) as commander:
+                await commander.event("phase", phase="localizing")
+                await commander.send("localize", x=1.0, y=1.0)
+                for index in range(3):
+                    claimed = await commander.event("target_claimed", timeout=30, target_index=index)
+                    chat = await commander.event("chat", role="driver", start=0,
+                                                 text=f"I think I found the {claimed['payload']['target']}")
+                    assert chat
+                    if index == 1:  # the agent keeps going after a rejection and claims again
+                        start = len(commander.received)
+                        await commander.send("reject")
+                        await commander.event("target_claimed", timeout=30, start=start, target_index=1)
+                    await commander.send("confirm")
+                await commander.event("phase", phase="finished", timeout=10)
+                return commander
+
+        commander = asyncio.run(command())
+        assert "frame" not in commander.kinds()
+        with services.db() as db:
+            confirmed = db.scalars(select(Event.payload).where(Event.trial_id == trial_id,
+                                                               Event.kind == "target_confirmed")).all()
+            moves = db.scalars(select(Event.payload).where(Event.trial_id == trial_id,
+                                                           Event.kind == "move_executed")).all()
+        assert all(c["truly_within"] for c in confirmed) and len(confirmed) == 3
+        assert moves and all(m["outcome"] == "ok" for m in moves)
+
+
+def test_register_driver_adds_a_named_agent(settings):
+    class AlwaysLeft:
+        def reset(self, info):
+            self.info = info
+
+        def act(self, dialog, observation):
+            assert observation["frame"][:2] == b"\xff\xd8"
+            return "left"
+
+    register_driver("test-left", lambda info, settings: AlwaysLeft())
+    assert {"random", "shortest", "test-left"} <= set(driver_names())
+    with ServerThread(settings) as server:
+        services = server.services
+        trial_id = make_trial(services, services.mazes.names()[0], driver="agent:test-left")
+        token = services.seats.issue(trial_id, "commander")
+
+        async def command():
+            async with SeatClient(server.ws_url, token) as commander:
+                await commander.event("phase", phase="localizing")
+                await asyncio.sleep(0.5)
+
+        asyncio.run(command())
+        with services.db() as db:
+            actions = db.scalars(select(Event.payload).where(Event.trial_id == trial_id,
+                                                             Event.kind == "move_executed")).all()
+        assert len(actions) >= 3 and {a["action"] for a in actions} == {"left"}

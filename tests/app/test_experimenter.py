@@ -1,0 +1,102 @@
+"""The experimenter's side: first start, accounts from the command line, login, participants,
+teams and trials with join links, maze choice, and the database commands."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+
+import httpx
+import pytest
+from sqlalchemy import create_engine, inspect, select
+
+from app.db.models import Trial
+from app.main import build_services, ensure_experimenter
+from tests.app.live import REPO, ServerThread
+from tests.app.test_disconnect_and_control import login
+
+
+def cli(*args: str, env: dict[str, str], input: str | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", "from app.cli import main; main()", *args],
+                          env={**os.environ, **env}, cwd=REPO, capture_output=True, text=True, input=input,
+                          timeout=120)
+
+
+def test_first_start_creates_admin_once(settings):
+    services = build_services(settings)
+    password = ensure_experimenter(services)
+    assert password and len(password) >= 12
+    assert ensure_experimenter(services) is None, "the password is generated and shown only once"
+    services.engine.dispose()
+
+
+def test_admin_create_and_db_upgrade_commands(tmp_path):
+    env = {"ROBOTSLANG_DATA_DIR": str(tmp_path / "var"), "ROBOTSLANG_SECRET_KEY": "k"}
+    done = cli("db", "upgrade", env=env)
+    assert done.returncode == 0, done.stderr
+    tables = set(inspect(create_engine(f"sqlite:///{tmp_path / 'var' / 'robotslang.db'}")).get_table_names())
+    assert {"experimenter", "participant", "team", "robot", "trial", "event", "frame"} <= tables
+    done = cli("admin", "create", "alice", "--password", "s3cret-enough", env=env)
+    assert done.returncode == 0 and "created" in done.stdout, done.stderr
+    done = cli("admin", "create", "bob", env=env, input="another-pass\nanother-pass\n")
+    assert done.returncode == 0 and "created" in done.stdout, done.stderr + done.stdout
+    done = cli("admin", "create", "carol", "--password", "short", env=env)
+    assert done.returncode != 0 and "--password" in done.stderr and "8 characters" in done.stderr
+
+    from app.settings import Settings
+
+    with ServerThread(Settings(data_dir=tmp_path / "var", secret_key="k")) as server:
+        client = httpx.Client(base_url=server.url, follow_redirects=True)
+        bad = client.post("/login", data={"name": "alice", "password": "wrong"})
+        assert "wrong password" in bad.text
+        assert "Participants" in client.post("/login", data={"name": "bob", "password": "another-pass"}).text
+
+
+def test_experimenter_forms_make_a_trial_with_join_links(settings):
+    with ServerThread(settings) as server:
+        assert httpx.get(server.url + "/experimenter").status_code == 303, "the dashboard is behind login"
+        client = login(server)
+        for name in ("Ada", "Ben", "Cy"):
+            client.post("/experimenter/participants", data={"name": name})
+        page = client.post("/experimenter/participants", data={"name": "Ada"}).text
+        assert "already exists" in page
+        page = client.post("/experimenter/teams", data={"name": "Solo", "member_a": 1, "member_b": 1}).text
+        assert "two different participants" in page
+        client.post("/experimenter/teams", data={"name": "Pair", "member_a": 1, "member_b": 2})
+        client.post("/experimenter/teams", data={"name": "Other", "member_a": 2, "member_b": 3})
+        page = client.post("/experimenter/trials", data={"team_id": 1, "targets": "mug,jar,paddle"}).text
+        links = dict(re.findall(r'class="join-(\w+)" href="([^"]+)"', page))
+        assert set(links) == {"commander", "driver"}
+        assert "Commander" in client.get(links["commander"]).text
+        page = client.post("/experimenter/trials", data={"team_id": 1, "targets": "mug,mug,jar"}).text
+        assert "give each of jar, mug, paddle once" in page
+        names = sorted(server.services.mazes.names())
+        with server.services.db() as db:
+            first = db.scalar(select(Trial).where(Trial.team_id == 1))
+        assert first.maze == names[0] and first.targets == ["mug", "jar", "paddle"]
+        # Ben played maze 0 with Pair: team Other may not get it, and is given the next least used.
+        page = client.post("/experimenter/trials", data={"team_id": 2, "maze": names[0]}).text
+        assert "already seen it" in page
+        client.post("/experimenter/trials", data={"team_id": 2, "driver": "agent:shortest"})
+        with server.services.db() as db:
+            second = db.scalar(select(Trial).where(Trial.team_id == 2))
+        assert second.maze == names[1] and sorted(second.targets) == ["jar", "mug", "paddle"]
+        assert second.driver == "agent:shortest" and second.driver_id is None
+        row = re.search(rf'data-trial="{second.id}".*?</tr>', client.get("/experimenter").text, re.S).group(0)
+        assert "join-commander" in row and "join-driver" not in row, "an agent drives: no Driver link"
+
+
+@pytest.mark.parametrize("kind", ["sqlite", "postgres"])
+def test_database_upgrade_is_idempotent(tmp_path, kind, request):
+    from app.db.engine import make_engine, upgrade
+    from tests.app.conftest import platform_settings
+
+    url = request.getfixturevalue("postgres_url") if kind == "postgres" else None
+    settings = platform_settings(tmp_path, database_url=url)
+    engine = make_engine(settings)
+    upgrade(settings, engine)
+    upgrade(settings, engine)
+    assert "event" in inspect(engine).get_table_names()
+    engine.dispose()
