@@ -1,0 +1,151 @@
+"""End to end in headless Chromium: the experimenter sets up a trial through the pages, one
+browser context is the Commander and another the Driver; they chat, the Commander marks the
+robot, the Driver drives (the shortest path chooses the keys) to the three targets, each
+confirmed, and the team appears on the leaderboard. Screenshots go to test-artifacts/."""
+
+from __future__ import annotations
+
+import re
+import time
+from pathlib import Path
+
+import pytest
+
+from app.db.models import Experimenter
+from app.security import hash_password
+from sim.dynamics import Action
+from tests.app.conftest import platform_settings
+from tests.app.live import REPO, ServerThread
+from tests.app.trial_play import oracle_action
+
+CHROMIUM = Path("/usr/bin/chromium")
+FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
+         "--disable-component-update", "--disable-sync"]
+ARTIFACTS = REPO / "test-artifacts"
+
+pytestmark = pytest.mark.browser
+
+
+@pytest.fixture
+def browser():
+    if not CHROMIUM.exists():
+        pytest.skip(f"{CHROMIUM} not found: install Debian's chromium to run the browser tests")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=FLAGS, headless=True)
+        yield browser
+        browser.close()
+
+
+def wait_until(predicate, timeout: float = 10.0, what: str = "condition") -> None:
+    deadline = time.time() + timeout
+    while not predicate():
+        if time.time() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.02)
+
+
+def socket_log(page) -> list[str]:
+    """Every websocket message the page receives."""
+    received: list[str] = []
+    page.on("websocket", lambda ws: ws.on("framereceived", lambda payload: received.append(str(payload))))
+    return received
+
+
+def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, tmp_path):
+    ARTIFACTS.mkdir(exist_ok=True)
+    settings = platform_settings(tmp_path, min_move_interval_s=0.0)
+    with ServerThread(settings) as server:
+        services = server.services
+        with services.db.begin() as db:
+            db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
+
+        # The experimenter registers two participants, forms a team and creates a trial.
+        admin = browser.new_context(viewport={"width": 1400, "height": 900}).new_page()
+        admin.goto(server.url + "/")
+        admin.fill("input[name=name]", "eve")
+        admin.fill("input[name=password]", "correct horse")
+        admin.click("button[type=submit]")
+        for name in ("Ada", "Ben"):
+            admin.fill("input[aria-label='Participant name']", name)
+            admin.click("#add-participant")
+        admin.fill("input[aria-label='Team name']", "Ada & Ben")
+        admin.click("#add-team")
+        admin.fill("input[aria-label='Targets']", "mug, paddle, jar")
+        admin.click("#create-trial")
+        commander_url = admin.get_attribute("a.join-commander", "href")
+        driver_url = admin.get_attribute("a.join-driver", "href")
+        trial_id = int(admin.get_attribute("tr[data-trial]", "data-trial"))
+
+        cctx = browser.new_context(viewport={"width": 1280, "height": 860})
+        dctx = browser.new_context(viewport={"width": 1280, "height": 860})
+        commander, driver = cctx.new_page(), dctx.new_page()
+        commander_heard, driver_heard = socket_log(commander), socket_log(driver)
+        driver_requests: list[str] = []
+        driver.on("request", lambda r: driver_requests.append(r.url))
+        commander.goto(commander_url)
+        driver.goto(driver_url)
+        commander.wait_for_selector("#status[data-phase=localizing]")
+        driver.wait_for_selector("#status[data-phase=localizing]")
+        driver.wait_for_function("document.getElementById('camera').src.startsWith('data:image/jpeg')")
+
+        commander.fill("#chat-input", "Hi! What colours do you see?")
+        commander.press("#chat-input", "Enter")
+        driver.wait_for_selector("#messages li.commander >> text=What colours do you see?")
+        driver.fill("#chat-input", "A blue wall on my left and yellow ahead.")
+        driver.click(".chat button")
+        commander.wait_for_selector("#messages li.driver >> text=yellow ahead")
+
+        # "The robot is here": a click with a drag for the heading ends localization.
+        box = commander.locator("#map").bounding_box()
+        commander.mouse.move(box["x"] + box["width"] * 0.4, box["y"] + box["height"] * 0.5)
+        commander.mouse.down()
+        commander.mouse.move(box["x"] + box["width"] * 0.45, box["y"] + box["height"] * 0.5)
+        commander.mouse.up()
+        driver.wait_for_selector("#status[data-phase=navigating]")
+        runtime = services.hub.peek(trial_id)
+        assert runtime.state.localization["heading"] == pytest.approx(0.0, abs=0.05)
+
+        keys = {Action.FORWARD: "ArrowUp", Action.LEFT: "ArrowLeft", Action.RIGHT: "ArrowRight"}
+        buttons = {Action.FORWARD: "#forward", Action.LEFT: "#left", Action.RIGHT: "#right"}
+        for index in range(3):
+            for n in range(400):
+                if index == 0 and n == 6:
+                    driver.screenshot(path=str(ARTIFACTS / "driver.png"))
+                action = oracle_action(services, trial_id)
+                if action == Action.STOP:
+                    break
+                before = runtime.state.moves
+                if n % 2:
+                    driver.keyboard.press(keys[action])
+                else:
+                    driver.click(buttons[action])
+                wait_until(lambda: runtime.state.moves > before and runtime.state.last_frame_id is not None
+                           and not runtime._move_busy, what="a move to execute")
+                driver.wait_for_timeout(30)  # the page takes the move's result before the next press
+            driver.click("#found")
+            commander.wait_for_selector("#claim:not(.hidden)")
+            commander.wait_for_function("document.getElementById('claim-image').src.startsWith('data:image/jpeg')")
+            if index == 0:
+                commander.screenshot(path=str(ARTIFACTS / "commander.png"))
+                driver.screenshot(path=str(ARTIFACTS / "driver-claim.png"))
+            commander.click("#confirm")
+            commander.wait_for_selector("#claim.hidden", state="attached")
+        commander.wait_for_selector("#status[data-phase=finished]")
+        driver.wait_for_selector("#status[data-phase=finished]")
+        commander.screenshot(path=str(ARTIFACTS / "commander-finished.png"))
+        driver.screenshot(path=str(ARTIFACTS / "driver-finished.png"))
+
+        board = browser.new_context().new_page()
+        board.goto(server.url + "/leaderboard")
+        row = board.locator("#leaderboard tbody tr").first
+        assert row.locator(".team").inner_text() == "Ada & Ben"
+        board.screenshot(path=str(ARTIFACTS / "leaderboard.png"))
+
+        # What each browser was sent: no camera frame to the Commander, no map to the Driver.
+        assert commander_heard and driver_heard
+        assert not any('"kind":"frame"' in m or '"kind":"pose"' in m for m in commander_heard)
+        assert any('"kind":"frame"' in m for m in driver_heard)
+        assert not any('"kind":"localization"' in m for m in driver_heard)
+        assert not any(re.search(r"map\.png|/target/", url) for url in driver_requests)
