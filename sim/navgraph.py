@@ -15,6 +15,7 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
@@ -55,10 +56,9 @@ def grid_shape() -> tuple[int, int]:
 
 def navigable_mask(walls: np.ndarray, pixels: np.ndarray) -> np.ndarray:
     """Candidates whose own pixel is floor and whose 80-pixel square holds no wall pixel."""
-    blocked = (walls != 0).astype(np.int32)
-    # Summed-area table: the count of wall pixels in any clipped square in O(1).
-    sat = np.zeros((blocked.shape[0] + 1, blocked.shape[1] + 1), dtype=np.int32)
-    sat[1:, 1:] = blocked.cumsum(0).cumsum(1)
+    blocked = (walls != 0).astype(np.uint8)
+    # Summed-area table (H + 1, W + 1): the count of wall pixels in any clipped square in O(1).
+    sat = cv2.integral(blocked, sdepth=cv2.CV_32S)
     r, c = pixels[:, 0], pixels[:, 1]
     r0 = np.maximum(r - WALL_CLEARANCE_PX, 0)
     r1 = np.minimum(r + WALL_CLEARANCE_PX, walls.shape[0])
