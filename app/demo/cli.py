@@ -29,22 +29,27 @@ def demo(
 ) -> None:
     """Play complete simulator trials with a scripted Commander and Driver over the trial sockets,
     so that every page, the leaderboard, replays and exports have content."""
+    from app.demo.players import DemoError
     from app.demo.runner import Demo
     from app.settings import Settings
 
     settings = Settings()
     runner = Demo(settings, seed=seed, pace_s=pace)
-    with Progress(console=console) as progress:
-        bar = progress.add_task("demo trials", total=trials)
-        results = asyncio.run(runner.run(trials, server, parallel,
-                                         on_done=lambda r: progress.advance(bar)))
+    try:
+        with Progress(console=console) as progress:
+            bar = progress.add_task("demo trials", total=trials)
+            results = asyncio.run(runner.run(trials, server, parallel,
+                                             on_done=lambda r: progress.advance(bar)))
+    except DemoError as err:
+        console.print(f"[red]error:[/red] {err}", soft_wrap=True)
+        raise typer.Exit(1) from None
     failed = 0
     for r in results:
         line = f"trial {r.trial_id}: maze {r.maze}, targets {', '.join(r.targets)}: {r.phase}, {r.moves} moves"
         if r.error:
             failed += 1
             line += f" [red]({r.error})[/red]"
-        console.print(line)
+        console.print(line, soft_wrap=True)
     console.print(f"data in {settings.data_dir.resolve()}; see /leaderboard, and "
                   f"`robotslang export all --format mcap --out DIR`")
     if failed:

@@ -120,7 +120,9 @@ class Demo:
 async def serving(settings: Settings, server: str | None) -> AsyncIterator[str]:
     """`server` as is, or the app served in this event loop on a free loopback port."""
     if server:
-        yield server.rstrip("/")
+        server = server.rstrip("/")
+        await _check_reachable(server)
+        yield server
         return
     import uvicorn
 
@@ -141,6 +143,17 @@ async def serving(settings: Settings, server: str | None) -> AsyncIterator[str]:
     finally:
         server_.should_exit = True
         await task
+
+
+async def _check_reachable(server: str) -> None:
+    """Fail before creating any trial when nothing answers at `server`."""
+    import httpx
+
+    try:
+        async with httpx.AsyncClient(timeout=5) as client:
+            (await client.get(f"{server}/leaderboard")).raise_for_status()
+    except httpx.HTTPError as err:
+        raise DemoError(f"--server {server}: no RobotSlang server answers there ({err})") from None
 
 
 def free_port() -> int:
