@@ -16,3 +16,6 @@ def register(root: typer.Typer, eval_app: typer.Typer) -> None:
     from sim import play
 
     play.register(root)
+    from sim import mazes_cli
+
+    mazes_cli.register(root)

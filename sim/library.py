@@ -1,0 +1,97 @@
+"""`MazeLibrary`: every maze the platform can run, by name.
+
+The bundled generated mazes (`gen-000` ...) come first, so a fresh machine has content without
+the benchmark; then mazes from extra folders (for instance `robotslang mazes generate` output);
+then the benchmark's runs that have a map (`Run_318` ...). Bundled and extra mazes are checked
+strictly when loaded (their objects must reach each other); benchmark maps are taken as
+published, since one of them (Run_320) fails that check and the paper's figures include it.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from sim.maze import FIXED_MAP, Maze
+from sim.validation import check_reachable
+
+BUNDLED_DIR = Path(__file__).resolve().parent / "mazes"
+MANIFEST = "manifest.json"
+
+
+class UnknownMazeError(KeyError):
+    """A maze name the library does not hold."""
+
+    def __str__(self) -> str:  # KeyError would quote the whole message
+        return str(self.args[0])
+
+
+class MazeLibrary:
+    def __init__(self, benchmark: Path | None = None, extra_dirs=(), bundled: Path | None = BUNDLED_DIR):
+        """`benchmark`: a clone of the benchmark (its `mazedata/` is read); `extra_dirs`: folders
+        of mazes in the benchmark's layout (`NAME/maze/maze.map-fixed.png`)."""
+        self._roots: list[tuple[str, Path]] = []
+        if bundled is not None:
+            self._roots.append(("bundled", Path(bundled)))
+        self._roots += [("local", Path(d)) for d in extra_dirs]
+        if benchmark is not None:
+            benchmark = Path(benchmark)
+            mazedata = benchmark / "mazedata"
+            self._roots.append(("benchmark", mazedata if mazedata.is_dir() else benchmark))
+        self._index: dict[str, tuple[str, Path]] | None = None
+        self._cache: dict[str, Maze] = {}
+
+    def _entries(self) -> dict[str, tuple[str, Path]]:
+        if self._index is None:
+            index: dict[str, tuple[str, Path]] = {}
+            for kind, root in self._roots:
+                if not root.is_dir():
+                    continue
+                runs = [d for d in root.iterdir() if (d / "maze" / FIXED_MAP).is_file()]
+                for run in sorted(runs, key=_natural_key):
+                    index.setdefault(run.name, (kind, run))  # an earlier source shadows a later one
+            self._index = index
+        return self._index
+
+    def names(self) -> list[str]:
+        """All maze names: bundled first, then extra folders, then the benchmark's runs."""
+        return list(self._entries())
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._entries()
+
+    def __len__(self) -> int:
+        return len(self._entries())
+
+    def _entry(self, name: str) -> tuple[str, Path]:
+        try:
+            return self._entries()[name]
+        except KeyError:
+            known = self.names()
+            sample = ", ".join(known[:5]) + (", ..." if len(known) > 5 else "")
+            where = ", ".join(f"{kind} {root}" for kind, root in self._roots) or "no folders"
+            raise UnknownMazeError(f"unknown maze {name!r}: the library ({where}) holds "
+                                   f"{len(known)} mazes: {sample}") from None
+
+    def source(self, name: str) -> str:
+        """Where the maze comes from: 'bundled', 'local' (an extra folder) or 'benchmark'."""
+        return self._entry(name)[0]
+
+    def path(self, name: str) -> Path:
+        """The maze's folder, in the benchmark's layout."""
+        return self._entry(name)[1]
+
+    def load(self, name: str) -> Maze:
+        """The maze called `name` (read once per library); MazeError if its map is malformed."""
+        if name not in self._cache:
+            kind, run = self._entry(name)
+            maze = Maze.from_dir(run, name=name)
+            if kind != "benchmark":
+                check_reachable(maze, source=str(run / "maze" / FIXED_MAP))
+            self._cache[name] = maze
+        return self._cache[name]
+
+
+def _natural_key(path: Path):
+    """Run_9 before Run_10; gen-002 before gen-010."""
+    return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", path.name)]
