@@ -110,14 +110,32 @@ def read_label_png(path: Path) -> np.ndarray:
     if image.shape[:2] != (MAP_HEIGHT_PX, MAP_WIDTH_PX):
         raise MazeError(f"{path}: map is {image.shape[1]}x{image.shape[0]} pixels, "
                         f"expected {MAP_WIDTH_PX}x{MAP_HEIGHT_PX}")
-    packed = (image[..., 0].astype(np.uint32) << 16) | (image[..., 1].astype(np.uint32) << 8) | image[..., 2]
-    labels = np.full(packed.shape, 255, dtype=np.uint8)
-    for label, (b, g, r) in LABEL_BGR.items():
-        labels[packed == ((b << 16) | (g << 8) | r)] = label
-    unknown = np.argwhere(labels == 255)
-    if unknown.size:
+    # The top two bits of each channel tell the palette's colours apart: a 6-bit key, looked up,
+    # then every pixel compared with its label's exact colour.
+    b, g, r = cv2.split(image)
+    labels = cv2.LUT(((b >> 6) << 4) | ((g >> 6) << 2) | (r >> 6), _KEY_LABEL)
+    wrong = sum(cv2.countNonZero(cv2.absdiff(cv2.LUT(labels, _LABEL_CHANNEL[k]), channel))
+                for k, channel in enumerate((b, g, r)))
+    if wrong:
+        # Label 255 (a key of no palette colour) repaints as black, which has key 0: never equal.
+        unknown = np.argwhere((_LABEL_CHANNEL[:, labels].transpose(1, 2, 0) != image).any(axis=2))
         row, col = unknown[0]
         b, g, r = image[row, col]
         raise MazeError(f"{path}: {len(unknown)} pixels of unknown colour, first at column {col}, "
                         f"row {row}: BGR ({b}, {g}, {r})")
     return labels
+
+
+def _palette_tables() -> tuple[np.ndarray, np.ndarray]:
+    key_label = np.full(256, 255, dtype=np.uint8)
+    channel = np.zeros((3, 256), dtype=np.uint8)  # label -> B, G, R
+    for label, (b, g, r) in LABEL_BGR.items():
+        key = ((b >> 6) << 4) | ((g >> 6) << 2) | (r >> 6)
+        if key_label[key] != 255:
+            raise AssertionError(f"palette colours of {Label(key_label[key]).name} and {label.name} share a key")
+        key_label[key] = label
+        channel[:, label] = (b, g, r)
+    return key_label, channel
+
+
+_KEY_LABEL, _LABEL_CHANNEL = _palette_tables()

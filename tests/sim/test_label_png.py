@@ -1,0 +1,35 @@
+"""Reading map PNGs into label grids: every pixel exactly a palette colour, or a named error."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from sim.labels import PALETTE_BGR, Label
+from sim.maze import MazeError, read_label_png
+from tests.sim.helpers import open_table, wall_at_x
+
+
+def test_every_palette_colour_reads_back_as_its_label(tmp_path):
+    labels = wall_at_x(open_table(), 1.2, Label.BROWN)
+    for k, label in enumerate(Label):
+        labels[100 + 10 * k : 108 + 10 * k, 300:340] = label
+    path = tmp_path / "map.png"
+    cv2.imwrite(str(path), PALETTE_BGR[labels])
+    assert np.array_equal(read_label_png(path), labels)
+
+
+def test_benchmark_maps_repaint_exactly(benchmark_path):
+    for path in sorted((benchmark_path / "mazedata").glob("*/maze/maze.map*.png"))[:6]:
+        assert np.array_equal(PALETTE_BGR[read_label_png(path)], cv2.imread(str(path)))
+
+
+@pytest.mark.parametrize("colour", [(1, 1, 1), (0, 0, 254), (0, 52, 102), (254, 255, 255), (90, 90, 90)])
+def test_an_off_palette_pixel_is_named(tmp_path, colour):
+    image = PALETTE_BGR[open_table()]
+    image[500, 700] = image[900, 20] = colour
+    path = tmp_path / "map.png"
+    cv2.imwrite(str(path), image)
+    with pytest.raises(MazeError, match=r"map\.png: 2 pixels of unknown colour, first at column 700, row 500"):
+        read_label_png(path)
