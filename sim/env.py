@@ -8,8 +8,10 @@
 (`gymnasium.make("sim.env:RobotSlang/NDH-v0", ...)` imports the module itself.)
 
 Episodes come from a benchmark split (NDH instances, from the episode or recorded start), or
-without the benchmark from mazes given by name (`MazeLibrary`) or as `Maze` objects: a random
-target object and a random start pose from which it can be reached.
+without the benchmark from mazes: the bundled generated mazes by default (so
+`gymnasium.make("RobotSlang/NDH-v0")` runs on a fresh machine), or `mazes=` names from the
+`MazeLibrary` or `Maze` objects; each episode a random target object and a random start pose
+from which it can be reached (options "maze" and "target" choose them).
 
 - actions: Discrete(4), `sim.dynamics.Action` (FORWARD, LEFT, RIGHT, STOP).
 - observation: the ray features of the pose, `RayTable.features()` (`OBS_FEATURES` float32:
@@ -40,6 +42,7 @@ from gymnasium import spaces
 from sim.benchmark import MAX_EPISODE_ACTIONS, START_MODES, Benchmark, goal_node
 from sim.dynamics import Action, Pose
 from sim.geometry import HEADINGS, SUCCESS_RADIUS_M, TABLE_HEIGHT_M, TABLE_WIDTH_M, heading_angle
+from sim.library import MazeLibrary
 from sim.maze import Maze
 from sim.navgraph import MODES, NavGraph
 from sim.observations import OBS_FEATURES, RayTable
@@ -98,9 +101,9 @@ class NDHEnv(gym.Env):
             raise ValueError(f"render_view={render_view!r}: expected one of {', '.join(RENDER_VIEWS)}")
         if max_actions < 1:
             raise ValueError(f"max_actions={max_actions}: must be at least 1")
-        if (benchmark is None) == (mazes is None):
+        if benchmark is not None and mazes is not None:
             raise ValueError("give either benchmark= (NDH episodes of a split) or mazes= "
-                             "(maze names or Maze objects, random start and target)")
+                             "(maze names or Maze objects, random start and target), not both")
         self.render_mode, self.render_view = render_mode, render_view
         self.start_mode, self.edges, self.max_actions = start, edges, max_actions
         self.cache_dir = cache_dir
@@ -119,12 +122,18 @@ class NDHEnv(gym.Env):
             self.maze_names = sorted({inst.run for inst in self.instances})
         else:
             self.benchmark, self.split, self.instances = None, None, []
-            self._mazes = {}
-            for item in mazes:
-                maze = item if isinstance(item, Maze) else _library().load(item)
-                self._mazes[maze.name] = maze
-            if not self._mazes:
-                raise ValueError("mazes= is empty: give at least one maze name or Maze")
+            self._library = MazeLibrary()
+            items = self._library.names() if mazes is None else list(mazes)
+            if not items:
+                raise ValueError("no mazes: give at least one maze name or Maze in mazes=")
+            # Mazes given by name are read on first use; an unknown name fails here.
+            self._mazes: dict[str, Maze | None] = {}
+            for item in items:
+                if isinstance(item, Maze):
+                    self._mazes[item.name] = item
+                else:
+                    self._library.path(item)
+                    self._mazes[item] = None
             self.maze_names = list(self._mazes)
 
         self._episode: _Episode | None = None
@@ -140,7 +149,7 @@ class NDHEnv(gym.Env):
             if self.benchmark is not None:
                 maze, graph = self.benchmark.maze(name), self.benchmark.graph(name, self.edges)
             else:
-                maze = self._mazes[name]
+                maze = self._mazes[name] or self._library.load(name)
                 graph = NavGraph.build(maze, self.edges, cache_dir=self.cache_dir)
             self._worlds[name] = World.build(maze, graph, self.cache_dir)
         return self._worlds[name]
@@ -264,12 +273,6 @@ class NDHEnv(gym.Env):
     def path(self) -> list[int]:
         """Nodes visited this episode, the start first (a collision repeats the node)."""
         return list(self._path)
-
-
-def _library():
-    from sim.library import MazeLibrary  # the bundled mazes; imported only when asked for
-
-    return MazeLibrary()
 
 
 if ENV_ID not in gym.registry:

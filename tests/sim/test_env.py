@@ -59,6 +59,16 @@ def test_check_env_passes_on_mazes_without_the_benchmark(walled_maze):
     _quiet_check_env(env)
 
 
+def test_runs_on_the_bundled_mazes_by_default():
+    env = gym.make(ENV_ID, render_mode="rgb_array")
+    _quiet_check_env(env)
+    names = env.unwrapped.maze_names
+    assert names and all(name.startswith("gen-") for name in names)
+    _, info = env.reset(options={"maze": names[1], "target": "paddle"})
+    assert info["maze"] == names[1] and info["target"] == "paddle"
+    assert SUCCESS_RADIUS_M < info["td"] < np.inf
+
+
 def test_make_with_module_prefix_imports_and_registers(walled_maze):
     env = gym.make("sim.env:RobotSlang/NDH-v0", mazes=[walled_maze])
     assert isinstance(env.unwrapped, NDHEnv)
@@ -182,8 +192,12 @@ def test_render_first_person_and_top_down(walled_maze):
 
 
 def test_bad_arguments_are_named(bench, walled_maze):
-    with pytest.raises(ValueError, match="either benchmark"):
-        NDHEnv()
+    with pytest.raises(ValueError, match="not both"):
+        NDHEnv(benchmark=bench, mazes=[walled_maze])
+    with pytest.raises(KeyError, match="unknown maze 'Run_0'"):
+        NDHEnv(mazes=["Run_0"])
+    with pytest.raises(ValueError, match="options\\['maze'\\]='gen-999'"):
+        NDHEnv(mazes=[walled_maze]).reset(options={"maze": "gen-999"})
     with pytest.raises(ValueError, match="start='nowhere'"):
         NDHEnv(benchmark=bench, start="nowhere")
     with pytest.raises(ValueError, match="render_view"):
