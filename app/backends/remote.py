@@ -1,0 +1,388 @@
+"""`RemoteRobotBackend`: the real rover in the robot seat, through its websocket (docs/protocol.md).
+
+`RobotLink` is one connected robot as the server sees it: clock offset from pings, frames
+mapped onto the server clock, moves awaiting their acknowledgement, and the figures the
+experimenter's dashboard shows. `RobotLinks` holds the links of this server by robot id and
+tells the trials that use a robot when it comes and goes: the robot joins the trial as the
+`robot` seat, so losing it pauses the trial and its return resumes it. Overhead cameras
+(`role: overhead`) are recorded into every live trial on a real robot, never shown to a seat.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import hashlib
+import logging
+import secrets
+import time
+from collections import deque
+from collections.abc import AsyncIterator
+from typing import TYPE_CHECKING, Any
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.backends.base import BackendUnavailable, Frame, MoveOutcome
+from app.backends.registry import register_backend
+from app.db.models import Robot
+from robot_client.protocol import FrameHeader, encode
+
+if TYPE_CHECKING:
+    from app.trial.runtime import TrialRuntime
+
+logger = logging.getLogger(__name__)
+
+PING_INTERVAL_S = 0.1  # well under the rover's 0.5 s watchdog, so a live link never trips it
+MAX_FRAME_BYTES = 1024 * 1024  # a 1280x720 JPEG at quality 95 is about 300 KB
+ACK_TIMEOUT_S = 12.0  # the longest pulse a calibration allows (10 s) plus slack
+FRAME_AFTER_MOVE_S = 1.0  # how long execute() waits for a frame showing the move's result
+OFFSET_SAMPLES = 32
+RATE_WINDOW_S = 2.0
+
+
+# -- robots and their tokens --------------------------------------------------------
+ROBOT_ROLES = ("driver", "overhead")
+
+
+class RobotSetupError(ValueError):
+    """A robot that cannot be registered as asked; the message names the field."""
+
+
+def hash_token(token: str) -> str:
+    # Tokens are 256 random bits, so one SHA-256 is as good as a slow hash and can be looked up.
+    return "sha256$" + hashlib.sha256(token.encode()).hexdigest()
+
+
+def create_robot(db: Session, name: str, role: str = "driver") -> tuple[Robot, str]:
+    """Register a robot; returns it with its token, which is stored only hashed (show it once)."""
+    name = name.strip()
+    if not name:
+        raise RobotSetupError("robot name is empty")
+    if role not in ROBOT_ROLES:
+        raise RobotSetupError(f"robot role {role!r}: expected one of {', '.join(ROBOT_ROLES)}")
+    if db.scalar(select(Robot).where(Robot.name == name)) is not None:
+        raise RobotSetupError(f"robot {name!r} already exists")
+    token = secrets.token_urlsafe(32)
+    robot = Robot(name=name, role=role, token_hash=hash_token(token))
+    db.add(robot)
+    db.flush()
+    return robot, token
+
+
+def robot_for_token(db: Session, token: str) -> Robot | None:
+    return db.scalar(select(Robot).where(Robot.token_hash == hash_token(token)))
+
+
+# -- one connected robot ------------------------------------------------------------
+class RobotLink:
+    """The server's end of one robot's websocket. `send` queues a JSON message for the writer."""
+
+    def __init__(self, robot_id: int, name: str, role: str, send, clock) -> None:
+        self.robot_id, self.name, self.role = robot_id, name, role
+        self._send = send
+        self._clock = clock
+        self.connected_ns = clock.now_ns()
+        self._offsets: deque[tuple[int, int]] = deque(maxlen=OFFSET_SAMPLES)  # (rtt, offset)
+        self._ping_id = 0
+        self._pings: dict[int, int] = {}
+        self._pending: dict[str, asyncio.Future] = {}
+        self._move_seq = 0
+        self._arrivals: deque[int] = deque()
+        self._last_capture_ns = 0
+        self.frames_received = 0
+        self.last_ack: dict[str, Any] | None = None
+        self.last_heard_ns = time.monotonic_ns()
+        self.closed = False
+        self.replaced = False  # closed because the same robot connected again
+
+    # clock
+    def ping(self) -> None:
+        self._ping_id += 1
+        sent = time.monotonic_ns()
+        self._pings[self._ping_id] = sent
+        if len(self._pings) > 4 * OFFSET_SAMPLES:  # pongs that never came
+            self._pings.pop(min(self._pings))
+        self._send({"type": "ping", "id": self._ping_id, "server_ns": sent})
+
+    def on_pong(self, message: dict, received_ns: int) -> None:
+        sent = self._pings.pop(message.get("id"), None)
+        robot_ns = message.get("robot_ns")
+        if sent is None or not isinstance(robot_ns, int):
+            return
+        # NTP's estimate: the robot read its clock halfway through the round trip.
+        self._offsets.append((received_ns - sent, robot_ns - (sent + received_ns) // 2))
+
+    @property
+    def offset_ns(self) -> int | None:
+        """Robot monotonic clock minus server monotonic clock, from the fastest recent round trip."""
+        return min(self._offsets)[1] if self._offsets else None
+
+    @property
+    def latency_ms(self) -> float | None:
+        return min(self._offsets)[0] / 2e6 if self._offsets else None
+
+    def server_time(self, robot_ns: int, received_ns: int) -> int:
+        """A robot timestamp on the server clock; never later than its arrival, never going back."""
+        offset = self.offset_ns
+        mono = received_ns if offset is None else min(robot_ns - offset, received_ns)
+        t_ns = self._clock.now_ns() - (time.monotonic_ns() - mono)
+        t_ns = max(t_ns, self._last_capture_ns + 1)
+        self._last_capture_ns = t_ns
+        return t_ns
+
+    # frames
+    def on_frame(self, header: FrameHeader, jpeg: bytes, received_ns: int) -> Frame:
+        self.frames_received += 1
+        self._arrivals.append(received_ns)
+        while self._arrivals and received_ns - self._arrivals[0] > RATE_WINDOW_S * 1e9:
+            self._arrivals.popleft()
+        return Frame(jpeg, self.server_time(header.capture_ns, received_ns), header.width, header.height)
+
+    @property
+    def fps(self) -> float:
+        now = time.monotonic_ns()
+        recent = [t for t in self._arrivals if now - t <= RATE_WINDOW_S * 1e9]
+        return len(recent) / RATE_WINDOW_S
+
+    # moves
+    async def move(self, action: str) -> dict[str, Any]:
+        """Send one move and return the robot's acknowledgement (ack times on the server clock)."""
+        if self.closed:
+            raise BackendUnavailable(f"robot {self.name!r} is not connected")
+        self._move_seq += 1
+        move_id = f"{self.connected_ns:x}-{self._move_seq}"
+        future = asyncio.get_running_loop().create_future()
+        self._pending[move_id] = future
+        self._send({"type": "move", "id": move_id, "action": action})
+        try:
+            return await asyncio.wait_for(future, ACK_TIMEOUT_S)
+        except TimeoutError:
+            raise BackendUnavailable(f"robot {self.name!r} did not acknowledge the move within "
+                                     f"{ACK_TIMEOUT_S:.0f} s") from None
+        finally:
+            self._pending.pop(move_id, None)
+
+    def on_ack(self, message: dict, received_ns: int) -> None:
+        ack = dict(message)
+        for key in ("started_ns", "finished_ns"):
+            if isinstance(ack.get(key), int) and self.offset_ns is not None:
+                ack[key] = self._clock.now_ns() - (time.monotonic_ns() - min(ack[key] - self.offset_ns,
+                                                                             received_ns))
+        ack["received_ns"] = self._clock.now_ns()
+        self.last_ack = ack
+        future = self._pending.get(str(message.get("id")))
+        if future is not None and not future.done():
+            future.set_result(ack)
+
+    def send_error(self, error: str) -> None:
+        self._send({"type": "error", "code": "bad_message", "error": error})
+
+    def stop(self) -> None:
+        if not self.closed:
+            self._send({"type": "stop"})
+
+    def close(self) -> None:
+        self.closed = True
+        for future in self._pending.values():
+            if not future.done():
+                future.set_exception(BackendUnavailable(f"robot {self.name!r} lost its link during the move"))
+
+    def status(self) -> dict[str, Any]:
+        ack = self.last_ack
+        return {"connected": not self.closed, "connected_ns": self.connected_ns,
+                "fps": round(self.fps, 1), "latency_ms": None if self.latency_ms is None else round(self.latency_ms, 1),
+                "frames": self.frames_received,
+                "last_ack": None if ack is None else {k: ack.get(k) for k in ("id", "action", "status", "reason",
+                                                                                 "received_ns") if k in ack}}
+
+
+class FrameSlot:
+    """The newest frame of one robot; waiters wake on each new one (older ones are dropped)."""
+
+    def __init__(self) -> None:
+        self.frame: Frame | None = None
+        self._changed = asyncio.Condition()
+
+    async def put(self, frame: Frame) -> None:
+        async with self._changed:
+            self.frame = frame
+            self._changed.notify_all()
+
+    async def newer_than(self, frame: Frame | None, stop) -> Frame | None:
+        """The next frame after `frame`, or None once `stop()` is true (checked on `wake`)."""
+        async with self._changed:
+            await self._changed.wait_for(lambda: stop() or (self.frame is not None and self.frame is not frame))
+            return None if stop() else self.frame
+
+    async def captured_after(self, t_ns: int, timeout: float) -> Frame | None:
+        try:
+            async with self._changed:
+                await asyncio.wait_for(self._changed.wait_for(
+                    lambda: self.frame is not None and self.frame.capture_ns >= t_ns), timeout)
+                return self.frame
+        except TimeoutError:
+            return None
+
+    async def wake(self) -> None:
+        async with self._changed:
+            self._changed.notify_all()
+
+
+# -- all robots of this server ------------------------------------------------------
+class RobotLinks:
+    """Connected robots by id, the trials that use them, and the dashboard's view of both."""
+
+    def __init__(self, services) -> None:
+        self.services = services
+        self.links: dict[int, RobotLink] = {}
+        self.slots: dict[int, FrameSlot] = {}
+        self.backends: dict[int, set[RemoteRobotBackend]] = {}
+
+    def slot(self, robot_id: int) -> FrameSlot:
+        return self.slots.setdefault(robot_id, FrameSlot())
+
+    def attach(self, link: RobotLink) -> None:
+        """Make `link` the robot's link; an older one is closed (its socket notices and ends)."""
+        previous = self.links.get(link.robot_id)
+        if previous is not None:
+            previous.replaced = True
+            previous.close()
+        self.links[link.robot_id] = link
+        for backend in list(self.backends.get(link.robot_id, ())):
+            backend.link_up(link)
+
+    def detach(self, link: RobotLink) -> None:
+        link.close()
+        if self.links.get(link.robot_id) is not link:
+            return  # already replaced by a newer connection
+        del self.links[link.robot_id]
+        for backend in list(self.backends.get(link.robot_id, ())):
+            backend.link_down(link)
+
+    async def frame(self, link: RobotLink, frame: Frame) -> None:
+        if link.role == "driver":
+            await self.slot(link.robot_id).put(frame)
+            return
+        for backends in list(self.backends.values()):
+            for backend in list(backends):
+                backend.record_overhead(frame)
+
+    def bad_message(self, link: RobotLink, error: str) -> None:
+        # In the log the rover is the `robot` seat; its `driver` role would read as the participant.
+        role = "robot" if link.role == "driver" else link.role
+        for backend in list(self.backends.get(link.robot_id, ())):
+            backend.record_bad_message(role, error)
+
+    def status(self) -> list[dict[str, Any]]:
+        """Every registered robot with its link figures: what the experimenter's dashboard shows."""
+        with self.services.db() as db:
+            robots = db.scalars(select(Robot).order_by(Robot.name)).all()
+        rows = []
+        for robot in robots:
+            link = self.links.get(robot.id)
+            row = {"id": robot.id, "name": robot.name, "role": robot.role, "backend": f"robot:{robot.id}"}
+            row.update(link.status() if link is not None else
+                       {"connected": False, "fps": 0.0, "latency_ms": None, "frames": 0, "last_ack": None})
+            rows.append(row)
+        return rows
+
+
+def robot_links(services) -> RobotLinks:
+    """This server's `RobotLinks`, kept in `services.extras`."""
+    links = services.extras.get("robots")
+    if links is None:
+        links = services.extras["robots"] = RobotLinks(services)
+    return links
+
+
+# -- the backend ----------------------------------------------------------------------
+class RobotSeat:
+    """The rover as a seat of the trial: its presence pauses and resumes the trial; it hears nothing."""
+
+    role = "robot"
+
+    def deliver(self, message: dict[str, Any]) -> None:
+        pass
+
+
+class RemoteRobotBackend:
+    def __init__(self, robot_id: int, name: str, links: RobotLinks, runtime: "TrialRuntime") -> None:
+        self.robot_id, self.name = robot_id, name
+        self.links, self.runtime = links, runtime
+        self._seat: RobotSeat | None = None
+        self._closed = False
+
+    async def connect(self) -> None:
+        """Follow the robot's link. Until it is connected the trial stays paused (`disconnect:robot`),
+        so it cannot start or run on a robot that is not there."""
+        self.links.backends.setdefault(self.robot_id, set()).add(self)
+        link = self.links.links.get(self.robot_id)
+        if link is not None:
+            self.link_up(link)
+        elif not self.runtime.state.over and "disconnect:robot" not in self.runtime.state.pause_reasons:
+            self.runtime.record("paused", {"reason": "disconnect:robot"})
+
+    def link_up(self, link: RobotLink) -> None:
+        self._seat = RobotSeat()
+        self.runtime.join(self._seat)
+
+    def link_down(self, link: RobotLink) -> None:
+        if self._seat is not None:
+            seat, self._seat = self._seat, None
+            self.runtime.leave(seat)
+
+    async def execute(self, action: str) -> MoveOutcome:
+        link = self.links.links.get(self.robot_id)
+        if link is None:
+            raise BackendUnavailable(f"robot {self.name!r} is not connected")
+        ack = await link.move(action)
+        if ack.get("status") != "done":
+            return MoveOutcome(action, "refused", f"robot: {ack.get('reason', 'refused')}")
+        # The Driver should see where the move left the robot: wait for a frame taken after it.
+        finished = ack.get("finished_ns")
+        if isinstance(finished, int):
+            await self.links.slot(self.robot_id).captured_after(finished, FRAME_AFTER_MOVE_S)
+        return MoveOutcome(action, "ok")  # the rover cannot sense collisions; the overhead log can
+
+    async def frames(self) -> AsyncIterator[Frame]:
+        slot = self.links.slot(self.robot_id)
+        frame = slot.frame
+        while (frame := await slot.newer_than(frame, lambda: self._closed)) is not None:
+            yield frame
+
+    def pose(self) -> tuple[float, float, float] | None:
+        return None  # known only from the overhead camera, annotated after the trial
+
+    def record_overhead(self, frame: Frame) -> None:
+        if not self.runtime.state.over:
+            self.runtime.record_frame(frame.jpeg, frame.capture_ns, frame.width, frame.height, "overhead")
+
+    def record_bad_message(self, role: str, error: str) -> None:
+        if not self.runtime.state.over:
+            self.runtime.record("bad_message", {"role": role, "error": error[:500]})
+
+    async def close(self) -> None:
+        self._closed = True
+        self.links.backends.get(self.robot_id, set()).discard(self)
+        link = self.links.links.get(self.robot_id)
+        if link is not None:
+            link.stop()
+        await self.links.slot(self.robot_id).wake()
+
+
+async def remote_backend(spec: str, runtime: "TrialRuntime") -> RemoteRobotBackend:
+    """`robot:<id>`: the registered driver robot with that id."""
+    try:
+        robot_id = int(spec.split(":", 1)[1])
+    except (IndexError, ValueError):
+        raise LookupError(f"robot backend {spec!r}: expected 'robot:<id>'") from None
+    with runtime.services.db() as db:
+        robot = db.get(Robot, robot_id)
+    if robot is None:
+        raise LookupError(f"robot backend {spec!r}: no robot {robot_id} is registered")
+    if robot.role != "driver":
+        raise LookupError(f"robot backend {spec!r}: robot {robot.name!r} is an {robot.role} camera, not a rover")
+    return RemoteRobotBackend(robot.id, robot.name, robot_links(runtime.services), runtime)
+
+
+register_backend("robot", remote_backend)

@@ -1,0 +1,390 @@
+"""The rover end to end on loopback: the real server (uvicorn), the real `robotslang-robot`
+process (mock motors logging their pins, synthetic camera), seats over real websockets."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import httpx
+import pytest
+import uvicorn
+import websockets
+from sqlalchemy import select
+
+from app.backends.remote import MAX_FRAME_BYTES, create_robot, robot_links
+from app.db.models import Event, Frame as FrameRow
+from app.main import create_app
+from app.trial.setup import create_participant, create_team, create_trial
+from robot_client.calibration import Calibration
+from robot_client.protocol import pack_frame
+from tests.app.conftest import platform_settings
+from tests.app.live import SeatClient, free_port
+
+pytestmark = pytest.mark.anyio
+ROBOT = [sys.executable, "-m", "robot_client"]
+CALIBRATION = Calibration(forward_s=0.3, left_s=0.2, right_s=0.25)
+WATCHDOG_S = 0.5
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"
+
+
+class RobotServer:
+    """`create_app` under uvicorn in a thread, with the transport limit `robotslang serve` uses."""
+
+    def __init__(self, settings) -> None:
+        self.app = create_app(settings)
+        self.services = self.app.state.services
+        self.port = free_port()
+        config = uvicorn.Config(self.app, host="127.0.0.1", port=self.port, log_level="warning",
+                                ws_max_size=2 * MAX_FRAME_BYTES, lifespan="on")
+        self.server = uvicorn.Server(config)
+        self.thread = threading.Thread(target=self.server.run, daemon=True)
+        self.thread.start()
+        deadline = time.time() + 20
+        while not self.server.started:
+            assert time.time() < deadline and self.thread.is_alive(), "test server did not start"
+            time.sleep(0.02)
+
+    url = property(lambda self: f"http://127.0.0.1:{self.port}")
+    play_url = property(lambda self: f"ws://127.0.0.1:{self.port}/ws/play")
+
+    def stop(self) -> None:
+        self.server.should_exit = True
+        self.thread.join(timeout=20)
+        self.services.engine.dispose()
+
+    def new_robot_trial(self, name: str, role: str = "driver") -> tuple[int, str, int | None]:
+        """A robot, and (for a rover) a trial of a new team on it: (robot id, token, trial id)."""
+        with self.services.db.begin() as db:
+            robot, token = create_robot(db, name, role)
+            if role != "driver":
+                return robot.id, token, None
+            a = create_participant(db, f"{name} commander")
+            b = create_participant(db, f"{name} driver")
+            team = create_team(db, f"{name} team", a.id, b.id)
+            trial = create_trial(db, team_id=team.id, maze="table", targets=["jar", "mug", "paddle"],
+                                 backend=f"robot:{robot.id}", driver="human", commander_id=a.id,
+                                 maze_names=["table"], now_ns=self.services.clock.now_ns())
+            return robot.id, token, trial.id
+
+    def seat(self, trial_id: int, role: str) -> SeatClient:
+        return SeatClient(self.play_url, self.services.seats.issue(trial_id, role))
+
+    def events(self, trial_id: int, kind: str | None = None) -> list[Event]:
+        with self.services.db() as db:
+            query = select(Event).where(Event.trial_id == trial_id).order_by(Event.seq)
+            return [e for e in db.scalars(query) if kind is None or e.kind == kind]
+
+    def status(self, robot_id: int) -> dict:
+        return next(r for r in robot_links(self.services).status() if r["id"] == robot_id)
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    settings = platform_settings(tmp_path_factory.mktemp("robot-server"), min_move_interval_s=0.0)
+    server = RobotServer(settings)
+    yield server
+    server.stop()
+
+
+class RobotProcess:
+    """`robotslang-robot` as a separate process with mock motors writing a pin log."""
+
+    def __init__(self, tmp_path: Path, url: str, token: str, role: str = "driver",
+                 calibration: Calibration = CALIBRATION, fps: float = 15) -> None:
+        self.pins = tmp_path / f"pins-{time.monotonic_ns()}.jsonl"
+        cal = tmp_path / "calibration.json"
+        calibration.save(cal)
+        self.proc = subprocess.Popen(
+            ROBOT + ["--server", url, "--token", token, "--role", role, "--camera", "synthetic",
+                     "--motors", "mock", "--calibration", str(cal), "--pin-log", str(self.pins),
+                     "--fps", str(fps), "--width", "320", "--height", "240", "--watchdog", str(WATCHDOG_S)],
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+    def pin_log(self) -> list[dict]:
+        if not self.pins.exists():
+            return []
+        return [json.loads(line) for line in self.pins.read_text().splitlines()]
+
+    def stop(self) -> str:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+        try:
+            _, err = self.proc.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            _, err = self.proc.communicate()
+        return err
+
+
+@pytest.fixture
+def robots(tmp_path):
+    started: list[RobotProcess] = []
+
+    def start(*args, **kwargs) -> RobotProcess:
+        robot = RobotProcess(tmp_path, *args, **kwargs)
+        started.append(robot)
+        return robot
+
+    yield start
+    for robot in started:
+        print(robot.stop())
+
+
+async def until(predicate, timeout: float = 15.0, what: str = "condition"):
+    deadline = time.monotonic() + timeout
+    while not (value := predicate()):
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        await asyncio.sleep(0.02)
+    return value
+
+
+def pulses(log: list[dict]) -> list[tuple[str, float, int]]:
+    """(pin, seconds on, start t_ns) for every pulse in a pin log, in start order."""
+    on: dict[str, int] = {}
+    found = []
+    for e in log:
+        if e["state"] > 0:
+            on[e["pin"]] = e["t_ns"]
+        elif e["pin"] in on:
+            start = on.pop(e["pin"])
+            found.append((e["pin"], (e["t_ns"] - start) / 1e9, start))
+    return sorted(found, key=lambda p: p[2])
+
+
+def frame_events(seat: SeatClient) -> list[dict]:
+    return [m for m in seat.received if m.get("type") == "event" and m["kind"] == "frame"]
+
+
+async def test_frames_reach_the_driver_and_the_log_with_monotonic_times(server, robots):
+    robot_id, token, trial = server.new_robot_trial("frames")
+    robots(server.url, token)
+    async with server.seat(trial, "commander") as commander, server.seat(trial, "driver") as driver:
+        await driver.event("phase", phase="localizing")
+        await until(lambda: len(frame_events(driver)) >= 12, what="12 frames at the Driver")
+    frames = frame_events(driver)
+    capture = [f["payload"]["capture_ns"] for f in frames]
+    stamped = [f["t_ns"] for f in frames]
+    assert all(b > a for a, b in zip(capture, capture[1:]))
+    assert all(b > a for a, b in zip(stamped, stamped[1:]))
+    assert all(c <= t for c, t in zip(capture, stamped))  # captured before it was logged
+    assert all(f["jpeg"][:4] == "/9j/" for f in frames)  # base64 of a JPEG's FF D8 FF
+    assert all(f["payload"]["source"] == "driver" and f["payload"]["width"] == 320 for f in frames)
+    assert not any(m.get("kind") == "frame" for m in commander.received)
+
+    logged = server.events(trial, "frame")
+    ids = {f["payload"]["frame_id"] for f in frames}
+    assert ids <= {e.seq for e in logged}
+    with server.services.db() as db:
+        rows = db.scalars(select(FrameRow).where(FrameRow.trial_id == trial).order_by(FrameRow.seq)).all()
+    assert [r.capture_ns for r in rows] == sorted(r.capture_ns for r in rows)
+    assert (server.services.settings.frames_dir / rows[0].path).read_bytes()[:2] == b"\xff\xd8"
+    status = server.status(robot_id)
+    assert status["connected"] and status["fps"] > 5 and status["latency_ms"] is not None
+
+
+async def test_moves_execute_in_order_with_the_calibrated_pin_pulses(server, robots):
+    robot_id, token, trial = server.new_robot_trial("moves")
+    robot = robots(server.url, token)
+    async with server.seat(trial, "commander"), server.seat(trial, "driver") as driver:
+        await driver.event("phase", phase="localizing")
+        await driver.event("frame")  # the robot is connected: the trial runs
+        for i, action in enumerate(["forward", "left", "right", "forward"]):
+            await driver.send("move", action=action, move_id=f"m{i}")
+            executed = await driver.event("move_executed", move_id=f"m{i}")
+            assert executed["payload"]["outcome"] == "ok", executed["payload"]
+    order = [(e.payload["move_id"], e.payload["action"]) for e in server.events(trial, "move_executed")]
+    assert order == [("m0", "forward"), ("m1", "left"), ("m2", "right"), ("m3", "forward")]
+    # forward: both forward pins (GPIO4 left, GPIO17 right); left: GPIO17 + GPIO14 (left backward);
+    # right: GPIO4 + GPIO18 (right backward). Each pulse lasts its calibrated time.
+    found = pulses(robot.pin_log())
+    assert [p for p, _, _ in found] == ["GPIO4", "GPIO17", "GPIO17", "GPIO14", "GPIO4", "GPIO18", "GPIO4", "GPIO17"]
+    expected = [0.3, 0.3, 0.2, 0.2, 0.25, 0.25, 0.3, 0.3]
+    assert [round(s, 2) for _, s, _ in found] == pytest.approx(expected, abs=0.03)
+    assert server.status(robot_id)["last_ack"]["status"] == "done"
+
+
+async def test_a_move_is_refused_while_the_robot_is_not_connected_and_the_trial_waits(server, robots):
+    robot_id, token, trial = server.new_robot_trial("late")
+    async with server.seat(trial, "commander"), server.seat(trial, "driver") as driver:
+        welcome = await driver.wait_for(lambda m: m["type"] == "welcome")
+        assert welcome["paused"] == ["disconnect:robot"]
+        await driver.event("phase", phase="localizing")
+        await driver.send("move", action="forward", move_id="early")
+        refused = await driver.event("move_executed", move_id="early")
+        assert refused["payload"]["outcome"] == "refused" and "paused" in refused["payload"]["reason"]
+        robots(server.url, token)
+        await driver.event("resumed", reason="disconnect:robot")
+        await driver.send("move", action="forward", move_id="later")
+        assert (await driver.event("move_executed", move_id="later"))["payload"]["outcome"] == "ok"
+
+
+class Proxy:
+    """A TCP relay between the rover and the server that can go silent (a dead Wi-Fi link)."""
+
+    def __init__(self, port: int) -> None:
+        self.target = port
+        self.frozen = False
+        self.port = 0
+
+    async def start(self) -> None:
+        self.server = await asyncio.start_server(self._client, "127.0.0.1", 0)
+        self.port = self.server.sockets[0].getsockname()[1]
+
+    async def _client(self, reader, writer) -> None:
+        up_reader, up_writer = await asyncio.open_connection("127.0.0.1", self.target)
+        await asyncio.gather(self._pipe(reader, up_writer), self._pipe(up_reader, writer),
+                             return_exceptions=True)
+        for w in (writer, up_writer):
+            w.close()
+
+    async def _pipe(self, reader, writer) -> None:
+        while data := await reader.read(65536):
+            if not self.frozen:
+                writer.write(data)
+                await writer.drain()
+
+    def close(self) -> None:
+        self.server.close()
+
+
+async def test_losing_the_link_stops_the_motors_within_the_watchdog_and_the_trial_resumes(server, robots):
+    robot_id, token, trial = server.new_robot_trial("link")
+    proxy = Proxy(server.port)
+    await proxy.start()
+    robot = robots(f"http://127.0.0.1:{proxy.port}", token, calibration=Calibration(forward_s=1.8))
+    try:
+        async with server.seat(trial, "commander"), server.seat(trial, "driver") as driver:
+            await driver.event("phase", phase="localizing")
+            await driver.event("frame")
+            await driver.send("move", action="forward", move_id="long")
+            await until(lambda: any(e["state"] > 0 for e in robot.pin_log()), what="the pulse to start")
+            await asyncio.sleep(0.2)
+            seen = len(driver.received)
+            proxy.frozen = True
+            frozen_ns = time.monotonic_ns()
+            stop = await until(lambda: [e for e in robot.pin_log() if e["pin"] == "GPIO4" and e["state"] == 0],
+                               timeout=3, what="the motors to stop")
+            stopped_after_s = (stop[0]["t_ns"] - frozen_ns) / 1e9
+            # Stopped by the rover's own watchdog: the last ping was at most 0.1 s before the freeze.
+            assert stopped_after_s <= WATCHDOG_S + 0.05, stopped_after_s
+            executed = await driver.event("move_executed", move_id="long")
+            assert executed["payload"]["outcome"] == "refused"
+            await driver.event("paused", reason="disconnect:robot", start=seen)
+            proxy.frozen = False
+            await driver.event("resumed", reason="disconnect:robot", timeout=20, start=seen)
+            await driver.send("move", action="left", move_id="after")
+            after = await driver.event("move_executed", move_id="after")
+            assert after["payload"]["outcome"] == "ok", after["payload"].get("reason")
+    finally:
+        proxy.close()
+    print(f"motors stopped {stopped_after_s * 1000:.0f} ms after the link went silent")
+
+
+async def test_a_restarted_client_reconnects_and_the_trial_continues(server, robots):
+    robot_id, token, trial = server.new_robot_trial("restart")
+    first = robots(server.url, token)
+    await until(lambda: server.status(robot_id)["connected"], what="the robot to connect")
+    async with server.seat(trial, "commander"), server.seat(trial, "driver") as driver:
+        await driver.event("phase", phase="localizing")
+        await driver.event("frame")
+        await driver.send("move", action="forward", move_id="before")
+        assert (await driver.event("move_executed", move_id="before"))["payload"]["outcome"] == "ok"
+        seen = len(driver.received)
+        first.proc.kill()
+        first.proc.wait()
+        await driver.event("paused", reason="disconnect:robot", start=seen)
+        robots(server.url, token)
+        await driver.event("resumed", reason="disconnect:robot", start=seen)
+        await driver.event("frame", start=seen)
+        await driver.send("move", action="right", move_id="after")
+        assert (await driver.event("move_executed", move_id="after"))["payload"]["outcome"] == "ok"
+    kinds = [e.kind for e in server.events(trial) if e.kind in ("connect", "disconnect", "paused", "resumed")
+             and e.payload.get("role", e.payload.get("reason", "")).endswith("robot")]
+    assert kinds == ["connect", "disconnect", "paused", "connect", "resumed"]
+    assert server.events(trial, "phase")[-1].payload["phase"] == "localizing"
+
+
+async def test_a_wrong_token_is_refused(server, robots):
+    robot_id, token, trial = server.new_robot_trial("wrong")
+    robot = robots(server.url, token + "x")
+    assert robot.proc.wait(timeout=20) == 3
+    assert "the server refused this robot: auth: unknown robot token" in robot.stop()
+    assert not server.status(robot_id)["connected"]
+    assert not [e for e in server.events(trial, "connect") if e.payload["role"] == "robot"]
+
+
+async def test_malformed_and_oversized_messages_get_an_error_and_change_nothing(server, robots):
+    robot_id, token, trial = server.new_robot_trial("garbage")
+    url = f"ws://127.0.0.1:{server.port}/ws/robot"
+    async with server.seat(trial, "commander"), server.seat(trial, "driver") as driver, \
+            websockets.connect(url, max_size=None, compression=None) as ws:
+        await ws.send(json.dumps({"type": "hello", "protocol": 1, "token": token, "role": "driver"}))
+        assert json.loads(await ws.recv())["type"] == "welcome"
+        await driver.event("phase", phase="localizing")
+        await ws.send(pack_frame(1, time.monotonic_ns(), 8, 8, b"\xff\xd8\xff\xd9"))
+        await driver.event("frame")
+        before = [(e.kind, e.payload) for e in server.events(trial)]
+        jpeg = b"\xff\xd8" + bytes(MAX_FRAME_BYTES)
+        bad = ["{not json", json.dumps({"type": "dance"}), json.dumps([1, 2]),
+               b"JUNK" + bytes(40), pack_frame(2, time.monotonic_ns(), 8, 8, jpeg)]
+        errors = []
+        for message in bad:
+            await ws.send(message)
+            while (reply := json.loads(await ws.recv()))["type"] != "error":
+                assert reply["type"] == "ping"
+            errors.append(reply["error"])
+        # The link is still up: a good frame after the bad ones reaches the Driver.
+        seen = len(driver.received)
+        await ws.send(pack_frame(3, time.monotonic_ns(), 8, 8, b"\xff\xd8\xff\xd9"))
+        await driver.event("frame", start=seen)
+        after = [(e.kind, e.payload) for e in server.events(trial)]
+    assert "not JSON" in errors[0] and "unknown message type 'dance'" in errors[1]
+    assert "'type'" in errors[2] and "expected b'RSF1'" in errors[3] and "limit is" in errors[4]
+    added = after[len(before):]
+    assert after[:len(before)] == before
+    assert [k for k, _ in added] == ["bad_message"] * 5 + ["frame"]
+    assert all(p["role"] == "robot" for k, p in added[:5])
+
+
+async def test_overhead_frames_are_logged_but_never_reach_a_seat(server, robots):
+    _, rover_token, trial = server.new_robot_trial("table")
+    _, overhead_token, _ = server.new_robot_trial("table-camera", role="overhead")
+    robots(server.url, rover_token)
+    robots(server.url, overhead_token, role="overhead", fps=5)
+    async with server.seat(trial, "commander") as commander, server.seat(trial, "driver") as driver:
+        await driver.event("phase", phase="localizing")
+        await until(lambda: len(server.events(trial, "frame")) >= 20
+                    and any(e.payload["source"] == "overhead" for e in server.events(trial, "frame")),
+                    what="overhead frames in the log")
+    sources = {e.payload["source"] for e in server.events(trial, "frame")}
+    assert sources == {"driver", "overhead"}
+    assert all(m["payload"]["source"] == "driver" for m in frame_events(driver))
+    assert not frame_events(commander)
+
+
+async def test_the_experimenter_registers_robots_and_sees_their_links(server, robots):
+    cookies = {"robotslang_session": server.services.sessions.issue(1)}
+    async with httpx.AsyncClient(base_url=server.url, cookies=cookies) as http:
+        made = (await http.post("/experimenter/api/robots", data={"name": "api rover", "role": "driver"})).json()
+        assert made["backend"] == f"robot:{made['id']}" and len(made["token"]) >= 40
+        again = await http.post("/experimenter/api/robots", data={"name": "api rover"})
+        assert again.status_code == 400 and "already exists" in again.json()["detail"]
+        robots(server.url, made["token"])
+        await until(lambda: server.status(made["id"])["fps"] > 5, what="frames from the new robot")
+        rows = (await http.get("/experimenter/api/robots")).json()["robots"]
+        mine = next(r for r in rows if r["id"] == made["id"])
+        assert mine["connected"] and mine["name"] == "api rover" and mine["latency_ms"] < 50
+        assert "token" not in mine and "token_hash" not in mine
+    async with httpx.AsyncClient(base_url=server.url) as anonymous:
+        assert (await anonymous.get("/experimenter/api/robots")).status_code in (303, 307)
