@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from sqlalchemy import select
+from sqlalchemy import insert, select, update
 from sqlalchemy.orm import sessionmaker
 
 from app.db import models
@@ -14,6 +14,7 @@ from app.trial.state import LoggedEvent
 class EventLog:
     def __init__(self, sessions: sessionmaker) -> None:
         self.sessions = sessions
+        self.engine = sessions.kw["bind"]
 
     def load(self, trial_id: int) -> list[LoggedEvent]:
         with self.sessions() as db:
@@ -25,12 +26,11 @@ class EventLog:
                trial_cache: dict[str, Any] | None = None) -> None:
         """Commit one event, with its frame row and the trial's cached columns in the same
         transaction; raises (and writes nothing) if the seq is already taken."""
-        with self.sessions.begin() as db:
-            db.add(models.Event(trial_id=trial_id, seq=event.seq, kind=event.kind, t_ns=event.t_ns,
-                                payload=event.payload))
+        # Core statements, not the ORM: this runs for every event of every live trial.
+        with self.engine.begin() as conn:
+            conn.execute(insert(models.Event), {"trial_id": trial_id, "seq": event.seq, "kind": event.kind,
+                                                "t_ns": event.t_ns, "payload": event.payload})
             if frame is not None:
-                db.add(models.Frame(trial_id=trial_id, seq=event.seq, **frame))
+                conn.execute(insert(models.Frame), {"trial_id": trial_id, "seq": event.seq, **frame})
             if trial_cache:
-                trial = db.get(models.Trial, trial_id)
-                for key, value in trial_cache.items():
-                    setattr(trial, key, value)
+                conn.execute(update(models.Trial).where(models.Trial.id == trial_id).values(**trial_cache))
