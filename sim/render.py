@@ -24,8 +24,7 @@ CAMERA_HEIGHT_M = 0.05
 WALL_HEIGHT_M = 0.12
 HORIZON = 0.42  # image row of the horizon, as a fraction of the height
 FOG_M = 3.0  # distance at which colours have faded to half
-RENDER_STEP_PX = 1.0  # ray sampling step for pictures (1.8 mm); observations use finer
-RENDER_WINDOW = 32  # samples per round: rays grazing a wall still advance quickly
+RENDER_WINDOW = 32  # pixels per round: rays grazing a wall still advance quickly
 
 # The room beyond the table, and the table top (BGR).
 SKY_TOP, SKY_HORIZON = np.array([120, 104, 92.0]), np.array([200, 196, 190.0])
@@ -106,8 +105,7 @@ def first_person(maze: Maze, x: float, y: float, theta: float, size=(320, 240)) 
         raise ValueError(f"image size {size!r} too small; expected at least 8x8 pixels")
     scene, cam = _scene(maze), _camera(width, height)
     angles = theta + cam.column_offsets
-    labels, depth = scene.walls.cast(x, y, angles, step_px=RENDER_STEP_PX, window=RENDER_WINDOW,
-                                      resolution_px=RENDER_STEP_PX)
+    labels, depth = scene.walls.cast(x, y, angles, window=RENDER_WINDOW)
     z = np.maximum(depth * np.cos(cam.column_offsets), 1e-3)  # perpendicular: no fisheye
     wall = labels != Label.FLOOR
 
