@@ -56,7 +56,7 @@ CHAMFER_SAFETY = 0.96
 _SAFE_PX = 1.5  # a point is at most sqrt(2)/2 px from its pixel's centre, on both ends of a jump
 _PAST_PX = np.float32(1e-3)  # a crossing's sample lies this far into the pixel entered
 _FAR = 1e9  # boundary gap of an axis a ray never crosses
-_CACHE_VERSION = 1
+_CACHE_VERSION = 2  # 2: exact traversal (1 could skip a grazed wall corner)
 
 
 class RayCaster:
