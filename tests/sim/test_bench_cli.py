@@ -1,0 +1,30 @@
+"""`robotslang bench sim` prints every speed figure of the simulator (on a few maps, to stay fast)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROBOTSLANG = Path(sys.executable).parent / "robotslang"
+
+
+def test_bench_sim_prints_every_figure(benchmark_path, tmp_path):
+    env = {**os.environ, "COLUMNS": "160"}
+    # Run from elsewhere: the installed command must find bench/ in the checkout by itself.
+    result = subprocess.run([str(ROBOTSLANG), "bench", "sim", "--benchmark", str(benchmark_path), "--maps", "2"],
+                            capture_output=True, text=True, cwd=tmp_path, env=env, timeout=300)
+    assert result.returncode == 0, result.stderr
+    for figure in ("PNG decode, 2 maps", "graph + all-pairs, 2 maps", "ray table, 2 maps",
+                   "graphs + all-pairs + rays, 2 maps", "env step, unwrapped", "env step, gymnasium.make",
+                   "batch env steps/s, batch 100", "batch env steps/s, batch 1000",
+                   "first-person render, 320x240"):
+        assert figure in result.stdout, f"{figure!r} missing from:\n{result.stdout}"
+
+
+def test_bench_sim_names_a_missing_benchmark(tmp_path):
+    result = subprocess.run([str(ROBOTSLANG), "bench", "sim", "--benchmark", str(tmp_path / "nowhere")],
+                            capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    assert result.returncode != 0
+    assert "nowhere" in result.stderr + result.stdout and "NDH-data" in result.stderr + result.stdout
