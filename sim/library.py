@@ -36,6 +36,9 @@ class MazeLibrary:
         self._roots += [("local", Path(d)) for d in extra_dirs]
         if benchmark is not None:
             benchmark = Path(benchmark)
+            if not benchmark.is_dir():
+                raise FileNotFoundError(f"{benchmark}: no such folder; expected a clone of the "
+                                        f"RobotSlang benchmark (with mazedata/Run_*/maze/)")
             mazedata = benchmark / "mazedata"
             self._roots.append(("benchmark", mazedata if mazedata.is_dir() else benchmark))
         self._index: dict[str, tuple[str, Path]] | None = None

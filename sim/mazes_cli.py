@@ -53,11 +53,18 @@ def generate(count: int = typer.Option(12, "--count", min=1, help="How many maze
     typer.echo(f"wrote {count} mazes and {MANIFEST} to {out}")
 
 
+def _library(benchmark: Path | None, extra: list[Path]) -> MazeLibrary:
+    try:
+        return MazeLibrary(benchmark, extra_dirs=extra)
+    except FileNotFoundError as e:
+        raise typer.BadParameter(str(e), param_hint="--benchmark") from None
+
+
 @app.command("list")
 def list_mazes(benchmark: Optional[Path] = BENCHMARK_OPTION,
                extra: list[Path] = typer.Option([], "--dir", help="A folder of mazes to include (repeatable).")) -> None:
     """Every maze name with where it comes from."""
-    library = MazeLibrary(benchmark, extra_dirs=extra)
+    library = _library(benchmark, extra)
     for name in library.names():
         typer.echo(f"{name}\t{library.source(name)}")
 
@@ -70,7 +77,7 @@ def show(name: str,
          walls_only: bool = typer.Option(False, "--walls-only", help="Draw the walls-only map.")) -> None:
     """Draw a maze's map, in the benchmark's colours, to a PNG."""
     try:
-        maze = MazeLibrary(benchmark, extra_dirs=extra).load(name)
+        maze = _library(benchmark, extra).load(name)
     except (UnknownMazeError, MazeError) as e:
         typer.echo(f"error: {e}", err=True)
         raise typer.Exit(1) from None
