@@ -83,9 +83,10 @@ class Demo:
 
     async def play(self, server: str, trial: Trial) -> DemoResult:
         maze, graph = self.mazes.load(trial.maze), self.mazes.graph(trial.maze)
-        rng = random.Random(self.rng.random())
-        commander = ScriptedCommander(maze, graph, list(trial.targets), rng, self.pace_s)
-        driver = ScriptedDriver(maze, graph, list(trial.targets), rng, self.pace_s)
+        # One generator per player: their draws interleave differently from run to run.
+        commander = ScriptedCommander(maze, graph, list(trial.targets), random.Random(self.rng.random()),
+                                      self.pace_s)
+        driver = ScriptedDriver(maze, graph, list(trial.targets), random.Random(self.rng.random()), self.pace_s)
         seats: list[Seat] = []
         error = None
         try:

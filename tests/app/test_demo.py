@@ -14,7 +14,7 @@ from app.db.models import Team, Trial
 from app.demo.script import OBJECT_WORDS, describe_view, plan_leg
 from app.trial.log import EventLog
 from app.mazes import Mazes
-from sim.dynamics import Action, Pose, step
+from sim.dynamics import Action, Pose, snap_pose, step, teacher_action
 
 
 @pytest.fixture(scope="module")
@@ -73,6 +73,29 @@ def test_demo_dialog_is_route_words_from_both_seats(demo_dir):
         start = next(e.payload for e in log if e.kind == "pose")
         estimate = next(e.payload for e in log if e.kind == "localization")
         assert math.dist((start["x"], start["y"]), (estimate["x"], estimate["y"])) < 0.25
+
+
+def test_driver_follows_the_shortest_path_with_a_few_mistakes_and_questions(demo_dir):
+    data, _, _ = demo_dir
+    settings, trials, _, events = logged(data)
+    mazes = Mazes(settings)
+    moves = mistakes = questions = 0
+    for trial in trials:
+        maze, graph = mazes.load(trial.maze), mazes.graph(trial.maze)
+        pose, target = None, 0
+        for e in events[trial.id]:
+            if e.kind == "pose":
+                pose = snap_pose(graph, e.payload["x"], e.payload["y"], e.payload["heading"])
+            elif e.kind == "target_confirmed":
+                target = e.payload["target_index"] + 1
+            elif e.kind == "move_requested":
+                goal = graph.nearest_node(*maze.objects[trial.targets[target]])
+                moves += 1
+                mistakes += teacher_action(graph, pose, goal).word != e.payload["action"]
+            elif e.kind == "chat" and e.payload["role"] == "driver":
+                questions += e.payload["text"].endswith("?")
+    assert 0 < mistakes <= 0.1 * moves, (mistakes, moves)
+    assert questions > 0
 
 
 def test_route_words_follow_the_shortest_path(demo_dir):

@@ -150,3 +150,20 @@ def test_export_without_a_database_says_where_it_looked(tmp_path):
     result = CliRunner().invoke(root, ["export", "all", "--format", "ndh", "--out", str(tmp_path / "o")], env=env)
     assert result.exit_code == 1
     assert f"no database at {tmp_path / 'empty' / 'robotslang.db'}" in " ".join(result.output.split())
+
+
+def test_demo_and_exports_on_postgresql(postgres_url, tmp_path):
+    env = {"ROBOTSLANG_DATA_DIR": str(tmp_path / "var"), "ROBOTSLANG_DATABASE_URL": postgres_url,
+           "ROBOTSLANG_SECRET_KEY": "pg-test", "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0"}
+    run(env, "demo", "--trials", "1", "--pace", "0")
+    settings = Settings(data_dir=tmp_path / "var", database_url=postgres_url, secret_key="pg-test")
+    sessions = make_sessionmaker(make_engine(settings))
+    with sessions() as db:
+        (trial,) = db.scalars(select(Trial)).all()
+    log = EventLog(sessions).load(trial.id)
+    run(env, "export", "all", "--format", "mcap", "--out", str(tmp_path / "mcap"))
+    with (tmp_path / "mcap" / f"trial-{trial.id}.mcap").open("rb") as f:
+        seqs = sorted(m.sequence for _, _, m in make_reader(f).iter_messages())
+    assert seqs == [e.seq for e in log]
+    run(env, "export", "all", "--format", "ndh", "--out", str(tmp_path / "ndh"))
+    assert [i.target for i in Benchmark(tmp_path / "ndh").split("train")] == list(trial.targets)
