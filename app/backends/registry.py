@@ -7,6 +7,7 @@ A factory gets the spec and the trial's runtime (state, services, settings) and 
 
 from __future__ import annotations
 
+import asyncio
 import importlib
 from collections.abc import Awaitable, Callable
 from typing import TYPE_CHECKING
@@ -47,9 +48,10 @@ async def simulator_backend(spec: str, runtime: "TrialRuntime") -> RobotBackend:
     from sim.dynamics import snap_pose
 
     mazes, state = runtime.services.mazes, runtime.state
-    graph = mazes.graph(state.maze)
+    # Reading a maze and building its graph take a while: off the loop, other trials keep moving.
+    graph = await asyncio.to_thread(mazes.graph, state.maze)
     if state.pose is not None:  # resuming: the robot is where the log last saw it
         start = snap_pose(graph, *state.pose)
     else:
-        start = mazes.start_pose(state.maze, state.targets[0], seed=runtime.trial_id)
+        start = await asyncio.to_thread(mazes.start_pose, state.maze, state.targets[0], runtime.trial_id)
     return SimulatorBackend(mazes.load(state.maze), graph, start, runtime.services.clock)

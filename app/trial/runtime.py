@@ -54,6 +54,7 @@ class TrialRuntime:
         self._grace: dict[str, asyncio.Task] = {}
         self._tasks: set[asyncio.Task] = set()
         self.agent = None
+        self._frame_dirs: set = set()
 
     # -- life cycle ---------------------------------------------------------------
     async def start(self) -> None:
@@ -143,21 +144,36 @@ class TrialRuntime:
     async def _pump_frames(self, backend: RobotBackend) -> None:
         async for frame in backend.frames():
             try:
-                self.record_frame(frame.jpeg, frame.capture_ns, frame.width, frame.height, "driver")
+                rel = self._frame_file(frame.capture_ns, "driver")
+                # The file is written off the event loop (slow disks must not delay other trials).
+                await asyncio.to_thread(self._write_frame_file, rel, frame.jpeg)
+                self._commit_frame(rel, frame.jpeg, frame.capture_ns, frame.width, frame.height, "driver")
             except Exception:  # a frame that cannot be stored must not stop the stream
                 logger.exception("trial %s: frame not recorded", self.trial_id)
 
     def record_frame(self, jpeg: bytes, capture_ns: int, width: int, height: int, source: str) -> int:
-        seq = self.state.last_seq + 1
-        rel = f"{self.trial_id}/{seq:07d}-{source}.jpg"
-        path = self.settings.frames_dir / rel
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_bytes(jpeg)
+        """Store one camera image and commit its row and `frame` event; returns the frame id."""
+        rel = self._frame_file(capture_ns, source)
+        self._write_frame_file(rel, jpeg)
+        return self._commit_frame(rel, jpeg, capture_ns, width, height, source)
+
+    def _frame_file(self, capture_ns: int, source: str) -> str:
+        return f"{self.trial_id}/{capture_ns}-{source}.jpg"  # relative to frames_dir
+
+    def _commit_frame(self, rel: str, jpeg: bytes, capture_ns: int, width: int, height: int, source: str) -> int:
         row = {"source": source, "path": rel, "capture_ns": capture_ns, "width": width, "height": height}
-        payload = {"frame_id": seq, **row, "mime": "image/jpeg"}
+        frame_id = self.state.last_seq + 1  # the frame event's own seq
+        payload = {"frame_id": frame_id, **row, "mime": "image/jpeg"}
         attach = {"driver": {"jpeg": base64.b64encode(jpeg).decode()}} if source == "driver" else {}
         self.record("frame", payload, frame=row, attachments=attach)
-        return seq
+        return frame_id
+
+    def _write_frame_file(self, rel: str, jpeg: bytes) -> None:
+        path = self.settings.frames_dir / rel
+        if path.parent not in self._frame_dirs:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self._frame_dirs.add(path.parent)
+        path.write_bytes(jpeg)
 
     def frame_jpeg(self, frame_id: int) -> bytes | None:
         from sqlalchemy import select
