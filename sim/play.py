@@ -21,6 +21,7 @@ import typer
 from sim.dynamics import Action, Pose, snap_pose, step
 from sim.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M, heading_angle
 from sim.labels import Label
+from sim.library import MazeLibrary, UnknownMazeError
 from sim.maze import Maze, MazeError
 from sim.navgraph import MODES, NavGraph
 from sim.observations import N_RAYS, cast_rays
@@ -135,21 +136,16 @@ def run(drive: Drive, lines: Iterable[str], echo=print) -> None:
 
 
 def load_maze(maze: str, benchmark: Path | None) -> Maze:
-    """A run folder (`.../Run_318`), a generated maze name (`gen-s3`), or a run of `benchmark`."""
+    """A run folder (`.../Run_318`), or a maze name in the library: bundled (`gen-000`) or,
+    given `benchmark`, one of its runs (`Run_318`)."""
     folder = Path(maze)
     if (folder / "maze").is_dir():
         return Maze.from_dir(folder)
-    generated = re.fullmatch(r"gen-s(\d+)", maze)
-    if generated:
-        from sim.generator import generate_maze
-        return generate_maze(int(generated.group(1)), name=maze)
-    if benchmark is None:
-        raise MazeError(f"--maze {maze!r}: not a run folder; give --benchmark PATH "
-                        f"(or ROBOTSLANG_BENCHMARK) to find it by name")
-    run_dir = Path(benchmark) / "mazedata" / maze
-    if not run_dir.is_dir():
-        raise MazeError(f"--maze {maze!r}: no such run in {Path(benchmark) / 'mazedata'}")
-    return Maze.from_dir(run_dir)
+    try:
+        return MazeLibrary(benchmark).load(maze)
+    except (UnknownMazeError, FileNotFoundError) as err:
+        hint = "" if benchmark else " (give --benchmark PATH for the benchmark's runs)"
+        raise MazeError(f"{err}{hint}") from None
 
 
 def parse_start(text: str | None) -> tuple[float, float, float]:
@@ -170,8 +166,8 @@ def parse_start(text: str | None) -> tuple[float, float, float]:
 
 
 def play(
-    maze: str = typer.Option(..., "--maze", help="A run folder (RUN/maze/*.png), a benchmark run name "
-                                                 "(Run_318) or a generated maze (gen-s3)."),
+    maze: str = typer.Option("gen-000", "--maze", help="A run folder (RUN/maze/*.png) or a maze name: "
+                                                       "bundled (gen-000) or a benchmark run (Run_318)."),
     benchmark: Optional[Path] = typer.Option(None, "--benchmark", envvar="ROBOTSLANG_BENCHMARK",
                                              help="A RobotSlangBenchmark clone, to find --maze by name."),
     out: Path = typer.Option(Path("play-frames"), "--out", help="Folder for the PNG frames."),

@@ -65,8 +65,8 @@ def test_driving_into_the_wall_is_a_collision(cli, run_dir, tmp_path):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--maze", "Run_nowhere"], "give --benchmark"),
-    (["--maze", "Run_nowhere", "--benchmark", "."], "no such run"),
+    (["--maze", "Run_nowhere"], "unknown maze 'Run_nowhere'"),
+    (["--maze", "Run_nowhere", "--benchmark", "/nonexistent"], "/nonexistent: no such folder"),
     (["--start", "9,9"], "off the"),
     (["--edges", "fast"], "expected one of"),
 ])
@@ -79,3 +79,19 @@ def test_bad_flags_name_the_problem(cli, run_dir, tmp_path, args, message):
     assert result.exit_code != 0
     # The error panel wraps and frames lines; read it as plain words.
     assert message in " ".join(re.sub("[│╭╮╰╯─]", " ", result.output).split())
+
+
+def test_the_bundled_maze_is_the_default(cli, tmp_path):
+    result = CliRunner(env={"ROBOTSLANG_BENCHMARK": None}).invoke(
+        cli, ["sim", "play", "--out", str(tmp_path)], input="a\nq\n")
+    assert result.exit_code == 0, result.output
+    assert result.output.startswith("gen-000: ")
+    assert (tmp_path / "step-001-first-person.png").exists()
+
+
+def test_a_benchmark_run_by_name(cli, benchmark_path, tmp_path):
+    result = CliRunner().invoke(cli, ["sim", "play", "--maze", "Run_318", "--benchmark", str(benchmark_path),
+                                      "--out", str(tmp_path), "--start", "1.05,1.54,90"], input="q\n")
+    assert result.exit_code == 0, result.output
+    # The hand-checked view of test_observations: the red wall straight ahead, blocking.
+    assert "ahead red at 0.131 m (forward blocked)" in result.output
