@@ -31,7 +31,7 @@ class TrialRecord:
     maze: str
     targets: tuple[str, ...]
     events: tuple[Event, ...]
-    frames_root: Path  # frame payload `path`s are relative to this folder
+    frames_root: Path | None  # frame payload `path`s are relative to this folder (None: no frames)
     info: dict[str, str] = field(default_factory=dict)  # anything else worth keeping as metadata
 
     def of_kind(self, *kinds: str) -> list[Event]:
@@ -42,6 +42,8 @@ class TrialRecord:
         rel = event.payload.get("path")
         if not rel:
             raise ExportError(f"trial {self.trial_id}: frame event {event.seq} has no file path")
+        if not Path(rel).is_absolute() and self.frames_root is None:
+            raise ExportError(f"trial {self.trial_id}: frame event {event.seq} but no frame folder given")
         path = Path(rel) if Path(rel).is_absolute() else self.frames_root / rel
         try:
             return path.read_bytes()
