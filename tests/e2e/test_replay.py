@@ -16,7 +16,8 @@ from tests.app.live import ServerThread
 CHROMIUM = "/usr/bin/chromium"
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
          "--disable-component-update", "--disable-sync"]
-SCREENSHOT = Path(__file__).resolve().parents[2] / "docs" / "img" / "replay.png"
+# A test artifact, like the other browser tests' (docs/img/replay.png is a copy of one).
+SCREENSHOT = Path(__file__).resolve().parents[2] / "test-artifacts" / "replay.png"
 
 pytestmark = pytest.mark.browser
 
