@@ -1,9 +1,170 @@
-"""`robotslang train|eval ndh|report|experiment`: placeholder until the learned Driver lands."""
+"""`robotslang train ndh`, `eval ndh`, `report ndh`, `experiment ndh`.
+
+torch is imported inside the commands, so that `robotslang --help` stays fast.
+"""
 
 from __future__ import annotations
 
+import json
+from enum import Enum
+from pathlib import Path
+from typing import Optional
+
 import typer
+
+BENCHMARK_OPTION = typer.Option(..., "--benchmark", envvar="ROBOTSLANG_BENCHMARK",
+                                help="A RobotSlangBenchmark clone (or an export in its layout).")
+
+
+class Feedback(str, Enum):
+    teacher = "teacher"
+    student = "student"
+
+
+class Blind(str, Enum):
+    none = "none"
+    vision = "vision"
+    language = "language"
+
+
+class Model(str, Enum):
+    baseline = "baseline"
+    improved = "improved"
+
+
+class EvalSplit(str, Enum):
+    val_seen = "val_seen"
+    test = "test"
+
+
+class TrainOn(str, Enum):
+    train = "train"
+    train_val = "train+val_seen"
+
+
+def _benchmark(path: Path):
+    from sim.benchmark import Benchmark, BenchmarkError
+
+    try:
+        return Benchmark(path)
+    except BenchmarkError as e:
+        raise typer.BadParameter(str(e), param_hint="--benchmark") from None
+
+
+def train_ndh(
+    benchmark: Path = BENCHMARK_OPTION,
+    feedback: Feedback = typer.Option(Feedback.student, help="teacher (lr 1e-4) or student (lr 1e-3) forcing."),
+    blind: Blind = typer.Option(Blind.none, help="Ablation: none, vision (observations zeroed) or language "
+                                "(dialog emptied)."),
+    seed: int = typer.Option(0, help="Random seed."),
+    iters: int = typer.Option(2000, help="Training iterations (batches of 100)."),
+    out: Path = typer.Option(..., help="Run folder: best.pt, last.pt, history.json; resumes from last.pt."),
+    model: Model = typer.Option(Model.baseline, help="baseline: the paper's model; improved: attention over "
+                                "the dialog and a progress monitor."),
+    eval_every: int = typer.Option(200, help="Validate on val_seen every this many iterations."),
+    train_on: TrainOn = typer.Option(TrainOn.train, help="train, or train+val_seen (the test-time retraining; "
+                                     "no validation)."),
+    glove: Optional[Path] = typer.Option(None, help="GloVe text file to initialise the word embeddings."),
+    lr: Optional[float] = typer.Option(None, help="Learning rate; default the paper's for the feedback."),
+) -> None:
+    """Train the NDH seq2seq Driver (progress bar with live loss and validation TD)."""
+    from models.train import TrainConfig, train
+
+    if glove is not None and not glove.is_file():
+        raise typer.BadParameter(f"{glove}: no such file", param_hint="--glove")
+    bench = _benchmark(benchmark)
+    splits = train_on.value.split("+")
+    try:
+        cfg = TrainConfig(feedback=feedback.value, blind=blind.value, seed=seed, iters=iters, model=model.value,
+                          eval_every=eval_every, train_splits=splits,
+                          eval_split=None if "val_seen" in splits else "val_seen",
+                          glove=str(glove) if glove else None, lr=lr)
+        result = train(bench, cfg, out)
+    except ValueError as e:
+        raise typer.BadParameter(str(e)) from None
+    best = result["best"]
+    if best["iteration"] is not None:
+        typer.echo(f"best val_seen TD {best['val_td']:.3f} at iteration {best['iteration']} -> {out / 'best.pt'}")
+    typer.echo(f"last checkpoint -> {out / 'last.pt'} ({result['seconds']:.0f} s)")
+
+
+def eval_ndh(
+    benchmark: Path = BENCHMARK_OPTION,
+    checkpoint: Path = typer.Option(..., help="A checkpoint written by `train ndh`."),
+    split: EvalSplit = typer.Option(EvalSplit.val_seen, help="NDH split."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON (the shape of `eval baselines`)."),
+    per_instance: Optional[Path] = typer.Option(None, help="Write a CSV row per instance."),
+    name: Optional[str] = typer.Option(None, help="Agent name in the output; default from the checkpoint."),
+) -> None:
+    """Score a trained Driver: TD, OTD, SR, SPL (mean ± std)."""
+    from rich.console import Console
+
+    from models.evaluate import evaluate_checkpoint
+    from sim.eval_cli import print_table
+    from sim.metrics import summarize, write_csv
+
+    bench = _benchmark(benchmark)
+    try:
+        results = evaluate_checkpoint(bench, None, checkpoint, split.value, name=name)
+    except (FileNotFoundError, ValueError) as e:
+        raise typer.BadParameter(str(e), param_hint="--checkpoint") from None
+    summary = summarize(split.value, results)
+    if per_instance is not None:
+        write_csv(per_instance, results)
+    if as_json:
+        typer.echo(json.dumps(summary, indent=2))
+    else:
+        print_table(summary, Console())
+
+
+def report_ndh(directory: Path = typer.Argument(..., help="An experiment folder (`experiment ndh --out`).")) -> None:
+    """Write the result tables (Markdown) and TD/learning-curve plots (PNG) of an experiment."""
+    from models.report import write_report
+
+    try:
+        path = write_report(directory)
+    except FileNotFoundError as e:
+        raise typer.BadParameter(str(e), param_hint="DIR") from None
+    typer.echo(f"report -> {path}")
+
+
+def experiment_ndh(
+    benchmark: Path = BENCHMARK_OPTION,
+    out: Path = typer.Option(Path("experiments/ndh"), help="Experiment folder; re-running resumes."),
+    models: str = typer.Option("baseline,improved", help="Model variants, comma-separated."),
+    seeds: str = typer.Option("0,1,2", help="Seeds, comma-separated."),
+    iters: Optional[int] = typer.Option(None, help="Iterations per run; default: measured to fit the budget."),
+    budget_minutes: float = typer.Option(110.0, help="Wall-time budget used to size --iters."),
+    workers: int = typer.Option(1, help="Trainings run in parallel (one CPU thread each)."),
+) -> None:
+    """The whole protocol: 6 configurations x seeds, validation, retraining for test, tests, report."""
+    from models.experiment import run_experiment
+    from models.train import MODELS
+
+    model_list = [m.strip() for m in models.split(",") if m.strip()]
+    unknown = [m for m in model_list if m not in MODELS]
+    if not model_list or unknown:
+        raise typer.BadParameter(f"unknown model(s) {', '.join(unknown) or '(none given)'}; "
+                                 f"expected {', '.join(MODELS)}", param_hint="--models")
+    try:
+        seed_list = [int(s) for s in seeds.split(",") if s.strip()]
+    except ValueError:
+        raise typer.BadParameter(f"seeds must be integers, got {seeds!r}", param_hint="--seeds") from None
+    meta = run_experiment(_benchmark(benchmark), out, model_list, seed_list, iters=iters,
+                          budget_minutes=budget_minutes, workers=workers)
+    typer.echo(f"{meta['iters']} iterations per run; {meta['timing']['total_s'] / 60:.1f} min; "
+               f"report -> {out / 'report.md'}")
 
 
 def register(root: typer.Typer, eval_app: typer.Typer) -> None:
     """Mount this package's commands on the root CLI."""
+    train_app = typer.Typer(help="Train learned Drivers.", no_args_is_help=True)
+    train_app.command("ndh")(train_ndh)
+    root.add_typer(train_app, name="train")
+    eval_app.command("ndh")(eval_ndh)
+    report_app = typer.Typer(help="Reports of experiments.", no_args_is_help=True)
+    report_app.command("ndh")(report_ndh)
+    root.add_typer(report_app, name="report")
+    experiment_app = typer.Typer(help="End-to-end experiments.", no_args_is_help=True)
+    experiment_app.command("ndh")(experiment_ndh)
+    root.add_typer(experiment_app, name="experiment")

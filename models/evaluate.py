@@ -15,7 +15,7 @@ import torch
 from models.agent import STOP, Seq2SeqAgent
 from models.data import EpisodeSet, World
 from models.rollout import run_episodes
-from sim.benchmark import Benchmark
+from sim.benchmark import Benchmark, NDHInstance
 from sim.geometry import heading_angle
 from sim.metrics import EpisodeResult, score_trajectory
 
@@ -52,13 +52,17 @@ def evaluate_agent(agent: Seq2SeqAgent, bench: Benchmark, world: World, episodes
     return results
 
 
-def evaluate_checkpoint(bench: Benchmark, world: World, checkpoint: str | Path, split: str,
-                        name: str | None = None) -> list[EpisodeResult]:
-    """Per-instance results of a checkpoint on `split`, under its own tokenizer and ablation."""
+def evaluate_checkpoint(bench: Benchmark, world: World | None, checkpoint: str | Path, split: str,
+                        name: str | None = None, instances: list[NDHInstance] | None = None) -> list[EpisodeResult]:
+    """Per-instance results of a checkpoint on `split` (or on `instances` of it), under its own
+    tokenizer and ablation; without a `world`, only the mazes of those instances are compiled."""
     from models.train import load_agent
 
     agent, tokenizer, ckpt = load_agent(checkpoint)
     cfg = ckpt["train_config"]
-    episodes = EpisodeSet.build(bench, world, split, tokenizer)
+    instances = bench.split(split) if instances is None else instances
+    if world is None:
+        world = World.build(bench, sorted({inst.run for inst in instances}), cache_dir=bench.cache_dir)
+    episodes = EpisodeSet.build(bench, world, split, tokenizer, instances=instances)
     return evaluate_agent(agent, bench, world, episodes, cfg["blind"], name or agent_name(cfg),
                           seed=int(cfg["seed"]), max_actions=int(cfg["max_actions"]))

@@ -22,7 +22,7 @@ from models.agent import AgentConfig, Seq2SeqAgent
 from models.data import EpisodeSet, World, goal_distance, splits_runs
 from models.rollout import BLINDS, MAX_ACTIONS, run_episodes
 from models.tokenizer import Tokenizer
-from sim.benchmark import SPLITS, Benchmark
+from sim.benchmark import SPLITS, Benchmark, NDHInstance
 
 FEEDBACK_LR = {"teacher": 1e-4, "student": 1e-3}
 # Named model variants: the paper's model, and the one aimed at beating it.
@@ -140,17 +140,27 @@ def load_agent(path: str | Path) -> tuple[Seq2SeqAgent, Tokenizer, dict]:
 
 
 def train(bench: Benchmark, cfg: TrainConfig, out: str | Path, world: World | None = None,
-          progress: bool = True, threads: int | None = None) -> dict:
-    """Train (or resume) into `out`; returns {"history": [...], "best": {...}, "seconds": s}."""
+          progress: bool = True, threads: int | None = None, train_instances: list[NDHInstance] | None = None,
+          eval_instances: list[NDHInstance] | None = None) -> dict:
+    """Train (or resume) into `out`; returns {"history": [...], "best": {...}, "seconds": s}.
+
+    `train_instances` / `eval_instances` replace the configured splits (small runs, tests).
+    """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     if threads:
         torch.set_num_threads(threads)
-    world = world or build_world(bench)
-    train_instances = [inst for s in cfg.train_splits for inst in bench.split(s)]
+    if world is None and train_instances is None and eval_instances is None:
+        world = build_world(bench, bench.cache_dir)
+    if train_instances is None:
+        train_instances = [inst for s in cfg.train_splits for inst in bench.split(s)]
+    if world is None:
+        used = train_instances + (eval_instances or (bench.split(cfg.eval_split) if cfg.eval_split else []))
+        world = World.build(bench, sorted({inst.run for inst in used}), cache_dir=bench.cache_dir)
     tokenizer = Tokenizer.from_dialogs(((i.dialog, i.target) for i in train_instances), cfg.min_count)
     train_set = EpisodeSet.build(bench, world, "+".join(cfg.train_splits), tokenizer, instances=train_instances)
-    val_set = EpisodeSet.build(bench, world, cfg.eval_split, tokenizer) if cfg.eval_split else None
+    val_set = (EpisodeSet.build(bench, world, cfg.eval_split, tokenizer, instances=eval_instances)
+               if cfg.eval_split else None)
 
     torch.manual_seed(cfg.seed)
     agent = make_agent(cfg, tokenizer, world.obs_features)
@@ -183,9 +193,9 @@ def train(bench: Benchmark, cfg: TrainConfig, out: str | Path, world: World | No
         optimizer.zero_grad()
         roll.loss.backward()
         optimizer.step()
-        window = (window + [float(roll.loss)])[-20:]
+        window.append(roll.loss.item())  # losses since the last validation
         done = it + 1
-        postfix = {"loss": f"{np.mean(window):.3f}"}
+        postfix = {"loss": f"{np.mean(window):.3f}"}  # before `window` restarts below
         if done % cfg.eval_every == 0 or done == cfg.iters:
             entry = {"iteration": done, "loss": float(np.mean(window)),
                      "seconds": time.perf_counter() - began}
@@ -195,6 +205,7 @@ def train(bench: Benchmark, cfg: TrainConfig, out: str | Path, world: World | No
                     best = {"iteration": done, "val_td": entry["val_td"]}
                     save_checkpoint(out / "best.pt", agent, optimizer, tokenizer, cfg, done, history + [entry], best)
             history.append(entry)
+            window = []
             save_checkpoint(last, agent, optimizer, tokenizer, cfg, done, history, best)
             (out / "history.json").write_text(json.dumps(history, indent=1))
         if best["iteration"] is not None:

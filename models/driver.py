@@ -1,0 +1,111 @@
+"""`Seq2SeqDriver`: a trained NDH Driver in the web UI's Driver seat.
+
+It acts like the NDH agent at test time: the dialog so far (and the current target) is the
+instruction; each time the dialog grows or the target changes it is re-encoded and the decoder
+starts afresh from where the robot is, as an NDH episode starts from the dialog history. Its
+observation is the 13-ray table of the simulator at the robot's pose; on a backend without a
+known pose it sees nothing (zeros) and forward is not masked. After the Commander rejects a
+claim it does not stop again until it has moved.
+
+With the app installed, importing this module registers the Driver as `agent:seq2seq`; the
+checkpoint comes from the setting `seq2seq_checkpoint` or ROBOTSLANG_SEQ2SEQ_CHECKPOINT.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from models.agent import START, STOP
+from sim.dynamics import Action, snap_pose
+from sim.maze import Maze
+from sim.navgraph import NavGraph
+from sim.observations import RayTable
+
+MazeLoader = Callable[[str], tuple[Maze, NavGraph]]
+
+
+class Seq2SeqDriver:
+    def __init__(self, checkpoint: str | Path, load_maze: MazeLoader):
+        from models.train import load_agent
+
+        self.agent, self.tokenizer, ckpt = load_agent(checkpoint)
+        self.blind = ckpt["train_config"]["blind"]
+        self.load_maze = load_maze
+        self.graph: NavGraph | None = None
+        self.rays: np.ndarray | None = None
+
+    def reset(self, info: dict[str, Any]) -> None:
+        maze, self.graph = self.load_maze(info["maze"])
+        self.rays = RayTable.build(maze, self.graph).features()
+        self._encoded_for: tuple | None = None
+        self._rejected = 0
+        self._stop_held = False
+
+    @torch.no_grad()
+    def _encode(self, dialog: list[dict[str, str]], target: str) -> None:
+        ids = self.tokenizer.encode([(turn["role"], turn["text"]) for turn in dialog], target)
+        tokens = torch.tensor([ids], dtype=torch.long)
+        lengths = torch.tensor([0 if self.blind == "language" else len(ids)])
+        self.ctx, self.ctx_mask, self.state = self.agent.encode(tokens, lengths)
+        self.prev = torch.tensor([START])
+        self._encoded_for = (len(dialog), target)
+
+    @torch.no_grad()
+    def act(self, dialog: list[dict[str, str]], observation: dict[str, Any]) -> str:
+        if self.graph is None:
+            raise RuntimeError("Seq2SeqDriver.act before reset(info)")
+        target = observation["target"]
+        if self._encoded_for != (len(dialog), target):
+            self._encode(dialog, target)
+        if observation.get("rejected", 0) > self._rejected:
+            self._rejected = observation["rejected"]
+            self._stop_held = True  # the Commander said no: move before claiming again
+        pose = observation.get("pose")
+        if pose is not None and self.blind != "vision":
+            p = snap_pose(self.graph, *pose)
+            obs = torch.from_numpy(self.rays[p.node, p.heading][None].copy())
+            blocked = torch.tensor([bool(self.graph.forward[p.node, p.heading] < 0)])
+        else:
+            obs = torch.zeros(1, self.rays.shape[2])
+            blocked = torch.tensor([False])
+        stop_allowed = torch.tensor([not self._stop_held])
+        logits, self.state, _ = self.agent.step(obs, self.prev, self.state, self.ctx, self.ctx_mask,
+                                                blocked, stop_allowed)
+        action = int(logits.argmax(dim=1))
+        self.prev = torch.tensor([action])
+        if action != STOP:
+            self._stop_held = False
+        return Action(action).word
+
+
+def checkpoint_from(settings: Any) -> Path:
+    """The configured checkpoint: settings.seq2seq_checkpoint, else ROBOTSLANG_SEQ2SEQ_CHECKPOINT."""
+    path = getattr(settings, "seq2seq_checkpoint", None) or os.environ.get("ROBOTSLANG_SEQ2SEQ_CHECKPOINT")
+    if not path:
+        raise LookupError("agent:seq2seq needs a checkpoint: set ROBOTSLANG_SEQ2SEQ_CHECKPOINT to a file "
+                          "written by `robotslang train ndh` (e.g. RUN/best.pt)")
+    return Path(path)
+
+
+def _register_with_app() -> None:
+    try:
+        from app.drivers.registry import register_driver
+    except ImportError:  # models used without the server
+        return
+
+    def factory(info: dict[str, Any], settings: Any) -> Seq2SeqDriver:
+        from app.mazes import Mazes
+
+        mazes = Mazes(settings)
+        return Seq2SeqDriver(checkpoint_from(settings), lambda name: (mazes.load(name), mazes.graph(name)))
+
+    register_driver("seq2seq", factory)
+
+
+_register_with_app()

@@ -1,0 +1,157 @@
+"""`robotslang experiment ndh`: the paper's whole protocol, end to end.
+
+For each model variant, feedback (teacher, student), ablation (none, vision, language) and
+seed: train on `train`, validate on `val_seen` and keep the iteration with the best TD; then
+retrain on train + val_seen to that iteration for `test`. Every trained Driver is evaluated
+(val_seen from the validation run, test from the retrained one), next to the Random and
+Immediate Stop baselines, into one per-instance CSV per split; the significance tests and the
+report are built from those CSVs. Re-running on the same OUT resumes: finished trainings are
+kept and only what is missing is done.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict
+from multiprocessing import get_context
+from pathlib import Path
+
+from tqdm import tqdm
+
+from models.train import MODELS, TrainConfig, build_world, train
+from sim.benchmark import Benchmark
+
+FEEDBACKS = ("teacher", "student")
+ABLATIONS = ("none", "vision", "language")
+BASELINE_AGENTS = ("random", "stop")
+PROBE_ITERS = 3
+EVALS_PER_RUN = 8
+EVAL_COST_ITERS = 0.5  # a validation pass costs about half a training iteration
+RETRAIN_SHARE = 0.75  # test retraining runs to the best iteration, on average this share of all
+
+
+def config_name(model: str, feedback: str, blind: str) -> str:
+    return f"{model}/{feedback}/{blind}"
+
+
+def run_dir(out: Path, model: str, feedback: str, blind: str, seed: int) -> Path:
+    return out / "runs" / model / f"{feedback}-{blind}" / f"seed{seed}"
+
+
+def measure_iteration_seconds(bench: Benchmark, out: Path, model: str) -> dict[str, float]:
+    """Seconds per training iteration for each feedback, from a short run of each."""
+    world = build_world(bench, bench.cache_dir)
+    costs = {}
+    for feedback in FEEDBACKS:
+        probe = out / "probe" / f"{model}-{feedback}"
+        cfg = TrainConfig(feedback=feedback, model=model, iters=PROBE_ITERS, eval_every=PROBE_ITERS,
+                          eval_split=None)
+        for f in ("last.pt", "best.pt"):
+            (probe / f).unlink(missing_ok=True)
+        begun = time.perf_counter()
+        train(bench, cfg, probe, world=world, progress=False, threads=1)
+        costs[feedback] = (time.perf_counter() - begun) / PROBE_ITERS
+    return costs
+
+
+def choose_iters(costs: dict[str, float], n_models: int, n_seeds: int, budget_s: float, workers: int) -> int:
+    """Training iterations per run that fit the budget (validation and retraining included)."""
+    per_iter = sum(costs.values()) * len(ABLATIONS) * n_models * n_seeds  # one iteration of every run
+    factor = 1 + RETRAIN_SHARE + EVALS_PER_RUN * EVAL_COST_ITERS / 100
+    return max(10, int(budget_s * workers / (per_iter * factor)))
+
+
+def _train_job(root: str, cache_dir: str | None, cfg: dict, out: str) -> dict:
+    bench = Benchmark(root, cache_dir=cache_dir)
+    return train(bench, TrainConfig(**cfg), out, progress=False, threads=1)
+
+
+def _run_jobs(jobs: list[tuple[dict, Path]], bench: Benchmark, workers: int, desc: str) -> list[dict]:
+    bar = tqdm(total=len(jobs), desc=desc, unit="run")
+    root, cache = str(bench.root), (str(bench.cache_dir) if bench.cache_dir else None)
+    if workers <= 1:
+        results = []
+        for cfg, out in jobs:
+            results.append(_train_job(root, cache, cfg, str(out)))
+            bar.update()
+        return results
+    with ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as pool:
+        futures = [pool.submit(_train_job, root, cache, cfg, str(out)) for cfg, out in jobs]
+        for f in futures:
+            f.add_done_callback(lambda _: bar.update())
+        return [f.result() for f in futures]
+
+
+def run_experiment(bench: Benchmark, out: str | Path, models: list[str], seeds: list[int],
+                   iters: int | None = None, budget_minutes: float = 110.0, workers: int = 1,
+                   eval_every: int | None = None) -> dict:
+    from models.evaluate import agent_name, evaluate_checkpoint
+    from models.report import write_report
+    from sim.evaluation import evaluate_baselines
+    from sim.metrics import summarize, write_csv
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    for m in models:
+        if m not in MODELS:
+            raise ValueError(f"unknown model {m!r}; expected one of {', '.join(MODELS)}")
+    began = time.perf_counter()
+    timing: dict[str, float] = {}
+    world = build_world(bench, bench.cache_dir)
+    timing["world_s"] = time.perf_counter() - began
+
+    meta_path = out / "experiment.json"
+    meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
+    if iters is None and "iters" in meta:
+        iters = meta["iters"]  # a resumed experiment keeps its sizing
+    costs = meta.get("iteration_seconds")
+    if iters is None:
+        costs = {m: measure_iteration_seconds(bench, out, m) for m in models}
+        mean_cost = {f: sum(c[f] for c in costs.values()) / len(costs) for f in FEEDBACKS}
+        iters = choose_iters(mean_cost, len(models), len(seeds), budget_minutes * 60 - timing["world_s"] - 300,
+                             workers)
+    eval_every = eval_every or max(1, math.ceil(iters / EVALS_PER_RUN))
+    meta = {"models": models, "seeds": seeds, "iters": iters, "eval_every": eval_every, "workers": workers,
+            "budget_minutes": budget_minutes, "iteration_seconds": costs, "cpus": os.cpu_count()}
+    meta_path.write_text(json.dumps(meta, indent=2))
+
+    grid = [(m, f, b, s) for m in models for f in FEEDBACKS for b in ABLATIONS for s in seeds]
+    t0 = time.perf_counter()
+    val_jobs = [(asdict(TrainConfig(feedback=f, blind=b, seed=s, model=m, iters=iters, eval_every=eval_every)),
+                 run_dir(out, m, f, b, s) / "val") for m, f, b, s in grid]
+    val_runs = _run_jobs(val_jobs, bench, workers, "train (val_seen)")
+    timing["train_val_s"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    test_jobs = []
+    for (m, f, b, s), run in zip(grid, val_runs):
+        best = run["best"]["iteration"] or iters
+        test_jobs.append((asdict(TrainConfig(feedback=f, blind=b, seed=s, model=m, iters=best, eval_every=best,
+                                             train_splits=["train", "val_seen"], eval_split=None)),
+                          run_dir(out, m, f, b, s) / "test"))
+    _run_jobs(test_jobs, bench, workers, "retrain (train+val_seen)")
+    timing["train_test_s"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    summaries = {}
+    for split, ckpt_name in (("val_seen", "val/best.pt"), ("test", "test/last.pt")):
+        results = evaluate_baselines(bench, split, BASELINE_AGENTS, seeds=seeds, progress=False)
+        for m, f, b, s in tqdm(grid, desc=f"evaluate {split}", unit="run"):
+            ckpt = run_dir(out, m, f, b, s) / ckpt_name
+            results += evaluate_checkpoint(bench, world, ckpt, split, name=config_name(m, f, b))
+        write_csv(out / "results" / f"{split}.csv", results)
+        summaries[split] = summarize(split, results)
+        (out / "results" / f"summary_{split}.json").write_text(json.dumps(summaries[split], indent=2))
+    timing["evaluate_s"] = time.perf_counter() - t0
+    timing["total_s"] = time.perf_counter() - began
+    meta["timing"] = timing
+    meta["best_iterations"] = {f"{config_name(m, f, b)}/seed{s}": r["best"]
+                               for (m, f, b, s), r in zip(grid, val_runs)}
+    meta_path.write_text(json.dumps(meta, indent=2))
+    write_report(out)
+    return meta
+

@@ -1,0 +1,192 @@
+"""`robotslang report ndh DIR`: the paper's two result tables and plots from an experiment.
+
+Reads what `experiment ndh` wrote (results/{val_seen,test}.csv, runs/*/history.json) and
+writes DIR/report.md (TD/OTD and SR/SPL tables with significance marks, the tests behind
+them) and DIR/td_distribution.png, DIR/learning_curves.png.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from models.stats import Comparison, paired_tests
+from sim.metrics import EpisodeResult, read_csv, summarize_agent
+
+SPLITS = ("val_seen", "test")
+FEEDBACK_LABEL = {"teacher": "Teacher forcing", "student": "Student forcing"}
+BLIND_LABEL = {"none": "vision + language", "vision": "vision-blind", "language": "language-blind"}
+BASELINE_LABEL = {"random": "Random", "stop": "Immediate Stop"}
+TABLE_METRICS = {"TD/OTD": (("td", "TD"), ("otd", "OTD")), "SR/SPL": (("success", "SR"), ("spl", "SPL"))}
+ABLATION_MARK, FEEDBACK_MARK = "*", "†"
+
+
+def configurations(agents: set[str]) -> list[tuple[str, str, str]]:
+    """(model, feedback, blind) of the learned agents present, in table order."""
+    out = []
+    models = sorted({a.split("/")[0] for a in agents if a.count("/") == 2})
+    for m in models:
+        for f in FEEDBACK_LABEL:
+            for b in BLIND_LABEL:
+                if f"{m}/{f}/{b}" in agents:
+                    out.append((m, f, b))
+    return out
+
+
+def comparison_pairs(configs: list[tuple[str, str, str]]) -> list[tuple[str, str]]:
+    """Full model vs each ablation (same feedback), and student vs teacher (same inputs)."""
+    present = {"/".join(c) for c in configs}
+    pairs = []
+    for m, f, b in configs:
+        if b != "none" and f"{m}/{f}/none" in present:
+            pairs.append((f"{m}/{f}/none", f"{m}/{f}/{b}"))
+    for m, f, b in configs:
+        if f == "student" and f"{m}/teacher/{b}" in present:
+            pairs.append((f"{m}/student/{b}", f"{m}/teacher/{b}"))
+    return pairs
+
+
+def significance(results: dict[str, list[EpisodeResult]], pairs) -> dict[str, list[Comparison]]:
+    """Per split: tests on every table metric, BY-corrected within each (split, metric)."""
+    return {split: [c for metric in ("td", "otd", "success", "spl")
+                    for c in paired_tests(rs, pairs, metrics=(metric,))]
+            for split, rs in results.items()}
+
+
+def _marks(agent: str, metric: str, tests: list[Comparison]) -> str:
+    marks = ""
+    for c in tests:
+        if c.metric != metric or not c.significant or agent != c.b:
+            continue
+        marks += FEEDBACK_MARK if c.a.split("/")[1] != c.b.split("/")[1] else ABLATION_MARK
+    return marks
+
+
+def _cell(summary: dict, metric: str, marks: str) -> str:
+    if metric == "success":
+        return f"{summary['sr']:.3f}{marks}"
+    if metric == "spl":
+        return f"{summary['spl']:.3f}{marks}"
+    return f"{summary[metric + '_mean']:.2f} ± {summary[metric + '_std']:.2f}{marks}"
+
+
+def tables_markdown(results: dict[str, list[EpisodeResult]], tests: dict[str, list[Comparison]]) -> str:
+    by_agent = {s: {} for s in results}
+    for split, rs in results.items():
+        for r in rs:
+            by_agent[split].setdefault(r.agent, []).append(r)
+    agents = set().union(*(set(a) for a in by_agent.values()))
+    rows = [(BASELINE_LABEL[a], a) for a in BASELINE_LABEL if a in agents]
+    rows += [(f"{m}: {FEEDBACK_LABEL[f]}, {BLIND_LABEL[b]}", f"{m}/{f}/{b}") for m, f, b in configurations(agents)]
+    lines = []
+    for title, metrics in TABLE_METRICS.items():
+        header = ["Driver"] + [f"{name} ({split})" for split in results for _, name in metrics]
+        lines += [f"### {title}", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+        for label, agent in rows:
+            cells = [label]
+            for split in results:
+                summary = summarize_agent(by_agent[split][agent]) if agent in by_agent[split] else None
+                for metric, _ in metrics:
+                    cells.append(_cell(summary, metric, _marks(agent, metric, tests.get(split, [])))
+                                 if summary else "–")
+            lines.append("| " + " | ".join(cells) + " |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def tests_markdown(tests: dict[str, list[Comparison]]) -> str:
+    lines = ["| split | metric | A | B | n | mean A | mean B | t | p | p (BY) | significant |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for split, cs in tests.items():
+        for c in cs:
+            lines.append(f"| {split} | {c.metric} | {c.a} | {c.b} | {c.n} | {c.mean_a:.3f} | {c.mean_b:.3f} | "
+                         f"{c.t:.2f} | {c.p:.3g} | {c.p_adjusted:.3g} | {'yes' if c.significant else 'no'} |")
+    return "\n".join(lines)
+
+
+def plot_td_distributions(results: dict[str, list[EpisodeResult]], path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(results), figsize=(7 * len(results), 6), squeeze=False)
+    for ax, (split, rs) in zip(axes[0], results.items()):
+        agents = [a for a in BASELINE_LABEL if any(r.agent == a for r in rs)]
+        agents += ["/".join(c) for c in configurations({r.agent for r in rs})]
+        data = []
+        for a in agents:
+            per = {}
+            for r in rs:
+                if r.agent == a and np.isfinite(r.td):
+                    per.setdefault(r.inst_idx, []).append(r.td)
+            data.append([float(np.mean(v)) for v in per.values()])
+        ax.boxplot(data, vert=False, showmeans=True)
+        ax.set_yticks(range(1, len(agents) + 1), agents, fontsize=8)
+        ax.set_xlabel("topological distance to goal (m), mean over seeds per instance")
+        ax.set_title(f"TD distribution, {split}")
+        ax.invert_yaxis()
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def plot_learning_curves(out: Path, path: Path) -> bool:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    curves: dict[str, dict[str, list]] = {}
+    for hist in sorted((out / "runs").glob("*/*/seed*/val/history.json")):
+        model, config = hist.parts[-5], hist.parts[-4]
+        curves.setdefault(model, {}).setdefault(config, []).append(json.loads(hist.read_text()))
+    if not curves:
+        return False
+    fig, axes = plt.subplots(1, len(curves), figsize=(7 * len(curves), 5), squeeze=False)
+    for ax, (model, configs) in zip(axes[0], sorted(curves.items())):
+        for config, runs in sorted(configs.items()):
+            iters = [e["iteration"] for e in runs[0] if "val_td" in e]
+            tds = np.array([[e["val_td"] for e in run if "val_td" in e][:len(iters)] for run in runs
+                            if len([e for e in run if "val_td" in e]) >= len(iters)])
+            ax.plot(iters, tds.mean(axis=0), marker="o", label=f"{config} ({len(tds)} seeds)")
+        ax.set_xlabel("training iteration (batch of 100)")
+        ax.set_ylabel("val_seen TD (m), mean over seeds")
+        ax.set_title(f"learning curves: {model}")
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return True
+
+
+def write_report(out: str | Path) -> Path:
+    out = Path(out)
+    results = {s: read_csv(out / "results" / f"{s}.csv") for s in SPLITS if (out / "results" / f"{s}.csv").exists()}
+    if not results:
+        raise FileNotFoundError(f"{out}/results: no val_seen.csv or test.csv; run `robotslang experiment ndh` first")
+    agents = set().union(*({r.agent for r in rs} for rs in results.values()))
+    tests = significance(results, comparison_pairs(configurations(agents)))
+    (out / "significance.json").write_text(json.dumps({s: [c.to_dict() for c in cs] for s, cs in tests.items()},
+                                                      indent=2))
+    plot_td_distributions(results, out / "td_distribution.png")
+    has_curves = plot_learning_curves(out, out / "learning_curves.png")
+    meta_path = out / "experiment.json"
+    meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
+    lines = ["# NDH results", ""]
+    if meta:
+        lines += [f"Models {', '.join(meta.get('models', []))}; seeds {meta.get('seeds')}; "
+                  f"{meta.get('iters')} training iterations per run (validation every {meta.get('eval_every')}); "
+                  f"wall time {meta.get('timing', {}).get('total_s', float('nan')) / 60:.1f} min.", ""]
+    lines += [tables_markdown(results, tests),
+              f"{ABLATION_MARK}: significantly different from the full model with the same feedback; "
+              f"{FEEDBACK_MARK}: student forcing significantly different from teacher forcing with the same "
+              "inputs (paired t-tests over instances, metrics averaged over seeds per instance, "
+              "Benjamini-Yekutieli within each split and metric, alpha 0.05).", "",
+              "## Tests", "", tests_markdown(tests), "",
+              "![TD distributions](td_distribution.png)", ""]
+    if has_curves:
+        lines += ["![learning curves](learning_curves.png)", ""]
+    path = out / "report.md"
+    path.write_text("\n".join(lines))
+    return path

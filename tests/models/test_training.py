@@ -1,0 +1,101 @@
+"""A short real training run: the loss falls, checkpoints round-trip, training resumes, and the
+evaluation has the shape of `eval baselines`."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from models.evaluate import evaluate_agent, evaluate_checkpoint
+from models.rollout import run_episodes
+from models.train import TrainConfig, load_agent, train
+from sim.evaluation import evaluate_baselines
+from sim.metrics import CSV_COLUMNS, summarize, write_csv
+
+
+@pytest.fixture(scope="module")
+def trained(bench, few, tmp_path_factory):
+    out = tmp_path_factory.mktemp("run")
+    cfg = TrainConfig(feedback="teacher", iters=12, batch=8, lr=1e-2, eval_every=4, max_actions=40)
+    result = train(bench, cfg, out, world=few["world"], progress=False,
+                   train_instances=few["train"], eval_instances=few["val"])
+    return cfg, out, result
+
+
+def test_loss_falls(trained):
+    _, out, result = trained
+    losses = [h["loss"] for h in result["history"]]
+    assert len(losses) == 3
+    assert losses[-1] < 0.7 * losses[0]
+    assert json.loads((out / "history.json").read_text()) == result["history"]
+
+
+def test_checkpoints_round_trip(trained, few):
+    _, out, result = trained
+    assert result["best"]["val_td"] == min(h["val_td"] for h in result["history"])
+    agent, tokenizer, ckpt = load_agent(out / "last.pt")
+    assert ckpt["iteration"] == 12 and tokenizer.vocab == few["tokenizer"].vocab
+    world, eps = few["world"], few["train_set"]
+    idx = np.arange(len(eps))
+    again, _, _ = load_agent(out / "last.pt")
+    with torch.no_grad():
+        a = run_episodes(agent, world, eps, idx, "argmax")
+        b = run_episodes(again, world, eps, idx, "argmax")
+    assert (a.actions == b.actions).all()
+    best, _, best_ckpt = load_agent(out / "best.pt")
+    assert best_ckpt["iteration"] == result["best"]["iteration"]
+
+
+def test_training_resumes_from_last_checkpoint(trained, bench, few):
+    cfg, out, _ = trained
+    longer = TrainConfig(**{**cfg.__dict__, "iters": 16})
+    result = train(bench, longer, out, world=few["world"], progress=False,
+                   train_instances=few["train"], eval_instances=few["val"])
+    assert [h["iteration"] for h in result["history"]] == [4, 8, 12, 16]
+    with pytest.raises(ValueError, match="different configuration"):
+        train(bench, TrainConfig(**{**cfg.__dict__, "feedback": "student"}), out, world=few["world"],
+              progress=False, train_instances=few["train"], eval_instances=few["val"])
+
+
+def test_missing_or_foreign_checkpoint_is_a_clear_error(tmp_path):
+    with pytest.raises(FileNotFoundError, match="no such checkpoint"):
+        load_agent(tmp_path / "nope.pt")
+    bad = tmp_path / "bad.pt"
+    torch.save({"hello": 1}, bad)
+    with pytest.raises(ValueError, match="not a seq2seq Driver checkpoint"):
+        load_agent(bad)
+
+
+def test_evaluation_has_the_baselines_json_and_csv_shape(trained, bench, few, tmp_path):
+    _, out, _ = trained
+    results = evaluate_checkpoint(bench, few["world"], out / "best.pt", "val_seen", instances=few["val"])
+    ours = summarize("val_seen", results)
+    theirs = summarize("val_seen", evaluate_baselines(bench, "val_seen", ["stop"], instances=few["val"],
+                                                     progress=False))
+    assert ours.keys() == theirs.keys() and ours["n"] == len(few["val"])
+    (name, stats), = ours["agents"].items()
+    assert name == "seq2seq-baseline-teacher-none"
+    assert stats.keys() == theirs["agents"]["stop"].keys()
+    assert all(np.isfinite(stats[k]) for k in ("td_mean", "otd_mean", "sr", "spl", "steps_mean"))
+    assert stats["otd_mean"] <= stats["td_mean"]
+    write_csv(tmp_path / "per.csv", results)
+    assert (tmp_path / "per.csv").read_text().splitlines()[0].split(",") == list(CSV_COLUMNS)
+
+
+def test_vision_blind_agent_ignores_observations_and_language_blind_ignores_the_dialog(trained, bench, few):
+    _, out, _ = trained
+    agent, _, _ = load_agent(out / "last.pt")
+    world, eps = few["world"], few["val_set"]
+    scrambled = dataclasses.replace(world, obs=np.random.default_rng(0).random(world.obs.shape).astype(np.float16))
+    silent = dataclasses.replace(eps, tokens=np.random.default_rng(1).integers(1, len(few["tokenizer"]),
+                                                                            eps.tokens.shape))
+    idx = np.arange(len(eps))
+    with torch.no_grad():
+        act = lambda w, e, blind: run_episodes(agent, w, e, idx, "argmax", blind).actions  # noqa: E731
+        assert (act(world, eps, "vision") == act(scrambled, eps, "vision")).all()
+        assert (act(world, eps, "language") == act(world, silent, "language")).all()
+        assert not (act(world, eps, "none") == act(scrambled, eps, "none")).all()
