@@ -45,12 +45,18 @@ def export(
     with sessions() as session:
         ids = finished_trial_ids(session) if trial == "all" else [trial]
         if not ids:
-            _fail(f"no finished trials in {settings.url}")
+            _fail(f"no finished trials in {settings.url.split('@')[-1]}")
         try:
             records = [load_trial(session, settings, i) for i in ids]
-            loaded = [(r, mazes.load(r.maze)) for r in records]
-        except (ExportError, UnknownMaze) as err:
-            _fail(str(err).strip("'\""))
+        except ExportError as err:
+            _fail(str(err))
+    loaded = []
+    for record in records:
+        try:
+            loaded.append((record, mazes.load(record.maze)))
+        except UnknownMaze:
+            _fail(f"trial {record.trial_id}: maze {record.maze!r} is not in the maze library (the bundled "
+                  f"mazes, and the benchmark's when ROBOTSLANG_BENCHMARK points at it)")
     try:
         if format is Format.ndh:
             from app.export.ndh import write_benchmark

@@ -19,7 +19,7 @@ def load_trial(session: Session, settings: Settings, trial_id: int | str) -> Tri
         raise ExportError(f"trial id {trial_id!r} is not a number") from None
     trial = session.get(Trial, key)
     if trial is None:
-        raise ExportError(f"no trial {key} in {settings.url}")
+        raise ExportError(f"no trial {key} in {settings.url.split('@')[-1]}")
     team = session.get(Team, trial.team_id)
     rows = session.scalars(select(EventRow).where(EventRow.trial_id == key).order_by(EventRow.seq))
     events = tuple(Event(seq=r.seq, kind=r.kind, t_ns=r.t_ns, payload=dict(r.payload)) for r in rows)
