@@ -8,7 +8,9 @@ import pytest
 from sim.batch_env import BatchNavEnv
 from sim.benchmark import MAX_EPISODE_ACTIONS, Benchmark, episode_start, goal_node
 from sim.dynamics import Action, Pose, step, teacher_actions
+from sim.library import MazeLibrary
 from sim.metrics import score_trajectory
+from sim.navgraph import NavGraph
 from sim.observations import RayTable
 
 RUNS = ("Run_318", "Run_114", "Run_135", "Run_345")
@@ -34,7 +36,26 @@ def random_episodes(worlds, count, seed):
     return episodes
 
 
+@pytest.fixture(scope="module")
+def bundled_worlds():
+    library = MazeLibrary()
+    out = []
+    for name in library.names()[:3]:
+        maze = library.load(name)
+        graph = NavGraph.build(maze)
+        out.append((graph, RayTable.build(maze, graph)))
+    return out
+
+
 def test_agrees_step_by_step_with_the_dynamics(worlds):
+    check_agreement(worlds)
+
+
+def test_agrees_step_by_step_on_the_bundled_mazes(bundled_worlds):
+    check_agreement(bundled_worlds)
+
+
+def check_agreement(worlds):
     env = BatchNavEnv(worlds, max_actions=1000)
     episodes = random_episodes(worlds, 200, seed=0)
     obs = env.reset(episodes)
