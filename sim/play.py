@@ -104,8 +104,8 @@ class Drive:
                             for name, xy in self.maze.objects.items())
         blocked = " (forward blocked)" if self.graph.forward[here, self.pose.heading] < 0 else ""
         return (f"step {self.steps}: x={x:.2f} y={y:.2f} heading={np.rad2deg(theta):.0f} deg; "
-                f"ahead {ahead.word} at {depth[N_RAYS // 2]:.3f} m{blocked}; sees {', '.join(seen) or 'nothing'}; "
-                f"to {objects}")
+                f"ahead {ahead.word} at {depth[N_RAYS // 2]:.3f} m{blocked}; "
+                f"sees {', '.join(seen) or 'nothing'}; to {objects}")
 
 
 def _write_png(path: Path, image: np.ndarray) -> None:
@@ -131,7 +131,8 @@ def run(drive: Drive, lines: Iterable[str], echo=print) -> None:
             collided = drive.move(action)
             echo(("collision: " if collided else "") + drive.describe())
             if action == Action.STOP:
-                echo(f"stopped after {drive.steps} moves ({drive.collisions} collisions); frames in {drive.out}")
+                echo(f"stopped after {drive.steps} moves ({drive.collisions} collisions); "
+                     f"frames in {drive.out}")
                 return
 
 
