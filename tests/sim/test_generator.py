@@ -104,7 +104,7 @@ def test_objects_reach_each_other_and_routes_turn(mazes):
             i, j = graph.nearest_node(*maze.objects[a]), graph.nearest_node(*maze.objects[b])
             assert np.isfinite(graph.dist[i, j])
             straight = np.hypot(*(graph.nodes[i] - graph.nodes[j]))
-            assert graph.dist[i, j] >= 1.25 * straight
+            assert graph.dist[i, j] >= 1.8 * straight
             assert route_turns(graph, graph.path(i, j)) >= 3
         # Most of the floor is one region, as on the real maps.
         assert graph.reachable_fraction() >= 0.8
