@@ -61,7 +61,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):
+        if settings.redis_url:
+            from app.trial.relay import RedisRelay
+
+            services.relay = RedisRelay(services, settings.redis_url)
+            await services.relay.start()
         yield
+        if services.relay is not None:
+            await services.relay.close()  # hands its trials back first
         await services.hub.close()
         services.engine.dispose()
 

@@ -29,4 +29,5 @@ class Services:
     sessions: Sessions
     mazes: Mazes
     hub: "TrialHub" = None  # type: ignore[assignment]
+    relay: Any = None  # `RedisRelay` when ROBOTSLANG_REDIS_URL is set: trials shared between processes
     extras: dict[str, Any] = field(default_factory=dict)  # room for plug-ins (e.g. connected robots)

@@ -8,6 +8,7 @@ from sqlalchemy import select
 
 from app.db.models import Experimenter, Trial
 from app.leaderboard import standings
+from app.trial.state import fold
 from app.security import SESSION_COOKIE, SESSION_MAX_AGE_S, InvalidToken, Seat, verify_password
 
 router = APIRouter()
@@ -92,8 +93,8 @@ def target_image(request: Request, token: str, index: int):
         raise HTTPException(403, "only the Commander sees the target images")
     services = request.app.state.services
     trial = _trial(request, seat.trial_id)
-    runtime = services.hub.peek(trial.id)
-    reached = runtime.state.target_index if runtime is not None else 0
+    runtime = services.hub.peek(trial.id)  # None where the trial runs in another process
+    reached = (runtime.state if runtime is not None else fold(services.log.load(trial.id))).target_index
     if not 0 <= index < len(trial.targets) or index > reached:
         raise HTTPException(404, f"target {index} is not available")
     return Response(services.mazes.target_jpeg(trial.maze, trial.targets[index]), media_type="image/jpeg",

@@ -1,8 +1,7 @@
 """`/ws/play`: the Commander's and the Driver's socket.
 
-The token is checked at the upgrade and again on every message; a bad message gets an
-error reply and a `bad_message` event, and never ends the trial. Moves run beside the
-reader, so a move sent while one is executing is refused rather than queued.
+The token is checked at the upgrade and again on every message (`TrialRuntime.receive`).
+The trial may run in this process or, with Redis, in another (`app.trial.relay`).
 """
 
 from __future__ import annotations
@@ -14,12 +13,9 @@ import logging
 from urllib.parse import urlsplit
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
-from pydantic import ValidationError
-
 from app.security import InvalidToken
 from app.settings import Settings
-from app.trial import messages as m
-from app.trial.runtime import TrialError, TrialRuntime, UnknownTrial
+from app.trial.runtime import UnknownTrial
 
 router = APIRouter()
 logger = logging.getLogger(__name__)
@@ -83,54 +79,14 @@ async def play(ws: WebSocket, token: str = "") -> None:
     await ws.accept()
     conn = SocketSeat(ws, seat.role)
     runtime.join(conn)
-    moves: set[asyncio.Task] = set()
     try:
         while True:
             raw = await ws.receive()
             if raw["type"] == "websocket.disconnect":
                 break
-            text = raw.get("text")
-            await receive(runtime, conn, seat, text, moves)
+            await runtime.receive(conn, seat, raw.get("text"))
     except WebSocketDisconnect:
         pass
     finally:
         runtime.leave(conn)
         await conn.close()
-
-
-async def receive(runtime: TrialRuntime, conn: SocketSeat, seat, text: str | None, moves: set) -> None:
-    limit = runtime.settings.max_message_bytes
-    try:
-        if text is None:
-            raise TrialError("messages must be JSON text, not binary")
-        if len(text.encode()) > limit:
-            raise TrialError(f"message is {len(text.encode())} bytes; the limit is {limit}")
-        try:
-            message = m.seat_message.validate_json(text)
-        except ValidationError as err:
-            raise TrialError(f"invalid message: {_describe(err)}") from None
-        try:
-            if runtime.services.seats.verify(message.token) != seat:
-                raise InvalidToken("token is for another seat")
-        except InvalidToken as err:
-            raise TrialError(f"token refused: {err}") from None
-        if isinstance(message, m.Move):
-            if message.type not in m.ALLOWED[seat.role]:
-                raise TrialError(f"the {seat.role} may not send 'move' messages")
-            task = asyncio.get_running_loop().create_task(runtime.handle(seat.role, message))
-            moves.add(task)
-            task.add_done_callback(moves.discard)
-            return
-        await runtime.handle(seat.role, message)
-    except TrialError as err:
-        conn.deliver({"type": "error", "error": str(err)})
-        if not runtime.state.over:
-            runtime.record("bad_message", {"role": seat.role, "error": str(err)[:500]})
-
-
-def _describe(err: ValidationError) -> str:
-    parts = []
-    for e in err.errors()[:3]:
-        where = ".".join(str(p) for p in e["loc"]) or "message"
-        parts.append(f"{where}: {e['msg']}")
-    return "; ".join(parts)

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import asyncio
 
-from app.trial.runtime import TrialRuntime
+from app.trial.relay import RemoteTrial
+from app.trial.runtime import TrialRuntime, UnknownTrial
 
 
 class TrialHub:
@@ -13,8 +14,21 @@ class TrialHub:
         self._runtimes: dict[int, TrialRuntime] = {}
         self._opening: dict[int, asyncio.Lock] = {}
 
-    async def get(self, trial_id: int) -> TrialRuntime:
-        """The trial's runtime, started (from its events) if this process has not yet."""
+    async def get(self, trial_id: int):
+        """Where the trial runs: its runtime here, or (with Redis) a `RemoteTrial` forwarding to
+        the process that runs it."""
+        relay = self.services.relay
+        if relay is None or trial_id in self._runtimes:
+            return await self.local(trial_id)
+        owner = await relay.owner(trial_id)
+        if owner == relay.id:
+            return await self.local(trial_id)
+        if not self.services.log.load(trial_id)[:1]:
+            raise UnknownTrial(f"trial {trial_id} does not exist")
+        return RemoteTrial(relay, trial_id, owner)
+
+    async def local(self, trial_id: int) -> TrialRuntime:
+        """The trial's runtime in this process, started (from its events) if not yet."""
         runtime = self._runtimes.get(trial_id)
         if runtime is not None:
             return runtime

@@ -15,8 +15,11 @@ import time
 import uuid
 from typing import Any, Protocol
 
+from pydantic import ValidationError
+
 from app.backends.base import BackendUnavailable, MoveOutcome, RobotBackend
 from app.backends.registry import create_backend
+from app.security import InvalidToken, Seat
 from app.trial import messages as m
 from app.trial.state import PARTICIPANT_ROLES, LoggedEvent, TrialState, fold
 from app.trial.views import view
@@ -259,6 +262,48 @@ class TrialRuntime:
         return {"frame_id": frame_id, "jpeg": base64.b64encode(jpeg).decode() if jpeg else None}
 
     # -- messages -----------------------------------------------------------------
+    async def receive(self, conn: Connection, seat: Seat, text: str | None) -> None:
+        """One raw message from a seat's socket. A bad one gets an error reply and a
+        `bad_message` event, and never ends the trial. Moves run beside the socket's reader,
+        so a move sent while one is executing is refused rather than queued."""
+        try:
+            message = self._parse(seat, text)
+            if isinstance(message, m.Move) and message.type in m.ALLOWED[seat.role]:
+                self._spawn(self._handle_reporting(conn, seat.role, message))
+            else:
+                await self.handle(seat.role, message)
+        except TrialError as err:
+            self._refuse(conn, seat.role, err)
+
+    async def _handle_reporting(self, conn: Connection, role: str, message) -> None:
+        try:
+            await self.handle(role, message)
+        except TrialError as err:
+            self._refuse(conn, role, err)
+
+    def _refuse(self, conn: Connection, role: str, err: TrialError) -> None:
+        conn.deliver({"type": "error", "error": str(err)})
+        if not self.state.over:
+            self.record("bad_message", {"role": role, "error": str(err)[:500]})
+
+    def _parse(self, seat: Seat, text: str | None):
+        limit = self.settings.max_message_bytes
+        if text is None:
+            raise TrialError("messages must be JSON text, not binary")
+        size = len(text.encode())
+        if size > limit:
+            raise TrialError(f"message is {size} bytes; the limit is {limit}")
+        try:
+            message = m.seat_message.validate_json(text)
+        except ValidationError as err:
+            raise TrialError(f"invalid message: {_describe(err)}") from None
+        try:
+            if self.services.seats.verify(message.token) != seat:
+                raise InvalidToken("token is for another seat")
+        except InvalidToken as err:
+            raise TrialError(f"token refused: {err}") from None
+        return message
+
     async def handle(self, role: str, message) -> None:
         """Apply one validated message from a seat; raises TrialError when not allowed now."""
         if message.type not in m.ALLOWED[role]:
@@ -374,3 +419,11 @@ class TrialRuntime:
                 "moves": s.moves, "collisions": s.collisions, "pose": s.pose,
                 "paused": sorted(s.pause_reasons), "seats": {r: r in self.seats for r in PARTICIPANT_ROLES},
                 "localization": s.localization, "maze": s.maze}
+
+
+def _describe(err: ValidationError) -> str:
+    parts = []
+    for e in err.errors()[:3]:
+        where = ".".join(str(p) for p in e["loc"]) or "message"
+        parts.append(f"{where}: {e['msg']}")
+    return "; ".join(parts)

@@ -1,0 +1,69 @@
+"""Two server processes share one trial through Redis pub/sub and PostgreSQL: the Commander
+reaches one, the Driver the other, and the trial plays as if on one server."""
+
+from __future__ import annotations
+
+import asyncio
+
+import pytest
+from sqlalchemy import select
+
+from app.db.models import Event, Trial
+from tests.app.conftest import platform_settings
+from tests.app.test_disconnect_and_control import login
+from tests.app.live import SeatClient, ServerThread, make_trial
+from tests.app.trial_play import claim_and_decide, drive_to_target, move, start_trial
+
+REDIS_URL = "redis://127.0.0.1:6379/0"
+
+
+@pytest.fixture
+def redis_url():
+    import redis
+
+    try:
+        redis.Redis.from_url(REDIS_URL, socket_connect_timeout=2).ping()
+    except redis.RedisError as err:
+        pytest.skip(f"Redis at {REDIS_URL} not reachable: {err}")
+    return REDIS_URL
+
+
+def test_seats_on_two_processes_play_one_trial(tmp_path, postgres_url, redis_url):
+    settings = platform_settings(tmp_path, database_url=postgres_url, redis_url=redis_url)
+    with ServerThread(settings) as first, ServerThread(settings) as second:
+        trial_id = make_trial(first.services, first.services.mazes.names()[0])
+        tokens = {r: first.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+        experimenter = login(second)
+
+        async def play():
+            async with SeatClient(first.ws_url, tokens["commander"]) as commander:
+                await commander.wait_for(lambda m: m.get("type") == "welcome")
+                async with SeatClient(second.ws_url, tokens["driver"]) as driver:
+                    await start_trial(commander, driver)
+                    owner = first.services.hub.peek(trial_id)
+                    assert owner is not None and second.services.hub.peek(trial_id) is None
+                    await driver.send("chat", text="hello from the other server")
+                    await commander.event("chat", text="hello from the other server")
+                    await commander.send("localize", x=1.0, y=1.0)
+                    await driver.event("phase", phase="navigating")
+                    # The experimenter's controls work from any process.
+                    await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial_id}/pause")
+                    await driver.event("paused", reason="experimenter")
+                    await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial_id}/resume")
+                    await commander.event("resumed", reason="experimenter")
+                    await driver.send("confirm")  # a bad message through the relay
+                    error = await driver.wait_for(lambda m: m.get("type") == "error")
+                    assert "may not send 'confirm'" in error["error"]
+                    assert (await move(driver, "left"))["payload"]["outcome"] == "ok"
+                    for _ in range(3):
+                        await drive_to_target(first.services, trial_id, driver)
+                        await claim_and_decide(commander, driver, confirm=True)
+                    await driver.event("phase", phase="finished")
+                    return commander, driver
+
+        commander, driver = asyncio.run(play())
+        assert "frame" in driver.kinds() and "frame" not in commander.kinds()
+        with first.services.db() as db:
+            assert db.get(Trial, trial_id).phase == "finished"
+            kinds = db.scalars(select(Event.kind).where(Event.trial_id == trial_id)).all()
+        assert "bad_message" in kinds
