@@ -25,6 +25,7 @@ from sqlalchemy.orm import Session
 from app.backends.base import BackendUnavailable, Frame, MoveOutcome
 from app.backends.registry import register_backend
 from app.db.models import Robot
+from app.trial.state import PARTICIPANT_ROLES
 from robot_client.protocol import FrameHeader, encode
 
 if TYPE_CHECKING:
@@ -122,11 +123,15 @@ class RobotLink:
         return min(self._offsets)[0] / 2e6 if self._offsets else None
 
     def server_time(self, robot_ns: int, received_ns: int) -> int:
-        """A robot timestamp on the server clock; never later than its arrival, never going back."""
+        """A robot timestamp on the server clock, never later than the message's arrival
+        (before the first pong, the arrival itself)."""
         offset = self.offset_ns
         mono = received_ns if offset is None else min(robot_ns - offset, received_ns)
-        t_ns = self._clock.now_ns() - (time.monotonic_ns() - mono)
-        t_ns = max(t_ns, self._last_capture_ns + 1)
+        return self._clock.now_ns() - (time.monotonic_ns() - mono)
+
+    def capture_time(self, robot_ns: int, received_ns: int) -> int:
+        """A frame's capture time on the server clock, strictly after the previous frame's."""
+        t_ns = max(self.server_time(robot_ns, received_ns), self._last_capture_ns + 1)
         self._last_capture_ns = t_ns
         return t_ns
 
@@ -136,7 +141,7 @@ class RobotLink:
         self._arrivals.append(received_ns)
         while self._arrivals and received_ns - self._arrivals[0] > RATE_WINDOW_S * 1e9:
             self._arrivals.popleft()
-        return Frame(jpeg, self.server_time(header.capture_ns, received_ns), header.width, header.height)
+        return Frame(jpeg, self.capture_time(header.capture_ns, received_ns), header.width, header.height)
 
     @property
     def fps(self) -> float:
@@ -165,9 +170,8 @@ class RobotLink:
     def on_ack(self, message: dict, received_ns: int) -> None:
         ack = dict(message)
         for key in ("started_ns", "finished_ns"):
-            if isinstance(ack.get(key), int) and self.offset_ns is not None:
-                ack[key] = self._clock.now_ns() - (time.monotonic_ns() - min(ack[key] - self.offset_ns,
-                                                                             received_ns))
+            if isinstance(ack.get(key), int):
+                ack[key] = self.server_time(ack[key], received_ns)
         ack["received_ns"] = self._clock.now_ns()
         self.last_ack = ack
         future = self._pending.get(str(message.get("id")))
@@ -310,6 +314,7 @@ class RemoteRobotBackend:
         self.robot_id, self.name = robot_id, name
         self.links, self.runtime = links, runtime
         self._seat: RobotSeat | None = None
+        self._moving = False
         self._closed = False
 
     async def connect(self) -> None:
@@ -335,7 +340,11 @@ class RemoteRobotBackend:
         link = self.links.links.get(self.robot_id)
         if link is None:
             raise BackendUnavailable(f"robot {self.name!r} is not connected")
-        ack = await link.move(action)
+        self._moving = True
+        try:
+            ack = await link.move(action)
+        finally:
+            self._moving = False
         if ack.get("status") != "done":
             return MoveOutcome(action, "refused", f"robot: {ack.get('reason', 'refused')}")
         # The Driver should see where the move left the robot: wait for a frame taken after it.
@@ -344,17 +353,24 @@ class RemoteRobotBackend:
             await self.links.slot(self.robot_id).captured_after(finished, FRAME_AFTER_MOVE_S)
         return MoveOutcome(action, "ok")  # the rover cannot sense collisions; the overhead log can
 
+    @property
+    def attended(self) -> bool:
+        """Someone is in the trial: only then are frames worth recording (a robot may have
+        several trials open, abandoned ones among them)."""
+        return any(role in self.runtime.seats for role in PARTICIPANT_ROLES)
+
     async def frames(self) -> AsyncIterator[Frame]:
         slot = self.links.slot(self.robot_id)
         frame = slot.frame
         while (frame := await slot.newer_than(frame, lambda: self._closed)) is not None:
-            yield frame
+            if self.attended:
+                yield frame
 
     def pose(self) -> tuple[float, float, float] | None:
         return None  # known only from the overhead camera, annotated after the trial
 
     def record_overhead(self, frame: Frame) -> None:
-        if not self.runtime.state.over:
+        if self.attended and not self.runtime.state.over:
             self.runtime.record_frame(frame.jpeg, frame.capture_ns, frame.width, frame.height, "overhead")
 
     def record_bad_message(self, role: str, error: str) -> None:
@@ -365,7 +381,7 @@ class RemoteRobotBackend:
         self._closed = True
         self.links.backends.get(self.robot_id, set()).discard(self)
         link = self.links.links.get(self.robot_id)
-        if link is not None:
+        if link is not None and self._moving:  # only this trial's own move: another may be running
             link.stop()
         await self.links.slot(self.robot_id).wake()
 
