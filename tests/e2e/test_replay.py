@@ -28,7 +28,7 @@ def server(tmp_path_factory):
         pytest.skip(f"{CHROMIUM} not found: the replay page is checked in Debian's chromium")
     settings = Settings(data_dir=tmp_path_factory.mktemp("replay") / "var", secret_key="replay-test",
                         min_move_interval_s=0.0)
-    demo = Demo(settings, seed=11, pace_s=0.0)
+    demo = Demo(settings, seed=11, pace_s=0.02)  # a timeline of several seconds, to pause part-way
     (result,) = asyncio.run(demo.run(1))
     assert result.phase == "finished", result
     with demo.db.begin() as db:
