@@ -3,8 +3,9 @@
 Encoder: word embeddings (128) -> LSTM (128) over the dialog tokens. Its final state starts the
 decoder LSTM (128), which at each step reads the encoded ray observation and the embedding (8)
 of the previous action, and scores forward/left/right/stop. Forward is masked wherever it
-would collide. Two options go beyond the paper's model: attention over the dialog at each step,
-and a progress monitor (an auxiliary head predicting how much of the way is done).
+would collide. Three options go beyond the paper's model: attention over the dialog at each
+step, a progress monitor (an auxiliary head predicting how much of the way is done), and
+target flags (which rays see the object being looked for).
 """
 
 from __future__ import annotations
@@ -13,6 +14,8 @@ from dataclasses import asdict, dataclass
 
 import torch
 from torch import nn
+
+from sim.observations import N_LABELS, N_RAYS
 
 N_ACTIONS = 4  # sim.dynamics.Action: FORWARD, LEFT, RIGHT, STOP
 FORWARD, LEFT, RIGHT, STOP = range(N_ACTIONS)
@@ -31,6 +34,11 @@ class AgentConfig:
     dropout: float = 0.5
     attention: bool = False
     progress_monitor: bool = False
+    target_rays: bool = False  # add, per ray, whether it sees the target object
+
+    @property
+    def obs_inputs(self) -> int:
+        return self.obs_features + (N_RAYS if self.target_rays else 0)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -44,7 +52,7 @@ class Seq2SeqAgent(nn.Module):
         self.embedding = nn.Embedding(c.vocab_size, c.embed, padding_idx=0)
         self.encoder = nn.LSTM(c.embed, c.hidden, batch_first=True)
         self.drop = nn.Dropout(c.dropout)
-        self.obs_encoder = nn.Sequential(nn.Linear(c.obs_features, c.obs_hidden), nn.ReLU())
+        self.obs_encoder = nn.Sequential(nn.Linear(c.obs_inputs, c.obs_hidden), nn.ReLU())
         self.action_embedding = nn.Embedding(N_ACTIONS + 1, c.action_embed)
         self.decoder = nn.LSTMCell(c.obs_hidden + c.action_embed, c.hidden)
         if c.attention:
@@ -86,6 +94,18 @@ class Seq2SeqAgent(nn.Module):
         logits = mask_logits(logits, forward_blocked, stop_allowed)
         progress = torch.sigmoid(self.progress(out)).squeeze(1) if self.config.progress_monitor else None
         return logits, (h, c), progress
+
+
+def observation_input(config: AgentConfig, obs: torch.Tensor, target_label: torch.Tensor) -> torch.Tensor:
+    """The decoder's observation: ray features (B, F), plus the target flags when configured.
+
+    The flags are the target's column of each ray's one-hot label: what a Driver looking for
+    the mug notices first is the mug.
+    """
+    if not config.target_rays:
+        return obs
+    cols = torch.arange(N_RAYS).unsqueeze(0) * N_LABELS + target_label.unsqueeze(1)
+    return torch.cat([obs, obs.gather(1, cols)], dim=1)
 
 
 def mask_logits(logits: torch.Tensor, forward_blocked: torch.Tensor,

@@ -21,6 +21,7 @@ from tqdm import tqdm
 from sim.benchmark import Benchmark, NDHInstance, episode_start, goal_node
 from sim.cache import cache_dir as default_cache_dir
 from sim.geometry import HEADING_DI, HEADING_DJ, HEADINGS
+from sim.labels import object_label
 from models.tokenizer import Tokenizer
 
 _WORLD_VERSION = 1
@@ -108,6 +109,7 @@ class EpisodeSet:
     goal_node: np.ndarray  # (M,) global
     goal_dist: np.ndarray  # (M, Nmax) shortest-path metres to the goal from each local node
     goal_next: np.ndarray  # (M, Nmax) next local node toward the goal; -1 where no path
+    target_label: np.ndarray  # (M,) sim.labels.Label of the target object
 
     def __len__(self) -> int:
         return len(self.instances)
@@ -134,8 +136,9 @@ class EpisodeSet:
             run[k], start_node[k], start_heading[k], goal[k] = r, off + start.node, start.heading, off + g
             goal_dist[k, :graph.n] = graph.dist[:, g]
             goal_next[k, :graph.n] = graph.next_hop[:, g]
+        target_label = np.array([int(object_label(inst.target)) for inst in instances], dtype=np.int64)
         return cls(split, instances, tokens, np.array([len(r) for r in ids]), run, start_node,
-                   start_heading, goal, goal_dist, goal_next)
+                   start_heading, goal, goal_dist, goal_next, target_label)
 
     def concat(self, other: "EpisodeSet", split: str) -> "EpisodeSet":
         """Two sets as one (train + val_seen for the test-time retraining)."""
@@ -145,7 +148,7 @@ class EpisodeSet:
         return EpisodeSet(split, self.instances + other.instances, cat(pad(self.tokens), pad(other.tokens)),
                           *(cat(getattr(self, f), getattr(other, f)) for f in
                             ("lengths", "run", "start_node", "start_heading", "goal_node",
-                             "goal_dist", "goal_next")))
+                             "goal_dist", "goal_next", "target_label")))
 
 
 def teacher_actions(world: World, episodes: EpisodeSet, idx: np.ndarray, node: np.ndarray,

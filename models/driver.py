@@ -21,8 +21,9 @@ from typing import Any
 import numpy as np
 import torch
 
-from models.agent import START, STOP
+from models.agent import START, STOP, observation_input
 from sim.dynamics import Action, snap_pose
+from sim.labels import object_label
 from sim.maze import Maze
 from sim.navgraph import NavGraph
 from sim.observations import RayTable
@@ -43,7 +44,7 @@ class Seq2SeqDriver:
     def reset(self, info: dict[str, Any]) -> None:
         maze, self.graph = self.load_maze(info["maze"])
         self.rays = RayTable.build(maze, self.graph).features()
-        self._encoded_for: tuple | None = None
+        self.encoded_for: tuple | None = None
         self._rejected = 0
         self._stop_held = False
 
@@ -54,14 +55,14 @@ class Seq2SeqDriver:
         lengths = torch.tensor([0 if self.blind == "language" else len(ids)])
         self.ctx, self.ctx_mask, self.state = self.agent.encode(tokens, lengths)
         self.prev = torch.tensor([START])
-        self._encoded_for = (len(dialog), target)
+        self.encoded_for = (len(dialog), target)
 
     @torch.no_grad()
     def act(self, dialog: list[dict[str, str]], observation: dict[str, Any]) -> str:
         if self.graph is None:
             raise RuntimeError("Seq2SeqDriver.act before reset(info)")
         target = observation["target"]
-        if self._encoded_for != (len(dialog), target):
+        if self.encoded_for != (len(dialog), target):
             self._encode(dialog, target)
         if observation.get("rejected", 0) > self._rejected:
             self._rejected = observation["rejected"]
@@ -75,6 +76,7 @@ class Seq2SeqDriver:
             obs = torch.zeros(1, self.rays.shape[2])
             blocked = torch.tensor([False])
         stop_allowed = torch.tensor([not self._stop_held])
+        obs = observation_input(self.agent.config, obs, torch.tensor([int(object_label(target))]))
         logits, self.state, _ = self.agent.step(obs, self.prev, self.state, self.ctx, self.ctx_mask,
                                                 blocked, stop_allowed)
         action = int(logits.argmax(dim=1))

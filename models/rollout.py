@@ -13,7 +13,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from models.agent import FORWARD, LEFT, RIGHT, START, STOP, Seq2SeqAgent
+from models.agent import FORWARD, LEFT, RIGHT, START, STOP, Seq2SeqAgent, observation_input
 from models.data import EpisodeSet, World, goal_distance, teacher_actions
 from sim.geometry import HEADINGS
 
@@ -55,7 +55,8 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
     nodes = np.zeros((b, max_actions + 1), dtype=np.int64)
     actions = np.full((b, max_actions), -1, dtype=np.int64)
     steps = np.zeros(b, dtype=np.int64)
-    total_loss, decisions = torch.zeros(()), 0
+    target_label = torch.from_numpy(episodes.target_label[idx])
+    step_logits, step_targets, step_active, step_progress, step_goal = [], [], [], [], []
     for t in range(max_actions):
         nodes[:, t] = node
         if done.all():
@@ -65,20 +66,22 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
         if blind == "vision":
             obs[:] = 0.0
         blocked = world.forward[node, heading] < 0
-        stop_allowed = torch.from_numpy(node == episodes.goal_node[idx]) if feedback == "student" else None
-        logits, state, progress = agent.step(torch.from_numpy(obs), prev, state, ctx, ctx_mask,
-                                             torch.from_numpy(blocked), stop_allowed)
         teacher = teacher_actions(world, episodes, idx, node, heading)
+        # Student forcing may stop only where the teacher would: at the goal's node (or, on a
+        # node cut off from it, nowhere else to go).
+        stop_allowed = torch.from_numpy(teacher == STOP) if feedback == "student" else None
+        obs_in = observation_input(agent.config, torch.from_numpy(obs), target_label)
+        logits, state, progress = agent.step(obs_in, prev, state, ctx, ctx_mask,
+                                             torch.from_numpy(blocked), stop_allowed)
         active = torch.from_numpy(~done)
-        if train:
-            target = torch.from_numpy(teacher)
-            total_loss = total_loss + F.cross_entropy(logits[active], target[active], reduction="sum")
+        if train:  # the loss is computed once over all steps, below
+            step_logits.append(logits)
+            step_targets.append(torch.from_numpy(teacher))
+            step_active.append(active)
             if progress is not None:
                 done_frac = 1.0 - goal_distance(world, episodes, idx, node) / start_dist
-                goal = torch.from_numpy(np.clip(done_frac, 0.0, 1.0)).float()
-                total_loss = total_loss + progress_weight * F.mse_loss(
-                    progress[active], goal[active], reduction="sum")
-            decisions += int(active.sum())
+                step_progress.append(progress)
+                step_goal.append(torch.from_numpy(np.clip(done_frac, 0.0, 1.0)).float())
         if feedback == "teacher":
             chosen = teacher
         elif feedback == "student":
@@ -95,5 +98,14 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
         prev = torch.from_numpy(chosen)
     else:
         nodes[:, max_actions] = node
-    loss = total_loss / max(decisions, 1) if train else None
+    loss = None
+    if train:
+        active = torch.stack(step_active).float()
+        ce = F.cross_entropy(torch.stack(step_logits).flatten(0, 1), torch.stack(step_targets).flatten(),
+                             reduction="none")
+        total = (ce * active.flatten()).sum()
+        if step_progress:
+            err = (torch.stack(step_progress) - torch.stack(step_goal)) ** 2
+            total = total + progress_weight * (err * active).sum()
+        loss = total / active.sum().clamp(min=1.0)
     return Rollout(nodes=nodes, actions=actions, final_node=node, steps=steps, loss=loss)

@@ -28,7 +28,7 @@ FEEDBACK_LR = {"teacher": 1e-4, "student": 1e-3}
 # Named model variants: the paper's model, and the one aimed at beating it.
 MODELS = {
     "baseline": {"attention": False, "progress_monitor": False},
-    "improved": {"attention": True, "progress_monitor": True},
+    "improved": {"attention": True, "progress_monitor": True, "target_rays": True},
 }
 
 

@@ -59,3 +59,17 @@ def test_untrained_agents_never_drive_into_walls_and_student_stops_only_at_the_g
         if feedback == "student":
             stopped = (roll.actions == STOP).any(axis=1)
             assert (roll.final_node[stopped] == eps.goal_node[stopped]).all()
+
+
+def test_target_flags_are_the_target_column_of_each_rays_one_hot_label(few):
+    from models.agent import observation_input
+    from sim.labels import Label
+    from sim.observations import N_LABELS, N_RAYS
+
+    world = few["world"]
+    obs = torch.from_numpy(world.observe(np.arange(50), np.zeros(50, dtype=np.int64)))
+    config = AgentConfig(vocab_size=10, obs_features=world.obs_features, target_rays=True)
+    flags = observation_input(config, obs, torch.full((50,), int(Label.MUG)))[:, world.obs_features:]
+    labels = obs[:, :N_RAYS * N_LABELS].reshape(50, N_RAYS, N_LABELS).argmax(dim=2)
+    assert flags.shape == (50, N_RAYS)
+    assert torch.equal(flags.bool(), labels == int(Label.MUG))

@@ -99,3 +99,24 @@ def test_vision_blind_agent_ignores_observations_and_language_blind_ignores_the_
         assert (act(world, eps, "vision") == act(scrambled, eps, "vision")).all()
         assert (act(world, eps, "language") == act(world, silent, "language")).all()
         assert not (act(world, eps, "none") == act(scrambled, eps, "none")).all()
+
+
+def test_seq2seq_driver_plays_from_a_growing_dialog(trained, bench, few):
+    from models.driver import Seq2SeqDriver
+
+    _, out, _ = trained
+    inst = few["val"][0]
+    graph = bench.graph(inst.run)
+    driver = Seq2SeqDriver(out / "last.pt", lambda name: (bench.maze(name), graph))
+    driver.reset({"maze": inst.run, "targets": ["jar", "mug", "paddle"]})
+    dialog = [{"role": "commander" if role == "oracle" else "driver", "text": text} for role, text in inst.dialog]
+    blocked_poses = np.argwhere(graph.forward < 0)
+    node, heading = blocked_poses[0]
+    x, y = graph.nodes[node]
+    pose = (float(x), float(y), float(heading) * np.pi / 4)
+    for n in (3, 3, 5):
+        action = driver.act(dialog[:n], {"target": inst.target, "pose": pose, "rejected": 0})
+        assert action in ("left", "right", "stop")  # forward would collide here
+        assert driver.encoded_for == (n, inst.target)
+    # After a rejected claim it does not claim again before moving.
+    assert driver.act(dialog[:5], {"target": inst.target, "pose": pose, "rejected": 1}) != "stop"
