@@ -39,12 +39,14 @@ RAY_OFFSETS = np.deg2rad(np.linspace(-FOV_DEG / 2, FOV_DEG / 2, N_RAYS))  # left
 PX_PER_M_X = (MAP_WIDTH_PX - 1) / TABLE_WIDTH_M
 PX_PER_M_Y = (MAP_HEIGHT_PX - 1) / TABLE_HEIGHT_M
 
-# The navigation graph removes grid points within 40 pixels of a wall, so a forward move
-# collides when it would end that close to one. A ray is "too close" when one forward move
-# along it would end within that clearance: depth < step + clearance, the simulator's own
-# collision rule. (The robot's half length, 0.127 m, is larger than the graph's clearance, so
-# a threshold built on it would flag walls the simulator lets the agent drive up to.)
-WALL_CLEARANCE_M = WALL_CLEARANCE_PX / PX_PER_M_X
+# The navigation graph removes grid points with a wall pixel in the square around them, so a
+# forward move collides when it would end that close to a wall. A ray is "too close" when one
+# forward move along it would end within that clearance: depth < step + clearance, the
+# simulator's own collision rule, so a wall flagged straight ahead always blocks the move. The
+# square reaches 40 px up and left of the node's truncated pixel but 39 down and right, and
+# truncation loses up to one more: 38 px is the clearance it keeps on every side. (The robot's
+# half length, 0.127 m, is larger, and would flag walls the simulator lets the agent drive up to.)
+WALL_CLEARANCE_M = (WALL_CLEARANCE_PX - 2) / PX_PER_M_X
 STEP_M = np.where(np.arange(HEADINGS) % 2 == 0, 1.0, np.sqrt(2)) * GRID_STEP_M  # per heading
 TOO_CLOSE_M = STEP_M + WALL_CLEARANCE_M  # (8,) threshold per heading
 

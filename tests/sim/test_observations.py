@@ -129,10 +129,10 @@ def test_forward_blocked_is_the_graphs_collision(corridor):
     assert np.array_equal(table.forward_blocked, graph.forward < 0)
 
 
-def test_too_close_is_a_forward_step_plus_the_graphs_wall_clearance(corridor):
+def test_too_close_is_a_forward_step_plus_the_graphs_guaranteed_clearance(corridor):
     _, _, table = corridor
-    assert TOO_CLOSE_M[0] == pytest.approx(GRID_STEP_M + 40 / PX_PER_M_X)
-    assert TOO_CLOSE_M[1] == pytest.approx(np.sqrt(2) * GRID_STEP_M + 40 / PX_PER_M_X)
+    assert TOO_CLOSE_M[0] == pytest.approx(GRID_STEP_M + 38 / PX_PER_M_X)
+    assert TOO_CLOSE_M[1] == pytest.approx(np.sqrt(2) * GRID_STEP_M + 38 / PX_PER_M_X)
     expected = table.depth < TOO_CLOSE_M[None, :, None]
     assert np.array_equal(table.too_close, expected)
 
@@ -219,8 +219,12 @@ def test_table_agrees_with_dense_sampling_on_run_318(run_318):
         assert table.depth[node, k, r] == pytest.approx(depth, abs=1e-4)  # the reference step
 
 
-def test_a_wall_too_close_ahead_blocks_the_forward_move(run_318):
-    _, _, table = run_318
+# Maps where a clearance of 40 px all round would flag walls the graph lets the agent reach.
+@pytest.mark.parametrize("run", ["Run_318", "Run_124", "Run_135", "Run_146"])
+def test_a_wall_too_close_ahead_blocks_the_forward_move(benchmark_path, run):
+    maze = Maze.from_dir(benchmark_path / "mazedata" / run)
+    graph = NavGraph.build(maze)
+    table = RayTable.build(maze, graph)
     # Objects are walkable on the benchmark's graph; walls too close ahead must block.
     centre = N_RAYS // 2
     wall = np.isin(table.labels[:, :, centre], WALL_LABELS)
