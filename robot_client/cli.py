@@ -112,7 +112,7 @@ def main(argv: list[str] | None = None) -> None:
 
 
 async def serve(client: RobotClient) -> int:
-    """Run until a signal (exit 0) or a refusal by the server (exit 3)."""
+    """Run until a signal (exit 0), a refusal by the server (exit 3) or a camera failure (exit 4)."""
     main_task = asyncio.current_task()
     loop = asyncio.get_running_loop()
 
@@ -130,4 +130,7 @@ async def serve(client: RobotClient) -> int:
     except LinkRefused as exc:
         logging.getLogger("robotslang.robot").error("the server refused this robot: %s", exc)
         return 3
+    except CameraError as exc:
+        logging.getLogger("robotslang.robot").error("%s", exc)
+        return 4
     return 0

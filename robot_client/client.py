@@ -21,7 +21,7 @@ from websockets.asyncio.client import ClientConnection, connect
 from websockets.exceptions import ConnectionClosed, InvalidHandshake, InvalidURI
 
 from robot_client import __version__
-from robot_client.camera import FrameGrabber
+from robot_client.camera import CameraError, FrameGrabber
 from robot_client.motors import Motors
 from robot_client.protocol import (
     CLOSE_REFUSED, CLOSE_REPLACED, DEFAULT_MAX_FRAME_BYTES, MOVE_ACTIONS, PROTOCOL_VERSION,
@@ -110,7 +110,7 @@ class RobotClient:
                     await self._serve(ws)
             except LinkRefused:
                 raise
-            except (OSError, TimeoutError, ConnectionClosed, InvalidHandshake, ProtocolError) as exc:
+            except (OSError, asyncio.TimeoutError, ConnectionClosed, InvalidHandshake, ProtocolError) as exc:
                 log.warning("no link to %s: %s", s.url, exc or type(exc).__name__)
             finally:
                 self.stop_motors("link closed")
@@ -245,7 +245,7 @@ class RobotClient:
             await self._frame_ready.wait()
             self._frame_ready.clear()
             if self.grabber.error is not None:
-                raise RuntimeError(f"camera failed: {self.grabber.error}")
+                raise CameraError(f"camera failed: {self.grabber.error}")
             frame = self.grabber.latest()
             if frame is None or frame.seq == sent:
                 continue

@@ -103,3 +103,36 @@ async def test_signal_stops_a_running_move_before_exit(scripted_server, tmp_path
     assert [e["state"] for e in gpio4] == [0.6, 0.0]
     assert 0 <= gpio4[-1]["t_ns"] - signalled_ns < 100e6  # stopped at once, not after the 1.8 s pulse
     assert f"motors stopped: {sig.name} received" in stderr.decode()
+
+
+def test_the_client_loads_none_of_the_servers_packages():
+    code = ("import sys, robot_client.cli, robot_client.calibrate; "
+            "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('app', 'sim', 'models', 'torch', 'fastapi')); "
+            "print(bad); sys.exit(1 if bad else 0)")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stdout + result.stderr
+
+
+@pytest.mark.anyio
+async def test_a_video_file_camera_streams_resized_frames_in_a_loop(scripted_server, tmp_path):
+    import cv2
+    import numpy as np
+
+    video = tmp_path / "table.avi"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (64, 48))
+    for i in range(5):  # shorter than the test: the file must loop
+        writer.write(np.full((48, 64, 3), 40 * i, np.uint8))
+    writer.release()
+    process = await asyncio.create_subprocess_exec(
+        *ROBOT, "--server", scripted_server.url, "--token", "good", "--role", "overhead", "--camera", str(video),
+        "--width", "32", "--height", "24", "--fps", "20", stderr=asyncio.subprocess.PIPE)
+    try:
+        await asyncio.wait_for(scripted_server.connected.wait(), 20)
+        async with asyncio.timeout(10):
+            while len(scripted_server.frames) < 12:
+                await asyncio.sleep(0.05)
+    finally:
+        process.send_signal(signal.SIGTERM)
+        await asyncio.wait_for(process.communicate(), 10)
+    assert scripted_server.hellos[0]["role"] == "overhead"
+    assert {(f.width, f.height) for f in scripted_server.frames} == {(32, 24)}
