@@ -1,0 +1,54 @@
+"""Camera sources and the grabber: JPEGs at the set size, capture times, newest frame only."""
+
+import time
+
+import cv2
+import numpy as np
+import pytest
+
+from robot_client.camera import CameraError, CameraSettings, FrameGrabber, SyntheticCamera, open_camera
+
+
+def test_grabber_encodes_jpegs_at_the_set_size_and_quality():
+    grabber = FrameGrabber(SyntheticCamera(320, 240), CameraSettings(160, 120, fps=30, quality=50))
+    grabber.start()
+    try:
+        deadline = time.monotonic() + 5
+        while grabber.latest() is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        frame = grabber.latest()
+    finally:
+        grabber.stop()
+    image = cv2.imdecode(np.frombuffer(frame.jpeg, np.uint8), cv2.IMREAD_COLOR)
+    assert image.shape == (120, 160, 3) and (frame.width, frame.height) == (160, 120)
+
+
+def test_a_slow_reader_gets_the_newest_frame_not_a_backlog():
+    grabber = FrameGrabber(SyntheticCamera(160, 120), CameraSettings(160, 120, fps=30))
+    grabber.start()
+    try:
+        time.sleep(0.2)
+        first = grabber.latest()
+        time.sleep(0.5)  # a link too slow to take every frame
+        read_at = time.monotonic_ns()
+        second = grabber.latest()
+    finally:
+        grabber.stop()
+    assert second.seq - first.seq >= 10  # frames in between were dropped, not queued
+    assert read_at - second.capture_ns < 100e6  # what is sent is fresh
+    assert second.capture_ns > first.capture_ns
+
+
+def test_camera_settings_and_sources_name_what_is_wrong(tmp_path):
+    with pytest.raises(CameraError, match="JPEG quality must be 1..100, got 0"):
+        CameraSettings(quality=0)
+    with pytest.raises(CameraError, match="frame rate"):
+        CameraSettings(fps=0)
+    with pytest.raises(CameraError, match="frame size"):
+        CameraSettings(width=8)
+    with pytest.raises(CameraError, match="not a camera index, 'picamera', 'synthetic' or an existing video file"):
+        open_camera(str(tmp_path / "missing.mp4"), CameraSettings())
+    broken = tmp_path / "broken.mp4"
+    broken.write_bytes(b"not a video")
+    with pytest.raises(CameraError, match="cannot open camera"):
+        open_camera(str(broken), CameraSettings())
