@@ -54,9 +54,9 @@ class BatchNavEnv:
         self.features = np.zeros((0, OBS_FEATURES), dtype=np.float32)  # (sum N * 8, F)
         self.node_ij = np.zeros((0, 2), dtype=np.int64)  # (sum N, 2) grid indices
         self.positions = np.zeros((0, 2))  # (sum N, 2) metres
+        self.size = 0  # episodes in the batch, set by reset()
         for graph, rays in worlds:
             self.add(graph, rays)
-        self.size = 0
 
     # -- mazes --------------------------------------------------------------------
     def add(self, graph: NavGraph, rays: RayTable) -> int:
@@ -140,10 +140,12 @@ class BatchNavEnv:
 
     def step(self, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Apply (B,) actions; returns observations (B, F), collided (B,), done (B,)."""
+        if self.size == 0:
+            raise RuntimeError("step() before reset(): start the batch's episodes first")
         actions = np.asarray(actions)
         if actions.shape != (self.size,):
             raise ValueError(f"actions of shape {actions.shape}: expected ({self.size},)")
-        if actions.size and (actions.min() < 0 or actions.max() > Action.STOP):
+        if actions.min() < 0 or actions.max() > Action.STOP:
             raise ValueError("actions must be 0 forward, 1 left, 2 right or 3 stop")
         live = ~self.done
         slot = self.node * HEADINGS + self.heading

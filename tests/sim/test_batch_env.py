@@ -157,6 +157,8 @@ def test_finished_episodes_ignore_actions(worlds):
 def test_bad_input_is_named(worlds, benchmark_path):
     env = BatchNavEnv(worlds[:1])
     graph = worlds[0][0]
+    with pytest.raises(RuntimeError, match="before reset"):
+        env.step(np.zeros(1, dtype=np.int64))
     with pytest.raises(ValueError, match="not added"):
         env.reset([(worlds[1][0], Pose(0, 0), 0)])
     with pytest.raises(ValueError, match="episode 0"):
