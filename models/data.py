@@ -10,7 +10,9 @@ the metrics need), so a whole batch steps in a few numpy calls.
 from __future__ import annotations
 
 import hashlib
+import json
 import os
+import shutil
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,7 +26,8 @@ from sim.geometry import HEADING_DI, HEADING_DJ, HEADINGS
 from sim.labels import object_label
 from models.tokenizer import Tokenizer
 
-_WORLD_VERSION = 1
+_WORLD_VERSION = 2
+_ARRAYS = ("offset", "size", "xy", "ij", "forward", "obs")
 
 # Heading index of each grid step (di, dj), indexed [di + 1, dj + 1]; as sim.dynamics.
 STEP_HEADING = np.full((3, 3), -1, dtype=np.int64)
@@ -40,6 +43,7 @@ class World:
     ij: np.ndarray  # (G, 2) grid indices
     forward: np.ndarray  # (G, 8) global node after a forward move, -1 = collision
     obs: np.ndarray  # (G * 8, F) float16 ray features of node g at heading k in row 8 g + k
+    key: str = ""  # identifies the compiled mazes (their contents and the graph mode)
 
     @property
     def obs_features(self) -> int:
@@ -55,16 +59,18 @@ class World:
         from sim.observations import RayTable  # numpy-heavy; only needed when compiling
 
         key = hashlib.sha256()
-        for run in runs:
-            key.update(f"{run}:{bench.maze(run).content_hash};".encode())
+        for run in runs:  # the map files' bytes: reading them is much cheaper than decoding
+            key.update(run.encode())
+            for png in sorted((bench.root / "mazedata" / run / "maze").glob("maze.map*.png")):
+                key.update(png.read_bytes())
         key.update(f"{mode}-v{_WORLD_VERSION}".encode())
-        path = default_cache_dir(cache_dir) / "ndh" / f"world-{key.hexdigest()[:16]}.npz"
-        if path.exists():
+        folder = default_cache_dir(cache_dir) / "ndh" / f"world-{key.hexdigest()[:16]}"
+        if (folder / "runs.json").exists():
             try:
-                with np.load(path) as data:
-                    return cls(runs=list(data["runs"]), **{k: data[k] for k in
-                                                          ("offset", "size", "xy", "ij", "forward", "obs")})
-            except (OSError, ValueError, KeyError):
+                # Memory-mapped: instant to open, and parallel trainings share one copy.
+                return cls(runs=json.loads((folder / "runs.json").read_text()), key=folder.name,
+                           **{k: np.load(folder / f"{k}.npy", mmap_mode="r") for k in _ARRAYS})
+            except (OSError, ValueError):
                 pass  # torn or stale: rebuilt below
         parts = {"xy": [], "ij": [], "forward": [], "obs": []}
         offset, size, total = [], [], 0
@@ -78,19 +84,23 @@ class World:
             parts["forward"].append(np.where(graph.forward >= 0, graph.forward + total, -1))
             parts["obs"].append(rays.reshape(graph.n * HEADINGS, -1).astype(np.float16))
             total += graph.n
-        world = cls(runs=list(runs), offset=np.array(offset, dtype=np.int64),
+        world = cls(runs=list(runs), key=folder.name, offset=np.array(offset, dtype=np.int64),
                     size=np.array(size, dtype=np.int64),
                     **{k: np.concatenate(v) for k, v in parts.items()})
-        world._save(path)
+        world._save(folder)
         return world
 
-    def _save(self, path: Path) -> None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
-        os.close(fd)
-        np.savez(tmp, runs=np.array(self.runs), offset=self.offset, size=self.size, xy=self.xy,
-                 ij=self.ij, forward=self.forward, obs=self.obs)
-        os.replace(tmp, path)
+    def _save(self, folder: Path) -> None:
+        # Written beside, then renamed into place, so a reader never sees half a world.
+        folder.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(dir=folder.parent))
+        for k in _ARRAYS:
+            np.save(tmp / f"{k}.npy", getattr(self, k))
+        (tmp / "runs.json").write_text(json.dumps(self.runs))
+        try:
+            os.replace(tmp, folder)
+        except OSError:  # another process saved it first
+            shutil.rmtree(tmp, ignore_errors=True)
 
     def observe(self, node: np.ndarray, heading: np.ndarray) -> np.ndarray:
         """(B,) global nodes and headings -> (B, F) float32 features."""
@@ -118,37 +128,51 @@ class EpisodeSet:
     def build(cls, bench: Benchmark, world: World, split: str, tokenizer: Tokenizer,
               mode: str = "benchmark", instances: list[NDHInstance] | None = None) -> "EpisodeSet":
         instances = bench.split(split) if instances is None else instances
-        m, nmax = len(instances), int(world.size.max())
+        m = len(instances)
         ids = [tokenizer.encode(inst.dialog, inst.target) for inst in instances]
         tokens = np.zeros((m, max(map(len, ids))), dtype=np.int64)
         for k, row in enumerate(ids):
             tokens[k, :len(row)] = row
-        run = np.zeros(m, dtype=np.int64)
-        start_node, start_heading, goal = (np.zeros(m, dtype=np.int64) for _ in range(3))
-        goal_dist = np.full((m, nmax), np.inf, dtype=np.float64)
-        goal_next = np.full((m, nmax), -1, dtype=np.int64)
-        for k, inst in enumerate(instances):
-            graph = bench.graph(inst.run, mode)
-            r = world.run_index(inst.run)
-            off = world.offset[r]
-            start = episode_start(graph, inst)
-            g = goal_node(graph, inst)
-            run[k], start_node[k], start_heading[k], goal[k] = r, off + start.node, start.heading, off + g
-            goal_dist[k, :graph.n] = graph.dist[:, g]
-            goal_next[k, :graph.n] = graph.next_hop[:, g]
+        geometry = episode_geometry(bench, world, instances, mode)
         target_label = np.array([int(object_label(inst.target)) for inst in instances], dtype=np.int64)
-        return cls(split, instances, tokens, np.array([len(r) for r in ids]), run, start_node,
-                   start_heading, goal, goal_dist, goal_next, target_label)
+        return cls(split, instances, tokens, np.array([len(r) for r in ids]), **geometry,
+                   target_label=target_label)
 
-    def concat(self, other: "EpisodeSet", split: str) -> "EpisodeSet":
-        """Two sets as one (train + val_seen for the test-time retraining)."""
-        width = max(self.tokens.shape[1], other.tokens.shape[1])
-        pad = lambda t: np.pad(t, ((0, 0), (0, width - t.shape[1])))  # noqa: E731
-        cat = lambda a, b: np.concatenate([a, b])  # noqa: E731
-        return EpisodeSet(split, self.instances + other.instances, cat(pad(self.tokens), pad(other.tokens)),
-                          *(cat(getattr(self, f), getattr(other, f)) for f in
-                            ("lengths", "run", "start_node", "start_heading", "goal_node",
-                             "goal_dist", "goal_next", "target_label")))
+
+def episode_geometry(bench: Benchmark, world: World, instances: list[NDHInstance],
+                     mode: str = "benchmark") -> dict[str, np.ndarray]:
+    """Start pose, goal node, and distance and next hop toward the goal from every node, per
+    instance; cached on disk (the start protocol walks the teacher, and graphs are large)."""
+    key = hashlib.sha256(f"{world.key}:{mode}:{[(i.run, i.scan, i.inst_idx) for i in instances]}".encode())
+    path = default_cache_dir(bench.cache_dir) / "ndh" / f"episodes-{key.hexdigest()[:16]}.npz"
+    fields = ("run", "start_node", "start_heading", "goal_node", "goal_dist", "goal_next")
+    if world.key and path.exists():
+        try:
+            with np.load(path) as data:
+                return {f: data[f] for f in fields}
+        except (OSError, ValueError, KeyError):
+            pass  # torn or stale: recomputed below
+    m, nmax = len(instances), int(world.size.max())
+    out = {f: np.zeros(m, dtype=np.int64) for f in fields[:4]}
+    out["goal_dist"] = np.full((m, nmax), np.inf, dtype=np.float64)
+    out["goal_next"] = np.full((m, nmax), -1, dtype=np.int64)
+    for k, inst in enumerate(instances):
+        graph = bench.graph(inst.run, mode)
+        r = world.run_index(inst.run)
+        off = world.offset[r]
+        start = episode_start(graph, inst)
+        g = goal_node(graph, inst)
+        out["run"][k], out["start_node"][k], out["start_heading"][k] = r, off + start.node, start.heading
+        out["goal_node"][k] = off + g
+        out["goal_dist"][k, :graph.n] = graph.dist[:, g]
+        out["goal_next"][k, :graph.n] = graph.next_hop[:, g]
+    if world.key:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
+        os.close(fd)
+        np.savez(tmp, **out)
+        os.replace(tmp, path)
+    return out
 
 
 def teacher_actions(world: World, episodes: EpisodeSet, idx: np.ndarray, node: np.ndarray,

@@ -89,7 +89,7 @@ def _run_jobs(jobs: list[tuple[dict, Path]], bench: Benchmark, workers: int, des
 def run_experiment(bench: Benchmark, out: str | Path, models: list[str], seeds: list[int],
                    iters: int | None = None, budget_minutes: float = 110.0, workers: int = 1,
                    eval_every: int | None = None) -> dict:
-    from models.evaluate import agent_name, evaluate_checkpoint
+    from models.evaluate import evaluate_checkpoint
     from models.report import write_report
     from sim.evaluation import evaluate_baselines
     from sim.metrics import summarize, write_csv

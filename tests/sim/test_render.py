@@ -153,3 +153,9 @@ def test_top_down_draws_agent_path_and_rays():
     # The centre ray's end is marked in the colour of the wall it hits.
     assert tuple(at(x + depth[N_RAYS // 2] - 0.002, y)) == LABEL_BGR[Label.RED]
     assert (image != plain).any(axis=-1).sum() > 500
+
+
+def test_top_down_walls_only_leaves_the_objects_out():
+    maze = synthetic_maze()
+    assert _hue_matches(top_down(maze), Label.JAR).sum() > 100
+    assert not _hue_matches(top_down(maze, walls_only=True), Label.JAR).any()
