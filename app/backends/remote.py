@@ -263,18 +263,24 @@ class RobotLinks:
         for backend in list(self.backends.get(link.robot_id, ())):
             backend.link_down(link)
 
+    def trials_of(self, link: RobotLink) -> list[RemoteRobotBackend]:
+        """The backends (one per live trial) a link's data belongs to: a rover's own trials, or,
+        for the overhead camera over the table, every trial on a real robot."""
+        if link.role == "driver":
+            return list(self.backends.get(link.robot_id, ()))
+        return [backend for backends in self.backends.values() for backend in backends]
+
     async def frame(self, link: RobotLink, frame: Frame) -> None:
         if link.role == "driver":
             await self.slot(link.robot_id).put(frame)
             return
-        for backends in list(self.backends.values()):
-            for backend in list(backends):
-                backend.record_overhead(frame)
+        for backend in self.trials_of(link):
+            backend.record_overhead(frame)
 
     def bad_message(self, link: RobotLink, error: str) -> None:
         # In the log the rover is the `robot` seat; its `driver` role would read as the participant.
         role = "robot" if link.role == "driver" else link.role
-        for backend in list(self.backends.get(link.robot_id, ())):
+        for backend in self.trials_of(link):
             backend.record_bad_message(role, error)
 
     def status(self) -> list[dict[str, Any]]:
