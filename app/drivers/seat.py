@@ -62,6 +62,17 @@ class AgentSeat:
                 await self.task
 
     async def _run(self) -> None:
+        try:
+            await self._drive()
+        except asyncio.CancelledError:
+            raise
+        except Exception as err:  # a broken agent must show in the log, not hang the trial silently
+            logger.exception("agent %s failed in trial %s", self.name, self.runtime.trial_id)
+            if not self.runtime.state.over:
+                self.runtime.record("bad_message", {"role": "driver",
+                                                    "error": f"agent {self.name!r} failed: {err}"[:500]})
+
+    async def _drive(self) -> None:
         runtime = self.runtime
         state, settings = runtime.state, runtime.settings
         info = {"trial_id": runtime.trial_id, "maze": state.maze, "targets": list(state.targets),

@@ -86,15 +86,15 @@ def add_team(request: Request, name: str = Form(max_length=80), member_a: int = 
 
 
 @router.post("/trials")
-def add_trial(request: Request, team_id: int = Form(), maze: str = Form(""), targets: str = Form("random"),
+def add_trial(request: Request, team_id: int | None = Form(None), maze: str = Form(""), targets: str = Form("random"),
               backend: str = Form("sim"), driver: str = Form("human"), commander_id: int | None = Form(None)):
     services = request.app.state.services
     names = services.mazes.names()
     try:
         if driver != "human" and driver.removeprefix("agent:") not in driver_names():
             raise TrialSetupError(f"driver {driver!r} is neither 'human' nor a known agent")
-        if backend != "sim" and not backend.startswith("robot:"):
-            raise TrialSetupError(f"backend {backend!r} is neither 'sim' nor 'robot:<id>'")
+        if team_id is None:
+            raise TrialSetupError("choose a team (form one first)")
         with services.db.begin() as db:
             team = db.get(Team, team_id)
             if team is None:

@@ -9,7 +9,7 @@ from collections import Counter
 from sqlalchemy import or_, select
 from sqlalchemy.orm import Session
 
-from app.db.models import Event, Participant, Team, Trial
+from app.db.models import Event, Participant, Robot, Team, Trial
 from sim.labels import OBJECTS
 
 
@@ -53,6 +53,13 @@ def create_trial(db: Session, *, team_id: int, maze: str, targets: list[str], ba
         raise TrialSetupError(f"maze {maze!r} is not in the library")
     if maze in mazes_seen(db, team):
         raise TrialSetupError(f"maze {maze!r}: team {team.name!r} has already seen it")
+    if backend.startswith("robot:"):
+        robot_id = backend.removeprefix("robot:")
+        robot = db.get(Robot, int(robot_id)) if robot_id.isdigit() else None
+        if robot is None or robot.role != "driver":
+            raise TrialSetupError(f"backend {backend!r}: no registered rover with id {robot_id!r}")
+    elif backend != "sim":
+        raise TrialSetupError(f"backend {backend!r} is neither 'sim' nor 'robot:<id>'")
     members = (team.member_a_id, team.member_b_id)
     commander_id = commander_id or team.member_a_id
     if commander_id not in members:

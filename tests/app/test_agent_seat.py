@@ -71,3 +71,27 @@ def test_register_driver_adds_a_named_agent(settings):
             actions = db.scalars(select(Event.payload).where(Event.trial_id == trial_id,
                                                              Event.kind == "move_executed")).all()
         assert len(actions) >= 3 and {a["action"] for a in actions} == {"left"}
+
+
+def test_an_agent_that_fails_is_logged_and_the_trial_stays_open(settings):
+    def broken(info, settings):
+        raise FileNotFoundError("no checkpoint at runs/missing.pt")
+
+    register_driver("test-broken", broken)
+    with ServerThread(settings) as server:
+        services = server.services
+        trial_id = make_trial(services, services.mazes.names()[0], driver="agent:test-broken")
+
+        async def command():
+            async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+                await commander.wait_for(lambda m: m.get("type") == "welcome")
+                await asyncio.sleep(0.5)
+                await commander.send("chat", text="anyone there?")
+                await commander.event("chat", text="anyone there?")
+
+        asyncio.run(command())
+        with services.db() as db:
+            errors = db.scalars(select(Event.payload).where(Event.trial_id == trial_id,
+                                                            Event.kind == "bad_message")).all()
+        assert errors == [{"role": "driver",
+                           "error": "agent 'test-broken' failed: no checkpoint at runs/missing.pt"}]

@@ -3,6 +3,7 @@ teams and trials with join links, maze choice, and the database commands."""
 
 from __future__ import annotations
 
+import html
 import os
 import re
 import subprocess
@@ -79,6 +80,10 @@ def test_experimenter_forms_make_a_trial_with_join_links(settings):
         # Ben played maze 0 with Pair: team Other may not get it, and is given the next least used.
         page = client.post("/experimenter/trials", data={"team_id": 2, "maze": names[0]}).text
         assert "already seen it" in page
+        page = html.unescape(client.post("/experimenter/trials", data={"team_id": 2, "backend": "robot:42"}).text)
+        assert "no registered rover with id '42'" in page
+        page = html.unescape(client.post("/experimenter/trials", data={"team_id": 2, "driver": "agent:nobody"}).text)
+        assert "neither 'human' nor a known agent" in page
         client.post("/experimenter/trials", data={"team_id": 2, "driver": "agent:shortest"})
         with server.services.db() as db:
             second = db.scalar(select(Trial).where(Trial.team_id == 2))
