@@ -35,6 +35,7 @@ class AgentConfig:
     attention: bool = False
     progress_monitor: bool = False
     target_rays: bool = False  # add, per ray, whether it sees the target object
+    attention_dim: int = 32  # keys and values are projected once per dialog, so each step is cheap
 
     @property
     def obs_inputs(self) -> int:
@@ -56,14 +57,18 @@ class Seq2SeqAgent(nn.Module):
         self.action_embedding = nn.Embedding(N_ACTIONS + 1, c.action_embed)
         self.decoder = nn.LSTMCell(c.obs_hidden + c.action_embed, c.hidden)
         if c.attention:
-            self.attn_query = nn.Linear(c.hidden, c.hidden, bias=False)
-            self.attn_out = nn.Linear(2 * c.hidden, c.hidden)
+            self.attn_key = nn.Linear(c.hidden, c.attention_dim, bias=False)
+            self.attn_value = nn.Linear(c.hidden, c.attention_dim, bias=False)
+            self.attn_query = nn.Linear(c.hidden, c.attention_dim, bias=False)
+            self.attn_out = nn.Linear(c.hidden + c.attention_dim, c.hidden)
         self.policy = nn.Linear(c.hidden, N_ACTIONS)
         if c.progress_monitor:
             self.progress = nn.Linear(c.hidden, 1)
 
     def encode(self, tokens: torch.Tensor, lengths: torch.Tensor):
-        """(B, T) ids, (B,) lengths -> context (B, T, H), its mask (B, T), initial state.
+        """(B, T) ids, (B,) lengths -> context, its mask (B, T), initial state.
+
+        The context is (B, T, H), or with attention its (keys, values) projections.
 
         A dialog of length 0 (the language-blind ablation) gets a zero state and no context.
         """
@@ -76,7 +81,10 @@ class Seq2SeqAgent(nn.Module):
         keep = (~empty).float().unsqueeze(1)
         h, c = h[0] * keep, c[0] * keep
         ctx_mask = torch.arange(tokens.shape[1]).unsqueeze(0) < lengths.unsqueeze(1)
-        return ctx * ctx_mask.unsqueeze(2).float(), ctx_mask, (h, c)
+        ctx = ctx * ctx_mask.unsqueeze(2).float()
+        if self.config.attention:  # (keys, values) in place of the raw context
+            ctx = (self.attn_key(ctx), self.attn_value(ctx))
+        return ctx, ctx_mask, (h, c)
 
     def step(self, obs: torch.Tensor, prev_action: torch.Tensor, state, ctx, ctx_mask,
              forward_blocked: torch.Tensor, stop_allowed: torch.Tensor | None = None):
@@ -85,10 +93,11 @@ class Seq2SeqAgent(nn.Module):
         h, c = self.decoder(self.drop(x), state)
         out = h
         if self.config.attention:
-            scores = torch.bmm(ctx, self.attn_query(h).unsqueeze(2)).squeeze(2)
+            keys, values = ctx
+            scores = torch.bmm(keys, self.attn_query(h).unsqueeze(2)).squeeze(2)
             scores = scores.masked_fill(~ctx_mask, NEG_INF)
             weights = torch.softmax(scores, dim=1) * ctx_mask.any(dim=1, keepdim=True).float()
-            attended = torch.bmm(weights.unsqueeze(1), ctx).squeeze(1)
+            attended = torch.bmm(weights.unsqueeze(1), values).squeeze(1)
             out = torch.tanh(self.attn_out(torch.cat([h, attended], dim=1)))
         logits = self.policy(self.drop(out))
         logits = mask_logits(logits, forward_blocked, stop_allowed)

@@ -58,9 +58,12 @@ def significance(results: dict[str, list[EpisodeResult]], pairs) -> dict[str, li
 def _marks(agent: str, metric: str, tests: list[Comparison]) -> str:
     marks = ""
     for c in tests:
-        if c.metric != metric or not c.significant or agent != c.b:
+        if c.metric != metric or not c.significant:
             continue
-        marks += FEEDBACK_MARK if c.a.split("/")[1] != c.b.split("/")[1] else ABLATION_MARK
+        if c.a.split("/")[1] != c.b.split("/")[1]:  # student vs teacher: marked on the student row
+            marks += FEEDBACK_MARK if agent == c.a else ""
+        elif agent == c.b:  # full vs ablation: marked on the ablation row
+            marks += ABLATION_MARK
     return marks
 
 
