@@ -59,10 +59,11 @@ def measure_iteration_seconds(bench: Benchmark, out: Path, model: str) -> dict[s
 
 
 def choose_iters(costs: dict[str, float], n_models: int, n_seeds: int, budget_s: float, workers: int) -> int:
-    """Training iterations per run that fit the budget (validation and retraining included)."""
+    """Training iterations per run that fit the budget: each run costs its iterations, the
+    retraining to its best iteration (RETRAIN_SHARE of them on average) and its validations."""
     per_iter = sum(costs.values()) * len(ABLATIONS) * n_models * n_seeds  # one iteration of every run
-    factor = 1 + RETRAIN_SHARE + EVALS_PER_RUN * EVAL_COST_ITERS / 100
-    return max(10, int(budget_s * workers / (per_iter * factor)))
+    validations = EVALS_PER_RUN * EVAL_COST_ITERS
+    return max(10, int((budget_s * workers / per_iter - validations) / (1 + RETRAIN_SHARE)))
 
 
 def _train_job(root: str, cache_dir: str | None, cfg: dict, out: str) -> dict:

@@ -125,7 +125,7 @@ def plot_td_distributions(results: dict[str, list[EpisodeResult]], path: Path) -
                 if r.agent == a and np.isfinite(r.td):
                     per.setdefault(r.inst_idx, []).append(r.td)
             data.append([float(np.mean(v)) for v in per.values()])
-        ax.boxplot(data, vert=False, showmeans=True)
+        ax.boxplot(data, orientation="horizontal", showmeans=True)
         ax.set_yticks(range(1, len(agents) + 1), agents, fontsize=8)
         ax.set_xlabel("topological distance to goal (m), mean over seeds per instance")
         ax.set_title(f"TD distribution, {split}")

@@ -1,0 +1,64 @@
+"""`report ndh` from an experiment folder: tables with significance marks, tests, plots."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from models.experiment import choose_iters
+from models.report import write_report
+from sim.metrics import EpisodeResult, write_csv
+
+
+def rows(split, agent, tds, seed=0):
+    return [EpisodeResult(split=split, inst_idx=k, agent=agent, seed=seed, start_x=0, start_y=0, start_heading=0,
+                          goal_x=0, goal_y=0, td=float(td), otd=float(td) * 0.9, steps=10, success=td < 0.5,
+                          spl=0.5 if td < 0.5 else 0.0) for k, td in enumerate(tds)]
+
+
+@pytest.fixture
+def experiment(tmp_path):
+    rng = np.random.default_rng(0)
+    base = rng.uniform(2.0, 5.0, 30)
+    for split in ("val_seen", "test"):
+        results = rows(split, "stop", base + 1.0) + rows(split, "random", base + 0.8)
+        results += rows(split, "baseline/student/none", base - 0.2 * (np.arange(30) % 3 == 0))
+        results += rows(split, "baseline/student/language", base + 1.0 + rng.normal(0, 0.1, 30))  # clearly worse
+        results += rows(split, "baseline/student/vision", base + rng.normal(0, 0.5, 30))
+        results += rows(split, "baseline/teacher/none", base + rng.normal(0, 0.5, 30))
+        write_csv(tmp_path / "results" / f"{split}.csv", results)
+    hist = tmp_path / "runs" / "baseline" / "student-none" / "seed0" / "val" / "history.json"
+    hist.parent.mkdir(parents=True)
+    hist.write_text(json.dumps([{"iteration": 10, "loss": 1.0, "val_td": 4.0}, {"iteration": 20, "loss": 0.9, "val_td": 3.5}]))
+    return tmp_path
+
+
+def test_report_marks_the_significantly_worse_ablation_only(experiment):
+    path = write_report(experiment)
+    text = path.read_text()
+    line = next(ln for ln in text.splitlines() if ln.startswith("| baseline: Student forcing, language-blind"))
+    assert line.count("*") == 4  # TD and OTD on both splits
+    full = next(ln for ln in text.splitlines() if ln.startswith("| baseline: Student forcing, vision + language"))
+    assert "*" not in full
+    assert "| Immediate Stop |" in text and "| Random |" in text
+    tests = json.loads((experiment / "significance.json").read_text())
+    pairs = {(c["a"], c["b"]) for c in tests["test"]}
+    assert ("baseline/student/none", "baseline/student/language") in pairs
+    assert ("baseline/student/none", "baseline/teacher/none") in pairs
+    for png in ("td_distribution.png", "learning_curves.png"):
+        assert (experiment / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_report_without_results_names_the_folder(tmp_path):
+    with pytest.raises(FileNotFoundError, match="results"):
+        write_report(tmp_path)
+
+
+def test_iterations_are_sized_to_the_budget():
+    costs = {"teacher": 0.5, "student": 0.7}
+    one = choose_iters(costs, n_models=1, n_seeds=3, budget_s=7200, workers=1)
+    assert one == int((7200 / (1.2 * 3 * 3) - 4) / 1.75)
+    assert choose_iters(costs, n_models=2, n_seeds=3, budget_s=7200, workers=1) < one
+    assert choose_iters(costs, n_models=1, n_seeds=3, budget_s=7200, workers=2) > one
