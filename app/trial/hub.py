@@ -41,6 +41,13 @@ class TrialHub:
                 self._runtimes[trial_id] = runtime
         return runtime
 
+    def forget(self, trial_id: int) -> None:
+        """Drop a trial that is over from this process (it is reopened from its log if needed)."""
+        runtime = self._runtimes.get(trial_id)
+        if runtime is not None and runtime.state.over:
+            del self._runtimes[trial_id]
+            self._opening.pop(trial_id, None)
+
     def peek(self, trial_id: int) -> TrialRuntime | None:
         return self._runtimes.get(trial_id)
 

@@ -51,7 +51,6 @@ class TrialRuntime:
         self.state = TrialState()
         self.backend: RobotBackend | None = None
         self.seats: dict[str, Connection] = {}
-        self.watchers: set[Connection] = set()
         self._move_busy = False
         self._last_move_ns = 0
         self._grace: dict[str, asyncio.Task] = {}
@@ -90,6 +89,8 @@ class TrialRuntime:
                 task.cancel()
         if self.agent is not None:
             await self.agent.stop()
+            if self.seats.get("driver") is self.agent:
+                del self.seats["driver"]
         if self.backend is not None:
             backend, self.backend = self.backend, None
             await backend.close()
@@ -103,7 +104,7 @@ class TrialRuntime:
     # -- the log ------------------------------------------------------------------
     def record(self, kind: str, payload: dict[str, Any], *, frame: dict[str, Any] | None = None,
                attachments: dict[str, dict[str, Any]] | None = None) -> LoggedEvent:
-        """Commit one event, fold it into the state, then tell the seats and watchers."""
+        """Commit one event, fold it into the state, then tell the seats."""
         t_ns = self.services.clock.now_ns()
         if self.state.last_t_ns is not None:
             t_ns = max(t_ns, self.state.last_t_ns + 1)  # one trial's stamps never go back, even across restarts
@@ -122,11 +123,6 @@ class TrialRuntime:
             message = view(role, event)
             if message is not None:
                 message.update(attachments.get(role, {}))
-                conn.deliver(message)
-        if self.watchers:
-            message = {"type": "event", "seq": event.seq, "kind": event.kind, "t_ns": event.t_ns,
-                       "payload": event.payload}
-            for conn in list(self.watchers):
                 conn.deliver(message)
 
     def record_pose(self, pose: tuple[float, float, float]) -> None:
@@ -216,6 +212,8 @@ class TrialRuntime:
         del self.seats[conn.role]
         if not self.state.over:
             self._seat_lost(conn.role)
+        elif not self.seats:  # over and nobody left watching: this process can let it go
+            self.services.hub.forget(self.trial_id)
 
     def _seat_lost(self, role: str) -> None:
         self.record("disconnect", {"role": role})
