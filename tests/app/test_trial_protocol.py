@@ -5,6 +5,7 @@ leaderboard; and what each seat is never sent."""
 from __future__ import annotations
 
 import asyncio
+import time
 
 import httpx
 import pytest
@@ -53,6 +54,10 @@ def test_full_trial_from_links_to_leaderboard(any_db_settings):
                 return commander, driver
 
         commander, driver = asyncio.run(play())
+        deadline = time.time() + 5
+        while services.hub.peek(trial_id) is not None:  # over, and both seats gone
+            assert time.time() < deadline, "a finished trial with no seats stays in the hub"
+            time.sleep(0.05)
 
         # The Commander never got a camera frame, a move or the true pose; the Driver never
         # the Commander's localization; neither the simulator's ground truth.
