@@ -107,12 +107,20 @@ def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, tmp_path):
         runtime = services.hub.peek(trial_id)
         assert runtime.state.localization["heading"] == pytest.approx(0.0, abs=0.05)
 
+        # The experimenter's dashboard shows the running trial with its true pose.
+        admin.goto(server.url + "/experimenter")
+        live = admin.locator(f'figure.live-trial[data-trial="{trial_id}"] figcaption')
+        live.filter(has_text="navigating").wait_for()
+        assert "commander ●" in live.inner_text() and "driver ●" in live.inner_text()
+
         keys = {Action.FORWARD: "ArrowUp", Action.LEFT: "ArrowLeft", Action.RIGHT: "ArrowRight"}
         buttons = {Action.FORWARD: "#forward", Action.LEFT: "#left", Action.RIGHT: "#right"}
         for index in range(3):
             for n in range(400):
                 if index == 0 and n == 6:
                     driver.screenshot(path=str(ARTIFACTS / "driver.png"))
+                    admin.wait_for_timeout(1100)  # one dashboard refresh
+                    admin.screenshot(path=str(ARTIFACTS / "experimenter.png"))
                 action = oracle_action(services, trial_id)
                 if action == Action.STOP:
                     break
