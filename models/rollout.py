@@ -31,10 +31,31 @@ class Rollout:
     loss: torch.Tensor | None = None
 
 
+def mid_route_starts(world: World, episodes: EpisodeSet, idx: np.ndarray, share: float,
+                     rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Start poses where a `share` of the batch begins part-way along its shortest route, facing
+    a random way: more practice at the end of a route, where the target comes into view."""
+    node = episodes.start_node[idx].copy()
+    heading = episodes.start_heading[idx].copy()
+    moved = rng.random(len(idx)) < share
+    # Walk each moved episode's route until a uniform share of its length is left.
+    left = goal_distance(world, episodes, idx, node) * rng.random(len(idx))
+    off = world.offset[episodes.run[idx]]
+    for _ in range(MAX_ACTIONS):
+        nxt = episodes.goal_next[idx, node - off]
+        go = moved & (goal_distance(world, episodes, idx, node) > left) & (nxt >= 0)
+        if not go.any():
+            break
+        node = np.where(go, nxt + off, node)
+    heading = np.where(moved, rng.integers(0, HEADINGS, len(idx)), heading)
+    return node, heading
+
+
 def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: np.ndarray,
                  feedback: str, blind: str = "none", max_actions: int = MAX_ACTIONS,
                  generator: torch.Generator | None = None, progress_weight: float = 1.0,
-                 train: bool = False) -> Rollout:
+                 train: bool = False, start: tuple[np.ndarray, np.ndarray] | None = None) -> Rollout:
+    """Roll out a batch; `start` (global nodes, headings) replaces the episodes' start poses."""
     if feedback not in FEEDBACKS:
         raise ValueError(f"unknown feedback {feedback!r}; expected one of {', '.join(FEEDBACKS)}")
     if blind not in BLINDS:
@@ -47,8 +68,8 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
         lengths = torch.zeros_like(lengths)
     ctx, ctx_mask, state = agent.encode(tokens, lengths)
 
-    node = episodes.start_node[idx].copy()
-    heading = episodes.start_heading[idx].copy()
+    node = episodes.start_node[idx].copy() if start is None else start[0].copy()
+    heading = episodes.start_heading[idx].copy() if start is None else start[1].copy()
     start_dist = np.maximum(goal_distance(world, episodes, idx, node), 1e-6)
     prev = torch.full((b,), START, dtype=torch.long)
     done = np.zeros(b, dtype=bool)

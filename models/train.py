@@ -20,15 +20,17 @@ from tqdm import tqdm
 
 from models.agent import AgentConfig, Seq2SeqAgent
 from models.data import EpisodeSet, World, goal_distance, splits_runs
-from models.rollout import BLINDS, MAX_ACTIONS, run_episodes
+from models.rollout import BLINDS, MAX_ACTIONS, mid_route_starts, run_episodes
 from models.tokenizer import Tokenizer
 from sim.benchmark import SPLITS, Benchmark, NDHInstance
 
 FEEDBACK_LR = {"teacher": 1e-4, "student": 1e-3}
-# Named model variants: the paper's model, and the one aimed at beating it.
+# Named model variants: the paper's model, and the one aimed at beating it (agent options, and
+# the share of training episodes started part-way along their route).
 MODELS = {
-    "baseline": {"attention": False, "progress_monitor": False},
-    "improved": {"attention": True, "progress_monitor": True, "target_rays": True},
+    "baseline": {"agent": {}, "mid_route_starts": 0.0},
+    "improved": {"agent": {"attention": True, "progress_monitor": True, "target_rays": True},
+                 "mid_route_starts": 0.5},
 }
 
 
@@ -97,7 +99,7 @@ def load_glove(path: str | Path, tokenizer: Tokenizer) -> tuple[torch.Tensor, in
 def make_agent(cfg: TrainConfig, tokenizer: Tokenizer, obs_features: int) -> Seq2SeqAgent:
     glove, embed = (load_glove(cfg.glove, tokenizer) if cfg.glove else (None, 128))
     agent = Seq2SeqAgent(AgentConfig(vocab_size=len(tokenizer), obs_features=obs_features,
-                                     embed=embed, **MODELS[cfg.model]))
+                                     embed=embed, **MODELS[cfg.model]["agent"]))
     if glove is not None:
         agent.embedding.weight.data.copy_(glove)
     return agent
@@ -188,8 +190,10 @@ def train(bench: Benchmark, cfg: TrainConfig, out: str | Path, world: World | No
         torch.manual_seed(cfg.seed * 1_000_003 + it)
         gen = torch.Generator().manual_seed(cfg.seed * 1_000_003 + it)
         idx = rng.choice(len(train_set), size=min(cfg.batch, len(train_set)), replace=False)
+        share = MODELS[cfg.model]["mid_route_starts"]
+        start = mid_route_starts(world, train_set, idx, share, rng) if share > 0 else None
         roll = run_episodes(agent, world, train_set, idx, cfg.feedback, cfg.blind, cfg.max_actions,
-                            generator=gen, train=True)
+                            generator=gen, train=True, start=start)
         optimizer.zero_grad()
         roll.loss.backward()
         optimizer.step()

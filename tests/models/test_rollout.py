@@ -73,3 +73,23 @@ def test_target_flags_are_the_target_column_of_each_rays_one_hot_label(few):
     labels = obs[:, :N_RAYS * N_LABELS].reshape(50, N_RAYS, N_LABELS).argmax(dim=2)
     assert flags.shape == (50, N_RAYS)
     assert torch.equal(flags.bool(), labels == int(Label.MUG))
+
+
+def test_mid_route_starts_lie_on_the_shortest_route(few):
+    from models.rollout import mid_route_starts
+
+    world, eps = few["world"], few["train_set"]
+    idx = np.repeat(np.arange(len(eps)), 20)
+    node, heading = mid_route_starts(world, eps, idx, 1.0, np.random.default_rng(0))
+    start = goal_distance(world, eps, idx, eps.start_node[idx])
+    here = goal_distance(world, eps, idx, node)
+    assert (here <= start).all() and (here < start).mean() > 0.5
+    # On the route: what is left plus what was walked is the shortest distance from the start.
+    for k in np.flatnonzero(here < start)[:20]:
+        i = idx[k]
+        path = [eps.start_node[i]]
+        while path[-1] != node[k]:
+            path.append(eps.goal_next[i, path[-1] - world.offset[eps.run[i]]] + world.offset[eps.run[i]])
+        assert len(path) < 200
+    same, _ = mid_route_starts(world, eps, idx, 0.0, np.random.default_rng(0))
+    assert (same == eps.start_node[idx]).all()
