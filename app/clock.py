@@ -15,6 +15,3 @@ class ServerClock:
 
     def now_ns(self) -> int:
         return time.monotonic_ns() + self._offset_ns
-
-    def to_monotonic(self, t_ns: int) -> int:
-        return t_ns - self._offset_ns
