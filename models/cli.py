@@ -130,7 +130,7 @@ def report_ndh(directory: Path = typer.Argument(..., help="An experiment folder 
 
 def experiment_ndh(
     benchmark: Path = BENCHMARK_OPTION,
-    out: Path = typer.Option(Path("experiments/ndh"), help="Experiment folder; re-running resumes."),
+    out: Path = typer.Option(Path("runs/ndh-experiment"), help="Experiment folder; re-running resumes."),
     models: str = typer.Option("baseline,improved", help="Model variants, comma-separated."),
     seeds: str = typer.Option("0,1,2", help="Seeds, comma-separated."),
     iters: Optional[int] = typer.Option(None, help="Iterations per run; default: measured to fit the budget."),
