@@ -3,11 +3,15 @@
 (() => {
   const {$, on, send} = Seat;
   const KEYS = {ArrowUp: "forward", ArrowLeft: "left", ArrowRight: "right"};
-  let pending = null;
+  const MOVE_TIMEOUT_MS = 5000;  // a move whose result never came (e.g. the server restarted)
+  let pending = null, pendingSince = 0;
 
   function move(action) {
-    if (pending) { $("move-note").textContent = "wait: the robot is still moving"; return; }
+    if (pending && performance.now() - pendingSince < MOVE_TIMEOUT_MS) {
+      $("move-note").textContent = "wait: the robot is still moving"; return;
+    }
     pending = Math.random().toString(36).slice(2, 10);
+    pendingSince = performance.now();
     if (!send("move", {action, move_id: pending})) pending = null;
   }
   ["forward", "left", "right"].forEach((a) => $(a).addEventListener("click", () => move(a)));
@@ -17,7 +21,7 @@
   });
   $("found").addEventListener("click", () => send("claim"));
 
-  on("welcome", (msg) => { if (msg.frame) $("camera").src = `data:image/jpeg;base64,${msg.frame.jpeg}`; });
+  on("welcome", (msg) => { pending = null; if (msg.frame) $("camera").src = `data:image/jpeg;base64,${msg.frame.jpeg}`; });
   on("frame", (msg) => { $("camera").src = `data:image/jpeg;base64,${msg.jpeg}`; });
   on("move_executed", (msg) => {
     const p = msg.payload;
