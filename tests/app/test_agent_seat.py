@@ -64,7 +64,11 @@ def test_register_driver_adds_a_named_agent(settings):
         async def command():
             async with SeatClient(server.ws_url, token) as commander:
                 await commander.event("phase", phase="localizing")
-                await asyncio.sleep(0.5)
+                runtime = services.hub.peek(trial_id)
+                for _ in range(500):
+                    if runtime.state.moves >= 3:
+                        break
+                    await asyncio.sleep(0.02)
 
         asyncio.run(command())
         with services.db() as db:

@@ -183,7 +183,7 @@ def test_other_role_token_and_bad_messages_get_errors_and_never_end_the_trial(se
 def test_moves_faster_than_the_robot_are_refused_not_queued(tmp_path):
     from tests.app.conftest import platform_settings
 
-    settings = platform_settings(tmp_path, min_move_interval_s=0.5)
+    settings = platform_settings(tmp_path, min_move_interval_s=2.0)
     with ServerThread(settings) as server:
         services = server.services
         trial_id = make_trial(services, first_maze(services))
