@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import hashlib
 import json
 import logging
 import uuid
@@ -27,10 +28,6 @@ def _channel(process: str) -> str:
     return f"robotslang:process:{process}"
 
 
-def _owner_key(trial_id: int) -> str:
-    return f"robotslang:trial:{trial_id}:owner"
-
-
 class RedisRelay:
     def __init__(self, services, url: str) -> None:
         import redis.asyncio as redis
@@ -38,6 +35,8 @@ class RedisRelay:
         self.services = services
         self.redis = redis.from_url(url, decode_responses=True)
         self.id = uuid.uuid4().hex
+        # Trial ids are per database: processes share owners only when they share the database.
+        self._keys = f"robotslang:{hashlib.sha256(services.settings.url.encode()).hexdigest()[:12]}"
         self.local: dict[str, Any] = {}  # connection id -> this process's seat of a trial owned elsewhere
         self.relayed: dict[str, RelayedSeat] = {}  # connection id -> a remote seat of a trial owned here
         self._outbox: asyncio.Queue = asyncio.Queue()
@@ -58,16 +57,19 @@ class RedisRelay:
                 await task
         for runtime in self.services.hub.live():
             with contextlib.suppress(Exception):
-                if await self.redis.get(_owner_key(runtime.trial_id)) == self.id:
-                    await self.redis.delete(_owner_key(runtime.trial_id))
+                if await self.redis.get(self._owner_key(runtime.trial_id)) == self.id:
+                    await self.redis.delete(self._owner_key(runtime.trial_id))
         await self._pubsub.aclose()
         await self.redis.aclose()
 
+    def _owner_key(self, trial_id: int) -> str:
+        return f"{self._keys}:trial:{trial_id}:owner"
+
     async def owner(self, trial_id: int) -> str:
         """The process running the trial; this one when no process does yet."""
-        if await self.redis.set(_owner_key(trial_id), self.id, nx=True, ex=OWNER_TTL_S):
+        if await self.redis.set(self._owner_key(trial_id), self.id, nx=True, ex=OWNER_TTL_S):
             return self.id
-        return await self.redis.get(_owner_key(trial_id)) or await self.owner(trial_id)
+        return await self.redis.get(self._owner_key(trial_id)) or await self.owner(trial_id)
 
     def send(self, process: str, message: dict[str, Any]) -> None:
         self._outbox.put_nowait((process, json.dumps(message, separators=(",", ":"))))
@@ -85,7 +87,7 @@ class RedisRelay:
             await asyncio.sleep(RENEW_EVERY_S)
             for runtime in self.services.hub.live():
                 with contextlib.suppress(Exception):
-                    await self.redis.set(_owner_key(runtime.trial_id), self.id, ex=OWNER_TTL_S)
+                    await self.redis.set(self._owner_key(runtime.trial_id), self.id, ex=OWNER_TTL_S)
 
     async def _listen(self) -> None:
         async for item in self._pubsub.listen():
