@@ -13,6 +13,7 @@ import logging
 from urllib.parse import urlsplit
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
+
 from app.security import InvalidToken
 from app.settings import Settings
 from app.trial.runtime import UnknownTrial
@@ -40,14 +41,22 @@ class SocketSeat:
         self.ws, self.role = ws, role
         self.outbox: asyncio.Queue = asyncio.Queue(OUTBOX_LIMIT)
         self.writer = asyncio.get_running_loop().create_task(self._write())
+        self.dropped = False
 
     def deliver(self, message: dict) -> None:
+        if self.dropped:
+            return
         try:
             self.outbox.put_nowait(message)
-        except asyncio.QueueFull:
+        except asyncio.QueueFull:  # the browser reconnects and gets a fresh welcome
             logger.warning("%s socket too slow; closing it", self.role)
+            self.dropped = True
             self.writer.cancel()
-            asyncio.get_running_loop().create_task(self.ws.close(code=1013))
+            asyncio.get_running_loop().create_task(self._close_slow())
+
+    async def _close_slow(self) -> None:
+        with contextlib.suppress(RuntimeError, WebSocketDisconnect):
+            await self.ws.close(code=1013, reason="too slow")
 
     async def _write(self) -> None:
         with contextlib.suppress(WebSocketDisconnect, RuntimeError, asyncio.CancelledError):
