@@ -13,7 +13,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from models.agent import FORWARD, LEFT, RIGHT, START, STOP, Seq2SeqAgent, observation_input
+from models.agent import FORWARD, LEFT, RIGHT, START, STOP, Seq2SeqAgent, mask_logits, observation_input
 from models.data import EpisodeSet, World, goal_distance, teacher_actions
 from sim.geometry import HEADINGS
 
@@ -31,31 +31,13 @@ class Rollout:
     loss: torch.Tensor | None = None
 
 
-def mid_route_starts(world: World, episodes: EpisodeSet, idx: np.ndarray, share: float,
-                     rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Start poses where a `share` of the batch begins part-way along its shortest route, facing
-    a random way: more practice at the end of a route, where the target comes into view."""
-    node = episodes.start_node[idx].copy()
-    heading = episodes.start_heading[idx].copy()
-    moved = rng.random(len(idx)) < share
-    # Walk each moved episode's route until a uniform share of its length is left.
-    left = goal_distance(world, episodes, idx, node) * rng.random(len(idx))
-    off = world.offset[episodes.run[idx]]
-    for _ in range(MAX_ACTIONS):
-        nxt = episodes.goal_next[idx, node - off]
-        go = moved & (goal_distance(world, episodes, idx, node) > left) & (nxt >= 0)
-        if not go.any():
-            break
-        node = np.where(go, nxt + off, node)
-    heading = np.where(moved, rng.integers(0, HEADINGS, len(idx)), heading)
-    return node, heading
-
-
 def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: np.ndarray,
                  feedback: str, blind: str = "none", max_actions: int = MAX_ACTIONS,
                  generator: torch.Generator | None = None, progress_weight: float = 1.0,
-                 train: bool = False, start: tuple[np.ndarray, np.ndarray] | None = None) -> Rollout:
-    """Roll out a batch; `start` (global nodes, headings) replaces the episodes' start poses."""
+                 train: bool = False, stop_in_loss: bool = False) -> Rollout:
+    """Roll out a batch. Student forcing samples with stop masked away from the goal; with
+    `stop_in_loss` the loss still scores the unmasked stop, so the agent also learns where
+    *not* to stop (a masked logit gets no gradient, and at test time stop is never masked)."""
     if feedback not in FEEDBACKS:
         raise ValueError(f"unknown feedback {feedback!r}; expected one of {', '.join(FEEDBACKS)}")
     if blind not in BLINDS:
@@ -68,8 +50,8 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
         lengths = torch.zeros_like(lengths)
     ctx, ctx_mask, state = agent.encode(tokens, lengths)
 
-    node = episodes.start_node[idx].copy() if start is None else start[0].copy()
-    heading = episodes.start_heading[idx].copy() if start is None else start[1].copy()
+    node = episodes.start_node[idx].copy()
+    heading = episodes.start_heading[idx].copy()
     start_dist = np.maximum(goal_distance(world, episodes, idx, node), 1e-6)
     prev = torch.full((b,), START, dtype=torch.long)
     done = np.zeros(b, dtype=bool)
@@ -92,8 +74,9 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
         # node cut off from it, nowhere else to go).
         stop_allowed = torch.from_numpy(teacher == STOP) if feedback == "student" else None
         obs_in = observation_input(agent.config, torch.from_numpy(obs), target_label)
-        logits, state, progress = agent.step(obs_in, prev, state, ctx, ctx_mask,
-                                             torch.from_numpy(blocked), stop_allowed)
+        logits, state, progress = agent.step(obs_in, prev, state, ctx, ctx_mask, torch.from_numpy(blocked),
+                                             None if stop_in_loss else stop_allowed)
+        sampling = mask_logits(logits, torch.zeros(b, dtype=torch.bool), stop_allowed) if stop_in_loss else logits
         active = torch.from_numpy(~done)
         if train:  # the loss is computed once over all steps, below
             step_logits.append(logits)
@@ -106,7 +89,7 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
         if feedback == "teacher":
             chosen = teacher
         elif feedback == "student":
-            chosen = torch.multinomial(torch.softmax(logits.detach(), dim=1), 1, generator=generator)[:, 0].numpy()
+            chosen = torch.multinomial(torch.softmax(sampling.detach(), dim=1), 1, generator=generator)[:, 0].numpy()
         else:
             chosen = logits.detach().argmax(dim=1).numpy()
         chosen = np.where(done, STOP, chosen)

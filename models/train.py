@@ -20,17 +20,17 @@ from tqdm import tqdm
 
 from models.agent import AgentConfig, Seq2SeqAgent
 from models.data import EpisodeSet, World, goal_distance, splits_runs
-from models.rollout import BLINDS, MAX_ACTIONS, mid_route_starts, run_episodes
+from models.rollout import BLINDS, MAX_ACTIONS, run_episodes
 from models.tokenizer import Tokenizer
 from sim.benchmark import SPLITS, Benchmark, NDHInstance
 
 FEEDBACK_LR = {"teacher": 1e-4, "student": 1e-3}
 # Named model variants: the paper's model, and the one aimed at beating it (agent options, and
-# the share of training episodes started part-way along their route).
+# whether student forcing's loss scores the stop it masks when sampling).
 MODELS = {
-    "baseline": {"agent": {}, "mid_route_starts": 0.0},
+    "baseline": {"agent": {}, "stop_in_loss": False},
     "improved": {"agent": {"attention": True, "progress_monitor": True, "target_rays": True},
-                 "mid_route_starts": 0.5},
+                 "stop_in_loss": True},
 }
 
 
@@ -190,10 +190,8 @@ def train(bench: Benchmark, cfg: TrainConfig, out: str | Path, world: World | No
         torch.manual_seed(cfg.seed * 1_000_003 + it)
         gen = torch.Generator().manual_seed(cfg.seed * 1_000_003 + it)
         idx = rng.choice(len(train_set), size=min(cfg.batch, len(train_set)), replace=False)
-        share = MODELS[cfg.model]["mid_route_starts"]
-        start = mid_route_starts(world, train_set, idx, share, rng) if share > 0 else None
         roll = run_episodes(agent, world, train_set, idx, cfg.feedback, cfg.blind, cfg.max_actions,
-                            generator=gen, train=True, start=start)
+                            generator=gen, train=True, stop_in_loss=MODELS[cfg.model]["stop_in_loss"])
         optimizer.zero_grad()
         roll.loss.backward()
         optimizer.step()

@@ -75,21 +75,16 @@ def test_target_flags_are_the_target_column_of_each_rays_one_hot_label(few):
     assert torch.equal(flags.bool(), labels == int(Label.MUG))
 
 
-def test_mid_route_starts_lie_on_the_shortest_route(few):
-    from models.rollout import mid_route_starts
-
+def test_stop_in_loss_samples_the_same_episodes_but_also_penalises_stopping_away_from_the_goal(few):
     world, eps = few["world"], few["train_set"]
-    idx = np.repeat(np.arange(len(eps)), 20)
-    node, heading = mid_route_starts(world, eps, idx, 1.0, np.random.default_rng(0))
-    start = goal_distance(world, eps, idx, eps.start_node[idx])
-    here = goal_distance(world, eps, idx, node)
-    assert (here <= start).all() and (here < start).mean() > 0.5
-    # On the route: what is left plus what was walked is the shortest distance from the start.
-    for k in np.flatnonzero(here < start)[:20]:
-        i = idx[k]
-        path = [eps.start_node[i]]
-        while path[-1] != node[k]:
-            path.append(eps.goal_next[i, path[-1] - world.offset[eps.run[i]]] + world.offset[eps.run[i]])
-        assert len(path) < 200
-    same, _ = mid_route_starts(world, eps, idx, 0.0, np.random.default_rng(0))
-    assert (same == eps.start_node[idx]).all()
+    torch.manual_seed(0)
+    agent = Seq2SeqAgent(AgentConfig(vocab_size=len(few["tokenizer"]), obs_features=world.obs_features))
+    agent.eval()  # no dropout: both rollouts see the same logits
+    idx = np.arange(len(eps))
+    plain = run_episodes(agent, world, eps, idx, "student", generator=torch.Generator().manual_seed(3), train=True)
+    scored = run_episodes(agent, world, eps, idx, "student", generator=torch.Generator().manual_seed(3), train=True,
+                          stop_in_loss=True)
+    assert (plain.actions == scored.actions).all()
+    stopped = (scored.actions == STOP).any(axis=1)
+    assert (scored.final_node[stopped] == eps.goal_node[stopped]).all()
+    assert scored.loss.item() > plain.loss.item()
