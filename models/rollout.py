@@ -13,7 +13,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from models.agent import FORWARD, LEFT, RIGHT, START, STOP, Seq2SeqAgent, mask_logits, observation_input
+from models.agent import FORWARD, LEFT, RIGHT, START, STOP, Seq2SeqAgent, observation_input
 from models.data import EpisodeSet, World, goal_distance, teacher_actions
 from sim.geometry import HEADINGS
 
@@ -34,10 +34,7 @@ class Rollout:
 def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: np.ndarray,
                  feedback: str, blind: str = "none", max_actions: int = MAX_ACTIONS,
                  generator: torch.Generator | None = None, progress_weight: float = 1.0,
-                 train: bool = False, stop_in_loss: bool = False) -> Rollout:
-    """Roll out a batch. Student forcing samples with stop masked away from the goal; with
-    `stop_in_loss` the loss still scores the unmasked stop, so the agent also learns where
-    *not* to stop (a masked logit gets no gradient, and at test time stop is never masked)."""
+                 train: bool = False) -> Rollout:
     if feedback not in FEEDBACKS:
         raise ValueError(f"unknown feedback {feedback!r}; expected one of {', '.join(FEEDBACKS)}")
     if blind not in BLINDS:
@@ -75,8 +72,7 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
         stop_allowed = torch.from_numpy(teacher == STOP) if feedback == "student" else None
         obs_in = observation_input(agent.config, torch.from_numpy(obs), target_label)
         logits, state, progress = agent.step(obs_in, prev, state, ctx, ctx_mask, torch.from_numpy(blocked),
-                                             None if stop_in_loss else stop_allowed)
-        sampling = mask_logits(logits, torch.zeros(b, dtype=torch.bool), stop_allowed) if stop_in_loss else logits
+                                             stop_allowed)
         active = torch.from_numpy(~done)
         if train:  # the loss is computed once over all steps, below
             step_logits.append(logits)
@@ -89,7 +85,7 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
         if feedback == "teacher":
             chosen = teacher
         elif feedback == "student":
-            chosen = torch.multinomial(torch.softmax(sampling.detach(), dim=1), 1, generator=generator)[:, 0].numpy()
+            chosen = torch.multinomial(torch.softmax(logits.detach(), dim=1), 1, generator=generator)[:, 0].numpy()
         else:
             chosen = logits.detach().argmax(dim=1).numpy()
         chosen = np.where(done, STOP, chosen)

@@ -25,12 +25,10 @@ from models.tokenizer import Tokenizer
 from sim.benchmark import SPLITS, Benchmark, NDHInstance
 
 FEEDBACK_LR = {"teacher": 1e-4, "student": 1e-3}
-# Named model variants: the paper's model, and the one aimed at beating it (agent options, and
-# whether student forcing's loss scores the stop it masks when sampling).
+# Named model variants: the paper's model, and the one aimed at beating it.
 MODELS = {
-    "baseline": {"agent": {}, "stop_in_loss": False},
-    "improved": {"agent": {"attention": True, "progress_monitor": True, "target_rays": True},
-                 "stop_in_loss": True},
+    "baseline": {},
+    "improved": {"attention": True, "progress_monitor": True, "target_rays": True},
 }
 
 
@@ -99,7 +97,7 @@ def load_glove(path: str | Path, tokenizer: Tokenizer) -> tuple[torch.Tensor, in
 def make_agent(cfg: TrainConfig, tokenizer: Tokenizer, obs_features: int) -> Seq2SeqAgent:
     glove, embed = (load_glove(cfg.glove, tokenizer) if cfg.glove else (None, 128))
     agent = Seq2SeqAgent(AgentConfig(vocab_size=len(tokenizer), obs_features=obs_features,
-                                     embed=embed, **MODELS[cfg.model]["agent"]))
+                                     embed=embed, **MODELS[cfg.model]))
     if glove is not None:
         agent.embedding.weight.data.copy_(glove)
     return agent
@@ -191,7 +189,7 @@ def train(bench: Benchmark, cfg: TrainConfig, out: str | Path, world: World | No
         gen = torch.Generator().manual_seed(cfg.seed * 1_000_003 + it)
         idx = rng.choice(len(train_set), size=min(cfg.batch, len(train_set)), replace=False)
         roll = run_episodes(agent, world, train_set, idx, cfg.feedback, cfg.blind, cfg.max_actions,
-                            generator=gen, train=True, stop_in_loss=MODELS[cfg.model]["stop_in_loss"])
+                            generator=gen, train=True)
         optimizer.zero_grad()
         roll.loss.backward()
         optimizer.step()
