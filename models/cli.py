@@ -135,7 +135,7 @@ def experiment_ndh(
     seeds: str = typer.Option("0,1,2", help="Seeds, comma-separated."),
     iters: Optional[int] = typer.Option(None, help="Iterations per run; default: measured to fit the budget."),
     budget_minutes: float = typer.Option(110.0, help="Wall-time budget used to size --iters."),
-    workers: int = typer.Option(1, help="Trainings run in parallel (one CPU thread each)."),
+    workers: int = typer.Option(2, help="Trainings run in parallel (one CPU thread each)."),
 ) -> None:
     """The whole protocol: 6 configurations x seeds, validation, retraining for test, tests, report."""
     from models.experiment import run_experiment
