@@ -30,7 +30,18 @@ def home(request: Request):
     services = request.app.state.services
     if services.sessions.verify(request.cookies.get(SESSION_COOKIE)) is not None:
         return RedirectResponse("/experimenter", status_code=303)
-    return render(request, "home.html", error=None)
+    return render(request, "home.html", error=None, join_error=None)
+
+
+@router.get("/join")
+def join(request: Request, link: str = ""):
+    """A pasted join link (or its token) to the seat's page."""
+    token = link.strip().rstrip("/").rsplit("/", 1)[-1]
+    try:
+        request.app.state.services.seats.verify(token)
+    except InvalidToken:
+        return render(request, "home.html", error=None, join_error="that is not a valid join link")
+    return RedirectResponse(f"/play/{token}", status_code=303)
 
 
 @router.post("/login")
@@ -39,7 +50,7 @@ def login(request: Request, name: str = Form(max_length=80), password: str = For
     with services.db() as db:
         user = db.scalar(select(Experimenter).where(Experimenter.name == name))
     if user is None or not verify_password(password, user.password_hash):
-        return render(request, "home.html", error="unknown name or wrong password")
+        return render(request, "home.html", error="unknown name or wrong password", join_error=None)
     response = RedirectResponse("/experimenter", status_code=303)
     response.set_cookie(SESSION_COOKIE, services.sessions.issue(user.id), max_age=SESSION_MAX_AGE_S,
                         httponly=True, samesite="strict")

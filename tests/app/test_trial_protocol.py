@@ -108,6 +108,10 @@ def test_seat_pages_show_only_their_own_view(settings):
         page = httpx.get(f"{server.url}/play/{commander}").text
         assert 'id="map"' in page and 'id="camera"' not in page
         assert httpx.get(f"{server.url}/play/{driver[:-3]}xyz").status_code == 403
+        # A pasted join link on the home page leads to the seat; anything else is named as invalid.
+        joined = httpx.get(f"{server.url}/join", params={"link": f"{server.url}/play/{driver}"})
+        assert joined.status_code == 303 and joined.headers["location"] == f"/play/{driver}"
+        assert "not a valid join link" in httpx.get(f"{server.url}/join", params={"link": "http://x/play/abc"}).text
 
 
 @pytest.mark.parametrize("who", ["forged", "other trial"])

@@ -66,7 +66,7 @@ def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, tmp_path):
         admin.goto(server.url + "/")
         admin.fill("input[name=name]", "eve")
         admin.fill("input[name=password]", "correct horse")
-        admin.click("button[type=submit]")
+        admin.click("#login")
         for name in ("Ada", "Ben"):
             admin.fill("input[aria-label='Participant name']", name)
             admin.click("#add-participant")
