@@ -24,6 +24,8 @@ def view(role: str, event: LoggedEvent) -> dict[str, Any] | None:
     """The message a seat gets for `event`, or None when it must not see it."""
     if event.kind not in VISIBLE.get(role, ()):
         return None
+    if event.kind == "frame" and event.payload.get("source", "driver") != "driver":
+        return None  # the overhead camera is for annotation and replay, never for a seat
     payload = {k: v for k, v in event.payload.items() if k not in GROUND_TRUTH}
     if event.kind == "frame":
         payload.pop("path", None)
