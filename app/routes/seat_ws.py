@@ -85,6 +85,10 @@ async def play(ws: WebSocket, token: str = "") -> None:
     except (InvalidToken, UnknownTrial) as err:
         await ws.close(code=1008, reason=str(err)[:120])
         return
+    except Exception as err:  # e.g. its maze left the library: say so instead of dropping the socket
+        logger.exception("trial could not be opened")
+        await ws.close(code=1011, reason=f"the trial could not be opened: {err}"[:120])
+        return
     await ws.accept()
     conn = SocketSeat(ws, seat.role)
     runtime.join(conn)
