@@ -209,9 +209,12 @@ def test_moves_faster_than_the_robot_are_refused_not_queued(tmp_path):
         assert len(executed) == 5
 
 
-def test_websocket_from_another_origin_is_refused(settings):
+def test_websocket_from_another_origin_is_refused(tmp_path):
     import websockets
 
+    from tests.app.conftest import platform_settings
+
+    settings = platform_settings(tmp_path, allowed_origins=["https://lab.example"])
     with ServerThread(settings) as server:
         services = server.services
         trial_id = make_trial(services, first_maze(services))
@@ -224,3 +227,4 @@ def test_websocket_from_another_origin_is_refused(settings):
         with pytest.raises(websockets.InvalidStatus):
             asyncio.run(connect("http://evil.example"))
         assert asyncio.run(connect(server.url))["role"] == "commander"
+        assert asyncio.run(connect("https://lab.example"))["role"] == "commander"
