@@ -67,3 +67,33 @@ def test_seats_on_two_processes_play_one_trial(tmp_path, postgres_url, redis_url
             assert db.get(Trial, trial_id).phase == "finished"
             kinds = db.scalars(select(Event.kind).where(Event.trial_id == trial_id)).all()
         assert "bad_message" in kinds
+
+
+def test_a_process_that_stops_hands_its_trials_to_another(tmp_path, postgres_url, redis_url):
+    settings = platform_settings(tmp_path, database_url=postgres_url, redis_url=redis_url)
+    with ServerThread(settings) as second:
+        with ServerThread(settings) as first:
+            trial_id = make_trial(first.services, first.services.mazes.names()[0])
+            tokens = {r: first.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+
+            async def before():
+                async with SeatClient(first.ws_url, tokens["commander"]) as commander, \
+                           SeatClient(first.ws_url, tokens["driver"]) as driver:
+                    await start_trial(commander, driver)
+                    await commander.send("localize", x=1.0, y=1.0)
+                    await driver.event("phase", phase="navigating")
+                    assert (await move(driver, "right"))["payload"]["outcome"] == "ok"
+
+            asyncio.run(before())
+
+        async def after():  # the first process is gone; the second takes the trial over
+            async with SeatClient(second.ws_url, tokens["commander"]) as commander, \
+                       SeatClient(second.ws_url, tokens["driver"]) as driver:
+                welcome = await driver.wait_for(lambda m: m.get("type") == "welcome")
+                assert welcome["phase"] == "navigating"
+                assert second.services.hub.peek(trial_id) is not None
+                assert (await move(driver, "left"))["payload"]["outcome"] == "ok"
+                await driver.send("chat", text="still here")
+                await commander.event("chat", text="still here")
+
+        asyncio.run(after())
