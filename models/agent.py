@@ -109,12 +109,14 @@ def observation_input(config: AgentConfig, obs: torch.Tensor, target_label: torc
     """The decoder's observation: ray features (B, F), plus the target flags when configured.
 
     The flags are the target's column of each ray's one-hot label: what a Driver looking for
-    the mug notices first is the mug.
+    the mug notices first is the mug. A negative label (the target unknown: the language-blind
+    ablation, where the target word goes with the dialog) gives no flags.
     """
     if not config.target_rays:
         return obs
-    cols = torch.arange(N_RAYS).unsqueeze(0) * N_LABELS + target_label.unsqueeze(1)
-    return torch.cat([obs, obs.gather(1, cols)], dim=1)
+    cols = torch.arange(N_RAYS).unsqueeze(0) * N_LABELS + target_label.clamp(min=0).unsqueeze(1)
+    known = (target_label >= 0).float().unsqueeze(1)
+    return torch.cat([obs, obs.gather(1, cols) * known], dim=1)
 
 
 def mask_logits(logits: torch.Tensor, forward_blocked: torch.Tensor,

@@ -76,7 +76,8 @@ class Seq2SeqDriver:
             obs = torch.zeros(1, self.rays.shape[2])
             blocked = torch.tensor([False])
         stop_allowed = torch.tensor([not self._stop_held])
-        obs = observation_input(self.agent.config, obs, torch.tensor([int(object_label(target))]))
+        label = -1 if self.blind == "language" else int(object_label(target))
+        obs = observation_input(self.agent.config, obs, torch.tensor([label]))
         logits, self.state, _ = self.agent.step(obs, self.prev, self.state, self.ctx, self.ctx_mask,
                                                 blocked, stop_allowed)
         action = int(logits.argmax(dim=1))

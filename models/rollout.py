@@ -55,7 +55,8 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
     nodes = np.zeros((b, max_actions + 1), dtype=np.int64)
     actions = np.full((b, max_actions), -1, dtype=np.int64)
     steps = np.zeros(b, dtype=np.int64)
-    target_label = torch.from_numpy(episodes.target_label[idx])
+    # The target word is part of the language: the language-blind agent does not know it.
+    target_label = torch.from_numpy(episodes.target_label[idx] if blind != "language" else np.full(b, -1))
     step_logits, step_targets, step_active, step_progress, step_goal = [], [], [], [], []
     for t in range(max_actions):
         nodes[:, t] = node

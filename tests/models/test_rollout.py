@@ -73,3 +73,5 @@ def test_target_flags_are_the_target_column_of_each_rays_one_hot_label(few):
     labels = obs[:, :N_RAYS * N_LABELS].reshape(50, N_RAYS, N_LABELS).argmax(dim=2)
     assert flags.shape == (50, N_RAYS)
     assert torch.equal(flags.bool(), labels == int(Label.MUG))
+    unknown = observation_input(config, obs, torch.full((50,), -1))[:, world.obs_features:]
+    assert (unknown == 0).all()
