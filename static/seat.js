@@ -36,6 +36,10 @@ const Seat = (() => {
       text += ` · target ${Math.min(state.target_index + 1, state.targets_total)} of ${state.targets_total}`;
     if (state.paused.length) text += " · paused";
     text += state.connected.includes(partner) ? ` · ${partner} here` : ` · waiting for the ${partner}`;
+    // A trial on the rover starts only once it is connected, and pauses while it is away.
+    const over = state.phase === "finished" || state.phase === "aborted";
+    if (!over && (state.seats_needed || []).includes("robot") && !state.connected.includes("robot"))
+      text += state.phase === "waiting" ? " · waiting for the robot" : " · robot not connected";
     $("status").textContent = text;
     $("status").dataset.phase = state.phase;
     document.body.dataset.phase = state.phase;

@@ -4,7 +4,7 @@
 mapped onto the server clock, moves awaiting their acknowledgement, and the figures the
 experimenter's dashboard shows. `RobotLinks` holds the links of this server by robot id and
 tells the trials that use a robot when it comes and goes: the robot joins the trial as the
-`robot` seat, so losing it pauses the trial and its return resumes it. Overhead cameras
+`robot` seat: a trial waits for it to start, losing it pauses the trial and its return resumes it. Overhead cameras
 (`role: overhead`) are recorded into every live trial on a real robot, never shown to a seat.
 """
 
@@ -25,7 +25,7 @@ from sqlalchemy.orm import Session
 from app.backends.base import BackendUnavailable, Frame, MoveOutcome
 from app.backends.registry import register_backend
 from app.db.models import Robot
-from app.trial.state import PARTICIPANT_ROLES
+from app.trial.state import PARTICIPANT_ROLES, RUNNING_PHASES
 from robot_client.protocol import FrameHeader, encode
 
 if TYPE_CHECKING:
@@ -63,7 +63,8 @@ def create_robot(db: Session, name: str, role: str = "driver") -> tuple[Robot, s
         raise RobotSetupError(f"robot role {role!r}: expected one of {', '.join(ROBOT_ROLES)}")
     if db.scalar(select(Robot).where(Robot.name == name)) is not None:
         raise RobotSetupError(f"robot {name!r} already exists")
-    token = secrets.token_urlsafe(32)
+    # Hex, not base64: a token starting with '-' would read as an option on the rover's command line.
+    token = secrets.token_hex(32)
     robot = Robot(name=name, role=role, token_hash=hash_token(token))
     db.add(robot)
     db.flush()
@@ -193,11 +194,12 @@ class RobotLink:
 
     def status(self) -> dict[str, Any]:
         ack = self.last_ack
+        if ack is not None:
+            ack = {k: ack[k] for k in ("id", "action", "status", "reason", "received_ns") if k in ack}
+            ack["age_s"] = round((self._clock.now_ns() - ack["received_ns"]) / 1e9, 1)
         return {"connected": not self.closed, "connected_ns": self.connected_ns,
                 "fps": round(self.fps, 1), "latency_ms": None if self.latency_ms is None else round(self.latency_ms, 1),
-                "frames": self.frames_received,
-                "last_ack": None if ack is None else {k: ack.get(k) for k in ("id", "action", "status", "reason",
-                                                                                 "received_ns") if k in ack}}
+                "frames": self.frames_received, "last_ack": ack}
 
 
 class FrameSlot:
@@ -324,13 +326,13 @@ class RemoteRobotBackend:
         self._closed = False
 
     async def connect(self) -> None:
-        """Follow the robot's link. Until it is connected the trial stays paused (`disconnect:robot`),
-        so it cannot start or run on a robot that is not there."""
+        """Follow the robot's link. The rover is a seat the trial needs: until it joins, the trial
+        stays `waiting` (`TrialState.waiting_for`), and a running trial it left stays paused."""
         self.links.backends.setdefault(self.robot_id, set()).add(self)
-        link = self.links.links.get(self.robot_id)
+        link, state = self.links.links.get(self.robot_id), self.runtime.state
         if link is not None:
             self.link_up(link)
-        elif not self.runtime.state.over and "disconnect:robot" not in self.runtime.state.pause_reasons:
+        elif state.phase in RUNNING_PHASES and "disconnect:robot" not in state.pause_reasons:
             self.runtime.record("paused", {"reason": "disconnect:robot"})
 
     def link_up(self, link: RobotLink) -> None:

@@ -231,7 +231,7 @@ class TrialRuntime:
             self.record_phase("aborted")
 
     def _maybe_start(self) -> None:
-        if self.state.phase == "waiting" and all(r in self.seats for r in PARTICIPANT_ROLES):
+        if self.state.phase == "waiting" and not self.state.waiting_for:
             self.record_phase("localizing", 0)
 
     def welcome(self, role: str) -> dict[str, Any]:
@@ -239,7 +239,7 @@ class TrialRuntime:
         message: dict[str, Any] = {
             "type": "welcome", "role": role, "trial_id": self.trial_id, "phase": s.phase,
             "target_index": s.target_index, "targets_total": len(s.targets),
-            "connected": sorted(self.seats), "paused": sorted(s.pause_reasons),
+            "connected": sorted(self.seats), "seats_needed": list(s.seats_needed), "paused": sorted(s.pause_reasons),
             "pending_claim": s.pending_claim is not None, "last_seq": s.last_seq,
             "history": [msg for e in self.services.log.load(self.trial_id)
                         if e.kind in ("chat", "phase", "target_confirmed", "target_rejected")
@@ -329,7 +329,7 @@ class TrialRuntime:
         now = time.monotonic_ns()
         reason = None
         if not self.state.running:
-            reason = "the trial is paused" if self.state.pause_reasons else f"the trial is {self.state.phase}"
+            reason = self._why_not_running()
         elif self._move_busy:
             reason = "the previous move is still executing"
         elif now - self._last_move_ns < self.settings.min_move_interval_s * 1e9:
@@ -357,6 +357,14 @@ class TrialRuntime:
             if pose is not None:
                 self.record_pose(pose)
         return outcome
+
+    def _why_not_running(self) -> str:
+        s = self.state
+        if s.waiting_for:
+            return f"the trial is waiting for the {' and the '.join(s.waiting_for)} to connect"
+        if "disconnect:robot" in s.pause_reasons:
+            return "the trial is paused: the robot is not connected"
+        return "the trial is paused" if s.pause_reasons else f"the trial is {s.phase}"
 
     def localize(self, x: float, y: float, heading: float | None) -> None:
         if self.state.phase not in ("localizing", "navigating"):
@@ -415,8 +423,9 @@ class TrialRuntime:
         return {"trial_id": self.trial_id, "phase": s.phase, "target_index": s.target_index,
                 "target": s.current_target, "elapsed_s": round(s.active_s(self.services.clock.now_ns()), 1),
                 "moves": s.moves, "collisions": s.collisions, "pose": s.pose,
-                "paused": sorted(s.pause_reasons), "seats": {r: r in self.seats for r in PARTICIPANT_ROLES},
-                "localization": s.localization, "maze": s.maze}
+                "paused": sorted(s.pause_reasons), "seats": {r: r in self.seats for r in s.seats_needed},
+                "waiting_for": s.waiting_for, "backend": s.backend, "localization": s.localization,
+                "maze": s.maze}
 
 
 def _describe(err: ValidationError) -> str:

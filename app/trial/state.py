@@ -53,6 +53,19 @@ class TrialState:
         return self.phase in RUNNING_PHASES and not self.pause_reasons
 
     @property
+    def seats_needed(self) -> tuple[str, ...]:
+        """The seats a trial waits for before it starts: both participants, and the rover when
+        one is in the robot seat (a trial cannot start on a robot that is not connected)."""
+        return PARTICIPANT_ROLES + (("robot",) if self.backend.startswith("robot:") else ())
+
+    @property
+    def waiting_for(self) -> list[str]:
+        """The seats still missing while the trial waits to start."""
+        if self.phase != "waiting":
+            return []
+        return [role for role in self.seats_needed if role not in self.connected]
+
+    @property
     def over(self) -> bool:
         return self.phase in ("finished", "aborted")
 

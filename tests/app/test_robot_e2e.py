@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import re
 import signal
 import subprocess
 import sys
@@ -31,6 +32,7 @@ pytestmark = pytest.mark.anyio
 ROBOT = [sys.executable, "-m", "robot_client"]
 CALIBRATION = Calibration(forward_s=0.3, left_s=0.2, right_s=0.25)
 WATCHDOG_S = 0.5
+ROBOT_START_S = 60.0  # bound on waits that include starting a client process (seconds when idle)
 
 
 @pytest.fixture
@@ -142,11 +144,16 @@ def robots(tmp_path):
 
 
 async def until(predicate, timeout: float = 15.0, what: str = "condition"):
+    """The first true value of `predicate()` (awaited when it is a coroutine), polled until `timeout`."""
     deadline = time.monotonic() + timeout
-    while not (value := predicate()):
+    while True:
+        value = predicate()
+        if asyncio.iscoroutine(value):
+            value = await value
+        if value:
+            return value
         assert time.monotonic() < deadline, f"timed out waiting for {what}"
         await asyncio.sleep(0.02)
-    return value
 
 
 def pulses(log: list[dict]) -> list[tuple[str, float, int]]:
@@ -216,17 +223,44 @@ async def test_moves_execute_in_order_with_the_calibrated_pin_pulses(server, rob
 
 async def test_a_move_is_refused_while_the_robot_is_not_connected_and_the_trial_waits(server, robots):
     robot_id, token, trial = server.new_robot_trial("late")
-    async with server.seat(trial, "commander"), server.seat(trial, "driver") as driver:
+    cookies = {"robotslang_session": server.services.sessions.issue(1)}
+    async with httpx.AsyncClient(base_url=server.url, cookies=cookies) as http, \
+            server.seat(trial, "commander"), server.seat(trial, "driver") as driver:
+        async def dashboard() -> dict | None:
+            trials = (await http.get("/experimenter/api/trials")).json()["trials"]
+            return next((t for t in trials if t["trial_id"] == trial), None)
+
+        waiting = await until(lambda: _when(dashboard(), lambda t: t and t["seats"]["commander"]
+                                            and t["seats"]["driver"]), what="both participants on the dashboard")
+        assert waiting["phase"] == "waiting" and waiting["waiting_for"] == ["robot"]
+        assert waiting["seats"] == {"commander": True, "driver": True, "robot": False}
         welcome = await driver.wait_for(lambda m: m["type"] == "welcome")
-        assert welcome["paused"] == ["disconnect:robot"]
-        await driver.event("phase", phase="localizing")
+        assert welcome["seats_needed"] == ["commander", "driver", "robot"] and "robot" not in welcome["connected"]
         await driver.send("move", action="forward", move_id="early")
         refused = await driver.event("move_executed", move_id="early")
-        assert refused["payload"]["outcome"] == "refused" and "paused" in refused["payload"]["reason"]
-        robots(server.url, token)
-        await driver.event("resumed", reason="disconnect:robot")
+        assert refused["payload"]["outcome"] == "refused"
+        assert refused["payload"]["reason"] == "the trial is waiting for the robot to connect"
+        assert "phase" not in driver.kinds()
+
+        robots(server.url, token)  # a fresh process: slow to start on a loaded machine
+        await driver.event("phase", phase="localizing", timeout=ROBOT_START_S)
+        started = await dashboard()
+        assert started["waiting_for"] == [] and started["seats"]["robot"] and not started["paused"]
         await driver.send("move", action="forward", move_id="later")
-        assert (await driver.event("move_executed", move_id="later"))["payload"]["outcome"] == "ok"
+        later = await driver.event("move_executed", move_id="later", timeout=ROBOT_START_S)
+        assert later["payload"]["outcome"] == "ok", later["payload"].get("reason")
+    kinds = [(e.kind, e.payload.get("role", e.payload.get("phase", e.payload.get("reason"))))
+             for e in server.events(trial) if e.kind in ("connect", "phase", "paused", "resumed")]
+    # The trial started (and its clock with it) only once the rover had joined; it was never "paused".
+    before_start = kinds[:kinds.index(("phase", "localizing")) + 1]
+    assert before_start == [("connect", "commander"), ("connect", "driver"), ("connect", "robot"),
+                            ("phase", "localizing")]
+
+
+async def _when(value, predicate):
+    """`value` (awaited) when it satisfies `predicate`, else None: for `until` on an HTTP answer."""
+    value = await value
+    return value if predicate(value) else None
 
 
 class Proxy:
@@ -388,3 +422,25 @@ async def test_the_experimenter_registers_robots_and_sees_their_links(server, ro
         assert "token" not in mine and "token_hash" not in mine
     async with httpx.AsyncClient(base_url=server.url) as anonymous:
         assert (await anonymous.get("/experimenter/api/robots")).status_code in (303, 307)
+
+
+async def test_the_dashboard_page_shows_each_robot_and_offers_the_rover_for_trials(server, robots):
+    robot_id, token, trial = server.new_robot_trial("dashboard")
+    cookies = {"robotslang_session": server.services.sessions.issue(1)}
+    async with httpx.AsyncClient(base_url=server.url, cookies=cookies) as http:
+        def robot_row(page: str) -> str:
+            return re.search(rf'<tr data-robot="{robot_id}">.*?</tr>', page, re.S).group(0)
+
+        page = (await http.get("/experimenter")).text
+        assert "not connected" in robot_row(page)
+        assert f'<option value="robot:{robot_id}">rover dashboard</option>' in page
+        robots(server.url, token)
+        await until(lambda: server.status(robot_id)["fps"] > 5, timeout=ROBOT_START_S, what="frames from the robot")
+        async with server.seat(trial, "commander"), server.seat(trial, "driver") as driver:
+            await driver.event("phase", phase="localizing", timeout=ROBOT_START_S)
+            await driver.send("move", action="left", move_id="seen")
+            await driver.event("move_executed", move_id="seen", timeout=ROBOT_START_S)
+            row = robot_row((await http.get("/experimenter")).text)
+    cells = dict(re.findall(r'<td class="(\w+)">(.*?)</td>', row, re.S))
+    assert cells["name"] == "dashboard" and cells["role"] == "driver" and cells["link"] == "connected"
+    assert float(cells["fps"]) > 5 and cells["latency"].endswith(" ms") and cells["ack"] == "left done"
