@@ -8,7 +8,7 @@ from typing import Optional
 import typer
 
 # Packages under app/ that bring their own commands: module -> has `register(root)`.
-MOUNTED = ("app.export.cli", "app.demo.cli")
+MOUNTED = ("app.export.cli", "app.demo.cli", "app.robot_commands")
 
 
 def serve(host: str = typer.Option("127.0.0.1", help="Interface to listen on."),

@@ -1,5 +1,5 @@
-// Experimenter dashboard: every open trial's phase, clock, moves and seats once a second, and a
-// small top-down view with the true pose for each running trial.
+// Experimenter dashboard: every open trial's phase, clock, moves and seats once a second, a
+// small top-down view with the true pose for each running trial, and each robot's link.
 "use strict";
 (() => {
   const maps = {};  // trial id -> {card, canvas, image}
@@ -29,8 +29,78 @@
     if (t.localization) TableMap.drawRobot(ctx, canvas, t.localization.x, t.localization.y, t.localization.heading, "#ff8c00");
     if (t.pose) TableMap.drawRobot(ctx, canvas, t.pose[0], t.pose[1], t.pose[2], "#1e6bff");
     const seats = Object.entries(t.seats).map(([r, on]) => `${r} ${on ? "●" : "○"}`).join(" ");
-    caption.textContent = `#${t.trial_id} ${t.maze} · ${t.phase}${t.target ? " → " + t.target : ""}` +
-      `${t.paused.length ? " (paused)" : ""} · ${t.elapsed_s.toFixed(0)} s · ${t.moves} moves · ${seats}`;
+    caption.textContent = `#${t.trial_id} ${t.maze} · ${phaseText(t)}${t.target ? " → " + t.target : ""}` +
+      ` · ${t.elapsed_s.toFixed(0)} s · ${t.moves} moves · ${seats}`;
+  }
+
+  function phaseText(t) {
+    if (t.waiting_for.length) return `waiting for ${t.waiting_for.join(", ")}`;
+    if (t.paused.includes("disconnect:robot")) return `${t.phase} (paused: robot not connected)`;
+    return t.phase + (t.paused.length ? " (paused)" : "");
+  }
+
+  // -- robots -----------------------------------------------------------------------
+  function ackText(ack) {
+    if (!ack) return "–";
+    const what = ack.status === "done" ? "done" : `${ack.status}${ack.reason ? ": " + ack.reason : ""}`;
+    return `${ack.action || "move"} ${what}, ${ack.age_s.toFixed(0)} s ago`;
+  }
+
+  function robotRow(r) {
+    let row = document.querySelector(`tr[data-robot="${r.id}"]`);
+    if (!row) {
+      row = document.createElement("tr");
+      row.dataset.robot = r.id;
+      for (const cls of ["name", "role", "link", "fps", "latency", "ack"]) {
+        const td = document.createElement("td");
+        td.className = cls;
+        row.append(td);
+      }
+      document.querySelector("#robots tbody").append(row);
+    }
+    return row;
+  }
+
+  function showRobots(robots) {
+    const backend = document.getElementById("backend");
+    for (const r of robots) {
+      const row = robotRow(r);
+      row.dataset.connected = r.connected;
+      row.querySelector(".name").textContent = r.name;
+      row.querySelector(".role").textContent = r.role;
+      row.querySelector(".link").textContent = r.connected ? "connected" : "not connected";
+      row.querySelector(".fps").textContent = r.fps.toFixed(1);
+      row.querySelector(".latency").textContent = r.latency_ms === null ? "–" : `${r.latency_ms.toFixed(1)} ms`;
+      row.querySelector(".ack").textContent = ackText(r.last_ack);
+      if (r.role !== "driver") continue;
+      // The trial form names each rover's link, so a trial is not made on an absent one unawares.
+      let option = backend.querySelector(`option[value="${r.backend}"]`);
+      if (!option) { option = document.createElement("option"); option.value = r.backend; backend.append(option); }
+      option.textContent = `rover ${r.name} (${r.connected ? "connected" : "not connected"})`;
+    }
+  }
+
+  document.getElementById("new-robot").addEventListener("submit", async (ev) => {
+    ev.preventDefault();
+    const form = ev.target, box = document.getElementById("robot-token"), error = document.getElementById("robot-error");
+    const res = await fetch(form.action, {method: "POST", body: new FormData(form), credentials: "same-origin"});
+    const body = await res.json().catch(() => ({detail: `registration failed (HTTP ${res.status})`}));
+    box.hidden = !res.ok;
+    error.textContent = res.ok ? "" : (typeof body.detail === "string" ? body.detail : JSON.stringify(body.detail));
+    if (!res.ok) return;
+    box.querySelector(".name").textContent = body.name;
+    box.querySelector(".token").textContent = body.token;
+    const role = body.role === "driver" ? "" : ` --role ${body.role}`;
+    box.querySelector(".command").textContent = `robotslang-robot --server ${location.origin} --token ${body.token}${role}`;
+    form.reset();
+    refreshRobots();
+  });
+
+  async function refreshRobots() {
+    try {
+      const res = await fetch("/experimenter/api/robots", {credentials: "same-origin"});
+      if (res.ok) showRobots((await res.json()).robots);
+    } catch (e) { /* the next tick retries */ }
   }
 
   async function refresh() {
@@ -44,7 +114,7 @@
     for (const t of trials) {
       const row = document.querySelector(`tr[data-trial="${t.trial_id}"]`);
       if (row) {
-        row.querySelector(".phase").textContent = t.phase + (t.paused.length ? " (paused)" : "");
+        row.querySelector(".phase").textContent = phaseText(t);
         const seats = Object.entries(t.seats).map(([r, on]) => `${r} ${on ? "●" : "○"}`).join(" ");
         row.querySelector(".live").textContent = `${t.elapsed_s.toFixed(0)} s · ${t.moves} moves · ${seats}`;
       }
@@ -55,5 +125,5 @@
     }
     document.getElementById("live-empty").hidden = running.size > 0;
   }
-  setInterval(refresh, 1000); refresh();
+  setInterval(() => { refresh(); refreshRobots(); }, 1000); refresh(); refreshRobots();
 })();

@@ -1,5 +1,5 @@
-"""Experimenter pages (behind login): participants, teams, trials with their join links, and the
-live dashboard with the true pose, pause, resume and abort."""
+"""Experimenter pages (behind login): participants, teams, robots, trials with their join links,
+and the live dashboard with the true pose, each robot's link, pause, resume and abort."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from sqlalchemy import select
 
 from app.backends.registry import backend_kinds
+from app.backends.remote import robot_links
 from app.db.models import Participant, Robot, Team, Trial
 from app.drivers.registry import driver_names
 from app.routes.pages import render
@@ -47,16 +48,20 @@ def dashboard(request: Request, error: str | None = None):
         participants = db.scalars(select(Participant).order_by(Participant.name)).all()
         teams = db.scalars(select(Team).order_by(Team.name)).all()
         trials = db.scalars(select(Trial).order_by(Trial.id.desc()).limit(100)).all()
-        robots = db.scalars(select(Robot).where(Robot.role == "driver").order_by(Robot.name)).all()
+        rovers = db.scalars(select(Robot).where(Robot.role == "driver").order_by(Robot.name)).all()
         names = {p.id: p.name for p in participants}
         team_names = {t.id: t.name for t in teams}
         maze_names = services.mazes.names()
         suggestions = {t.id: suggest_maze(db, t, maze_names) for t in teams}
-    backends = ["sim"] + [f"robot:{r.id}" for r in robots] if "robot" in backend_kinds() else ["sim"]
+    # The robot seat: the simulator or a registered rover, by the trial's backend spec.
+    backends = {"sim": "simulator"}
+    if "robot" in backend_kinds():
+        backends.update({f"robot:{r.id}": f"rover {r.name}" for r in rovers})
     return render(request, "experimenter.html", participants=participants, teams=teams, trials=trials,
                   names=names, team_names=team_names, mazes=maze_names, suggestions=suggestions,
                   backends=backends, drivers=["human"] + [f"agent:{n}" for n in driver_names()],
-                  links={t.id: join_links(request, t) for t in trials}, error=error)
+                  robots=robot_links(services).status(), links={t.id: join_links(request, t) for t in trials},
+                  error=error)
 
 
 def _redirect(error: str | None = None) -> RedirectResponse:
