@@ -76,7 +76,7 @@
       // The trial form names each rover's link, so a trial is not made on an absent one unawares.
       let option = backend.querySelector(`option[value="${r.backend}"]`);
       if (!option) { option = document.createElement("option"); option.value = r.backend; backend.append(option); }
-      option.textContent = `rover ${r.name} (${r.connected ? "connected" : "not connected"})`;
+      option.textContent = `${r.name} (rover, ${r.connected ? "connected" : "not connected"})`;
     }
   }
 

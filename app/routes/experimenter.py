@@ -56,7 +56,7 @@ def dashboard(request: Request, error: str | None = None):
     # The robot seat: the simulator or a registered rover, by the trial's backend spec.
     backends = {"sim": "simulator"}
     if "robot" in backend_kinds():
-        backends.update({f"robot:{r.id}": f"rover {r.name}" for r in rovers})
+        backends.update({f"robot:{r.id}": f"{r.name} (rover)" for r in rovers})
     return render(request, "experimenter.html", participants=participants, teams=teams, trials=trials,
                   names=names, team_names=team_names, mazes=maze_names, suggestions=suggestions,
                   backends=backends, drivers=["human"] + [f"agent:{n}" for n in driver_names()],

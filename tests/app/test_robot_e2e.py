@@ -433,7 +433,7 @@ async def test_the_dashboard_page_shows_each_robot_and_offers_the_rover_for_tria
 
         page = (await http.get("/experimenter")).text
         assert "not connected" in robot_row(page)
-        assert f'<option value="robot:{robot_id}">rover dashboard</option>' in page
+        assert f'<option value="robot:{robot_id}">dashboard (rover)</option>' in page
         robots(server.url, token)
         await until(lambda: server.status(robot_id)["fps"] > 5, timeout=ROBOT_START_S, what="frames from the robot")
         async with server.seat(trial, "commander"), server.seat(trial, "driver") as driver:

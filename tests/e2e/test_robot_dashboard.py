@@ -1,0 +1,84 @@
+"""The experimenter's robots in headless Chromium: a robot registered through the dashboard's
+form shows its token once; a trial on it waits for it (the dashboard and the seats say so);
+the real `robotslang-robot` process connects with the token, the trial starts, and the
+dashboard follows the link live (connected, frames per second, latency), and when it goes."""
+
+from __future__ import annotations
+
+import pytest
+
+from app.db.models import Experimenter
+from app.security import hash_password
+from tests.app.conftest import platform_settings
+from tests.app.test_robot_e2e import ROBOT_START_S, RobotProcess, RobotServer
+from tests.e2e.test_trial_in_browser import ARTIFACTS, browser  # noqa: F401 (the fixture)
+
+pytestmark = pytest.mark.browser
+
+
+def test_a_robot_registered_on_the_dashboard_connects_with_its_token_and_shows_live(browser, tmp_path):  # noqa: F811
+    ARTIFACTS.mkdir(exist_ok=True)
+    server = RobotServer(platform_settings(tmp_path))
+    robot = None
+    try:
+        with server.services.db.begin() as db:
+            db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
+        page = browser.new_context(viewport={"width": 1400, "height": 1000}).new_page()
+        page.goto(server.url + "/")
+        page.fill("input[name=name]", "eve")
+        page.fill("input[name=password]", "correct horse")
+        page.click("#login")
+
+        page.fill("input[aria-label='Robot name']", "rover A")
+        page.click("#add-robot")
+        page.wait_for_selector("#robot-token:not([hidden]) .token:not(:empty)")
+        token = page.inner_text("#robot-token .token")
+        assert f"--token {token}" in page.inner_text("#robot-token .command")
+        row = page.locator("#robots tr[data-robot]", has_text="rover A")
+        row.locator(".link", has_text="not connected").wait_for()
+        page.fill("input[aria-label='Robot name']", "rover A")
+        page.click("#add-robot")
+        page.locator("#robot-error", has_text="robot 'rover A' already exists").wait_for()
+        assert page.is_hidden("#robot-token")
+
+        # A trial on the rover, joined by both participants, waits for the rover, and says so.
+        robot_id = row.get_attribute("data-robot")
+        for name in ("Ada", "Ben"):
+            page.fill("input[aria-label='Participant name']", name)
+            page.click("#add-participant")
+        page.fill("input[aria-label='Team name']", "Ada & Ben")
+        page.click("#add-team")
+        page.select_option("#backend", f"robot:{robot_id}")
+        page.click("#create-trial")
+        trial = page.locator("#trials tr[data-trial]")
+        assert trial.locator("td", has_text="rover A (rover)").count() == 1
+        seats = [browser.new_context().new_page() for _ in range(2)]
+        for seat, role in zip(seats, ("commander", "driver")):
+            seat.goto(page.get_attribute(f"a.join-{role}", "href"))
+        seats[1].locator("#status", has_text="waiting for the robot").wait_for()
+        trial.locator(".phase", has_text="waiting for robot").wait_for()
+        seats[1].click("#forward")
+        seats[1].locator("#move-note", has_text="Move refused: the trial is waiting for the robot to connect").wait_for()
+
+        robot = RobotProcess(tmp_path, server.url, token)
+        seats[1].wait_for_selector("#status[data-phase=localizing]", timeout=ROBOT_START_S * 1000)
+        trial.locator(".phase", has_text="localizing").wait_for()
+        page.wait_for_function(
+            "() => { const r = [...document.querySelectorAll('#robots tr[data-robot]')]"
+            ".find((tr) => tr.querySelector('.name').textContent === 'rover A');"
+            " return r && r.querySelector('.link').textContent === 'connected'"
+            " && parseFloat(r.querySelector('.fps').textContent) > 5; }", timeout=ROBOT_START_S * 1000)
+        assert row.locator(".latency").inner_text().endswith(" ms")
+        option = page.locator("#backend option", has_text="rover A")
+        assert option.inner_text() == "rover A (rover, connected)"
+        page.screenshot(path=str(ARTIFACTS / "experimenter-robots.png"))
+
+        page.reload()  # the token was shown once: the page never holds it again
+        assert token not in page.content()
+        robot.stop()
+        row.locator(".link", has_text="not connected").wait_for(timeout=ROBOT_START_S * 1000)
+        assert page.locator("#backend option", has_text="rover A").inner_text() == "rover A (rover, not connected)"
+    finally:
+        if robot is not None:
+            robot.stop()
+        server.stop()
