@@ -177,8 +177,8 @@ async def test_frames_reach_the_driver_and_the_log_with_monotonic_times(server, 
     robot_id, token, trial = server.new_robot_trial("frames")
     robots(server.url, token)
     async with server.seat(trial, "commander") as commander, server.seat(trial, "driver") as driver:
-        await driver.event("phase", phase="localizing")
-        await until(lambda: len(frame_events(driver)) >= 12, what="12 frames at the Driver")
+        await driver.event("phase", phase="localizing", timeout=ROBOT_START_S)
+        await until(lambda: len(frame_events(driver)) >= 12, timeout=ROBOT_START_S, what="12 frames at the Driver")
     frames = frame_events(driver)
     capture = [f["payload"]["capture_ns"] for f in frames]
     stamped = [f["t_ns"] for f in frames]
@@ -204,7 +204,7 @@ async def test_moves_execute_in_order_with_the_calibrated_pin_pulses(server, rob
     robot_id, token, trial = server.new_robot_trial("moves")
     robot = robots(server.url, token)
     async with server.seat(trial, "commander"), server.seat(trial, "driver") as driver:
-        await driver.event("phase", phase="localizing")
+        await driver.event("phase", phase="localizing", timeout=ROBOT_START_S)
         await driver.event("frame")  # the robot is connected: the trial runs
         for i, action in enumerate(["forward", "left", "right", "forward"]):
             await driver.send("move", action=action, move_id=f"m{i}")
@@ -299,7 +299,7 @@ async def test_losing_the_link_stops_the_motors_within_the_watchdog_and_the_tria
     robot = robots(f"http://127.0.0.1:{proxy.port}", token, calibration=Calibration(forward_s=1.8))
     try:
         async with server.seat(trial, "commander"), server.seat(trial, "driver") as driver:
-            await driver.event("phase", phase="localizing")
+            await driver.event("phase", phase="localizing", timeout=ROBOT_START_S)
             await driver.event("frame")
             await driver.send("move", action="forward", move_id="long")
             await until(lambda: any(e["state"] > 0 for e in robot.pin_log()), what="the pulse to start")
@@ -316,7 +316,7 @@ async def test_losing_the_link_stops_the_motors_within_the_watchdog_and_the_tria
             assert executed["payload"]["outcome"] == "refused"
             await driver.event("paused", reason="disconnect:robot", start=seen)
             proxy.frozen = False
-            await driver.event("resumed", reason="disconnect:robot", timeout=20, start=seen)
+            await driver.event("resumed", reason="disconnect:robot", timeout=ROBOT_START_S, start=seen)
             await driver.send("move", action="left", move_id="after")
             after = await driver.event("move_executed", move_id="after")
             assert after["payload"]["outcome"] == "ok", after["payload"].get("reason")
@@ -328,7 +328,7 @@ async def test_losing_the_link_stops_the_motors_within_the_watchdog_and_the_tria
 async def test_a_restarted_client_reconnects_and_the_trial_continues(server, robots):
     robot_id, token, trial = server.new_robot_trial("restart")
     first = robots(server.url, token)
-    await until(lambda: server.status(robot_id)["connected"], what="the robot to connect")
+    await until(lambda: server.status(robot_id)["connected"], timeout=ROBOT_START_S, what="the robot to connect")
     async with server.seat(trial, "commander"), server.seat(trial, "driver") as driver:
         await driver.event("phase", phase="localizing")
         await driver.event("frame")
@@ -339,7 +339,7 @@ async def test_a_restarted_client_reconnects_and_the_trial_continues(server, rob
         first.proc.wait()
         await driver.event("paused", reason="disconnect:robot", start=seen)
         robots(server.url, token)
-        await driver.event("resumed", reason="disconnect:robot", start=seen)
+        await driver.event("resumed", reason="disconnect:robot", timeout=ROBOT_START_S, start=seen)
         await driver.event("frame", start=seen)
         await driver.send("move", action="right", move_id="after")
         assert (await driver.event("move_executed", move_id="after"))["payload"]["outcome"] == "ok"
@@ -352,7 +352,7 @@ async def test_a_restarted_client_reconnects_and_the_trial_continues(server, rob
 async def test_a_wrong_token_is_refused(server, robots):
     robot_id, token, trial = server.new_robot_trial("wrong")
     robot = robots(server.url, token + "x")
-    assert robot.proc.wait(timeout=20) == 3
+    assert robot.proc.wait(timeout=ROBOT_START_S) == 3
     assert "the server refused this robot: auth: unknown robot token" in robot.stop()
     assert not server.status(robot_id)["connected"]
     assert not [e for e in server.events(trial, "connect") if e.payload["role"] == "robot"]
@@ -397,10 +397,10 @@ async def test_overhead_frames_are_logged_but_never_reach_a_seat(server, robots)
     robots(server.url, rover_token)
     robots(server.url, overhead_token, role="overhead", fps=5)
     async with server.seat(trial, "commander") as commander, server.seat(trial, "driver") as driver:
-        await driver.event("phase", phase="localizing")
+        await driver.event("phase", phase="localizing", timeout=ROBOT_START_S)
         await until(lambda: len(server.events(trial, "frame")) >= 20
                     and any(e.payload["source"] == "overhead" for e in server.events(trial, "frame")),
-                    what="overhead frames in the log")
+                    timeout=ROBOT_START_S, what="overhead frames in the log")
     sources = {e.payload["source"] for e in server.events(trial, "frame")}
     assert sources == {"driver", "overhead"}
     assert all(m["payload"]["source"] == "driver" for m in frame_events(driver))
@@ -415,7 +415,7 @@ async def test_the_experimenter_registers_robots_and_sees_their_links(server, ro
         again = await http.post("/experimenter/api/robots", data={"name": "api rover"})
         assert again.status_code == 400 and "already exists" in again.json()["detail"]
         robots(server.url, made["token"])
-        await until(lambda: server.status(made["id"])["fps"] > 5, what="frames from the new robot")
+        await until(lambda: server.status(made["id"])["fps"] > 5, timeout=ROBOT_START_S, what="frames from the new robot")
         rows = (await http.get("/experimenter/api/robots")).json()["robots"]
         mine = next(r for r in rows if r["id"] == made["id"])
         assert mine["connected"] and mine["name"] == "api rover" and mine["latency_ms"] < 50
