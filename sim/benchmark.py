@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import re
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -86,6 +87,11 @@ class Benchmark:
         if not path.exists():
             raise BenchmarkError(f"{path}: no such split; expected one of {', '.join(SPLITS)}")
         return [NDHInstance.from_json(item) for item in json.loads(path.read_text())]
+
+    @cached_property
+    def lookup_scans(self) -> dict[str, list]:
+        path = self.root / "lookup_scans.json"
+        return json.loads(path.read_text()) if path.exists() else {}
 
     def runs(self) -> list[str]:
         """Run folders that have a full map, in natural order."""
