@@ -7,13 +7,12 @@ observation is the 13-ray table of the simulator at the robot's pose; on a backe
 known pose it sees nothing (zeros) and forward is not masked. After the Commander rejects a
 claim it does not stop again until it has moved.
 
-With the app installed, importing this module registers the Driver as `agent:seq2seq`; the
-checkpoint comes from the setting `seq2seq_checkpoint` or ROBOTSLANG_SEQ2SEQ_CHECKPOINT.
+The web app seats it as `agent:seq2seq` (`app/drivers/seq2seq.py`), with the checkpoint of the
+setting ROBOTSLANG_SEQ2SEQ_CHECKPOINT.
 """
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -85,30 +84,3 @@ class Seq2SeqDriver:
         if action != STOP:
             self._stop_held = False
         return Action(action).word
-
-
-def checkpoint_from(settings: Any) -> Path:
-    """The configured checkpoint: settings.seq2seq_checkpoint, else ROBOTSLANG_SEQ2SEQ_CHECKPOINT."""
-    path = getattr(settings, "seq2seq_checkpoint", None) or os.environ.get("ROBOTSLANG_SEQ2SEQ_CHECKPOINT")
-    if not path:
-        raise LookupError("agent:seq2seq needs a checkpoint: set ROBOTSLANG_SEQ2SEQ_CHECKPOINT to a file "
-                          "written by `robotslang train ndh` (e.g. RUN/best.pt)")
-    return Path(path)
-
-
-def _register_with_app() -> None:
-    try:
-        from app.drivers.registry import register_driver
-    except ImportError:  # models used without the server
-        return
-
-    def factory(info: dict[str, Any], settings: Any) -> Seq2SeqDriver:
-        from app.mazes import Mazes
-
-        mazes = Mazes(settings)
-        return Seq2SeqDriver(checkpoint_from(settings), lambda name: (mazes.load(name), mazes.graph(name)))
-
-    register_driver("seq2seq", factory)
-
-
-_register_with_app()

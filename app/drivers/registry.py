@@ -1,16 +1,13 @@
 """Agent Drivers by name: a trial's `driver` is `human` or `agent:<name>`.
 
 `register_driver(name, factory)`; the factory gets the trial info (see `DriverPolicy.reset`)
-and the `Settings`, and returns a `DriverPolicy`. The baselines are registered here; other
-packages register theirs (e.g. `seq2seq`) by importing this module. Modules listed in
-PLUGINS are imported on first look-up, so their agents appear without the server importing
-torch at start.
+and the `Settings`, and returns a `DriverPolicy`. Drivers register themselves on first
+look-up; the learned one (`seq2seq`) imports torch only when a trial seats it, so the server
+starts without it.
 """
 
 from __future__ import annotations
 
-import importlib
-import logging
 from collections.abc import Callable
 from typing import Any
 
@@ -20,8 +17,6 @@ from app.settings import Settings
 DriverFactory = Callable[[dict[str, Any], Settings], DriverPolicy]
 
 _FACTORIES: dict[str, DriverFactory] = {}
-PLUGINS = ("models.driver",)  # optional; absent until the learned Driver lands
-logger = logging.getLogger(__name__)
 
 
 def register_driver(name: str, factory: DriverFactory) -> None:
@@ -29,14 +24,7 @@ def register_driver(name: str, factory: DriverFactory) -> None:
 
 
 def _load_plugins() -> None:
-    from app.drivers import baselines  # noqa: F401  (registers random and shortest)
-
-    for module in PLUGINS:
-        try:
-            importlib.import_module(module)
-        except ModuleNotFoundError as err:
-            if err.name is None or not module.startswith(err.name):
-                logger.warning("driver plugin %s not loaded: %s", module, err)
+    from app.drivers import baselines, seq2seq  # noqa: F401  (they register themselves)
 
 
 def driver_names() -> list[str]:

@@ -1,0 +1,25 @@
+"""`agent:seq2seq`: the learned NDH Driver (`models/driver.py`) in the Driver's seat.
+
+The app imports models/, never the reverse; torch is loaded only when a trial seats this agent.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from app.drivers.registry import register_driver
+from app.mazes import Mazes
+from app.settings import Settings
+
+
+def seq2seq_driver(info: dict[str, Any], settings: Settings):
+    if settings.seq2seq_checkpoint is None:
+        raise LookupError("agent:seq2seq needs a checkpoint: set ROBOTSLANG_SEQ2SEQ_CHECKPOINT to a file "
+                          "written by `robotslang train ndh` (e.g. RUN/best.pt)")
+    from models.driver import Seq2SeqDriver
+
+    mazes = Mazes(settings)
+    return Seq2SeqDriver(settings.seq2seq_checkpoint, lambda name: (mazes.load(name), mazes.graph(name)))
+
+
+register_driver("seq2seq", seq2seq_driver)
