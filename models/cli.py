@@ -12,8 +12,7 @@ from typing import Optional
 
 import typer
 
-BENCHMARK_OPTION = typer.Option(..., "--benchmark", envvar="ROBOTSLANG_BENCHMARK",
-                                help="A RobotSlangBenchmark clone (or an export in its layout).")
+from sim.eval_cli import BENCHMARK_OPTION, open_benchmark
 
 
 class Feedback(str, Enum):
@@ -42,15 +41,6 @@ class TrainOn(str, Enum):
     train_val = "train+val_seen"
 
 
-def _benchmark(path: Path):
-    from sim.benchmark import Benchmark, BenchmarkError
-
-    try:
-        return Benchmark(path)
-    except BenchmarkError as e:
-        raise typer.BadParameter(str(e), param_hint="--benchmark") from None
-
-
 def train_ndh(
     benchmark: Path = BENCHMARK_OPTION,
     feedback: Feedback = typer.Option(Feedback.student, help="teacher (lr 1e-4) or student (lr 1e-3) forcing."),
@@ -72,7 +62,7 @@ def train_ndh(
 
     if glove is not None and not glove.is_file():
         raise typer.BadParameter(f"{glove}: no such file", param_hint="--glove")
-    bench = _benchmark(benchmark)
+    bench = open_benchmark(benchmark)
     splits = train_on.value.split("+")
     try:
         cfg = TrainConfig(feedback=feedback.value, blind=blind.value, seed=seed, iters=iters, model=model.value,
@@ -103,7 +93,7 @@ def eval_ndh(
     from sim.eval_cli import print_table
     from sim.metrics import summarize, write_csv
 
-    bench = _benchmark(benchmark)
+    bench = open_benchmark(benchmark)
     try:
         results = evaluate_checkpoint(bench, None, checkpoint, split.value, name=name)
     except (FileNotFoundError, ValueError) as e:
@@ -150,7 +140,7 @@ def experiment_ndh(
         seed_list = [int(s) for s in seeds.split(",") if s.strip()]
     except ValueError:
         raise typer.BadParameter(f"seeds must be integers, got {seeds!r}", param_hint="--seeds") from None
-    meta = run_experiment(_benchmark(benchmark), out, model_list, seed_list, iters=iters,
+    meta = run_experiment(open_benchmark(benchmark), out, model_list, seed_list, iters=iters,
                           budget_minutes=budget_minutes, workers=workers)
     typer.echo(f"{meta['iters']} iterations per run; {meta['timing']['total_s'] / 60:.1f} min; "
                f"report -> {out / 'report.md'}")

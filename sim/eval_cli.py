@@ -18,6 +18,14 @@ BENCHMARK_OPTION = typer.Option(..., "--benchmark", envvar="ROBOTSLANG_BENCHMARK
                                 help="A RobotSlangBenchmark clone (or an export in its layout).")
 
 
+def open_benchmark(path: Path) -> Benchmark:
+    """The benchmark at `path`, or a usage error that names what is missing there."""
+    try:
+        return Benchmark(path)
+    except BenchmarkError as e:
+        raise typer.BadParameter(str(e), param_hint="--benchmark") from None
+
+
 class Split(str, Enum):
     train = "train"
     val_seen = "val_seen"
@@ -80,7 +88,7 @@ def eval_baselines(
     except ValueError:
         raise typer.BadParameter(f"seeds must be integers, got {seeds!r}") from None
     try:
-        bench = Benchmark(benchmark)
+        bench = open_benchmark(benchmark)
         results = evaluate_baselines(bench, split.value, agents, start=start.value, edges=edges.value,
                                      seeds=seed_list, progress=not as_json)
     except BenchmarkError as e:
