@@ -1,0 +1,101 @@
+"""The learned NDH Driver (`agent:seq2seq`) plays the Driver's seat of a live trial, end to end:
+a real checkpoint trained here, the real server, a scripted Commander over a websocket."""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+
+import pytest
+from sqlalchemy import select
+
+from app.db.models import Event
+from models.data import World
+from models.train import TrainConfig, train
+from sim.benchmark import Benchmark
+from tests.app.conftest import platform_settings
+from tests.app.live import SeatClient, ServerThread, make_trial
+
+
+@pytest.fixture(scope="module")
+def stopping_checkpoint(benchmark_path, tmp_path_factory):
+    """A tiny real checkpoint taught on episodes that start at their goal, so it stops at once:
+    its claims are deterministic, and after a rejection its forced move is the model's own choice."""
+    bench = Benchmark(benchmark_path)
+    jars = [i for i in bench.split("train") if len(i.agent_pose) > 2][:4]
+    # New scan and index: the episode cache is keyed by them and must not mix these with the originals.
+    at_goal = [dataclasses.replace(i, inst_idx=100_000 + i.inst_idx, scan=f"{i.scan}@goal",
+                                   agent_pose=(*i.target_pose, 0.0)) for i in jars]
+    world = World.build(bench, sorted({i.run for i in at_goal}))
+    out = tmp_path_factory.mktemp("seq2seq")
+    cfg = TrainConfig(feedback="teacher", iters=12, batch=4, lr=1e-2, eval_every=12, max_actions=10)
+    train(bench, cfg, out, world=world, progress=False, train_instances=at_goal, eval_instances=at_goal[:1])
+    return out / "last.pt"
+
+
+def events_of(services, trial_id: int, kind: str) -> list[Event]:
+    with services.db() as db:
+        return db.scalars(select(Event).where(Event.trial_id == trial_id, Event.kind == kind)
+                          .order_by(Event.seq)).all()
+
+
+def test_learned_driver_claims_moves_after_a_rejection_and_claims_again(tmp_path, stopping_checkpoint):
+    settings = platform_settings(tmp_path, seq2seq_checkpoint=stopping_checkpoint)
+    with ServerThread(settings) as server:
+        services = server.services
+        trial_id = make_trial(services, services.mazes.names()[0], targets=("jar", "mug", "paddle"),
+                              driver="agent:seq2seq")
+        token = services.seats.issue(trial_id, "commander")
+
+        async def command():
+            async with SeatClient(server.ws_url, token) as commander:
+                await commander.event("phase", phase="localizing", timeout=30)
+                await commander.send("chat", text="find the jar, it is by the red wall")
+                await commander.send("localize", x=1.0, y=1.0)
+                await commander.event("target_claimed", timeout=30, target_index=0)
+                await commander.event("chat", role="driver", text="I think I found the jar")
+                start = len(commander.received)
+                await commander.send("chat", text="no, keep looking")
+                await commander.send("reject")
+                rejected = await commander.event("target_rejected", start=start)
+                again = await commander.event("target_claimed", timeout=30, start=start, target_index=0)
+                start = len(commander.received)
+                await commander.send("confirm")
+                # A new target re-encodes the dialog; the agent plays on and claims the mug.
+                await commander.event("target_claimed", timeout=30, start=start, target_index=1)
+                await commander.event("chat", role="driver", start=start, text="I think I found the mug")
+                return rejected["seq"], again["seq"], again["payload"]["frame_id"]
+
+        rejected_seq, again_seq, again_frame_id = asyncio.run(command())
+        requested = [e for e in events_of(services, trial_id, "move_requested") if e.seq > rejected_seq]
+        executed = [e for e in events_of(services, trial_id, "move_executed")
+                    if rejected_seq < e.seq < again_seq]
+        frames = [e for e in events_of(services, trial_id, "frame") if e.seq > rejected_seq]
+    assert requested and requested[0].payload["action"] in ("forward", "left", "right")
+    assert executed and executed[0].payload["move_id"] == requested[0].payload["move_id"]
+    assert executed[0].payload["outcome"] == "ok"
+    assert frames, "the agent's move produced no camera frame"
+    assert again_frame_id == frames[0].payload["frame_id"]  # it claimed again from where it moved to
+
+
+def test_seq2seq_without_a_checkpoint_names_the_setting_and_the_trial_stays_open(settings):
+    assert settings.seq2seq_checkpoint is None
+    with ServerThread(settings) as server:
+        services = server.services
+        trial_id = make_trial(services, services.mazes.names()[0], driver="agent:seq2seq")
+
+        async def command():
+            async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+                await commander.wait_for(lambda m: m.get("type") == "welcome")
+                for _ in range(250):
+                    if events_of(services, trial_id, "bad_message"):
+                        break
+                    await asyncio.sleep(0.02)
+                await commander.send("chat", text="still there?")
+                await commander.event("chat", text="still there?")
+
+        asyncio.run(command())
+        (error,) = [e.payload for e in events_of(services, trial_id, "bad_message")]
+    assert error["role"] == "driver"
+    assert error["error"].startswith("agent 'seq2seq' failed: agent:seq2seq needs a checkpoint")
+    assert "ROBOTSLANG_SEQ2SEQ_CHECKPOINT" in error["error"]
