@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-# Packages under app/ that bring their own commands: module -> has `register(root)`.
+# Packages under app/ that bring their own commands, each with `register(root)`.
 MOUNTED = ("app.export.cli", "app.demo.cli", "app.robot_commands")
 
 
@@ -81,8 +81,4 @@ def register(root: typer.Typer) -> None:
     db.command("upgrade")(db_upgrade)
     root.add_typer(db, name="db")
     for module in MOUNTED:
-        try:
-            importlib.import_module(module).register(root)
-        except ModuleNotFoundError as err:
-            if err.name != module:
-                raise
+        importlib.import_module(module).register(root)

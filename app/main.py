@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
 import logging
 import secrets
 from contextlib import asynccontextmanager
@@ -18,7 +17,7 @@ from app.clock import ServerClock
 from app.db.engine import make_engine, make_sessionmaker, upgrade
 from app.db.models import Experimenter
 from app.mazes import Mazes
-from app.routes import experimenter, pages, seat_ws
+from app.routes import experimenter, pages, replay, robot_ws, seat_ws
 from app.security import SeatTokens, Sessions, hash_password
 from app.services import Services
 from app.settings import Settings
@@ -27,7 +26,6 @@ from app.trial.log import EventLog
 
 ROOT = Path(__file__).resolve().parent.parent
 logger = logging.getLogger("robotslang")
-OPTIONAL_ROUTERS = ("app.routes.robot_ws", "app.routes.replay")  # the rover's socket; replays
 
 
 def build_services(settings: Settings) -> Services:
@@ -79,12 +77,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(pages.router)
     app.include_router(experimenter.router)
     app.include_router(seat_ws.router)
-    for module in OPTIONAL_ROUTERS:
-        try:
-            app.include_router(importlib.import_module(module).router)
-        except ModuleNotFoundError as err:
-            if err.name != module:
-                raise
+    app.include_router(robot_ws.router)
+    app.include_router(replay.router)
 
     @app.exception_handler(experimenter.LoginRequired)
     async def _login_required(request: Request, exc: Exception):

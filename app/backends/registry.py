@@ -20,7 +20,7 @@ if TYPE_CHECKING:
 BackendFactory = Callable[[str, "TrialRuntime"], Awaitable[RobotBackend]]
 
 _FACTORIES: dict[str, BackendFactory] = {}
-# Modules that register a backend kind when imported (kept optional: the rover's may be absent).
+# Modules that register a backend kind when imported, loaded on the first trial of that kind.
 PLUGINS = {"robot": "app.backends.remote"}
 
 
