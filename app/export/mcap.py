@@ -18,7 +18,8 @@ from pathlib import Path
 import cv2
 from mcap.writer import Writer
 
-from app.export.record import Event, ExportError, TrialRecord
+from app.export.record import ExportError, TrialRecord
+from app.trial.state import LoggedEvent
 from sim.maze import FIXED_MAP, WALLS_MAP, Maze
 
 PROFILE = ""  # plain JSON messages: no ROS profile
@@ -82,7 +83,7 @@ LOG_INFO = 2
 _IMAGE_FORMATS = {"image/jpeg": "jpeg", "image/png": "png", "image/webp": "webp"}
 
 
-def topic_of(event: Event) -> str:
+def topic_of(event: LoggedEvent) -> str:
     """The one channel an event is written to."""
     if event.kind == "frame":
         source = event.payload.get("source", "driver")
@@ -144,7 +145,7 @@ def _stamp(ns: int) -> dict[str, int]:
     return {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
 
 
-def _message(record: TrialRecord, event: Event, image: bytes | None) -> tuple[dict, int]:
+def _message(record: TrialRecord, event: LoggedEvent, image: bytes | None) -> tuple[dict, int]:
     p = event.payload
     if event.kind == "frame":
         capture = int(p.get("capture_ns") or event.t_ns)

@@ -25,7 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from app.export.record import Event, TrialRecord
+from app.export.record import TrialRecord
+from app.trial.state import LoggedEvent
 from sim.maze import Maze
 
 SPLITS = ("train", "val_seen", "test")
@@ -41,13 +42,13 @@ def scan_id(maze: str, target: str, agent_pose: Sequence[float], target_pose: Se
     return f"mazedata/{maze}/maze/maze.labelled.npz-{target}-{start}-{goal}"
 
 
-def _dialog(events: Iterable[Event], before_seq: int) -> list[dict[str, str]]:
+def _dialog(events: Iterable[LoggedEvent], before_seq: int) -> list[dict[str, str]]:
     return [{"role": ROLES[e.payload["role"]], "message": e.payload["text"]}
             for e in events
             if e.kind == "chat" and e.seq < before_seq and e.payload.get("role") in ROLES]
 
 
-def _pose_at(events: Sequence[Event], seq: int) -> list[float] | None:
+def _pose_at(events: Sequence[LoggedEvent], seq: int) -> list[float] | None:
     """The last true pose logged at or before `seq` (the first one after, when none was before)."""
     poses = [e for e in events if e.kind == "pose"]
     before = [e for e in poses if e.seq <= seq]
@@ -58,7 +59,7 @@ def _pose_at(events: Sequence[Event], seq: int) -> list[float] | None:
     return [float(p["x"]), float(p["y"]), float(p.get("heading") or 0.0) % (2 * math.pi)]
 
 
-def _start_seq(events: Sequence[Event]) -> int:
+def _start_seq(events: Sequence[LoggedEvent]) -> int:
     starts = [e.seq for e in events if e.kind == "phase" and e.payload.get("phase") == "localizing"]
     return starts[0] if starts else (events[0].seq if events else 0)
 

@@ -9,19 +9,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+
+from app.trial.state import LoggedEvent
 
 
 class ExportError(RuntimeError):
     """A trial that cannot be exported; the message names the trial and what is missing."""
-
-
-@dataclass(frozen=True)
-class Event:
-    seq: int
-    kind: str
-    t_ns: int
-    payload: dict[str, Any]
 
 
 @dataclass(frozen=True)
@@ -30,14 +23,14 @@ class TrialRecord:
     team: str
     maze: str
     targets: tuple[str, ...]
-    events: tuple[Event, ...]
+    events: tuple[LoggedEvent, ...]
     frames_root: Path | None  # frame payload `path`s are relative to this folder (None: no frames)
     info: dict[str, str] = field(default_factory=dict)  # anything else worth keeping as metadata
 
-    def of_kind(self, *kinds: str) -> list[Event]:
+    def of_kind(self, *kinds: str) -> list[LoggedEvent]:
         return [e for e in self.events if e.kind in kinds]
 
-    def frame_bytes(self, event: Event) -> bytes:
+    def frame_bytes(self, event: LoggedEvent) -> bytes:
         """The encoded image a `frame` event points at."""
         rel = event.payload.get("path")
         if not rel:

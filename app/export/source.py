@@ -7,8 +7,9 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Event as EventRow
 from app.db.models import Team, Trial
-from app.export.record import Event, ExportError, TrialRecord
+from app.export.record import ExportError, TrialRecord
 from app.settings import Settings
+from app.trial.state import LoggedEvent
 
 
 def load_trial(session: Session, settings: Settings, trial_id: int | str) -> TrialRecord:
@@ -22,7 +23,7 @@ def load_trial(session: Session, settings: Settings, trial_id: int | str) -> Tri
         raise ExportError(f"no trial {key} in {settings.url.split('@')[-1]}")
     team = session.get(Team, trial.team_id)
     rows = session.scalars(select(EventRow).where(EventRow.trial_id == key).order_by(EventRow.seq))
-    events = tuple(Event(seq=r.seq, kind=r.kind, t_ns=r.t_ns, payload=dict(r.payload)) for r in rows)
+    events = tuple(LoggedEvent(seq=r.seq, kind=r.kind, t_ns=r.t_ns, payload=dict(r.payload)) for r in rows)
     return TrialRecord(
         trial_id=str(key), team=team.name if team else "", maze=trial.maze,
         targets=tuple(trial.targets), events=events, frames_root=settings.frames_dir,

@@ -11,7 +11,8 @@ import pytest
 from mcap.reader import make_reader
 
 from app.export.mcap import CHANNELS, write_mcap
-from app.export.record import Event, ExportError, TrialRecord
+from app.export.record import ExportError, TrialRecord
+from app.trial.state import LoggedEvent
 from sim.labels import Label
 from sim.maze import Maze
 
@@ -59,7 +60,7 @@ def record(tmp_path) -> TrialRecord:
         if kind == "frame":
             payload = {**payload, "capture_ns": t - 4_000_000}
             (tmp_path / payload["path"]).write_bytes(jpeg(40 * payload["frame_id"]))
-        events.append(Event(seq=seq, kind=kind, t_ns=t, payload=payload))
+        events.append(LoggedEvent(seq=seq, kind=kind, t_ns=t, payload=payload))
     # The log is stored by seq; a writer must not rely on arrival order matching the clock.
     events[5], events[6] = events[6], events[5]
     return TrialRecord(trial_id="7", team="blue team", maze="test-maze",

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from app.export.ndh import assign_splits, ldh_instances, ndh_instances, scan_id, write_benchmark
-from app.export.record import Event, TrialRecord
+from app.export.record import TrialRecord
+from app.trial.state import LoggedEvent
 from sim.benchmark import Benchmark, NDHInstance
 from sim.labels import Label
 from sim.maze import Maze
@@ -45,7 +46,7 @@ def trial(trial_id: str, maze: str, targets=("jar", "mug", "paddle"), confirmed=
                 ("target_confirmed", {"target": targets[k], "target_index": k, "within_m": 0.1,
                                       "truly_within": True})]
     raw.append(("chat", {"role": "driver", "text": "after the last target"}))
-    events = tuple(Event(seq=i, kind=k, t_ns=10**18 + i * 10**7, payload=p)
+    events = tuple(LoggedEvent(seq=i, kind=k, t_ns=10**18 + i * 10**7, payload=p)
                    for i, (k, p) in enumerate(raw, start=1))
     return TrialRecord(trial_id=trial_id, team="t", maze=maze, targets=tuple(targets),
                        events=events, frames_root=None)
