@@ -10,7 +10,7 @@ from typing import Protocol
 
 import numpy as np
 
-from sim.dynamics import Action, Pose, teacher_actions
+from sim.dynamics import Action, Pose, teacher_action
 from sim.navgraph import NavGraph
 
 
@@ -56,7 +56,7 @@ class ShortestAgent:
         self.graph, self.goal = graph, goal
 
     def act(self, pose: Pose) -> Action:
-        return Action(int(teacher_actions(self.graph, [pose.node], [pose.heading], [self.goal])[0]))
+        return teacher_action(self.graph, pose, self.goal)
 
 
 BASELINES: dict[str, type] = {cls.name: cls for cls in (StopAgent, RandomAgent, ShortestAgent)}

@@ -26,16 +26,13 @@ from typing import Sequence
 import numpy as np
 
 from sim.benchmark import MAX_EPISODE_ACTIONS
-from sim.dynamics import Action, Pose
-from sim.geometry import HEADING_DI, HEADING_DJ, HEADINGS
+from sim.dynamics import Action, Pose, actions_toward
+from sim.geometry import HEADINGS
 from sim.navgraph import NavGraph
 from sim.observations import OBS_FEATURES, RayTable
 
 # Heading change per action: forward 0, left +1, right -1, stop 0.
 _TURN = np.array([0, 1, -1, 0], dtype=np.int64)
-# Heading index of a grid step (di, dj), indexed [di + 1, dj + 1].
-_STEP_HEADING = np.full((3, 3), -1, dtype=np.int64)
-_STEP_HEADING[HEADING_DI + 1, HEADING_DJ + 1] = np.arange(HEADINGS)
 
 
 class BatchNavEnv:
@@ -172,10 +169,7 @@ class BatchNavEnv:
         hop = self._hop[self._rows, self.node - self.offset]
         stop = (self.node - self.offset == self.goal) | (hop < 0)
         hop = np.where(stop, self.node, hop)
-        delta = self.node_ij[hop] - self.node_ij[self.node]
-        wanted = _STEP_HEADING[delta[:, 0] + 1, delta[:, 1] + 1]
-        turn = (wanted - self.heading) % HEADINGS
-        actions = np.where(turn == 0, Action.FORWARD, np.where(turn <= 4, Action.LEFT, Action.RIGHT))
+        actions = actions_toward(self.node_ij[hop] - self.node_ij[self.node], self.heading)
         return np.where(stop, Action.STOP, actions).astype(np.int64)
 
     # -- bookkeeping ---------------------------------------------------------------

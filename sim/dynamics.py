@@ -74,11 +74,16 @@ def teacher_actions(graph: NavGraph, nodes, headings, goals) -> np.ndarray:
     hop = graph.next_hop[nodes, goals]
     stop = (nodes == goals) | (hop < 0)
     hop = np.where(stop, nodes, hop)
-    delta = graph.node_ij[hop] - graph.node_ij[nodes]
+    actions = actions_toward(graph.node_ij[hop] - graph.node_ij[nodes], headings)
+    return np.where(stop, Action.STOP, actions).astype(np.int64)
+
+
+def actions_toward(delta, headings) -> np.ndarray:
+    """The action that heads for grid steps `delta` (..., 2) from `headings`: forward when
+    aligned, else the smaller turn (left on a tie). Shared by both teachers so they agree."""
     wanted = _STEP_HEADING[delta[..., 0] + 1, delta[..., 1] + 1]
     turn = (wanted - headings) % HEADINGS
-    actions = np.where(turn == 0, Action.FORWARD, np.where(turn <= 4, Action.LEFT, Action.RIGHT))
-    return np.where(stop, Action.STOP, actions).astype(np.int64)
+    return np.where(turn == 0, Action.FORWARD, np.where(turn <= 4, Action.LEFT, Action.RIGHT))
 
 
 def teacher_action(graph: NavGraph, pose: Pose, goal_node: int) -> Action:
