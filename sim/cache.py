@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import os
+import tempfile
 from pathlib import Path
+
+import numpy as np
 
 
 def cache_dir(override: str | Path | None = None) -> Path:
@@ -12,3 +15,12 @@ def cache_dir(override: str | Path | None = None) -> Path:
         return Path(override)
     env = os.environ.get("ROBOTSLANG_CACHE_DIR")
     return Path(env) if env else Path.home() / ".cache" / "robotslang"
+
+
+def save_npz(path: Path, **arrays) -> None:
+    """Write arrays to `path` then rename, so concurrent builders never read a half-written file."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
+    os.close(fd)
+    np.savez(tmp, **arrays)
+    os.replace(tmp, path)

@@ -10,8 +10,6 @@ The `exact` mode joins every pair of 8-neighbours.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,10 +19,10 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 from scipy.spatial.distance import cdist
 
-from sim.cache import cache_dir as default_cache_dir
+from sim.cache import cache_dir as default_cache_dir, save_npz
 from sim.geometry import (
-    GRID_STEP_M, HEADING_DI, HEADING_DJ, HEADINGS, MAP_HEIGHT_PX, MAP_WIDTH_PX,
-    TABLE_HEIGHT_M, TABLE_WIDTH_M,
+    GRID_STEP_M, HEADING_DI, HEADING_DJ, HEADINGS, MAP_WIDTH_PX,
+    TABLE_HEIGHT_M, TABLE_WIDTH_M, world_to_pixel,
 )
 from sim.maze import Maze
 
@@ -45,9 +43,8 @@ def candidate_grid() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     ii, jj = np.meshgrid(np.arange(xs.size), np.arange(ys.size))
     positions = np.stack([xx.ravel(), yy.ravel()], axis=1)
     ij = np.stack([ii.ravel(), jj.ravel()], axis=1)
-    rows = np.int32((1 - positions[:, 1] / TABLE_HEIGHT_M) * (MAP_HEIGHT_PX - 1))
-    cols = np.int32(positions[:, 0] / TABLE_WIDTH_M * (MAP_WIDTH_PX - 1))
-    return positions, ij, np.stack([rows, cols], axis=1)
+    cols, rows = world_to_pixel(positions[:, 0], positions[:, 1])
+    return positions, ij, np.stack([np.int32(rows), np.int32(cols)], axis=1)
 
 
 def grid_shape() -> tuple[int, int]:
@@ -131,13 +128,8 @@ class NavGraph:
                    next_hop=next_hop, forward=forward)
 
     def _save(self, path: Path) -> None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        # Write then rename, so concurrent builders never read a half-written file.
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
-        os.close(fd)
-        np.savez(tmp, nodes=self.nodes, node_ij=self.node_ij, node_grid=self.node_grid,
+        save_npz(path, nodes=self.nodes, node_ij=self.node_ij, node_grid=self.node_grid,
                  dist=self.dist, next_hop=self.next_hop, forward=self.forward)
-        os.replace(tmp, path)
 
     # -- queries ------------------------------------------------------------------
     def nearest_nodes(self, xy) -> np.ndarray:

@@ -14,8 +14,6 @@ transform guarantees no wall pixel is skipped. Depths are exact to the pixel gri
 from __future__ import annotations
 
 import hashlib
-import os
-import tempfile
 import weakref
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,7 +21,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from sim.cache import cache_dir as default_cache_dir
+from sim.cache import cache_dir as default_cache_dir, save_npz
 from sim.geometry import (
     GRID_STEP_M, HEADINGS, MAP_HEIGHT_PX, MAP_WIDTH_PX, TABLE_HEIGHT_M, TABLE_WIDTH_M, TURN_RAD,
 )
@@ -212,7 +210,7 @@ class RayTable:
         if labels is None or labels.shape != (graph.n, HEADINGS, N_RAYS):
             labels, depth = node_rays(maze, graph.nodes)
             if use_cache:
-                _save(path, labels=labels, depth=depth)
+                save_npz(path, labels=labels, depth=depth)
         return cls(labels=labels, depth=depth,
                    too_close=too_close(depth, np.arange(HEADINGS)[None, :, None]),
                    forward_blocked=graph.forward < 0)
@@ -239,12 +237,3 @@ def node_rays(maze: Maze, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     labels, depth = RayCaster(maze.labels).cast(nodes[:, 0, None, None], nodes[:, 1, None, None],
                                                 angles[None])
     return labels, depth.astype(np.float32)
-
-
-def _save(path: Path, **arrays) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    # Write then rename, so concurrent builders never read a half-written file.
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
-    os.close(fd)
-    np.savez(tmp, **arrays)
-    os.replace(tmp, path)
