@@ -14,7 +14,7 @@ import torch
 
 from models.agent import STOP, Seq2SeqAgent
 from models.data import EpisodeSet, World
-from models.rollout import run_episodes
+from models.rollout import MAX_ACTIONS, run_episodes
 from sim.benchmark import Benchmark, NDHInstance
 from sim.geometry import heading_angle
 from sim.metrics import EpisodeResult, score_trajectory
@@ -29,7 +29,7 @@ def agent_name(train_config: dict) -> str:
 
 @torch.no_grad()
 def evaluate_agent(agent: Seq2SeqAgent, bench: Benchmark, world: World, episodes: EpisodeSet,
-                   blind: str, name: str, seed: int = 0, max_actions: int = 120) -> list[EpisodeResult]:
+                   blind: str, name: str, seed: int = 0, max_actions: int = MAX_ACTIONS) -> list[EpisodeResult]:
     agent.eval()
     results = []
     for lo in range(0, len(episodes), EVAL_BATCH):

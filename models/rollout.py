@@ -15,11 +15,12 @@ import torch.nn.functional as F
 
 from models.agent import FORWARD, LEFT, RIGHT, START, STOP, Seq2SeqAgent, observation_input
 from models.data import EpisodeSet, World, goal_distance, teacher_actions
+from sim.benchmark import MAX_EPISODE_ACTIONS
 from sim.geometry import HEADINGS
 
 FEEDBACKS = ("teacher", "student", "argmax")
 BLINDS = ("none", "vision", "language")
-MAX_ACTIONS = 120
+MAX_ACTIONS = MAX_EPISODE_ACTIONS  # the benchmark's cap, as for the baselines
 
 
 @dataclass
