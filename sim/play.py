@@ -80,18 +80,14 @@ class Drive:
         self.write_frames()
         return collided
 
-    def write_frames(self) -> list[Path]:
+    def write_frames(self) -> None:
         x, y, theta = self.xytheta
         frames = {"first-person": first_person(self.maze, x, y, theta, size=(640, 480)),
                   "top-down": top_down(self.maze, pose=(x, y, theta), path=self.graph.nodes[self.path],
                                        rays=True)}
-        written = []
         for view, image in frames.items():
-            path = self.out / f"step-{self.steps:03d}-{view}.png"
-            _write_png(path, image)
+            _write_png(self.out / f"step-{self.steps:03d}-{view}.png", image)
             _write_png(self.out / f"latest-{view}.png", image)
-            written.append(path)
-        return written
 
     def describe(self) -> str:
         """One status line: pose, what is straight ahead, how far each object is by the graph."""
