@@ -22,16 +22,13 @@ from tqdm import tqdm
 
 from sim.benchmark import Benchmark, NDHInstance, episode_start, goal_node
 from sim.cache import cache_dir as default_cache_dir
-from sim.geometry import HEADING_DI, HEADING_DJ, HEADINGS
+from sim.dynamics import Action, actions_toward
+from sim.geometry import HEADINGS
 from sim.labels import object_label
 from models.tokenizer import Tokenizer
 
 _WORLD_VERSION = 2
 _ARRAYS = ("offset", "size", "xy", "ij", "forward", "obs")
-
-# Heading index of each grid step (di, dj), indexed [di + 1, dj + 1]; as sim.dynamics.
-STEP_HEADING = np.full((3, 3), -1, dtype=np.int64)
-STEP_HEADING[HEADING_DI + 1, HEADING_DJ + 1] = np.arange(HEADINGS)
 
 
 @dataclass
@@ -179,16 +176,11 @@ def teacher_actions(world: World, episodes: EpisodeSet, idx: np.ndarray, node: n
                     heading: np.ndarray) -> np.ndarray:
     """Shortest-path actions for a batch, the rule of sim.dynamics.teacher_actions: turn toward
     the next hop by the smaller turn (left on a tie), forward when aligned, stop at the goal."""
-    from sim.dynamics import Action
-
     off = world.offset[episodes.run[idx]]
     hop = episodes.goal_next[idx, node - off]
     stop = (node == episodes.goal_node[idx]) | (hop < 0)
     hop = np.where(stop, node, hop + off)
-    delta = world.ij[hop] - world.ij[node]
-    wanted = STEP_HEADING[delta[:, 0] + 1, delta[:, 1] + 1]
-    turn = (wanted - heading) % HEADINGS
-    actions = np.where(turn == 0, Action.FORWARD, np.where(turn <= 4, Action.LEFT, Action.RIGHT))
+    actions = actions_toward(world.ij[hop] - world.ij[node], heading)
     return np.where(stop, Action.STOP, actions).astype(np.int64)
 
 
