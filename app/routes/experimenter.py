@@ -4,6 +4,7 @@ and the live dashboard with the true pose, each robot's link, pause, resume and 
 from __future__ import annotations
 
 import random
+from urllib.parse import quote
 
 from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
@@ -13,7 +14,7 @@ from app.backends.registry import backend_kinds
 from app.backends.remote import robot_links
 from app.db.models import Participant, Robot, Team, Trial
 from app.drivers.registry import driver_names
-from app.routes.pages import render
+from app.routes.pages import render, trial_or_404
 from app.security import SESSION_COOKIE
 from app.trial.setup import (TrialSetupError, create_participant, create_team, create_trial, parse_targets,
                              suggest_maze)
@@ -65,8 +66,6 @@ def dashboard(request: Request, error: str | None = None):
 
 
 def _redirect(error: str | None = None) -> RedirectResponse:
-    from urllib.parse import quote
-
     return RedirectResponse("/experimenter" + (f"?error={quote(error)}" if error else ""), status_code=303)
 
 
@@ -132,20 +131,12 @@ def live(request: Request):
 
 @router.get("/trials/{trial_id}", response_class=HTMLResponse)
 def watch(request: Request, trial_id: int):
-    services = request.app.state.services
-    with services.db() as db:
-        trial = db.get(Trial, trial_id)
-    if trial is None:
-        raise HTTPException(404, f"trial {trial_id} does not exist")
-    state = fold(services.log.load(trial_id))
+    trial = trial_or_404(request, trial_id)
+    state = fold(request.app.state.services.log.load(trial_id))
     return render(request, "watch.html", trial=trial, state=state, links=join_links(request, trial))
 
 
 @router.get("/trials/{trial_id}/map.png")
 def full_map(request: Request, trial_id: int):
-    services = request.app.state.services
-    with services.db() as db:
-        trial = db.get(Trial, trial_id)
-    if trial is None:
-        raise HTTPException(404, f"trial {trial_id} does not exist")
-    return Response(services.mazes.full_map_png(trial.maze), media_type="image/png")
+    trial = trial_or_404(request, trial_id)
+    return Response(request.app.state.services.mazes.full_map_png(trial.maze), media_type="image/png")

@@ -18,6 +18,14 @@ def render(request: Request, template: str, **context) -> HTMLResponse:
     return request.app.state.templates.TemplateResponse(request, template, context)
 
 
+def trial_or_404(request: Request, trial_id: int) -> Trial:
+    with request.app.state.services.db() as db:
+        trial = db.get(Trial, trial_id)
+    if trial is None:
+        raise HTTPException(404, f"trial {trial_id} does not exist")
+    return trial
+
+
 def seat_of(request: Request, token: str) -> Seat:
     try:
         return request.app.state.services.seats.verify(token)
@@ -77,12 +85,7 @@ def leaderboard(request: Request):
 @router.get("/play/{token}", response_class=HTMLResponse)
 def play(request: Request, token: str):
     seat = seat_of(request, token)
-    services = request.app.state.services
-    with services.db() as db:
-        trial = db.get(Trial, seat.trial_id)
-    if trial is None:
-        raise HTTPException(404, f"trial {seat.trial_id} does not exist")
-    return render(request, f"{seat.role}.html", token=token, trial=trial)
+    return render(request, f"{seat.role}.html", token=token, trial=trial_or_404(request, seat.trial_id))
 
 
 @router.get("/play/{token}/map.png")
@@ -91,7 +94,7 @@ def commander_map(request: Request, token: str):
     seat = seat_of(request, token)
     if seat.role != "commander":
         raise HTTPException(403, "only the Commander sees the map")
-    trial = _trial(request, seat.trial_id)
+    trial = trial_or_404(request, seat.trial_id)
     return Response(request.app.state.services.mazes.map_png(trial.maze), media_type="image/png",
                     headers={"Cache-Control": "private, max-age=3600"})
 
@@ -103,18 +106,10 @@ def target_image(request: Request, token: str, index: int):
     if seat.role != "commander":
         raise HTTPException(403, "only the Commander sees the target images")
     services = request.app.state.services
-    trial = _trial(request, seat.trial_id)
+    trial = trial_or_404(request, seat.trial_id)
     runtime = services.hub.peek(trial.id)  # None where the trial runs in another process
     reached = (runtime.state if runtime is not None else fold(services.log.load(trial.id))).target_index
     if not 0 <= index < len(trial.targets) or index > reached:
         raise HTTPException(404, f"target {index} is not available")
     return Response(services.mazes.target_jpeg(trial.maze, trial.targets[index]), media_type="image/jpeg",
                     headers={"Cache-Control": "private, max-age=3600"})
-
-
-def _trial(request: Request, trial_id: int) -> Trial:
-    with request.app.state.services.db() as db:
-        trial = db.get(Trial, trial_id)
-    if trial is None:
-        raise HTTPException(404, f"trial {trial_id} does not exist")
-    return trial
