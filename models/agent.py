@@ -15,10 +15,12 @@ from dataclasses import asdict, dataclass
 import torch
 from torch import nn
 
+from sim.dynamics import Action
 from sim.observations import N_LABELS, N_RAYS
 
-N_ACTIONS = 4  # sim.dynamics.Action: FORWARD, LEFT, RIGHT, STOP
-FORWARD, LEFT, RIGHT, STOP = range(N_ACTIONS)
+# The simulator's action ids, as plain ints for tensor indexing.
+FORWARD, LEFT, RIGHT, STOP = (int(a) for a in (Action.FORWARD, Action.LEFT, Action.RIGHT, Action.STOP))
+N_ACTIONS = len(Action)
 START = N_ACTIONS  # the "previous action" at the first step
 NEG_INF = -1e9
 
