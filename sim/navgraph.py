@@ -47,10 +47,6 @@ def candidate_grid() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return positions, ij, np.stack([np.int32(rows), np.int32(cols)], axis=1)
 
 
-def grid_shape() -> tuple[int, int]:
-    return (len(np.arange(0, TABLE_WIDTH_M, GRID_STEP_M)), len(np.arange(0, TABLE_HEIGHT_M, GRID_STEP_M)))
-
-
 def navigable_mask(walls: np.ndarray, pixels: np.ndarray) -> np.ndarray:
     """Candidates whose own pixel is floor and whose 80-pixel square holds no wall pixel."""
     blocked = (walls != 0).astype(np.uint8)
@@ -102,7 +98,7 @@ class NavGraph:
         keep = navigable_mask(walls, pixels)
         nodes, node_ij = positions[keep], ij[keep]
         n = len(nodes)
-        node_grid = np.full(grid_shape(), -1, dtype=np.int32)
+        node_grid = np.full(tuple(ij.max(axis=0) + 1), -1, dtype=np.int32)  # (NX, NY)
         node_grid[node_ij[:, 0], node_ij[:, 1]] = np.arange(n, dtype=np.int32)
 
         d = cdist(nodes, nodes)
