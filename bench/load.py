@@ -150,7 +150,11 @@ def main() -> None:
                     httpx.get(url + "/leaderboard", timeout=1)
                     break
                 except httpx.HTTPError:
+                    if server.poll() is not None:
+                        raise SystemExit(f"robotslang serve exited with status {server.returncode}")
                     time.sleep(0.1)
+            else:
+                raise SystemExit(f"robotslang serve did not answer on {url} within 30 s")
             figures, committed, window = asyncio.run(
                 drive(f"ws://127.0.0.1:{args.port}/ws/play", tokens, args.warmup, args.duration, services))
         finally:
