@@ -8,14 +8,14 @@ from typing import Any
 
 from app.drivers.registry import register_driver
 from app.settings import Settings
-from sim.dynamics import Action, snap_pose, teacher_action
+from sim.dynamics import snap_pose, teacher_action
 
 RANDOM_CLAIM_P = 0.02
 
 
 class RandomDriver:
-    def __init__(self, seed: int = 0) -> None:
-        self.rng = random.Random(seed)
+    def __init__(self) -> None:
+        self.rng = random.Random()  # seeded per trial in reset, so a trial's moves repeat
 
     def reset(self, info: dict[str, Any]) -> None:
         self.rng.seed(info.get("trial_id", 0))
