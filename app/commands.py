@@ -37,7 +37,7 @@ def admin_create(name: str = typer.Argument(..., help="The experimenter's login 
     """Create an experimenter account (or set the password of an existing one)."""
     from sqlalchemy import select
 
-    from app.db.engine import make_engine, make_sessionmaker, upgrade
+    from app.db.engine import open_database
     from app.db.models import Experimenter
     from app.security import hash_password
     from app.settings import Settings
@@ -48,10 +48,7 @@ def admin_create(name: str = typer.Argument(..., help="The experimenter's login 
         password = typer.prompt("Password", hide_input=True, confirmation_prompt=True)
     if len(password) < 8:
         raise typer.BadParameter("must be at least 8 characters", param_hint="--password")
-    settings = Settings()
-    engine = make_engine(settings)
-    upgrade(settings, engine)
-    with make_sessionmaker(engine).begin() as db:
+    with open_database(Settings()).begin() as db:
         user = db.scalar(select(Experimenter).where(Experimenter.name == name))
         if user is None:
             db.add(Experimenter(name=name, password_hash=hash_password(password)))

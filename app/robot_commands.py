@@ -12,13 +12,10 @@ from app.backends.remote import ROBOT_ROLES
 
 
 def _sessions():
-    from app.db.engine import make_engine, make_sessionmaker, upgrade
+    from app.db.engine import open_database
     from app.settings import Settings
 
-    settings = Settings()
-    engine = make_engine(settings)
-    upgrade(settings, engine)
-    return make_sessionmaker(engine)
+    return open_database(Settings())
 
 
 def robot_create(name: str = typer.Argument(..., help="The robot's name, unique on this server."),

@@ -51,3 +51,10 @@ def upgrade(settings: Settings, engine: Engine | None = None) -> None:
     with engine.begin() as connection:
         config.attributes["connection"] = connection
         command.upgrade(config, "head")
+
+
+def open_database(settings: Settings) -> sessionmaker:
+    """Sessions on the settings' database, brought up to date first (for commands run outside the server)."""
+    engine = make_engine(settings)
+    upgrade(settings, engine)
+    return make_sessionmaker(engine)

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from sqlalchemy import func, select
 
 from app.clock import ServerClock
-from app.db.engine import make_engine, make_sessionmaker, upgrade
+from app.db.engine import open_database
 from app.db.models import Team, Trial
 from app.demo.players import DemoError, ScriptedCommander, ScriptedDriver, Seat
 from app.mazes import Mazes
@@ -46,9 +46,7 @@ class Demo:
 
     def __init__(self, settings: Settings, seed: int = 0, pace_s: float | None = None) -> None:
         self.settings = settings
-        engine = make_engine(settings)
-        upgrade(settings, engine)
-        self.db = make_sessionmaker(engine)
+        self.db = open_database(settings)
         self.log = EventLog(self.db)
         self.mazes = Mazes(settings)
         self.seats = SeatTokens(settings.signing_key())
