@@ -1,6 +1,6 @@
 """Which backend fills a trial's robot seat, by the trial's `backend` spec.
 
-`sim` is built in; the rover registers `robot` (spec `robot:<id>`) with `register_backend`.
+`sim` registers here; the rover registers `robot` (spec `robot:<id>`) with `register_backend`.
 A factory gets the spec and the trial's runtime (state, services, settings) and returns a
 `RobotBackend` that is not yet connected.
 """
@@ -29,13 +29,11 @@ def register_backend(kind: str, factory: BackendFactory) -> None:
 
 
 def backend_kinds() -> list[str]:
-    return sorted(set(_FACTORIES) | {"sim"} | set(PLUGINS))
+    return sorted(set(_FACTORIES) | set(PLUGINS))
 
 
 async def create_backend(spec: str, runtime: "TrialRuntime") -> RobotBackend:
     kind = spec.split(":", 1)[0]
-    if kind == "sim":
-        return await simulator_backend(spec, runtime)
     if kind not in _FACTORIES and kind in PLUGINS:
         importlib.import_module(PLUGINS[kind])
     if kind not in _FACTORIES:
@@ -55,3 +53,6 @@ async def simulator_backend(spec: str, runtime: "TrialRuntime") -> RobotBackend:
     else:
         start = await asyncio.to_thread(mazes.start_pose, state.maze, state.targets[0], runtime.trial_id)
     return SimulatorBackend(mazes.load(state.maze), graph, start, runtime.services.clock)
+
+
+register_backend("sim", simulator_backend)

@@ -10,7 +10,6 @@ from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from sqlalchemy import select
 
-from app.backends.registry import backend_kinds
 from app.backends.remote import robot_links
 from app.db.models import Participant, Robot, Team, Trial
 from app.drivers.registry import driver_names
@@ -55,9 +54,7 @@ def dashboard(request: Request, error: str | None = None):
         maze_names = services.mazes.names()
         suggestions = {t.id: suggest_maze(db, t, maze_names) for t in teams}
     # The robot seat: the simulator or a registered rover, by the trial's backend spec.
-    backends = {"sim": "simulator"}
-    if "robot" in backend_kinds():
-        backends.update({f"robot:{r.id}": f"{r.name} (rover)" for r in rovers})
+    backends = {"sim": "simulator", **{f"robot:{r.id}": f"{r.name} (rover)" for r in rovers}}
     return render(request, "experimenter.html", participants=participants, teams=teams, trials=trials,
                   names=names, team_names=team_names, mazes=maze_names, suggestions=suggestions,
                   backends=backends, drivers=["human"] + [f"agent:{n}" for n in driver_names()],
