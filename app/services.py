@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import Engine
@@ -30,4 +30,4 @@ class Services:
     mazes: Mazes
     hub: "TrialHub" = None  # type: ignore[assignment]
     relay: Any = None  # `RedisRelay` when ROBOTSLANG_REDIS_URL is set: trials shared between processes
-    extras: dict[str, Any] = field(default_factory=dict)  # room for plug-ins (e.g. connected robots)
+    robots: Any = None  # `RobotLinks`: the rovers and cameras connected here (made by `robot_links`)

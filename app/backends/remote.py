@@ -300,11 +300,10 @@ class RobotLinks:
 
 
 def robot_links(services) -> RobotLinks:
-    """This server's `RobotLinks`, kept in `services.extras`."""
-    links = services.extras.get("robots")
-    if links is None:
-        links = services.extras["robots"] = RobotLinks(services)
-    return links
+    """This server's `RobotLinks`, made on first use."""
+    if services.robots is None:
+        services.robots = RobotLinks(services)
+    return services.robots
 
 
 # -- the backend ----------------------------------------------------------------------
