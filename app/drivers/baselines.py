@@ -7,7 +7,7 @@ import random
 from typing import Any
 
 from app.drivers.registry import register_driver
-from app.settings import Settings
+from app.mazes import Mazes
 from sim.dynamics import snap_pose, teacher_action
 
 RANDOM_CLAIM_P = 0.02
@@ -29,15 +29,12 @@ class RandomDriver:
 class ShortestPathDriver:
     """Needs the true pose (simulator); without one it claims at once."""
 
-    def __init__(self, settings: Settings) -> None:
-        self.settings = settings
+    def __init__(self, mazes: Mazes) -> None:
+        self.mazes = mazes
         self.maze = self.graph = None
 
     def reset(self, info: dict[str, Any]) -> None:
-        from app.mazes import Mazes
-
-        mazes = Mazes(self.settings)
-        self.maze, self.graph = mazes.load(info["maze"]), mazes.graph(info["maze"])
+        self.maze, self.graph = self.mazes.load(info["maze"]), self.mazes.graph(info["maze"])
 
     def act(self, dialog, observation) -> str:
         pose = observation.get("pose")
@@ -47,5 +44,5 @@ class ShortestPathDriver:
         return teacher_action(self.graph, snap_pose(self.graph, *pose), goal).word
 
 
-register_driver("random", lambda info, settings: RandomDriver())
-register_driver("shortest", lambda info, settings: ShortestPathDriver(settings))
+register_driver("random", lambda info, services: RandomDriver())
+register_driver("shortest", lambda info, services: ShortestPathDriver(services.mazes))

@@ -1,7 +1,7 @@
 """Agent Drivers by name: a trial's `driver` is `human` or `agent:<name>`.
 
 `register_driver(name, factory)`; the factory gets the trial info (see `DriverPolicy.reset`)
-and the `Settings`, and returns a `DriverPolicy`. Drivers register themselves on first
+and the server's `Services` (settings, and the mazes with their cached graphs), and returns a `DriverPolicy`. Drivers register themselves on first
 look-up; the learned one (`seq2seq`) imports torch only when a trial seats it, so the server
 starts without it.
 """
@@ -9,12 +9,13 @@ starts without it.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from app.drivers.base import DriverPolicy
-from app.settings import Settings
+if TYPE_CHECKING:
+    from app.services import Services
 
-DriverFactory = Callable[[dict[str, Any], Settings], DriverPolicy]
+DriverFactory = Callable[[dict[str, Any], "Services"], DriverPolicy]
 
 _FACTORIES: dict[str, DriverFactory] = {}
 
@@ -32,8 +33,8 @@ def driver_names() -> list[str]:
     return sorted(_FACTORIES)
 
 
-def create_driver(name: str, info: dict[str, Any], settings: Settings) -> DriverPolicy:
+def create_driver(name: str, info: dict[str, Any], services: "Services") -> DriverPolicy:
     _load_plugins()
     if name not in _FACTORIES:
         raise LookupError(f"unknown agent driver {name!r}; known: {', '.join(sorted(_FACTORIES))}")
-    return _FACTORIES[name](info, settings)
+    return _FACTORIES[name](info, services)

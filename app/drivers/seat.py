@@ -77,7 +77,7 @@ class AgentSeat:
         state, settings = runtime.state, runtime.settings
         info = {"trial_id": runtime.trial_id, "maze": state.maze, "targets": list(state.targets),
                 "backend": state.backend}
-        policy = await asyncio.to_thread(create_driver, self.name, info, settings)
+        policy = await asyncio.to_thread(create_driver, self.name, info, runtime.services)
         await asyncio.to_thread(policy.reset, info)
         runtime.join(self)
         while not runtime.state.over:

@@ -54,7 +54,7 @@ def test_register_driver_adds_a_named_agent(settings):
             assert observation["frame"][:2] == b"\xff\xd8"
             return "left"
 
-    register_driver("test-left", lambda info, settings: AlwaysLeft())
+    register_driver("test-left", lambda info, services: AlwaysLeft())
     assert {"random", "shortest", "test-left"} <= set(driver_names())
     with ServerThread(settings) as server:
         services = server.services
@@ -78,7 +78,7 @@ def test_register_driver_adds_a_named_agent(settings):
 
 
 def test_an_agent_that_fails_is_logged_and_the_trial_stays_open(settings):
-    def broken(info, settings):
+    def broken(info, services):
         raise FileNotFoundError("no checkpoint at runs/missing.pt")
 
     register_driver("test-broken", broken)
