@@ -3,9 +3,10 @@
 Encoder: word embeddings (128) -> LSTM (128) over the dialog tokens. Its final state starts the
 decoder LSTM (128), which at each step reads the encoded ray observation and the embedding (8)
 of the previous action, and scores forward/left/right/stop. Forward is masked wherever it
-would collide. Three options go beyond the paper's model: attention over the dialog at each
-step, a progress monitor (an auxiliary head predicting how much of the way is done), and
-target flags (which rays see the object being looked for).
+would collide. Four options go beyond the paper's model: attention over the dialog at each
+step, a progress monitor (an auxiliary head predicting how much of the way is done), target
+flags (which rays see the object being looked for), and a critic (a value head for training
+on the distance covered, `models.rollout`).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from dataclasses import asdict, dataclass
 import torch
 from torch import nn
 
+from models.tokenizer import MAX_TOKENS
 from sim.dynamics import Action
 from sim.observations import N_LABELS, N_RAYS
 
@@ -37,7 +39,9 @@ class AgentConfig:
     attention: bool = False
     progress_monitor: bool = False
     target_rays: bool = False  # add, per ray, whether it sees the target object
+    critic: bool = False  # a value head, for the actor-critic loss on the distance covered
     attention_dim: int = 32  # keys and values are projected once per dialog, so each step is cheap
+    context_tokens: int = MAX_TOKENS  # the encoder's fixed (left-padded) input width
 
     @property
     def obs_inputs(self) -> int:
@@ -66,31 +70,36 @@ class Seq2SeqAgent(nn.Module):
         self.policy = nn.Linear(c.hidden, N_ACTIONS)
         if c.progress_monitor:
             self.progress = nn.Linear(c.hidden, 1)
+        if c.critic:
+            self.value = nn.Linear(c.hidden, 1)
 
     def encode(self, tokens: torch.Tensor, lengths: torch.Tensor):
-        """(B, T) ids, (B,) lengths -> context, its mask (B, T), initial state.
+        """(B, T) ids, right-padded, and (B,) lengths -> context, its mask (B, W), initial state.
 
-        The context is (B, T, H), or with attention its (keys, values) projections.
+        The encoder reads each dialog left-padded to the fixed width W (`context_tokens`), so its
+        last token is the last step for every dialog: one fused LSTM call, about 3x cheaper in
+        training than packed sequences, and a lone dialog (the web Driver's) is read exactly as
+        in training. The context is (B, W, H), or with attention its (keys, values) projections.
 
         A dialog of length 0 (the language-blind ablation) gets a zero state and no context.
         """
-        empty = lengths == 0
-        safe = lengths.clamp(min=1)
-        emb = self.drop(self.embedding(tokens))
-        packed = nn.utils.rnn.pack_padded_sequence(emb, safe.cpu(), batch_first=True, enforce_sorted=False)
-        out, (h, c) = self.encoder(packed)
-        ctx, _ = nn.utils.rnn.pad_packed_sequence(out, batch_first=True, total_length=tokens.shape[1])
-        keep = (~empty).float().unsqueeze(1)
+        width = self.config.context_tokens
+        lengths = lengths.clamp(max=width)
+        source = torch.arange(width).unsqueeze(0) - (width - lengths).unsqueeze(1)  # column in `tokens`
+        ctx_mask = source >= 0
+        left = tokens.gather(1, source.clamp(min=0, max=tokens.shape[1] - 1)).masked_fill(~ctx_mask, 0)
+        out, (h, c) = self.encoder(self.drop(self.embedding(left)))
+        keep = (lengths > 0).float().unsqueeze(1)
         h, c = h[0] * keep, c[0] * keep
-        ctx_mask = torch.arange(tokens.shape[1]).unsqueeze(0) < lengths.unsqueeze(1)
-        ctx = ctx * ctx_mask.unsqueeze(2).float()
+        ctx = out * ctx_mask.unsqueeze(2).float()
         if self.config.attention:  # (keys, values) in place of the raw context
             ctx = (self.attn_key(ctx), self.attn_value(ctx))
         return ctx, ctx_mask, (h, c)
 
     def step(self, obs: torch.Tensor, prev_action: torch.Tensor, state, ctx, ctx_mask,
              forward_blocked: torch.Tensor, stop_allowed: torch.Tensor | None = None):
-        """One decision: logits (B, 4) with the impossible actions masked, the new state, progress (B,) or None."""
+        """One decision: logits (B, 4) with the impossible actions masked, the new state, and the
+        progress (B,) and value (B,) heads' outputs (None where the agent has no such head)."""
         x = torch.cat([self.obs_encoder(obs), self.action_embedding(prev_action)], dim=1)
         h, c = self.decoder(self.drop(x), state)
         out = h
@@ -104,7 +113,8 @@ class Seq2SeqAgent(nn.Module):
         logits = self.policy(self.drop(out))
         logits = mask_logits(logits, forward_blocked, stop_allowed)
         progress = torch.sigmoid(self.progress(out)).squeeze(1) if self.config.progress_monitor else None
-        return logits, (h, c), progress
+        value = self.value(out).squeeze(1) if self.config.critic else None
+        return logits, (h, c), progress, value
 
 
 def observation_input(config: AgentConfig, obs: torch.Tensor, target_label: torch.Tensor) -> torch.Tensor:

@@ -77,7 +77,7 @@ class Seq2SeqDriver:
         stop_allowed = torch.tensor([not self._stop_held])
         label = -1 if self.blind == "language" else int(object_label(target))
         obs = observation_input(self.agent.config, obs, torch.tensor([label]))
-        logits, self.state, _ = self.agent.step(obs, self.prev, self.state, self.ctx, self.ctx_mask,
+        logits, self.state, _, _ = self.agent.step(obs, self.prev, self.state, self.ctx, self.ctx_mask,
                                                 blocked, stop_allowed)
         action = int(logits.argmax(dim=1))
         self.prev = torch.tensor([action])

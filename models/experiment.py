@@ -110,8 +110,11 @@ def run_experiment(bench: Benchmark, out: str | Path, models: list[str], seeds: 
         iters = meta["iters"]  # a resumed experiment keeps its sizing
     costs = meta.get("iteration_seconds")
     if iters is None:
-        costs = {m: measure_iteration_seconds(bench, out, m) for m in models}
-        mean_cost = {f: sum(c[f] for c in costs.values()) / len(costs) for f in FEEDBACKS}
+        # An untrained agent that may stop anywhere (a critic's) ends its probe episodes early,
+        # so no variant is taken to be cheaper than the baseline, whose student runs to the cap.
+        costs = {m: measure_iteration_seconds(bench, out, m) for m in dict.fromkeys(["baseline", *models])}
+        mean_cost = {f: sum(max(costs[m][f], costs["baseline"][f]) for m in models) / len(models)
+                     for f in FEEDBACKS}
         iters = choose_iters(mean_cost, len(models), len(seeds), budget_minutes * 60 - timing["world_s"] - 300,
                              workers)
     eval_every = eval_every or max(1, math.ceil(iters / EVALS_PER_RUN))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 
 from models.agent import FORWARD, STOP, AgentConfig, Seq2SeqAgent, mask_logits
@@ -75,3 +76,69 @@ def test_target_flags_are_the_target_column_of_each_rays_one_hot_label(few):
     assert torch.equal(flags.bool(), labels == int(Label.MUG))
     unknown = observation_input(config, obs, torch.full((50,), -1))[:, world.obs_features:]
     assert (unknown == 0).all()
+
+
+def test_a_lone_dialog_is_encoded_as_in_a_padded_batch(few):
+    eps = few["train_set"]
+    agent = Seq2SeqAgent(AgentConfig(vocab_size=len(few["tokenizer"]), obs_features=few["world"].obs_features)).eval()
+    tokens, lengths = torch.from_numpy(eps.tokens), torch.from_numpy(eps.lengths)
+    _, _, (h, c) = agent.encode(tokens, lengths)
+    k = int(lengths.argmin())  # the shortest dialog: the most padding in the batch
+    _, _, (h1, c1) = agent.encode(tokens[k:k + 1, :lengths[k]], lengths[k:k + 1])
+    assert torch.allclose(h[k], h1[0], atol=1e-6) and torch.allclose(c[k], c1[0], atol=1e-6)
+
+
+def test_rewards_are_the_metres_covered_in_forward_steps_and_a_bonus_for_stopping_at_the_goal(few):
+    from models.rollout import SUCCESS_BONUS, move_rewards
+    from sim.geometry import GRID_STEP_M
+
+    world, eps = few["world"], few["train_set"]
+    idx = np.array([0, 0, 0, 0])
+    goal = eps.goal_node[0]
+    off = world.offset[eps.run[0]]
+    far = off + int(np.argmax(np.where(np.isfinite(eps.goal_dist[0]), eps.goal_dist[0], -1)))
+    moved = world.forward[far][world.forward[far] >= 0][0]
+    before = np.array([far, far, goal, far])
+    after = np.array([moved, far, goal, moved])
+    chosen = np.array([FORWARD, STOP, STOP, FORWARD])
+    done = np.array([False, False, False, True])
+    reward = move_rewards(world, eps, idx, before, after, chosen, done)
+    d = goal_distance(world, eps, idx, before) - goal_distance(world, eps, idx, after)
+    assert reward[0] == pytest.approx(d[0] / GRID_STEP_M, rel=1e-5)
+    assert reward[1] == 0 and reward[2] == SUCCESS_BONUS and reward[3] == 0
+
+
+def test_actor_critic_loss_on_a_hand_computed_episode():
+    from models.rollout import ENTROPY_WEIGHT, GAMMA, actor_critic_loss
+
+    # One episode of two steps, rewards 1 then 2, then over; a second step of a finished episode.
+    logp = [torch.tensor([-0.5], requires_grad=True), torch.tensor([-1.0], requires_grad=True),
+            torch.tensor([-7.0], requires_grad=True)]
+    entropy = [torch.tensor([0.3]), torch.tensor([0.2]), torch.tensor([9.0])]
+    value = [torch.tensor([1.5], requires_grad=True), torch.tensor([1.0], requires_grad=True),
+             torch.tensor([4.0], requires_grad=True)]
+    reward = [torch.tensor([1.0]), torch.tensor([2.0]), torch.tensor([0.0])]
+    active = torch.tensor([[1.0], [1.0], [0.0]])
+    loss = actor_critic_loss(logp, entropy, value, reward, active)
+    returns = [1 + GAMMA * 2, 2.0]
+    advantage = [returns[0] - 1.5, returns[1] - 1.0]
+    expected = (0.5 * advantage[0] + 1.0 * advantage[1]
+                + 0.5 * 0.5 * (advantage[0] ** 2 + advantage[1] ** 2) - ENTROPY_WEIGHT * 0.5)
+    assert loss.item() == pytest.approx(expected, rel=1e-6)
+    loss.backward()
+    assert logp[2].grad.item() == 0 and value[2].grad.item() == 0  # the finished step teaches nothing
+    assert logp[0].grad.item() == pytest.approx(-advantage[0])  # the policy is pushed toward what paid
+
+
+def test_an_agent_with_a_critic_may_stop_anywhere_under_student_forcing(few):
+    world, eps = few["world"], few["train_set"]
+    torch.manual_seed(0)
+    agent = Seq2SeqAgent(AgentConfig(vocab_size=len(few["tokenizer"]), obs_features=world.obs_features,
+                                     critic=True, target_rays=True))
+    idx = np.arange(len(eps))
+    roll = run_episodes(agent, world, eps, idx, "student", generator=torch.Generator().manual_seed(1), train=True)
+    stopped = (roll.actions == STOP).any(axis=1)
+    assert (roll.final_node[stopped] != eps.goal_node[stopped]).any()  # untrained: stops short
+    assert torch.isfinite(roll.loss)
+    roll.loss.backward()
+    assert agent.value.weight.grad.abs().sum() > 0  # the critic learns from the returns

@@ -61,6 +61,29 @@ def test_training_resumes_from_last_checkpoint(trained, bench, few):
               progress=False, train_instances=few["train"], eval_instances=few["val"])
 
 
+def test_improved_variant_plays_with_its_averaged_weights_and_resumes_with_both(bench, few, tmp_path):
+    from models.train import MODELS, update_average
+
+    cfg = TrainConfig(feedback="student", model="improved", iters=6, batch=8, eval_every=3, max_actions=40)
+    kwargs = dict(world=few["world"], progress=False, train_instances=few["train"], eval_instances=few["val"])
+    train(bench, cfg, tmp_path, **kwargs)
+    ckpt = torch.load(tmp_path / "last.pt", weights_only=False)
+    played, _, _ = load_agent(tmp_path / "last.pt")
+    for name, weights in played.state_dict().items():
+        assert torch.equal(weights, ckpt["eval_state_dict"][name])
+    assert any(not torch.equal(ckpt["state_dict"][k], ckpt["eval_state_dict"][k]) for k in ckpt["state_dict"])
+    # Resumed to 9 iterations, the average continues from where it was: its next step mixes in
+    # the trained weights with the variant's decay.
+    train(bench, TrainConfig(**{**cfg.__dict__, "iters": 9}), tmp_path, **kwargs)
+    assert torch.load(tmp_path / "last.pt", weights_only=False)["iteration"] == 9
+    decay = MODELS["improved"].weight_average
+    averaged, trained_now = load_agent(tmp_path / "last.pt")[0], load_agent(tmp_path / "last.pt")[0]
+    trained_now.load_state_dict(torch.load(tmp_path / "last.pt", weights_only=False)["state_dict"])
+    before = averaged.policy.weight.clone()
+    update_average(averaged, trained_now, decay)
+    assert torch.allclose(averaged.policy.weight, decay * before + (1 - decay) * trained_now.policy.weight)
+
+
 def test_missing_or_foreign_checkpoint_is_a_clear_error(tmp_path):
     with pytest.raises(FileNotFoundError, match="no such checkpoint"):
         load_agent(tmp_path / "nope.pt")
