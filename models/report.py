@@ -20,7 +20,8 @@ FEEDBACK_LABEL = {"teacher": "Teacher forcing", "student": "Student forcing"}
 BLIND_LABEL = {"none": "vision + language", "vision": "vision-blind", "language": "language-blind"}
 BASELINE_LABEL = {"random": "Random", "stop": "Immediate Stop"}
 TABLE_METRICS = {"TD/OTD": (("td", "TD"), ("otd", "OTD")), "SR/SPL": (("success", "SR"), ("spl", "SPL"))}
-ABLATION_MARK, FEEDBACK_MARK = "*", "†"
+ABLATION_MARK, FEEDBACK_MARK, VARIANT_MARK = "*", "†", "‡"
+REFERENCE_MODEL = "baseline"  # the paper's model, which every other variant is tested against
 
 
 def configurations(agents: set[str]) -> list[tuple[str, str, str]]:
@@ -36,7 +37,8 @@ def configurations(agents: set[str]) -> list[tuple[str, str, str]]:
 
 
 def comparison_pairs(configs: list[tuple[str, str, str]]) -> list[tuple[str, str]]:
-    """Full model vs each ablation (same feedback), and student vs teacher (same inputs)."""
+    """Full model vs each ablation (same feedback), student vs teacher (same inputs), and each
+    variant's full model vs the baseline's (same feedback)."""
     present = {"/".join(c) for c in configs}
     pairs = []
     for m, f, b in configs:
@@ -45,6 +47,9 @@ def comparison_pairs(configs: list[tuple[str, str, str]]) -> list[tuple[str, str
     for m, f, b in configs:
         if f == "student" and f"{m}/teacher/{b}" in present:
             pairs.append((f"{m}/student/{b}", f"{m}/teacher/{b}"))
+    for m, f, b in configs:
+        if m != REFERENCE_MODEL and b == "none" and f"{REFERENCE_MODEL}/{f}/none" in present:
+            pairs.append((f"{m}/{f}/none", f"{REFERENCE_MODEL}/{f}/none"))
     return pairs
 
 
@@ -60,7 +65,9 @@ def _marks(agent: str, metric: str, tests: list[Comparison]) -> str:
     for c in tests:
         if c.metric != metric or not c.significant:
             continue
-        if c.a.split("/")[1] != c.b.split("/")[1]:  # student vs teacher: marked on the student row
+        if c.a.split("/")[0] != c.b.split("/")[0]:  # variant vs baseline: marked on the variant row
+            marks += VARIANT_MARK if agent == c.a else ""
+        elif c.a.split("/")[1] != c.b.split("/")[1]:  # student vs teacher: marked on the student row
             marks += FEEDBACK_MARK if agent == c.a else ""
         elif agent == c.b:  # full vs ablation: marked on the ablation row
             marks += ABLATION_MARK
@@ -184,7 +191,8 @@ def write_report(out: str | Path) -> Path:
     lines += [tables_markdown(results, tests),
               f"{ABLATION_MARK}: significantly different from the full model with the same feedback; "
               f"{FEEDBACK_MARK}: student forcing significantly different from teacher forcing with the same "
-              "inputs (paired t-tests over instances, metrics averaged over seeds per instance, "
+              f"inputs; {VARIANT_MARK}: full model significantly different from the {REFERENCE_MODEL}'s with "
+              "the same feedback (paired t-tests over instances, metrics averaged over seeds per instance, "
               "Benjamini-Yekutieli within each split and metric, alpha 0.05).", "",
               "## Tests", "", tests_markdown(tests), "",
               "![TD distributions](td_distribution.png)", ""]

@@ -28,6 +28,8 @@ def experiment(tmp_path):
         results += rows(split, "baseline/student/language", base + 1.0 + rng.normal(0, 0.1, 30))  # clearly worse
         results += rows(split, "baseline/student/vision", base + rng.normal(0, 0.5, 30))
         results += rows(split, "baseline/teacher/none", base + rng.normal(0, 0.5, 30))
+        results += rows(split, "improved/student/none", base - 1.0 + rng.normal(0, 0.1, 30))  # clearly better
+        results += rows(split, "improved/teacher/none", base + rng.normal(0, 0.5, 30))
         write_csv(tmp_path / "results" / f"{split}.csv", results)
     hist = tmp_path / "runs" / "baseline" / "student-none" / "seed0" / "val" / "history.json"
     hist.parent.mkdir(parents=True)
@@ -47,6 +49,11 @@ def test_report_marks_the_significantly_worse_ablation_only(experiment):
     pairs = {(c["a"], c["b"]) for c in tests["test"]}
     assert ("baseline/student/none", "baseline/student/language") in pairs
     assert ("baseline/student/none", "baseline/teacher/none") in pairs
+    assert ("improved/student/none", "baseline/student/none") in pairs
+    better = next(ln for ln in text.splitlines() if ln.startswith("| improved: Student forcing, vision + language"))
+    assert better.count("‡") == 4  # TD and OTD on both splits, on the variant's row
+    same = next(ln for ln in text.splitlines() if ln.startswith("| improved: Teacher forcing, vision + language"))
+    assert "‡" not in same
     for png in ("td_distribution.png", "learning_curves.png"):
         assert (experiment / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
