@@ -45,21 +45,32 @@ def test_teacher_forcing_reaches_every_goal_and_stops_there(few):
     assert (goal_distance(world, eps, idx, roll.final_node) == 0).all()
 
 
-def test_untrained_agents_never_drive_into_walls_and_student_stops_only_at_the_goal(few):
+def test_an_agent_that_always_wants_forward_never_drives_into_a_wall(few):
     world, eps = few["world"], few["train_set"]
-    torch.manual_seed(0)
-    agent = Seq2SeqAgent(AgentConfig(vocab_size=len(few["tokenizer"]), obs_features=world.obs_features))
+    agent = Seq2SeqAgent(AgentConfig(vocab_size=len(few["tokenizer"]), obs_features=world.obs_features, dropout=0.0))
+    with torch.no_grad():
+        agent.policy.bias[FORWARD] = 50.0
     idx = np.arange(len(eps))
     for feedback in ("student", "argmax"):
         roll = run_episodes(agent, world, eps, idx, feedback, generator=torch.Generator().manual_seed(1))
-        for b in range(len(idx)):
-            for t in range(roll.steps[b]):
-                if roll.actions[b, t] == FORWARD:
-                    # A forward move always changes the node: it was never masked-out (blocked).
-                    assert roll.nodes[b, t + 1] != roll.nodes[b, t]
-        if feedback == "student":
-            stopped = (roll.actions == STOP).any(axis=1)
-            assert (roll.final_node[stopped] == eps.goal_node[stopped]).all()
+        forward = roll.actions[:, :-1] == FORWARD
+        moved = roll.nodes[:, 1:-1] != roll.nodes[:, :-2]
+        assert forward.sum() > 100 and (moved[forward]).all()  # every forward it took went somewhere
+        assert ((roll.actions[:, :-1] >= 0) & ~forward).any()  # and where it was blocked, it turned
+
+
+def test_student_forcing_stops_only_at_the_goal_however_much_the_agent_wants_to(few):
+    world, eps = few["world"], few["train_set"]
+    agent = Seq2SeqAgent(AgentConfig(vocab_size=len(few["tokenizer"]), obs_features=world.obs_features, dropout=0.0))
+    with torch.no_grad():
+        agent.policy.bias[STOP] = 50.0  # the agent all but always wants to stop
+    idx = np.arange(len(eps))
+    greedy = run_episodes(agent, world, eps, idx, "argmax")
+    assert (greedy.steps == 1).all()  # evaluation lets it stop at once
+    roll = run_episodes(agent, world, eps, idx, "student", generator=torch.Generator().manual_seed(1), max_actions=30)
+    stopped = (roll.actions == STOP).any(axis=1)
+    assert (roll.final_node[stopped] == eps.goal_node[stopped]).all()
+    assert (~stopped).any() and (roll.steps[~stopped] == 30).all()  # elsewhere it had to go on
 
 
 def test_target_flags_are_the_target_column_of_each_rays_one_hot_label(few):
