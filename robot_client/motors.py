@@ -12,7 +12,6 @@ import json
 import threading
 import time
 from pathlib import Path
-from typing import IO
 
 from gpiozero import Motor, Robot
 
@@ -70,14 +69,15 @@ def mock_factory(pin_log: Path | None = None):
 
     if pin_log is None:
         return MockFactory(pin_class=MockPWMPin)
-    log: IO[str] = open(pin_log, "a", buffering=1)  # line-buffered: readers see each change
-
     class LoggedPWMPin(MockPWMPin):
         def _change_state(self, value):
             changed = super()._change_state(value)
             if changed:
-                log.write(json.dumps({"t_ns": time.monotonic_ns(), "pin": self.info.name,
-                                      "state": float(value)}) + "\n")
+                # Opened per change (a few per move): readers see each line at once, and no
+                # handle outlives the pins, whoever closes them and whenever.
+                with open(pin_log, "a") as log:
+                    log.write(json.dumps({"t_ns": time.monotonic_ns(), "pin": self.info.name,
+                                          "state": float(value)}) + "\n")
             return changed
 
     return MockFactory(pin_class=LoggedPWMPin)
