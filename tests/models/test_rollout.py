@@ -47,16 +47,18 @@ def test_teacher_forcing_reaches_every_goal_and_stops_there(few):
 
 def test_an_agent_that_always_wants_forward_never_drives_into_a_wall(few):
     world, eps = few["world"], few["train_set"]
+    torch.manual_seed(0)
     agent = Seq2SeqAgent(AgentConfig(vocab_size=len(few["tokenizer"]), obs_features=world.obs_features, dropout=0.0))
     with torch.no_grad():
-        agent.policy.bias[FORWARD] = 50.0
+        agent.policy.bias[FORWARD] = 50.0  # forward whenever it can; a turn (or stop) only where blocked
     idx = np.arange(len(eps))
     for feedback in ("student", "argmax"):
         roll = run_episodes(agent, world, eps, idx, feedback, generator=torch.Generator().manual_seed(1))
         forward = roll.actions[:, :-1] == FORWARD
         moved = roll.nodes[:, 1:-1] != roll.nodes[:, :-2]
-        assert forward.sum() > 100 and (moved[forward]).all()  # every forward it took went somewhere
-        assert ((roll.actions[:, :-1] >= 0) & ~forward).any()  # and where it was blocked, it turned
+        assert forward.sum() >= len(idx) and moved[forward].all()  # every forward it took went somewhere
+        if feedback == "student":  # it cannot stop, so at walls it must have turned
+            assert ((roll.actions[:, :-1] >= 0) & ~forward).any()
 
 
 def test_student_forcing_stops_only_at_the_goal_however_much_the_agent_wants_to(few):
