@@ -29,6 +29,7 @@ class Blind(str, Enum):
 class Model(str, Enum):
     baseline = "baseline"
     improved = "improved"
+    attention = "attention"
 
 
 class EvalSplit(str, Enum):
@@ -49,8 +50,9 @@ def train_ndh(
     seed: int = typer.Option(0, help="Random seed."),
     iters: int = typer.Option(2000, help="Training iterations (batches of 100)."),
     out: Path = typer.Option(..., help="Run folder: best.pt, last.pt, history.json; resumes from last.pt."),
-    model: Model = typer.Option(Model.baseline, help="baseline: the paper's model; improved: attention over "
-                                "the dialog and a progress monitor."),
+    model: Model = typer.Option(Model.baseline, help="baseline: the paper's model; improved: target flags, "
+                                "actor-critic on the distance covered, averaged weights; attention: attention "
+                                "over the dialog, a progress monitor and target flags."),
     eval_every: int = typer.Option(200, help="Validate on val_seen every this many iterations."),
     train_on: TrainOn = typer.Option(TrainOn.train, help="train, or train+val_seen (the test-time retraining; "
                                      "no validation)."),
