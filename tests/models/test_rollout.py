@@ -94,11 +94,13 @@ def test_target_flags_are_the_target_column_of_each_rays_one_hot_label(few):
 def test_a_lone_dialog_is_encoded_as_in_a_padded_batch(few):
     eps = few["train_set"]
     agent = Seq2SeqAgent(AgentConfig(vocab_size=len(few["tokenizer"]), obs_features=few["world"].obs_features)).eval()
-    tokens, lengths = torch.from_numpy(eps.tokens), torch.from_numpy(eps.lengths)
-    _, _, (h, c) = agent.encode(tokens, lengths)
-    k = int(lengths.argmin())  # the shortest dialog: the most padding in the batch
-    _, _, (h1, c1) = agent.encode(tokens[k:k + 1, :lengths[k]], lengths[k:k + 1])
-    assert torch.allclose(h[k], h1[0], atol=1e-6) and torch.allclose(c[k], c1[0], atol=1e-6)
+    tokens, lengths = torch.from_numpy(eps.tokens).clone(), torch.from_numpy(eps.lengths).clone()
+    tokens[0, 30:], lengths[0] = 0, 30  # benchmark dialogs fill the 100 tokens: make one short
+    _, mask, (h, c) = agent.encode(tokens, lengths)
+    assert mask[0].sum() == 30 and mask[1].all()
+    _, _, (h1, c1) = agent.encode(tokens[:1, :30], lengths[:1])
+    assert torch.allclose(h[0], h1[0], atol=1e-6) and torch.allclose(c[0], c1[0], atol=1e-6)
+    assert not torch.allclose(h[0], h[1], atol=1e-3)  # and the short dialog was read as itself
 
 
 def test_rewards_are_the_metres_covered_in_forward_steps_and_a_bonus_for_stopping_at_the_goal(few):
