@@ -1,10 +1,12 @@
-"""`robotslang robot create|list`: register rovers and overhead cameras from the command line.
+"""`robotslang robot create|list|virtual`: register rovers and overhead cameras, run a software one.
 
 The token is printed once, at creation; the database keeps only its hash, so a lost token
 means registering the robot again under a new name.
 """
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import typer
 
@@ -55,8 +57,70 @@ def robot_list() -> None:
             typer.echo(f"{robot.id:>4}  {robot.role:<8}  {backend:<10}  {robot.name}")
 
 
+def robot_virtual(
+    server: str = typer.Option(..., help="Server URL, e.g. http://127.0.0.1:8000."),
+    token: str = typer.Option(..., envvar="ROBOTSLANG_ROBOT_TOKEN",
+                              help="The robot's token from `robotslang robot create` (or ROBOTSLANG_ROBOT_TOKEN)."),
+    maze: str = typer.Option(..., help="The maze on the table (a name from `robotslang mazes list`)."),
+    role: str = typer.Option("driver", help="driver: the rover (motors, front camera); overhead: the table camera."),
+    seed: int = typer.Option(0, help="Seeds the start pose, the motion errors and the camera noise."),
+    noise: str = typer.Option("default", help="Motion error of each pulse: default or none (exact moves)."),
+    truth: Path | None = typer.Option(None, help="Driver: write the true pose here (JSON lines); "
+                                                 "overhead: the driver rover's file to film."),
+    start: str | None = typer.Option(None, help="Start pose X,Y,THETA (metres, metres, radians); "
+                                                "default a random node, from --seed."),
+    fps: float = typer.Option(15.0, help="Camera frames per second (0.5..60)."),
+    calibration: Path | None = typer.Option(None, help="Move timings as `robotslang-robot calibrate` writes "
+                                                       "them (default: the client's defaults)."),
+) -> None:
+    """Run a software rover (or overhead camera) through the real rover client's link."""
+    import sys
+
+    from app.mazes import Mazes, UnknownMaze
+    from app.settings import Settings
+    from app.virtual_rover.command import VirtualRoverSpec, parse_start, run
+    from robot_client.calibration import Calibration, CalibrationError
+    from robot_client.client import robot_url
+    from sim.rover import MotionNoise
+
+    if role not in ROBOT_ROLES:
+        raise typer.BadParameter(f"expected one of {', '.join(ROBOT_ROLES)}, got {role!r}", param_hint="--role")
+    if not 0.5 <= fps <= 60:
+        raise typer.BadParameter(f"must be 0.5..60 frames per second, got {fps}", param_hint="--fps")
+    checks = [("--server", lambda: robot_url(server)), ("--noise", lambda: MotionNoise.named(noise)),
+              ("--start", lambda: start and parse_start(start)),
+              ("--calibration", lambda: calibration and Calibration.load(calibration))]
+    values = {}
+    for hint, check in checks:
+        try:
+            values[hint] = check()
+        except (ValueError, CalibrationError) as err:
+            raise typer.BadParameter(str(err), param_hint=hint) from None
+    mazes = Mazes(Settings())
+    try:
+        table = mazes.load(maze)
+    except UnknownMaze as err:
+        raise typer.BadParameter(f"{err}; known: {', '.join(mazes.names()[:8])}, ...", param_hint="--maze") from None
+    if role == "overhead" and truth is None:
+        raise typer.BadParameter("the overhead camera films the driver rover's truth file: give its path",
+                                 param_hint="--truth")
+    if values["--start"]:
+        from sim.rover import Rover
+
+        try:
+            Rover(table, values["--start"])
+        except ValueError as err:
+            raise typer.BadParameter(str(err), param_hint="--start") from None
+    spec = VirtualRoverSpec(server=server, token=token, maze=table, role=role, seed=seed,
+                            noise=values["--noise"], truth=truth, start=values["--start"] or None,
+                            fps=fps, calibration=values["--calibration"] or Calibration())
+    graph = mazes.graph(maze) if role == "driver" and spec.start is None else None
+    sys.exit(run(spec, graph))
+
+
 def register(root: typer.Typer) -> None:
     robot = typer.Typer(help="Robots (rovers and overhead cameras) and their tokens.", no_args_is_help=True)
     robot.command("create")(robot_create)
     robot.command("list")(robot_list)
+    robot.command("virtual")(robot_virtual)
     root.add_typer(robot, name="robot")

@@ -1,0 +1,289 @@
+"""`robotslang robot virtual` end to end: the real server (`robotslang serve`) and the software
+rover as separate processes on loopback, a trial on that rover driven over real websockets, and
+the rover's truth file read as only a test harness may."""
+
+from __future__ import annotations
+
+import asyncio
+import base64
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from websockets.asyncio.server import serve
+
+from app.main import build_services
+from app.virtual_rover.truth import TruthSample, read_truth
+from robot_client.calibration import Calibration
+from sim.camera import FrontCamera
+from sim.geometry import GRID_STEP_M, TURN_RAD, heading_angle
+from sim.library import MazeLibrary
+from sim.navgraph import NavGraph
+from sim.rover import BODY_RADIUS_M, NOISE_MODELS, Rover, RoverPose
+from tests.app.conftest import platform_settings
+from tests.app.live import REPO, SeatClient, ServerProcess, make_trial
+from tests.app.test_experimenter import cli
+from tests.robot_client.conftest import ScriptedServer
+
+pytestmark = pytest.mark.anyio
+MAZE = "gen-000"
+START_S = 60.0  # bound on waits that include starting a process (seconds when the machine is idle)
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"
+
+
+@pytest.fixture(scope="module")
+def maze():
+    return MazeLibrary().load(MAZE)
+
+
+@pytest.fixture(scope="module")
+def start(maze) -> RoverPose:
+    """A node and heading with 4 to 8 free steps ahead of an exact rover: room to move, a wall in reach."""
+    graph = NavGraph.build(maze, use_cache=False)
+    for x, y in graph.nodes:
+        for k in range(8):
+            pose = RoverPose(float(x), float(y), float(heading_angle(k)))
+            try:
+                rover = Rover(maze, pose, NOISE_MODELS["none"])
+            except ValueError:
+                break  # the body does not fit here
+            free = 0
+            while free < 12 and not rover.move("forward").collided:
+                free += 1
+            if 4 <= free <= 8:
+                return pose
+    raise AssertionError(f"no start pose with a wall 4 to 8 steps ahead on {MAZE}")
+
+
+class Lab:
+    """A server process on its own data directory, the trial's services in this process."""
+
+    def __init__(self, tmp_path: Path) -> None:
+        self.tmp_path = tmp_path
+        self.settings = platform_settings(tmp_path, cache_dir=tmp_path / "cache")
+        self.env = {"ROBOTSLANG_DATA_DIR": str(self.settings.data_dir),
+                    "ROBOTSLANG_SECRET_KEY": self.settings.secret_key,
+                    "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0", "ROBOTSLANG_CACHE_DIR": str(tmp_path / "cache")}
+        self.services = build_services(self.settings)
+        self.server = ServerProcess(self.env).start()
+        self.rovers: list[subprocess.Popen] = []
+
+    def register(self, name: str, role: str = "driver") -> tuple[int, str]:
+        made = cli("robot", "create", name, "--role", role, env=self.env)
+        assert made.returncode == 0, made.stderr
+        robot_id = int(made.stdout.split("robot:")[1].split()[0]) if role == "driver" else 0
+        return robot_id, made.stdout.splitlines()[2]
+
+    def rover(self, token: str, *args: str) -> subprocess.Popen:
+        log = open(self.tmp_path / f"rover-{len(self.rovers)}.log", "w")
+        proc = subprocess.Popen([sys.executable, "-c", "from app.cli import main; main()", "robot", "virtual",
+                                 "--server", self.server.url, "--token", token, "--maze", MAZE, *args],
+                                env={**os.environ, **self.env}, cwd=REPO, stdout=log, stderr=subprocess.STDOUT)
+        self.rovers.append(proc)
+        return proc
+
+    def seats(self, trial: int):
+        return [SeatClient(self.server.ws_url, self.services.seats.issue(trial, role))
+                for role in ("commander", "driver")]
+
+    def close(self) -> None:
+        for proc in self.rovers:
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGTERM)
+                try:
+                    proc.wait(timeout=10)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    proc.wait()
+        self.server.stop()
+        self.services.engine.dispose()
+
+
+@pytest.fixture
+def lab(tmp_path):
+    lab = Lab(tmp_path)
+    yield lab
+    lab.close()
+
+
+async def until(predicate, what: str, timeout: float = START_S):
+    deadline = time.monotonic() + timeout
+    while not (value := predicate()):
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        await asyncio.sleep(0.02)
+    return value
+
+
+def settled(truth: Path) -> list[TruthSample]:
+    """The truth at rest: the start, then the end of each pulse."""
+    return [s for s in read_truth(truth) if not s.moving] if truth.exists() else []
+
+
+def decode(frame_event: dict) -> np.ndarray:
+    jpeg = base64.b64decode(frame_event["jpeg"])
+    image = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
+    assert image is not None, "a frame that is not a JPEG"
+    return image
+
+
+async def frame_after(driver: SeatClient, t_ns: int) -> np.ndarray:
+    """The first frame at the Driver captured after server time `t_ns`."""
+    event = await driver.wait_for(lambda m: m.get("type") == "event" and m["kind"] == "frame"
+                                  and m["payload"]["capture_ns"] > t_ns)
+    return decode(event)
+
+
+def turned(a: float, b: float) -> float:
+    """Signed angle from heading a to heading b, radians in (-pi, pi]."""
+    return (b - a + math.pi) % (2 * math.pi) - math.pi
+
+
+async def test_a_driver_drives_the_virtual_rover_frames_acks_truth_and_a_wall(lab, maze, start, tmp_path):
+    robot_id, token = lab.register("virtual rover")
+    trial = make_trial(lab.services, MAZE, backend=f"robot:{robot_id}")
+    truth = tmp_path / "truth.jsonl"
+    lab.rover(token, "--truth", str(truth), "--seed", "5", "--fps", "10",
+              "--start", f"{start.x},{start.y},{start.theta}")
+    commander, driver = lab.seats(trial)
+    camera = FrontCamera()
+    async with commander, driver:
+        await driver.event("phase", phase="localizing", timeout=START_S)
+        first = decode(await driver.event("frame"))
+        assert first.shape == (camera.height, camera.width, 3)
+        assert settled(truth)[0].pose == start and settled(truth)[0].move_id == 0
+
+        async def move(action: str, move_id: str) -> tuple[TruthSample, TruthSample, np.ndarray]:
+            before = settled(truth)[-1]
+            await driver.send("move", action=action, move_id=move_id)
+            executed = await driver.event("move_executed", move_id=move_id, timeout=START_S)
+            # The rover cannot sense a collision, real or virtual: every pulse that ran is "ok".
+            assert executed["payload"]["outcome"] == "ok", executed["payload"]
+            after = settled(truth)[-1]
+            assert after.move_id == before.move_id + 1 and after.action == action
+            return before, after, await frame_after(driver, executed["t_ns"])
+
+        for i, action in enumerate(["forward", "left", "right", "left", "right"]):
+            before, after, frame = await move(action, f"m{i}")
+            step = math.hypot(after.x - before.x, after.y - before.y)
+            if action == "forward":
+                assert abs(step - GRID_STEP_M) < 0.008 and not after.collision
+                along = math.atan2(after.y - before.y, after.x - before.x)
+                assert abs(turned(before.theta, along)) < math.radians(3)
+            else:
+                sign = 1 if action == "left" else -1
+                assert abs(turned(before.theta, after.theta) - sign * TURN_RAD) < math.radians(4)
+                assert step < 0.005
+            # The frame shows the rover where the truth says it is, not where it was.
+            seen = frame.astype(np.float32)
+            here = np.abs(seen - camera.ideal(maze, after.x, after.y, after.theta)).mean()
+            there = np.abs(seen - camera.ideal(maze, before.x, before.y, before.theta)).mean()
+            assert here < there, (action, here, there)
+
+        # Straight on into the wall: the body stops at it and stays there.
+        for i in range(14):
+            before, after, _ = await move("forward", f"w{i}")
+            if after.collision:
+                break
+        else:
+            raise AssertionError("the rover never reached the wall ahead")
+        assert BODY_RADIUS_M <= Rover(maze, after.pose).clearance_m(after.x, after.y) < BODY_RADIUS_M + 0.01
+        _, pressed, _ = await move("forward", "again")
+        assert pressed.collision and pressed.pose == after.pose
+    during = [s for s in read_truth(truth) if s.moving]
+    assert during and all(s.move_id >= 1 for s in during)  # sampled while the pulses ran
+    t = [s.t_ns for s in read_truth(truth)]
+    assert t == sorted(t)
+
+
+async def test_killing_the_server_stops_the_rover_and_it_reconnects_when_the_server_returns(lab, start, tmp_path):
+    robot_id, token = lab.register("resilient rover")
+    trial = make_trial(lab.services, MAZE, backend=f"robot:{robot_id}")
+    truth, timings = tmp_path / "truth.jsonl", tmp_path / "calibration.json"
+    Calibration(forward_s=1.8).save(timings)  # a long pulse, so the link dies during it
+    lab.rover(token, "--truth", str(truth), "--noise", "none", "--fps", "5", "--calibration", str(timings),
+              "--start", f"{start.x},{start.y},{start.theta}")
+    commander, driver = lab.seats(trial)
+    async with commander, driver:
+        await driver.event("phase", phase="localizing", timeout=START_S)
+        await driver.send("move", action="forward", move_id="long")
+        await until(lambda: any(s.moving and math.hypot(s.x - start.x, s.y - start.y) > 0.005
+                                for s in read_truth(truth)), what="the pulse to move the rover")
+        lab.server.kill()
+        stopped = (await until(lambda: settled(truth)[1:], what="the rover to stop"))[0]
+    travelled = math.hypot(stopped.x - start.x, stopped.y - start.y)
+    assert stopped.move_id == 1 and 0.005 < travelled < GRID_STEP_M * 0.8, travelled  # cut short
+    await asyncio.sleep(0.5)
+    assert settled(truth)[-1] == stopped and not read_truth(truth)[-1].moving  # and it stays stopped
+
+    lab.server.start()
+    commander, driver = lab.seats(trial)
+    async with commander, driver:
+        await driver.event("resumed", reason="disconnect:robot", timeout=START_S)
+        await driver.send("move", action="left", move_id="after")
+        executed = await driver.event("move_executed", move_id="after", timeout=START_S)
+        assert executed["payload"]["outcome"] == "ok", executed["payload"]
+    turn = settled(truth)[-1]
+    assert turn.move_id == 2 and turn.action == "left"
+    assert turn.theta == pytest.approx((stopped.theta + TURN_RAD) % (2 * math.pi))
+    assert (turn.x, turn.y) == (stopped.x, stopped.y)
+
+
+async def test_on_the_wire_the_virtual_rover_is_the_real_client(tmp_path):
+    """The same hello fields, RSF1 frames and acks as `robotslang-robot`, against a scripted server."""
+    seen = {}
+    for kind in ("real", "virtual"):
+        server = ScriptedServer()
+        async with serve(server.handler, "127.0.0.1", 0, compression=None, max_size=None) as ws_server:
+            url = f"ws://127.0.0.1:{ws_server.sockets[0].getsockname()[1]}/ws/robot"
+            if kind == "real":
+                command = [sys.executable, "-m", "robot_client", "--camera", "synthetic", "--motors", "mock"]
+            else:
+                command = [sys.executable, "-c", "from app.cli import main; main()", "robot", "virtual",
+                           "--maze", MAZE, "--seed", "1"]
+            proc = subprocess.Popen(command + ["--server", url, "--token", "good", "--fps", "5"], cwd=REPO,
+                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            try:
+                await asyncio.wait_for(server.connected.wait(), START_S)
+                await server.send({"type": "move", "id": "w1", "action": "left"})
+                ack = await server.next("ack", timeout=START_S)
+                await until(lambda: len(server.frames) >= 2, what=f"frames from the {kind} client")
+            finally:
+                proc.send_signal(signal.SIGTERM)
+                assert proc.wait(timeout=20) == 0
+            seen[kind] = (server.hellos[0], ack, server.frames)
+    (real_hello, real_ack, real_frames), (hello, ack, frames) = seen["real"], seen["virtual"]
+    assert set(hello) == set(real_hello) and set(hello["camera"]) == set(real_hello["camera"])
+    assert {k: hello[k] for k in ("protocol", "client", "role", "watchdog_s")} == \
+           {k: real_hello[k] for k in ("protocol", "client", "role", "watchdog_s")}
+    assert hello["camera"]["source"] == "virtual"
+    assert set(ack) == set(real_ack) and ack["status"] == real_ack["status"] == "done"
+    assert ack["finished_ns"] - ack["started_ns"] >= Calibration().left_s * 1e9
+    assert [(f.width, f.height) for f in frames[:2]] == [(640, 480)] * 2
+    assert frames[1].seq == frames[0].seq + 1 and frames[1].capture_ns > frames[0].capture_ns
+
+
+def test_bad_options_are_refused_by_name(tmp_path, maze):
+    env = {"ROBOTSLANG_DATA_DIR": str(tmp_path / "var"), "ROBOTSLANG_SECRET_KEY": "k"}
+    base = ["robot", "virtual", "--server", "http://127.0.0.1:9", "--token", "t"]
+    cases = [(["--maze", "nowhere"], "--maze", "unknown maze 'nowhere'"),
+             (["--maze", MAZE, "--noise", "wild"], "--noise", "unknown noise model 'wild'"),
+             (["--maze", MAZE, "--start", "1,2"], "--start", "expected X,Y,THETA"),
+             (["--maze", MAZE, "--start", "0,0,0"], "--start", "within 0.067 m"),
+             (["--maze", MAZE, "--role", "overhead"], "--truth", "films the driver rover's truth file"),
+             (["--maze", MAZE, "--role", "pilot"], "--role", "expected one of driver, overhead")]
+    for args, hint, text in cases:
+        done = cli(*base, *args, env=env)
+        message = " ".join(done.stderr.replace("│", " ").split())
+        assert done.returncode == 2 and hint in message and text in message, (args, done.stderr)
