@@ -1,4 +1,5 @@
-"""`robotslang robot create|list|virtual`: register rovers and overhead cameras, run a software one.
+"""`robotslang robot create|list|calibrate-overhead|virtual`: register rovers and overhead cameras,
+measure the overhead camera's view of the table, and run a software rover or overhead camera.
 
 The token is printed once, at creation; the database keeps only its hash, so a lost token
 means registering the robot again under a new name.
@@ -118,9 +119,63 @@ def robot_virtual(
     sys.exit(run(spec, graph))
 
 
+def calibrate_overhead(
+        camera: str = typer.Option(None, help="The overhead camera: an OpenCV index (0), a video file or a URL."),
+        image: Path = typer.Option(None, help="Calibrate from this image file instead of a camera."),
+        out: Path = typer.Option(None, help="Where to write the calibration "
+                                            "[default: the overhead_calibration setting, DATA_DIR/overhead_calibration.json]."),
+        fov: float = typer.Option(None, help="The camera's horizontal field of view in degrees "
+                                             "[default: measured from the markers].")) -> None:
+    """Measure the table -> image homography from the four corner markers and store it."""
+    from app.settings import Settings
+    from sim.tracking import CalibrationError, calibrate
+
+    if (camera is None) == (image is None):
+        raise typer.BadParameter("give exactly one of --camera and --image", param_hint="--camera")
+    frame = _read_image(image) if image is not None else _grab_frame(camera)
+    try:
+        calibration = calibrate(frame, fov_deg=fov)
+    except CalibrationError as err:
+        typer.echo(f"error: {err}", err=True)
+        raise typer.Exit(1) from None
+    path = calibration.save(out or Settings().overhead_calibration)
+    focal = calibration.camera_matrix[0, 0]
+    width, height = calibration.image_size
+    typer.echo(f"calibrated {width}x{height} frames: corner markers fit to {calibration.reprojection_px:.2f} px RMS, "
+               f"focal length {focal:.0f} px; written to {path}")
+
+
+def _read_image(path: Path):
+    import cv2
+
+    frame = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if frame is None:
+        raise typer.BadParameter(f"{path}: not a readable image", param_hint="--image")
+    return frame
+
+
+def _grab_frame(camera: str):
+    import cv2
+
+    capture = cv2.VideoCapture(int(camera) if camera.isdigit() else camera)
+    frame = None
+    try:
+        for _ in range(5):  # a webcam's first frames are often dark while its exposure settles
+            ok, grabbed = capture.read()
+            if not ok:
+                break
+            frame = grabbed
+    finally:
+        capture.release()
+    if frame is None:
+        raise typer.BadParameter(f"{camera}: no frame from this camera", param_hint="--camera")
+    return frame
+
+
 def register(root: typer.Typer) -> None:
     robot = typer.Typer(help="Robots (rovers and overhead cameras) and their tokens.", no_args_is_help=True)
     robot.command("create")(robot_create)
     robot.command("list")(robot_list)
+    robot.command("calibrate-overhead")(calibrate_overhead)
     robot.command("virtual")(robot_virtual)
     root.add_typer(robot, name="robot")

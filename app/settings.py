@@ -5,7 +5,7 @@ from __future__ import annotations
 import secrets
 from pathlib import Path
 
-from pydantic import Field
+from pydantic import Field, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 
@@ -25,6 +25,13 @@ class Settings(BaseSettings):
     agent_move_interval_s: float = 1.0  # pace of an agent Driver
     redis_url: str | None = None  # fan-out between processes; in-process when unset
     allowed_origins: list[str] = Field(default_factory=list)  # extra websocket origins beside the page's own
+    overhead_calibration: Path | None = None  # the overhead camera's calibration; default data_dir/overhead_calibration.json
+
+    @model_validator(mode="after")
+    def _default_paths(self) -> "Settings":
+        if self.overhead_calibration is None:
+            self.overhead_calibration = self.data_dir / "overhead_calibration.json"
+        return self
 
     @property
     def sqlite_path(self) -> Path:
