@@ -70,7 +70,8 @@ def robot_virtual(
                                                  "overhead: the driver rover's file to film."),
     start: str | None = typer.Option(None, help="Start pose X,Y,THETA (metres, metres, radians); "
                                                 "default a random node, from --seed."),
-    fps: float = typer.Option(15.0, help="Camera frames per second (0.5..60)."),
+    fps: float | None = typer.Option(None, help="Camera frames per second, 0.5..60 "
+                                                "[default: 15 for the rover, 5 for the overhead camera]."),
     calibration: Path | None = typer.Option(None, help="Move timings as `robotslang-robot calibrate` writes "
                                                        "them (default: the client's defaults)."),
 ) -> None:
@@ -86,6 +87,7 @@ def robot_virtual(
 
     if role not in ROBOT_ROLES:
         raise typer.BadParameter(f"expected one of {', '.join(ROBOT_ROLES)}, got {role!r}", param_hint="--role")
+    fps = fps if fps is not None else (15.0 if role == "driver" else 5.0)
     if not 0.5 <= fps <= 60:
         raise typer.BadParameter(f"must be 0.5..60 frames per second, got {fps}", param_hint="--fps")
     checks = [("--server", lambda: robot_url(server)), ("--noise", lambda: MotionNoise.named(noise)),

@@ -132,7 +132,7 @@ def open_camera(spec: str, settings: CameraSettings):
 @dataclass(frozen=True)
 class EncodedFrame:
     seq: int
-    capture_ns: int  # time.monotonic_ns() when the image was read
+    capture_ns: int  # time.monotonic_ns() when the image was exposed (or read, see FrameGrabber._read)
     width: int
     height: int
     jpeg: bytes
@@ -169,8 +169,7 @@ class FrameGrabber:
         seq = 0
         try:
             while not self._stop.is_set():
-                image = self._camera.read()
-                capture_ns = time.monotonic_ns()
+                image, capture_ns = self._read()
                 if image.shape[1] != s.width or image.shape[0] != s.height:
                     image = cv2.resize(image, (s.width, s.height), interpolation=cv2.INTER_AREA)
                 ok, jpeg = cv2.imencode(".jpg", image, params)
@@ -192,6 +191,14 @@ class FrameGrabber:
             self.error = exc
             if self._on_frame is not None:
                 self._on_frame()
+
+    def _read(self):
+        """An image and when it was exposed: the source's own time where it knows it
+        (`read_stamped() -> (image, monotonic ns)`), else the moment `read()` returned."""
+        stamped = getattr(self._camera, "read_stamped", None)
+        if stamped is not None:
+            return stamped()
+        return self._camera.read(), time.monotonic_ns()
 
     def stop(self) -> None:
         self._stop.set()

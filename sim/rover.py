@@ -26,7 +26,7 @@ from sim.maze import Maze
 from sim.observations import PX_PER_M_X, WALL_CLEARANCE_M
 
 # The body's radius: the simulator's own clearance (a forward move collides there when it would
-# end nearer a wall than 38 map pixels, 0.066 m), so the rover drives as near a wall as the
+# end nearer a wall than 38 map pixels, 0.067 m), so the rover drives as near a wall as the
 # simulated agent may. (The grid's square clearance and its dropped diagonals still make the two
 # disagree on some moves: the rover is a body on the table, not a walk on the graph.)
 BODY_RADIUS_M = WALL_CLEARANCE_M

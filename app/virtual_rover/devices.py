@@ -116,9 +116,14 @@ class FrontCameraSource:
         self.maze, self.motors, self.camera = maze, motors, camera
         self._rng = np.random.default_rng(seed)
 
-    def read(self) -> np.ndarray:
+    def read_stamped(self) -> tuple[np.ndarray, int]:
+        # Exposed at the instant of the pose, not when the render is done (tens of ms later).
+        t_ns = time.monotonic_ns()
         p = self.motors.pose()
-        return self._capture(self.maze, p.x, p.y, p.theta, self.camera, self._rng)
+        return self._capture(self.maze, p.x, p.y, p.theta, self.camera, self._rng), t_ns
+
+    def read(self) -> np.ndarray:
+        return self.read_stamped()[0]
 
     def close(self) -> None:
         pass
@@ -138,11 +143,17 @@ class OverheadCameraSource:
         self._truth = TruthFollower(truth_path)
         self._seed, self._count = seed, 0
 
-    def read(self) -> np.ndarray:
+    def read_stamped(self) -> tuple[np.ndarray, int]:
+        # Exposed when the pose was read: a render takes a few hundred ms, and the rover moves
+        # on meanwhile, so stamping the finished render would put the picture late.
+        t_ns = time.monotonic_ns()
         sample: TruthSample | None = self._truth.poll()
         self._count += 1
         pose = None if sample is None else (sample.x, sample.y, sample.theta)
-        return self._render(self.maze, pose, self.camera, seed=self._seed * 1_000_003 + self._count)
+        return self._render(self.maze, pose, self.camera, seed=self._seed * 1_000_003 + self._count), t_ns
+
+    def read(self) -> np.ndarray:
+        return self.read_stamped()[0]
 
     def close(self) -> None:
         self._truth.close()

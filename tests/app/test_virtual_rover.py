@@ -28,6 +28,7 @@ from sim.geometry import GRID_STEP_M, TURN_RAD, heading_angle
 from sim.library import MazeLibrary
 from sim.navgraph import NavGraph
 from sim.rover import BODY_RADIUS_M, NOISE_MODELS, Rover, RoverPose
+from sim.tracking import OverheadTracker
 from tests.app.conftest import platform_settings
 from tests.app.live import REPO, SeatClient, ServerProcess, make_trial
 from tests.app.test_experimenter import cli
@@ -238,6 +239,41 @@ async def test_killing_the_server_stops_the_rover_and_it_reconnects_when_the_ser
     assert turn.move_id == 2 and turn.action == "left"
     assert turn.theta == pytest.approx((stopped.theta + TURN_RAD) % (2 * math.pi))
     assert (turn.x, turn.y) == (stopped.x, stopped.y)
+
+
+async def test_the_virtual_overhead_camera_films_the_driver_rover_where_its_truth_says(lab, start, tmp_path):
+    robot_id, token = lab.register("filmed rover")
+    _, camera_token = lab.register("table camera", role="overhead")
+    trial = make_trial(lab.services, MAZE, backend=f"robot:{robot_id}")
+    truth = tmp_path / "truth.jsonl"
+    lab.rover(token, "--truth", str(truth), "--seed", "2", "--fps", "5",
+              "--start", f"{start.x},{start.y},{start.theta}")
+    lab.rover(camera_token, "--role", "overhead", "--truth", str(truth), "--fps", "2")
+
+    def overhead_after(t_ns: int) -> dict | None:
+        return next((e.payload for e in lab.services.log.load(trial) if e.kind == "frame"
+                     and e.payload["source"] == "overhead" and e.payload["capture_ns"] > t_ns), None)
+
+    commander, driver = lab.seats(trial)
+    async with commander, driver:
+        await driver.event("phase", phase="localizing", timeout=START_S)
+        # The camera may have joined before the rover's first truth line (an empty table then),
+        # and its first frames are stamped on arrival until the clocks are matched: let it settle.
+        await until(lambda: sum(e.kind == "frame" and e.payload["source"] == "overhead"
+                                for e in lab.services.log.load(trial)) >= 3, what="overhead frames")
+        for i, action in enumerate(["forward", "left", "forward"]):
+            await driver.send("move", action=action, move_id=f"o{i}")
+            executed = await driver.event("move_executed", move_id=f"o{i}", timeout=START_S)
+            pose = settled(truth)[-1]
+            frame = await until(lambda: overhead_after(executed["t_ns"]), what="an overhead frame after the move")
+            jpeg = (lab.settings.frames_dir / frame["path"]).read_bytes()
+            # A fresh tracker for each frame: the view is under test here, not the smoothing.
+            seen = OverheadTracker().update(jpeg, frame["capture_ns"])
+            assert seen is not None, f"no rover found in the overhead frame after {action}"
+            assert math.hypot(seen.x - pose.x, seen.y - pose.y) < 0.02, (seen, pose)
+            assert abs(turned(pose.theta, seen.heading)) < math.radians(3), (seen, pose)
+    heard = commander.received + driver.received
+    assert not [m for m in heard if m.get("kind") == "frame" and m["payload"]["source"] == "overhead"]
 
 
 async def test_on_the_wire_the_virtual_rover_is_the_real_client(tmp_path):

@@ -39,6 +39,33 @@ def test_a_slow_reader_gets_the_newest_frame_not_a_backlog():
     assert second.capture_ns > first.capture_ns
 
 
+class SlowExposedCamera(SyntheticCamera):
+    """A source that knows when its image was exposed, and takes a while to deliver it."""
+
+    def __init__(self) -> None:
+        super().__init__(160, 120)
+        self.exposed: list[int] = []
+
+    def read_stamped(self):
+        self.exposed.append(time.monotonic_ns())
+        time.sleep(0.05)
+        return self.read(), self.exposed[-1]
+
+
+def test_a_source_that_stamps_its_own_exposure_keeps_that_time():
+    camera = SlowExposedCamera()
+    grabber = FrameGrabber(camera, CameraSettings(160, 120, fps=10))
+    grabber.start()
+    try:
+        deadline = time.monotonic() + 5
+        while (grabber.latest() is None or grabber.latest().seq < 2) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        frame = grabber.latest()
+    finally:
+        grabber.stop()
+    assert frame.capture_ns == camera.exposed[frame.seq - 1]
+
+
 def test_camera_settings_and_sources_name_what_is_wrong(tmp_path):
     with pytest.raises(CameraError, match="JPEG quality must be 1..100, got 0"):
         CameraSettings(quality=0)
