@@ -42,11 +42,14 @@ class TruthSample:
 
 
 class TruthLog:
-    """Appends samples to the side file (replaced when the rover starts); thread-safe."""
+    """Appends samples to the side file (a new file each time the rover starts); thread-safe."""
 
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        # A new file, not the old one truncated: a follower holding the old one open sees
+        # another inode, however far the new one has grown by its next look.
+        self.path.unlink(missing_ok=True)
         self._file = open(self.path, "w", buffering=1)
         self._lock = threading.Lock()
 

@@ -323,3 +323,24 @@ def test_bad_options_are_refused_by_name(tmp_path, maze):
         done = cli(*base, *args, env=env)
         message = " ".join(done.stderr.replace("│", " ").split())
         assert done.returncode == 2 and hint in message and text in message, (args, done.stderr)
+
+
+def test_the_truth_follower_sees_only_whole_lines_and_follows_a_restarted_rover(tmp_path):
+    from app.virtual_rover.truth import TruthFollower, TruthLog
+
+    path = tmp_path / "truth.jsonl"
+    follower = TruthFollower(path)
+    assert follower.poll() is None  # no rover yet: an empty table
+    log = TruthLog(path)
+    log.write(TruthSample(1, 0.5, 0.5, 0.0, 0, None, False, False))
+    log.write(TruthSample(2, 0.6, 0.5, 0.0, 1, "forward", False, False))
+    assert follower.poll().t_ns == 2
+    with open(path, "a") as half:  # a line still being written
+        half.write('{"t_ns": 3, "x": 0.7')
+    assert follower.poll().t_ns == 2 and [s.t_ns for s in read_truth(path)] == [1, 2]
+    log.close()
+    restarted = TruthLog(path)  # the rover starts again: the file is replaced
+    restarted.write(TruthSample(9, 1.0, 1.0, 1.0, 0, None, False, False))
+    assert follower.poll() == TruthSample(9, 1.0, 1.0, 1.0, 0, None, False, False)
+    restarted.close()
+    follower.close()
