@@ -124,10 +124,10 @@ def robot_virtual(
 def calibrate_overhead(
         camera: str = typer.Option(None, help="The overhead camera: an OpenCV index (0), a video file or a URL."),
         image: Path = typer.Option(None, help="Calibrate from this image file instead of a camera."),
-        out: Path = typer.Option(None, help="Where to write the calibration "
-                                            "[default: the overhead_calibration setting, DATA_DIR/overhead_calibration.json]."),
+        out: Path = typer.Option(None, help="Where to write the calibration (default: the overhead_calibration "
+                                            "setting, DATA_DIR/overhead_calibration.json)."),
         fov: float = typer.Option(None, help="The camera's horizontal field of view in degrees "
-                                             "[default: measured from the markers].")) -> None:
+                                             "(default: measured from the markers).")) -> None:
     """Measure the table -> image homography from the four corner markers and store it."""
     from app.settings import Settings
     from sim.tracking import CalibrationError, calibrate

@@ -18,9 +18,11 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from tqdm import tqdm
 
 from sim import fiducials
 from sim.fiducials import MarkerLayout
+from sim.overhead import Imaging, OverheadCamera, render_overhead
 
 CALIBRATION_VERSION = 1
 MAX_REPROJECTION_PX = 3.0  # corner markers fitting worse than this are not where the layout says
@@ -199,6 +201,7 @@ class TrackerConfig:
     still_radius_m: float = 0.006  # measurements this close to the running mean are averaged
     still_heading_rad: float = math.radians(1.5)
     window: int = 8  # at most this many still measurements averaged
+    stale_px: float = 4.0  # corner markers this far from where the calibration puts them: the camera moved
 
 
 @dataclass
@@ -219,12 +222,10 @@ class OverheadTracker:
     intrinsics) when it shows all four, and gives no pose otherwise.
     """
 
-    def __init__(self, calibration: OverheadCalibration | None = None, config: TrackerConfig = TrackerConfig(),
-                 layout: MarkerLayout | None = None, stale_px: float = 4.0):
+    def __init__(self, calibration: OverheadCalibration | None = None, config: TrackerConfig = TrackerConfig()):
         self.calibration = calibration
-        self.layout = layout or (calibration.layout if calibration else MarkerLayout())
+        self.layout = calibration.layout if calibration else MarkerLayout()
         self.config = config
-        self.stale_px = stale_px
         self._detector = fiducials.detector()
         self._plane: np.ndarray | None = None  # image -> rover-top plane, for `calibration`
         self._last: _Measurement | None = None  # the last accepted measurement
@@ -256,7 +257,7 @@ class OverheadTracker:
                 raise CalibrationError(f"calibration is for {calibration.image_size[0]}x{calibration.image_size[1]} "
                                        f"frames, this frame is {image.shape[1]}x{image.shape[0]}")
             error = calibration.fits(found)
-            if error is None or error <= self.stale_px:
+            if error is None or error <= self.config.stale_px:
                 if self._plane is None:
                     self._plane = np.linalg.inv(calibration.plane_homography(self.layout.rover_height_m))
                 return True
@@ -328,7 +329,8 @@ def _mean(ms: list[_Measurement]) -> tuple[float, float, float]:
 
 
 def evaluate_tracker(maze, poses, seed: int = 0, fps: float = 5.0, jpeg_quality: int = 80,
-                     camera=None, imaging=None, progress: bool = False) -> dict:
+                     camera: OverheadCamera | None = None, imaging: Imaging | None = None,
+                     progress: bool = False) -> dict:
     """The tracker against known truth: each of `poses` ((x, y, heading), one per frame at
     `fps`) rendered by the overhead camera, sent as a JPEG of `jpeg_quality` as the server
     receives it, tracked after a calibration from a JPEG of the empty table. Errors are over

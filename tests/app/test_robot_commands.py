@@ -34,3 +34,58 @@ def test_robot_create_prints_a_working_token_once_and_list_shows_the_robots(tmp_
     bad = cli("robot", "create", "rover 2", "--role", "pilot", env=env)
     assert bad.returncode != 0 and "--role" in bad.stderr and "robot role 'pilot'" in bad.stderr
     assert cli("robot", "list", env=env).stdout == listed.stdout, "a refused robot is not registered"
+
+
+def test_calibrate_overhead_stores_the_calibration_the_tracker_uses(tmp_path):
+    import cv2
+    import numpy as np
+
+    from sim.library import MazeLibrary
+    from sim.overhead import render_overhead
+    from sim.tracking import OverheadCalibration, OverheadTracker
+
+    maze = MazeLibrary().load("gen-001")
+    picture = tmp_path / "table.png"
+    cv2.imwrite(str(picture), render_overhead(maze, None))
+    env = {"ROBOTSLANG_DATA_DIR": str(tmp_path / "var")}
+    done = cli("robot", "calibrate-overhead", "--image", str(picture), env=env)
+    assert done.returncode == 0, done.stderr
+    stored = tmp_path / "var" / "overhead_calibration.json"
+    assert "calibrated 960x720 frames" in done.stdout and str(stored) in done.stdout
+    pose = OverheadTracker(OverheadCalibration.load(stored)).update(render_overhead(maze, (1.5, 0.7, 2.0)), 1)
+    assert np.hypot(pose.x - 1.5, pose.y - 0.7) < 0.005
+
+    # A camera is anything OpenCV opens: here a video file; --out and the setting choose the file.
+    video = tmp_path / "camera.avi"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 5, (960, 720))
+    for _ in range(3):
+        writer.write(render_overhead(maze, (1.0, 1.0, 0.0)))
+    writer.release()
+    out = tmp_path / "lab" / "cal.json"
+    assert cli("robot", "calibrate-overhead", "--camera", str(video), "--out", str(out), env=env).returncode == 0
+    assert OverheadCalibration.load(out).image_size == (960, 720)
+    setting = tmp_path / "set.json"
+    by_setting = cli("robot", "calibrate-overhead", "--image", str(picture),
+                     env={**env, "ROBOTSLANG_OVERHEAD_CALIBRATION": str(setting)})
+    assert by_setting.returncode == 0 and setting.exists(), by_setting.stderr
+
+
+def test_calibrate_overhead_refuses_a_view_without_the_markers_and_keeps_the_old_file(tmp_path):
+    import cv2
+    import numpy as np
+
+    env = {"ROBOTSLANG_DATA_DIR": str(tmp_path / "var"), "COLUMNS": "400"}  # rich wraps long paths otherwise
+    stored = tmp_path / "var" / "overhead_calibration.json"
+    stored.parent.mkdir()
+    stored.write_text("kept")
+    blank = tmp_path / "blank.png"
+    cv2.imwrite(str(blank), np.full((720, 960, 3), 90, np.uint8))
+    refused = cli("robot", "calibrate-overhead", "--image", str(blank), env=env)
+    assert refused.returncode == 1 and "corner markers [0, 1, 2, 3] not seen" in refused.stderr
+    not_image = cli("robot", "calibrate-overhead", "--image", str(stored), env=env)
+    assert not_image.returncode == 2 and "not a readable image" in not_image.stderr
+    no_camera = cli("robot", "calibrate-overhead", "--camera", str(tmp_path / "none.avi"), env=env)
+    assert no_camera.returncode == 2 and "no frame from this camera" in no_camera.stderr
+    neither = cli("robot", "calibrate-overhead", env=env)
+    assert neither.returncode == 2 and "exactly one of --camera and --image" in neither.stderr
+    assert stored.read_text() == "kept"
