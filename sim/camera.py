@@ -191,6 +191,10 @@ class CameraCalibration:
     camera_height_m: float = CAMERA_HEIGHT_M
     camera_pitch_rad: float = 0.0
     colours: dict[str, ColourClass] = field(default_factory=dict)
+    # Added to the depth of a ray that meets an object: where the camera sees an object stand
+    # and where its footprint on the map begins differ (by the object's half width, for the
+    # simulator's upright drawings at the footprint's centre); learned with the colours.
+    object_depth_offset_m: float = 0.0
 
     def __post_init__(self) -> None:
         if not (16 <= self.width <= 4096 and 16 <= self.height <= 4096):
@@ -199,6 +203,8 @@ class CameraCalibration:
             raise CalibrationError(f"focal lengths must be positive, got fx={self.fx}, fy={self.fy}")
         if not (0 < self.camera_height_m < 1):
             raise CalibrationError(f"camera_height_m must be in (0, 1) metres, got {self.camera_height_m}")
+        if not abs(self.object_depth_offset_m) <= 0.5:
+            raise CalibrationError(f"object_depth_offset_m must be within 0.5 m, got {self.object_depth_offset_m}")
         if not abs(self.camera_pitch_rad) < math.radians(60):
             raise CalibrationError(f"camera_pitch_rad must be within 60 degrees, got {self.camera_pitch_rad}")
         unknown = set(self.colours) - set(COLOUR_CLASSES)
@@ -213,10 +219,11 @@ class CameraCalibration:
     def distortion(self) -> np.ndarray:
         return np.array([self.k1, self.k2, 0.0, 0.0], dtype=np.float64)
 
-    def with_colours(self, colours: dict[str, ColourClass]) -> "CameraCalibration":
+    def with_colours(self, colours: dict[str, ColourClass],
+                     object_depth_offset_m: float = 0.0) -> "CameraCalibration":
         return CameraCalibration(self.width, self.height, self.fx, self.fy, self.cx, self.cy,
                                  self.k1, self.k2, self.camera_height_m, self.camera_pitch_rad,
-                                 dict(colours))
+                                 dict(colours), float(object_depth_offset_m))
 
     def to_json(self) -> dict:
         return {
@@ -227,6 +234,7 @@ class CameraCalibration:
             "camera_height_m": self.camera_height_m,
             "camera_pitch_rad": self.camera_pitch_rad,
             "colours": {name: c.to_json() for name, c in sorted(self.colours.items())},
+            "object_depth_offset_m": self.object_depth_offset_m,
         }
 
     @classmethod
@@ -246,7 +254,8 @@ class CameraCalibration:
                        k2=float(dist["k2"]), camera_height_m=float(data["camera_height_m"]),
                        camera_pitch_rad=float(data["camera_pitch_rad"]),
                        colours={name: ColourClass.from_json(c, f"{where}: colours.{name}")
-                                for name, c in colours.items()})
+                                for name, c in colours.items()},
+                       object_depth_offset_m=float(data.get("object_depth_offset_m", 0.0)))
         except CalibrationError:
             raise
         except (KeyError, TypeError, ValueError) as exc:

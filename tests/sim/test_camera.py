@@ -75,7 +75,7 @@ def test_calibration_round_trips_through_json(tmp_path):
     assert loaded == calib
     data = json.loads(path.read_text())
     assert set(data) == {"version", "image_size", "intrinsics", "distortion", "camera_height_m",
-                         "camera_pitch_rad", "colours"}
+                         "camera_pitch_rad", "colours", "object_depth_offset_m"}
     assert data["image_size"] == [320, 240]
 
 

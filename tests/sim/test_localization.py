@@ -1,0 +1,79 @@
+"""The particle filter: odometry with collisions, belief from a uniform start, convergence on
+camera frames through perception, and frames that say nothing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sim.camera import FrontCamera, capture
+from sim.dynamics import Action
+from sim.geometry import GRID_STEP_M, TURN_RAD
+from sim.library import MazeLibrary
+from sim.localization import (
+    NO_NOISE, ParticleFilter, apply_move, evaluate_filter, free_space, plot_filter_curve,
+)
+from sim.navgraph import NavGraph
+from sim.perception import perceive, simulated_calibration
+
+CAMERA = FrontCamera()
+
+
+@pytest.fixture(scope="module")
+def maze():
+    return MazeLibrary().load("gen-001")
+
+
+@pytest.fixture(scope="module")
+def calibration(maze):
+    lib = MazeLibrary()
+    worlds = [(m, NavGraph.build(m)) for m in (lib.load("gen-010"), lib.load("gen-011"))]
+    return simulated_calibration(CAMERA, worlds, n_frames=40, seed=12)
+
+
+def test_moves_advance_turn_and_stop_at_walls(maze):
+    space = free_space(maze)
+    rng = np.random.default_rng(0)
+    start = space.sample(1, rng)
+    ahead, collided = apply_move(start, Action.FORWARD, rng, space, NO_NOISE)
+    if not collided[0]:
+        assert np.hypot(*(ahead[0, :2] - start[0, :2])) == pytest.approx(GRID_STEP_M)
+    turned, _ = apply_move(start, Action.LEFT, rng, space, NO_NOISE)
+    assert np.cos(turned[0, 2] - start[0, 2] - TURN_RAD) == pytest.approx(1.0)
+    # Driving on in one direction ends at a wall, where the rover stays.
+    pose, hits = start, []
+    for _ in range(60):
+        pose_next, collided = apply_move(pose, Action.FORWARD, rng, space, NO_NOISE)
+        hits.append(bool(collided[0]))
+        if collided[0]:
+            assert np.array_equal(pose_next[0, :2], pose[0, :2])
+        pose = pose_next
+    assert any(hits) and space.contains(pose[:, 0], pose[:, 1])[0]
+
+
+def test_the_belief_starts_uniform_and_compact_for_display(maze):
+    pf = ParticleFilter(maze, n_particles=1000, seed=1)
+    b = pf.belief()
+    assert b.spread_m > 0.4
+    assert 50 <= len(b.cloud) <= 200 and b.cloud.shape[1] == 4
+    assert b.cloud[:, 3].sum() == pytest.approx(1.0)
+    assert free_space(maze).contains(pf.particles[:, 0], pf.particles[:, 1]).all()
+    assert set(b.to_json()) == {"x", "y", "heading", "spread_m", "cloud"}
+
+
+def test_an_unreadable_frame_leaves_the_belief_alone(maze, calibration):
+    pf = ParticleFilter(maze, n_particles=500, seed=2)
+    before = pf.particles.copy(), pf.log_w.copy()
+    dark = capture(maze, 1.0, 1.0, 0.0, FrontCamera(gain=0.05), 0)
+    pf.update(perceive(dark, calibration))
+    assert np.array_equal(pf.particles, before[0]) and np.array_equal(pf.log_w, before[1])
+
+
+def test_the_filter_finds_the_rover_from_a_uniform_start(maze, calibration, tmp_path):
+    result = evaluate_filter(maze, episodes=5, moves=20, seed=4, n_particles=1000,
+                             calibration=calibration)
+    assert result["converged_fraction_20_moves"] >= 0.8
+    assert len(result["curve"]) == 21
+    assert result["curve"][-1] < result["curve"][0]
+    plot_filter_curve(result, tmp_path / "curve.png")
+    assert (tmp_path / "curve.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
