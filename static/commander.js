@@ -37,7 +37,7 @@ function draw() {
   if (estimate) TableMap.drawRobot(ctx, canvas, estimate.x, estimate.y, estimate.heading, "#ff8c00");
   if (cursor) TableMap.drawRobot(ctx, canvas, cursor.x, cursor.y, cursor.heading, "#ffffff", {dashed: true});
   canvas.dataset.estimate = estimate ? `${estimate.x.toFixed(3)},${estimate.y.toFixed(3)}` : "";
-  document.querySelectorAll("#legend li").forEach((li) => {
+  document.querySelectorAll("#legend li[data-landmark]").forEach((li) => {
     const isNext = li.dataset.landmark === next;
     li.classList.toggle("next", isNext);
     li.querySelector(".next-note").textContent = isNext ? " (next target)" : "";

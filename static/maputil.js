@@ -24,14 +24,19 @@ export const TableMap = {
     }
     ctx.restore();
   },
-  // A ring around the landmark the team is looking for now.
+  // A bold ring and the word "next" at the landmark the team is looking for now.
   drawTargetMark(ctx, canvas, x, y) {
     const {cx, cy} = this.toCanvas(canvas, x, y);
     ctx.save();
-    ctx.lineWidth = 3;
-    for (const [r, colour] of [[19, "#fff"], [23, "#000"]]) {
-      ctx.strokeStyle = colour; ctx.beginPath(); ctx.arc(cx, cy, r, 0, 2 * Math.PI); ctx.stroke();
-    }
+    ctx.lineWidth = 5; ctx.strokeStyle = "#000";
+    ctx.beginPath(); ctx.arc(cx, cy, 27, 0, 2 * Math.PI); ctx.stroke();
+    ctx.lineWidth = 3; ctx.strokeStyle = "#fff"; ctx.setLineDash([7, 4]);
+    ctx.beginPath(); ctx.arc(cx, cy, 27, 0, 2 * Math.PI); ctx.stroke();
+    ctx.setLineDash([]);
+    ctx.font = "bold 15px system-ui, sans-serif"; ctx.textAlign = "center";
+    const ty = cy - 33 < 14 ? cy + 46 : cy - 33;
+    ctx.lineWidth = 4; ctx.strokeStyle = "#000"; ctx.strokeText("next", cx, ty);
+    ctx.fillStyle = "#fff"; ctx.fillText("next", cx, ty);
     ctx.restore();
   },
 };
