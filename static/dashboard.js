@@ -65,6 +65,8 @@ function robotRow(r) {
 
 function showRobots(robots) {
   const backend = document.getElementById("backend");
+  const empty = document.getElementById("no-robots");
+  if (empty) empty.hidden = robots.length > 0;
   for (const r of robots) {
     const row = robotRow(r);
     row.dataset.connected = r.connected;
@@ -74,7 +76,7 @@ function showRobots(robots) {
     row.querySelector(".fps").textContent = r.fps.toFixed(1);
     row.querySelector(".latency").textContent = r.latency_ms === null ? "–" : `${r.latency_ms.toFixed(1)} ms`;
     row.querySelector(".ack").textContent = ackText(r.last_ack);
-    if (r.role !== "driver") continue;
+    if (r.role !== "driver" || !backend) continue;  // no trial form before the first team
     // The trial form names each rover's link, so a trial is not made on an absent one unawares.
     let option = backend.querySelector(`option[value="${r.backend}"]`);
     if (!option) { option = document.createElement("option"); option.value = r.backend; backend.append(option); }
