@@ -109,12 +109,20 @@ async function refreshRobots() {
 }
 
 async function refresh() {
-  let trials;
+  let trials, phases;
   try {
     const res = await fetch("/experimenter/api/trials", {credentials: "same-origin"});
     if (!res.ok) return;
-    trials = (await res.json()).trials;
+    ({trials, phases} = await res.json());
   } catch (e) { return; }  // the next tick retries
+  // Rows of trials no longer open here show their recorded phase and only the controls that apply.
+  const open = new Set(trials.map((t) => String(t.trial_id)));
+  for (const row of document.querySelectorAll("tr[data-trial]")) {
+    const phase = phases[row.dataset.trial];
+    if (open.has(row.dataset.trial) || !phase) continue;
+    row.querySelector(".phase").textContent = phase;
+    showControls(row, phase, []);
+  }
   const running = new Set();
   for (const t of trials) {
     const row = document.querySelector(`tr[data-trial="${t.trial_id}"]`);

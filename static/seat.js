@@ -38,6 +38,9 @@ function renderStatus() {
   $("status").textContent = text;
   $("status").dataset.phase = status.phase;
   document.body.dataset.phase = status.phase;
+  const over = OVER.has(status.phase);  // nothing to send once the trial has ended
+  $("chat-input").disabled = over;
+  $("chat-form").querySelector("button").disabled = over;
   if (text !== announced) { $("announce").textContent = text; announced = text; }
   renderClock();
   emit("status", status);

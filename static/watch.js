@@ -45,13 +45,19 @@ function refreshCamera() {
 }
 
 async function refresh() {
-  let t;
+  let t, phases;
   try {
     const res = await fetch("/experimenter/api/trials", {credentials: "same-origin"});
     if (!res.ok) return;
-    t = (await res.json()).trials.find((x) => x.trial_id === id);
+    const body = await res.json();
+    t = body.trials.find((x) => x.trial_id === id);
+    phases = body.phases || {};
   } catch (e) { return; }  // the next tick retries
-  if (t) { latest = t; applyStatus(status, t); }  // else: not open in this server now; the page's figures stand
+  if (t) { latest = t; applyStatus(status, t); }
+  else if (phases[id] && phases[id] !== status.phase) {  // no longer open here: its recorded phase
+    status.elapsed_s = clockSeconds(status);  // the clock stops where it was
+    status.phase = phases[id];
+  }
   render(); draw();
   if (!OVER.has(status.phase) || $("camera").hidden) refreshCamera();
 }

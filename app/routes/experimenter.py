@@ -132,16 +132,18 @@ def add_trial(request: Request, team_id: int | None = Form(None), maze: str = Fo
 
 
 @router.post("/trials/{trial_id}/{action}")
-async def control(request: Request, trial_id: int, action: str):
+async def control(request: Request, trial_id: int, action: str, back: str = Form("dashboard")):
+    """Pause, resume or abort; back to the dashboard, or to the trial's page (`back=trial`)."""
     if action not in ("pause", "resume", "abort"):
         raise HTTPException(404, f"unknown trial action {action!r}")
     trial_or_404(request, trial_id)
+    page = f"/experimenter/trials/{trial_id}" if back == "trial" else "/experimenter"
     state = fold(request.app.state.services.log.load(trial_id))
     if action not in controls_for(state.phase, sorted(state.pause_reasons)):
         return _redirect(f"trial {trial_id} is {_described(state)}: {action} does not apply")
     runtime = await request.app.state.services.hub.get(trial_id)
     getattr(runtime, action)()
-    return _redirect()
+    return RedirectResponse(page, status_code=303)
 
 
 def _described(state) -> str:
@@ -150,8 +152,13 @@ def _described(state) -> str:
 
 @router.get("/api/trials")
 def live(request: Request):
-    """Every trial this server has open: phase, clock, moves, seats and the true pose."""
-    return {"trials": [r.snapshot() for r in request.app.state.services.hub.live()]}
+    """Every trial this server has open: phase, clock, moves, seats and the true pose; and the
+    recorded phase of the newest trials, so pages drop what is stale once a trial has ended."""
+    services = request.app.state.services
+    with services.db() as db:
+        phases = dict(db.execute(select(Trial.id, Trial.phase).order_by(Trial.id.desc()).limit(100)).all())
+    return {"trials": [r.snapshot() for r in services.hub.live()],
+            "phases": {str(trial_id): phase for trial_id, phase in phases.items()}}
 
 
 @router.get("/trials/{trial_id}", response_class=HTMLResponse)

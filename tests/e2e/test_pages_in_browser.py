@@ -192,8 +192,13 @@ def test_participants_see_the_clock_their_moves_and_what_to_do(browser, server):
         page.wait_for_selector("#status[data-phase=aborted]")
         assert "ended early" in page.inner_text("#status")
     assert all(driver.is_disabled(b) for b in ("#forward", "#left", "#right", "#found"))
-    admin.goto(f"{server.url}/experimenter/trials/{trial_id}")
+    admin.wait_for_selector("#status[data-phase=aborted]")  # the trial's page follows without a reload
     assert all(admin.is_hidden(f"form.control-{a}") for a in ("pause", "resume", "abort"))
+    assert commander.is_disabled("#chat-input")
+    admin.goto(f"{server.url}/experimenter")
+    row = admin.locator(f"tr[data-trial='{trial_id}']")
+    row.locator(".phase", has_text="aborted").wait_for()
+    assert all(row.locator(f"form.control-{a}").is_hidden() for a in ("pause", "resume", "abort"))
     for page in (commander, driver, admin):
         page.context.close()
 
@@ -285,7 +290,7 @@ def test_every_page_passes_axe_and_reads_on_a_phone(browser, server):
     admin.goto(f"{server.url}/experimenter/trials/{ended}")
     admin.once("dialog", lambda d: d.accept())
     admin.click("form.control-abort button")
-    admin.wait_for_url(server.url + "/experimenter")
+    admin.wait_for_selector("#status[data-phase=aborted]")
 
     for name, path in [("dashboard", "/experimenter"), ("trial", f"/experimenter/trials/{trial_id}"),
                        ("replays", "/experimenter/replays"), ("replay", f"/experimenter/trials/{ended}/replay"),
