@@ -8,10 +8,13 @@ from contextlib import asynccontextmanager
 from pathlib import Path
 
 from fastapi import FastAPI, Request
-from fastapi.responses import RedirectResponse
+from fastapi.exception_handlers import http_exception_handler, request_validation_exception_handler
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import FileResponse, RedirectResponse
 from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 from sqlalchemy import select
+from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from app.clock import ServerClock
 from app.db.engine import make_engine, make_sessionmaker, upgrade
@@ -83,5 +86,22 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     @app.exception_handler(experimenter.LoginRequired)
     async def _login_required(request: Request, exc: Exception):
         return RedirectResponse("/", status_code=303)
+
+    # A person following a link gets a page that says what to do; scripts keep the JSON error.
+    @app.exception_handler(StarletteHTTPException)
+    async def _http_error(request: Request, exc: StarletteHTTPException):
+        if not pages.wants_html(request):
+            return await http_exception_handler(request, exc)
+        return pages.error_page(request, exc.status_code, str(exc.detail))
+
+    @app.exception_handler(RequestValidationError)
+    async def _bad_request(request: Request, exc: RequestValidationError):
+        if not pages.wants_html(request):
+            return await request_validation_exception_handler(request, exc)
+        return pages.error_page(request, 404 if request.method == "GET" else 422, None)
+
+    @app.get("/favicon.ico", include_in_schema=False)
+    async def _favicon():
+        return FileResponse(ROOT / "static" / "favicon.svg", media_type="image/svg+xml")
 
     return app

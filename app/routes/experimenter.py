@@ -11,8 +11,8 @@ from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from sqlalchemy import select
 
 from app.backends.remote import robot_links
-from app.db.models import Participant, Robot, Team, Trial
-from app.drivers.registry import driver_names
+from app.db.models import Frame, Participant, Robot, Team, Trial
+from app.drivers import registry
 from app.routes.pages import render, trial_or_404
 from app.security import SESSION_COOKIE
 from app.trial.setup import (TrialSetupError, create_participant, create_team, create_trial, parse_targets,
@@ -33,6 +33,22 @@ def experimenter(request: Request) -> int:
 
 
 router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter)])
+
+
+def agent_drivers(services) -> dict[str, str | None]:
+    """Each agent Driver by its `agent:<name>` spec, with why it cannot start now (None: it can)."""
+    available = getattr(registry, "available_drivers", None)  # the registry's own check, where it has one
+    reasons = available(services) if available is not None else {n: None for n in registry.driver_names()}
+    return {f"agent:{name}": reason for name, reason in sorted(reasons.items())}
+
+
+def controls_for(phase: str, paused: list[str] | tuple[str, ...] = ()) -> list[str]:
+    """The experimenter's controls that apply to a trial in `phase` (pause, resume, abort)."""
+    if phase in ("finished", "aborted"):
+        return []
+    if phase == "waiting":
+        return ["abort"]
+    return ["resume" if "experimenter" in paused else "pause", "abort"]
 
 
 def join_links(request: Request, trial: Trial) -> dict[str, str]:
@@ -57,7 +73,7 @@ def dashboard(request: Request, error: str | None = None):
     backends = {"sim": "simulator", **{f"robot:{r.id}": f"{r.name} (rover)" for r in rovers}}
     return render(request, "experimenter.html", participants=participants, teams=teams, trials=trials,
                   names=names, team_names=team_names, mazes=maze_names, suggestions=suggestions,
-                  backends=backends, drivers=["human"] + [f"agent:{n}" for n in driver_names()],
+                  backends=backends, agents=agent_drivers(services), controls_for=controls_for,
                   robots=robot_links(services).status(), links={t.id: join_links(request, t) for t in trials},
                   error=error)
 
@@ -92,8 +108,12 @@ def add_trial(request: Request, team_id: int | None = Form(None), maze: str = Fo
     services = request.app.state.services
     names = services.mazes.names()
     try:
-        if driver != "human" and driver.removeprefix("agent:") not in driver_names():
-            raise TrialSetupError(f"driver {driver!r} is neither 'human' nor a known agent")
+        if driver != "human":
+            agents = agent_drivers(services)
+            if driver not in agents:
+                raise TrialSetupError(f"driver {driver!r} is neither 'human' nor a known agent")
+            if agents[driver] is not None:
+                raise TrialSetupError(f"{driver} cannot drive now: {agents[driver]}")
         if team_id is None:
             raise TrialSetupError("choose a team (form one first)")
         with services.db.begin() as db:
@@ -112,25 +132,54 @@ def add_trial(request: Request, team_id: int | None = Form(None), maze: str = Fo
 
 
 @router.post("/trials/{trial_id}/{action}")
-async def control(request: Request, trial_id: int, action: str):
+async def control(request: Request, trial_id: int, action: str, back: str = Form("dashboard")):
+    """Pause, resume or abort; back to the dashboard, or to the trial's page (`back=trial`)."""
     if action not in ("pause", "resume", "abort"):
         raise HTTPException(404, f"unknown trial action {action!r}")
+    trial_or_404(request, trial_id)
+    page = f"/experimenter/trials/{trial_id}" if back == "trial" else "/experimenter"
+    state = fold(request.app.state.services.log.load(trial_id))
+    if action not in controls_for(state.phase, sorted(state.pause_reasons)):
+        return _redirect(f"trial {trial_id} is {_described(state)}: {action} does not apply")
     runtime = await request.app.state.services.hub.get(trial_id)
     getattr(runtime, action)()
-    return _redirect()
+    return RedirectResponse(page, status_code=303)
+
+
+def _described(state) -> str:
+    return state.phase + (" and paused" if "experimenter" in state.pause_reasons else "")
 
 
 @router.get("/api/trials")
 def live(request: Request):
-    """Every trial this server has open: phase, clock, moves, seats and the true pose."""
-    return {"trials": [r.snapshot() for r in request.app.state.services.hub.live()]}
+    """Every trial this server has open: phase, clock, moves, seats and the true pose; and the
+    recorded phase of the newest trials, so pages drop what is stale once a trial has ended."""
+    services = request.app.state.services
+    with services.db() as db:
+        phases = dict(db.execute(select(Trial.id, Trial.phase).order_by(Trial.id.desc()).limit(100)).all())
+    return {"trials": [r.snapshot() for r in services.hub.live()],
+            "phases": {str(trial_id): phase for trial_id, phase in phases.items()}}
 
 
 @router.get("/trials/{trial_id}", response_class=HTMLResponse)
 def watch(request: Request, trial_id: int):
     trial = trial_or_404(request, trial_id)
     state = fold(request.app.state.services.log.load(trial_id))
-    return render(request, "watch.html", trial=trial, state=state, links=join_links(request, trial))
+    return render(request, "watch.html", trial=trial, state=state, links=join_links(request, trial),
+                  controls=controls_for(state.phase, sorted(state.pause_reasons)))
+
+
+@router.get("/trials/{trial_id}/camera.jpg")
+def camera(request: Request, trial_id: int):
+    """The Driver's latest camera frame, for the experimenter watching the trial."""
+    services = request.app.state.services
+    with services.db() as db:
+        rel = db.scalar(select(Frame.path).where(Frame.trial_id == trial_id, Frame.source == "driver")
+                        .order_by(Frame.seq.desc()).limit(1))
+    path = services.settings.frames_dir / rel if rel is not None else None
+    if path is None or not path.is_file():
+        raise HTTPException(404, f"trial {trial_id} has no camera frame yet")
+    return Response(path.read_bytes(), media_type="image/jpeg", headers={"Cache-Control": "no-store"})
 
 
 @router.get("/trials/{trial_id}/map.png")

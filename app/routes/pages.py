@@ -7,7 +7,7 @@ from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from sqlalchemy import select
 
 from app.db.models import Experimenter, Trial
-from app.leaderboard import standings
+from app.leaderboard import agent_standings, standings
 from app.trial.state import fold
 from app.security import SESSION_COOKIE, SESSION_MAX_AGE_S, InvalidToken, Seat, verify_password
 
@@ -16,6 +16,28 @@ router = APIRouter()
 
 def render(request: Request, template: str, **context) -> HTMLResponse:
     return request.app.state.templates.TemplateResponse(request, template, context)
+
+
+ADVICE = {
+    403: ("This link does not work", "The link may be mistyped, or it belongs to another trial. "
+                                     "Ask your experimenter for a new join link."),
+    404: ("Page not found", "There is nothing at this address. Check the link, or start from the home page."),
+    409: ("Not possible now", "That cannot be done in the trial's present state. Go back and reload the page."),
+    422: ("That did not work", "Something in the request was not filled in as expected. Go back and try again."),
+}
+
+
+def wants_html(request: Request) -> bool:
+    """A browser following a link or submitting a form, not a script or a fetch() for JSON."""
+    return "text/html" in request.headers.get("accept", "")
+
+
+def error_page(request: Request, status_code: int, detail: str | None) -> HTMLResponse:
+    heading, advice = ADVICE.get(status_code, ("Something went wrong", "Go back and try again."))
+    response = render(request, "error.html", status_code=status_code, heading=heading, advice=advice,
+                      detail=detail if status_code != 403 else None)
+    response.status_code = status_code
+    return response
 
 
 def trial_or_404(request: Request, trial_id: int) -> Trial:
@@ -76,21 +98,26 @@ def logout():
 def leaderboard(request: Request):
     services = request.app.state.services
     with services.db() as db:
-        rows = standings(db, services.settings.move_penalty_s)
+        teams = standings(db, services.settings.move_penalty_s)
+        agents = agent_standings(db, services.settings.move_penalty_s)
     is_experimenter = services.sessions.verify(request.cookies.get(SESSION_COOKIE)) is not None
-    return render(request, "leaderboard.html", rows=rows, penalty=services.settings.move_penalty_s,
+    return render(request, "leaderboard.html", rows=teams, agents=agents, penalty=services.settings.move_penalty_s,
                   experimenter=is_experimenter)
 
 
 @router.get("/play/{token}", response_class=HTMLResponse)
 def play(request: Request, token: str):
     seat = seat_of(request, token)
-    return render(request, f"{seat.role}.html", token=token, trial=trial_or_404(request, seat.trial_id))
+    trial = trial_or_404(request, seat.trial_id)
+    if seat.role == "commander":  # where the landmarks are: the Commander's to know, never the Driver's
+        landmarks = request.app.state.services.mazes.landmarks(trial.maze)
+        return render(request, "commander.html", token=token, trial=trial, landmarks=landmarks)
+    return render(request, f"{seat.role}.html", token=token, trial=trial)
 
 
 @router.get("/play/{token}/map.png")
 def commander_map(request: Request, token: str):
-    """The walls-only map, for the Commander alone."""
+    """The map with the three landmarks, for the Commander alone."""
     seat = seat_of(request, token)
     if seat.role != "commander":
         raise HTTPException(403, "only the Commander sees the map")
