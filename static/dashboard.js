@@ -83,7 +83,9 @@
   document.getElementById("new-robot").addEventListener("submit", async (ev) => {
     ev.preventDefault();
     const form = ev.target, box = document.getElementById("robot-token"), error = document.getElementById("robot-error");
-    const res = await fetch(form.action, {method: "POST", body: new FormData(form), credentials: "same-origin"});
+    const csrf = document.querySelector('meta[name="csrf-token"]').content;
+    const res = await fetch(form.action, {method: "POST", body: new FormData(form), credentials: "same-origin",
+                                          headers: {"X-CSRF-Token": csrf}});
     const body = await res.json().catch(() => ({detail: `registration failed (HTTP ${res.status})`}));
     box.hidden = !res.ok;
     error.textContent = res.ok ? "" : (typeof body.detail === "string" ? body.detail : JSON.stringify(body.detail));

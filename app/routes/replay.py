@@ -12,10 +12,11 @@ from fastapi.responses import FileResponse, HTMLResponse
 from sqlalchemy import select
 
 from app.db.models import Frame, Team, Trial
+from app.guard import csrf_protect
 from app.routes.experimenter import experimenter
 from app.routes.pages import render
 
-router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter)])
+router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter), Depends(csrf_protect)])
 REPLAYABLE = ("finished", "aborted")
 
 
