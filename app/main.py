@@ -77,7 +77,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         await services.hub.close()
         services.engine.dispose()
 
-    app = FastAPI(title="RobotSlang", lifespan=lifespan)
+    # No /docs or /redoc: they load scripts from a CDN and run inline code, which the CSP forbids.
+    app = FastAPI(title="RobotSlang", lifespan=lifespan, docs_url=None, redoc_url=None)
     app.state.services = services
     app.state.templates = Jinja2Templates(directory=str(ROOT / "templates"), context_processors=[template_context])
     app.add_middleware(GuardMiddleware, settings=settings)
