@@ -21,7 +21,9 @@ from app.db.engine import make_engine, make_sessionmaker, upgrade
 from app.db.models import Experimenter
 from app.mazes import Mazes
 from app.routes import experimenter, pages, replay, robot_ws, seat_ws
-from app.security import SeatTokens, Sessions, hash_password
+from app.guard import GuardMiddleware, template_context
+from app.login import LoginGuard
+from app.security import CsrfTokens, SeatTokens, Sessions, set_password
 from app.services import Services
 from app.settings import Settings
 from app.trial.hub import TrialHub
@@ -36,8 +38,11 @@ def build_services(settings: Settings) -> Services:
     upgrade(settings, engine)
     db = make_sessionmaker(engine)
     key = settings.signing_key()
+    logins = LoginGuard(db, settings.login_limit_per_account, settings.login_limit_per_address,
+                        settings.password_check_concurrency)
     services = Services(settings=settings, engine=engine, db=db, clock=ServerClock(), log=EventLog(db),
-                        seats=SeatTokens(key), sessions=Sessions(key), mazes=Mazes(settings))
+                        seats=SeatTokens(key, settings.join_link_ttl_s), sessions=Sessions(key, db),
+                        csrf=CsrfTokens(key), logins=logins, mazes=Mazes(settings))
     services.hub = TrialHub(services)
     return services
 
@@ -48,7 +53,9 @@ def ensure_experimenter(services: Services) -> str | None:
         if db.scalar(select(Experimenter.id).limit(1)) is not None:
             return None
         password = secrets.token_urlsafe(12)
-        db.add(Experimenter(name="admin", password_hash=hash_password(password)))
+        admin = Experimenter(name="admin")
+        set_password(admin, password)
+        db.add(admin)
         return password
 
 
@@ -73,9 +80,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         await services.hub.close()
         services.engine.dispose()
 
-    app = FastAPI(title="RobotSlang", lifespan=lifespan)
+    # No /docs or /redoc: they load scripts from a CDN and run inline code, which the CSP forbids.
+    app = FastAPI(title="RobotSlang", lifespan=lifespan, docs_url=None, redoc_url=None)
     app.state.services = services
-    app.state.templates = Jinja2Templates(directory=str(ROOT / "templates"))
+    app.state.templates = Jinja2Templates(directory=str(ROOT / "templates"), context_processors=[template_context])
+    app.add_middleware(GuardMiddleware, settings=settings)
     app.mount("/static", StaticFiles(directory=str(ROOT / "static")), name="static")
     app.include_router(pages.router)
     app.include_router(experimenter.router)

@@ -9,8 +9,9 @@ from sqlalchemy import Engine
 from sqlalchemy.orm import sessionmaker
 
 from app.clock import ServerClock
+from app.login import LoginGuard
 from app.mazes import Mazes
-from app.security import SeatTokens, Sessions
+from app.security import CsrfTokens, SeatTokens, Sessions
 from app.settings import Settings
 from app.trial.log import EventLog
 
@@ -27,6 +28,8 @@ class Services:
     log: EventLog
     seats: SeatTokens
     sessions: Sessions
+    csrf: CsrfTokens
+    logins: LoginGuard
     mazes: Mazes
     hub: "TrialHub" = None  # type: ignore[assignment]
     relay: Any = None  # `RedisRelay` when ROBOTSLANG_REDIS_URL is set: trials shared between processes

@@ -13,8 +13,8 @@ from sqlalchemy import select
 from app.backends.remote import robot_links
 from app.db.models import Frame, Participant, Robot, Team, Trial
 from app.drivers import registry
+from app.guard import csrf_protect, current_login
 from app.routes.pages import render, trial_or_404
-from app.security import SESSION_COOKIE
 from app.trial.setup import (TrialSetupError, create_participant, create_team, create_trial, parse_targets,
                              suggest_maze)
 from app.trial.state import fold
@@ -25,14 +25,14 @@ class LoginRequired(Exception):
 
 
 def experimenter(request: Request) -> int:
-    services = request.app.state.services
-    user = services.sessions.verify(request.cookies.get(SESSION_COOKIE))
-    if user is None:
+    login = current_login(request)
+    if login is None:
         raise LoginRequired()
-    return user
+    return login.experimenter_id
 
 
-router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter)])
+# Every state-changing request also needs this server's Origin and the page's CSRF token.
+router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter), Depends(csrf_protect)])
 
 
 def agent_drivers(services) -> dict[str, str | None]:

@@ -20,10 +20,11 @@ from app.export.record import ExportError, TrialRecord
 from app.export.source import load_trial
 from app.mazes import UnknownMaze
 from sim.maze import Maze
+from app.guard import csrf_protect
 from app.routes.experimenter import experimenter
 from app.routes.pages import render
 
-router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter)])
+router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter), Depends(csrf_protect)])
 REPLAYABLE = ("finished", "aborted")
 
 

@@ -10,28 +10,18 @@ import asyncio
 import contextlib
 import json
 import logging
-from urllib.parse import urlsplit
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
+from app.db.models import Trial
+from app.guard import socket_origin_allowed
+from app.routes.pages import over_reason
 from app.security import InvalidToken
-from app.settings import Settings
 from app.trial.runtime import UnknownTrial
 
 router = APIRouter()
 logger = logging.getLogger(__name__)
 OUTBOX_LIMIT = 512  # messages waiting for a slow browser before it is dropped
-
-
-def origin_allowed(ws: WebSocket, settings: Settings) -> bool:
-    """Browsers always send Origin: it must be the page's own host or an allowed origin.
-    Clients that are not browsers (scripts, the rover) send none and are judged by token alone."""
-    origin = ws.headers.get("origin")
-    if origin is None:
-        return True
-    if origin in settings.allowed_origins:
-        return True
-    return urlsplit(origin).netloc == ws.headers.get("host")
 
 
 class SocketSeat:
@@ -76,11 +66,15 @@ class SocketSeat:
 @router.websocket("/ws/play")
 async def play(ws: WebSocket, token: str = "") -> None:
     services = ws.app.state.services
-    if not origin_allowed(ws, services.settings):
+    if not socket_origin_allowed(ws.headers, ws.url.scheme, services.settings):
         await ws.close(code=1008, reason="origin not allowed")
         return
     try:
-        seat = services.seats.verify(token)
+        seat = services.seats.admit(token)
+        with services.db() as db:
+            trial = db.get(Trial, seat.trial_id)
+        if trial is not None and (reason := over_reason(trial)) is not None:
+            raise InvalidToken(reason)
         runtime = await services.hub.get(seat.trial_id)
     except (InvalidToken, UnknownTrial) as err:
         await ws.close(code=1008, reason=str(err)[:120])

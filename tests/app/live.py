@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import json
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -109,6 +110,32 @@ class ServerProcess:
                 self.proc.wait(timeout=10)
             except subprocess.TimeoutExpired:
                 self.proc.kill()
+
+
+def page_csrf_token(page: str) -> str:
+    """The CSRF token a page carries in `<meta name="csrf-token">` (what the page's scripts send)."""
+    return re.search(r'<meta name="csrf-token" content="([^"]+)"', page).group(1)
+
+
+def browser(base_url: str) -> httpx.Client:
+    """A client that sends this server's Origin, as a browser does on the server's own pages."""
+    return httpx.Client(base_url=base_url, follow_redirects=True, headers={"Origin": base_url})
+
+
+def submit_login(client: httpx.Client, name: str, password: str) -> httpx.Response:
+    """The home page's login form, filled in and sent with the page's token."""
+    token = page_csrf_token(client.get("/").text)
+    return client.post("/login", data={"name": name, "password": password, "csrf_token": token})
+
+
+def log_in(base_url: str, name: str, password: str) -> httpx.Client:
+    """An experimenter's browser, as far as the server can tell: it logs in with the home page's
+    form, then sends the dashboard page's token on every request (as the page's scripts do)."""
+    client = browser(base_url)
+    page = submit_login(client, name, password)
+    assert page.status_code == 200 and "Participants" in page.text, page.text[:300]
+    client.headers["X-CSRF-Token"] = page_csrf_token(page.text)
+    return client
 
 
 def make_trial(services, maze: str, targets=("mug", "jar", "paddle"), driver: str = "human",
