@@ -17,8 +17,8 @@ router = APIRouter()
 
 
 ADVICE = {
-    403: ("This link does not work", "The link may be mistyped, or it belongs to another trial. "
-                                     "Ask your experimenter for a new join link."),
+    403: ("Not allowed", "This page or action is not open to you. If you followed a join link, it may be "
+                         "mistyped or belong to another trial: ask your experimenter for a new one."),
     404: ("Page not found", "There is nothing at this address. Check the link, or start from the home page."),
     409: ("Not possible now", "That cannot be done in the trial's present state. Go back and reload the page."),
     422: ("That did not work", "Something in the request was not filled in as expected. Go back and try again."),
@@ -33,7 +33,7 @@ def wants_html(request: Request) -> bool:
 def error_page(request: Request, status_code: int, detail: str | None) -> HTMLResponse:
     heading, advice = ADVICE.get(status_code, ("Something went wrong", "Go back and try again."))
     response = render(request, "error.html", status_code=status_code, heading=heading, advice=advice,
-                      detail=detail if status_code != 403 else None)
+                      detail=detail)
     response.status_code = status_code
     return response
 
