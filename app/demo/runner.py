@@ -128,8 +128,10 @@ async def serving(settings: Settings, server: str | None) -> AsyncIterator[str]:
     from app.main import create_app
 
     port = free_port()
+    from app.serving import uvicorn_options
+
     config = uvicorn.Config(create_app(settings), host="127.0.0.1", port=port, log_level="warning",
-                            ws_max_size=max(65536, 4 * settings.max_message_bytes), lifespan="on")
+                            lifespan="on", **uvicorn_options(settings))
     server_ = uvicorn.Server(config)
     task = asyncio.get_running_loop().create_task(server_.serve())
     while not server_.started:

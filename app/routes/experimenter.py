@@ -12,7 +12,7 @@ from sqlalchemy import select
 
 from app.backends.remote import robot_links
 from app.db.models import Participant, Robot, Team, Trial
-from app.drivers.registry import driver_names
+from app.drivers.registry import available_drivers, driver_names
 from app.routes.pages import render, trial_or_404
 from app.security import SESSION_COOKIE
 from app.trial.setup import (TrialSetupError, create_participant, create_team, create_trial, parse_targets,
@@ -92,8 +92,6 @@ def add_trial(request: Request, team_id: int | None = Form(None), maze: str = Fo
     services = request.app.state.services
     names = services.mazes.names()
     try:
-        if driver != "human" and driver.removeprefix("agent:") not in driver_names():
-            raise TrialSetupError(f"driver {driver!r} is neither 'human' nor a known agent")
         if team_id is None:
             raise TrialSetupError("choose a team (form one first)")
         with services.db.begin() as db:
@@ -105,7 +103,7 @@ def add_trial(request: Request, team_id: int | None = Form(None), maze: str = Fo
                 raise TrialSetupError(f"team {team.name!r} has seen every maze in the library")
             create_trial(db, team_id=team_id, maze=maze, targets=parse_targets(targets, random.Random()),
                          backend=backend, driver=driver, commander_id=commander_id, maze_names=names,
-                         now_ns=services.clock.now_ns())
+                         now_ns=services.clock.now_ns(), agents=available_drivers(services))
     except TrialSetupError as err:
         return _redirect(str(err))
     return _redirect()
