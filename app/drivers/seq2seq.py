@@ -32,7 +32,7 @@ def seq2seq_check(services: "Services") -> str | None:
             load_agent(checkpoint)
             services.driver_checks[key] = None
         except Exception as err:  # any failure to load is the reason it is not offered
-            services.driver_checks[key] = f"agent:seq2seq: {err}"
+            services.driver_checks[key] = f"agent:seq2seq cannot load checkpoint {checkpoint}: {err}"
     return services.driver_checks[key]
 
 

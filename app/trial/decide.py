@@ -169,16 +169,12 @@ def decide(state: TrialState, command: Command) -> list[ev.Event]:
 def _reopen(state: TrialState) -> list[ev.Event]:
     if state.over:
         return []  # a finished or aborted trial's log is closed
-    events: list[ev.Event] = [ev.Restarted()] if state.phase.running else []
+    events: list[ev.Event] = []
+    if state.phase.running:  # the clock stopped at the last event; the seats now missing hold it
+        events.append(ev.Restarted(paused=[disconnect_pause(role) for role in sorted(state.connected)
+                                           if disconnect_pause(role) not in state.pause_reasons]))
     events += decide(state, AbandonMoves("server restart"))
-    for role in sorted(state.connected):
-        events.append(ev.Disconnected(role=role))
-    reasons = set(state.pause_reasons)
-    if state.phase.running:
-        for role in sorted(state.connected):
-            if disconnect_pause(role) not in reasons:
-                reasons.add(disconnect_pause(role))
-                events.append(ev.Paused(reason=disconnect_pause(role)))
+    events += [ev.Disconnected(role=role) for role in sorted(state.connected)]
     return events
 
 

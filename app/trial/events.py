@@ -72,9 +72,11 @@ class Resumed(Event):
 
 class Restarted(Event):
     """The first event a server writes on reopening a running trial: the clock stopped at the
-    event before, so the time the server was down is not scored."""
+    event before, so the time the server was down is not scored, and it stays stopped for the
+    seats of the process before (`paused`: their pause reasons, as `Paused` would add them)."""
 
     kind = "restarted"
+    paused: list[str] = []
 
 
 class Chat(Event):

@@ -175,16 +175,23 @@ class TrialRuntime:
             loop = asyncio.get_running_loop()
         except RuntimeError:
             return
-        now = self.services.clock.now_ns()
-        for role, gone in away.items():
+        for role in away:
             if role not in self._grace:
-                left_s = max(0.0, self.settings.grace_period_s - gone.away_ns(now) / 1e9)
-                self._grace[role] = loop.call_later(left_s, self._grace_expired, role)
+                self._grace[role] = loop.call_later(self._grace_left_s(role), self._grace_expired, role)
+
+    def _grace_left_s(self, role: Role) -> float:
+        gone = self.state.away[role].away_ns(self.services.clock.now_ns())
+        return self.settings.grace_period_s - gone / 1e9
 
     def _grace_expired(self, role: Role) -> None:
         self._grace.pop(role, None)
-        if role not in self.seats:
-            self.apply(d.GraceExpired(role))
+        if role not in self.state.away:
+            return
+        left_s = self._grace_left_s(role)
+        if left_s > 0:  # event loops may wake a little early (uvloop: to the millisecond)
+            self._grace[role] = asyncio.get_running_loop().call_later(left_s, self._grace_expired, role)
+            return
+        self.apply(d.GraceExpired(role))
 
     # -- what the backend reports -------------------------------------------------
     def _record_pose(self, pose: tuple[float, float, float]) -> None:

@@ -132,6 +132,8 @@ class TrialState:
                     self.finished_active_ns = self.active_ns
                 if phase.over:
                     self.away.clear()
+            case ev.Restarted(paused=reasons):
+                self.pause_reasons.update(reasons)
             case ev.Paused(reason=reason):
                 self.pause_reasons.add(reason)
             case ev.Resumed(reason=reason):

@@ -37,7 +37,7 @@ def test_a_move_id_is_executed_once():
 def test_reopening_refuses_the_move_in_flight_and_lets_the_seats_go():
     state = running(("move_requested", {"move_id": "m1", "action": "forward"}))
     events = decide(state, Reopen())
-    assert events[0] == ev.Restarted()
+    assert events[0] == ev.Restarted(paused=["disconnect:commander", "disconnect:driver"])
     assert ev.MoveExecuted(move_id="m1", action=MoveAction.FORWARD, outcome=Outcome.REFUSED,
                            reason="server restart") in events
     assert {e.role for e in events if isinstance(e, ev.Disconnected)} == {Role.COMMANDER, Role.DRIVER}

@@ -51,8 +51,7 @@ def test_the_clock_stops_at_the_last_event_before_a_server_restart():
     events = log((0, "trial_created", CREATED), (1, "phase", {"phase": "localizing", "target_index": 0}),
                  (4, "chat", {"role": "commander", "text": "hi"}),
                  # the server died here; it came back 600 s later
-                 (604, "restarted", {}), (604, "disconnect", {"role": "driver"}),
-                 (604, "paused", {"reason": "disconnect:driver"}),
+                 (604, "restarted", {"paused": ["disconnect:driver"]}), (605, "disconnect", {"role": "driver"}),
                  (610, "connect", {"role": "driver"}), (610, "resumed", {"reason": "disconnect:driver"}))
     state = fold(events)
     assert state.active_s() == 3.0
