@@ -12,6 +12,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.db.models import Team, Trial
+from app.trial.vocabulary import Phase
 
 
 @dataclass(frozen=True)
@@ -29,7 +30,7 @@ def trial_score(active_s: float, moves: int, move_penalty_s: float) -> float:
 
 def standings(db: Session, move_penalty_s: float) -> list[TeamStanding]:
     rows = db.execute(select(Team.name, Trial.active_s, Trial.moves).join(Trial, Trial.team_id == Team.id)
-                      .where(Trial.phase == "finished", Trial.active_s.is_not(None)))
+                      .where(Trial.phase == Phase.FINISHED, Trial.active_s.is_not(None)))
     scores: dict[str, list[float]] = {}
     for team, active_s, moves in rows:
         scores.setdefault(team, []).append(trial_score(active_s, moves, move_penalty_s))

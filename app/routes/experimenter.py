@@ -18,6 +18,7 @@ from app.security import SESSION_COOKIE
 from app.trial.setup import (TrialSetupError, create_participant, create_team, create_trial, parse_targets,
                              suggest_maze)
 from app.trial.state import fold
+from app.trial.vocabulary import Role
 
 
 class LoginRequired(Exception):
@@ -37,7 +38,7 @@ router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter)])
 
 def join_links(request: Request, trial: Trial) -> dict[str, str]:
     seats = request.app.state.services.seats
-    roles = ["commander"] + (["driver"] if trial.driver == "human" else [])
+    roles = [Role.COMMANDER] + ([Role.DRIVER] if trial.driver == "human" else [])
     return {role: str(request.url_for("play", token=seats.issue(trial.id, role))) for role in roles}
 
 
@@ -48,7 +49,7 @@ def dashboard(request: Request, error: str | None = None):
         participants = db.scalars(select(Participant).order_by(Participant.name)).all()
         teams = db.scalars(select(Team).order_by(Team.name)).all()
         trials = db.scalars(select(Trial).order_by(Trial.id.desc()).limit(100)).all()
-        rovers = db.scalars(select(Robot).where(Robot.role == "driver").order_by(Robot.name)).all()
+        rovers = db.scalars(select(Robot).where(Robot.role == Role.DRIVER).order_by(Robot.name)).all()
         names = {p.id: p.name for p in participants}
         team_names = {t.id: t.name for t in teams}
         maze_names = services.mazes.names()
