@@ -250,6 +250,3 @@ def _judge(state: TrialState, confirmed: bool, within_m: float | None) -> list[e
         last = index + 1 >= len(state.targets)
         events.append(ev.PhaseChanged(phase=Phase.FINISHED if last else Phase.NAVIGATING, target_index=index + 1))
     return events
-
-
-

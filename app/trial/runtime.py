@@ -33,9 +33,6 @@ from app.trial.vocabulary import PARTICIPANTS, FrameSource, MoveAction, Outcome,
 
 logger = logging.getLogger(__name__)
 
-TrialError = Refused  # the name the routes and the relay know
-
-
 class UnknownTrial(LookupError):
     pass
 
