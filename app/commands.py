@@ -22,14 +22,9 @@ def serve(host: str = typer.Option("127.0.0.1", help="Interface to listen on."),
     settings = Settings()
     app = create_app(settings)
     typer.echo(f"RobotSlang on http://{host}:{port} (data in {settings.data_dir.resolve()})")
-    # Frames and claims are sent inline; keep the transport limit above the message limit so an
-    # oversized message gets an error reply instead of a closed socket. No per-message deflate:
-    # the largest messages are JPEGs, which do not compress, and deflating them costs CPU.
-    from app.backends.remote import MAX_FRAME_BYTES  # the rover's camera frames are the largest messages
+    from app.serving import uvicorn_options
 
-    uvicorn.run(app, host=host, port=port, log_level="warning",
-                ws_max_size=max(65536, 4 * settings.max_message_bytes, 2 * MAX_FRAME_BYTES),
-                ws_per_message_deflate=False)
+    uvicorn.run(app, host=host, port=port, log_level="warning", **uvicorn_options(settings))
 
 
 def admin_create(name: str = typer.Argument(..., help="The experimenter's login name."),

@@ -13,6 +13,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.db.models import Participant, Team, Trial
+from app.trial.vocabulary import Phase
 
 HUMAN = "human"
 AGENT_PREFIX = "agent:"
@@ -48,7 +49,7 @@ def trial_score(active_s: float, moves: int, move_penalty_s: float) -> float:
 
 def _finished(db: Session):
     return db.execute(select(Trial, Team.name).join(Team, Team.id == Trial.team_id)
-                      .where(Trial.phase == "finished", Trial.active_s.is_not(None))).all()
+                      .where(Trial.phase == Phase.FINISHED, Trial.active_s.is_not(None))).all()
 
 
 def _ranked(groups: dict[str, tuple[list[float], set[str]]]):

@@ -74,6 +74,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
             services.relay = RedisRelay(services, settings.redis_url)
             await services.relay.start()
+        await services.hub.resume_running()
         yield
         if services.relay is not None:
             await services.relay.close()  # hands its trials back first

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import Engine
@@ -34,3 +34,4 @@ class Services:
     hub: "TrialHub" = None  # type: ignore[assignment]
     relay: Any = None  # `RedisRelay` when ROBOTSLANG_REDIS_URL is set: trials shared between processes
     robots: Any = None  # `RobotLinks`: the rovers and cameras connected here (made by `robot_links`)
+    driver_checks: dict[Any, str | None] = field(default_factory=dict)  # agents' start checks, by file version

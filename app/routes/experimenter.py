@@ -12,12 +12,13 @@ from sqlalchemy import select
 
 from app.backends.remote import robot_links
 from app.db.models import Frame, Participant, Robot, Team, Trial
-from app.drivers import registry
+from app.drivers.registry import available_drivers
 from app.guard import csrf_protect, current_login
 from app.routes.pages import render, trial_or_404
 from app.trial.setup import (TrialSetupError, create_participant, create_team, create_trial, parse_targets,
                              suggest_maze)
 from app.trial.state import fold
+from app.trial.vocabulary import Role
 
 
 class LoginRequired(Exception):
@@ -37,9 +38,7 @@ router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter), 
 
 def agent_drivers(services) -> dict[str, str | None]:
     """Each agent Driver by its `agent:<name>` spec, with why it cannot start now (None: it can)."""
-    available = getattr(registry, "available_drivers", None)  # the registry's own check, where it has one
-    reasons = available(services) if available is not None else {n: None for n in registry.driver_names()}
-    return {f"agent:{name}": reason for name, reason in sorted(reasons.items())}
+    return {f"agent:{name}": reason for name, reason in sorted(available_drivers(services).items())}
 
 
 def controls_for(phase: str, paused: list[str] | tuple[str, ...] = ()) -> list[str]:
@@ -53,7 +52,7 @@ def controls_for(phase: str, paused: list[str] | tuple[str, ...] = ()) -> list[s
 
 def join_links(request: Request, trial: Trial) -> dict[str, str]:
     seats = request.app.state.services.seats
-    roles = ["commander"] + (["driver"] if trial.driver == "human" else [])
+    roles = [Role.COMMANDER] + ([Role.DRIVER] if trial.driver == "human" else [])
     return {role: str(request.url_for("play", token=seats.issue(trial.id, role))) for role in roles}
 
 
@@ -64,7 +63,7 @@ def dashboard(request: Request, error: str | None = None):
         participants = db.scalars(select(Participant).order_by(Participant.name)).all()
         teams = db.scalars(select(Team).order_by(Team.name)).all()
         trials = db.scalars(select(Trial).order_by(Trial.id.desc()).limit(100)).all()
-        rovers = db.scalars(select(Robot).where(Robot.role == "driver").order_by(Robot.name)).all()
+        rovers = db.scalars(select(Robot).where(Robot.role == Role.DRIVER).order_by(Robot.name)).all()
         names = {p.id: p.name for p in participants}
         team_names = {t.id: t.name for t in teams}
         maze_names = services.mazes.names()
@@ -108,12 +107,6 @@ def add_trial(request: Request, team_id: int | None = Form(None), maze: str = Fo
     services = request.app.state.services
     names = services.mazes.names()
     try:
-        if driver != "human":
-            agents = agent_drivers(services)
-            if driver not in agents:
-                raise TrialSetupError(f"driver {driver!r} is neither 'human' nor a known agent")
-            if agents[driver] is not None:
-                raise TrialSetupError(f"{driver} cannot drive now: {agents[driver]}")
         if team_id is None:
             raise TrialSetupError("choose a team (form one first)")
         with services.db.begin() as db:
@@ -125,7 +118,7 @@ def add_trial(request: Request, team_id: int | None = Form(None), maze: str = Fo
                 raise TrialSetupError(f"team {team.name!r} has seen every maze in the library")
             create_trial(db, team_id=team_id, maze=maze, targets=parse_targets(targets, random.Random()),
                          backend=backend, driver=driver, commander_id=commander_id, maze_names=names,
-                         now_ns=services.clock.now_ns())
+                         now_ns=services.clock.now_ns(), agents=available_drivers(services))
     except TrialSetupError as err:
         return _redirect(str(err))
     return _redirect()

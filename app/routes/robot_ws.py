@@ -22,6 +22,7 @@ from app.backends.remote import (
 )
 from app.guard import csrf_protect, socket_origin_allowed
 from app.routes.experimenter import experimenter
+from app.serving import MESSAGE_TOO_BIG
 from robot_client.protocol import (
     CLOSE_REFUSED, CLOSE_REPLACED, PROTOCOL_VERSION, ROBOT_TYPES, ROLES, ProtocolError, decode, encode,
     unpack_frame,
@@ -137,6 +138,8 @@ async def _read(ws: WebSocket, link: RobotLink, links) -> None:
         while not link.closed:
             raw = await ws.receive()
             if raw["type"] == "websocket.disconnect":
+                if raw.get("code") == MESSAGE_TOO_BIG:  # answered by the server (app.serving); now logged
+                    links.bad_message(link, raw.get("reason") or "message too big")
                 return
             received_ns = link.last_heard_ns = time.monotonic_ns()
             try:

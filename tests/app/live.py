@@ -19,7 +19,9 @@ import httpx
 import uvicorn
 import websockets
 
+from app.drivers.registry import available_drivers
 from app.main import create_app
+from app.serving import uvicorn_options
 from app.settings import Settings
 from app.trial.setup import create_participant, create_team, create_trial
 
@@ -41,7 +43,7 @@ class ServerThread:
         self.services = self.app.state.services
         self.port = free_port()
         config = uvicorn.Config(self.app, host="127.0.0.1", port=self.port, log_level="warning",
-                                ws_max_size=65536, lifespan="on")
+                                lifespan="on", **uvicorn_options(settings))
         self.server = uvicorn.Server(config)
         self.thread = threading.Thread(target=self.server.run, daemon=True)
 
@@ -147,7 +149,7 @@ def make_trial(services, maze: str, targets=("mug", "jar", "paddle"), driver: st
         t = create_team(db, team, a.id, b.id)
         trial = create_trial(db, team_id=t.id, maze=maze, targets=list(targets), backend=backend,
                              driver=driver, commander_id=a.id, maze_names=services.mazes.names(),
-                             now_ns=services.clock.now_ns())
+                             now_ns=services.clock.now_ns(), agents=available_drivers(services))
         return trial.id
 
 

@@ -22,6 +22,7 @@ from sqlalchemy import select
 from app.backends.remote import MAX_FRAME_BYTES, create_robot, robot_links
 from app.db.models import Event, Frame as FrameRow
 from app.main import create_app
+from app.serving import uvicorn_options
 from app.trial.setup import create_participant, create_team, create_trial
 from robot_client.calibration import Calibration
 from robot_client.protocol import pack_frame
@@ -48,7 +49,7 @@ class RobotServer:
         self.services = self.app.state.services
         self.port = free_port()
         config = uvicorn.Config(self.app, host="127.0.0.1", port=self.port, log_level="warning",
-                                ws_max_size=2 * MAX_FRAME_BYTES, lifespan="on")
+                                lifespan="on", **uvicorn_options(settings))
         self.server = uvicorn.Server(config)
         self.thread = threading.Thread(target=self.server.run, daemon=True)
         self.thread.start()
