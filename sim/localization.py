@@ -128,20 +128,21 @@ class ParticleFilter:
 
     def __init__(self, maze: Maze, n_particles: int = 1500, seed: int | None = None,
                  motion: MotionNoise = MotionNoise(), sensor: SensorModel = SensorModel(),
-                 inject: float = 0.02):
+                 inject: float = 0.02, initial_factor: int = 5):
         if n_particles < 10:
             raise ValueError(f"n_particles must be at least 10, got {n_particles}")
         self.maze, self.motion, self.sensor, self.inject = maze, motion, sensor, inject
         self.rng = np.random.default_rng(seed)
         self.space = free_space(maze)
         self.caster = ray_caster(maze)
-        self.n = n_particles
+        self.n, self.initial_factor = n_particles, max(int(initial_factor), 1)
         self.reset()
 
     def reset(self) -> None:
-        """Uniform over the free space."""
-        self.particles = self.space.sample(self.n, self.rng)
-        self.log_w = np.zeros(self.n)
+        """Uniform over the free space, `initial_factor` times denser than the filter runs: from
+        a uniform start few particles lie near the truth, and the first frame picks them out."""
+        self.particles = self.space.sample(self.n * self.initial_factor, self.rng)
+        self.log_w = np.zeros(len(self.particles))
 
     @property
     def weights(self) -> np.ndarray:
@@ -169,13 +170,14 @@ class ParticleFilter:
         self.log_w += (log_label + log_depth).sum(axis=1) / s.temperature
         self.log_w -= self.log_w.max()
         w = self.weights
-        if 1.0 / np.sum(w * w) < self.n / 2:
+        if 1.0 / np.sum(w * w) < self.n / 2 or len(w) > self.n:
             self._resample(w)
 
     def _resample(self, w: np.ndarray) -> None:
-        """Low-variance (systematic) resampling, a little jitter, and some fresh particles."""
+        """Low-variance (systematic) resampling to `n` particles, a little jitter, and some
+        fresh ones."""
         positions = (self.rng.random() + np.arange(self.n)) / self.n
-        idx = np.minimum(np.searchsorted(np.cumsum(w), positions), self.n - 1)
+        idx = np.minimum(np.searchsorted(np.cumsum(w), positions), len(w) - 1)
         p = self.particles[idx]
         jitter = self.rng.normal(0, [0.005, 0.005, np.deg2rad(1.0)], p.shape)
         moved = p + jitter
@@ -194,7 +196,7 @@ class ParticleFilter:
         spread = float(np.sqrt(w @ ((p[:, 0] - x) ** 2 + (p[:, 1] - y) ** 2)))
         # The cloud: a systematic draw of max_points, duplicates merged with their weight.
         positions = (0.5 + np.arange(max_points)) / max_points
-        idx = np.minimum(np.searchsorted(np.cumsum(w), positions), self.n - 1)
+        idx = np.minimum(np.searchsorted(np.cumsum(w), positions), len(w) - 1)
         unique, counts = np.unique(idx, return_counts=True)
         cloud = np.column_stack([p[unique], counts / max_points])
         return Belief(x, y, heading, spread, cloud)

@@ -13,8 +13,8 @@ from sim.library import MazeLibrary
 from sim.navgraph import NavGraph
 from sim.observations import N_RAYS, OBS_FEATURES, RayTable, cast_rays, too_close
 from sim.perception import (
-    FrameProblem, PerceptionError, RayObservation, features, perceive, random_poses,
-    simulated_calibration,
+    FrameProblem, PerceptionError, RayObservation, evaluate_perception, features, perceive,
+    random_poses, simulated_calibration,
 )
 
 CAMERA = FrontCamera()  # 640x480, barrel distortion, noise: the virtual rover's default
@@ -142,3 +142,13 @@ def test_colour_calibration_survives_its_file(world, calibration, tmp_path):
     frame = capture(maze, 1.0, 0.8, 2.0, CAMERA, 4)
     a, b = perceive(frame, calibration), perceive(frame, loaded)
     assert np.array_equal(a.labels, b.labels) and np.allclose(a.depth, b.depth)
+
+
+@pytest.mark.benchmark_data
+def test_rays_match_on_the_benchmarks_own_mazes(benchmark_path, calibration):
+    lib = MazeLibrary(benchmark=benchmark_path)
+    mazes = [lib.load(name) for name in [n for n in lib.names() if n.startswith("Run_")][:3]]
+    result = evaluate_perception(mazes, n_poses=24, seed=2, camera=CAMERA, calibration=calibration)
+    assert result["walls_label_accuracy"] >= 0.95
+    assert result["depth_mae_m"] <= 0.03
+    assert result["walls_too_close_accuracy"] >= 0.98
