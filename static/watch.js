@@ -1,6 +1,7 @@
-// The experimenter's view of one trial: status, clock and moves, the full map with the true pose
-// and the Commander's estimate, and the Driver's live camera. Controls follow the trial's state.
-import {TableMap} from "./maputil.js";
+// The experimenter's view of one trial over its watch socket (/ws/watch/ID): status, clock and
+// moves, the full map with the true pose and the Commander's estimate, and the Driver's live
+// camera. Controls follow the trial's state.
+import {showImage, TableMap} from "./maputil.js";
 import {confirmFirst, showControls} from "./controls.js";
 import {applyStatus, clockSeconds, emptyStatus, formatClock, OVER, statusText} from "./trial.js";
 
@@ -11,17 +12,18 @@ const canvas = $("truth"), ctx = canvas.getContext("2d");
 const map = new Image();
 const status = Object.assign(emptyStatus(), {phase: root.dataset.phase, targets_total: Number(root.dataset.targets),
                                              elapsed_s: Number(root.dataset.elapsed), moves: Number(root.dataset.moves)});
-let latest = null, announced = "", cameraBusy = false;
+const seen = {pose: null, localization: null};
+let announced = "", retryMs = 500;
 map.src = `/experimenter/trials/${id}/map.png`;
 
 function draw() {
   if (map.complete && map.naturalWidth) ctx.drawImage(map, 0, 0, canvas.width, canvas.height);
-  if (!latest) return;
-  if (latest.localization) TableMap.drawRobot(ctx, canvas, latest.localization.x, latest.localization.y, latest.localization.heading, "#ff8c00");
-  if (latest.pose) {
-    TableMap.drawRobot(ctx, canvas, latest.pose[0], latest.pose[1], latest.pose[2], "#1e6bff");
-    $("pose-note").textContent = `True pose: x ${latest.pose[0].toFixed(2)} m, y ${latest.pose[1].toFixed(2)} m, ` +
-      `heading ${Math.round(latest.pose[2] * 180 / Math.PI)}°`;
+  const est = seen.localization, pose = seen.pose;
+  if (est) TableMap.drawRobot(ctx, canvas, est.x, est.y, est.heading, "#ff8c00");
+  if (pose) {
+    TableMap.drawRobot(ctx, canvas, pose[0], pose[1], pose[2], "#1e6bff");
+    $("pose-note").textContent = `True pose: x ${pose[0].toFixed(2)} m, y ${pose[1].toFixed(2)} m, ` +
+      `heading ${Math.round(pose[2] * 180 / Math.PI)}°`;
   }
 }
 
@@ -34,36 +36,40 @@ function render() {
   showControls($("controls"), status.phase, status.paused);
 }
 
-// The Driver's latest frame, swapped in only once loaded (no flicker, no broken image).
-function refreshCamera() {
-  if (cameraBusy) return;
-  cameraBusy = true;
-  const next = new Image();
-  next.onload = () => { $("camera").src = next.src; $("camera").hidden = false; $("camera-wait").hidden = true; cameraBusy = false; };
-  next.onerror = () => { cameraBusy = false; };
-  next.src = `/experimenter/trials/${id}/camera.jpg?t=${Date.now()}`;
+function camera(jpeg) {
+  showImage($("camera"), `data:image/jpeg;base64,${jpeg}`);
+  $("camera-wait").hidden = true;
 }
 
-async function refresh() {
-  let t, phases;
-  try {
-    const res = await fetch("/experimenter/api/trials", {credentials: "same-origin"});
-    if (!res.ok) return;
-    const body = await res.json();
-    t = body.trials.find((x) => x.trial_id === id);
-    phases = body.phases || {};
-  } catch (e) { return; }  // the next tick retries
-  if (t) { latest = t; applyStatus(status, t); }
-  else if (phases[id] && phases[id] !== status.phase) {  // no longer open here: its recorded phase
-    status.elapsed_s = clockSeconds(status);  // the clock stops where it was
-    status.phase = phases[id];
+function onMessage(msg) {
+  if (msg.type === "welcome") {
+    applyStatus(status, msg.status);
+    seen.pose = msg.pose; seen.localization = msg.localization;
+    if (msg.frame) camera(msg.frame.jpeg);
+  } else if (msg.type === "status") {
+    applyStatus(status, msg);
+  } else if (msg.type === "event") {
+    if (msg.kind === "frame" && msg.jpeg) camera(msg.jpeg);
+    else if (msg.kind === "pose") seen.pose = [msg.payload.x, msg.payload.y, msg.payload.heading];
+    else if (msg.kind === "localization") seen.localization = msg.payload;
   }
   render(); draw();
-  if (!OVER.has(status.phase) || $("camera").hidden) refreshCamera();
+}
+
+function connect() {
+  const scheme = location.protocol === "https:" ? "wss" : "ws";
+  const ws = new WebSocket(`${scheme}://${location.host}/ws/watch/${id}`);
+  ws.onopen = () => { retryMs = 500; };
+  ws.onmessage = (e) => onMessage(JSON.parse(e.data));
+  ws.onclose = () => {  // a server restart or a dropped link: watch again, unless the trial is over
+    if (OVER.has(status.phase)) return;
+    setTimeout(connect, retryMs);
+    retryMs = Math.min(retryMs * 2, 8000);
+  };
 }
 
 confirmFirst(document);
 map.onload = draw;
-setInterval(refresh, 500);
 setInterval(render, 250);
-refresh();
+render();
+connect();

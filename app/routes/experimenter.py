@@ -11,7 +11,7 @@ from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from sqlalchemy import select
 
 from app.backends.remote import robot_links
-from app.db.models import Frame, Participant, Robot, Team, Trial
+from app.db.models import Participant, Robot, Team, Trial
 from app.drivers.registry import available_drivers
 from app.guard import csrf_protect, current_login
 from app.routes.pages import render, trial_or_404
@@ -160,19 +160,6 @@ def watch(request: Request, trial_id: int):
     state = fold(request.app.state.services.log.load(trial_id))
     return render(request, "watch.html", trial=trial, state=state, links=join_links(request, trial),
                   controls=controls_for(state.phase, sorted(state.pause_reasons)))
-
-
-@router.get("/trials/{trial_id}/camera.jpg")
-def camera(request: Request, trial_id: int):
-    """The Driver's latest camera frame, for the experimenter watching the trial."""
-    services = request.app.state.services
-    with services.db() as db:
-        rel = db.scalar(select(Frame.path).where(Frame.trial_id == trial_id, Frame.source == "driver")
-                        .order_by(Frame.seq.desc()).limit(1))
-    path = services.settings.frames_dir / rel if rel is not None else None
-    if path is None or not path.is_file():
-        raise HTTPException(404, f"trial {trial_id} has no camera frame yet")
-    return Response(path.read_bytes(), media_type="image/jpeg", headers={"Cache-Control": "no-store"})
 
 
 @router.get("/trials/{trial_id}/map.png")

@@ -303,6 +303,7 @@ class TrialRuntime:
         if role == EXPERIMENTER:
             message["pose"] = s.pose
             message["targets"] = list(s.targets)
+            message["localization"] = s.localization
         return message
 
     def _claim_attachment(self, frame_id: int) -> dict[str, Any]:

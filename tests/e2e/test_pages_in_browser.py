@@ -158,6 +158,9 @@ def test_participants_see_the_clock_their_moves_and_what_to_do(browser, server):
     admin = experimenter(browser, server)
     admin.goto(f"{server.url}/experimenter/trials/{trial_id}")
     admin.wait_for_selector("#status[data-phase=navigating]")
+    # Its watch socket brings the Driver's live camera and the true pose, for the experimenter only.
+    admin.wait_for_selector("#camera[src^='data:image/jpeg']")
+    admin.wait_for_selector("#pose-note >> text=True pose")
     assert admin.is_hidden("form.control-resume")
     admin.click("form.control-pause button")
     for page in (commander, driver):
