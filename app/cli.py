@@ -7,6 +7,9 @@ commands that need it.
 
 from __future__ import annotations
 
+from importlib.metadata import PackageNotFoundError, version
+from typing import Optional
+
 import typer
 
 from app import commands as app_commands
@@ -16,6 +19,27 @@ from sim import cli as sim_commands
 root = typer.Typer(help="RobotSlang: dialog-guided robot localization and navigation.",
                    no_args_is_help=True, add_completion=False)
 eval_app = typer.Typer(help="Evaluate agents on the benchmark's NDH instances.", no_args_is_help=True)
+
+
+
+def installed_version() -> str:
+    try:
+        return version("robotslang")
+    except PackageNotFoundError:  # a checkout on PYTHONPATH, not installed
+        return "unknown (not installed)"
+
+
+def show_version(value: bool) -> None:
+    if value:
+        typer.echo(f"robotslang {installed_version()}")
+        raise typer.Exit()
+
+
+@root.callback()
+def _root(version_: Optional[bool] = typer.Option(None, "--version", callback=show_version, is_eager=True,
+                                                  help="Print the installed version and exit.")) -> None:
+    """RobotSlang: dialog-guided robot localization and navigation."""
+
 
 sim_commands.register(root, eval_app)
 model_commands.register(root, eval_app)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import logging
 import secrets
 from contextlib import asynccontextmanager
-from pathlib import Path
 
 from fastapi import FastAPI, Request
 from fastapi.responses import RedirectResponse
@@ -17,6 +16,7 @@ from app.clock import ServerClock
 from app.db.engine import make_engine, make_sessionmaker, upgrade
 from app.db.models import Experimenter
 from app.mazes import Mazes
+from app.resources import shipped
 from app.routes import experimenter, pages, replay, robot_ws, seat_ws
 from app.security import SeatTokens, Sessions, hash_password
 from app.services import Services
@@ -24,7 +24,6 @@ from app.settings import Settings
 from app.trial.hub import TrialHub
 from app.trial.log import EventLog
 
-ROOT = Path(__file__).resolve().parent.parent
 logger = logging.getLogger("robotslang")
 
 
@@ -72,8 +71,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     app = FastAPI(title="RobotSlang", lifespan=lifespan)
     app.state.services = services
-    app.state.templates = Jinja2Templates(directory=str(ROOT / "templates"))
-    app.mount("/static", StaticFiles(directory=str(ROOT / "static")), name="static")
+    app.state.templates = Jinja2Templates(directory=str(shipped("templates")))
+    app.mount("/static", StaticFiles(directory=str(shipped("static"))), name="static")
     app.include_router(pages.router)
     app.include_router(experimenter.router)
     app.include_router(seat_ws.router)
