@@ -48,7 +48,14 @@ root.add_typer(eval_app, name="eval")
 
 
 def main() -> None:
-    root()
+    try:
+        root()
+    except ModuleNotFoundError as err:
+        if err.name != "torch":
+            raise
+        typer.echo("error: this command needs PyTorch, which the server and simulator do without: "
+                   "pip install 'robotslang[learn]' (the README says how to get its CPU build)", err=True)
+        raise SystemExit(1) from None
 
 
 if __name__ == "__main__":

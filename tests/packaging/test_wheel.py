@@ -25,22 +25,6 @@ from tests.packaging.conftest import REPO, clean_env, free_port
 
 pytestmark = pytest.mark.slow
 
-NO_TORCH = '''"""Loaded by zz_deps.pth: this venv has no torch, as a machine without the `learn` extra."""
-
-import sys
-
-
-class NoTorch:
-    @staticmethod
-    def find_spec(name, path=None, target=None):
-        if name == "torch" or name.startswith("torch."):
-            raise ModuleNotFoundError("No module named 'torch'", name="torch")
-        return None
-
-
-sys.meta_path.insert(0, NoTorch())
-'''
-
 
 def build_wheels(tmp: Path) -> list[Path]:
     source, dist = tmp / "source", tmp / "dist"
@@ -66,7 +50,7 @@ def venv(tmp_path_factory) -> Path:
                                check=True, capture_output=True, text=True).stdout.strip())
     # Dependencies from this interpreter's site-packages, after the venv's own; no torch.
     deps = {sysconfig.get_path("purelib"), sysconfig.get_path("platlib")}
-    (site / "no_torch.py").write_text(NO_TORCH)
+    shutil.copy(Path(__file__).with_name("no_torch.py"), site / "no_torch.py")
     (site / "zz_deps.pth").write_text("import no_torch\n" + "".join(f"{p}\n" for p in sorted(deps)))
     return venv
 
