@@ -21,7 +21,6 @@ root = typer.Typer(help="RobotSlang: dialog-guided robot localization and naviga
 eval_app = typer.Typer(help="Evaluate agents on the benchmark's NDH instances.", no_args_is_help=True)
 
 
-
 def installed_version() -> str:
     try:
         return version("robotslang")

@@ -1,3 +1,0 @@
-from robot_client.cli import main
-
-main()
