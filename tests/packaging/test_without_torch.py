@@ -7,7 +7,12 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from tests.packaging.conftest import REPO, clean_env
+
+# Each test starts the whole CLI in a fresh interpreter.
+pytestmark = pytest.mark.slow
 
 
 def robotslang_without_torch(*args: str) -> subprocess.CompletedProcess:
