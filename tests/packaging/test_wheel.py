@@ -68,7 +68,10 @@ def test_the_installed_packages_come_from_the_wheels_and_torch_is_absent(venv, t
     assert out[3] == "no torch"
     check = subprocess.run([sys.executable, "-m", "pip", "--python", str(venv / "bin" / "python"), "check"],
                            capture_output=True, text=True, env=clean_env())
-    assert check.returncode == 0, check.stdout  # every dependency of both wheels is satisfied, without torch
+    # Every dependency of both wheels is satisfied, without torch (pip check also reports on the
+    # other packages of the environment lending the dependencies; those are not ours to judge).
+    ours = [line for line in check.stdout.splitlines() if line.startswith(("robotslang ", "robotslang-robot "))]
+    assert ours == [], check.stdout
     assert run(venv, "robotslang", "--version", cwd=tmp_path).stdout.strip() == "robotslang 0.1.0"
 
 
