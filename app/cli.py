@@ -7,6 +7,9 @@ commands that need it.
 
 from __future__ import annotations
 
+from importlib.metadata import PackageNotFoundError, version
+from typing import Optional
+
 import typer
 
 from app import commands as app_commands
@@ -17,6 +20,26 @@ root = typer.Typer(help="RobotSlang: dialog-guided robot localization and naviga
                    no_args_is_help=True, add_completion=False)
 eval_app = typer.Typer(help="Evaluate agents on the benchmark's NDH instances.", no_args_is_help=True)
 
+
+def installed_version() -> str:
+    try:
+        return version("robotslang")
+    except PackageNotFoundError:  # a checkout on PYTHONPATH, not installed
+        return "unknown (not installed)"
+
+
+def show_version(value: bool) -> None:
+    if value:
+        typer.echo(f"robotslang {installed_version()}")
+        raise typer.Exit()
+
+
+@root.callback()
+def _root(version_: Optional[bool] = typer.Option(None, "--version", callback=show_version, is_eager=True,
+                                                  help="Print the installed version and exit.")) -> None:
+    """RobotSlang: dialog-guided robot localization and navigation."""
+
+
 sim_commands.register(root, eval_app)
 model_commands.register(root, eval_app)
 app_commands.register(root)
@@ -24,7 +47,14 @@ root.add_typer(eval_app, name="eval")
 
 
 def main() -> None:
-    root()
+    try:
+        root()
+    except ModuleNotFoundError as err:
+        if err.name != "torch":
+            raise
+        typer.echo("error: this command needs PyTorch, which the server and simulator do without: "
+                   "pip install 'robotslang[learn]' (the README says how to get its CPU build)", err=True)
+        raise SystemExit(1) from None
 
 
 if __name__ == "__main__":

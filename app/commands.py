@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+from pathlib import Path
 from typing import Optional
 
 import typer
@@ -12,14 +13,22 @@ MOUNTED = ("app.export.cli", "app.demo.cli", "app.robot_commands")
 
 
 def serve(host: str = typer.Option("127.0.0.1", help="Interface to listen on."),
-          port: int = typer.Option(8000, help="TCP port.")) -> None:
+          port: int = typer.Option(8000, help="TCP port."),
+          data_dir: Optional[Path] = typer.Option(None, "--data-dir", help="Database, frames and secret key "
+                                                  "(default ROBOTSLANG_DATA_DIR, else ./var)."),
+          benchmark: Optional[Path] = typer.Option(None, "--benchmark", help="A RobotSlangBenchmark clone whose "
+                                                   "mazes join the bundled ones (default ROBOTSLANG_BENCHMARK).")
+          ) -> None:
     """Serve the platform (pages, trial sockets) on HOST:PORT."""
     import uvicorn
 
     from app.main import create_app
     from app.settings import Settings
 
-    settings = Settings()
+    # Flags override the environment; what is not given keeps its ROBOTSLANG_* value.
+    overrides = {name: value for name, value in (("data_dir", data_dir), ("benchmark", benchmark))
+                 if value is not None}
+    settings = Settings(**overrides)
     app = create_app(settings)
     typer.echo(f"RobotSlang on http://{host}:{port} (data in {settings.data_dir.resolve()})")
     from app.serving import uvicorn_options

@@ -5,7 +5,6 @@ from __future__ import annotations
 import logging
 import secrets
 from contextlib import asynccontextmanager
-from pathlib import Path
 
 from fastapi import FastAPI, Request
 from fastapi.exception_handlers import http_exception_handler, request_validation_exception_handler
@@ -20,6 +19,7 @@ from app.clock import ServerClock
 from app.db.engine import make_engine, make_sessionmaker, upgrade
 from app.db.models import Experimenter
 from app.mazes import Mazes
+from app.resources import shipped
 from app.routes import experimenter, pages, replay, robot_ws, seat_ws
 from app.guard import GuardMiddleware, template_context
 from app.login import LoginGuard
@@ -29,7 +29,6 @@ from app.settings import Settings
 from app.trial.hub import TrialHub
 from app.trial.log import EventLog
 
-ROOT = Path(__file__).resolve().parent.parent
 logger = logging.getLogger("robotslang")
 
 
@@ -84,9 +83,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     # No /docs or /redoc: they load scripts from a CDN and run inline code, which the CSP forbids.
     app = FastAPI(title="RobotSlang", lifespan=lifespan, docs_url=None, redoc_url=None)
     app.state.services = services
-    app.state.templates = Jinja2Templates(directory=str(ROOT / "templates"), context_processors=[template_context])
+    app.state.templates = Jinja2Templates(directory=str(shipped("templates")), context_processors=[template_context])
     app.add_middleware(GuardMiddleware, settings=settings)
-    app.mount("/static", StaticFiles(directory=str(ROOT / "static")), name="static")
+    app.mount("/static", StaticFiles(directory=str(shipped("static"))), name="static")
     app.include_router(pages.router)
     app.include_router(experimenter.router)
     app.include_router(seat_ws.router)
@@ -112,6 +111,6 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @app.get("/favicon.ico", include_in_schema=False)
     async def _favicon():
-        return FileResponse(ROOT / "static" / "favicon.svg", media_type="image/svg+xml")
+        return FileResponse(shipped("static") / "favicon.svg", media_type="image/svg+xml")
 
     return app

@@ -29,3 +29,10 @@ def _private_cache(tmp_path_factory) -> None:
     # Tests never write into the user's ~/.cache; one cache per run keeps them independent.
     if "ROBOTSLANG_CACHE_DIR" not in os.environ:
         os.environ["ROBOTSLANG_CACHE_DIR"] = str(tmp_path_factory.mktemp("cache"))
+
+
+def pytest_collection_modifyitems(items) -> None:
+    # Every test that reads the benchmark is marked, so `-m "not benchmark_data"` leaves them out.
+    for item in items:
+        if "benchmark_path" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.benchmark_data)

@@ -41,6 +41,7 @@ def logged(data_dir):
     return settings, trials, teams, {t.id: log.load(t.id) for t in trials}
 
 
+@pytest.mark.slow
 def test_demo_trials_finish_with_every_target_truly_reached(demo_dir):
     data, _, output = demo_dir
     settings, trials, teams, events = logged(data)

@@ -33,6 +33,7 @@ def test_first_start_creates_admin_once(settings):
     services.engine.dispose()
 
 
+@pytest.mark.slow
 def test_admin_create_and_db_upgrade_commands(tmp_path):
     env = {"ROBOTSLANG_DATA_DIR": str(tmp_path / "var"), "ROBOTSLANG_SECRET_KEY": "k"}
     done = cli("db", "upgrade", env=env)

@@ -91,6 +91,7 @@ def test_export_all_mcap_writes_one_file_per_finished_trial(recorded, tmp_path):
     assert "2 trial(s)" in result.output
 
 
+@pytest.mark.slow
 def test_ndh_export_reads_evaluates_and_trains_like_the_benchmark(recorded, tmp_path):
     env, settings, trials, events = recorded
     out = tmp_path / "ndh"
@@ -152,6 +153,7 @@ def test_export_without_a_database_says_where_it_looked(tmp_path):
     assert f"no database at {tmp_path / 'empty' / 'robotslang.db'}" in " ".join(result.output.split())
 
 
+@pytest.mark.slow
 def test_demo_and_exports_on_postgresql(postgres_url, tmp_path):
     env = {"ROBOTSLANG_DATA_DIR": str(tmp_path / "var"), "ROBOTSLANG_DATABASE_URL": postgres_url,
            "ROBOTSLANG_SECRET_KEY": "pg-test", "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0"}

@@ -28,6 +28,7 @@ def redis_url():
     return REDIS_URL
 
 
+@pytest.mark.slow
 def test_seats_on_two_processes_play_one_trial(tmp_path, postgres_url, redis_url):
     settings = platform_settings(tmp_path, database_url=postgres_url, redis_url=redis_url)
     with ServerThread(settings) as first, ServerThread(settings) as second:

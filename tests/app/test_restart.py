@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import asyncio
 
+import pytest
+
 from app.main import build_services
 from app.trial.state import fold
 from sim.dynamics import Action, snap_pose, teacher_action
@@ -20,6 +22,7 @@ def logged_action(services, trial_id: int) -> Action:
     return teacher_action(graph, snap_pose(graph, *state.pose), goal)
 
 
+@pytest.mark.slow
 def test_kill_and_restart_mid_trial_loses_no_committed_event(tmp_path):
     settings = platform_settings(tmp_path, cache_dir=tmp_path / "cache")
     services = build_services(settings)

@@ -3,6 +3,7 @@ the list never shows it; bad names and roles are refused by name."""
 
 from __future__ import annotations
 
+import pytest
 from sqlalchemy import create_engine
 from sqlalchemy.orm import Session
 
@@ -10,6 +11,7 @@ from app.backends.remote import robot_for_token
 from tests.app.test_experimenter import cli
 
 
+@pytest.mark.slow
 def test_robot_create_prints_a_working_token_once_and_list_shows_the_robots(tmp_path):
     env = {"ROBOTSLANG_DATA_DIR": str(tmp_path / "var"), "ROBOTSLANG_SECRET_KEY": "k"}
     made = cli("robot", "create", "rover 1", env=env)

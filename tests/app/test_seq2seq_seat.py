@@ -42,6 +42,7 @@ def events_of(services, trial_id: int, kind: str) -> list[Event]:
                           .order_by(Event.seq)).all()
 
 
+@pytest.mark.slow
 def test_learned_driver_claims_moves_after_a_rejection_and_claims_again(tmp_path, stopping_checkpoint):
     settings = platform_settings(tmp_path, seq2seq_checkpoint=stopping_checkpoint)
     with ServerThread(settings) as server:

@@ -53,6 +53,7 @@ def socket_log(page) -> list[str]:
     return received
 
 
+@pytest.mark.slow
 def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, tmp_path):
     ARTIFACTS.mkdir(exist_ok=True)
     settings = platform_settings(tmp_path, min_move_interval_s=0.0)

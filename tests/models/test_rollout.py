@@ -45,6 +45,7 @@ def test_teacher_forcing_reaches_every_goal_and_stops_there(few):
     assert (goal_distance(world, eps, idx, roll.final_node) == 0).all()
 
 
+@pytest.mark.slow
 def test_an_agent_that_always_wants_forward_never_drives_into_a_wall(few):
     world, eps = few["world"], few["train_set"]
     torch.manual_seed(0)

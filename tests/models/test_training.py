@@ -16,6 +16,9 @@ from models.train import TrainConfig, load_agent, train
 from sim.evaluation import evaluate_baselines
 from sim.metrics import CSV_COLUMNS, summarize, write_csv
 
+# Each test trains an agent: minutes of CPU together (the quick loop is -m "not slow").
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def trained(bench, few, tmp_path_factory):

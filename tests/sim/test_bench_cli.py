@@ -7,9 +7,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROBOTSLANG = Path(sys.executable).parent / "robotslang"
 
 
+@pytest.mark.slow
 def test_bench_sim_prints_every_figure(benchmark_path, tmp_path):
     env = {**os.environ, "COLUMNS": "160"}
     # Run from elsewhere: the installed command must find bench/ in the checkout by itself.

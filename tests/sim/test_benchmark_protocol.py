@@ -31,6 +31,7 @@ def test_recorded_start_is_the_nearest_node_and_heading(bench):
     assert pose.heading == round(inst.agent_pose[2] / (np.pi / 4)) % 8
 
 
+@pytest.mark.slow
 def test_episode_start_for_mug_and_paddle_ends_beside_the_previous_object(bench):
     insts = [i for i in bench.split("val_seen") if i.target != "jar"]
     assert insts
@@ -51,6 +52,7 @@ def test_jar_episodes_start_at_the_recorded_pose(bench):
 
 
 @pytest.mark.parametrize("split,mean,std", [("val_seen", "4.31", "1.02"), ("test", "4.33", "1.28")])
+@pytest.mark.slow
 def test_immediate_stop_reproduces_the_paper(benchmark_path, split, mean, std):
     out = subprocess.run(
         [sys.executable, "-m", "app.cli", "eval", "baselines", "--benchmark", str(benchmark_path),
@@ -62,6 +64,7 @@ def test_immediate_stop_reproduces_the_paper(benchmark_path, split, mean, std):
     assert summary["n"] == {"val_seen": 76, "test": 77}[split]
 
 
+@pytest.mark.slow
 def test_all_baselines_csv_has_a_row_per_instance_agent_and_seed(benchmark_path, tmp_path):
     csv_path = tmp_path / "per.csv"
     out = subprocess.run(

@@ -128,6 +128,7 @@ def test_a_local_maze_with_an_unknown_colour_is_rejected_naming_its_file(tmp_pat
 
 
 # -- the command line -------------------------------------------------------------------
+@pytest.mark.slow
 def test_mazes_generate_writes_the_benchmark_layout_and_a_manifest(tmp_path):
     result = CliRunner().invoke(root, ["mazes", "generate", "--count", "2", "--seed", "40", "--out", str(tmp_path)])
     assert result.exit_code == 0, result.output

@@ -1,0 +1,167 @@
+"""deploy/ as a lab runs it, on one machine: PostgreSQL and Redis, the migrate step, two
+`robotslang serve` processes, and Debian's nginx with deploy/nginx/robotslang.conf.template
+terminating TLS in front of them. A demo trial plays through the proxy over wss://, its
+Commander and Driver reaching different processes."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import re
+import shutil
+import ssl
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import httpx
+import pytest
+import websockets
+
+from app.security import SeatTokens
+from tests.app.live import ServerProcess, free_port
+from tests.packaging.conftest import REPO, clean_env
+
+DEPLOY = REPO / "deploy"
+NGINX = shutil.which("nginx") or "/usr/sbin/nginx"
+SECRET = "deploy-test-secret"
+
+
+def render(template: Path, values: dict[str, str]) -> str:
+    """envsubst as the nginx image runs it: only the named ${VARIABLES}, nginx's own $vars stay."""
+    text = template.read_text()
+    for name, value in values.items():
+        text = text.replace("${" + name + "}", value)
+    left = re.findall(r"\$\{\w+\}", text)
+    assert not left, f"{template.name}: no value for {left}"
+    return text
+
+
+def self_signed(tmp: Path) -> tuple[Path, Path]:
+    cert, key = tmp / "cert.pem", tmp / "key.pem"
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1", "-subj",
+                    "/CN=127.0.0.1", "-addext", "subjectAltName=IP:127.0.0.1", "-keyout", str(key), "-out",
+                    str(cert)], check=True, capture_output=True)
+    return cert, key
+
+
+class Nginx:
+    """Debian's nginx as a user process: its own prefix, pid, logs and temp paths under `tmp`."""
+
+    def __init__(self, tmp: Path, site: str) -> None:
+        self.prefix = tmp / "nginx"
+        for sub in ("logs", "temp"):
+            (self.prefix / sub).mkdir(parents=True, exist_ok=True)
+        (self.prefix / "robotslang.conf").write_text(site)
+        temp = self.prefix / "temp"
+        (self.prefix / "nginx.conf").write_text(f"""
+worker_processes 1;
+pid {self.prefix}/nginx.pid;
+error_log {self.prefix}/logs/error.log warn;
+events {{ worker_connections 256; }}
+http {{
+    log_format upstream '$request_uri $status $upstream_addr';
+    access_log {self.prefix}/logs/access.log upstream;
+    client_body_temp_path {temp}/body;
+    proxy_temp_path {temp}/proxy;
+    fastcgi_temp_path {temp}/fastcgi;
+    uwsgi_temp_path {temp}/uwsgi;
+    scgi_temp_path {temp}/scgi;
+    include {self.prefix}/robotslang.conf;
+}}
+""")
+        self.conf = self.prefix / "nginx.conf"
+
+    def __enter__(self) -> "Nginx":
+        check = subprocess.run([NGINX, "-p", str(self.prefix), "-c", str(self.conf), "-t"], capture_output=True,
+                               text=True)
+        assert check.returncode == 0, check.stderr
+        subprocess.run([NGINX, "-p", str(self.prefix), "-c", str(self.conf)], check=True)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        subprocess.run([NGINX, "-p", str(self.prefix), "-c", str(self.conf), "-s", "quit"], check=False)
+        pid = self.prefix / "nginx.pid"
+        deadline = time.time() + 10
+        while pid.exists() and time.time() < deadline:
+            time.sleep(0.1)
+
+    def upstreams(self, path_prefix: str) -> list[tuple[str, str]]:
+        """(status, upstream address) of every logged request under `path_prefix`."""
+        lines = (self.prefix / "logs" / "access.log").read_text().splitlines()
+        return [(status, addr) for uri, status, addr in (line.split(" ") for line in lines)
+                if uri.startswith(path_prefix)]
+
+
+@pytest.fixture
+def nginx_available():
+    if not Path(NGINX).exists():
+        pytest.skip("nginx is not installed (apt-get install -y nginx; .ci/run installs it)")
+
+
+def robotslang(*args: str, env: dict[str, str], cwd: Path) -> subprocess.CompletedProcess:
+    out = subprocess.run([sys.executable, "-c", "from app.cli import main; main()", *args], env=env, cwd=cwd,
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stdout + out.stderr
+    return out
+
+
+@pytest.mark.slow
+def test_two_servers_behind_nginx_play_a_trial_over_tls(tmp_path, postgres_url, redis_url, nginx_available):
+    env = {**clean_env(), "PYTHONPATH": str(REPO), "ROBOTSLANG_DATABASE_URL": postgres_url,
+           "ROBOTSLANG_REDIS_URL": redis_url, "ROBOTSLANG_SECRET_KEY": SECRET,
+           "ROBOTSLANG_DATA_DIR": str(tmp_path / "data"), "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0"}
+    # compose.yaml's migrate service, then two of its server processes.
+    robotslang("db", "upgrade", env=env, cwd=tmp_path)
+    robotslang("admin", "create", "admin", "--password", "deploy-test-pw", env=env, cwd=tmp_path)
+    servers = [ServerProcess(env) for _ in range(2)]
+    cert, key = self_signed(tmp_path)
+    http_port, https_port = free_port(), free_port()
+    site = render(DEPLOY / "nginx" / "robotslang.conf.template", {
+        "ROBOTSLANG_UPSTREAM_SERVERS": " ".join(f"server 127.0.0.1:{s.port};" for s in servers),
+        "ROBOTSLANG_LISTEN_ADDRESS": "127.0.0.1", "ROBOTSLANG_HTTP_PORT": str(http_port),
+        "ROBOTSLANG_HTTPS_PORT": str(https_port),
+        "ROBOTSLANG_SERVER_NAME": "127.0.0.1", "ROBOTSLANG_TLS_CERT": str(cert), "ROBOTSLANG_TLS_KEY": str(key)})
+    try:
+        for server in servers:
+            server.start()
+        with Nginx(tmp_path, site) as nginx:
+            proxy = f"https://127.0.0.1:{https_port}"
+            plain = httpx.get(f"http://127.0.0.1:{http_port}/leaderboard")
+            assert plain.status_code == 301 and plain.headers["location"] == f"{proxy}/leaderboard"
+            # The demo's seats (Commander, then Driver) connect through the proxy, trusting its cert.
+            demo = subprocess.run([sys.executable, "-c", "from app.cli import main; main()", "demo", "--trials",
+                                   "1", "--server", proxy], env={**env, "SSL_CERT_FILE": str(cert)},
+                                  cwd=tmp_path, capture_output=True, text=True, timeout=300)
+            assert demo.returncode == 0, demo.stdout + demo.stderr
+            assert re.search(r"trial 1: .*: finished,", demo.stderr), demo.stderr
+            seats = nginx.upstreams("/ws/play")
+            assert len(seats) == 2 and {status for status, _ in seats} == {"101"}
+            assert {addr for _, addr in seats} == {f"127.0.0.1:{s.port}" for s in servers}
+
+            # A browser's socket carries its page's Origin: through the proxy it is still its own host.
+            async def browser_seat() -> dict:
+                token = SeatTokens(SECRET).issue(1, "commander")
+                async with websockets.connect(f"wss://127.0.0.1:{https_port}/ws/play?token={token}",
+                                              origin=proxy, ssl=ssl.create_default_context(cafile=cert)) as ws:
+                    return json.loads(await asyncio.wait_for(ws.recv(), 10))
+
+            assert asyncio.run(browser_seat())["type"] == "welcome"
+    finally:
+        for server in servers:
+            server.stop()
+
+
+def test_the_compose_file_is_valid(tmp_path):
+    docker = shutil.which("docker")
+    if docker is None or subprocess.run([docker, "compose", "version"], capture_output=True).returncode != 0:
+        pytest.skip("docker compose is not installed here; the deploy test above runs the services' commands")
+    env = {**clean_env(), "POSTGRES_PASSWORD": "pw", "ROBOTSLANG_SECRET_KEY": "key",
+           "ROBOTSLANG_ADMIN_PASSWORD": "admin-pw", "ROBOTSLANG_SERVER_NAME": "lab.example.org"}
+    out = subprocess.run([docker, "compose", "-f", str(DEPLOY / "compose.yaml"), "config", "--format", "json"],
+                         env=env, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    services = json.loads(out.stdout)["services"]
+    assert set(services) == {"postgres", "redis", "migrate", "server", "nginx"}
+    assert services["server"]["command"] == ["robotslang", "serve", "--host", "0.0.0.0", "--port", "8000"]

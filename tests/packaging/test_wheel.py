@@ -1,0 +1,129 @@
+"""The built wheels, installed into a fresh venv outside the checkout, serve the platform and play a
+demo trial, without torch.
+
+The wheels are built offline (`python -m build --no-isolation`) from a copy of the checkout. The
+fresh venv gets only the two wheels; their dependencies come from this interpreter's
+site-packages through a .pth line (no download), and a meta-path hook there makes `import torch`
+fail as on a machine without it.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+import sqlite3
+import subprocess
+import sys
+import sysconfig
+import time
+from pathlib import Path
+
+import httpx
+import pytest
+
+from tests.packaging.conftest import REPO, clean_env, free_port
+
+pytestmark = pytest.mark.slow
+
+
+def build_wheels(tmp: Path) -> list[Path]:
+    source, dist = tmp / "source", tmp / "dist"
+    shutil.copytree(REPO, source, ignore=shutil.ignore_patterns(
+        ".git", ".venv", "var", "runs", "build", "*.egg-info", "__pycache__", ".pytest_cache", "test-artifacts"))
+    for project in (source / "robot_client", source):
+        subprocess.run([sys.executable, "-m", "build", "--wheel", "--no-isolation", "--outdir", str(dist),
+                        str(project)], check=True, capture_output=True, text=True)
+    return sorted(dist.glob("*.whl"))
+
+
+@pytest.fixture(scope="module")
+def venv(tmp_path_factory) -> Path:
+    tmp = tmp_path_factory.mktemp("wheel")
+    wheels = build_wheels(tmp)
+    assert [w.name.split("-")[0] for w in wheels] == ["robotslang", "robotslang_robot"]
+    venv = tmp / "venv"
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True)
+    python = venv / "bin" / "python"
+    subprocess.run([sys.executable, "-m", "pip", "--python", str(python), "install", "--quiet", "--no-index",
+                    "--no-deps", *map(str, wheels)], check=True, env=clean_env())
+    site = Path(subprocess.run([str(python), "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"],
+                               check=True, capture_output=True, text=True).stdout.strip())
+    # Dependencies from this interpreter's site-packages, after the venv's own; no torch.
+    deps = {sysconfig.get_path("purelib"), sysconfig.get_path("platlib")}
+    shutil.copy(Path(__file__).with_name("no_torch.py"), site / "no_torch.py")
+    (site / "zz_deps.pth").write_text("import no_torch\n" + "".join(f"{p}\n" for p in sorted(deps)))
+    return venv
+
+
+def run(venv: Path, *args: str, cwd: Path, **env: str) -> subprocess.CompletedProcess:
+    return subprocess.run([str(venv / "bin" / args[0]), *args[1:]], cwd=cwd, env=clean_env(**env),
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_the_installed_packages_come_from_the_wheels_and_torch_is_absent(venv, tmp_path):
+    out = run(venv, "python", "-c", "import app, robot_client, sim; print(app.__file__); print(robot_client.__file__);"
+              "print(sim.__file__)\ntry:\n import torch\nexcept ImportError: print('no torch')",
+              cwd=tmp_path).stdout.splitlines()
+    assert all(line.startswith(str(venv)) for line in out[:3]), out
+    assert out[3] == "no torch"
+    check = subprocess.run([sys.executable, "-m", "pip", "--python", str(venv / "bin" / "python"), "check"],
+                           capture_output=True, text=True, env=clean_env())
+    # Every dependency of both wheels is satisfied, without torch (pip check also reports on the
+    # other packages of the environment lending the dependencies; those are not ours to judge).
+    ours = [line for line in check.stdout.splitlines() if line.startswith(("robotslang ", "robotslang-robot "))]
+    assert ours == [], check.stdout
+    assert run(venv, "robotslang", "--version", cwd=tmp_path).stdout.strip() == "robotslang 0.1.0"
+
+
+def test_the_installed_server_serves_pages_static_files_migrations_and_bundled_mazes(venv, tmp_path):
+    data, port = tmp_path / "data", free_port()
+    server = subprocess.Popen([str(venv / "bin" / "robotslang"), "serve", "--port", str(port), "--data-dir",
+                               str(data)], cwd=tmp_path, env=clean_env(), stdout=subprocess.PIPE,
+                              stderr=subprocess.STDOUT, text=True)
+    try:
+        url = f"http://127.0.0.1:{port}"
+        deadline = time.time() + 60
+        while True:
+            assert server.poll() is None, server.stdout.read()
+            try:
+                if httpx.get(url + "/leaderboard", timeout=1).status_code == 200:
+                    break
+            except httpx.HTTPError:
+                assert time.time() < deadline, "the installed server did not answer in 60 s"
+                time.sleep(0.2)
+        assert "<form" in httpx.get(url + "/").text
+        css = httpx.get(url + "/static/style.css")
+        assert css.status_code == 200 and css.headers["content-type"].startswith("text/css")
+        with sqlite3.connect(data / "robotslang.db") as db:
+            assert db.execute("select version_num from alembic_version").fetchone() == ("0001",)
+        server.terminate()
+        first_lines = server.communicate(timeout=20)[0]
+        password = re.search(r"experimenter 'admin' created with password (\S+)", first_lines).group(1)
+    finally:
+        if server.poll() is None:
+            server.kill()
+            server.wait()
+    # Logged in, the experimenter picks from the mazes bundled in the wheel.
+    server = subprocess.Popen([str(venv / "bin" / "robotslang"), "serve", "--port", str(port), "--data-dir",
+                               str(data)], cwd=tmp_path, env=clean_env(), stdout=subprocess.DEVNULL)
+    try:
+        with httpx.Client(base_url=url, follow_redirects=True) as client:
+            deadline = time.time() + 60
+            while True:
+                try:
+                    page = client.post("/login", data={"name": "admin", "password": password})
+                    break
+                except httpx.HTTPError:
+                    assert server.poll() is None and time.time() < deadline
+                    time.sleep(0.2)
+            assert page.url.path == "/experimenter"
+            assert all(f"<option>gen-{i:03d}</option>" in page.text for i in range(12))
+    finally:
+        server.terminate()
+        server.wait(timeout=20)
+
+
+def test_the_installed_demo_plays_a_trial(venv, tmp_path):
+    out = run(venv, "robotslang", "demo", "--trials", "1", cwd=tmp_path, ROBOTSLANG_DATA_DIR=str(tmp_path / "d"))
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert ": finished," in out.stderr
