@@ -18,7 +18,7 @@ router = APIRouter()
 
 ADVICE = {
     403: ("Not allowed", "This page or action is not open to you. If you followed a join link, it may be "
-                         "mistyped or belong to another trial: ask your experimenter for a new one."),
+                         "mistyped or belong to another trial. Ask your experimenter for a new join link."),
     404: ("Page not found", "There is nothing at this address. Check the link, or start from the home page."),
     409: ("Not possible now", "That cannot be done in the trial's present state. Go back and reload the page."),
     422: ("That did not work", "Something in the request was not filled in as expected. Go back and try again."),

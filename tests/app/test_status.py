@@ -43,7 +43,8 @@ def test_seats_get_the_status_and_the_experimenter_watches_the_driver(settings):
             eve = Experimenter(name="eve", password_hash=hash_password("correct horse"))
             db.add(eve)
             db.flush()
-            cookie = services.sessions.issue(eve.id)
+            eve_id = eve.id
+        cookie = services.sessions.issue(eve_id)  # once eve is committed: the session reads her version
 
         async def play():
             async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:

@@ -146,7 +146,7 @@ def test_participants_see_the_clock_their_moves_and_what_to_do(browser, server):
     assert "Drive to target 1 of 3" in driver.inner_text("#status")
     for n in (1, 2):
         driver.click("#left")
-        wait_until(lambda: runtime.state.moves == n and not runtime._move_busy, "a move")
+        wait_until(lambda: runtime.state.moves == n and not runtime.state.moves_in_flight, "a move")
         driver.wait_for_selector(f"#moves[data-moves='{n}']")
     seconds = lambda page: float(page.get_attribute("#clock", "data-seconds"))
     before = seconds(driver)
