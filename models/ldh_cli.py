@@ -92,5 +92,50 @@ def eval_ldh(
         print_table(summary)
 
 
+def train_ldh(
+    benchmark: Path = BENCHMARK_OPTION,
+    seed: int = typer.Option(0, help="Random seed."),
+    out: Path = typer.Option(..., help="Run folder: best.pt (best val_seen TD), history.json."),
+    epochs: int = typer.Option(30, help="Epochs over the training dialogs (plus fresh synthetic ones)."),
+    synthetic: int = typer.Option(0, help="Synthetic Driver descriptions mixed in per epoch (0: real dialogs only)."),
+    dropout: float = typer.Option(0.5, help="Dropout on the dialog's mention counts."),
+    prior: bool = typer.Option(True, help="Start from the colour baseline's scores (a learned weight)."),
+    variant: VariantOption = typer.Option(VariantOption.prefix, help="LDH input: prefix or full."),
+) -> None:
+    """Train the learned LDH localizer (progress bar with loss and val_seen TD)."""
+    from models.ldh import LDHConfig, train
+
+    try:
+        result = train(open_benchmark(benchmark), LDHConfig(seed=seed, epochs=epochs, synthetic=synthetic,
+                                                            dropout=dropout, prior=prior, variant=variant.value),
+                       out)
+    except ValueError as e:
+        raise typer.BadParameter(str(e)) from None
+    best = result["best"]
+    typer.echo(f"best val_seen TD {best['val_td']:.3f} at epoch {best['epoch']} -> {out / 'best.pt'} "
+               f"({result['seconds']:.0f} s)")
+
+
+def experiment_ldh(
+    benchmark: Path = BENCHMARK_OPTION,
+    out: Path = typer.Option(Path("runs/ldh-experiment"), help="Experiment folder (runs, results.json)."),
+    seeds: str = typer.Option("0,1,2", help="Seeds, comma-separated."),
+    doc: Path = typer.Option(Path("docs/ldh.md"), help="Markdown page whose results block is rewritten."),
+) -> None:
+    """Baselines, the learned localizer and its ablations (3 seeds) on val_seen, then test once."""
+    from models.ldh_experiment import run_experiment
+
+    try:
+        seed_list = [int(s) for s in parse_list(seeds, "seed")]
+    except ValueError:
+        raise typer.BadParameter(f"seeds must be integers, got {seeds!r}", param_hint="--seeds") from None
+    meta = run_experiment(open_benchmark(benchmark), out, seed_list, doc)
+    learned = meta["test"]["agents"]["learned"]
+    typer.echo(f"test TD learned {learned['td_mean']:.3f} m; {meta['timing']['total_s'] / 60:.1f} min; "
+               f"results -> {out / 'results.json'}, {doc}")
+
+
 def register(train_app: typer.Typer, eval_app: typer.Typer, experiment_app: typer.Typer) -> None:
     eval_app.command("ldh")(eval_ldh)
+    train_app.command("ldh")(train_ldh)
+    experiment_app.command("ldh")(experiment_ldh)

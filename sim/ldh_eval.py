@@ -24,7 +24,7 @@ from sim.benchmark import Benchmark
 from sim.geometry import HEADINGS
 from sim.labels import N_LABELS
 from sim.ldh import LDHInstance
-from sim.ldh_features import N_VIEW_SECTORS, Sector, maze_views, mentions
+from sim.ldh_features import maze_views, mentions
 from sim.navgraph import NavGraph
 
 ACC_RADII_M = (0.25, 0.5, 1.0)
@@ -100,15 +100,20 @@ def center_localizer(inst: LDHInstance, ctx: MazeContext) -> np.ndarray:
 VISIBLE_FLOOR = 0.02  # likelihood of a named label that the sector does not see
 
 
-def colour_logits(counts: np.ndarray, views: np.ndarray, far_weight: float = 0.5) -> np.ndarray:
-    """(N, 8) log-likelihood of the Driver's mentions (sectors x labels) at each pose: each
-    mention is explained by the share of that sector's rays that hit its label (any sector's,
-    the best, for a label named without a direction)."""
+def colour_features(views: np.ndarray, far_weight: float = 0.5) -> np.ndarray:
+    """(N, 8, MENTION_FEATURES) float32: per pose, the log-likelihood of one mention of each
+    (sector, label): the log share of that sector's rays that hit the label (far hits count
+    `far_weight`), for a label named without a direction the best sector's."""
     seen = views[..., 0] + far_weight * views[..., 1]  # (N, 8, sectors, labels)
     log_seen = np.log(VISIBLE_FLOOR + seen)
-    directed = np.einsum("sl,nhsl->nh", counts[:N_VIEW_SECTORS], log_seen)
-    undirected = np.einsum("l,nhl->nh", counts[Sector.ANY], log_seen.max(axis=2))
-    return directed + undirected
+    return np.concatenate([log_seen, log_seen.max(axis=2, keepdims=True)], axis=2).reshape(
+        *views.shape[:2], -1).astype(np.float32)
+
+
+def colour_logits(counts: np.ndarray, views: np.ndarray) -> np.ndarray:
+    """(N, 8) log-likelihood of the Driver's mentions (sectors x labels, see
+    `sim.ldh_features.mentions`) at each pose, mentions taken as independent."""
+    return colour_features(views) @ counts.ravel()
 
 
 def colours_localizer(inst: LDHInstance, ctx: MazeContext) -> np.ndarray:
