@@ -21,7 +21,7 @@ from models.ldh import LDHConfig, load_localizer, train
 from models.stats import paired_tests
 from sim.benchmark import Benchmark
 from sim.ldh import CUT_RULE, Variant, load_split
-from sim.ldh_eval import BASELINES, MazeContexts, evaluate, summarize, summarize_agent
+from sim.ldh_eval import BASELINES, MazeContexts, evaluate, summarize, summarize_agent, write_csv
 
 HUMAN_TD_M = 0.446  # the paper's human study (8 people)
 MAIN = LDHConfig()
@@ -52,7 +52,7 @@ def run_experiment(bench: Benchmark, out: Path, seeds: list[int], doc: Path | No
     for name, cfg in ABLATIONS.items():
         tds = []
         for seed in seeds:
-            folder = out / "runs" / f"{name.replace(' ', '').replace('+', 'with-').replace('-', 'no-')}-s{seed}"
+            folder = out / "runs" / f"{name.replace('+ ', 'with-').replace('- ', 'no-')}-s{seed}"
             tds.append(train(bench, replace(cfg, seed=seed), folder, contexts=contexts)["best"]["val_td"])
             if name == "learned":
                 (out / f"learned-s{seed}.path").write_text(str(folder / "best.pt"))
@@ -68,6 +68,7 @@ def run_experiment(bench: Benchmark, out: Path, seeds: list[int], doc: Path | No
         per_seed[seed] = summarize_agent(seed_results)
         results += seed_results
     test = summarize("test", "prefix", len(test_set), results)
+    write_csv(out / "test_per_instance.csv", results)
     tests = [c.to_dict() for c in paired_tests(results, [("learned", "center"), ("learned", "colours")])]
     meta = {"cut_rule": CUT_RULE, "seeds": seeds, "val_seen_baselines": val_base, "val_seen_ablation": ablation,
             "test": test, "test_per_seed": per_seed, "paired_tests": tests,
@@ -90,9 +91,10 @@ def _plot(results, path: Path) -> Path:
     for r in results:
         by_agent.setdefault(r.agent, {}).setdefault(r.inst_idx, []).append(r.td)
     fig, (hist, cdf) = plt.subplots(1, 2, figsize=(10, 3.6))
+    top = max(r.td for r in results)
     for agent, per in by_agent.items():
         td = np.sort([np.mean(v) for v in per.values()])
-        hist.hist(td, bins=np.arange(0, 5.25, 0.25), histtype="step", label=agent, linewidth=1.5)
+        hist.hist(td, bins=np.arange(0, top + 0.25, 0.25), histtype="step", label=agent, linewidth=1.5)
         cdf.step(td, np.arange(1, td.size + 1) / td.size, where="post", label=agent)
     cdf.axvline(HUMAN_TD_M, color="grey", linestyle=":", label=f"humans, mean ({HUMAN_TD_M} m)")
     hist.set_xlabel("TD per test instance (m; learned: mean of seeds)")
