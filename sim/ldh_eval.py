@@ -21,8 +21,6 @@ from typing import Callable, Iterable, Protocol
 import numpy as np
 
 from sim.benchmark import Benchmark
-from sim.geometry import HEADINGS
-from sim.labels import N_LABELS
 from sim.ldh import LDHInstance
 from sim.ldh_features import maze_views, mentions
 from sim.navgraph import NavGraph
