@@ -160,3 +160,6 @@ def register(root: typer.Typer, eval_app: typer.Typer) -> None:
     experiment_app = typer.Typer(help="End-to-end experiments.", no_args_is_help=True)
     experiment_app.command("ndh")(experiment_ndh)
     root.add_typer(experiment_app, name="experiment")
+    from models import ldh_cli
+
+    ldh_cli.register(train_app, eval_app, experiment_app)

@@ -31,6 +31,14 @@ class BenchmarkError(ValueError):
     """Benchmark files missing or not in the expected form."""
 
 
+def scan_run(scan: str) -> str:
+    """The maze's run folder named in a scan string, e.g. "Run_318"."""
+    match = _SCAN.match(scan)
+    if not match:
+        raise BenchmarkError(f"unrecognised scan {scan!r}")
+    return match["run"]
+
+
 @dataclass(frozen=True)
 class NDHInstance:
     inst_idx: int

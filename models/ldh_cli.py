@@ -1,0 +1,141 @@
+"""`robotslang eval ldh`, `train ldh`, `experiment ldh`: Localization from Dialog History.
+
+torch is imported only where a checkpoint is trained or read.
+"""
+
+from __future__ import annotations
+
+import json
+from enum import Enum
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from sim.eval_cli import BENCHMARK_OPTION, open_benchmark, parse_list
+
+LEARNED = "learned"
+
+
+class EvalSplit(str, Enum):
+    val_seen = "val_seen"
+    test = "test"
+
+
+class VariantOption(str, Enum):
+    prefix = "prefix"
+    full = "full"
+
+
+def print_table(summary: dict) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"LDH {summary['split']} {summary['variant']} (n={summary['n']})")
+    for col in ("agent", "TD (m)", "Euclid (m)", "acc@0.25", "acc@0.5", "acc@1.0"):
+        table.add_column(col, justify="left" if col == "agent" else "right")
+    for name, s in summary["agents"].items():
+        table.add_row(name, f"{s['td_mean']:.3f} ± {s['td_std']:.3f}", f"{s['euclid_mean']:.3f}",
+                      f"{s['acc_0.25']:.3f}", f"{s['acc_0.5']:.3f}", f"{s['acc_1.0']:.3f}")
+    Console().print(table)
+
+
+def eval_ldh(
+    benchmark: Path = BENCHMARK_OPTION,
+    split: EvalSplit = typer.Option(EvalSplit.val_seen, help="Split (by maze, as the benchmark's)."),
+    agent: str = typer.Option("random,center,colours", help="Localizers, comma-separated: random, center, "
+                              f"colours, {LEARNED} (needs --checkpoint)."),
+    checkpoint: Optional[Path] = typer.Option(None, help="A checkpoint written by `train ldh`."),
+    variant: VariantOption = typer.Option(VariantOption.prefix, help="prefix: the dialog up to the end of "
+                                          "localization (rule prefix-v1); full: the whole first sub-dialog. "
+                                          "A folder with LDH-data/ (a platform export) is read as is."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
+    per_instance: Optional[Path] = typer.Option(None, help="Write a CSV row per instance and agent."),
+) -> None:
+    """Score localizers on LDH: TD and Euclidean error (m), accuracy within 0.25/0.5/1.0 m."""
+    from sim.benchmark import BenchmarkError
+    from sim.ldh import Variant, load_split
+    from sim.ldh_eval import BASELINES, evaluate, summarize, write_csv
+
+    names = parse_list(agent, "agent", [*BASELINES, LEARNED])
+    agents = {name: BASELINES[name] for name in names if name != LEARNED}
+    if LEARNED in names:
+        if checkpoint is None:
+            raise typer.BadParameter(f"agent {LEARNED} needs --checkpoint", param_hint="--agent")
+        from models.ldh import load_localizer
+
+        try:
+            agents[LEARNED] = load_localizer(checkpoint)
+        except (FileNotFoundError, ValueError) as e:
+            raise typer.BadParameter(str(e), param_hint="--checkpoint") from None
+    bench = open_benchmark(benchmark)
+    try:
+        instances = load_split(bench, split.value, Variant(variant.value))
+    except BenchmarkError as e:
+        raise typer.BadParameter(str(e), param_hint="--benchmark") from None
+    if not instances:
+        raise typer.BadParameter(f"split {split.value} has no LDH instances", param_hint="--split")
+    shown = instances[0].variant.value
+    if as_json:
+        results = evaluate(bench, split.value, instances, agents)
+    else:
+        from rich.progress import track
+
+        results = evaluate(bench, split.value, instances, agents,
+                           progress=lambda it: track(it, description="localizing"))
+    summary = summarize(split.value, shown, len(instances), results)
+    if per_instance is not None:
+        write_csv(per_instance, results)
+    if as_json:
+        typer.echo(json.dumps(summary, indent=2))
+    else:
+        print_table(summary)
+
+
+def train_ldh(
+    benchmark: Path = BENCHMARK_OPTION,
+    seed: int = typer.Option(0, help="Random seed."),
+    out: Path = typer.Option(..., help="Run folder: best.pt (best val_seen TD), history.json."),
+    epochs: int = typer.Option(30, help="Epochs over the training dialogs (plus fresh synthetic ones)."),
+    synthetic: int = typer.Option(0, help="Synthetic Driver descriptions mixed in per epoch (0: real dialogs only)."),
+    dropout: float = typer.Option(0.5, help="Dropout on the dialog's mention counts."),
+    prior: bool = typer.Option(True, help="Start from the colour baseline's scores (a learned weight)."),
+    variant: VariantOption = typer.Option(VariantOption.prefix, help="LDH input: prefix or full."),
+) -> None:
+    """Train the learned LDH localizer (progress bar with loss and val_seen TD)."""
+    from models.ldh import LDHConfig, train
+
+    try:
+        result = train(open_benchmark(benchmark), LDHConfig(seed=seed, epochs=epochs, synthetic=synthetic,
+                                                            dropout=dropout, prior=prior, variant=variant.value),
+                       out)
+    except ValueError as e:
+        raise typer.BadParameter(str(e)) from None
+    best = result["best"]
+    typer.echo(f"best val_seen TD {best['val_td']:.3f} at epoch {best['epoch']} -> {out / 'best.pt'} "
+               f"({result['seconds']:.0f} s)")
+
+
+def experiment_ldh(
+    benchmark: Path = BENCHMARK_OPTION,
+    out: Path = typer.Option(Path("runs/ldh-experiment"), help="Experiment folder (runs, results.json)."),
+    seeds: str = typer.Option("0,1,2", help="Seeds, comma-separated."),
+    doc: Path = typer.Option(Path("docs/ldh.md"), help="Markdown page whose results block is rewritten."),
+) -> None:
+    """Baselines, the learned localizer and its ablations (3 seeds) on val_seen, then test once."""
+    from models.ldh_experiment import run_experiment
+
+    try:
+        seed_list = [int(s) for s in parse_list(seeds, "seed")]
+    except ValueError:
+        raise typer.BadParameter(f"seeds must be integers, got {seeds!r}", param_hint="--seeds") from None
+    meta = run_experiment(open_benchmark(benchmark), out, seed_list, doc)
+    learned = meta["test"]["agents"]["learned"]
+    typer.echo(f"test TD learned {learned['td_mean']:.3f} m; {meta['timing']['total_s'] / 60:.1f} min; "
+               f"results -> {out / 'results.json'}, {doc}")
+
+
+def register(train_app: typer.Typer, eval_app: typer.Typer, experiment_app: typer.Typer) -> None:
+    eval_app.command("ldh")(eval_ldh)
+    train_app.command("ldh")(train_ldh)
+    experiment_app.command("ldh")(experiment_ldh)
