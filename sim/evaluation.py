@@ -117,16 +117,20 @@ def evaluate_baselines(benchmark: Benchmark, split: str, agents: Iterable[str], 
         actions[stop] = Action.STOP
         stepper.step(actions)
 
+    # Path lengths as `sim.metrics.score_trajectory` sums them (each episode's step lengths,
+    # one contiguous row summed alone), so SPL matches to the bit.
+    xy = np.asarray(world.xy)[stepper.visited()]  # (T + 1, B, 2)
+    moves = np.ascontiguousarray(np.sqrt(np.square(np.diff(xy, axis=0)).sum(axis=2)).T)  # (B, T)
+    path_length = [float(moves[e, :n].sum()) for e, n in enumerate(stepper.steps)]
+    start_xy = xy[0]
     results = []
-    for e, (nodes, (k, name, seed)) in enumerate(zip(stepper.trajectories(), order)):
-        # Path length as `sim.metrics.score_trajectory` sums it, so SPL matches to the bit.
-        path_length = float(np.linalg.norm(np.diff(world.xy[nodes], axis=0), axis=1).sum())
-        td, best, success = float(stepper.td[e]), float(stepper.shortest[e]), bool(stepper.td[e] <= SUCCESS_RADIUS_M)
-        spl = best / max(path_length, best) if success and best > 0 else float(success)
-        sx, sy = world.xy[nodes[0]]
+    for e, (k, name, seed) in enumerate(order):
+        td, best = float(stepper.td[e]), float(stepper.shortest[e])
+        success = td <= SUCCESS_RADIUS_M
+        spl = best / max(path_length[e], best) if success and best > 0 else float(success)
         results.append(EpisodeResult(
             split=split, inst_idx=instances[k].inst_idx, agent=name, seed=seed,
-            start_x=float(sx), start_y=float(sy),
+            start_x=float(start_xy[e, 0]), start_y=float(start_xy[e, 1]),
             start_heading=float(heading_angle(int(geometry.start_heading[k]))),
             goal_x=float(instances[k].target_pose[0]), goal_y=float(instances[k].target_pose[1]),
             td=td, otd=float(stepper.otd[e]), steps=int(stepper.steps[e]), success=success, spl=spl))

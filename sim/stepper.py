@@ -153,11 +153,15 @@ class BatchStepper:
     def heading(self) -> np.ndarray:
         return self.slot & (HEADINGS - 1)
 
-    def trajectories(self) -> list[list[int]]:
-        """Global nodes visited by each episode since the last start(): the start, then one per
-        move (a collision repeats the node), as `sim.metrics.score_trajectory` takes them once
-        made local. Needs record=True."""
+    def visited(self) -> np.ndarray:
+        """(T + 1, B) global node of each episode before each step since the last start(), then
+        after the last; episode k's trajectory is its first `steps[k] + 1` rows. Needs record=True."""
         if not self.record:
             raise RuntimeError("trajectories are not recorded: make the stepper with record=True")
-        history = np.stack(self._history)  # (T + 1, B)
+        return np.stack(self._history)
+
+    def trajectories(self) -> list[list[int]]:
+        """Global nodes visited by each episode: the start, then one per move (a collision
+        repeats the node), as `sim.metrics.score_trajectory` takes them once made local."""
+        history = self.visited()
         return [history[: self.steps[k] + 1, k].tolist() for k in range(self.size)]

@@ -37,8 +37,9 @@ if TYPE_CHECKING:
     from sim.navgraph import NavGraph
 
 ACTIONS = len(Action)
-_WORLD_VERSION = 3  # 3: names, observations optional
+_WORLD_VERSION = 4  # 4: names, observations optional, derived tables
 _ARRAYS = ("offset", "size", "xy", "ij", "forward")
+_TABLES = ("transition", "collides", "move_length")  # derived, cached too: a warm process reads them
 # Heading change per action: forward 0, left +1, right -1, stop 0.
 _TURN = np.array([0, 1, -1, 0], dtype=np.int64)
 
@@ -113,8 +114,11 @@ class World:
             # Memory-mapped: instant to open, and parallel processes share one copy.
             arrays = {k: np.load(folder / f"{k}.npy", mmap_mode="r") for k in _ARRAYS}
             obs = np.load(folder / "obs.npy", mmap_mode="r") if observations else None
-            return cls(names=tuple(json.loads((folder / "names.json").read_text())), obs=obs,
-                       key=folder.name, **arrays)
+            world = cls(names=tuple(json.loads((folder / "names.json").read_text())), obs=obs,
+                        key=folder.name, **arrays)
+            for k in _TABLES:  # filling the cached properties
+                world.__dict__[k] = np.load(folder / f"{k}.npy", mmap_mode="r")
+            return world
         except (OSError, ValueError):
             return None  # torn or stale: rebuilt
 
@@ -123,7 +127,7 @@ class World:
         # with observations replaces one without.
         folder.parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(dir=folder.parent))
-        for k in _ARRAYS + (("obs",) if self.obs is not None else ()):
+        for k in _ARRAYS + _TABLES + (("obs",) if self.obs is not None else ()):
             np.save(tmp / f"{k}.npy", getattr(self, k))
         (tmp / "names.json").write_text(json.dumps(list(self.names)))
         if self.obs is not None and folder.exists():
