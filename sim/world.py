@@ -35,6 +35,7 @@ if TYPE_CHECKING:
     from sim.benchmark import Benchmark, NDHInstance
     from sim.maze import Maze
     from sim.navgraph import NavGraph
+    from sim.observations import RayTable
 
 ACTIONS = len(Action)
 _WORLD_VERSION = 4  # 4: names, observations optional, derived tables
@@ -58,21 +59,23 @@ class World:
     # -- construction -------------------------------------------------------------
     @classmethod
     def compile(cls, items: Sequence[tuple[str, "Maze", "NavGraph"]], observations: bool = True,
-                obs_dtype=np.float32, cache_dir: str | Path | None = None) -> "World":
-        """(name, maze, graph) triples in one world; ray tables from the maze's cache."""
+                obs_dtype=np.float32, cache_dir: str | Path | None = None,
+                rays: Sequence["RayTable"] | None = None) -> "World":
+        """(name, maze, graph) triples in one world; ray tables given (`rays`, one per item) or
+        from the maze's cache."""
         from sim.observations import RayTable  # only when observations are compiled
 
         parts: dict[str, list] = {"xy": [], "ij": [], "forward": [], "obs": []}
         offset, size, total = [], [], 0
-        for _, maze, graph in items:
+        for k, (_, maze, graph) in enumerate(items):
             offset.append(total)
             size.append(graph.n)
             parts["xy"].append(graph.nodes)
             parts["ij"].append(graph.node_ij.astype(np.int64))
             parts["forward"].append(np.where(graph.forward >= 0, graph.forward + total, -1).astype(np.int64))
             if observations:
-                rays = RayTable.build(maze, graph, cache_dir=cache_dir).features()
-                parts["obs"].append(rays.reshape(graph.n * HEADINGS, -1).astype(obs_dtype))
+                table = rays[k] if rays is not None else RayTable.build(maze, graph, cache_dir=cache_dir)
+                parts["obs"].append(table.features().reshape(graph.n * HEADINGS, -1).astype(obs_dtype))
             total += graph.n
         if not items:
             raise ValueError("a world needs at least one maze")
