@@ -171,7 +171,8 @@ def bench_batch(graphs: list[NavGraph], world: World, batch: int, steps: int = 3
 def bench_rollout(benchmark: Benchmark, runs: list[str], iterations: int = 3, batch: int = 100) -> list[Figure]:
     """One student-forcing iteration of the NDH learner (rollout, loss, backward, Adam step) at
     batch 100 on the train instances of `runs` (all maps: the whole split), median of a few;
-    the world comes from the cache."""
+    the world comes from the cache. Torch on one thread: on a shared 2-core machine a second
+    thread waits for the other's core (15 s against 0.9 s an iteration at load average 8)."""
     import torch
 
     from models.data import EpisodeSet
@@ -186,6 +187,7 @@ def bench_rollout(benchmark: Benchmark, runs: list[str], iterations: int = 3, ba
     batch = min(batch, len(instances))
     tokenizer = Tokenizer.from_dialogs((i.dialog, i.target) for i in instances)
     episodes = EpisodeSet.build(benchmark, world, "train", tokenizer, instances=instances)
+    torch.set_num_threads(1)
     agent = make_agent(TrainConfig(feedback="student"), tokenizer, world.obs_features)
     optimizer = torch.optim.Adam(agent.parameters(), lr=1e-3)
     watches = []
