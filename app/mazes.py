@@ -51,7 +51,7 @@ class Mazes:
         return self.library.load(name)
 
     def _graph(self, name: str) -> NavGraph:
-        return NavGraph.build(self.load(name), cache_dir=self.settings.cache_dir)
+        return NavGraph.build(self.load(name), cache_dir=self.settings.cache_dir, objects_block=True)
 
     def _map_png(self, name: str) -> bytes:
         """The Commander's map: the walls, and each landmark as a disc in its benchmark colour

@@ -1,9 +1,13 @@
-"""Simulator speed on the benchmark's maps: `python -m bench.sim [--benchmark PATH] [--maps N]`.
+"""Simulator speed on the benchmark's maps: `python -m bench.sim [--benchmark PATH] [--maps N] [--json]`.
 
 Each `bench_*` function below measures one figure; `main` prints them all in one table against
-the targets of the design (2-core machine): all maps' graphs + all-pairs + ray tables in under 15 s, a single
-environment step under 20 microseconds, batched stepping over 1,000,000 steps per second
-with observations, first-person renders over 300 frames per second at 320x240.
+the targets (2-core machine): all maps' graphs + all-pairs + ray tables in under 15 s, batched
+steps of the core with observations over 10,000,000 per second at batch 1000, first-person
+renders over 1,000 frames per second at 320x240, and one student-forcing iteration of the NDH
+learner at batch 100 (`rollout_iter_s`). `--json` prints one object with the keys
+`all_maps_s`, `png_decode_s`, `env_step_us`, `batch_steps_per_s_1000`, `render_fps_320x240`
+and `rollout_iter_s` (wall clock), so a script can hold them against targets; the machine's
+load average goes to stderr beside them.
 
 Everything is built uncached (`use_cache=False`), so the figures are build costs, not disk reads.
 """
@@ -11,7 +15,9 @@ Everything is built uncached (`use_cache=False`), so the figures are build costs
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,15 +28,15 @@ from rich.console import Console
 from rich.table import Table
 from tqdm import tqdm
 
-from sim.batch_env import BatchNavEnv
 from sim.benchmark import MAX_EPISODE_ACTIONS, Benchmark, BenchmarkError
-from sim.dynamics import Pose
 from sim.env import ENV_ID, NDHEnv
 from sim.geometry import heading_angle
-from sim.maze import Maze
+from sim.maze import FIXED_MAP, WALLS_MAP, Maze
 from sim.navgraph import NavGraph
 from sim.observations import RayTable
 from sim.render import first_person
+from sim.stepper import BatchStepper
+from sim.world import World, goal_rows
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -84,7 +90,10 @@ def bench_decode(benchmark: Benchmark, runs: list[str]) -> tuple[list[Maze], lis
     mazes, watches = [], []
     for run in tqdm(runs, desc="decode PNGs", unit="map"):
         with Stopwatch() as watch:
-            mazes.append(Maze.from_dir(benchmark.root / "mazedata" / run))
+            folder = benchmark.root / "mazedata" / run / "maze"
+            walls = folder / WALLS_MAP
+            mazes.append(Maze.from_png(folder / FIXED_MAP, walls if walls.exists() else None, name=run,
+                                       use_cache=False))
         watches.append(watch)
     return mazes, _per_map("PNG decode", watches)
 
@@ -134,25 +143,65 @@ def bench_single_env(mazes: list[Maze], episodes: int = 400, seed: int = 0) -> l
     return figures
 
 
-def bench_batch(graphs: list[NavGraph], tables: list[RayTable], batch: int, steps: int = 300,
+def bench_batch(graphs: list[NavGraph], world: World, batch: int, steps: int = 300,
                 seed: int = 0) -> list[Figure]:
-    """`BatchNavEnv.step` with observations, episodes spread over all maps, random actions."""
+    """`BatchStepper.step` and its observations, episodes spread over all maps, random moves."""
     rng = np.random.default_rng(seed)
-    env = BatchNavEnv(list(zip(graphs, tables)), max_actions=10 ** 9)  # keep every episode live
-    worlds = rng.integers(len(graphs), size=batch)
-    episodes = [(int(w), Pose(int(rng.integers(graphs[w].n)), int(rng.integers(8))),
-                 int(rng.integers(graphs[w].n))) for w in worlds]
-    env.reset(episodes)
+    stepper = BatchStepper(world, batch, max_actions=10 ** 9)  # keep every episode live
+    for k, m in enumerate(rng.integers(len(graphs), size=batch)):
+        node, goal = int(rng.integers(graphs[m].n)), int(rng.integers(graphs[m].n))
+        dist, hop = goal_rows(graphs[m], [goal])
+        off = int(world.offset[m])
+        stepper.start([k], [off + node], [int(rng.integers(8))], [off + goal], dist, hop)
     actions = rng.integers(0, 3, (steps, batch))
+    obs = np.empty((batch, world.obs_features), dtype=world.obs.dtype)
     for a in actions[:10]:
-        env.step(a)
+        stepper.step(a)
+        stepper.observations(out=obs)
     with Stopwatch() as watch:
         for a in actions:
-            env.step(a)
+            stepper.step(a)
+            stepper.observations(out=obs)
     rate, rate_cpu = steps * batch / watch.wall, steps * batch / watch.cpu
     target = batch >= 1000
-    return [Figure(f"batch env steps/s, batch {batch}", rate, rate_cpu, "steps/s",
-                   "> 1,000,000" if target else "", rate > 1e6 if target else None)]
+    return [Figure(f"batch steps/s with observations, batch {batch}", rate, rate_cpu, "steps/s",
+                   "> 10,000,000" if target else "", rate > 1e7 if target else None)]
+
+
+def bench_rollout(benchmark: Benchmark, runs: list[str], iterations: int = 3, batch: int = 100) -> list[Figure]:
+    """One student-forcing iteration of the NDH learner (rollout, loss, backward, Adam step) at
+    batch 100 on the train instances of `runs` (all maps: the whole split), median of a few;
+    the world comes from the cache. Torch on one thread: on a shared 2-core machine a second
+    thread waits for the other's core (15 s against 0.9 s an iteration at load average 8)."""
+    import torch
+
+    from models.data import EpisodeSet
+    from models.rollout import run_episodes
+    from models.tokenizer import Tokenizer
+    from models.train import TrainConfig, make_agent
+
+    train = benchmark.split("train")
+    instances = [i for i in train if i.run in set(runs)] or train[:batch]  # a few maps may hold none
+    world = World.build(benchmark, sorted({i.run for i in instances}, key=lambda r: (len(r), r)),
+                        benchmark.cache_dir)
+    batch = min(batch, len(instances))
+    tokenizer = Tokenizer.from_dialogs((i.dialog, i.target) for i in instances)
+    episodes = EpisodeSet.build(benchmark, world, "train", tokenizer, instances=instances)
+    torch.set_num_threads(1)
+    agent = make_agent(TrainConfig(feedback="student"), tokenizer, world.obs_features)
+    optimizer = torch.optim.Adam(agent.parameters(), lr=1e-3)
+    watches = []
+    for it in range(iterations):
+        idx = np.random.default_rng(it).choice(len(episodes), batch, replace=False)
+        with Stopwatch() as watch:
+            roll = run_episodes(agent, world, episodes, idx, "student",
+                                generator=torch.Generator().manual_seed(it), train=True)
+            optimizer.zero_grad()
+            roll.loss.backward()
+            optimizer.step()
+        watches.append(watch)
+    wall, cpu = float(np.median([w.wall for w in watches])), float(np.median([w.cpu for w in watches]))
+    return [Figure(f"learner iteration, student forcing, batch {batch}", wall, cpu, "s")]
 
 
 def bench_first_person(maze: Maze, graph: NavGraph, frames: int = 300, size=(320, 240),
@@ -167,7 +216,7 @@ def bench_first_person(maze: Maze, graph: NavGraph, frames: int = 300, size=(320
             x, y = graph.nodes[node]
             first_person(maze, float(x), float(y), float(heading_angle(k)), size=size)
     fps = frames / watch.wall
-    return [Figure(f"first-person render, {size[0]}x{size[1]}", fps, frames / watch.cpu, "fps", "> 300", fps > 300)]
+    return [Figure(f"first-person render, {size[0]}x{size[1]}", fps, frames / watch.cpu, "fps", "> 1,000", fps > 1000)]
 
 
 def _number(v: float) -> str:
@@ -190,8 +239,10 @@ def main(argv: list[str] | None = None) -> list[Figure]:
     parser.add_argument("--benchmark", type=Path, default=default_benchmark(),
                         help="RobotSlangBenchmark clone (default: ROBOTSLANG_BENCHMARK or ../shared/robotslang)")
     parser.add_argument("--maps", type=int, default=None, help="only the first N maps (default: all)")
+    parser.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     args = parser.parse_args(argv)
-    console = Console(width=max(Console().width, 110))
+    # With --json, stdout holds the JSON alone: the progress and the header go to stderr.
+    console = Console(width=max(Console().width, 110), stderr=args.json)
     try:
         benchmark = Benchmark(args.benchmark)
     except BenchmarkError as error:
@@ -199,23 +250,38 @@ def main(argv: list[str] | None = None) -> list[Figure]:
     runs = benchmark.runs()[: args.maps]
     if not runs:
         parser.error(f"--benchmark {args.benchmark}: no maps under mazedata/")
-    console.print(f"[bold]bench.sim[/] on {len(runs)} maps of {benchmark.root}, {os.cpu_count()} CPUs")
+    console.print(f"[bold]bench.sim[/] on {len(runs)} maps of {benchmark.root}, {os.cpu_count()} CPUs, "
+                  f"load average {os.getloadavg()[0]:.2f}")
 
     figures: list[Figure] = []
-    mazes, fig = bench_decode(benchmark, runs)
-    figures += fig
+    mazes, decode = bench_decode(benchmark, runs)
+    figures += decode
     graphs, graph_s, fig = bench_graphs(mazes)
     figures += fig
     tables, ray_s, fig = bench_rays(mazes, graphs)
     figures += fig
-    figures.append(Figure(f"graphs + all-pairs + rays, {len(runs)} maps", graph_s.wall + ray_s.wall,
-                          graph_s.cpu + ray_s.cpu, "s", "< 15 s (all maps)",
-                          graph_s.wall + ray_s.wall < 15 * len(runs) / len(benchmark.runs())))
-    figures += bench_single_env(mazes)
-    for batch in (100, 1000):
-        figures += bench_batch(graphs, tables, batch)
-    figures += bench_first_person(mazes[0], graphs[0])
-    print_table(console, figures, "Simulator speed")
+    all_maps = Figure(f"graphs + all-pairs + rays, {len(runs)} maps", graph_s.wall + ray_s.wall,
+                      graph_s.cpu + ray_s.cpu, "s", "< 15 s (all maps)",
+                      graph_s.wall + ray_s.wall < 15 * len(runs) / len(benchmark.runs()))
+    figures.append(all_maps)
+    single = bench_single_env(mazes)
+    figures += single
+    world = World.compile([(run, maze, graph) for run, maze, graph in zip(runs, mazes, graphs)], rays=tables)
+    del tables
+    batched = [f for b in (100, 1000) for f in bench_batch(graphs, world, b)]
+    figures += batched
+    render = bench_first_person(mazes[0], graphs[0])
+    figures += render
+    rollout = bench_rollout(benchmark, runs)
+    figures += rollout
+    load = os.getloadavg()
+    if args.json:
+        print(f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}", file=sys.stderr)
+        print(json.dumps({"all_maps_s": all_maps.wall, "png_decode_s": decode[-1].wall,
+                          "env_step_us": single[0].wall, "batch_steps_per_s_1000": batched[-1].wall,
+                          "render_fps_320x240": render[0].wall, "rollout_iter_s": rollout[0].wall}))
+    else:
+        print_table(console, figures, f"Simulator speed (load average {load[0]:.2f} after the run)")
     return figures
 
 

@@ -37,7 +37,7 @@ def evaluate_agent(agent: Seq2SeqAgent, bench: Benchmark, world: World, episodes
         roll = run_episodes(agent, world, episodes, idx, "argmax", blind, max_actions)
         for row, k in enumerate(idx):
             inst = episodes.instances[k]
-            off = world.offset[episodes.run[k]]
+            off = world.offset[episodes.maze[k]]
             moves = int(((roll.actions[row] >= 0) & (roll.actions[row] != STOP)).sum())
             local = roll.nodes[row, :moves + 1] - off
             graph = bench.graph(inst.run)

@@ -1,4 +1,5 @@
-"""Batched NDH episodes: the agent acts for a whole batch at once on the compiled `World`.
+"""Batched NDH episodes: the agent acts for a whole batch at once on the simulator core
+(`sim.stepper.BatchStepper` over the compiled `World`), with the core's teacher.
 
 Feedback decides which action is executed: `teacher` (the shortest-path action), `student`
 (sampled from the agent; stop masked until the goal's node), or `argmax` (evaluation).
@@ -19,10 +20,11 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from models.agent import FORWARD, LEFT, RIGHT, START, STOP, Seq2SeqAgent, observation_input
-from models.data import EpisodeSet, World, goal_distance, teacher_actions
+from models.agent import START, STOP, Seq2SeqAgent, observation_input
+from models.data import EpisodeSet, World
 from sim.benchmark import MAX_EPISODE_ACTIONS
-from sim.geometry import GRID_STEP_M, HEADINGS, SUCCESS_RADIUS_M
+from sim.geometry import GRID_STEP_M, SUCCESS_RADIUS_M
+from sim.stepper import BatchStepper
 
 FEEDBACKS = ("teacher", "student", "argmax")
 BLINDS = ("none", "vision", "language")
@@ -61,11 +63,11 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
         lengths = torch.zeros_like(lengths)
     ctx, ctx_mask, state = agent.encode(tokens, lengths)
 
-    node = episodes.start_node[idx].copy()
-    heading = episodes.start_heading[idx].copy()
-    start_dist = np.maximum(goal_distance(world, episodes, idx, node), 1e-6)
+    stepper = BatchStepper(world, b, max_actions=max_actions)
+    episodes.start(stepper, idx)
+    node = stepper.node
+    start_dist = np.maximum(stepper.td, 1e-6)
     prev = torch.full((b,), START, dtype=torch.long)
-    done = np.zeros(b, dtype=bool)
     nodes = np.zeros((b, max_actions + 1), dtype=np.int64)
     actions = np.full((b, max_actions), -1, dtype=np.int64)
     steps = np.zeros(b, dtype=np.int64)
@@ -76,14 +78,15 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
     step_logp, step_entropy, step_value, step_reward = [], [], [], []
     for t in range(max_actions):
         nodes[:, t] = node
+        done = stepper.done.copy()  # within max_actions moves, done is stopped
         if done.all():
             nodes[:, t:] = node[:, None]
             break
-        obs = world.observe(node, heading)
+        obs = stepper.observations().astype(np.float32)
         if blind == "vision":
             obs[:] = 0.0
-        blocked = world.forward[node, heading] < 0
-        teacher = teacher_actions(world, episodes, idx, node, heading)
+        blocked = stepper.forward_blocked()
+        teacher = stepper.teacher_actions()
         # Student forcing may stop only where the teacher would: at the goal's node (or, on a
         # node cut off from it, nowhere else to go); an agent learning from its returns, anywhere.
         stop_allowed = torch.from_numpy(teacher == STOP) if feedback == "student" and not rl else None
@@ -96,7 +99,7 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
             step_targets.append(torch.from_numpy(teacher))
             step_active.append(active)
             if progress is not None:
-                done_frac = 1.0 - goal_distance(world, episodes, idx, node) / start_dist
+                done_frac = 1.0 - stepper.td / start_dist
                 step_progress.append(progress)
                 step_goal.append(torch.from_numpy(np.clip(done_frac, 0.0, 1.0)).float())
         if feedback == "teacher":
@@ -108,17 +111,15 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
         chosen = np.where(done, STOP, chosen)
         actions[~done, t] = chosen[~done]
         steps += ~done
-        moving = (chosen == FORWARD) & ~blocked
-        before = node
-        node = np.where(moving, world.forward[node, heading], node)
+        td_before = stepper.td
+        stepper.step(chosen)
+        node = stepper.node
         if rl:
             log_probs = F.log_softmax(logits, dim=1)
             step_logp.append(log_probs.gather(1, torch.from_numpy(chosen)[:, None])[:, 0])
             step_entropy.append(-(log_probs.exp() * log_probs).sum(dim=1))
             step_value.append(value)
-            step_reward.append(torch.from_numpy(move_rewards(world, episodes, idx, before, node, chosen, done)))
-        heading = (heading + (chosen == LEFT) - (chosen == RIGHT)) % HEADINGS
-        done |= chosen == STOP
+            step_reward.append(torch.from_numpy(move_rewards(td_before, stepper.td, chosen, done)))
         prev = torch.from_numpy(chosen)
     else:
         nodes[:, max_actions] = node
@@ -137,12 +138,10 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
     return Rollout(nodes=nodes, actions=actions, final_node=node, steps=steps, loss=loss)
 
 
-def move_rewards(world: World, episodes: EpisodeSet, idx: np.ndarray, before: np.ndarray,
-                 after: np.ndarray, chosen: np.ndarray, done: np.ndarray) -> np.ndarray:
-    """Per episode: metres covered toward the goal in forward steps; a stop earns the bonus
-    within the success radius; nothing once the episode is over (or off the goal's graph)."""
-    d_before = goal_distance(world, episodes, idx, before)
-    d_after = goal_distance(world, episodes, idx, after)
+def move_rewards(d_before: np.ndarray, d_after: np.ndarray, chosen: np.ndarray, done: np.ndarray) -> np.ndarray:
+    """Per episode, from its distances to the goal before and after the action: metres covered
+    toward the goal in forward steps; a stop earns the bonus within the success radius; nothing
+    once the episode is over (or off the goal's graph)."""
     covered = np.nan_to_num((d_before - d_after) / GRID_STEP_M, nan=0.0, posinf=0.0, neginf=0.0)
     reward = np.where(chosen == STOP, SUCCESS_BONUS * (d_before <= SUCCESS_RADIUS_M), covered)
     return np.where(done, 0.0, reward).astype(np.float32)

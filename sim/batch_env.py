@@ -1,193 +1,98 @@
-"""`BatchNavEnv`: a batch of Driver episodes, possibly in different mazes, stepped in one go.
+"""`BatchNavEnv`: `RobotSlang/NDH-v0` as a `gymnasium.vector.VectorEnv` over the simulator core.
 
-    env = BatchNavEnv([(graph_a, rays_a), (graph_b, rays_b)])   # the mazes episodes may use
-    obs = env.reset([(graph_a, start_pose, goal_node), (graph_b, Pose(12, 3), 40), ...])
-    while not env.done.all():
-        obs, collided, done = env.step(env.teacher_actions())    # or a policy's (B,) actions
-    env.td, env.otd, env.path_length, env.steps                  # per episode, metres / moves
-    env.trajectories()                                           # nodes visited, per episode
+    env = gymnasium.make_vec("RobotSlang/NDH-v0", num_envs=1000, vectorization_mode="vector_entry_point",
+                             benchmark="../shared/robotslang", split="train")
+    obs, info = env.reset(seed=0)           # obs: the Dict of NDH-v0, each entry batched
+    obs, reward, terminated, truncated, info = env.step(actions)   # actions (num_envs,) ints
 
-The per-maze tables (forward moves, ray features, move lengths) are concatenated into one
-global node index space (maze k's node i is `offsets[k] + i`), so a step over the whole batch
-is a handful of fancy-indexing operations. Distances and next hops toward each episode's goal
-are copied out of the maze's all-pairs tables at reset, one row per episode, padded to the
-largest maze.
+All episodes live in one `sim.stepper.BatchStepper` over a `World` of every maze of the
+source (a benchmark split or mazes, as `NDHEnv`), so a step of the whole batch is a handful
+of array look-ups. Episodes are drawn as `NDHEnv` draws them.
 
-Semantics match `sim.dynamics.step`: a forward into a non-navigable grid point is a collision
-and leaves the pose unchanged. An episode is done after STOP or after `max_actions` moves
-(forward, left, right; the stop is not counted, as in `sim.metrics`); actions of finished
-episodes are ignored and their observation stays the last one.
+Autoreset mode: `NEXT_STEP`, Gymnasium's default. The step that ends an episode returns its
+last observation with terminated or truncated set; the next step ignores that sub-env's
+action, starts a new episode there and returns its first observation with reward 0 and
+neither flag. `info` holds, per sub-env, `collided` and `steps`, and with
+`privileged_info=True` also `td` (metres to the goal), for evaluation code.
 """
 
 from __future__ import annotations
 
-from typing import Sequence
+from pathlib import Path
+from typing import Any, Sequence
 
+import gymnasium as gym
 import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode
+from gymnasium.vector.utils import batch_space
 
-from sim.benchmark import MAX_EPISODE_ACTIONS
-from sim.dynamics import Action, Pose, actions_toward
-from sim.geometry import HEADINGS
-from sim.navgraph import NavGraph
-from sim.observations import OBS_FEATURES, RayTable
+from sim.benchmark import MAX_EPISODE_ACTIONS, Benchmark
+from sim.dynamics import Action
+from sim.env import SUCCESS_REWARD, EpisodeSource, observation_space, start_episodes
+from sim.geometry import SUCCESS_RADIUS_M
+from sim.labels import OBJECTS
+from sim.maze import Maze
+from sim.stepper import BatchStepper
 
-# Heading change per action: forward 0, left +1, right -1, stop 0.
-_TURN = np.array([0, 1, -1, 0], dtype=np.int64)
 
+class BatchNavEnv(gym.vector.VectorEnv):
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
 
-class BatchNavEnv:
-    """Episodes over a fixed set of mazes, each given as (NavGraph, RayTable)."""
+    def __init__(self, num_envs: int = 1, benchmark: str | Path | Benchmark | None = None,
+                 split: str = "val_seen", start: str = "episode", edges: str = "benchmark",
+                 mazes: Sequence[str | Maze] | None = None, max_actions: int = MAX_EPISODE_ACTIONS,
+                 cache_dir: str | Path | None = None, privileged_info: bool = False):
+        if num_envs < 1:
+            raise ValueError(f"num_envs={num_envs}: must be at least 1")
+        self.source = EpisodeSource(benchmark, split, start, edges, mazes, cache_dir)
+        self.num_envs, self.privileged_info = num_envs, privileged_info
+        self.stepper = BatchStepper(self.source.world(), num_envs, max_actions)
+        self.single_observation_space = observation_space()
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self.single_action_space = spaces.Discrete(len(Action))
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self._target = np.zeros(num_envs, dtype=np.int64)
+        self._dialog = [""] * num_envs
+        self._autoreset = np.zeros(num_envs, dtype=bool)
 
-    def __init__(self, worlds: Sequence[tuple[NavGraph, RayTable]] = (),
-                 max_actions: int = MAX_EPISODE_ACTIONS, record: bool = True):
-        if max_actions < 1:
-            raise ValueError(f"max_actions={max_actions}: must be at least 1")
-        self.max_actions, self.record = max_actions, record
-        self.graphs: list[NavGraph] = []
-        self._world_of: dict[int, int] = {}  # id(graph) -> world index
-        self.offsets = np.zeros(1, dtype=np.int64)
-        self.forward = np.zeros(0, dtype=np.int64)  # (sum N * 8,) global node or -1
-        self.move_length = np.zeros(0)  # (sum N * 8,) metres of a forward move; 0 on collision
-        self.features = np.zeros((0, OBS_FEATURES), dtype=np.float32)  # (sum N * 8, F)
-        self.node_ij = np.zeros((0, 2), dtype=np.int64)  # (sum N, 2) grid indices
-        self.positions = np.zeros((0, 2))  # (sum N, 2) metres
-        self.size = 0  # episodes in the batch, set by reset()
-        for graph, rays in worlds:
-            self.add(graph, rays)
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        self._start(np.arange(self.num_envs), options or {})
+        self._autoreset[:] = False
+        return self._observations(), self._info(np.zeros(self.num_envs, dtype=bool))
 
-    # -- mazes --------------------------------------------------------------------
-    def add(self, graph: NavGraph, rays: RayTable) -> int:
-        """Make a maze available to episodes; returns its world index (adding twice is a no-op)."""
-        if id(graph) in self._world_of:
-            return self._world_of[id(graph)]
-        if rays.labels.shape[0] != graph.n:
-            raise ValueError(f"ray table has {rays.labels.shape[0]} nodes but the graph has {graph.n}: "
-                             f"build it with RayTable.build(maze, graph) for this graph")
-        offset = int(self.offsets[-1])
-        local = graph.forward.reshape(-1).astype(np.int64)
-        forward = np.where(local >= 0, local + offset, -1)
-        source = np.repeat(np.arange(graph.n), HEADINGS)
-        length = np.linalg.norm(graph.nodes[np.maximum(local, 0)] - graph.nodes[source], axis=1)
-        self.forward = np.concatenate([self.forward, forward])
-        self.move_length = np.concatenate([self.move_length, np.where(local >= 0, length, 0.0)])
-        self.features = np.concatenate([self.features, rays.features().reshape(-1, OBS_FEATURES)])
-        self.node_ij = np.concatenate([self.node_ij, graph.node_ij.astype(np.int64)])
-        self.positions = np.concatenate([self.positions, graph.nodes])
-        self.offsets = np.append(self.offsets, offset + graph.n)
-        self.graphs.append(graph)
-        self._world_of[id(graph)] = len(self.graphs) - 1
-        return len(self.graphs) - 1
-
-    def world_index(self, graph: NavGraph | int) -> int:
-        if isinstance(graph, (int, np.integer)):
-            if not 0 <= graph < len(self.graphs):
-                raise ValueError(f"world {graph}: expected 0..{len(self.graphs) - 1}")
-            return int(graph)
-        if id(graph) not in self._world_of:
-            raise ValueError("a graph not added to this BatchNavEnv: call env.add(graph, rays) first")
-        return self._world_of[id(graph)]
-
-    # -- episodes -------------------------------------------------------------------
-    def reset(self, episodes: Sequence[tuple[NavGraph | int, Pose, int]]) -> np.ndarray:
-        """Start one episode per (graph or world index, start Pose, goal node); returns (B, F) obs."""
-        b = len(episodes)
-        if b == 0:
-            raise ValueError("reset() needs at least one episode")
-        worlds = np.empty(b, dtype=np.int64)
-        nodes = np.empty(b, dtype=np.int64)
-        headings = np.empty(b, dtype=np.int64)
-        goals = np.empty(b, dtype=np.int64)
-        for k, (graph, pose, goal) in enumerate(episodes):
-            w = worlds[k] = self.world_index(graph)
-            n = self.graphs[w].n
-            if not (0 <= pose.node < n and 0 <= pose.heading < HEADINGS and 0 <= goal < n):
-                raise ValueError(f"episode {k}: start {pose} or goal {goal} outside the graph "
-                                 f"({n} nodes, headings 0..{HEADINGS - 1})")
-            nodes[k], headings[k], goals[k] = pose.node, pose.heading, goal
-
-        self.size = b
-        self.world = worlds
-        self.offset = self.offsets[worlds]
-        self.goal = goals  # local node index in its maze
-        # Toward-goal rows: distance and (global) next hop from every node of the episode's maze.
-        width = int(max(self.graphs[w].n for w in set(worlds.tolist())))
-        self._to_goal = np.full((b, width), np.inf)
-        self._hop = np.full((b, width), -1, dtype=np.int64)
-        for w in set(worlds.tolist()):
-            rows = np.flatnonzero(worlds == w)
-            graph = self.graphs[w]
-            # Columns, not the transposed rows: Dijkstra's sums differ in the last bit.
-            self._to_goal[rows, : graph.n] = graph.dist[:, goals[rows]].T
-            hop = graph.next_hop[:, goals[rows]].T
-            self._hop[rows, : graph.n] = np.where(hop >= 0, hop + self.offsets[w], -1)
-        self._rows = np.arange(b)
-
-        self.node = nodes + self.offset  # global node index
-        self.heading = headings
-        self.steps = np.zeros(b, dtype=np.int64)
-        self.done = np.zeros(b, dtype=bool)
-        self.stopped = np.zeros(b, dtype=bool)
-        self.collisions = np.zeros(b, dtype=np.int64)
-        self.path_length = np.zeros(b)
-        self.td = self._to_goal[self._rows, nodes]
-        self.shortest = self.td.copy()
-        self.otd = self.td.copy()
-        self._history = [self.node.copy()] if self.record else None
-        return self.features[self.node * HEADINGS + self.heading]
-
-    def step(self, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Apply (B,) actions; returns observations (B, F), collided (B,), done (B,)."""
-        if self.size == 0:
-            raise RuntimeError("step() before reset(): start the batch's episodes first")
+    def step(self, actions):
         actions = np.asarray(actions)
-        if actions.shape != (self.size,):
-            raise ValueError(f"actions of shape {actions.shape}: expected ({self.size},)")
-        if actions.min() < 0 or actions.max() > Action.STOP:
-            raise ValueError("actions must be 0 forward, 1 left, 2 right or 3 stop")
-        live = ~self.done
-        slot = self.node * HEADINGS + self.heading
-        forward = live & (actions == Action.FORWARD)
-        target = self.forward[slot]
-        moved = forward & (target >= 0)
-        collided = forward & (target < 0)
-        self.node = np.where(moved, target, self.node)
-        self.path_length += np.where(moved, self.move_length[slot], 0.0)
-        self.heading = (self.heading + np.where(live, _TURN[actions], 0)) & (HEADINGS - 1)
-        stop = live & (actions == Action.STOP)
-        self.steps += live & ~stop
-        self.collisions += collided
-        self.stopped |= stop
-        self.done |= stop | (self.steps >= self.max_actions)
-        self.td = self._to_goal[self._rows, self.node - self.offset]
-        np.minimum(self.otd, self.td, out=self.otd)
-        if self.record:
-            self._history.append(self.node.copy())
-        return self.features[self.node * HEADINGS + self.heading], collided, self.done.copy()
+        stepper, restart = self.stepper, self._autoreset.copy()
+        before = stepper.td
+        collided = stepper.step(np.where(restart, Action.STOP, actions))  # restarting: ignored
+        td = stepper.td
+        reward = np.where(np.isinf(td), 0.0, before - td)
+        terminated = stepper.stopped & ~restart
+        truncated = stepper.done & ~stepper.stopped & ~restart
+        reward = reward + SUCCESS_REWARD * (terminated & (td <= SUCCESS_RADIUS_M))
+        reward[restart] = 0.0
+        if restart.any():
+            self._start(np.flatnonzero(restart), {})
+        self._autoreset = terminated | truncated
+        return self._observations(), reward, terminated, truncated, self._info(collided)
 
-    def teacher_actions(self) -> np.ndarray:
-        """Shortest-path actions for the current poses, as `sim.dynamics.teacher_actions`."""
-        hop = self._hop[self._rows, self.node - self.offset]
-        stop = (self.node - self.offset == self.goal) | (hop < 0)
-        hop = np.where(stop, self.node, hop)
-        actions = actions_toward(self.node_ij[hop] - self.node_ij[self.node], self.heading)
-        return np.where(stop, Action.STOP, actions).astype(np.int64)
+    def _start(self, envs: np.ndarray, options: dict) -> None:
+        episodes = [self.source.sample(self.np_random, options) for _ in envs]
+        start_episodes(self.stepper, self.source, envs, episodes)
+        for env, ep in zip(envs, episodes):
+            self._target[env] = OBJECTS.index(ep.target)
+            self._dialog[env] = ep.dialog
 
-    # -- bookkeeping ---------------------------------------------------------------
-    @property
-    def local_node(self) -> np.ndarray:
-        """Each episode's node in its own maze's graph."""
-        return self.node - self.offset
+    def _observations(self) -> dict:
+        mask = np.ones((self.num_envs, len(Action)), dtype=np.int8)
+        mask[:, Action.FORWARD] = ~self.stepper.forward_blocked()
+        return {"rays": self.stepper.observations(), "target": self._target.copy(),
+                "dialog": tuple(self._dialog), "action_mask": mask}
 
-    def poses(self) -> list[Pose]:
-        return [Pose(int(n), int(h)) for n, h in zip(self.local_node, self.heading)]
-
-    def observations(self) -> np.ndarray:
-        return self.features[self.node * HEADINGS + self.heading]
-
-    def trajectories(self) -> list[list[int]]:
-        """Local nodes visited by each episode: the start, then one per move (a collision repeats
-        the node), as `sim.metrics.score_trajectory` takes them."""
-        if not self.record:
-            raise RuntimeError("trajectories are not recorded: make the env with record=True")
-        history = np.stack(self._history) - self.offset  # (T + 1, B)
-        return [history[: self.steps[k] + 1, k].tolist() for k in range(self.size)]
+    def _info(self, collided: np.ndarray) -> dict:
+        info = {"collided": collided, "steps": self.stepper.steps.copy()}
+        if self.privileged_info:
+            info["td"] = self.stepper.td.copy()
+        return info

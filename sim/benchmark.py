@@ -108,7 +108,7 @@ class Benchmark:
 
     def maze(self, run: str) -> Maze:
         if run not in self._mazes:
-            self._mazes[run] = Maze.from_dir(self.root / "mazedata" / run)
+            self._mazes[run] = Maze.from_dir(self.root / "mazedata" / run, cache_dir=self.cache_dir)
         return self._mazes[run]
 
     def graph(self, run: str, mode: str = "benchmark") -> NavGraph:

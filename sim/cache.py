@@ -17,10 +17,10 @@ def cache_dir(override: str | Path | None = None) -> Path:
     return Path(env) if env else Path.home() / ".cache" / "robotslang"
 
 
-def save_npz(path: Path, **arrays) -> None:
+def save_npz(path: Path, compressed: bool = False, **arrays) -> None:
     """Write arrays to `path` then rename, so concurrent builders never read a half-written file."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz")
     os.close(fd)
-    np.savez(tmp, **arrays)
+    (np.savez_compressed if compressed else np.savez)(tmp, **arrays)
     os.replace(tmp, path)

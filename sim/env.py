@@ -1,11 +1,14 @@
-"""The Gymnasium environment `RobotSlang/NDH-v0`: one Driver episode in the replay simulator.
+"""The Gymnasium environment `RobotSlang/NDH-v0`: one Driver episode, a view of one episode of
+the simulator core (`sim.stepper.BatchStepper`).
 
     import gymnasium, sim.env                      # importing sim.env registers the id
     env = gymnasium.make("RobotSlang/NDH-v0", benchmark="../shared/robotslang", split="val_seen")
     obs, info = env.reset(seed=0)                  # or options={"inst_idx": 12}
     obs, reward, terminated, truncated, info = env.step(0)   # forward, left, right, stop
+    vec = gymnasium.make_vec("RobotSlang/NDH-v0", num_envs=1000, vectorization_mode="vector_entry_point")
 
-(`gymnasium.make("sim.env:RobotSlang/NDH-v0", ...)` imports the module itself.)
+(`gymnasium.make("sim.env:RobotSlang/NDH-v0", ...)` imports the module itself; `make_vec` with
+`vector_entry_point` returns `sim.batch_env.BatchNavEnv`, the same core over a whole batch.)
 
 Episodes come from a benchmark split (NDH instances, from the episode or recorded start), or
 without the benchmark from mazes: the bundled generated mazes by default (so
@@ -14,18 +17,19 @@ without the benchmark from mazes: the bundled generated mazes by default (so
 from which it can be reached (options "maze" and "target" choose them).
 
 - actions: Discrete(4), `sim.dynamics.Action` (FORWARD, LEFT, RIGHT, STOP).
-- observation: the ray features of the pose, `RayTable.features()` (`OBS_FEATURES` float32:
-  label one-hot per ray, depths, too-close flags, forward blocked).
+- observation: a Dict of `rays` (the `OBS_FEATURES` ray features of the pose, float32: label
+  one-hot per ray, depths, too-close flags, forward blocked), `target` (Discrete(3): jar, mug,
+  paddle), `dialog` (Text: the dialog history as one string, each message after its speaker's
+  tag `<COM>` or `<DRI>`; empty for maze episodes) and `action_mask` (MultiBinary(4): forward
+  only where it would not collide; turns and stop always).
 - reward: metres of topological distance gained toward the goal by the action, plus
   `SUCCESS_REWARD` for a stop within the success radius.
 - terminated on stop; truncated after `MAX_EPISODE_ACTIONS` (120) moves (forward, left, right).
-- info: `td` (metres to the goal on the graph), `collided`, `pose` (`Pose`), `steps` (moves
-  made), and on reset `goal` (node), `target`, `maze`, `inst_idx` (benchmark episodes).
+- info: `collided`, `steps` (moves made), and on reset `target`, `maze`, `inst_idx` (benchmark
+  episodes). What an agent must not learn from (`td`, metres to the goal, `goal` node, `pose`)
+  is there only with `privileged_info=True`, for evaluation code.
 - `render()` (render_mode "rgb_array"): the Driver's first-person camera as RGB, or the
   top-down map with path and rays when made with `render_view="top_down"`.
-
-Everything static is looked up from tables built once per maze, so a step is a few list and
-array reads.
 """
 
 from __future__ import annotations
@@ -39,78 +43,71 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from sim.benchmark import MAX_EPISODE_ACTIONS, START_MODES, Benchmark, goal_node
+from sim.benchmark import MAX_EPISODE_ACTIONS, START_MODES, Benchmark, NDHInstance, goal_node
 from sim.dynamics import Action, Pose
 from sim.geometry import HEADINGS, SUCCESS_RADIUS_M, TABLE_HEIGHT_M, TABLE_WIDTH_M, heading_angle
+from sim.labels import OBJECTS
 from sim.library import MazeLibrary
 from sim.maze import Maze
 from sim.navgraph import MODES, NavGraph
-from sim.observations import OBS_FEATURES, RayTable
+from sim.observations import OBS_FEATURES
+from sim.stepper import BatchStepper
+from sim.world import World, goal_rows
 
 ENV_ID = "RobotSlang/NDH-v0"
 SUCCESS_REWARD = 1.0
 RENDER_VIEWS = ("first_person", "top_down")
 # No ray is longer than the table's diagonal; one-hot and flags are within [0, 1].
 MAX_DEPTH_M = float(math.hypot(TABLE_WIDTH_M, TABLE_HEIGHT_M))
+DIALOG_CHARSET = "".join(chr(c) for c in range(32, 127))  # printable ASCII: every benchmark dialog
+MAX_DIALOG_CHARS = 4096  # the longest benchmark history is about 2,100; longer ones keep their end
+SPEAKER_TAG = {"oracle": "<COM>", "commander": "<COM>", "navigator": "<DRI>", "driver": "<DRI>"}
 
 
-@dataclass(frozen=True, eq=False)
-class World:
-    """One maze with its graph and observation tables, in the forms a step reads fastest."""
+def observation_space() -> spaces.Dict:
+    """The observation of one episode (see the module docstring)."""
+    return spaces.Dict({
+        "rays": spaces.Box(0.0, MAX_DEPTH_M, (OBS_FEATURES,), np.float32),
+        "target": spaces.Discrete(len(OBJECTS)),
+        "dialog": spaces.Text(MAX_DIALOG_CHARS, min_length=0, charset=DIALOG_CHARSET),
+        "action_mask": spaces.MultiBinary(len(Action)),
+    })
 
-    maze: Maze
-    graph: NavGraph
-    rays: RayTable
-    features: np.ndarray  # (N * 8, OBS_FEATURES) float32, row node * 8 + heading
-    forward: list  # forward[node][heading] -> node, -1 = collision
 
-    @classmethod
-    def build(cls, maze: Maze, graph: NavGraph, cache_dir: str | Path | None = None) -> "World":
-        rays = RayTable.build(maze, graph, cache_dir=cache_dir)
-        features = rays.features().reshape(graph.n * HEADINGS, OBS_FEATURES)
-        return cls(maze=maze, graph=graph, rays=rays, features=features,
-                   forward=graph.forward.tolist())
+def dialog_text(dialog: Sequence[tuple[str, str]]) -> str:
+    """The history as one string with speaker tags, within the Text space's charset and length."""
+    text = " ".join(f"{SPEAKER_TAG.get(role, '<' + role.upper() + '>')} {message}" for role, message in dialog)
+    text = "".join(c if c in DIALOG_CHARSET else "?" for c in text.replace("\n", " "))
+    return text[-MAX_DIALOG_CHARS:]
 
 
 @dataclass(frozen=True)
-class _Episode:
-    world: World
+class Episode:
+    maze: str
     start: Pose
-    goal: int
+    goal: int  # node of the maze's graph
     target: str
+    dialog: str
     inst_idx: int | None
 
 
-class NDHEnv(gym.Env):
-    """Navigation from dialog history, as a Gymnasium environment (see the module docstring)."""
-
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 5}
+class EpisodeSource:
+    """Where episodes come from: a benchmark split's NDH instances, or mazes with random starts
+    and targets; with each maze's graph, built on first use."""
 
     def __init__(self, benchmark: str | Path | Benchmark | None = None, split: str = "val_seen",
                  start: str = "episode", edges: str = "benchmark",
-                 mazes: Sequence[str | Maze] | None = None, render_mode: str | None = None,
-                 render_view: str = "first_person", max_actions: int = MAX_EPISODE_ACTIONS,
-                 cache_dir: str | Path | None = None):
+                 mazes: Sequence[str | Maze] | None = None, cache_dir: str | Path | None = None):
         if start not in START_MODES:
             raise ValueError(f"start={start!r}: expected one of {', '.join(START_MODES)}")
         if edges not in MODES:
             raise ValueError(f"edges={edges!r}: expected one of {', '.join(MODES)}")
-        if render_mode not in (None, *self.metadata["render_modes"]):
-            raise ValueError(f"render_mode={render_mode!r}: expected None or 'rgb_array'")
-        if render_view not in RENDER_VIEWS:
-            raise ValueError(f"render_view={render_view!r}: expected one of {', '.join(RENDER_VIEWS)}")
-        if max_actions < 1:
-            raise ValueError(f"max_actions={max_actions}: must be at least 1")
         if benchmark is not None and mazes is not None:
             raise ValueError("give either benchmark= (NDH episodes of a split) or mazes= "
                              "(maze names or Maze objects, random start and target), not both")
-        self.render_mode, self.render_view = render_mode, render_view
-        self.start_mode, self.edges, self.max_actions = start, edges, max_actions
-        self.cache_dir = cache_dir
-        self.action_space = spaces.Discrete(len(Action))
-        self.observation_space = spaces.Box(0.0, MAX_DEPTH_M, (OBS_FEATURES,), np.float32)
-
-        self._worlds: dict[str, World] = {}
+        self.start_mode, self.edges, self.cache_dir = start, edges, cache_dir
+        self._graphs: dict[str, NavGraph] = {}
+        self._worlds: dict[tuple[str, ...], World] = {}
         if benchmark is not None:
             self.benchmark = benchmark if isinstance(benchmark, Benchmark) else Benchmark(benchmark, cache_dir)
             self.split = split
@@ -118,8 +115,8 @@ class NDHEnv(gym.Env):
             if not self.instances:
                 raise ValueError(f"split {split!r} of {self.benchmark.root} has no instances")
             self._by_inst_idx = {inst.inst_idx: k for k, inst in enumerate(self.instances)}
-            self._episodes: dict[int, _Episode] = {}
-            self.maze_names = sorted({inst.run for inst in self.instances})
+            self._episodes: dict[int, Episode] = {}
+            self.names = sorted({inst.run for inst in self.instances}, key=lambda r: (len(r), r))
         else:
             self.benchmark, self.split, self.instances = None, None, []
             self._library = MazeLibrary()
@@ -134,111 +131,149 @@ class NDHEnv(gym.Env):
                 else:
                     self._library.path(item)
                     self._mazes[item] = None
-            self.maze_names = list(self._mazes)
+            self.names = list(self._mazes)
 
-        self._episode: _Episode | None = None
-        self._node = self._heading = self._steps = 0
-        self._to_goal: list[float] = []
-        self._done = True
-        self._path: list[int] = []
+    def maze(self, name: str) -> Maze:
+        if self.benchmark is not None:
+            return self.benchmark.maze(name)
+        if self._mazes[name] is None:
+            self._mazes[name] = self._library.load(name)
+        return self._mazes[name]
 
-    # -- worlds and episodes ------------------------------------------------------
-    def world(self, name: str) -> World:
-        """The maze `name` with its graph and tables, built on first use."""
-        if name not in self._worlds:
-            if self.benchmark is not None:
-                maze, graph = self.benchmark.maze(name), self.benchmark.graph(name, self.edges)
-            else:
-                maze = self._mazes[name] or self._library.load(name)
-                graph = NavGraph.build(maze, self.edges, cache_dir=self.cache_dir)
-            self._worlds[name] = World.build(maze, graph, self.cache_dir)
-        return self._worlds[name]
+    def graph(self, name: str) -> NavGraph:
+        if name not in self._graphs:
+            self._graphs[name] = (self.benchmark.graph(name, self.edges) if self.benchmark is not None
+                                  else NavGraph.build(self.maze(name), self.edges, cache_dir=self.cache_dir))
+        return self._graphs[name]
 
-    def _ndh_episode(self, options: dict) -> _Episode:
+    def world(self, names: Sequence[str] | None = None) -> World:
+        """The mazes `names` (default: all) compiled with float32 observations, once."""
+        names = tuple(self.names if names is None else names)
+        if names not in self._worlds:
+            self._worlds[names] = World.compile([(n, self.maze(n), self.graph(n)) for n in names],
+                                                cache_dir=self.cache_dir)
+        return self._worlds[names]
+
+    def sample(self, rng: np.random.Generator, options: dict) -> Episode:
+        return self._ndh_episode(rng, options) if self.benchmark is not None else self._random_episode(rng, options)
+
+    def _ndh_episode(self, rng: np.random.Generator, options: dict) -> Episode:
         if "inst_idx" in options:
             k = self._by_inst_idx.get(int(options["inst_idx"]))
             if k is None:
                 raise ValueError(f"options['inst_idx']={options['inst_idx']}: no such instance "
                                  f"in split {self.split!r}")
         else:
-            k = int(self.np_random.integers(len(self.instances)))
+            k = int(rng.integers(len(self.instances)))
         if k not in self._episodes:
-            inst = self.instances[k]
-            world = self.world(inst.run)
-            self._episodes[k] = _Episode(world, START_MODES[self.start_mode](world.graph, inst),
-                                         goal_node(world.graph, inst), inst.target, inst.inst_idx)
+            inst: NDHInstance = self.instances[k]
+            graph = self.graph(inst.run)
+            self._episodes[k] = Episode(inst.run, START_MODES[self.start_mode](graph, inst), goal_node(graph, inst),
+                                        inst.target, dialog_text(inst.dialog), inst.inst_idx)
         return self._episodes[k]
 
-    def _random_episode(self, options: dict) -> _Episode:
+    def _random_episode(self, rng: np.random.Generator, options: dict) -> Episode:
         name = options.get("maze")
         if name is None:
-            name = self.maze_names[int(self.np_random.integers(len(self.maze_names)))]
+            name = self.names[int(rng.integers(len(self.names)))]
         elif name not in self._mazes:
             raise ValueError(f"options['maze']={name!r}: not one of this environment's mazes "
-                             f"({', '.join(self.maze_names)})")
-        world = self.world(name)
-        target = options.get("target") or sorted(world.maze.objects)[int(self.np_random.integers(3))]
-        if target not in world.maze.objects:
+                             f"({', '.join(self.names)})")
+        maze, graph = self.maze(name), self.graph(name)
+        target = options.get("target") or sorted(maze.objects)[int(rng.integers(3))]
+        if target not in maze.objects:
             raise ValueError(f"options['target']={target!r}: expected one of jar, mug, paddle")
-        goal = world.graph.nearest_node(*world.maze.objects[target])
+        goal = graph.nearest_node(*maze.objects[target])
         # Start anywhere the goal can be reached from, outside the success radius.
-        to_goal = world.graph.dist[:, goal]
+        to_goal = graph.dist[:, goal]
         candidates = np.flatnonzero(np.isfinite(to_goal) & (to_goal > SUCCESS_RADIUS_M))
         if candidates.size == 0:
             candidates = np.flatnonzero(np.isfinite(to_goal))
-        node = int(candidates[self.np_random.integers(candidates.size)])
-        heading = int(self.np_random.integers(HEADINGS))
-        return _Episode(world, Pose(node, heading), goal, target, None)
+        node = int(candidates[rng.integers(candidates.size)])
+        heading = int(rng.integers(HEADINGS))
+        return Episode(name, Pose(node, heading), goal, target, "", None)
+
+
+def start_episodes(stepper: BatchStepper, source: EpisodeSource, envs: Sequence[int],
+                   episodes: Sequence[Episode]) -> None:
+    """Start `episodes` in positions `envs` of `stepper` (its world holds their mazes)."""
+    world = stepper.world
+    for env, ep in zip(envs, episodes):  # per episode: its goal rows come from its own graph
+        off = int(world.offset[world.index(ep.maze)])
+        dist, hop = goal_rows(source.graph(ep.maze), [ep.goal])
+        stepper.start([env], [off + ep.start.node], [ep.start.heading], [off + ep.goal], dist, hop)
+
+
+class NDHEnv(gym.Env):
+    """Navigation from dialog history, as a Gymnasium environment (see the module docstring)."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 5}
+
+    def __init__(self, benchmark: str | Path | Benchmark | None = None, split: str = "val_seen",
+                 start: str = "episode", edges: str = "benchmark",
+                 mazes: Sequence[str | Maze] | None = None, render_mode: str | None = None,
+                 render_view: str = "first_person", max_actions: int = MAX_EPISODE_ACTIONS,
+                 cache_dir: str | Path | None = None, privileged_info: bool = False):
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode={render_mode!r}: expected None or 'rgb_array'")
+        if render_view not in RENDER_VIEWS:
+            raise ValueError(f"render_view={render_view!r}: expected one of {', '.join(RENDER_VIEWS)}")
+        if max_actions < 1:
+            raise ValueError(f"max_actions={max_actions}: must be at least 1")
+        self.source = EpisodeSource(benchmark, split, start, edges, mazes, cache_dir)
+        self.render_mode, self.render_view = render_mode, render_view
+        self.max_actions, self.privileged_info = max_actions, privileged_info
+        self.action_space = spaces.Discrete(len(Action))
+        self.observation_space = observation_space()
+        self._steppers: dict[str, BatchStepper] = {}  # one maze's world each, made on first use
+        self._episode: Episode | None = None
+        self._stepper: BatchStepper | None = None
+
+    @property
+    def benchmark(self) -> Benchmark | None:
+        return self.source.benchmark
 
     # -- the Gymnasium interface ----------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        options = options or {}
-        episode = self._ndh_episode(options) if self.benchmark is not None else self._random_episode(options)
-        self._episode = episode
-        self._node, self._heading = episode.start.node, episode.start.heading
-        self._steps, self._done = 0, False
-        self._to_goal = episode.world.graph.dist[:, episode.goal].tolist()
-        self._forward, self._features = episode.world.forward, episode.world.features
-        self._path = [self._node]
-        info = {"td": self._to_goal[self._node], "collided": False, "pose": episode.start,
-                "steps": 0, "goal": episode.goal, "target": episode.target,
-                "maze": episode.world.maze.name, "inst_idx": episode.inst_idx}
-        return self._features[self._node * HEADINGS + self._heading].copy(), info
+        episode = self.source.sample(self.np_random, options or {})
+        if episode.maze not in self._steppers:
+            self._steppers[episode.maze] = BatchStepper(self.source.world([episode.maze]), 1,
+                                                        self.max_actions, record=True)
+        self._episode, self._stepper = episode, self._steppers[episode.maze]
+        start_episodes(self._stepper, self.source, [0], [episode])
+        info = {"collided": False, "steps": 0, "target": episode.target, "maze": episode.maze,
+                "inst_idx": episode.inst_idx}
+        if self.privileged_info:
+            info.update(td=float(self._stepper.td[0]), pose=episode.start, goal=episode.goal)
+        return self._observation(), info
 
     def step(self, action):
-        if self._done:
+        stepper = self._stepper
+        if stepper is None or stepper.done[0]:
             raise RuntimeError("step() after the episode ended: call reset() first")
         a = int(action)
-        node, heading = self._node, self._heading
-        collided = terminated = False
-        if a == 0:
-            nxt = self._forward[node][heading]
-            if nxt < 0:
-                collided = True
-            else:
-                self._node = node = nxt
-        elif a == 1:
-            self._heading = heading = (heading + 1) & 7
-        elif a == 2:
-            self._heading = heading = (heading - 1) & 7
-        elif a == 3:
-            terminated = True
-        else:
+        if not 0 <= a <= Action.STOP:
             raise ValueError(f"action {action!r}: expected 0 forward, 1 left, 2 right or 3 stop")
-
-        before, td = self._to_goal[self._path[-1]], self._to_goal[node]
+        before = float(stepper.td[0])
+        collided = bool(stepper.step(np.array([a]))[0])
+        td = float(stepper.td[0])
         reward = before - td if td != math.inf else 0.0
-        if terminated:
-            if td <= SUCCESS_RADIUS_M:
-                reward += SUCCESS_REWARD
-        else:
-            self._steps += 1
-            self._path.append(node)
-        truncated = not terminated and self._steps >= self.max_actions
-        self._done = terminated or truncated
-        info = {"td": td, "collided": collided, "pose": Pose(node, heading), "steps": self._steps}
-        return self._features[node * HEADINGS + heading].copy(), reward, terminated, truncated, info
+        terminated = bool(stepper.stopped[0])
+        if terminated and td <= SUCCESS_RADIUS_M:
+            reward += SUCCESS_REWARD
+        truncated = bool(stepper.done[0]) and not terminated
+        info = {"collided": collided, "steps": int(stepper.steps[0])}
+        if self.privileged_info:
+            info.update(td=td, pose=self.pose)
+        return self._observation(), reward, terminated, truncated, info
+
+    def _observation(self) -> dict:
+        stepper, episode = self._stepper, self._episode
+        mask = np.ones(len(Action), dtype=np.int8)
+        mask[Action.FORWARD] = not stepper.forward_blocked()[0]
+        return {"rays": stepper.observations()[0], "target": OBJECTS.index(episode.target),
+                "dialog": episode.dialog, "action_mask": mask}
 
     def render(self):
         if self.render_mode is None:
@@ -248,32 +283,40 @@ class NDHEnv(gym.Env):
             raise RuntimeError("render() before reset()")
         from sim import render  # the camera's scene is built on first use
 
-        world = self._episode.world
-        x, y = world.graph.nodes[self._node]
-        theta = float(heading_angle(self._heading))
+        maze, graph, pose = self.source.maze(self._episode.maze), self.episode_graph, self.pose
+        x, y = graph.nodes[pose.node]
+        theta = float(heading_angle(pose.heading))
         if self.render_view == "first_person":
-            bgr = render.first_person(world.maze, float(x), float(y), theta)
+            bgr = render.first_person(maze, float(x), float(y), theta)
         else:
-            rays = (world.rays.labels[self._node, self._heading], world.rays.depth[self._node, self._heading])
-            bgr = render.top_down(world.maze, pose=(x, y, theta), path=world.graph.nodes[self._path], rays=rays)
+            from sim.observations import RayTable
+
+            rays = RayTable.build(maze, graph, cache_dir=self.source.cache_dir)
+            bgr = render.top_down(maze, pose=(x, y, theta), path=graph.nodes[self.path],
+                                  rays=(rays.labels[pose.node, pose.heading], rays.depth[pose.node, pose.heading]))
         return np.ascontiguousarray(bgr[..., ::-1])
 
     # -- read-only views for callers and tests ------------------------------------------
     @property
     def pose(self) -> Pose:
-        return Pose(self._node, self._heading)
+        """The pose in the episode's maze graph (its world holds that maze alone)."""
+        if self._stepper is None:
+            raise RuntimeError("no episode yet: call reset() first")
+        return Pose(int(self._stepper.node[0]), int(self._stepper.heading[0]))
 
     @property
-    def episode_world(self) -> World:
+    def episode_graph(self) -> NavGraph:
         if self._episode is None:
             raise RuntimeError("no episode yet: call reset() first")
-        return self._episode.world
+        return self.source.graph(self._episode.maze)
 
     @property
     def path(self) -> list[int]:
         """Nodes visited this episode, the start first (a collision repeats the node)."""
-        return list(self._path)
+        if self._stepper is None:
+            return []
+        return self._stepper.trajectories()[0]
 
 
 if ENV_ID not in gym.registry:
-    gym.register(id=ENV_ID, entry_point="sim.env:NDHEnv")
+    gym.register(id=ENV_ID, entry_point="sim.env:NDHEnv", vector_entry_point="sim.batch_env:BatchNavEnv")

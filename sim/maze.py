@@ -17,8 +17,10 @@ import cv2
 import numpy as np
 
 from sim.geometry import MAP_HEIGHT_PX, MAP_WIDTH_PX, pixel_to_world
-from sim.labels import LABEL_BGR, OBJECT_LABELS, PALETTE_BGR, Label
+from sim.cache import cache_dir as default_cache_dir, save_npz
+from sim.labels import LABEL_BGR, OBJECT_LABELS, OBJECTS, PALETTE_BGR, Label
 
+_LABELS_CACHE_VERSION = 1
 FIXED_MAP = "maze.map-fixed.png"
 WALLS_MAP = "maze.map.png"
 
@@ -69,25 +71,49 @@ class Maze:
 
     @classmethod
     def from_png(cls, fixed_path: str | Path, walls_path: str | Path | None = None,
-                 name: str | None = None) -> "Maze":
-        """Read a benchmark-style map: `maze.map-fixed.png` (+ optional `maze.map.png`)."""
+                 name: str | None = None, cache_dir: str | Path | None = None,
+                 use_cache: bool = True) -> "Maze":
+        """Read a benchmark-style map: `maze.map-fixed.png` (+ optional `maze.map.png`).
+
+        The decoded grids are cached beside the graphs, keyed on the PNG files' bytes: hashing
+        them is ~20 times cheaper than decoding (about 50 ms a map)."""
         fixed_path = Path(fixed_path)
+        name = name or fixed_path.parent.parent.name
+        pngs = [fixed_path.read_bytes() if fixed_path.exists() else b""]
+        if walls_path is not None:
+            pngs.append(Path(walls_path).read_bytes())
+        key = hashlib.sha256(b"\0".join(pngs) + bytes([len(pngs)])).hexdigest()[:16]
+        path = default_cache_dir(cache_dir) / "labels" / f"{key}-v{_LABELS_CACHE_VERSION}.npz"
+        if use_cache and path.exists():
+            try:
+                with np.load(path) as data:
+                    maze = cls(name=name, labels=data["labels"], walls=data["walls"],
+                               objects={w: (float(x), float(y)) for w, (x, y) in zip(OBJECTS, data["objects"])})
+                    maze.__dict__["content_hash"] = str(data["content_hash"])  # the cached property
+                    return maze
+            except (OSError, ValueError, KeyError):
+                pass  # torn or stale: decoded again below
         labels = read_label_png(fixed_path)
         walls = read_label_png(Path(walls_path)) if walls_path is not None else None
         if walls is not None and walls.shape != labels.shape:
             raise MazeError(f"{walls_path}: size differs from {fixed_path}")
-        return cls.from_labels(labels, name or fixed_path.parent.parent.name, walls,
-                               source=str(fixed_path))
+        maze = cls.from_labels(labels, name, walls, source=str(fixed_path))
+        if use_cache:
+            save_npz(path, compressed=True, labels=maze.labels, walls=maze.walls, content_hash=maze.content_hash,
+                     objects=np.array([maze.objects[w] for w in OBJECTS]))
+        return maze
 
     @classmethod
-    def from_dir(cls, run_dir: str | Path, name: str | None = None) -> "Maze":
+    def from_dir(cls, run_dir: str | Path, name: str | None = None,
+                 cache_dir: str | Path | None = None) -> "Maze":
         """A maze in the benchmark's layout: `RUN_DIR/maze/maze.map-fixed.png` and `maze.map.png`."""
         run_dir = Path(run_dir)
         fixed = run_dir / "maze" / FIXED_MAP
         walls = run_dir / "maze" / WALLS_MAP
         if not fixed.exists():
             raise MazeError(f"{fixed}: no such map file")
-        return cls.from_png(fixed, walls if walls.exists() else None, name=name or run_dir.name)
+        return cls.from_png(fixed, walls if walls.exists() else None, name=name or run_dir.name,
+                            cache_dir=cache_dir)
 
     # -- output -------------------------------------------------------------------
     def image(self, walls_only: bool = False) -> np.ndarray:

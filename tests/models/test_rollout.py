@@ -7,10 +7,11 @@ import pytest
 import torch
 
 from models.agent import FORWARD, STOP, AgentConfig, Seq2SeqAgent, mask_logits
-from models.data import goal_distance, teacher_actions
+from models.data import goal_distance
 from models.rollout import run_episodes
 from sim.benchmark import episode_start, goal_node
 from sim.dynamics import teacher_actions as sim_teacher_actions
+from sim.stepper import BatchStepper
 
 
 def test_mask_logits_forbids_forward_where_blocked_and_stop_where_not_allowed():
@@ -26,13 +27,15 @@ def test_batched_teacher_matches_the_simulator_teacher(bench, few):
     rng = np.random.default_rng(0)
     for k, inst in enumerate(few["train"]):
         graph = bench.graph(inst.run)
-        off = world.offset[eps.run[k]]
+        off = world.offset[eps.maze[k]]
         nodes = rng.integers(0, graph.n, 200)
         headings = rng.integers(0, 8, 200)
         goal = goal_node(graph, inst)
         expected = sim_teacher_actions(graph, nodes, headings, np.full(200, goal))
-        got = teacher_actions(world, eps, np.full(200, k), nodes + off, headings)
-        assert (got == expected).all()
+        stepper = BatchStepper(world, 200)
+        stepper.start(np.arange(200), nodes + off, headings, np.full(200, eps.goal_node[k]),
+                      eps.goal_dist[[k] * 200], eps.goal_next[[k] * 200])
+        assert (stepper.teacher_actions() == expected).all()
         assert eps.start_node[k] - off == episode_start(graph, inst).node
 
 
@@ -82,7 +85,7 @@ def test_target_flags_are_the_target_column_of_each_rays_one_hot_label(few):
     from sim.observations import N_LABELS, N_RAYS
 
     world = few["world"]
-    obs = torch.from_numpy(world.observe(np.arange(50), np.zeros(50, dtype=np.int64)))
+    obs = torch.from_numpy(world.obs[np.arange(50) * 8].astype(np.float32))  # heading 0
     config = AgentConfig(vocab_size=10, obs_features=world.obs_features, target_rays=True)
     flags = observation_input(config, obs, torch.full((50,), int(Label.MUG)))[:, world.obs_features:]
     labels = obs[:, :N_RAYS * N_LABELS].reshape(50, N_RAYS, N_LABELS).argmax(dim=2)
@@ -111,15 +114,16 @@ def test_rewards_are_the_metres_covered_in_forward_steps_and_a_bonus_for_stoppin
     world, eps = few["world"], few["train_set"]
     idx = np.array([0, 0, 0, 0])
     goal = eps.goal_node[0]
-    off = world.offset[eps.run[0]]
+    off = world.offset[eps.maze[0]]
     far = off + int(np.argmax(np.where(np.isfinite(eps.goal_dist[0]), eps.goal_dist[0], -1)))
     moved = world.forward[far][world.forward[far] >= 0][0]
     before = np.array([far, far, goal, far])
     after = np.array([moved, far, goal, moved])
     chosen = np.array([FORWARD, STOP, STOP, FORWARD])
     done = np.array([False, False, False, True])
-    reward = move_rewards(world, eps, idx, before, after, chosen, done)
-    d = goal_distance(world, eps, idx, before) - goal_distance(world, eps, idx, after)
+    d_before, d_after = goal_distance(world, eps, idx, before), goal_distance(world, eps, idx, after)
+    reward = move_rewards(d_before, d_after, chosen, done)
+    d = d_before - d_after
     assert reward[0] == pytest.approx(d[0] / GRID_STEP_M, rel=1e-5)
     assert reward[1] == 0 and reward[2] == SUCCESS_BONUS and reward[3] == 0
 

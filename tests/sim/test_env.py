@@ -16,7 +16,7 @@ from sim.env import ENV_ID, NDHEnv
 from sim.geometry import SUCCESS_RADIUS_M
 from sim.labels import Label
 from sim.maze import Maze
-from sim.observations import OBS_FEATURES
+from sim.observations import OBS_FEATURES, RayTable
 from tests.sim.helpers import open_table, wall_at_x
 
 
@@ -27,7 +27,7 @@ def bench(benchmark_path):
 
 @pytest.fixture(scope="module")
 def val_env(bench):
-    env = NDHEnv(benchmark=bench, split="val_seen")
+    env = NDHEnv(benchmark=bench, split="val_seen", privileged_info=True)
     yield env
     env.close()
 
@@ -51,7 +51,7 @@ def test_check_env_passes_on_benchmark_episodes(benchmark_path):
     env = gym.make(ENV_ID, benchmark=benchmark_path, split="val_seen", render_mode="rgb_array")
     _quiet_check_env(env)
     assert env.action_space == gym.spaces.Discrete(4)
-    assert env.observation_space.shape == (OBS_FEATURES,)
+    assert env.observation_space["rays"].shape == (OBS_FEATURES,)
 
 
 def test_check_env_passes_on_mazes_without_the_benchmark(walled_maze):
@@ -60,9 +60,9 @@ def test_check_env_passes_on_mazes_without_the_benchmark(walled_maze):
 
 
 def test_runs_on_the_bundled_mazes_by_default():
-    env = gym.make(ENV_ID, render_mode="rgb_array")
+    env = gym.make(ENV_ID, render_mode="rgb_array", privileged_info=True)
     _quiet_check_env(env)
-    names = env.unwrapped.maze_names
+    names = env.unwrapped.source.names
     assert names and all(name.startswith("gen-") for name in names)
     _, info = env.reset(options={"maze": names[1], "target": "paddle"})
     assert info["maze"] == names[1] and info["target"] == "paddle"
@@ -82,12 +82,15 @@ def test_reset_starts_the_benchmarks_episode(bench, val_env):
         assert info["pose"] == start and info["goal"] == goal
         assert info["maze"] == inst.run and info["target"] == inst.target and info["steps"] == 0
         assert info["td"] == pytest.approx(graph.dist[start.node, goal])
-        world = val_env.episode_world
-        assert np.array_equal(obs, world.rays.features()[start.node, start.heading])
+        features = RayTable.build(bench.maze(inst.run), graph).features()
+        assert np.array_equal(obs["rays"], features[start.node, start.heading])
+        assert obs["target"] == ("jar", "mug", "paddle").index(inst.target)
+        assert obs["dialog"].startswith("<COM> " if inst.dialog[0][0] == "oracle" else "<DRI> ")
+        assert inst.dialog[-1][1] in obs["dialog"]
 
 
 def test_recorded_start_option(bench):
-    env = NDHEnv(benchmark=bench, split="val_seen", start="recorded")
+    env = NDHEnv(benchmark=bench, split="val_seen", start="recorded", privileged_info=True)
     inst = next(i for i in bench.split("val_seen") if i.target != "jar")
     _, info = env.reset(options={"inst_idx": inst.inst_idx})
     assert info["pose"] == recorded_start(bench.graph(inst.run), inst)
@@ -104,7 +107,7 @@ def test_step_moves_turns_collides_and_rewards_progress(bench, val_env):
     inst = bench.split("val_seen")[0]
     _, info = val_env.reset(options={"inst_idx": inst.inst_idx})
     graph = bench.graph(inst.run)
-    features = val_env.episode_world.rays.features()
+    features = RayTable.build(bench.maze(inst.run), graph).features()
     pose, td, goal = info["pose"], info["td"], info["goal"]
     rng = np.random.default_rng(0)
     seen_collision = seen_move = False
@@ -124,7 +127,8 @@ def test_step_moves_turns_collides_and_rewards_progress(bench, val_env):
         assert not terminated and not truncated
         assert info["td"] == pytest.approx(graph.dist[expected.node, goal])
         assert reward == pytest.approx(td - info["td"])
-        assert np.array_equal(obs, features[expected.node, expected.heading])
+        assert np.array_equal(obs["rays"], features[expected.node, expected.heading])
+        assert obs["action_mask"].tolist() == [int(graph.forward[expected.node, expected.heading] >= 0), 1, 1, 1]
         pose, td = expected, info["td"]
     assert seen_collision and seen_move
 
@@ -143,7 +147,7 @@ def test_teacher_reaches_the_goal_and_is_paid_for_it(bench, val_env):
     reached = 0
     for inst in bench.split("val_seen")[:15]:
         _, info = val_env.reset(options={"inst_idx": inst.inst_idx})
-        graph, goal, start_td = val_env.episode_world.graph, info["goal"], info["td"]
+        graph, goal, start_td = val_env.episode_graph, info["goal"], info["td"]
         total, done = 0.0, False
         while not done:
             action = teacher_action(graph, val_env.pose, goal)
@@ -168,13 +172,13 @@ def test_truncated_after_120_moves(val_env):
 
 
 def test_episodes_on_mazes_start_where_the_target_is_reachable(walled_maze):
-    env = NDHEnv(mazes=[walled_maze])
+    env = NDHEnv(mazes=[walled_maze], privileged_info=True)
     for seed in range(20):
         _, info = env.reset(seed=seed)
         assert info["maze"] == "walled" and info["target"] in ("jar", "mug", "paddle")
         assert SUCCESS_RADIUS_M < info["td"] < np.inf
     _, info = env.reset(options={"target": "mug"})
-    assert info["goal"] == env.episode_world.graph.nearest_node(*walled_maze.objects["mug"])
+    assert info["goal"] == env.episode_graph.nearest_node(*walled_maze.objects["mug"])
 
 
 def test_render_first_person_and_top_down(walled_maze):
@@ -208,3 +212,16 @@ def test_bad_arguments_are_named(bench, walled_maze):
     env.reset(seed=0)
     with pytest.raises(ValueError, match="action 7"):
         env.step(7)
+
+
+def test_info_holds_nothing_privileged_unless_asked(walled_maze):
+    env = NDHEnv(mazes=[walled_maze])
+    _, info = env.reset(seed=0)
+    _, _, _, _, step_info = env.step(Action.FORWARD)
+    assert not {"td", "goal", "pose"} & (set(info) | set(step_info))
+
+
+@pytest.mark.parametrize("env_id", sorted(i for i in gym.registry if i.startswith("RobotSlang/")))
+def test_check_env_passes_on_every_registered_env(env_id):
+    # As MiniGrid's tests: every id this package registers, with its default arguments.
+    _quiet_check_env(gym.make(env_id))

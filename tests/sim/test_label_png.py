@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import shutil
+
 import cv2
 import numpy as np
 import pytest
 
 from sim.labels import PALETTE_BGR, Label
-from sim.maze import MazeError, read_label_png
+from sim.maze import Maze, MazeError, read_label_png
 from tests.sim.helpers import open_table, wall_at_x
 
 
@@ -33,3 +35,28 @@ def test_an_off_palette_pixel_is_named(tmp_path, colour):
     cv2.imwrite(str(path), image)
     with pytest.raises(MazeError, match=r"map\.png: 2 pixels of unknown colour, first at column 700, row 500"):
         read_label_png(path)
+
+
+def test_decoded_labels_are_cached_by_the_png_contents(tmp_path):
+    from sim.library import MazeLibrary
+
+    library = MazeLibrary()
+    run = library.path(library.names()[0])
+    first = Maze.from_dir(run, cache_dir=tmp_path)
+    cached = list((tmp_path / "labels").glob("*.npz"))
+    assert len(cached) == 1
+    again = Maze.from_dir(run, cache_dir=tmp_path)  # read from the cache
+    assert np.array_equal(again.labels, first.labels) and np.array_equal(again.walls, first.walls)
+    assert again.objects == first.objects and again.content_hash == first.content_hash
+    assert again.content_hash == Maze.from_labels(first.labels, "x", first.walls).content_hash
+    # Another map is another entry: the key is the files' bytes, not the run's name.
+    copy = tmp_path / "copy"
+    shutil.copytree(run, copy)
+    fixed = copy / "maze" / "maze.map-fixed.png"
+    image = cv2.imread(str(fixed))
+    row, col = np.argwhere(first.labels == Label.FLOOR)[0]
+    image[row, col] = (255, 255, 255)  # a floor pixel painted white: a wall
+    cv2.imwrite(str(fixed), image)
+    changed = Maze.from_dir(copy, cache_dir=tmp_path)
+    assert changed.labels[row, col] == Label.WHITE and changed.content_hash != first.content_hash
+    assert len(list((tmp_path / "labels").glob("*.npz"))) == 2

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from sim.benchmark import Benchmark
-from sim.geometry import GRID_STEP_M
+from sim.geometry import GRID_STEP_M, SUCCESS_RADIUS_M
+from sim.library import MazeLibrary
 from sim.maze import Maze
 from sim.navgraph import NavGraph, candidate_grid
 from tests.sim.helpers import open_table, wall_at_x
@@ -95,3 +96,31 @@ def test_graph_is_cached_by_maze_and_mode(tmp_path):
 def test_unknown_mode_is_refused():
     with pytest.raises(ValueError, match="unknown edge mode 'diagonal'"):
         NavGraph.build(Maze.from_labels(open_table(), "open"), "diagonal")
+
+
+def test_objects_block_makes_a_move_into_a_landmark_a_collision(tmp_path):
+    maze = Maze.from_labels(open_table(), "open")
+    walls_only = NavGraph.build(maze, cache_dir=tmp_path)
+    live = NavGraph.build(maze, cache_dir=tmp_path, objects_block=True)
+    assert not walls_only.objects_block and live.objects_block
+    jar = np.asarray(maze.objects["jar"])
+    # The node a few steps left of the jar, heading +x (heading 0) toward it.
+    for graph, collides in ((walls_only, False), (live, True)):
+        node = graph.nearest_node(*(jar - [0.21, 0.0]))
+        while graph.forward[node, 0] >= 0 and graph.nodes[graph.forward[node, 0], 0] < jar[0]:
+            node = int(graph.forward[node, 0])
+        assert (graph.forward[node, 0] < 0) == collides
+    # Nothing else changes: the open floor is navigable in both, and the cache keeps them apart.
+    assert live.n < walls_only.n
+    assert NavGraph.build(maze, cache_dir=tmp_path).n == walls_only.n
+
+
+def test_with_objects_blocking_every_target_is_reachable_from_the_others(tmp_path):
+    library = MazeLibrary()
+    for name in library.names()[:4]:
+        maze = library.load(name)
+        graph = NavGraph.build(maze, cache_dir=tmp_path, objects_block=True)
+        goals = [graph.nearest_node(*xy) for xy in maze.objects.values()]
+        assert np.isfinite(graph.dist[np.ix_(goals, goals)]).all()
+        near = [np.hypot(*(graph.nodes[g] - xy)) for g, xy in zip(goals, maze.objects.values())]
+        assert max(near) < SUCCESS_RADIUS_M

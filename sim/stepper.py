@@ -1,0 +1,167 @@
+"""`BatchStepper`: the simulator core. A batch of Driver episodes on a `World`, stepped at once.
+
+    stepper = BatchStepper(world, batch=B)
+    stepper.start(envs, node, heading, goal, goal_dist, goal_next)  # (re)start some episodes
+    collided = stepper.step(actions)             # (B,) 0 forward, 1 left, 2 right, 3 stop
+    stepper.observations()                       # (B, F) ray features of the poses
+    stepper.teacher_actions()                    # the shortest-path actions
+    stepper.td, .otd, .path_length, .steps, .done, .stopped   # per episode
+
+Every learner, baseline and environment of the project runs on this class: the Gymnasium
+vector env (`sim.batch_env.BatchNavEnv`) and `RobotSlang/NDH-v0` (`sim.env`, a batch of one),
+the NDH baselines (`sim.evaluation`) and the learned Driver's rollouts (`models.rollout`).
+`sim.dynamics.step` is the readable reference it is tested against, step for step.
+
+Semantics: a forward into a non-navigable grid point is a collision and leaves the pose
+unchanged. An episode is done after STOP or after `max_actions` moves (forward, left, right;
+the stop is not counted, as in `sim.metrics`); actions of finished episodes are ignored.
+A pose is a slot, `8 * node + heading` in the world's global node space, so a step is one
+look-up in each of the world's per-(slot, action) tables.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sim.benchmark import MAX_EPISODE_ACTIONS
+from sim.dynamics import Action, actions_toward
+from sim.geometry import HEADINGS
+from sim.world import ACTIONS, World
+
+
+class BatchStepper:
+    def __init__(self, world: World, batch: int, max_actions: int = MAX_EPISODE_ACTIONS,
+                 record: bool = False):
+        if batch < 1:
+            raise ValueError(f"batch={batch}: must be at least 1")
+        if max_actions < 1:
+            raise ValueError(f"max_actions={max_actions}: must be at least 1")
+        self.world, self.size, self.max_actions, self.record = world, batch, max_actions, record
+        self._transition, self._collides = world.transition, world.collides
+        self._move_length = world.move_length
+        width = int(world.size.max())
+        self._width = width
+        # Goal rows, one per episode: distance and global next hop toward its goal from each node.
+        self._dist = np.full((batch, width), np.inf)
+        self._next = np.full((batch, width), -1, dtype=np.int64)
+        self._base = np.zeros(batch, dtype=np.int64)  # flat index of (episode, global node 0)
+        self.slot = np.zeros(batch, dtype=np.int64)
+        self.goal = np.zeros(batch, dtype=np.int64)  # global node
+        self.steps = np.zeros(batch, dtype=np.int64)
+        self.done = np.ones(batch, dtype=bool)
+        self.stopped = np.zeros(batch, dtype=bool)
+        self.collisions = np.zeros(batch, dtype=np.int64)
+        self.path_length = np.zeros(batch)
+        self.td = np.full(batch, np.inf)
+        self.otd = np.full(batch, np.inf)
+        self.shortest = np.full(batch, np.inf)
+        self._started = False
+        self._history: list[np.ndarray] = []
+
+    # -- episodes -------------------------------------------------------------------
+    def start(self, envs, node, heading, goal, goal_dist, goal_next) -> None:
+        """Start episodes in batch positions `envs` (an index array or a boolean mask) at global
+        `node`, `heading`, toward global `goal`, with its maze's goal rows (K, >= maze size):
+        metres to the goal and next local node toward it (-1 where none) from each local node."""
+        envs = np.flatnonzero(envs) if np.asarray(envs).dtype == bool else np.asarray(envs, dtype=np.int64)
+        node, heading, goal = (np.asarray(a, dtype=np.int64) for a in (node, heading, goal))
+        goal_dist, goal_next = np.asarray(goal_dist), np.asarray(goal_next)
+        if not (node.shape == heading.shape == goal.shape == envs.shape):
+            raise ValueError("start(): envs, node, heading and goal must have one entry per episode")
+        if envs.size and (node.min() < 0 or node.max() >= self.world.nodes or goal.min() < 0
+                          or goal.max() >= self.world.nodes or heading.min() < 0 or heading.max() >= HEADINGS):
+            raise ValueError(f"start(): a node or goal outside the world ({self.world.nodes} nodes) "
+                             f"or a heading outside 0..{HEADINGS - 1}")
+        maze = np.searchsorted(self.world.offset, node, side="right") - 1
+        offset = self.world.offset[maze]
+        if np.any(np.searchsorted(self.world.offset, goal, side="right") - 1 != maze):
+            raise ValueError("start(): an episode's goal is in another maze than its start")
+        width = min(goal_dist.shape[1], self._width)
+        self._dist[envs] = np.inf
+        self._dist[envs, :width] = goal_dist[:, :width]
+        self._next[envs] = -1
+        self._next[envs, :width] = np.where(goal_next[:, :width] >= 0, goal_next[:, :width] + offset[:, None], -1)
+        self._base[envs] = envs * self._width - offset
+        self.slot[envs] = node * HEADINGS + heading
+        self.goal[envs] = goal
+        self.steps[envs] = 0
+        self.done[envs] = self.stopped[envs] = False
+        self.collisions[envs] = 0
+        self.path_length[envs] = 0.0
+        self.td[envs] = self.otd[envs] = self.shortest[envs] = self._dist.reshape(-1)[self._base[envs] + node]
+        self._started = True
+        if self.record:
+            self._history = [self.node.copy()]
+
+    def step(self, actions) -> np.ndarray:
+        """Apply (B,) actions; returns which of them were forward moves into a wall."""
+        if not self._started:
+            raise RuntimeError("step() before start(): start the batch's episodes first")
+        actions = np.asarray(actions)
+        if actions.shape != (self.size,):
+            raise ValueError(f"actions of shape {actions.shape}: expected ({self.size},)")
+        if actions.min() < 0 or actions.max() > Action.STOP:
+            raise ValueError("actions must be 0 forward, 1 left, 2 right or 3 stop")
+        live = ~self.done
+        a = np.where(live, actions, Action.STOP)  # a finished episode stays where it is
+        k = self.slot * ACTIONS + a
+        self.slot = self._transition[k]
+        collided = self._collides[k]
+        self.path_length += self._move_length[k]
+        self.collisions += collided
+        stop = a == Action.STOP
+        self.steps += ~stop
+        self.stopped |= live & stop
+        self.done = self.stopped | (self.steps >= self.max_actions)
+        self.td = self._dist.reshape(-1)[self._base + (self.slot >> 3)]
+        np.minimum(self.otd, self.td, out=self.otd)
+        if self.record:
+            self._history.append(self.node.copy())
+        return collided
+
+    # -- what the agent and its teacher see -------------------------------------------
+    def observations(self, out: np.ndarray | None = None) -> np.ndarray:
+        """(B, F) ray features of the current poses (in the world's dtype)."""
+        if self.world.obs is None:
+            raise ValueError("the world was compiled without observations")
+        return np.take(self.world.obs, self.slot, axis=0, out=out)
+
+    def forward_blocked(self) -> np.ndarray:
+        return self._collides[self.slot * ACTIONS + Action.FORWARD]
+
+    def teacher_actions(self) -> np.ndarray:
+        """Shortest-path actions for the current poses: toward the next hop by the smaller turn
+        (left on a tie), forward when aligned, stop at the goal's node or where no path exists.
+        The rule is `sim.dynamics.actions_toward`, shared with the reference teacher."""
+        node, heading = self.node, self.heading
+        hop = self._next.reshape(-1)[self._base + node]
+        stop = (node == self.goal) | (hop < 0)
+        hop = np.where(stop, node, hop)
+        actions = actions_toward(self.world.ij[hop] - self.world.ij[node], heading)
+        return np.where(stop, Action.STOP, actions).astype(np.int64)
+
+    def distance(self, node) -> np.ndarray:
+        """Metres from (B,) global nodes to each episode's goal."""
+        return self._dist.reshape(-1)[self._base + np.asarray(node)]
+
+    # -- bookkeeping ---------------------------------------------------------------
+    @property
+    def node(self) -> np.ndarray:
+        return self.slot >> 3
+
+    @property
+    def heading(self) -> np.ndarray:
+        return self.slot & (HEADINGS - 1)
+
+    def visited(self) -> np.ndarray:
+        """(T + 1, B) global node of each episode before each step since the last start(), then
+        after the last; episode k's trajectory is its first `steps[k] + 1` rows. Needs record=True."""
+        if not self.record:
+            raise RuntimeError("trajectories are not recorded: make the stepper with record=True")
+        return np.stack(self._history)
+
+    def trajectories(self) -> list[list[int]]:
+        """Global nodes visited by each episode: the start, then one per move (a collision
+        repeats the node), as `sim.metrics.score_trajectory` takes them once made local."""
+        history = self.visited()
+        return [history[: self.steps[k] + 1, k].tolist() for k in range(self.size)]

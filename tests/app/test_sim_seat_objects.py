@@ -1,0 +1,86 @@
+"""The live simulator seat: landmarks are physical objects, so a claim shows its target."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from app.backends.sim import SimulatorBackend
+from app.clock import ServerClock
+from app.mazes import Mazes
+from app.settings import Settings
+from sim.dynamics import Action, Pose, step, teacher_action
+from sim.geometry import heading_index
+from sim.labels import LABEL_BGR, OBJECTS, Label
+from sim.navgraph import NavGraph
+
+MAZE = "gen-000"
+
+
+def drive(maze, graph, start: Pose, actions) -> tuple[list[str], bytes]:
+    """Play `actions` on the seat's backend; the outcomes and the last camera frame (JPEG)."""
+    async def play():
+        backend = SimulatorBackend(maze, graph, start, ServerClock())
+        await backend.connect()
+        outcomes = [(await backend.execute(a.word)).outcome for a in actions]
+        await backend.close()
+        return outcomes, [f async for f in backend.frames()][-1].jpeg
+    return asyncio.run(play())
+
+
+def object_pixels(jpeg: bytes, label: Label) -> int:
+    """Pixels whose colour points the way of the object's colour (JPEG blurs it a little)."""
+    image = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR).astype(np.float64)
+    norm = np.linalg.norm(image, axis=-1)
+    ref = np.array(LABEL_BGR[label], dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        off = np.linalg.norm(image / norm[..., None] - ref / np.linalg.norm(ref), axis=-1)
+    return int(((norm > 60) & (off < 0.12)).sum())
+
+
+def approach(maze, graph: NavGraph, target: str) -> tuple[Pose, list[Action]]:
+    """From the seat's start pose, the teacher's moves to the target's node, then a turn to
+    face the object and a forward move into it: what a Driver does before claiming."""
+    goal = graph.nearest_node(*maze.objects[target])
+    far = np.flatnonzero(np.isfinite(graph.dist[:, goal]) & (graph.dist[:, goal] > 0.6))
+    start = pose = Pose(int(far[0]), 0)
+    actions = []
+    while (a := teacher_action(graph, pose, goal)) != Action.STOP:
+        actions.append(a)
+        pose, _ = step(graph, pose, a)
+    (x, y), (ox, oy) = graph.nodes[goal], maze.objects[target]
+    facing = heading_index(math.atan2(oy - y, ox - x))
+    turn = (facing - pose.heading) % 8
+    actions += [Action.LEFT] * turn if turn <= 4 else [Action.RIGHT] * (8 - turn)
+    return start, actions + [Action.FORWARD]
+
+
+@pytest.fixture(scope="module")
+def mazes(tmp_path_factory):
+    return Mazes(Settings(data_dir=tmp_path_factory.mktemp("data"),
+                          cache_dir=tmp_path_factory.mktemp("cache")))
+
+
+@pytest.mark.parametrize("target", OBJECTS)
+def test_a_move_into_a_landmark_is_a_collision_and_the_claim_frame_shows_it(mazes, target):
+    maze, graph = mazes.load(MAZE), mazes.graph(MAZE)
+    start, actions = approach(maze, graph, target)
+    outcomes, jpeg = drive(maze, graph, start, actions)
+    assert outcomes[-1] == "collision"
+    assert set(outcomes[:-1]) == {"ok"}
+    assert object_pixels(jpeg, Label[target.upper()]) > 300
+
+
+def test_on_the_benchmarks_walls_only_graph_the_robot_drives_into_the_landmark(mazes):
+    # The same approach on the graph the metrics use: the object is walkable, the move is not a
+    # collision, and the robot ends inside the object, facing the wall behind it.
+    maze = mazes.load(MAZE)
+    graph = NavGraph.build(maze, cache_dir=mazes.settings.cache_dir)
+    start, actions = approach(maze, graph, "mug")
+    outcomes, jpeg = drive(maze, graph, start, actions)
+    assert outcomes[-1] == "ok"
+    assert object_pixels(jpeg, Label.MUG) < 50
