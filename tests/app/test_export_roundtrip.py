@@ -7,6 +7,7 @@ import base64
 import json
 
 import cv2
+import jsonschema
 import numpy as np
 import pytest
 from mcap.reader import make_reader
@@ -16,7 +17,7 @@ from typer.testing import CliRunner
 from app.cli import root
 from app.db.engine import make_engine, make_sessionmaker
 from app.db.models import Trial
-from app.export.mcap import CHANNELS
+from app.export.mcap import CHANNELS, DERIVED_TOPICS, schemas
 from app.mazes import Mazes
 from app.settings import Settings
 from app.trial.log import EventLog
@@ -59,14 +60,20 @@ def test_mcap_of_a_demo_trial_has_every_stream_and_every_event_once(recorded, tm
         metadata = {m.name: m.metadata for m in reader.iter_metadata()}
         attachments = {a.name for a in reader.iter_attachments()}
     assert topics == set(CHANNELS)
+    for schema, channel, message in messages:  # the published Foxglove schemas, and our own two
+        jsonschema.validate(json.loads(message.data), schemas()[schema.name])
     log = events[trial.id]
-    assert sorted(m.sequence for _, _, m in messages) == [e.seq for e in log]
-    assert [m.log_time for _, _, m in messages] == sorted(e.t_ns for e in log)
+    logged = [(c, m) for _, c, m in messages if c.topic not in DERIVED_TOPICS]
+    assert sorted(m.sequence for _, m in logged) == [e.seq for e in log]
+    assert [m.log_time for _, m in logged] == sorted(e.t_ns for e in log)
     per_topic = {}
     for _, channel, _ in messages:
         per_topic[channel.topic] = per_topic.get(channel.topic, 0) + 1
-    for topic in ("/driver/camera", "/chat", "/driver/cmd", "/robot/pose", "/trial/event"):
+    for topic in ("/driver/camera", "/chat", "/driver/cmd", "/robot/pose/sim", "/commander/estimate",
+                  "/tf", "/maze/scene", "/trial/event"):
         assert per_topic.get(topic, 0) > 0, f"{topic} has no messages"
+    assert per_topic["/tf"] == per_topic["/robot/pose/sim"] == sum(e.kind == "pose" for e in log)
+    assert per_topic["/commander/estimate"] == sum(e.kind == "localization" for e in log)
     frames = {e.seq: e for e in log if e.kind == "frame"}
     assert per_topic["/driver/camera"] == len(frames)
     for schema, channel, message in messages:
@@ -163,7 +170,8 @@ def test_demo_and_exports_on_postgresql(postgres_url, tmp_path):
     log = EventLog(sessions).load(trial.id)
     run(env, "export", "all", "--format", "mcap", "--out", str(tmp_path / "mcap"))
     with (tmp_path / "mcap" / f"trial-{trial.id}.mcap").open("rb") as f:
-        seqs = sorted(m.sequence for _, _, m in make_reader(f).iter_messages())
+        seqs = sorted(m.sequence for _, c, m in make_reader(f).iter_messages()
+                      if c.topic not in DERIVED_TOPICS)
     assert seqs == [e.seq for e in log]
     run(env, "export", "all", "--format", "ndh", "--out", str(tmp_path / "ndh"))
     assert [i.target for i in Benchmark(tmp_path / "ndh").split("train")] == list(trial.targets)
