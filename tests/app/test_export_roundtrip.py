@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import base64
 import json
+from pathlib import Path
 
 import cv2
 import jsonschema
@@ -175,3 +176,42 @@ def test_demo_and_exports_on_postgresql(postgres_url, tmp_path):
     assert seqs == [e.seq for e in log]
     run(env, "export", "all", "--format", "ndh", "--out", str(tmp_path / "ndh"))
     assert [i.target for i in Benchmark(tmp_path / "ndh").split("train")] == list(trial.targets)
+
+
+LAYOUT = Path(__file__).resolve().parents[2] / "docs" / "foxglove" / "robotslang-layout.json"
+
+
+def layout_topics(node) -> set[str]:
+    """Every topic the layout names: topic settings' keys, image/log/raw topics, plot paths."""
+    found: set[str] = set()
+    if isinstance(node, dict):
+        for key, value in node.items():
+            if key == "topics" and isinstance(value, dict):
+                found |= set(value)
+            elif key in ("imageTopic", "topicToRender", "topicPath", "value") and isinstance(value, str):
+                found.add(value.split(".", 1)[0])
+            found |= layout_topics(value)
+    elif isinstance(node, list):
+        for item in node:
+            found |= layout_topics(item)
+    return found
+
+
+def test_foxglove_layout_names_only_topics_a_recording_has(recorded, tmp_path):
+    env, _, trials, _ = recorded
+    layout = json.loads(LAYOUT.read_text())
+    panels = {p["panelType"] for p in _panels(layout["content"])}
+    assert {"Image", "ThreeDee", "Log", "Plot"} <= panels
+    out = tmp_path / "trial.mcap"
+    run(env, "export", str(trials[0].id), "--format", "mcap", "--out", str(out))
+    with out.open("rb") as f:
+        topics = {c.topic for c in make_reader(f).get_summary().channels.values()}
+    named = layout_topics(layout)
+    assert {"/driver/camera", "/chat", "/maze/scene", "/commander/estimate", "/driver/cmd"} <= named
+    assert named <= topics, f"the layout names topics no recording has: {sorted(named - topics)}"
+
+
+def _panels(node) -> list[dict]:
+    if node.get("type") == "panel":
+        return [node]
+    return [p for item in node.get("items", []) for p in _panels(item["content"])]
