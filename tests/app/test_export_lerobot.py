@@ -90,8 +90,12 @@ def test_layout_frames_actions_and_dialog_match_the_log(recorded, tmp_path, per)
     video = out / info["video_path"].format(video_key=VIDEO_KEY, chunk_index=0,
                                             file_index=first[f"videos/{VIDEO_KEY}/file_index"])
     with av.open(str(video)) as container:
-        decoded = [f.to_ndarray(format="rgb24") for f in container.decode(video=0)]
+        decoded = [(f.time, f.to_ndarray(format="rgb24")) for f in container.decode(video=0)]
     assert len(decoded) == first["length"]
+    # LeRobot finds a row's image by its timestamp, to within 1e-4 s by default.
+    rows = [r for r in data if r["episode_index"] == 0]
+    assert np.allclose([t for t, _ in decoded], [r["timestamp"] for r in rows], atol=1e-4, rtol=0)
+    decoded = [image for _, image in decoded]
     frames_dir = Settings(data_dir=env["ROBOTSLANG_DATA_DIR"], secret_key="x").frames_dir
     recorded_rgb = cv2.cvtColor(cv2.imread(str(frames_dir / steps[0][0].payload["path"])), cv2.COLOR_BGR2RGB)
     assert decoded[0].shape == recorded_rgb.shape == tuple(info["features"][VIDEO_KEY]["shape"])
