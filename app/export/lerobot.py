@@ -218,8 +218,8 @@ def write_lerobot(loaded: Iterable[tuple[TrialRecord, Maze]], out: str | Path,
             "video_path": VIDEO_PATH, "features": features}
     (tmp / "meta/info.json").write_text(json.dumps(info, indent=2))
     numeric = {"observation.state": np.array(rows["observation.state"]), "action": np.array(rows["action"]),
-               **{k: np.array(rows[k]) for k in ("timestamp", "frame_index", "episode_index", "index",
-                                                  "task_index")}}
+               **{k: np.array(rows[k]) for k in ("frame_seq", "trial_id", "timestamp", "frame_index",
+                                                  "episode_index", "index", "task_index")}}
     (tmp / "meta/stats.json").write_text(json.dumps({k: _stats(v) for k, v in numeric.items()}, indent=2))
     tmp.replace(out)
     return {"episodes": len(episodes), "frames": n, "tasks": len(tasks)}

@@ -102,6 +102,24 @@ def test_layout_frames_actions_and_dialog_match_the_log(recorded, tmp_path, per)
     assert np.abs(decoded[0].astype(int) - recorded_rgb).mean() < 8
 
 
+def test_an_independent_v3_checker_finds_the_format_compliant(recorded, tmp_path):
+    doctor = pytest.importorskip("lerobot_doctor.runner", reason="lerobot-doctor (the `lerobot` extra)")
+    from lerobot_doctor.dataset_loader import load_local
+
+    env, _, _ = recorded
+    out = tmp_path / "ds"
+    export(env, out)
+    # The format checks pass outright; the rest judge the data (a demo's actions repeat): no FAIL.
+    formats = ["metadata", "temporal", "videos", "consistency", "training", "portability"]
+    report = doctor.run_checks(load_local(out), checks=formats)
+    assert (report.codebase_version, report.format_version) == ("v3.0", "v3")
+    assert {r.name: [m.message for m in r.messages if m.severity is not doctor.Severity.PASS]
+            for r in report.results if r.severity is not doctor.Severity.PASS} == {}
+    assert len(report.results) == len(formats)
+    full = doctor.run_checks(load_local(out))
+    assert [r.name for r in full.results if r.severity is doctor.Severity.FAIL] == []
+
+
 def test_lerobot_loads_it_back(recorded, tmp_path):
     lerobot_dataset = pytest.importorskip(
         "lerobot.datasets.lerobot_dataset",
