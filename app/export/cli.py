@@ -9,6 +9,7 @@ import typer
 from rich.console import Console
 from rich.progress import track
 
+from app.export.lerobot import Episode
 from app.export.record import ExportError
 
 console = Console(stderr=True)
@@ -32,8 +33,8 @@ def export(
     out: Path = typer.Option(..., "--out", help="MCAP: a file (one trial) or a folder; "
                                                 "NDH: the folder to write the benchmark layout into; "
                                                 "LeRobot: a new (or empty) dataset folder."),
-    episode: str = typer.Option("ndh", "--episode",
-                                help="LeRobot: one episode per NDH instance (ndh) or per trial (trial)."),
+    episode: Episode = typer.Option(Episode.ndh, "--episode",
+                                    help="LeRobot: one episode per NDH instance (ndh) or per trial (trial)."),
 ) -> None:
     """Export recorded trials from the data directory (ROBOTSLANG_DATA_DIR)."""
     from app.db.engine import make_engine, make_sessionmaker
@@ -88,15 +89,12 @@ def _export_mcap(loaded, out: Path, single: bool) -> None:
     console.print(f"{len(loaded)} trial(s) -> {out}")
 
 
-def _export_lerobot(loaded, out: Path, episode: str) -> None:
-    from app.export.lerobot import Episode, write_lerobot
+def _export_lerobot(loaded, out: Path, per: Episode) -> None:
+    from app.export.lerobot import write_lerobot
 
     try:
-        per = Episode(episode)
-    except ValueError:
-        _fail(f"--episode {episode!r}: expected ndh or trial")
-    try:
         import av  # noqa: F401
+        import pandas  # noqa: F401
         import pyarrow  # noqa: F401
     except ImportError as err:
         _fail(f"the LeRobot export needs the `lerobot` extra (pip install robotslang[lerobot]): {err}")

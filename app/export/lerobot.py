@@ -137,16 +137,27 @@ def _stats(values: np.ndarray) -> dict[str, list]:
 
 def write_lerobot(loaded: Iterable[tuple[TrialRecord, Maze]], out: str | Path,
                   per: Episode = Episode.ndh) -> dict[str, int]:
-    """Write every trial's episodes to the folder `out` (replaced); returns the totals."""
-    import pandas as pd
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
+    """Write every trial's episodes to the folder `out` (new or empty), built in `out.part` and
+    renamed when complete; returns the totals."""
     out = Path(out)
     if out.exists() and any(out.iterdir()):
         raise ExportError(f"{out} is not empty: a LeRobot dataset needs a folder of its own")
     tmp = out.with_name(out.name + ".part")
     shutil.rmtree(tmp, ignore_errors=True)
+    try:
+        totals = _write(loaded, tmp, per)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)  # never leave half a dataset
+        raise
+    tmp.replace(out)
+    return totals
+
+
+def _write(loaded: Iterable[tuple[TrialRecord, Maze]], tmp: Path, per: Episode) -> dict[str, int]:
+    import pandas as pd
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
     rows: dict[str, list] = {k: [] for k in ("observation.state", "action", "language.messages",
                                              "frame_seq", "trial_id", "timestamp", "frame_index",
                                              "episode_index", "index", "task_index")}
@@ -221,5 +232,4 @@ def write_lerobot(loaded: Iterable[tuple[TrialRecord, Maze]], out: str | Path,
                **{k: np.array(rows[k]) for k in ("frame_seq", "trial_id", "timestamp", "frame_index",
                                                   "episode_index", "index", "task_index")}}
     (tmp / "meta/stats.json").write_text(json.dumps({k: _stats(v) for k, v in numeric.items()}, indent=2))
-    tmp.replace(out)
     return {"episodes": len(episodes), "frames": n, "tasks": len(tasks)}

@@ -14,15 +14,15 @@ from typer.testing import CliRunner
 from app.cli import root
 from app.db.engine import make_engine, make_sessionmaker
 from app.db.models import Trial
-from app.export.lerobot import STATE_NAMES, VIDEO_KEY
+from app.export.lerobot import STATE_NAMES, VIDEO_KEY, Episode, episodes_of, write_lerobot
+from app.export.record import ExportError
 from app.settings import Settings
 from app.trial.log import EventLog
 from sim.dynamics import Action
+from tests.app.test_export_mcap import record, small_maze  # noqa: F401  (a small trial log)
 
 av = pytest.importorskip("av", reason="the LeRobot export needs the `lerobot` extra (PyAV)")
 pq = pytest.importorskip("pyarrow.parquet", reason="the LeRobot export needs the `lerobot` extra (pyarrow)")
-
-pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")
@@ -57,6 +57,7 @@ def driver_steps(log):
     return steps + ([pending] if pending else [])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("per", ["ndh", "trial"])
 def test_layout_frames_actions_and_dialog_match_the_log(recorded, tmp_path, per):
     env, trial, log = recorded
@@ -102,6 +103,7 @@ def test_layout_frames_actions_and_dialog_match_the_log(recorded, tmp_path, per)
     assert np.abs(decoded[0].astype(int) - recorded_rgb).mean() < 8
 
 
+@pytest.mark.slow
 def test_an_independent_v3_checker_finds_the_format_compliant(recorded, tmp_path):
     doctor = pytest.importorskip("lerobot_doctor.runner", reason="lerobot-doctor (the `lerobot` extra)")
     from lerobot_doctor.dataset_loader import load_local
@@ -120,6 +122,7 @@ def test_an_independent_v3_checker_finds_the_format_compliant(recorded, tmp_path
     assert [r.name for r in full.results if r.severity is doctor.Severity.FAIL] == []
 
 
+@pytest.mark.slow
 def test_lerobot_loads_it_back(recorded, tmp_path):
     lerobot_dataset = pytest.importorskip(
         "lerobot.datasets.lerobot_dataset",
@@ -139,6 +142,7 @@ def test_lerobot_loads_it_back(recorded, tmp_path):
     assert {it["task"] for it in items} == set(trial.targets)
 
 
+@pytest.mark.slow
 def test_refuses_a_folder_with_something_in_it(recorded, tmp_path):
     env, _, _ = recorded
     (tmp_path / "ds").mkdir()
@@ -147,3 +151,20 @@ def test_refuses_a_folder_with_something_in_it(recorded, tmp_path):
                                 env=env)
     assert result.exit_code == 1 and "is not empty" in result.output
     assert (tmp_path / "ds" / "notes.txt").read_text() == "mine"
+
+
+def test_a_missing_frame_file_names_it_and_leaves_nothing(record, tmp_path):
+    (tmp_path / "frames" / "2.jpg").unlink()
+    out = tmp_path / "ds"
+    with pytest.raises(ExportError, match=r"trial 7: frame 2 .*frames/2\.jpg"):
+        write_lerobot([(record, small_maze())], out)
+    assert not out.exists() and not (tmp_path / "ds.part").exists()
+
+
+def test_steps_pair_each_driver_frame_with_the_move_after_it(record):
+    (episode,) = episodes_of(record, small_maze(), Episode.trial)
+    assert [(s.frame.seq, s.action) for s in episode] == [(6, Action.FORWARD), (12, Action.STOP)]
+    assert [s.state[:2] for s in episode] == [[0.5, 0.6], [0.5, 0.67]]
+    assert episode[0].task == "mug"
+    # The chat logged before the first frame (seq 7 is logged earlier than frame 6) is on it.
+    assert [m["text"] for m in episode[0].messages] == ["what do you see?", "a red wall"]
