@@ -166,5 +166,5 @@ def test_steps_pair_each_driver_frame_with_the_move_after_it(record):
     assert [(s.frame.seq, s.action) for s in episode] == [(6, Action.FORWARD), (12, Action.STOP)]
     assert [s.state[:2] for s in episode] == [[0.5, 0.6], [0.5, 0.67]]
     assert episode[0].task == "mug"
-    # The chat logged before the first frame (seq 7 is logged earlier than frame 6) is on it.
+    # The chat between the first frame and the second is on the first, in log order.
     assert [m["text"] for m in episode[0].messages] == ["what do you see?", "a red wall"]
