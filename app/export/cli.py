@@ -1,4 +1,4 @@
-"""`robotslang export TRIAL_ID|all --format mcap|ndh --out PATH`."""
+"""`robotslang export TRIAL_ID|all --format mcap|ndh|lerobot --out PATH [--episode ndh|trial]`."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import typer
 from rich.console import Console
 from rich.progress import track
 
+from app.export.lerobot import Episode
 from app.export.record import ExportError
 
 console = Console(stderr=True)
@@ -17,6 +18,7 @@ console = Console(stderr=True)
 class Format(str, Enum):
     mcap = "mcap"
     ndh = "ndh"
+    lerobot = "lerobot"
 
 
 def register(root: typer.Typer) -> None:
@@ -26,9 +28,13 @@ def register(root: typer.Typer) -> None:
 def export(
     trial: str = typer.Argument(..., metavar="TRIAL_ID|all",
                                 help="A trial's id, or `all` for every finished trial."),
-    format: Format = typer.Option(..., "--format", help="mcap (Foxglove) or ndh (benchmark JSON)."),
+    format: Format = typer.Option(..., "--format",
+                                  help="mcap (Foxglove), ndh (benchmark JSON) or lerobot (LeRobotDataset v3)."),
     out: Path = typer.Option(..., "--out", help="MCAP: a file (one trial) or a folder; "
-                                                "NDH: the folder to write the benchmark layout into."),
+                                                "NDH: the folder to write the benchmark layout into; "
+                                                "LeRobot: a new (or empty) dataset folder."),
+    episode: Episode = typer.Option(Episode.ndh, "--episode",
+                                    help="LeRobot: one episode per NDH instance (ndh) or per trial (trial)."),
 ) -> None:
     """Export recorded trials from the data directory (ROBOTSLANG_DATA_DIR)."""
     from app.db.engine import make_engine, make_sessionmaker
@@ -63,6 +69,8 @@ def export(
 
             summary = write_benchmark(track(loaded, description="NDH export", console=console), out)
             console.print(f"{summary.trials} trial(s) -> {out}: NDH {summary.ndh}, LDH {summary.ldh}")
+        elif format is Format.lerobot:
+            _export_lerobot(loaded, out, episode)
         else:
             _export_mcap(loaded, out, single=trial != "all")
     except ExportError as err:
@@ -79,6 +87,20 @@ def _export_mcap(loaded, out: Path, single: bool) -> None:
     for record, maze in track(loaded, description="MCAP export", console=console):
         write_mcap(record, maze, out / f"trial-{record.trial_id}.mcap")
     console.print(f"{len(loaded)} trial(s) -> {out}")
+
+
+def _export_lerobot(loaded, out: Path, per: Episode) -> None:
+    from app.export.lerobot import write_lerobot
+
+    try:
+        import av  # noqa: F401
+        import pandas  # noqa: F401
+        import pyarrow  # noqa: F401
+    except ImportError as err:
+        _fail(f"the LeRobot export needs the `lerobot` extra (pip install robotslang[lerobot]): {err}")
+    totals = write_lerobot(track(loaded, description="LeRobot export", console=console), out, per)
+    console.print(f"{len(loaded)} trial(s) -> {out}: {totals['episodes']} episode(s), "
+                  f"{totals['frames']} frame(s), {totals['tasks']} task(s)")
 
 
 def _fail(message: str) -> None:

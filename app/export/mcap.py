@@ -1,11 +1,16 @@
 """One trial as an MCAP file that Foxglove opens: a channel per stream, the server's clock.
 
-Every event of the log becomes exactly one message (its `sequence` is the event's `seq`):
-frames on `/driver/camera` and `/overhead/camera` (`foxglove.CompressedImage`), chat on
-`/chat` (`foxglove.Log`, `name` = the speaker's role), moves on `/driver/cmd`, poses on
-`/robot/pose` (`foxglove.PoseInFrame` in the `table` frame) and everything else (phases,
-connections, localization estimates, target claims) on `/trial/event`. `log_time` is when the
-server logged the event; `publish_time` is the camera's capture time for frames.
+Every event of the log becomes exactly one message on its own topic (its `sequence` is the
+event's `seq`): frames on `/driver/camera` and `/overhead/camera` (`foxglove.CompressedImage`),
+chat on `/chat` (`foxglove.Log`, `name` = the speaker's role), moves on `/driver/cmd`, poses on
+`/robot/pose/<source>` (`foxglove.PoseInFrame` in the `table` frame; source sim, tracker or
+annotated), the Commander's estimates on `/commander/estimate` (`foxglove.PoseInFrame`) and
+everything else (phases, connections, target claims) on `/trial/event`. Two topics are derived,
+with `sequence` 0: `/maze/scene` (`foxglove.SceneUpdate`: walls and numbered targets, once) and
+`/tf` (`foxglove.FrameTransform`: `table` -> `robot/<source>` at every pose). `log_time` is when
+the server logged the event; `publish_time` is the camera's capture time for frames.
+
+The Foxglove channels carry the published JSON schemas (`foxglove_schemas/`).
 """
 
 from __future__ import annotations
@@ -13,47 +18,39 @@ from __future__ import annotations
 import base64
 import json
 import math
+from enum import Enum
+from functools import cache
 from pathlib import Path
 
 import cv2
 from mcap.writer import Writer
 
+from app.export.foxglove_scene import scene_update
 from app.export.record import ExportError, TrialRecord
 from app.trial.state import LoggedEvent
 from sim.maze import FIXED_MAP, WALLS_MAP, Maze
 
 PROFILE = ""  # plain JSON messages: no ROS profile
 TABLE_FRAME = "table"
+SCHEMA_DIR = Path(__file__).with_name("foxglove_schemas")
+FOXGLOVE_SCHEMAS = ("foxglove.CompressedImage", "foxglove.Log", "foxglove.PoseInFrame",
+                    "foxglove.FrameTransform", "foxglove.SceneUpdate")
 
-_TIME = {
-    "type": "object",
-    "properties": {"sec": {"type": "integer", "minimum": 0},
-                   "nsec": {"type": "integer", "minimum": 0, "maximum": 999_999_999}},
-}
-_VECTOR3 = {"type": "object", "properties": {a: {"type": "number"} for a in "xyz"}}
-_QUATERNION = {"type": "object", "properties": {a: {"type": "number"} for a in "xyzw"}}
 
-# The JSON schemas Foxglove recognises by name (github.com/foxglove/schemas, jsonschema/).
-SCHEMAS: dict[str, dict] = {
-    "foxglove.CompressedImage": {
-        "title": "foxglove.CompressedImage", "type": "object",
-        "properties": {"timestamp": _TIME, "frame_id": {"type": "string"},
-                       "data": {"type": "string", "contentEncoding": "base64"},
-                       "format": {"type": "string"}},
-    },
-    "foxglove.Log": {
-        "title": "foxglove.Log", "type": "object",
-        "properties": {"timestamp": _TIME,
-                       "level": {"type": "integer", "enum": [0, 1, 2, 3, 4, 5]},
-                       "message": {"type": "string"}, "name": {"type": "string"},
-                       "file": {"type": "string"}, "line": {"type": "integer", "minimum": 0}},
-    },
-    "foxglove.PoseInFrame": {
-        "title": "foxglove.PoseInFrame", "type": "object",
-        "properties": {"timestamp": _TIME, "frame_id": {"type": "string"},
-                       "pose": {"type": "object",
-                                "properties": {"position": _VECTOR3, "orientation": _QUATERNION}}},
-    },
+class PoseSource(str, Enum):
+    """Where a logged pose comes from: the simulator's truth, the overhead tracker, or a
+    person's annotation of a recording."""
+
+    sim = "sim"
+    tracker = "tracker"
+    annotated = "annotated"
+
+
+def robot_frame(source: PoseSource) -> str:
+    return f"robot/{source.value}"
+
+
+_ROBOTSLANG_SCHEMAS: dict[str, dict] = {
     "robotslang.DriverCommand": {
         "title": "robotslang.DriverCommand", "type": "object",
         "properties": {"stage": {"type": "string", "enum": ["requested", "executed"]},
@@ -61,13 +58,24 @@ SCHEMAS: dict[str, dict] = {
                        "outcome": {"type": ["string", "null"]},
                        "collision": {"type": ["boolean", "null"]},
                        "reason": {"type": ["string", "null"]}},
+        "required": ["stage", "move_id", "action"],
     },
     "robotslang.TrialEvent": {
         "title": "robotslang.TrialEvent", "type": "object",
         "properties": {"seq": {"type": "integer"}, "kind": {"type": "string"},
                        "payload": {"type": "object"}},
+        "required": ["seq", "kind", "payload"],
     },
 }
+
+
+@cache
+def schemas() -> dict[str, dict]:
+    """Schema name -> JSON schema: Foxglove's published ones and the platform's own two."""
+    published = {name: json.loads((SCHEMA_DIR / f"{name}.json").read_text())
+                 for name in FOXGLOVE_SCHEMAS}
+    return {**published, **_ROBOTSLANG_SCHEMAS}
+
 
 # topic -> schema; the order is the channel order in the file.
 CHANNELS: dict[str, str] = {
@@ -75,12 +83,27 @@ CHANNELS: dict[str, str] = {
     "/overhead/camera": "foxglove.CompressedImage",
     "/chat": "foxglove.Log",
     "/driver/cmd": "robotslang.DriverCommand",
-    "/robot/pose": "foxglove.PoseInFrame",
+    **{f"/robot/pose/{s.value}": "foxglove.PoseInFrame" for s in PoseSource},
+    "/commander/estimate": "foxglove.PoseInFrame",
+    "/tf": "foxglove.FrameTransform",
+    "/maze/scene": "foxglove.SceneUpdate",
     "/trial/event": "robotslang.TrialEvent",
 }
 
+# Topics written from other messages rather than from one event each (their `sequence` is 0).
+DERIVED_TOPICS = ("/tf", "/maze/scene")
+
 LOG_INFO = 2
 _IMAGE_FORMATS = {"image/jpeg": "jpeg", "image/png": "png", "image/webp": "webp"}
+
+
+def pose_source(record: TrialRecord, event: LoggedEvent) -> PoseSource:
+    try:
+        return PoseSource(event.payload.get("source", "sim"))
+    except ValueError:
+        raise ExportError(f"trial {record.trial_id}: pose event {event.seq} has source "
+                          f"{event.payload.get('source')!r}; expected one of "
+                          f"{', '.join(s.value for s in PoseSource)}") from None
 
 
 def topic_of(event: LoggedEvent) -> str:
@@ -93,7 +116,9 @@ def topic_of(event: LoggedEvent) -> str:
     if event.kind in ("move_requested", "move_executed"):
         return "/driver/cmd"
     if event.kind == "pose":
-        return "/robot/pose"
+        return f"/robot/pose/{event.payload.get('source', 'sim')}"
+    if event.kind == "localization":
+        return "/commander/estimate"
     return "/trial/event"
 
 
@@ -103,23 +128,39 @@ def write_mcap(record: TrialRecord, maze: Maze | None, out: str | Path) -> Path:
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     events = sorted(record.events, key=lambda e: (e.t_ns, e.seq))
-    # Read every frame before opening the file, so a missing image leaves no half-written MCAP.
+    # Read every frame and check every pose before opening the file, so a bad log leaves no
+    # half-written MCAP.
     images = {e.seq: record.frame_bytes(e) for e in events if e.kind == "frame"}
+    sources = {e.seq: pose_source(record, e) for e in events if e.kind == "pose"}
+    missing = [t for t in record.targets if maze is not None and t not in maze.objects]
+    if missing:
+        raise ExportError(f"trial {record.trial_id}: maze {record.maze} has no {', '.join(missing)}")
     tmp = out.with_name(out.name + ".part")
     with tmp.open("wb") as stream:
         writer = Writer(stream)
         writer.start(profile=PROFILE, library="robotslang")
         schema_ids = {name: writer.register_schema(name=name, encoding="jsonschema",
                                                    data=json.dumps(schema).encode())
-                      for name, schema in SCHEMAS.items()}
+                      for name, schema in schemas().items()}
         channel_ids = {topic: writer.register_channel(topic=topic, message_encoding="json",
                                                       schema_id=schema_ids[schema])
                        for topic, schema in CHANNELS.items()}
+
+        def add(topic: str, message: dict, log_ns: int, publish_ns: int, sequence: int) -> None:
+            writer.add_message(channel_id=channel_ids[topic], log_time=log_ns,
+                               publish_time=publish_ns, sequence=sequence,
+                               data=json.dumps(message, separators=(",", ":")).encode())
+
+        start_ns = events[0].t_ns if events else 0
+        if maze is not None:
+            add("/maze/scene", scene_update(maze, record.targets, _stamp(start_ns), TABLE_FRAME),
+                start_ns, start_ns, 0)
         for event in events:
             message, publish_ns = _message(record, event, images.get(event.seq))
-            writer.add_message(channel_id=channel_ids[topic_of(event)], log_time=event.t_ns,
-                               publish_time=publish_ns, sequence=event.seq,
-                               data=json.dumps(message, separators=(",", ":")).encode())
+            add(topic_of(event), message, event.t_ns, publish_ns, event.seq)
+            if event.kind == "pose":
+                add("/tf", _transform(message, robot_frame(sources[event.seq])), event.t_ns,
+                    event.t_ns, 0)
         writer.add_metadata("trial", _trial_metadata(record, maze))
         if maze is not None:
             created = events[0].t_ns if events else 0
@@ -162,10 +203,19 @@ def _message(record: TrialRecord, event: LoggedEvent, image: bytes | None) -> tu
         return {"stage": event.kind.removeprefix("move_"), "move_id": p.get("move_id"),
                 "action": p.get("action"), "outcome": p.get("outcome"),
                 "collision": p.get("collision"), "reason": p.get("reason")}, event.t_ns
-    if event.kind == "pose":
-        half = float(p.get("heading") or 0.0) / 2
-        return {"timestamp": _stamp(event.t_ns), "frame_id": TABLE_FRAME,
-                "pose": {"position": {"x": float(p["x"]), "y": float(p["y"]), "z": 0.0},
-                         "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(half),
-                                         "w": math.cos(half)}}}, event.t_ns
+    if event.kind in ("pose", "localization"):
+        return _pose_in_frame(event.t_ns, float(p["x"]), float(p["y"]), p.get("heading")), event.t_ns
     return {"seq": event.seq, "kind": event.kind, "payload": p}, event.t_ns
+
+
+def _pose_in_frame(t_ns: int, x: float, y: float, heading: float | None) -> dict:
+    """A pose in the table frame; a heading the Commander left out is the identity rotation."""
+    half = float(heading or 0.0) / 2
+    return {"timestamp": _stamp(t_ns), "frame_id": TABLE_FRAME,
+            "pose": {"position": {"x": x, "y": y, "z": 0.0},
+                     "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(half), "w": math.cos(half)}}}
+
+
+def _transform(pose: dict, child: str) -> dict:
+    return {"timestamp": pose["timestamp"], "parent_frame_id": TABLE_FRAME, "child_frame_id": child,
+            "translation": pose["pose"]["position"], "rotation": pose["pose"]["orientation"]}

@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import base64
 import json
+from pathlib import Path
 
 import cv2
+import jsonschema
 import numpy as np
 import pytest
 from mcap.reader import make_reader
@@ -16,7 +18,7 @@ from typer.testing import CliRunner
 from app.cli import root
 from app.db.engine import make_engine, make_sessionmaker
 from app.db.models import Trial
-from app.export.mcap import CHANNELS
+from app.export.mcap import CHANNELS, DERIVED_TOPICS, schemas
 from app.mazes import Mazes
 from app.settings import Settings
 from app.trial.log import EventLog
@@ -59,14 +61,20 @@ def test_mcap_of_a_demo_trial_has_every_stream_and_every_event_once(recorded, tm
         metadata = {m.name: m.metadata for m in reader.iter_metadata()}
         attachments = {a.name for a in reader.iter_attachments()}
     assert topics == set(CHANNELS)
+    for schema, channel, message in messages:  # the published Foxglove schemas, and our own two
+        jsonschema.validate(json.loads(message.data), schemas()[schema.name])
     log = events[trial.id]
-    assert sorted(m.sequence for _, _, m in messages) == [e.seq for e in log]
-    assert [m.log_time for _, _, m in messages] == sorted(e.t_ns for e in log)
+    logged = [(c, m) for _, c, m in messages if c.topic not in DERIVED_TOPICS]
+    assert sorted(m.sequence for _, m in logged) == [e.seq for e in log]
+    assert [m.log_time for _, m in logged] == sorted(e.t_ns for e in log)
     per_topic = {}
     for _, channel, _ in messages:
         per_topic[channel.topic] = per_topic.get(channel.topic, 0) + 1
-    for topic in ("/driver/camera", "/chat", "/driver/cmd", "/robot/pose", "/trial/event"):
+    for topic in ("/driver/camera", "/chat", "/driver/cmd", "/robot/pose/sim", "/commander/estimate",
+                  "/tf", "/maze/scene", "/trial/event"):
         assert per_topic.get(topic, 0) > 0, f"{topic} has no messages"
+    assert per_topic["/tf"] == per_topic["/robot/pose/sim"] == sum(e.kind == "pose" for e in log)
+    assert per_topic["/commander/estimate"] == sum(e.kind == "localization" for e in log)
     frames = {e.seq: e for e in log if e.kind == "frame"}
     assert per_topic["/driver/camera"] == len(frames)
     for schema, channel, message in messages:
@@ -165,7 +173,47 @@ def test_demo_and_exports_on_postgresql(postgres_url, tmp_path):
     log = EventLog(sessions).load(trial.id)
     run(env, "export", "all", "--format", "mcap", "--out", str(tmp_path / "mcap"))
     with (tmp_path / "mcap" / f"trial-{trial.id}.mcap").open("rb") as f:
-        seqs = sorted(m.sequence for _, _, m in make_reader(f).iter_messages())
+        seqs = sorted(m.sequence for _, c, m in make_reader(f).iter_messages()
+                      if c.topic not in DERIVED_TOPICS)
     assert seqs == [e.seq for e in log]
     run(env, "export", "all", "--format", "ndh", "--out", str(tmp_path / "ndh"))
     assert [i.target for i in Benchmark(tmp_path / "ndh").split("train")] == list(trial.targets)
+
+
+LAYOUT = Path(__file__).resolve().parents[2] / "docs" / "foxglove" / "robotslang-layout.json"
+
+
+def layout_topics(node) -> set[str]:
+    """Every topic the layout names: topic settings' keys, image/log/raw topics, plot paths."""
+    found: set[str] = set()
+    if isinstance(node, dict):
+        for key, value in node.items():
+            if key == "topics" and isinstance(value, dict):
+                found |= set(value)
+            elif key in ("imageTopic", "topicToRender", "topicPath", "value") and isinstance(value, str):
+                found.add(value.split(".", 1)[0])
+            found |= layout_topics(value)
+    elif isinstance(node, list):
+        for item in node:
+            found |= layout_topics(item)
+    return found
+
+
+def test_foxglove_layout_names_only_topics_a_recording_has(recorded, tmp_path):
+    env, _, trials, _ = recorded
+    layout = json.loads(LAYOUT.read_text())
+    panels = {p["panelType"] for p in _panels(layout["content"])}
+    assert {"Image", "ThreeDee", "Log", "Plot"} <= panels
+    out = tmp_path / "trial.mcap"
+    run(env, "export", str(trials[0].id), "--format", "mcap", "--out", str(out))
+    with out.open("rb") as f:
+        topics = {c.topic for c in make_reader(f).get_summary().channels.values()}
+    named = layout_topics(layout)
+    assert {"/driver/camera", "/chat", "/maze/scene", "/commander/estimate", "/driver/cmd"} <= named
+    assert named <= topics, f"the layout names topics no recording has: {sorted(named - topics)}"
+
+
+def _panels(node) -> list[dict]:
+    if node.get("type") == "panel":
+        return [node]
+    return [p for item in node.get("items", []) for p in _panels(item["content"])]
