@@ -207,3 +207,13 @@ class SeatClient:
 
     def kinds(self) -> set[str]:
         return {m["kind"] for m in self.received if m.get("type") == "event"}
+
+
+def wait_js(page, expression: str, timeout_s: float = 30.0) -> None:
+    """Poll a JavaScript expression (or `() => ...` function) in `page` until it is truthy.
+    Playwright's own wait_for_function polls through eval, which the pages' CSP rightly forbids."""
+    deadline = time.monotonic() + timeout_s
+    while not page.evaluate(expression):
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout_s} s waiting for {expression!r}")
+        page.wait_for_timeout(50)

@@ -17,7 +17,7 @@ from app.db.models import Experimenter, Team, Trial
 from app.security import hash_password
 from sim.labels import LABEL_BGR, OBJECT_LABELS
 from tests.app.conftest import platform_settings
-from tests.app.live import REPO, ServerThread, make_trial
+from tests.app.live import REPO, ServerThread, make_trial, wait_js
 
 CHROMIUM = Path("/usr/bin/chromium")
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
@@ -106,7 +106,7 @@ def test_commander_map_shows_the_landmarks_and_no_driver_request_gets_it(browser
 
     # What the Commander's canvas shows at each landmark is its colour; the legend names them all,
     # and the next target (the mug) is the one marked next.
-    commander.wait_for_function("document.getElementById('map').dataset.estimate !== undefined")
+    wait_js(commander, "document.getElementById('map').dataset.estimate !== undefined")
     maze = server.services.mazes.load(server.services.mazes.names()[0])
     for label in OBJECT_LABELS:
         x, y = maze.objects[label.word]
@@ -150,8 +150,8 @@ def test_participants_see_the_clock_their_moves_and_what_to_do(browser, server):
         driver.wait_for_selector(f"#moves[data-moves='{n}']")
     seconds = lambda page: float(page.get_attribute("#clock", "data-seconds"))
     before = seconds(driver)
-    driver.wait_for_function(f"Number(document.getElementById('clock').dataset.seconds) > {before}")
-    commander.wait_for_function(f"Number(document.getElementById('clock').dataset.seconds) > {before}")
+    wait_js(driver, f"Number(document.getElementById('clock').dataset.seconds) > {before}")
+    wait_js(commander, f"Number(document.getElementById('clock').dataset.seconds) > {before}")
 
     # The experimenter pauses from the trial's page: the clocks stop, the status says so, and a
     # refused move reads as what to do, not as the server's words.
@@ -180,7 +180,7 @@ def test_participants_see_the_clock_their_moves_and_what_to_do(browser, server):
     assert words == "Wait until the Commander has marked where the robot is."
 
     admin.click("form.control-resume button")
-    driver.wait_for_function(f"Number(document.getElementById('clock').dataset.seconds) > {frozen}")
+    wait_js(driver, f"Number(document.getElementById('clock').dataset.seconds) > {frozen}")
     assert runtime.state.moves == 2
 
     # Abort asks first: dismissed, nothing happens; accepted, every page says the trial ended.

@@ -11,7 +11,7 @@ from app.db.models import Experimenter
 from app.demo.runner import Demo
 from app.security import hash_password
 from app.settings import Settings
-from tests.app.live import ServerThread
+from tests.app.live import ServerThread, wait_js
 
 CHROMIUM = "/usr/bin/chromium"
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
@@ -102,10 +102,10 @@ def test_replay_plays_the_log_in_sync(server, browser):
     assert final["chat"] == sum(e["kind"] == "chat" for e in log["events"]) > 0
     assert final["events"] == len(log["events"])
     assert "finished" in page.inner_text("#status")
-    page.wait_for_function("() => document.getElementById('frame').naturalWidth === 320")
+    wait_js(page, "() => document.getElementById('frame').naturalWidth === 320")
 
     scrub_to(page, end * 0.6)
-    page.wait_for_function("() => document.getElementById('frame').complete")
+    wait_js(page, "() => document.getElementById('frame').complete")
     SCREENSHOT.parent.mkdir(parents=True, exist_ok=True)
     page.screenshot(path=str(SCREENSHOT))
 
@@ -113,7 +113,7 @@ def test_replay_plays_the_log_in_sync(server, browser):
     scrub_to(page, 0)
     page.select_option("#speed", "1")
     page.click("#play")
-    page.wait_for_function("() => Number(document.getElementById('replay').dataset.events) > 5")
+    wait_js(page, "() => Number(document.getElementById('replay').dataset.events) > 5")
     page.click("#play")
     held = shown(page)
     page.wait_for_timeout(400)

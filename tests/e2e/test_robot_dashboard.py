@@ -10,6 +10,7 @@ import pytest
 from app.db.models import Experimenter
 from app.security import hash_password
 from tests.app.conftest import platform_settings
+from tests.app.live import wait_js
 from tests.app.test_robot_e2e import ROBOT_START_S, RobotProcess, RobotServer
 from tests.e2e.test_trial_in_browser import ARTIFACTS, browser  # noqa: F401 (the fixture)
 
@@ -62,11 +63,11 @@ def test_a_robot_registered_on_the_dashboard_connects_with_its_token_and_shows_l
         robot = RobotProcess(tmp_path, server.url, token)
         seats[1].wait_for_selector("#status[data-phase=localizing]", timeout=ROBOT_START_S * 1000)
         trial.locator(".phase", has_text="localizing").wait_for()
-        page.wait_for_function(
+        wait_js(page,
             "() => { const r = [...document.querySelectorAll('#robots tr[data-robot]')]"
             ".find((tr) => tr.querySelector('.name').textContent === 'rover A');"
             " return r && r.querySelector('.link').textContent === 'connected'"
-            " && parseFloat(r.querySelector('.fps').textContent) > 5; }", timeout=ROBOT_START_S * 1000)
+            " && parseFloat(r.querySelector('.fps').textContent) > 5; }", timeout_s=ROBOT_START_S)
         assert row.locator(".latency").inner_text().endswith(" ms")
         option = page.locator("#backend option", has_text="rover A")
         assert option.inner_text() == "rover A (rover, connected)"

@@ -15,7 +15,7 @@ from app.db.models import Experimenter
 from app.security import hash_password
 from sim.dynamics import Action
 from tests.app.conftest import platform_settings
-from tests.app.live import REPO, ServerThread
+from tests.app.live import REPO, ServerThread, wait_js
 from tests.app.trial_play import oracle_action
 
 CHROMIUM = Path("/usr/bin/chromium")
@@ -89,7 +89,7 @@ def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, tmp_path):
         driver.goto(driver_url)
         commander.wait_for_selector("#status[data-phase=localizing]")
         driver.wait_for_selector("#status[data-phase=localizing]")
-        driver.wait_for_function("document.getElementById('camera').src.startsWith('data:image/jpeg')")
+        wait_js(driver, "document.getElementById('camera').src.startsWith('data:image/jpeg')")
 
         commander.fill("#chat-input", "Hi! What colours do you see?")
         commander.press("#chat-input", "Enter")
@@ -135,7 +135,7 @@ def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, tmp_path):
                 driver.wait_for_timeout(30)  # the page takes the move's result before the next press
             driver.click("#found")
             commander.wait_for_selector("#claim:not([hidden])")
-            commander.wait_for_function("document.getElementById('claim-image').src.startsWith('data:image/jpeg')")
+            wait_js(commander, "document.getElementById('claim-image').src.startsWith('data:image/jpeg')")
             if index == 0:
                 commander.screenshot(path=str(ARTIFACTS / "commander.png"))
                 driver.screenshot(path=str(ARTIFACTS / "driver-claim.png"))
