@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import itertools
+import math
 
 from sim.dynamics import Action, snap_pose, teacher_action
+from sim.geometry import heading_index
 
 _ids = itertools.count()
 
@@ -16,6 +18,18 @@ def oracle_action(services, trial_id: int) -> Action:
     graph, maze = services.mazes.graph(state.maze), services.mazes.load(state.maze)
     goal = graph.nearest_node(*maze.objects[state.current_target])
     return teacher_action(graph, snap_pose(graph, *runtime.backend.pose()), goal)
+
+
+def facing_action(services, trial_id: int) -> Action:
+    """The turn toward the current target's object from where the robot stands (STOP once it
+    faces it): a Driver looks at the target before claiming it."""
+    runtime = services.hub.peek(trial_id)
+    state = runtime.state
+    graph, maze = services.mazes.graph(state.maze), services.mazes.load(state.maze)
+    pose = snap_pose(graph, *runtime.backend.pose())
+    (x, y), (ox, oy) = graph.nodes[pose.node], maze.objects[state.current_target]
+    turn = (heading_index(math.atan2(oy - y, ox - x)) - pose.heading) % 8
+    return Action.STOP if turn == 0 else Action.LEFT if turn <= 4 else Action.RIGHT
 
 
 async def move(driver, action: str) -> dict:

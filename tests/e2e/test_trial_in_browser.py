@@ -5,6 +5,7 @@ confirmed, and the team appears on the leaderboard. Screenshots go to test-artif
 
 from __future__ import annotations
 
+import base64
 import re
 import time
 from pathlib import Path
@@ -14,9 +15,11 @@ import pytest
 from app.db.models import Experimenter
 from app.security import hash_password
 from sim.dynamics import Action
+from sim.labels import Label
 from tests.app.conftest import platform_settings
 from tests.app.live import REPO, ServerThread, wait_js
-from tests.app.trial_play import oracle_action
+from tests.app.test_sim_seat_objects import object_pixels
+from tests.app.trial_play import facing_action, oracle_action
 
 CHROMIUM = Path("/usr/bin/chromium")
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
@@ -123,6 +126,8 @@ def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, tmp_path):
                     admin.wait_for_timeout(1100)  # one dashboard refresh
                     admin.screenshot(path=str(ARTIFACTS / "experimenter.png"))
                 action = oracle_action(services, trial_id)
+                if action == Action.STOP:  # at the target: look at it before claiming
+                    action = facing_action(services, trial_id)
                 if action == Action.STOP:
                     break
                 before = runtime.state.moves
@@ -136,6 +141,10 @@ def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, tmp_path):
             driver.click("#found")
             commander.wait_for_selector("#claim:not([hidden])")
             wait_js(commander, "document.getElementById('claim-image').src.startsWith('data:image/jpeg')")
+            # The landmark is a physical object: the claimed frame shows it, not the wall behind it.
+            claimed = commander.get_attribute("#claim-image", "src").split(",", 1)[1]
+            target = runtime.state.current_target
+            assert object_pixels(base64.b64decode(claimed), Label[target.upper()]) > 300, target
             if index == 0:
                 commander.screenshot(path=str(ARTIFACTS / "commander.png"))
                 driver.screenshot(path=str(ARTIFACTS / "driver-claim.png"))
