@@ -12,6 +12,7 @@ one at a time, in order, once each; the truth is theirs to see only after the la
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import asdict, dataclass
 from enum import Enum
 from pathlib import Path
@@ -68,6 +69,9 @@ class Studies:
         self._benchmarks: dict[str, Benchmark] = {}
         self._contexts: dict[tuple[str, str], MazeContext] = {}
         self._maps: dict[tuple[str, str], bytes] = {}
+        # A double submit racing itself: the check for an earlier answer and the append go together.
+        # (Across server processes the check inside the append's transaction still refuses a later one.)
+        self._answering = threading.Lock()
 
     # -- sources --------------------------------------------------------------------
     def default_source(self) -> str:
@@ -197,6 +201,11 @@ class Studies:
     def answer(self, study_id: int, participant_id: int, position: int, x: float, y: float,
                heading: float | None) -> Answer:
         """Score and record a mark; refused for any instance but the one the participant is on."""
+        with self._answering:
+            return self._answer(study_id, participant_id, position, x, y, heading)
+
+    def _answer(self, study_id: int, participant_id: int, position: int, x: float, y: float,
+                heading: float | None) -> Answer:
         expected = self.next_position(study_id, participant_id)
         if expected is None:
             raise StudyError("you have answered every instance of this study")

@@ -140,3 +140,29 @@ def test_answers_survive_a_killed_server(tmp_path, benchmark_path):
         server.stop()
     answers = Studies(build_services(settings)).answers(study_id)
     assert [(a.position, a.x, a.y) for a in answers] == [(0, 1.0, 1.0), (1, 0.6, 0.6)]
+
+
+def test_answers_given_at_once_are_all_logged_in_one_order(any_db_settings, benchmark_path):
+    """Two participants answering at the same moment, on SQLite and on PostgreSQL: every answer is
+    committed once, the study's seqs have no gap and its stamps never go back."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    any_db_settings.benchmark = benchmark_path
+    services = build_services(any_db_settings)
+    ensure_experimenter(services)
+    studies = Studies(services)
+    study_id = studies.create(1, "race", str(benchmark_path), "val_seen", "prefix", 4)
+    people = [studies.invite(study_id, name) for name in ("ann", "bob", "cy")]
+
+    def answer_all(pid: int) -> None:
+        for position in range(4):
+            studies.answer(study_id, pid, position, 0.4 + 0.1 * position, 0.5, None)
+
+    with ThreadPoolExecutor(len(people)) as pool:
+        list(pool.map(answer_all, people))
+    logged = events(services, study_id)
+    assert [e.seq for e in logged] == list(range(1, len(logged) + 1))
+    assert [e.t_ns for e in logged] == sorted(e.t_ns for e in logged)
+    assert sorted((a.participant_id, a.position) for a in studies.answers(study_id)) == \
+        sorted((p, k) for p in people for k in range(4))
+    services.engine.dispose()
