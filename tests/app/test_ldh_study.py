@@ -166,3 +166,38 @@ def test_answers_given_at_once_are_all_logged_in_one_order(any_db_settings, benc
     assert sorted((a.participant_id, a.position) for a in studies.answers(study_id)) == \
         sorted((p, k) for p in people for k in range(4))
     services.engine.dispose()
+
+
+def test_a_study_of_the_platforms_own_trials(tmp_path):
+    """From a folder `robotslang export --format ndh` wrote under the data directory: exact instances
+    (the dialog up to the Commander's first mark, the tracked pose then); a folder elsewhere is refused."""
+    import cv2
+    import numpy as np
+
+    from app.export.ndh import write_benchmark
+    from app.ldh_study import StudyError
+    from tests.app.test_export_ndh import maze_named, trial
+
+    settings = platform_settings(tmp_path)
+    services = build_services(settings)
+    ensure_experimenter(services)
+    mazes = [maze_named(f"gen-{i:03d}", shift=10 * i) for i in range(3)]
+    summary = write_benchmark([(trial(str(i), m.name), m) for i, m in enumerate(mazes)], settings.data_dir / "export")
+    split = next(s for s, n in summary.ldh.items() if n)
+    studies = Studies(services)
+    study_id = studies.create(1, "ours", str(settings.data_dir / "export"), split, "prefix")
+    assert studies.study(study_id).variant == "exact"
+    (inst,) = studies.instances(study_id)
+    assert (inst.true_x, inst.true_y) == (0.5, 0.53)  # the pose when the Commander first marked the robot
+    assert inst.dialog == [["oracle", "hello before the start"], ["oracle", "what do you see?"],
+                           ["navigator", "a red wall"]]
+    shown = cv2.imdecode(np.frombuffer(studies.map_png(studies.study(study_id).source, inst.run), np.uint8),
+                         cv2.IMREAD_COLOR)
+    assert shown.shape[:2] == mazes[0].labels.shape
+    ann = studies.invite(study_id, "ann")
+    assert studies.answer(study_id, ann, 0, 0.5, 0.53, None).td == 0.0
+    outside = tmp_path / "elsewhere"
+    write_benchmark([(trial("9", mazes[0].name), mazes[0])], outside)
+    with pytest.raises(StudyError, match="configured benchmark or a folder under"):
+        studies.create(1, "not ours", str(outside), split, "prefix")
+    services.engine.dispose()
