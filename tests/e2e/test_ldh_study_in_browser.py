@@ -19,7 +19,7 @@ from sim.ldh import LDHInstance, Variant
 from sim.ldh_eval import MazeContext, score
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread
-from tests.e2e.test_pages_in_browser import H_M, W_M, browser, experimenter, page_checks  # noqa: F401
+from tests.e2e.test_pages_in_browser import ARTIFACTS, H_M, W_M, browser, experimenter, page_checks  # noqa: F401
 
 pytestmark = pytest.mark.browser
 
@@ -91,6 +91,8 @@ def test_a_study_from_creation_to_export(browser, server, benchmark_path):
     assert "1 of 2" in ann.inner_text("h1") and ann.is_disabled("#submit")
     assert ann.locator("#messages li").count() >= 1  # the dialog is shown
     truth_hidden(ann, hidden)
+    ARTIFACTS.mkdir(exist_ok=True)
+    ann.screenshot(path=str(ARTIFACTS / "ldh-study-answer.png"), full_page=True)
     answer_by_drag(ann, 0.30, 0.40)
     ann.wait_for_selector("h1:has-text('2 of 2')")
     truth_hidden(ann, hidden)
@@ -131,6 +133,7 @@ def test_a_study_from_creation_to_export(browser, server, benchmark_path):
     assert fresh.locator("#ldh-done").count() == 1
 
     admin.goto(study_url)
+    admin.screenshot(path=str(ARTIFACTS / "ldh-study-results.png"), full_page=True)
     for name, rows in (("ann", answers[:2]), ("bob", answers[2:])):
         row = admin.locator(f"tr[data-participant={name}]")
         assert "2/2" in row.inner_text()
