@@ -20,7 +20,7 @@ from app.db.engine import make_engine, make_sessionmaker, upgrade
 from app.db.models import Experimenter
 from app.mazes import Mazes
 from app.resources import shipped
-from app.routes import experimenter, pages, replay, robot_ws, seat_ws
+from app.routes import experimenter, ldh_study, pages, replay, robot_ws, seat_ws
 from app.guard import GuardMiddleware, template_context
 from app.login import LoginGuard
 from app.security import CsrfTokens, SeatTokens, Sessions, set_password
@@ -91,6 +91,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(seat_ws.router)
     app.include_router(robot_ws.router)
     app.include_router(replay.router)
+    app.include_router(ldh_study.router)
 
     @app.exception_handler(experimenter.LoginRequired)
     async def _login_required(request: Request, exc: Exception):

@@ -56,7 +56,7 @@ class Mazes:
     def _map_png(self, name: str) -> bytes:
         """The Commander's map: the walls, and each landmark as a disc in its benchmark colour
         (as the annotated `maze.map-fixed.png` colours it), as the paper's Commander saw them."""
-        return _encode(".png", commander_map(self.load(name)))
+        return commander_map_png(self.load(name))
 
     def landmarks(self, name: str) -> dict[str, tuple[float, float]]:
         """Each landmark's centre in metres, for the legend and the next-target mark."""
@@ -100,6 +100,10 @@ def commander_map(maze: Maze) -> np.ndarray:
         cv2.circle(image, centre, radius_px + 3, (255, 255, 255), -1, lineType=cv2.LINE_8)
         cv2.circle(image, centre, radius_px, LABEL_BGR[label], -1, lineType=cv2.LINE_8)
     return image
+
+
+def commander_map_png(maze: Maze) -> bytes:
+    return _encode(".png", commander_map(maze))
 
 
 def _view_point(maze: Maze, graph: NavGraph, ox: float, oy: float) -> tuple[float, float]:

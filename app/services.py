@@ -34,4 +34,5 @@ class Services:
     hub: "TrialHub" = None  # type: ignore[assignment]
     relay: Any = None  # `RedisRelay` when ROBOTSLANG_REDIS_URL is set: trials shared between processes
     robots: Any = None  # `RobotLinks`: the rovers and cameras connected here (made by `robot_links`)
+    ldh_belief: Any = None  # `BeliefModel` for the watch page's LDH belief (made by `belief_model`)
     driver_checks: dict[Any, str | None] = field(default_factory=dict)  # agents' start checks, by file version

@@ -35,7 +35,7 @@ class MazeContext:
     """A maze as localizers see it: graph, per-pose views, and the main component."""
     run: str
     graph: NavGraph
-    views: np.ndarray  # (N, 8, sectors, labels, 2), see sim.ldh_features.pose_views
+    views: np.ndarray | None = None  # (N, 8, sectors, labels, 2), see pose_views; the language localizers' only
 
     @cached_property
     def main(self) -> np.ndarray:
@@ -48,6 +48,11 @@ class MazeContext:
         """The main-component node with the smallest mean TD to all main-component nodes."""
         main = np.flatnonzero(self.main)
         return int(main[self.graph.dist[np.ix_(main, main)].mean(axis=1).argmin()])
+
+    def node_at(self, x: float, y: float) -> int:
+        """The main-component node nearest a point (a person's click on the map)."""
+        main = np.flatnonzero(self.main)
+        return int(main[np.hypot(*(self.graph.nodes[main] - (x, y)).T).argmin()])
 
     def uniform(self) -> np.ndarray:
         return self.main / self.main.sum()

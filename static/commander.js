@@ -2,6 +2,7 @@
 // (mouse, touch or keyboard), the next target's image and the Driver's claims.
 import {$, on, send, status, token} from "./seat.js";
 import {showImage, TableMap} from "./maputil.js";
+import {markTool} from "./marktool.js";
 import {RUNNING} from "./trial.js";
 
 const root = $("seat");
@@ -10,8 +11,7 @@ const targets = JSON.parse(root.dataset.targets);
 const canvas = $("map"), ctx = canvas.getContext("2d");
 const map = new Image();
 const STORE = `robotslang:estimate:${token}`;
-const STEP_M = 0.05, TURN = Math.PI / 4;
-let estimate = load(), press = null, cursor = null;
+let estimate = load();
 
 map.onload = draw;
 map.onerror = () => { $("map-hint").textContent = "The map could not be loaded. Reload the page."; };
@@ -35,6 +35,7 @@ function draw() {
   const next = nextTarget();
   if (next && landmarks[next]) TableMap.drawTargetMark(ctx, canvas, ...landmarks[next]);
   if (estimate) TableMap.drawRobot(ctx, canvas, estimate.x, estimate.y, estimate.heading, "#ff8c00");
+  const cursor = tool.cursor();
   if (cursor) TableMap.drawRobot(ctx, canvas, cursor.x, cursor.y, cursor.heading, "#ffffff", {dashed: true});
   canvas.dataset.estimate = estimate ? `${estimate.x.toFixed(3)},${estimate.y.toFixed(3)}` : "";
   document.querySelectorAll("#legend li[data-landmark]").forEach((li) => {
@@ -45,60 +46,11 @@ function draw() {
 }
 
 function localize(x, y, heading) {
-  const at = TableMap.clamp(x, y);
-  if (send("localize", {x: at.x, y: at.y, heading})) { keep({x: at.x, y: at.y, heading}); draw(); }
+  if (send("localize", {x, y, heading})) { keep({x, y, heading}); draw(); }
 }
 
-// -- mouse and touch: press where the robot is, drag towards where it faces ------------------
-function point(ev) {
-  const r = canvas.getBoundingClientRect();
-  return {cx: (ev.clientX - r.left) * canvas.width / r.width, cy: (ev.clientY - r.top) * canvas.height / r.height};
-}
-canvas.addEventListener("pointerdown", (ev) => {
-  press = point(ev);
-  canvas.setPointerCapture(ev.pointerId);
-});
-canvas.addEventListener("pointerup", (ev) => {
-  if (!press) return;
-  const up = point(ev), at = TableMap.toWorld(canvas, press.cx, press.cy);
-  const dx = up.cx - press.cx, dy = up.cy - press.cy;
-  press = null;
-  localize(at.x, at.y, Math.hypot(dx, dy) > 8 ? Math.atan2(-dy, dx) : null);  // canvas y points down
-});
-canvas.addEventListener("pointercancel", () => { press = null; });
-
-// -- keyboard: arrows move a cursor, [ and ] (or Q and E) turn it, Enter marks the robot -------
-const COMPASS = ["east", "north-east", "north", "north-west", "west", "south-west", "south", "south-east"];
-function describe(c) {
-  const k = ((Math.round(c.heading / TURN) % 8) + 8) % 8;
-  return `Cursor ${c.x.toFixed(2)} m from the left, ${c.y.toFixed(2)} m from the bottom, facing ${COMPASS[k]}. ` +
-    "Press Enter to mark the robot here.";
-}
-canvas.addEventListener("keydown", (ev) => {
-  const moves = {ArrowLeft: [-1, 0], ArrowRight: [1, 0], ArrowUp: [0, 1], ArrowDown: [0, -1]};
-  const turns = {"[": 1, q: 1, Q: 1, "]": -1, e: -1, E: -1};
-  if (!(ev.key in moves) && !(ev.key in turns) && ev.key !== "Enter" && ev.key !== "Escape") return;
-  ev.preventDefault();
-  if (ev.key === "Escape") { cursor = null; $("cursor-note").textContent = "Cursor removed."; draw(); return; }
-  if (!cursor) {
-    const from = estimate || {x: TableMap.W_M / 2, y: TableMap.H_M / 2};
-    cursor = {x: from.x, y: from.y, heading: from.heading ?? 0};
-  }
-  if (ev.key === "Enter") {
-    localize(cursor.x, cursor.y, cursor.heading);
-    $("cursor-note").textContent = "Marked: the robot is here.";
-    cursor = null; draw(); return;
-  }
-  if (ev.key in moves) {
-    const [dx, dy] = moves[ev.key], step = ev.shiftKey ? STEP_M / 5 : STEP_M;
-    Object.assign(cursor, TableMap.clamp(cursor.x + dx * step, cursor.y + dy * step));
-  } else {
-    cursor.heading = Math.atan2(Math.sin(cursor.heading + turns[ev.key] * TURN), Math.cos(cursor.heading + turns[ev.key] * TURN));
-  }
-  $("cursor-note").textContent = describe(cursor);
-  draw();
-});
-canvas.addEventListener("blur", () => { if (cursor) { cursor = null; draw(); } });
+const tool = markTool(canvas, {start: () => estimate, mark: localize, redraw: draw,
+                               note: (text) => { $("cursor-note").textContent = text; }});
 
 // -- the next target and claims -----------------------------------------------------------------
 function showTarget() {

@@ -3,6 +3,7 @@
 // camera. Controls follow the trial's state.
 import {showImage, TableMap} from "./maputil.js";
 import {confirmFirst, showControls} from "./controls.js";
+import {drawLDHBelief} from "./ldh_belief.js";
 import {applyStatus, clockSeconds, emptyStatus, formatClock, OVER, statusText} from "./trial.js";
 
 const root = document.getElementById("watch");
@@ -12,13 +13,14 @@ const canvas = $("truth"), ctx = canvas.getContext("2d");
 const map = new Image();
 const status = Object.assign(emptyStatus(), {phase: root.dataset.phase, targets_total: Number(root.dataset.targets),
                                              elapsed_s: Number(root.dataset.elapsed), moves: Number(root.dataset.moves)});
-const seen = {pose: null, localization: null};
+const seen = {pose: null, localization: null, ldh: null};
 let announced = "", retryMs = 500;
 map.src = `/experimenter/trials/${id}/map.png`;
 
 function draw() {
   if (map.complete && map.naturalWidth) ctx.drawImage(map, 0, 0, canvas.width, canvas.height);
   const est = seen.localization, pose = seen.pose;
+  if (status.phase === "localizing") drawLDHBelief(ctx, canvas, seen.ldh);
   if (est) TableMap.drawRobot(ctx, canvas, est.x, est.y, est.heading, "#ff8c00");
   if (pose) {
     TableMap.drawRobot(ctx, canvas, pose[0], pose[1], pose[2], "#1e6bff");
@@ -46,6 +48,9 @@ function onMessage(msg) {
     applyStatus(status, msg.status);
     seen.pose = msg.pose; seen.localization = msg.localization;
     if (msg.frame) camera(msg.frame.jpeg);
+  } else if (msg.type === "ldh_belief") {
+    seen.ldh = msg.top;
+    $("ldh-note").textContent = `LDH belief (${msg.model}), after the dialog so far: violet discs, larger where likelier.`;
   } else if (msg.type === "status") {
     applyStatus(status, msg);
   } else if (msg.type === "event") {

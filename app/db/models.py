@@ -90,3 +90,50 @@ class Frame(Base):
     capture_ns: Mapped[int] = mapped_column(BigInteger)
     width: Mapped[int] = mapped_column(Integer)
     height: Mapped[int] = mapped_column(Integer)
+
+
+class LDHStudy(Base):
+    """A human LDH study: its instances are frozen at creation (`LDHStudyInstance`)."""
+    __tablename__ = "ldh_study"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    name: Mapped[str] = mapped_column(String(80))
+    source: Mapped[str] = mapped_column(Text)  # the folder in the benchmark's layout it was drawn from
+    split: Mapped[str] = mapped_column(String(16))
+    variant: Mapped[str] = mapped_column(String(16))  # sim.ldh.Variant
+    experimenter_id: Mapped[int] = mapped_column(ForeignKey("experimenter.id"))
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class LDHStudyInstance(Base):
+    __tablename__ = "ldh_study_instance"
+    __table_args__ = (UniqueConstraint("study_id", "position", name="uq_ldh_instance_position"),)
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    study_id: Mapped[int] = mapped_column(ForeignKey("ldh_study.id"), index=True)
+    position: Mapped[int] = mapped_column(Integer)  # the order participants see them in, from 0
+    inst_idx: Mapped[int] = mapped_column(Integer)
+    run: Mapped[str] = mapped_column(String(80))
+    dialog: Mapped[list] = mapped_column(JSON)  # [[role, message], ...]
+    true_x: Mapped[float] = mapped_column(Float)
+    true_y: Mapped[float] = mapped_column(Float)
+    true_heading: Mapped[float | None] = mapped_column(Float, nullable=True)
+
+
+class LDHStudyParticipant(Base):
+    __tablename__ = "ldh_study_participant"
+    __table_args__ = (UniqueConstraint("study_id", "name", name="uq_ldh_participant_name"),)
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    study_id: Mapped[int] = mapped_column(ForeignKey("ldh_study.id"), index=True)
+    name: Mapped[str] = mapped_column(String(80))
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class LDHStudyEvent(Base):
+    """A study's log: every answer, committed before the participant hears it was taken."""
+    __tablename__ = "ldh_study_event"
+    __table_args__ = (UniqueConstraint("study_id", "seq", name="uq_ldh_event_study_seq"),)
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    study_id: Mapped[int] = mapped_column(ForeignKey("ldh_study.id"), index=True)
+    seq: Mapped[int] = mapped_column(Integer)
+    kind: Mapped[str] = mapped_column(String(32))
+    t_ns: Mapped[int] = mapped_column(BigInteger)
+    payload: Mapped[dict] = mapped_column(JSON)

@@ -26,6 +26,7 @@ from app.trial import events as ev
 from app.trial import messages as m
 from app.trial.decide import Refused
 from app.trial.events import LoggedEvent
+from app.trial.ldh_belief import LiveBelief
 from app.trial.port import Connection
 from app.trial.state import TrialState, fold
 from app.trial.views import EXPERIMENTER, status_of, view
@@ -52,6 +53,7 @@ class TrialRuntime:
         self._ending = False
         self.agent = None
         self._frame_dirs: set = set()
+        self.ldh = LiveBelief(self)  # the LDH model's belief, for the watchers only
 
     # -- life cycle ---------------------------------------------------------------
     async def start(self) -> None:
@@ -132,6 +134,7 @@ class TrialRuntime:
                                  trial_cache=cache)
         self.state.apply_event(event, logged.seq, logged.t_ns)
         self._broadcast(logged, attachments)
+        self.ldh.after(logged)
         return logged
 
     def _broadcast(self, logged: LoggedEvent, attachments: dict[str, dict[str, Any]]) -> None:
@@ -274,6 +277,7 @@ class TrialRuntime:
         """An experimenter's live view: every seat's events, the Driver's camera, the true pose."""
         self.watchers.add(conn)
         conn.deliver(self.welcome(EXPERIMENTER))
+        self.ldh.welcome(conn)
 
     def unwatch(self, conn: Connection) -> None:
         self.watchers.discard(conn)

@@ -1,0 +1,163 @@
+"""LDH human studies: the experimenter's pages (create, invite, results, export) and the
+participant's page behind a signed study link (one instance at a time, truth only at the end)."""
+
+from __future__ import annotations
+
+import csv
+import io
+from urllib.parse import quote
+
+from fastapi import APIRouter, Depends, Form, HTTPException, Request
+from fastapi.responses import HTMLResponse, JSONResponse, RedirectResponse, Response
+from pydantic import BaseModel, ConfigDict
+
+from app.guard import csrf_protect
+from app.ldh_study import CSV_COLUMNS, Studies, StudyError
+from app.routes.experimenter import experimenter
+from app.routes.pages import render
+from app.security import InvalidToken, StudyPass, StudyTokens
+
+router = APIRouter()
+studies_router = APIRouter(prefix="/experimenter/ldh", dependencies=[Depends(experimenter), Depends(csrf_protect)])
+
+
+def studies(request: Request) -> Studies:
+    """This server's `Studies`, made on first use."""
+    state = request.app.state
+    if not hasattr(state, "ldh_studies"):
+        state.ldh_studies = Studies(state.services)
+        state.ldh_tokens = StudyTokens(state.services.settings.signing_key())
+    return state.ldh_studies
+
+
+def tokens(request: Request) -> StudyTokens:
+    studies(request)
+    return request.app.state.ldh_tokens
+
+
+def _study_or_404(request: Request, study_id: int):
+    try:
+        return studies(request).study(study_id)
+    except LookupError as err:
+        raise HTTPException(404, str(err)) from None
+
+
+def _back(study_id: int | None = None, error: str | None = None) -> RedirectResponse:
+    page = "/experimenter/ldh" + (f"/{study_id}" if study_id is not None else "")
+    return RedirectResponse(page + (f"?error={quote(error)}" if error else ""), status_code=303)
+
+
+# -- the experimenter -----------------------------------------------------------------------
+@studies_router.get("", response_class=HTMLResponse)
+def study_list(request: Request, error: str | None = None):
+    s = studies(request)
+    return render(request, "ldh_studies.html", studies=s.list(), default_source=s.default_source(), error=error)
+
+
+@studies_router.post("")
+def create_study(request: Request, name: str = Form(max_length=80), source: str = Form(max_length=1000),
+                 split: str = Form("val_seen"), variant: str = Form("prefix"), limit: int | None = Form(None)):
+    try:
+        study_id = studies(request).create(experimenter(request), name, source, split, variant, limit)
+    except StudyError as err:
+        return _back(error=str(err))
+    return _back(study_id)
+
+
+@studies_router.post("/{study_id}/participants")
+def invite(request: Request, study_id: int, name: str = Form(max_length=80)):
+    _study_or_404(request, study_id)
+    try:
+        studies(request).invite(study_id, name)
+    except StudyError as err:
+        return _back(study_id, str(err))
+    return _back(study_id)
+
+
+@studies_router.get("/{study_id}", response_class=HTMLResponse)
+def study_page(request: Request, study_id: int, error: str | None = None):
+    study = _study_or_404(request, study_id)
+    s = studies(request)
+    links = {p.id: str(request.url_for("ldh_participant", token=tokens(request).issue(study_id, p.id)))
+             for p in s.participants(study_id)}
+    return render(request, "ldh_study.html", study=study, results=s.results(study_id),
+                  links=links, error=error)
+
+
+@studies_router.get("/{study_id}/export.json")
+def export_json(request: Request, study_id: int):
+    _study_or_404(request, study_id)
+    return JSONResponse(studies(request).results(study_id),
+                        headers={"Content-Disposition": f'attachment; filename="ldh-study-{study_id}.json"'})
+
+
+@studies_router.get("/{study_id}/export.csv")
+def export_csv(request: Request, study_id: int):
+    _study_or_404(request, study_id)
+    out = io.StringIO()
+    writer = csv.DictWriter(out, fieldnames=CSV_COLUMNS, extrasaction="ignore")
+    writer.writeheader()
+    writer.writerows(studies(request).results(study_id)["answers"])
+    return Response(out.getvalue(), media_type="text/csv",
+                    headers={"Content-Disposition": f'attachment; filename="ldh-study-{study_id}.csv"'})
+
+
+# -- the participant --------------------------------------------------------------------------
+def study_pass(request: Request, token: str) -> StudyPass:
+    """The study and participant a link opens; 403 for a forged link or one naming another study's participant."""
+    try:
+        granted = tokens(request).verify(token)
+        studies(request).participant(granted.study_id, granted.participant_id)
+    except (InvalidToken, LookupError) as err:
+        raise HTTPException(403, str(err)) from None
+    return granted
+
+
+@router.get("/ldh/{token}", response_class=HTMLResponse, name="ldh_participant")
+def participant_page(request: Request, token: str):
+    granted = study_pass(request, token)
+    s = studies(request)
+    study, instances = s.study(granted.study_id), s.instances(granted.study_id)
+    position = s.next_position(granted.study_id, granted.participant_id)
+    if position is None:  # done: now, and only now, their answers beside the truth
+        answers = s.answers(granted.study_id, granted.participant_id)
+        return render(request, "ldh_done.html", study=study, answers=answers, instances=instances)
+    inst = instances[position]
+    landmarks = s.benchmark(study.source).maze(inst.run).objects
+    return render(request, "ldh_answer.html", token=token, study=study, position=position, total=len(instances),
+                  dialog=inst.dialog, landmarks=sorted(landmarks))
+
+
+@router.get("/ldh/{token}/map/{position}.png")
+def participant_map(request: Request, token: str, position: int):
+    granted = study_pass(request, token)
+    s = studies(request)
+    instances = s.instances(granted.study_id)
+    if not 0 <= position < len(instances):
+        raise HTTPException(404, f"the study has no instance {position + 1}")
+    return Response(s.map_png(s.study(granted.study_id).source, instances[position].run), media_type="image/png",
+                    headers={"Cache-Control": "private, max-age=3600"})
+
+
+class Mark(BaseModel):
+    """Where the participant says the robot is (metres, table frame) and, if dragged, its heading."""
+    model_config = ConfigDict(extra="forbid")
+    position: int
+    x: float
+    y: float
+    heading: float | None = None
+
+
+@router.post("/ldh/{token}/answers", dependencies=[Depends(csrf_protect)])
+def submit(request: Request, token: str, mark: Mark):
+    """Record one answer. The reply says only that it was taken (never the score or the truth)."""
+    granted = study_pass(request, token)
+    s = studies(request)
+    try:
+        answer = s.answer(granted.study_id, granted.participant_id, mark.position, mark.x, mark.y, mark.heading)
+    except StudyError as err:
+        raise HTTPException(409, str(err)) from None
+    return {"recorded": answer.seq, "next": s.next_position(granted.study_id, granted.participant_id)}
+
+
+router.include_router(studies_router)

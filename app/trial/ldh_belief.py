@@ -1,0 +1,118 @@
+"""The LDH localizer's live belief for the experimenter's watch page (never for participants).
+
+After each chat message of the localization phase the dialog so far is read by the learned
+localizer (`models/ldh.py`) when `ldh_checkpoint` is set, else by the non-learned `colours`
+baseline (`sim/ldh_eval.py`), and the watchers get `{"type": "ldh_belief", "model", "top":
+[[x, y, p], ...]}`: the most probable nodes of the maze's main component, metres, p summing to
+at most 1. The model runs off the event loop; a belief that finishes after a newer one is dropped.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from app.trial.events import LoggedEvent
+from app.trial.port import Connection
+from app.trial.vocabulary import Phase, Role
+from sim.ldh_eval import MazeContext, colour_logits
+from sim.ldh_features import maze_views, mentions
+from sim.maze import Maze
+from sim.navgraph import NavGraph
+
+logger = logging.getLogger(__name__)
+
+TOP_K = 30  # nodes sent per belief: enough to see where the mass is, small on the wire
+DIALOG_ROLES = {Role.COMMANDER: "oracle", Role.DRIVER: "navigator"}  # the benchmark's role names
+
+
+class BeliefModel:
+    """One per server: the localizer and each maze's graph and per-pose views, built once."""
+
+    def __init__(self, checkpoint: Path | None, cache_dir: Path) -> None:
+        self.cache_dir = cache_dir
+        self.learned = None
+        self.name = "colours"
+        if checkpoint is not None:
+            from models.ldh import load_localizer  # torch only where a checkpoint is configured
+
+            try:
+                self.learned, self.name = load_localizer(checkpoint), "learned"
+            except Exception as err:  # the server runs on; the page shows which model it sees
+                logger.error("LDH checkpoint %s not usable (%s): showing the colours localizer", checkpoint, err)
+        self._contexts: dict[str, MazeContext] = {}
+
+    def context(self, maze: Maze) -> MazeContext:
+        if maze.name not in self._contexts:
+            graph = NavGraph.build(maze, "benchmark", cache_dir=self.cache_dir)
+            self._contexts[maze.name] = MazeContext(maze.name, graph, maze_views(maze, graph, self.cache_dir))
+        return self._contexts[maze.name]
+
+    def node_belief(self, maze: Maze, dialog) -> tuple[MazeContext, np.ndarray]:
+        """(context, P(node)) over the main component, from the (role, message) turns so far."""
+        ctx = self.context(maze)
+        counts = mentions(dialog)
+        logits = self.learned.logits(counts, ctx) if self.learned is not None else colour_logits(counts, ctx.views)
+        logits = np.where(ctx.main[:, None], logits, -np.inf)
+        p = np.exp(logits - logits.max())
+        node_p = p.sum(axis=1)
+        return ctx, node_p / node_p.sum()
+
+    def top(self, maze: Maze, dialog, k: int = TOP_K) -> list[list[float]]:
+        ctx, node_p = self.node_belief(maze, dialog)
+        best = np.argsort(-node_p, kind="stable")[:k]
+        return [[round(float(ctx.graph.nodes[i, 0]), 4), round(float(ctx.graph.nodes[i, 1]), 4),
+                 round(float(node_p[i]), 5)] for i in best if node_p[i] > 0]
+
+
+def belief_model(services) -> BeliefModel:
+    if services.ldh_belief is None:
+        settings = services.settings
+        services.ldh_belief = BeliefModel(settings.ldh_checkpoint, settings.cache_dir)
+    return services.ldh_belief
+
+
+class LiveBelief:
+    """A trial's belief feed to its watchers: the runtime calls `after` per event, `welcome` per watcher."""
+
+    def __init__(self, runtime) -> None:
+        self.runtime = runtime
+        self._sent_upto = 0  # the last chat seq a belief was sent for
+
+    def after(self, logged: LoggedEvent) -> None:
+        if logged.kind == "chat" and self.runtime.watchers and self.runtime.state.phase == Phase.LOCALIZING:
+            self.runtime._spawn(self._send(None))
+
+    def welcome(self, conn: Connection) -> None:
+        if self.runtime.state.phase == Phase.LOCALIZING:
+            self.runtime._spawn(self._send(conn))
+
+    async def _send(self, only: Connection | None) -> None:
+        rt = self.runtime
+        chats = [e for e in rt.services.log.load(rt.trial_id) if e.kind == "chat"]
+        if not chats:
+            return
+        dialog = tuple((DIALOG_ROLES[e.payload["role"]], e.payload["text"]) for e in chats
+                       if e.payload.get("role") in DIALOG_ROLES)
+        model = belief_model(rt.services)
+        try:
+            maze = rt.services.mazes.load(rt.state.maze)
+            top = await asyncio.to_thread(model.top, maze, dialog)
+        except Exception:  # the watch page goes without a belief; the trial is untouched
+            logger.exception("trial %s: no LDH belief", rt.trial_id)
+            return
+        if rt.state.phase != Phase.LOCALIZING:
+            return  # localization ended while the model ran
+        message: dict[str, Any] = {"type": "ldh_belief", "model": model.name, "upto_seq": chats[-1].seq, "top": top}
+        if only is not None:
+            only.deliver(message)
+            return
+        if chats[-1].seq <= self._sent_upto:
+            return
+        self._sent_upto = chats[-1].seq
+        for conn in list(rt.watchers):
+            conn.deliver(message)

@@ -1,0 +1,112 @@
+"""The LDH model's live belief on the experimenter's watch socket: after each chat message of
+the localization phase, from the colours baseline or a configured checkpoint; never on a
+participant's socket, and no more once the Commander has localized the robot."""
+
+from __future__ import annotations
+
+import asyncio
+
+import numpy as np
+import pytest
+
+from app.db.models import Experimenter
+from app.security import hash_password
+from sim.ldh_eval import MazeContext, colour_logits
+from sim.ldh_features import maze_views, mentions
+from sim.navgraph import NavGraph
+from tests.app.conftest import platform_settings
+from tests.app.live import SeatClient, ServerThread, make_trial
+from tests.app.test_status import Watch
+from tests.app.trial_play import start_trial
+
+SAID = "I see a red wall on my left and a yellow wall ahead of me"
+
+
+def expected_node_p(maze, cache_dir, dialog, logits_of) -> tuple[NavGraph, np.ndarray]:
+    """P(node) over the main component, computed here from the sim's parts."""
+    graph = NavGraph.build(maze, "benchmark", cache_dir=cache_dir)
+    ctx = MazeContext(maze.name, graph, maze_views(maze, graph, cache_dir))
+    logits = np.where(ctx.main[:, None], logits_of(mentions(dialog), ctx), -np.inf)
+    p = np.exp(logits - logits.max()).sum(axis=1)
+    return graph, p / p.sum()
+
+
+def watch_a_localization(settings):
+    """Two seats and a watcher through the localization phase; every message each one got."""
+    with ServerThread(settings) as server:
+        services = server.services
+        maze_name = services.mazes.names()[0]
+        trial_id = make_trial(services, maze_name)
+        with services.db.begin() as db:
+            eve = Experimenter(name="eve", password_hash=hash_password("correct horse"))
+            db.add(eve)
+            db.flush()
+            eve_id = eve.id
+        cookie = services.sessions.issue(eve_id)
+
+        async def play():
+            async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander, \
+                       SeatClient(server.ws_url, services.seats.issue(trial_id, "driver")) as driver, \
+                       Watch(server, trial_id, cookie) as watch:
+                await start_trial(commander, driver)
+                await commander.send("chat", text="what do you see?")
+                await watch.wait_for(lambda m: m.get("type") == "ldh_belief")
+                await driver.send("chat", text=SAID)
+                said = await watch.wait_for(lambda m: m.get("kind") == "chat" and m["payload"]["text"] == SAID)
+                belief = await watch.wait_for(lambda m: m.get("type") == "ldh_belief"
+                                              and m["upto_seq"] == said["seq"])
+                async with Watch(server, trial_id, cookie) as late:  # a watcher that opens the page now
+                    on_open = await late.wait_for(lambda m: m.get("type") == "ldh_belief")
+                await commander.send("localize", x=1.0, y=1.0, heading=None)
+                await watch.wait_for(lambda m: m.get("type") == "status" and m["phase"] == "navigating")
+                await driver.send("chat", text="moving on, the blue wall is behind me")
+                await watch.wait_for(lambda m: m.get("kind") == "chat" and "blue" in m["payload"]["text"])
+                await commander.send("chat", text="good")
+                await watch.wait_for(lambda m: m.get("kind") == "chat" and m["payload"]["text"] == "good")
+                return commander, driver, watch, belief, on_open
+
+        return services.mazes.load(maze_name), asyncio.run(play())
+
+
+def check(maze, settings, run, logits_of, model: str) -> None:
+    commander, driver, watch, belief, on_open = run
+    dialog = (("oracle", "what do you see?"), ("navigator", SAID))
+    graph, node_p = expected_node_p(maze, settings.cache_dir, dialog, logits_of)
+    assert belief["model"] == model and on_open["top"] == belief["top"]
+    top = np.asarray(belief["top"])
+    assert (np.diff(top[:, 2]) <= 0).all() and top[:, 2].sum() <= 1.0 + 1e-6
+    best = int(node_p.argmax())
+    assert top[0, :2] == pytest.approx(graph.nodes[best], abs=1e-4)
+    assert top[0, 2] == pytest.approx(node_p[best], abs=1e-5)
+    assert node_p[best] > 2 / graph.n  # the colours named make some places much likelier than the rest
+    beliefs = [m for m in watch.received if m.get("type") == "ldh_belief"]
+    navigating = next(i for i, m in enumerate(watch.received) if m.get("phase") == "navigating")
+    assert all(watch.received.index(m) < navigating for m in beliefs)  # none once localized
+    for seat in (commander, driver):  # never to a participant
+        assert not [m for m in seat.received if m.get("type") == "ldh_belief"]
+
+
+def test_the_colours_belief_follows_the_dialog(tmp_path):
+    settings = platform_settings(tmp_path)
+    maze, run = watch_a_localization(settings)
+    check(maze, settings, run, lambda counts, ctx: colour_logits(counts, ctx.views), "colours")
+
+
+def test_a_configured_checkpoint_gives_the_learned_belief(tmp_path):
+    torch = pytest.importorskip("torch")
+    from models.ldh import LDHConfig, Localizer, TrainedLocalizer, save
+
+    torch.manual_seed(0)
+    model = Localizer(dropout=0.5, prior=True)
+    with torch.no_grad():  # weights away from the colours baseline, so the two beliefs differ
+        model.bilinear.normal_(0.0, 0.5)
+    path = tmp_path / "best.pt"
+    save(model, LDHConfig(), path)
+    settings = platform_settings(tmp_path, ldh_checkpoint=path)
+    maze, run = watch_a_localization(settings)
+    learned = TrainedLocalizer(model)
+    check(maze, settings, run, learned.logits, "learned")
+    _, colours = expected_node_p(maze, settings.cache_dir, (("navigator", SAID),),
+                                 lambda counts, ctx: colour_logits(counts, ctx.views))
+    _, trained = expected_node_p(maze, settings.cache_dir, (("navigator", SAID),), learned.logits)
+    assert not np.allclose(colours, trained)
