@@ -5,9 +5,10 @@ the targets (2-core machine): all maps' graphs + all-pairs + ray tables in under
 steps of the core with observations over 10,000,000 per second at batch 1000, first-person
 renders over 1,000 frames per second at 320x240, and one student-forcing iteration of the NDH
 learner at batch 100 (`rollout_iter_s`). `--json` prints one object with the keys
-`all_maps_s`, `png_decode_s`, `env_step_us`, `batch_steps_per_s_1000`, `render_fps_320x240`
-and `rollout_iter_s` (wall clock), so a script can hold them against targets; the machine's
-load average goes to stderr beside them.
+`all_maps_s`, `png_decode_s`, `env_step_us`, `batch_steps_per_s_1000`, `render_fps_320x240`,
+`render_speedup` (against the grid-march camera it replaced, `bench.render_reference`, timed
+on the same poses in the same process) and `rollout_iter_s` (wall clock), so a script can hold
+them against targets; the machine's load average goes to stderr beside them.
 
 Everything is built uncached (`use_cache=False`), so the figures are build costs, not disk reads.
 """

@@ -11,6 +11,7 @@ centroids, hidden behind nearer walls column by column.
 
 from __future__ import annotations
 
+import threading
 import weakref
 from dataclasses import dataclass
 
@@ -133,8 +134,19 @@ class _Camera:
     column_offsets: np.ndarray  # (W,) ray angle of each column relative to the heading
     background: np.ndarray  # (H, W) sky and floor, packed by `_pack`
     rows: np.ndarray  # (H, 1) int32 row index
-    packed: np.ndarray  # (H, W) uint32 frame buffer
-    mask: np.ndarray  # (H, W) bool scratch
+
+    def buffers(self) -> tuple[np.ndarray, np.ndarray]:
+        """This thread's (H, W) bool scratch and uint32 frame buffer: the server renders trials'
+        frames in worker threads, so each thread paints into its own."""
+        pool = _buffers.__dict__.setdefault("pool", {})
+        mine = pool.get((self.width, self.height))
+        if mine is None:
+            mine = pool[(self.width, self.height)] = (np.empty((self.height, self.width), bool),
+                                                      np.empty((self.height, self.width), np.uint32))
+        return mine
+
+
+_buffers = threading.local()
 
 
 def _pack(bgr: np.ndarray) -> np.ndarray:
@@ -166,8 +178,7 @@ def _camera(width: int, height: int) -> _Camera:
         column = np.where((rows < horizon)[:, None], sky_rgb, floor_rgb)
         background = _pack(np.repeat(column[:, None, :], width, axis=1))
         camera = _cameras[(width, height)] = _Camera(
-            width, height, focal, horizon, offsets, background, np.arange(height, dtype=np.int32)[:, None],
-            np.empty((height, width), np.uint32), np.empty((height, width), bool))
+            width, height, focal, horizon, offsets, background, np.arange(height, dtype=np.int32)[:, None])
     return camera
 
 
@@ -265,7 +276,7 @@ def first_person(maze: Maze, x: float, y: float, theta: float, size=(320, 240)) 
     colour[edge & wall] *= OUTLINE
 
     # Painted as packed 32-bit pixels into the camera's buffers: one select per pixel.
-    mask, packed = cam.mask, cam.packed
+    mask, packed = cam.buffers()
     np.greater_equal(cam.rows, top, out=mask)
     np.logical_and(mask, cam.rows < bottom, out=mask)
     np.copyto(packed, cam.background)

@@ -194,3 +194,16 @@ def test_the_segment_camera_paints_what_the_grid_march_painted(benchmark_path, r
         identical, within_two, total = identical + (diff == 0).sum(), within_two + (diff <= 2).sum(), total + diff.size
     assert same_columns / columns > 0.995
     assert identical / total > 0.95 and within_two / total > 0.99
+
+
+def test_frames_rendered_in_threads_at_once_are_each_their_own_pose():
+    """The server renders trials' frames in worker threads: no frame shows another's pose."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    maze = synthetic_maze([(Label.RED, WALL_COL, 100, WALL_COL + 11, 1100)])
+    poses = [(*_pose_facing_wall(d), 0.0) for d in (0.15, 0.3, 0.6, 1.2)] * 8
+    alone = [first_person(maze, *pose) for pose in poses]
+    with ThreadPoolExecutor(4) as pool:
+        together = list(pool.map(lambda pose: first_person(maze, *pose), poses))
+    for a, b in zip(alone, together):
+        np.testing.assert_array_equal(a, b)
