@@ -7,7 +7,6 @@ commands that need it.
 
 from __future__ import annotations
 
-from importlib.metadata import PackageNotFoundError, version
 from typing import Optional
 
 import typer
@@ -22,6 +21,8 @@ eval_app = typer.Typer(help="Evaluate agents on the benchmark's NDH instances.",
 
 
 def installed_version() -> str:
+    from importlib.metadata import PackageNotFoundError, version  # a quarter second: only for --version
+
     try:
         return version("robotslang")
     except PackageNotFoundError:  # a checkout on PYTHONPATH, not installed

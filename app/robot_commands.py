@@ -11,7 +11,7 @@ from pathlib import Path
 
 import typer
 
-from app.backends.remote import ROBOT_ROLES
+from app.trial.vocabulary import ROBOT_ROLES
 
 
 def _sessions():

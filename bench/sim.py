@@ -7,7 +7,8 @@ renders over 1,000 frames per second at 320x240, and one student-forcing iterati
 learner at batch 100 (`rollout_iter_s`). `--json` prints one object with the keys
 `all_maps_s`, `png_decode_s`, `env_step_us`, `batch_steps_per_s_1000`, `render_fps_320x240`
 and `rollout_iter_s` (wall clock), so a script can hold them against targets; the machine's
-load average goes to stderr beside them.
+load average goes to stderr beside them. The table also times the grid-march camera the render
+replaced (`bench.render_reference`) on the same poses, and the speed-up.
 
 Everything is built uncached (`use_cache=False`), so the figures are build costs, not disk reads.
 """
@@ -28,6 +29,7 @@ from rich.console import Console
 from rich.table import Table
 from tqdm import tqdm
 
+from bench.render_reference import first_person as reference_first_person
 from sim.benchmark import MAX_EPISODE_ACTIONS, Benchmark, BenchmarkError
 from sim.env import ENV_ID, NDHEnv
 from sim.geometry import heading_angle
@@ -210,13 +212,21 @@ def bench_first_person(maze: Maze, graph: NavGraph, frames: int = 300, size=(320
     rng = np.random.default_rng(seed)
     nodes = rng.integers(graph.n, size=frames)
     headings = rng.integers(8, size=frames)
-    first_person(maze, *graph.nodes[0], 0.0, size=size)  # the maze's scene is built once
-    with Stopwatch() as watch:
-        for node, k in zip(nodes, headings):
-            x, y = graph.nodes[node]
-            first_person(maze, float(x), float(y), float(heading_angle(k)), size=size)
-    fps = frames / watch.wall
-    return [Figure(f"first-person render, {size[0]}x{size[1]}", fps, frames / watch.cpu, "fps", "> 1,000", fps > 1000)]
+    poses = [(float(graph.nodes[n][0]), float(graph.nodes[n][1]), float(heading_angle(k)))
+             for n, k in zip(nodes, headings)]
+    watches = {}
+    for render in (first_person, reference_first_person):
+        render(maze, *poses[0], size=size)  # the maze's scene is built once
+        with Stopwatch() as watches[render]:
+            for pose in poses:
+                render(maze, *pose, size=size)
+    fps = frames / watches[first_person].wall
+    old = frames / watches[reference_first_person].wall
+    return [Figure(f"first-person render, {size[0]}x{size[1]}", fps, frames / watches[first_person].cpu, "fps",
+                   "> 1,000", fps > 1000),
+            Figure("  the grid-march camera it replaced", old, frames / watches[reference_first_person].cpu, "fps"),
+            Figure("  speed-up, same process", fps / old, watches[reference_first_person].cpu
+                   / watches[first_person].cpu, "x")]
 
 
 def _number(v: float) -> str:

@@ -51,7 +51,7 @@ from sim.library import MazeLibrary
 from sim.maze import Maze
 from sim.navgraph import MODES, NavGraph
 from sim.observations import OBS_FEATURES
-from sim.stepper import BatchStepper
+from sim.stepper import _FORWARD, _STOP, BatchStepper
 from sim.world import World, goal_rows
 
 ENV_ID = "RobotSlang/NDH-v0"
@@ -253,7 +253,7 @@ class NDHEnv(gym.Env):
         if stepper is None or stepper.done[0]:
             raise RuntimeError("step() after the episode ended: call reset() first")
         a = int(action)
-        if not 0 <= a <= Action.STOP:
+        if not 0 <= a <= _STOP:
             raise ValueError(f"action {action!r}: expected 0 forward, 1 left, 2 right or 3 stop")
         before = float(stepper.td[0])
         collided = bool(stepper.step(np.array([a]))[0])
@@ -270,8 +270,8 @@ class NDHEnv(gym.Env):
 
     def _observation(self) -> dict:
         stepper, episode = self._stepper, self._episode
-        mask = np.ones(len(Action), dtype=np.int8)
-        mask[Action.FORWARD] = not stepper.forward_blocked()[0]
+        mask = np.ones(_STOP + 1, dtype=np.int8)
+        mask[_FORWARD] = not stepper.forward_blocked()[0]
         return {"rays": stepper.observations()[0], "target": OBJECTS.index(episode.target),
                 "dialog": episode.dialog, "action_mask": mask}
 

@@ -2,12 +2,16 @@
 
 The camera is a column ray caster: one ray per image column on the walls-only grid, each wall
 column drawn with a height falling off with distance, shaded by how squarely the ray meets the
-wall and by distance. The objects (jar, mug, paddle) are drawn as upright shapes at their
+wall and by distance. The grid is turned once per maze into its floor-to-wall pixel edges,
+merged into straight runs (about 3,800 a map); a frame meets only the edges facing the camera,
+each against the few columns its ends project to, so a ray's hit is exactly the pixel the
+grid march of `sim.observations.RayCaster` stops at. The objects (jar, mug, paddle) are drawn as upright shapes at their
 centroids, hidden behind nearer walls column by column.
 """
 
 from __future__ import annotations
 
+import threading
 import weakref
 from dataclasses import dataclass
 
@@ -17,25 +21,89 @@ import numpy as np
 from sim.geometry import world_to_pixel
 from sim.labels import LABEL_BGR, PALETTE_BGR, Label
 from sim.maze import Maze
-from sim.observations import FOV_DEG, RAY_OFFSETS, RayCaster, cast_rays
+from sim.observations import FOV_DEG, PX_PER_M_X, PX_PER_M_Y, RAY_OFFSETS, cast_rays
 
 # The camera: the paper's 78 degree field of view, low on the rover, looking level.
 CAMERA_HEIGHT_M = 0.05
 WALL_HEIGHT_M = 0.12
 HORIZON = 0.42  # image row of the horizon, as a fraction of the height
 FOG_M = 3.0  # distance at which colours have faded to half
-RENDER_WINDOW = 32  # pixels per round: rays grazing a wall still advance quickly
 
 # The room beyond the table, and the table top (BGR).
 SKY_TOP, SKY_HORIZON = np.array([120, 104, 92.0]), np.array([200, 196, 190.0])
 FLOOR_NEAR, FLOOR_FAR = np.array([58, 58, 62.0]), np.array([22, 22, 24.0])
 OUTLINE = 0.45  # brightness of wall edges
+_NO_HIT = np.array(np.inf).view(np.int64)  # a column key: no wall met (label FLOOR)
+
+
+@dataclass(frozen=True, eq=False)
+class _Edges:
+    """Floor-to-wall pixel edges of one orientation, merged into straight runs of one label and
+    sorted by where they stand: `at` the fixed coordinate (x of a vertical edge, y of a
+    horizontal one), `lo`..`hi` the extent along the other axis, metres."""
+    vertical: bool
+    floor_below: bool  # the floor is on the side of smaller `at`: seen only from there
+    at: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    label: np.ndarray  # int64 label of the wall pixel entered across the edge
+
+    def facing(self, x: float, y: float) -> slice:
+        """The edges whose floor side the camera is on: a ray reaches a wall only through those."""
+        i = int(np.searchsorted(self.at, x if self.vertical else y))
+        return slice(i, None) if self.floor_below else slice(0, i)
+
+
+@dataclass(frozen=True, eq=False)
+class _Walls:
+    """The walls grid as its edges: a ray from the floor first enters a wall pixel where it
+    crosses the nearest edge it meets from the floor side."""
+    edges: tuple[_Edges, ...]
+    grid: np.ndarray  # the walls grid: is the camera inside a wall?
+
+
+def _edge_runs(entered: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Runs of equal non-zero labels along each row of `entered` (N, L): row, first, end, label."""
+    n, length = entered.shape
+    padded = np.zeros((n, length + 2), dtype=entered.dtype)
+    padded[:, 1:-1] = entered
+    change = np.flatnonzero(padded[:, 1:] != padded[:, :-1])
+    lane, at = np.divmod(change, length + 1)
+    value, previous = padded[lane, at + 1], padded[lane, at]
+    starts = np.flatnonzero(value != 0)  # every change into a label opens a run ...
+    ends = np.flatnonzero(previous != 0)  # ... and every change out of one closes it, in order
+    return lane[starts], at[starts], at[ends], value[starts].astype(np.int64)
+
+
+def _walls(grid: np.ndarray) -> _Walls:
+    h, w = grid.shape
+    floor = grid == Label.FLOOR
+    # Pixel boundaries in metres: column boundary c (between pixels c - 1 and c), row boundary r.
+    col_x = (np.arange(w + 1) - 0.5) / PX_PER_M_X
+    row_y = ((h - 0.5) - np.arange(h + 1)) / PX_PER_M_Y
+    edges = []
+    for vertical in (True, False):
+        lanes = grid.T if vertical else grid  # a lane runs along the edges' extent
+        free = floor.T if vertical else floor
+        for into_next in (True, False):  # the wall pixel is the next one across the lane, or the previous
+            wall_px = lanes[1:] if into_next else lanes[:-1]
+            entered = np.where(free[:-1] if into_next else free[1:], wall_px, 0)
+            lane, first, end, label = _edge_runs(entered)
+            if vertical:  # lane: column boundary lane + 1; extent: rows first..end, y decreasing
+                at, lo, hi = col_x[lane + 1], row_y[end], row_y[first]
+                floor_below = into_next  # the wall at larger x
+            else:  # lane: row boundary lane + 1; extent: columns first..end
+                at, lo, hi = row_y[lane + 1], col_x[first], col_x[end]
+                floor_below = not into_next  # rows grow downward: the next row is at smaller y
+            order = np.argsort(at, kind="stable")
+            edges.append(_Edges(vertical, floor_below, at[order], lo[order], hi[order], label[order]))
+    return _Walls(tuple(edges), grid)
 
 
 @dataclass(frozen=True, eq=False)
 class _Scene:
     """What the camera needs of one maze, built once."""
-    walls: RayCaster
+    walls: _Walls
     normal_x: np.ndarray  # per-pixel wall normal, x (table frame)
     normal_y: np.ndarray
     objects: tuple[tuple[Label, float, float], ...]  # label, x, y (metres)
@@ -52,7 +120,8 @@ def _scene(maze: Maze) -> _Scene:
         gy = -cv2.Sobel(solid, cv2.CV_32F, 0, 1, ksize=3)  # rows grow downward, y upward
         norm = np.maximum(np.hypot(gx, gy), 1e-6)
         objects = tuple((Label[name.upper()], x, y) for name, (x, y) in maze.objects.items())
-        scene = _scenes[maze] = _Scene(RayCaster(maze.walls), -gx / norm, -gy / norm, objects)
+        walls = _walls(np.ascontiguousarray(maze.walls, dtype=np.uint8))
+        scene = _scenes[maze] = _Scene(walls, -gx / norm, -gy / norm, objects)
     return scene
 
 
@@ -64,6 +133,20 @@ class _Camera:
     horizon: float  # row
     column_offsets: np.ndarray  # (W,) ray angle of each column relative to the heading
     background: np.ndarray  # (H, W) sky and floor, packed by `_pack`
+    rows: np.ndarray  # (H, 1) int32 row index
+
+    def buffers(self) -> tuple[np.ndarray, np.ndarray]:
+        """This thread's (H, W) bool scratch and uint32 frame buffer: the server renders trials'
+        frames in worker threads, so each thread paints into its own."""
+        pool = _buffers.__dict__.setdefault("pool", {})
+        mine = pool.get((self.width, self.height))
+        if mine is None:
+            mine = pool[(self.width, self.height)] = (np.empty((self.height, self.width), bool),
+                                                      np.empty((self.height, self.width), np.uint32))
+        return mine
+
+
+_buffers = threading.local()
 
 
 def _pack(bgr: np.ndarray) -> np.ndarray:
@@ -94,8 +177,74 @@ def _camera(width: int, height: int) -> _Camera:
         floor_rgb = FLOOR_FAR + (FLOOR_NEAR - FLOOR_FAR) * near
         column = np.where((rows < horizon)[:, None], sky_rgb, floor_rgb)
         background = _pack(np.repeat(column[:, None, :], width, axis=1))
-        camera = _cameras[(width, height)] = _Camera(width, height, focal, horizon, offsets, background)
+        camera = _cameras[(width, height)] = _Camera(
+            width, height, focal, horizon, offsets, background, np.arange(height, dtype=np.int32)[:, None])
     return camera
+
+
+def _cast_columns(walls: _Walls, cam: _Camera, x: float, y: float, theta: float, angles: np.ndarray):
+    """(labels, depth metres) of each column's ray on the walls grid, as `RayCaster.cast`
+    gives them: only the edges facing the camera are met, each against the few columns
+    its ends project to."""
+    width = cam.width
+    h, w = walls.grid.shape
+    col, row = int(x * PX_PER_M_X + 0.5), int((h - 0.5) - y * PX_PER_M_Y)
+    if not (0 <= col < w and 0 <= row < h):
+        raise ValueError(f"camera ({x:.3f}, {y:.3f}) m is off the table")
+    inside = int(walls.grid[row, col])
+    if inside != Label.FLOOR:  # in a wall: it fills the view
+        return np.full(width, inside, np.uint8), np.zeros(width)
+    c, s = np.cos(theta), np.sin(theta)
+    dx, dy = np.cos(angles), np.sin(angles)
+    best = np.full(width, _NO_HIT)
+    half, near = width / 2 - 0.5, 1e-6
+    for edges in walls.edges:
+        part = edges.facing(x, y)
+        at, lo, hi = edges.at[part], edges.lo[part], edges.hi[part]
+        # Ends relative to the camera, in its frame: z ahead, side to the left.
+        if edges.vertical:
+            fixed, ox, oy, rd_fixed, rd_along = at - x, x, y, dx, dy
+            za, zb = fixed * c + (lo - y) * s, fixed * c + (hi - y) * s
+            sa, sb = -fixed * s + (lo - y) * c, -fixed * s + (hi - y) * c
+        else:
+            fixed, ox, oy, rd_fixed, rd_along = at - y, y, x, dy, dx
+            za, zb = (lo - x) * c + fixed * s, (hi - x) * c + fixed * s
+            sa, sb = -(lo - x) * s + fixed * c, -(hi - x) * s + fixed * c
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ja, jb = half - cam.focal * sa / za, half - cam.focal * sb / zb
+        first = np.maximum(np.floor(np.minimum(ja, jb)) - 1, 0)
+        last = np.minimum(np.ceil(np.maximum(ja, jb)) + 1, width - 1)
+        crossing = (za <= near) | (zb <= near)  # an end behind the camera: any column may meet it
+        first[crossing], last[crossing] = 0, width - 1
+        keep = np.flatnonzero(((za > near) | (zb > near)) & (first <= last))
+        first, counts = first[keep].astype(np.int64), last[keep].astype(np.int64) - first[keep].astype(np.int64) + 1
+        seg = np.repeat(keep, counts)
+        column = np.arange(seg.size) - np.repeat(np.cumsum(counts) - counts - first, counts)
+        # Column ray against edge: t along the ray to the edge's line, then within its extent.
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = fixed[seg] / rd_fixed[column]
+        along = oy + t * rd_along[column]
+        hit = (t > 0) & (along >= lo[seg]) & (along <= hi[seg])
+        # Nearest per column: positive float64 bits order as integers; the low 3 bits carry the label.
+        key = np.where(hit, t, np.inf).view(np.int64) & ~7 | edges.label[part][seg]
+        np.minimum.at(best, column, key)
+    labels = (best & 7).astype(np.uint8)
+    depth = (best & ~7).view(np.float64)
+    missed = ~np.isfinite(depth)
+    if missed.any():  # left the table: FLOOR, and the distance to its edge
+        labels[missed] = Label.FLOOR
+        depth[missed] = _to_edge(x, y, dx[missed], dy[missed], w, h)
+    return labels, depth
+
+
+def _to_edge(x, y, dx, dy, w: int, h: int) -> np.ndarray:
+    """Metres from (x, y) along (dx, dy) to the raster's edge."""
+    x_lo, x_hi = -0.5 / PX_PER_M_X, (w - 0.5) / PX_PER_M_X
+    y_lo, y_hi = -0.5 / PX_PER_M_Y, (h - 0.5) / PX_PER_M_Y
+    with np.errstate(divide="ignore"):
+        tx = np.where(dx > 0, (x_hi - x) / dx, np.where(dx < 0, (x_lo - x) / dx, np.inf))
+        ty = np.where(dy > 0, (y_hi - y) / dy, np.where(dy < 0, (y_lo - y) / dy, np.inf))
+    return np.minimum(tx, ty)
 
 
 def first_person(maze: Maze, x: float, y: float, theta: float, size=(320, 240)) -> np.ndarray:
@@ -105,7 +254,7 @@ def first_person(maze: Maze, x: float, y: float, theta: float, size=(320, 240)) 
         raise ValueError(f"image size {size!r} too small; expected at least 8x8 pixels")
     scene, cam = _scene(maze), _camera(width, height)
     angles = theta + cam.column_offsets
-    labels, depth = scene.walls.cast(x, y, angles, window=RENDER_WINDOW)
+    labels, depth = _cast_columns(scene.walls, cam, x, y, theta, angles)
     z = np.maximum(depth * np.cos(cam.column_offsets), 1e-3)  # perpendicular: no fisheye
     wall = labels != Label.FLOOR
 
@@ -113,8 +262,9 @@ def first_person(maze: Maze, x: float, y: float, theta: float, size=(320, 240)) 
     bottom = np.clip(cam.horizon + cam.focal * CAMERA_HEIGHT_M / z, 0, height)
     top, bottom = np.where(wall, top, 0).astype(np.int32), np.where(wall, bottom, 0).astype(np.int32)
 
-    # Lambert-like shading from the wall's normal at the hit, then fade with distance.
-    col_px, row_px = world_to_pixel(x + depth * np.cos(angles), y + depth * np.sin(angles))
+    # Lambert-like shading from the wall's normal just inside the wall entered, then fade with distance.
+    inward = depth + 1e-4  # metres: the wall pixel entered, not the floor pixel before it
+    col_px, row_px = world_to_pixel(x + inward * np.cos(angles), y + inward * np.sin(angles))
     ci = np.clip(np.rint(col_px).astype(np.int64), 0, maze.walls.shape[1] - 1)
     ri = np.clip(np.rint(row_px).astype(np.int64), 0, maze.walls.shape[0] - 1)
     facing = np.abs(scene.normal_x[ri, ci] * np.cos(angles) + scene.normal_y[ri, ci] * np.sin(angles))
@@ -125,10 +275,12 @@ def first_person(maze: Maze, x: float, y: float, theta: float, size=(320, 240)) 
     edge[1:] = (labels[1:] != labels[:-1]) | (np.abs(np.diff(z)) > 0.2 * z[1:])
     colour[edge & wall] *= OUTLINE
 
-    # Painted as packed 32-bit pixels: one select per pixel instead of one per channel.
-    rows = np.arange(height, dtype=np.int32)[:, None]
-    mask = (rows >= top) & (rows < bottom)
-    packed = np.where(mask, _pack(colour), cam.background)
+    # Painted as packed 32-bit pixels into the camera's buffers: one select per pixel.
+    mask, packed = cam.buffers()
+    np.greater_equal(cam.rows, top, out=mask)
+    np.logical_and(mask, cam.rows < bottom, out=mask)
+    np.copyto(packed, cam.background)
+    np.copyto(packed, _pack(colour), where=mask)
     cols = np.nonzero(wall & (bottom > top))[0]
     packed[top[cols], cols] = _pack(colour[cols] * OUTLINE)  # the wall's top edge
     image = cv2.cvtColor(packed.view(np.uint8).reshape(height, width, 4), cv2.COLOR_BGRA2BGR)

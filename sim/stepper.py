@@ -28,6 +28,8 @@ from sim.dynamics import Action, actions_toward
 from sim.geometry import HEADINGS
 from sim.world import ACTIONS, World
 
+_FORWARD, _STOP = int(Action.FORWARD), int(Action.STOP)  # plain ints: a member look-up costs a microsecond a step
+
 
 class BatchStepper:
     def __init__(self, world: World, batch: int, max_actions: int = MAX_EPISODE_ACTIONS,
@@ -37,8 +39,8 @@ class BatchStepper:
         if max_actions < 1:
             raise ValueError(f"max_actions={max_actions}: must be at least 1")
         self.world, self.size, self.max_actions, self.record = world, batch, max_actions, record
-        self._transition, self._collides = world.transition, world.collides
-        self._move_length = world.move_length
+        self._moves, self._lengths = world.moves, world.move_lengths
+        self._collides = world.collides
         width = int(world.size.max())
         self._width = width
         # Goal rows, one per episode: distance and global next hop toward its goal from each node.
@@ -57,6 +59,10 @@ class BatchStepper:
         self.shortest = np.full(batch, np.inf)
         self._started = False
         self._history: list[np.ndarray] = []
+        self._a, self._k = np.empty(batch, np.int64), np.empty(batch, np.int64)
+        self._live, self._counted = np.empty(batch, bool), np.empty(batch, bool)
+        self._scratch = np.empty(batch)
+        self._moved = np.empty(batch, self._moves.dtype)
 
     # -- episodes -------------------------------------------------------------------
     def start(self, envs, node, heading, goal, goal_dist, goal_next) -> None:
@@ -98,22 +104,34 @@ class BatchStepper:
         if not self._started:
             raise RuntimeError("step() before start(): start the batch's episodes first")
         actions = np.asarray(actions)
-        if actions.shape != (self.size,):
-            raise ValueError(f"actions of shape {actions.shape}: expected ({self.size},)")
-        if actions.min() < 0 or actions.max() > Action.STOP:
+        if actions.shape != (self.size,) or actions.dtype.kind not in "iu":
+            raise ValueError(f"actions of shape {actions.shape} and dtype {actions.dtype}: "
+                             f"expected ({self.size},) integers")
+        # Into the stepper's own buffers: a step at batch 1000 is some twenty passes over
+        # 8 kB arrays, so each temporary array costs as much as the arithmetic.
+        a, k, moved, live, scratch = self._a, self._k, self._moved, self._live, self._scratch
+        np.copyto(a, actions, casting="unsafe")
+        if (a.view(np.uint64) > _STOP).any():  # a negative action wraps around
             raise ValueError("actions must be 0 forward, 1 left, 2 right or 3 stop")
-        live = ~self.done
-        a = np.where(live, actions, Action.STOP)  # a finished episode stays where it is
-        k = self.slot * ACTIONS + a
-        self.slot = self._transition[k]
-        collided = self._collides[k]
-        self.path_length += self._move_length[k]
+        np.logical_not(self.done, out=live)
+        np.copyto(a, _STOP, where=self.done)  # a finished episode stays where it is
+        np.multiply(self.slot, ACTIONS, out=k)
+        k += a
+        self._moves.take(k, out=moved)  # slot << 6 | length index << 1 | collided
+        np.right_shift(moved, 6, out=self.slot)
+        collided = (moved & 1).astype(bool)
+        np.right_shift(moved, 1, out=moved)
+        moved &= 31
+        self.path_length += self._lengths.take(moved, out=scratch)
         self.collisions += collided
-        stop = a == Action.STOP
-        self.steps += ~stop
-        self.stopped |= live & stop
-        self.done = self.stopped | (self.steps >= self.max_actions)
-        self.td = self._dist.reshape(-1)[self._base + (self.slot >> 3)]
+        counted = np.less(a, _STOP, out=self._counted)  # the stop is not a move
+        self.steps += counted
+        self.stopped |= live > counted  # live and stopping
+        np.greater_equal(self.steps, self.max_actions, out=self.done)
+        self.done |= self.stopped
+        np.right_shift(self.slot, 3, out=k)
+        k += self._base
+        self.td = self._dist.reshape(-1)[k]  # a new array: callers keep the one before the step
         np.minimum(self.otd, self.td, out=self.otd)
         if self.record:
             self._history.append(self.node.copy())
@@ -127,7 +145,7 @@ class BatchStepper:
         return np.take(self.world.obs, self.slot, axis=0, out=out)
 
     def forward_blocked(self) -> np.ndarray:
-        return self._collides[self.slot * ACTIONS + Action.FORWARD]
+        return self._collides[self.slot * ACTIONS + _FORWARD]
 
     def teacher_actions(self) -> np.ndarray:
         """Shortest-path actions for the current poses: toward the next hop by the smaller turn

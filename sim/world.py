@@ -38,9 +38,9 @@ if TYPE_CHECKING:
     from sim.observations import RayTable
 
 ACTIONS = len(Action)
-_WORLD_VERSION = 4  # 4: names, observations optional, derived tables
+_WORLD_VERSION = 5  # 4: names, observations optional, derived tables; 5: the fused moves table
 _ARRAYS = ("offset", "size", "xy", "ij", "forward")
-_TABLES = ("transition", "collides", "move_length")  # derived, cached too: a warm process reads them
+_TABLES = ("transition", "collides", "move_length", "move_lengths", "moves")  # derived, cached too: a warm process reads them
 # Heading change per action: forward 0, left +1, right -1, stop 0.
 _TURN = np.array([0, 1, -1, 0], dtype=np.int64)
 
@@ -190,6 +190,23 @@ class World:
         out = np.zeros((ahead.size, ACTIONS))
         out[:, Action.FORWARD] = np.where(ahead >= 0, length, 0.0)
         return out.reshape(-1)
+
+    @cached_property
+    def move_lengths(self) -> np.ndarray:
+        """The distinct values of `move_length`, ascending (a few dozen: the grid's steps)."""
+        return np.unique(np.asarray(self.move_length))
+
+    @cached_property
+    def moves(self) -> np.ndarray:
+        """`transition`, `collides` and `move_length` at 4 s + a fused into one integer, so a
+        step reads one table: the slot after the action << 6, the index of the metres moved in
+        `move_lengths` << 1, the collision flag. int32 where the slots fit (half the bytes)."""
+        lengths = np.searchsorted(self.move_lengths, np.asarray(self.move_length))
+        if self.move_lengths.size > 32:
+            raise ValueError(f"{self.move_lengths.size} distinct move lengths: the moves table holds 32")
+        dtype = np.int32 if self.nodes * HEADINGS < 2 ** 25 else np.int64
+        return ((np.asarray(self.transition).astype(dtype) << 6) | (lengths.astype(dtype) << 1)
+                | np.asarray(self.collides).astype(dtype))
 
 
 def goal_rows(graph: "NavGraph", goals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

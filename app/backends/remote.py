@@ -25,7 +25,7 @@ from sqlalchemy.orm import Session
 from app.backends.base import BackendUnavailable, Frame, MoveOutcome
 from app.db.models import Robot
 from app.trial.port import RobotTrial
-from app.trial.vocabulary import PARTICIPANTS, FrameSource, MoveAction, Outcome, Role
+from app.trial.vocabulary import PARTICIPANTS, ROBOT_ROLES, FrameSource, MoveAction, Outcome, Role
 from robot_client.protocol import FrameHeader, encode
 
 if TYPE_CHECKING:
@@ -42,7 +42,6 @@ RATE_WINDOW_S = 2.0
 
 
 # -- robots and their tokens --------------------------------------------------------
-ROBOT_ROLES = (Role.DRIVER, Role.OVERHEAD)  # a rover registers as the trial's `driver` camera
 
 
 class RobotSetupError(ValueError):

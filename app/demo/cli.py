@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import asyncio
 from typing import Optional
 
 import typer
@@ -29,6 +28,8 @@ def demo(
 ) -> None:
     """Play complete simulator trials with a scripted Commander and Driver over the trial sockets,
     so that every page, the leaderboard, replays and exports have content."""
+    import asyncio  # here, so that every other command starts without it
+
     from app.demo.players import DemoError
     from app.demo.runner import Demo
     from app.settings import Settings

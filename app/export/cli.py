@@ -9,8 +9,7 @@ import typer
 from rich.console import Console
 from rich.progress import track
 
-from app.export.lerobot import Episode
-from app.export.record import ExportError
+from app.export import Episode
 
 console = Console(stderr=True)
 
@@ -38,6 +37,7 @@ def export(
 ) -> None:
     """Export recorded trials from the data directory (ROBOTSLANG_DATA_DIR)."""
     from app.db.engine import make_engine, make_sessionmaker
+    from app.export.record import ExportError
     from app.export.source import finished_trial_ids, load_trial
     from app.mazes import Mazes, UnknownMaze
     from app.settings import Settings

@@ -20,12 +20,12 @@ import math
 import shutil
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
-from enum import Enum
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from app.export import Episode
 from app.export.record import ExportError, TrialRecord
 from app.trial.state import LoggedEvent
 from sim.dynamics import Action
@@ -40,11 +40,6 @@ STATE_NAMES = (["x", "y", "heading"] + [f"ray_depth_{i}" for i in range(N_RAYS)]
 DATA_FILE = "data/chunk-000/file-000.parquet"
 EPISODES_FILE = "meta/episodes/chunk-000/file-000.parquet"
 VIDEO_PATH = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4"
-
-
-class Episode(str, Enum):
-    ndh = "ndh"
-    trial = "trial"
 
 
 @dataclass

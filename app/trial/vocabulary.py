@@ -31,6 +31,8 @@ class Role(StrEnum):
     OVERHEAD = "overhead"
 
 
+ROBOT_ROLES = (Role.DRIVER, Role.OVERHEAD)  # a rover registers as the trial's `driver` camera
+
 PARTICIPANTS = (Role.COMMANDER, Role.DRIVER)
 
 

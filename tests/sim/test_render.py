@@ -159,3 +159,51 @@ def test_top_down_walls_only_leaves_the_objects_out():
     maze = synthetic_maze()
     assert _hue_matches(top_down(maze), Label.JAR).sum() > 100
     assert not _hue_matches(top_down(maze, walls_only=True), Label.JAR).any()
+
+
+# -- held to the grid-marching camera it replaced ----------------------------------------
+
+@pytest.mark.parametrize("run", ["Run_114", "Run_117", "Run_318"])
+def test_the_segment_camera_paints_what_the_grid_march_painted(benchmark_path, run):
+    """On 40 random poses per map: the columns meet the same walls at the same depths as
+    `RayCaster.cast` on the walls grid, but for rays grazing a pixel corner, where the march
+    samples 1e-3 px past a crossing and may step into the diagonal pixel (the segments are
+    exact there), and the pictures agree. Pixels differ only where a
+    wall column's shade does by a level or two: the old march read the wall normal on either
+    side of the pixel boundary its ray stopped at, as float32 rounding fell; the segment
+    camera reads it inside the wall pixel entered."""
+    from bench.render_reference import first_person as reference
+    from sim.observations import RayCaster
+    from sim.render import _camera, _cast_columns, _scene
+
+    maze = Maze.from_dir(benchmark_path / "mazedata" / run)
+    graph = NavGraph.build(maze)
+    caster, cam, scene = RayCaster(maze.walls), _camera(320, 240), _scene(maze)
+    rng = np.random.default_rng(7)
+    identical = within_two = total = same_columns = columns = 0
+    for node in rng.integers(graph.n, size=40):
+        x, y = (float(v) for v in graph.nodes[node])
+        theta = float(rng.uniform(-np.pi, np.pi))
+        angles = theta + cam.column_offsets
+        labels, depth = _cast_columns(scene.walls, cam, x, y, theta, angles)
+        want_labels, want_depth = caster.cast(x, y, angles, window=32)
+        same_columns += ((labels == want_labels) & (np.abs(depth - want_depth) < 1e-4)).sum()
+        columns += labels.size
+        assert np.abs(depth - want_depth).max() < 2 / PX_PER_M_X  # a corner is a pixel away at most
+        diff = np.abs(first_person(maze, x, y, theta).astype(int) - reference(maze, x, y, theta)).max(axis=2)
+        identical, within_two, total = identical + (diff == 0).sum(), within_two + (diff <= 2).sum(), total + diff.size
+    assert same_columns / columns > 0.995
+    assert identical / total > 0.95 and within_two / total > 0.99
+
+
+def test_frames_rendered_in_threads_at_once_are_each_their_own_pose():
+    """The server renders trials' frames in worker threads: no frame shows another's pose."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    maze = synthetic_maze([(Label.RED, WALL_COL, 100, WALL_COL + 11, 1100)])
+    poses = [(*_pose_facing_wall(d), 0.0) for d in (0.15, 0.3, 0.6, 1.2)] * 8
+    alone = [first_person(maze, *pose) for pose in poses]
+    with ThreadPoolExecutor(4) as pool:
+        together = list(pool.map(lambda pose: first_person(maze, *pose), poses))
+    for a, b in zip(alone, together):
+        np.testing.assert_array_equal(a, b)
