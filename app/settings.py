@@ -15,7 +15,7 @@ class Settings(BaseSettings):
     data_dir: Path = Path("./var")
     database_url: str | None = None  # overrides the SQLite file in data_dir
     benchmark: Path | None = None  # adds the benchmark's mazes to the bundled ones
-    seq2seq_checkpoint: Path | None = None  # the learned Driver seated as agent:seq2seq (`train ndh`'s best.pt)
+    seq2seq_checkpoint: Path | None = None  # agent:seq2seq's checkpoint (`train ndh`'s best.pt); None: the shipped one
     ldh_checkpoint: Path | None = None  # the LDH localizer on the watch page (`train ldh`'s best.pt); else `colours`
     cache_dir: Path = Field(default_factory=lambda: Path.home() / ".cache" / "robotslang")
     secret_key: str | None = None  # generated once and kept in data_dir when not set

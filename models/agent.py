@@ -25,6 +25,7 @@ FORWARD, LEFT, RIGHT, STOP = (int(a) for a in (Action.FORWARD, Action.LEFT, Acti
 N_ACTIONS = len(Action)
 START = N_ACTIONS  # the "previous action" at the first step
 NEG_INF = -1e9
+STOP_THRESHOLD = 0.5  # the stop head's probability above which the greedy agent stops
 
 
 @dataclass
@@ -40,6 +41,7 @@ class AgentConfig:
     progress_monitor: bool = False
     target_rays: bool = False  # add, per ray, whether it sees the target object
     critic: bool = False  # a value head, for the actor-critic loss on the distance covered
+    stop_head: bool = False  # P(within the success radius), which decides the greedy agent's stop
     attention_dim: int = 32  # keys and values are projected once per dialog, so each step is cheap
     context_tokens: int = MAX_TOKENS  # the encoder's fixed (left-padded) input width
 
@@ -72,6 +74,8 @@ class Seq2SeqAgent(nn.Module):
             self.progress = nn.Linear(c.hidden, 1)
         if c.critic:
             self.value = nn.Linear(c.hidden, 1)
+        if c.stop_head:
+            self.stop = nn.Linear(c.hidden, 1)
 
     def encode(self, tokens: torch.Tensor, lengths: torch.Tensor):
         """(B, T) ids, right-padded, and (B,) lengths -> context, its mask (B, W), initial state.
@@ -99,7 +103,8 @@ class Seq2SeqAgent(nn.Module):
     def step(self, obs: torch.Tensor, prev_action: torch.Tensor, state, ctx, ctx_mask,
              forward_blocked: torch.Tensor, stop_allowed: torch.Tensor | None = None):
         """One decision: logits (B, 4) with the impossible actions masked, the new state, and the
-        progress (B,) and value (B,) heads' outputs (None where the agent has no such head)."""
+        progress (B,), value (B,) and stop-probability (B,) heads' outputs (None where the agent
+        has no such head)."""
         x = torch.cat([self.obs_encoder(obs), self.action_embedding(prev_action)], dim=1)
         h, c = self.decoder(self.drop(x), state)
         out = h
@@ -114,7 +119,21 @@ class Seq2SeqAgent(nn.Module):
         logits = mask_logits(logits, forward_blocked, stop_allowed)
         progress = torch.sigmoid(self.progress(out)).squeeze(1) if self.config.progress_monitor else None
         value = self.value(out).squeeze(1) if self.config.critic else None
-        return logits, (h, c), progress, value
+        stop = torch.sigmoid(self.stop(out)).squeeze(1) if self.config.stop_head else None
+        return logits, (h, c), progress, value, stop
+
+
+def greedy_actions(logits: torch.Tensor, stop: torch.Tensor | None,
+                   stop_allowed: torch.Tensor | None = None) -> torch.Tensor:
+    """The test-time decision: the best-scored action, or stop where the stop head (if any)
+    is confident the goal is within reach and a stop is allowed."""
+    action = logits.argmax(dim=1)
+    if stop is None:
+        return action
+    claim = stop > STOP_THRESHOLD
+    if stop_allowed is not None:
+        claim &= stop_allowed
+    return torch.where(claim, torch.full_like(action, STOP), action)
 
 
 def observation_input(config: AgentConfig, obs: torch.Tensor, target_label: torch.Tensor) -> torch.Tensor:

@@ -37,6 +37,11 @@ class EvalSplit(str, Enum):
     test = "test"
 
 
+class Executor(str, Enum):
+    local = "local"
+    ray = "ray"
+
+
 class TrainOn(str, Enum):
     train = "train"
     train_val = "train+val_seen"
@@ -82,7 +87,8 @@ def train_ndh(
 
 def eval_ndh(
     benchmark: Path = BENCHMARK_OPTION,
-    checkpoint: Path = typer.Option(..., help="A checkpoint written by `train ndh`."),
+    checkpoint: Optional[Path] = typer.Option(None, help="A checkpoint written by `train ndh`; default the Driver "
+                                              "shipped in the package (docs/model_card_ndh.md)."),
     split: EvalSplit = typer.Option(EvalSplit.val_seen, help="NDH split."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON (the shape of `eval baselines`)."),
     per_instance: Optional[Path] = typer.Option(None, help="Write a CSV row per instance."),
@@ -92,9 +98,13 @@ def eval_ndh(
     from rich.console import Console
 
     from models.evaluate import evaluate_checkpoint
+    from models.shipped import default_checkpoint
     from sim.eval_cli import print_table
     from sim.metrics import summarize, write_csv
 
+    checkpoint = checkpoint or default_checkpoint()
+    if checkpoint is None:
+        raise typer.BadParameter("this install ships no Driver; give a checkpoint", param_hint="--checkpoint")
     bench = open_benchmark(benchmark)
     try:
         results = evaluate_checkpoint(bench, None, checkpoint, split.value, name=name)
@@ -127,7 +137,11 @@ def experiment_ndh(
     seeds: str = typer.Option("0,1,2", help="Seeds, comma-separated."),
     iters: Optional[int] = typer.Option(None, help="Iterations per run; default: measured to fit the budget."),
     budget_minutes: float = typer.Option(110.0, help="Wall-time budget used to size --iters."),
-    workers: int = typer.Option(2, help="Trainings run in parallel (one CPU thread each)."),
+    workers: int = typer.Option(2, help="Trainings run in parallel (one CPU thread each), with --executor local."),
+    executor: Executor = typer.Option(Executor.local, help="local: a process pool on this machine; ray: one Ray "
+                                      "task per run (pip install .[cluster]; run folders on shared storage)."),
+    address: Optional[str] = typer.Option(None, help="With --executor ray: the cluster's address (e.g. "
+                                          "ray://HEAD:10001 or auto); default a new local Ray instance."),
 ) -> None:
     """The whole protocol: 6 configurations x seeds, validation, retraining for test, tests, report."""
     from models.experiment import run_experiment
@@ -142,8 +156,15 @@ def experiment_ndh(
         seed_list = [int(s) for s in seeds.split(",") if s.strip()]
     except ValueError:
         raise typer.BadParameter(f"seeds must be integers, got {seeds!r}", param_hint="--seeds") from None
+    if address is not None and executor is not Executor.ray:
+        raise typer.BadParameter("--address is for --executor ray", param_hint="--address")
+    if executor is Executor.ray:
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise typer.BadParameter("Ray is not installed: pip install .[cluster]", param_hint="--executor") from None
     meta = run_experiment(open_benchmark(benchmark), out, model_list, seed_list, iters=iters,
-                          budget_minutes=budget_minutes, workers=workers)
+                          budget_minutes=budget_minutes, workers=workers, executor=executor.value, address=address)
     typer.echo(f"{meta['iters']} iterations per run; {meta['timing']['total_s'] / 60:.1f} min; "
                f"report -> {out / 'report.md'}")
 

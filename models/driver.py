@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from models.agent import START, STOP, observation_input
+from models.agent import START, STOP, greedy_actions, observation_input
 from sim.dynamics import Action, snap_pose
 from sim.labels import object_label
 from sim.maze import Maze
@@ -77,9 +77,9 @@ class Seq2SeqDriver:
         stop_allowed = torch.tensor([not self._stop_held])
         label = -1 if self.blind == "language" else int(object_label(target))
         obs = observation_input(self.agent.config, obs, torch.tensor([label]))
-        logits, self.state, _, _ = self.agent.step(obs, self.prev, self.state, self.ctx, self.ctx_mask,
-                                                blocked, stop_allowed)
-        action = int(logits.argmax(dim=1))
+        logits, self.state, _, _, stop = self.agent.step(obs, self.prev, self.state, self.ctx, self.ctx_mask,
+                                                         blocked, stop_allowed)
+        action = int(greedy_actions(logits, stop, stop_allowed)[0])
         self.prev = torch.tensor([action])
         if action != STOP:
             self._stop_held = False

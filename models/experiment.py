@@ -7,6 +7,12 @@ retrain on train + val_seen to that iteration for `test`. Every trained Driver i
 Immediate Stop baselines, into one per-instance CSV per split; the significance tests and the
 report are built from those CSVs. Re-running on the same OUT resumes: finished trainings are
 kept and only what is missing is done.
+
+The trainings run on an executor: `local`, a process pool on this machine, or `ray`, one Ray
+task per run (`pip install .[cluster]`), on a Ray cluster or a local instance. Each task trains
+into its own run folder, which must be on storage every node sees; a task whose worker is lost
+is retried by Ray and resumes from that run's last checkpoint, and runs already written are
+skipped (their training has nothing left to do).
 """
 
 from __future__ import annotations
@@ -25,6 +31,8 @@ from tqdm import tqdm
 from models.train import MODELS, TrainConfig, build_world, train
 from sim.benchmark import Benchmark
 
+EXECUTORS = ("local", "ray")
+RAY_TASK_RETRIES = 3  # a lost worker's run is started again this many times
 FEEDBACKS = ("teacher", "student")
 ABLATIONS = ("none", "vision", "language")
 BASELINE_AGENTS = ("random", "stop")
@@ -70,9 +78,12 @@ def _train_job(root: str, cache_dir: str | None, cfg: dict, out: str) -> dict:
     return train(bench, TrainConfig(**cfg), out, progress=False, threads=1)
 
 
-def _run_jobs(jobs: list[tuple[dict, Path]], bench: Benchmark, workers: int, desc: str) -> list[dict]:
+def _run_jobs(jobs: list[tuple[dict, Path]], bench: Benchmark, workers: int, desc: str,
+              executor: str = "local", address: str | None = None) -> list[dict]:
     bar = tqdm(total=len(jobs), desc=desc, unit="run")
     root, cache = str(bench.root), (str(bench.cache_dir) if bench.cache_dir else None)
+    if executor == "ray":
+        return _run_ray_jobs(jobs, root, cache, address, bar)
     if workers <= 1:
         results = []
         for cfg, out in jobs:
@@ -86,14 +97,32 @@ def _run_jobs(jobs: list[tuple[dict, Path]], bench: Benchmark, workers: int, des
         return [f.result() for f in futures]
 
 
+def _run_ray_jobs(jobs: list[tuple[dict, Path]], root: str, cache: str | None, address: str | None, bar) -> list[dict]:
+    """Every run as a Ray task of one CPU, on the cluster at `address` (None: a Ray instance
+    already started in this process, else a new local one); results in the order of `jobs`."""
+    import ray
+
+    if not ray.is_initialized():
+        ray.init(address=address, log_to_driver=False)
+    task = ray.remote(num_cpus=1, max_retries=RAY_TASK_RETRIES, retry_exceptions=False)(_train_job)
+    refs = [task.remote(root, cache, cfg, str(Path(out).resolve())) for cfg, out in jobs]
+    pending = list(refs)
+    while pending:
+        done, pending = ray.wait(pending, num_returns=1)
+        bar.update(len(done))
+    return ray.get(refs)
+
+
 def run_experiment(bench: Benchmark, out: str | Path, models: list[str], seeds: list[int],
                    iters: int | None = None, budget_minutes: float = 110.0, workers: int = 1,
-                   eval_every: int | None = None) -> dict:
+                   eval_every: int | None = None, executor: str = "local", address: str | None = None) -> dict:
     from models.evaluate import evaluate_checkpoint
     from models.report import write_report
     from sim.evaluation import evaluate_baselines
     from sim.metrics import summarize, write_csv
 
+    if executor not in EXECUTORS:
+        raise ValueError(f"unknown executor {executor!r}; expected one of {', '.join(EXECUTORS)}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     for m in models:
@@ -119,6 +148,7 @@ def run_experiment(bench: Benchmark, out: str | Path, models: list[str], seeds: 
                              workers)
     eval_every = eval_every or max(1, math.ceil(iters / EVALS_PER_RUN))
     meta = {"models": models, "seeds": seeds, "iters": iters, "eval_every": eval_every, "workers": workers,
+            "executor": executor,
             "budget_minutes": budget_minutes, "iteration_seconds": costs, "cpus": os.cpu_count()}
     meta_path.write_text(json.dumps(meta, indent=2))
 
@@ -126,7 +156,7 @@ def run_experiment(bench: Benchmark, out: str | Path, models: list[str], seeds: 
     t0 = time.perf_counter()
     val_jobs = [(asdict(TrainConfig(feedback=f, blind=b, seed=s, model=m, iters=iters, eval_every=eval_every)),
                  run_dir(out, m, f, b, s) / "val") for m, f, b, s in grid]
-    val_runs = _run_jobs(val_jobs, bench, workers, "train (val_seen)")
+    val_runs = _run_jobs(val_jobs, bench, workers, "train (val_seen)", executor, address)
     timing["train_val_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -136,7 +166,7 @@ def run_experiment(bench: Benchmark, out: str | Path, models: list[str], seeds: 
         test_jobs.append((asdict(TrainConfig(feedback=f, blind=b, seed=s, model=m, iters=best, eval_every=best,
                                              train_splits=["train", "val_seen"], eval_split=None)),
                           run_dir(out, m, f, b, s) / "test"))
-    _run_jobs(test_jobs, bench, workers, "retrain (train+val_seen)")
+    _run_jobs(test_jobs, bench, workers, "retrain (train+val_seen)", executor, address)
     timing["train_test_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()

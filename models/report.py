@@ -2,7 +2,8 @@
 
 Reads what `experiment ndh` wrote (results/{val_seen,test}.csv, runs/*/history.json) and
 writes DIR/report.md (TD/OTD and SR/SPL tables with significance marks, the tests behind
-them) and DIR/td_distribution.png, DIR/learning_curves.png.
+them, each seed's figures and the tests over per-seed means), DIR/significance.json,
+DIR/significance_seeds.json, DIR/td_distribution.png and DIR/learning_curves.png.
 """
 
 from __future__ import annotations
@@ -12,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from models.stats import Comparison, paired_tests
+from models.stats import Comparison, paired_tests, per_seed, seed_tests
+from sim.benchmark import MAX_EPISODE_ACTIONS
 from sim.metrics import EpisodeResult, read_csv, summarize_agent
 
 SPLITS = ("val_seen", "test")
@@ -58,6 +60,32 @@ def significance(results: dict[str, list[EpisodeResult]], pairs) -> dict[str, li
     return {split: [c for metric in ("td", "otd", "success", "spl")
                     for c in paired_tests(rs, pairs, metrics=(metric,))]
             for split, rs in results.items()}
+
+
+def seed_significance(results: dict[str, list[EpisodeResult]], pairs) -> dict[str, list[Comparison]]:
+    """Per split: tests over per-seed means, for the pairs with at least two seeds in common."""
+    out = {}
+    for split, rs in results.items():
+        seeds = {agent: set(by_seed) for agent, by_seed in per_seed(rs, "td").items()}
+        usable = [(a, b) for a, b in pairs if len(seeds.get(a, set()) & seeds.get(b, set())) >= 2]
+        out[split] = [c for metric in ("td", "otd", "success", "spl")
+                      for c in seed_tests(rs, usable, metrics=(metric,))] if usable else []
+    return out
+
+
+def seeds_markdown(results: dict[str, list[EpisodeResult]]) -> str:
+    """Each learned configuration's TD / SR / SPL / steps per seed (mean over instances)."""
+    lines = ["| split | Driver | seed | TD | SR | SPL | steps | ended by stop |", "|---|---|---|---|---|---|---|---|"]
+    for split, rs in results.items():
+        for m, f, b in configurations({r.agent for r in rs}):
+            agent = f"{m}/{f}/{b}"
+            for seed in sorted({r.seed for r in rs if r.agent == agent}):
+                mine = [r for r in rs if r.agent == agent and r.seed == seed]
+                s = summarize_agent(mine)
+                stopped = np.mean([r.steps < MAX_EPISODE_ACTIONS for r in mine])
+                lines.append(f"| {split} | {agent} | {seed} | {s['td_mean']:.2f} | {s['sr']:.3f} | {s['spl']:.3f} | "
+                             f"{s['steps_mean']:.1f} | {stopped:.2f} |")
+    return "\n".join(lines)
 
 
 def _marks(agent: str, metric: str, tests: list[Comparison]) -> str:
@@ -109,6 +137,8 @@ def tables_markdown(results: dict[str, list[EpisodeResult]], tests: dict[str, li
 def tests_markdown(tests: dict[str, list[Comparison]]) -> str:
     lines = ["| split | metric | A | B | n | mean A | mean B | t | p | p (BY) | significant |",
              "|---|---|---|---|---|---|---|---|---|---|---|"]
+    if not any(tests.values()):
+        return "(none: no pair of configurations has two seeds in common)"
     for split, cs in tests.items():
         for c in cs:
             lines.append(f"| {split} | {c.metric} | {c.a} | {c.b} | {c.n} | {c.mean_a:.3f} | {c.mean_b:.3f} | "
@@ -176,9 +206,11 @@ def write_report(out: str | Path) -> Path:
     if not results:
         raise FileNotFoundError(f"{out}/results: no val_seen.csv or test.csv; run `robotslang experiment ndh` first")
     agents = set().union(*({r.agent for r in rs} for rs in results.values()))
-    tests = significance(results, comparison_pairs(configurations(agents)))
-    (out / "significance.json").write_text(json.dumps({s: [c.to_dict() for c in cs] for s, cs in tests.items()},
-                                                      indent=2))
+    pairs = comparison_pairs(configurations(agents))
+    tests = significance(results, pairs)
+    across_seeds = seed_significance(results, pairs)
+    for name, family in (("significance.json", tests), ("significance_seeds.json", across_seeds)):
+        (out / name).write_text(json.dumps({s: [c.to_dict() for c in cs] for s, cs in family.items()}, indent=2))
     plot_td_distributions(results, out / "td_distribution.png")
     has_curves = plot_learning_curves(out, out / "learning_curves.png")
     meta_path = out / "experiment.json"
@@ -195,6 +227,13 @@ def write_report(out: str | Path) -> Path:
               "the same feedback (paired t-tests over instances, metrics averaged over seeds per instance, "
               "Benjamini-Yekutieli within each split and metric, alpha 0.05).", "",
               "## Tests", "", tests_markdown(tests), "",
+              "## Each seed", "", "Each training seed's figures (mean over instances; a cap-ended episode "
+              f"ran {MAX_EPISODE_ACTIONS} moves):", "", seeds_markdown(results), "",
+              "## Tests across seeds", "",
+              "The same pairs, each seed's mean over instances as one observation (paired t-tests over seeds, "
+              "Benjamini-Yekutieli within each split and metric, alpha 0.05): a difference significant here "
+              "holds across training runs, not only across the instances of these runs.", "",
+              tests_markdown(across_seeds), "",
               "![TD distributions](td_distribution.png)", ""]
     if has_curves:
         lines += ["![learning curves](learning_curves.png)", ""]

@@ -10,6 +10,10 @@ achieved (advantage actor-critic, mixed with the cross entropy as in Tan et al. 
 is rewarded by the distance it covered toward the goal, in forward steps, so an episode's
 return is its start distance minus its TD, the metric itself; a stop within the success
 radius earns a bonus. Its stop is not masked: it learns where stopping beats going on.
+
+An agent with a stop head learns, at every decision, whether the robot is within the success
+radius of the goal (binary cross entropy on the distance to the goal); greedily, it stops
+where the head says so (`models.agent.greedy_actions`), so it stops by itself at test time.
 """
 
 from __future__ import annotations
@@ -20,7 +24,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from models.agent import START, STOP, Seq2SeqAgent, observation_input
+from models.agent import START, STOP, Seq2SeqAgent, greedy_actions, observation_input
 from models.data import EpisodeSet, World
 from sim.benchmark import MAX_EPISODE_ACTIONS
 from sim.geometry import GRID_STEP_M, SUCCESS_RADIUS_M
@@ -76,6 +80,7 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
     rl = train and feedback == "student" and agent.config.critic
     step_logits, step_targets, step_active, step_progress, step_goal = [], [], [], [], []
     step_logp, step_entropy, step_value, step_reward = [], [], [], []
+    step_stop, step_near = [], []
     for t in range(max_actions):
         nodes[:, t] = node
         done = stepper.done.copy()  # within max_actions moves, done is stopped
@@ -91,7 +96,7 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
         # node cut off from it, nowhere else to go); an agent learning from its returns, anywhere.
         stop_allowed = torch.from_numpy(teacher == STOP) if feedback == "student" and not rl else None
         obs_in = observation_input(agent.config, torch.from_numpy(obs), target_label)
-        logits, state, progress, value = agent.step(obs_in, prev, state, ctx, ctx_mask,
+        logits, state, progress, value, stop = agent.step(obs_in, prev, state, ctx, ctx_mask,
                                                     torch.from_numpy(blocked), stop_allowed)
         active = torch.from_numpy(~done)
         if train:  # the loss is computed once over all steps, below
@@ -102,12 +107,15 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
                 done_frac = 1.0 - stepper.td / start_dist
                 step_progress.append(progress)
                 step_goal.append(torch.from_numpy(np.clip(done_frac, 0.0, 1.0)).float())
+            if stop is not None:
+                step_stop.append(stop)
+                step_near.append(torch.from_numpy(stepper.td <= SUCCESS_RADIUS_M).float())
         if feedback == "teacher":
             chosen = teacher
         elif feedback == "student":
             chosen = torch.multinomial(torch.softmax(logits.detach(), dim=1), 1, generator=generator)[:, 0].numpy()
         else:
-            chosen = logits.detach().argmax(dim=1).numpy()
+            chosen = greedy_actions(logits.detach(), stop).numpy()
         chosen = np.where(done, STOP, chosen)
         actions[~done, t] = chosen[~done]
         steps += ~done
@@ -132,6 +140,10 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
         if step_progress:
             err = (torch.stack(step_progress) - torch.stack(step_goal)) ** 2
             total = total + progress_weight * (err * active).sum()
+        if step_stop:
+            near = F.binary_cross_entropy(torch.stack(step_stop).clamp(1e-6, 1 - 1e-6), torch.stack(step_near),
+                                          reduction="none")
+            total = total + (near * active).sum()
         if rl:
             total = total + RL_WEIGHT * actor_critic_loss(step_logp, step_entropy, step_value, step_reward, active)
         loss = total / active.sum().clamp(min=1.0)

@@ -4,6 +4,11 @@ Pairs are NDH instances: each configuration's metric is first averaged over its 
 instance (the per-trajectory micro-average), then two configurations are compared with a
 paired t-test, and the p-values of the whole family of comparisons are corrected with
 Benjamini-Yekutieli (which holds under any dependence between the tests).
+
+That tests a claim across instances for these particular training runs. For a claim across
+training runs, `seed_tests` takes each seed's mean over instances as one observation and
+compares two configurations with a paired t-test over seeds (seed k of A against seed k of B):
+n is the number of seeds, so it needs a difference that holds on every seed to be significant.
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ class Comparison:
     p: float
     p_adjusted: float
     significant: bool
+    unit: str = "instance"  # what the pairs are: NDH instances, or training seeds
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -44,12 +50,34 @@ def per_instance(results: list[EpisodeResult], metric: str) -> dict[str, dict[in
     return {agent: {k: float(np.mean(v)) for k, v in by_inst.items()} for agent, by_inst in values.items()}
 
 
+def per_seed(results: list[EpisodeResult], metric: str) -> dict[str, dict[int, float]]:
+    """{agent: {seed: metric averaged over that seed's instances}}; an infinite TD (goal
+    unreachable from where the agent stopped) is left out, as in `sim.metrics`."""
+    values: dict[str, dict[int, list[float]]] = defaultdict(lambda: defaultdict(list))
+    for r in results:
+        v = float(getattr(r, metric))
+        if np.isfinite(v):
+            values[r.agent][r.seed].append(v)
+    return {agent: {s: float(np.mean(v)) for s, v in by_seed.items()} for agent, by_seed in values.items()}
+
+
 def paired_tests(results: list[EpisodeResult], pairs: list[tuple[str, str]],
                  metrics: tuple[str, ...] = ("td",), alpha: float = ALPHA) -> list[Comparison]:
-    """Paired t-tests of each (a, b) pair on each metric, BY-corrected over all of them."""
+    """Paired t-tests over instances of each (a, b) pair on each metric, BY-corrected over all."""
+    return _tests(per_instance, "instance", results, pairs, metrics, alpha)
+
+
+def seed_tests(results: list[EpisodeResult], pairs: list[tuple[str, str]],
+               metrics: tuple[str, ...] = ("td",), alpha: float = ALPHA) -> list[Comparison]:
+    """Paired t-tests over per-seed means of each (a, b) pair on each metric, BY-corrected."""
+    return _tests(per_seed, "seed", results, pairs, metrics, alpha)
+
+
+def _tests(table_of, unit: str, results: list[EpisodeResult], pairs: list[tuple[str, str]],
+           metrics: tuple[str, ...], alpha: float) -> list[Comparison]:
     raw = []
     for metric in metrics:
-        table = per_instance(results, metric)
+        table = table_of(results, metric)
         for a, b in pairs:
             for name in (a, b):
                 if name not in table:
@@ -60,10 +88,11 @@ def paired_tests(results: list[EpisodeResult], pairs: list[tuple[str, str]],
             finite = np.isfinite(x) & np.isfinite(y)
             x, y = x[finite], y[finite]
             if len(x) < 2:
-                raise ValueError(f"{a} vs {b}: fewer than two instances in common")
+                raise ValueError(f"{a} vs {b}: fewer than two {unit}s in common")
             t, p = stats.ttest_rel(x, y)
             if np.isnan(p):  # identical columns: no evidence of any difference
                 t, p = 0.0, 1.0
             raw.append((a, b, metric, len(x), float(x.mean()), float(y.mean()), float(t), float(p)))
     adjusted = stats.false_discovery_control([r[-1] for r in raw], method="by") if raw else []
-    return [Comparison(*r, p_adjusted=float(q), significant=bool(q < alpha)) for r, q in zip(raw, adjusted)]
+    return [Comparison(*r, p_adjusted=float(q), significant=bool(q < alpha), unit=unit)
+            for r, q in zip(raw, adjusted)]

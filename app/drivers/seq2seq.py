@@ -1,7 +1,8 @@
 """`agent:seq2seq`: the learned NDH Driver (`models/driver.py`) in the Driver's seat.
 
 The app imports models/, never the reverse; torch is loaded only when this agent is checked
-(to offer it) or seated.
+(to offer it) or seated. Its checkpoint is ROBOTSLANG_SEQ2SEQ_CHECKPOINT where set, else the
+one shipped in the package (`models.shipped`).
 """
 
 from __future__ import annotations
@@ -11,13 +12,24 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from app.services import Services
 
-NO_CHECKPOINT = ("agent:seq2seq needs a checkpoint: set ROBOTSLANG_SEQ2SEQ_CHECKPOINT to a file "
-                 "written by `robotslang train ndh` (e.g. RUN/best.pt)")
+from pathlib import Path
+
+NO_CHECKPOINT = ("agent:seq2seq needs a checkpoint: this install ships none; set ROBOTSLANG_SEQ2SEQ_CHECKPOINT "
+                 "to a file written by `robotslang train ndh` (e.g. RUN/best.pt)")
+
+
+def seq2seq_checkpoint(services: "Services") -> Path | None:
+    """The setting where given, else the package's shipped Driver (None where it has none)."""
+    if services.settings.seq2seq_checkpoint is not None:
+        return services.settings.seq2seq_checkpoint
+    from models.shipped import default_checkpoint
+
+    return default_checkpoint()
 
 
 def seq2seq_check(services: "Services") -> str | None:
     """Why the checkpoint cannot be seated, or None; loaded once per version of the file."""
-    checkpoint = services.settings.seq2seq_checkpoint
+    checkpoint = seq2seq_checkpoint(services)
     if checkpoint is None:
         return NO_CHECKPOINT
     try:
@@ -37,7 +49,7 @@ def seq2seq_check(services: "Services") -> str | None:
 
 
 def seq2seq_driver(info: dict[str, Any], services: "Services"):
-    checkpoint = services.settings.seq2seq_checkpoint
+    checkpoint = seq2seq_checkpoint(services)
     if checkpoint is None:
         raise LookupError(NO_CHECKPOINT)
     from models.driver import Seq2SeqDriver

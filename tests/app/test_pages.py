@@ -110,8 +110,8 @@ def test_controls_answer_404_on_a_missing_trial_and_refuse_what_does_not_apply(s
         assert "aborted: abort does not apply" in again.text
 
 
-def test_an_agent_that_cannot_start_is_not_offered_and_is_refused_with_its_reason(settings):
-    assert settings.seq2seq_checkpoint is None
+def test_an_agent_that_cannot_start_is_not_offered_and_is_refused_with_its_reason(settings, tmp_path):
+    settings = settings.model_copy(update={"seq2seq_checkpoint": tmp_path / "missing.pt"})
     with ServerThread(settings) as server:
         client = log_in(server)
         make_trial(server.services, server.services.mazes.names()[0])  # a team, so the trial form shows

@@ -14,7 +14,8 @@ from app.drivers.registry import available_drivers
 from app.main import build_services
 from app.trial.setup import TrialSetupError
 from models.data import World
-from models.train import TrainConfig, train
+from models.shipped import SHIPPED_CHECKPOINT, default_checkpoint
+from models.train import TrainConfig, load_agent, train
 from sim.benchmark import Benchmark
 from tests.app.conftest import platform_settings
 from tests.app.live import SeatClient, ServerThread, make_trial
@@ -82,13 +83,53 @@ def test_learned_driver_claims_moves_after_a_rejection_and_claims_again(tmp_path
     assert again_frame_id == frames[0].payload["frame_id"]  # it claimed again from where it moved to
 
 
+def test_the_shipped_driver_loads_as_the_command_trained_it():
+    agent, _, ckpt = load_agent(SHIPPED_CHECKPOINT)
+    assert default_checkpoint() == SHIPPED_CHECKPOINT
+    assert SHIPPED_CHECKPOINT.stat().st_size < 3_000_000  # package data: a few MB at most
+    cfg = ckpt["train_config"]
+    assert (cfg["model"], cfg["feedback"], cfg["blind"], cfg["seed"]) == ("improved", "student", "none", 0)
+    assert agent.config.stop_head and "optimizer" not in ckpt
+
+
+@pytest.mark.slow
+def test_without_a_setting_the_shipped_driver_plays_a_trial_on_a_bundled_maze(tmp_path):
+    """A fresh install: no ROBOTSLANG_SEQ2SEQ_CHECKPOINT, so agent:seq2seq is the shipped Driver; it is
+    offered, seated, and drives the simulated robot on one of the bundled generated mazes."""
+    settings = platform_settings(tmp_path)
+    assert settings.seq2seq_checkpoint is None
+    with ServerThread(settings) as server:
+        services = server.services
+        assert available_drivers(services)["seq2seq"] is None
+        maze = "gen-000"  # the first of the generated mazes shipped in sim/mazes/
+        assert maze in services.mazes.names()
+        trial_id = make_trial(services, maze, targets=("jar", "mug", "paddle"), driver="agent:seq2seq")
+        token = services.seats.issue(trial_id, "commander")
+
+        async def command():
+            async with SeatClient(server.ws_url, token) as commander:
+                await commander.event("phase", phase="localizing", timeout=30)
+                await commander.send("chat", text="go forward and look for the jar by the wall")
+                await commander.send("localize", x=1.0, y=1.0)
+                for _ in range(1200):  # bounded wait for the Driver's first moves
+                    if len(events_of(services, trial_id, "move_executed")) >= 5:
+                        break
+                    await asyncio.sleep(0.05)
+
+        asyncio.run(command())
+        executed = events_of(services, trial_id, "move_executed")
+        requested = events_of(services, trial_id, "move_requested")
+    assert len(executed) >= 5, "the shipped Driver made fewer than 5 moves"
+    assert {e.payload["action"] for e in requested} <= {"forward", "left", "right", "stop"}
+    assert {e.payload["move_id"] for e in executed} <= {e.payload["move_id"] for e in requested}
+
+
 def test_seq2seq_that_cannot_start_is_not_offered_and_no_trial_is_created_for_it(tmp_path):
-    """Without a checkpoint, or with a file that is not one, agent:seq2seq cannot start: it says why,
-    and creating a trial with it fails with that reason (no trial for a Commander to wait in)."""
+    """With a file that is not a checkpoint, or none at the set path, agent:seq2seq cannot start: it
+    says why, and creating a trial with it fails with that reason (no trial for a Commander to wait in)."""
     broken = tmp_path / "broken.pt"
     broken.write_bytes(b"not a checkpoint at all")
-    for checkpoint, why in ((None, "ROBOTSLANG_SEQ2SEQ_CHECKPOINT"), (broken, "cannot load checkpoint"),
-                            (tmp_path / "missing.pt", "missing.pt")):
+    for checkpoint, why in ((broken, "cannot load checkpoint"), (tmp_path / "missing.pt", "missing.pt")):
         settings = platform_settings(tmp_path / f"var-{why[:8]}", seq2seq_checkpoint=checkpoint)
         services = build_services(settings)
         available = available_drivers(services)

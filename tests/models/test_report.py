@@ -58,6 +58,24 @@ def test_report_marks_the_significantly_worse_ablation_only(experiment):
         assert (experiment / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_report_gives_each_seed_and_tests_across_seeds(tmp_path):
+    rng = np.random.default_rng(1)
+    base = rng.uniform(2.0, 5.0, 30)
+    results = []
+    for seed, shift in enumerate((-1.0, -0.9, -1.1)):  # improved beats the baseline on every seed
+        results += rows("val_seen", "baseline/student/none", base + rng.normal(0, 0.1, 30), seed=seed)
+        results += rows("val_seen", "improved/student/none", base + shift + rng.normal(0, 0.1, 30), seed=seed)
+    write_csv(tmp_path / "results" / "val_seen.csv", results)
+    text = write_report(tmp_path).read_text()
+    seed_rows = [ln for ln in text.splitlines() if ln.startswith("| val_seen | improved/student/none | ")]
+    assert [ln.split(" | ")[2] for ln in seed_rows] == ["0", "1", "2"]
+    assert all(ln.endswith("| 10.0 | 1.00 |") for ln in seed_rows)  # 10 steps each, under the cap: stopped
+    across = json.loads((tmp_path / "significance_seeds.json").read_text())["val_seen"]
+    td = next(c for c in across if c["metric"] == "td" and c["a"] == "improved/student/none")
+    assert td["unit"] == "seed" and td["n"] == 3 and td["significant"]
+    assert "## Tests across seeds" in text
+
+
 def test_report_without_results_names_the_folder(tmp_path):
     with pytest.raises(FileNotFoundError, match="results"):
         write_report(tmp_path)

@@ -11,6 +11,7 @@ from models.data import goal_distance
 from models.rollout import run_episodes
 from sim.benchmark import episode_start, goal_node
 from sim.dynamics import teacher_actions as sim_teacher_actions
+from sim.geometry import SUCCESS_RADIUS_M
 from sim.stepper import BatchStepper
 
 
@@ -162,3 +163,42 @@ def test_an_agent_with_a_critic_may_stop_anywhere_under_student_forcing(few):
     assert torch.isfinite(roll.loss)
     roll.loss.backward()
     assert agent.value.weight.grad.abs().sum() > 0  # the critic learns from the returns
+
+
+def test_a_stop_head_decides_the_greedy_stop(few):
+    world, eps = few["world"], few["train_set"]
+    agent = Seq2SeqAgent(AgentConfig(vocab_size=len(few["tokenizer"]), obs_features=world.obs_features,
+                                     dropout=0.0, stop_head=True))
+    idx = np.arange(len(eps))
+    with torch.no_grad():
+        agent.policy.bias[STOP] = -50.0  # the policy itself never wants to stop
+        agent.stop.bias.fill_(50.0)  # the head is sure the goal is here
+    assert (run_episodes(agent, world, eps, idx, "argmax").steps == 1).all()
+    with torch.no_grad():
+        agent.stop.bias.fill_(-50.0)  # and sure it is not
+    assert (run_episodes(agent, world, eps, idx, "argmax", max_actions=20).steps == 20).all()
+
+
+def test_the_stop_head_learns_whether_the_goal_is_within_the_success_radius(few):
+    """Its labels, checked against the distances of the teacher's path: a head sure of "near"
+    pays the clamped cross entropy at every far step, one sure of "far" at every near step."""
+    world, eps = few["world"], few["train_set"]
+    agent = Seq2SeqAgent(AgentConfig(vocab_size=len(few["tokenizer"]), obs_features=world.obs_features,
+                                     dropout=0.0, stop_head=True))
+    idx = np.arange(len(eps))
+    losses = {}
+    for bias in (50.0, -50.0):
+        with torch.no_grad():
+            agent.stop.bias.fill_(bias)
+        roll = run_episodes(agent, world, eps, idx, "teacher", train=True)
+        losses[bias] = roll.loss.item()
+    near = far = 0
+    for t in range(roll.nodes.shape[1] - 1):
+        decided = roll.steps > t
+        td = goal_distance(world, eps, idx, roll.nodes[:, t])
+        near += int((decided & (td <= SUCCESS_RADIUS_M)).sum())
+        far += int((decided & (td > SUCCESS_RADIUS_M)).sum())
+    assert near > 0 and far > near
+    sure_far = -np.log(1.0 - np.float32(1 - 1e-6))  # the clamped probabilities, in float32
+    sure_near = -np.log(np.float32(1e-6))
+    assert losses[50.0] - losses[-50.0] == pytest.approx((sure_far * far - sure_near * near) / (near + far), rel=1e-4)

@@ -8,7 +8,7 @@ import math
 import pytest
 from scipy import stats as scipy_stats
 
-from models.stats import paired_tests
+from models.stats import paired_tests, seed_tests
 from sim.metrics import EpisodeResult
 
 
@@ -49,3 +49,36 @@ def test_paired_t_and_by_correction_match_the_hand_computation():
 def test_unknown_configuration_is_named():
     with pytest.raises(ValueError, match="'missing'"):
         paired_tests(results(), [("full", "missing")])
+
+
+def seeded(agent, per_seed_tds):
+    return [result(agent, inst, seed, td) for seed, tds in enumerate(per_seed_tds) for inst, td in enumerate(tds)]
+
+
+def test_seed_test_pairs_per_seed_means_by_hand():
+    # a's seeds average 2, 3, 4 over their instances; b's 3, 3.5, 5: differences -1, -0.5, -1.
+    rs = seeded("a", [(1.0, 3.0), (2.0, 4.0), (4.0, 4.0)]) + seeded("b", [(3.0, 3.0), (3.0, 4.0), (6.0, 4.0)])
+    (c,) = seed_tests(rs, [("a", "b")])
+    assert c.unit == "seed" and c.n == 3 and c.mean_a == 3.0 and c.mean_b == pytest.approx(11.5 / 3)
+    d = [-1.0, -0.5, -1.0]
+    sd = math.sqrt(sum((x - sum(d) / 3) ** 2 for x in d) / 2)
+    assert c.t == pytest.approx((sum(d) / 3) / (sd / math.sqrt(3)))
+    assert c.p == pytest.approx(2 * scipy_stats.t.sf(abs(c.t), df=2))
+    assert c.p_adjusted == pytest.approx(c.p)  # a family of one
+
+
+def test_a_gain_carried_by_one_seed_holds_over_instances_but_not_over_seeds():
+    # 20 instances; a beats b by 1 m on seed 0 only, and is 0.1 m worse on seeds 1 and 2.
+    base = [2.0 + 0.1 * k for k in range(20)]
+    a = [[t - 1.0 + 0.05 * (k % 3) for k, t in enumerate(base)], [t + 0.1 for t in base], [t + 0.1 for t in base]]
+    b = [base, base, base]
+    rs = seeded("a", a) + seeded("b", b)
+    (over_instances,) = paired_tests(rs, [("a", "b")])
+    (over_seeds,) = seed_tests(rs, [("a", "b")])
+    assert over_instances.unit == "instance" and over_instances.n == 20 and over_instances.significant
+    assert over_seeds.n == 3 and not over_seeds.significant
+
+
+def test_seed_test_needs_two_seeds():
+    with pytest.raises(ValueError, match="two seeds"):
+        seed_tests(seeded("a", [(1.0, 2.0)]) + seeded("b", [(2.0, 3.0)]), [("a", "b")])
