@@ -19,8 +19,10 @@ import httpx
 import pytest
 import websockets
 
+from app.main import build_services
 from app.security import SeatTokens
-from tests.app.live import ServerProcess, free_port
+from app.settings import Settings
+from tests.app.live import ServerProcess, free_port, make_trial
 from tests.packaging.conftest import REPO, clean_env
 
 DEPLOY = REPO / "deploy"
@@ -141,11 +143,19 @@ def test_two_servers_behind_nginx_play_a_trial_over_tls(tmp_path, postgres_url, 
             assert {addr for _, addr in seats} == {f"127.0.0.1:{s.port}" for s in servers}
 
             # A browser's socket carries its page's Origin: through the proxy it is still its own host.
+            # (On a trial still open: the demo's trial is over, and its links closed with it.)
+            services = build_services(Settings(database_url=postgres_url, data_dir=tmp_path / "data",
+                                               secret_key=SECRET))
+            trial_id = make_trial(services, services.mazes.names()[0], team="Browser team")
+            services.engine.dispose()
+
             async def browser_seat() -> dict:
-                token = SeatTokens(SECRET).issue(1, "commander")
+                token = SeatTokens(SECRET).issue(trial_id, "commander")
                 async with websockets.connect(f"wss://127.0.0.1:{https_port}/ws/play?token={token}",
                                               origin=proxy, ssl=ssl.create_default_context(cafile=cert)) as ws:
-                    return json.loads(await asyncio.wait_for(ws.recv(), 10))
+                    while (message := json.loads(await asyncio.wait_for(ws.recv(), 10)))["type"] != "welcome":
+                        pass  # its own `connect` event comes first
+                    return message
 
             assert asyncio.run(browser_seat())["type"] == "welcome"
     finally:
