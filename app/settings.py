@@ -26,11 +26,14 @@ class Settings(BaseSettings):
     redis_url: str | None = None  # fan-out between processes; in-process when unset
     allowed_origins: list[str] = Field(default_factory=list)  # extra websocket origins beside the page's own
     overhead_calibration: Path | None = None  # the overhead camera's calibration; default data_dir/overhead_calibration.json
+    camera_calibration: Path | None = None  # the rovers' front camera (sim.camera.CameraCalibration); default data_dir/camera_calibration.json
 
     @model_validator(mode="after")
     def _default_paths(self) -> "Settings":
         if self.overhead_calibration is None:
             self.overhead_calibration = self.data_dir / "overhead_calibration.json"
+        if self.camera_calibration is None:
+            self.camera_calibration = self.data_dir / "camera_calibration.json"
         return self
 
     @property

@@ -5,7 +5,8 @@ mapped onto the server clock, moves awaiting their acknowledgement, and the figu
 experimenter's dashboard shows. `RobotLinks` holds the links of this server by robot id and
 tells the trials that use a robot when it comes and goes: the robot joins the trial as the
 `robot` seat: a trial waits for it to start, losing it pauses the trial and its return resumes it. Overhead cameras
-(`role: overhead`) are recorded into every live trial on a real robot, never shown to a seat.
+(`role: overhead`) are recorded into every live trial on a real robot, never shown to a seat;
+each trial's tracker (`app.perception.tracker_seat`) turns them into `pose` events.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from sqlalchemy.orm import Session
 from app.backends.base import BackendUnavailable, Frame, MoveOutcome
 from app.backends.registry import register_backend
 from app.db.models import Robot
+from app.perception.tracker_seat import TrialTracker
 from app.trial.state import PARTICIPANT_ROLES, RUNNING_PHASES
 from robot_client.protocol import FrameHeader, encode
 
@@ -323,6 +325,8 @@ class RemoteRobotBackend:
         self._seat: RobotSeat | None = None
         self._moving = False
         self._closed = False
+        self.tracker = TrialTracker(runtime.settings.overhead_calibration, self._tracked,
+                                    runtime.services.clock.now_ns)
 
     async def connect(self) -> None:
         """Follow the robot's link. The rover is a seat the trial needs: until it joins, the trial
@@ -374,11 +378,17 @@ class RemoteRobotBackend:
                 yield frame
 
     def pose(self) -> tuple[float, float, float] | None:
-        return None  # known only from the overhead camera, annotated after the trial
+        """Where the overhead camera's tracker last saw the rover (None without a fresh sighting)."""
+        return self.tracker.pose()
 
     def record_overhead(self, frame: Frame) -> None:
         if self.attended and not self.runtime.state.over:
             self.runtime.record_frame(frame.jpeg, frame.capture_ns, frame.width, frame.height, "overhead")
+            self.tracker.offer(frame.jpeg, frame.capture_ns)
+
+    def _tracked(self, pose: tuple[float, float, float]) -> None:
+        if not self._closed and not self.runtime.state.over:
+            self.runtime.record_pose(pose)
 
     def record_bad_message(self, role: str, error: str) -> None:
         if not self.runtime.state.over:

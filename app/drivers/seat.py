@@ -18,6 +18,7 @@ from app.drivers.registry import create_driver
 from app.trial.runtime import TrialError
 
 logger = logging.getLogger(__name__)
+PERCEPTION_WAIT_S = 5.0  # longer than perceiving a frame takes on a loaded machine
 
 
 class AgentSeat:
@@ -85,11 +86,27 @@ class AgentSeat:
             s = runtime.state
             if not s.running or s.pending_claim is not None or s.current_target is None:
                 continue
+            pose = runtime.backend.pose() if runtime.backend is not None else None
             observation = {"frame": self.frame, "frame_id": self.frame_id, "target": s.current_target,
-                           "target_index": s.target_index, "rejected": self.rejected,
-                           "pose": runtime.backend.pose() if runtime.backend is not None else None}
+                           "target_index": s.target_index, "rejected": self.rejected, "pose": pose}
+            if pose is None:  # a rover: what the camera and the particle filter say instead
+                observation.update(await self._perceived())
             action = await asyncio.to_thread(policy.act, list(self.dialog), observation)
             await self._act(action)
+
+    async def _perceived(self) -> dict[str, Any]:
+        """The rays perceived at the frame after the last move and the belief after it; nothing
+        while the trial's filter is not running or has not seen that frame in time."""
+        belief = self.runtime.belief
+        for _ in range(round(PERCEPTION_WAIT_S / 0.02)):
+            if belief is not None and belief.settled:
+                observed = belief.latest
+                b = observed.belief
+                return {"rays": observed.rays,
+                        "belief": {"x": b.x, "y": b.y, "heading": b.heading, "spread_m": b.spread_m}}
+            await asyncio.sleep(0.02)
+            belief = self.runtime.belief
+        return {}
 
     async def _act(self, action: str) -> None:
         runtime, s = self.runtime, self.runtime.state

@@ -56,6 +56,9 @@ class TrialRuntime:
         self._grace: dict[str, asyncio.Task] = {}
         self._tasks: set[asyncio.Task] = set()
         self.agent = None
+        self.belief = None  # `TrialBelief` once the Driver camera's calibration is loaded
+        self._perceiving = False
+        self.watch_messages: dict[str, dict[str, Any]] = {}  # the latest of each kind, for the watch page
         self._frame_dirs: set = set()
 
     # -- life cycle ---------------------------------------------------------------
@@ -81,7 +84,20 @@ class TrialRuntime:
         if pose is not None and self.state.pose is None:
             self.record_pose(pose)
         self._spawn(self._pump_frames(self.backend))
+        self._spawn(self._start_belief())
         await self.backend.connect()
+
+    async def _start_belief(self) -> None:
+        """A live particle filter on the Driver camera (never shown to a participant)."""
+        from app.perception.belief import TrialBelief
+        from app.perception.cameras import driver_calibration
+
+        try:
+            calibration = await asyncio.to_thread(driver_calibration, self.state.backend, self.settings)
+            maze = self.services.mazes.load(self.state.maze)
+            self.belief = await asyncio.to_thread(TrialBelief, maze, calibration, seed=self.trial_id)
+        except Exception:  # no belief is a lesser trial, not a broken one
+            logger.exception("trial %s: no particle filter", self.trial_id)
 
     async def close(self) -> None:
         for task in list(self._grace.values()) + list(self._tasks):
@@ -149,6 +165,23 @@ class TrialRuntime:
                 self._commit_frame(rel, frame.jpeg, frame.capture_ns, frame.width, frame.height, "driver")
             except Exception:  # a frame that cannot be stored must not stop the stream
                 logger.exception("trial %s: frame not recorded", self.trial_id)
+                continue
+            belief = self.belief
+            if belief is not None and not self._move_busy and not self._perceiving and belief.wants(frame.capture_ns):
+                self._perceiving = True
+                self._spawn(self._perceive(belief, frame.jpeg, frame.capture_ns))
+
+    async def _perceive(self, belief, jpeg: bytes, capture_ns: int) -> None:
+        try:
+            observed = await asyncio.to_thread(belief.observe, jpeg, capture_ns)
+        finally:
+            self._perceiving = False
+        if observed is not None:
+            self._watchers_hear(belief.message())
+
+    def _watchers_hear(self, message: dict[str, Any]) -> None:
+        """A message for the experimenter's view only (the seats never get it)."""
+        self.watch_messages[message["type"]] = message
 
     def record_frame(self, jpeg: bytes, capture_ns: int, width: int, height: int, source: str) -> int:
         """Store one camera image and commit its row and `frame` event; returns the frame id."""
@@ -341,18 +374,23 @@ class TrialRuntime:
             outcome = MoveOutcome(action, "refused", reason)
         else:
             self._move_busy, self._last_move_ns = True, now
+            started_ns = self.services.clock.now_ns()
             try:
                 outcome = await self.backend.execute(action)
             except BackendUnavailable as err:
                 outcome = MoveOutcome(action, "refused", str(err))
             finally:
                 self._move_busy = False
+            if outcome.outcome != "refused" and self.belief is not None:
+                # A collision on the simulator leaves the robot where it was; a rover cannot tell.
+                self.belief.moved(action if outcome.outcome == "ok" else None, started_ns)
         payload = {"move_id": move_id, "action": action, "outcome": outcome.outcome,
                    "collision": outcome.collision}
         if outcome.reason:
             payload["reason"] = outcome.reason
         self.record("move_executed", payload)
-        if outcome.outcome != "refused" and self.backend is not None:
+        if outcome.outcome != "refused" and self.backend is not None and self.state.backend == "sim":
+            # (a rover's tracker records its own poses, at the overhead camera's rate)
             pose = self.backend.pose()
             if pose is not None:
                 self.record_pose(pose)
@@ -425,7 +463,7 @@ class TrialRuntime:
                 "moves": s.moves, "collisions": s.collisions, "pose": s.pose,
                 "paused": sorted(s.pause_reasons), "seats": {r: r in self.seats for r in s.seats_needed},
                 "waiting_for": s.waiting_for, "backend": s.backend, "localization": s.localization,
-                "maze": s.maze}
+                "maze": s.maze, "belief": self.watch_messages.get("belief")}
 
 
 def _describe(err: ValidationError) -> str:

@@ -1,0 +1,63 @@
+"""`TrialTracker`: a trial's overhead frames -> `pose` events with source "tracker".
+
+One `sim.tracking.OverheadTracker` per trial, calibrated from the `overhead_calibration`
+setting's file when there is one, else by the first frame showing the four corner markers.
+Frames are tracked off the event loop, one at a time: a frame arriving while the previous one
+is still being tracked is skipped (the pose stream runs at the overhead frame rate the machine
+can keep). A frame with no rover marker in view gives no pose, never a wrong one.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from pathlib import Path
+
+from sim.tracking import CalibrationError, FrameError, OverheadCalibration, OverheadTracker, TrackedPose
+
+logger = logging.getLogger(__name__)
+
+FRESH_S = 2.0  # a tracked pose older than this is not where the rover is now
+
+
+class TrialTracker:
+    def __init__(self, calibration_path: Path | None, record_pose, clock_ns) -> None:
+        """`record_pose((x, y, heading))` commits one pose event; `clock_ns()` is the server clock."""
+        calibration = None
+        if calibration_path is not None and Path(calibration_path).exists():
+            try:
+                calibration = OverheadCalibration.load(calibration_path)
+            except CalibrationError as err:
+                logger.warning("overhead calibration not used, self-calibrating: %s", err)
+        self.tracker = OverheadTracker(calibration)
+        self.record_pose, self.clock_ns = record_pose, clock_ns
+        self.latest: TrackedPose | None = None
+        self._busy = False
+        self._last_t_ns = 0
+
+    def offer(self, jpeg: bytes, capture_ns: int) -> asyncio.Task | None:
+        """Track this frame unless one is being tracked; returns the task doing it."""
+        if self._busy or capture_ns <= self._last_t_ns:
+            return None
+        self._busy = True
+        return asyncio.get_running_loop().create_task(self._track(jpeg, capture_ns))
+
+    async def _track(self, jpeg: bytes, capture_ns: int) -> None:
+        try:
+            pose = await asyncio.to_thread(self.tracker.update, jpeg, capture_ns)
+        except (FrameError, CalibrationError, ValueError) as err:
+            logger.warning("overhead frame not tracked: %s", err)
+            return
+        finally:
+            self._busy = False
+            self._last_t_ns = max(self._last_t_ns, capture_ns)
+        if pose is not None:
+            self.latest = pose
+            self.record_pose((pose.x, pose.y, pose.heading))
+
+    def pose(self) -> tuple[float, float, float] | None:
+        """The last tracked pose, while it is fresh."""
+        p = self.latest
+        if p is None or self.clock_ns() - p.t_ns > FRESH_S * 1e9:
+            return None
+        return p.x, p.y, p.heading
