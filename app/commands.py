@@ -22,40 +22,50 @@ def serve(host: str = typer.Option("127.0.0.1", help="Interface to listen on."),
     settings = Settings()
     app = create_app(settings)
     typer.echo(f"RobotSlang on http://{host}:{port} (data in {settings.data_dir.resolve()})")
-    # Frames and claims are sent inline; keep the transport limit above the message limit so an
-    # oversized message gets an error reply instead of a closed socket. No per-message deflate:
-    # the largest messages are JPEGs, which do not compress, and deflating them costs CPU.
-    from app.backends.remote import MAX_FRAME_BYTES  # the rover's camera frames are the largest messages
+    from app.serving import uvicorn_options
 
-    uvicorn.run(app, host=host, port=port, log_level="warning",
-                ws_max_size=max(65536, 4 * settings.max_message_bytes, 2 * MAX_FRAME_BYTES),
-                ws_per_message_deflate=False)
+    uvicorn.run(app, host=host, port=port, log_level="warning", **uvicorn_options(settings))
 
 
 def admin_create(name: str = typer.Argument(..., help="The experimenter's login name."),
                  password: Optional[str] = typer.Option(None, help="Prompted for when not given.")) -> None:
     """Create an experimenter account (or set the password of an existing one)."""
+    _set_password(name, password, create=True)
+
+
+def admin_password(name: str = typer.Argument(..., help="The experimenter's login name."),
+                   password: Optional[str] = typer.Option(None, help="Prompted for when not given.")) -> None:
+    """Change an experimenter's password; the account's logins end everywhere."""
+    _set_password(name, password, create=False)
+
+
+def _set_password(name: str, password: str | None, create: bool) -> None:
     from sqlalchemy import select
 
     from app.db.engine import open_database
     from app.db.models import Experimenter
-    from app.security import hash_password
+    from app.security import set_password
     from app.settings import Settings
 
     if not name.strip() or len(name) > 80:
         raise typer.BadParameter("must be 1 to 80 characters", param_hint="NAME")
+    db_sessions = open_database(Settings())
+    with db_sessions() as db:
+        exists = db.scalar(select(Experimenter.id).where(Experimenter.name == name)) is not None
+    if not exists and not create:
+        raise typer.BadParameter(f"no experimenter {name!r} (create one with `robotslang admin create`)",
+                                 param_hint="NAME")
     if password is None:
         password = typer.prompt("Password", hide_input=True, confirmation_prompt=True)
     if len(password) < 8:
         raise typer.BadParameter("must be at least 8 characters", param_hint="--password")
-    with open_database(Settings()).begin() as db:
+    with db_sessions.begin() as db:
         user = db.scalar(select(Experimenter).where(Experimenter.name == name))
         if user is None:
-            db.add(Experimenter(name=name, password_hash=hash_password(password)))
-            typer.echo(f"experimenter {name!r} created")
-        else:
-            user.password_hash = hash_password(password)
-            typer.echo(f"experimenter {name!r}: password changed")
+            user = Experimenter(name=name)
+            db.add(user)
+        set_password(user, password)
+    typer.echo(f"experimenter {name!r} " + ("created" if not exists else "password changed; its logins have ended"))
 
 
 def db_upgrade() -> None:
@@ -73,6 +83,7 @@ def register(root: typer.Typer) -> None:
     root.command("serve")(serve)
     admin = typer.Typer(help="Experimenter accounts.", no_args_is_help=True)
     admin.command("create")(admin_create)
+    admin.command("password")(admin_password)
     root.add_typer(admin, name="admin")
     db = typer.Typer(help="The database.", no_args_is_help=True)
     db.command("upgrade")(db_upgrade)

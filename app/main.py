@@ -8,17 +8,22 @@ from contextlib import asynccontextmanager
 from pathlib import Path
 
 from fastapi import FastAPI, Request
-from fastapi.responses import RedirectResponse
+from fastapi.exception_handlers import http_exception_handler, request_validation_exception_handler
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import FileResponse, RedirectResponse
 from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 from sqlalchemy import select
+from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from app.clock import ServerClock
 from app.db.engine import make_engine, make_sessionmaker, upgrade
 from app.db.models import Experimenter
 from app.mazes import Mazes
 from app.routes import experimenter, pages, replay, robot_ws, seat_ws
-from app.security import SeatTokens, Sessions, hash_password
+from app.guard import GuardMiddleware, template_context
+from app.login import LoginGuard
+from app.security import CsrfTokens, SeatTokens, Sessions, set_password
 from app.services import Services
 from app.settings import Settings
 from app.trial.hub import TrialHub
@@ -33,8 +38,11 @@ def build_services(settings: Settings) -> Services:
     upgrade(settings, engine)
     db = make_sessionmaker(engine)
     key = settings.signing_key()
+    logins = LoginGuard(db, settings.login_limit_per_account, settings.login_limit_per_address,
+                        settings.password_check_concurrency)
     services = Services(settings=settings, engine=engine, db=db, clock=ServerClock(), log=EventLog(db),
-                        seats=SeatTokens(key), sessions=Sessions(key), mazes=Mazes(settings))
+                        seats=SeatTokens(key, settings.join_link_ttl_s), sessions=Sessions(key, db),
+                        csrf=CsrfTokens(key), logins=logins, mazes=Mazes(settings))
     services.hub = TrialHub(services)
     return services
 
@@ -45,7 +53,9 @@ def ensure_experimenter(services: Services) -> str | None:
         if db.scalar(select(Experimenter.id).limit(1)) is not None:
             return None
         password = secrets.token_urlsafe(12)
-        db.add(Experimenter(name="admin", password_hash=hash_password(password)))
+        admin = Experimenter(name="admin")
+        set_password(admin, password)
+        db.add(admin)
         return password
 
 
@@ -64,15 +74,18 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
             services.relay = RedisRelay(services, settings.redis_url)
             await services.relay.start()
+        await services.hub.resume_running()
         yield
         if services.relay is not None:
             await services.relay.close()  # hands its trials back first
         await services.hub.close()
         services.engine.dispose()
 
-    app = FastAPI(title="RobotSlang", lifespan=lifespan)
+    # No /docs or /redoc: they load scripts from a CDN and run inline code, which the CSP forbids.
+    app = FastAPI(title="RobotSlang", lifespan=lifespan, docs_url=None, redoc_url=None)
     app.state.services = services
-    app.state.templates = Jinja2Templates(directory=str(ROOT / "templates"))
+    app.state.templates = Jinja2Templates(directory=str(ROOT / "templates"), context_processors=[template_context])
+    app.add_middleware(GuardMiddleware, settings=settings)
     app.mount("/static", StaticFiles(directory=str(ROOT / "static")), name="static")
     app.include_router(pages.router)
     app.include_router(experimenter.router)
@@ -83,5 +96,22 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     @app.exception_handler(experimenter.LoginRequired)
     async def _login_required(request: Request, exc: Exception):
         return RedirectResponse("/", status_code=303)
+
+    # A person following a link gets a page that says what to do; scripts keep the JSON error.
+    @app.exception_handler(StarletteHTTPException)
+    async def _http_error(request: Request, exc: StarletteHTTPException):
+        if not pages.wants_html(request):
+            return await http_exception_handler(request, exc)
+        return pages.error_page(request, exc.status_code, str(exc.detail))
+
+    @app.exception_handler(RequestValidationError)
+    async def _bad_request(request: Request, exc: RequestValidationError):
+        if not pages.wants_html(request):
+            return await request_validation_exception_handler(request, exc)
+        return pages.error_page(request, 404 if request.method == "GET" else 422, None)
+
+    @app.get("/favicon.ico", include_in_schema=False)
+    async def _favicon():
+        return FileResponse(ROOT / "static" / "favicon.svg", media_type="image/svg+xml")
 
     return app

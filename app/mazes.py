@@ -1,5 +1,5 @@
 """The mazes trials run in: the library (bundled + benchmark), their graphs, start poses and the
-pictures the Commander sees (the walls-only map and the image of the next target)."""
+pictures the Commander sees (the map with the three landmarks and the image of the next target)."""
 
 from __future__ import annotations
 
@@ -11,12 +11,13 @@ import numpy as np
 
 from app.settings import Settings
 from sim.dynamics import Pose
-from sim.geometry import world_to_pixel
-from sim.labels import Label
+from sim.geometry import TABLE_WIDTH_M, world_to_pixel
+from sim.labels import LABEL_BGR, OBJECT_LABELS, Label
 from sim.maze import Maze
 from sim.navgraph import NavGraph
 
 TARGET_VIEW_DISTANCE_M = 0.35
+LANDMARK_RADIUS_M = 0.045  # the disc that marks a landmark on the Commander's map
 MIN_START_DISTANCE_M = 0.5
 
 
@@ -53,8 +54,13 @@ class Mazes:
         return NavGraph.build(self.load(name), cache_dir=self.settings.cache_dir)
 
     def _map_png(self, name: str) -> bytes:
-        """Walls only: the Commander's map never marks the objects."""
-        return _encode(".png", self.load(name).image(walls_only=True))
+        """The Commander's map: the walls, and each landmark as a disc in its benchmark colour
+        (as the annotated `maze.map-fixed.png` colours it), as the paper's Commander saw them."""
+        return _encode(".png", commander_map(self.load(name)))
+
+    def landmarks(self, name: str) -> dict[str, tuple[float, float]]:
+        """Each landmark's centre in metres, for the legend and the next-target mark."""
+        return {obj: (float(x), float(y)) for obj, (x, y) in self.load(name).objects.items()}
 
     def full_map_png(self, name: str) -> bytes:
         """Walls and objects: for the experimenter only."""
@@ -78,6 +84,22 @@ class Mazes:
         x, y = _view_point(maze, graph, ox, oy)
         theta = math.atan2(oy - y, ox - x)
         return _encode(".jpg", first_person(maze, x, y, theta, size=(320, 240)))
+
+
+def commander_map(maze: Maze) -> np.ndarray:
+    """The walls-only map with the objects' own pixels and a disc (white rim) at each centre."""
+    image = maze.image(walls_only=True).copy()
+    objects = np.isin(maze.labels, OBJECT_LABELS)
+    image[objects] = maze.image()[objects]
+    radius_px = int(round(LANDMARK_RADIUS_M / TABLE_WIDTH_M * (maze.labels.shape[1] - 1)))
+    for label in OBJECT_LABELS:
+        if label.word not in maze.objects:
+            continue
+        col, row = world_to_pixel(*maze.objects[label.word])
+        centre = (int(round(float(col))), int(round(float(row))))
+        cv2.circle(image, centre, radius_px + 3, (255, 255, 255), -1, lineType=cv2.LINE_8)
+        cv2.circle(image, centre, radius_px, LABEL_BGR[label], -1, lineType=cv2.LINE_8)
+    return image
 
 
 def _view_point(maze: Maze, graph: NavGraph, ox: float, oy: float) -> tuple[float, float]:

@@ -2,15 +2,16 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import Engine
 from sqlalchemy.orm import sessionmaker
 
 from app.clock import ServerClock
+from app.login import LoginGuard
 from app.mazes import Mazes
-from app.security import SeatTokens, Sessions
+from app.security import CsrfTokens, SeatTokens, Sessions
 from app.settings import Settings
 from app.trial.log import EventLog
 
@@ -27,7 +28,10 @@ class Services:
     log: EventLog
     seats: SeatTokens
     sessions: Sessions
+    csrf: CsrfTokens
+    logins: LoginGuard
     mazes: Mazes
     hub: "TrialHub" = None  # type: ignore[assignment]
     relay: Any = None  # `RedisRelay` when ROBOTSLANG_REDIS_URL is set: trials shared between processes
     robots: Any = None  # `RobotLinks`: the rovers and cameras connected here (made by `robot_links`)
+    driver_checks: dict[Any, str | None] = field(default_factory=dict)  # agents' start checks, by file version

@@ -1,129 +1,143 @@
 // Experimenter dashboard: every open trial's phase, clock, moves and seats once a second, a
 // small top-down view with the true pose for each running trial, and each robot's link.
-"use strict";
-(() => {
-  const maps = {};  // trial id -> {card, canvas, image}
+import {csrfHeaders, TableMap} from "./maputil.js";
+import {confirmFirst, showControls} from "./controls.js";
 
-  function liveCard(t) {
-    if (maps[t.trial_id]) return maps[t.trial_id];
-    const card = document.createElement("figure");
-    card.className = "live-trial";
-    card.dataset.trial = t.trial_id;
-    const canvas = document.createElement("canvas");
-    canvas.width = 280; canvas.height = 235;
-    const caption = document.createElement("figcaption");
-    const link = document.createElement("a");
-    link.href = `/experimenter/trials/${t.trial_id}`;
-    link.append(canvas);
-    card.append(link, caption);
-    document.getElementById("live").append(card);
-    const image = new Image();
-    image.src = `/experimenter/trials/${t.trial_id}/map.png`;
-    return (maps[t.trial_id] = {card, canvas, caption, image});
-  }
+const maps = {};  // trial id -> {card, canvas, image}
 
-  function drawLive(t) {
-    const {canvas, caption, image} = liveCard(t);
-    const ctx = canvas.getContext("2d");
-    if (image.complete) ctx.drawImage(image, 0, 0, canvas.width, canvas.height);
-    if (t.localization) TableMap.drawRobot(ctx, canvas, t.localization.x, t.localization.y, t.localization.heading, "#ff8c00");
-    if (t.pose) TableMap.drawRobot(ctx, canvas, t.pose[0], t.pose[1], t.pose[2], "#1e6bff");
-    const seats = Object.entries(t.seats).map(([r, on]) => `${r} ${on ? "●" : "○"}`).join(" ");
-    caption.textContent = `#${t.trial_id} ${t.maze} · ${phaseText(t)}${t.target ? " → " + t.target : ""}` +
-      ` · ${t.elapsed_s.toFixed(0)} s · ${t.moves} moves · ${seats}`;
-  }
+function liveCard(t) {
+  if (maps[t.trial_id]) return maps[t.trial_id];
+  const card = document.createElement("figure");
+  card.className = "live-trial";
+  card.dataset.trial = t.trial_id;
+  const canvas = document.createElement("canvas");
+  canvas.width = 280; canvas.height = 235;
+  const caption = document.createElement("figcaption");
+  const link = document.createElement("a");
+  link.href = `/experimenter/trials/${t.trial_id}`;
+  link.setAttribute("aria-label", `Watch trial ${t.trial_id}`);
+  link.append(canvas);
+  card.append(link, caption);
+  document.getElementById("live").append(card);
+  const image = new Image();
+  image.src = `/experimenter/trials/${t.trial_id}/map.png`;
+  return (maps[t.trial_id] = {card, canvas, caption, image});
+}
 
-  function phaseText(t) {
-    if (t.waiting_for.length) return `waiting for ${t.waiting_for.join(", ")}`;
-    if (t.paused.includes("disconnect:robot")) return `${t.phase} (paused: robot not connected)`;
-    return t.phase + (t.paused.length ? " (paused)" : "");
-  }
+function drawLive(t) {
+  const {canvas, caption, image} = liveCard(t);
+  const ctx = canvas.getContext("2d");
+  if (image.complete && image.naturalWidth) ctx.drawImage(image, 0, 0, canvas.width, canvas.height);
+  if (t.localization) TableMap.drawRobot(ctx, canvas, t.localization.x, t.localization.y, t.localization.heading, "#ff8c00");
+  if (t.pose) TableMap.drawRobot(ctx, canvas, t.pose[0], t.pose[1], t.pose[2], "#1e6bff");
+  const seats = Object.entries(t.seats).map(([r, on]) => `${r} ${on ? "●" : "○"}`).join(" ");
+  caption.textContent = `#${t.trial_id} ${t.maze} · ${phaseText(t)}${t.target ? " → " + t.target : ""}` +
+    ` · ${t.elapsed_s.toFixed(0)} s · ${t.moves} moves · ${seats}`;
+}
 
-  // -- robots -----------------------------------------------------------------------
-  function ackText(ack) {
-    if (!ack) return "–";
-    const what = ack.status === "done" ? "done" : `${ack.status}${ack.reason ? ": " + ack.reason : ""}`;
-    return `${ack.action || "move"} ${what}, ${ack.age_s.toFixed(0)} s ago`;
-  }
+function phaseText(t) {
+  if (t.waiting_for.length) return `waiting for ${t.waiting_for.join(", ")}`;
+  if (t.paused.includes("disconnect:robot")) return `${t.phase} (paused: robot not connected)`;
+  return t.phase + (t.paused.length ? " (paused)" : "");
+}
 
-  function robotRow(r) {
-    let row = document.querySelector(`tr[data-robot="${r.id}"]`);
-    if (!row) {
-      row = document.createElement("tr");
-      row.dataset.robot = r.id;
-      for (const cls of ["name", "role", "link", "fps", "latency", "ack"]) {
-        const td = document.createElement("td");
-        td.className = cls;
-        row.append(td);
-      }
-      document.querySelector("#robots tbody").append(row);
+// -- robots -----------------------------------------------------------------------
+function ackText(ack) {
+  if (!ack) return "–";
+  const what = ack.status === "done" ? "done" : `${ack.status}${ack.reason ? ": " + ack.reason : ""}`;
+  return `${ack.action || "move"} ${what}, ${ack.age_s.toFixed(0)} s ago`;
+}
+
+function robotRow(r) {
+  let row = document.querySelector(`tr[data-robot="${r.id}"]`);
+  if (!row) {
+    row = document.createElement("tr");
+    row.dataset.robot = r.id;
+    for (const cls of ["name", "role", "link", "fps", "latency", "ack"]) {
+      const td = document.createElement("td");
+      td.className = cls;
+      row.append(td);
     }
-    return row;
+    document.querySelector("#robots tbody").append(row);
   }
+  return row;
+}
 
-  function showRobots(robots) {
-    const backend = document.getElementById("backend");
-    for (const r of robots) {
-      const row = robotRow(r);
-      row.dataset.connected = r.connected;
-      row.querySelector(".name").textContent = r.name;
-      row.querySelector(".role").textContent = r.role;
-      row.querySelector(".link").textContent = r.connected ? "connected" : "not connected";
-      row.querySelector(".fps").textContent = r.fps.toFixed(1);
-      row.querySelector(".latency").textContent = r.latency_ms === null ? "–" : `${r.latency_ms.toFixed(1)} ms`;
-      row.querySelector(".ack").textContent = ackText(r.last_ack);
-      if (r.role !== "driver") continue;
-      // The trial form names each rover's link, so a trial is not made on an absent one unawares.
-      let option = backend.querySelector(`option[value="${r.backend}"]`);
-      if (!option) { option = document.createElement("option"); option.value = r.backend; backend.append(option); }
-      option.textContent = `${r.name} (rover, ${r.connected ? "connected" : "not connected"})`;
-    }
+function showRobots(robots) {
+  const backend = document.getElementById("backend");
+  const empty = document.getElementById("no-robots");
+  if (empty) empty.hidden = robots.length > 0;
+  for (const r of robots) {
+    const row = robotRow(r);
+    row.dataset.connected = r.connected;
+    row.querySelector(".name").textContent = r.name;
+    row.querySelector(".role").textContent = r.role;
+    row.querySelector(".link").textContent = r.connected ? "connected" : "not connected";
+    row.querySelector(".fps").textContent = r.fps.toFixed(1);
+    row.querySelector(".latency").textContent = r.latency_ms === null ? "–" : `${r.latency_ms.toFixed(1)} ms`;
+    row.querySelector(".ack").textContent = ackText(r.last_ack);
+    if (r.role !== "driver" || !backend) continue;  // no trial form before the first team
+    // The trial form names each rover's link, so a trial is not made on an absent one unawares.
+    let option = backend.querySelector(`option[value="${r.backend}"]`);
+    if (!option) { option = document.createElement("option"); option.value = r.backend; backend.append(option); }
+    option.textContent = `${r.name} (rover, ${r.connected ? "connected" : "not connected"})`;
   }
+}
 
-  document.getElementById("new-robot").addEventListener("submit", async (ev) => {
-    ev.preventDefault();
-    const form = ev.target, box = document.getElementById("robot-token"), error = document.getElementById("robot-error");
-    const res = await fetch(form.action, {method: "POST", body: new FormData(form), credentials: "same-origin"});
-    const body = await res.json().catch(() => ({detail: `registration failed (HTTP ${res.status})`}));
-    box.hidden = !res.ok;
-    error.textContent = res.ok ? "" : (typeof body.detail === "string" ? body.detail : JSON.stringify(body.detail));
+document.getElementById("new-robot").addEventListener("submit", async (ev) => {
+  ev.preventDefault();
+  const form = ev.target, box = document.getElementById("robot-token"), error = document.getElementById("robot-error");
+  const res = await fetch(form.action, {method: "POST", body: new FormData(form), credentials: "same-origin",
+                                        headers: csrfHeaders()});
+  const body = await res.json().catch(() => ({detail: `registration failed (HTTP ${res.status})`}));
+  box.hidden = !res.ok;
+  error.textContent = res.ok ? "" : (typeof body.detail === "string" ? body.detail : JSON.stringify(body.detail));
+  if (!res.ok) return;
+  box.querySelector(".name").textContent = body.name;
+  box.querySelector(".token").textContent = body.token;
+  const role = body.role === "driver" ? "" : ` --role ${body.role}`;
+  box.querySelector(".command").textContent = `robotslang-robot --server ${location.origin} --token ${body.token}${role}`;
+  form.reset();
+  refreshRobots();
+});
+
+async function refreshRobots() {
+  try {
+    const res = await fetch("/experimenter/api/robots", {credentials: "same-origin"});
+    if (res.ok) showRobots((await res.json()).robots);
+  } catch (e) { /* the next tick retries */ }
+}
+
+async function refresh() {
+  let trials, phases;
+  try {
+    const res = await fetch("/experimenter/api/trials", {credentials: "same-origin"});
     if (!res.ok) return;
-    box.querySelector(".name").textContent = body.name;
-    box.querySelector(".token").textContent = body.token;
-    const role = body.role === "driver" ? "" : ` --role ${body.role}`;
-    box.querySelector(".command").textContent = `robotslang-robot --server ${location.origin} --token ${body.token}${role}`;
-    form.reset();
-    refreshRobots();
-  });
-
-  async function refreshRobots() {
-    try {
-      const res = await fetch("/experimenter/api/robots", {credentials: "same-origin"});
-      if (res.ok) showRobots((await res.json()).robots);
-    } catch (e) { /* the next tick retries */ }
+    ({trials, phases} = await res.json());
+  } catch (e) { return; }  // the next tick retries
+  // Rows of trials no longer open here show their recorded phase and only the controls that apply.
+  const open = new Set(trials.map((t) => String(t.trial_id)));
+  for (const row of document.querySelectorAll("tr[data-trial]")) {
+    const phase = phases[row.dataset.trial];
+    if (open.has(row.dataset.trial) || !phase) continue;
+    row.querySelector(".phase").textContent = phase;
+    showControls(row, phase, []);
   }
-
-  async function refresh() {
-    let trials;
-    try {
-      const res = await fetch("/experimenter/api/trials", {credentials: "same-origin"});
-      if (!res.ok) return;
-      trials = (await res.json()).trials;
-    } catch (e) { return; }  // the next tick retries
-    const running = new Set();
-    for (const t of trials) {
-      const row = document.querySelector(`tr[data-trial="${t.trial_id}"]`);
-      if (row) {
-        row.querySelector(".phase").textContent = phaseText(t);
-        const seats = Object.entries(t.seats).map(([r, on]) => `${r} ${on ? "●" : "○"}`).join(" ");
-        row.querySelector(".live").textContent = `${t.elapsed_s.toFixed(0)} s · ${t.moves} moves · ${seats}`;
-      }
-      if (t.phase !== "finished" && t.phase !== "aborted") { running.add(t.trial_id); drawLive(t); }
+  const running = new Set();
+  for (const t of trials) {
+    const row = document.querySelector(`tr[data-trial="${t.trial_id}"]`);
+    if (row) {
+      row.querySelector(".phase").textContent = phaseText(t);
+      const seats = Object.entries(t.seats).map(([r, on]) => `${r} ${on ? "●" : "○"}`).join(" ");
+      row.querySelector(".live").textContent = `${t.elapsed_s.toFixed(0)} s · ${t.moves} moves · ${seats}`;
+      showControls(row, t.phase, t.paused);
     }
-    for (const id of Object.keys(maps)) {
-      if (!running.has(Number(id))) { maps[id].card.remove(); delete maps[id]; }
-    }
-    document.getElementById("live-empty").hidden = running.size > 0;
+    if (t.phase !== "finished" && t.phase !== "aborted") { running.add(t.trial_id); drawLive(t); }
   }
-  setInterval(() => { refresh(); refreshRobots(); }, 1000); refresh(); refreshRobots();
-})();
+  for (const id of Object.keys(maps)) {
+    if (!running.has(Number(id))) { maps[id].card.remove(); delete maps[id]; }
+  }
+  document.getElementById("live-empty").hidden = running.size > 0;
+}
+confirmFirst(document);
+setInterval(() => { refresh(); refreshRobots(); }, 1000); refresh(); refreshRobots();

@@ -1,36 +1,44 @@
 // Driver: the live camera, moves (buttons and arrow keys) and "I found the target".
-"use strict";
-(() => {
-  const {$, on, send} = Seat;
-  const KEYS = {ArrowUp: "forward", ArrowLeft: "left", ArrowRight: "right"};
-  const MOVE_TIMEOUT_MS = 5000;  // a move whose result never came (e.g. the server restarted)
-  let pending = null, pendingSince = 0;
+import {$, on, send} from "./seat.js";
+import {showImage} from "./maputil.js";
+import {friendlyError, isRunning} from "./trial.js";
 
-  function move(action) {
-    if (pending && performance.now() - pendingSince < MOVE_TIMEOUT_MS) {
-      $("move-note").textContent = "wait: the robot is still moving"; return;
-    }
-    pending = Math.random().toString(36).slice(2, 10);
-    pendingSince = performance.now();
-    if (!send("move", {action, move_id: pending})) pending = null;
-  }
-  ["forward", "left", "right"].forEach((a) => $(a).addEventListener("click", () => move(a)));
-  document.addEventListener("keydown", (ev) => {
-    if (ev.target.tagName === "INPUT" || !KEYS[ev.key]) return;
-    ev.preventDefault(); move(KEYS[ev.key]);
-  });
-  $("found").addEventListener("click", () => send("claim"));
+const KEYS = {ArrowUp: "forward", ArrowLeft: "left", ArrowRight: "right"};
+const MOVE_TIMEOUT_MS = 5000;  // a move whose result never came (e.g. the server restarted)
+let pending = null, pendingSince = 0;
+const note = (text) => { $("move-note").textContent = text; };
 
-  on("welcome", (msg) => { pending = null; if (msg.frame) $("camera").src = `data:image/jpeg;base64,${msg.frame.jpeg}`; });
-  on("frame", (msg) => { $("camera").src = `data:image/jpeg;base64,${msg.jpeg}`; });
-  on("move_executed", (msg) => {
-    const p = msg.payload;
-    if (p.move_id === pending) pending = null;
-    $("move-note").textContent = p.outcome === "collision" ? "Bump! Something is in the way."
-      : p.outcome === "refused" ? `Move refused: ${p.reason}` : "";
-  });
-  on("target_claimed", () => { $("move-note").textContent = "Waiting for the Commander to confirm…"; });
-  on("target_confirmed", () => { $("move-note").textContent = "Confirmed! On to the next target."; });
-  on("target_rejected", () => { $("move-note").textContent = "The Commander says that is not it. Keep looking."; });
-  on("phase", (msg) => { if (msg.payload.phase === "finished") $("move-note").textContent = "All three targets found. Well done!"; });
-})();
+function move(action) {
+  if (pending && performance.now() - pendingSince < MOVE_TIMEOUT_MS) { note("Wait: the robot is still moving."); return; }
+  pending = Math.random().toString(36).slice(2, 10);
+  pendingSince = performance.now();
+  if (!send("move", {action, move_id: pending})) pending = null;
+}
+["forward", "left", "right"].forEach((a) => $(a).addEventListener("click", () => move(a)));
+document.addEventListener("keydown", (ev) => {
+  if (ev.target.tagName === "INPUT" || ev.target.tagName === "TEXTAREA" || !KEYS[ev.key]) return;
+  ev.preventDefault(); move(KEYS[ev.key]);
+});
+$("found").addEventListener("click", () => send("claim"));
+
+function camera(jpeg) { showImage($("camera"), `data:image/jpeg;base64,${jpeg}`); $("camera-wait").hidden = true; }
+
+on("welcome", (msg) => { pending = null; if (msg.frame) camera(msg.frame.jpeg); });
+on("frame", (msg) => camera(msg.jpeg));
+on("status", (s) => {
+  // Buttons follow the trial: moves and claims only while it runs.
+  const live = isRunning(s);
+  ["forward", "left", "right"].forEach((a) => { $(a).disabled = !live; });
+  $("found").disabled = !(live && s.phase === "navigating");
+  if (s.phase === "finished") note("All three targets found. Well done!");
+  else if (s.phase === "aborted") note("");
+});
+on("move_executed", (msg) => {
+  const p = msg.payload;
+  if (p.move_id === pending) pending = null;
+  note(p.outcome === "collision" ? "Bump! Something is in the way."
+    : p.outcome === "refused" ? friendlyError(p.reason) : "");
+});
+on("target_claimed", () => note("Waiting for the Commander to confirm…"));
+on("target_confirmed", () => note("Confirmed! On to the next target."));
+on("target_rejected", () => note("The Commander says that is not it. Keep looking."));

@@ -1,6 +1,8 @@
 // Replay of one recorded trial: one timeline drives the chat, the Driver's frames and the map.
-"use strict";
-(() => {
+import {TableMap} from "./maputil.js";
+import {emptyStatus, foldEvent, formatClock, statusText} from "./trial.js";
+
+{
   const root = document.getElementById("replay");
   const id = Number(root.dataset.trial);
   const $ = (x) => document.getElementById(x);
@@ -41,16 +43,15 @@
 
   function render() {
     const n = count(now);
-    let phase = "waiting", target = null, moves = 0, collisions = 0, frame = null, pose = null, confirmed = 0;
+    const status = emptyStatus();
+    let frame = null, pose = null;
     const trace = [], estimates = [];
     for (let i = 0; i < n; i++) {
       const e = events[i], p = e.payload;
-      if (e.kind === "phase") { phase = p.phase; target = p.target_index; }
-      else if (e.kind === "move_executed" && p.outcome !== "refused") { moves++; if (p.collision) collisions++; }
-      else if (e.kind === "frame" && (p.source || "driver") === "driver") frame = p;
+      foldEvent(status, e);
+      if (e.kind === "frame" && (p.source || "driver") === "driver") frame = p;
       else if (e.kind === "pose") { pose = p; trace.push(p); }
       else if (e.kind === "localization") estimates.push(p);
-      else if (e.kind === "target_confirmed") confirmed++;
     }
     let latest = null;
     for (const {li, i} of chatItems) {
@@ -64,10 +65,11 @@
 
     const img = $("frame");
     if (frame && img.dataset.frameId !== String(frame.frame_id)) {
-      img.src = frame.url; img.dataset.frameId = frame.frame_id;
+      img.src = frame.url; img.dataset.frameId = frame.frame_id; img.hidden = false; $("frame-wait").hidden = true;
       $("frame-info").textContent = `frame ${frame.frame_id}`;
     } else if (!frame && img.dataset.frameId) {
-      img.removeAttribute("src"); delete img.dataset.frameId; $("frame-info").textContent = "";
+      img.removeAttribute("src"); delete img.dataset.frameId; img.hidden = true; $("frame-wait").hidden = false;
+      $("frame-info").textContent = "";
     }
 
     if (map.complete && map.naturalWidth) ctx.drawImage(map, 0, 0, canvas.width, canvas.height);
@@ -85,9 +87,9 @@
     canvas.dataset.poses = trace.length;
     canvas.dataset.estimates = estimates.length;
 
-    const targetText = target !== null && target !== undefined && phase === "navigating" ? ` → target ${target + 1}` : "";
-    $("status").textContent = `phase ${phase}${targetText} · ${moves} moves · ${collisions} collisions · ` +
-      `${confirmed} target(s) confirmed · event ${n} of ${events.length}`;
+    $("status").textContent = `${statusText(status, "experimenter")} Phase ${status.phase} · trial clock ` +
+      `${formatClock(status.active_ns / 1e9)} · ${status.moves || 0} moves · ${status.collisions} collisions · ` +
+      `${status.confirmed} target(s) confirmed · event ${n} of ${events.length}`;
     $("clock").textContent = `${(now / 1000).toFixed(1)} s / ${(end / 1000).toFixed(1)} s`;
     scrub.value = String(Math.round(now));
     root.dataset.events = n;
@@ -122,4 +124,4 @@
     .then((res) => { if (!res.ok) throw new Error(`replay log: HTTP ${res.status}`); return res.json(); })
     .then((log) => { prepare(log); root.dataset.ready = "1"; render(); })
     .catch((err) => { $("status").textContent = String(err); });
-})();
+}

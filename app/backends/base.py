@@ -8,23 +8,22 @@ from __future__ import annotations
 
 from collections.abc import AsyncIterator
 from dataclasses import dataclass
-from typing import Literal, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
-MoveAction = Literal["forward", "left", "right"]
-MOVE_ACTIONS: tuple[str, ...] = ("forward", "left", "right")
+from app.trial.vocabulary import MoveAction, Outcome
 
 
 @dataclass(frozen=True)
 class MoveOutcome:
     """What became of one move: `ok`, `collision` (the robot did not move) or `refused`."""
 
-    action: str
-    outcome: Literal["ok", "collision", "refused"]
+    action: MoveAction
+    outcome: Outcome
     reason: str | None = None
 
     @property
     def collision(self) -> bool:
-        return self.outcome == "collision"
+        return self.outcome == Outcome.COLLISION
 
 
 @dataclass(frozen=True)
@@ -48,7 +47,7 @@ class RobotBackend(Protocol):
 
     async def connect(self) -> None: ...
 
-    async def execute(self, action: str) -> MoveOutcome: ...
+    async def execute(self, action: MoveAction) -> MoveOutcome: ...
 
     def frames(self) -> AsyncIterator[Frame]: ...
 

@@ -1,8 +1,8 @@
 """Which backend fills a trial's robot seat, by the trial's `backend` spec.
 
-`sim` registers here; the rover registers `robot` (spec `robot:<id>`) with `register_backend`.
-A factory gets the spec and the trial's runtime (state, services, settings) and returns a
-`RobotBackend` that is not yet connected.
+`sim` registers here; the rover (`robot:<id>`) is found in `PLUGINS` and imported on first use.
+A factory gets the spec, the trial (as a `RobotTrial`: its state, its seats, its cameras) and the
+server's `Services`, and returns a `RobotBackend` that is not yet connected.
 """
 
 from __future__ import annotations
@@ -13,15 +13,16 @@ from collections.abc import Awaitable, Callable
 from typing import TYPE_CHECKING
 
 from app.backends.base import RobotBackend
+from app.trial.port import RobotTrial
 
 if TYPE_CHECKING:
-    from app.trial.runtime import TrialRuntime
+    from app.services import Services
 
-BackendFactory = Callable[[str, "TrialRuntime"], Awaitable[RobotBackend]]
+BackendFactory = Callable[[str, RobotTrial, "Services"], Awaitable[RobotBackend]]
 
 _FACTORIES: dict[str, BackendFactory] = {}
-# Modules that register a backend kind when imported, loaded on the first trial of that kind.
-PLUGINS = {"robot": "app.backends.remote"}
+# Backend kinds whose factory ("module:function") is imported on the first trial of that kind.
+PLUGINS = {"robot": "app.backends.remote:remote_backend"}
 
 
 def register_backend(kind: str, factory: BackendFactory) -> None:
@@ -32,27 +33,28 @@ def backend_kinds() -> list[str]:
     return sorted(set(_FACTORIES) | set(PLUGINS))
 
 
-async def create_backend(spec: str, runtime: "TrialRuntime") -> RobotBackend:
+async def create_backend(spec: str, trial: RobotTrial, services: "Services") -> RobotBackend:
     kind = spec.split(":", 1)[0]
     if kind not in _FACTORIES and kind in PLUGINS:
-        importlib.import_module(PLUGINS[kind])
+        module, name = PLUGINS[kind].split(":")
+        _FACTORIES[kind] = getattr(importlib.import_module(module), name)
     if kind not in _FACTORIES:
         raise LookupError(f"unknown robot backend {spec!r}; known kinds: {', '.join(backend_kinds())}")
-    return await _FACTORIES[kind](spec, runtime)
+    return await _FACTORIES[kind](spec, trial, services)
 
 
-async def simulator_backend(spec: str, runtime: "TrialRuntime") -> RobotBackend:
+async def simulator_backend(spec: str, trial: RobotTrial, services: "Services") -> RobotBackend:
     from app.backends.sim import SimulatorBackend
     from sim.dynamics import snap_pose
 
-    mazes, state = runtime.services.mazes, runtime.state
+    mazes, state = services.mazes, trial.state
     # Reading a maze and building its graph take a while: off the loop, other trials keep moving.
     graph = await asyncio.to_thread(mazes.graph, state.maze)
     if state.pose is not None:  # resuming: the robot is where the log last saw it
         start = snap_pose(graph, *state.pose)
     else:
-        start = await asyncio.to_thread(mazes.start_pose, state.maze, state.targets[0], runtime.trial_id)
-    return SimulatorBackend(mazes.load(state.maze), graph, start, runtime.services.clock)
+        start = await asyncio.to_thread(mazes.start_pose, state.maze, state.targets[0], trial.trial_id)
+    return SimulatorBackend(mazes.load(state.maze), graph, start, services.clock)
 
 
 register_backend("sim", simulator_backend)

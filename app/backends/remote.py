@@ -24,14 +24,14 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.backends.base import BackendUnavailable, Frame, MoveOutcome
-from app.backends.registry import register_backend
 from app.db.models import Robot
 from app.perception.tracker_seat import TrialTracker
-from app.trial.state import PARTICIPANT_ROLES, RUNNING_PHASES
+from app.trial.port import RobotTrial
+from app.trial.vocabulary import PARTICIPANTS, FrameSource, MoveAction, Outcome, Role
 from robot_client.protocol import FrameHeader, encode
 
 if TYPE_CHECKING:
-    from app.trial.runtime import TrialRuntime
+    from app.services import Services
 
 logger = logging.getLogger(__name__)
 
@@ -44,7 +44,7 @@ RATE_WINDOW_S = 2.0
 
 
 # -- robots and their tokens --------------------------------------------------------
-ROBOT_ROLES = ("driver", "overhead")
+ROBOT_ROLES = (Role.DRIVER, Role.OVERHEAD)  # a rover registers as the trial's `driver` camera
 
 
 class RobotSetupError(ValueError):
@@ -132,8 +132,17 @@ class RobotLink:
         mono = received_ns if offset is None else min(robot_ns - offset, received_ns)
         return self._clock.now_ns() - (time.monotonic_ns() - mono)
 
+    @property
+    def last_capture_ns(self) -> int:
+        return self._last_capture_ns
+
+    def stamp_after(self, t_ns: int) -> None:
+        """Stamp every frame of this link after `t_ns` (the robot's last frame on an earlier link)."""
+        self._last_capture_ns = max(self._last_capture_ns, t_ns)
+
     def capture_time(self, robot_ns: int, received_ns: int) -> int:
-        """A frame's capture time on the server clock, strictly after the previous frame's."""
+        """A frame's capture time on the server clock, strictly after the previous frame's
+        (of this link, and of the robot's links before it: `RobotLinks.last_capture_ns`)."""
         t_ns = max(self.server_time(robot_ns, received_ns), self._last_capture_ns + 1)
         self._last_capture_ns = t_ns
         return t_ns
@@ -153,7 +162,7 @@ class RobotLink:
         return len(recent) / RATE_WINDOW_S
 
     # moves
-    async def move(self, action: str) -> dict[str, Any]:
+    async def move(self, action: MoveAction) -> dict[str, Any]:
         """Send one move and return the robot's acknowledgement (ack times on the server clock)."""
         if self.closed:
             raise BackendUnavailable(f"robot {self.name!r} is not connected")
@@ -161,7 +170,7 @@ class RobotLink:
         move_id = f"{self.connected_ns:x}-{self._move_seq}"
         future = asyncio.get_running_loop().create_future()
         self._pending[move_id] = future
-        self._send({"type": "move", "id": move_id, "action": action})
+        self._send({"type": "move", "id": move_id, "action": str(action)})
         try:
             return await asyncio.wait_for(future, ACK_TIMEOUT_S)
         except TimeoutError:
@@ -245,12 +254,22 @@ class RobotLinks:
         self.links: dict[int, RobotLink] = {}
         self.slots: dict[int, FrameSlot] = {}
         self.backends: dict[int, set[RemoteRobotBackend]] = {}
+        self._stamps: dict[int, int] = {}  # robot id -> last capture stamp of its links that are gone
 
     def slot(self, robot_id: int) -> FrameSlot:
         return self.slots.setdefault(robot_id, FrameSlot())
 
+    def last_capture_ns(self, robot_id: int) -> int:
+        """The robot's latest frame stamp over all its links: a new link's stamps come after it."""
+        link, frame = self.links.get(robot_id), self.slot(robot_id).frame
+        return max(link.last_capture_ns if link is not None else 0, frame.capture_ns if frame is not None else 0,
+                   self._stamps.get(robot_id, 0))
+
     def attach(self, link: RobotLink) -> None:
         """Make `link` the robot's link; an older one is closed (its socket notices and ends)."""
+        # Stamps of one robot never go back, even when its link is new (a frame buffered across
+        # the reconnection, a different clock offset): frames are ordered and named by them.
+        link.stamp_after(self.last_capture_ns(link.robot_id))
         previous = self.links.get(link.robot_id)
         if previous is not None:
             previous.replaced = True
@@ -261,6 +280,7 @@ class RobotLinks:
 
     def detach(self, link: RobotLink) -> None:
         link.close()
+        self._stamps[link.robot_id] = max(self._stamps.get(link.robot_id, 0), link.last_capture_ns)
         if self.links.get(link.robot_id) is not link:
             return  # already replaced by a newer connection
         del self.links[link.robot_id]
@@ -270,12 +290,12 @@ class RobotLinks:
     def trials_of(self, link: RobotLink) -> list[RemoteRobotBackend]:
         """The backends (one per live trial) a link's data belongs to: a rover's own trials, or,
         for the overhead camera over the table, every trial on a real robot."""
-        if link.role == "driver":
+        if link.role == Role.DRIVER:
             return list(self.backends.get(link.robot_id, ()))
         return [backend for backends in self.backends.values() for backend in backends]
 
     async def frame(self, link: RobotLink, frame: Frame) -> None:
-        if link.role == "driver":
+        if link.role == Role.DRIVER:
             await self.slot(link.robot_id).put(frame)
             return
         for backend in self.trials_of(link):
@@ -283,7 +303,7 @@ class RobotLinks:
 
     def bad_message(self, link: RobotLink, error: str) -> None:
         # In the log the rover is the `robot` seat; its `driver` role would read as the participant.
-        role = "robot" if link.role == "driver" else link.role
+        role = Role.ROBOT if link.role == Role.DRIVER else Role(link.role)
         for backend in self.trials_of(link):
             backend.record_bad_message(role, error)
 
@@ -312,42 +332,41 @@ def robot_links(services) -> RobotLinks:
 class RobotSeat:
     """The rover as a seat of the trial: its presence pauses and resumes the trial; it hears nothing."""
 
-    role = "robot"
+    role = Role.ROBOT
 
     def deliver(self, message: dict[str, Any]) -> None:
         pass
 
 
 class RemoteRobotBackend:
-    def __init__(self, robot_id: int, name: str, links: RobotLinks, runtime: "TrialRuntime") -> None:
+    def __init__(self, robot_id: int, name: str, links: RobotLinks, trial: RobotTrial,
+                 tracker: TrialTracker) -> None:
         self.robot_id, self.name = robot_id, name
-        self.links, self.runtime = links, runtime
+        self.links, self.trial, self.tracker = links, trial, tracker
         self._seat: RobotSeat | None = None
         self._moving = False
         self._closed = False
-        self.tracker = TrialTracker(runtime.settings.overhead_calibration, self._tracked,
-                                    runtime.services.clock.now_ns)
+        tracker.record_pose = self._tracked
 
     async def connect(self) -> None:
         """Follow the robot's link. The rover is a seat the trial needs: until it joins, the trial
-        stays `waiting` (`TrialState.waiting_for`), and a running trial it left stays paused."""
+        stays `waiting` (`TrialState.waiting_for`), and a running trial it left stays paused
+        (the trial's reopening recorded its absence)."""
         self.links.backends.setdefault(self.robot_id, set()).add(self)
-        link, state = self.links.links.get(self.robot_id), self.runtime.state
+        link = self.links.links.get(self.robot_id)
         if link is not None:
             self.link_up(link)
-        elif state.phase in RUNNING_PHASES and "disconnect:robot" not in state.pause_reasons:
-            self.runtime.record("paused", {"reason": "disconnect:robot"})
 
     def link_up(self, link: RobotLink) -> None:
         self._seat = RobotSeat()
-        self.runtime.join(self._seat)
+        self.trial.join(self._seat)
 
     def link_down(self, link: RobotLink) -> None:
         if self._seat is not None:
             seat, self._seat = self._seat, None
-            self.runtime.leave(seat)
+            self.trial.leave(seat)
 
-    async def execute(self, action: str) -> MoveOutcome:
+    async def execute(self, action: MoveAction) -> MoveOutcome:
         link = self.links.links.get(self.robot_id)
         if link is None:
             raise BackendUnavailable(f"robot {self.name!r} is not connected")
@@ -357,18 +376,18 @@ class RemoteRobotBackend:
         finally:
             self._moving = False
         if ack.get("status") != "done":
-            return MoveOutcome(action, "refused", f"robot: {ack.get('reason', 'refused')}")
+            return MoveOutcome(action, Outcome.REFUSED, f"robot: {ack.get('reason', 'refused')}")
         # The Driver should see where the move left the robot: wait for a frame taken after it.
         finished = ack.get("finished_ns")
         if isinstance(finished, int):
             await self.links.slot(self.robot_id).captured_after(finished, FRAME_AFTER_MOVE_S)
-        return MoveOutcome(action, "ok")  # the rover cannot sense collisions; the overhead log can
+        return MoveOutcome(action, Outcome.OK)  # the rover cannot sense collisions; the overhead log can
 
     @property
     def attended(self) -> bool:
         """Someone is in the trial: only then are frames worth recording (a robot may have
         several trials open, abandoned ones among them)."""
-        return any(role in self.runtime.seats for role in PARTICIPANT_ROLES)
+        return any(role in self.trial.state.connected for role in PARTICIPANTS)
 
     async def frames(self) -> AsyncIterator[Frame]:
         slot = self.links.slot(self.robot_id)
@@ -382,17 +401,17 @@ class RemoteRobotBackend:
         return self.tracker.pose()
 
     def record_overhead(self, frame: Frame) -> None:
-        if self.attended and not self.runtime.state.over:
-            self.runtime.record_frame(frame.jpeg, frame.capture_ns, frame.width, frame.height, "overhead")
+        if self.attended and not self.trial.state.over:
+            self.trial.record_frame(frame.jpeg, frame.capture_ns, frame.width, frame.height, FrameSource.OVERHEAD)
             self.tracker.offer(frame.jpeg, frame.capture_ns)
 
     def _tracked(self, pose: tuple[float, float, float]) -> None:
-        if not self._closed and not self.runtime.state.over:
-            self.runtime.record_pose(pose)
+        if not self._closed and not self.trial.state.over:
+            self.trial.record_pose(pose)
 
-    def record_bad_message(self, role: str, error: str) -> None:
-        if not self.runtime.state.over:
-            self.runtime.record("bad_message", {"role": role, "error": error[:500]})
+    def record_bad_message(self, role: Role, error: str) -> None:
+        if not self.trial.state.over:
+            self.trial.report_bad_message(role, error)
 
     async def close(self) -> None:
         self._closed = True
@@ -403,19 +422,17 @@ class RemoteRobotBackend:
         await self.links.slot(self.robot_id).wake()
 
 
-async def remote_backend(spec: str, runtime: "TrialRuntime") -> RemoteRobotBackend:
+async def remote_backend(spec: str, trial: RobotTrial, services: "Services") -> RemoteRobotBackend:
     """`robot:<id>`: the registered driver robot with that id."""
     try:
         robot_id = int(spec.split(":", 1)[1])
     except (IndexError, ValueError):
         raise LookupError(f"robot backend {spec!r}: expected 'robot:<id>'") from None
-    with runtime.services.db() as db:
+    with services.db() as db:
         robot = db.get(Robot, robot_id)
     if robot is None:
         raise LookupError(f"robot backend {spec!r}: no robot {robot_id} is registered")
-    if robot.role != "driver":
+    if robot.role != Role.DRIVER:
         raise LookupError(f"robot backend {spec!r}: robot {robot.name!r} is an {robot.role} camera, not a rover")
-    return RemoteRobotBackend(robot.id, robot.name, robot_links(runtime.services), runtime)
-
-
-register_backend("robot", remote_backend)
+    tracker = TrialTracker(services.settings.overhead_calibration, services.clock.now_ns)
+    return RemoteRobotBackend(robot.id, robot.name, robot_links(services), trial, tracker)

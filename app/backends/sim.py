@@ -15,6 +15,7 @@ import numpy as np
 
 from app.backends.base import Frame, MoveOutcome
 from app.clock import ServerClock
+from app.trial.vocabulary import MoveAction, Outcome
 from sim.dynamics import Action, Pose, step
 from sim.geometry import heading_angle
 from sim.maze import Maze
@@ -37,10 +38,10 @@ class SimulatorBackend:
     async def connect(self) -> None:
         await self._capture()
 
-    async def execute(self, action: str) -> MoveOutcome:
+    async def execute(self, action: MoveAction) -> MoveOutcome:
         self._pose, collided = step(self.graph, self._pose, Action.parse(action))
         await self._capture()
-        return MoveOutcome(action, "collision" if collided else "ok")
+        return MoveOutcome(action, Outcome.COLLISION if collided else Outcome.OK)
 
     async def frames(self) -> AsyncIterator[Frame]:
         while (frame := await self._frames.get()) is not None:

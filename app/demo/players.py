@@ -17,6 +17,7 @@ from typing import Any
 from websockets.asyncio.client import ClientConnection, connect
 
 from app.demo.script import OBJECT_WORDS, describe_view, plan_leg
+from app.trial.vocabulary import Phase, Role
 from sim.dynamics import Action, Pose, step, teacher_action
 from sim.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M, heading_angle
 from sim.maze import Maze
@@ -103,13 +104,13 @@ class ScriptedCommander:
         self.maze, self.graph, self.targets, self.rng, self.pace_s = maze, graph, targets, rng, pace_s
 
     async def play(self, seat: Seat, start: Pose) -> None:
-        await seat.until(lambda m: _is_phase(m, "localizing"), "the localizing phase")
+        await seat.until(lambda m: _is_phase(m, Phase.LOCALIZING), "the localizing phase")
         await seat.say("hi! what do you see around you?")
         await seat.until(self._driver_chat, "the driver's description")
         await self._localize(seat, start)
         pose = start
         for k, target in enumerate(self.targets):
-            await seat.until(lambda m, k=k: _is_phase(m, "navigating", k), f"navigating to target {k}")
+            await seat.until(lambda m, k=k: _is_phase(m, Phase.NAVIGATING, k), f"navigating to target {k}")
             leg = plan_leg(self.maze, self.graph, pose, target)
             await seat.say(f"now find the {OBJECT_WORDS[target]}")
             for line in leg.instructions:
@@ -124,7 +125,7 @@ class ScriptedCommander:
                 if message["payload"]["text"].endswith("?"):
                     await seat.say(self.rng.choice(ANSWERS))
             await seat.send("confirm")
-        await seat.until(lambda m: _is_phase(m, "finished"), "the end of the trial")
+        await seat.until(lambda m: _is_phase(m, Phase.FINISHED), "the end of the trial")
 
     async def _localize(self, seat: Seat, start: Pose) -> None:
         # The Commander's estimate: close to the truth, as a good team's is.
@@ -138,7 +139,7 @@ class ScriptedCommander:
     @staticmethod
     def _driver_chat(message: dict) -> bool:
         return (message.get("type") == "event" and message.get("kind") == "chat"
-                and message["payload"].get("role") == "driver")
+                and message["payload"].get("role") == Role.DRIVER)
 
 
 def _claim(message: dict) -> bool:
@@ -156,12 +157,12 @@ class ScriptedDriver:
         self.moves = 0
 
     async def play(self, seat: Seat, start: Pose) -> None:
-        await seat.until(lambda m: _is_phase(m, "localizing"), "the localizing phase")
-        await seat.event("chat", role="commander")
+        await seat.until(lambda m: _is_phase(m, Phase.LOCALIZING), "the localizing phase")
+        await seat.event("chat", role=Role.COMMANDER)
         await seat.say(describe_view(self.maze, self.graph, start))
         pose = start
         for k, target in enumerate(self.targets):
-            await seat.until(lambda m, k=k: _is_phase(m, "navigating", k), f"navigating to target {k}")
+            await seat.until(lambda m, k=k: _is_phase(m, Phase.NAVIGATING, k), f"navigating to target {k}")
             pose = await self._drive_to(seat, pose, self.graph.nearest_node(*self.maze.objects[target]))
             await seat.say(f"i think i found the {OBJECT_WORDS[target]}")
             await seat.send("claim")

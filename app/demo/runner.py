@@ -26,6 +26,7 @@ from app.security import SeatTokens
 from app.settings import Settings
 from app.trial.log import EventLog
 from app.trial.setup import create_participant, create_team, create_trial, parse_targets, suggest_maze
+from app.trial.vocabulary import PARTICIPANTS
 from sim.dynamics import Pose, snap_pose
 
 DEMO_TEAM = "demo team {k}"
@@ -88,7 +89,7 @@ class Demo:
         seats: list[Seat] = []
         error = None
         try:
-            for role in ("commander", "driver"):
+            for role in PARTICIPANTS:
                 seats.append(await Seat.open(server, trial.id, role, self.seats.issue(trial.id, role)))
             start = self.start_pose(trial)
             await asyncio.gather(commander.play(seats[0], start), driver.play(seats[1], start))
@@ -128,8 +129,10 @@ async def serving(settings: Settings, server: str | None) -> AsyncIterator[str]:
     from app.main import create_app
 
     port = free_port()
+    from app.serving import uvicorn_options
+
     config = uvicorn.Config(create_app(settings), host="127.0.0.1", port=port, log_level="warning",
-                            ws_max_size=max(65536, 4 * settings.max_message_bytes), lifespan="on")
+                            lifespan="on", **uvicorn_options(settings))
     server_ = uvicorn.Server(config)
     task = asyncio.get_running_loop().create_task(server_.serve())
     while not server_.started:

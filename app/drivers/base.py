@@ -20,7 +20,9 @@ from __future__ import annotations
 
 from typing import Any, Protocol, runtime_checkable
 
-DRIVER_ACTIONS = ("forward", "left", "right", "stop")
+from app.trial.vocabulary import MoveAction
+
+DRIVER_ACTIONS = (*(str(a) for a in MoveAction), "stop")
 
 
 @runtime_checkable

@@ -6,8 +6,8 @@ from __future__ import annotations
 import random
 from typing import Any
 
-from app.drivers.registry import register_driver
 from app.mazes import Mazes
+from app.trial.vocabulary import MoveAction
 from sim.dynamics import snap_pose, teacher_action
 
 RANDOM_CLAIM_P = 0.02
@@ -23,7 +23,7 @@ class RandomDriver:
     def act(self, dialog, observation) -> str:
         if self.rng.random() < RANDOM_CLAIM_P:
             return "stop"
-        return self.rng.choice(("forward", "left", "right"))
+        return str(self.rng.choice(list(MoveAction)))
 
 
 class ShortestPathDriver:
@@ -44,5 +44,9 @@ class ShortestPathDriver:
         return teacher_action(self.graph, snap_pose(self.graph, *pose), goal).word
 
 
-register_driver("random", lambda info, services: RandomDriver())
-register_driver("shortest", lambda info, services: ShortestPathDriver(services.mazes))
+def random_driver(info, services) -> RandomDriver:
+    return RandomDriver()
+
+
+def shortest_driver(info, services) -> ShortestPathDriver:
+    return ShortestPathDriver(services.mazes)

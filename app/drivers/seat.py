@@ -1,8 +1,9 @@
 """`AgentSeat`: a `DriverPolicy` in the Driver's seat of a live trial.
 
 It joins the trial like a browser Driver and hears the same filtered events (dialog and
-frames, never the map); its moves go through the same refusal rules and event log. "stop"
-becomes a claim, announced in the chat; after a rejection it keeps driving.
+frames, never the map); it acts through `DriverTrial` alone, so its moves go through the same
+rules and event log as a person's. "stop" becomes a claim, announced in the chat; after a
+rejection it keeps driving.
 """
 
 from __future__ import annotations
@@ -15,18 +16,20 @@ from typing import Any
 
 from app.drivers.base import DRIVER_ACTIONS
 from app.drivers.registry import create_driver
-from app.trial.runtime import TrialError
+from app.trial.decide import Refused
+from app.trial.port import DriverTrial
+from app.trial.vocabulary import MoveAction, Phase, Role
 
 logger = logging.getLogger(__name__)
 PERCEPTION_WAIT_S = 5.0  # longer than perceiving a frame takes on a loaded machine
 
 
 class AgentSeat:
-    role = "driver"
+    role = Role.DRIVER
 
-    def __init__(self, runtime) -> None:
-        self.runtime = runtime
-        self.name = runtime.state.driver.split(":", 1)[1]
+    def __init__(self, trial: DriverTrial, services) -> None:
+        self.trial, self.services = trial, services
+        self.name = trial.state.driver.split(":", 1)[1]
         self.dialog: list[dict[str, str]] = []
         self.frame: bytes | None = None
         self.frame_id: int | None = None
@@ -68,25 +71,23 @@ class AgentSeat:
         except asyncio.CancelledError:
             raise
         except Exception as err:  # a broken agent must show in the log, not hang the trial silently
-            logger.exception("agent %s failed in trial %s", self.name, self.runtime.trial_id)
-            if not self.runtime.state.over:
-                self.runtime.record("bad_message", {"role": "driver",
-                                                    "error": f"agent {self.name!r} failed: {err}"[:500]})
+            logger.exception("agent %s failed in trial %s", self.name, self.trial.trial_id)
+            if not self.trial.state.over:
+                self.trial.report_bad_message(Role.DRIVER, f"agent {self.name!r} failed: {err}")
 
     async def _drive(self) -> None:
-        runtime = self.runtime
-        state, settings = runtime.state, runtime.settings
-        info = {"trial_id": runtime.trial_id, "maze": state.maze, "targets": list(state.targets),
+        trial, state = self.trial, self.trial.state
+        info = {"trial_id": trial.trial_id, "maze": state.maze, "targets": list(state.targets),
                 "backend": state.backend}
-        policy = await asyncio.to_thread(create_driver, self.name, info, runtime.services)
+        policy = await asyncio.to_thread(create_driver, self.name, info, self.services)
         await asyncio.to_thread(policy.reset, info)
-        runtime.join(self)
-        while not runtime.state.over:
-            await asyncio.sleep(settings.agent_move_interval_s)
-            s = runtime.state
+        trial.join(self)
+        while not trial.state.over:
+            await asyncio.sleep(self.services.settings.agent_move_interval_s)
+            s = trial.state
             if not s.running or s.pending_claim is not None or s.current_target is None:
                 continue
-            pose = runtime.backend.pose() if runtime.backend is not None else None
+            pose = trial.true_pose()
             observation = {"frame": self.frame, "frame_id": self.frame_id, "target": s.current_target,
                            "target_index": s.target_index, "rejected": self.rejected, "pose": pose}
             if pose is None:  # a rover: what the camera and the particle filter say instead
@@ -97,29 +98,28 @@ class AgentSeat:
     async def _perceived(self) -> dict[str, Any]:
         """The rays perceived at the frame after the last move and the belief after it; nothing
         while the trial's filter is not running or has not seen that frame in time."""
-        belief = self.runtime.belief
         for _ in range(round(PERCEPTION_WAIT_S / 0.02)):
+            belief = self.trial.belief
             if belief is not None and belief.settled:
                 observed = belief.latest
                 b = observed.belief
                 return {"rays": observed.rays,
                         "belief": {"x": b.x, "y": b.y, "heading": b.heading, "spread_m": b.spread_m}}
             await asyncio.sleep(0.02)
-            belief = self.runtime.belief
         return {}
 
     async def _act(self, action: str) -> None:
-        runtime, s = self.runtime, self.runtime.state
+        trial, s = self.trial, self.trial.state
         if action not in DRIVER_ACTIONS:
-            runtime.record("bad_message", {"role": "driver", "error": f"agent {self.name!r} returned {action!r}"})
+            trial.report_bad_message(Role.DRIVER, f"agent {self.name!r} returned {action!r}")
             return
         if action != "stop":
-            await runtime.move(action)
+            await trial.request_move(MoveAction(action))
             return
-        if s.phase != "navigating" or s.pending_claim is not None or not s.running:
+        if s.phase != Phase.NAVIGATING or s.pending_claim is not None or not s.running:
             return
         try:
-            runtime.record("chat", {"role": "driver", "text": f"I think I found the {s.current_target}"})
-            runtime.claim()
-        except TrialError as err:
+            trial.say(Role.DRIVER, f"I think I found the {s.current_target}")
+            trial.claim()
+        except Refused as err:
             logger.info("agent %s: claim refused: %s", self.name, err)

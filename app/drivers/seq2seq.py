@@ -1,25 +1,46 @@
 """`agent:seq2seq`: the learned NDH Driver (`models/driver.py`) in the Driver's seat.
 
-The app imports models/, never the reverse; torch is loaded only when a trial seats this agent.
+The app imports models/, never the reverse; torch is loaded only when this agent is checked
+(to offer it) or seated.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from app.drivers.registry import register_driver
-from app.services import Services
+if TYPE_CHECKING:
+    from app.services import Services
+
+NO_CHECKPOINT = ("agent:seq2seq needs a checkpoint: set ROBOTSLANG_SEQ2SEQ_CHECKPOINT to a file "
+                 "written by `robotslang train ndh` (e.g. RUN/best.pt)")
 
 
-def seq2seq_driver(info: dict[str, Any], services: Services):
+def seq2seq_check(services: "Services") -> str | None:
+    """Why the checkpoint cannot be seated, or None; loaded once per version of the file."""
     checkpoint = services.settings.seq2seq_checkpoint
     if checkpoint is None:
-        raise LookupError("agent:seq2seq needs a checkpoint: set ROBOTSLANG_SEQ2SEQ_CHECKPOINT to a file "
-                          "written by `robotslang train ndh` (e.g. RUN/best.pt)")
+        return NO_CHECKPOINT
+    try:
+        stat = checkpoint.stat()
+    except OSError as err:
+        return f"agent:seq2seq: checkpoint {checkpoint}: {err.strerror or err}"
+    key = ("seq2seq", str(checkpoint), stat.st_mtime_ns, stat.st_size)
+    if key not in services.driver_checks:
+        try:
+            from models.train import load_agent
+
+            load_agent(checkpoint)
+            services.driver_checks[key] = None
+        except Exception as err:  # any failure to load is the reason it is not offered
+            services.driver_checks[key] = f"agent:seq2seq cannot load checkpoint {checkpoint}: {err}"
+    return services.driver_checks[key]
+
+
+def seq2seq_driver(info: dict[str, Any], services: "Services"):
+    checkpoint = services.settings.seq2seq_checkpoint
+    if checkpoint is None:
+        raise LookupError(NO_CHECKPOINT)
     from models.driver import Seq2SeqDriver
 
     mazes = services.mazes  # the server's, so the maze and its graph are not loaded again
     return Seq2SeqDriver(checkpoint, lambda name: (mazes.load(name), mazes.graph(name)))
-
-
-register_driver("seq2seq", seq2seq_driver)

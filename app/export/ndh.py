@@ -27,11 +27,12 @@ import numpy as np
 
 from app.export.record import TrialRecord
 from app.trial.state import LoggedEvent
+from app.trial.vocabulary import Phase, Role
 from sim.maze import Maze
 
 SPLITS = ("train", "val_seen", "test")
 HELD_OUT_FRACTION = 0.15  # of mazes, for each of val_seen and test (the benchmark: 26 + 26 of 170)
-ROLES = {"commander": "oracle", "driver": "navigator"}
+ROLES = {Role.COMMANDER: "oracle", Role.DRIVER: "navigator"}
 
 
 def scan_id(maze: str, target: str, agent_pose: Sequence[float], target_pose: Sequence[float]) -> str:
@@ -60,7 +61,7 @@ def _pose_at(events: Sequence[LoggedEvent], seq: int) -> list[float] | None:
 
 
 def _start_seq(events: Sequence[LoggedEvent]) -> int:
-    starts = [e.seq for e in events if e.kind == "phase" and e.payload.get("phase") == "localizing"]
+    starts = [e.seq for e in events if e.kind == "phase" and e.payload.get("phase") == Phase.LOCALIZING]
     return starts[0] if starts else (events[0].seq if events else 0)
 
 

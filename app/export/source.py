@@ -10,6 +10,7 @@ from app.db.models import Team, Trial
 from app.export.record import ExportError, TrialRecord
 from app.settings import Settings
 from app.trial.state import LoggedEvent
+from app.trial.vocabulary import Phase
 
 
 def load_trial(session: Session, settings: Settings, trial_id: int | str) -> TrialRecord:
@@ -32,4 +33,4 @@ def load_trial(session: Session, settings: Settings, trial_id: int | str) -> Tri
 
 
 def finished_trial_ids(session: Session) -> list[int]:
-    return list(session.scalars(select(Trial.id).where(Trial.phase == "finished").order_by(Trial.id)))
+    return list(session.scalars(select(Trial.id).where(Trial.phase == Phase.FINISHED).order_by(Trial.id)))

@@ -21,8 +21,9 @@ FRESH_S = 2.0  # a tracked pose older than this is not where the rover is now
 
 
 class TrialTracker:
-    def __init__(self, calibration_path: Path | None, record_pose, clock_ns) -> None:
-        """`record_pose((x, y, heading))` commits one pose event; `clock_ns()` is the server clock."""
+    def __init__(self, calibration_path: Path | None, clock_ns) -> None:
+        """`clock_ns()` is the server clock; each tracked pose goes to `record_pose((x, y, heading))`,
+        set by the trial's backend."""
         calibration = None
         if calibration_path is not None and Path(calibration_path).exists():
             try:
@@ -30,7 +31,8 @@ class TrialTracker:
             except CalibrationError as err:
                 logger.warning("overhead calibration not used, self-calibrating: %s", err)
         self.tracker = OverheadTracker(calibration)
-        self.record_pose, self.clock_ns = record_pose, clock_ns
+        self.clock_ns = clock_ns
+        self.record_pose = lambda pose: None
         self.latest: TrackedPose | None = None
         self._busy = False
         self._last_t_ns = 0

@@ -11,13 +11,14 @@ from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from sqlalchemy import select
 
 from app.backends.remote import robot_links
-from app.db.models import Participant, Robot, Team, Trial
-from app.drivers.registry import driver_names
+from app.db.models import Frame, Participant, Robot, Team, Trial
+from app.drivers.registry import available_drivers
+from app.guard import csrf_protect, current_login
 from app.routes.pages import render, trial_or_404
-from app.security import SESSION_COOKIE
 from app.trial.setup import (TrialSetupError, create_participant, create_team, create_trial, parse_targets,
                              suggest_maze)
 from app.trial.state import fold
+from app.trial.vocabulary import Role
 
 
 class LoginRequired(Exception):
@@ -25,19 +26,33 @@ class LoginRequired(Exception):
 
 
 def experimenter(request: Request) -> int:
-    services = request.app.state.services
-    user = services.sessions.verify(request.cookies.get(SESSION_COOKIE))
-    if user is None:
+    login = current_login(request)
+    if login is None:
         raise LoginRequired()
-    return user
+    return login.experimenter_id
 
 
-router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter)])
+# Every state-changing request also needs this server's Origin and the page's CSRF token.
+router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter), Depends(csrf_protect)])
+
+
+def agent_drivers(services) -> dict[str, str | None]:
+    """Each agent Driver by its `agent:<name>` spec, with why it cannot start now (None: it can)."""
+    return {f"agent:{name}": reason for name, reason in sorted(available_drivers(services).items())}
+
+
+def controls_for(phase: str, paused: list[str] | tuple[str, ...] = ()) -> list[str]:
+    """The experimenter's controls that apply to a trial in `phase` (pause, resume, abort)."""
+    if phase in ("finished", "aborted"):
+        return []
+    if phase == "waiting":
+        return ["abort"]
+    return ["resume" if "experimenter" in paused else "pause", "abort"]
 
 
 def join_links(request: Request, trial: Trial) -> dict[str, str]:
     seats = request.app.state.services.seats
-    roles = ["commander"] + (["driver"] if trial.driver == "human" else [])
+    roles = [Role.COMMANDER] + ([Role.DRIVER] if trial.driver == "human" else [])
     return {role: str(request.url_for("play", token=seats.issue(trial.id, role))) for role in roles}
 
 
@@ -48,7 +63,7 @@ def dashboard(request: Request, error: str | None = None):
         participants = db.scalars(select(Participant).order_by(Participant.name)).all()
         teams = db.scalars(select(Team).order_by(Team.name)).all()
         trials = db.scalars(select(Trial).order_by(Trial.id.desc()).limit(100)).all()
-        rovers = db.scalars(select(Robot).where(Robot.role == "driver").order_by(Robot.name)).all()
+        rovers = db.scalars(select(Robot).where(Robot.role == Role.DRIVER).order_by(Robot.name)).all()
         names = {p.id: p.name for p in participants}
         team_names = {t.id: t.name for t in teams}
         maze_names = services.mazes.names()
@@ -57,7 +72,7 @@ def dashboard(request: Request, error: str | None = None):
     backends = {"sim": "simulator", **{f"robot:{r.id}": f"{r.name} (rover)" for r in rovers}}
     return render(request, "experimenter.html", participants=participants, teams=teams, trials=trials,
                   names=names, team_names=team_names, mazes=maze_names, suggestions=suggestions,
-                  backends=backends, drivers=["human"] + [f"agent:{n}" for n in driver_names()],
+                  backends=backends, agents=agent_drivers(services), controls_for=controls_for,
                   robots=robot_links(services).status(), links={t.id: join_links(request, t) for t in trials},
                   error=error)
 
@@ -92,8 +107,6 @@ def add_trial(request: Request, team_id: int | None = Form(None), maze: str = Fo
     services = request.app.state.services
     names = services.mazes.names()
     try:
-        if driver != "human" and driver.removeprefix("agent:") not in driver_names():
-            raise TrialSetupError(f"driver {driver!r} is neither 'human' nor a known agent")
         if team_id is None:
             raise TrialSetupError("choose a team (form one first)")
         with services.db.begin() as db:
@@ -105,32 +118,61 @@ def add_trial(request: Request, team_id: int | None = Form(None), maze: str = Fo
                 raise TrialSetupError(f"team {team.name!r} has seen every maze in the library")
             create_trial(db, team_id=team_id, maze=maze, targets=parse_targets(targets, random.Random()),
                          backend=backend, driver=driver, commander_id=commander_id, maze_names=names,
-                         now_ns=services.clock.now_ns())
+                         now_ns=services.clock.now_ns(), agents=available_drivers(services))
     except TrialSetupError as err:
         return _redirect(str(err))
     return _redirect()
 
 
 @router.post("/trials/{trial_id}/{action}")
-async def control(request: Request, trial_id: int, action: str):
+async def control(request: Request, trial_id: int, action: str, back: str = Form("dashboard")):
+    """Pause, resume or abort; back to the dashboard, or to the trial's page (`back=trial`)."""
     if action not in ("pause", "resume", "abort"):
         raise HTTPException(404, f"unknown trial action {action!r}")
+    trial_or_404(request, trial_id)
+    page = f"/experimenter/trials/{trial_id}" if back == "trial" else "/experimenter"
+    state = fold(request.app.state.services.log.load(trial_id))
+    if action not in controls_for(state.phase, sorted(state.pause_reasons)):
+        return _redirect(f"trial {trial_id} is {_described(state)}: {action} does not apply")
     runtime = await request.app.state.services.hub.get(trial_id)
     getattr(runtime, action)()
-    return _redirect()
+    return RedirectResponse(page, status_code=303)
+
+
+def _described(state) -> str:
+    return state.phase + (" and paused" if "experimenter" in state.pause_reasons else "")
 
 
 @router.get("/api/trials")
 def live(request: Request):
-    """Every trial this server has open: phase, clock, moves, seats and the true pose."""
-    return {"trials": [r.snapshot() for r in request.app.state.services.hub.live()]}
+    """Every trial this server has open: phase, clock, moves, seats and the true pose; and the
+    recorded phase of the newest trials, so pages drop what is stale once a trial has ended."""
+    services = request.app.state.services
+    with services.db() as db:
+        phases = dict(db.execute(select(Trial.id, Trial.phase).order_by(Trial.id.desc()).limit(100)).all())
+    return {"trials": [r.snapshot() for r in services.hub.live()],
+            "phases": {str(trial_id): phase for trial_id, phase in phases.items()}}
 
 
 @router.get("/trials/{trial_id}", response_class=HTMLResponse)
 def watch(request: Request, trial_id: int):
     trial = trial_or_404(request, trial_id)
     state = fold(request.app.state.services.log.load(trial_id))
-    return render(request, "watch.html", trial=trial, state=state, links=join_links(request, trial))
+    return render(request, "watch.html", trial=trial, state=state, links=join_links(request, trial),
+                  controls=controls_for(state.phase, sorted(state.pause_reasons)))
+
+
+@router.get("/trials/{trial_id}/camera.jpg")
+def camera(request: Request, trial_id: int):
+    """The Driver's latest camera frame, for the experimenter watching the trial."""
+    services = request.app.state.services
+    with services.db() as db:
+        rel = db.scalar(select(Frame.path).where(Frame.trial_id == trial_id, Frame.source == "driver")
+                        .order_by(Frame.seq.desc()).limit(1))
+    path = services.settings.frames_dir / rel if rel is not None else None
+    if path is None or not path.is_file():
+        raise HTTPException(404, f"trial {trial_id} has no camera frame yet")
+    return Response(path.read_bytes(), media_type="image/jpeg", headers={"Cache-Control": "no-store"})
 
 
 @router.get("/trials/{trial_id}/map.png")

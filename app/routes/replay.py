@@ -1,4 +1,5 @@
-"""Replays of recorded trials, for experimenters: the page, its event log and the frames.
+"""Replays of recorded trials, for experimenters: the page, its event log, the frames and the
+trial's exports (MCAP for Foxglove, NDH/LDH instances in the benchmark's JSON).
 
 The page (`templates/replay.html`, `static/replay.js`) plays the log back on one timeline: the
 chat as it unfolded, the Driver's frames, and the full map with the true pose trace and the
@@ -7,15 +8,23 @@ Commander's estimates. Like every other reader, it reads only the event log.
 
 from __future__ import annotations
 
+import tempfile
+from pathlib import Path
+
 from fastapi import APIRouter, Depends, HTTPException, Request
-from fastapi.responses import FileResponse, HTMLResponse
+from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, Response
 from sqlalchemy import select
 
 from app.db.models import Frame, Team, Trial
+from app.export.record import ExportError, TrialRecord
+from app.export.source import load_trial
+from app.mazes import UnknownMaze
+from sim.maze import Maze
+from app.guard import csrf_protect
 from app.routes.experimenter import experimenter
 from app.routes.pages import render
 
-router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter)])
+router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter), Depends(csrf_protect)])
 REPLAYABLE = ("finished", "aborted")
 
 
@@ -73,3 +82,43 @@ def frame(request: Request, trial_id: int, frame_id: int):
     if not path.is_file():
         raise HTTPException(404, f"frame {frame_id} of trial {trial_id}: file {rel} is missing")
     return FileResponse(path, media_type="image/jpeg", headers={"Cache-Control": "private, max-age=86400"})
+
+
+def _record(request: Request, trial_id: int) -> tuple[TrialRecord, Maze | None]:
+    services = request.app.state.services
+    with services.db() as db:
+        try:
+            record = load_trial(db, services.settings, trial_id)
+        except ExportError as err:
+            raise HTTPException(404, str(err)) from None
+    try:
+        return record, services.mazes.load(record.maze)
+    except UnknownMaze:
+        return record, None
+
+
+@router.get("/trials/{trial_id}/export.mcap")
+def export_mcap(request: Request, trial_id: int):
+    """The trial as one MCAP file (Foxglove), as `robotslang export ID --format mcap` writes it."""
+    from app.export.mcap import write_mcap
+
+    record, maze = _record(request, trial_id)
+    with tempfile.TemporaryDirectory() as tmp:
+        try:
+            data = write_mcap(record, maze, Path(tmp) / "trial.mcap").read_bytes()
+        except ExportError as err:
+            raise HTTPException(409, str(err)) from None
+    return Response(data, media_type="application/octet-stream",
+                    headers={"Content-Disposition": f'attachment; filename="trial-{trial_id}.mcap"'})
+
+
+@router.get("/trials/{trial_id}/export.ndh.json")
+def export_ndh(request: Request, trial_id: int):
+    """The trial's NDH instances (one per confirmed target) and its LDH instance, benchmark JSON."""
+    from app.export.ndh import ldh_instances, ndh_instances
+
+    record, maze = _record(request, trial_id)
+    if maze is None:
+        raise HTTPException(409, f"maze {record.maze!r} of trial {trial_id} is not in the maze library")
+    return JSONResponse({"ndh": ndh_instances(record, maze), "ldh": ldh_instances(record, maze)},
+                        headers={"Content-Disposition": f'attachment; filename="trial-{trial_id}-ndh.json"'})

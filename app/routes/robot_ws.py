@@ -20,7 +20,9 @@ from fastapi import APIRouter, Depends, Form, HTTPException, Request, WebSocket,
 from app.backends.remote import (
     MAX_FRAME_BYTES, PING_INTERVAL_S, RobotLink, RobotSetupError, create_robot, robot_for_token, robot_links,
 )
+from app.guard import csrf_protect, socket_origin_allowed
 from app.routes.experimenter import experimenter
+from app.serving import MESSAGE_TOO_BIG
 from robot_client.protocol import (
     CLOSE_REFUSED, CLOSE_REPLACED, PROTOCOL_VERSION, ROBOT_TYPES, ROLES, ProtocolError, decode, encode,
     unpack_frame,
@@ -43,6 +45,9 @@ class Refused(Exception):
 async def robot_socket(ws: WebSocket) -> None:
     services = ws.app.state.services
     links = robot_links(services)
+    if not socket_origin_allowed(ws.headers, ws.url.scheme, services.settings):  # a page on another site
+        await ws.close(code=1008, reason="origin not allowed")
+        return
     await ws.accept()
     try:
         robot_id, name, role = await _hello(ws, services)
@@ -133,6 +138,8 @@ async def _read(ws: WebSocket, link: RobotLink, links) -> None:
         while not link.closed:
             raw = await ws.receive()
             if raw["type"] == "websocket.disconnect":
+                if raw.get("code") == MESSAGE_TOO_BIG:  # answered by the server (app.serving); now logged
+                    links.bad_message(link, raw.get("reason") or "message too big")
                 return
             received_ns = link.last_heard_ns = time.monotonic_ns()
             try:
@@ -167,7 +174,7 @@ def robots_status(request: Request) -> dict:
     return {"robots": robot_links(request.app.state.services).status()}
 
 
-@router.post("/experimenter/api/robots", dependencies=[Depends(experimenter)])
+@router.post("/experimenter/api/robots", dependencies=[Depends(experimenter), Depends(csrf_protect)])
 def register_robot(request: Request, name: str = Form(max_length=80), role: str = Form("driver")) -> dict:
     """Register a robot. The answer holds its token: shown this once, stored only hashed."""
     try:

@@ -1,7 +1,8 @@
-"""`/ws/play`: the Commander's and the Driver's socket.
+"""`/ws/play`: the Commander's and the Driver's socket; `/ws/watch/{trial_id}`: the experimenter's.
 
-The token is checked at the upgrade and again on every message (`TrialRuntime.receive`).
-The trial may run in this process or, with Redis, in another (`app.trial.relay`).
+The token is checked at the upgrade and again on every message (`TrialRuntime.receive`); the
+watch socket needs the experimenter's login cookie and only listens. The trial may run in this
+process or, with Redis, in another (`app.trial.relay`).
 """
 
 from __future__ import annotations
@@ -10,28 +11,21 @@ import asyncio
 import contextlib
 import json
 import logging
-from urllib.parse import urlsplit
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
-from app.security import InvalidToken
-from app.settings import Settings
+from app.db.models import Trial
+from app.guard import socket_origin_allowed
+from app.routes.pages import over_reason
+from app.security import SESSION_COOKIE, InvalidToken
+from app.serving import MESSAGE_TOO_BIG
 from app.trial.runtime import UnknownTrial
+from app.trial.views import EXPERIMENTER
+from app.trial.vocabulary import Role
 
 router = APIRouter()
 logger = logging.getLogger(__name__)
 OUTBOX_LIMIT = 512  # messages waiting for a slow browser before it is dropped
-
-
-def origin_allowed(ws: WebSocket, settings: Settings) -> bool:
-    """Browsers always send Origin: it must be the page's own host or an allowed origin.
-    Clients that are not browsers (scripts, the rover) send none and are judged by token alone."""
-    origin = ws.headers.get("origin")
-    if origin is None:
-        return True
-    if origin in settings.allowed_origins:
-        return True
-    return urlsplit(origin).netloc == ws.headers.get("host")
 
 
 class SocketSeat:
@@ -76,11 +70,15 @@ class SocketSeat:
 @router.websocket("/ws/play")
 async def play(ws: WebSocket, token: str = "") -> None:
     services = ws.app.state.services
-    if not origin_allowed(ws, services.settings):
+    if not socket_origin_allowed(ws.headers, ws.url.scheme, services.settings):
         await ws.close(code=1008, reason="origin not allowed")
         return
     try:
-        seat = services.seats.verify(token)
+        seat = services.seats.admit(token)
+        with services.db() as db:
+            trial = db.get(Trial, seat.trial_id)
+        if trial is not None and (reason := over_reason(trial)) is not None:
+            raise InvalidToken(reason)
         runtime = await services.hub.get(seat.trial_id)
     except (InvalidToken, UnknownTrial) as err:
         await ws.close(code=1008, reason=str(err)[:120])
@@ -96,10 +94,41 @@ async def play(ws: WebSocket, token: str = "") -> None:
         while True:
             raw = await ws.receive()
             if raw["type"] == "websocket.disconnect":
+                if raw.get("code") == MESSAGE_TOO_BIG:  # answered by the server (app.serving); now logged
+                    runtime.report_bad_message(Role(seat.role), raw.get("reason") or "message too big")
                 break
             await runtime.receive(conn, seat, raw.get("text"))
     except WebSocketDisconnect:
         pass
     finally:
         runtime.leave(conn)
+        await conn.close()
+
+
+@router.websocket("/ws/watch/{trial_id}")
+async def watch(ws: WebSocket, trial_id: int) -> None:
+    """The experimenter's live view of a trial: a `welcome` (with `status`, the last Driver frame
+    and the pose), then every event but the overhead camera, frames with their JPEG, and `status`."""
+    services = ws.app.state.services
+    if not socket_origin_allowed(ws.headers, ws.url.scheme, services.settings):
+        await ws.close(code=1008, reason="origin not allowed")
+        return
+    if services.sessions.verify(ws.cookies.get(SESSION_COOKIE)) is None:
+        await ws.close(code=1008, reason="log in as an experimenter first")
+        return
+    try:
+        runtime = await services.hub.get(trial_id)
+    except UnknownTrial as err:
+        await ws.close(code=1008, reason=str(err)[:120])
+        return
+    await ws.accept()
+    conn = SocketSeat(ws, EXPERIMENTER)
+    runtime.watch(conn)
+    try:
+        while (await ws.receive())["type"] != "websocket.disconnect":
+            pass  # the watch socket only listens
+    except WebSocketDisconnect:
+        pass
+    finally:
+        runtime.unwatch(conn)
         await conn.close()

@@ -3,9 +3,16 @@
 from __future__ import annotations
 
 import asyncio
+import logging
 
+from sqlalchemy import select
+
+from app.db.models import Trial
 from app.trial.relay import RemoteTrial
 from app.trial.runtime import TrialRuntime, UnknownTrial
+from app.trial.vocabulary import Phase
+
+logger = logging.getLogger(__name__)
 
 
 class TrialHub:
@@ -26,6 +33,17 @@ class TrialHub:
         if not self.services.log.load(trial_id)[:1]:
             raise UnknownTrial(f"trial {trial_id} does not exist")
         return RemoteTrial(relay, trial_id, owner)
+
+    async def resume_running(self) -> None:
+        """At start: reopen the trials that were running when the server stopped, so their grace
+        timers run even if no seat comes back (with Redis, the first process up takes them)."""
+        with self.services.db() as db:
+            ids = db.scalars(select(Trial.id).where(Trial.phase.in_([Phase.LOCALIZING, Phase.NAVIGATING]))).all()
+        for trial_id in ids:
+            try:
+                await self.get(trial_id)
+            except Exception:  # one trial that cannot reopen (its maze left the library) must not stop the rest
+                logger.exception("trial %s could not be reopened", trial_id)
 
     async def local(self, trial_id: int) -> TrialRuntime:
         """The trial's runtime in this process, started (from its events) if not yet."""
@@ -52,7 +70,8 @@ class TrialHub:
         return self._runtimes.get(trial_id)
 
     def live(self) -> list[TrialRuntime]:
-        return list(self._runtimes.values())
+        """The trials this process runs that are not over."""
+        return [r for r in self._runtimes.values() if not r.state.over]
 
     async def close(self) -> None:
         for runtime in list(self._runtimes.values()):

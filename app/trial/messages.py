@@ -1,6 +1,7 @@
 """What a seat may send over its socket: one pydantic model per message, a discriminated union.
 
-Every message carries the seat's token (checked on each message, not only at connect).
+Every message carries the seat's token (checked on each message, not only at connect). Types are
+strict: a coordinate "0.5" or true is a bad message, not a number (integers are numbers).
 """
 
 from __future__ import annotations
@@ -9,13 +10,14 @@ from typing import Annotated, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
 
+from app.trial.vocabulary import MoveAction, Role
 from sim.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M
 
 MAX_CHAT_CHARS = 500
 
 
 class _Message(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True)
     token: str = Field(max_length=512)
 
 
@@ -26,7 +28,7 @@ class Chat(_Message):
 
 class Move(_Message):
     type: Literal["move"]
-    action: Literal["forward", "left", "right"]
+    action: MoveAction
     move_id: str | None = Field(default=None, max_length=64)
 
 
@@ -58,6 +60,6 @@ seat_message = TypeAdapter(SeatMessage)
 
 # Which role may send which message.
 ALLOWED = {
-    "commander": {"chat", "localize", "confirm", "reject", "ping"},
-    "driver": {"chat", "move", "claim", "ping"},
+    Role.COMMANDER: {"chat", "localize", "confirm", "reject", "ping"},
+    Role.DRIVER: {"chat", "move", "claim", "ping"},
 }

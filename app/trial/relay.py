@@ -18,6 +18,8 @@ import uuid
 from typing import Any
 
 from app.security import Seat
+from app.trial.views import EXPERIMENTER
+from app.trial.vocabulary import Role
 
 logger = logging.getLogger(__name__)
 OWNER_TTL_S = 30
@@ -109,12 +111,15 @@ class RedisRelay:
         if op == "join":
             seat = RelayedSeat(self, conn_id, msg["role"], msg["from"])
             self.relayed[conn_id] = seat
-            runtime.join(seat)
+            runtime.watch(seat) if seat.role == EXPERIMENTER else runtime.join(seat)
         elif op == "text" and conn_id in self.relayed:
             seat = self.relayed[conn_id]
             await runtime.receive(seat, Seat(msg["trial"], seat.role), msg["text"])
+        elif op == "bad_message" and conn_id in self.relayed:
+            runtime.report_bad_message(Role(self.relayed[conn_id].role), msg["error"])
         elif op == "leave" and conn_id in self.relayed:
-            runtime.leave(self.relayed.pop(conn_id))
+            seat = self.relayed.pop(conn_id)
+            runtime.unwatch(seat) if seat.role == EXPERIMENTER else runtime.leave(seat)
         elif op == "control":
             getattr(runtime, msg["action"])()
 
@@ -153,6 +158,18 @@ class RemoteTrial:
 
     async def receive(self, conn, seat: Seat, text: str | None) -> None:
         self._command("text", conn=self._ids[id(conn)], text=text)
+
+    def report_bad_message(self, role: Role, error: str) -> None:
+        conn_id = next((c for c in self._ids.values() if getattr(self.relay.local.get(c), "role", None) == role),
+                       None)
+        if conn_id is not None:
+            self._command("bad_message", conn=conn_id, error=error)
+
+    def watch(self, conn) -> None:
+        self.join(conn)
+
+    def unwatch(self, conn) -> None:
+        self.leave(conn)
 
     def pause(self) -> None:
         self._command("control", action="pause")

@@ -1,9 +1,11 @@
-"""`TrialRuntime`: one live trial in this process: its state, robot backend and seats.
+"""`TrialRuntime`: one live trial in this process. It only does input and output.
 
-Every change goes through `record`, which commits the event, folds it into the state and
-only then tells the seats (each through its own filter, `app.trial.views`). Handlers that
-change state do so without awaiting between reading the state and recording, so events of a
-trial are totally ordered without locks.
+Everything that happens becomes a command for `app.trial.decide`; the events it returns are
+committed (`EventLog`), folded into the state and only then sent to the seats, each through its
+own filter (`app.trial.views`). The runtime holds the sockets, the robot backend and the grace
+timers, and the timers are derived from the log (`TrialState.away`), so they survive a restart.
+Commands are applied without awaiting between reading the state and recording, so the events
+of a trial are totally ordered without locks.
 """
 
 from __future__ import annotations
@@ -11,33 +13,25 @@ from __future__ import annotations
 import asyncio
 import base64
 import logging
-import time
 import uuid
-from typing import Any, Protocol
+from typing import Any
 
 from pydantic import ValidationError
 
-from app.backends.base import BackendUnavailable, MoveOutcome, RobotBackend
+from app.backends.base import BackendUnavailable, RobotBackend
 from app.backends.registry import create_backend
 from app.security import InvalidToken, Seat
+from app.trial import decide as d
+from app.trial import events as ev
 from app.trial import messages as m
-from app.trial.state import PARTICIPANT_ROLES, LoggedEvent, TrialState, fold
-from app.trial.views import view
-from sim.geometry import SUCCESS_RADIUS_M
+from app.trial.decide import Refused
+from app.trial.events import LoggedEvent
+from app.trial.port import Connection
+from app.trial.state import TrialState, fold
+from app.trial.views import EXPERIMENTER, status_of, view
+from app.trial.vocabulary import PARTICIPANTS, FrameSource, MoveAction, Outcome, Phase, PoseSource, Role
 
 logger = logging.getLogger(__name__)
-
-
-class Connection(Protocol):
-    role: str
-
-    def deliver(self, message: dict[str, Any]) -> None:
-        """Queue a message for this seat; never blocks."""
-
-
-class TrialError(ValueError):
-    """A message that is well formed but not allowed now; the reply names why."""
-
 
 class UnknownTrial(LookupError):
     pass
@@ -51,14 +45,15 @@ class TrialRuntime:
         self.state = TrialState()
         self.backend: RobotBackend | None = None
         self.seats: dict[str, Connection] = {}
-        self._move_busy = False
-        self._last_move_ns = 0
-        self._grace: dict[str, asyncio.Task] = {}
+        self.watchers: set[Connection] = set()  # the experimenter's live views
+        self._grace: dict[Role, asyncio.TimerHandle] = {}
         self._tasks: set[asyncio.Task] = set()
+        self._status: dict[str, Any] | None = None  # the last status sent, less the clock
+        self._ending = False
         self.agent = None
         self.belief = None  # `TrialBelief` once the Driver camera's calibration is loaded
         self._perceiving = False
-        self.watch_messages: dict[str, dict[str, Any]] = {}  # the latest of each kind, for the watch page
+        self._belief_message: dict[str, Any] | None = None  # the latest, for the watch page
         self._frame_dirs: set = set()
 
     # -- life cycle ---------------------------------------------------------------
@@ -67,19 +62,18 @@ class TrialRuntime:
         if not events:
             raise UnknownTrial(f"trial {self.trial_id} does not exist")
         self.state = fold(events)
-        # Seats the log still lists as connected belong to an earlier server process.
-        for role in sorted(self.state.connected):
-            self._seat_lost(role)
-        if not self.state.over:
-            await self._start_backend()
-            if self.state.driver.startswith("agent:"):
-                from app.drivers.seat import AgentSeat
+        self.apply(d.Reopen())  # seats and moves of an earlier server process are gone
+        if self.state.over:
+            return
+        await self._start_backend()
+        if self.state.driver.startswith("agent:"):
+            from app.drivers.seat import AgentSeat
 
-                self.agent = AgentSeat(self)
-                self.agent.start()
+            self.agent = AgentSeat(self, self.services)
+            self.agent.start()
 
     async def _start_backend(self) -> None:
-        self.backend = await create_backend(self.state.backend, self)
+        self.backend = await create_backend(self.state.backend, self, self.services)
         pose = self.backend.pose()
         if pose is not None and self.state.pose is None:
             self.record_pose(pose)
@@ -88,7 +82,7 @@ class TrialRuntime:
         await self.backend.connect()
 
     async def _start_belief(self) -> None:
-        """A live particle filter on the Driver camera (never shown to a participant)."""
+        """A live particle filter on the Driver camera (shown to the experimenter, never to a seat)."""
         from app.perception.belief import TrialBelief
         from app.perception.cameras import driver_calibration
 
@@ -100,16 +94,26 @@ class TrialRuntime:
             logger.exception("trial %s: no particle filter", self.trial_id)
 
     async def close(self) -> None:
-        for task in list(self._grace.values()) + list(self._tasks):
+        for timer in self._grace.values():
+            timer.cancel()
+        self._grace.clear()
+        if self.state.over:
+            self.apply(d.AbandonMoves(f"the trial is {self.state.phase}"))
+        for task in list(self._tasks):
             if task is not asyncio.current_task():
                 task.cancel()
         if self.agent is not None:
             await self.agent.stop()
-            if self.seats.get("driver") is self.agent:
-                del self.seats["driver"]
+            if self.seats.get(Role.DRIVER) is self.agent:
+                del self.seats[Role.DRIVER]
         if self.backend is not None:
             backend, self.backend = self.backend, None
             await backend.close()
+
+    async def _end(self) -> None:
+        await self.close()
+        if not self.seats and not self.watchers:
+            self.services.hub.forget(self.trial_id)
 
     def _spawn(self, coro) -> asyncio.Task:
         task = asyncio.get_running_loop().create_task(coro)
@@ -118,56 +122,109 @@ class TrialRuntime:
         return task
 
     # -- the log ------------------------------------------------------------------
-    def record(self, kind: str, payload: dict[str, Any], *, frame: dict[str, Any] | None = None,
-               attachments: dict[str, dict[str, Any]] | None = None) -> LoggedEvent:
-        """Commit one event, fold it into the state, then tell the seats."""
+    def apply(self, command: d.Command, attachments: dict[str, dict[str, Any]] | None = None,
+              frame: dict[str, Any] | None = None) -> list[LoggedEvent]:
+        """Decide, commit, fold and tell the seats; raises `Refused` (recording nothing)."""
+        events = d.decide(self.state, command)
+        logged = [self._record(event, attachments or {}, frame) for event in events]
+        if logged:
+            self._after_change()
+        return logged
+
+    def _record(self, event: ev.Event, attachments: dict[str, dict[str, Any]],
+                frame: dict[str, Any] | None) -> LoggedEvent:
         t_ns = self.services.clock.now_ns()
         if self.state.last_t_ns is not None:
             t_ns = max(t_ns, self.state.last_t_ns + 1)  # one trial's stamps never go back, even across restarts
-        event = LoggedEvent(self.state.last_seq + 1, kind, t_ns, payload)
+        logged = LoggedEvent(self.state.last_seq + 1, event.kind, t_ns, event.payload())
         cache = None
-        if kind == "phase":
-            cache = {"phase": payload["phase"], "moves": self.state.moves,
-                     "active_s": self.state.active_s(t_ns) if payload["phase"] == "finished" else None}
-        self.services.log.append(self.trial_id, event, frame=frame, trial_cache=cache)
-        self.state.apply(event)
-        self._broadcast(event, attachments or {})
-        return event
+        if isinstance(event, ev.PhaseChanged) and event.phase.running and event.target_index is not None:
+            # The Commander learns each target as the trial reaches it.
+            attachments = {**attachments, Role.COMMANDER: {"target": self.state.targets[event.target_index]}}
+        if isinstance(event, ev.PhaseChanged):
+            active = self.state.active_s(t_ns) if event.phase == Phase.FINISHED else None
+            cache = {"phase": str(event.phase), "moves": self.state.moves, "active_s": active}
+        self.services.log.append(self.trial_id, logged, frame=frame if isinstance(event, ev.FrameRecorded) else None,
+                                 trial_cache=cache)
+        self.state.apply_event(event, logged.seq, logged.t_ns)
+        self._broadcast(logged, attachments)
+        return logged
 
-    def _broadcast(self, event: LoggedEvent, attachments: dict[str, dict[str, Any]]) -> None:
+    def _broadcast(self, logged: LoggedEvent, attachments: dict[str, dict[str, Any]]) -> None:
         for role, conn in list(self.seats.items()):
-            message = view(role, event)
+            message = view(role, logged)
             if message is not None:
                 message.update(attachments.get(role, {}))
                 conn.deliver(message)
+        for conn in list(self.watchers):
+            message = view(EXPERIMENTER, logged)
+            if message is not None:
+                message.update(attachments.get(Role.DRIVER if logged.kind == "frame" else EXPERIMENTER, {}))
+                conn.deliver(message)
 
+    def _after_change(self) -> None:
+        status = self.status()
+        if {k: v for k, v in status.items() if k != "elapsed_s"} != self._status:
+            self._status = {k: v for k, v in status.items() if k != "elapsed_s"}
+            for role, conn in list(self.seats.items()):
+                if role in PARTICIPANTS:
+                    conn.deliver(status)
+            for conn in list(self.watchers):
+                conn.deliver(status)
+        self._sync_grace()
+        if self.state.over and not self._ending:
+            self._ending = True
+            self._spawn(self._end())
+
+    def status(self) -> dict[str, Any]:
+        return status_of(self.state, self.services.clock.now_ns())
+
+    # -- grace timers, from the log -------------------------------------------------
+    def _sync_grace(self) -> None:
+        away = self.state.away
+        for role in [r for r in self._grace if r not in away]:
+            self._grace.pop(role).cancel()
+        try:
+            loop = asyncio.get_running_loop()
+        except RuntimeError:
+            return
+        for role in away:
+            if role not in self._grace:
+                self._grace[role] = loop.call_later(self._grace_left_s(role), self._grace_expired, role)
+
+    def _grace_left_s(self, role: Role) -> float:
+        gone = self.state.away[role].away_ns(self.services.clock.now_ns())
+        return self.settings.grace_period_s - gone / 1e9
+
+    def _grace_expired(self, role: Role) -> None:
+        self._grace.pop(role, None)
+        if role not in self.state.away:
+            return
+        left_s = self._grace_left_s(role)
+        if left_s > 0:  # event loops may wake a little early (uvloop: to the millisecond)
+            self._grace[role] = asyncio.get_running_loop().call_later(left_s, self._grace_expired, role)
+            return
+        self.apply(d.GraceExpired(role))
+
+    # -- what the backend reports -------------------------------------------------
     def record_pose(self, pose: tuple[float, float, float]) -> None:
         x, y, theta = pose
-        source = "sim" if self.state.backend == "sim" else "tracker"
-        self.record("pose", {"x": x, "y": y, "heading": theta, "source": source})
+        source = PoseSource.SIM if self.state.backend == "sim" else PoseSource.TRACKER
+        self.apply(d.Note(ev.PoseSampled(x=x, y=y, heading=theta, source=source)))
 
-    def record_phase(self, phase: str, target_index: int | None = None) -> None:
-        payload: dict[str, Any] = {"phase": phase, "target_index": target_index}
-        attachments = {}
-        if phase in ("localizing", "navigating") and target_index is not None:
-            attachments["commander"] = {"target": self.state.targets[target_index]}
-        self.record("phase", payload, attachments=attachments)
-        if phase in ("finished", "aborted"):
-            self._spawn(self.close())
-
-    # -- frames -------------------------------------------------------------------
     async def _pump_frames(self, backend: RobotBackend) -> None:
         async for frame in backend.frames():
             try:
-                rel = self._frame_file(frame.capture_ns, "driver")
+                rel = self._frame_file(frame.capture_ns, FrameSource.DRIVER)
                 # The file is written off the event loop (slow disks must not delay other trials).
                 await asyncio.to_thread(self._write_frame_file, rel, frame.jpeg)
-                self._commit_frame(rel, frame.jpeg, frame.capture_ns, frame.width, frame.height, "driver")
+                self._commit_frame(rel, frame.jpeg, frame.capture_ns, frame.width, frame.height, FrameSource.DRIVER)
             except Exception:  # a frame that cannot be stored must not stop the stream
                 logger.exception("trial %s: frame not recorded", self.trial_id)
                 continue
             belief = self.belief
-            if belief is not None and not self._move_busy and not self._perceiving and belief.wants(frame.capture_ns):
+            if (belief is not None and not self.state.moves_in_flight and not self._perceiving
+                    and belief.wants(frame.capture_ns)):
                 self._perceiving = True
                 self._spawn(self._perceive(belief, frame.jpeg, frame.capture_ns))
 
@@ -177,14 +234,11 @@ class TrialRuntime:
         finally:
             self._perceiving = False
         if observed is not None:
-            self._watchers_hear(belief.message())
+            self._belief_message = message = belief.message()
+            for conn in list(self.watchers):
+                conn.deliver(message)
 
-    def _watchers_hear(self, message: dict[str, Any]) -> None:
-        """A message for the experimenter's view only (the seats never get it)."""
-        self.watch_messages[message["type"]] = message
-
-    def record_frame(self, jpeg: bytes, capture_ns: int, width: int, height: int, source: str) -> int:
-        """Store one camera image and commit its row and `frame` event; returns the frame id."""
+    def record_frame(self, jpeg: bytes, capture_ns: int, width: int, height: int, source: FrameSource) -> int:
         rel = self._frame_file(capture_ns, source)
         self._write_frame_file(rel, jpeg)
         return self._commit_frame(rel, jpeg, capture_ns, width, height, source)
@@ -192,12 +246,14 @@ class TrialRuntime:
     def _frame_file(self, capture_ns: int, source: str) -> str:
         return f"{self.trial_id}/{capture_ns}-{source}.jpg"  # relative to frames_dir
 
-    def _commit_frame(self, rel: str, jpeg: bytes, capture_ns: int, width: int, height: int, source: str) -> int:
-        row = {"source": source, "path": rel, "capture_ns": capture_ns, "width": width, "height": height}
+    def _commit_frame(self, rel: str, jpeg: bytes, capture_ns: int, width: int, height: int,
+                      source: FrameSource) -> int:
+        row = {"source": str(source), "path": rel, "capture_ns": capture_ns, "width": width, "height": height}
         frame_id = self.state.last_seq + 1  # the frame event's own seq
-        payload = {"frame_id": frame_id, **row, "mime": "image/jpeg"}
-        attach = {"driver": {"jpeg": base64.b64encode(jpeg).decode()}} if source == "driver" else {}
-        self.record("frame", payload, frame=row, attachments=attach)
+        event = ev.FrameRecorded(frame_id=frame_id, source=source, path=rel, capture_ns=capture_ns,
+                                 width=width, height=height)
+        attach = {Role.DRIVER: {"jpeg": base64.b64encode(jpeg).decode()}} if source == FrameSource.DRIVER else {}
+        self.apply(d.Note(event), attachments=attach, frame=row)
         return frame_id
 
     def _write_frame_file(self, rel: str, jpeg: bytes) -> None:
@@ -221,6 +277,12 @@ class TrialRuntime:
         except OSError:
             return None
 
+    def report_bad_message(self, role: Role, error: str) -> None:
+        self.apply(d.Note(ev.BadMessage(role=role, error=error[:500])))
+
+    def true_pose(self) -> tuple[float, float, float] | None:
+        return self.backend.pose() if self.backend is not None else None
+
     # -- seats --------------------------------------------------------------------
     def join(self, conn: Connection) -> None:
         role = conn.role
@@ -229,43 +291,29 @@ class TrialRuntime:
         if previous is not None:  # the same seat opened again (a second tab): the newest wins
             previous.deliver({"type": "replaced"})
         else:
-            grace = self._grace.pop(role, None)
-            if grace is not None:
-                grace.cancel()
-            if not self.state.over:
-                self.record("connect", {"role": role})
-                if f"disconnect:{role}" in self.state.pause_reasons:
-                    self.record("resumed", {"reason": f"disconnect:{role}"})
-                self._maybe_start()
+            self.apply(d.Join(Role(role)))
         conn.deliver(self.welcome(role))
 
     def leave(self, conn: Connection) -> None:
         if self.seats.get(conn.role) is not conn:
             return
         del self.seats[conn.role]
-        if not self.state.over:
-            self._seat_lost(conn.role)
-        elif not self.seats:  # over and nobody left watching: this process can let it go
+        self.apply(d.Leave(Role(conn.role)))
+        if self.state.over and not self.seats and not self.watchers:
+            self.services.hub.forget(self.trial_id)  # nobody left: this process can let it go
+
+    def watch(self, conn: Connection) -> None:
+        """An experimenter's live view: every seat's events, the Driver's camera, the true pose
+        and the particle filter's belief (`{"type": "belief", ...}`, after each perceived frame)."""
+        self.watchers.add(conn)
+        conn.deliver(self.welcome(EXPERIMENTER))
+        if self._belief_message is not None:
+            conn.deliver(self._belief_message)
+
+    def unwatch(self, conn: Connection) -> None:
+        self.watchers.discard(conn)
+        if self.state.over and not self.seats and not self.watchers:
             self.services.hub.forget(self.trial_id)
-
-    def _seat_lost(self, role: str) -> None:
-        self.record("disconnect", {"role": role})
-        if self.state.phase in ("localizing", "navigating"):
-            reason = f"disconnect:{role}"
-            if reason not in self.state.pause_reasons:
-                self.record("paused", {"reason": reason})
-            if role in PARTICIPANT_ROLES:
-                self._grace[role] = self._spawn(self._grace_expires(role))
-
-    async def _grace_expires(self, role: str) -> None:
-        await asyncio.sleep(self.settings.grace_period_s)
-        self._grace.pop(role, None)
-        if role not in self.seats and not self.state.over:
-            self.record_phase("aborted")
-
-    def _maybe_start(self) -> None:
-        if self.state.phase == "waiting" and not self.state.waiting_for:
-            self.record_phase("localizing", 0)
 
     def welcome(self, role: str) -> dict[str, Any]:
         s = self.state
@@ -277,15 +325,19 @@ class TrialRuntime:
             "history": [msg for e in self.services.log.load(self.trial_id)
                         if e.kind in ("chat", "phase", "target_confirmed", "target_rejected")
                         and (msg := view(role, e)) is not None],
+            "status": self.status(),
         }
-        if role == "commander":
+        if role == Role.COMMANDER:
             message["target"] = s.current_target
             if s.pending_claim is not None:
                 message["claim"] = self._claim_attachment(s.pending_claim["frame_id"])
-        if role == "driver" and s.last_frame_id is not None:
+        if role in (Role.DRIVER, EXPERIMENTER) and s.last_frame_id is not None:
             jpeg = self.frame_jpeg(s.last_frame_id)
             if jpeg is not None:
                 message["frame"] = {"frame_id": s.last_frame_id, "jpeg": base64.b64encode(jpeg).decode()}
+        if role == EXPERIMENTER:
+            message["pose"] = s.pose
+            message["targets"] = list(s.targets)
         return message
 
     def _claim_attachment(self, frame_id: int) -> dict[str, Any]:
@@ -303,158 +355,112 @@ class TrialRuntime:
                 self._spawn(self._handle_reporting(conn, seat.role, message))
             else:
                 await self.handle(seat.role, message)
-        except TrialError as err:
-            self._refuse(conn, seat.role, err)
+        except Refused as err:
+            self.refuse(conn, seat.role, str(err))
 
     async def _handle_reporting(self, conn: Connection, role: str, message) -> None:
         try:
             await self.handle(role, message)
-        except TrialError as err:
-            self._refuse(conn, role, err)
+        except Refused as err:
+            self.refuse(conn, role, str(err))
 
-    def _refuse(self, conn: Connection, role: str, err: TrialError) -> None:
-        conn.deliver({"type": "error", "error": str(err)})
+    def refuse(self, conn: Connection, role: str, error: str) -> None:
+        """The documented error reply, and the refusal in the log (while the trial runs)."""
+        conn.deliver({"type": "error", "code": "bad_message", "error": error})
         if not self.state.over:
-            self.record("bad_message", {"role": role, "error": str(err)[:500]})
+            self.report_bad_message(Role(role), error)
 
     def _parse(self, seat: Seat, text: str | None):
         limit = self.settings.max_message_bytes
         if text is None:
-            raise TrialError("messages must be JSON text, not binary")
+            raise Refused("messages must be JSON text, not binary")
         size = len(text.encode())
         if size > limit:
-            raise TrialError(f"message is {size} bytes; the limit is {limit}")
+            raise Refused(f"message is {size} bytes; the limit is {limit}")
         try:
             message = m.seat_message.validate_json(text)
         except ValidationError as err:
-            raise TrialError(f"invalid message: {_describe(err)}") from None
+            raise Refused(f"invalid message: {_describe(err)}") from None
         try:
             if self.services.seats.verify(message.token) != seat:
                 raise InvalidToken("token is for another seat")
         except InvalidToken as err:
-            raise TrialError(f"token refused: {err}") from None
+            raise Refused(f"token refused: {err}") from None
         return message
 
     async def handle(self, role: str, message) -> None:
-        """Apply one validated message from a seat; raises TrialError when not allowed now."""
+        """Apply one validated message from a seat; raises `Refused` when not allowed now."""
         if message.type not in m.ALLOWED[role]:
-            raise TrialError(f"the {role} may not send {message.type!r} messages")
-        if message.type == "ping":
-            return
-        if self.state.over:
-            raise TrialError(f"the trial is {self.state.phase}")
+            raise Refused(f"the {role} may not send {message.type!r} messages")
+        role = Role(role)
         match message:
+            case m.Ping():
+                return
             case m.Chat(text=text):
-                self.record("chat", {"role": role, "text": text})
+                self.apply(d.Say(role, text))
             case m.Move(action=action, move_id=move_id):
-                await self.move(action, move_id)
+                await self.request_move(action, move_id)
             case m.Localize(x=x, y=y, heading=heading):
-                self.localize(x, y, heading)
+                self.apply(d.Localize(x, y, heading))
             case m.Claim():
                 self.claim()
             case m.Confirm():
-                self.decide(confirmed=True)
+                self.judge(confirmed=True)
             case m.Reject():
-                self.decide(confirmed=False)
+                self.judge(confirmed=False)
 
-    async def move(self, action: str, move_id: str | None = None) -> MoveOutcome:
+    def say(self, role: Role, text: str) -> None:
+        self.apply(d.Say(role, text))
+
+    async def request_move(self, action: MoveAction, move_id: str | None = None) -> Outcome:
         move_id = move_id or uuid.uuid4().hex[:12]
-        now = time.monotonic_ns()
+        asked = self.apply(d.RequestMove(move_id, MoveAction(action), self.services.clock.now_ns(),
+                                         robot_ready=self.backend is not None,
+                                         min_interval_ns=int(self.settings.min_move_interval_s * 1e9)))
+        if asked[-1].kind == "move_executed":  # refused at once
+            return Outcome.REFUSED
+        backend = self.backend
         reason = None
-        if not self.state.running:
-            reason = self._why_not_running()
-        elif self._move_busy:
-            reason = "the previous move is still executing"
-        elif now - self._last_move_ns < self.settings.min_move_interval_s * 1e9:
-            reason = "too soon after the previous move"
-        elif self.backend is None:
-            reason = "the robot is not connected"
-        self.record("move_requested", {"move_id": move_id, "action": action})
-        if reason is not None:
-            outcome = MoveOutcome(action, "refused", reason)
-        else:
-            self._move_busy, self._last_move_ns = True, now
-            started_ns = self.services.clock.now_ns()
-            try:
-                outcome = await self.backend.execute(action)
-            except BackendUnavailable as err:
-                outcome = MoveOutcome(action, "refused", str(err))
-            finally:
-                self._move_busy = False
-            if outcome.outcome != "refused" and self.belief is not None:
-                # A collision on the simulator leaves the robot where it was; a rover cannot tell.
-                self.belief.moved(action if outcome.outcome == "ok" else None, started_ns)
-        payload = {"move_id": move_id, "action": action, "outcome": outcome.outcome,
-                   "collision": outcome.collision}
-        if outcome.reason:
-            payload["reason"] = outcome.reason
-        self.record("move_executed", payload)
-        if outcome.outcome != "refused" and self.backend is not None and self.state.backend == "sim":
-            # (a rover's tracker records its own poses, at the overhead camera's rate)
+        started_ns = self.services.clock.now_ns()
+        try:
+            result = await backend.execute(action)
+            outcome, reason = result.outcome, result.reason
+        except BackendUnavailable as err:
+            outcome, reason = Outcome.REFUSED, str(err)
+        if outcome != Outcome.REFUSED and self.belief is not None:
+            # A collision on the simulator leaves the robot where it was; a rover cannot tell.
+            self.belief.moved(action if outcome == Outcome.OK else None, started_ns)
+        self.apply(d.FinishMove(move_id, outcome, reason))
+        if (outcome != Outcome.REFUSED and self.backend is not None and not self.state.over
+                and self.state.backend == "sim"):  # a rover's tracker records its own poses
             pose = self.backend.pose()
             if pose is not None:
                 self.record_pose(pose)
         return outcome
 
-    def _why_not_running(self) -> str:
-        s = self.state
-        if s.waiting_for:
-            return f"the trial is waiting for the {' and the '.join(s.waiting_for)} to connect"
-        if "disconnect:robot" in s.pause_reasons:
-            return "the trial is paused: the robot is not connected"
-        return "the trial is paused" if s.pause_reasons else f"the trial is {s.phase}"
-
-    def localize(self, x: float, y: float, heading: float | None) -> None:
-        if self.state.phase not in ("localizing", "navigating"):
-            raise TrialError(f"cannot mark the robot while the trial is {self.state.phase}")
-        self.record("localization", {"x": x, "y": y, "heading": heading})
-        if self.state.phase == "localizing":
-            self.record_phase("navigating", 0)
-
     def claim(self) -> None:
         s = self.state
-        if s.phase != "navigating" or s.pause_reasons:
-            raise TrialError("a target can be claimed only while navigating")
-        if s.pending_claim is not None:
-            raise TrialError("the previous claim is still waiting for the Commander")
-        if s.last_frame_id is None:
-            raise TrialError("there is no camera frame to send yet")
-        self.record("target_claimed", {"target": s.current_target, "target_index": s.target_index,
-                                       "frame_id": s.last_frame_id},
-                    attachments={"commander": {"claim": self._claim_attachment(s.last_frame_id)}})
+        attach = {Role.COMMANDER: {"claim": self._claim_attachment(s.last_frame_id)}} \
+            if s.last_frame_id is not None else None
+        self.apply(d.Claim(), attachments=attach)
 
-    def decide(self, confirmed: bool) -> None:
-        s = self.state
-        if s.pending_claim is None:
-            raise TrialError("there is no claimed target to confirm or reject")
-        target, index = s.pending_claim["target"], s.pending_claim["target_index"]
-        within_m = truly = None
-        pose = self.backend.pose() if self.backend is not None else None
-        if pose is not None:
-            ox, oy = self.services.mazes.load(s.maze).objects[target]
+    def judge(self, confirmed: bool) -> None:
+        s, within_m = self.state, None
+        pose = self.true_pose()
+        if pose is not None and s.pending_claim is not None:
+            ox, oy = self.services.mazes.load(s.maze).objects[s.pending_claim["target"]]
             within_m = float(((pose[0] - ox) ** 2 + (pose[1] - oy) ** 2) ** 0.5)
-            truly = within_m <= SUCCESS_RADIUS_M
-        self.record("target_confirmed" if confirmed else "target_rejected",
-                    {"target": target, "target_index": index, "within_m": within_m, "truly_within": truly})
-        if confirmed:
-            if index + 1 >= len(s.targets):
-                self.record_phase("finished", index + 1)
-            else:
-                self.record_phase("navigating", index + 1)
+        self.apply(d.Judge(confirmed, within_m))
 
     # -- experimenter -------------------------------------------------------------
     def pause(self) -> None:
-        if self.state.over or "experimenter" in self.state.pause_reasons:
-            return
-        self.record("paused", {"reason": "experimenter"})
+        self.apply(d.Pause())
 
     def resume(self) -> None:
-        if "experimenter" in self.state.pause_reasons:
-            self.record("resumed", {"reason": "experimenter"})
+        self.apply(d.Resume())
 
     def abort(self) -> None:
-        if not self.state.over:
-            self.record_phase("aborted")
+        self.apply(d.Abort())
 
     def snapshot(self) -> dict[str, Any]:
         s = self.state
@@ -463,7 +469,7 @@ class TrialRuntime:
                 "moves": s.moves, "collisions": s.collisions, "pose": s.pose,
                 "paused": sorted(s.pause_reasons), "seats": {r: r in self.seats for r in s.seats_needed},
                 "waiting_for": s.waiting_for, "backend": s.backend, "localization": s.localization,
-                "maze": s.maze, "belief": self.watch_messages.get("belief")}
+                "maze": s.maze, "belief": self._belief_message}
 
 
 def _describe(err: ValidationError) -> str:

@@ -5,11 +5,14 @@ from __future__ import annotations
 
 import random
 from collections import Counter
+from collections.abc import Mapping
 
 from sqlalchemy import or_, select
 from sqlalchemy.orm import Session
 
 from app.db.models import Event, Participant, Robot, Team, Trial
+from app.trial.events import TrialCreated
+from app.trial.vocabulary import Phase, Role
 from sim.labels import OBJECTS
 
 
@@ -44,8 +47,23 @@ def parse_targets(text: str, rng: random.Random) -> list[str]:
     return order
 
 
+def check_driver(driver: str, agents: Mapping[str, str | None] | None) -> None:
+    """`human`, or an agent that can start: `agents` is `available_drivers(services)`."""
+    if driver == "human":
+        return
+    name = driver.removeprefix("agent:")
+    if not driver.startswith("agent:") or agents is None or name not in agents:
+        known = ", ".join(f"agent:{n}" for n in agents or ())
+        raise TrialSetupError(f"driver {driver!r} is neither 'human' nor a known agent ({known})")
+    if agents[name] is not None:
+        raise TrialSetupError(f"driver {driver!r} cannot start: {agents[name]}")
+
+
 def create_trial(db: Session, *, team_id: int, maze: str, targets: list[str], backend: str,
-                 driver: str, commander_id: int | None, maze_names: list[str], now_ns: int) -> Trial:
+                 driver: str, commander_id: int | None, maze_names: list[str], now_ns: int,
+                 agents: Mapping[str, str | None] | None = None) -> Trial:
+    """`agents` (`available_drivers(services)`) is needed when an agent drives."""
+    check_driver(driver, agents)
     team = db.get(Team, team_id)
     if team is None:
         raise TrialSetupError(f"team {team_id} does not exist")
@@ -56,7 +74,7 @@ def create_trial(db: Session, *, team_id: int, maze: str, targets: list[str], ba
     if backend.startswith("robot:"):
         robot_id = backend.removeprefix("robot:")
         robot = db.get(Robot, int(robot_id)) if robot_id.isdigit() else None
-        if robot is None or robot.role != "driver":
+        if robot is None or robot.role != Role.DRIVER:
             raise TrialSetupError(f"backend {backend!r}: no registered rover with id {robot_id!r}")
     elif backend != "sim":
         raise TrialSetupError(f"backend {backend!r} is neither 'sim' nor 'robot:<id>'")
@@ -68,11 +86,11 @@ def create_trial(db: Session, *, team_id: int, maze: str, targets: list[str], ba
     if driver == "human":
         driver_id = members[1] if commander_id == members[0] else members[0]
     trial = Trial(team_id=team.id, maze=maze, targets=targets, backend=backend, driver=driver,
-                  commander_id=commander_id, driver_id=driver_id, phase="waiting", moves=0)
+                  commander_id=commander_id, driver_id=driver_id, phase=str(Phase.WAITING), moves=0)
     db.add(trial)
     db.flush()
-    db.add(Event(trial_id=trial.id, seq=1, kind="trial_created", t_ns=now_ns,
-                 payload={"maze": maze, "targets": targets, "backend": backend, "driver": driver}))
+    created = TrialCreated(maze=maze, targets=targets, backend=backend, driver=driver)
+    db.add(Event(trial_id=trial.id, seq=1, kind=created.kind, t_ns=now_ns, payload=created.payload()))
     return trial
 
 

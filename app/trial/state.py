@@ -2,7 +2,8 @@
 
 `fold(events)` is pure: the same events always give the same state, so a restarted server
 resumes a trial from the database, and the leaderboard and exports read the same truth.
-The trial clock runs only while localizing or navigating and nothing pauses it.
+The trial clock runs only while localizing or navigating and nothing pauses it; it does not
+run across a server restart (`Restarted`).
 """
 
 from __future__ import annotations
@@ -11,17 +12,22 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
-PHASES = ("waiting", "localizing", "navigating", "finished", "aborted")
-RUNNING_PHASES = ("localizing", "navigating")
-PARTICIPANT_ROLES = ("commander", "driver")
+from app.trial import events as ev
+from app.trial.events import LoggedEvent
+from app.trial.vocabulary import PARTICIPANTS, FrameSource, MoveAction, Outcome, Phase, Role
+
+__all__ = ["LoggedEvent", "TrialState", "fold"]
 
 
-@dataclass(frozen=True)
-class LoggedEvent:
-    seq: int
-    kind: str
-    t_ns: int
-    payload: dict[str, Any]
+@dataclass
+class Away:
+    """A participant missing from a running trial: the grace period runs while the server does."""
+
+    since_ns: int
+    carried_ns: int = 0  # time away before the last restart
+
+    def away_ns(self, now_ns: int) -> int:
+        return self.carried_ns + max(0, now_ns - self.since_ns)
 
 
 @dataclass
@@ -30,15 +36,19 @@ class TrialState:
     targets: list[str] = field(default_factory=list)
     backend: str = "sim"
     driver: str = "human"
-    phase: str = "waiting"
+    phase: Phase = Phase.WAITING
     target_index: int = 0
-    connected: set[str] = field(default_factory=set)
+    connected: set[Role] = field(default_factory=set)
     pause_reasons: set[str] = field(default_factory=set)
     active_ns: int = 0  # clock time while running, up to `last_t_ns`
     last_t_ns: int | None = None
     started_ns: int | None = None
     moves: int = 0  # executed moves (ok or collision); refused ones do not count
     collisions: int = 0
+    moves_in_flight: dict[str, tuple[MoveAction, int]] = field(default_factory=dict)  # id -> (action, asked at)
+    move_ids: set[str] = field(default_factory=set)  # every move id ever requested
+    last_move_ns: int | None = None  # when the last executed move was requested
+    away: dict[Role, Away] = field(default_factory=dict)
     last_frame_id: int | None = None
     pending_claim: dict[str, Any] | None = None
     pose: tuple[float, float, float] | None = None  # last sampled true pose (x, y, theta)
@@ -50,28 +60,28 @@ class TrialState:
     # -- derived ------------------------------------------------------------------
     @property
     def running(self) -> bool:
-        return self.phase in RUNNING_PHASES and not self.pause_reasons
+        return self.phase.running and not self.pause_reasons
 
     @property
-    def seats_needed(self) -> tuple[str, ...]:
+    def seats_needed(self) -> tuple[Role, ...]:
         """The seats a trial waits for before it starts: both participants, and the rover when
         one is in the robot seat (a trial cannot start on a robot that is not connected)."""
-        return PARTICIPANT_ROLES + (("robot",) if self.backend.startswith("robot:") else ())
+        return PARTICIPANTS + ((Role.ROBOT,) if self.backend.startswith("robot:") else ())
 
     @property
-    def waiting_for(self) -> list[str]:
+    def waiting_for(self) -> list[Role]:
         """The seats still missing while the trial waits to start."""
-        if self.phase != "waiting":
+        if self.phase != Phase.WAITING:
             return []
         return [role for role in self.seats_needed if role not in self.connected]
 
     @property
     def over(self) -> bool:
-        return self.phase in ("finished", "aborted")
+        return self.phase.over
 
     @property
     def current_target(self) -> str | None:
-        if self.phase in RUNNING_PHASES and self.target_index < len(self.targets):
+        if self.phase.running and self.target_index < len(self.targets):
             return self.targets[self.target_index]
         return None
 
@@ -84,55 +94,72 @@ class TrialState:
 
     def score(self, move_penalty_s: float) -> float | None:
         """Time from start to the last target confirmed plus a penalty per move; None until finished."""
-        if self.phase != "finished" or self.finished_active_ns is None:
+        if self.phase != Phase.FINISHED or self.finished_active_ns is None:
             return None
         return self.finished_active_ns / 1e9 + move_penalty_s * self.moves
 
     # -- the fold -----------------------------------------------------------------
-    def apply(self, event: LoggedEvent) -> "TrialState":
-        if self.running and self.last_t_ns is not None:
-            self.active_ns += max(0, event.t_ns - self.last_t_ns)
-        self.last_t_ns = event.t_ns
-        self.last_seq = event.seq
-        p = event.payload
-        match event.kind:
-            case "trial_created":
-                self.maze, self.targets = p["maze"], list(p["targets"])
-                self.backend, self.driver = p["backend"], p["driver"]
-            case "connect":
-                self.connected.add(p["role"])
-            case "disconnect":
-                self.connected.discard(p["role"])
-            case "phase":
-                if self.phase == "waiting" and p["phase"] in RUNNING_PHASES:
-                    self.started_ns = event.t_ns
-                self.phase = p["phase"]
-                if p.get("target_index") is not None:
-                    self.target_index = p["target_index"]
-                if self.phase == "finished":
+    def apply(self, logged: LoggedEvent) -> "TrialState":
+        return self.apply_event(ev.typed(logged), logged.seq, logged.t_ns)
+
+    def apply_event(self, event: ev.Event | None, seq: int, t_ns: int) -> "TrialState":
+        restarted = isinstance(event, ev.Restarted)
+        if self.running and self.last_t_ns is not None and not restarted:
+            self.active_ns += max(0, t_ns - self.last_t_ns)
+        if restarted and self.last_t_ns is not None:
+            for away in self.away.values():  # the server's downtime counts for no one
+                away.carried_ns, away.since_ns = away.away_ns(self.last_t_ns), t_ns
+        self.last_t_ns = t_ns
+        self.last_seq = seq
+        match event:
+            case ev.TrialCreated():
+                self.maze, self.targets = event.maze, list(event.targets)
+                self.backend, self.driver = event.backend, event.driver
+            case ev.Connected(role=role):
+                self.connected.add(role)
+                self.away.pop(role, None)
+            case ev.Disconnected(role=role):
+                self.connected.discard(role)
+                if role in PARTICIPANTS and self.phase.running:
+                    self.away[role] = Away(t_ns)
+            case ev.PhaseChanged(phase=phase, target_index=index):
+                if self.phase == Phase.WAITING and phase.running:
+                    self.started_ns = t_ns
+                self.phase = phase
+                if index is not None:
+                    self.target_index = index
+                if phase == Phase.FINISHED:
                     self.finished_active_ns = self.active_ns
-            case "paused":
-                self.pause_reasons.add(p["reason"])
-            case "resumed":
-                self.pause_reasons.discard(p["reason"])
-            case "move_executed":
-                if p["outcome"] in ("ok", "collision"):
+                if phase.over:
+                    self.away.clear()
+            case ev.Restarted(paused=reasons):
+                self.pause_reasons.update(reasons)
+            case ev.Paused(reason=reason):
+                self.pause_reasons.add(reason)
+            case ev.Resumed(reason=reason):
+                self.pause_reasons.discard(reason)
+            case ev.MoveRequested(move_id=move_id, action=action):
+                self.move_ids.add(move_id)
+                self.moves_in_flight[move_id] = (action, t_ns)
+            case ev.MoveExecuted(move_id=move_id, outcome=outcome, collision=collision):
+                _, asked_ns = self.moves_in_flight.pop(move_id, (None, t_ns))
+                if outcome != Outcome.REFUSED:
                     self.moves += 1
-                if p.get("collision"):
+                    self.last_move_ns = asked_ns
+                if collision:
                     self.collisions += 1
-            case "frame":
-                if p.get("source", "driver") == "driver":
-                    self.last_frame_id = p["frame_id"]
-            case "pose":
-                self.pose = (p["x"], p["y"], p["heading"])
-            case "localization":
-                self.localization = dict(p)
-            case "target_claimed":
-                self.pending_claim = dict(p)
-            case "target_confirmed":
+            case ev.FrameRecorded(source=FrameSource.DRIVER, frame_id=frame_id):
+                self.last_frame_id = frame_id
+            case ev.PoseSampled(x=x, y=y, heading=heading):
+                self.pose = (x, y, heading)
+            case ev.Localized():
+                self.localization = event.payload()
+            case ev.TargetClaimed():
+                self.pending_claim = event.payload()
+            case ev.TargetConfirmed():
                 self.pending_claim = None
-                self.confirmed.append(dict(p))
-            case "target_rejected":
+                self.confirmed.append(event.payload())
+            case ev.TargetRejected():
                 self.pending_claim = None
         return self
 

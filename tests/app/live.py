@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import json
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -18,7 +19,9 @@ import httpx
 import uvicorn
 import websockets
 
+from app.drivers.registry import available_drivers
 from app.main import create_app
+from app.serving import uvicorn_options
 from app.settings import Settings
 from app.trial.setup import create_participant, create_team, create_trial
 
@@ -40,7 +43,7 @@ class ServerThread:
         self.services = self.app.state.services
         self.port = free_port()
         config = uvicorn.Config(self.app, host="127.0.0.1", port=self.port, log_level="warning",
-                                ws_max_size=65536, lifespan="on")
+                                lifespan="on", **uvicorn_options(settings))
         self.server = uvicorn.Server(config)
         self.thread = threading.Thread(target=self.server.run, daemon=True)
 
@@ -111,6 +114,32 @@ class ServerProcess:
                 self.proc.kill()
 
 
+def page_csrf_token(page: str) -> str:
+    """The CSRF token a page carries in `<meta name="csrf-token">` (what the page's scripts send)."""
+    return re.search(r'<meta name="csrf-token" content="([^"]+)"', page).group(1)
+
+
+def browser(base_url: str) -> httpx.Client:
+    """A client that sends this server's Origin, as a browser does on the server's own pages."""
+    return httpx.Client(base_url=base_url, follow_redirects=True, headers={"Origin": base_url})
+
+
+def submit_login(client: httpx.Client, name: str, password: str) -> httpx.Response:
+    """The home page's login form, filled in and sent with the page's token."""
+    token = page_csrf_token(client.get("/").text)
+    return client.post("/login", data={"name": name, "password": password, "csrf_token": token})
+
+
+def log_in(base_url: str, name: str, password: str) -> httpx.Client:
+    """An experimenter's browser, as far as the server can tell: it logs in with the home page's
+    form, then sends the dashboard page's token on every request (as the page's scripts do)."""
+    client = browser(base_url)
+    page = submit_login(client, name, password)
+    assert page.status_code == 200 and "Participants" in page.text, page.text[:300]
+    client.headers["X-CSRF-Token"] = page_csrf_token(page.text)
+    return client
+
+
 def make_trial(services, maze: str, targets=("mug", "jar", "paddle"), driver: str = "human",
                team: str = "Team A", backend: str = "sim") -> int:
     """A team of two new participants and a trial for it; returns the trial id."""
@@ -120,7 +149,7 @@ def make_trial(services, maze: str, targets=("mug", "jar", "paddle"), driver: st
         t = create_team(db, team, a.id, b.id)
         trial = create_trial(db, team_id=t.id, maze=maze, targets=list(targets), backend=backend,
                              driver=driver, commander_id=a.id, maze_names=services.mazes.names(),
-                             now_ns=services.clock.now_ns())
+                             now_ns=services.clock.now_ns(), agents=available_drivers(services))
         return trial.id
 
 

@@ -10,7 +10,7 @@ from sqlalchemy import select
 
 from app.db.models import Event
 from tests.app.conftest import platform_settings
-from tests.app.live import SeatClient, ServerThread, make_trial
+from tests.app.live import SeatClient, ServerThread, log_in, make_trial
 from tests.app.trial_play import move, start_trial
 
 
@@ -20,9 +20,7 @@ def login(server) -> httpx.Client:
 
     with server.services.db.begin() as db:
         db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
-    client = httpx.Client(base_url=server.url, follow_redirects=True)
-    assert "Participants" in client.post("/login", data={"name": "eve", "password": "correct horse"}).text
-    return client
+    return log_in(server.url, "eve", "correct horse")
 
 
 def test_driver_drops_and_rejoins_within_grace(settings):

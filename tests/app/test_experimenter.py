@@ -15,7 +15,7 @@ from sqlalchemy import create_engine, inspect, select
 
 from app.db.models import Trial
 from app.main import build_services, ensure_experimenter
-from tests.app.live import REPO, ServerThread
+from tests.app.live import REPO, ServerThread, browser, submit_login
 from tests.app.test_disconnect_and_control import login
 
 
@@ -49,10 +49,10 @@ def test_admin_create_and_db_upgrade_commands(tmp_path):
     from app.settings import Settings
 
     with ServerThread(Settings(data_dir=tmp_path / "var", secret_key="k")) as server:
-        client = httpx.Client(base_url=server.url, follow_redirects=True)
-        bad = client.post("/login", data={"name": "alice", "password": "wrong"})
-        assert "wrong password" in bad.text
-        assert "Participants" in client.post("/login", data={"name": "bob", "password": "another-pass"}).text
+        client = browser(server.url)
+        bad = submit_login(client, "alice", "wrong")
+        assert bad.status_code == 401 and "wrong password" in bad.text
+        assert "Participants" in submit_login(client, "bob", "another-pass").text
 
 
 def test_experimenter_forms_make_a_trial_with_join_links(settings):

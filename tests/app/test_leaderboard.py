@@ -1,11 +1,12 @@
-"""The leaderboard ranks teams by their best finished trial; unfinished trials do not score."""
+"""The leaderboard ranks teams by their best finished trial, agent Drivers apart; unfinished trials do not score."""
 
 from __future__ import annotations
 
 import httpx
+from sqlalchemy import select
 
-from app.db.models import Trial
-from app.leaderboard import standings
+from app.db.models import Team, Trial
+from app.leaderboard import agent_standings, standings
 from app.trial.setup import create_participant, create_team
 from tests.app.live import ServerThread
 
@@ -36,3 +37,27 @@ def test_teams_ranked_by_best_score_with_count_and_mean(settings):
         page = httpx.get(server.url + "/leaderboard").text
         assert page.index("Steady") < page.index("Slow") and "Never" not in page
         assert "175.0" in page
+
+
+def test_agent_trials_rank_apart_and_never_count_for_the_team(settings):
+    with ServerThread(settings) as server:
+        services = server.services
+        add_trials(services, "Owls", [("finished", 200.0, 40)])  # 240 s, driven by Owls-b
+        with services.db.begin() as db:
+            team = db.scalar(select(Team).where(Team.name == "Owls"))
+            for driver, active_s, moves in (("agent:shortest", 50.0, 30), ("agent:shortest", 70.0, 30),
+                                            ("agent:random", 500.0, 300), ("agent:random", None, 9)):
+                db.add(Trial(team_id=team.id, maze="m9", targets=["jar", "mug", "paddle"], backend="sim",
+                             driver=driver, commander_id=team.member_a_id,
+                             phase="finished" if active_s else "aborted", active_s=active_s, moves=moves))
+            db.get(Trial, 1).driver_id = team.member_b_id
+        with services.db() as db:
+            teams = standings(db, move_penalty_s=1.0)
+            agents = agent_standings(db, move_penalty_s=1.0)
+        assert [(r.team, r.completed, r.best_s, r.drivers) for r in teams] == [("Owls", 1, 240.0, ("Owls-b",))]
+        assert [(r.rank, r.agent, r.completed, r.best_s, r.commanders) for r in agents] == [
+            (1, "agent:shortest", 2, 80.0, ("Owls",)), (2, "agent:random", 1, 800.0, ("Owls",))]
+        page = httpx.get(server.url + "/leaderboard").text
+        humans, machines = page.split('id="agent-leaderboard"')
+        assert "Owls-b" in humans and "agent:" not in humans and "80.0" not in humans
+        assert machines.index("agent:shortest") < machines.index("agent:random")

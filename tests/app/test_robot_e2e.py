@@ -22,11 +22,12 @@ from sqlalchemy import select
 from app.backends.remote import MAX_FRAME_BYTES, create_robot, robot_links
 from app.db.models import Event, Frame as FrameRow
 from app.main import create_app
+from app.serving import uvicorn_options
 from app.trial.setup import create_participant, create_team, create_trial
 from robot_client.calibration import Calibration
 from robot_client.protocol import pack_frame
 from tests.app.conftest import platform_settings
-from tests.app.live import SeatClient, free_port
+from tests.app.live import SeatClient, free_port, page_csrf_token
 
 pytestmark = pytest.mark.anyio
 ROBOT = [sys.executable, "-m", "robot_client"]
@@ -48,7 +49,7 @@ class RobotServer:
         self.services = self.app.state.services
         self.port = free_port()
         config = uvicorn.Config(self.app, host="127.0.0.1", port=self.port, log_level="warning",
-                                ws_max_size=2 * MAX_FRAME_BYTES, lifespan="on")
+                                lifespan="on", **uvicorn_options(settings))
         self.server = uvicorn.Server(config)
         self.thread = threading.Thread(target=self.server.run, daemon=True)
         self.thread.start()
@@ -409,7 +410,8 @@ async def test_overhead_frames_are_logged_but_never_reach_a_seat(server, robots)
 
 async def test_the_experimenter_registers_robots_and_sees_their_links(server, robots):
     cookies = {"robotslang_session": server.services.sessions.issue(1)}
-    async with httpx.AsyncClient(base_url=server.url, cookies=cookies) as http:
+    async with httpx.AsyncClient(base_url=server.url, cookies=cookies, headers={"Origin": server.url}) as http:
+        http.headers["X-CSRF-Token"] = page_csrf_token((await http.get("/experimenter")).text)
         made = (await http.post("/experimenter/api/robots", data={"name": "api rover", "role": "driver"})).json()
         assert made["backend"] == f"robot:{made['id']}" and len(made["token"]) >= 40
         again = await http.post("/experimenter/api/robots", data={"name": "api rover"})

@@ -12,7 +12,10 @@ import shutil
 from types import SimpleNamespace
 
 import pytest
+from sqlalchemy import select
 from sqlalchemy.orm import Session
+
+from app.db.models import Experimenter
 
 from app.export.ndh import ndh_instances
 from app.export.source import load_trial
@@ -20,6 +23,7 @@ from app.perception.cameras import learned
 from sim.camera import FrontCamera
 from sim.geometry import SUCCESS_RADIUS_M
 from tests.app.live import make_trial
+from tests.app.test_status import Watch
 from tests.app.test_seq2seq_seat import stopping_checkpoint  # noqa: F401  (a fixture; needs the benchmark)
 from tests.app.test_disconnect_and_control import login
 from tests.app.test_virtual_rover import (  # noqa: F401  (fixtures)
@@ -58,8 +62,11 @@ async def test_a_rover_trial_records_tracked_poses_belief_truly_within_and_all_n
                   "--start", f"{start.x},{start.y},{start.theta}")
         lab.rover(camera_token, "--role", "overhead", "--truth", str(truth), "--fps", "4")
         experimenter = login(SimpleNamespace(services=lab.services, url=lab.server.url))
+        with lab.services.db() as db:
+            eve = db.scalar(select(Experimenter).where(Experimenter.name == "eve"))
+            cookie = lab.services.sessions.issue(eve.id)
         commander, driver = lab.seats(trial)
-        async with commander, driver:
+        async with commander, driver, Watch(lab.server, trial, cookie) as watch:
             await driver.event("phase", phase="localizing", timeout=START_S)
             await until(lambda: tracked(lab, trial), what="a tracked pose")
             for i, action in enumerate(["forward", "left", "forward", "right"]):
@@ -84,6 +91,10 @@ async def test_a_rover_trial_records_tracked_poses_belief_truly_within_and_all_n
             assert seen["type"] == "belief" and len(seen["mean"]) == 3 and seen["points"]
             assert all(len(p) == 3 and p[2] > 0 for p in seen["points"])
             assert abs(sum(p[2] for p in seen["points"]) - 1) < 1e-2
+            # The live view hears the same: a belief after each perceived frame, the tracked poses.
+            watched = await watch.wait_for(lambda m: m.get("type") == "belief" and m["moves"] == 4)
+            assert watched["mean"] and watched["points"]
+            await watch.event("pose", source="tracker")
 
             await commander.send("localize", x=rest.x, y=rest.y)
             for k, target in enumerate(TARGETS):
@@ -113,8 +124,8 @@ async def test_a_rover_trial_records_tracked_poses_belief_truly_within_and_all_n
 
 async def test_the_learned_driver_drives_a_virtual_rover_to_a_claim(tmp_path, start, camera_calibration,
                                                                    stopping_checkpoint):
-    lab = with_calibration(Lab(tmp_path, ROBOTSLANG_SEQ2SEQ_CHECKPOINT=str(stopping_checkpoint),
-                               ROBOTSLANG_AGENT_MOVE_INTERVAL_S="0.2"), camera_calibration)
+    lab = with_calibration(Lab(tmp_path, seq2seq_checkpoint=stopping_checkpoint, agent_move_interval_s=0.2),
+                           camera_calibration)
     try:
         robot_id, token = lab.register("agent's rover")
         trial = make_trial(lab.services, MAZE, targets=TARGETS, backend=f"robot:{robot_id}",

@@ -7,9 +7,12 @@ import asyncio
 import dataclasses
 
 import pytest
-from sqlalchemy import select
+from sqlalchemy import func, select
 
-from app.db.models import Event
+from app.db.models import Event, Trial
+from app.drivers.registry import available_drivers
+from app.main import build_services
+from app.trial.setup import TrialSetupError
 from models.data import World
 from models.train import TrainConfig, train
 from sim.benchmark import Benchmark
@@ -78,24 +81,27 @@ def test_learned_driver_claims_moves_after_a_rejection_and_claims_again(tmp_path
     assert again_frame_id == frames[0].payload["frame_id"]  # it claimed again from where it moved to
 
 
-def test_seq2seq_without_a_checkpoint_names_the_setting_and_the_trial_stays_open(settings):
-    assert settings.seq2seq_checkpoint is None
-    with ServerThread(settings) as server:
-        services = server.services
-        trial_id = make_trial(services, services.mazes.names()[0], driver="agent:seq2seq")
+def test_seq2seq_that_cannot_start_is_not_offered_and_no_trial_is_created_for_it(tmp_path):
+    """Without a checkpoint, or with a file that is not one, agent:seq2seq cannot start: it says why,
+    and creating a trial with it fails with that reason (no trial for a Commander to wait in)."""
+    broken = tmp_path / "broken.pt"
+    broken.write_bytes(b"not a checkpoint at all")
+    for checkpoint, why in ((None, "ROBOTSLANG_SEQ2SEQ_CHECKPOINT"), (broken, "cannot load checkpoint"),
+                            (tmp_path / "missing.pt", "missing.pt")):
+        settings = platform_settings(tmp_path / f"var-{why[:8]}", seq2seq_checkpoint=checkpoint)
+        services = build_services(settings)
+        available = available_drivers(services)
+        assert available["random"] is None and available["shortest"] is None
+        assert why in available["seq2seq"]
+        with pytest.raises(TrialSetupError, match="cannot start") as refused:
+            make_trial(services, services.mazes.names()[0], driver="agent:seq2seq")
+        assert why in str(refused.value)
+        with services.db() as db:
+            assert db.scalar(select(func.count()).select_from(Trial)) == 0
+        services.engine.dispose()
 
-        async def command():
-            async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
-                await commander.wait_for(lambda m: m.get("type") == "welcome")
-                for _ in range(250):
-                    if events_of(services, trial_id, "bad_message"):
-                        break
-                    await asyncio.sleep(0.02)
-                await commander.send("chat", text="still there?")
-                await commander.event("chat", text="still there?")
 
-        asyncio.run(command())
-        (error,) = [e.payload for e in events_of(services, trial_id, "bad_message")]
-    assert error["role"] == "driver"
-    assert error["error"].startswith("agent 'seq2seq' failed: agent:seq2seq needs a checkpoint")
-    assert "ROBOTSLANG_SEQ2SEQ_CHECKPOINT" in error["error"]
+def test_a_loadable_checkpoint_is_offered(tmp_path, stopping_checkpoint):
+    services = build_services(platform_settings(tmp_path, seq2seq_checkpoint=stopping_checkpoint))
+    assert available_drivers(services)["seq2seq"] is None
+    services.engine.dispose()

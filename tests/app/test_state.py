@@ -26,9 +26,11 @@ def test_clock_runs_only_while_playing_and_stops_when_paused():
 
 def test_score_is_time_to_last_confirmation_plus_move_penalty():
     events = log((0, "trial_created", CREATED), (1, "phase", {"phase": "localizing", "target_index": 0}),
-                 (2, "move_executed", {"outcome": "ok", "collision": False}),
-                 (3, "move_executed", {"outcome": "collision", "collision": True}),
-                 (4, "move_executed", {"outcome": "refused", "collision": False}),
+                 (2, "move_executed", {"move_id": "a", "action": "forward", "outcome": "ok", "collision": False}),
+                 (3, "move_executed", {"move_id": "b", "action": "forward", "outcome": "collision",
+                                       "collision": True}),
+                 (4, "move_executed", {"move_id": "c", "action": "left", "outcome": "refused", "collision": False,
+                                       "reason": "too soon after the previous move"}),
                  (5, "target_claimed", {"target": "jar", "target_index": 0, "frame_id": 9}),
                  (6, "target_confirmed", {"target": "jar", "target_index": 0}),
                  (31, "phase", {"phase": "finished", "target_index": 3}))
@@ -43,3 +45,23 @@ def test_unfinished_trials_do_not_score():
                  (9, "phase", {"phase": "aborted", "target_index": None}))
     state = fold(events)
     assert state.over and state.score(1.0) is None and state.active_s() == 8.0
+
+
+def test_the_clock_stops_at_the_last_event_before_a_server_restart():
+    events = log((0, "trial_created", CREATED), (1, "phase", {"phase": "localizing", "target_index": 0}),
+                 (4, "chat", {"role": "commander", "text": "hi"}),
+                 # the server died here; it came back 600 s later
+                 (604, "restarted", {"paused": ["disconnect:driver"]}), (605, "disconnect", {"role": "driver"}),
+                 (610, "connect", {"role": "driver"}), (610, "resumed", {"reason": "disconnect:driver"}))
+    state = fold(events)
+    assert state.active_s() == 3.0
+    assert state.active_s(now_ns=612 * S) == 5.0
+
+
+def test_a_seat_away_before_a_restart_keeps_the_time_it_was_away():
+    events = log((0, "trial_created", CREATED), (1, "phase", {"phase": "localizing", "target_index": 0}),
+                 (10, "disconnect", {"role": "driver"}), (10, "paused", {"reason": "disconnect:driver"}),
+                 (40, "chat", {"role": "commander", "text": "are you there?"}),
+                 (900, "restarted", {}))
+    state = fold(events)
+    assert state.away["driver"].away_ns(905 * S) == 35 * S  # 30 s before the crash, 5 s after it

@@ -170,8 +170,11 @@ def test_other_role_token_and_bad_messages_get_errors_and_never_end_the_trial(se
                 await refused(driver, "chat", "text", text="x" * 501)
                 await refused(driver, "chat", "limit is", text="y" * 480, padding="z" * 5000)
                 await refused(commander, "localize", "x", x=9.0, y=1.0)
+                # Wrong types are refused, never coerced.
+                await refused(commander, "localize", "valid number", x="0.5", y=1.0)
+                await refused(commander, "localize", "valid number", x=1.0, y=True)
                 await refused(commander, "confirm", "no claimed target")
-                await refused(driver, "claim", "only while navigating")
+                await refused(driver, "claim", "once the Commander has marked the robot")
                 # The trial goes on.
                 await driver.send("chat", text="still here")
                 await commander.event("chat", text="still here")
@@ -180,7 +183,7 @@ def test_other_role_token_and_bad_messages_get_errors_and_never_end_the_trial(se
         with services.db() as db:
             bad = db.scalars(select(Event).where(Event.trial_id == trial_id, Event.kind == "bad_message")).all()
             phase = db.get(Trial, trial_id).phase
-        assert len(bad) == 13 and {b.payload["role"] for b in bad} == {"commander", "driver"}
+        assert len(bad) == 15 and {b.payload["role"] for b in bad} == {"commander", "driver"}
         assert phase == "localizing"
 
 

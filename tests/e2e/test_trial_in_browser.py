@@ -130,16 +130,16 @@ def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, tmp_path):
                 else:
                     driver.click(buttons[action])
                 wait_until(lambda: runtime.state.moves > before and runtime.state.last_frame_id is not None
-                           and not runtime._move_busy, what="a move to execute")
+                           and not runtime.state.moves_in_flight, what="a move to execute")
                 driver.wait_for_timeout(30)  # the page takes the move's result before the next press
             driver.click("#found")
-            commander.wait_for_selector("#claim:not(.hidden)")
+            commander.wait_for_selector("#claim:not([hidden])")
             commander.wait_for_function("document.getElementById('claim-image').src.startsWith('data:image/jpeg')")
             if index == 0:
                 commander.screenshot(path=str(ARTIFACTS / "commander.png"))
                 driver.screenshot(path=str(ARTIFACTS / "driver-claim.png"))
             commander.click("#confirm")
-            commander.wait_for_selector("#claim.hidden", state="attached")
+            commander.wait_for_selector("#claim[hidden]", state="attached")
         commander.wait_for_selector("#status[data-phase=finished]")
         driver.wait_for_selector("#status[data-phase=finished]")
         commander.screenshot(path=str(ARTIFACTS / "commander-finished.png"))

@@ -1,0 +1,70 @@
+"""`LoginGuard`: experimenter logins, rate-limited and checked off the event loop.
+
+Attempts are counted per account name and per client address (a moving window, `limits` in
+memory: one server process); an attempt counts until it succeeds, which clears the account's
+count. Password hashes are computed in worker threads, at most `concurrency` at once, so a burst
+of logins queues instead of taking every thread and hundreds of megabytes of hash memory.
+An unknown name is checked against a dummy hash, so it costs what a known one costs.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import secrets
+import time
+
+from limits import parse
+from limits.storage import MemoryStorage
+from limits.strategies import MovingWindowRateLimiter
+from sqlalchemy import select
+from sqlalchemy.orm import sessionmaker
+
+from app.db.models import Experimenter
+from app.security import hash_password, needs_rehash, verify_password
+
+
+class TooManyAttempts(Exception):
+    def __init__(self, retry_after_s: int) -> None:
+        super().__init__(f"too many login attempts; try again in {retry_after_s} s")
+        self.retry_after_s = retry_after_s
+
+
+class LoginGuard:
+    def __init__(self, db: sessionmaker, per_account: str, per_address: str, concurrency: int | None = None) -> None:
+        self._db = db
+        self._limiter = MovingWindowRateLimiter(MemoryStorage())
+        self._per_account, self._per_address = parse(per_account), parse(per_address)
+        self._slots = asyncio.Semaphore(concurrency or len(os.sched_getaffinity(0)))
+        self._dummy_hash = hash_password(secrets.token_urlsafe(16))
+
+    async def authenticate(self, name: str, password: str, address: str) -> int | None:
+        """The experimenter's id, None for a wrong name or password; raises `TooManyAttempts`."""
+        self._count_attempt(name, address)
+        async with self._slots:
+            user_id = await asyncio.to_thread(self._check, name, password)
+        if user_id is not None:
+            self._limiter.clear(self._per_account, "account", name)
+        return user_id
+
+    def _count_attempt(self, name: str, address: str) -> None:
+        # Both limits are tested before either is hit, so a refused attempt costs neither count.
+        limits = ((self._per_account, "account", name), (self._per_address, "address", address))
+        for item, *key in limits:
+            if not self._limiter.test(item, *key):
+                reset = self._limiter.get_window_stats(item, *key).reset_time
+                raise TooManyAttempts(max(1, int(reset - time.time() + 0.999)))
+        for item, *key in limits:
+            self._limiter.hit(item, *key)
+
+    def _check(self, name: str, password: str) -> int | None:
+        with self._db.begin() as db:
+            user = db.scalar(select(Experimenter).where(Experimenter.name == name))
+            if user is None:
+                verify_password(password, self._dummy_hash)
+                return None
+            if not verify_password(password, user.password_hash):
+                return None
+            if needs_rehash(user.password_hash):  # e.g. an scrypt hash from before argon2
+                user.password_hash = hash_password(password)
+            return user.id

@@ -1,0 +1,53 @@
+"""How uvicorn serves the app: `uvicorn_options(settings)` for `robotslang serve`, the demo and the tests.
+
+A websocket message over the transport limit (`ws_max_size`) is cut off by the websockets
+library before the app sees it, with a bare close 1009. `ReplyingWebSocketProtocol` sends the
+documented error reply first (`{"type": "error", "code": "bad_message", "error": ...}`), then the
+close, and lets the client finish sending before it closes the connection (closing while data
+still arrives resets it, and a reset can destroy the reply before the client reads it). The app
+hears the close (code 1009) and records the `bad_message`. Messages under the transport limit but
+over `max_message_bytes` are answered by the app itself.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from uvicorn.protocols.websockets.websockets_sansio_impl import WebSocketsSansIOProtocol
+from websockets.exceptions import PayloadTooBig
+from websockets.frames import Frame, Opcode
+
+from app.settings import Settings
+
+MESSAGE_TOO_BIG = 1009
+LINGER_S = 2.0  # how long the rest of an oversized message may keep arriving after the reply
+
+
+def too_big_error(limit: int) -> str:
+    return f"message is over the limit of {limit} bytes"
+
+
+class ReplyingWebSocketProtocol(WebSocketsSansIOProtocol):
+    def handle_parser_exception(self) -> None:
+        if self.close_sent:  # the rest of an oversized message: the parser discards it
+            return
+        if not isinstance(self.conn.parser_exc, PayloadTooBig):
+            super().handle_parser_exception()
+            return
+        error = too_big_error(self.config.ws_max_size)
+        self.queue.put_nowait({"type": "websocket.disconnect", "code": MESSAGE_TOO_BIG, "reason": error})
+        reply = json.dumps({"type": "error", "code": "bad_message", "error": error})
+        self.transport.write(Frame(Opcode.TEXT, reply.encode()).serialize(mask=False))
+        self.transport.write(b"".join(self.conn.data_to_send()))  # the close frame
+        self.close_sent = True
+        self.close_timer = self.loop.call_later(LINGER_S, self.transport.close)
+
+
+def uvicorn_options(settings: Settings) -> dict[str, Any]:
+    """Frames and claims are sent inline: the transport limit stays above the message limit. No
+    per-message deflate: the largest messages are JPEGs, which do not compress."""
+    from app.backends.remote import MAX_FRAME_BYTES  # the rover's camera frames are the largest messages
+
+    return {"ws": ReplyingWebSocketProtocol, "ws_per_message_deflate": False,
+            "ws_max_size": max(65536, 4 * settings.max_message_bytes, 2 * MAX_FRAME_BYTES)}

@@ -1,0 +1,252 @@
+"""`decide(state, command) -> events`: every rule of a trial, as a pure function.
+
+The runtime turns what happens (a seat's message, a seat coming or going, a move the robot
+finished, a timer, a server restart) into a command, records the events `decide` returns and
+folds them into the state. A command that is not allowed now raises `Refused`, naming why in
+words a participant can act on; nothing is recorded for it but the refusal.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from app.trial import events as ev
+from app.trial.state import TrialState
+from app.trial.vocabulary import EXPERIMENTER_PAUSE, MoveAction, Outcome, Phase, Role, disconnect_pause
+from sim.geometry import SUCCESS_RADIUS_M
+
+
+class Refused(ValueError):
+    """A command that is well formed but not allowed now; the message says why."""
+
+
+# -- commands ----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Join:
+    role: Role
+
+
+@dataclass(frozen=True)
+class Leave:
+    role: Role
+
+
+@dataclass(frozen=True)
+class Say:
+    role: Role
+    text: str
+
+
+@dataclass(frozen=True)
+class RequestMove:
+    move_id: str
+    action: MoveAction
+    now_ns: int
+    robot_ready: bool  # a backend is in the robot seat
+    min_interval_ns: int = 0
+
+
+@dataclass(frozen=True)
+class FinishMove:
+    move_id: str
+    outcome: Outcome
+    reason: str | None = None
+
+
+@dataclass(frozen=True)
+class AbandonMoves:
+    """Moves that will never be finished (the server restarted, or the trial ended mid-move)."""
+
+    reason: str
+
+
+@dataclass(frozen=True)
+class Localize:
+    x: float
+    y: float
+    heading: float | None = None
+
+
+@dataclass(frozen=True)
+class Claim:
+    pass
+
+
+@dataclass(frozen=True)
+class Judge:
+    """The Commander's verdict on the pending claim; `within_m` is the ground truth where known."""
+
+    confirmed: bool
+    within_m: float | None = None
+
+
+@dataclass(frozen=True)
+class Note:
+    """A fact from a sensor or a seat with no rule attached (frame, pose, bad message)."""
+
+    event: ev.Event
+
+
+@dataclass(frozen=True)
+class Pause:
+    pass
+
+
+@dataclass(frozen=True)
+class Resume:
+    pass
+
+
+@dataclass(frozen=True)
+class Abort:
+    pass
+
+
+@dataclass(frozen=True)
+class GraceExpired:
+    role: Role
+
+
+@dataclass(frozen=True)
+class Reopen:
+    """A server opens a trial from its log: seats and moves of the process before are gone."""
+
+
+Command = (Join | Leave | Say | RequestMove | FinishMove | AbandonMoves | Localize | Claim | Judge | Note | Pause
+           | Resume | Abort | GraceExpired | Reopen)
+
+
+# -- the rules ---------------------------------------------------------------------------
+def decide(state: TrialState, command: Command) -> list[ev.Event]:
+    match command:
+        case Reopen():
+            return _reopen(state)
+        case AbandonMoves(reason=reason):
+            return [_refused(move_id, action, reason) for move_id, (action, _) in state.moves_in_flight.items()]
+        case FinishMove(move_id=move_id, outcome=outcome, reason=reason):
+            if move_id not in state.moves_in_flight:
+                return []
+            action, _ = state.moves_in_flight[move_id]
+            return [ev.MoveExecuted(move_id=move_id, action=action, outcome=outcome,
+                                    collision=outcome == Outcome.COLLISION, reason=reason)]
+    if state.over:
+        if isinstance(command, (Say, RequestMove, Localize, Claim, Judge)):
+            raise Refused(f"the trial is {state.phase}")
+        return []
+    match command:
+        case Join(role=role):
+            return _join(state, role)
+        case Leave(role=role):
+            return _leave(state, role)
+        case Say(role=role, text=text):
+            return [ev.Chat(role=role, text=text)]
+        case RequestMove():
+            return _request_move(state, command)
+        case Localize(x=x, y=y, heading=heading):
+            if not state.phase.running:
+                raise Refused(f"the robot can be marked once the trial has started (it is {state.phase})")
+            events: list[ev.Event] = [ev.Localized(x=x, y=y, heading=heading)]
+            if state.phase == Phase.LOCALIZING:
+                events.append(ev.PhaseChanged(phase=Phase.NAVIGATING, target_index=0))
+            return events
+        case Claim():
+            return [_claim(state)]
+        case Judge(confirmed=confirmed, within_m=within_m):
+            return _judge(state, confirmed, within_m)
+        case Note(event=event):
+            return [event]
+        case Pause():
+            return [] if EXPERIMENTER_PAUSE in state.pause_reasons else [ev.Paused(reason=EXPERIMENTER_PAUSE)]
+        case Resume():
+            return [ev.Resumed(reason=EXPERIMENTER_PAUSE)] if EXPERIMENTER_PAUSE in state.pause_reasons else []
+        case Abort():
+            return [ev.PhaseChanged(phase=Phase.ABORTED)]
+        case GraceExpired(role=role):
+            return [ev.PhaseChanged(phase=Phase.ABORTED)] if role in state.away else []
+    raise TypeError(f"not a trial command: {command!r}")
+
+
+def _reopen(state: TrialState) -> list[ev.Event]:
+    if state.over:
+        return []  # a finished or aborted trial's log is closed
+    events: list[ev.Event] = []
+    if state.phase.running:  # the clock stopped at the last event; the seats now missing hold it
+        events.append(ev.Restarted(paused=[disconnect_pause(role) for role in sorted(state.connected)
+                                           if disconnect_pause(role) not in state.pause_reasons]))
+    events += decide(state, AbandonMoves("server restart"))
+    events += [ev.Disconnected(role=role) for role in sorted(state.connected)]
+    return events
+
+
+def _join(state: TrialState, role: Role) -> list[ev.Event]:
+    events: list[ev.Event] = [ev.Connected(role=role)]
+    if disconnect_pause(role) in state.pause_reasons:
+        events.append(ev.Resumed(reason=disconnect_pause(role)))
+    connected = state.connected | {role}
+    if state.phase == Phase.WAITING and all(r in connected for r in state.seats_needed):
+        events.append(ev.PhaseChanged(phase=Phase.LOCALIZING, target_index=0))
+    return events
+
+
+def _leave(state: TrialState, role: Role) -> list[ev.Event]:
+    events: list[ev.Event] = [ev.Disconnected(role=role)]
+    if state.phase.running and disconnect_pause(role) not in state.pause_reasons:
+        events.append(ev.Paused(reason=disconnect_pause(role)))
+    return events
+
+
+def why_not_running(state: TrialState) -> str:
+    if state.waiting_for:
+        return f"the trial is waiting for the {' and the '.join(state.waiting_for)} to connect"
+    if disconnect_pause(Role.ROBOT) in state.pause_reasons:
+        return "the trial is paused: the robot is not connected"
+    return "the trial is paused" if state.pause_reasons else f"the trial is {state.phase}"
+
+
+def _request_move(state: TrialState, command: RequestMove) -> list[ev.Event]:
+    move_id, action = command.move_id, command.action
+    if move_id in state.move_ids:
+        raise Refused(f"move {move_id!r} was already received; it is not executed twice")
+    reason = None
+    if not state.running:
+        reason = why_not_running(state)
+    elif state.moves_in_flight:
+        reason = "the previous move is still executing"
+    elif state.last_move_ns is not None and command.now_ns - state.last_move_ns < command.min_interval_ns:
+        reason = "too soon after the previous move"
+    elif not command.robot_ready:
+        reason = "the robot is not connected"
+    events: list[ev.Event] = [ev.MoveRequested(move_id=move_id, action=action)]
+    if reason is not None:
+        events.append(_refused(move_id, action, reason))
+    return events
+
+
+def _refused(move_id: str, action: MoveAction, reason: str) -> ev.MoveExecuted:
+    return ev.MoveExecuted(move_id=move_id, action=action, outcome=Outcome.REFUSED, reason=reason)
+
+
+def _claim(state: TrialState) -> ev.TargetClaimed:
+    if state.phase != Phase.NAVIGATING or state.pause_reasons:
+        raise Refused("a target can be claimed once the Commander has marked the robot on the map, "
+                      "and not while the trial is paused")
+    if state.pending_claim is not None:
+        raise Refused("the previous claim is still waiting for the Commander")
+    if state.last_frame_id is None:
+        raise Refused("there is no camera frame to send yet")
+    return ev.TargetClaimed(target=state.current_target, target_index=state.target_index,
+                            frame_id=state.last_frame_id)
+
+
+def _judge(state: TrialState, confirmed: bool, within_m: float | None) -> list[ev.Event]:
+    claim = state.pending_claim
+    if claim is None:
+        raise Refused("there is no claimed target to confirm or reject")
+    target, index = claim["target"], claim["target_index"]
+    truly = None if within_m is None else within_m <= SUCCESS_RADIUS_M
+    verdict = ev.TargetConfirmed if confirmed else ev.TargetRejected
+    events: list[ev.Event] = [verdict(target=target, target_index=index, within_m=within_m, truly_within=truly)]
+    if confirmed:
+        last = index + 1 >= len(state.targets)
+        events.append(ev.PhaseChanged(phase=Phase.FINISHED if last else Phase.NAVIGATING, target_index=index + 1))
+    return events

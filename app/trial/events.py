@@ -1,0 +1,168 @@
+"""A trial's events: one pydantic model per kind; its fields are the stored JSON payload.
+
+`LoggedEvent` is an event as the log holds it (seq, kind, stamp, payload dict): what the exports
+and the replay read. `typed(logged)` gives the model. Payloads keep the shape they have always
+had, so logs written before these models existed read the same.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+from pydantic import BaseModel, ConfigDict
+
+from app.trial.vocabulary import FrameSource, MoveAction, Outcome, Phase, PoseSource, Role
+
+
+@dataclass(frozen=True)
+class LoggedEvent:
+    seq: int
+    kind: str
+    t_ns: int
+    payload: dict[str, Any]
+
+
+class Event(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="ignore")
+    kind: ClassVar[str]
+    omit_if_none: ClassVar[tuple[str, ...]] = ()  # keys stored only when set
+
+    def payload(self) -> dict[str, Any]:
+        data = self.model_dump(mode="json")
+        for key in self.omit_if_none:
+            if data.get(key) is None:
+                data.pop(key, None)
+        return data
+
+
+class TrialCreated(Event):
+    kind = "trial_created"
+    maze: str
+    targets: list[str]
+    backend: str
+    driver: str
+
+
+class Connected(Event):
+    kind = "connect"
+    role: Role
+
+
+class Disconnected(Event):
+    kind = "disconnect"
+    role: Role
+
+
+class PhaseChanged(Event):
+    kind = "phase"
+    phase: Phase
+    target_index: int | None = None
+
+
+class Paused(Event):
+    kind = "paused"
+    reason: str
+
+
+class Resumed(Event):
+    kind = "resumed"
+    reason: str
+
+
+class Restarted(Event):
+    """The first event a server writes on reopening a running trial: the clock stopped at the
+    event before, so the time the server was down is not scored, and it stays stopped for the
+    seats of the process before (`paused`: their pause reasons, as `Paused` would add them)."""
+
+    kind = "restarted"
+    paused: list[str] = []
+
+
+class Chat(Event):
+    kind = "chat"
+    role: Role
+    text: str
+
+
+class MoveRequested(Event):
+    kind = "move_requested"
+    move_id: str
+    action: MoveAction
+
+
+class MoveExecuted(Event):
+    kind = "move_executed"
+    omit_if_none = ("reason",)
+    move_id: str
+    action: MoveAction
+    outcome: Outcome
+    collision: bool = False
+    reason: str | None = None
+
+
+class FrameRecorded(Event):
+    kind = "frame"
+    frame_id: int
+    source: FrameSource = FrameSource.DRIVER
+    path: str
+    capture_ns: int
+    width: int
+    height: int
+    mime: str = "image/jpeg"
+
+
+class PoseSampled(Event):
+    kind = "pose"
+    x: float
+    y: float
+    heading: float
+    source: PoseSource = PoseSource.SIM
+
+
+class Localized(Event):
+    kind = "localization"
+    x: float
+    y: float
+    heading: float | None = None
+
+
+class TargetClaimed(Event):
+    kind = "target_claimed"
+    target: str
+    target_index: int
+    frame_id: int
+
+
+class TargetConfirmed(Event):
+    kind = "target_confirmed"
+    target: str
+    target_index: int
+    within_m: float | None = None  # ground truth where the backend knows the pose
+    truly_within: bool | None = None
+
+
+class TargetRejected(Event):
+    kind = "target_rejected"
+    target: str
+    target_index: int
+    within_m: float | None = None
+    truly_within: bool | None = None
+
+
+class BadMessage(Event):
+    kind = "bad_message"
+    role: Role
+    error: str
+
+
+KINDS: dict[str, type[Event]] = {cls.kind: cls for cls in (
+    TrialCreated, Connected, Disconnected, PhaseChanged, Paused, Resumed, Restarted, Chat, MoveRequested,
+    MoveExecuted, FrameRecorded, PoseSampled, Localized, TargetClaimed, TargetConfirmed, TargetRejected,
+    BadMessage)}
+
+
+def typed(event: LoggedEvent) -> Event | None:
+    """The model of a logged event; None for a kind this code does not know."""
+    cls = KINDS.get(event.kind)
+    return None if cls is None else cls.model_validate(event.payload)

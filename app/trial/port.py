@@ -1,0 +1,62 @@
+"""What the parts around a trial may do with it: narrow interfaces, so a robot backend or an
+agent in the Driver's seat never holds the runtime itself (and never reaches into it)."""
+
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+from app.trial.state import TrialState
+from app.trial.vocabulary import FrameSource, MoveAction, Outcome, Role
+
+
+class Connection(Protocol):
+    """One seat's way out: a socket, a relayed socket, an agent, the rover."""
+
+    role: str
+
+    def deliver(self, message: dict[str, Any]) -> None:
+        """Queue a message for this seat; never blocks."""
+
+
+class TrialView(Protocol):
+    trial_id: int
+
+    @property
+    def state(self) -> TrialState:
+        """The trial as its log says now (read it; change it only through the methods)."""
+
+    def join(self, conn: Connection) -> None: ...
+
+    def leave(self, conn: Connection) -> None: ...
+
+    def report_bad_message(self, role: Role, error: str) -> None:
+        """Record a message that was refused (from a rover, a camera, an agent)."""
+
+
+class RobotTrial(TrialView, Protocol):
+    """The trial as a robot backend sees it: it fills the robot seat and records cameras."""
+
+    def record_frame(self, jpeg: bytes, capture_ns: int, width: int, height: int, source: FrameSource) -> int:
+        """Store one camera image and its `frame` event; returns the frame id."""
+
+    def record_pose(self, pose: tuple[float, float, float]) -> None:
+        """A pose (x, y, heading) of the robot measured from outside it (the overhead tracker)."""
+
+
+class DriverTrial(TrialView, Protocol):
+    """The trial as an agent in the Driver's seat sees it."""
+
+    async def request_move(self, action: MoveAction) -> Outcome:
+        """Move the robot under the same rules as a person's move; returns what became of it."""
+
+    def say(self, role: Role, text: str) -> None: ...
+
+    def claim(self) -> None:
+        """Claim the current target (raises `Refused` when not allowed now)."""
+
+    def true_pose(self) -> tuple[float, float, float] | None:
+        """Where the backend knows the robot is (oracle baselines only)."""
+
+    @property
+    def belief(self) -> Any:
+        """The trial's live particle filter (`app.perception.belief.TrialBelief`), or None."""

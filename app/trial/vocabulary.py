@@ -1,0 +1,68 @@
+"""The trial's closed vocabularies. The values are the strings stored in the event log."""
+
+from __future__ import annotations
+
+from enum import StrEnum
+
+
+class Phase(StrEnum):
+    WAITING = "waiting"
+    LOCALIZING = "localizing"
+    NAVIGATING = "navigating"
+    FINISHED = "finished"
+    ABORTED = "aborted"
+
+    @property
+    def running(self) -> bool:
+        """The phases the trial clock runs in (unless paused)."""
+        return self in (Phase.LOCALIZING, Phase.NAVIGATING)
+
+    @property
+    def over(self) -> bool:
+        return self in (Phase.FINISHED, Phase.ABORTED)
+
+
+class Role(StrEnum):
+    """Who takes part: the two participants, the rover in the robot seat, the overhead camera."""
+
+    COMMANDER = "commander"
+    DRIVER = "driver"
+    ROBOT = "robot"
+    OVERHEAD = "overhead"
+
+
+PARTICIPANTS = (Role.COMMANDER, Role.DRIVER)
+
+
+class MoveAction(StrEnum):
+    """The Driver's discrete moves: 0.07 m forward, or a 45 degree turn."""
+
+    FORWARD = "forward"
+    LEFT = "left"
+    RIGHT = "right"
+
+
+class Outcome(StrEnum):
+    """What became of a move: executed, bumped into something (the robot stayed), or not executed."""
+
+    OK = "ok"
+    COLLISION = "collision"
+    REFUSED = "refused"
+
+
+class FrameSource(StrEnum):
+    DRIVER = "driver"  # the rover's front camera
+    OVERHEAD = "overhead"  # the tracker camera over the table
+
+
+class PoseSource(StrEnum):
+    SIM = "sim"
+    TRACKER = "tracker"
+
+
+EXPERIMENTER_PAUSE = "experimenter"
+
+
+def disconnect_pause(role: Role | str) -> str:
+    """The pause reason a missing seat holds the trial with."""
+    return f"disconnect:{role}"

@@ -1,0 +1,116 @@
+// One trial's status, as every page shows it: the event fold (the same rules as
+// app/trial/state.py), the server's `status` message, the trial clock and plain-language texts.
+// Shared by the seat pages, the experimenter's trial page and the replay.
+
+export const RUNNING = new Set(["localizing", "navigating"]);
+export const OVER = new Set(["finished", "aborted"]);
+
+export function emptyStatus() {
+  return {phase: "waiting", target_index: 0, targets_total: 3, moves: null, collisions: 0, confirmed: 0,
+          paused: [], waiting_for: [], connected: [], active_ns: 0, last_t_ns: null, elapsed_s: 0,
+          from_server: false};
+}
+
+export function isRunning(s) { return RUNNING.has(s.phase) && s.paused.length === 0; }
+
+// One logged event ({kind, t_ns, payload}) folded into the status, as TrialState.apply does.
+export function foldEvent(s, e) {
+  const p = e.payload || {};
+  if (isRunning(s) && s.last_t_ns !== null && e.t_ns !== undefined) s.active_ns += Math.max(0, e.t_ns - s.last_t_ns);
+  if (e.t_ns !== undefined) s.last_t_ns = e.t_ns;
+  switch (e.kind) {
+    case "trial_created": s.targets_total = (p.targets || []).length || s.targets_total; break;
+    case "phase":
+      s.phase = p.phase;
+      if (p.target_index !== null && p.target_index !== undefined) s.target_index = p.target_index;
+      break;
+    case "paused": if (!s.paused.includes(p.reason)) s.paused = [...s.paused, p.reason]; break;
+    case "resumed": s.paused = s.paused.filter((r) => r !== p.reason); break;
+    case "connect": if (!s.connected.includes(p.role)) s.connected = [...s.connected, p.role]; break;
+    case "disconnect": s.connected = s.connected.filter((r) => r !== p.role); break;
+    case "move_executed":
+      if (p.outcome === "ok" || p.outcome === "collision") s.moves = (s.moves || 0) + 1;
+      if (p.collision) s.collisions++;
+      break;
+    case "target_confirmed": s.confirmed++; break;
+  }
+  if (!s.from_server) s.elapsed_s = s.active_ns / 1e9;
+  return s;
+}
+
+// The server's status message (or a dashboard snapshot of the same shape) replaces what the fold guessed.
+export function applyStatus(s, msg) {
+  for (const key of ["phase", "target_index", "targets_total", "elapsed_s", "moves", "paused", "waiting_for"])
+    if (msg[key] !== undefined && msg[key] !== null) s[key] = msg[key];
+  s.from_server = true;
+  s.status_at = performance.now();
+  return s;
+}
+
+// Seconds on the trial clock now: the server's figure (or the fold's) advanced locally while running.
+export function clockSeconds(s, nowMs = performance.now(), wallNs = Date.now() * 1e6) {
+  if (!isRunning(s)) return s.elapsed_s;
+  if (s.from_server) return s.elapsed_s + Math.max(0, nowMs - s.status_at) / 1000;
+  return (s.active_ns + (s.last_t_ns === null ? 0 : Math.max(0, wallNs - s.last_t_ns))) / 1e9;
+}
+
+export function formatClock(seconds) {
+  const total = Math.max(0, Math.floor(seconds));
+  const m = Math.floor(total / 60), sec = total % 60;
+  return `${m}:${String(sec).padStart(2, "0")}`;
+}
+
+const PARTNER = {commander: "Driver", driver: "Commander"};
+
+// What is going on, in words a participant (or the experimenter) needs: what to do now.
+export function statusText(s, role) {
+  const partner = PARTNER[role];
+  const target = `target ${Math.min(s.target_index + 1, s.targets_total)} of ${s.targets_total}`;
+  if (s.phase === "finished") return "Finished: all three targets found. Thank you!";
+  if (s.phase === "aborted") return "This trial has ended early. You can close this page.";
+  const missing = s.waiting_for.length ? s.waiting_for
+    : (s.paused.filter((r) => r.startsWith("disconnect:")).map((r) => r.slice("disconnect:".length)));
+  if (s.phase === "waiting") {
+    if (!missing.length) return "Starting…";
+    return `Waiting for ${missing.map((r) => who(r, role)).join(" and ")} to join.`;
+  }
+  if (s.paused.includes("experimenter")) return "Paused by the experimenter. The clock is stopped.";
+  if (missing.length) return `Paused: ${missing.map((r) => who(r, role)).join(" and ")} lost the connection. ` +
+    "The clock is stopped until they are back.";
+  if (s.phase === "localizing") {
+    if (role === "commander") return "Find out where the robot is: ask the Driver what they see, then mark it on the map.";
+    if (role === "driver") return "Tell the Commander what you see, so they can find the robot on the map.";
+    return "Localizing: the Commander is finding the robot on the map.";
+  }
+  if (role === "commander") return `Guide the Driver to ${target}.`;
+  if (role === "driver") return `Drive to ${target}. Press "I found the target" when you see it.`;
+  return `Navigating to ${target}.`;
+}
+
+function who(seat, role) {
+  if (seat === "robot") return "the robot";
+  if (seat === role) return "you";
+  return seat === "commander" ? "the Commander" : "the Driver";
+}
+
+// Server error strings to what the participant can do about them (no internal words).
+const ERRORS = [
+  [/only while navigating/, "Wait until the Commander has marked where the robot is."],
+  [/previous claim is still waiting/, "Wait: the Commander is still looking at your last claim."],
+  [/no camera frame/, "Wait until the camera picture appears."],
+  [/no claimed target/, "The Driver has not said they found the target yet."],
+  [/still executing|too soon after/, "Wait: the robot is still moving."],
+  [/robot is not connected/, "The robot is not connected. Tell the experimenter."],
+  [/waiting for the/, "Wait until everyone has joined."],
+  [/paused/, "The trial is paused. Wait until it goes on."],
+  [/cannot mark the robot while/, "You can mark the robot once the trial has started."],
+  [/the trial is (finished|aborted)/, "The trial is over."],
+  [/bytes; the limit is|at most \d+ characters|string_too_long/, "That message is too long. Please shorten it."],
+  [/token|seat/, "This link no longer works. Ask the experimenter for a new one."],
+  [/server restart/, "The server restarted. Please try again."],
+];
+
+export function friendlyError(text) {
+  for (const [pattern, words] of ERRORS) if (pattern.test(text || "")) return words;
+  return "That did not work. Try again, or tell the experimenter.";
+}

@@ -1,0 +1,269 @@
+"""What holds when the server dies, a seat is gone, a message comes twice or a rover reconnects:
+real SQLite files, real server processes and threads, real websockets over loopback."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import time
+
+import websockets
+from sqlalchemy import select
+
+from app.backends.remote import create_robot
+from app.db.models import Trial
+from app.main import build_services
+from app.trial.setup import create_participant, create_team, create_trial
+from app.trial.state import fold
+from robot_client.protocol import pack_frame
+from tests.app.conftest import platform_settings
+from tests.app.live import SeatClient, ServerProcess, ServerThread, make_trial
+from tests.app.trial_play import move, start_trial
+
+S = 1_000_000_000
+JPEG = b"\xff\xd8\xff\xe0" + bytes(64) + b"\xff\xd9"
+
+
+def until(predicate, what: str, timeout: float = 20.0):
+    """Poll a condition on the database (the server may be another process)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(0.05)
+    raise AssertionError(f"{what}: not within {timeout} s")
+
+
+class Rover:
+    """A rover that speaks the wire protocol: hello, pongs on its own clock, frames; and moves it
+    never acknowledges unless told to (so a test can hold a move in flight)."""
+
+    def __init__(self, url: str, token: str, clock_offset_ns: int = 0) -> None:
+        self.url, self.token, self.offset = url.replace("/ws/play", "/ws/robot"), token, clock_offset_ns
+        self.moves: list[dict] = []
+
+    def now(self) -> int:
+        return time.monotonic_ns() + self.offset
+
+    async def __aenter__(self) -> "Rover":
+        self.ws = await websockets.connect(self.url, max_size=2**22)
+        await self.ws.send(json.dumps({"type": "hello", "protocol": 1, "token": self.token, "role": "driver"}))
+        welcome = json.loads(await self.ws.recv())
+        assert welcome["type"] == "welcome", welcome
+        self.pongs = 0
+        self._reader = asyncio.get_running_loop().create_task(self._read())
+        return self
+
+    async def _read(self) -> None:
+        with contextlib.suppress(websockets.ConnectionClosed):
+            async for raw in self.ws:
+                message = json.loads(raw)
+                if message["type"] == "ping":
+                    await self.ws.send(json.dumps({"type": "pong", "id": message["id"], "robot_ns": self.now()}))
+                    self.pongs += 1
+                elif message["type"] == "move":
+                    self.moves.append(message)
+
+    async def frame(self, seq: int, capture_ns: int) -> None:
+        await self.ws.send(pack_frame(seq, capture_ns, 320, 240, JPEG))
+
+    async def __aexit__(self, *exc) -> None:
+        self._reader.cancel()
+        await self.ws.close()
+
+
+def rover_trial(services) -> tuple[int, str]:
+    """A registered rover and a trial on it; returns (trial id, the rover's token)."""
+    with services.db.begin() as db:
+        robot, token = create_robot(db, "rover")
+        a, b = create_participant(db, "ann"), create_participant(db, "bob")
+        team = create_team(db, "Team R", a.id, b.id)
+        trial = create_trial(db, team_id=team.id, maze=services.mazes.names()[0], targets=["jar", "mug", "paddle"],
+                             backend=f"robot:{robot.id}", driver="human", commander_id=a.id,
+                             maze_names=services.mazes.names(), now_ns=services.clock.now_ns())
+        return trial.id, token
+
+
+def test_a_crash_neither_scores_the_downtime_nor_leaves_a_move_requested(tmp_path):
+    settings = platform_settings(tmp_path)
+    services = build_services(settings)
+    trial_id, rover_token = rover_trial(services)
+    tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+    env = {"ROBOTSLANG_DATA_DIR": str(settings.data_dir), "ROBOTSLANG_SECRET_KEY": settings.secret_key,
+           "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0"}
+    server = ServerProcess(env).start()
+    try:
+        async def until_crash():
+            async with Rover(server.ws_url, rover_token) as rover, \
+                       SeatClient(server.ws_url, tokens["commander"]) as commander, \
+                       SeatClient(server.ws_url, tokens["driver"]) as driver:
+                await start_trial(commander, driver)
+                await driver.send("move", action="forward", move_id="held")
+                while not rover.moves:  # the rover got it, and will never acknowledge it
+                    await asyncio.sleep(0.02)
+                server.kill()
+
+        asyncio.run(until_crash())
+        before = services.log.load(trial_id)
+        assert before[-1].kind == "move_requested" and before[-1].payload["move_id"] == "held"
+        time.sleep(1.5)  # the server is down; this must not count on the trial clock
+        server.start()  # reopens its running trials at start
+        after = until(lambda: [e for e in services.log.load(trial_id) if e.seq > before[-1].seq],
+                      "the reopened trial's events")
+    finally:
+        server.stop()
+    done = [e for e in after if e.kind == "move_executed" and e.payload["move_id"] == "held"]
+    assert [(e.payload["outcome"], e.payload["reason"]) for e in done] == [("refused", "server restart")]
+    assert fold(before + after).active_ns == fold(before).active_ns, "the clock stopped at the last event"
+    assert fold(before + after).moves_in_flight == {}
+    services.engine.dispose()
+
+
+def test_a_seat_that_dropped_before_a_crash_still_times_out(tmp_path):
+    grace_s = 4.0
+    settings = platform_settings(tmp_path)
+    services = build_services(settings)
+    trial_id = make_trial(services, services.mazes.names()[0])
+    tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+    env = {"ROBOTSLANG_DATA_DIR": str(settings.data_dir), "ROBOTSLANG_SECRET_KEY": settings.secret_key,
+           "ROBOTSLANG_GRACE_PERIOD_S": str(grace_s)}
+    server = ServerProcess(env).start()
+    try:
+        async def until_crash():
+            async with SeatClient(server.ws_url, tokens["commander"]) as commander:
+                async with SeatClient(server.ws_url, tokens["driver"]) as driver:
+                    await start_trial(commander, driver)
+                await commander.event("paused", reason="disconnect:driver")
+                await asyncio.sleep(1.0)
+                await commander.send("chat", text="where did you go?")  # the last event before the crash
+                await commander.event("chat", text="where did you go?")
+                server.kill()
+
+        asyncio.run(until_crash())
+        before = services.log.load(trial_id)
+        server.start()  # nobody comes back
+        until(lambda: fold(services.log.load(trial_id)).over, "the grace timer's abort", timeout=30)
+    finally:
+        server.stop()
+    log = services.log.load(trial_id)
+    dropped = next(e for e in before if e.kind == "disconnect" and e.payload["role"] == "driver")
+    reopened = next(e for e in log if e.kind == "restarted")
+    aborted = log[-1]
+    assert aborted.kind == "phase" and aborted.payload["phase"] == "aborted"
+    assert not any(e.kind == "connect" for e in log if e.seq > before[-1].seq)
+    # The time that remained at the crash ran after the restart (a timer never fires early).
+    remaining_ns = grace_s * S - (before[-1].t_ns - dropped.t_ns)
+    assert aborted.t_ns - reopened.t_ns >= remaining_ns
+    with services.db() as db:
+        assert db.get(Trial, trial_id).phase == "aborted"
+    services.engine.dispose()
+
+
+def test_a_trial_ended_by_its_grace_timer_leaves_the_live_list_and_reopens_without_a_new_event(tmp_path):
+    settings = platform_settings(tmp_path, grace_period_s=0.3)
+    with ServerThread(settings) as server:
+        services = server.services
+        trial_id = make_trial(services, services.mazes.names()[0])
+        tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+
+        async def play():
+            async with SeatClient(server.ws_url, tokens["commander"]) as commander:
+                async with SeatClient(server.ws_url, tokens["driver"]) as driver:
+                    await start_trial(commander, driver)
+            # Both gone: the first grace timer to run out aborts the trial.
+            until(lambda: services.hub.peek(trial_id) is None, "the ended trial to leave this process")
+            assert services.hub.live() == []
+            ended = services.log.load(trial_id)
+            assert ended[-1].payload == {"phase": "aborted", "target_index": None}
+            async with SeatClient(server.ws_url, tokens["commander"]) as commander:
+                welcome = await commander.wait_for(lambda m: m.get("type") == "welcome")
+                assert welcome["phase"] == "aborted" and welcome["status"]["running"] is False
+                await commander.send("chat", text="hello?")
+                error = await commander.wait_for(lambda m: m.get("type") == "error")
+                assert "aborted" in error["error"]
+            assert services.log.load(trial_id) == ended, "reopening an ended trial appends nothing"
+
+        asyncio.run(play())
+
+
+def test_a_move_id_sent_twice_executes_once(settings):
+    with ServerThread(settings) as server:
+        services = server.services
+        trial_id = make_trial(services, services.mazes.names()[0])
+        tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+
+        async def play():
+            async with SeatClient(server.ws_url, tokens["commander"]) as commander, \
+                       SeatClient(server.ws_url, tokens["driver"]) as driver:
+                await start_trial(commander, driver)
+                await driver.send("move", action="left", move_id="once")
+                first = await driver.event("move_executed", move_id="once")
+                assert first["payload"]["outcome"] == "ok"
+                start = len(driver.received)
+                await driver.send("move", action="left", move_id="once")
+                error = await driver.wait_for(lambda m: m.get("type") == "error", start=start)
+                assert "'once' was already received" in error["error"]
+                await move(driver, "right")  # the next move is executed as usual
+
+        asyncio.run(play())
+        log = services.log.load(trial_id)
+        assert [e.kind for e in log if e.payload.get("move_id") == "once"] == ["move_requested", "move_executed"]
+        assert fold(log).moves == 2
+
+
+def test_frame_stamps_stay_monotonic_across_a_rover_reconnection(tmp_path):
+    with ServerThread(platform_settings(tmp_path)) as server:
+        services = server.services
+        trial_id, rover_token = rover_trial(services)
+        tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+
+        async def play():
+            async with SeatClient(server.ws_url, tokens["commander"]) as commander, \
+                       SeatClient(server.ws_url, tokens["driver"]) as driver:
+                async with Rover(server.ws_url, rover_token) as rover:
+                    await start_trial(commander, driver)
+                    while rover.pongs < 3:  # the server knows the rover's clock
+                        await asyncio.sleep(0.02)
+                    await rover.frame(1, rover.now())
+                    first = await driver.event("frame")
+                # The rover comes back; the first frame it sends was captured before the link dropped.
+                async with Rover(server.ws_url, rover_token) as rover:
+                    while rover.pongs < 3:
+                        await asyncio.sleep(0.02)
+                    start = len(driver.received)
+                    await rover.frame(2, rover.now() - 2 * S)
+                    second = await driver.event("frame", start=start)
+                    start = len(driver.received)
+                    await rover.frame(3, rover.now())
+                    third = await driver.event("frame", start=start)
+                return [m["payload"]["capture_ns"] for m in (first, second, third)]
+
+        stamps = asyncio.run(play())
+        assert stamps[0] < stamps[1] < stamps[2]
+        assert len({e.payload["path"] for e in services.log.load(trial_id) if e.kind == "frame"}) == 3
+
+
+def test_a_message_over_the_transport_limit_gets_the_error_reply_and_is_logged(settings):
+    with ServerThread(settings) as server:
+        services = server.services
+        trial_id = make_trial(services, services.mazes.names()[0])
+        token = services.seats.issue(trial_id, "driver")
+        with server.services.db() as db:
+            assert db.scalar(select(Trial.phase).where(Trial.id == trial_id)) == "waiting"
+
+        async def play():
+            async with SeatClient(server.ws_url, token) as driver:
+                await driver.wait_for(lambda m: m.get("type") == "welcome")
+                with contextlib.suppress(websockets.ConnectionClosed):
+                    await driver.send("chat", text="x" * (8 * 1024 * 1024))
+                error = await driver.wait_for(lambda m: m.get("type") == "error")
+                await asyncio.wait_for(driver._reader, 10)  # then the server closes the socket
+                return error, driver.ws.close_code
+
+        error, code = asyncio.run(play())
+        assert error["code"] == "bad_message" and "over the limit" in error["error"]
+        assert code == 1009
+        bad = until(lambda: [e for e in services.log.load(trial_id) if e.kind == "bad_message"], "the log entry")
+        assert bad[0].payload["role"] == "driver" and "over the limit" in bad[0].payload["error"]

@@ -1,0 +1,94 @@
+"""Every seat is told where the trial stands (`status`), and the experimenter can watch it live:
+the Driver's camera and the true pose, which no participant's view changes for."""
+
+from __future__ import annotations
+
+import asyncio
+
+import pytest
+import websockets
+
+from app.db.models import Experimenter
+from app.security import SESSION_COOKIE, hash_password
+from tests.app.live import SeatClient, ServerThread, make_trial
+from tests.app.trial_play import move, start_trial
+
+FIELDS = {"type", "phase", "target_index", "targets_total", "elapsed_s", "running", "moves", "paused", "waiting_for"}
+
+
+def statuses(client) -> list[dict]:
+    return [m for m in client.received if m.get("type") == "status"]
+
+
+class Watch(SeatClient):
+    """The experimenter's live view, logged in by cookie."""
+
+    def __init__(self, server, trial_id: int, cookie: str | None) -> None:
+        super().__init__(server.ws_url, "")
+        self.url = f"ws://127.0.0.1:{server.port}/ws/watch/{trial_id}"
+        self.cookie = cookie
+
+    async def __aenter__(self) -> "Watch":
+        headers = {"Cookie": f"{SESSION_COOKIE}={self.cookie}"} if self.cookie else {}
+        self.ws = await websockets.connect(self.url, additional_headers=headers, max_size=2**22)
+        self._reader = asyncio.get_running_loop().create_task(self._read())
+        return self
+
+
+def test_seats_get_the_status_and_the_experimenter_watches_the_driver(settings):
+    with ServerThread(settings) as server:
+        services = server.services
+        trial_id = make_trial(services, services.mazes.names()[0])
+        with services.db.begin() as db:
+            eve = Experimenter(name="eve", password_hash=hash_password("correct horse"))
+            db.add(eve)
+            db.flush()
+            cookie = services.sessions.issue(eve.id)
+
+        async def play():
+            async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+                welcome = await commander.wait_for(lambda m: m.get("type") == "welcome")
+                assert set(welcome["status"]) == FIELDS
+                assert welcome["status"]["phase"] == "waiting" and welcome["status"]["waiting_for"] == ["driver"]
+                async with Watch(server, trial_id, cookie) as watch, \
+                           SeatClient(server.ws_url, services.seats.issue(trial_id, "driver")) as driver:
+                    await start_trial(commander, driver)
+                    started = await commander.wait_for(lambda m: m.get("type") == "status" and m["running"])
+                    assert started["phase"] == "localizing" and started["targets_total"] == 3
+                    assert started["waiting_for"] == [] and started["moves"] == 0
+                    await move(driver, "left")
+                    await move(driver, "right")
+                    moved = await commander.wait_for(lambda m: m.get("type") == "status" and m["moves"] == 2)
+                    assert moved["elapsed_s"] >= started["elapsed_s"]
+                    await watch.wait_for(lambda m: m.get("type") == "status" and m["moves"] == 2)
+                    frame = await watch.wait_for(lambda m: m.get("kind") == "frame" and "jpeg" in m)
+                    pose = await watch.event("pose")
+                    assert set(pose["payload"]) >= {"x", "y", "heading"}
+                    watch_welcome = watch.received[0]
+                    assert watch_welcome["type"] == "welcome" and set(watch_welcome["status"]) == FIELDS
+                    assert frame["payload"]["frame_id"] > 0
+                    start = len(commander.received)
+                    await commander.send("chat", text="stop a moment")
+                    await commander.event("chat", start=start)
+                    # A chat changes no status field: no status message for it.
+                    assert all(m.get("type") != "status" for m in commander.received[start:])
+                return commander, driver
+
+        commander, driver = asyncio.run(play())
+        assert not commander.kinds() & {"frame", "move_executed", "move_requested", "pose"}
+        assert "pose" not in driver.kinds() and "localization" not in driver.kinds()
+        assert all(set(m) == FIELDS for m in statuses(driver))
+
+
+def test_the_watch_socket_needs_the_experimenter_login(settings):
+    with ServerThread(settings) as server:
+        trial_id = make_trial(server.services, server.services.mazes.names()[0])
+
+        async def attempt(cookie):
+            async with Watch(server, trial_id, cookie):
+                pass
+
+        for cookie in (None, "forged"):
+            with pytest.raises(websockets.InvalidStatus) as refused:
+                asyncio.run(attempt(cookie))
+            assert refused.value.response.status_code == 403
