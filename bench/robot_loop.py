@@ -101,17 +101,19 @@ def main(argv: list[str] | None = None) -> int:
 
     from bench.agent_loop import agent_figures
 
-    out["agent"] = agent_figures(args.benchmark, args.checkpoint, args.episodes, args.seed, log)
+    out["agent"] = agent_figures(args.benchmark, args.checkpoint, args.episodes, args.seed, log, calibration)
     out["seconds"] = round(time.monotonic() - started, 1)
     out["load_average_1m"] = round(os.getloadavg()[0], 2)
-    if args.json:
-        print(json.dumps(out, allow_nan=False, default=_finite))
-    else:
-        print(json.dumps(out, indent=2, allow_nan=False, default=_finite))
+    print(json.dumps(_finite(out), indent=None if args.json else 2, allow_nan=False))
     return 0
 
 
 def _finite(v):
+    """JSON has no NaN: a figure that could not be measured is null."""
+    if isinstance(v, dict):
+        return {k: _finite(x) for k, x in v.items()}
+    if isinstance(v, list):
+        return [_finite(x) for x in v]
     return None if isinstance(v, float) and not math.isfinite(v) else v
 
 

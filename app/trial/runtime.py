@@ -84,12 +84,14 @@ class TrialRuntime:
     async def _start_belief(self) -> None:
         """A live particle filter on the Driver camera (shown to the experimenter, never to a seat)."""
         from app.perception.belief import TrialBelief
-        from app.perception.cameras import driver_calibration
+        from app.perception.cameras import CameraUnknown, driver_calibration
 
         try:
             calibration = await asyncio.to_thread(driver_calibration, self.state.backend, self.settings)
             maze = self.services.mazes.load(self.state.maze)
             self.belief = await asyncio.to_thread(TrialBelief, maze, calibration, seed=self.trial_id)
+        except CameraUnknown as err:
+            logger.info("trial %s: no particle filter: %s", self.trial_id, err)
         except Exception:  # no belief is a lesser trial, not a broken one
             logger.exception("trial %s: no particle filter", self.trial_id)
 

@@ -37,8 +37,7 @@ TARGETS = ("jar", "mug", "paddle")
 @pytest.fixture(scope="module")
 def camera_calibration(tmp_path_factory):
     """The software rover's front camera as a lab would calibrate it (learned once per module)."""
-    return learned(FrontCamera(), tmp_path_factory.mktemp("calibration")).save(
-        tmp_path_factory.mktemp("lab") / "camera_calibration.json")
+    return learned(FrontCamera()).save(tmp_path_factory.mktemp("lab") / "camera_calibration.json")
 
 
 def with_calibration(lab: Lab, path) -> Lab:
