@@ -24,7 +24,8 @@ from pathlib import Path
 MAX_MOVES = 40  # per episode, both paths (the benchmark's cap is higher; this bounds the bench's time)
 FAST_PULSES = {"forward_s": 0.15, "left_s": 0.15, "right_s": 0.15}  # the same motion, sooner
 EPISODE_TIMEOUT_S = 240.0
-QUICK_RUNS = 12  # mazes the quick checkpoint is trained on
+QUICK_RUNS = 6  # mazes the quick checkpoint is trained on
+QUICK_ITERS = 40
 REPO = Path(__file__).resolve().parent.parent
 
 
@@ -38,7 +39,7 @@ def quick_checkpoint(bench, out: Path, log) -> Path:
     instances = [i for i in jars if i.run in runs]
     world = World.build(bench, runs)
     log(f"agent: training a quick checkpoint on {len(instances)} train episodes")
-    cfg = TrainConfig(feedback="student", iters=60, batch=16, eval_every=60, max_actions=MAX_MOVES)
+    cfg = TrainConfig(feedback="student", iters=QUICK_ITERS, batch=8, eval_every=QUICK_ITERS, max_actions=MAX_MOVES)
     train(bench, cfg, out, world=world, progress=True, train_instances=instances, eval_instances=instances[:4])
     return out / "last.pt"
 
@@ -110,7 +111,7 @@ def agent_figures(benchmark: Path | None, checkpoint: Path | None, n: int, seed:
             "gap_fraction": (rover_mean - sim_mean) / sim_mean if sim_mean > 0 else None,
             "within_10_percent": abs(rover_mean - sim_mean) <= 0.1 * sim_mean,
             "td_sim": td_sim, "td_rover": td_rover, "max_moves": MAX_MOVES,
-            "checkpoint": str(checkpoint) if given else "trained here (quick: 60 iterations)", "inst_idx": [i.inst_idx for i in instances]}
+            "checkpoint": str(checkpoint) if given else f"trained here (quick: {QUICK_ITERS} iterations)", "inst_idx": [i.inst_idx for i in instances]}
 
 
 async def _rover_tds(benchmark: Path, checkpoint: Path, chosen, bench, tmp: Path, calibration, log) -> list[float]:
