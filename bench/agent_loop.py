@@ -30,7 +30,8 @@ REPO = Path(__file__).resolve().parent.parent
 
 
 def quick_checkpoint(bench, out: Path, log) -> Path:
-    """A small student-forcing checkpoint, trained here (`robotslang train ndh` with few iterations)."""
+    """A small teacher-forcing checkpoint trained here (`robotslang train ndh` with few
+    iterations); an undertrained student-forcing one stops at once, which compares nothing."""
     from models.data import World
     from models.train import TrainConfig, train
 
@@ -39,7 +40,7 @@ def quick_checkpoint(bench, out: Path, log) -> Path:
     instances = [i for i in jars if i.run in runs]
     world = World.build(bench, runs)
     log(f"agent: training a quick checkpoint on {len(instances)} train episodes")
-    cfg = TrainConfig(feedback="student", iters=QUICK_ITERS, batch=8, eval_every=QUICK_ITERS, max_actions=MAX_MOVES)
+    cfg = TrainConfig(feedback="teacher", iters=QUICK_ITERS, batch=8, eval_every=QUICK_ITERS, max_actions=MAX_MOVES)
     train(bench, cfg, out, world=world, progress=True, train_instances=instances, eval_instances=instances[:4])
     return out / "last.pt"
 

@@ -76,9 +76,9 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m bench.robot_loop", description=__doc__.split("\n")[0])
     p.add_argument("--benchmark", type=Path, default=os.environ.get("ROBOTSLANG_BENCHMARK"),
                    help="a clone of the RobotSlang benchmark (default $ROBOTSLANG_BENCHMARK)")
-    p.add_argument("--episodes", type=int, default=6, help="NDH episodes for the agent part (6)")
+    p.add_argument("--episodes", type=int, default=4, help="NDH episodes for the agent part (4)")
     p.add_argument("--filter-episodes", type=int, default=20, help="particle-filter episodes (20)")
-    p.add_argument("--poses", type=int, default=200, help="poses for the perception figures (200)")
+    p.add_argument("--poses", type=int, default=150, help="poses for the perception figures (150)")
     p.add_argument("--moves", type=int, default=60, help="rover moves in the tracker's trial (60)")
     p.add_argument("--checkpoint", type=Path, default=os.environ.get("ROBOTSLANG_SEQ2SEQ_CHECKPOINT"),
                    help="seq2seq checkpoint (default $ROBOTSLANG_SEQ2SEQ_CHECKPOINT; else a quick one is trained)")

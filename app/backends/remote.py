@@ -18,6 +18,7 @@ import secrets
 import time
 from collections import deque
 from collections.abc import AsyncIterator
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import select
@@ -340,13 +341,13 @@ class RobotSeat:
 
 class RemoteRobotBackend:
     def __init__(self, robot_id: int, name: str, links: RobotLinks, trial: RobotTrial,
-                 tracker: TrialTracker) -> None:
+                 overhead_calibration: Path | None, clock_ns) -> None:
         self.robot_id, self.name = robot_id, name
-        self.links, self.trial, self.tracker = links, trial, tracker
+        self.links, self.trial = links, trial
+        self.tracker = TrialTracker(overhead_calibration, clock_ns, self._tracked)
         self._seat: RobotSeat | None = None
         self._moving = False
         self._closed = False
-        tracker.record_pose = self._tracked
 
     async def connect(self) -> None:
         """Follow the robot's link. The rover is a seat the trial needs: until it joins, the trial
@@ -434,5 +435,5 @@ async def remote_backend(spec: str, trial: RobotTrial, services: "Services") -> 
         raise LookupError(f"robot backend {spec!r}: no robot {robot_id} is registered")
     if robot.role != Role.DRIVER:
         raise LookupError(f"robot backend {spec!r}: robot {robot.name!r} is an {robot.role} camera, not a rover")
-    tracker = TrialTracker(services.settings.overhead_calibration, services.clock.now_ns)
-    return RemoteRobotBackend(robot.id, robot.name, robot_links(services), trial, tracker)
+    return RemoteRobotBackend(robot.id, robot.name, robot_links(services), trial,
+                              services.settings.overhead_calibration, services.clock.now_ns)

@@ -17,13 +17,12 @@ from sim.tracking import CalibrationError, FrameError, OverheadCalibration, Over
 
 logger = logging.getLogger(__name__)
 
-FRESH_S = 2.0  # a tracked pose older than this is not where the rover is now
+FRESH_S = 5.0  # a tracked pose older than this is not where the rover is now (tracking lags under load)
 
 
 class TrialTracker:
-    def __init__(self, calibration_path: Path | None, clock_ns) -> None:
-        """`clock_ns()` is the server clock; each tracked pose goes to `record_pose((x, y, heading))`,
-        set by the trial's backend."""
+    def __init__(self, calibration_path: Path | None, clock_ns, record_pose) -> None:
+        """`clock_ns()` is the server clock; each tracked pose goes to `record_pose((x, y, heading))`."""
         calibration = None
         if calibration_path is not None and Path(calibration_path).exists():
             try:
@@ -31,8 +30,7 @@ class TrialTracker:
             except CalibrationError as err:
                 logger.warning("overhead calibration not used, self-calibrating: %s", err)
         self.tracker = OverheadTracker(calibration)
-        self.clock_ns = clock_ns
-        self.record_pose = lambda pose: None
+        self.clock_ns, self.record_pose = clock_ns, record_pose
         self.latest: TrackedPose | None = None
         self._busy = False
         self._last_t_ns = 0
@@ -53,12 +51,13 @@ class TrialTracker:
         finally:
             self._busy = False
             self._last_t_ns = max(self._last_t_ns, capture_ns)
+        self.latest = pose  # None: the last frame tracked did not show the rover
         if pose is not None:
-            self.latest = pose
             self.record_pose((pose.x, pose.y, pose.heading))
 
     def pose(self) -> tuple[float, float, float] | None:
-        """The last tracked pose, while it is fresh."""
+        """The pose in the last frame tracked, while it is fresh; None when that frame did not show
+        the rover."""
         p = self.latest
         if p is None or self.clock_ns() - p.t_ns > FRESH_S * 1e9:
             return None
