@@ -34,11 +34,14 @@ class Settings(BaseSettings):
     login_limit_per_address: str = "20/minute"  # login attempts per client address
     password_check_concurrency: int | None = None  # password hashes computed at once; None: the CPU cores
     overhead_calibration: Path | None = None  # the overhead camera's calibration; default data_dir/overhead_calibration.json
+    camera_calibration: Path | None = None  # the rovers' front camera (sim.camera.CameraCalibration); default data_dir/camera_calibration.json
 
     @model_validator(mode="after")
     def _default_paths(self) -> "Settings":
         if self.overhead_calibration is None:
             self.overhead_calibration = self.data_dir / "overhead_calibration.json"
+        if self.camera_calibration is None:
+            self.camera_calibration = self.data_dir / "camera_calibration.json"
         return self
 
     @property

@@ -3,9 +3,12 @@
 It acts like the NDH agent at test time: the dialog so far (and the current target) is the
 instruction; each time the dialog grows or the target changes it is re-encoded and the decoder
 starts afresh from where the robot is, as an NDH episode starts from the dialog history. Its
-observation is the 13-ray table of the simulator at the robot's pose; on a backend without a
-known pose it sees nothing (zeros) and forward is not masked. After the Commander rejects a
-claim it does not stop again until it has moved.
+observation is the 13-ray table of the simulator at the robot's pose. On a backend without a
+known pose (a rover) it observes the rays perceived from the camera frame (`rays`, in
+`RayTable.features` layout) and masks forward where the particle filter's belief, once it is
+concentrated, stands facing a wall on the graph (else where the perceived rays say the way
+ahead is blocked); with neither it sees zeros and forward is not masked. After the Commander
+rejects a claim it does not stop again until it has moved.
 
 The web app seats it as `agent:seq2seq` (`app/drivers/seq2seq.py`), with the checkpoint of the
 setting ROBOTSLANG_SEQ2SEQ_CHECKPOINT.
@@ -28,6 +31,7 @@ from sim.navgraph import NavGraph
 from sim.observations import RayTable
 
 MazeLoader = Callable[[str], tuple[Maze, NavGraph]]
+BELIEF_MASK_SPREAD_M = 0.15  # a belief spread wider than this says too little about the walls ahead
 
 
 class Seq2SeqDriver:
@@ -71,6 +75,10 @@ class Seq2SeqDriver:
             p = snap_pose(self.graph, *pose)
             obs = torch.from_numpy(self.rays[p.node, p.heading][None].copy())
             blocked = torch.tensor([bool(self.graph.forward[p.node, p.heading] < 0)])
+        elif observation.get("rays") is not None and self.blind != "vision":
+            rays = np.asarray(observation["rays"], dtype=np.float32)
+            obs = torch.from_numpy(rays[None].copy())
+            blocked = torch.tensor([self._blocked(rays, observation.get("belief"))])
         else:
             obs = torch.zeros(1, self.rays.shape[2])
             blocked = torch.tensor([False])
@@ -84,3 +92,10 @@ class Seq2SeqDriver:
         if action != STOP:
             self._stop_held = False
         return Action(action).word
+
+    def _blocked(self, rays: np.ndarray, belief: dict[str, float] | None) -> bool:
+        """Forward masked on a rover: from the belief where it is concentrated, else the camera."""
+        if belief is not None and belief["spread_m"] <= BELIEF_MASK_SPREAD_M:
+            p = snap_pose(self.graph, belief["x"], belief["y"], belief["heading"])
+            return bool(self.graph.forward[p.node, p.heading] < 0)
+        return bool(rays[-1] > 0.5)  # the perceived forward-blocked flag

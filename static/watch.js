@@ -13,7 +13,7 @@ const canvas = $("truth"), ctx = canvas.getContext("2d");
 const map = new Image();
 const status = Object.assign(emptyStatus(), {phase: root.dataset.phase, targets_total: Number(root.dataset.targets),
                                              elapsed_s: Number(root.dataset.elapsed), moves: Number(root.dataset.moves)});
-const seen = {pose: null, localization: null, ldh: null};
+const seen = {pose: null, localization: null, ldh: null, belief: null};
 let announced = "", retryMs = 500;
 map.src = `/experimenter/trials/${id}/map.png`;
 
@@ -21,12 +21,39 @@ function draw() {
   if (map.complete && map.naturalWidth) ctx.drawImage(map, 0, 0, canvas.width, canvas.height);
   const est = seen.localization, pose = seen.pose;
   if (status.phase === "localizing") drawLDHBelief(ctx, canvas, seen.ldh);
+  if (seen.belief) drawBelief(seen.belief);
   if (est) TableMap.drawRobot(ctx, canvas, est.x, est.y, est.heading, "#ff8c00");
   if (pose) {
     TableMap.drawRobot(ctx, canvas, pose[0], pose[1], pose[2], "#1e6bff");
     $("pose-note").textContent = `True pose: x ${pose[0].toFixed(2)} m, y ${pose[1].toFixed(2)} m, ` +
       `heading ${Math.round(pose[2] * 180 / Math.PI)}°`;
   }
+}
+
+// The particle filter's belief: weighted points and their mean, in purple (experimenter only).
+function drawBelief(b) {
+  const wmax = Math.max(...b.points.map((p) => p[2]));
+  ctx.fillStyle = "#c020c0";
+  for (const [x, y, w] of b.points) {
+    const {cx, cy} = TableMap.toCanvas(canvas, x, y);
+    ctx.globalAlpha = 0.25 + 0.75 * w / wmax;
+    ctx.fillRect(cx - 1.5, cy - 1.5, 3, 3);
+  }
+  ctx.globalAlpha = 1;
+  TableMap.drawRobot(ctx, canvas, b.mean[0], b.mean[1], b.mean[2], "#c020c0");
+}
+
+// The particle filter's belief: weighted points and their mean, in teal (experimenter only).
+function drawBelief(b) {
+  const wmax = Math.max(...b.points.map((p) => p[2]));
+  ctx.fillStyle = "#00a080";
+  for (const [x, y, w] of b.points) {
+    const {cx, cy} = TableMap.toCanvas(canvas, x, y);
+    ctx.globalAlpha = 0.25 + 0.75 * w / wmax;
+    ctx.fillRect(cx - 1.5, cy - 1.5, 3, 3);
+  }
+  ctx.globalAlpha = 1;
+  TableMap.drawRobot(ctx, canvas, b.mean[0], b.mean[1], b.mean[2], "#00a080");
 }
 
 function render() {
@@ -48,6 +75,8 @@ function onMessage(msg) {
     applyStatus(status, msg.status);
     seen.pose = msg.pose; seen.localization = msg.localization;
     if (msg.frame) camera(msg.frame.jpeg);
+  } else if (msg.type === "belief") {
+    seen.belief = msg;
   } else if (msg.type === "ldh_belief") {
     seen.ldh = msg.top;
     $("ldh-note").textContent = `LDH belief (${msg.model}), after the dialog so far: violet discs, larger where likelier.`;

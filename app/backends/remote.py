@@ -5,7 +5,8 @@ mapped onto the server clock, moves awaiting their acknowledgement, and the figu
 experimenter's dashboard shows. `RobotLinks` holds the links of this server by robot id and
 tells the trials that use a robot when it comes and goes: the robot joins the trial as the
 `robot` seat: a trial waits for it to start, losing it pauses the trial and its return resumes it. Overhead cameras
-(`role: overhead`) are recorded into every live trial on a real robot, never shown to a seat.
+(`role: overhead`) are recorded into every live trial on a real robot, never shown to a seat;
+each trial's tracker (`app.perception.tracker_seat`) turns them into `pose` events.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import secrets
 import time
 from collections import deque
 from collections.abc import AsyncIterator
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import select
@@ -24,6 +26,7 @@ from sqlalchemy.orm import Session
 
 from app.backends.base import BackendUnavailable, Frame, MoveOutcome
 from app.db.models import Robot
+from app.perception.tracker_seat import TrialTracker
 from app.trial.port import RobotTrial
 from app.trial.vocabulary import PARTICIPANTS, ROBOT_ROLES, FrameSource, MoveAction, Outcome, Role
 from robot_client.protocol import FrameHeader, encode
@@ -336,9 +339,11 @@ class RobotSeat:
 
 
 class RemoteRobotBackend:
-    def __init__(self, robot_id: int, name: str, links: RobotLinks, trial: RobotTrial) -> None:
+    def __init__(self, robot_id: int, name: str, links: RobotLinks, trial: RobotTrial,
+                 overhead_calibration: Path | None, clock_ns) -> None:
         self.robot_id, self.name = robot_id, name
         self.links, self.trial = links, trial
+        self.tracker = TrialTracker(overhead_calibration, clock_ns, self._tracked)
         self._seat: RobotSeat | None = None
         self._moving = False
         self._closed = False
@@ -392,11 +397,17 @@ class RemoteRobotBackend:
                 yield frame
 
     def pose(self) -> tuple[float, float, float] | None:
-        return None  # known only from the overhead camera, annotated after the trial
+        """Where the overhead camera's tracker last saw the rover (None without a fresh sighting)."""
+        return self.tracker.pose()
 
     def record_overhead(self, frame: Frame) -> None:
         if self.attended and not self.trial.state.over:
             self.trial.record_frame(frame.jpeg, frame.capture_ns, frame.width, frame.height, FrameSource.OVERHEAD)
+            self.tracker.offer(frame.jpeg, frame.capture_ns)
+
+    def _tracked(self, pose: tuple[float, float, float]) -> None:
+        if not self._closed and not self.trial.state.over:
+            self.trial.record_pose(pose)
 
     def record_bad_message(self, role: Role, error: str) -> None:
         if not self.trial.state.over:
@@ -423,4 +434,5 @@ async def remote_backend(spec: str, trial: RobotTrial, services: "Services") -> 
         raise LookupError(f"robot backend {spec!r}: no robot {robot_id} is registered")
     if robot.role != Role.DRIVER:
         raise LookupError(f"robot backend {spec!r}: robot {robot.name!r} is an {robot.role} camera, not a rover")
-    return RemoteRobotBackend(robot.id, robot.name, robot_links(services), trial)
+    return RemoteRobotBackend(robot.id, robot.name, robot_links(services), trial,
+                              services.settings.overhead_calibration, services.clock.now_ns)

@@ -10,7 +10,11 @@ the true pose, which only oracle baselines may use.
         observation: {"frame": bytes (JPEG) | None, "frame_id": int | None,
                       "target": str, "target_index": int,
                       "pose": (x, y, theta) | None,
-                      "rejected": int (claims of this target the Commander rejected)}
+                      "rejected": int (claims of this target the Commander rejected),
+                      where the pose is None and the trial's particle filter runs (a rover):
+                      "rays": (OBS_FEATURES,) float32 perceived from the frame after the last
+                              move, in `RayTable.features` layout,
+                      "belief": {"x", "y", "heading", "spread_m"} (the filter's mean)}
 
 "stop" means "I think I found the target": the seat claims it, and the policy acts again
 once the Commander has confirmed (next target) or rejected (same target) the claim.

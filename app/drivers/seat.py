@@ -21,6 +21,7 @@ from app.trial.port import DriverTrial
 from app.trial.vocabulary import MoveAction, Phase, Role
 
 logger = logging.getLogger(__name__)
+PERCEPTION_WAIT_S = 5.0  # longer than perceiving a frame takes on a loaded machine
 
 
 class AgentSeat:
@@ -86,10 +87,26 @@ class AgentSeat:
             s = trial.state
             if not s.running or s.pending_claim is not None or s.current_target is None:
                 continue
+            pose = trial.true_pose()
             observation = {"frame": self.frame, "frame_id": self.frame_id, "target": s.current_target,
-                           "target_index": s.target_index, "rejected": self.rejected, "pose": trial.true_pose()}
+                           "target_index": s.target_index, "rejected": self.rejected, "pose": pose}
+            if pose is None:  # a rover: what the camera and the particle filter say instead
+                observation.update(await self._perceived())
             action = await asyncio.to_thread(policy.act, list(self.dialog), observation)
             await self._act(action)
+
+    async def _perceived(self) -> dict[str, Any]:
+        """The rays perceived at the frame after the last move and the belief after it; nothing
+        while the trial's filter is not running or has not seen that frame in time."""
+        for _ in range(round(PERCEPTION_WAIT_S / 0.02)):
+            belief = self.trial.belief
+            if belief is not None and belief.settled:
+                observed = belief.latest
+                b = observed.belief
+                return {"rays": observed.rays,
+                        "belief": {"x": b.x, "y": b.y, "heading": b.heading, "spread_m": b.spread_m}}
+            await asyncio.sleep(0.02)
+        return {}
 
     async def _act(self, action: str) -> None:
         trial, s = self.trial, self.trial.state

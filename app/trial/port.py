@@ -39,6 +39,9 @@ class RobotTrial(TrialView, Protocol):
     def record_frame(self, jpeg: bytes, capture_ns: int, width: int, height: int, source: FrameSource) -> int:
         """Store one camera image and its `frame` event; returns the frame id."""
 
+    def record_pose(self, pose: tuple[float, float, float]) -> None:
+        """A pose (x, y, heading) of the robot measured from outside it (the overhead tracker)."""
+
 
 class DriverTrial(TrialView, Protocol):
     """The trial as an agent in the Driver's seat sees it."""
@@ -53,3 +56,7 @@ class DriverTrial(TrialView, Protocol):
 
     def true_pose(self) -> tuple[float, float, float] | None:
         """Where the backend knows the robot is (oracle baselines only)."""
+
+    @property
+    def belief(self) -> Any:
+        """The trial's live particle filter (`app.perception.belief.TrialBelief`), or None."""

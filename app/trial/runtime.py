@@ -52,6 +52,9 @@ class TrialRuntime:
         self._status: dict[str, Any] | None = None  # the last status sent, less the clock
         self._ending = False
         self.agent = None
+        self.belief = None  # `TrialBelief` once the Driver camera's calibration is loaded
+        self._perceiving = False
+        self._belief_message: dict[str, Any] | None = None  # the latest, for the watch page
         self._frame_dirs: set = set()
         self.ldh = LiveBelief(self)  # the LDH model's belief, for the watchers only
 
@@ -75,9 +78,24 @@ class TrialRuntime:
         self.backend = await create_backend(self.state.backend, self, self.services)
         pose = self.backend.pose()
         if pose is not None and self.state.pose is None:
-            self._record_pose(pose)
+            self.record_pose(pose)
         self._spawn(self._pump_frames(self.backend))
+        self._spawn(self._start_belief())
         await self.backend.connect()
+
+    async def _start_belief(self) -> None:
+        """A live particle filter on the Driver camera (shown to the experimenter, never to a seat)."""
+        from app.perception.belief import TrialBelief
+        from app.perception.cameras import CameraUnknown, driver_calibration
+
+        try:
+            calibration = await asyncio.to_thread(driver_calibration, self.state.backend, self.settings)
+            maze = self.services.mazes.load(self.state.maze)
+            self.belief = await asyncio.to_thread(TrialBelief, maze, calibration, seed=self.trial_id)
+        except CameraUnknown as err:
+            logger.info("trial %s: no particle filter: %s", self.trial_id, err)
+        except Exception:  # no belief is a lesser trial, not a broken one
+            logger.exception("trial %s: no particle filter", self.trial_id)
 
     async def close(self) -> None:
         for timer in self._grace.values():
@@ -194,7 +212,7 @@ class TrialRuntime:
         self.apply(d.GraceExpired(role))
 
     # -- what the backend reports -------------------------------------------------
-    def _record_pose(self, pose: tuple[float, float, float]) -> None:
+    def record_pose(self, pose: tuple[float, float, float]) -> None:
         x, y, theta = pose
         source = PoseSource.SIM if self.state.backend == "sim" else PoseSource.TRACKER
         self.apply(d.Note(ev.PoseSampled(x=x, y=y, heading=theta, source=source)))
@@ -208,6 +226,22 @@ class TrialRuntime:
                 self._commit_frame(rel, frame.jpeg, frame.capture_ns, frame.width, frame.height, FrameSource.DRIVER)
             except Exception:  # a frame that cannot be stored must not stop the stream
                 logger.exception("trial %s: frame not recorded", self.trial_id)
+                continue
+            belief = self.belief
+            if (belief is not None and not self.state.moves_in_flight and not self._perceiving
+                    and belief.wants(frame.capture_ns)):
+                self._perceiving = True
+                self._spawn(self._perceive(belief, frame.jpeg, frame.capture_ns))
+
+    async def _perceive(self, belief, jpeg: bytes, capture_ns: int) -> None:
+        try:
+            observed = await asyncio.to_thread(belief.observe, jpeg, capture_ns)
+        finally:
+            self._perceiving = False
+        if observed is not None:
+            self._belief_message = message = belief.message()
+            for conn in list(self.watchers):
+                conn.deliver(message)
 
     def record_frame(self, jpeg: bytes, capture_ns: int, width: int, height: int, source: FrameSource) -> int:
         rel = self._frame_file(capture_ns, source)
@@ -274,10 +308,13 @@ class TrialRuntime:
             self.services.hub.forget(self.trial_id)  # nobody left: this process can let it go
 
     def watch(self, conn: Connection) -> None:
-        """An experimenter's live view: every seat's events, the Driver's camera, the true pose."""
+        """An experimenter's live view: every seat's events, the Driver's camera, the true pose
+        and the particle filter's belief (`{"type": "belief", ...}`, after each perceived frame)."""
         self.watchers.add(conn)
         conn.deliver(self.welcome(EXPERIMENTER))
         self.ldh.welcome(conn)
+        if self._belief_message is not None:
+            conn.deliver(self._belief_message)
 
     def unwatch(self, conn: Connection) -> None:
         self.watchers.discard(conn)
@@ -391,16 +428,21 @@ class TrialRuntime:
             return Outcome.REFUSED
         backend = self.backend
         reason = None
+        started_ns = self.services.clock.now_ns()
         try:
             result = await backend.execute(action)
             outcome, reason = result.outcome, result.reason
         except BackendUnavailable as err:
             outcome, reason = Outcome.REFUSED, str(err)
+        if outcome != Outcome.REFUSED and self.belief is not None:
+            # A collision on the simulator leaves the robot where it was; a rover cannot tell.
+            self.belief.moved(action if outcome == Outcome.OK else None, started_ns)
         self.apply(d.FinishMove(move_id, outcome, reason))
-        if outcome != Outcome.REFUSED and self.backend is not None and not self.state.over:
+        if (outcome != Outcome.REFUSED and self.backend is not None and not self.state.over
+                and self.state.backend == "sim"):  # a rover's tracker records its own poses
             pose = self.backend.pose()
             if pose is not None:
-                self._record_pose(pose)
+                self.record_pose(pose)
         return outcome
 
     def claim(self) -> None:
@@ -434,7 +476,7 @@ class TrialRuntime:
                 "moves": s.moves, "collisions": s.collisions, "pose": s.pose,
                 "paused": sorted(s.pause_reasons), "seats": {r: r in self.seats for r in s.seats_needed},
                 "waiting_for": s.waiting_for, "backend": s.backend, "localization": s.localization,
-                "maze": s.maze}
+                "maze": s.maze, "belief": self._belief_message}
 
 
 def _describe(err: ValidationError) -> str:

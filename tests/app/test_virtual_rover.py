@@ -71,12 +71,14 @@ def start(maze) -> RoverPose:
 class Lab:
     """A server process on its own data directory, the trial's services in this process."""
 
-    def __init__(self, tmp_path: Path) -> None:
+    def __init__(self, tmp_path: Path, **settings) -> None:
+        """`settings`: more of the server's settings, for both the server and these services."""
         self.tmp_path = tmp_path
-        self.settings = platform_settings(tmp_path, cache_dir=tmp_path / "cache")
+        self.settings = platform_settings(tmp_path, cache_dir=tmp_path / "cache", **settings)
         self.env = {"ROBOTSLANG_DATA_DIR": str(self.settings.data_dir),
                     "ROBOTSLANG_SECRET_KEY": self.settings.secret_key,
-                    "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0", "ROBOTSLANG_CACHE_DIR": str(tmp_path / "cache")}
+                    "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0", "ROBOTSLANG_CACHE_DIR": str(tmp_path / "cache"),
+                    **{f"ROBOTSLANG_{k.upper()}": str(v) for k, v in settings.items()}}
         self.services = build_services(self.settings)
         self.server = ServerProcess(self.env).start()
         self.rovers: list[subprocess.Popen] = []

@@ -1,0 +1,58 @@
+"""The Driver camera of a trial's robot seat, as perception needs it (`CameraCalibration`).
+
+- `sim`: the simulator backend's frames are the ideal first-person render (320x240, no lens
+  distortion, no noise), so its geometry is exact; its colours, learned once from renders of
+  the bundled mazes, ship beside this module (`sim_camera.json`; `python -m
+  app.perception.cameras` writes it again).
+- a rover: the lab's calibration file (setting `camera_calibration`, default
+  `DATA_DIR/camera_calibration.json`, written by `sim.camera.CameraCalibration.save` after
+  `sim.perception.calibrate_colours`). Without one the rover's camera is not known: the trial
+  runs without a particle filter, and an agent Driver on it sees no rays.
+
+Learning colours renders 60 frames (tens of seconds of CPU on a loaded machine), which is why
+the server never does it while a trial runs.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from sim.camera import CameraCalibration, FrontCamera
+
+SIM_CAMERA_SIZE = (320, 240)  # app.backends.sim.FRAME_SIZE, without importing the backend
+SIM_CALIBRATION = Path(__file__).with_name("sim_camera.json")
+COLOUR_MAZES = 3  # bundled mazes whose renders teach the colours
+
+
+class CameraUnknown(LookupError):
+    """No calibration for this trial's Driver camera; the message says which file is missing."""
+
+
+def sim_camera() -> FrontCamera:
+    w, h = SIM_CAMERA_SIZE
+    return FrontCamera(width=w, height=h, k1=0.0, k2=0.0, noise_std=0.0, supersample=1)
+
+
+def learned(camera: FrontCamera, seed: int = 1, progress: bool = False) -> CameraCalibration:
+    """`camera`'s exact geometry with colours learned from its frames on bundled mazes."""
+    from sim.library import MazeLibrary
+    from sim.navgraph import NavGraph
+    from sim.perception import simulated_calibration
+
+    library = MazeLibrary()
+    mazes = [(m, NavGraph.build(m)) for m in (library.load(n) for n in library.names()[:COLOUR_MAZES])]
+    return simulated_calibration(camera, mazes, seed=seed, progress=progress)
+
+
+def driver_calibration(backend: str, settings) -> CameraCalibration:
+    """The calibration of the Driver camera of a trial on `backend` ("sim" or "robot:<id>")."""
+    if backend == "sim":
+        return CameraCalibration.load(SIM_CALIBRATION)
+    path = settings.camera_calibration
+    if path is None or not Path(path).exists():
+        raise CameraUnknown(f"no front-camera calibration at {path} (setting camera_calibration)")
+    return CameraCalibration.load(path)
+
+
+if __name__ == "__main__":
+    print(learned(sim_camera(), progress=True).save(SIM_CALIBRATION))
