@@ -61,6 +61,7 @@ async def test_a_rover_trial_records_tracked_poses_belief_truly_within_and_all_n
                   "--start", f"{start.x},{start.y},{start.theta}")
         lab.rover(camera_token, "--role", "overhead", "--truth", str(truth), "--fps", "4")
         experimenter = login(SimpleNamespace(services=lab.services, url=lab.server.url))
+        experimenter.timeout = 30.0  # the server shares two loaded cores with rovers, tracker and filter
         with lab.services.db() as db:
             eve = db.scalar(select(Experimenter).where(Experimenter.name == "eve"))
             cookie = lab.services.sessions.issue(eve.id)
