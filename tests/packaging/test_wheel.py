@@ -21,6 +21,7 @@ from pathlib import Path
 import httpx
 import pytest
 
+from tests.app.live import browser, page_csrf_token, submit_login
 from tests.packaging.conftest import REPO, clean_env, free_port
 
 pytestmark = pytest.mark.slow
@@ -107,16 +108,21 @@ def test_the_installed_server_serves_pages_static_files_migrations_and_bundled_m
     server = subprocess.Popen([str(venv / "bin" / "robotslang"), "serve", "--port", str(port), "--data-dir",
                                str(data)], cwd=tmp_path, env=clean_env(), stdout=subprocess.DEVNULL)
     try:
-        with httpx.Client(base_url=url, follow_redirects=True) as client:
+        with browser(url) as client:
             deadline = time.time() + 60
             while True:
                 try:
-                    page = client.post("/login", data={"name": "admin", "password": password})
+                    page = submit_login(client, "admin", password)  # the home page's form, with its token
                     break
                 except httpx.HTTPError:
                     assert server.poll() is None and time.time() < deadline
                     time.sleep(0.2)
             assert page.url.path == "/experimenter"
+            # The trial form (with the mazes) shows once there is a team to run it.
+            client.headers["X-CSRF-Token"] = page_csrf_token(page.text)
+            for name in ("Ada", "Ben"):
+                client.post("/experimenter/participants", data={"name": name})
+            page = client.post("/experimenter/teams", data={"name": "A & B", "member_a": 1, "member_b": 2})
             assert all(f"<option>gen-{i:03d}</option>" in page.text for i in range(12))
     finally:
         server.terminate()
