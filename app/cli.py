@@ -8,7 +8,6 @@ commands that need it.
 from __future__ import annotations
 
 from importlib.metadata import PackageNotFoundError, version
-from typing import Optional
 
 import typer
 
@@ -35,7 +34,7 @@ def show_version(value: bool) -> None:
 
 
 @root.callback()
-def _root(version_: Optional[bool] = typer.Option(None, "--version", callback=show_version, is_eager=True,
+def _root(version_: bool | None = typer.Option(None, "--version", callback=show_version, is_eager=True,
                                                   help="Print the installed version and exit.")) -> None:
     """RobotSlang: dialog-guided robot localization and navigation."""
 

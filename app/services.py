@@ -31,7 +31,7 @@ class Services:
     csrf: CsrfTokens
     logins: LoginGuard
     mazes: Mazes
-    hub: "TrialHub" = None  # type: ignore[assignment]
+    hub: TrialHub = None  # type: ignore[assignment]
     relay: Any = None  # `RedisRelay` when ROBOTSLANG_REDIS_URL is set: trials shared between processes
     robots: Any = None  # `RobotLinks`: the rovers and cameras connected here (made by `robot_links`)
     driver_checks: dict[Any, str | None] = field(default_factory=dict)  # agents' start checks, by file version

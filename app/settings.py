@@ -35,7 +35,7 @@ class Settings(BaseSettings):
     overhead_calibration: Path | None = None  # the overhead camera's calibration; default data_dir/overhead_calibration.json
 
     @model_validator(mode="after")
-    def _default_paths(self) -> "Settings":
+    def _default_paths(self) -> Settings:
         if self.overhead_calibration is None:
             self.overhead_calibration = self.data_dir / "overhead_calibration.json"
         return self

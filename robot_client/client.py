@@ -24,8 +24,16 @@ from robot_client import __version__
 from robot_client.camera import CameraError, FrameGrabber
 from robot_client.motors import Motors
 from robot_client.protocol import (
-    CLOSE_REFUSED, CLOSE_REPLACED, DEFAULT_MAX_FRAME_BYTES, MOVE_ACTIONS, PROTOCOL_VERSION,
-    SERVER_TYPES, ProtocolError, decode, encode, pack_frame,
+    CLOSE_REFUSED,
+    CLOSE_REPLACED,
+    DEFAULT_MAX_FRAME_BYTES,
+    MOVE_ACTIONS,
+    PROTOCOL_VERSION,
+    SERVER_TYPES,
+    ProtocolError,
+    decode,
+    encode,
+    pack_frame,
 )
 
 log = logging.getLogger("robotslang.robot")

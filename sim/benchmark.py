@@ -51,7 +51,7 @@ class NDHInstance:
     dialog: tuple[tuple[str, str], ...]  # (role: oracle|navigator, message)
 
     @classmethod
-    def from_json(cls, item: dict) -> "NDHInstance":
+    def from_json(cls, item: dict) -> NDHInstance:
         match = _SCAN.match(item["scan"])
         if not match:
             raise BenchmarkError(f"instance {item.get('inst_idx')}: unrecognised scan {item['scan']!r}")

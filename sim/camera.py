@@ -76,7 +76,7 @@ class FrontCamera:
         """(cx, cy) in OpenCV's convention (pixel centres at integers): the render's horizon row."""
         return (self.width - 1) / 2, HORIZON * self.height - 0.5
 
-    def calibration(self, colours: dict[str, "ColourClass"] | None = None) -> "CameraCalibration":
+    def calibration(self, colours: dict[str, ColourClass] | None = None) -> CameraCalibration:
         """What a perfect checkerboard calibration of this camera would measure."""
         cx, cy = self.principal_point
         return CameraCalibration(width=self.width, height=self.height, fx=self.focal_px,
@@ -162,7 +162,7 @@ class ColourClass:
         return {"mean": list(self.mean), "cov": [list(row) for row in self.cov]}
 
     @classmethod
-    def from_json(cls, data, where: str) -> "ColourClass":
+    def from_json(cls, data, where: str) -> ColourClass:
         try:
             mean = np.asarray(data["mean"], dtype=np.float64)
             cov = np.asarray(data["cov"], dtype=np.float64)
@@ -220,7 +220,7 @@ class CameraCalibration:
         return np.array([self.k1, self.k2, 0.0, 0.0], dtype=np.float64)
 
     def with_colours(self, colours: dict[str, ColourClass],
-                     object_depth_offset_m: float = 0.0) -> "CameraCalibration":
+                     object_depth_offset_m: float = 0.0) -> CameraCalibration:
         return CameraCalibration(self.width, self.height, self.fx, self.fy, self.cx, self.cy,
                                  self.k1, self.k2, self.camera_height_m, self.camera_pitch_rad,
                                  dict(colours), float(object_depth_offset_m))
@@ -238,7 +238,7 @@ class CameraCalibration:
         }
 
     @classmethod
-    def from_json(cls, data, where: str = "calibration") -> "CameraCalibration":
+    def from_json(cls, data, where: str = "calibration") -> CameraCalibration:
         if not isinstance(data, dict):
             raise CalibrationError(f"{where}: expected a JSON object")
         if data.get("version") != CALIBRATION_VERSION:
@@ -268,7 +268,7 @@ class CameraCalibration:
         return path
 
     @classmethod
-    def load(cls, path: str | Path) -> "CameraCalibration":
+    def load(cls, path: str | Path) -> CameraCalibration:
         path = Path(path)
         try:
             data = json.loads(path.read_text())

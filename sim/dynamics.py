@@ -27,7 +27,7 @@ class Action(IntEnum):
         return self.name.lower()
 
     @classmethod
-    def parse(cls, word: str) -> "Action":
+    def parse(cls, word: str) -> Action:
         try:
             return cls[word.upper()]
         except KeyError:

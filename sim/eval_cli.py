@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 from enum import Enum
 from pathlib import Path
-from typing import Optional
 
 import typer
 from rich.console import Console
@@ -76,7 +75,7 @@ def eval_baselines(
     edges: EdgeMode = typer.Option(EdgeMode.benchmark, help="Graph edges: benchmark (as published) or exact."),
     seeds: str = typer.Option("0,1,2", help="Seeds for random agents, comma-separated."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
-    per_instance: Optional[Path] = typer.Option(None, help="Write a CSV row per instance, agent and seed."),
+    per_instance: Path | None = typer.Option(None, help="Write a CSV row per instance, agent and seed."),
 ) -> None:
     """Score the baseline Drivers on an NDH split (TD, OTD, SR, SPL)."""
     from sim.evaluation import evaluate_baselines

@@ -42,7 +42,7 @@ class MarkerLayout:
         return {**asdict(self), "corner_ids": list(self.corner_ids)}
 
     @classmethod
-    def from_json(cls, data: dict) -> "MarkerLayout":
+    def from_json(cls, data: dict) -> MarkerLayout:
         return cls(**{**data, "corner_ids": tuple(int(i) for i in data["corner_ids"])})
 
 

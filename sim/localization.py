@@ -77,7 +77,7 @@ class FreeSpace:
                                 rng.uniform(-np.pi, np.pi, n)])
 
 
-_free_spaces: "weakref.WeakKeyDictionary[Maze, FreeSpace]" = weakref.WeakKeyDictionary()
+_free_spaces: weakref.WeakKeyDictionary[Maze, FreeSpace] = weakref.WeakKeyDictionary()
 
 
 def free_space(maze: Maze) -> FreeSpace:

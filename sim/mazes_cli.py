@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Optional
 
 import cv2
 import typer
@@ -61,7 +60,7 @@ def _library(benchmark: Path | None, extra: list[Path]) -> MazeLibrary:
 
 
 @app.command("list")
-def list_mazes(benchmark: Optional[Path] = BENCHMARK_OPTION,
+def list_mazes(benchmark: Path | None = BENCHMARK_OPTION,
                extra: list[Path] = typer.Option([], "--dir", help="A folder of mazes to include (repeatable).")) -> None:
     """Every maze name with where it comes from."""
     library = _library(benchmark, extra)
@@ -72,7 +71,7 @@ def list_mazes(benchmark: Optional[Path] = BENCHMARK_OPTION,
 @app.command("show")
 def show(name: str,
          out: Path = typer.Option(..., "--out", help="PNG file to write the map to."),
-         benchmark: Optional[Path] = BENCHMARK_OPTION,
+         benchmark: Path | None = BENCHMARK_OPTION,
          extra: list[Path] = typer.Option([], "--dir", help="A folder of mazes to include (repeatable)."),
          walls_only: bool = typer.Option(False, "--walls-only", help="Draw the walls-only map.")) -> None:
     """Draw a maze's map, in the benchmark's colours, to a PNG."""

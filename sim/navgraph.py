@@ -21,10 +21,17 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from sim.cache import cache_dir as default_cache_dir, save_npz
+from sim.cache import cache_dir as default_cache_dir
+from sim.cache import save_npz
 from sim.geometry import (
-    GRID_STEP_M, HEADING_DI, HEADING_DJ, HEADINGS, MAP_WIDTH_PX,
-    TABLE_HEIGHT_M, TABLE_WIDTH_M, world_to_pixel,
+    GRID_STEP_M,
+    HEADING_DI,
+    HEADING_DJ,
+    HEADINGS,
+    MAP_WIDTH_PX,
+    TABLE_HEIGHT_M,
+    TABLE_WIDTH_M,
+    world_to_pixel,
 )
 from sim.maze import Maze
 
@@ -91,7 +98,7 @@ class NavGraph:
 
     @classmethod
     def build(cls, maze: Maze, mode: str = "benchmark", cache_dir: str | Path | None = None,
-              use_cache: bool = True, objects_block: bool = False) -> "NavGraph":
+              use_cache: bool = True, objects_block: bool = False) -> NavGraph:
         """The graph of `maze` (cached by its contents); `objects_block=True` for the live seat."""
         if mode not in MODES:
             raise ValueError(f"unknown edge mode {mode!r}; expected one of {', '.join(MODES)}")
@@ -109,7 +116,7 @@ class NavGraph:
         return graph
 
     @classmethod
-    def _compute(cls, grid: np.ndarray, mode: str, objects_block: bool = False) -> "NavGraph":
+    def _compute(cls, grid: np.ndarray, mode: str, objects_block: bool = False) -> NavGraph:
         """The graph on the label `grid`, where every non-floor pixel blocks."""
         # scipy is imported here, not at the top: a process whose graphs are cached never needs it.
         from scipy.sparse import csr_matrix

@@ -21,9 +21,16 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from sim.cache import cache_dir as default_cache_dir, save_npz
+from sim.cache import cache_dir as default_cache_dir
+from sim.cache import save_npz
 from sim.geometry import (
-    GRID_STEP_M, HEADINGS, MAP_HEIGHT_PX, MAP_WIDTH_PX, TABLE_HEIGHT_M, TABLE_WIDTH_M, TURN_RAD,
+    GRID_STEP_M,
+    HEADINGS,
+    MAP_HEIGHT_PX,
+    MAP_WIDTH_PX,
+    TABLE_HEIGHT_M,
+    TABLE_WIDTH_M,
+    TURN_RAD,
 )
 from sim.labels import N_LABELS, Label
 from sim.maze import Maze
@@ -164,7 +171,7 @@ def _exit_time(p0: np.ndarray, u: np.ndarray, size: int) -> np.ndarray:
     return np.minimum(t_hi, t_lo)
 
 
-_casters: "weakref.WeakKeyDictionary[Maze, RayCaster]" = weakref.WeakKeyDictionary()
+_casters: weakref.WeakKeyDictionary[Maze, RayCaster] = weakref.WeakKeyDictionary()
 
 
 def ray_caster(maze: Maze) -> RayCaster:
@@ -195,7 +202,7 @@ class RayTable:
 
     @classmethod
     def build(cls, maze: Maze, graph: NavGraph, cache_dir: str | Path | None = None,
-              use_cache: bool = True) -> "RayTable":
+              use_cache: bool = True) -> RayTable:
         """Every (node, heading) observation of `graph` on `maze`, cached by maze and nodes."""
         key = hashlib.sha256(np.ascontiguousarray(graph.nodes).tobytes()).hexdigest()[:12]
         path = (default_cache_dir(cache_dir) / "rays"

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from sim.fiducials import MarkerLayout, marker_image, square
+from sim.fiducials import MarkerLayout, marker_image
 from sim.geometry import MAP_HEIGHT_PX, MAP_WIDTH_PX, ROBOT_LENGTH_M, TABLE_HEIGHT_M, TABLE_WIDTH_M
 from sim.labels import Label
 from sim.maze import Maze
@@ -103,7 +103,7 @@ def render_overhead(maze: Maze, pose=None, camera: OverheadCamera = OverheadCame
     return _expose(image, imaging, seed)
 
 
-_tables: "weakref.WeakKeyDictionary[Maze, dict]" = weakref.WeakKeyDictionary()
+_tables: weakref.WeakKeyDictionary[Maze, dict] = weakref.WeakKeyDictionary()
 
 
 def _table_image(maze: Maze, camera: OverheadCamera, layout: MarkerLayout) -> np.ndarray:

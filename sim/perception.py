@@ -23,14 +23,24 @@ import cv2
 import numpy as np
 
 from sim.camera import (
-    COLOUR_CLASSES, CameraCalibration, ColourClass, FrontCamera, capture, undistort_normalized,
+    COLOUR_CLASSES,
+    CameraCalibration,
+    ColourClass,
+    FrontCamera,
+    capture,
+    undistort_normalized,
 )
 from sim.geometry import GRID_STEP_M, HEADINGS, TURN_RAD, heading_index
 from sim.labels import N_LABELS, OBJECT_LABELS, WALL_LABELS, Label
 from sim.maze import Maze
 from sim.navgraph import NavGraph
 from sim.observations import (
-    N_RAYS, OBS_FEATURES, RAY_OFFSETS, WALL_CLEARANCE_M, cast_rays, too_close,
+    N_RAYS,
+    OBS_FEATURES,
+    RAY_OFFSETS,
+    WALL_CLEARANCE_M,
+    cast_rays,
+    too_close,
 )
 
 NEAREST_M, FARTHEST_M = 0.02, 3.3  # the strip; the table's diagonal is 3.2 m
@@ -99,7 +109,7 @@ class _Classifier:
     log_dets: np.ndarray  # (C,)
 
     @classmethod
-    def of(cls, calibration: CameraCalibration) -> "_Classifier":
+    def of(cls, calibration: CameraCalibration) -> _Classifier:
         if "floor" not in calibration.colours or len(calibration.colours) < 2:
             raise PerceptionError("the calibration has no colours for the floor and the walls; "
                                   "run perception.calibrate_colours on labelled frames first")

@@ -49,7 +49,7 @@ class MotionNoise:
     turn_slip_m: float = 0.0  # sideways creep of the centre during a turn, per axis
 
     @classmethod
-    def named(cls, name: str) -> "MotionNoise":
+    def named(cls, name: str) -> MotionNoise:
         try:
             return NOISE_MODELS[name]
         except KeyError:
@@ -188,7 +188,7 @@ class Rover:
         return free
 
 
-_clearances: "weakref.WeakKeyDictionary[Maze, np.ndarray]" = weakref.WeakKeyDictionary()
+_clearances: weakref.WeakKeyDictionary[Maze, np.ndarray] = weakref.WeakKeyDictionary()
 
 
 def clearance_map(maze: Maze) -> np.ndarray:

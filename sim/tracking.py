@@ -79,7 +79,7 @@ class OverheadCalibration:
                 "layout": self.layout.to_json(), "reprojection_px": self.reprojection_px}
 
     @classmethod
-    def from_json(cls, data, source: str = "calibration") -> "OverheadCalibration":
+    def from_json(cls, data, source: str = "calibration") -> OverheadCalibration:
         try:
             if data.get("version") != CALIBRATION_VERSION:
                 raise CalibrationError(f"{source}: version {data.get('version')!r}, expected {CALIBRATION_VERSION}")
@@ -105,7 +105,7 @@ class OverheadCalibration:
         return path
 
     @classmethod
-    def load(cls, path: str | Path) -> "OverheadCalibration":
+    def load(cls, path: str | Path) -> OverheadCalibration:
         path = Path(path)
         try:
             data = json.loads(path.read_text())
@@ -335,9 +335,8 @@ def evaluate_tracker(maze, poses, seed: int = 0, fps: float = 5.0, jpeg_quality:
     `fps`) rendered by the overhead camera, sent as a JPEG of `jpeg_quality` as the server
     receives it, tracked after a calibration from a JPEG of the empty table. Errors are over
     the frames that gave a pose; `tracked_fraction` says how many did."""
-    from tqdm import tqdm
 
-    from sim.overhead import Imaging, OverheadCamera, render_overhead
+    from sim.overhead import Imaging, OverheadCamera
 
     camera, imaging = camera or OverheadCamera(), imaging or Imaging()
     rng = np.random.default_rng(seed)
