@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable
 from enum import Enum
 from pathlib import Path
+from typing import Any
 
 import typer
 from rich.console import Console
@@ -41,7 +43,7 @@ class EdgeMode(str, Enum):
     exact = "exact"
 
 
-def parse_list(text: str, kind: str, allowed=None) -> list[str]:
+def parse_list(text: str, kind: str, allowed: Iterable[str] | None = None) -> list[str]:
     items = [part.strip() for part in text.split(",") if part.strip()]
     if not items:
         raise typer.BadParameter(f"no {kind} given")
@@ -52,7 +54,7 @@ def parse_list(text: str, kind: str, allowed=None) -> list[str]:
     return items
 
 
-def print_table(summary: dict, console: Console) -> None:
+def print_table(summary: dict[str, Any], console: Console) -> None:
     table = Table(title=f"{summary['split']} (n={summary['n']})")
     for col in ("agent", "TD", "OTD", "SR", "SPL", "steps"):
         table.add_column(col, justify="right" if col != "agent" else "left")

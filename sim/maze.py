@@ -119,7 +119,8 @@ class Maze:
     # -- output -------------------------------------------------------------------
     def image(self, walls_only: bool = False) -> np.ndarray:
         """The map as a BGR image in the benchmark's colours."""
-        return PALETTE_BGR[self.walls if walls_only else self.labels]
+        image: np.ndarray = PALETTE_BGR[self.walls if walls_only else self.labels]
+        return image
 
     def save(self, run_dir: str | Path) -> Path:
         """Write the maze in the benchmark's layout; returns the `maze/` folder."""
@@ -140,7 +141,7 @@ def read_label_png(path: Path) -> np.ndarray:
                         f"expected {MAP_WIDTH_PX}x{MAP_HEIGHT_PX}")
     # The top two bits of each channel tell the palette's colours apart: a 6-bit key, looked up,
     # then every pixel compared with its label's exact colour.
-    b, g, r = cv2.split(image)
+    b, g, r = (np.asarray(channel, dtype=np.uint8) for channel in cv2.split(image))
     labels = cv2.LUT(((b >> 6) << 4) | ((g >> 6) << 2) | (r >> 6), _KEY_LABEL)
     wrong = sum(cv2.countNonZero(cv2.absdiff(cv2.LUT(labels, _LABEL_CHANNEL[k]), channel))
                 for k, channel in enumerate((b, g, r)))

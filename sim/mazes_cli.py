@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import cv2
 import typer
@@ -23,7 +24,7 @@ def register(root: typer.Typer) -> None:
     root.add_typer(app, name="mazes")
 
 
-def generate_set(out: Path, count: int, seed: int, prefix: str = "gen", progress: bool = True) -> dict:
+def generate_set(out: Path, count: int, seed: int, prefix: str = "gen", progress: bool = True) -> dict[str, Any]:
     """Write `count` mazes (`PREFIX-000` ... from seeds seed, seed+1, ...) and their manifest."""
     out.mkdir(parents=True, exist_ok=True)
     entries = []

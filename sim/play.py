@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -112,7 +112,7 @@ def _write_png(path: Path, image: np.ndarray) -> None:
     os.replace(tmp, path)
 
 
-def run(drive: Drive, lines: Iterable[str], echo=print) -> None:
+def run(drive: Drive, lines: Iterable[str], echo: Callable[[str], object] = print) -> None:
     """Read moves line by line until quit, stop or end of input."""
     echo(drive.describe())
     for line in lines:
@@ -183,7 +183,7 @@ def play(
     typer.echo(f"{the_maze.name}: {graph.n} nodes; frames in {out}/latest-first-person.png and "
                f"latest-top-down.png. Moves: w a d s, q quits.")
 
-    def lines():
+    def lines() -> Iterator[str]:
         while True:
             try:
                 yield input("> ")
