@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib
 from pathlib import Path
+from typing import Any
 
 import typer
 
@@ -25,7 +26,7 @@ def serve(host: str = typer.Option("127.0.0.1", help="Interface to listen on."),
     from app.settings import Settings
 
     # Flags override the environment; what is not given keeps its ROBOTSLANG_* value.
-    overrides = {name: value for name, value in (("data_dir", data_dir), ("benchmark", benchmark))
+    overrides: dict[str, Any] = {name: value for name, value in (("data_dir", data_dir), ("benchmark", benchmark))
                  if value is not None}
     settings = Settings(**overrides)
     app = create_app(settings)

@@ -18,9 +18,8 @@ neither flag. `info` holds, per sub-env, `collided` and `steps`, and with
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import gymnasium as gym
 import numpy as np

@@ -41,7 +41,7 @@ class _Scene:
     objects: tuple[tuple[Label, float, float], ...]  # label, x, y (metres)
 
 
-_scenes: weakref.WeakKeyDictionary[Maze, _Scene] = weakref.WeakKeyDictionary()
+_scenes: "weakref.WeakKeyDictionary[Maze, _Scene]" = weakref.WeakKeyDictionary()
 
 
 def _scene(maze: Maze) -> _Scene:
@@ -240,7 +240,7 @@ def top_down(maze: Maze, pose=None, path=None, rays=None, walls_only: bool = Fal
     return image
 
 
-_maps: weakref.WeakKeyDictionary[Maze, dict] = weakref.WeakKeyDictionary()
+_maps: "weakref.WeakKeyDictionary[Maze, dict]" = weakref.WeakKeyDictionary()
 
 
 def _map_image(maze: Maze, walls_only: bool, scale: float) -> np.ndarray:

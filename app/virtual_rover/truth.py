@@ -15,6 +15,7 @@ import os
 import threading
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TextIO
 
 from sim.rover import RoverPose
 
@@ -77,8 +78,8 @@ class TruthFollower:
 
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
-        self._file = None
-        self._inode = None
+        self._file: TextIO | None = None
+        self._inode: int | None = None
         self._partial = ""
         self.latest: TruthSample | None = None
 
