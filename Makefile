@@ -11,7 +11,7 @@ PORT   ?= 8000
 # since a plain PyPI gives Linux the multi-GB CUDA build.
 TORCH_INDEX ?=
 
-.PHONY: run test bench clean
+.PHONY: run test lint bench clean
 
 $(STAMP): pyproject.toml robot_client/pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -28,6 +28,12 @@ run: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest
+
+# ruff (lint, format check) and mypy, as pyproject.toml configures them: strict on sim/ and app/trial/.
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+	$(BIN)/mypy sim app models robot_client
 
 bench: $(STAMP)
 	$(BIN)/python -m bench.sim

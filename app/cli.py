@@ -7,8 +7,6 @@ commands that need it.
 
 from __future__ import annotations
 
-from typing import Optional
-
 import typer
 
 from app import commands as app_commands
@@ -36,7 +34,7 @@ def show_version(value: bool) -> None:
 
 
 @root.callback()
-def _root(version_: Optional[bool] = typer.Option(None, "--version", callback=show_version, is_eager=True,
+def _root(version_: bool | None = typer.Option(None, "--version", callback=show_version, is_eager=True,
                                                   help="Print the installed version and exit.")) -> None:
     """RobotSlang: dialog-guided robot localization and navigation."""
 

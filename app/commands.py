@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import importlib
 from pathlib import Path
-from typing import Optional
+from typing import Any
 
 import typer
 
@@ -14,9 +14,9 @@ MOUNTED = ("app.export.cli", "app.demo.cli", "app.robot_commands")
 
 def serve(host: str = typer.Option("127.0.0.1", help="Interface to listen on."),
           port: int = typer.Option(8000, help="TCP port."),
-          data_dir: Optional[Path] = typer.Option(None, "--data-dir", help="Database, frames and secret key "
+          data_dir: Path | None = typer.Option(None, "--data-dir", help="Database, frames and secret key "
                                                   "(default ROBOTSLANG_DATA_DIR, else ./var)."),
-          benchmark: Optional[Path] = typer.Option(None, "--benchmark", help="A RobotSlangBenchmark clone whose "
+          benchmark: Path | None = typer.Option(None, "--benchmark", help="A RobotSlangBenchmark clone whose "
                                                    "mazes join the bundled ones (default ROBOTSLANG_BENCHMARK).")
           ) -> None:
     """Serve the platform (pages, trial sockets) on HOST:PORT."""
@@ -26,7 +26,7 @@ def serve(host: str = typer.Option("127.0.0.1", help="Interface to listen on."),
     from app.settings import Settings
 
     # Flags override the environment; what is not given keeps its ROBOTSLANG_* value.
-    overrides = {name: value for name, value in (("data_dir", data_dir), ("benchmark", benchmark))
+    overrides: dict[str, Any] = {name: value for name, value in (("data_dir", data_dir), ("benchmark", benchmark))
                  if value is not None}
     settings = Settings(**overrides)
     app = create_app(settings)
@@ -37,13 +37,13 @@ def serve(host: str = typer.Option("127.0.0.1", help="Interface to listen on."),
 
 
 def admin_create(name: str = typer.Argument(..., help="The experimenter's login name."),
-                 password: Optional[str] = typer.Option(None, help="Prompted for when not given.")) -> None:
+                 password: str | None = typer.Option(None, help="Prompted for when not given.")) -> None:
     """Create an experimenter account (or set the password of an existing one)."""
     _set_password(name, password, create=True)
 
 
 def admin_password(name: str = typer.Argument(..., help="The experimenter's login name."),
-                   password: Optional[str] = typer.Option(None, help="Prompted for when not given.")) -> None:
+                   password: str | None = typer.Option(None, help="Prompted for when not given.")) -> None:
     """Change an experimenter's password; the account's logins end everywhere."""
     _set_password(name, password, create=False)
 

@@ -182,7 +182,7 @@ async def csrf_protect(request: Request) -> None:
         raise HTTPException(403, "refused: a state-changing request must carry an Origin or Referer header")
     if not origin_allowed(origin, request.url.scheme, request.headers.get("host"), services.settings):
         raise HTTPException(403, f"refused: a page from {origin[:100]} may not change anything here")
-    token = request.headers.get(CSRF_HEADER)
+    token: object = request.headers.get(CSRF_HEADER)
     if token is None:
         token = (await request.form()).get(CSRF_FIELD)
     if not isinstance(token, str) or not services.csrf.verify(token, request.state.browser_id,

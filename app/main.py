@@ -18,11 +18,11 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from app.clock import ServerClock
 from app.db.engine import make_engine, make_sessionmaker, upgrade
 from app.db.models import Experimenter
+from app.guard import GuardMiddleware, template_context
+from app.login import LoginGuard
 from app.mazes import Mazes
 from app.resources import shipped
 from app.routes import experimenter, ldh_study, pages, replay, robot_ws, seat_ws
-from app.guard import GuardMiddleware, template_context
-from app.login import LoginGuard
 from app.security import CsrfTokens, SeatTokens, Sessions, set_password
 from app.services import Services
 from app.settings import Settings

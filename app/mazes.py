@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -14,6 +15,9 @@ from sim.dynamics import Pose
 from sim.geometry import TABLE_WIDTH_M, world_to_pixel
 from sim.labels import LABEL_BGR, OBJECT_LABELS, Label
 from sim.maze import Maze
+
+if TYPE_CHECKING:
+    from sim.library import MazeLibrary
 from sim.navgraph import NavGraph
 
 TARGET_VIEW_DISTANCE_M = 0.35
@@ -28,14 +32,14 @@ class UnknownMaze(LookupError):
 class Mazes:
     def __init__(self, settings: Settings) -> None:
         self.settings = settings
-        self._library = None
+        self._library: MazeLibrary | None = None
         self.load = lru_cache(maxsize=64)(self._load)
         self.graph = lru_cache(maxsize=64)(self._graph)
         self.map_png = lru_cache(maxsize=64)(self._map_png)
         self.target_jpeg = lru_cache(maxsize=192)(self._target_jpeg)
 
     @property
-    def library(self):
+    def library(self) -> MazeLibrary:
         if self._library is None:
             from sim.library import MazeLibrary
 

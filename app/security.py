@@ -59,7 +59,8 @@ class SeatTokens:
 
     def _load(self, token: str, max_age: float | None) -> Seat:
         try:
-            data = self._serializer.loads(token, max_age=max_age)
+            # itsdangerous compares ages as numbers; its hint says int where a float works the same.
+            data = self._serializer.loads(token, max_age=max_age)  # type: ignore[arg-type]
             seat = Seat(int(data["t"]), str(data["r"]))
         except SignatureExpired:
             raise ExpiredLink("this join link has expired: ask the experimenter for a new one") from None

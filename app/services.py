@@ -31,7 +31,7 @@ class Services:
     csrf: CsrfTokens
     logins: LoginGuard
     mazes: Mazes
-    hub: "TrialHub" = None  # type: ignore[assignment]
+    hub: TrialHub = None  # type: ignore[assignment]
     relay: Any = None  # `RedisRelay` when ROBOTSLANG_REDIS_URL is set: trials shared between processes
     robots: Any = None  # `RobotLinks`: the rovers and cameras connected here (made by `robot_links`)
     ldh_belief: Any = None  # `BeliefModel` for the watch page's LDH belief (made by `belief_model`)

@@ -37,7 +37,7 @@ class Settings(BaseSettings):
     camera_calibration: Path | None = None  # the rovers' front camera (sim.camera.CameraCalibration); default data_dir/camera_calibration.json
 
     @model_validator(mode="after")
-    def _default_paths(self) -> "Settings":
+    def _default_paths(self) -> Settings:
         if self.overhead_calibration is None:
             self.overhead_calibration = self.data_dir / "overhead_calibration.json"
         if self.camera_calibration is None:

@@ -8,7 +8,6 @@ from __future__ import annotations
 import json
 from enum import Enum
 from pathlib import Path
-from typing import Optional
 
 import typer
 
@@ -61,8 +60,8 @@ def train_ndh(
     eval_every: int = typer.Option(200, help="Validate on val_seen every this many iterations."),
     train_on: TrainOn = typer.Option(TrainOn.train, help="train, or train+val_seen (the test-time retraining; "
                                      "no validation)."),
-    glove: Optional[Path] = typer.Option(None, help="GloVe text file to initialise the word embeddings."),
-    lr: Optional[float] = typer.Option(None, help="Learning rate; default the paper's for the feedback."),
+    glove: Path | None = typer.Option(None, help="GloVe text file to initialise the word embeddings."),
+    lr: float | None = typer.Option(None, help="Learning rate; default the paper's for the feedback."),
 ) -> None:
     """Train the NDH seq2seq Driver (progress bar with live loss and validation TD)."""
     from models.train import TrainConfig, train
@@ -91,8 +90,8 @@ def eval_ndh(
                                               "shipped in the package (docs/model_card_ndh.md)."),
     split: EvalSplit = typer.Option(EvalSplit.val_seen, help="NDH split."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON (the shape of `eval baselines`)."),
-    per_instance: Optional[Path] = typer.Option(None, help="Write a CSV row per instance."),
-    name: Optional[str] = typer.Option(None, help="Agent name in the output; default from the checkpoint."),
+    per_instance: Path | None = typer.Option(None, help="Write a CSV row per instance."),
+    name: str | None = typer.Option(None, help="Agent name in the output; default from the checkpoint."),
 ) -> None:
     """Score a trained Driver: TD, OTD, SR, SPL (mean ± std)."""
     from rich.console import Console
@@ -135,7 +134,7 @@ def experiment_ndh(
     out: Path = typer.Option(Path("runs/ndh-experiment"), help="Experiment folder; re-running resumes."),
     models: str = typer.Option("baseline,improved", help="Model variants, comma-separated."),
     seeds: str = typer.Option("0,1,2", help="Seeds, comma-separated."),
-    iters: Optional[int] = typer.Option(None, help="Iterations per run; default: measured to fit the budget."),
+    iters: int | None = typer.Option(None, help="Iterations per run; default: measured to fit the budget."),
     budget_minutes: float = typer.Option(110.0, help="Wall-time budget used to size --iters."),
     workers: int = typer.Option(2, help="Trainings run in parallel (one CPU thread each), with --executor local."),
     executor: Executor = typer.Option(Executor.local, help="local: a process pool on this machine; ray: one Ray "

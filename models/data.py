@@ -38,7 +38,7 @@ class EpisodeSet:
 
     @classmethod
     def build(cls, bench: Benchmark, world: World, split: str, tokenizer: Tokenizer,
-              mode: str = "benchmark", instances: list[NDHInstance] | None = None) -> "EpisodeSet":
+              mode: str = "benchmark", instances: list[NDHInstance] | None = None) -> EpisodeSet:
         instances = bench.split(split) if instances is None else instances
         m = len(instances)
         ids = [tokenizer.encode(inst.dialog, inst.target) for inst in instances]

@@ -55,7 +55,7 @@ class Localizer(nn.Module):
         self.view_bias = nn.Parameter(torch.zeros(VIEW_FEATURES))
         self.prior_weight = nn.Parameter(torch.tensor(1.0 if prior else 0.0), requires_grad=prior)
 
-    def forward(self, counts: torch.Tensor, pose: "PoseTensors") -> torch.Tensor:
+    def forward(self, counts: torch.Tensor, pose: PoseTensors) -> torch.Tensor:
         """counts (5, 10) -> pose logits (P,) over the maze's (node, heading) poses."""
         flat = counts.flatten()
         text = self.dropout(torch.log1p(flat))
@@ -70,7 +70,7 @@ class PoseTensors:
     main: torch.Tensor  # (N,) bool
 
     @classmethod
-    def of(cls, ctx: MazeContext) -> "PoseTensors":
+    def of(cls, ctx: MazeContext) -> PoseTensors:
         n, headings = ctx.views.shape[:2]
         return cls(views=torch.from_numpy(ctx.views.reshape(n * headings, -1)),
                    prior=torch.from_numpy(colour_features(ctx.views).reshape(n * headings, -1)),

@@ -8,7 +8,6 @@ from __future__ import annotations
 import json
 from enum import Enum
 from pathlib import Path
-from typing import Optional
 
 import typer
 
@@ -45,12 +44,12 @@ def eval_ldh(
     split: EvalSplit = typer.Option(EvalSplit.val_seen, help="Split (by maze, as the benchmark's)."),
     agent: str = typer.Option("random,center,colours", help="Localizers, comma-separated: random, center, "
                               f"colours, {LEARNED} (needs --checkpoint)."),
-    checkpoint: Optional[Path] = typer.Option(None, help="A checkpoint written by `train ldh`."),
+    checkpoint: Path | None = typer.Option(None, help="A checkpoint written by `train ldh`."),
     variant: VariantOption = typer.Option(VariantOption.prefix, help="prefix: the dialog up to the end of "
                                           "localization (rule prefix-v1); full: the whole first sub-dialog. "
                                           "A folder with LDH-data/ (a platform export) is read as is."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
-    per_instance: Optional[Path] = typer.Option(None, help="Write a CSV row per instance and agent."),
+    per_instance: Path | None = typer.Option(None, help="Write a CSV row per instance and agent."),
 ) -> None:
     """Score localizers on LDH: TD and Euclidean error (m), accuracy within 0.25/0.5/1.0 m."""
     from sim.benchmark import BenchmarkError

@@ -59,7 +59,7 @@ class Tokenizer:
 
     @classmethod
     def from_dialogs(cls, dialogs: Iterable[tuple[Iterable[tuple[str, str]], str]],
-                     min_count: int = 1, max_tokens: int = MAX_TOKENS) -> "Tokenizer":
+                     min_count: int = 1, max_tokens: int = MAX_TOKENS) -> Tokenizer:
         """Vocabulary of every word seen at least `min_count` times in (dialog, target) pairs."""
         counts: Counter[str] = Counter()
         for dialog, target in dialogs:
@@ -83,7 +83,7 @@ class Tokenizer:
         return json.dumps({"vocab": self.vocab, "max_tokens": self.max_tokens})
 
     @classmethod
-    def from_json(cls, text: str) -> "Tokenizer":
+    def from_json(cls, text: str) -> Tokenizer:
         data = json.loads(text)
         return cls(data["vocab"], data["max_tokens"])
 

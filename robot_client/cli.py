@@ -114,6 +114,7 @@ def main(argv: list[str] | None = None) -> None:
 async def serve(client: RobotClient) -> int:
     """Run until a signal (exit 0), a refusal by the server (exit 3) or a camera failure (exit 4)."""
     main_task = asyncio.current_task()
+    assert main_task is not None  # called from within asyncio.run
     loop = asyncio.get_running_loop()
 
     def shutdown(signame: str) -> None:

@@ -24,8 +24,16 @@ from robot_client import __version__
 from robot_client.camera import CameraError, FrameGrabber
 from robot_client.motors import Motors
 from robot_client.protocol import (
-    CLOSE_REFUSED, CLOSE_REPLACED, DEFAULT_MAX_FRAME_BYTES, MOVE_ACTIONS, PROTOCOL_VERSION,
-    SERVER_TYPES, ProtocolError, decode, encode, pack_frame,
+    CLOSE_REFUSED,
+    CLOSE_REPLACED,
+    DEFAULT_MAX_FRAME_BYTES,
+    MOVE_ACTIONS,
+    PROTOCOL_VERSION,
+    SERVER_TYPES,
+    ProtocolError,
+    decode,
+    encode,
+    pack_frame,
 )
 
 log = logging.getLogger("robotslang.robot")
@@ -144,7 +152,7 @@ class RobotClient:
         tasks = [asyncio.create_task(self._receive(ws), name="receive"),
                  asyncio.create_task(self._watchdog(ws), name="watchdog")]
         if self.grabber is not None:
-            tasks.append(asyncio.create_task(self._send_frames(ws), name="frames"))
+            tasks.append(asyncio.create_task(self._send_frames(ws, self.grabber), name="frames"))
         try:
             done, _ = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
             for task in done:
@@ -197,19 +205,19 @@ class RobotClient:
         elif self.motors is None or action not in MOVE_ACTIONS:
             self._send_later(ws, ack(move_id, action, "refused", "unknown"))
         else:
-            self._move = asyncio.create_task(self._run_move(ws, move_id, action))
+            self._move = asyncio.create_task(self._run_move(ws, self.motors, move_id, action))
 
-    async def _run_move(self, ws: ClientConnection, move_id, action: str) -> None:
-        duration = self.motors.calibration.duration(action)
+    async def _run_move(self, ws: ClientConnection, motors: Motors, move_id, action: str) -> None:
+        duration = motors.calibration.duration(action)
         started_ns = time.monotonic_ns()
-        self.motors.start(action)
+        motors.start(action)
         try:
             await asyncio.sleep(duration)
             status, reason = "done", None
         except asyncio.CancelledError:
             status, reason = "refused", "stopped"
         finally:
-            self.motors.stop()
+            motors.stop()
         finished_ns = time.monotonic_ns()
         self._send_later(ws, ack(move_id, action, status, reason,
                                  started_ns=started_ns, finished_ns=finished_ns))
@@ -239,14 +247,14 @@ class RobotClient:
             # Wake exactly when the silence would reach the limit, or soon after a trip.
             await asyncio.sleep(max(0.0, s.watchdog_s - silence) if not tripped else 0.05)
 
-    async def _send_frames(self, ws: ClientConnection) -> None:
+    async def _send_frames(self, ws: ClientConnection, grabber: FrameGrabber) -> None:
         sent = 0
         while True:
             await self._frame_ready.wait()
             self._frame_ready.clear()
-            if self.grabber.error is not None:
-                raise CameraError(f"camera failed: {self.grabber.error}")
-            frame = self.grabber.latest()
+            if grabber.error is not None:
+                raise CameraError(f"camera failed: {grabber.error}")
+            frame = grabber.latest()
             if frame is None or frame.seq == sent:
                 continue
             data = pack_frame(frame.seq, frame.capture_ns, frame.width, frame.height, frame.jpeg)

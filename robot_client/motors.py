@@ -69,13 +69,14 @@ def mock_factory(pin_log: Path | None = None):
 
     if pin_log is None:
         return MockFactory(pin_class=MockPWMPin)
+    log_path = pin_log  # a name the closure below sees as a Path
     class LoggedPWMPin(MockPWMPin):
         def _change_state(self, value):
             changed = super()._change_state(value)
             if changed:
                 # Opened per change (a few per move): readers see each line at once, and no
                 # handle outlives the pins, whoever closes them and whenever.
-                with open(pin_log, "a") as log:
+                with open(log_path, "a") as log:
                     log.write(json.dumps({"t_ns": time.monotonic_ns(), "pin": self.info.name,
                                           "state": float(value)}) + "\n")
             return changed

@@ -25,7 +25,7 @@ class Policy(Protocol):
 class StopAgent:
     name = "stop"
 
-    def reset(self, graph, start, goal, rng) -> None:
+    def reset(self, graph: NavGraph, start: Pose, goal: int, rng: np.random.Generator) -> None:
         pass
 
     def act(self, pose: Pose) -> Action:
@@ -38,7 +38,7 @@ class RandomAgent:
 
     name = "random"
 
-    def reset(self, graph, start, goal, rng) -> None:
+    def reset(self, graph: NavGraph, start: Pose, goal: int, rng: np.random.Generator) -> None:
         self.graph, self.rng = graph, rng
 
     def act(self, pose: Pose) -> Action:
@@ -52,14 +52,14 @@ class ShortestAgent:
 
     name = "shortest"
 
-    def reset(self, graph, start, goal, rng) -> None:
+    def reset(self, graph: NavGraph, start: Pose, goal: int, rng: np.random.Generator) -> None:
         self.graph, self.goal = graph, goal
 
     def act(self, pose: Pose) -> Action:
         return teacher_action(self.graph, pose, self.goal)
 
 
-BASELINES: dict[str, type] = {cls.name: cls for cls in (StopAgent, RandomAgent, ShortestAgent)}
+BASELINES: dict[str, type[Policy]] = {cls.name: cls for cls in (StopAgent, RandomAgent, ShortestAgent)}
 
 
 def make_baseline(name: str) -> Policy:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import importlib
 import sys
 from pathlib import Path
-from typing import Optional
 
 import typer
 
@@ -14,9 +13,9 @@ CHECKOUT = Path(__file__).resolve().parent.parent
 
 
 def bench_sim(
-    benchmark: Optional[Path] = typer.Option(None, "--benchmark", envvar="ROBOTSLANG_BENCHMARK",
+    benchmark: Path | None = typer.Option(None, "--benchmark", envvar="ROBOTSLANG_BENCHMARK",
                                              help="A RobotSlangBenchmark clone (default ../shared/robotslang)."),
-    maps: Optional[int] = typer.Option(None, "--maps", min=1, help="Only the first N maps (default: all)."),
+    maps: int | None = typer.Option(None, "--maps", min=1, help="Only the first N maps (default: all)."),
 ) -> None:
     """Print the simulator's speed: graph, all-pairs and ray-table builds, env steps, renders."""
     if not (CHECKOUT / "bench" / "sim.py").exists():

@@ -11,6 +11,7 @@ import re
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -51,7 +52,7 @@ class NDHInstance:
     dialog: tuple[tuple[str, str], ...]  # (role: oracle|navigator, message)
 
     @classmethod
-    def from_json(cls, item: dict) -> "NDHInstance":
+    def from_json(cls, item: dict[str, Any]) -> NDHInstance:
         match = _SCAN.match(item["scan"])
         if not match:
             raise BenchmarkError(f"instance {item.get('inst_idx')}: unrecognised scan {item['scan']!r}")
@@ -61,8 +62,8 @@ class NDHInstance:
             run=match["run"],
             target=item["target"],
             agent_pose=tuple(float(v) for v in item["agent_pose"]),
-            target_pose=tuple(float(v) for v in item["target_pose"][:2]),
-            all_targets=tuple(tuple(float(v) for v in t[:2]) for t in item["all_targets"]),
+            target_pose=(float(item["target_pose"][0]), float(item["target_pose"][1])),
+            all_targets=tuple((float(t[0]), float(t[1])) for t in item["all_targets"]),
             dialog=tuple((turn["role"], turn["message"]) for turn in item["dialog_history"]),
         )
 
@@ -97,9 +98,10 @@ class Benchmark:
         return [NDHInstance.from_json(item) for item in json.loads(path.read_text())]
 
     @cached_property
-    def lookup_scans(self) -> dict[str, list]:
+    def lookup_scans(self) -> dict[str, list[Any]]:
         path = self.root / "lookup_scans.json"
-        return json.loads(path.read_text()) if path.exists() else {}
+        scans: dict[str, list[Any]] = json.loads(path.read_text()) if path.exists() else {}
+        return scans
 
     def runs(self) -> list[str]:
         """Run folders that have a full map, in natural order."""

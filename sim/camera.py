@@ -22,9 +22,11 @@ import math
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 
 from sim.labels import Label
 from sim.maze import Maze
@@ -76,7 +78,7 @@ class FrontCamera:
         """(cx, cy) in OpenCV's convention (pixel centres at integers): the render's horizon row."""
         return (self.width - 1) / 2, HORIZON * self.height - 0.5
 
-    def calibration(self, colours: dict[str, "ColourClass"] | None = None) -> "CameraCalibration":
+    def calibration(self, colours: dict[str, ColourClass] | None = None) -> CameraCalibration:
         """What a perfect checkerboard calibration of this camera would measure."""
         cx, cy = self.principal_point
         return CameraCalibration(width=self.width, height=self.height, fx=self.focal_px,
@@ -129,20 +131,21 @@ def capture(maze: Maze, x: float, y: float, theta: float, camera: FrontCamera | 
     # OpenCV's generator, seeded from `rng`, draws the noise five times faster than numpy's.
     noise = np.empty(image.shape, dtype=np.float32)
     cv2.setRNGSeed(int(rng.integers(2**31)))
-    cv2.randn(noise, 0.0, float(camera.noise_std))
+    cv2.randn(noise, 0.0, float(camera.noise_std))  # type: ignore[call-overload]  # stubs want arrays; OpenCV takes scalars
     out = cv2.scaleAdd(image.astype(np.float32), float(camera.gain), noise)
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
-def undistort_normalized(xd, yd, k1: float, k2: float, iterations: int = 30):
+def undistort_normalized(xd: ArrayLike, yd: ArrayLike, k1: float, k2: float,
+                         iterations: int = 30) -> tuple[np.ndarray, np.ndarray]:
     """Invert the radial model x_d = x_u (1 + k1 r_u^2 + k2 r_u^4) by fixed-point iteration
     (it converges in a few steps for mild distortion); normalized coordinates in and out."""
-    xd, yd = np.asarray(xd, dtype=np.float64), np.asarray(yd, dtype=np.float64)
-    xu, yu = xd, yd
+    xn, yn = np.asarray(xd, dtype=np.float64), np.asarray(yd, dtype=np.float64)
+    xu, yu = xn, yn
     for _ in range(iterations):
         r2 = xu * xu + yu * yu
         scale = 1 + k1 * r2 + k2 * r2 * r2
-        xu, yu = xd / scale, yd / scale
+        xu, yu = xn / scale, yn / scale
     return xu, yu
 
 
@@ -158,11 +161,11 @@ class ColourClass:
     mean: tuple[float, ...]
     cov: tuple[tuple[float, ...], ...]
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {"mean": list(self.mean), "cov": [list(row) for row in self.cov]}
 
     @classmethod
-    def from_json(cls, data, where: str) -> "ColourClass":
+    def from_json(cls, data: Any, where: str) -> ColourClass:
         try:
             mean = np.asarray(data["mean"], dtype=np.float64)
             cov = np.asarray(data["cov"], dtype=np.float64)
@@ -220,12 +223,12 @@ class CameraCalibration:
         return np.array([self.k1, self.k2, 0.0, 0.0], dtype=np.float64)
 
     def with_colours(self, colours: dict[str, ColourClass],
-                     object_depth_offset_m: float = 0.0) -> "CameraCalibration":
+                     object_depth_offset_m: float = 0.0) -> CameraCalibration:
         return CameraCalibration(self.width, self.height, self.fx, self.fy, self.cx, self.cy,
                                  self.k1, self.k2, self.camera_height_m, self.camera_pitch_rad,
                                  dict(colours), float(object_depth_offset_m))
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {
             "version": CALIBRATION_VERSION,
             "image_size": [self.width, self.height],
@@ -238,7 +241,7 @@ class CameraCalibration:
         }
 
     @classmethod
-    def from_json(cls, data, where: str = "calibration") -> "CameraCalibration":
+    def from_json(cls, data: Any, where: str = "calibration") -> CameraCalibration:
         if not isinstance(data, dict):
             raise CalibrationError(f"{where}: expected a JSON object")
         if data.get("version") != CALIBRATION_VERSION:
@@ -268,7 +271,7 @@ class CameraCalibration:
         return path
 
     @classmethod
-    def load(cls, path: str | Path) -> "CameraCalibration":
+    def load(cls, path: str | Path) -> CameraCalibration:
         path = Path(path)
         try:
             data = json.loads(path.read_text())

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from enum import IntEnum
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from sim.geometry import HEADING_DI, HEADING_DJ, HEADINGS, heading_index
 from sim.navgraph import NavGraph
@@ -27,7 +28,7 @@ class Action(IntEnum):
         return self.name.lower()
 
     @classmethod
-    def parse(cls, word: str) -> "Action":
+    def parse(cls, word: str) -> Action:
         try:
             return cls[word.upper()]
         except KeyError:
@@ -64,21 +65,21 @@ _STEP_HEADING = np.full((3, 3), -1, dtype=np.int64)
 _STEP_HEADING[HEADING_DI + 1, HEADING_DJ + 1] = np.arange(HEADINGS)
 
 
-def teacher_actions(graph: NavGraph, nodes, headings, goals) -> np.ndarray:
+def teacher_actions(graph: NavGraph, nodes: ArrayLike, headings: ArrayLike, goals: ArrayLike) -> np.ndarray:
     """Shortest-path actions for arrays of poses and goal nodes.
 
     Turns toward the next hop by the smaller turn (left on a tie), forward when aligned,
     stop at the goal's node or where no path to it exists.
     """
-    nodes, headings, goals = (np.asarray(a, dtype=np.int64) for a in (nodes, headings, goals))
-    hop = graph.next_hop[nodes, goals]
-    stop = (nodes == goals) | (hop < 0)
-    hop = np.where(stop, nodes, hop)
-    actions = actions_toward(graph.node_ij[hop] - graph.node_ij[nodes], headings)
+    at, facing, goal = (np.asarray(a, dtype=np.int64) for a in (nodes, headings, goals))
+    hop = graph.next_hop[at, goal]
+    stop = (at == goal) | (hop < 0)
+    hop = np.where(stop, at, hop)
+    actions = actions_toward(graph.node_ij[hop] - graph.node_ij[at], facing)
     return np.where(stop, Action.STOP, actions).astype(np.int64)
 
 
-def actions_toward(delta, headings) -> np.ndarray:
+def actions_toward(delta: np.ndarray, headings: np.ndarray) -> np.ndarray:
     """The action that heads for grid steps `delta` (..., 2) from `headings`: forward when
     aligned, else the smaller turn (left on a tie). Shared by both teachers so they agree."""
     wanted = _STEP_HEADING[delta[..., 0] + 1, delta[..., 1] + 1]

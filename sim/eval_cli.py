@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable
 from enum import Enum
 from pathlib import Path
-from typing import Optional
+from typing import Any
 
 import typer
 from rich.console import Console
@@ -42,7 +43,7 @@ class EdgeMode(str, Enum):
     exact = "exact"
 
 
-def parse_list(text: str, kind: str, allowed=None) -> list[str]:
+def parse_list(text: str, kind: str, allowed: Iterable[str] | None = None) -> list[str]:
     items = [part.strip() for part in text.split(",") if part.strip()]
     if not items:
         raise typer.BadParameter(f"no {kind} given")
@@ -53,7 +54,7 @@ def parse_list(text: str, kind: str, allowed=None) -> list[str]:
     return items
 
 
-def print_table(summary: dict, console: Console) -> None:
+def print_table(summary: dict[str, Any], console: Console) -> None:
     table = Table(title=f"{summary['split']} (n={summary['n']})")
     for col in ("agent", "TD", "OTD", "SR", "SPL", "steps"):
         table.add_column(col, justify="right" if col != "agent" else "left")
@@ -76,7 +77,7 @@ def eval_baselines(
     edges: EdgeMode = typer.Option(EdgeMode.benchmark, help="Graph edges: benchmark (as published) or exact."),
     seeds: str = typer.Option("0,1,2", help="Seeds for random agents, comma-separated."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
-    per_instance: Optional[Path] = typer.Option(None, help="Write a CSV row per instance, agent and seed."),
+    per_instance: Path | None = typer.Option(None, help="Write a CSV row per instance, agent and seed."),
 ) -> None:
     """Score the baseline Drivers on an NDH split (TD, OTD, SR, SPL)."""
     from sim.evaluation import evaluate_baselines

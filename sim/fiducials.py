@@ -9,6 +9,7 @@ lab prints and places its markers to match it.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import cv2
 import numpy as np
@@ -38,11 +39,11 @@ class MarkerLayout:
         cy = -reach if k in (0, 1) else TABLE_HEIGHT_M + reach
         return square(cx, cy, np.pi / 2, self.corner_size_m)
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {**asdict(self), "corner_ids": list(self.corner_ids)}
 
     @classmethod
-    def from_json(cls, data: dict) -> "MarkerLayout":
+    def from_json(cls, data: dict[str, Any]) -> MarkerLayout:
         return cls(**{**data, "corner_ids": tuple(int(i) for i in data["corner_ids"])})
 
 
@@ -71,7 +72,8 @@ def marker_image(marker_id: int, cells_px: int = 16, margin_cells: int = 1) -> n
     dictionary = cv2.aruco.getPredefinedDictionary(DICTIONARY)
     side = (dictionary.markerSize + 2) * cells_px
     marker = cv2.aruco.generateImageMarker(dictionary, marker_id, side, borderBits=1)
-    return cv2.copyMakeBorder(marker, *(4 * [margin_cells * cells_px]), cv2.BORDER_CONSTANT, value=255)
+    margin = margin_cells * cells_px
+    return cv2.copyMakeBorder(marker, margin, margin, margin, margin, cv2.BORDER_CONSTANT, value=255)
 
 
 def detector() -> cv2.aruco.ArucoDetector:

@@ -129,11 +129,13 @@ class _Room:
             np.minimum(clear[r0:r1, c0:c1], near, out=clear[r0:r1, c0:c1])
 
 
-def _draw_chain(rng, room: _Room, inner, thickness, budget) -> int:
+def _draw_chain(rng: np.random.Generator, room: _Room, inner: tuple[int, int, int, int],
+                thickness: int, budget: int) -> int:
     """One polyline of segments, from the table edge or open floor; returns segments drawn."""
     x0, y0, x1, y1 = inner
     if rng.random() < 0.4:  # start on the table edge, heading inward
         side = int(rng.integers(4))
+        start: tuple[float, float]
         if side == 0:
             start, angle = (x0, rng.uniform(y0 + 80, y1 - 80)), 0.0
         elif side == 1:
@@ -199,7 +201,8 @@ def in_main_region(graph: NavGraph, spots: np.ndarray) -> np.ndarray:
     reach = np.isfinite(graph.dist)
     main = reach[reach.sum(axis=1).argmax()]
     x, y = pixel_to_world(spots[:, 0], spots[:, 1])
-    return main[graph.nearest_nodes(np.stack([x, y], axis=1))]
+    inside: np.ndarray = main[graph.nearest_nodes(np.stack([x, y], axis=1))]
+    return inside
 
 
 def pick_centres(rng: np.random.Generator, spots: np.ndarray) -> list[tuple[int, int]] | None:

@@ -7,6 +7,7 @@ Maps are 1401 x 1175 pixel images of a 2.4638 m x 2.0574 m table, row 0 at the t
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 TABLE_WIDTH_M = 2.4638
 TABLE_HEIGHT_M = 2.0574
@@ -23,14 +24,14 @@ HEADING_DI = np.array([1, 1, 0, -1, -1, -1, 0, 1], dtype=np.int64)
 HEADING_DJ = np.array([0, 1, 1, 1, 0, -1, -1, -1], dtype=np.int64)
 
 
-def world_to_pixel(x, y):
+def world_to_pixel(x: ArrayLike, y: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Metres to (column, row) floats, as the benchmark maps them."""
     col = np.asarray(x, dtype=np.float64) / TABLE_WIDTH_M * (MAP_WIDTH_PX - 1)
     row = (1.0 - np.asarray(y, dtype=np.float64) / TABLE_HEIGHT_M) * (MAP_HEIGHT_PX - 1)
     return col, row
 
 
-def pixel_to_world(col, row):
+def pixel_to_world(col: ArrayLike, row: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """(column, row) to metres: the inverse of `world_to_pixel`."""
     x = np.asarray(col, dtype=np.float64) / (MAP_WIDTH_PX - 1) * TABLE_WIDTH_M
     y = (1.0 - np.asarray(row, dtype=np.float64) / (MAP_HEIGHT_PX - 1)) * TABLE_HEIGHT_M
@@ -42,6 +43,7 @@ def heading_index(theta: float) -> int:
     return int(np.round(float(theta) / TURN_RAD)) % HEADINGS
 
 
-def heading_angle(k):
+def heading_angle(k: ArrayLike) -> NDArray[np.float64]:
     """Heading index (0..7) to radians in [0, 2 pi)."""
-    return np.asarray(k) % HEADINGS * TURN_RAD
+    angle: NDArray[np.float64] = np.asarray(k) % HEADINGS * TURN_RAD
+    return angle

@@ -15,6 +15,7 @@ import json
 import re
 from dataclasses import dataclass
 from enum import Enum
+from typing import Any
 
 from sim.benchmark import Benchmark, BenchmarkError, NDHInstance, scan_run
 
@@ -81,7 +82,7 @@ def derive(inst: NDHInstance, variant: Variant) -> LDHInstance:
                        heading=inst.start_heading, dialog=dialog, variant=variant)
 
 
-def exact_from_json(item: dict) -> LDHInstance | None:
+def exact_from_json(item: dict[str, Any]) -> LDHInstance | None:
     """An exported LDH instance; None where the trial has no true pose (no overhead tracker)."""
     pose = item.get("agent_pose")
     if pose is None:

@@ -13,10 +13,11 @@ from __future__ import annotations
 
 import csv
 import math
+from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass
 from functools import cached_property
 from pathlib import Path
-from typing import Callable, Iterable, Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -41,7 +42,8 @@ class MazeContext:
     def main(self) -> np.ndarray:
         """Boolean (N,): nodes of the largest set of mutually reachable nodes."""
         reach = np.isfinite(self.graph.dist)
-        return reach[int(reach.sum(axis=1).argmax())]
+        main: np.ndarray = reach[int(reach.sum(axis=1).argmax())]
+        return main
 
     @cached_property
     def center(self) -> int:
@@ -55,7 +57,7 @@ class MazeContext:
         return int(main[np.hypot(*(self.graph.nodes[main] - (x, y)).T).argmin()])
 
     def uniform(self) -> np.ndarray:
-        return self.main / self.main.sum()
+        return np.asarray(self.main / self.main.sum())
 
     def one_hot(self, node: int) -> np.ndarray:
         out = np.zeros(self.graph.n)
@@ -116,7 +118,8 @@ def colour_features(views: np.ndarray, far_weight: float = 0.5) -> np.ndarray:
 def colour_logits(counts: np.ndarray, views: np.ndarray) -> np.ndarray:
     """(N, 8) log-likelihood of the Driver's mentions (sectors x labels, see
     `sim.ldh_features.mentions`) at each pose, mentions taken as independent."""
-    return colour_features(views) @ counts.ravel()
+    logits: np.ndarray = colour_features(views) @ counts.ravel()
+    return logits
 
 
 def colours_localizer(inst: LDHInstance, ctx: MazeContext) -> np.ndarray:
@@ -156,7 +159,7 @@ def score(ctx: MazeContext, belief: np.ndarray, inst: LDHInstance) -> tuple[floa
 
 def evaluate(bench: Benchmark, split: str, instances: list[LDHInstance], agents: dict[str, Localizer],
              seed: int = 0, contexts: MazeContexts | None = None,
-             progress: Callable[[Iterable], Iterable] = lambda it: it) -> list[LDHResult]:
+             progress: Callable[[Iterable[Any]], Iterable[Any]] = lambda it: it) -> list[LDHResult]:
     contexts = contexts or MazeContexts(bench)
     out = []
     for inst in progress(instances):
@@ -175,7 +178,7 @@ def _mean_std(values: list[float]) -> tuple[float, float]:
     return float(a.mean()), float(a.std(ddof=1)) if a.size > 1 else 0.0
 
 
-def summarize_agent(results: list[LDHResult]) -> dict:
+def summarize_agent(results: list[LDHResult]) -> dict[str, Any]:
     """Means over instances (seeds averaged per instance first); td_std is the sample std."""
     by_inst: dict[int, list[LDHResult]] = {}
     for r in results:
@@ -189,7 +192,7 @@ def summarize_agent(results: list[LDHResult]) -> dict:
     return out
 
 
-def summarize(split: str, variant: str, n: int, results: list[LDHResult]) -> dict:
+def summarize(split: str, variant: str, n: int, results: list[LDHResult]) -> dict[str, Any]:
     """The JSON of `robotslang eval ldh`: {split, variant, n, agents: {NAME: {...}}}."""
     agents: dict[str, list[LDHResult]] = {}
     for r in results:

@@ -11,7 +11,9 @@ score poses from these two.
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable
 from enum import IntEnum
+from pathlib import Path
 
 import numpy as np
 
@@ -53,7 +55,7 @@ _WORD = re.compile(r"[a-z]+")
 _CLAUSE = re.compile(r"[,.;!?]|\band\b|\bbut\b")
 
 
-def mentions(dialog, roles=("navigator",)) -> np.ndarray:
+def mentions(dialog: Iterable[tuple[str, str]], roles: tuple[str, ...] = ("navigator",)) -> np.ndarray:
     """(N_SECTORS, N_LABELS) counts of labels the Driver names, each in the sector named in the
     same clause (the last one when a clause names several), else ANY."""
     out = np.zeros((N_SECTORS, N_LABELS), dtype=np.float32)
@@ -81,5 +83,5 @@ def pose_views(rays: RayTable) -> np.ndarray:
     return np.stack([per_heading[:, (headings + k) % HEADINGS] for k in SECTOR_HEADING_OFFSET], axis=2)
 
 
-def maze_views(maze: Maze, graph: NavGraph, cache_dir=None) -> np.ndarray:
+def maze_views(maze: Maze, graph: NavGraph, cache_dir: str | Path | None = None) -> np.ndarray:
     return pose_views(RayTable.build(maze, graph, cache_dir=cache_dir))

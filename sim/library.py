@@ -10,6 +10,7 @@ published, since one of them (Run_320) fails that check and the paper's figures 
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable
 from pathlib import Path
 
 from sim.maze import FIXED_MAP, Maze
@@ -27,7 +28,8 @@ class UnknownMazeError(KeyError):
 
 
 class MazeLibrary:
-    def __init__(self, benchmark: Path | None = None, extra_dirs=(), bundled: Path | None = BUNDLED_DIR):
+    def __init__(self, benchmark: Path | None = None, extra_dirs: Iterable[Path] = (),
+                 bundled: Path | None = BUNDLED_DIR) -> None:
         """`benchmark`: a clone of the benchmark (its `mazedata/` is read); `extra_dirs`: folders
         of mazes in the benchmark's layout (`NAME/maze/maze.map-fixed.png`)."""
         self._roots: list[tuple[str, Path]] = []
@@ -95,6 +97,6 @@ class MazeLibrary:
         return self._cache[name]
 
 
-def _natural_key(path: Path):
+def _natural_key(path: Path) -> list[int | str]:
     """Run_9 before Run_10; gen-002 before gen-010."""
     return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", path.name)]

@@ -11,7 +11,10 @@ early lock. The belief starts uniform over the free space (the rover could be an
 from __future__ import annotations
 
 import weakref
+from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -77,7 +80,7 @@ class FreeSpace:
                                 rng.uniform(-np.pi, np.pi, n)])
 
 
-_free_spaces: "weakref.WeakKeyDictionary[Maze, FreeSpace]" = weakref.WeakKeyDictionary()
+_free_spaces: weakref.WeakKeyDictionary[Maze, FreeSpace] = weakref.WeakKeyDictionary()
 
 
 def free_space(maze: Maze) -> FreeSpace:
@@ -118,7 +121,7 @@ class Belief:
     spread_m: float  # root mean square distance of the particles from (x, y)
     cloud: np.ndarray  # (K <= 200, 4): x, y, heading, weight (weights sum to 1)
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {"x": self.x, "y": self.y, "heading": self.heading, "spread_m": self.spread_m,
                 "cloud": np.round(self.cloud, 4).tolist()}
 
@@ -146,8 +149,9 @@ class ParticleFilter:
 
     @property
     def weights(self) -> np.ndarray:
-        w = np.exp(self.log_w - self.log_w.max())
-        return w / w.sum()
+        w: np.ndarray = np.exp(self.log_w - self.log_w.max())
+        weights: np.ndarray = w / w.sum()
+        return weights
 
     def move(self, action: Action) -> None:
         self.particles, _ = apply_move(self.particles, Action(action), self.rng, self.space, self.motion)
@@ -212,10 +216,10 @@ def _explore_action(pose: np.ndarray, space: FreeSpace, rng: np.random.Generator
     return Action.LEFT if rng.random() < 0.5 else Action.RIGHT
 
 
-def evaluate_filter(mazes, episodes: int = 20, moves: int = 20, seed: int = 0,
+def evaluate_filter(mazes: Maze | Sequence[Maze], episodes: int = 20, moves: int = 20, seed: int = 0,
                     n_particles: int = 1500, camera: FrontCamera | None = None,
                     calibration: CameraCalibration | None = None, truth_noise: MotionNoise = MotionNoise(),
-                    within_m: float = 0.15, progress: bool = False) -> dict:
+                    within_m: float = 0.15, progress: bool = False) -> dict[str, Any]:
     """Episodes from a uniform belief: the true rover moves with `truth_noise` (collisions stop
     it), each frame goes through the camera model and perception, the filter gets the moves and
     the perceived rays. Error = distance from the belief's mean to the true position."""
@@ -253,7 +257,7 @@ def evaluate_filter(mazes, episodes: int = 20, moves: int = 20, seed: int = 0,
             "episodes": episodes, "moves": moves, "particles": n_particles}
 
 
-def plot_filter_curve(result: dict, path) -> None:
+def plot_filter_curve(result: dict[str, Any], path: str | Path) -> None:
     """The median belief error against moves, as a PNG."""
     import matplotlib
     matplotlib.use("Agg")

@@ -16,8 +16,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from sim.cache import cache_dir as default_cache_dir
+from sim.cache import save_npz
 from sim.geometry import MAP_HEIGHT_PX, MAP_WIDTH_PX, pixel_to_world
-from sim.cache import cache_dir as default_cache_dir, save_npz
 from sim.labels import LABEL_BGR, OBJECT_LABELS, OBJECTS, PALETTE_BGR, Label
 
 _LABELS_CACHE_VERSION = 1
@@ -47,7 +48,7 @@ class Maze:
     # -- construction -------------------------------------------------------------
     @classmethod
     def from_labels(cls, labels: np.ndarray, name: str, walls: np.ndarray | None = None,
-                    source: str | None = None) -> "Maze":
+                    source: str | None = None) -> Maze:
         """A maze from label grids; `walls` defaults to `labels` with the objects removed."""
         where = source or name
         labels = np.asarray(labels, dtype=np.uint8)
@@ -72,7 +73,7 @@ class Maze:
     @classmethod
     def from_png(cls, fixed_path: str | Path, walls_path: str | Path | None = None,
                  name: str | None = None, cache_dir: str | Path | None = None,
-                 use_cache: bool = True) -> "Maze":
+                 use_cache: bool = True) -> Maze:
         """Read a benchmark-style map: `maze.map-fixed.png` (+ optional `maze.map.png`).
 
         The decoded grids are cached beside the graphs, keyed on the PNG files' bytes: hashing
@@ -105,7 +106,7 @@ class Maze:
 
     @classmethod
     def from_dir(cls, run_dir: str | Path, name: str | None = None,
-                 cache_dir: str | Path | None = None) -> "Maze":
+                 cache_dir: str | Path | None = None) -> Maze:
         """A maze in the benchmark's layout: `RUN_DIR/maze/maze.map-fixed.png` and `maze.map.png`."""
         run_dir = Path(run_dir)
         fixed = run_dir / "maze" / FIXED_MAP
@@ -118,7 +119,8 @@ class Maze:
     # -- output -------------------------------------------------------------------
     def image(self, walls_only: bool = False) -> np.ndarray:
         """The map as a BGR image in the benchmark's colours."""
-        return PALETTE_BGR[self.walls if walls_only else self.labels]
+        image: np.ndarray = PALETTE_BGR[self.walls if walls_only else self.labels]
+        return image
 
     def save(self, run_dir: str | Path) -> Path:
         """Write the maze in the benchmark's layout; returns the `maze/` folder."""
@@ -139,7 +141,7 @@ def read_label_png(path: Path) -> np.ndarray:
                         f"expected {MAP_WIDTH_PX}x{MAP_HEIGHT_PX}")
     # The top two bits of each channel tell the palette's colours apart: a 6-bit key, looked up,
     # then every pixel compared with its label's exact colour.
-    b, g, r = cv2.split(image)
+    b, g, r = (np.asarray(channel, dtype=np.uint8) for channel in cv2.split(image))
     labels = cv2.LUT(((b >> 6) << 4) | ((g >> 6) << 2) | (r >> 6), _KEY_LABEL)
     wrong = sum(cv2.countNonZero(cv2.absdiff(cv2.LUT(labels, _LABEL_CHANNEL[k]), channel))
                 for k, channel in enumerate((b, g, r)))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Optional
+from typing import Any
 
 import cv2
 import typer
@@ -24,7 +24,7 @@ def register(root: typer.Typer) -> None:
     root.add_typer(app, name="mazes")
 
 
-def generate_set(out: Path, count: int, seed: int, prefix: str = "gen", progress: bool = True) -> dict:
+def generate_set(out: Path, count: int, seed: int, prefix: str = "gen", progress: bool = True) -> dict[str, Any]:
     """Write `count` mazes (`PREFIX-000` ... from seeds seed, seed+1, ...) and their manifest."""
     out.mkdir(parents=True, exist_ok=True)
     entries = []
@@ -61,7 +61,7 @@ def _library(benchmark: Path | None, extra: list[Path]) -> MazeLibrary:
 
 
 @app.command("list")
-def list_mazes(benchmark: Optional[Path] = BENCHMARK_OPTION,
+def list_mazes(benchmark: Path | None = BENCHMARK_OPTION,
                extra: list[Path] = typer.Option([], "--dir", help="A folder of mazes to include (repeatable).")) -> None:
     """Every maze name with where it comes from."""
     library = _library(benchmark, extra)
@@ -72,7 +72,7 @@ def list_mazes(benchmark: Optional[Path] = BENCHMARK_OPTION,
 @app.command("show")
 def show(name: str,
          out: Path = typer.Option(..., "--out", help="PNG file to write the map to."),
-         benchmark: Optional[Path] = BENCHMARK_OPTION,
+         benchmark: Path | None = BENCHMARK_OPTION,
          extra: list[Path] = typer.Option([], "--dir", help="A folder of mazes to include (repeatable)."),
          walls_only: bool = typer.Option(False, "--walls-only", help="Draw the walls-only map.")) -> None:
     """Draw a maze's map, in the benchmark's colours, to a PNG."""

@@ -9,9 +9,10 @@ from __future__ import annotations
 
 import csv
 import math
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
-from typing import Iterable
+from typing import Any
 
 import numpy as np
 
@@ -70,7 +71,7 @@ def _mean_std(values: np.ndarray) -> tuple[float, float]:
     return float(values.mean()), std
 
 
-def summarize_agent(results: list[EpisodeResult]) -> dict:
+def summarize_agent(results: list[EpisodeResult]) -> dict[str, Any]:
     """Mean and sample std (ddof=1) over instances; seeds are averaged per instance first.
 
     Instances whose goal cannot be reached from where the agent stopped have an infinite TD:
@@ -95,7 +96,7 @@ def summarize_agent(results: list[EpisodeResult]) -> dict:
     }
 
 
-def summarize(split: str, results: list[EpisodeResult]) -> dict:
+def summarize(split: str, results: list[EpisodeResult]) -> dict[str, Any]:
     """The JSON of `robotslang eval baselines` / `eval ndh`: {split, n, agents: {NAME: {...}}}."""
     agents: dict[str, list[EpisodeResult]] = {}
     for r in results:
@@ -121,8 +122,9 @@ def read_csv(path: str | Path) -> list[EpisodeResult]:
     out = []
     with Path(path).open() as f:
         for row in csv.DictReader(f):
-            out.append(EpisodeResult(**{
+            values: dict[str, Any] = {
                 k: (row[k] if types[k] == "str" else bool(int(row[k])) if types[k] == "bool"
                     else int(row[k]) if types[k] == "int" else float(row[k]))
-                for k in CSV_COLUMNS}))
+                for k in CSV_COLUMNS}
+            out.append(EpisodeResult(**values))
     return out

@@ -15,16 +15,25 @@ of the target it claims. Scoring against the benchmark always uses the walls-onl
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 
-from sim.cache import cache_dir as default_cache_dir, save_npz
+from sim.cache import cache_dir as default_cache_dir
+from sim.cache import save_npz
 from sim.geometry import (
-    GRID_STEP_M, HEADING_DI, HEADING_DJ, HEADINGS, MAP_WIDTH_PX,
-    TABLE_HEIGHT_M, TABLE_WIDTH_M, world_to_pixel,
+    GRID_STEP_M,
+    HEADING_DI,
+    HEADING_DJ,
+    HEADINGS,
+    MAP_WIDTH_PX,
+    TABLE_HEIGHT_M,
+    TABLE_WIDTH_M,
+    world_to_pixel,
 )
 from sim.maze import Maze
 
@@ -60,7 +69,8 @@ def navigable_mask(walls: np.ndarray, pixels: np.ndarray) -> np.ndarray:
     c0 = np.maximum(c - WALL_CLEARANCE_PX, 0)
     c1 = np.minimum(c + WALL_CLEARANCE_PX, walls.shape[1])
     in_square = sat[r1, c1] - sat[r0, c1] - sat[r1, c0] + sat[r0, c0]
-    return (blocked[r, c] == 0) & (in_square == 0)
+    navigable: np.ndarray = (blocked[r, c] == 0) & (in_square == 0)
+    return navigable
 
 
 def _edges(nodes: np.ndarray, node_ij: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray]:
@@ -91,7 +101,7 @@ class NavGraph:
 
     @classmethod
     def build(cls, maze: Maze, mode: str = "benchmark", cache_dir: str | Path | None = None,
-              use_cache: bool = True, objects_block: bool = False) -> "NavGraph":
+              use_cache: bool = True, objects_block: bool = False) -> NavGraph:
         """The graph of `maze` (cached by its contents); `objects_block=True` for the live seat."""
         if mode not in MODES:
             raise ValueError(f"unknown edge mode {mode!r}; expected one of {', '.join(MODES)}")
@@ -109,7 +119,7 @@ class NavGraph:
         return graph
 
     @classmethod
-    def _compute(cls, grid: np.ndarray, mode: str, objects_block: bool = False) -> "NavGraph":
+    def _compute(cls, grid: np.ndarray, mode: str, objects_block: bool = False) -> NavGraph:
         """The graph on the label `grid`, where every non-floor pixel blocks."""
         # scipy is imported here, not at the top: a process whose graphs are cached never needs it.
         from scipy.sparse import csr_matrix
@@ -151,16 +161,16 @@ class NavGraph:
                  dist=self.dist, next_hop=self.next_hop, forward=self.forward)
 
     # -- queries ------------------------------------------------------------------
-    def nearest_nodes(self, xy) -> np.ndarray:
+    def nearest_nodes(self, xy: ArrayLike) -> np.ndarray:
         """Nearest node (Euclidean; first on ties, as the benchmark) for each (x, y) row."""
-        xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))[:, :2]
-        d2 = ((xy[:, None, :] - self.nodes[None, :, :]) ** 2).sum(axis=2)
-        return d2.argmin(axis=1)
+        points = np.atleast_2d(np.asarray(xy, dtype=np.float64))[:, :2]
+        d2 = ((points[:, None, :] - self.nodes[None, :, :]) ** 2).sum(axis=2)
+        return np.asarray(d2.argmin(axis=1))
 
     def nearest_node(self, x: float, y: float) -> int:
         return int(self.nearest_nodes([[x, y]])[0])
 
-    def topological_distance(self, a, b) -> float:
+    def topological_distance(self, a: Sequence[float], b: Sequence[float]) -> float:
         """Shortest-path metres between the nodes nearest to a and b; inf where no path exists."""
         i, j = self.nearest_nodes([a[:2], b[:2]])
         return float(self.dist[i, j])

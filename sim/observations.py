@@ -20,10 +20,18 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 
-from sim.cache import cache_dir as default_cache_dir, save_npz
+from sim.cache import cache_dir as default_cache_dir
+from sim.cache import save_npz
 from sim.geometry import (
-    GRID_STEP_M, HEADINGS, MAP_HEIGHT_PX, MAP_WIDTH_PX, TABLE_HEIGHT_M, TABLE_WIDTH_M, TURN_RAD,
+    GRID_STEP_M,
+    HEADINGS,
+    MAP_HEIGHT_PX,
+    MAP_WIDTH_PX,
+    TABLE_HEIGHT_M,
+    TABLE_WIDTH_M,
+    TURN_RAD,
 )
 from sim.labels import N_LABELS, Label
 from sim.maze import Maze
@@ -70,7 +78,7 @@ class RayCaster:
                                         cv2.DIST_L2, cv2.DIST_MASK_5)
         self.clearance = chamfer * np.float32(CHAMFER_SAFETY)
 
-    def cast(self, x, y, angles, window: int = 1):
+    def cast(self, x: ArrayLike, y: ArrayLike, angles: ArrayLike, window: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """Rays from (x, y) metres at absolute angles (radians, broadcast together).
 
         Returns (labels uint8, depth float64 metres) shaped like the broadcast: the first pixel
@@ -164,7 +172,7 @@ def _exit_time(p0: np.ndarray, u: np.ndarray, size: int) -> np.ndarray:
     return np.minimum(t_hi, t_lo)
 
 
-_casters: "weakref.WeakKeyDictionary[Maze, RayCaster]" = weakref.WeakKeyDictionary()
+_casters: weakref.WeakKeyDictionary[Maze, RayCaster] = weakref.WeakKeyDictionary()
 
 
 def ray_caster(maze: Maze) -> RayCaster:
@@ -175,15 +183,17 @@ def ray_caster(maze: Maze) -> RayCaster:
     return caster
 
 
-def cast_rays(maze: Maze, x: float, y: float, theta: float, offsets=RAY_OFFSETS):
+def cast_rays(maze: Maze, x: float, y: float, theta: float,
+              offsets: ArrayLike = RAY_OFFSETS) -> tuple[np.ndarray, np.ndarray]:
     """The observation rays from a continuous pose: (labels (13,), depth (13,) metres)."""
     return ray_caster(maze).cast(x, y, theta + np.asarray(offsets))
 
 
-def too_close(depth, heading) -> np.ndarray:
+def too_close(depth: ArrayLike, heading: ArrayLike) -> np.ndarray:
     """Whether a forward move at `heading` (index 0..7) toward a wall `depth` metres away would
     end within the navigation graph's wall clearance."""
-    return np.asarray(depth) < TOO_CLOSE_M[np.asarray(heading) % HEADINGS]
+    close: np.ndarray = np.asarray(depth) < TOO_CLOSE_M[np.asarray(heading) % HEADINGS]
+    return close
 
 
 @dataclass(frozen=True, eq=False)
@@ -195,12 +205,13 @@ class RayTable:
 
     @classmethod
     def build(cls, maze: Maze, graph: NavGraph, cache_dir: str | Path | None = None,
-              use_cache: bool = True) -> "RayTable":
+              use_cache: bool = True) -> RayTable:
         """Every (node, heading) observation of `graph` on `maze`, cached by maze and nodes."""
         key = hashlib.sha256(np.ascontiguousarray(graph.nodes).tobytes()).hexdigest()[:12]
         path = (default_cache_dir(cache_dir) / "rays"
                 / f"{maze.content_hash}-{key}-v{_CACHE_VERSION}.npz")
-        labels = depth = None
+        labels: np.ndarray | None = None
+        depth: np.ndarray | None = None
         if use_cache and path.exists():
             try:
                 with np.load(path) as data:
@@ -211,6 +222,7 @@ class RayTable:
             labels, depth = node_rays(maze, graph.nodes)
             if use_cache:
                 save_npz(path, labels=labels, depth=depth)
+        assert depth is not None  # read or built with the labels
         return cls(labels=labels, depth=depth,
                    too_close=too_close(depth, np.arange(HEADINGS)[None, :, None]),
                    forward_blocked=graph.forward < 0)

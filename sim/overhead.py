@@ -11,12 +11,14 @@ Deterministic for a given seed.
 from __future__ import annotations
 
 import weakref
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 
-from sim.fiducials import MarkerLayout, marker_image, square
+from sim.fiducials import MarkerLayout, marker_image
 from sim.geometry import MAP_HEIGHT_PX, MAP_WIDTH_PX, ROBOT_LENGTH_M, TABLE_HEIGHT_M, TABLE_WIDTH_M
 from sim.labels import Label
 from sim.maze import Maze
@@ -63,14 +65,16 @@ class OverheadCamera:
         """3x3: table metres (x, y) on the plane at height `z` -> image pixels."""
         r = self.rotation
         t = -r @ np.asarray(self.position, dtype=np.float64)
-        return self.camera_matrix @ np.column_stack([r[:, 0], r[:, 1], r[:, 2] * z + t])
+        homography: np.ndarray = self.camera_matrix @ np.column_stack([r[:, 0], r[:, 1], r[:, 2] * z + t])
+        return homography
 
-    def project(self, points) -> np.ndarray:
+    def project(self, points: ArrayLike) -> np.ndarray:
         """(N, 3) table points -> (N, 2) pixels."""
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         cam = (p - np.asarray(self.position)) @ self.rotation.T
         uvw = cam @ self.camera_matrix.T
-        return uvw[:, :2] / uvw[:, 2:]
+        pixels: np.ndarray = uvw[:, :2] / uvw[:, 2:]
+        return pixels
 
 
 @dataclass(frozen=True)
@@ -83,7 +87,7 @@ class Imaging:
     noise: float = 2.5
 
 
-def render_overhead(maze: Maze, pose=None, camera: OverheadCamera = OverheadCamera(),
+def render_overhead(maze: Maze, pose: np.ndarray | Sequence[float] | None = None, camera: OverheadCamera = OverheadCamera(),
                     imaging: Imaging = Imaging(), layout: MarkerLayout = MarkerLayout(),
                     seed: int = 0) -> np.ndarray:
     """The overhead camera's (H, W, 3) BGR image of the table, with the rover at `pose`
@@ -103,7 +107,7 @@ def render_overhead(maze: Maze, pose=None, camera: OverheadCamera = OverheadCame
     return _expose(image, imaging, seed)
 
 
-_tables: "weakref.WeakKeyDictionary[Maze, dict]" = weakref.WeakKeyDictionary()
+_tables: weakref.WeakKeyDictionary[Maze, dict[tuple[OverheadCamera, MarkerLayout], np.ndarray]] = weakref.WeakKeyDictionary()
 
 
 def _table_image(maze: Maze, camera: OverheadCamera, layout: MarkerLayout) -> np.ndarray:
@@ -125,7 +129,8 @@ def _table_image(maze: Maze, camera: OverheadCamera, layout: MarkerLayout) -> np
             _draw_plane(image, printed, on_table @ _marker_to_table(printed, layout.corner_points(marker_id)))
         cache[key] = image.clip(0, 255).astype(np.uint8)
         cache[key].setflags(write=False)
-    return cache[key]
+    table_image: np.ndarray = cache[key]
+    return table_image
 
 
 _plates: dict[MarkerLayout, tuple[np.ndarray, float]] = {}

@@ -16,21 +16,33 @@ whose colour matches no class is marked not `valid`: never a confident guess.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from enum import Enum
+from typing import Any, TypeVar
 
 import cv2
 import numpy as np
 
 from sim.camera import (
-    COLOUR_CLASSES, CameraCalibration, ColourClass, FrontCamera, capture, undistort_normalized,
+    COLOUR_CLASSES,
+    CameraCalibration,
+    ColourClass,
+    FrontCamera,
+    capture,
+    undistort_normalized,
 )
 from sim.geometry import GRID_STEP_M, HEADINGS, TURN_RAD, heading_index
 from sim.labels import N_LABELS, OBJECT_LABELS, WALL_LABELS, Label
 from sim.maze import Maze
 from sim.navgraph import NavGraph
 from sim.observations import (
-    N_RAYS, OBS_FEATURES, RAY_OFFSETS, WALL_CLEARANCE_M, cast_rays, too_close,
+    N_RAYS,
+    OBS_FEATURES,
+    RAY_OFFSETS,
+    WALL_CLEARANCE_M,
+    cast_rays,
+    too_close,
 )
 
 NEAREST_M, FARTHEST_M = 0.02, 3.3  # the strip; the table's diagonal is 3.2 m
@@ -99,7 +111,7 @@ class _Classifier:
     log_dets: np.ndarray  # (C,)
 
     @classmethod
-    def of(cls, calibration: CameraCalibration) -> "_Classifier":
+    def of(cls, calibration: CameraCalibration) -> _Classifier:
         if "floor" not in calibration.colours or len(calibration.colours) < 2:
             raise PerceptionError("the calibration has no colours for the floor and the walls; "
                                   "run perception.calibrate_colours on labelled frames first")
@@ -135,10 +147,10 @@ class _Strips:
     inv_depth: np.ndarray  # (K, 13) 1 / metres along the floor
 
 
-_strips: dict[tuple, _Strips] = {}
+_strips: dict[tuple[float, ...], _Strips] = {}
 
 
-def _geometry_key(c: CameraCalibration) -> tuple:
+def _geometry_key(c: CameraCalibration) -> tuple[float, ...]:
     return (c.width, c.height, c.fx, c.fy, c.cx, c.cy, c.k1, c.k2, c.camera_height_m, c.camera_pitch_rad)
 
 
@@ -180,7 +192,7 @@ def _ray_strips(c: CameraCalibration) -> _Strips:
     return strips
 
 
-def _check_frame(image, calibration: CameraCalibration) -> np.ndarray:
+def _check_frame(image: np.ndarray | bytes | bytearray | memoryview, calibration: CameraCalibration) -> np.ndarray:
     if isinstance(image, (bytes, bytearray, memoryview)):
         image = decode_frame(bytes(image))
     if not isinstance(image, np.ndarray):
@@ -220,7 +232,8 @@ def _strip_colours(image: np.ndarray, strips: _Strips) -> np.ndarray:
     return np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c))  # median of three
 
 
-def perceive(image, calibration: CameraCalibration, heading: int | None = None) -> RayObservation:
+def perceive(image: np.ndarray | bytes | bytearray | memoryview, calibration: CameraCalibration,
+             heading: int | None = None) -> RayObservation:
     """The 13-ray observation seen in one frame (BGR array or JPEG bytes).
 
     `heading` is the rover's heading index (0..7) when known: the simulator's too-close rule
@@ -250,7 +263,8 @@ def perceive(image, calibration: CameraCalibration, heading: int | None = None) 
                           _forward_blocked(depth, valid, rule_heading), None)
 
 
-def _read_ray(classes, colours, inside, inv_depth) -> tuple[int, float, bool]:
+def _read_ray(classes: np.ndarray, colours: np.ndarray, inside: np.ndarray,
+              inv_depth: np.ndarray) -> tuple[int, float, bool]:
     """One strip, near to far: (label, depth, valid)."""
     seen = np.nonzero(inside)[0]
     if seen.size < 2 * RUN:
@@ -307,7 +321,8 @@ def _forward_blocked(depth: np.ndarray, valid: np.ndarray, heading: int) -> bool
 
 # -- colour calibration -----------------------------------------------------------------------
 
-def calibrate_colours(images, truths, calibration: CameraCalibration,
+def calibrate_colours(images: Sequence[np.ndarray | bytes], truths: Sequence[tuple[np.ndarray, np.ndarray]],
+                      calibration: CameraCalibration,
                       min_samples: int = 50) -> CameraCalibration:
     """The calibration with colour classes learned from labelled frames.
 
@@ -317,7 +332,8 @@ def calibrate_colours(images, truths, calibration: CameraCalibration,
     colours from just past it; each class is a Gaussian, refitted without its outliers.
     """
     strips = _ray_strips(calibration)
-    floor_samples, label_samples = [], {label: [] for label in Label if label != Label.FLOOR}
+    floor_samples: list[np.ndarray] = []
+    label_samples: dict[Label, list[np.ndarray]] = {label: [] for label in Label if label != Label.FLOOR}
     for image, (labels, depth) in zip(images, truths):
         colours = _strip_colours(_check_frame(image, calibration), strips)
         for ray in range(N_RAYS):
@@ -336,37 +352,38 @@ def calibrate_colours(images, truths, calibration: CameraCalibration,
             label_samples[label].append(colours[past, ray])
     # Floor and walls first; object rays often see past a map blob that the upright drawing
     # misses, so their samples are cleaned of anything the floor or a wall already explains.
-    fitted: dict[Label, ColourClass] = {}
+    fitted: dict[Label, ColourClass | None] = {}
     for label, chunks in [(Label.FLOOR, floor_samples)] + list(label_samples.items()):
         samples = colour_features(np.concatenate(chunks)) if chunks else np.zeros((0, 3), np.float32)
         if label in OBJECT_LABELS:  # the objects are strongly coloured: drop the greys
-            neutral = [fitted[k] for k in (Label.FLOOR, Label.WHITE) if fitted.get(k) is not None]
-            for grey in neutral:
+            neutral = [fitted.get(k) for k in (Label.FLOOR, Label.WHITE)]
+            for grey in (c for c in neutral if c is not None):
                 samples = samples[_mahalanobis2(samples, grey, dims=2) > 16.0]
         enough = len(samples) >= min_samples
         # A wall in shadow (its end face, a far corner) is darker than any sampled face of it:
         # widen every class but the floor in brightness, where chroma still tells them apart.
         fitted[label] = (_fit_gaussian(samples, 0.0 if label == Label.FLOOR else MIN_BRIGHTNESS_STD)
                          if enough else None)
-    colours = {label.word: c for label, c in fitted.items() if c is not None}
-    if "floor" not in colours or len(colours) < 2:
+    classes = {label.word: c for label, c in fitted.items() if c is not None}
+    if "floor" not in classes or len(classes) < 2:
         raise PerceptionError(f"too few labelled samples to calibrate colours "
-                              f"(classes with at least {min_samples}: {sorted(colours)})")
-    calibrated = calibration.with_colours(colours)
+                              f"(classes with at least {min_samples}: {sorted(classes)})")
+    calibrated = calibration.with_colours(classes)
     # Objects: the typical gap between where they are seen to stand and their map footprint.
-    gaps = []
+    gaps: list[float] = []
     for image, (labels, depth) in zip(images, truths):
         obs = perceive(image, calibrated)
         hit = obs.valid & np.isin(labels, OBJECT_LABELS) & (obs.labels == labels) & (np.asarray(depth) > 0)
         gaps.extend(np.asarray(depth)[hit] - obs.depth[hit])
     offset = float(np.clip(np.median(gaps), -0.5, 0.5)) if len(gaps) >= 5 else 0.0
-    return calibration.with_colours(colours, offset)
+    return calibration.with_colours(classes, offset)
 
 
 def _mahalanobis2(f: np.ndarray, c: ColourClass, dims: int = 3) -> np.ndarray:
     """Squared Mahalanobis distance to the class, over its first `dims` features (2: chroma)."""
     d = f[:, :dims] - np.asarray(c.mean)[:dims]
-    return np.einsum("ni,ij,nj->n", d, np.linalg.inv(np.asarray(c.cov)[:dims, :dims]), d)
+    distance: np.ndarray = np.einsum("ni,ij,nj->n", d, np.linalg.inv(np.asarray(c.cov)[:dims, :dims]), d)
+    return distance
 
 
 def _fit_gaussian(f: np.ndarray, min_brightness_std: float = 0.0, rounds: int = 4) -> ColourClass:
@@ -398,23 +415,24 @@ def random_poses(maze: Maze, graph: NavGraph, n: int, rng: np.random.Generator,
                             headings + rng.uniform(-jitter_rad, jitter_rad, n)])
 
 
-def simulated_calibration(camera: FrontCamera, mazes, n_frames: int = 60, seed: int = 1,
+def simulated_calibration(camera: FrontCamera, mazes: Iterable[tuple[Maze, NavGraph]], n_frames: int = 60, seed: int = 1,
                           progress: bool = False) -> CameraCalibration:
     """A lab's calibration as the virtual rover would make it: the camera's exact geometry,
     colours learned from `n_frames` frames at random poses on `mazes`."""
     rng = np.random.default_rng(seed)
-    mazes = list(mazes)
-    images, truths = [], []
+    worlds = list(mazes)
+    images: list[np.ndarray | bytes] = []
+    truths: list[tuple[np.ndarray, np.ndarray]] = []
     for i in _progress(range(n_frames), progress, "calibrating colours"):
-        maze, graph = mazes[i % len(mazes)]
+        maze, graph = worlds[i % len(worlds)]
         x, y, theta = random_poses(maze, graph, 1, rng)[0]
         images.append(capture(maze, x, y, theta, camera, rng))
         truths.append(cast_rays(maze, x, y, theta))
     return calibrate_colours(images, truths, camera.calibration())
 
 
-def evaluate_perception(mazes, n_poses: int = 300, seed: int = 0, camera: FrontCamera | None = None,
-                        calibration: CameraCalibration | None = None, progress: bool = False) -> dict:
+def evaluate_perception(mazes: Maze | Sequence[Maze], n_poses: int = 300, seed: int = 0, camera: FrontCamera | None = None,
+                        calibration: CameraCalibration | None = None, progress: bool = False) -> dict[str, Any]:
     """Perceived rays against `cast_rays` at the same true poses, over random poses on `mazes`
     (a `Maze` or a list). label_accuracy: over all rays, a ray not read counting as wrong;
     depth_mae_m: over the read rays whose true hit is a wall within 1 m; too_close_accuracy:
@@ -427,20 +445,24 @@ def evaluate_perception(mazes, n_poses: int = 300, seed: int = 0, camera: FrontC
     if calibration is None:
         calibration = simulated_calibration(camera, worlds, seed=seed + 1000)
     rng = np.random.default_rng(seed)
-    right, close_ok, wall, read, depth_err = [], [], [], [], []
+    rights: list[np.ndarray] = []
+    close_oks: list[np.ndarray] = []
+    walls: list[np.ndarray] = []
+    reads: list[np.ndarray] = []
+    depth_err: list[float] = []
     for i in _progress(range(n_poses), progress, "perception"):
         maze, graph = worlds[i % len(worlds)]
         x, y, theta = random_poses(maze, graph, 1, rng)[0]
         heading = heading_index(theta)
         labels, true_depth = cast_rays(maze, x, y, theta)
         obs = perceive(capture(maze, x, y, theta, camera, rng), calibration, heading)
-        right.append((obs.labels == labels) & obs.valid)
-        close_ok.append(obs.too_close == too_close(true_depth, heading))
-        wall.append(np.isin(labels, WALL_LABELS))
-        read.append(obs.valid)
-        near = wall[-1] & (true_depth <= 1.0) & obs.valid
+        rights.append((obs.labels == labels) & obs.valid)
+        close_oks.append(obs.too_close == too_close(true_depth, heading))
+        walls.append(np.isin(labels, WALL_LABELS))
+        reads.append(obs.valid)
+        near = walls[-1] & (true_depth <= 1.0) & obs.valid
         depth_err.extend(np.abs(obs.depth[near] - true_depth[near]).tolist())
-    right, close_ok, wall, read = (np.concatenate(a) for a in (right, close_ok, wall, read))
+    right, close_ok, wall, read = (np.concatenate(a) for a in (rights, close_oks, walls, reads))
     return {"label_accuracy": float(right.mean()),
             "depth_mae_m": float(np.mean(depth_err)) if depth_err else float("nan"),
             "too_close_accuracy": float(close_ok.mean()),
@@ -450,8 +472,12 @@ def evaluate_perception(mazes, n_poses: int = 300, seed: int = 0, camera: FrontC
             "poses": n_poses, "near_wall_rays": len(depth_err)}
 
 
-def _progress(items, enabled: bool, desc: str):
+_T = TypeVar("_T")
+
+
+def _progress(items: Iterable[_T], enabled: bool, desc: str) -> Iterable[_T]:
     if not enabled:
         return items
     from tqdm import tqdm
-    return tqdm(items, desc=desc)
+    shown: Iterable[_T] = tqdm(items, desc=desc)
+    return shown

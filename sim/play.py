@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import os
 import re
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable, Optional
 
 import cv2
 import numpy as np
@@ -112,7 +112,7 @@ def _write_png(path: Path, image: np.ndarray) -> None:
     os.replace(tmp, path)
 
 
-def run(drive: Drive, lines: Iterable[str], echo=print) -> None:
+def run(drive: Drive, lines: Iterable[str], echo: Callable[[str], object] = print) -> None:
     """Read moves line by line until quit, stop or end of input."""
     echo(drive.describe())
     for line in lines:
@@ -165,10 +165,10 @@ def parse_start(text: str | None) -> tuple[float, float, float]:
 def play(
     maze: str = typer.Option("gen-000", "--maze", help="A run folder (RUN/maze/*.png) or a maze name: "
                                                        "bundled (gen-000) or a benchmark run (Run_318)."),
-    benchmark: Optional[Path] = typer.Option(None, "--benchmark", envvar="ROBOTSLANG_BENCHMARK",
+    benchmark: Path | None = typer.Option(None, "--benchmark", envvar="ROBOTSLANG_BENCHMARK",
                                              help="A RobotSlangBenchmark clone, to find --maze by name."),
     out: Path = typer.Option(Path("play-frames"), "--out", help="Folder for the PNG frames."),
-    start: Optional[str] = typer.Option(None, "--start", help="X,Y[,THETA_DEGREES]; snapped to the graph."),
+    start: str | None = typer.Option(None, "--start", help="X,Y[,THETA_DEGREES]; snapped to the graph."),
     edges: str = typer.Option("benchmark", "--edges", help="Graph edge mode: benchmark or exact."),
 ) -> None:
     """Drive the simulator by hand: w/a/d/s (or forward/left/right/stop), q to quit."""
@@ -183,7 +183,7 @@ def play(
     typer.echo(f"{the_maze.name}: {graph.n} nodes; frames in {out}/latest-first-person.png and "
                f"latest-top-down.png. Moves: w a d s, q quits.")
 
-    def lines():
+    def lines() -> Iterator[str]:
         while True:
             try:
                 yield input("> ")

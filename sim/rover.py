@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import weakref
+from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import Enum
 
@@ -49,7 +50,7 @@ class MotionNoise:
     turn_slip_m: float = 0.0  # sideways creep of the centre during a turn, per axis
 
     @classmethod
-    def named(cls, name: str) -> "MotionNoise":
+    def named(cls, name: str) -> MotionNoise:
         try:
             return NOISE_MODELS[name]
         except KeyError:
@@ -185,10 +186,10 @@ class Rover:
         free = on_table & (self._clearance[r, c] >= self.radius_m)
         # The first sample is where the rover already stands: it is never its own obstacle.
         free[0] = True
-        return free
+        return np.asarray(free)
 
 
-_clearances: "weakref.WeakKeyDictionary[Maze, np.ndarray]" = weakref.WeakKeyDictionary()
+_clearances: weakref.WeakKeyDictionary[Maze, np.ndarray] = weakref.WeakKeyDictionary()
 
 
 def clearance_map(maze: Maze) -> np.ndarray:
@@ -203,5 +204,5 @@ def clearance_map(maze: Maze) -> np.ndarray:
     return found
 
 
-def _pose(v) -> RoverPose:
+def _pose(v: Sequence[float] | np.ndarray) -> RoverPose:
     return RoverPose(float(v[0]), float(v[1]), float(v[2]) % (2 * math.pi))

@@ -15,14 +15,19 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 from tqdm import tqdm
 
 from sim import fiducials
 from sim.fiducials import MarkerLayout
 from sim.overhead import Imaging, OverheadCamera, render_overhead
+
+if TYPE_CHECKING:
+    from sim.maze import Maze
 
 CALIBRATION_VERSION = 1
 MAX_REPROJECTION_PX = 3.0  # corner markers fitting worse than this are not where the layout says
@@ -73,13 +78,13 @@ class OverheadCalibration:
         return float(np.median(np.concatenate(errors))) if errors else None
 
     # -- JSON ---------------------------------------------------------------------
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {"version": CALIBRATION_VERSION, "image_size": list(self.image_size),
                 "homography": self.homography.tolist(), "camera_matrix": self.camera_matrix.tolist(),
                 "layout": self.layout.to_json(), "reprojection_px": self.reprojection_px}
 
     @classmethod
-    def from_json(cls, data, source: str = "calibration") -> "OverheadCalibration":
+    def from_json(cls, data: Any, source: str = "calibration") -> OverheadCalibration:
         try:
             if data.get("version") != CALIBRATION_VERSION:
                 raise CalibrationError(f"{source}: version {data.get('version')!r}, expected {CALIBRATION_VERSION}")
@@ -105,7 +110,7 @@ class OverheadCalibration:
         return path
 
     @classmethod
-    def load(cls, path: str | Path) -> "OverheadCalibration":
+    def load(cls, path: str | Path) -> OverheadCalibration:
         path = Path(path)
         try:
             data = json.loads(path.read_text())
@@ -137,7 +142,8 @@ def calibrate(image: np.ndarray, fov_deg: float | None = None, layout: MarkerLay
     return _calibrate(image, fiducials.detect(fiducials.detector(), image), fov_deg, layout, camera_matrix)
 
 
-def _calibrate(image, found, fov_deg, layout, camera_matrix) -> OverheadCalibration:
+def _calibrate(image: np.ndarray, found: dict[int, list[np.ndarray]], fov_deg: float | None, layout: MarkerLayout,
+               camera_matrix: np.ndarray | None) -> OverheadCalibration:
     height, width = image.shape[:2]
     missing = [i for i in layout.corner_ids if len(found.get(i, ())) != 1]
     if missing:
@@ -250,7 +256,7 @@ class OverheadTracker:
         self._last, self._candidates, self._still = None, [], []
 
     # -- steps of `update` --------------------------------------------------------
-    def _calibrated(self, image: np.ndarray, found) -> bool:
+    def _calibrated(self, image: np.ndarray, found: dict[int, list[np.ndarray]]) -> bool:
         calibration = self.calibration
         if calibration is not None:
             if tuple(calibration.image_size) != (image.shape[1], image.shape[0]):
@@ -272,6 +278,7 @@ class OverheadTracker:
     def _measure(self, quads: list[np.ndarray], t_ns: int) -> _Measurement | None:
         """The rover's marker mapped onto its plane; None unless exactly one marker seen is a
         square of the printed size (or exactly one is, near the last pose)."""
+        assert self._plane is not None  # set by `_calibrated`, which comes first
         measurements = []
         for quad in quads:
             corners = _apply(self._plane, quad)
@@ -328,34 +335,33 @@ def _mean(ms: list[_Measurement]) -> tuple[float, float, float]:
     return sum(m.x for m in ms) / len(ms), sum(m.y for m in ms) / len(ms), heading
 
 
-def evaluate_tracker(maze, poses, seed: int = 0, fps: float = 5.0, jpeg_quality: int = 80,
+def evaluate_tracker(maze: Maze, poses: ArrayLike, seed: int = 0, fps: float = 5.0, jpeg_quality: int = 80,
                      camera: OverheadCamera | None = None, imaging: Imaging | None = None,
-                     progress: bool = False) -> dict:
+                     progress: bool = False) -> dict[str, Any]:
     """The tracker against known truth: each of `poses` ((x, y, heading), one per frame at
     `fps`) rendered by the overhead camera, sent as a JPEG of `jpeg_quality` as the server
     receives it, tracked after a calibration from a JPEG of the empty table. Errors are over
     the frames that gave a pose; `tracked_fraction` says how many did."""
-    from tqdm import tqdm
 
-    from sim.overhead import Imaging, OverheadCamera, render_overhead
+    from sim.overhead import Imaging, OverheadCamera
 
     camera, imaging = camera or OverheadCamera(), imaging or Imaging()
     rng = np.random.default_rng(seed)
 
-    def jpeg(pose) -> bytes:
+    def jpeg(pose: np.ndarray | None) -> bytes:
         image = render_overhead(maze, pose, camera, imaging, seed=int(rng.integers(2**31)))
         ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality])
         return data.tobytes()
 
     tracker = OverheadTracker(calibrate(decode_frame(jpeg(None))))
-    poses = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+    truths = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
     position, heading = [], []
-    for i, truth in enumerate(tqdm(poses, desc="overhead frames", unit="frame", disable=not progress)):
+    for i, truth in enumerate(tqdm(truths, desc="overhead frames", unit="frame", disable=not progress)):
         pose = tracker.update(jpeg(truth), int(i * 1e9 / fps))
         if pose is not None:
             position.append(math.hypot(pose.x - truth[0], pose.y - truth[1]))
             heading.append(abs(math.degrees(_angle(pose.heading - truth[2]))))
     if not position:
-        raise ValueError(f"the tracker gave no pose on any of {len(poses)} frames")
+        raise ValueError(f"the tracker gave no pose on any of {len(truths)} frames")
     return {"pos_err_median_m": float(np.median(position)), "pos_err_p95_m": float(np.percentile(position, 95)),
-            "heading_err_median_deg": float(np.median(heading)), "tracked_fraction": len(position) / len(poses)}
+            "heading_err_median_deg": float(np.median(heading)), "tracked_fraction": len(position) / len(truths)}

@@ -8,6 +8,8 @@ in the Dict passes through.
 
 from __future__ import annotations
 
+from typing import Any
+
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
@@ -18,17 +20,18 @@ DEFAULT_MAX_CHARS = 256
 class DialogCodes(gym.ObservationWrapper):
     def __init__(self, env: gym.Env, max_chars: int = DEFAULT_MAX_CHARS):
         super().__init__(env)
-        text = env.observation_space["dialog"]
-        if not isinstance(text, spaces.Text):
+        space = env.observation_space
+        text = space.spaces.get("dialog") if isinstance(space, spaces.Dict) else None
+        if not isinstance(space, spaces.Dict) or not isinstance(text, spaces.Text):
             raise ValueError("DialogCodes wraps an env whose observation has a Text 'dialog'")
         self.max_chars = max_chars
         self._code = {c: k + 1 for k, c in enumerate(text.character_list)}
         self.observation_space = spaces.Dict({
-            **{k: v for k, v in env.observation_space.items() if k != "dialog"},
+            **{k: v for k, v in space.items() if k != "dialog"},
             "dialog": spaces.MultiDiscrete(np.full(max_chars, len(self._code) + 1)),
         })
 
-    def observation(self, observation: dict) -> dict:
+    def observation(self, observation: dict[str, Any]) -> dict[str, Any]:
         codes = np.zeros(self.max_chars, dtype=np.int64)
         tail = observation["dialog"][-self.max_chars:]
         if tail:

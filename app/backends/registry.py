@@ -33,7 +33,7 @@ def backend_kinds() -> list[str]:
     return sorted(set(_FACTORIES) | set(PLUGINS))
 
 
-async def create_backend(spec: str, trial: RobotTrial, services: "Services") -> RobotBackend:
+async def create_backend(spec: str, trial: RobotTrial, services: Services) -> RobotBackend:
     kind = spec.split(":", 1)[0]
     if kind not in _FACTORIES and kind in PLUGINS:
         module, name = PLUGINS[kind].split(":")
@@ -43,7 +43,7 @@ async def create_backend(spec: str, trial: RobotTrial, services: "Services") -> 
     return await _FACTORIES[kind](spec, trial, services)
 
 
-async def simulator_backend(spec: str, trial: RobotTrial, services: "Services") -> RobotBackend:
+async def simulator_backend(spec: str, trial: RobotTrial, services: Services) -> RobotBackend:
     from app.backends.sim import SimulatorBackend
     from sim.dynamics import snap_pose
 

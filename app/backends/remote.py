@@ -29,7 +29,7 @@ from app.db.models import Robot
 from app.perception.tracker_seat import TrialTracker
 from app.trial.port import RobotTrial
 from app.trial.vocabulary import PARTICIPANTS, ROBOT_ROLES, FrameSource, MoveAction, Outcome, Role
-from robot_client.protocol import FrameHeader, encode
+from robot_client.protocol import FrameHeader
 
 if TYPE_CHECKING:
     from app.services import Services
@@ -422,7 +422,7 @@ class RemoteRobotBackend:
         await self.links.slot(self.robot_id).wake()
 
 
-async def remote_backend(spec: str, trial: RobotTrial, services: "Services") -> RemoteRobotBackend:
+async def remote_backend(spec: str, trial: RobotTrial, services: Services) -> RemoteRobotBackend:
     """`robot:<id>`: the registered driver robot with that id."""
     try:
         robot_id = int(spec.split(":", 1)[1])

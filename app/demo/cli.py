@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from typing import Optional
-
 import typer
 from rich.console import Console
 from rich.progress import Progress
@@ -17,11 +15,11 @@ def register(root: typer.Typer) -> None:
 
 def demo(
     trials: int = typer.Option(1, "--trials", min=1, help="How many trials to play."),
-    server: Optional[str] = typer.Option(None, "--server", help="A running server on the same data "
+    server: str | None = typer.Option(None, "--server", help="A running server on the same data "
                                          "directory (e.g. http://127.0.0.1:8000); by default the demo "
                                          "serves the app itself on a free loopback port."),
     parallel: int = typer.Option(1, "--parallel", min=1, help="Trials played at the same time."),
-    pace: Optional[float] = typer.Option(None, "--pace", min=0.0, help="Seconds between the Driver's "
+    pace: float | None = typer.Option(None, "--pace", min=0.0, help="Seconds between the Driver's "
                                          "moves and the Commander's lines (default: just above the "
                                          "server's minimum move interval)."),
     seed: int = typer.Option(0, "--seed", help="Seed of targets, mistakes and questions."),

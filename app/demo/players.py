@@ -45,7 +45,7 @@ class Seat:
     reader: asyncio.Task | None = None
 
     @classmethod
-    async def open(cls, server: str, trial_id: int, role: str, token: str) -> "Seat":
+    async def open(cls, server: str, trial_id: int, role: str, token: str) -> Seat:
         url = server.replace("http://", "ws://").replace("https://", "wss://").rstrip("/")
         ws = await connect(f"{url}/ws/play?token={token}", max_size=2**24)
         seat = cls(role=role, trial_id=trial_id, token=token, ws=ws)

@@ -234,7 +234,10 @@ def _claim(state: TrialState) -> ev.TargetClaimed:
         raise Refused("the previous claim is still waiting for the Commander")
     if state.last_frame_id is None:
         raise Refused("there is no camera frame to send yet")
-    return ev.TargetClaimed(target=state.current_target, target_index=state.target_index,
+    target = state.current_target
+    if target is None:  # never while navigating; the check gives the event its str
+        raise Refused("there is no target left to claim")
+    return ev.TargetClaimed(target=target, target_index=state.target_index,
                             frame_id=state.last_frame_id)
 
 

@@ -6,7 +6,7 @@ strict: a coordinate "0.5" or true is a bad message, not a number (integers are 
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
 
@@ -55,7 +55,7 @@ class Ping(_Message):
     type: Literal["ping"]
 
 
-SeatMessage = Annotated[Union[Chat, Move, Localize, Claim, Confirm, Reject, Ping], Field(discriminator="type")]
+SeatMessage = Annotated[Chat | Move | Localize | Claim | Confirm | Reject | Ping, Field(discriminator="type")]
 seat_message = TypeAdapter(SeatMessage)
 
 # Which role may send which message.

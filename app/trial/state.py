@@ -99,10 +99,10 @@ class TrialState:
         return self.finished_active_ns / 1e9 + move_penalty_s * self.moves
 
     # -- the fold -----------------------------------------------------------------
-    def apply(self, logged: LoggedEvent) -> "TrialState":
+    def apply(self, logged: LoggedEvent) -> TrialState:
         return self.apply_event(ev.typed(logged), logged.seq, logged.t_ns)
 
-    def apply_event(self, event: ev.Event | None, seq: int, t_ns: int) -> "TrialState":
+    def apply_event(self, event: ev.Event | None, seq: int, t_ns: int) -> TrialState:
         restarted = isinstance(event, ev.Restarted)
         if self.running and self.last_t_ns is not None and not restarted:
             self.active_ns += max(0, t_ns - self.last_t_ns)

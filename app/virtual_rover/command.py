@@ -21,9 +21,9 @@ from robot_client.calibration import Calibration
 from robot_client.camera import CameraSettings, FrameGrabber
 from robot_client.cli import serve
 from robot_client.client import LinkSettings, RobotClient, robot_url
+from sim.geometry import world_to_pixel
 from sim.maze import Maze
 from sim.navgraph import NavGraph
-from sim.geometry import world_to_pixel
 from sim.rover import BODY_RADIUS_M, MotionNoise, Rover, RoverPose, clearance_map
 
 CAMERA_SOURCE = "virtual"  # the hello's camera.source, where the real client names its camera

@@ -15,6 +15,7 @@ import os
 import threading
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TextIO
 
 from sim.rover import RoverPose
 
@@ -37,7 +38,7 @@ class TruthSample:
         return RoverPose(self.x, self.y, self.theta)
 
     @classmethod
-    def from_json(cls, line: str) -> "TruthSample":
+    def from_json(cls, line: str) -> TruthSample:
         return cls(**json.loads(line))
 
 
@@ -50,7 +51,7 @@ class TruthLog:
         # A new file, not the old one truncated: a follower holding the old one open sees
         # another inode, however far the new one has grown by its next look.
         self.path.unlink(missing_ok=True)
-        self._file = open(self.path, "w", buffering=1)
+        self._file = open(self.path, "w", buffering=1)  # noqa: SIM115  (held open until close())
         self._lock = threading.Lock()
 
     def write(self, sample: TruthSample) -> None:
@@ -77,8 +78,8 @@ class TruthFollower:
 
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
-        self._file = None
-        self._inode = None
+        self._file: TextIO | None = None
+        self._inode: int | None = None
         self._partial = ""
         self.latest: TruthSample | None = None
 
@@ -90,7 +91,7 @@ class TruthFollower:
         if self._file is None or stat.st_ino != self._inode or stat.st_size < self._file.tell():
             if self._file is not None:
                 self._file.close()
-            self._file, self._inode, self._partial = open(self.path), stat.st_ino, ""
+            self._file, self._inode, self._partial = open(self.path), stat.st_ino, ""  # noqa: SIM115  (followed across polls)
             self.latest = None
         chunk = self._partial + self._file.read()
         lines = chunk.split("\n")

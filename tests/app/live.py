@@ -4,6 +4,7 @@ separate process), trials set up in its database, and seat clients over real web
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import os
 import re
@@ -55,7 +56,7 @@ class ServerThread:
     def ws_url(self) -> str:
         return f"ws://127.0.0.1:{self.port}/ws/play"
 
-    def __enter__(self) -> "ServerThread":
+    def __enter__(self) -> ServerThread:
         self.thread.start()
         deadline = time.time() + 20
         while not self.server.started:
@@ -86,7 +87,7 @@ class ServerProcess:
     def ws_url(self) -> str:
         return f"ws://127.0.0.1:{self.port}/ws/play"
 
-    def start(self) -> "ServerProcess":
+    def start(self) -> ServerProcess:
         self.proc = subprocess.Popen([sys.executable, "-c", "from app.cli import main; main()", "serve",
                                       "--port", str(self.port)], env=self.env, cwd=REPO,
                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -162,7 +163,7 @@ class SeatClient:
         self._new = asyncio.Event()
         self.ws = None
 
-    async def __aenter__(self) -> "SeatClient":
+    async def __aenter__(self) -> SeatClient:
         self.ws = await websockets.connect(self.url, origin=self.origin, max_size=2**22)
         self._reader = asyncio.get_running_loop().create_task(self._read())
         return self
@@ -196,10 +197,8 @@ class SeatClient:
                 kinds = [m.get("kind", m.get("type")) for m in self.received[-15:]]
                 raise AssertionError(f"no matching message in {timeout} s; last received: {kinds}")
             self._new.clear()
-            try:
+            with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(self._new.wait(), remaining)
-            except asyncio.TimeoutError:
-                pass
 
     async def event(self, kind: str, timeout: float = 10.0, start: int = 0, **match) -> dict[str, Any]:
         return await self.wait_for(lambda m: m.get("type") == "event" and m["kind"] == kind and all(

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from app.trial import events as ev
-from app.trial.decide import (Abort, FinishMove, Join, Leave, Refused, Reopen, RequestMove, Say, decide)
+from app.trial.decide import Abort, FinishMove, Join, Leave, Refused, Reopen, RequestMove, Say, decide
 from app.trial.state import LoggedEvent, fold
 from app.trial.vocabulary import MoveAction, Outcome, Phase, Role
 

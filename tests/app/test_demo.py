@@ -12,8 +12,8 @@ from app.cli import root
 from app.db.engine import make_engine, make_sessionmaker
 from app.db.models import Team, Trial
 from app.demo.script import OBJECT_WORDS, describe_view, plan_leg
-from app.trial.log import EventLog
 from app.mazes import Mazes
+from app.trial.log import EventLog
 from sim.dynamics import Action, Pose, snap_pose, step, teacher_action
 
 

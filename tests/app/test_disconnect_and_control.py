@@ -15,8 +15,8 @@ from tests.app.trial_play import move, start_trial
 
 
 def login(server) -> httpx.Client:
-    from app.security import hash_password
     from app.db.models import Experimenter
+    from app.security import hash_password
 
     with server.services.db.begin() as db:
         db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))

@@ -6,8 +6,8 @@ import base64
 import json
 
 import cv2
-import numpy as np
 import jsonschema
+import numpy as np
 import pytest
 from mcap.reader import make_reader
 

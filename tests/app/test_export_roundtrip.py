@@ -61,7 +61,7 @@ def test_mcap_of_a_demo_trial_has_every_stream_and_every_event_once(recorded, tm
         metadata = {m.name: m.metadata for m in reader.iter_metadata()}
         attachments = {a.name for a in reader.iter_attachments()}
     assert topics == set(CHANNELS)
-    for schema, channel, message in messages:  # the published Foxglove schemas, and our own two
+    for schema, _channel, message in messages:  # the published Foxglove schemas, and our own two
         jsonschema.validate(json.loads(message.data), schemas()[schema.name])
     log = events[trial.id]
     logged = [(c, m) for _, c, m in messages if c.topic not in DERIVED_TOPICS]

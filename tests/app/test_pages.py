@@ -11,12 +11,11 @@ import re
 import cv2
 import httpx
 import numpy as np
-import pytest
 from mcap.reader import make_reader
 
 from app.db.models import Experimenter
-from app.export.mcap import DERIVED_TOPICS
 from app.demo.runner import Demo
+from app.export.mcap import DERIVED_TOPICS
 from app.mazes import Mazes, commander_map
 from app.security import hash_password
 from sim.geometry import world_to_pixel

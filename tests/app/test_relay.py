@@ -10,8 +10,8 @@ from sqlalchemy import select
 
 from app.db.models import Event, Trial
 from tests.app.conftest import platform_settings
-from tests.app.test_disconnect_and_control import login
 from tests.app.live import SeatClient, ServerThread, make_trial
+from tests.app.test_disconnect_and_control import login
 from tests.app.trial_play import claim_and_decide, drive_to_target, move, start_trial
 
 REDIS_URL = "redis://127.0.0.1:6379/0"

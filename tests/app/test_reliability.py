@@ -48,7 +48,7 @@ class Rover:
     def now(self) -> int:
         return time.monotonic_ns() + self.offset
 
-    async def __aenter__(self) -> "Rover":
+    async def __aenter__(self) -> Rover:
         self.ws = await websockets.connect(self.url, max_size=2**22)
         await self.ws.send(json.dumps({"type": "hello", "protocol": 1, "token": self.token, "role": "driver"}))
         welcome = json.loads(await self.ws.recv())
@@ -170,9 +170,9 @@ def test_a_trial_ended_by_its_grace_timer_leaves_the_live_list_and_reopens_witho
         tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
 
         async def play():
-            async with SeatClient(server.ws_url, tokens["commander"]) as commander:
-                async with SeatClient(server.ws_url, tokens["driver"]) as driver:
-                    await start_trial(commander, driver)
+            async with SeatClient(server.ws_url, tokens["commander"]) as commander, \
+                    SeatClient(server.ws_url, tokens["driver"]) as driver:
+                await start_trial(commander, driver)
             # Both gone: the first grace timer to run out aborts the trial.
             until(lambda: services.hub.peek(trial_id) is None, "the ended trial to leave this process")
             assert services.hub.live() == []

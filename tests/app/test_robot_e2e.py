@@ -20,7 +20,8 @@ import websockets
 from sqlalchemy import select
 
 from app.backends.remote import MAX_FRAME_BYTES, create_robot, robot_links
-from app.db.models import Event, Frame as FrameRow
+from app.db.models import Event
+from app.db.models import Frame as FrameRow
 from app.main import create_app
 from app.serving import uvicorn_options
 from app.trial.setup import create_participant, create_team, create_trial

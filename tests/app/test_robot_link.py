@@ -131,12 +131,10 @@ def test_robot_tokens_are_stored_hashed_and_checked(any_db_settings):
         assert stored.token_hash == hash_token(token) and token not in stored.token_hash
         assert robot_for_token(session, token).id == robot.id
         assert robot_for_token(session, token[:-1] + "x") is None
-    with pytest.raises(RobotSetupError, match="robot 'rover 1' already exists"):
-        with db.begin() as session:
-            create_robot(session, "rover 1")
-    with pytest.raises(RobotSetupError, match="robot role 'camera'"):
-        with db.begin() as session:
-            create_robot(session, "rover 2", "camera")
+    with pytest.raises(RobotSetupError, match="robot 'rover 1' already exists"), db.begin() as session:
+        create_robot(session, "rover 1")
+    with pytest.raises(RobotSetupError, match="robot role 'camera'"), db.begin() as session:
+        create_robot(session, "rover 2", "camera")
     with db() as session:
         assert sorted(session.scalars(select(Robot.name))) == ["rover 1", "table camera"]
     engine.dispose()

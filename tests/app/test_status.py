@@ -28,7 +28,7 @@ class Watch(SeatClient):
         self.url = f"ws://127.0.0.1:{server.port}/ws/watch/{trial_id}"
         self.cookie = cookie
 
-    async def __aenter__(self) -> "Watch":
+    async def __aenter__(self) -> Watch:
         headers = {"Cookie": f"{SESSION_COOKIE}={self.cookie}"} if self.cookie else {}
         self.ws = await websockets.connect(self.url, additional_headers=headers, max_size=2**22)
         self._reader = asyncio.get_running_loop().create_task(self._read())

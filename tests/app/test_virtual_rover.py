@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import asyncio
 import base64
-import json
 import math
 import os
 import signal
@@ -90,10 +89,11 @@ class Lab:
         return robot_id, made.stdout.splitlines()[2]
 
     def rover(self, token: str, *args: str) -> subprocess.Popen:
-        log = open(self.tmp_path / f"rover-{len(self.rovers)}.log", "w")
-        proc = subprocess.Popen([sys.executable, "-c", "from app.cli import main; main()", "robot", "virtual",
-                                 "--server", self.server.url, "--token", token, "--maze", MAZE, *args],
-                                env={**os.environ, **self.env}, cwd=REPO, stdout=log, stderr=subprocess.STDOUT)
+        # The child keeps its own copy of the descriptor: this one closes once it has started.
+        with open(self.tmp_path / f"rover-{len(self.rovers)}.log", "w") as log:
+            proc = subprocess.Popen([sys.executable, "-c", "from app.cli import main; main()", "robot", "virtual",
+                                     "--server", self.server.url, "--token", token, "--maze", MAZE, *args],
+                                    env={**os.environ, **self.env}, cwd=REPO, stdout=log, stderr=subprocess.STDOUT)
         self.rovers.append(proc)
         return proc
 
@@ -267,7 +267,8 @@ async def test_the_virtual_overhead_camera_films_the_driver_rover_where_its_trut
             await driver.send("move", action=action, move_id=f"o{i}")
             executed = await driver.event("move_executed", move_id=f"o{i}", timeout=START_S)
             pose = settled(truth)[-1]
-            frame = await until(lambda: overhead_after(executed["t_ns"]), what="an overhead frame after the move")
+            frame = await until(lambda: overhead_after(executed["t_ns"]),  # noqa: B023  (awaited in this iteration)
+                                what="an overhead frame after the move")
             jpeg = (lab.settings.frames_dir / frame["path"]).read_bytes()
             # A fresh tracker for each frame: the view is under test here, not the smoothing.
             seen = OverheadTracker().update(jpeg, frame["capture_ns"])
@@ -296,12 +297,13 @@ async def test_on_the_wire_the_virtual_rover_is_the_real_client(tmp_path):
                 await asyncio.wait_for(server.connected.wait(), START_S)
                 await server.send({"type": "move", "id": "w1", "action": "left"})
                 ack = await server.next("ack", timeout=START_S)
-                await until(lambda: len(server.frames) >= 2, what=f"frames from the {kind} client")
+                await until(lambda: len(server.frames) >= 2,  # noqa: B023  (awaited in this iteration)
+                            what=f"frames from the {kind} client")
             finally:
                 proc.send_signal(signal.SIGTERM)
                 assert proc.wait(timeout=20) == 0
             seen[kind] = (server.hellos[0], ack, server.frames)
-    (real_hello, real_ack, real_frames), (hello, ack, frames) = seen["real"], seen["virtual"]
+    (real_hello, real_ack, _), (hello, ack, frames) = seen["real"], seen["virtual"]
     assert set(hello) == set(real_hello) and set(hello["camera"]) == set(real_hello["camera"])
     assert {k: hello[k] for k in ("protocol", "client", "role", "watchdog_s")} == \
            {k: real_hello[k] for k in ("protocol", "client", "role", "watchdog_s")}

@@ -75,7 +75,7 @@ http {{
 """)
         self.conf = self.prefix / "nginx.conf"
 
-    def __enter__(self) -> "Nginx":
+    def __enter__(self) -> Nginx:
         check = subprocess.run([NGINX, "-p", str(self.prefix), "-c", str(self.conf), "-t"], capture_output=True,
                                text=True)
         assert check.returncode == 0, check.stderr

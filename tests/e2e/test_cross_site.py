@@ -47,7 +47,7 @@ class AttackerSite:
         self.url = f"http://127.0.0.1:{self.server.server_address[1]}/attack.html"
         self.thread = threading.Thread(target=self.server.serve_forever, daemon=True)
 
-    def __enter__(self) -> "AttackerSite":
+    def __enter__(self) -> AttackerSite:
         self.thread.start()
         return self
 

@@ -146,9 +146,13 @@ def test_participants_see_the_clock_their_moves_and_what_to_do(browser, server):
     assert "Drive to target 1 of 3" in driver.inner_text("#status")
     for n in (1, 2):
         driver.click("#left")
-        wait_until(lambda: runtime.state.moves == n and not runtime.state.moves_in_flight, "a move")
+        wait_until(lambda: runtime.state.moves == n and not runtime.state.moves_in_flight,  # noqa: B023  (waited on here)
+                   "a move")
         driver.wait_for_selector(f"#moves[data-moves='{n}']")
-    seconds = lambda page: float(page.get_attribute("#clock", "data-seconds"))
+
+    def seconds(page):
+        return float(page.get_attribute("#clock", "data-seconds"))
+
     before = seconds(driver)
     wait_js(driver, f"Number(document.getElementById('clock').dataset.seconds) > {before}")
     wait_js(commander, f"Number(document.getElementById('clock').dataset.seconds) > {before}")

@@ -135,7 +135,8 @@ def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, tmp_path):
                     driver.keyboard.press(keys[action])
                 else:
                     driver.click(buttons[action])
-                wait_until(lambda: runtime.state.moves > before and runtime.state.last_frame_id is not None
+                wait_until(lambda: runtime.state.moves > before  # noqa: B023  (waited on here)
+                           and runtime.state.last_frame_id is not None
                            and not runtime.state.moves_in_flight, what="a move to execute")
                 driver.wait_for_timeout(30)  # the page takes the move's result before the next press
             driver.click("#found")

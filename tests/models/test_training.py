@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from models.evaluate import evaluate_agent, evaluate_checkpoint
+from models.evaluate import evaluate_checkpoint
 from models.rollout import run_episodes
 from models.train import TrainConfig, load_agent, train
 from sim.evaluation import evaluate_baselines

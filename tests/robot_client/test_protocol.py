@@ -1,7 +1,14 @@
 import pytest
 
 from robot_client.protocol import (
-    FRAME_HEADER, MAX_TEXT_BYTES, ProtocolError, decode, encode, pack_frame, require, unpack_frame,
+    FRAME_HEADER,
+    MAX_TEXT_BYTES,
+    ProtocolError,
+    decode,
+    encode,
+    pack_frame,
+    require,
+    unpack_frame,
 )
 
 JPEG = b"\xff\xd8" + b"\x00" * 100 + b"\xff\xd9"

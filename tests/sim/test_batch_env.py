@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
-import pytest
 
 import sim.env  # noqa: F401  (registers RobotSlang/NDH-v0)
 from sim.batch_env import BatchNavEnv

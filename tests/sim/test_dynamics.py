@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sim.baselines import ShortestAgent
 from sim.benchmark import Benchmark
 from sim.dynamics import Action, Pose, snap_pose, step, teacher_action
 from sim.evaluation import run_episode
-from sim.baselines import ShortestAgent
 from sim.geometry import GRID_STEP_M
 from sim.maze import Maze
 from sim.navgraph import NavGraph

@@ -11,7 +11,12 @@ from sim.dynamics import Action
 from sim.geometry import GRID_STEP_M, TURN_RAD
 from sim.library import MazeLibrary
 from sim.localization import (
-    NO_NOISE, ParticleFilter, apply_move, evaluate_filter, free_space, plot_filter_curve,
+    NO_NOISE,
+    ParticleFilter,
+    apply_move,
+    evaluate_filter,
+    free_space,
+    plot_filter_curve,
 )
 from sim.navgraph import NavGraph
 from sim.perception import perceive, simulated_calibration

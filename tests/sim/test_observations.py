@@ -11,7 +11,14 @@ from sim.labels import N_LABELS, WALL_LABELS, Label
 from sim.maze import Maze
 from sim.navgraph import NavGraph
 from sim.observations import (
-    N_RAYS, OBS_FEATURES, PX_PER_M_X, PX_PER_M_Y, RAY_OFFSETS, TOO_CLOSE_M, RayTable, cast_rays,
+    N_RAYS,
+    OBS_FEATURES,
+    PX_PER_M_X,
+    PX_PER_M_Y,
+    RAY_OFFSETS,
+    TOO_CLOSE_M,
+    RayTable,
+    cast_rays,
 )
 from tests.sim.synthetic import BORDER_PX, OBJECT_RADIUS_PX, synthetic_maze
 

@@ -13,8 +13,14 @@ from sim.library import MazeLibrary
 from sim.navgraph import NavGraph
 from sim.observations import N_RAYS, OBS_FEATURES, RayTable, cast_rays, too_close
 from sim.perception import (
-    FrameProblem, PerceptionError, RayObservation, evaluate_perception, features, perceive,
-    random_poses, simulated_calibration,
+    FrameProblem,
+    PerceptionError,
+    RayObservation,
+    evaluate_perception,
+    features,
+    perceive,
+    random_poses,
+    simulated_calibration,
 )
 
 CAMERA = FrontCamera()  # 640x480, barrel distortion, noise: the virtual rover's default

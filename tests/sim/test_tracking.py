@@ -14,8 +14,15 @@ from sim.fiducials import MarkerLayout, square
 from sim.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M
 from sim.library import MazeLibrary
 from sim.overhead import Imaging, OverheadCamera, render_overhead
-from sim.tracking import (CalibrationError, FrameError, OverheadCalibration, OverheadTracker, TrackerConfig,
-                          calibrate, evaluate_tracker)
+from sim.tracking import (
+    CalibrationError,
+    FrameError,
+    OverheadCalibration,
+    OverheadTracker,
+    TrackerConfig,
+    calibrate,
+    evaluate_tracker,
+)
 
 CAMERA, LAYOUT = OverheadCamera(), MarkerLayout()
 POSE = (1.0, 1.2, 0.6)
