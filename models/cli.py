@@ -86,7 +86,7 @@ def train_ndh(
 
 def eval_ndh(
     benchmark: Path = BENCHMARK_OPTION,
-    checkpoint: Optional[Path] = typer.Option(None, help="A checkpoint written by `train ndh`; default the Driver "
+    checkpoint: Path | None = typer.Option(None, help="A checkpoint written by `train ndh`; default the Driver "
                                               "shipped in the package (docs/model_card_ndh.md)."),
     split: EvalSplit = typer.Option(EvalSplit.val_seen, help="NDH split."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON (the shape of `eval baselines`)."),
@@ -139,7 +139,7 @@ def experiment_ndh(
     workers: int = typer.Option(2, help="Trainings run in parallel (one CPU thread each), with --executor local."),
     executor: Executor = typer.Option(Executor.local, help="local: a process pool on this machine; ray: one Ray "
                                       "task per run (pip install .[cluster]; run folders on shared storage)."),
-    address: Optional[str] = typer.Option(None, help="With --executor ray: the cluster's address (e.g. "
+    address: str | None = typer.Option(None, help="With --executor ray: the cluster's address (e.g. "
                                           "ray://HEAD:10001 or auto); default a new local Ray instance."),
 ) -> None:
     """The whole protocol: 6 configurations x seeds, validation, retraining for test, tests, report."""

@@ -17,7 +17,6 @@ pitch) plus the colours of its walls and objects under its light; `save`/`load` 
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -28,16 +27,13 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike
 
+from sim.calibration import CalibrationError, load_json, save_json
 from sim.labels import Label
 from sim.maze import Maze
 from sim.observations import FOV_DEG
 from sim.render import CAMERA_HEIGHT_M, HORIZON, first_person
 
 CALIBRATION_VERSION = 1
-
-
-class CalibrationError(ValueError):
-    """A camera calibration file that is missing, unreadable or inconsistent; the text says which."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -265,18 +261,8 @@ class CameraCalibration:
             raise CalibrationError(f"{where}: missing or malformed field ({exc!r})") from None
 
     def save(self, path: str | Path) -> Path:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(self.to_json(), indent=2) + "\n")
-        return path
+        return save_json(self.to_json(), path)
 
     @classmethod
     def load(cls, path: str | Path) -> CameraCalibration:
-        path = Path(path)
-        try:
-            data = json.loads(path.read_text())
-        except OSError as exc:
-            raise CalibrationError(f"{path}: cannot read ({exc.strerror or exc})") from None
-        except json.JSONDecodeError as exc:
-            raise CalibrationError(f"{path}: not JSON ({exc.msg} at line {exc.lineno})") from None
-        return cls.from_json(data, str(path))
+        return cls.from_json(load_json(path, "a camera calibration"), str(path))

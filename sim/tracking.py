@@ -11,7 +11,6 @@ a jump no rover can make between two frames. A pose is never guessed.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,6 +22,7 @@ from numpy.typing import ArrayLike
 from tqdm import tqdm
 
 from sim import fiducials
+from sim.calibration import CalibrationError, load_json, save_json
 from sim.fiducials import MarkerLayout
 from sim.overhead import Imaging, OverheadCamera, render_overhead
 
@@ -31,10 +31,6 @@ if TYPE_CHECKING:
 
 CALIBRATION_VERSION = 1
 MAX_REPROJECTION_PX = 3.0  # corner markers fitting worse than this are not where the layout says
-
-
-class CalibrationError(ValueError):
-    """A calibration that cannot be measured, read or used; the message says why."""
 
 
 class FrameError(ValueError):
@@ -104,23 +100,11 @@ class OverheadCalibration:
         return cls(h, k, (width, height), layout, reprojection)
 
     def save(self, path: str | Path) -> Path:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(self.to_json(), indent=2) + "\n")
-        return path
+        return save_json(self.to_json(), path)
 
     @classmethod
     def load(cls, path: str | Path) -> OverheadCalibration:
-        path = Path(path)
-        try:
-            data = json.loads(path.read_text())
-        except OSError as err:
-            raise CalibrationError(f"{path}: cannot read ({err.strerror})") from None
-        except (json.JSONDecodeError, UnicodeDecodeError) as err:
-            raise CalibrationError(f"{path}: not JSON ({err})") from None
-        if not isinstance(data, dict):
-            raise CalibrationError(f"{path}: not an overhead calibration (a JSON object is expected)")
-        return cls.from_json(data, source=str(path))
+        return cls.from_json(load_json(path, "an overhead calibration"), source=str(path))
 
 
 def decode_frame(data: bytes) -> np.ndarray:
