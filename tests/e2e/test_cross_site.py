@@ -14,7 +14,6 @@ from app.db.models import Experimenter, Participant, Trial
 from app.security import hash_password
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread, free_port, make_trial
-from tests.e2e.test_trial_in_browser import browser  # noqa: F401  (the fixture)
 
 pytestmark = pytest.mark.browser
 

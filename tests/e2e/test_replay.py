@@ -12,10 +12,8 @@ from app.demo.runner import Demo
 from app.security import hash_password
 from app.settings import Settings
 from tests.app.live import ServerThread, wait_js
+from tests.e2e.conftest import CHROMIUM
 
-CHROMIUM = "/usr/bin/chromium"
-FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
-         "--disable-component-update", "--disable-sync"]
 # A test artifact, like the other browser tests' (docs/img/replay.png is a copy of one).
 SCREENSHOT = Path(__file__).resolve().parents[2] / "test-artifacts" / "replay.png"
 
@@ -24,7 +22,7 @@ pytestmark = pytest.mark.browser
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
-    if not Path(CHROMIUM).exists():
+    if not CHROMIUM.exists():
         pytest.skip(f"{CHROMIUM} not found: the replay page is checked in Debian's chromium")
     settings = Settings(data_dir=tmp_path_factory.mktemp("replay") / "var", secret_key="replay-test",
                         min_move_interval_s=0.0)
@@ -36,15 +34,6 @@ def server(tmp_path_factory):
     with ServerThread(settings) as running:
         yield running, result.trial_id
 
-
-@pytest.fixture(scope="module")
-def browser():
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
-        yield browser
-        browser.close()
 
 
 def log_in(page, url: str) -> None:

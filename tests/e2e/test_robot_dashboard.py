@@ -12,7 +12,7 @@ from app.security import hash_password
 from tests.app.conftest import platform_settings
 from tests.app.live import wait_js
 from tests.app.test_robot_e2e import ROBOT_START_S, RobotProcess, RobotServer
-from tests.e2e.test_trial_in_browser import ARTIFACTS, browser  # noqa: F401 (the fixture)
+from tests.e2e.test_trial_in_browser import ARTIFACTS
 
 pytestmark = pytest.mark.browser
 

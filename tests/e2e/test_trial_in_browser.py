@@ -8,7 +8,6 @@ from __future__ import annotations
 import base64
 import re
 import time
-from pathlib import Path
 
 import pytest
 
@@ -21,24 +20,10 @@ from tests.app.live import REPO, ServerThread, wait_js
 from tests.app.test_sim_seat_objects import object_pixels
 from tests.app.trial_play import facing_action, oracle_action
 
-CHROMIUM = Path("/usr/bin/chromium")
-FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
-         "--disable-component-update", "--disable-sync"]
 ARTIFACTS = REPO / "test-artifacts"
 
 pytestmark = pytest.mark.browser
 
-
-@pytest.fixture
-def browser():
-    if not CHROMIUM.exists():
-        pytest.skip(f"{CHROMIUM} not found: install Debian's chromium to run the browser tests")
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=FLAGS, headless=True)
-        yield browser
-        browser.close()
 
 
 def wait_until(predicate, timeout: float = 10.0, what: str = "condition") -> None:
