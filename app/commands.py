@@ -12,19 +12,13 @@ MOUNTED = ("app.export.cli", "app.demo.cli", "app.robot_commands")
 
 
 def serve(host: str = typer.Option("127.0.0.1", help="Interface to listen on."),
-          port: int = typer.Option(8000, help="TCP port.")) -> None:
+          port: int = typer.Option(8000, help="TCP port."),
+          workers: int = typer.Option(1, min=1, help="Server processes sharing trials (over 1: needs "
+                                                     "ROBOTSLANG_REDIS_URL; see docs/platform.md).")) -> None:
     """Serve the platform (pages, trial sockets) on HOST:PORT."""
-    import uvicorn
+    from app.serving import serve_processes
 
-    from app.main import create_app
-    from app.settings import Settings
-
-    settings = Settings()
-    app = create_app(settings)
-    typer.echo(f"RobotSlang on http://{host}:{port} (data in {settings.data_dir.resolve()})")
-    from app.serving import uvicorn_options
-
-    uvicorn.run(app, host=host, port=port, log_level="warning", **uvicorn_options(settings))
+    serve_processes(host, port, workers)
 
 
 def admin_create(name: str = typer.Argument(..., help="The experimenter's login name."),
