@@ -13,6 +13,7 @@ import json
 # (part, a frame that puts a sample in it); the first part whose frame is on the stack wins.
 PARTS = [
     ("commit (EventLog.append, SQLite)", ("append", "app/trial/log.py")),
+    ("commit (EventLog.append, SQLite)", ("flush", "app/trial/log.py")),
     ("history load (EventLog.load)", ("load", "app/trial/log.py")),
     ("validation (pydantic + token)", ("_parse", "app/trial/runtime.py")),
     ("decide", ("decide", "app/trial/decide.py")),
@@ -29,13 +30,14 @@ PARTS = [
     ("redis relay", ("app/trial/relay.py",)),
     ("other app code", ("/app/",)),
 ]
+NOT_HOT = ("app/cli.py", "app/commands.py", "app/serving.py")  # on every stack: the server's start
 IDLE_LEAVES = {"run", "wait", "select", "poll", "_worker", "get"}  # a thread with nothing to do
 
 
 def matches(frame: dict, pattern: tuple[str, ...]) -> bool:
     where = frame.get("file", "")
     if len(pattern) == 1:
-        return pattern[0] in where
+        return pattern[0] in where and not where.endswith(NOT_HOT)
     return frame["name"] == pattern[0] and where.endswith(pattern[1])
 
 

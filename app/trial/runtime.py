@@ -134,17 +134,21 @@ class TrialRuntime:
         self._broadcast(logged, attachments)
         return logged
 
+    def _send(self, conn: Connection, message: dict[str, Any]) -> None:
+        """What a seat hears of the log goes out once the log has committed it (group commit)."""
+        self.services.log.after_commit(self.trial_id, conn.deliver, message)
+
     def _broadcast(self, logged: LoggedEvent, attachments: dict[str, dict[str, Any]]) -> None:
         for role, conn in list(self.seats.items()):
             message = view(role, logged)
             if message is not None:
                 message.update(attachments.get(role, {}))
-                conn.deliver(message)
+                self._send(conn, message)
         for conn in list(self.watchers):
             message = view(EXPERIMENTER, logged)
             if message is not None:
                 message.update(attachments.get(Role.DRIVER if logged.kind == "frame" else EXPERIMENTER, {}))
-                conn.deliver(message)
+                self._send(conn, message)
 
     def _after_change(self) -> None:
         status = self.status()
@@ -152,9 +156,9 @@ class TrialRuntime:
             self._status = {k: v for k, v in status.items() if k != "elapsed_s"}
             for role, conn in list(self.seats.items()):
                 if role in PARTICIPANTS:
-                    conn.deliver(status)
+                    self._send(conn, status)
             for conn in list(self.watchers):
-                conn.deliver(status)
+                self._send(conn, status)
         self._sync_grace()
         if self.state.over and not self._ending:
             self._ending = True
@@ -236,6 +240,7 @@ class TrialRuntime:
 
         from app.db.models import Frame
 
+        self.services.log.flush()  # the frame may be in this turn's batch
         with self.services.db() as db:
             rel = db.scalar(select(Frame.path).where(Frame.trial_id == self.trial_id, Frame.seq == frame_id))
         if rel is None:
