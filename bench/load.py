@@ -5,8 +5,9 @@ Prints p50/p99 of chat fan-out latency (Commander sends -> Driver receives) and 
 move-to-frame latency (Driver sends a move -> receives the new camera frame), events committed
 per second, lost chat messages (sent, never heard by the Driver) and unanswered moves (neither a
 frame nor a refusal came back), and the server's CPU (cores busy) and peak RSS, all processes
-together. The server runs as its own process (`robotslang serve --workers W`), as in use; with
-W > 1 the processes share trials through Redis (`--redis-url`) and the SQLite file (WAL).
+together. The server runs as its own process (`robotslang serve --workers W`), as in use: one
+process on SQLite (WAL); with W > 1 the processes share trials through Redis (`--redis-url`) and
+PostgreSQL (a private schema in `--postgres-url`, dropped afterwards).
 
     python -m bench.load --trials 50 --workers 1 --duration 30 [--json]
     python -m bench.load --find-max [--max-trials 400] [--duration 10]   # largest N with both p99 < 100 ms
@@ -24,6 +25,8 @@ import subprocess
 import sys
 import tempfile
 import time
+import uuid
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -32,7 +35,7 @@ import numpy as np
 import websockets
 from rich.console import Console
 from rich.progress import Progress
-from sqlalchemy import func, select
+from sqlalchemy import create_engine, func, select, text
 
 from app.db.models import Event
 from app.main import build_services
@@ -41,6 +44,7 @@ from app.trial.setup import create_participant, create_team, create_trial
 
 console = Console(stderr=True)
 P99_GOAL_MS = 100.0
+READY_WAIT_S = 180.0  # at most this long for every trial's seats to connect before the warm-up
 DRAIN_S = 3.0  # after the run: how long late answers may still arrive before they count as lost
 
 
@@ -69,14 +73,15 @@ class Figures:
     chats_heard: int = 0
     moves_sent: int = 0
     moves_answered: int = 0
+    ready: int = 0  # trials whose two seats are connected and welcomed
     recording: bool = False
 
 
 async def run_trial(ws_url: str, tokens: tuple[str, str], figures: Figures, stop: asyncio.Event,
                     drained: asyncio.Event) -> None:
     commander_token, driver_token = tokens
-    async with websockets.connect(f"{ws_url}?token={commander_token}", max_size=2**22) as commander, \
-               websockets.connect(f"{ws_url}?token={driver_token}", max_size=2**22) as driver:
+    async with websockets.connect(f"{ws_url}?token={commander_token}", max_size=2**22, open_timeout=60) as commander, \
+               websockets.connect(f"{ws_url}?token={driver_token}", max_size=2**22, open_timeout=60) as driver:
         chats: dict[str, tuple[float, bool]] = {}  # text -> (sent at, sent while recording)
         move: list = []  # [sent at, counted] of the move waiting for its frame
 
@@ -105,6 +110,7 @@ async def run_trial(ws_url: str, tokens: tuple[str, str], figures: Figures, stop
                 pass
 
         readers = [asyncio.create_task(driver_reader()), asyncio.create_task(commander_reader())]
+        figures.ready += 1
         rng = random.Random()
         await asyncio.sleep(rng.random())  # spread the trials over the second
         await commander.send(json.dumps({"type": "localize", "token": commander_token, "x": 1.2, "y": 1.0}))
@@ -181,6 +187,16 @@ async def drive(ws_url: str, tokens, warmup: float, duration: float, services,
                 server: ServerProcesses) -> tuple[Figures, int, float, float]:
     figures, stop, drained = Figures(), asyncio.Event(), asyncio.Event()
     tasks = [asyncio.create_task(run_trial(ws_url, t, figures, stop, drained)) for t in tokens]
+    with Progress(console=console, transient=True) as progress:  # opening hundreds of trials takes a while
+        bar = progress.add_task("seats connecting", total=len(tokens))
+        for _ in range(int(READY_WAIT_S / 0.2)):
+            progress.update(bar, completed=figures.ready)
+            if figures.ready == len(tokens) or all(t.done() for t in tasks):
+                break
+            await asyncio.sleep(0.2)
+    failed = [t.exception() for t in tasks if t.done() and t.exception() is not None]
+    if failed:
+        raise SystemExit(f"{len(failed)} trials could not connect: {failed[0]!r}")
     await asyncio.sleep(warmup)
     count = lambda: services.db().execute(select(func.count(Event.id))).scalar_one()  # noqa: E731
     before, t0, cpu0 = count(), time.perf_counter(), server.cpu_s()
@@ -213,16 +229,34 @@ def wait_until_up(url: str, server: subprocess.Popen) -> None:
     raise SystemExit(f"robotslang serve did not answer on {url} within 60 s")
 
 
+@contextmanager
+def database(workers: int, postgres_url: str):
+    """None (the embedded SQLite file) for one process; a private PostgreSQL schema for several."""
+    if workers == 1:
+        yield None
+        return
+    schema = f"load_{uuid.uuid4().hex[:12]}"
+    admin = create_engine(postgres_url)
+    with admin.begin() as conn:
+        conn.execute(text(f"create schema {schema}"))
+    try:
+        yield f"{postgres_url}?options=-csearch_path%3D{schema}"
+    finally:
+        with admin.begin() as conn:
+            conn.execute(text(f"drop schema {schema} cascade"))
+        admin.dispose()
+
+
 def run_load(trials: int, workers: int, duration: float, warmup: float, port: int,
-             redis_url: str | None, profile: str | None = None) -> dict:
-    """One run: a fresh data directory and server, `trials` trials; returns the figures."""
-    with tempfile.TemporaryDirectory(prefix="robotslang-load-") as tmp:
+             redis_url: str | None, postgres_url: str, profile: str | None = None) -> dict:
+    """One run: a fresh data directory, database and server, `trials` trials; returns the figures."""
+    with tempfile.TemporaryDirectory(prefix="robotslang-load-") as tmp, database(workers, postgres_url) as url:
         env = {**os.environ, "ROBOTSLANG_DATA_DIR": str(Path(tmp) / "var"), "ROBOTSLANG_SECRET_KEY": "load"}
-        env.pop("ROBOTSLANG_DATABASE_URL", None)  # the bench measures the embedded SQLite setup
+        env.pop("ROBOTSLANG_DATABASE_URL", None)
         env.pop("ROBOTSLANG_REDIS_URL", None)
         if workers > 1:
-            env["ROBOTSLANG_REDIS_URL"] = redis_url
-        settings = Settings(data_dir=Path(tmp) / "var", secret_key="load")
+            env["ROBOTSLANG_REDIS_URL"], env["ROBOTSLANG_DATABASE_URL"] = redis_url, url
+        settings = Settings(data_dir=Path(tmp) / "var", secret_key="load", database_url=url)
         tokens, services = setup_trials(settings, trials)
         server = subprocess.Popen([sys.executable, "-c", "from app.cli import main; main()", "serve",
                                    "--port", str(port), "--workers", str(workers)],
@@ -244,6 +278,7 @@ def run_load(trials: int, workers: int, duration: float, warmup: float, port: in
                 spy.wait(timeout=60)
             server.terminate()
             server.wait(timeout=30)
+            services.engine.dispose()
     return {"trials": trials, "workers": workers, "duration_s": round(window, 1),
             "chat_p50_ms": round(percentile(figures.chat_ms, 50), 2),
             "chat_p99_ms": round(percentile(figures.chat_ms, 99), 2),
@@ -268,7 +303,7 @@ def find_max(workers: int, args) -> tuple[int, list[dict]]:
     runs: list[dict] = []
 
     def ok(n: int) -> bool:
-        figures = run_load(n, workers, args.duration, args.warmup, args.port, args.redis_url)
+        figures = run_load(n, workers, args.duration, args.warmup, args.port, args.redis_url, args.postgres_url)
         runs.append(figures)
         report(figures)
         return within_goal(figures)
@@ -293,7 +328,8 @@ def report(f: dict) -> None:
     load = ", ".join(f"{x:.2f}" for x in f["load_average"])
     console.print(f"[bold]bench.load[/]: {f['trials']} trials, {f['workers']} server process(es), "
                   f"1 chat + 1 move per second each, {f['duration_s']:.0f} s measured "
-                  f"({os.cpu_count()} CPUs, SQLite WAL; load average {load})")
+                  f"({os.cpu_count()} CPUs, {'SQLite WAL' if f['workers'] == 1 else 'PostgreSQL + Redis'}; "
+                  f"load average {load})")
     console.print(f"  chat fan-out    p50 {f['chat_p50_ms']:7.1f} ms   p99 {f['chat_p99_ms']:7.1f} ms   "
                   f"({f['chats']} messages, {f['lost']} lost)")
     console.print(f"  move-to-frame   p50 {f['move_to_frame_p50_ms']:7.1f} ms   "
@@ -310,6 +346,8 @@ def main() -> None:
     parser.add_argument("--warmup", type=float, default=5.0)
     parser.add_argument("--port", type=int, default=8765)
     parser.add_argument("--redis-url", default="redis://127.0.0.1:6379/0")
+    parser.add_argument("--postgres-url", default="postgresql+psycopg://postgres@127.0.0.1:5432/test",
+                        help="with --workers over 1: the database a private schema is made in")
     parser.add_argument("--json", action="store_true", help="end with one JSON line of the figures")
     parser.add_argument("--profile", help="py-spy output of the server (.svg flame graph, .json speedscope)")
     parser.add_argument("--find-max", action="store_true",
@@ -331,7 +369,7 @@ def main() -> None:
             print(json.dumps(result))
         return
     figures = run_load(args.trials, args.workers, args.duration, args.warmup, args.port, args.redis_url,
-                       args.profile)
+                       args.postgres_url, args.profile)
     report(figures)
     if args.json:
         print(json.dumps(figures))
