@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 
 from sqlalchemy import select
@@ -28,7 +29,8 @@ class TrialHub:
         runtime = self._runtimes.pop(trial_id, None)
         self._opening.pop(trial_id, None)
         if runtime is not None:
-            asyncio.get_running_loop().create_task(runtime.close())
+            with contextlib.suppress(RuntimeError):  # no loop (a script): nothing runs it anyway
+                asyncio.get_running_loop().create_task(runtime.close())
 
     async def get(self, trial_id: int):
         """Where the trial runs: its runtime here, or (with Redis) a `RemoteTrial` forwarding to

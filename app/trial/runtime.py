@@ -1,8 +1,8 @@
 """`TrialRuntime`: one live trial in this process. It only does input and output.
 
 Everything that happens becomes a command for `app.trial.decide`; the events it returns are
-committed (`EventLog`), folded into the state and only then sent to the seats, each through its
-own filter (`app.trial.views`). The runtime holds the sockets, the robot backend and the grace
+appended to the log (`EventLog`, committed at the end of this event-loop turn) and folded into
+the state, and what each seat may hear of them (`app.trial.views`) is sent once they are committed. The runtime holds the sockets, the robot backend and the grace
 timers, and the timers are derived from the log (`TrialState.away`), so they survive a restart.
 Commands are applied without awaiting between reading the state and recording, so the events
 of a trial are totally ordered without locks.

@@ -8,7 +8,6 @@ import asyncio
 import os
 import signal
 
-import pytest
 import redis
 from sqlalchemy import select
 
