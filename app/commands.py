@@ -17,23 +17,16 @@ def serve(host: str = typer.Option("127.0.0.1", help="Interface to listen on."),
           data_dir: Path | None = typer.Option(None, "--data-dir", help="Database, frames and secret key "
                                                   "(default ROBOTSLANG_DATA_DIR, else ./var)."),
           benchmark: Path | None = typer.Option(None, "--benchmark", help="A RobotSlangBenchmark clone whose "
-                                                   "mazes join the bundled ones (default ROBOTSLANG_BENCHMARK).")
-          ) -> None:
+                                                   "mazes join the bundled ones (default ROBOTSLANG_BENCHMARK)."),
+          workers: int = typer.Option(1, min=1, help="Server processes sharing trials (over 1: needs "
+                                                     "ROBOTSLANG_REDIS_URL; see docs/platform.md).")) -> None:
     """Serve the platform (pages, trial sockets) on HOST:PORT."""
-    import uvicorn
-
-    from app.main import create_app
-    from app.settings import Settings
+    from app.serving import serve_processes
 
     # Flags override the environment; what is not given keeps its ROBOTSLANG_* value.
     overrides: dict[str, Any] = {name: value for name, value in (("data_dir", data_dir), ("benchmark", benchmark))
-                 if value is not None}
-    settings = Settings(**overrides)
-    app = create_app(settings)
-    typer.echo(f"RobotSlang on http://{host}:{port} (data in {settings.data_dir.resolve()})")
-    from app.serving import uvicorn_options
-
-    uvicorn.run(app, host=host, port=port, log_level="warning", **uvicorn_options(settings))
+                                 if value is not None}
+    serve_processes(host, port, workers, overrides)
 
 
 def admin_create(name: str = typer.Argument(..., help="The experimenter's login name."),

@@ -1,9 +1,18 @@
 """The mazes trials run in: the library (bundled + benchmark), their graphs, start poses and the
-pictures the Commander sees (the map with the three landmarks and the image of the next target)."""
+pictures the Commander sees (the map with the three landmarks and the image of the next target).
+
+Memory: a maze and its navigation graph are about 27 MB (the graph's all-pairs tables). A
+process holds those of the mazes its live trials use (their backends keep them) and of the
+`MAZES_KEPT` mazes used last; any other maze is released, so a server that runs trials on all of
+the benchmark's mazes over a study stays bounded (`python -m bench.memory`)."""
 
 from __future__ import annotations
 
 import math
+import threading
+import weakref
+from collections import OrderedDict
+from collections.abc import Callable
 from functools import lru_cache
 from typing import TYPE_CHECKING
 
@@ -23,6 +32,34 @@ from sim.navgraph import NavGraph
 TARGET_VIEW_DISTANCE_M = 0.35
 LANDMARK_RADIUS_M = 0.045  # the disc that marks a landmark on the Commander's map
 MIN_START_DISTANCE_M = 0.5
+MAZES_KEPT = 8  # mazes (and graphs) kept beyond those of live trials
+PICTURES_KEPT = 64  # maps and target images (a few hundred kB per maze)
+
+
+class Kept:
+    """`make(name)` once per name while anything uses the result, and for the last `size` names
+    asked for: a maze in a live trial is never loaded twice, one nobody uses is released. Trials
+    open in threads: one lock, so that trials starting together on one maze share it."""
+
+    def __init__(self, make: Callable, size: int) -> None:
+        self.make, self.size = make, size
+        self._alive: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
+        self._recent: OrderedDict = OrderedDict()
+        self._lock = threading.Lock()
+
+    def __call__(self, name: str):
+        with self._lock:
+            value = self._alive.get(name)
+            if value is None:
+                value = self._alive[name] = self.make(name)
+            self._recent[name] = value
+            self._recent.move_to_end(name)
+            while len(self._recent) > self.size:
+                self._recent.popitem(last=False)
+            return value
+
+    def __len__(self) -> int:
+        return len(self._alive)
 
 
 class UnknownMaze(LookupError):
@@ -33,17 +70,17 @@ class Mazes:
     def __init__(self, settings: Settings) -> None:
         self.settings = settings
         self._library: MazeLibrary | None = None
-        self.load = lru_cache(maxsize=64)(self._load)
-        self.graph = lru_cache(maxsize=64)(self._graph)
-        self.map_png = lru_cache(maxsize=64)(self._map_png)
-        self.target_jpeg = lru_cache(maxsize=192)(self._target_jpeg)
+        self.load = Kept(self._load, MAZES_KEPT)
+        self.graph = Kept(self._graph, MAZES_KEPT)
+        self.map_png = lru_cache(maxsize=PICTURES_KEPT)(self._map_png)
+        self.target_jpeg = lru_cache(maxsize=3 * PICTURES_KEPT)(self._target_jpeg)
 
     @property
     def library(self) -> MazeLibrary:
         if self._library is None:
             from sim.library import MazeLibrary
 
-            self._library = MazeLibrary(benchmark=self.settings.benchmark)
+            self._library = MazeLibrary(benchmark=self.settings.benchmark, cache=False)  # `Kept` caches
         return self._library
 
     def names(self) -> list[str]:

@@ -2,10 +2,16 @@
 over websockets sending a chat message and a move every second.
 
 Prints p50/p99 of chat fan-out latency (Commander sends -> Driver receives) and of
-move-to-frame latency (Driver sends a move -> receives the new camera frame), and events
-committed per second. The server runs as its own process (`robotslang serve`), as in use.
+move-to-frame latency (Driver sends a move -> receives the new camera frame), events committed
+per second, lost chat messages (sent, never heard by the Driver) and unanswered moves (neither a
+frame nor a refusal came back), and the server's CPU (cores busy) and peak RSS, all processes
+together. The server runs as its own process (`robotslang serve --workers W`), as in use: one
+process on SQLite (WAL); with W > 1 the processes share trials through Redis (`--redis-url`) and
+PostgreSQL (a private schema in `--postgres-url`, dropped afterwards).
 
-    python -m bench.load --trials 50 --duration 30
+    python -m bench.load --trials 50 --workers 1 --duration 30 [--json]
+    python -m bench.load --find-max [--max-trials 400] [--duration 10]   # largest N with both p99 < 100 ms
+    python -m bench.load --trials 100 --profile var/load.svg              # py-spy flame graph of the server
 """
 
 from __future__ import annotations
@@ -19,6 +25,9 @@ import subprocess
 import sys
 import tempfile
 import time
+import uuid
+from contextlib import contextmanager
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import httpx
@@ -26,14 +35,17 @@ import numpy as np
 import websockets
 from rich.console import Console
 from rich.progress import Progress
-from sqlalchemy import func, select
+from sqlalchemy import create_engine, func, select, text
 
 from app.db.models import Event
 from app.main import build_services
 from app.settings import Settings
 from app.trial.setup import create_participant, create_team, create_trial
 
-console = Console()
+console = Console(stderr=True)
+P99_GOAL_MS = 100.0
+READY_WAIT_S = 180.0  # at most this long for every trial's seats to connect before the warm-up
+DRAIN_S = 3.0  # after the run: how long late answers may still arrive before they count as lost
 
 
 def setup_trials(settings: Settings, n: int) -> tuple[list[tuple[str, str]], object]:
@@ -53,54 +65,70 @@ def setup_trials(settings: Settings, n: int) -> tuple[list[tuple[str, str]], obj
     return tokens, services
 
 
+@dataclass
 class Figures:
-    def __init__(self) -> None:
-        self.chat_ms: list[float] = []
-        self.frame_ms: list[float] = []
-        self.recording = False
+    chat_ms: list[float] = field(default_factory=list)
+    frame_ms: list[float] = field(default_factory=list)
+    chats_sent: int = 0
+    chats_heard: int = 0
+    moves_sent: int = 0
+    moves_answered: int = 0
+    ready: int = 0  # trials whose two seats are connected and welcomed
+    recording: bool = False
 
 
-async def run_trial(ws_url: str, tokens: tuple[str, str], figures: Figures, stop: asyncio.Event) -> None:
+async def run_trial(ws_url: str, tokens: tuple[str, str], figures: Figures, stop: asyncio.Event,
+                    drained: asyncio.Event) -> None:
     commander_token, driver_token = tokens
-    async with websockets.connect(f"{ws_url}?token={commander_token}", max_size=2**22) as commander, \
-               websockets.connect(f"{ws_url}?token={driver_token}", max_size=2**22) as driver:
-        chats: dict[str, float] = {}
-        move_sent: list[float] = []
+    async with websockets.connect(f"{ws_url}?token={commander_token}", max_size=2**22, open_timeout=60) as commander, \
+               websockets.connect(f"{ws_url}?token={driver_token}", max_size=2**22, open_timeout=60) as driver:
+        chats: dict[str, tuple[float, bool]] = {}  # text -> (sent at, sent while recording)
+        move: list = []  # [sent at, counted] of the move waiting for its frame
 
         async def driver_reader():
             async for raw in driver:
                 now = time.perf_counter()
                 message = json.loads(raw)
-                if message.get("type") != "event":
-                    continue
-                if message["kind"] == "chat" and message["payload"]["text"] in chats:
-                    sent = chats.pop(message["payload"]["text"])
-                    if figures.recording:
-                        figures.chat_ms.append((now - sent) * 1e3)
-                elif message["kind"] == "frame" and move_sent:
-                    if figures.recording:
-                        figures.frame_ms.append((now - move_sent.pop()) * 1e3)
-                    move_sent.clear()
+                kind = message.get("kind") if message.get("type") == "event" else message.get("type")
+                if kind == "chat" and message["payload"]["text"] in chats:
+                    sent, counted = chats.pop(message["payload"]["text"])
+                    if counted:
+                        figures.chats_heard += 1
+                        if figures.recording:
+                            figures.chat_ms.append((now - sent) * 1e3)
+                refused = kind == "error" or (kind == "move_executed" and message["payload"]["outcome"] == "refused")
+                if move and (kind == "frame" or refused):
+                    sent, counted = move
+                    move.clear()
+                    if counted:
+                        figures.moves_answered += 1
+                        if kind == "frame" and figures.recording:
+                            figures.frame_ms.append((now - sent) * 1e3)
 
         async def commander_reader():
             async for _ in commander:  # the Commander hears its own echo; nothing to measure
                 pass
 
         readers = [asyncio.create_task(driver_reader()), asyncio.create_task(commander_reader())]
+        figures.ready += 1
         rng = random.Random()
         await asyncio.sleep(rng.random())  # spread the trials over the second
         await commander.send(json.dumps({"type": "localize", "token": commander_token, "x": 1.2, "y": 1.0}))
         i = 0
         while not stop.is_set():
             text = f"where are you now? {id(chats)}-{i}"
-            chats[text] = time.perf_counter()
+            chats[text] = (time.perf_counter(), figures.recording)
+            figures.chats_sent += figures.recording
             await commander.send(json.dumps({"type": "chat", "token": commander_token, "text": text}))
             await asyncio.sleep(0.5)
-            move_sent[:] = [time.perf_counter()]
-            action = rng.choice(["forward", "forward", "left", "right"])
-            await driver.send(json.dumps({"type": "move", "token": driver_token, "action": action}))
+            if not move:  # one move at a time, as the Driver's page does
+                move[:] = [time.perf_counter(), figures.recording]
+                figures.moves_sent += figures.recording
+                action = rng.choice(["forward", "forward", "left", "right"])
+                await driver.send(json.dumps({"type": "move", "token": driver_token, "action": action}))
             await asyncio.sleep(0.5)
             i += 1
+        await drained.wait()
         for task in readers:
             task.cancel()
 
@@ -109,65 +137,242 @@ def percentile(values: list[float], q: float) -> float:
     return float(np.percentile(values, q)) if values else float("nan")
 
 
-async def drive(ws_url: str, tokens, warmup: float, duration: float, services) -> tuple[Figures, int, float]:
-    figures, stop = Figures(), asyncio.Event()
-    tasks = [asyncio.create_task(run_trial(ws_url, t, figures, stop)) for t in tokens]
+class ServerProcesses:
+    """CPU seconds and RSS of the server process and its children (the workers), from /proc."""
+
+    def __init__(self, pid: int) -> None:
+        self.pid = pid
+        self.peak_rss_mb = 0.0
+
+    def pids(self) -> list[int]:
+        children: dict[int, list[int]] = {}
+        for entry in Path("/proc").iterdir():
+            if entry.name.isdigit():
+                try:
+                    ppid = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+                except (OSError, IndexError, ValueError):
+                    continue
+                children.setdefault(ppid, []).append(int(entry.name))
+        found, todo = [], [self.pid]
+        while todo:
+            pid = todo.pop()
+            found.append(pid)
+            todo.extend(children.get(pid, []))
+        return found
+
+    def cpu_s(self) -> float:
+        total = 0.0
+        for pid in self.pids():
+            try:
+                fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+        return total
+
+    def sample_rss(self) -> float:
+        rss = 0.0
+        for pid in self.pids():
+            try:
+                for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+                    if line.startswith("VmRSS:"):
+                        rss += int(line.split()[1]) / 1024
+            except OSError:
+                continue
+        self.peak_rss_mb = max(self.peak_rss_mb, rss)
+        return rss
+
+
+async def drive(ws_url: str, tokens, warmup: float, duration: float, services,
+                server: ServerProcesses) -> tuple[Figures, int, float, float]:
+    figures, stop, drained = Figures(), asyncio.Event(), asyncio.Event()
+    tasks = [asyncio.create_task(run_trial(ws_url, t, figures, stop, drained)) for t in tokens]
+    with Progress(console=console, transient=True) as progress:  # opening hundreds of trials takes a while
+        bar = progress.add_task("seats connecting", total=len(tokens))
+        for _ in range(int(READY_WAIT_S / 0.2)):
+            progress.update(bar, completed=figures.ready)
+            if figures.ready == len(tokens) or all(t.done() for t in tasks):
+                break
+            await asyncio.sleep(0.2)
+    failed = [t.exception() for t in tasks if t.done() and t.exception() is not None]
+    if failed:
+        raise SystemExit(f"{len(failed)} trials could not connect: {failed[0]!r}")
     await asyncio.sleep(warmup)
     count = lambda: services.db().execute(select(func.count(Event.id))).scalar_one()  # noqa: E731
-    before, t0 = count(), time.perf_counter()
+    before, t0, cpu0 = count(), time.perf_counter(), server.cpu_s()
     figures.recording = True
     with Progress(console=console, transient=True) as progress:
         bar = progress.add_task(f"{len(tokens)} trials under load", total=duration)
         while (elapsed := time.perf_counter() - t0) < duration:
             await asyncio.sleep(0.5)
+            server.sample_rss()
             progress.update(bar, completed=min(elapsed, duration))
     figures.recording = False
     committed, window = count() - before, time.perf_counter() - t0
+    cpu = (server.cpu_s() - cpu0) / window
     stop.set()
+    await asyncio.sleep(DRAIN_S)
+    drained.set()
     await asyncio.gather(*tasks, return_exceptions=True)
-    return figures, committed, window
+    return figures, committed, window, cpu
+
+
+def wait_until_up(url: str, server: subprocess.Popen) -> None:
+    for _ in range(600):
+        try:
+            httpx.get(url + "/leaderboard", timeout=1)
+            return
+        except httpx.HTTPError:
+            if server.poll() is not None:
+                raise SystemExit(f"robotslang serve exited with status {server.returncode}")
+            time.sleep(0.1)
+    raise SystemExit(f"robotslang serve did not answer on {url} within 60 s")
+
+
+@contextmanager
+def database(workers: int, postgres_url: str):
+    """None (the embedded SQLite file) for one process; a private PostgreSQL schema for several."""
+    if workers == 1:
+        yield None
+        return
+    schema = f"load_{uuid.uuid4().hex[:12]}"
+    admin = create_engine(postgres_url)
+    with admin.begin() as conn:
+        conn.execute(text(f"create schema {schema}"))
+    try:
+        yield f"{postgres_url}?options=-csearch_path%3D{schema}"
+    finally:
+        with admin.begin() as conn:
+            conn.execute(text(f"drop schema {schema} cascade"))
+        admin.dispose()
+
+
+def run_load(trials: int, workers: int, duration: float, warmup: float, port: int,
+             redis_url: str | None, postgres_url: str, profile: str | None = None) -> dict:
+    """One run: a fresh data directory, database and server, `trials` trials; returns the figures."""
+    with tempfile.TemporaryDirectory(prefix="robotslang-load-") as tmp, database(workers, postgres_url) as url:
+        env = {**os.environ, "ROBOTSLANG_DATA_DIR": str(Path(tmp) / "var"), "ROBOTSLANG_SECRET_KEY": "load"}
+        env.pop("ROBOTSLANG_DATABASE_URL", None)
+        env.pop("ROBOTSLANG_REDIS_URL", None)
+        if workers > 1:
+            env["ROBOTSLANG_REDIS_URL"], env["ROBOTSLANG_DATABASE_URL"] = redis_url, url
+        settings = Settings(data_dir=Path(tmp) / "var", secret_key="load", database_url=url)
+        tokens, services = setup_trials(settings, trials)
+        server = subprocess.Popen([sys.executable, "-c", "from app.cli import main; main()", "serve",
+                                   "--port", str(port), "--workers", str(workers)],
+                                  env=env, stdout=subprocess.DEVNULL)
+        spy = None
+        try:
+            wait_until_up(f"http://127.0.0.1:{port}", server)
+            processes = ServerProcesses(server.pid)
+            if profile:  # the whole run, warm-up included, sampled from every server process
+                spy = subprocess.Popen([str(Path(sys.executable).with_name("py-spy")), "record", "--subprocesses", "--idle", "--rate", "100",
+                                        "--format", "speedscope" if profile.endswith(".json") else "flamegraph",
+                                        "-o", profile, "--pid", str(server.pid)],
+                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            figures, committed, window, cpu = asyncio.run(
+                drive(f"ws://127.0.0.1:{port}/ws/play", tokens, warmup, duration, services, processes))
+        finally:
+            if spy is not None:
+                spy.send_signal(2)
+                spy.wait(timeout=60)
+            server.terminate()
+            server.wait(timeout=30)
+            services.engine.dispose()
+    return {"trials": trials, "workers": workers, "duration_s": round(window, 1),
+            "chat_p50_ms": round(percentile(figures.chat_ms, 50), 2),
+            "chat_p99_ms": round(percentile(figures.chat_ms, 99), 2),
+            "move_to_frame_p50_ms": round(percentile(figures.frame_ms, 50), 2),
+            "move_to_frame_p99_ms": round(percentile(figures.frame_ms, 99), 2),
+            "chats": len(figures.chat_ms), "moves": len(figures.frame_ms),
+            "events_per_s": round(committed / window, 1), "events": committed,
+            "lost": figures.chats_sent - figures.chats_heard,
+            "unanswered": figures.moves_sent - figures.moves_answered,
+            "server_cpu": round(cpu, 2), "server_rss_mb": round(processes.peak_rss_mb, 1),
+            "load_average": [round(x, 2) for x in os.getloadavg()]}
+
+
+def within_goal(figures: dict) -> bool:
+    return (figures["chat_p99_ms"] < P99_GOAL_MS and figures["move_to_frame_p99_ms"] < P99_GOAL_MS
+            and figures["lost"] == 0 and figures["unanswered"] == 0)
+
+
+def find_max(workers: int, args) -> tuple[int, list[dict]]:
+    """The largest trial count (a multiple of `--step`, at most `--max-trials`) with both p99s under
+    100 ms and nothing lost: doubling from `--step`, then bisection; at most `--max-probes` runs."""
+    runs: list[dict] = []
+
+    def ok(n: int) -> bool:
+        figures = run_load(n, workers, args.duration, args.warmup, args.port, args.redis_url, args.postgres_url)
+        runs.append(figures)
+        report(figures)
+        return within_goal(figures)
+
+    good, bad, n = 0, None, args.step
+    while n <= args.max_trials and len(runs) < args.max_probes:
+        if not ok(n):
+            bad = n
+            break
+        good, n = n, min(2 * n, args.max_trials) if n < args.max_trials else args.max_trials + 1
+    hi = bad if bad is not None else good
+    while bad is not None and hi - good > args.step and len(runs) < args.max_probes:
+        mid = (good + hi) // 2 // args.step * args.step
+        if ok(mid):
+            good = mid
+        else:
+            hi = mid
+    return good, runs
+
+
+def report(f: dict) -> None:
+    load = ", ".join(f"{x:.2f}" for x in f["load_average"])
+    console.print(f"[bold]bench.load[/]: {f['trials']} trials, {f['workers']} server process(es), "
+                  f"1 chat + 1 move per second each, {f['duration_s']:.0f} s measured "
+                  f"({os.cpu_count()} CPUs, {'SQLite WAL' if f['workers'] == 1 else 'PostgreSQL + Redis'}; "
+                  f"load average {load})")
+    console.print(f"  chat fan-out    p50 {f['chat_p50_ms']:7.1f} ms   p99 {f['chat_p99_ms']:7.1f} ms   "
+                  f"({f['chats']} messages, {f['lost']} lost)")
+    console.print(f"  move-to-frame   p50 {f['move_to_frame_p50_ms']:7.1f} ms   "
+                  f"p99 {f['move_to_frame_p99_ms']:7.1f} ms   ({f['moves']} moves, {f['unanswered']} unanswered)")
+    console.print(f"  events committed {f['events_per_s']:7.1f} /s   server CPU {f['server_cpu']:.2f} cores   "
+                  f"peak RSS {f['server_rss_mb']:.0f} MB")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--trials", type=int, default=50)
+    parser.add_argument("--workers", type=int, default=1, help="server processes (over 1: needs Redis)")
     parser.add_argument("--duration", type=float, default=30.0, help="measured seconds")
     parser.add_argument("--warmup", type=float, default=5.0)
     parser.add_argument("--port", type=int, default=8765)
+    parser.add_argument("--redis-url", default="redis://127.0.0.1:6379/0")
+    parser.add_argument("--postgres-url", default="postgresql+psycopg://postgres@127.0.0.1:5432/test",
+                        help="with --workers over 1: the database a private schema is made in")
+    parser.add_argument("--json", action="store_true", help="end with one JSON line of the figures")
+    parser.add_argument("--profile", help="py-spy output of the server (.svg flame graph, .json speedscope)")
+    parser.add_argument("--find-max", action="store_true",
+                        help="for 1 and 2 processes: the largest trial count with both p99 < 100 ms")
+    parser.add_argument("--max-trials", type=int, default=400)
+    parser.add_argument("--step", type=int, default=25)
+    parser.add_argument("--max-probes", type=int, default=6, help="runs per process count in --find-max")
     args = parser.parse_args()
 
-    with tempfile.TemporaryDirectory(prefix="robotslang-load-") as tmp:
-        env = {**os.environ, "ROBOTSLANG_DATA_DIR": str(Path(tmp) / "var"), "ROBOTSLANG_SECRET_KEY": "load"}
-        env.pop("ROBOTSLANG_DATABASE_URL", None)  # the bench measures the embedded SQLite setup
-        settings = Settings(data_dir=Path(tmp) / "var", secret_key="load")
-        tokens, services = setup_trials(settings, args.trials)
-        server = subprocess.Popen([sys.executable, "-c", "from app.cli import main; main()", "serve",
-                                   "--port", str(args.port)], env=env, stdout=subprocess.DEVNULL)
-        try:
-            url = f"http://127.0.0.1:{args.port}"
-            for _ in range(300):
-                try:
-                    httpx.get(url + "/leaderboard", timeout=1)
-                    break
-                except httpx.HTTPError:
-                    if server.poll() is not None:
-                        raise SystemExit(f"robotslang serve exited with status {server.returncode}")
-                    time.sleep(0.1)
-            else:
-                raise SystemExit(f"robotslang serve did not answer on {url} within 30 s")
-            figures, committed, window = asyncio.run(
-                drive(f"ws://127.0.0.1:{args.port}/ws/play", tokens, args.warmup, args.duration, services))
-        finally:
-            server.terminate()
-            server.wait(timeout=20)
-
-    console.print(f"[bold]bench.load[/]: {args.trials} concurrent simulator trials, 1 chat + 1 move per second "
-                  f"each, {window:.0f} s measured on loopback ({os.cpu_count()} CPUs, SQLite WAL)")
-    console.print(f"chat fan-out    p50 {percentile(figures.chat_ms, 50):7.1f} ms   "
-                  f"p99 {percentile(figures.chat_ms, 99):7.1f} ms   ({len(figures.chat_ms)} messages)")
-    console.print(f"move-to-frame   p50 {percentile(figures.frame_ms, 50):7.1f} ms   "
-                  f"p99 {percentile(figures.frame_ms, 99):7.1f} ms   ({len(figures.frame_ms)} moves)")
-    console.print(f"events committed {committed / window:7.1f} /s   ({committed} events)")
+    if args.find_max:
+        result = {}
+        for workers in (1, 2):
+            best, runs = find_max(workers, args)
+            console.print(f"[bold]largest trial count with both p99 < {P99_GOAL_MS:.0f} ms, {workers} "
+                          f"process(es): {best}[/] ({len(runs)} runs of {args.duration:.0f} s)")
+            result[f"max_trials_{workers}_workers"] = best
+            result[f"runs_{workers}_workers"] = runs
+        if args.json:
+            print(json.dumps(result))
+        return
+    figures = run_load(args.trials, args.workers, args.duration, args.warmup, args.port, args.redis_url,
+                       args.postgres_url, args.profile)
+    report(figures)
+    if args.json:
+        print(json.dumps(figures))
 
 
 if __name__ == "__main__":

@@ -29,7 +29,7 @@ class UnknownMazeError(KeyError):
 
 class MazeLibrary:
     def __init__(self, benchmark: Path | None = None, extra_dirs: Iterable[Path] = (),
-                 bundled: Path | None = BUNDLED_DIR) -> None:
+                 bundled: Path | None = BUNDLED_DIR, cache: bool = True) -> None:
         """`benchmark`: a clone of the benchmark (its `mazedata/` is read); `extra_dirs`: folders
         of mazes in the benchmark's layout (`NAME/maze/maze.map-fixed.png`)."""
         self._roots: list[tuple[str, Path]] = []
@@ -44,7 +44,7 @@ class MazeLibrary:
             mazedata = benchmark / "mazedata"
             self._roots.append(("benchmark", mazedata if mazedata.is_dir() else benchmark))
         self._index: dict[str, tuple[str, Path]] | None = None
-        self._cache: dict[str, Maze] = {}
+        self._cache: dict[str, Maze] | None = {} if cache else None  # None: the caller keeps what it needs
 
     def _entries(self) -> dict[str, tuple[str, Path]]:
         if self._index is None:
@@ -87,14 +87,17 @@ class MazeLibrary:
         return self._entry(name)[1]
 
     def load(self, name: str) -> Maze:
-        """The maze called `name` (read once per library); MazeError if its map is malformed."""
-        if name not in self._cache:
-            kind, run = self._entry(name)
-            maze = Maze.from_dir(run, name=name)
-            if kind != "benchmark":
-                check_reachable(maze, source=str(run / "maze" / FIXED_MAP))
+        """The maze called `name` (read once per library, unless made with `cache=False`); MazeError
+        if its map is malformed."""
+        if self._cache is not None and name in self._cache:
+            return self._cache[name]
+        kind, run = self._entry(name)
+        maze = Maze.from_dir(run, name=name)
+        if kind != "benchmark":
+            check_reachable(maze, source=str(run / "maze" / FIXED_MAP))
+        if self._cache is not None:
             self._cache[name] = maze
-        return self._cache[name]
+        return maze
 
 
 def _natural_key(path: Path) -> list[int | str]:

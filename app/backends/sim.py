@@ -2,12 +2,15 @@
 
 Moves follow the grid dynamics of `sim.dynamics` (0.07 m forward, 45 degree turns, a
 collision leaves the robot where it was); after each move the first-person render of the
-new pose is the camera frame.
+new pose is the camera frame. Poses are discrete (a graph node and one of eight headings), so
+the JPEG of each pose is kept (the last `FRAMES_KEPT` of this trial): a turn back, or a step back
+to where the robot was, costs no render.
 """
 
 from __future__ import annotations
 
 import asyncio
+from collections import OrderedDict
 from collections.abc import AsyncIterator
 
 import cv2
@@ -23,6 +26,7 @@ from sim.navgraph import NavGraph
 
 FRAME_SIZE = (320, 240)
 JPEG_QUALITY = 80
+FRAMES_KEPT = 32  # JPEGs of recent poses per trial (about 15 kB each)
 
 
 class SimulatorBackend:
@@ -30,6 +34,7 @@ class SimulatorBackend:
         self.maze, self.graph, self.clock = maze, graph, clock
         self._pose = start
         self._frames: asyncio.Queue[Frame | None] = asyncio.Queue()
+        self._jpegs: OrderedDict[Pose, bytes] = OrderedDict()  # the recent poses' frames, oldest first
 
     @property
     def grid_pose(self) -> Pose:
@@ -55,9 +60,14 @@ class SimulatorBackend:
         self._frames.put_nowait(None)
 
     async def _capture(self) -> None:
-        x, y, theta = self.pose()
-        # Rendering and encoding release the GIL: off the event loop, other trials keep moving.
-        jpeg = await asyncio.to_thread(render_jpeg, self.maze, x, y, theta)
+        pose = self._pose
+        jpeg = self._jpegs.pop(pose, None)
+        if jpeg is None:
+            # Rendering and encoding release the GIL: off the event loop, other trials keep moving.
+            jpeg = await asyncio.to_thread(render_jpeg, self.maze, *self.pose())
+        self._jpegs[pose] = jpeg
+        while len(self._jpegs) > FRAMES_KEPT:
+            self._jpegs.popitem(last=False)
         self._frames.put_nowait(Frame(jpeg, self.clock.now_ns(), *FRAME_SIZE))
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 
 from sqlalchemy import select
@@ -20,6 +21,16 @@ class TrialHub:
         self.services = services
         self._runtimes: dict[int, TrialRuntime] = {}
         self._opening: dict[int, asyncio.Lock] = {}
+        services.log.on_lost = self._lost
+
+    def _lost(self, trial_id: int, error: Exception) -> None:
+        """Its events could not be committed (another process runs it now): stop running it here;
+        it reopens from the log when next needed."""
+        runtime = self._runtimes.pop(trial_id, None)
+        self._opening.pop(trial_id, None)
+        if runtime is not None:
+            with contextlib.suppress(RuntimeError):  # no loop (a script): nothing runs it anyway
+                asyncio.get_running_loop().create_task(runtime.close())
 
     async def get(self, trial_id: int):
         """Where the trial runs: its runtime here, or (with Redis) a `RemoteTrial` forwarding to

@@ -1,10 +1,17 @@
 """Several server processes, one trial: Redis pub/sub between them (`ROBOTSLANG_REDIS_URL`).
 
-Each trial runs in exactly one process, its owner (a Redis key with a lease, claimed by the
-first process a seat of the trial reaches and renewed while it runs the trial). A seat that
-reaches another process gets a `RemoteTrial`: its messages go to the owner, and the owner's
-`RelayedSeat` sends back what that seat may hear, filtered by the owner as for local seats.
-Each process listens on one channel; messages on it keep their order.
+Each trial runs in exactly one process, its owner (a Redis key naming the process, claimed by
+the first process a seat of the trial reaches). A seat that reaches another process gets a
+`RemoteTrial`: its messages go to the owner, and the owner's `RelayedSeat` sends back what that
+seat may hear, filtered by the owner as for local seats. Each process listens on one channel;
+messages on it keep their order.
+
+Failover: every process keeps a heartbeat key alive (`HEARTBEAT_TTL_S`, renewed every
+`HEARTBEAT_EVERY_S`). An owner whose heartbeat has lapsed is dead: the next process that needs
+the trial (a seat reconnecting, or a `RemoteTrial` whose owner it watches) takes the owner key
+over with a compare-and-set, reopens the trial from its log and serves the seats itself. The
+log stays the one order: an owner taken over by mistake (stalled, not dead) finds its next
+`seq` taken, and its events are refused by the database (`EventLog.on_lost`).
 """
 
 from __future__ import annotations
@@ -14,6 +21,8 @@ import contextlib
 import hashlib
 import json
 import logging
+import os
+import socket
 import uuid
 from typing import Any
 
@@ -22,8 +31,20 @@ from app.trial.views import EXPERIMENTER
 from app.trial.vocabulary import Role
 
 logger = logging.getLogger(__name__)
-OWNER_TTL_S = 30
-RENEW_EVERY_S = 10
+HEARTBEAT_TTL_S = 2.0  # a process silent this long is taken for dead and its trials are taken over
+HEARTBEAT_EVERY_S = 0.5
+# Take the owner key from a dead process, unless another process already did.
+TAKE_OVER = "if redis.call('get', KEYS[1]) == ARGV[1] then redis.call('set', KEYS[1], ARGV[2]) return 1 end return 0"
+
+
+def key_prefix(settings) -> str:
+    """Trial ids are per database: processes share owners only when they share the database."""
+    return f"robotslang:{hashlib.sha256(settings.url.encode()).hexdigest()[:12]}"
+
+
+def owner_key(settings, trial_id: int) -> str:
+    """The Redis key naming the process that runs the trial (`host-pid-random`)."""
+    return f"{key_prefix(settings)}:trial:{trial_id}:owner"
 
 
 def _channel(process: str) -> str:
@@ -36,20 +57,21 @@ class RedisRelay:
 
         self.services = services
         self.redis = redis.from_url(url, decode_responses=True)
-        self.id = uuid.uuid4().hex
-        # Trial ids are per database: processes share owners only when they share the database.
-        self._keys = f"robotslang:{hashlib.sha256(services.settings.url.encode()).hexdigest()[:12]}"
+        self.id = f"{socket.gethostname()}-{os.getpid()}-{uuid.uuid4().hex[:8]}"  # names the process
+        self._keys = key_prefix(services.settings)
         self.local: dict[str, Any] = {}  # connection id -> this process's seat of a trial owned elsewhere
         self.relayed: dict[str, RelayedSeat] = {}  # connection id -> a remote seat of a trial owned here
+        self.remotes: set[RemoteTrial] = set()  # trials owned elsewhere that seats here use
         self._outbox: asyncio.Queue = asyncio.Queue()
         self._tasks: list[asyncio.Task] = []
 
     async def start(self) -> None:
         self._pubsub = self.redis.pubsub()
         await self._pubsub.subscribe(_channel(self.id))
+        await self._beat()
         loop = asyncio.get_running_loop()
         self._tasks = [loop.create_task(self._listen()), loop.create_task(self._send()),
-                       loop.create_task(self._renew())]
+                       loop.create_task(self._heartbeat())]
 
     async def close(self) -> None:
         for task in self._tasks:
@@ -61,17 +83,32 @@ class RedisRelay:
             with contextlib.suppress(Exception):
                 if await self.redis.get(self._owner_key(runtime.trial_id)) == self.id:
                     await self.redis.delete(self._owner_key(runtime.trial_id))
+        with contextlib.suppress(Exception):
+            await self.redis.delete(self._alive_key(self.id))
         await self._pubsub.aclose()
         await self.redis.aclose()
 
     def _owner_key(self, trial_id: int) -> str:
-        return f"{self._keys}:trial:{trial_id}:owner"
+        return owner_key(self.services.settings, trial_id)
+
+    def _alive_key(self, process: str) -> str:
+        return f"{self._keys}:process:{process}:alive"
 
     async def owner(self, trial_id: int) -> str:
-        """The process running the trial; this one when no process does yet."""
-        if await self.redis.set(self._owner_key(trial_id), self.id, nx=True, ex=OWNER_TTL_S):
-            return self.id
-        return await self.redis.get(self._owner_key(trial_id)) or await self.owner(trial_id)
+        """The process running the trial: a live one, or this one when none is (taking the trial
+        over from a dead owner)."""
+        key = self._owner_key(trial_id)
+        while True:
+            if await self.redis.set(key, self.id, nx=True):
+                return self.id
+            current = await self.redis.get(key)
+            if current is None:
+                continue  # released in between
+            if current == self.id or await self.redis.exists(self._alive_key(current)):
+                return current
+            if await self.redis.eval(TAKE_OVER, 1, key, current, self.id):
+                logger.warning("trial %s: taken over from %s, whose heartbeat lapsed", trial_id, current)
+                return self.id
 
     def send(self, process: str, message: dict[str, Any]) -> None:
         self._outbox.put_nowait((process, json.dumps(message, separators=(",", ":"))))
@@ -84,12 +121,22 @@ class RedisRelay:
             except Exception:
                 logger.exception("relay: publish to %s failed", process)
 
-    async def _renew(self) -> None:
+    async def _beat(self) -> None:
+        await self.redis.set(self._alive_key(self.id), "1", px=int(HEARTBEAT_TTL_S * 1000))
+
+    async def _heartbeat(self) -> None:
+        """Say this process lives; and watch the owners of the trials that seats here use."""
         while True:
-            await asyncio.sleep(RENEW_EVERY_S)
-            for runtime in self.services.hub.live():
-                with contextlib.suppress(Exception):
-                    await self.redis.set(self._owner_key(runtime.trial_id), self.id, ex=OWNER_TTL_S)
+            await asyncio.sleep(HEARTBEAT_EVERY_S)
+            try:
+                await self._beat()
+                owners = {remote.owner for remote in self.remotes}
+                for owner in owners:
+                    if not await self.redis.exists(self._alive_key(owner)):
+                        for remote in [r for r in self.remotes if r.owner == owner]:
+                            await remote.fail_over()
+            except Exception:
+                logger.exception("relay: heartbeat failed")
 
     async def _listen(self) -> None:
         async for item in self._pubsub.listen():
@@ -135,31 +182,62 @@ class RelayedSeat:
 
 
 class RemoteTrial:
-    """On a process that does not own the trial: forwards its seats to the owner."""
+    """On a process that does not own the trial: forwards its seats to the owner. When the owner
+    dies (`fail_over`), the seats are served by the trial's new owner, this process or another."""
 
     def __init__(self, relay: RedisRelay, trial_id: int, owner: str) -> None:
         self.relay, self.trial_id, self.owner = relay, trial_id, owner
         self._ids: dict[int, str] = {}
+        self.runtime = None  # the trial's runtime here, once this process has taken it over
 
     def _command(self, op: str, **fields) -> None:
         self.relay.send(self.owner, {"op": op, "trial": self.trial_id, "from": self.relay.id, **fields})
 
     def join(self, conn) -> None:
+        if self.runtime is not None:
+            return _attach(self.runtime, conn)
         conn_id = uuid.uuid4().hex
         self._ids[id(conn)] = conn_id
         self.relay.local[conn_id] = conn
+        self.relay.remotes.add(self)
         self._command("join", conn=conn_id, role=conn.role)
 
     def leave(self, conn) -> None:
+        if self.runtime is not None:
+            self.runtime.unwatch(conn) if conn.role == EXPERIMENTER else self.runtime.leave(conn)
+            return
         conn_id = self._ids.pop(id(conn), None)
         if conn_id is not None:
             self.relay.local.pop(conn_id, None)
             self._command("leave", conn=conn_id)
+        if not self._ids:
+            self.relay.remotes.discard(self)
+
+    async def fail_over(self) -> None:
+        """The owner is dead: take the trial here, or follow the process that already has."""
+        owner = await self.relay.owner(self.trial_id)
+        conns = [(conn_id, self.relay.local[conn_id]) for conn_id in self._ids.values()
+                 if conn_id in self.relay.local]
+        if owner != self.relay.id:
+            self.owner = owner
+            for conn_id, conn in conns:
+                self._command("join", conn=conn_id, role=conn.role)
+            return
+        self.runtime = await self.relay.services.hub.local(self.trial_id)
+        self.relay.remotes.discard(self)
+        self._ids.clear()
+        for conn_id, conn in conns:
+            self.relay.local.pop(conn_id, None)
+            _attach(self.runtime, conn)
 
     async def receive(self, conn, seat: Seat, text: str | None) -> None:
+        if self.runtime is not None:
+            return await self.runtime.receive(conn, seat, text)
         self._command("text", conn=self._ids[id(conn)], text=text)
 
     def report_bad_message(self, role: Role, error: str) -> None:
+        if self.runtime is not None:
+            return self.runtime.report_bad_message(role, error)
         conn_id = next((c for c in self._ids.values() if getattr(self.relay.local.get(c), "role", None) == role),
                        None)
         if conn_id is not None:
@@ -171,11 +249,20 @@ class RemoteTrial:
     def unwatch(self, conn) -> None:
         self.leave(conn)
 
+    def _control(self, action: str) -> None:
+        if self.runtime is not None:
+            return getattr(self.runtime, action)()
+        self._command("control", action=action)
+
     def pause(self) -> None:
-        self._command("control", action="pause")
+        self._control("pause")
 
     def resume(self) -> None:
-        self._command("control", action="resume")
+        self._control("resume")
 
     def abort(self) -> None:
-        self._command("control", action="abort")
+        self._control("abort")
+
+
+def _attach(runtime, conn) -> None:
+    runtime.watch(conn) if conn.role == EXPERIMENTER else runtime.join(conn)

@@ -1,8 +1,8 @@
 """`TrialRuntime`: one live trial in this process. It only does input and output.
 
 Everything that happens becomes a command for `app.trial.decide`; the events it returns are
-committed (`EventLog`), folded into the state and only then sent to the seats, each through its
-own filter (`app.trial.views`). The runtime holds the sockets, the robot backend and the grace
+appended to the log (`EventLog`, committed at the end of this event-loop turn) and folded into
+the state, and what each seat may hear of them (`app.trial.views`) is sent once they are committed. The runtime holds the sockets, the robot backend and the grace
 timers, and the timers are derived from the log (`TrialState.away`), so they survive a restart.
 Commands are applied without awaiting between reading the state and recording, so the events
 of a trial are totally ordered without locks.
@@ -155,17 +155,21 @@ class TrialRuntime:
         self.ldh.after(logged)
         return logged
 
+    def _send(self, conn: Connection, message: dict[str, Any]) -> None:
+        """What a seat hears of the log goes out once the log has committed it (group commit)."""
+        self.services.log.after_commit(self.trial_id, conn.deliver, message)
+
     def _broadcast(self, logged: LoggedEvent, attachments: dict[str, dict[str, Any]]) -> None:
         for role, conn in list(self.seats.items()):
             message = view(role, logged)
             if message is not None:
                 message.update(attachments.get(role, {}))
-                conn.deliver(message)
+                self._send(conn, message)
         for conn in list(self.watchers):
             message = view(EXPERIMENTER, logged)
             if message is not None:
                 message.update(attachments.get(Role.DRIVER if logged.kind == "frame" else EXPERIMENTER, {}))
-                conn.deliver(message)
+                self._send(conn, message)
 
     def _after_change(self) -> None:
         status = self.status()
@@ -173,9 +177,9 @@ class TrialRuntime:
             self._status = {k: v for k, v in status.items() if k != "elapsed_s"}
             for role, conn in list(self.seats.items()):
                 if role in PARTICIPANTS:
-                    conn.deliver(status)
+                    self._send(conn, status)
             for conn in list(self.watchers):
-                conn.deliver(status)
+                self._send(conn, status)
         self._sync_grace()
         if self.state.over and not self._ending:
             self._ending = True
@@ -273,6 +277,7 @@ class TrialRuntime:
 
         from app.db.models import Frame
 
+        self.services.log.flush()  # the frame may be in this turn's batch
         with self.services.db() as db:
             rel = db.scalar(select(Frame.path).where(Frame.trial_id == self.trial_id, Frame.seq == frame_id))
         if rel is None:

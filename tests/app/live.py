@@ -74,9 +74,10 @@ class ServerThread:
 class ServerProcess:
     """`robotslang serve` as a separate process, so a test can kill it the hard way."""
 
-    def __init__(self, env: dict[str, str], port: int | None = None) -> None:
+    def __init__(self, env: dict[str, str], port: int | None = None, workers: int = 1) -> None:
         self.env = {**os.environ, **env}
         self.port = port or free_port()
+        self.workers = workers
         self.proc: subprocess.Popen | None = None
 
     @property
@@ -89,7 +90,7 @@ class ServerProcess:
 
     def start(self) -> ServerProcess:
         self.proc = subprocess.Popen([sys.executable, "-c", "from app.cli import main; main()", "serve",
-                                      "--port", str(self.port)], env=self.env, cwd=REPO,
+                                      "--port", str(self.port), "--workers", str(self.workers)], env=self.env, cwd=REPO,
                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         deadline = time.time() + 30
         while time.time() < deadline:

@@ -1,0 +1,79 @@
+"""Where the server's time goes: a py-spy speedscope profile (`bench.load --profile FILE.json`)
+summed into the hot path's parts, per thread kind (the event loop, the render/file threads).
+
+    python -m bench.profile var/load.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+
+# (part, a frame that puts a sample in it); the first part whose frame is on the stack wins.
+PARTS = [
+    ("commit (EventLog.append, SQLite)", ("append", "app/trial/log.py")),
+    ("commit (EventLog.append, SQLite)", ("flush", "app/trial/log.py")),
+    ("history load (EventLog.load)", ("load", "app/trial/log.py")),
+    ("validation (pydantic + token)", ("_parse", "app/trial/runtime.py")),
+    ("decide", ("decide", "app/trial/decide.py")),
+    ("fold (TrialState.apply_event)", ("apply_event", "app/trial/state.py")),
+    ("views + status", ("app/trial/views.py",)),
+    ("JSON encode", ("json/encoder.py",)),
+    ("JSON decode (relay)", ("json/decoder.py",)),
+    ("websocket send", ("send", "websockets_sansio_impl.py")),
+    ("websocket receive", ("receive", "websockets_sansio_impl.py")),
+    ("render (first_person)", ("first_person", "sim/render.py")),
+    ("JPEG encode", ("render_jpeg", "app/backends/sim.py")),
+    ("frame file write", ("_write_frame_file", "app/trial/runtime.py")),
+    ("base64 of frames", ("b64encode", "base64.py")),
+    ("redis relay", ("app/trial/relay.py",)),
+    ("other app code", ("/app/",)),
+]
+NOT_HOT = ("app/cli.py", "app/commands.py", "app/serving.py")  # on every stack: the server's start
+IDLE_LEAVES = {"run", "wait", "select", "poll", "_worker", "get"}  # a thread with nothing to do
+
+
+def matches(frame: dict, pattern: tuple[str, ...]) -> bool:
+    where = frame.get("file", "")
+    if len(pattern) == 1:
+        return pattern[0] in where and not where.endswith(NOT_HOT)
+    return frame["name"] == pattern[0] and where.endswith(pattern[1])
+
+
+def summarize(path: str) -> dict[str, dict[str, float]]:
+    data = json.load(open(path))
+    frames = data["shared"]["frames"]
+    out: dict[str, collections.Counter] = collections.defaultdict(collections.Counter)
+    for profile in data["profiles"]:
+        kind = "event loop" if '"MainThread"' in profile["name"] else "threads"
+        for stack, weight in zip(profile["samples"], profile["weights"]):
+            if not stack:
+                continue
+            leaf = frames[stack[-1]]
+            if leaf["name"] in IDLE_LEAVES and ("threading.py" in leaf.get("file", "")
+                                                or "runners.py" in leaf.get("file", "")
+                                                or "thread.py" in leaf.get("file", "")
+                                                or "queue.py" in leaf.get("file", "")):
+                out[kind]["idle"] += weight
+                continue
+            part = next((name for name, pattern in PARTS if any(matches(frames[i], pattern) for i in stack)),
+                        "framework (uvicorn, starlette, asyncio)" if kind == "event loop" else "other")
+            out[kind][part] += weight
+    return {kind: dict(parts) for kind, parts in out.items()}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("profile")
+    args = parser.parse_args()
+    for kind, parts in summarize(args.profile).items():
+        busy = sum(v for k, v in parts.items() if k != "idle")
+        print(f"{kind}: {busy:.1f} s busy of {busy + parts.get('idle', 0):.1f} s sampled")
+        for part, seconds in sorted(parts.items(), key=lambda kv: -kv[1]):
+            if part != "idle":
+                print(f"  {part:42s} {seconds:7.2f} s  {100 * seconds / busy:5.1f} %")
+
+
+if __name__ == "__main__":
+    main()
