@@ -55,7 +55,7 @@ class Answer:
     euclid: float
 
     @classmethod
-    def of(cls, event: LDHStudyEvent) -> "Answer":
+    def of(cls, event: LDHStudyEvent) -> Answer:
         p = event.payload
         return cls(event.seq, event.t_ns, p["participant_id"], p["position"], p["x"], p["y"], p["heading"],
                    p["td"], p["euclid"])

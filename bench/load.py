@@ -224,7 +224,7 @@ def wait_until_up(url: str, server: subprocess.Popen) -> None:
             return
         except httpx.HTTPError:
             if server.poll() is not None:
-                raise SystemExit(f"robotslang serve exited with status {server.returncode}")
+                raise SystemExit(f"robotslang serve exited with status {server.returncode}") from None
             time.sleep(0.1)
     raise SystemExit(f"robotslang serve did not answer on {url} within 60 s")
 

@@ -42,7 +42,8 @@ def matches(frame: dict, pattern: tuple[str, ...]) -> bool:
 
 
 def summarize(path: str) -> dict[str, dict[str, float]]:
-    data = json.load(open(path))
+    with open(path) as f:
+        data = json.load(f)
     frames = data["shared"]["frames"]
     out: dict[str, collections.Counter] = collections.defaultdict(collections.Counter)
     for profile in data["profiles"]:

@@ -14,11 +14,18 @@ from sim.labels import PALETTE_BGR, Label
 from sim.maze import Maze
 from sim.observations import RayCaster
 from sim.render import (
-    CAMERA_HEIGHT_M, FOG_M, OUTLINE, WALL_HEIGHT_M, _camera, _draw_object, _pack, _scene,
+    CAMERA_HEIGHT_M,
+    FOG_M,
+    OUTLINE,
+    WALL_HEIGHT_M,
+    _camera,
+    _draw_object,
+    _pack,
+    _scene,
 )
 
 RENDER_WINDOW = 32
-_casters: "weakref.WeakKeyDictionary[Maze, RayCaster]" = weakref.WeakKeyDictionary()
+_casters: weakref.WeakKeyDictionary[Maze, RayCaster] = weakref.WeakKeyDictionary()
 
 
 def first_person(maze: Maze, x: float, y: float, theta: float, size=(320, 240)) -> np.ndarray:

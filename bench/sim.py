@@ -50,7 +50,7 @@ class Stopwatch:
     def __init__(self):
         self.wall = self.cpu = 0.0
 
-    def __enter__(self) -> "Stopwatch":
+    def __enter__(self) -> Stopwatch:
         self._wall, self._cpu = time.perf_counter(), time.process_time()
         return self
 

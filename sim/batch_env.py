@@ -18,8 +18,9 @@ neither flag. `info` holds, per sub-env, `collided` and `steps`, and with
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import gymnasium as gym
 import numpy as np

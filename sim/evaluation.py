@@ -13,7 +13,7 @@ actions (and redraws where Lemire's method rejects, as numpy does).
 
 from __future__ import annotations
 
-from typing import Iterable
+from collections.abc import Iterable
 
 import numpy as np
 

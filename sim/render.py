@@ -109,7 +109,7 @@ class _Scene:
     objects: tuple[tuple[Label, float, float], ...]  # label, x, y (metres)
 
 
-_scenes: "weakref.WeakKeyDictionary[Maze, _Scene]" = weakref.WeakKeyDictionary()
+_scenes: weakref.WeakKeyDictionary[Maze, _Scene] = weakref.WeakKeyDictionary()
 
 
 def _scene(maze: Maze) -> _Scene:
@@ -203,11 +203,11 @@ def _cast_columns(walls: _Walls, cam: _Camera, x: float, y: float, theta: float,
         at, lo, hi = edges.at[part], edges.lo[part], edges.hi[part]
         # Ends relative to the camera, in its frame: z ahead, side to the left.
         if edges.vertical:
-            fixed, ox, oy, rd_fixed, rd_along = at - x, x, y, dx, dy
+            fixed, oy, rd_fixed, rd_along = at - x, y, dx, dy
             za, zb = fixed * c + (lo - y) * s, fixed * c + (hi - y) * s
             sa, sb = -fixed * s + (lo - y) * c, -fixed * s + (hi - y) * c
         else:
-            fixed, ox, oy, rd_fixed, rd_along = at - y, y, x, dy, dx
+            fixed, oy, rd_fixed, rd_along = at - y, x, dy, dx
             za, zb = (lo - x) * c + fixed * s, (hi - x) * c + fixed * s
             sa, sb = -(lo - x) * s + fixed * c, -(hi - x) * s + fixed * c
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -392,7 +392,7 @@ def top_down(maze: Maze, pose=None, path=None, rays=None, walls_only: bool = Fal
     return image
 
 
-_maps: "weakref.WeakKeyDictionary[Maze, dict]" = weakref.WeakKeyDictionary()
+_maps: weakref.WeakKeyDictionary[Maze, dict] = weakref.WeakKeyDictionary()
 
 
 def _map_image(maze: Maze, walls_only: bool, scale: float) -> np.ndarray:

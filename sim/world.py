@@ -20,14 +20,16 @@ import json
 import os
 import shutil
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sim.cache import cache_dir as default_cache_dir, save_npz
+from sim.cache import cache_dir as default_cache_dir
+from sim.cache import save_npz
 from sim.dynamics import Action
 from sim.geometry import HEADINGS
 
@@ -58,9 +60,9 @@ class World:
 
     # -- construction -------------------------------------------------------------
     @classmethod
-    def compile(cls, items: Sequence[tuple[str, "Maze", "NavGraph"]], observations: bool = True,
+    def compile(cls, items: Sequence[tuple[str, Maze, NavGraph]], observations: bool = True,
                 obs_dtype=np.float32, cache_dir: str | Path | None = None,
-                rays: Sequence["RayTable"] | None = None) -> "World":
+                rays: Sequence[RayTable] | None = None) -> World:
         """(name, maze, graph) triples in one world; ray tables given (`rays`, one per item) or
         from the maze's cache."""
         from sim.observations import RayTable  # only when observations are compiled
@@ -85,8 +87,8 @@ class World:
                    **{k: np.concatenate(v) for k, v in parts.items()})
 
     @classmethod
-    def build(cls, bench: "Benchmark", runs: Sequence[str], cache_dir: str | Path | None = None,
-              mode: str = "benchmark", observations: bool = True, progress: bool = True) -> "World":
+    def build(cls, bench: Benchmark, runs: Sequence[str], cache_dir: str | Path | None = None,
+              mode: str = "benchmark", observations: bool = True, progress: bool = True) -> World:
         """The benchmark's `runs`, cached on disk by map contents and mode. Observations are
         float16 (half the memory; the learner's input), compiled on first request."""
         key = hashlib.sha256()
@@ -110,7 +112,7 @@ class World:
         return world
 
     @classmethod
-    def _load(cls, folder: Path, observations: bool) -> "World | None":
+    def _load(cls, folder: Path, observations: bool) -> World | None:
         if not (folder / "names.json").exists() or (observations and not (folder / "obs.npy").exists()):
             return None
         try:
@@ -209,7 +211,7 @@ class World:
                 | np.asarray(self.collides).astype(dtype))
 
 
-def goal_rows(graph: "NavGraph", goals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def goal_rows(graph: NavGraph, goals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Distance (K, N) and next hop (K, N) toward each goal node from every node of `graph`."""
     goals = np.asarray(goals, dtype=np.int64)
     # Columns, not the transposed rows: Dijkstra's sums differ in the last bit.
@@ -228,8 +230,8 @@ class EpisodeGeometry:
     goal_next: np.ndarray  # (M, Nmax) next local node toward the goal; -1 where no path
 
     @classmethod
-    def build(cls, bench: "Benchmark", world: World, instances: Sequence["NDHInstance"],
-              start: str = "episode", mode: str = "benchmark") -> "EpisodeGeometry":
+    def build(cls, bench: Benchmark, world: World, instances: Sequence[NDHInstance],
+              start: str = "episode", mode: str = "benchmark") -> EpisodeGeometry:
         """Cached on disk beside the world (the start protocol walks the teacher, and the
         goal rows come from the all-pairs tables)."""
         from sim.benchmark import START_MODES, goal_node

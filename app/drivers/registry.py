@@ -62,7 +62,7 @@ def driver_names() -> list[str]:
     return sorted(set(BUILTIN) | set(_REGISTERED))
 
 
-def available_drivers(services: "Services") -> dict[str, str | None]:
+def available_drivers(services: Services) -> dict[str, str | None]:
     """Every agent Driver by name, with the reason it cannot start now, or None when it can."""
     result = {}
     for name in driver_names():
@@ -71,5 +71,5 @@ def available_drivers(services: "Services") -> dict[str, str | None]:
     return result
 
 
-def create_driver(name: str, info: dict[str, Any], services: "Services") -> DriverPolicy:
+def create_driver(name: str, info: dict[str, Any], services: Services) -> DriverPolicy:
     return _entry(name).factory(info, services)

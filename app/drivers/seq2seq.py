@@ -18,7 +18,7 @@ NO_CHECKPOINT = ("agent:seq2seq needs a checkpoint: this install ships none; set
                  "to a file written by `robotslang train ndh` (e.g. RUN/best.pt)")
 
 
-def seq2seq_checkpoint(services: "Services") -> Path | None:
+def seq2seq_checkpoint(services: Services) -> Path | None:
     """The setting where given, else the package's shipped Driver (None where it has none)."""
     if services.settings.seq2seq_checkpoint is not None:
         return services.settings.seq2seq_checkpoint
@@ -27,7 +27,7 @@ def seq2seq_checkpoint(services: "Services") -> Path | None:
     return default_checkpoint()
 
 
-def seq2seq_check(services: "Services") -> str | None:
+def seq2seq_check(services: Services) -> str | None:
     """Why the checkpoint cannot be seated, or None; loaded once per version of the file."""
     checkpoint = seq2seq_checkpoint(services)
     if checkpoint is None:
@@ -48,7 +48,7 @@ def seq2seq_check(services: "Services") -> str | None:
     return services.driver_checks[key]
 
 
-def seq2seq_driver(info: dict[str, Any], services: "Services"):
+def seq2seq_driver(info: dict[str, Any], services: Services):
     checkpoint = seq2seq_checkpoint(services)
     if checkpoint is None:
         raise LookupError(NO_CHECKPOINT)

@@ -15,8 +15,7 @@ from app.db.models import Participant, Robot, Team, Trial
 from app.drivers.registry import available_drivers
 from app.guard import csrf_protect, current_login
 from app.routes.pages import render, trial_or_404
-from app.trial.setup import (TrialSetupError, create_participant, create_team, create_trial, parse_targets,
-                             suggest_maze)
+from app.trial.setup import TrialSetupError, create_participant, create_team, create_trial, parse_targets, suggest_maze
 from app.trial.state import fold
 from app.trial.vocabulary import Role
 

@@ -9,9 +9,8 @@ from app.db.models import Trial
 from app.guard import csrf_protect, current_login
 from app.leaderboard import agent_standings, standings
 from app.login import TooManyAttempts
-from app.trial.state import fold
 from app.security import SESSION_COOKIE, SESSION_MAX_AGE_S, ExpiredLink, InvalidToken, Seat
-
+from app.trial.state import fold
 
 router = APIRouter()
 

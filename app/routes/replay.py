@@ -18,11 +18,11 @@ from sqlalchemy import select
 from app.db.models import Frame, Team, Trial
 from app.export.record import ExportError, TrialRecord
 from app.export.source import load_trial
-from app.mazes import UnknownMaze
-from sim.maze import Maze
 from app.guard import csrf_protect
+from app.mazes import UnknownMaze
 from app.routes.experimenter import experimenter
 from app.routes.pages import render
+from sim.maze import Maze
 
 router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter), Depends(csrf_protect)])
 REPLAYABLE = ("finished", "aborted")

@@ -18,13 +18,26 @@ import time
 from fastapi import APIRouter, Depends, Form, HTTPException, Request, WebSocket, WebSocketDisconnect
 
 from app.backends.remote import (
-    MAX_FRAME_BYTES, PING_INTERVAL_S, RobotLink, RobotSetupError, create_robot, robot_for_token, robot_links,
+    MAX_FRAME_BYTES,
+    PING_INTERVAL_S,
+    RobotLink,
+    RobotSetupError,
+    create_robot,
+    robot_for_token,
+    robot_links,
 )
 from app.guard import csrf_protect, socket_origin_allowed
 from app.routes.experimenter import experimenter
 from app.serving import MESSAGE_TOO_BIG
 from robot_client.protocol import (
-    CLOSE_REFUSED, CLOSE_REPLACED, PROTOCOL_VERSION, ROBOT_TYPES, ROLES, ProtocolError, decode, encode,
+    CLOSE_REFUSED,
+    CLOSE_REPLACED,
+    PROTOCOL_VERSION,
+    ROBOT_TYPES,
+    ROLES,
+    ProtocolError,
+    decode,
+    encode,
     unpack_frame,
 )
 

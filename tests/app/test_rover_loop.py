@@ -16,18 +16,25 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.db.models import Experimenter
-
 from app.export.ndh import ndh_instances
 from app.export.source import load_trial
 from app.perception.cameras import learned
 from sim.camera import FrontCamera
 from sim.geometry import SUCCESS_RADIUS_M
 from tests.app.live import make_trial
-from tests.app.test_status import Watch
-from tests.app.test_seq2seq_seat import stopping_checkpoint  # noqa: F401  (a fixture; needs the benchmark)
 from tests.app.test_disconnect_and_control import login
+from tests.app.test_seq2seq_seat import stopping_checkpoint  # noqa: F401  (a fixture; needs the benchmark)
+from tests.app.test_status import Watch
 from tests.app.test_virtual_rover import (  # noqa: F401  (fixtures)
-    MAZE, START_S, Lab, anyio_backend, maze, settled, start, turned, until,
+    MAZE,
+    START_S,
+    Lab,
+    anyio_backend,
+    maze,
+    settled,
+    start,
+    turned,
+    until,
 )
 
 pytestmark = pytest.mark.anyio
@@ -97,7 +104,7 @@ async def test_a_rover_trial_records_tracked_poses_belief_truly_within_and_all_n
             await watch.event("pose", source="tracker")
 
             await commander.send("localize", x=rest.x, y=rest.y)
-            for k, target in enumerate(TARGETS):
+            for k in range(len(TARGETS)):
                 await driver.send("claim")
                 await commander.event("target_claimed", target_index=k, timeout=START_S)
                 await commander.send("confirm")
