@@ -30,19 +30,6 @@ function draw() {
   }
 }
 
-// The particle filter's belief: weighted points and their mean, in purple (experimenter only).
-function drawBelief(b) {
-  const wmax = Math.max(...b.points.map((p) => p[2]));
-  ctx.fillStyle = "#c020c0";
-  for (const [x, y, w] of b.points) {
-    const {cx, cy} = TableMap.toCanvas(canvas, x, y);
-    ctx.globalAlpha = 0.25 + 0.75 * w / wmax;
-    ctx.fillRect(cx - 1.5, cy - 1.5, 3, 3);
-  }
-  ctx.globalAlpha = 1;
-  TableMap.drawRobot(ctx, canvas, b.mean[0], b.mean[1], b.mean[2], "#c020c0");
-}
-
 // The particle filter's belief: weighted points and their mean, in teal (experimenter only).
 function drawBelief(b) {
   const wmax = Math.max(...b.points.map((p) => p[2]));
