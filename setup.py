@@ -12,5 +12,7 @@ SHIPPED_IN_APP = {
     "app.migrations.versions": "migrations/versions",
 }
 
-setup(packages=find_packages(include=["app", "app.*", "sim", "sim.*", "models", "models.*"]) + list(SHIPPED_IN_APP),
-      package_dir=SHIPPED_IN_APP)
+setup(
+    packages=find_packages(include=["app", "app.*", "sim", "sim.*", "models", "models.*"]) + list(SHIPPED_IN_APP),
+    package_dir=SHIPPED_IN_APP,
+)

@@ -13,8 +13,9 @@ from app import commands as app_commands
 from models import cli as model_commands
 from sim import cli as sim_commands
 
-root = typer.Typer(help="RobotSlang: dialog-guided robot localization and navigation.",
-                   no_args_is_help=True, add_completion=False)
+root = typer.Typer(
+    help="RobotSlang: dialog-guided robot localization and navigation.", no_args_is_help=True, add_completion=False
+)
 eval_app = typer.Typer(help="Evaluate agents on the benchmark's NDH instances.", no_args_is_help=True)
 
 
@@ -34,8 +35,11 @@ def show_version(value: bool) -> None:
 
 
 @root.callback()
-def _root(version_: bool | None = typer.Option(None, "--version", callback=show_version, is_eager=True,
-                                                  help="Print the installed version and exit.")) -> None:
+def _root(
+    version_: bool | None = typer.Option(
+        None, "--version", callback=show_version, is_eager=True, help="Print the installed version and exit."
+    ),
+) -> None:
     """RobotSlang: dialog-guided robot localization and navigation."""
 
 
@@ -51,8 +55,11 @@ def main() -> None:
     except ModuleNotFoundError as err:
         if err.name != "torch":
             raise
-        typer.echo("error: this command needs PyTorch, which the server and simulator do without: "
-                   "pip install 'robotslang[learn]' (the README says how to get its CPU build)", err=True)
+        typer.echo(
+            "error: this command needs PyTorch, which the server and simulator do without: "
+            "pip install 'robotslang[learn]' (the README says how to get its CPU build)",
+            err=True,
+        )
         raise SystemExit(1) from None
 
 

@@ -12,31 +12,43 @@ import typer
 MOUNTED = ("app.export.cli", "app.demo.cli", "app.robot_commands")
 
 
-def serve(host: str = typer.Option("127.0.0.1", help="Interface to listen on."),
-          port: int = typer.Option(8000, help="TCP port."),
-          data_dir: Path | None = typer.Option(None, "--data-dir", help="Database, frames and secret key "
-                                                  "(default ROBOTSLANG_DATA_DIR, else ./var)."),
-          benchmark: Path | None = typer.Option(None, "--benchmark", help="A RobotSlangBenchmark clone whose "
-                                                   "mazes join the bundled ones (default ROBOTSLANG_BENCHMARK)."),
-          workers: int = typer.Option(1, min=1, help="Server processes sharing trials (over 1: needs "
-                                                     "ROBOTSLANG_REDIS_URL; see docs/platform.md).")) -> None:
+def serve(
+    host: str = typer.Option("127.0.0.1", help="Interface to listen on."),
+    port: int = typer.Option(8000, help="TCP port."),
+    data_dir: Path | None = typer.Option(
+        None, "--data-dir", help="Database, frames and secret key (default ROBOTSLANG_DATA_DIR, else ./var)."
+    ),
+    benchmark: Path | None = typer.Option(
+        None,
+        "--benchmark",
+        help="A RobotSlangBenchmark clone whose mazes join the bundled ones (default ROBOTSLANG_BENCHMARK).",
+    ),
+    workers: int = typer.Option(
+        1, min=1, help="Server processes sharing trials (over 1: needs ROBOTSLANG_REDIS_URL; see docs/platform.md)."
+    ),
+) -> None:
     """Serve the platform (pages, trial sockets) on HOST:PORT."""
     from app.serving import serve_processes
 
     # Flags override the environment; what is not given keeps its ROBOTSLANG_* value.
-    overrides: dict[str, Any] = {name: value for name, value in (("data_dir", data_dir), ("benchmark", benchmark))
-                                 if value is not None}
+    overrides: dict[str, Any] = {
+        name: value for name, value in (("data_dir", data_dir), ("benchmark", benchmark)) if value is not None
+    }
     serve_processes(host, port, workers, overrides)
 
 
-def admin_create(name: str = typer.Argument(..., help="The experimenter's login name."),
-                 password: str | None = typer.Option(None, help="Prompted for when not given.")) -> None:
+def admin_create(
+    name: str = typer.Argument(..., help="The experimenter's login name."),
+    password: str | None = typer.Option(None, help="Prompted for when not given."),
+) -> None:
     """Create an experimenter account (or set the password of an existing one)."""
     _set_password(name, password, create=True)
 
 
-def admin_password(name: str = typer.Argument(..., help="The experimenter's login name."),
-                   password: str | None = typer.Option(None, help="Prompted for when not given.")) -> None:
+def admin_password(
+    name: str = typer.Argument(..., help="The experimenter's login name."),
+    password: str | None = typer.Option(None, help="Prompted for when not given."),
+) -> None:
     """Change an experimenter's password; the account's logins end everywhere."""
     _set_password(name, password, create=False)
 
@@ -55,8 +67,9 @@ def _set_password(name: str, password: str | None, create: bool) -> None:
     with db_sessions() as db:
         exists = db.scalar(select(Experimenter.id).where(Experimenter.name == name)) is not None
     if not exists and not create:
-        raise typer.BadParameter(f"no experimenter {name!r} (create one with `robotslang admin create`)",
-                                 param_hint="NAME")
+        raise typer.BadParameter(
+            f"no experimenter {name!r} (create one with `robotslang admin create`)", param_hint="NAME"
+        )
     if password is None:
         password = typer.prompt("Password", hide_input=True, confirmation_prompt=True)
     if len(password) < 8:

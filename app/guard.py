@@ -30,9 +30,11 @@ PAGE_SCHEMES = {"ws": "http", "wss": "https", "http": "http", "https": "https"}
 _BROWSER_ID = re.compile(r"[A-Za-z0-9_-]{32}")
 
 # Scripts and styles only from /static (no inline code); camera frames arrive as data: URLs.
-CONTENT_SECURITY_POLICY = ("default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data:; "
-                           "connect-src 'self'; object-src 'none'; base-uri 'none'; form-action 'self'; "
-                           "frame-ancestors 'none'")
+CONTENT_SECURITY_POLICY = (
+    "default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data:; "
+    "connect-src 'self'; object-src 'none'; base-uri 'none'; form-action 'self'; "
+    "frame-ancestors 'none'"
+)
 SECURITY_HEADERS = {
     "content-security-policy": CONTENT_SECURITY_POLICY,
     "x-content-type-options": "nosniff",
@@ -62,7 +64,9 @@ def origin_allowed(origin: str, scheme: str, host: str | None, settings: Setting
     claimed = origin_of(origin)
     if claimed is None:
         return False
-    return claimed == origin_of(f"{scheme}://{host or ''}") or claimed in {origin_of(o) for o in settings.allowed_origins}
+    return claimed == origin_of(f"{scheme}://{host or ''}") or claimed in {
+        origin_of(o) for o in settings.allowed_origins
+    }
 
 
 def socket_origin_allowed(headers: Headers, scheme: str, settings: Settings) -> bool:
@@ -119,8 +123,9 @@ class GuardMiddleware:
             if scope["type"] == "websocket":
                 await send({"type": "websocket.close", "code": 1008, "reason": "host not allowed"})
             else:
-                response = PlainTextResponse("this server is not served under that host name", 400,
-                                             headers=SECURITY_HEADERS)
+                response = PlainTextResponse(
+                    "this server is not served under that host name", 400, headers=SECURITY_HEADERS
+                )
                 await response(scope, receive, send)
             return
         if scope["type"] == "websocket":
@@ -139,8 +144,9 @@ class GuardMiddleware:
                 for name, value in SECURITY_HEADERS.items():
                     response_headers[name] = value
                 if new_browser:
-                    response_headers.append("set-cookie", f"{BROWSER_COOKIE}={browser_id}; Path=/; HttpOnly; "
-                                                          f"SameSite=Strict{secure}")
+                    response_headers.append(
+                        "set-cookie", f"{BROWSER_COOKIE}={browser_id}; Path=/; HttpOnly; SameSite=Strict{secure}"
+                    )
             await send(message)
 
         await self.app(scope, receive, send_guarded)
@@ -185,6 +191,5 @@ async def csrf_protect(request: Request) -> None:
     token: object = request.headers.get(CSRF_HEADER)
     if token is None:
         token = (await request.form()).get(CSRF_FIELD)
-    if not isinstance(token, str) or not services.csrf.verify(token, request.state.browser_id,
-                                                              current_login(request)):
+    if not isinstance(token, str) or not services.csrf.verify(token, request.state.browser_id, current_login(request)):
         raise HTTPException(403, "refused: the page's security token is missing or stale; reload the page and retry")

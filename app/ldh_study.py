@@ -57,8 +57,17 @@ class Answer:
     @classmethod
     def of(cls, event: LDHStudyEvent) -> Answer:
         p = event.payload
-        return cls(event.seq, event.t_ns, p["participant_id"], p["position"], p["x"], p["y"], p["heading"],
-                   p["td"], p["euclid"])
+        return cls(
+            event.seq,
+            event.t_ns,
+            p["participant_id"],
+            p["position"],
+            p["x"],
+            p["y"],
+            p["heading"],
+            p["td"],
+            p["euclid"],
+        )
 
 
 class Studies:
@@ -83,8 +92,10 @@ class Studies:
         path = Path(source).expanduser().resolve()
         roots = [settings.data_dir.resolve()] + ([settings.benchmark.resolve()] if settings.benchmark else [])
         if not any(path == root or root in path.parents for root in roots):
-            raise StudyError(f"{source}: a study draws from the configured benchmark or a folder under "
-                             f"{settings.data_dir} (an export of this platform's trials)")
+            raise StudyError(
+                f"{source}: a study draws from the configured benchmark or a folder under "
+                f"{settings.data_dir} (an export of this platform's trials)"
+            )
         return path
 
     def benchmark(self, source: str) -> Benchmark:
@@ -107,8 +118,9 @@ class Studies:
         return self._maps[source, run]
 
     # -- the experimenter -------------------------------------------------------------
-    def create(self, experimenter_id: int, name: str, source: str, split: str, variant: str,
-               limit: int | None = None) -> int:
+    def create(
+        self, experimenter_id: int, name: str, source: str, split: str, variant: str, limit: int | None = None
+    ) -> int:
         """A new study of the split's instances (the first `limit` of them); its id."""
         name = name.strip()
         if not name:
@@ -128,13 +140,28 @@ class Studies:
         if not instances:
             raise StudyError(f"{source}: split {split} has no LDH instances")
         with self.services.db.begin() as db:
-            study = LDHStudy(name=name[:80], source=source, split=split, variant=instances[0].variant.value,
-                             experimenter_id=experimenter_id)
+            study = LDHStudy(
+                name=name[:80],
+                source=source,
+                split=split,
+                variant=instances[0].variant.value,
+                experimenter_id=experimenter_id,
+            )
             db.add(study)
             db.flush()
-            db.add_all(LDHStudyInstance(study_id=study.id, position=k, inst_idx=i.inst_idx, run=i.run,
-                                        dialog=[list(t) for t in i.dialog], true_x=i.x, true_y=i.y,
-                                        true_heading=i.heading) for k, i in enumerate(instances))
+            db.add_all(
+                LDHStudyInstance(
+                    study_id=study.id,
+                    position=k,
+                    inst_idx=i.inst_idx,
+                    run=i.run,
+                    dialog=[list(t) for t in i.dialog],
+                    true_x=i.x,
+                    true_y=i.y,
+                    true_heading=i.heading,
+                )
+                for k, i in enumerate(instances)
+            )
             study_id = study.id
         self._append(study_id, EventKind.CREATED, {"split": split, "variant": study.variant, "n": len(instances)})
         return study_id
@@ -167,13 +194,23 @@ class Studies:
 
     def instances(self, study_id: int) -> list[LDHStudyInstance]:
         with self.services.db() as db:
-            return list(db.scalars(select(LDHStudyInstance).where(LDHStudyInstance.study_id == study_id)
-                                   .order_by(LDHStudyInstance.position)))
+            return list(
+                db.scalars(
+                    select(LDHStudyInstance)
+                    .where(LDHStudyInstance.study_id == study_id)
+                    .order_by(LDHStudyInstance.position)
+                )
+            )
 
     def participants(self, study_id: int) -> list[LDHStudyParticipant]:
         with self.services.db() as db:
-            return list(db.scalars(select(LDHStudyParticipant).where(LDHStudyParticipant.study_id == study_id)
-                                   .order_by(LDHStudyParticipant.id)))
+            return list(
+                db.scalars(
+                    select(LDHStudyParticipant)
+                    .where(LDHStudyParticipant.study_id == study_id)
+                    .order_by(LDHStudyParticipant.id)
+                )
+            )
 
     def participant(self, study_id: int, participant_id: int) -> LDHStudyParticipant:
         """The participant a link names, who must belong to the study it names."""
@@ -185,9 +222,11 @@ class Studies:
 
     def answers(self, study_id: int, participant_id: int | None = None) -> list[Answer]:
         with self.services.db() as db:
-            rows = db.scalars(select(LDHStudyEvent).where(LDHStudyEvent.study_id == study_id,
-                                                          LDHStudyEvent.kind == EventKind.ANSWERED.value)
-                              .order_by(LDHStudyEvent.seq))
+            rows = db.scalars(
+                select(LDHStudyEvent)
+                .where(LDHStudyEvent.study_id == study_id, LDHStudyEvent.kind == EventKind.ANSWERED.value)
+                .order_by(LDHStudyEvent.seq)
+            )
             answers = [Answer.of(r) for r in rows]
         return [a for a in answers if participant_id is None or a.participant_id == participant_id]
 
@@ -198,14 +237,16 @@ class Studies:
         done = len(self.answers(study_id, participant_id))
         return done if done < n else None
 
-    def answer(self, study_id: int, participant_id: int, position: int, x: float, y: float,
-               heading: float | None) -> Answer:
+    def answer(
+        self, study_id: int, participant_id: int, position: int, x: float, y: float, heading: float | None
+    ) -> Answer:
         """Score and record a mark; refused for any instance but the one the participant is on."""
         with self._answering:
             return self._answer(study_id, participant_id, position, x, y, heading)
 
-    def _answer(self, study_id: int, participant_id: int, position: int, x: float, y: float,
-                heading: float | None) -> Answer:
+    def _answer(
+        self, study_id: int, participant_id: int, position: int, x: float, y: float, heading: float | None
+    ) -> Answer:
         expected = self.next_position(study_id, participant_id)
         if expected is None:
             raise StudyError("you have answered every instance of this study")
@@ -216,21 +257,37 @@ class Studies:
         if heading is not None and not math.isfinite(heading):
             raise StudyError("the heading must be a number of radians")
         study, inst = self.study(study_id), self.instances(study_id)[position]
-        truth = LDHInstance(inst.inst_idx, inst.run, inst.true_x, inst.true_y, inst.true_heading, (),
-                            Variant(study.variant))
+        truth = LDHInstance(
+            inst.inst_idx, inst.run, inst.true_x, inst.true_y, inst.true_heading, (), Variant(study.variant)
+        )
         ctx = self.context(study.source, inst.run)
         td, euclid, _ = score(ctx, ctx.one_hot(ctx.node_at(x, y)), truth)
-        payload = {"participant_id": participant_id, "position": position, "inst_idx": inst.inst_idx,
-                   "x": x, "y": y, "heading": heading, "td": td, "euclid": euclid}
-        seq, t_ns = self._append(study_id, EventKind.ANSWERED, payload,
-                                 unique=lambda db: self._answered(db, study_id, participant_id, position))
+        payload = {
+            "participant_id": participant_id,
+            "position": position,
+            "inst_idx": inst.inst_idx,
+            "x": x,
+            "y": y,
+            "heading": heading,
+            "td": td,
+            "euclid": euclid,
+        }
+        seq, t_ns = self._append(
+            study_id,
+            EventKind.ANSWERED,
+            payload,
+            unique=lambda db: self._answered(db, study_id, participant_id, position),
+        )
         return Answer(seq, t_ns, participant_id, position, x, y, heading, td, euclid)
 
     @staticmethod
     def _answered(db, study_id: int, participant_id: int, position: int) -> bool:
         """Whether the participant's answer to `position` is already in the log (a double submit)."""
-        rows = db.execute(select(LDHStudyEvent.payload).where(LDHStudyEvent.study_id == study_id,
-                                                              LDHStudyEvent.kind == EventKind.ANSWERED.value))
+        rows = db.execute(
+            select(LDHStudyEvent.payload).where(
+                LDHStudyEvent.study_id == study_id, LDHStudyEvent.kind == EventKind.ANSWERED.value
+            )
+        )
         return any(p["participant_id"] == participant_id and p["position"] == position for (p,) in rows)
 
     # -- the log ----------------------------------------------------------------------
@@ -241,12 +298,17 @@ class Studies:
                 with self.services.db.begin() as db:
                     if unique is not None and unique(db):
                         raise StudyError("this instance is answered already")
-                    last_seq, last_t = db.execute(select(func.max(LDHStudyEvent.seq), func.max(LDHStudyEvent.t_ns))
-                                                  .where(LDHStudyEvent.study_id == study_id)).one()
+                    last_seq, last_t = db.execute(
+                        select(func.max(LDHStudyEvent.seq), func.max(LDHStudyEvent.t_ns)).where(
+                            LDHStudyEvent.study_id == study_id
+                        )
+                    ).one()
                     seq = (last_seq or 0) + 1
                     t_ns = max(self.services.clock.now_ns(), (last_t or 0) + 1)
-                    db.execute(insert(LDHStudyEvent), {"study_id": study_id, "seq": seq, "kind": kind.value,
-                                                       "t_ns": t_ns, "payload": payload})
+                    db.execute(
+                        insert(LDHStudyEvent),
+                        {"study_id": study_id, "seq": seq, "kind": kind.value, "t_ns": t_ns, "payload": payload},
+                    )
                 return seq, t_ns
             except IntegrityError:
                 continue
@@ -258,35 +320,79 @@ class Studies:
         study, instances = self.study(study_id), self.instances(study_id)
         names = {p.id: p.name for p in self.participants(study_id)}
         rows = [answer_row(a, names[a.participant_id], instances[a.position]) for a in self.answers(study_id)]
-        per_participant = [{"participant_id": pid, "participant": name,
-                            **_summary([r for r in rows if r["participant"] == name], len(instances))}
-                           for pid, name in names.items()]
-        per_instance = [{"position": i.position, "inst_idx": i.inst_idx, "run": i.run,
-                         **_summary([r for r in rows if r["position"] == i.position], len(names))}
-                        for i in instances]
-        return {"study": {"id": study.id, "name": study.name, "split": study.split, "variant": study.variant,
-                          "source": study.source, "n_instances": len(instances)},
-                "answers": rows, "per_participant": per_participant, "per_instance": per_instance}
+        per_participant = [
+            {
+                "participant_id": pid,
+                "participant": name,
+                **_summary([r for r in rows if r["participant"] == name], len(instances)),
+            }
+            for pid, name in names.items()
+        ]
+        per_instance = [
+            {
+                "position": i.position,
+                "inst_idx": i.inst_idx,
+                "run": i.run,
+                **_summary([r for r in rows if r["position"] == i.position], len(names)),
+            }
+            for i in instances
+        ]
+        return {
+            "study": {
+                "id": study.id,
+                "name": study.name,
+                "split": study.split,
+                "variant": study.variant,
+                "source": study.source,
+                "n_instances": len(instances),
+            },
+            "answers": rows,
+            "per_participant": per_participant,
+            "per_instance": per_instance,
+        }
 
 
-CSV_COLUMNS = ("seq", "t_ns", "participant", "position", "inst_idx", "run", "x", "y", "heading", "true_x",
-               "true_y", "true_heading", "td", "euclid")
+CSV_COLUMNS = (
+    "seq",
+    "t_ns",
+    "participant",
+    "position",
+    "inst_idx",
+    "run",
+    "x",
+    "y",
+    "heading",
+    "true_x",
+    "true_y",
+    "true_heading",
+    "td",
+    "euclid",
+)
 
 
 def answer_row(a: Answer, participant: str, inst: LDHStudyInstance) -> dict[str, Any]:
     row = asdict(a)
     row.pop("participant_id")
-    return {**row, "participant": participant, "inst_idx": inst.inst_idx, "run": inst.run,
-            "true_x": inst.true_x, "true_y": inst.true_y, "true_heading": inst.true_heading}
+    return {
+        **row,
+        "participant": participant,
+        "inst_idx": inst.inst_idx,
+        "run": inst.run,
+        "true_x": inst.true_x,
+        "true_y": inst.true_y,
+        "true_heading": inst.true_heading,
+    }
 
 
 def _summary(rows: list[dict[str, Any]], of: int) -> dict[str, Any]:
     """Answers given out of `of`, mean TD and Euclidean error, and accuracy per radius (None with none)."""
     n = len(rows)
-    out: dict[str, Any] = {"answered": n, "of": of,
-                           "td_mean": sum(r["td"] for r in rows) / n if n else None,
-                           "euclid_mean": sum(r["euclid"] for r in rows) / n if n else None}
+    out: dict[str, Any] = {
+        "answered": n,
+        "of": of,
+        "td_mean": sum(r["td"] for r in rows) / n if n else None,
+        "euclid_mean": sum(r["euclid"] for r in rows) / n if n else None,
+    }
     for radius in ACC_RADII_M:
         out[f"acc_{radius}"] = sum(r["td"] <= radius for r in rows) / n if n else None
     return out
-

@@ -48,15 +48,20 @@ def trial_score(active_s: float, moves: int, move_penalty_s: float) -> float:
 
 
 def _finished(db: Session):
-    return db.execute(select(Trial, Team.name).join(Team, Team.id == Trial.team_id)
-                      .where(Trial.phase == Phase.FINISHED, Trial.active_s.is_not(None))).all()
+    return db.execute(
+        select(Trial, Team.name)
+        .join(Team, Team.id == Trial.team_id)
+        .where(Trial.phase == Phase.FINISHED, Trial.active_s.is_not(None))
+    ).all()
 
 
 def _ranked(groups: dict[str, tuple[list[float], set[str]]]):
     """(rank, key, sorted names, count, best, mean), best first (ties by key)."""
     ordered = sorted(groups.items(), key=lambda kv: (min(kv[1][0]), kv[0]))
-    return [(i + 1, key, tuple(sorted(names)), len(s), min(s), sum(s) / len(s))
-            for i, (key, (s, names)) in enumerate(ordered)]
+    return [
+        (i + 1, key, tuple(sorted(names)), len(s), min(s), sum(s) / len(s))
+        for i, (key, (s, names)) in enumerate(ordered)
+    ]
 
 
 def standings(db: Session, move_penalty_s: float) -> list[TeamStanding]:

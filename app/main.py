@@ -37,11 +37,21 @@ def build_services(settings: Settings) -> Services:
     upgrade(settings, engine)
     db = make_sessionmaker(engine)
     key = settings.signing_key()
-    logins = LoginGuard(db, settings.login_limit_per_account, settings.login_limit_per_address,
-                        settings.password_check_concurrency)
-    services = Services(settings=settings, engine=engine, db=db, clock=ServerClock(), log=EventLog(db),
-                        seats=SeatTokens(key, settings.join_link_ttl_s), sessions=Sessions(key, db),
-                        csrf=CsrfTokens(key), logins=logins, mazes=Mazes(settings))
+    logins = LoginGuard(
+        db, settings.login_limit_per_account, settings.login_limit_per_address, settings.password_check_concurrency
+    )
+    services = Services(
+        settings=settings,
+        engine=engine,
+        db=db,
+        clock=ServerClock(),
+        log=EventLog(db),
+        seats=SeatTokens(key, settings.join_link_ttl_s),
+        sessions=Sessions(key, db),
+        csrf=CsrfTokens(key),
+        logins=logins,
+        mazes=Mazes(settings),
+    )
     services.hub = TrialHub(services)
     return services
 
@@ -63,8 +73,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     services = build_services(settings)
     password = ensure_experimenter(services)
     if password is not None:
-        print(f"First start: experimenter 'admin' created with password {password} (shown only once)",
-              flush=True)
+        print(f"First start: experimenter 'admin' created with password {password} (shown only once)", flush=True)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):

@@ -172,4 +172,3 @@ def _encode(ext: str, image: np.ndarray) -> bytes:
     if not ok:
         raise RuntimeError(f"could not encode a {ext} image")
     return buffer.tobytes()
-

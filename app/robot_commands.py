@@ -21,9 +21,12 @@ def _sessions():
     return open_database(Settings())
 
 
-def robot_create(name: str = typer.Argument(..., help="The robot's name, unique on this server."),
-                 role: str = typer.Option("driver", help=f"One of: {', '.join(ROBOT_ROLES)} "
-                                                         "(the rover, or the camera over the table).")) -> None:
+def robot_create(
+    name: str = typer.Argument(..., help="The robot's name, unique on this server."),
+    role: str = typer.Option(
+        "driver", help=f"One of: {', '.join(ROBOT_ROLES)} (the rover, or the camera over the table)."
+    ),
+) -> None:
     """Register a robot and print its token (shown only this once)."""
     from app.backends.remote import RobotSetupError, create_robot
 
@@ -60,20 +63,27 @@ def robot_list() -> None:
 
 def robot_virtual(
     server: str = typer.Option(..., help="Server URL, e.g. http://127.0.0.1:8000."),
-    token: str = typer.Option(..., envvar="ROBOTSLANG_ROBOT_TOKEN",
-                              help="The robot's token from `robotslang robot create` (or ROBOTSLANG_ROBOT_TOKEN)."),
+    token: str = typer.Option(
+        ...,
+        envvar="ROBOTSLANG_ROBOT_TOKEN",
+        help="The robot's token from `robotslang robot create` (or ROBOTSLANG_ROBOT_TOKEN).",
+    ),
     maze: str = typer.Option(..., help="The maze on the table (a name from `robotslang mazes list`)."),
     role: str = typer.Option("driver", help="driver: the rover (motors, front camera); overhead: the table camera."),
     seed: int = typer.Option(0, help="Seeds the start pose, the motion errors and the camera noise."),
     noise: str = typer.Option("default", help="Motion error of each pulse: default or none (exact moves)."),
-    truth: Path | None = typer.Option(None, help="Driver: write the true pose here (JSON lines); "
-                                                 "overhead: the driver rover's file to film."),
-    start: str | None = typer.Option(None, help="Start pose X,Y,THETA (metres, metres, radians); "
-                                                "default a random node, from --seed."),
-    fps: float | None = typer.Option(None, help="Camera frames per second, 0.5..60 "
-                                                "[default: 15 for the rover, 5 for the overhead camera]."),
-    calibration: Path | None = typer.Option(None, help="Move timings as `robotslang-robot calibrate` writes "
-                                                       "them (default: the client's defaults)."),
+    truth: Path | None = typer.Option(
+        None, help="Driver: write the true pose here (JSON lines); overhead: the driver rover's file to film."
+    ),
+    start: str | None = typer.Option(
+        None, help="Start pose X,Y,THETA (metres, metres, radians); default a random node, from --seed."
+    ),
+    fps: float | None = typer.Option(
+        None, help="Camera frames per second, 0.5..60 [default: 15 for the rover, 5 for the overhead camera]."
+    ),
+    calibration: Path | None = typer.Option(
+        None, help="Move timings as `robotslang-robot calibrate` writes them (default: the client's defaults)."
+    ),
 ) -> None:
     """Run a software rover (or overhead camera) through the real rover client's link."""
     import sys
@@ -90,9 +100,12 @@ def robot_virtual(
     fps = fps if fps is not None else (15.0 if role == "driver" else 5.0)
     if not 0.5 <= fps <= 60:
         raise typer.BadParameter(f"must be 0.5..60 frames per second, got {fps}", param_hint="--fps")
-    checks = [("--server", lambda: robot_url(server)), ("--noise", lambda: MotionNoise.named(noise)),
-              ("--start", lambda: start and parse_start(start)),
-              ("--calibration", lambda: calibration and Calibration.load(calibration))]
+    checks = [
+        ("--server", lambda: robot_url(server)),
+        ("--noise", lambda: MotionNoise.named(noise)),
+        ("--start", lambda: start and parse_start(start)),
+        ("--calibration", lambda: calibration and Calibration.load(calibration)),
+    ]
     values = {}
     for hint, check in checks:
         try:
@@ -105,8 +118,9 @@ def robot_virtual(
     except UnknownMaze as err:
         raise typer.BadParameter(f"{err}; known: {', '.join(mazes.names()[:8])}, ...", param_hint="--maze") from None
     if role == "overhead" and truth is None:
-        raise typer.BadParameter("the overhead camera films the driver rover's truth file: give its path",
-                                 param_hint="--truth")
+        raise typer.BadParameter(
+            "the overhead camera films the driver rover's truth file: give its path", param_hint="--truth"
+        )
     if values["--start"]:
         from sim.rover import Rover
 
@@ -114,20 +128,34 @@ def robot_virtual(
             Rover(table, values["--start"])
         except ValueError as err:
             raise typer.BadParameter(str(err), param_hint="--start") from None
-    spec = VirtualRoverSpec(server=server, token=token, maze=table, role=role, seed=seed,
-                            noise=values["--noise"], truth=truth, start=values["--start"] or None,
-                            fps=fps, calibration=values["--calibration"] or Calibration())
+    spec = VirtualRoverSpec(
+        server=server,
+        token=token,
+        maze=table,
+        role=role,
+        seed=seed,
+        noise=values["--noise"],
+        truth=truth,
+        start=values["--start"] or None,
+        fps=fps,
+        calibration=values["--calibration"] or Calibration(),
+    )
     graph = mazes.graph(maze) if role == "driver" and spec.start is None else None
     sys.exit(run(spec, graph))
 
 
 def calibrate_overhead(
-        camera: str = typer.Option(None, help="The overhead camera: an OpenCV index (0), a video file or a URL."),
-        image: Path = typer.Option(None, help="Calibrate from this image file instead of a camera."),
-        out: Path = typer.Option(None, help="Where to write the calibration (default: the overhead_calibration "
-                                            "setting, DATA_DIR/overhead_calibration.json)."),
-        fov: float = typer.Option(None, help="The camera's horizontal field of view in degrees "
-                                             "(default: measured from the markers).")) -> None:
+    camera: str = typer.Option(None, help="The overhead camera: an OpenCV index (0), a video file or a URL."),
+    image: Path = typer.Option(None, help="Calibrate from this image file instead of a camera."),
+    out: Path = typer.Option(
+        None,
+        help="Where to write the calibration (default: the overhead_calibration "
+        "setting, DATA_DIR/overhead_calibration.json).",
+    ),
+    fov: float = typer.Option(
+        None, help="The camera's horizontal field of view in degrees (default: measured from the markers)."
+    ),
+) -> None:
     """Measure the table -> image homography from the four corner markers and store it."""
     from app.settings import Settings
     from sim.tracking import CalibrationError, calibrate
@@ -143,8 +171,10 @@ def calibrate_overhead(
     path = calibration.save(out or Settings().overhead_calibration)
     focal = calibration.camera_matrix[0, 0]
     width, height = calibration.image_size
-    typer.echo(f"calibrated {width}x{height} frames: corner markers fit to {calibration.reprojection_px:.2f} px RMS, "
-               f"focal length {focal:.0f} px; written to {path}")
+    typer.echo(
+        f"calibrated {width}x{height} frames: corner markers fit to {calibration.reprojection_px:.2f} px RMS, "
+        f"focal length {focal:.0f} px; written to {path}"
+    )
 
 
 def _read_image(path: Path):

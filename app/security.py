@@ -184,4 +184,3 @@ def _verify_scrypt(password: str, stored: str) -> bool:
         return False
     digest = hashlib.scrypt(password.encode(), salt=salt, n=2**14, r=8, p=1)
     return hmac.compare_digest(digest.hex(), digest_hex)
-

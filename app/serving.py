@@ -49,8 +49,11 @@ def uvicorn_options(settings: Settings) -> dict[str, Any]:
     per-message deflate: the largest messages are JPEGs, which do not compress."""
     from app.backends.remote import MAX_FRAME_BYTES  # the rover's camera frames are the largest messages
 
-    return {"ws": ReplyingWebSocketProtocol, "ws_per_message_deflate": False,
-            "ws_max_size": max(65536, 4 * settings.max_message_bytes, 2 * MAX_FRAME_BYTES)}
+    return {
+        "ws": ReplyingWebSocketProtocol,
+        "ws_per_message_deflate": False,
+        "ws_max_size": max(65536, 4 * settings.max_message_bytes, 2 * MAX_FRAME_BYTES),
+    }
 
 
 def serve_processes(host: str, port: int, workers: int, overrides: dict[str, Any]) -> None:
@@ -69,10 +72,13 @@ def serve_processes(host: str, port: int, workers: int, overrides: dict[str, Any
     for name, value in overrides.items():  # each worker reads its settings from the environment
         os.environ[f"ROBOTSLANG_{name.upper()}"] = str(value)
     if workers > 1 and not settings.redis_url:
-        raise typer.BadParameter("several workers share trials through Redis: set ROBOTSLANG_REDIS_URL",
-                                 param_hint="--workers")
-    typer.echo(f"RobotSlang on http://{host}:{port} (data in {settings.data_dir.resolve()}"
-               f"{f', {workers} processes' if workers > 1 else ''})")
+        raise typer.BadParameter(
+            "several workers share trials through Redis: set ROBOTSLANG_REDIS_URL", param_hint="--workers"
+        )
+    typer.echo(
+        f"RobotSlang on http://{host}:{port} (data in {settings.data_dir.resolve()}"
+        f"{f', {workers} processes' if workers > 1 else ''})"
+    )
     options = {"host": host, "port": port, "log_level": "warning", **uvicorn_options(settings)}
     if workers == 1:
         uvicorn.run(create_app(settings), **options)

@@ -29,12 +29,18 @@ class Settings(BaseSettings):
     allowed_origins: list[str] = Field(default_factory=list)
     # Host header names served (DNS rebinding); IP literals always pass, and so do allowed_origins' hosts.
     allowed_hosts: list[str] = Field(default_factory=lambda: ["127.0.0.1", "localhost", "[::1]"])
-    join_link_ttl_s: float | None = None  # a join link opens its seat this long after it is shown; None: until the trial ends
+    join_link_ttl_s: float | None = (
+        None  # a join link opens its seat this long after it is shown; None: until the trial ends
+    )
     login_limit_per_account: str = "5/minute"  # login attempts per account name (`limits` notation)
     login_limit_per_address: str = "20/minute"  # login attempts per client address
     password_check_concurrency: int | None = None  # password hashes computed at once; None: the CPU cores
-    overhead_calibration: Path | None = None  # the overhead camera's calibration; default data_dir/overhead_calibration.json
-    camera_calibration: Path | None = None  # the rovers' front camera (sim.camera.CameraCalibration); default data_dir/camera_calibration.json
+    overhead_calibration: Path | None = (
+        None  # the overhead camera's calibration; default data_dir/overhead_calibration.json
+    )
+    camera_calibration: Path | None = (
+        None  # the rovers' front camera (sim.camera.CameraCalibration); default data_dir/camera_calibration.json
+    )
 
     @model_validator(mode="after")
     def _default_paths(self) -> Settings:

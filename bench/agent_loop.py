@@ -78,17 +78,20 @@ def sim_tds(bench, checkpoint: Path, instances) -> list[float]:
     agent, tokenizer, ckpt = load_agent(checkpoint)
     world = World.build(bench, sorted({i.run for i in instances}))
     episodes = EpisodeSet.build(bench, world, "val_seen", tokenizer, instances=instances)
-    results = evaluate_agent(agent, bench, world, episodes, ckpt["train_config"]["blind"], "bench",
-                             max_actions=MAX_MOVES)
+    results = evaluate_agent(
+        agent, bench, world, episodes, ckpt["train_config"]["blind"], "bench", max_actions=MAX_MOVES
+    )
     by_idx = {r.inst_idx: r.td for r in results}
     return [by_idx[i.inst_idx] for i in instances]
 
 
-def agent_figures(benchmark: Path | None, checkpoint: Path | None, n: int, seed: int, log,
-                  calibration=None) -> dict:
+def agent_figures(benchmark: Path | None, checkpoint: Path | None, n: int, seed: int, log, calibration=None) -> dict:
     if benchmark is None or not Path(benchmark).is_dir():
-        return {"skipped": "no benchmark: give --benchmark PATH or set ROBOTSLANG_BENCHMARK "
-                           "(the NDH episodes and their mazes come from it)", "episodes": 0}
+        return {
+            "skipped": "no benchmark: give --benchmark PATH or set ROBOTSLANG_BENCHMARK "
+            "(the NDH episodes and their mazes come from it)",
+            "episodes": 0,
+        }
     from sim.benchmark import Benchmark
     from sim.library import MazeLibrary
 
@@ -105,15 +108,25 @@ def agent_figures(benchmark: Path | None, checkpoint: Path | None, n: int, seed:
         instances = [inst for inst, _ in chosen]
         log(f"agent: {len(chosen)} episodes in the pure simulator")
         td_sim = sim_tds(bench, Path(checkpoint), instances)
-        td_rover, moves_rover = asyncio.run(_rover_tds(Path(benchmark), Path(checkpoint), chosen, bench, tmp, calibration, log))
+        td_rover, moves_rover = asyncio.run(
+            _rover_tds(Path(benchmark), Path(checkpoint), chosen, bench, tmp, calibration, log)
+        )
     sim_mean, rover_mean = sum(td_sim) / len(td_sim), sum(td_rover) / len(td_rover)
-    return {"episodes": len(chosen), "td_sim_mean": sim_mean, "td_rover_mean": rover_mean,
-            "gap": rover_mean - sim_mean,
-            "gap_fraction": (rover_mean - sim_mean) / sim_mean if sim_mean > 0 else None,
-            "within_10_percent": abs(rover_mean - sim_mean) <= 0.1 * sim_mean,
-            "td_sim": td_sim, "td_rover": td_rover, "max_moves": MAX_MOVES, "moves_rover": moves_rover,
-            "episode_timeout_s": EPISODE_TIMEOUT_S,
-            "checkpoint": str(checkpoint) if given else f"trained here (quick: {QUICK_ITERS} iterations)", "inst_idx": [i.inst_idx for i in instances]}
+    return {
+        "episodes": len(chosen),
+        "td_sim_mean": sim_mean,
+        "td_rover_mean": rover_mean,
+        "gap": rover_mean - sim_mean,
+        "gap_fraction": (rover_mean - sim_mean) / sim_mean if sim_mean > 0 else None,
+        "within_10_percent": abs(rover_mean - sim_mean) <= 0.1 * sim_mean,
+        "td_sim": td_sim,
+        "td_rover": td_rover,
+        "max_moves": MAX_MOVES,
+        "moves_rover": moves_rover,
+        "episode_timeout_s": EPISODE_TIMEOUT_S,
+        "checkpoint": str(checkpoint) if given else f"trained here (quick: {QUICK_ITERS} iterations)",
+        "inst_idx": [i.inst_idx for i in instances],
+    }
 
 
 async def _rover_tds(benchmark: Path, checkpoint: Path, chosen, bench, tmp: Path, calibration, log) -> list[float]:
@@ -128,11 +141,17 @@ async def _rover_tds(benchmark: Path, checkpoint: Path, chosen, bench, tmp: Path
     from tests.app.live import SeatClient, ServerProcess, make_trial
 
     data = tmp / "var"
-    env = {"ROBOTSLANG_DATA_DIR": str(data), "ROBOTSLANG_SECRET_KEY": "bench-robot-loop",
-           "ROBOTSLANG_BENCHMARK": str(benchmark), "ROBOTSLANG_SEQ2SEQ_CHECKPOINT": str(checkpoint),
-           "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0", "ROBOTSLANG_AGENT_MOVE_INTERVAL_S": "0.05"}
-    settings = Settings(data_dir=data, secret_key="bench-robot-loop", benchmark=benchmark,
-                        seq2seq_checkpoint=checkpoint)
+    env = {
+        "ROBOTSLANG_DATA_DIR": str(data),
+        "ROBOTSLANG_SECRET_KEY": "bench-robot-loop",
+        "ROBOTSLANG_BENCHMARK": str(benchmark),
+        "ROBOTSLANG_SEQ2SEQ_CHECKPOINT": str(checkpoint),
+        "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+        "ROBOTSLANG_AGENT_MOVE_INTERVAL_S": "0.05",
+    }
+    settings = Settings(
+        data_dir=data, secret_key="bench-robot-loop", benchmark=benchmark, seq2seq_checkpoint=checkpoint
+    )
     services = build_services(settings)
     if calibration is not None:
         calibration.save(settings.camera_calibration)  # the lab's camera: the software rover's
@@ -147,16 +166,45 @@ async def _rover_tds(benchmark: Path, checkpoint: Path, chosen, bench, tmp: Path
                 robot, token = create_robot(db, f"bench rover {k}")
                 robot_id = robot.id
             targets = [inst.target] + [t for t in ("jar", "mug", "paddle") if t != inst.target]
-            trial = make_trial(services, inst.run, targets=targets, driver="agent:seq2seq",
-                               team=f"bench {k}", backend=f"robot:{robot_id}")
+            trial = make_trial(
+                services,
+                inst.run,
+                targets=targets,
+                driver="agent:seq2seq",
+                team=f"bench {k}",
+                backend=f"robot:{robot_id}",
+            )
             _seed_dialog(services, trial, inst, LoggedEvent)
             truth = tmp / f"truth-{k}.jsonl"
             rover = subprocess.Popen(
-                [sys.executable, "-c", "from app.cli import main; main()", "robot", "virtual",
-                 "--server", server.url, "--token", token, "--maze", inst.run, "--seed", str(k),
-                 "--fps", "10", "--truth", str(truth), "--calibration", str(timings),
-                 "--start", f"{start.x},{start.y},{start.theta}"],
-                env={**os.environ, **env}, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                [
+                    sys.executable,
+                    "-c",
+                    "from app.cli import main; main()",
+                    "robot",
+                    "virtual",
+                    "--server",
+                    server.url,
+                    "--token",
+                    token,
+                    "--maze",
+                    inst.run,
+                    "--seed",
+                    str(k),
+                    "--fps",
+                    "10",
+                    "--truth",
+                    str(truth),
+                    "--calibration",
+                    str(timings),
+                    "--start",
+                    f"{start.x},{start.y},{start.theta}",
+                ],
+                env={**os.environ, **env},
+                cwd=REPO,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+            )
             try:
                 async with SeatClient(server.ws_url, services.seats.issue(trial, "commander")) as commander:
                     await commander.event("phase", phase="localizing", timeout=EPISODE_TIMEOUT_S)

@@ -42,8 +42,11 @@ def free_port() -> int:
 
 
 def serve(env: dict[str, str], port: int) -> subprocess.Popen:
-    server = subprocess.Popen([sys.executable, "-c", "from app.cli import main; main()", "serve", "--port", str(port)],
-                              env=env, stdout=subprocess.DEVNULL)
+    server = subprocess.Popen(
+        [sys.executable, "-c", "from app.cli import main; main()", "serve", "--port", str(port)],
+        env=env,
+        stdout=subprocess.DEVNULL,
+    )
     wait_until_up(f"http://127.0.0.1:{port}", server)
     return server
 
@@ -61,18 +64,24 @@ async def one_run(services, trial_id: int, first: subprocess.Popen, ports: tuple
     await until(commander, lambda m: m.get("type") == "welcome")
     async with websockets.connect(f"ws://127.0.0.1:{ports[1]}/ws/play?token={driver_token}") as driver:
         seen: set[str] = set()  # the welcome and the trial's start, in whichever order they come
-        await asyncio.wait_for(until(driver, lambda m: bool(seen.add(m.get("kind") or m["type"]))
-                                     or {"welcome", "phase"} <= seen), TIMEOUT_S)
+        await asyncio.wait_for(
+            until(driver, lambda m: bool(seen.add(m.get("kind") or m["type"])) or {"welcome", "phase"} <= seen),
+            TIMEOUT_S,
+        )
         await asyncio.sleep(1.0)
-        count = lambda: services.db().execute(  # noqa: E731
-            select(func.count(Event.id)).where(Event.trial_id == trial_id, Event.kind == "chat")).scalar_one()
+
+        def count() -> int:
+            query = select(func.count(Event.id)).where(Event.trial_id == trial_id, Event.kind == "chat")
+            return services.db().execute(query).scalar_one()
+
         before = count()
         killed = time.perf_counter()
         os.kill(first.pid, signal.SIGKILL)
         await driver.send(json.dumps({"type": "chat", "token": driver_token, "text": "still there?"}))
         await asyncio.wait_for(until(driver, lambda m: m.get("type") == "welcome"), TIMEOUT_S)
         served = time.perf_counter() - killed
-        while count() == before and time.perf_counter() - killed < TIMEOUT_S:  # the chat sent into the dead owner is lost with it; send again once served
+        # the chat sent into the dead owner is lost with it; send again once served
+        while count() == before and time.perf_counter() - killed < TIMEOUT_S:
             await driver.send(json.dumps({"type": "chat", "token": driver_token, "text": "still there?"}))
             await asyncio.sleep(0.05)
         logged = time.perf_counter() - killed
@@ -90,23 +99,38 @@ def main() -> None:
     for run in range(args.runs):
         with tempfile.TemporaryDirectory(prefix="robotslang-failover-") as tmp, database(2, args.postgres_url) as url:
             settings = Settings(data_dir=Path(tmp) / "var", secret_key="failover", database_url=url)
-            env = {**os.environ, "ROBOTSLANG_DATA_DIR": str(settings.data_dir), "ROBOTSLANG_SECRET_KEY": "failover",
-                   "ROBOTSLANG_DATABASE_URL": url, "ROBOTSLANG_REDIS_URL": args.redis_url}
+            env = {
+                **os.environ,
+                "ROBOTSLANG_DATA_DIR": str(settings.data_dir),
+                "ROBOTSLANG_SECRET_KEY": "failover",
+                "ROBOTSLANG_DATABASE_URL": url,
+                "ROBOTSLANG_REDIS_URL": args.redis_url,
+            }
             services = build_services(settings)
             names = services.mazes.names()
             with services.db.begin() as db:
                 a, b = create_participant(db, "c"), create_participant(db, "d")
                 team = create_team(db, "failover", a.id, b.id)
-                trial_id = create_trial(db, team_id=team.id, maze=names[0], targets=["jar", "mug", "paddle"],
-                                        backend="sim", driver="human", commander_id=a.id, maze_names=names,
-                                        now_ns=services.clock.now_ns()).id
+                trial_id = create_trial(
+                    db,
+                    team_id=team.id,
+                    maze=names[0],
+                    targets=["jar", "mug", "paddle"],
+                    backend="sim",
+                    driver="human",
+                    commander_id=a.id,
+                    maze_names=names,
+                    now_ns=services.clock.now_ns(),
+                ).id
             ports = (free_port(), free_port())
             first, second = serve(env, ports[0]), serve(env, ports[1])
             try:
                 s, lg = asyncio.run(one_run(services, trial_id, first, ports))
                 served.append(s)
                 logged.append(lg)
-                console.print(f"run {run + 1}: Driver served again {s:.2f} s after the kill, its chat logged at {lg:.2f} s")
+                console.print(
+                    f"run {run + 1}: Driver served again {s:.2f} s after the kill, its chat logged at {lg:.2f} s"
+                )
             finally:
                 for server in (first, second):
                     if server.poll() is None:
@@ -114,9 +138,11 @@ def main() -> None:
                         server.wait(timeout=30)
                 services.engine.dispose()
     load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
-    console.print(f"[bold]bench.failover[/]: {args.runs} runs, takeover (kill -> Driver served) median "
-                  f"{np.median(served):.2f} s, max {max(served):.2f} s; chat logged median {np.median(logged):.2f} s "
-                  f"(load average {load})")
+    console.print(
+        f"[bold]bench.failover[/]: {args.runs} runs, takeover (kill -> Driver served) median "
+        f"{np.median(served):.2f} s, max {max(served):.2f} s; chat logged median {np.median(logged):.2f} s "
+        f"(load average {load})"
+    )
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """The lengths of the LDH inputs that rule prefix-v1 cuts, per split: printed, and as a histogram.
 
-    python -m bench.ldh_prefixes --benchmark PATH [--png docs/img/ldh_prefix_lengths.png]
+python -m bench.ldh_prefixes --benchmark PATH [--png docs/img/ldh_prefix_lengths.png]
 """
 
 from __future__ import annotations
@@ -25,9 +25,11 @@ def main() -> None:
         full = load_split(bench, split, Variant.FULL)
         lengths[split] = [len(p.dialog) for p in prefix]
         share = sum(len(p.dialog) for p in prefix) / sum(len(f.dialog) for f in full)
-        print(f"{split}: n={len(prefix)} prefix turns mean {sum(lengths[split]) / len(prefix):.2f}, "
-              f"median {sorted(lengths[split])[len(prefix) // 2]}, max {max(lengths[split])}; "
-              f"{share:.0%} of the first sub-dialogs' turns; counts {dict(sorted(Counter(lengths[split]).items()))}")
+        print(
+            f"{split}: n={len(prefix)} prefix turns mean {sum(lengths[split]) / len(prefix):.2f}, "
+            f"median {sorted(lengths[split])[len(prefix) // 2]}, max {max(lengths[split])}; "
+            f"{share:.0%} of the first sub-dialogs' turns; counts {dict(sorted(Counter(lengths[split]).items()))}"
+        )
     if args.png:
         import matplotlib
 

@@ -56,9 +56,17 @@ def setup_trials(settings: Settings, n: int) -> tuple[list[tuple[str, str]], obj
         for i in range(n):
             a, b = create_participant(db, f"load-c{i}"), create_participant(db, f"load-d{i}")
             team = create_team(db, f"load-team-{i}", a.id, b.id)
-            trial = create_trial(db, team_id=team.id, maze=maze_names[i % len(maze_names)],
-                                 targets=["jar", "mug", "paddle"], backend="sim", driver="human",
-                                 commander_id=a.id, maze_names=maze_names, now_ns=services.clock.now_ns())
+            trial = create_trial(
+                db,
+                team_id=team.id,
+                maze=maze_names[i % len(maze_names)],
+                targets=["jar", "mug", "paddle"],
+                backend="sim",
+                driver="human",
+                commander_id=a.id,
+                maze_names=maze_names,
+                now_ns=services.clock.now_ns(),
+            )
             tokens.append((services.seats.issue(trial.id, "commander"), services.seats.issue(trial.id, "driver")))
     for name in set(maze_names[i % len(maze_names)] for i in range(n)):
         services.mazes.graph(name)  # warm the graph cache so the server does not build them under load
@@ -77,11 +85,14 @@ class Figures:
     recording: bool = False
 
 
-async def run_trial(ws_url: str, tokens: tuple[str, str], figures: Figures, stop: asyncio.Event,
-                    drained: asyncio.Event) -> None:
+async def run_trial(
+    ws_url: str, tokens: tuple[str, str], figures: Figures, stop: asyncio.Event, drained: asyncio.Event
+) -> None:
     commander_token, driver_token = tokens
-    async with websockets.connect(f"{ws_url}?token={commander_token}", max_size=2**22, open_timeout=60) as commander, \
-               websockets.connect(f"{ws_url}?token={driver_token}", max_size=2**22, open_timeout=60) as driver:
+    async with (
+        websockets.connect(f"{ws_url}?token={commander_token}", max_size=2**22, open_timeout=60) as commander,
+        websockets.connect(f"{ws_url}?token={driver_token}", max_size=2**22, open_timeout=60) as driver,
+    ):
         chats: dict[str, tuple[float, bool]] = {}  # text -> (sent at, sent while recording)
         move: list = []  # [sent at, counted] of the move waiting for its frame
 
@@ -183,8 +194,9 @@ class ServerProcesses:
         return rss
 
 
-async def drive(ws_url: str, tokens, warmup: float, duration: float, services,
-                server: ServerProcesses) -> tuple[Figures, int, float, float]:
+async def drive(
+    ws_url: str, tokens, warmup: float, duration: float, services, server: ServerProcesses
+) -> tuple[Figures, int, float, float]:
     figures, stop, drained = Figures(), asyncio.Event(), asyncio.Event()
     tasks = [asyncio.create_task(run_trial(ws_url, t, figures, stop, drained)) for t in tokens]
     with Progress(console=console, transient=True) as progress:  # opening hundreds of trials takes a while
@@ -247,8 +259,16 @@ def database(workers: int, postgres_url: str):
         admin.dispose()
 
 
-def run_load(trials: int, workers: int, duration: float, warmup: float, port: int,
-             redis_url: str | None, postgres_url: str, profile: str | None = None) -> dict:
+def run_load(
+    trials: int,
+    workers: int,
+    duration: float,
+    warmup: float,
+    port: int,
+    redis_url: str | None,
+    postgres_url: str,
+    profile: str | None = None,
+) -> dict:
     """One run: a fresh data directory, database and server, `trials` trials; returns the figures."""
     with tempfile.TemporaryDirectory(prefix="robotslang-load-") as tmp, database(workers, postgres_url) as url:
         env = {**os.environ, "ROBOTSLANG_DATA_DIR": str(Path(tmp) / "var"), "ROBOTSLANG_SECRET_KEY": "load"}
@@ -258,20 +278,46 @@ def run_load(trials: int, workers: int, duration: float, warmup: float, port: in
             env["ROBOTSLANG_REDIS_URL"], env["ROBOTSLANG_DATABASE_URL"] = redis_url, url
         settings = Settings(data_dir=Path(tmp) / "var", secret_key="load", database_url=url)
         tokens, services = setup_trials(settings, trials)
-        server = subprocess.Popen([sys.executable, "-c", "from app.cli import main; main()", "serve",
-                                   "--port", str(port), "--workers", str(workers)],
-                                  env=env, stdout=subprocess.DEVNULL)
+        server = subprocess.Popen(
+            [
+                sys.executable,
+                "-c",
+                "from app.cli import main; main()",
+                "serve",
+                "--port",
+                str(port),
+                "--workers",
+                str(workers),
+            ],
+            env=env,
+            stdout=subprocess.DEVNULL,
+        )
         spy = None
         try:
             wait_until_up(f"http://127.0.0.1:{port}", server)
             processes = ServerProcesses(server.pid)
             if profile:  # the whole run, warm-up included, sampled from every server process
-                spy = subprocess.Popen([str(Path(sys.executable).with_name("py-spy")), "record", "--subprocesses", "--idle", "--rate", "100",
-                                        "--format", "speedscope" if profile.endswith(".json") else "flamegraph",
-                                        "-o", profile, "--pid", str(server.pid)],
-                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                spy = subprocess.Popen(
+                    [
+                        str(Path(sys.executable).with_name("py-spy")),
+                        "record",
+                        "--subprocesses",
+                        "--idle",
+                        "--rate",
+                        "100",
+                        "--format",
+                        "speedscope" if profile.endswith(".json") else "flamegraph",
+                        "-o",
+                        profile,
+                        "--pid",
+                        str(server.pid),
+                    ],
+                    stdout=subprocess.DEVNULL,
+                    stderr=subprocess.DEVNULL,
+                )
             figures, committed, window, cpu = asyncio.run(
-                drive(f"ws://127.0.0.1:{port}/ws/play", tokens, warmup, duration, services, processes))
+                drive(f"ws://127.0.0.1:{port}/ws/play", tokens, warmup, duration, services, processes)
+            )
         finally:
             if spy is not None:
                 spy.send_signal(2)
@@ -279,22 +325,33 @@ def run_load(trials: int, workers: int, duration: float, warmup: float, port: in
             server.terminate()
             server.wait(timeout=30)
             services.engine.dispose()
-    return {"trials": trials, "workers": workers, "duration_s": round(window, 1),
-            "chat_p50_ms": round(percentile(figures.chat_ms, 50), 2),
-            "chat_p99_ms": round(percentile(figures.chat_ms, 99), 2),
-            "move_to_frame_p50_ms": round(percentile(figures.frame_ms, 50), 2),
-            "move_to_frame_p99_ms": round(percentile(figures.frame_ms, 99), 2),
-            "chats": len(figures.chat_ms), "moves": len(figures.frame_ms),
-            "events_per_s": round(committed / window, 1), "events": committed,
-            "lost": figures.chats_sent - figures.chats_heard,
-            "unanswered": figures.moves_sent - figures.moves_answered,
-            "server_cpu": round(cpu, 2), "server_rss_mb": round(processes.peak_rss_mb, 1),
-            "load_average": [round(x, 2) for x in os.getloadavg()]}
+    return {
+        "trials": trials,
+        "workers": workers,
+        "duration_s": round(window, 1),
+        "chat_p50_ms": round(percentile(figures.chat_ms, 50), 2),
+        "chat_p99_ms": round(percentile(figures.chat_ms, 99), 2),
+        "move_to_frame_p50_ms": round(percentile(figures.frame_ms, 50), 2),
+        "move_to_frame_p99_ms": round(percentile(figures.frame_ms, 99), 2),
+        "chats": len(figures.chat_ms),
+        "moves": len(figures.frame_ms),
+        "events_per_s": round(committed / window, 1),
+        "events": committed,
+        "lost": figures.chats_sent - figures.chats_heard,
+        "unanswered": figures.moves_sent - figures.moves_answered,
+        "server_cpu": round(cpu, 2),
+        "server_rss_mb": round(processes.peak_rss_mb, 1),
+        "load_average": [round(x, 2) for x in os.getloadavg()],
+    }
 
 
 def within_goal(figures: dict) -> bool:
-    return (figures["chat_p99_ms"] < P99_GOAL_MS and figures["move_to_frame_p99_ms"] < P99_GOAL_MS
-            and figures["lost"] == 0 and figures["unanswered"] == 0)
+    return (
+        figures["chat_p99_ms"] < P99_GOAL_MS
+        and figures["move_to_frame_p99_ms"] < P99_GOAL_MS
+        and figures["lost"] == 0
+        and figures["unanswered"] == 0
+    )
 
 
 def find_max(workers: int, args) -> tuple[int, list[dict]]:
@@ -326,16 +383,24 @@ def find_max(workers: int, args) -> tuple[int, list[dict]]:
 
 def report(f: dict) -> None:
     load = ", ".join(f"{x:.2f}" for x in f["load_average"])
-    console.print(f"[bold]bench.load[/]: {f['trials']} trials, {f['workers']} server process(es), "
-                  f"1 chat + 1 move per second each, {f['duration_s']:.0f} s measured "
-                  f"({os.cpu_count()} CPUs, {'SQLite WAL' if f['workers'] == 1 else 'PostgreSQL + Redis'}; "
-                  f"load average {load})")
-    console.print(f"  chat fan-out    p50 {f['chat_p50_ms']:7.1f} ms   p99 {f['chat_p99_ms']:7.1f} ms   "
-                  f"({f['chats']} messages, {f['lost']} lost)")
-    console.print(f"  move-to-frame   p50 {f['move_to_frame_p50_ms']:7.1f} ms   "
-                  f"p99 {f['move_to_frame_p99_ms']:7.1f} ms   ({f['moves']} moves, {f['unanswered']} unanswered)")
-    console.print(f"  events committed {f['events_per_s']:7.1f} /s   server CPU {f['server_cpu']:.2f} cores   "
-                  f"peak RSS {f['server_rss_mb']:.0f} MB")
+    console.print(
+        f"[bold]bench.load[/]: {f['trials']} trials, {f['workers']} server process(es), "
+        f"1 chat + 1 move per second each, {f['duration_s']:.0f} s measured "
+        f"({os.cpu_count()} CPUs, {'SQLite WAL' if f['workers'] == 1 else 'PostgreSQL + Redis'}; "
+        f"load average {load})"
+    )
+    console.print(
+        f"  chat fan-out    p50 {f['chat_p50_ms']:7.1f} ms   p99 {f['chat_p99_ms']:7.1f} ms   "
+        f"({f['chats']} messages, {f['lost']} lost)"
+    )
+    console.print(
+        f"  move-to-frame   p50 {f['move_to_frame_p50_ms']:7.1f} ms   "
+        f"p99 {f['move_to_frame_p99_ms']:7.1f} ms   ({f['moves']} moves, {f['unanswered']} unanswered)"
+    )
+    console.print(
+        f"  events committed {f['events_per_s']:7.1f} /s   server CPU {f['server_cpu']:.2f} cores   "
+        f"peak RSS {f['server_rss_mb']:.0f} MB"
+    )
 
 
 def main() -> None:
@@ -346,12 +411,16 @@ def main() -> None:
     parser.add_argument("--warmup", type=float, default=5.0)
     parser.add_argument("--port", type=int, default=8765)
     parser.add_argument("--redis-url", default="redis://127.0.0.1:6379/0")
-    parser.add_argument("--postgres-url", default="postgresql+psycopg://postgres@127.0.0.1:5432/test",
-                        help="with --workers over 1: the database a private schema is made in")
+    parser.add_argument(
+        "--postgres-url",
+        default="postgresql+psycopg://postgres@127.0.0.1:5432/test",
+        help="with --workers over 1: the database a private schema is made in",
+    )
     parser.add_argument("--json", action="store_true", help="end with one JSON line of the figures")
     parser.add_argument("--profile", help="py-spy output of the server (.svg flame graph, .json speedscope)")
-    parser.add_argument("--find-max", action="store_true",
-                        help="for 1 and 2 processes: the largest trial count with both p99 < 100 ms")
+    parser.add_argument(
+        "--find-max", action="store_true", help="for 1 and 2 processes: the largest trial count with both p99 < 100 ms"
+    )
     parser.add_argument("--max-trials", type=int, default=400)
     parser.add_argument("--step", type=int, default=25)
     parser.add_argument("--max-probes", type=int, default=6, help="runs per process count in --find-max")
@@ -361,15 +430,25 @@ def main() -> None:
         result = {}
         for workers in (1, 2):
             best, runs = find_max(workers, args)
-            console.print(f"[bold]largest trial count with both p99 < {P99_GOAL_MS:.0f} ms, {workers} "
-                          f"process(es): {best}[/] ({len(runs)} runs of {args.duration:.0f} s)")
+            console.print(
+                f"[bold]largest trial count with both p99 < {P99_GOAL_MS:.0f} ms, {workers} "
+                f"process(es): {best}[/] ({len(runs)} runs of {args.duration:.0f} s)"
+            )
             result[f"max_trials_{workers}_workers"] = best
             result[f"runs_{workers}_workers"] = runs
         if args.json:
             print(json.dumps(result))
         return
-    figures = run_load(args.trials, args.workers, args.duration, args.warmup, args.port, args.redis_url,
-                       args.postgres_url, args.profile)
+    figures = run_load(
+        args.trials,
+        args.workers,
+        args.duration,
+        args.warmup,
+        args.port,
+        args.redis_url,
+        args.postgres_url,
+        args.profile,
+    )
     report(figures)
     if args.json:
         print(json.dumps(figures))

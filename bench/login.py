@@ -92,12 +92,16 @@ async def burst(url: str, logins: int, pid: int) -> None:
     console.print(f"{logins} concurrent wrong logins: answered in {took:.1f} s, statuses {dict(statuses)}")
     for label, values in (("idle", idle_latency), ("during the burst", during_latency)):
         ms = np.array(values) * 1000
-        console.print(f"GET / {label}: {len(ms)} requests, p50 {np.percentile(ms, 50):.1f} ms, "
-                      f"p99 {np.percentile(ms, 99):.1f} ms, max {ms.max():.1f} ms")
+        console.print(
+            f"GET / {label}: {len(ms)} requests, p50 {np.percentile(ms, 50):.1f} ms, "
+            f"p99 {np.percentile(ms, 99):.1f} ms, max {ms.max():.1f} ms"
+        )
     console.print(f"server RSS: {before:.0f} MiB before the burst, peak {peak:.0f} MiB during it")
     for label in ("known", "unknown"):
-        console.print(f"{label} name: {np.mean(alone[label]) * 1000:.0f} ms a login alone (mean of 10), "
-                      f"{np.mean([t for _, t in answers[label]]):.1f} s in the burst (waiting for a check slot)")
+        console.print(
+            f"{label} name: {np.mean(alone[label]) * 1000:.0f} ms a login alone (mean of 10), "
+            f"{np.mean([t for _, t in answers[label]]):.1f} s in the burst (waiting for a check slot)"
+        )
     console.print(f"load average now: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
 
 
@@ -107,16 +111,23 @@ def main() -> None:
     parser.add_argument("--port", type=int, default=8766)
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        env = {**os.environ, "ROBOTSLANG_DATA_DIR": str(Path(tmp) / "var"), "ROBOTSLANG_SECRET_KEY": "bench",
-               "ROBOTSLANG_LOGIN_LIMIT_PER_ACCOUNT": "100000/minute",
-               "ROBOTSLANG_LOGIN_LIMIT_PER_ADDRESS": "100000/minute"}
+        env = {
+            **os.environ,
+            "ROBOTSLANG_DATA_DIR": str(Path(tmp) / "var"),
+            "ROBOTSLANG_SECRET_KEY": "bench",
+            "ROBOTSLANG_LOGIN_LIMIT_PER_ACCOUNT": "100000/minute",
+            "ROBOTSLANG_LOGIN_LIMIT_PER_ADDRESS": "100000/minute",
+        }
         env.pop("ROBOTSLANG_DATABASE_URL", None)
         services = build_services(Settings(data_dir=Path(tmp) / "var", secret_key="bench"))
         with services.db.begin() as db:
             db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
         services.engine.dispose()
-        server = subprocess.Popen([sys.executable, "-c", "from app.cli import main; main()", "serve",
-                                   "--port", str(args.port)], env=env, stdout=subprocess.DEVNULL)
+        server = subprocess.Popen(
+            [sys.executable, "-c", "from app.cli import main; main()", "serve", "--port", str(args.port)],
+            env=env,
+            stdout=subprocess.DEVNULL,
+        )
         url = f"http://127.0.0.1:{args.port}"
         try:
             deadline = time.time() + 30

@@ -36,8 +36,17 @@ def new_trial(services, i: int, maze: str, names: list[str]) -> int:
     with services.db.begin() as db:
         a, b = create_participant(db, f"mem-c{i}"), create_participant(db, f"mem-d{i}")
         team = create_team(db, f"mem-team-{i}", a.id, b.id)
-        trial = create_trial(db, team_id=team.id, maze=maze, targets=["jar", "mug", "paddle"], backend="sim",
-                             driver="human", commander_id=a.id, maze_names=names, now_ns=services.clock.now_ns())
+        trial = create_trial(
+            db,
+            team_id=team.id,
+            maze=maze,
+            targets=["jar", "mug", "paddle"],
+            backend="sim",
+            driver="human",
+            commander_id=a.id,
+            maze_names=names,
+            now_ns=services.clock.now_ns(),
+        )
         return trial.id
 
 
@@ -59,9 +68,16 @@ async def study(services, live: int, limit: int | None) -> dict:
     while running:
         running.popleft().abort()
     await asyncio.sleep(0.2)
-    return {"mazes": len(names), "live": live, "rss_start_mb": round(start, 1), "rss_peak_mb": round(peak, 1),
-            "rss_end_mb": round(rss_mb(), 1), "mazes_held": len(services.mazes.load),
-            "graphs_held": len(services.mazes.graph), "live_trials_left": len(services.hub.live())}
+    return {
+        "mazes": len(names),
+        "live": live,
+        "rss_start_mb": round(start, 1),
+        "rss_peak_mb": round(peak, 1),
+        "rss_end_mb": round(rss_mb(), 1),
+        "mazes_held": len(services.mazes.load),
+        "graphs_held": len(services.mazes.graph),
+        "live_trials_left": len(services.hub.live()),
+    }
 
 
 def main() -> None:
@@ -76,11 +92,15 @@ def main() -> None:
         services = create_app(settings).state.services
         figures = asyncio.run(study(services, args.live, args.mazes))
     load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
-    console.print(f"[bold]bench.memory[/]: trials on {figures['mazes']} mazes, {figures['live']} live at a time "
-                  f"(load average {load})")
-    console.print(f"  RSS start {figures['rss_start_mb']:.0f} MB, peak {figures['rss_peak_mb']:.0f} MB, "
-                  f"end {figures['rss_end_mb']:.0f} MB; mazes held {figures['mazes_held']}, "
-                  f"graphs held {figures['graphs_held']}")
+    console.print(
+        f"[bold]bench.memory[/]: trials on {figures['mazes']} mazes, {figures['live']} live at a time "
+        f"(load average {load})"
+    )
+    console.print(
+        f"  RSS start {figures['rss_start_mb']:.0f} MB, peak {figures['rss_peak_mb']:.0f} MB, "
+        f"end {figures['rss_end_mb']:.0f} MB; mazes held {figures['mazes_held']}, "
+        f"graphs held {figures['graphs_held']}"
+    )
     print(figures)
 
 

@@ -39,8 +39,10 @@ def main() -> None:
     bench = Benchmark(args.benchmark)
     instances = bench.split(SPLIT)
     world = World.build(bench, sorted({i.run for i in instances}))
-    print("| checkpoint | iteration | stop threshold | TD | OTD | SR | SPL | steps | ended by stop | came within "
-          "the radius |\n|---|---|---|---|---|---|---|---|---|---|")
+    print(
+        "| checkpoint | iteration | stop threshold | TD | OTD | SR | SPL | steps | ended by stop | came within "
+        "the radius |\n|---|---|---|---|---|---|---|---|---|---|"
+    )
     own = agent.STOP_THRESHOLD
     for path in args.checkpoints:
         iteration = torch.load(path, map_location="cpu", weights_only=False)["iteration"]
@@ -50,8 +52,11 @@ def main() -> None:
             s = summarize_agent(results)
             stopped = np.mean([r.steps < MAX_EPISODE_ACTIONS for r in results])
             near = np.mean([r.otd <= SUCCESS_RADIUS_M for r in results])
-            print(f"| {path} | {iteration} | {threshold} | {s['td_mean']:.2f} ± {s['td_std']:.2f} | {s['otd_mean']:.2f} | "
-                  f"{s['sr']:.3f} | {s['spl']:.3f} | {s['steps_mean']:.1f} | {stopped:.2f} | {near:.2f} |", flush=True)
+            print(
+                f"| {path} | {iteration} | {threshold} | {s['td_mean']:.2f} ± {s['td_std']:.2f} | {s['otd_mean']:.2f} | "
+                f"{s['sr']:.3f} | {s['spl']:.3f} | {s['steps_mean']:.1f} | {stopped:.2f} | {near:.2f} |",
+                flush=True,
+            )
             if args.csv_dir is not None and threshold == own:
                 write_csv(args.csv_dir / f"{path.parent.name}-{SPLIT}.csv", results)
         agent.STOP_THRESHOLD = own

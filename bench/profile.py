@@ -52,14 +52,18 @@ def summarize(path: str) -> dict[str, dict[str, float]]:
             if not stack:
                 continue
             leaf = frames[stack[-1]]
-            if leaf["name"] in IDLE_LEAVES and ("threading.py" in leaf.get("file", "")
-                                                or "runners.py" in leaf.get("file", "")
-                                                or "thread.py" in leaf.get("file", "")
-                                                or "queue.py" in leaf.get("file", "")):
+            if leaf["name"] in IDLE_LEAVES and (
+                "threading.py" in leaf.get("file", "")
+                or "runners.py" in leaf.get("file", "")
+                or "thread.py" in leaf.get("file", "")
+                or "queue.py" in leaf.get("file", "")
+            ):
                 out[kind]["idle"] += weight
                 continue
-            part = next((name for name, pattern in PARTS if any(matches(frames[i], pattern) for i in stack)),
-                        "framework (uvicorn, starlette, asyncio)" if kind == "event loop" else "other")
+            part = next(
+                (name for name, pattern in PARTS if any(matches(frames[i], pattern) for i in stack)),
+                "framework (uvicorn, starlette, asyncio)" if kind == "event loop" else "other",
+            )
             out[kind][part] += weight
     return {kind: dict(parts) for kind, parts in out.items()}
 

@@ -62,17 +62,31 @@ def prepare(settings: Settings, runs: int) -> list[tuple[str, int]]:
             a = create_participant(session, f"commander {run}")
             b = create_participant(session, f"driver {run}")
             team = create_team(session, f"team {run}", a.id, b.id)
-            trial = create_trial(session, team_id=team.id, maze="table", targets=["jar", "mug", "paddle"],
-                                 backend=f"robot:{robot.id}", driver="human", commander_id=a.id,
-                                 maze_names=["table"], now_ns=time.time_ns())
+            trial = create_trial(
+                session,
+                team_id=team.id,
+                maze="table",
+                targets=["jar", "mug", "paddle"],
+                backend=f"robot:{robot.id}",
+                driver="human",
+                commander_id=a.id,
+                maze_names=["table"],
+                now_ns=time.time_ns(),
+            )
             runs_made.append((token, trial.id))
     engine.dispose()
     return runs_made
 
 
 def start_server(env: dict, port: int) -> subprocess.Popen:
-    proc = subprocess.Popen([sys.executable, "-c", "from app.cli import main; main()", "serve", "--port", str(port)],
-                            env=env, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "from app.cli import main; main()", "serve", "--port", str(port)],
+        env=env,
+        cwd=REPO,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     deadline = time.time() + 60
     while time.time() < deadline:
         if proc.poll() is not None:
@@ -89,8 +103,10 @@ async def measure(port: int, trial_id: int, seats: SeatTokens, seconds: float) -
     """Added latencies (ms) of the frames the Driver received in `seconds`, the frame rate and the
     mean JPEG size (KB)."""
     url = f"ws://127.0.0.1:{port}/ws/play?token="
-    async with websockets.connect(url + seats.issue(trial_id, "commander")), \
-            websockets.connect(url + seats.issue(trial_id, "driver"), max_size=2**24) as driver:
+    async with (
+        websockets.connect(url + seats.issue(trial_id, "commander")),
+        websockets.connect(url + seats.issue(trial_id, "driver"), max_size=2**24) as driver,
+    ):
         latencies: list[float] = []
         jpeg_bytes = 0
         first_ns = last_ns = None
@@ -118,8 +134,9 @@ async def measure(port: int, trial_id: int, seats: SeatTokens, seconds: float) -
 def logged_frames(settings: Settings, trial_id: int) -> int:
     engine = make_engine(settings)
     with make_sessionmaker(engine)() as db:
-        count = db.scalar(select(func.count()).select_from(Event).where(Event.trial_id == trial_id,
-                                                                       Event.kind == "frame"))
+        count = db.scalar(
+            select(func.count()).select_from(Event).where(Event.trial_id == trial_id, Event.kind == "frame")
+        )
     engine.dispose()
     return count
 
@@ -144,10 +161,31 @@ def main() -> None:
         try:
             for fps, (token, trial_id) in zip(args.fps, runs):
                 robot = subprocess.Popen(
-                    [sys.executable, "-m", "robot_client", "--server", f"http://127.0.0.1:{port}", "--token", token,
-                     "--camera", args.camera, "--motors", "mock", "--width", "640", "--height", "480",
-                     "--fps", str(fps), "--quality", str(args.quality)],
-                    cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                    [
+                        sys.executable,
+                        "-m",
+                        "robot_client",
+                        "--server",
+                        f"http://127.0.0.1:{port}",
+                        "--token",
+                        token,
+                        "--camera",
+                        args.camera,
+                        "--motors",
+                        "mock",
+                        "--width",
+                        "640",
+                        "--height",
+                        "480",
+                        "--fps",
+                        str(fps),
+                        "--quality",
+                        str(args.quality),
+                    ],
+                    cwd=REPO,
+                    stdout=subprocess.DEVNULL,
+                    stderr=subprocess.DEVNULL,
+                )
                 try:
                     console.print(f"camera at {fps:g} fps: measuring {args.seconds:g} s at the Driver's socket")
                     latencies, delivered, kb = asyncio.run(measure(port, trial_id, SeatTokens(SECRET), args.seconds))
@@ -158,22 +196,44 @@ def main() -> None:
                     raise SystemExit(f"camera at {fps:g} fps: fewer than two frames reached the Driver")
                 logged = logged_frames(settings, trial_id)
                 p95 = statistics.quantiles(latencies, n=20)[-1]
-                rows.append((fps, kb, delivered, statistics.median(latencies), p95, max(latencies),
-                             len(latencies), logged))
+                rows.append(
+                    (fps, kb, delivered, statistics.median(latencies), p95, max(latencies), len(latencies), logged)
+                )
         finally:
             server.terminate()
             server.wait(timeout=10)
 
     table = Table(title="Rover camera -> Driver socket, 640x480 JPEG, loopback")
-    for column in ("camera fps", "KB/frame", "delivered fps", "median ms", "p95 ms", "max ms", "frames", "logged", "target"):
+    for column in (
+        "camera fps",
+        "KB/frame",
+        "delivered fps",
+        "median ms",
+        "p95 ms",
+        "max ms",
+        "frames",
+        "logged",
+        "target",
+    ):
         table.add_column(column, justify="right")
     for fps, kb, delivered, median, p95, worst, received, logged in rows:
         met = delivered >= min(fps, TARGET_FPS) * 0.95 and p95 < TARGET_LATENCY_MS and logged >= received
-        table.add_row(f"{fps:g}", f"{kb:.0f}", f"{delivered:.1f}", f"{median:.1f}", f"{p95:.1f}", f"{worst:.1f}",
-                      str(received), str(logged), "met" if met else "MISSED")
+        table.add_row(
+            f"{fps:g}",
+            f"{kb:.0f}",
+            f"{delivered:.1f}",
+            f"{median:.1f}",
+            f"{p95:.1f}",
+            f"{worst:.1f}",
+            str(received),
+            str(logged),
+            "met" if met else "MISSED",
+        )
     console.print(table)
-    console.print(f"target: >= {TARGET_FPS:g} frames/s with < {TARGET_LATENCY_MS:g} ms added latency (p95), "
-                  "every delivered frame in the event log")
+    console.print(
+        f"target: >= {TARGET_FPS:g} frames/s with < {TARGET_LATENCY_MS:g} ms added latency (p95), "
+        "every delivered frame in the event log"
+    )
 
 
 if __name__ == "__main__":

@@ -74,14 +74,22 @@ def tracker_figures(mazes, moves: int, seed: int) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m bench.robot_loop", description=__doc__.split("\n")[0])
-    p.add_argument("--benchmark", type=Path, default=os.environ.get("ROBOTSLANG_BENCHMARK"),
-                   help="a clone of the RobotSlang benchmark (default $ROBOTSLANG_BENCHMARK)")
+    p.add_argument(
+        "--benchmark",
+        type=Path,
+        default=os.environ.get("ROBOTSLANG_BENCHMARK"),
+        help="a clone of the RobotSlang benchmark (default $ROBOTSLANG_BENCHMARK)",
+    )
     p.add_argument("--episodes", type=int, default=4, help="NDH episodes for the agent part (4)")
     p.add_argument("--filter-episodes", type=int, default=20, help="particle-filter episodes (20)")
     p.add_argument("--poses", type=int, default=150, help="poses for the perception figures (150)")
     p.add_argument("--moves", type=int, default=60, help="rover moves in the tracker's trial (60)")
-    p.add_argument("--checkpoint", type=Path, default=os.environ.get("ROBOTSLANG_SEQ2SEQ_CHECKPOINT"),
-                   help="seq2seq checkpoint (default $ROBOTSLANG_SEQ2SEQ_CHECKPOINT; else a quick one is trained)")
+    p.add_argument(
+        "--checkpoint",
+        type=Path,
+        default=os.environ.get("ROBOTSLANG_SEQ2SEQ_CHECKPOINT"),
+        help="seq2seq checkpoint (default $ROBOTSLANG_SEQ2SEQ_CHECKPOINT; else a quick one is trained)",
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     args = p.parse_args(argv)
@@ -93,10 +101,17 @@ def main(argv: list[str] | None = None) -> int:
     out: dict = {"tracker": tracker_figures(mazes, args.moves, args.seed)}
     camera = FrontCamera()
     calibration = simulated_calibration(camera, mazes, seed=args.seed + 1000, progress=True)
-    out["perception"] = evaluate_perception([m for m, _ in mazes], n_poses=args.poses, seed=args.seed,
-                                            camera=camera, calibration=calibration, progress=True)
-    pf = evaluate_filter([m for m, _ in mazes], episodes=args.filter_episodes, seed=args.seed,
-                         camera=camera, calibration=calibration, progress=True)
+    out["perception"] = evaluate_perception(
+        [m for m, _ in mazes], n_poses=args.poses, seed=args.seed, camera=camera, calibration=calibration, progress=True
+    )
+    pf = evaluate_filter(
+        [m for m, _ in mazes],
+        episodes=args.filter_episodes,
+        seed=args.seed,
+        camera=camera,
+        calibration=calibration,
+        progress=True,
+    )
     out["particle_filter"] = pf
 
     from bench.agent_loop import agent_figures

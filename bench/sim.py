@@ -76,9 +76,11 @@ def default_benchmark() -> Path:
 
 def _per_map(name: str, watches: list[Stopwatch]) -> list[Figure]:
     wall, cpu = np.array([w.wall for w in watches]), np.array([w.cpu for w in watches])
-    return [Figure(f"{name}, mean per map", 1e3 * wall.mean(), 1e3 * cpu.mean(), "ms"),
-            Figure(f"{name}, max per map", 1e3 * wall.max(), 1e3 * cpu.max(), "ms"),
-            Figure(f"{name}, {len(watches)} maps", float(wall.sum()), float(cpu.sum()), "s")]
+    return [
+        Figure(f"{name}, mean per map", 1e3 * wall.mean(), 1e3 * cpu.mean(), "ms"),
+        Figure(f"{name}, max per map", 1e3 * wall.max(), 1e3 * cpu.max(), "ms"),
+        Figure(f"{name}, {len(watches)} maps", float(wall.sum()), float(cpu.sum()), "s"),
+    ]
 
 
 def _total(watches: list[Stopwatch]) -> Stopwatch:
@@ -94,8 +96,9 @@ def bench_decode(benchmark: Benchmark, runs: list[str]) -> tuple[list[Maze], lis
         with Stopwatch() as watch:
             folder = benchmark.root / "mazedata" / run / "maze"
             walls = folder / WALLS_MAP
-            mazes.append(Maze.from_png(folder / FIXED_MAP, walls if walls.exists() else None, name=run,
-                                       use_cache=False))
+            mazes.append(
+                Maze.from_png(folder / FIXED_MAP, walls if walls.exists() else None, name=run, use_cache=False)
+            )
         watches.append(watch)
     return mazes, _per_map("PNG decode", watches)
 
@@ -139,17 +142,19 @@ def bench_single_env(mazes: list[Maze], episodes: int = 400, seed: int = 0) -> l
         n = episodes * MAX_EPISODE_ACTIONS
         us_wall, us_cpu = 1e6 * watch.wall / n, 1e6 * watch.cpu / n
         unwrapped = isinstance(env, NDHEnv)
-        figures.append(Figure(label, us_wall, us_cpu, "us/step", "< 20 us" if unwrapped else "",
-                              us_wall < 20 if unwrapped else None))
+        figures.append(
+            Figure(
+                label, us_wall, us_cpu, "us/step", "< 20 us" if unwrapped else "", us_wall < 20 if unwrapped else None
+            )
+        )
         figures.append(Figure(label.replace("step", "steps/s", 1), 1e6 / us_wall, 1e6 / us_cpu, "steps/s"))
     return figures
 
 
-def bench_batch(graphs: list[NavGraph], world: World, batch: int, steps: int = 300,
-                seed: int = 0) -> list[Figure]:
+def bench_batch(graphs: list[NavGraph], world: World, batch: int, steps: int = 300, seed: int = 0) -> list[Figure]:
     """`BatchStepper.step` and its observations, episodes spread over all maps, random moves."""
     rng = np.random.default_rng(seed)
-    stepper = BatchStepper(world, batch, max_actions=10 ** 9)  # keep every episode live
+    stepper = BatchStepper(world, batch, max_actions=10**9)  # keep every episode live
     for k, m in enumerate(rng.integers(len(graphs), size=batch)):
         node, goal = int(rng.integers(graphs[m].n)), int(rng.integers(graphs[m].n))
         dist, hop = goal_rows(graphs[m], [goal])
@@ -166,8 +171,16 @@ def bench_batch(graphs: list[NavGraph], world: World, batch: int, steps: int = 3
             stepper.observations(out=obs)
     rate, rate_cpu = steps * batch / watch.wall, steps * batch / watch.cpu
     target = batch >= 1000
-    return [Figure(f"batch steps/s with observations, batch {batch}", rate, rate_cpu, "steps/s",
-                   "> 10,000,000" if target else "", rate > 1e7 if target else None)]
+    return [
+        Figure(
+            f"batch steps/s with observations, batch {batch}",
+            rate,
+            rate_cpu,
+            "steps/s",
+            "> 10,000,000" if target else "",
+            rate > 1e7 if target else None,
+        )
+    ]
 
 
 def bench_rollout(benchmark: Benchmark, runs: list[str], iterations: int = 3, batch: int = 100) -> list[Figure]:
@@ -184,8 +197,7 @@ def bench_rollout(benchmark: Benchmark, runs: list[str], iterations: int = 3, ba
 
     train = benchmark.split("train")
     instances = [i for i in train if i.run in set(runs)] or train[:batch]  # a few maps may hold none
-    world = World.build(benchmark, sorted({i.run for i in instances}, key=lambda r: (len(r), r)),
-                        benchmark.cache_dir)
+    world = World.build(benchmark, sorted({i.run for i in instances}, key=lambda r: (len(r), r)), benchmark.cache_dir)
     batch = min(batch, len(instances))
     tokenizer = Tokenizer.from_dialogs((i.dialog, i.target) for i in instances)
     episodes = EpisodeSet.build(benchmark, world, "train", tokenizer, instances=instances)
@@ -196,8 +208,9 @@ def bench_rollout(benchmark: Benchmark, runs: list[str], iterations: int = 3, ba
     for it in range(iterations):
         idx = np.random.default_rng(it).choice(len(episodes), batch, replace=False)
         with Stopwatch() as watch:
-            roll = run_episodes(agent, world, episodes, idx, "student",
-                                generator=torch.Generator().manual_seed(it), train=True)
+            roll = run_episodes(
+                agent, world, episodes, idx, "student", generator=torch.Generator().manual_seed(it), train=True
+            )
             optimizer.zero_grad()
             roll.loss.backward()
             optimizer.step()
@@ -206,14 +219,14 @@ def bench_rollout(benchmark: Benchmark, runs: list[str], iterations: int = 3, ba
     return [Figure(f"learner iteration, student forcing, batch {batch}", wall, cpu, "s")]
 
 
-def bench_first_person(maze: Maze, graph: NavGraph, frames: int = 300, size=(320, 240),
-                       seed: int = 0) -> list[Figure]:
+def bench_first_person(maze: Maze, graph: NavGraph, frames: int = 300, size=(320, 240), seed: int = 0) -> list[Figure]:
     """`sim.render.first_person` at 320x240 from random nodes and headings of one maze."""
     rng = np.random.default_rng(seed)
     nodes = rng.integers(graph.n, size=frames)
     headings = rng.integers(8, size=frames)
-    poses = [(float(graph.nodes[n][0]), float(graph.nodes[n][1]), float(heading_angle(k)))
-             for n, k in zip(nodes, headings)]
+    poses = [
+        (float(graph.nodes[n][0]), float(graph.nodes[n][1]), float(heading_angle(k))) for n, k in zip(nodes, headings)
+    ]
     watches = {}
     for render in (first_person, reference_first_person):
         render(maze, *poses[0], size=size)  # the maze's scene is built once
@@ -222,11 +235,20 @@ def bench_first_person(maze: Maze, graph: NavGraph, frames: int = 300, size=(320
                 render(maze, *pose, size=size)
     fps = frames / watches[first_person].wall
     old = frames / watches[reference_first_person].wall
-    return [Figure(f"first-person render, {size[0]}x{size[1]}", fps, frames / watches[first_person].cpu, "fps",
-                   "> 1,000", fps > 1000),
-            Figure("  the grid-march camera it replaced", old, frames / watches[reference_first_person].cpu, "fps"),
-            Figure("  speed-up, same process", fps / old, watches[reference_first_person].cpu
-                   / watches[first_person].cpu, "x")]
+    return [
+        Figure(
+            f"first-person render, {size[0]}x{size[1]}",
+            fps,
+            frames / watches[first_person].cpu,
+            "fps",
+            "> 1,000",
+            fps > 1000,
+        ),
+        Figure("  the grid-march camera it replaced", old, frames / watches[reference_first_person].cpu, "fps"),
+        Figure(
+            "  speed-up, same process", fps / old, watches[reference_first_person].cpu / watches[first_person].cpu, "x"
+        ),
+    ]
 
 
 def _number(v: float) -> str:
@@ -235,8 +257,14 @@ def _number(v: float) -> str:
 
 def print_table(console: Console, figures: list[Figure], title: str) -> None:
     table = Table(title=title)
-    for col, justify in (("figure", "left"), ("wall clock", "right"), ("CPU time", "right"), ("unit", "left"),
-                         ("target", "left"), ("", "left")):
+    for col, justify in (
+        ("figure", "left"),
+        ("wall clock", "right"),
+        ("CPU time", "right"),
+        ("unit", "left"),
+        ("target", "left"),
+        ("", "left"),
+    ):
         table.add_column(col, justify=justify)
     for f in figures:
         mark = "" if f.ok is None else "[green]ok[/]" if f.ok else "[red]missed[/]"
@@ -246,8 +274,12 @@ def print_table(console: Console, figures: list[Figure], title: str) -> None:
 
 def main(argv: list[str] | None = None) -> list[Figure]:
     parser = argparse.ArgumentParser(prog="python -m bench.sim", description=__doc__.splitlines()[0])
-    parser.add_argument("--benchmark", type=Path, default=default_benchmark(),
-                        help="RobotSlangBenchmark clone (default: ROBOTSLANG_BENCHMARK or ../shared/robotslang)")
+    parser.add_argument(
+        "--benchmark",
+        type=Path,
+        default=default_benchmark(),
+        help="RobotSlangBenchmark clone (default: ROBOTSLANG_BENCHMARK or ../shared/robotslang)",
+    )
     parser.add_argument("--maps", type=int, default=None, help="only the first N maps (default: all)")
     parser.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     args = parser.parse_args(argv)
@@ -260,8 +292,10 @@ def main(argv: list[str] | None = None) -> list[Figure]:
     runs = benchmark.runs()[: args.maps]
     if not runs:
         parser.error(f"--benchmark {args.benchmark}: no maps under mazedata/")
-    console.print(f"[bold]bench.sim[/] on {len(runs)} maps of {benchmark.root}, {os.cpu_count()} CPUs, "
-                  f"load average {os.getloadavg()[0]:.2f}")
+    console.print(
+        f"[bold]bench.sim[/] on {len(runs)} maps of {benchmark.root}, {os.cpu_count()} CPUs, "
+        f"load average {os.getloadavg()[0]:.2f}"
+    )
 
     figures: list[Figure] = []
     mazes, decode = bench_decode(benchmark, runs)
@@ -270,9 +304,14 @@ def main(argv: list[str] | None = None) -> list[Figure]:
     figures += fig
     tables, ray_s, fig = bench_rays(mazes, graphs)
     figures += fig
-    all_maps = Figure(f"graphs + all-pairs + rays, {len(runs)} maps", graph_s.wall + ray_s.wall,
-                      graph_s.cpu + ray_s.cpu, "s", "< 15 s (all maps)",
-                      graph_s.wall + ray_s.wall < 15 * len(runs) / len(benchmark.runs()))
+    all_maps = Figure(
+        f"graphs + all-pairs + rays, {len(runs)} maps",
+        graph_s.wall + ray_s.wall,
+        graph_s.cpu + ray_s.cpu,
+        "s",
+        "< 15 s (all maps)",
+        graph_s.wall + ray_s.wall < 15 * len(runs) / len(benchmark.runs()),
+    )
     figures.append(all_maps)
     single = bench_single_env(mazes)
     figures += single
@@ -287,9 +326,18 @@ def main(argv: list[str] | None = None) -> list[Figure]:
     load = os.getloadavg()
     if args.json:
         print(f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}", file=sys.stderr)
-        print(json.dumps({"all_maps_s": all_maps.wall, "png_decode_s": decode[-1].wall,
-                          "env_step_us": single[0].wall, "batch_steps_per_s_1000": batched[-1].wall,
-                          "render_fps_320x240": render[0].wall, "rollout_iter_s": rollout[0].wall}))
+        print(
+            json.dumps(
+                {
+                    "all_maps_s": all_maps.wall,
+                    "png_decode_s": decode[-1].wall,
+                    "env_step_us": single[0].wall,
+                    "batch_steps_per_s_1000": batched[-1].wall,
+                    "render_fps_320x240": render[0].wall,
+                    "rollout_iter_s": rollout[0].wall,
+                }
+            )
+        )
     else:
         print_table(console, figures, f"Simulator speed (load average {load[0]:.2f} after the run)")
     return figures

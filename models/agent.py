@@ -100,8 +100,16 @@ class Seq2SeqAgent(nn.Module):
             ctx = (self.attn_key(ctx), self.attn_value(ctx))
         return ctx, ctx_mask, (h, c)
 
-    def step(self, obs: torch.Tensor, prev_action: torch.Tensor, state, ctx, ctx_mask,
-             forward_blocked: torch.Tensor, stop_allowed: torch.Tensor | None = None):
+    def step(
+        self,
+        obs: torch.Tensor,
+        prev_action: torch.Tensor,
+        state,
+        ctx,
+        ctx_mask,
+        forward_blocked: torch.Tensor,
+        stop_allowed: torch.Tensor | None = None,
+    ):
         """One decision: logits (B, 4) with the impossible actions masked, the new state, and the
         progress (B,), value (B,) and stop-probability (B,) heads' outputs (None where the agent
         has no such head)."""
@@ -123,8 +131,9 @@ class Seq2SeqAgent(nn.Module):
         return logits, (h, c), progress, value, stop
 
 
-def greedy_actions(logits: torch.Tensor, stop: torch.Tensor | None,
-                   stop_allowed: torch.Tensor | None = None) -> torch.Tensor:
+def greedy_actions(
+    logits: torch.Tensor, stop: torch.Tensor | None, stop_allowed: torch.Tensor | None = None
+) -> torch.Tensor:
     """The test-time decision: the best-scored action, or stop where the stop head (if any)
     is confident the goal is within reach and a stop is allowed."""
     action = logits.argmax(dim=1)
@@ -150,8 +159,9 @@ def observation_input(config: AgentConfig, obs: torch.Tensor, target_label: torc
     return torch.cat([obs, obs.gather(1, cols) * known], dim=1)
 
 
-def mask_logits(logits: torch.Tensor, forward_blocked: torch.Tensor,
-                stop_allowed: torch.Tensor | None = None) -> torch.Tensor:
+def mask_logits(
+    logits: torch.Tensor, forward_blocked: torch.Tensor, stop_allowed: torch.Tensor | None = None
+) -> torch.Tensor:
     """Forward is impossible where it would collide; stop, where given, only where allowed."""
     mask = torch.zeros_like(logits, dtype=torch.bool)
     mask[:, FORWARD] = forward_blocked

@@ -49,17 +49,22 @@ class TrainOn(str, Enum):
 def train_ndh(
     benchmark: Path = BENCHMARK_OPTION,
     feedback: Feedback = typer.Option(Feedback.student, help="teacher (lr 1e-4) or student (lr 1e-3) forcing."),
-    blind: Blind = typer.Option(Blind.none, help="Ablation: none, vision (observations zeroed) or language "
-                                "(dialog emptied)."),
+    blind: Blind = typer.Option(
+        Blind.none, help="Ablation: none, vision (observations zeroed) or language (dialog emptied)."
+    ),
     seed: int = typer.Option(0, help="Random seed."),
     iters: int = typer.Option(2000, help="Training iterations (batches of 100)."),
     out: Path = typer.Option(..., help="Run folder: best.pt, last.pt, history.json; resumes from last.pt."),
-    model: Model = typer.Option(Model.baseline, help="baseline: the paper's model; improved: target flags, "
-                                "actor-critic on the distance covered, averaged weights; attention: attention "
-                                "over the dialog, a progress monitor and target flags."),
+    model: Model = typer.Option(
+        Model.baseline,
+        help="baseline: the paper's model; improved: target flags, "
+        "actor-critic on the distance covered, averaged weights; attention: attention "
+        "over the dialog, a progress monitor and target flags.",
+    ),
     eval_every: int = typer.Option(200, help="Validate on val_seen every this many iterations."),
-    train_on: TrainOn = typer.Option(TrainOn.train, help="train, or train+val_seen (the test-time retraining; "
-                                     "no validation)."),
+    train_on: TrainOn = typer.Option(
+        TrainOn.train, help="train, or train+val_seen (the test-time retraining; no validation)."
+    ),
     glove: Path | None = typer.Option(None, help="GloVe text file to initialise the word embeddings."),
     lr: float | None = typer.Option(None, help="Learning rate; default the paper's for the feedback."),
 ) -> None:
@@ -71,10 +76,18 @@ def train_ndh(
     bench = open_benchmark(benchmark)
     splits = train_on.value.split("+")
     try:
-        cfg = TrainConfig(feedback=feedback.value, blind=blind.value, seed=seed, iters=iters, model=model.value,
-                          eval_every=eval_every, train_splits=splits,
-                          eval_split=None if "val_seen" in splits else "val_seen",
-                          glove=str(glove) if glove else None, lr=lr)
+        cfg = TrainConfig(
+            feedback=feedback.value,
+            blind=blind.value,
+            seed=seed,
+            iters=iters,
+            model=model.value,
+            eval_every=eval_every,
+            train_splits=splits,
+            eval_split=None if "val_seen" in splits else "val_seen",
+            glove=str(glove) if glove else None,
+            lr=lr,
+        )
         result = train(bench, cfg, out)
     except ValueError as e:
         raise typer.BadParameter(str(e)) from None
@@ -86,8 +99,10 @@ def train_ndh(
 
 def eval_ndh(
     benchmark: Path = BENCHMARK_OPTION,
-    checkpoint: Path | None = typer.Option(None, help="A checkpoint written by `train ndh`; default the Driver "
-                                              "shipped in the package (docs/model_card_ndh.md)."),
+    checkpoint: Path | None = typer.Option(
+        None,
+        help="A checkpoint written by `train ndh`; default the Driver shipped in the package (docs/model_card_ndh.md).",
+    ),
     split: EvalSplit = typer.Option(EvalSplit.val_seen, help="NDH split."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON (the shape of `eval baselines`)."),
     per_instance: Path | None = typer.Option(None, help="Write a CSV row per instance."),
@@ -137,10 +152,16 @@ def experiment_ndh(
     iters: int | None = typer.Option(None, help="Iterations per run; default: measured to fit the budget."),
     budget_minutes: float = typer.Option(110.0, help="Wall-time budget used to size --iters."),
     workers: int = typer.Option(2, help="Trainings run in parallel (one CPU thread each), with --executor local."),
-    executor: Executor = typer.Option(Executor.local, help="local: a process pool on this machine; ray: one Ray "
-                                      "task per run (pip install .[cluster]; run folders on shared storage)."),
-    address: str | None = typer.Option(None, help="With --executor ray: the cluster's address (e.g. "
-                                          "ray://HEAD:10001 or auto); default a new local Ray instance."),
+    executor: Executor = typer.Option(
+        Executor.local,
+        help="local: a process pool on this machine; ray: one Ray "
+        "task per run (pip install .[cluster]; run folders on shared storage).",
+    ),
+    address: str | None = typer.Option(
+        None,
+        help="With --executor ray: the cluster's address (e.g. "
+        "ray://HEAD:10001 or auto); default a new local Ray instance.",
+    ),
 ) -> None:
     """The whole protocol: 6 configurations x seeds, validation, retraining for test, tests, report."""
     from models.experiment import run_experiment
@@ -149,8 +170,10 @@ def experiment_ndh(
     model_list = [m.strip() for m in models.split(",") if m.strip()]
     unknown = [m for m in model_list if m not in MODELS]
     if not model_list or unknown:
-        raise typer.BadParameter(f"unknown model(s) {', '.join(unknown) or '(none given)'}; "
-                                 f"expected {', '.join(MODELS)}", param_hint="--models")
+        raise typer.BadParameter(
+            f"unknown model(s) {', '.join(unknown) or '(none given)'}; expected {', '.join(MODELS)}",
+            param_hint="--models",
+        )
     try:
         seed_list = [int(s) for s in seeds.split(",") if s.strip()]
     except ValueError:
@@ -162,10 +185,20 @@ def experiment_ndh(
             import ray  # noqa: F401
         except ImportError:
             raise typer.BadParameter("Ray is not installed: pip install .[cluster]", param_hint="--executor") from None
-    meta = run_experiment(open_benchmark(benchmark), out, model_list, seed_list, iters=iters,
-                          budget_minutes=budget_minutes, workers=workers, executor=executor.value, address=address)
-    typer.echo(f"{meta['iters']} iterations per run; {meta['timing']['total_s'] / 60:.1f} min; "
-               f"report -> {out / 'report.md'}")
+    meta = run_experiment(
+        open_benchmark(benchmark),
+        out,
+        model_list,
+        seed_list,
+        iters=iters,
+        budget_minutes=budget_minutes,
+        workers=workers,
+        executor=executor.value,
+        address=address,
+    )
+    typer.echo(
+        f"{meta['iters']} iterations per run; {meta['timing']['total_s'] / 60:.1f} min; report -> {out / 'report.md'}"
+    )
 
 
 def register(root: typer.Typer, eval_app: typer.Typer) -> None:

@@ -37,23 +37,37 @@ class EpisodeSet:
         return len(self.instances)
 
     @classmethod
-    def build(cls, bench: Benchmark, world: World, split: str, tokenizer: Tokenizer,
-              mode: str = "benchmark", instances: list[NDHInstance] | None = None) -> EpisodeSet:
+    def build(
+        cls,
+        bench: Benchmark,
+        world: World,
+        split: str,
+        tokenizer: Tokenizer,
+        mode: str = "benchmark",
+        instances: list[NDHInstance] | None = None,
+    ) -> EpisodeSet:
         instances = bench.split(split) if instances is None else instances
         m = len(instances)
         ids = [tokenizer.encode(inst.dialog, inst.target) for inst in instances]
         tokens = np.zeros((m, max(map(len, ids))), dtype=np.int64)
         for k, row in enumerate(ids):
-            tokens[k, :len(row)] = row
+            tokens[k, : len(row)] = row
         geometry = EpisodeGeometry.build(bench, world, instances, mode=mode)
         target_label = np.array([int(object_label(inst.target)) for inst in instances], dtype=np.int64)
-        return cls(split, instances, tokens, np.array([len(r) for r in ids]), target_label=target_label,
-                   **geometry.__dict__)
+        return cls(
+            split, instances, tokens, np.array([len(r) for r in ids]), target_label=target_label, **geometry.__dict__
+        )
 
     def start(self, stepper: BatchStepper, idx: np.ndarray) -> None:
         """Start episodes `idx` of this set in every position of `stepper` (one per index)."""
-        stepper.start(np.arange(len(idx)), self.start_node[idx], self.start_heading[idx],
-                      self.goal_node[idx], self.goal_dist[idx], self.goal_next[idx])
+        stepper.start(
+            np.arange(len(idx)),
+            self.start_node[idx],
+            self.start_heading[idx],
+            self.goal_node[idx],
+            self.goal_dist[idx],
+            self.goal_next[idx],
+        )
 
 
 def goal_distance(world: World, episodes: EpisodeSet, idx: np.ndarray, node: np.ndarray) -> np.ndarray:

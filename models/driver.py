@@ -85,8 +85,9 @@ class Seq2SeqDriver:
         stop_allowed = torch.tensor([not self._stop_held])
         label = -1 if self.blind == "language" else int(object_label(target))
         obs = observation_input(self.agent.config, obs, torch.tensor([label]))
-        logits, self.state, _, _, stop = self.agent.step(obs, self.prev, self.state, self.ctx, self.ctx_mask,
-                                                         blocked, stop_allowed)
+        logits, self.state, _, _, stop = self.agent.step(
+            obs, self.prev, self.state, self.ctx, self.ctx_mask, blocked, stop_allowed
+        )
         action = int(greedy_actions(logits, stop, stop_allowed)[0])
         self.prev = torch.tensor([action])
         if action != STOP:

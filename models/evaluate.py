@@ -28,8 +28,16 @@ def agent_name(train_config: dict) -> str:
 
 
 @torch.no_grad()
-def evaluate_agent(agent: Seq2SeqAgent, bench: Benchmark, world: World, episodes: EpisodeSet,
-                   blind: str, name: str, seed: int = 0, max_actions: int = MAX_ACTIONS) -> list[EpisodeResult]:
+def evaluate_agent(
+    agent: Seq2SeqAgent,
+    bench: Benchmark,
+    world: World,
+    episodes: EpisodeSet,
+    blind: str,
+    name: str,
+    seed: int = 0,
+    max_actions: int = MAX_ACTIONS,
+) -> list[EpisodeResult]:
     agent.eval()
     results = []
     for lo in range(0, len(episodes), EVAL_BATCH):
@@ -39,21 +47,39 @@ def evaluate_agent(agent: Seq2SeqAgent, bench: Benchmark, world: World, episodes
             inst = episodes.instances[k]
             off = world.offset[episodes.maze[k]]
             moves = int(((roll.actions[row] >= 0) & (roll.actions[row] != STOP)).sum())
-            local = roll.nodes[row, :moves + 1] - off
+            local = roll.nodes[row, : moves + 1] - off
             graph = bench.graph(inst.run)
             score = score_trajectory(graph, local, int(episodes.goal_node[k] - off))
             sx, sy = graph.nodes[local[0]]
-            results.append(EpisodeResult(
-                split=episodes.split, inst_idx=inst.inst_idx, agent=name, seed=seed,
-                start_x=float(sx), start_y=float(sy),
-                start_heading=float(heading_angle(int(episodes.start_heading[k]))),
-                goal_x=float(inst.target_pose[0]), goal_y=float(inst.target_pose[1]),
-                td=score.td, otd=score.otd, steps=moves, success=score.success, spl=score.spl))
+            results.append(
+                EpisodeResult(
+                    split=episodes.split,
+                    inst_idx=inst.inst_idx,
+                    agent=name,
+                    seed=seed,
+                    start_x=float(sx),
+                    start_y=float(sy),
+                    start_heading=float(heading_angle(int(episodes.start_heading[k]))),
+                    goal_x=float(inst.target_pose[0]),
+                    goal_y=float(inst.target_pose[1]),
+                    td=score.td,
+                    otd=score.otd,
+                    steps=moves,
+                    success=score.success,
+                    spl=score.spl,
+                )
+            )
     return results
 
 
-def evaluate_checkpoint(bench: Benchmark, world: World | None, checkpoint: str | Path, split: str,
-                        name: str | None = None, instances: list[NDHInstance] | None = None) -> list[EpisodeResult]:
+def evaluate_checkpoint(
+    bench: Benchmark,
+    world: World | None,
+    checkpoint: str | Path,
+    split: str,
+    name: str | None = None,
+    instances: list[NDHInstance] | None = None,
+) -> list[EpisodeResult]:
     """Per-instance results of a checkpoint on `split` (or on `instances` of it), under its own
     tokenizer and ablation; without a `world`, only the mazes of those instances are compiled."""
     from models.train import load_agent
@@ -64,5 +90,13 @@ def evaluate_checkpoint(bench: Benchmark, world: World | None, checkpoint: str |
     if world is None:
         world = World.build(bench, sorted({inst.run for inst in instances}), cache_dir=bench.cache_dir)
     episodes = EpisodeSet.build(bench, world, split, tokenizer, instances=instances)
-    return evaluate_agent(agent, bench, world, episodes, cfg["blind"], name or agent_name(cfg),
-                          seed=int(cfg["seed"]), max_actions=int(cfg["max_actions"]))
+    return evaluate_agent(
+        agent,
+        bench,
+        world,
+        episodes,
+        cfg["blind"],
+        name or agent_name(cfg),
+        seed=int(cfg["seed"]),
+        max_actions=int(cfg["max_actions"]),
+    )

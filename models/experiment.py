@@ -56,8 +56,7 @@ def measure_iteration_seconds(bench: Benchmark, out: Path, model: str) -> dict[s
     costs = {}
     for feedback in FEEDBACKS:
         probe = out / "probe" / f"{model}-{feedback}"
-        cfg = TrainConfig(feedback=feedback, model=model, iters=PROBE_ITERS, eval_every=PROBE_ITERS,
-                          eval_split=None)
+        cfg = TrainConfig(feedback=feedback, model=model, iters=PROBE_ITERS, eval_every=PROBE_ITERS, eval_split=None)
         for f in ("last.pt", "best.pt"):
             (probe / f).unlink(missing_ok=True)
         result = train(bench, cfg, probe, world=world, progress=False, threads=1)
@@ -78,8 +77,14 @@ def _train_job(root: str, cache_dir: str | None, cfg: dict, out: str) -> dict:
     return train(bench, TrainConfig(**cfg), out, progress=False, threads=1)
 
 
-def _run_jobs(jobs: list[tuple[dict, Path]], bench: Benchmark, workers: int, desc: str,
-              executor: str = "local", address: str | None = None) -> list[dict]:
+def _run_jobs(
+    jobs: list[tuple[dict, Path]],
+    bench: Benchmark,
+    workers: int,
+    desc: str,
+    executor: str = "local",
+    address: str | None = None,
+) -> list[dict]:
     bar = tqdm(total=len(jobs), desc=desc, unit="run")
     root, cache = str(bench.root), (str(bench.cache_dir) if bench.cache_dir else None)
     if executor == "ray":
@@ -113,9 +118,18 @@ def _run_ray_jobs(jobs: list[tuple[dict, Path]], root: str, cache: str | None, a
     return ray.get(refs)
 
 
-def run_experiment(bench: Benchmark, out: str | Path, models: list[str], seeds: list[int],
-                   iters: int | None = None, budget_minutes: float = 110.0, workers: int = 1,
-                   eval_every: int | None = None, executor: str = "local", address: str | None = None) -> dict:
+def run_experiment(
+    bench: Benchmark,
+    out: str | Path,
+    models: list[str],
+    seeds: list[int],
+    iters: int | None = None,
+    budget_minutes: float = 110.0,
+    workers: int = 1,
+    eval_every: int | None = None,
+    executor: str = "local",
+    address: str | None = None,
+) -> dict:
     from models.evaluate import evaluate_checkpoint
     from models.report import write_report
     from sim.evaluation import evaluate_baselines
@@ -142,20 +156,31 @@ def run_experiment(bench: Benchmark, out: str | Path, models: list[str], seeds: 
         # An untrained agent that may stop anywhere (a critic's) ends its probe episodes early,
         # so no variant is taken to be cheaper than the baseline, whose student runs to the cap.
         costs = {m: measure_iteration_seconds(bench, out, m) for m in dict.fromkeys(["baseline", *models])}
-        mean_cost = {f: sum(max(costs[m][f], costs["baseline"][f]) for m in models) / len(models)
-                     for f in FEEDBACKS}
-        iters = choose_iters(mean_cost, len(models), len(seeds), budget_minutes * 60 - timing["world_s"] - 300,
-                             workers)
+        mean_cost = {f: sum(max(costs[m][f], costs["baseline"][f]) for m in models) / len(models) for f in FEEDBACKS}
+        iters = choose_iters(mean_cost, len(models), len(seeds), budget_minutes * 60 - timing["world_s"] - 300, workers)
     eval_every = eval_every or max(1, math.ceil(iters / EVALS_PER_RUN))
-    meta = {"models": models, "seeds": seeds, "iters": iters, "eval_every": eval_every, "workers": workers,
-            "executor": executor,
-            "budget_minutes": budget_minutes, "iteration_seconds": costs, "cpus": os.cpu_count()}
+    meta = {
+        "models": models,
+        "seeds": seeds,
+        "iters": iters,
+        "eval_every": eval_every,
+        "workers": workers,
+        "executor": executor,
+        "budget_minutes": budget_minutes,
+        "iteration_seconds": costs,
+        "cpus": os.cpu_count(),
+    }
     meta_path.write_text(json.dumps(meta, indent=2))
 
     grid = [(m, f, b, s) for m in models for f in FEEDBACKS for b in ABLATIONS for s in seeds]
     t0 = time.perf_counter()
-    val_jobs = [(asdict(TrainConfig(feedback=f, blind=b, seed=s, model=m, iters=iters, eval_every=eval_every)),
-                 run_dir(out, m, f, b, s) / "val") for m, f, b, s in grid]
+    val_jobs = [
+        (
+            asdict(TrainConfig(feedback=f, blind=b, seed=s, model=m, iters=iters, eval_every=eval_every)),
+            run_dir(out, m, f, b, s) / "val",
+        )
+        for m, f, b, s in grid
+    ]
     val_runs = _run_jobs(val_jobs, bench, workers, "train (val_seen)", executor, address)
     timing["train_val_s"] = time.perf_counter() - t0
 
@@ -163,9 +188,23 @@ def run_experiment(bench: Benchmark, out: str | Path, models: list[str], seeds: 
     test_jobs = []
     for (m, f, b, s), run in zip(grid, val_runs):
         best = run["best"]["iteration"] or iters
-        test_jobs.append((asdict(TrainConfig(feedback=f, blind=b, seed=s, model=m, iters=best, eval_every=best,
-                                             train_splits=["train", "val_seen"], eval_split=None)),
-                          run_dir(out, m, f, b, s) / "test"))
+        test_jobs.append(
+            (
+                asdict(
+                    TrainConfig(
+                        feedback=f,
+                        blind=b,
+                        seed=s,
+                        model=m,
+                        iters=best,
+                        eval_every=best,
+                        train_splits=["train", "val_seen"],
+                        eval_split=None,
+                    )
+                ),
+                run_dir(out, m, f, b, s) / "test",
+            )
+        )
     _run_jobs(test_jobs, bench, workers, "retrain (train+val_seen)", executor, address)
     timing["train_test_s"] = time.perf_counter() - t0
 
@@ -182,9 +221,7 @@ def run_experiment(bench: Benchmark, out: str | Path, models: list[str], seeds: 
     timing["evaluate_s"] = time.perf_counter() - t0
     timing["total_s"] = time.perf_counter() - began
     meta["timing"] = timing
-    meta["best_iterations"] = {f"{config_name(m, f, b)}/seed{s}": r["best"]
-                               for (m, f, b, s), r in zip(grid, val_runs)}
+    meta["best_iterations"] = {f"{config_name(m, f, b)}/seed{s}": r["best"] for (m, f, b, s), r in zip(grid, val_runs)}
     meta_path.write_text(json.dumps(meta, indent=2))
     write_report(out)
     return meta
-

@@ -65,6 +65,7 @@ class Localizer(nn.Module):
 @dataclass(frozen=True)
 class PoseTensors:
     """A maze's poses as the model reads them, built once per maze."""
+
     views: torch.Tensor  # (P, VIEW_FEATURES)
     prior: torch.Tensor  # (P, MENTION_FEATURES): the colour baseline's per-mention log-likelihoods
     main: torch.Tensor  # (N,) bool
@@ -72,9 +73,11 @@ class PoseTensors:
     @classmethod
     def of(cls, ctx: MazeContext) -> PoseTensors:
         n, headings = ctx.views.shape[:2]
-        return cls(views=torch.from_numpy(ctx.views.reshape(n * headings, -1)),
-                   prior=torch.from_numpy(colour_features(ctx.views).reshape(n * headings, -1)),
-                   main=torch.from_numpy(ctx.main))
+        return cls(
+            views=torch.from_numpy(ctx.views.reshape(n * headings, -1)),
+            prior=torch.from_numpy(colour_features(ctx.views).reshape(n * headings, -1)),
+            main=torch.from_numpy(ctx.main),
+        )
 
 
 class TrainedLocalizer:
@@ -114,8 +117,12 @@ def load_localizer(path: str | Path) -> TrainedLocalizer:
     return TrainedLocalizer(model)
 
 
-_DIRECTION_TEXT = {0: ("in front of me", "ahead"), 1: ("to my left", "on my left"),
-                   2: ("behind me",), 3: ("to my right", "on my right")}
+_DIRECTION_TEXT = {
+    0: ("in front of me", "ahead"),
+    1: ("to my left", "on my left"),
+    2: ("behind me",),
+    3: ("to my right", "on my right"),
+}
 
 
 def synthetic_description(ctx: MazeContext, node: int, heading: int, rng: random.Random) -> tuple:
@@ -140,16 +147,18 @@ def _target(ctx: MazeContext, x: float, y: float) -> np.ndarray:
     return (q / q.sum()).astype(np.float32)
 
 
-def _loss(model: Localizer, ctx: MazeContext, pose: PoseTensors, counts: np.ndarray,
-          target: np.ndarray) -> torch.Tensor:
+def _loss(
+    model: Localizer, ctx: MazeContext, pose: PoseTensors, counts: np.ndarray, target: np.ndarray
+) -> torch.Tensor:
     logits = model(torch.from_numpy(counts), pose).reshape(ctx.graph.n, -1)
     logits = logits.masked_fill(~pose.main[:, None], -1e9)
     node_logp = torch.logsumexp(logits, dim=1) - torch.logsumexp(logits.flatten(), dim=0)
     return -(torch.from_numpy(target) * node_logp).sum()
 
 
-def train(bench: Benchmark, cfg: LDHConfig, out: str | Path, contexts: MazeContexts | None = None,
-          progress: bool = True) -> dict:
+def train(
+    bench: Benchmark, cfg: LDHConfig, out: str | Path, contexts: MazeContexts | None = None, progress: bool = True
+) -> dict:
     """Train, validating on val_seen after each epoch; DIR/best.pt is the best val_seen TD."""
     from tqdm import tqdm
 
@@ -193,8 +202,12 @@ def train(bench: Benchmark, cfg: LDHConfig, out: str | Path, contexts: MazeConte
             opt.step()
             total += loss.item()
         localizer = TrainedLocalizer(model)
-        val = summarize("val_seen", variant.value, len(val_set),
-                        evaluate(bench, "val_seen", val_set, {"learned": localizer}, contexts=contexts))
+        val = summarize(
+            "val_seen",
+            variant.value,
+            len(val_set),
+            evaluate(bench, "val_seen", val_set, {"learned": localizer}, contexts=contexts),
+        )
         val_td = val["agents"]["learned"]["td_mean"]
         history.append({"epoch": epoch, "loss": total / len(examples), "val_td": val_td})
         bar.set_postfix(loss=f"{total / len(examples):.3f}", val_td=f"{val_td:.3f}")

@@ -34,20 +34,31 @@ def print_table(summary: dict) -> None:
     for col in ("agent", "TD (m)", "Euclid (m)", "acc@0.25", "acc@0.5", "acc@1.0"):
         table.add_column(col, justify="left" if col == "agent" else "right")
     for name, s in summary["agents"].items():
-        table.add_row(name, f"{s['td_mean']:.3f} ± {s['td_std']:.3f}", f"{s['euclid_mean']:.3f}",
-                      f"{s['acc_0.25']:.3f}", f"{s['acc_0.5']:.3f}", f"{s['acc_1.0']:.3f}")
+        table.add_row(
+            name,
+            f"{s['td_mean']:.3f} ± {s['td_std']:.3f}",
+            f"{s['euclid_mean']:.3f}",
+            f"{s['acc_0.25']:.3f}",
+            f"{s['acc_0.5']:.3f}",
+            f"{s['acc_1.0']:.3f}",
+        )
     Console().print(table)
 
 
 def eval_ldh(
     benchmark: Path = BENCHMARK_OPTION,
     split: EvalSplit = typer.Option(EvalSplit.val_seen, help="Split (by maze, as the benchmark's)."),
-    agent: str = typer.Option("random,center,colours", help="Localizers, comma-separated: random, center, "
-                              f"colours, {LEARNED} (needs --checkpoint)."),
+    agent: str = typer.Option(
+        "random,center,colours",
+        help=f"Localizers, comma-separated: random, center, colours, {LEARNED} (needs --checkpoint).",
+    ),
     checkpoint: Path | None = typer.Option(None, help="A checkpoint written by `train ldh`."),
-    variant: VariantOption = typer.Option(VariantOption.prefix, help="prefix: the dialog up to the end of "
-                                          "localization (rule prefix-v1); full: the whole first sub-dialog. "
-                                          "A folder with LDH-data/ (a platform export) is read as is."),
+    variant: VariantOption = typer.Option(
+        VariantOption.prefix,
+        help="prefix: the dialog up to the end of "
+        "localization (rule prefix-v1); full: the whole first sub-dialog. "
+        "A folder with LDH-data/ (a platform export) is read as is.",
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
     per_instance: Path | None = typer.Option(None, help="Write a CSV row per instance and agent."),
 ) -> None:
@@ -80,8 +91,9 @@ def eval_ldh(
     else:
         from rich.progress import track
 
-        results = evaluate(bench, split.value, instances, agents,
-                           progress=lambda it: track(it, description="localizing"))
+        results = evaluate(
+            bench, split.value, instances, agents, progress=lambda it: track(it, description="localizing")
+        )
     summary = summarize(split.value, shown, len(instances), results)
     if per_instance is not None:
         write_csv(per_instance, results)
@@ -105,14 +117,20 @@ def train_ldh(
     from models.ldh import LDHConfig, train
 
     try:
-        result = train(open_benchmark(benchmark), LDHConfig(seed=seed, epochs=epochs, synthetic=synthetic,
-                                                            dropout=dropout, prior=prior, variant=variant.value),
-                       out)
+        result = train(
+            open_benchmark(benchmark),
+            LDHConfig(
+                seed=seed, epochs=epochs, synthetic=synthetic, dropout=dropout, prior=prior, variant=variant.value
+            ),
+            out,
+        )
     except ValueError as e:
         raise typer.BadParameter(str(e)) from None
     best = result["best"]
-    typer.echo(f"best val_seen TD {best['val_td']:.3f} at epoch {best['epoch']} -> {out / 'best.pt'} "
-               f"({result['seconds']:.0f} s)")
+    typer.echo(
+        f"best val_seen TD {best['val_td']:.3f} at epoch {best['epoch']} -> {out / 'best.pt'} "
+        f"({result['seconds']:.0f} s)"
+    )
 
 
 def experiment_ldh(
@@ -130,8 +148,10 @@ def experiment_ldh(
         raise typer.BadParameter(f"seeds must be integers, got {seeds!r}", param_hint="--seeds") from None
     meta = run_experiment(open_benchmark(benchmark), out, seed_list, doc)
     learned = meta["test"]["agents"]["learned"]
-    typer.echo(f"test TD learned {learned['td_mean']:.3f} m; {meta['timing']['total_s'] / 60:.1f} min; "
-               f"results -> {out / 'results.json'}, {doc}")
+    typer.echo(
+        f"test TD learned {learned['td_mean']:.3f} m; {meta['timing']['total_s'] / 60:.1f} min; "
+        f"results -> {out / 'results.json'}, {doc}"
+    )
 
 
 def register(train_app: typer.Typer, eval_app: typer.Typer, experiment_app: typer.Typer) -> None:

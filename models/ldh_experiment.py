@@ -46,8 +46,9 @@ def run_experiment(bench: Benchmark, out: Path, seeds: list[int], doc: Path | No
     out.mkdir(parents=True, exist_ok=True)
     contexts = MazeContexts(bench)
     val_set = load_split(bench, "val_seen", Variant.PREFIX)
-    val_base = summarize("val_seen", "prefix", len(val_set), evaluate(bench, "val_seen", val_set, BASELINES,
-                                                                      contexts=contexts))
+    val_base = summarize(
+        "val_seen", "prefix", len(val_set), evaluate(bench, "val_seen", val_set, BASELINES, contexts=contexts)
+    )
     ablation = {}
     for name, cfg in ABLATIONS.items():
         tds = []
@@ -70,9 +71,17 @@ def run_experiment(bench: Benchmark, out: Path, seeds: list[int], doc: Path | No
     test = summarize("test", "prefix", len(test_set), results)
     write_csv(out / "test_per_instance.csv", results)
     tests = [c.to_dict() for c in paired_tests(results, [("learned", "center"), ("learned", "colours")])]
-    meta = {"cut_rule": CUT_RULE, "seeds": seeds, "val_seen_baselines": val_base, "val_seen_ablation": ablation,
-            "test": test, "test_per_seed": per_seed, "paired_tests": tests,
-            "timing": {"train_s": train_s, "total_s": time.time() - start}, "uptime": _uptime()}
+    meta = {
+        "cut_rule": CUT_RULE,
+        "seeds": seeds,
+        "val_seen_baselines": val_base,
+        "val_seen_ablation": ablation,
+        "test": test,
+        "test_per_seed": per_seed,
+        "paired_tests": tests,
+        "timing": {"train_s": train_s, "total_s": time.time() - start},
+        "uptime": _uptime(),
+    }
     (out / "results.json").write_text(json.dumps(meta, indent=1))
     plot = _plot(results, (doc.parent if doc else out) / "img" / "ldh_test_td.png")
     if doc is not None:
@@ -110,35 +119,62 @@ def _plot(results, path: Path) -> Path:
 
 def _write_doc(doc: Path, meta: dict, plot: Path) -> None:
     test = meta["test"]
-    lines = [BEGIN, "", f"Test ({test['n']} trials, variant `prefix`, rule `{meta['cut_rule']}`), run once; "
-             f"`learned` is the mean of seeds {', '.join(map(str, meta['seeds']))} per instance.", "",
-             "| agent | TD (m) | Euclid (m) | acc@0.25 | acc@0.5 | acc@1.0 |", "|---|---|---|---|---|---|"]
+    lines = [
+        BEGIN,
+        "",
+        f"Test ({test['n']} trials, variant `prefix`, rule `{meta['cut_rule']}`), run once; "
+        f"`learned` is the mean of seeds {', '.join(map(str, meta['seeds']))} per instance.",
+        "",
+        "| agent | TD (m) | Euclid (m) | acc@0.25 | acc@0.5 | acc@1.0 |",
+        "|---|---|---|---|---|---|",
+    ]
     for name, s in test["agents"].items():
-        lines.append(f"| {name} | {s['td_mean']:.3f} ± {s['td_std']:.3f} | {s['euclid_mean']:.3f} | "
-                     f"{s['acc_0.25']:.3f} | {s['acc_0.5']:.3f} | {s['acc_1.0']:.3f} |")
+        lines.append(
+            f"| {name} | {s['td_mean']:.3f} ± {s['td_std']:.3f} | {s['euclid_mean']:.3f} | "
+            f"{s['acc_0.25']:.3f} | {s['acc_0.5']:.3f} | {s['acc_1.0']:.3f} |"
+        )
     for seed, s in meta["test_per_seed"].items():
-        lines.append(f"| learned seed {seed} | {s['td_mean']:.3f} ± {s['td_std']:.3f} | {s['euclid_mean']:.3f} | "
-                     f"{s['acc_0.25']:.3f} | {s['acc_0.5']:.3f} | {s['acc_1.0']:.3f} |")
-    lines += [f"| humans (paper) | {HUMAN_TD_M} | | | | |", "",
-              "Paired t-tests on per-instance TD, Benjamini-Yekutieli over the family:", "",
-              "| a | b | n | TD a | TD b | t | p | p (BY) | significant |", "|---|---|---|---|---|---|---|---|---|"]
+        lines.append(
+            f"| learned seed {seed} | {s['td_mean']:.3f} ± {s['td_std']:.3f} | {s['euclid_mean']:.3f} | "
+            f"{s['acc_0.25']:.3f} | {s['acc_0.5']:.3f} | {s['acc_1.0']:.3f} |"
+        )
+    lines += [
+        f"| humans (paper) | {HUMAN_TD_M} | | | | |",
+        "",
+        "Paired t-tests on per-instance TD, Benjamini-Yekutieli over the family:",
+        "",
+        "| a | b | n | TD a | TD b | t | p | p (BY) | significant |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for c in meta["paired_tests"]:
-        lines.append(f"| {c['a']} | {c['b']} | {c['n']} | {c['mean_a']:.3f} | {c['mean_b']:.3f} | {c['t']:.2f} | "
-                     f"{c['p']:.4f} | {c['p_adjusted']:.4f} | {'yes' if c['significant'] else 'no'} |")
-    lines += ["", "val_seen TD of each configuration (best epoch per seed; development only):", "",
-              "| configuration | " + " | ".join(f"seed {s}" for s in meta["seeds"]) + " | mean |",
-              "|---|" + "---|" * (len(meta["seeds"]) + 1)]
+        lines.append(
+            f"| {c['a']} | {c['b']} | {c['n']} | {c['mean_a']:.3f} | {c['mean_b']:.3f} | {c['t']:.2f} | "
+            f"{c['p']:.4f} | {c['p_adjusted']:.4f} | {'yes' if c['significant'] else 'no'} |"
+        )
+    lines += [
+        "",
+        "val_seen TD of each configuration (best epoch per seed; development only):",
+        "",
+        "| configuration | " + " | ".join(f"seed {s}" for s in meta["seeds"]) + " | mean |",
+        "|---|" + "---|" * (len(meta["seeds"]) + 1),
+    ]
     for name, tds in meta["val_seen_ablation"].items():
         lines.append(f"| {name} | " + " | ".join(f"{t:.3f}" for t in tds) + f" | {np.mean(tds):.3f} |")
     for name, s in meta["val_seen_baselines"]["agents"].items():
         lines.append(f"| {name} (baseline) | " + " | ".join("" for _ in meta["seeds"]) + f" | {s['td_mean']:.3f} |")
-    lines += ["", f"![TD distributions on test]({plot.as_posix()})", "",
-              f"Wall time {meta['timing']['total_s'] / 60:.1f} min (training {meta['timing']['train_s'] / 60:.1f} min); "
-              f"`uptime` at the end: `{meta['uptime']}` (the 2-core machine is shared).", "", END]
+    lines += [
+        "",
+        f"![TD distributions on test]({plot.as_posix()})",
+        "",
+        f"Wall time {meta['timing']['total_s'] / 60:.1f} min (training {meta['timing']['train_s'] / 60:.1f} min); "
+        f"`uptime` at the end: `{meta['uptime']}` (the 2-core machine is shared).",
+        "",
+        END,
+    ]
     text = doc.read_text() if doc.exists() else ""
     block = "\n".join(lines)
     if BEGIN in text and END in text:
-        text = text[: text.index(BEGIN)] + block + text[text.index(END) + len(END):]
+        text = text[: text.index(BEGIN)] + block + text[text.index(END) + len(END) :]
     else:
         text = text.rstrip() + "\n\n## Results (`robotslang experiment ldh`)\n\n" + block + "\n"
     doc.write_text(text)

@@ -57,9 +57,10 @@ def comparison_pairs(configs: list[tuple[str, str, str]]) -> list[tuple[str, str
 
 def significance(results: dict[str, list[EpisodeResult]], pairs) -> dict[str, list[Comparison]]:
     """Per split: tests on every table metric, BY-corrected within each (split, metric)."""
-    return {split: [c for metric in ("td", "otd", "success", "spl")
-                    for c in paired_tests(rs, pairs, metrics=(metric,))]
-            for split, rs in results.items()}
+    return {
+        split: [c for metric in ("td", "otd", "success", "spl") for c in paired_tests(rs, pairs, metrics=(metric,))]
+        for split, rs in results.items()
+    }
 
 
 def seed_significance(results: dict[str, list[EpisodeResult]], pairs) -> dict[str, list[Comparison]]:
@@ -68,8 +69,11 @@ def seed_significance(results: dict[str, list[EpisodeResult]], pairs) -> dict[st
     for split, rs in results.items():
         seeds = {agent: set(by_seed) for agent, by_seed in per_seed(rs, "td").items()}
         usable = [(a, b) for a, b in pairs if len(seeds.get(a, set()) & seeds.get(b, set())) >= 2]
-        out[split] = [c for metric in ("td", "otd", "success", "spl")
-                      for c in seed_tests(rs, usable, metrics=(metric,))] if usable else []
+        out[split] = (
+            [c for metric in ("td", "otd", "success", "spl") for c in seed_tests(rs, usable, metrics=(metric,))]
+            if usable
+            else []
+        )
     return out
 
 
@@ -83,8 +87,10 @@ def seeds_markdown(results: dict[str, list[EpisodeResult]]) -> str:
                 mine = [r for r in rs if r.agent == agent and r.seed == seed]
                 s = summarize_agent(mine)
                 stopped = np.mean([r.steps < MAX_EPISODE_ACTIONS for r in mine])
-                lines.append(f"| {split} | {agent} | {seed} | {s['td_mean']:.2f} | {s['sr']:.3f} | {s['spl']:.3f} | "
-                             f"{s['steps_mean']:.1f} | {stopped:.2f} |")
+                lines.append(
+                    f"| {split} | {agent} | {seed} | {s['td_mean']:.2f} | {s['sr']:.3f} | {s['spl']:.3f} | "
+                    f"{s['steps_mean']:.1f} | {stopped:.2f} |"
+                )
     return "\n".join(lines)
 
 
@@ -127,27 +133,33 @@ def tables_markdown(results: dict[str, list[EpisodeResult]], tests: dict[str, li
             for split in results:
                 summary = summarize_agent(by_agent[split][agent]) if agent in by_agent[split] else None
                 for metric, _ in metrics:
-                    cells.append(_cell(summary, metric, _marks(agent, metric, tests.get(split, [])))
-                                 if summary else "–")
+                    cells.append(
+                        _cell(summary, metric, _marks(agent, metric, tests.get(split, []))) if summary else "–"
+                    )
             lines.append("| " + " | ".join(cells) + " |")
         lines.append("")
     return "\n".join(lines)
 
 
 def tests_markdown(tests: dict[str, list[Comparison]]) -> str:
-    lines = ["| split | metric | A | B | n | mean A | mean B | t | p | p (BY) | significant |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| split | metric | A | B | n | mean A | mean B | t | p | p (BY) | significant |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     if not any(tests.values()):
         return "(none: no pair of configurations has two seeds in common)"
     for split, cs in tests.items():
         for c in cs:
-            lines.append(f"| {split} | {c.metric} | {c.a} | {c.b} | {c.n} | {c.mean_a:.3f} | {c.mean_b:.3f} | "
-                         f"{c.t:.2f} | {c.p:.3g} | {c.p_adjusted:.3g} | {'yes' if c.significant else 'no'} |")
+            lines.append(
+                f"| {split} | {c.metric} | {c.a} | {c.b} | {c.n} | {c.mean_a:.3f} | {c.mean_b:.3f} | "
+                f"{c.t:.2f} | {c.p:.3g} | {c.p_adjusted:.3g} | {'yes' if c.significant else 'no'} |"
+            )
     return "\n".join(lines)
 
 
 def plot_td_distributions(results: dict[str, list[EpisodeResult]], path: Path) -> None:
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -174,6 +186,7 @@ def plot_td_distributions(results: dict[str, list[EpisodeResult]], path: Path) -
 
 def plot_learning_curves(out: Path, path: Path) -> bool:
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -187,8 +200,13 @@ def plot_learning_curves(out: Path, path: Path) -> bool:
     for ax, (model, configs) in zip(axes[0], sorted(curves.items())):
         for config, runs in sorted(configs.items()):
             iters = [e["iteration"] for e in runs[0] if "val_td" in e]
-            tds = np.array([[e["val_td"] for e in run if "val_td" in e][:len(iters)] for run in runs
-                            if len([e for e in run if "val_td" in e]) >= len(iters)])
+            tds = np.array(
+                [
+                    [e["val_td"] for e in run if "val_td" in e][: len(iters)]
+                    for run in runs
+                    if len([e for e in run if "val_td" in e]) >= len(iters)
+                ]
+            )
             ax.plot(iters, tds.mean(axis=0), marker="o", label=f"{config} ({len(tds)} seeds)")
         ax.set_xlabel("training iteration (batch of 100)")
         ax.set_ylabel("val_seen TD (m), mean over seeds")
@@ -217,24 +235,41 @@ def write_report(out: str | Path) -> Path:
     meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
     lines = ["# NDH results", ""]
     if meta:
-        lines += [f"Models {', '.join(meta.get('models', []))}; seeds {meta.get('seeds')}; "
-                  f"{meta.get('iters')} training iterations per run (validation every {meta.get('eval_every')}); "
-                  f"wall time {meta.get('timing', {}).get('total_s', float('nan')) / 60:.1f} min.", ""]
-    lines += [tables_markdown(results, tests),
-              f"{ABLATION_MARK}: significantly different from the full model with the same feedback; "
-              f"{FEEDBACK_MARK}: student forcing significantly different from teacher forcing with the same "
-              f"inputs; {VARIANT_MARK}: full model significantly different from the {REFERENCE_MODEL}'s with "
-              "the same feedback (paired t-tests over instances, metrics averaged over seeds per instance, "
-              "Benjamini-Yekutieli within each split and metric, alpha 0.05).", "",
-              "## Tests", "", tests_markdown(tests), "",
-              "## Each seed", "", "Each training seed's figures (mean over instances; a cap-ended episode "
-              f"ran {MAX_EPISODE_ACTIONS} moves):", "", seeds_markdown(results), "",
-              "## Tests across seeds", "",
-              "The same pairs, each seed's mean over instances as one observation (paired t-tests over seeds, "
-              "Benjamini-Yekutieli within each split and metric, alpha 0.05): a difference significant here "
-              "holds across training runs, not only across the instances of these runs.", "",
-              tests_markdown(across_seeds), "",
-              "![TD distributions](td_distribution.png)", ""]
+        lines += [
+            f"Models {', '.join(meta.get('models', []))}; seeds {meta.get('seeds')}; "
+            f"{meta.get('iters')} training iterations per run (validation every {meta.get('eval_every')}); "
+            f"wall time {meta.get('timing', {}).get('total_s', float('nan')) / 60:.1f} min.",
+            "",
+        ]
+    lines += [
+        tables_markdown(results, tests),
+        f"{ABLATION_MARK}: significantly different from the full model with the same feedback; "
+        f"{FEEDBACK_MARK}: student forcing significantly different from teacher forcing with the same "
+        f"inputs; {VARIANT_MARK}: full model significantly different from the {REFERENCE_MODEL}'s with "
+        "the same feedback (paired t-tests over instances, metrics averaged over seeds per instance, "
+        "Benjamini-Yekutieli within each split and metric, alpha 0.05).",
+        "",
+        "## Tests",
+        "",
+        tests_markdown(tests),
+        "",
+        "## Each seed",
+        "",
+        f"Each training seed's figures (mean over instances; a cap-ended episode ran {MAX_EPISODE_ACTIONS} moves):",
+        "",
+        seeds_markdown(results),
+        "",
+        "## Tests across seeds",
+        "",
+        "The same pairs, each seed's mean over instances as one observation (paired t-tests over seeds, "
+        "Benjamini-Yekutieli within each split and metric, alpha 0.05): a difference significant here "
+        "holds across training runs, not only across the instances of these runs.",
+        "",
+        tests_markdown(across_seeds),
+        "",
+        "![TD distributions](td_distribution.png)",
+        "",
+    ]
     if has_curves:
         lines += ["![learning curves](learning_curves.png)", ""]
     path = out / "report.md"

@@ -51,10 +51,18 @@ class Rollout:
     loss: torch.Tensor | None = None
 
 
-def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: np.ndarray,
-                 feedback: str, blind: str = "none", max_actions: int = MAX_ACTIONS,
-                 generator: torch.Generator | None = None, progress_weight: float = 1.0,
-                 train: bool = False) -> Rollout:
+def run_episodes(
+    agent: Seq2SeqAgent,
+    world: World,
+    episodes: EpisodeSet,
+    idx: np.ndarray,
+    feedback: str,
+    blind: str = "none",
+    max_actions: int = MAX_ACTIONS,
+    generator: torch.Generator | None = None,
+    progress_weight: float = 1.0,
+    train: bool = False,
+) -> Rollout:
     if feedback not in FEEDBACKS:
         raise ValueError(f"unknown feedback {feedback!r}; expected one of {', '.join(FEEDBACKS)}")
     if blind not in BLINDS:
@@ -96,8 +104,9 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
         # node cut off from it, nowhere else to go); an agent learning from its returns, anywhere.
         stop_allowed = torch.from_numpy(teacher == STOP) if feedback == "student" and not rl else None
         obs_in = observation_input(agent.config, torch.from_numpy(obs), target_label)
-        logits, state, progress, value, stop = agent.step(obs_in, prev, state, ctx, ctx_mask,
-                                                    torch.from_numpy(blocked), stop_allowed)
+        logits, state, progress, value, stop = agent.step(
+            obs_in, prev, state, ctx, ctx_mask, torch.from_numpy(blocked), stop_allowed
+        )
         active = torch.from_numpy(~done)
         if train:  # the loss is computed once over all steps, below
             step_logits.append(logits)
@@ -134,15 +143,17 @@ def run_episodes(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, idx: n
     loss = None
     if train:
         active = torch.stack(step_active).float()
-        ce = F.cross_entropy(torch.stack(step_logits).flatten(0, 1), torch.stack(step_targets).flatten(),
-                             reduction="none")
+        ce = F.cross_entropy(
+            torch.stack(step_logits).flatten(0, 1), torch.stack(step_targets).flatten(), reduction="none"
+        )
         total = (ce * active.flatten()).sum()
         if step_progress:
             err = (torch.stack(step_progress) - torch.stack(step_goal)) ** 2
             total = total + progress_weight * (err * active).sum()
         if step_stop:
-            near = F.binary_cross_entropy(torch.stack(step_stop).clamp(1e-6, 1 - 1e-6), torch.stack(step_near),
-                                          reduction="none")
+            near = F.binary_cross_entropy(
+                torch.stack(step_stop).clamp(1e-6, 1 - 1e-6), torch.stack(step_near), reduction="none"
+            )
             total = total + (near * active).sum()
         if rl:
             total = total + RL_WEIGHT * actor_critic_loss(step_logp, step_entropy, step_value, step_reward, active)
@@ -159,8 +170,13 @@ def move_rewards(d_before: np.ndarray, d_after: np.ndarray, chosen: np.ndarray, 
     return np.where(done, 0.0, reward).astype(np.float32)
 
 
-def actor_critic_loss(logp: list[torch.Tensor], entropy: list[torch.Tensor], value: list[torch.Tensor],
-                      reward: list[torch.Tensor], active: torch.Tensor) -> torch.Tensor:
+def actor_critic_loss(
+    logp: list[torch.Tensor],
+    entropy: list[torch.Tensor],
+    value: list[torch.Tensor],
+    reward: list[torch.Tensor],
+    active: torch.Tensor,
+) -> torch.Tensor:
     """Summed over the steps and episodes still running: policy gradient with the critic as
     baseline, the critic's squared error on the discounted returns, and an entropy bonus."""
     rewards = torch.stack(reward)

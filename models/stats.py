@@ -61,20 +61,28 @@ def per_seed(results: list[EpisodeResult], metric: str) -> dict[str, dict[int, f
     return {agent: {s: float(np.mean(v)) for s, v in by_seed.items()} for agent, by_seed in values.items()}
 
 
-def paired_tests(results: list[EpisodeResult], pairs: list[tuple[str, str]],
-                 metrics: tuple[str, ...] = ("td",), alpha: float = ALPHA) -> list[Comparison]:
+def paired_tests(
+    results: list[EpisodeResult], pairs: list[tuple[str, str]], metrics: tuple[str, ...] = ("td",), alpha: float = ALPHA
+) -> list[Comparison]:
     """Paired t-tests over instances of each (a, b) pair on each metric, BY-corrected over all."""
     return _tests(per_instance, "instance", results, pairs, metrics, alpha)
 
 
-def seed_tests(results: list[EpisodeResult], pairs: list[tuple[str, str]],
-               metrics: tuple[str, ...] = ("td",), alpha: float = ALPHA) -> list[Comparison]:
+def seed_tests(
+    results: list[EpisodeResult], pairs: list[tuple[str, str]], metrics: tuple[str, ...] = ("td",), alpha: float = ALPHA
+) -> list[Comparison]:
     """Paired t-tests over per-seed means of each (a, b) pair on each metric, BY-corrected."""
     return _tests(per_seed, "seed", results, pairs, metrics, alpha)
 
 
-def _tests(table_of, unit: str, results: list[EpisodeResult], pairs: list[tuple[str, str]],
-           metrics: tuple[str, ...], alpha: float) -> list[Comparison]:
+def _tests(
+    table_of,
+    unit: str,
+    results: list[EpisodeResult],
+    pairs: list[tuple[str, str]],
+    metrics: tuple[str, ...],
+    alpha: float,
+) -> list[Comparison]:
     raw = []
     for metric in metrics:
         table = table_of(results, metric)
@@ -94,5 +102,4 @@ def _tests(table_of, unit: str, results: list[EpisodeResult], pairs: list[tuple[
                 t, p = 0.0, 1.0
             raw.append((a, b, metric, len(x), float(x.mean()), float(y.mean()), float(t), float(p)))
     adjusted = stats.false_discovery_control([r[-1] for r in raw], method="by") if raw else []
-    return [Comparison(*r, p_adjusted=float(q), significant=bool(q < alpha), unit=unit)
-            for r, q in zip(raw, adjusted)]
+    return [Comparison(*r, p_adjusted=float(q), significant=bool(q < alpha), unit=unit) for r, q in zip(raw, adjusted)]

@@ -37,8 +37,9 @@ def dialog_tokens(dialog: Iterable[tuple[str, str]], target: str) -> list[str]:
         try:
             tokens.append(SPEAKER_TOKEN[role])
         except KeyError:
-            raise ValueError(f"unknown speaker role {role!r} in dialog; expected one of "
-                             f"{', '.join(sorted(SPEAKER_TOKEN))}") from None
+            raise ValueError(
+                f"unknown speaker role {role!r} in dialog; expected one of {', '.join(sorted(SPEAKER_TOKEN))}"
+            ) from None
         tokens.extend(split_words(message))
     tokens.append(TARGET)
     tokens.extend(split_words(target))
@@ -49,7 +50,7 @@ class Tokenizer:
     """A fixed vocabulary (from the training fold) and the truncation rule."""
 
     def __init__(self, vocab: Sequence[str], max_tokens: int = MAX_TOKENS):
-        if tuple(vocab[:len(SPECIALS)]) != SPECIALS:
+        if tuple(vocab[: len(SPECIALS)]) != SPECIALS:
             raise ValueError(f"vocabulary must start with the special tokens {SPECIALS}")
         self.vocab = list(vocab)
         self.index = {word: i for i, word in enumerate(self.vocab)}
@@ -58,8 +59,9 @@ class Tokenizer:
         self.max_tokens = max_tokens
 
     @classmethod
-    def from_dialogs(cls, dialogs: Iterable[tuple[Iterable[tuple[str, str]], str]],
-                     min_count: int = 1, max_tokens: int = MAX_TOKENS) -> Tokenizer:
+    def from_dialogs(
+        cls, dialogs: Iterable[tuple[Iterable[tuple[str, str]], str]], min_count: int = 1, max_tokens: int = MAX_TOKENS
+    ) -> Tokenizer:
         """Vocabulary of every word seen at least `min_count` times in (dialog, target) pairs."""
         counts: Counter[str] = Counter()
         for dialog, target in dialogs:
@@ -76,7 +78,7 @@ class Tokenizer:
 
     def encode(self, dialog: Iterable[tuple[str, str]], target: str) -> list[int]:
         """Ids of the most recent `max_tokens` tokens; unknown words become `<UNK>`."""
-        tokens = dialog_tokens(dialog, target)[-self.max_tokens:]
+        tokens = dialog_tokens(dialog, target)[-self.max_tokens :]
         return [self.index.get(t, self.unk_id) for t in tokens]
 
     def to_json(self) -> str:

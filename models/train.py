@@ -108,17 +108,19 @@ def load_glove(path: str | Path, tokenizer: Tokenizer) -> tuple[torch.Tensor, in
 
 
 def make_agent(cfg: TrainConfig, tokenizer: Tokenizer, obs_features: int) -> Seq2SeqAgent:
-    glove, embed = (load_glove(cfg.glove, tokenizer) if cfg.glove else (None, 128))
-    agent = Seq2SeqAgent(AgentConfig(vocab_size=len(tokenizer), obs_features=obs_features,
-                                     embed=embed, **MODELS[cfg.model].agent))
+    glove, embed = load_glove(cfg.glove, tokenizer) if cfg.glove else (None, 128)
+    agent = Seq2SeqAgent(
+        AgentConfig(vocab_size=len(tokenizer), obs_features=obs_features, embed=embed, **MODELS[cfg.model].agent)
+    )
     if glove is not None:
         agent.embedding.weight.data.copy_(glove)
     return agent
 
 
 @torch.no_grad()
-def validation_td(agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, blind: str,
-                  max_actions: int = MAX_ACTIONS) -> float:
+def validation_td(
+    agent: Seq2SeqAgent, world: World, episodes: EpisodeSet, blind: str, max_actions: int = MAX_ACTIONS
+) -> float:
     """Mean topological distance to the goal where the greedy agent stops."""
     agent.eval()
     idx = np.arange(len(episodes))
@@ -132,11 +134,20 @@ def save_checkpoint(path: Path, agent, averaged, optimizer, tokenizer, cfg, iter
     """`state_dict` is what training resumes from; `eval_state_dict`, where the variant averages
     its weights, is what a Driver loaded from the checkpoint plays with."""
     tmp = path.with_suffix(".tmp")
-    torch.save({"agent_config": agent.config.to_dict(), "state_dict": agent.state_dict(),
-                "eval_state_dict": averaged.state_dict() if averaged is not None else None,
-                "optimizer": optimizer.state_dict(), "tokenizer": tokenizer.to_json(),
-                "train_config": asdict(cfg), "iteration": iteration, "history": history,
-                "best": best}, tmp)
+    torch.save(
+        {
+            "agent_config": agent.config.to_dict(),
+            "state_dict": agent.state_dict(),
+            "eval_state_dict": averaged.state_dict() if averaged is not None else None,
+            "optimizer": optimizer.state_dict(),
+            "tokenizer": tokenizer.to_json(),
+            "train_config": asdict(cfg),
+            "iteration": iteration,
+            "history": history,
+            "best": best,
+        },
+        tmp,
+    )
     tmp.replace(path)  # never a half-written checkpoint
 
 
@@ -161,9 +172,16 @@ def load_agent(path: str | Path) -> tuple[Seq2SeqAgent, Tokenizer, dict]:
     return agent, Tokenizer.from_json(ckpt["tokenizer"]), ckpt
 
 
-def train(bench: Benchmark, cfg: TrainConfig, out: str | Path, world: World | None = None,
-          progress: bool = True, threads: int | None = None, train_instances: list[NDHInstance] | None = None,
-          eval_instances: list[NDHInstance] | None = None) -> dict:
+def train(
+    bench: Benchmark,
+    cfg: TrainConfig,
+    out: str | Path,
+    world: World | None = None,
+    progress: bool = True,
+    threads: int | None = None,
+    train_instances: list[NDHInstance] | None = None,
+    eval_instances: list[NDHInstance] | None = None,
+) -> dict:
     """Train (or resume) into `out`; returns {"history": [...], "best": {...}, "seconds": s}.
 
     `train_instances` / `eval_instances` replace the configured splits (small runs, tests).
@@ -181,8 +199,9 @@ def train(bench: Benchmark, cfg: TrainConfig, out: str | Path, world: World | No
         world = World.build(bench, sorted({inst.run for inst in used}), cache_dir=bench.cache_dir)
     tokenizer = Tokenizer.from_dialogs(((i.dialog, i.target) for i in train_instances), cfg.min_count)
     train_set = EpisodeSet.build(bench, world, "+".join(cfg.train_splits), tokenizer, instances=train_instances)
-    val_set = (EpisodeSet.build(bench, world, cfg.eval_split, tokenizer, instances=eval_instances)
-               if cfg.eval_split else None)
+    val_set = (
+        EpisodeSet.build(bench, world, cfg.eval_split, tokenizer, instances=eval_instances) if cfg.eval_split else None
+    )
 
     torch.manual_seed(cfg.seed)
     agent = make_agent(cfg, tokenizer, world.obs_features)
@@ -194,8 +213,9 @@ def train(bench: Benchmark, cfg: TrainConfig, out: str | Path, world: World | No
     if last.exists():
         _, _, ckpt = load_agent(last)
         if ckpt["train_config"] != {**asdict(cfg), "iters": ckpt["train_config"]["iters"]}:
-            raise ValueError(f"{last}: was trained with a different configuration "
-                             f"({ckpt['train_config']}); use another --out")
+            raise ValueError(
+                f"{last}: was trained with a different configuration ({ckpt['train_config']}); use another --out"
+            )
         agent.load_state_dict(ckpt["state_dict"])
         if averaged is not None:
             averaged.load_state_dict(ckpt["eval_state_dict"])
@@ -206,16 +226,23 @@ def train(bench: Benchmark, cfg: TrainConfig, out: str | Path, world: World | No
 
     agent.train()
     began = time.perf_counter()
-    bar = tqdm(range(start, cfg.iters), initial=start, total=cfg.iters, disable=not progress,
-               desc=f"{cfg.model} {cfg.feedback}/{cfg.blind} seed {cfg.seed}", unit="it")
+    bar = tqdm(
+        range(start, cfg.iters),
+        initial=start,
+        total=cfg.iters,
+        disable=not progress,
+        desc=f"{cfg.model} {cfg.feedback}/{cfg.blind} seed {cfg.seed}",
+        unit="it",
+    )
     window: list[float] = []
     for it in bar:
         rng = np.random.default_rng([cfg.seed, it])
         torch.manual_seed(cfg.seed * 1_000_003 + it)
         gen = torch.Generator().manual_seed(cfg.seed * 1_000_003 + it)
         idx = rng.choice(len(train_set), size=min(cfg.batch, len(train_set)), replace=False)
-        roll = run_episodes(agent, world, train_set, idx, cfg.feedback, cfg.blind, cfg.max_actions,
-                            generator=gen, train=True)
+        roll = run_episodes(
+            agent, world, train_set, idx, cfg.feedback, cfg.blind, cfg.max_actions, generator=gen, train=True
+        )
         optimizer.zero_grad()
         roll.loss.backward()
         optimizer.step()
@@ -225,13 +252,16 @@ def train(bench: Benchmark, cfg: TrainConfig, out: str | Path, world: World | No
         done = it + 1
         postfix = {"loss": f"{np.mean(window):.3f}"}  # before `window` restarts below
         if done % cfg.eval_every == 0 or done == cfg.iters:
-            entry = {"iteration": done, "loss": float(np.mean(window)),
-                     "seconds": time.perf_counter() - began}
+            entry = {"iteration": done, "loss": float(np.mean(window)), "seconds": time.perf_counter() - began}
             if val_set is not None:
-                entry["val_td"] = validation_td(averaged if averaged is not None else agent, world, val_set, cfg.blind, cfg.max_actions)
+                entry["val_td"] = validation_td(
+                    averaged if averaged is not None else agent, world, val_set, cfg.blind, cfg.max_actions
+                )
                 if entry["val_td"] < best["val_td"]:
                     best = {"iteration": done, "val_td": entry["val_td"]}
-                    save_checkpoint(out / "best.pt", agent, averaged, optimizer, tokenizer, cfg, done, history + [entry], best)
+                    save_checkpoint(
+                        out / "best.pt", agent, averaged, optimizer, tokenizer, cfg, done, history + [entry], best
+                    )
             history.append(entry)
             window = []
             save_checkpoint(last, agent, averaged, optimizer, tokenizer, cfg, done, history, best)

@@ -49,16 +49,19 @@ def calibrate(motors: Motors, calibration: Calibration, ask=input, say=print) ->
                 continue
             proposed = seconds * target / measured
             if proposed > calibration.max_move_s:
-                say(f"That needs {proposed:.2f} s, more than max_move_s={calibration.max_move_s} s; "
-                    "raise the speed in the file instead.")
+                say(
+                    f"That needs {proposed:.2f} s, more than max_move_s={calibration.max_move_s} s; "
+                    "raise the speed in the file instead."
+                )
                 continue
             seconds = proposed
         calibration = replace(calibration, **{field: round(seconds, 4)})
     return calibration
 
 
-def run(motors_kind: str, path: Path, left_pins: tuple[int, int] | None,
-        right_pins: tuple[int, int] | None) -> Calibration:
+def run(
+    motors_kind: str, path: Path, left_pins: tuple[int, int] | None, right_pins: tuple[int, int] | None
+) -> Calibration:
     calibration = Calibration.load(path) if path.exists() else Calibration()
     if left_pins:
         calibration = replace(calibration, left_forward_pin=left_pins[0], left_backward_pin=left_pins[1])

@@ -35,8 +35,7 @@ class Calibration:
     max_move_s: float = 2.0
 
     def __post_init__(self) -> None:
-        pins = [self.left_forward_pin, self.left_backward_pin,
-                self.right_forward_pin, self.right_backward_pin]
+        pins = [self.left_forward_pin, self.left_backward_pin, self.right_forward_pin, self.right_backward_pin]
         for name in ("left_forward_pin", "left_backward_pin", "right_forward_pin", "right_backward_pin"):
             value = getattr(self, name)
             if not isinstance(value, int) or isinstance(value, bool) or not 0 <= value <= 27:
@@ -52,21 +51,20 @@ class Calibration:
         for name in ("forward_s", "left_s", "right_s"):
             value = getattr(self, name)
             if not isinstance(value, (int, float)) or not 0 < value <= self.max_move_s:
-                raise CalibrationError(f"{name} must be in (0, max_move_s={self.max_move_s}] "
-                                       f"seconds, got {value!r}")
+                raise CalibrationError(f"{name} must be in (0, max_move_s={self.max_move_s}] seconds, got {value!r}")
 
     def duration(self, action: str) -> float:
         """Seconds of motor pulse for one move, never above max_move_s."""
-        return min({"forward": self.forward_s, "left": self.left_s, "right": self.right_s}[action],
-                   self.max_move_s)
+        return min({"forward": self.forward_s, "left": self.left_s, "right": self.right_s}[action], self.max_move_s)
 
     @classmethod
     def load(cls, path: Path) -> Calibration:
         try:
             data = json.loads(Path(path).read_text())
         except FileNotFoundError:
-            raise CalibrationError(f"calibration file {path} does not exist "
-                                   "(create it with `robotslang-robot calibrate`)") from None
+            raise CalibrationError(
+                f"calibration file {path} does not exist (create it with `robotslang-robot calibrate`)"
+            ) from None
         except (OSError, json.JSONDecodeError) as exc:
             raise CalibrationError(f"calibration file {path} is not readable JSON: {exc}") from None
         if not isinstance(data, dict):
@@ -74,8 +72,9 @@ class Calibration:
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(data) - known)
         if unknown:
-            raise CalibrationError(f"calibration file {path} has unknown keys {unknown}; "
-                                   f"known keys are {sorted(known)}")
+            raise CalibrationError(
+                f"calibration file {path} has unknown keys {unknown}; known keys are {sorted(known)}"
+            )
         try:
             return cls(**data)
         except CalibrationError as exc:

@@ -45,8 +45,13 @@ class SyntheticCamera:
     def __init__(self, width: int, height: int) -> None:
         x = np.linspace(0, 255, width, dtype=np.float32)
         y = np.linspace(0, 255, height, dtype=np.float32)[:, None]
-        base = np.dstack([np.broadcast_to(x, (height, width)), np.broadcast_to(y, (height, width)),
-                          np.full((height, width), 128, np.float32)])
+        base = np.dstack(
+            [
+                np.broadcast_to(x, (height, width)),
+                np.broadcast_to(y, (height, width)),
+                np.full((height, width), 128, np.float32),
+            ]
+        )
         texture = np.random.default_rng(0).normal(0, 5, (height, width, 1)).astype(np.float32)
         self._base = np.clip(base + texture, 0, 255).astype(np.uint8)
         self._count = 0
@@ -54,8 +59,7 @@ class SyntheticCamera:
     def read(self) -> np.ndarray:
         self._count += 1
         image = np.roll(self._base, 4 * self._count, axis=1)
-        cv2.putText(image, f"#{self._count}", (12, 40), cv2.FONT_HERSHEY_SIMPLEX, 1.2,
-                    (255, 255, 255), 2, cv2.LINE_AA)
+        cv2.putText(image, f"#{self._count}", (12, 40), cv2.FONT_HERSHEY_SIMPLEX, 1.2, (255, 255, 255), 2, cv2.LINE_AA)
         return image
 
     def close(self) -> None:
@@ -98,12 +102,14 @@ class PiCamera:
         try:
             from picamera2 import Picamera2
         except ImportError:
-            raise CameraError("--camera picamera needs picamera2 "
-                              "(`sudo apt install python3-picamera2` on Raspberry Pi OS)") from None
+            raise CameraError(
+                "--camera picamera needs picamera2 (`sudo apt install python3-picamera2` on Raspberry Pi OS)"
+            ) from None
         self._camera = Picamera2()
         # picamera2's "RGB888" is laid out B, G, R in memory: what OpenCV expects.
         config = self._camera.create_video_configuration(
-            main={"size": (settings.width, settings.height), "format": "RGB888"})
+            main={"size": (settings.width, settings.height), "format": "RGB888"}
+        )
         self._camera.configure(config)
         self._camera.start()
 
@@ -124,8 +130,7 @@ def open_camera(spec: str, settings: CameraSettings):
     if spec.isdigit():
         return OpenCVCamera(int(spec), settings)
     if not Path(spec).is_file():
-        raise CameraError(f"--camera {spec!r} is not a camera index, 'picamera', 'synthetic' "
-                          "or an existing video file")
+        raise CameraError(f"--camera {spec!r} is not a camera index, 'picamera', 'synthetic' or an existing video file")
     return OpenCVCamera(spec, settings)
 
 

@@ -23,32 +23,49 @@ def run_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="robotslang-robot",
         description="Stream the rover's camera to a RobotSlang server and execute the Driver's moves. "
-                    "`robotslang-robot calibrate --help` measures the moves.")
+        "`robotslang-robot calibrate --help` measures the moves.",
+    )
     p.add_argument("--server", required=True, help="server URL, e.g. http://192.168.1.10:8000")
-    p.add_argument("--token", default=os.environ.get("ROBOTSLANG_ROBOT_TOKEN"),
-                   help="this robot's token from the experimenter page (or ROBOTSLANG_ROBOT_TOKEN)")
-    p.add_argument("--role", choices=ROLES, default="driver",
-                   help="driver: the rover's front camera and motors; overhead: the table camera, no motors")
+    p.add_argument(
+        "--token",
+        default=os.environ.get("ROBOTSLANG_ROBOT_TOKEN"),
+        help="this robot's token from the experimenter page (or ROBOTSLANG_ROBOT_TOKEN)",
+    )
+    p.add_argument(
+        "--role",
+        choices=ROLES,
+        default="driver",
+        help="driver: the rover's front camera and motors; overhead: the table camera, no motors",
+    )
     p.add_argument("--camera", default="0", help="0, 1, ... (USB webcam), picamera, synthetic, or a video file")
     p.add_argument("--motors", choices=("gpio", "mock"), default="gpio")
-    p.add_argument("--calibration", type=Path, default=DEFAULT_CALIBRATION,
-                   help=f"calibration JSON (default {DEFAULT_CALIBRATION}); with --motors mock the "
-                        "defaults are used when it does not exist")
+    p.add_argument(
+        "--calibration",
+        type=Path,
+        default=DEFAULT_CALIBRATION,
+        help=f"calibration JSON (default {DEFAULT_CALIBRATION}); with --motors mock the "
+        "defaults are used when it does not exist",
+    )
     p.add_argument("--width", type=int, default=640)
     p.add_argument("--height", type=int, default=480)
     p.add_argument("--fps", type=float, default=15.0)
     p.add_argument("--quality", type=int, default=80, help="JPEG quality 1..100")
-    p.add_argument("--watchdog", type=float, default=0.5,
-                   help="stop the motors after this many seconds without news from the server")
+    p.add_argument(
+        "--watchdog",
+        type=float,
+        default=0.5,
+        help="stop the motors after this many seconds without news from the server",
+    )
     p.add_argument("--pin-log", type=Path, help="with --motors mock: append every pin change to this JSON-lines file")
     p.add_argument("-v", "--verbose", action="store_true")
     return p
 
 
 def calibrate_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="robotslang-robot calibrate",
-                                description="Measure the pulse lengths of a 0.07 m step and 45 degree turns "
-                                            "and write the calibration file.")
+    p = argparse.ArgumentParser(
+        prog="robotslang-robot calibrate",
+        description="Measure the pulse lengths of a 0.07 m step and 45 degree turns and write the calibration file.",
+    )
     p.add_argument("--calibration", type=Path, default=DEFAULT_CALIBRATION, help="file to update or create")
     p.add_argument("--motors", choices=("gpio", "mock"), default="gpio")
     p.add_argument("--left-pins", type=pin_pair, help="BCM pins FORWARD,BACKWARD of the left motor")
@@ -79,29 +96,41 @@ def main(argv: list[str] | None = None) -> None:
         return
     parser = run_parser()
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
-                        format="%(asctime)s %(levelname)s %(message)s")
+    logging.basicConfig(
+        level=logging.DEBUG if args.verbose else logging.INFO, format="%(asctime)s %(levelname)s %(message)s"
+    )
     if not args.token:
         parser.error("--token is required (or set ROBOTSLANG_ROBOT_TOKEN)")
     try:
         robot_url(args.server)
-        settings = LinkSettings(server=args.server, token=args.token, role=args.role,
-                                watchdog_s=args.watchdog)
+        settings = LinkSettings(server=args.server, token=args.token, role=args.role, watchdog_s=args.watchdog)
         if not 0.05 <= args.watchdog <= 5:
             raise ValueError(f"--watchdog must be 0.05..5 seconds, got {args.watchdog}")
         camera_settings = CameraSettings(args.width, args.height, args.fps, args.quality)
         motors = None
         if args.role == "driver":
-            calibration = (Calibration() if args.motors == "mock" and not args.calibration.exists()
-                           else Calibration.load(args.calibration))
+            calibration = (
+                Calibration()
+                if args.motors == "mock" and not args.calibration.exists()
+                else Calibration.load(args.calibration)
+            )
             motors = open_motors(args.motors, calibration, args.pin_log)
         camera = open_camera(args.camera, camera_settings)
     except (ValueError, CameraError, MotorError) as exc:  # CalibrationError is a ValueError
         parser.exit(2, f"error: {exc}\n")
     grabber = FrameGrabber(camera, camera_settings)
-    client = RobotClient(settings, grabber, motors,
-                         camera_info={"source": args.camera, "width": args.width, "height": args.height,
-                                      "fps": args.fps, "quality": args.quality})
+    client = RobotClient(
+        settings,
+        grabber,
+        motors,
+        camera_info={
+            "source": args.camera,
+            "width": args.width,
+            "height": args.height,
+            "fps": args.fps,
+            "quality": args.quality,
+        },
+    )
     try:
         code = asyncio.run(serve(client))
     finally:

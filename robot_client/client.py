@@ -77,8 +77,13 @@ def robot_url(server: str) -> str:
 class RobotClient:
     """Keeps one websocket to the server open and serves it: frames out, moves in."""
 
-    def __init__(self, settings: LinkSettings, grabber: FrameGrabber | None, motors: Motors | None,
-                 camera_info: dict | None = None) -> None:
+    def __init__(
+        self,
+        settings: LinkSettings,
+        grabber: FrameGrabber | None,
+        motors: Motors | None,
+        camera_info: dict | None = None,
+    ) -> None:
         self.settings = settings
         self.grabber = grabber
         self.motors = motors
@@ -110,9 +115,15 @@ class RobotClient:
         while True:
             self.stop_motors("connecting")
             try:
-                async with connect(s.url, compression=None, proxy=None, ping_interval=None,
-                                   open_timeout=s.hello_timeout_s, close_timeout=1,
-                                   max_size=1 << 20) as ws:
+                async with connect(
+                    s.url,
+                    compression=None,
+                    proxy=None,
+                    ping_interval=None,
+                    open_timeout=s.hello_timeout_s,
+                    close_timeout=1,
+                    max_size=1 << 20,
+                ) as ws:
                     await self._hello(ws)
                     backoff = s.backoff_initial_s
                     await self._serve(ws)
@@ -129,10 +140,20 @@ class RobotClient:
 
     async def _hello(self, ws: ClientConnection) -> None:
         s = self.settings
-        await ws.send(encode({"type": "hello", "protocol": PROTOCOL_VERSION, "token": s.token,
-                              "role": s.role, "client": f"robotslang-robot {__version__}",
-                              "camera": self.camera_info, "watchdog_s": s.watchdog_s,
-                              "robot_ns": time.monotonic_ns()}))
+        await ws.send(
+            encode(
+                {
+                    "type": "hello",
+                    "protocol": PROTOCOL_VERSION,
+                    "token": s.token,
+                    "role": s.role,
+                    "client": f"robotslang-robot {__version__}",
+                    "camera": self.camera_info,
+                    "watchdog_s": s.watchdog_s,
+                    "robot_ns": time.monotonic_ns(),
+                }
+            )
+        )
         try:
             reply = decode(await asyncio.wait_for(ws.recv(), s.hello_timeout_s), SERVER_TYPES)
         except ConnectionClosed as exc:
@@ -149,8 +170,10 @@ class RobotClient:
 
     async def _serve(self, ws: ClientConnection) -> None:
         self._last_heard = time.monotonic()
-        tasks = [asyncio.create_task(self._receive(ws), name="receive"),
-                 asyncio.create_task(self._watchdog(ws), name="watchdog")]
+        tasks = [
+            asyncio.create_task(self._receive(ws), name="receive"),
+            asyncio.create_task(self._watchdog(ws), name="watchdog"),
+        ]
         if self.grabber is not None:
             tasks.append(asyncio.create_task(self._send_frames(ws, self.grabber), name="frames"))
         try:
@@ -183,9 +206,16 @@ class RobotClient:
     async def _handle(self, ws: ClientConnection, message: dict) -> None:
         kind = message["type"]
         if kind == "ping":
-            await ws.send(encode({"type": "pong", "id": message.get("id"),
-                                  "server_ns": message.get("server_ns"),
-                                  "robot_ns": time.monotonic_ns()}))
+            await ws.send(
+                encode(
+                    {
+                        "type": "pong",
+                        "id": message.get("id"),
+                        "server_ns": message.get("server_ns"),
+                        "robot_ns": time.monotonic_ns(),
+                    }
+                )
+            )
         elif kind == "move":
             self._start_move(ws, message)
         elif kind == "stop":
@@ -219,8 +249,7 @@ class RobotClient:
         finally:
             motors.stop()
         finished_ns = time.monotonic_ns()
-        self._send_later(ws, ack(move_id, action, status, reason,
-                                 started_ns=started_ns, finished_ns=finished_ns))
+        self._send_later(ws, ack(move_id, action, status, reason, started_ns=started_ns, finished_ns=finished_ns))
 
     def _send_later(self, ws: ClientConnection, message: dict) -> None:
         # Acks must not wait behind a frame being written; a failed send means the link is
@@ -259,8 +288,12 @@ class RobotClient:
                 continue
             data = pack_frame(frame.seq, frame.capture_ns, frame.width, frame.height, frame.jpeg)
             if len(data) > self._max_frame_bytes:
-                log.warning("frame %d is %d bytes, over the server's limit of %d: skipped "
-                            "(lower --quality or the size)", frame.seq, len(data), self._max_frame_bytes)
+                log.warning(
+                    "frame %d is %d bytes, over the server's limit of %d: skipped (lower --quality or the size)",
+                    frame.seq,
+                    len(data),
+                    self._max_frame_bytes,
+                )
                 continue
             # Waits while the link drains; newer frames overwrite the grabber's slot meanwhile.
             await ws.send(data)

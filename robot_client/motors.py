@@ -32,10 +32,13 @@ class Motors:
             self._robot = Robot(
                 left=Motor(c.left_forward_pin, c.left_backward_pin, pwm=True, pin_factory=pin_factory),
                 right=Motor(c.right_forward_pin, c.right_backward_pin, pwm=True, pin_factory=pin_factory),
-                pin_factory=pin_factory)
+                pin_factory=pin_factory,
+            )
         except Exception as exc:  # gpiozero raises many kinds; all mean "cannot drive these pins"
-            raise MotorError(f"cannot open motor pins {c.left_forward_pin},{c.left_backward_pin},"
-                             f"{c.right_forward_pin},{c.right_backward_pin}: {exc}") from exc
+            raise MotorError(
+                f"cannot open motor pins {c.left_forward_pin},{c.left_backward_pin},"
+                f"{c.right_forward_pin},{c.right_backward_pin}: {exc}"
+            ) from exc
         self._lock = threading.Lock()
 
     def start(self, action: str) -> None:
@@ -70,6 +73,7 @@ def mock_factory(pin_log: Path | None = None):
     if pin_log is None:
         return MockFactory(pin_class=MockPWMPin)
     log_path = pin_log  # a name the closure below sees as a Path
+
     class LoggedPWMPin(MockPWMPin):
         def _change_state(self, value):
             changed = super()._change_state(value)
@@ -77,8 +81,9 @@ def mock_factory(pin_log: Path | None = None):
                 # Opened per change (a few per move): readers see each line at once, and no
                 # handle outlives the pins, whoever closes them and whenever.
                 with open(log_path, "a") as log:
-                    log.write(json.dumps({"t_ns": time.monotonic_ns(), "pin": self.info.name,
-                                          "state": float(value)}) + "\n")
+                    log.write(
+                        json.dumps({"t_ns": time.monotonic_ns(), "pin": self.info.name, "state": float(value)}) + "\n"
+                    )
             return changed
 
     return MockFactory(pin_class=LoggedPWMPin)

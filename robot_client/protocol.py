@@ -53,14 +53,15 @@ def unpack_frame(data: bytes, max_bytes: int = DEFAULT_MAX_FRAME_BYTES) -> tuple
     if len(data) > max_bytes:
         raise ProtocolError(f"frame message is {len(data)} bytes; the limit is {max_bytes}")
     if len(data) <= FRAME_HEADER.size:
-        raise ProtocolError(f"frame message is {len(data)} bytes, too short for the "
-                            f"{FRAME_HEADER.size}-byte header and a JPEG")
+        raise ProtocolError(
+            f"frame message is {len(data)} bytes, too short for the {FRAME_HEADER.size}-byte header and a JPEG"
+        )
     magic, seq, capture_ns, width, height = FRAME_HEADER.unpack_from(data)
     if magic != FRAME_MAGIC:
         raise ProtocolError(f"frame header starts with {magic!r}, expected {FRAME_MAGIC!r}")
     if width == 0 or height == 0:
         raise ProtocolError(f"frame header gives size {width}x{height}; both must be positive")
-    jpeg = data[FRAME_HEADER.size:]
+    jpeg = data[FRAME_HEADER.size :]
     if jpeg[:2] != b"\xff\xd8":
         raise ProtocolError("frame payload is not a JPEG (missing the FF D8 start marker)")
     return FrameHeader(seq, capture_ns, width, height), bytes(jpeg)
@@ -81,8 +82,7 @@ def decode(text: str | bytes, expected: tuple[str, ...] | None = None) -> dict:
     if not isinstance(message, dict) or not isinstance(message.get("type"), str):
         raise ProtocolError("text message must be a JSON object with a string field 'type'")
     if expected is not None and message["type"] not in expected:
-        raise ProtocolError(f"unknown message type {message['type']!r}; expected one of "
-                            f"{', '.join(expected)}")
+        raise ProtocolError(f"unknown message type {message['type']!r}; expected one of {', '.join(expected)}")
     return message
 
 
@@ -91,8 +91,7 @@ def require(message: dict, field: str, kind: type | tuple[type, ...]) -> object:
     value = message.get(field)
     if not isinstance(value, kind) or isinstance(value, bool) and kind is not bool:
         names = kind.__name__ if isinstance(kind, type) else " or ".join(k.__name__ for k in kind)
-        raise ProtocolError(f"{message.get('type')} message needs field {field!r} of type {names}, "
-                            f"got {value!r}")
+        raise ProtocolError(f"{message.get('type')} message needs field {field!r} of type {names}, got {value!r}")
     return value
 
 

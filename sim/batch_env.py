@@ -40,10 +40,18 @@ from sim.stepper import BatchStepper
 class BatchNavEnv(gym.vector.VectorEnv):
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
 
-    def __init__(self, num_envs: int = 1, benchmark: str | Path | Benchmark | None = None,
-                 split: str = "val_seen", start: str = "episode", edges: str = "benchmark",
-                 mazes: Sequence[str | Maze] | None = None, max_actions: int = MAX_EPISODE_ACTIONS,
-                 cache_dir: str | Path | None = None, privileged_info: bool = False):
+    def __init__(
+        self,
+        num_envs: int = 1,
+        benchmark: str | Path | Benchmark | None = None,
+        split: str = "val_seen",
+        start: str = "episode",
+        edges: str = "benchmark",
+        mazes: Sequence[str | Maze] | None = None,
+        max_actions: int = MAX_EPISODE_ACTIONS,
+        cache_dir: str | Path | None = None,
+        privileged_info: bool = False,
+    ):
         if num_envs < 1:
             raise ValueError(f"num_envs={num_envs}: must be at least 1")
         self.source = EpisodeSource(benchmark, split, start, edges, mazes, cache_dir)
@@ -89,8 +97,12 @@ class BatchNavEnv(gym.vector.VectorEnv):
     def _observations(self) -> dict:
         mask = np.ones((self.num_envs, len(Action)), dtype=np.int8)
         mask[:, Action.FORWARD] = ~self.stepper.forward_blocked()
-        return {"rays": self.stepper.observations(), "target": self._target.copy(),
-                "dialog": tuple(self._dialog), "action_mask": mask}
+        return {
+            "rays": self.stepper.observations(),
+            "target": self._target.copy(),
+            "dialog": tuple(self._dialog),
+            "action_mask": mask,
+        }
 
     def _info(self, collided: np.ndarray) -> dict:
         info = {"collided": collided, "steps": self.stepper.steps.copy()}

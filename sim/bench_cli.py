@@ -13,8 +13,12 @@ CHECKOUT = Path(__file__).resolve().parent.parent
 
 
 def bench_sim(
-    benchmark: Path | None = typer.Option(None, "--benchmark", envvar="ROBOTSLANG_BENCHMARK",
-                                             help="A RobotSlangBenchmark clone (default ../shared/robotslang)."),
+    benchmark: Path | None = typer.Option(
+        None,
+        "--benchmark",
+        envvar="ROBOTSLANG_BENCHMARK",
+        help="A RobotSlangBenchmark clone (default ../shared/robotslang).",
+    ),
     maps: int | None = typer.Option(None, "--maps", min=1, help="Only the first N maps (default: all)."),
 ) -> None:
     """Print the simulator's speed: graph, all-pairs and ray-table builds, env steps, renders."""

@@ -25,7 +25,9 @@ MAX_EPISODE_ACTIONS = 120
 EPISODE_START_AWAY_ACTIONS = 20  # teacher actions toward the target before turning back
 EPISODE_START_RADIUS_M = 3 * GRID_STEP_M  # 0.21 m from the previous object
 
-_SCAN = re.compile(r"^(?P<dir>.*?)/(?P<run>[^/]+)/maze/[^-]*-(?P<target>[a-z]+)-\[(?P<start>[^\]]*)\]-\[(?P<goal>[^\]]*)\]$")
+_SCAN = re.compile(
+    r"^(?P<dir>.*?)/(?P<run>[^/]+)/maze/[^-]*-(?P<target>[a-z]+)-\[(?P<start>[^\]]*)\]-\[(?P<goal>[^\]]*)\]$"
+)
 
 
 class BenchmarkError(ValueError):
@@ -86,8 +88,10 @@ class Benchmark:
         self.root = Path(root)
         self.cache_dir = cache_dir
         if not (self.root / "NDH-data").is_dir():
-            raise BenchmarkError(f"{self.root}: no NDH-data folder; point --benchmark or "
-                                 f"ROBOTSLANG_BENCHMARK at a RobotSlangBenchmark clone")
+            raise BenchmarkError(
+                f"{self.root}: no NDH-data folder; point --benchmark or "
+                f"ROBOTSLANG_BENCHMARK at a RobotSlangBenchmark clone"
+            )
         self._mazes: dict[str, Maze] = {}
         self._graphs: dict[tuple[str, str], NavGraph] = {}
 

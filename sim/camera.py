@@ -39,6 +39,7 @@ CALIBRATION_VERSION = 1
 @dataclass(frozen=True, eq=False)
 class FrontCamera:
     """A webcam on the rover: resolution, radial distortion, exposure gain and sensor noise."""
+
     width: int = 640
     height: int = 480
     k1: float = -0.06  # radial distortion (OpenCV's model): mild barrel, like a cheap webcam
@@ -77,10 +78,19 @@ class FrontCamera:
     def calibration(self, colours: dict[str, ColourClass] | None = None) -> CameraCalibration:
         """What a perfect checkerboard calibration of this camera would measure."""
         cx, cy = self.principal_point
-        return CameraCalibration(width=self.width, height=self.height, fx=self.focal_px,
-                                 fy=self.focal_px, cx=cx, cy=cy, k1=self.k1, k2=self.k2,
-                                 camera_height_m=CAMERA_HEIGHT_M, camera_pitch_rad=0.0,
-                                 colours=dict(colours or {}))
+        return CameraCalibration(
+            width=self.width,
+            height=self.height,
+            fx=self.focal_px,
+            fy=self.focal_px,
+            cx=cx,
+            cy=cy,
+            k1=self.k1,
+            k2=self.k2,
+            camera_height_m=CAMERA_HEIGHT_M,
+            camera_pitch_rad=0.0,
+            colours=dict(colours or {}),
+        )
 
     @cached_property
     def _maps(self) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
@@ -90,8 +100,7 @@ class FrontCamera:
         f = self.focal_px * s
         cx, cy = (w - 1) / 2, HORIZON * h - 0.5
         cols, rows = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
-        undistorted = np.stack(undistort_normalized((cols - cx) / f, (rows - cy) / f,
-                                                    self.k1, self.k2), axis=-1)
+        undistorted = np.stack(undistort_normalized((cols - cx) / f, (rows - cy) / f, self.k1, self.k2), axis=-1)
         # The render: as wide as the sensor, tall enough for the rows the sensor reads.
         render_w = w
         render_f = (render_w / 2) / math.tan(self.hfov_rad / 2)
@@ -114,8 +123,14 @@ class FrontCamera:
         return sensor
 
 
-def capture(maze: Maze, x: float, y: float, theta: float, camera: FrontCamera | None = None,
-            rng: np.random.Generator | int | None = None) -> np.ndarray:
+def capture(
+    maze: Maze,
+    x: float,
+    y: float,
+    theta: float,
+    camera: FrontCamera | None = None,
+    rng: np.random.Generator | int | None = None,
+) -> np.ndarray:
     """One frame of the front camera at pose (x, y, theta): (height, width, 3) uint8 BGR.
 
     The same `rng` seed gives the same frame, byte for byte."""
@@ -132,8 +147,9 @@ def capture(maze: Maze, x: float, y: float, theta: float, camera: FrontCamera | 
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
-def undistort_normalized(xd: ArrayLike, yd: ArrayLike, k1: float, k2: float,
-                         iterations: int = 30) -> tuple[np.ndarray, np.ndarray]:
+def undistort_normalized(
+    xd: ArrayLike, yd: ArrayLike, k1: float, k2: float, iterations: int = 30
+) -> tuple[np.ndarray, np.ndarray]:
     """Invert the radial model x_d = x_u (1 + k1 r_u^2 + k2 r_u^4) by fixed-point iteration
     (it converges in a few steps for mild distortion); normalized coordinates in and out."""
     xn, yn = np.asarray(xd, dtype=np.float64), np.asarray(yd, dtype=np.float64)
@@ -154,6 +170,7 @@ COLOUR_CLASSES = ("floor",) + tuple(label.word for label in Label if label != La
 @dataclass(frozen=True)
 class ColourClass:
     """One colour class under a lab's light, a Gaussian over `perception.colour_features`."""
+
     mean: tuple[float, ...]
     cov: tuple[tuple[float, ...], ...]
 
@@ -179,6 +196,7 @@ class CameraCalibration:
     """A lab's front camera: pinhole intrinsics (OpenCV convention, pixels), radial distortion,
     height of the lens above the table (metres), pitch (radians, positive looks down), and the
     colour classes of its walls and objects (empty until `perception.calibrate_colours`)."""
+
     width: int
     height: int
     fx: float
@@ -218,11 +236,21 @@ class CameraCalibration:
     def distortion(self) -> np.ndarray:
         return np.array([self.k1, self.k2, 0.0, 0.0], dtype=np.float64)
 
-    def with_colours(self, colours: dict[str, ColourClass],
-                     object_depth_offset_m: float = 0.0) -> CameraCalibration:
-        return CameraCalibration(self.width, self.height, self.fx, self.fy, self.cx, self.cy,
-                                 self.k1, self.k2, self.camera_height_m, self.camera_pitch_rad,
-                                 dict(colours), float(object_depth_offset_m))
+    def with_colours(self, colours: dict[str, ColourClass], object_depth_offset_m: float = 0.0) -> CameraCalibration:
+        return CameraCalibration(
+            self.width,
+            self.height,
+            self.fx,
+            self.fy,
+            self.cx,
+            self.cy,
+            self.k1,
+            self.k2,
+            self.camera_height_m,
+            self.camera_pitch_rad,
+            dict(colours),
+            float(object_depth_offset_m),
+        )
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -248,13 +276,20 @@ class CameraCalibration:
             colours = data.get("colours", {})
             if not isinstance(colours, dict):
                 raise TypeError
-            return cls(width=width, height=height, fx=float(intr["fx"]), fy=float(intr["fy"]),
-                       cx=float(intr["cx"]), cy=float(intr["cy"]), k1=float(dist["k1"]),
-                       k2=float(dist["k2"]), camera_height_m=float(data["camera_height_m"]),
-                       camera_pitch_rad=float(data["camera_pitch_rad"]),
-                       colours={name: ColourClass.from_json(c, f"{where}: colours.{name}")
-                                for name, c in colours.items()},
-                       object_depth_offset_m=float(data.get("object_depth_offset_m", 0.0)))
+            return cls(
+                width=width,
+                height=height,
+                fx=float(intr["fx"]),
+                fy=float(intr["fy"]),
+                cx=float(intr["cx"]),
+                cy=float(intr["cy"]),
+                k1=float(dist["k1"]),
+                k2=float(dist["k2"]),
+                camera_height_m=float(data["camera_height_m"]),
+                camera_pitch_rad=float(data["camera_pitch_rad"]),
+                colours={name: ColourClass.from_json(c, f"{where}: colours.{name}") for name, c in colours.items()},
+                object_depth_offset_m=float(data.get("object_depth_offset_m", 0.0)),
+            )
         except CalibrationError:
             raise
         except (KeyError, TypeError, ValueError) as exc:

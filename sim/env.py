@@ -67,12 +67,14 @@ SPEAKER_TAG = {"oracle": "<COM>", "commander": "<COM>", "navigator": "<DRI>", "d
 
 def observation_space() -> spaces.Dict:
     """The observation of one episode (see the module docstring)."""
-    return spaces.Dict({
-        "rays": spaces.Box(0.0, MAX_DEPTH_M, (OBS_FEATURES,), np.float32),
-        "target": spaces.Discrete(len(OBJECTS)),
-        "dialog": spaces.Text(MAX_DIALOG_CHARS, min_length=0, charset=DIALOG_CHARSET),
-        "action_mask": spaces.MultiBinary(len(Action)),
-    })
+    return spaces.Dict(
+        {
+            "rays": spaces.Box(0.0, MAX_DEPTH_M, (OBS_FEATURES,), np.float32),
+            "target": spaces.Discrete(len(OBJECTS)),
+            "dialog": spaces.Text(MAX_DIALOG_CHARS, min_length=0, charset=DIALOG_CHARSET),
+            "action_mask": spaces.MultiBinary(len(Action)),
+        }
+    )
 
 
 def dialog_text(dialog: Sequence[tuple[str, str]]) -> str:
@@ -96,16 +98,24 @@ class EpisodeSource:
     """Where episodes come from: a benchmark split's NDH instances, or mazes with random starts
     and targets; with each maze's graph, built on first use."""
 
-    def __init__(self, benchmark: str | Path | Benchmark | None = None, split: str = "val_seen",
-                 start: str = "episode", edges: str = "benchmark",
-                 mazes: Sequence[str | Maze] | None = None, cache_dir: str | Path | None = None):
+    def __init__(
+        self,
+        benchmark: str | Path | Benchmark | None = None,
+        split: str = "val_seen",
+        start: str = "episode",
+        edges: str = "benchmark",
+        mazes: Sequence[str | Maze] | None = None,
+        cache_dir: str | Path | None = None,
+    ):
         if start not in START_MODES:
             raise ValueError(f"start={start!r}: expected one of {', '.join(START_MODES)}")
         if edges not in MODES:
             raise ValueError(f"edges={edges!r}: expected one of {', '.join(MODES)}")
         if benchmark is not None and mazes is not None:
-            raise ValueError("give either benchmark= (NDH episodes of a split) or mazes= "
-                             "(maze names or Maze objects, random start and target), not both")
+            raise ValueError(
+                "give either benchmark= (NDH episodes of a split) or mazes= "
+                "(maze names or Maze objects, random start and target), not both"
+            )
         self.start_mode, self.edges, self.cache_dir = start, edges, cache_dir
         self._graphs: dict[str, NavGraph] = {}
         self._worlds: dict[tuple[str, ...], World] = {}
@@ -143,16 +153,20 @@ class EpisodeSource:
 
     def graph(self, name: str) -> NavGraph:
         if name not in self._graphs:
-            self._graphs[name] = (self.benchmark.graph(name, self.edges) if self.benchmark is not None
-                                  else NavGraph.build(self.maze(name), self.edges, cache_dir=self.cache_dir))
+            self._graphs[name] = (
+                self.benchmark.graph(name, self.edges)
+                if self.benchmark is not None
+                else NavGraph.build(self.maze(name), self.edges, cache_dir=self.cache_dir)
+            )
         return self._graphs[name]
 
     def world(self, names: Sequence[str] | None = None) -> World:
         """The mazes `names` (default: all) compiled with float32 observations, once."""
         names = tuple(self.names if names is None else names)
         if names not in self._worlds:
-            self._worlds[names] = World.compile([(n, self.maze(n), self.graph(n)) for n in names],
-                                                cache_dir=self.cache_dir)
+            self._worlds[names] = World.compile(
+                [(n, self.maze(n), self.graph(n)) for n in names], cache_dir=self.cache_dir
+            )
         return self._worlds[names]
 
     def sample(self, rng: np.random.Generator, options: dict) -> Episode:
@@ -162,15 +176,20 @@ class EpisodeSource:
         if "inst_idx" in options:
             k = self._by_inst_idx.get(int(options["inst_idx"]))
             if k is None:
-                raise ValueError(f"options['inst_idx']={options['inst_idx']}: no such instance "
-                                 f"in split {self.split!r}")
+                raise ValueError(f"options['inst_idx']={options['inst_idx']}: no such instance in split {self.split!r}")
         else:
             k = int(rng.integers(len(self.instances)))
         if k not in self._episodes:
             inst: NDHInstance = self.instances[k]
             graph = self.graph(inst.run)
-            self._episodes[k] = Episode(inst.run, START_MODES[self.start_mode](graph, inst), goal_node(graph, inst),
-                                        inst.target, dialog_text(inst.dialog), inst.inst_idx)
+            self._episodes[k] = Episode(
+                inst.run,
+                START_MODES[self.start_mode](graph, inst),
+                goal_node(graph, inst),
+                inst.target,
+                dialog_text(inst.dialog),
+                inst.inst_idx,
+            )
         return self._episodes[k]
 
     def _random_episode(self, rng: np.random.Generator, options: dict) -> Episode:
@@ -178,8 +197,7 @@ class EpisodeSource:
         if name is None:
             name = self.names[int(rng.integers(len(self.names)))]
         elif name not in self._mazes:
-            raise ValueError(f"options['maze']={name!r}: not one of this environment's mazes "
-                             f"({', '.join(self.names)})")
+            raise ValueError(f"options['maze']={name!r}: not one of this environment's mazes ({', '.join(self.names)})")
         maze, graph = self.maze(name), self.graph(name)
         target = options.get("target") or sorted(maze.objects)[int(rng.integers(3))]
         if target not in maze.objects:
@@ -195,8 +213,9 @@ class EpisodeSource:
         return Episode(name, Pose(node, heading), goal, target, "", None)
 
 
-def start_episodes(stepper: BatchStepper, source: EpisodeSource, envs: Sequence[int],
-                   episodes: Sequence[Episode]) -> None:
+def start_episodes(
+    stepper: BatchStepper, source: EpisodeSource, envs: Sequence[int], episodes: Sequence[Episode]
+) -> None:
     """Start `episodes` in positions `envs` of `stepper` (its world holds their mazes)."""
     world = stepper.world
     for env, ep in zip(envs, episodes):  # per episode: its goal rows come from its own graph
@@ -210,11 +229,19 @@ class NDHEnv(gym.Env):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 5}
 
-    def __init__(self, benchmark: str | Path | Benchmark | None = None, split: str = "val_seen",
-                 start: str = "episode", edges: str = "benchmark",
-                 mazes: Sequence[str | Maze] | None = None, render_mode: str | None = None,
-                 render_view: str = "first_person", max_actions: int = MAX_EPISODE_ACTIONS,
-                 cache_dir: str | Path | None = None, privileged_info: bool = False):
+    def __init__(
+        self,
+        benchmark: str | Path | Benchmark | None = None,
+        split: str = "val_seen",
+        start: str = "episode",
+        edges: str = "benchmark",
+        mazes: Sequence[str | Maze] | None = None,
+        render_mode: str | None = None,
+        render_view: str = "first_person",
+        max_actions: int = MAX_EPISODE_ACTIONS,
+        cache_dir: str | Path | None = None,
+        privileged_info: bool = False,
+    ):
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode={render_mode!r}: expected None or 'rgb_array'")
         if render_view not in RENDER_VIEWS:
@@ -239,12 +266,18 @@ class NDHEnv(gym.Env):
         super().reset(seed=seed)
         episode = self.source.sample(self.np_random, options or {})
         if episode.maze not in self._steppers:
-            self._steppers[episode.maze] = BatchStepper(self.source.world([episode.maze]), 1,
-                                                        self.max_actions, record=True)
+            self._steppers[episode.maze] = BatchStepper(
+                self.source.world([episode.maze]), 1, self.max_actions, record=True
+            )
         self._episode, self._stepper = episode, self._steppers[episode.maze]
         start_episodes(self._stepper, self.source, [0], [episode])
-        info = {"collided": False, "steps": 0, "target": episode.target, "maze": episode.maze,
-                "inst_idx": episode.inst_idx}
+        info = {
+            "collided": False,
+            "steps": 0,
+            "target": episode.target,
+            "maze": episode.maze,
+            "inst_idx": episode.inst_idx,
+        }
         if self.privileged_info:
             info.update(td=float(self._stepper.td[0]), pose=episode.start, goal=episode.goal)
         return self._observation(), info
@@ -273,8 +306,12 @@ class NDHEnv(gym.Env):
         stepper, episode = self._stepper, self._episode
         mask = np.ones(_STOP + 1, dtype=np.int8)
         mask[_FORWARD] = not stepper.forward_blocked()[0]
-        return {"rays": stepper.observations()[0], "target": OBJECTS.index(episode.target),
-                "dialog": episode.dialog, "action_mask": mask}
+        return {
+            "rays": stepper.observations()[0],
+            "target": OBJECTS.index(episode.target),
+            "dialog": episode.dialog,
+            "action_mask": mask,
+        }
 
     def render(self):
         if self.render_mode is None:
@@ -293,8 +330,12 @@ class NDHEnv(gym.Env):
             from sim.observations import RayTable
 
             rays = RayTable.build(maze, graph, cache_dir=self.source.cache_dir)
-            bgr = render.top_down(maze, pose=(x, y, theta), path=graph.nodes[self.path],
-                                  rays=(rays.labels[pose.node, pose.heading], rays.depth[pose.node, pose.heading]))
+            bgr = render.top_down(
+                maze,
+                pose=(x, y, theta),
+                path=graph.nodes[self.path],
+                rays=(rays.labels[pose.node, pose.heading], rays.depth[pose.node, pose.heading]),
+            )
         return np.ascontiguousarray(bgr[..., ::-1])
 
     # -- read-only views for callers and tests ------------------------------------------

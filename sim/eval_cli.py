@@ -15,8 +15,9 @@ from rich.table import Table
 from sim.baselines import BASELINES
 from sim.benchmark import Benchmark, BenchmarkError
 
-BENCHMARK_OPTION = typer.Option(..., "--benchmark", envvar="ROBOTSLANG_BENCHMARK",
-                                help="A RobotSlangBenchmark clone (or an export in its layout).")
+BENCHMARK_OPTION = typer.Option(
+    ..., "--benchmark", envvar="ROBOTSLANG_BENCHMARK", help="A RobotSlangBenchmark clone (or an export in its layout)."
+)
 
 
 def open_benchmark(path: Path) -> Benchmark:
@@ -59,21 +60,31 @@ def print_table(summary: dict[str, Any], console: Console) -> None:
     for col in ("agent", "TD", "OTD", "SR", "SPL", "steps"):
         table.add_column(col, justify="right" if col != "agent" else "left")
     for name, s in summary["agents"].items():
-        table.add_row(name, f"{s['td_mean']:.2f} ± {s['td_std']:.2f}", f"{s['otd_mean']:.2f} ± {s['otd_std']:.2f}",
-                      f"{s['sr']:.3f}", f"{s['spl']:.3f}", f"{s['steps_mean']:.1f}")
+        table.add_row(
+            name,
+            f"{s['td_mean']:.2f} ± {s['td_std']:.2f}",
+            f"{s['otd_mean']:.2f} ± {s['otd_std']:.2f}",
+            f"{s['sr']:.3f}",
+            f"{s['spl']:.3f}",
+            f"{s['steps_mean']:.1f}",
+        )
     console.print(table)
     for name, s in summary["agents"].items():
         if s.get("unreachable"):
-            console.print(f"[yellow]{name}: {s['unreachable']} instances stopped where the goal is unreachable "
-                          f"(infinite TD, left out of the means)")
+            console.print(
+                f"[yellow]{name}: {s['unreachable']} instances stopped where the goal is unreachable "
+                f"(infinite TD, left out of the means)"
+            )
 
 
 def eval_baselines(
     benchmark: Path = BENCHMARK_OPTION,
     split: Split = typer.Option(Split.val_seen, help="NDH split."),
     agent: str = typer.Option("stop,random,shortest", help="Agents, comma-separated: stop, random, shortest."),
-    start: StartMode = typer.Option(StartMode.episode, help="episode: the benchmark simulator's start; "
-                                    "recorded: the instance's recorded pose (the paper's Stop row)."),
+    start: StartMode = typer.Option(
+        StartMode.episode,
+        help="episode: the benchmark simulator's start; recorded: the instance's recorded pose (the paper's Stop row).",
+    ),
     edges: EdgeMode = typer.Option(EdgeMode.benchmark, help="Graph edges: benchmark (as published) or exact."),
     seeds: str = typer.Option("0,1,2", help="Seeds for random agents, comma-separated."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
@@ -90,8 +101,9 @@ def eval_baselines(
         raise typer.BadParameter(f"seeds must be integers, got {seeds!r}") from None
     try:
         bench = open_benchmark(benchmark)
-        results = evaluate_baselines(bench, split.value, agents, start=start.value, edges=edges.value,
-                                     seeds=seed_list, progress=not as_json)
+        results = evaluate_baselines(
+            bench, split.value, agents, start=start.value, edges=edges.value, seeds=seed_list, progress=not as_json
+        )
     except BenchmarkError as e:
         raise typer.BadParameter(str(e), param_hint="--benchmark") from None
     summary = summarize(split.value, results)
@@ -101,5 +113,3 @@ def eval_baselines(
         typer.echo(json.dumps(summary, indent=2))
     else:
         print_table(summary, Console())
-
-

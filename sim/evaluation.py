@@ -29,8 +29,14 @@ from sim.world import EpisodeGeometry, World
 _STREAM_WORDS = 2 * MAX_EPISODE_ACTIONS  # 32-bit words drawn per Random episode up front
 
 
-def run_episode(graph: NavGraph, start: Pose, goal: int, policy: Policy, rng: np.random.Generator,
-                max_actions: int = MAX_EPISODE_ACTIONS) -> tuple[list[int], int]:
+def run_episode(
+    graph: NavGraph,
+    start: Pose,
+    goal: int,
+    policy: Policy,
+    rng: np.random.Generator,
+    max_actions: int = MAX_EPISODE_ACTIONS,
+) -> tuple[list[int], int]:
     """Roll a policy out; returns the nodes visited (start first) and the moves made."""
     policy.reset(graph, start, goal, rng)
     pose, nodes, moves = start, [start.node], 0
@@ -59,13 +65,12 @@ class _RandomDraws:
 
     @staticmethod
     def _draw(generator: np.random.Generator) -> np.ndarray:
-        return generator.integers(0, 2 ** 32 - 1, size=_STREAM_WORDS, dtype=np.uint32,
-                                  endpoint=True).astype(np.uint64)
+        return generator.integers(0, 2**32 - 1, size=_STREAM_WORDS, dtype=np.uint32, endpoint=True).astype(np.uint64)
 
     def choice(self, n: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """An index in [0, n) for each episode in `rows`, from its next word(s)."""
         n = n.astype(np.uint64)
-        threshold = (np.uint64(2 ** 32) - n) % n
+        threshold = (np.uint64(2**32) - n) % n
         out = np.empty(rows.size, dtype=np.int64)
         todo = np.arange(rows.size)
         while todo.size:
@@ -80,9 +85,16 @@ class _RandomDraws:
         return out
 
 
-def evaluate_baselines(benchmark: Benchmark, split: str, agents: Iterable[str], start: str = "episode",
-                       edges: str = "benchmark", seeds: Iterable[int] = (0,),
-                       instances: list[NDHInstance] | None = None, progress: bool = True) -> list[EpisodeResult]:
+def evaluate_baselines(
+    benchmark: Benchmark,
+    split: str,
+    agents: Iterable[str],
+    start: str = "episode",
+    edges: str = "benchmark",
+    seeds: Iterable[int] = (0,),
+    instances: list[NDHInstance] | None = None,
+    progress: bool = True,
+) -> list[EpisodeResult]:
     """Every (instance, agent, seed) episode of a split, scored on the `edges` graph; rows in
     instance, agent, seed order."""
     agents, seeds = list(agents), list(seeds)
@@ -101,11 +113,20 @@ def evaluate_baselines(benchmark: Benchmark, split: str, agents: Iterable[str], 
     inst = np.array([k for k, _, _ in order], dtype=np.int64)
     agent = np.array([name for _, name, _ in order])
     stepper = BatchStepper(world, len(order), record=True)
-    stepper.start(np.arange(len(order)), geometry.start_node[inst], geometry.start_heading[inst],
-                  geometry.goal_node[inst], geometry.goal_dist[inst], geometry.goal_next[inst])
+    stepper.start(
+        np.arange(len(order)),
+        geometry.start_node[inst],
+        geometry.start_heading[inst],
+        geometry.goal_node[inst],
+        geometry.goal_dist[inst],
+        geometry.goal_next[inst],
+    )
     stop, shortest, random = (np.flatnonzero(agent == name) for name in ("stop", "shortest", "random"))
-    draws = _RandomDraws([episode_seed(seed, instances[k].inst_idx) for k, name, seed in order
-                          if name == "random"]) if random.size else None
+    draws = (
+        _RandomDraws([episode_seed(seed, instances[k].inst_idx) for k, name, seed in order if name == "random"])
+        if random.size
+        else None
+    )
     actions = np.full(len(order), Action.STOP, dtype=np.int64)
     while not stepper.done.all():
         actions[shortest] = stepper.teacher_actions()[shortest]
@@ -128,10 +149,22 @@ def evaluate_baselines(benchmark: Benchmark, split: str, agents: Iterable[str], 
         td, best = float(stepper.td[e]), float(stepper.shortest[e])
         success = td <= SUCCESS_RADIUS_M
         spl = best / max(path_length[e], best) if success and best > 0 else float(success)
-        results.append(EpisodeResult(
-            split=split, inst_idx=instances[k].inst_idx, agent=name, seed=seed,
-            start_x=float(start_xy[e, 0]), start_y=float(start_xy[e, 1]),
-            start_heading=float(heading_angle(int(geometry.start_heading[k]))),
-            goal_x=float(instances[k].target_pose[0]), goal_y=float(instances[k].target_pose[1]),
-            td=td, otd=float(stepper.otd[e]), steps=int(stepper.steps[e]), success=success, spl=spl))
+        results.append(
+            EpisodeResult(
+                split=split,
+                inst_idx=instances[k].inst_idx,
+                agent=name,
+                seed=seed,
+                start_x=float(start_xy[e, 0]),
+                start_y=float(start_xy[e, 1]),
+                start_heading=float(heading_angle(int(geometry.start_heading[k]))),
+                goal_x=float(instances[k].target_pose[0]),
+                goal_y=float(instances[k].target_pose[1]),
+                td=td,
+                otd=float(stepper.otd[e]),
+                steps=int(stepper.steps[e]),
+                success=success,
+                spl=spl,
+            )
+        )
     return results

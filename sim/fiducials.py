@@ -23,6 +23,7 @@ DICTIONARY = cv2.aruco.DICT_4X4_50
 class MarkerLayout:
     """Marker ids and sizes in metres (a marker's size is its black square, without the white
     margin a print needs around it)."""
+
     corner_ids: tuple[int, int, int, int] = (0, 1, 2, 3)  # at (0, 0), (W, 0), (W, H), (0, H)
     rover_id: int = 4
     corner_size_m: float = 0.15
@@ -53,8 +54,9 @@ def square(cx: float, cy: float, up: float, size: float) -> np.ndarray:
     forward = np.array([np.cos(up), np.sin(up)]) * size / 2
     right = np.array([np.sin(up), -np.cos(up)]) * size / 2
     centre = np.array([cx, cy])
-    return np.stack([centre + forward - right, centre + forward + right,
-                     centre - forward + right, centre - forward - right])
+    return np.stack(
+        [centre + forward - right, centre + forward + right, centre - forward + right, centre - forward - right]
+    )
 
 
 def marker_heading(corners: np.ndarray) -> float:

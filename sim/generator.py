@@ -70,8 +70,9 @@ def generate_maze(seed: int, name: str | None = None) -> Maze:
                 spots = spots[in_main_region(graph, spots)]
             if not unreachable_pairs(maze, graph) and has_structure(maze, graph):
                 return maze
-    raise MazeError(f"{name}: no maze with reachable objects and turning routes "
-                    f"in {MAX_ATTEMPTS} attempts from seed {seed}")
+    raise MazeError(
+        f"{name}: no maze with reachable objects and turning routes in {MAX_ATTEMPTS} attempts from seed {seed}"
+    )
 
 
 # -- drawing ----------------------------------------------------------------------
@@ -79,8 +80,8 @@ def draw_walls(rng: np.random.Generator) -> np.ndarray:
     """Walls-only label grid: the table edge and chains of straight coloured segments."""
     walls = np.zeros((MAP_HEIGHT_PX, MAP_WIDTH_PX), dtype=np.uint8)
     left, top, right, bottom = (int(v) for v in rng.integers(*BORDER_PX, size=4))
-    walls[:top] = walls[MAP_HEIGHT_PX - bottom:] = Label.WHITE
-    walls[:, :left] = walls[:, MAP_WIDTH_PX - right:] = Label.WHITE
+    walls[:top] = walls[MAP_HEIGHT_PX - bottom :] = Label.WHITE
+    walls[:, :left] = walls[:, MAP_WIDTH_PX - right :] = Label.WHITE
     inner = (left, top, MAP_WIDTH_PX - 1 - right, MAP_HEIGHT_PX - 1 - bottom)
     edge = walls != Label.FLOOR
 
@@ -129,8 +130,9 @@ class _Room:
             np.minimum(clear[r0:r1, c0:c1], near, out=clear[r0:r1, c0:c1])
 
 
-def _draw_chain(rng: np.random.Generator, room: _Room, inner: tuple[int, int, int, int],
-                thickness: int, budget: int) -> int:
+def _draw_chain(
+    rng: np.random.Generator, room: _Room, inner: tuple[int, int, int, int], thickness: int, budget: int
+) -> int:
     """One polyline of segments, from the table edge or open floor; returns segments drawn."""
     x0, y0, x1, y1 = inner
     if rng.random() < 0.4:  # start on the table edge, heading inward

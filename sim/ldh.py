@@ -37,12 +37,20 @@ Dialog = tuple[tuple[str, str], ...]  # (role: oracle|navigator, message)
 # message saying the Commander knows where the robot is ("I know where you are", "ok got it")
 # ends localization too, and is kept.
 _FILLER = r"(?:(?:ok(?:ay)?|alright|all right|great|good|perfect|now|so|then|yes|yeah|cool|nice|first|please|and|next)[\s,.!]*)*"
-_VERBS = (r"(?:go|move|turn|take|make|head|drive|rotate|face|follow|back|keep|continue|proceed|come|spin"
-          r"|reverse|start|get|do a|travel|pass|stay|look)")
-_INSTRUCTION = re.compile(rf"^{_FILLER}(?:you (?:need|want|should|will|have) to |you can |try to "
-                          rf"|i want you to |can you |could you )?{_VERBS}\b", re.I)
-_LOCALIZED = re.compile(r"\bi (?:know|think i know|see) (?:where you are|your location)\b"
-                        r"|\bi (?:found|located) you\b|^(?:ok(?:ay)?[\s,.]*)?got it\b", re.I)
+_VERBS = (
+    r"(?:go|move|turn|take|make|head|drive|rotate|face|follow|back|keep|continue|proceed|come|spin"
+    r"|reverse|start|get|do a|travel|pass|stay|look)"
+)
+_INSTRUCTION = re.compile(
+    rf"^{_FILLER}(?:you (?:need|want|should|will|have) to |you can |try to "
+    rf"|i want you to |can you |could you )?{_VERBS}\b",
+    re.I,
+)
+_LOCALIZED = re.compile(
+    r"\bi (?:know|think i know|see) (?:where you are|your location)\b"
+    r"|\bi (?:found|located) you\b|^(?:ok(?:ay)?[\s,.]*)?got it\b",
+    re.I,
+)
 
 
 def localization_prefix(dialog: Dialog) -> int:
@@ -78,8 +86,15 @@ def derive(inst: NDHInstance, variant: Variant) -> LDHInstance:
     if inst.previous_object is not None:
         raise BenchmarkError(f"instance {inst.inst_idx}: not a trial's first target (no start pose)")
     dialog = inst.dialog if variant == Variant.FULL else inst.dialog[: localization_prefix(inst.dialog)]
-    return LDHInstance(inst_idx=inst.inst_idx, run=inst.run, x=inst.agent_pose[0], y=inst.agent_pose[1],
-                       heading=inst.start_heading, dialog=dialog, variant=variant)
+    return LDHInstance(
+        inst_idx=inst.inst_idx,
+        run=inst.run,
+        x=inst.agent_pose[0],
+        y=inst.agent_pose[1],
+        heading=inst.start_heading,
+        dialog=dialog,
+        variant=variant,
+    )
 
 
 def exact_from_json(item: dict[str, Any]) -> LDHInstance | None:
@@ -87,10 +102,15 @@ def exact_from_json(item: dict[str, Any]) -> LDHInstance | None:
     pose = item.get("agent_pose")
     if pose is None:
         return None
-    return LDHInstance(inst_idx=int(item["inst_idx"]), run=scan_run(item["scan"]), x=float(pose[0]),
-                       y=float(pose[1]), heading=None if len(pose) < 3 or pose[2] is None else float(pose[2]),
-                       dialog=tuple((t["role"], t["message"]) for t in item["dialog_history"]),
-                       variant=Variant.EXACT)
+    return LDHInstance(
+        inst_idx=int(item["inst_idx"]),
+        run=scan_run(item["scan"]),
+        x=float(pose[0]),
+        y=float(pose[1]),
+        heading=None if len(pose) < 3 or pose[2] is None else float(pose[2]),
+        dialog=tuple((t["role"], t["message"]) for t in item["dialog_history"]),
+        variant=Variant.EXACT,
+    )
 
 
 def load_split(bench: Benchmark, split: str, variant: Variant = Variant.PREFIX) -> list[LDHInstance]:

@@ -27,13 +27,27 @@ from sim.ldh_features import maze_views, mentions
 from sim.navgraph import NavGraph
 
 ACC_RADII_M = (0.25, 0.5, 1.0)
-CSV_COLUMNS = ("split", "variant", "inst_idx", "agent", "seed", "run", "true_x", "true_y", "td", "euclid",
-               "acc_0.25", "acc_0.5", "acc_1.0")
+CSV_COLUMNS = (
+    "split",
+    "variant",
+    "inst_idx",
+    "agent",
+    "seed",
+    "run",
+    "true_x",
+    "true_y",
+    "td",
+    "euclid",
+    "acc_0.25",
+    "acc_0.5",
+    "acc_1.0",
+)
 
 
 @dataclass(frozen=True, eq=False)
 class MazeContext:
     """A maze as localizers see it: graph, per-pose views, and the main component."""
+
     run: str
     graph: NavGraph
     views: np.ndarray | None = None  # (N, 8, sectors, labels, 2), see pose_views; the language localizers' only
@@ -84,8 +98,7 @@ class MazeContexts:
     def __getitem__(self, run: str) -> MazeContext:
         if run not in self._contexts:
             graph = self.bench.graph(run, "benchmark")
-            self._contexts[run] = MazeContext(run, graph, maze_views(self.bench.maze(run), graph,
-                                                                     self.bench.cache_dir))
+            self._contexts[run] = MazeContext(run, graph, maze_views(self.bench.maze(run), graph, self.bench.cache_dir))
         return self._contexts[run]
 
 
@@ -111,8 +124,11 @@ def colour_features(views: np.ndarray, far_weight: float = 0.5) -> np.ndarray:
     `far_weight`), for a label named without a direction the best sector's."""
     seen = views[..., 0] + far_weight * views[..., 1]  # (N, 8, sectors, labels)
     log_seen = np.log(VISIBLE_FLOOR + seen)
-    return np.concatenate([log_seen, log_seen.max(axis=2, keepdims=True)], axis=2).reshape(
-        *views.shape[:2], -1).astype(np.float32)
+    return (
+        np.concatenate([log_seen, log_seen.max(axis=2, keepdims=True)], axis=2)
+        .reshape(*views.shape[:2], -1)
+        .astype(np.float32)
+    )
 
 
 def colour_logits(counts: np.ndarray, views: np.ndarray) -> np.ndarray:
@@ -128,8 +144,7 @@ def colours_localizer(inst: LDHInstance, ctx: MazeContext) -> np.ndarray:
     return ctx.one_hot(ctx.decide(colour_logits(mentions(inst.dialog), ctx.views)))
 
 
-BASELINES: dict[str, Localizer] = {"random": random_localizer, "center": center_localizer,
-                                   "colours": colours_localizer}
+BASELINES: dict[str, Localizer] = {"random": random_localizer, "center": center_localizer, "colours": colours_localizer}
 
 
 @dataclass(frozen=True)
@@ -157,17 +172,26 @@ def score(ctx: MazeContext, belief: np.ndarray, inst: LDHInstance) -> tuple[floa
     return float(b @ td), float(b @ euclid), tuple(float(b @ (td <= r)) for r in ACC_RADII_M)
 
 
-def evaluate(bench: Benchmark, split: str, instances: list[LDHInstance], agents: dict[str, Localizer],
-             seed: int = 0, contexts: MazeContexts | None = None,
-             progress: Callable[[Iterable[Any]], Iterable[Any]] = lambda it: it) -> list[LDHResult]:
+def evaluate(
+    bench: Benchmark,
+    split: str,
+    instances: list[LDHInstance],
+    agents: dict[str, Localizer],
+    seed: int = 0,
+    contexts: MazeContexts | None = None,
+    progress: Callable[[Iterable[Any]], Iterable[Any]] = lambda it: it,
+) -> list[LDHResult]:
     contexts = contexts or MazeContexts(bench)
     out = []
     for inst in progress(instances):
         ctx = contexts[inst.run]
         for name, localizer in agents.items():
             td, euclid, acc = score(ctx, localizer(inst, ctx), inst)
-            out.append(LDHResult(split, inst.variant.value, inst.inst_idx, name, seed, inst.run,
-                                 inst.x, inst.y, td, euclid, acc))
+            out.append(
+                LDHResult(
+                    split, inst.variant.value, inst.inst_idx, name, seed, inst.run, inst.x, inst.y, td, euclid, acc
+                )
+            )
     return out
 
 
@@ -197,8 +221,12 @@ def summarize(split: str, variant: str, n: int, results: list[LDHResult]) -> dic
     agents: dict[str, list[LDHResult]] = {}
     for r in results:
         agents.setdefault(r.agent, []).append(r)
-    return {"split": split, "variant": variant, "n": n,
-            "agents": {name: summarize_agent(rs) for name, rs in agents.items()}}
+    return {
+        "split": split,
+        "variant": variant,
+        "n": n,
+        "agents": {name: summarize_agent(rs) for name, rs in agents.items()},
+    }
 
 
 def write_csv(path: str | Path, results: Iterable[LDHResult]) -> None:

@@ -41,14 +41,30 @@ MENTION_FEATURES = N_SECTORS * N_LABELS
 VIEW_FEATURES = N_VIEW_SECTORS * N_LABELS * 2  # near and far
 
 LABEL_WORDS = {
-    "red": Label.RED, "orange": Label.RED, "blue": Label.BLUE, "green": Label.GREEN,
-    "brown": Label.BROWN, "wooden": Label.BROWN, "wood": Label.BROWN, "yellow": Label.YELLOW,
-    "white": Label.WHITE, "edge": Label.WHITE, "jar": Label.JAR, "mug": Label.MUG, "cup": Label.MUG,
+    "red": Label.RED,
+    "orange": Label.RED,
+    "blue": Label.BLUE,
+    "green": Label.GREEN,
+    "brown": Label.BROWN,
+    "wooden": Label.BROWN,
+    "wood": Label.BROWN,
+    "yellow": Label.YELLOW,
+    "white": Label.WHITE,
+    "edge": Label.WHITE,
+    "jar": Label.JAR,
+    "mug": Label.MUG,
+    "cup": Label.MUG,
     "paddle": Label.PADDLE,
 }
 SECTOR_WORDS = {
-    "front": Sector.FRONT, "ahead": Sector.FRONT, "facing": Sector.FRONT, "straight": Sector.FRONT,
-    "forward": Sector.FRONT, "left": Sector.LEFT, "right": Sector.RIGHT, "behind": Sector.BEHIND,
+    "front": Sector.FRONT,
+    "ahead": Sector.FRONT,
+    "facing": Sector.FRONT,
+    "straight": Sector.FRONT,
+    "forward": Sector.FRONT,
+    "left": Sector.LEFT,
+    "right": Sector.RIGHT,
+    "behind": Sector.BEHIND,
     "back": Sector.BEHIND,
 }
 _WORD = re.compile(r"[a-z]+")

@@ -28,8 +28,13 @@ class UnknownMazeError(KeyError):
 
 
 class MazeLibrary:
-    def __init__(self, benchmark: Path | None = None, extra_dirs: Iterable[Path] = (),
-                 bundled: Path | None = BUNDLED_DIR, cache: bool = True) -> None:
+    def __init__(
+        self,
+        benchmark: Path | None = None,
+        extra_dirs: Iterable[Path] = (),
+        bundled: Path | None = BUNDLED_DIR,
+        cache: bool = True,
+    ) -> None:
         """`benchmark`: a clone of the benchmark (its `mazedata/` is read); `extra_dirs`: folders
         of mazes in the benchmark's layout (`NAME/maze/maze.map-fixed.png`)."""
         self._roots: list[tuple[str, Path]] = []
@@ -39,8 +44,10 @@ class MazeLibrary:
         if benchmark is not None:
             benchmark = Path(benchmark)
             if not benchmark.is_dir():
-                raise FileNotFoundError(f"{benchmark}: no such folder; expected a clone of the "
-                                        f"RobotSlang benchmark (with mazedata/Run_*/maze/)")
+                raise FileNotFoundError(
+                    f"{benchmark}: no such folder; expected a clone of the "
+                    f"RobotSlang benchmark (with mazedata/Run_*/maze/)"
+                )
             mazedata = benchmark / "mazedata"
             self._roots.append(("benchmark", mazedata if mazedata.is_dir() else benchmark))
         self._index: dict[str, tuple[str, Path]] | None = None
@@ -75,8 +82,9 @@ class MazeLibrary:
             known = self.names()
             sample = ", ".join(known[:5]) + (", ..." if len(known) > 5 else "")
             where = ", ".join(f"{kind} {root}" for kind, root in self._roots) or "no folders"
-            raise UnknownMazeError(f"unknown maze {name!r}: the library ({where}) holds "
-                                   f"{len(known)} mazes: {sample}") from None
+            raise UnknownMazeError(
+                f"unknown maze {name!r}: the library ({where}) holds {len(known)} mazes: {sample}"
+            ) from None
 
     def source(self, name: str) -> str:
         """Where the maze comes from: 'bundled', 'local' (an extra folder) or 'benchmark'."""

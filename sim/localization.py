@@ -33,6 +33,7 @@ DEPTH_CAP_M = 2.0  # beyond this a depth says little (the wall base is near the 
 @dataclass(frozen=True)
 class MotionNoise:
     """Odometry error per move: forward distance, heading change during a forward move, turn."""
+
     forward_std_m: float = 0.006
     drift_std_rad: float = np.deg2rad(1.5)
     turn_std_rad: float = np.deg2rad(3.0)
@@ -44,6 +45,7 @@ NO_NOISE = MotionNoise(0.0, 0.0, 0.0)
 @dataclass(frozen=True)
 class SensorModel:
     """How much a perceived ray is trusted."""
+
     label_hit: float = 0.85  # probability that a read label is the true one
     depth_std_m: float = 0.03  # at zero distance, growing with distance
     depth_std_per_m: float = 0.08
@@ -76,8 +78,9 @@ class FreeSpace:
         i = rng.integers(0, self.rows.size, n)
         x = (self.cols[i] + rng.uniform(-0.5, 0.5, n)) / (self.free.shape[1] - 1) * TABLE_WIDTH_M
         y = (1 - (self.rows[i] + rng.uniform(-0.5, 0.5, n)) / (self.free.shape[0] - 1)) * TABLE_HEIGHT_M
-        return np.column_stack([np.clip(x, 0, TABLE_WIDTH_M), np.clip(y, 0, TABLE_HEIGHT_M),
-                                rng.uniform(-np.pi, np.pi, n)])
+        return np.column_stack(
+            [np.clip(x, 0, TABLE_WIDTH_M), np.clip(y, 0, TABLE_HEIGHT_M), rng.uniform(-np.pi, np.pi, n)]
+        )
 
 
 _free_spaces: weakref.WeakKeyDictionary[Maze, FreeSpace] = weakref.WeakKeyDictionary()
@@ -90,8 +93,9 @@ def free_space(maze: Maze) -> FreeSpace:
     return space
 
 
-def apply_move(poses: np.ndarray, action: Action, rng: np.random.Generator, space: FreeSpace,
-               noise: MotionNoise = MotionNoise()) -> tuple[np.ndarray, np.ndarray]:
+def apply_move(
+    poses: np.ndarray, action: Action, rng: np.random.Generator, space: FreeSpace, noise: MotionNoise = MotionNoise()
+) -> tuple[np.ndarray, np.ndarray]:
     """Poses (N, 3) after one move, each with its own noise; a forward move that would leave the
     free space stops where it was (the rover stops at the wall). Returns (poses, collided)."""
     poses = np.array(poses, dtype=np.float64, copy=True)
@@ -122,16 +126,28 @@ class Belief:
     cloud: np.ndarray  # (K <= 200, 4): x, y, heading, weight (weights sum to 1)
 
     def to_json(self) -> dict[str, Any]:
-        return {"x": self.x, "y": self.y, "heading": self.heading, "spread_m": self.spread_m,
-                "cloud": np.round(self.cloud, 4).tolist()}
+        return {
+            "x": self.x,
+            "y": self.y,
+            "heading": self.heading,
+            "spread_m": self.spread_m,
+            "cloud": np.round(self.cloud, 4).tolist(),
+        }
 
 
 class ParticleFilter:
     """Belief over the rover's pose on `maze`, from moves and perceived rays."""
 
-    def __init__(self, maze: Maze, n_particles: int = 1500, seed: int | None = None,
-                 motion: MotionNoise = MotionNoise(), sensor: SensorModel = SensorModel(),
-                 inject: float = 0.02, initial_factor: int = 5):
+    def __init__(
+        self,
+        maze: Maze,
+        n_particles: int = 1500,
+        seed: int | None = None,
+        motion: MotionNoise = MotionNoise(),
+        sensor: SensorModel = SensorModel(),
+        inject: float = 0.02,
+        initial_factor: int = 5,
+    ):
         if n_particles < 10:
             raise ValueError(f"n_particles must be at least 10, got {n_particles}")
         self.maze, self.motion, self.sensor, self.inject = maze, motion, sensor, inject
@@ -208,6 +224,7 @@ class ParticleFilter:
 
 # -- measured on simulated episodes -------------------------------------------------------------
 
+
 def _explore_action(pose: np.ndarray, space: FreeSpace, rng: np.random.Generator) -> Action:
     """A wandering Driver: forward while the way is clear, sometimes a turn."""
     ahead = pose[:2] + 2 * GRID_STEP_M * np.array([np.cos(pose[2]), np.sin(pose[2])])
@@ -216,10 +233,18 @@ def _explore_action(pose: np.ndarray, space: FreeSpace, rng: np.random.Generator
     return Action.LEFT if rng.random() < 0.5 else Action.RIGHT
 
 
-def evaluate_filter(mazes: Maze | Sequence[Maze], episodes: int = 20, moves: int = 20, seed: int = 0,
-                    n_particles: int = 1500, camera: FrontCamera | None = None,
-                    calibration: CameraCalibration | None = None, truth_noise: MotionNoise = MotionNoise(),
-                    within_m: float = 0.15, progress: bool = False) -> dict[str, Any]:
+def evaluate_filter(
+    mazes: Maze | Sequence[Maze],
+    episodes: int = 20,
+    moves: int = 20,
+    seed: int = 0,
+    n_particles: int = 1500,
+    camera: FrontCamera | None = None,
+    calibration: CameraCalibration | None = None,
+    truth_noise: MotionNoise = MotionNoise(),
+    within_m: float = 0.15,
+    progress: bool = False,
+) -> dict[str, Any]:
     """Episodes from a uniform belief: the true rover moves with `truth_noise` (collisions stop
     it), each frame goes through the camera model and perception, the filter gets the moves and
     the perceived rays. Error = distance from the belief's mean to the true position."""
@@ -228,13 +253,13 @@ def evaluate_filter(mazes: Maze | Sequence[Maze], episodes: int = 20, moves: int
     mazes = [mazes] if isinstance(mazes, Maze) else list(mazes)
     camera = camera or FrontCamera()
     if calibration is None:
-        calibration = simulated_calibration(camera, [(m, NavGraph.build(m)) for m in mazes],
-                                            seed=seed + 1000)
+        calibration = simulated_calibration(camera, [(m, NavGraph.build(m)) for m in mazes], seed=seed + 1000)
     rng = np.random.default_rng(seed)
     errors = np.zeros((episodes, moves + 1))
     items = range(episodes)
     if progress:
         from tqdm import tqdm
+
         items = tqdm(items, desc="particle filter")
     for e in items:
         maze = mazes[e % len(mazes)]
@@ -251,15 +276,20 @@ def evaluate_filter(mazes: Maze | Sequence[Maze], episodes: int = 20, moves: int
             b = pf.belief()
             errors[e, t] = np.hypot(b.x - x, b.y - y)
     final = errors[:, -1]
-    return {"converged_fraction_20_moves": float((final <= within_m).mean()),
-            "err_median_m_20_moves": float(np.median(final)),
-            "curve": [float(v) for v in np.median(errors, axis=0)],
-            "episodes": episodes, "moves": moves, "particles": n_particles}
+    return {
+        "converged_fraction_20_moves": float((final <= within_m).mean()),
+        "err_median_m_20_moves": float(np.median(final)),
+        "curve": [float(v) for v in np.median(errors, axis=0)],
+        "episodes": episodes,
+        "moves": moves,
+        "particles": n_particles,
+    }
 
 
 def plot_filter_curve(result: dict[str, Any], path: str | Path) -> None:
     """The median belief error against moves, as a PNG."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -269,8 +299,9 @@ def plot_filter_curve(result: dict[str, Any], path: str | Path) -> None:
     ax.axhline(0.15, color="grey", ls="--", lw=1, label="0.15 m")
     ax.set_xlabel("moves")
     ax.set_ylabel("median error of belief mean (m)")
-    ax.set_title(f"particle filter, {result['episodes']} episodes: "
-                 f"{result['converged_fraction_20_moves']:.0%} within 0.15 m")
+    ax.set_title(
+        f"particle filter, {result['episodes']} episodes: {result['converged_fraction_20_moves']:.0%} within 0.15 m"
+    )
     ax.legend()
     fig.tight_layout()
     fig.savefig(path)

@@ -47,14 +47,16 @@ class Maze:
 
     # -- construction -------------------------------------------------------------
     @classmethod
-    def from_labels(cls, labels: np.ndarray, name: str, walls: np.ndarray | None = None,
-                    source: str | None = None) -> Maze:
+    def from_labels(
+        cls, labels: np.ndarray, name: str, walls: np.ndarray | None = None, source: str | None = None
+    ) -> Maze:
         """A maze from label grids; `walls` defaults to `labels` with the objects removed."""
         where = source or name
         labels = np.asarray(labels, dtype=np.uint8)
         if labels.shape != (MAP_HEIGHT_PX, MAP_WIDTH_PX):
-            raise MazeError(f"{where}: map is {labels.shape[1]}x{labels.shape[0]} pixels, "
-                            f"expected {MAP_WIDTH_PX}x{MAP_HEIGHT_PX}")
+            raise MazeError(
+                f"{where}: map is {labels.shape[1]}x{labels.shape[0]} pixels, expected {MAP_WIDTH_PX}x{MAP_HEIGHT_PX}"
+            )
         if walls is None:
             walls = np.where(np.isin(labels, OBJECT_LABELS), Label.FLOOR, labels).astype(np.uint8)
         elif walls.shape != labels.shape:
@@ -71,9 +73,14 @@ class Maze:
         return cls(name=name, labels=labels, walls=np.asarray(walls, dtype=np.uint8), objects=objects)
 
     @classmethod
-    def from_png(cls, fixed_path: str | Path, walls_path: str | Path | None = None,
-                 name: str | None = None, cache_dir: str | Path | None = None,
-                 use_cache: bool = True) -> Maze:
+    def from_png(
+        cls,
+        fixed_path: str | Path,
+        walls_path: str | Path | None = None,
+        name: str | None = None,
+        cache_dir: str | Path | None = None,
+        use_cache: bool = True,
+    ) -> Maze:
         """Read a benchmark-style map: `maze.map-fixed.png` (+ optional `maze.map.png`).
 
         The decoded grids are cached beside the graphs, keyed on the PNG files' bytes: hashing
@@ -88,8 +95,12 @@ class Maze:
         if use_cache and path.exists():
             try:
                 with np.load(path) as data:
-                    maze = cls(name=name, labels=data["labels"], walls=data["walls"],
-                               objects={w: (float(x), float(y)) for w, (x, y) in zip(OBJECTS, data["objects"])})
+                    maze = cls(
+                        name=name,
+                        labels=data["labels"],
+                        walls=data["walls"],
+                        objects={w: (float(x), float(y)) for w, (x, y) in zip(OBJECTS, data["objects"])},
+                    )
                     maze.__dict__["content_hash"] = str(data["content_hash"])  # the cached property
                     return maze
             except (OSError, ValueError, KeyError):
@@ -100,21 +111,25 @@ class Maze:
             raise MazeError(f"{walls_path}: size differs from {fixed_path}")
         maze = cls.from_labels(labels, name, walls, source=str(fixed_path))
         if use_cache:
-            save_npz(path, compressed=True, labels=maze.labels, walls=maze.walls, content_hash=maze.content_hash,
-                     objects=np.array([maze.objects[w] for w in OBJECTS]))
+            save_npz(
+                path,
+                compressed=True,
+                labels=maze.labels,
+                walls=maze.walls,
+                content_hash=maze.content_hash,
+                objects=np.array([maze.objects[w] for w in OBJECTS]),
+            )
         return maze
 
     @classmethod
-    def from_dir(cls, run_dir: str | Path, name: str | None = None,
-                 cache_dir: str | Path | None = None) -> Maze:
+    def from_dir(cls, run_dir: str | Path, name: str | None = None, cache_dir: str | Path | None = None) -> Maze:
         """A maze in the benchmark's layout: `RUN_DIR/maze/maze.map-fixed.png` and `maze.map.png`."""
         run_dir = Path(run_dir)
         fixed = run_dir / "maze" / FIXED_MAP
         walls = run_dir / "maze" / WALLS_MAP
         if not fixed.exists():
             raise MazeError(f"{fixed}: no such map file")
-        return cls.from_png(fixed, walls if walls.exists() else None, name=name or run_dir.name,
-                            cache_dir=cache_dir)
+        return cls.from_png(fixed, walls if walls.exists() else None, name=name or run_dir.name, cache_dir=cache_dir)
 
     # -- output -------------------------------------------------------------------
     def image(self, walls_only: bool = False) -> np.ndarray:
@@ -137,21 +152,25 @@ def read_label_png(path: Path) -> np.ndarray:
     if image is None:
         raise MazeError(f"{path}: not a readable image")
     if image.shape[:2] != (MAP_HEIGHT_PX, MAP_WIDTH_PX):
-        raise MazeError(f"{path}: map is {image.shape[1]}x{image.shape[0]} pixels, "
-                        f"expected {MAP_WIDTH_PX}x{MAP_HEIGHT_PX}")
+        raise MazeError(
+            f"{path}: map is {image.shape[1]}x{image.shape[0]} pixels, expected {MAP_WIDTH_PX}x{MAP_HEIGHT_PX}"
+        )
     # The top two bits of each channel tell the palette's colours apart: a 6-bit key, looked up,
     # then every pixel compared with its label's exact colour.
     b, g, r = (np.asarray(channel, dtype=np.uint8) for channel in cv2.split(image))
     labels = cv2.LUT(((b >> 6) << 4) | ((g >> 6) << 2) | (r >> 6), _KEY_LABEL)
-    wrong = sum(cv2.countNonZero(cv2.absdiff(cv2.LUT(labels, _LABEL_CHANNEL[k]), channel))
-                for k, channel in enumerate((b, g, r)))
+    wrong = sum(
+        cv2.countNonZero(cv2.absdiff(cv2.LUT(labels, _LABEL_CHANNEL[k]), channel))
+        for k, channel in enumerate((b, g, r))
+    )
     if wrong:
         # Label 255 (a key of no palette colour) repaints as black, which has key 0: never equal.
         unknown = np.argwhere((_LABEL_CHANNEL[:, labels].transpose(1, 2, 0) != image).any(axis=2))
         row, col = unknown[0]
         b, g, r = image[row, col]
-        raise MazeError(f"{path}: {len(unknown)} pixels of unknown colour, first at column {col}, "
-                        f"row {row}: BGR ({b}, {g}, {r})")
+        raise MazeError(
+            f"{path}: {len(unknown)} pixels of unknown colour, first at column {col}, row {row}: BGR ({b}, {g}, {r})"
+        )
     return labels
 
 

@@ -16,8 +16,12 @@ from sim.maze import MazeError
 
 app = typer.Typer(help="Generate, list and draw mazes.", no_args_is_help=True)
 
-BENCHMARK_OPTION = typer.Option(None, "--benchmark", envvar="ROBOTSLANG_BENCHMARK",
-                                help="A clone of the RobotSlang benchmark, to include its mazes.")
+BENCHMARK_OPTION = typer.Option(
+    None,
+    "--benchmark",
+    envvar="ROBOTSLANG_BENCHMARK",
+    help="A clone of the RobotSlang benchmark, to include its mazes.",
+)
 
 
 def register(root: typer.Typer) -> None:
@@ -32,18 +36,25 @@ def generate_set(out: Path, count: int, seed: int, prefix: str = "gen", progress
         name = f"{prefix}-{i:03d}"
         maze = generate_maze(seed + i, name=name)
         maze.save(out / name)
-        entries.append({"name": name, "seed": seed + i,
-                        "objects": {k: [round(x, 4), round(y, 4)] for k, (x, y) in maze.objects.items()}})
+        entries.append(
+            {
+                "name": name,
+                "seed": seed + i,
+                "objects": {k: [round(x, 4), round(y, 4)] for k, (x, y) in maze.objects.items()},
+            }
+        )
     manifest = {"generator": "sim.generator.generate_maze", "seed": seed, "count": count, "mazes": entries}
     (out / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
     return manifest
 
 
 @app.command("generate")
-def generate(count: int = typer.Option(12, "--count", min=1, help="How many mazes."),
-             seed: int = typer.Option(0, "--seed", min=0, help="Seed of the first maze; maze i uses seed + i."),
-             out: Path = typer.Option(..., "--out", help="Folder to write NAME/maze/*.png and manifest.json into."),
-             prefix: str = typer.Option("gen", "--prefix", help="Maze names are PREFIX-000, PREFIX-001, ...")) -> None:
+def generate(
+    count: int = typer.Option(12, "--count", min=1, help="How many mazes."),
+    seed: int = typer.Option(0, "--seed", min=0, help="Seed of the first maze; maze i uses seed + i."),
+    out: Path = typer.Option(..., "--out", help="Folder to write NAME/maze/*.png and manifest.json into."),
+    prefix: str = typer.Option("gen", "--prefix", help="Maze names are PREFIX-000, PREFIX-001, ..."),
+) -> None:
     """Generate seeded mazes in the benchmark's layout."""
     try:
         generate_set(out, count, seed, prefix)
@@ -61,8 +72,10 @@ def _library(benchmark: Path | None, extra: list[Path]) -> MazeLibrary:
 
 
 @app.command("list")
-def list_mazes(benchmark: Path | None = BENCHMARK_OPTION,
-               extra: list[Path] = typer.Option([], "--dir", help="A folder of mazes to include (repeatable).")) -> None:
+def list_mazes(
+    benchmark: Path | None = BENCHMARK_OPTION,
+    extra: list[Path] = typer.Option([], "--dir", help="A folder of mazes to include (repeatable)."),
+) -> None:
     """Every maze name with where it comes from."""
     library = _library(benchmark, extra)
     for name in library.names():
@@ -70,11 +83,13 @@ def list_mazes(benchmark: Path | None = BENCHMARK_OPTION,
 
 
 @app.command("show")
-def show(name: str,
-         out: Path = typer.Option(..., "--out", help="PNG file to write the map to."),
-         benchmark: Path | None = BENCHMARK_OPTION,
-         extra: list[Path] = typer.Option([], "--dir", help="A folder of mazes to include (repeatable)."),
-         walls_only: bool = typer.Option(False, "--walls-only", help="Draw the walls-only map.")) -> None:
+def show(
+    name: str,
+    out: Path = typer.Option(..., "--out", help="PNG file to write the map to."),
+    benchmark: Path | None = BENCHMARK_OPTION,
+    extra: list[Path] = typer.Option([], "--dir", help="A folder of mazes to include (repeatable)."),
+    walls_only: bool = typer.Option(False, "--walls-only", help="Draw the walls-only map."),
+) -> None:
     """Draw a maze's map, in the benchmark's colours, to a PNG."""
     try:
         maze = _library(benchmark, extra).load(name)

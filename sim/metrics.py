@@ -19,8 +19,22 @@ import numpy as np
 from sim.geometry import SUCCESS_RADIUS_M
 from sim.navgraph import NavGraph
 
-CSV_COLUMNS = ("split", "inst_idx", "agent", "seed", "start_x", "start_y", "start_heading",
-               "goal_x", "goal_y", "td", "otd", "steps", "success", "spl")
+CSV_COLUMNS = (
+    "split",
+    "inst_idx",
+    "agent",
+    "seed",
+    "start_x",
+    "start_y",
+    "start_heading",
+    "goal_x",
+    "goal_y",
+    "td",
+    "otd",
+    "steps",
+    "success",
+    "spl",
+)
 
 
 @dataclass(frozen=True)
@@ -60,8 +74,9 @@ def score_trajectory(graph: NavGraph, nodes: Iterable[int], goal: int) -> Trajec
     path_length = float(np.linalg.norm(np.diff(graph.nodes[nodes], axis=0), axis=1).sum())
     success = td <= SUCCESS_RADIUS_M
     spl = shortest / max(path_length, shortest) if success and shortest > 0 else float(success)
-    return TrajectoryScore(td=td, otd=float(to_goal.min()), path_length=path_length,
-                           shortest=shortest, success=success, spl=spl)
+    return TrajectoryScore(
+        td=td, otd=float(to_goal.min()), path_length=path_length, shortest=shortest, success=success, spl=spl
+    )
 
 
 def _mean_std(values: np.ndarray) -> tuple[float, float]:
@@ -80,15 +95,20 @@ def summarize_agent(results: list[EpisodeResult]) -> dict[str, Any]:
     by_inst: dict[int, list[EpisodeResult]] = {}
     for r in results:
         by_inst.setdefault(r.inst_idx, []).append(r)
-    per = {k: {f: float(np.mean([getattr(r, f) for r in rs])) for f in ("td", "otd", "steps", "success", "spl")}
-           for k, rs in by_inst.items()}
+    per = {
+        k: {f: float(np.mean([getattr(r, f) for r in rs])) for f in ("td", "otd", "steps", "success", "spl")}
+        for k, rs in by_inst.items()
+    }
     td = np.array([p["td"] for p in per.values()])
     otd = np.array([p["otd"] for p in per.values()])
     finite = np.isfinite(td)
     td_mean, td_std = _mean_std(td[finite])
     otd_mean, otd_std = _mean_std(otd[np.isfinite(otd)])
     return {
-        "td_mean": td_mean, "td_std": td_std, "otd_mean": otd_mean, "otd_std": otd_std,
+        "td_mean": td_mean,
+        "td_std": td_std,
+        "otd_mean": otd_mean,
+        "otd_std": otd_std,
         "sr": float(np.mean([p["success"] for p in per.values()])) if per else math.nan,
         "spl": float(np.mean([p["spl"] for p in per.values()])) if per else math.nan,
         "steps_mean": float(np.mean([p["steps"] for p in per.values()])) if per else math.nan,
@@ -123,8 +143,16 @@ def read_csv(path: str | Path) -> list[EpisodeResult]:
     with Path(path).open() as f:
         for row in csv.DictReader(f):
             values: dict[str, Any] = {
-                k: (row[k] if types[k] == "str" else bool(int(row[k])) if types[k] == "bool"
-                    else int(row[k]) if types[k] == "int" else float(row[k]))
-                for k in CSV_COLUMNS}
+                k: (
+                    row[k]
+                    if types[k] == "str"
+                    else bool(int(row[k]))
+                    if types[k] == "bool"
+                    else int(row[k])
+                    if types[k] == "int"
+                    else float(row[k])
+                )
+                for k in CSV_COLUMNS
+            }
             out.append(EpisodeResult(**values))
     return out

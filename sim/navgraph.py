@@ -100,8 +100,14 @@ class NavGraph:
         return len(self.nodes)
 
     @classmethod
-    def build(cls, maze: Maze, mode: str = "benchmark", cache_dir: str | Path | None = None,
-              use_cache: bool = True, objects_block: bool = False) -> NavGraph:
+    def build(
+        cls,
+        maze: Maze,
+        mode: str = "benchmark",
+        cache_dir: str | Path | None = None,
+        use_cache: bool = True,
+        objects_block: bool = False,
+    ) -> NavGraph:
         """The graph of `maze` (cached by its contents); `objects_block=True` for the live seat."""
         if mode not in MODES:
             raise ValueError(f"unknown edge mode {mode!r}; expected one of {', '.join(MODES)}")
@@ -153,12 +159,27 @@ class NavGraph:
             tj = node_ij[:, 1] + HEADING_DJ[k]
             inside = (ti >= 0) & (ti < node_grid.shape[0]) & (tj >= 0) & (tj < node_grid.shape[1])
             forward[inside, k] = node_grid[ti[inside], tj[inside]]
-        return cls(mode=mode, nodes=nodes, node_ij=node_ij, node_grid=node_grid, dist=dist,
-                   next_hop=next_hop, forward=forward, objects_block=objects_block)
+        return cls(
+            mode=mode,
+            nodes=nodes,
+            node_ij=node_ij,
+            node_grid=node_grid,
+            dist=dist,
+            next_hop=next_hop,
+            forward=forward,
+            objects_block=objects_block,
+        )
 
     def _save(self, path: Path) -> None:
-        save_npz(path, nodes=self.nodes, node_ij=self.node_ij, node_grid=self.node_grid,
-                 dist=self.dist, next_hop=self.next_hop, forward=self.forward)
+        save_npz(
+            path,
+            nodes=self.nodes,
+            node_ij=self.node_ij,
+            node_grid=self.node_grid,
+            dist=self.dist,
+            next_hop=self.next_hop,
+            forward=self.forward,
+        )
 
     # -- queries ------------------------------------------------------------------
     def nearest_nodes(self, xy: ArrayLike) -> np.ndarray:

@@ -74,8 +74,7 @@ class RayCaster:
         self.labels = np.ascontiguousarray(labels, dtype=np.uint8)
         # Distance (px) from each pixel centre to the nearest non-floor pixel centre, never
         # more: the 5x5 chamfer transform overestimates by at most 2%, so it is scaled down.
-        chamfer = cv2.distanceTransform((self.labels == Label.FLOOR).astype(np.uint8),
-                                        cv2.DIST_L2, cv2.DIST_MASK_5)
+        chamfer = cv2.distanceTransform((self.labels == Label.FLOOR).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
         self.clearance = chamfer * np.float32(CHAMFER_SAFETY)
 
     def cast(self, x: ArrayLike, y: ArrayLike, angles: ArrayLike, window: int = 1) -> tuple[np.ndarray, np.ndarray]:
@@ -88,15 +87,17 @@ class RayCaster:
         crossings (more per round helps rays that run along a wall), then jumps as far as the
         distance transform allows.
         """
-        x, y, angles = np.broadcast_arrays(np.asarray(x, np.float64), np.asarray(y, np.float64),
-                                           np.asarray(angles, np.float64))
+        x, y, angles = np.broadcast_arrays(
+            np.asarray(x, np.float64), np.asarray(y, np.float64), np.asarray(angles, np.float64)
+        )
         shape = x.shape
         x, y, angles = x.ravel(), y.ravel(), angles.ravel()
         outside = (x < 0) | (x > TABLE_WIDTH_M) | (y < 0) | (y > TABLE_HEIGHT_M)
         if outside.any():
             i = int(np.argmax(outside))
-            raise ValueError(f"ray origin ({x[i]:.3f}, {y[i]:.3f}) m is off the "
-                             f"{TABLE_WIDTH_M} x {TABLE_HEIGHT_M} m table")
+            raise ValueError(
+                f"ray origin ({x[i]:.3f}, {y[i]:.3f}) m is off the {TABLE_WIDTH_M} x {TABLE_HEIGHT_M} m table"
+            )
         h, w = self.labels.shape
         # Positions shifted by half a pixel: pixel (col, row) is the unit square at
         # [col, col + 1) x [row, row + 1), so truncation finds the pixel a point is in.
@@ -136,15 +137,16 @@ class RayCaster:
                 advance = np.minimum(to_c, to_r)
                 flat = (fr.astype(np.int32) * w + fc.astype(np.int32))[:, None]
             else:
-                cross = np.sort(np.concatenate([to_c[:, None] + k * gc[:, None],
-                                                to_r[:, None] + k * gr[:, None]], axis=1),
-                                axis=1)[:, :window]
+                cross = np.sort(
+                    np.concatenate([to_c[:, None] + k * gc[:, None], to_r[:, None] + k * gr[:, None]], axis=1), axis=1
+                )[:, :window]
                 advance = cross[:, -1]
                 cross[:, 1:] = cross[:, :-1] + _PAST_PX
                 cross[:, 0] = 0
                 ts = np.minimum(t[:, None] + cross, te[:, None])
-                flat = ((r[:, None] + v[:, None] * ts).astype(np.int32) * w
-                        + (c[:, None] + u[:, None] * ts).astype(np.int32))
+                flat = (r[:, None] + v[:, None] * ts).astype(np.int32) * w + (c[:, None] + u[:, None] * ts).astype(
+                    np.int32
+                )
             label = flat_labels[flat]
             stop = (label != 0) | (ts >= te[:, None])
             first = stop.argmax(axis=1)
@@ -183,8 +185,9 @@ def ray_caster(maze: Maze) -> RayCaster:
     return caster
 
 
-def cast_rays(maze: Maze, x: float, y: float, theta: float,
-              offsets: ArrayLike = RAY_OFFSETS) -> tuple[np.ndarray, np.ndarray]:
+def cast_rays(
+    maze: Maze, x: float, y: float, theta: float, offsets: ArrayLike = RAY_OFFSETS
+) -> tuple[np.ndarray, np.ndarray]:
     """The observation rays from a continuous pose: (labels (13,), depth (13,) metres)."""
     return ray_caster(maze).cast(x, y, theta + np.asarray(offsets))
 
@@ -204,12 +207,12 @@ class RayTable:
     forward_blocked: np.ndarray  # (N, 8) bool
 
     @classmethod
-    def build(cls, maze: Maze, graph: NavGraph, cache_dir: str | Path | None = None,
-              use_cache: bool = True) -> RayTable:
+    def build(
+        cls, maze: Maze, graph: NavGraph, cache_dir: str | Path | None = None, use_cache: bool = True
+    ) -> RayTable:
         """Every (node, heading) observation of `graph` on `maze`, cached by maze and nodes."""
         key = hashlib.sha256(np.ascontiguousarray(graph.nodes).tobytes()).hexdigest()[:12]
-        path = (default_cache_dir(cache_dir) / "rays"
-                / f"{maze.content_hash}-{key}-v{_CACHE_VERSION}.npz")
+        path = default_cache_dir(cache_dir) / "rays" / f"{maze.content_hash}-{key}-v{_CACHE_VERSION}.npz"
         labels: np.ndarray | None = None
         depth: np.ndarray | None = None
         if use_cache and path.exists():
@@ -223,9 +226,12 @@ class RayTable:
             if use_cache:
                 save_npz(path, labels=labels, depth=depth)
         assert depth is not None  # read or built with the labels
-        return cls(labels=labels, depth=depth,
-                   too_close=too_close(depth, np.arange(HEADINGS)[None, :, None]),
-                   forward_blocked=graph.forward < 0)
+        return cls(
+            labels=labels,
+            depth=depth,
+            too_close=too_close(depth, np.arange(HEADINGS)[None, :, None]),
+            forward_blocked=graph.forward < 0,
+        )
 
     def features(self) -> np.ndarray:
         """(N, 8, OBS_FEATURES) float32: one-hot labels (13 x 10), depths, too-close, blocked."""
@@ -246,6 +252,5 @@ def node_rays(maze: Maze, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     nodes = np.asarray(nodes, dtype=np.float64)
     # A caster of its own: tables are built for many mazes at once, and the distance
     # transform (6.6 MB) need not outlive the table.
-    labels, depth = RayCaster(maze.labels).cast(nodes[:, 0, None, None], nodes[:, 1, None, None],
-                                                angles[None])
+    labels, depth = RayCaster(maze.labels).cast(nodes[:, 0, None, None], nodes[:, 1, None, None], angles[None])
     return labels, depth.astype(np.float32)

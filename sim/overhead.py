@@ -37,6 +37,7 @@ class OverheadCamera:
     4:3 webcam on a boom 2.5 m above the table, just beyond its lower edge and a little
     off-centre, tilted 24 degrees from straight down: the table and its corner markers fill
     the picture."""
+
     width: int = 960
     height: int = 720
     fov_deg: float = 70.0
@@ -82,14 +83,20 @@ class Imaging:
     """What the lens and sensor do to the picture: Gaussian blur (pixels), exposure (a gain on
     the scene's brightness; 1 is right, under 0.2 dark, over 3 burnt out) and noise (standard
     deviation in grey levels)."""
+
     blur_px: float = 0.8
     exposure: float = 1.0
     noise: float = 2.5
 
 
-def render_overhead(maze: Maze, pose: np.ndarray | Sequence[float] | None = None, camera: OverheadCamera = OverheadCamera(),
-                    imaging: Imaging = Imaging(), layout: MarkerLayout = MarkerLayout(),
-                    seed: int = 0) -> np.ndarray:
+def render_overhead(
+    maze: Maze,
+    pose: np.ndarray | Sequence[float] | None = None,
+    camera: OverheadCamera = OverheadCamera(),
+    imaging: Imaging = Imaging(),
+    layout: MarkerLayout = MarkerLayout(),
+    seed: int = 0,
+) -> np.ndarray:
     """The overhead camera's (H, W, 3) BGR image of the table, with the rover at `pose`
     (x, y, heading in metres and radians; None: no rover on the table)."""
     image = _table_image(maze, camera, layout).astype(np.float32)
@@ -100,14 +107,20 @@ def render_overhead(maze: Maze, pose: np.ndarray | Sequence[float] | None = None
         # to the rover's right; pixel centres at integers, the plate centred on the pose.
         c0, r0 = (plate.shape[1] - 1) / 2, (plate.shape[0] - 1) / 2
         cos, sin = np.cos(theta), np.sin(theta)
-        to_table = np.array([[cos / ppm, sin / ppm, x - (cos * c0 + sin * r0) / ppm],
-                             [sin / ppm, -cos / ppm, y - (sin * c0 - cos * r0) / ppm],
-                             [0, 0, 1]])
+        to_table = np.array(
+            [
+                [cos / ppm, sin / ppm, x - (cos * c0 + sin * r0) / ppm],
+                [sin / ppm, -cos / ppm, y - (sin * c0 - cos * r0) / ppm],
+                [0, 0, 1],
+            ]
+        )
         _draw_plane(image, plate, camera.plane_homography(layout.rover_height_m) @ to_table)
     return _expose(image, imaging, seed)
 
 
-_tables: weakref.WeakKeyDictionary[Maze, dict[tuple[OverheadCamera, MarkerLayout], np.ndarray]] = weakref.WeakKeyDictionary()
+_tables: weakref.WeakKeyDictionary[Maze, dict[tuple[OverheadCamera, MarkerLayout], np.ndarray]] = (
+    weakref.WeakKeyDictionary()
+)
 
 
 def _table_image(maze: Maze, camera: OverheadCamera, layout: MarkerLayout) -> np.ndarray:
@@ -150,7 +163,7 @@ def _rover_plate(layout: MarkerLayout) -> tuple[np.ndarray, float]:
         turned = cv2.rotate(printed, cv2.ROTATE_90_CLOCKWISE)
         n = turned.shape[0]
         r, c = (h - n) // 2, (w - n) // 2
-        plate[r:r + n, c:c + n] = turned[..., None]
+        plate[r : r + n, c : c + n] = turned[..., None]
         _plates[layout] = plate, ppm
     return _plates[layout]
 
@@ -163,8 +176,7 @@ def _marker_to_table(printed: np.ndarray, corners: np.ndarray) -> np.ndarray:
     return cv2.getPerspectiveTransform(src.astype(np.float32), corners.astype(np.float32)).astype(np.float64)
 
 
-def _draw_plane(image: np.ndarray, picture: np.ndarray, to_image: np.ndarray,
-                supersample: int = SUPERSAMPLE) -> None:
+def _draw_plane(image: np.ndarray, picture: np.ndarray, to_image: np.ndarray, supersample: int = SUPERSAMPLE) -> None:
     """Paint `picture` (grey or BGR) into the float image through the homography `to_image`
     (picture pixel -> image pixel), area-averaged over `supersample`^2 sub-pixels per pixel."""
     h, w = picture.shape[:2]
@@ -181,10 +193,12 @@ def _draw_plane(image: np.ndarray, picture: np.ndarray, to_image: np.ndarray,
     size = ((x1 - x0) * s, (y1 - y0) * s)
     flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
     colour = picture if picture.ndim == 3 else cv2.cvtColor(picture, cv2.COLOR_GRAY2BGR)
-    warped = cv2.warpPerspective(colour.astype(np.float32), back, size, flags=flags,
-                                 borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-    cover = cv2.warpPerspective(np.ones((h, w), np.float32), back, size, flags=flags,
-                                borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    warped = cv2.warpPerspective(
+        colour.astype(np.float32), back, size, flags=flags, borderMode=cv2.BORDER_CONSTANT, borderValue=0
+    )
+    cover = cv2.warpPerspective(
+        np.ones((h, w), np.float32), back, size, flags=flags, borderMode=cv2.BORDER_CONSTANT, borderValue=0
+    )
     area = (x1 - x0, y1 - y0)
     warped = cv2.resize(warped, area, interpolation=cv2.INTER_AREA)
     cover = cv2.resize(cover, area, interpolation=cv2.INTER_AREA)[..., None]

@@ -66,6 +66,7 @@ class FrameProblem(str, Enum):
 @dataclass(frozen=True, eq=False)
 class RayObservation:
     """What the camera says about the 13 rays, in the simulator's terms."""
+
     labels: np.ndarray  # (13,) uint8 Label; FLOOR where nothing was met (or not valid)
     depth: np.ndarray  # (13,) float32 metres
     too_close: np.ndarray  # (13,) bool
@@ -94,6 +95,7 @@ def features(obs: RayObservation) -> np.ndarray:
 
 # -- colours ----------------------------------------------------------------------------------
 
+
 def colour_features(bgr: np.ndarray) -> np.ndarray:
     """(..., 3) BGR -> (..., 3): chromaticity (b, g share of the sum) and log brightness, so a
     colour in shadow stays near itself while white and the grey table differ by brightness."""
@@ -113,8 +115,10 @@ class _Classifier:
     @classmethod
     def of(cls, calibration: CameraCalibration) -> _Classifier:
         if "floor" not in calibration.colours or len(calibration.colours) < 2:
-            raise PerceptionError("the calibration has no colours for the floor and the walls; "
-                                  "run perception.calibrate_colours on labelled frames first")
+            raise PerceptionError(
+                "the calibration has no colours for the floor and the walls; "
+                "run perception.calibrate_colours on labelled frames first"
+            )
         names = [n for n in COLOUR_CLASSES if n in calibration.colours]
         covs = np.array([calibration.colours[n].cov for n in names])
         means = np.array([calibration.colours[n].mean for n in names])
@@ -122,8 +126,12 @@ class _Classifier:
         inv_l = np.linalg.inv(np.linalg.cholesky(covs))  # (C, 3, 3)
         whiten = np.concatenate(list(inv_l.transpose(0, 2, 1)), axis=1).astype(np.float32)
         offsets = np.einsum("cij,cj->ci", inv_l, means).ravel().astype(np.float32)
-        return cls(labels=np.array([Label[n.upper()] for n in names], dtype=np.uint8),
-                   whiten=whiten, offsets=offsets, log_dets=np.linalg.slogdet(covs)[1])
+        return cls(
+            labels=np.array([Label[n.upper()] for n in names], dtype=np.uint8),
+            whiten=whiten,
+            offsets=offsets,
+            log_dets=np.linalg.slogdet(covs)[1],
+        )
 
     def classify(self, bgr: np.ndarray) -> np.ndarray:
         """(..., 3) BGR -> (...) int16: a Label value, or -1 for a colour of no class."""
@@ -138,6 +146,7 @@ class _Classifier:
 
 
 # -- where each ray's floor appears in the image -----------------------------------------------
+
 
 @dataclass(frozen=True, eq=False)
 class _Strips:
@@ -188,7 +197,9 @@ def _ray_strips(c: CameraCalibration) -> _Strips:
         strips = _strips[key] = _Strips(
             map_x=u[sl].reshape(-1, N_RAYS * 3).astype(np.float32),
             map_y=v[sl].reshape(-1, N_RAYS * 3).astype(np.float32),
-            inside=inside[sl], inv_depth=q[sl])
+            inside=inside[sl],
+            inv_depth=q[sl],
+        )
     return strips
 
 
@@ -198,11 +209,12 @@ def _check_frame(image: np.ndarray | bytes | bytearray | memoryview, calibration
     if not isinstance(image, np.ndarray):
         raise PerceptionError(f"a frame must be a BGR image array or JPEG bytes, got {type(image).__name__}")
     if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
-        raise PerceptionError(f"a frame must be an (H, W, 3) uint8 BGR image, got {image.dtype} "
-                              f"of shape {image.shape}")
+        raise PerceptionError(f"a frame must be an (H, W, 3) uint8 BGR image, got {image.dtype} of shape {image.shape}")
     if image.shape[:2] != (calibration.height, calibration.width):
-        raise PerceptionError(f"frame is {image.shape[1]}x{image.shape[0]} pixels, the calibration "
-                              f"is for {calibration.width}x{calibration.height}")
+        raise PerceptionError(
+            f"frame is {image.shape[1]}x{image.shape[0]} pixels, the calibration "
+            f"is for {calibration.width}x{calibration.height}"
+        )
     return image
 
 
@@ -226,14 +238,16 @@ def _exposure_problem(image: np.ndarray) -> FrameProblem | None:
 
 def _strip_colours(image: np.ndarray, strips: _Strips) -> np.ndarray:
     """(K, 13, 3) float32: the median of the three bearings' colours at each strip sample."""
-    samples = cv2.remap(image, strips.map_x, strips.map_y, cv2.INTER_LINEAR,
-                        borderMode=cv2.BORDER_REPLICATE).reshape(-1, N_RAYS, 3, 3)
+    samples = cv2.remap(image, strips.map_x, strips.map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).reshape(
+        -1, N_RAYS, 3, 3
+    )
     a, b, c = (samples[:, :, i].astype(np.float32) for i in range(3))
     return np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c))  # median of three
 
 
-def perceive(image: np.ndarray | bytes | bytearray | memoryview, calibration: CameraCalibration,
-             heading: int | None = None) -> RayObservation:
+def perceive(
+    image: np.ndarray | bytes | bytearray | memoryview, calibration: CameraCalibration, heading: int | None = None
+) -> RayObservation:
     """The 13-ray observation seen in one frame (BGR array or JPEG bytes).
 
     `heading` is the rover's heading index (0..7) when known: the simulator's too-close rule
@@ -245,8 +259,9 @@ def perceive(image: np.ndarray | bytes | bytearray | memoryview, calibration: Ca
     problem = _exposure_problem(image)
     if problem is not None:
         nothing = np.zeros(N_RAYS, dtype=bool)
-        return RayObservation(np.zeros(N_RAYS, np.uint8), np.zeros(N_RAYS, np.float32), nothing,
-                              nothing.copy(), False, problem)
+        return RayObservation(
+            np.zeros(N_RAYS, np.uint8), np.zeros(N_RAYS, np.float32), nothing, nothing.copy(), False, problem
+        )
     strips = _ray_strips(calibration)
     colours = _strip_colours(image, strips)
     classes = classifier.classify(colours)  # (K, 13)
@@ -255,16 +270,17 @@ def perceive(image: np.ndarray | bytes | bytearray | memoryview, calibration: Ca
     valid = np.zeros(N_RAYS, dtype=bool)
     for ray in range(N_RAYS):
         labels[ray], depth[ray], valid[ray] = _read_ray(
-            classes[:, ray], colours[:, ray], strips.inside[:, ray], strips.inv_depth[:, ray])
+            classes[:, ray], colours[:, ray], strips.inside[:, ray], strips.inv_depth[:, ray]
+        )
     objects = np.isin(labels, OBJECT_LABELS) & valid
     depth[objects] = np.maximum(depth[objects] + calibration.object_depth_offset_m, 0.0)
     close = too_close(depth, rule_heading) & valid
-    return RayObservation(labels, depth, close, valid,
-                          _forward_blocked(depth, valid, rule_heading), None)
+    return RayObservation(labels, depth, close, valid, _forward_blocked(depth, valid, rule_heading), None)
 
 
-def _read_ray(classes: np.ndarray, colours: np.ndarray, inside: np.ndarray,
-              inv_depth: np.ndarray) -> tuple[int, float, bool]:
+def _read_ray(
+    classes: np.ndarray, colours: np.ndarray, inside: np.ndarray, inv_depth: np.ndarray
+) -> tuple[int, float, bool]:
     """One strip, near to far: (label, depth, valid)."""
     seen = np.nonzero(inside)[0]
     if seen.size < 2 * RUN:
@@ -274,10 +290,10 @@ def _read_ray(classes: np.ndarray, colours: np.ndarray, inside: np.ndarray,
     # First sample of RUN consecutive solid ones: the base of the nearest wall or object.
     runs = np.convolve(solid, np.ones(RUN, dtype=int), mode="valid") == RUN
     if not runs.any():  # open floor all the way, if its far end reads as floor too
-        far = cls[-max(len(cls) // 5, 1):]
+        far = cls[-max(len(cls) // 5, 1) :]
         return Label.FLOOR, float(1 / q[-1]), bool((far == Label.FLOOR).mean() > 0.9)
     k0 = int(np.argmax(runs))
-    above = cls[k0 + RUN: k0 + RUN + 12]
+    above = cls[k0 + RUN : k0 + RUN + 12]
     above = above[above > 0]
     if above.size == 0:
         return Label.FLOOR, float(1 / q[k0]), False
@@ -292,8 +308,8 @@ def _read_ray(classes: np.ndarray, colours: np.ndarray, inside: np.ndarray,
 
 def _crossing(col: np.ndarray, q: np.ndarray, k0: int) -> float:
     """Sub-pixel base: where the colour passes halfway from the floor's to the wall's, in 1/d."""
-    floor = np.median(col[max(k0 - 16, 0): max(k0 - 4, 1)], axis=0)
-    wall = np.median(col[k0 + 4: k0 + 16], axis=0) if k0 + 4 < len(col) else col[-1]
+    floor = np.median(col[max(k0 - 16, 0) : max(k0 - 4, 1)], axis=0)
+    wall = np.median(col[k0 + 4 : k0 + 16], axis=0) if k0 + 4 < len(col) else col[-1]
     span = wall - floor
     norm = float(span @ span)
     if norm < 25.0:
@@ -321,9 +337,13 @@ def _forward_blocked(depth: np.ndarray, valid: np.ndarray, heading: int) -> bool
 
 # -- colour calibration -----------------------------------------------------------------------
 
-def calibrate_colours(images: Sequence[np.ndarray | bytes], truths: Sequence[tuple[np.ndarray, np.ndarray]],
-                      calibration: CameraCalibration,
-                      min_samples: int = 50) -> CameraCalibration:
+
+def calibrate_colours(
+    images: Sequence[np.ndarray | bytes],
+    truths: Sequence[tuple[np.ndarray, np.ndarray]],
+    calibration: CameraCalibration,
+    min_samples: int = 50,
+) -> CameraCalibration:
     """The calibration with colour classes learned from labelled frames.
 
     `truths` holds, per image, the (labels, depth) of its 13 rays, as `sim.observations.cast_rays`
@@ -362,12 +382,12 @@ def calibrate_colours(images: Sequence[np.ndarray | bytes], truths: Sequence[tup
         enough = len(samples) >= min_samples
         # A wall in shadow (its end face, a far corner) is darker than any sampled face of it:
         # widen every class but the floor in brightness, where chroma still tells them apart.
-        fitted[label] = (_fit_gaussian(samples, 0.0 if label == Label.FLOOR else MIN_BRIGHTNESS_STD)
-                         if enough else None)
+        fitted[label] = _fit_gaussian(samples, 0.0 if label == Label.FLOOR else MIN_BRIGHTNESS_STD) if enough else None
     classes = {label.word: c for label, c in fitted.items() if c is not None}
     if "floor" not in classes or len(classes) < 2:
-        raise PerceptionError(f"too few labelled samples to calibrate colours "
-                              f"(classes with at least {min_samples}: {sorted(classes)})")
+        raise PerceptionError(
+            f"too few labelled samples to calibrate colours (classes with at least {min_samples}: {sorted(classes)})"
+        )
     calibrated = calibration.with_colours(classes)
     # Objects: the typical gap between where they are seen to stand and their map footprint.
     gaps: list[float] = []
@@ -405,18 +425,31 @@ def _fit_gaussian(f: np.ndarray, min_brightness_std: float = 0.0, rounds: int = 
 
 # -- measured against the simulator ------------------------------------------------------------
 
-def random_poses(maze: Maze, graph: NavGraph, n: int, rng: np.random.Generator,
-                 jitter_m: float = 0.015, jitter_rad: float = np.deg2rad(3)) -> np.ndarray:
+
+def random_poses(
+    maze: Maze,
+    graph: NavGraph,
+    n: int,
+    rng: np.random.Generator,
+    jitter_m: float = 0.015,
+    jitter_rad: float = np.deg2rad(3),
+) -> np.ndarray:
     """(n, 3) continuous poses (x, y, theta) near the graph's nodes and headings, as a rover's
     drifting moves leave it."""
     nodes = graph.nodes[rng.integers(0, graph.n, n)]
     headings = rng.integers(0, HEADINGS, n) * TURN_RAD
-    return np.column_stack([nodes + rng.uniform(-jitter_m, jitter_m, (n, 2)),
-                            headings + rng.uniform(-jitter_rad, jitter_rad, n)])
+    return np.column_stack(
+        [nodes + rng.uniform(-jitter_m, jitter_m, (n, 2)), headings + rng.uniform(-jitter_rad, jitter_rad, n)]
+    )
 
 
-def simulated_calibration(camera: FrontCamera, mazes: Iterable[tuple[Maze, NavGraph]], n_frames: int = 60, seed: int = 1,
-                          progress: bool = False) -> CameraCalibration:
+def simulated_calibration(
+    camera: FrontCamera,
+    mazes: Iterable[tuple[Maze, NavGraph]],
+    n_frames: int = 60,
+    seed: int = 1,
+    progress: bool = False,
+) -> CameraCalibration:
     """A lab's calibration as the virtual rover would make it: the camera's exact geometry,
     colours learned from `n_frames` frames at random poses on `mazes`."""
     rng = np.random.default_rng(seed)
@@ -431,8 +464,14 @@ def simulated_calibration(camera: FrontCamera, mazes: Iterable[tuple[Maze, NavGr
     return calibrate_colours(images, truths, camera.calibration())
 
 
-def evaluate_perception(mazes: Maze | Sequence[Maze], n_poses: int = 300, seed: int = 0, camera: FrontCamera | None = None,
-                        calibration: CameraCalibration | None = None, progress: bool = False) -> dict[str, Any]:
+def evaluate_perception(
+    mazes: Maze | Sequence[Maze],
+    n_poses: int = 300,
+    seed: int = 0,
+    camera: FrontCamera | None = None,
+    calibration: CameraCalibration | None = None,
+    progress: bool = False,
+) -> dict[str, Any]:
     """Perceived rays against `cast_rays` at the same true poses, over random poses on `mazes`
     (a `Maze` or a list). label_accuracy: over all rays, a ray not read counting as wrong;
     depth_mae_m: over the read rays whose true hit is a wall within 1 m; too_close_accuracy:
@@ -463,13 +502,17 @@ def evaluate_perception(mazes: Maze | Sequence[Maze], n_poses: int = 300, seed: 
         near = walls[-1] & (true_depth <= 1.0) & obs.valid
         depth_err.extend(np.abs(obs.depth[near] - true_depth[near]).tolist())
     right, close_ok, wall, read = (np.concatenate(a) for a in (rights, close_oks, walls, reads))
-    return {"label_accuracy": float(right.mean()),
-            "depth_mae_m": float(np.mean(depth_err)) if depth_err else float("nan"),
-            "too_close_accuracy": float(close_ok.mean()),
-            "walls_label_accuracy": float(right[wall].mean()),
-            "walls_too_close_accuracy": float(close_ok[wall].mean()),
-            "rays_read": float(read.mean()), "object_rays": float(1 - wall.mean()),
-            "poses": n_poses, "near_wall_rays": len(depth_err)}
+    return {
+        "label_accuracy": float(right.mean()),
+        "depth_mae_m": float(np.mean(depth_err)) if depth_err else float("nan"),
+        "too_close_accuracy": float(close_ok.mean()),
+        "walls_label_accuracy": float(right[wall].mean()),
+        "walls_too_close_accuracy": float(close_ok[wall].mean()),
+        "rays_read": float(read.mean()),
+        "object_rays": float(1 - wall.mean()),
+        "poses": n_poses,
+        "near_wall_rays": len(depth_err),
+    }
 
 
 _T = TypeVar("_T")
@@ -479,5 +522,6 @@ def _progress(items: Iterable[_T], enabled: bool, desc: str) -> Iterable[_T]:
     if not enabled:
         return items
     from tqdm import tqdm
+
     shown: Iterable[_T] = tqdm(items, desc=desc)
     return shown

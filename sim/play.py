@@ -27,10 +27,19 @@ from sim.navgraph import MODES, NavGraph
 from sim.observations import N_RAYS, cast_rays
 from sim.render import first_person, top_down
 
-WORDS = {"w": Action.FORWARD, "forward": Action.FORWARD, "f": Action.FORWARD,
-         "a": Action.LEFT, "left": Action.LEFT, "l": Action.LEFT,
-         "d": Action.RIGHT, "right": Action.RIGHT, "r": Action.RIGHT,
-         "s": Action.STOP, "stop": Action.STOP}
+WORDS = {
+    "w": Action.FORWARD,
+    "forward": Action.FORWARD,
+    "f": Action.FORWARD,
+    "a": Action.LEFT,
+    "left": Action.LEFT,
+    "l": Action.LEFT,
+    "d": Action.RIGHT,
+    "right": Action.RIGHT,
+    "r": Action.RIGHT,
+    "s": Action.STOP,
+    "stop": Action.STOP,
+}
 QUIT = {"q", "quit", "exit"}
 
 
@@ -52,6 +61,7 @@ def parse_moves(line: str) -> list[Action | None]:
 @dataclass
 class Drive:
     """One hand-driven run: the pose, its path, and where frames are written."""
+
     maze: Maze
     graph: NavGraph
     pose: Pose
@@ -82,9 +92,10 @@ class Drive:
 
     def write_frames(self) -> None:
         x, y, theta = self.xytheta
-        frames = {"first-person": first_person(self.maze, x, y, theta, size=(640, 480)),
-                  "top-down": top_down(self.maze, pose=(x, y, theta), path=self.graph.nodes[self.path],
-                                       rays=True)}
+        frames = {
+            "first-person": first_person(self.maze, x, y, theta, size=(640, 480)),
+            "top-down": top_down(self.maze, pose=(x, y, theta), path=self.graph.nodes[self.path], rays=True),
+        }
         for view, image in frames.items():
             _write_png(self.out / f"step-{self.steps:03d}-{view}.png", image)
             _write_png(self.out / f"latest-{view}.png", image)
@@ -96,12 +107,16 @@ class Drive:
         ahead = Label(int(labels[N_RAYS // 2]))
         seen = sorted({Label(int(v)).word for v in labels if v != Label.FLOOR})
         here = self.pose.node
-        objects = ", ".join(f"{name} {self.graph.dist[here, self.graph.nearest_node(*xy)]:.2f} m"
-                            for name, xy in self.maze.objects.items())
+        objects = ", ".join(
+            f"{name} {self.graph.dist[here, self.graph.nearest_node(*xy)]:.2f} m"
+            for name, xy in self.maze.objects.items()
+        )
         blocked = " (forward blocked)" if self.graph.forward[here, self.pose.heading] < 0 else ""
-        return (f"step {self.steps}: x={x:.2f} y={y:.2f} heading={np.rad2deg(theta):.0f} deg; "
-                f"ahead {ahead.word} at {depth[N_RAYS // 2]:.3f} m{blocked}; "
-                f"sees {', '.join(seen) or 'nothing'}; to {objects}")
+        return (
+            f"step {self.steps}: x={x:.2f} y={y:.2f} heading={np.rad2deg(theta):.0f} deg; "
+            f"ahead {ahead.word} at {depth[N_RAYS // 2]:.3f} m{blocked}; "
+            f"sees {', '.join(seen) or 'nothing'}; to {objects}"
+        )
 
 
 def _write_png(path: Path, image: np.ndarray) -> None:
@@ -127,8 +142,7 @@ def run(drive: Drive, lines: Iterable[str], echo: Callable[[str], object] = prin
             collided = drive.move(action)
             echo(("collision: " if collided else "") + drive.describe())
             if action == Action.STOP:
-                echo(f"stopped after {drive.steps} moves ({drive.collisions} collisions); "
-                     f"frames in {drive.out}")
+                echo(f"stopped after {drive.steps} moves ({drive.collisions} collisions); frames in {drive.out}")
                 return
 
 
@@ -157,16 +171,21 @@ def parse_start(text: str | None) -> tuple[float, float, float]:
         raise typer.BadParameter(f"{text!r}: expected X,Y or X,Y,THETA_DEGREES", param_hint="--start")
     x, y = values[:2]
     if not (0 <= x <= TABLE_WIDTH_M and 0 <= y <= TABLE_HEIGHT_M):
-        raise typer.BadParameter(f"({x}, {y}) is off the {TABLE_WIDTH_M} x {TABLE_HEIGHT_M} m table",
-                                 param_hint="--start")
+        raise typer.BadParameter(
+            f"({x}, {y}) is off the {TABLE_WIDTH_M} x {TABLE_HEIGHT_M} m table", param_hint="--start"
+        )
     return x, y, np.deg2rad(values[2]) if len(values) == 3 else 0.0
 
 
 def play(
-    maze: str = typer.Option("gen-000", "--maze", help="A run folder (RUN/maze/*.png) or a maze name: "
-                                                       "bundled (gen-000) or a benchmark run (Run_318)."),
-    benchmark: Path | None = typer.Option(None, "--benchmark", envvar="ROBOTSLANG_BENCHMARK",
-                                             help="A RobotSlangBenchmark clone, to find --maze by name."),
+    maze: str = typer.Option(
+        "gen-000",
+        "--maze",
+        help="A run folder (RUN/maze/*.png) or a maze name: bundled (gen-000) or a benchmark run (Run_318).",
+    ),
+    benchmark: Path | None = typer.Option(
+        None, "--benchmark", envvar="ROBOTSLANG_BENCHMARK", help="A RobotSlangBenchmark clone, to find --maze by name."
+    ),
     out: Path = typer.Option(Path("play-frames"), "--out", help="Folder for the PNG frames."),
     start: str | None = typer.Option(None, "--start", help="X,Y[,THETA_DEGREES]; snapped to the graph."),
     edges: str = typer.Option("benchmark", "--edges", help="Graph edge mode: benchmark or exact."),
@@ -180,8 +199,10 @@ def play(
         raise typer.BadParameter(str(err), param_hint="--maze") from None
     graph = NavGraph.build(the_maze, edges)
     drive = Drive(the_maze, graph, snap_pose(graph, *parse_start(start)), out)
-    typer.echo(f"{the_maze.name}: {graph.n} nodes; frames in {out}/latest-first-person.png and "
-               f"latest-top-down.png. Moves: w a d s, q quits.")
+    typer.echo(
+        f"{the_maze.name}: {graph.n} nodes; frames in {out}/latest-first-person.png and "
+        f"latest-top-down.png. Moves: w a d s, q quits."
+    )
 
     def lines() -> Iterator[str]:
         while True:

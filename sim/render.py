@@ -41,6 +41,7 @@ class _Edges:
     """Floor-to-wall pixel edges of one orientation, merged into straight runs of one label and
     sorted by where they stand: `at` the fixed coordinate (x of a vertical edge, y of a
     horizontal one), `lo`..`hi` the extent along the other axis, metres."""
+
     vertical: bool
     floor_below: bool  # the floor is on the side of smaller `at`: seen only from there
     at: np.ndarray
@@ -58,6 +59,7 @@ class _Edges:
 class _Walls:
     """The walls grid as its edges: a ray from the floor first enters a wall pixel where it
     crosses the nearest edge it meets from the floor side."""
+
     edges: tuple[_Edges, ...]
     grid: np.ndarray  # the walls grid: is the camera inside a wall?
 
@@ -103,6 +105,7 @@ def _walls(grid: np.ndarray) -> _Walls:
 @dataclass(frozen=True, eq=False)
 class _Scene:
     """What the camera needs of one maze, built once."""
+
     walls: _Walls
     normal_x: np.ndarray  # per-pixel wall normal, x (table frame)
     normal_y: np.ndarray
@@ -141,8 +144,10 @@ class _Camera:
         pool = _buffers.__dict__.setdefault("pool", {})
         mine = pool.get((self.width, self.height))
         if mine is None:
-            mine = pool[(self.width, self.height)] = (np.empty((self.height, self.width), bool),
-                                                      np.empty((self.height, self.width), np.uint32))
+            mine = pool[(self.width, self.height)] = (
+                np.empty((self.height, self.width), bool),
+                np.empty((self.height, self.width), np.uint32),
+            )
         return mine
 
 
@@ -178,7 +183,8 @@ def _camera(width: int, height: int) -> _Camera:
         column = np.where((rows < horizon)[:, None], sky_rgb, floor_rgb)
         background = _pack(np.repeat(column[:, None, :], width, axis=1))
         camera = _cameras[(width, height)] = _Camera(
-            width, height, focal, horizon, offsets, background, np.arange(height, dtype=np.int32)[:, None])
+            width, height, focal, horizon, offsets, background, np.arange(height, dtype=np.int32)[:, None]
+        )
     return camera
 
 
@@ -335,20 +341,28 @@ def _draw_object(image, cam: _Camera, label: Label, x, y, theta, ox, oy, wall_z)
         cv2.ellipse(patch, pt(0, 0.11), ax(w2, 0.06), 0, 0, 360, dark, 1, cv2.LINE_AA, 4)
     else:  # a cylinder: body, rim ellipse; the jar has a lid, the mug a handle
         if label == Label.MUG:
-            cv2.ellipse(patch, pt(w2, height_m * 0.5), ax(0.025, 0.025), 0, 0, 360, dark,
-                        max(int(0.012 * scale), 1), cv2.LINE_AA, 4)
+            cv2.ellipse(
+                patch,
+                pt(w2, height_m * 0.5),
+                ax(0.025, 0.025),
+                0,
+                0,
+                360,
+                dark,
+                max(int(0.012 * scale), 1),
+                cv2.LINE_AA,
+                4,
+            )
         cv2.rectangle(patch, pt(-w2, 0), pt(w2, height_m), bgr, -1, cv2.LINE_AA, 4)
         cv2.ellipse(patch, pt(0, 0), ax(w2, 0.012), 0, 0, 180, bgr, -1, cv2.LINE_AA, 4)
         cv2.ellipse(patch, pt(0, height_m), ax(w2, 0.012), 0, 0, 360, dark, -1, cv2.LINE_AA, 4)
         if label == Label.JAR:
-            cv2.rectangle(patch, pt(-w2 * 0.85, height_m), pt(w2 * 0.85, height_m + 0.02),
-                          dark, -1, cv2.LINE_AA, 4)
+            cv2.rectangle(patch, pt(-w2 * 0.85, height_m), pt(w2 * 0.85, height_m + 0.02), dark, -1, cv2.LINE_AA, 4)
     region = image[r0:r1, c0:c1]
     region[:, visible] = patch[:, visible]
 
 
-def top_down(maze: Maze, pose=None, path=None, rays=None, walls_only: bool = False,
-             scale: float = 0.5) -> np.ndarray:
+def top_down(maze: Maze, pose=None, path=None, rays=None, walls_only: bool = False, scale: float = 0.5) -> np.ndarray:
     """The maze seen from above, with the agent (an arrow at `pose` = (x, y, theta)), its
     `path` (a sequence of (x, y)) and its observation rays: `rays=True` casts them from the
     pose, or pass the (labels, depth) pair of `cast_rays` for that pose."""
@@ -366,8 +380,7 @@ def top_down(maze: Maze, pose=None, path=None, rays=None, walls_only: bool = Fal
         points = px(np.asarray(path, dtype=np.float64).reshape(-1, 2))
         cv2.polylines(image, [points.reshape(-1, 1, 2)], False, (40, 170, 255), thick, cv2.LINE_AA, 4)
         for p in points:
-            cv2.circle(image, tuple(int(v) for v in p), max(thick, 2) * s, (40, 170, 255), -1,
-                       cv2.LINE_AA, 4)
+            cv2.circle(image, tuple(int(v) for v in p), max(thick, 2) * s, (40, 170, 255), -1, cv2.LINE_AA, 4)
     if pose is not None:
         x, y, theta = (float(v) for v in pose)
         if rays is True:
@@ -379,16 +392,21 @@ def top_down(maze: Maze, pose=None, path=None, rays=None, walls_only: bool = Fal
             start = tuple(int(v) for v in px((x, y)))
             for end, label in zip(ends, labels):
                 cv2.line(image, start, tuple(int(v) for v in end), (150, 150, 150), 1, cv2.LINE_AA, 4)
-                cv2.circle(image, tuple(int(v) for v in end), max(thick, 2) * s,
-                           LABEL_BGR[Label(int(label))] if label else (150, 150, 150), -1, cv2.LINE_AA, 4)
+                cv2.circle(
+                    image,
+                    tuple(int(v) for v in end),
+                    max(thick, 2) * s,
+                    LABEL_BGR[Label(int(label))] if label else (150, 150, 150),
+                    -1,
+                    cv2.LINE_AA,
+                    4,
+                )
         length = 0.09  # the arrow: a triangle a bit smaller than the robot
         tip = (x + length * np.cos(theta), y + length * np.sin(theta))
-        back = [(x + 0.5 * length * np.cos(theta + a), y + 0.5 * length * np.sin(theta + a))
-                for a in (2.5, -2.5)]
+        back = [(x + 0.5 * length * np.cos(theta + a), y + 0.5 * length * np.sin(theta + a)) for a in (2.5, -2.5)]
         tri = px(np.array([tip, back[0], (x, y), back[1]]))
         cv2.fillPoly(image, [tri.reshape(-1, 1, 2)], (255, 255, 255), cv2.LINE_AA, 4)
-        cv2.polylines(image, [tri.reshape(-1, 1, 2)], True, (30, 30, 30), max(thick // 2, 1),
-                      cv2.LINE_AA, 4)
+        cv2.polylines(image, [tri.reshape(-1, 1, 2)], True, (30, 30, 30), max(thick // 2, 1), cv2.LINE_AA, 4)
     return image
 
 

@@ -44,6 +44,7 @@ class Move(str, Enum):
 @dataclass(frozen=True)
 class MotionNoise:
     """Standard deviations of one pulse's error (a range of +- two of them covers 95 %)."""
+
     forward_m: float = 0.0  # length of a 0.07 m step
     forward_bend_rad: float = 0.0  # heading change over a step (the wheels never match)
     turn_rad: float = 0.0  # angle of a 45 degree turn
@@ -54,14 +55,14 @@ class MotionNoise:
         try:
             return NOISE_MODELS[name]
         except KeyError:
-            raise ValueError(f"unknown noise model {name!r}; expected one of "
-                             f"{', '.join(NOISE_MODELS)}") from None
+            raise ValueError(f"unknown noise model {name!r}; expected one of {', '.join(NOISE_MODELS)}") from None
 
 
 NOISE_MODELS = {
     # forward 0.07 m +- 4 mm, turns 45 +- 2 degrees, a step bends by +- 1 degree, turns creep +- 2 mm.
-    "default": MotionNoise(forward_m=0.002, forward_bend_rad=math.radians(0.5),
-                           turn_rad=math.radians(1.0), turn_slip_m=0.001),
+    "default": MotionNoise(
+        forward_m=0.002, forward_bend_rad=math.radians(0.5), turn_rad=math.radians(1.0), turn_slip_m=0.001
+    ),
     "none": MotionNoise(),
 }
 
@@ -76,6 +77,7 @@ class RoverPose:
 @dataclass(frozen=True)
 class Pulse:
     """One move as planned: the path the full pulse would follow, and where it touches."""
+
     move: Move
     path: np.ndarray  # (K + 1, 3): x, y, theta at fractions 0, 1/K, ..., 1 of the pulse
     contact: int | None  # index of the last free sample before the body touched, or None
@@ -112,8 +114,14 @@ class MoveResult:
 class Rover:
     """One rover on one maze. `plan` a move, then `finish` it after the part of the pulse that ran."""
 
-    def __init__(self, maze: Maze, pose: RoverPose, noise: MotionNoise = MotionNoise(),
-                 seed: int | None = None, radius_m: float = BODY_RADIUS_M) -> None:
+    def __init__(
+        self,
+        maze: Maze,
+        pose: RoverPose,
+        noise: MotionNoise = MotionNoise(),
+        seed: int | None = None,
+        radius_m: float = BODY_RADIUS_M,
+    ) -> None:
         self.maze, self.noise, self.radius_m = maze, noise, radius_m
         self._clearance = clearance_map(maze)
         self._rng = np.random.default_rng(seed)
@@ -121,8 +129,9 @@ class Rover:
         if not (0 <= pose.x <= TABLE_WIDTH_M and 0 <= pose.y <= TABLE_HEIGHT_M):
             raise ValueError(f"{where} is off the {TABLE_WIDTH_M} x {TABLE_HEIGHT_M} m table")
         if not self.is_free(pose.x, pose.y):
-            raise ValueError(f"{where} is within {radius_m:.3f} m (the rover's radius) of a wall, "
-                             "an object or the table's edge")
+            raise ValueError(
+                f"{where} is within {radius_m:.3f} m (the rover's radius) of a wall, an object or the table's edge"
+            )
         self.pose = _pose(np.array([pose.x, pose.y, pose.theta]))
 
     def clearance_m(self, x: float, y: float) -> float:

@@ -32,8 +32,7 @@ _FORWARD, _STOP = int(Action.FORWARD), int(Action.STOP)  # plain ints: a member 
 
 
 class BatchStepper:
-    def __init__(self, world: World, batch: int, max_actions: int = MAX_EPISODE_ACTIONS,
-                 record: bool = False):
+    def __init__(self, world: World, batch: int, max_actions: int = MAX_EPISODE_ACTIONS, record: bool = False):
         if batch < 1:
             raise ValueError(f"batch={batch}: must be at least 1")
         if max_actions < 1:
@@ -74,10 +73,18 @@ class BatchStepper:
         goal_dist, goal_next = np.asarray(goal_dist), np.asarray(goal_next)
         if not (node.shape == heading.shape == goal.shape == envs.shape):
             raise ValueError("start(): envs, node, heading and goal must have one entry per episode")
-        if envs.size and (node.min() < 0 or node.max() >= self.world.nodes or goal.min() < 0
-                          or goal.max() >= self.world.nodes or heading.min() < 0 or heading.max() >= HEADINGS):
-            raise ValueError(f"start(): a node or goal outside the world ({self.world.nodes} nodes) "
-                             f"or a heading outside 0..{HEADINGS - 1}")
+        if envs.size and (
+            node.min() < 0
+            or node.max() >= self.world.nodes
+            or goal.min() < 0
+            or goal.max() >= self.world.nodes
+            or heading.min() < 0
+            or heading.max() >= HEADINGS
+        ):
+            raise ValueError(
+                f"start(): a node or goal outside the world ({self.world.nodes} nodes) "
+                f"or a heading outside 0..{HEADINGS - 1}"
+            )
         maze = np.searchsorted(self.world.offset, node, side="right") - 1
         offset = self.world.offset[maze]
         if np.any(np.searchsorted(self.world.offset, goal, side="right") - 1 != maze):
@@ -105,8 +112,9 @@ class BatchStepper:
             raise RuntimeError("step() before start(): start the batch's episodes first")
         actions = np.asarray(actions)
         if actions.shape != (self.size,) or actions.dtype.kind not in "iu":
-            raise ValueError(f"actions of shape {actions.shape} and dtype {actions.dtype}: "
-                             f"expected ({self.size},) integers")
+            raise ValueError(
+                f"actions of shape {actions.shape} and dtype {actions.dtype}: expected ({self.size},) integers"
+            )
         # Into the stepper's own buffers: a step at batch 1000 is some twenty passes over
         # 8 kB arrays, so each temporary array costs as much as the arithmetic.
         a, k, moved, live, scratch = self._a, self._k, self._moved, self._live, self._scratch

@@ -69,15 +69,24 @@ class OverheadCalibration:
     def fits(self, found: dict[int, list[np.ndarray]]) -> float | None:
         """Median pixel distance of the visible corner markers from where this calibration puts
         them; None when no corner marker is visible."""
-        errors = [np.linalg.norm(_apply(self.homography, self.layout.corner_points(i)) - quads[0], axis=1)
-                  for i in self.layout.corner_ids for quads in [found.get(i)] if quads]
+        errors = [
+            np.linalg.norm(_apply(self.homography, self.layout.corner_points(i)) - quads[0], axis=1)
+            for i in self.layout.corner_ids
+            for quads in [found.get(i)]
+            if quads
+        ]
         return float(np.median(np.concatenate(errors))) if errors else None
 
     # -- JSON ---------------------------------------------------------------------
     def to_json(self) -> dict[str, Any]:
-        return {"version": CALIBRATION_VERSION, "image_size": list(self.image_size),
-                "homography": self.homography.tolist(), "camera_matrix": self.camera_matrix.tolist(),
-                "layout": self.layout.to_json(), "reprojection_px": self.reprojection_px}
+        return {
+            "version": CALIBRATION_VERSION,
+            "image_size": list(self.image_size),
+            "homography": self.homography.tolist(),
+            "camera_matrix": self.camera_matrix.tolist(),
+            "layout": self.layout.to_json(),
+            "reprojection_px": self.reprojection_px,
+        }
 
     @classmethod
     def from_json(cls, data: Any, source: str = "calibration") -> OverheadCalibration:
@@ -118,21 +127,31 @@ def decode_frame(data: bytes) -> np.ndarray:
     return image
 
 
-def calibrate(image: np.ndarray, fov_deg: float | None = None, layout: MarkerLayout = MarkerLayout(),
-              camera_matrix: np.ndarray | None = None) -> OverheadCalibration:
+def calibrate(
+    image: np.ndarray,
+    fov_deg: float | None = None,
+    layout: MarkerLayout = MarkerLayout(),
+    camera_matrix: np.ndarray | None = None,
+) -> OverheadCalibration:
     """The calibration from one BGR image showing the four corner markers. The focal length is
     measured from the homography (square pixels, principal point at the centre) unless the
     camera's horizontal field of view `fov_deg` or its `camera_matrix` is given."""
     return _calibrate(image, fiducials.detect(fiducials.detector(), image), fov_deg, layout, camera_matrix)
 
 
-def _calibrate(image: np.ndarray, found: dict[int, list[np.ndarray]], fov_deg: float | None, layout: MarkerLayout,
-               camera_matrix: np.ndarray | None) -> OverheadCalibration:
+def _calibrate(
+    image: np.ndarray,
+    found: dict[int, list[np.ndarray]],
+    fov_deg: float | None,
+    layout: MarkerLayout,
+    camera_matrix: np.ndarray | None,
+) -> OverheadCalibration:
     height, width = image.shape[:2]
     missing = [i for i in layout.corner_ids if len(found.get(i, ())) != 1]
     if missing:
-        raise CalibrationError(f"corner markers {missing} not seen exactly once (all of ids "
-                               f"{list(layout.corner_ids)} must be in view)")
+        raise CalibrationError(
+            f"corner markers {missing} not seen exactly once (all of ids {list(layout.corner_ids)} must be in view)"
+        )
     table = np.concatenate([layout.corner_points(i) for i in layout.corner_ids])
     pixels = np.concatenate([found[i][0] for i in layout.corner_ids])
     homography, _ = cv2.findHomography(table, pixels, 0)
@@ -140,8 +159,9 @@ def _calibrate(image: np.ndarray, found: dict[int, list[np.ndarray]], fov_deg: f
         raise CalibrationError("the corner markers give no homography (are they in a line?)")
     rms = float(np.sqrt(np.mean(np.sum((_apply(homography, table) - pixels) ** 2, axis=1))))
     if rms > MAX_REPROJECTION_PX:
-        raise CalibrationError(f"the corner markers are {rms:.1f} px (RMS) from any table plane; "
-                               f"are they placed as the layout says?")
+        raise CalibrationError(
+            f"the corner markers are {rms:.1f} px (RMS) from any table plane; are they placed as the layout says?"
+        )
     if camera_matrix is None:
         cx, cy = (width - 1) / 2, (height - 1) / 2
         if fov_deg is not None:
@@ -152,11 +172,14 @@ def _calibrate(image: np.ndarray, found: dict[int, list[np.ndarray]], fov_deg: f
             focal = _focal_length(homography, cx, cy)
             fov = math.degrees(2 * math.atan(width / 2 / focal)) if focal else None
             if fov is None or not 20 <= fov <= 150:
-                raise CalibrationError("the focal length cannot be measured from this view (the camera "
-                                       "looks too squarely down); give the camera's field of view")
+                raise CalibrationError(
+                    "the focal length cannot be measured from this view (the camera "
+                    "looks too squarely down); give the camera's field of view"
+                )
         camera_matrix = np.array([[focal, 0, cx], [0, focal, cy], [0, 0, 1]])
-    return OverheadCalibration(homography / homography[2, 2], np.asarray(camera_matrix, dtype=np.float64),
-                               (width, height), layout, rms)
+    return OverheadCalibration(
+        homography / homography[2, 2], np.asarray(camera_matrix, dtype=np.float64), (width, height), layout, rms
+    )
 
 
 def _focal_length(homography: np.ndarray, cx: float, cy: float) -> float | None:
@@ -244,8 +267,10 @@ class OverheadTracker:
         calibration = self.calibration
         if calibration is not None:
             if tuple(calibration.image_size) != (image.shape[1], image.shape[0]):
-                raise CalibrationError(f"calibration is for {calibration.image_size[0]}x{calibration.image_size[1]} "
-                                       f"frames, this frame is {image.shape[1]}x{image.shape[0]}")
+                raise CalibrationError(
+                    f"calibration is for {calibration.image_size[0]}x{calibration.image_size[1]} "
+                    f"frames, this frame is {image.shape[1]}x{image.shape[0]}"
+                )
             error = calibration.fits(found)
             if error is None or error <= self.config.stale_px:
                 if self._plane is None:
@@ -272,8 +297,15 @@ class OverheadTracker:
             error = max(np.max(np.abs(sides / size - 1)), np.max(np.abs(diagonals / (size * math.sqrt(2)) - 1)))
             if error <= self.config.shape_tolerance:
                 x, y = corners.mean(axis=0)
-                measurements.append(_Measurement(float(x), float(y), fiducials.marker_heading(corners), t_ns,
-                                                 float(1 - error / self.config.shape_tolerance)))
+                measurements.append(
+                    _Measurement(
+                        float(x),
+                        float(y),
+                        fiducials.marker_heading(corners),
+                        t_ns,
+                        float(1 - error / self.config.shape_tolerance),
+                    )
+                )
         if len(measurements) > 1 and self._last is not None:
             measurements = [m for m in measurements if self._reachable(self._last, m)]
         return measurements[0] if len(measurements) == 1 else None
@@ -281,8 +313,10 @@ class OverheadTracker:
     def _reachable(self, a: _Measurement, b: _Measurement) -> bool:
         dt = (b.t_ns - a.t_ns) * 1e-9
         c = self.config
-        return (math.hypot(b.x - a.x, b.y - a.y) <= c.max_speed_m_s * dt + c.jump_slack_m
-                and abs(_angle(b.heading - a.heading)) <= c.max_turn_rad_s * dt + c.jump_slack_rad)
+        return (
+            math.hypot(b.x - a.x, b.y - a.y) <= c.max_speed_m_s * dt + c.jump_slack_m
+            and abs(_angle(b.heading - a.heading)) <= c.max_turn_rad_s * dt + c.jump_slack_rad
+        )
 
     def _plausible(self, m: _Measurement) -> bool:
         """Accept `m` if the rover could have got there since the last accepted pose; a run of
@@ -305,11 +339,13 @@ class OverheadTracker:
         still = self._still
         if still:
             mx, my, mh = _mean(still)
-            if (math.hypot(m.x - mx, m.y - my) > self.config.still_radius_m
-                    or abs(_angle(m.heading - mh)) > self.config.still_heading_rad):
+            if (
+                math.hypot(m.x - mx, m.y - my) > self.config.still_radius_m
+                or abs(_angle(m.heading - mh)) > self.config.still_heading_rad
+            ):
                 still.clear()
         still.append(m)
-        del still[:-self.config.window]
+        del still[: -self.config.window]
         x, y, heading = _mean(still)
         return TrackedPose(x, y, heading, m.t_ns, m.quality)
 
@@ -319,9 +355,16 @@ def _mean(ms: list[_Measurement]) -> tuple[float, float, float]:
     return sum(m.x for m in ms) / len(ms), sum(m.y for m in ms) / len(ms), heading
 
 
-def evaluate_tracker(maze: Maze, poses: ArrayLike, seed: int = 0, fps: float = 5.0, jpeg_quality: int = 80,
-                     camera: OverheadCamera | None = None, imaging: Imaging | None = None,
-                     progress: bool = False) -> dict[str, Any]:
+def evaluate_tracker(
+    maze: Maze,
+    poses: ArrayLike,
+    seed: int = 0,
+    fps: float = 5.0,
+    jpeg_quality: int = 80,
+    camera: OverheadCamera | None = None,
+    imaging: Imaging | None = None,
+    progress: bool = False,
+) -> dict[str, Any]:
     """The tracker against known truth: each of `poses` ((x, y, heading), one per frame at
     `fps`) rendered by the overhead camera, sent as a JPEG of `jpeg_quality` as the server
     receives it, tracked after a calibration from a JPEG of the empty table. Errors are over
@@ -347,5 +390,9 @@ def evaluate_tracker(maze: Maze, poses: ArrayLike, seed: int = 0, fps: float = 5
             heading.append(abs(math.degrees(_angle(pose.heading - truth[2]))))
     if not position:
         raise ValueError(f"the tracker gave no pose on any of {len(truths)} frames")
-    return {"pos_err_median_m": float(np.median(position)), "pos_err_p95_m": float(np.percentile(position, 95)),
-            "heading_err_median_deg": float(np.median(heading)), "tracked_fraction": len(position) / len(truths)}
+    return {
+        "pos_err_median_m": float(np.median(position)),
+        "pos_err_p95_m": float(np.percentile(position, 95)),
+        "heading_err_median_deg": float(np.median(heading)),
+        "tracked_fraction": len(position) / len(truths),
+    }

@@ -42,7 +42,13 @@ if TYPE_CHECKING:
 ACTIONS = len(Action)
 _WORLD_VERSION = 5  # 4: names, observations optional, derived tables; 5: the fused moves table
 _ARRAYS = ("offset", "size", "xy", "ij", "forward")
-_TABLES = ("transition", "collides", "move_length", "move_lengths", "moves")  # derived, cached too: a warm process reads them
+_TABLES = (
+    "transition",
+    "collides",
+    "move_length",
+    "move_lengths",
+    "moves",
+)  # derived, cached too: a warm process reads them
 # Heading change per action: forward 0, left +1, right -1, stop 0.
 _TURN = np.array([0, 1, -1, 0], dtype=np.int64)
 
@@ -60,9 +66,14 @@ class World:
 
     # -- construction -------------------------------------------------------------
     @classmethod
-    def compile(cls, items: Sequence[tuple[str, Maze, NavGraph]], observations: bool = True,
-                obs_dtype=np.float32, cache_dir: str | Path | None = None,
-                rays: Sequence[RayTable] | None = None) -> World:
+    def compile(
+        cls,
+        items: Sequence[tuple[str, Maze, NavGraph]],
+        observations: bool = True,
+        obs_dtype=np.float32,
+        cache_dir: str | Path | None = None,
+        rays: Sequence[RayTable] | None = None,
+    ) -> World:
         """(name, maze, graph) triples in one world; ray tables given (`rays`, one per item) or
         from the maze's cache."""
         from sim.observations import RayTable  # only when observations are compiled
@@ -82,13 +93,24 @@ class World:
         if not items:
             raise ValueError("a world needs at least one maze")
         obs = parts.pop("obs")
-        return cls(names=tuple(name for name, _, _ in items), offset=np.array(offset, dtype=np.int64),
-                   size=np.array(size, dtype=np.int64), obs=np.concatenate(obs) if observations else None,
-                   **{k: np.concatenate(v) for k, v in parts.items()})
+        return cls(
+            names=tuple(name for name, _, _ in items),
+            offset=np.array(offset, dtype=np.int64),
+            size=np.array(size, dtype=np.int64),
+            obs=np.concatenate(obs) if observations else None,
+            **{k: np.concatenate(v) for k, v in parts.items()},
+        )
 
     @classmethod
-    def build(cls, bench: Benchmark, runs: Sequence[str], cache_dir: str | Path | None = None,
-              mode: str = "benchmark", observations: bool = True, progress: bool = True) -> World:
+    def build(
+        cls,
+        bench: Benchmark,
+        runs: Sequence[str],
+        cache_dir: str | Path | None = None,
+        mode: str = "benchmark",
+        observations: bool = True,
+        progress: bool = True,
+    ) -> World:
         """The benchmark's `runs`, cached on disk by map contents and mode. Observations are
         float16 (half the memory; the learner's input), compiled on first request."""
         key = hashlib.sha256()
@@ -103,10 +125,16 @@ class World:
             return world
         from tqdm import tqdm
 
-        items = [(run, bench.maze(run), bench.graph(run, mode))
-                 for run in tqdm(runs, desc="mazes: graphs", unit="maze", disable=not progress)]
-        world = cls.compile(items, observations=observations, obs_dtype=np.float16,
-                            cache_dir=cache_dir if cache_dir is not None else bench.cache_dir)
+        items = [
+            (run, bench.maze(run), bench.graph(run, mode))
+            for run in tqdm(runs, desc="mazes: graphs", unit="maze", disable=not progress)
+        ]
+        world = cls.compile(
+            items,
+            observations=observations,
+            obs_dtype=np.float16,
+            cache_dir=cache_dir if cache_dir is not None else bench.cache_dir,
+        )
         world = cls(**{**world.__dict__, "key": folder.name})
         world._save(folder)
         return world
@@ -119,8 +147,9 @@ class World:
             # Memory-mapped: instant to open, and parallel processes share one copy.
             arrays = {k: np.load(folder / f"{k}.npy", mmap_mode="r") for k in _ARRAYS}
             obs = np.load(folder / "obs.npy", mmap_mode="r") if observations else None
-            world = cls(names=tuple(json.loads((folder / "names.json").read_text())), obs=obs,
-                        key=folder.name, **arrays)
+            world = cls(
+                names=tuple(json.loads((folder / "names.json").read_text())), obs=obs, key=folder.name, **arrays
+            )
             for k in _TABLES:  # filling the cached properties
                 world.__dict__[k] = np.load(folder / f"{k}.npy", mmap_mode="r")
             return world
@@ -206,9 +235,12 @@ class World:
         lengths = np.searchsorted(self.move_lengths, np.asarray(self.move_length))
         if self.move_lengths.size > 32:
             raise ValueError(f"{self.move_lengths.size} distinct move lengths: the moves table holds 32")
-        dtype = np.int32 if self.nodes * HEADINGS < 2 ** 25 else np.int64
-        return ((np.asarray(self.transition).astype(dtype) << 6) | (lengths.astype(dtype) << 1)
-                | np.asarray(self.collides).astype(dtype))
+        dtype = np.int32 if self.nodes * HEADINGS < 2**25 else np.int64
+        return (
+            (np.asarray(self.transition).astype(dtype) << 6)
+            | (lengths.astype(dtype) << 1)
+            | np.asarray(self.collides).astype(dtype)
+        )
 
 
 def goal_rows(graph: NavGraph, goals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -230,8 +262,14 @@ class EpisodeGeometry:
     goal_next: np.ndarray  # (M, Nmax) next local node toward the goal; -1 where no path
 
     @classmethod
-    def build(cls, bench: Benchmark, world: World, instances: Sequence[NDHInstance],
-              start: str = "episode", mode: str = "benchmark") -> EpisodeGeometry:
+    def build(
+        cls,
+        bench: Benchmark,
+        world: World,
+        instances: Sequence[NDHInstance],
+        start: str = "episode",
+        mode: str = "benchmark",
+    ) -> EpisodeGeometry:
         """Cached on disk beside the world (the start protocol walks the teacher, and the
         goal rows come from the all-pairs tables)."""
         from sim.benchmark import START_MODES, goal_node
@@ -258,7 +296,7 @@ class EpisodeGeometry:
             out["maze"][k], out["start_node"][k], out["start_heading"][k] = r, off + pose.node, pose.heading
             out["goal_node"][k] = off + g
             dist, hop = goal_rows(graph, [g])
-            out["goal_dist"][k, :graph.n], out["goal_next"][k, :graph.n] = dist[0], hop[0]
+            out["goal_dist"][k, : graph.n], out["goal_next"][k, : graph.n] = dist[0], hop[0]
         if world.key:
             save_npz(path, **out)
         return cls(**out)

@@ -26,14 +26,16 @@ class DialogCodes(gym.ObservationWrapper):
             raise ValueError("DialogCodes wraps an env whose observation has a Text 'dialog'")
         self.max_chars = max_chars
         self._code = {c: k + 1 for k, c in enumerate(text.character_list)}
-        self.observation_space = spaces.Dict({
-            **{k: v for k, v in space.items() if k != "dialog"},
-            "dialog": spaces.MultiDiscrete(np.full(max_chars, len(self._code) + 1)),
-        })
+        self.observation_space = spaces.Dict(
+            {
+                **{k: v for k, v in space.items() if k != "dialog"},
+                "dialog": spaces.MultiDiscrete(np.full(max_chars, len(self._code) + 1)),
+            }
+        )
 
     def observation(self, observation: dict[str, Any]) -> dict[str, Any]:
         codes = np.zeros(self.max_chars, dtype=np.int64)
-        tail = observation["dialog"][-self.max_chars:]
+        tail = observation["dialog"][-self.max_chars :]
         if tail:
-            codes[-len(tail):] = [self._code[c] for c in tail]
+            codes[-len(tail) :] = [self._code[c] for c in tail]
         return {**observation, "dialog": codes}

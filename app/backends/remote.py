@@ -174,8 +174,9 @@ class RobotLink:
         try:
             return await asyncio.wait_for(future, ACK_TIMEOUT_S)
         except TimeoutError:
-            raise BackendUnavailable(f"robot {self.name!r} did not acknowledge the move within "
-                                     f"{ACK_TIMEOUT_S:.0f} s") from None
+            raise BackendUnavailable(
+                f"robot {self.name!r} did not acknowledge the move within {ACK_TIMEOUT_S:.0f} s"
+            ) from None
         finally:
             self._pending.pop(move_id, None)
 
@@ -208,9 +209,14 @@ class RobotLink:
         if ack is not None:
             ack = {k: ack[k] for k in ("id", "action", "status", "reason", "received_ns") if k in ack}
             ack["age_s"] = round((self._clock.now_ns() - ack["received_ns"]) / 1e9, 1)
-        return {"connected": not self.closed, "connected_ns": self.connected_ns,
-                "fps": round(self.fps, 1), "latency_ms": None if self.latency_ms is None else round(self.latency_ms, 1),
-                "frames": self.frames_received, "last_ack": ack}
+        return {
+            "connected": not self.closed,
+            "connected_ns": self.connected_ns,
+            "fps": round(self.fps, 1),
+            "latency_ms": None if self.latency_ms is None else round(self.latency_ms, 1),
+            "frames": self.frames_received,
+            "last_ack": ack,
+        }
 
 
 class FrameSlot:
@@ -234,8 +240,9 @@ class FrameSlot:
     async def captured_after(self, t_ns: int, timeout: float) -> Frame | None:
         try:
             async with self._changed:
-                await asyncio.wait_for(self._changed.wait_for(
-                    lambda: self.frame is not None and self.frame.capture_ns >= t_ns), timeout)
+                await asyncio.wait_for(
+                    self._changed.wait_for(lambda: self.frame is not None and self.frame.capture_ns >= t_ns), timeout
+                )
                 return self.frame
         except TimeoutError:
             return None
@@ -262,8 +269,11 @@ class RobotLinks:
     def last_capture_ns(self, robot_id: int) -> int:
         """The robot's latest frame stamp over all its links: a new link's stamps come after it."""
         link, frame = self.links.get(robot_id), self.slot(robot_id).frame
-        return max(link.last_capture_ns if link is not None else 0, frame.capture_ns if frame is not None else 0,
-                   self._stamps.get(robot_id, 0))
+        return max(
+            link.last_capture_ns if link is not None else 0,
+            frame.capture_ns if frame is not None else 0,
+            self._stamps.get(robot_id, 0),
+        )
 
     def attach(self, link: RobotLink) -> None:
         """Make `link` the robot's link; an older one is closed (its socket notices and ends)."""
@@ -315,8 +325,11 @@ class RobotLinks:
         for robot in robots:
             link = self.links.get(robot.id)
             row = {"id": robot.id, "name": robot.name, "role": robot.role, "backend": f"robot:{robot.id}"}
-            row.update(link.status() if link is not None else
-                       {"connected": False, "fps": 0.0, "latency_ms": None, "frames": 0, "last_ack": None})
+            row.update(
+                link.status()
+                if link is not None
+                else {"connected": False, "fps": 0.0, "latency_ms": None, "frames": 0, "last_ack": None}
+            )
             rows.append(row)
         return rows
 
@@ -339,8 +352,15 @@ class RobotSeat:
 
 
 class RemoteRobotBackend:
-    def __init__(self, robot_id: int, name: str, links: RobotLinks, trial: RobotTrial,
-                 overhead_calibration: Path | None, clock_ns) -> None:
+    def __init__(
+        self,
+        robot_id: int,
+        name: str,
+        links: RobotLinks,
+        trial: RobotTrial,
+        overhead_calibration: Path | None,
+        clock_ns,
+    ) -> None:
         self.robot_id, self.name = robot_id, name
         self.links, self.trial = links, trial
         self.tracker = TrialTracker(overhead_calibration, clock_ns, self._tracked)
@@ -434,5 +454,11 @@ async def remote_backend(spec: str, trial: RobotTrial, services: Services) -> Re
         raise LookupError(f"robot backend {spec!r}: no robot {robot_id} is registered")
     if robot.role != Role.DRIVER:
         raise LookupError(f"robot backend {spec!r}: robot {robot.name!r} is an {robot.role} camera, not a rover")
-    return RemoteRobotBackend(robot.id, robot.name, robot_links(services), trial,
-                              services.settings.overhead_calibration, services.clock.now_ns)
+    return RemoteRobotBackend(
+        robot.id,
+        robot.name,
+        robot_links(services),
+        trial,
+        services.settings.overhead_calibration,
+        services.clock.now_ns,
+    )

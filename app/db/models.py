@@ -94,6 +94,7 @@ class Frame(Base):
 
 class LDHStudy(Base):
     """A human LDH study: its instances are frozen at creation (`LDHStudyInstance`)."""
+
     __tablename__ = "ldh_study"
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     name: Mapped[str] = mapped_column(String(80))
@@ -129,6 +130,7 @@ class LDHStudyParticipant(Base):
 
 class LDHStudyEvent(Base):
     """A study's log: every answer, committed before the participant hears it was taken."""
+
     __tablename__ = "ldh_study_event"
     __table_args__ = (UniqueConstraint("study_id", "seq", name="uq_ldh_event_study_seq"),)
     id: Mapped[int] = mapped_column(Integer, primary_key=True)

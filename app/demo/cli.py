@@ -15,13 +15,22 @@ def register(root: typer.Typer) -> None:
 
 def demo(
     trials: int = typer.Option(1, "--trials", min=1, help="How many trials to play."),
-    server: str | None = typer.Option(None, "--server", help="A running server on the same data "
-                                         "directory (e.g. http://127.0.0.1:8000); by default the demo "
-                                         "serves the app itself on a free loopback port."),
+    server: str | None = typer.Option(
+        None,
+        "--server",
+        help="A running server on the same data "
+        "directory (e.g. http://127.0.0.1:8000); by default the demo "
+        "serves the app itself on a free loopback port.",
+    ),
     parallel: int = typer.Option(1, "--parallel", min=1, help="Trials played at the same time."),
-    pace: float | None = typer.Option(None, "--pace", min=0.0, help="Seconds between the Driver's "
-                                         "moves and the Commander's lines (default: just above the "
-                                         "server's minimum move interval)."),
+    pace: float | None = typer.Option(
+        None,
+        "--pace",
+        min=0.0,
+        help="Seconds between the Driver's "
+        "moves and the Commander's lines (default: just above the "
+        "server's minimum move interval).",
+    ),
     seed: int = typer.Option(0, "--seed", help="Seed of targets, mistakes and questions."),
 ) -> None:
     """Play complete simulator trials with a scripted Commander and Driver over the trial sockets,
@@ -37,8 +46,7 @@ def demo(
     try:
         with Progress(console=console) as progress:
             bar = progress.add_task("demo trials", total=trials)
-            results = asyncio.run(runner.run(trials, server, parallel,
-                                             on_done=lambda r: progress.advance(bar)))
+            results = asyncio.run(runner.run(trials, server, parallel, on_done=lambda r: progress.advance(bar)))
     except DemoError as err:
         console.print(f"[red]error:[/red] {err}", soft_wrap=True)
         raise typer.Exit(1) from None
@@ -49,7 +57,8 @@ def demo(
             failed += 1
             line += f" [red]({r.error})[/red]"
         console.print(line, soft_wrap=True)
-    console.print(f"data in {settings.data_dir.resolve()}; see /leaderboard, and "
-                  f"`robotslang export all --format mcap --out DIR`")
+    console.print(
+        f"data in {settings.data_dir.resolve()}; see /leaderboard, and `robotslang export all --format mcap --out DIR`"
+    )
     if failed:
         raise typer.Exit(1)

@@ -24,8 +24,7 @@ from sim.maze import Maze
 from sim.navgraph import NavGraph
 
 WAIT_S = 60.0  # longest a player waits for its partner or the server before giving up
-QUESTIONS = ("should i keep going this way?", "is this the right way?", "which way now?",
-             "do i turn here?")
+QUESTIONS = ("should i keep going this way?", "is this the right way?", "which way now?", "do i turn here?")
 ANSWERS = ("yes, keep going", "yes, you're on the right track", "keep following the walls as i said")
 
 
@@ -72,18 +71,23 @@ class Seat:
                 while True:
                     message = await self.inbox.get()
                     if message.get("type") == "closed":
-                        raise DemoError(f"trial {self.trial_id}: the server closed the {self.role}'s "
-                                        f"socket while waiting for {what}")
+                        raise DemoError(
+                            f"trial {self.trial_id}: the server closed the {self.role}'s "
+                            f"socket while waiting for {what}"
+                        )
                     if accept(message):
                         return message
         except TimeoutError:
-            raise DemoError(f"trial {self.trial_id}: the {self.role} waited {WAIT_S:.0f} s "
-                            f"for {what}") from None
+            raise DemoError(f"trial {self.trial_id}: the {self.role} waited {WAIT_S:.0f} s for {what}") from None
 
     async def event(self, kind: str, **match: Any) -> dict:
         def accept(m: dict) -> bool:
-            return (m.get("type") == "event" and m.get("kind") == kind
-                    and all(m["payload"].get(k) == v for k, v in match.items()))
+            return (
+                m.get("type") == "event"
+                and m.get("kind") == kind
+                and all(m["payload"].get(k) == v for k, v in match.items())
+            )
+
         return await self.until(accept, f"a {kind!r} event {match or ''}".strip())
 
     async def close(self) -> None:
@@ -93,14 +97,18 @@ class Seat:
 
 
 def _is_phase(message: dict, phase: str, index: int | None = None) -> bool:
-    return (message.get("type") == "event" and message.get("kind") == "phase"
-            and message["payload"].get("phase") == phase
-            and (index is None or message["payload"].get("target_index") == index))
+    return (
+        message.get("type") == "event"
+        and message.get("kind") == "phase"
+        and message["payload"].get("phase") == phase
+        and (index is None or message["payload"].get("target_index") == index)
+    )
 
 
 class ScriptedCommander:
-    def __init__(self, maze: Maze, graph: NavGraph, targets: list[str], rng: random.Random,
-                 pace_s: float = 0.0) -> None:
+    def __init__(
+        self, maze: Maze, graph: NavGraph, targets: list[str], rng: random.Random, pace_s: float = 0.0
+    ) -> None:
         self.maze, self.graph, self.targets, self.rng, self.pace_s = maze, graph, targets, rng, pace_s
 
     async def play(self, seat: Seat, start: Pose) -> None:
@@ -118,8 +126,9 @@ class ScriptedCommander:
                 await seat.say(line)
             pose = leg.end
             while True:  # answer questions until the Driver claims the target
-                message = await seat.until(lambda m: self._driver_chat(m) or _claim(m),
-                                           f"the driver's claim of the {target}")
+                message = await seat.until(
+                    lambda m: self._driver_chat(m) or _claim(m), f"the driver's claim of the {target}"
+                )
                 if _claim(message):
                     break
                 if message["payload"]["text"].endswith("?"):
@@ -138,8 +147,11 @@ class ScriptedCommander:
 
     @staticmethod
     def _driver_chat(message: dict) -> bool:
-        return (message.get("type") == "event" and message.get("kind") == "chat"
-                and message["payload"].get("role") == Role.DRIVER)
+        return (
+            message.get("type") == "event"
+            and message.get("kind") == "chat"
+            and message["payload"].get("role") == Role.DRIVER
+        )
 
 
 def _claim(message: dict) -> bool:
@@ -150,8 +162,16 @@ class ScriptedDriver:
     """Follows the shortest path, with a wrong move now and then (`mistake_rate` per move) and a
     question now and then (`question_rate` per move)."""
 
-    def __init__(self, maze: Maze, graph: NavGraph, targets: list[str], rng: random.Random,
-                 pace_s: float = 0.0, mistake_rate: float = 0.03, question_rate: float = 0.03) -> None:
+    def __init__(
+        self,
+        maze: Maze,
+        graph: NavGraph,
+        targets: list[str],
+        rng: random.Random,
+        pace_s: float = 0.0,
+        mistake_rate: float = 0.03,
+        question_rate: float = 0.03,
+    ) -> None:
         self.maze, self.graph, self.targets, self.rng = maze, graph, targets, rng
         self.pace_s, self.mistake_rate, self.question_rate = pace_s, mistake_rate, question_rate
         self.moves = 0
@@ -195,4 +215,3 @@ class ScriptedDriver:
                 return pose
             # Refused (too soon, or paused): wait a moment and try again, as a person would.
             await asyncio.sleep(max(self.pace_s, 0.3))
-

@@ -68,9 +68,17 @@ class Demo:
             maze = suggest_maze(db, team, names)
             if maze is None:
                 raise DemoError("the maze library is empty: no maze to run a demo trial in")
-            return create_trial(db, team_id=team.id, maze=maze, targets=parse_targets("random", self.rng),
-                                backend="sim", driver="human", commander_id=a.id, maze_names=names,
-                                now_ns=ServerClock().now_ns())
+            return create_trial(
+                db,
+                team_id=team.id,
+                maze=maze,
+                targets=parse_targets("random", self.rng),
+                backend="sim",
+                driver="human",
+                commander_id=a.id,
+                maze_names=names,
+                now_ns=ServerClock().now_ns(),
+            )
 
     def start_pose(self, trial: Trial) -> Pose:
         """Where the simulator put the robot: the first pose in the log."""
@@ -83,8 +91,7 @@ class Demo:
     async def play(self, server: str, trial: Trial) -> DemoResult:
         maze, graph = self.mazes.load(trial.maze), self.mazes.graph(trial.maze)
         # One generator per player: their draws interleave differently from run to run.
-        commander = ScriptedCommander(maze, graph, list(trial.targets), random.Random(self.rng.random()),
-                                      self.pace_s)
+        commander = ScriptedCommander(maze, graph, list(trial.targets), random.Random(self.rng.random()), self.pace_s)
         driver = ScriptedDriver(maze, graph, list(trial.targets), random.Random(self.rng.random()), self.pace_s)
         seats: list[Seat] = []
         error = None
@@ -102,8 +109,13 @@ class Demo:
             row = db.get(Trial, trial.id)
             return DemoResult(trial.id, trial.maze, tuple(trial.targets), row.phase, row.moves, error)
 
-    async def run(self, trials: int, server: str | None = None, parallel: int = 1,
-                  on_done: Callable[[DemoResult], None] = lambda r: None) -> list[DemoResult]:
+    async def run(
+        self,
+        trials: int,
+        server: str | None = None,
+        parallel: int = 1,
+        on_done: Callable[[DemoResult], None] = lambda r: None,
+    ) -> list[DemoResult]:
         async with serving(self.settings, server) as url:
             gate = asyncio.Semaphore(max(1, parallel))
 
@@ -131,8 +143,14 @@ async def serving(settings: Settings, server: str | None) -> AsyncIterator[str]:
     port = free_port()
     from app.serving import uvicorn_options
 
-    config = uvicorn.Config(create_app(settings), host="127.0.0.1", port=port, log_level="warning",
-                            lifespan="on", **uvicorn_options(settings))
+    config = uvicorn.Config(
+        create_app(settings),
+        host="127.0.0.1",
+        port=port,
+        log_level="warning",
+        lifespan="on",
+        **uvicorn_options(settings),
+    )
     server_ = uvicorn.Server(config)
     task = asyncio.get_running_loop().create_task(server_.serve())
     while not server_.started:

@@ -67,7 +67,7 @@ def corners(points: np.ndarray, tolerance_m: float = CORNER_TOLERANCE_M) -> list
         if b - a < 2:
             continue
         chord = points[b] - points[a]
-        rel = points[a + 1:b] - points[a]
+        rel = points[a + 1 : b] - points[a]
         norm = np.hypot(*chord)
         off = np.abs(chord[0] * rel[:, 1] - chord[1] * rel[:, 0]) / norm if norm else np.hypot(rel[:, 0], rel[:, 1])
         k = int(np.argmax(off))
@@ -106,8 +106,9 @@ def plan_leg(maze: Maze, graph: NavGraph, start: Pose, target: str) -> Leg:
     nodes = [start.node] + [p.node for p in poses]
     nodes = [n for i, n in enumerate(nodes) if i == 0 or n != nodes[i - 1]]
     if len(nodes) < 2:
-        return Leg(target, start, poses[-1] if poses else start, tuple(actions),
-                   (f"the {thing} should be right there",))
+        return Leg(
+            target, start, poses[-1] if poses else start, tuple(actions), (f"the {thing} should be right there",)
+        )
     points = graph.nodes[nodes]
     idx = corners(points)
     words = []

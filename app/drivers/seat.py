@@ -39,8 +39,11 @@ class AgentSeat:
     # What a browser Driver would receive.
     def deliver(self, message: dict[str, Any]) -> None:
         if message.get("type") == "welcome":
-            self.dialog = [{"role": e["payload"]["role"], "text": e["payload"]["text"]}
-                           for e in message["history"] if e["kind"] == "chat"]
+            self.dialog = [
+                {"role": e["payload"]["role"], "text": e["payload"]["text"]}
+                for e in message["history"]
+                if e["kind"] == "chat"
+            ]
             if "frame" in message:
                 self.frame_id, self.frame = message["frame"]["frame_id"], base64.b64decode(message["frame"]["jpeg"])
             return
@@ -77,8 +80,12 @@ class AgentSeat:
 
     async def _drive(self) -> None:
         trial, state = self.trial, self.trial.state
-        info = {"trial_id": trial.trial_id, "maze": state.maze, "targets": list(state.targets),
-                "backend": state.backend}
+        info = {
+            "trial_id": trial.trial_id,
+            "maze": state.maze,
+            "targets": list(state.targets),
+            "backend": state.backend,
+        }
         policy = await asyncio.to_thread(create_driver, self.name, info, self.services)
         await asyncio.to_thread(policy.reset, info)
         trial.join(self)
@@ -88,8 +95,14 @@ class AgentSeat:
             if not s.running or s.pending_claim is not None or s.current_target is None:
                 continue
             pose = trial.true_pose()
-            observation = {"frame": self.frame, "frame_id": self.frame_id, "target": s.current_target,
-                           "target_index": s.target_index, "rejected": self.rejected, "pose": pose}
+            observation = {
+                "frame": self.frame,
+                "frame_id": self.frame_id,
+                "target": s.current_target,
+                "target_index": s.target_index,
+                "rejected": self.rejected,
+                "pose": pose,
+            }
             if pose is None:  # a rover: what the camera and the particle filter say instead
                 observation.update(await self._perceived())
             action = await asyncio.to_thread(policy.act, list(self.dialog), observation)
@@ -103,8 +116,10 @@ class AgentSeat:
             if belief is not None and belief.settled:
                 observed = belief.latest
                 b = observed.belief
-                return {"rays": observed.rays,
-                        "belief": {"x": b.x, "y": b.y, "heading": b.heading, "spread_m": b.spread_m}}
+                return {
+                    "rays": observed.rays,
+                    "belief": {"x": b.x, "y": b.y, "heading": b.heading, "spread_m": b.spread_m},
+                }
             await asyncio.sleep(0.02)
         return {}
 

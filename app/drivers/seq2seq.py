@@ -14,8 +14,10 @@ if TYPE_CHECKING:
 
 from pathlib import Path
 
-NO_CHECKPOINT = ("agent:seq2seq needs a checkpoint: this install ships none; set ROBOTSLANG_SEQ2SEQ_CHECKPOINT "
-                 "to a file written by `robotslang train ndh` (e.g. RUN/best.pt)")
+NO_CHECKPOINT = (
+    "agent:seq2seq needs a checkpoint: this install ships none; set ROBOTSLANG_SEQ2SEQ_CHECKPOINT "
+    "to a file written by `robotslang train ndh` (e.g. RUN/best.pt)"
+)
 
 
 def seq2seq_checkpoint(services: Services) -> Path | None:

@@ -6,5 +6,6 @@ from enum import Enum
 class Episode(str, Enum):
     """What one exported LeRobot episode holds: an NDH instance, or a whole trial. Here, not in
     `app.export.lerobot`, so that the CLI declares its option without importing the exporter."""
+
     ndh = "ndh"
     trial = "trial"

@@ -25,15 +25,20 @@ def register(root: typer.Typer) -> None:
 
 
 def export(
-    trial: str = typer.Argument(..., metavar="TRIAL_ID|all",
-                                help="A trial's id, or `all` for every finished trial."),
-    format: Format = typer.Option(..., "--format",
-                                  help="mcap (Foxglove), ndh (benchmark JSON) or lerobot (LeRobotDataset v3)."),
-    out: Path = typer.Option(..., "--out", help="MCAP: a file (one trial) or a folder; "
-                                                "NDH: the folder to write the benchmark layout into; "
-                                                "LeRobot: a new (or empty) dataset folder."),
-    episode: Episode = typer.Option(Episode.ndh, "--episode",
-                                    help="LeRobot: one episode per NDH instance (ndh) or per trial (trial)."),
+    trial: str = typer.Argument(..., metavar="TRIAL_ID|all", help="A trial's id, or `all` for every finished trial."),
+    format: Format = typer.Option(
+        ..., "--format", help="mcap (Foxglove), ndh (benchmark JSON) or lerobot (LeRobotDataset v3)."
+    ),
+    out: Path = typer.Option(
+        ...,
+        "--out",
+        help="MCAP: a file (one trial) or a folder; "
+        "NDH: the folder to write the benchmark layout into; "
+        "LeRobot: a new (or empty) dataset folder.",
+    ),
+    episode: Episode = typer.Option(
+        Episode.ndh, "--episode", help="LeRobot: one episode per NDH instance (ndh) or per trial (trial)."
+    ),
 ) -> None:
     """Export recorded trials from the data directory (ROBOTSLANG_DATA_DIR)."""
     from app.db.engine import make_engine, make_sessionmaker
@@ -44,8 +49,10 @@ def export(
 
     settings = Settings()
     if settings.database_url is None and not settings.sqlite_path.exists():
-        _fail(f"no database at {settings.sqlite_path}: set ROBOTSLANG_DATA_DIR to the data "
-              f"directory of a server that recorded trials (or run `robotslang demo`)")
+        _fail(
+            f"no database at {settings.sqlite_path}: set ROBOTSLANG_DATA_DIR to the data "
+            f"directory of a server that recorded trials (or run `robotslang demo`)"
+        )
     sessions = make_sessionmaker(make_engine(settings))
     mazes = Mazes(settings)
     with sessions() as session:
@@ -61,8 +68,10 @@ def export(
         try:
             loaded.append((record, mazes.load(record.maze)))
         except UnknownMaze:
-            _fail(f"trial {record.trial_id}: maze {record.maze!r} is not in the maze library (the bundled "
-                  f"mazes, and the benchmark's when ROBOTSLANG_BENCHMARK points at it)")
+            _fail(
+                f"trial {record.trial_id}: maze {record.maze!r} is not in the maze library (the bundled "
+                f"mazes, and the benchmark's when ROBOTSLANG_BENCHMARK points at it)"
+            )
     try:
         if format is Format.ndh:
             from app.export.ndh import write_benchmark
@@ -81,7 +90,7 @@ def _export_mcap(loaded, out: Path, single: bool) -> None:
     from app.export.mcap import write_mcap
 
     if single and not out.is_dir():
-        (record, maze), = loaded
+        ((record, maze),) = loaded
         console.print(f"trial {record.trial_id} -> {write_mcap(record, maze, out)}")
         return
     for record, maze in track(loaded, description="MCAP export", console=console):
@@ -99,8 +108,10 @@ def _export_lerobot(loaded, out: Path, per: Episode) -> None:
     except ImportError as err:
         _fail(f"the LeRobot export needs the `lerobot` extra (pip install robotslang[lerobot]): {err}")
     totals = write_lerobot(track(loaded, description="LeRobot export", console=console), out, per)
-    console.print(f"{len(loaded)} trial(s) -> {out}: {totals['episodes']} episode(s), "
-                  f"{totals['frames']} frame(s), {totals['tasks']} task(s)")
+    console.print(
+        f"{len(loaded)} trial(s) -> {out}: {totals['episodes']} episode(s), "
+        f"{totals['frames']} frame(s), {totals['tasks']} task(s)"
+    )
 
 
 def _fail(message: str) -> None:

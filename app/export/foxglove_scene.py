@@ -32,8 +32,14 @@ def _pose(x: float, y: float, z: float) -> dict:
 
 
 def _entity(stamp: dict, frame: str, entity_id: str, **primitives) -> dict:
-    entity = {"timestamp": stamp, "frame_id": frame, "id": entity_id,
-              "lifetime": {"sec": 0, "nsec": 0}, "frame_locked": True, "metadata": []}
+    entity = {
+        "timestamp": stamp,
+        "frame_id": frame,
+        "id": entity_id,
+        "lifetime": {"sec": 0, "nsec": 0},
+        "frame_locked": True,
+        "metadata": [],
+    }
     for kind in ("arrows", "cubes", "spheres", "cylinders", "lines", "triangles", "texts", "models"):
         entity[kind] = primitives.get(kind, [])
     return entity
@@ -45,8 +51,9 @@ def wall_cells(maze: Maze) -> np.ndarray:
     cols, rows = math.ceil(TABLE_WIDTH_M / CELL_M), math.ceil(TABLE_HEIGHT_M / CELL_M)
     # Pixel -> cell (row 0 at y = 0, the table's bottom edge).
     cell_c = np.minimum((np.arange(maze.walls.shape[1]) / px_x / CELL_M).astype(int), cols - 1)
-    cell_r = np.minimum(((maze.walls.shape[0] - 1 - np.arange(maze.walls.shape[0])) / px_y / CELL_M)
-                        .astype(int), rows - 1)
+    cell_r = np.minimum(
+        ((maze.walls.shape[0] - 1 - np.arange(maze.walls.shape[0])) / px_y / CELL_M).astype(int), rows - 1
+    )
     counts = np.zeros((rows, cols, len(Label)), np.int32)
     r_idx, c_idx = np.nonzero(np.isin(maze.walls, WALL_LABELS))
     np.add.at(counts, (cell_r[r_idx], cell_c[c_idx], maze.walls[r_idx, c_idx]), 1)
@@ -66,10 +73,13 @@ def wall_cubes(maze: Maze) -> list[dict]:
             while end < len(line) and line[end] == label:
                 end += 1
             if label != Label.FLOOR:
-                cubes.append({"pose": _pose((col + end) / 2 * CELL_M, (row + 0.5) * CELL_M,
-                                            WALL_HEIGHT_M / 2),
-                              "size": {"x": (end - col) * CELL_M, "y": CELL_M, "z": WALL_HEIGHT_M},
-                              "color": colour(Label(label))})
+                cubes.append(
+                    {
+                        "pose": _pose((col + end) / 2 * CELL_M, (row + 0.5) * CELL_M, WALL_HEIGHT_M / 2),
+                        "size": {"x": (end - col) * CELL_M, "y": CELL_M, "z": WALL_HEIGHT_M},
+                        "color": colour(Label(label)),
+                    }
+                )
             col = end
     return cubes
 
@@ -80,13 +90,30 @@ def scene_update(maze: Maze, targets: tuple[str, ...], stamp: dict, frame: str) 
     for order, target in enumerate(targets, start=1):
         x, y = maze.objects[target]
         label = object_label(target)
-        entities.append(_entity(
-            stamp, frame, f"target/{target}",
-            cylinders=[{"pose": _pose(x, y, TARGET_HEIGHT_M / 2),
-                        "size": {"x": 2 * TARGET_RADIUS_M, "y": 2 * TARGET_RADIUS_M,
-                                 "z": TARGET_HEIGHT_M},
-                        "bottom_scale": 1.0, "top_scale": 1.0, "color": colour(label)}],
-            texts=[{"pose": _pose(x, y, TARGET_HEIGHT_M + 0.05), "billboard": True,
-                    "font_size": 14.0, "scale_invariant": True, "color": colour(Label.WHITE),
-                    "text": f"{order}: {target}"}]))
+        entities.append(
+            _entity(
+                stamp,
+                frame,
+                f"target/{target}",
+                cylinders=[
+                    {
+                        "pose": _pose(x, y, TARGET_HEIGHT_M / 2),
+                        "size": {"x": 2 * TARGET_RADIUS_M, "y": 2 * TARGET_RADIUS_M, "z": TARGET_HEIGHT_M},
+                        "bottom_scale": 1.0,
+                        "top_scale": 1.0,
+                        "color": colour(label),
+                    }
+                ],
+                texts=[
+                    {
+                        "pose": _pose(x, y, TARGET_HEIGHT_M + 0.05),
+                        "billboard": True,
+                        "font_size": 14.0,
+                        "scale_invariant": True,
+                        "color": colour(Label.WHITE),
+                        "text": f"{order}: {target}",
+                    }
+                ],
+            )
+        )
     return {"deletions": [], "entities": entities}

@@ -35,8 +35,9 @@ from sim.observations import N_RAYS, cast_rays
 CODEBASE_VERSION = "v3.0"
 FPS = 10  # nominal: a frame is a Driver step, not a clock tick
 VIDEO_KEY = "observation.images.front"
-STATE_NAMES = (["x", "y", "heading"] + [f"ray_depth_{i}" for i in range(N_RAYS)]
-               + [f"ray_label_{i}" for i in range(N_RAYS)])
+STATE_NAMES = (
+    ["x", "y", "heading"] + [f"ray_depth_{i}" for i in range(N_RAYS)] + [f"ray_label_{i}" for i in range(N_RAYS)]
+)
 DATA_FILE = "data/chunk-000/file-000.parquet"
 EPISODES_FILE = "meta/episodes/chunk-000/file-000.parquet"
 VIDEO_PATH = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4"
@@ -125,13 +126,18 @@ def _encode_video(path: Path, images: Sequence[bytes]) -> tuple[int, int]:
 
 def _stats(values: np.ndarray) -> dict[str, list]:
     values = values.reshape(len(values), -1).astype(np.float64)
-    return {"min": np.nanmin(values, 0).tolist(), "max": np.nanmax(values, 0).tolist(),
-            "mean": np.nanmean(values, 0).tolist(), "std": np.nanstd(values, 0).tolist(),
-            "count": [len(values)]}
+    return {
+        "min": np.nanmin(values, 0).tolist(),
+        "max": np.nanmax(values, 0).tolist(),
+        "mean": np.nanmean(values, 0).tolist(),
+        "std": np.nanstd(values, 0).tolist(),
+        "count": [len(values)],
+    }
 
 
-def write_lerobot(loaded: Iterable[tuple[TrialRecord, Maze]], out: str | Path,
-                  per: Episode = Episode.ndh) -> dict[str, int]:
+def write_lerobot(
+    loaded: Iterable[tuple[TrialRecord, Maze]], out: str | Path, per: Episode = Episode.ndh
+) -> dict[str, int]:
     """Write every trial's episodes to the folder `out` (new or empty), built in `out.part` and
     renamed when complete; returns the totals."""
     out = Path(out)
@@ -153,9 +159,21 @@ def _write(loaded: Iterable[tuple[TrialRecord, Maze]], tmp: Path, per: Episode) 
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    rows: dict[str, list] = {k: [] for k in ("observation.state", "action", "language.messages",
-                                             "frame_seq", "trial_id", "timestamp", "frame_index",
-                                             "episode_index", "index", "task_index")}
+    rows: dict[str, list] = {
+        k: []
+        for k in (
+            "observation.state",
+            "action",
+            "language.messages",
+            "frame_seq",
+            "trial_id",
+            "timestamp",
+            "frame_index",
+            "episode_index",
+            "index",
+            "task_index",
+        )
+    }
     tasks: dict[str, int] = {}
     episodes: list[dict] = []
     shape: tuple[int, int] = (0, 0)
@@ -163,51 +181,80 @@ def _write(loaded: Iterable[tuple[TrialRecord, Maze]], tmp: Path, per: Episode) 
         for group in episodes_of(record, maze, per):
             ep = len(episodes)
             images = [record.frame_bytes(s.frame) for s in group]
-            shape = _encode_video(tmp / VIDEO_PATH.format(video_key=VIDEO_KEY, chunk_index=0,
-                                                          file_index=ep), images)
+            shape = _encode_video(tmp / VIDEO_PATH.format(video_key=VIDEO_KEY, chunk_index=0, file_index=ep), images)
             start = len(rows["index"])
             for i, step in enumerate(group):
                 task_index = tasks.setdefault(step.task, len(tasks))
-                for key, value in (("observation.state", step.state), ("action", int(step.action)),
-                                   ("language.messages", json.dumps(step.messages)),
-                                   ("frame_seq", step.frame.seq), ("trial_id", int(record.trial_id)),
-                                   ("timestamp", i / FPS), ("frame_index", i), ("episode_index", ep),
-                                   ("index", start + i), ("task_index", task_index)):
+                for key, value in (
+                    ("observation.state", step.state),
+                    ("action", int(step.action)),
+                    ("language.messages", json.dumps(step.messages)),
+                    ("frame_seq", step.frame.seq),
+                    ("trial_id", int(record.trial_id)),
+                    ("timestamp", i / FPS),
+                    ("frame_index", i),
+                    ("episode_index", ep),
+                    ("index", start + i),
+                    ("task_index", task_index),
+                ):
                     rows[key].append(value)
-            episodes.append({
-                "episode_index": ep, "tasks": list(dict.fromkeys(s.task for s in group)),
-                "length": len(group), "data/chunk_index": 0, "data/file_index": 0,
-                "dataset_from_index": start, "dataset_to_index": start + len(group),
-                f"videos/{VIDEO_KEY}/chunk_index": 0, f"videos/{VIDEO_KEY}/file_index": ep,
-                f"videos/{VIDEO_KEY}/from_timestamp": 0.0,
-                f"videos/{VIDEO_KEY}/to_timestamp": len(group) / FPS,
-                "meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0,
-                "trial_id": int(record.trial_id)})
+            episodes.append(
+                {
+                    "episode_index": ep,
+                    "tasks": list(dict.fromkeys(s.task for s in group)),
+                    "length": len(group),
+                    "data/chunk_index": 0,
+                    "data/file_index": 0,
+                    "dataset_from_index": start,
+                    "dataset_to_index": start + len(group),
+                    f"videos/{VIDEO_KEY}/chunk_index": 0,
+                    f"videos/{VIDEO_KEY}/file_index": ep,
+                    f"videos/{VIDEO_KEY}/from_timestamp": 0.0,
+                    f"videos/{VIDEO_KEY}/to_timestamp": len(group) / FPS,
+                    "meta/episodes/chunk_index": 0,
+                    "meta/episodes/file_index": 0,
+                    "trial_id": int(record.trial_id),
+                }
+            )
     if not episodes:
         raise ExportError("no episodes to write")
     n = len(rows["index"])
-    table = pa.table({
-        "observation.state": pa.array(rows["observation.state"], pa.list_(pa.float32(), len(STATE_NAMES))),
-        "action": pa.array(rows["action"], pa.int64()),
-        "language.messages": pa.array(rows["language.messages"], pa.string()),
-        "frame_seq": pa.array(rows["frame_seq"], pa.int64()),
-        "trial_id": pa.array(rows["trial_id"], pa.int64()),
-        "timestamp": pa.array(rows["timestamp"], pa.float32()),
-        **{k: pa.array(rows[k], pa.int64()) for k in ("frame_index", "episode_index", "index", "task_index")},
-    })
+    table = pa.table(
+        {
+            "observation.state": pa.array(rows["observation.state"], pa.list_(pa.float32(), len(STATE_NAMES))),
+            "action": pa.array(rows["action"], pa.int64()),
+            "language.messages": pa.array(rows["language.messages"], pa.string()),
+            "frame_seq": pa.array(rows["frame_seq"], pa.int64()),
+            "trial_id": pa.array(rows["trial_id"], pa.int64()),
+            "timestamp": pa.array(rows["timestamp"], pa.float32()),
+            **{k: pa.array(rows[k], pa.int64()) for k in ("frame_index", "episode_index", "index", "task_index")},
+        }
+    )
     (tmp / DATA_FILE).parent.mkdir(parents=True, exist_ok=True)
     pq.write_table(table, tmp / DATA_FILE)
     (tmp / EPISODES_FILE).parent.mkdir(parents=True, exist_ok=True)
     pq.write_table(pa.Table.from_pylist(episodes), tmp / EPISODES_FILE)
-    pd.DataFrame({"task_index": list(tasks.values())},
-                 index=pd.Index(list(tasks), name="task")).to_parquet(tmp / "meta/tasks.parquet")
+    pd.DataFrame({"task_index": list(tasks.values())}, index=pd.Index(list(tasks), name="task")).to_parquet(
+        tmp / "meta/tasks.parquet"
+    )
     height, width = shape
     scalar = {"shape": [1], "names": None}
     features = {
-        VIDEO_KEY: {"dtype": "video", "shape": [height, width, 3], "names": ["height", "width", "channels"],
-                    "info": {"video.height": height, "video.width": width, "video.codec": "h264",
-                             "video.pix_fmt": "yuv420p", "video.is_depth_map": False, "video.fps": FPS,
-                             "video.channels": 3, "has_audio": False}},
+        VIDEO_KEY: {
+            "dtype": "video",
+            "shape": [height, width, 3],
+            "names": ["height", "width", "channels"],
+            "info": {
+                "video.height": height,
+                "video.width": width,
+                "video.codec": "h264",
+                "video.pix_fmt": "yuv420p",
+                "video.is_depth_map": False,
+                "video.fps": FPS,
+                "video.channels": 3,
+                "has_audio": False,
+            },
+        },
         "observation.state": {"dtype": "float32", "shape": [len(STATE_NAMES)], "names": STATE_NAMES},
         "action": {"dtype": "int64", "shape": [1], "names": [a.word for a in Action]},
         "language.messages": {"dtype": "string", **scalar},
@@ -216,15 +263,29 @@ def _write(loaded: Iterable[tuple[TrialRecord, Maze]], tmp: Path, per: Episode) 
         "timestamp": {"dtype": "float32", **scalar},
         **{k: {"dtype": "int64", **scalar} for k in ("frame_index", "episode_index", "index", "task_index")},
     }
-    info = {"codebase_version": CODEBASE_VERSION, "robot_type": "robotslang_rover",
-            "total_episodes": len(episodes), "total_frames": n, "total_tasks": len(tasks),
-            "chunks_size": 1000, "data_files_size_in_mb": 100, "video_files_size_in_mb": 500,
-            "fps": FPS, "splits": {"train": f"0:{len(episodes)}"},
-            "data_path": "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet",
-            "video_path": VIDEO_PATH, "features": features}
+    info = {
+        "codebase_version": CODEBASE_VERSION,
+        "robot_type": "robotslang_rover",
+        "total_episodes": len(episodes),
+        "total_frames": n,
+        "total_tasks": len(tasks),
+        "chunks_size": 1000,
+        "data_files_size_in_mb": 100,
+        "video_files_size_in_mb": 500,
+        "fps": FPS,
+        "splits": {"train": f"0:{len(episodes)}"},
+        "data_path": "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet",
+        "video_path": VIDEO_PATH,
+        "features": features,
+    }
     (tmp / "meta/info.json").write_text(json.dumps(info, indent=2))
-    numeric = {"observation.state": np.array(rows["observation.state"]), "action": np.array(rows["action"]),
-               **{k: np.array(rows[k]) for k in ("frame_seq", "trial_id", "timestamp", "frame_index",
-                                                  "episode_index", "index", "task_index")}}
+    numeric = {
+        "observation.state": np.array(rows["observation.state"]),
+        "action": np.array(rows["action"]),
+        **{
+            k: np.array(rows[k])
+            for k in ("frame_seq", "trial_id", "timestamp", "frame_index", "episode_index", "index", "task_index")
+        },
+    }
     (tmp / "meta/stats.json").write_text(json.dumps({k: _stats(v) for k, v in numeric.items()}, indent=2))
     return {"episodes": len(episodes), "frames": n, "tasks": len(tasks)}

@@ -33,8 +33,13 @@ from sim.maze import FIXED_MAP, WALLS_MAP, Maze
 PROFILE = ""  # plain JSON messages: no ROS profile
 TABLE_FRAME = "table"
 SCHEMA_DIR = Path(__file__).with_name("foxglove_schemas")
-FOXGLOVE_SCHEMAS = ("foxglove.CompressedImage", "foxglove.Log", "foxglove.PoseInFrame",
-                    "foxglove.FrameTransform", "foxglove.SceneUpdate")
+FOXGLOVE_SCHEMAS = (
+    "foxglove.CompressedImage",
+    "foxglove.Log",
+    "foxglove.PoseInFrame",
+    "foxglove.FrameTransform",
+    "foxglove.SceneUpdate",
+)
 
 
 class PoseSource(str, Enum):
@@ -52,18 +57,22 @@ def robot_frame(source: PoseSource) -> str:
 
 _ROBOTSLANG_SCHEMAS: dict[str, dict] = {
     "robotslang.DriverCommand": {
-        "title": "robotslang.DriverCommand", "type": "object",
-        "properties": {"stage": {"type": "string", "enum": ["requested", "executed"]},
-                       "move_id": {}, "action": {"type": "string"},
-                       "outcome": {"type": ["string", "null"]},
-                       "collision": {"type": ["boolean", "null"]},
-                       "reason": {"type": ["string", "null"]}},
+        "title": "robotslang.DriverCommand",
+        "type": "object",
+        "properties": {
+            "stage": {"type": "string", "enum": ["requested", "executed"]},
+            "move_id": {},
+            "action": {"type": "string"},
+            "outcome": {"type": ["string", "null"]},
+            "collision": {"type": ["boolean", "null"]},
+            "reason": {"type": ["string", "null"]},
+        },
         "required": ["stage", "move_id", "action"],
     },
     "robotslang.TrialEvent": {
-        "title": "robotslang.TrialEvent", "type": "object",
-        "properties": {"seq": {"type": "integer"}, "kind": {"type": "string"},
-                       "payload": {"type": "object"}},
+        "title": "robotslang.TrialEvent",
+        "type": "object",
+        "properties": {"seq": {"type": "integer"}, "kind": {"type": "string"}, "payload": {"type": "object"}},
         "required": ["seq", "kind", "payload"],
     },
 }
@@ -72,8 +81,7 @@ _ROBOTSLANG_SCHEMAS: dict[str, dict] = {
 @cache
 def schemas() -> dict[str, dict]:
     """Schema name -> JSON schema: Foxglove's published ones and the platform's own two."""
-    published = {name: json.loads((SCHEMA_DIR / f"{name}.json").read_text())
-                 for name in FOXGLOVE_SCHEMAS}
+    published = {name: json.loads((SCHEMA_DIR / f"{name}.json").read_text()) for name in FOXGLOVE_SCHEMAS}
     return {**published, **_ROBOTSLANG_SCHEMAS}
 
 
@@ -101,9 +109,11 @@ def pose_source(record: TrialRecord, event: LoggedEvent) -> PoseSource:
     try:
         return PoseSource(event.payload.get("source", "sim"))
     except ValueError:
-        raise ExportError(f"trial {record.trial_id}: pose event {event.seq} has source "
-                          f"{event.payload.get('source')!r}; expected one of "
-                          f"{', '.join(s.value for s in PoseSource)}") from None
+        raise ExportError(
+            f"trial {record.trial_id}: pose event {event.seq} has source "
+            f"{event.payload.get('source')!r}; expected one of "
+            f"{', '.join(s.value for s in PoseSource)}"
+        ) from None
 
 
 def topic_of(event: LoggedEvent) -> str:
@@ -139,43 +149,52 @@ def write_mcap(record: TrialRecord, maze: Maze | None, out: str | Path) -> Path:
     with tmp.open("wb") as stream:
         writer = Writer(stream)
         writer.start(profile=PROFILE, library="robotslang")
-        schema_ids = {name: writer.register_schema(name=name, encoding="jsonschema",
-                                                   data=json.dumps(schema).encode())
-                      for name, schema in schemas().items()}
-        channel_ids = {topic: writer.register_channel(topic=topic, message_encoding="json",
-                                                      schema_id=schema_ids[schema])
-                       for topic, schema in CHANNELS.items()}
+        schema_ids = {
+            name: writer.register_schema(name=name, encoding="jsonschema", data=json.dumps(schema).encode())
+            for name, schema in schemas().items()
+        }
+        channel_ids = {
+            topic: writer.register_channel(topic=topic, message_encoding="json", schema_id=schema_ids[schema])
+            for topic, schema in CHANNELS.items()
+        }
 
         def add(topic: str, message: dict, log_ns: int, publish_ns: int, sequence: int) -> None:
-            writer.add_message(channel_id=channel_ids[topic], log_time=log_ns,
-                               publish_time=publish_ns, sequence=sequence,
-                               data=json.dumps(message, separators=(",", ":")).encode())
+            writer.add_message(
+                channel_id=channel_ids[topic],
+                log_time=log_ns,
+                publish_time=publish_ns,
+                sequence=sequence,
+                data=json.dumps(message, separators=(",", ":")).encode(),
+            )
 
         start_ns = events[0].t_ns if events else 0
         if maze is not None:
-            add("/maze/scene", scene_update(maze, record.targets, _stamp(start_ns), TABLE_FRAME),
-                start_ns, start_ns, 0)
+            add("/maze/scene", scene_update(maze, record.targets, _stamp(start_ns), TABLE_FRAME), start_ns, start_ns, 0)
         for event in events:
             message, publish_ns = _message(record, event, images.get(event.seq))
             add(topic_of(event), message, event.t_ns, publish_ns, event.seq)
             if event.kind == "pose":
-                add("/tf", _transform(message, robot_frame(sources[event.seq])), event.t_ns,
-                    event.t_ns, 0)
+                add("/tf", _transform(message, robot_frame(sources[event.seq])), event.t_ns, event.t_ns, 0)
         writer.add_metadata("trial", _trial_metadata(record, maze))
         if maze is not None:
             created = events[0].t_ns if events else 0
             for name, walls_only in ((FIXED_MAP, False), (WALLS_MAP, True)):
                 ok, png = cv2.imencode(".png", maze.image(walls_only=walls_only))
-                writer.add_attachment(create_time=created, log_time=created, name=name,
-                                      media_type="image/png", data=png.tobytes())
+                writer.add_attachment(
+                    create_time=created, log_time=created, name=name, media_type="image/png", data=png.tobytes()
+                )
         writer.finish()
     tmp.replace(out)
     return out
 
 
 def _trial_metadata(record: TrialRecord, maze: Maze | None) -> dict[str, str]:
-    meta = {"trial_id": str(record.trial_id), "team": record.team, "maze": record.maze,
-            "targets": ",".join(record.targets)}
+    meta = {
+        "trial_id": str(record.trial_id),
+        "team": record.team,
+        "maze": record.maze,
+        "targets": ",".join(record.targets),
+    }
     if maze is not None:
         meta["target_positions"] = json.dumps({t: maze.objects[t] for t in record.targets})
     meta.update({k: str(v) for k, v in record.info.items()})
@@ -192,17 +211,34 @@ def _message(record: TrialRecord, event: LoggedEvent, image: bytes | None) -> tu
         capture = int(p.get("capture_ns") or event.t_ns)
         fmt = _IMAGE_FORMATS.get(p.get("mime", "image/jpeg"))
         if fmt is None:
-            raise ExportError(f"trial {record.trial_id}: frame {p.get('frame_id')} has image type "
-                              f"{p.get('mime')!r}; expected one of {', '.join(_IMAGE_FORMATS)}")
-        return {"timestamp": _stamp(capture), "frame_id": p.get("source", "driver"),
-                "data": base64.b64encode(image).decode("ascii"), "format": fmt}, capture
+            raise ExportError(
+                f"trial {record.trial_id}: frame {p.get('frame_id')} has image type "
+                f"{p.get('mime')!r}; expected one of {', '.join(_IMAGE_FORMATS)}"
+            )
+        return {
+            "timestamp": _stamp(capture),
+            "frame_id": p.get("source", "driver"),
+            "data": base64.b64encode(image).decode("ascii"),
+            "format": fmt,
+        }, capture
     if event.kind == "chat":
-        return {"timestamp": _stamp(event.t_ns), "level": LOG_INFO, "message": p.get("text", ""),
-                "name": p.get("role", ""), "file": "", "line": 0}, event.t_ns
+        return {
+            "timestamp": _stamp(event.t_ns),
+            "level": LOG_INFO,
+            "message": p.get("text", ""),
+            "name": p.get("role", ""),
+            "file": "",
+            "line": 0,
+        }, event.t_ns
     if event.kind in ("move_requested", "move_executed"):
-        return {"stage": event.kind.removeprefix("move_"), "move_id": p.get("move_id"),
-                "action": p.get("action"), "outcome": p.get("outcome"),
-                "collision": p.get("collision"), "reason": p.get("reason")}, event.t_ns
+        return {
+            "stage": event.kind.removeprefix("move_"),
+            "move_id": p.get("move_id"),
+            "action": p.get("action"),
+            "outcome": p.get("outcome"),
+            "collision": p.get("collision"),
+            "reason": p.get("reason"),
+        }, event.t_ns
     if event.kind in ("pose", "localization"):
         return _pose_in_frame(event.t_ns, float(p["x"]), float(p["y"]), p.get("heading")), event.t_ns
     return {"seq": event.seq, "kind": event.kind, "payload": p}, event.t_ns
@@ -211,11 +247,21 @@ def _message(record: TrialRecord, event: LoggedEvent, image: bytes | None) -> tu
 def _pose_in_frame(t_ns: int, x: float, y: float, heading: float | None) -> dict:
     """A pose in the table frame; a heading the Commander left out is the identity rotation."""
     half = float(heading or 0.0) / 2
-    return {"timestamp": _stamp(t_ns), "frame_id": TABLE_FRAME,
-            "pose": {"position": {"x": x, "y": y, "z": 0.0},
-                     "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(half), "w": math.cos(half)}}}
+    return {
+        "timestamp": _stamp(t_ns),
+        "frame_id": TABLE_FRAME,
+        "pose": {
+            "position": {"x": x, "y": y, "z": 0.0},
+            "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(half), "w": math.cos(half)},
+        },
+    }
 
 
 def _transform(pose: dict, child: str) -> dict:
-    return {"timestamp": pose["timestamp"], "parent_frame_id": TABLE_FRAME, "child_frame_id": child,
-            "translation": pose["pose"]["position"], "rotation": pose["pose"]["orientation"]}
+    return {
+        "timestamp": pose["timestamp"],
+        "parent_frame_id": TABLE_FRAME,
+        "child_frame_id": child,
+        "translation": pose["pose"]["position"],
+        "rotation": pose["pose"]["orientation"],
+    }

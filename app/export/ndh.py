@@ -44,9 +44,11 @@ def scan_id(maze: str, target: str, agent_pose: Sequence[float], target_pose: Se
 
 
 def _dialog(events: Iterable[LoggedEvent], before_seq: int) -> list[dict[str, str]]:
-    return [{"role": ROLES[e.payload["role"]], "message": e.payload["text"]}
-            for e in events
-            if e.kind == "chat" and e.seq < before_seq and e.payload.get("role") in ROLES]
+    return [
+        {"role": ROLES[e.payload["role"]], "message": e.payload["text"]}
+        for e in events
+        if e.kind == "chat" and e.seq < before_seq and e.payload.get("role") in ROLES
+    ]
 
 
 def _pose_at(events: Sequence[LoggedEvent], seq: int) -> list[float] | None:
@@ -87,15 +89,17 @@ def ndh_instances(record: TrialRecord, maze: Maze) -> list[dict]:
         agent_pose = start if k == 0 else all_targets[k - 1]
         if agent_pose is None:
             continue
-        out.append({
-            "scan": scan_id(record.maze, target, agent_pose, all_targets[k]),
-            "target": target,
-            "agent_pose": agent_pose,
-            "target_pose": all_targets[k],
-            "all_targets": all_targets,
-            "dialog_history": _dialog(events, e.seq),
-            "trial_id": str(record.trial_id),
-        })
+        out.append(
+            {
+                "scan": scan_id(record.maze, target, agent_pose, all_targets[k]),
+                "target": target,
+                "agent_pose": agent_pose,
+                "target_pose": all_targets[k],
+                "all_targets": all_targets,
+                "dialog_history": _dialog(events, e.seq),
+                "trial_id": str(record.trial_id),
+            }
+        )
     return out
 
 
@@ -109,22 +113,27 @@ def ldh_instances(record: TrialRecord, maze: Maze) -> list[dict]:
     estimate = estimates[0]
     start = _pose_at(events, _start_seq(events))
     truth = _pose_at(events, estimate.seq)
-    guess = [float(estimate.payload["x"]), float(estimate.payload["y"]),
-             None if estimate.payload.get("heading") is None else float(estimate.payload["heading"])]
+    guess = [
+        float(estimate.payload["x"]),
+        float(estimate.payload["y"]),
+        None if estimate.payload.get("heading") is None else float(estimate.payload["heading"]),
+    ]
     error = None if truth is None else math.dist(truth[:2], guess[:2])
     target = record.targets[0]
     all_targets = _positions(record, maze)
-    return [{
-        "scan": scan_id(record.maze, target, start if start else guess[:2], all_targets[0]),
-        "target": target,
-        "agent_pose": truth,
-        "start_pose": start,
-        "commander_estimate": guess,
-        "localization_error_m": error,
-        "all_targets": all_targets,
-        "dialog_history": _dialog(events, estimate.seq),
-        "trial_id": str(record.trial_id),
-    }]
+    return [
+        {
+            "scan": scan_id(record.maze, target, start if start else guess[:2], all_targets[0]),
+            "target": target,
+            "agent_pose": truth,
+            "start_pose": start,
+            "commander_estimate": guess,
+            "localization_error_m": error,
+            "all_targets": all_targets,
+            "dialog_history": _dialog(events, estimate.seq),
+            "trial_id": str(record.trial_id),
+        }
+    ]
 
 
 def assign_splits(mazes: Iterable[str]) -> dict[str, str]:
@@ -184,5 +193,10 @@ def write_benchmark(trials: Iterable[tuple[TrialRecord, Maze]], out_dir: str | P
             (out_dir / kind / f"{split}.json").write_text(json.dumps(by_split[split], indent=1))
     (out_dir / "lookup_scans.json").write_text(json.dumps(lookup, indent=1))
     (out_dir / "splits.json").write_text(json.dumps(folds, indent=1, sort_keys=True))
-    return ExportSummary(out_dir=out_dir, ndh={s: len(v) for s, v in ndh.items()},
-                         ldh={s: len(v) for s, v in ldh.items()}, splits=folds, trials=len(trials))
+    return ExportSummary(
+        out_dir=out_dir,
+        ndh={s: len(v) for s, v in ndh.items()},
+        ldh={s: len(v) for s, v in ldh.items()},
+        splits=folds,
+        trials=len(trials),
+    )

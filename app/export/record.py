@@ -41,5 +41,7 @@ class TrialRecord:
         try:
             return path.read_bytes()
         except OSError as err:
-            raise ExportError(f"trial {self.trial_id}: frame {event.payload.get('frame_id')} "
-                              f"(event {event.seq}) cannot be read from {path}: {err.strerror}") from None
+            raise ExportError(
+                f"trial {self.trial_id}: frame {event.payload.get('frame_id')} "
+                f"(event {event.seq}) cannot be read from {path}: {err.strerror}"
+            ) from None

@@ -26,10 +26,19 @@ def load_trial(session: Session, settings: Settings, trial_id: int | str) -> Tri
     rows = session.scalars(select(EventRow).where(EventRow.trial_id == key).order_by(EventRow.seq))
     events = tuple(LoggedEvent(seq=r.seq, kind=r.kind, t_ns=r.t_ns, payload=dict(r.payload)) for r in rows)
     return TrialRecord(
-        trial_id=str(key), team=team.name if team else "", maze=trial.maze,
-        targets=tuple(trial.targets), events=events, frames_root=settings.frames_dir,
-        info={"backend": trial.backend, "driver": trial.driver, "phase": trial.phase,
-              "created_at": trial.created_at.isoformat() if trial.created_at else ""})
+        trial_id=str(key),
+        team=team.name if team else "",
+        maze=trial.maze,
+        targets=tuple(trial.targets),
+        events=events,
+        frames_root=settings.frames_dir,
+        info={
+            "backend": trial.backend,
+            "driver": trial.driver,
+            "phase": trial.phase,
+            "created_at": trial.created_at.isoformat() if trial.created_at else "",
+        },
+    )
 
 
 def finished_trial_ids(session: Session) -> list[int]:

@@ -26,6 +26,7 @@ CLOUD_POINTS = 150  # points of the cloud sent to the experimenter's page
 @dataclass(frozen=True)
 class Observed:
     """What the camera said at one frame, and the belief after it."""
+
     frame_capture_ns: int
     rays: np.ndarray  # (OBS_FEATURES,) float32, RayTable.features layout
     observation: RayObservation
@@ -34,8 +35,9 @@ class Observed:
 
 
 class TrialBelief:
-    def __init__(self, maze: Maze, calibration: CameraCalibration, n_particles: int = 1500,
-                 seed: int | None = None) -> None:
+    def __init__(
+        self, maze: Maze, calibration: CameraCalibration, n_particles: int = 1500, seed: int | None = None
+    ) -> None:
         self.calibration = calibration
         self.filter = ParticleFilter(maze, n_particles, seed=seed)
         self._lock = threading.Lock()  # moves come from the event loop, frames from worker threads
@@ -68,8 +70,7 @@ class TrialBelief:
                 return self.latest  # another frame got there first
             self.filter.update(obs)
             self._wanted_after_ns = None
-            self.latest = Observed(capture_ns, features(obs), obs,
-                                   self.filter.belief(CLOUD_POINTS), self._moves)
+            self.latest = Observed(capture_ns, features(obs), obs, self.filter.belief(CLOUD_POINTS), self._moves)
             return self.latest
 
     @property
@@ -82,6 +83,10 @@ class TrialBelief:
         if self.latest is None:
             return None
         b = self.latest.belief
-        return {"type": "belief", "mean": [round(b.x, 4), round(b.y, 4), round(b.heading, 4)],
-                "spread_m": round(b.spread_m, 4), "moves": self.latest.moves,
-                "points": np.round(b.cloud[:, [0, 1, 3]], 4).tolist()}
+        return {
+            "type": "belief",
+            "mean": [round(b.x, 4), round(b.y, 4), round(b.heading, 4)],
+            "spread_m": round(b.spread_m, 4),
+            "moves": self.latest.moves,
+            "points": np.round(b.cloud[:, [0, 1, 3]], 4).tolist(),
+        }

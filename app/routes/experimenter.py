@@ -69,11 +69,23 @@ def dashboard(request: Request, error: str | None = None):
         suggestions = {t.id: suggest_maze(db, t, maze_names) for t in teams}
     # The robot seat: the simulator or a registered rover, by the trial's backend spec.
     backends = {"sim": "simulator", **{f"robot:{r.id}": f"{r.name} (rover)" for r in rovers}}
-    return render(request, "experimenter.html", participants=participants, teams=teams, trials=trials,
-                  names=names, team_names=team_names, mazes=maze_names, suggestions=suggestions,
-                  backends=backends, agents=agent_drivers(services), controls_for=controls_for,
-                  robots=robot_links(services).status(), links={t.id: join_links(request, t) for t in trials},
-                  error=error)
+    return render(
+        request,
+        "experimenter.html",
+        participants=participants,
+        teams=teams,
+        trials=trials,
+        names=names,
+        team_names=team_names,
+        mazes=maze_names,
+        suggestions=suggestions,
+        backends=backends,
+        agents=agent_drivers(services),
+        controls_for=controls_for,
+        robots=robot_links(services).status(),
+        links={t.id: join_links(request, t) for t in trials},
+        error=error,
+    )
 
 
 def _redirect(error: str | None = None) -> RedirectResponse:
@@ -101,8 +113,15 @@ def add_team(request: Request, name: str = Form(max_length=80), member_a: int = 
 
 
 @router.post("/trials")
-def add_trial(request: Request, team_id: int | None = Form(None), maze: str = Form(""), targets: str = Form("random"),
-              backend: str = Form("sim"), driver: str = Form("human"), commander_id: int | None = Form(None)):
+def add_trial(
+    request: Request,
+    team_id: int | None = Form(None),
+    maze: str = Form(""),
+    targets: str = Form("random"),
+    backend: str = Form("sim"),
+    driver: str = Form("human"),
+    commander_id: int | None = Form(None),
+):
     services = request.app.state.services
     names = services.mazes.names()
     try:
@@ -115,9 +134,18 @@ def add_trial(request: Request, team_id: int | None = Form(None), maze: str = Fo
             maze = maze or suggest_maze(db, team, names) or ""
             if not maze:
                 raise TrialSetupError(f"team {team.name!r} has seen every maze in the library")
-            create_trial(db, team_id=team_id, maze=maze, targets=parse_targets(targets, random.Random()),
-                         backend=backend, driver=driver, commander_id=commander_id, maze_names=names,
-                         now_ns=services.clock.now_ns(), agents=available_drivers(services))
+            create_trial(
+                db,
+                team_id=team_id,
+                maze=maze,
+                targets=parse_targets(targets, random.Random()),
+                backend=backend,
+                driver=driver,
+                commander_id=commander_id,
+                maze_names=names,
+                now_ns=services.clock.now_ns(),
+                agents=available_drivers(services),
+            )
     except TrialSetupError as err:
         return _redirect(str(err))
     return _redirect()
@@ -149,16 +177,24 @@ def live(request: Request):
     services = request.app.state.services
     with services.db() as db:
         phases = dict(db.execute(select(Trial.id, Trial.phase).order_by(Trial.id.desc()).limit(100)).all())
-    return {"trials": [r.snapshot() for r in services.hub.live()],
-            "phases": {str(trial_id): phase for trial_id, phase in phases.items()}}
+    return {
+        "trials": [r.snapshot() for r in services.hub.live()],
+        "phases": {str(trial_id): phase for trial_id, phase in phases.items()},
+    }
 
 
 @router.get("/trials/{trial_id}", response_class=HTMLResponse)
 def watch(request: Request, trial_id: int):
     trial = trial_or_404(request, trial_id)
     state = fold(request.app.state.services.log.load(trial_id))
-    return render(request, "watch.html", trial=trial, state=state, links=join_links(request, trial),
-                  controls=controls_for(state.phase, sorted(state.pause_reasons)))
+    return render(
+        request,
+        "watch.html",
+        trial=trial,
+        state=state,
+        links=join_links(request, trial),
+        controls=controls_for(state.phase, sorted(state.pause_reasons)),
+    )
 
 
 @router.get("/trials/{trial_id}/map.png")

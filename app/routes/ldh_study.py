@@ -55,8 +55,14 @@ def study_list(request: Request, error: str | None = None):
 
 
 @studies_router.post("")
-def create_study(request: Request, name: str = Form(max_length=80), source: str = Form(max_length=1000),
-                 split: str = Form("val_seen"), variant: str = Form("prefix"), limit: int | None = Form(None)):
+def create_study(
+    request: Request,
+    name: str = Form(max_length=80),
+    source: str = Form(max_length=1000),
+    split: str = Form("val_seen"),
+    variant: str = Form("prefix"),
+    limit: int | None = Form(None),
+):
     try:
         study_id = studies(request).create(experimenter(request), name, source, split, variant, limit)
     except StudyError as err:
@@ -78,17 +84,20 @@ def invite(request: Request, study_id: int, name: str = Form(max_length=80)):
 def study_page(request: Request, study_id: int, error: str | None = None):
     study = _study_or_404(request, study_id)
     s = studies(request)
-    links = {p.id: str(request.url_for("ldh_participant", token=tokens(request).issue(study_id, p.id)))
-             for p in s.participants(study_id)}
-    return render(request, "ldh_study.html", study=study, results=s.results(study_id),
-                  links=links, error=error)
+    links = {
+        p.id: str(request.url_for("ldh_participant", token=tokens(request).issue(study_id, p.id)))
+        for p in s.participants(study_id)
+    }
+    return render(request, "ldh_study.html", study=study, results=s.results(study_id), links=links, error=error)
 
 
 @studies_router.get("/{study_id}/export.json")
 def export_json(request: Request, study_id: int):
     _study_or_404(request, study_id)
-    return JSONResponse(studies(request).results(study_id),
-                        headers={"Content-Disposition": f'attachment; filename="ldh-study-{study_id}.json"'})
+    return JSONResponse(
+        studies(request).results(study_id),
+        headers={"Content-Disposition": f'attachment; filename="ldh-study-{study_id}.json"'},
+    )
 
 
 @studies_router.get("/{study_id}/export.csv")
@@ -98,8 +107,11 @@ def export_csv(request: Request, study_id: int):
     writer = csv.DictWriter(out, fieldnames=CSV_COLUMNS, extrasaction="ignore")
     writer.writeheader()
     writer.writerows(studies(request).results(study_id)["answers"])
-    return Response(out.getvalue(), media_type="text/csv",
-                    headers={"Content-Disposition": f'attachment; filename="ldh-study-{study_id}.csv"'})
+    return Response(
+        out.getvalue(),
+        media_type="text/csv",
+        headers={"Content-Disposition": f'attachment; filename="ldh-study-{study_id}.csv"'},
+    )
 
 
 # -- the participant --------------------------------------------------------------------------
@@ -124,8 +136,16 @@ def participant_page(request: Request, token: str):
         return render(request, "ldh_done.html", study=study, answers=answers, instances=instances)
     inst = instances[position]
     landmarks = s.benchmark(study.source).maze(inst.run).objects
-    return render(request, "ldh_answer.html", token=token, study=study, position=position, total=len(instances),
-                  dialog=inst.dialog, landmarks=sorted(landmarks))
+    return render(
+        request,
+        "ldh_answer.html",
+        token=token,
+        study=study,
+        position=position,
+        total=len(instances),
+        dialog=inst.dialog,
+        landmarks=sorted(landmarks),
+    )
 
 
 @router.get("/ldh/{token}/map/{position}.png")
@@ -135,12 +155,16 @@ def participant_map(request: Request, token: str, position: int):
     instances = s.instances(granted.study_id)
     if not 0 <= position < len(instances):
         raise HTTPException(404, f"the study has no instance {position + 1}")
-    return Response(s.map_png(s.study(granted.study_id).source, instances[position].run), media_type="image/png",
-                    headers={"Cache-Control": "private, max-age=3600"})
+    return Response(
+        s.map_png(s.study(granted.study_id).source, instances[position].run),
+        media_type="image/png",
+        headers={"Cache-Control": "private, max-age=3600"},
+    )
 
 
 class Mark(BaseModel):
     """Where the participant says the robot is (metres, table frame) and, if dragged, its heading."""
+
     model_config = ConfigDict(extra="forbid")
     position: int
     x: float

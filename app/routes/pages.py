@@ -16,8 +16,11 @@ router = APIRouter()
 
 
 ADVICE = {
-    403: ("Not allowed", "This page or action is not open to you. If you followed a join link, it may be "
-                         "mistyped or belong to another trial. Ask your experimenter for a new join link."),
+    403: (
+        "Not allowed",
+        "This page or action is not open to you. If you followed a join link, it may be "
+        "mistyped or belong to another trial. Ask your experimenter for a new join link.",
+    ),
     404: ("Page not found", "There is nothing at this address. Check the link, or start from the home page."),
     409: ("Not possible now", "That cannot be done in the trial's present state. Go back and reload the page."),
     422: ("That did not work", "Something in the request was not filled in as expected. Go back and try again."),
@@ -31,8 +34,7 @@ def wants_html(request: Request) -> bool:
 
 def error_page(request: Request, status_code: int, detail: str | None) -> HTMLResponse:
     heading, advice = ADVICE.get(status_code, ("Something went wrong", "Go back and try again."))
-    response = render(request, "error.html", status_code=status_code, heading=heading, advice=advice,
-                      detail=detail)
+    response = render(request, "error.html", status_code=status_code, heading=heading, advice=advice, detail=detail)
     response.status_code = status_code
     return response
 
@@ -112,8 +114,14 @@ async def login(request: Request, name: str = Form(max_length=80), password: str
         response.status_code = 401
         return response
     response = RedirectResponse("/experimenter", status_code=303)
-    response.set_cookie(SESSION_COOKIE, services.sessions.issue(user_id), max_age=SESSION_MAX_AGE_S,
-                        httponly=True, samesite="strict", secure=request.url.scheme == "https")
+    response.set_cookie(
+        SESSION_COOKIE,
+        services.sessions.issue(user_id),
+        max_age=SESSION_MAX_AGE_S,
+        httponly=True,
+        samesite="strict",
+        secure=request.url.scheme == "https",
+    )
     return response
 
 
@@ -134,8 +142,14 @@ def leaderboard(request: Request):
         teams = standings(db, services.settings.move_penalty_s)
         agents = agent_standings(db, services.settings.move_penalty_s)
     is_experimenter = current_login(request) is not None
-    return render(request, "leaderboard.html", rows=teams, agents=agents, penalty=services.settings.move_penalty_s,
-                  experimenter=is_experimenter)
+    return render(
+        request,
+        "leaderboard.html",
+        rows=teams,
+        agents=agents,
+        penalty=services.settings.move_penalty_s,
+        experimenter=is_experimenter,
+    )
 
 
 @router.get("/play/{token}", response_class=HTMLResponse)
@@ -158,8 +172,11 @@ def commander_map(request: Request, token: str):
     seat, trial = seat_of(request, token)
     if seat.role != "commander":
         raise HTTPException(403, "only the Commander sees the map")
-    return Response(request.app.state.services.mazes.map_png(trial.maze), media_type="image/png",
-                    headers={"Cache-Control": "private, max-age=3600"})
+    return Response(
+        request.app.state.services.mazes.map_png(trial.maze),
+        media_type="image/png",
+        headers={"Cache-Control": "private, max-age=3600"},
+    )
 
 
 @router.get("/play/{token}/target/{index}.jpg")
@@ -173,5 +190,8 @@ def target_image(request: Request, token: str, index: int):
     reached = (runtime.state if runtime is not None else fold(services.log.load(trial.id))).target_index
     if not 0 <= index < len(trial.targets) or index > reached:
         raise HTTPException(404, f"target {index} is not available")
-    return Response(services.mazes.target_jpeg(trial.maze, trial.targets[index]), media_type="image/jpeg",
-                    headers={"Cache-Control": "private, max-age=3600"})
+    return Response(
+        services.mazes.target_jpeg(trial.maze, trial.targets[index]),
+        media_type="image/jpeg",
+        headers={"Cache-Control": "private, max-age=3600"},
+    )

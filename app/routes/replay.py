@@ -41,8 +41,12 @@ def _trial(request: Request, trial_id: int) -> tuple[Trial, str]:
 def replays(request: Request, team: str | None = None):
     """Finished and aborted trials (of one team, when `team` is given), newest first."""
     with request.app.state.services.db() as db:
-        query = (select(Trial, Team.name).join(Team, Team.id == Trial.team_id)
-                 .where(Trial.phase.in_(REPLAYABLE)).order_by(Trial.id.desc()))
+        query = (
+            select(Trial, Team.name)
+            .join(Team, Team.id == Trial.team_id)
+            .where(Trial.phase.in_(REPLAYABLE))
+            .order_by(Trial.id.desc())
+        )
         if team:
             query = query.where(Team.name == team)
         rows = db.execute(query.limit(500)).all()
@@ -66,9 +70,18 @@ def replay_log(request: Request, trial_id: int):
             payload.pop("path", None)
             payload["url"] = f"/experimenter/trials/{trial_id}/frames/{payload['frame_id']}.jpg"
         events.append({"seq": e.seq, "kind": e.kind, "t_ns": e.t_ns, "payload": payload})
-    return {"trial": {"id": trial.id, "team": team, "maze": trial.maze, "targets": trial.targets,
-                      "phase": trial.phase, "backend": trial.backend, "driver": trial.driver},
-            "events": events}
+    return {
+        "trial": {
+            "id": trial.id,
+            "team": team,
+            "maze": trial.maze,
+            "targets": trial.targets,
+            "phase": trial.phase,
+            "backend": trial.backend,
+            "driver": trial.driver,
+        },
+        "events": events,
+    }
 
 
 @router.get("/trials/{trial_id}/frames/{frame_id}.jpg")
@@ -108,8 +121,11 @@ def export_mcap(request: Request, trial_id: int):
             data = write_mcap(record, maze, Path(tmp) / "trial.mcap").read_bytes()
         except ExportError as err:
             raise HTTPException(409, str(err)) from None
-    return Response(data, media_type="application/octet-stream",
-                    headers={"Content-Disposition": f'attachment; filename="trial-{trial_id}.mcap"'})
+    return Response(
+        data,
+        media_type="application/octet-stream",
+        headers={"Content-Disposition": f'attachment; filename="trial-{trial_id}.mcap"'},
+    )
 
 
 @router.get("/trials/{trial_id}/export.ndh.json")
@@ -120,5 +136,7 @@ def export_ndh(request: Request, trial_id: int):
     record, maze = _record(request, trial_id)
     if maze is None:
         raise HTTPException(409, f"maze {record.maze!r} of trial {trial_id} is not in the maze library")
-    return JSONResponse({"ndh": ndh_instances(record, maze), "ldh": ldh_instances(record, maze)},
-                        headers={"Content-Disposition": f'attachment; filename="trial-{trial_id}-ndh.json"'})
+    return JSONResponse(
+        {"ndh": ndh_instances(record, maze), "ldh": ldh_instances(record, maze)},
+        headers={"Content-Disposition": f'attachment; filename="trial-{trial_id}-ndh.json"'},
+    )

@@ -74,13 +74,23 @@ async def robot_socket(ws: WebSocket) -> None:
     outbox: asyncio.Queue[str] = asyncio.Queue(OUTBOX_LIMIT)
     link = RobotLink(robot_id, name, role, lambda m: _queue(outbox, m), services.clock)
     links.attach(link)
-    _queue(outbox, {"type": "welcome", "protocol": PROTOCOL_VERSION,
-                    "robot": {"id": robot_id, "name": name, "role": role},
-                    "ping_interval_s": PING_INTERVAL_S, "max_frame_bytes": MAX_FRAME_BYTES,
-                    "server_ns": services.clock.now_ns()})
+    _queue(
+        outbox,
+        {
+            "type": "welcome",
+            "protocol": PROTOCOL_VERSION,
+            "robot": {"id": robot_id, "name": name, "role": role},
+            "ping_interval_s": PING_INTERVAL_S,
+            "max_frame_bytes": MAX_FRAME_BYTES,
+            "server_ns": services.clock.now_ns(),
+        },
+    )
     logger.info("robot %r (%s) connected", name, role)
-    tasks = [asyncio.create_task(_write(ws, outbox, link)), asyncio.create_task(_ping(link)),
-             asyncio.create_task(_read(ws, link, links))]
+    tasks = [
+        asyncio.create_task(_write(ws, outbox, link)),
+        asyncio.create_task(_ping(link)),
+        asyncio.create_task(_read(ws, link, links)),
+    ]
     try:
         await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
     finally:
@@ -105,8 +115,11 @@ async def _hello(ws: WebSocket, services) -> tuple[int, str, str]:
     except ProtocolError as err:
         raise Refused("bad_message", f"the first message must be a hello: {err}") from None
     if hello.get("protocol") != PROTOCOL_VERSION:
-        raise Refused("protocol", f"protocol {hello.get('protocol')!r} is not supported; this server speaks "
-                                  f"{PROTOCOL_VERSION} (update robotslang-robot)")
+        raise Refused(
+            "protocol",
+            f"protocol {hello.get('protocol')!r} is not supported; this server speaks "
+            f"{PROTOCOL_VERSION} (update robotslang-robot)",
+        )
     token, role = hello.get("token"), hello.get("role")
     if role not in ROLES:
         raise Refused("role", f"role {role!r}: expected one of {', '.join(ROLES)}")
@@ -115,8 +128,7 @@ async def _hello(ws: WebSocket, services) -> tuple[int, str, str]:
     if robot is None:
         raise Refused("auth", "unknown robot token (copy it from the experimenter page)")
     if robot.role != role:
-        raise Refused("role", f"robot {robot.name!r} is registered as {robot.role}, but connected with "
-                              f"--role {role}")
+        raise Refused("role", f"robot {robot.name!r} is registered as {robot.role}, but connected with --role {role}")
     return robot.id, robot.name, robot.role
 
 
@@ -193,7 +205,12 @@ def register_robot(request: Request, name: str = Form(max_length=80), role: str 
     try:
         with request.app.state.services.db.begin() as db:
             robot, token = create_robot(db, name, role)
-            return {"id": robot.id, "name": robot.name, "role": robot.role, "token": token,
-                    "backend": f"robot:{robot.id}"}
+            return {
+                "id": robot.id,
+                "name": robot.name,
+                "role": robot.role,
+                "token": token,
+                "backend": f"robot:{robot.id}",
+            }
     except RobotSetupError as err:
         raise HTTPException(400, str(err)) from None

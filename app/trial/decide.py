@@ -112,8 +112,23 @@ class Reopen:
     """A server opens a trial from its log: seats and moves of the process before are gone."""
 
 
-Command = (Join | Leave | Say | RequestMove | FinishMove | AbandonMoves | Localize | Claim | Judge | Note | Pause
-           | Resume | Abort | GraceExpired | Reopen)
+Command = (
+    Join
+    | Leave
+    | Say
+    | RequestMove
+    | FinishMove
+    | AbandonMoves
+    | Localize
+    | Claim
+    | Judge
+    | Note
+    | Pause
+    | Resume
+    | Abort
+    | GraceExpired
+    | Reopen
+)
 
 
 # -- the rules ---------------------------------------------------------------------------
@@ -127,8 +142,15 @@ def decide(state: TrialState, command: Command) -> list[ev.Event]:
             if move_id not in state.moves_in_flight:
                 return []
             action, _ = state.moves_in_flight[move_id]
-            return [ev.MoveExecuted(move_id=move_id, action=action, outcome=outcome,
-                                    collision=outcome == Outcome.COLLISION, reason=reason)]
+            return [
+                ev.MoveExecuted(
+                    move_id=move_id,
+                    action=action,
+                    outcome=outcome,
+                    collision=outcome == Outcome.COLLISION,
+                    reason=reason,
+                )
+            ]
     if state.over:
         if isinstance(command, (Say, RequestMove, Localize, Claim, Judge)):
             raise Refused(f"the trial is {state.phase}")
@@ -171,8 +193,15 @@ def _reopen(state: TrialState) -> list[ev.Event]:
         return []  # a finished or aborted trial's log is closed
     events: list[ev.Event] = []
     if state.phase.running:  # the clock stopped at the last event; the seats now missing hold it
-        events.append(ev.Restarted(paused=[disconnect_pause(role) for role in sorted(state.connected)
-                                           if disconnect_pause(role) not in state.pause_reasons]))
+        events.append(
+            ev.Restarted(
+                paused=[
+                    disconnect_pause(role)
+                    for role in sorted(state.connected)
+                    if disconnect_pause(role) not in state.pause_reasons
+                ]
+            )
+        )
     events += decide(state, AbandonMoves("server restart"))
     events += [ev.Disconnected(role=role) for role in sorted(state.connected)]
     return events
@@ -228,8 +257,10 @@ def _refused(move_id: str, action: MoveAction, reason: str) -> ev.MoveExecuted:
 
 def _claim(state: TrialState) -> ev.TargetClaimed:
     if state.phase != Phase.NAVIGATING or state.pause_reasons:
-        raise Refused("a target can be claimed once the Commander has marked the robot on the map, "
-                      "and not while the trial is paused")
+        raise Refused(
+            "a target can be claimed once the Commander has marked the robot on the map, "
+            "and not while the trial is paused"
+        )
     if state.pending_claim is not None:
         raise Refused("the previous claim is still waiting for the Commander")
     if state.last_frame_id is None:
@@ -237,8 +268,7 @@ def _claim(state: TrialState) -> ev.TargetClaimed:
     target = state.current_target
     if target is None:  # never while navigating; the check gives the event its str
         raise Refused("there is no target left to claim")
-    return ev.TargetClaimed(target=target, target_index=state.target_index,
-                            frame_id=state.last_frame_id)
+    return ev.TargetClaimed(target=target, target_index=state.target_index, frame_id=state.last_frame_id)
 
 
 def _judge(state: TrialState, confirmed: bool, within_m: float | None) -> list[ev.Event]:

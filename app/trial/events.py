@@ -156,10 +156,28 @@ class BadMessage(Event):
     error: str
 
 
-KINDS: dict[str, type[Event]] = {cls.kind: cls for cls in (
-    TrialCreated, Connected, Disconnected, PhaseChanged, Paused, Resumed, Restarted, Chat, MoveRequested,
-    MoveExecuted, FrameRecorded, PoseSampled, Localized, TargetClaimed, TargetConfirmed, TargetRejected,
-    BadMessage)}
+KINDS: dict[str, type[Event]] = {
+    cls.kind: cls
+    for cls in (
+        TrialCreated,
+        Connected,
+        Disconnected,
+        PhaseChanged,
+        Paused,
+        Resumed,
+        Restarted,
+        Chat,
+        MoveRequested,
+        MoveExecuted,
+        FrameRecorded,
+        PoseSampled,
+        Localized,
+        TargetClaimed,
+        TargetConfirmed,
+        TargetRejected,
+        BadMessage,
+    )
+}
 
 
 def typed(event: LoggedEvent) -> Event | None:

@@ -65,8 +65,11 @@ class BeliefModel:
     def top(self, maze: Maze, dialog, k: int = TOP_K) -> list[list[float]]:
         ctx, node_p = self.node_belief(maze, dialog)
         best = np.argsort(-node_p, kind="stable")[:k]
-        return [[round(float(ctx.graph.nodes[i, 0]), 4), round(float(ctx.graph.nodes[i, 1]), 4),
-                 round(float(node_p[i]), 5)] for i in best if node_p[i] > 0]
+        return [
+            [round(float(ctx.graph.nodes[i, 0]), 4), round(float(ctx.graph.nodes[i, 1]), 4), round(float(node_p[i]), 5)]
+            for i in best
+            if node_p[i] > 0
+        ]
 
 
 def belief_model(services) -> BeliefModel:
@@ -96,8 +99,9 @@ class LiveBelief:
         chats = [e for e in rt.services.log.load(rt.trial_id) if e.kind == "chat"]
         if not chats:
             return
-        dialog = tuple((DIALOG_ROLES[e.payload["role"]], e.payload["text"]) for e in chats
-                       if e.payload.get("role") in DIALOG_ROLES)
+        dialog = tuple(
+            (DIALOG_ROLES[e.payload["role"]], e.payload["text"]) for e in chats if e.payload.get("role") in DIALOG_ROLES
+        )
         model = belief_model(rt.services)
         try:
             maze = rt.services.mazes.load(rt.state.maze)

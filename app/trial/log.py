@@ -38,16 +38,22 @@ class EventLog:
     def load(self, trial_id: int) -> list[LoggedEvent]:
         self.flush()  # read what this process has appended
         with self.sessions() as db:
-            rows = db.scalars(select(models.Event).where(models.Event.trial_id == trial_id)
-                              .order_by(models.Event.seq))
+            rows = db.scalars(select(models.Event).where(models.Event.trial_id == trial_id).order_by(models.Event.seq))
             return [LoggedEvent(r.seq, r.kind, r.t_ns, r.payload) for r in rows]
 
-    def append(self, trial_id: int, event: LoggedEvent, *, frame: dict[str, Any] | None = None,
-               trial_cache: dict[str, Any] | None = None) -> None:
+    def append(
+        self,
+        trial_id: int,
+        event: LoggedEvent,
+        *,
+        frame: dict[str, Any] | None = None,
+        trial_cache: dict[str, Any] | None = None,
+    ) -> None:
         """Queue one event, with its frame row and the trial's cached columns, for this turn's
         commit; a seq already taken (another process wrote this trial) fails that trial's part."""
-        self._events.append({"trial_id": trial_id, "seq": event.seq, "kind": event.kind,
-                             "t_ns": event.t_ns, "payload": event.payload})
+        self._events.append(
+            {"trial_id": trial_id, "seq": event.seq, "kind": event.kind, "t_ns": event.t_ns, "payload": event.payload}
+        )
         if frame is not None:
             self._frames.append({"trial_id": trial_id, "seq": event.seq, **frame})
         if trial_cache:
@@ -83,9 +89,11 @@ class EventLog:
         except Exception:  # one trial's conflict must not cost the others their events
             for trial_id in dict.fromkeys(e["trial_id"] for e in events):
                 try:
-                    self._write([e for e in events if e["trial_id"] == trial_id],
-                                [f for f in frames if f["trial_id"] == trial_id],
-                                {trial_id: caches[trial_id]} if trial_id in caches else {})
+                    self._write(
+                        [e for e in events if e["trial_id"] == trial_id],
+                        [f for f in frames if f["trial_id"] == trial_id],
+                        {trial_id: caches[trial_id]} if trial_id in caches else {},
+                    )
                 except Exception as err:
                     logger.exception("trial %s: events not committed", trial_id)
                     lost.add(trial_id)

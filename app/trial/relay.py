@@ -70,8 +70,11 @@ class RedisRelay:
         await self._pubsub.subscribe(_channel(self.id))
         await self._beat()
         loop = asyncio.get_running_loop()
-        self._tasks = [loop.create_task(self._listen()), loop.create_task(self._send()),
-                       loop.create_task(self._heartbeat())]
+        self._tasks = [
+            loop.create_task(self._listen()),
+            loop.create_task(self._send()),
+            loop.create_task(self._heartbeat()),
+        ]
 
     async def close(self) -> None:
         for task in self._tasks:
@@ -216,8 +219,7 @@ class RemoteTrial:
     async def fail_over(self) -> None:
         """The owner is dead: take the trial here, or follow the process that already has."""
         owner = await self.relay.owner(self.trial_id)
-        conns = [(conn_id, self.relay.local[conn_id]) for conn_id in self._ids.values()
-                 if conn_id in self.relay.local]
+        conns = [(conn_id, self.relay.local[conn_id]) for conn_id in self._ids.values() if conn_id in self.relay.local]
         if owner != self.relay.id:
             self.owner = owner
             for conn_id, conn in conns:
@@ -238,8 +240,7 @@ class RemoteTrial:
     def report_bad_message(self, role: Role, error: str) -> None:
         if self.runtime is not None:
             return self.runtime.report_bad_message(role, error)
-        conn_id = next((c for c in self._ids.values() if getattr(self.relay.local.get(c), "role", None) == role),
-                       None)
+        conn_id = next((c for c in self._ids.values() if getattr(self.relay.local.get(c), "role", None) == role), None)
         if conn_id is not None:
             self._command("bad_message", conn=conn_id, error=error)
 

@@ -34,6 +34,7 @@ from app.trial.vocabulary import PARTICIPANTS, FrameSource, MoveAction, Outcome,
 
 logger = logging.getLogger(__name__)
 
+
 class UnknownTrial(LookupError):
     pass
 
@@ -126,8 +127,12 @@ class TrialRuntime:
         return task
 
     # -- the log ------------------------------------------------------------------
-    def apply(self, command: d.Command, attachments: dict[str, dict[str, Any]] | None = None,
-              frame: dict[str, Any] | None = None) -> list[LoggedEvent]:
+    def apply(
+        self,
+        command: d.Command,
+        attachments: dict[str, dict[str, Any]] | None = None,
+        frame: dict[str, Any] | None = None,
+    ) -> list[LoggedEvent]:
         """Decide, commit, fold and tell the seats; raises `Refused` (recording nothing)."""
         events = d.decide(self.state, command)
         logged = [self._record(event, attachments or {}, frame) for event in events]
@@ -135,8 +140,9 @@ class TrialRuntime:
             self._after_change()
         return logged
 
-    def _record(self, event: ev.Event, attachments: dict[str, dict[str, Any]],
-                frame: dict[str, Any] | None) -> LoggedEvent:
+    def _record(
+        self, event: ev.Event, attachments: dict[str, dict[str, Any]], frame: dict[str, Any] | None
+    ) -> LoggedEvent:
         t_ns = self.services.clock.now_ns()
         if self.state.last_t_ns is not None:
             t_ns = max(t_ns, self.state.last_t_ns + 1)  # one trial's stamps never go back, even across restarts
@@ -148,8 +154,9 @@ class TrialRuntime:
         if isinstance(event, ev.PhaseChanged):
             active = self.state.active_s(t_ns) if event.phase == Phase.FINISHED else None
             cache = {"phase": str(event.phase), "moves": self.state.moves, "active_s": active}
-        self.services.log.append(self.trial_id, logged, frame=frame if isinstance(event, ev.FrameRecorded) else None,
-                                 trial_cache=cache)
+        self.services.log.append(
+            self.trial_id, logged, frame=frame if isinstance(event, ev.FrameRecorded) else None, trial_cache=cache
+        )
         self.state.apply_event(event, logged.seq, logged.t_ns)
         self._broadcast(logged, attachments)
         self.ldh.after(logged)
@@ -232,8 +239,12 @@ class TrialRuntime:
                 logger.exception("trial %s: frame not recorded", self.trial_id)
                 continue
             belief = self.belief
-            if (belief is not None and not self.state.moves_in_flight and not self._perceiving
-                    and belief.wants(frame.capture_ns)):
+            if (
+                belief is not None
+                and not self.state.moves_in_flight
+                and not self._perceiving
+                and belief.wants(frame.capture_ns)
+            ):
                 self._perceiving = True
                 self._spawn(self._perceive(belief, frame.jpeg, frame.capture_ns))
 
@@ -255,12 +266,14 @@ class TrialRuntime:
     def _frame_file(self, capture_ns: int, source: str) -> str:
         return f"{self.trial_id}/{capture_ns}-{source}.jpg"  # relative to frames_dir
 
-    def _commit_frame(self, rel: str, jpeg: bytes, capture_ns: int, width: int, height: int,
-                      source: FrameSource) -> int:
+    def _commit_frame(
+        self, rel: str, jpeg: bytes, capture_ns: int, width: int, height: int, source: FrameSource
+    ) -> int:
         row = {"source": str(source), "path": rel, "capture_ns": capture_ns, "width": width, "height": height}
         frame_id = self.state.last_seq + 1  # the frame event's own seq
-        event = ev.FrameRecorded(frame_id=frame_id, source=source, path=rel, capture_ns=capture_ns,
-                                 width=width, height=height)
+        event = ev.FrameRecorded(
+            frame_id=frame_id, source=source, path=rel, capture_ns=capture_ns, width=width, height=height
+        )
         attach = {Role.DRIVER: {"jpeg": base64.b64encode(jpeg).decode()}} if source == FrameSource.DRIVER else {}
         self.apply(d.Note(event), attachments=attach, frame=row)
         return frame_id
@@ -329,13 +342,23 @@ class TrialRuntime:
     def welcome(self, role: str) -> dict[str, Any]:
         s = self.state
         message: dict[str, Any] = {
-            "type": "welcome", "role": role, "trial_id": self.trial_id, "phase": s.phase,
-            "target_index": s.target_index, "targets_total": len(s.targets),
-            "connected": sorted(self.seats), "seats_needed": list(s.seats_needed), "paused": sorted(s.pause_reasons),
-            "pending_claim": s.pending_claim is not None, "last_seq": s.last_seq,
-            "history": [msg for e in self.services.log.load(self.trial_id)
-                        if e.kind in ("chat", "phase", "target_confirmed", "target_rejected")
-                        and (msg := view(role, e)) is not None],
+            "type": "welcome",
+            "role": role,
+            "trial_id": self.trial_id,
+            "phase": s.phase,
+            "target_index": s.target_index,
+            "targets_total": len(s.targets),
+            "connected": sorted(self.seats),
+            "seats_needed": list(s.seats_needed),
+            "paused": sorted(s.pause_reasons),
+            "pending_claim": s.pending_claim is not None,
+            "last_seq": s.last_seq,
+            "history": [
+                msg
+                for e in self.services.log.load(self.trial_id)
+                if e.kind in ("chat", "phase", "target_confirmed", "target_rejected")
+                and (msg := view(role, e)) is not None
+            ],
             "status": self.status(),
         }
         if role == Role.COMMANDER:
@@ -426,9 +449,15 @@ class TrialRuntime:
 
     async def request_move(self, action: MoveAction, move_id: str | None = None) -> Outcome:
         move_id = move_id or uuid.uuid4().hex[:12]
-        asked = self.apply(d.RequestMove(move_id, MoveAction(action), self.services.clock.now_ns(),
-                                         robot_ready=self.backend is not None,
-                                         min_interval_ns=int(self.settings.min_move_interval_s * 1e9)))
+        asked = self.apply(
+            d.RequestMove(
+                move_id,
+                MoveAction(action),
+                self.services.clock.now_ns(),
+                robot_ready=self.backend is not None,
+                min_interval_ns=int(self.settings.min_move_interval_s * 1e9),
+            )
+        )
         if asked[-1].kind == "move_executed":  # refused at once
             return Outcome.REFUSED
         backend = self.backend
@@ -443,8 +472,12 @@ class TrialRuntime:
             # A collision on the simulator leaves the robot where it was; a rover cannot tell.
             self.belief.moved(action if outcome == Outcome.OK else None, started_ns)
         self.apply(d.FinishMove(move_id, outcome, reason))
-        if (outcome != Outcome.REFUSED and self.backend is not None and not self.state.over
-                and self.state.backend == "sim"):  # a rover's tracker records its own poses
+        if (
+            outcome != Outcome.REFUSED
+            and self.backend is not None
+            and not self.state.over
+            and self.state.backend == "sim"
+        ):  # a rover's tracker records its own poses
             pose = self.backend.pose()
             if pose is not None:
                 self.record_pose(pose)
@@ -452,8 +485,11 @@ class TrialRuntime:
 
     def claim(self) -> None:
         s = self.state
-        attach = {Role.COMMANDER: {"claim": self._claim_attachment(s.last_frame_id)}} \
-            if s.last_frame_id is not None else None
+        attach = (
+            {Role.COMMANDER: {"claim": self._claim_attachment(s.last_frame_id)}}
+            if s.last_frame_id is not None
+            else None
+        )
         self.apply(d.Claim(), attachments=attach)
 
     def judge(self, confirmed: bool) -> None:
@@ -476,12 +512,23 @@ class TrialRuntime:
 
     def snapshot(self) -> dict[str, Any]:
         s = self.state
-        return {"trial_id": self.trial_id, "phase": s.phase, "target_index": s.target_index,
-                "target": s.current_target, "elapsed_s": round(s.active_s(self.services.clock.now_ns()), 1),
-                "moves": s.moves, "collisions": s.collisions, "pose": s.pose,
-                "paused": sorted(s.pause_reasons), "seats": {r: r in self.seats for r in s.seats_needed},
-                "waiting_for": s.waiting_for, "backend": s.backend, "localization": s.localization,
-                "maze": s.maze, "belief": self._belief_message}
+        return {
+            "trial_id": self.trial_id,
+            "phase": s.phase,
+            "target_index": s.target_index,
+            "target": s.current_target,
+            "elapsed_s": round(s.active_s(self.services.clock.now_ns()), 1),
+            "moves": s.moves,
+            "collisions": s.collisions,
+            "pose": s.pose,
+            "paused": sorted(s.pause_reasons),
+            "seats": {r: r in self.seats for r in s.seats_needed},
+            "waiting_for": s.waiting_for,
+            "backend": s.backend,
+            "localization": s.localization,
+            "maze": s.maze,
+            "belief": self._belief_message,
+        }
 
 
 def _describe(err: ValidationError) -> str:

@@ -59,9 +59,19 @@ def check_driver(driver: str, agents: Mapping[str, str | None] | None) -> None:
         raise TrialSetupError(f"driver {driver!r} cannot start: {agents[name]}")
 
 
-def create_trial(db: Session, *, team_id: int, maze: str, targets: list[str], backend: str,
-                 driver: str, commander_id: int | None, maze_names: list[str], now_ns: int,
-                 agents: Mapping[str, str | None] | None = None) -> Trial:
+def create_trial(
+    db: Session,
+    *,
+    team_id: int,
+    maze: str,
+    targets: list[str],
+    backend: str,
+    driver: str,
+    commander_id: int | None,
+    maze_names: list[str],
+    now_ns: int,
+    agents: Mapping[str, str | None] | None = None,
+) -> Trial:
     """`agents` (`available_drivers(services)`) is needed when an agent drives."""
     check_driver(driver, agents)
     team = db.get(Team, team_id)
@@ -85,8 +95,17 @@ def create_trial(db: Session, *, team_id: int, maze: str, targets: list[str], ba
     driver_id = None
     if driver == "human":
         driver_id = members[1] if commander_id == members[0] else members[0]
-    trial = Trial(team_id=team.id, maze=maze, targets=targets, backend=backend, driver=driver,
-                  commander_id=commander_id, driver_id=driver_id, phase=str(Phase.WAITING), moves=0)
+    trial = Trial(
+        team_id=team.id,
+        maze=maze,
+        targets=targets,
+        backend=backend,
+        driver=driver,
+        commander_id=commander_id,
+        driver_id=driver_id,
+        phase=str(Phase.WAITING),
+        moves=0,
+    )
     db.add(trial)
     db.flush()
     created = TrialCreated(maze=maze, targets=targets, backend=backend, driver=driver)

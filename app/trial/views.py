@@ -16,13 +16,22 @@ from app.trial.vocabulary import FrameSource, Role
 
 EXPERIMENTER = "experimenter"  # the role of an experimenter's live view (not a seat of the trial)
 
-SHARED = {"chat", "phase", "paused", "resumed", "connect", "disconnect",
-          "target_claimed", "target_confirmed", "target_rejected"}
+SHARED = {
+    "chat",
+    "phase",
+    "paused",
+    "resumed",
+    "connect",
+    "disconnect",
+    "target_claimed",
+    "target_confirmed",
+    "target_rejected",
+}
 VISIBLE = {
     Role.COMMANDER: SHARED | {"localization"},
     Role.DRIVER: SHARED | {"move_executed", "frame"},
-    EXPERIMENTER: SHARED | {"localization", "move_requested", "move_executed", "frame", "pose", "bad_message",
-                            "restarted"},
+    EXPERIMENTER: SHARED
+    | {"localization", "move_requested", "move_executed", "frame", "pose", "bad_message", "restarted"},
 }
 GROUND_TRUTH = ("within_m", "truly_within")
 
@@ -33,8 +42,11 @@ def view(role: str, event: LoggedEvent) -> dict[str, Any] | None:
         return None
     if event.kind == "frame" and event.payload.get("source", FrameSource.DRIVER) != FrameSource.DRIVER:
         return None  # the overhead camera is for annotation and replay, never for a live view
-    payload = dict(event.payload) if role == EXPERIMENTER else \
-        {k: v for k, v in event.payload.items() if k not in GROUND_TRUTH}
+    payload = (
+        dict(event.payload)
+        if role == EXPERIMENTER
+        else {k: v for k, v in event.payload.items() if k not in GROUND_TRUTH}
+    )
     if event.kind == "frame":
         payload.pop("path", None)
     return {"type": "event", "seq": event.seq, "kind": event.kind, "t_ns": event.t_ns, "payload": payload}
@@ -43,7 +55,14 @@ def view(role: str, event: LoggedEvent) -> dict[str, Any] | None:
 def status_of(state: TrialState, now_ns: int) -> dict[str, Any]:
     """What every seat shows of where the trial stands (docs/protocol.md, "status"). Sent after
     each event that changes any field but the clock; pages run the clock themselves while running."""
-    return {"type": "status", "phase": str(state.phase), "target_index": state.target_index,
-            "targets_total": len(state.targets), "elapsed_s": round(state.active_s(now_ns), 3),
-            "running": state.running, "moves": state.moves, "paused": sorted(state.pause_reasons),
-            "waiting_for": [str(r) for r in state.waiting_for]}
+    return {
+        "type": "status",
+        "phase": str(state.phase),
+        "target_index": state.target_index,
+        "targets_total": len(state.targets),
+        "elapsed_s": round(state.active_s(now_ns), 3),
+        "running": state.running,
+        "moves": state.moves,
+        "paused": sorted(state.pause_reasons),
+        "waiting_for": [str(r) for r in state.waiting_for],
+    }

@@ -50,8 +50,7 @@ def parse_start(text: str) -> RoverPose:
     try:
         x, y, theta = (float(v) for v in text.split(","))
     except ValueError:
-        raise ValueError(f"expected X,Y,THETA in metres and radians like 0.7,1.05,1.5708, "
-                         f"got {text!r}") from None
+        raise ValueError(f"expected X,Y,THETA in metres and radians like 0.7,1.05,1.5708, got {text!r}") from None
     if not all(math.isfinite(v) for v in (x, y, theta)):
         raise ValueError(f"X,Y,THETA must be finite numbers, got {text!r}")
     return RoverPose(x, y, theta % (2 * math.pi))
@@ -69,7 +68,9 @@ def random_start(maze: Maze, graph: NavGraph, seed: int) -> RoverPose:
     return RoverPose(float(x), float(y), float(rng.integers(8)) * math.pi / 4)
 
 
-def build(spec: VirtualRoverSpec, graph: NavGraph | None = None) -> tuple[RobotClient, FrameGrabber, VirtualMotors | None]:
+def build(
+    spec: VirtualRoverSpec, graph: NavGraph | None = None
+) -> tuple[RobotClient, FrameGrabber, VirtualMotors | None]:
     """The real client with simulated devices; raises ValueError naming a bad input."""
     robot_url(spec.server)
     link = LinkSettings(server=spec.server, token=spec.token, role=spec.role, watchdog_s=spec.watchdog_s)
@@ -89,15 +90,23 @@ def build(spec: VirtualRoverSpec, graph: NavGraph | None = None) -> tuple[RobotC
         from sim.overhead import OverheadCamera
 
         if spec.truth is None:
-            raise ValueError("--role overhead needs --truth FILE: the driver rover's truth file, "
-                             "whose poses it films")
+            raise ValueError("--role overhead needs --truth FILE: the driver rover's truth file, whose poses it films")
         camera = OverheadCamera()
         source = OverheadCameraSource(spec.maze, spec.truth, camera, seed=spec.seed)
     settings = CameraSettings(camera.width, camera.height, spec.fps, JPEG_QUALITY)
     grabber = FrameGrabber(source, settings)
-    client = RobotClient(link, grabber, motors, camera_info={
-        "source": CAMERA_SOURCE, "width": camera.width, "height": camera.height,
-        "fps": spec.fps, "quality": JPEG_QUALITY})
+    client = RobotClient(
+        link,
+        grabber,
+        motors,
+        camera_info={
+            "source": CAMERA_SOURCE,
+            "width": camera.width,
+            "height": camera.height,
+            "fps": spec.fps,
+            "quality": JPEG_QUALITY,
+        },
+    )
     return client, grabber, motors
 
 
@@ -108,7 +117,8 @@ def run(spec: VirtualRoverSpec, graph: NavGraph | None = None) -> int:
     if motors is not None:
         p = motors.rover.pose
         logging.getLogger("robotslang.robot").info(
-            "virtual rover on %s at (%.3f, %.3f) m, heading %.3f rad", spec.maze.name, p.x, p.y, p.theta)
+            "virtual rover on %s at (%.3f, %.3f) m, heading %.3f rad", spec.maze.name, p.x, p.y, p.theta
+        )
     try:
         return asyncio.run(serve(client))
     finally:

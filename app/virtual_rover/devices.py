@@ -91,8 +91,11 @@ class VirtualMotors:
         if self._truth is not None:
             if self._pulse is not None:
                 self._action = self._pulse.move.value
-            self._truth.write(TruthSample(time.monotonic_ns(), pose.x, pose.y, pose.theta,
-                                          self.moves_started, self._action, moving, collision))
+            self._truth.write(
+                TruthSample(
+                    time.monotonic_ns(), pose.x, pose.y, pose.theta, self.moves_started, self._action, moving, collision
+                )
+            )
 
     def _sample(self) -> None:
         """While a pulse runs, the pose every SAMPLE_S: the overhead camera renders from these."""
@@ -101,8 +104,7 @@ class VirtualMotors:
             with self._lock:
                 if self._pulse is not None:
                     fraction = self._fraction(time.monotonic_ns())
-                    self._record(self._pulse.pose_at(fraction), moving=True,
-                                 collision=self._pulse.touched_by(fraction))
+                    self._record(self._pulse.pose_at(fraction), moving=True, collision=self._pulse.touched_by(fraction))
             self._closed.wait(SAMPLE_S)
 
 

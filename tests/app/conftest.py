@@ -41,8 +41,14 @@ def postgres_url():
 
 
 def platform_settings(tmp_path, database_url: str | None = None, **overrides) -> Settings:
-    values = dict(data_dir=tmp_path / "var", database_url=database_url, secret_key="test-secret",
-                  min_move_interval_s=0.0, grace_period_s=30.0, agent_move_interval_s=0.02)
+    values = dict(
+        data_dir=tmp_path / "var",
+        database_url=database_url,
+        secret_key="test-secret",
+        min_move_interval_s=0.0,
+        grace_period_s=30.0,
+        agent_move_interval_s=0.02,
+    )
     values.update(overrides)
     return Settings(**values)
 

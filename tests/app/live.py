@@ -43,8 +43,9 @@ class ServerThread:
         self.app = create_app(settings)
         self.services = self.app.state.services
         self.port = free_port()
-        config = uvicorn.Config(self.app, host="127.0.0.1", port=self.port, log_level="warning",
-                                lifespan="on", **uvicorn_options(settings))
+        config = uvicorn.Config(
+            self.app, host="127.0.0.1", port=self.port, log_level="warning", lifespan="on", **uvicorn_options(settings)
+        )
         self.server = uvicorn.Server(config)
         self.thread = threading.Thread(target=self.server.run, daemon=True)
 
@@ -89,9 +90,23 @@ class ServerProcess:
         return f"ws://127.0.0.1:{self.port}/ws/play"
 
     def start(self) -> ServerProcess:
-        self.proc = subprocess.Popen([sys.executable, "-c", "from app.cli import main; main()", "serve",
-                                      "--port", str(self.port), "--workers", str(self.workers)], env=self.env, cwd=REPO,
-                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        self.proc = subprocess.Popen(
+            [
+                sys.executable,
+                "-c",
+                "from app.cli import main; main()",
+                "serve",
+                "--port",
+                str(self.port),
+                "--workers",
+                str(self.workers),
+            ],
+            env=self.env,
+            cwd=REPO,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
         deadline = time.time() + 30
         while time.time() < deadline:
             if self.proc.poll() is not None:
@@ -142,16 +157,31 @@ def log_in(base_url: str, name: str, password: str) -> httpx.Client:
     return client
 
 
-def make_trial(services, maze: str, targets=("mug", "jar", "paddle"), driver: str = "human",
-               team: str = "Team A", backend: str = "sim") -> int:
+def make_trial(
+    services,
+    maze: str,
+    targets=("mug", "jar", "paddle"),
+    driver: str = "human",
+    team: str = "Team A",
+    backend: str = "sim",
+) -> int:
     """A team of two new participants and a trial for it; returns the trial id."""
     with services.db.begin() as db:
         a = create_participant(db, f"{team} commander")
         b = create_participant(db, f"{team} driver")
         t = create_team(db, team, a.id, b.id)
-        trial = create_trial(db, team_id=t.id, maze=maze, targets=list(targets), backend=backend,
-                             driver=driver, commander_id=a.id, maze_names=services.mazes.names(),
-                             now_ns=services.clock.now_ns(), agents=available_drivers(services))
+        trial = create_trial(
+            db,
+            team_id=t.id,
+            maze=maze,
+            targets=list(targets),
+            backend=backend,
+            driver=driver,
+            commander_id=a.id,
+            maze_names=services.mazes.names(),
+            now_ns=services.clock.now_ns(),
+            agents=available_drivers(services),
+        )
         return trial.id
 
 
@@ -202,8 +232,13 @@ class SeatClient:
                 await asyncio.wait_for(self._new.wait(), remaining)
 
     async def event(self, kind: str, timeout: float = 10.0, start: int = 0, **match) -> dict[str, Any]:
-        return await self.wait_for(lambda m: m.get("type") == "event" and m["kind"] == kind and all(
-            m["payload"].get(k) == v for k, v in match.items()), timeout, start)
+        return await self.wait_for(
+            lambda m: m.get("type") == "event"
+            and m["kind"] == kind
+            and all(m["payload"].get(k) == v for k, v in match.items()),
+            timeout,
+            start,
+        )
 
     def kinds(self) -> set[str]:
         return {m["kind"] for m in self.received if m.get("type") == "event"}

@@ -23,8 +23,9 @@ def test_shortest_path_agent_drives_and_claims_each_target(settings):
                 await commander.send("localize", x=1.0, y=1.0)
                 for index in range(3):
                     claimed = await commander.event("target_claimed", timeout=30, target_index=index)
-                    chat = await commander.event("chat", role="driver", start=0,
-                                                 text=f"I think I found the {claimed['payload']['target']}")
+                    chat = await commander.event(
+                        "chat", role="driver", start=0, text=f"I think I found the {claimed['payload']['target']}"
+                    )
                     assert chat
                     if index == 1:  # the agent keeps going after a rejection and claims again
                         start = len(commander.received)
@@ -37,10 +38,12 @@ def test_shortest_path_agent_drives_and_claims_each_target(settings):
         commander = asyncio.run(command())
         assert "frame" not in commander.kinds()
         with services.db() as db:
-            confirmed = db.scalars(select(Event.payload).where(Event.trial_id == trial_id,
-                                                               Event.kind == "target_confirmed")).all()
-            moves = db.scalars(select(Event.payload).where(Event.trial_id == trial_id,
-                                                           Event.kind == "move_executed")).all()
+            confirmed = db.scalars(
+                select(Event.payload).where(Event.trial_id == trial_id, Event.kind == "target_confirmed")
+            ).all()
+            moves = db.scalars(
+                select(Event.payload).where(Event.trial_id == trial_id, Event.kind == "move_executed")
+            ).all()
         assert all(c["truly_within"] for c in confirmed) and len(confirmed) == 3
         assert moves and all(m["outcome"] == "ok" for m in moves)
 
@@ -72,8 +75,9 @@ def test_register_driver_adds_a_named_agent(settings):
 
         asyncio.run(command())
         with services.db() as db:
-            actions = db.scalars(select(Event.payload).where(Event.trial_id == trial_id,
-                                                             Event.kind == "move_executed")).all()
+            actions = db.scalars(
+                select(Event.payload).where(Event.trial_id == trial_id, Event.kind == "move_executed")
+            ).all()
         assert len(actions) >= 3 and {a["action"] for a in actions} == {"left"}
 
 
@@ -95,7 +99,7 @@ def test_an_agent_that_fails_is_logged_and_the_trial_stays_open(settings):
 
         asyncio.run(command())
         with services.db() as db:
-            errors = db.scalars(select(Event.payload).where(Event.trial_id == trial_id,
-                                                            Event.kind == "bad_message")).all()
-        assert errors == [{"role": "driver",
-                           "error": "agent 'test-broken' failed: no checkpoint at runs/missing.pt"}]
+            errors = db.scalars(
+                select(Event.payload).where(Event.trial_id == trial_id, Event.kind == "bad_message")
+            ).all()
+        assert errors == [{"role": "driver", "error": "agent 'test-broken' failed: no checkpoint at runs/missing.pt"}]

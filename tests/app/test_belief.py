@@ -59,7 +59,11 @@ def test_walks_seen_by_the_rover_camera_concentrate_the_belief_on_the_truth(worl
         assert first is not None and first.moves == 0 and first.rays.shape == (OBS_FEATURES,)
         for _ in range(25):
             ahead = graph.forward[pose.node, pose.heading] >= 0
-            action = Action.FORWARD if ahead and rng.random() < 0.8 else (Action.LEFT if rng.random() < 0.5 else Action.RIGHT)
+            action = (
+                Action.FORWARD
+                if ahead and rng.random() < 0.8
+                else (Action.LEFT if rng.random() < 0.5 else Action.RIGHT)
+            )
             pose, collided = step(graph, pose, action)
             belief.moved(None if collided else action.word, t + 1)
             assert not belief.settled and belief.wants(t + 2) and not belief.wants(t)

@@ -14,35 +14,48 @@ CREATED = {"maze": "m", "targets": ["jar", "mug", "paddle"], "backend": "sim", "
 
 
 def running(*extra):
-    items = [("trial_created", CREATED), ("connect", {"role": "commander"}), ("connect", {"role": "driver"}),
-             ("phase", {"phase": "localizing", "target_index": 0}), *extra]
+    items = [
+        ("trial_created", CREATED),
+        ("connect", {"role": "commander"}),
+        ("connect", {"role": "driver"}),
+        ("phase", {"phase": "localizing", "target_index": 0}),
+        *extra,
+    ]
     return fold(LoggedEvent(i + 1, kind, i * S, payload) for i, (kind, payload) in enumerate(items))
 
 
 def test_both_seats_in_starts_the_trial():
     state = fold([LoggedEvent(1, "trial_created", 0, CREATED), LoggedEvent(2, "connect", S, {"role": "commander"})])
-    assert decide(state, Join(Role.DRIVER)) == [ev.Connected(role=Role.DRIVER),
-                                                ev.PhaseChanged(phase=Phase.LOCALIZING, target_index=0)]
+    assert decide(state, Join(Role.DRIVER)) == [
+        ev.Connected(role=Role.DRIVER),
+        ev.PhaseChanged(phase=Phase.LOCALIZING, target_index=0),
+    ]
 
 
 def test_a_move_id_is_executed_once():
-    state = running(("move_requested", {"move_id": "m1", "action": "left"}),
-                    ("move_executed", {"move_id": "m1", "action": "left", "outcome": "ok", "collision": False}))
+    state = running(
+        ("move_requested", {"move_id": "m1", "action": "left"}),
+        ("move_executed", {"move_id": "m1", "action": "left", "outcome": "ok", "collision": False}),
+    )
     with pytest.raises(Refused, match="already received"):
         decide(state, RequestMove("m1", MoveAction.LEFT, now_ns=100 * S, robot_ready=True))
     assert decide(state, RequestMove("m2", MoveAction.LEFT, now_ns=100 * S, robot_ready=True)) == [
-        ev.MoveRequested(move_id="m2", action=MoveAction.LEFT)]
+        ev.MoveRequested(move_id="m2", action=MoveAction.LEFT)
+    ]
 
 
 def test_reopening_refuses_the_move_in_flight_and_lets_the_seats_go():
     state = running(("move_requested", {"move_id": "m1", "action": "forward"}))
     events = decide(state, Reopen())
     assert events[0] == ev.Restarted(paused=["disconnect:commander", "disconnect:driver"])
-    assert ev.MoveExecuted(move_id="m1", action=MoveAction.FORWARD, outcome=Outcome.REFUSED,
-                           reason="server restart") in events
+    assert (
+        ev.MoveExecuted(move_id="m1", action=MoveAction.FORWARD, outcome=Outcome.REFUSED, reason="server restart")
+        in events
+    )
     assert {e.role for e in events if isinstance(e, ev.Disconnected)} == {Role.COMMANDER, Role.DRIVER}
     assert decide(state, FinishMove("m1", Outcome.OK)) == [
-        ev.MoveExecuted(move_id="m1", action=MoveAction.FORWARD, outcome=Outcome.OK)]
+        ev.MoveExecuted(move_id="m1", action=MoveAction.FORWARD, outcome=Outcome.OK)
+    ]
 
 
 def test_an_ended_trial_takes_nothing_more():

@@ -21,10 +21,14 @@ from sim.dynamics import Action, Pose, snap_pose, step, teacher_action
 def demo_dir(tmp_path_factory):
     """Two demo trials played by the CLI, with the app served on its own loopback port."""
     data = tmp_path_factory.mktemp("demo") / "var"
-    env = {"ROBOTSLANG_DATA_DIR": str(data), "ROBOTSLANG_SECRET_KEY": "demo-test",
-           "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0"}
-    result = CliRunner().invoke(root, ["demo", "--trials", "2", "--parallel", "2", "--pace", "0",
-                                       "--seed", "3"], env=env)
+    env = {
+        "ROBOTSLANG_DATA_DIR": str(data),
+        "ROBOTSLANG_SECRET_KEY": "demo-test",
+        "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+    }
+    result = CliRunner().invoke(
+        root, ["demo", "--trials", "2", "--parallel", "2", "--pace", "0", "--seed", "3"], env=env
+    )
     assert result.exit_code == 0, result.output
     return data, env, result.output
 

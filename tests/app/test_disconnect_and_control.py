@@ -76,8 +76,10 @@ def test_experimenter_pauses_resumes_and_aborts(settings):
         experimenter = login(server)
 
         async def play():
-            async with SeatClient(server.ws_url, tokens["commander"]) as commander, \
-                       SeatClient(server.ws_url, tokens["driver"]) as driver:
+            async with (
+                SeatClient(server.ws_url, tokens["commander"]) as commander,
+                SeatClient(server.ws_url, tokens["driver"]) as driver,
+            ):
                 await start_trial(commander, driver)
                 await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial_id}/pause")
                 await driver.event("paused", reason="experimenter")

@@ -20,9 +20,15 @@ from tests.app.test_disconnect_and_control import login
 
 
 def cli(*args: str, env: dict[str, str], input: str | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-c", "from app.cli import main; main()", *args],
-                          env={**os.environ, **env}, cwd=REPO, capture_output=True, text=True, input=input,
-                          timeout=120)
+    return subprocess.run(
+        [sys.executable, "-c", "from app.cli import main; main()", *args],
+        env={**os.environ, **env},
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        input=input,
+        timeout=120,
+    )
 
 
 def test_first_start_creates_admin_once(settings):

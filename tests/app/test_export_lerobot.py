@@ -28,8 +28,11 @@ pq = pytest.importorskip("pyarrow.parquet", reason="the LeRobot export needs the
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):
     data = tmp_path_factory.mktemp("lerobot") / "var"
-    env = {"ROBOTSLANG_DATA_DIR": str(data), "ROBOTSLANG_SECRET_KEY": "lerobot-test",
-           "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0"}
+    env = {
+        "ROBOTSLANG_DATA_DIR": str(data),
+        "ROBOTSLANG_SECRET_KEY": "lerobot-test",
+        "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+    }
     result = CliRunner().invoke(root, ["demo", "--trials", "1", "--pace", "0", "--seed", "5"], env=env)
     assert result.exit_code == 0, result.output
     sessions = make_sessionmaker(make_engine(Settings(data_dir=data, secret_key="lerobot-test")))
@@ -39,8 +42,7 @@ def recorded(tmp_path_factory):
 
 
 def export(env, out, *flags) -> None:
-    result = CliRunner().invoke(root, ["export", "all", "--format", "lerobot", "--out", str(out), *flags],
-                                env=env)
+    result = CliRunner().invoke(root, ["export", "all", "--format", "lerobot", "--out", str(out), *flags], env=env)
     assert result.exit_code == 0, result.output
 
 
@@ -85,11 +87,13 @@ def test_layout_frames_actions_and_dialog_match_the_log(recorded, tmp_path, per)
     said = [m for r in data for m in json.loads(r["language.messages"])]
     chats = [e for e in log if e.kind == "chat"]
     assert [(m["speaker"], m["text"], m["t_ns"]) for m in said] == [
-        (e.payload["role"], e.payload["text"], e.t_ns) for e in chats]
+        (e.payload["role"], e.payload["text"], e.t_ns) for e in chats
+    ]
     # The video: one decoded frame per row, close to the recorded JPEG.
     first = episodes[0]
-    video = out / info["video_path"].format(video_key=VIDEO_KEY, chunk_index=0,
-                                            file_index=first[f"videos/{VIDEO_KEY}/file_index"])
+    video = out / info["video_path"].format(
+        video_key=VIDEO_KEY, chunk_index=0, file_index=first[f"videos/{VIDEO_KEY}/file_index"]
+    )
     with av.open(str(video)) as container:
         decoded = [(f.time, f.to_ndarray(format="rgb24")) for f in container.decode(video=0)]
     assert len(decoded) == first["length"]
@@ -115,8 +119,11 @@ def test_an_independent_v3_checker_finds_the_format_compliant(recorded, tmp_path
     formats = ["metadata", "temporal", "videos", "consistency", "training", "portability"]
     report = doctor.run_checks(load_local(out), checks=formats)
     assert (report.codebase_version, report.format_version) == ("v3.0", "v3")
-    assert {r.name: [m.message for m in r.messages if m.severity is not doctor.Severity.PASS]
-            for r in report.results if r.severity is not doctor.Severity.PASS} == {}
+    assert {
+        r.name: [m.message for m in r.messages if m.severity is not doctor.Severity.PASS]
+        for r in report.results
+        if r.severity is not doctor.Severity.PASS
+    } == {}
     assert len(report.results) == len(formats)
     full = doctor.run_checks(load_local(out))
     assert [r.name for r in full.results if r.severity is doctor.Severity.FAIL] == []
@@ -127,7 +134,9 @@ def test_lerobot_loads_it_back(recorded, tmp_path):
     lerobot_dataset = pytest.importorskip(
         "lerobot.datasets.lerobot_dataset",
         reason="lerobot is not importable here (the `lerobot` extra; lerobot 0.4.4 also needs a "
-               "torchvision built for the installed torch)", exc_type=ImportError)
+        "torchvision built for the installed torch)",
+        exc_type=ImportError,
+    )
     env, trial, log = recorded
     out = tmp_path / "ds"
     export(env, out)
@@ -147,8 +156,7 @@ def test_refuses_a_folder_with_something_in_it(recorded, tmp_path):
     env, _, _ = recorded
     (tmp_path / "ds").mkdir()
     (tmp_path / "ds" / "notes.txt").write_text("mine")
-    result = CliRunner().invoke(root, ["export", "all", "--format", "lerobot", "--out", str(tmp_path / "ds")],
-                                env=env)
+    result = CliRunner().invoke(root, ["export", "all", "--format", "lerobot", "--out", str(tmp_path / "ds")], env=env)
     assert result.exit_code == 1 and "is not empty" in result.output
     assert (tmp_path / "ds" / "notes.txt").read_text() == "mine"
 

@@ -37,22 +37,55 @@ def jpeg(shade: int) -> bytes:
 def record(tmp_path) -> TrialRecord:
     (tmp_path / "frames").mkdir()
     raw = [
-        ("trial_created", {"maze": "test-maze", "targets": ["mug", "jar", "paddle"],
-                           "backend": "sim", "driver": "human"}),
-        ("connect", {"role": "commander"}), ("connect", {"role": "driver"}),
+        (
+            "trial_created",
+            {"maze": "test-maze", "targets": ["mug", "jar", "paddle"], "backend": "sim", "driver": "human"},
+        ),
+        ("connect", {"role": "commander"}),
+        ("connect", {"role": "driver"}),
         ("phase", {"phase": "localizing", "target_index": 0}),
         ("pose", {"x": 0.5, "y": 0.6, "heading": np.pi / 2, "source": "sim"}),
-        ("frame", {"frame_id": 1, "source": "driver", "path": "frames/1.jpg",
-                   "capture_ns": None, "width": 64, "height": 48, "mime": "image/jpeg"}),
+        (
+            "frame",
+            {
+                "frame_id": 1,
+                "source": "driver",
+                "path": "frames/1.jpg",
+                "capture_ns": None,
+                "width": 64,
+                "height": 48,
+                "mime": "image/jpeg",
+            },
+        ),
         ("chat", {"role": "commander", "text": "what do you see?"}),
         ("chat", {"role": "driver", "text": "a red wall"}),
         ("move_requested", {"move_id": 1, "action": "forward"}),
         ("move_executed", {"move_id": 1, "action": "forward", "outcome": "ok", "collision": False}),
         ("pose", {"x": 0.5, "y": 0.67, "heading": np.pi / 2, "source": "sim"}),
-        ("frame", {"frame_id": 2, "source": "driver", "path": "frames/2.jpg",
-                   "capture_ns": None, "width": 64, "height": 48, "mime": "image/jpeg"}),
-        ("frame", {"frame_id": 3, "source": "overhead", "path": "frames/3.jpg",
-                   "capture_ns": None, "width": 64, "height": 48, "mime": "image/jpeg"}),
+        (
+            "frame",
+            {
+                "frame_id": 2,
+                "source": "driver",
+                "path": "frames/2.jpg",
+                "capture_ns": None,
+                "width": 64,
+                "height": 48,
+                "mime": "image/jpeg",
+            },
+        ),
+        (
+            "frame",
+            {
+                "frame_id": 3,
+                "source": "overhead",
+                "path": "frames/3.jpg",
+                "capture_ns": None,
+                "width": 64,
+                "height": 48,
+                "mime": "image/jpeg",
+            },
+        ),
         ("localization", {"x": 0.55, "y": 0.6, "heading": None}),
         ("phase", {"phase": "navigating", "target_index": 0}),
     ]
@@ -65,8 +98,14 @@ def record(tmp_path) -> TrialRecord:
         events.append(LoggedEvent(seq=seq, kind=kind, t_ns=t, payload=payload))
     # The log is stored by seq; a writer must not rely on arrival order matching the clock.
     events[5], events[6] = events[6], events[5]
-    return TrialRecord(trial_id="7", team="blue team", maze="test-maze",
-                       targets=("mug", "jar", "paddle"), events=tuple(events), frames_root=tmp_path)
+    return TrialRecord(
+        trial_id="7",
+        team="blue team",
+        maze="test-maze",
+        targets=("mug", "jar", "paddle"),
+        events=tuple(events),
+        frames_root=tmp_path,
+    )
 
 
 def test_every_event_once_in_log_time_order_on_its_channel(record, tmp_path):
@@ -142,20 +181,31 @@ def read_topic(path, topic: str) -> list[dict]:
 
 def test_robot_frame_follows_each_pose_source(record, tmp_path):
     events = list(record.events)
-    events.append(LoggedEvent(seq=16, kind="pose", t_ns=events[-1].t_ns + 10_000_000,
-                              payload={"x": 0.52, "y": 0.69, "heading": 0.0, "source": "tracker"}))
+    events.append(
+        LoggedEvent(
+            seq=16,
+            kind="pose",
+            t_ns=events[-1].t_ns + 10_000_000,
+            payload={"x": 0.52, "y": 0.69, "heading": 0.0, "source": "tracker"},
+        )
+    )
     record = TrialRecord(**{**record.__dict__, "events": tuple(events)})
     path = write_mcap(record, small_maze(), tmp_path / "trial.mcap")
     transforms = read_topic(path, "/tf")
     assert [(t["parent_frame_id"], t["child_frame_id"]) for t in transforms] == [
-        ("table", "robot/sim"), ("table", "robot/sim"), ("table", "robot/tracker")]
+        ("table", "robot/sim"),
+        ("table", "robot/sim"),
+        ("table", "robot/tracker"),
+    ]
     assert transforms[1]["translation"] == {"x": 0.5, "y": 0.67, "z": 0.0}
     assert read_topic(path, "/robot/pose/tracker")[0]["pose"]["position"]["x"] == 0.52
 
 
 def test_unknown_pose_source_is_refused_before_writing(record, tmp_path):
-    events = [LoggedEvent(e.seq, e.kind, e.t_ns, {**e.payload, "source": "guess"}) if e.kind == "pose" else e
-              for e in record.events]
+    events = [
+        LoggedEvent(e.seq, e.kind, e.t_ns, {**e.payload, "source": "guess"}) if e.kind == "pose" else e
+        for e in record.events
+    ]
     record = TrialRecord(**{**record.__dict__, "events": tuple(events)})
     with pytest.raises(ExportError, match=r"pose event 5 has source 'guess'; expected one of sim, tracker"):
         write_mcap(record, small_maze(), tmp_path / "trial.mcap")

@@ -20,44 +20,58 @@ def maze_named(name: str, shift: int = 0) -> Maze:
     labels = np.zeros((1175, 1401), np.uint8)
     labels[:12, :], labels[-12:, :] = Label.RED, Label.BLUE
     labels[:, :12], labels[:, -12:] = Label.GREEN, Label.YELLOW
-    labels[300:330, 200 + shift:230 + shift] = Label.JAR
+    labels[300:330, 200 + shift : 230 + shift] = Label.JAR
     labels[800:830, 900:930], labels[500:530, 1200:1230] = Label.MUG, Label.PADDLE
     return Maze.from_labels(labels, name)
 
 
-def trial(trial_id: str, maze: str, targets=("jar", "mug", "paddle"), confirmed=3,
-          with_pose=True) -> TrialRecord:
-    raw = [("trial_created", {"maze": maze, "targets": list(targets), "backend": "sim", "driver": "human"}),
-           ("chat", {"role": "commander", "text": "hello before the start"}),
-           ("phase", {"phase": "localizing", "target_index": 0})]
+def trial(trial_id: str, maze: str, targets=("jar", "mug", "paddle"), confirmed=3, with_pose=True) -> TrialRecord:
+    raw = [
+        ("trial_created", {"maze": maze, "targets": list(targets), "backend": "sim", "driver": "human"}),
+        ("chat", {"role": "commander", "text": "hello before the start"}),
+        ("phase", {"phase": "localizing", "target_index": 0}),
+    ]
     if with_pose:
         raw.append(("pose", {"x": 0.5, "y": 0.6, "heading": -math.pi / 2, "source": "sim"}))
-    raw += [("chat", {"role": "commander", "text": "what do you see?"}),
-            ("chat", {"role": "driver", "text": "a red wall"}),
-            ("move_requested", {"move_id": 1, "action": "forward"})]
+    raw += [
+        ("chat", {"role": "commander", "text": "what do you see?"}),
+        ("chat", {"role": "driver", "text": "a red wall"}),
+        ("move_requested", {"move_id": 1, "action": "forward"}),
+    ]
     if with_pose:
         raw.append(("pose", {"x": 0.5, "y": 0.53, "heading": -math.pi / 2, "source": "sim"}))
-    raw += [("localization", {"x": 0.45, "y": 0.5, "heading": None}),
-            ("phase", {"phase": "navigating", "target_index": 0})]
+    raw += [
+        ("localization", {"x": 0.45, "y": 0.5, "heading": None}),
+        ("phase", {"phase": "navigating", "target_index": 0}),
+    ]
     for k in range(confirmed):
-        raw += [("chat", {"role": "commander", "text": f"go to the {targets[k]}"}),
-                ("chat", {"role": "driver", "text": f"found the {targets[k]}"}),
-                ("target_claimed", {"target": targets[k], "target_index": k, "frame_id": k}),
-                ("target_confirmed", {"target": targets[k], "target_index": k, "within_m": 0.1,
-                                      "truly_within": True})]
+        raw += [
+            ("chat", {"role": "commander", "text": f"go to the {targets[k]}"}),
+            ("chat", {"role": "driver", "text": f"found the {targets[k]}"}),
+            ("target_claimed", {"target": targets[k], "target_index": k, "frame_id": k}),
+            ("target_confirmed", {"target": targets[k], "target_index": k, "within_m": 0.1, "truly_within": True}),
+        ]
     raw.append(("chat", {"role": "driver", "text": "after the last target"}))
-    events = tuple(LoggedEvent(seq=i, kind=k, t_ns=10**18 + i * 10**7, payload=p)
-                   for i, (k, p) in enumerate(raw, start=1))
-    return TrialRecord(trial_id=trial_id, team="t", maze=maze, targets=tuple(targets),
-                       events=events, frames_root=None)
+    events = tuple(
+        LoggedEvent(seq=i, kind=k, t_ns=10**18 + i * 10**7, payload=p) for i, (k, p) in enumerate(raw, start=1)
+    )
+    return TrialRecord(trial_id=trial_id, team="t", maze=maze, targets=tuple(targets), events=events, frames_root=None)
 
 
 def test_scan_string_has_the_benchmarks_shape_and_parses():
     scan = scan_id("Run_114", "jar", [0.5900106, 1.7851228, 3.6193362], [2.26156, 0.1785998])
     assert scan == "mazedata/Run_114/maze/maze.labelled.npz-jar-[0.59  1.785 3.619]-[2.262 0.179]"
-    inst = NDHInstance.from_json({"inst_idx": 0, "scan": scan_id("gen-003", "mug", [1, 2], [0.5, 0.25]),
-                                  "target": "mug", "agent_pose": [1, 2], "target_pose": [0.5, 0.25],
-                                  "all_targets": [[1, 2], [0.5, 0.25], [0, 0]], "dialog_history": []})
+    inst = NDHInstance.from_json(
+        {
+            "inst_idx": 0,
+            "scan": scan_id("gen-003", "mug", [1, 2], [0.5, 0.25]),
+            "target": "mug",
+            "agent_pose": [1, 2],
+            "target_pose": [0.5, 0.25],
+            "all_targets": [[1, 2], [0.5, 0.25], [0, 0]],
+            "dialog_history": [],
+        }
+    )
     assert inst.run == "gen-003" and inst.target == "mug"
 
 
@@ -73,7 +87,7 @@ def test_one_instance_per_confirmed_target_with_growing_dialog():
     assert [t for t in first["all_targets"]] == [list(maze.objects[t]) for t in ("mug", "jar", "paddle")]
     assert [d["role"] for d in first["dialog_history"]] == ["oracle"] * 2 + ["navigator", "oracle", "navigator"]
     assert first["dialog_history"][-1]["message"] == "found the mug"
-    assert second["dialog_history"][:len(first["dialog_history"])] == first["dialog_history"]
+    assert second["dialog_history"][: len(first["dialog_history"])] == first["dialog_history"]
     assert second["dialog_history"][-1]["message"] == "found the jar"
 
 
@@ -88,8 +102,7 @@ def test_without_a_true_start_pose_the_first_target_is_left_out():
 def test_ldh_has_dialog_to_the_estimate_and_its_error():
     maze = maze_named("m")
     (ldh,) = ldh_instances(trial("1", "m"), maze)
-    assert [d["message"] for d in ldh["dialog_history"]] == [
-        "hello before the start", "what do you see?", "a red wall"]
+    assert [d["message"] for d in ldh["dialog_history"]] == ["hello before the start", "what do you see?", "a red wall"]
     assert ldh["commander_estimate"] == [0.45, 0.5, None]
     assert ldh["agent_pose"][:2] == [0.5, 0.53]
     assert ldh["localization_error_m"] == pytest.approx(math.hypot(0.05, 0.03))

@@ -29,8 +29,11 @@ from sim.benchmark import Benchmark, recorded_start
 def recorded(tmp_path_factory):
     """Two finished demo trials on two mazes, and the environment that points at their data."""
     data = tmp_path_factory.mktemp("recorded") / "var"
-    env = {"ROBOTSLANG_DATA_DIR": str(data), "ROBOTSLANG_SECRET_KEY": "export-test",
-           "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0"}
+    env = {
+        "ROBOTSLANG_DATA_DIR": str(data),
+        "ROBOTSLANG_SECRET_KEY": "export-test",
+        "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+    }
     result = CliRunner().invoke(root, ["demo", "--trials", "2", "--pace", "0", "--seed", "7"], env=env)
     assert result.exit_code == 0, result.output
     settings = Settings(data_dir=data, secret_key="export-test")
@@ -70,8 +73,16 @@ def test_mcap_of_a_demo_trial_has_every_stream_and_every_event_once(recorded, tm
     per_topic = {}
     for _, channel, _ in messages:
         per_topic[channel.topic] = per_topic.get(channel.topic, 0) + 1
-    for topic in ("/driver/camera", "/chat", "/driver/cmd", "/robot/pose/sim", "/commander/estimate",
-                  "/tf", "/maze/scene", "/trial/event"):
+    for topic in (
+        "/driver/camera",
+        "/chat",
+        "/driver/cmd",
+        "/robot/pose/sim",
+        "/commander/estimate",
+        "/tf",
+        "/maze/scene",
+        "/trial/event",
+    ):
         assert per_topic.get(topic, 0) > 0, f"{topic} has no messages"
     assert per_topic["/tf"] == per_topic["/robot/pose/sim"] == sum(e.kind == "pose" for e in log)
     assert per_topic["/commander/estimate"] == sum(e.kind == "localization" for e in log)
@@ -132,23 +143,46 @@ def test_ndh_export_reads_evaluates_and_trains_like_the_benchmark(recorded, tmp_
             assert [message for _, message in inst.dialog] == said
 
     split = next(s for s, items in by_split.items() if items)
-    report = json.loads(run(env, "eval", "baselines", "--benchmark", str(out), "--split", split,
-                            "--agent", "stop,shortest", "--json"))
+    report = json.loads(
+        run(env, "eval", "baselines", "--benchmark", str(out), "--split", split, "--agent", "stop,shortest", "--json")
+    )
     assert report["n"] == len(by_split[split])
     assert report["agents"]["shortest"]["sr"] == 1.0
     assert report["agents"]["stop"]["td_mean"] > 0
 
-    run(env, "train", "ndh", "--benchmark", str(out), "--iters", "1", "--eval-every", "1",
-        "--out", str(tmp_path / "run"))
-    scored = json.loads(run(env, "eval", "ndh", "--benchmark", str(out), "--checkpoint",
-                            str(tmp_path / "run" / "last.pt"), "--split", "val_seen", "--json"))
+    run(
+        env,
+        "train",
+        "ndh",
+        "--benchmark",
+        str(out),
+        "--iters",
+        "1",
+        "--eval-every",
+        "1",
+        "--out",
+        str(tmp_path / "run"),
+    )
+    scored = json.loads(
+        run(
+            env,
+            "eval",
+            "ndh",
+            "--benchmark",
+            str(out),
+            "--checkpoint",
+            str(tmp_path / "run" / "last.pt"),
+            "--split",
+            "val_seen",
+            "--json",
+        )
+    )
     assert scored["n"] == len(by_split["val_seen"]) > 0
 
 
 def test_export_of_an_unknown_trial_names_it(recorded, tmp_path):
     env, _, _, _ = recorded
-    result = CliRunner().invoke(root, ["export", "999", "--format", "mcap", "--out", str(tmp_path / "x.mcap")],
-                                env=env)
+    result = CliRunner().invoke(root, ["export", "999", "--format", "mcap", "--out", str(tmp_path / "x.mcap")], env=env)
     assert result.exit_code == 1
     assert "no trial 999" in result.output
     assert not (tmp_path / "x.mcap").exists()
@@ -163,8 +197,12 @@ def test_export_without_a_database_says_where_it_looked(tmp_path):
 
 @pytest.mark.slow
 def test_demo_and_exports_on_postgresql(postgres_url, tmp_path):
-    env = {"ROBOTSLANG_DATA_DIR": str(tmp_path / "var"), "ROBOTSLANG_DATABASE_URL": postgres_url,
-           "ROBOTSLANG_SECRET_KEY": "pg-test", "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0"}
+    env = {
+        "ROBOTSLANG_DATA_DIR": str(tmp_path / "var"),
+        "ROBOTSLANG_DATABASE_URL": postgres_url,
+        "ROBOTSLANG_SECRET_KEY": "pg-test",
+        "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+    }
     run(env, "demo", "--trials", "1", "--pace", "0")
     settings = Settings(data_dir=tmp_path / "var", database_url=postgres_url, secret_key="pg-test")
     sessions = make_sessionmaker(make_engine(settings))
@@ -173,8 +211,7 @@ def test_demo_and_exports_on_postgresql(postgres_url, tmp_path):
     log = EventLog(sessions).load(trial.id)
     run(env, "export", "all", "--format", "mcap", "--out", str(tmp_path / "mcap"))
     with (tmp_path / "mcap" / f"trial-{trial.id}.mcap").open("rb") as f:
-        seqs = sorted(m.sequence for _, c, m in make_reader(f).iter_messages()
-                      if c.topic not in DERIVED_TOPICS)
+        seqs = sorted(m.sequence for _, c, m in make_reader(f).iter_messages() if c.topic not in DERIVED_TOPICS)
     assert seqs == [e.seq for e in log]
     run(env, "export", "all", "--format", "ndh", "--out", str(tmp_path / "ndh"))
     assert [i.target for i in Benchmark(tmp_path / "ndh").split("train")] == list(trial.targets)

@@ -21,15 +21,21 @@ from tests.app.trial_play import move, start_trial
 
 
 def server_env(settings) -> dict[str, str]:
-    return {"ROBOTSLANG_DATA_DIR": str(settings.data_dir), "ROBOTSLANG_SECRET_KEY": settings.secret_key,
-            "ROBOTSLANG_DATABASE_URL": settings.database_url, "ROBOTSLANG_REDIS_URL": settings.redis_url,
-            "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0", "ROBOTSLANG_CACHE_DIR": str(settings.cache_dir)}
+    return {
+        "ROBOTSLANG_DATA_DIR": str(settings.data_dir),
+        "ROBOTSLANG_SECRET_KEY": settings.secret_key,
+        "ROBOTSLANG_DATABASE_URL": settings.database_url,
+        "ROBOTSLANG_REDIS_URL": settings.redis_url,
+        "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+        "ROBOTSLANG_CACHE_DIR": str(settings.cache_dir),
+    }
 
 
 def logged(services, trial_id: int) -> list[tuple[int, str, dict]]:
     with services.db() as db:
-        rows = db.execute(select(Event.seq, Event.kind, Event.payload).where(Event.trial_id == trial_id)
-                          .order_by(Event.seq)).all()
+        rows = db.execute(
+            select(Event.seq, Event.kind, Event.payload).where(Event.trial_id == trial_id).order_by(Event.seq)
+        ).all()
     return [tuple(r) for r in rows]
 
 
@@ -54,9 +60,12 @@ def test_two_workers_share_one_trial(tmp_path, postgres_url, redis_url):  # noqa
     tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
     server = ServerProcess(server_env(settings), workers=2).start()
     try:
+
         async def play():
-            async with SeatClient(server.ws_url, tokens["commander"]) as commander, \
-                       SeatClient(server.ws_url, tokens["driver"]) as driver:
+            async with (
+                SeatClient(server.ws_url, tokens["commander"]) as commander,
+                SeatClient(server.ws_url, tokens["driver"]) as driver,
+            ):
                 await start_trial(commander, driver)
                 await chat_both_ways(commander, driver, "hello")
                 await commander.send("localize", x=1.0, y=1.0)
@@ -74,8 +83,7 @@ def test_two_workers_share_one_trial(tmp_path, postgres_url, redis_url):  # noqa
     assert seqs == list(range(1, len(seqs) + 1)), "one total order, no gaps"
 
 
-def test_the_owner_killed_mid_trial_is_taken_over_and_its_seats_served_again(tmp_path, postgres_url,
-                                                                              redis_url):  # noqa: F811
+def test_the_owner_killed_mid_trial_is_taken_over_and_its_seats_served_again(tmp_path, postgres_url, redis_url):  # noqa: F811
     """Two processes (two machines behind one proxy, as far as the trial can tell): the Commander
     on the first, which owns the trial, the Driver on the second. The first is killed; the second
     takes the trial over from the log and serves the Driver, and the Commander, reconnecting, is
@@ -87,6 +95,7 @@ def test_the_owner_killed_mid_trial_is_taken_over_and_its_seats_served_again(tmp
     first = ServerProcess(server_env(settings)).start()
     second = ServerProcess(server_env(settings)).start()
     try:
+
         async def play():
             commander = await SeatClient(first.ws_url, tokens["commander"]).__aenter__()
             await commander.wait_for(lambda m: m.get("type") == "welcome")
@@ -121,8 +130,8 @@ def test_the_owner_killed_mid_trial_is_taken_over_and_its_seats_served_again(tmp
         second.stop()
 
     after = logged(services, trial_id)
-    assert after[:len(committed)] == committed, "every event committed before the kill is still there, in order"
-    later = [kind for _, kind, _ in after[len(committed):]]
+    assert after[: len(committed)] == committed, "every event committed before the kill is still there, in order"
+    later = [kind for _, kind, _ in after[len(committed) :]]
     assert "restarted" in later, "the new owner logs the takeover"
     chats = [p["text"] for _, kind, p in after if kind == "chat"]
     assert chats == ["commander before", "driver before", "commander after", "driver after"]

@@ -45,16 +45,17 @@ def watch_a_localization(settings):
         cookie = services.sessions.issue(eve_id)
 
         async def play():
-            async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander, \
-                       SeatClient(server.ws_url, services.seats.issue(trial_id, "driver")) as driver, \
-                       Watch(server, trial_id, cookie) as watch:
+            async with (
+                SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander,
+                SeatClient(server.ws_url, services.seats.issue(trial_id, "driver")) as driver,
+                Watch(server, trial_id, cookie) as watch,
+            ):
                 await start_trial(commander, driver)
                 await commander.send("chat", text="what do you see?")
                 await watch.wait_for(lambda m: m.get("type") == "ldh_belief")
                 await driver.send("chat", text=SAID)
                 said = await watch.wait_for(lambda m: m.get("kind") == "chat" and m["payload"]["text"] == SAID)
-                belief = await watch.wait_for(lambda m: m.get("type") == "ldh_belief"
-                                              and m["upto_seq"] == said["seq"])
+                belief = await watch.wait_for(lambda m: m.get("type") == "ldh_belief" and m["upto_seq"] == said["seq"])
                 async with Watch(server, trial_id, cookie) as late:  # a watcher that opens the page now
                     on_open = await late.wait_for(lambda m: m.get("type") == "ldh_belief")
                 await commander.send("localize", x=1.0, y=1.0, heading=None)
@@ -106,7 +107,8 @@ def test_a_configured_checkpoint_gives_the_learned_belief(tmp_path):
     maze, run = watch_a_localization(settings)
     learned = TrainedLocalizer(model)
     check(maze, settings, run, learned.logits, "learned")
-    _, colours = expected_node_p(maze, settings.cache_dir, (("navigator", SAID),),
-                                 lambda counts, ctx: colour_logits(counts, ctx.views))
+    _, colours = expected_node_p(
+        maze, settings.cache_dir, (("navigator", SAID),), lambda counts, ctx: colour_logits(counts, ctx.views)
+    )
     _, trained = expected_node_p(maze, settings.cache_dir, (("navigator", SAID),), learned.logits)
     assert not np.allclose(colours, trained)

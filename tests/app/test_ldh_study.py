@@ -101,8 +101,11 @@ def test_bad_marks_are_refused_and_the_truth_is_hidden_until_done(server, benchm
     bench = Benchmark(benchmark_path)
     for answer, inst in zip(studies.answers(study_id), truth):
         ctx = MazeContext(inst.run, bench.graph(inst.run, "benchmark"))
-        expected = score(ctx, ctx.one_hot(ctx.node_at(answer.x, answer.y)),
-                         LDHInstance(inst.inst_idx, inst.run, inst.true_x, inst.true_y, None, (), Variant.PREFIX))
+        expected = score(
+            ctx,
+            ctx.one_hot(ctx.node_at(answer.x, answer.y)),
+            LDHInstance(inst.inst_idx, inst.run, inst.true_x, inst.true_y, None, (), Variant.PREFIX),
+        )
         assert answer.td == pytest.approx(expected[0]) and answer.euclid == pytest.approx(expected[1])
     seqs = [e.seq for e in events(services, study_id)]
     stamps = [e.t_ns for e in events(services, study_id)]
@@ -125,8 +128,12 @@ def test_answers_survive_a_killed_server(tmp_path, benchmark_path):
     ann = Studies(services).invite(study_id, "ann")
     services.engine.dispose()
     url = f"/ldh/{StudyTokens(settings.signing_key()).issue(study_id, ann)}"
-    env = {"ROBOTSLANG_DATA_DIR": str(settings.data_dir), "ROBOTSLANG_SECRET_KEY": settings.secret_key,
-           "ROBOTSLANG_BENCHMARK": str(benchmark_path), "ROBOTSLANG_CACHE_DIR": str(tmp_path / "cache")}
+    env = {
+        "ROBOTSLANG_DATA_DIR": str(settings.data_dir),
+        "ROBOTSLANG_SECRET_KEY": settings.secret_key,
+        "ROBOTSLANG_BENCHMARK": str(benchmark_path),
+        "ROBOTSLANG_CACHE_DIR": str(tmp_path / "cache"),
+    }
     server = ServerProcess(env).start()
     try:
         client, _ = participant(server.url, url)
@@ -163,8 +170,9 @@ def test_answers_given_at_once_are_all_logged_in_one_order(any_db_settings, benc
     logged = events(services, study_id)
     assert [e.seq for e in logged] == list(range(1, len(logged) + 1))
     assert [e.t_ns for e in logged] == sorted(e.t_ns for e in logged)
-    assert sorted((a.participant_id, a.position) for a in studies.answers(study_id)) == \
-        sorted((p, k) for p in people for k in range(4))
+    assert sorted((a.participant_id, a.position) for a in studies.answers(study_id)) == sorted(
+        (p, k) for p in people for k in range(4)
+    )
     services.engine.dispose()
 
 
@@ -189,10 +197,14 @@ def test_a_study_of_the_platforms_own_trials(tmp_path):
     assert studies.study(study_id).variant == "exact"
     (inst,) = studies.instances(study_id)
     assert (inst.true_x, inst.true_y) == (0.5, 0.53)  # the pose when the Commander first marked the robot
-    assert inst.dialog == [["oracle", "hello before the start"], ["oracle", "what do you see?"],
-                           ["navigator", "a red wall"]]
-    shown = cv2.imdecode(np.frombuffer(studies.map_png(studies.study(study_id).source, inst.run), np.uint8),
-                         cv2.IMREAD_COLOR)
+    assert inst.dialog == [
+        ["oracle", "hello before the start"],
+        ["oracle", "what do you see?"],
+        ["navigator", "a red wall"],
+    ]
+    shown = cv2.imdecode(
+        np.frombuffer(studies.map_png(studies.study(study_id).source, inst.run), np.uint8), cv2.IMREAD_COLOR
+    )
     assert shown.shape[:2] == mazes[0].labels.shape
     ann = studies.invite(study_id, "ann")
     assert studies.answer(study_id, ann, 0, 0.5, 0.53, None).td == 0.0

@@ -17,16 +17,34 @@ def add_trials(services, team_name: str, trials: list[tuple[str, float | None, i
         b = create_participant(db, f"{team_name}-b")
         team = create_team(db, team_name, a.id, b.id)
         for i, (phase, active_s, moves) in enumerate(trials):
-            db.add(Trial(team_id=team.id, maze=f"m{i}", targets=["jar", "mug", "paddle"], backend="sim",
-                         driver="human", phase=phase, active_s=active_s, moves=moves))
+            db.add(
+                Trial(
+                    team_id=team.id,
+                    maze=f"m{i}",
+                    targets=["jar", "mug", "paddle"],
+                    backend="sim",
+                    driver="human",
+                    phase=phase,
+                    active_s=active_s,
+                    moves=moves,
+                )
+            )
 
 
 def test_teams_ranked_by_best_score_with_count_and_mean(settings):
     with ServerThread(settings) as server:
         services = server.services
         add_trials(services, "Slow", [("finished", 300.0, 100)])  # 400 s
-        add_trials(services, "Steady", [("finished", 100.0, 50), ("finished", 150.0, 50),  # 150, 200
-                                        ("aborted", None, 5), ("navigating", None, 40)])
+        add_trials(
+            services,
+            "Steady",
+            [
+                ("finished", 100.0, 50),
+                ("finished", 150.0, 50),  # 150, 200
+                ("aborted", None, 5),
+                ("navigating", None, 40),
+            ],
+        )
         add_trials(services, "Never", [("aborted", None, 3)])
         with services.db() as db:
             rows = standings(db, move_penalty_s=1.0)
@@ -45,18 +63,34 @@ def test_agent_trials_rank_apart_and_never_count_for_the_team(settings):
         add_trials(services, "Owls", [("finished", 200.0, 40)])  # 240 s, driven by Owls-b
         with services.db.begin() as db:
             team = db.scalar(select(Team).where(Team.name == "Owls"))
-            for driver, active_s, moves in (("agent:shortest", 50.0, 30), ("agent:shortest", 70.0, 30),
-                                            ("agent:random", 500.0, 300), ("agent:random", None, 9)):
-                db.add(Trial(team_id=team.id, maze="m9", targets=["jar", "mug", "paddle"], backend="sim",
-                             driver=driver, commander_id=team.member_a_id,
-                             phase="finished" if active_s else "aborted", active_s=active_s, moves=moves))
+            for driver, active_s, moves in (
+                ("agent:shortest", 50.0, 30),
+                ("agent:shortest", 70.0, 30),
+                ("agent:random", 500.0, 300),
+                ("agent:random", None, 9),
+            ):
+                db.add(
+                    Trial(
+                        team_id=team.id,
+                        maze="m9",
+                        targets=["jar", "mug", "paddle"],
+                        backend="sim",
+                        driver=driver,
+                        commander_id=team.member_a_id,
+                        phase="finished" if active_s else "aborted",
+                        active_s=active_s,
+                        moves=moves,
+                    )
+                )
             db.get(Trial, 1).driver_id = team.member_b_id
         with services.db() as db:
             teams = standings(db, move_penalty_s=1.0)
             agents = agent_standings(db, move_penalty_s=1.0)
         assert [(r.team, r.completed, r.best_s, r.drivers) for r in teams] == [("Owls", 1, 240.0, ("Owls-b",))]
         assert [(r.rank, r.agent, r.completed, r.best_s, r.commanders) for r in agents] == [
-            (1, "agent:shortest", 2, 80.0, ("Owls",)), (2, "agent:random", 1, 800.0, ("Owls",))]
+            (1, "agent:shortest", 2, 80.0, ("Owls",)),
+            (2, "agent:random", 1, 800.0, ("Owls",)),
+        ]
         page = httpx.get(server.url + "/leaderboard").text
         humans, machines = page.split('id="agent-leaderboard"')
         assert "Owls-b" in humans and "agent:" not in humans and "80.0" not in humans

@@ -119,8 +119,11 @@ def test_an_agent_that_cannot_start_is_not_offered_and_is_refused_with_its_reaso
         assert "agent:shortest" in options and "disabled" not in options["agent:shortest"]
         assert "disabled" in options["agent:seq2seq"] and "unavailable:" in page
         token = csrf(client, "/experimenter")
-        refused = client.post("/experimenter/trials", follow_redirects=True,
-                              data={"team_id": 1, "driver": "agent:seq2seq", "targets": "random", **token})
+        refused = client.post(
+            "/experimenter/trials",
+            follow_redirects=True,
+            data={"team_id": 1, "driver": "agent:seq2seq", "targets": "random", **token},
+        )
         assert "cannot start" in refused.text and "agent:seq2seq" in refused.text
 
 

@@ -78,8 +78,10 @@ def test_a_process_that_stops_hands_its_trials_to_another(tmp_path, postgres_url
             tokens = {r: first.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
 
             async def before():
-                async with SeatClient(first.ws_url, tokens["commander"]) as commander, \
-                           SeatClient(first.ws_url, tokens["driver"]) as driver:
+                async with (
+                    SeatClient(first.ws_url, tokens["commander"]) as commander,
+                    SeatClient(first.ws_url, tokens["driver"]) as driver,
+                ):
                     await start_trial(commander, driver)
                     await commander.send("localize", x=1.0, y=1.0)
                     await driver.event("phase", phase="navigating")
@@ -88,8 +90,10 @@ def test_a_process_that_stops_hands_its_trials_to_another(tmp_path, postgres_url
             asyncio.run(before())
 
         async def after():  # the first process is gone; the second takes the trial over
-            async with SeatClient(second.ws_url, tokens["commander"]) as commander, \
-                       SeatClient(second.ws_url, tokens["driver"]) as driver:
+            async with (
+                SeatClient(second.ws_url, tokens["commander"]) as commander,
+                SeatClient(second.ws_url, tokens["driver"]) as driver,
+            ):
                 welcome = await driver.wait_for(lambda m: m.get("type") == "welcome")
                 assert welcome["phase"] == "navigating"
                 assert second.services.hub.peek(trial_id) is not None

@@ -81,9 +81,17 @@ def rover_trial(services) -> tuple[int, str]:
         robot, token = create_robot(db, "rover")
         a, b = create_participant(db, "ann"), create_participant(db, "bob")
         team = create_team(db, "Team R", a.id, b.id)
-        trial = create_trial(db, team_id=team.id, maze=services.mazes.names()[0], targets=["jar", "mug", "paddle"],
-                             backend=f"robot:{robot.id}", driver="human", commander_id=a.id,
-                             maze_names=services.mazes.names(), now_ns=services.clock.now_ns())
+        trial = create_trial(
+            db,
+            team_id=team.id,
+            maze=services.mazes.names()[0],
+            targets=["jar", "mug", "paddle"],
+            backend=f"robot:{robot.id}",
+            driver="human",
+            commander_id=a.id,
+            maze_names=services.mazes.names(),
+            now_ns=services.clock.now_ns(),
+        )
         return trial.id, token
 
 
@@ -92,14 +100,20 @@ def test_a_crash_neither_scores_the_downtime_nor_leaves_a_move_requested(tmp_pat
     services = build_services(settings)
     trial_id, rover_token = rover_trial(services)
     tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-    env = {"ROBOTSLANG_DATA_DIR": str(settings.data_dir), "ROBOTSLANG_SECRET_KEY": settings.secret_key,
-           "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0"}
+    env = {
+        "ROBOTSLANG_DATA_DIR": str(settings.data_dir),
+        "ROBOTSLANG_SECRET_KEY": settings.secret_key,
+        "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+    }
     server = ServerProcess(env).start()
     try:
+
         async def until_crash():
-            async with Rover(server.ws_url, rover_token) as rover, \
-                       SeatClient(server.ws_url, tokens["commander"]) as commander, \
-                       SeatClient(server.ws_url, tokens["driver"]) as driver:
+            async with (
+                Rover(server.ws_url, rover_token) as rover,
+                SeatClient(server.ws_url, tokens["commander"]) as commander,
+                SeatClient(server.ws_url, tokens["driver"]) as driver,
+            ):
                 await start_trial(commander, driver)
                 await driver.send("move", action="forward", move_id="held")
                 while not rover.moves:  # the rover got it, and will never acknowledge it
@@ -111,8 +125,9 @@ def test_a_crash_neither_scores_the_downtime_nor_leaves_a_move_requested(tmp_pat
         assert before[-1].kind == "move_requested" and before[-1].payload["move_id"] == "held"
         time.sleep(1.5)  # the server is down; this must not count on the trial clock
         server.start()  # reopens its running trials at start
-        after = until(lambda: [e for e in services.log.load(trial_id) if e.seq > before[-1].seq],
-                      "the reopened trial's events")
+        after = until(
+            lambda: [e for e in services.log.load(trial_id) if e.seq > before[-1].seq], "the reopened trial's events"
+        )
     finally:
         server.stop()
     done = [e for e in after if e.kind == "move_executed" and e.payload["move_id"] == "held"]
@@ -128,10 +143,14 @@ def test_a_seat_that_dropped_before_a_crash_still_times_out(tmp_path):
     services = build_services(settings)
     trial_id = make_trial(services, services.mazes.names()[0])
     tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-    env = {"ROBOTSLANG_DATA_DIR": str(settings.data_dir), "ROBOTSLANG_SECRET_KEY": settings.secret_key,
-           "ROBOTSLANG_GRACE_PERIOD_S": str(grace_s)}
+    env = {
+        "ROBOTSLANG_DATA_DIR": str(settings.data_dir),
+        "ROBOTSLANG_SECRET_KEY": settings.secret_key,
+        "ROBOTSLANG_GRACE_PERIOD_S": str(grace_s),
+    }
     server = ServerProcess(env).start()
     try:
+
         async def until_crash():
             async with SeatClient(server.ws_url, tokens["commander"]) as commander:
                 async with SeatClient(server.ws_url, tokens["driver"]) as driver:
@@ -170,8 +189,10 @@ def test_a_trial_ended_by_its_grace_timer_leaves_the_live_list_and_reopens_witho
         tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
 
         async def play():
-            async with SeatClient(server.ws_url, tokens["commander"]) as commander, \
-                    SeatClient(server.ws_url, tokens["driver"]) as driver:
+            async with (
+                SeatClient(server.ws_url, tokens["commander"]) as commander,
+                SeatClient(server.ws_url, tokens["driver"]) as driver,
+            ):
                 await start_trial(commander, driver)
             # Both gone: the first grace timer to run out aborts the trial.
             until(lambda: services.hub.peek(trial_id) is None, "the ended trial to leave this process")
@@ -185,8 +206,9 @@ def test_a_trial_ended_by_its_grace_timer_leaves_the_live_list_and_reopens_witho
             with services.db() as db:
                 admin_id = db.scalar(select(Experimenter.id))
             cookie = f"{SESSION_COOKIE}={services.sessions.issue(admin_id)}"
-            async with websockets.connect(f"ws://127.0.0.1:{server.port}/ws/watch/{trial_id}",
-                                          additional_headers={"Cookie": cookie}) as watch:
+            async with websockets.connect(
+                f"ws://127.0.0.1:{server.port}/ws/watch/{trial_id}", additional_headers={"Cookie": cookie}
+            ) as watch:
                 welcome = json.loads(await watch.recv())
                 assert welcome["type"] == "welcome" and welcome["phase"] == "aborted"
                 assert welcome["status"]["running"] is False
@@ -202,8 +224,10 @@ def test_a_move_id_sent_twice_executes_once(settings):
         tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
 
         async def play():
-            async with SeatClient(server.ws_url, tokens["commander"]) as commander, \
-                       SeatClient(server.ws_url, tokens["driver"]) as driver:
+            async with (
+                SeatClient(server.ws_url, tokens["commander"]) as commander,
+                SeatClient(server.ws_url, tokens["driver"]) as driver,
+            ):
                 await start_trial(commander, driver)
                 await driver.send("move", action="left", move_id="once")
                 first = await driver.event("move_executed", move_id="once")
@@ -227,8 +251,10 @@ def test_frame_stamps_stay_monotonic_across_a_rover_reconnection(tmp_path):
         tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
 
         async def play():
-            async with SeatClient(server.ws_url, tokens["commander"]) as commander, \
-                       SeatClient(server.ws_url, tokens["driver"]) as driver:
+            async with (
+                SeatClient(server.ws_url, tokens["commander"]) as commander,
+                SeatClient(server.ws_url, tokens["driver"]) as driver,
+            ):
                 async with Rover(server.ws_url, rover_token) as rover:
                     await start_trial(commander, driver)
                     while rover.pongs < 3:  # the server knows the rover's clock

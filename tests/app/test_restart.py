@@ -28,13 +28,20 @@ def test_kill_and_restart_mid_trial_loses_no_committed_event(tmp_path):
     services = build_services(settings)
     trial_id = make_trial(services, services.mazes.names()[0], targets=("jar", "paddle", "mug"))
     tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-    env = {"ROBOTSLANG_DATA_DIR": str(settings.data_dir), "ROBOTSLANG_SECRET_KEY": settings.secret_key,
-           "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0", "ROBOTSLANG_CACHE_DIR": str(tmp_path / "cache")}
+    env = {
+        "ROBOTSLANG_DATA_DIR": str(settings.data_dir),
+        "ROBOTSLANG_SECRET_KEY": settings.secret_key,
+        "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+        "ROBOTSLANG_CACHE_DIR": str(tmp_path / "cache"),
+    }
     server = ServerProcess(env).start()
     try:
+
         async def first_half():
-            async with SeatClient(server.ws_url, tokens["commander"]) as commander, \
-                       SeatClient(server.ws_url, tokens["driver"]) as driver:
+            async with (
+                SeatClient(server.ws_url, tokens["commander"]) as commander,
+                SeatClient(server.ws_url, tokens["driver"]) as driver,
+            ):
                 await start_trial(commander, driver)
                 await commander.send("localize", x=1.0, y=1.0)
                 await driver.event("phase", phase="navigating")
@@ -67,8 +74,10 @@ def test_kill_and_restart_mid_trial_loses_no_committed_event(tmp_path):
         server.start()
 
         async def second_half():
-            async with SeatClient(server.ws_url, tokens["commander"]) as commander, \
-                       SeatClient(server.ws_url, tokens["driver"]) as driver:
+            async with (
+                SeatClient(server.ws_url, tokens["commander"]) as commander,
+                SeatClient(server.ws_url, tokens["driver"]) as driver,
+            ):
                 welcome = await driver.wait_for(lambda m: m.get("type") == "welcome")
                 assert welcome["phase"] == "navigating" and welcome["target_index"] == 1
                 assert [h["payload"]["text"] for h in welcome["history"] if h["kind"] == "chat"] == ["keep going"]
@@ -86,9 +95,11 @@ def test_kill_and_restart_mid_trial_loses_no_committed_event(tmp_path):
     after = services.log.load(trial_id)
     assert after[: len(before)] == before, "no committed event lost or changed by the restart"
     assert [e.seq for e in after] == list(range(1, len(after) + 1))
-    restart = after[len(before):]
-    assert {(e.kind, e.payload.get("role")) for e in restart[:4]} >= {("disconnect", "commander"),
-                                                                      ("disconnect", "driver")}
+    restart = after[len(before) :]
+    assert {(e.kind, e.payload.get("role")) for e in restart[:4]} >= {
+        ("disconnect", "commander"),
+        ("disconnect", "driver"),
+    }
     first_move = next(i for i, e in enumerate(restart) if e.kind == "move_executed")
     assert not any(e.kind == "pose" for e in restart[:first_move]), "the robot resumes where it was, not re-placed"
     final = fold(after)

@@ -67,8 +67,13 @@ def test_calibrate_overhead_stores_the_calibration_the_tracker_uses(tmp_path):
     assert cli("robot", "calibrate-overhead", "--camera", str(video), "--out", str(out), env=env).returncode == 0
     assert OverheadCalibration.load(out).image_size == (960, 720)
     setting = tmp_path / "set.json"
-    by_setting = cli("robot", "calibrate-overhead", "--image", str(picture),
-                     env={**env, "ROBOTSLANG_OVERHEAD_CALIBRATION": str(setting)})
+    by_setting = cli(
+        "robot",
+        "calibrate-overhead",
+        "--image",
+        str(picture),
+        env={**env, "ROBOTSLANG_OVERHEAD_CALIBRATION": str(setting)},
+    )
     assert by_setting.returncode == 0 and setting.exists(), by_setting.stderr
 
 

@@ -49,8 +49,9 @@ class RobotServer:
         self.app = create_app(settings)
         self.services = self.app.state.services
         self.port = free_port()
-        config = uvicorn.Config(self.app, host="127.0.0.1", port=self.port, log_level="warning",
-                                lifespan="on", **uvicorn_options(settings))
+        config = uvicorn.Config(
+            self.app, host="127.0.0.1", port=self.port, log_level="warning", lifespan="on", **uvicorn_options(settings)
+        )
         self.server = uvicorn.Server(config)
         self.thread = threading.Thread(target=self.server.run, daemon=True)
         self.thread.start()
@@ -76,9 +77,17 @@ class RobotServer:
             a = create_participant(db, f"{name} commander")
             b = create_participant(db, f"{name} driver")
             team = create_team(db, f"{name} team", a.id, b.id)
-            trial = create_trial(db, team_id=team.id, maze="table", targets=["jar", "mug", "paddle"],
-                                 backend=f"robot:{robot.id}", driver="human", commander_id=a.id,
-                                 maze_names=["table"], now_ns=self.services.clock.now_ns())
+            trial = create_trial(
+                db,
+                team_id=team.id,
+                maze="table",
+                targets=["jar", "mug", "paddle"],
+                backend=f"robot:{robot.id}",
+                driver="human",
+                commander_id=a.id,
+                maze_names=["table"],
+                now_ns=self.services.clock.now_ns(),
+            )
             return robot.id, token, trial.id
 
     def seat(self, trial_id: int, role: str) -> SeatClient:
@@ -104,16 +113,48 @@ def server(tmp_path_factory):
 class RobotProcess:
     """`robotslang-robot` as a separate process with mock motors writing a pin log."""
 
-    def __init__(self, tmp_path: Path, url: str, token: str, role: str = "driver",
-                 calibration: Calibration = CALIBRATION, fps: float = 15) -> None:
+    def __init__(
+        self,
+        tmp_path: Path,
+        url: str,
+        token: str,
+        role: str = "driver",
+        calibration: Calibration = CALIBRATION,
+        fps: float = 15,
+    ) -> None:
         self.pins = tmp_path / f"pins-{time.monotonic_ns()}.jsonl"
         cal = tmp_path / "calibration.json"
         calibration.save(cal)
         self.proc = subprocess.Popen(
-            ROBOT + ["--server", url, "--token", token, "--role", role, "--camera", "synthetic",
-                     "--motors", "mock", "--calibration", str(cal), "--pin-log", str(self.pins),
-                     "--fps", str(fps), "--width", "320", "--height", "240", "--watchdog", str(WATCHDOG_S)],
-            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+            ROBOT
+            + [
+                "--server",
+                url,
+                "--token",
+                token,
+                "--role",
+                role,
+                "--camera",
+                "synthetic",
+                "--motors",
+                "mock",
+                "--calibration",
+                str(cal),
+                "--pin-log",
+                str(self.pins),
+                "--fps",
+                str(fps),
+                "--width",
+                "320",
+                "--height",
+                "240",
+                "--watchdog",
+                str(WATCHDOG_S),
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
 
     def pin_log(self) -> list[dict]:
         if not self.pins.exists():
@@ -226,14 +267,20 @@ async def test_moves_execute_in_order_with_the_calibrated_pin_pulses(server, rob
 async def test_a_move_is_refused_while_the_robot_is_not_connected_and_the_trial_waits(server, robots):
     robot_id, token, trial = server.new_robot_trial("late")
     cookies = {"robotslang_session": server.services.sessions.issue(1)}
-    async with httpx.AsyncClient(base_url=server.url, cookies=cookies) as http, \
-            server.seat(trial, "commander"), server.seat(trial, "driver") as driver:
+    async with (
+        httpx.AsyncClient(base_url=server.url, cookies=cookies) as http,
+        server.seat(trial, "commander"),
+        server.seat(trial, "driver") as driver,
+    ):
+
         async def dashboard() -> dict | None:
             trials = (await http.get("/experimenter/api/trials")).json()["trials"]
             return next((t for t in trials if t["trial_id"] == trial), None)
 
-        waiting = await until(lambda: _when(dashboard(), lambda t: t and t["seats"]["commander"]
-                                            and t["seats"]["driver"]), what="both participants on the dashboard")
+        waiting = await until(
+            lambda: _when(dashboard(), lambda t: t and t["seats"]["commander"] and t["seats"]["driver"]),
+            what="both participants on the dashboard",
+        )
         assert waiting["phase"] == "waiting" and waiting["waiting_for"] == ["robot"]
         assert waiting["seats"] == {"commander": True, "driver": True, "robot": False}
         welcome = await driver.wait_for(lambda m: m["type"] == "welcome")
@@ -251,12 +298,19 @@ async def test_a_move_is_refused_while_the_robot_is_not_connected_and_the_trial_
         await driver.send("move", action="forward", move_id="later")
         later = await driver.event("move_executed", move_id="later", timeout=ROBOT_START_S)
         assert later["payload"]["outcome"] == "ok", later["payload"].get("reason")
-    kinds = [(e.kind, e.payload.get("role", e.payload.get("phase", e.payload.get("reason"))))
-             for e in server.events(trial) if e.kind in ("connect", "phase", "paused", "resumed")]
+    kinds = [
+        (e.kind, e.payload.get("role", e.payload.get("phase", e.payload.get("reason"))))
+        for e in server.events(trial)
+        if e.kind in ("connect", "phase", "paused", "resumed")
+    ]
     # The trial started (and its clock with it) only once the rover had joined; it was never "paused".
-    before_start = kinds[:kinds.index(("phase", "localizing")) + 1]
-    assert before_start == [("connect", "commander"), ("connect", "driver"), ("connect", "robot"),
-                            ("phase", "localizing")]
+    before_start = kinds[: kinds.index(("phase", "localizing")) + 1]
+    assert before_start == [
+        ("connect", "commander"),
+        ("connect", "driver"),
+        ("connect", "robot"),
+        ("phase", "localizing"),
+    ]
 
 
 async def _when(value, predicate):
@@ -279,8 +333,7 @@ class Proxy:
 
     async def _client(self, reader, writer) -> None:
         up_reader, up_writer = await asyncio.open_connection("127.0.0.1", self.target)
-        await asyncio.gather(self._pipe(reader, up_writer), self._pipe(up_reader, writer),
-                             return_exceptions=True)
+        await asyncio.gather(self._pipe(reader, up_writer), self._pipe(up_reader, writer), return_exceptions=True)
         for w in (writer, up_writer):
             w.close()
 
@@ -309,8 +362,11 @@ async def test_losing_the_link_stops_the_motors_within_the_watchdog_and_the_tria
             seen = len(driver.received)
             proxy.frozen = True
             frozen_ns = time.monotonic_ns()
-            stop = await until(lambda: [e for e in robot.pin_log() if e["pin"] == "GPIO4" and e["state"] == 0],
-                               timeout=3, what="the motors to stop")
+            stop = await until(
+                lambda: [e for e in robot.pin_log() if e["pin"] == "GPIO4" and e["state"] == 0],
+                timeout=3,
+                what="the motors to stop",
+            )
             stopped_after_s = (stop[0]["t_ns"] - frozen_ns) / 1e9
             # Stopped by the rover's own watchdog: the last ping was at most 0.1 s before the freeze.
             assert stopped_after_s <= WATCHDOG_S + 0.05, stopped_after_s
@@ -345,8 +401,12 @@ async def test_a_restarted_client_reconnects_and_the_trial_continues(server, rob
         await driver.event("frame", start=seen)
         await driver.send("move", action="right", move_id="after")
         assert (await driver.event("move_executed", move_id="after"))["payload"]["outcome"] == "ok"
-    kinds = [e.kind for e in server.events(trial) if e.kind in ("connect", "disconnect", "paused", "resumed")
-             and e.payload.get("role", e.payload.get("reason", "")).endswith("robot")]
+    kinds = [
+        e.kind
+        for e in server.events(trial)
+        if e.kind in ("connect", "disconnect", "paused", "resumed")
+        and e.payload.get("role", e.payload.get("reason", "")).endswith("robot")
+    ]
     assert kinds == ["connect", "disconnect", "paused", "connect", "resumed"]
     assert server.events(trial, "phase")[-1].payload["phase"] == "localizing"
 
@@ -363,8 +423,11 @@ async def test_a_wrong_token_is_refused(server, robots):
 async def test_malformed_and_oversized_messages_get_an_error_and_change_nothing(server, robots):
     robot_id, token, trial = server.new_robot_trial("garbage")
     url = f"ws://127.0.0.1:{server.port}/ws/robot"
-    async with server.seat(trial, "commander"), server.seat(trial, "driver") as driver, \
-            websockets.connect(url, max_size=None, compression=None) as ws:
+    async with (
+        server.seat(trial, "commander"),
+        server.seat(trial, "driver") as driver,
+        websockets.connect(url, max_size=None, compression=None) as ws,
+    ):
         await ws.send(json.dumps({"type": "hello", "protocol": 1, "token": token, "role": "driver"}))
         assert json.loads(await ws.recv())["type"] == "welcome"
         await driver.event("phase", phase="localizing")
@@ -372,8 +435,13 @@ async def test_malformed_and_oversized_messages_get_an_error_and_change_nothing(
         await driver.event("frame")
         before = [(e.kind, e.payload) for e in server.events(trial)]
         jpeg = b"\xff\xd8" + bytes(MAX_FRAME_BYTES)
-        bad = ["{not json", json.dumps({"type": "dance"}), json.dumps([1, 2]),
-               b"JUNK" + bytes(40), pack_frame(2, time.monotonic_ns(), 8, 8, jpeg)]
+        bad = [
+            "{not json",
+            json.dumps({"type": "dance"}),
+            json.dumps([1, 2]),
+            b"JUNK" + bytes(40),
+            pack_frame(2, time.monotonic_ns(), 8, 8, jpeg),
+        ]
         errors = []
         for message in bad:
             await ws.send(message)
@@ -387,8 +455,8 @@ async def test_malformed_and_oversized_messages_get_an_error_and_change_nothing(
         after = [(e.kind, e.payload) for e in server.events(trial)]
     assert "not JSON" in errors[0] and "unknown message type 'dance'" in errors[1]
     assert "'type'" in errors[2] and "expected b'RSF1'" in errors[3] and "limit is" in errors[4]
-    added = after[len(before):]
-    assert after[:len(before)] == before
+    added = after[len(before) :]
+    assert after[: len(before)] == before
     assert [k for k, _ in added] == ["bad_message"] * 5 + ["frame"]
     assert all(p["role"] == "robot" for k, p in added[:5])
 
@@ -400,9 +468,12 @@ async def test_overhead_frames_are_logged_but_never_reach_a_seat(server, robots)
     robots(server.url, overhead_token, role="overhead", fps=5)
     async with server.seat(trial, "commander") as commander, server.seat(trial, "driver") as driver:
         await driver.event("phase", phase="localizing", timeout=ROBOT_START_S)
-        await until(lambda: len(server.events(trial, "frame")) >= 20
-                    and any(e.payload["source"] == "overhead" for e in server.events(trial, "frame")),
-                    timeout=ROBOT_START_S, what="overhead frames in the log")
+        await until(
+            lambda: len(server.events(trial, "frame")) >= 20
+            and any(e.payload["source"] == "overhead" for e in server.events(trial, "frame")),
+            timeout=ROBOT_START_S,
+            what="overhead frames in the log",
+        )
     sources = {e.payload["source"] for e in server.events(trial, "frame")}
     assert sources == {"driver", "overhead"}
     assert all(m["payload"]["source"] == "driver" for m in frame_events(driver))
@@ -418,7 +489,9 @@ async def test_the_experimenter_registers_robots_and_sees_their_links(server, ro
         again = await http.post("/experimenter/api/robots", data={"name": "api rover"})
         assert again.status_code == 400 and "already exists" in again.json()["detail"]
         robots(server.url, made["token"])
-        await until(lambda: server.status(made["id"])["fps"] > 5, timeout=ROBOT_START_S, what="frames from the new robot")
+        await until(
+            lambda: server.status(made["id"])["fps"] > 5, timeout=ROBOT_START_S, what="frames from the new robot"
+        )
         rows = (await http.get("/experimenter/api/robots")).json()["robots"]
         mine = next(r for r in rows if r["id"] == made["id"])
         assert mine["connected"] and mine["name"] == "api rover" and mine["latency_ms"] < 50
@@ -431,6 +504,7 @@ async def test_the_dashboard_page_shows_each_robot_and_offers_the_rover_for_tria
     robot_id, token, trial = server.new_robot_trial("dashboard")
     cookies = {"robotslang_session": server.services.sessions.issue(1)}
     async with httpx.AsyncClient(base_url=server.url, cookies=cookies) as http:
+
         def robot_row(page: str) -> str:
             return re.search(rf'<tr data-robot="{robot_id}">.*?</tr>', page, re.S).group(0)
 

@@ -69,7 +69,8 @@ def test_robot_times_land_on_the_server_clock():
     answer_ping(link, sent, rtt_ns=1_000_000)
     taken = time.monotonic_ns() - 30_000_000  # captured 30 ms ago on the server's clock
     frame, lo, hi = server_clock_bounds(
-        taken, lambda: link.on_frame(FrameHeader(1, taken + SKEW_NS, 640, 480), b"\xff\xd8", time.monotonic_ns()))
+        taken, lambda: link.on_frame(FrameHeader(1, taken + SKEW_NS, 640, 480), b"\xff\xd8", time.monotonic_ns())
+    )
     assert lo <= frame.capture_ns <= hi
     assert (frame.width, frame.height) == (640, 480)
 
@@ -102,9 +103,20 @@ async def test_a_move_returns_its_ack_and_a_lost_link_fails_it():
     request = sent[-1]
     assert request["type"] == "move" and request["action"] == "left"
     robot_now = time.monotonic_ns() + SKEW_NS
-    _, lo, hi = server_clock_bounds(robot_now - SKEW_NS, lambda: link.on_ack(
-        {"type": "ack", "id": request["id"], "action": "left", "status": "done",
-         "started_ns": robot_now - 200_000_000, "finished_ns": robot_now}, time.monotonic_ns()))
+    _, lo, hi = server_clock_bounds(
+        robot_now - SKEW_NS,
+        lambda: link.on_ack(
+            {
+                "type": "ack",
+                "id": request["id"],
+                "action": "left",
+                "status": "done",
+                "started_ns": robot_now - 200_000_000,
+                "finished_ns": robot_now,
+            },
+            time.monotonic_ns(),
+        ),
+    )
     ack = await move
     assert ack["status"] == "done"
     assert lo <= ack["finished_ns"] <= hi  # on the server clock

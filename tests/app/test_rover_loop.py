@@ -57,15 +57,17 @@ def tracked(lab: Lab, trial: int) -> list[dict]:
 
 
 async def test_a_rover_trial_records_tracked_poses_belief_truly_within_and_all_ndh_instances(
-        tmp_path, maze, start, camera_calibration):
+    tmp_path, maze, start, camera_calibration
+):
     lab = with_calibration(Lab(tmp_path), camera_calibration)
     try:
         robot_id, token = lab.register("tracked rover")
         _, camera_token = lab.register("table camera", role="overhead")
         trial = make_trial(lab.services, MAZE, targets=TARGETS, backend=f"robot:{robot_id}")
         truth = tmp_path / "truth.jsonl"
-        lab.rover(token, "--truth", str(truth), "--seed", "3", "--fps", "5",
-                  "--start", f"{start.x},{start.y},{start.theta}")
+        lab.rover(
+            token, "--truth", str(truth), "--seed", "3", "--fps", "5", "--start", f"{start.x},{start.y},{start.theta}"
+        )
         lab.rover(camera_token, "--role", "overhead", "--truth", str(truth), "--fps", "4")
         experimenter = login(SimpleNamespace(services=lab.services, url=lab.server.url))
         experimenter.timeout = 30.0  # the server shares two loaded cores with rovers, tracker and filter
@@ -129,18 +131,20 @@ async def test_a_rover_trial_records_tracked_poses_belief_truly_within_and_all_n
         lab.close()
 
 
-async def test_the_learned_driver_drives_a_virtual_rover_to_a_claim(tmp_path, start, camera_calibration,
-                                                                   stopping_checkpoint):
-    lab = with_calibration(Lab(tmp_path, seq2seq_checkpoint=stopping_checkpoint, agent_move_interval_s=0.2),
-                           camera_calibration)
+async def test_the_learned_driver_drives_a_virtual_rover_to_a_claim(
+    tmp_path, start, camera_calibration, stopping_checkpoint
+):
+    lab = with_calibration(
+        Lab(tmp_path, seq2seq_checkpoint=stopping_checkpoint, agent_move_interval_s=0.2), camera_calibration
+    )
     try:
         robot_id, token = lab.register("agent's rover")
-        trial = make_trial(lab.services, MAZE, targets=TARGETS, backend=f"robot:{robot_id}",
-                           driver="agent:seq2seq")
+        trial = make_trial(lab.services, MAZE, targets=TARGETS, backend=f"robot:{robot_id}", driver="agent:seq2seq")
         truth = tmp_path / "truth.jsonl"
-        lab.rover(token, "--truth", str(truth), "--seed", "4", "--fps", "5",
-                  "--start", f"{start.x},{start.y},{start.theta}")
-        commander, = lab.seats(trial)[:1]
+        lab.rover(
+            token, "--truth", str(truth), "--seed", "4", "--fps", "5", "--start", f"{start.x},{start.y},{start.theta}"
+        )
+        (commander,) = lab.seats(trial)[:1]
         async with commander:
             await commander.event("phase", phase="localizing", timeout=START_S)
             await commander.send("chat", text="find the jar, it is by the red wall")

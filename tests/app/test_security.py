@@ -76,16 +76,22 @@ def test_a_page_on_another_port_cannot_create_participants_or_abort_a_trial(sett
         assert "Mallory" not in participants(server)
 
         async def abort_attempts() -> None:
-            async with SeatClient(server.ws_url, seat_tokens["commander"]) as commander, \
-                       SeatClient(server.ws_url, seat_tokens["driver"]) as driver:
+            async with (
+                SeatClient(server.ws_url, seat_tokens["commander"]) as commander,
+                SeatClient(server.ws_url, seat_tokens["driver"]) as driver,
+            ):
                 await start_trial(commander, driver)
                 for headers in ({"Origin": foreign}, {"Origin": foreign, "X-CSRF-Token": token}, {}):
                     answer = await asyncio.to_thread(forged, f"/experimenter/trials/{trial_id}/abort", **headers)
                     assert answer.status_code == 403
                 assert phase(server, trial_id) == "localizing"
                 # The experimenter's own page still can (the token in its form, Referer for Origin).
-                page = await asyncio.to_thread(forged, f"/experimenter/trials/{trial_id}/abort",
-                                               {"csrf_token": token}, Referer=server.url + "/experimenter")
+                page = await asyncio.to_thread(
+                    forged,
+                    f"/experimenter/trials/{trial_id}/abort",
+                    {"csrf_token": token},
+                    Referer=server.url + "/experimenter",
+                )
                 assert page.status_code == 200
                 await commander.event("phase", phase="aborted")
 
@@ -101,17 +107,25 @@ def test_allowed_origins_may_post_and_login_needs_the_home_pages_token(tmp_path)
         client = browser(server.url)
         token = page_csrf_token(client.get("/").text)
         # Login CSRF: a form on another page cannot log this browser into an account.
-        forged = client.post("/login", data={"name": "eve", "password": PASSWORD, "csrf_token": token},
-                             headers={"Origin": other_port_of(server)})
+        forged = client.post(
+            "/login",
+            data={"name": "eve", "password": PASSWORD, "csrf_token": token},
+            headers={"Origin": other_port_of(server)},
+        )
         assert forged.status_code == 403 and SESSION_COOKIE not in client.cookies
         tokenless = client.post("/login", data={"name": "eve", "password": PASSWORD})
         assert tokenless.status_code == 403 and SESSION_COOKIE not in client.cookies
         # A token is bound to its browser: another browser's token does not do.
         other_token = page_csrf_token(browser(server.url).get("/").text)
-        assert client.post("/login", data={"name": "eve", "password": PASSWORD,
-                                           "csrf_token": other_token}).status_code == 403
-        page = client.post("/login", data={"name": "eve", "password": PASSWORD, "csrf_token": token},
-                           headers={"Origin": "https://lab.example"})
+        assert (
+            client.post("/login", data={"name": "eve", "password": PASSWORD, "csrf_token": other_token}).status_code
+            == 403
+        )
+        page = client.post(
+            "/login",
+            data={"name": "eve", "password": PASSWORD, "csrf_token": token},
+            headers={"Origin": "https://lab.example"},
+        )
         assert page.status_code == 200 and "Participants" in page.text
         # After login the token changes with the session: the anonymous one no longer counts.
         assert client.post("/experimenter/participants", data={"name": "Ada", "csrf_token": token}).status_code == 403
@@ -163,8 +177,7 @@ def test_failed_logins_are_limited_per_account_and_per_address(tmp_path):
 
 
 def test_a_burst_of_wrong_logins_leaves_the_server_answering(tmp_path):
-    settings = platform_settings(tmp_path, login_limit_per_account="1000/minute",
-                                 login_limit_per_address="1000/minute")
+    settings = platform_settings(tmp_path, login_limit_per_account="1000/minute", login_limit_per_address="1000/minute")
     burst = 40
     with ServerThread(settings) as server:
         add_experimenter(server)
@@ -172,12 +185,15 @@ def test_a_burst_of_wrong_logins_leaves_the_server_answering(tmp_path):
         token = page_csrf_token(client.get("/").text)
 
         async def attack() -> tuple[list[int], int, int]:
-            async with httpx.AsyncClient(base_url=server.url, cookies=client.cookies,
-                                         headers={"Origin": server.url}, timeout=300) as http:
+            async with httpx.AsyncClient(
+                base_url=server.url, cookies=client.cookies, headers={"Origin": server.url}, timeout=300
+            ) as http:
+
                 async def guess(i: int) -> int:
                     name = "eve" if i % 2 else f"unknown{i}"
-                    answer = await http.post("/login", data={"name": name, "password": f"guess {i}",
-                                                             "csrf_token": token})
+                    answer = await http.post(
+                        "/login", data={"name": name, "password": f"guess {i}", "csrf_token": token}
+                    )
                     return answer.status_code
 
                 guesses = [asyncio.create_task(guess(i)) for i in range(burst)]
@@ -205,8 +221,10 @@ def test_a_database_from_0001_opens_and_old_password_hashes_upgrade_at_login(tmp
     with engine.begin() as connection:
         config.attributes["connection"] = connection
         command.upgrade(config, "0001")
-        connection.exec_driver_sql("insert into experimenter (name, password_hash, created_at) values "
-                                   "('eve', ?, '2026-01-01 00:00:00')", (_scrypt_hash(PASSWORD),))
+        connection.exec_driver_sql(
+            "insert into experimenter (name, password_hash, created_at) values ('eve', ?, '2026-01-01 00:00:00')",
+            (_scrypt_hash(PASSWORD),),
+        )
     engine.dispose()
     with ServerThread(settings) as server:
         assert submit_login(browser(server.url), "eve", "wrong").status_code == 401
@@ -238,16 +256,44 @@ def test_a_login_cookie_stops_working_at_logout_and_at_a_password_change(tmp_pat
 
         client = log_in(server.url, "eve", PASSWORD)
         stolen = client.cookies[SESSION_COOKIE]
-        done = subprocess.run([sys.executable, "-c", "from app.cli import main; main()", "admin", "password", "eve",
-                               "--password", "a new horse"], env={**os.environ, **env}, cwd=REPO,
-                              capture_output=True, text=True, timeout=120)
+        done = subprocess.run(
+            [
+                sys.executable,
+                "-c",
+                "from app.cli import main; main()",
+                "admin",
+                "password",
+                "eve",
+                "--password",
+                "a new horse",
+            ],
+            env={**os.environ, **env},
+            cwd=REPO,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         assert done.returncode == 0 and "password changed" in done.stdout, done.stderr
         assert not opens_dashboard(stolen)
         assert client.get("/experimenter").url.path == "/", "the browser is logged out too"
         log_in(server.url, "eve", "a new horse")
-        done = subprocess.run([sys.executable, "-c", "from app.cli import main; main()", "admin", "password",
-                               "nobody", "--password", "whatever-long"], env={**os.environ, **env}, cwd=REPO,
-                              capture_output=True, text=True, timeout=120)
+        done = subprocess.run(
+            [
+                sys.executable,
+                "-c",
+                "from app.cli import main; main()",
+                "admin",
+                "password",
+                "nobody",
+                "--password",
+                "whatever-long",
+            ],
+            env={**os.environ, **env},
+            cwd=REPO,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         assert done.returncode != 0 and "no experimenter 'nobody'" in done.stderr
 
 
@@ -300,8 +346,15 @@ def test_a_join_link_expires_after_its_ttl_but_an_open_seat_keeps_working(tmp_pa
 def test_every_response_carries_the_security_headers(settings):
     with ServerThread(settings) as server:
         trial_id = make_trial(server.services, server.services.mazes.names()[0])
-        paths = ["/", "/leaderboard", "/static/style.css", "/nowhere", "/experimenter",
-                 f"/play/{server.services.seats.issue(trial_id, 'commander')}", "/play/forged"]
+        paths = [
+            "/",
+            "/leaderboard",
+            "/static/style.css",
+            "/nowhere",
+            "/experimenter",
+            f"/play/{server.services.seats.issue(trial_id, 'commander')}",
+            "/play/forged",
+        ]
         for path in paths:
             answer = httpx.get(server.url + path)
             csp = answer.headers["content-security-policy"]
@@ -320,22 +373,28 @@ def test_inline_code_that_the_policy_would_block_is_absent_from_the_templates():
 
 
 def test_the_host_header_must_name_this_server(tmp_path):
-    settings = platform_settings(tmp_path, allowed_hosts=["lab.example"],
-                                 allowed_origins=["https://study.example:8443"])
+    settings = platform_settings(
+        tmp_path, allowed_hosts=["lab.example"], allowed_origins=["https://study.example:8443"]
+    )
     with ServerThread(settings) as server:
+
         def status(host: str) -> int:
             return httpx.get(server.url + "/", headers={"Host": host}).status_code
 
         # DNS rebinding: a page of evil.example whose name now points at this machine.
         assert status(f"evil.example:{server.port}") == 400
         assert status("lab.example.evil.example") == 400
-        for served in (f"lab.example:{server.port}", "study.example", f"127.0.0.1:{server.port}",
-                       f"[::1]:{server.port}", f"192.168.1.20:{server.port}"):
+        for served in (
+            f"lab.example:{server.port}",
+            "study.example",
+            f"127.0.0.1:{server.port}",
+            f"[::1]:{server.port}",
+            f"192.168.1.20:{server.port}",
+        ):
             assert status(served) == 200, served
 
         async def socket(host: str) -> None:
-            async with websockets.connect(f"ws://{host}:{server.port}/ws/robot", host="127.0.0.1",
-                                          port=server.port):
+            async with websockets.connect(f"ws://{host}:{server.port}/ws/robot", host="127.0.0.1", port=server.port):
                 pass
 
         with pytest.raises(websockets.InvalidStatus):

@@ -28,8 +28,10 @@ def stopping_checkpoint(benchmark_path, tmp_path_factory):
     bench = Benchmark(benchmark_path)
     jars = [i for i in bench.split("train") if len(i.agent_pose) > 2][:4]
     # New scan and index: the episode cache is keyed by them and must not mix these with the originals.
-    at_goal = [dataclasses.replace(i, inst_idx=100_000 + i.inst_idx, scan=f"{i.scan}@goal",
-                                   agent_pose=(*i.target_pose, 0.0)) for i in jars]
+    at_goal = [
+        dataclasses.replace(i, inst_idx=100_000 + i.inst_idx, scan=f"{i.scan}@goal", agent_pose=(*i.target_pose, 0.0))
+        for i in jars
+    ]
     world = World.build(bench, sorted({i.run for i in at_goal}))
     out = tmp_path_factory.mktemp("seq2seq")
     cfg = TrainConfig(feedback="teacher", iters=12, batch=4, lr=1e-2, eval_every=12, max_actions=10)
@@ -39,8 +41,7 @@ def stopping_checkpoint(benchmark_path, tmp_path_factory):
 
 def events_of(services, trial_id: int, kind: str) -> list[Event]:
     with services.db() as db:
-        return db.scalars(select(Event).where(Event.trial_id == trial_id, Event.kind == kind)
-                          .order_by(Event.seq)).all()
+        return db.scalars(select(Event).where(Event.trial_id == trial_id, Event.kind == kind).order_by(Event.seq)).all()
 
 
 @pytest.mark.slow
@@ -48,8 +49,9 @@ def test_learned_driver_claims_moves_after_a_rejection_and_claims_again(tmp_path
     settings = platform_settings(tmp_path, seq2seq_checkpoint=stopping_checkpoint)
     with ServerThread(settings) as server:
         services = server.services
-        trial_id = make_trial(services, services.mazes.names()[0], targets=("jar", "mug", "paddle"),
-                              driver="agent:seq2seq")
+        trial_id = make_trial(
+            services, services.mazes.names()[0], targets=("jar", "mug", "paddle"), driver="agent:seq2seq"
+        )
         token = services.seats.issue(trial_id, "commander")
 
         async def command():
@@ -73,8 +75,7 @@ def test_learned_driver_claims_moves_after_a_rejection_and_claims_again(tmp_path
 
         rejected_seq, again_seq, again_frame_id = asyncio.run(command())
         requested = [e for e in events_of(services, trial_id, "move_requested") if e.seq > rejected_seq]
-        executed = [e for e in events_of(services, trial_id, "move_executed")
-                    if rejected_seq < e.seq < again_seq]
+        executed = [e for e in events_of(services, trial_id, "move_executed") if rejected_seq < e.seq < again_seq]
         frames = [e for e in events_of(services, trial_id, "frame") if e.seq > rejected_seq]
     assert requested and requested[0].payload["action"] in ("forward", "left", "right")
     assert executed and executed[0].payload["move_id"] == requested[0].payload["move_id"]

@@ -23,12 +23,14 @@ MAZE = "gen-000"
 
 def drive(maze, graph, start: Pose, actions) -> tuple[list[str], bytes]:
     """Play `actions` on the seat's backend; the outcomes and the last camera frame (JPEG)."""
+
     async def play():
         backend = SimulatorBackend(maze, graph, start, ServerClock())
         await backend.connect()
         outcomes = [(await backend.execute(a.word)).outcome for a in actions]
         await backend.close()
         return outcomes, [f async for f in backend.frames()][-1].jpeg
+
     return asyncio.run(play())
 
 
@@ -61,8 +63,7 @@ def approach(maze, graph: NavGraph, target: str) -> tuple[Pose, list[Action]]:
 
 @pytest.fixture(scope="module")
 def mazes(tmp_path_factory):
-    return Mazes(Settings(data_dir=tmp_path_factory.mktemp("data"),
-                          cache_dir=tmp_path_factory.mktemp("cache")))
+    return Mazes(Settings(data_dir=tmp_path_factory.mktemp("data"), cache_dir=tmp_path_factory.mktemp("cache")))
 
 
 @pytest.mark.parametrize("target", OBJECTS)

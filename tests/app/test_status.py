@@ -51,8 +51,10 @@ def test_seats_get_the_status_and_the_experimenter_watches_the_driver(settings):
                 welcome = await commander.wait_for(lambda m: m.get("type") == "welcome")
                 assert set(welcome["status"]) == FIELDS
                 assert welcome["status"]["phase"] == "waiting" and welcome["status"]["waiting_for"] == ["driver"]
-                async with Watch(server, trial_id, cookie) as watch, \
-                           SeatClient(server.ws_url, services.seats.issue(trial_id, "driver")) as driver:
+                async with (
+                    Watch(server, trial_id, cookie) as watch,
+                    SeatClient(server.ws_url, services.seats.issue(trial_id, "driver")) as driver,
+                ):
                     await start_trial(commander, driver)
                     started = await commander.wait_for(lambda m: m.get("type") == "status" and m["running"])
                     assert started["phase"] == "localizing" and started["targets_total"] == 3

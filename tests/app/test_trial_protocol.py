@@ -27,8 +27,10 @@ def test_full_trial_from_links_to_leaderboard(any_db_settings):
         tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
 
         async def play():
-            async with SeatClient(server.ws_url, tokens["commander"]) as commander, \
-                       SeatClient(server.ws_url, tokens["driver"]) as driver:
+            async with (
+                SeatClient(server.ws_url, tokens["commander"]) as commander,
+                SeatClient(server.ws_url, tokens["driver"]) as driver,
+            ):
                 await start_trial(commander, driver)
                 # Chat goes both ways; the first frame reaches the Driver.
                 await commander.send("chat", text="I see a blue wall on my map. What do you see?")
@@ -84,7 +86,8 @@ def test_full_trial_from_links_to_leaderboard(any_db_settings):
         for f in frames:
             assert (any_db_settings.frames_dir / f.path).read_bytes()[:2] == b"\xff\xd8"  # a JPEG on disk
         assert trial.phase == "finished" and trial.moves == sum(
-            1 for e in events if e.kind == "move_executed" and e.payload["outcome"] != "refused")
+            1 for e in events if e.kind == "move_executed" and e.payload["outcome"] != "refused"
+        )
 
         page = httpx.get(server.url + "/leaderboard").text
         assert "Owls" in page
@@ -144,8 +147,10 @@ def test_other_role_token_and_bad_messages_get_errors_and_never_end_the_trial(se
         tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
 
         async def play():
-            async with SeatClient(server.ws_url, tokens["commander"]) as commander, \
-                       SeatClient(server.ws_url, tokens["driver"]) as driver:
+            async with (
+                SeatClient(server.ws_url, tokens["commander"]) as commander,
+                SeatClient(server.ws_url, tokens["driver"]) as driver,
+            ):
                 await start_trial(commander, driver)
 
                 async def refused(client, type_, expect: str, raw=None, **fields):
@@ -197,8 +202,10 @@ def test_moves_faster_than_the_robot_are_refused_not_queued(tmp_path):
         tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
 
         async def play():
-            async with SeatClient(server.ws_url, tokens["commander"]) as commander, \
-                       SeatClient(server.ws_url, tokens["driver"]) as driver:
+            async with (
+                SeatClient(server.ws_url, tokens["commander"]) as commander,
+                SeatClient(server.ws_url, tokens["driver"]) as driver,
+            ):
                 await start_trial(commander, driver)
                 for i in range(5):  # a burst, as from a held-down key
                     await driver.send("move", action="left", move_id=f"burst{i}")

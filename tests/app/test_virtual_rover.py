@@ -74,10 +74,13 @@ class Lab:
         """`settings`: more of the server's settings, for both the server and these services."""
         self.tmp_path = tmp_path
         self.settings = platform_settings(tmp_path, cache_dir=tmp_path / "cache", **settings)
-        self.env = {"ROBOTSLANG_DATA_DIR": str(self.settings.data_dir),
-                    "ROBOTSLANG_SECRET_KEY": self.settings.secret_key,
-                    "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0", "ROBOTSLANG_CACHE_DIR": str(tmp_path / "cache"),
-                    **{f"ROBOTSLANG_{k.upper()}": str(v) for k, v in settings.items()}}
+        self.env = {
+            "ROBOTSLANG_DATA_DIR": str(self.settings.data_dir),
+            "ROBOTSLANG_SECRET_KEY": self.settings.secret_key,
+            "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+            "ROBOTSLANG_CACHE_DIR": str(tmp_path / "cache"),
+            **{f"ROBOTSLANG_{k.upper()}": str(v) for k, v in settings.items()},
+        }
         self.services = build_services(self.settings)
         self.server = ServerProcess(self.env).start()
         self.rovers: list[subprocess.Popen] = []
@@ -91,15 +94,33 @@ class Lab:
     def rover(self, token: str, *args: str) -> subprocess.Popen:
         # The child keeps its own copy of the descriptor: this one closes once it has started.
         with open(self.tmp_path / f"rover-{len(self.rovers)}.log", "w") as log:
-            proc = subprocess.Popen([sys.executable, "-c", "from app.cli import main; main()", "robot", "virtual",
-                                     "--server", self.server.url, "--token", token, "--maze", MAZE, *args],
-                                    env={**os.environ, **self.env}, cwd=REPO, stdout=log, stderr=subprocess.STDOUT)
+            proc = subprocess.Popen(
+                [
+                    sys.executable,
+                    "-c",
+                    "from app.cli import main; main()",
+                    "robot",
+                    "virtual",
+                    "--server",
+                    self.server.url,
+                    "--token",
+                    token,
+                    "--maze",
+                    MAZE,
+                    *args,
+                ],
+                env={**os.environ, **self.env},
+                cwd=REPO,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+            )
         self.rovers.append(proc)
         return proc
 
     def seats(self, trial: int):
-        return [SeatClient(self.server.ws_url, self.services.seats.issue(trial, role))
-                for role in ("commander", "driver")]
+        return [
+            SeatClient(self.server.ws_url, self.services.seats.issue(trial, role)) for role in ("commander", "driver")
+        ]
 
     def close(self) -> None:
         for proc in self.rovers:
@@ -143,8 +164,9 @@ def decode(frame_event: dict) -> np.ndarray:
 
 async def frame_after(driver: SeatClient, t_ns: int) -> np.ndarray:
     """The first frame at the Driver captured after server time `t_ns`."""
-    event = await driver.wait_for(lambda m: m.get("type") == "event" and m["kind"] == "frame"
-                                  and m["payload"]["capture_ns"] > t_ns)
+    event = await driver.wait_for(
+        lambda m: m.get("type") == "event" and m["kind"] == "frame" and m["payload"]["capture_ns"] > t_ns
+    )
     return decode(event)
 
 
@@ -157,8 +179,9 @@ async def test_a_driver_drives_the_virtual_rover_frames_acks_truth_and_a_wall(la
     robot_id, token = lab.register("virtual rover")
     trial = make_trial(lab.services, MAZE, backend=f"robot:{robot_id}")
     truth = tmp_path / "truth.jsonl"
-    lab.rover(token, "--truth", str(truth), "--seed", "5", "--fps", "10",
-              "--start", f"{start.x},{start.y},{start.theta}")
+    lab.rover(
+        token, "--truth", str(truth), "--seed", "5", "--fps", "10", "--start", f"{start.x},{start.y},{start.theta}"
+    )
     commander, driver = lab.seats(trial)
     camera = FrontCamera()
     async with commander, driver:
@@ -215,14 +238,27 @@ async def test_killing_the_server_stops_the_rover_and_it_reconnects_when_the_ser
     trial = make_trial(lab.services, MAZE, backend=f"robot:{robot_id}")
     truth, timings = tmp_path / "truth.jsonl", tmp_path / "calibration.json"
     Calibration(forward_s=1.8).save(timings)  # a long pulse, so the link dies during it
-    lab.rover(token, "--truth", str(truth), "--noise", "none", "--fps", "5", "--calibration", str(timings),
-              "--start", f"{start.x},{start.y},{start.theta}")
+    lab.rover(
+        token,
+        "--truth",
+        str(truth),
+        "--noise",
+        "none",
+        "--fps",
+        "5",
+        "--calibration",
+        str(timings),
+        "--start",
+        f"{start.x},{start.y},{start.theta}",
+    )
     commander, driver = lab.seats(trial)
     async with commander, driver:
         await driver.event("phase", phase="localizing", timeout=START_S)
         await driver.send("move", action="forward", move_id="long")
-        await until(lambda: any(s.moving and math.hypot(s.x - start.x, s.y - start.y) > 0.005
-                                for s in read_truth(truth)), what="the pulse to move the rover")
+        await until(
+            lambda: any(s.moving and math.hypot(s.x - start.x, s.y - start.y) > 0.005 for s in read_truth(truth)),
+            what="the pulse to move the rover",
+        )
         lab.server.kill()
         stopped = (await until(lambda: settled(truth)[1:], what="the rover to stop"))[0]
     travelled = math.hypot(stopped.x - start.x, stopped.y - start.y)
@@ -248,27 +284,39 @@ async def test_the_virtual_overhead_camera_films_the_driver_rover_where_its_trut
     _, camera_token = lab.register("table camera", role="overhead")
     trial = make_trial(lab.services, MAZE, backend=f"robot:{robot_id}")
     truth = tmp_path / "truth.jsonl"
-    lab.rover(token, "--truth", str(truth), "--seed", "2", "--fps", "5",
-              "--start", f"{start.x},{start.y},{start.theta}")
+    lab.rover(
+        token, "--truth", str(truth), "--seed", "2", "--fps", "5", "--start", f"{start.x},{start.y},{start.theta}"
+    )
     lab.rover(camera_token, "--role", "overhead", "--truth", str(truth), "--fps", "2")
 
     def overhead_after(t_ns: int) -> dict | None:
-        return next((e.payload for e in lab.services.log.load(trial) if e.kind == "frame"
-                     and e.payload["source"] == "overhead" and e.payload["capture_ns"] > t_ns), None)
+        return next(
+            (
+                e.payload
+                for e in lab.services.log.load(trial)
+                if e.kind == "frame" and e.payload["source"] == "overhead" and e.payload["capture_ns"] > t_ns
+            ),
+            None,
+        )
 
     commander, driver = lab.seats(trial)
     async with commander, driver:
         await driver.event("phase", phase="localizing", timeout=START_S)
         # The camera may have joined before the rover's first truth line (an empty table then),
         # and its first frames are stamped on arrival until the clocks are matched: let it settle.
-        await until(lambda: sum(e.kind == "frame" and e.payload["source"] == "overhead"
-                                for e in lab.services.log.load(trial)) >= 3, what="overhead frames")
+        await until(
+            lambda: sum(e.kind == "frame" and e.payload["source"] == "overhead" for e in lab.services.log.load(trial))
+            >= 3,
+            what="overhead frames",
+        )
         for i, action in enumerate(["forward", "left", "forward"]):
             await driver.send("move", action=action, move_id=f"o{i}")
             executed = await driver.event("move_executed", move_id=f"o{i}", timeout=START_S)
             pose = settled(truth)[-1]
-            frame = await until(lambda: overhead_after(executed["t_ns"]),  # noqa: B023  (awaited in this iteration)
-                                what="an overhead frame after the move")
+            frame = await until(
+                lambda: overhead_after(executed["t_ns"]),  # noqa: B023  (awaited in this iteration)
+                what="an overhead frame after the move",
+            )
             jpeg = (lab.settings.frames_dir / frame["path"]).read_bytes()
             # A fresh tracker for each frame: the view is under test here, not the smoothing.
             seen = OverheadTracker().update(jpeg, frame["capture_ns"])
@@ -289,24 +337,40 @@ async def test_on_the_wire_the_virtual_rover_is_the_real_client(tmp_path):
             if kind == "real":
                 command = [sys.executable, "-m", "robot_client", "--camera", "synthetic", "--motors", "mock"]
             else:
-                command = [sys.executable, "-c", "from app.cli import main; main()", "robot", "virtual",
-                           "--maze", MAZE, "--seed", "1"]
-            proc = subprocess.Popen(command + ["--server", url, "--token", "good", "--fps", "5"], cwd=REPO,
-                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                command = [
+                    sys.executable,
+                    "-c",
+                    "from app.cli import main; main()",
+                    "robot",
+                    "virtual",
+                    "--maze",
+                    MAZE,
+                    "--seed",
+                    "1",
+                ]
+            proc = subprocess.Popen(
+                command + ["--server", url, "--token", "good", "--fps", "5"],
+                cwd=REPO,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+            )
             try:
                 await asyncio.wait_for(server.connected.wait(), START_S)
                 await server.send({"type": "move", "id": "w1", "action": "left"})
                 ack = await server.next("ack", timeout=START_S)
-                await until(lambda: len(server.frames) >= 2,  # noqa: B023  (awaited in this iteration)
-                            what=f"frames from the {kind} client")
+                await until(
+                    lambda: len(server.frames) >= 2,  # noqa: B023  (awaited in this iteration)
+                    what=f"frames from the {kind} client",
+                )
             finally:
                 proc.send_signal(signal.SIGTERM)
                 assert proc.wait(timeout=20) == 0
             seen[kind] = (server.hellos[0], ack, server.frames)
     (real_hello, real_ack, _), (hello, ack, frames) = seen["real"], seen["virtual"]
     assert set(hello) == set(real_hello) and set(hello["camera"]) == set(real_hello["camera"])
-    assert {k: hello[k] for k in ("protocol", "client", "role", "watchdog_s")} == \
-           {k: real_hello[k] for k in ("protocol", "client", "role", "watchdog_s")}
+    assert {k: hello[k] for k in ("protocol", "client", "role", "watchdog_s")} == {
+        k: real_hello[k] for k in ("protocol", "client", "role", "watchdog_s")
+    }
     assert hello["camera"]["source"] == "virtual"
     assert set(ack) == set(real_ack) and ack["status"] == real_ack["status"] == "done"
     assert ack["finished_ns"] - ack["started_ns"] >= Calibration().left_s * 1e9
@@ -317,12 +381,14 @@ async def test_on_the_wire_the_virtual_rover_is_the_real_client(tmp_path):
 def test_bad_options_are_refused_by_name(tmp_path, maze):
     env = {"ROBOTSLANG_DATA_DIR": str(tmp_path / "var"), "ROBOTSLANG_SECRET_KEY": "k"}
     base = ["robot", "virtual", "--server", "http://127.0.0.1:9", "--token", "t"]
-    cases = [(["--maze", "nowhere"], "--maze", "unknown maze 'nowhere'"),
-             (["--maze", MAZE, "--noise", "wild"], "--noise", "unknown noise model 'wild'"),
-             (["--maze", MAZE, "--start", "1,2"], "--start", "expected X,Y,THETA"),
-             (["--maze", MAZE, "--start", "0,0,0"], "--start", "within 0.067 m"),
-             (["--maze", MAZE, "--role", "overhead"], "--truth", "films the driver rover's truth file"),
-             (["--maze", MAZE, "--role", "pilot"], "--role", "expected one of driver, overhead")]
+    cases = [
+        (["--maze", "nowhere"], "--maze", "unknown maze 'nowhere'"),
+        (["--maze", MAZE, "--noise", "wild"], "--noise", "unknown noise model 'wild'"),
+        (["--maze", MAZE, "--start", "1,2"], "--start", "expected X,Y,THETA"),
+        (["--maze", MAZE, "--start", "0,0,0"], "--start", "within 0.067 m"),
+        (["--maze", MAZE, "--role", "overhead"], "--truth", "films the driver rover's truth file"),
+        (["--maze", MAZE, "--role", "pilot"], "--role", "expected one of driver, overhead"),
+    ]
     for args, hint, text in cases:
         done = cli(*base, *args, env=env)
         message = " ".join(done.stderr.replace("│", " ").split())

@@ -42,9 +42,28 @@ def render(template: Path, values: dict[str, str]) -> str:
 
 def self_signed(tmp: Path) -> tuple[Path, Path]:
     cert, key = tmp / "cert.pem", tmp / "key.pem"
-    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1", "-subj",
-                    "/CN=127.0.0.1", "-addext", "subjectAltName=IP:127.0.0.1", "-keyout", str(key), "-out",
-                    str(cert)], check=True, capture_output=True)
+    subprocess.run(
+        [
+            "openssl",
+            "req",
+            "-x509",
+            "-newkey",
+            "rsa:2048",
+            "-nodes",
+            "-days",
+            "1",
+            "-subj",
+            "/CN=127.0.0.1",
+            "-addext",
+            "subjectAltName=IP:127.0.0.1",
+            "-keyout",
+            str(key),
+            "-out",
+            str(cert),
+        ],
+        check=True,
+        capture_output=True,
+    )
     return cert, key
 
 
@@ -76,8 +95,9 @@ http {{
         self.conf = self.prefix / "nginx.conf"
 
     def __enter__(self) -> Nginx:
-        check = subprocess.run([NGINX, "-p", str(self.prefix), "-c", str(self.conf), "-t"], capture_output=True,
-                               text=True)
+        check = subprocess.run(
+            [NGINX, "-p", str(self.prefix), "-c", str(self.conf), "-t"], capture_output=True, text=True
+        )
         assert check.returncode == 0, check.stderr
         subprocess.run([NGINX, "-p", str(self.prefix), "-c", str(self.conf)], check=True)
         return self
@@ -92,8 +112,9 @@ http {{
     def upstreams(self, path_prefix: str) -> list[tuple[str, str]]:
         """(status, upstream address) of every logged request under `path_prefix`."""
         lines = (self.prefix / "logs" / "access.log").read_text().splitlines()
-        return [(status, addr) for uri, status, addr in (line.split(" ") for line in lines)
-                if uri.startswith(path_prefix)]
+        return [
+            (status, addr) for uri, status, addr in (line.split(" ") for line in lines) if uri.startswith(path_prefix)
+        ]
 
 
 @pytest.fixture
@@ -103,28 +124,47 @@ def nginx_available():
 
 
 def robotslang(*args: str, env: dict[str, str], cwd: Path) -> subprocess.CompletedProcess:
-    out = subprocess.run([sys.executable, "-c", "from app.cli import main; main()", *args], env=env, cwd=cwd,
-                         capture_output=True, text=True, timeout=300)
+    out = subprocess.run(
+        [sys.executable, "-c", "from app.cli import main; main()", *args],
+        env=env,
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert out.returncode == 0, out.stdout + out.stderr
     return out
 
 
 @pytest.mark.slow
 def test_two_servers_behind_nginx_play_a_trial_over_tls(tmp_path, postgres_url, redis_url, nginx_available):
-    env = {**clean_env(), "PYTHONPATH": str(REPO), "ROBOTSLANG_DATABASE_URL": postgres_url,
-           "ROBOTSLANG_REDIS_URL": redis_url, "ROBOTSLANG_SECRET_KEY": SECRET,
-           "ROBOTSLANG_DATA_DIR": str(tmp_path / "data"), "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0"}
+    env = {
+        **clean_env(),
+        "PYTHONPATH": str(REPO),
+        "ROBOTSLANG_DATABASE_URL": postgres_url,
+        "ROBOTSLANG_REDIS_URL": redis_url,
+        "ROBOTSLANG_SECRET_KEY": SECRET,
+        "ROBOTSLANG_DATA_DIR": str(tmp_path / "data"),
+        "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+    }
     # compose.yaml's migrate service, then two of its server processes.
     robotslang("db", "upgrade", env=env, cwd=tmp_path)
     robotslang("admin", "create", "admin", "--password", "deploy-test-pw", env=env, cwd=tmp_path)
     servers = [ServerProcess(env) for _ in range(2)]
     cert, key = self_signed(tmp_path)
     http_port, https_port = free_port(), free_port()
-    site = render(DEPLOY / "nginx" / "robotslang.conf.template", {
-        "ROBOTSLANG_UPSTREAM_SERVERS": " ".join(f"server 127.0.0.1:{s.port};" for s in servers),
-        "ROBOTSLANG_LISTEN_ADDRESS": "127.0.0.1", "ROBOTSLANG_HTTP_PORT": str(http_port),
-        "ROBOTSLANG_HTTPS_PORT": str(https_port),
-        "ROBOTSLANG_SERVER_NAME": "127.0.0.1", "ROBOTSLANG_TLS_CERT": str(cert), "ROBOTSLANG_TLS_KEY": str(key)})
+    site = render(
+        DEPLOY / "nginx" / "robotslang.conf.template",
+        {
+            "ROBOTSLANG_UPSTREAM_SERVERS": " ".join(f"server 127.0.0.1:{s.port};" for s in servers),
+            "ROBOTSLANG_LISTEN_ADDRESS": "127.0.0.1",
+            "ROBOTSLANG_HTTP_PORT": str(http_port),
+            "ROBOTSLANG_HTTPS_PORT": str(https_port),
+            "ROBOTSLANG_SERVER_NAME": "127.0.0.1",
+            "ROBOTSLANG_TLS_CERT": str(cert),
+            "ROBOTSLANG_TLS_KEY": str(key),
+        },
+    )
     try:
         for server in servers:
             server.start()
@@ -133,9 +173,14 @@ def test_two_servers_behind_nginx_play_a_trial_over_tls(tmp_path, postgres_url, 
             plain = httpx.get(f"http://127.0.0.1:{http_port}/leaderboard")
             assert plain.status_code == 301 and plain.headers["location"] == f"{proxy}/leaderboard"
             # The demo's seats (Commander, then Driver) connect through the proxy, trusting its cert.
-            demo = subprocess.run([sys.executable, "-c", "from app.cli import main; main()", "demo", "--trials",
-                                   "1", "--server", proxy], env={**env, "SSL_CERT_FILE": str(cert)},
-                                  cwd=tmp_path, capture_output=True, text=True, timeout=300)
+            demo = subprocess.run(
+                [sys.executable, "-c", "from app.cli import main; main()", "demo", "--trials", "1", "--server", proxy],
+                env={**env, "SSL_CERT_FILE": str(cert)},
+                cwd=tmp_path,
+                capture_output=True,
+                text=True,
+                timeout=300,
+            )
             assert demo.returncode == 0, demo.stdout + demo.stderr
             assert re.search(r"trial 1: .*: finished,", demo.stderr), demo.stderr
             seats = nginx.upstreams("/ws/play")
@@ -144,15 +189,19 @@ def test_two_servers_behind_nginx_play_a_trial_over_tls(tmp_path, postgres_url, 
 
             # A browser's socket carries its page's Origin: through the proxy it is still its own host.
             # (On a trial still open: the demo's trial is over, and its links closed with it.)
-            services = build_services(Settings(database_url=postgres_url, data_dir=tmp_path / "data",
-                                               secret_key=SECRET))
+            services = build_services(
+                Settings(database_url=postgres_url, data_dir=tmp_path / "data", secret_key=SECRET)
+            )
             trial_id = make_trial(services, services.mazes.names()[0], team="Browser team")
             services.engine.dispose()
 
             async def browser_seat() -> dict:
                 token = SeatTokens(SECRET).issue(trial_id, "commander")
-                async with websockets.connect(f"wss://127.0.0.1:{https_port}/ws/play?token={token}",
-                                              origin=proxy, ssl=ssl.create_default_context(cafile=cert)) as ws:
+                async with websockets.connect(
+                    f"wss://127.0.0.1:{https_port}/ws/play?token={token}",
+                    origin=proxy,
+                    ssl=ssl.create_default_context(cafile=cert),
+                ) as ws:
                     while (message := json.loads(await asyncio.wait_for(ws.recv(), 10)))["type"] != "welcome":
                         pass  # its own `connect` event comes first
                     return message
@@ -167,10 +216,20 @@ def test_the_compose_file_is_valid(tmp_path):
     docker = shutil.which("docker")
     if docker is None or subprocess.run([docker, "compose", "version"], capture_output=True).returncode != 0:
         pytest.skip("docker compose is not installed here; the deploy test above runs the services' commands")
-    env = {**clean_env(), "POSTGRES_PASSWORD": "pw", "ROBOTSLANG_SECRET_KEY": "key",
-           "ROBOTSLANG_ADMIN_PASSWORD": "admin-pw", "ROBOTSLANG_SERVER_NAME": "lab.example.org"}
-    out = subprocess.run([docker, "compose", "-f", str(DEPLOY / "compose.yaml"), "config", "--format", "json"],
-                         env=env, capture_output=True, text=True, timeout=60)
+    env = {
+        **clean_env(),
+        "POSTGRES_PASSWORD": "pw",
+        "ROBOTSLANG_SECRET_KEY": "key",
+        "ROBOTSLANG_ADMIN_PASSWORD": "admin-pw",
+        "ROBOTSLANG_SERVER_NAME": "lab.example.org",
+    }
+    out = subprocess.run(
+        [docker, "compose", "-f", str(DEPLOY / "compose.yaml"), "config", "--format", "json"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert out.returncode == 0, out.stderr
     services = json.loads(out.stdout)["services"]
     assert set(services) == {"postgres", "redis", "migrate", "server", "nginx"}

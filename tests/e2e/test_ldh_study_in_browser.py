@@ -145,7 +145,9 @@ def test_a_study_from_creation_to_export(browser, server, benchmark_path):
     assert export["per_participant"][0]["td_mean"] == pytest.approx((answers[0]["td"] + answers[1]["td"]) / 2)
 
     exported = list(csv.DictReader(io.StringIO(admin.request.get(study_url + "/export.csv").text())))
-    assert [(r["participant"], int(r["position"])) for r in exported] == [(a["participant"], a["position"]) for a in answers]
+    assert [(r["participant"], int(r["position"])) for r in exported] == [
+        (a["participant"], a["position"]) for a in answers
+    ]
     assert [float(r["td"]) for r in exported] == pytest.approx([a["td"] for a in answers])
     for page in (ann, bob, fresh, admin):
         page.context.close()

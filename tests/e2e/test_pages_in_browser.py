@@ -24,7 +24,6 @@ W_M, H_M = 2.4638, 2.0574
 pytestmark = pytest.mark.browser
 
 
-
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
     settings = platform_settings(tmp_path_factory.mktemp("pages"), min_move_interval_s=0.0)
@@ -95,10 +94,12 @@ def test_commander_map_shows_the_landmarks_and_no_driver_request_gets_it(browser
     maze = server.services.mazes.load(server.services.mazes.names()[0])
     for label in OBJECT_LABELS:
         x, y = maze.objects[label.word]
-        rgb = commander.evaluate("""([x, y]) => { const c = document.getElementById('map');
+        rgb = commander.evaluate(
+            """([x, y]) => { const c = document.getElementById('map');
             return [...c.getContext('2d').getImageData(Math.round(x / 2.4638 * c.width),
                                                        Math.round((1 - y / 2.0574) * c.height), 1, 1).data]; }""",
-                                 [x, y])
+            [x, y],
+        )
         assert tuple(rgb[2::-1]) == LABEL_BGR[label], label.word
     legend = commander.locator("#legend li[data-landmark]")
     assert sorted(t.strip() for t in legend.all_inner_texts()) == ["jar", "mug (next target)", "paddle"]
@@ -106,8 +107,12 @@ def test_commander_map_shows_the_landmarks_and_no_driver_request_gets_it(browser
 
     # The Driver: their token, no token, a malformed one: never the map, never the landmarks.
     driver_token = driver_url.rsplit("/", 1)[-1]
-    for url in (driver_url + "/map.png", f"{server.url}/play//map.png", f"{server.url}/play/map.png",
-                f"{server.url}/play/{driver_token[:-2]}xx/map.png"):
+    for url in (
+        driver_url + "/map.png",
+        f"{server.url}/play//map.png",
+        f"{server.url}/play/map.png",
+        f"{server.url}/play/{driver_token[:-2]}xx/map.png",
+    ):
         answer = driver.request.get(url)
         assert answer.status in (403, 404), url
         assert answer.headers["content-type"].split(";")[0] != "image/png"
@@ -131,8 +136,10 @@ def test_participants_see_the_clock_their_moves_and_what_to_do(browser, server):
     assert "Drive to target 1 of 3" in driver.inner_text("#status")
     for n in (1, 2):
         driver.click("#left")
-        wait_until(lambda: runtime.state.moves == n and not runtime.state.moves_in_flight,  # noqa: B023  (waited on here)
-                   "a move")
+        wait_until(
+            lambda: runtime.state.moves == n and not runtime.state.moves_in_flight,  # noqa: B023  (waited on here)
+            "a move",
+        )
         driver.wait_for_selector(f"#moves[data-moves='{n}']")
 
     def seconds(page):
@@ -240,9 +247,19 @@ def test_leaderboard_ranks_agent_drivers_apart_and_says_who_drove(browser, serve
         human = db.get(Trial, trial_id)
         team = db.get(Team, human.team_id)
         human.phase, human.active_s, human.moves = "finished", 100.0, 20
-        db.add(Trial(team_id=team.id, maze=human.maze, targets=human.targets, backend="sim",
-                     driver="agent:shortest", commander_id=team.member_a_id, phase="finished",
-                     active_s=10.0, moves=15))
+        db.add(
+            Trial(
+                team_id=team.id,
+                maze=human.maze,
+                targets=human.targets,
+                backend="sim",
+                driver="agent:shortest",
+                commander_id=team.member_a_id,
+                phase="finished",
+                active_s=10.0,
+                moves=15,
+            )
+        )
     page = browser.new_context(viewport={"width": 1280, "height": 900}).new_page()
     page.goto(server.url + "/leaderboard")
     row = page.locator("#leaderboard tbody tr", has_text=team.name)
@@ -284,9 +301,14 @@ def test_every_page_passes_axe_and_reads_on_a_phone(browser, server):
     admin.click("form.control-abort button")
     admin.wait_for_selector("#status[data-phase=aborted]")
 
-    for name, path in [("dashboard", "/experimenter"), ("trial", f"/experimenter/trials/{trial_id}"),
-                       ("replays", "/experimenter/replays"), ("replay", f"/experimenter/trials/{ended}/replay"),
-                       ("leaderboard", "/leaderboard"), ("not found", "/no/such/page")]:
+    for name, path in [
+        ("dashboard", "/experimenter"),
+        ("trial", f"/experimenter/trials/{trial_id}"),
+        ("replays", "/experimenter/replays"),
+        ("replay", f"/experimenter/trials/{ended}/replay"),
+        ("leaderboard", "/leaderboard"),
+        ("not found", "/no/such/page"),
+    ]:
         admin.goto(server.url + path)
         page_checks(admin, name)
     admin.goto(f"{server.url}/experimenter/trials/{ended}/replay")
@@ -294,8 +316,12 @@ def test_every_page_passes_axe_and_reads_on_a_phone(browser, server):
     page_checks(admin, "replay, loaded")
 
     phone = browser.new_context(viewport={"width": 390, "height": 844}, has_touch=True, is_mobile=True).new_page()
-    for name, path in [("home", "/"), ("bad join link", "/join?link=nonsense"), ("bad seat link", "/play/nonsense"),
-                       ("leaderboard", "/leaderboard")]:
+    for name, path in [
+        ("home", "/"),
+        ("bad join link", "/join?link=nonsense"),
+        ("bad seat link", "/play/nonsense"),
+        ("leaderboard", "/leaderboard"),
+    ]:
         phone.goto(server.url + path)
         page_checks(phone, name)
     for page in (commander, driver):

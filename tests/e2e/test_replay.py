@@ -24,8 +24,9 @@ pytestmark = pytest.mark.browser
 def server(tmp_path_factory):
     if not CHROMIUM.exists():
         pytest.skip(f"{CHROMIUM} not found: the replay page is checked in Debian's chromium")
-    settings = Settings(data_dir=tmp_path_factory.mktemp("replay") / "var", secret_key="replay-test",
-                        min_move_interval_s=0.0)
+    settings = Settings(
+        data_dir=tmp_path_factory.mktemp("replay") / "var", secret_key="replay-test", min_move_interval_s=0.0
+    )
     demo = Demo(settings, seed=11, pace_s=0.02)  # a timeline of several seconds, to pause part-way
     (result,) = asyncio.run(demo.run(1))
     assert result.phase == "finished", result
@@ -33,7 +34,6 @@ def server(tmp_path_factory):
         db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
     with ServerThread(settings) as running:
         yield running, result.trial_id
-
 
 
 def log_in(page, url: str) -> None:
@@ -45,8 +45,9 @@ def log_in(page, url: str) -> None:
 
 
 def scrub_to(page, ms: float) -> None:
-    page.eval_on_selector("#scrub", "(e, v) => { e.value = String(v); e.dispatchEvent(new Event('input')); }",
-                          round(ms))
+    page.eval_on_selector(
+        "#scrub", "(e, v) => { e.value = String(v); e.dispatchEvent(new Event('input')); }", round(ms)
+    )
 
 
 def shown(page) -> dict:
@@ -65,11 +66,13 @@ def expected_at(log: dict, ms: float) -> dict:
     t0 = next(e for e in events if e["kind"] != "trial_created")["t_ns"]
     done = [e for e in events if max(0.0, (e["t_ns"] - t0) / 1e6) <= ms]
     frames = [e for e in done if e["kind"] == "frame" and e["payload"].get("source", "driver") == "driver"]
-    return {"chat": sum(e["kind"] == "chat" for e in done),
-            "frame": str(frames[-1]["payload"]["frame_id"]) if frames else None,
-            "poses": sum(e["kind"] == "pose" for e in done),
-            "estimates": sum(e["kind"] == "localization" for e in done),
-            "events": len(done)}
+    return {
+        "chat": sum(e["kind"] == "chat" for e in done),
+        "frame": str(frames[-1]["payload"]["frame_id"]) if frames else None,
+        "poses": sum(e["kind"] == "pose" for e in done),
+        "estimates": sum(e["kind"] == "localization" for e in done),
+        "events": len(done),
+    }
 
 
 def test_replay_plays_the_log_in_sync(server, browser):
@@ -130,4 +133,3 @@ def test_replays_are_for_experimenters_only(server, browser):
     page.wait_for_selector("#replay[data-ready='1']")
     assert f"trial {trial_id}" in page.inner_text("h1")
     page.close()
-

@@ -63,11 +63,14 @@ def test_a_robot_registered_on_the_dashboard_connects_with_its_token_and_shows_l
         robot = RobotProcess(tmp_path, server.url, token)
         seats[1].wait_for_selector("#status[data-phase=localizing]", timeout=ROBOT_START_S * 1000)
         trial.locator(".phase", has_text="localizing").wait_for()
-        wait_js(page,
+        wait_js(
+            page,
             "() => { const r = [...document.querySelectorAll('#robots tr[data-robot]')]"
             ".find((tr) => tr.querySelector('.name').textContent === 'rover A');"
             " return r && r.querySelector('.link').textContent === 'connected'"
-            " && parseFloat(r.querySelector('.fps').textContent) > 5; }", timeout_s=ROBOT_START_S)
+            " && parseFloat(r.querySelector('.fps').textContent) > 5; }",
+            timeout_s=ROBOT_START_S,
+        )
         assert row.locator(".latency").inner_text().endswith(" ms")
         option = page.locator("#backend option", has_text="rover A")
         assert option.inner_text() == "rover A (rover, connected)"

@@ -25,7 +25,6 @@ ARTIFACTS = REPO / "test-artifacts"
 pytestmark = pytest.mark.browser
 
 
-
 def wait_until(predicate, timeout: float = 10.0, what: str = "condition") -> None:
     deadline = time.time() + timeout
     while not predicate():
@@ -120,9 +119,12 @@ def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, tmp_path):
                     driver.keyboard.press(keys[action])
                 else:
                     driver.click(buttons[action])
-                wait_until(lambda: runtime.state.moves > before  # noqa: B023  (waited on here)
-                           and runtime.state.last_frame_id is not None
-                           and not runtime.state.moves_in_flight, what="a move to execute")
+                wait_until(
+                    lambda: runtime.state.moves > before  # noqa: B023  (waited on here)
+                    and runtime.state.last_frame_id is not None
+                    and not runtime.state.moves_in_flight,
+                    what="a move to execute",
+                )
                 driver.wait_for_timeout(30)  # the page takes the move's result before the next press
             driver.click("#found")
             commander.wait_for_selector("#claim:not([hidden])")

@@ -20,6 +20,11 @@ def few(bench) -> dict:
     val = bench.split("val_seen")[:4]
     world = World.build(bench, sorted({i.run for i in train + val}))
     tokenizer = Tokenizer.from_dialogs((i.dialog, i.target) for i in train)
-    return {"train": train, "val": val, "world": world, "tokenizer": tokenizer,
-            "train_set": EpisodeSet.build(bench, world, "train", tokenizer, instances=train),
-            "val_set": EpisodeSet.build(bench, world, "val_seen", tokenizer, instances=val)}
+    return {
+        "train": train,
+        "val": val,
+        "world": world,
+        "tokenizer": tokenizer,
+        "train_set": EpisodeSet.build(bench, world, "train", tokenizer, instances=train),
+        "val_set": EpisodeSet.build(bench, world, "val_seen", tokenizer, instances=val),
+    }

@@ -18,8 +18,9 @@ ray = pytest.importorskip("ray", reason="the cluster extra is not installed: pip
 
 def tiny(seed: int, iters: int) -> dict:
     # A reduced protocol: a few batches of 4 short episodes, no validation.
-    return asdict(TrainConfig(feedback="student", seed=seed, iters=iters, batch=4, eval_every=2, max_actions=10,
-                              eval_split=None))
+    return asdict(
+        TrainConfig(feedback="student", seed=seed, iters=iters, batch=4, eval_every=2, max_actions=10, eval_split=None)
+    )
 
 
 @pytest.fixture

@@ -57,13 +57,28 @@ def test_an_untrained_model_is_the_colour_baseline(bench, tmp_path):
 @pytest.mark.benchmark_data
 def test_train_ldh_writes_a_checkpoint_chosen_on_val_seen(benchmark_path, tmp_path):
     out = tmp_path / "run"
-    result = CliRunner().invoke(root, ["train", "ldh", "--benchmark", str(benchmark_path), "--seed", "0",
-                                       "--out", str(out), "--epochs", "2"])
+    result = CliRunner().invoke(
+        root, ["train", "ldh", "--benchmark", str(benchmark_path), "--seed", "0", "--out", str(out), "--epochs", "2"]
+    )
     assert result.exit_code == 0, result.output
     history = json.loads((out / "history.json").read_text())
     best = min(history["history"], key=lambda h: h["val_td"])
     assert history["best"]["epoch"] == best["epoch"] and (out / "best.pt").is_file()
-    result = CliRunner().invoke(root, ["eval", "ldh", "--benchmark", str(benchmark_path), "--split", "val_seen",
-                                       "--agent", "learned", "--checkpoint", str(out / "best.pt"), "--json"])
+    result = CliRunner().invoke(
+        root,
+        [
+            "eval",
+            "ldh",
+            "--benchmark",
+            str(benchmark_path),
+            "--split",
+            "val_seen",
+            "--agent",
+            "learned",
+            "--checkpoint",
+            str(out / "best.pt"),
+            "--json",
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert json.loads(result.output)["agents"]["learned"]["td_mean"] == pytest.approx(best["val_td"])

@@ -13,9 +13,25 @@ from sim.metrics import EpisodeResult, write_csv
 
 
 def rows(split, agent, tds, seed=0):
-    return [EpisodeResult(split=split, inst_idx=k, agent=agent, seed=seed, start_x=0, start_y=0, start_heading=0,
-                          goal_x=0, goal_y=0, td=float(td), otd=float(td) * 0.9, steps=10, success=td < 0.5,
-                          spl=0.5 if td < 0.5 else 0.0) for k, td in enumerate(tds)]
+    return [
+        EpisodeResult(
+            split=split,
+            inst_idx=k,
+            agent=agent,
+            seed=seed,
+            start_x=0,
+            start_y=0,
+            start_heading=0,
+            goal_x=0,
+            goal_y=0,
+            td=float(td),
+            otd=float(td) * 0.9,
+            steps=10,
+            success=td < 0.5,
+            spl=0.5 if td < 0.5 else 0.0,
+        )
+        for k, td in enumerate(tds)
+    ]
 
 
 @pytest.fixture
@@ -33,7 +49,9 @@ def experiment(tmp_path):
         write_csv(tmp_path / "results" / f"{split}.csv", results)
     hist = tmp_path / "runs" / "baseline" / "student-none" / "seed0" / "val" / "history.json"
     hist.parent.mkdir(parents=True)
-    hist.write_text(json.dumps([{"iteration": 10, "loss": 1.0, "val_td": 4.0}, {"iteration": 20, "loss": 0.9, "val_td": 3.5}]))
+    hist.write_text(
+        json.dumps([{"iteration": 10, "loss": 1.0, "val_td": 4.0}, {"iteration": 20, "loss": 0.9, "val_td": 3.5}])
+    )
     return tmp_path
 
 

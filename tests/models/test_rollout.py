@@ -34,8 +34,14 @@ def test_batched_teacher_matches_the_simulator_teacher(bench, few):
         goal = goal_node(graph, inst)
         expected = sim_teacher_actions(graph, nodes, headings, np.full(200, goal))
         stepper = BatchStepper(world, 200)
-        stepper.start(np.arange(200), nodes + off, headings, np.full(200, eps.goal_node[k]),
-                      eps.goal_dist[[k] * 200], eps.goal_next[[k] * 200])
+        stepper.start(
+            np.arange(200),
+            nodes + off,
+            headings,
+            np.full(200, eps.goal_node[k]),
+            eps.goal_dist[[k] * 200],
+            eps.goal_next[[k] * 200],
+        )
         assert (stepper.teacher_actions() == expected).all()
         assert eps.start_node[k] - off == episode_start(graph, inst).node
 
@@ -88,11 +94,11 @@ def test_target_flags_are_the_target_column_of_each_rays_one_hot_label(few):
     world = few["world"]
     obs = torch.from_numpy(world.obs[np.arange(50) * 8].astype(np.float32))  # heading 0
     config = AgentConfig(vocab_size=10, obs_features=world.obs_features, target_rays=True)
-    flags = observation_input(config, obs, torch.full((50,), int(Label.MUG)))[:, world.obs_features:]
-    labels = obs[:, :N_RAYS * N_LABELS].reshape(50, N_RAYS, N_LABELS).argmax(dim=2)
+    flags = observation_input(config, obs, torch.full((50,), int(Label.MUG)))[:, world.obs_features :]
+    labels = obs[:, : N_RAYS * N_LABELS].reshape(50, N_RAYS, N_LABELS).argmax(dim=2)
     assert flags.shape == (50, N_RAYS)
     assert torch.equal(flags.bool(), labels == int(Label.MUG))
-    unknown = observation_input(config, obs, torch.full((50,), -1))[:, world.obs_features:]
+    unknown = observation_input(config, obs, torch.full((50,), -1))[:, world.obs_features :]
     assert (unknown == 0).all()
 
 
@@ -133,18 +139,28 @@ def test_actor_critic_loss_on_a_hand_computed_episode():
     from models.rollout import ENTROPY_WEIGHT, GAMMA, actor_critic_loss
 
     # One episode of two steps, rewards 1 then 2, then over; a second step of a finished episode.
-    logp = [torch.tensor([-0.5], requires_grad=True), torch.tensor([-1.0], requires_grad=True),
-            torch.tensor([-7.0], requires_grad=True)]
+    logp = [
+        torch.tensor([-0.5], requires_grad=True),
+        torch.tensor([-1.0], requires_grad=True),
+        torch.tensor([-7.0], requires_grad=True),
+    ]
     entropy = [torch.tensor([0.3]), torch.tensor([0.2]), torch.tensor([9.0])]
-    value = [torch.tensor([1.5], requires_grad=True), torch.tensor([1.0], requires_grad=True),
-             torch.tensor([4.0], requires_grad=True)]
+    value = [
+        torch.tensor([1.5], requires_grad=True),
+        torch.tensor([1.0], requires_grad=True),
+        torch.tensor([4.0], requires_grad=True),
+    ]
     reward = [torch.tensor([1.0]), torch.tensor([2.0]), torch.tensor([0.0])]
     active = torch.tensor([[1.0], [1.0], [0.0]])
     loss = actor_critic_loss(logp, entropy, value, reward, active)
     returns = [1 + GAMMA * 2, 2.0]
     advantage = [returns[0] - 1.5, returns[1] - 1.0]
-    expected = (0.5 * advantage[0] + 1.0 * advantage[1]
-                + 0.5 * 0.5 * (advantage[0] ** 2 + advantage[1] ** 2) - ENTROPY_WEIGHT * 0.5)
+    expected = (
+        0.5 * advantage[0]
+        + 1.0 * advantage[1]
+        + 0.5 * 0.5 * (advantage[0] ** 2 + advantage[1] ** 2)
+        - ENTROPY_WEIGHT * 0.5
+    )
     assert loss.item() == pytest.approx(expected, rel=1e-6)
     loss.backward()
     assert logp[2].grad.item() == 0 and value[2].grad.item() == 0  # the finished step teaches nothing
@@ -154,8 +170,9 @@ def test_actor_critic_loss_on_a_hand_computed_episode():
 def test_an_agent_with_a_critic_may_stop_anywhere_under_student_forcing(few):
     world, eps = few["world"], few["train_set"]
     torch.manual_seed(0)
-    agent = Seq2SeqAgent(AgentConfig(vocab_size=len(few["tokenizer"]), obs_features=world.obs_features,
-                                     critic=True, target_rays=True))
+    agent = Seq2SeqAgent(
+        AgentConfig(vocab_size=len(few["tokenizer"]), obs_features=world.obs_features, critic=True, target_rays=True)
+    )
     idx = np.arange(len(eps))
     roll = run_episodes(agent, world, eps, idx, "student", generator=torch.Generator().manual_seed(1), train=True)
     stopped = (roll.actions == STOP).any(axis=1)
@@ -167,8 +184,9 @@ def test_an_agent_with_a_critic_may_stop_anywhere_under_student_forcing(few):
 
 def test_a_stop_head_decides_the_greedy_stop(few):
     world, eps = few["world"], few["train_set"]
-    agent = Seq2SeqAgent(AgentConfig(vocab_size=len(few["tokenizer"]), obs_features=world.obs_features,
-                                     dropout=0.0, stop_head=True))
+    agent = Seq2SeqAgent(
+        AgentConfig(vocab_size=len(few["tokenizer"]), obs_features=world.obs_features, dropout=0.0, stop_head=True)
+    )
     idx = np.arange(len(eps))
     with torch.no_grad():
         agent.policy.bias[STOP] = -50.0  # the policy itself never wants to stop
@@ -183,8 +201,9 @@ def test_the_stop_head_learns_whether_the_goal_is_within_the_success_radius(few)
     """Its labels, checked against the distances of the teacher's path: a head sure of "near"
     pays the clamped cross entropy at every far step, one sure of "far" at every near step."""
     world, eps = few["world"], few["train_set"]
-    agent = Seq2SeqAgent(AgentConfig(vocab_size=len(few["tokenizer"]), obs_features=world.obs_features,
-                                     dropout=0.0, stop_head=True))
+    agent = Seq2SeqAgent(
+        AgentConfig(vocab_size=len(few["tokenizer"]), obs_features=world.obs_features, dropout=0.0, stop_head=True)
+    )
     idx = np.arange(len(eps))
     losses = {}
     for bias in (50.0, -50.0):

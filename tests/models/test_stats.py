@@ -13,8 +13,22 @@ from sim.metrics import EpisodeResult
 
 
 def result(agent, inst, seed, td):
-    return EpisodeResult(split="test", inst_idx=inst, agent=agent, seed=seed, start_x=0, start_y=0, start_heading=0,
-                         goal_x=0, goal_y=0, td=td, otd=td, steps=1, success=False, spl=0.0)
+    return EpisodeResult(
+        split="test",
+        inst_idx=inst,
+        agent=agent,
+        seed=seed,
+        start_x=0,
+        start_y=0,
+        start_heading=0,
+        goal_x=0,
+        goal_y=0,
+        td=td,
+        otd=td,
+        steps=1,
+        success=False,
+        spl=0.0,
+    )
 
 
 # Per-instance TDs; "full" has two seeds whose means are 2, 3, 4, 5.

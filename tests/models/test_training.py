@@ -24,8 +24,9 @@ pytestmark = pytest.mark.slow
 def trained(bench, few, tmp_path_factory):
     out = tmp_path_factory.mktemp("run")
     cfg = TrainConfig(feedback="teacher", iters=12, batch=8, lr=1e-2, eval_every=4, max_actions=40)
-    result = train(bench, cfg, out, world=few["world"], progress=False,
-                   train_instances=few["train"], eval_instances=few["val"])
+    result = train(
+        bench, cfg, out, world=few["world"], progress=False, train_instances=few["train"], eval_instances=few["val"]
+    )
     return cfg, out, result
 
 
@@ -56,12 +57,20 @@ def test_checkpoints_round_trip(trained, few):
 def test_training_resumes_from_last_checkpoint(trained, bench, few):
     cfg, out, _ = trained
     longer = TrainConfig(**{**cfg.__dict__, "iters": 16})
-    result = train(bench, longer, out, world=few["world"], progress=False,
-                   train_instances=few["train"], eval_instances=few["val"])
+    result = train(
+        bench, longer, out, world=few["world"], progress=False, train_instances=few["train"], eval_instances=few["val"]
+    )
     assert [h["iteration"] for h in result["history"]] == [4, 8, 12, 16]
     with pytest.raises(ValueError, match="different configuration"):
-        train(bench, TrainConfig(**{**cfg.__dict__, "feedback": "student"}), out, world=few["world"],
-              progress=False, train_instances=few["train"], eval_instances=few["val"])
+        train(
+            bench,
+            TrainConfig(**{**cfg.__dict__, "feedback": "student"}),
+            out,
+            world=few["world"],
+            progress=False,
+            train_instances=few["train"],
+            eval_instances=few["val"],
+        )
 
 
 def test_improved_variant_plays_with_its_averaged_weights_and_resumes_with_both(bench, few, tmp_path):
@@ -100,10 +109,11 @@ def test_evaluation_has_the_baselines_json_and_csv_shape(trained, bench, few, tm
     _, out, _ = trained
     results = evaluate_checkpoint(bench, few["world"], out / "best.pt", "val_seen", instances=few["val"])
     ours = summarize("val_seen", results)
-    theirs = summarize("val_seen", evaluate_baselines(bench, "val_seen", ["stop"], instances=few["val"],
-                                                     progress=False))
+    theirs = summarize(
+        "val_seen", evaluate_baselines(bench, "val_seen", ["stop"], instances=few["val"], progress=False)
+    )
     assert ours.keys() == theirs.keys() and ours["n"] == len(few["val"])
-    (name, stats), = ours["agents"].items()
+    ((name, stats),) = ours["agents"].items()
     assert name == "seq2seq-baseline-teacher-none"
     assert stats.keys() == theirs["agents"]["stop"].keys()
     assert all(np.isfinite(stats[k]) for k in ("td_mean", "otd_mean", "sr", "spl", "steps_mean"))
@@ -117,8 +127,9 @@ def test_vision_blind_agent_ignores_observations_and_language_blind_ignores_the_
     agent, _, _ = load_agent(out / "last.pt")
     world, eps = few["world"], few["val_set"]
     scrambled = dataclasses.replace(world, obs=np.random.default_rng(0).random(world.obs.shape).astype(np.float16))
-    silent = dataclasses.replace(eps, tokens=np.random.default_rng(1).integers(1, len(few["tokenizer"]),
-                                                                            eps.tokens.shape))
+    silent = dataclasses.replace(
+        eps, tokens=np.random.default_rng(1).integers(1, len(few["tokenizer"]), eps.tokens.shape)
+    )
     idx = np.arange(len(eps))
     with torch.no_grad():
         act = lambda w, e, blind: run_episodes(agent, w, e, idx, "argmax", blind).actions  # noqa: E731

@@ -12,7 +12,17 @@ REPO = Path(__file__).resolve().parents[2]
 
 def clean_env(**extra: str) -> dict[str, str]:
     """This environment without the checkout on PYTHONPATH, this venv or the benchmark, plus `extra`."""
-    env = {k: v for k, v in os.environ.items()
-           if k not in ("PYTHONPATH", "VIRTUAL_ENV", "ROBOTSLANG_BENCHMARK", "ROBOTSLANG_DATA_DIR",
-                        "ROBOTSLANG_DATABASE_URL", "ROBOTSLANG_REDIS_URL")}
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if k
+        not in (
+            "PYTHONPATH",
+            "VIRTUAL_ENV",
+            "ROBOTSLANG_BENCHMARK",
+            "ROBOTSLANG_DATA_DIR",
+            "ROBOTSLANG_DATABASE_URL",
+            "ROBOTSLANG_REDIS_URL",
+        )
+    }
     return {**env, **extra}

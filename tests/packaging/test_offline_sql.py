@@ -9,9 +9,14 @@ from tests.packaging.conftest import REPO, clean_env
 
 
 def offline_sql(tmp_path, **env: str) -> str:
-    out = subprocess.run([sys.executable, "-m", "alembic", "upgrade", "head", "--sql"], cwd=REPO,
-                         env=clean_env(PYTHONPATH=str(REPO), ROBOTSLANG_DATA_DIR=str(tmp_path / "var"), **env),
-                         capture_output=True, text=True, timeout=120)
+    out = subprocess.run(
+        [sys.executable, "-m", "alembic", "upgrade", "head", "--sql"],
+        cwd=REPO,
+        env=clean_env(PYTHONPATH=str(REPO), ROBOTSLANG_DATA_DIR=str(tmp_path / "var"), **env),
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert out.returncode == 0, out.stderr
     return out.stdout
 

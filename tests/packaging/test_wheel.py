@@ -29,11 +29,20 @@ pytestmark = pytest.mark.slow
 
 def build_wheels(tmp: Path) -> list[Path]:
     source, dist = tmp / "source", tmp / "dist"
-    shutil.copytree(REPO, source, ignore=shutil.ignore_patterns(
-        ".git", ".venv", "var", "runs", "build", "*.egg-info", "__pycache__", ".pytest_cache", "test-artifacts"))
+    shutil.copytree(
+        REPO,
+        source,
+        ignore=shutil.ignore_patterns(
+            ".git", ".venv", "var", "runs", "build", "*.egg-info", "__pycache__", ".pytest_cache", "test-artifacts"
+        ),
+    )
     for project in (source / "robot_client", source):
-        subprocess.run([sys.executable, "-m", "build", "--wheel", "--no-isolation", "--outdir", str(dist),
-                        str(project)], check=True, capture_output=True, text=True)
+        subprocess.run(
+            [sys.executable, "-m", "build", "--wheel", "--no-isolation", "--outdir", str(dist), str(project)],
+            check=True,
+            capture_output=True,
+            text=True,
+        )
     return sorted(dist.glob("*.whl"))
 
 
@@ -45,10 +54,30 @@ def venv(tmp_path_factory) -> Path:
     venv = tmp / "venv"
     subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True)
     python = venv / "bin" / "python"
-    subprocess.run([sys.executable, "-m", "pip", "--python", str(python), "install", "--quiet", "--no-index",
-                    "--no-deps", *map(str, wheels)], check=True, env=clean_env())
-    site = Path(subprocess.run([str(python), "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"],
-                               check=True, capture_output=True, text=True).stdout.strip())
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "--python",
+            str(python),
+            "install",
+            "--quiet",
+            "--no-index",
+            "--no-deps",
+            *map(str, wheels),
+        ],
+        check=True,
+        env=clean_env(),
+    )
+    site = Path(
+        subprocess.run(
+            [str(python), "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"],
+            check=True,
+            capture_output=True,
+            text=True,
+        ).stdout.strip()
+    )
     # Dependencies from this interpreter's site-packages, after the venv's own; no torch.
     deps = {sysconfig.get_path("purelib"), sysconfig.get_path("platlib")}
     shutil.copy(Path(__file__).with_name("no_torch.py"), site / "no_torch.py")
@@ -57,18 +86,33 @@ def venv(tmp_path_factory) -> Path:
 
 
 def run(venv: Path, *args: str, cwd: Path, **env: str) -> subprocess.CompletedProcess:
-    return subprocess.run([str(venv / "bin" / args[0]), *args[1:]], cwd=cwd, env=clean_env(**env),
-                          capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [str(venv / "bin" / args[0]), *args[1:]],
+        cwd=cwd,
+        env=clean_env(**env),
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 def test_the_installed_packages_come_from_the_wheels_and_torch_is_absent(venv, tmp_path):
-    out = run(venv, "python", "-c", "import app, robot_client, sim; print(app.__file__); print(robot_client.__file__);"
-              "print(sim.__file__)\ntry:\n import torch\nexcept ImportError: print('no torch')",
-              cwd=tmp_path).stdout.splitlines()
+    out = run(
+        venv,
+        "python",
+        "-c",
+        "import app, robot_client, sim; print(app.__file__); print(robot_client.__file__);"
+        "print(sim.__file__)\ntry:\n import torch\nexcept ImportError: print('no torch')",
+        cwd=tmp_path,
+    ).stdout.splitlines()
     assert all(line.startswith(str(venv)) for line in out[:3]), out
     assert out[3] == "no torch"
-    check = subprocess.run([sys.executable, "-m", "pip", "--python", str(venv / "bin" / "python"), "check"],
-                           capture_output=True, text=True, env=clean_env())
+    check = subprocess.run(
+        [sys.executable, "-m", "pip", "--python", str(venv / "bin" / "python"), "check"],
+        capture_output=True,
+        text=True,
+        env=clean_env(),
+    )
     # Every dependency of both wheels is satisfied, without torch (pip check also reports on the
     # other packages of the environment lending the dependencies; those are not ours to judge).
     ours = [line for line in check.stdout.splitlines() if line.startswith(("robotslang ", "robotslang-robot "))]
@@ -78,9 +122,14 @@ def test_the_installed_packages_come_from_the_wheels_and_torch_is_absent(venv, t
 
 def test_the_installed_server_serves_pages_static_files_migrations_and_bundled_mazes(venv, tmp_path):
     data, port = tmp_path / "data", free_port()
-    server = subprocess.Popen([str(venv / "bin" / "robotslang"), "serve", "--port", str(port), "--data-dir",
-                               str(data)], cwd=tmp_path, env=clean_env(), stdout=subprocess.PIPE,
-                              stderr=subprocess.STDOUT, text=True)
+    server = subprocess.Popen(
+        [str(venv / "bin" / "robotslang"), "serve", "--port", str(port), "--data-dir", str(data)],
+        cwd=tmp_path,
+        env=clean_env(),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     try:
         url = f"http://127.0.0.1:{port}"
         deadline = time.time() + 60
@@ -105,8 +154,12 @@ def test_the_installed_server_serves_pages_static_files_migrations_and_bundled_m
             server.kill()
             server.wait()
     # Logged in, the experimenter picks from the mazes bundled in the wheel.
-    server = subprocess.Popen([str(venv / "bin" / "robotslang"), "serve", "--port", str(port), "--data-dir",
-                               str(data)], cwd=tmp_path, env=clean_env(), stdout=subprocess.DEVNULL)
+    server = subprocess.Popen(
+        [str(venv / "bin" / "robotslang"), "serve", "--port", str(port), "--data-dir", str(data)],
+        cwd=tmp_path,
+        env=clean_env(),
+        stdout=subprocess.DEVNULL,
+    )
     try:
         with browser(url) as client:
             deadline = time.time() + 60

@@ -33,8 +33,15 @@ class ScriptedServer:
             await ws.send(json.dumps({"type": "error", "code": "auth", "error": "unknown robot token"}))
             await ws.close(CLOSE_REFUSED, "unknown robot token")
             return
-        await ws.send(json.dumps({"type": "welcome", "robot": {"id": 1, "name": "r1", "role": hello["role"]},
-                                  "ping_interval_s": self.ping_s}))
+        await ws.send(
+            json.dumps(
+                {
+                    "type": "welcome",
+                    "robot": {"id": 1, "name": "r1", "role": hello["role"]},
+                    "ping_interval_s": self.ping_s,
+                }
+            )
+        )
         self.connections.append(ws)
         self.connected.set()
         pinger = asyncio.create_task(self._ping(ws))

@@ -23,14 +23,32 @@ def read_pin_log(path) -> list[dict]:
 def test_calibrate_scales_each_pulse_by_target_over_measured(tmp_path):
     path = tmp_path / "cal.json"
     Calibration(forward_s=0.1, left_s=0.1, right_s=0.1).save(path)
-    answers = "\n".join([
-        "", "14",       # forward: first pulse went 14 cm, twice the 7 cm wanted
-        "", "",         # second pulse accepted
-        "", "",         # left accepted as is
-        "", "abc", "", "90", "", "",  # right: a typo, then 90 degrees, then accepted
-    ]) + "\n"
-    result = subprocess.run(ROBOT + ["calibrate", "--motors", "mock", "--calibration", str(path)],
-                            input=answers, capture_output=True, text=True, timeout=30)
+    answers = (
+        "\n".join(
+            [
+                "",
+                "14",  # forward: first pulse went 14 cm, twice the 7 cm wanted
+                "",
+                "",  # second pulse accepted
+                "",
+                "",  # left accepted as is
+                "",
+                "abc",
+                "",
+                "90",
+                "",
+                "",  # right: a typo, then 90 degrees, then accepted
+            ]
+        )
+        + "\n"
+    )
+    result = subprocess.run(
+        ROBOT + ["calibrate", "--motors", "mock", "--calibration", str(path)],
+        input=answers,
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
     assert result.returncode == 0, result.stderr
     assert "'abc' is not a number" in result.stdout
     cal = Calibration.load(path)
@@ -41,8 +59,13 @@ def test_calibrate_abandoned_leaves_the_file_unchanged(tmp_path):
     path = tmp_path / "cal.json"
     Calibration(forward_s=0.1).save(path)
     before = path.read_text()
-    result = subprocess.run(ROBOT + ["calibrate", "--motors", "mock", "--calibration", str(path)],
-                            input="\n7\n", capture_output=True, text=True, timeout=30)
+    result = subprocess.run(
+        ROBOT + ["calibrate", "--motors", "mock", "--calibration", str(path)],
+        input="\n7\n",
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
     assert result.returncode != 0 and "the file was not changed" in result.stderr
     assert path.read_text() == before
 
@@ -50,27 +73,56 @@ def test_calibrate_abandoned_leaves_the_file_unchanged(tmp_path):
 def test_bad_calibration_file_is_named_and_nothing_starts(tmp_path):
     path = tmp_path / "cal.json"
     path.write_text('{"forward_s": -1}')
-    result = subprocess.run(ROBOT + ["--server", "http://127.0.0.1:9", "--token", "t", "--camera", "synthetic",
-                                     "--motors", "mock", "--calibration", str(path)],
-                            capture_output=True, text=True, timeout=30)
+    result = subprocess.run(
+        ROBOT
+        + [
+            "--server",
+            "http://127.0.0.1:9",
+            "--token",
+            "t",
+            "--camera",
+            "synthetic",
+            "--motors",
+            "mock",
+            "--calibration",
+            str(path),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
     assert result.returncode == 2
     assert "cal.json: forward_s must be in (0, max_move_s=2.0]" in result.stderr
 
 
 def test_bad_camera_and_server_are_named():
-    result = subprocess.run(ROBOT + ["--server", "http://127.0.0.1:9", "--token", "t", "--camera", "/no/such.mp4",
-                                     "--motors", "mock"], capture_output=True, text=True, timeout=30)
+    result = subprocess.run(
+        ROBOT + ["--server", "http://127.0.0.1:9", "--token", "t", "--camera", "/no/such.mp4", "--motors", "mock"],
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
     assert result.returncode == 2 and "--camera '/no/such.mp4' is not a camera index" in result.stderr
-    result = subprocess.run(ROBOT + ["--server", "127.0.0.1:9", "--token", "t"], capture_output=True, text=True,
-                            timeout=30)
+    result = subprocess.run(
+        ROBOT + ["--server", "127.0.0.1:9", "--token", "t"], capture_output=True, text=True, timeout=30
+    )
     assert result.returncode == 2 and "--server must be a URL like http://HOST:PORT" in result.stderr
 
 
 @pytest.mark.anyio
 async def test_wrong_token_exits_with_the_servers_reason(scripted_server):
     process = await asyncio.create_subprocess_exec(
-        *ROBOT, "--server", scripted_server.url, "--token", "bad", "--camera", "synthetic", "--motors", "mock",
-        stderr=asyncio.subprocess.PIPE)
+        *ROBOT,
+        "--server",
+        scripted_server.url,
+        "--token",
+        "bad",
+        "--camera",
+        "synthetic",
+        "--motors",
+        "mock",
+        stderr=asyncio.subprocess.PIPE,
+    )
     _, stderr = await asyncio.wait_for(process.communicate(), 20)
     assert process.returncode == 3
     assert "the server refused this robot: auth: unknown robot token" in stderr.decode()
@@ -82,8 +134,21 @@ async def test_signal_stops_a_running_move_before_exit(scripted_server, tmp_path
     cal, pins = tmp_path / "cal.json", tmp_path / "pins.jsonl"
     Calibration(forward_s=1.8).save(cal)
     process = await asyncio.create_subprocess_exec(
-        *ROBOT, "--server", scripted_server.url, "--token", "good", "--camera", "synthetic", "--motors", "mock",
-        "--calibration", str(cal), "--pin-log", str(pins), stderr=asyncio.subprocess.PIPE)
+        *ROBOT,
+        "--server",
+        scripted_server.url,
+        "--token",
+        "good",
+        "--camera",
+        "synthetic",
+        "--motors",
+        "mock",
+        "--calibration",
+        str(cal),
+        "--pin-log",
+        str(pins),
+        stderr=asyncio.subprocess.PIPE,
+    )
     try:
         await asyncio.wait_for(scripted_server.connected.wait(), 20)
         await scripted_server.send({"type": "move", "id": 1, "action": "forward"})
@@ -106,9 +171,11 @@ async def test_signal_stops_a_running_move_before_exit(scripted_server, tmp_path
 
 
 def test_the_client_loads_none_of_the_servers_packages():
-    code = ("import sys, robot_client.cli, robot_client.calibrate; "
-            "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('app', 'sim', 'models', 'torch', 'fastapi')); "
-            "print(bad); sys.exit(1 if bad else 0)")
+    code = (
+        "import sys, robot_client.cli, robot_client.calibrate; "
+        "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('app', 'sim', 'models', 'torch', 'fastapi')); "
+        "print(bad); sys.exit(1 if bad else 0)"
+    )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stdout + result.stderr
 
@@ -124,8 +191,23 @@ async def test_a_video_file_camera_streams_resized_frames_in_a_loop(scripted_ser
         writer.write(np.full((48, 64, 3), 40 * i, np.uint8))
     writer.release()
     process = await asyncio.create_subprocess_exec(
-        *ROBOT, "--server", scripted_server.url, "--token", "good", "--role", "overhead", "--camera", str(video),
-        "--width", "32", "--height", "24", "--fps", "20", stderr=asyncio.subprocess.PIPE)
+        *ROBOT,
+        "--server",
+        scripted_server.url,
+        "--token",
+        "good",
+        "--role",
+        "overhead",
+        "--camera",
+        str(video),
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--fps",
+        "20",
+        stderr=asyncio.subprocess.PIPE,
+    )
     try:
         await asyncio.wait_for(scripted_server.connected.wait(), 20)
         async with asyncio.timeout(10):

@@ -128,9 +128,12 @@ async def test_watchdog_stops_the_motors_when_the_server_falls_silent(scripted_s
 async def test_malformed_server_messages_get_an_error_and_change_nothing(scripted_server):
     async with running_client(scripted_server) as (_, factory, _):
         await asyncio.wait_for(scripted_server.connected.wait(), 3)
-        for bad, words in [("{oops", "not JSON"), ('{"type": "dance"}', "unknown message type 'dance'"),
-                           (b"\x00\x01", "no binary messages"),
-                           ('{"type": "move", "action": "forward"}', "needs an 'id'")]:
+        for bad, words in [
+            ("{oops", "not JSON"),
+            ('{"type": "dance"}', "unknown message type 'dance'"),
+            (b"\x00\x01", "no binary messages"),
+            ('{"type": "move", "action": "forward"}', "needs an 'id'"),
+        ]:
             await scripted_server.send(bad)
             error = await scripted_server.next("error")
             assert error["code"] == "bad_message" and words in error["error"]

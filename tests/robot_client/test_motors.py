@@ -8,19 +8,28 @@ import pytest
 from robot_client.calibration import Calibration, CalibrationError
 from robot_client.motors import MotorError, Motors, mock_factory, open_motors
 
-PINS = Calibration(left_forward_pin=5, left_backward_pin=6, right_forward_pin=13, right_backward_pin=19,
-                   forward_speed=0.7, turn_speed=0.5)
+PINS = Calibration(
+    left_forward_pin=5,
+    left_backward_pin=6,
+    right_forward_pin=13,
+    right_backward_pin=19,
+    forward_speed=0.7,
+    turn_speed=0.5,
+)
 
 
 def pin_values(factory) -> dict[str, float]:
     return {info.name: float(pin.state) for info, pin in factory.pins.items()}
 
 
-@pytest.mark.parametrize("action, expected", [
-    ("forward", {"GPIO5": 0.7, "GPIO6": 0.0, "GPIO13": 0.7, "GPIO19": 0.0}),
-    ("left", {"GPIO5": 0.0, "GPIO6": 0.5, "GPIO13": 0.5, "GPIO19": 0.0}),
-    ("right", {"GPIO5": 0.5, "GPIO6": 0.0, "GPIO13": 0.0, "GPIO19": 0.5}),
-])
+@pytest.mark.parametrize(
+    "action, expected",
+    [
+        ("forward", {"GPIO5": 0.7, "GPIO6": 0.0, "GPIO13": 0.7, "GPIO19": 0.0}),
+        ("left", {"GPIO5": 0.0, "GPIO6": 0.5, "GPIO13": 0.5, "GPIO19": 0.0}),
+        ("right", {"GPIO5": 0.5, "GPIO6": 0.0, "GPIO13": 0.0, "GPIO19": 0.5}),
+    ],
+)
 def test_each_move_drives_the_calibrated_pins(action, expected):
     factory = mock_factory()
     motors = Motors(PINS, factory)
@@ -47,8 +56,7 @@ def test_pin_log_records_every_change_with_the_monotonic_clock(tmp_path):
     time.sleep(0.05)
     motors.stop()
     lines = [json.loads(line) for line in log.read_text().splitlines()]
-    assert [(e["pin"], e["state"]) for e in lines] == [
-        ("GPIO5", 0.7), ("GPIO13", 0.7), ("GPIO5", 0.0), ("GPIO13", 0.0)]
+    assert [(e["pin"], e["state"]) for e in lines] == [("GPIO5", 0.7), ("GPIO13", 0.7), ("GPIO5", 0.0), ("GPIO13", 0.0)]
     assert before <= lines[0]["t_ns"] and lines[2]["t_ns"] - lines[1]["t_ns"] >= 50e6
 
 

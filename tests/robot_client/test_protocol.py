@@ -22,12 +22,15 @@ def test_frame_round_trip_keeps_header_and_payload():
     assert len(data) == FRAME_HEADER.size + len(JPEG) == 20 + len(JPEG)
 
 
-@pytest.mark.parametrize("data, words", [
-    (b"RSF1", "too short"),
-    (b"XXXX" + pack_frame(1, 1, 2, 2, JPEG)[4:], "expected b'RSF1'"),
-    (pack_frame(1, 1, 0, 2, JPEG), "size 0x2"),
-    (pack_frame(1, 1, 2, 2, b"GIF89a..."), "not a JPEG"),
-])
+@pytest.mark.parametrize(
+    "data, words",
+    [
+        (b"RSF1", "too short"),
+        (b"XXXX" + pack_frame(1, 1, 2, 2, JPEG)[4:], "expected b'RSF1'"),
+        (pack_frame(1, 1, 0, 2, JPEG), "size 0x2"),
+        (pack_frame(1, 1, 2, 2, b"GIF89a..."), "not a JPEG"),
+    ],
+)
 def test_malformed_frames_are_named(data, words):
     with pytest.raises(ProtocolError, match=words.replace("(", r"\(")):
         unpack_frame(data)

@@ -15,7 +15,7 @@ def open_table(objects=((0.5, 0.5), (1.2, 1.0), (2.0, 1.5))) -> np.ndarray:
     labels[:, :8] = labels[:, -8:] = Label.RED
     for label, (x, y) in zip((Label.JAR, Label.MUG, Label.PADDLE), objects):
         c, r = (int(v) for v in world_to_pixel(x, y))
-        labels[r - 8:r + 8, c - 8:c + 8] = label
+        labels[r - 8 : r + 8, c - 8 : c + 8] = label
     return labels
 
 
@@ -24,5 +24,5 @@ def wall_at_x(labels: np.ndarray, x: float, label: Label = Label.BLUE, y_range=(
     c, _ = world_to_pixel(x, 0)
     _, r0 = world_to_pixel(0, y_range[1])
     _, r1 = world_to_pixel(0, y_range[0])
-    labels[int(max(r0, 0)):int(min(r1, MAP_HEIGHT_PX)), int(c) - 5:int(c) + 5] = label
+    labels[int(max(r0, 0)) : int(min(r1, MAP_HEIGHT_PX)), int(c) - 5 : int(c) + 5] = label
     return labels

@@ -55,9 +55,26 @@ def test_jar_episodes_start_at_the_recorded_pose(bench):
 @pytest.mark.slow
 def test_immediate_stop_reproduces_the_paper(benchmark_path, split, mean, std):
     out = subprocess.run(
-        [sys.executable, "-m", "app.cli", "eval", "baselines", "--benchmark", str(benchmark_path),
-         "--split", split, "--agent", "stop", "--start", "recorded", "--json"],
-        capture_output=True, text=True, check=True)
+        [
+            sys.executable,
+            "-m",
+            "app.cli",
+            "eval",
+            "baselines",
+            "--benchmark",
+            str(benchmark_path),
+            "--split",
+            split,
+            "--agent",
+            "stop",
+            "--start",
+            "recorded",
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     summary = json.loads(out.stdout)
     stop = summary["agents"]["stop"]
     assert (f"{stop['td_mean']:.2f}", f"{stop['td_std']:.2f}") == (mean, std)
@@ -68,9 +85,28 @@ def test_immediate_stop_reproduces_the_paper(benchmark_path, split, mean, std):
 def test_all_baselines_csv_has_a_row_per_instance_agent_and_seed(benchmark_path, tmp_path):
     csv_path = tmp_path / "per.csv"
     out = subprocess.run(
-        [sys.executable, "-m", "app.cli", "eval", "baselines", "--benchmark", str(benchmark_path),
-         "--split", "val_seen", "--agent", "stop,random,shortest", "--seeds", "0,1", "--json",
-         "--per-instance", str(csv_path)], capture_output=True, text=True, check=True)
+        [
+            sys.executable,
+            "-m",
+            "app.cli",
+            "eval",
+            "baselines",
+            "--benchmark",
+            str(benchmark_path),
+            "--split",
+            "val_seen",
+            "--agent",
+            "stop,random,shortest",
+            "--seeds",
+            "0,1",
+            "--json",
+            "--per-instance",
+            str(csv_path),
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     summary = json.loads(out.stdout)
     assert set(summary["agents"]) == {"stop", "random", "shortest"}
     assert summary["agents"]["random"]["steps_mean"] == 120  # random never stops
@@ -84,6 +120,10 @@ def test_all_baselines_csv_has_a_row_per_instance_agent_and_seed(benchmark_path,
 def test_a_missing_benchmark_is_a_clear_error(tmp_path):
     with pytest.raises(BenchmarkError, match="no NDH-data folder"):
         Benchmark(tmp_path)
-    out = subprocess.run([sys.executable, "-m", "app.cli", "eval", "baselines", "--benchmark", str(tmp_path)],
-                         capture_output=True, text=True, env={**os.environ, "COLUMNS": "300"})
+    out = subprocess.run(
+        [sys.executable, "-m", "app.cli", "eval", "baselines", "--benchmark", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "COLUMNS": "300"},
+    )
     assert out.returncode != 0 and "no NDH-data folder" in out.stderr

@@ -43,9 +43,14 @@ def test_undistorting_with_the_calibration_recovers_the_pinhole_view(maze):
     pinhole = first_person(maze, *POSE, size=(render_w, render_h))
     f_r = (render_w / 2) / np.tan(camera.hfov_rad / 2)
     scale = f_r / calib.fx
-    ideal = cv2.warpAffine(pinhole, np.array([[scale, 0, (render_w - 1) / 2 - scale * calib.cx],
-                                              [0, scale, (0.42 * render_h - 0.5) - scale * calib.cy]]),
-                           (640, 480), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP).astype(np.float32)
+    ideal = cv2.warpAffine(
+        pinhole,
+        np.array(
+            [[scale, 0, (render_w - 1) / 2 - scale * calib.cx], [0, scale, (0.42 * render_h - 0.5) - scale * calib.cy]]
+        ),
+        (640, 480),
+        flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+    ).astype(np.float32)
     undistorted = cv2.undistort(frame, calib.matrix, calib.distortion).astype(np.float32)
     inner = (slice(60, 420), slice(80, 560))
     raw_err = np.abs(frame[inner] - ideal[inner]).mean()
@@ -74,21 +79,36 @@ def test_calibration_round_trips_through_json(tmp_path):
     loaded = CameraCalibration.load(path)
     assert loaded == calib
     data = json.loads(path.read_text())
-    assert set(data) == {"version", "image_size", "intrinsics", "distortion", "camera_height_m",
-                         "camera_pitch_rad", "colours", "object_depth_offset_m"}
+    assert set(data) == {
+        "version",
+        "image_size",
+        "intrinsics",
+        "distortion",
+        "camera_height_m",
+        "camera_pitch_rad",
+        "colours",
+        "object_depth_offset_m",
+    }
     assert data["image_size"] == [320, 240]
 
 
-@pytest.mark.parametrize("mutate, message", [
-    (lambda d: d.pop("intrinsics"), "missing or malformed"),
-    (lambda d: d.update(version=99), "version 99"),
-    (lambda d: d["colours"].update(purple={"mean": [0, 0, 0], "cov": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}),
-     "unknown colour classes"),
-    (lambda d: d["colours"].update(red={"mean": [0, 0], "cov": [[1]]}), "colours.red"),
-    (lambda d: d["colours"].update(red={"mean": [0, 0, 0], "cov": [[1, 0, 0], [0, -1, 0], [0, 0, 1]]}),
-     "positive definite"),
-    (lambda d: d.update(camera_height_m=-1), "camera_height_m"),
-])
+@pytest.mark.parametrize(
+    "mutate, message",
+    [
+        (lambda d: d.pop("intrinsics"), "missing or malformed"),
+        (lambda d: d.update(version=99), "version 99"),
+        (
+            lambda d: d["colours"].update(purple={"mean": [0, 0, 0], "cov": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}),
+            "unknown colour classes",
+        ),
+        (lambda d: d["colours"].update(red={"mean": [0, 0], "cov": [[1]]}), "colours.red"),
+        (
+            lambda d: d["colours"].update(red={"mean": [0, 0, 0], "cov": [[1, 0, 0], [0, -1, 0], [0, 0, 1]]}),
+            "positive definite",
+        ),
+        (lambda d: d.update(camera_height_m=-1), "camera_height_m"),
+    ],
+)
 def test_bad_calibration_files_are_clear_errors(tmp_path, mutate, message):
     data = FrontCamera(320, 240).calibration().to_json()
     mutate(data)

@@ -35,8 +35,7 @@ def val_env(bench):
 @pytest.fixture(scope="module")
 def walled_maze():
     """A table split by a wall with a gap at the top: routes from left to right must detour."""
-    labels = wall_at_x(open_table(objects=((0.4, 0.5), (2.0, 0.5), (2.0, 1.6))), 1.2, Label.BLUE,
-                       y_range=(0.0, 1.5))
+    labels = wall_at_x(open_table(objects=((0.4, 0.5), (2.0, 0.5), (2.0, 1.6))), 1.2, Label.BLUE, y_range=(0.0, 1.5))
     return Maze.from_labels(labels, "walled")
 
 

@@ -19,9 +19,24 @@ def reference(bench, split, instances, agents, seeds):
             for seed in seeds:
                 nodes, moves = run_episode(graph, start, goal, make_baseline(name), episode_seed(seed, inst.inst_idx))
                 s = score_trajectory(graph, nodes, goal)
-                rows.append(EpisodeResult(split, inst.inst_idx, name, seed, float(sx), float(sy),
-                                          float(heading_angle(start.heading)), inst.target_pose[0],
-                                          inst.target_pose[1], s.td, s.otd, moves, s.success, s.spl))
+                rows.append(
+                    EpisodeResult(
+                        split,
+                        inst.inst_idx,
+                        name,
+                        seed,
+                        float(sx),
+                        float(sy),
+                        float(heading_angle(start.heading)),
+                        inst.target_pose[0],
+                        inst.target_pose[1],
+                        s.td,
+                        s.otd,
+                        moves,
+                        s.success,
+                        s.spl,
+                    )
+                )
     return rows
 
 

@@ -163,10 +163,15 @@ def test_map_missing_an_object_is_rejected_naming_the_file_and_object(mazes, tmp
 
 def test_objects_that_cannot_reach_each_other_are_rejected_naming_them():
     # A closed white box round the jar: the mug and paddle are outside it.
-    box = [(Label.WHITE, 100, 450, 400, 465), (Label.WHITE, 100, 735, 400, 750),
-           (Label.WHITE, 100, 450, 115, 750), (Label.WHITE, 385, 450, 400, 750)]
-    maze = synthetic_maze(rects=box, objects={Label.JAR: (250, 600), Label.MUG: (900, 300),
-                                              Label.PADDLE: (1100, 900)}, name="boxed")
+    box = [
+        (Label.WHITE, 100, 450, 400, 465),
+        (Label.WHITE, 100, 735, 400, 750),
+        (Label.WHITE, 100, 450, 115, 750),
+        (Label.WHITE, 385, 450, 400, 750),
+    ]
+    maze = synthetic_maze(
+        rects=box, objects={Label.JAR: (250, 600), Label.MUG: (900, 300), Label.PADDLE: (1100, 900)}, name="boxed"
+    )
     with pytest.raises(MazeError, match=r"boxed: objects cannot reach each other.*jar and mug, jar and paddle"):
         check_reachable(maze)
     with pytest.raises(MazeError, match=r"^my/maze.png: "):

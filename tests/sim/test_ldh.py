@@ -31,15 +31,24 @@ def dialog(*turns):
 
 
 def test_prefix_ends_before_the_first_movement_instruction():
-    d = dialog(("C", "What do you see?"), ("D", "a yellow wall ahead, red to my left"),
-               ("C", "if you back up a little, is there a red wall to your left?"), ("D", "yes"),
-               ("C", "Ok make a left at the red wall"), ("D", "done"))
+    d = dialog(
+        ("C", "What do you see?"),
+        ("D", "a yellow wall ahead, red to my left"),
+        ("C", "if you back up a little, is there a red wall to your left?"),
+        ("D", "yes"),
+        ("C", "Ok make a left at the red wall"),
+        ("D", "done"),
+    )
     assert localization_prefix(d) == 4  # the question about backing up is still localization
 
 
 def test_prefix_keeps_the_commander_saying_they_know_where_the_robot_is():
-    d = dialog(("C", "Describe your surroundings"), ("D", "blue walls on my right"),
-               ("C", "Ok I know where you are"), ("C", "go forward"))
+    d = dialog(
+        ("C", "Describe your surroundings"),
+        ("D", "blue walls on my right"),
+        ("C", "Ok I know where you are"),
+        ("C", "go forward"),
+    )
     assert localization_prefix(d) == 3
 
 
@@ -49,8 +58,9 @@ def test_prefix_ignores_driver_moves_and_keeps_everything_without_a_cue():
 
 
 def test_mentions_put_each_colour_in_the_sector_of_its_clause():
-    counts = mentions(dialog(("D", "a red wall to my left and yellow ahead"), ("C", "blue on your right?"),
-                             ("D", "green walls")))
+    counts = mentions(
+        dialog(("D", "a red wall to my left and yellow ahead"), ("C", "blue on your right?"), ("D", "green walls"))
+    )
     assert counts[Sector.LEFT, Label.RED] == 1 and counts[Sector.FRONT, Label.YELLOW] == 1
     assert counts[Sector.ANY, Label.GREEN] == 1 and counts[:, Label.BLUE].sum() == 0  # Commander's words
     assert counts.sum() == 3
@@ -119,18 +129,26 @@ def export_folder(tmp_path, instances):
 
 
 def exported(idx, pose):
-    return {"inst_idx": idx, "scan": "mazedata/m1/maze/maze.labelled.npz-jar-[1.4 0.7]-[0.5 0.5]",
-            "target": "jar", "agent_pose": pose, "start_pose": pose, "commander_estimate": [1.0, 1.0, None],
-            "dialog_history": [{"role": "navigator", "message": "red wall to my left"}],
-            "all_targets": [[0.5, 0.5], [1.2, 1.0], [2.0, 1.5]], "trial_id": "t"}
+    return {
+        "inst_idx": idx,
+        "scan": "mazedata/m1/maze/maze.labelled.npz-jar-[1.4 0.7]-[0.5 0.5]",
+        "target": "jar",
+        "agent_pose": pose,
+        "start_pose": pose,
+        "commander_estimate": [1.0, 1.0, None],
+        "dialog_history": [{"role": "navigator", "message": "red wall to my left"}],
+        "all_targets": [[0.5, 0.5], [1.2, 1.0], [2.0, 1.5]],
+        "trial_id": "t",
+    }
 
 
 def test_the_evaluator_reads_exported_trials_and_skips_those_without_a_true_pose(tmp_path):
     root_dir = export_folder(tmp_path, [exported(0, [1.4, 0.7, 0.0]), exported(1, None)])
     (inst,) = load_split(Benchmark(root_dir), "val_seen")
     assert inst.variant == Variant.EXACT and inst.run == "m1" and inst.position == (1.4, 0.7)
-    result = CliRunner().invoke(root, ["eval", "ldh", "--benchmark", str(root_dir), "--split", "val_seen",
-                                       "--agent", "random,center", "--json"])
+    result = CliRunner().invoke(
+        root, ["eval", "ldh", "--benchmark", str(root_dir), "--split", "val_seen", "--agent", "random,center", "--json"]
+    )
     assert result.exit_code == 0, result.output
     out = json.loads(result.output)
     assert out["variant"] == "exact" and out["n"] == 1 and set(out["agents"]) == {"random", "center"}
@@ -138,14 +156,14 @@ def test_the_evaluator_reads_exported_trials_and_skips_those_without_a_true_pose
 
 def test_an_empty_split_is_a_clear_error(tmp_path):
     root_dir = export_folder(tmp_path, [])
-    result = CliRunner().invoke(root, ["eval", "ldh", "--benchmark", str(root_dir), "--split", "val_seen",
-                                       "--json"])
+    result = CliRunner().invoke(root, ["eval", "ldh", "--benchmark", str(root_dir), "--split", "val_seen", "--json"])
     assert result.exit_code == 2 and "no LDH instances" in said(result)
 
 
 def test_an_unknown_agent_is_a_clear_error(tmp_path):
-    result = CliRunner().invoke(root, ["eval", "ldh", "--benchmark", str(export_folder(tmp_path, [])),
-                                       "--agent", "oracle"])
+    result = CliRunner().invoke(
+        root, ["eval", "ldh", "--benchmark", str(export_folder(tmp_path, [])), "--agent", "oracle"]
+    )
     assert result.exit_code == 2 and "unknown agent oracle" in said(result)
 
 

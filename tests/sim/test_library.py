@@ -107,14 +107,21 @@ def test_local_folders_come_between_bundled_and_benchmark(local_dir, benchmark_p
 
 
 def test_a_local_maze_with_unreachable_objects_is_rejected_naming_its_file(tmp_path):
-    box = [(Label.WHITE, 100, 450, 400, 465), (Label.WHITE, 100, 735, 400, 750),
-           (Label.WHITE, 100, 450, 115, 750), (Label.WHITE, 385, 450, 400, 750)]
-    synthetic_maze(rects=box, objects={Label.JAR: (250, 600), Label.MUG: (900, 300),
-                                       Label.PADDLE: (1100, 900)}).save(tmp_path / "boxed")
+    box = [
+        (Label.WHITE, 100, 450, 400, 465),
+        (Label.WHITE, 100, 735, 400, 750),
+        (Label.WHITE, 100, 450, 115, 750),
+        (Label.WHITE, 385, 450, 400, 750),
+    ]
+    synthetic_maze(rects=box, objects={Label.JAR: (250, 600), Label.MUG: (900, 300), Label.PADDLE: (1100, 900)}).save(
+        tmp_path / "boxed"
+    )
     library = MazeLibrary(extra_dirs=[tmp_path])
     assert "boxed" in library.names()
     fixed = tmp_path / "boxed" / "maze" / FIXED_MAP
-    with pytest.raises(MazeError, match=rf"^{re.escape(str(fixed))}: objects cannot reach each other.*: jar and mug, jar and paddle$"):
+    with pytest.raises(
+        MazeError, match=rf"^{re.escape(str(fixed))}: objects cannot reach each other.*: jar and mug, jar and paddle$"
+    ):
         library.load("boxed")
 
 

@@ -75,8 +75,7 @@ def test_an_unreadable_frame_leaves_the_belief_alone(maze, calibration):
 
 
 def test_the_filter_finds_the_rover_from_a_uniform_start(maze, calibration, tmp_path):
-    result = evaluate_filter(maze, episodes=5, moves=20, seed=4, n_particles=1000,
-                             calibration=calibration)
+    result = evaluate_filter(maze, episodes=5, moves=20, seed=4, n_particles=1000, calibration=calibration)
     assert result["converged_fraction_20_moves"] >= 0.8
     assert len(result["curve"]) == 21
     assert result["curve"][-1] < result["curve"][0]

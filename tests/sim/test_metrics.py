@@ -44,9 +44,14 @@ def result(inst, agent, seed, td, steps=0, success=False, spl=0.0):
 
 
 def test_summary_averages_seeds_per_instance_then_uses_sample_std():
-    results = [result(1, "random", 0, 2.0), result(1, "random", 1, 4.0),  # instance mean 3
-               result(2, "random", 0, 5.0), result(2, "random", 1, 5.0),  # instance mean 5
-               result(1, "stop", 0, 1.0, success=False), result(2, "stop", 0, 0.2, success=True, spl=0.5)]
+    results = [
+        result(1, "random", 0, 2.0),
+        result(1, "random", 1, 4.0),  # instance mean 3
+        result(2, "random", 0, 5.0),
+        result(2, "random", 1, 5.0),  # instance mean 5
+        result(1, "stop", 0, 1.0, success=False),
+        result(2, "stop", 0, 0.2, success=True, spl=0.5),
+    ]
     s = summarize("val_seen", results)
     assert s["split"] == "val_seen" and s["n"] == 2
     r = s["agents"]["random"]

@@ -92,11 +92,14 @@ def test_a_ray_origin_off_the_table_is_refused_with_its_position():
 
 # -- the table over a navigation graph -----------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def corridor():
     """A blue wall across the table at x ~ 1.4 m with a gap at the bottom; objects in the open."""
-    maze = synthetic_maze([(Label.BLUE, 795, 10, 806, 900)],
-                          objects={Label.JAR: (300, 300), Label.MUG: (1100, 300), Label.PADDLE: (300, 800)})
+    maze = synthetic_maze(
+        [(Label.BLUE, 795, 10, 806, 900)],
+        objects={Label.JAR: (300, 300), Label.MUG: (1100, 300), Label.PADDLE: (300, 800)},
+    )
     graph = NavGraph.build(maze)
     return maze, graph, RayTable.build(maze, graph)
 
@@ -121,8 +124,11 @@ def test_table_rows_are_the_rays_cast_from_each_node(corridor):
 def test_facing_the_wall_from_the_nearest_node(corridor):
     maze, graph, table = corridor
     # The node left of the wall closest to it, at mid-height: the wall's face is column 794.5.
-    i = max(i for i in range(graph.node_grid.shape[0]) if graph.node_grid[i, 20] >= 0
-            and graph.nodes[graph.node_grid[i, 20]][0] < 1.4)
+    i = max(
+        i
+        for i in range(graph.node_grid.shape[0])
+        if graph.node_grid[i, 20] >= 0 and graph.nodes[graph.node_grid[i, 20]][0] < 1.4
+    )
     node = graph.node_grid[i, 20]
     col0, _ = world_to_pixel(*graph.nodes[node])
     assert table.labels[node, 0, N_RAYS // 2] == Label.BLUE
@@ -169,6 +175,7 @@ def test_table_is_cached_by_maze_and_nodes(tmp_path, corridor):
 
 
 # -- the benchmark's maps ------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def run_318(benchmark_path):
@@ -218,8 +225,7 @@ def _dense_ray(maze: Maze, x, y, angle, step_m=5e-5):
 def test_table_agrees_with_dense_sampling_on_run_318(run_318):
     maze, graph, table = run_318
     rng = np.random.default_rng(7)
-    for node, k, r in zip(rng.integers(graph.n, size=200), rng.integers(8, size=200),
-                          rng.integers(N_RAYS, size=200)):
+    for node, k, r in zip(rng.integers(graph.n, size=200), rng.integers(8, size=200), rng.integers(N_RAYS, size=200)):
         x, y = graph.nodes[node]
         label, depth = _dense_ray(maze, x, y, k * np.pi / 4 + RAY_OFFSETS[r])
         assert table.labels[node, k, r] == label

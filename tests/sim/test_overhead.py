@@ -17,8 +17,9 @@ def maze():
     return MazeLibrary().load("gen-002")
 
 
-@pytest.mark.parametrize("camera", [OverheadCamera(), OverheadCamera(width=1280, height=720, fov_deg=85,
-                                                                     position=(1.1, -0.6, 2.2))])
+@pytest.mark.parametrize(
+    "camera", [OverheadCamera(), OverheadCamera(width=1280, height=720, fov_deg=85, position=(1.1, -0.6, 2.2))]
+)
 def test_every_marker_is_seen_where_the_camera_model_projects_it(maze, camera):
     pose = (0.7, 1.5, 2.4)
     image = render_overhead(maze, pose, camera=camera, seed=4)
@@ -26,8 +27,9 @@ def test_every_marker_is_seen_where_the_camera_model_projects_it(maze, camera):
     found = detect(detector(), image)
     assert sorted(found) == sorted((*LAYOUT.corner_ids, LAYOUT.rover_id))
     expected = {i: camera.project(np.c_[LAYOUT.corner_points(i), np.zeros(4)]) for i in LAYOUT.corner_ids}
-    expected[LAYOUT.rover_id] = camera.project(np.c_[square(*pose, LAYOUT.rover_size_m),
-                                                     np.full(4, LAYOUT.rover_height_m)])
+    expected[LAYOUT.rover_id] = camera.project(
+        np.c_[square(*pose, LAYOUT.rover_size_m), np.full(4, LAYOUT.rover_height_m)]
+    )
     # In ArUco's corner order, so the rover's marker is printed up along its heading; the
     # detector's own sub-pixel error on markers 25-45 px across is what remains.
     errors = np.concatenate([np.linalg.norm(found[i][0] - expected[i], axis=1) for i in expected])

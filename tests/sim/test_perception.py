@@ -69,9 +69,13 @@ def test_features_have_the_ray_tables_layout(world):
     maze, graph = world
     table = RayTable.build(maze, graph, use_cache=False)
     node, heading = graph.n // 2, 3
-    obs = RayObservation(table.labels[node, heading], table.depth[node, heading],
-                         table.too_close[node, heading], np.ones(N_RAYS, bool),
-                         bool(table.forward_blocked[node, heading]))
+    obs = RayObservation(
+        table.labels[node, heading],
+        table.depth[node, heading],
+        table.too_close[node, heading],
+        np.ones(N_RAYS, bool),
+        bool(table.forward_blocked[node, heading]),
+    )
     assert np.array_equal(features(obs), table.features()[node, heading])
 
 
@@ -87,8 +91,9 @@ def test_perceived_features_agree_with_the_table_at_a_node(world, calibration):
         want = table.features()[node, heading]
         assert f.shape == (OBS_FEATURES,) and f.dtype == np.float32
         onehot = slice(0, N_RAYS * N_LABELS)
-        agree += int((f[onehot].reshape(N_RAYS, N_LABELS).argmax(1)
-                      == want[onehot].reshape(N_RAYS, N_LABELS).argmax(1)).sum())
+        agree += int(
+            (f[onehot].reshape(N_RAYS, N_LABELS).argmax(1) == want[onehot].reshape(N_RAYS, N_LABELS).argmax(1)).sum()
+        )
     assert agree >= 0.85 * 12 * N_RAYS
 
 
@@ -124,14 +129,17 @@ def test_walls_of_a_colour_the_lab_never_saw_are_not_read(world, calibration):
     assert obs.problem is None and obs.confidence == 0.0
 
 
-@pytest.mark.parametrize("frame, message", [
-    (np.zeros((240, 320, 3), np.uint8), "calibration is for 640x480"),
-    (np.zeros((480, 640), np.uint8), r"\(H, W, 3\) uint8"),
-    (np.zeros((480, 640, 3), np.float32), r"\(H, W, 3\) uint8"),
-    (b"not a jpeg at all", "not a JPEG"),
-    (b"", "not a JPEG"),
-    ("frame.jpg", "got str"),
-])
+@pytest.mark.parametrize(
+    "frame, message",
+    [
+        (np.zeros((240, 320, 3), np.uint8), "calibration is for 640x480"),
+        (np.zeros((480, 640), np.uint8), r"\(H, W, 3\) uint8"),
+        (np.zeros((480, 640, 3), np.float32), r"\(H, W, 3\) uint8"),
+        (b"not a jpeg at all", "not a JPEG"),
+        (b"", "not a JPEG"),
+        ("frame.jpg", "got str"),
+    ],
+)
 def test_frames_that_are_not_camera_images_are_clear_errors(calibration, frame, message):
     with pytest.raises(PerceptionError, match=message):
         perceive(frame, calibration)

@@ -33,8 +33,13 @@ def run_dir(tmp_path_factory):
 
 
 def test_parse_moves():
-    assert play.parse_moves("w forward wad") == [Action.FORWARD, Action.FORWARD, Action.FORWARD,
-                                                 Action.LEFT, Action.RIGHT]
+    assert play.parse_moves("w forward wad") == [
+        Action.FORWARD,
+        Action.FORWARD,
+        Action.FORWARD,
+        Action.LEFT,
+        Action.RIGHT,
+    ]
     assert play.parse_moves("left q") == [Action.LEFT, None]
     with pytest.raises(ValueError, match="'jump'"):
         play.parse_moves("w jump")
@@ -42,8 +47,9 @@ def test_parse_moves():
 
 def test_driving_writes_both_frames_per_move(cli, run_dir, tmp_path):
     out = tmp_path / "frames"
-    result = CliRunner().invoke(cli, ["sim", "play", "--maze", str(run_dir), "--out", str(out),
-                                      "--start", "0.7,1.0,0"], input="ww\nhop\nd\nq\n")
+    result = CliRunner().invoke(
+        cli, ["sim", "play", "--maze", str(run_dir), "--out", str(out), "--start", "0.7,1.0,0"], input="ww\nhop\nd\nq\n"
+    )
     assert result.exit_code == 0, result.output
     assert "unknown move 'hop'" in result.output
     assert "step 3: x=0.84 y=0.98 heading=315 deg" in result.output
@@ -56,19 +62,25 @@ def test_driving_writes_both_frames_per_move(cli, run_dir, tmp_path):
 
 
 def test_driving_into_the_wall_is_a_collision(cli, run_dir, tmp_path):
-    result = CliRunner().invoke(cli, ["sim", "play", "--maze", str(run_dir), "--out", str(tmp_path),
-                                      "--start", "1.2,1.0,0"], input="wwwwwwww\ns\n")
+    result = CliRunner().invoke(
+        cli,
+        ["sim", "play", "--maze", str(run_dir), "--out", str(tmp_path), "--start", "1.2,1.0,0"],
+        input="wwwwwwww\ns\n",
+    )
     assert result.exit_code == 0, result.output
     assert "collision: " in result.output and "ahead blue" in result.output
     assert "stopped after 9 moves" in result.output
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--maze", "Run_nowhere"], "unknown maze 'Run_nowhere'"),
-    (["--maze", "Run_nowhere", "--benchmark", "/nonexistent"], "/nonexistent: no such folder"),
-    (["--start", "9,9"], "off the"),
-    (["--edges", "fast"], "expected one of"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--maze", "Run_nowhere"], "unknown maze 'Run_nowhere'"),
+        (["--maze", "Run_nowhere", "--benchmark", "/nonexistent"], "/nonexistent: no such folder"),
+        (["--start", "9,9"], "off the"),
+        (["--edges", "fast"], "expected one of"),
+    ],
+)
 def test_bad_flags_name_the_problem(cli, run_dir, tmp_path, args, message):
     base = {"--maze": str(run_dir), "--out": str(tmp_path)}
     for flag, value in zip(args[::2], args[1::2]):
@@ -82,15 +94,30 @@ def test_bad_flags_name_the_problem(cli, run_dir, tmp_path, args, message):
 
 def test_the_bundled_maze_is_the_default(cli, tmp_path):
     result = CliRunner(env={"ROBOTSLANG_BENCHMARK": None}).invoke(
-        cli, ["sim", "play", "--out", str(tmp_path)], input="a\nq\n")
+        cli, ["sim", "play", "--out", str(tmp_path)], input="a\nq\n"
+    )
     assert result.exit_code == 0, result.output
     assert result.output.startswith("gen-000: ")
     assert (tmp_path / "step-001-first-person.png").exists()
 
 
 def test_a_benchmark_run_by_name(cli, benchmark_path, tmp_path):
-    result = CliRunner().invoke(cli, ["sim", "play", "--maze", "Run_318", "--benchmark", str(benchmark_path),
-                                      "--out", str(tmp_path), "--start", "1.05,1.54,90"], input="q\n")
+    result = CliRunner().invoke(
+        cli,
+        [
+            "sim",
+            "play",
+            "--maze",
+            "Run_318",
+            "--benchmark",
+            str(benchmark_path),
+            "--out",
+            str(tmp_path),
+            "--start",
+            "1.05,1.54,90",
+        ],
+        input="q\n",
+    )
     assert result.exit_code == 0, result.output
     # The hand-checked view of test_observations: the red wall straight ahead, blocking.
     assert "ahead red at 0.131 m (forward blocked)" in result.output

@@ -98,6 +98,7 @@ def test_a_wall_in_between_hides_an_object():
 
 # -- the benchmark's maps ------------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def run_318(benchmark_path):
     maze = Maze.from_dir(benchmark_path / "mazedata" / "Run_318")
@@ -105,8 +106,9 @@ def run_318(benchmark_path):
     return maze, graph, RayTable.build(maze, graph)
 
 
-@pytest.mark.parametrize("ij, k, label", [((15, 22), 2, Label.RED), ((15, 22), 6, Label.BLUE),
-                                          ((10, 15), 4, Label.GREEN)])
+@pytest.mark.parametrize(
+    "ij, k, label", [((15, 22), 2, Label.RED), ((15, 22), 6, Label.BLUE), ((10, 15), 4, Label.GREEN)]
+)
 def test_the_wall_ahead_on_run_318_is_the_centre_of_the_frame(run_318, ij, k, label):
     maze, graph, _ = run_318
     x, y = graph.nodes[graph.node_grid[ij]]
@@ -127,6 +129,7 @@ def test_each_object_of_run_318_shows_when_the_rays_see_it(run_318, label):
 
 # -- top-down ------------------------------------------------------------------------------
 
+
 def test_top_down_is_the_map_scaled():
     maze = synthetic_maze()
     assert top_down(maze).shape == (588, 700, 3)
@@ -139,8 +142,7 @@ def test_top_down_draws_agent_path_and_rays():
     maze = synthetic_maze([(Label.RED, WALL_COL, 100, WALL_COL + 11, 1100)])
     x, y = _pose_facing_wall(0.5)
     plain = top_down(maze, scale=1.0)
-    image = top_down(maze, pose=(x, y, 0.0), path=[(x - 0.6, y - 0.3), (x - 0.3, y), (x, y)],
-                     rays=True, scale=1.0)
+    image = top_down(maze, pose=(x, y, 0.0), path=[(x - 0.6, y - 0.3), (x - 0.3, y), (x, y)], rays=True, scale=1.0)
 
     def at(px, py):
         c, r = world_to_pixel(px, py)
@@ -162,6 +164,7 @@ def test_top_down_walls_only_leaves_the_objects_out():
 
 
 # -- held to the grid-marching camera it replaced ----------------------------------------
+
 
 @pytest.mark.parametrize("run", ["Run_114", "Run_117", "Run_318"])
 def test_the_segment_camera_paints_what_the_grid_march_painted(benchmark_path, run):

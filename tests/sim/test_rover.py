@@ -30,7 +30,8 @@ def test_without_noise_a_step_is_0_07_m_along_the_heading_and_a_turn_45_degrees(
     result = rover.move(Move.FORWARD)
     assert not result.collided
     assert (result.pose.x, result.pose.y) == pytest.approx(
-        (0.6 + GRID_STEP_M * math.cos(math.radians(30)), 1.0 + GRID_STEP_M * math.sin(math.radians(30))), abs=1e-9)
+        (0.6 + GRID_STEP_M * math.cos(math.radians(30)), 1.0 + GRID_STEP_M * math.sin(math.radians(30))), abs=1e-9
+    )
     assert rover.move("left").pose.theta == pytest.approx(math.radians(75))
     for _ in range(3):
         rover.move("right")

@@ -77,7 +77,7 @@ def test_agrees_step_by_step_with_the_dynamics_and_the_ray_tables(bench, world):
 
     check_agreement(world, [bench.graph(r) for r in RUNS])
     for m, run in enumerate(RUNS):  # the world's rows are the ray tables' features
-        rows = world.obs[world.offset[m] * 8:(world.offset[m] + world.size[m]) * 8]
+        rows = world.obs[world.offset[m] * 8 : (world.offset[m] + world.size[m]) * 8]
         assert np.array_equal(rows, RayTable.build(bench.maze(run), bench.graph(run)).features().reshape(len(rows), -1))
 
 
@@ -104,16 +104,24 @@ def test_teacher_matches_the_single_pose_teacher(bench, world):
 
 def test_teacher_rollouts_reach_the_goal_on_benchmark_episodes(bench, world):
     graphs = [bench.graph(r) for r in RUNS]
-    episodes = [(m, episode_start(graphs[m], inst), goal_node(graphs[m], inst))
-                for split in ("train", "val_seen", "test") for inst in bench.split(split) if inst.run in RUNS
-                for m in [RUNS.index(inst.run)]]
+    episodes = [
+        (m, episode_start(graphs[m], inst), goal_node(graphs[m], inst))
+        for split in ("train", "val_seen", "test")
+        for inst in bench.split(split)
+        if inst.run in RUNS
+        for m in [RUNS.index(inst.run)]
+    ]
     assert len(episodes) >= 10
     stepper = BatchStepper(world, len(episodes))
     start(stepper, graphs, episodes)
     while not stepper.done.all():
         stepper.step(stepper.teacher_actions())
-    fits = np.array([graphs[m].dist[p.node, g] < np.inf and len(graphs[m].path(p.node, g)) <= MAX_EPISODE_ACTIONS // 3
-                     for m, p, g in episodes])
+    fits = np.array(
+        [
+            graphs[m].dist[p.node, g] < np.inf and len(graphs[m].path(p.node, g)) <= MAX_EPISODE_ACTIONS // 3
+            for m, p, g in episodes
+        ]
+    )
     assert fits.any()
     assert np.all(stepper.td[fits] == 0) and np.all(stepper.stopped[fits])
     assert np.all(stepper.node[fits] == stepper.goal[fits])

@@ -59,8 +59,13 @@ def trajectory(seed: int, moves: int = 40, fps: float = 5.0) -> np.ndarray:
             step, turn = 0.0, rng.choice([-1, 1]) * math.radians(45) + rng.normal(0, math.radians(2))
         start = (x, y, theta)
         for f in (0.5, 1.0):  # two frames during the pulse
-            poses.append((start[0] + f * step * math.cos(start[2] + f * turn / 2),
-                          start[1] + f * step * math.sin(start[2] + f * turn / 2), start[2] + f * turn))
+            poses.append(
+                (
+                    start[0] + f * step * math.cos(start[2] + f * turn / 2),
+                    start[1] + f * step * math.sin(start[2] + f * turn / 2),
+                    start[2] + f * turn,
+                )
+            )
         x, y, theta = poses[-1]
         poses += [poses[-1]] * int(round(0.6 * fps))
     return np.array(poses)
@@ -78,6 +83,7 @@ def marker_pixels(pose) -> np.ndarray:
 
 
 # -- accuracy -----------------------------------------------------------------------------
+
 
 def test_a_whole_trajectory_is_tracked_within_a_centimetre_through_jpeg_frames(maze):
     poses = trajectory(seed=3)
@@ -114,6 +120,7 @@ def test_a_standing_rover_is_averaged_and_a_moving_one_is_not_delayed(maze, cali
 
 # -- calibration --------------------------------------------------------------------------
 
+
 def test_calibration_measures_the_homography_and_focal_length_and_round_trips(maze, calibration, tmp_path):
     corners = np.array([[0, 0], [TABLE_WIDTH_M, 0], [TABLE_WIDTH_M, TABLE_HEIGHT_M], [0, TABLE_HEIGHT_M]])
     seen = cv2.perspectiveTransform(corners.reshape(-1, 1, 2), calibration.homography).reshape(-1, 2)
@@ -145,12 +152,15 @@ def test_without_a_calibration_the_tracker_calibrates_from_the_first_frame_showi
     assert error(pose, POSE)[0] < 0.005 and tracker.calibration is not None
 
 
-@pytest.mark.parametrize("content, message", [
-    ("not json {", "not JSON"),
-    ("[1, 2]", "a JSON object is expected"),
-    ('{"version": 1, "image_size": [960, 720]}', "not an overhead calibration"),
-    ('{"version": 7}', "version 7, expected 1"),
-])
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        ("not json {", "not JSON"),
+        ("[1, 2]", "a JSON object is expected"),
+        ('{"version": 1, "image_size": [960, 720]}', "not an overhead calibration"),
+        ('{"version": 7}', "version 7, expected 1"),
+    ],
+)
 def test_a_wrong_calibration_file_is_refused_by_name(tmp_path, content, message):
     path = tmp_path / "overhead_calibration.json"
     path.write_text(content)
@@ -189,6 +199,7 @@ def test_after_the_camera_moves_a_stale_calibration_gives_no_pose_until_the_corn
 
 # -- bad frames: no pose rather than a wrong one ------------------------------------------
 
+
 def test_no_marker_in_view_gives_no_pose(maze, calibration):
     tracker = OverheadTracker(calibration)
     assert tracker.update(jpeg(render_overhead(maze, None)), SECOND) is None
@@ -200,9 +211,11 @@ def test_no_marker_in_view_gives_no_pose(maze, calibration):
 def test_a_partly_hidden_marker_gives_no_pose(maze, calibration, part):
     image = render_overhead(maze, POSE)
     q = marker_pixels(POSE)
-    cover = {"half": [q[0], q[1], (q[1] + q[2]) / 2, (q[0] + q[3]) / 2],
-             "corner": [q[0], (q[0] + q[1]) / 2, q.mean(axis=0), (q[0] + q[3]) / 2],
-             "centre": list((q - q.mean(axis=0)) * 0.3 + q.mean(axis=0))}[part]
+    cover = {
+        "half": [q[0], q[1], (q[1] + q[2]) / 2, (q[0] + q[3]) / 2],
+        "corner": [q[0], (q[0] + q[1]) / 2, q.mean(axis=0), (q[0] + q[3]) / 2],
+        "centre": list((q - q.mean(axis=0)) * 0.3 + q.mean(axis=0)),
+    }[part]
     cv2.fillPoly(image, [np.round(np.array(cover)).astype(np.int32)], (200, 180, 170))  # a sleeve
     assert OverheadTracker(calibration).update(jpeg(image), SECOND) is None
 
@@ -221,8 +234,12 @@ def test_bytes_that_are_not_a_jpeg_are_a_frame_error_and_lose_nothing(maze, cali
     tracker = OverheadTracker(calibration)
     first = tracker.update(jpeg(render_overhead(maze, POSE)), SECOND)
     png = cv2.imencode(".png", render_overhead(maze, POSE))[1].tobytes()
-    for data, message in [(b"hello", "not a JPEG"), (png, "starts with 89 50 4e 47"), (b"", "nothing"),
-                          (b"\xff\xd8\xff\xe0" + bytes(100), "does not decode")]:
+    for data, message in [
+        (b"hello", "not a JPEG"),
+        (png, "starts with 89 50 4e 47"),
+        (b"", "nothing"),
+        (b"\xff\xd8\xff\xe0" + bytes(100), "does not decode"),
+    ]:
         with pytest.raises(FrameError, match=message):
             tracker.update(data, 2 * SECOND)
     again = tracker.update(jpeg(render_overhead(maze, POSE, seed=5)), 3 * SECOND)
@@ -237,6 +254,7 @@ def test_frames_must_come_in_time_order(maze, calibration):
 
 
 # -- outliers -----------------------------------------------------------------------------
+
 
 def test_an_impossible_jump_gives_no_pose_until_the_rover_is_seen_there_three_times(maze, calibration):
     tracker = OverheadTracker(calibration)
