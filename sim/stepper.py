@@ -38,19 +38,19 @@ class BatchStepper:
         if max_actions < 1:
             raise ValueError(f"max_actions={max_actions}: must be at least 1")
         self.world, self.size, self.max_actions, self.record = world, batch, max_actions, record
-        self._moves, self._lengths = world.moves, world.move_lengths
+        self._moves = world.moves
         self._collides = world.collides
         width = int(world.size.max())
         self._width = width
         # Goal rows, one per episode: distance and global next hop toward its goal from each node.
         self._dist = np.full((batch, width), np.inf)
         self._next = np.full((batch, width), -1, dtype=np.int64)
+        self._dist_flat, self._next_flat = self._dist.reshape(-1), self._next.reshape(-1)  # views
         self._base = np.zeros(batch, dtype=np.int64)  # flat index of (episode, global node 0)
         self.slot = np.zeros(batch, dtype=np.int64)
         self.goal = np.zeros(batch, dtype=np.int64)  # global node
         self.steps = np.zeros(batch, dtype=np.int64)
         self.done = np.ones(batch, dtype=bool)
-        self.stopped = np.zeros(batch, dtype=bool)
         self.collisions = np.zeros(batch, dtype=np.int64)
         self.path_length = np.zeros(batch)
         self.td = np.full(batch, np.inf)
@@ -58,10 +58,17 @@ class BatchStepper:
         self.shortest = np.full(batch, np.inf)
         self._started = False
         self._history: list[np.ndarray] = []
+        # ORed into the actions: 3 (the stop) where an episode is done, so it stays put, 0 elsewhere.
+        self._halt = np.full(batch, _STOP, dtype=np.int64)
         self._a, self._k = np.empty(batch, np.int64), np.empty(batch, np.int64)
-        self._live, self._counted = np.empty(batch, bool), np.empty(batch, bool)
+        self._counted = np.empty(batch, bool)
         self._scratch = np.empty(batch)
         self._moved = np.empty(batch, self._moves.dtype)
+        # Metres and collision flag by the low 6 bits of a `World.moves` entry, so that one
+        # mask serves both look-ups.
+        code = np.arange(64)
+        self._metres = np.append(world.move_lengths, np.zeros(32 - world.move_lengths.size))[code >> 1 & 31]
+        self._hit = (code & 1).astype(bool)
 
     # -- episodes -------------------------------------------------------------------
     def start(self, envs, node, heading, goal, goal_dist, goal_next) -> None:
@@ -98,10 +105,11 @@ class BatchStepper:
         self.slot[envs] = node * HEADINGS + heading
         self.goal[envs] = goal
         self.steps[envs] = 0
-        self.done[envs] = self.stopped[envs] = False
+        self.done[envs] = False
+        self._halt[envs] = 0
         self.collisions[envs] = 0
         self.path_length[envs] = 0.0
-        self.td[envs] = self.otd[envs] = self.shortest[envs] = self._dist.reshape(-1)[self._base[envs] + node]
+        self.td[envs] = self.otd[envs] = self.shortest[envs] = self._dist_flat[self._base[envs] + node]
         self._started = True
         if self.record:
             self._history = [self.node.copy()]
@@ -115,34 +123,33 @@ class BatchStepper:
             raise ValueError(
                 f"actions of shape {actions.shape} and dtype {actions.dtype}: expected ({self.size},) integers"
             )
-        # Into the stepper's own buffers: a step at batch 1000 is some twenty passes over
-        # 8 kB arrays, so each temporary array costs as much as the arithmetic.
-        a, k, moved, live, scratch = self._a, self._k, self._moved, self._live, self._scratch
-        np.copyto(a, actions, casting="unsafe")
-        if (a.view(np.uint64) > _STOP).any():  # a negative action wraps around
+        # Into the stepper's own buffers: a step at batch 1000 is some twenty numpy calls on
+        # 8 kB arrays, so each call and each temporary array costs as much as the arithmetic.
+        a, k, moved, counted = self._a, self._k, self._moved, self._counted
+        if actions.dtype != np.int64:
+            actions = actions.astype(np.int64)  # an out-of-range unsigned one wraps to negative
+        np.bitwise_or(actions, self._halt, out=a)  # a finished episode stops
+        if a.view(np.uint64).max() > _STOP:  # an invalid action stays invalid; a negative wraps
             raise ValueError("actions must be 0 forward, 1 left, 2 right or 3 stop")
-        np.logical_not(self.done, out=live)
-        np.copyto(a, _STOP, where=self.done)  # a finished episode stays where it is
         np.multiply(self.slot, ACTIONS, out=k)
         k += a
-        self._moves.take(k, out=moved)  # slot << 6 | length index << 1 | collided
+        self._moves.take(k, out=moved, mode="clip")  # slot << 6 | length index << 1 | collided
         np.right_shift(moved, 6, out=self.slot)
-        collided = (moved & 1).astype(bool)
-        np.right_shift(moved, 1, out=moved)
-        moved &= 31
-        self.path_length += self._lengths.take(moved, out=scratch)
+        moved &= 63
+        self.path_length += self._metres.take(moved, out=self._scratch, mode="clip")
+        collided = self._hit.take(moved, mode="clip")
         self.collisions += collided
-        counted = np.less(a, _STOP, out=self._counted)  # the stop is not a move
+        np.less(a, _STOP, out=counted)  # the stop is not a move
         self.steps += counted
-        self.stopped |= live > counted  # live and stopping
         np.greater_equal(self.steps, self.max_actions, out=self.done)
-        self.done |= self.stopped
+        np.less_equal(counted, self.done, out=self.done)  # or stopped (or was done: its action is the stop)
+        np.multiply(self.done, _STOP, out=self._halt)
         np.right_shift(self.slot, 3, out=k)
         k += self._base
-        self.td = self._dist.reshape(-1)[k]  # a new array: callers keep the one before the step
+        self.td = self._dist_flat.take(k, mode="clip")  # a new array: callers keep the one before the step
         np.minimum(self.otd, self.td, out=self.otd)
         if self.record:
-            self._history.append(self.node.copy())
+            self._history.append(self.node)
         return collided
 
     # -- what the agent and its teacher see -------------------------------------------
@@ -150,7 +157,8 @@ class BatchStepper:
         """(B, F) ray features of the current poses (in the world's dtype)."""
         if self.world.obs is None:
             raise ValueError("the world was compiled without observations")
-        return np.take(self.world.obs, self.slot, axis=0, out=out)
+        # The slots are in range: "raise" mode would gather into a copy of `out`, then copy it.
+        return np.take(self.world.obs, self.slot, axis=0, out=out, mode="clip")
 
     def forward_blocked(self) -> np.ndarray:
         return self._collides[self.slot * ACTIONS + _FORWARD]
@@ -160,7 +168,7 @@ class BatchStepper:
         (left on a tie), forward when aligned, stop at the goal's node or where no path exists.
         The rule is `sim.dynamics.actions_toward`, shared with the reference teacher."""
         node, heading = self.node, self.heading
-        hop = self._next.reshape(-1)[self._base + node]
+        hop = self._next_flat[self._base + node]
         stop = (node == self.goal) | (hop < 0)
         hop = np.where(stop, node, hop)
         actions = actions_toward(self.world.ij[hop] - self.world.ij[node], heading)
@@ -168,9 +176,14 @@ class BatchStepper:
 
     def distance(self, node) -> np.ndarray:
         """Metres from (B,) global nodes to each episode's goal."""
-        return self._dist.reshape(-1)[self._base + np.asarray(node)]
+        return self._dist_flat[self._base + np.asarray(node)]
 
     # -- bookkeeping ---------------------------------------------------------------
+    @property
+    def stopped(self) -> np.ndarray:
+        """Which started episodes ended by the stop (the others done ran out of moves)."""
+        return self.done & (self.steps < self.max_actions)
+
     @property
     def node(self) -> np.ndarray:
         return self.slot >> 3

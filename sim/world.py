@@ -40,7 +40,7 @@ if TYPE_CHECKING:
     from sim.observations import RayTable
 
 ACTIONS = len(Action)
-_WORLD_VERSION = 5  # 4: names, observations optional, derived tables; 5: the fused moves table
+_WORLD_VERSION = 6  # 4: names, observations optional, derived tables; 5: the fused moves table; 6: int64 moves
 _ARRAYS = ("offset", "size", "xy", "ij", "forward")
 _TABLES = (
     "transition",
@@ -231,16 +231,12 @@ class World:
     def moves(self) -> np.ndarray:
         """`transition`, `collides` and `move_length` at 4 s + a fused into one integer, so a
         step reads one table: the slot after the action << 6, the index of the metres moved in
-        `move_lengths` << 1, the collision flag. int32 where the slots fit (half the bytes)."""
+        `move_lengths` << 1, the collision flag. int64 (numpy's index type): the stepper indexes
+        with its entries, and an int32 table cost a conversion per look-up."""
         lengths = np.searchsorted(self.move_lengths, np.asarray(self.move_length))
         if self.move_lengths.size > 32:
             raise ValueError(f"{self.move_lengths.size} distinct move lengths: the moves table holds 32")
-        dtype = np.int32 if self.nodes * HEADINGS < 2**25 else np.int64
-        return (
-            (np.asarray(self.transition).astype(dtype) << 6)
-            | (lengths.astype(dtype) << 1)
-            | np.asarray(self.collides).astype(dtype)
-        )
+        return (np.asarray(self.transition) << 6) | (lengths << 1) | np.asarray(self.collides)
 
 
 def goal_rows(graph: NavGraph, goals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
