@@ -158,6 +158,7 @@ def test_finished_episodes_ignore_actions(bench, world):
         collided = stepper.step(np.zeros(4, dtype=np.int64))
         assert stepper.slot[0] == frozen and not collided[0]
     assert stepper.done.all() and stepper.steps.tolist() == [0, 5, 5, 5]
+    assert stepper.stopped.tolist() == [True, False, False, False]  # the others ran out of moves
 
 
 def test_bad_input_is_named(world):
@@ -171,5 +172,11 @@ def test_bad_input_is_named(world):
     stepper.start([0], [0], [0], [1], np.zeros((1, 2)), np.zeros((1, 2), dtype=np.int64))
     with pytest.raises(ValueError, match="shape"):
         stepper.step(np.zeros(2, dtype=np.int64))
-    with pytest.raises(ValueError, match="0 forward"):
-        stepper.step(np.array([5]))
+    bad = [np.array([a]) for a in (-1, 4, 5, 7)] + [np.array([2**64 - 1], dtype=np.uint64)]
+    for actions in [*bad, np.array([4], dtype=np.uint8), np.array([-1], dtype=np.int32)]:
+        with pytest.raises(ValueError, match="0 forward"):
+            stepper.step(actions)
+    stepper.step(np.array([Action.STOP]))
+    for actions in bad:  # a finished episode's action is ignored, but not unchecked
+        with pytest.raises(ValueError, match="0 forward"):
+            stepper.step(actions)
