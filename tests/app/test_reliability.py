@@ -12,14 +12,13 @@ import websockets
 from sqlalchemy import select
 
 from app.backends.remote import create_robot
-from app.db.models import Experimenter, Trial
+from app.db.models import Trial
 from app.main import build_services
-from app.security import SESSION_COOKIE
 from app.trial.setup import create_participant, create_team, create_trial
 from app.trial.state import fold
 from robot_client.protocol import pack_frame
 from tests.app.conftest import platform_settings
-from tests.app.live import SeatClient, ServerProcess, ServerThread, make_trial
+from tests.app.live import SeatClient, ServerProcess, ServerThread, experimenter_client, make_trial, session_cookie
 from tests.app.trial_play import move, start_trial
 
 S = 1_000_000_000
@@ -203,9 +202,7 @@ def test_a_trial_ended_by_its_grace_timer_leaves_the_live_list_and_reopens_witho
             with contextlib.suppress(websockets.exceptions.InvalidStatus):
                 async with SeatClient(server.ws_url, tokens["commander"]):
                     raise AssertionError("a join link of an ended trial still opens its seat")
-            with services.db() as db:
-                admin_id = db.scalar(select(Experimenter.id))
-            cookie = f"{SESSION_COOKIE}={services.sessions.issue(admin_id)}"
+            cookie = session_cookie(await asyncio.to_thread(experimenter_client, server))
             async with websockets.connect(
                 f"ws://127.0.0.1:{server.port}/ws/watch/{trial_id}", additional_headers={"Cookie": cookie}
             ) as watch:
