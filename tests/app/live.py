@@ -159,11 +159,12 @@ def log_in(base_url: str, name: str, password: str) -> httpx.Client:
     return client
 
 
-def experimenter_client(server: ServerThread, name: str = "eve", password: str = "correct horse") -> httpx.Client:
-    """A new experimenter account on the server, logged in through the home page's form."""
-    with server.services.db.begin() as db:
+def experimenter_client(services: Any, url: str, name: str = "eve", password: str = "correct horse") -> httpx.Client:
+    """A new experimenter account in the server's database (`services`), logged in at `url`
+    through the home page's form."""
+    with services.db.begin() as db:
         db.add(Experimenter(name=name, password_hash=hash_password(password)))
-    return log_in(server.url, name, password)
+    return log_in(url, name, password)
 
 
 def session_cookie(client: httpx.Client) -> str:

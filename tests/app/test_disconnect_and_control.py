@@ -64,7 +64,7 @@ def test_experimenter_pauses_resumes_and_aborts(settings):
         services = server.services
         trial_id = make_trial(services, services.mazes.names()[0])
         tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-        experimenter = experimenter_client(server)
+        experimenter = experimenter_client(server.services, server.url)
 
         async def play():
             async with (

@@ -202,7 +202,7 @@ def test_a_trial_ended_by_its_grace_timer_leaves_the_live_list_and_reopens_witho
             with contextlib.suppress(websockets.exceptions.InvalidStatus):
                 async with SeatClient(server.ws_url, tokens["commander"]):
                     raise AssertionError("a join link of an ended trial still opens its seat")
-            cookie = session_cookie(await asyncio.to_thread(experimenter_client, server))
+            cookie = session_cookie(await asyncio.to_thread(experimenter_client, services, server.url))
             async with websockets.connect(
                 f"ws://127.0.0.1:{server.port}/ws/watch/{trial_id}", additional_headers={"Cookie": cookie}
             ) as watch:

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import math
 import shutil
-from types import SimpleNamespace
 
 import pytest
 from sqlalchemy import select
@@ -21,8 +20,7 @@ from app.export.source import load_trial
 from app.perception.cameras import learned
 from sim.camera import FrontCamera
 from sim.geometry import SUCCESS_RADIUS_M
-from tests.app.live import make_trial
-from tests.app.test_disconnect_and_control import login
+from tests.app.live import experimenter_client, make_trial
 from tests.app.test_seq2seq_seat import stopping_checkpoint  # noqa: F401  (a fixture; needs the benchmark)
 from tests.app.test_status import Watch
 from tests.app.test_virtual_rover import (  # noqa: F401  (fixtures)
@@ -69,7 +67,7 @@ async def test_a_rover_trial_records_tracked_poses_belief_truly_within_and_all_n
             token, "--truth", str(truth), "--seed", "3", "--fps", "5", "--start", f"{start.x},{start.y},{start.theta}"
         )
         lab.rover(camera_token, "--role", "overhead", "--truth", str(truth), "--fps", "4")
-        experimenter = login(SimpleNamespace(services=lab.services, url=lab.server.url))
+        experimenter = experimenter_client(lab.services, lab.server.url)
         experimenter.timeout = 30.0  # the server shares two loaded cores with rovers, tracker and filter
         with lab.services.db() as db:
             eve = db.scalar(select(Experimenter).where(Experimenter.name == "eve"))
