@@ -8,6 +8,7 @@ import contextlib
 import json
 import time
 
+import pytest
 import websockets
 from sqlalchemy import select
 
@@ -94,6 +95,7 @@ def rover_trial(services) -> tuple[int, str]:
         return trial.id, token
 
 
+@pytest.mark.slow
 def test_a_crash_neither_scores_the_downtime_nor_leaves_a_move_requested(tmp_path):
     settings = platform_settings(tmp_path)
     services = build_services(settings)
@@ -136,6 +138,7 @@ def test_a_crash_neither_scores_the_downtime_nor_leaves_a_move_requested(tmp_pat
     services.engine.dispose()
 
 
+@pytest.mark.slow
 def test_a_seat_that_dropped_before_a_crash_still_times_out(tmp_path):
     grace_s = 4.0
     settings = platform_settings(tmp_path)

@@ -54,6 +54,7 @@ def tracked(lab: Lab, trial: int) -> list[dict]:
     return [e.payload for e in lab.services.log.load(trial) if e.kind == "pose"]
 
 
+@pytest.mark.slow
 async def test_a_rover_trial_records_tracked_poses_belief_truly_within_and_all_ndh_instances(
     tmp_path, maze, start, camera_calibration
 ):
@@ -129,6 +130,7 @@ async def test_a_rover_trial_records_tracked_poses_belief_truly_within_and_all_n
         lab.close()
 
 
+@pytest.mark.slow
 async def test_the_learned_driver_drives_a_virtual_rover_to_a_claim(
     tmp_path, start, camera_calibration, stopping_checkpoint
 ):
