@@ -34,7 +34,7 @@ class Services:
     logins: LoginGuard
     mazes: Mazes
     hub: TrialHub = None  # type: ignore[assignment]
-    relay: RedisRelay | None = None  # `RedisRelay` when ROBOTSLANG_REDIS_URL is set: trials shared between processes
+    relay: RedisRelay | None = None  # set when ROBOTSLANG_REDIS_URL is: trials shared between processes
     robots: Any = None  # `RobotLinks`: the rovers and cameras connected here (made by `robot_links`)
-    ldh_belief: BeliefModel | None = None  # `BeliefModel` for the watch page's LDH belief (made by `belief_model`)
+    ldh_belief: BeliefModel | None = None  # the watch page's LDH belief (made by `belief_model`)
     driver_checks: dict[Any, str | None] = field(default_factory=dict)  # agents' start checks, by file version
