@@ -33,7 +33,7 @@ test: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
-	$(BIN)/mypy sim app models robot_client
+	$(BIN)/mypy
 
 bench: $(STAMP)
 	$(BIN)/python -m bench.sim

@@ -181,7 +181,7 @@ class Studies:
         self._append(study_id, EventKind.INVITED, {"participant_id": participant_id, "name": name[:80]})
         return participant_id
 
-    def list(self) -> list[LDHStudy]:
+    def all_studies(self) -> list[LDHStudy]:
         with self.services.db() as db:
             return list(db.scalars(select(LDHStudy).order_by(LDHStudy.id.desc())))
 

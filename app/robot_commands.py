@@ -7,11 +7,15 @@ means registering the robot again under a new name.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import TypeVar
 
 import typer
 
 from app.trial.vocabulary import ROBOT_ROLES
+
+T = TypeVar("T")
 
 
 def _sessions():
@@ -100,18 +104,17 @@ def robot_virtual(
     fps = fps if fps is not None else (15.0 if role == "driver" else 5.0)
     if not 0.5 <= fps <= 60:
         raise typer.BadParameter(f"must be 0.5..60 frames per second, got {fps}", param_hint="--fps")
-    checks = [
-        ("--server", lambda: robot_url(server)),
-        ("--noise", lambda: MotionNoise.named(noise)),
-        ("--start", lambda: start and parse_start(start)),
-        ("--calibration", lambda: calibration and Calibration.load(calibration)),
-    ]
-    values = {}
-    for hint, check in checks:
+
+    def checked(hint: str, read: Callable[[], T]) -> T:
         try:
-            values[hint] = check()
+            return read()
         except (ValueError, CalibrationError) as err:
             raise typer.BadParameter(str(err), param_hint=hint) from None
+
+    checked("--server", lambda: robot_url(server))
+    motion_noise = checked("--noise", lambda: MotionNoise.named(noise))
+    start_pose = checked("--start", lambda: parse_start(start) if start else None)
+    timings = checked("--calibration", lambda: Calibration.load(calibration) if calibration else None)
     mazes = Mazes(Settings())
     try:
         table = mazes.load(maze)
@@ -121,11 +124,11 @@ def robot_virtual(
         raise typer.BadParameter(
             "the overhead camera films the driver rover's truth file: give its path", param_hint="--truth"
         )
-    if values["--start"]:
+    if start_pose is not None:
         from sim.rover import Rover
 
         try:
-            Rover(table, values["--start"])
+            Rover(table, start_pose)
         except ValueError as err:
             raise typer.BadParameter(str(err), param_hint="--start") from None
     spec = VirtualRoverSpec(
@@ -134,11 +137,11 @@ def robot_virtual(
         maze=table,
         role=role,
         seed=seed,
-        noise=values["--noise"],
+        noise=motion_noise,
         truth=truth,
-        start=values["--start"] or None,
+        start=start_pose,
         fps=fps,
-        calibration=values["--calibration"] or Calibration(),
+        calibration=timings or Calibration(),
     )
     graph = mazes.graph(maze) if role == "driver" and spec.start is None else None
     sys.exit(run(spec, graph))
@@ -158,7 +161,8 @@ def calibrate_overhead(
 ) -> None:
     """Measure the table -> image homography from the four corner markers and store it."""
     from app.settings import Settings
-    from sim.tracking import CalibrationError, calibrate
+    from sim.calibration import CalibrationError
+    from sim.tracking import calibrate
 
     if (camera is None) == (image is None):
         raise typer.BadParameter("give exactly one of --camera and --image", param_hint="--camera")
@@ -168,7 +172,9 @@ def calibrate_overhead(
     except CalibrationError as err:
         typer.echo(f"error: {err}", err=True)
         raise typer.Exit(1) from None
-    path = calibration.save(out or Settings().overhead_calibration)
+    target = out or Settings().overhead_calibration
+    assert target is not None  # Settings fills in its default, DATA_DIR/overhead_calibration.json
+    path = calibration.save(target)
     focal = calibration.camera_matrix[0, 0]
     width, height = calibration.image_size
     typer.echo(

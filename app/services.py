@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import Engine
-from sqlalchemy.orm import sessionmaker
+from sqlalchemy.orm import Session, sessionmaker
 
 from app.clock import ServerClock
 from app.login import LoginGuard
@@ -17,13 +17,15 @@ from app.trial.log import EventLog
 
 if TYPE_CHECKING:
     from app.trial.hub import TrialHub
+    from app.trial.ldh_belief import BeliefModel
+    from app.trial.relay import RedisRelay
 
 
 @dataclass
 class Services:
     settings: Settings
     engine: Engine
-    db: sessionmaker
+    db: sessionmaker[Session]
     clock: ServerClock
     log: EventLog
     seats: SeatTokens
@@ -32,7 +34,7 @@ class Services:
     logins: LoginGuard
     mazes: Mazes
     hub: TrialHub = None  # type: ignore[assignment]
-    relay: Any = None  # `RedisRelay` when ROBOTSLANG_REDIS_URL is set: trials shared between processes
+    relay: RedisRelay | None = None  # set when ROBOTSLANG_REDIS_URL is: trials shared between processes
     robots: Any = None  # `RobotLinks`: the rovers and cameras connected here (made by `robot_links`)
-    ldh_belief: Any = None  # `BeliefModel` for the watch page's LDH belief (made by `belief_model`)
+    ldh_belief: BeliefModel | None = None  # the watch page's LDH belief (made by `belief_model`)
     driver_checks: dict[Any, str | None] = field(default_factory=dict)  # agents' start checks, by file version

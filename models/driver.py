@@ -62,7 +62,8 @@ class Seq2SeqDriver:
 
     @torch.no_grad()
     def act(self, dialog: list[dict[str, str]], observation: dict[str, Any]) -> str:
-        if self.graph is None:
+        graph, table = self.graph, self.rays
+        if graph is None or table is None:
             raise RuntimeError("Seq2SeqDriver.act before reset(info)")
         target = observation["target"]
         if self.encoded_for != (len(dialog), target):
@@ -72,15 +73,15 @@ class Seq2SeqDriver:
             self._stop_held = True  # the Commander said no: move before claiming again
         pose = observation.get("pose")
         if pose is not None and self.blind != "vision":
-            p = snap_pose(self.graph, *pose)
-            obs = torch.from_numpy(self.rays[p.node, p.heading][None].copy())
-            blocked = torch.tensor([bool(self.graph.forward[p.node, p.heading] < 0)])
+            p = snap_pose(graph, *pose)
+            obs = torch.from_numpy(table[p.node, p.heading][None].copy())
+            blocked = torch.tensor([bool(graph.forward[p.node, p.heading] < 0)])
         elif observation.get("rays") is not None and self.blind != "vision":
             rays = np.asarray(observation["rays"], dtype=np.float32)
             obs = torch.from_numpy(rays[None].copy())
-            blocked = torch.tensor([self._blocked(rays, observation.get("belief"))])
+            blocked = torch.tensor([self._blocked(graph, rays, observation.get("belief"))])
         else:
-            obs = torch.zeros(1, self.rays.shape[2])
+            obs = torch.zeros(1, table.shape[2])
             blocked = torch.tensor([False])
         stop_allowed = torch.tensor([not self._stop_held])
         label = -1 if self.blind == "language" else int(object_label(target))
@@ -94,9 +95,9 @@ class Seq2SeqDriver:
             self._stop_held = False
         return Action(action).word
 
-    def _blocked(self, rays: np.ndarray, belief: dict[str, float] | None) -> bool:
+    def _blocked(self, graph: NavGraph, rays: np.ndarray, belief: dict[str, float] | None) -> bool:
         """Forward masked on a rover: from the belief where it is concentrated, else the camera."""
         if belief is not None and belief["spread_m"] <= BELIEF_MASK_SPREAD_M:
-            p = snap_pose(self.graph, belief["x"], belief["y"], belief["heading"])
-            return bool(self.graph.forward[p.node, p.heading] < 0)
+            p = snap_pose(graph, belief["x"], belief["y"], belief["heading"])
+            return bool(graph.forward[p.node, p.heading] < 0)
         return bool(rays[-1] > 0.5)  # the perceived forward-blocked flag

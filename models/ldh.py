@@ -72,10 +72,11 @@ class PoseTensors:
 
     @classmethod
     def of(cls, ctx: MazeContext) -> PoseTensors:
-        n, headings = ctx.views.shape[:2]
+        views = ctx.required_views
+        n, headings = views.shape[:2]
         return cls(
-            views=torch.from_numpy(ctx.views.reshape(n * headings, -1)),
-            prior=torch.from_numpy(colour_features(ctx.views).reshape(n * headings, -1)),
+            views=torch.from_numpy(views.reshape(n * headings, -1)),
+            prior=torch.from_numpy(colour_features(views).reshape(n * headings, -1)),
             main=torch.from_numpy(ctx.main),
         )
 
@@ -128,7 +129,7 @@ _DIRECTION_TEXT = {
 def synthetic_description(ctx: MazeContext, node: int, heading: int, rng: random.Random) -> tuple:
     """A Driver's description of a pose from its rays: for some directions, the label most of
     that view's rays hit (near first), as a Driver would name it."""
-    views = ctx.views[node, heading]  # (4, labels, 2)
+    views = ctx.required_views[node, heading]  # (4, labels, 2)
     clauses = []
     for sector in rng.sample(range(4), k=rng.randint(1, 3)):
         share = views[sector, :, 0] + 0.3 * views[sector, :, 1]
@@ -188,7 +189,7 @@ def train(
         for _ in range(cfg.synthetic):
             ctx = contexts[rng.choice(runs)]
             node = int(rng.choice(np.flatnonzero(ctx.main)))
-            heading = rng.randrange(ctx.views.shape[1])
+            heading = rng.randrange(ctx.required_views.shape[1])
             x, y = ctx.graph.nodes[node]
             examples.append((ctx.run, mentions(synthetic_description(ctx, node, heading, rng)), x, y))
         rng.shuffle(examples)

@@ -117,7 +117,7 @@ def _cell(summary: dict, metric: str, marks: str) -> str:
 
 
 def tables_markdown(results: dict[str, list[EpisodeResult]], tests: dict[str, list[Comparison]]) -> str:
-    by_agent = {s: {} for s in results}
+    by_agent: dict[str, dict[str, list[EpisodeResult]]] = {s: {} for s in results}
     for split, rs in results.items():
         for r in rs:
             by_agent[split].setdefault(r.agent, []).append(r)
@@ -169,7 +169,7 @@ def plot_td_distributions(results: dict[str, list[EpisodeResult]], path: Path) -
         agents += ["/".join(c) for c in configurations({r.agent for r in rs})]
         data = []
         for a in agents:
-            per = {}
+            per: dict[int, list[float]] = {}
             for r in rs:
                 if r.agent == a and np.isfinite(r.td):
                     per.setdefault(r.inst_idx, []).append(r.td)

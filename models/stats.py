@@ -14,14 +14,28 @@ n is the number of seeds, so it needs a difference that holds on every seed to b
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
+from typing import Protocol
 
 import numpy as np
 from scipy import stats
 
-from sim.metrics import EpisodeResult
-
 ALPHA = 0.05
+
+
+class Result(Protocol):
+    """One row of results as the tests read it (`sim.metrics.EpisodeResult`, `sim.ldh_eval.LDHResult`):
+    its configuration, seed and instance, and the metric by name."""
+
+    @property
+    def agent(self) -> str: ...
+
+    @property
+    def seed(self) -> int: ...
+
+    @property
+    def inst_idx(self) -> int: ...
 
 
 @dataclass(frozen=True)
@@ -42,7 +56,7 @@ class Comparison:
         return asdict(self)
 
 
-def per_instance(results: list[EpisodeResult], metric: str) -> dict[str, dict[int, float]]:
+def per_instance(results: Sequence[Result], metric: str) -> dict[str, dict[int, float]]:
     """{agent: {inst_idx: metric averaged over seeds}}."""
     values: dict[str, dict[int, list[float]]] = defaultdict(lambda: defaultdict(list))
     for r in results:
@@ -50,7 +64,7 @@ def per_instance(results: list[EpisodeResult], metric: str) -> dict[str, dict[in
     return {agent: {k: float(np.mean(v)) for k, v in by_inst.items()} for agent, by_inst in values.items()}
 
 
-def per_seed(results: list[EpisodeResult], metric: str) -> dict[str, dict[int, float]]:
+def per_seed(results: Sequence[Result], metric: str) -> dict[str, dict[int, float]]:
     """{agent: {seed: metric averaged over that seed's instances}}; an infinite TD (goal
     unreachable from where the agent stopped) is left out, as in `sim.metrics`."""
     values: dict[str, dict[int, list[float]]] = defaultdict(lambda: defaultdict(list))
@@ -62,14 +76,14 @@ def per_seed(results: list[EpisodeResult], metric: str) -> dict[str, dict[int, f
 
 
 def paired_tests(
-    results: list[EpisodeResult], pairs: list[tuple[str, str]], metrics: tuple[str, ...] = ("td",), alpha: float = ALPHA
+    results: Sequence[Result], pairs: list[tuple[str, str]], metrics: tuple[str, ...] = ("td",), alpha: float = ALPHA
 ) -> list[Comparison]:
     """Paired t-tests over instances of each (a, b) pair on each metric, BY-corrected over all."""
     return _tests(per_instance, "instance", results, pairs, metrics, alpha)
 
 
 def seed_tests(
-    results: list[EpisodeResult], pairs: list[tuple[str, str]], metrics: tuple[str, ...] = ("td",), alpha: float = ALPHA
+    results: Sequence[Result], pairs: list[tuple[str, str]], metrics: tuple[str, ...] = ("td",), alpha: float = ALPHA
 ) -> list[Comparison]:
     """Paired t-tests over per-seed means of each (a, b) pair on each metric, BY-corrected."""
     return _tests(per_seed, "seed", results, pairs, metrics, alpha)
@@ -78,7 +92,7 @@ def seed_tests(
 def _tests(
     table_of,
     unit: str,
-    results: list[EpisodeResult],
+    results: Sequence[Result],
     pairs: list[tuple[str, str]],
     metrics: tuple[str, ...],
     alpha: float,

@@ -244,6 +244,7 @@ def train(
             agent, world, train_set, idx, cfg.feedback, cfg.blind, cfg.max_actions, generator=gen, train=True
         )
         optimizer.zero_grad()
+        assert roll.loss is not None  # train=True: the rollout computes its loss
         roll.loss.backward()
         optimizer.step()
         if averaged is not None:

@@ -22,7 +22,7 @@ from websockets.exceptions import ConnectionClosed, InvalidHandshake
 
 from robot_client import __version__
 from robot_client.camera import CameraError, FrameGrabber
-from robot_client.motors import Motors
+from robot_client.motors import MotorDriver
 from robot_client.protocol import (
     CLOSE_REFUSED,
     CLOSE_REPLACED,
@@ -81,7 +81,7 @@ class RobotClient:
         self,
         settings: LinkSettings,
         grabber: FrameGrabber | None,
-        motors: Motors | None,
+        motors: MotorDriver | None,
         camera_info: dict | None = None,
     ) -> None:
         self.settings = settings
@@ -237,7 +237,7 @@ class RobotClient:
         else:
             self._move = asyncio.create_task(self._run_move(ws, self.motors, move_id, action))
 
-    async def _run_move(self, ws: ClientConnection, motors: Motors, move_id, action: str) -> None:
+    async def _run_move(self, ws: ClientConnection, motors: MotorDriver, move_id, action: str) -> None:
         duration = motors.calibration.duration(action)
         started_ns = time.monotonic_ns()
         motors.start(action)

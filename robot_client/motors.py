@@ -12,10 +12,25 @@ import json
 import threading
 import time
 from pathlib import Path
+from typing import Protocol
 
 from gpiozero import Motor, Robot
 
 from robot_client.calibration import Calibration
+
+
+class MotorDriver(Protocol):
+    """What the link drives a move with: the rover's `Motors`, or a simulated rover's."""
+
+    @property
+    def calibration(self) -> Calibration: ...
+
+    @property
+    def running(self) -> bool: ...
+
+    def start(self, action: str) -> None: ...
+
+    def stop(self) -> None: ...
 
 
 class MotorError(RuntimeError):

@@ -27,6 +27,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
+from numpy.typing import ArrayLike
 
 from sim.benchmark import MAX_EPISODE_ACTIONS, Benchmark
 from sim.dynamics import Action
@@ -65,13 +66,15 @@ class BatchNavEnv(gym.vector.VectorEnv):
         self._dialog = [""] * num_envs
         self._autoreset = np.zeros(num_envs, dtype=bool)
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, Any], dict[str, Any]]:
         super().reset(seed=seed)
         self._start(np.arange(self.num_envs), options or {})
         self._autoreset[:] = False
         return self._observations(), self._info(np.zeros(self.num_envs, dtype=bool))
 
-    def step(self, actions):
+    def step(self, actions: ArrayLike) -> tuple[dict[str, Any], np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         actions = np.asarray(actions)
         stepper, restart = self.stepper, self._autoreset.copy()
         before = stepper.td
@@ -87,14 +90,14 @@ class BatchNavEnv(gym.vector.VectorEnv):
         self._autoreset = terminated | truncated
         return self._observations(), reward, terminated, truncated, self._info(collided)
 
-    def _start(self, envs: np.ndarray, options: dict) -> None:
+    def _start(self, envs: np.ndarray, options: dict[str, Any]) -> None:
         episodes = [self.source.sample(self.np_random, options) for _ in envs]
         start_episodes(self.stepper, self.source, envs, episodes)
         for env, ep in zip(envs, episodes):
             self._target[env] = OBJECTS.index(ep.target)
             self._dialog[env] = ep.dialog
 
-    def _observations(self) -> dict:
+    def _observations(self) -> dict[str, Any]:
         mask = np.ones((self.num_envs, len(Action)), dtype=np.int8)
         mask[:, Action.FORWARD] = ~self.stepper.forward_blocked()
         return {
@@ -104,7 +107,7 @@ class BatchNavEnv(gym.vector.VectorEnv):
             "action_mask": mask,
         }
 
-    def _info(self, collided: np.ndarray) -> dict:
+    def _info(self, collided: np.ndarray) -> dict[str, Any]:
         info = {"collided": collided, "steps": self.stepper.steps.copy()}
         if self.privileged_info:
             info["td"] = self.stepper.td.copy()

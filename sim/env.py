@@ -38,7 +38,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, SupportsInt
 
 import gymnasium as gym
 import numpy as np
@@ -120,8 +120,10 @@ class EpisodeSource:
         self._graphs: dict[str, NavGraph] = {}
         self._worlds: dict[tuple[str, ...], World] = {}
         if benchmark is not None:
-            self.benchmark = benchmark if isinstance(benchmark, Benchmark) else Benchmark(benchmark, cache_dir)
-            self.split = split
+            self.benchmark: Benchmark | None = (
+                benchmark if isinstance(benchmark, Benchmark) else Benchmark(benchmark, cache_dir)
+            )
+            self.split: str | None = split
             self.instances = self.benchmark.split(split)
             if not self.instances:
                 raise ValueError(f"split {split!r} of {self.benchmark.root} has no instances")
@@ -131,7 +133,7 @@ class EpisodeSource:
         else:
             self.benchmark, self.split, self.instances = None, None, []
             self._library = MazeLibrary()
-            items = self._library.names() if mazes is None else list(mazes)
+            items: list[str | Maze] = list(self._library.names() if mazes is None else mazes)
             if not items:
                 raise ValueError("no mazes: give at least one maze name or Maze in mazes=")
             # Mazes given by name are read on first use; an unknown name fails here.
@@ -147,9 +149,10 @@ class EpisodeSource:
     def maze(self, name: str) -> Maze:
         if self.benchmark is not None:
             return self.benchmark.maze(name)
-        if self._mazes[name] is None:
-            self._mazes[name] = self._library.load(name)
-        return self._mazes[name]
+        maze = self._mazes[name]
+        if maze is None:
+            maze = self._mazes[name] = self._library.load(name)
+        return maze
 
     def graph(self, name: str) -> NavGraph:
         if name not in self._graphs:
@@ -169,10 +172,10 @@ class EpisodeSource:
             )
         return self._worlds[names]
 
-    def sample(self, rng: np.random.Generator, options: dict) -> Episode:
+    def sample(self, rng: np.random.Generator, options: dict[str, Any]) -> Episode:
         return self._ndh_episode(rng, options) if self.benchmark is not None else self._random_episode(rng, options)
 
-    def _ndh_episode(self, rng: np.random.Generator, options: dict) -> Episode:
+    def _ndh_episode(self, rng: np.random.Generator, options: dict[str, Any]) -> Episode:
         if "inst_idx" in options:
             k = self._by_inst_idx.get(int(options["inst_idx"]))
             if k is None:
@@ -192,7 +195,7 @@ class EpisodeSource:
             )
         return self._episodes[k]
 
-    def _random_episode(self, rng: np.random.Generator, options: dict) -> Episode:
+    def _random_episode(self, rng: np.random.Generator, options: dict[str, Any]) -> Episode:
         name = options.get("maze")
         if name is None:
             name = self.names[int(rng.integers(len(self.names)))]
@@ -214,7 +217,7 @@ class EpisodeSource:
 
 
 def start_episodes(
-    stepper: BatchStepper, source: EpisodeSource, envs: Sequence[int], episodes: Sequence[Episode]
+    stepper: BatchStepper, source: EpisodeSource, envs: Sequence[int] | np.ndarray, episodes: Sequence[Episode]
 ) -> None:
     """Start `episodes` in positions `envs` of `stepper` (its world holds their mazes)."""
     world = stepper.world
@@ -262,7 +265,9 @@ class NDHEnv(gym.Env):
         return self.source.benchmark
 
     # -- the Gymnasium interface ----------------------------------------------------
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, Any], dict[str, Any]]:
         super().reset(seed=seed)
         episode = self.source.sample(self.np_random, options or {})
         if episode.maze not in self._steppers:
@@ -271,7 +276,7 @@ class NDHEnv(gym.Env):
             )
         self._episode, self._stepper = episode, self._steppers[episode.maze]
         start_episodes(self._stepper, self.source, [0], [episode])
-        info = {
+        info: dict[str, Any] = {
             "collided": False,
             "steps": 0,
             "target": episode.target,
@@ -282,7 +287,7 @@ class NDHEnv(gym.Env):
             info.update(td=float(self._stepper.td[0]), pose=episode.start, goal=episode.goal)
         return self._observation(), info
 
-    def step(self, action):
+    def step(self, action: SupportsInt) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
         stepper = self._stepper
         if stepper is None or stepper.done[0]:
             raise RuntimeError("step() after the episode ended: call reset() first")
@@ -297,13 +302,14 @@ class NDHEnv(gym.Env):
         if terminated and td <= SUCCESS_RADIUS_M:
             reward += SUCCESS_REWARD
         truncated = bool(stepper.done[0]) and not terminated
-        info = {"collided": collided, "steps": int(stepper.steps[0])}
+        info: dict[str, Any] = {"collided": collided, "steps": int(stepper.steps[0])}
         if self.privileged_info:
             info.update(td=td, pose=self.pose)
         return self._observation(), reward, terminated, truncated, info
 
-    def _observation(self) -> dict:
+    def _observation(self) -> dict[str, Any]:
         stepper, episode = self._stepper, self._episode
+        assert stepper is not None and episode is not None, "reset() starts an episode first"
         mask = np.ones(_STOP + 1, dtype=np.int8)
         mask[_FORWARD] = not stepper.forward_blocked()[0]
         return {
@@ -313,7 +319,7 @@ class NDHEnv(gym.Env):
             "action_mask": mask,
         }
 
-    def render(self):
+    def render(self) -> np.ndarray | None:
         if self.render_mode is None:
             gym.logger.warn("render() without render_mode: make the environment with render_mode='rgb_array'")
             return None

@@ -130,7 +130,7 @@ def evaluate_baselines(
     actions = np.full(len(order), Action.STOP, dtype=np.int64)
     while not stepper.done.all():
         actions[shortest] = stepper.teacher_actions()[shortest]
-        if random.size:
+        if draws is not None:  # the random agent plays
             # Left or right where forward would collide, else forward, left or right.
             blocked = stepper.forward_blocked()[random]
             pick = draws.choice(np.where(blocked, 2, 3), np.arange(random.size))

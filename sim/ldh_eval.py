@@ -52,6 +52,13 @@ class MazeContext:
     graph: NavGraph
     views: np.ndarray | None = None  # (N, 8, sectors, labels, 2), see pose_views; the language localizers' only
 
+    @property
+    def required_views(self) -> np.ndarray:
+        """`views`, for the localizers that read them: an error where the context has none."""
+        if self.views is None:
+            raise ValueError(f"maze {self.run!r}: this context was built without views")
+        return self.views
+
     @cached_property
     def main(self) -> np.ndarray:
         """Boolean (N,): nodes of the largest set of mutually reachable nodes."""
@@ -141,7 +148,7 @@ def colour_logits(counts: np.ndarray, views: np.ndarray) -> np.ndarray:
 def colours_localizer(inst: LDHInstance, ctx: MazeContext) -> np.ndarray:
     """The language baseline: match the colours and objects the Driver names, with the side
     named, against what each pose sees, and take the expected-TD-minimising node."""
-    return ctx.one_hot(ctx.decide(colour_logits(mentions(inst.dialog), ctx.views)))
+    return ctx.one_hot(ctx.decide(colour_logits(mentions(inst.dialog), ctx.required_views)))
 
 
 BASELINES: dict[str, Localizer] = {"random": random_localizer, "center": center_localizer, "colours": colours_localizer}

@@ -13,10 +13,13 @@ from __future__ import annotations
 
 import threading
 import weakref
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Literal
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 
 from sim.geometry import world_to_pixel
 from sim.labels import LABEL_BGR, PALETTE_BGR, Label
@@ -141,7 +144,7 @@ class _Camera:
     def buffers(self) -> tuple[np.ndarray, np.ndarray]:
         """This thread's (H, W) bool scratch and uint32 frame buffer: the server renders trials'
         frames in worker threads, so each thread paints into its own."""
-        pool = _buffers.__dict__.setdefault("pool", {})
+        pool: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = _buffers.__dict__.setdefault("pool", {})
         mine = pool.get((self.width, self.height))
         if mine is None:
             mine = pool[(self.width, self.height)] = (
@@ -188,7 +191,9 @@ def _camera(width: int, height: int) -> _Camera:
     return camera
 
 
-def _cast_columns(walls: _Walls, cam: _Camera, x: float, y: float, theta: float, angles: np.ndarray):
+def _cast_columns(
+    walls: _Walls, cam: _Camera, x: float, y: float, theta: float, angles: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """(labels, depth metres) of each column's ray on the walls grid, as `RayCaster.cast`
     gives them: only the edges facing the camera are met, each against the few columns
     its ends project to."""
@@ -243,7 +248,7 @@ def _cast_columns(walls: _Walls, cam: _Camera, x: float, y: float, theta: float,
     return labels, depth
 
 
-def _to_edge(x, y, dx, dy, w: int, h: int) -> np.ndarray:
+def _to_edge(x: float, y: float, dx: np.ndarray, dy: np.ndarray, w: int, h: int) -> np.ndarray:
     """Metres from (x, y) along (dx, dy) to the raster's edge."""
     x_lo, x_hi = -0.5 / PX_PER_M_X, (w - 0.5) / PX_PER_M_X
     y_lo, y_hi = -0.5 / PX_PER_M_Y, (h - 0.5) / PX_PER_M_Y
@@ -253,7 +258,7 @@ def _to_edge(x, y, dx, dy, w: int, h: int) -> np.ndarray:
     return np.minimum(tx, ty)
 
 
-def first_person(maze: Maze, x: float, y: float, theta: float, size=(320, 240)) -> np.ndarray:
+def first_person(maze: Maze, x: float, y: float, theta: float, size: tuple[int, int] = (320, 240)) -> np.ndarray:
     """The Driver's camera at (x, y) metres facing `theta` radians: a (H, W, 3) BGR image."""
     width, height = int(size[0]), int(size[1])
     if width < 8 or height < 8:
@@ -300,7 +305,17 @@ def first_person(maze: Maze, x: float, y: float, theta: float, size=(320, 240)) 
 _OBJECT_SIZE = {Label.JAR: (0.10, 0.14), Label.MUG: (0.08, 0.08), Label.PADDLE: (0.15, 0.17)}
 
 
-def _draw_object(image, cam: _Camera, label: Label, x, y, theta, ox, oy, wall_z) -> None:
+def _draw_object(
+    image: np.ndarray,
+    cam: _Camera,
+    label: Label,
+    x: float,
+    y: float,
+    theta: float,
+    ox: float,
+    oy: float,
+    wall_z: np.ndarray,
+) -> None:
     dx, dy = ox - x, oy - y
     z = dx * np.cos(theta) + dy * np.sin(theta)  # ahead of the camera
     side = -dx * np.sin(theta) + dy * np.cos(theta)  # to its left
@@ -328,10 +343,10 @@ def _draw_object(image, cam: _Camera, label: Label, x, y, theta, ox, oy, wall_z)
     dark = tuple(v * 0.55 for v in bgr)
     s = 16  # sub-pixel precision for cv2 drawing (4 fractional bits)
 
-    def pt(u, v):  # metres right of the centre / above the floor -> patch pixels
+    def pt(u: float, v: float) -> tuple[int, int]:  # metres right of the centre / above the floor -> patch pixels
         return (int(round((centre + u * scale - c0) * s)), int(round((base - v * scale - r0) * s)))
 
-    def ax(a, b):
+    def ax(a: float, b: float) -> tuple[int, int]:
         return (max(int(round(a * scale * s)), 1), max(int(round(b * scale * s)), 1))
 
     w2 = width_m / 2
@@ -362,7 +377,14 @@ def _draw_object(image, cam: _Camera, label: Label, x, y, theta, ox, oy, wall_z)
     region[:, visible] = patch[:, visible]
 
 
-def top_down(maze: Maze, pose=None, path=None, rays=None, walls_only: bool = False, scale: float = 0.5) -> np.ndarray:
+def top_down(
+    maze: Maze,
+    pose: Sequence[float] | None = None,
+    path: Sequence[Sequence[float]] | np.ndarray | None = None,
+    rays: Literal[True] | tuple[np.ndarray, np.ndarray] | None = None,
+    walls_only: bool = False,
+    scale: float = 0.5,
+) -> np.ndarray:
     """The maze seen from above, with the agent (an arrow at `pose` = (x, y, theta)), its
     `path` (a sequence of (x, y)) and its observation rays: `rays=True` casts them from the
     pose, or pass the (labels, depth) pair of `cast_rays` for that pose."""
@@ -371,7 +393,7 @@ def top_down(maze: Maze, pose=None, path=None, rays=None, walls_only: bool = Fal
     image = _map_image(maze, walls_only, scale).copy()
     s = 16
 
-    def px(xy):
+    def px(xy: ArrayLike) -> np.ndarray:
         c, r = world_to_pixel(*np.asarray(xy, dtype=np.float64).T)
         return np.stack([c * scale * s, r * scale * s], axis=-1).round().astype(np.int32)
 
@@ -410,7 +432,7 @@ def top_down(maze: Maze, pose=None, path=None, rays=None, walls_only: bool = Fal
     return image
 
 
-_maps: weakref.WeakKeyDictionary[Maze, dict] = weakref.WeakKeyDictionary()
+_maps: weakref.WeakKeyDictionary[Maze, dict[tuple[bool, float], np.ndarray]] = weakref.WeakKeyDictionary()
 
 
 def _map_image(maze: Maze, walls_only: bool, scale: float) -> np.ndarray:

@@ -22,6 +22,7 @@ look-up in each of the world's per-(slot, action) tables.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from sim.benchmark import MAX_EPISODE_ACTIONS
 from sim.dynamics import Action, actions_toward
@@ -71,7 +72,15 @@ class BatchStepper:
         self._hit = (code & 1).astype(bool)
 
     # -- episodes -------------------------------------------------------------------
-    def start(self, envs, node, heading, goal, goal_dist, goal_next) -> None:
+    def start(
+        self,
+        envs: ArrayLike,
+        node: ArrayLike,
+        heading: ArrayLike,
+        goal: ArrayLike,
+        goal_dist: ArrayLike,
+        goal_next: ArrayLike,
+    ) -> None:
         """Start episodes in batch positions `envs` (an index array or a boolean mask) at global
         `node`, `heading`, toward global `goal`, with its maze's goal rows (K, >= maze size):
         metres to the goal and next local node toward it (-1 where none) from each local node."""
@@ -114,7 +123,7 @@ class BatchStepper:
         if self.record:
             self._history = [self.node.copy()]
 
-    def step(self, actions) -> np.ndarray:
+    def step(self, actions: ArrayLike) -> np.ndarray:
         """Apply (B,) actions; returns which of them were forward moves into a wall."""
         if not self._started:
             raise RuntimeError("step() before start(): start the batch's episodes first")
@@ -174,9 +183,9 @@ class BatchStepper:
         actions = actions_toward(self.world.ij[hop] - self.world.ij[node], heading)
         return np.where(stop, Action.STOP, actions).astype(np.int64)
 
-    def distance(self, node) -> np.ndarray:
+    def distance(self, node: ArrayLike) -> np.ndarray:
         """Metres from (B,) global nodes to each episode's goal."""
-        return self._dist_flat[self._base + np.asarray(node)]
+        return self._dist_flat[self._base + np.asarray(node, dtype=np.int64)]
 
     # -- bookkeeping ---------------------------------------------------------------
     @property

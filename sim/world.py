@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike, DTypeLike
 
 from sim.cache import cache_dir as default_cache_dir
 from sim.cache import save_npz
@@ -70,7 +71,7 @@ class World:
         cls,
         items: Sequence[tuple[str, Maze, NavGraph]],
         observations: bool = True,
-        obs_dtype=np.float32,
+        obs_dtype: DTypeLike = np.float32,
         cache_dir: str | Path | None = None,
         rays: Sequence[RayTable] | None = None,
     ) -> World:
@@ -78,7 +79,7 @@ class World:
         from the maze's cache."""
         from sim.observations import RayTable  # only when observations are compiled
 
-        parts: dict[str, list] = {"xy": [], "ij": [], "forward": [], "obs": []}
+        parts: dict[str, list[np.ndarray]] = {"xy": [], "ij": [], "forward": [], "obs": []}
         offset, size, total = [], [], 0
         for k, (_, maze, graph) in enumerate(items):
             offset.append(total)
@@ -92,13 +93,14 @@ class World:
             total += graph.n
         if not items:
             raise ValueError("a world needs at least one maze")
-        obs = parts.pop("obs")
         return cls(
             names=tuple(name for name, _, _ in items),
             offset=np.array(offset, dtype=np.int64),
             size=np.array(size, dtype=np.int64),
-            obs=np.concatenate(obs) if observations else None,
-            **{k: np.concatenate(v) for k, v in parts.items()},
+            xy=np.concatenate(parts["xy"]),
+            ij=np.concatenate(parts["ij"]),
+            forward=np.concatenate(parts["forward"]),
+            obs=np.concatenate(parts["obs"]) if observations else None,
         )
 
     @classmethod
@@ -180,7 +182,7 @@ class World:
     def obs_features(self) -> int:
         if self.obs is None:
             raise ValueError("this world was compiled without observations")
-        return self.obs.shape[1]
+        return int(self.obs.shape[1])
 
     def index(self, name: str) -> int:
         try:
@@ -236,10 +238,13 @@ class World:
         lengths = np.searchsorted(self.move_lengths, np.asarray(self.move_length))
         if self.move_lengths.size > 32:
             raise ValueError(f"{self.move_lengths.size} distinct move lengths: the moves table holds 32")
-        return (np.asarray(self.transition) << 6) | (lengths << 1) | np.asarray(self.collides)
+        transition = np.asarray(self.transition, dtype=np.int64)
+        collides = np.asarray(self.collides, dtype=np.int64)
+        moves: np.ndarray = (transition << 6) | (lengths.astype(np.int64) << 1) | collides
+        return moves
 
 
-def goal_rows(graph: NavGraph, goals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def goal_rows(graph: NavGraph, goals: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Distance (K, N) and next hop (K, N) toward each goal node from every node of `graph`."""
     goals = np.asarray(goals, dtype=np.int64)
     # Columns, not the transposed rows: Dijkstra's sums differ in the last bit.
@@ -294,7 +299,7 @@ class EpisodeGeometry:
             dist, hop = goal_rows(graph, [g])
             out["goal_dist"][k, : graph.n], out["goal_next"][k, : graph.n] = dist[0], hop[0]
         if world.key:
-            save_npz(path, **out)
+            save_npz(path, compressed=False, **out)
         return cls(**out)
 
     def __len__(self) -> int:

@@ -32,7 +32,13 @@ def _private_cache(tmp_path_factory) -> None:
 
 
 def pytest_collection_modifyitems(items) -> None:
-    # Every test that reads the benchmark is marked, so `-m "not benchmark_data"` leaves them out.
+    # Every test that reads the benchmark is marked, so `-m "not benchmark_data"` leaves them out;
+    # likewise every test on PostgreSQL (its fixture, or the postgres run of `any_db_settings`).
     for item in items:
-        if "benchmark_path" in getattr(item, "fixturenames", ()):
+        fixtures = getattr(item, "fixturenames", ())
+        if "benchmark_path" in fixtures:
             item.add_marker(pytest.mark.benchmark_data)
+        callspec = getattr(item, "callspec", None)
+        on_postgres = callspec is not None and callspec.params.get("any_db_settings") == "postgres"
+        if "postgres_url" in fixtures or on_postgres:
+            item.add_marker(pytest.mark.postgres)

@@ -109,7 +109,7 @@ class RobotLink:
         self._send({"type": "ping", "id": self._ping_id, "server_ns": sent})
 
     def on_pong(self, message: dict, received_ns: int) -> None:
-        sent = self._pings.pop(message.get("id"), None)
+        sent = self._pings.pop(message.get("id", 0), None)  # ping ids start at 1
         robot_ns = message.get("robot_ns")
         if sent is None or not isinstance(robot_ns, int):
             return

@@ -46,7 +46,9 @@ def _wall_name(label: Label) -> str:
 
 def leg_actions(graph: NavGraph, start: Pose, goal_node: int) -> tuple[list[Action], list[Pose]]:
     """The teacher's moves from `start` to the goal node, and the pose after each."""
-    actions, poses, pose = [], [], start
+    actions: list[Action] = []
+    poses: list[Pose] = []
+    pose = start
     for _ in range(MAX_LEG_ACTIONS):
         action = teacher_action(graph, pose, goal_node)
         if action == Action.STOP:
@@ -125,7 +127,8 @@ def plan_leg(maze: Maze, graph: NavGraph, start: Pose, target: str) -> Leg:
             break
         after = math.atan2(*(points[idx[n + 2]] - points[b])[::-1])
         next_turn = _turn_phrase(_wrap(after - direction)) or "keep going"
-        label, depth = what_is_at(maze, *points[b], direction)
+        x, y = points[b]
+        label, depth = what_is_at(maze, x, y, direction)
         if label != Label.FLOOR and depth < 2 * NEAR_WALL_M:
             words.append(f"{next_turn} at the {_wall_name(label)}")
         else:

@@ -9,6 +9,8 @@ from typing import Any
 from app.mazes import Mazes
 from app.trial.vocabulary import MoveAction
 from sim.dynamics import snap_pose, teacher_action
+from sim.maze import Maze
+from sim.navgraph import NavGraph
 
 RANDOM_CLAIM_P = 0.02
 
@@ -31,7 +33,8 @@ class ShortestPathDriver:
 
     def __init__(self, mazes: Mazes) -> None:
         self.mazes = mazes
-        self.maze = self.graph = None
+        self.maze: Maze | None = None
+        self.graph: NavGraph | None = None
 
     def reset(self, info: dict[str, Any]) -> None:
         self.maze, self.graph = self.mazes.load(info["maze"]), self.mazes.graph(info["maze"])
@@ -40,8 +43,11 @@ class ShortestPathDriver:
         pose = observation.get("pose")
         if pose is None:
             return "stop"
-        goal = self.graph.nearest_node(*self.maze.objects[observation["target"]])
-        return teacher_action(self.graph, snap_pose(self.graph, *pose), goal).word
+        maze, graph = self.maze, self.graph
+        if maze is None or graph is None:
+            raise RuntimeError("ShortestPathDriver.act before reset(info)")
+        goal = graph.nearest_node(*maze.objects[observation["target"]])
+        return teacher_action(graph, snap_pose(graph, *pose), goal).word
 
 
 def random_driver(info, services) -> RandomDriver:

@@ -56,7 +56,7 @@ def export(
     sessions = make_sessionmaker(make_engine(settings))
     mazes = Mazes(settings)
     with sessions() as session:
-        ids = finished_trial_ids(session) if trial == "all" else [trial]
+        ids: list[int | str] = [*finished_trial_ids(session)] if trial == "all" else [trial]
         if not ids:
             _fail(f"no finished trials in {settings.url.split('@')[-1]}")
         try:

@@ -103,11 +103,18 @@ def episodes_of(record: TrialRecord, maze: Maze, per: Episode) -> list[list[Step
     return groups
 
 
+def _decode(jpeg: bytes) -> np.ndarray:
+    image = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
+    if image is None:
+        raise ExportError("a Driver camera frame is not an image")
+    return np.asarray(image)
+
+
 def _encode_video(path: Path, images: Sequence[bytes]) -> tuple[int, int]:
     import av
 
     path.parent.mkdir(parents=True, exist_ok=True)
-    frames = [cv2.imdecode(np.frombuffer(b, np.uint8), cv2.IMREAD_COLOR) for b in images]
+    frames = [_decode(b) for b in images]
     height, width = frames[0].shape[:2]
     with av.open(str(path), "w") as container:
         stream = container.add_stream("libx264", rate=FPS)
@@ -116,7 +123,8 @@ def _encode_video(path: Path, images: Sequence[bytes]) -> tuple[int, int]:
         for image in frames:
             if image.shape[:2] != (height, width):
                 image = cv2.resize(image, (width, height))
-            frame = av.VideoFrame.from_ndarray(cv2.cvtColor(image, cv2.COLOR_BGR2RGB), format="rgb24")
+            rgb = np.asarray(cv2.cvtColor(image, cv2.COLOR_BGR2RGB), dtype=np.uint8)  # uint8 already: no copy
+            frame = av.VideoFrame.from_ndarray(rgb, format="rgb24")
             for packet in stream.encode(frame):
                 container.mux(packet)
         for packet in stream.encode():

@@ -215,6 +215,7 @@ def _message(record: TrialRecord, event: LoggedEvent, image: bytes | None) -> tu
                 f"trial {record.trial_id}: frame {p.get('frame_id')} has image type "
                 f"{p.get('mime')!r}; expected one of {', '.join(_IMAGE_FORMATS)}"
             )
+        assert image is not None  # every frame event's image is read before the messages are written
         return {
             "timestamp": _stamp(capture),
             "frame_id": p.get("source", "driver"),

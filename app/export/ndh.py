@@ -113,17 +113,14 @@ def ldh_instances(record: TrialRecord, maze: Maze) -> list[dict]:
     estimate = estimates[0]
     start = _pose_at(events, _start_seq(events))
     truth = _pose_at(events, estimate.seq)
-    guess = [
-        float(estimate.payload["x"]),
-        float(estimate.payload["y"]),
-        None if estimate.payload.get("heading") is None else float(estimate.payload["heading"]),
-    ]
-    error = None if truth is None else math.dist(truth[:2], guess[:2])
+    guess_xy = [float(estimate.payload["x"]), float(estimate.payload["y"])]
+    guess = [*guess_xy, None if estimate.payload.get("heading") is None else float(estimate.payload["heading"])]
+    error = None if truth is None else math.dist(truth[:2], guess_xy)
     target = record.targets[0]
     all_targets = _positions(record, maze)
     return [
         {
-            "scan": scan_id(record.maze, target, start if start else guess[:2], all_targets[0]),
+            "scan": scan_id(record.maze, target, start if start else guess_xy, all_targets[0]),
             "target": target,
             "agent_pose": truth,
             "start_pose": start,

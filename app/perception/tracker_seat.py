@@ -13,7 +13,8 @@ import asyncio
 import logging
 from pathlib import Path
 
-from sim.tracking import CalibrationError, FrameError, OverheadCalibration, OverheadTracker, TrackedPose
+from sim.calibration import CalibrationError
+from sim.tracking import FrameError, OverheadCalibration, OverheadTracker, TrackedPose
 
 logger = logging.getLogger(__name__)
 

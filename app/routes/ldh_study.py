@@ -51,7 +51,7 @@ def _back(study_id: int | None = None, error: str | None = None) -> RedirectResp
 @studies_router.get("", response_class=HTMLResponse)
 def study_list(request: Request, error: str | None = None):
     s = studies(request)
-    return render(request, "ldh_studies.html", studies=s.list(), default_source=s.default_source(), error=error)
+    return render(request, "ldh_studies.html", studies=s.all_studies(), default_source=s.default_source(), error=error)
 
 
 @studies_router.post("")

@@ -113,8 +113,8 @@ async def login(request: Request, name: str = Form(max_length=80), password: str
         response = render(request, "home.html", error="unknown name or wrong password", join_error=None)
         response.status_code = 401
         return response
-    response = RedirectResponse("/experimenter", status_code=303)
-    response.set_cookie(
+    redirect = RedirectResponse("/experimenter", status_code=303)
+    redirect.set_cookie(
         SESSION_COOKIE,
         services.sessions.issue(user_id),
         max_age=SESSION_MAX_AGE_S,
@@ -122,7 +122,7 @@ async def login(request: Request, name: str = Form(max_length=80), password: str
         samesite="strict",
         secure=request.url.scheme == "https",
     )
-    return response
+    return redirect
 
 
 @router.post("/logout", dependencies=[Depends(csrf_protect)])

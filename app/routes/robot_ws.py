@@ -14,6 +14,8 @@ import asyncio
 import contextlib
 import logging
 import time
+from collections.abc import Mapping
+from typing import Any
 
 from fastapi import APIRouter, Depends, Form, HTTPException, Request, WebSocket, WebSocketDisconnect
 
@@ -174,7 +176,7 @@ async def _read(ws: WebSocket, link: RobotLink, links) -> None:
                 links.bad_message(link, str(err))
 
 
-async def _dispatch(raw: dict, link: RobotLink, links, received_ns: int) -> None:
+async def _dispatch(raw: Mapping[str, Any], link: RobotLink, links, received_ns: int) -> None:
     data = raw.get("bytes")
     if data is not None:
         header, jpeg = unpack_frame(data, MAX_FRAME_BYTES)

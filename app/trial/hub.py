@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+from typing import TYPE_CHECKING
 
 from sqlalchemy import select
 
@@ -13,11 +14,14 @@ from app.trial.relay import RemoteTrial
 from app.trial.runtime import TrialRuntime, UnknownTrial
 from app.trial.vocabulary import Phase
 
+if TYPE_CHECKING:
+    from app.services import Services
+
 logger = logging.getLogger(__name__)
 
 
 class TrialHub:
-    def __init__(self, services) -> None:
+    def __init__(self, services: Services) -> None:
         self.services = services
         self._runtimes: dict[int, TrialRuntime] = {}
         self._opening: dict[int, asyncio.Lock] = {}
@@ -32,7 +36,7 @@ class TrialHub:
             with contextlib.suppress(RuntimeError):  # no loop (a script): nothing runs it anyway
                 asyncio.get_running_loop().create_task(runtime.close())
 
-    async def get(self, trial_id: int):
+    async def get(self, trial_id: int) -> TrialRuntime | RemoteTrial:
         """Where the trial runs: its runtime here, or (with Redis) a `RemoteTrial` forwarding to
         the process that runs it."""
         relay = self.services.relay

@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import asyncio
 import logging
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -23,6 +24,11 @@ from sim.ldh_eval import MazeContext, colour_logits
 from sim.ldh_features import maze_views, mentions
 from sim.maze import Maze
 from sim.navgraph import NavGraph
+
+if TYPE_CHECKING:
+    from app.services import Services
+    from app.trial.runtime import TrialRuntime
+    from models.ldh import TrainedLocalizer
 
 logger = logging.getLogger(__name__)
 
@@ -35,7 +41,7 @@ class BeliefModel:
 
     def __init__(self, checkpoint: Path | None, cache_dir: Path) -> None:
         self.cache_dir = cache_dir
-        self.learned = None
+        self.learned: TrainedLocalizer | None = None
         self.name = "colours"
         if checkpoint is not None:
             from models.ldh import load_localizer  # torch only where a checkpoint is configured
@@ -52,17 +58,19 @@ class BeliefModel:
             self._contexts[maze.name] = MazeContext(maze.name, graph, maze_views(maze, graph, self.cache_dir))
         return self._contexts[maze.name]
 
-    def node_belief(self, maze: Maze, dialog) -> tuple[MazeContext, np.ndarray]:
+    def node_belief(self, maze: Maze, dialog: Iterable[tuple[str, str]]) -> tuple[MazeContext, np.ndarray]:
         """(context, P(node)) over the main component, from the (role, message) turns so far."""
         ctx = self.context(maze)
         counts = mentions(dialog)
-        logits = self.learned.logits(counts, ctx) if self.learned is not None else colour_logits(counts, ctx.views)
+        logits = (
+            self.learned.logits(counts, ctx) if self.learned is not None else colour_logits(counts, ctx.required_views)
+        )
         logits = np.where(ctx.main[:, None], logits, -np.inf)
         p = np.exp(logits - logits.max())
         node_p = p.sum(axis=1)
         return ctx, node_p / node_p.sum()
 
-    def top(self, maze: Maze, dialog, k: int = TOP_K) -> list[list[float]]:
+    def top(self, maze: Maze, dialog: Iterable[tuple[str, str]], k: int = TOP_K) -> list[list[float]]:
         ctx, node_p = self.node_belief(maze, dialog)
         best = np.argsort(-node_p, kind="stable")[:k]
         return [
@@ -72,7 +80,7 @@ class BeliefModel:
         ]
 
 
-def belief_model(services) -> BeliefModel:
+def belief_model(services: Services) -> BeliefModel:
     if services.ldh_belief is None:
         settings = services.settings
         services.ldh_belief = BeliefModel(settings.ldh_checkpoint, settings.cache_dir)
@@ -82,7 +90,7 @@ def belief_model(services) -> BeliefModel:
 class LiveBelief:
     """A trial's belief feed to its watchers: the runtime calls `after` per event, `welcome` per watcher."""
 
-    def __init__(self, runtime) -> None:
+    def __init__(self, runtime: TrialRuntime) -> None:
         self.runtime = runtime
         self._sent_upto = 0  # the last chat seq a belief was sent for
 

@@ -15,7 +15,7 @@ from collections.abc import Callable
 from typing import Any
 
 from sqlalchemy import insert, select, update
-from sqlalchemy.orm import sessionmaker
+from sqlalchemy.orm import Session, sessionmaker
 
 from app.db import models
 from app.trial.state import LoggedEvent
@@ -24,13 +24,13 @@ logger = logging.getLogger(__name__)
 
 
 class EventLog:
-    def __init__(self, sessions: sessionmaker) -> None:
+    def __init__(self, sessions: sessionmaker[Session]) -> None:
         self.sessions = sessions
         self.engine = sessions.kw["bind"]
         self._events: list[dict[str, Any]] = []
         self._frames: list[dict[str, Any]] = []
         self._caches: dict[int, dict[str, Any]] = {}
-        self._after: list[tuple[int, Callable[..., None], tuple]] = []
+        self._after: list[tuple[int, Callable[..., None], tuple[Any, ...]]] = []
         self._scheduled = False
         self._loop: asyncio.AbstractEventLoop | None = None  # the loop whose turns batch the commits
         self.on_lost: Callable[[int, Exception], None] | None = None  # the hub drops a trial whose batch failed
@@ -68,7 +68,7 @@ class EventLog:
         self._scheduled, self._loop = True, loop
         loop.call_soon(self.flush)
 
-    def after_commit(self, trial_id: int, send: Callable[..., None], *args) -> None:
+    def after_commit(self, trial_id: int, send: Callable[..., None], *args: Any) -> None:
         """Call `send(*args)` once everything appended so far is committed (now, if it is)."""
         if self._events:
             self._after.append((trial_id, send, args))
@@ -103,7 +103,9 @@ class EventLog:
             if trial_id not in lost:
                 send(*args)
 
-    def _write(self, events, frames, caches) -> None:
+    def _write(
+        self, events: list[dict[str, Any]], frames: list[dict[str, Any]], caches: dict[int, dict[str, Any]]
+    ) -> None:
         # Core statements, not the ORM: this runs for every event of every live trial.
         with self.engine.begin() as conn:
             conn.execute(insert(models.Event), events)

@@ -59,7 +59,7 @@ SeatMessage = Annotated[Chat | Move | Localize | Claim | Confirm | Reject | Ping
 seat_message = TypeAdapter(SeatMessage)
 
 # Which role may send which message.
-ALLOWED = {
+ALLOWED: dict[str, set[str]] = {
     Role.COMMANDER: {"chat", "localize", "confirm", "reject", "ping"},
     Role.DRIVER: {"chat", "move", "claim", "ping"},
 }

@@ -12,7 +12,9 @@ from app.trial.vocabulary import FrameSource, MoveAction, Outcome, Role
 class Connection(Protocol):
     """One seat's way out: a socket, a relayed socket, an agent, the rover."""
 
-    role: str
+    @property
+    def role(self) -> str:
+        """The seat's role (read-only here, so a seat may hold it as a `Role`)."""
 
     def deliver(self, message: dict[str, Any]) -> None:
         """Queue a message for this seat; never blocks."""

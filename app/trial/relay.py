@@ -24,11 +24,17 @@ import logging
 import os
 import socket
 import uuid
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 from app.security import Seat
 from app.trial.views import EXPERIMENTER
 from app.trial.vocabulary import Role
+
+if TYPE_CHECKING:
+    from app.services import Services
+    from app.settings import Settings
+    from app.trial.port import Connection
+    from app.trial.runtime import TrialRuntime
 
 logger = logging.getLogger(__name__)
 HEARTBEAT_TTL_S = 2.0  # a process silent this long is taken for dead and its trials are taken over
@@ -37,12 +43,12 @@ HEARTBEAT_EVERY_S = 0.5
 TAKE_OVER = "if redis.call('get', KEYS[1]) == ARGV[1] then redis.call('set', KEYS[1], ARGV[2]) return 1 end return 0"
 
 
-def key_prefix(settings) -> str:
+def key_prefix(settings: Settings) -> str:
     """Trial ids are per database: processes share owners only when they share the database."""
     return f"robotslang:{hashlib.sha256(settings.url.encode()).hexdigest()[:12]}"
 
 
-def owner_key(settings, trial_id: int) -> str:
+def owner_key(settings: Settings, trial_id: int) -> str:
     """The Redis key naming the process that runs the trial (`host-pid-random`)."""
     return f"{key_prefix(settings)}:trial:{trial_id}:owner"
 
@@ -52,18 +58,18 @@ def _channel(process: str) -> str:
 
 
 class RedisRelay:
-    def __init__(self, services, url: str) -> None:
+    def __init__(self, services: Services, url: str) -> None:
         import redis.asyncio as redis
 
         self.services = services
         self.redis = redis.from_url(url, decode_responses=True)
         self.id = f"{socket.gethostname()}-{os.getpid()}-{uuid.uuid4().hex[:8]}"  # names the process
         self._keys = key_prefix(services.settings)
-        self.local: dict[str, Any] = {}  # connection id -> this process's seat of a trial owned elsewhere
+        self.local: dict[str, Connection] = {}  # connection id -> this process's seat of a trial owned elsewhere
         self.relayed: dict[str, RelayedSeat] = {}  # connection id -> a remote seat of a trial owned here
         self.remotes: set[RemoteTrial] = set()  # trials owned elsewhere that seats here use
-        self._outbox: asyncio.Queue = asyncio.Queue()
-        self._tasks: list[asyncio.Task] = []
+        self._outbox: asyncio.Queue[tuple[str, str]] = asyncio.Queue()
+        self._tasks: list[asyncio.Task[None]] = []
 
     async def start(self) -> None:
         self._pubsub = self.redis.pubsub()
@@ -88,7 +94,7 @@ class RedisRelay:
                     await self.redis.delete(self._owner_key(runtime.trial_id))
         with contextlib.suppress(Exception):
             await self.redis.delete(self._alive_key(self.id))
-        await self._pubsub.aclose()
+        await self._pubsub.aclose()  # type: ignore[no-untyped-call]  # redis-py leaves PubSub.aclose unannotated
         await self.redis.aclose()
 
     def _owner_key(self, trial_id: int) -> str:
@@ -104,7 +110,8 @@ class RedisRelay:
         while True:
             if await self.redis.set(key, self.id, nx=True):
                 return self.id
-            current = await self.redis.get(key)
+            # decode_responses=True: str, which redis-py's annotations (bytes | str) cannot say.
+            current = cast(str | None, await self.redis.get(key))
             if current is None:
                 continue  # released in between
             if current == self.id or await self.redis.exists(self._alive_key(current)):
@@ -151,7 +158,7 @@ class RedisRelay:
                 logger.exception("relay: message not handled")
 
     async def _dispatch(self, msg: dict[str, Any]) -> None:
-        op, conn_id = msg["op"], msg.get("conn")
+        op, conn_id = msg["op"], msg.get("conn", "")  # control messages name no connection
         if op == "deliver":
             conn = self.local.get(conn_id)
             if conn is not None:
@@ -191,12 +198,12 @@ class RemoteTrial:
     def __init__(self, relay: RedisRelay, trial_id: int, owner: str) -> None:
         self.relay, self.trial_id, self.owner = relay, trial_id, owner
         self._ids: dict[int, str] = {}
-        self.runtime = None  # the trial's runtime here, once this process has taken it over
+        self.runtime: TrialRuntime | None = None  # the trial's runtime here, once this process has taken it over
 
-    def _command(self, op: str, **fields) -> None:
+    def _command(self, op: str, **fields: Any) -> None:
         self.relay.send(self.owner, {"op": op, "trial": self.trial_id, "from": self.relay.id, **fields})
 
-    def join(self, conn) -> None:
+    def join(self, conn: Connection) -> None:
         if self.runtime is not None:
             return _attach(self.runtime, conn)
         conn_id = uuid.uuid4().hex
@@ -205,7 +212,7 @@ class RemoteTrial:
         self.relay.remotes.add(self)
         self._command("join", conn=conn_id, role=conn.role)
 
-    def leave(self, conn) -> None:
+    def leave(self, conn: Connection) -> None:
         if self.runtime is not None:
             self.runtime.unwatch(conn) if conn.role == EXPERIMENTER else self.runtime.leave(conn)
             return
@@ -232,7 +239,7 @@ class RemoteTrial:
             self.relay.local.pop(conn_id, None)
             _attach(self.runtime, conn)
 
-    async def receive(self, conn, seat: Seat, text: str | None) -> None:
+    async def receive(self, conn: Connection, seat: Seat, text: str | None) -> None:
         if self.runtime is not None:
             return await self.runtime.receive(conn, seat, text)
         self._command("text", conn=self._ids[id(conn)], text=text)
@@ -244,15 +251,16 @@ class RemoteTrial:
         if conn_id is not None:
             self._command("bad_message", conn=conn_id, error=error)
 
-    def watch(self, conn) -> None:
+    def watch(self, conn: Connection) -> None:
         self.join(conn)
 
-    def unwatch(self, conn) -> None:
+    def unwatch(self, conn: Connection) -> None:
         self.leave(conn)
 
     def _control(self, action: str) -> None:
         if self.runtime is not None:
-            return getattr(self.runtime, action)()
+            getattr(self.runtime, action)()
+            return
         self._command("control", action=action)
 
     def pause(self) -> None:
@@ -265,5 +273,5 @@ class RemoteTrial:
         self._control("abort")
 
 
-def _attach(runtime, conn) -> None:
+def _attach(runtime: TrialRuntime, conn: Connection) -> None:
     runtime.watch(conn) if conn.role == EXPERIMENTER else runtime.join(conn)

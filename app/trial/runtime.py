@@ -14,7 +14,9 @@ import asyncio
 import base64
 import logging
 import uuid
-from typing import Any
+from collections.abc import Coroutine
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from pydantic import ValidationError
 
@@ -32,6 +34,11 @@ from app.trial.state import TrialState, fold
 from app.trial.views import EXPERIMENTER, status_of, view
 from app.trial.vocabulary import PARTICIPANTS, FrameSource, MoveAction, Outcome, Phase, PoseSource, Role
 
+if TYPE_CHECKING:
+    from app.drivers.seat import AgentSeat
+    from app.perception.belief import TrialBelief
+    from app.services import Services
+
 logger = logging.getLogger(__name__)
 
 
@@ -40,7 +47,7 @@ class UnknownTrial(LookupError):
 
 
 class TrialRuntime:
-    def __init__(self, trial_id: int, services) -> None:
+    def __init__(self, trial_id: int, services: Services) -> None:
         self.trial_id = trial_id
         self.services = services
         self.settings = services.settings
@@ -49,14 +56,14 @@ class TrialRuntime:
         self.seats: dict[str, Connection] = {}
         self.watchers: set[Connection] = set()  # the experimenter's live views
         self._grace: dict[Role, asyncio.TimerHandle] = {}
-        self._tasks: set[asyncio.Task] = set()
+        self._tasks: set[asyncio.Task[Any]] = set()
         self._status: dict[str, Any] | None = None  # the last status sent, less the clock
         self._ending = False
-        self.agent = None
-        self.belief = None  # `TrialBelief` once the Driver camera's calibration is loaded
+        self.agent: AgentSeat | None = None
+        self.belief: TrialBelief | None = None  # `TrialBelief` once the Driver camera's calibration is loaded
         self._perceiving = False
         self._belief_message: dict[str, Any] | None = None  # the latest, for the watch page
-        self._frame_dirs: set = set()
+        self._frame_dirs: set[Path] = set()
         self.ldh = LiveBelief(self)  # the LDH model's belief, for the watchers only
 
     # -- life cycle ---------------------------------------------------------------
@@ -120,7 +127,7 @@ class TrialRuntime:
         if not self.seats and not self.watchers:
             self.services.hub.forget(self.trial_id)
 
-    def _spawn(self, coro) -> asyncio.Task:
+    def _spawn(self, coro: Coroutine[Any, Any, Any]) -> asyncio.Task[Any]:
         task = asyncio.get_running_loop().create_task(coro)
         self._tasks.add(task)
         task.add_done_callback(self._tasks.discard)
@@ -248,13 +255,13 @@ class TrialRuntime:
                 self._perceiving = True
                 self._spawn(self._perceive(belief, frame.jpeg, frame.capture_ns))
 
-    async def _perceive(self, belief, jpeg: bytes, capture_ns: int) -> None:
+    async def _perceive(self, belief: TrialBelief, jpeg: bytes, capture_ns: int) -> None:
         try:
             observed = await asyncio.to_thread(belief.observe, jpeg, capture_ns)
         finally:
             self._perceiving = False
-        if observed is not None:
-            self._belief_message = message = belief.message()
+        if observed is not None and (message := belief.message()) is not None:
+            self._belief_message = message
             for conn in list(self.watchers):
                 conn.deliver(message)
 
@@ -274,7 +281,9 @@ class TrialRuntime:
         event = ev.FrameRecorded(
             frame_id=frame_id, source=source, path=rel, capture_ns=capture_ns, width=width, height=height
         )
-        attach = {Role.DRIVER: {"jpeg": base64.b64encode(jpeg).decode()}} if source == FrameSource.DRIVER else {}
+        attach: dict[str, dict[str, Any]] = (
+            {Role.DRIVER: {"jpeg": base64.b64encode(jpeg).decode()}} if source == FrameSource.DRIVER else {}
+        )
         self.apply(d.Note(event), attachments=attach, frame=row)
         return frame_id
 
@@ -393,7 +402,7 @@ class TrialRuntime:
         except Refused as err:
             self.refuse(conn, seat.role, str(err))
 
-    async def _handle_reporting(self, conn: Connection, role: str, message) -> None:
+    async def _handle_reporting(self, conn: Connection, role: str, message: m.Move) -> None:
         try:
             await self.handle(role, message)
         except Refused as err:
@@ -405,7 +414,7 @@ class TrialRuntime:
         if not self.state.over:
             self.report_bad_message(Role(role), error)
 
-    def _parse(self, seat: Seat, text: str | None):
+    def _parse(self, seat: Seat, text: str | None) -> m.SeatMessage:
         limit = self.settings.max_message_bytes
         if text is None:
             raise Refused("messages must be JSON text, not binary")
@@ -423,7 +432,7 @@ class TrialRuntime:
             raise Refused(f"token refused: {err}") from None
         return message
 
-    async def handle(self, role: str, message) -> None:
+    async def handle(self, role: str, message: m.SeatMessage) -> None:
         """Apply one validated message from a seat; raises `Refused` when not allowed now."""
         if message.type not in m.ALLOWED[role]:
             raise Refused(f"the {role} may not send {message.type!r} messages")
@@ -461,6 +470,7 @@ class TrialRuntime:
         if asked[-1].kind == "move_executed":  # refused at once
             return Outcome.REFUSED
         backend = self.backend
+        assert backend is not None  # RequestMove refuses every move while there is no backend
         reason = None
         started_ns = self.services.clock.now_ns()
         try:
@@ -485,7 +495,7 @@ class TrialRuntime:
 
     def claim(self) -> None:
         s = self.state
-        attach = (
+        attach: dict[str, dict[str, Any]] | None = (
             {Role.COMMANDER: {"claim": self._claim_attachment(s.last_frame_id)}}
             if s.last_frame_id is not None
             else None

@@ -12,6 +12,7 @@ import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,6 +26,10 @@ from sim.geometry import world_to_pixel
 from sim.maze import Maze
 from sim.navgraph import NavGraph
 from sim.rover import BODY_RADIUS_M, MotionNoise, Rover, RoverPose, clearance_map
+
+if TYPE_CHECKING:
+    from sim.camera import FrontCamera
+    from sim.overhead import OverheadCamera
 
 CAMERA_SOURCE = "virtual"  # the hello's camera.source, where the real client names its camera
 JPEG_QUALITY = 80  # the real client's default
@@ -75,13 +80,17 @@ def build(
     robot_url(spec.server)
     link = LinkSettings(server=spec.server, token=spec.token, role=spec.role, watchdog_s=spec.watchdog_s)
     motors = None
+    camera: FrontCamera | OverheadCamera
+    source: FrontCameraSource | OverheadCameraSource
     if spec.role == "driver":
         from sim.camera import FrontCamera
 
         camera = FrontCamera()
-        if spec.start is None and graph is None:
-            raise ValueError("a start pose (--start) or the maze's navigation graph is needed")
-        start = spec.start or random_start(spec.maze, graph, spec.seed)
+        start = spec.start
+        if start is None:
+            if graph is None:
+                raise ValueError("a start pose (--start) or the maze's navigation graph is needed")
+            start = random_start(spec.maze, graph, spec.seed)
         rover = Rover(spec.maze, start, spec.noise, seed=spec.seed)
         truth = TruthLog(spec.truth) if spec.truth is not None else None
         motors = VirtualMotors(rover, spec.calibration, truth)

@@ -20,8 +20,10 @@ import httpx
 import uvicorn
 import websockets
 
+from app.db.models import Experimenter
 from app.drivers.registry import available_drivers
 from app.main import create_app
+from app.security import SESSION_COOKIE, hash_password
 from app.serving import uvicorn_options
 from app.settings import Settings
 from app.trial.setup import create_participant, create_team, create_trial
@@ -155,6 +157,19 @@ def log_in(base_url: str, name: str, password: str) -> httpx.Client:
     assert page.status_code == 200 and "Participants" in page.text, page.text[:300]
     client.headers["X-CSRF-Token"] = page_csrf_token(page.text)
     return client
+
+
+def experimenter_client(services: Any, url: str, name: str = "eve", password: str = "correct horse") -> httpx.Client:
+    """A new experimenter account in the server's database (`services`), logged in at `url`
+    through the home page's form."""
+    with services.db.begin() as db:
+        db.add(Experimenter(name=name, password_hash=hash_password(password)))
+    return log_in(url, name, password)
+
+
+def session_cookie(client: httpx.Client) -> str:
+    """The Cookie header of a logged-in client's session (for a websocket opened beside it)."""
+    return f"{SESSION_COOKIE}={client.cookies[SESSION_COOKIE]}"
 
 
 def make_trial(

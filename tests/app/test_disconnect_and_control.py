@@ -10,17 +10,8 @@ from sqlalchemy import select
 
 from app.db.models import Event
 from tests.app.conftest import platform_settings
-from tests.app.live import SeatClient, ServerThread, log_in, make_trial
+from tests.app.live import SeatClient, ServerThread, experimenter_client, make_trial
 from tests.app.trial_play import move, start_trial
-
-
-def login(server) -> httpx.Client:
-    from app.db.models import Experimenter
-    from app.security import hash_password
-
-    with server.services.db.begin() as db:
-        db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
-    return log_in(server.url, "eve", "correct horse")
 
 
 def test_driver_drops_and_rejoins_within_grace(settings):
@@ -73,7 +64,7 @@ def test_experimenter_pauses_resumes_and_aborts(settings):
         services = server.services
         trial_id = make_trial(services, services.mazes.names()[0])
         tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-        experimenter = login(server)
+        experimenter = experimenter_client(server.services, server.url)
 
         async def play():
             async with (

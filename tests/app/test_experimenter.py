@@ -15,8 +15,7 @@ from sqlalchemy import create_engine, inspect, select
 
 from app.db.models import Trial
 from app.main import build_services, ensure_experimenter
-from tests.app.live import REPO, ServerThread, browser, submit_login
-from tests.app.test_disconnect_and_control import login
+from tests.app.live import REPO, ServerThread, browser, experimenter_client, submit_login
 
 
 def cli(*args: str, env: dict[str, str], input: str | None = None) -> subprocess.CompletedProcess:
@@ -65,7 +64,7 @@ def test_admin_create_and_db_upgrade_commands(tmp_path):
 def test_experimenter_forms_make_a_trial_with_join_links(settings):
     with ServerThread(settings) as server:
         assert httpx.get(server.url + "/experimenter").status_code == 303, "the dashboard is behind login"
-        client = login(server)
+        client = experimenter_client(server.services, server.url)
         for name in ("Ada", "Ben", "Cy"):
             client.post("/experimenter/participants", data={"name": name})
         page = client.post("/experimenter/participants", data={"name": "Ada"}).text

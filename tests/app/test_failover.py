@@ -8,6 +8,7 @@ import asyncio
 import os
 import signal
 
+import pytest
 import redis
 from sqlalchemy import select
 
@@ -53,6 +54,7 @@ async def chat_both_ways(commander: SeatClient, driver: SeatClient, tag: str) ->
     await commander.event("chat", text=f"driver {tag}", timeout=30)
 
 
+@pytest.mark.slow
 def test_two_workers_share_one_trial(tmp_path, postgres_url, redis_url):  # noqa: F811
     settings = platform_settings(tmp_path, database_url=postgres_url, redis_url=redis_url)
     services = build_services(settings)
@@ -83,6 +85,7 @@ def test_two_workers_share_one_trial(tmp_path, postgres_url, redis_url):  # noqa
     assert seqs == list(range(1, len(seqs) + 1)), "one total order, no gaps"
 
 
+@pytest.mark.slow
 def test_the_owner_killed_mid_trial_is_taken_over_and_its_seats_served_again(tmp_path, postgres_url, redis_url):  # noqa: F811
     """Two processes (two machines behind one proxy, as far as the trial can tell): the Commander
     on the first, which owns the trial, the Driver on the second. The first is killed; the second

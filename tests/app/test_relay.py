@@ -10,8 +10,7 @@ from sqlalchemy import select
 
 from app.db.models import Event, Trial
 from tests.app.conftest import platform_settings
-from tests.app.live import SeatClient, ServerThread, make_trial
-from tests.app.test_disconnect_and_control import login
+from tests.app.live import SeatClient, ServerThread, experimenter_client, make_trial
 from tests.app.trial_play import claim_and_decide, drive_to_target, move, start_trial
 
 REDIS_URL = "redis://127.0.0.1:6379/0"
@@ -34,7 +33,7 @@ def test_seats_on_two_processes_play_one_trial(tmp_path, postgres_url, redis_url
     with ServerThread(settings) as first, ServerThread(settings) as second:
         trial_id = make_trial(first.services, first.services.mazes.names()[0])
         tokens = {r: first.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-        experimenter = login(second)
+        experimenter = experimenter_client(second.services, second.url)
 
         async def play():
             async with SeatClient(first.ws_url, tokens["commander"]) as commander:

@@ -8,18 +8,18 @@ import contextlib
 import json
 import time
 
+import pytest
 import websockets
 from sqlalchemy import select
 
 from app.backends.remote import create_robot
-from app.db.models import Experimenter, Trial
+from app.db.models import Trial
 from app.main import build_services
-from app.security import SESSION_COOKIE
 from app.trial.setup import create_participant, create_team, create_trial
 from app.trial.state import fold
 from robot_client.protocol import pack_frame
 from tests.app.conftest import platform_settings
-from tests.app.live import SeatClient, ServerProcess, ServerThread, make_trial
+from tests.app.live import SeatClient, ServerProcess, ServerThread, experimenter_client, make_trial, session_cookie
 from tests.app.trial_play import move, start_trial
 
 S = 1_000_000_000
@@ -95,6 +95,7 @@ def rover_trial(services) -> tuple[int, str]:
         return trial.id, token
 
 
+@pytest.mark.slow
 def test_a_crash_neither_scores_the_downtime_nor_leaves_a_move_requested(tmp_path):
     settings = platform_settings(tmp_path)
     services = build_services(settings)
@@ -137,6 +138,7 @@ def test_a_crash_neither_scores_the_downtime_nor_leaves_a_move_requested(tmp_pat
     services.engine.dispose()
 
 
+@pytest.mark.slow
 def test_a_seat_that_dropped_before_a_crash_still_times_out(tmp_path):
     grace_s = 4.0
     settings = platform_settings(tmp_path)
@@ -203,9 +205,7 @@ def test_a_trial_ended_by_its_grace_timer_leaves_the_live_list_and_reopens_witho
             with contextlib.suppress(websockets.exceptions.InvalidStatus):
                 async with SeatClient(server.ws_url, tokens["commander"]):
                     raise AssertionError("a join link of an ended trial still opens its seat")
-            with services.db() as db:
-                admin_id = db.scalar(select(Experimenter.id))
-            cookie = f"{SESSION_COOKIE}={services.sessions.issue(admin_id)}"
+            cookie = session_cookie(await asyncio.to_thread(experimenter_client, services, server.url))
             async with websockets.connect(
                 f"ws://127.0.0.1:{server.port}/ws/watch/{trial_id}", additional_headers={"Cookie": cookie}
             ) as watch:

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import math
 import shutil
-from types import SimpleNamespace
 
 import pytest
 from sqlalchemy import select
@@ -21,8 +20,7 @@ from app.export.source import load_trial
 from app.perception.cameras import learned
 from sim.camera import FrontCamera
 from sim.geometry import SUCCESS_RADIUS_M
-from tests.app.live import make_trial
-from tests.app.test_disconnect_and_control import login
+from tests.app.live import experimenter_client, make_trial
 from tests.app.test_seq2seq_seat import stopping_checkpoint  # noqa: F401  (a fixture; needs the benchmark)
 from tests.app.test_status import Watch
 from tests.app.test_virtual_rover import (  # noqa: F401  (fixtures)
@@ -56,6 +54,7 @@ def tracked(lab: Lab, trial: int) -> list[dict]:
     return [e.payload for e in lab.services.log.load(trial) if e.kind == "pose"]
 
 
+@pytest.mark.slow
 async def test_a_rover_trial_records_tracked_poses_belief_truly_within_and_all_ndh_instances(
     tmp_path, maze, start, camera_calibration
 ):
@@ -69,7 +68,7 @@ async def test_a_rover_trial_records_tracked_poses_belief_truly_within_and_all_n
             token, "--truth", str(truth), "--seed", "3", "--fps", "5", "--start", f"{start.x},{start.y},{start.theta}"
         )
         lab.rover(camera_token, "--role", "overhead", "--truth", str(truth), "--fps", "4")
-        experimenter = login(SimpleNamespace(services=lab.services, url=lab.server.url))
+        experimenter = experimenter_client(lab.services, lab.server.url)
         experimenter.timeout = 30.0  # the server shares two loaded cores with rovers, tracker and filter
         with lab.services.db() as db:
             eve = db.scalar(select(Experimenter).where(Experimenter.name == "eve"))
@@ -131,6 +130,7 @@ async def test_a_rover_trial_records_tracked_poses_belief_truly_within_and_all_n
         lab.close()
 
 
+@pytest.mark.slow
 async def test_the_learned_driver_drives_a_virtual_rover_to_a_claim(
     tmp_path, start, camera_calibration, stopping_checkpoint
 ):

@@ -176,6 +176,7 @@ def test_failed_logins_are_limited_per_account_and_per_address(tmp_path):
         assert submit_login(client, "nobody", "guess").status_code == 429
 
 
+@pytest.mark.slow
 def test_a_burst_of_wrong_logins_leaves_the_server_answering(tmp_path):
     settings = platform_settings(tmp_path, login_limit_per_account="1000/minute", login_limit_per_address="1000/minute")
     burst = 40

@@ -81,6 +81,7 @@ def test_agrees_step_by_step_with_the_dynamics_and_the_ray_tables(bench, world):
         assert np.array_equal(rows, RayTable.build(bench.maze(run), bench.graph(run)).features().reshape(len(rows), -1))
 
 
+@pytest.mark.slow
 def test_agrees_step_by_step_on_every_benchmark_map(bench):
     runs = bench.runs()
     world = compile_world(bench, runs, observations=False)
