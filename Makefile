@@ -11,7 +11,13 @@ PORT   ?= 8000
 # since a plain PyPI gives Linux the multi-GB CUDA build.
 TORCH_INDEX ?=
 
-.PHONY: run test lint bench clean
+# lerobot's own LeRobotDataset, which loads the LeRobot export back in its test: a venv of its own
+# (tests/app/lerobot_env/requirements.txt says why), about 6 GB; `make test` skips that test without it.
+LEROBOT_VENV  := .venv-lerobot
+LEROBOT_STAMP := $(LEROBOT_VENV)/.installed-stamp
+LEROBOT_REQS  := tests/app/lerobot_env/requirements.txt
+
+.PHONY: run test lint bench clean lerobot-venv
 
 $(STAMP): pyproject.toml robot_client/pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -35,8 +41,20 @@ lint: $(STAMP)
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy
 
+$(LEROBOT_STAMP): $(LEROBOT_REQS)
+	$(PYTHON) -m venv $(LEROBOT_VENV)
+	$(LEROBOT_VENV)/bin/python -m pip install --quiet --upgrade pip
+	# With TORCH_INDEX, its +cpu builds of torch, torchvision and torchcodec rank above PyPI's.
+	$(LEROBOT_VENV)/bin/python -m pip install --quiet -r $(LEROBOT_REQS) $(if $(TORCH_INDEX),--extra-index-url $(TORCH_INDEX))
+	# lerobot's own pins (torch<2.11, torchvision<0.26, torchcodec<0.11) admit no torchvision that
+	# imports here: lerobot alone, its dataset loader's imports being those above.
+	$(LEROBOT_VENV)/bin/python -m pip install --quiet --no-deps lerobot==0.4.4
+	touch $(LEROBOT_STAMP)
+
+lerobot-venv: $(LEROBOT_STAMP)
+
 bench: $(STAMP)
 	$(BIN)/python -m bench.sim
 
 clean:
-	rm -rf $(VENV)
+	rm -rf $(VENV) $(LEROBOT_VENV)

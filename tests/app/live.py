@@ -77,10 +77,14 @@ class ServerThread:
 class ServerProcess:
     """`robotslang serve` as a separate process, so a test can kill it the hard way."""
 
-    def __init__(self, env: dict[str, str], port: int | None = None, workers: int = 1) -> None:
+    def __init__(
+        self, env: dict[str, str], port: int | None = None, workers: int = 1, argv: list[str] | None = None
+    ) -> None:
         self.env = {**os.environ, **env}
         self.port = port or free_port()
         self.workers = workers
+        # `argv`: a command of its own that serves on 127.0.0.1:`port` (a deployment's, say).
+        self.argv = argv
         self.proc: subprocess.Popen | None = None
 
     @property
@@ -93,7 +97,8 @@ class ServerProcess:
 
     def start(self) -> ServerProcess:
         self.proc = subprocess.Popen(
-            [
+            self.argv
+            or [
                 sys.executable,
                 "-c",
                 "from app.cli import main; main()",

@@ -1,9 +1,12 @@
 """LeRobotDataset v3 export of a demo trial: the layout LeRobot reads, checked against the log,
-and loaded back with lerobot's own `LeRobotDataset` where the `lerobot` extra is installed."""
+and loaded back with lerobot's own `LeRobotDataset`, in the venv `make lerobot-venv` builds."""
 
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -14,12 +17,13 @@ from typer.testing import CliRunner
 from app.cli import root
 from app.db.engine import make_engine, make_sessionmaker
 from app.db.models import Trial
-from app.export.lerobot import STATE_NAMES, VIDEO_KEY, Episode, episodes_of, write_lerobot
+from app.export.lerobot import FPS, STATE_NAMES, VIDEO_KEY, Episode, episodes_of, write_lerobot
 from app.export.record import ExportError
 from app.settings import Settings
 from app.trial.log import EventLog
 from sim.dynamics import Action
 from tests.app.test_export_mcap import record, small_maze  # noqa: F401  (a small trial log)
+from tests.packaging.conftest import REPO, clean_env
 
 av = pytest.importorskip("av", reason="the LeRobot export needs the `lerobot` extra (PyAV)")
 pq = pytest.importorskip("pyarrow.parquet", reason="the LeRobot export needs the `lerobot` extra (pyarrow)")
@@ -129,26 +133,63 @@ def test_an_independent_v3_checker_finds_the_format_compliant(recorded, tmp_path
     assert [r.name for r in full.results if r.severity is doctor.Severity.FAIL] == []
 
 
+def lerobot_python() -> Path:
+    """The lerobot venv's Python: $ROBOTSLANG_LEROBOT_PYTHON (CI sets it, so a broken one fails),
+    else the one `make lerobot-venv` builds, else skip."""
+    configured = os.environ.get("ROBOTSLANG_LEROBOT_PYTHON")
+    if configured:
+        return Path(configured)
+    built = REPO / ".venv-lerobot" / "bin" / "python"
+    if not built.exists():
+        pytest.skip(
+            "lerobot's LeRobotDataset runs in a venv of its own (lerobot 0.4.4 imports torchvision, and "
+            "none on this index loads beside torch 2.13.0+cpu): `make lerobot-venv` builds it, .ci/run does"
+        )
+    return built
+
+
 @pytest.mark.slow
 def test_lerobot_loads_it_back(recorded, tmp_path):
-    lerobot_dataset = pytest.importorskip(
-        "lerobot.datasets.lerobot_dataset",
-        reason="lerobot is not importable here (the `lerobot` extra; lerobot 0.4.4 also needs a "
-        "torchvision built for the installed torch)",
-        exc_type=ImportError,
-    )
+    python = lerobot_python()
     env, trial, log = recorded
-    out = tmp_path / "ds"
+    out, served = tmp_path / "ds", tmp_path / "served"
     export(env, out)
-    dataset = lerobot_dataset.LeRobotDataset("robotslang/demo", root=out)
+    served.mkdir()
+    loaded = subprocess.run(
+        [str(python), str(Path(__file__).with_name("lerobot_env") / "load_back.py"), str(out), str(served)],
+        # Offline, with the datasets cache in the test's folder: nothing to fetch, nothing left behind.
+        env=clean_env(HF_HUB_OFFLINE="1", HF_HOME=str(tmp_path / "hf")),
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert loaded.returncode == 0, loaded.stderr
+    report = json.loads((served / "items.json").read_text())
     steps = driver_steps(log)
-    assert dataset.num_frames == len(steps) and dataset.num_episodes == 3
-    items = [dataset[i] for i in range(len(dataset))]
-    assert [int(it["frame_seq"]) for it in items] == [f.seq for f, _ in steps]
-    assert items[0][VIDEO_KEY].shape[0] == 3  # channels first, as LeRobot serves it
-    said = [m["text"] for it in items for m in json.loads(it["language.messages"])]
-    assert said == [e.payload["text"] for e in log if e.kind == "chat"]
-    assert {it["task"] for it in items} == set(trial.targets)
+    assert (report["num_frames"], report["num_episodes"], report["fps"]) == (len(steps), 3, FPS)
+    assert report["video_keys"] == [VIDEO_KEY]
+    items = report["items"]
+    assert [it["frame_seq"] for it in items] == [f.seq for f, _ in steps]
+    confirmed = [e.seq for e in log if e.kind == "target_confirmed"]
+    for i, (item, (frame, action)) in enumerate(zip(items, steps)):
+        # An NDH instance ends at its target's confirmation; its last frame's action is STOP.
+        assert item["episode_index"] == sum(c < frame.seq for c in confirmed[:-1])
+        ends_episode = i == len(items) - 1 or items[i + 1]["episode_index"] != item["episode_index"]
+        assert item["action"] == (Action.STOP if ends_episode else action)
+        assert item["task"] == trial.targets[sum(c < frame.seq for c in confirmed)]
+    said = [m for it in items for m in json.loads(it["language.messages"])]
+    assert [(m["speaker"], m["text"], m["t_ns"]) for m in said] == [
+        (e.payload["role"], e.payload["text"], e.t_ns) for e in log if e.kind == "chat"
+    ]
+    # Every image LeRobot decodes (at its item's timestamp) is the Driver's recorded frame.
+    images = np.load(served / f"{VIDEO_KEY}.npy")
+    frames_dir = Settings(data_dir=env["ROBOTSLANG_DATA_DIR"], secret_key="x").frames_dir
+    assert images.shape[0] == len(steps)
+    for image, (frame, _) in zip(images, steps):
+        recorded_rgb = cv2.cvtColor(cv2.imread(str(frames_dir / frame.payload["path"])), cv2.COLOR_BGR2RGB)
+        assert image.transpose(1, 2, 0).shape == recorded_rgb.shape
+        assert np.abs(image.transpose(1, 2, 0).astype(int) - recorded_rgb).mean() < 8, frame.seq
 
 
 @pytest.mark.slow

@@ -1,7 +1,9 @@
-"""deploy/ as a lab runs it, on one machine: PostgreSQL and Redis, the migrate step, two
-`robotslang serve` processes, and Debian's nginx with deploy/nginx/robotslang.conf.template
+"""deploy/ as a lab runs it, on one machine: PostgreSQL and Redis, compose.yaml's migrate
+command, two of its server processes (its `serve` command on loopback ports), and Debian's nginx
+with deploy/nginx/robotslang.conf.template, given the variables compose.yaml gives it,
 terminating TLS in front of them. A demo trial plays through the proxy over wss://, its
-Commander and Driver reaching different processes."""
+Commander and Driver reaching different processes. Where Docker Compose is installed, it checks
+compose.yaml too."""
 
 from __future__ import annotations
 
@@ -23,9 +25,9 @@ from app.main import build_services
 from app.security import SeatTokens
 from app.settings import Settings
 from tests.app.live import ServerProcess, free_port, make_trial
+from tests.deploy.conftest import CONSOLE_SCRIPTS, DEPLOY, compose_services, service_command
 from tests.packaging.conftest import REPO, clean_env
 
-DEPLOY = REPO / "deploy"
 NGINX = shutil.which("nginx") or "/usr/sbin/nginx"
 SECRET = "deploy-test-secret"
 
@@ -123,23 +125,12 @@ def nginx_available():
         pytest.skip("nginx is not installed (apt-get install -y nginx; .ci/run installs it)")
 
 
-def robotslang(*args: str, env: dict[str, str], cwd: Path) -> subprocess.CompletedProcess:
-    out = subprocess.run(
-        [sys.executable, "-c", "from app.cli import main; main()", *args],
-        env=env,
-        cwd=cwd,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert out.returncode == 0, out.stdout + out.stderr
-    return out
-
-
 @pytest.mark.slow
 def test_two_servers_behind_nginx_play_a_trial_over_tls(tmp_path, postgres_url, redis_url, nginx_available):
+    services = compose_services()
     env = {
         **clean_env(),
+        "PATH": f"{CONSOLE_SCRIPTS}:{clean_env()['PATH']}",
         "PYTHONPATH": str(REPO),
         "ROBOTSLANG_DATABASE_URL": postgres_url,
         "ROBOTSLANG_REDIS_URL": redis_url,
@@ -147,24 +138,41 @@ def test_two_servers_behind_nginx_play_a_trial_over_tls(tmp_path, postgres_url, 
         "ROBOTSLANG_DATA_DIR": str(tmp_path / "data"),
         "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
     }
-    # compose.yaml's migrate service, then two of its server processes.
-    robotslang("db", "upgrade", env=env, cwd=tmp_path)
-    robotslang("admin", "create", "admin", "--password", "deploy-test-pw", env=env, cwd=tmp_path)
-    servers = [ServerProcess(env) for _ in range(2)]
+    # What compose.yaml configures the platform with, this test configures too.
+    for name in ("migrate", "server"):
+        assert {k for k in services[name]["environment"] if k.startswith("ROBOTSLANG_")} <= set(env) | {
+            "ROBOTSLANG_ADMIN",
+            "ROBOTSLANG_ADMIN_PASSWORD",
+        }, name
+    # compose.yaml's migrate command (schema, first experimenter), then two of its server processes.
+    migrate = subprocess.run(
+        service_command(services["migrate"]),
+        env={**env, "ROBOTSLANG_ADMIN": "admin", "ROBOTSLANG_ADMIN_PASSWORD": "deploy-test-pw"},
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert migrate.returncode == 0, migrate.stdout + migrate.stderr
+    ports = [free_port(), free_port()]
+    servers = [
+        ServerProcess(env, port=port, argv=service_command(services["server"], host="127.0.0.1", port=str(port)))
+        for port in ports
+    ]
     cert, key = self_signed(tmp_path)
     http_port, https_port = free_port(), free_port()
-    site = render(
-        DEPLOY / "nginx" / "robotslang.conf.template",
-        {
-            "ROBOTSLANG_UPSTREAM_SERVERS": " ".join(f"server 127.0.0.1:{s.port};" for s in servers),
-            "ROBOTSLANG_LISTEN_ADDRESS": "127.0.0.1",
-            "ROBOTSLANG_HTTP_PORT": str(http_port),
-            "ROBOTSLANG_HTTPS_PORT": str(https_port),
-            "ROBOTSLANG_SERVER_NAME": "127.0.0.1",
-            "ROBOTSLANG_TLS_CERT": str(cert),
-            "ROBOTSLANG_TLS_KEY": str(key),
-        },
-    )
+    nginx_values = {
+        "ROBOTSLANG_UPSTREAM_SERVERS": " ".join(f"server 127.0.0.1:{port};" for port in ports),
+        "ROBOTSLANG_LISTEN_ADDRESS": "127.0.0.1",
+        "ROBOTSLANG_HTTP_PORT": str(http_port),
+        "ROBOTSLANG_HTTPS_PORT": str(https_port),
+        "ROBOTSLANG_SERVER_NAME": "127.0.0.1",
+        "ROBOTSLANG_TLS_CERT": str(cert),
+        "ROBOTSLANG_TLS_KEY": str(key),
+    }
+    # The nginx service's variables are the template's: the ones rendered here.
+    assert set(services["nginx"]["environment"]) == set(nginx_values)
+    site = render(DEPLOY / "nginx" / "robotslang.conf.template", nginx_values)
     try:
         for server in servers:
             server.start()
@@ -210,27 +218,3 @@ def test_two_servers_behind_nginx_play_a_trial_over_tls(tmp_path, postgres_url, 
     finally:
         for server in servers:
             server.stop()
-
-
-def test_the_compose_file_is_valid(tmp_path):
-    docker = shutil.which("docker")
-    if docker is None or subprocess.run([docker, "compose", "version"], capture_output=True).returncode != 0:
-        pytest.skip("docker compose is not installed here; the deploy test above runs the services' commands")
-    env = {
-        **clean_env(),
-        "POSTGRES_PASSWORD": "pw",
-        "ROBOTSLANG_SECRET_KEY": "key",
-        "ROBOTSLANG_ADMIN_PASSWORD": "admin-pw",
-        "ROBOTSLANG_SERVER_NAME": "lab.example.org",
-    }
-    out = subprocess.run(
-        [docker, "compose", "-f", str(DEPLOY / "compose.yaml"), "config", "--format", "json"],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
-    assert out.returncode == 0, out.stderr
-    services = json.loads(out.stdout)["services"]
-    assert set(services) == {"postgres", "redis", "migrate", "server", "nginx"}
-    assert services["server"]["command"] == ["robotslang", "serve", "--host", "0.0.0.0", "--port", "8000"]

@@ -154,32 +154,62 @@ def test_the_installed_server_serves_pages_static_files_migrations_and_bundled_m
             server.kill()
             server.wait()
     # Logged in, the experimenter picks from the mazes bundled in the wheel.
+    mazes = trial_form_mazes(venv, tmp_path, url, "admin", password, "--port", str(port), "--data-dir", str(data))
+    assert {f"gen-{i:03d}" for i in range(12)} <= mazes
+
+
+def trial_form_mazes(venv: Path, cwd: Path, url: str, user: str, password: str, *serve_args: str) -> set[str]:
+    """The mazes the trial form offers, from `robotslang serve *serve_args`: logged in with the home
+    page's form, two participants made into a team (the form shows once there is one)."""
     server = subprocess.Popen(
-        [str(venv / "bin" / "robotslang"), "serve", "--port", str(port), "--data-dir", str(data)],
-        cwd=tmp_path,
-        env=clean_env(),
-        stdout=subprocess.DEVNULL,
+        [str(venv / "bin" / "robotslang"), "serve", *serve_args], cwd=cwd, env=clean_env(), stdout=subprocess.DEVNULL
     )
     try:
         with browser(url) as client:
             deadline = time.time() + 60
             while True:
                 try:
-                    page = submit_login(client, "admin", password)  # the home page's form, with its token
+                    page = submit_login(client, user, password)
                     break
                 except httpx.HTTPError:
                     assert server.poll() is None and time.time() < deadline
                     time.sleep(0.2)
             assert page.url.path == "/experimenter"
-            # The trial form (with the mazes) shows once there is a team to run it.
             client.headers["X-CSRF-Token"] = page_csrf_token(page.text)
             for name in ("Ada", "Ben"):
                 client.post("/experimenter/participants", data={"name": name})
             page = client.post("/experimenter/teams", data={"name": "A & B", "member_a": 1, "member_b": 2})
-            assert all(f"<option>gen-{i:03d}</option>" in page.text for i in range(12))
+            return set(re.findall(r"<option>([\w-]+)</option>", page.text))
     finally:
         server.terminate()
         server.wait(timeout=20)
+
+
+def test_the_installed_server_takes_the_benchmark_data_dir_and_port_flags(venv, tmp_path, benchmark_path):
+    data, port = tmp_path / "lab-data", free_port()
+    made = run(
+        venv,
+        "robotslang",
+        "admin",
+        "create",
+        "lab",
+        "--password",
+        "lab-password",
+        cwd=tmp_path,
+        ROBOTSLANG_DATA_DIR=str(data),
+    )
+    assert made.returncode == 0, made.stdout + made.stderr
+    mazes = trial_form_mazes(
+        venv,
+        tmp_path,
+        f"http://127.0.0.1:{port}",
+        "lab",
+        "lab-password",
+        *("--port", str(port), "--data-dir", str(data), "--benchmark", str(benchmark_path)),
+    )
+    # A benchmark run is a maze where it has the fixed map (a few have only the raw one).
+    benchmark_mazes = {p.parents[1].name for p in (benchmark_path / "mazedata").glob("Run_*/maze/maze.map-fixed.png")}
+    assert benchmark_mazes and benchmark_mazes <= mazes and "gen-000" in mazes
 
 
 def test_the_installed_demo_plays_a_trial(venv, tmp_path):
