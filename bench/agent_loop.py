@@ -137,8 +137,8 @@ async def _rover_tds(benchmark: Path, checkpoint: Path, chosen, bench, tmp: Path
     from app.settings import Settings
     from app.trial.events import LoggedEvent
     from app.virtual_rover.truth import read_truth
+    from bench.live import SeatClient, ServerProcess, make_trial
     from robot_client.calibration import Calibration
-    from tests.app.live import SeatClient, ServerProcess, make_trial
 
     data = tmp / "var"
     env = {

@@ -9,8 +9,9 @@ import pytest
 from sqlalchemy import select
 
 from app.db.models import Event, Trial
+from bench.live import SeatClient, make_trial
 from tests.app.conftest import platform_settings
-from tests.app.live import SeatClient, ServerThread, make_trial
+from tests.app.live import ServerThread
 from tests.app.test_disconnect_and_control import login
 from tests.app.trial_play import claim_and_decide, drive_to_target, move, start_trial
 

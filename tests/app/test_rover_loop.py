@@ -19,9 +19,9 @@ from app.db.models import Experimenter
 from app.export.ndh import ndh_instances
 from app.export.source import load_trial
 from app.perception.cameras import learned
+from bench.live import make_trial
 from sim.camera import FrontCamera
 from sim.geometry import SUCCESS_RADIUS_M
-from tests.app.live import make_trial
 from tests.app.test_disconnect_and_control import login
 from tests.app.test_seq2seq_seat import stopping_checkpoint  # noqa: F401  (a fixture; needs the benchmark)
 from tests.app.test_status import Watch
