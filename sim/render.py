@@ -114,6 +114,7 @@ class _Scene:
     normal_y: np.ndarray
     objects: _Walls  # the objects' footprints (maze.labels without the walls) as edges
     centroids: np.ndarray  # (N_LABELS, 2) each object's centre, metres, to shade it round
+    reach: np.ndarray  # (N_LABELS,) metres from that centre to the footprint's farthest pixel (0: none)
 
 
 _scenes: weakref.WeakKeyDictionary[Maze, _Scene] = weakref.WeakKeyDictionary()
@@ -128,10 +129,14 @@ def _scene(maze: Maze) -> _Scene:
         norm = np.maximum(np.hypot(gx, gy), 1e-6)
         walls = _walls(np.ascontiguousarray(maze.walls, dtype=np.uint8))
         footprints = np.where(np.isin(maze.labels, OBJECT_LABELS), maze.labels, Label.FLOOR).astype(np.uint8)
-        centroids = np.zeros((N_LABELS, 2))
-        for name, xy in maze.objects.items():
-            centroids[Label[name.upper()]] = xy
-        scene = _scenes[maze] = _Scene(walls, -gx / norm, -gy / norm, _walls(footprints), centroids)
+        centroids, reach = np.zeros((N_LABELS, 2)), np.zeros(N_LABELS)
+        for name, (ox, oy) in maze.objects.items():
+            label = Label[name.upper()]
+            rows, cols = np.nonzero(footprints == label)
+            centroids[label] = ox, oy
+            px_x, px_y = world_to_pixel(ox, oy)
+            reach[label] = np.hypot((cols - px_x) / PX_PER_M_X, (rows - px_y) / PX_PER_M_Y).max() + 1 / PX_PER_M_X
+        scene = _scenes[maze] = _Scene(walls, -gx / norm, -gy / norm, _walls(footprints), centroids, reach)
     return scene
 
 
@@ -318,6 +323,19 @@ def paint_objects(
     """Paint the objects into a packed frame (`mask` is scratch): each column whose ray meets
     an object's footprint before any wall shows that object from the footprint's edge up to
     its height, shaded as a solid round its centre and by distance."""
+    # Most frames show no object: cast only when a footprint's bounding circle has a column
+    # in view whose wall is not nearer than the circle.
+    for label in np.nonzero(scene.reach)[0]:
+        cx, cy = scene.centroids[label]
+        away, reach = float(np.hypot(cx - x, cy - y)), float(scene.reach[label])
+        if away <= reach:
+            break
+        off = (np.arctan2(cy - y, cx - x) - theta + np.pi) % (2 * np.pi) - np.pi
+        columns = np.abs(cam.column_offsets - off) <= np.arcsin(reach / away)
+        if (wall_depth[columns] >= away - reach).any():
+            break
+    else:
+        return
     angles = theta + cam.column_offsets
     labels, depth = _cast_columns(scene.objects, cam, x, y, theta, angles)
     seen = (labels != Label.FLOOR) & (depth <= wall_depth)  # level with a wall: the map says object
