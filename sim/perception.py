@@ -461,10 +461,10 @@ def simulated_calibration(
         if i % 4:
             maze, graph = worlds[i % len(worlds)]
             x, y, theta = random_poses(maze, graph, 1, rng)[0]
-        else:  # every fourth frame looks at each object of each maze in turn
+        else:  # every fourth frame looks at an object: the three in turn, on each maze in turn
             j = i // 4
-            maze, graph = worlds[j % len(worlds)]
-            x, y, theta = _facing(maze, graph, OBJECTS[j // len(worlds) % len(OBJECTS)], rng)
+            maze, graph = worlds[j // len(OBJECTS) % len(worlds)]
+            x, y, theta = _facing(maze, graph, OBJECTS[j % len(OBJECTS)], rng)
         images.append(capture(maze, x, y, theta, camera, rng))
         truths.append(cast_rays(maze, x, y, theta))
     return calibrate_colours(images, truths, camera.calibration())
