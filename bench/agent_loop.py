@@ -9,6 +9,9 @@ particle filter's belief), a Commander socket that marks the start so navigation
 episode's dialog history is written into the trial's log before anyone joins, as the benchmark
 gives it to its agent. Both paths get the same cap on moves; TD through the rover is measured
 from the rover's true pose (its truth file) where the agent claimed or ran out of moves.
+
+The checkpoint is the one given, else whichever Driver the package ships
+(`models.shipped.default_checkpoint()`, `models/checkpoints/ndh_driver.pt`).
 """
 
 from __future__ import annotations
@@ -24,29 +27,11 @@ from pathlib import Path
 MAX_MOVES = 40  # per episode, both paths (the benchmark's cap is higher; this bounds the bench's time)
 FAST_PULSES = {"forward_s": 0.15, "left_s": 0.15, "right_s": 0.15}  # the same motion, sooner
 EPISODE_TIMEOUT_S = 90.0  # an episode still driving then is measured where it stands
-QUICK_RUNS = 6  # mazes the quick checkpoint is trained on
-QUICK_ITERS = 20
-REPO = Path(__file__).resolve().parent.parent
 
 
-def quick_checkpoint(bench, out: Path, log) -> Path:
-    """A small teacher-forcing checkpoint trained here (`robotslang train ndh` with few
-    iterations); an undertrained student-forcing one stops at once, which compares nothing."""
-    from models.data import World
-    from models.train import TrainConfig, train
-
-    jars = [i for i in bench.split("train") if len(i.agent_pose) > 2]
-    runs = sorted({i.run for i in jars})[:QUICK_RUNS]  # few mazes: compiling them is most of the cost
-    instances = [i for i in jars if i.run in runs]
-    world = World.build(bench, runs)
-    log(f"agent: training a quick checkpoint on {len(instances)} train episodes")
-    cfg = TrainConfig(feedback="teacher", iters=QUICK_ITERS, batch=8, eval_every=QUICK_ITERS, max_actions=MAX_MOVES)
-    train(bench, cfg, out, world=world, progress=True, train_instances=instances, eval_instances=instances[:4])
-    return out / "last.pt"
-
-
-def choose_episodes(bench, library, n: int) -> list:
-    """The first `n` val_seen jar episodes whose maze has a map and whose start fits the rover."""
+def choose_episodes(bench, library, n: int | None) -> list:
+    """The first `n` (None: all) val_seen jar episodes whose maze has a map and whose start fits
+    the rover (26 of the benchmark's 76)."""
     from sim.benchmark import recorded_start
     from sim.geometry import heading_angle
     from sim.rover import Rover, RoverPose
@@ -65,7 +50,7 @@ def choose_episodes(bench, library, n: int) -> list:
         except ValueError:
             continue  # the rover's body does not fit at this node
         chosen.append((inst, pose))
-        if len(chosen) == n:
+        if n is not None and len(chosen) == n:
             break
     return chosen
 
@@ -85,31 +70,37 @@ def sim_tds(bench, checkpoint: Path, instances) -> list[float]:
     return [by_idx[i.inst_idx] for i in instances]
 
 
-def agent_figures(benchmark: Path | None, checkpoint: Path | None, n: int, seed: int, log, calibration=None) -> dict:
+def agent_figures(
+    benchmark: Path | None, checkpoint: Path | None, n: int | None, seed: int, log, calibration=None
+) -> dict:
     if benchmark is None or not Path(benchmark).is_dir():
         return {
             "skipped": "no benchmark: give --benchmark PATH or set ROBOTSLANG_BENCHMARK "
             "(the NDH episodes and their mazes come from it)",
             "episodes": 0,
         }
+    from models.shipped import default_checkpoint
     from sim.benchmark import Benchmark
     from sim.library import MazeLibrary
 
+    checkpoint = checkpoint or default_checkpoint()
+    if checkpoint is None:
+        return {
+            "skipped": "no seq2seq checkpoint: give --checkpoint PATH or set ROBOTSLANG_SEQ2SEQ_CHECKPOINT "
+            "(this copy ships none in models/checkpoints/)",
+            "episodes": 0,
+        }
     bench = Benchmark(benchmark)
     library = MazeLibrary(benchmark=Path(benchmark))
+    chosen = choose_episodes(bench, library, n)
+    if not chosen:
+        return {"skipped": "no val_seen jar episode whose start fits the rover", "episodes": 0}
+    instances = [inst for inst, _ in chosen]
+    log(f"agent: {checkpoint}, {len(chosen)} episodes in the pure simulator")
+    td_sim = sim_tds(bench, Path(checkpoint), instances)
     with tempfile.TemporaryDirectory(prefix="robot-loop-") as tmp:
-        tmp = Path(tmp)
-        given = checkpoint is not None
-        if not given:
-            checkpoint = quick_checkpoint(bench, tmp / "checkpoint", log)
-        chosen = choose_episodes(bench, library, n)
-        if not chosen:
-            return {"skipped": "no val_seen jar episode whose start fits the rover", "episodes": 0}
-        instances = [inst for inst, _ in chosen]
-        log(f"agent: {len(chosen)} episodes in the pure simulator")
-        td_sim = sim_tds(bench, Path(checkpoint), instances)
         td_rover, moves_rover = asyncio.run(
-            _rover_tds(Path(benchmark), Path(checkpoint), chosen, bench, tmp, calibration, log)
+            _rover_tds(Path(benchmark), Path(checkpoint), chosen, bench, Path(tmp), calibration, log)
         )
     sim_mean, rover_mean = sum(td_sim) / len(td_sim), sum(td_rover) / len(td_rover)
     return {
@@ -124,7 +115,7 @@ def agent_figures(benchmark: Path | None, checkpoint: Path | None, n: int, seed:
         "max_moves": MAX_MOVES,
         "moves_rover": moves_rover,
         "episode_timeout_s": EPISODE_TIMEOUT_S,
-        "checkpoint": str(checkpoint) if given else f"trained here (quick: {QUICK_ITERS} iterations)",
+        "checkpoint": str(checkpoint),
         "inst_idx": [i.inst_idx for i in instances],
     }
 
@@ -137,8 +128,8 @@ async def _rover_tds(benchmark: Path, checkpoint: Path, chosen, bench, tmp: Path
     from app.settings import Settings
     from app.trial.events import LoggedEvent
     from app.virtual_rover.truth import read_truth
+    from bench.live import REPO, SeatClient, ServerProcess, make_trial
     from robot_client.calibration import Calibration
-    from tests.app.live import SeatClient, ServerProcess, make_trial
 
     data = tmp / "var"
     env = {

@@ -19,9 +19,9 @@ from sim.render import (
     OUTLINE,
     WALL_HEIGHT_M,
     _camera,
-    _draw_object,
     _pack,
     _scene,
+    paint_objects,
 )
 
 RENDER_WINDOW = 32
@@ -55,7 +55,5 @@ def first_person(maze: Maze, x: float, y: float, theta: float, size=(320, 240)) 
     packed = np.where(mask, _pack(colour), cam.background)
     cols = np.nonzero(wall & (bottom > top))[0]
     packed[top[cols], cols] = _pack(colour[cols] * OUTLINE)
-    image = cv2.cvtColor(packed.view(np.uint8).reshape(height, width, 4), cv2.COLOR_BGRA2BGR)
-    for label, ox, oy in scene.objects:
-        _draw_object(image, cam, label, x, y, theta, ox, oy, z)
-    return image
+    paint_objects(packed, np.empty(mask.shape, bool), scene, cam, x, y, theta, depth)
+    return cv2.cvtColor(packed.view(np.uint8).reshape(height, width, 4), cv2.COLOR_BGRA2BGR)

@@ -8,7 +8,8 @@ Prints one JSON object (progress goes to stderr):
 - perception: `sim.perception` on virtual front-camera frames against `RayTable`'s rays at the
   same true poses (colours calibrated on other poses, as a lab would).
 - particle_filter: `sim.localization.ParticleFilter` from a uniform belief on perceived rays.
-- agent: one seq2seq checkpoint on the same NDH episodes (val_seen, recorded starts) through
+- agent: one seq2seq checkpoint (`--checkpoint`, else $ROBOTSLANG_SEQ2SEQ_CHECKPOINT, else the
+  Driver shipped in `models/checkpoints/`) on the same NDH episodes (val_seen, recorded starts) through
   the pure simulator (`models.evaluate`) and through the whole wire path of the virtual rover
   (`robotslang serve`, `robotslang robot virtual`, the `agent:seq2seq` seat on perceived rays):
   mean topological distance of each, and the gap. TD through the rover is measured from the
@@ -80,7 +81,12 @@ def main(argv: list[str] | None = None) -> int:
         default=os.environ.get("ROBOTSLANG_BENCHMARK"),
         help="a clone of the RobotSlang benchmark (default $ROBOTSLANG_BENCHMARK)",
     )
-    p.add_argument("--episodes", type=int, default=4, help="NDH episodes for the agent part (4)")
+    p.add_argument(
+        "--episodes",
+        type=int,
+        default=None,
+        help="NDH episodes for the agent part (default: all 26 val_seen jar episodes whose start fits the rover)",
+    )
     p.add_argument("--filter-episodes", type=int, default=20, help="particle-filter episodes (20)")
     p.add_argument("--poses", type=int, default=150, help="poses for the perception figures (150)")
     p.add_argument("--moves", type=int, default=60, help="rover moves in the tracker's trial (60)")
@@ -88,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
         "--checkpoint",
         type=Path,
         default=os.environ.get("ROBOTSLANG_SEQ2SEQ_CHECKPOINT"),
-        help="seq2seq checkpoint (default $ROBOTSLANG_SEQ2SEQ_CHECKPOINT; else a quick one is trained)",
+        help="seq2seq checkpoint (default $ROBOTSLANG_SEQ2SEQ_CHECKPOINT, else the shipped Driver)",
     )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object")

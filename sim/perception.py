@@ -33,7 +33,7 @@ from sim.camera import (
     undistort_normalized,
 )
 from sim.geometry import GRID_STEP_M, HEADINGS, TURN_RAD, heading_index
-from sim.labels import N_LABELS, OBJECT_LABELS, WALL_LABELS, Label
+from sim.labels import N_LABELS, OBJECT_LABELS, OBJECTS, WALL_LABELS, Label
 from sim.maze import Maze
 from sim.navgraph import NavGraph
 from sim.observations import (
@@ -366,12 +366,10 @@ def calibrate_colours(
             label = Label(int(labels[ray]))
             if label == Label.FLOOR:
                 continue
-            if label in OBJECT_LABELS:
-                q_base = 1 / (d + 0.09)  # drawn upright at the centre, past the map blob's edge
             past = inside & (q < q_base - 6 * row_step) & (q > q_base - 20 * row_step)
             label_samples[label].append(colours[past, ray])
-    # Floor and walls first; object rays often see past a map blob that the upright drawing
-    # misses, so their samples are cleaned of anything the floor or a wall already explains.
+    # Floor and walls first; an object ray that grazes a footprint's rim can see past it, so
+    # object samples are cleaned of anything the floor or a wall already explains.
     fitted: dict[Label, ColourClass | None] = {}
     for label, chunks in [(Label.FLOOR, floor_samples)] + list(label_samples.items()):
         samples = colour_features(np.concatenate(chunks)) if chunks else np.zeros((0, 3), np.float32)
@@ -389,11 +387,13 @@ def calibrate_colours(
             f"too few labelled samples to calibrate colours (classes with at least {min_samples}: {sorted(classes)})"
         )
     calibrated = calibration.with_colours(classes)
-    # Objects: the typical gap between where they are seen to stand and their map footprint.
+    # Objects: the typical gap between where they are seen to stand and their map footprint,
+    # where the base is in view (nearer, perception can only say "nearer than the image's bottom").
+    nearest_seen = np.array([1 / strips.inv_depth[strips.inside[:, ray], ray][0] for ray in range(N_RAYS)])
     gaps: list[float] = []
     for image, (labels, depth) in zip(images, truths):
         obs = perceive(image, calibrated)
-        hit = obs.valid & np.isin(labels, OBJECT_LABELS) & (obs.labels == labels) & (np.asarray(depth) > 0)
+        hit = obs.valid & np.isin(labels, OBJECT_LABELS) & (obs.labels == labels) & (depth > nearest_seen + 0.01)
         gaps.extend(np.asarray(depth)[hit] - obs.depth[hit])
     offset = float(np.clip(np.median(gaps), -0.5, 0.5)) if len(gaps) >= 5 else 0.0
     return calibration.with_colours(classes, offset)
@@ -451,17 +451,38 @@ def simulated_calibration(
     progress: bool = False,
 ) -> CameraCalibration:
     """A lab's calibration as the virtual rover would make it: the camera's exact geometry,
-    colours learned from `n_frames` frames at random poses on `mazes`."""
+    colours learned from `n_frames` frames on `mazes`, at random poses and (one in four)
+    looking at each object in turn."""
     rng = np.random.default_rng(seed)
     worlds = list(mazes)
     images: list[np.ndarray | bytes] = []
     truths: list[tuple[np.ndarray, np.ndarray]] = []
     for i in _progress(range(n_frames), progress, "calibrating colours"):
-        maze, graph = worlds[i % len(worlds)]
-        x, y, theta = random_poses(maze, graph, 1, rng)[0]
+        if i % 4:
+            maze, graph = worlds[i % len(worlds)]
+            x, y, theta = random_poses(maze, graph, 1, rng)[0]
+        else:  # every fourth frame looks at an object: the three in turn, on each maze in turn
+            j = i // 4
+            maze, graph = worlds[j // len(OBJECTS) % len(worlds)]
+            x, y, theta = _facing(maze, graph, OBJECTS[j % len(OBJECTS)], rng)
         images.append(capture(maze, x, y, theta, camera, rng))
         truths.append(cast_rays(maze, x, y, theta))
     return calibrate_colours(images, truths, camera.calibration())
+
+
+def _facing(maze: Maze, graph: NavGraph, name: str, rng: np.random.Generator, tries: int = 50) -> np.ndarray:
+    """A pose near a node 15 to 60 cm from object `name`, the camera looking at it: a lab
+    photographs each object for its colours, which random poses frame too rarely."""
+    ox, oy = maze.objects[name]
+    away = np.hypot(graph.nodes[:, 0] - ox, graph.nodes[:, 1] - oy)
+    near = np.nonzero((away > 0.15) & (away < 0.6))[0]
+    for _ in range(tries if near.size else 0):
+        x, y = graph.nodes[rng.choice(near)] + rng.uniform(-0.015, 0.015, 2)
+        theta = float(np.arctan2(oy - y, ox - x) + rng.uniform(-0.3, 0.3))
+        if cast_rays(maze, x, y, theta)[0][N_RAYS // 2] == Label[name.upper()]:
+            return np.array([x, y, theta])
+    anywhere: np.ndarray = random_poses(maze, graph, 1, rng)[0]  # no node sees it from near
+    return anywhere
 
 
 def evaluate_perception(
@@ -475,10 +496,9 @@ def evaluate_perception(
     """Perceived rays against `cast_rays` at the same true poses, over random poses on `mazes`
     (a `Maze` or a list). label_accuracy: over all rays, a ray not read counting as wrong;
     depth_mae_m: over the read rays whose true hit is a wall within 1 m; too_close_accuracy:
-    over all rays. The same three over the rays whose true hit is a wall (not an object: the
-    simulator's objects are upright drawings at the centre of a larger map footprint, so a ray
-    can meet the footprint where the camera sees the wall behind) come as `walls_*`. Colours
-    are calibrated on other poses than those measured, unless `calibration` is given."""
+    over all rays. Label and too-close accuracy over the rays whose true hit is a wall come as
+    `walls_*`, over those that meet an object's footprint as `objects_*`. Colours are
+    calibrated on other poses than those measured, unless `calibration` is given."""
     worlds = [(m, NavGraph.build(m)) for m in ([mazes] if isinstance(mazes, Maze) else mazes)]
     camera = camera or FrontCamera()
     if calibration is None:
@@ -487,6 +507,7 @@ def evaluate_perception(
     rights: list[np.ndarray] = []
     close_oks: list[np.ndarray] = []
     walls: list[np.ndarray] = []
+    things: list[np.ndarray] = []
     reads: list[np.ndarray] = []
     depth_err: list[float] = []
     for i in _progress(range(n_poses), progress, "perception"):
@@ -498,18 +519,21 @@ def evaluate_perception(
         rights.append((obs.labels == labels) & obs.valid)
         close_oks.append(obs.too_close == too_close(true_depth, heading))
         walls.append(np.isin(labels, WALL_LABELS))
+        things.append(np.isin(labels, OBJECT_LABELS))
         reads.append(obs.valid)
         near = walls[-1] & (true_depth <= 1.0) & obs.valid
         depth_err.extend(np.abs(obs.depth[near] - true_depth[near]).tolist())
-    right, close_ok, wall, read = (np.concatenate(a) for a in (rights, close_oks, walls, reads))
+    right, close_ok, wall, thing, read = (np.concatenate(a) for a in (rights, close_oks, walls, things, reads))
     return {
         "label_accuracy": float(right.mean()),
         "depth_mae_m": float(np.mean(depth_err)) if depth_err else float("nan"),
         "too_close_accuracy": float(close_ok.mean()),
         "walls_label_accuracy": float(right[wall].mean()),
         "walls_too_close_accuracy": float(close_ok[wall].mean()),
+        "objects_label_accuracy": float(right[thing].mean()) if thing.any() else float("nan"),
+        "objects_too_close_accuracy": float(close_ok[thing].mean()) if thing.any() else float("nan"),
         "rays_read": float(read.mean()),
-        "object_rays": float(1 - wall.mean()),
+        "object_rays": float(thing.mean()),
         "poses": n_poses,
         "near_wall_rays": len(depth_err),
     }

@@ -5,8 +5,11 @@ column drawn with a height falling off with distance, shaded by how squarely the
 wall and by distance. The grid is turned once per maze into its floor-to-wall pixel edges,
 merged into straight runs (about 3,800 a map); a frame meets only the edges facing the camera,
 each against the few columns its ends project to, so a ray's hit is exactly the pixel the
-grid march of `sim.observations.RayCaster` stops at. The objects (jar, mug, paddle) are drawn as upright shapes at their
-centroids, hidden behind nearer walls column by column.
+grid march of `sim.observations.RayCaster` stops at. The objects (jar, mug, paddle) stand on
+their footprints on the map (`maze.labels`): a second cast against the objects' own edges
+draws each as a solid of its colour and height rising from exactly where the observation rays
+meet it, in front of the walls it is nearer than, so a ray's label and depth can be read off
+the picture as `RayTable` gives them.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from sim.geometry import world_to_pixel
-from sim.labels import LABEL_BGR, PALETTE_BGR, Label
+from sim.labels import LABEL_BGR, N_LABELS, OBJECT_LABELS, PALETTE_BGR, Label
 from sim.maze import Maze
 from sim.observations import FOV_DEG, PX_PER_M_X, PX_PER_M_Y, RAY_OFFSETS, cast_rays
 
@@ -112,7 +115,9 @@ class _Scene:
     walls: _Walls
     normal_x: np.ndarray  # per-pixel wall normal, x (table frame)
     normal_y: np.ndarray
-    objects: tuple[tuple[Label, float, float], ...]  # label, x, y (metres)
+    objects: _Walls  # the objects' footprints (maze.labels without the walls) as edges
+    centroids: np.ndarray  # (N_LABELS, 2) each object's centre, metres, to shade it round
+    reach: np.ndarray  # (N_LABELS,) metres from that centre to the footprint's farthest pixel (0: none)
 
 
 _scenes: weakref.WeakKeyDictionary[Maze, _Scene] = weakref.WeakKeyDictionary()
@@ -125,9 +130,16 @@ def _scene(maze: Maze) -> _Scene:
         gx = cv2.Sobel(solid, cv2.CV_32F, 1, 0, ksize=3)
         gy = -cv2.Sobel(solid, cv2.CV_32F, 0, 1, ksize=3)  # rows grow downward, y upward
         norm = np.maximum(np.hypot(gx, gy), 1e-6)
-        objects = tuple((Label[name.upper()], x, y) for name, (x, y) in maze.objects.items())
         walls = _walls(np.ascontiguousarray(maze.walls, dtype=np.uint8))
-        scene = _scenes[maze] = _Scene(walls, -gx / norm, -gy / norm, objects)
+        footprints = np.where(np.isin(maze.labels, OBJECT_LABELS), maze.labels, Label.FLOOR).astype(np.uint8)
+        centroids, reach = np.zeros((N_LABELS, 2)), np.zeros(N_LABELS)
+        for name, (ox, oy) in maze.objects.items():
+            label = Label[name.upper()]
+            rows, cols = np.nonzero(footprints == label)
+            centroids[label] = ox, oy
+            px_x, px_y = world_to_pixel(ox, oy)
+            reach[label] = np.hypot((cols - px_x) / PX_PER_M_X, (rows - px_y) / PX_PER_M_Y).max() + 1 / PX_PER_M_X
+        scene = _scenes[maze] = _Scene(walls, -gx / norm, -gy / norm, _walls(footprints), centroids, reach)
     return scene
 
 
@@ -236,11 +248,11 @@ def _cast_columns(
             t = fixed[seg] / rd_fixed[column]
         along = oy + t * rd_along[column]
         hit = (t > 0) & (along >= lo[seg]) & (along <= hi[seg])
-        # Nearest per column: positive float64 bits order as integers; the low 3 bits carry the label.
-        key = np.where(hit, t, np.inf).view(np.int64) & ~7 | edges.label[part][seg]
+        # Nearest per column: positive float64 bits order as integers; the low 4 bits carry the label.
+        key = np.where(hit, t, np.inf).view(np.int64) & ~15 | edges.label[part][seg]
         np.minimum.at(best, column, key)
-    labels = (best & 7).astype(np.uint8)
-    depth = (best & ~7).view(np.float64)
+    labels = (best & 15).astype(np.uint8)
+    depth = (best & ~15).view(np.float64)
     missed = ~np.isfinite(depth)
     if missed.any():  # left the table: FLOOR, and the distance to its edge
         labels[missed] = Label.FLOOR
@@ -294,87 +306,65 @@ def first_person(maze: Maze, x: float, y: float, theta: float, size: tuple[int, 
     np.copyto(packed, _pack(colour), where=mask)
     cols = np.nonzero(wall & (bottom > top))[0]
     packed[top[cols], cols] = _pack(colour[cols] * OUTLINE)  # the wall's top edge
-    image = cv2.cvtColor(packed.view(np.uint8).reshape(height, width, 4), cv2.COLOR_BGRA2BGR)
-
-    for label, ox, oy in scene.objects:
-        _draw_object(image, cam, label, x, y, theta, ox, oy, z)
-    return image
+    paint_objects(packed, mask, scene, cam, x, y, theta, depth)
+    return cv2.cvtColor(packed.view(np.uint8).reshape(height, width, 4), cv2.COLOR_BGRA2BGR)
 
 
-# Shapes per object, in metres: (width, height) of the body.
-_OBJECT_SIZE = {Label.JAR: (0.10, 0.14), Label.MUG: (0.08, 0.08), Label.PADDLE: (0.15, 0.17)}
+# How tall each object stands, metres: a jar, a mug, a table-tennis paddle on its edge.
+OBJECT_HEIGHT_M = np.zeros(N_LABELS)
+OBJECT_HEIGHT_M[[Label.JAR, Label.MUG, Label.PADDLE]] = 0.14, 0.09, 0.17
 
 
-def _draw_object(
-    image: np.ndarray,
+def paint_objects(
+    packed: np.ndarray,
+    mask: np.ndarray,
+    scene: _Scene,
     cam: _Camera,
-    label: Label,
     x: float,
     y: float,
     theta: float,
-    ox: float,
-    oy: float,
-    wall_z: np.ndarray,
+    wall_depth: np.ndarray,
 ) -> None:
-    dx, dy = ox - x, oy - y
-    z = dx * np.cos(theta) + dy * np.sin(theta)  # ahead of the camera
-    side = -dx * np.sin(theta) + dy * np.cos(theta)  # to its left
-    if z < 0.04:
+    """Paint the objects into a packed frame (`mask` is scratch): each column whose ray meets
+    an object's footprint before any wall shows that object from the footprint's edge up to
+    its height, shaded as a solid round its centre and by distance."""
+    # Most frames show no object: cast only when a footprint's bounding circle has a column
+    # in view whose wall is not nearer than the circle.
+    for label in np.nonzero(scene.reach)[0]:
+        cx, cy = scene.centroids[label]
+        away, reach = float(np.hypot(cx - x, cy - y)), float(scene.reach[label])
+        if away <= reach:
+            break
+        off = (np.arctan2(cy - y, cx - x) - theta + np.pi) % (2 * np.pi) - np.pi
+        columns = np.abs(cam.column_offsets - off) <= np.arcsin(reach / away)
+        if (wall_depth[columns] >= away - reach).any():
+            break
+    else:
         return
-    scale = cam.focal / z  # pixels per metre at the object
-    centre = cam.width / 2 - side * scale
-    width_m, height_m = _OBJECT_SIZE[label]
-    half = width_m / 2 * scale * (1.4 if label == Label.MUG else 1.0)  # room for the handle
-    c0, c1 = int(np.floor(centre - half)) - 1, int(np.ceil(centre + half)) + 2
-    c0, c1 = max(c0, 0), min(c1, cam.width)
-    if c0 >= c1:
+    angles = theta + cam.column_offsets
+    labels, depth = _cast_columns(scene.objects, cam, x, y, theta, angles)
+    seen = (labels != Label.FLOOR) & (depth <= wall_depth)  # level with a wall: the map says object
+    if not seen.any():
         return
-    visible = wall_z[c0:c1] > z
-    if not visible.any():
-        return
-    base = cam.horizon + CAMERA_HEIGHT_M * scale
-    top = base - height_m * scale
-    r0, r1 = max(int(np.floor(top)) - 2, 0), min(int(np.ceil(base)) + 2, cam.height)
-    if r0 >= r1:
-        return
-    patch = image[r0:r1, c0:c1].copy()
-    light = FOG_M / (FOG_M + z)
-    bgr = tuple(float(v) * light for v in LABEL_BGR[label])
-    dark = tuple(v * 0.55 for v in bgr)
-    s = 16  # sub-pixel precision for cv2 drawing (4 fractional bits)
-
-    def pt(u: float, v: float) -> tuple[int, int]:  # metres right of the centre / above the floor -> patch pixels
-        return (int(round((centre + u * scale - c0) * s)), int(round((base - v * scale - r0) * s)))
-
-    def ax(a: float, b: float) -> tuple[int, int]:
-        return (max(int(round(a * scale * s)), 1), max(int(round(b * scale * s)), 1))
-
-    w2 = width_m / 2
-    if label == Label.PADDLE:  # a round blade on a handle
-        cv2.rectangle(patch, pt(-0.012, 0.0), pt(0.012, 0.06), dark, -1, cv2.LINE_AA, 4)
-        cv2.ellipse(patch, pt(0, 0.11), ax(w2, 0.06), 0, 0, 360, bgr, -1, cv2.LINE_AA, 4)
-        cv2.ellipse(patch, pt(0, 0.11), ax(w2, 0.06), 0, 0, 360, dark, 1, cv2.LINE_AA, 4)
-    else:  # a cylinder: body, rim ellipse; the jar has a lid, the mug a handle
-        if label == Label.MUG:
-            cv2.ellipse(
-                patch,
-                pt(w2, height_m * 0.5),
-                ax(0.025, 0.025),
-                0,
-                0,
-                360,
-                dark,
-                max(int(0.012 * scale), 1),
-                cv2.LINE_AA,
-                4,
-            )
-        cv2.rectangle(patch, pt(-w2, 0), pt(w2, height_m), bgr, -1, cv2.LINE_AA, 4)
-        cv2.ellipse(patch, pt(0, 0), ax(w2, 0.012), 0, 0, 180, bgr, -1, cv2.LINE_AA, 4)
-        cv2.ellipse(patch, pt(0, height_m), ax(w2, 0.012), 0, 0, 360, dark, -1, cv2.LINE_AA, 4)
-        if label == Label.JAR:
-            cv2.rectangle(patch, pt(-w2 * 0.85, height_m), pt(w2 * 0.85, height_m + 0.02), dark, -1, cv2.LINE_AA, 4)
-    region = image[r0:r1, c0:c1]
-    region[:, visible] = patch[:, visible]
+    z = np.maximum(depth * np.cos(cam.column_offsets), 1e-3)
+    top = np.clip(cam.horizon - cam.focal * (OBJECT_HEIGHT_M[labels] - CAMERA_HEIGHT_M) / z, 0, cam.height)
+    bottom = np.clip(cam.horizon + cam.focal * CAMERA_HEIGHT_M / z, 0, cam.height)
+    top, bottom = np.where(seen, top, 0).astype(np.int32), np.where(seen, bottom, 0).astype(np.int32)
+    # The surface's normal points away from the object's centre.
+    dx, dy = np.cos(angles), np.sin(angles)
+    nx, ny = x + depth * dx - scene.centroids[labels, 0], y + depth * dy - scene.centroids[labels, 1]
+    facing = np.abs(nx * dx + ny * dy) / np.maximum(np.hypot(nx, ny), 1e-6)
+    facing[depth == 0] = 0.0  # the camera inside a footprint is up against the object, in its shadow
+    light = (0.55 + 0.45 * facing) * FOG_M / (FOG_M + z)
+    colour = PALETTE_BGR[labels].astype(np.float32) * light[:, None]
+    edge = np.zeros(cam.width, dtype=bool)
+    edge[1:] = seen[1:] != seen[:-1]
+    colour[edge & seen] *= OUTLINE
+    np.greater_equal(cam.rows, top, out=mask)
+    np.logical_and(mask, cam.rows < bottom, out=mask)
+    np.copyto(packed, _pack(colour), where=mask)
+    cols = np.nonzero(seen & (bottom > top))[0]
+    packed[top[cols], cols] = _pack(colour[cols] * OUTLINE)  # the object's top edge
 
 
 def top_down(

@@ -8,7 +8,8 @@ from sqlalchemy import select
 
 from app.db.models import Event
 from app.drivers.registry import driver_names, register_driver
-from tests.app.live import SeatClient, ServerThread, make_trial
+from bench.live import SeatClient, make_trial
+from tests.app.live import ServerThread
 
 
 def test_shortest_path_agent_drives_and_claims_each_target(settings):

@@ -9,8 +9,9 @@ import httpx
 from sqlalchemy import select
 
 from app.db.models import Event
+from bench.live import SeatClient, make_trial
 from tests.app.conftest import platform_settings
-from tests.app.live import SeatClient, ServerThread, experimenter_client, make_trial
+from tests.app.live import ServerThread, experimenter_client
 from tests.app.trial_play import move, start_trial
 
 

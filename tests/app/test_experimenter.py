@@ -15,7 +15,8 @@ from sqlalchemy import create_engine, inspect, select
 
 from app.db.models import Trial
 from app.main import build_services, ensure_experimenter
-from tests.app.live import REPO, ServerThread, browser, experimenter_client, submit_login
+from bench.live import REPO
+from tests.app.live import ServerThread, browser, experimenter_client, submit_login
 
 
 def cli(*args: str, env: dict[str, str], input: str | None = None) -> subprocess.CompletedProcess:

@@ -15,8 +15,8 @@ from sqlalchemy import select
 from app.db.models import Event
 from app.main import build_services
 from app.trial.relay import owner_key
+from bench.live import SeatClient, ServerProcess, make_trial
 from tests.app.conftest import platform_settings
-from tests.app.live import SeatClient, ServerProcess, make_trial
 from tests.app.test_relay import redis_url  # noqa: F401  (the fixture)
 from tests.app.trial_play import move, start_trial
 

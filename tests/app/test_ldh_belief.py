@@ -11,11 +11,12 @@ import pytest
 
 from app.db.models import Experimenter
 from app.security import hash_password
+from bench.live import SeatClient, make_trial
 from sim.ldh_eval import MazeContext, colour_logits
 from sim.ldh_features import maze_views, mentions
 from sim.navgraph import NavGraph
 from tests.app.conftest import platform_settings
-from tests.app.live import SeatClient, ServerThread, make_trial
+from tests.app.live import ServerThread
 from tests.app.test_status import Watch
 from tests.app.trial_play import start_trial
 

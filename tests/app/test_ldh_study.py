@@ -11,11 +11,12 @@ from app.db.models import Experimenter, LDHStudyEvent
 from app.ldh_study import Studies
 from app.main import build_services, ensure_experimenter
 from app.security import StudyTokens, hash_password
+from bench.live import ServerProcess
 from sim.benchmark import Benchmark
 from sim.ldh import LDHInstance, Variant
 from sim.ldh_eval import MazeContext, score
 from tests.app.conftest import platform_settings
-from tests.app.live import ServerProcess, ServerThread, browser, page_csrf_token
+from tests.app.live import ServerThread, browser, page_csrf_token
 
 
 def participant(base_url: str, link: str) -> tuple[httpx.Client, str]:

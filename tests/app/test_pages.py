@@ -18,10 +18,11 @@ from app.demo.runner import Demo
 from app.export.mcap import DERIVED_TOPICS
 from app.mazes import Mazes, commander_map
 from app.security import hash_password
+from bench.live import make_trial
 from sim.geometry import world_to_pixel
 from sim.labels import LABEL_BGR, OBJECT_LABELS
 from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread, make_trial
+from tests.app.live import ServerThread
 
 HTML = {"Accept": "text/html,application/xhtml+xml"}
 

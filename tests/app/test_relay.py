@@ -9,8 +9,9 @@ import pytest
 from sqlalchemy import select
 
 from app.db.models import Event, Trial
+from bench.live import SeatClient, make_trial
 from tests.app.conftest import platform_settings
-from tests.app.live import SeatClient, ServerThread, experimenter_client, make_trial
+from tests.app.live import ServerThread, experimenter_client
 from tests.app.trial_play import claim_and_decide, drive_to_target, move, start_trial
 
 REDIS_URL = "redis://127.0.0.1:6379/0"

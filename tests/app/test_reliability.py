@@ -17,9 +17,10 @@ from app.db.models import Trial
 from app.main import build_services
 from app.trial.setup import create_participant, create_team, create_trial
 from app.trial.state import fold
+from bench.live import SeatClient, ServerProcess, make_trial
 from robot_client.protocol import pack_frame
 from tests.app.conftest import platform_settings
-from tests.app.live import SeatClient, ServerProcess, ServerThread, experimenter_client, make_trial, session_cookie
+from tests.app.live import ServerThread, experimenter_client, session_cookie
 from tests.app.trial_play import move, start_trial
 
 S = 1_000_000_000

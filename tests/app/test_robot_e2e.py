@@ -25,10 +25,11 @@ from app.db.models import Frame as FrameRow
 from app.main import create_app
 from app.serving import uvicorn_options
 from app.trial.setup import create_participant, create_team, create_trial
+from bench.live import SeatClient, free_port
 from robot_client.calibration import Calibration
 from robot_client.protocol import pack_frame
 from tests.app.conftest import platform_settings
-from tests.app.live import SeatClient, free_port, page_csrf_token
+from tests.app.live import page_csrf_token
 
 pytestmark = pytest.mark.anyio
 ROBOT = [sys.executable, "-m", "robot_client"]

@@ -18,9 +18,10 @@ from app.db.models import Experimenter
 from app.export.ndh import ndh_instances
 from app.export.source import load_trial
 from app.perception.cameras import learned
+from bench.live import make_trial
 from sim.camera import FrontCamera
 from sim.geometry import SUCCESS_RADIUS_M
-from tests.app.live import experimenter_client, make_trial
+from tests.app.live import experimenter_client
 from tests.app.test_seq2seq_seat import stopping_checkpoint  # noqa: F401  (a fixture; needs the benchmark)
 from tests.app.test_status import Watch
 from tests.app.test_virtual_rover import (  # noqa: F401  (fixtures)
@@ -63,13 +64,15 @@ async def test_a_rover_trial_records_tracked_poses_belief_truly_within_and_all_n
         robot_id, token = lab.register("tracked rover")
         _, camera_token = lab.register("table camera", role="overhead")
         trial = make_trial(lab.services, MAZE, targets=TARGETS, backend=f"robot:{robot_id}")
+        # Logged in before the rovers stream: the server then shares two loaded cores with
+        # rovers, tracker and filter, and a login's password check can outlast httpx's 5 s.
+        experimenter = experimenter_client(lab.services, lab.server.url)
+        experimenter.timeout = 30.0
         truth = tmp_path / "truth.jsonl"
         lab.rover(
             token, "--truth", str(truth), "--seed", "3", "--fps", "5", "--start", f"{start.x},{start.y},{start.theta}"
         )
         lab.rover(camera_token, "--role", "overhead", "--truth", str(truth), "--fps", "4")
-        experimenter = experimenter_client(lab.services, lab.server.url)
-        experimenter.timeout = 30.0  # the server shares two loaded cores with rovers, tracker and filter
         with lab.services.db() as db:
             eve = db.scalar(select(Experimenter).where(Experimenter.name == "eve"))
             cookie = lab.services.sessions.issue(eve.id)

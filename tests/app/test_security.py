@@ -20,8 +20,9 @@ from sqlalchemy import select
 from app.db.engine import alembic_config, make_engine
 from app.db.models import Experimenter, Participant, Trial
 from app.security import SESSION_COOKIE, hash_password
+from bench.live import REPO, SeatClient, make_trial
 from tests.app.conftest import platform_settings
-from tests.app.live import REPO, SeatClient, ServerThread, browser, log_in, make_trial, page_csrf_token, submit_login
+from tests.app.live import ServerThread, browser, log_in, page_csrf_token, submit_login
 from tests.app.trial_play import start_trial
 
 PASSWORD = "correct horse"

@@ -13,12 +13,13 @@ from app.db.models import Event, Trial
 from app.drivers.registry import available_drivers
 from app.main import build_services
 from app.trial.setup import TrialSetupError
+from bench.live import SeatClient, make_trial
 from models.data import World
 from models.shipped import SHIPPED_CHECKPOINT, default_checkpoint
 from models.train import TrainConfig, load_agent, train
 from sim.benchmark import Benchmark
 from tests.app.conftest import platform_settings
-from tests.app.live import SeatClient, ServerThread, make_trial
+from tests.app.live import ServerThread
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,8 @@ import websockets
 
 from app.db.models import Experimenter
 from app.security import SESSION_COOKIE, hash_password
-from tests.app.live import SeatClient, ServerThread, make_trial
+from bench.live import SeatClient, make_trial
+from tests.app.live import ServerThread
 from tests.app.trial_play import move, start_trial
 
 FIELDS = {"type", "phase", "target_index", "targets_total", "elapsed_s", "running", "moves", "paused", "waiting_for"}

@@ -12,7 +12,8 @@ import pytest
 from sqlalchemy import select
 
 from app.db.models import Event, Frame, Trial
-from tests.app.live import SeatClient, ServerThread, make_trial
+from bench.live import SeatClient, make_trial
+from tests.app.live import ServerThread
 from tests.app.trial_play import claim_and_decide, drive_to_target, move, start_trial
 
 

@@ -21,6 +21,7 @@ from websockets.asyncio.server import serve
 
 from app.main import build_services
 from app.virtual_rover.truth import TruthSample, read_truth
+from bench.live import REPO, SeatClient, ServerProcess, make_trial
 from robot_client.calibration import Calibration
 from sim.camera import FrontCamera
 from sim.geometry import GRID_STEP_M, TURN_RAD, heading_angle
@@ -29,7 +30,6 @@ from sim.navgraph import NavGraph
 from sim.rover import BODY_RADIUS_M, NOISE_MODELS, Rover, RoverPose
 from sim.tracking import OverheadTracker
 from tests.app.conftest import platform_settings
-from tests.app.live import REPO, SeatClient, ServerProcess, make_trial
 from tests.app.test_experimenter import cli
 from tests.robot_client.conftest import ScriptedServer
 

@@ -24,7 +24,7 @@ import websockets
 from app.main import build_services
 from app.security import SeatTokens
 from app.settings import Settings
-from tests.app.live import ServerProcess, free_port, make_trial
+from bench.live import ServerProcess, free_port, make_trial
 from tests.deploy.conftest import CONSOLE_SCRIPTS, DEPLOY, compose_services, service_command
 from tests.packaging.conftest import REPO, clean_env
 

@@ -12,8 +12,9 @@ from sqlalchemy import select
 
 from app.db.models import Experimenter, Participant, Trial
 from app.security import hash_password
+from bench.live import free_port, make_trial
 from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread, free_port, make_trial
+from tests.app.live import ServerThread
 
 pytestmark = pytest.mark.browser
 

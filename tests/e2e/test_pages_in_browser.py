@@ -14,9 +14,10 @@ import pytest
 
 from app.db.models import Experimenter, Team, Trial
 from app.security import hash_password
+from bench.live import REPO, make_trial
 from sim.labels import LABEL_BGR, OBJECT_LABELS
 from tests.app.conftest import platform_settings
-from tests.app.live import REPO, ServerThread, make_trial, wait_js
+from tests.app.live import ServerThread, wait_js
 
 ARTIFACTS = REPO / "test-artifacts"
 W_M, H_M = 2.4638, 2.0574

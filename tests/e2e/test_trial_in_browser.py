@@ -13,10 +13,11 @@ import pytest
 
 from app.db.models import Experimenter
 from app.security import hash_password
+from bench.live import REPO
 from sim.dynamics import Action
 from sim.labels import Label
 from tests.app.conftest import platform_settings
-from tests.app.live import REPO, ServerThread, wait_js
+from tests.app.live import ServerThread, wait_js
 from tests.app.test_sim_seat_objects import object_pixels
 from tests.app.trial_play import facing_action, oracle_action
 

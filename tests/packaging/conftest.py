@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from tests.app.live import free_port  # noqa: F401  (shared with the tests here)
+from bench.live import free_port  # noqa: F401  (shared with the tests here)
 
 REPO = Path(__file__).resolve().parents[2]
 

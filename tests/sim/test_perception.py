@@ -8,7 +8,7 @@ import pytest
 
 from sim.camera import CameraCalibration, FrontCamera, capture
 from sim.geometry import HEADINGS, TURN_RAD, heading_index
-from sim.labels import N_LABELS, WALL_LABELS
+from sim.labels import N_LABELS, OBJECT_LABELS, WALL_LABELS
 from sim.library import MazeLibrary
 from sim.navgraph import NavGraph
 from sim.observations import N_RAYS, OBS_FEATURES, RayTable, cast_rays, too_close
@@ -63,6 +63,36 @@ def test_rays_match_the_simulator_at_random_poses(world, calibration):
     assert wall_right / wall_total >= 0.95
     assert len(depth_err) > 100 and np.mean(depth_err) <= 0.03
     assert close_ok / (len(poses) * N_RAYS) >= 0.95
+
+
+@pytest.mark.parametrize("label", OBJECT_LABELS)
+def test_a_landmark_in_view_is_read_where_its_footprint_begins(world, calibration, label):
+    """Facing a jar, mug or paddle from 20 to 45 cm: the ray at its centre, and (but for a ray
+    grazing the footprint's rim) every ray that meets it on the map, read it as that object, at
+    the footprint's edge, too close exactly when `RayTable` says so."""
+    maze, graph = world
+    ox, oy = maze.objects[label.word]
+    rng = np.random.default_rng(8)
+    right = close_right = rays_seen = poses = 0
+    for node in np.nonzero(np.abs(np.hypot(graph.nodes[:, 0] - ox, graph.nodes[:, 1] - oy) - 0.325) < 0.125)[0]:
+        x, y = graph.nodes[node]
+        theta = float(np.arctan2(oy - y, ox - x))
+        labels, depth = cast_rays(maze, x, y, theta)
+        if labels[N_RAYS // 2] != label:
+            continue  # a wall stands between
+        heading = heading_index(theta)
+        obs = perceive(capture(maze, x, y, theta, CAMERA, rng), calibration, heading)
+        centre = N_RAYS // 2
+        assert obs.valid[centre] and obs.labels[centre] == label
+        assert abs(obs.depth[centre] - depth[centre]) < 0.01
+        rays = labels == label
+        read = obs.valid & (obs.labels == label) & (np.abs(obs.depth - depth) < 0.02)
+        right += int((read & rays).sum())
+        close_right += int((obs.too_close == too_close(depth, heading))[rays].sum())
+        rays_seen += int(rays.sum())
+        poses += 1
+    assert poses >= 5
+    assert right >= 0.95 * rays_seen and close_right >= 0.98 * rays_seen
 
 
 def test_features_have_the_ray_tables_layout(world):
@@ -163,6 +193,6 @@ def test_rays_match_on_the_benchmarks_own_mazes(benchmark_path, calibration):
     lib = MazeLibrary(benchmark=benchmark_path)
     mazes = [lib.load(name) for name in [n for n in lib.names() if n.startswith("Run_")][:3]]
     result = evaluate_perception(mazes, n_poses=24, seed=2, camera=CAMERA, calibration=calibration)
-    assert result["walls_label_accuracy"] >= 0.95
+    assert result["label_accuracy"] >= 0.95 and result["walls_label_accuracy"] >= 0.95
     assert result["depth_mae_m"] <= 0.03
-    assert result["walls_too_close_accuracy"] >= 0.98
+    assert result["too_close_accuracy"] >= 0.98 and result["walls_too_close_accuracy"] >= 0.98
