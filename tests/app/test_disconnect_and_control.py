@@ -57,7 +57,9 @@ def test_seat_gone_past_grace_aborts_the_trial(tmp_path):
         asyncio.run(play())
         with services.db() as db:
             kinds = db.scalars(select(Event.kind).where(Event.trial_id == trial_id).order_by(Event.seq)).all()
-        assert kinds[-3:] == ["disconnect", "paused", "phase"]
+        # The camera's frames are their own stream: the start's frame may be logged after the
+        # Driver left (its render finishes on a thread), so the control sequence is read without them.
+        assert [k for k in kinds if k != "frame"][-3:] == ["disconnect", "paused", "phase"]
 
 
 def test_experimenter_pauses_resumes_and_aborts(settings):
