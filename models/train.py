@@ -33,6 +33,8 @@ class Variant:
     agent: dict  # AgentConfig options
     weight_average: float = 0.0  # decay of the running average of the weights that is validated
     # and saved for evaluation (0: the weights as trained)
+    guided_share: float = 0.0  # share of each student-forced batch that follows the teacher, so
+    # the stop (the policy's and the stop head's) is learned where the goal is reached
 
 
 # Named model variants: the paper's model; the one that beats it (target flags, the actor-critic
@@ -241,7 +243,16 @@ def train(
         gen = torch.Generator().manual_seed(cfg.seed * 1_000_003 + it)
         idx = rng.choice(len(train_set), size=min(cfg.batch, len(train_set)), replace=False)
         roll = run_episodes(
-            agent, world, train_set, idx, cfg.feedback, cfg.blind, cfg.max_actions, generator=gen, train=True
+            agent,
+            world,
+            train_set,
+            idx,
+            cfg.feedback,
+            cfg.blind,
+            cfg.max_actions,
+            generator=gen,
+            train=True,
+            guided_share=MODELS[cfg.model].guided_share,
         )
         optimizer.zero_grad()
         roll.loss.backward()
