@@ -62,7 +62,11 @@ def run_episodes(
     generator: torch.Generator | None = None,
     progress_weight: float = 1.0,
     train: bool = False,
+    guided_share: float = 0.0,
 ) -> Rollout:
+    """`guided_share` of a student-forced batch follows the teacher instead (to the goal, where it
+    stops): those episodes add to the cross entropy and the stop head, not to the actor-critic
+    loss, which is on-policy."""
     if feedback not in FEEDBACKS:
         raise ValueError(f"unknown feedback {feedback!r}; expected one of {', '.join(FEEDBACKS)}")
     if blind not in BLINDS:
@@ -86,6 +90,8 @@ def run_episodes(
     # The target word is part of the language: the language-blind agent does not know it.
     target_label = torch.from_numpy(episodes.target_label[idx] if blind != "language" else np.full(b, -1))
     rl = train and feedback == "student" and agent.config.critic
+    guided = np.arange(b) < (round(guided_share * b) if feedback == "student" else 0)  # idx is drawn at random
+    on_policy = torch.from_numpy(~guided).float()
     step_logits, step_targets, step_active, step_progress, step_goal = [], [], [], [], []
     step_logp, step_entropy, step_value, step_reward = [], [], [], []
     step_stop, step_near = [], []
@@ -123,6 +129,7 @@ def run_episodes(
             chosen = teacher
         elif feedback == "student":
             chosen = torch.multinomial(torch.softmax(logits.detach(), dim=1), 1, generator=generator)[:, 0].numpy()
+            chosen = np.where(guided, teacher, chosen)
         else:
             chosen = greedy_actions(logits.detach(), stop).numpy()
         chosen = np.where(done, STOP, chosen)
@@ -156,7 +163,9 @@ def run_episodes(
             )
             total = total + (near * active).sum()
         if rl:
-            total = total + RL_WEIGHT * actor_critic_loss(step_logp, step_entropy, step_value, step_reward, active)
+            total = total + RL_WEIGHT * actor_critic_loss(
+                step_logp, step_entropy, step_value, step_reward, active * on_policy
+            )
         loss = total / active.sum().clamp(min=1.0)
     return Rollout(nodes=nodes, actions=actions, final_node=node, steps=steps, loss=loss)
 

@@ -33,14 +33,19 @@ class Variant:
     agent: dict  # AgentConfig options
     weight_average: float = 0.0  # decay of the running average of the weights that is validated
     # and saved for evaluation (0: the weights as trained)
+    guided_share: float = 0.0  # share of each student-forced batch that follows the teacher, so
+    # the stop (the policy's and the stop head's) is learned where the goal is reached
 
 
 # Named model variants: the paper's model; the one that beats it (target flags, the actor-critic
-# loss on the distance covered, averaged weights, a stop head that ends its episodes); and attention with a progress monitor,
+# loss on the distance covered, averaged weights, a stop head that ends its episodes, half of
+# each batch guided to the goal so the stop is learned); and attention with a progress monitor,
 # tried and kept as an option (docs/learned_driver.md).
 MODELS = {
     "baseline": Variant({}),
-    "improved": Variant({"target_rays": True, "critic": True, "stop_head": True}, weight_average=0.95),
+    "improved": Variant(
+        {"target_rays": True, "critic": True, "stop_head": True}, weight_average=0.95, guided_share=0.5
+    ),
     "attention": Variant({"attention": True, "progress_monitor": True, "target_rays": True}),
 }
 
@@ -241,7 +246,16 @@ def train(
         gen = torch.Generator().manual_seed(cfg.seed * 1_000_003 + it)
         idx = rng.choice(len(train_set), size=min(cfg.batch, len(train_set)), replace=False)
         roll = run_episodes(
-            agent, world, train_set, idx, cfg.feedback, cfg.blind, cfg.max_actions, generator=gen, train=True
+            agent,
+            world,
+            train_set,
+            idx,
+            cfg.feedback,
+            cfg.blind,
+            cfg.max_actions,
+            generator=gen,
+            train=True,
+            guided_share=MODELS[cfg.model].guided_share,
         )
         optimizer.zero_grad()
         assert roll.loss is not None  # train=True: the rollout computes its loss

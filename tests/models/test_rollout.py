@@ -182,6 +182,28 @@ def test_an_agent_with_a_critic_may_stop_anywhere_under_student_forcing(few):
     assert agent.value.weight.grad.abs().sum() > 0  # the critic learns from the returns
 
 
+def test_guided_episodes_follow_the_teacher_and_teach_only_the_cross_entropy_and_the_stop_head(few):
+    world, eps = few["world"], few["train_set"]
+    torch.manual_seed(0)
+    config = AgentConfig(
+        vocab_size=len(few["tokenizer"]), obs_features=world.obs_features, critic=True, stop_head=True, dropout=0.0
+    )
+    agent = Seq2SeqAgent(config)
+    idx = np.arange(len(eps))
+    gen = torch.Generator().manual_seed(1)
+    roll = run_episodes(agent, world, eps, idx, "student", generator=gen, train=True, guided_share=0.5)
+    teacher = run_episodes(agent, world, eps, idx, "teacher")
+    half = len(idx) // 2
+    assert (roll.actions[:half] == teacher.actions[:half]).all()  # the first half is guided
+    assert (roll.final_node[:half] == eps.goal_node[:half]).all()
+    assert (roll.actions[half:] != teacher.actions[half:]).any()  # the rest is the student's
+
+    all_guided = run_episodes(agent, world, eps, idx, "student", generator=gen, train=True, guided_share=1.0)
+    all_guided.loss.backward()
+    assert agent.value.weight.grad.abs().sum() == 0  # no return of the student's own to learn from
+    assert agent.stop.weight.grad.abs().sum() > 0 and agent.policy.weight.grad.abs().sum() > 0
+
+
 def test_a_stop_head_decides_the_greedy_stop(few):
     world, eps = few["world"], few["train_set"]
     agent = Seq2SeqAgent(

@@ -31,6 +31,8 @@ def test_eval_without_a_checkpoint_scores_the_shipped_driver(benchmark_path, tmp
     assert result.exit_code == 0, result.output
     report = json.loads(result.stdout)
     assert report["n"] == 76 and list(report["agents"]) == ["seq2seq-improved-student-none"]
+    driver = report["agents"]["seq2seq-improved-student-none"]
+    assert driver["steps_mean"] < 120 and driver["sr"] > 0  # it stops by itself, and finds goals so
     assert len(csv.read_text().splitlines()) == 1 + 76  # a row per instance
     explicit = CliRunner().invoke(
         root,
