@@ -11,6 +11,7 @@ from sqlalchemy.orm import sessionmaker
 from app.clock import ServerClock
 from app.login import LoginGuard
 from app.mazes import Mazes
+from app.perception.belief import FilterWorker
 from app.security import CsrfTokens, SeatTokens, Sessions
 from app.settings import Settings
 from app.trial.log import EventLog
@@ -35,4 +36,5 @@ class Services:
     relay: Any = None  # `RedisRelay` when ROBOTSLANG_REDIS_URL is set: trials shared between processes
     robots: Any = None  # `RobotLinks`: the rovers and cameras connected here (made by `robot_links`)
     ldh_belief: Any = None  # `BeliefModel` for the watch page's LDH belief (made by `belief_model`)
+    filters: FilterWorker = field(default_factory=FilterWorker)  # every trial's particle filter turns
     driver_checks: dict[Any, str | None] = field(default_factory=dict)  # agents' start checks, by file version

@@ -147,10 +147,16 @@ class ParticleFilter:
         sensor: SensorModel = SensorModel(),
         inject: float = 0.02,
         initial_factor: int = 5,
+        converged_particles: int | None = None,
+        converged_m: float = 0.05,
     ):
-        if n_particles < 10:
-            raise ValueError(f"n_particles must be at least 10, got {n_particles}")
+        """`converged_particles`: resample to this many (fewer) while the cloud's spread is under
+        `converged_m` (a tight cloud needs few particles; the casts cost in proportion), back to
+        `n_particles` once it spreads."""
+        if n_particles < 10 or (converged_particles is not None and not 10 <= converged_particles <= n_particles):
+            raise ValueError(f"particle counts must be at least 10, got {n_particles} and {converged_particles}")
         self.maze, self.motion, self.sensor, self.inject = maze, motion, sensor, inject
+        self.converged_particles, self.converged_m = converged_particles, converged_m
         self.rng = np.random.default_rng(seed)
         self.space = free_space(maze)
         self.caster = ray_caster(maze)
@@ -190,23 +196,32 @@ class ParticleFilter:
         self.log_w += (log_label + log_depth).sum(axis=1) / s.temperature
         self.log_w -= self.log_w.max()
         w = self.weights
-        if 1.0 / np.sum(w * w) < self.n / 2 or len(w) > self.n:
-            self._resample(w)
+        n = self._target_count(w)
+        if 1.0 / np.sum(w * w) < len(w) / 2 or len(w) > n:
+            self._resample(w, n)
 
-    def _resample(self, w: np.ndarray) -> None:
+    def _target_count(self, w: np.ndarray) -> int:
+        if self.converged_particles is None:
+            return self.n
+        p = self.particles
+        x, y = w @ p[:, 0], w @ p[:, 1]
+        spread = np.sqrt(w @ ((p[:, 0] - x) ** 2 + (p[:, 1] - y) ** 2))
+        return self.converged_particles if spread < self.converged_m else self.n
+
+    def _resample(self, w: np.ndarray, n: int) -> None:
         """Low-variance (systematic) resampling to `n` particles, a little jitter, and some
         fresh ones."""
-        positions = (self.rng.random() + np.arange(self.n)) / self.n
+        positions = (self.rng.random() + np.arange(n)) / n
         idx = np.minimum(np.searchsorted(np.cumsum(w), positions), len(w) - 1)
         p = self.particles[idx]
         jitter = self.rng.normal(0, [0.005, 0.005, np.deg2rad(1.0)], p.shape)
         moved = p + jitter
         ok = self.space.contains(moved[:, 0], moved[:, 1])
         p[ok] = moved[ok]
-        fresh = self.rng.random(self.n) < self.inject
+        fresh = self.rng.random(n) < self.inject
         p[fresh] = self.space.sample(int(fresh.sum()), self.rng)
         self.particles = p
-        self.log_w = np.zeros(self.n)
+        self.log_w = np.zeros(n)
 
     def belief(self, max_points: int = 200) -> Belief:
         w = self.weights
@@ -239,6 +254,7 @@ def evaluate_filter(
     moves: int = 20,
     seed: int = 0,
     n_particles: int = 1500,
+    converged_particles: int | None = None,
     camera: FrontCamera | None = None,
     calibration: CameraCalibration | None = None,
     truth_noise: MotionNoise = MotionNoise(),
@@ -264,7 +280,7 @@ def evaluate_filter(
     for e in items:
         maze = mazes[e % len(mazes)]
         space = free_space(maze)
-        pf = ParticleFilter(maze, n_particles, seed=int(rng.integers(2**31)))
+        pf = ParticleFilter(maze, n_particles, seed=int(rng.integers(2**31)), converged_particles=converged_particles)
         truth = space.sample(1, rng)
         for t in range(moves + 1):
             if t > 0:
