@@ -11,7 +11,7 @@ from sqlalchemy import select
 from app.db.models import Event, Experimenter, Trial
 from app.security import hash_password
 from tests.app.conftest import platform_settings
-from tests.app.live import SeatClient, ServerThread, make_trial
+from tests.app.live import SeatClient, ServerThread, browser, make_trial, submit_login
 from tests.app.test_disconnect_and_control import login
 from tests.app.test_status import Watch
 from tests.app.trial_play import claim_and_decide, drive_to_target, move, start_trial
@@ -134,3 +134,15 @@ def test_a_watcher_on_another_process_sees_the_trials_particle_filter(tmp_path, 
                     assert first.services.hub.peek(trial_id) is not None and second.services.hub.peek(trial_id) is None
 
         asyncio.run(play())
+
+
+def test_login_attempts_count_on_every_process(tmp_path, postgres_url, redis_url):
+    settings = platform_settings(
+        tmp_path, database_url=postgres_url, redis_url=redis_url, login_limit_per_account="3/minute"
+    )
+    with ServerThread(settings) as first, ServerThread(settings) as second:
+        with first.services.db.begin() as db:
+            db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
+        assert [submit_login(browser(first.url), "eve", "guess").status_code for _ in range(3)] == [401] * 3
+        limited = submit_login(browser(second.url), "eve", "correct horse")
+        assert limited.status_code == 429 and "too many login attempts" in limited.text
