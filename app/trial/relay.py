@@ -26,11 +26,14 @@ import os
 import socket
 import threading
 import uuid
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from app.security import Seat
 from app.trial.views import EXPERIMENTER
 from app.trial.vocabulary import Role
+
+if TYPE_CHECKING:
+    from redis import Redis
 
 logger = logging.getLogger(__name__)
 HEARTBEAT_TTL_S = 2.0  # a process silent this long is taken for dead and its trials are taken over
@@ -138,10 +141,10 @@ class RedisRelay:
             except Exception:
                 logger.exception("relay: publish to %s failed", process)
 
-    def _beat(self, beats) -> None:
+    def _beat(self, beats: Redis) -> None:
         beats.set(self._alive_key(self.id), "1", px=int(HEARTBEAT_TTL_S * 1000))
 
-    def _beat_until_closed(self, beats) -> None:
+    def _beat_until_closed(self, beats: Redis) -> None:
         """Say this process lives (its own thread and connection)."""
         with beats:
             while not self._stop_beating.wait(HEARTBEAT_EVERY_S):
