@@ -1,8 +1,9 @@
 """`LoginGuard`: experimenter logins, rate-limited and checked off the event loop.
 
-Attempts are counted per account name and per client address (a moving window, `limits` in
-memory: one server process); an attempt counts until it succeeds, which clears the account's
-count. Password hashes are computed in worker threads, at most `concurrency` at once, so a burst
+Attempts are counted per account name and per client address (a moving window, `limits`: in
+Redis when the processes share one, so an attacker gains nothing by spreading attempts over
+them; else in this process's memory); an attempt counts until it succeeds, which clears the
+account's count. Password hashes are computed in worker threads, at most `concurrency` at once, so a burst
 of logins queues instead of taking every thread and hundreds of megabytes of hash memory.
 An unknown name is checked against a dummy hash, so it costs what a known one costs.
 """
@@ -15,7 +16,7 @@ import secrets
 import time
 
 from limits import parse
-from limits.storage import MemoryStorage
+from limits.storage import MemoryStorage, RedisStorage, Storage
 from limits.strategies import MovingWindowRateLimiter
 from sqlalchemy import select
 from sqlalchemy.orm import sessionmaker
@@ -31,9 +32,16 @@ class TooManyAttempts(Exception):
 
 
 class LoginGuard:
-    def __init__(self, db: sessionmaker, per_account: str, per_address: str, concurrency: int | None = None) -> None:
+    def __init__(
+        self,
+        db: sessionmaker,
+        per_account: str,
+        per_address: str,
+        concurrency: int | None = None,
+        storage: Storage | None = None,
+    ) -> None:
         self._db = db
-        self._limiter = MovingWindowRateLimiter(MemoryStorage())
+        self._limiter = MovingWindowRateLimiter(storage or MemoryStorage())
         self._per_account, self._per_address = parse(per_account), parse(per_address)
         self._slots = asyncio.Semaphore(concurrency or len(os.sched_getaffinity(0)))
         self._dummy_hash = hash_password(secrets.token_urlsafe(16))
@@ -68,3 +76,9 @@ class LoginGuard:
             if needs_rehash(user.password_hash):  # e.g. an scrypt hash from before argon2
                 user.password_hash = hash_password(password)
             return user.id
+
+
+def shared_counts(redis_url: str, key_prefix: str) -> Storage:
+    """The attempt counts of every process on `redis_url` (one round trip per count, on loopback
+    a fraction of a millisecond: logins are rare)."""
+    return RedisStorage(redis_url, key_prefix=f"{key_prefix}:logins")

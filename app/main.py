@@ -19,7 +19,7 @@ from app.clock import ServerClock
 from app.db.engine import make_engine, make_sessionmaker, upgrade
 from app.db.models import Experimenter
 from app.guard import GuardMiddleware, template_context
-from app.login import LoginGuard
+from app.login import LoginGuard, shared_counts
 from app.mazes import Mazes
 from app.resources import shipped
 from app.routes import experimenter, ldh_study, pages, replay, robot_ws, seat_ws
@@ -28,6 +28,7 @@ from app.services import Services
 from app.settings import Settings
 from app.trial.hub import TrialHub
 from app.trial.log import EventLog
+from app.trial.relay import key_prefix
 
 logger = logging.getLogger("robotslang")
 
@@ -38,7 +39,11 @@ def build_services(settings: Settings) -> Services:
     db = make_sessionmaker(engine)
     key = settings.signing_key()
     logins = LoginGuard(
-        db, settings.login_limit_per_account, settings.login_limit_per_address, settings.password_check_concurrency
+        db,
+        settings.login_limit_per_account,
+        settings.login_limit_per_address,
+        settings.password_check_concurrency,
+        storage=shared_counts(settings.redis_url, key_prefix(settings)) if settings.redis_url else None,
     )
     services = Services(
         settings=settings,

@@ -11,6 +11,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from app.clock import ServerClock
 from app.login import LoginGuard
 from app.mazes import Mazes
+from app.perception.belief import FilterWorker
 from app.security import CsrfTokens, SeatTokens, Sessions
 from app.settings import Settings
 from app.trial.log import EventLog
@@ -37,4 +38,5 @@ class Services:
     relay: RedisRelay | None = None  # set when ROBOTSLANG_REDIS_URL is: trials shared between processes
     robots: Any = None  # `RobotLinks`: the rovers and cameras connected here (made by `robot_links`)
     ldh_belief: BeliefModel | None = None  # the watch page's LDH belief (made by `belief_model`)
+    filters: FilterWorker = field(default_factory=FilterWorker)  # every trial's particle filter turns
     driver_checks: dict[Any, str | None] = field(default_factory=dict)  # agents' start checks, by file version

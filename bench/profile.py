@@ -23,11 +23,14 @@ PARTS = [
     ("JSON decode (relay)", ("json/decoder.py",)),
     ("websocket send", ("send", "websockets_sansio_impl.py")),
     ("websocket receive", ("receive", "websockets_sansio_impl.py")),
+    ("particle filter (TrialBelief)", ("app/perception/belief.py",)),
+    ("simulator rays (SimulatorBackend.frame_at)", ("cast_rays", "sim/observations.py")),
     ("render (first_person)", ("first_person", "sim/render.py")),
     ("JPEG encode", ("render_jpeg", "app/backends/sim.py")),
     ("frame file write", ("_write_frame_file", "app/trial/runtime.py")),
     ("base64 of frames", ("b64encode", "base64.py")),
     ("redis relay", ("app/trial/relay.py",)),
+    ("mazes and graphs loaded (trial start)", ("app/mazes.py",)),
     ("other app code", ("/app/",)),
 ]
 NOT_HOT = ("app/cli.py", "app/commands.py", "app/serving.py")  # on every stack: the server's start

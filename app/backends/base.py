@@ -8,9 +8,12 @@ from __future__ import annotations
 
 from collections.abc import AsyncIterator
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 from app.trial.vocabulary import MoveAction, Outcome
+
+if TYPE_CHECKING:
+    from sim.perception import RayObservation
 
 
 @dataclass(frozen=True)
@@ -34,6 +37,7 @@ class Frame:
     capture_ns: int
     width: int
     height: int
+    observation: RayObservation | None = None  # the 13 rays, where known without perceiving (simulator)
 
 
 class BackendUnavailable(RuntimeError):

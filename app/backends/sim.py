@@ -23,6 +23,8 @@ from sim.dynamics import Action, Pose, step
 from sim.geometry import heading_angle
 from sim.maze import Maze
 from sim.navgraph import NavGraph
+from sim.observations import cast_rays, too_close
+from sim.perception import RayObservation
 
 FRAME_SIZE = (320, 240)
 JPEG_QUALITY = 80
@@ -34,7 +36,7 @@ class SimulatorBackend:
         self.maze, self.graph, self.clock = maze, graph, clock
         self._pose = start
         self._frames: asyncio.Queue[Frame | None] = asyncio.Queue()
-        self._jpegs: OrderedDict[Pose, bytes] = OrderedDict()  # the recent poses' frames, oldest first
+        self._jpegs: OrderedDict[Pose, tuple[bytes, RayObservation]] = OrderedDict()  # recent poses', oldest first
 
     @property
     def grid_pose(self) -> Pose:
@@ -61,14 +63,26 @@ class SimulatorBackend:
 
     async def _capture(self) -> None:
         pose = self._pose
-        jpeg = self._jpegs.pop(pose, None)
-        if jpeg is None:
+        kept = self._jpegs.pop(pose, None)
+        if kept is None:
             # Rendering and encoding release the GIL: off the event loop, other trials keep moving.
-            jpeg = await asyncio.to_thread(render_jpeg, self.maze, *self.pose())
-        self._jpegs[pose] = jpeg
+            kept = await asyncio.to_thread(self.frame_at, pose)
+        self._jpegs[pose] = kept
         while len(self._jpegs) > FRAMES_KEPT:
             self._jpegs.popitem(last=False)
-        self._frames.put_nowait(Frame(jpeg, self.clock.now_ns(), *FRAME_SIZE))
+        jpeg, observation = kept
+        self._frames.put_nowait(Frame(jpeg, self.clock.now_ns(), *FRAME_SIZE, observation=observation))
+
+    def frame_at(self, pose: Pose) -> tuple[bytes, RayObservation]:
+        """The frame at `pose` and the simulator's ray observation there (what the frame shows)."""
+        x, y = self.graph.nodes[pose.node]
+        theta = float(heading_angle(pose.heading))
+        labels, depth = cast_rays(self.maze, float(x), float(y), theta)
+        depth = depth.astype(np.float32)
+        valid = np.ones(len(labels), dtype=bool)
+        blocked = bool(self.graph.forward[pose.node, pose.heading] < 0)
+        observation = RayObservation(labels, depth, too_close(depth, pose.heading), valid, blocked)
+        return render_jpeg(self.maze, float(x), float(y), theta), observation
 
 
 def render_jpeg(maze: Maze, x: float, y: float, theta: float) -> bytes:

@@ -1,15 +1,26 @@
 """`TrialBelief`: a live particle filter for one trial whose Driver camera is known.
 
 Each executed move is the filter's odometry; the first Driver frame captured after it (and the
-trial's first frame) goes through `sim.perception.perceive` and weighs the particles. The
-perceived rays (in `RayTable.features` layout) and the belief are what an agent Driver on a
-rover observes in place of the simulator's ray table; the belief cloud is shown to the
-experimenter only (`message()`), never to a participant.
+trial's first frame) weighs the particles: a rover's through `sim.perception.perceive`, a
+simulator's by the simulator's own ray observation at the frame's pose (`Frame.observation`:
+its frames are ideal renders, so perceiving their pixels would cost four times the update and
+say nothing more). The rays (in `RayTable.features` layout) and the belief are what an agent
+Driver on a rover observes in place of the simulator's ray table; the belief cloud is shown to
+the experimenter only (`message()`), never to a participant.
+
+The event loop only notes moves and keeps the frame to take in (`moved`, `offer`); the particles
+are touched by one `FilterWorker` thread per process, which folds in every move noted since
+its last turn and weighs by the newest frame kept, so a trial that falls behind skips the
+frames in between rather than queueing them.
 """
 
 from __future__ import annotations
 
+import asyncio
+import logging
 import threading
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,7 +31,11 @@ from sim.localization import Belief, ParticleFilter
 from sim.maze import Maze
 from sim.perception import PerceptionError, RayObservation, decode_frame, features, perceive
 
+logger = logging.getLogger(__name__)
+
 CLOUD_POINTS = 150  # points of the cloud sent to the experimenter's page
+PARTICLES, CONVERGED_PARTICLES = 1500, 300  # a cloud within 5 cm needs few (ParticleFilter)
+FILTER_SHARE = 0.25  # of one core, at most, for all of a process's filters (it holds the GIL too)
 
 
 @dataclass(frozen=True)
@@ -34,44 +49,85 @@ class Observed:
     moves: int  # executed moves the belief has folded in
 
 
+@dataclass(frozen=True)
+class _Kept:
+    jpeg: bytes
+    capture_ns: int
+    observation: RayObservation | None  # known without perceiving the pixels (the simulator)
+
+
 class TrialBelief:
     def __init__(
-        self, maze: Maze, calibration: CameraCalibration, n_particles: int = 1500, seed: int | None = None
+        self,
+        maze: Maze,
+        calibration: CameraCalibration,
+        n_particles: int = PARTICLES,
+        seed: int | None = None,
+        converged_particles: int | None = CONVERGED_PARTICLES,
     ) -> None:
         self.calibration = calibration
-        self.filter = ParticleFilter(maze, n_particles, seed=seed)
-        self._lock = threading.Lock()  # moves come from the event loop, frames from worker threads
-        self._moves = 0
+        self.filter = ParticleFilter(maze, n_particles, seed=seed, converged_particles=converged_particles)
+        self._lock = threading.Lock()  # held for bookkeeping only, never while the filter works
+        self._filter_lock = threading.Lock()  # one thread at a time in the filter
+        self._moves = 0  # executed moves noted
+        self._unfolded: list[Action | None] = []  # noted, not yet in the filter
         self._wanted_after_ns: int | None = 0  # a frame captured after this is wanted (None: none)
+        self._kept: _Kept | None = None
         self.latest: Observed | None = None
 
     def moved(self, action: str | None, started_ns: int) -> None:
         """An executed move (None: one that left the robot where it was); the next frame
         captured after `started_ns` and taken in once the move is over shows where it ended."""
         with self._lock:
-            if action is not None:
-                self.filter.move(Action.parse(action))
+            self._unfolded.append(Action.parse(action) if action is not None else None)
             self._moves += 1
             self._wanted_after_ns = started_ns
+            self._kept = None
 
     def wants(self, capture_ns: int) -> bool:
-        """Whether a frame captured at `capture_ns` is the one to perceive next."""
+        """Whether a frame captured at `capture_ns` is the one to take in next."""
         return self._wanted_after_ns is not None and capture_ns > self._wanted_after_ns
 
-    def observe(self, jpeg: bytes, capture_ns: int) -> Observed | None:
-        """Perceive one frame and weigh the particles by it; None for bytes that are not an
-        image of this camera (the belief is left as it was)."""
-        try:
-            obs = perceive(decode_frame(jpeg), self.calibration)
-        except PerceptionError:
-            return None
+    def offer(self, jpeg: bytes, capture_ns: int, observation: RayObservation | None = None) -> bool:
+        """Keep this frame for the filter's next turn if it is wanted (a newer one replaces it)."""
         with self._lock:
             if not self.wants(capture_ns):
-                return self.latest  # another frame got there first
+                return False
+            self._kept = _Kept(jpeg, capture_ns, observation)
+            return True
+
+    def observe(self, jpeg: bytes, capture_ns: int, observation: RayObservation | None = None) -> Observed | None:
+        """Take in one frame now (`offer`, then `step`)."""
+        if not self.offer(jpeg, capture_ns, observation):
+            return self.latest  # another frame got there first
+        return self.step()
+
+    def step(self) -> Observed | None:
+        """Fold in the moves noted and weigh the particles by the frame kept; None for bytes that
+        are not an image of this camera (the belief is left as it was, the frame dropped)."""
+        with self._filter_lock:
+            with self._lock:
+                kept, self._kept = self._kept, None
+                unfolded, self._unfolded = self._unfolded, []
+                moves = self._moves
+            for action in unfolded:
+                if action is not None:
+                    self.filter.move(action)
+            if kept is None:
+                return None
+            obs = kept.observation
+            if obs is None:
+                try:
+                    obs = perceive(decode_frame(kept.jpeg), self.calibration)
+                except PerceptionError:
+                    return None
             self.filter.update(obs)
-            self._wanted_after_ns = None
-            self.latest = Observed(capture_ns, features(obs), obs, self.filter.belief(CLOUD_POINTS), self._moves)
-            return self.latest
+            observed = Observed(kept.capture_ns, features(obs), obs, self.filter.belief(CLOUD_POINTS), moves)
+            with self._lock:
+                self.latest = observed
+                if self._moves == moves:  # no move since: this frame shows where the last one ended
+                    self._wanted_after_ns = None
+            return observed
 
     @property
     def settled(self) -> bool:
@@ -90,3 +146,38 @@ class TrialBelief:
             "moves": self.latest.moves,
             "points": np.round(b.cloud[:, [0, 1, 3]], 4).tolist(),
         }
+
+
+class FilterWorker:
+    """One turn at a time per process, off the event loop: every trial's filter turns run in the order they became due,
+    and rests after each so that the filters take at most `share` of a core: under load a
+    trial's belief lags (its moves are folded in at its next turn), the moves' frames do not."""
+
+    def __init__(self, share: float = FILTER_SHARE) -> None:
+        self.share = share
+        self._due: dict[TrialBelief, Callable[[], None]] = {}  # insertion order: turn order
+        self._task: asyncio.Task | None = None
+
+    def due(self, belief: TrialBelief, done: Callable[[], None]) -> None:
+        """`belief` has a frame kept: give it a turn; `done()` runs on the event loop after it."""
+        self._due[belief] = done
+        if self._task is None or self._task.done():
+            self._task = asyncio.get_running_loop().create_task(self._run())
+
+    def forget(self, belief: TrialBelief) -> None:
+        self._due.pop(belief, None)
+
+    async def _run(self) -> None:
+        while self._due:
+            belief = next(iter(self._due))
+            done = self._due.pop(belief)
+            started = time.perf_counter()
+            try:
+                observed = await asyncio.to_thread(belief.step)
+            except Exception:  # a filter that fails is a lesser trial, never a stopped worker
+                logger.exception("particle filter turn failed")
+                observed = None
+            if observed is not None:
+                done()
+            busy = time.perf_counter() - started
+            await asyncio.sleep(busy * (1 / self.share - 1))

@@ -7,7 +7,8 @@ seat may hear, filtered by the owner as for local seats. Each process listens on
 messages on it keep their order.
 
 Failover: every process keeps a heartbeat key alive (`HEARTBEAT_TTL_S`, renewed every
-`HEARTBEAT_EVERY_S`). An owner whose heartbeat has lapsed is dead: the next process that needs
+`HEARTBEAT_EVERY_S` by a thread of its own, so that a loaded event loop that falls seconds behind
+is not taken for a dead process). An owner whose heartbeat has lapsed is dead: the next process that needs
 the trial (a seat reconnecting, or a `RemoteTrial` whose owner it watches) takes the owner key
 over with a compare-and-set, reopens the trial from its log and serves the seats itself. The
 log stays the one order: an owner taken over by mistake (stalled, not dead) finds its next
@@ -23,6 +24,7 @@ import json
 import logging
 import os
 import socket
+import threading
 import uuid
 from typing import TYPE_CHECKING, Any, cast
 
@@ -31,6 +33,8 @@ from app.trial.views import EXPERIMENTER
 from app.trial.vocabulary import Role
 
 if TYPE_CHECKING:
+    from redis import Redis
+
     from app.services import Services
     from app.settings import Settings
     from app.trial.port import Connection
@@ -39,6 +43,7 @@ if TYPE_CHECKING:
 logger = logging.getLogger(__name__)
 HEARTBEAT_TTL_S = 2.0  # a process silent this long is taken for dead and its trials are taken over
 HEARTBEAT_EVERY_S = 0.5
+CONNECTIONS = 32  # to Redis per process; a command waits for a free one (400 seats joining at once)
 # Take the owner key from a dead process, unless another process already did.
 TAKE_OVER = "if redis.call('get', KEYS[1]) == ARGV[1] then redis.call('set', KEYS[1], ARGV[2]) return 1 end return 0"
 
@@ -62,7 +67,13 @@ class RedisRelay:
         import redis.asyncio as redis
 
         self.services = services
-        self.redis = redis.from_url(url, decode_responses=True)
+        pool = redis.BlockingConnectionPool.from_url(
+            url, max_connections=CONNECTIONS, timeout=None, decode_responses=True
+        )
+        self.redis = redis.Redis.from_pool(pool)  # closed with the client
+        self._url = url
+        self._stop_beating = threading.Event()
+        self._beater: threading.Thread | None = None
         self.id = f"{socket.gethostname()}-{os.getpid()}-{uuid.uuid4().hex[:8]}"  # names the process
         self._keys = key_prefix(services.settings)
         self.local: dict[str, Connection] = {}  # connection id -> this process's seat of a trial owned elsewhere
@@ -74,12 +85,17 @@ class RedisRelay:
     async def start(self) -> None:
         self._pubsub = self.redis.pubsub()
         await self._pubsub.subscribe(_channel(self.id))
-        await self._beat()
+        import redis
+
+        beats = redis.Redis.from_url(self._url)
+        await asyncio.to_thread(self._beat, beats)
+        self._beater = threading.Thread(target=self._beat_until_closed, args=(beats,), name="heartbeat", daemon=True)
+        self._beater.start()
         loop = asyncio.get_running_loop()
         self._tasks = [
             loop.create_task(self._listen()),
             loop.create_task(self._send()),
-            loop.create_task(self._heartbeat()),
+            loop.create_task(self._watch_owners()),
         ]
 
     async def close(self) -> None:
@@ -131,22 +147,30 @@ class RedisRelay:
             except Exception:
                 logger.exception("relay: publish to %s failed", process)
 
-    async def _beat(self) -> None:
-        await self.redis.set(self._alive_key(self.id), "1", px=int(HEARTBEAT_TTL_S * 1000))
+    def _beat(self, beats: Redis) -> None:
+        beats.set(self._alive_key(self.id), "1", px=int(HEARTBEAT_TTL_S * 1000))
 
-    async def _heartbeat(self) -> None:
-        """Say this process lives; and watch the owners of the trials that seats here use."""
+    def _beat_until_closed(self, beats: Redis) -> None:
+        """Say this process lives (its own thread and connection)."""
+        with beats:
+            while not self._stop_beating.wait(HEARTBEAT_EVERY_S):
+                try:
+                    self._beat(beats)
+                except Exception:
+                    logger.exception("relay: heartbeat failed")
+
+    async def _watch_owners(self) -> None:
+        """Watch the owners of the trials that seats here use; take over from a dead one."""
         while True:
             await asyncio.sleep(HEARTBEAT_EVERY_S)
             try:
-                await self._beat()
                 owners = {remote.owner for remote in self.remotes}
                 for owner in owners:
                     if not await self.redis.exists(self._alive_key(owner)):
                         for remote in [r for r in self.remotes if r.owner == owner]:
                             await remote.fail_over()
             except Exception:
-                logger.exception("relay: heartbeat failed")
+                logger.exception("relay: watching owners failed")
 
     async def _listen(self) -> None:
         async for item in self._pubsub.listen():

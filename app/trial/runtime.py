@@ -61,7 +61,6 @@ class TrialRuntime:
         self._ending = False
         self.agent: AgentSeat | None = None
         self.belief: TrialBelief | None = None  # `TrialBelief` once the Driver camera's calibration is loaded
-        self._perceiving = False
         self._belief_message: dict[str, Any] | None = None  # the latest, for the watch page
         self._frame_dirs: set[Path] = set()
         self.ldh = LiveBelief(self)  # the LDH model's belief, for the watchers only
@@ -118,6 +117,8 @@ class TrialRuntime:
             await self.agent.stop()
             if self.seats.get(Role.DRIVER) is self.agent:
                 del self.seats[Role.DRIVER]
+        if self.belief is not None:
+            self.services.filters.forget(self.belief)
         if self.backend is not None:
             backend, self.backend = self.backend, None
             await backend.close()
@@ -249,21 +250,17 @@ class TrialRuntime:
             if (
                 belief is not None
                 and not self.state.moves_in_flight
-                and not self._perceiving
-                and belief.wants(frame.capture_ns)
+                and belief.offer(frame.jpeg, frame.capture_ns, frame.observation)
             ):
-                self._perceiving = True
-                self._spawn(self._perceive(belief, frame.jpeg, frame.capture_ns))
+                self.services.filters.due(belief, self._believed)
 
-    async def _perceive(self, belief: TrialBelief, jpeg: bytes, capture_ns: int) -> None:
-        try:
-            observed = await asyncio.to_thread(belief.observe, jpeg, capture_ns)
-        finally:
-            self._perceiving = False
-        if observed is not None and (message := belief.message()) is not None:
-            self._belief_message = message
-            for conn in list(self.watchers):
-                conn.deliver(message)
+    def _believed(self) -> None:
+        """The filter has taken in a frame: the watchers see the new belief."""
+        if self.belief is None or (message := self.belief.message()) is None:
+            return
+        self._belief_message = message
+        for conn in list(self.watchers):
+            conn.deliver(message)
 
     def record_frame(self, jpeg: bytes, capture_ns: int, width: int, height: int, source: FrameSource) -> int:
         rel = self._frame_file(capture_ns, source)

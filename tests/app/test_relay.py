@@ -8,10 +8,12 @@ import asyncio
 import pytest
 from sqlalchemy import select
 
-from app.db.models import Event, Trial
+from app.db.models import Event, Experimenter, Trial
+from app.security import hash_password
 from bench.live import SeatClient, make_trial
 from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread, experimenter_client
+from tests.app.live import ServerThread, browser, experimenter_client, submit_login
+from tests.app.test_status import Watch
 from tests.app.trial_play import claim_and_decide, drive_to_target, move, start_trial
 
 REDIS_URL = "redis://127.0.0.1:6379/0"
@@ -102,3 +104,45 @@ def test_a_process_that_stops_hands_its_trials_to_another(tmp_path, postgres_url
                 await commander.event("chat", text="still here")
 
         asyncio.run(after())
+
+
+@pytest.mark.slow
+def test_a_watcher_on_another_process_sees_the_trials_particle_filter(tmp_path, postgres_url, redis_url):
+    settings = platform_settings(tmp_path, database_url=postgres_url, redis_url=redis_url)
+    with ServerThread(settings) as first, ServerThread(settings) as second:
+        trial_id = make_trial(first.services, first.services.mazes.names()[0])
+        tokens = {r: first.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+        with first.services.db.begin() as db:
+            eve = Experimenter(name="eve", password_hash=hash_password("correct horse"))
+            db.add(eve)
+            db.flush()
+            eve_id = eve.id
+        cookie = second.services.sessions.issue(eve_id)
+
+        async def play():
+            async with (
+                SeatClient(first.ws_url, tokens["commander"]) as commander,
+                SeatClient(first.ws_url, tokens["driver"]) as driver,
+            ):
+                await start_trial(commander, driver)
+                async with Watch(second, trial_id, cookie) as watch:
+                    await commander.send("localize", x=1.0, y=1.0)
+                    await driver.event("phase", phase="navigating")
+                    assert (await move(driver, "left"))["payload"]["outcome"] == "ok"
+                    seen = await watch.wait_for(lambda m: m.get("type") == "belief" and m["moves"] >= 1, timeout=30)
+                    assert seen["points"] and len(seen["mean"]) == 3
+                    assert first.services.hub.peek(trial_id) is not None and second.services.hub.peek(trial_id) is None
+
+        asyncio.run(play())
+
+
+def test_login_attempts_count_on_every_process(tmp_path, postgres_url, redis_url):
+    settings = platform_settings(
+        tmp_path, database_url=postgres_url, redis_url=redis_url, login_limit_per_account="3/minute"
+    )
+    with ServerThread(settings) as first, ServerThread(settings) as second:
+        with first.services.db.begin() as db:
+            db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
+        assert [submit_login(browser(first.url), "eve", "guess").status_code for _ in range(3)] == [401] * 3
+        limited = submit_login(browser(second.url), "eve", "correct horse")
+        assert limited.status_code == 429 and "too many login attempts" in limited.text
