@@ -149,8 +149,15 @@ def experiment_ndh(
     out: Path = typer.Option(Path("runs/ndh-experiment"), help="Experiment folder; re-running resumes."),
     models: str = typer.Option("baseline,improved", help="Model variants, comma-separated."),
     seeds: str = typer.Option("0,1,2", help="Seeds, comma-separated."),
+    feedbacks: str = typer.Option("teacher,student", help="Feedbacks run, comma-separated (a subset of the protocol)."),
+    ablations: str = typer.Option(
+        "none,vision,language", help="Ablations run, comma-separated (none: the full model; a subset of the protocol)."
+    ),
     iters: int | None = typer.Option(None, help="Iterations per run; default: measured to fit the budget."),
     budget_minutes: float = typer.Option(110.0, help="Wall-time budget used to size --iters."),
+    eval_every: int | None = typer.Option(
+        None, help="Validate on val_seen every this many iterations; default: 8 validations per run."
+    ),
     workers: int = typer.Option(2, help="Trainings run in parallel (one CPU thread each), with --executor local."),
     executor: Executor = typer.Option(
         Executor.local,
@@ -163,8 +170,9 @@ def experiment_ndh(
         "ray://HEAD:10001 or auto); default a new local Ray instance.",
     ),
 ) -> None:
-    """The whole protocol: 6 configurations x seeds, validation, retraining for test, tests, report."""
-    from models.experiment import run_experiment
+    """The whole protocol: 6 configurations x seeds (or the subset --feedbacks x --ablations),
+    validation, retraining for test, tests, report."""
+    from models.experiment import experiment_grid, run_experiment
     from models.train import MODELS
 
     model_list = [m.strip() for m in models.split(",") if m.strip()]
@@ -178,6 +186,12 @@ def experiment_ndh(
         seed_list = [int(s) for s in seeds.split(",") if s.strip()]
     except ValueError:
         raise typer.BadParameter(f"seeds must be integers, got {seeds!r}", param_hint="--seeds") from None
+    feedback_list = [f.strip() for f in feedbacks.split(",") if f.strip()]
+    ablation_list = [b.strip() for b in ablations.split(",") if b.strip()]
+    try:
+        experiment_grid(model_list, feedback_list, ablation_list, seed_list)
+    except ValueError as e:
+        raise typer.BadParameter(str(e), param_hint="--feedbacks/--ablations") from None
     if address is not None and executor is not Executor.ray:
         raise typer.BadParameter("--address is for --executor ray", param_hint="--address")
     if executor is Executor.ray:
@@ -193,8 +207,11 @@ def experiment_ndh(
         iters=iters,
         budget_minutes=budget_minutes,
         workers=workers,
+        eval_every=eval_every,
         executor=executor.value,
         address=address,
+        feedbacks=feedback_list,
+        ablations=ablation_list,
     )
     typer.echo(
         f"{meta['iters']} iterations per run; {meta['timing']['total_s'] / 60:.1f} min; report -> {out / 'report.md'}"

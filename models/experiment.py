@@ -50,11 +50,33 @@ def run_dir(out: Path, model: str, feedback: str, blind: str, seed: int) -> Path
     return out / "runs" / model / f"{feedback}-{blind}" / f"seed{seed}"
 
 
-def measure_iteration_seconds(bench: Benchmark, out: Path, model: str) -> dict[str, float]:
+def experiment_grid(
+    models: list[str], feedbacks: list[str], ablations: list[str], seeds: list[int]
+) -> list[tuple[str, str, str, int]]:
+    """Every (model, feedback, ablation, seed) run of the protocol, in its canonical order; a
+    subset of the feedbacks or ablations runs only those configurations."""
+    for name, chosen, known in (("feedback", feedbacks, FEEDBACKS), ("ablation", ablations, ABLATIONS)):
+        unknown = [c for c in chosen if c not in known]
+        if not chosen or unknown:
+            raise ValueError(f"unknown {name}(s) {', '.join(unknown) or '(none given)'}; expected {', '.join(known)}")
+    return [
+        (m, f, b, s)
+        for m in models
+        for f in FEEDBACKS
+        if f in feedbacks
+        for b in ABLATIONS
+        if b in ablations
+        for s in seeds
+    ]
+
+
+def measure_iteration_seconds(
+    bench: Benchmark, out: Path, model: str, feedbacks: tuple[str, ...] | list[str] = FEEDBACKS
+) -> dict[str, float]:
     """Seconds per training iteration for each feedback, from a short run of each."""
     world = build_world(bench, bench.cache_dir)
     costs = {}
-    for feedback in FEEDBACKS:
+    for feedback in feedbacks:
         probe = out / "probe" / f"{model}-{feedback}"
         cfg = TrainConfig(feedback=feedback, model=model, iters=PROBE_ITERS, eval_every=PROBE_ITERS, eval_split=None)
         for f in ("last.pt", "best.pt"):
@@ -64,10 +86,18 @@ def measure_iteration_seconds(bench: Benchmark, out: Path, model: str) -> dict[s
     return costs
 
 
-def choose_iters(costs: dict[str, float], n_models: int, n_seeds: int, budget_s: float, workers: int) -> int:
+def choose_iters(
+    costs: dict[str, float],
+    n_models: int,
+    n_seeds: int,
+    budget_s: float,
+    workers: int,
+    n_ablations: int = len(ABLATIONS),
+) -> int:
     """Training iterations per run that fit the budget: each run costs its iterations, the
-    retraining to its best iteration (RETRAIN_SHARE of them on average) and its validations."""
-    per_iter = sum(costs.values()) * len(ABLATIONS) * n_models * n_seeds  # one iteration of every run
+    retraining to its best iteration (RETRAIN_SHARE of them on average) and its validations;
+    `costs` holds the feedbacks run."""
+    per_iter = sum(costs.values()) * n_ablations * n_models * n_seeds  # one iteration of every run
     validations = EVALS_PER_RUN * EVAL_COST_ITERS
     return max(10, int((budget_s * workers / per_iter - validations) / (1 + RETRAIN_SHARE)))
 
@@ -129,6 +159,8 @@ def run_experiment(
     eval_every: int | None = None,
     executor: str = "local",
     address: str | None = None,
+    feedbacks: list[str] | None = None,
+    ablations: list[str] | None = None,
 ) -> dict:
     from models.evaluate import evaluate_checkpoint
     from models.report import write_report
@@ -142,6 +174,9 @@ def run_experiment(
     for m in models:
         if m not in MODELS:
             raise ValueError(f"unknown model {m!r}; expected one of {', '.join(MODELS)}")
+    feedbacks = list(feedbacks or FEEDBACKS)
+    ablations = list(ablations or ABLATIONS)
+    grid = experiment_grid(models, feedbacks, ablations, seeds)
     began = time.perf_counter()
     timing: dict[str, float] = {}
     world = build_world(bench, bench.cache_dir)
@@ -155,12 +190,15 @@ def run_experiment(
     if iters is None:
         # An untrained agent that may stop anywhere (a critic's) ends its probe episodes early,
         # so no variant is taken to be cheaper than the baseline, whose student runs to the cap.
-        costs = {m: measure_iteration_seconds(bench, out, m) for m in dict.fromkeys(["baseline", *models])}
-        mean_cost = {f: sum(max(costs[m][f], costs["baseline"][f]) for m in models) / len(models) for f in FEEDBACKS}
-        iters = choose_iters(mean_cost, len(models), len(seeds), budget_minutes * 60 - timing["world_s"] - 300, workers)
+        costs = {m: measure_iteration_seconds(bench, out, m, feedbacks) for m in dict.fromkeys(["baseline", *models])}
+        mean_cost = {f: sum(max(costs[m][f], costs["baseline"][f]) for m in models) / len(models) for f in feedbacks}
+        budget_s = budget_minutes * 60 - timing["world_s"] - 300
+        iters = choose_iters(mean_cost, len(models), len(seeds), budget_s, workers, len(ablations))
     eval_every = eval_every or max(1, math.ceil(iters / EVALS_PER_RUN))
     meta = {
         "models": models,
+        "feedbacks": feedbacks,
+        "ablations": ablations,
         "seeds": seeds,
         "iters": iters,
         "eval_every": eval_every,
@@ -172,7 +210,6 @@ def run_experiment(
     }
     meta_path.write_text(json.dumps(meta, indent=2))
 
-    grid = [(m, f, b, s) for m in models for f in FEEDBACKS for b in ABLATIONS for s in seeds]
     t0 = time.perf_counter()
     val_jobs = [
         (
