@@ -26,7 +26,7 @@ $(STAMP): pyproject.toml robot_client/pyproject.toml
 	$(BIN)/python -m pip install --quiet torch==2.13.0 $(if $(TORCH_INDEX),--index-url $(TORCH_INDEX))
 	# The rover's distribution first: the server depends on it (it owns robot_client/).
 	$(BIN)/python -m pip install --quiet -e ./robot_client
-	$(BIN)/python -m pip install --quiet -e '.[dev,learn,lerobot]'
+	$(BIN)/python -m pip install --quiet -e '.[dev,learn,lerobot,cluster]'
 	touch $(STAMP)
 
 run: $(STAMP)
