@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import secrets
+import sys
 from contextlib import asynccontextmanager
 
 from fastapi import FastAPI, Request
@@ -75,6 +76,7 @@ def ensure_experimenter(services: Services) -> str | None:
 
 def create_app(settings: Settings | None = None) -> FastAPI:
     settings = settings or Settings()
+    sys.setswitchinterval(settings.gil_switch_interval_s)
     services = build_services(settings)
     password = ensure_experimenter(services)
     if password is not None:
