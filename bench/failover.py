@@ -13,7 +13,6 @@ import asyncio
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -29,16 +28,11 @@ from app.db.models import Event
 from app.main import build_services
 from app.settings import Settings
 from app.trial.setup import create_participant, create_team, create_trial
+from bench.live import free_port
 from bench.load import database, wait_until_up
 
 console = Console()
 TIMEOUT_S = 60.0  # a takeover that has not happened by then is reported as a failure
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def serve(env: dict[str, str], port: int) -> subprocess.Popen:
@@ -72,7 +66,8 @@ async def one_run(services, trial_id: int, first: subprocess.Popen, ports: tuple
 
         def count() -> int:
             query = select(func.count(Event.id)).where(Event.trial_id == trial_id, Event.kind == "chat")
-            return services.db().execute(query).scalar_one()
+            with services.db() as db:  # closed at once: an open transaction would block the schema's drop
+                return db.execute(query).scalar_one()
 
         before = count()
         killed = time.perf_counter()

@@ -17,7 +17,6 @@ import argparse
 import asyncio
 import json
 import os
-import socket
 import statistics
 import subprocess
 import sys
@@ -38,16 +37,11 @@ from app.db.models import Event
 from app.security import SeatTokens
 from app.settings import Settings
 from app.trial.setup import create_participant, create_team, create_trial
+from bench.live import free_port
 
 REPO = Path(__file__).resolve().parent.parent
 SECRET = "bench-robot"
 TARGET_FPS, TARGET_LATENCY_MS = 15.0, 150.0
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def prepare(settings: Settings, runs: int) -> list[tuple[str, int]]:
