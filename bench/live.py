@@ -11,11 +11,13 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import httpx
 import websockets
+from sqlalchemy.orm import Session
 
 from app.drivers.registry import available_drivers
 from app.trial.setup import create_participant, create_team, create_trial
@@ -93,32 +95,57 @@ class ServerProcess:
                 self.proc.kill()
 
 
+def team_trial(
+    db: Session,
+    team: str,
+    maze: str,
+    maze_names: list[str],
+    now_ns: int,
+    targets: Sequence[str] = ("mug", "jar", "paddle"),
+    backend: str = "sim",
+    driver: str = "human",
+    agents: Mapping[str, str | None] | None = None,
+) -> int:
+    """A team of two new participants and a trial for it, in the open session `db`: its id."""
+    a = create_participant(db, f"{team} commander")
+    b = create_participant(db, f"{team} driver")
+    t = create_team(db, team, a.id, b.id)
+    trial = create_trial(
+        db,
+        team_id=t.id,
+        maze=maze,
+        targets=list(targets),
+        backend=backend,
+        driver=driver,
+        commander_id=a.id,
+        maze_names=maze_names,
+        now_ns=now_ns,
+        agents=agents,
+    )
+    return trial.id
+
+
 def make_trial(
     services,
     maze: str,
-    targets=("mug", "jar", "paddle"),
+    targets: Sequence[str] = ("mug", "jar", "paddle"),
     driver: str = "human",
     team: str = "Team A",
     backend: str = "sim",
 ) -> int:
-    """A team of two new participants and a trial for it; returns the trial id."""
+    """`team_trial` on one of the server's mazes, in a transaction of its own."""
     with services.db.begin() as db:
-        a = create_participant(db, f"{team} commander")
-        b = create_participant(db, f"{team} driver")
-        t = create_team(db, team, a.id, b.id)
-        trial = create_trial(
+        return team_trial(
             db,
-            team_id=t.id,
-            maze=maze,
-            targets=list(targets),
+            team,
+            maze,
+            services.mazes.names(),
+            services.clock.now_ns(),
+            targets=targets,
             backend=backend,
             driver=driver,
-            commander_id=a.id,
-            maze_names=services.mazes.names(),
-            now_ns=services.clock.now_ns(),
             agents=available_drivers(services),
         )
-        return trial.id
 
 
 class SeatClient:

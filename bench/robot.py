@@ -36,8 +36,7 @@ from app.db.engine import make_engine, make_sessionmaker, upgrade
 from app.db.models import Event
 from app.security import SeatTokens
 from app.settings import Settings
-from app.trial.setup import create_participant, create_team, create_trial
-from bench.live import free_port
+from bench.live import free_port, team_trial
 
 REPO = Path(__file__).resolve().parent.parent
 SECRET = "bench-robot"
@@ -53,21 +52,16 @@ def prepare(settings: Settings, runs: int) -> list[tuple[str, int]]:
     for run in range(runs):
         with db.begin() as session:
             robot, token = create_robot(session, f"bench rover {run}")
-            a = create_participant(session, f"commander {run}")
-            b = create_participant(session, f"driver {run}")
-            team = create_team(session, f"team {run}", a.id, b.id)
-            trial = create_trial(
+            trial_id = team_trial(
                 session,
-                team_id=team.id,
-                maze="table",
+                f"team {run}",
+                "table",
+                ["table"],
+                time.time_ns(),
                 targets=["jar", "mug", "paddle"],
                 backend=f"robot:{robot.id}",
-                driver="human",
-                commander_id=a.id,
-                maze_names=["table"],
-                now_ns=time.time_ns(),
             )
-            runs_made.append((token, trial.id))
+            runs_made.append((token, trial_id))
     engine.dispose()
     return runs_made
 

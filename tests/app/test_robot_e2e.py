@@ -24,8 +24,7 @@ from app.db.models import Event
 from app.db.models import Frame as FrameRow
 from app.main import create_app
 from app.serving import uvicorn_options
-from app.trial.setup import create_participant, create_team, create_trial
-from bench.live import SeatClient, free_port
+from bench.live import SeatClient, free_port, team_trial
 from robot_client.calibration import Calibration
 from robot_client.protocol import pack_frame
 from tests.app.conftest import platform_settings
@@ -75,21 +74,16 @@ class RobotServer:
             robot, token = create_robot(db, name, role)
             if role != "driver":
                 return robot.id, token, None
-            a = create_participant(db, f"{name} commander")
-            b = create_participant(db, f"{name} driver")
-            team = create_team(db, f"{name} team", a.id, b.id)
-            trial = create_trial(
+            trial_id = team_trial(
                 db,
-                team_id=team.id,
-                maze="table",
+                f"{name} team",
+                "table",
+                ["table"],
+                self.services.clock.now_ns(),
                 targets=["jar", "mug", "paddle"],
                 backend=f"robot:{robot.id}",
-                driver="human",
-                commander_id=a.id,
-                maze_names=["table"],
-                now_ns=self.services.clock.now_ns(),
             )
-            return robot.id, token, trial.id
+            return robot.id, token, trial_id
 
     def seat(self, trial_id: int, role: str) -> SeatClient:
         return SeatClient(self.play_url, self.services.seats.issue(trial_id, role))
