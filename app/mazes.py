@@ -27,6 +27,7 @@ from sim.maze import Maze
 
 if TYPE_CHECKING:
     from sim.library import MazeLibrary
+    from sim.observations import RayTable
 from sim.navgraph import NavGraph
 
 TARGET_VIEW_DISTANCE_M = 0.35
@@ -72,6 +73,7 @@ class Mazes:
         self._library: MazeLibrary | None = None
         self.load = Kept(self._load, MAZES_KEPT)
         self.graph = Kept(self._graph, MAZES_KEPT)
+        self.rays = Kept(self._rays, MAZES_KEPT)
         self.map_png = lru_cache(maxsize=PICTURES_KEPT)(self._map_png)
         self.target_jpeg = lru_cache(maxsize=3 * PICTURES_KEPT)(self._target_jpeg)
 
@@ -93,6 +95,12 @@ class Mazes:
 
     def _graph(self, name: str) -> NavGraph:
         return NavGraph.build(self.load(name), cache_dir=self.settings.cache_dir, objects_block=True)
+
+    def _rays(self, name: str) -> RayTable:
+        """The observation of every pose of the maze's graph: a simulator frame's rays are a lookup."""
+        from sim.observations import RayTable
+
+        return RayTable.build(self.load(name), self.graph(name), cache_dir=self.settings.cache_dir)
 
     def _map_png(self, name: str) -> bytes:
         """The Commander's map: the walls, and each landmark as a disc in its benchmark colour

@@ -26,6 +26,7 @@ from sim.camera import CameraCalibration
 from sim.dynamics import Action, Pose, step
 from sim.library import MazeLibrary
 from sim.navgraph import NavGraph
+from sim.observations import RayTable
 
 PARTS = ("event loop", "filter turn", "message")
 
@@ -39,7 +40,7 @@ def run(trials: int, moves: int, perceive: bool, converged_particles: int | None
     for t, name in enumerate(library.names()[:trials]):
         maze = library.load(name)
         graph = NavGraph.build(maze)
-        sim = SimulatorBackend(maze, graph, Pose(0, 0), ServerClock())
+        sim = SimulatorBackend(maze, graph, RayTable.build(maze, graph), Pose(0, 0), ServerClock())
         pose = Pose(int(rng.integers(graph.n)), int(rng.integers(8)))
         belief = TrialBelief(maze, calibration, seed=t, converged_particles=converged_particles)
         for i in range(moves + 1):

@@ -54,7 +54,8 @@ async def simulator_backend(spec: str, trial: RobotTrial, services: Services) ->
         start = snap_pose(graph, *state.pose)
     else:
         start = await asyncio.to_thread(mazes.start_pose, state.maze, state.targets[0], trial.trial_id)
-    return SimulatorBackend(mazes.load(state.maze), graph, start, services.clock)
+    rays = await asyncio.to_thread(mazes.rays, state.maze)
+    return SimulatorBackend(mazes.load(state.maze), graph, rays, start, services.clock)
 
 
 register_backend("sim", simulator_backend)

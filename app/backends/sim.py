@@ -4,7 +4,8 @@ Moves follow the grid dynamics of `sim.dynamics` (0.07 m forward, 45 degree turn
 collision leaves the robot where it was); after each move the first-person render of the
 new pose is the camera frame. Poses are discrete (a graph node and one of eight headings), so
 the JPEG of each pose is kept (the last `FRAMES_KEPT` of this trial): a turn back, or a step back
-to where the robot was, costs no render.
+to where the robot was, costs no render; and the ray observation a frame carries is the maze's
+`RayTable` row for the pose (the maze's rays are cast once, not at every frame).
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from sim.dynamics import Action, Pose, step
 from sim.geometry import heading_angle
 from sim.maze import Maze
 from sim.navgraph import NavGraph
-from sim.observations import cast_rays, too_close
+from sim.observations import RayTable
 from sim.perception import RayObservation
 
 FRAME_SIZE = (320, 240)
@@ -32,8 +33,8 @@ FRAMES_KEPT = 32  # JPEGs of recent poses per trial (about 15 kB each)
 
 
 class SimulatorBackend:
-    def __init__(self, maze: Maze, graph: NavGraph, start: Pose, clock: ServerClock) -> None:
-        self.maze, self.graph, self.clock = maze, graph, clock
+    def __init__(self, maze: Maze, graph: NavGraph, rays: RayTable, start: Pose, clock: ServerClock) -> None:
+        self.maze, self.graph, self.rays, self.clock = maze, graph, rays, clock
         self._pose = start
         self._frames: asyncio.Queue[Frame | None] = asyncio.Queue()
         self._jpegs: OrderedDict[Pose, tuple[bytes, RayObservation]] = OrderedDict()  # recent poses', oldest first
@@ -76,13 +77,16 @@ class SimulatorBackend:
     def frame_at(self, pose: Pose) -> tuple[bytes, RayObservation]:
         """The frame at `pose` and the simulator's ray observation there (what the frame shows)."""
         x, y = self.graph.nodes[pose.node]
-        theta = float(heading_angle(pose.heading))
-        labels, depth = cast_rays(self.maze, float(x), float(y), theta)
-        depth = depth.astype(np.float32)
-        valid = np.ones(len(labels), dtype=bool)
-        blocked = bool(self.graph.forward[pose.node, pose.heading] < 0)
-        observation = RayObservation(labels, depth, too_close(depth, pose.heading), valid, blocked)
-        return render_jpeg(self.maze, float(x), float(y), theta), observation
+        at = (pose.node, pose.heading)
+        rays = self.rays
+        observation = RayObservation(
+            rays.labels[at],
+            rays.depth[at],
+            rays.too_close[at],
+            np.ones(rays.labels.shape[-1], dtype=bool),
+            bool(rays.forward_blocked[at]),
+        )
+        return render_jpeg(self.maze, float(x), float(y), float(heading_angle(pose.heading))), observation
 
 
 def render_jpeg(maze: Maze, x: float, y: float, theta: float) -> bytes:

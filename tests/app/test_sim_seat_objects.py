@@ -9,27 +9,32 @@ import cv2
 import numpy as np
 import pytest
 
+from app.backends.base import Frame
 from app.backends.sim import SimulatorBackend
 from app.clock import ServerClock
 from app.mazes import Mazes
 from app.settings import Settings
 from sim.dynamics import Action, Pose, step, teacher_action
-from sim.geometry import heading_index
+from sim.geometry import heading_angle, heading_index
 from sim.labels import LABEL_BGR, OBJECTS, Label
 from sim.navgraph import NavGraph
+from sim.observations import RayTable, cast_rays, too_close
 
 MAZE = "gen-000"
 
 
-def drive(maze, graph, start: Pose, actions) -> tuple[list[str], bytes]:
-    """Play `actions` on the seat's backend; the outcomes and the last camera frame (JPEG)."""
+def drive(maze, graph, start: Pose, actions) -> tuple[list[str], list[Frame], list[Pose]]:
+    """Play `actions` on the seat's backend; the outcomes, every camera frame and every pose."""
 
     async def play():
-        backend = SimulatorBackend(maze, graph, start, ServerClock())
+        backend = SimulatorBackend(maze, graph, RayTable.build(maze, graph, use_cache=False), start, ServerClock())
         await backend.connect()
-        outcomes = [(await backend.execute(a.word)).outcome for a in actions]
+        poses, outcomes = [backend.grid_pose], []
+        for a in actions:
+            outcomes.append((await backend.execute(a.word)).outcome)
+            poses.append(backend.grid_pose)
         await backend.close()
-        return outcomes, [f async for f in backend.frames()][-1].jpeg
+        return outcomes, [f async for f in backend.frames()], poses
 
     return asyncio.run(play())
 
@@ -70,10 +75,26 @@ def mazes(tmp_path_factory):
 def test_a_move_into_a_landmark_is_a_collision_and_the_claim_frame_shows_it(mazes, target):
     maze, graph = mazes.load(MAZE), mazes.graph(MAZE)
     start, actions = approach(maze, graph, target)
-    outcomes, jpeg = drive(maze, graph, start, actions)
+    outcomes, frames, _ = drive(maze, graph, start, actions)
     assert outcomes[-1] == "collision"
     assert set(outcomes[:-1]) == {"ok"}
-    assert object_pixels(jpeg, Label[target.upper()]) > 300
+    assert object_pixels(frames[-1].jpeg, Label[target.upper()]) > 300
+
+
+def test_each_frame_carries_the_rays_cast_at_its_pose(mazes):
+    # The observation is looked up in the maze's ray table: it must be what the caster sees there.
+    maze, graph = mazes.load(MAZE), mazes.graph(MAZE)
+    start, actions = approach(maze, graph, "jar")
+    _, frames, poses = drive(maze, graph, start, actions)
+    assert len(frames) == len(poses) > 5
+    for frame, pose in zip(frames, poses, strict=True):
+        x, y = graph.nodes[pose.node]
+        labels, depth = cast_rays(maze, float(x), float(y), float(heading_angle(pose.heading)))
+        obs = frame.observation
+        np.testing.assert_array_equal(obs.labels, labels)
+        np.testing.assert_allclose(obs.depth, depth, atol=1e-6)
+        np.testing.assert_array_equal(obs.too_close, too_close(depth, pose.heading))
+        assert obs.forward_blocked == (graph.forward[pose.node, pose.heading] < 0)
 
 
 def test_on_the_benchmarks_walls_only_graph_the_robot_drives_into_the_landmark(mazes):
@@ -82,6 +103,6 @@ def test_on_the_benchmarks_walls_only_graph_the_robot_drives_into_the_landmark(m
     maze = mazes.load(MAZE)
     graph = NavGraph.build(maze, cache_dir=mazes.settings.cache_dir)
     start, actions = approach(maze, graph, "mug")
-    outcomes, jpeg = drive(maze, graph, start, actions)
+    outcomes, frames, _ = drive(maze, graph, start, actions)
     assert outcomes[-1] == "ok"
-    assert object_pixels(jpeg, Label.MUG) < 50
+    assert object_pixels(frames[-1].jpeg, Label.MUG) < 50
