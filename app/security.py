@@ -9,6 +9,7 @@ from __future__ import annotations
 import hashlib
 import hmac
 from dataclasses import dataclass
+from functools import lru_cache, partial
 
 from argon2 import PasswordHasher
 from argon2.exceptions import InvalidHashError, VerificationError
@@ -20,6 +21,7 @@ from app.db.models import Experimenter
 SEAT_ROLES = ("commander", "driver")
 SESSION_COOKIE = "robotslang_session"
 SESSION_MAX_AGE_S = 12 * 3600
+TOKENS_VERIFIED_KEPT = 4096  # genuine seat tokens remembered (two seats per live trial)
 # argon2id with the library's RFC 9106 low-memory profile; the parameters travel in each hash.
 HASHER = PasswordHasher()
 
@@ -45,6 +47,10 @@ class SeatTokens:
     def __init__(self, secret: str, ttl_s: float | None = None) -> None:
         self._serializer = URLSafeTimedSerializer(secret, salt="seat")
         self.ttl_s = ttl_s
+        # Every message of a seat carries its token: a genuine one is checked once (itsdangerous
+        # derives its key and the HMAC anew on each check, about a third of a message's validation).
+        # A refused token raises, and lru_cache keeps no exception: forgeries are checked every time.
+        self._verified = lru_cache(maxsize=TOKENS_VERIFIED_KEPT)(partial(self._load, max_age=None))
 
     def issue(self, trial_id: int, role: str) -> str:
         if role not in SEAT_ROLES:
@@ -52,7 +58,7 @@ class SeatTokens:
         return self._serializer.dumps({"t": trial_id, "r": role})
 
     def verify(self, token: str) -> Seat:
-        return self._load(token, max_age=None)
+        return self._verified(token)
 
     def admit(self, token: str) -> Seat:
         return self._load(token, max_age=self.ttl_s)

@@ -19,7 +19,7 @@ from sqlalchemy import select
 
 from app.db.engine import alembic_config, make_engine
 from app.db.models import Experimenter, Participant, Trial
-from app.security import SESSION_COOKIE, hash_password
+from app.security import SESSION_COOKIE, InvalidToken, Seat, SeatTokens, hash_password
 from bench.live import REPO, SeatClient, make_trial
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread, browser, log_in, page_csrf_token, submit_login
@@ -406,3 +406,18 @@ def test_the_host_header_must_name_this_server(tmp_path):
     with ServerThread(default) as server:
         assert httpx.get(server.url + "/", headers={"Host": f"localhost:{server.port}"}).status_code == 200
         assert httpx.get(server.url + "/", headers={"Host": "lab.example"}).status_code == 400
+
+
+def test_a_seat_token_checked_once_still_refuses_every_forgery():
+    # Genuine tokens are remembered (every message carries one); a forgery never is.
+    tokens = SeatTokens("key-one")
+    genuine = tokens.issue(7, "driver")
+    assert tokens.verify(genuine) == Seat(7, "driver")
+    assert tokens.verify(genuine) == Seat(7, "driver")
+    for forged in (
+        genuine[:-2] + ("xx" if not genuine.endswith("xx") else "yy"),
+        SeatTokens("key-two").issue(7, "driver"),
+    ):
+        for _ in range(2):
+            with pytest.raises(InvalidToken):
+                tokens.verify(forged)
