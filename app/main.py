@@ -94,6 +94,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         if services.relay is not None:
             await services.relay.close()  # hands its trials back first
         await services.hub.close()
+        services.log.close()
         services.engine.dispose()
 
     # No /docs or /redoc: they load scripts from a CDN and run inline code, which the CSP forbids.
