@@ -4,9 +4,10 @@ over websockets sending a chat message and a move every second.
 Prints p50/p99 of chat fan-out latency (Commander sends -> Driver receives) and of
 move-to-frame latency (Driver sends a move -> receives the new camera frame), events committed
 per second, lost chat messages (sent, never heard by the Driver) and unanswered moves (neither a
-frame nor a refusal came back), and the server's CPU (cores busy) and peak RSS, all processes
-together. The server runs as its own process (`robotslang serve --workers W`), as in use: one
-process on SQLite (WAL); with W > 1 the processes share trials through Redis (`--redis-url`) and
+frame nor a refusal came back), the server's CPU (cores busy) and peak RSS, all processes
+together, and the CPU of the bench's own seats (`client_cpu`: on a small machine they compete with
+the server for its cores). The server runs as its own process (`robotslang serve --workers W`),
+as in use: one process on SQLite (WAL); with W > 1 the processes share trials through Redis (`--redis-url`) and
 PostgreSQL (a private schema in `--postgres-url`, dropped afterwards).
 
     python -m bench.load --trials 50 --workers 1 --duration 30 [--json]
@@ -215,7 +216,7 @@ async def drive(
         with services.db() as db:  # closed: an open transaction would block dropping the schema
             return db.execute(select(func.count(Event.id))).scalar_one()
 
-    before, t0, cpu0 = count(), time.perf_counter(), server.cpu_s()
+    before, t0, cpu0, own0 = count(), time.perf_counter(), server.cpu_s(), time.process_time()
     figures.recording = True
     with Progress(console=console, transient=True) as progress:
         bar = progress.add_task(f"{len(tokens)} trials under load", total=duration)
@@ -226,11 +227,13 @@ async def drive(
     figures.recording = False
     committed, window = count() - before, time.perf_counter() - t0
     cpu = (server.cpu_s() - cpu0) / window
+    # The seats' own side: on a small machine the clients compete with the server for its cores.
+    client_cpu = (time.process_time() - own0) / window
     stop.set()
     await asyncio.sleep(DRAIN_S)
     drained.set()
     await asyncio.gather(*tasks, return_exceptions=True)
-    return figures, committed, window, cpu
+    return figures, committed, window, cpu, client_cpu
 
 
 def wait_until_up(url: str, server: subprocess.Popen) -> None:
@@ -319,7 +322,7 @@ def run_load(
                     stdout=subprocess.DEVNULL,
                     stderr=subprocess.DEVNULL,
                 )
-            figures, committed, window, cpu = asyncio.run(
+            figures, committed, window, cpu, client_cpu = asyncio.run(
                 drive(f"ws://127.0.0.1:{port}/ws/play", tokens, warmup, duration, services, processes)
             )
         finally:
@@ -344,6 +347,7 @@ def run_load(
         "lost": figures.chats_sent - figures.chats_heard,
         "unanswered": figures.moves_sent - figures.moves_answered,
         "server_cpu": round(cpu, 2),
+        "client_cpu": round(client_cpu, 2),
         "server_rss_mb": round(processes.peak_rss_mb, 1),
         "load_average": [round(x, 2) for x in os.getloadavg()],
     }
@@ -403,7 +407,7 @@ def report(f: dict) -> None:
     )
     console.print(
         f"  events committed {f['events_per_s']:7.1f} /s   server CPU {f['server_cpu']:.2f} cores   "
-        f"peak RSS {f['server_rss_mb']:.0f} MB"
+        f"(the bench's seats {f['client_cpu']:.2f})   peak RSS {f['server_rss_mb']:.0f} MB"
     )
 
 
