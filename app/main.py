@@ -16,6 +16,7 @@ from fastapi.templating import Jinja2Templates
 from sqlalchemy import select
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
+from app.backends.render import RenderProcesses
 from app.clock import ServerClock
 from app.db.engine import make_engine, make_sessionmaker, upgrade
 from app.db.models import Experimenter
@@ -59,6 +60,8 @@ def build_services(settings: Settings) -> Services:
         mazes=Mazes(settings),
     )
     services.hub = TrialHub(services)
+    if settings.render_processes:
+        services.renderer = RenderProcesses(settings.render_processes, settings.benchmark)
     return services
 
 
@@ -89,12 +92,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
             services.relay = RedisRelay(services, settings.redis_url)
             await services.relay.start()
+        if isinstance(services.renderer, RenderProcesses):
+            services.renderer.warm_up()
         await services.hub.resume_running()
         yield
         if services.relay is not None:
             await services.relay.close()  # hands its trials back first
         await services.hub.close()
         services.log.close()
+        services.renderer.close()
         services.engine.dispose()
 
     # No /docs or /redoc: they load scripts from a CDN and run inline code, which the CSP forbids.

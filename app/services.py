@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any
 from sqlalchemy import Engine
 from sqlalchemy.orm import Session, sessionmaker
 
+from app.backends.render import FrameRenderer, InThread
 from app.clock import ServerClock
 from app.login import LoginGuard
 from app.mazes import Mazes
@@ -39,4 +40,5 @@ class Services:
     robots: Any = None  # `RobotLinks`: the rovers and cameras connected here (made by `robot_links`)
     ldh_belief: BeliefModel | None = None  # the watch page's LDH belief (made by `belief_model`)
     filters: FilterWorker = field(default_factory=FilterWorker)  # every trial's particle filter turns
+    renderer: FrameRenderer = field(default_factory=InThread)  # where simulator frames are drawn
     driver_checks: dict[Any, str | None] = field(default_factory=dict)  # agents' start checks, by file version

@@ -27,6 +27,8 @@ class Settings(BaseSettings):
     # render, JPEG and particle-filter threads would otherwise hold it from the event loop for
     # whole slices: at 200 trials, move-to-frame p99 42-63 ms at 1 ms against 56-83 ms at 5 ms (bench.load).
     gil_switch_interval_s: float = 0.001
+    # Processes that draw the simulator's frames (app.backends.render); 0: a thread of the server.
+    render_processes: int = Field(default=1, ge=0)
     agent_move_interval_s: float = 1.0  # pace of an agent Driver
     redis_url: str | None = None  # fan-out between processes; in-process when unset
     # Origins (scheme://host[:port]) trusted beside the server's own, for state-changing requests and sockets.

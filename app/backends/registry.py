@@ -55,7 +55,7 @@ async def simulator_backend(spec: str, trial: RobotTrial, services: Services) ->
     else:
         start = await asyncio.to_thread(mazes.start_pose, state.maze, state.targets[0], trial.trial_id)
     rays = await asyncio.to_thread(mazes.rays, state.maze)
-    return SimulatorBackend(mazes.load(state.maze), graph, rays, start, services.clock)
+    return SimulatorBackend(mazes.load(state.maze), graph, rays, start, services.clock, services.renderer)
 
 
 register_backend("sim", simulator_backend)

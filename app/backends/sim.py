@@ -2,7 +2,8 @@
 
 Moves follow the grid dynamics of `sim.dynamics` (0.07 m forward, 45 degree turns, a
 collision leaves the robot where it was); after each move the first-person render of the
-new pose is the camera frame. Poses are discrete (a graph node and one of eight headings), so
+new pose is the camera frame, drawn by the server's `FrameRenderer` (`app.backends.render`: in
+processes of their own by default). Poses are discrete (a graph node and one of eight headings), so
 the JPEG of each pose is kept (the last `FRAMES_KEPT` of this trial): a turn back, or a step back
 to where the robot was, costs no render; and the ray observation a frame carries is the maze's
 `RayTable` row for the pose (the maze's rays are cast once, not at every frame).
@@ -14,10 +15,10 @@ import asyncio
 from collections import OrderedDict
 from collections.abc import AsyncIterator
 
-import cv2
 import numpy as np
 
 from app.backends.base import Frame, MoveOutcome
+from app.backends.render import FRAME_SIZE, FrameRenderer, InThread, render_jpeg
 from app.clock import ServerClock
 from app.trial.vocabulary import MoveAction, Outcome
 from sim.dynamics import Action, Pose, step
@@ -27,17 +28,24 @@ from sim.navgraph import NavGraph
 from sim.observations import RayTable
 from sim.perception import RayObservation
 
-FRAME_SIZE = (320, 240)
-JPEG_QUALITY = 80
 FRAMES_KEPT = 32  # JPEGs of recent poses per trial (about 15 kB each)
 
 
 class SimulatorBackend:
-    def __init__(self, maze: Maze, graph: NavGraph, rays: RayTable, start: Pose, clock: ServerClock) -> None:
+    def __init__(
+        self,
+        maze: Maze,
+        graph: NavGraph,
+        rays: RayTable,
+        start: Pose,
+        clock: ServerClock,
+        renderer: FrameRenderer | None = None,
+    ) -> None:
         self.maze, self.graph, self.rays, self.clock = maze, graph, rays, clock
+        self.renderer = renderer or InThread()
         self._pose = start
         self._frames: asyncio.Queue[Frame | None] = asyncio.Queue()
-        self._jpegs: OrderedDict[Pose, tuple[bytes, RayObservation]] = OrderedDict()  # recent poses', oldest first
+        self._jpegs: OrderedDict[Pose, bytes] = OrderedDict()  # recent poses', oldest first
 
     @property
     def grid_pose(self) -> Pose:
@@ -64,36 +72,31 @@ class SimulatorBackend:
 
     async def _capture(self) -> None:
         pose = self._pose
-        kept = self._jpegs.pop(pose, None)
-        if kept is None:
-            # Rendering and encoding release the GIL: off the event loop, other trials keep moving.
-            kept = await asyncio.to_thread(self.frame_at, pose)
-        self._jpegs[pose] = kept
+        jpeg = self._jpegs.pop(pose, None)
+        if jpeg is None:  # drawn off the event loop: other trials keep moving
+            jpeg = await self.renderer.jpeg(self.maze, *self._continuous(pose))
+        self._jpegs[pose] = jpeg
         while len(self._jpegs) > FRAMES_KEPT:
             self._jpegs.popitem(last=False)
-        jpeg, observation = kept
-        self._frames.put_nowait(Frame(jpeg, self.clock.now_ns(), *FRAME_SIZE, observation=observation))
+        frame = Frame(jpeg, self.clock.now_ns(), *FRAME_SIZE, observation=self.observation_at(pose))
+        self._frames.put_nowait(frame)
 
-    def frame_at(self, pose: Pose) -> tuple[bytes, RayObservation]:
-        """The frame at `pose` and the simulator's ray observation there (what the frame shows)."""
+    def _continuous(self, pose: Pose) -> tuple[float, float, float]:
         x, y = self.graph.nodes[pose.node]
+        return float(x), float(y), float(heading_angle(pose.heading))
+
+    def observation_at(self, pose: Pose) -> RayObservation:
+        """The simulator's ray observation at `pose` (what its frame shows): the ray table's row."""
         at = (pose.node, pose.heading)
         rays = self.rays
-        observation = RayObservation(
+        return RayObservation(
             rays.labels[at],
             rays.depth[at],
             rays.too_close[at],
             np.ones(rays.labels.shape[-1], dtype=bool),
             bool(rays.forward_blocked[at]),
         )
-        return render_jpeg(self.maze, float(x), float(y), float(heading_angle(pose.heading))), observation
 
-
-def render_jpeg(maze: Maze, x: float, y: float, theta: float) -> bytes:
-    from sim.render import first_person  # written alongside; imported when the first frame is taken
-
-    image = first_person(maze, x, y, theta, size=FRAME_SIZE)
-    ok, buffer = cv2.imencode(".jpg", np.ascontiguousarray(image), [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
-    if not ok:
-        raise RuntimeError("JPEG encoding of a simulator frame failed")
-    return buffer.tobytes()
+    def frame_at(self, pose: Pose) -> tuple[bytes, RayObservation]:
+        """The frame at `pose`, drawn here, and its observation."""
+        return render_jpeg(self.maze, *self._continuous(pose)), self.observation_at(pose)

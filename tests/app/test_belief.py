@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from app.backends.sim import render_jpeg
+from app.backends.render import render_jpeg
 from app.perception.belief import TrialBelief
 from app.perception.cameras import CameraUnknown, driver_calibration, learned
 from app.settings import Settings

@@ -1,0 +1,142 @@
+"""Simulator frames drawn in render processes of their own (setting RENDER_PROCESSES): the same
+JPEG as drawn in the server, delivered to the Driver, and a render process killed mid-trial
+costs no frame."""
+
+from __future__ import annotations
+
+import asyncio
+import base64
+import os
+import signal
+import time
+
+import pytest
+
+from app.backends.render import RenderProcesses, render_jpeg
+from app.mazes import Mazes
+from app.settings import Settings
+from bench.live import SeatClient, ServerProcess, make_trial
+from sim.geometry import heading_angle
+from tests.app.conftest import platform_settings
+from tests.app.live import ServerThread
+from tests.app.trial_play import move, start_trial
+
+POSES = [(100, 0), (200, 3), (300, 5), (400, 7)]
+
+
+@pytest.fixture(scope="module")
+def maze_and_graph(tmp_path_factory):
+    mazes = Mazes(Settings(data_dir=tmp_path_factory.mktemp("data"), cache_dir=tmp_path_factory.mktemp("cache")))
+    name = mazes.names()[0]
+    return mazes.load(name), mazes.graph(name)
+
+
+def continuous(graph, node: int, heading: int) -> tuple[float, float, float]:
+    x, y = graph.nodes[node % graph.n]
+    return float(x), float(y), float(heading_angle(heading))
+
+
+def test_a_render_process_draws_the_frame_the_server_would(maze_and_graph):
+    maze, graph = maze_and_graph
+    renderer = RenderProcesses(1, None)
+
+    async def draw() -> list[bytes]:
+        return [await renderer.jpeg(maze, *continuous(graph, n, h)) for n, h in POSES]
+
+    try:
+        drawn = asyncio.run(draw())
+    finally:
+        renderer.close()
+    assert drawn == [render_jpeg(maze, *continuous(graph, n, h)) for n, h in POSES]
+
+
+def test_a_killed_render_process_costs_no_frame(maze_and_graph):
+    maze, graph = maze_and_graph
+    renderer = RenderProcesses(1, None)
+
+    async def draw() -> list[bytes]:
+        frames = [await renderer.jpeg(maze, *continuous(graph, *POSES[0]))]
+        for pid in list(renderer._pool._processes):  # the pool's own processes
+            os.kill(pid, signal.SIGKILL)
+        for pose in POSES[1:]:  # the first after the kill is drawn in the server, then a new pool
+            frames.append(await renderer.jpeg(maze, *continuous(graph, *pose)))
+        return frames
+
+    try:
+        drawn = asyncio.run(draw())
+        assert renderer._pool._processes, "a new render process serves the later frames"
+    finally:
+        renderer.close()
+    assert drawn == [render_jpeg(maze, *continuous(graph, n, h)) for n, h in POSES]
+
+
+def test_the_driver_sees_frames_drawn_in_a_render_process(tmp_path):
+    settings = platform_settings(tmp_path, render_processes=1, cache_dir=tmp_path / "cache")
+    with ServerThread(settings) as server:
+        services = server.services
+        assert isinstance(services.renderer, RenderProcesses)
+        trial_id = make_trial(services, services.mazes.names()[0])
+        tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+
+        async def play() -> list[tuple[bytes, tuple[float, float, float]]]:
+            async with (
+                SeatClient(server.ws_url, tokens["commander"]) as commander,
+                SeatClient(server.ws_url, tokens["driver"]) as driver,
+            ):
+                await start_trial(commander, driver)
+                seen = []
+                for action in ("left", "left", "right", "forward"):
+                    executed = await move(driver, action)
+                    frame = await driver.event("frame", start=driver.received.index(executed))
+                    seen.append((base64.b64decode(frame["jpeg"]), services.hub.peek(trial_id).backend.pose()))
+                return seen
+
+        seen = asyncio.run(play())
+        maze = services.mazes.load(services.mazes.names()[0])
+    for jpeg, pose in seen:
+        assert jpeg == render_jpeg(maze, *pose)
+
+
+def children(pid: int) -> set[int]:
+    found = set()
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/status") as f:
+                    status = f.read()
+            except OSError:
+                continue
+            if f"\nPPid:\t{pid}\n" in status:
+                found.add(int(entry))
+    return found
+
+
+def alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            return "State:\tZ" not in f.read()  # a zombie has exited
+    except OSError:
+        return False
+
+
+@pytest.mark.slow
+def test_render_processes_end_with_a_server_killed_by_sigkill(tmp_path):
+    settings = platform_settings(tmp_path, render_processes=1, cache_dir=tmp_path / "cache")
+    env = {
+        "ROBOTSLANG_DATA_DIR": str(settings.data_dir),
+        "ROBOTSLANG_SECRET_KEY": "render-test",
+        "ROBOTSLANG_CACHE_DIR": str(tmp_path / "cache"),
+        "ROBOTSLANG_RENDER_PROCESSES": "1",
+    }
+    server = ServerProcess(env).start()
+    try:
+        deadline = time.monotonic() + 60
+        while not (renderers := children(server.proc.pid)) and time.monotonic() < deadline:
+            time.sleep(0.1)  # the pool starts its process at the server's start
+        assert renderers, "the server started a render process"
+    finally:
+        server.kill()
+    deadline = time.monotonic() + 60
+    while any(alive(p) for p in renderers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(alive(p) for p in renderers), "a render process outlived its server"
