@@ -26,7 +26,7 @@ PARTS = [
     ("particle filter (TrialBelief)", ("app/perception/belief.py",)),
     ("simulator rays (SimulatorBackend.frame_at)", ("cast_rays", "sim/observations.py")),
     ("render (first_person)", ("first_person", "sim/render.py")),
-    ("JPEG encode", ("render_jpeg", "app/backends/sim.py")),
+    ("JPEG encode", ("render_jpeg", "app/backends/render.py")),
     ("frame file write", ("_write_frame_file", "app/trial/runtime.py")),
     ("base64 of frames", ("b64encode", "base64.py")),
     ("redis relay", ("app/trial/relay.py",)),
@@ -35,6 +35,7 @@ PARTS = [
 ]
 NOT_HOT = ("app/cli.py", "app/commands.py", "app/serving.py")  # on every stack: the server's start
 IDLE_LEAVES = {"run", "wait", "select", "poll", "_worker", "get"}  # a thread with nothing to do
+MP_IDLE_LEAVES = {"_recv", "_recv_bytes", "recv_bytes", "__enter__", "acquire"}  # a render process waiting for work
 
 
 def matches(frame: dict, pattern: tuple[str, ...]) -> bool:
@@ -50,16 +51,22 @@ def summarize(path: str) -> dict[str, dict[str, float]]:
     frames = data["shared"]["frames"]
     out: dict[str, collections.Counter] = collections.defaultdict(collections.Counter)
     for profile in data["profiles"]:
-        kind = "event loop" if '"MainThread"' in profile["name"] else "threads"
+        # py-spy roots a child's stacks in its parent's: the render processes' say `multiprocessing`.
+        spawned = any(
+            "from multiprocessing" in frames[i]["name"] for stack in profile["samples"][:1] for i in stack[:2]
+        )
+        kind = "render processes" if spawned else "event loop" if '"MainThread"' in profile["name"] else "threads"
         for stack, weight in zip(profile["samples"], profile["weights"]):
             if not stack:
                 continue
             leaf = frames[stack[-1]]
-            if leaf["name"] in IDLE_LEAVES and (
+            if (leaf["name"] in IDLE_LEAVES or leaf["name"] in MP_IDLE_LEAVES) and (
                 "threading.py" in leaf.get("file", "")
                 or "runners.py" in leaf.get("file", "")
                 or "thread.py" in leaf.get("file", "")
                 or "queue.py" in leaf.get("file", "")
+                or "connection.py" in leaf.get("file", "")
+                or "synchronize.py" in leaf.get("file", "")
             ):
                 out[kind]["idle"] += weight
                 continue
