@@ -1,7 +1,8 @@
 """Server memory over a study: simulator trials on every maze of the library, one after another,
 `--live` of them running at a time (each opened as a seat would open it, then aborted), in one
-process as the server runs them. Prints the process's RSS: at the start, its peak and at the
-end, and how many mazes and graphs the process still holds.
+process as the server runs them. Prints the RSS of the process and of its render processes
+(`RENDER_PROCESSES`) together: at the start, its peak and at the end, and how many mazes and
+graphs the process still holds.
 
     ROBOTSLANG_BENCHMARK=../shared/robotslang python -m bench.memory --live 8
 """
@@ -25,11 +26,19 @@ from app.trial.setup import create_participant, create_team, create_trial
 console = Console()
 
 
+def _status(pid: int | str) -> dict[str, str]:
+    try:
+        lines = Path(f"/proc/{pid}/status").read_text().splitlines()
+    except OSError:  # it ended meanwhile
+        return {}
+    return dict(line.split(":", 1) for line in lines if ":" in line)
+
+
 def rss_mb() -> float:
-    for line in Path("/proc/self/status").read_text().splitlines():
-        if line.startswith("VmRSS:"):
-            return int(line.split()[1]) / 1024
-    raise RuntimeError("no VmRSS in /proc/self/status")
+    """This process's RSS and its children's (the render processes), MB."""
+    me = os.getpid()
+    pids = [me] + [int(p) for p in os.listdir("/proc") if p.isdigit() and _status(p).get("PPid", "").strip() == str(me)]
+    return sum(int(_status(p).get("VmRSS", "0 kB").split()[0]) for p in pids) / 1024
 
 
 def new_trial(services, i: int, maze: str, names: list[str]) -> int:
@@ -58,7 +67,8 @@ async def study(services, live: int, limit: int | None) -> dict:
         bar = progress.add_task(f"trials on {len(names)} mazes, {live} at a time", total=len(names))
         for i, maze in enumerate(names):
             runtime = await services.hub.local(new_trial(services, i, maze, names))
-            await asyncio.sleep(0.05)  # its first frame
+            while runtime.state.last_frame_id is None:  # its first frame, as a seat would see it
+                await asyncio.sleep(0.01)
             running.append(runtime)
             if len(running) > live:
                 running.popleft().abort()

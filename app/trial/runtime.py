@@ -118,7 +118,10 @@ class TrialRuntime:
             if self.seats.get(Role.DRIVER) is self.agent:
                 del self.seats[Role.DRIVER]
         if self.belief is not None:
-            self.services.filters.forget(self.belief)
+            # Let go of the filter now: its particles and free-space map (several MB, and the
+            # maze) sit in reference cycles with this runtime that the collector frees only later.
+            belief, self.belief = self.belief, None
+            self.services.filters.forget(belief)
         if self.backend is not None:
             backend, self.backend = self.backend, None
             await backend.close()
