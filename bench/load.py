@@ -41,7 +41,7 @@ from sqlalchemy import create_engine, func, select, text
 from app.db.models import Event
 from app.main import build_services
 from app.settings import Settings
-from app.trial.setup import create_participant, create_team, create_trial
+from bench.live import ServerProcesses, team_trial
 
 console = Console(stderr=True)
 P99_GOAL_MS = 100.0
@@ -55,22 +55,11 @@ def setup_trials(settings: Settings, n: int) -> tuple[list[tuple[str, str]], obj
     tokens = []
     with services.db.begin() as db:
         for i in range(n):
-            a, b = create_participant(db, f"load-c{i}"), create_participant(db, f"load-d{i}")
-            team = create_team(db, f"load-team-{i}", a.id, b.id)
-            trial = create_trial(
-                db,
-                team_id=team.id,
-                maze=maze_names[i % len(maze_names)],
-                targets=["jar", "mug", "paddle"],
-                backend="sim",
-                driver="human",
-                commander_id=a.id,
-                maze_names=maze_names,
-                now_ns=services.clock.now_ns(),
-            )
-            tokens.append((services.seats.issue(trial.id, "commander"), services.seats.issue(trial.id, "driver")))
+            maze = maze_names[i % len(maze_names)]
+            trial_id = team_trial(db, f"load-team-{i}", maze, maze_names, services.clock.now_ns())
+            tokens.append((services.seats.issue(trial_id, "commander"), services.seats.issue(trial_id, "driver")))
     for name in set(maze_names[i % len(maze_names)] for i in range(n)):
-        services.mazes.graph(name)  # warm the graph cache so the server does not build them under load
+        services.mazes.rays(name)  # warm the graph and ray caches so the server does not build them under load
     return tokens, services
 
 
@@ -149,55 +138,9 @@ def percentile(values: list[float], q: float) -> float:
     return float(np.percentile(values, q)) if values else float("nan")
 
 
-class ServerProcesses:
-    """CPU seconds and RSS of the server process and its children (the workers), from /proc."""
-
-    def __init__(self, pid: int) -> None:
-        self.pid = pid
-        self.peak_rss_mb = 0.0
-
-    def pids(self) -> list[int]:
-        children: dict[int, list[int]] = {}
-        for entry in Path("/proc").iterdir():
-            if entry.name.isdigit():
-                try:
-                    ppid = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
-                except (OSError, IndexError, ValueError):
-                    continue
-                children.setdefault(ppid, []).append(int(entry.name))
-        found, todo = [], [self.pid]
-        while todo:
-            pid = todo.pop()
-            found.append(pid)
-            todo.extend(children.get(pid, []))
-        return found
-
-    def cpu_s(self) -> float:
-        total = 0.0
-        for pid in self.pids():
-            try:
-                fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-            except OSError:
-                continue
-            total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-        return total
-
-    def sample_rss(self) -> float:
-        rss = 0.0
-        for pid in self.pids():
-            try:
-                for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-                    if line.startswith("VmRSS:"):
-                        rss += int(line.split()[1]) / 1024
-            except OSError:
-                continue
-        self.peak_rss_mb = max(self.peak_rss_mb, rss)
-        return rss
-
-
 async def drive(
     ws_url: str, tokens, warmup: float, duration: float, services, server: ServerProcesses
-) -> tuple[Figures, int, float, float]:
+) -> tuple[Figures, int, float, float, float]:
     figures, stop, drained = Figures(), asyncio.Event(), asyncio.Event()
     tasks = [asyncio.create_task(run_trial(ws_url, t, figures, stop, drained)) for t in tokens]
     with Progress(console=console, transient=True) as progress:  # opening hundreds of trials takes a while

@@ -21,42 +21,19 @@ from rich.progress import Progress
 
 from app.main import create_app
 from app.settings import Settings
-from app.trial.setup import create_participant, create_team, create_trial
+from bench.live import ServerProcesses, team_trial
 
 console = Console()
 
 
-def _status(pid: int | str) -> dict[str, str]:
-    try:
-        lines = Path(f"/proc/{pid}/status").read_text().splitlines()
-    except OSError:  # it ended meanwhile
-        return {}
-    return dict(line.split(":", 1) for line in lines if ":" in line)
-
-
 def rss_mb() -> float:
     """This process's RSS and its children's (the render processes), MB."""
-    me = os.getpid()
-    pids = [me] + [int(p) for p in os.listdir("/proc") if p.isdigit() and _status(p).get("PPid", "").strip() == str(me)]
-    return sum(int(_status(p).get("VmRSS", "0 kB").split()[0]) for p in pids) / 1024
+    return ServerProcesses(os.getpid()).sample_rss()
 
 
 def new_trial(services, i: int, maze: str, names: list[str]) -> int:
     with services.db.begin() as db:
-        a, b = create_participant(db, f"mem-c{i}"), create_participant(db, f"mem-d{i}")
-        team = create_team(db, f"mem-team-{i}", a.id, b.id)
-        trial = create_trial(
-            db,
-            team_id=team.id,
-            maze=maze,
-            targets=["jar", "mug", "paddle"],
-            backend="sim",
-            driver="human",
-            commander_id=a.id,
-            maze_names=names,
-            now_ns=services.clock.now_ns(),
-        )
-        return trial.id
+        return team_trial(db, f"mem-team-{i}", maze, names, services.clock.now_ns())
 
 
 async def study(services, live: int, limit: int | None) -> dict:

@@ -64,8 +64,7 @@ class SimulatorBackend:
             yield frame
 
     def pose(self) -> tuple[float, float, float]:
-        x, y = self.graph.nodes[self._pose.node]
-        return float(x), float(y), float(heading_angle(self._pose.heading))
+        return self._continuous(self._pose)
 
     async def close(self) -> None:
         self._frames.put_nowait(None)

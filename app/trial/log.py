@@ -113,8 +113,7 @@ class EventLog:
             else:
                 batch, self._pending = self._pending, _Batch()
                 self._deliver(batch, self._commit(batch))  # waiting anyway: commit here
-        self._deliver(_Batch(after=self._pending.after), {})
-        self._pending.after = []
+        self._deliver_waiting()
 
     def close(self) -> None:
         """Commit what is queued and stop the writer (the server's shutdown)."""
@@ -158,9 +157,13 @@ class EventLog:
             return
         if self._pending.events:
             self._submit()
-        else:  # what waited only for the batch just committed
-            self._deliver(_Batch(after=self._pending.after), {})
-            self._pending.after = []
+        else:
+            self._deliver_waiting()
+
+    def _deliver_waiting(self) -> None:
+        """Send what waited only for batches already committed (no event was appended after it)."""
+        after, self._pending.after = self._pending.after, []
+        self._deliver(_Batch(after=after), {})
 
     def _deliver(self, batch: _Batch, lost: dict[int, Exception]) -> None:
         for trial_id, err in lost.items():

@@ -12,8 +12,8 @@ from sqlalchemy import func, select
 from app.db.engine import make_engine, make_sessionmaker, upgrade
 from app.db.models import Event
 from app.trial.log import EventLog
-from app.trial.setup import create_participant, create_team, create_trial
 from app.trial.state import LoggedEvent
+from bench.live import team_trial
 
 MAZE = "gen-000"
 TRIALS = 3
@@ -23,24 +23,7 @@ TURNS = 20
 def new_trials(sessions, n: int) -> list[int]:
     """`n` trials of `n` teams (a team plays each maze once)."""
     with sessions.begin() as db:
-        ids = []
-        for i in range(n):
-            a, b = create_participant(db, f"a{i}"), create_participant(db, f"b{i}")
-            team = create_team(db, f"team {i}", a.id, b.id)
-            trial = create_trial(
-                db,
-                team_id=team.id,
-                maze=MAZE,
-                targets=["jar", "mug", "paddle"],
-                backend="sim",
-                driver="human",
-                commander_id=a.id,
-                maze_names=[MAZE],
-                now_ns=0,
-            )
-            db.flush()
-            ids.append(trial.id)
-        return ids
+        return [team_trial(db, f"team {i}", MAZE, [MAZE], 0) for i in range(n)]
 
 
 def committed_count(sessions, trial_id: int) -> int:

@@ -15,7 +15,7 @@ import pytest
 from app.backends.render import RenderProcesses, render_jpeg
 from app.mazes import Mazes
 from app.settings import Settings
-from bench.live import SeatClient, ServerProcess, make_trial
+from bench.live import SeatClient, ServerProcess, ServerProcesses, make_trial
 from sim.geometry import heading_angle
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread
@@ -45,6 +45,7 @@ def test_a_render_process_draws_the_frame_the_server_would(maze_and_graph):
 
     try:
         drawn = asyncio.run(draw())
+        assert renderer._pool._processes, "drawn in the pool's process, not by the fallback here"
     finally:
         renderer.close()
     assert drawn == [render_jpeg(maze, *continuous(graph, n, h)) for n, h in POSES]
@@ -97,20 +98,6 @@ def test_the_driver_sees_frames_drawn_in_a_render_process(tmp_path):
         assert jpeg == render_jpeg(maze, *pose)
 
 
-def children(pid: int) -> set[int]:
-    found = set()
-    for entry in os.listdir("/proc"):
-        if entry.isdigit():
-            try:
-                with open(f"/proc/{entry}/status") as f:
-                    status = f.read()
-            except OSError:
-                continue
-            if f"\nPPid:\t{pid}\n" in status:
-                found.add(int(entry))
-    return found
-
-
 def alive(pid: int) -> bool:
     try:
         with open(f"/proc/{pid}/status") as f:
@@ -131,7 +118,10 @@ def test_render_processes_end_with_a_server_killed_by_sigkill(tmp_path):
     server = ServerProcess(env).start()
     try:
         deadline = time.monotonic() + 60
-        while not (renderers := children(server.proc.pid)) and time.monotonic() < deadline:
+        while (
+            not (renderers := set(ServerProcesses(server.proc.pid).pids()) - {server.proc.pid})
+            and time.monotonic() < deadline
+        ):
             time.sleep(0.1)  # the pool starts its process at the server's start
         assert renderers, "the server started a render process"
     finally:
