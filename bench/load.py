@@ -113,7 +113,12 @@ async def run_trial(
         readers = [asyncio.create_task(driver_reader()), asyncio.create_task(commander_reader())]
         figures.ready += 1
         rng = random.Random()
-        await asyncio.sleep(rng.random())  # spread the trials over the second
+        loop = asyncio.get_running_loop()
+        # Each trial keeps its own phase in the second, on absolute deadlines: with sleeps measured
+        # from the last send, every stall of this process lined up the trials' phases, and a minute
+        # in, the offered load came in bursts several times the mean (20 ms bins: CV 0.6 -> 1.5).
+        start = loop.time() + rng.random()
+        await asyncio.sleep(start - loop.time())
         await commander.send(json.dumps({"type": "localize", "token": commander_token, "x": 1.2, "y": 1.0}))
         i = 0
         while not stop.is_set():
@@ -121,14 +126,14 @@ async def run_trial(
             chats[text] = (time.perf_counter(), figures.recording)
             figures.chats_sent += figures.recording
             await commander.send(json.dumps({"type": "chat", "token": commander_token, "text": text}))
-            await asyncio.sleep(0.5)
+            await asyncio.sleep(start + i + 0.5 - loop.time())
             if not move:  # one move at a time, as the Driver's page does
                 move[:] = [time.perf_counter(), figures.recording]
                 figures.moves_sent += figures.recording
                 action = rng.choice(["forward", "forward", "left", "right"])
                 await driver.send(json.dumps({"type": "move", "token": driver_token, "action": action}))
-            await asyncio.sleep(0.5)
             i += 1
+            await asyncio.sleep(start + i - loop.time())
         await drained.wait()
         for task in readers:
             task.cancel()

@@ -12,8 +12,8 @@ import json
 
 # (part, a frame that puts a sample in it); the first part whose frame is on the stack wins.
 PARTS = [
-    ("commit (EventLog.append, SQLite)", ("append", "app/trial/log.py")),
-    ("commit (EventLog.append, SQLite)", ("flush", "app/trial/log.py")),
+    ("commit (EventLog's group commit)", ("_commit", "app/trial/log.py")),
+    ("event log queueing (EventLog.append)", ("append", "app/trial/log.py")),
     ("history load (EventLog.load)", ("load", "app/trial/log.py")),
     ("validation (pydantic + token)", ("_parse", "app/trial/runtime.py")),
     ("decide", ("decide", "app/trial/decide.py")),
@@ -36,6 +36,9 @@ PARTS = [
 NOT_HOT = ("app/cli.py", "app/commands.py", "app/serving.py")  # on every stack: the server's start
 IDLE_LEAVES = {"run", "wait", "select", "poll", "_worker", "get"}  # a thread with nothing to do
 MP_IDLE_LEAVES = {"_recv", "_recv_bytes", "recv_bytes", "__enter__", "acquire"}  # a render process waiting for work
+# (leaf, file) of threads that only wait: a render process watching for its server's death, and
+# multiprocessing's resource tracker (a process of its own, which py-spy counts with the render processes)
+WAITERS = {("_exit_with", "app/backends/render.py"), ("main", "multiprocessing/resource_tracker.py")}
 
 
 def matches(frame: dict, pattern: tuple[str, ...]) -> bool:
@@ -60,13 +63,18 @@ def summarize(path: str) -> dict[str, dict[str, float]]:
             if not stack:
                 continue
             leaf = frames[stack[-1]]
-            if (leaf["name"] in IDLE_LEAVES or leaf["name"] in MP_IDLE_LEAVES) and (
-                "threading.py" in leaf.get("file", "")
-                or "runners.py" in leaf.get("file", "")
-                or "thread.py" in leaf.get("file", "")
-                or "queue.py" in leaf.get("file", "")
-                or "connection.py" in leaf.get("file", "")
-                or "synchronize.py" in leaf.get("file", "")
+            waiting = any(leaf["name"] == name and leaf.get("file", "").endswith(where) for name, where in WAITERS)
+            if (
+                waiting
+                or (leaf["name"] in IDLE_LEAVES or leaf["name"] in MP_IDLE_LEAVES)
+                and (
+                    "threading.py" in leaf.get("file", "")
+                    or "runners.py" in leaf.get("file", "")
+                    or "thread.py" in leaf.get("file", "")
+                    or "queue.py" in leaf.get("file", "")
+                    or "connection.py" in leaf.get("file", "")
+                    or "synchronize.py" in leaf.get("file", "")
+                )
             ):
                 out[kind]["idle"] += weight
                 continue
