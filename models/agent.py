@@ -43,6 +43,9 @@ class AgentConfig:
     target_rays: bool = False  # add, per ray, whether it sees the target object
     critic: bool = False  # a value head, for the actor-critic loss on the distance covered
     stop_head: bool = False  # P(within the success radius), which decides the greedy agent's stop
+    # At test time, each earlier visit of the pose a move leads to lowers that move's logit by
+    # this much (0: off): a greedy Driver otherwise turns on the spot or shuttles to the cap.
+    revisit_penalty: float = 0.0
     attention_dim: int = 32  # keys and values are projected once per dialog, so each step is cheap
     context_tokens: int = MAX_TOKENS  # the encoder's fixed (left-padded) input width
 
@@ -133,10 +136,19 @@ class Seq2SeqAgent(nn.Module):
 
 
 def greedy_actions(
-    logits: torch.Tensor, stop: torch.Tensor | None, stop_allowed: torch.Tensor | None = None
+    logits: torch.Tensor,
+    stop: torch.Tensor | None,
+    stop_allowed: torch.Tensor | None = None,
+    visits: torch.Tensor | None = None,
+    revisit_penalty: float = 0.0,
 ) -> torch.Tensor:
     """The test-time decision: the best-scored action, or stop where the stop head (if any)
-    is confident the goal is within reach and a stop is allowed."""
+    is confident the goal is within reach and a stop is allowed. `visits` (B, 3): how often the
+    episode has been in the pose that forward, left and right lead to; each visit costs that
+    move `revisit_penalty` of its score."""
+    if visits is not None and revisit_penalty:
+        logits = logits.clone()
+        logits[:, :STOP] -= revisit_penalty * visits
     action = logits.argmax(dim=1)
     if stop is None:
         return action

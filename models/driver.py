@@ -8,7 +8,8 @@ known pose (a rover) it observes the rays perceived from the camera frame (`rays
 `RayTable.features` layout) and masks forward where the particle filter's belief, once it is
 concentrated, stands facing a wall on the graph (else where the perceived rays say the way
 ahead is blocked); with neither it sees zeros and forward is not masked. After the Commander
-rejects a claim it does not stop again until it has moved.
+rejects a claim it does not stop again until it has moved. Where the pose is known (the
+simulator) it counts the poses of its episode, for its revisit penalty, as the rollout does.
 
 The web app seats it as `agent:seq2seq` (`app/drivers/seq2seq.py`), with the checkpoint of the
 setting ROBOTSLANG_SEQ2SEQ_CHECKPOINT.
@@ -16,6 +17,7 @@ setting ROBOTSLANG_SEQ2SEQ_CHECKPOINT.
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -24,13 +26,14 @@ import numpy as np
 import torch
 
 from models.agent import START, STOP, greedy_actions, observation_input
-from sim.dynamics import Action, snap_pose
+from sim.dynamics import Action, Pose, snap_pose, step
 from sim.labels import object_label
 from sim.maze import Maze
 from sim.navgraph import NavGraph
 from sim.observations import RayTable
 
 MazeLoader = Callable[[str], tuple[Maze, NavGraph]]
+MOVES = (Action.FORWARD, Action.LEFT, Action.RIGHT)  # the order of `greedy_actions`' visits
 BELIEF_MASK_SPREAD_M = 0.15  # a belief spread wider than this says too little about the walls ahead
 
 
@@ -59,6 +62,7 @@ class Seq2SeqDriver:
         self.ctx, self.ctx_mask, self.state = self.agent.encode(tokens, lengths)
         self.prev = torch.tensor([START])
         self.encoded_for = (len(dialog), target)
+        self._visits: Counter[Pose] = Counter()  # a new episode: poses counted afresh, as in training
 
     @torch.no_grad()
     def act(self, dialog: list[dict[str, str]], observation: dict[str, Any]) -> str:
@@ -72,10 +76,14 @@ class Seq2SeqDriver:
             self._rejected = observation["rejected"]
             self._stop_held = True  # the Commander said no: move before claiming again
         pose = observation.get("pose")
-        if pose is not None and self.blind != "vision":
-            p = snap_pose(graph, *pose)
-            obs = torch.from_numpy(table[p.node, p.heading][None].copy())
-            blocked = torch.tensor([bool(graph.forward[p.node, p.heading] < 0)])
+        here = snap_pose(graph, *pose) if pose is not None else None
+        visits = None
+        if here is not None:
+            self._visits[here] += 1
+            visits = torch.tensor([[self._visits[step(graph, here, a)[0]] for a in MOVES]], dtype=torch.float32)
+        if here is not None and self.blind != "vision":
+            obs = torch.from_numpy(table[here.node, here.heading][None].copy())
+            blocked = torch.tensor([bool(graph.forward[here.node, here.heading] < 0)])
         elif observation.get("rays") is not None and self.blind != "vision":
             rays = np.asarray(observation["rays"], dtype=np.float32)
             obs = torch.from_numpy(rays[None].copy())
@@ -89,7 +97,7 @@ class Seq2SeqDriver:
         logits, self.state, _, _, stop = self.agent.step(
             obs, self.prev, self.state, self.ctx, self.ctx_mask, blocked, stop_allowed
         )
-        action = int(greedy_actions(logits, stop, stop_allowed)[0])
+        action = int(greedy_actions(logits, stop, stop_allowed, visits, self.agent.config.revisit_penalty)[0])
         self.prev = torch.tensor([action])
         if action != STOP:
             self._stop_held = False

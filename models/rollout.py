@@ -14,6 +14,8 @@ radius earns a bonus. Its stop is not masked: it learns where stopping beats goi
 An agent with a stop head learns, at every decision, whether the robot is within the success
 radius of the goal (binary cross entropy on the distance to the goal); greedily, it stops
 where the head says so (`models.agent.greedy_actions`), so it stops by itself at test time.
+A greedy agent with a revisit penalty also scores each move down by how often the episode has
+already been in the pose it leads to.
 """
 
 from __future__ import annotations
@@ -86,6 +88,7 @@ def run_episodes(
     prev = torch.full((b,), START, dtype=torch.long)
     nodes = np.zeros((b, max_actions + 1), dtype=np.int64)
     actions = np.full((b, max_actions), -1, dtype=np.int64)
+    slots = np.zeros((b, max_actions), dtype=np.int64)  # the poses so far, for the greedy agent's revisit cost
     steps = np.zeros(b, dtype=np.int64)
     # The target word is part of the language: the language-blind agent does not know it.
     target_label = torch.from_numpy(episodes.target_label[idx] if blind != "language" else np.full(b, -1))
@@ -131,7 +134,13 @@ def run_episodes(
             chosen = torch.multinomial(torch.softmax(logits.detach(), dim=1), 1, generator=generator)[:, 0].numpy()
             chosen = np.where(guided, teacher, chosen)
         else:
-            chosen = greedy_actions(logits.detach(), stop).numpy()
+            visits = None
+            if agent.config.revisit_penalty:
+                slots[:, t] = stepper.slot
+                visits = torch.from_numpy((slots[:, : t + 1, None] == stepper.next_slots()[:, None, :]).sum(1))
+            chosen = greedy_actions(
+                logits.detach(), stop, visits=visits, revisit_penalty=agent.config.revisit_penalty
+            ).numpy()
         chosen = np.where(done, STOP, chosen)
         actions[~done, t] = chosen[~done]
         steps += ~done

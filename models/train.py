@@ -39,12 +39,15 @@ class Variant:
 
 # Named model variants: the paper's model; the one that beats it (target flags, the actor-critic
 # loss on the distance covered, averaged weights, a stop head that ends its episodes, half of
-# each batch guided to the goal so the stop is learned); and attention with a progress monitor,
+# each batch guided to the goal so the stop is learned, and at test time a cost on re-entering
+# poses); and attention with a progress monitor,
 # tried and kept as an option (docs/learned_driver.md).
 MODELS = {
     "baseline": Variant({}),
     "improved": Variant(
-        {"target_rays": True, "critic": True, "stop_head": True}, weight_average=0.95, guided_share=0.5
+        {"target_rays": True, "critic": True, "stop_head": True, "revisit_penalty": 1.0},
+        weight_average=0.95,
+        guided_share=0.5,
     ),
     "attention": Variant({"attention": True, "progress_monitor": True, "target_rays": True}),
 }

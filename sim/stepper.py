@@ -30,6 +30,7 @@ from sim.geometry import HEADINGS
 from sim.world import ACTIONS, World
 
 _FORWARD, _STOP = int(Action.FORWARD), int(Action.STOP)  # plain ints: a member look-up costs a microsecond a step
+_MOVE_ACTIONS = np.arange(_STOP, dtype=np.int64)  # forward, left, right
 
 
 class BatchStepper:
@@ -168,6 +169,11 @@ class BatchStepper:
             raise ValueError("the world was compiled without observations")
         # The slots are in range: "raise" mode would gather into a copy of `out`, then copy it.
         return np.take(self.world.obs, self.slot, axis=0, out=out, mode="clip")
+
+    def next_slots(self) -> np.ndarray:
+        """(B, 3) the pose that forward, left and right would lead to (a collision: the same)."""
+        slots: np.ndarray = self._moves[self.slot[:, None] * ACTIONS + _MOVE_ACTIONS] >> 6
+        return slots
 
     def forward_blocked(self) -> np.ndarray:
         return self._collides[self.slot * ACTIONS + _FORWARD]

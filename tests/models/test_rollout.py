@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from models.agent import FORWARD, STOP, AgentConfig, Seq2SeqAgent, mask_logits
+from models.agent import FORWARD, LEFT, RIGHT, STOP, AgentConfig, Seq2SeqAgent, mask_logits
 from models.data import goal_distance
 from models.rollout import run_episodes
 from sim.benchmark import episode_start, goal_node
@@ -243,3 +243,37 @@ def test_the_stop_head_learns_whether_the_goal_is_within_the_success_radius(few)
     sure_far = -np.log(1.0 - np.float32(1 - 1e-6))  # the clamped probabilities, in float32
     sure_near = -np.log(np.float32(1e-6))
     assert losses[50.0] - losses[-50.0] == pytest.approx((sure_far * far - sure_near * near) / (near + far), rel=1e-4)
+
+
+def test_a_revisit_penalty_takes_a_greedy_agent_that_spins_on_the_spot_somewhere_else(few):
+    world, eps = few["world"], few["train_set"]
+    idx = np.arange(len(eps))
+    distinct = {}
+    for penalty in (0.0, 20.0):
+        agent = Seq2SeqAgent(
+            AgentConfig(
+                vocab_size=len(few["tokenizer"]),
+                obs_features=world.obs_features,
+                dropout=0.0,
+                revisit_penalty=penalty,
+            )
+        )
+        with torch.no_grad():
+            agent.policy.bias[LEFT] = 10.0  # it wants to turn left, always
+            agent.policy.bias[STOP] = -50.0
+            roll = run_episodes(agent, world, eps, idx, "argmax", max_actions=30)
+        distinct[penalty] = [len(set(roll.nodes[k].tolist())) for k in range(len(idx))]
+    assert set(distinct[0.0]) == {1}  # round and round on its start node
+    # With the penalty, once round it has been in every pose of its node: it leaves.
+    assert min(distinct[20.0]) >= 2
+
+
+def test_next_slots_are_where_each_move_leads(few):
+    world, eps = few["world"], few["train_set"]
+    idx = np.arange(len(eps))
+    for action in (FORWARD, LEFT, RIGHT):
+        stepper = BatchStepper(world, len(idx))
+        eps.start(stepper, idx)
+        expected = stepper.next_slots()[:, action]
+        stepper.step(np.full(len(idx), action))
+        assert (stepper.slot == expected).all()

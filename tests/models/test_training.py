@@ -157,3 +157,31 @@ def test_seq2seq_driver_plays_from_a_growing_dialog(trained, bench, few):
         assert driver.encoded_for == (n, inst.target)
     # After a rejected claim it does not claim again before moving.
     assert driver.act(dialog[:5], {"target": inst.target, "pose": pose, "rejected": 1}) != "stop"
+
+
+def test_the_web_driver_counts_its_poses_for_its_revisit_penalty(trained, bench, few):
+    from models.driver import Seq2SeqDriver
+    from sim.dynamics import Action, snap_pose, step
+
+    _, out, _ = trained
+    inst = few["val"][0]
+    graph = bench.graph(inst.run)
+    dialog = [{"role": "commander" if role == "oracle" else "driver", "text": text} for role, text in inst.dialog]
+    start = next(node for node in range(len(graph.nodes)) if (graph.forward[node] >= 0).any())
+    nodes = {}
+    for penalty in (0.0, 20.0):
+        driver = Seq2SeqDriver(out / "last.pt", lambda name: (bench.maze(name), graph))
+        driver.agent.config.revisit_penalty = penalty
+        with torch.no_grad():
+            driver.agent.policy.bias[int(Action.LEFT)] = 10.0  # it wants to turn left, always
+            driver.agent.policy.bias[int(Action.STOP)] = -50.0
+        driver.reset({"maze": inst.run, "targets": ["jar", "mug", "paddle"]})
+        pose = snap_pose(graph, *graph.nodes[start])
+        nodes[penalty] = {pose.node}
+        for _ in range(12):
+            x, y = graph.nodes[pose.node]
+            word = driver.act(dialog, {"target": inst.target, "pose": (x, y, pose.heading * np.pi / 4), "rejected": 0})
+            pose, _ = step(graph, pose, Action.parse(word))
+            nodes[penalty].add(pose.node)
+    assert nodes[0.0] == {start}
+    assert len(nodes[20.0]) >= 2  # round once, then away from the poses it has been in
