@@ -9,7 +9,8 @@ known pose (a rover) it observes the rays perceived from the camera frame (`rays
 concentrated, stands facing a wall on the graph (else where the perceived rays say the way
 ahead is blocked); with neither it sees zeros and forward is not masked. After the Commander
 rejects a claim it does not stop again until it has moved. Where the pose is known (the
-simulator) it counts the poses of its episode, for its revisit penalty, as the rollout does.
+simulator, or a rover's concentrated belief) it counts the poses of its episode, for its
+revisit penalty, as the rollout does.
 
 The web app seats it as `agent:seq2seq` (`app/drivers/seq2seq.py`), with the checkpoint of the
 setting ROBOTSLANG_SEQ2SEQ_CHECKPOINT.
@@ -76,7 +77,7 @@ class Seq2SeqDriver:
             self._rejected = observation["rejected"]
             self._stop_held = True  # the Commander said no: move before claiming again
         pose = observation.get("pose")
-        here = snap_pose(graph, *pose) if pose is not None else None
+        here = snap_pose(graph, *pose) if pose is not None else self._believed_pose(graph, observation.get("belief"))
         visits = None
         if here is not None:
             self._visits[here] += 1
@@ -105,7 +106,14 @@ class Seq2SeqDriver:
 
     def _blocked(self, graph: NavGraph, rays: np.ndarray, belief: dict[str, float] | None) -> bool:
         """Forward masked on a rover: from the belief where it is concentrated, else the camera."""
-        if belief is not None and belief["spread_m"] <= BELIEF_MASK_SPREAD_M:
-            p = snap_pose(graph, belief["x"], belief["y"], belief["heading"])
+        p = self._believed_pose(graph, belief)
+        if p is not None:
             return bool(graph.forward[p.node, p.heading] < 0)
         return bool(rays[-1] > 0.5)  # the perceived forward-blocked flag
+
+    @staticmethod
+    def _believed_pose(graph: NavGraph, belief: dict[str, float] | None) -> Pose | None:
+        """A rover's pose on the graph, where the particle filter's belief is concentrated."""
+        if belief is None or belief["spread_m"] > BELIEF_MASK_SPREAD_M:
+            return None
+        return snap_pose(graph, belief["x"], belief["y"], belief["heading"])

@@ -91,7 +91,7 @@ def test_the_shipped_driver_loads_as_the_command_trained_it():
     assert SHIPPED_CHECKPOINT.stat().st_size < 3_000_000  # package data: a few MB at most
     cfg = ckpt["train_config"]
     assert (cfg["model"], cfg["feedback"], cfg["blind"], cfg["seed"]) == ("improved", "student", "none", 0)
-    assert agent.config.stop_head and "optimizer" not in ckpt
+    assert agent.config.stop_head and agent.config.revisit_penalty == 1.0 and "optimizer" not in ckpt
 
 
 @pytest.mark.slow
