@@ -40,8 +40,8 @@ class Variant:
 # Named model variants: the paper's model; the one that beats it (target flags, the actor-critic
 # loss on the distance covered, averaged weights, a stop head that ends its episodes, half of
 # each batch guided to the goal so the stop is learned, and at test time a cost on re-entering
-# poses); and attention with a progress monitor,
-# tried and kept as an option (docs/learned_driver.md).
+# poses); and attention with a progress monitor, tried and kept as an option
+# (docs/learned_driver.md).
 MODELS = {
     "baseline": Variant({}),
     "improved": Variant(
