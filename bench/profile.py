@@ -34,11 +34,31 @@ PARTS = [
     ("other app code", ("/app/",)),
 ]
 NOT_HOT = ("app/cli.py", "app/commands.py", "app/serving.py")  # on every stack: the server's start
-IDLE_LEAVES = {"run", "wait", "select", "poll", "_worker", "get"}  # a thread with nothing to do
-MP_IDLE_LEAVES = {"_recv", "_recv_bytes", "recv_bytes", "__enter__", "acquire"}  # a render process waiting for work
+# A thread with nothing to do: its leaf is one of these waits, in one of these files.
+IDLE_LEAVES = {
+    "run",
+    "wait",
+    "select",
+    "poll",
+    "_worker",
+    "get",
+    "_recv",
+    "_recv_bytes",
+    "recv_bytes",
+    "__enter__",
+    "acquire",
+}
+IDLE_FILES = ("threading.py", "runners.py", "thread.py", "queue.py", "connection.py", "synchronize.py")
 # (leaf, file) of threads that only wait: a render process watching for its server's death, and
 # multiprocessing's resource tracker (a process of its own, which py-spy counts with the render processes)
 WAITERS = {("_exit_with", "app/backends/render.py"), ("main", "multiprocessing/resource_tracker.py")}
+
+
+def idle(leaf: dict) -> bool:
+    name, where = leaf["name"], leaf.get("file", "")
+    if any(name == n and where.endswith(w) for n, w in WAITERS):
+        return True
+    return name in IDLE_LEAVES and any(f in where for f in IDLE_FILES)
 
 
 def matches(frame: dict, pattern: tuple[str, ...]) -> bool:
@@ -63,19 +83,7 @@ def summarize(path: str) -> dict[str, dict[str, float]]:
             if not stack:
                 continue
             leaf = frames[stack[-1]]
-            waiting = any(leaf["name"] == name and leaf.get("file", "").endswith(where) for name, where in WAITERS)
-            if (
-                waiting
-                or (leaf["name"] in IDLE_LEAVES or leaf["name"] in MP_IDLE_LEAVES)
-                and (
-                    "threading.py" in leaf.get("file", "")
-                    or "runners.py" in leaf.get("file", "")
-                    or "thread.py" in leaf.get("file", "")
-                    or "queue.py" in leaf.get("file", "")
-                    or "connection.py" in leaf.get("file", "")
-                    or "synchronize.py" in leaf.get("file", "")
-                )
-            ):
+            if idle(leaf):
                 out[kind]["idle"] += weight
                 continue
             part = next(
