@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import typer
 
+from app import bench_cli
 from app import commands as app_commands
 from models import cli as model_commands
 from sim import cli as sim_commands
@@ -46,6 +47,7 @@ def _root(
 sim_commands.register(root, eval_app)
 model_commands.register(root, eval_app)
 app_commands.register(root)
+bench_cli.register(root)
 root.add_typer(eval_app, name="eval")
 
 

@@ -1,5 +1,5 @@
 """LDH human studies: participants read a dialog, look at the Commander's map and mark where the
-robot is; the server scores each mark by TD on the benchmark's graph (`sim.ldh_eval`).
+robot is; the server scores each mark by TD on the benchmark's graph (`sim.tasks.ldh_eval`).
 
 A study's instances are frozen in the database when it is created, from a folder in the
 benchmark's layout (the public benchmark, variant prefix or full, or a folder the platform's
@@ -23,10 +23,10 @@ from sqlalchemy.exc import IntegrityError
 
 from app.db.models import LDHStudy, LDHStudyEvent, LDHStudyInstance, LDHStudyParticipant
 from app.mazes import commander_map_png
-from sim.benchmark import Benchmark, BenchmarkError
-from sim.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M
-from sim.ldh import LDHInstance, Variant, load_split
-from sim.ldh_eval import ACC_RADII_M, MazeContext, score
+from sim.core.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M
+from sim.tasks.benchmark import Benchmark, BenchmarkError
+from sim.tasks.ldh import LDHInstance, Variant, load_split
+from sim.tasks.ldh_eval import ACC_RADII_M, MazeContext, score
 
 SPLITS = ("train", "val_seen", "test")
 APPEND_ATTEMPTS = 5  # two answers racing for the same seq: the loser takes the next one

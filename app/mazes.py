@@ -20,15 +20,15 @@ import cv2
 import numpy as np
 
 from app.settings import Settings
-from sim.dynamics import Pose
-from sim.geometry import TABLE_WIDTH_M, world_to_pixel
-from sim.labels import LABEL_BGR, OBJECT_LABELS, Label
-from sim.maze import Maze
+from sim.core.dynamics import Pose
+from sim.core.geometry import TABLE_WIDTH_M, world_to_pixel
+from sim.core.labels import LABEL_BGR, OBJECT_LABELS, Label
+from sim.core.maze import Maze
 
 if TYPE_CHECKING:
-    from sim.library import MazeLibrary
-    from sim.observations import RayTable
-from sim.navgraph import NavGraph
+    from sim.core.observations import RayTable
+    from sim.tasks.library import MazeLibrary
+from sim.core.navgraph import NavGraph
 
 TARGET_VIEW_DISTANCE_M = 0.35
 LANDMARK_RADIUS_M = 0.045  # the disc that marks a landmark on the Commander's map
@@ -80,7 +80,7 @@ class Mazes:
     @property
     def library(self) -> MazeLibrary:
         if self._library is None:
-            from sim.library import MazeLibrary
+            from sim.tasks.library import MazeLibrary
 
             self._library = MazeLibrary(benchmark=self.settings.benchmark, cache=False)  # `Kept` caches
         return self._library
@@ -98,7 +98,7 @@ class Mazes:
 
     def _rays(self, name: str) -> RayTable:
         """The observation of every pose of the maze's graph: a simulator frame's rays are a lookup."""
-        from sim.observations import RayTable
+        from sim.core.observations import RayTable
 
         return RayTable.build(self.load(name), self.graph(name), cache_dir=self.settings.cache_dir)
 
@@ -126,7 +126,7 @@ class Mazes:
 
     def _target_jpeg(self, name: str, target: str) -> bytes:
         """The target as the robot's camera would see it from a nearby free spot."""
-        from sim.render import first_person
+        from sim.robot.render import first_person
 
         maze, graph = self.load(name), self.graph(name)
         ox, oy = maze.objects[target]

@@ -97,7 +97,7 @@ def robot_virtual(
     from app.virtual_rover.command import VirtualRoverSpec, parse_start, run
     from robot_client.calibration import Calibration, CalibrationError
     from robot_client.client import robot_url
-    from sim.rover import MotionNoise
+    from sim.robot.rover import MotionNoise
 
     if role not in ROBOT_ROLES:
         raise typer.BadParameter(f"expected one of {', '.join(ROBOT_ROLES)}, got {role!r}", param_hint="--role")
@@ -125,7 +125,7 @@ def robot_virtual(
             "the overhead camera films the driver rover's truth file: give its path", param_hint="--truth"
         )
     if start_pose is not None:
-        from sim.rover import Rover
+        from sim.robot.rover import Rover
 
         try:
             Rover(table, start_pose)
@@ -161,8 +161,8 @@ def calibrate_overhead(
 ) -> None:
     """Measure the table -> image homography from the four corner markers and store it."""
     from app.settings import Settings
-    from sim.calibration import CalibrationError
-    from sim.tracking import calibrate
+    from sim.robot.calibration import CalibrationError
+    from sim.robot.tracking import calibrate
 
     if (camera is None) == (image is None):
         raise typer.BadParameter("give exactly one of --camera and --image", param_hint="--camera")

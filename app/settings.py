@@ -45,7 +45,7 @@ class Settings(BaseSettings):
         None  # the overhead camera's calibration; default data_dir/overhead_calibration.json
     )
     camera_calibration: Path | None = (
-        None  # the rovers' front camera (sim.camera.CameraCalibration); default data_dir/camera_calibration.json
+        None  # the rovers' front camera (sim.robot.camera.CameraCalibration); default data_dir/camera_calibration.json
     )
 
     @model_validator(mode="after")

@@ -32,9 +32,9 @@ EPISODE_TIMEOUT_S = 90.0  # an episode still driving then is measured where it s
 def choose_episodes(bench, library, n: int | None) -> list:
     """The first `n` (None: all) val_seen jar episodes whose maze has a map and whose start fits
     the rover (26 of the benchmark's 76)."""
-    from sim.benchmark import recorded_start
-    from sim.geometry import heading_angle
-    from sim.rover import Rover, RoverPose
+    from sim.core.geometry import heading_angle
+    from sim.robot.rover import Rover, RoverPose
+    from sim.tasks.benchmark import recorded_start
 
     chosen = []
     names = set(library.names())
@@ -80,8 +80,8 @@ def agent_figures(
             "episodes": 0,
         }
     from models.shipped import default_checkpoint
-    from sim.benchmark import Benchmark
-    from sim.library import MazeLibrary
+    from sim.tasks.benchmark import Benchmark
+    from sim.tasks.library import MazeLibrary
 
     checkpoint = checkpoint or default_checkpoint()
     if checkpoint is None:

@@ -22,11 +22,11 @@ from app.backends.sim import SimulatorBackend
 from app.clock import ServerClock
 from app.perception.belief import CONVERGED_PARTICLES, TrialBelief
 from app.perception.cameras import SIM_CALIBRATION
-from sim.camera import CameraCalibration
-from sim.dynamics import Action, Pose, step
-from sim.library import MazeLibrary
-from sim.navgraph import NavGraph
-from sim.observations import RayTable
+from sim.core.dynamics import Action, Pose, step
+from sim.core.navgraph import NavGraph
+from sim.core.observations import RayTable
+from sim.robot.camera import CameraCalibration
+from sim.tasks.library import MazeLibrary
 
 PARTS = ("event loop", "filter turn", "message")
 

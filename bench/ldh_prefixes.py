@@ -9,8 +9,8 @@ import argparse
 import os
 from collections import Counter
 
-from sim.benchmark import SPLITS, Benchmark
-from sim.ldh import CUT_RULE, Variant, load_split
+from sim.tasks.benchmark import SPLITS, Benchmark
+from sim.tasks.ldh import CUT_RULE, Variant, load_split
 
 
 def main() -> None:

@@ -22,9 +22,10 @@ import torch
 from models import agent
 from models.data import World
 from models.evaluate import evaluate_checkpoint
-from sim.benchmark import MAX_EPISODE_ACTIONS, Benchmark
-from sim.geometry import SUCCESS_RADIUS_M
-from sim.metrics import summarize_agent, write_csv
+from sim.core.geometry import SUCCESS_RADIUS_M
+from sim.core.metrics import summarize_agent, write_csv
+from sim.core.stepper import MAX_EPISODE_ACTIONS
+from sim.tasks.benchmark import Benchmark
 
 SPLIT = "val_seen"
 

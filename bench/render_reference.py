@@ -1,5 +1,5 @@
-"""The first-person camera as it was before `sim.render` cast columns against wall segments:
-one grid march per column (`sim.observations.RayCaster`). Kept only as the yardstick that
+"""The first-person camera as it was before `sim.robot.render` cast columns against wall segments:
+one grid march per column (`sim.core.observations.RayCaster`). Kept only as the yardstick that
 `bench.sim` times the render against and `tests/sim/test_render.py` holds its pictures to."""
 
 from __future__ import annotations
@@ -9,11 +9,11 @@ import weakref
 import cv2
 import numpy as np
 
-from sim.geometry import world_to_pixel
-from sim.labels import PALETTE_BGR, Label
-from sim.maze import Maze
-from sim.observations import RayCaster
-from sim.render import (
+from sim.core.geometry import world_to_pixel
+from sim.core.labels import PALETTE_BGR, Label
+from sim.core.maze import Maze
+from sim.core.observations import RayCaster
+from sim.robot.render import (
     CAMERA_HEIGHT_M,
     FOG_M,
     OUTLINE,

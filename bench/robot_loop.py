@@ -2,12 +2,12 @@
 
 Prints one JSON object (progress goes to stderr):
 
-- tracker: the overhead tracker (`sim.tracking`) against the virtual rover's true poses over a
-  whole trial: a `sim.rover` trajectory with the default motion noise, filmed by the virtual
+- tracker: the overhead tracker (`sim.robot.tracking`) against the virtual rover's true poses over a
+  whole trial: a `sim.robot.rover` trajectory with the default motion noise, filmed by the virtual
   overhead camera at 5 frames per second during and between the pulses.
-- perception: `sim.perception` on virtual front-camera frames against `RayTable`'s rays at the
+- perception: `sim.robot.perception` on virtual front-camera frames against `RayTable`'s rays at the
   same true poses (colours calibrated on other poses, as a lab would).
-- particle_filter: `sim.localization.ParticleFilter` from a uniform belief on perceived rays.
+- particle_filter: `sim.robot.localization.ParticleFilter` from a uniform belief on perceived rays.
 - agent: one seq2seq checkpoint (`--checkpoint`, else $ROBOTSLANG_SEQ2SEQ_CHECKPOINT, else the
   Driver shipped in `models/checkpoints/`) on the same NDH episodes (val_seen, recorded starts) through
   the pure simulator (`models.evaluate`) and through the whole wire path of the virtual rover
@@ -31,13 +31,13 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.camera import FrontCamera
-from sim.library import MazeLibrary
-from sim.localization import evaluate_filter
-from sim.navgraph import NavGraph
-from sim.perception import evaluate_perception, simulated_calibration
-from sim.rover import NOISE_MODELS, Move, Rover
-from sim.tracking import evaluate_tracker
+from sim.core.navgraph import NavGraph
+from sim.robot.camera import FrontCamera
+from sim.robot.localization import evaluate_filter
+from sim.robot.perception import evaluate_perception, simulated_calibration
+from sim.robot.rover import NOISE_MODELS, Move, Rover
+from sim.robot.tracking import evaluate_tracker
+from sim.tasks.library import MazeLibrary
 
 OVERHEAD_FPS = 5.0
 FRAMES_PER_PULSE = 2  # a 0.35-0.4 s pulse spans about two overhead frames at 5 fps

@@ -30,15 +30,15 @@ from rich.table import Table
 from tqdm import tqdm
 
 from bench.render_reference import first_person as reference_first_person
-from sim.benchmark import MAX_EPISODE_ACTIONS, Benchmark, BenchmarkError
-from sim.env import ENV_ID, NDHEnv
-from sim.geometry import heading_angle
-from sim.maze import FIXED_MAP, WALLS_MAP, Maze
-from sim.navgraph import NavGraph
-from sim.observations import RayTable
-from sim.render import first_person
-from sim.stepper import BatchStepper
-from sim.world import World, goal_rows
+from sim.core.geometry import heading_angle
+from sim.core.maze import FIXED_MAP, WALLS_MAP, Maze
+from sim.core.navgraph import NavGraph
+from sim.core.observations import RayTable
+from sim.core.stepper import MAX_EPISODE_ACTIONS, BatchStepper
+from sim.core.world import World, goal_rows
+from sim.robot.render import first_person
+from sim.tasks.benchmark import Benchmark, BenchmarkError
+from sim.tasks.env import ENV_ID, NDHEnv
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -220,7 +220,7 @@ def bench_rollout(benchmark: Benchmark, runs: list[str], iterations: int = 3, ba
 
 
 def bench_first_person(maze: Maze, graph: NavGraph, frames: int = 300, size=(320, 240), seed: int = 0) -> list[Figure]:
-    """`sim.render.first_person` at 320x240 from random nodes and headings of one maze."""
+    """`sim.robot.render.first_person` at 320x240 from random nodes and headings of one maze."""
     rng = np.random.default_rng(seed)
     nodes = rng.integers(graph.n, size=frames)
     headings = rng.integers(8, size=frames)

@@ -17,9 +17,9 @@ import torch
 from torch import nn
 
 from models.tokenizer import MAX_TOKENS
-from sim.dynamics import Action
-from sim.labels import N_LABELS
-from sim.observations import N_RAYS
+from sim.core.dynamics import Action
+from sim.core.labels import N_LABELS
+from sim.core.observations import N_RAYS
 
 # The simulator's action ids, as plain ints for tensor indexing.
 FORWARD, LEFT, RIGHT, STOP = (int(a) for a in (Action.FORWARD, Action.LEFT, Action.RIGHT, Action.STOP))

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import typer
 
-from sim.eval_cli import BENCHMARK_OPTION, open_benchmark
+from sim.cli.eval import BENCHMARK_OPTION, open_benchmark
 
 
 class Feedback(str, Enum):
@@ -113,8 +113,8 @@ def eval_ndh(
 
     from models.evaluate import evaluate_checkpoint
     from models.shipped import default_checkpoint
-    from sim.eval_cli import print_table
-    from sim.metrics import summarize, write_csv
+    from sim.cli.eval import print_table
+    from sim.core.metrics import summarize, write_csv
 
     checkpoint = checkpoint or default_checkpoint()
     if checkpoint is None:

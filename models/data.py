@@ -1,8 +1,8 @@
-"""One split's NDH instances for the learner, on the simulator's compiled `sim.world.World`.
+"""One split's NDH instances for the learner, on the simulator's compiled `sim.core.world.World`.
 
 An `EpisodeSet` holds the instances' token ids, target labels and their `EpisodeGeometry`
 (start pose, goal node, and the distance and next hop toward the goal from every node of its
-maze), which is what `sim.stepper.BatchStepper`, the core every agent runs on, starts from.
+maze), which is what `sim.core.stepper.BatchStepper`, the core every agent runs on, starts from.
 """
 
 from __future__ import annotations
@@ -12,10 +12,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from models.tokenizer import Tokenizer
-from sim.benchmark import Benchmark, NDHInstance
-from sim.labels import object_label
-from sim.stepper import BatchStepper
-from sim.world import EpisodeGeometry, World
+from sim.core.labels import object_label
+from sim.core.stepper import BatchStepper
+from sim.core.world import EpisodeGeometry, World
+from sim.tasks.benchmark import Benchmark, NDHInstance
 
 
 @dataclass
@@ -31,7 +31,7 @@ class EpisodeSet:
     goal_node: np.ndarray  # (M,) global
     goal_dist: np.ndarray  # (M, Nmax) shortest-path metres to the goal from each local node
     goal_next: np.ndarray  # (M, Nmax) next local node toward the goal; -1 where no path
-    target_label: np.ndarray  # (M,) sim.labels.Label of the target object
+    target_label: np.ndarray  # (M,) sim.core.labels.Label of the target object
 
     def __len__(self) -> int:
         return len(self.instances)

@@ -27,11 +27,11 @@ import numpy as np
 import torch
 
 from models.agent import START, STOP, greedy_actions, observation_input
-from sim.dynamics import Action, Pose, snap_pose, step
-from sim.labels import object_label
-from sim.maze import Maze
-from sim.navgraph import NavGraph
-from sim.observations import RayTable
+from sim.core.dynamics import Action, Pose, snap_pose, step
+from sim.core.labels import object_label
+from sim.core.maze import Maze
+from sim.core.navgraph import NavGraph
+from sim.core.observations import RayTable
 
 MazeLoader = Callable[[str], tuple[Maze, NavGraph]]
 MOVES = (Action.FORWARD, Action.LEFT, Action.RIGHT)  # the order of `greedy_actions`' visits

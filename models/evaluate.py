@@ -1,7 +1,7 @@
-"""Scoring a trained Driver on a split with the benchmark's metrics (sim.metrics).
+"""Scoring a trained Driver on a split with the benchmark's metrics (sim.core.metrics).
 
 The agent acts greedily (argmax, forward masked where it would collide) from the episode start
-pose, at most 120 actions; each trajectory is scored by `sim.metrics.score_trajectory` on the
+pose, at most 120 actions; each trajectory is scored by `sim.core.metrics.score_trajectory` on the
 maze's benchmark graph, exactly as the baselines are.
 """
 
@@ -15,9 +15,9 @@ import torch
 from models.agent import STOP, Seq2SeqAgent
 from models.data import EpisodeSet, World
 from models.rollout import MAX_ACTIONS, run_episodes
-from sim.benchmark import Benchmark, NDHInstance
-from sim.geometry import heading_angle
-from sim.metrics import EpisodeResult, score_trajectory
+from sim.core.geometry import heading_angle
+from sim.core.metrics import EpisodeResult, score_trajectory
+from sim.tasks.benchmark import Benchmark, NDHInstance
 
 EVAL_BATCH = 100
 

@@ -29,7 +29,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from models.train import MODELS, TrainConfig, build_world, train
-from sim.benchmark import Benchmark
+from sim.tasks.benchmark import Benchmark
 
 EXECUTORS = ("local", "ray")
 RAY_TASK_RETRIES = 3  # a lost worker's run is started again this many times
@@ -164,8 +164,8 @@ def run_experiment(
 ) -> dict:
     from models.evaluate import evaluate_checkpoint
     from models.report import write_report
-    from sim.evaluation import evaluate_baselines
-    from sim.metrics import summarize, write_csv
+    from sim.core.metrics import summarize, write_csv
+    from sim.tasks.evaluation import evaluate_baselines
 
     if executor not in EXECUTORS:
         raise ValueError(f"unknown executor {executor!r}; expected one of {', '.join(EXECUTORS)}")

@@ -1,6 +1,6 @@
 """A learned LDH localizer: the Driver's words matched against what every pose sees.
 
-The dialog becomes counts of the labels the Driver names per direction (`sim.ldh_features.
+The dialog becomes counts of the labels the Driver names per direction (`sim.tasks.ldh_features.
 mentions`, 5 x 10); each (node, heading) becomes the share of its four views' rays hitting
 each label near and far (4 x 10 x 2). A bilinear map scores every pose from the two, on top of
 the colour baseline's log-likelihood (a learned weight; ingredient `prior`). Training minimises
@@ -26,11 +26,11 @@ import numpy as np
 import torch
 from torch import nn
 
-from sim.benchmark import Benchmark
-from sim.labels import OBJECT_LABELS, WALL_LABELS, Label
-from sim.ldh import LDHInstance, Variant, load_split
-from sim.ldh_eval import MazeContext, MazeContexts, colour_features, evaluate, summarize
-from sim.ldh_features import MENTION_FEATURES, VIEW_FEATURES, mentions
+from sim.core.labels import OBJECT_LABELS, WALL_LABELS, Label
+from sim.tasks.benchmark import Benchmark
+from sim.tasks.ldh import LDHInstance, Variant, load_split
+from sim.tasks.ldh_eval import MazeContext, MazeContexts, colour_features, evaluate, summarize
+from sim.tasks.ldh_features import MENTION_FEATURES, VIEW_FEATURES, mentions
 
 FORMAT = "robotslang-ldh-v1"
 TARGET_SCALE_M = 0.15  # the training target's decay with TD from the truth
@@ -82,7 +82,7 @@ class PoseTensors:
 
 
 class TrainedLocalizer:
-    """A trained model as a `sim.ldh_eval.Localizer`."""
+    """A trained model as a `sim.tasks.ldh_eval.Localizer`."""
 
     def __init__(self, model: Localizer):
         self.model = model.eval()

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import typer
 
-from sim.eval_cli import BENCHMARK_OPTION, open_benchmark, parse_list
+from sim.cli.eval import BENCHMARK_OPTION, open_benchmark, parse_list
 
 LEARNED = "learned"
 
@@ -63,9 +63,9 @@ def eval_ldh(
     per_instance: Path | None = typer.Option(None, help="Write a CSV row per instance and agent."),
 ) -> None:
     """Score localizers on LDH: TD and Euclidean error (m), accuracy within 0.25/0.5/1.0 m."""
-    from sim.benchmark import BenchmarkError
-    from sim.ldh import Variant, load_split
-    from sim.ldh_eval import BASELINES, evaluate, summarize, write_csv
+    from sim.tasks.benchmark import BenchmarkError
+    from sim.tasks.ldh import Variant, load_split
+    from sim.tasks.ldh_eval import BASELINES, evaluate, summarize, write_csv
 
     names = parse_list(agent, "agent", [*BASELINES, LEARNED])
     agents = {name: BASELINES[name] for name in names if name != LEARNED}

@@ -19,9 +19,9 @@ import numpy as np
 
 from models.ldh import LDHConfig, load_localizer, train
 from models.stats import paired_tests
-from sim.benchmark import Benchmark
-from sim.ldh import CUT_RULE, Variant, load_split
-from sim.ldh_eval import BASELINES, MazeContexts, evaluate, summarize, summarize_agent, write_csv
+from sim.tasks.benchmark import Benchmark
+from sim.tasks.ldh import CUT_RULE, Variant, load_split
+from sim.tasks.ldh_eval import BASELINES, MazeContexts, evaluate, summarize, summarize_agent, write_csv
 
 HUMAN_TD_M = 0.446  # the paper's human study (8 people)
 MAIN = LDHConfig()

@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from models.stats import Comparison, paired_tests, per_seed, seed_tests
-from sim.benchmark import MAX_EPISODE_ACTIONS
-from sim.metrics import EpisodeResult, read_csv, summarize_agent
+from sim.core.metrics import EpisodeResult, read_csv, summarize_agent
+from sim.core.stepper import MAX_EPISODE_ACTIONS
 
 SPLITS = ("val_seen", "test")
 FEEDBACK_LABEL = {"teacher": "Teacher forcing", "student": "Student forcing"}

@@ -1,5 +1,5 @@
 """Batched NDH episodes: the agent acts for a whole batch at once on the simulator core
-(`sim.stepper.BatchStepper` over the compiled `World`), with the core's teacher.
+(`sim.core.stepper.BatchStepper` over the compiled `World`), with the core's teacher.
 
 Feedback decides which action is executed: `teacher` (the shortest-path action), `student`
 (sampled from the agent; stop masked until the goal's node), or `argmax` (evaluation).
@@ -28,9 +28,8 @@ import torch.nn.functional as F
 
 from models.agent import START, STOP, Seq2SeqAgent, greedy_actions, observation_input
 from models.data import EpisodeSet, World
-from sim.benchmark import MAX_EPISODE_ACTIONS
-from sim.geometry import GRID_STEP_M, SUCCESS_RADIUS_M
-from sim.stepper import BatchStepper
+from sim.core.geometry import GRID_STEP_M, SUCCESS_RADIUS_M
+from sim.core.stepper import MAX_EPISODE_ACTIONS, BatchStepper
 
 FEEDBACKS = ("teacher", "student", "argmax")
 BLINDS = ("none", "vision", "language")

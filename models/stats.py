@@ -25,7 +25,7 @@ ALPHA = 0.05
 
 
 class Result(Protocol):
-    """One row of results as the tests read it (`sim.metrics.EpisodeResult`, `sim.ldh_eval.LDHResult`):
+    """One row of results as the tests read it (`sim.core.metrics.EpisodeResult`, `sim.tasks.ldh_eval.LDHResult`):
     its configuration, seed and instance, and the metric by name."""
 
     @property
@@ -66,7 +66,7 @@ def per_instance(results: Sequence[Result], metric: str) -> dict[str, dict[int, 
 
 def per_seed(results: Sequence[Result], metric: str) -> dict[str, dict[int, float]]:
     """{agent: {seed: metric averaged over that seed's instances}}; an infinite TD (goal
-    unreachable from where the agent stopped) is left out, as in `sim.metrics`."""
+    unreachable from where the agent stopped) is left out, as in `sim.core.metrics`."""
     values: dict[str, dict[int, list[float]]] = defaultdict(lambda: defaultdict(list))
     for r in results:
         v = float(getattr(r, metric))

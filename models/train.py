@@ -23,7 +23,7 @@ from models.agent import AgentConfig, Seq2SeqAgent
 from models.data import EpisodeSet, World, goal_distance, splits_runs
 from models.rollout import BLINDS, MAX_ACTIONS, run_episodes
 from models.tokenizer import Tokenizer
-from sim.benchmark import SPLITS, Benchmark, NDHInstance
+from sim.tasks.benchmark import SPLITS, Benchmark, NDHInstance
 
 FEEDBACK_LR = {"teacher": 1e-4, "student": 1e-3}
 

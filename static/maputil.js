@@ -1,4 +1,4 @@
-// Table frame <-> map pixels, as sim/geometry.py maps them (1401 x 1175 px for 2.4638 m x 2.0574 m).
+// Table frame <-> map pixels, as sim/core/geometry.py maps them (1401 x 1175 px for 2.4638 m x 2.0574 m).
 export const TableMap = {
   W_M: 2.4638, H_M: 2.0574, W_PX: 1401, H_PX: 1175,
   toWorld(canvas, cx, cy) {

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Protocol, runtime_checkable
 from app.trial.vocabulary import MoveAction, Outcome
 
 if TYPE_CHECKING:
-    from sim.perception import RayObservation
+    from sim.robot.perception import RayObservation
 
 
 @dataclass(frozen=True)

@@ -45,7 +45,7 @@ async def create_backend(spec: str, trial: RobotTrial, services: Services) -> Ro
 
 async def simulator_backend(spec: str, trial: RobotTrial, services: Services) -> RobotBackend:
     from app.backends.sim import SimulatorBackend
-    from sim.dynamics import snap_pose
+    from sim.core.dynamics import snap_pose
 
     mazes, state = services.mazes, trial.state
     # Reading a maze and building its graph take a while: off the loop, other trials keep moving.

@@ -23,8 +23,8 @@ import cv2
 import numpy as np
 
 if TYPE_CHECKING:
-    from sim.library import MazeLibrary
-    from sim.maze import Maze
+    from sim.core.maze import Maze
+    from sim.tasks.library import MazeLibrary
 
 logger = logging.getLogger(__name__)
 FRAME_SIZE = (320, 240)
@@ -34,7 +34,7 @@ WORKER_MAZES_KEPT = 16  # mazes a render process keeps loaded (a few MB each wit
 
 def render_jpeg(maze: Maze, x: float, y: float, theta: float) -> bytes:
     """The camera frame at a continuous pose, as the rover's camera sends it (320x240 JPEG)."""
-    from sim.render import first_person  # imported when the first frame is taken
+    from sim.robot.render import first_person  # imported when the first frame is taken
 
     image = first_person(maze, x, y, theta, size=FRAME_SIZE)
     ok, buffer = cv2.imencode(".jpg", np.ascontiguousarray(image), [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
@@ -98,7 +98,7 @@ _mazes: OrderedDict[str, Maze] = OrderedDict()
 
 
 def _start_worker(benchmark: str | None, server: int) -> None:
-    from sim.library import MazeLibrary
+    from sim.tasks.library import MazeLibrary
 
     global _library
     _library = MazeLibrary(benchmark=Path(benchmark) if benchmark else None, cache=False)

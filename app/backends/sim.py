@@ -1,6 +1,6 @@
 """`SimulatorBackend`: the replay simulator in the robot seat.
 
-Moves follow the grid dynamics of `sim.dynamics` (0.07 m forward, 45 degree turns, a
+Moves follow the grid dynamics of `sim.core.dynamics` (0.07 m forward, 45 degree turns, a
 collision leaves the robot where it was); after each move the first-person render of the
 new pose is the camera frame, drawn by the server's `FrameRenderer` (`app.backends.render`: in
 processes of their own by default). Poses are discrete (a graph node and one of eight headings), so
@@ -21,12 +21,12 @@ from app.backends.base import Frame, MoveOutcome
 from app.backends.render import FRAME_SIZE, FrameRenderer, InThread, render_jpeg
 from app.clock import ServerClock
 from app.trial.vocabulary import MoveAction, Outcome
-from sim.dynamics import Action, Pose, step
-from sim.geometry import heading_angle
-from sim.maze import Maze
-from sim.navgraph import NavGraph
-from sim.observations import RayTable
-from sim.perception import RayObservation
+from sim.core.dynamics import Action, Pose, step
+from sim.core.geometry import heading_angle
+from sim.core.maze import Maze
+from sim.core.navgraph import NavGraph
+from sim.core.observations import RayTable
+from sim.robot.perception import RayObservation
 
 FRAMES_KEPT = 32  # JPEGs of recent poses per trial (about 15 kB each)
 

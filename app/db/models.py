@@ -100,7 +100,7 @@ class LDHStudy(Base):
     name: Mapped[str] = mapped_column(String(80))
     source: Mapped[str] = mapped_column(Text)  # the folder in the benchmark's layout it was drawn from
     split: Mapped[str] = mapped_column(String(16))
-    variant: Mapped[str] = mapped_column(String(16))  # sim.ldh.Variant
+    variant: Mapped[str] = mapped_column(String(16))  # sim.tasks.ldh.Variant
     experimenter_id: Mapped[int] = mapped_column(ForeignKey("experimenter.id"))
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 

@@ -18,10 +18,10 @@ from websockets.asyncio.client import ClientConnection, connect
 
 from app.demo.script import OBJECT_WORDS, describe_view, plan_leg
 from app.trial.vocabulary import Phase, Role
-from sim.dynamics import Action, Pose, step, teacher_action
-from sim.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M, heading_angle
-from sim.maze import Maze
-from sim.navgraph import NavGraph
+from sim.core.dynamics import Action, Pose, step, teacher_action
+from sim.core.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M, heading_angle
+from sim.core.maze import Maze
+from sim.core.navgraph import NavGraph
 
 WAIT_S = 60.0  # longest a player waits for its partner or the server before giving up
 QUESTIONS = ("should i keep going this way?", "is this the right way?", "which way now?", "do i turn here?")

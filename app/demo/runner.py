@@ -27,7 +27,7 @@ from app.settings import Settings
 from app.trial.log import EventLog
 from app.trial.setup import create_participant, create_team, create_trial, parse_targets, suggest_maze
 from app.trial.vocabulary import PARTICIPANTS
-from sim.dynamics import Pose, snap_pose
+from sim.core.dynamics import Pose, snap_pose
 
 DEMO_TEAM = "demo team {k}"
 

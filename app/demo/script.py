@@ -14,12 +14,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.dynamics import Action, Pose, step, teacher_action
-from sim.geometry import GRID_STEP_M, heading_angle
-from sim.labels import OBJECT_LABELS, Label
-from sim.maze import Maze
-from sim.navgraph import NavGraph
-from sim.observations import RAY_OFFSETS, ray_caster
+from sim.core.dynamics import Action, Pose, step, teacher_action
+from sim.core.geometry import GRID_STEP_M, heading_angle
+from sim.core.labels import OBJECT_LABELS, Label
+from sim.core.maze import Maze
+from sim.core.navgraph import NavGraph
+from sim.core.observations import RAY_OFFSETS, ray_caster
 
 NEAR_WALL_M = 0.35  # a wall this close ahead is "reached"
 VISIBLE_M = 1.2  # walls further away are not worth mentioning

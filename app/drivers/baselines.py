@@ -8,9 +8,9 @@ from typing import Any
 
 from app.mazes import Mazes
 from app.trial.vocabulary import MoveAction
-from sim.dynamics import snap_pose, teacher_action
-from sim.maze import Maze
-from sim.navgraph import NavGraph
+from sim.core.dynamics import snap_pose, teacher_action
+from sim.core.maze import Maze
+from sim.core.navgraph import NavGraph
 
 RANDOM_CLAIM_P = 0.02
 

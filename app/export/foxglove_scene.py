@@ -11,9 +11,9 @@ import math
 
 import numpy as np
 
-from sim.geometry import MAP_HEIGHT_PX, MAP_WIDTH_PX, TABLE_HEIGHT_M, TABLE_WIDTH_M
-from sim.labels import LABEL_BGR, WALL_LABELS, Label, object_label
-from sim.maze import Maze
+from sim.core.geometry import MAP_HEIGHT_PX, MAP_WIDTH_PX, TABLE_HEIGHT_M, TABLE_WIDTH_M
+from sim.core.labels import LABEL_BGR, WALL_LABELS, Label, object_label
+from sim.core.maze import Maze
 
 CELL_M = 0.02
 WALL_HEIGHT_M = 0.10

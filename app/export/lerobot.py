@@ -3,7 +3,7 @@
 One episode per NDH instance (`Episode.ndh`: from the previous target's confirmation to this
 one's) or per trial (`Episode.trial`). A frame is one Driver step: the Driver's camera image
 (`observation.images.front`, H.264 video), `observation.state` = [x, y, heading, 13 ray depths
-(m), 13 ray labels] at that frame, `action` = the move executed next (`sim.dynamics.Action`;
+(m), 13 ray labels] at that frame, `action` = the move executed next (`sim.core.dynamics.Action`;
 STOP on an episode's last frame), the task = the target being sought. LeRobot 0.4.4 has no
 language columns, so the dialog is a per-frame string feature, `language.messages`: a JSON list
 of `{speaker, text, t_ns, seq}` for every chat message logged since the previous frame (before
@@ -28,9 +28,9 @@ import numpy as np
 from app.export import Episode
 from app.export.record import ExportError, TrialRecord
 from app.trial.state import LoggedEvent
-from sim.dynamics import Action
-from sim.maze import Maze
-from sim.observations import N_RAYS, cast_rays
+from sim.core.dynamics import Action
+from sim.core.maze import Maze
+from sim.core.observations import N_RAYS, cast_rays
 
 CODEBASE_VERSION = "v3.0"
 FPS = 10  # nominal: a frame is a Driver step, not a clock tick

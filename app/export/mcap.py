@@ -28,7 +28,7 @@ from mcap.writer import Writer
 from app.export.foxglove_scene import scene_update
 from app.export.record import ExportError, TrialRecord
 from app.trial.state import LoggedEvent
-from sim.maze import FIXED_MAP, WALLS_MAP, Maze
+from sim.core.maze import FIXED_MAP, WALLS_MAP, Maze
 
 PROFILE = ""  # plain JSON messages: no ROS profile
 TABLE_FRAME = "table"

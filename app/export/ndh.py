@@ -1,6 +1,6 @@
 """Recorded trials as NDH and LDH instances in the benchmark's own JSON schema and layout.
 
-An export folder reads exactly like a RobotSlangBenchmark clone (`sim.benchmark.Benchmark`):
+An export folder reads exactly like a RobotSlangBenchmark clone (`sim.tasks.benchmark.Benchmark`):
 
     NDH-data/{train,val_seen,test}.json   one instance per target reached, dialog up to it
     LDH-data/{train,val_seen,test}.json   dialog up to the end of localization, the estimate
@@ -28,7 +28,7 @@ import numpy as np
 from app.export.record import TrialRecord
 from app.trial.state import LoggedEvent
 from app.trial.vocabulary import Phase, Role
-from sim.maze import Maze
+from sim.core.maze import Maze
 
 SPLITS = ("train", "val_seen", "test")
 HELD_OUT_FRACTION = 0.15  # of mazes, for each of val_seen and test (the benchmark: 26 + 26 of 170)

@@ -1,7 +1,7 @@
 """`TrialBelief`: a live particle filter for one trial whose Driver camera is known.
 
 Each executed move is the filter's odometry; the first Driver frame captured after it (and the
-trial's first frame) weighs the particles: a rover's through `sim.perception.perceive`, a
+trial's first frame) weighs the particles: a rover's through `sim.robot.perception.perceive`, a
 simulator's by the simulator's own ray observation at the frame's pose (`Frame.observation`:
 its frames are ideal renders, so perceiving their pixels would cost four times the update and
 say nothing more). The rays (in `RayTable.features` layout) and the belief are what an agent
@@ -25,11 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.camera import CameraCalibration
-from sim.dynamics import Action
-from sim.localization import Belief, ParticleFilter
-from sim.maze import Maze
-from sim.perception import PerceptionError, RayObservation, decode_frame, features, perceive
+from sim.core.dynamics import Action
+from sim.core.maze import Maze
+from sim.robot.camera import CameraCalibration
+from sim.robot.localization import Belief, ParticleFilter
+from sim.robot.perception import PerceptionError, RayObservation, decode_frame, features, perceive
 
 logger = logging.getLogger(__name__)
 

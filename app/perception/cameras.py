@@ -5,8 +5,8 @@
   the bundled mazes, ship beside this module (`sim_camera.json`; `python -m
   app.perception.cameras` writes it again).
 - a rover: the lab's calibration file (setting `camera_calibration`, default
-  `DATA_DIR/camera_calibration.json`, written by `sim.camera.CameraCalibration.save` after
-  `sim.perception.calibrate_colours`). Without one the rover's camera is not known: the trial
+  `DATA_DIR/camera_calibration.json`, written by `sim.robot.camera.CameraCalibration.save` after
+  `sim.robot.perception.calibrate_colours`). Without one the rover's camera is not known: the trial
   runs without a particle filter, and an agent Driver on it sees no rays.
 
 Learning colours renders 60 frames (tens of seconds of CPU on a loaded machine), which is why
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sim.camera import CameraCalibration, FrontCamera
+from sim.robot.camera import CameraCalibration, FrontCamera
 
 SIM_CAMERA_SIZE = (320, 240)  # app.backends.sim.FRAME_SIZE, without importing the backend
 SIM_CALIBRATION = Path(__file__).with_name("sim_camera.json")
@@ -35,9 +35,9 @@ def sim_camera() -> FrontCamera:
 
 def learned(camera: FrontCamera, seed: int = 1, progress: bool = False) -> CameraCalibration:
     """`camera`'s exact geometry with colours learned from its frames on bundled mazes."""
-    from sim.library import MazeLibrary
-    from sim.navgraph import NavGraph
-    from sim.perception import simulated_calibration
+    from sim.core.navgraph import NavGraph
+    from sim.robot.perception import simulated_calibration
+    from sim.tasks.library import MazeLibrary
 
     library = MazeLibrary()
     mazes = [(m, NavGraph.build(m)) for m in (library.load(n) for n in library.names()[:COLOUR_MAZES])]

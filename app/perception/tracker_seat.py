@@ -1,6 +1,6 @@
 """`TrialTracker`: a trial's overhead frames -> `pose` events with source "tracker".
 
-One `sim.tracking.OverheadTracker` per trial, calibrated from the `overhead_calibration`
+One `sim.robot.tracking.OverheadTracker` per trial, calibrated from the `overhead_calibration`
 setting's file when there is one, else by the first frame showing the four corner markers.
 Frames are tracked off the event loop, one at a time: a frame arriving while the previous one
 is still being tracked is skipped (the pose stream runs at the overhead frame rate the machine
@@ -13,8 +13,8 @@ import asyncio
 import logging
 from pathlib import Path
 
-from sim.calibration import CalibrationError
-from sim.tracking import FrameError, OverheadCalibration, OverheadTracker, TrackedPose
+from sim.robot.calibration import CalibrationError
+from sim.robot.tracking import FrameError, OverheadCalibration, OverheadTracker, TrackedPose
 
 logger = logging.getLogger(__name__)
 

@@ -22,7 +22,7 @@ from app.guard import csrf_protect
 from app.mazes import UnknownMaze
 from app.routes.experimenter import experimenter
 from app.routes.pages import render
-from sim.maze import Maze
+from sim.core.maze import Maze
 
 router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter), Depends(csrf_protect)])
 REPLAYABLE = ("finished", "aborted")

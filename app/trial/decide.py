@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from app.trial import events as ev
 from app.trial.state import TrialState
 from app.trial.vocabulary import EXPERIMENTER_PAUSE, MoveAction, Outcome, Phase, Role, disconnect_pause
-from sim.geometry import SUCCESS_RADIUS_M
+from sim.core.geometry import SUCCESS_RADIUS_M
 
 
 class Refused(ValueError):

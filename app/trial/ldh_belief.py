@@ -2,7 +2,7 @@
 
 After each chat message of the localization phase the dialog so far is read by the learned
 localizer (`models/ldh.py`) when `ldh_checkpoint` is set, else by the non-learned `colours`
-baseline (`sim/ldh_eval.py`), and the watchers get `{"type": "ldh_belief", "model", "top":
+baseline (`sim/tasks/ldh_eval.py`), and the watchers get `{"type": "ldh_belief", "model", "top":
 [[x, y, p], ...]}`: the most probable nodes of the maze's main component, metres, p summing to
 at most 1. The model runs off the event loop; a belief that finishes after a newer one is dropped.
 """
@@ -20,10 +20,10 @@ import numpy as np
 from app.trial.events import LoggedEvent
 from app.trial.port import Connection
 from app.trial.vocabulary import Phase, Role
-from sim.ldh_eval import MazeContext, colour_logits
-from sim.ldh_features import maze_views, mentions
-from sim.maze import Maze
-from sim.navgraph import NavGraph
+from sim.core.maze import Maze
+from sim.core.navgraph import NavGraph
+from sim.tasks.ldh_eval import MazeContext, colour_logits
+from sim.tasks.ldh_features import maze_views, mentions
 
 if TYPE_CHECKING:
     from app.services import Services

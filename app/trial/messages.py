@@ -11,7 +11,7 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
 
 from app.trial.vocabulary import MoveAction, Role
-from sim.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M
+from sim.core.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M
 
 MAX_CHAT_CHARS = 500
 

@@ -13,7 +13,7 @@ from sqlalchemy.orm import Session
 from app.db.models import Event, Participant, Robot, Team, Trial
 from app.trial.events import TrialCreated
 from app.trial.vocabulary import Phase, Role
-from sim.labels import OBJECTS
+from sim.core.labels import OBJECTS
 
 
 class TrialSetupError(ValueError):

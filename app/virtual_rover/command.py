@@ -22,14 +22,14 @@ from robot_client.calibration import Calibration
 from robot_client.camera import CameraSettings, FrameGrabber
 from robot_client.cli import serve
 from robot_client.client import LinkSettings, RobotClient, robot_url
-from sim.geometry import world_to_pixel
-from sim.maze import Maze
-from sim.navgraph import NavGraph
-from sim.rover import BODY_RADIUS_M, MotionNoise, Rover, RoverPose, clearance_map
+from sim.core.geometry import world_to_pixel
+from sim.core.maze import Maze
+from sim.core.navgraph import NavGraph
+from sim.robot.rover import BODY_RADIUS_M, MotionNoise, Rover, RoverPose, clearance_map
 
 if TYPE_CHECKING:
-    from sim.camera import FrontCamera
-    from sim.overhead import OverheadCamera
+    from sim.robot.camera import FrontCamera
+    from sim.robot.overhead import OverheadCamera
 
 CAMERA_SOURCE = "virtual"  # the hello's camera.source, where the real client names its camera
 JPEG_QUALITY = 80  # the real client's default
@@ -83,7 +83,7 @@ def build(
     camera: FrontCamera | OverheadCamera
     source: FrontCameraSource | OverheadCameraSource
     if spec.role == "driver":
-        from sim.camera import FrontCamera
+        from sim.robot.camera import FrontCamera
 
         camera = FrontCamera()
         start = spec.start
@@ -96,7 +96,7 @@ def build(
         motors = VirtualMotors(rover, spec.calibration, truth)
         source = FrontCameraSource(spec.maze, motors, camera, seed=spec.seed)
     else:
-        from sim.overhead import OverheadCamera
+        from sim.robot.overhead import OverheadCamera
 
         if spec.truth is None:
             raise ValueError("--role overhead needs --truth FILE: the driver rover's truth file, whose poses it films")

@@ -1,7 +1,7 @@
 """Simulated motors and cameras with the interfaces `robot_client` drives.
 
 `VirtualMotors` is what `robot_client.motors.Motors` is to `RobotClient`: `calibration`,
-`start(action)`, `stop()`, `running`, `close()`. A pulse moves the `sim.rover.Rover` over the
+`start(action)`, `stop()`, `running`, `close()`. A pulse moves the `sim.robot.rover.Rover` over the
 calibrated pulse length, so the pose at any instant is the part of the move done by then: a
 `stop` (the server's, the watchdog's, a shutdown's) leaves the rover part way, exactly as the
 client's safety rules cut a real pulse. The cameras are sources for `robot_client`'s
@@ -19,8 +19,8 @@ import numpy as np
 
 from app.virtual_rover.truth import SAMPLE_S, TruthFollower, TruthLog, TruthSample
 from robot_client.calibration import Calibration
-from sim.maze import Maze
-from sim.rover import Move, Pulse, Rover, RoverPose
+from sim.core.maze import Maze
+from sim.robot.rover import Move, Pulse, Rover, RoverPose
 
 
 class VirtualMotors:
@@ -109,10 +109,10 @@ class VirtualMotors:
 
 
 class FrontCameraSource:
-    """The rover's webcam: `sim.camera.capture` at the true pose of the moment it is read."""
+    """The rover's webcam: `sim.robot.camera.capture` at the true pose of the moment it is read."""
 
     def __init__(self, maze: Maze, motors: VirtualMotors, camera, seed: int | None) -> None:
-        from sim.camera import capture
+        from sim.robot.camera import capture
 
         self._capture = capture
         self.maze, self.motors, self.camera = maze, motors, camera
@@ -138,7 +138,7 @@ class OverheadCameraSource:
     camera follows it (no rover on the table until it has a first line)."""
 
     def __init__(self, maze: Maze, truth_path, camera, seed: int) -> None:
-        from sim.overhead import render_overhead
+        from sim.robot.overhead import render_overhead
 
         self._render = render_overhead
         self.maze, self.camera = maze, camera

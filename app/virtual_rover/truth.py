@@ -17,7 +17,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TextIO
 
-from sim.rover import RoverPose
+from sim.robot.rover import RoverPose
 
 SAMPLE_S = 0.01
 

@@ -12,12 +12,12 @@ from app.backends.render import render_jpeg
 from app.perception.belief import TrialBelief
 from app.perception.cameras import CameraUnknown, driver_calibration, learned
 from app.settings import Settings
-from sim.camera import FrontCamera, capture
-from sim.dynamics import Action, Pose, step
-from sim.geometry import heading_angle
-from sim.library import MazeLibrary
-from sim.navgraph import NavGraph
-from sim.observations import OBS_FEATURES
+from sim.core.dynamics import Action, Pose, step
+from sim.core.geometry import heading_angle
+from sim.core.navgraph import NavGraph
+from sim.core.observations import OBS_FEATURES
+from sim.robot.camera import FrontCamera, capture
+from sim.tasks.library import MazeLibrary
 
 
 @pytest.fixture(scope="module")

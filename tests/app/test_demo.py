@@ -14,7 +14,7 @@ from app.db.models import Team, Trial
 from app.demo.script import OBJECT_WORDS, describe_view, plan_leg
 from app.mazes import Mazes
 from app.trial.log import EventLog
-from sim.dynamics import Action, Pose, snap_pose, step, teacher_action
+from sim.core.dynamics import Action, Pose, snap_pose, step, teacher_action
 
 
 @pytest.fixture(scope="module")

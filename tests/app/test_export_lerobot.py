@@ -21,7 +21,7 @@ from app.export.lerobot import FPS, STATE_NAMES, VIDEO_KEY, Episode, episodes_of
 from app.export.record import ExportError
 from app.settings import Settings
 from app.trial.log import EventLog
-from sim.dynamics import Action
+from sim.core.dynamics import Action
 from tests.app.test_export_mcap import record, small_maze  # noqa: F401  (a small trial log)
 from tests.packaging.conftest import REPO, clean_env
 

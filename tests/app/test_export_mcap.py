@@ -15,8 +15,8 @@ from app.export.foxglove_scene import CELL_M, wall_cells
 from app.export.mcap import CHANNELS, DERIVED_TOPICS, schemas, write_mcap
 from app.export.record import ExportError, TrialRecord
 from app.trial.state import LoggedEvent
-from sim.labels import Label
-from sim.maze import Maze
+from sim.core.labels import Label
+from sim.core.maze import Maze
 
 
 def small_maze() -> Maze:

@@ -11,9 +11,9 @@ import pytest
 from app.export.ndh import assign_splits, ldh_instances, ndh_instances, scan_id, write_benchmark
 from app.export.record import TrialRecord
 from app.trial.state import LoggedEvent
-from sim.benchmark import Benchmark, NDHInstance
-from sim.labels import Label
-from sim.maze import Maze
+from sim.core.labels import Label
+from sim.core.maze import Maze
+from sim.tasks.benchmark import Benchmark, NDHInstance
 
 
 def maze_named(name: str, shift: int = 0) -> Maze:

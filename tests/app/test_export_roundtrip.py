@@ -22,7 +22,7 @@ from app.export.mcap import CHANNELS, DERIVED_TOPICS, schemas
 from app.mazes import Mazes
 from app.settings import Settings
 from app.trial.log import EventLog
-from sim.benchmark import Benchmark, recorded_start
+from sim.tasks.benchmark import Benchmark, recorded_start
 
 
 @pytest.fixture(scope="module")

@@ -12,9 +12,9 @@ import pytest
 from app.db.models import Experimenter
 from app.security import hash_password
 from bench.live import SeatClient, make_trial
-from sim.ldh_eval import MazeContext, colour_logits
-from sim.ldh_features import maze_views, mentions
-from sim.navgraph import NavGraph
+from sim.core.navgraph import NavGraph
+from sim.tasks.ldh_eval import MazeContext, colour_logits
+from sim.tasks.ldh_features import maze_views, mentions
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread
 from tests.app.test_status import Watch

@@ -12,9 +12,9 @@ from app.ldh_study import Studies
 from app.main import build_services, ensure_experimenter
 from app.security import StudyTokens, hash_password
 from bench.live import ServerProcess
-from sim.benchmark import Benchmark
-from sim.ldh import LDHInstance, Variant
-from sim.ldh_eval import MazeContext, score
+from sim.tasks.benchmark import Benchmark
+from sim.tasks.ldh import LDHInstance, Variant
+from sim.tasks.ldh_eval import MazeContext, score
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread, browser, page_csrf_token
 

@@ -19,8 +19,8 @@ from app.export.mcap import DERIVED_TOPICS
 from app.mazes import Mazes, commander_map
 from app.security import hash_password
 from bench.live import make_trial
-from sim.geometry import world_to_pixel
-from sim.labels import LABEL_BGR, OBJECT_LABELS
+from sim.core.geometry import world_to_pixel
+from sim.core.labels import LABEL_BGR, OBJECT_LABELS
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread
 

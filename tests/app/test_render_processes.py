@@ -16,7 +16,7 @@ from app.backends.render import RenderProcesses, render_jpeg
 from app.mazes import Mazes
 from app.settings import Settings
 from bench.live import SeatClient, ServerProcess, ServerProcesses, make_trial
-from sim.geometry import heading_angle
+from sim.core.geometry import heading_angle
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread
 from tests.app.trial_play import move, start_trial

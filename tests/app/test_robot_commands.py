@@ -42,9 +42,9 @@ def test_calibrate_overhead_stores_the_calibration_the_tracker_uses(tmp_path):
     import cv2
     import numpy as np
 
-    from sim.library import MazeLibrary
-    from sim.overhead import render_overhead
-    from sim.tracking import OverheadCalibration, OverheadTracker
+    from sim.robot.overhead import render_overhead
+    from sim.robot.tracking import OverheadCalibration, OverheadTracker
+    from sim.tasks.library import MazeLibrary
 
     maze = MazeLibrary().load("gen-001")
     picture = tmp_path / "table.png"

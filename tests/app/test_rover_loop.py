@@ -19,8 +19,8 @@ from app.export.ndh import ndh_instances
 from app.export.source import load_trial
 from app.perception.cameras import learned
 from bench.live import make_trial
-from sim.camera import FrontCamera
-from sim.geometry import SUCCESS_RADIUS_M
+from sim.core.geometry import SUCCESS_RADIUS_M
+from sim.robot.camera import FrontCamera
 from tests.app.live import experimenter_client
 from tests.app.test_seq2seq_seat import stopping_checkpoint  # noqa: F401  (a fixture; needs the benchmark)
 from tests.app.test_status import Watch

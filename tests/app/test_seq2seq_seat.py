@@ -17,7 +17,7 @@ from bench.live import SeatClient, make_trial
 from models.data import World
 from models.shipped import SHIPPED_CHECKPOINT, default_checkpoint
 from models.train import TrainConfig, load_agent, train
-from sim.benchmark import Benchmark
+from sim.tasks.benchmark import Benchmark
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread
 
@@ -103,7 +103,7 @@ def test_without_a_setting_the_shipped_driver_plays_a_trial_on_a_bundled_maze(tm
     with ServerThread(settings) as server:
         services = server.services
         assert available_drivers(services)["seq2seq"] is None
-        maze = "gen-000"  # the first of the generated mazes shipped in sim/mazes/
+        maze = "gen-000"  # the first of the generated mazes shipped in sim/tasks/mazes/
         assert maze in services.mazes.names()
         trial_id = make_trial(services, maze, targets=("jar", "mug", "paddle"), driver="agent:seq2seq")
         token = services.seats.issue(trial_id, "commander")

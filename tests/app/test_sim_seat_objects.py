@@ -14,11 +14,11 @@ from app.backends.sim import SimulatorBackend
 from app.clock import ServerClock
 from app.mazes import Mazes
 from app.settings import Settings
-from sim.dynamics import Action, Pose, step, teacher_action
-from sim.geometry import heading_angle, heading_index
-from sim.labels import LABEL_BGR, OBJECTS, Label
-from sim.navgraph import NavGraph
-from sim.observations import RayTable, cast_rays, too_close
+from sim.core.dynamics import Action, Pose, step, teacher_action
+from sim.core.geometry import heading_angle, heading_index
+from sim.core.labels import LABEL_BGR, OBJECTS, Label
+from sim.core.navgraph import NavGraph
+from sim.core.observations import RayTable, cast_rays, too_close
 
 MAZE = "gen-000"
 

@@ -23,12 +23,12 @@ from app.main import build_services
 from app.virtual_rover.truth import TruthSample, read_truth
 from bench.live import REPO, SeatClient, ServerProcess, make_trial
 from robot_client.calibration import Calibration
-from sim.camera import FrontCamera
-from sim.geometry import GRID_STEP_M, TURN_RAD, heading_angle
-from sim.library import MazeLibrary
-from sim.navgraph import NavGraph
-from sim.rover import BODY_RADIUS_M, NOISE_MODELS, Rover, RoverPose
-from sim.tracking import OverheadTracker
+from sim.core.geometry import GRID_STEP_M, TURN_RAD, heading_angle
+from sim.core.navgraph import NavGraph
+from sim.robot.camera import FrontCamera
+from sim.robot.rover import BODY_RADIUS_M, NOISE_MODELS, Rover, RoverPose
+from sim.robot.tracking import OverheadTracker
+from sim.tasks.library import MazeLibrary
 from tests.app.conftest import platform_settings
 from tests.app.test_experimenter import cli
 from tests.robot_client.conftest import ScriptedServer

@@ -5,8 +5,8 @@ from __future__ import annotations
 import itertools
 import math
 
-from sim.dynamics import Action, snap_pose, teacher_action
-from sim.geometry import heading_index
+from sim.core.dynamics import Action, snap_pose, teacher_action
+from sim.core.geometry import heading_index
 
 _ids = itertools.count()
 

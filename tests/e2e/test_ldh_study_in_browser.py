@@ -14,9 +14,9 @@ import pytest
 from app.db.models import Experimenter
 from app.ldh_study import Studies
 from app.security import StudyTokens, hash_password
-from sim.benchmark import Benchmark
-from sim.ldh import LDHInstance, Variant
-from sim.ldh_eval import MazeContext, score
+from sim.tasks.benchmark import Benchmark
+from sim.tasks.ldh import LDHInstance, Variant
+from sim.tasks.ldh_eval import MazeContext, score
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread
 from tests.e2e.test_pages_in_browser import ARTIFACTS, H_M, W_M, experimenter, page_checks

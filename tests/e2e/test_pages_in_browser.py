@@ -15,7 +15,7 @@ import pytest
 from app.db.models import Experimenter, Team, Trial
 from app.security import hash_password
 from bench.live import REPO, make_trial
-from sim.labels import LABEL_BGR, OBJECT_LABELS
+from sim.core.labels import LABEL_BGR, OBJECT_LABELS
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread, wait_js
 

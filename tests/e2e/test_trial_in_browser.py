@@ -14,8 +14,8 @@ import pytest
 from app.db.models import Experimenter
 from app.security import hash_password
 from bench.live import REPO
-from sim.dynamics import Action
-from sim.labels import Label
+from sim.core.dynamics import Action
+from sim.core.labels import Label
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread, wait_js
 from tests.app.test_sim_seat_objects import object_pixels

@@ -6,7 +6,7 @@ import pytest
 
 from models.data import EpisodeSet, World
 from models.tokenizer import Tokenizer
-from sim.benchmark import Benchmark
+from sim.tasks.benchmark import Benchmark
 
 
 @pytest.fixture(scope="session")

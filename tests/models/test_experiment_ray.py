@@ -11,7 +11,7 @@ import pytest
 
 from models.experiment import _run_jobs
 from models.train import TrainConfig, build_world, train
-from sim.benchmark import Benchmark
+from sim.tasks.benchmark import Benchmark
 
 ray = pytest.importorskip("ray", reason="the cluster extra is not installed: pip install .[cluster]")
 

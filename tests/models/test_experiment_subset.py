@@ -10,7 +10,7 @@ import pytest
 
 from models.experiment import experiment_grid
 from models.report import write_report
-from sim.metrics import write_csv
+from sim.core.metrics import write_csv
 from tests.models.test_report import rows
 
 

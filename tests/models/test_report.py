@@ -9,7 +9,7 @@ import pytest
 
 from models.experiment import choose_iters
 from models.report import write_report
-from sim.metrics import EpisodeResult, write_csv
+from sim.core.metrics import EpisodeResult, write_csv
 
 
 def rows(split, agent, tds, seed=0):

@@ -9,10 +9,10 @@ import torch
 from models.agent import FORWARD, LEFT, RIGHT, STOP, AgentConfig, Seq2SeqAgent, mask_logits
 from models.data import goal_distance
 from models.rollout import run_episodes
-from sim.benchmark import episode_start, goal_node
-from sim.dynamics import teacher_actions as sim_teacher_actions
-from sim.geometry import SUCCESS_RADIUS_M
-from sim.stepper import BatchStepper
+from sim.core.dynamics import teacher_actions as sim_teacher_actions
+from sim.core.geometry import SUCCESS_RADIUS_M
+from sim.core.stepper import BatchStepper
+from sim.tasks.benchmark import episode_start, goal_node
 
 
 def test_mask_logits_forbids_forward_where_blocked_and_stop_where_not_allowed():
@@ -88,8 +88,8 @@ def test_student_forcing_stops_only_at_the_goal_however_much_the_agent_wants_to(
 
 def test_target_flags_are_the_target_column_of_each_rays_one_hot_label(few):
     from models.agent import observation_input
-    from sim.labels import Label
-    from sim.observations import N_LABELS, N_RAYS
+    from sim.core.labels import Label
+    from sim.core.observations import N_LABELS, N_RAYS
 
     world = few["world"]
     obs = torch.from_numpy(world.obs[np.arange(50) * 8].astype(np.float32))  # heading 0
@@ -116,7 +116,7 @@ def test_a_lone_dialog_is_encoded_as_in_a_padded_batch(few):
 
 def test_rewards_are_the_metres_covered_in_forward_steps_and_a_bonus_for_stopping_at_the_goal(few):
     from models.rollout import SUCCESS_BONUS, move_rewards
-    from sim.geometry import GRID_STEP_M
+    from sim.core.geometry import GRID_STEP_M
 
     world, eps = few["world"], few["train_set"]
     idx = np.array([0, 0, 0, 0])

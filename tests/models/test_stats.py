@@ -9,7 +9,7 @@ import pytest
 from scipy import stats as scipy_stats
 
 from models.stats import paired_tests, seed_tests
-from sim.metrics import EpisodeResult
+from sim.core.metrics import EpisodeResult
 
 
 def result(agent, inst, seed, td):

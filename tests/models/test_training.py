@@ -13,8 +13,8 @@ import torch
 from models.evaluate import evaluate_checkpoint
 from models.rollout import run_episodes
 from models.train import TrainConfig, load_agent, train
-from sim.evaluation import evaluate_baselines
-from sim.metrics import CSV_COLUMNS, summarize, write_csv
+from sim.core.metrics import CSV_COLUMNS, summarize, write_csv
+from sim.tasks.evaluation import evaluate_baselines
 
 # Each test trains an agent: minutes of CPU together (the quick loop is -m "not slow").
 pytestmark = pytest.mark.slow
@@ -161,7 +161,7 @@ def test_seq2seq_driver_plays_from_a_growing_dialog(trained, bench, few):
 
 def test_the_web_driver_counts_its_poses_for_its_revisit_penalty(trained, bench, few):
     from models.driver import Seq2SeqDriver
-    from sim.dynamics import Action, snap_pose, step
+    from sim.core.dynamics import Action, snap_pose, step
 
     _, out, _ = trained
     inst = few["val"][0]

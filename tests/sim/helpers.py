@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.geometry import MAP_HEIGHT_PX, MAP_WIDTH_PX, world_to_pixel
-from sim.labels import Label
+from sim.core.geometry import MAP_HEIGHT_PX, MAP_WIDTH_PX, world_to_pixel
+from sim.core.labels import Label
 
 
 def open_table(objects=((0.5, 0.5), (1.2, 1.0), (2.0, 1.5))) -> np.ndarray:

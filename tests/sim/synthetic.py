@@ -5,9 +5,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from sim.geometry import MAP_HEIGHT_PX, MAP_WIDTH_PX
-from sim.labels import Label
-from sim.maze import Maze
+from sim.core.geometry import MAP_HEIGHT_PX, MAP_WIDTH_PX
+from sim.core.labels import Label
+from sim.core.maze import Maze
 
 BORDER_PX = 10  # white table edge, columns/rows 0..9 and the last 10
 # Objects parked in the bottom-left corner unless a test places them.

@@ -5,11 +5,11 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 
-import sim.env  # noqa: F401  (registers RobotSlang/NDH-v0)
-from sim.batch_env import BatchNavEnv
-from sim.dynamics import Action
-from sim.env import ENV_ID, NDHEnv
-from sim.wrappers import DialogCodes
+import sim.tasks.env  # noqa: F401  (registers RobotSlang/NDH-v0)
+from sim.core.dynamics import Action
+from sim.tasks.batch_env import BatchNavEnv
+from sim.tasks.env import ENV_ID, NDHEnv
+from sim.tasks.wrappers import DialogCodes
 
 
 def test_make_vec_returns_the_batched_core_with_the_single_envs_spaces():
@@ -81,5 +81,5 @@ def test_dialog_codes_keep_the_end_of_the_dialog_within_the_charset(benchmark_pa
     text = raw._episode.dialog
     codes = obs["dialog"]
     assert env.observation_space.contains(obs)
-    decoded = "".join(sim.env.DIALOG_CHARSET[c - 1] for c in codes if c > 0)
+    decoded = "".join(sim.tasks.env.DIALOG_CHARSET[c - 1] for c in codes if c > 0)
     assert decoded == text[-32:]

@@ -10,7 +10,7 @@ import sys
 import numpy as np
 import pytest
 
-from sim.benchmark import Benchmark, BenchmarkError, episode_start, goal_node, recorded_start
+from sim.tasks.benchmark import Benchmark, BenchmarkError, episode_start, goal_node, recorded_start
 
 
 @pytest.fixture(scope="module")

@@ -8,9 +8,9 @@ import cv2
 import numpy as np
 import pytest
 
-from sim.camera import CalibrationError, CameraCalibration, ColourClass, FrontCamera, capture
-from sim.library import MazeLibrary
-from sim.render import first_person
+from sim.robot.camera import CalibrationError, CameraCalibration, ColourClass, FrontCamera, capture
+from sim.robot.render import first_person
+from sim.tasks.library import MazeLibrary
 
 
 @pytest.fixture(scope="module")

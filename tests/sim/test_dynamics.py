@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.baselines import ShortestAgent
-from sim.benchmark import Benchmark
-from sim.dynamics import Action, Pose, snap_pose, step, teacher_action
-from sim.evaluation import run_episode
-from sim.geometry import GRID_STEP_M
-from sim.maze import Maze
-from sim.navgraph import NavGraph
+from sim.core.dynamics import Action, Pose, snap_pose, step, teacher_action
+from sim.core.geometry import GRID_STEP_M
+from sim.core.maze import Maze
+from sim.core.navgraph import NavGraph
+from sim.tasks.baselines import ShortestAgent
+from sim.tasks.benchmark import Benchmark
+from sim.tasks.evaluation import run_episode
 from tests.sim.helpers import open_table, wall_at_x
 
 

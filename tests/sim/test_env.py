@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-import sim.env  # noqa: F401  (registers RobotSlang/NDH-v0)
-from sim.benchmark import Benchmark, episode_start, goal_node, recorded_start
-from sim.dynamics import Action, Pose, teacher_action
-from sim.env import ENV_ID, NDHEnv
-from sim.geometry import SUCCESS_RADIUS_M
-from sim.labels import Label
-from sim.maze import Maze
-from sim.observations import OBS_FEATURES, RayTable
+import sim.tasks.env  # noqa: F401  (registers RobotSlang/NDH-v0)
+from sim.core.dynamics import Action, Pose, teacher_action
+from sim.core.geometry import SUCCESS_RADIUS_M
+from sim.core.labels import Label
+from sim.core.maze import Maze
+from sim.core.observations import OBS_FEATURES, RayTable
+from sim.tasks.benchmark import Benchmark, episode_start, goal_node, recorded_start
+from sim.tasks.env import ENV_ID, NDHEnv
 from tests.sim.helpers import open_table, wall_at_x
 
 
@@ -69,7 +69,7 @@ def test_runs_on_the_bundled_mazes_by_default():
 
 
 def test_make_with_module_prefix_imports_and_registers(walled_maze):
-    env = gym.make("sim.env:RobotSlang/NDH-v0", mazes=[walled_maze])
+    env = gym.make("sim.tasks.env:RobotSlang/NDH-v0", mazes=[walled_maze])
     assert isinstance(env.unwrapped, NDHEnv)
 
 
@@ -156,7 +156,7 @@ def test_teacher_reaches_the_goal_and_is_paid_for_it(bench, val_env):
         if terminated:  # the shortest route fits in 120 actions
             reached += 1
             assert info["td"] == 0.0 and val_env.pose.node == goal
-            assert total == pytest.approx(start_td + sim.env.SUCCESS_REWARD)
+            assert total == pytest.approx(start_td + sim.tasks.env.SUCCESS_REWARD)
     assert reached >= 12
 
 

@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from sim.generator import generate_maze, route_turns
-from sim.geometry import MAP_HEIGHT_PX, MAP_WIDTH_PX
-from sim.labels import LABEL_BGR, OBJECT_LABELS, WALL_LABELS, Label
-from sim.library import BUNDLED_DIR, MANIFEST
-from sim.maze import FIXED_MAP, WALLS_MAP, Maze, MazeError
-from sim.navgraph import NavGraph
-from sim.validation import check_reachable
+from sim.core.geometry import MAP_HEIGHT_PX, MAP_WIDTH_PX
+from sim.core.labels import LABEL_BGR, OBJECT_LABELS, WALL_LABELS, Label
+from sim.core.maze import FIXED_MAP, WALLS_MAP, Maze, MazeError
+from sim.core.navgraph import NavGraph
+from sim.core.validation import check_reachable
+from sim.tasks.generator import generate_maze, route_turns
+from sim.tasks.library import BUNDLED_DIR, MANIFEST
 from tests.sim.synthetic import synthetic_maze
 
 SEEDS = (3, 4, 5)

@@ -8,8 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from sim.labels import PALETTE_BGR, Label
-from sim.maze import Maze, MazeError, read_label_png
+from sim.core.labels import PALETTE_BGR, Label
+from sim.core.maze import Maze, MazeError, read_label_png
 from tests.sim.helpers import open_table, wall_at_x
 
 
@@ -38,7 +38,7 @@ def test_an_off_palette_pixel_is_named(tmp_path, colour):
 
 
 def test_decoded_labels_are_cached_by_the_png_contents(tmp_path):
-    from sim.library import MazeLibrary
+    from sim.tasks.library import MazeLibrary
 
     library = MazeLibrary()
     run = library.path(library.names()[0])

@@ -11,13 +11,13 @@ import pytest
 from typer.testing import CliRunner
 
 from app.cli import root
-from sim.benchmark import Benchmark
-from sim.labels import Label
-from sim.ldh import LDHInstance, Variant, load_split, localization_prefix
-from sim.ldh_eval import MazeContext, MazeContexts, evaluate, score, summarize
-from sim.ldh_features import Sector, mentions
-from sim.maze import Maze
-from sim.navgraph import NavGraph
+from sim.core.labels import Label
+from sim.core.maze import Maze
+from sim.core.navgraph import NavGraph
+from sim.tasks.benchmark import Benchmark
+from sim.tasks.ldh import LDHInstance, Variant, load_split, localization_prefix
+from sim.tasks.ldh_eval import MazeContext, MazeContexts, evaluate, score, summarize
+from sim.tasks.ldh_features import Sector, mentions
 from tests.sim.helpers import open_table
 
 

@@ -11,11 +11,11 @@ import pytest
 from typer.testing import CliRunner
 
 from app.cli import root
-from sim.labels import Label
-from sim.library import MANIFEST, MazeLibrary, UnknownMazeError
-from sim.maze import FIXED_MAP, Maze, MazeError
-from sim.mazes_cli import generate_set
-from sim.validation import check_reachable
+from sim.cli.mazes import generate_set
+from sim.core.labels import Label
+from sim.core.maze import FIXED_MAP, Maze, MazeError
+from sim.core.validation import check_reachable
+from sim.tasks.library import MANIFEST, MazeLibrary, UnknownMazeError
 from tests.sim.synthetic import synthetic_maze
 
 BUNDLED = [f"gen-{i:03d}" for i in range(12)]

@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.camera import FrontCamera, capture
-from sim.dynamics import Action
-from sim.geometry import GRID_STEP_M, TURN_RAD
-from sim.library import MazeLibrary
-from sim.localization import (
+from sim.core.dynamics import Action
+from sim.core.geometry import GRID_STEP_M, TURN_RAD
+from sim.core.navgraph import NavGraph
+from sim.robot.camera import FrontCamera, capture
+from sim.robot.localization import (
     NO_NOISE,
     ParticleFilter,
     apply_move,
@@ -18,8 +18,8 @@ from sim.localization import (
     free_space,
     plot_filter_curve,
 )
-from sim.navgraph import NavGraph
-from sim.perception import perceive, simulated_calibration
+from sim.robot.perception import perceive, simulated_calibration
+from sim.tasks.library import MazeLibrary
 
 CAMERA = FrontCamera()
 

@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from sim.maze import Maze
-from sim.metrics import CSV_COLUMNS, EpisodeResult, read_csv, score_trajectory, summarize, write_csv
-from sim.navgraph import NavGraph
+from sim.core.maze import Maze
+from sim.core.metrics import CSV_COLUMNS, EpisodeResult, read_csv, score_trajectory, summarize, write_csv
+from sim.core.navgraph import NavGraph
 from tests.sim.helpers import open_table, wall_at_x
 
 

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.benchmark import Benchmark
-from sim.geometry import GRID_STEP_M, SUCCESS_RADIUS_M
-from sim.library import MazeLibrary
-from sim.maze import Maze
-from sim.navgraph import NavGraph, candidate_grid
+from sim.core.geometry import GRID_STEP_M, SUCCESS_RADIUS_M
+from sim.core.maze import Maze
+from sim.core.navgraph import NavGraph, candidate_grid
+from sim.tasks.benchmark import Benchmark
+from sim.tasks.library import MazeLibrary
 from tests.sim.helpers import open_table, wall_at_x
 
 RUNS = ("Run_318", "Run_114", "Run_135")

@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.geometry import GRID_STEP_M, HEADINGS, TABLE_HEIGHT_M, world_to_pixel
-from sim.labels import N_LABELS, WALL_LABELS, Label
-from sim.maze import Maze
-from sim.navgraph import NavGraph
-from sim.observations import (
+from sim.core.geometry import GRID_STEP_M, HEADINGS, TABLE_HEIGHT_M, world_to_pixel
+from sim.core.labels import N_LABELS, WALL_LABELS, Label
+from sim.core.maze import Maze
+from sim.core.navgraph import NavGraph
+from sim.core.observations import (
     N_RAYS,
     OBS_FEATURES,
     PX_PER_M_X,

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.fiducials import MarkerLayout, detect, detector, square
-from sim.library import MazeLibrary
-from sim.overhead import Imaging, OverheadCamera, render_overhead
+from sim.robot.fiducials import MarkerLayout, detect, detector, square
+from sim.robot.overhead import Imaging, OverheadCamera, render_overhead
+from sim.tasks.library import MazeLibrary
 
 LAYOUT = MarkerLayout()
 

@@ -6,13 +6,12 @@ import cv2
 import numpy as np
 import pytest
 
-from sim.camera import CameraCalibration, FrontCamera, capture
-from sim.geometry import HEADINGS, TURN_RAD, heading_index
-from sim.labels import N_LABELS, OBJECT_LABELS, WALL_LABELS
-from sim.library import MazeLibrary
-from sim.navgraph import NavGraph
-from sim.observations import N_RAYS, OBS_FEATURES, RayTable, cast_rays, too_close
-from sim.perception import (
+from sim.core.geometry import HEADINGS, TURN_RAD, heading_index
+from sim.core.labels import N_LABELS, OBJECT_LABELS, WALL_LABELS
+from sim.core.navgraph import NavGraph
+from sim.core.observations import N_RAYS, OBS_FEATURES, RayTable, cast_rays, too_close
+from sim.robot.camera import CameraCalibration, FrontCamera, capture
+from sim.robot.perception import (
     FrameProblem,
     PerceptionError,
     RayObservation,
@@ -22,6 +21,7 @@ from sim.perception import (
     random_poses,
     simulated_calibration,
 )
+from sim.tasks.library import MazeLibrary
 
 CAMERA = FrontCamera()  # 640x480, barrel distortion, noise: the virtual rover's default
 

@@ -9,9 +9,9 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
-from sim import play
-from sim.dynamics import Action
-from sim.labels import Label
+from sim.cli import play
+from sim.core.dynamics import Action
+from sim.core.labels import Label
 from tests.sim.synthetic import synthetic_maze
 
 

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.geometry import world_to_pixel
-from sim.labels import LABEL_BGR, WALL_LABELS, Label
-from sim.maze import Maze
-from sim.navgraph import NavGraph
-from sim.observations import N_RAYS, PX_PER_M_X, RayTable, cast_rays
-from sim.render import HORIZON, first_person, top_down
+from sim.core.geometry import world_to_pixel
+from sim.core.labels import LABEL_BGR, WALL_LABELS, Label
+from sim.core.maze import Maze
+from sim.core.navgraph import NavGraph
+from sim.core.observations import N_RAYS, PX_PER_M_X, RayTable, cast_rays
+from sim.robot.render import HORIZON, first_person, top_down
 from tests.sim.synthetic import synthetic_maze
 
 WALL_COL = 800  # a wide wall's face is the left edge of this column
@@ -176,8 +176,8 @@ def test_the_segment_camera_paints_what_the_grid_march_painted(benchmark_path, r
     side of the pixel boundary its ray stopped at, as float32 rounding fell; the segment
     camera reads it inside the wall pixel entered."""
     from bench.render_reference import first_person as reference
-    from sim.observations import RayCaster
-    from sim.render import _camera, _cast_columns, _scene
+    from sim.core.observations import RayCaster
+    from sim.robot.render import _camera, _cast_columns, _scene
 
     maze = Maze.from_dir(benchmark_path / "mazedata" / run)
     graph = NavGraph.build(maze)

@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from sim.geometry import GRID_STEP_M, TURN_RAD, pixel_to_world, world_to_pixel
-from sim.maze import Maze
-from sim.rover import BODY_RADIUS_M, NOISE_MODELS, MotionNoise, Move, Rover, RoverPose
+from sim.core.geometry import GRID_STEP_M, TURN_RAD, pixel_to_world, world_to_pixel
+from sim.core.maze import Maze
+from sim.robot.rover import BODY_RADIUS_M, NOISE_MODELS, MotionNoise, Move, Rover, RoverPose
 from tests.sim.helpers import open_table, wall_at_x
 
 WALL_X = 1.5  # a blue wall 10 px thick, the full height of the table

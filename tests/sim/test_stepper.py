@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.benchmark import MAX_EPISODE_ACTIONS, Benchmark, episode_start, goal_node
-from sim.dynamics import Action, Pose, step, teacher_actions
-from sim.library import MazeLibrary
-from sim.metrics import score_trajectory
-from sim.navgraph import NavGraph
-from sim.stepper import BatchStepper
-from sim.world import World, goal_rows
+from sim.core.dynamics import Action, Pose, step, teacher_actions
+from sim.core.metrics import score_trajectory
+from sim.core.navgraph import NavGraph
+from sim.core.stepper import MAX_EPISODE_ACTIONS, BatchStepper
+from sim.core.world import World, goal_rows
+from sim.tasks.benchmark import Benchmark, episode_start, goal_node
+from sim.tasks.library import MazeLibrary
 
 RUNS = ("Run_318", "Run_114", "Run_135", "Run_345")
 
@@ -73,7 +73,7 @@ def check_agreement(world, graphs, count=200, steps=60, observations=True):
 
 
 def test_agrees_step_by_step_with_the_dynamics_and_the_ray_tables(bench, world):
-    from sim.observations import RayTable
+    from sim.core.observations import RayTable
 
     check_agreement(world, [bench.graph(r) for r in RUNS])
     for m, run in enumerate(RUNS):  # the world's rows are the ray tables' features

@@ -10,11 +10,10 @@ import cv2
 import numpy as np
 import pytest
 
-from sim.fiducials import MarkerLayout, square
-from sim.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M
-from sim.library import MazeLibrary
-from sim.overhead import Imaging, OverheadCamera, render_overhead
-from sim.tracking import (
+from sim.core.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M
+from sim.robot.fiducials import MarkerLayout, square
+from sim.robot.overhead import Imaging, OverheadCamera, render_overhead
+from sim.robot.tracking import (
     CalibrationError,
     FrameError,
     OverheadCalibration,
@@ -23,6 +22,7 @@ from sim.tracking import (
     calibrate,
     evaluate_tracker,
 )
+from sim.tasks.library import MazeLibrary
 
 CAMERA, LAYOUT = OverheadCamera(), MarkerLayout()
 POSE = (1.0, 1.2, 0.6)

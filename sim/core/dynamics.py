@@ -1,0 +1,91 @@
+"""Agent dynamics on the navigation grid: actions, poses, collisions and the teacher.
+
+A pose is a node and a heading index (k * 45 degrees, counter-clockwise from +x). A forward
+move goes to the neighbouring grid point along the heading (0.07 m straight, 0.099 m diagonal);
+when that point is not navigable the move is a collision and the pose is unchanged.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from sim.core.geometry import HEADING_DI, HEADING_DJ, HEADINGS, heading_index
+from sim.core.navgraph import NavGraph
+
+
+class Action(IntEnum):
+    FORWARD = 0
+    LEFT = 1  # +45 degrees, counter-clockwise in the table frame
+    RIGHT = 2
+    STOP = 3
+
+    @property
+    def word(self) -> str:
+        return self.name.lower()
+
+    @classmethod
+    def parse(cls, word: str) -> Action:
+        try:
+            return cls[word.upper()]
+        except KeyError:
+            raise ValueError(f"unknown action {word!r}; expected forward, left, right or stop") from None
+
+
+@dataclass(frozen=True)
+class Pose:
+    node: int
+    heading: int  # 0..7
+
+
+def snap_pose(graph: NavGraph, x: float, y: float, theta: float = 0.0) -> Pose:
+    """The nearest navigable node and the nearest multiple of 45 degrees."""
+    return Pose(graph.nearest_node(x, y), heading_index(theta))
+
+
+def step(graph: NavGraph, pose: Pose, action: Action) -> tuple[Pose, bool]:
+    """Apply one action; returns the new pose and whether a forward move collided."""
+    if action == Action.FORWARD:
+        target = int(graph.forward[pose.node, pose.heading])
+        if target < 0:
+            return pose, True
+        return Pose(target, pose.heading), False
+    if action == Action.LEFT:
+        return Pose(pose.node, (pose.heading + 1) % HEADINGS), False
+    if action == Action.RIGHT:
+        return Pose(pose.node, (pose.heading - 1) % HEADINGS), False
+    return pose, False
+
+
+# Heading index of each grid step (di, dj) in {-1, 0, 1}^2, indexed [di + 1, dj + 1].
+_STEP_HEADING = np.full((3, 3), -1, dtype=np.int64)
+_STEP_HEADING[HEADING_DI + 1, HEADING_DJ + 1] = np.arange(HEADINGS)
+
+
+def teacher_actions(graph: NavGraph, nodes: ArrayLike, headings: ArrayLike, goals: ArrayLike) -> np.ndarray:
+    """Shortest-path actions for arrays of poses and goal nodes.
+
+    Turns toward the next hop by the smaller turn (left on a tie), forward when aligned,
+    stop at the goal's node or where no path to it exists.
+    """
+    at, facing, goal = (np.asarray(a, dtype=np.int64) for a in (nodes, headings, goals))
+    hop = graph.next_hop[at, goal]
+    stop = (at == goal) | (hop < 0)
+    hop = np.where(stop, at, hop)
+    actions = actions_toward(graph.node_ij[hop] - graph.node_ij[at], facing)
+    return np.where(stop, Action.STOP, actions).astype(np.int64)
+
+
+def actions_toward(delta: np.ndarray, headings: np.ndarray) -> np.ndarray:
+    """The action that heads for grid steps `delta` (..., 2) from `headings`: forward when
+    aligned, else the smaller turn (left on a tie). Shared by both teachers so they agree."""
+    wanted = _STEP_HEADING[delta[..., 0] + 1, delta[..., 1] + 1]
+    turn = (wanted - headings) % HEADINGS
+    return np.where(turn == 0, Action.FORWARD, np.where(turn <= 4, Action.LEFT, Action.RIGHT))
+
+
+def teacher_action(graph: NavGraph, pose: Pose, goal_node: int) -> Action:
+    return Action(int(teacher_actions(graph, [pose.node], [pose.heading], [goal_node])[0]))

@@ -1,0 +1,158 @@
+"""NDH metrics: topological distance (TD), oracle TD (OTD), success rate (SR) and SPL.
+
+TD is the shortest-path distance on the benchmark graph from where the agent stopped to the
+goal; OTD the smallest TD along its path; success is TD <= 0.508 m (two robot lengths); SPL
+weights success by shortest / max(path length, shortest).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Iterable
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sim.core.geometry import SUCCESS_RADIUS_M
+from sim.core.navgraph import NavGraph
+
+CSV_COLUMNS = (
+    "split",
+    "inst_idx",
+    "agent",
+    "seed",
+    "start_x",
+    "start_y",
+    "start_heading",
+    "goal_x",
+    "goal_y",
+    "td",
+    "otd",
+    "steps",
+    "success",
+    "spl",
+)
+
+
+@dataclass(frozen=True)
+class EpisodeResult:
+    split: str
+    inst_idx: int
+    agent: str
+    seed: int
+    start_x: float
+    start_y: float
+    start_heading: float  # radians
+    goal_x: float
+    goal_y: float
+    td: float
+    otd: float
+    steps: int  # moves made (forward, left, right), not counting the final stop
+    success: bool
+    spl: float
+
+
+@dataclass(frozen=True)
+class TrajectoryScore:
+    td: float
+    otd: float
+    path_length: float
+    shortest: float
+    success: bool
+    spl: float
+
+
+def score_trajectory(graph: NavGraph, nodes: Iterable[int], goal: int) -> TrajectoryScore:
+    """Score the nodes an agent visited (first = start, last = where it stopped)."""
+    nodes = np.asarray(list(nodes), dtype=np.int64)
+    to_goal = graph.dist[nodes, goal]
+    td = float(to_goal[-1])
+    shortest = float(to_goal[0])
+    path_length = float(np.linalg.norm(np.diff(graph.nodes[nodes], axis=0), axis=1).sum())
+    success = td <= SUCCESS_RADIUS_M
+    spl = shortest / max(path_length, shortest) if success and shortest > 0 else float(success)
+    return TrajectoryScore(
+        td=td, otd=float(to_goal.min()), path_length=path_length, shortest=shortest, success=success, spl=spl
+    )
+
+
+def _mean_std(values: np.ndarray) -> tuple[float, float]:
+    if values.size == 0:
+        return math.nan, math.nan
+    std = float(values.std(ddof=1)) if values.size > 1 else 0.0
+    return float(values.mean()), std
+
+
+def summarize_agent(results: list[EpisodeResult]) -> dict[str, Any]:
+    """Mean and sample std (ddof=1) over instances; seeds are averaged per instance first.
+
+    Instances whose goal cannot be reached from where the agent stopped have an infinite TD:
+    they are counted in `unreachable` and left out of the means, never silently averaged.
+    """
+    by_inst: dict[int, list[EpisodeResult]] = {}
+    for r in results:
+        by_inst.setdefault(r.inst_idx, []).append(r)
+    per = {
+        k: {f: float(np.mean([getattr(r, f) for r in rs])) for f in ("td", "otd", "steps", "success", "spl")}
+        for k, rs in by_inst.items()
+    }
+    td = np.array([p["td"] for p in per.values()])
+    otd = np.array([p["otd"] for p in per.values()])
+    finite = np.isfinite(td)
+    td_mean, td_std = _mean_std(td[finite])
+    otd_mean, otd_std = _mean_std(otd[np.isfinite(otd)])
+    return {
+        "td_mean": td_mean,
+        "td_std": td_std,
+        "otd_mean": otd_mean,
+        "otd_std": otd_std,
+        "sr": float(np.mean([p["success"] for p in per.values()])) if per else math.nan,
+        "spl": float(np.mean([p["spl"] for p in per.values()])) if per else math.nan,
+        "steps_mean": float(np.mean([p["steps"] for p in per.values()])) if per else math.nan,
+        "unreachable": int((~finite).sum()),
+    }
+
+
+def summarize(split: str, results: list[EpisodeResult]) -> dict[str, Any]:
+    """The JSON of `robotslang eval baselines` / `eval ndh`: {split, n, agents: {NAME: {...}}}."""
+    agents: dict[str, list[EpisodeResult]] = {}
+    for r in results:
+        agents.setdefault(r.agent, []).append(r)
+    n = len({r.inst_idx for r in results})
+    return {"split": split, "n": n, "agents": {name: summarize_agent(rs) for name, rs in agents.items()}}
+
+
+def write_csv(path: str | Path, results: Iterable[EpisodeResult]) -> None:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=CSV_COLUMNS)
+        writer.writeheader()
+        for r in results:
+            row = asdict(r)
+            row["success"] = int(r.success)
+            writer.writerow(row)
+
+
+def read_csv(path: str | Path) -> list[EpisodeResult]:
+    types = {f.name: f.type for f in fields(EpisodeResult)}
+    out = []
+    with Path(path).open() as f:
+        for row in csv.DictReader(f):
+            values: dict[str, Any] = {
+                k: (
+                    row[k]
+                    if types[k] == "str"
+                    else bool(int(row[k]))
+                    if types[k] == "bool"
+                    else int(row[k])
+                    if types[k] == "int"
+                    else float(row[k])
+                )
+                for k in CSV_COLUMNS
+            }
+            out.append(EpisodeResult(**values))
+    return out

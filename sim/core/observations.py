@@ -1,0 +1,256 @@
+"""The replay simulation's observations: 13 rays over a 78 degree field of view.
+
+Each ray starts at the agent's exact position and returns the label of the first non-floor
+pixel it meets on the maze's `labels` grid (walls and objects, `maze.map-fixed.png`), its
+distance in metres, and whether that wall is too close to move toward. With the
+forward-blocked flag of the navigation graph, that is the observation of the paper's agent.
+Everything is static per (node, heading), so `RayTable` precomputes it for a whole graph.
+
+Rays visit every pixel whose square they cross (a supercover traversal, so a ray that clips
+the corner of a wall sees it), jumping across open floor as far as the map's distance
+transform guarantees no wall pixel is skipped. Depths are exact to the pixel grid.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import weakref
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+from numpy.typing import ArrayLike
+
+from sim.core.cache import cache_dir as default_cache_dir
+from sim.core.cache import save_npz
+from sim.core.geometry import (
+    GRID_STEP_M,
+    HEADINGS,
+    MAP_HEIGHT_PX,
+    MAP_WIDTH_PX,
+    TABLE_HEIGHT_M,
+    TABLE_WIDTH_M,
+    TURN_RAD,
+)
+from sim.core.labels import N_LABELS, Label
+from sim.core.maze import Maze
+from sim.core.navgraph import WALL_CLEARANCE_PX, NavGraph
+
+N_RAYS = 13
+FOV_DEG = 78.0
+RAY_OFFSETS = np.deg2rad(np.linspace(-FOV_DEG / 2, FOV_DEG / 2, N_RAYS))  # left of heading is +
+
+# Pixels per metre along each axis (the raster is very slightly anisotropic).
+PX_PER_M_X = (MAP_WIDTH_PX - 1) / TABLE_WIDTH_M
+PX_PER_M_Y = (MAP_HEIGHT_PX - 1) / TABLE_HEIGHT_M
+
+# The navigation graph removes grid points with a wall pixel in the square around them, so a
+# forward move collides when it would end that close to a wall. A ray is "too close" when one
+# forward move along it would end within that clearance: depth < step + clearance, the
+# simulator's own collision rule, so a wall flagged straight ahead always blocks the move. The
+# square reaches 40 px up and left of the node's truncated pixel but 39 down and right, and
+# truncation loses up to one more: 38 px is the clearance it keeps on every side. (The robot's
+# half length, 0.127 m, is larger, and would flag walls the simulator lets the agent drive up to.)
+WALL_CLEARANCE_M = (WALL_CLEARANCE_PX - 2) / PX_PER_M_X
+STEP_M = np.where(np.arange(HEADINGS) % 2 == 0, 1.0, np.sqrt(2)) * GRID_STEP_M  # per heading
+TOO_CLOSE_M = STEP_M + WALL_CLEARANCE_M  # (8,) threshold per heading
+
+# Flat feature vector per (node, heading): one-hot label per ray, depth per ray (metres),
+# too-close per ray, forward blocked.
+OBS_FEATURES = N_RAYS * N_LABELS + N_RAYS + N_RAYS + 1
+
+CHAMFER_SAFETY = 0.96
+_SAFE_PX = 1.5  # a point is at most sqrt(2)/2 px from its pixel's centre, on both ends of a jump
+_PAST_PX = np.float32(1e-3)  # a crossing's sample lies this far into the pixel entered
+_FAR = 1e9  # boundary gap of an axis a ray never crosses
+_CACHE_VERSION = 2  # 2: exact traversal (1 could skip a grazed wall corner)
+
+
+class RayCaster:
+    """Casts rays on one label grid, from any continuous pose."""
+
+    def __init__(self, labels: np.ndarray):
+        self.labels = np.ascontiguousarray(labels, dtype=np.uint8)
+        # Distance (px) from each pixel centre to the nearest non-floor pixel centre, never
+        # more: the 5x5 chamfer transform overestimates by at most 2%, so it is scaled down.
+        chamfer = cv2.distanceTransform((self.labels == Label.FLOOR).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
+        self.clearance = chamfer * np.float32(CHAMFER_SAFETY)
+
+    def cast(self, x: ArrayLike, y: ArrayLike, angles: ArrayLike, window: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """Rays from (x, y) metres at absolute angles (radians, broadcast together).
+
+        Returns (labels uint8, depth float64 metres) shaped like the broadcast: the first pixel
+        whose square the ray enters that is not floor, and the distance to where it enters. A
+        ray that leaves the table without meeting anything returns FLOOR and the distance to
+        the edge. Each round checks the pixels entered at the next `window` pixel-boundary
+        crossings (more per round helps rays that run along a wall), then jumps as far as the
+        distance transform allows.
+        """
+        x, y, angles = np.broadcast_arrays(
+            np.asarray(x, np.float64), np.asarray(y, np.float64), np.asarray(angles, np.float64)
+        )
+        shape = x.shape
+        x, y, angles = x.ravel(), y.ravel(), angles.ravel()
+        outside = (x < 0) | (x > TABLE_WIDTH_M) | (y < 0) | (y > TABLE_HEIGHT_M)
+        if outside.any():
+            i = int(np.argmax(outside))
+            raise ValueError(
+                f"ray origin ({x[i]:.3f}, {y[i]:.3f}) m is off the {TABLE_WIDTH_M} x {TABLE_HEIGHT_M} m table"
+            )
+        h, w = self.labels.shape
+        # Positions shifted by half a pixel: pixel (col, row) is the unit square at
+        # [col, col + 1) x [row, row + 1), so truncation finds the pixel a point is in.
+        # Marched in float32: a ten-thousandth of a pixel at the far edge.
+        f32 = np.float32
+        col0 = (x * PX_PER_M_X + 0.5).astype(f32)
+        row0 = ((h - 0.5) - y * PX_PER_M_Y).astype(f32)
+        dc = np.cos(angles) * PX_PER_M_X
+        dr = -np.sin(angles) * PX_PER_M_Y
+        px_per_m = np.hypot(dc, dr)  # pixels travelled per metre along each ray
+        uc, ur = (dc / px_per_m).astype(f32), (dr / px_per_m).astype(f32)
+        t_exit = np.minimum(_exit_time(col0, uc, w), _exit_time(row0, ur, h)).astype(f32)
+        # Distance along the ray between successive column (row) boundaries, and which side
+        # of its pixel the next boundary is on (1 ahead in +col, 0 behind).
+        with np.errstate(divide="ignore"):
+            gap_c = np.where(uc != 0, 1 / np.abs(uc), _FAR).astype(f32)
+            gap_r = np.where(ur != 0, 1 / np.abs(ur), _FAR).astype(f32)
+        side_c, side_r = (uc > 0).astype(f32), (ur > 0).astype(f32)
+        flat_labels, flat_clear = self.labels.ravel(), self.clearance.ravel()
+        k = np.arange(window, dtype=f32)
+
+        n = x.size
+        hit_label = np.zeros(n, dtype=np.uint8)
+        hit_t = np.zeros(n, dtype=f32)
+        # The rays still marching, compacted: id, origin, direction, boundaries, exit.
+        state = (np.arange(n), col0, row0, uc, ur, gap_c, gap_r, side_c, side_r, t_exit)
+        t = np.zeros(n, dtype=f32)
+        while state[0].size:
+            ids, c, r, u, v, gc, gr, sc, sr, te = state
+            # Samples: the point at t, then just past each of the next boundary crossings.
+            pc, pr = c + u * t, r + v * t
+            fc, fr = np.floor(pc), np.floor(pr)
+            to_c = np.abs(sc - (pc - fc)) * gc
+            to_r = np.abs(sr - (pr - fr)) * gr
+            if window == 1:
+                ts = t[:, None]
+                advance = np.minimum(to_c, to_r)
+                flat = (fr.astype(np.int32) * w + fc.astype(np.int32))[:, None]
+            else:
+                cross = np.sort(
+                    np.concatenate([to_c[:, None] + k * gc[:, None], to_r[:, None] + k * gr[:, None]], axis=1), axis=1
+                )[:, :window]
+                advance = cross[:, -1]
+                cross[:, 1:] = cross[:, :-1] + _PAST_PX
+                cross[:, 0] = 0
+                ts = np.minimum(t[:, None] + cross, te[:, None])
+                flat = (r[:, None] + v[:, None] * ts).astype(np.int32) * w + (c[:, None] + u[:, None] * ts).astype(
+                    np.int32
+                )
+            label = flat_labels[flat]
+            stop = (label != 0) | (ts >= te[:, None])
+            first = stop.argmax(axis=1)
+            done = stop[np.arange(ids.size), first]
+            jump = (ts + flat_clear[flat]).max(axis=1) - _SAFE_PX
+            t = np.minimum(np.maximum(t + advance + _PAST_PX, jump), te)  # exits at the edge
+            if done.any():
+                rows = np.nonzero(done)[0]
+                hit_label[ids[rows]] = label[rows, first[rows]]
+                hit_t[ids[rows]] = ts[rows, first[rows]]
+                go = ~done
+                state = tuple(a[go] for a in state)
+                t = t[go]
+        # Where the ray entered the pixel it stopped in.
+        hit_t = np.where(hit_t > 0, hit_t - _PAST_PX, 0).astype(np.float64)
+        return hit_label.reshape(shape), (hit_t / px_per_m).reshape(shape)
+
+
+def _exit_time(p0: np.ndarray, u: np.ndarray, size: int) -> np.ndarray:
+    """Distance along unit direction u from p0 (shifted half a pixel) to the raster's edge."""
+    inside = 1e-3  # stop just short of the edge, so truncation stays a valid index
+    with np.errstate(divide="ignore"):
+        t_hi = np.where(u > 0, (size - inside - p0) / u, np.inf)
+        t_lo = np.where(u < 0, (inside - p0) / u, np.inf)
+    return np.minimum(t_hi, t_lo)
+
+
+_casters: weakref.WeakKeyDictionary[Maze, RayCaster] = weakref.WeakKeyDictionary()
+
+
+def ray_caster(maze: Maze) -> RayCaster:
+    """The maze's caster on its `labels` grid (objects visible), built once per maze."""
+    caster = _casters.get(maze)
+    if caster is None:
+        caster = _casters[maze] = RayCaster(maze.labels)
+    return caster
+
+
+def cast_rays(
+    maze: Maze, x: float, y: float, theta: float, offsets: ArrayLike = RAY_OFFSETS
+) -> tuple[np.ndarray, np.ndarray]:
+    """The observation rays from a continuous pose: (labels (13,), depth (13,) metres)."""
+    return ray_caster(maze).cast(x, y, theta + np.asarray(offsets))
+
+
+def too_close(depth: ArrayLike, heading: ArrayLike) -> np.ndarray:
+    """Whether a forward move at `heading` (index 0..7) toward a wall `depth` metres away would
+    end within the navigation graph's wall clearance."""
+    close: np.ndarray = np.asarray(depth) < TOO_CLOSE_M[np.asarray(heading) % HEADINGS]
+    return close
+
+
+@dataclass(frozen=True, eq=False)
+class RayTable:
+    labels: np.ndarray  # (N, 8, 13) uint8 Label of the first non-floor pixel per ray
+    depth: np.ndarray  # (N, 8, 13) float32 metres
+    too_close: np.ndarray  # (N, 8, 13) bool
+    forward_blocked: np.ndarray  # (N, 8) bool
+
+    @classmethod
+    def build(
+        cls, maze: Maze, graph: NavGraph, cache_dir: str | Path | None = None, use_cache: bool = True
+    ) -> RayTable:
+        """Every (node, heading) observation of `graph` on `maze`, cached by maze and nodes."""
+        key = hashlib.sha256(np.ascontiguousarray(graph.nodes).tobytes()).hexdigest()[:12]
+        path = default_cache_dir(cache_dir) / "rays" / f"{maze.content_hash}-{key}-v{_CACHE_VERSION}.npz"
+        labels: np.ndarray | None = None
+        depth: np.ndarray | None = None
+        if use_cache and path.exists():
+            try:
+                with np.load(path) as data:
+                    labels, depth = data["labels"], data["depth"]
+            except (OSError, ValueError, KeyError):
+                labels = None  # a torn or stale cache file is rebuilt below
+        if labels is None or labels.shape != (graph.n, HEADINGS, N_RAYS):
+            labels, depth = node_rays(maze, graph.nodes)
+            if use_cache:
+                save_npz(path, labels=labels, depth=depth)
+        assert depth is not None  # read or built with the labels
+        return cls(
+            labels=labels,
+            depth=depth,
+            too_close=too_close(depth, np.arange(HEADINGS)[None, :, None]),
+            forward_blocked=graph.forward < 0,
+        )
+
+    def features(self) -> np.ndarray:
+        """(N, 8, OBS_FEATURES) float32: one-hot labels (13 x 10), depths, too-close, blocked."""
+        n = self.labels.shape[0]
+        out = np.zeros((n, HEADINGS, OBS_FEATURES), dtype=np.float32)
+        onehot = out[..., : N_RAYS * N_LABELS].reshape(n, HEADINGS, N_RAYS, N_LABELS)
+        np.put_along_axis(onehot, self.labels[..., None].astype(np.int64), 1.0, axis=-1)
+        start = N_RAYS * N_LABELS
+        out[..., start : start + N_RAYS] = self.depth
+        out[..., start + N_RAYS : start + 2 * N_RAYS] = self.too_close
+        out[..., -1] = self.forward_blocked
+        return out
+
+
+def node_rays(maze: Maze, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rays for every node position and heading: labels (N, 8, 13) uint8, depth float32."""
+    angles = np.arange(HEADINGS)[:, None] * TURN_RAD + RAY_OFFSETS[None, :]  # (8, 13)
+    nodes = np.asarray(nodes, dtype=np.float64)
+    # A caster of its own: tables are built for many mazes at once, and the distance
+    # transform (6.6 MB) need not outlive the table.
+    labels, depth = RayCaster(maze.labels).cast(nodes[:, 0, None, None], nodes[:, 1, None, None], angles[None])
+    return labels, depth.astype(np.float32)

@@ -1,0 +1,223 @@
+"""`BatchStepper`: the simulator core. A batch of Driver episodes on a `World`, stepped at once.
+
+    stepper = BatchStepper(world, batch=B)
+    stepper.start(envs, node, heading, goal, goal_dist, goal_next)  # (re)start some episodes
+    collided = stepper.step(actions)             # (B,) 0 forward, 1 left, 2 right, 3 stop
+    stepper.observations()                       # (B, F) ray features of the poses
+    stepper.teacher_actions()                    # the shortest-path actions
+    stepper.td, .otd, .path_length, .steps, .done, .stopped   # per episode
+
+Every learner, baseline and environment of the project runs on this class: the Gymnasium
+vector env (`sim.tasks.batch_env.BatchNavEnv`) and `RobotSlang/NDH-v0` (`sim.tasks.env`, a batch of one),
+the NDH baselines (`sim.tasks.evaluation`) and the learned Driver's rollouts (`models.rollout`).
+`sim.core.dynamics.step` is the readable reference it is tested against, step for step.
+
+Semantics: a forward into a non-navigable grid point is a collision and leaves the pose
+unchanged. An episode is done after STOP or after `max_actions` moves (forward, left, right;
+the stop is not counted, as in `sim.core.metrics`); actions of finished episodes are ignored.
+A pose is a slot, `8 * node + heading` in the world's global node space, so a step is one
+look-up in each of the world's per-(slot, action) tables.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from sim.core.dynamics import Action, actions_toward
+from sim.core.geometry import HEADINGS
+from sim.core.world import ACTIONS, World
+
+_FORWARD, _STOP = int(Action.FORWARD), int(Action.STOP)  # plain ints: a member look-up costs a microsecond a step
+_MOVE_ACTIONS = np.arange(_STOP, dtype=np.int64)  # forward, left, right
+
+
+MAX_EPISODE_ACTIONS = 120  # the benchmark's cap on a Driver episode's moves
+
+
+class BatchStepper:
+    def __init__(self, world: World, batch: int, max_actions: int = MAX_EPISODE_ACTIONS, record: bool = False):
+        if batch < 1:
+            raise ValueError(f"batch={batch}: must be at least 1")
+        if max_actions < 1:
+            raise ValueError(f"max_actions={max_actions}: must be at least 1")
+        self.world, self.size, self.max_actions, self.record = world, batch, max_actions, record
+        self._moves = world.moves
+        self._collides = world.collides
+        width = int(world.size.max())
+        self._width = width
+        # Goal rows, one per episode: distance and global next hop toward its goal from each node.
+        self._dist = np.full((batch, width), np.inf)
+        self._next = np.full((batch, width), -1, dtype=np.int64)
+        self._dist_flat, self._next_flat = self._dist.reshape(-1), self._next.reshape(-1)  # views
+        self._base = np.zeros(batch, dtype=np.int64)  # flat index of (episode, global node 0)
+        self.slot = np.zeros(batch, dtype=np.int64)
+        self.goal = np.zeros(batch, dtype=np.int64)  # global node
+        self.steps = np.zeros(batch, dtype=np.int64)
+        self.done = np.ones(batch, dtype=bool)
+        self.collisions = np.zeros(batch, dtype=np.int64)
+        self.path_length = np.zeros(batch)
+        self.td = np.full(batch, np.inf)
+        self.otd = np.full(batch, np.inf)
+        self.shortest = np.full(batch, np.inf)
+        self._started = False
+        self._history: list[np.ndarray] = []
+        # ORed into the actions: 3 (the stop) where an episode is done, so it stays put, 0 elsewhere.
+        self._halt = np.full(batch, _STOP, dtype=np.int64)
+        self._a, self._k = np.empty(batch, np.int64), np.empty(batch, np.int64)
+        self._counted = np.empty(batch, bool)
+        self._scratch = np.empty(batch)
+        self._moved = np.empty(batch, self._moves.dtype)
+        # Metres and collision flag by the low 6 bits of a `World.moves` entry, so that one
+        # mask serves both look-ups.
+        code = np.arange(64)
+        self._metres = np.append(world.move_lengths, np.zeros(32 - world.move_lengths.size))[code >> 1 & 31]
+        self._hit = (code & 1).astype(bool)
+
+    # -- episodes -------------------------------------------------------------------
+    def start(
+        self,
+        envs: ArrayLike,
+        node: ArrayLike,
+        heading: ArrayLike,
+        goal: ArrayLike,
+        goal_dist: ArrayLike,
+        goal_next: ArrayLike,
+    ) -> None:
+        """Start episodes in batch positions `envs` (an index array or a boolean mask) at global
+        `node`, `heading`, toward global `goal`, with its maze's goal rows (K, >= maze size):
+        metres to the goal and next local node toward it (-1 where none) from each local node."""
+        envs = np.flatnonzero(envs) if np.asarray(envs).dtype == bool else np.asarray(envs, dtype=np.int64)
+        node, heading, goal = (np.asarray(a, dtype=np.int64) for a in (node, heading, goal))
+        goal_dist, goal_next = np.asarray(goal_dist), np.asarray(goal_next)
+        if not (node.shape == heading.shape == goal.shape == envs.shape):
+            raise ValueError("start(): envs, node, heading and goal must have one entry per episode")
+        if envs.size and (
+            node.min() < 0
+            or node.max() >= self.world.nodes
+            or goal.min() < 0
+            or goal.max() >= self.world.nodes
+            or heading.min() < 0
+            or heading.max() >= HEADINGS
+        ):
+            raise ValueError(
+                f"start(): a node or goal outside the world ({self.world.nodes} nodes) "
+                f"or a heading outside 0..{HEADINGS - 1}"
+            )
+        maze = np.searchsorted(self.world.offset, node, side="right") - 1
+        offset = self.world.offset[maze]
+        if np.any(np.searchsorted(self.world.offset, goal, side="right") - 1 != maze):
+            raise ValueError("start(): an episode's goal is in another maze than its start")
+        width = min(goal_dist.shape[1], self._width)
+        self._dist[envs] = np.inf
+        self._dist[envs, :width] = goal_dist[:, :width]
+        self._next[envs] = -1
+        self._next[envs, :width] = np.where(goal_next[:, :width] >= 0, goal_next[:, :width] + offset[:, None], -1)
+        self._base[envs] = envs * self._width - offset
+        self.slot[envs] = node * HEADINGS + heading
+        self.goal[envs] = goal
+        self.steps[envs] = 0
+        self.done[envs] = False
+        self._halt[envs] = 0
+        self.collisions[envs] = 0
+        self.path_length[envs] = 0.0
+        self.td[envs] = self.otd[envs] = self.shortest[envs] = self._dist_flat[self._base[envs] + node]
+        self._started = True
+        if self.record:
+            self._history = [self.node.copy()]
+
+    def step(self, actions: ArrayLike) -> np.ndarray:
+        """Apply (B,) actions; returns which of them were forward moves into a wall."""
+        if not self._started:
+            raise RuntimeError("step() before start(): start the batch's episodes first")
+        actions = np.asarray(actions)
+        if actions.shape != (self.size,) or actions.dtype.kind not in "iu":
+            raise ValueError(
+                f"actions of shape {actions.shape} and dtype {actions.dtype}: expected ({self.size},) integers"
+            )
+        # Into the stepper's own buffers: a step at batch 1000 is some twenty numpy calls on
+        # 8 kB arrays, so each call and each temporary array costs as much as the arithmetic.
+        a, k, moved, counted = self._a, self._k, self._moved, self._counted
+        if actions.dtype != np.int64:
+            actions = actions.astype(np.int64)  # an out-of-range unsigned one wraps to negative
+        np.bitwise_or(actions, self._halt, out=a)  # a finished episode stops
+        if a.view(np.uint64).max() > _STOP:  # an invalid action stays invalid; a negative wraps
+            raise ValueError("actions must be 0 forward, 1 left, 2 right or 3 stop")
+        np.multiply(self.slot, ACTIONS, out=k)
+        k += a
+        self._moves.take(k, out=moved, mode="clip")  # slot << 6 | length index << 1 | collided
+        np.right_shift(moved, 6, out=self.slot)
+        moved &= 63
+        self.path_length += self._metres.take(moved, out=self._scratch, mode="clip")
+        collided = self._hit.take(moved, mode="clip")
+        self.collisions += collided
+        np.less(a, _STOP, out=counted)  # the stop is not a move
+        self.steps += counted
+        np.greater_equal(self.steps, self.max_actions, out=self.done)
+        np.less_equal(counted, self.done, out=self.done)  # or stopped (or was done: its action is the stop)
+        np.multiply(self.done, _STOP, out=self._halt)
+        np.right_shift(self.slot, 3, out=k)
+        k += self._base
+        self.td = self._dist_flat.take(k, mode="clip")  # a new array: callers keep the one before the step
+        np.minimum(self.otd, self.td, out=self.otd)
+        if self.record:
+            self._history.append(self.node)
+        return collided
+
+    # -- what the agent and its teacher see -------------------------------------------
+    def observations(self, out: np.ndarray | None = None) -> np.ndarray:
+        """(B, F) ray features of the current poses (in the world's dtype)."""
+        if self.world.obs is None:
+            raise ValueError("the world was compiled without observations")
+        # The slots are in range: "raise" mode would gather into a copy of `out`, then copy it.
+        return np.take(self.world.obs, self.slot, axis=0, out=out, mode="clip")
+
+    def next_slots(self) -> np.ndarray:
+        """(B, 3) the pose that forward, left and right would lead to (a collision: the same)."""
+        slots: np.ndarray = self._moves[self.slot[:, None] * ACTIONS + _MOVE_ACTIONS] >> 6
+        return slots
+
+    def forward_blocked(self) -> np.ndarray:
+        return self._collides[self.slot * ACTIONS + _FORWARD]
+
+    def teacher_actions(self) -> np.ndarray:
+        """Shortest-path actions for the current poses: toward the next hop by the smaller turn
+        (left on a tie), forward when aligned, stop at the goal's node or where no path exists.
+        The rule is `sim.core.dynamics.actions_toward`, shared with the reference teacher."""
+        node, heading = self.node, self.heading
+        hop = self._next_flat[self._base + node]
+        stop = (node == self.goal) | (hop < 0)
+        hop = np.where(stop, node, hop)
+        actions = actions_toward(self.world.ij[hop] - self.world.ij[node], heading)
+        return np.where(stop, Action.STOP, actions).astype(np.int64)
+
+    def distance(self, node: ArrayLike) -> np.ndarray:
+        """Metres from (B,) global nodes to each episode's goal."""
+        return self._dist_flat[self._base + np.asarray(node, dtype=np.int64)]
+
+    # -- bookkeeping ---------------------------------------------------------------
+    @property
+    def stopped(self) -> np.ndarray:
+        """Which started episodes ended by the stop (the others done ran out of moves)."""
+        return self.done & (self.steps < self.max_actions)
+
+    @property
+    def node(self) -> np.ndarray:
+        return self.slot >> 3
+
+    @property
+    def heading(self) -> np.ndarray:
+        return self.slot & (HEADINGS - 1)
+
+    def visited(self) -> np.ndarray:
+        """(T + 1, B) global node of each episode before each step since the last start(), then
+        after the last; episode k's trajectory is its first `steps[k] + 1` rows. Needs record=True."""
+        if not self.record:
+            raise RuntimeError("trajectories are not recorded: make the stepper with record=True")
+        return np.stack(self._history)
+
+    def trajectories(self) -> list[list[int]]:
+        """Global nodes visited by each episode: the start, then one per move (a collision
+        repeats the node), as `sim.core.metrics.score_trajectory` takes them once made local."""
+        history = self.visited()
+        return [history[: self.steps[k] + 1, k].tolist() for k in range(self.size)]

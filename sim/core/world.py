@@ -1,0 +1,306 @@
+"""`World`: mazes compiled into one global node space, the tables the simulator core reads.
+
+Maze k's node i is global node `offset[k] + i`, and a pose is the slot `8 * node + heading`.
+From the graphs' forward tables the world derives, per slot and action, the slot reached
+(`transition`), whether it was a collision and the metres moved, so that a step of a whole
+batch is one look-up per table (`sim.core.stepper.BatchStepper`).
+
+`World.compile` builds one in memory from (name, maze, graph) triples; `World.build` builds
+the benchmark's runs with a disk cache keyed on the map files' bytes (reading them is much
+cheaper than decoding them), memory-mapped when warm, so a warm process decodes no PNG and
+builds no graph. `EpisodeGeometry` holds NDH instances compiled onto a world: start pose, goal
+node and the goal rows (distance and next hop toward the goal from every node of its maze),
+cached the same way.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike, DTypeLike
+
+from sim.core.cache import cache_dir as default_cache_dir
+from sim.core.cache import save_npz
+from sim.core.dynamics import Action
+from sim.core.geometry import HEADINGS
+
+if TYPE_CHECKING:
+    from sim.core.maze import Maze
+    from sim.core.navgraph import NavGraph
+    from sim.core.observations import RayTable
+    from sim.tasks.benchmark import Benchmark, NDHInstance
+
+ACTIONS = len(Action)
+_WORLD_VERSION = 6  # 4: names, observations optional, derived tables; 5: the fused moves table; 6: int64 moves
+_ARRAYS = ("offset", "size", "xy", "ij", "forward")
+_TABLES = (
+    "transition",
+    "collides",
+    "move_length",
+    "move_lengths",
+    "moves",
+)  # derived, cached too: a warm process reads them
+# Heading change per action: forward 0, left +1, right -1, stop 0.
+_TURN = np.array([0, 1, -1, 0], dtype=np.int64)
+
+
+@dataclass(frozen=True, eq=False)
+class World:
+    names: tuple[str, ...]  # the mazes, in order
+    offset: np.ndarray  # (R,) first global node of each maze
+    size: np.ndarray  # (R,) nodes per maze
+    xy: np.ndarray  # (G, 2) node positions, metres
+    ij: np.ndarray  # (G, 2) grid indices
+    forward: np.ndarray  # (G, 8) global node after a forward move, -1 = collision
+    obs: np.ndarray | None = None  # (G * 8, F) ray features of slot 8 g + k; None: not compiled
+    key: str = ""  # names the cache entry (maze contents and graph mode); "" when not cached
+
+    # -- construction -------------------------------------------------------------
+    @classmethod
+    def compile(
+        cls,
+        items: Sequence[tuple[str, Maze, NavGraph]],
+        observations: bool = True,
+        obs_dtype: DTypeLike = np.float32,
+        cache_dir: str | Path | None = None,
+        rays: Sequence[RayTable] | None = None,
+    ) -> World:
+        """(name, maze, graph) triples in one world; ray tables given (`rays`, one per item) or
+        from the maze's cache."""
+        from sim.core.observations import RayTable  # only when observations are compiled
+
+        parts: dict[str, list[np.ndarray]] = {"xy": [], "ij": [], "forward": [], "obs": []}
+        offset, size, total = [], [], 0
+        for k, (_, maze, graph) in enumerate(items):
+            offset.append(total)
+            size.append(graph.n)
+            parts["xy"].append(graph.nodes)
+            parts["ij"].append(graph.node_ij.astype(np.int64))
+            parts["forward"].append(np.where(graph.forward >= 0, graph.forward + total, -1).astype(np.int64))
+            if observations:
+                table = rays[k] if rays is not None else RayTable.build(maze, graph, cache_dir=cache_dir)
+                parts["obs"].append(table.features().reshape(graph.n * HEADINGS, -1).astype(obs_dtype))
+            total += graph.n
+        if not items:
+            raise ValueError("a world needs at least one maze")
+        return cls(
+            names=tuple(name for name, _, _ in items),
+            offset=np.array(offset, dtype=np.int64),
+            size=np.array(size, dtype=np.int64),
+            xy=np.concatenate(parts["xy"]),
+            ij=np.concatenate(parts["ij"]),
+            forward=np.concatenate(parts["forward"]),
+            obs=np.concatenate(parts["obs"]) if observations else None,
+        )
+
+    @classmethod
+    def build(
+        cls,
+        bench: Benchmark,
+        runs: Sequence[str],
+        cache_dir: str | Path | None = None,
+        mode: str = "benchmark",
+        observations: bool = True,
+        progress: bool = True,
+    ) -> World:
+        """The benchmark's `runs`, cached on disk by map contents and mode. Observations are
+        float16 (half the memory; the learner's input), compiled on first request."""
+        key = hashlib.sha256()
+        for run in runs:
+            key.update(run.encode())
+            for png in sorted((bench.root / "mazedata" / run / "maze").glob("maze.map*.png")):
+                key.update(png.read_bytes())
+        key.update(f"{mode}-v{_WORLD_VERSION}".encode())
+        folder = default_cache_dir(cache_dir) / "world" / key.hexdigest()[:16]
+        world = cls._load(folder, observations)
+        if world is not None:
+            return world
+        from tqdm import tqdm
+
+        items = [
+            (run, bench.maze(run), bench.graph(run, mode))
+            for run in tqdm(runs, desc="mazes: graphs", unit="maze", disable=not progress)
+        ]
+        world = cls.compile(
+            items,
+            observations=observations,
+            obs_dtype=np.float16,
+            cache_dir=cache_dir if cache_dir is not None else bench.cache_dir,
+        )
+        world = cls(**{**world.__dict__, "key": folder.name})
+        world._save(folder)
+        return world
+
+    @classmethod
+    def _load(cls, folder: Path, observations: bool) -> World | None:
+        if not (folder / "names.json").exists() or (observations and not (folder / "obs.npy").exists()):
+            return None
+        try:
+            # Memory-mapped: instant to open, and parallel processes share one copy.
+            arrays = {k: np.load(folder / f"{k}.npy", mmap_mode="r") for k in _ARRAYS}
+            obs = np.load(folder / "obs.npy", mmap_mode="r") if observations else None
+            world = cls(
+                names=tuple(json.loads((folder / "names.json").read_text())), obs=obs, key=folder.name, **arrays
+            )
+            for k in _TABLES:  # filling the cached properties
+                world.__dict__[k] = np.load(folder / f"{k}.npy", mmap_mode="r")
+            return world
+        except (OSError, ValueError):
+            return None  # torn or stale: rebuilt
+
+    def _save(self, folder: Path) -> None:
+        # Written beside, then renamed into place, so a reader never sees half a world. A world
+        # with observations replaces one without.
+        folder.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(dir=folder.parent))
+        for k in _ARRAYS + _TABLES + (("obs",) if self.obs is not None else ()):
+            np.save(tmp / f"{k}.npy", getattr(self, k))
+        (tmp / "names.json").write_text(json.dumps(list(self.names)))
+        if self.obs is not None and folder.exists():
+            shutil.rmtree(folder, ignore_errors=True)
+        try:
+            os.replace(tmp, folder)
+        except OSError:  # another process saved it first
+            shutil.rmtree(tmp, ignore_errors=True)
+
+    # -- tables -------------------------------------------------------------------
+    @property
+    def nodes(self) -> int:
+        return int(self.offset[-1] + self.size[-1])
+
+    @property
+    def obs_features(self) -> int:
+        if self.obs is None:
+            raise ValueError("this world was compiled without observations")
+        return int(self.obs.shape[1])
+
+    def index(self, name: str) -> int:
+        try:
+            return self._index[name]
+        except KeyError:
+            raise ValueError(f"maze {name!r} is not in this world") from None
+
+    @cached_property
+    def _index(self) -> dict[str, int]:
+        return {name: k for k, name in enumerate(self.names)}
+
+    @cached_property
+    def transition(self) -> np.ndarray:
+        """(G * 8 * 4,) slot after action a from slot s, at 4 s + a; a collision keeps the slot."""
+        slot = np.arange(self.nodes * HEADINGS)
+        node, heading = slot // HEADINGS, slot % HEADINGS
+        out = np.empty((slot.size, ACTIONS), dtype=np.int64)
+        ahead = np.asarray(self.forward).reshape(-1)
+        out[:, Action.FORWARD] = np.where(ahead >= 0, ahead * HEADINGS + heading, slot)
+        for a in (Action.LEFT, Action.RIGHT):
+            out[:, a] = node * HEADINGS + (heading + _TURN[a]) % HEADINGS
+        out[:, Action.STOP] = slot
+        return out.reshape(-1)
+
+    @cached_property
+    def collides(self) -> np.ndarray:
+        """(G * 8 * 4,) whether action a from slot s is a forward into a wall."""
+        out = np.zeros((self.nodes * HEADINGS, ACTIONS), dtype=bool)
+        out[:, Action.FORWARD] = np.asarray(self.forward).reshape(-1) < 0
+        return out.reshape(-1)
+
+    @cached_property
+    def move_length(self) -> np.ndarray:
+        """(G * 8 * 4,) metres moved by action a from slot s (0 but for a forward that moves)."""
+        ahead = np.asarray(self.forward).reshape(-1)
+        source = np.repeat(np.arange(self.nodes), HEADINGS)
+        length = np.linalg.norm(self.xy[np.maximum(ahead, 0)] - self.xy[source], axis=1)
+        out = np.zeros((ahead.size, ACTIONS))
+        out[:, Action.FORWARD] = np.where(ahead >= 0, length, 0.0)
+        return out.reshape(-1)
+
+    @cached_property
+    def move_lengths(self) -> np.ndarray:
+        """The distinct values of `move_length`, ascending (a few dozen: the grid's steps)."""
+        return np.unique(np.asarray(self.move_length))
+
+    @cached_property
+    def moves(self) -> np.ndarray:
+        """`transition`, `collides` and `move_length` at 4 s + a fused into one integer, so a
+        step reads one table: the slot after the action << 6, the index of the metres moved in
+        `move_lengths` << 1, the collision flag. int64 (numpy's index type): the stepper indexes
+        with its entries, and an int32 table cost a conversion per look-up."""
+        lengths = np.searchsorted(self.move_lengths, np.asarray(self.move_length))
+        if self.move_lengths.size > 32:
+            raise ValueError(f"{self.move_lengths.size} distinct move lengths: the moves table holds 32")
+        transition = np.asarray(self.transition, dtype=np.int64)
+        collides = np.asarray(self.collides, dtype=np.int64)
+        moves: np.ndarray = (transition << 6) | (lengths.astype(np.int64) << 1) | collides
+        return moves
+
+
+def goal_rows(graph: NavGraph, goals: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """Distance (K, N) and next hop (K, N) toward each goal node from every node of `graph`."""
+    goals = np.asarray(goals, dtype=np.int64)
+    # Columns, not the transposed rows: Dijkstra's sums differ in the last bit.
+    return graph.dist[:, goals].T, graph.next_hop[:, goals].T.astype(np.int64)
+
+
+@dataclass(frozen=True, eq=False)
+class EpisodeGeometry:
+    """NDH instances on a world: start pose, goal, and goal rows padded to the largest maze."""
+
+    maze: np.ndarray  # (M,) index into World.names
+    start_node: np.ndarray  # (M,) global
+    start_heading: np.ndarray  # (M,)
+    goal_node: np.ndarray  # (M,) global
+    goal_dist: np.ndarray  # (M, Nmax) shortest-path metres to the goal from each local node
+    goal_next: np.ndarray  # (M, Nmax) next local node toward the goal; -1 where no path
+
+    @classmethod
+    def build(
+        cls,
+        bench: Benchmark,
+        world: World,
+        instances: Sequence[NDHInstance],
+        start: str = "episode",
+        mode: str = "benchmark",
+    ) -> EpisodeGeometry:
+        """Cached on disk beside the world (the start protocol walks the teacher, and the
+        goal rows come from the all-pairs tables)."""
+        from sim.tasks.benchmark import START_MODES, goal_node
+
+        key = hashlib.sha256(f"{world.key}:{mode}:{start}:{[(i.run, i.scan, i.inst_idx) for i in instances]}".encode())
+        path = default_cache_dir(bench.cache_dir) / "world" / f"episodes-{key.hexdigest()[:16]}.npz"
+        fields = ("maze", "start_node", "start_heading", "goal_node", "goal_dist", "goal_next")
+        if world.key and path.exists():
+            try:
+                with np.load(path) as data:
+                    return cls(**{f: data[f] for f in fields})
+            except (OSError, ValueError, KeyError):
+                pass  # torn or stale: recomputed below
+        m, nmax = len(instances), int(world.size.max())
+        out = {f: np.zeros(m, dtype=np.int64) for f in fields[:4]}
+        out["goal_dist"] = np.full((m, nmax), np.inf, dtype=np.float64)
+        out["goal_next"] = np.full((m, nmax), -1, dtype=np.int64)
+        for k, inst in enumerate(instances):
+            graph = bench.graph(inst.run, mode)
+            r = world.index(inst.run)
+            off = world.offset[r]
+            pose = START_MODES[start](graph, inst)
+            g = goal_node(graph, inst)
+            out["maze"][k], out["start_node"][k], out["start_heading"][k] = r, off + pose.node, pose.heading
+            out["goal_node"][k] = off + g
+            dist, hop = goal_rows(graph, [g])
+            out["goal_dist"][k, : graph.n], out["goal_next"][k, : graph.n] = dist[0], hop[0]
+        if world.key:
+            save_npz(path, compressed=False, **out)
+        return cls(**out)
+
+    def __len__(self) -> int:
+        return len(self.maze)

@@ -1,0 +1,113 @@
+"""`MazeLibrary`: every maze the platform can run, by name.
+
+The bundled generated mazes (`gen-000` ...) come first, so a fresh machine has content without
+the benchmark; then mazes from extra folders (for instance `robotslang mazes generate` output);
+then the benchmark's runs that have a map (`Run_318` ...). Bundled and extra mazes are checked
+strictly when loaded (their objects must reach each other); benchmark maps are taken as
+published, since one of them (Run_320) fails that check and the paper's figures include it.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterable
+from pathlib import Path
+
+from sim.core.maze import FIXED_MAP, Maze
+from sim.core.validation import check_reachable
+
+BUNDLED_DIR = Path(__file__).resolve().parent / "mazes"
+MANIFEST = "manifest.json"
+
+
+class UnknownMazeError(KeyError):
+    """A maze name the library does not hold."""
+
+    def __str__(self) -> str:  # KeyError would quote the whole message
+        return str(self.args[0])
+
+
+class MazeLibrary:
+    def __init__(
+        self,
+        benchmark: Path | None = None,
+        extra_dirs: Iterable[Path] = (),
+        bundled: Path | None = BUNDLED_DIR,
+        cache: bool = True,
+    ) -> None:
+        """`benchmark`: a clone of the benchmark (its `mazedata/` is read); `extra_dirs`: folders
+        of mazes in the benchmark's layout (`NAME/maze/maze.map-fixed.png`)."""
+        self._roots: list[tuple[str, Path]] = []
+        if bundled is not None:
+            self._roots.append(("bundled", Path(bundled)))
+        self._roots += [("local", Path(d)) for d in extra_dirs]
+        if benchmark is not None:
+            benchmark = Path(benchmark)
+            if not benchmark.is_dir():
+                raise FileNotFoundError(
+                    f"{benchmark}: no such folder; expected a clone of the "
+                    f"RobotSlang benchmark (with mazedata/Run_*/maze/)"
+                )
+            mazedata = benchmark / "mazedata"
+            self._roots.append(("benchmark", mazedata if mazedata.is_dir() else benchmark))
+        self._index: dict[str, tuple[str, Path]] | None = None
+        self._cache: dict[str, Maze] | None = {} if cache else None  # None: the caller keeps what it needs
+
+    def _entries(self) -> dict[str, tuple[str, Path]]:
+        if self._index is None:
+            index: dict[str, tuple[str, Path]] = {}
+            for kind, root in self._roots:
+                if not root.is_dir():
+                    continue
+                runs = [d for d in root.iterdir() if (d / "maze" / FIXED_MAP).is_file()]
+                for run in sorted(runs, key=_natural_key):
+                    index.setdefault(run.name, (kind, run))  # an earlier source shadows a later one
+            self._index = index
+        return self._index
+
+    def names(self) -> list[str]:
+        """All maze names: bundled first, then extra folders, then the benchmark's runs."""
+        return list(self._entries())
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._entries()
+
+    def __len__(self) -> int:
+        return len(self._entries())
+
+    def _entry(self, name: str) -> tuple[str, Path]:
+        try:
+            return self._entries()[name]
+        except KeyError:
+            known = self.names()
+            sample = ", ".join(known[:5]) + (", ..." if len(known) > 5 else "")
+            where = ", ".join(f"{kind} {root}" for kind, root in self._roots) or "no folders"
+            raise UnknownMazeError(
+                f"unknown maze {name!r}: the library ({where}) holds {len(known)} mazes: {sample}"
+            ) from None
+
+    def source(self, name: str) -> str:
+        """Where the maze comes from: 'bundled', 'local' (an extra folder) or 'benchmark'."""
+        return self._entry(name)[0]
+
+    def path(self, name: str) -> Path:
+        """The maze's folder, in the benchmark's layout."""
+        return self._entry(name)[1]
+
+    def load(self, name: str) -> Maze:
+        """The maze called `name` (read once per library, unless made with `cache=False`); MazeError
+        if its map is malformed."""
+        if self._cache is not None and name in self._cache:
+            return self._cache[name]
+        kind, run = self._entry(name)
+        maze = Maze.from_dir(run, name=name)
+        if kind != "benchmark":
+            check_reachable(maze, source=str(run / "maze" / FIXED_MAP))
+        if self._cache is not None:
+            self._cache[name] = maze
+        return maze
+
+
+def _natural_key(path: Path) -> list[int | str]:
+    """Run_9 before Run_10; gen-002 before gen-010."""
+    return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", path.name)]
