@@ -24,11 +24,10 @@ from sqlalchemy.exc import IntegrityError
 from app.db.models import LDHStudy, LDHStudyEvent, LDHStudyInstance, LDHStudyParticipant
 from app.mazes import commander_map_png
 from sim.core.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M
-from sim.tasks.benchmark import Benchmark, BenchmarkError
+from sim.tasks.benchmark import Benchmark, BenchmarkError, Split
 from sim.tasks.ldh import LDHInstance, Variant, load_split
 from sim.tasks.ldh_eval import ACC_RADII_M, MazeContext, score
 
-SPLITS = ("train", "val_seen", "test")
 APPEND_ATTEMPTS = 5  # two answers racing for the same seq: the loser takes the next one
 
 
@@ -125,8 +124,8 @@ class Studies:
         name = name.strip()
         if not name:
             raise StudyError("give the study a name")
-        if split not in SPLITS:
-            raise StudyError(f"unknown split {split!r}; expected one of {', '.join(SPLITS)}")
+        if split not in tuple(Split):
+            raise StudyError(f"unknown split {split!r}; expected one of {', '.join(Split)}")
         try:
             chosen = Variant(variant)
         except ValueError:

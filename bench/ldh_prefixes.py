@@ -9,7 +9,7 @@ import argparse
 import os
 from collections import Counter
 
-from sim.tasks.benchmark import SPLITS, Benchmark
+from sim.tasks.benchmark import Benchmark, Split
 from sim.tasks.ldh import CUT_RULE, Variant, load_split
 
 
@@ -20,7 +20,7 @@ def main() -> None:
     args = parser.parse_args()
     bench = Benchmark(args.benchmark)
     lengths = {}
-    for split in SPLITS:
+    for split in Split:
         prefix = load_split(bench, split, Variant.PREFIX)
         full = load_split(bench, split, Variant.FULL)
         lengths[split] = [len(p.dialog) for p in prefix]

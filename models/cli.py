@@ -12,6 +12,7 @@ from pathlib import Path
 import typer
 
 from sim.cli.eval import BENCHMARK_OPTION, open_benchmark
+from sim.tasks.benchmark import Split
 
 
 class Feedback(str, Enum):
@@ -29,11 +30,6 @@ class Model(str, Enum):
     baseline = "baseline"
     improved = "improved"
     attention = "attention"
-
-
-class EvalSplit(str, Enum):
-    val_seen = "val_seen"
-    test = "test"
 
 
 class Executor(str, Enum):
@@ -103,7 +99,7 @@ def eval_ndh(
         None,
         help="A checkpoint written by `train ndh`; default the Driver shipped in the package (docs/model_card_ndh.md).",
     ),
-    split: EvalSplit = typer.Option(EvalSplit.val_seen, help="NDH split."),
+    split: Split = typer.Option(Split.VAL_SEEN, help="NDH split."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON (the shape of `eval baselines`)."),
     per_instance: Path | None = typer.Option(None, help="Write a CSV row per instance."),
     name: str | None = typer.Option(None, help="Agent name in the output; default from the checkpoint."),

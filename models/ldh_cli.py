@@ -12,13 +12,9 @@ from pathlib import Path
 import typer
 
 from sim.cli.eval import BENCHMARK_OPTION, open_benchmark, parse_list
+from sim.tasks.benchmark import Split
 
 LEARNED = "learned"
-
-
-class EvalSplit(str, Enum):
-    val_seen = "val_seen"
-    test = "test"
 
 
 class VariantOption(str, Enum):
@@ -47,7 +43,7 @@ def print_table(summary: dict) -> None:
 
 def eval_ldh(
     benchmark: Path = BENCHMARK_OPTION,
-    split: EvalSplit = typer.Option(EvalSplit.val_seen, help="Split (by maze, as the benchmark's)."),
+    split: Split = typer.Option(Split.VAL_SEEN, help="Split (by maze, as the benchmark's)."),
     agent: str = typer.Option(
         "random,center,colours",
         help=f"Localizers, comma-separated: random, center, colours, {LEARNED} (needs --checkpoint).",

@@ -16,8 +16,8 @@ import numpy as np
 from models.stats import Comparison, paired_tests, per_seed, seed_tests
 from sim.core.metrics import EpisodeResult, read_csv, summarize_agent
 from sim.core.stepper import MAX_EPISODE_ACTIONS
+from sim.tasks.benchmark import EVAL_SPLITS
 
-SPLITS = ("val_seen", "test")
 FEEDBACK_LABEL = {"teacher": "Teacher forcing", "student": "Student forcing"}
 BLIND_LABEL = {"none": "vision + language", "vision": "vision-blind", "language": "language-blind"}
 BASELINE_LABEL = {"random": "Random", "stop": "Immediate Stop"}
@@ -220,7 +220,9 @@ def plot_learning_curves(out: Path, path: Path) -> bool:
 
 def write_report(out: str | Path) -> Path:
     out = Path(out)
-    results = {s: read_csv(out / "results" / f"{s}.csv") for s in SPLITS if (out / "results" / f"{s}.csv").exists()}
+    results = {
+        str(s): read_csv(out / "results" / f"{s}.csv") for s in EVAL_SPLITS if (out / "results" / f"{s}.csv").exists()
+    }
     if not results:
         raise FileNotFoundError(f"{out}/results: no val_seen.csv or test.csv; run `robotslang experiment ndh` first")
     agents = set().union(*({r.agent for r in rs} for rs in results.values()))

@@ -23,7 +23,7 @@ from models.agent import AgentConfig, Seq2SeqAgent
 from models.data import EpisodeSet, World, goal_distance, splits_runs
 from models.rollout import BLINDS, MAX_ACTIONS, run_episodes
 from models.tokenizer import Tokenizer
-from sim.tasks.benchmark import SPLITS, Benchmark, NDHInstance
+from sim.tasks.benchmark import Benchmark, NDHInstance, Split
 
 FEEDBACK_LR = {"teacher": 1e-4, "student": 1e-3}
 
@@ -77,8 +77,8 @@ class TrainConfig:
         if self.model not in MODELS:
             raise ValueError(f"unknown model {self.model!r}; expected one of {', '.join(MODELS)}")
         for s in self.train_splits + ([self.eval_split] if self.eval_split else []):
-            if s not in SPLITS:
-                raise ValueError(f"unknown split {s!r}; expected one of {', '.join(SPLITS)}")
+            if s not in tuple(Split):
+                raise ValueError(f"unknown split {s!r}; expected one of {', '.join(Split)}")
         if self.iters < 1 or self.batch < 1 or self.eval_every < 1:
             raise ValueError("iters, batch and eval_every must be positive")
 
@@ -89,7 +89,7 @@ class TrainConfig:
 
 def build_world(bench: Benchmark, cache_dir=None) -> World:
     """One world for every split, so each maze is compiled (and cached) once."""
-    return World.build(bench, splits_runs(bench, list(SPLITS)), cache_dir=cache_dir)
+    return World.build(bench, splits_runs(bench, [str(s) for s in Split]), cache_dir=cache_dir)
 
 
 def load_glove(path: str | Path, tokenizer: Tokenizer) -> tuple[torch.Tensor, int]:

@@ -18,7 +18,6 @@ from __future__ import annotations
 import base64
 import json
 import math
-from enum import Enum
 from functools import cache
 from pathlib import Path
 
@@ -28,6 +27,7 @@ from mcap.writer import Writer
 from app.export.foxglove_scene import scene_update
 from app.export.record import ExportError, TrialRecord
 from app.trial.state import LoggedEvent
+from app.trial.vocabulary import PoseSource
 from sim.core.maze import FIXED_MAP, WALLS_MAP, Maze
 
 PROFILE = ""  # plain JSON messages: no ROS profile
@@ -40,15 +40,6 @@ FOXGLOVE_SCHEMAS = (
     "foxglove.FrameTransform",
     "foxglove.SceneUpdate",
 )
-
-
-class PoseSource(str, Enum):
-    """Where a logged pose comes from: the simulator's truth, the overhead tracker, or a
-    person's annotation of a recording."""
-
-    sim = "sim"
-    tracker = "tracker"
-    annotated = "annotated"
 
 
 def robot_frame(source: PoseSource) -> str:
@@ -107,7 +98,7 @@ _IMAGE_FORMATS = {"image/jpeg": "jpeg", "image/png": "png", "image/webp": "webp"
 
 def pose_source(record: TrialRecord, event: LoggedEvent) -> PoseSource:
     try:
-        return PoseSource(event.payload.get("source", "sim"))
+        return PoseSource(event.payload.get("source", PoseSource.SIM))
     except ValueError:
         raise ExportError(
             f"trial {record.trial_id}: pose event {event.seq} has source "

@@ -29,8 +29,8 @@ from app.export.record import TrialRecord
 from app.trial.state import LoggedEvent
 from app.trial.vocabulary import Phase, Role
 from sim.core.maze import Maze
+from sim.tasks.benchmark import Split
 
-SPLITS = ("train", "val_seen", "test")
 HELD_OUT_FRACTION = 0.15  # of mazes, for each of val_seen and test (the benchmark: 26 + 26 of 170)
 ROLES = {Role.COMMANDER: "oracle", Role.DRIVER: "navigator"}
 
@@ -169,8 +169,8 @@ def write_benchmark(trials: Iterable[tuple[TrialRecord, Maze]], out_dir: str | P
     trials = list(trials)
     mazes = {maze.name: maze for _, maze in trials}
     folds = assign_splits(mazes)
-    ndh: dict[str, list[dict]] = {s: [] for s in SPLITS}
-    ldh: dict[str, list[dict]] = {s: [] for s in SPLITS}
+    ndh: dict[str, list[dict]] = {s: [] for s in Split}
+    ldh: dict[str, list[dict]] = {s: [] for s in Split}
     for record, maze in trials:
         ndh[folds[maze.name]].extend(ndh_instances(record, maze))
         ldh[folds[maze.name]].extend(ldh_instances(record, maze))
@@ -181,7 +181,7 @@ def write_benchmark(trials: Iterable[tuple[TrialRecord, Maze]], out_dir: str | P
     for kind, by_split in (("NDH-data", ndh), ("LDH-data", ldh)):
         (out_dir / kind).mkdir(parents=True, exist_ok=True)
         index = 0
-        for split in SPLITS:
+        for split in Split:
             for inst in by_split[split]:
                 inst["inst_idx"] = index
                 index += 1

@@ -27,9 +27,6 @@ class TrialRecord:
     frames_root: Path | None  # frame payload `path`s are relative to this folder (None: no frames)
     info: dict[str, str] = field(default_factory=dict)  # anything else worth keeping as metadata
 
-    def of_kind(self, *kinds: str) -> list[LoggedEvent]:
-        return [e for e in self.events if e.kind in kinds]
-
     def frame_bytes(self, event: LoggedEvent) -> bytes:
         """The encoded image a `frame` event points at."""
         rel = event.payload.get("path")

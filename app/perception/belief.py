@@ -28,8 +28,9 @@ import numpy as np
 from sim.core.dynamics import Action
 from sim.core.maze import Maze
 from sim.robot.camera import CameraCalibration
+from sim.robot.frames import FrameError, decode_jpeg
 from sim.robot.localization import Belief, ParticleFilter
-from sim.robot.perception import PerceptionError, RayObservation, decode_frame, features, perceive
+from sim.robot.perception import PerceptionError, RayObservation, features, perceive
 
 logger = logging.getLogger(__name__)
 
@@ -118,8 +119,8 @@ class TrialBelief:
             obs = kept.observation
             if obs is None:
                 try:
-                    obs = perceive(decode_frame(kept.jpeg), self.calibration)
-                except PerceptionError:
+                    obs = perceive(decode_jpeg(kept.jpeg), self.calibration)
+                except (FrameError, PerceptionError):
                     return None
             self.filter.update(obs)
             observed = Observed(kept.capture_ns, features(obs), obs, self.filter.belief(CLOUD_POINTS), moves)

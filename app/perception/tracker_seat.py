@@ -14,7 +14,8 @@ import logging
 from pathlib import Path
 
 from sim.robot.calibration import CalibrationError
-from sim.robot.tracking import FrameError, OverheadCalibration, OverheadTracker, TrackedPose
+from sim.robot.frames import FrameError
+from sim.robot.tracking import OverheadCalibration, OverheadTracker, TrackedPose
 
 logger = logging.getLogger(__name__)
 

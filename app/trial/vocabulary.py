@@ -58,8 +58,11 @@ class FrameSource(StrEnum):
 
 
 class PoseSource(StrEnum):
-    SIM = "sim"
-    TRACKER = "tracker"
+    """Where a logged pose comes from."""
+
+    SIM = "sim"  # the simulator's truth
+    TRACKER = "tracker"  # the overhead camera's tracker
+    ANNOTATED = "annotated"  # a person's annotation of a recording
 
 
 EXPERIMENTER_PAUSE = "experimenter"

@@ -13,7 +13,7 @@ from rich.console import Console
 from rich.table import Table
 
 from sim.tasks.baselines import BASELINES
-from sim.tasks.benchmark import Benchmark, BenchmarkError
+from sim.tasks.benchmark import Benchmark, BenchmarkError, Split
 
 BENCHMARK_OPTION = typer.Option(
     ..., "--benchmark", envvar="ROBOTSLANG_BENCHMARK", help="A RobotSlangBenchmark clone (or an export in its layout)."
@@ -26,12 +26,6 @@ def open_benchmark(path: Path) -> Benchmark:
         return Benchmark(path)
     except BenchmarkError as e:
         raise typer.BadParameter(str(e), param_hint="--benchmark") from None
-
-
-class Split(str, Enum):
-    train = "train"
-    val_seen = "val_seen"
-    test = "test"
 
 
 class StartMode(str, Enum):
@@ -79,7 +73,7 @@ def print_table(summary: dict[str, Any], console: Console) -> None:
 
 def eval_baselines(
     benchmark: Path = BENCHMARK_OPTION,
-    split: Split = typer.Option(Split.val_seen, help="NDH split."),
+    split: Split = typer.Option(Split.VAL_SEEN, help="NDH split."),
     agent: str = typer.Option("stop,random,shortest", help="Agents, comma-separated: stop, random, shortest."),
     start: StartMode = typer.Option(
         StartMode.episode,

@@ -44,6 +44,7 @@ from sim.robot.camera import (
     capture,
     undistort_normalized,
 )
+from sim.robot.frames import FrameError, decode_jpeg
 
 NEAREST_M, FARTHEST_M = 0.02, 3.3  # the strip; the table's diagonal is 3.2 m
 SAMPLE_STEP_PX = 0.25  # spacing of strip samples, in image rows
@@ -205,7 +206,10 @@ def _ray_strips(c: CameraCalibration) -> _Strips:
 
 def _check_frame(image: np.ndarray | bytes | bytearray | memoryview, calibration: CameraCalibration) -> np.ndarray:
     if isinstance(image, (bytes, bytearray, memoryview)):
-        image = decode_frame(bytes(image))
+        try:
+            image = decode_jpeg(image)
+        except FrameError as err:
+            raise PerceptionError(str(err)) from None
     if not isinstance(image, np.ndarray):
         raise PerceptionError(f"a frame must be a BGR image array or JPEG bytes, got {type(image).__name__}")
     if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
@@ -215,14 +219,6 @@ def _check_frame(image: np.ndarray | bytes | bytearray | memoryview, calibration
             f"frame is {image.shape[1]}x{image.shape[0]} pixels, the calibration "
             f"is for {calibration.width}x{calibration.height}"
         )
-    return image
-
-
-def decode_frame(data: bytes) -> np.ndarray:
-    """JPEG (or PNG) bytes -> BGR image; a clear error for anything else."""
-    image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR) if data else None
-    if image is None:
-        raise PerceptionError(f"frame of {len(data)} bytes is not a JPEG or PNG image")
     return image
 
 

@@ -24,6 +24,7 @@ from tqdm import tqdm
 from sim.robot import fiducials
 from sim.robot.calibration import CalibrationError, load_json, save_json
 from sim.robot.fiducials import MarkerLayout
+from sim.robot.frames import decode_jpeg
 from sim.robot.overhead import Imaging, OverheadCamera, render_overhead
 
 if TYPE_CHECKING:
@@ -31,10 +32,6 @@ if TYPE_CHECKING:
 
 CALIBRATION_VERSION = 1
 MAX_REPROJECTION_PX = 3.0  # corner markers fitting worse than this are not where the layout says
-
-
-class FrameError(ValueError):
-    """Frame bytes that are not a decodable JPEG image."""
 
 
 @dataclass(frozen=True)
@@ -114,17 +111,6 @@ class OverheadCalibration:
     @classmethod
     def load(cls, path: str | Path) -> OverheadCalibration:
         return cls.from_json(load_json(path, "an overhead calibration"), source=str(path))
-
-
-def decode_frame(data: bytes) -> np.ndarray:
-    """JPEG bytes -> BGR image; `FrameError` for anything else."""
-    if not isinstance(data, (bytes, bytearray, memoryview)) or bytes(data[:2]) != b"\xff\xd8":
-        head = bytes(data[:4]).hex(" ") if isinstance(data, (bytes, bytearray, memoryview)) else type(data).__name__
-        raise FrameError(f"frame is not a JPEG (starts with {head or 'nothing'}; a JPEG starts ff d8)")
-    image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
-    if image is None:
-        raise FrameError(f"frame of {len(data)} bytes starts like a JPEG but does not decode")
-    return image
 
 
 def calibrate(
@@ -247,7 +233,7 @@ class OverheadTracker:
 
     def update(self, frame: bytes | np.ndarray, t_ns: int) -> TrackedPose | None:
         """The rover's pose in this frame (JPEG bytes or a BGR image), or None."""
-        image = decode_frame(frame) if not isinstance(frame, np.ndarray) else frame
+        image = decode_jpeg(frame) if not isinstance(frame, np.ndarray) else frame
         if self._last is not None and t_ns <= self._last.t_ns:
             raise ValueError(f"frame time {t_ns} ns is not after the previous frame's {self._last.t_ns} ns")
         found = fiducials.detect(self._detector, image)
@@ -380,7 +366,7 @@ def evaluate_tracker(
         ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality])
         return data.tobytes()
 
-    tracker = OverheadTracker(calibrate(decode_frame(jpeg(None))))
+    tracker = OverheadTracker(calibrate(decode_jpeg(jpeg(None))))
     truths = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
     position, heading = [], []
     for i, truth in enumerate(tqdm(truths, desc="overhead frames", unit="frame", disable=not progress)):

@@ -1,7 +1,7 @@
 """Baseline Drivers for NDH episodes: Immediate Stop, Random and Shortest path.
 
-Each is a small policy over (graph, pose, goal) so that the same episode runner scores them,
-and the web app can seat them in the Driver's chair.
+Each is a small policy over (graph, pose, goal), so that one episode runner scores them all
+(`sim.tasks.evaluation`).
 """
 
 from __future__ import annotations

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import re
 from dataclasses import dataclass
+from enum import StrEnum
 from functools import cached_property
 from pathlib import Path
 from typing import Any
@@ -20,7 +21,16 @@ from sim.core.geometry import GRID_STEP_M
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 
-SPLITS = ("train", "val_seen", "test")
+
+class Split(StrEnum):
+    """The benchmark's folds (split by maze)."""
+
+    TRAIN = "train"
+    VAL_SEEN = "val_seen"
+    TEST = "test"
+
+
+EVAL_SPLITS = (Split.VAL_SEEN, Split.TEST)  # what results are reported on
 EPISODE_START_AWAY_ACTIONS = 20  # teacher actions toward the target before turning back
 EPISODE_START_RADIUS_M = 3 * GRID_STEP_M  # 0.21 m from the previous object
 
@@ -97,7 +107,7 @@ class Benchmark:
     def split(self, name: str) -> list[NDHInstance]:
         path = self.root / "NDH-data" / f"{name}.json"
         if not path.exists():
-            raise BenchmarkError(f"{path}: no such split; expected one of {', '.join(SPLITS)}")
+            raise BenchmarkError(f"{path}: no such split; expected one of {', '.join(Split)}")
         return [NDHInstance.from_json(item) for item in json.loads(path.read_text())]
 
     @cached_property

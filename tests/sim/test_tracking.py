@@ -12,10 +12,10 @@ import pytest
 
 from sim.core.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M
 from sim.robot.fiducials import MarkerLayout, square
+from sim.robot.frames import FrameError
 from sim.robot.overhead import Imaging, OverheadCamera, render_overhead
 from sim.robot.tracking import (
     CalibrationError,
-    FrameError,
     OverheadCalibration,
     OverheadTracker,
     TrackerConfig,
