@@ -24,6 +24,7 @@ from app.demo.players import DemoError, ScriptedCommander, ScriptedDriver, Seat
 from app.mazes import Mazes
 from app.security import SeatTokens
 from app.settings import Settings
+from app.trial import events as ev
 from app.trial.log import EventLog
 from app.trial.setup import create_participant, create_team, create_trial, parse_targets, suggest_maze
 from app.trial.vocabulary import PARTICIPANTS
@@ -82,7 +83,7 @@ class Demo:
 
     def start_pose(self, trial: Trial) -> Pose:
         """Where the simulator put the robot: the first pose in the log."""
-        poses = [e for e in self.log.load(trial.id) if e.kind == "pose"]
+        poses = [e for e in self.log.load(trial.id) if e.is_(ev.PoseSampled)]
         if not poses:
             raise DemoError(f"trial {trial.id}: the server logged no robot pose; is it a simulator trial?")
         p = poses[0].payload

@@ -27,6 +27,7 @@ import numpy as np
 
 from app.export import Episode
 from app.export.record import ExportError, TrialRecord
+from app.trial import events as ev
 from app.trial.state import LoggedEvent
 from sim.core.dynamics import Action
 from sim.core.maze import Maze
@@ -68,18 +69,18 @@ def _state(maze: Maze, pose: dict | None) -> list[float]:
 def episodes_of(record: TrialRecord, maze: Maze, per: Episode) -> list[list[Step]]:
     """The trial's episodes as Driver steps, with the dialog spread over them."""
     events = sorted(record.events, key=lambda e: e.seq)
-    confirmed = [e.seq for e in events if e.kind == "target_confirmed"]
+    confirmed = [e.seq for e in events if e.is_(ev.TargetConfirmed)]
     steps: list[Step] = []
     pose: dict | None = None
     pending: Step | None = None
     for event in events:
-        if event.kind == "pose":
+        if event.is_(ev.PoseSampled):
             pose = event.payload
-        elif event.kind == "frame" and event.payload.get("source", "driver") == "driver":
+        elif event.is_(ev.FrameRecorded) and event.payload.get("source", "driver") == "driver":
             reached = sum(c < event.seq for c in confirmed)
             task = record.targets[min(reached, len(record.targets) - 1)]
             pending = Step(event, _state(maze, pose), Action.STOP, task)
-        elif event.kind == "move_executed" and pending is not None:
+        elif event.is_(ev.MoveExecuted) and pending is not None:
             pending.action = Action.parse(event.payload["action"])
             steps.append(pending)
             pending = None
@@ -97,7 +98,7 @@ def episodes_of(record: TrialRecord, maze: Maze, per: Episode) -> list[list[Step
         group[-1].action = Action.STOP
     flat = [s for g in groups for s in g]
     for event in events:
-        if event.kind == "chat":
+        if event.is_(ev.Chat):
             before = [s for s in flat if s.frame.seq <= event.seq]
             (before[-1] if before else flat[0]).messages.append(_chat(event))
     return groups

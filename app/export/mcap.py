@@ -26,6 +26,7 @@ from mcap.writer import Writer
 
 from app.export.foxglove_scene import scene_update
 from app.export.record import ExportError, TrialRecord
+from app.trial import events as ev
 from app.trial.state import LoggedEvent
 from app.trial.vocabulary import PoseSource
 from sim.core.maze import FIXED_MAP, WALLS_MAP, Maze
@@ -109,16 +110,16 @@ def pose_source(record: TrialRecord, event: LoggedEvent) -> PoseSource:
 
 def topic_of(event: LoggedEvent) -> str:
     """The one channel an event is written to."""
-    if event.kind == "frame":
+    if event.is_(ev.FrameRecorded):
         source = event.payload.get("source", "driver")
         return "/overhead/camera" if source == "overhead" else "/driver/camera"
-    if event.kind == "chat":
+    if event.is_(ev.Chat):
         return "/chat"
-    if event.kind in ("move_requested", "move_executed"):
+    if event.is_(ev.MoveRequested, ev.MoveExecuted):
         return "/driver/cmd"
-    if event.kind == "pose":
+    if event.is_(ev.PoseSampled):
         return f"/robot/pose/{event.payload.get('source', 'sim')}"
-    if event.kind == "localization":
+    if event.is_(ev.Localized):
         return "/commander/estimate"
     return "/trial/event"
 
@@ -131,8 +132,8 @@ def write_mcap(record: TrialRecord, maze: Maze | None, out: str | Path) -> Path:
     events = sorted(record.events, key=lambda e: (e.t_ns, e.seq))
     # Read every frame and check every pose before opening the file, so a bad log leaves no
     # half-written MCAP.
-    images = {e.seq: record.frame_bytes(e) for e in events if e.kind == "frame"}
-    sources = {e.seq: pose_source(record, e) for e in events if e.kind == "pose"}
+    images = {e.seq: record.frame_bytes(e) for e in events if e.is_(ev.FrameRecorded)}
+    sources = {e.seq: pose_source(record, e) for e in events if e.is_(ev.PoseSampled)}
     missing = [t for t in record.targets if maze is not None and t not in maze.objects]
     if missing:
         raise ExportError(f"trial {record.trial_id}: maze {record.maze} has no {', '.join(missing)}")
@@ -164,7 +165,7 @@ def write_mcap(record: TrialRecord, maze: Maze | None, out: str | Path) -> Path:
         for event in events:
             message, publish_ns = _message(record, event, images.get(event.seq))
             add(topic_of(event), message, event.t_ns, publish_ns, event.seq)
-            if event.kind == "pose":
+            if event.is_(ev.PoseSampled):
                 add("/tf", _transform(message, robot_frame(sources[event.seq])), event.t_ns, event.t_ns, 0)
         writer.add_metadata("trial", _trial_metadata(record, maze))
         if maze is not None:
@@ -198,7 +199,7 @@ def _stamp(ns: int) -> dict[str, int]:
 
 def _message(record: TrialRecord, event: LoggedEvent, image: bytes | None) -> tuple[dict, int]:
     p = event.payload
-    if event.kind == "frame":
+    if event.is_(ev.FrameRecorded):
         capture = int(p.get("capture_ns") or event.t_ns)
         fmt = _IMAGE_FORMATS.get(p.get("mime", "image/jpeg"))
         if fmt is None:
@@ -213,7 +214,7 @@ def _message(record: TrialRecord, event: LoggedEvent, image: bytes | None) -> tu
             "data": base64.b64encode(image).decode("ascii"),
             "format": fmt,
         }, capture
-    if event.kind == "chat":
+    if event.is_(ev.Chat):
         return {
             "timestamp": _stamp(event.t_ns),
             "level": LOG_INFO,
@@ -222,7 +223,7 @@ def _message(record: TrialRecord, event: LoggedEvent, image: bytes | None) -> tu
             "file": "",
             "line": 0,
         }, event.t_ns
-    if event.kind in ("move_requested", "move_executed"):
+    if event.is_(ev.MoveRequested, ev.MoveExecuted):
         return {
             "stage": event.kind.removeprefix("move_"),
             "move_id": p.get("move_id"),
@@ -231,7 +232,7 @@ def _message(record: TrialRecord, event: LoggedEvent, image: bytes | None) -> tu
             "collision": p.get("collision"),
             "reason": p.get("reason"),
         }, event.t_ns
-    if event.kind in ("pose", "localization"):
+    if event.is_(ev.PoseSampled, ev.Localized):
         return _pose_in_frame(event.t_ns, float(p["x"]), float(p["y"]), p.get("heading")), event.t_ns
     return {"seq": event.seq, "kind": event.kind, "payload": p}, event.t_ns
 

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from app.export.record import TrialRecord
+from app.trial import events as ev
 from app.trial.state import LoggedEvent
 from app.trial.vocabulary import Phase, Role
 from sim.core.maze import Maze
@@ -47,13 +48,13 @@ def _dialog(events: Iterable[LoggedEvent], before_seq: int) -> list[dict[str, st
     return [
         {"role": ROLES[e.payload["role"]], "message": e.payload["text"]}
         for e in events
-        if e.kind == "chat" and e.seq < before_seq and e.payload.get("role") in ROLES
+        if e.is_(ev.Chat) and e.seq < before_seq and e.payload.get("role") in ROLES
     ]
 
 
 def _pose_at(events: Sequence[LoggedEvent], seq: int) -> list[float] | None:
     """The last true pose logged at or before `seq` (the first one after, when none was before)."""
-    poses = [e for e in events if e.kind == "pose"]
+    poses = [e for e in events if e.is_(ev.PoseSampled)]
     before = [e for e in poses if e.seq <= seq]
     chosen = before[-1] if before else (poses[0] if poses else None)
     if chosen is None:
@@ -63,7 +64,7 @@ def _pose_at(events: Sequence[LoggedEvent], seq: int) -> list[float] | None:
 
 
 def _start_seq(events: Sequence[LoggedEvent]) -> int:
-    starts = [e.seq for e in events if e.kind == "phase" and e.payload.get("phase") == Phase.LOCALIZING]
+    starts = [e.seq for e in events if e.is_(ev.PhaseChanged) and e.payload.get("phase") == Phase.LOCALIZING]
     return starts[0] if starts else (events[0].seq if events else 0)
 
 
@@ -82,7 +83,7 @@ def ndh_instances(record: TrialRecord, maze: Maze) -> list[dict]:
     start = _pose_at(events, _start_seq(events))
     out = []
     for e in events:
-        if e.kind != "target_confirmed":
+        if not e.is_(ev.TargetConfirmed):
             continue
         k = int(e.payload["target_index"])
         target = record.targets[k]
@@ -107,7 +108,7 @@ def ldh_instances(record: TrialRecord, maze: Maze) -> list[dict]:
     """The localization half of a trial: the dialog until the Commander's first estimate, the
     estimate, and the true pose then and at the start where known (None where not)."""
     events = sorted(record.events, key=lambda e: e.seq)
-    estimates = [e for e in events if e.kind == "localization"]
+    estimates = [e for e in events if e.is_(ev.Localized)]
     if not estimates or not record.targets:
         return []
     estimate = estimates[0]

@@ -22,6 +22,7 @@ from app.guard import csrf_protect
 from app.mazes import UnknownMaze
 from app.routes.experimenter import experimenter
 from app.routes.pages import render
+from app.trial import events as ev
 from sim.core.maze import Maze
 
 router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter), Depends(csrf_protect)])
@@ -66,7 +67,7 @@ def replay_log(request: Request, trial_id: int):
     events = []
     for e in request.app.state.services.log.load(trial_id):
         payload = dict(e.payload)
-        if e.kind == "frame":
+        if e.is_(ev.FrameRecorded):
             payload.pop("path", None)
             payload["url"] = f"/experimenter/trials/{trial_id}/frames/{payload['frame_id']}.jpg"
         events.append({"seq": e.seq, "kind": e.kind, "t_ns": e.t_ns, "payload": payload})

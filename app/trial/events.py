@@ -22,6 +22,10 @@ class LoggedEvent:
     t_ns: int
     payload: dict[str, Any]
 
+    def is_(self, *models: type[Event]) -> bool:
+        """Whether this event is of one of these kinds: readers name the models, never the strings."""
+        return any(self.kind == model.kind for model in models)
+
 
 class Event(BaseModel):
     model_config = ConfigDict(frozen=True, extra="ignore")

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from app.trial import events as ev
 from app.trial.events import LoggedEvent
 from app.trial.port import Connection
 from app.trial.vocabulary import Phase, Role
@@ -95,7 +96,7 @@ class LiveBelief:
         self._sent_upto = 0  # the last chat seq a belief was sent for
 
     def after(self, logged: LoggedEvent) -> None:
-        if logged.kind == "chat" and self.runtime.watchers and self.runtime.state.phase == Phase.LOCALIZING:
+        if logged.is_(ev.Chat) and self.runtime.watchers and self.runtime.state.phase == Phase.LOCALIZING:
             self.runtime._spawn(self._send(None))
 
     def welcome(self, conn: Connection) -> None:
@@ -104,7 +105,7 @@ class LiveBelief:
 
     async def _send(self, only: Connection | None) -> None:
         rt = self.runtime
-        chats = [e for e in rt.services.log.load(rt.trial_id) if e.kind == "chat"]
+        chats = [e for e in rt.services.log.load(rt.trial_id) if e.is_(ev.Chat)]
         if not chats:
             return
         dialog = tuple(

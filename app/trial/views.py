@@ -10,29 +10,32 @@ from __future__ import annotations
 
 from typing import Any
 
+from app.trial import events as ev
 from app.trial.events import LoggedEvent
 from app.trial.state import TrialState
 from app.trial.vocabulary import FrameSource, Role
 
 EXPERIMENTER = "experimenter"  # the role of an experimenter's live view (not a seat of the trial)
 
-SHARED = {
-    "chat",
-    "phase",
-    "paused",
-    "resumed",
-    "connect",
-    "disconnect",
-    "target_claimed",
-    "target_confirmed",
-    "target_rejected",
+SHARED: set[type[ev.Event]] = {
+    ev.Chat,
+    ev.PhaseChanged,
+    ev.Paused,
+    ev.Resumed,
+    ev.Connected,
+    ev.Disconnected,
+    ev.TargetClaimed,
+    ev.TargetConfirmed,
+    ev.TargetRejected,
 }
-VISIBLE = {
-    Role.COMMANDER: SHARED | {"localization"},
-    Role.DRIVER: SHARED | {"move_executed", "frame"},
+SEES: dict[str, set[type[ev.Event]]] = {
+    Role.COMMANDER: SHARED | {ev.Localized},
+    Role.DRIVER: SHARED | {ev.MoveExecuted, ev.FrameRecorded},
     EXPERIMENTER: SHARED
-    | {"localization", "move_requested", "move_executed", "frame", "pose", "bad_message", "restarted"},
+    | {ev.Localized, ev.MoveRequested, ev.MoveExecuted, ev.FrameRecorded, ev.PoseSampled, ev.BadMessage, ev.Restarted},
 }
+VISIBLE = {role: frozenset(model.kind for model in models) for role, models in SEES.items()}  # by logged kind
+
 GROUND_TRUTH = ("within_m", "truly_within")
 
 
@@ -40,14 +43,14 @@ def view(role: str, event: LoggedEvent) -> dict[str, Any] | None:
     """The message a seat gets for `event`, or None when it must not see it."""
     if event.kind not in VISIBLE.get(role, ()):
         return None
-    if event.kind == "frame" and event.payload.get("source", FrameSource.DRIVER) != FrameSource.DRIVER:
+    if event.is_(ev.FrameRecorded) and event.payload.get("source", FrameSource.DRIVER) != FrameSource.DRIVER:
         return None  # the overhead camera is for annotation and replay, never for a live view
     payload = (
         dict(event.payload)
         if role == EXPERIMENTER
         else {k: v for k, v in event.payload.items() if k not in GROUND_TRUTH}
     )
-    if event.kind == "frame":
+    if event.is_(ev.FrameRecorded):
         payload.pop("path", None)
     return {"type": "event", "seq": event.seq, "kind": event.kind, "t_ns": event.t_ns, "payload": payload}
 
