@@ -95,7 +95,7 @@ class Parsed:
 
 _CLAUSE = re.compile(r"[,.;!]+|\bthen\b|\band\b|\bafter that\b|\bnow\b")
 _CLAIM = re.compile(
-    r"\b(you(?:re| are) (?:there|here|right by it|at it)|thats it|thats the spot|you found it|found it"
+    r"\b(you(?:re| are) (?:there|here|right by it|at it)|(?:should be|is) right (?:there|here)|thats it|thats the spot|you found it|found it"
     r"|claim|take (?:a |the )?(?:picture|photo|snapshot)|send (?:a )?(?:picture|photo)|correct)\b"
 )
 _STOP = re.compile(r"\b(stop|halt|hold on|wait)\b")
