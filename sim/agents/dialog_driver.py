@@ -195,13 +195,13 @@ class DialogDriver:
             if self._sees_target() and self._plan[0].kind != "claim":
                 self._plan.clear()
                 self._plan.append(_Task("claim"))
-            task = self._plan[0]
-            step = self._step(task)
+            task = self._plan.popleft()
+            step = self._step(task)  # may clear the plan or put tasks before what is left
             if isinstance(step, DoMove):
+                self._plan.appendleft(task)
                 self._moving = True
                 out.append(step)
                 break
-            self._plan.popleft()
             if step is not None:
                 out += step if isinstance(step, list) else [step]
         return out
@@ -296,8 +296,7 @@ class DialogDriver:
             task.nth -= 1
         task.edge_near = not far
         if task.nth <= 0:
-            self._plan.appendleft(_Task("turn", turns=2 if task.side == Side.LEFT else -2))
-            self._plan.insert(1, _Task("walk", steps=1))
+            self._plan.extendleft([_Task("walk", steps=1), _Task("turn", turns=2 if task.side == Side.LEFT else -2)])
             return None
         if view.forward_blocked or task.done >= MAX_WALK:
             self._plan.clear()
