@@ -232,6 +232,9 @@ def parse(message: str) -> Parsed:
             out[last] = parsed[0]  # "..., not the red one" narrows the wall to stop at
             continue
         for instruction in parsed:
+            if isinstance(instruction, Forward) and out and out[-1] == Forward():
+                out[-1] = instruction  # "continue forward and turn left at the white wall": one walk
+                continue
             if instruction == Forward() and out and isinstance(out[-1], Forward):
                 continue  # "keep the red wall on your left and go straight": one walk
             out.append(instruction)

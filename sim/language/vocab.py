@@ -221,6 +221,7 @@ COMMON = frozenset(
         "side",
         "sides",
         "mine",
+        "black",
         "mind",
         "into",
         "onto",
@@ -267,7 +268,8 @@ def correct(word: str) -> str:
 
 def words(text: str) -> list[str]:
     """Lower-case words of `text`, spelling corrected; "?" kept as a word."""
-    return [correct(w) for w in _WORD.findall(text.lower().replace("'", ""))]
+    text = text.lower().replace("'", "").replace("u-turn", "uturn").replace("-", " ")
+    return [correct(w) for w in _WORD.findall(text)]
 
 
 def number(word: str) -> int | None:
