@@ -14,9 +14,9 @@ import math
 import random
 from collections import deque
 from dataclasses import dataclass, field
+from enum import StrEnum
 
 from sim.agents.turns import (
-    Claimed,
     DoClaim,
     DoMove,
     DoSay,
@@ -45,11 +45,24 @@ MAX_WALK = 60  # forward moves one "until" may take before the Driver asks
 NEXT = ("what next?", "where to now?", "what should i do next?")
 
 
+class Task(StrEnum):
+    TURN = "turn"
+    WALK = "walk"  # forward some steps, or until a wall / the target
+    OPENING = "opening"  # forward to the nth opening on a side, then turn into it
+    GOTO = "goto"  # back to a place of its odometry
+    LOOK = "look"  # turn in place to see what a question needs, then answer
+    SAY = "say"
+    CLAIM = "claim"
+
+
+MOVING = (Task.WALK, Task.OPENING, Task.GOTO)  # tasks that leave the spot: not while localizing
+
+
 @dataclass
 class _Task:
     """One step of the current instruction set; `turns` / `steps` count what is left of it."""
 
-    kind: str  # "turn", "walk", "opening", "goto", "look", "say", "claim"
+    kind: Task
     turns: int = 0
     steps: int | None = None
     until: Label | None = None
@@ -115,9 +128,7 @@ class DialogDriver:
                 return []
             self._rejected_at.add((self._odo.i, self._odo.j))
             return [DoSay("ok, not here then. where should i go?")]
-        if isinstance(percept, Claimed):
-            return []
-        return []
+        return []  # Claimed: its own claim, already waiting for the verdict
 
     def _moved(self, moved: Moved) -> list[Turn]:
         if moved.result != MoveResult.OK:
@@ -142,59 +153,59 @@ class DialogDriver:
         for item in parsed.instructions:
             tasks += self._tasks(item)
         if parsed.unclear:
-            tasks = [_Task("say", text="sorry, i did not understand. which way should i go?")]
-        if self._phase == Phase.LOCALIZING and any(t.kind in ("walk", "opening", "goto") for t in tasks):
-            tasks = [t for t in tasks if t.kind not in ("walk", "opening", "goto")]
+            tasks = [_Task(Task.SAY, text="sorry, i did not understand. which way should i go?")]
+        if self._phase == Phase.LOCALIZING and any(t.kind in MOVING for t in tasks):
+            tasks = [t for t in tasks if t.kind not in MOVING]
             tasks.append(
-                _Task("say", text="i will stay here until you have found me on the map. what should i describe?")
+                _Task(Task.SAY, text="i will stay here until you have found me on the map. what should i describe?")
             )
-        if tasks and tasks[-1].kind not in ("say", "claim", "look"):
-            tasks.append(_Task("say"))  # the report when the moves are done
+        if tasks and tasks[-1].kind not in (Task.SAY, Task.CLAIM, Task.LOOK):
+            tasks.append(_Task(Task.SAY))  # the report when the moves are done
         self._plan.extend(tasks)
         self._done_words = ""
         return [] if self._moving else self._advance()
 
     def _tasks(self, item: ins.Instruction) -> list[_Task]:
         if isinstance(item, ins.Turn):
-            return [_Task("turn", turns=item.eighths)]
+            return [_Task(Task.TURN, turns=item.eighths)]
         if isinstance(item, ins.Forward):
-            return [_Task("walk", steps=item.steps, until=item.until, exclude=item.exclude)]
+            return [_Task(Task.WALK, steps=item.steps, until=item.until, exclude=item.exclude)]
         if isinstance(item, ins.TakeOpening):
-            return [_Task("opening", side=item.side, nth=item.nth)]
+            return [_Task(Task.OPENING, side=item.side, nth=item.nth)]
         if isinstance(item, ins.Target):
             self._target = item.label
             if item.side is None:
                 return []
-            return [_Task("turn", turns=SIDE_STEPS[item.side] if item.side != Side.RIGHT else -2)] + [
-                _Task("walk", until=item.label)
+            return [_Task(Task.TURN, turns=SIDE_STEPS[item.side] if item.side != Side.RIGHT else -2)] + [
+                _Task(Task.WALK, until=item.label)
             ]
         if isinstance(item, ins.Ask):
-            return [_Task("look", question=item)]
+            return [_Task(Task.LOOK, question=item)]
         if isinstance(item, ins.GoBack):
             return [self._go_back(item)]
         if isinstance(item, ins.Stop):
             if item.claim:
-                return [_Task("claim")]
-            return [_Task("say", text=f"ok, stopped. {brief(self._view)}. {self._rng.choice(NEXT)}")]
+                return [_Task(Task.CLAIM)]
+            return [_Task(Task.SAY, text=f"ok, stopped. {brief(self._view)}. {self._rng.choice(NEXT)}")]
         return []
 
     def _go_back(self, item: ins.GoBack) -> _Task:
         if item.place == ins.Place.START:
-            return _Task("goto", goal=(0, 0), text="back where i started")
+            return _Task(Task.GOTO, goal=(0, 0), text="back where i started")
         turns = [where for side, where in self._odo.turns if item.side is None or side == item.side]
         if len(turns) < item.nth:
             side = f" {item.side.value}" if item.side else ""
-            return _Task("say", text=f"i have not turned{side} that many times yet. where should i go?")
-        return _Task("goto", goal=turns[item.nth - 1], text="back where i turned")
+            return _Task(Task.SAY, text=f"i have not turned{side} that many times yet. where should i go?")
+        return _Task(Task.GOTO, goal=turns[item.nth - 1], text="back where i turned")
 
     # -- carrying tasks out ---------------------------------------------------------------------
 
     def _advance(self) -> list[Turn]:
         out: list[Turn] = []
         while self._plan and not self._moving and not self._claiming:
-            if self._sees_target() and self._plan[0].kind != "claim":
+            if self._sees_target() and self._plan[0].kind != Task.CLAIM:
                 self._plan.clear()
-                self._plan.append(_Task("claim"))
+                self._plan.append(_Task(Task.CLAIM))
             task = self._plan.popleft()
             step = self._step(task)  # may clear the plan or put tasks before what is left
             if isinstance(step, DoMove):
@@ -215,17 +226,17 @@ class DialogDriver:
 
     def _step(self, task: _Task) -> DoMove | DoSay | list[Turn] | None:
         """The task's next move, or None (or its closing words) when it is finished."""
-        if task.kind == "turn":
+        if task.kind == Task.TURN:
             return self._turn(task)
-        if task.kind == "walk":
+        if task.kind == Task.WALK:
             return self._walk(task)
-        if task.kind == "opening":
+        if task.kind == Task.OPENING:
             return self._opening(task)
-        if task.kind == "goto":
+        if task.kind == Task.GOTO:
             return self._goto(task)
-        if task.kind == "look":
+        if task.kind == Task.LOOK:
             return self._look(task)
-        if task.kind == "claim":
+        if task.kind == Task.CLAIM:
             if self._phase != Phase.NAVIGATING:
                 return DoSay("you have not placed me on the map yet; tell me when i may go")
             self._claiming = True
@@ -296,7 +307,9 @@ class DialogDriver:
             task.nth -= 1
         task.edge_near = not far
         if task.nth <= 0:
-            self._plan.extendleft([_Task("walk", steps=1), _Task("turn", turns=2 if task.side == Side.LEFT else -2)])
+            self._plan.extendleft(
+                [_Task(Task.WALK, steps=1), _Task(Task.TURN, turns=2 if task.side == Side.LEFT else -2)]
+            )
             return None
         if view.forward_blocked or task.done >= MAX_WALK:
             self._plan.clear()

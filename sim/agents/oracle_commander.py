@@ -93,7 +93,9 @@ class OracleCommander:
                 ]
             return []
         if isinstance(percept, Claimed):
-            return [DoJudge(self.distance(self.pose) <= SUCCESS_RADIUS_M)]
+            if self.distance(self.pose) <= SUCCESS_RADIUS_M:
+                return [DoJudge(True)]
+            return [DoJudge(False), DoSay(self.phrases.say(Kind.REJECT))]
         if isinstance(percept, Heard) and percept.speaker == Speaker.DRIVER and self._index is not None:
             if "found" in percept.text:
                 return []  # a claim is on its way
@@ -102,7 +104,7 @@ class OracleCommander:
 
     def instruction(self, plain: bool) -> str:
         """The next instruction from the true pose; `plain` (the Driver asked) counts steps."""
-        name, label, _, goal = self._target()
+        _, label, _, goal = self._target()
         thing = OBJECT_WORDS[label]
         if self.distance(self.pose) <= THERE_M:
             return self.phrases.say(Kind.THERE, thing=thing)
@@ -137,8 +139,7 @@ class OracleCommander:
             k += 1
         next_turn = self.phrases.turn(after)
         wall = self._walk_ends(poses[start], None)
-        front = seen(self.view(poses[start + run]))
-        if next_turn and not plain and wall == run and front:
+        if next_turn and not plain and wall == run:
             ahead = self._ahead_label(poses[start + run])
             if ahead is not None and any(s.label == ahead for s in seen(self.view(poses[start]))):
                 return ", then ".join(

@@ -140,7 +140,7 @@ def _turn_size(text: str, ws: list[str]) -> int:
 
 
 def _times(ws: list[str]) -> int:
-    return 2 if "twice" in ws or "again" in ws and "twice" in ws else 1
+    return 2 if "twice" in ws else 1
 
 
 def _question(text: str, ws: list[str]) -> Ask:
