@@ -69,7 +69,7 @@ class _Task:
     exclude: frozenset[Label] = frozenset()
     side: Side | None = None
     nth: int = 0
-    goal: tuple[int, int] = (0, 0)
+    route: list[tuple[int, int]] = field(default_factory=list)  # GOTO: places still to pass, in order
     text: str = ""
     question: ins.Ask | None = None
     done: int = 0
@@ -82,7 +82,22 @@ class _Odometry:
     i: int = 0
     j: int = 0
     heading: int = 0  # 45-degree steps counter-clockwise from the start heading
-    turns: list[tuple[Side, tuple[int, int]]] = field(default_factory=list)  # where it turned, in order
+    trail: list[tuple[int, int]] = field(default_factory=lambda: [(0, 0)])  # every place it stood, in order
+    turns: list[tuple[Side, int]] = field(default_factory=list)  # which way it turned, at which trail index
+
+    @property
+    def here(self) -> tuple[int, int]:
+        return (self.i, self.j)
+
+    def route_back(self, index: int) -> list[tuple[int, int]]:
+        """The way back to `trail[index]` along the trail, loops cut: the way it came is free."""
+        route: list[tuple[int, int]] = []
+        for place in reversed(self.trail[index:]):
+            if place in route:
+                del route[route.index(place) + 1 :]
+            else:
+                route.append(place)
+        return route[1:]
 
 
 class DialogDriver:
@@ -126,7 +141,7 @@ class DialogDriver:
             self._claiming = False
             if percept.confirmed:
                 return []
-            self._rejected_at.add((self._odo.i, self._odo.j))
+            self._rejected_at.add(self._odo.here)
             return [DoSay("ok, not here then. where should i go?")]
         return []  # Claimed: its own claim, already waiting for the verdict
 
@@ -139,6 +154,7 @@ class DialogDriver:
         if moved.move == Move.FORWARD:
             self._odo.i += int(HEADING_DI[self._odo.heading])
             self._odo.j += int(HEADING_DJ[self._odo.heading])
+            self._odo.trail.append(self._odo.here)
             self._views = {}
         else:
             self._odo.heading = (self._odo.heading + (1 if moved.move == Move.LEFT else -1)) % HEADINGS
@@ -191,12 +207,12 @@ class DialogDriver:
 
     def _go_back(self, item: ins.GoBack) -> _Task:
         if item.place == ins.Place.START:
-            return _Task(Task.GOTO, goal=(0, 0), text="back where i started")
-        turns = [where for side, where in self._odo.turns if item.side is None or side == item.side]
+            return _Task(Task.GOTO, route=self._odo.route_back(0), text="back where i started")
+        turns = [index for side, index in self._odo.turns if item.side is None or side == item.side]
         if len(turns) < item.nth:
             side = f" {item.side.value}" if item.side else ""
             return _Task(Task.SAY, text=f"i have not turned{side} that many times yet. where should i go?")
-        return _Task(Task.GOTO, goal=turns[item.nth - 1], text="back where i turned")
+        return _Task(Task.GOTO, route=self._odo.route_back(turns[item.nth - 1]), text="back where i turned")
 
     # -- carrying tasks out ---------------------------------------------------------------------
 
@@ -220,7 +236,7 @@ class DialogDriver:
     def _sees_target(self) -> bool:
         if self._target is None or self._phase != Phase.NAVIGATING or self._view is None:
             return False
-        if (self._odo.i, self._odo.j) in self._rejected_at:
+        if self._odo.here in self._rejected_at:
             return False
         return near(self._view, self._target)
 
@@ -249,7 +265,7 @@ class DialogDriver:
         if task.turns == 0:
             return None
         if task.done == 0 and abs(task.turns) >= 2:
-            self._odo.turns.append((Side.LEFT if task.turns > 0 else Side.RIGHT, (self._odo.i, self._odo.j)))
+            self._odo.turns.append((Side.LEFT if task.turns > 0 else Side.RIGHT, len(self._odo.trail) - 1))
         task.done += 1
         step = 1 if task.turns > 0 else -1
         task.turns -= step
@@ -318,14 +334,12 @@ class DialogDriver:
         return DoMove(Move.FORWARD)
 
     def _goto(self, task: _Task) -> DoMove | DoSay | None:
-        di, dj = task.goal[0] - self._odo.i, task.goal[1] - self._odo.j
-        if di == 0 and dj == 0:
+        while task.route and task.route[0] == self._odo.here:
+            task.route.pop(0)
+        if not task.route:
             self._done_words = task.text
             return None
-        if task.done >= 4 * (abs(di) + abs(dj)) + 16:
-            self._plan.clear()
-            return DoSay(f"i cannot find my way {task.text}. which way?")
-        task.done += 1
+        di, dj = task.route[0][0] - self._odo.i, task.route[0][1] - self._odo.j
         wanted = round(math.atan2(dj, di) / (math.pi / 4)) % HEADINGS
         turn = (wanted - self._odo.heading) % HEADINGS
         if turn == 0:

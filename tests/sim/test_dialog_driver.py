@@ -24,7 +24,7 @@ from sim.agents.turns import (
     SeatInfo,
     Speaker,
 )
-from sim.dynamics import Pose
+from sim.dynamics import Action, Pose, step
 from sim.language.phrases import Phrasing
 from sim.maze import Maze
 from sim.navgraph import NavGraph
@@ -93,3 +93,51 @@ def test_while_localized_it_answers_and_turns_in_place_but_does_not_drive_off(wo
         if said:
             break
     assert said and "behind me" in said[0].text and heading == 0
+
+
+def _carry_out(driver, world, pose, text):
+    """The Commander says `text`; the Driver's moves are stepped on the graph until it speaks."""
+    _, graph, _ = world
+    turns = driver.perceive(Heard(Speaker.COMMANDER, text))
+    for _ in range(200):
+        said = [t.text for t in turns if isinstance(t, DoSay)]
+        if said:
+            return pose, said
+        (move,) = [t for t in turns if isinstance(t, DoMove)]
+        action = {Move.FORWARD: Action.FORWARD, Move.LEFT: Action.LEFT, Move.RIGHT: Action.RIGHT}[move.move]
+        pose, collided = step(graph, pose, action)
+        result = MoveResult.COLLISION if collided else MoveResult.OK
+        turns = driver.perceive(Moved(move.move, result)) + driver.perceive(Saw(0, _rays(world, pose)))
+    raise AssertionError("the Driver never spoke")
+
+
+def _room_for(graph, ahead, left):
+    """A pose heading 0 with `ahead` free moves along +x, then `left` along +y."""
+    for node in range(graph.n):
+        n = node
+        for k in range(ahead + left):
+            n = int(graph.forward[n, 0 if k < ahead else 2])
+            if n < 0:
+                break
+        else:
+            return Pose(node, 0)
+    raise AssertionError("no open stretch in the maze")
+
+
+def test_it_goes_back_to_where_it_started_by_its_own_odometry(world):
+    _, graph, _ = world
+    start = _room_for(graph, 3, 2)
+    driver = DialogDriver(0)
+    driver.reset(SeatInfo(Speaker.DRIVER, 3))
+    driver.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3))
+    driver.perceive(Saw(0, _rays(world, start)))
+    pose, said = _carry_out(driver, world, start, "go forward 3 steps, then turn left")
+    pose, said = _carry_out(driver, world, pose, "go forward 2 steps")
+    assert pose.node != start.node and said[0].startswith("ok")
+    pose, said = _carry_out(driver, world, pose, "go back to where you started")
+    assert pose.node == start.node and "back where i started" in said[0], said
+    corner = start.node
+    for _ in range(3):
+        corner = int(graph.forward[corner, 0])
+    pose, said = _carry_out(driver, world, pose, "now go back to where you turned left first")
+    assert pose.node == corner and "back where i turned" in said[0], said
