@@ -269,7 +269,7 @@ class DialogDriver:
         task.done += 1
         step = 1 if task.turns > 0 else -1
         task.turns -= step
-        self._done_words = "turned"
+        self._done_words = f"turned {'left' if step > 0 else 'right'}"
         return DoMove(Move.LEFT if step > 0 else Move.RIGHT)
 
     def _walk(self, task: _Task) -> DoMove | DoSay | None:

@@ -1,6 +1,6 @@
 """A Commander that cheats: it is handed the Driver's true pose and the map, for measuring Drivers.
 
-It plans each instruction with the shortest path (the teacher) from the true pose, speaks one
+It plans each instruction with the fewest moves from the true pose, speaks one
 instruction at a time in the scripted or the held-out phrasing, and waits for the Driver's answer;
 when the Driver strays it plans again from where the Driver truly is. It picks "at the red wall" or
 "until you see the mug" only where the map says a Driver stopping at the first close wall (or the
@@ -26,8 +26,8 @@ from sim.agents.turns import (
     Speaker,
     Turn,
 )
-from sim.dynamics import Action, Pose, step, teacher_action
-from sim.geometry import SUCCESS_RADIUS_M
+from sim.dynamics import Action, Pose, step
+from sim.geometry import HEADINGS, SUCCESS_RADIUS_M
 from sim.labels import Label, object_label
 from sim.language.describe import ahead, at_wall, near, seen
 from sim.language.phrases import Kind, Phrases, Phrasing
@@ -55,6 +55,7 @@ class OracleCommander:
         self.phrases = Phrases(Phrasing(phrasing), seed)
         self.pose = Pose(0, 0)
         self._index: int | None = None
+        self._costs: dict[int, np.ndarray] = {}
 
     def reset(self, info: SeatInfo) -> None:
         self._index = None
@@ -108,16 +109,7 @@ class OracleCommander:
         thing = OBJECT_WORDS[label]
         if self.distance(self.pose) <= THERE_M:
             return self.phrases.say(Kind.THERE, thing=thing)
-        actions: list[Action] = []
-        pose = self.pose
-        poses = [pose]
-        for _ in range(MAX_PLAN):
-            action = teacher_action(self.graph, pose, goal)
-            if action == Action.STOP:
-                break
-            pose, _ = step(self.graph, pose, action)
-            actions.append(action)
-            poses.append(pose)
+        actions, poses = self.plan(self.pose, goal)
         k = 0
         eighths = 0
         while k < len(actions) and actions[k] != Action.FORWARD:
@@ -148,6 +140,47 @@ class OracleCommander:
         if next_turn:
             return ", then ".join([*words, self.phrases.say(Kind.FORWARD_THEN_TURN, n=run, turn=next_turn)])
         return ", then ".join([*words, self.phrases.say(Kind.FORWARD, n=run)])
+
+    def plan(self, start: Pose, goal: int) -> tuple[list[Action], list[Pose]]:
+        """Fewest moves (turns count) to the goal node, forward first among equals: straight runs
+        a Commander can name, where the teacher's next-hop path zig-zags at a turn per step."""
+        cost = self._cost_to_go(goal)
+        pose, actions, poses = start, [], [start]
+        while cost[pose.node, pose.heading] > 0:
+            for action in (Action.FORWARD, Action.LEFT, Action.RIGHT):
+                after, collided = step(self.graph, pose, action)
+                if not collided and cost[after.node, after.heading] == cost[pose.node, pose.heading] - 1:
+                    break
+            else:
+                break  # the goal is out of reach from here
+            pose = after
+            actions.append(action)
+            poses.append(pose)
+        return actions, poses
+
+    def _cost_to_go(self, goal: int) -> np.ndarray:
+        """(N, 8) moves from each pose to the goal node, by a breadth-first search backwards."""
+        if goal in self._costs:
+            return self._costs[goal]
+        n = self.graph.n
+        cost = np.full((n, HEADINGS), -1, dtype=np.int64)
+        cost[goal] = 0
+        frontier = [(goal, h) for h in range(HEADINGS)]
+        came_from = [[np.flatnonzero(self.graph.forward[:, h] == m) for h in range(HEADINGS)] for m in range(n)]
+        while frontier:
+            nxt = []
+            for node, h in frontier:
+                c = cost[node, h] + 1
+                before = [(node, (h - 1) % HEADINGS), (node, (h + 1) % HEADINGS)]
+                before += [(int(m), h) for m in came_from[node][h]]
+                for m, hh in before:
+                    if cost[m, hh] < 0:
+                        cost[m, hh] = c
+                        nxt.append((m, hh))
+            frontier = nxt
+        cost[cost < 0] = np.iinfo(np.int64).max // 2  # unreachable
+        self._costs[goal] = cost
+        return cost
 
     def _ahead_label(self, pose: Pose) -> Label | None:
         front = ahead(self.view(pose))

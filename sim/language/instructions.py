@@ -113,6 +113,9 @@ _QUESTION = re.compile(
     r"\?|^(what|whats|where|is|are|do|does|can you see|describe|any|how)\b|\bsurroundings\b|\blocation\b"
     r"|\btell me (?:what|your|about)\b|\bdescribe\b"
 )
+_FIND = re.compile(
+    r"\b(?:(?:and )?(?:you )?(?:should|will|can|have to|need to|lets|let us) )?(?:go )?(?:to )?(?:find|look for|search for)\b.*$"
+)
 _LOOK = re.compile(r"\b(look around|spin around|around you|all around|look all around|turn around)\b")
 
 
@@ -177,11 +180,12 @@ def _clause(text: str, prev: Instruction | None) -> list[Instruction]:
     side_words = _SIDE_PHRASE.search(text)
     if objects and side_words and not _GO.search(text.replace(side_words.group(0), "")):
         return [Target(objects[0], _side(side_words.group(0).split()))]
-    if (
-        objects
-        and re.search(r"\b(objective|target|next|find|look for|now|goal|is a|is the)\b", text)
-        and not (_GO.search(text))
-    ):
+    purpose = _FIND.search(text)
+    if objects and purpose:
+        # "turn left and left again to find the jar", "ok lets find the paddle": the target, and the moves before it
+        rest = [i for i in _clause(text[: purpose.start()], prev) if not isinstance(i, Unclear)]
+        return [Target(objects[0]), *rest]
+    if objects and re.search(r"\b(objective|target|next|goal|is a|is the)\b", text) and not (_GO.search(text)):
         return [Target(objects[0])]
     if _UTURN.search(text):
         return [Turn(4)]

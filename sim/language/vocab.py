@@ -40,6 +40,8 @@ LABEL_WORDS: dict[str, Label] = {
     "mug": Label.MUG,
     "cup": Label.MUG,
     "paddle": Label.PADDLE,
+    "racket": Label.PADDLE,  # "table-tennis-racket" (train split)
+    "racquet": Label.PADDLE,
 }
 # How the Commander and the Driver name each object.
 OBJECT_WORDS = {Label.JAR: "jar of blocks", Label.MUG: "coffee mug", Label.PADDLE: "ping-pong paddle"}

@@ -61,6 +61,8 @@ def test_counts_of_openings_turns_and_steps():
 
 
 def test_targets_questions_and_claim_cues():
+    assert parse("And left again to find the  jar").instructions == (Target(Label.JAR), Turn(2))
+    assert parse("Ok lets find the  paddle").instructions == (Target(Label.PADDLE),)
     assert parse("Your second objective is a black  coffee-mug").instructions == (Target(Label.MUG),)
     assert parse("The  jar will be on your left").instructions == (Target(Label.JAR, Side.LEFT),)
     assert parse("Is there a blue wall on your right?").instructions == (
