@@ -191,7 +191,9 @@ class DialogDriver:
         if isinstance(item, ins.Target):
             self._target = item.label
             if item.side is None:
-                return []
+                # Told what to find: where it is in view, go up to it.
+                visible = self._view is not None and any(s.label == item.label for s in seen(self._view))
+                return [_Task(Task.WALK, until=item.label)] if visible and self._phase == Phase.NAVIGATING else []
             return [_Task(Task.TURN, turns=SIDE_STEPS[item.side] if item.side != Side.RIGHT else -2)] + [
                 _Task(Task.WALK, until=item.label)
             ]

@@ -1,15 +1,17 @@
-"""A Driver agent and the oracle Commander in one leg, offline: the trial's turn-taking without a
-server. The simulator's stepper rules move the Driver on the graph; the RayTable row of each pose
-is the Driver's `Saw` (frames are not rendered). The Driver gets percepts only; the Commander is
-handed the true pose."""
+"""A Driver agent offline, with the oracle Commander (`run`) or with a recorded human Commander's
+messages (`replay`): the trial's turn-taking without a server. The simulator's stepper rules move
+the Driver on the graph; the RayTable row of each pose is the Driver's `Saw` (frames are not
+rendered). The Driver gets percepts only; the oracle Commander is handed the true pose."""
 
 from __future__ import annotations
 
 import time
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from sim.agents.oracle_commander import OracleCommander
+from sim.agents.sight import pose_rays
 from sim.agents.turns import (
     Agent,
     Claimed,
@@ -32,6 +34,8 @@ from sim.agents.turns import (
 )
 from sim.dynamics import Action, Pose, step
 from sim.dynamics import teacher_action as _teacher
+from sim.navgraph import NavGraph
+from sim.observations import RayTable
 
 MAX_MESSAGES = 80
 MAX_REJECTIONS = 3
@@ -126,3 +130,31 @@ def run(
         if phase == Phase.LOCALIZING and driver_messages >= max_driver_messages:
             break
     return out
+
+
+def replay(
+    driver: Agent, graph: NavGraph, rays: RayTable, start: Pose, dialog: Sequence[tuple[str, str]], max_moves: int
+) -> list[int]:
+    """An NDH episode: the recorded Commander's messages (role "oracle") reach the Driver one at a
+    time, each once it has finished with the last (spoken or stopped moving); it ends at the Driver's
+    claim, after the last message, or at `max_moves`. Returns the nodes it stood on, start first."""
+    driver.reset(SeatInfo(Speaker.DRIVER, 1))
+    pose, nodes, moves = start, [start.node], 0
+    driver.perceive(PhaseChanged(Phase.NAVIGATING, 0, 1))
+    driver.perceive(Saw(0, pose_rays(rays, pose)))
+    for role, message in dialog:
+        if role != "oracle":
+            continue
+        turns = driver.perceive(Heard(Speaker.COMMANDER, message))
+        while True:
+            if any(isinstance(t, DoClaim) for t in turns) or moves >= max_moves:
+                return nodes
+            move = next((t for t in turns if isinstance(t, DoMove)), None)
+            if move is None:
+                break
+            pose, collided = step(graph, pose, MOVE_ACTION[move.move])
+            moves += 1
+            nodes.append(pose.node)
+            result = MoveResult.COLLISION if collided else MoveResult.OK
+            turns = driver.perceive(Moved(move.move, result)) + driver.perceive(Saw(moves, pose_rays(rays, pose)))
+    return nodes

@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from sim.agents.sight import pose_rays
 from sim.agents.turns import (
     Claimed,
     DoJudge,
@@ -61,14 +62,7 @@ class OracleCommander:
         self._index = None
 
     def view(self, pose: Pose) -> RayObservation:
-        n, h = pose.node, pose.heading
-        return RayObservation(
-            labels=self.rays.labels[n, h],
-            depth=self.rays.depth[n, h],
-            too_close=self.rays.too_close[n, h],
-            valid=np.ones(self.rays.labels.shape[-1], dtype=bool),
-            forward_blocked=bool(self.rays.forward_blocked[n, h]),
-        )
+        return pose_rays(self.rays, pose)
 
     def _target(self) -> tuple[str, Label, tuple[float, float], int]:
         assert self._index is not None  # only while navigating

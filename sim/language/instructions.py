@@ -90,10 +90,11 @@ class Parsed:
 
     @property
     def unclear(self) -> bool:
-        return not self.instructions or all(isinstance(i, Unclear) for i in self.instructions)
+        """Nothing but clauses not understood ("ok", "got it" are understood: nothing to do)."""
+        return bool(self.instructions) and all(isinstance(i, Unclear) for i in self.instructions)
 
 
-_CLAUSE = re.compile(r"[,.;!]+|\bthen\b|\band\b|\bafter that\b|\bnow\b")
+_CLAUSE = re.compile(r"[,.;!]+|(?<!should )\bthen\b|\band\b|\bafter that\b|\bnow\b")
 _CLAIM = re.compile(
     r"\b(you(?:re| are) (?:there|here|right by it|at it)|(?:should be|is) right (?:there|here)|thats it|thats the spot|you found it|found it"
     r"|claim|take (?:a |the )?(?:picture|photo|snapshot)|send (?:a )?(?:picture|photo)|correct)\b"
@@ -116,6 +117,7 @@ _QUESTION = re.compile(
 _FIND = re.compile(
     r"\b(?:(?:and )?(?:you )?(?:should|will|can|have to|need to|lets|let us) )?(?:go )?(?:to )?(?:find|look for|search for)\b.*$"
 )
+_EXPECT = re.compile(r"\b(?:you should|you will|you'll|should) (?:then )?(?:see|have|be facing)\b")
 _LOOK = re.compile(r"\b(look around|spin around|around you|all around|look all around|turn around)\b")
 
 
@@ -185,8 +187,15 @@ def _clause(text: str, prev: Instruction | None) -> list[Instruction]:
         # "turn left and left again to find the jar", "ok lets find the paddle": the target, and the moves before it
         rest = [i for i in _clause(text[: purpose.start()], prev) if not isinstance(i, Unclear)]
         return [Target(objects[0]), *rest]
-    if objects and re.search(r"\b(objective|target|next|goal|is a|is the)\b", text) and not (_GO.search(text)):
+    if (
+        objects
+        and re.search(r"\b(objective|target|next|goal|the|a|should see|will see|looking for)\b", text)
+        and not (_GO.search(text))
+    ):
         return [Target(objects[0])]
+    if labels and not objects and _EXPECT.search(text):
+        # "you should have blue walls on your right": a check of the view, answered like a question
+        return [Ask(Question.IS_THERE, _side(ws) or Side.AHEAD, labels[0])]
     if _UTURN.search(text):
         return [Turn(4)]
     opening = re.search(r"\b(first|second|third|fourth|fifth|next) (left|right)\b", text)
@@ -214,7 +223,9 @@ def _clause(text: str, prev: Instruction | None) -> list[Instruction]:
         out += [Turn(size)] * _times(ws)
     if not out and _STOP.search(text):
         return [Stop(claim=False)]
-    if not out and not re.search(r"\b(ok|okay|good|great|yes|yeah|nice|perfect|awesome|correct|right|cool)\b", text):
+    if not out and not re.search(
+        r"\b(ok|okay|good|great|yes|yeah|nice|perfect|awesome|correct|right|cool|got it)\b", text
+    ):
         return [Unclear(text)]
     return out
 

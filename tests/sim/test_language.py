@@ -33,10 +33,19 @@ def test_turns_and_walks_of_train_sentences_keep_their_order():
     assert parse("And make a u-turn around the yellow wall").instructions == (Turn(4),)
 
 
+def test_acknowledgements_ask_nothing_and_expectations_are_checked():
+    assert parse("Got it").instructions == () and not parse("Got it").unclear
+    assert parse("now the  mug").instructions == (Target(Label.MUG),)
+    assert parse("You should then have red on your left and blue on your right").instructions[0] == Ask(
+        Question.IS_THERE, Side.LEFT, Label.RED
+    )
+
+
 def test_typos_are_read_as_the_words_meant():
     assert parse("then turn rihgt").instructions == (Turn(-2),)
     assert parse("move forward untill the end of blue walls").instructions == (Forward(until=Label.BLUE),)
-    assert correct("yelow") == "yellow" and correct("that") == "that" and correct("black") == "black"
+    assert correct("yelow") == "yellow" and correct("foward") == "forward"
+    assert correct("that") == "that" and correct("black") == "black" and correct("follow") == "follow"
 
 
 def test_history_points_back_to_the_start_or_a_turn():
