@@ -7,7 +7,8 @@ Each NDH instance is one leg: the Driver starts at the recorded start (`sim.benc
 and is told its target; the oracle Commander (handed the true pose: it cheats) guides it in the scripted
 phrasing and, separately, in the frozen held-out phrasing. success: share of legs whose claim the
 Commander confirmed (within 2 robot lengths, the judge's rule); moves_ratio: all moves over all
-shortest-path moves; messages_per_leg: both seats' messages; claims_rejected: rejected over all claims.
+shortest-path moves (the fewest moves, turns counted, to the node nearest the target; the
+teacher's next-hop path takes 24 % more on val_seen); messages_per_leg: both seats' messages; claims_rejected: rejected over all claims.
 localization (val_seen's first targets): after the localization exchange (at most 6 Driver messages)
 the `colours` LDH localizer reading the Driver's words puts the robot within 0.5 m (TD) in what share of
 episodes; the reference is the benchmark's human Drivers' words (LDH prefix-v1) through the same

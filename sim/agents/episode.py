@@ -33,7 +33,6 @@ from sim.agents.turns import (
     Speaker,
 )
 from sim.dynamics import Action, Pose, step
-from sim.dynamics import teacher_action as _teacher
 from sim.navgraph import NavGraph
 from sim.observations import RayTable
 
@@ -46,24 +45,13 @@ MOVE_ACTION = {Move.FORWARD: Action.FORWARD, Move.LEFT: Action.LEFT, Move.RIGHT:
 class LegResult:
     success: bool = False
     moves: int = 0
-    shortest: int = 0
+    shortest: int = 0  # the fewest moves (turns count) from the start to the target's nearest node
     messages: int = 0
     claims: int = 0
     rejected: int = 0
     dialog: list[tuple[str, str]] = field(default_factory=list)  # (oracle|navigator, text)
     reply_s: list[float] = field(default_factory=list)  # the Driver's time to answer a message
     act_s: list[float] = field(default_factory=list)  # the Driver's time to decide a move
-
-
-def shortest_moves(commander: OracleCommander, start: Pose, goal: int) -> int:
-    pose, n = start, 0
-    while n < 1000:
-        action = _teacher(commander.graph, pose, goal)
-        if action == Action.STOP:
-            break
-        pose, _ = step(commander.graph, pose, action)
-        n += 1
-    return n
 
 
 def run(
@@ -79,7 +67,8 @@ def run(
     out = LegResult()
     index = 0 if phase == Phase.NAVIGATING else None
     if index is not None:
-        out.shortest = shortest_moves(commander, start, commander.graph.nearest_node(*commander.targets[0][1]))
+        goal = commander.graph.nearest_node(*commander.targets[0][1])
+        out.shortest = int(commander.moves_to_go(goal)[start.node, start.heading])
     commander.pose = start
     driver.reset(SeatInfo(Speaker.DRIVER, len(commander.targets)))
     commander.reset(SeatInfo(Speaker.COMMANDER, len(commander.targets)))

@@ -138,7 +138,7 @@ class OracleCommander:
     def plan(self, start: Pose, goal: int) -> tuple[list[Action], list[Pose]]:
         """Fewest moves (turns count) to the goal node, forward first among equals: straight runs
         a Commander can name, where the teacher's next-hop path zig-zags at a turn per step."""
-        cost = self._cost_to_go(goal)
+        cost = self.moves_to_go(goal)
         pose, actions, poses = start, [], [start]
         while cost[pose.node, pose.heading] > 0:
             for action in (Action.FORWARD, Action.LEFT, Action.RIGHT):
@@ -152,7 +152,7 @@ class OracleCommander:
             poses.append(pose)
         return actions, poses
 
-    def _cost_to_go(self, goal: int) -> np.ndarray:
+    def moves_to_go(self, goal: int) -> np.ndarray:
         """(N, 8) moves from each pose to the goal node, by a breadth-first search backwards."""
         if goal in self._costs:
             return self._costs[goal]
