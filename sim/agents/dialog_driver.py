@@ -36,8 +36,9 @@ from sim.agents.turns import (
 from sim.geometry import HEADING_DI, HEADING_DJ, HEADINGS
 from sim.labels import OBJECT_LABELS, Label
 from sim.language import instructions as ins
-from sim.language.describe import ahead, at_wall, brief, describe, near, seen
+from sim.language.describe import LEFT_EDGE, RIGHT_EDGE, ahead, at_wall, brief, describe, near, seen
 from sim.language.vocab import SIDE_PHRASE, SIDE_STEPS, Side, wall_name
+from sim.ldh_features import NEAR_M
 from sim.perception import RayObservation
 
 OPENING_M = 0.6  # a side ray further than this after a nearer one: an opening on that side
@@ -73,8 +74,8 @@ class _Task:
     text: str = ""
     question: ins.Ask | None = None
     done: int = 0
-    edge_near: bool = False
-    look_back: int = 0
+    edge_near: bool = False  # OPENING: the side ray met a wall at the last step
+    home: int | None = None  # LOOK: the heading to answer from
 
 
 @dataclass
@@ -108,7 +109,6 @@ class DialogDriver:
         self.reset(SeatInfo(Speaker.DRIVER, 0))
 
     def reset(self, info: SeatInfo) -> None:
-        self._info = info
         self._phase = Phase.WAITING
         self._odo = _Odometry()
         self._views: dict[int, RayObservation | None] = {}  # heading -> view, from where it stands
@@ -319,7 +319,7 @@ class DialogDriver:
         if view is None or view.problem is not None:
             self._plan.clear()
             return DoSay("i cannot see clearly. what should i do?")
-        ray = 12 if task.side == Side.LEFT else 0
+        ray = LEFT_EDGE if task.side == Side.LEFT else RIGHT_EDGE
         far = not view.valid[ray] or view.labels[ray] == Label.FLOOR or float(view.depth[ray]) > OPENING_M
         if task.edge_near and far:
             task.nth -= 1
@@ -363,14 +363,13 @@ class DialogDriver:
             sides = [ask.side or Side.AHEAD]
         else:
             sides = [Side.AHEAD]
-        if task.look_back == 0:
-            task.look_back = self._odo.heading + 1  # the heading to come back to, plus one
-        home = task.look_back - 1
+        if task.home is None:
+            task.home = self._odo.heading
+        home = task.home
         missing = [s for s in sides if (home + SIDE_STEPS[s]) % HEADINGS not in self._views]
-        if missing:
-            return DoMove(Move.LEFT)
-        if self._odo.heading != home:
-            return DoMove(Move.LEFT if (home - self._odo.heading) % HEADINGS <= 4 else Move.RIGHT)
+        facing = (home + SIDE_STEPS[missing[0]]) % HEADINGS if missing else home
+        if self._odo.heading != facing:  # the shorter way round to the next side to see, then back
+            return DoMove(Move.LEFT if (facing - self._odo.heading) % HEADINGS <= 4 else Move.RIGHT)
         views = {s: self._views[(home + SIDE_STEPS[s]) % HEADINGS] for s in sides}
         if ask.question == ins.Question.IS_THERE and ask.label is not None:
             return DoSay(self._is_there(ask.label, sides[0], views[sides[0]]))
@@ -385,5 +384,5 @@ class DialogDriver:
     def _is_there(self, label: Label, side: Side, view: RayObservation | None) -> str:
         hits = [s for s in seen(view) if s.label == label] if view is not None else []
         if hits:
-            return f"yes, {'close' if hits[0].depth <= 0.5 else 'far'} {wall_name(label)} {SIDE_PHRASE[side]}"
+            return f"yes, {'close' if hits[0].depth <= NEAR_M else 'far'} {wall_name(label)} {SIDE_PHRASE[side]}"
         return f"no, no {wall_name(label)} {SIDE_PHRASE[side]}. {describe({side: view})}"

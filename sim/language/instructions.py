@@ -97,7 +97,7 @@ class Parsed:
 _CLAUSE = re.compile(r"[,.;!]+|(?<!should )\bthen\b|\band\b|\bafter that\b|\bnow\b")
 _CLAIM = re.compile(
     r"\b(you(?:re| are) (?:there|here|right by it|at it)|(?:should be|is) right (?:there|here)|thats it|thats the spot|you found it|found it"
-    r"|claim|take (?:a |the )?(?:picture|photo|snapshot)|send (?:a )?(?:picture|photo)|correct)\b"
+    r"|claim|take (?:a |the )?(?:picture|photo|snapshot)|send (?:a )?(?:picture|photo))\b"
 )
 _STOP = re.compile(r"\b(stop|halt|hold on|wait)\b")
 _UTURN = re.compile(r"\b(u-turn|u turn|turn around|spin around|180|turn back|about face|uturn)\b")
@@ -142,10 +142,6 @@ def _turn_size(text: str, ws: list[str]) -> int:
     if re.search(r"\b(sharply|sharp|hard|135)\b", text):
         return 3
     return 2
-
-
-def _times(ws: list[str]) -> int:
-    return 2 if "twice" in ws else 1
 
 
 def _question(text: str, ws: list[str]) -> Ask:
@@ -206,9 +202,8 @@ def _clause(text: str, prev: Instruction | None) -> list[Instruction]:
     turn_side = _side([w for w in unplaced.split() if w in ("left", "right")])
     steps = next((n for n in (number(w) for w in ws) if n is not None and n not in (45, 90, 135, 180)), None)
     out: list[Instruction] = []
-    walls = [label for label in labels]
     wants_forward = bool(_GO.search(unplaced)) or steps is not None
-    stop_at = walls[0] if walls and _UNTIL.search(unplaced) else None
+    stop_at = labels[0] if labels and _UNTIL.search(unplaced) else None
     if turn_side is not None and (stop_at is not None or re.search(r"\b(at|reach|reached) the (?:end|wall)", unplaced)):
         out.append(Forward(None, stop_at, excluded))
     elif wants_forward:
@@ -220,7 +215,7 @@ def _clause(text: str, prev: Instruction | None) -> list[Instruction]:
             out.append(Forward(None, objects[0] if objects else None))
     if turn_side is not None:
         size = _turn_size(text, ws) * (1 if turn_side == Side.LEFT else -1)
-        out += [Turn(size)] * _times(ws)
+        out += [Turn(size)] * (2 if "twice" in ws else 1)
     if not out and _STOP.search(text):
         return [Stop(claim=False)]
     if not out and not re.search(
