@@ -73,7 +73,7 @@ def _play(job: tuple[str, str, int, str]) -> tuple[str, str, LegResult]:
 def _leg_dialog(instances: list[NDHInstance], k: int) -> tuple[tuple[str, str], ...]:
     """The leg's own messages: a mug or paddle instance's history starts with the previous leg's."""
     inst = instances[k]
-    if k > 0 and inst.previous_object is not None and instances[k - 1].scan == inst.scan:
+    if k > 0 and inst.previous_object is not None and instances[k - 1].run == inst.run:
         before = instances[k - 1].dialog
         if inst.dialog[: len(before)] == before:
             return inst.dialog[len(before) :]

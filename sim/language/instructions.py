@@ -111,13 +111,15 @@ _GO = re.compile(
 _UNTIL = re.compile(r"\b(until|till|to|towards|toward|reach|reached|at|up to|see)\b")
 _BACK_START = re.compile(r"\b(start|started|beginning|began|starting)\b")
 _QUESTION = re.compile(
-    r"\?|^(what|whats|where|is|are|do|does|can you see|describe|any|how)\b|\bsurroundings\b|\blocation\b"
+    r"\?|^(what|whats|where|is|are|do|does|can you see|describe|any|how)\b|\bsurroundings\b|^location\b|\byour location\b"
     r"|\btell me (?:what|your|about)\b|\bdescribe\b"
 )
 _FIND = re.compile(
     r"\b(?:(?:and )?(?:you )?(?:should|will|can|have to|need to|lets|let us) )?(?:go )?(?:to )?(?:find|look for|search for)\b.*$"
 )
-_EXPECT = re.compile(r"\b(?:you should|you will|you'll|should) (?:then )?(?:see|have|be facing)\b")
+_EXPECT = re.compile(
+    r"\b(?:you should|you will|you'll|should) (?:then )?(?:see|have|be facing)\b|\b(?:should be|are|is) (?:on|to) your\b"
+)
 _LOOK = re.compile(r"\b(look around|spin around|around you|all around|look all around|turn around)\b")
 
 
