@@ -11,9 +11,11 @@ from sim.agents.dialog_driver import DialogDriver
 from sim.agents.episode import run
 from sim.agents.oracle_commander import OracleCommander
 from sim.agents.turns import (
+    DoClaim,
     DoMove,
     DoSay,
     Heard,
+    Judged,
     Move,
     Moved,
     MoveResult,
@@ -141,3 +143,23 @@ def test_it_goes_back_to_where_it_started_by_its_own_odometry(world):
         corner = int(graph.forward[corner, 0])
     pose, said = _carry_out(driver, world, pose, "now go back to where you turned left first")
     assert pose.node == corner and "back where i turned" in said[0], said
+
+
+def test_it_asks_when_it_bumps_is_rejected_or_does_not_understand(world):
+    _, graph, _ = world
+    start = _room_for(graph, 3, 0)
+    driver = DialogDriver(0)
+    driver.reset(SeatInfo(Speaker.DRIVER, 3))
+    driver.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3))
+    driver.perceive(Saw(0, _rays(world, start)))
+    (said,) = driver.perceive(Heard(Speaker.COMMANDER, "blorp the snark"))
+    assert isinstance(said, DoSay) and said.text.endswith("which way should i go?")
+    (move,) = driver.perceive(Heard(Speaker.COMMANDER, "go forward 3 steps"))
+    assert move == DoMove(Move.FORWARD)
+    (said,) = driver.perceive(Moved(Move.FORWARD, MoveResult.COLLISION))
+    assert said == DoSay("i hit a wall, which way now?")
+    assert driver.perceive(Saw(1, _rays(world, start))) == []  # the rest of the walk is dropped
+    turns = driver.perceive(Heard(Speaker.COMMANDER, "the jar should be right there"))
+    assert turns[-1] == DoClaim()
+    (said,) = driver.perceive(Judged(confirmed=False, target_index=0))
+    assert said.text.endswith("where should i go?")
