@@ -1,0 +1,388 @@
+"""A Driver that takes part in the dialog, from percepts alone: it describes what it sees, answers,
+waits for instructions, carries them out, says when it is done or lost, and claims.
+
+All rules, no learned part (see docs/model_card_dialog_driver.md). It never has a pose, a map or a
+graph: its inputs are the chat, its frames' rays and its moves' outcomes. Its own odometry (grid
+steps and 45-degree headings relative to where it started, from its moves' results) serves the
+dialog's history ("go back to where you started") and tells it which views it has looked at from
+where it stands. One instruction set runs at a time; a new Commander message replaces what is left
+of the last one, as a person drops an old plan when told something new."""
+
+from __future__ import annotations
+
+import math
+import random
+from collections import deque
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+from sim.agents.turns import (
+    DoClaim,
+    DoMove,
+    DoSay,
+    Heard,
+    Judged,
+    Move,
+    Moved,
+    MoveResult,
+    Percept,
+    Phase,
+    PhaseChanged,
+    Saw,
+    SeatInfo,
+    Speaker,
+    Turn,
+)
+from sim.core.geometry import HEADING_DI, HEADING_DJ, HEADINGS
+from sim.core.labels import OBJECT_LABELS, Label
+from sim.language import instructions as ins
+from sim.language.describe import LEFT_EDGE, RIGHT_EDGE, ahead, at_wall, brief, describe, near, seen
+from sim.language.vocab import SIDE_PHRASE, SIDE_STEPS, Side, wall_name
+from sim.robot.perception import RayObservation
+from sim.tasks.ldh_features import NEAR_M
+
+OPENING_M = 0.6  # a side ray further than this after a nearer one: an opening on that side
+MAX_WALK = 60  # forward moves one "until" may take before the Driver asks
+NEXT = ("what next?", "where to now?", "what should i do next?")
+
+
+class Task(StrEnum):
+    TURN = "turn"
+    WALK = "walk"  # forward some steps, or until a wall / the target
+    OPENING = "opening"  # forward to the nth opening on a side, then turn into it
+    GOTO = "goto"  # back to a place of its odometry
+    LOOK = "look"  # turn in place to see what a question needs, then answer
+    SAY = "say"
+    CLAIM = "claim"
+
+
+MOVING = (Task.WALK, Task.OPENING, Task.GOTO)  # tasks that leave the spot: not while localizing
+
+
+@dataclass
+class _Task:
+    """One step of the current instruction set; `turns` / `steps` count what is left of it."""
+
+    kind: Task
+    turns: int = 0
+    steps: int | None = None
+    until: Label | None = None
+    exclude: frozenset[Label] = frozenset()
+    side: Side | None = None
+    nth: int = 0
+    route: list[tuple[int, int]] = field(default_factory=list)  # GOTO: places still to pass, in order
+    text: str = ""
+    question: ins.Ask | None = None
+    done: int = 0
+    edge_near: bool = False  # OPENING: the side ray met a wall at the last step
+    home: int | None = None  # LOOK: the heading to answer from
+
+
+@dataclass
+class _Odometry:
+    i: int = 0
+    j: int = 0
+    heading: int = 0  # 45-degree steps counter-clockwise from the start heading
+    trail: list[tuple[int, int]] = field(default_factory=lambda: [(0, 0)])  # every place it stood, in order
+    turns: list[tuple[Side, int]] = field(default_factory=list)  # which way it turned, at which trail index
+
+    @property
+    def here(self) -> tuple[int, int]:
+        return (self.i, self.j)
+
+    def route_back(self, index: int) -> list[tuple[int, int]]:
+        """The way back to `trail[index]` along the trail, loops cut: the way it came is free."""
+        route: list[tuple[int, int]] = []
+        for place in reversed(self.trail[index:]):
+            if place in route:
+                del route[route.index(place) + 1 :]
+            else:
+                route.append(place)
+        return route[1:]
+
+
+class DialogDriver:
+    """The Driver's seat agent (`sim.agents.turns.Agent`); deterministic given `seed`."""
+
+    def __init__(self, seed: int = 0) -> None:
+        self._rng = random.Random(seed)
+        self.reset(SeatInfo(Speaker.DRIVER, 0))
+
+    def reset(self, info: SeatInfo) -> None:
+        self._phase = Phase.WAITING
+        self._odo = _Odometry()
+        self._views: dict[int, RayObservation | None] = {}  # heading -> view, from where it stands
+        self._view: RayObservation | None = None
+        self._plan: deque[_Task] = deque()
+        self._moving = False  # a move is out; wait for its outcome and frame
+        self._target: Label | None = None
+        self._claiming = False
+        self._rejected_at: set[tuple[int, int]] = set()
+        self._done_words = ""
+
+    # -- percepts -------------------------------------------------------------------------------
+
+    def perceive(self, percept: Percept) -> list[Turn]:
+        if isinstance(percept, PhaseChanged):
+            if percept.phase == Phase.NAVIGATING and self._phase == Phase.NAVIGATING:
+                self._target = None  # a confirmed target: the next one is told anew
+            self._phase = percept.phase
+            return []
+        if isinstance(percept, Heard):
+            return self._heard(percept.text) if percept.speaker == Speaker.COMMANDER else []
+        if isinstance(percept, Moved):
+            return self._moved(percept)
+        if isinstance(percept, Saw):
+            self._view = percept.rays
+            self._views[self._odo.heading] = percept.rays
+            self._moving = False
+            return self._advance()
+        if isinstance(percept, Judged):
+            self._claiming = False
+            if percept.confirmed:
+                return []
+            self._rejected_at.add(self._odo.here)
+            return [DoSay("ok, not here then. where should i go?")]
+        return []  # Claimed: its own claim, already waiting for the verdict
+
+    def _moved(self, moved: Moved) -> list[Turn]:
+        if moved.result != MoveResult.OK:
+            self._plan.clear()
+            if moved.result == MoveResult.COLLISION:
+                return [DoSay("i hit a wall, which way now?")]
+            return [DoSay(f"i could not move ({moved.reason or 'refused'}). what should i do?")]
+        if moved.move == Move.FORWARD:
+            self._odo.i += int(HEADING_DI[self._odo.heading])
+            self._odo.j += int(HEADING_DJ[self._odo.heading])
+            self._odo.trail.append(self._odo.here)
+            self._views = {}
+        else:
+            self._odo.heading = (self._odo.heading + (1 if moved.move == Move.LEFT else -1)) % HEADINGS
+        return []
+
+    # -- instructions -> tasks ------------------------------------------------------------------
+
+    def _heard(self, text: str) -> list[Turn]:
+        parsed = ins.parse(text)
+        self._plan.clear()
+        tasks: list[_Task] = []
+        for item in parsed.instructions:
+            tasks += self._tasks(item)
+        if parsed.unclear:
+            tasks = [_Task(Task.SAY, text="sorry, i did not understand. which way should i go?")]
+        if self._phase == Phase.LOCALIZING and any(t.kind in MOVING for t in tasks):
+            tasks = [t for t in tasks if t.kind not in MOVING]
+            tasks.append(
+                _Task(Task.SAY, text="i will stay here until you have found me on the map. what should i describe?")
+            )
+        if tasks and tasks[-1].kind not in (Task.SAY, Task.CLAIM, Task.LOOK):
+            tasks.append(_Task(Task.SAY))  # the report when the moves are done
+        self._plan.extend(tasks)
+        self._done_words = ""
+        return [] if self._moving else self._advance()
+
+    def _tasks(self, item: ins.Instruction) -> list[_Task]:
+        if isinstance(item, ins.Turn):
+            return [_Task(Task.TURN, turns=item.eighths)]
+        if isinstance(item, ins.Forward):
+            return [_Task(Task.WALK, steps=item.steps, until=item.until, exclude=item.exclude)]
+        if isinstance(item, ins.TakeOpening):
+            return [_Task(Task.OPENING, side=item.side, nth=item.nth)]
+        if isinstance(item, ins.Target):
+            self._target = item.label
+            if item.side is None:
+                # Told what to find: where it is in view, go up to it.
+                visible = self._view is not None and any(s.label == item.label for s in seen(self._view))
+                return [_Task(Task.WALK, until=item.label)] if visible and self._phase == Phase.NAVIGATING else []
+            return [_Task(Task.TURN, turns=SIDE_STEPS[item.side] if item.side != Side.RIGHT else -2)] + [
+                _Task(Task.WALK, until=item.label)
+            ]
+        if isinstance(item, ins.Ask):
+            return [_Task(Task.LOOK, question=item)]
+        if isinstance(item, ins.GoBack):
+            return [self._go_back(item)]
+        if isinstance(item, ins.Stop):
+            if item.claim:
+                return [_Task(Task.CLAIM)]
+            return [_Task(Task.SAY, text=f"ok, stopped. {brief(self._view)}. {self._rng.choice(NEXT)}")]
+        return []
+
+    def _go_back(self, item: ins.GoBack) -> _Task:
+        if item.place == ins.Place.START:
+            return _Task(Task.GOTO, route=self._odo.route_back(0), text="back where i started")
+        turns = [index for side, index in self._odo.turns if item.side is None or side == item.side]
+        if len(turns) < item.nth:
+            side = f" {item.side.value}" if item.side else ""
+            return _Task(Task.SAY, text=f"i have not turned{side} that many times yet. where should i go?")
+        return _Task(Task.GOTO, route=self._odo.route_back(turns[item.nth - 1]), text="back where i turned")
+
+    # -- carrying tasks out ---------------------------------------------------------------------
+
+    def _advance(self) -> list[Turn]:
+        out: list[Turn] = []
+        while self._plan and not self._moving and not self._claiming:
+            if self._sees_target() and self._plan[0].kind != Task.CLAIM:
+                self._plan.clear()
+                self._plan.append(_Task(Task.CLAIM))
+            task = self._plan.popleft()
+            step = self._step(task)  # may clear the plan or put tasks before what is left
+            if isinstance(step, DoMove):
+                self._plan.appendleft(task)
+                self._moving = True
+                out.append(step)
+                break
+            if step is not None:
+                out += step if isinstance(step, list) else [step]
+        return out
+
+    def _sees_target(self) -> bool:
+        if self._target is None or self._phase != Phase.NAVIGATING or self._view is None:
+            return False
+        if self._odo.here in self._rejected_at:
+            return False
+        return near(self._view, self._target)
+
+    def _step(self, task: _Task) -> DoMove | DoSay | list[Turn] | None:
+        """The task's next move, or None (or its closing words) when it is finished."""
+        if task.kind == Task.TURN:
+            return self._turn(task)
+        if task.kind == Task.WALK:
+            return self._walk(task)
+        if task.kind == Task.OPENING:
+            return self._opening(task)
+        if task.kind == Task.GOTO:
+            return self._goto(task)
+        if task.kind == Task.LOOK:
+            return self._look(task)
+        if task.kind == Task.CLAIM:
+            if self._phase != Phase.NAVIGATING:
+                return DoSay("you have not placed me on the map yet; tell me when i may go")
+            self._claiming = True
+            thing = wall_name(self._target) if self._target is not None else "target"
+            return [DoSay(f"i think i found the {thing}"), DoClaim()]
+        text = task.text or f"ok, {self._done_words or 'done'}, {brief(self._view)}. {self._rng.choice(NEXT)}"
+        return DoSay(text)
+
+    def _turn(self, task: _Task) -> DoMove | None:
+        if task.turns == 0:
+            return None
+        if task.done == 0 and abs(task.turns) >= 2:
+            self._odo.turns.append((Side.LEFT if task.turns > 0 else Side.RIGHT, len(self._odo.trail) - 1))
+        task.done += 1
+        step = 1 if task.turns > 0 else -1
+        task.turns -= step
+        self._done_words = f"turned {'left' if step > 0 else 'right'}"
+        return DoMove(Move.LEFT if step > 0 else Move.RIGHT)
+
+    def _walk(self, task: _Task) -> DoMove | DoSay | None:
+        view = self._view
+        if task.steps is not None:
+            if task.done >= task.steps:
+                self._done_words = f"went {task.done} steps"
+                return None
+            if view is not None and view.forward_blocked:
+                self._plan.clear()
+                return DoSay(f"i can only go {task.done} steps, {brief(view)}. which way now?")
+            task.done += 1
+            return DoMove(Move.FORWARD)
+        if view is None or view.problem is not None:
+            self._plan.clear()
+            return DoSay("i cannot see clearly. what should i do?")
+        front = ahead(view)
+        if task.until is not None and task.until in OBJECT_LABELS:
+            reached = near(view, task.until) or view.forward_blocked
+        else:
+            reached = at_wall(view)
+        if reached:
+            label = front.label if front is not None else None
+            if task.until is not None and label != task.until and task.until not in OBJECT_LABELS:
+                self._plan.clear()
+                found = wall_name(label) if label is not None else "something"
+                return DoSay(f"i am at a {found}, i do not see a {wall_name(task.until)} ahead. which way now?")
+            if label is not None and label in task.exclude:
+                self._plan.clear()
+                return DoSay(f"i am at the {wall_name(label)}, which you said is not the one. which way now?")
+            self._done_words = f"at the {wall_name(label)}" if label is not None else "at the wall"
+            return None
+        wall = task.until if task.until not in OBJECT_LABELS else None
+        if task.done == 0 and wall is not None and not any(s.label == wall for s in seen(view)):
+            self._plan.clear()
+            return DoSay(f"i do not see a {wall_name(wall)} ahead, {brief(view)}. which way?")
+        if task.done >= MAX_WALK:
+            self._plan.clear()
+            return DoSay(f"i have gone {task.done} steps and still {brief(view)}. where am i going?")
+        task.done += 1
+        return DoMove(Move.FORWARD)
+
+    def _opening(self, task: _Task) -> DoMove | DoSay | None:
+        view = self._view
+        if view is None or view.problem is not None:
+            self._plan.clear()
+            return DoSay("i cannot see clearly. what should i do?")
+        ray = LEFT_EDGE if task.side == Side.LEFT else RIGHT_EDGE
+        far = not view.valid[ray] or view.labels[ray] == Label.FLOOR or float(view.depth[ray]) > OPENING_M
+        if task.edge_near and far:
+            task.nth -= 1
+        task.edge_near = not far
+        if task.nth <= 0:
+            self._plan.extendleft(
+                [_Task(Task.WALK, steps=1), _Task(Task.TURN, turns=2 if task.side == Side.LEFT else -2)]
+            )
+            return None
+        if view.forward_blocked or task.done >= MAX_WALK:
+            self._plan.clear()
+            return DoSay(f"i found no opening on my {task.side}, {brief(view)}. which way now?")
+        task.done += 1
+        return DoMove(Move.FORWARD)
+
+    def _goto(self, task: _Task) -> DoMove | DoSay | None:
+        while task.route and task.route[0] == self._odo.here:
+            task.route.pop(0)
+        if not task.route:
+            self._done_words = task.text
+            return None
+        di, dj = task.route[0][0] - self._odo.i, task.route[0][1] - self._odo.j
+        wanted = round(math.atan2(dj, di) / (math.pi / 4)) % HEADINGS
+        turn = (wanted - self._odo.heading) % HEADINGS
+        if turn == 0:
+            if self._view is not None and self._view.forward_blocked:
+                self._plan.clear()
+                return DoSay(f"a wall is in my way {task.text}, {brief(self._view)}. which way?")
+            return DoMove(Move.FORWARD)
+        return DoMove(Move.LEFT if turn <= 4 else Move.RIGHT)
+
+    def _look(self, task: _Task) -> DoMove | DoSay:
+        """Turn in place until the sides the question needs have been seen (and back), then answer."""
+        ask = task.question
+        assert ask is not None  # look tasks are made from questions
+        if ask.look_around:
+            sides = list(Side)
+        elif ask.question == ins.Question.SIDE and ask.side is not None:
+            sides = [ask.side]
+        elif ask.question == ins.Question.IS_THERE:
+            sides = [ask.side or Side.AHEAD]
+        else:
+            sides = [Side.AHEAD]
+        if task.home is None:
+            task.home = self._odo.heading
+        home = task.home
+        missing = [s for s in sides if (home + SIDE_STEPS[s]) % HEADINGS not in self._views]
+        facing = (home + SIDE_STEPS[missing[0]]) % HEADINGS if missing else home
+        if self._odo.heading != facing:  # the shorter way round to the next side to see, then back
+            return DoMove(Move.LEFT if (facing - self._odo.heading) % HEADINGS <= 4 else Move.RIGHT)
+        views = {s: self._views[(home + SIDE_STEPS[s]) % HEADINGS] for s in sides}
+        if ask.question == ins.Question.IS_THERE and ask.label is not None:
+            return DoSay(self._is_there(ask.label, sides[0], views[sides[0]]))
+        if ask.question == ins.Question.VIEW and not ask.look_around:
+            views = {
+                s: self._views[(home + SIDE_STEPS[s]) % HEADINGS]
+                for s in Side
+                if (home + SIDE_STEPS[s]) % HEADINGS in self._views
+            }
+        return DoSay(describe(views))
+
+    def _is_there(self, label: Label, side: Side, view: RayObservation | None) -> str:
+        hits = [s for s in seen(view) if s.label == label] if view is not None else []
+        if hits:
+            return f"yes, {'close' if hits[0].depth <= NEAR_M else 'far'} {wall_name(label)} {SIDE_PHRASE[side]}"
+        return f"no, no {wall_name(label)} {SIDE_PHRASE[side]}. {describe({side: view})}"
