@@ -39,8 +39,9 @@ from sim.agents.oracle_commander import OracleCommander
 from sim.agents.turns import Phase
 from sim.core.metrics import TrajectoryScore, score_trajectory
 from sim.core.observations import RayTable
+from sim.core.stepper import MAX_EPISODE_ACTIONS
 from sim.language.phrases import Phrasing
-from sim.tasks.benchmark import MAX_EPISODE_ACTIONS, Benchmark, NDHInstance, episode_start, goal_node, recorded_start
+from sim.tasks.benchmark import Benchmark, NDHInstance, episode_start, goal_node, recorded_start
 from sim.tasks.ldh import FIRST_TARGET, LDHInstance, Variant, derive, load_split
 from sim.tasks.ldh_eval import MazeContexts, colours_localizer, score
 
