@@ -86,10 +86,25 @@ _RIGHT_AS_NEAR = {"in", "behind", "ahead", "next", "by", "beside", "there", "her
 _BACK_NOT_SECTOR = {"up", "to", "out", "into", "down"}
 NEAR_WORDS = {"close", "closely", "directly", "immediately", "immediate", "near", "nearby", "just", "touching"}
 FAR_WORDS = {"far", "distance", "distant", "end", "down", "away", "across", "farther", "further", "long"}
-NEGATIONS = {"no", "not", "nothing", "none", "without", "never", "neither", "nor"}
+NEGATIONS = {
+    "no",
+    "not",
+    "nothing",
+    "none",
+    "without",
+    "never",
+    "neither",
+    "nor",
+    "dont",
+    "doesnt",
+    "cant",
+    "isnt",
+    "arent",
+}
 CORRIDOR_WORDS = {"corridor", "hallway", "hall", "opening", "open", "gap", "path", "passage", "way", "aisle"}
 CORNER_WORDS = {"corner", "intersection", "junction"}
 DEAD_END = ("dead", "end")
+_NEGATED_NOUNS = {"wall", "walls", "more", "other", *CORRIDOR_WORDS, *CORNER_WORDS}
 RELATION_WORDS = {"next", "beside", "attached", "connected", "connect", "connects", "adjacent", "between", "joined"}
 YES = {"yes", "yeah", "yep", "yup", "yea", "ya", "correct", "affirmative", "sure", "indeed", "right"}
 NO = {"no", "nope", "nah", "negative"}
@@ -143,6 +158,17 @@ def _distance(words: list[str]) -> Distance:
     return Distance.NEAR if near else Distance.FAR
 
 
+def _negations(words: list[str]) -> list[int]:
+    """Positions of the words that negate what follows them; "no" only when a wall or a label
+    follows ("no red wall"), not as an answer ("no, my left", "no there is a red dead end")."""
+    return [
+        k
+        for k, w in enumerate(words)
+        if w in NEGATIONS
+        and (w != "no" or (k + 1 < len(words) and (words[k + 1] in LABELS or words[k + 1] in _NEGATED_NOUNS)))
+    ]
+
+
 def _has(words: list[str], phrase: tuple[str, ...]) -> bool:
     n = len(phrase)
     return any(tuple(words[k : k + n]) == phrase for k in range(len(words) - n + 1))
@@ -171,7 +197,7 @@ def _pieces(chunk: list[str]) -> list[_Piece]:
     pieces = [_Piece(p, _labels(p), _sectors(p)) for p in parts if p]
     merged: list[_Piece] = []
     for piece in pieces:
-        if merged and not piece.labels and piece.sectors and not any(w in NEGATIONS for w in piece.words):
+        if merged and not piece.labels and piece.sectors and not _negations(piece.words):
             prev = merged[-1]
             offset = len(prev.words)
             prev.words = prev.words + piece.words
@@ -188,7 +214,7 @@ def _label_facts(piece: _Piece, distance: Distance) -> list[Fact]:
     label is seen in one of the sectors named (all of them when joined by "and", which
     `_pieces` merged: then each direction is a fact of its own)."""
     words = piece.words
-    neg_at = [k for k, w in enumerate(words) if w in NEGATIONS]
+    neg_at = _negations(words)
     out = []
     sectors = [s for _, s in piece.sectors]
     joined = len(set(sectors)) > 1 and (piece.joined or "sides" in words)
@@ -209,7 +235,7 @@ def _label_facts(piece: _Piece, distance: Distance) -> list[Fact]:
 
 def _shape_facts(piece: _Piece, sectors: tuple[Sector, ...]) -> list[Fact]:
     words = piece.words
-    negated = any(w in NEGATIONS for w in words)
+    negated = bool(_negations(words))
     out = []
     if _has(words, DEAD_END):
         out.append(Fact(Kind.DEAD_END, (Sector.FRONT,), negated=negated))
