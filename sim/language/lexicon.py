@@ -20,6 +20,7 @@ from sim.tasks.ldh_features import LABEL_WORDS, SECTOR_HEADING_OFFSET, Sector
 
 class Kind(str, Enum):
     LABEL = "label"  # the label is seen in the sectors
+    EDGE = "edge"  # the maze's edge (the table's white border) is seen in the sectors
     CORRIDOR = "corridor"  # open space: the sector's rays travel far
     CORNER = "corner"  # walls close ahead and to one side
     DEAD_END = "dead_end"  # walls close ahead, left and right
@@ -59,6 +60,8 @@ class Question:
 
 LABELS = {
     **LABEL_WORDS,
+    "border": Label.WHITE,
+    "boundary": Label.WHITE,
     "yelllow": Label.YELLOW,
     "yelow": Label.YELLOW,
     "grey": Label.WHITE,
@@ -102,6 +105,7 @@ NEGATIONS = {
     "arent",
 }
 CORRIDOR_WORDS = {"corridor", "hallway", "hall", "opening", "open", "gap", "path", "passage", "way", "aisle"}
+EDGE_WORDS = {"edge", "border", "boundary"}
 CORNER_WORDS = {"corner", "intersection", "junction"}
 DEAD_END = ("dead", "end")
 _NEGATED_NOUNS = {"wall", "walls", "more", "other", *CORRIDOR_WORDS, *CORNER_WORDS}
@@ -118,7 +122,7 @@ AROUND_STEPS = SECTOR_HEADING_OFFSET[Sector.BEHIND]
 
 def tokens(text: str) -> list[str]:
     """Lower-case words; "n't" as "not", the objects' hyphenated names as one word."""
-    text = text.lower().replace("n't", " not").replace("ping-pong", "pong")
+    text = text.lower().replace("n't", " not").replace("ping-pong", "pong").replace("end of the maze", "edge")
     return _TOKEN.findall(text)
 
 
@@ -229,7 +233,8 @@ def _label_facts(piece: _Piece, distance: Distance) -> list[Fact]:
             groups = [(s,) for s in dict.fromkeys(sectors)]
         else:
             groups = [tuple(dict.fromkeys(sectors))]
-        out += [Fact(Kind.LABEL, g, label, distance=distance, negated=negated) for g in groups]
+        kind = Kind.EDGE if label == Label.WHITE and EDGE_WORDS & set(words[k : k + 3]) else Kind.LABEL
+        out += [Fact(kind, g, label, distance=distance, negated=negated) for g in groups]
     return out
 
 
@@ -323,10 +328,10 @@ def question(text: str) -> Question:
 
 
 def answer(q: Question, text: str) -> list[Fact]:
-    """The facts a Driver's reply to `q` states: the question's own facts on "yes", negated on
-    "no" (one label or shape of several wrong: each at an equal share, see `Fact` weights in
-    the localizer), and for a reply naming only a side ("left") or only a label ("the edge")
-    the question's label or side supplies the rest."""
+    """The facts a Driver's reply to `q` states: the question's own facts on "yes", each of them
+    negated on "no" (pairs side by side left out: either label may be the one missing), and
+    for a reply naming only a side ("left") or only a label ("the edge") the question's first
+    label or its side supplies the rest."""
     words = tokens(text)
     if not words:
         return []

@@ -15,8 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.core.geometry import HEADINGS
-from sim.core.labels import N_LABELS
+from sim.core.geometry import HEADINGS, TABLE_HEIGHT_M, TABLE_WIDTH_M, TURN_RAD
+from sim.core.labels import N_LABELS, Label
+from sim.core.observations import RAY_OFFSETS
 from sim.language.lexicon import (
     NO,
     Distance,
@@ -34,6 +35,7 @@ from sim.language.lexicon import (
 from sim.tasks.ldh_features import NEAR_M, SECTOR_HEADING_OFFSET, Sector
 
 OPEN_M = 0.6  # a ray that travels this far sees open space (a corridor)
+EDGE_M = 0.05  # a white hit this close to the table's side is the maze's edge
 ROLES = ("oracle", "navigator")  # Commander, Driver: the benchmark's role names
 
 
@@ -46,6 +48,7 @@ class Weights:
     mismatch_weight: float = 0.25  # a near hit's share for "far", a far one's for "near"
     negation_gain: float = 3.0  # a negated label seen by a third of the rays is as unlikely as can be
     label: float = 1.0
+    edge: float = 2.0
     corridor: float = 0.5
     corner: float = 0.3
     dead_end: float = 0.5
@@ -67,11 +70,17 @@ class Scene:
     open: np.ndarray  # (N, 8, 4) share of rays reaching past OPEN_M
     close: np.ndarray  # (N, 8, 4) share of rays stopped within NEAR_M
     adjacent: np.ndarray  # (N, 8, 4, labels, labels) two labels hit by neighbouring rays
+    edge: np.ndarray  # (N, 8, 4) share of rays ending on the table's border (the maze's white edge)
 
     @classmethod
-    def from_rays(cls, labels: np.ndarray, depth: np.ndarray) -> Scene:
-        """From a RayTable's labels and depths, (N, 8, rays) each."""
+    def from_rays(cls, labels: np.ndarray, depth: np.ndarray, nodes: np.ndarray) -> Scene:
+        """From a RayTable's labels and depths, (N, 8, rays) each, cast from `nodes` (N, 2)."""
         n, headings, rays = labels.shape
+        angles = np.arange(headings)[:, None] * TURN_RAD + RAY_OFFSETS[None, :]
+        hit_x = nodes[:, 0, None, None] + depth * np.cos(angles)
+        hit_y = nodes[:, 1, None, None] + depth * np.sin(angles)
+        border = np.minimum(np.minimum(hit_x, TABLE_WIDTH_M - hit_x), np.minimum(hit_y, TABLE_HEIGHT_M - hit_y))
+        edge = ((border <= EDGE_M) & (labels == Label.WHITE)).mean(axis=2)
         onehot = np.zeros((n, headings, rays, N_LABELS), dtype=np.float32)
         np.put_along_axis(onehot, labels[..., None].astype(np.int64), 1.0, axis=-1)
         near_ray = depth <= NEAR_M
@@ -92,6 +101,7 @@ class Scene:
             open=open_[:, sector.T],
             close=close[:, sector.T],
             adjacent=adjacent[:, sector.T],
+            edge=edge[:, sector.T],
         )
 
     @property
@@ -120,6 +130,8 @@ def fact_share(fact: Fact, scene: Scene, w: Weights) -> np.ndarray:
         return _over(share, fact.sectors)
     if fact.kind == Kind.CORRIDOR:
         return _over(scene.open, fact.sectors)
+    if fact.kind == Kind.EDGE:
+        return _over(scene.edge, fact.sectors)
     close = scene.close
     if fact.kind == Kind.CORNER:
         return np.asarray(close[:, :, Sector.FRONT] * np.maximum(close[:, :, Sector.LEFT], close[:, :, Sector.RIGHT]))
@@ -140,6 +152,7 @@ def fact_loglik(fact: Fact, scene: Scene, w: Weights) -> np.ndarray:
         loglik = np.log(w.floor + share)
     weight = {
         Kind.LABEL: w.label,
+        Kind.EDGE: w.edge,
         Kind.CORRIDOR: w.corridor,
         Kind.CORNER: w.corner,
         Kind.DEAD_END: w.dead_end,

@@ -34,7 +34,7 @@ class DialogLocalizer:
     def scene(self, ctx: MazeContext) -> Scene:
         if ctx.run not in self._scenes:
             rays = RayTable.build(self.bench.maze(ctx.run), ctx.graph, cache_dir=self.bench.cache_dir)
-            self._scenes[ctx.run] = Scene.from_rays(rays.labels, rays.depth)
+            self._scenes[ctx.run] = Scene.from_rays(rays.labels, rays.depth, ctx.graph.nodes)
         return self._scenes[ctx.run]
 
     def belief(self, inst: LDHInstance, ctx: MazeContext) -> Belief:

@@ -26,8 +26,8 @@ F, L, B, R, ANY = Sector.FRONT, Sector.LEFT, Sector.BEHIND, Sector.RIGHT, Sector
 
 
 def seen(facts: list[Fact]) -> set[tuple[tuple[Sector, ...], Label, bool]]:
-    """The label facts as (sectors, label, negated)."""
-    return {(f.sectors, f.label, f.negated) for f in facts if f.kind == Kind.LABEL and f.label is not None}
+    """The label and edge facts as (sectors, label, negated); the edge's label is white."""
+    return {(f.sectors, f.label, f.negated) for f in facts if f.kind in (Kind.LABEL, Kind.EDGE) and f.label is not None}
 
 
 def test_every_direction_word_counts():
@@ -51,6 +51,16 @@ def test_every_direction_word_counts():
     assert seen(describe("Red wall is up ahead to the left")) == {((F, L), Label.RED, False)}
     # a label named twice ("white edge") is one mention
     assert len(describe("The white edge wall is ahead")) == 1
+
+
+def test_the_edge_of_the_maze_is_the_tables_border_not_any_white_wall():
+    kinds = {
+        f.kind: f
+        for f in describe("I'm facing blue walls, with a white wall on my left and the edge of maze on my right")
+    }
+    assert kinds[Kind.EDGE].sectors == (R,) and kinds[Kind.EDGE].label == Label.WHITE
+    assert ((L,), Label.WHITE, False) in {(f.sectors, f.label, f.negated) for f in describe("white wall to my left")}
+    assert describe("the end of the maze which is white")[0].kind == Kind.EDGE
 
 
 def test_near_and_far():
@@ -120,7 +130,7 @@ def bundled():
     maze = MazeLibrary().load("gen-000")
     graph = NavGraph.build(maze, "benchmark")
     rays = RayTable.build(maze, graph)
-    return MazeContext("gen-000", graph), Scene.from_rays(rays.labels, rays.depth)
+    return MazeContext("gen-000", graph), Scene.from_rays(rays.labels, rays.depth, graph.nodes)
 
 
 SIDES = ("in front of me", "to my left", "behind me", "to my right")
