@@ -65,6 +65,9 @@ def eval_ldh(
     per_instance: Path | None = typer.Option(None, help="Write a CSV row per instance and agent."),
     curve: Path | None = typer.Option(None, help="Write the per-turn curve (TD after each Driver turn) as JSON."),
     plot: Path | None = typer.Option(None, help="Draw the per-turn curve as a PNG (matplotlib)."),
+    versus: str | None = typer.Option(
+        None, help="Paired t-tests on per-instance TD of every other agent against this one (BY-corrected)."
+    ),
 ) -> None:
     """Score localizers on LDH: TD and Euclidean error (m), accuracy within 0.25/0.5/1.0 m."""
     from sim.tasks.benchmark import BenchmarkError
@@ -73,6 +76,8 @@ def eval_ldh(
     from sim.tasks.ldh_eval import BASELINES, Localizer, MazeContexts, evaluate, summarize, write_csv
 
     names = parse_list(agent, "agent", [*BASELINES, DIALOG, LEARNED])
+    if versus is not None and versus not in names:
+        raise typer.BadParameter(f"{versus!r} is not among the agents evaluated", param_hint="--versus")
     agents: dict[str, Localizer] = {name: BASELINES[name] for name in names if name in BASELINES}
     if LEARNED in names:
         if checkpoint is None:
@@ -109,6 +114,11 @@ def eval_ldh(
             progress=lambda it: track(it, description="localizing"),
         )
     summary = summarize(split.value, shown, len(instances), results)
+    if versus is not None and len(instances) > 1:
+        from models.stats import paired_tests
+
+        others = [(name, versus) for name in names if name != versus]
+        summary["tests"] = [c.to_dict() for c in paired_tests(results, others)]
     if per_instance is not None:
         write_csv(per_instance, results)
     if curve is not None or plot is not None:
@@ -122,6 +132,10 @@ def eval_ldh(
         typer.echo(json.dumps(summary, indent=2))
     else:
         print_table(summary)
+        for c in summary.get("tests", []):
+            typer.echo(
+                f"{c['a']} vs {c['b']}: TD {c['mean_a']:.3f} vs {c['mean_b']:.3f}, t {c['t']:.2f}, p {c['p']:.4f}"
+            )
 
 
 def train_ldh(

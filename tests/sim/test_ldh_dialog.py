@@ -204,18 +204,23 @@ def test_eval_ldh_dialog_writes_the_summary_and_the_per_turn_curve(tmp_path):
             {"role": "navigator", "message": "no"},
         ],
     }
-    (tmp_path / "LDH-data" / "val_seen.json").write_text(json.dumps([item]))
+    (tmp_path / "LDH-data" / "val_seen.json").write_text(json.dumps([item, {**item, "inst_idx": 1, "agent_pose": [0.3, 0.6, 3.14]}]))
     curve, plot = tmp_path / "out" / "curve.json", tmp_path / "out" / "curve.png"
     args = ["eval", "ldh", "--benchmark", str(tmp_path), "--split", "val_seen", "--agent", "center,dialog"]
-    result = CliRunner().invoke(root, [*args, "--json", "--curve", str(curve), "--plot", str(plot)])
+    more = ["--json", "--curve", str(curve), "--plot", str(plot), "--versus", "dialog"]
+    result = CliRunner().invoke(root, [*args, *more])
     assert result.exit_code == 0, result.output
-    summary = json.loads(result.output)["agents"]
+    out = json.loads(result.output)
+    summary = out["agents"]
+    (test,) = out["tests"]
+    assert (test["a"], test["b"], test["n"]) == ("center", "dialog", 2)
+    assert test["mean_b"] == pytest.approx(summary["dialog"]["td_mean"])
     assert list(summary) == ["center", "dialog"]
     assert {"td_mean", "td_median", "acc_0.25", "acc_0.5"} <= set(summary["dialog"])
     # facing the border with the blue wall behind: in the strip
     assert summary["dialog"]["td_mean"] < summary["center"]["td_mean"]
     turns = json.loads(curve.read_text())
-    assert turns["turns"] == [0, 1, 2] and turns["n"] == [1, 1, 1]
+    assert turns["turns"] == [0, 1, 2] and turns["n"] == [2, 2, 2]
     dialog_td = turns["agents"]["dialog"]["td_mean"]
     assert dialog_td[0] == pytest.approx(turns["agents"]["center"]["td_mean"][0])  # nothing said yet: the centre
     assert dialog_td[-1] == pytest.approx(summary["dialog"]["td_mean"])
