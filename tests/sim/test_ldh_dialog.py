@@ -204,7 +204,9 @@ def test_eval_ldh_dialog_writes_the_summary_and_the_per_turn_curve(tmp_path):
             {"role": "navigator", "message": "no"},
         ],
     }
-    (tmp_path / "LDH-data" / "val_seen.json").write_text(json.dumps([item, {**item, "inst_idx": 1, "agent_pose": [0.3, 0.6, 3.14]}]))
+    (tmp_path / "LDH-data" / "val_seen.json").write_text(
+        json.dumps([item, {**item, "inst_idx": 1, "agent_pose": [0.3, 0.6, 3.14]}])
+    )
     curve, plot = tmp_path / "out" / "curve.json", tmp_path / "out" / "curve.png"
     args = ["eval", "ldh", "--benchmark", str(tmp_path), "--split", "val_seen", "--agent", "center,dialog"]
     more = ["--json", "--curve", str(curve), "--plot", str(plot), "--versus", "dialog"]
