@@ -177,18 +177,18 @@ def test_the_segment_camera_paints_what_the_grid_march_painted(benchmark_path, r
     camera reads it inside the wall pixel entered."""
     from bench.render_reference import first_person as reference
     from sim.observations import RayCaster
-    from sim.render import _camera, _cast_columns, _scene
+    from sim.render import _camera, _cast_columns, scene
 
     maze = Maze.from_dir(benchmark_path / "mazedata" / run)
     graph = NavGraph.build(maze)
-    caster, cam, scene = RayCaster(maze.walls), _camera(320, 240), _scene(maze)
+    caster, cam, drawn = RayCaster(maze.walls), _camera(320, 240), scene(maze)
     rng = np.random.default_rng(7)
     identical = within_two = total = same_columns = columns = 0
     for node in rng.integers(graph.n, size=40):
         x, y = (float(v) for v in graph.nodes[node])
         theta = float(rng.uniform(-np.pi, np.pi))
         angles = theta + cam.column_offsets
-        labels, depth = _cast_columns(scene.walls, cam, x, y, theta, angles)
+        labels, depth = _cast_columns(drawn.walls, cam, x, y, theta, angles)
         want_labels, want_depth = caster.cast(x, y, angles, window=32)
         same_columns += ((labels == want_labels) & (np.abs(depth - want_depth) < 1e-4)).sum()
         columns += labels.size
