@@ -165,7 +165,7 @@ class _Normals:
     def of(cls, walls: np.ndarray) -> _Normals:
         solid = (walls != Label.FLOOR).astype(np.uint8)
         kernel = np.ones((2 * NORMAL_BAND_PX + 1, 2 * NORMAL_BAND_PX + 1), np.uint8)
-        near = cv2.dilate(solid, kernel) & cv2.dilate(1 - solid, kernel)
+        near = np.logical_and(cv2.dilate(solid, kernel), cv2.dilate(1 - solid, kernel))
         band = np.flatnonzero(near).astype(np.int32)
         nx, ny = _normal_field(walls)
         return cls(band, nx.ravel()[band], ny.ravel()[band], _Grid.of(walls))
@@ -261,7 +261,7 @@ def cached_scene(maze: Maze, cache_dir: str | Path | None = None) -> Scene:
     found = _scenes.get(maze) or load_scene(maze.content_hash, cache_dir)
     if found is None:
         found = scene(maze)
-        save_npz(_scene_path(maze.content_hash, cache_dir), **found.arrays())
+        save_npz(_scene_path(maze.content_hash, cache_dir), False, **found.arrays())
     _scenes[maze] = found
     return found
 
