@@ -51,8 +51,8 @@ async def simulator_backend(spec: str, trial: RobotTrial, services: Services) ->
     # Reading a maze and its graph take a while: off the loop, other trials keep moving. The maze
     # is held from the start, so that the graph, the rays and the backend read it once.
     maze = await asyncio.to_thread(mazes.load, state.maze)
+    graph = await asyncio.to_thread(mazes.graph, state.maze)  # hashes the maze too, off the loop
     services.renderer.prepare(maze)  # the render process reads its scene while the rest loads here
-    graph = await asyncio.to_thread(mazes.graph, state.maze)
     if state.pose is not None:  # resuming: the robot is where the log last saw it
         start = snap_pose(graph, *state.pose)
     else:

@@ -45,7 +45,9 @@ class SimulatorBackend:
         clock: ServerClock,
         renderer: FrameRenderer | None = None,
     ) -> None:
-        self.maze, self.graph, self.rays, self.clock = maze, graph, rays, clock
+        self.maze, self.rays, self.clock = maze, rays, clock
+        # Only the moves: the graph's all-pairs tables are let go once the trial has its start.
+        self.moves = graph.moves()
         self.renderer = renderer or InThread()
         self._pose = start
         self._frames: asyncio.Queue[Frame | None] = asyncio.Queue()
@@ -66,7 +68,7 @@ class SimulatorBackend:
                 await first
             except Exception:  # this move's frame shows where the robot is all the same
                 logger.exception("the first simulator frame failed")
-        self._pose, collided = step(self.graph, self._pose, Action.parse(action))
+        self._pose, collided = step(self.moves, self._pose, Action.parse(action))
         await self._capture()
         return MoveOutcome(action, Outcome.COLLISION if collided else Outcome.OK)
 
@@ -94,7 +96,7 @@ class SimulatorBackend:
         self._frames.put_nowait(frame)
 
     def _continuous(self, pose: Pose) -> tuple[float, float, float]:
-        x, y = self.graph.nodes[pose.node]
+        x, y = self.moves.nodes[pose.node]
         return float(x), float(y), float(heading_angle(pose.heading))
 
     def observation_at(self, pose: Pose) -> RayObservation:
