@@ -98,7 +98,7 @@ class TrialRuntime:
         try:
             calibration = await asyncio.to_thread(driver_calibration, self.state.backend, self.settings)
             maze = self.services.mazes.load(self.state.maze)
-            self.belief = await asyncio.to_thread(TrialBelief, maze, calibration, seed=self.trial_id)
+            self.belief = await self.services.filters.start(lambda: TrialBelief(maze, calibration, seed=self.trial_id))
         except CameraUnknown as err:
             logger.info("trial %s: no particle filter: %s", self.trial_id, err)
         except Exception:  # no belief is a lesser trial, not a broken one
