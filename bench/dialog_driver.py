@@ -1,0 +1,129 @@
+"""The dialog Driver against the oracle Commander, offline, per NDH leg of val_seen and test.
+
+    python -m bench.dialog_driver --benchmark PATH --json [--splits val_seen,test] [--limit N] [--processes 2]
+
+Each NDH instance is one leg: the Driver starts at the recorded start (`sim.benchmark.recorded_start`)
+and is told its target; the oracle Commander (handed the true pose: it cheats) guides it in the scripted
+phrasing and, separately, in the frozen held-out phrasing. success: share of legs whose claim the
+Commander confirmed (within 2 robot lengths, the judge's rule); moves_ratio: all moves over all
+shortest-path moves; messages_per_leg: both seats' messages; claims_rejected: rejected over all claims.
+localization (val_seen's first targets): after the localization exchange (at most 6 Driver messages)
+the `colours` LDH localizer reading the Driver's words puts the robot within 0.5 m (TD) in what share of
+episodes; the reference is the benchmark's human Drivers' words (LDH prefix-v1) through the same
+localizer. reply_p95_s / act_p95_s: the Driver's compute time for a perceive call that answers a
+Commander message / decides a move. Develop on val_seen; run test only for final figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from multiprocessing import Pool
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from sim.agents.dialog_driver import DialogDriver
+from sim.agents.episode import LegResult, run
+from sim.agents.oracle_commander import OracleCommander
+from sim.agents.turns import Phase
+from sim.benchmark import Benchmark, recorded_start
+from sim.language.phrases import Phrasing
+from sim.ldh import FIRST_TARGET, LDHInstance, Variant, derive, load_split
+from sim.ldh_eval import MazeContexts, colours_localizer, score
+from sim.observations import RayTable
+
+MAX_LEG_MOVES = 400
+LOCALIZATION_MESSAGES = 6
+
+_bench: Benchmark | None = None
+
+
+def _play(job: tuple[str, str, int, str]) -> tuple[str, str, LegResult]:
+    root, split, k, mode = job
+    global _bench
+    if _bench is None or str(_bench.root) != root:
+        _bench = Benchmark(root)
+    inst = _bench.split(split)[k]
+    graph = _bench.graph(inst.run)
+    rays = RayTable.build(_bench.maze(inst.run), graph, cache_dir=_bench.cache_dir)
+    phrasing = Phrasing.SCRIPTED if mode == "localize" else Phrasing(mode)
+    commander = OracleCommander(graph, rays, [(inst.target, inst.target_pose)], phrasing, seed=inst.inst_idx)
+    start = recorded_start(graph, inst)
+    if mode == "localize":
+        result = run(
+            DialogDriver(inst.inst_idx), commander, start, Phase.LOCALIZING, MAX_LEG_MOVES, LOCALIZATION_MESSAGES
+        )
+    else:
+        result = run(DialogDriver(inst.inst_idx), commander, start, Phase.NAVIGATING, MAX_LEG_MOVES)
+    return split, mode, result
+
+
+def _summary(results: list[LegResult]) -> dict[str, float]:
+    claims = sum(r.claims for r in results)
+    return {
+        "success": float(np.mean([r.success for r in results])),
+        "moves_ratio": sum(r.moves for r in results) / max(1, sum(r.shortest for r in results)),
+        "messages_per_leg": float(np.mean([r.messages for r in results])),
+        "claims_rejected": sum(r.rejected for r in results) / claims if claims else 0.0,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--benchmark", required=True, type=Path)
+    parser.add_argument("--json", action="store_true", help="print the figures as one JSON object")
+    parser.add_argument("--splits", default="val_seen,test")
+    parser.add_argument("--limit", type=int, default=None, help="the first N instances of each split")
+    parser.add_argument("--processes", type=int, default=2)
+    args = parser.parse_args()
+    bench = Benchmark(args.benchmark)
+    splits = args.splits.split(",")
+    jobs: list[tuple[str, str, int, str]] = []
+    firsts: dict[int, Any] = {}
+    for split in splits:
+        instances = bench.split(split)[: args.limit]
+        jobs += [(str(bench.root), split, k, mode) for k in range(len(instances)) for mode in ("scripted", "held_out")]
+        if split == "val_seen":
+            for k, inst in enumerate(instances):
+                if inst.target == FIRST_TARGET:
+                    jobs.append((str(bench.root), split, k, "localize"))
+                    firsts[k] = inst
+    results: list[tuple[str, str, LegResult]] = []
+    with Pool(args.processes) as pool:
+        for item in tqdm(pool.imap(_play, jobs), total=len(jobs), desc="dialog driver", file=sys.stderr):
+            results.append(item)
+    by_mode = {mode: [r for _, m, r in results if m == mode] for mode in ("scripted", "held_out", "localize")}
+    localization: dict[str, float | None] = {"within_0_5m": None, "reference_within_0_5m": None}
+    if firsts:
+        contexts = MazeContexts(bench)
+        ours = []
+        jobs_localize = [j for j in jobs if j[3] == "localize"]
+        for job, result in zip(jobs_localize, by_mode["localize"]):
+            inst = firsts[job[2]]
+            ldh = derive(inst, Variant.FULL)
+            ldh = LDHInstance(ldh.inst_idx, ldh.run, ldh.x, ldh.y, ldh.heading, tuple(result.dialog), Variant.PREFIX)
+            ctx = contexts[inst.run]
+            ours.append(score(ctx, colours_localizer(ldh, ctx), ldh)[2][1])
+        idx = {inst.inst_idx for inst in firsts.values()}
+        reference = [i for i in load_split(bench, "val_seen") if i.inst_idx in idx]
+        ref = [score(contexts[i.run], colours_localizer(i, contexts[i.run]), i)[2][1] for i in reference]
+        localization = {"within_0_5m": float(np.mean(ours)), "reference_within_0_5m": float(np.mean(ref))}
+    legs = by_mode["scripted"] + by_mode["held_out"] + by_mode["localize"]
+    figures = {
+        "scripted": _summary(by_mode["scripted"]),
+        "held_out": _summary(by_mode["held_out"]),
+        "localization": localization,
+        "reply_p95_s": float(np.percentile([t for r in legs for t in r.reply_s], 95)),
+        "act_p95_s": float(np.percentile([t for r in legs for t in r.act_s], 95)),
+        "splits": splits,
+        "episodes": len(by_mode["scripted"]),
+    }
+    print(json.dumps(figures, indent=None if args.json else 2))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,128 @@
+"""A Driver agent and the oracle Commander in one leg, offline: the trial's turn-taking without a
+server. The simulator's stepper rules move the Driver on the graph; the RayTable row of each pose
+is the Driver's `Saw` (frames are not rendered). The Driver gets percepts only; the Commander is
+handed the true pose."""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from dataclasses import dataclass, field
+
+from sim.agents.oracle_commander import OracleCommander
+from sim.agents.turns import (
+    Agent,
+    Claimed,
+    DoClaim,
+    DoJudge,
+    DoLocalize,
+    DoMove,
+    DoSay,
+    Heard,
+    Judged,
+    Move,
+    Moved,
+    MoveResult,
+    Percept,
+    Phase,
+    PhaseChanged,
+    Saw,
+    SeatInfo,
+    Speaker,
+)
+from sim.dynamics import Action, Pose, step
+from sim.dynamics import teacher_action as _teacher
+
+MAX_MESSAGES = 80
+MAX_REJECTIONS = 3
+MOVE_ACTION = {Move.FORWARD: Action.FORWARD, Move.LEFT: Action.LEFT, Move.RIGHT: Action.RIGHT}
+
+
+@dataclass
+class LegResult:
+    success: bool = False
+    moves: int = 0
+    shortest: int = 0
+    messages: int = 0
+    claims: int = 0
+    rejected: int = 0
+    dialog: list[tuple[str, str]] = field(default_factory=list)  # (oracle|navigator, text)
+    reply_s: list[float] = field(default_factory=list)  # the Driver's time to answer a message
+    act_s: list[float] = field(default_factory=list)  # the Driver's time to decide a move
+
+
+def shortest_moves(commander: OracleCommander, start: Pose, goal: int) -> int:
+    pose, n = start, 0
+    while n < 1000:
+        action = _teacher(commander.graph, pose, goal)
+        if action == Action.STOP:
+            break
+        pose, _ = step(commander.graph, pose, action)
+        n += 1
+    return n
+
+
+def run(
+    driver: Agent,
+    commander: OracleCommander,
+    start: Pose,
+    phase: Phase,
+    max_moves: int,
+    max_driver_messages: int = MAX_MESSAGES,
+) -> LegResult:
+    """Play from `start` in `phase` (LOCALIZING: the exchange up to the Commander's estimate or
+    `max_driver_messages`; NAVIGATING: target 0 of the commander's targets until confirmed or a cap)."""
+    out = LegResult()
+    index = 0 if phase == Phase.NAVIGATING else None
+    if index is not None:
+        out.shortest = shortest_moves(commander, start, commander.graph.nearest_node(*commander.targets[0][1]))
+    commander.pose = start
+    driver.reset(SeatInfo(Speaker.DRIVER, len(commander.targets)))
+    commander.reset(SeatInfo(Speaker.COMMANDER, len(commander.targets)))
+    queue: deque[tuple[str, Percept]] = deque()
+    change = PhaseChanged(phase, index, len(commander.targets))
+    queue += [("driver", change), ("driver", Saw(0, commander.view(start))), ("commander", change)]
+    frame = 0
+    driver_messages = 0
+    while queue:
+        who, percept = queue.popleft()
+        if who == "driver":
+            t0 = time.perf_counter()
+            turns = driver.perceive(percept)
+            spent = time.perf_counter() - t0
+            if isinstance(percept, Heard) and percept.speaker == Speaker.COMMANDER:
+                out.reply_s.append(spent)
+            if any(isinstance(t, DoMove) for t in turns):
+                out.act_s.append(spent)
+        else:
+            turns = commander.perceive(percept)
+        for turn in turns:
+            if isinstance(turn, DoSay):
+                out.messages += 1
+                out.dialog.append(("navigator" if who == "driver" else "oracle", turn.text))
+                speaker = Speaker.DRIVER if who == "driver" else Speaker.COMMANDER
+                queue += [("driver", Heard(speaker, turn.text)), ("commander", Heard(speaker, turn.text))]
+                driver_messages += who == "driver"
+            elif isinstance(turn, DoMove):
+                out.moves += 1
+                pose, collided = step(commander.graph, commander.pose, MOVE_ACTION[turn.move])
+                commander.pose = pose
+                frame += 1
+                result = MoveResult.COLLISION if collided else MoveResult.OK
+                queue += [("driver", Moved(turn.move, result)), ("driver", Saw(frame, commander.view(pose)))]
+            elif isinstance(turn, DoClaim):
+                out.claims += 1
+                queue.append(("commander", Claimed(0)))
+            elif isinstance(turn, DoJudge):
+                queue.append(("driver", Judged(turn.confirmed, 0)))
+                if turn.confirmed:
+                    out.success = True
+                    return out
+                out.rejected += 1
+            elif isinstance(turn, DoLocalize):
+                return out
+        if out.moves >= max_moves or out.messages >= MAX_MESSAGES or out.rejected >= MAX_REJECTIONS:
+            break
+        if phase == Phase.LOCALIZING and driver_messages >= max_driver_messages:
+            break
+    return out

@@ -1,0 +1,240 @@
+"""What a Commander's message asks the Driver to do, as typed instructions.
+
+A message is cut into clauses (at punctuation, "then", "and", "after that"); each clause is
+matched against the maze's closed vocabulary, with misspellings corrected (`vocab.words`). The
+result keeps the message's order: "turn right at the red wall" is a forward-until-red then a right
+turn. Negation excludes a colour from the wall to stop at ("turn left at the wall, not the red
+one"); counts say how many steps, turns ("twice") or openings ("the second left"); history points
+back to the start or to the place of an earlier turn ("go back to where you turned right first")."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+from sim.labels import OBJECT_LABELS, Label
+from sim.language.vocab import LABEL_WORDS, ORDINAL_WORDS, Side, number, words
+
+
+class Question(StrEnum):
+    VIEW = "view"  # what do you see?
+    SIDE = "side"  # what is on your left?
+    IS_THERE = "is_there"  # is there a red wall ahead?
+
+
+class Place(StrEnum):
+    START = "start"
+    TURN = "turn"  # where the Driver turned (side, nth)
+
+
+@dataclass(frozen=True)
+class Turn:
+    eighths: int  # 45-degree steps, counter-clockwise (left) positive
+
+
+@dataclass(frozen=True)
+class Forward:
+    steps: int | None = None  # grid moves; None: until `until` (or a wall) is reached
+    until: Label | None = None  # the wall colour or object to stop at; None: any wall
+    exclude: frozenset[Label] = frozenset()  # "not the red one"
+
+
+@dataclass(frozen=True)
+class TakeOpening:
+    side: Side  # LEFT or RIGHT
+    nth: int  # "the second left": the second opening on that side
+
+
+@dataclass(frozen=True)
+class Target:
+    label: Label  # "the next objective is a mug"
+    side: Side | None = None  # "the mug is on your right"
+
+
+@dataclass(frozen=True)
+class Ask:
+    question: Question
+    side: Side | None = None
+    label: Label | None = None
+    look_around: bool = False  # "look around and tell me"
+
+
+@dataclass(frozen=True)
+class GoBack:
+    place: Place
+    side: Side | None = None  # for TURN: which way it turned
+    nth: int = 1  # for TURN: first, second ... such turn
+
+
+@dataclass(frozen=True)
+class Stop:
+    claim: bool  # "you're there" / "that's it": claim the target; "stop": just stop
+
+
+@dataclass(frozen=True)
+class Unclear:
+    text: str
+
+
+Instruction = Turn | Forward | TakeOpening | Target | Ask | GoBack | Stop | Unclear
+
+
+@dataclass(frozen=True)
+class Parsed:
+    instructions: tuple[Instruction, ...] = field(default=())
+
+    @property
+    def moves(self) -> bool:
+        return any(isinstance(i, Turn | Forward | TakeOpening | GoBack) for i in self.instructions)
+
+    @property
+    def unclear(self) -> bool:
+        return not self.instructions or all(isinstance(i, Unclear) for i in self.instructions)
+
+
+_CLAUSE = re.compile(r"[,.;!]+|\bthen\b|\band\b|\bafter that\b|\bnow\b")
+_CLAIM = re.compile(
+    r"\b(you(?:re| are) (?:there|here|right by it|at it)|(?:should be|is) right (?:there|here)|thats it|thats the spot|you found it|found it"
+    r"|claim|take (?:a |the )?(?:picture|photo|snapshot)|send (?:a )?(?:picture|photo)|correct)\b"
+)
+_STOP = re.compile(r"\b(stop|halt|hold on|wait)\b")
+_UTURN = re.compile(r"\b(u-turn|u turn|turn around|spin around|180|turn back|about face|uturn)\b")
+_SIDE_PHRASE = re.compile(
+    r"\b(?:on|to|at) your (left|right)\b|\bon the (left|right)\b|\bbehind you\b|\bin front of you\b"
+)
+_GO = re.compile(
+    r"\b(go|move|drive|continue|keep|head|proceed|straight|forward|forwards|reach|towards|toward"
+    r"|until|steps|step|up to|follow|along)\b"
+)
+_UNTIL = re.compile(r"\b(until|till|to|towards|toward|reach|reached|at|up to|see)\b")
+_BACK_START = re.compile(r"\b(start|started|beginning|began|starting)\b")
+_QUESTION = re.compile(
+    r"\?|^(what|whats|where|is|are|do|does|can you see|describe|any|how)\b|\bsurroundings\b|\blocation\b"
+    r"|\btell me (?:what|your|about)\b|\bdescribe\b"
+)
+_LOOK = re.compile(r"\b(look around|spin around|around you|all around|look all around|turn around)\b")
+
+
+def _labels(ws: list[str]) -> list[Label]:
+    return [LABEL_WORDS[w] for w in ws if w in LABEL_WORDS]
+
+
+def _side(ws: list[str]) -> Side | None:
+    for w in reversed(ws):
+        if w in ("left", "right"):
+            return Side(w)
+        if w in ("behind", "back"):
+            return Side.BEHIND
+        if w in ("ahead", "front", "forward"):
+            return Side.AHEAD
+    return None
+
+
+def _turn_size(text: str, ws: list[str]) -> int:
+    if re.search(r"\b(slightly|slight|bit|little|45|veer|bear)\b", text):
+        return 1
+    if re.search(r"\b(sharply|sharp|hard|135)\b", text):
+        return 3
+    return 2
+
+
+def _times(ws: list[str]) -> int:
+    return 2 if "twice" in ws or "again" in ws and "twice" in ws else 1
+
+
+def _question(text: str, ws: list[str]) -> Ask:
+    look = bool(_LOOK.search(text))
+    labels = _labels(ws)
+    side = _side([w for w in ws if w not in ("forward",)])
+    if labels and re.search(r"^(is|are|do|does|can|any)\b|\bsee (?:a|any|the)\b|\?$", text):
+        return Ask(Question.IS_THERE, side, labels[0], look)
+    if side is not None and re.search(r"\b(what|whats|anything|describe)\b", text) and not look:
+        return Ask(Question.SIDE, side)
+    return Ask(Question.VIEW, None, None, look)
+
+
+def _clause(text: str, prev: Instruction | None) -> list[Instruction]:
+    ws = words(text)
+    text = " ".join(ws)
+    if not ws:
+        return []
+    cut = ws.index("not") if "not" in ws else len(ws)
+    labels, excluded = _labels(ws[:cut]), frozenset(_labels(ws[cut:]))
+    if cut == 0:
+        if isinstance(prev, Forward) and excluded:
+            return [Forward(prev.steps, prev.until if prev.until not in excluded else None, prev.exclude | excluded)]
+        return [Unclear(text)]
+    if _CLAIM.search(text):
+        return [Stop(claim=True)]
+    if re.search(r"\b(back|return)\b", text) and (_BACK_START.search(text) or "where" in ws):
+        if _BACK_START.search(text):
+            return [GoBack(Place.START)]
+        side = _side([w for w in ws if w in ("left", "right")])
+        nth = next((ORDINAL_WORDS[w] for w in ws if w in ORDINAL_WORDS and w != "next"), 1)
+        return [GoBack(Place.TURN, side, nth)]
+    objects = [label for label in labels if label in OBJECT_LABELS]
+    side_words = _SIDE_PHRASE.search(text)
+    if objects and side_words and not _GO.search(text.replace(side_words.group(0), "")):
+        return [Target(objects[0], _side(side_words.group(0).split()))]
+    if (
+        objects
+        and re.search(r"\b(objective|target|next|find|look for|now|goal|is a|is the)\b", text)
+        and not (_GO.search(text))
+    ):
+        return [Target(objects[0])]
+    if _UTURN.search(text):
+        return [Turn(4)]
+    opening = re.search(r"\b(first|second|third|fourth|fifth|next) (left|right)\b", text)
+    if opening and re.search(r"\b(take|make|turn|go)\b", text):
+        return [TakeOpening(Side(opening.group(2)), ORDINAL_WORDS[opening.group(1)])]
+    # "keep the red wall on your left" places a wall, it is no turn: drop the place before looking for one.
+    unplaced = _SIDE_PHRASE.sub(" ", text)
+    turn_side = _side([w for w in unplaced.split() if w in ("left", "right")])
+    steps = next((n for n in (number(w) for w in ws) if n is not None and n not in (45, 90, 135, 180)), None)
+    out: list[Instruction] = []
+    walls = [label for label in labels]
+    wants_forward = bool(_GO.search(unplaced)) or steps is not None
+    stop_at = walls[0] if walls and _UNTIL.search(unplaced) else None
+    if turn_side is not None and (stop_at is not None or re.search(r"\b(at|reach|reached) the (?:end|wall)", unplaced)):
+        out.append(Forward(None, stop_at, excluded))
+    elif wants_forward:
+        if steps is not None and re.search(r"\bsteps?\b", text) or steps is not None and turn_side is None:
+            out.append(Forward(steps))
+        elif stop_at is not None or re.search(r"\b(until|till|end|wall)\b", unplaced):
+            out.append(Forward(None, stop_at, excluded))
+        elif turn_side is None:
+            out.append(Forward(None, objects[0] if objects else None))
+    if turn_side is not None:
+        size = _turn_size(text, ws) * (1 if turn_side == Side.LEFT else -1)
+        out += [Turn(size)] * _times(ws)
+    if not out and _STOP.search(text):
+        return [Stop(claim=False)]
+    if not out and not re.search(r"\b(ok|okay|good|great|yes|yeah|nice|perfect|awesome|correct|right|cool)\b", text):
+        return [Unclear(text)]
+    return out
+
+
+def parse(message: str) -> Parsed:
+    """The instructions of one Commander message, in order."""
+    text = message.strip().lower()
+    if _QUESTION.search(text) and not _CLAIM.search(" ".join(words(text))):
+        ask = _question(" ".join(words(text)), words(text))
+        moves: list[Instruction] = []
+        if ask.question == Question.VIEW and _UTURN.search(text) and not ask.look_around:
+            moves.append(Turn(4))
+        return Parsed(tuple(moves) + (ask,))
+    out: list[Instruction] = []
+    for clause in _CLAUSE.split(text):
+        last = next((k for k in range(len(out) - 1, -1, -1) if isinstance(out[k], Forward)), None)
+        parsed = _clause(clause, out[last] if last is not None else None)
+        if last is not None and parsed and isinstance(parsed[0], Forward) and parsed[0].exclude:
+            out[last] = parsed[0]  # "..., not the red one" narrows the wall to stop at
+            continue
+        for instruction in parsed:
+            if instruction == Forward() and out and isinstance(out[-1], Forward):
+                continue  # "keep the red wall on your left and go straight": one walk
+            out.append(instruction)
+    if any(i == Stop(claim=True) for i in out):
+        out = [i for i in out if i != Stop(claim=False)]
+    return Parsed(tuple(out))

@@ -1,0 +1,282 @@
+"""The closed vocabularies of the maze dialogs and typo-tolerant word matching.
+
+The words are those the benchmark's Drivers and Commanders use (train split): wall colours, the
+three objects, sides, turn sizes, counts. A misspelt word ("rigth", "yelow") is matched to the
+vocabulary word within one edit (two for long words); common English words are never corrected,
+so "that" stays "that" rather than becoming "what"."""
+
+from __future__ import annotations
+
+import re
+from enum import StrEnum
+
+from sim.labels import Label
+
+
+class Side(StrEnum):
+    AHEAD = "ahead"
+    LEFT = "left"
+    RIGHT = "right"
+    BEHIND = "behind"
+
+
+# Heading steps of 45 degrees (counter-clockwise) from the Driver's heading to look at each side.
+SIDE_STEPS = {Side.AHEAD: 0, Side.LEFT: 2, Side.BEHIND: 4, Side.RIGHT: 6}
+SIDE_PHRASE = {Side.AHEAD: "ahead", Side.LEFT: "on my left", Side.RIGHT: "on my right", Side.BEHIND: "behind me"}
+
+LABEL_WORDS: dict[str, Label] = {
+    "red": Label.RED,
+    "orange": Label.RED,
+    "blue": Label.BLUE,
+    "green": Label.GREEN,
+    "brown": Label.BROWN,
+    "wooden": Label.BROWN,
+    "wood": Label.BROWN,
+    "yellow": Label.YELLOW,
+    "white": Label.WHITE,
+    "edge": Label.WHITE,
+    "jar": Label.JAR,
+    "blocks": Label.JAR,
+    "mug": Label.MUG,
+    "cup": Label.MUG,
+    "paddle": Label.PADDLE,
+}
+# How the Commander and the Driver name each object.
+OBJECT_WORDS = {Label.JAR: "jar of blocks", Label.MUG: "coffee mug", Label.PADDLE: "ping-pong paddle"}
+
+NUMBER_WORDS = {
+    "one": 1,
+    "two": 2,
+    "three": 3,
+    "four": 4,
+    "five": 5,
+    "six": 6,
+    "seven": 7,
+    "eight": 8,
+    "nine": 9,
+    "ten": 10,
+    "eleven": 11,
+    "twelve": 12,
+    "thirteen": 13,
+    "fourteen": 14,
+    "fifteen": 15,
+    "sixteen": 16,
+    "seventeen": 17,
+    "eighteen": 18,
+    "nineteen": 19,
+    "twenty": 20,
+    "couple": 2,
+    "few": 3,
+}
+ORDINAL_WORDS = {"first": 1, "second": 2, "third": 3, "fourth": 4, "fifth": 5, "next": 1}
+
+KEYWORDS = frozenset(
+    [*LABEL_WORDS, *NUMBER_WORDS, *ORDINAL_WORDS, *(s.value for s in Side)]
+    + [
+        "turn",
+        "turned",
+        "forward",
+        "forwards",
+        "straight",
+        "around",
+        "slightly",
+        "slight",
+        "sharply",
+        "sharp",
+        "steps",
+        "step",
+        "until",
+        "wall",
+        "walls",
+        "stop",
+        "there",
+        "found",
+        "claim",
+        "start",
+        "started",
+        "beginning",
+        "back",
+        "where",
+        "what",
+        "see",
+        "describe",
+        "surroundings",
+        "front",
+        "corridor",
+        "corner",
+        "opening",
+        "towards",
+        "toward",
+        "reach",
+        "reached",
+        "twice",
+        "again",
+        "move",
+        "drive",
+        "continue",
+        "keep",
+        "coffee",
+        "objective",
+        "target",
+        "next",
+        "u-turn",
+        "spin",
+        "rotate",
+        "little",
+        "veer",
+        "bear",
+    ]
+)
+# Common words one edit from a keyword, never corrected.
+COMMON = frozenset(
+    [
+        "that",
+        "this",
+        "then",
+        "than",
+        "them",
+        "they",
+        "their",
+        "here",
+        "have",
+        "want",
+        "will",
+        "with",
+        "went",
+        "were",
+        "what",
+        "when",
+        "whats",
+        "sees",
+        "seen",
+        "show",
+        "slow",
+        "sign",
+        "step",
+        "stay",
+        "best",
+        "rest",
+        "test",
+        "cell",
+        "tell",
+        "well",
+        "fell",
+        "felt",
+        "lift",
+        "lent",
+        "rent",
+        "bend",
+        "send",
+        "sent",
+        "spend",
+        "tight",
+        "light",
+        "night",
+        "might",
+        "sight",
+        "fight",
+        "eight",
+        "weight",
+        "high",
+        "right",
+        "write",
+        "wrote",
+        "bright",
+        "bring",
+        "more",
+        "most",
+        "made",
+        "make",
+        "take",
+        "also",
+        "some",
+        "same",
+        "done",
+        "gone",
+        "none",
+        "once",
+        "only",
+        "over",
+        "your",
+        "yours",
+        "very",
+        "just",
+        "like",
+        "good",
+        "great",
+        "okay",
+        "sure",
+        "nope",
+        "yeah",
+        "yes",
+        "sorry",
+        "wait",
+        "hold",
+        "look",
+        "looks",
+        "near",
+        "past",
+        "last",
+        "left",
+        "side",
+        "sides",
+        "mine",
+        "mind",
+        "into",
+        "onto",
+        "unto",
+        "down",
+        "town",
+        "turns",
+        "tune",
+        "mouse",
+        "house",
+    ]
+)
+_WORD = re.compile(r"[a-z0-9]+(?:-[a-z]+)?|[?]")
+
+
+def _distance(a: str, b: str, limit: int) -> int:
+    """Optimal string alignment distance (edits, adjacent swaps count one), capped at limit + 1."""
+    if abs(len(a) - len(b)) > limit:
+        return limit + 1
+    prev2: list[int] = []
+    prev = list(range(len(b) + 1))
+    for i, ca in enumerate(a, 1):
+        cur = [i] + [0] * len(b)
+        for j, cb in enumerate(b, 1):
+            cur[j] = min(prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (ca != cb))
+            if i > 1 and j > 1 and ca == b[j - 2] and a[i - 2] == cb:
+                cur[j] = min(cur[j], prev2[j - 2] + 1)
+        prev2, prev = prev, cur
+    return prev[-1]
+
+
+def correct(word: str) -> str:
+    """The vocabulary word a misspelling stands for, or the word itself."""
+    if len(word) < 4 or word in KEYWORDS or word in COMMON or not word.isalpha():
+        return word
+    limit = 1 if len(word) < 6 else 2
+    best, best_d = word, limit + 1
+    for key in sorted(KEYWORDS):
+        d = _distance(word, key, limit)
+        if d < best_d:
+            best, best_d = key, d
+    return best
+
+
+def words(text: str) -> list[str]:
+    """Lower-case words of `text`, spelling corrected; "?" kept as a word."""
+    return [correct(w) for w in _WORD.findall(text.lower().replace("'", ""))]
+
+
+def number(word: str) -> int | None:
+    """3 for "3" or "three"; None for anything else."""
+    if word.isdigit():
+        return int(word)
+    return NUMBER_WORDS.get(word)
+
+
+def wall_name(label: Label) -> str:
+    """ "red wall", "coffee mug": how a label is named in a sentence."""
+    return OBJECT_WORDS.get(label, f"{label.word} wall")
