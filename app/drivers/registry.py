@@ -26,6 +26,7 @@ DriverCheck = Callable[["Services"], "str | None"]
 
 BUILTIN = {
     "agent:random": ("app.drivers.baselines:random_driver", None),
+    "agent:dialog": ("app.drivers.dialog:dialog_driver", None),
     "agent:seq2seq": ("app.drivers.seq2seq:seq2seq_driver", "app.drivers.seq2seq:seq2seq_check"),
     "oracle:shortest": ("app.drivers.baselines:shortest_driver", None),
 }

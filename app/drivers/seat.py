@@ -153,14 +153,22 @@ class AgentSeat:
                 if item.target_index != self.target_index:
                     self.moves_for_target = 0
                 self.target_index = item.target_index
-            after = self.frame_after_ns
-            if isinstance(item, t.Moved) and item.result == t.MoveResult.REFUSED:
-                self.frame_after_ns = after = None  # no frame shows a move not made
-            await self._wake(agent, item)
-            latest = self.latest
-            if isinstance(item, t.Moved) and after is not None and self.frame_after_ns == after:
-                if latest is not None and latest.capture_ns > after:
-                    await self._saw(agent, latest)  # the frame after the move came before its outcome
+            if isinstance(item, t.Moved):
+                await self._moved(agent, item)
+            else:
+                await self._wake(agent, item)
+
+    async def _moved(self, agent: t.Agent, moved: t.Moved) -> None:
+        """A move's outcome, then the frame after it where that frame came first."""
+        after = self.frame_after_ns
+        if moved.result == t.MoveResult.REFUSED:
+            self.frame_after_ns = after = None  # no frame shows a move not made
+        await self._wake(agent, moved)
+        latest = self.latest
+        if after is None or self.frame_after_ns != after or latest is None:
+            return  # no frame to wait for, or the agent has moved again already
+        if latest.capture_ns > after:
+            await self._saw(agent, latest)
 
     async def _frame(self, agent: t.Agent, frame: _FrameArrived) -> None:
         self.latest = frame

@@ -40,18 +40,23 @@ class StepwiseDriver:
         self.rays: RayObservation | None = None
         self.moving = False  # a move asked for whose frame has not come yet
         self.claiming = False  # a claim asked for whose verdict has not come yet
-        self.named: str | None = None  # the object the Commander named last for this target
+        self.named: str | None = None  # the object the Commander named last, of those not found yet
+        self.claimed_name: str | None = None
+        self.found: set[str] = set()
 
     def perceive(self, percept: Percept) -> list[Turn]:
         match percept:
             case Heard(speaker=speaker, text=text):
                 self.dialog.append((speaker, text))
-                if speaker == Speaker.COMMANDER and (words := _OBJECT_WORD.findall(text)):
-                    self.named = words[-1].lower()
+                words = [w.lower() for w in _OBJECT_WORD.findall(text) if w.lower() not in self.found]
+                if speaker == Speaker.COMMANDER and words:
+                    self.named = words[-1]
             case PhaseChanged(phase=phase, target_index=index):
                 self.phase = phase
                 if index != self.target_index:
-                    self.target_index, self.named = index, None
+                    self.target_index = index
+                    if self.named in self.found:
+                        self.named = None
                     self.on_target()
             case Moved(move=move, result=result):
                 if result == MoveResult.REFUSED:
@@ -62,10 +67,12 @@ class StepwiseDriver:
             case Saw(rays=rays):
                 self.rays, self.moving = rays, False
             case Claimed():
-                self.claiming = True
+                self.claiming, self.claimed_name = True, self.named
             case Judged(confirmed=confirmed):
                 self.claiming = False
                 if confirmed:
+                    if self.claimed_name is not None:
+                        self.found.add(self.claimed_name)
                     return []  # the next target comes with the phase change
                 self.on_rejected()
         return self._act()
