@@ -4,9 +4,9 @@ An agent Driver is a `sim.agents.turns.Agent`: it is reset with a `SeatInfo` (it
 targets the trial has) and then perceives, one at a time and in the log's order, what a human
 Driver's browser receives, as typed percepts: every chat message (`Heard`, its own too), its
 frame (`Saw`: the simulator's rays at that frame, or the rays perceived from a rover's pixels)
-at the start and after each of its moves, each move's outcome (`Moved`), its claims (`Claimed`),
-the Commander's verdicts (`Judged`) and phase changes (`PhaseChanged`, with the target's number,
-never its name). It answers each with turns (`DoSay`, `DoMove`, `DoClaim`, `DoWait`) that the
+at the start and after each of its moves' outcome (`Moved`; after a move not made, the frame as
+it stands), its claims (`Claimed`), the Commander's verdicts (`Judged`) and phase changes
+(`PhaseChanged`, with the target's number, never its name). It answers each with turns (`DoSay`, `DoMove`, `DoClaim`, `DoWait`) that the
 seat carries out through `DriverTrial`, so each is an event in the log like a person's. It is
 never woken by a timer, and never handed a pose, a map, a graph or a maze name.
 

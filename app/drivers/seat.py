@@ -54,7 +54,6 @@ class AgentSeat:
         self.latest: _FrameArrived | None = None
         self.seen_first = False
         self.frame_after_ns: int | None = None  # a move was made: the first frame captured after this is next
-        self.last_move_ns: int | None = None
         self.target_index: int | None = None
         self.moves_for_target = 0
         self.calibration: Any = None
@@ -159,15 +158,14 @@ class AgentSeat:
                 await self._wake(agent, item)
 
     async def _moved(self, agent: t.Agent, moved: t.Moved) -> None:
-        """A move's outcome, then the frame after it where that frame came first."""
+        """A move's outcome, then the frame after it: the one it is waiting for where that came
+        first, and for a move not made the frame as it stands (the robot did not move)."""
         after = self.frame_after_ns
-        if moved.result == t.MoveResult.REFUSED:
-            self.frame_after_ns = after = None  # no frame shows a move not made
         await self._wake(agent, moved)
         latest = self.latest
         if after is None or self.frame_after_ns != after or latest is None:
             return  # no frame to wait for, or the agent has moved again already
-        if latest.capture_ns > after:
+        if moved.result == t.MoveResult.REFUSED or latest.capture_ns > after:
             await self._saw(agent, latest)
 
     async def _frame(self, agent: t.Agent, frame: _FrameArrived) -> None:
@@ -225,12 +223,13 @@ class AgentSeat:
             )
             return
         await self.running.wait()  # a move while paused would be refused; a person waits too
-        if self.last_move_ns is not None:  # no sooner than a person's next move may be
-            wait_ns = self.last_move_ns + settings.min_move_interval_s * 1e9 - clock.now_ns()
-            if wait_ns > 0:
-                await asyncio.sleep(wait_ns / 1e9)
+        while (last := self.trial.state.last_move_ns) is not None:  # no sooner than a person's next move
+            wait_ns = last + settings.min_move_interval_s * 1e9 - clock.now_ns()
+            if wait_ns <= 0:
+                break
+            await asyncio.sleep(wait_ns / 1e9)  # again where the loop wakes a little early
         self.moves_for_target += 1
-        self.last_move_ns = self.frame_after_ns = clock.now_ns()
+        self.frame_after_ns = clock.now_ns()
         await self.trial.request_move(MoveAction(move))
 
     async def _clock(self) -> None:

@@ -59,11 +59,9 @@ class StepwiseDriver:
                         self.named = None
                     self.on_target()
             case Moved(move=move, result=result):
-                if result == MoveResult.REFUSED:
-                    self.moving = False  # no frame follows a move not made
-                else:
+                if result != MoveResult.REFUSED:
                     self.on_moved(move, result)
-                    return []  # the frame after it is next
+                return []  # the frame after it is next (as it stands, for a move not made)
             case Saw(rays=rays):
                 self.rays, self.moving = rays, False
             case Claimed():
