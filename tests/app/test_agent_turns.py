@@ -21,6 +21,7 @@ from sim.agents.turns import Heard, Move, Moved, MoveResult, Phase, PhaseChanged
 from sim.perception import RayObservation
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread
+from tests.app.test_experimenter import cli
 
 PRIVILEGED = {"pose", "x", "y", "heading", "maze", "graph", "map", "target", "targets", "true_pose", "belief"}
 
@@ -187,3 +188,18 @@ def test_the_minutes_cap_ends_the_trial_aborted_with_the_reason_logged(tmp_path)
     assert phases[-1]["reason"] == "agent Driver's cap: 0.02 minutes per trial"
     assert said == ["my 0.02 minutes for this trial are over; I stop here"]
     assert runtime is None or runtime.state.active_s(services.clock.now_ns()) >= 1.2
+
+
+def test_the_cli_lists_the_drivers_and_the_agent_caps(tmp_path):
+    env = {
+        "ROBOTSLANG_DATA_DIR": str(tmp_path / "var"),
+        "ROBOTSLANG_SECRET_KEY": "test-secret",
+        "ROBOTSLANG_SEQ2SEQ_CHECKPOINT": str(tmp_path / "missing.pt"),
+        "ROBOTSLANG_AGENT_MOVES_PER_TARGET": "120",
+    }
+    listed = cli("drivers", env=env)
+    assert listed.returncode == 0, listed.stderr
+    lines = listed.stdout.splitlines()
+    assert {"human", "agent:dialog", "agent:random", "oracle:shortest"} <= set(lines)
+    assert any(line.startswith("agent:seq2seq  (unavailable:") and "missing.pt" in line for line in lines)
+    assert "stops after 120 moves per target or 15 minutes of trial clock" in lines[-1]
