@@ -40,20 +40,27 @@ class _FrameArrived:
     jpeg: bytes
 
 
+@dataclass(frozen=True)
+class _Outcome:
+    moved: t.Moved
+    t_ns: int  # when the log recorded it
+
+
 class AgentSeat:
     role = Role.DRIVER
 
     def __init__(self, trial: DriverTrial, services, oracle: Oracle | None = None) -> None:
         self.trial, self.services, self.oracle = trial, services, oracle
         self.spec = trial.state.driver
-        self.inbox: asyncio.Queue[t.Percept | _FrameArrived] = asyncio.Queue()
+        self.inbox: asyncio.Queue[t.Percept | _FrameArrived | _Outcome] = asyncio.Queue()
         self.observations: OrderedDict[int, RayObservation] = OrderedDict()
         self.chat_seqs: set[int] = set()  # chat events already heard (the welcome repeats them)
         self.phase: tuple[t.Phase, int | None] | None = None
         self.targets_total = len(trial.state.targets)
         self.latest: _FrameArrived | None = None
         self.seen_first = False
-        self.frame_after_ns: int | None = None  # a move was made: the first frame captured after this is next
+        self.move_started_ns: int | None = None  # a move asked for whose frame the agent has not seen
+        self.outcome_ns: int | None = None  # when that move's outcome was logged (None: not yet)
         self.target_index: int | None = None
         self.moves_for_target = 0
         self.calibration: Any = None
@@ -91,7 +98,8 @@ class AgentSeat:
         elif kind == "phase":
             self._phase(t.Phase(payload["phase"]), payload.get("target_index"))
         elif kind == "move_executed":
-            put(t.Moved(t.Move(payload["action"]), t.MoveResult(payload["outcome"]), payload.get("reason")))
+            moved = t.Moved(t.Move(payload["action"]), t.MoveResult(payload["outcome"]), payload.get("reason"))
+            put(_Outcome(moved, message["t_ns"]))
         elif kind == "frame" and "jpeg" in message:
             put(_FrameArrived(payload["frame_id"], payload["capture_ns"], base64.b64decode(message["jpeg"])))
         elif kind == "target_claimed":
@@ -152,30 +160,39 @@ class AgentSeat:
                 if item.target_index != self.target_index:
                     self.moves_for_target = 0
                 self.target_index = item.target_index
-            if isinstance(item, t.Moved):
+            if isinstance(item, _Outcome):
                 await self._moved(agent, item)
             else:
                 await self._wake(agent, item)
 
-    async def _moved(self, agent: t.Agent, moved: t.Moved) -> None:
-        """A move's outcome, then the frame after it: the one it is waiting for where that came
-        first, and for a move not made the frame as it stands (the robot did not move)."""
-        after = self.frame_after_ns
+    async def _moved(self, agent: t.Agent, outcome: _Outcome) -> None:
+        """A move's outcome, then the frame after it where that came first (for a move not made,
+        the frame as it stands: the robot did not move)."""
+        started, moved = self.move_started_ns, outcome.moved
+        self.outcome_ns = outcome.t_ns  # one move at a time: the pending move's
         await self._wake(agent, moved)
         latest = self.latest
-        if after is None or self.frame_after_ns != after or latest is None:
-            return  # no frame to wait for, or the agent has moved again already
-        if moved.result == t.MoveResult.REFUSED or latest.capture_ns > after:
+        if started is None or self.move_started_ns != started or latest is None:
+            return  # no frame to show, or the agent has moved again already
+        if moved.result == t.MoveResult.REFUSED or self._after_move(latest):
             await self._saw(agent, latest)
 
     async def _frame(self, agent: t.Agent, frame: _FrameArrived) -> None:
         self.latest = frame
-        after = self.frame_after_ns
-        if not self.seen_first or (after is not None and frame.capture_ns > after):
+        if not self.seen_first or (self.move_started_ns is not None and self._after_move(frame)):
             await self._saw(agent, frame)
 
+    def _after_move(self, frame: _FrameArrived) -> bool:
+        """Whether `frame` shows where the pending move left the robot: the simulator draws one
+        frame when a move ends (captured after it started); a rover streams, so its frame is the
+        first captured once the move's outcome is logged."""
+        started, done = self.move_started_ns, self.outcome_ns
+        if started is None or done is None or done < started:
+            return False  # the outcome has not come back yet
+        return frame.capture_ns > (started if frame.frame_id in self.observations else done)
+
     async def _saw(self, agent: t.Agent, frame: _FrameArrived) -> None:
-        self.seen_first, self.frame_after_ns = True, None
+        self.seen_first, self.move_started_ns = True, None
         rays = self.observations.get(frame.frame_id)
         if rays is None and self.calibration is not None:
             rays = await asyncio.to_thread(self._perceive, frame.jpeg)
@@ -229,7 +246,7 @@ class AgentSeat:
                 break
             await asyncio.sleep(wait_ns / 1e9)  # again where the loop wakes a little early
         self.moves_for_target += 1
-        self.frame_after_ns = clock.now_ns()
+        self.move_started_ns, self.outcome_ns = clock.now_ns(), None
         await self.trial.request_move(MoveAction(move))
 
     async def _clock(self) -> None:

@@ -6,15 +6,19 @@ from __future__ import annotations
 
 import asyncio
 import dataclasses
+import subprocess
+import sys
 from enum import Enum
 
 import numpy as np
+import pytest
 from sqlalchemy import select
 
+from app.backends.remote import create_robot
 from app.db.models import Event
 from app.drivers.base import Seating
 from app.drivers.registry import register_driver
-from bench.live import SeatClient, make_trial
+from bench.live import REPO, SeatClient, make_trial
 from sim.agents.dialog_driver import DialogDriver
 from sim.agents.stepwise import StepwiseDriver
 from sim.agents.turns import Heard, Move, Moved, MoveResult, Phase, PhaseChanged, Saw, SeatInfo, Speaker
@@ -22,6 +26,8 @@ from sim.perception import RayObservation
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread
 from tests.app.test_experimenter import cli
+from tests.app.test_rover_loop import TARGETS, camera_calibration  # noqa: F401  (a fixture)
+from tests.app.test_virtual_rover import MAZE, START_S, maze, start  # noqa: F401  (fixtures)
 
 PRIVILEGED = {"pose", "x", "y", "heading", "maze", "graph", "map", "target", "targets", "true_pose", "belief"}
 
@@ -203,3 +209,62 @@ def test_the_cli_lists_the_drivers_and_the_agent_caps(tmp_path):
     assert {"human", "agent:dialog", "agent:random", "oracle:shortest"} <= set(lines)
     assert any(line.startswith("agent:seq2seq  (unavailable:") and "missing.pt" in line for line in lines)
     assert "stops after 120 moves per target or 15 minutes of trial clock" in lines[-1]
+
+
+@pytest.mark.slow
+def test_on_a_virtual_rover_the_agent_sees_rays_perceived_from_its_frames_and_nothing_privileged(
+    tmp_path, start, camera_calibration
+):
+    """The same seat on `robotslang robot virtual` (a process on loopback): no simulator rays to
+    hand over, so the seat perceives each frame's rays itself with the Driver camera's calibration."""
+    inputs: list = []
+    register_driver("agent:test-recording-rover", lambda services, seating: RecordingDialogDriver(seating, inputs))
+    settings = platform_settings(tmp_path, camera_calibration=camera_calibration)
+    with ServerThread(settings) as server:
+        services = server.services
+        with services.db.begin() as db:
+            robot, token = create_robot(db, "rover for the agent", "driver")
+            robot_id = robot.id
+        trial_id = make_trial(
+            services, MAZE, targets=TARGETS, backend=f"robot:{robot_id}", driver="agent:test-recording-rover"
+        )
+        with open(tmp_path / "rover.log", "w") as log:
+            rover = subprocess.Popen(
+                [sys.executable, "-c", "from app.cli import main; main()", "robot", "virtual"]
+                + ["--server", server.url, "--token", token, "--maze", MAZE, "--seed", "4", "--fps", "5"]
+                + ["--start", f"{start.x},{start.y},{start.theta}"],
+                cwd=REPO,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+            )
+        try:
+
+            async def command():
+                async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+                    await commander.event("phase", phase="localizing", timeout=START_S)
+                    begun = len(commander.received)
+                    await commander.send("chat", text="what do you see?")
+                    await commander.event("chat", role="driver", start=begun, timeout=START_S)
+                    await commander.send("localize", x=start.x, y=start.y)
+                    await commander.event("phase", phase="navigating")
+                    localizing = len(events_of(services, trial_id, "move_executed"))
+                    begun = len(commander.received)
+                    await commander.send("chat", text="turn left")
+                    await commander.event("chat", role="driver", start=begun, timeout=START_S)
+                    return localizing
+
+            localizing = asyncio.run(command())
+            moves = events_of(services, trial_id, "move_executed")
+        finally:
+            rover.terminate()
+            rover.wait(timeout=20)
+    # Asked what it sees, it may look around, turning in place; then it turns left as told.
+    assert all(m["action"] != "forward" for m in moves[:localizing])
+    assert [m["action"] for m in moves[localizing:]] == ["left", "left"]
+    seating, info, *percepts = inputs
+    assert seating.oracle is None and info == SeatInfo(Speaker.DRIVER, 3)
+    for value in (info, *percepts):
+        assert_unprivileged(value)
+    saws = [p for p in percepts if isinstance(p, Saw)]
+    assert len(saws) >= 3  # the first frame, and the frame after each move
+    assert all(s.rays is not None and s.rays.valid.any() for s in saws)  # perceived from the pixels
