@@ -120,11 +120,10 @@ class AgentSeat:
 
     # -- life ---------------------------------------------------------------------------------
     def start(self) -> None:
-        loop = asyncio.get_running_loop()
-        self.tasks = [loop.create_task(self._guarded(self._drive())), loop.create_task(self._guarded(self._clock()))]
+        self.tasks = [asyncio.get_running_loop().create_task(self._guarded(self._drive()))]
 
     async def stop(self) -> None:
-        for task in self.tasks:
+        for task in list(self.tasks):
             if task is not asyncio.current_task():
                 task.cancel()
                 with contextlib.suppress(asyncio.CancelledError):
@@ -151,6 +150,7 @@ class AgentSeat:
             with contextlib.suppress(CameraUnknown):
                 self.calibration = await asyncio.to_thread(driver_calibration, trial.state.backend, settings)
         trial.join(self)
+        self.tasks.append(asyncio.get_running_loop().create_task(self._guarded(self._clock())))  # its cap
         while not trial.state.over:
             item = await self.inbox.get()
             if isinstance(item, _FrameArrived):
