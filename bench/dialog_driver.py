@@ -1,17 +1,24 @@
 """The dialog Driver against the oracle Commander, offline, per NDH leg of val_seen and test.
 
     python -m bench.dialog_driver --benchmark PATH --json [--splits val_seen,test] [--limit N] [--processes 2]
+    python -m bench.dialog_driver --benchmark PATH --ndh --json [--splits ...]
 
 Each NDH instance is one leg: the Driver starts at the recorded start (`sim.benchmark.recorded_start`)
 and is told its target; the oracle Commander (handed the true pose: it cheats) guides it in the scripted
 phrasing and, separately, in the frozen held-out phrasing. success: share of legs whose claim the
 Commander confirmed (within 2 robot lengths, the judge's rule); moves_ratio: all moves over all
-shortest-path moves; messages_per_leg: both seats' messages; claims_rejected: rejected over all claims.
+shortest-path moves (the fewest moves, turns counted, to the node nearest the target; the
+teacher's next-hop path takes 24 % more on val_seen); messages_per_leg: both seats' messages; claims_rejected: rejected over all claims.
 localization (val_seen's first targets): after the localization exchange (at most 6 Driver messages)
 the `colours` LDH localizer reading the Driver's words puts the robot within 0.5 m (TD) in what share of
 episodes; the reference is the benchmark's human Drivers' words (LDH prefix-v1) through the same
 localizer. reply_p95_s / act_p95_s: the Driver's compute time for a perceive call that answers a
 Commander message / decides a move. Develop on val_seen; run test only for final figures.
+
+`--ndh` runs the NDH episodes instead: from the benchmark's episode start, the leg's own recorded
+human Commander messages reach the Driver one at a time (each once it has finished the last), up to
+the benchmark's 120 moves, ending at its claim or after the last message; it prints TD, SR and SPL
+(`sim.metrics`) for comparison with the seq2seq Driver (docs/model_card_ndh.md).
 """
 
 from __future__ import annotations
@@ -27,13 +34,14 @@ import numpy as np
 from tqdm import tqdm
 
 from sim.agents.dialog_driver import DialogDriver
-from sim.agents.episode import LegResult, run
+from sim.agents.episode import LegResult, replay, run
 from sim.agents.oracle_commander import OracleCommander
 from sim.agents.turns import Phase
-from sim.benchmark import Benchmark, recorded_start
+from sim.benchmark import MAX_EPISODE_ACTIONS, Benchmark, NDHInstance, episode_start, goal_node, recorded_start
 from sim.language.phrases import Phrasing
 from sim.ldh import FIRST_TARGET, LDHInstance, Variant, derive, load_split
 from sim.ldh_eval import MazeContexts, colours_localizer, score
+from sim.metrics import TrajectoryScore, score_trajectory
 from sim.observations import RayTable
 
 MAX_LEG_MOVES = 400
@@ -62,6 +70,30 @@ def _play(job: tuple[str, str, int, str]) -> tuple[str, str, LegResult]:
     return split, mode, result
 
 
+def _leg_dialog(instances: list[NDHInstance], k: int) -> tuple[tuple[str, str], ...]:
+    """The leg's own messages: a mug or paddle instance's history starts with the previous leg's."""
+    inst = instances[k]
+    if k > 0 and inst.previous_object is not None and instances[k - 1].run == inst.run:
+        before = instances[k - 1].dialog
+        if inst.dialog[: len(before)] == before:
+            return inst.dialog[len(before) :]
+    return inst.dialog
+
+
+def _ndh(job: tuple[str, str, int]) -> TrajectoryScore:
+    root, split, k = job
+    global _bench
+    if _bench is None or str(_bench.root) != root:
+        _bench = Benchmark(root)
+    instances = _bench.split(split)
+    inst = instances[k]
+    graph = _bench.graph(inst.run)
+    rays = RayTable.build(_bench.maze(inst.run), graph, cache_dir=_bench.cache_dir)
+    start = episode_start(graph, inst)
+    nodes = replay(DialogDriver(inst.inst_idx), graph, rays, start, _leg_dialog(instances, k), MAX_EPISODE_ACTIONS)
+    return score_trajectory(graph, nodes, goal_node(graph, inst))
+
+
 def _summary(results: list[LegResult]) -> dict[str, float]:
     claims = sum(r.claims for r in results)
     return {
@@ -79,9 +111,23 @@ def main() -> None:
     parser.add_argument("--splits", default="val_seen,test")
     parser.add_argument("--limit", type=int, default=None, help="the first N instances of each split")
     parser.add_argument("--processes", type=int, default=2)
+    parser.add_argument("--ndh", action="store_true", help="replay the recorded Commanders' messages instead")
     args = parser.parse_args()
     bench = Benchmark(args.benchmark)
     splits = args.splits.split(",")
+    if args.ndh:
+        ndh_jobs = [
+            (str(bench.root), split, k) for split in splits for k in range(len(bench.split(split)[: args.limit]))
+        ]
+        with Pool(args.processes) as pool:
+            scores = list(tqdm(pool.imap(_ndh, ndh_jobs), total=len(ndh_jobs), desc="ndh", file=sys.stderr))
+        ndh = {
+            "td": float(np.mean([t.td for t in scores])),
+            "sr": float(np.mean([t.success for t in scores])),
+            "spl": float(np.mean([t.spl for t in scores])),
+        }
+        print(json.dumps({"ndh": ndh, "splits": splits, "episodes": len(scores)}, indent=None if args.json else 2))
+        return
     jobs: list[tuple[str, str, int, str]] = []
     firsts: dict[int, Any] = {}
     for split in splits:

@@ -16,15 +16,18 @@ import numpy as np
 
 from sim.dynamics import Action, Pose, step, teacher_action
 from sim.geometry import GRID_STEP_M, heading_angle
-from sim.labels import OBJECT_LABELS, Label
+from sim.labels import Label
+from sim.language import vocab
+from sim.language.describe import describe
+from sim.language.phrases import Kind, Phrases, Phrasing
 from sim.maze import Maze
 from sim.navgraph import NavGraph
-from sim.observations import RAY_OFFSETS, ray_caster
+from sim.observations import N_RAYS, RAY_OFFSETS, ray_caster, too_close
+from sim.perception import RayObservation
 
 NEAR_WALL_M = 0.35  # a wall this close ahead is "reached"
-VISIBLE_M = 1.2  # walls further away are not worth mentioning
-TURN_WORDS = {1: "turn slightly {d}", 2: "turn {d}", 3: "turn sharply {d}", 4: "turn around"}
-OBJECT_WORDS = {"jar": "jar of blocks", "mug": "coffee mug", "paddle": "ping-pong paddle"}
+OBJECT_WORDS = {label.word: name for label, name in vocab.OBJECT_WORDS.items()}
+PHRASES = Phrases(Phrasing.SCRIPTED)  # one template per kind: the scripted Commander's words
 MAX_LEG_ACTIONS = 400
 CORNER_TOLERANCE_M = 0.1
 
@@ -38,10 +41,6 @@ def what_is_at(maze: Maze, x: float, y: float, angle: float) -> tuple[Label, flo
     """The first wall or object seen from (x, y) along `angle`, and how far away it is."""
     labels, depth = ray_caster(maze).cast(x, y, angle)
     return Label(int(labels)), float(depth)
-
-
-def _wall_name(label: Label) -> str:
-    return OBJECT_WORDS[label.word] if label in OBJECT_LABELS else f"{label.word} wall"
 
 
 def leg_actions(graph: NavGraph, start: Pose, goal_node: int) -> tuple[list[Action], list[Pose]]:
@@ -81,10 +80,7 @@ def corners(points: np.ndarray, tolerance_m: float = CORNER_TOLERANCE_M) -> list
 
 def _turn_phrase(turn: float) -> str | None:
     """A turn in radians (counter-clockwise positive) in words, None when it is no turn."""
-    eighths = int(round(turn / (math.pi / 4)))
-    if eighths == 0:
-        return None
-    return TURN_WORDS[min(abs(eighths), 4)].format(d="left" if eighths > 0 else "right")
+    return PHRASES.turn(int(round(turn / (math.pi / 4))))
 
 
 def _wrap(angle: float) -> float:
@@ -108,9 +104,8 @@ def plan_leg(maze: Maze, graph: NavGraph, start: Pose, target: str) -> Leg:
     nodes = [start.node] + [p.node for p in poses]
     nodes = [n for i, n in enumerate(nodes) if i == 0 or n != nodes[i - 1]]
     if len(nodes) < 2:
-        return Leg(
-            target, start, poses[-1] if poses else start, tuple(actions), (f"the {thing} should be right there",)
-        )
+        there = PHRASES.say(Kind.THERE, thing=thing)
+        return Leg(target, start, poses[-1] if poses else start, tuple(actions), (there,))
     points = graph.nodes[nodes]
     idx = corners(points)
     words = []
@@ -123,32 +118,33 @@ def plan_leg(maze: Maze, graph: NavGraph, start: Pose, target: str) -> Leg:
         length = float(np.hypot(*(points[b] - points[a])))
         steps = max(1, int(round(length / GRID_STEP_M)))
         if b == idx[-1]:
-            words.append(f"go forward until you see the {thing}")
+            words.append(PHRASES.say(Kind.UNTIL_TARGET, thing=thing))
             break
         after = math.atan2(*(points[idx[n + 2]] - points[b])[::-1])
         next_turn = _turn_phrase(_wrap(after - direction)) or "keep going"
         x, y = points[b]
         label, depth = what_is_at(maze, x, y, direction)
         if label != Label.FLOOR and depth < 2 * NEAR_WALL_M:
-            words.append(f"{next_turn} at the {_wall_name(label)}")
+            words.append(PHRASES.say(Kind.TURN_AT_WALL, turn=next_turn, wall=vocab.wall_name(label)))
         else:
-            words.append(f"go forward about {steps} steps, then {next_turn}")
+            words.append(PHRASES.say(Kind.FORWARD_THEN_TURN, n=steps, turn=next_turn))
         heading = direction
     return Leg(target, start, poses[-1], tuple(actions), tuple(words))
 
 
 def describe_view(maze: Maze, graph: NavGraph, pose: Pose) -> str:
-    """The Driver's answer to "what do you see?": ahead, left and right, and any object in view."""
-    parts = []
+    """The scripted Driver's answer to "what do you see?": the map's rays ahead, left and right, in
+    the words the dialog Driver uses for its frames (`sim.language.describe`)."""
     x, y, theta = _xy_theta(graph, pose)
-    for offset, where in ((0.0, "in front of me"), (math.pi / 2, "on my left"), (-math.pi / 2, "on my right")):
-        label, depth = what_is_at(maze, x, y, theta + offset)
-        if label != Label.FLOOR and depth < VISIBLE_M:
-            near = "close " if depth < NEAR_WALL_M else ""
-            parts.append(f"a {near}{_wall_name(label)} {where}")
-    seen, _ = ray_caster(maze).cast(x, y, theta + RAY_OFFSETS)
-    objects = sorted({Label(int(v)).word for v in np.unique(seen) if Label(int(v)) in OBJECT_LABELS})
-    sentence = "i see " + (", ".join(parts) if parts else "open floor all around")
-    if objects:
-        sentence += " and i can see the " + " and the ".join(OBJECT_WORDS[o] for o in objects)
-    return sentence
+    views = {}
+    for side in (vocab.Side.AHEAD, vocab.Side.LEFT, vocab.Side.RIGHT):
+        labels, depth = ray_caster(maze).cast(x, y, theta + vocab.SIDE_STEPS[side] * math.pi / 4 + RAY_OFFSETS)
+        heading = (pose.heading + vocab.SIDE_STEPS[side]) % 8
+        views[side] = RayObservation(
+            labels=labels.astype(np.uint8),
+            depth=depth.astype(np.float32),
+            too_close=too_close(depth, heading),
+            valid=np.ones(N_RAYS, dtype=bool),
+            forward_blocked=False,
+        )
+    return describe(views)

@@ -14,9 +14,9 @@ import math
 import random
 from collections import deque
 from dataclasses import dataclass, field
+from enum import StrEnum
 
 from sim.agents.turns import (
-    Claimed,
     DoClaim,
     DoMove,
     DoSay,
@@ -36,8 +36,9 @@ from sim.agents.turns import (
 from sim.geometry import HEADING_DI, HEADING_DJ, HEADINGS
 from sim.labels import OBJECT_LABELS, Label
 from sim.language import instructions as ins
-from sim.language.describe import ahead, at_wall, brief, describe, near, seen
+from sim.language.describe import LEFT_EDGE, RIGHT_EDGE, ahead, at_wall, brief, describe, near, seen
 from sim.language.vocab import SIDE_PHRASE, SIDE_STEPS, Side, wall_name
+from sim.ldh_features import NEAR_M
 from sim.perception import RayObservation
 
 OPENING_M = 0.6  # a side ray further than this after a nearer one: an opening on that side
@@ -45,23 +46,36 @@ MAX_WALK = 60  # forward moves one "until" may take before the Driver asks
 NEXT = ("what next?", "where to now?", "what should i do next?")
 
 
+class Task(StrEnum):
+    TURN = "turn"
+    WALK = "walk"  # forward some steps, or until a wall / the target
+    OPENING = "opening"  # forward to the nth opening on a side, then turn into it
+    GOTO = "goto"  # back to a place of its odometry
+    LOOK = "look"  # turn in place to see what a question needs, then answer
+    SAY = "say"
+    CLAIM = "claim"
+
+
+MOVING = (Task.WALK, Task.OPENING, Task.GOTO)  # tasks that leave the spot: not while localizing
+
+
 @dataclass
 class _Task:
     """One step of the current instruction set; `turns` / `steps` count what is left of it."""
 
-    kind: str  # "turn", "walk", "opening", "goto", "look", "say", "claim"
+    kind: Task
     turns: int = 0
     steps: int | None = None
     until: Label | None = None
     exclude: frozenset[Label] = frozenset()
     side: Side | None = None
     nth: int = 0
-    goal: tuple[int, int] = (0, 0)
+    route: list[tuple[int, int]] = field(default_factory=list)  # GOTO: places still to pass, in order
     text: str = ""
     question: ins.Ask | None = None
     done: int = 0
-    edge_near: bool = False
-    look_back: int = 0
+    edge_near: bool = False  # OPENING: the side ray met a wall at the last step
+    home: int | None = None  # LOOK: the heading to answer from
 
 
 @dataclass
@@ -69,7 +83,22 @@ class _Odometry:
     i: int = 0
     j: int = 0
     heading: int = 0  # 45-degree steps counter-clockwise from the start heading
-    turns: list[tuple[Side, tuple[int, int]]] = field(default_factory=list)  # where it turned, in order
+    trail: list[tuple[int, int]] = field(default_factory=lambda: [(0, 0)])  # every place it stood, in order
+    turns: list[tuple[Side, int]] = field(default_factory=list)  # which way it turned, at which trail index
+
+    @property
+    def here(self) -> tuple[int, int]:
+        return (self.i, self.j)
+
+    def route_back(self, index: int) -> list[tuple[int, int]]:
+        """The way back to `trail[index]` along the trail, loops cut: the way it came is free."""
+        route: list[tuple[int, int]] = []
+        for place in reversed(self.trail[index:]):
+            if place in route:
+                del route[route.index(place) + 1 :]
+            else:
+                route.append(place)
+        return route[1:]
 
 
 class DialogDriver:
@@ -80,7 +109,6 @@ class DialogDriver:
         self.reset(SeatInfo(Speaker.DRIVER, 0))
 
     def reset(self, info: SeatInfo) -> None:
-        self._info = info
         self._phase = Phase.WAITING
         self._odo = _Odometry()
         self._views: dict[int, RayObservation | None] = {}  # heading -> view, from where it stands
@@ -113,11 +141,9 @@ class DialogDriver:
             self._claiming = False
             if percept.confirmed:
                 return []
-            self._rejected_at.add((self._odo.i, self._odo.j))
+            self._rejected_at.add(self._odo.here)
             return [DoSay("ok, not here then. where should i go?")]
-        if isinstance(percept, Claimed):
-            return []
-        return []
+        return []  # Claimed: its own claim, already waiting for the verdict
 
     def _moved(self, moved: Moved) -> list[Turn]:
         if moved.result != MoveResult.OK:
@@ -128,6 +154,7 @@ class DialogDriver:
         if moved.move == Move.FORWARD:
             self._odo.i += int(HEADING_DI[self._odo.heading])
             self._odo.j += int(HEADING_DJ[self._odo.heading])
+            self._odo.trail.append(self._odo.here)
             self._views = {}
         else:
             self._odo.heading = (self._odo.heading + (1 if moved.move == Move.LEFT else -1)) % HEADINGS
@@ -142,59 +169,61 @@ class DialogDriver:
         for item in parsed.instructions:
             tasks += self._tasks(item)
         if parsed.unclear:
-            tasks = [_Task("say", text="sorry, i did not understand. which way should i go?")]
-        if self._phase == Phase.LOCALIZING and any(t.kind in ("walk", "opening", "goto") for t in tasks):
-            tasks = [t for t in tasks if t.kind not in ("walk", "opening", "goto")]
+            tasks = [_Task(Task.SAY, text="sorry, i did not understand. which way should i go?")]
+        if self._phase == Phase.LOCALIZING and any(t.kind in MOVING for t in tasks):
+            tasks = [t for t in tasks if t.kind not in MOVING]
             tasks.append(
-                _Task("say", text="i will stay here until you have found me on the map. what should i describe?")
+                _Task(Task.SAY, text="i will stay here until you have found me on the map. what should i describe?")
             )
-        if tasks and tasks[-1].kind not in ("say", "claim", "look"):
-            tasks.append(_Task("say"))  # the report when the moves are done
+        if tasks and tasks[-1].kind not in (Task.SAY, Task.CLAIM, Task.LOOK):
+            tasks.append(_Task(Task.SAY))  # the report when the moves are done
         self._plan.extend(tasks)
         self._done_words = ""
         return [] if self._moving else self._advance()
 
     def _tasks(self, item: ins.Instruction) -> list[_Task]:
         if isinstance(item, ins.Turn):
-            return [_Task("turn", turns=item.eighths)]
+            return [_Task(Task.TURN, turns=item.eighths)]
         if isinstance(item, ins.Forward):
-            return [_Task("walk", steps=item.steps, until=item.until, exclude=item.exclude)]
+            return [_Task(Task.WALK, steps=item.steps, until=item.until, exclude=item.exclude)]
         if isinstance(item, ins.TakeOpening):
-            return [_Task("opening", side=item.side, nth=item.nth)]
+            return [_Task(Task.OPENING, side=item.side, nth=item.nth)]
         if isinstance(item, ins.Target):
             self._target = item.label
             if item.side is None:
-                return []
-            return [_Task("turn", turns=SIDE_STEPS[item.side] if item.side != Side.RIGHT else -2)] + [
-                _Task("walk", until=item.label)
+                # Told what to find: where it is in view, go up to it.
+                visible = self._view is not None and any(s.label == item.label for s in seen(self._view))
+                return [_Task(Task.WALK, until=item.label)] if visible and self._phase == Phase.NAVIGATING else []
+            return [_Task(Task.TURN, turns=SIDE_STEPS[item.side] if item.side != Side.RIGHT else -2)] + [
+                _Task(Task.WALK, until=item.label)
             ]
         if isinstance(item, ins.Ask):
-            return [_Task("look", question=item)]
+            return [_Task(Task.LOOK, question=item)]
         if isinstance(item, ins.GoBack):
             return [self._go_back(item)]
         if isinstance(item, ins.Stop):
             if item.claim:
-                return [_Task("claim")]
-            return [_Task("say", text=f"ok, stopped. {brief(self._view)}. {self._rng.choice(NEXT)}")]
+                return [_Task(Task.CLAIM)]
+            return [_Task(Task.SAY, text=f"ok, stopped. {brief(self._view)}. {self._rng.choice(NEXT)}")]
         return []
 
     def _go_back(self, item: ins.GoBack) -> _Task:
         if item.place == ins.Place.START:
-            return _Task("goto", goal=(0, 0), text="back where i started")
-        turns = [where for side, where in self._odo.turns if item.side is None or side == item.side]
+            return _Task(Task.GOTO, route=self._odo.route_back(0), text="back where i started")
+        turns = [index for side, index in self._odo.turns if item.side is None or side == item.side]
         if len(turns) < item.nth:
             side = f" {item.side.value}" if item.side else ""
-            return _Task("say", text=f"i have not turned{side} that many times yet. where should i go?")
-        return _Task("goto", goal=turns[item.nth - 1], text="back where i turned")
+            return _Task(Task.SAY, text=f"i have not turned{side} that many times yet. where should i go?")
+        return _Task(Task.GOTO, route=self._odo.route_back(turns[item.nth - 1]), text="back where i turned")
 
     # -- carrying tasks out ---------------------------------------------------------------------
 
     def _advance(self) -> list[Turn]:
         out: list[Turn] = []
         while self._plan and not self._moving and not self._claiming:
-            if self._sees_target() and self._plan[0].kind != "claim":
+            if self._sees_target() and self._plan[0].kind != Task.CLAIM:
                 self._plan.clear()
-                self._plan.append(_Task("claim"))
+                self._plan.append(_Task(Task.CLAIM))
             task = self._plan.popleft()
             step = self._step(task)  # may clear the plan or put tasks before what is left
             if isinstance(step, DoMove):
@@ -209,23 +238,23 @@ class DialogDriver:
     def _sees_target(self) -> bool:
         if self._target is None or self._phase != Phase.NAVIGATING or self._view is None:
             return False
-        if (self._odo.i, self._odo.j) in self._rejected_at:
+        if self._odo.here in self._rejected_at:
             return False
         return near(self._view, self._target)
 
     def _step(self, task: _Task) -> DoMove | DoSay | list[Turn] | None:
         """The task's next move, or None (or its closing words) when it is finished."""
-        if task.kind == "turn":
+        if task.kind == Task.TURN:
             return self._turn(task)
-        if task.kind == "walk":
+        if task.kind == Task.WALK:
             return self._walk(task)
-        if task.kind == "opening":
+        if task.kind == Task.OPENING:
             return self._opening(task)
-        if task.kind == "goto":
+        if task.kind == Task.GOTO:
             return self._goto(task)
-        if task.kind == "look":
+        if task.kind == Task.LOOK:
             return self._look(task)
-        if task.kind == "claim":
+        if task.kind == Task.CLAIM:
             if self._phase != Phase.NAVIGATING:
                 return DoSay("you have not placed me on the map yet; tell me when i may go")
             self._claiming = True
@@ -238,11 +267,11 @@ class DialogDriver:
         if task.turns == 0:
             return None
         if task.done == 0 and abs(task.turns) >= 2:
-            self._odo.turns.append((Side.LEFT if task.turns > 0 else Side.RIGHT, (self._odo.i, self._odo.j)))
+            self._odo.turns.append((Side.LEFT if task.turns > 0 else Side.RIGHT, len(self._odo.trail) - 1))
         task.done += 1
         step = 1 if task.turns > 0 else -1
         task.turns -= step
-        self._done_words = "turned"
+        self._done_words = f"turned {'left' if step > 0 else 'right'}"
         return DoMove(Move.LEFT if step > 0 else Move.RIGHT)
 
     def _walk(self, task: _Task) -> DoMove | DoSay | None:
@@ -290,13 +319,15 @@ class DialogDriver:
         if view is None or view.problem is not None:
             self._plan.clear()
             return DoSay("i cannot see clearly. what should i do?")
-        ray = 12 if task.side == Side.LEFT else 0
+        ray = LEFT_EDGE if task.side == Side.LEFT else RIGHT_EDGE
         far = not view.valid[ray] or view.labels[ray] == Label.FLOOR or float(view.depth[ray]) > OPENING_M
         if task.edge_near and far:
             task.nth -= 1
         task.edge_near = not far
         if task.nth <= 0:
-            self._plan.extendleft([_Task("walk", steps=1), _Task("turn", turns=2 if task.side == Side.LEFT else -2)])
+            self._plan.extendleft(
+                [_Task(Task.WALK, steps=1), _Task(Task.TURN, turns=2 if task.side == Side.LEFT else -2)]
+            )
             return None
         if view.forward_blocked or task.done >= MAX_WALK:
             self._plan.clear()
@@ -305,14 +336,12 @@ class DialogDriver:
         return DoMove(Move.FORWARD)
 
     def _goto(self, task: _Task) -> DoMove | DoSay | None:
-        di, dj = task.goal[0] - self._odo.i, task.goal[1] - self._odo.j
-        if di == 0 and dj == 0:
+        while task.route and task.route[0] == self._odo.here:
+            task.route.pop(0)
+        if not task.route:
             self._done_words = task.text
             return None
-        if task.done >= 4 * (abs(di) + abs(dj)) + 16:
-            self._plan.clear()
-            return DoSay(f"i cannot find my way {task.text}. which way?")
-        task.done += 1
+        di, dj = task.route[0][0] - self._odo.i, task.route[0][1] - self._odo.j
         wanted = round(math.atan2(dj, di) / (math.pi / 4)) % HEADINGS
         turn = (wanted - self._odo.heading) % HEADINGS
         if turn == 0:
@@ -334,14 +363,13 @@ class DialogDriver:
             sides = [ask.side or Side.AHEAD]
         else:
             sides = [Side.AHEAD]
-        if task.look_back == 0:
-            task.look_back = self._odo.heading + 1  # the heading to come back to, plus one
-        home = task.look_back - 1
+        if task.home is None:
+            task.home = self._odo.heading
+        home = task.home
         missing = [s for s in sides if (home + SIDE_STEPS[s]) % HEADINGS not in self._views]
-        if missing:
-            return DoMove(Move.LEFT)
-        if self._odo.heading != home:
-            return DoMove(Move.LEFT if (home - self._odo.heading) % HEADINGS <= 4 else Move.RIGHT)
+        facing = (home + SIDE_STEPS[missing[0]]) % HEADINGS if missing else home
+        if self._odo.heading != facing:  # the shorter way round to the next side to see, then back
+            return DoMove(Move.LEFT if (facing - self._odo.heading) % HEADINGS <= 4 else Move.RIGHT)
         views = {s: self._views[(home + SIDE_STEPS[s]) % HEADINGS] for s in sides}
         if ask.question == ins.Question.IS_THERE and ask.label is not None:
             return DoSay(self._is_there(ask.label, sides[0], views[sides[0]]))
@@ -356,5 +384,5 @@ class DialogDriver:
     def _is_there(self, label: Label, side: Side, view: RayObservation | None) -> str:
         hits = [s for s in seen(view) if s.label == label] if view is not None else []
         if hits:
-            return f"yes, {'close' if hits[0].depth <= 0.5 else 'far'} {wall_name(label)} {SIDE_PHRASE[side]}"
+            return f"yes, {'close' if hits[0].depth <= NEAR_M else 'far'} {wall_name(label)} {SIDE_PHRASE[side]}"
         return f"no, no {wall_name(label)} {SIDE_PHRASE[side]}. {describe({side: view})}"

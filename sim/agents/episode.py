@@ -1,15 +1,17 @@
-"""A Driver agent and the oracle Commander in one leg, offline: the trial's turn-taking without a
-server. The simulator's stepper rules move the Driver on the graph; the RayTable row of each pose
-is the Driver's `Saw` (frames are not rendered). The Driver gets percepts only; the Commander is
-handed the true pose."""
+"""A Driver agent offline, with the oracle Commander (`run`) or with a recorded human Commander's
+messages (`replay`): the trial's turn-taking without a server. The simulator's stepper rules move
+the Driver on the graph; the RayTable row of each pose is the Driver's `Saw` (frames are not
+rendered). The Driver gets percepts only; the oracle Commander is handed the true pose."""
 
 from __future__ import annotations
 
 import time
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from sim.agents.oracle_commander import OracleCommander
+from sim.agents.sight import pose_rays
 from sim.agents.turns import (
     Agent,
     Claimed,
@@ -31,7 +33,8 @@ from sim.agents.turns import (
     Speaker,
 )
 from sim.dynamics import Action, Pose, step
-from sim.dynamics import teacher_action as _teacher
+from sim.navgraph import NavGraph
+from sim.observations import RayTable
 
 MAX_MESSAGES = 80
 MAX_REJECTIONS = 3
@@ -42,24 +45,13 @@ MOVE_ACTION = {Move.FORWARD: Action.FORWARD, Move.LEFT: Action.LEFT, Move.RIGHT:
 class LegResult:
     success: bool = False
     moves: int = 0
-    shortest: int = 0
+    shortest: int = 0  # the fewest moves (turns count) from the start to the target's nearest node
     messages: int = 0
     claims: int = 0
     rejected: int = 0
     dialog: list[tuple[str, str]] = field(default_factory=list)  # (oracle|navigator, text)
     reply_s: list[float] = field(default_factory=list)  # the Driver's time to answer a message
     act_s: list[float] = field(default_factory=list)  # the Driver's time to decide a move
-
-
-def shortest_moves(commander: OracleCommander, start: Pose, goal: int) -> int:
-    pose, n = start, 0
-    while n < 1000:
-        action = _teacher(commander.graph, pose, goal)
-        if action == Action.STOP:
-            break
-        pose, _ = step(commander.graph, pose, action)
-        n += 1
-    return n
 
 
 def run(
@@ -75,7 +67,8 @@ def run(
     out = LegResult()
     index = 0 if phase == Phase.NAVIGATING else None
     if index is not None:
-        out.shortest = shortest_moves(commander, start, commander.graph.nearest_node(*commander.targets[0][1]))
+        goal = commander.graph.nearest_node(*commander.targets[0][1])
+        out.shortest = int(commander.moves_to_go(goal)[start.node, start.heading])
     commander.pose = start
     driver.reset(SeatInfo(Speaker.DRIVER, len(commander.targets)))
     commander.reset(SeatInfo(Speaker.COMMANDER, len(commander.targets)))
@@ -126,3 +119,31 @@ def run(
         if phase == Phase.LOCALIZING and driver_messages >= max_driver_messages:
             break
     return out
+
+
+def replay(
+    driver: Agent, graph: NavGraph, rays: RayTable, start: Pose, dialog: Sequence[tuple[str, str]], max_moves: int
+) -> list[int]:
+    """An NDH episode: the recorded Commander's messages (role "oracle") reach the Driver one at a
+    time, each once it has finished with the last (spoken or stopped moving); it ends at the Driver's
+    claim, after the last message, or at `max_moves`. Returns the nodes it stood on, start first."""
+    driver.reset(SeatInfo(Speaker.DRIVER, 1))
+    pose, nodes, moves = start, [start.node], 0
+    driver.perceive(PhaseChanged(Phase.NAVIGATING, 0, 1))
+    driver.perceive(Saw(0, pose_rays(rays, pose)))
+    for role, message in dialog:
+        if role != "oracle":
+            continue
+        turns = driver.perceive(Heard(Speaker.COMMANDER, message))
+        while True:
+            if any(isinstance(t, DoClaim) for t in turns) or moves >= max_moves:
+                return nodes
+            move = next((t for t in turns if isinstance(t, DoMove)), None)
+            if move is None:
+                break
+            pose, collided = step(graph, pose, MOVE_ACTION[move.move])
+            moves += 1
+            nodes.append(pose.node)
+            result = MoveResult.COLLISION if collided else MoveResult.OK
+            turns = driver.perceive(Moved(move.move, result)) + driver.perceive(Saw(moves, pose_rays(rays, pose)))
+    return nodes

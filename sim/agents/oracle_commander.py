@@ -1,6 +1,6 @@
 """A Commander that cheats: it is handed the Driver's true pose and the map, for measuring Drivers.
 
-It plans each instruction with the shortest path (the teacher) from the true pose, speaks one
+It plans each instruction with the fewest moves from the true pose, speaks one
 instruction at a time in the scripted or the held-out phrasing, and waits for the Driver's answer;
 when the Driver strays it plans again from where the Driver truly is. It picks "at the red wall" or
 "until you see the mug" only where the map says a Driver stopping at the first close wall (or the
@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from sim.agents.sight import pose_rays
 from sim.agents.turns import (
     Claimed,
     DoJudge,
@@ -26,8 +27,8 @@ from sim.agents.turns import (
     Speaker,
     Turn,
 )
-from sim.dynamics import Action, Pose, step, teacher_action
-from sim.geometry import SUCCESS_RADIUS_M
+from sim.dynamics import Action, Pose, step
+from sim.geometry import HEADINGS, SUCCESS_RADIUS_M
 from sim.labels import Label, object_label
 from sim.language.describe import ahead, at_wall, near, seen
 from sim.language.phrases import Kind, Phrases, Phrasing
@@ -55,19 +56,13 @@ class OracleCommander:
         self.phrases = Phrases(Phrasing(phrasing), seed)
         self.pose = Pose(0, 0)
         self._index: int | None = None
+        self._costs: dict[int, np.ndarray] = {}
 
     def reset(self, info: SeatInfo) -> None:
         self._index = None
 
     def view(self, pose: Pose) -> RayObservation:
-        n, h = pose.node, pose.heading
-        return RayObservation(
-            labels=self.rays.labels[n, h],
-            depth=self.rays.depth[n, h],
-            too_close=self.rays.too_close[n, h],
-            valid=np.ones(self.rays.labels.shape[-1], dtype=bool),
-            forward_blocked=bool(self.rays.forward_blocked[n, h]),
-        )
+        return pose_rays(self.rays, pose)
 
     def _target(self) -> tuple[str, Label, tuple[float, float], int]:
         assert self._index is not None  # only while navigating
@@ -93,7 +88,9 @@ class OracleCommander:
                 ]
             return []
         if isinstance(percept, Claimed):
-            return [DoJudge(self.distance(self.pose) <= SUCCESS_RADIUS_M)]
+            if self.distance(self.pose) <= SUCCESS_RADIUS_M:
+                return [DoJudge(True)]
+            return [DoJudge(False), DoSay(self.phrases.say(Kind.REJECT))]
         if isinstance(percept, Heard) and percept.speaker == Speaker.DRIVER and self._index is not None:
             if "found" in percept.text:
                 return []  # a claim is on its way
@@ -102,20 +99,11 @@ class OracleCommander:
 
     def instruction(self, plain: bool) -> str:
         """The next instruction from the true pose; `plain` (the Driver asked) counts steps."""
-        name, label, _, goal = self._target()
+        _, label, _, goal = self._target()
         thing = OBJECT_WORDS[label]
         if self.distance(self.pose) <= THERE_M:
             return self.phrases.say(Kind.THERE, thing=thing)
-        actions: list[Action] = []
-        pose = self.pose
-        poses = [pose]
-        for _ in range(MAX_PLAN):
-            action = teacher_action(self.graph, pose, goal)
-            if action == Action.STOP:
-                break
-            pose, _ = step(self.graph, pose, action)
-            actions.append(action)
-            poses.append(pose)
+        actions, poses = self.plan(self.pose, goal)
         k = 0
         eighths = 0
         while k < len(actions) and actions[k] != Action.FORWARD:
@@ -137,8 +125,7 @@ class OracleCommander:
             k += 1
         next_turn = self.phrases.turn(after)
         wall = self._walk_ends(poses[start], None)
-        front = seen(self.view(poses[start + run]))
-        if next_turn and not plain and wall == run and front:
+        if next_turn and not plain and wall == run:
             ahead = self._ahead_label(poses[start + run])
             if ahead is not None and any(s.label == ahead for s in seen(self.view(poses[start]))):
                 return ", then ".join(
@@ -147,6 +134,47 @@ class OracleCommander:
         if next_turn:
             return ", then ".join([*words, self.phrases.say(Kind.FORWARD_THEN_TURN, n=run, turn=next_turn)])
         return ", then ".join([*words, self.phrases.say(Kind.FORWARD, n=run)])
+
+    def plan(self, start: Pose, goal: int) -> tuple[list[Action], list[Pose]]:
+        """Fewest moves (turns count) to the goal node, forward first among equals: straight runs
+        a Commander can name, where the teacher's next-hop path zig-zags at a turn per step."""
+        cost = self.moves_to_go(goal)
+        pose, actions, poses = start, [], [start]
+        while cost[pose.node, pose.heading] > 0:
+            for action in (Action.FORWARD, Action.LEFT, Action.RIGHT):
+                after, collided = step(self.graph, pose, action)
+                if not collided and cost[after.node, after.heading] == cost[pose.node, pose.heading] - 1:
+                    break
+            else:
+                break  # the goal is out of reach from here
+            pose = after
+            actions.append(action)
+            poses.append(pose)
+        return actions, poses
+
+    def moves_to_go(self, goal: int) -> np.ndarray:
+        """(N, 8) moves from each pose to the goal node, by a breadth-first search backwards."""
+        if goal in self._costs:
+            return self._costs[goal]
+        n = self.graph.n
+        cost = np.full((n, HEADINGS), -1, dtype=np.int64)
+        cost[goal] = 0
+        frontier = [(goal, h) for h in range(HEADINGS)]
+        came_from = [[np.flatnonzero(self.graph.forward[:, h] == m) for h in range(HEADINGS)] for m in range(n)]
+        while frontier:
+            nxt = []
+            for node, h in frontier:
+                c = cost[node, h] + 1
+                before = [(node, (h - 1) % HEADINGS), (node, (h + 1) % HEADINGS)]
+                before += [(int(m), h) for m in came_from[node][h]]
+                for m, hh in before:
+                    if cost[m, hh] < 0:
+                        cost[m, hh] = c
+                        nxt.append((m, hh))
+            frontier = nxt
+        cost[cost < 0] = np.iinfo(np.int64).max // 2  # unreachable
+        self._costs[goal] = cost
+        return cost
 
     def _ahead_label(self, pose: Pose) -> Label | None:
         front = ahead(self.view(pose))

@@ -109,8 +109,12 @@ def brief(obs: RayObservation | None) -> str:
         label = Label(int(obs.labels[ray]))
         if obs.valid[ray] and label != Label.FLOOR and obs.depth[ray] <= NEAR_M:
             parts.append(f"{wall_name(label)} {SIDE_PHRASE[side]}")
-    objects = [s for s in seen(obs) if s.label in OBJECT_LABELS]
-    parts += [f"i can see the {wall_name(s.label)}" for s in objects]
+    named = " ".join(parts)
+    parts += [
+        f"i can see the {wall_name(s.label)}"
+        for s in seen(obs)
+        if s.label in OBJECT_LABELS and wall_name(s.label) not in named
+    ]
     return ", ".join(parts) if parts else "open floor ahead"
 
 

@@ -90,13 +90,14 @@ class Parsed:
 
     @property
     def unclear(self) -> bool:
-        return not self.instructions or all(isinstance(i, Unclear) for i in self.instructions)
+        """Nothing but clauses not understood ("ok", "got it" are understood: nothing to do)."""
+        return bool(self.instructions) and all(isinstance(i, Unclear) for i in self.instructions)
 
 
-_CLAUSE = re.compile(r"[,.;!]+|\bthen\b|\band\b|\bafter that\b|\bnow\b")
+_CLAUSE = re.compile(r"[,.;!]+|(?<!should )\bthen\b|\band\b|\bafter that\b|\bnow\b")
 _CLAIM = re.compile(
     r"\b(you(?:re| are) (?:there|here|right by it|at it)|(?:should be|is) right (?:there|here)|thats it|thats the spot|you found it|found it"
-    r"|claim|take (?:a |the )?(?:picture|photo|snapshot)|send (?:a )?(?:picture|photo)|correct)\b"
+    r"|claim|take (?:a |the )?(?:picture|photo|snapshot)|send (?:a )?(?:picture|photo))\b"
 )
 _STOP = re.compile(r"\b(stop|halt|hold on|wait)\b")
 _UTURN = re.compile(r"\b(u-turn|u turn|turn around|spin around|180|turn back|about face|uturn)\b")
@@ -110,8 +111,14 @@ _GO = re.compile(
 _UNTIL = re.compile(r"\b(until|till|to|towards|toward|reach|reached|at|up to|see)\b")
 _BACK_START = re.compile(r"\b(start|started|beginning|began|starting)\b")
 _QUESTION = re.compile(
-    r"\?|^(what|whats|where|is|are|do|does|can you see|describe|any|how)\b|\bsurroundings\b|\blocation\b"
+    r"\?|^(what|whats|where|is|are|do|does|can you see|describe|any|how)\b|\bsurroundings\b|^location\b|\byour location\b"
     r"|\btell me (?:what|your|about)\b|\bdescribe\b"
+)
+_FIND = re.compile(
+    r"\b(?:(?:and )?(?:you )?(?:should|will|can|have to|need to|lets|let us) )?(?:go )?(?:to )?(?:find|look for|search for)\b.*$"
+)
+_EXPECT = re.compile(
+    r"\b(?:you should|you will|you'll|should) (?:then )?(?:see|have|be facing)\b|\b(?:should be|are|is) (?:on|to) your\b"
 )
 _LOOK = re.compile(r"\b(look around|spin around|around you|all around|look all around|turn around)\b")
 
@@ -137,10 +144,6 @@ def _turn_size(text: str, ws: list[str]) -> int:
     if re.search(r"\b(sharply|sharp|hard|135)\b", text):
         return 3
     return 2
-
-
-def _times(ws: list[str]) -> int:
-    return 2 if "twice" in ws or "again" in ws and "twice" in ws else 1
 
 
 def _question(text: str, ws: list[str]) -> Ask:
@@ -177,12 +180,20 @@ def _clause(text: str, prev: Instruction | None) -> list[Instruction]:
     side_words = _SIDE_PHRASE.search(text)
     if objects and side_words and not _GO.search(text.replace(side_words.group(0), "")):
         return [Target(objects[0], _side(side_words.group(0).split()))]
+    purpose = _FIND.search(text)
+    if objects and purpose:
+        # "turn left and left again to find the jar", "ok lets find the paddle": the target, and the moves before it
+        rest = [i for i in _clause(text[: purpose.start()], prev) if not isinstance(i, Unclear)]
+        return [Target(objects[0]), *rest]
     if (
         objects
-        and re.search(r"\b(objective|target|next|find|look for|now|goal|is a|is the)\b", text)
+        and re.search(r"\b(objective|target|next|goal|the|a|should see|will see|looking for)\b", text)
         and not (_GO.search(text))
     ):
         return [Target(objects[0])]
+    if labels and not objects and _EXPECT.search(text):
+        # "you should have blue walls on your right": a check of the view, answered like a question
+        return [Ask(Question.IS_THERE, _side(ws) or Side.AHEAD, labels[0])]
     if _UTURN.search(text):
         return [Turn(4)]
     opening = re.search(r"\b(first|second|third|fourth|fifth|next) (left|right)\b", text)
@@ -193,9 +204,8 @@ def _clause(text: str, prev: Instruction | None) -> list[Instruction]:
     turn_side = _side([w for w in unplaced.split() if w in ("left", "right")])
     steps = next((n for n in (number(w) for w in ws) if n is not None and n not in (45, 90, 135, 180)), None)
     out: list[Instruction] = []
-    walls = [label for label in labels]
     wants_forward = bool(_GO.search(unplaced)) or steps is not None
-    stop_at = walls[0] if walls and _UNTIL.search(unplaced) else None
+    stop_at = labels[0] if labels and _UNTIL.search(unplaced) else None
     if turn_side is not None and (stop_at is not None or re.search(r"\b(at|reach|reached) the (?:end|wall)", unplaced)):
         out.append(Forward(None, stop_at, excluded))
     elif wants_forward:
@@ -207,10 +217,12 @@ def _clause(text: str, prev: Instruction | None) -> list[Instruction]:
             out.append(Forward(None, objects[0] if objects else None))
     if turn_side is not None:
         size = _turn_size(text, ws) * (1 if turn_side == Side.LEFT else -1)
-        out += [Turn(size)] * _times(ws)
+        out += [Turn(size)] * (2 if "twice" in ws else 1)
     if not out and _STOP.search(text):
         return [Stop(claim=False)]
-    if not out and not re.search(r"\b(ok|okay|good|great|yes|yeah|nice|perfect|awesome|correct|right|cool)\b", text):
+    if not out and not re.search(
+        r"\b(ok|okay|good|great|yes|yeah|nice|perfect|awesome|correct|right|cool|got it)\b", text
+    ):
         return [Unclear(text)]
     return out
 
@@ -232,6 +244,9 @@ def parse(message: str) -> Parsed:
             out[last] = parsed[0]  # "..., not the red one" narrows the wall to stop at
             continue
         for instruction in parsed:
+            if isinstance(instruction, Forward) and out and out[-1] == Forward():
+                out[-1] = instruction  # "continue forward and turn left at the white wall": one walk
+                continue
             if instruction == Forward() and out and isinstance(out[-1], Forward):
                 continue  # "keep the red wall on your left and go straight": one walk
             out.append(instruction)

@@ -2,7 +2,7 @@
 
 The words are those the benchmark's Drivers and Commanders use (train split): wall colours, the
 three objects, sides, turn sizes, counts. A misspelt word ("rigth", "yelow") is matched to the
-vocabulary word within one edit (two for long words); common English words are never corrected,
+vocabulary word within one edit (two for words of 8 letters or more); common English words are never corrected,
 so "that" stays "that" rather than becoming "what"."""
 
 from __future__ import annotations
@@ -40,6 +40,8 @@ LABEL_WORDS: dict[str, Label] = {
     "mug": Label.MUG,
     "cup": Label.MUG,
     "paddle": Label.PADDLE,
+    "racket": Label.PADDLE,  # "table-tennis-racket" (train split)
+    "racquet": Label.PADDLE,
 }
 # How the Commander and the Driver name each object.
 OBJECT_WORDS = {Label.JAR: "jar of blocks", Label.MUG: "coffee mug", Label.PADDLE: "ping-pong paddle"}
@@ -221,6 +223,7 @@ COMMON = frozenset(
         "side",
         "sides",
         "mine",
+        "black",
         "mind",
         "into",
         "onto",
@@ -256,7 +259,7 @@ def correct(word: str) -> str:
     """The vocabulary word a misspelling stands for, or the word itself."""
     if len(word) < 4 or word in KEYWORDS or word in COMMON or not word.isalpha():
         return word
-    limit = 1 if len(word) < 6 else 2
+    limit = 1 if len(word) < 8 else 2  # two edits turn "follow" into "yellow"
     best, best_d = word, limit + 1
     for key in sorted(KEYWORDS):
         d = _distance(word, key, limit)
@@ -267,7 +270,8 @@ def correct(word: str) -> str:
 
 def words(text: str) -> list[str]:
     """Lower-case words of `text`, spelling corrected; "?" kept as a word."""
-    return [correct(w) for w in _WORD.findall(text.lower().replace("'", ""))]
+    text = text.lower().replace("'", "").replace("u-turn", "uturn").replace("-", " ")
+    return [correct(w) for w in _WORD.findall(text)]
 
 
 def number(word: str) -> int | None:

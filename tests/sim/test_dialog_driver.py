@@ -1,0 +1,165 @@
+"""The dialog Driver: it reaches a target guided by the oracle Commander on a bundled maze, holds
+still while being localized, and takes percepts only (no pose, map or graph)."""
+
+import inspect
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sim.agents.dialog_driver import DialogDriver
+from sim.agents.episode import run
+from sim.agents.oracle_commander import OracleCommander
+from sim.agents.turns import (
+    DoClaim,
+    DoMove,
+    DoSay,
+    Heard,
+    Judged,
+    Move,
+    Moved,
+    MoveResult,
+    Percept,
+    Phase,
+    PhaseChanged,
+    Saw,
+    SeatInfo,
+    Speaker,
+)
+from sim.dynamics import Action, Pose, step
+from sim.language.phrases import Phrasing
+from sim.maze import Maze
+from sim.navgraph import NavGraph
+from sim.observations import RayTable
+
+BUNDLED = Path(__file__).resolve().parents[2] / "sim" / "mazes" / "gen-000"
+
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory):
+    cache = tmp_path_factory.mktemp("cache")
+    maze = Maze.from_dir(BUNDLED, cache_dir=cache)
+    graph = NavGraph.build(maze, "benchmark", cache_dir=cache)
+    return maze, graph, RayTable.build(maze, graph, cache_dir=cache)
+
+
+def _far_start(graph, target):
+    """A node about a metre of path from the target, facing away (heading 4)."""
+    goal = graph.nearest_node(*target)
+    dist = graph.dist[:, goal]
+    reachable = np.flatnonzero(np.isfinite(dist) & (dist > 0.9))
+    return Pose(int(reachable[np.argmin(dist[reachable])]), 4)
+
+
+@pytest.mark.parametrize("phrasing", list(Phrasing))
+def test_the_oracle_commander_guides_it_to_the_first_target(world, phrasing):
+    maze, graph, rays = world
+    target = ("jar", tuple(maze.objects["jar"]))
+    commander = OracleCommander(graph, rays, [target], phrasing)
+    result = run(DialogDriver(0), commander, _far_start(graph, target[1]), Phase.NAVIGATING, max_moves=300)
+    assert result.success, result.dialog
+    assert result.claims == 1 and result.moves <= 2 * result.shortest
+    assert result.dialog[-1] == ("navigator", "i think i found the jar of blocks")
+
+
+def test_its_inputs_are_percepts_only():
+    assert list(inspect.signature(DialogDriver).parameters) == ["seed"]
+    assert list(inspect.signature(DialogDriver.perceive).parameters) == ["self", "percept"]
+    assert inspect.signature(DialogDriver.perceive).parameters["percept"].annotation in ("Percept", Percept)
+
+
+def _rays(world, pose):
+    _, graph, rays = world
+    return OracleCommander(graph, rays, []).view(pose)
+
+
+def test_while_localized_it_answers_and_turns_in_place_but_does_not_drive_off(world):
+    driver = DialogDriver(0)
+    driver.reset(SeatInfo(Speaker.DRIVER, 3))
+    assert driver.perceive(PhaseChanged(Phase.LOCALIZING, None, 3)) == []
+    pose = Pose(100, 0)
+    assert driver.perceive(Saw(0, _rays(world, pose))) == []
+    answer = driver.perceive(Heard(Speaker.COMMANDER, "what do you see?"))
+    assert len(answer) == 1 and isinstance(answer[0], DoSay) and "ahead" in answer[0].text
+    turns = driver.perceive(Heard(Speaker.COMMANDER, "go forward 3 steps"))
+    assert not any(isinstance(t, DoMove) for t in turns) and "stay here" in turns[0].text
+    # Asked what is behind it, it turns on the spot (never forward) and answers once it has looked.
+    turns = driver.perceive(Heard(Speaker.COMMANDER, "what is behind you?"))
+    heading, said = 0, []
+    for _ in range(12):
+        assert turns and isinstance(turns[0], DoMove) and turns[0].move != Move.FORWARD
+        heading = (heading + (1 if turns[0].move == Move.LEFT else -1)) % 8
+        assert driver.perceive(Moved(turns[0].move, MoveResult.OK)) == []
+        turns = driver.perceive(Saw(1, _rays(world, Pose(100, heading))))
+        said = [t for t in turns if isinstance(t, DoSay)]
+        if said:
+            break
+    assert said and "behind me" in said[0].text and heading == 0
+
+
+def _carry_out(driver, world, pose, text):
+    """The Commander says `text`; the Driver's moves are stepped on the graph until it speaks."""
+    _, graph, _ = world
+    turns = driver.perceive(Heard(Speaker.COMMANDER, text))
+    for _ in range(200):
+        said = [t.text for t in turns if isinstance(t, DoSay)]
+        if said:
+            return pose, said
+        (move,) = [t for t in turns if isinstance(t, DoMove)]
+        action = {Move.FORWARD: Action.FORWARD, Move.LEFT: Action.LEFT, Move.RIGHT: Action.RIGHT}[move.move]
+        pose, collided = step(graph, pose, action)
+        result = MoveResult.COLLISION if collided else MoveResult.OK
+        turns = driver.perceive(Moved(move.move, result)) + driver.perceive(Saw(0, _rays(world, pose)))
+    raise AssertionError("the Driver never spoke")
+
+
+def _room_for(graph, ahead, left):
+    """A pose heading 0 with `ahead` free moves along +x, then `left` along +y."""
+    for node in range(graph.n):
+        n = node
+        for k in range(ahead + left):
+            n = int(graph.forward[n, 0 if k < ahead else 2])
+            if n < 0:
+                break
+        else:
+            return Pose(node, 0)
+    raise AssertionError("no open stretch in the maze")
+
+
+def test_it_goes_back_to_where_it_started_by_its_own_odometry(world):
+    _, graph, _ = world
+    start = _room_for(graph, 3, 2)
+    driver = DialogDriver(0)
+    driver.reset(SeatInfo(Speaker.DRIVER, 3))
+    driver.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3))
+    driver.perceive(Saw(0, _rays(world, start)))
+    pose, said = _carry_out(driver, world, start, "go forward 3 steps, then turn left")
+    pose, said = _carry_out(driver, world, pose, "go forward 2 steps")
+    assert pose.node != start.node and said[0].startswith("ok")
+    pose, said = _carry_out(driver, world, pose, "go back to where you started")
+    assert pose.node == start.node and "back where i started" in said[0], said
+    corner = start.node
+    for _ in range(3):
+        corner = int(graph.forward[corner, 0])
+    pose, said = _carry_out(driver, world, pose, "now go back to where you turned left first")
+    assert pose.node == corner and "back where i turned" in said[0], said
+
+
+def test_it_asks_when_it_bumps_is_rejected_or_does_not_understand(world):
+    _, graph, _ = world
+    start = _room_for(graph, 3, 0)
+    driver = DialogDriver(0)
+    driver.reset(SeatInfo(Speaker.DRIVER, 3))
+    driver.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3))
+    driver.perceive(Saw(0, _rays(world, start)))
+    (said,) = driver.perceive(Heard(Speaker.COMMANDER, "blorp the snark"))
+    assert isinstance(said, DoSay) and said.text.endswith("which way should i go?")
+    (move,) = driver.perceive(Heard(Speaker.COMMANDER, "go forward 3 steps"))
+    assert move == DoMove(Move.FORWARD)
+    (said,) = driver.perceive(Moved(Move.FORWARD, MoveResult.COLLISION))
+    assert said == DoSay("i hit a wall, which way now?")
+    assert driver.perceive(Saw(1, _rays(world, start))) == []  # the rest of the walk is dropped
+    turns = driver.perceive(Heard(Speaker.COMMANDER, "the jar should be right there"))
+    assert turns[-1] == DoClaim()
+    (said,) = driver.perceive(Judged(confirmed=False, target_index=0))
+    assert said.text.endswith("where should i go?")
