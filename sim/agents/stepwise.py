@@ -1,6 +1,6 @@
 """`StepwiseDriver`: the loop of a Driver agent that only moves and claims (the baselines, the
-NDH model): it holds still until the Commander has marked it on the map, then decides one move
-on each frame after its move, and after a claim waits for the Commander's verdict. A subclass
+NDH model): it holds still until the Commander has marked it on the map and it has seen its
+first frame, then decides one move on each frame after its move, and after a claim waits for the Commander's verdict. A subclass
 decides (`decide`: a move, or None to claim) and may note what it perceives (`on_*`)."""
 
 from __future__ import annotations
@@ -38,6 +38,7 @@ class StepwiseDriver:
         self.target_index: int | None = None
         self.dialog: list[tuple[Speaker, str]] = []
         self.rays: RayObservation | None = None
+        self.seen = False  # no frame yet: nothing to drive by (a claim would have no frame either)
         self.moving = False  # a move asked for whose frame has not come yet
         self.claiming = False  # a claim asked for whose verdict has not come yet
         self.named: str | None = None  # the object the Commander named last, of those not found yet
@@ -63,7 +64,7 @@ class StepwiseDriver:
                     self.on_moved(move, result)
                 return []  # the frame after it is next (as it stands, for a move not made)
             case Saw(rays=rays):
-                self.rays, self.moving = rays, False
+                self.rays, self.moving, self.seen = rays, False, True
             case Claimed():
                 self.claiming, self.claimed_name = True, self.named
             case Judged(confirmed=confirmed):
@@ -76,7 +77,7 @@ class StepwiseDriver:
         return self._act()
 
     def _act(self) -> list[Turn]:
-        if self.phase != Phase.NAVIGATING or self.moving or self.claiming:
+        if self.phase != Phase.NAVIGATING or not self.seen or self.moving or self.claiming:
             return []
         move = self.decide()
         if move is not None:

@@ -242,6 +242,11 @@ def test_on_a_virtual_rover_the_agent_sees_rays_perceived_from_its_frames_and_no
             async def command():
                 async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
                     await commander.event("phase", phase="localizing", timeout=START_S)
+                    runtime = services.hub.peek(trial_id)
+                    for _ in range(round(START_S / 0.05)):  # the rover's first frame, as a person waits for it
+                        if runtime.state.last_frame_id is not None:
+                            break
+                        await asyncio.sleep(0.05)
                     begun = len(commander.received)
                     await commander.send("chat", text="what do you see?")
                     await commander.event("chat", role="driver", start=begun, timeout=START_S)
