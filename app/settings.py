@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import ipaddress
 import secrets
 from pathlib import Path
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 
@@ -38,8 +39,13 @@ class Settings(BaseSettings):
     join_link_ttl_s: float | None = (
         None  # a join link opens its seat this long after it is shown; None: until the trial ends
     )
-    login_limit_per_account: str = "5/minute"  # login attempts per account name (`limits` notation)
-    login_limit_per_address: str = "20/minute"  # login attempts per client address
+    # Wrong passwords for one account from one client address (`limits` notation): the guessing
+    # client is locked out, never the account, so an attacker cannot lock a lab out.
+    login_limit_per_account: str = "5/minute"
+    login_limit_per_address: str = "20/minute"  # login attempts per client address (an IPv6 /64)
+    # Proxies (addresses or networks) whose X-Forwarded-For and X-Forwarded-Proto are believed; the
+    # client is the right-most address they did not add. Empty: the socket's peer is the client.
+    trusted_proxies: list[str] = Field(default_factory=list)
     password_check_concurrency: int | None = None  # password hashes computed at once; None: the CPU cores
     overhead_calibration: Path | None = (
         None  # the overhead camera's calibration; default data_dir/overhead_calibration.json
@@ -47,6 +53,18 @@ class Settings(BaseSettings):
     camera_calibration: Path | None = (
         None  # the rovers' front camera (sim.camera.CameraCalibration); default data_dir/camera_calibration.json
     )
+
+    @field_validator("trusted_proxies")
+    @classmethod
+    def _proxies_are_addresses(cls, proxies: list[str]) -> list[str]:
+        for proxy in proxies:
+            try:
+                ipaddress.ip_network(proxy)
+            except ValueError:
+                raise ValueError(
+                    f'trusted proxy {proxy!r} is not an address or network (a "*" would let any client name its address)'
+                ) from None
+        return proxies
 
     @model_validator(mode="after")
     def _default_paths(self) -> Settings:

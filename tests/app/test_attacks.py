@@ -1,0 +1,105 @@
+"""What an independent attacker tried against a running server (issue 27): spoofed client
+addresses, a second Host header, locking a lab out, sockets outliving a logout, forged rover
+frames and a flood of chat. Each test runs a real server on a loopback port."""
+
+from __future__ import annotations
+
+import socket
+
+import httpx
+import pytest
+from pydantic import ValidationError
+
+from app.settings import Settings
+from tests.app.conftest import platform_settings
+from tests.app.live import ServerThread, page_csrf_token, submit_login
+from tests.app.test_security import PASSWORD, add_experimenter
+
+
+def from_address(server, address: str = "127.0.0.1") -> httpx.Client:
+    """A browser at `address`, as far as the server can tell: its socket bound to that loopback
+    address (all of 127.0.0.0/8 reaches this machine). Patient: a login hashes a password."""
+    return httpx.Client(
+        base_url=server.url,
+        follow_redirects=True,
+        headers={"Origin": server.url},
+        transport=httpx.HTTPTransport(local_address=address),
+        timeout=60,
+    )
+
+
+def guesses(client: httpx.Client, names, forwarded_for=None) -> list[int]:
+    """One wrong password per name (the login form, its page's token), with an X-Forwarded-For
+    header per guess from `forwarded_for(i)`; the statuses."""
+    token = page_csrf_token(client.get("/").text)
+    statuses = []
+    for i, name in enumerate(names):
+        headers = {"X-Forwarded-For": forwarded_for(i)} if forwarded_for else {}
+        answer = client.post("/login", data={"name": name, "password": "guess", "csrf_token": token}, headers=headers)
+        statuses.append(answer.status_code)
+        if answer.status_code == 429:
+            break
+    return statuses
+
+
+def logged_in(answer: httpx.Response) -> bool:
+    """The login form's answer led to the dashboard (the home page also lists participants)."""
+    return answer.status_code == 200 and answer.url.path == "/experimenter"
+
+
+# -- client addresses ------------------------------------------------------------------
+def test_a_client_naming_another_address_in_x_forwarded_for_is_still_limited(settings):
+    # No proxy configured: the header is the client's own word, and the socket's peer is the client.
+    with ServerThread(settings) as server:
+        statuses = guesses(from_address(server), [f"nobody{i}" for i in range(200)], lambda i: f"10.1.{i}.{i % 250}")
+    assert statuses[-1] == 429, f"{len(statuses)} guesses, none refused"
+    assert statuses.count(401) == 20  # LOGIN_LIMIT_PER_ADDRESS
+
+
+def test_behind_a_trusted_proxy_the_right_most_address_it_did_not_add_is_the_client(tmp_path):
+    settings = platform_settings(tmp_path, trusted_proxies=["127.0.0.1"])
+    with ServerThread(settings) as server:
+        add_experimenter(server)
+        # nginx appends the address it saw; whatever the client wrote comes before it.
+        statuses = guesses(
+            from_address(server), [f"nobody{i}" for i in range(100)], lambda i: f"10.2.{i}.1, 203.0.113.7"
+        )
+        assert statuses[-1] == 429 and statuses.count(401) == 20
+        # Another client behind the same proxy is not limited by it.
+        other = from_address(server)
+        other.headers["X-Forwarded-For"] = "203.0.113.8"
+        assert logged_in(submit_login(other, "eve", PASSWORD))
+    with pytest.raises(ValidationError, match="not an address or network"):
+        Settings(trusted_proxies=["*"])
+
+
+# -- Host ------------------------------------------------------------------------------
+def raw_status(port: int, headers: list[str]) -> int:
+    """The status line's code for `GET /` with exactly these header lines."""
+    with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
+        s.sendall(("GET / HTTP/1.1\r\n" + "".join(f"{h}\r\n" for h in headers) + "Connection: close\r\n\r\n").encode())
+        reply = b""
+        while b"\r\n" not in reply and (chunk := s.recv(4096)):
+            reply += chunk
+    return int(reply.split(b" ", 2)[1])
+
+
+def test_a_request_with_two_host_headers_is_refused(settings):
+    with ServerThread(settings) as server:
+        own = f"Host: 127.0.0.1:{server.port}"
+        assert raw_status(server.port, [own]) == 200
+        assert raw_status(server.port, [own, "Host: evil.example"]) == 400
+        assert raw_status(server.port, ["Host: evil.example", own]) == 400
+        assert raw_status(server.port, [own, own]) == 400
+
+
+# -- lockout ---------------------------------------------------------------------------
+def test_guessing_locks_out_the_guesser_not_the_experimenter(settings):
+    with ServerThread(settings) as server:
+        add_experimenter(server)
+        attacker = from_address(server, "127.0.0.2")
+        statuses = guesses(attacker, ["eve"] * 10)
+        assert statuses == [401] * 5 + [429]  # LOGIN_LIMIT_PER_ACCOUNT, from that address
+        assert submit_login(attacker, "eve", PASSWORD).status_code == 429
+        # The experimenter, at another address, logs in while the attacker is locked out.
+        assert logged_in(submit_login(from_address(server, "127.0.0.3"), "eve", PASSWORD))
