@@ -24,6 +24,10 @@ class Settings(BaseSettings):
     grace_period_s: float = 120.0  # a disconnected seat may rejoin within this, else the trial aborts
     min_move_interval_s: float = 0.25  # moves closer together than this are refused
     max_message_bytes: int = 4096  # a websocket message larger than this is refused
+    # Messages of one seat recorded per second beyond a burst (moves and pings not counted): a
+    # fast typist never reaches it; a flood gets `rate_limited` replies and stays out of the log.
+    seat_message_rate_per_s: float = Field(default=5.0, gt=0)
+    seat_message_burst: int = Field(default=20, ge=1)
     # How often the interpreter offers the GIL to another thread (Python's default: 5 ms). The
     # render, JPEG and particle-filter threads would otherwise hold it from the event loop for
     # whole slices: at 200 trials, move-to-frame p99 42-63 ms at 1 ms against 56-83 ms at 5 ms (bench.load).

@@ -4,16 +4,20 @@ frames and a flood of chat. Each test runs a real server on a loopback port."""
 
 from __future__ import annotations
 
+import asyncio
 import socket
+import time
 
 import httpx
 import pytest
 from pydantic import ValidationError
 
 from app.settings import Settings
+from bench.live import SeatClient, make_trial
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread, page_csrf_token, submit_login
 from tests.app.test_security import PASSWORD, add_experimenter
+from tests.app.trial_play import start_trial
 
 
 def from_address(server, address: str = "127.0.0.1") -> httpx.Client:
@@ -103,3 +107,53 @@ def test_guessing_locks_out_the_guesser_not_the_experimenter(settings):
         assert submit_login(attacker, "eve", PASSWORD).status_code == 429
         # The experimenter, at another address, logs in while the attacker is locked out.
         assert logged_in(submit_login(from_address(server, "127.0.0.3"), "eve", PASSWORD))
+
+
+# -- a flood of chat -------------------------------------------------------------------
+def test_a_flood_of_chat_from_one_seat_is_rate_limited_and_nothing_accepted_is_lost(settings):
+    flood = 1000
+    with ServerThread(settings) as server:
+        trial_id = make_trial(server.services, server.services.mazes.names()[0])
+        tokens = {r: server.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+
+        async def attack() -> tuple[list[dict], list[dict], float]:
+            async with (
+                SeatClient(server.ws_url, tokens["commander"]) as commander,
+                SeatClient(server.ws_url, tokens["driver"]) as driver,
+            ):
+                await start_trial(commander, driver)
+                start, began = len(commander.received), time.monotonic()
+                for i in range(flood):
+                    await commander.send("chat", text=f"flood {i}")
+                took_s = time.monotonic() - began
+                await commander.send("chat", text="last of the flood")
+                deadline = time.monotonic() + 60
+                while len(refused(commander.received[start:])) + len(chats(server, trial_id)) < flood + 1:
+                    assert time.monotonic() < deadline, "not every message was answered or recorded"
+                    await asyncio.sleep(0.1)
+                await asyncio.sleep(0.5)  # the bucket refills; the partner hears what was accepted
+                await commander.send("chat", text="after the flood")
+                await driver.event("chat", text="after the flood")
+                return commander.received[start:], driver.received, took_s
+
+        to_commander, to_driver, took_s = asyncio.run(attack())
+    logged = chats(server, trial_id)
+    flood_logged = [text for text in logged if text.startswith("flood ")]
+    errors = refused(to_commander)
+    assert errors and all(e["error"].startswith("too many messages") and e["retry_after_s"] > 0 for e in errors)
+    # Every message sent was either recorded or refused, the refused ones are not in the log, and
+    # at most the burst and the rate over the flood's duration were recorded.
+    assert len(flood_logged) + len(errors) == flood + ("last of the flood" not in logged)
+    assert len(flood_logged) <= settings.seat_message_burst + settings.seat_message_rate_per_s * (took_s + 1)
+    assert flood_logged == sorted(flood_logged, key=lambda t: int(t.split()[1]))
+    # The partner heard exactly what was recorded, in order, and the seat still speaks.
+    heard = [m["payload"]["text"] for m in to_driver if m.get("type") == "event" and m["kind"] == "chat"]
+    assert heard == logged and logged[-1] == "after the flood"
+
+
+def chats(server, trial_id: int) -> list[str]:
+    return [e.payload["text"] for e in server.services.log.load(trial_id) if e.kind == "chat"]
+
+
+def refused(messages: list[dict]) -> list[dict]:
+    return [m for m in messages if m.get("type") == "error" and m.get("code") == "rate_limited"]
