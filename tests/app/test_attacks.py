@@ -5,17 +5,35 @@ frames and a flood of chat. Each test runs a real server on a loopback port."""
 from __future__ import annotations
 
 import asyncio
+import json
+import os
+import random
 import socket
+import subprocess
+import sys
 import time
+from pathlib import Path
 
+import cv2
 import httpx
+import numpy as np
 import pytest
+import websockets
 from pydantic import ValidationError
 
 from app.settings import Settings
-from bench.live import SeatClient, make_trial
+from bench.live import REPO, SeatClient, make_trial
+from robot_client.protocol import pack_frame
 from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread, page_csrf_token, submit_login
+from tests.app.live import (
+    ServerThread,
+    experimenter_client,
+    log_in,
+    page_csrf_token,
+    session_cookie,
+    submit_login,
+)
+from tests.app.test_reliability import Rover, rover_trial
 from tests.app.test_security import PASSWORD, add_experimenter
 from tests.app.trial_play import start_trial
 
@@ -157,3 +175,97 @@ def chats(server, trial_id: int) -> list[str]:
 
 def refused(messages: list[dict]) -> list[dict]:
     return [m for m in messages if m.get("type") == "error" and m.get("code") == "rate_limited"]
+
+
+# -- forged rover frames ---------------------------------------------------------------
+def test_a_forged_rover_frame_is_refused_and_nothing_of_it_is_recorded(settings):
+    with ServerThread(settings) as server:
+        trial_id, rover_token = rover_trial(server.services)
+        tokens = {r: server.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+        forgeries = {
+            "not a JPEG": b"\xff\xd8" + random.Random(27).randbytes(20_000) + b"\xff\xd9",
+            "but the JPEG is 8x8": cv2.imencode(".jpg", np.zeros((8, 8, 3), np.uint8))[1].tobytes(),
+        }
+
+        async def play() -> tuple[list[dict], list[dict]]:
+            async with (
+                Rover(server.ws_url, rover_token) as rover,
+                SeatClient(server.ws_url, tokens["commander"]) as commander,
+                SeatClient(server.ws_url, tokens["driver"]) as driver,
+            ):
+                await start_trial(commander, driver)
+                await rover.frame(1, rover.now())
+                await driver.event("frame")
+                for seq, payload in enumerate(forgeries.values(), start=2):
+                    await rover.ws.send(pack_frame(seq, rover.now(), 320, 240, payload))
+                    deadline = time.monotonic() + 10
+                    while len(rover.errors) < seq - 1:
+                        assert time.monotonic() < deadline, "the forged frame got no error reply"
+                        await asyncio.sleep(0.05)
+                seen = len(driver.received)
+                await rover.frame(4, rover.now())  # the link is up: a real frame is still recorded
+                await driver.event("frame", start=seen)
+                return rover.errors, driver.received
+
+        errors, to_driver = asyncio.run(play())
+        events = server.services.log.load(trial_id)
+    assert [e["code"] for e in errors] == ["bad_message"] * 2
+    for error, expected in zip(errors, forgeries, strict=True):
+        assert expected in error["error"], error
+    bad = [e for e in events if e.kind == "bad_message"]
+    assert [e.payload["role"] for e in bad] == ["robot"] * 2 and [e.payload["error"] for e in bad] == [
+        e["error"] for e in errors
+    ]
+    frames = [e for e in events if e.kind == "frame"]
+    assert len(frames) == 2 and len([m for m in to_driver if m.get("kind") == "frame"]) == 2
+    assert sorted(p.name for p in settings.frames_dir.rglob("*.jpg")) == sorted(
+        Path(e.payload["path"]).name for e in frames
+    )
+
+
+# -- sockets after logout --------------------------------------------------------------
+def test_an_experimenters_watch_sockets_close_at_logout_and_at_a_password_change(settings):
+    env = {"ROBOTSLANG_DATA_DIR": str(settings.data_dir), "ROBOTSLANG_SECRET_KEY": settings.secret_key}
+    with ServerThread(settings) as server:
+        trial_id = make_trial(server.services, server.services.mazes.names()[0])
+        tokens = {r: server.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+        experimenter = experimenter_client(server.services, server.url)
+
+        async def watch_until_closed(end_login) -> tuple[list[str], int]:
+            """A watch opened while logged in: what it heard, and its close code after `end_login`."""
+            async with websockets.connect(
+                f"ws://127.0.0.1:{server.port}/ws/watch/{trial_id}",
+                additional_headers={"Cookie": session_cookie(experimenter)},
+            ) as watch:
+                assert json.loads(await watch.recv())["type"] == "welcome"
+                async with SeatClient(server.ws_url, tokens["commander"]) as commander:
+                    await commander.send("chat", text="before")
+                    heard = [await asyncio.wait_for(watch.recv(), 10)]
+                    while '"before"' not in heard[-1]:
+                        heard.append(await asyncio.wait_for(watch.recv(), 10))
+                    await asyncio.to_thread(end_login)
+                    await commander.send("chat", text="after")
+                    with pytest.raises(websockets.ConnectionClosed) as closed:
+                        while True:
+                            heard.append(await asyncio.wait_for(watch.recv(), 10))
+                return heard, closed.value.rcvd.code
+
+        heard, code = asyncio.run(watch_until_closed(lambda: experimenter.post("/logout")))
+        assert code == 4401 and not any('"after"' in m for m in heard)
+        experimenter = log_in(server.url, "eve", PASSWORD)
+
+        def change_password() -> None:
+            done = subprocess.run(
+                [sys.executable, "-c", "from app.cli import main; main()", "admin", "password", "eve"]
+                + ["--password", "a new horse"],
+                env={**os.environ, **env},
+                cwd=REPO,
+                capture_output=True,
+                text=True,
+                timeout=120,
+            )
+            assert done.returncode == 0, done.stderr
+
+        # From another process: the socket's own check sees the login gone within a second.
+        _, code = asyncio.run(watch_until_closed(change_password))
+        assert code == 4401
