@@ -42,6 +42,7 @@ if TYPE_CHECKING:
     from app.services import Services
 
 logger = logging.getLogger(__name__)
+AWAY_MARK_S = 1.0  # how much of a participant's time away a crash can lose from the grace period
 
 
 class UnknownTrial(LookupError):
@@ -58,6 +59,7 @@ class TrialRuntime:
         self.seats: dict[str, Connection] = {}
         self.watchers: set[Connection] = set()  # the experimenter's live views
         self._grace: dict[Role, asyncio.TimerHandle] = {}
+        self._away_marks: asyncio.Task[None] | None = None  # `still_away` events while anyone is away
         self._tasks: set[asyncio.Task[Any]] = set()
         self._status: dict[str, Any] | None = None  # the last status sent, less the clock
         self._ending = False
@@ -221,6 +223,17 @@ class TrialRuntime:
         for role in away:
             if role not in self._grace:
                 self._grace[role] = loop.call_later(self._grace_left_s(role), self._grace_expired, role)
+        if away and (self._away_marks is None or self._away_marks.done()):
+            self._away_marks = self._spawn(self._mark_time_away())
+
+    async def _mark_time_away(self) -> None:
+        """A restart knows when the server was last up only from the log: while anyone is away,
+        note it every `AWAY_MARK_S`, so their time away before a crash still counts."""
+        while True:
+            await asyncio.sleep(AWAY_MARK_S)
+            if not self.state.away:
+                return
+            self.apply(d.Note(ev.StillAway(roles=sorted(self.state.away))))
 
     def _grace_left_s(self, role: Role) -> float:
         gone = self.state.away[role].away_ns(self.services.clock.now_ns())

@@ -21,8 +21,10 @@ import pytest
 import websockets
 from pydantic import ValidationError
 
+from app.main import build_services
 from app.settings import Settings
-from bench.live import REPO, SeatClient, make_trial
+from app.trial.state import fold
+from bench.live import REPO, SeatClient, ServerProcess, make_trial
 from robot_client.protocol import pack_frame
 from tests.app.conftest import platform_settings
 from tests.app.live import (
@@ -269,3 +271,49 @@ def test_an_experimenters_watch_sockets_close_at_logout_and_at_a_password_change
         # From another process: the socket's own check sees the login gone within a second.
         _, code = asyncio.run(watch_until_closed(change_password))
         assert code == 4401
+
+
+# -- grace after a crash ---------------------------------------------------------------
+@pytest.mark.slow
+def test_after_a_crash_a_participant_away_before_it_keeps_only_the_grace_that_remained(tmp_path):
+    grace_s, away_before_crash_s = 12.0, 4.1
+    settings = platform_settings(tmp_path, grace_period_s=grace_s)
+    services = build_services(settings)
+    trial_id = make_trial(services, services.mazes.names()[0])
+    tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+    env = {
+        "ROBOTSLANG_DATA_DIR": str(settings.data_dir),
+        "ROBOTSLANG_SECRET_KEY": settings.secret_key,
+        "ROBOTSLANG_GRACE_PERIOD_S": str(grace_s),
+    }
+    server = ServerProcess(env).start()
+    try:
+
+        async def until_the_crash() -> None:
+            async with SeatClient(server.ws_url, tokens["commander"]) as commander:
+                async with SeatClient(server.ws_url, tokens["driver"]) as driver:
+                    await start_trial(commander, driver)
+                await commander.event("disconnect", role="driver")
+                await asyncio.sleep(away_before_crash_s)
+                server.kill()
+
+        asyncio.run(until_the_crash())
+        server.start()  # reopens the running trial, and its grace timers, at once
+        deadline = time.monotonic() + 3 * grace_s
+        while fold(events := services.log.load(trial_id)).phase != "aborted":
+            assert time.monotonic() < deadline, "the trial never aborted"
+            time.sleep(0.2)
+    finally:
+        server.stop()
+        services.engine.dispose()
+    left_driver = next(e.t_ns for e in events if e.kind == "disconnect" and e.payload["role"] == "driver")
+    restarted = next(e.t_ns for e in events if e.kind == "restarted")
+    aborted = events[-1].t_ns
+    assert events[-1].kind == "phase" and events[-1].payload["phase"] == "aborted"
+    # The Driver's grace ran on from where it was at the crash (the log notes it every second
+    # while they are away), not afresh; the Commander's, begun at the restart, is the longer.
+    grace_after_restart_s = (aborted - restarted) / 1e9
+    away_logged_s = (max(e.t_ns for e in events if e.t_ns < restarted) - left_driver) / 1e9
+    assert away_before_crash_s - 1.2 <= away_logged_s <= away_before_crash_s + 0.5
+    remained_s = grace_s - away_logged_s
+    assert remained_s - 0.1 <= grace_after_restart_s <= remained_s + 1.0  # a busy loop fires timers late
