@@ -2,7 +2,8 @@
 
 A payload that merely starts with FF D8 would be stored, counted as the Driver's view and
 exported. The walk over the segments is cheap and names what is wrong; the decode (at an eighth
-of the size, grey: about 0.5 ms for 640x480) proves the rest is an image.
+of the size, grey: 3 ms for a 40 KB 640x480 frame on the loaded 2-core machine, in a worker
+thread) proves the rest is an image.
 """
 
 from __future__ import annotations
