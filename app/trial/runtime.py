@@ -438,20 +438,25 @@ class TrialRuntime:
             self.report_bad_message(Role(role), error)
 
     def _within_rate(self, conn: Connection, role: str) -> bool:
-        """Whether a seat's message may be recorded now; else it gets the `rate_limited` reply,
-        and neither the log nor the other seat hears of it."""
+        """Whether a seat's message may be recorded now; else neither the log nor the other seat
+        hears of it, and the first of a run of such messages gets the `rate_limited` reply (one
+        reply each would flood the sender's own socket)."""
         throttle = self._throttles.get(role)
         if throttle is None:
             throttle = self._throttles[role] = Throttle(
                 self.settings.seat_message_rate_per_s, self.settings.seat_message_burst
             )
         wait_s = throttle.take()
-        if wait_s:
+        if not wait_s:
+            throttle.told = False
+        elif not throttle.told:
+            throttle.told = True
             conn.deliver(
                 {
                     "type": "error",
                     "code": "rate_limited",
-                    "error": f"too many messages at once (at most {throttle.rate_per_s:g} a second); this one was not sent",
+                    "error": f"too many messages at once (at most {throttle.rate_per_s:g} a second); "
+                    "this one and any more before the pause were not sent",
                     "retry_after_s": math.ceil(wait_s * 1000) / 1000,
                 }
             )

@@ -17,6 +17,7 @@ class Throttle:
         self._now = now
         self._tokens = float(burst)
         self._at = now()
+        self.told = False  # whether the seat was told of the messages refused since the last one taken
 
     def take(self) -> float:
         """0 when the message may go ahead (and counts), else the seconds until one may."""
