@@ -3,8 +3,8 @@
 The token is checked at the upgrade and again on every message (`TrialRuntime.receive`); the
 watch socket needs the experimenter's login cookie, only listens, and is closed (4401) when
 that login ends: at once at a logout here, within `LOGIN_RECHECK_S` of one elsewhere or of a
-password change. The trial may run in this process or, with Redis, in
-another (`app.trial.relay`).
+password change. The trial may run in this process or, with Redis, in another
+(`app.trial.relay`).
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ logger = logging.getLogger(__name__)
 OUTBOX_LIMIT = 512  # messages waiting for a slow browser before it is dropped
 LOGIN_RECHECK_S = 1.0  # how often a watch socket checks that its login still stands
 LOGGED_OUT = 4401  # the close code of a watch socket whose login ended
-CLOSE_WAIT_S = 5.0
+CLOSE_WAIT_S = 5.0  # how long a logged-out watch waits for the browser to answer its close
 
 
 class SocketSeat:
