@@ -107,8 +107,8 @@ class HostNames:
 
 
 class GuardMiddleware:
-    """Refuses a request without exactly one known Host header, adds the security headers to every response and gives each
-    browser its id cookie (in `request.state.browser_id`)."""
+    """Refuses a request without exactly one known Host header, adds the security headers to
+    every response and gives each browser its id cookie (in `request.state.browser_id`)."""
 
     def __init__(self, app: ASGIApp, settings: Settings) -> None:
         self.app = app

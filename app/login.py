@@ -5,8 +5,9 @@ whole) and per account name from that address (a moving window, `limits`: in Red
 processes share one, so an attacker gains nothing by spreading attempts over them; else in this
 process's memory); an attempt counts until it succeeds, which clears its client's count for the
 account. The guessing client is locked out, never the account: an attacker's guesses cannot keep
-the experimenter, at another address, from logging in. Password hashes are computed in worker threads, at most `concurrency` at once, so a burst
-of logins queues instead of taking every thread and hundreds of megabytes of hash memory.
+the experimenter, at another address, from logging in. Password hashes are computed in worker
+threads, at most `concurrency` at once, so a burst of logins queues instead of taking every
+thread and hundreds of megabytes of hash memory.
 An unknown name is checked against a dummy hash, so it costs what a known one costs.
 """
 

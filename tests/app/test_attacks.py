@@ -98,6 +98,19 @@ def test_behind_a_trusted_proxy_the_right_most_address_it_did_not_add_is_the_cli
         Settings(trusted_proxies=["*"])
 
 
+def test_serve_refuses_uvicorns_forwarded_allow_ips(tmp_path):
+    # Compose files once trusted every client with FORWARDED_ALLOW_IPS="*": now a start that fails.
+    done = subprocess.run(
+        [sys.executable, "-c", "from app.cli import main; main()", "serve", "--port", "1"],
+        env={**os.environ, "FORWARDED_ALLOW_IPS": "*", "ROBOTSLANG_DATA_DIR": str(tmp_path)},
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode != 0 and "ROBOTSLANG_TRUSTED_PROXIES" in done.stderr
+
+
 # -- Host ------------------------------------------------------------------------------
 def raw_status(port: int, headers: list[str]) -> int:
     """The status line's code for `GET /` with exactly these header lines."""
