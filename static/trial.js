@@ -106,6 +106,7 @@ const ERRORS = [
   [/cannot mark the robot while/, "You can mark the robot once the trial has started."],
   [/the trial is (finished|aborted)/, "The trial is over."],
   [/bytes; the limit is|at most \d+ characters|string_too_long/, "That message is too long. Please shorten it."],
+  [/too many messages/, "Slow down: that was not sent. Wait a moment and send it again."],
   [/token|seat/, "This link no longer works. Ask the experimenter for a new one."],
   [/server restart/, "The server restarted. Please try again."],
 ];

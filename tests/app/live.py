@@ -64,7 +64,8 @@ def page_csrf_token(page: str) -> str:
 
 def browser(base_url: str) -> httpx.Client:
     """A client that sends this server's Origin, as a browser does on the server's own pages."""
-    return httpx.Client(base_url=base_url, follow_redirects=True, headers={"Origin": base_url})
+    # Patient: on a loaded 2-core machine a first dashboard render has taken 5 s.
+    return httpx.Client(base_url=base_url, follow_redirects=True, headers={"Origin": base_url}, timeout=60)
 
 
 def submit_login(client: httpx.Client, name: str, password: str) -> httpx.Response:
