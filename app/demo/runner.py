@@ -57,7 +57,7 @@ class Demo:
 
     def create_trial(self) -> Trial:
         """A fresh demo team (so any maze is new to it) and a trial on its least-used maze."""
-        names = self.mazes.names()
+        layouts = self.mazes.layouts()
         with self.db.begin() as db:
             k = db.scalar(select(func.count()).select_from(Team).where(Team.name.like("demo team %"))) + 1
             while db.scalar(select(Team.id).where(Team.name == DEMO_TEAM.format(k=k))) is not None:
@@ -65,7 +65,7 @@ class Demo:
             a = create_participant(db, f"demo commander {k}")
             b = create_participant(db, f"demo driver {k}")
             team = create_team(db, DEMO_TEAM.format(k=k), a.id, b.id)
-            maze = suggest_maze(db, team, names)
+            maze = suggest_maze(db, team, layouts)
             if maze is None:
                 raise DemoError("the maze library is empty: no maze to run a demo trial in")
             return create_trial(
@@ -76,7 +76,7 @@ class Demo:
                 backend="sim",
                 driver="human",
                 commander_id=a.id,
-                maze_names=names,
+                layouts=layouts,
                 now_ns=ServerClock().now_ns(),
             )
 

@@ -65,8 +65,8 @@ def dashboard(request: Request, error: str | None = None):
         rovers = db.scalars(select(Robot).where(Robot.role == Role.DRIVER).order_by(Robot.name)).all()
         names = {p.id: p.name for p in participants}
         team_names = {t.id: t.name for t in teams}
-        maze_names = services.mazes.names()
-        suggestions = {t.id: suggest_maze(db, t, maze_names) for t in teams}
+        layouts = services.mazes.layouts()
+        suggestions = {t.id: suggest_maze(db, t, layouts) for t in teams}
     # The robot seat: the simulator or a registered rover, by the trial's backend spec.
     backends = {"sim": "simulator", **{f"robot:{r.id}": f"{r.name} (rover)" for r in rovers}}
     return render(
@@ -77,7 +77,7 @@ def dashboard(request: Request, error: str | None = None):
         trials=trials,
         names=names,
         team_names=team_names,
-        mazes=maze_names,
+        layouts=layouts,
         suggestions=suggestions,
         backends=backends,
         agents=agent_drivers(services),
@@ -123,7 +123,7 @@ def add_trial(
     commander_id: int | None = Form(None),
 ):
     services = request.app.state.services
-    names = services.mazes.names()
+    layouts = services.mazes.layouts()
     try:
         if team_id is None:
             raise TrialSetupError("choose a team (form one first)")
@@ -131,9 +131,9 @@ def add_trial(
             team = db.get(Team, team_id)
             if team is None:
                 raise TrialSetupError(f"team {team_id} does not exist")
-            maze = maze or suggest_maze(db, team, names) or ""
+            maze = maze or suggest_maze(db, team, layouts) or ""
             if not maze:
-                raise TrialSetupError(f"team {team.name!r} has seen every maze in the library")
+                raise TrialSetupError(f"team {team.name!r} has seen every layout in the library")
             create_trial(
                 db,
                 team_id=team_id,
@@ -142,7 +142,7 @@ def add_trial(
                 backend=backend,
                 driver=driver,
                 commander_id=commander_id,
-                maze_names=names,
+                layouts=layouts,
                 now_ns=services.clock.now_ns(),
                 agents=available_drivers(services),
             )
