@@ -15,6 +15,7 @@ from app.db.models import Participant, Robot, Team, Trial
 from app.drivers.registry import available_drivers
 from app.guard import csrf_protect, current_login
 from app.routes.pages import render, trial_or_404
+from app.trial.lifecycle import Refused, delete_participant, delete_robot, delete_team, exclude_trial
 from app.trial.setup import TrialSetupError, create_participant, create_team, create_trial, parse_targets, suggest_maze
 from app.trial.state import fold
 from app.trial.vocabulary import Role
@@ -149,6 +150,43 @@ def add_trial(
     except TrialSetupError as err:
         return _redirect(str(err))
     return _redirect()
+
+
+@router.delete("/participants/{participant_id}")
+def remove_participant(request: Request, participant_id: int) -> dict:
+    return _delete(request, lambda db: delete_participant(db, participant_id))
+
+
+@router.delete("/teams/{team_id}")
+def remove_team(request: Request, team_id: int) -> dict:
+    return _delete(request, lambda db: delete_team(db, team_id))
+
+
+@router.delete("/robots/{robot_id}")
+def remove_robot(request: Request, robot_id: int) -> dict:
+    connected = any(r["id"] == robot_id and r["connected"] for r in robot_links(request.app.state.services).status())
+    return _delete(request, lambda db: delete_robot(db, robot_id, connected))
+
+
+def _delete(request: Request, delete) -> dict:
+    """One `lifecycle.delete_*` in a transaction; 409 naming why when it is refused."""
+    try:
+        with request.app.state.services.db.begin() as db:
+            delete(db)
+    except Refused as err:
+        raise HTTPException(409, str(err)) from None
+    return {"deleted": True}
+
+
+@router.post("/trials/{trial_id}/exclude")
+def exclude(request: Request, trial_id: int, reason: str = Form("", max_length=2000), back: str = Form("dashboard")):
+    """Set an ended trial aside from the leaderboard and exports, with a reason (its log is kept)."""
+    try:
+        with request.app.state.services.db.begin() as db:
+            exclude_trial(db, trial_id, reason)
+    except Refused as err:
+        return _redirect(str(err))
+    return RedirectResponse(f"/experimenter/trials/{trial_id}/replay" if back == "replay" else "/experimenter", 303)
 
 
 @router.post("/trials/{trial_id}/{action}")

@@ -13,6 +13,7 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Event, Participant, Robot, Team, Trial
 from app.trial.events import TrialCreated
+from app.trial.lifecycle import live_trial_of
 from app.trial.vocabulary import Phase, Role
 from sim.labels import OBJECTS
 
@@ -85,6 +86,12 @@ def create_trial(
     team = db.get(Team, team_id)
     if team is None:
         raise TrialSetupError(f"team {team_id} does not exist")
+    live = live_trial_of(db, (team.member_a_id, team.member_b_id))
+    if live is not None:
+        raise TrialSetupError(
+            f"team {team.name!r}: a member is in trial {live.id}, which is {live.phase}; a participant "
+            f"is in one live trial at a time (let it finish, or abort it)"
+        )
     if maze not in layouts:
         raise TrialSetupError(f"maze {maze!r} is not in the library")
     played = layouts_seen(db, team, layouts).get(layouts[maze])

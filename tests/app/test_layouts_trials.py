@@ -27,7 +27,7 @@ def small_benchmark(benchmark_path, tmp_path):
 
 
 def _error(page: str) -> str:
-    found = re.search(r'<p class="error" role="alert">(.*?)</p>', page)
+    found = re.search(r'<p class="error" role="alert" id="error">(.*?)</p>', page)
     return html.unescape(found.group(1)) if found else ""
 
 
