@@ -36,6 +36,9 @@ def load_trial(session: Session, settings: Settings, trial_id: int | str) -> Tri
             "backend": trial.backend,
             "driver": trial.driver,
             "phase": trial.phase,
+            # Seats by participant id (a pseudonym: names stay in the database).
+            "commander": f"participant {trial.commander_id}" if trial.commander_id is not None else "",
+            "driver_seat": f"participant {trial.driver_id}" if trial.driver_id is not None else trial.driver,
             **({"excluded": trial.excluded_reason} if trial.excluded_reason is not None else {}),
             "created_at": trial.created_at.isoformat() if trial.created_at else "",
         },

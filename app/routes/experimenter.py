@@ -50,6 +50,12 @@ def controls_for(phase: str, paused: list[str] | tuple[str, ...] = ()) -> list[s
     return ["resume" if "experimenter" in paused else "pause", "abort"]
 
 
+def seat_holders(trial: Trial, names: dict[int, str]) -> dict[str, str]:
+    """Who holds each seat: the participant's name, or the agent that drives."""
+    driver = names.get(trial.driver_id, "") if trial.driver_id is not None else trial.driver
+    return {Role.COMMANDER: names.get(trial.commander_id or 0, ""), Role.DRIVER: driver}
+
+
 def join_links(request: Request, trial: Trial) -> dict[str, str]:
     seats = request.app.state.services.seats
     roles = [Role.COMMANDER] + ([Role.DRIVER] if trial.driver == "human" else [])
@@ -85,6 +91,7 @@ def dashboard(request: Request, error: str | None = None):
         controls_for=controls_for,
         robots=robot_links(services).status(),
         links={t.id: join_links(request, t) for t in trials},
+        holders={t.id: seat_holders(t, names) for t in trials},
         error=error,
     )
 
@@ -225,12 +232,15 @@ def live(request: Request):
 def watch(request: Request, trial_id: int):
     trial = trial_or_404(request, trial_id)
     state = fold(request.app.state.services.log.load(trial_id))
+    with request.app.state.services.db() as db:
+        names = dict(db.execute(select(Participant.id, Participant.name)).tuples().all())
     return render(
         request,
         "watch.html",
         trial=trial,
         state=state,
         links=join_links(request, trial),
+        holders=seat_holders(trial, names),
         controls=controls_for(state.phase, sorted(state.pause_reasons)),
     )
 

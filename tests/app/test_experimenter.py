@@ -77,6 +77,7 @@ def test_experimenter_forms_make_a_trial_with_join_links(settings):
         page = client.post("/experimenter/trials", data={"team_id": 1, "targets": "mug,jar,paddle"}).text
         links = dict(re.findall(r'class="join-(\w+)" href="([^"]+)"', page))
         assert set(links) == {"commander", "driver"}
+        assert "Commander Ada · Driver Ben" in page and ">commander (Ada)</a>" in page and ">driver (Ben)</a>" in page
         assert "Commander" in client.get(links["commander"]).text
         page = client.post("/experimenter/trials", data={"team_id": 1, "targets": "mug,mug,jar"}).text
         assert "give each of jar, mug, paddle once" in page

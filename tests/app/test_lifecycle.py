@@ -147,3 +147,5 @@ def test_export_all_includes_aborted_trials_with_the_targets_they_confirmed(sett
         for i in json.loads((out / "NDH-data" / f"{split}.json").read_text())
     ]
     assert [i["target"] for i in instances] == ["jar"], "the confirmed target of the aborted trial is exported"
+    with_seats = {"commander": "participant 1", "driver": "participant 2"}  # ids: names stay in the database
+    assert instances[0]["seats"] == with_seats

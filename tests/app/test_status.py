@@ -12,9 +12,20 @@ from app.db.models import Experimenter
 from app.security import SESSION_COOKIE, hash_password
 from bench.live import SeatClient, make_trial
 from tests.app.live import ServerThread
-from tests.app.trial_play import move, start_trial
+from tests.app.trial_play import claim_and_decide, drive_to_target, move, start_trial
 
-FIELDS = {"type", "phase", "target_index", "targets_total", "elapsed_s", "running", "moves", "paused", "waiting_for"}
+FIELDS = {
+    "type",
+    "phase",
+    "target_index",
+    "targets_total",
+    "elapsed_s",
+    "running",
+    "moves",
+    "paused",
+    "waiting_for",
+    "claim_pending",
+}
 
 
 def statuses(client) -> list[dict]:
@@ -96,3 +107,26 @@ def test_the_watch_socket_needs_the_experimenter_login(settings):
             with pytest.raises(websockets.InvalidStatus) as refused:
                 asyncio.run(attempt(cookie))
             assert refused.value.response.status_code == 403
+
+
+def test_a_pending_claim_is_in_the_status_until_the_commander_decides(settings):
+    with ServerThread(settings) as server:
+        services = server.services
+        trial_id = make_trial(services, services.mazes.names()[0])
+        tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+
+        async def play():
+            async with (
+                SeatClient(server.ws_url, tokens["commander"]) as commander,
+                SeatClient(server.ws_url, tokens["driver"]) as driver,
+            ):
+                await start_trial(commander, driver)
+                await commander.send("localize", x=1.2, y=1.0, heading=0.5)
+                await driver.event("phase", phase="navigating", target_index=0)
+                await drive_to_target(services, trial_id, driver)
+                start = len(driver.received)
+                await claim_and_decide(commander, driver, confirm=False)
+                await driver.wait_for(lambda m: m.get("type") == "status" and not m["claim_pending"], start=start)
+                return [m["claim_pending"] for m in statuses(driver)[-2:]]
+
+        assert asyncio.run(play()) == [True, False], "the claim shows as pending, then as decided"
