@@ -33,6 +33,7 @@ from app.trial.port import Connection
 from app.trial.state import TrialState, fold
 from app.trial.views import EXPERIMENTER, status_of, view
 from app.trial.vocabulary import PARTICIPANTS, FrameSource, MoveAction, Outcome, Phase, PoseSource, Role
+from sim.geometry import wrap_angle
 
 if TYPE_CHECKING:
     from app.drivers.seat import AgentSeat
@@ -237,7 +238,7 @@ class TrialRuntime:
     def record_pose(self, pose: tuple[float, float, float]) -> None:
         x, y, theta = pose
         source = PoseSource.SIM if self.state.backend == "sim" else PoseSource.TRACKER
-        self.apply(d.Note(ev.PoseSampled(x=x, y=y, heading=theta, source=source)))
+        self.apply(d.Note(ev.PoseSampled(x=x, y=y, heading=wrap_angle(theta), source=source)))
 
     async def _pump_frames(self, backend: RobotBackend) -> None:
         async for frame in backend.frames():

@@ -4,11 +4,12 @@ the Driver's camera and the true pose, which no participant's view changes for."
 from __future__ import annotations
 
 import asyncio
+import math
 
 import pytest
 import websockets
 
-from app.db.models import Experimenter
+from app.db.models import Event, Experimenter
 from app.security import SESSION_COOKIE, hash_password
 from bench.live import SeatClient, make_trial
 from tests.app.live import ServerThread
@@ -130,3 +131,9 @@ def test_a_pending_claim_is_in_the_status_until_the_commander_decides(settings):
                 return [m["claim_pending"] for m in statuses(driver)[-2:]]
 
         assert asyncio.run(play()) == [True, False], "the claim shows as pending, then as decided"
+        # Poses are recorded with headings in (-pi, pi] (to the event's 1 mrad), as the rover's tracker gives them.
+        with services.db() as db:
+            headings = {
+                round(e.payload["heading"], 3) for e in db.query(Event).filter_by(trial_id=trial_id, kind="pose")
+            }
+        assert len(headings) > 2 and all(-math.pi < h <= round(math.pi, 3) for h in headings), headings
