@@ -77,11 +77,13 @@ def _library(benchmark: Path | None, extra: list[Path]) -> MazeLibrary:
 def list_mazes(
     benchmark: Path | None = BENCHMARK_OPTION,
     extra: list[Path] = typer.Option([], "--dir", help="A folder of mazes to include (repeatable)."),
+    with_layouts: bool = typer.Option(False, "--layouts", help="Add each maze's physical layout (a third column)."),
 ) -> None:
-    """Every maze name with where it comes from."""
+    """Every maze name with where it comes from (and its layout)."""
     library = _library(benchmark, extra)
+    of = layout_of(library.layouts()) if with_layouts else {}
     for name in library.names():
-        typer.echo(f"{name}\t{library.source(name)}")
+        typer.echo(f"{name}\t{library.source(name)}" + (f"\t{of[name]}" if with_layouts else ""))
 
 
 @app.command("layouts")

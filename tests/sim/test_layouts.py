@@ -65,6 +65,9 @@ def test_mazes_layouts_prints_every_bundled_maze_once_as_json():
     runs = [run for layout in layouts for run in layout["runs"]]
     assert sorted(runs) == MazeLibrary().names()
     assert all(layout["id"] == layout["runs"][0] for layout in layouts)
+    listed = CliRunner(env={"ROBOTSLANG_BENCHMARK": None}).invoke(root, ["mazes", "list", "--layouts"])
+    of = {run: layout["id"] for layout in layouts for run in layout["runs"]}
+    assert listed.output.splitlines() == [f"{name}\tbundled\t{of[name]}" for name in MazeLibrary().names()]
 
 
 def test_benchmark_runs_of_one_table_are_one_layout_and_the_layout_count_is_printed(benchmark_path, capsys):
