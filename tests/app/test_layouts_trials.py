@@ -54,11 +54,11 @@ def test_a_team_that_played_a_layout_is_never_offered_it_again(tmp_path, small_b
             assert _error(page) == (f"maze '{twin}' is layout Run_114, which team 'Pair' has already seen as Run_114")
         offered = []
         while "suggested maze" in page:  # the suggestion, taken each time: each other layout once
-            offered.append(re.search(r"suggested maze (\S+), layout (\S+)\)", page).groups())
+            offered.append(re.search(r"suggested maze ([^,)]+)\)", page).group(1))  # its own layout: none named
             client.post("/experimenter/trials", data={"team_id": 1})
             page = client.post(f"/experimenter/trials/{len(offered) + 1}/abort").text
         others = [name for name in MazeLibrary(small_benchmark).names() if name not in ONE_TABLE]
-        assert sorted(offered) == sorted((name, name) for name in others)
+        assert sorted(offered) == sorted(others)
         page = client.post("/experimenter/trials", data={"team_id": 1}).text
         assert _error(page) == "team 'Pair' has seen every layout in the library"
         assert sorted(maze for _, maze in _trials(page)) == sorted(["Run_114", *others])
