@@ -35,6 +35,7 @@ from app.trial.state import TrialState, fold
 from app.trial.throttle import Throttle
 from app.trial.views import EXPERIMENTER, status_of, view
 from app.trial.vocabulary import PARTICIPANTS, FrameSource, MoveAction, Outcome, Phase, PoseSource, Role
+from sim.core.geometry import wrap_angle
 
 if TYPE_CHECKING:
     from app.drivers.seat import AgentSeat
@@ -261,7 +262,7 @@ class TrialRuntime:
     def record_pose(self, pose: tuple[float, float, float]) -> None:
         x, y, theta = pose
         source = PoseSource.SIM if self.state.backend == "sim" else PoseSource.TRACKER
-        self.apply(d.Note(ev.PoseSampled(x=x, y=y, heading=theta, source=source)))
+        self.apply(d.Note(ev.PoseSampled(x=x, y=y, heading=wrap_angle(theta), source=source)))
 
     async def _pump_frames(self, backend: RobotBackend) -> None:
         async for frame in backend.frames():

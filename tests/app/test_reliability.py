@@ -95,7 +95,7 @@ def rover_trial(services) -> tuple[int, str]:
             backend=f"robot:{robot.id}",
             driver="human",
             commander_id=a.id,
-            maze_names=services.mazes.names(),
+            layouts=services.mazes.layouts(),
             now_ns=services.clock.now_ns(),
         )
         return trial.id, token

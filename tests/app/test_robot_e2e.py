@@ -519,3 +519,24 @@ async def test_the_dashboard_page_shows_each_robot_and_offers_the_rover_for_tria
     cells = dict(re.findall(r'<td class="(\w+)">(.*?)</td>', row, re.S))
     assert cells["name"] == "dashboard" and cells["role"] == "driver" and cells["link"] == "connected"
     assert float(cells["fps"]) > 5 and cells["latency"].endswith(" ms") and cells["ack"] == "left done"
+
+
+async def test_frames_are_not_recorded_while_a_dropped_seat_pauses_the_trial(server, robots):
+    robot_id, token, trial = server.new_robot_trial("pause-rec")
+    robots(server.url, token)
+
+    def recorded() -> int:
+        with server.services.db() as db:
+            return len(db.scalars(select(FrameRow.id).where(FrameRow.trial_id == trial)).all())
+
+    async with server.seat(trial, "commander") as commander:
+        async with server.seat(trial, "driver") as driver:
+            await driver.event("phase", phase="localizing", timeout=ROBOT_START_S)
+            await until(lambda: recorded() >= 5, timeout=ROBOT_START_S, what="frames recorded")
+        await commander.wait_for(lambda m: m.get("type") == "status" and "disconnect:driver" in m["paused"])
+        await asyncio.sleep(0.3)  # a frame already on its way to the disk lands
+        paused_at = recorded()
+        await asyncio.sleep(1.5)  # 15 frames/s from the rover meanwhile
+        assert recorded() == paused_at, "frames recorded while the trial waited for the Driver"
+        async with server.seat(trial, "driver"):
+            await until(lambda: recorded() >= paused_at + 5, timeout=10, what="recording again once resumed")
