@@ -103,7 +103,15 @@ class Demo:
         error = None
         try:
             for role in PARTICIPANTS:
-                seats.append(await Seat.open(server, trial.id, role, self.seats.issue(trial.id, role)))
+                seats.append(
+                    await Seat.open(
+                        server,
+                        trial.id,
+                        role,
+                        self.seats.issue(trial.id, role),
+                        chat_interval_s=1.0 / self.settings.seat_message_rate_per_s,
+                    )
+                )
             start = await self.start_pose(trial)
             await asyncio.gather(commander.play(seats[0], start), driver.play(seats[1], start))
         except (DemoError, OSError) as err:
