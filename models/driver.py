@@ -22,7 +22,7 @@ import torch
 
 from models.agent import START, STOP, greedy_actions, observation_input
 from sim.agents.stepwise import StepwiseDriver
-from sim.agents.turns import Move, MoveResult
+from sim.agents.turns import Move, Outcome
 from sim.core.dynamics import Action
 from sim.core.geometry import HEADING_DI, HEADING_DJ, HEADINGS
 from sim.core.labels import object_label
@@ -56,8 +56,8 @@ class Seq2SeqDriver(StepwiseDriver):
         self.encoded_for = None
         self._stop_held = False
 
-    def on_moved(self, move: Move, result: MoveResult) -> None:
-        if result == MoveResult.OK:
+    def on_moved(self, move: Move, result: Outcome) -> None:
+        if result == Outcome.OK:
             self._here = odometry_step(self._here, move)
         self._stop_held = False
 

@@ -27,9 +27,9 @@ from robot_client.protocol import (
     CLOSE_REFUSED,
     CLOSE_REPLACED,
     DEFAULT_MAX_FRAME_BYTES,
-    MOVE_ACTIONS,
     PROTOCOL_VERSION,
     SERVER_TYPES,
+    Move,
     ProtocolError,
     decode,
     encode,
@@ -232,7 +232,7 @@ class RobotClient:
         action = message.get("action")
         if self._move is not None and not self._move.done():
             self._send_later(ws, ack(move_id, action, "refused", "busy"))
-        elif self.motors is None or action not in MOVE_ACTIONS:
+        elif self.motors is None or action not in tuple(Move):
             self._send_later(ws, ack(move_id, action, "refused", "unknown"))
         else:
             self._move = asyncio.create_task(self._run_move(ws, self.motors, move_id, action))

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import struct
 from dataclasses import dataclass
+from enum import Enum
 
 PROTOCOL_VERSION = 1
 
@@ -18,7 +19,19 @@ PROTOCOL_VERSION = 1
 FRAME_MAGIC = b"RSF1"
 FRAME_HEADER = struct.Struct("!4sIQHH")
 
-MOVE_ACTIONS = ("forward", "left", "right")
+
+class Move(str, Enum):
+    """The Driver's discrete moves (0.07 m forward, or a 45 degree turn): the one move vocabulary,
+    from this wire protocol to the server, the simulator and the learners."""
+
+    FORWARD = "forward"
+    LEFT = "left"
+    RIGHT = "right"
+
+    def __str__(self) -> str:  # the wire's string (a StrEnum's, which Python 3.9 lacks)
+        return self.value
+
+
 ROLES = ("driver", "overhead")
 # Why a move was refused: another move is running; the robot was stopped (stop command,
 # watchdog, shutdown) before or while it ran; the action (or this robot's role) is not a move.

@@ -10,7 +10,7 @@ from collections.abc import AsyncIterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
-from app.trial.vocabulary import MoveAction, Outcome
+from app.trial.vocabulary import Move, Outcome
 
 if TYPE_CHECKING:
     from sim.robot.perception import RayObservation
@@ -20,7 +20,7 @@ if TYPE_CHECKING:
 class MoveOutcome:
     """What became of one move: `ok`, `collision` (the robot did not move) or `refused`."""
 
-    action: MoveAction
+    action: Move
     outcome: Outcome
     reason: str | None = None
 
@@ -51,7 +51,7 @@ class RobotBackend(Protocol):
 
     async def connect(self) -> None: ...
 
-    async def execute(self, action: MoveAction) -> MoveOutcome: ...
+    async def execute(self, action: Move) -> MoveOutcome: ...
 
     def frames(self) -> AsyncIterator[Frame]: ...
 

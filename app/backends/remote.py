@@ -28,7 +28,7 @@ from app.backends.base import BackendUnavailable, Frame, MoveOutcome
 from app.db.models import Robot
 from app.perception.tracker_seat import TrialTracker
 from app.trial.port import RobotTrial
-from app.trial.vocabulary import PARTICIPANTS, ROBOT_ROLES, FrameSource, MoveAction, Outcome, Role
+from app.trial.vocabulary import PARTICIPANTS, ROBOT_ROLES, FrameSource, Move, Outcome, Role
 from robot_client.protocol import FrameHeader
 
 if TYPE_CHECKING:
@@ -162,7 +162,7 @@ class RobotLink:
         return len(recent) / RATE_WINDOW_S
 
     # moves
-    async def move(self, action: MoveAction) -> dict[str, Any]:
+    async def move(self, action: Move) -> dict[str, Any]:
         """Send one move and return the robot's acknowledgement (ack times on the server clock)."""
         if self.closed:
             raise BackendUnavailable(f"robot {self.name!r} is not connected")
@@ -386,7 +386,7 @@ class RemoteRobotBackend:
             seat, self._seat = self._seat, None
             self.trial.leave(seat)
 
-    async def execute(self, action: MoveAction) -> MoveOutcome:
+    async def execute(self, action: Move) -> MoveOutcome:
         link = self.links.links.get(self.robot_id)
         if link is None:
             raise BackendUnavailable(f"robot {self.name!r} is not connected")

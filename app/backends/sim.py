@@ -23,7 +23,7 @@ import numpy as np
 from app.backends.base import Frame, MoveOutcome
 from app.backends.render import FRAME_SIZE, FrameRenderer, InThread, render_jpeg
 from app.clock import ServerClock
-from app.trial.vocabulary import MoveAction, Outcome
+from app.trial.vocabulary import Move, Outcome
 from sim.core.dynamics import Action, Pose, step
 from sim.core.geometry import heading_angle
 from sim.core.maze import Maze
@@ -61,7 +61,7 @@ class SimulatorBackend:
     async def connect(self) -> None:
         self._first = asyncio.get_running_loop().create_task(self._capture())
 
-    async def execute(self, action: MoveAction) -> MoveOutcome:
+    async def execute(self, action: Move) -> MoveOutcome:
         if self._first is not None:  # its frame comes before this move's
             first, self._first = self._first, None
             try:

@@ -25,7 +25,7 @@ from app.drivers.base import Oracle, Seating
 from app.drivers.registry import create_driver
 from app.trial.decide import Refused
 from app.trial.port import DriverTrial
-from app.trial.vocabulary import MoveAction, Role
+from app.trial.vocabulary import Move, Role
 from sim.agents import turns as t
 from sim.robot.frames import FrameError, decode_jpeg
 from sim.robot.perception import PerceptionError, RayObservation, perceive
@@ -99,7 +99,7 @@ class AgentSeat:
         elif kind == "phase":
             self._phase(t.Phase(payload["phase"]), payload.get("target_index"))
         elif kind == "move_executed":
-            moved = t.Moved(t.Move(payload["action"]), t.MoveResult(payload["outcome"]), payload.get("reason"))
+            moved = t.Moved(t.Move(payload["action"]), t.Outcome(payload["outcome"]), payload.get("reason"))
             put(_Outcome(moved, message["t_ns"]))
         elif kind == "frame" and "jpeg" in message:
             put(_FrameArrived(payload["frame_id"], payload["capture_ns"], base64.b64decode(message["jpeg"])))
@@ -175,7 +175,7 @@ class AgentSeat:
         latest = self.latest
         if started is None or self.move_started_ns != started or latest is None:
             return  # no frame to show, or the agent has moved again already
-        if moved.result == t.MoveResult.REFUSED or self._after_move(latest):
+        if moved.result == t.Outcome.REFUSED or self._after_move(latest):
             await self._saw(agent, latest)
 
     async def _frame(self, agent: t.Agent, frame: _FrameArrived) -> None:
@@ -248,7 +248,7 @@ class AgentSeat:
             await asyncio.sleep(wait_ns / 1e9)  # again where the loop wakes a little early
         self.moves_for_target += 1
         self.move_started_ns, self.outcome_ns = clock.now_ns(), None
-        await self.trial.request_move(MoveAction(move))
+        await self.trial.request_move(Move(move))
 
     async def _clock(self) -> None:
         """The trial-clock cap: the clock runs only while the trial does, so sleep what is left."""

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 from app.trial import events as ev
 from app.trial.state import TrialState
-from app.trial.vocabulary import EXPERIMENTER_PAUSE, MoveAction, Outcome, Phase, Role, disconnect_pause
+from app.trial.vocabulary import EXPERIMENTER_PAUSE, Move, Outcome, Phase, Role, disconnect_pause
 from sim.core.geometry import SUCCESS_RADIUS_M
 
 
@@ -40,7 +40,7 @@ class Say:
 @dataclass(frozen=True)
 class RequestMove:
     move_id: str
-    action: MoveAction
+    action: Move
     now_ns: int
     robot_ready: bool  # a backend is in the robot seat
     min_interval_ns: int = 0
@@ -251,7 +251,7 @@ def _request_move(state: TrialState, command: RequestMove) -> list[ev.Event]:
     return events
 
 
-def _refused(move_id: str, action: MoveAction, reason: str) -> ev.MoveExecuted:
+def _refused(move_id: str, action: Move, reason: str) -> ev.MoveExecuted:
     return ev.MoveExecuted(move_id=move_id, action=action, outcome=Outcome.REFUSED, reason=reason)
 
 

@@ -12,7 +12,7 @@ from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict
 
-from app.trial.vocabulary import FrameSource, MoveAction, Outcome, Phase, PoseSource, Role
+from app.trial.vocabulary import FrameSource, Move, Outcome, Phase, PoseSource, Role
 
 
 @dataclass(frozen=True)
@@ -103,14 +103,14 @@ class Chat(Event):
 class MoveRequested(Event):
     kind = "move_requested"
     move_id: str
-    action: MoveAction
+    action: Move
 
 
 class MoveExecuted(Event):
     kind = "move_executed"
     omit_if_none = ("reason",)
     move_id: str
-    action: MoveAction
+    action: Move
     outcome: Outcome
     collision: bool = False
     reason: str | None = None

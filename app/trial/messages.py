@@ -10,7 +10,8 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
 
-from app.trial.vocabulary import MoveAction, Role
+from app.trial import vocabulary as v
+from app.trial.vocabulary import Role
 from sim.core.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M
 
 MAX_CHAT_CHARS = 500
@@ -28,7 +29,7 @@ class Chat(_Message):
 
 class Move(_Message):
     type: Literal["move"]
-    action: MoveAction
+    action: v.Move
     move_id: str | None = Field(default=None, max_length=64)
 
 

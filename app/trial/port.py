@@ -6,7 +6,7 @@ from __future__ import annotations
 from typing import Any, Protocol
 
 from app.trial.state import TrialState
-from app.trial.vocabulary import FrameSource, MoveAction, Outcome, Role
+from app.trial.vocabulary import FrameSource, Move, Outcome, Role
 
 
 class Connection(Protocol):
@@ -48,7 +48,7 @@ class RobotTrial(TrialView, Protocol):
 class DriverTrial(TrialView, Protocol):
     """The trial as an agent Driver's seat sees it: no true pose, no map, no particle filter."""
 
-    async def request_move(self, action: MoveAction) -> Outcome:
+    async def request_move(self, action: Move) -> Outcome:
         """Move the robot under the same rules as a person's move; returns what became of it."""
 
     def say(self, role: Role, text: str) -> None: ...

@@ -34,7 +34,7 @@ from app.trial.port import Connection
 from app.trial.state import TrialState, fold
 from app.trial.throttle import Throttle
 from app.trial.views import EXPERIMENTER, status_of, view
-from app.trial.vocabulary import PARTICIPANTS, FrameSource, MoveAction, Outcome, Phase, PoseSource, Role
+from app.trial.vocabulary import PARTICIPANTS, FrameSource, Move, Outcome, Phase, PoseSource, Role
 from sim.core.geometry import wrap_angle
 
 if TYPE_CHECKING:
@@ -516,12 +516,12 @@ class TrialRuntime:
     def say(self, role: Role, text: str) -> None:
         self.apply(d.Say(role, text))
 
-    async def request_move(self, action: MoveAction, move_id: str | None = None) -> Outcome:
+    async def request_move(self, action: Move, move_id: str | None = None) -> Outcome:
         move_id = move_id or uuid.uuid4().hex[:12]
         asked = self.apply(
             d.RequestMove(
                 move_id,
-                MoveAction(action),
+                Move(action),
                 self.services.clock.now_ns(),
                 robot_ready=self.backend is not None,
                 min_interval_ns=int(self.settings.min_move_interval_s * 1e9),

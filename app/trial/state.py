@@ -14,7 +14,7 @@ from typing import Any
 
 from app.trial import events as ev
 from app.trial.events import LoggedEvent
-from app.trial.vocabulary import PARTICIPANTS, FrameSource, MoveAction, Outcome, Phase, Role
+from app.trial.vocabulary import PARTICIPANTS, FrameSource, Move, Outcome, Phase, Role
 
 __all__ = ["LoggedEvent", "TrialState", "fold"]
 
@@ -45,7 +45,7 @@ class TrialState:
     started_ns: int | None = None
     moves: int = 0  # executed moves (ok or collision); refused ones do not count
     collisions: int = 0
-    moves_in_flight: dict[str, tuple[MoveAction, int]] = field(default_factory=dict)  # id -> (action, asked at)
+    moves_in_flight: dict[str, tuple[Move, int]] = field(default_factory=dict)  # id -> (action, asked at)
     move_ids: set[str] = field(default_factory=set)  # every move id ever requested
     last_move_ns: int | None = None  # when the last executed move was requested
     away: dict[Role, Away] = field(default_factory=dict)

@@ -1,25 +1,16 @@
-"""The trial's closed vocabularies. The values are the strings stored in the event log."""
+"""The trial's closed vocabularies. The values are the strings stored in the event log.
+
+A trial's `Phase` and a move's `Outcome` are what an agent in a seat perceives too, so they are
+defined with the agents' interface (`sim.agents.turns`); `Move` is the wire protocol's
+(`robot_client.protocol`), the one move vocabulary from the rover to the learners."""
 
 from __future__ import annotations
 
 from enum import StrEnum
 
-
-class Phase(StrEnum):
-    WAITING = "waiting"
-    LOCALIZING = "localizing"
-    NAVIGATING = "navigating"
-    FINISHED = "finished"
-    ABORTED = "aborted"
-
-    @property
-    def running(self) -> bool:
-        """The phases the trial clock runs in (unless paused)."""
-        return self in (Phase.LOCALIZING, Phase.NAVIGATING)
-
-    @property
-    def over(self) -> bool:
-        return self in (Phase.FINISHED, Phase.ABORTED)
+from robot_client.protocol import Move as Move
+from sim.agents.turns import Outcome as Outcome
+from sim.agents.turns import Phase as Phase
 
 
 class Role(StrEnum):
@@ -34,22 +25,6 @@ class Role(StrEnum):
 ROBOT_ROLES = (Role.DRIVER, Role.OVERHEAD)  # a rover registers as the trial's `driver` camera
 
 PARTICIPANTS = (Role.COMMANDER, Role.DRIVER)
-
-
-class MoveAction(StrEnum):
-    """The Driver's discrete moves: 0.07 m forward, or a 45 degree turn."""
-
-    FORWARD = "forward"
-    LEFT = "left"
-    RIGHT = "right"
-
-
-class Outcome(StrEnum):
-    """What became of a move: executed, bumped into something (the robot stayed), or not executed."""
-
-    OK = "ok"
-    COLLISION = "collision"
-    REFUSED = "refused"
 
 
 class FrameSource(StrEnum):

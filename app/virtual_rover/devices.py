@@ -19,8 +19,9 @@ import numpy as np
 
 from app.virtual_rover.truth import SAMPLE_S, TruthFollower, TruthLog, TruthSample
 from robot_client.calibration import Calibration
+from robot_client.protocol import Move
 from sim.core.maze import Maze
-from sim.robot.rover import Move, Pulse, Rover, RoverPose
+from sim.robot.rover import Pulse, Rover, RoverPose
 
 
 class VirtualMotors:

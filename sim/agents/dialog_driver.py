@@ -24,7 +24,7 @@ from sim.agents.turns import (
     Judged,
     Move,
     Moved,
-    MoveResult,
+    Outcome,
     Percept,
     Phase,
     PhaseChanged,
@@ -146,9 +146,9 @@ class DialogDriver:
         return []  # Claimed: its own claim, already waiting for the verdict
 
     def _moved(self, moved: Moved) -> list[Turn]:
-        if moved.result != MoveResult.OK:
+        if moved.result != Outcome.OK:
             self._plan.clear()
-            if moved.result == MoveResult.COLLISION:
+            if moved.result == Outcome.COLLISION:
                 return [DoSay("i hit a wall, which way now?")]
             return [DoSay(f"i could not move ({moved.reason or 'refused'}). what should i do?")]
         if moved.move == Move.FORWARD:

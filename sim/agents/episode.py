@@ -22,9 +22,8 @@ from sim.agents.turns import (
     DoSay,
     Heard,
     Judged,
-    Move,
     Moved,
-    MoveResult,
+    Outcome,
     Percept,
     Phase,
     PhaseChanged,
@@ -38,7 +37,6 @@ from sim.core.observations import RayTable
 
 MAX_MESSAGES = 80
 MAX_REJECTIONS = 3
-MOVE_ACTION = {Move.FORWARD: Action.FORWARD, Move.LEFT: Action.LEFT, Move.RIGHT: Action.RIGHT}
 
 
 @dataclass
@@ -98,10 +96,10 @@ def run(
                 driver_messages += who == "driver"
             elif isinstance(turn, DoMove):
                 out.moves += 1
-                pose, collided = step(commander.graph, commander.pose, MOVE_ACTION[turn.move])
+                pose, collided = step(commander.graph, commander.pose, Action.of(turn.move))
                 commander.pose = pose
                 frame += 1
-                result = MoveResult.COLLISION if collided else MoveResult.OK
+                result = Outcome.COLLISION if collided else Outcome.OK
                 queue += [("driver", Moved(turn.move, result)), ("driver", Saw(frame, commander.view(pose)))]
             elif isinstance(turn, DoClaim):
                 out.claims += 1
@@ -141,9 +139,9 @@ def replay(
             move = next((t for t in turns if isinstance(t, DoMove)), None)
             if move is None:
                 break
-            pose, collided = step(graph, pose, MOVE_ACTION[move.move])
+            pose, collided = step(graph, pose, Action.of(move.move))
             moves += 1
             nodes.append(pose.node)
-            result = MoveResult.COLLISION if collided else MoveResult.OK
+            result = Outcome.COLLISION if collided else Outcome.OK
             turns = driver.perceive(Moved(move.move, result)) + driver.perceive(Saw(moves, pose_rays(rays, pose)))
     return nodes

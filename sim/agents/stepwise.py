@@ -16,7 +16,7 @@ from sim.agents.turns import (
     Judged,
     Move,
     Moved,
-    MoveResult,
+    Outcome,
     Percept,
     Phase,
     PhaseChanged,
@@ -60,7 +60,7 @@ class StepwiseDriver:
                         self.named = None
                     self.on_target()
             case Moved(move=move, result=result):
-                if result != MoveResult.REFUSED:
+                if result != Outcome.REFUSED:
                     self.on_moved(move, result)
                 return []  # the frame after it is next (as it stands, for a move not made)
             case Saw(rays=rays):
@@ -96,7 +96,7 @@ class StepwiseDriver:
     def on_target(self) -> None:
         """A new target (its number in `target_index`; its name only once the Commander says it)."""
 
-    def on_moved(self, move: Move, result: MoveResult) -> None:
+    def on_moved(self, move: Move, result: Outcome) -> None:
         """One of its moves was made (or bumped into a wall and left it where it was)."""
 
     def on_rejected(self) -> None:

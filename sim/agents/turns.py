@@ -9,15 +9,27 @@ from dataclasses import dataclass
 from enum import StrEnum
 from typing import Protocol
 
+from robot_client.protocol import Move as Move  # the one move vocabulary: the wire's
 from sim.robot.perception import RayObservation
 
 
 class Phase(StrEnum):
+    """Where a trial stands; the values are the strings its event log stores."""
+
     WAITING = "waiting"
     LOCALIZING = "localizing"
     NAVIGATING = "navigating"
     FINISHED = "finished"
     ABORTED = "aborted"
+
+    @property
+    def running(self) -> bool:
+        """The phases the trial clock runs in (unless paused)."""
+        return self in (Phase.LOCALIZING, Phase.NAVIGATING)
+
+    @property
+    def over(self) -> bool:
+        return self in (Phase.FINISHED, Phase.ABORTED)
 
 
 class Speaker(StrEnum):
@@ -25,15 +37,9 @@ class Speaker(StrEnum):
     DRIVER = "driver"
 
 
-class Move(StrEnum):
-    """The Driver's moves."""
+class Outcome(StrEnum):
+    """What became of a move: executed, bumped into something (the robot stayed), or not executed."""
 
-    FORWARD = "forward"
-    LEFT = "left"
-    RIGHT = "right"
-
-
-class MoveResult(StrEnum):
     OK = "ok"
     COLLISION = "collision"
     REFUSED = "refused"
@@ -59,7 +65,7 @@ class Saw:
 @dataclass(frozen=True)
 class Moved:
     move: Move
-    result: MoveResult
+    result: Outcome
     reason: str | None = None
 
 

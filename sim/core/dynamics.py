@@ -13,11 +13,14 @@ from enum import IntEnum
 import numpy as np
 from numpy.typing import ArrayLike
 
+from robot_client.protocol import Move
 from sim.core.geometry import HEADING_DI, HEADING_DJ, HEADINGS, heading_index
 from sim.core.navgraph import Moves, NavGraph
 
 
 class Action(IntEnum):
+    """The learners' action indices: the three moves and STOP (the policy's "I am there")."""
+
     FORWARD = 0
     LEFT = 1  # +45 degrees, counter-clockwise in the table frame
     RIGHT = 2
@@ -26,6 +29,11 @@ class Action(IntEnum):
     @property
     def word(self) -> str:
         return self.name.lower()
+
+    @classmethod
+    def of(cls, move: Move) -> Action:
+        """The index of one of the Driver's moves."""
+        return cls[Move(move).name]
 
     @classmethod
     def parse(cls, word: str) -> Action:

@@ -16,11 +16,11 @@ import math
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
-from enum import Enum
 
 import cv2
 import numpy as np
 
+from robot_client.protocol import Move
 from sim.core.geometry import GRID_STEP_M, TABLE_HEIGHT_M, TABLE_WIDTH_M, TURN_RAD, world_to_pixel
 from sim.core.labels import Label
 from sim.core.maze import Maze
@@ -33,12 +33,6 @@ from sim.core.observations import PX_PER_M_X, WALL_CLEARANCE_M
 BODY_RADIUS_M = WALL_CLEARANCE_M
 PATH_STEP_M = 0.001  # forward paths are swept every millimetre
 PATH_STEP_RAD = math.radians(1.0)  # turns every degree
-
-
-class Move(str, Enum):
-    FORWARD = "forward"
-    LEFT = "left"
-    RIGHT = "right"
 
 
 @dataclass(frozen=True)

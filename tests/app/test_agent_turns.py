@@ -21,7 +21,7 @@ from app.drivers.registry import register_driver
 from bench.live import REPO, SeatClient, make_trial
 from sim.agents.dialog_driver import DialogDriver
 from sim.agents.stepwise import StepwiseDriver
-from sim.agents.turns import Heard, Move, Moved, MoveResult, Phase, PhaseChanged, Saw, SeatInfo, Speaker
+from sim.agents.turns import Heard, Move, Moved, Outcome, Phase, PhaseChanged, Saw, SeatInfo, Speaker
 from sim.robot.perception import RayObservation
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread
@@ -133,7 +133,7 @@ def test_the_agent_waits_answers_moves_when_told_and_sees_only_what_a_driver_see
     # It saw its first frame before the question, and the frame after its move right after the move.
     saws = [i for i, p in enumerate(percepts) if isinstance(p, Saw)]
     asked = percepts.index(Heard(Speaker.COMMANDER, "what do you see?"))
-    turned = [i for i, p in enumerate(percepts) if p == Moved(Move.LEFT, MoveResult.OK)]
+    turned = [i for i, p in enumerate(percepts) if p == Moved(Move.LEFT, Outcome.OK)]
     assert saws[0] < asked and len(turned) == 2 and all(i + 1 in saws for i in turned)
     after = percepts[turned[-1] + 1]
     assert observed_now is not None and after.rays is not None

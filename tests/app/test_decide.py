@@ -7,7 +7,7 @@ import pytest
 from app.trial import events as ev
 from app.trial.decide import Abort, FinishMove, Join, Leave, Refused, Reopen, RequestMove, Say, decide
 from app.trial.state import LoggedEvent, fold
-from app.trial.vocabulary import MoveAction, Outcome, Phase, Role
+from app.trial.vocabulary import Move, Outcome, Phase, Role
 
 S = 1_000_000_000
 CREATED = {"maze": "m", "targets": ["jar", "mug", "paddle"], "backend": "sim", "driver": "human"}
@@ -38,9 +38,9 @@ def test_a_move_id_is_executed_once():
         ("move_executed", {"move_id": "m1", "action": "left", "outcome": "ok", "collision": False}),
     )
     with pytest.raises(Refused, match="already received"):
-        decide(state, RequestMove("m1", MoveAction.LEFT, now_ns=100 * S, robot_ready=True))
-    assert decide(state, RequestMove("m2", MoveAction.LEFT, now_ns=100 * S, robot_ready=True)) == [
-        ev.MoveRequested(move_id="m2", action=MoveAction.LEFT)
+        decide(state, RequestMove("m1", Move.LEFT, now_ns=100 * S, robot_ready=True))
+    assert decide(state, RequestMove("m2", Move.LEFT, now_ns=100 * S, robot_ready=True)) == [
+        ev.MoveRequested(move_id="m2", action=Move.LEFT)
     ]
 
 
@@ -49,12 +49,11 @@ def test_reopening_refuses_the_move_in_flight_and_lets_the_seats_go():
     events = decide(state, Reopen())
     assert events[0] == ev.Restarted(paused=["disconnect:commander", "disconnect:driver"])
     assert (
-        ev.MoveExecuted(move_id="m1", action=MoveAction.FORWARD, outcome=Outcome.REFUSED, reason="server restart")
-        in events
+        ev.MoveExecuted(move_id="m1", action=Move.FORWARD, outcome=Outcome.REFUSED, reason="server restart") in events
     )
     assert {e.role for e in events if isinstance(e, ev.Disconnected)} == {Role.COMMANDER, Role.DRIVER}
     assert decide(state, FinishMove("m1", Outcome.OK)) == [
-        ev.MoveExecuted(move_id="m1", action=MoveAction.FORWARD, outcome=Outcome.OK)
+        ev.MoveExecuted(move_id="m1", action=Move.FORWARD, outcome=Outcome.OK)
     ]
 
 

@@ -164,7 +164,7 @@ def test_seq2seq_driver_plays_from_a_growing_dialog(trained, bench, few):
         Judged,
         Move,
         Moved,
-        MoveResult,
+        Outcome,
         Phase,
         PhaseChanged,
         Saw,
@@ -192,7 +192,7 @@ def test_seq2seq_driver_plays_from_a_growing_dialog(trained, bench, few):
         for h in heard[n : n + 2]:
             assert driver.perceive(h) == []  # heard while its move is under way
         if isinstance(turns[-1], DoMove):
-            assert driver.perceive(Moved(turns[-1].move, MoveResult.OK)) == []
+            assert driver.perceive(Moved(turns[-1].move, Outcome.OK)) == []
             turns = driver.perceive(Saw(2, blocked))
         else:
             assert turns[-1] == DoClaim()
@@ -202,7 +202,7 @@ def test_seq2seq_driver_plays_from_a_growing_dialog(trained, bench, few):
     with torch.no_grad():
         driver.agent.policy.bias[int(Action.STOP)] = 50.0
     if isinstance(turns[-1], DoMove):
-        assert driver.perceive(Moved(turns[-1].move, MoveResult.OK)) == []
+        assert driver.perceive(Moved(turns[-1].move, Outcome.OK)) == []
         turns = driver.perceive(Saw(3, blocked))
     assert turns[-1] == DoClaim() and turns[0] == DoSay(
         f"I think I found the {driver.named}" if driver.named else "I think I found it"
@@ -210,13 +210,13 @@ def test_seq2seq_driver_plays_from_a_growing_dialog(trained, bench, few):
     assert driver.perceive(Claimed(0)) == []
     (move,) = driver.perceive(Judged(False, 0))
     assert isinstance(move, DoMove) and move.move != Move.FORWARD
-    assert driver.perceive(Moved(move.move, MoveResult.OK)) == []
+    assert driver.perceive(Moved(move.move, Outcome.OK)) == []
     assert driver.perceive(Saw(4, blocked))[-1] == DoClaim()
 
 
 def test_the_web_driver_counts_its_poses_by_its_own_odometry_for_its_revisit_penalty(trained, bench, few):
     from models.driver import Seq2SeqDriver
-    from sim.agents.turns import DoMove, Moved, MoveResult, Phase, PhaseChanged, Saw, SeatInfo, Speaker
+    from sim.agents.turns import DoMove, Moved, Outcome, Phase, PhaseChanged, Saw, SeatInfo, Speaker
     from sim.core.dynamics import Action, snap_pose, step
     from sim.core.observations import RayTable
 
@@ -243,7 +243,7 @@ def test_the_web_driver_counts_its_poses_by_its_own_odometry_for_its_revisit_pen
             assert isinstance(turn, DoMove)
             pose, collided = step(graph, pose, Action.parse(turn.move))
             nodes[penalty].add(pose.node)
-            driver.perceive(Moved(turn.move, MoveResult.COLLISION if collided else MoveResult.OK))
+            driver.perceive(Moved(turn.move, Outcome.COLLISION if collided else Outcome.OK))
             (turn,) = driver.perceive(Saw(k + 1, _rays_at(table, pose.node, pose.heading)))
     assert nodes[0.0] == {start}
     assert len(nodes[20.0]) >= 2  # round once, then away from the poses it has been in

@@ -17,7 +17,7 @@ from sim.agents.turns import (
     Judged,
     Move,
     Moved,
-    MoveResult,
+    Outcome,
     Percept,
     Phase,
     PhaseChanged,
@@ -89,7 +89,7 @@ def test_while_localized_it_answers_and_turns_in_place_but_does_not_drive_off(wo
     for _ in range(12):
         assert turns and isinstance(turns[0], DoMove) and turns[0].move != Move.FORWARD
         heading = (heading + (1 if turns[0].move == Move.LEFT else -1)) % 8
-        assert driver.perceive(Moved(turns[0].move, MoveResult.OK)) == []
+        assert driver.perceive(Moved(turns[0].move, Outcome.OK)) == []
         turns = driver.perceive(Saw(1, _rays(world, Pose(100, heading))))
         said = [t for t in turns if isinstance(t, DoSay)]
         if said:
@@ -108,7 +108,7 @@ def _carry_out(driver, world, pose, text):
         (move,) = [t for t in turns if isinstance(t, DoMove)]
         action = {Move.FORWARD: Action.FORWARD, Move.LEFT: Action.LEFT, Move.RIGHT: Action.RIGHT}[move.move]
         pose, collided = step(graph, pose, action)
-        result = MoveResult.COLLISION if collided else MoveResult.OK
+        result = Outcome.COLLISION if collided else Outcome.OK
         turns = driver.perceive(Moved(move.move, result)) + driver.perceive(Saw(0, _rays(world, pose)))
     raise AssertionError("the Driver never spoke")
 
@@ -156,7 +156,7 @@ def test_it_asks_when_it_bumps_is_rejected_or_does_not_understand(world):
     assert isinstance(said, DoSay) and said.text.endswith("which way should i go?")
     (move,) = driver.perceive(Heard(Speaker.COMMANDER, "go forward 3 steps"))
     assert move == DoMove(Move.FORWARD)
-    (said,) = driver.perceive(Moved(Move.FORWARD, MoveResult.COLLISION))
+    (said,) = driver.perceive(Moved(Move.FORWARD, Outcome.COLLISION))
     assert said == DoSay("i hit a wall, which way now?")
     assert driver.perceive(Saw(1, _rays(world, start))) == []  # the rest of the walk is dropped
     turns = driver.perceive(Heard(Speaker.COMMANDER, "the jar should be right there"))
