@@ -224,6 +224,8 @@ class DialogDriver:
             if self._sees_target() and self._plan[0].kind != Task.CLAIM:
                 self._plan.clear()
                 self._plan.append(_Task(Task.CLAIM))
+            if self._plan[0].kind == Task.LOOK and self._odo.heading not in self._views:
+                break  # no frame yet from where it stands (a rover's first): it answers once one comes
             task = self._plan.popleft()
             step = self._step(task)  # may clear the plan or put tasks before what is left
             if isinstance(step, DoMove):
