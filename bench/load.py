@@ -27,6 +27,14 @@ before the server starts, as on a machine that has run each maze once (they are 
     python -m bench.load --trials 200 --pattern walk --mazes distinct --open-at-once
     python -m bench.load --find-max [--max-trials 400] [--duration 10]   # largest N with both p99 < 100 ms
     python -m bench.load --trials 100 --profile var/load.svg              # py-spy flame graph of the server
+    python -m bench.load --trials 200 --agent-drivers 50 --duration 20    # 50 of them with agent:dialog driving
+
+With `--agent-drivers N`, N of the trials seat `agent:dialog` in the Driver's seat (it runs in the
+server); the bench's seat there is the Commander alone, who speaks `AGENT_INSTRUCTIONS` in turn at
+the same pace (the next once the agent has replied, or after `REPLY_WAIT_S`). Their chat latency is
+the Commander's message coming back to the Commander (the same fan-out a Driver's page gets) and
+counts in the chat figures over all trials; apart, it prints the agents' replies (Commander's
+message -> the agent's next words) and the moves they made.
 """
 
 from __future__ import annotations
@@ -42,6 +50,7 @@ import sys
 import tempfile
 import time
 import uuid
+from collections import deque
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from enum import StrEnum
@@ -54,7 +63,7 @@ from rich.console import Console
 from rich.progress import Progress
 from sqlalchemy import create_engine, func, select, text
 
-from app.db.models import Event
+from app.db.models import Event, Trial
 from app.main import build_services
 from app.settings import Settings
 from bench.live import ServerProcesses, team_trial
@@ -68,6 +77,9 @@ OPEN_AT_ONCE = 20  # handshakes in flight at a time, unless --open-at-once
 HANDSHAKE_TIMEOUT_S = 10.0  # with --open-at-once, as a browser's patience
 CONNECTED_GOAL_S = 5.0  # every seat opening at once connected within this
 GENERATED_SEED = 10_000  # seeds of the mazes generated when the library has too few
+AGENT_DRIVER = "agent:dialog"
+AGENT_INSTRUCTIONS = ("what do you see?", "turn left", "go forward 3 steps", "turn right", "what is on your left?")
+REPLY_WAIT_S = 5.0  # an agent's reply not come by then: counted unreplied, and the Commander speaks again
 
 
 class Pattern(StrEnum):
@@ -105,8 +117,12 @@ def distinct_mazes(n: int, benchmark: Path | None, tmp: Path) -> Path | None:
     return mazedata.parent
 
 
-def setup_trials(settings: Settings, n: int, mazes: MazeChoice) -> tuple[list[tuple[str, str]], object, int]:
-    """`n` trials, each a team's, and their seats' tokens; the services and how many mazes they use."""
+def setup_trials(
+    settings: Settings, n: int, mazes: MazeChoice, agent_drivers: int = 0
+) -> tuple[list[tuple[str, str | None]], object, int]:
+    """`n` trials, each a team's, and their seats' tokens (no Driver's for the first `agent_drivers`,
+    whose Driver is `AGENT_DRIVER`); the services and how many mazes they use."""
+    from app.drivers.registry import available_drivers
     from sim.robot.render import cached_scene
 
     services = build_services(settings)
@@ -116,11 +132,22 @@ def setup_trials(settings: Settings, n: int, mazes: MazeChoice) -> tuple[list[tu
     elif len(maze_names) < n:
         raise SystemExit(f"{n} trials on distinct mazes need {n} mazes; the library holds {len(maze_names)}")
     chosen = [maze_names[i % len(maze_names)] for i in range(n)]
-    tokens = []
+    tokens: list[tuple[str, str | None]] = []
+    agents = available_drivers(services) if agent_drivers else None
     with services.db.begin() as db:
         for i, maze in enumerate(chosen):
-            trial_id = team_trial(db, f"load-team-{i}", maze, maze_names, services.clock.now_ns())
-            tokens.append((services.seats.issue(trial_id, "commander"), services.seats.issue(trial_id, "driver")))
+            agent = i < agent_drivers
+            trial_id = team_trial(
+                db,
+                f"load-team-{i}",
+                maze,
+                maze_names,
+                services.clock.now_ns(),
+                driver=AGENT_DRIVER if agent else "human",
+                agents=agents,
+            )
+            driver = None if agent else services.seats.issue(trial_id, "driver")
+            tokens.append((services.seats.issue(trial_id, "commander"), driver))
     with Progress(console=console, transient=True) as progress:
         for name in progress.track(sorted(set(chosen)), description="graphs, rays and scenes (cached on disk)"):
             # Built once per maze and machine, as a server that has run the maze before finds them.
@@ -142,6 +169,10 @@ class Figures:
     moves_sent: int = 0
     moves_answered: int = 0
     ready: int = 0  # trials whose two seats are connected and welcomed
+    agent_reply_ms: list[float] = field(default_factory=list)  # Commander's words -> the agent's next
+    agent_unreplied: int = 0
+    agent_moves: int = 0
+    agent_chat_ms: list[float] = field(default_factory=list)
     recording: bool = False
 
 
@@ -172,6 +203,9 @@ async def run_trial(
 ) -> None:
     commander_token, driver_token = tokens
     timeout = 60.0 if gate else HANDSHAKE_TIMEOUT_S
+    if driver_token is None:
+        await run_agent_trial(ws_url, commander_token, gate, figures, stop, drained)
+        return
     seats = await asyncio.gather(
         open_seat(f"{ws_url}?token={commander_token}", figures, gate, timeout),
         open_seat(f"{ws_url}?token={driver_token}", figures, gate, timeout),
@@ -248,6 +282,65 @@ async def run_trial(
             task.cancel()
 
 
+async def run_agent_trial(
+    ws_url: str,
+    commander_token: str,
+    gate: asyncio.Semaphore | None,
+    figures: Figures,
+    stop: asyncio.Event,
+    drained: asyncio.Event,
+) -> None:
+    """The Commander of a trial whose Driver is an agent: an instruction a second at most, the next
+    once the agent has replied (or after `REPLY_WAIT_S`)."""
+    timeout = 60.0 if gate else HANDSHAKE_TIMEOUT_S
+    async with await open_seat(f"{ws_url}?token={commander_token}", figures, gate, timeout) as commander:
+        echoes: deque[tuple[str, float, bool]] = deque()  # the Commander's words not heard back yet
+        asked: list[tuple[float, bool]] = []  # when the last words went out, until the agent replies
+
+        async def reader():
+            async for raw in commander:
+                now = time.perf_counter()
+                message = json.loads(raw)
+                if message.get("type") != "event":
+                    continue
+                kind, payload = message["kind"], message["payload"]
+                if kind == "chat" and payload["role"] == "commander" and echoes and echoes[0][0] == payload["text"]:
+                    _, sent, counted = echoes.popleft()
+                    if counted:
+                        figures.chats_heard += 1
+                        if figures.recording:
+                            figures.chat_ms.append((now - sent) * 1e3)
+                            figures.agent_chat_ms.append((now - sent) * 1e3)
+                elif kind == "chat" and payload["role"] == "driver" and asked:
+                    sent, counted = asked.pop()
+                    if counted and figures.recording:
+                        figures.agent_reply_ms.append((now - sent) * 1e3)
+
+        task = asyncio.create_task(reader())
+        figures.ready += 1
+        loop = asyncio.get_running_loop()
+        start = loop.time() + random.random()
+        await asyncio.sleep(start - loop.time())
+        await commander.send(json.dumps({"type": "localize", "token": commander_token, "x": 1.2, "y": 1.0}))
+        i = said = 0
+        while not stop.is_set():
+            waited = asked and time.perf_counter() - asked[0][0] > REPLY_WAIT_S
+            if waited and asked.pop()[1]:
+                figures.agent_unreplied += 1
+            if not asked:
+                text = AGENT_INSTRUCTIONS[said % len(AGENT_INSTRUCTIONS)]
+                said += 1
+                sent = (time.perf_counter(), figures.recording)
+                echoes.append((text, *sent))
+                asked.append(sent)
+                figures.chats_sent += figures.recording
+                await commander.send(json.dumps({"type": "chat", "token": commander_token, "text": text}))
+            i += 1
+            await asyncio.sleep(start + i - loop.time())
+        await drained.wait()
+        task.cancel()
+
+
 def percentile(values: list[float], q: float) -> float:
     return float(np.percentile(values, q)) if values else float("nan")
 
@@ -282,7 +375,14 @@ async def drive(
         with services.db() as db:  # closed: an open transaction would block dropping the schema
             return db.execute(select(func.count(Event.id))).scalar_one()
 
-    before, t0, cpu0, own0 = count(), time.perf_counter(), server.cpu_s(), time.process_time()
+    def agent_moves() -> int:  # the Commander's page does not show moves: the log does
+        moves = select(func.count(Event.id)).join(Trial, Trial.id == Event.trial_id)
+        moves = moves.where(Trial.driver == AGENT_DRIVER, Event.kind == "move_executed")
+        with services.db() as db:
+            return db.execute(moves).scalar_one()
+
+    before, moved = count(), agent_moves()
+    t0, cpu0, own0 = time.perf_counter(), server.cpu_s(), time.process_time()
     figures.recording = True
     with Progress(console=console, transient=True) as progress:
         bar = progress.add_task(f"{len(tokens)} trials under load", total=duration)
@@ -292,6 +392,7 @@ async def drive(
             progress.update(bar, completed=min(elapsed, duration))
     figures.recording = False
     committed, window = count() - before, time.perf_counter() - t0
+    figures.agent_moves = agent_moves() - moved
     cpu = (server.cpu_s() - cpu0) / window
     # The seats' own side: on a small machine the clients compete with the server for its cores.
     client_cpu = (time.process_time() - own0) / window
@@ -342,6 +443,7 @@ class Load:
     mazes: MazeChoice = MazeChoice.SHARED
     open_at_once: bool = False
     benchmark: Path | None = None
+    agent_drivers: int = 0  # of `trials`, seating AGENT_DRIVER in the Driver's seat
 
 
 def run_load(
@@ -368,7 +470,7 @@ def run_load(
         if benchmark is not None:
             env["ROBOTSLANG_BENCHMARK"] = str(benchmark)
         settings = Settings(data_dir=Path(tmp) / "var", secret_key="load", database_url=url, benchmark=benchmark)
-        tokens, services, maze_count = setup_trials(settings, trials, load.mazes)
+        tokens, services, maze_count = setup_trials(settings, trials, load.mazes, load.agent_drivers)
         server = subprocess.Popen(
             [
                 sys.executable,
@@ -456,6 +558,13 @@ def run_load(
         "events": committed,
         "lost": figures.chats_sent - figures.chats_heard,
         "unanswered": figures.moves_sent - figures.moves_answered,
+        "agent_drivers": load.agent_drivers,
+        "agent_reply_p50_ms": round(percentile(figures.agent_reply_ms, 50), 2),
+        "agent_reply_p95_ms": round(percentile(figures.agent_reply_ms, 95), 2),
+        "agent_replies": len(figures.agent_reply_ms),
+        "agent_unreplied": figures.agent_unreplied,
+        "agent_moves": figures.agent_moves,
+        "agent_chat_p99_ms": round(percentile(figures.agent_chat_ms, 99), 2),
         "server_cpu": round(cpu, 2),
         "client_cpu": round(client_cpu, 2),
         "server_rss_mb": round(processes.peak_rss_mb, 1),
@@ -534,6 +643,13 @@ def report(f: dict) -> None:
         f"  move-to-frame   p50 {f['move_to_frame_p50_ms']:7.1f} ms   "
         f"p99 {f['move_to_frame_p99_ms']:7.1f} ms   ({f['moves']} moves, {f['unanswered']} unanswered)"
     )
+    if f["agent_drivers"]:
+        console.print(
+            f"  agent Drivers   {f['agent_drivers']} trials ({AGENT_DRIVER}): replies p50 "
+            f"{f['agent_reply_p50_ms']:7.1f} ms   p95 {f['agent_reply_p95_ms']:7.1f} ms   ({f['agent_replies']} "
+            f"replies, {f['agent_unreplied']} unreplied in {REPLY_WAIT_S:.0f} s), {f['agent_moves']} moves; "
+            f"their chat p99 {f['agent_chat_p99_ms']:.1f} ms (in the chat figures above)"
+        )
     console.print(
         f"  events committed {f['events_per_s']:7.1f} /s   server CPU {f['server_cpu']:.2f} cores   "
         f"(the bench's seats {f['client_cpu']:.2f})   peak RSS {f['server_rss_mb']:.0f} MB all together"
@@ -554,6 +670,9 @@ def main() -> None:
         help="with --mazes distinct: the benchmark whose mazes join the bundled ones (ROBOTSLANG_BENCHMARK)",
     )
     parser.add_argument("--open-at-once", action="store_true", help="every seat's socket opened at the same time")
+    parser.add_argument(
+        "--agent-drivers", type=int, default=0, help=f"of the trials, how many seat {AGENT_DRIVER} as the Driver"
+    )
     parser.add_argument(
         "--workers", type=int, help="server processes (over 1: needs Redis); default 1, with --find-max 1 and 2"
     )
@@ -576,7 +695,11 @@ def main() -> None:
     parser.add_argument("--max-probes", type=int, default=6, help="runs per process count in --find-max")
     args = parser.parse_args()
 
-    load = Load(args.trials, args.workers or 1, args.pattern, args.mazes, args.open_at_once, args.benchmark)
+    if not 0 <= args.agent_drivers <= args.trials:
+        parser.error(f"--agent-drivers must be between 0 and --trials ({args.trials})")
+    load = Load(
+        args.trials, args.workers or 1, args.pattern, args.mazes, args.open_at_once, args.benchmark, args.agent_drivers
+    )
     if args.find_max:
         result = {}
         for workers in (1, 2) if args.workers is None else (args.workers,):

@@ -5,7 +5,8 @@ into percepts (`app.drivers.base` says which); it wakes the agent on each, one `
 time off the event loop and in the log's order, and carries out the turns it returns through
 `DriverTrial` alone, so its words and moves go through the same rules and event log as a
 person's. A move is asked for only while the trial runs, one at a time and no sooner than a
-person's may be; the frame taken after it follows its outcome. The frame's rays are the
+person's may be; the frame taken after it follows its outcome. A turn `DriverTrial` refuses comes
+back to the agent as `Refused`, and a pause and its end as `Paused`, as the Driver's page shows them. The frame's rays are the
 simulator's (handed to this seat alone, `note_observation`), else perceived from its pixels with
 the Driver camera's calibration. Caps (settings): moves per target and trial-clock minutes; on
 either the agent says so in the chat and the trial ends, aborted, with the reason logged.
@@ -31,6 +32,7 @@ from sim.robot.frames import FrameError, decode_jpeg
 from sim.robot.perception import PerceptionError, RayObservation, perceive
 
 logger = logging.getLogger(__name__)
+_TURN_KIND: dict[type, t.TurnKind] = {t.DoSay: t.TurnKind.SAY, t.DoMove: t.TurnKind.MOVE, t.DoClaim: t.TurnKind.CLAIM}
 OBSERVATIONS_KEPT = 8  # the simulator's observations of the latest frames, until their events come
 
 
@@ -66,6 +68,7 @@ class AgentSeat:
         self.moves_for_target = 0
         self.calibration: Any = None
         self.running = asyncio.Event()
+        self.paused = False  # as the agent was last told (a trial starts unpaused)
         self.tasks: list[asyncio.Task] = []
 
     # -- what a browser Driver would receive ------------------------------------------------
@@ -114,10 +117,15 @@ class AgentSeat:
             self.inbox.put_nowait(t.PhaseChanged(phase, target_index, self.targets_total))
 
     def _sync_running(self) -> None:
-        if self.trial.state.running:
+        state = self.trial.state
+        if state.running:
             self.running.set()
         else:
             self.running.clear()
+        paused = bool(state.pause_reasons)
+        if paused != self.paused:  # the Driver's page shows the pause too
+            self.paused = paused
+            self.inbox.put_nowait(t.Paused(paused))
 
     # -- life ---------------------------------------------------------------------------------
     def start(self) -> None:
@@ -214,6 +222,7 @@ class AgentSeat:
 
     async def _carry_out(self, turn: t.Turn) -> None:
         trial = self.trial
+        kind = _TURN_KIND.get(type(turn))
         try:
             match turn:
                 case t.DoSay(text=text):
@@ -228,6 +237,8 @@ class AgentSeat:
                     trial.report_bad_message(Role.DRIVER, f"agent {self.spec!r}: {turn!r} is not a Driver's turn")
         except Refused as err:  # as a person's refused message: in the log, and the trial goes on
             trial.report_bad_message(Role.DRIVER, str(err))
+            if kind is not None:  # the agent hears why, as a person's page shows the error
+                self.inbox.put_nowait(t.Refused(kind, str(err)))
 
     async def _move(self, move: t.Move) -> None:
         settings, clock = self.services.settings, self.services.clock

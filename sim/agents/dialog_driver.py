@@ -25,13 +25,16 @@ from sim.agents.turns import (
     Move,
     Moved,
     Outcome,
+    Paused,
     Percept,
     Phase,
     PhaseChanged,
+    Refused,
     Saw,
     SeatInfo,
     Speaker,
     Turn,
+    TurnKind,
 )
 from sim.core.geometry import HEADING_DI, HEADING_DJ, HEADINGS
 from sim.core.labels import OBJECT_LABELS, Label
@@ -113,10 +116,13 @@ class DialogDriver:
         self._odo = _Odometry()
         self._views: dict[int, RayObservation | None] = {}  # heading -> view, from where it stands
         self._view: RayObservation | None = None
+        self._seen = False
         self._plan: deque[_Task] = deque()
         self._moving = False  # a move is out; wait for its outcome and frame
         self._target: Label | None = None
         self._claiming = False
+        self._paused = False
+        self._claim_on_resume = False  # its claim was refused while paused: claim again once it runs
         self._rejected_at: set[tuple[int, int]] = set()
         self._done_words = ""
 
@@ -133,7 +139,7 @@ class DialogDriver:
         if isinstance(percept, Moved):
             return self._moved(percept)
         if isinstance(percept, Saw):
-            self._view = percept.rays
+            self._view, self._seen = percept.rays, True
             self._views[self._odo.heading] = percept.rays
             self._moving = False
             return self._advance()
@@ -143,7 +149,28 @@ class DialogDriver:
                 return []
             self._rejected_at.add(self._odo.here)
             return [DoSay("ok, not here then. where should i go?")]
+        if isinstance(percept, Paused):
+            self._paused = percept.paused
+            if percept.paused or not self._claim_on_resume:
+                return []
+            self._claim_on_resume = False
+            self._plan.appendleft(_Task(Task.CLAIM))
+            return self._advance()
+        if isinstance(percept, Refused):
+            return self._refused(percept)
         return []  # Claimed: its own claim, already waiting for the verdict
+
+    def _refused(self, refused: Refused) -> list[Turn]:
+        """A turn not allowed now: a claim refused while paused is made again once the trial runs;
+        otherwise it drops its plan and asks (its words refused: nothing to say)."""
+        if refused.turn == TurnKind.SAY:
+            return []
+        self._claiming = self._moving = False
+        self._plan.clear()
+        if refused.turn == TurnKind.CLAIM and self._paused:
+            self._claim_on_resume = True
+            return []
+        return [DoSay(f"i could not {refused.turn} ({refused.reason}). what should i do?")]
 
     def _moved(self, moved: Moved) -> list[Turn]:
         if moved.result != Outcome.OK:
@@ -165,6 +192,7 @@ class DialogDriver:
     def _heard(self, text: str) -> list[Turn]:
         parsed = ins.parse(text)
         self._plan.clear()
+        self._claim_on_resume = False
         tasks: list[_Task] = []
         for item in parsed.instructions:
             tasks += self._tasks(item)
@@ -224,6 +252,10 @@ class DialogDriver:
             if self._sees_target() and self._plan[0].kind != Task.CLAIM:
                 self._plan.clear()
                 self._plan.append(_Task(Task.CLAIM))
+            if self._plan[0].kind == Task.LOOK and self._odo.heading not in self._views:
+                break  # no frame yet from where it stands (a rover's first): it answers once one comes
+            if self._plan[0].kind == Task.CLAIM and not self._seen:
+                break  # a claim sends the Driver's frame: none yet
             task = self._plan.popleft()
             step = self._step(task)  # may clear the plan or put tasks before what is left
             if isinstance(step, DoMove):

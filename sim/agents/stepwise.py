@@ -1,6 +1,7 @@
 """`StepwiseDriver`: the loop of a Driver agent that only moves and claims (the baselines, the
 NDH model): it holds still until the Commander has marked it on the map and it has seen its
-first frame, then decides one move on each frame after its move, and after a claim waits for the Commander's verdict. A subclass
+first frame, then decides one move on each frame after its move, and after a claim waits for the Commander's
+verdict; a claim refused while the trial is paused it makes again once the trial runs. A subclass
 decides (`decide`: a move, or None to claim) and may note what it perceives (`on_*`)."""
 
 from __future__ import annotations
@@ -17,13 +18,16 @@ from sim.agents.turns import (
     Move,
     Moved,
     Outcome,
+    Paused,
     Percept,
     Phase,
     PhaseChanged,
+    Refused,
     Saw,
     SeatInfo,
     Speaker,
     Turn,
+    TurnKind,
 )
 from sim.core.labels import OBJECTS
 from sim.robot.perception import RayObservation
@@ -41,6 +45,9 @@ class StepwiseDriver:
         self.seen = False  # no frame yet: nothing to drive by (a claim would have no frame either)
         self.moving = False  # a move asked for whose frame has not come yet
         self.claiming = False  # a claim asked for whose verdict has not come yet
+        self.paused = False
+        self.held = False  # a turn was refused: nothing more until the trial runs again or the Commander speaks
+        self.claim_on_resume = False
         self.named: str | None = None  # the object the Commander named last, of those not found yet
         self.claimed_name: str | None = None
         self.found: set[str] = set()
@@ -52,8 +59,10 @@ class StepwiseDriver:
                 words = [w.lower() for w in _OBJECT_WORD.findall(text) if w.lower() not in self.found]
                 if speaker == Speaker.COMMANDER and words:
                     self.named = words[-1]
+                if speaker == Speaker.COMMANDER and not self.paused:
+                    self.held = False
             case PhaseChanged(phase=phase, target_index=index):
-                self.phase = phase
+                self.phase, self.held = phase, False
                 if index != self.target_index:
                     self.target_index = index
                     if self.named in self.found:
@@ -74,15 +83,39 @@ class StepwiseDriver:
                         self.found.add(self.claimed_name)
                     return []  # the next target comes with the phase change
                 self.on_rejected()
+            case Refused(turn=turn, reason=reason):
+                return self._refused(turn, reason)
+            case Paused(paused=paused):
+                self.paused = paused
+                if not paused:
+                    self.held = False
+                    if self.claim_on_resume:
+                        self.claim_on_resume = False
+                        return self._claim()
         return self._act()
 
+    def _refused(self, turn: TurnKind, reason: str) -> list[Turn]:
+        """A claim refused while paused is made again once the trial runs; any other refused
+        turn it asks about, and it waits to be spoken to (no loop of refused turns)."""
+        if turn == TurnKind.SAY:
+            return []
+        self.moving = self.claiming = False
+        self.held = True
+        if turn == TurnKind.CLAIM and self.paused:
+            self.claim_on_resume = True
+            return []
+        return [DoSay(f"I could not {turn} ({reason}). What should I do?")]
+
     def _act(self) -> list[Turn]:
-        if self.phase != Phase.NAVIGATING or not self.seen or self.moving or self.claiming:
+        if self.phase != Phase.NAVIGATING or not self.seen or self.moving or self.claiming or self.held:
             return []
         move = self.decide()
         if move is not None:
             self.moving = True
             return [DoMove(move)]
+        return self._claim()
+
+    def _claim(self) -> list[Turn]:
         self.claiming = True
         return [DoSay(self.claim_words()), DoClaim()]
 

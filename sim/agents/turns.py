@@ -89,7 +89,29 @@ class PhaseChanged:
     targets_total: int
 
 
-Percept = Heard | Saw | Moved | Claimed | Judged | PhaseChanged
+class TurnKind(StrEnum):
+    SAY = "say"
+    MOVE = "move"
+    CLAIM = "claim"
+
+
+@dataclass(frozen=True)
+class Refused:
+    """One of its turns was not allowed now, as a person's page shows an error: `reason` says why.
+    A move asked for and refused comes as `Moved` (result REFUSED), as the log records it."""
+
+    turn: TurnKind
+    reason: str
+
+
+@dataclass(frozen=True)
+class Paused:
+    """The trial paused (True) or runs again (False); moves and claims are refused while paused."""
+
+    paused: bool
+
+
+Percept = Heard | Saw | Moved | Claimed | Judged | PhaseChanged | Refused | Paused
 
 
 @dataclass(frozen=True)

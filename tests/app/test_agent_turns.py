@@ -21,10 +21,23 @@ from app.drivers.registry import register_driver
 from bench.live import REPO, SeatClient, make_trial
 from sim.agents.dialog_driver import DialogDriver
 from sim.agents.stepwise import StepwiseDriver
-from sim.agents.turns import Heard, Move, Moved, Outcome, Phase, PhaseChanged, Saw, SeatInfo, Speaker
+from sim.agents.turns import (
+    Heard,
+    Move,
+    Moved,
+    Outcome,
+    Paused,
+    Phase,
+    PhaseChanged,
+    Refused,
+    Saw,
+    SeatInfo,
+    Speaker,
+    TurnKind,
+)
 from sim.robot.perception import RayObservation
 from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread
+from tests.app.live import ServerThread, experimenter_client
 from tests.app.test_experimenter import cli
 from tests.app.test_rover_loop import TARGETS, camera_calibration  # noqa: F401  (a fixture)
 from tests.app.test_virtual_rover import MAZE, START_S, maze, start  # noqa: F401  (fixtures)
@@ -151,6 +164,45 @@ def aborted_with(services, trial_id: int) -> tuple[list[dict], list[str]]:
     phases = events_of(services, trial_id, "phase")
     said = [c["text"] for c in events_of(services, trial_id, "chat") if c["role"] == "driver"]
     return phases, said
+
+
+def test_a_claim_refused_while_paused_is_made_again_once_the_trial_runs(settings):
+    inputs: list = []
+    register_driver("agent:test-recording", lambda services, seating: RecordingDialogDriver(seating, inputs))
+    with ServerThread(settings) as server:
+        services = server.services
+        trial_id = make_trial(services, services.mazes.names()[0], driver="agent:test-recording")
+        experimenter = experimenter_client(services, server.url)
+
+        async def command():
+            async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+                await commander.event("phase", phase="localizing", timeout=30)
+                await commander.send("localize", x=1.0, y=1.0)
+                await commander.event("phase", phase="navigating")
+                for _ in range(600):  # its first frame: a claim sends it
+                    if any(isinstance(p, Saw) for p in inputs):
+                        break
+                    await asyncio.sleep(0.05)
+                await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial_id}/pause")
+                await commander.event("paused", reason="experimenter")
+                await commander.send("chat", text="claim it")
+                await commander.event("chat", role="driver", timeout=30)  # "i think i found ...", then its claim
+                for _ in range(200):
+                    if events_of(services, trial_id, "bad_message"):
+                        break
+                    await asyncio.sleep(0.05)
+                assert "target_claimed" not in commander.kinds()  # refused while paused: no verdict to wait for
+                await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial_id}/resume")
+                await commander.event("target_claimed", timeout=30)
+
+        asyncio.run(command())
+        refusals = events_of(services, trial_id, "bad_message")
+    assert len(refusals) == 1 and "paused" in refusals[0]["error"]
+    refused = [p for p in inputs if isinstance(p, Refused)]
+    assert refused == [Refused(TurnKind.CLAIM, refusals[0]["error"])]
+    paused = [p for p in inputs if isinstance(p, Paused)]
+    assert paused[:2] == [Paused(True), Paused(False)]  # (then the Commander's leaving pauses it)
+    assert inputs.index(paused[0]) < inputs.index(refused[0]) < inputs.index(paused[1])
 
 
 def test_the_moves_cap_ends_the_trial_aborted_with_the_reason_logged(tmp_path):

@@ -94,3 +94,34 @@ def test_walking_trials_on_distinct_mazes_opening_at_once_lose_nothing():
     kinds = [p["kind"] for p in figures["processes"]]
     assert kinds.count("server") == 1 and "render" in kinds  # each process of the server, with its peak
     assert all(p["peak_rss_mb"] > 0 for p in figures["processes"])
+
+
+AGENT_KEYS = KEYS | {
+    "agent_drivers",
+    "agent_reply_p50_ms",
+    "agent_reply_p95_ms",
+    "agent_replies",
+    "agent_unreplied",
+    "agent_moves",
+    "agent_chat_p99_ms",
+}
+
+
+def test_agent_drivers_are_seated_spoken_to_and_lose_nothing():
+    trials, agents = 8, 3
+    out = subprocess.run(
+        [sys.executable, "-m", "bench.load", "--trials", str(trials), "--agent-drivers", str(agents)]
+        + ["--duration", "10", "--warmup", "2", "--port", str(free_port()), "--json"],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=True,
+    )
+    figures = json.loads(out.stdout.strip().splitlines()[-1])
+    assert figures.keys() >= AGENT_KEYS
+    assert figures["trials"] == trials and figures["agent_drivers"] == agents
+    assert figures["lost"] == 0 and figures["unanswered"] == 0
+    # The agents answered the bench's Commanders and carried out their instructions.
+    assert figures["agent_replies"] >= agents and figures["agent_moves"] > 0
+    assert "agent Drivers" in out.stderr

@@ -97,6 +97,16 @@ def test_while_localized_it_answers_and_turns_in_place_but_does_not_drive_off(wo
     assert said and "behind me" in said[0].text and heading == 0
 
 
+def test_asked_before_its_first_frame_it_answers_once_the_frame_comes(world):
+    # On a rover the Commander can speak before the Driver's camera has sent a frame.
+    driver = DialogDriver(0)
+    driver.reset(SeatInfo(Speaker.DRIVER, 3))
+    driver.perceive(PhaseChanged(Phase.LOCALIZING, None, 3))
+    assert driver.perceive(Heard(Speaker.COMMANDER, "what do you see?")) == []
+    (answer,) = driver.perceive(Saw(0, _rays(world, Pose(100, 0))))
+    assert isinstance(answer, DoSay) and "ahead" in answer.text
+
+
 def _carry_out(driver, world, pose, text):
     """The Commander says `text`; the Driver's moves are stepped on the graph until it speaks."""
     _, graph, _ = world
