@@ -15,6 +15,7 @@ from sim.cli.eval import BENCHMARK_OPTION, open_benchmark, parse_list
 from sim.tasks.benchmark import Split
 
 LEARNED = "learned"
+HUMANS_TD_M = 0.446  # the paper's people reading the dialogs
 
 
 class VariantOption(str, Enum):
@@ -27,12 +28,13 @@ def print_table(summary: dict) -> None:
     from rich.table import Table
 
     table = Table(title=f"LDH {summary['split']} {summary['variant']} (n={summary['n']})")
-    for col in ("agent", "TD (m)", "Euclid (m)", "acc@0.25", "acc@0.5", "acc@1.0"):
+    for col in ("agent", "TD (m)", "median TD", "Euclid (m)", "acc@0.25", "acc@0.5", "acc@1.0"):
         table.add_column(col, justify="left" if col == "agent" else "right")
     for name, s in summary["agents"].items():
         table.add_row(
             name,
             f"{s['td_mean']:.3f} ± {s['td_std']:.3f}",
+            f"{s['td_median']:.3f}",
             f"{s['euclid_mean']:.3f}",
             f"{s['acc_0.25']:.3f}",
             f"{s['acc_0.5']:.3f}",
@@ -46,7 +48,7 @@ def eval_ldh(
     split: Split = typer.Option(Split.VAL_SEEN, help="Split (by maze, as the benchmark's)."),
     agent: str = typer.Option(
         "random,center,colours",
-        help=f"Localizers, comma-separated: random, center, colours, {LEARNED} (needs --checkpoint).",
+        help=f"Localizers, comma-separated: random, center, colours, dialog, {LEARNED} (needs --checkpoint).",
     ),
     checkpoint: Path | None = typer.Option(None, help="A checkpoint written by `train ldh`."),
     variant: VariantOption = typer.Option(
@@ -57,14 +59,22 @@ def eval_ldh(
     ),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
     per_instance: Path | None = typer.Option(None, help="Write a CSV row per instance and agent."),
+    curve: Path | None = typer.Option(None, help="Write the per-turn curve (TD after each Driver turn) as JSON."),
+    plot: Path | None = typer.Option(None, help="Draw the per-turn curve as a PNG (matplotlib)."),
+    versus: str | None = typer.Option(
+        None, help="Paired t-tests on per-instance TD of every other agent against this one (BY-corrected)."
+    ),
 ) -> None:
     """Score localizers on LDH: TD and Euclidean error (m), accuracy within 0.25/0.5/1.0 m."""
     from sim.tasks.benchmark import BenchmarkError
     from sim.tasks.ldh import Variant, load_split
-    from sim.tasks.ldh_eval import BASELINES, evaluate, summarize, write_csv
+    from sim.tasks.ldh_dialog import DIALOG, DialogLocalizer, per_turn, plot_curve
+    from sim.tasks.ldh_eval import BASELINES, Localizer, MazeContexts, evaluate, summarize, write_csv
 
-    names = parse_list(agent, "agent", [*BASELINES, LEARNED])
-    agents = {name: BASELINES[name] for name in names if name != LEARNED}
+    names = parse_list(agent, "agent", [*BASELINES, DIALOG, LEARNED])
+    if versus is not None and versus not in names:
+        raise typer.BadParameter(f"{versus!r} is not among the agents evaluated", param_hint="--versus")
+    agents: dict[str, Localizer] = {name: BASELINES[name] for name in names if name in BASELINES}
     if LEARNED in names:
         if checkpoint is None:
             raise typer.BadParameter(f"agent {LEARNED} needs --checkpoint", param_hint="--agent")
@@ -75,6 +85,9 @@ def eval_ldh(
         except (FileNotFoundError, ValueError) as e:
             raise typer.BadParameter(str(e), param_hint="--checkpoint") from None
     bench = open_benchmark(benchmark)
+    if DIALOG in names:
+        agents[DIALOG] = DialogLocalizer(bench)
+    agents = {name: agents[name] for name in names}  # in the order asked for
     try:
         instances = load_split(bench, split.value, Variant(variant.value))
     except BenchmarkError as e:
@@ -82,21 +95,43 @@ def eval_ldh(
     if not instances:
         raise typer.BadParameter(f"split {split.value} has no LDH instances", param_hint="--split")
     shown = instances[0].variant.value
+    contexts = MazeContexts(bench)
     if as_json:
-        results = evaluate(bench, split.value, instances, agents)
+        results = evaluate(bench, split.value, instances, agents, contexts=contexts)
     else:
         from rich.progress import track
 
         results = evaluate(
-            bench, split.value, instances, agents, progress=lambda it: track(it, description="localizing")
+            bench,
+            split.value,
+            instances,
+            agents,
+            contexts=contexts,
+            progress=lambda it: track(it, description="localizing"),
         )
     summary = summarize(split.value, shown, len(instances), results)
+    if versus is not None and len(instances) > 1:
+        from models.stats import paired_tests
+
+        others = [(name, versus) for name in names if name != versus]
+        summary["tests"] = [c.to_dict() for c in paired_tests(results, others)]
     if per_instance is not None:
         write_csv(per_instance, results)
+    if curve is not None or plot is not None:
+        turns = per_turn(bench, instances, agents, contexts)
+        if curve is not None:
+            curve.parent.mkdir(parents=True, exist_ok=True)
+            curve.write_text(json.dumps({"split": split.value, "variant": shown, **turns}, indent=2))
+        if plot is not None:
+            plot_curve(turns, plot, f"LDH {split.value} ({shown}): TD after each Driver turn", HUMANS_TD_M)
     if as_json:
         typer.echo(json.dumps(summary, indent=2))
     else:
         print_table(summary)
+        for c in summary.get("tests", []):
+            typer.echo(
+                f"{c['a']} vs {c['b']}: TD {c['mean_a']:.3f} vs {c['mean_b']:.3f}, t {c['t']:.2f}, p {c['p']:.4f}"
+            )
 
 
 def train_ldh(

@@ -217,7 +217,12 @@ def summarize_agent(results: list[LDHResult]) -> dict[str, Any]:
     td = [float(np.mean([r.td for r in rs])) for rs in by_inst.values()]
     euclid = [float(np.mean([r.euclid for r in rs])) for rs in by_inst.values()]
     td_mean, td_std = _mean_std(td)
-    out = {"td_mean": td_mean, "td_std": td_std, "euclid_mean": _mean_std(euclid)[0]}
+    out = {
+        "td_mean": td_mean,
+        "td_std": td_std,
+        "td_median": float(np.median(td)) if td else math.nan,
+        "euclid_mean": _mean_std(euclid)[0],
+    }
     for k, radius in enumerate(ACC_RADII_M):
         out[f"acc_{radius}"] = _mean_std([float(np.mean([r.acc[k] for r in rs])) for rs in by_inst.values()])[0]
     return out

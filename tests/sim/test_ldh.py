@@ -113,8 +113,9 @@ def test_summary_shape_and_sample_std(open_ctx, tmp_path):
     s = summarize("val_seen", "prefix", 2, results)
     assert set(s) == {"split", "variant", "n", "agents"}
     a = s["agents"]["stay"]
-    assert set(a) == {"td_mean", "td_std", "euclid_mean", "acc_0.25", "acc_0.5", "acc_1.0"}
+    assert set(a) == {"td_mean", "td_std", "td_median", "euclid_mean", "acc_0.25", "acc_0.5", "acc_1.0"}
     assert a["td_mean"] == pytest.approx(0.14) and a["td_std"] == pytest.approx(np.std([0, 0.28], ddof=1))
+    assert a["td_median"] == pytest.approx(0.14)
     assert a["acc_0.25"] == 0.5 and a["acc_1.0"] == 1.0
 
 

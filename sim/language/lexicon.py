@@ -1,0 +1,349 @@
+"""From a dialog's words to facts about what the robot sees.
+
+A Driver's description ("a red wall to my left, yellow far ahead, no blue", "I'm in a corridor",
+"facing the red and yellow corner") becomes `Fact`s: a label, a shape or a pair of labels side by
+side, in the sectors named (front / left / behind / right; none named: anywhere in view), near or
+far, asserted or negated. A Commander's question is read the same way ("your" as "my"), and the
+Driver's yes / no answer asserts or negates it. `turn_steps` reads a reported turn ("I turned
+around") as heading steps of 45 degrees, counter-clockwise.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, replace
+from enum import Enum
+
+from sim.core.labels import Label
+from sim.tasks.ldh_features import LABEL_WORDS, SECTOR_HEADING_OFFSET, Sector
+
+
+class Kind(str, Enum):
+    LABEL = "label"  # the label is seen in the sectors
+    EDGE = "edge"  # the maze's edge (the table's white border) is seen in the sectors
+    CORRIDOR = "corridor"  # open space: the sector's rays travel far
+    CORNER = "corner"  # walls close ahead and to one side
+    DEAD_END = "dead_end"  # walls close ahead, left and right
+    NEXT_TO = "next_to"  # two labels side by side in one view
+
+
+class Distance(str, Enum):
+    ANY = "any"
+    NEAR = "near"
+    FAR = "far"
+
+
+class Source(str, Enum):
+    DESCRIPTION = "description"  # the Driver's own words
+    ANSWER = "answer"  # a Commander's question the Driver answered yes / no / with a side
+
+
+@dataclass(frozen=True)
+class Fact:
+    kind: Kind
+    sectors: tuple[Sector, ...]  # alternatives ("ahead to the right"); (ANY,) when none named
+    label: Label | None = None
+    other: Label | None = None  # the second label of NEXT_TO
+    distance: Distance = Distance.ANY
+    negated: bool = False
+    source: Source = Source.DESCRIPTION
+
+
+@dataclass(frozen=True)
+class Question:
+    facts: tuple[Fact, ...]
+    labels: tuple[Label, ...]  # in order of mention
+    sectors: tuple[Sector, ...]
+    choice: bool  # "left or right?": a yes / no answer says nothing
+    turn: int  # heading steps the question asks for first ("turn around: what do you see?")
+
+
+LABELS = {
+    **LABEL_WORDS,
+    "border": Label.WHITE,
+    "boundary": Label.WHITE,
+    "yelllow": Label.YELLOW,
+    "yelow": Label.YELLOW,
+    "grey": Label.WHITE,
+    "gray": Label.WHITE,
+    "blocks": Label.JAR,
+    "cubes": Label.JAR,
+    "pong": Label.PADDLE,
+}
+SECTORS = {
+    "front": Sector.FRONT,
+    "infront": Sector.FRONT,
+    "ahead": Sector.FRONT,
+    "facing": Sector.FRONT,
+    "straight": Sector.FRONT,
+    "forward": Sector.FRONT,
+    "left": Sector.LEFT,
+    "right": Sector.RIGHT,
+    "behind": Sector.BEHIND,
+    "back": Sector.BEHIND,
+    "rear": Sector.BEHIND,
+}
+# "right" that means "directly" ("right in front", "right behind"), not the side.
+_RIGHT_AS_NEAR = {"in", "behind", "ahead", "next", "by", "beside", "there", "here", "now", "at", "up", "on"}
+# "back" that is a move or a return, not the sector behind.
+_BACK_NOT_SECTOR = {"up", "to", "out", "into", "down"}
+NEAR_WORDS = {"close", "closely", "directly", "immediately", "immediate", "near", "nearby", "just", "touching"}
+FAR_WORDS = {"far", "distance", "distant", "end", "down", "away", "across", "farther", "further", "long"}
+NEGATIONS = {
+    "no",
+    "not",
+    "nothing",
+    "none",
+    "without",
+    "never",
+    "neither",
+    "nor",
+    "dont",
+    "doesnt",
+    "cant",
+    "isnt",
+    "arent",
+}
+CORRIDOR_WORDS = {"corridor", "hallway", "hall", "opening", "open", "gap", "path", "passage", "way", "aisle"}
+EDGE_WORDS = {"edge", "border", "boundary"}
+CORNER_WORDS = {"corner", "intersection", "junction"}
+DEAD_END = ("dead", "end")
+_NEGATED_NOUNS = {"wall", "walls", "more", "other", *CORRIDOR_WORDS, *CORNER_WORDS}
+RELATION_WORDS = {"next", "beside", "attached", "connected", "connect", "connects", "adjacent", "between", "joined"}
+YES = {"yes", "yeah", "yep", "yup", "yea", "ya", "correct", "affirmative", "sure", "indeed", "right"}
+NO = {"no", "nope", "nah", "negative"}
+_QUESTION_START = {"is", "are", "do", "does", "can", "could", "any", "have", "did", "would", "will", "what", "which"}
+_TOKEN = re.compile(r"[a-z0-9]+")
+_CHUNK = re.compile(r"[,.;!?:]|\bbut\b|\bthen\b")
+_TURN = re.compile(r"\b(?:turn(?:ed|ing)?|rotat(?:e|ed|ing)|spun|spin(?:ning)?|face[sd]?|facing)\b")
+LEFT_STEPS = SECTOR_HEADING_OFFSET[Sector.LEFT]
+AROUND_STEPS = SECTOR_HEADING_OFFSET[Sector.BEHIND]
+
+
+def tokens(text: str) -> list[str]:
+    """Lower-case words; "n't" as "not", the objects' hyphenated names as one word."""
+    text = text.lower().replace("n't", " not").replace("ping-pong", "pong").replace("end of the maze", "edge")
+    return _TOKEN.findall(text)
+
+
+def _sectors(words: list[str]) -> list[tuple[int, Sector]]:
+    """(position, sector) of each direction word; "sides" ("both sides") is left and right."""
+    out = []
+    for k, w in enumerate(words):
+        nxt = words[k + 1] if k + 1 < len(words) else ""
+        if w == "right" and nxt in _RIGHT_AS_NEAR:
+            continue
+        if w == "back" and nxt in _BACK_NOT_SECTOR:
+            continue
+        if w in SECTORS:
+            out.append((k, SECTORS[w]))
+        elif w == "sides":
+            out += [(k, Sector.LEFT), (k, Sector.RIGHT)]
+    return out
+
+
+def _labels(words: list[str]) -> list[tuple[int, Label]]:
+    """(position, label) of each label word; a label named twice in a row ("white edge wall",
+    "ping-pong paddle") once."""
+    out: list[tuple[int, Label]] = []
+    for k, w in enumerate(words):
+        if w in LABELS and not (out and out[-1][1] == LABELS[w] and k - out[-1][0] <= 2):
+            out.append((k, LABELS[w]))
+    return out
+
+
+def _distance(words: list[str]) -> Distance:
+    near = any(w in NEAR_WORDS for w in words) or any(
+        w == "right" and k + 1 < len(words) and words[k + 1] in _RIGHT_AS_NEAR for k, w in enumerate(words)
+    )
+    far = any(w in FAR_WORDS for w in words) and not _has(words, DEAD_END)
+    if near == far:
+        return Distance.ANY
+    return Distance.NEAR if near else Distance.FAR
+
+
+def _negations(words: list[str]) -> list[int]:
+    """Positions of the words that negate what follows them; "no" only when a wall or a label
+    follows ("no red wall"), not as an answer ("no, my left", "no there is a red dead end")."""
+    return [
+        k
+        for k, w in enumerate(words)
+        if w in NEGATIONS
+        and (w != "no" or (k + 1 < len(words) and (words[k + 1] in LABELS or words[k + 1] in _NEGATED_NOUNS)))
+    ]
+
+
+def _has(words: list[str], phrase: tuple[str, ...]) -> bool:
+    n = len(phrase)
+    return any(tuple(words[k : k + n]) == phrase for k in range(len(words) - n + 1))
+
+
+@dataclass
+class _Piece:
+    """One part of a sentence between "and"s: its labels and direction words."""
+
+    words: list[str]
+    labels: list[tuple[int, Label]]
+    sectors: list[tuple[int, Sector]]
+    joined: bool = False  # directions joined by "and": each one holds
+
+
+def _pieces(chunk: list[str]) -> list[_Piece]:
+    """Split at "and"; a part naming no label lends its directions to the part before
+    ("white to my left and right"), a part naming no direction takes the next one's when that
+    one names a direction but no label ("blue walls in front and to my left")."""
+    parts: list[list[str]] = [[]]
+    for w in chunk:
+        if w == "and":
+            parts.append([])
+        else:
+            parts[-1].append(w)
+    pieces = [_Piece(p, _labels(p), _sectors(p)) for p in parts if p]
+    merged: list[_Piece] = []
+    for piece in pieces:
+        if merged and not piece.labels and piece.sectors and not _negations(piece.words):
+            prev = merged[-1]
+            offset = len(prev.words)
+            prev.words = prev.words + piece.words
+            prev.sectors = prev.sectors + [(k + offset, s) for k, s in piece.sectors]
+            prev.joined = True
+            continue
+        merged.append(piece)
+    return merged
+
+
+def _label_facts(piece: _Piece, distance: Distance) -> list[Fact]:
+    """Each label in the sectors named in its piece: every direction word counts. A piece naming
+    as many directions as labels pairs them in order ("blue left, red right"); otherwise each
+    label is seen in one of the sectors named (all of them when joined by "and", which
+    `_pieces` merged: then each direction is a fact of its own)."""
+    words = piece.words
+    neg_at = _negations(words)
+    out = []
+    sectors = [s for _, s in piece.sectors]
+    joined = len(set(sectors)) > 1 and (piece.joined or "sides" in words)
+    for k, label in piece.labels:
+        negated = any(n < k for n in neg_at)
+        if not sectors:
+            groups: list[tuple[Sector, ...]] = [(Sector.ANY,)]
+        elif len(piece.labels) > 1 and len(piece.sectors) == len(piece.labels):
+            # "brown to the left blue to the right": labels and directions paired in order
+            groups = [(piece.sectors[[p for p, _ in piece.labels].index(k)][1],)]
+        elif joined:
+            groups = [(s,) for s in dict.fromkeys(sectors)]
+        else:
+            groups = [tuple(dict.fromkeys(sectors))]
+        kind = Kind.EDGE if label == Label.WHITE and EDGE_WORDS & set(words[k : k + 3]) else Kind.LABEL
+        out += [Fact(kind, g, label, distance=distance, negated=negated) for g in groups]
+    return out
+
+
+def _shape_facts(piece: _Piece, sectors: tuple[Sector, ...]) -> list[Fact]:
+    words = piece.words
+    negated = bool(_negations(words))
+    out = []
+    if _has(words, DEAD_END):
+        out.append(Fact(Kind.DEAD_END, (Sector.FRONT,), negated=negated))
+    elif any(w in CORRIDOR_WORDS for w in words) and not _has(words, ("no", "way")):
+        out.append(Fact(Kind.CORRIDOR, sectors if sectors != (Sector.ANY,) else (Sector.FRONT,), negated=negated))
+    if any(w in CORNER_WORDS for w in words):
+        out.append(Fact(Kind.CORNER, (Sector.FRONT,), negated=negated))
+    return out
+
+
+def _relation_facts(words: list[str], sectors: tuple[Sector, ...]) -> list[Fact]:
+    """Two labels side by side: "red next to yellow", "between blue and white", "the red and
+    yellow corner", "a yellow wall ... and a red wall next to it"."""
+    labels = _labels(words)
+    out = []
+    for k, w in enumerate(words):
+        if w == "between":
+            pair = [lab for p, lab in labels if p > k][:2]
+        elif w in CORNER_WORDS:
+            pair = [lab for p, lab in labels if k - 6 <= p < k][-2:]
+        elif w in RELATION_WORDS and not (w == "next" and words[k + 1 : k + 3] == ["to", "me"]):
+            before = [lab for p, lab in labels if p < k]
+            after = [lab for p, lab in labels if p > k]
+            pair = [before[-1], after[0]] if before and after else before[-2:]
+        else:
+            continue
+        if len(pair) == 2 and pair[0] != pair[1]:
+            out.append(Fact(Kind.NEXT_TO, sectors, pair[0], pair[1]))
+    return out
+
+
+def describe(text: str) -> list[Fact]:
+    """The facts one message states, in order."""
+    facts: list[Fact] = []
+    for chunk in _CHUNK.split(text.lower().replace("n't", " not")):
+        words = tokens(chunk)
+        if not words:
+            continue
+        named = tuple(dict.fromkeys(s for _, s in _sectors(words))) or (Sector.ANY,)
+        facts += _relation_facts(words, named)
+        for piece in _pieces(words):
+            distance = _distance(piece.words)
+            facts += _label_facts(piece, distance)
+            own = tuple(dict.fromkeys(s for _, s in piece.sectors)) or (Sector.ANY,)
+            facts += _shape_facts(piece, own)
+    return facts
+
+
+def turn_steps(text: str) -> int:
+    """Heading steps (45 degrees, counter-clockwise) of a turn the message reports or asks for;
+    0 when it names none."""
+    words = tokens(text)
+    if not _TURN.search(" ".join(words)) and not _has(words, ("u", "turn")):
+        return 0
+    if "around" in words or "180" in words or _has(words, ("u", "turn")):
+        return AROUND_STEPS
+    turn_at = next(k for k, w in enumerate(words) if _TURN.fullmatch(w) or w == "u")
+    after = words[turn_at + 1 : turn_at + 6]
+    if words[turn_at] in {"face", "faces", "faced", "facing"}:
+        return 0  # "facing" describes, it does not turn
+    if "left" in after:
+        return LEFT_STEPS
+    if "right" in after:
+        return -LEFT_STEPS
+    return 0
+
+
+def is_question(text: str) -> bool:
+    words = tokens(text)
+    return text.strip().endswith("?") or bool(words and words[0] in _QUESTION_START)
+
+
+def question(text: str) -> Question:
+    """A Commander's question as the Driver would state its content ("your" read as "my")."""
+    mine = " ".join("my" if w == "your" else w for w in re.findall(r"[^\s]+", text.lower()))
+    facts = tuple(replace(f, source=Source.ANSWER) for f in describe(mine))
+    words = tokens(mine)
+    return Question(
+        facts=facts,
+        labels=tuple(label for _, label in _labels(words)),
+        sectors=tuple(dict.fromkeys(s for _, s in _sectors(words))),
+        choice="or" in words,
+        turn=turn_steps(mine),
+    )
+
+
+def answer(q: Question, text: str) -> list[Fact]:
+    """The facts a Driver's reply to `q` states: the question's own facts on "yes", each of them
+    negated on "no" (pairs side by side left out: either label may be the one missing), and
+    for a reply naming only a side ("left") or only a label ("the edge") the question's first
+    label or its side supplies the rest."""
+    words = tokens(text)
+    if not words:
+        return []
+    own = describe(text)
+    if not q.choice and words[0] in YES and q.facts:
+        return [*q.facts, *own]
+    if not q.choice and words[0] in NO and q.facts:
+        return [replace(f, negated=not f.negated) for f in q.facts if f.kind != Kind.NEXT_TO] + own
+    sectors = tuple(dict.fromkeys(s for _, s in _sectors(words)))
+    labels = [label for _, label in _labels(words)]
+    if sectors and not labels and q.labels:
+        return [Fact(Kind.LABEL, (s,), q.labels[0], source=Source.ANSWER) for s in sectors] + own
+    if labels and not sectors and len(q.sectors) == 1:
+        return [replace(f, sectors=q.sectors, source=Source.ANSWER) if f.sectors == (Sector.ANY,) else f for f in own]
+    return own

@@ -1,0 +1,118 @@
+"""The `dialog` LDH localizer and the per-turn curve (TD after each Driver turn, as DiaLoc reports).
+
+`DialogLocalizer` runs the language-conditioned filter (`sim.language.localizer.Belief`) over an
+instance's dialog on the maze's main component and takes the node minimising the expected TD,
+as the other localizers do. `per_turn` scores any localizer on the dialog cut after each
+Driver turn: turn 0 is before the Driver has said anything.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sim.core.observations import RayTable
+from sim.language.localizer import TUNED, Belief, Scene, Weights
+from sim.tasks.benchmark import Benchmark
+from sim.tasks.ldh import LDHInstance
+from sim.tasks.ldh_eval import ACC_RADII_M, Localizer, MazeContext, MazeContexts, score
+
+DIALOG = "dialog"
+
+
+class DialogLocalizer:
+    """The filter over each maze's (node, heading) poses; scenes are built once per maze."""
+
+    def __init__(self, bench: Benchmark, weights: Weights = TUNED):
+        self.bench = bench
+        self.weights = weights
+        self._scenes: dict[str, Scene] = {}
+
+    def scene(self, ctx: MazeContext) -> Scene:
+        if ctx.run not in self._scenes:
+            rays = RayTable.build(self.bench.maze(ctx.run), ctx.graph, cache_dir=self.bench.cache_dir)
+            self._scenes[ctx.run] = Scene.from_rays(rays.labels, rays.depth, ctx.graph.nodes)
+        return self._scenes[ctx.run]
+
+    def belief(self, inst: LDHInstance, ctx: MazeContext) -> Belief:
+        belief = Belief(self.scene(ctx), ctx.main, self.weights)
+        for role, message in inst.dialog:
+            belief.message(role, message)
+        return belief
+
+    def __call__(self, inst: LDHInstance, ctx: MazeContext) -> np.ndarray:
+        belief = self.belief(inst, ctx)
+        if not np.isfinite(belief.log).any() or np.ptp(belief.log[np.isfinite(belief.log)]) == 0:
+            return ctx.one_hot(ctx.center)  # nothing said yet: the map's centre
+        return ctx.one_hot(ctx.decide(belief.node_logits()))
+
+
+def driver_cuts(inst: LDHInstance) -> list[int]:
+    """Dialog lengths to score: before any Driver turn, then after each one."""
+    first = next((k for k, (role, _) in enumerate(inst.dialog) if role == "navigator"), len(inst.dialog))
+    return [first] + [k + 1 for k, (role, _) in enumerate(inst.dialog) if role == "navigator"]
+
+
+def per_turn(
+    bench: Benchmark,
+    instances: list[LDHInstance],
+    agents: dict[str, Localizer],
+    contexts: MazeContexts | None = None,
+) -> dict[str, Any]:
+    """{"turns": [0, 1, ...], "n": [instances with at least that many Driver turns],
+    "agents": {NAME: {"td_mean": [...], "td_median": [...], "acc_0.25": [...], "acc_0.5": [...]}}}:
+    after turn t, each instance's TD with its dialog cut after its t-th Driver turn, or whole
+    when it has fewer (the estimate stays where its dialog left it)."""
+    contexts = contexts or MazeContexts(bench)
+    cuts = {inst.inst_idx: driver_cuts(inst) for inst in instances}
+    turns = max(len(c) for c in cuts.values())
+    tds: dict[str, np.ndarray] = {name: np.zeros((len(instances), turns)) for name in agents}
+    for i, inst in enumerate(instances):
+        ctx = contexts[inst.run]
+        inst_cuts = cuts[inst.inst_idx]
+        for name, localizer in agents.items():
+            row = [score(ctx, localizer(replace(inst, dialog=inst.dialog[:cut]), ctx), inst)[0] for cut in inst_cuts]
+            tds[name][i] = row + [row[-1]] * (turns - len(row))
+    out: dict[str, Any] = {
+        "turns": list(range(turns)),
+        "n": [sum(len(c) > t for c in cuts.values()) for t in range(turns)],
+        "agents": {},
+    }
+    for name, td in tds.items():
+        curve = {"td_mean": td.mean(axis=0).tolist(), "td_median": np.median(td, axis=0).tolist()}
+        for r in ACC_RADII_M[:2]:
+            curve[f"acc_{r}"] = (td <= r).mean(axis=0).tolist()
+        out["agents"][name] = curve
+    return out
+
+
+def plot_curve(curve: dict[str, Any], path: str | Path, title: str, humans_m: float | None = None) -> None:
+    """Mean TD after each Driver turn, one line per agent (and the humans' final TD, dashed)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 3.8))
+    for name, c in curve["agents"].items():
+        ax.plot(curve["turns"], c["td_mean"], marker="o", ms=3, label=name)
+    if humans_m is not None:
+        ax.axhline(humans_m, color="grey", ls="--", lw=1, label=f"humans (paper) {humans_m} m")
+    ax.set_xlabel("Driver turns read")
+    ax.set_ylabel("mean TD (m)")
+    ax.set_title(title)
+    ax.set_ylim(bottom=0)
+    ax2 = ax.twinx()
+    ax2.bar(curve["turns"], curve["n"], color="grey", alpha=0.15, width=0.6)
+    ax2.set_ylabel("dialogs still going", color="grey")
+    ax.set_zorder(ax2.get_zorder() + 1)
+    ax.patch.set_visible(False)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

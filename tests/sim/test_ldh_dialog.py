@@ -1,0 +1,227 @@
+"""The dialog localizer: what it reads in sentences of the train split (every direction word,
+negation, relations, shapes, yes / no answers, reported turns), that its belief settles on the
+pose a description was written from, and `eval ldh --agent dialog` with its per-turn curve."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from app.cli import root
+from sim.core.labels import Label
+from sim.core.maze import Maze
+from sim.core.navgraph import NavGraph
+from sim.core.observations import RayTable
+from sim.language.lexicon import Fact, Kind, Source, answer, describe, question, turn_steps
+from sim.language.localizer import Belief, Scene
+from sim.tasks.ldh_eval import MazeContext
+from sim.tasks.ldh_features import Sector
+from sim.tasks.library import MazeLibrary
+from tests.sim.helpers import open_table, wall_at_x
+
+F, L, B, R, ANY = Sector.FRONT, Sector.LEFT, Sector.BEHIND, Sector.RIGHT, Sector.ANY
+
+
+def seen(facts: list[Fact]) -> set[tuple[tuple[Sector, ...], Label, bool]]:
+    """The label and edge facts as (sectors, label, negated); the edge's label is white."""
+    return {(f.sectors, f.label, f.negated) for f in facts if f.kind in (Kind.LABEL, Kind.EDGE) and f.label is not None}
+
+
+def test_every_direction_word_counts():
+    # one label, two directions joined by "and": each holds
+    assert seen(describe("There are blue walls in front and to my left and the edge of the maze to my right")) == {
+        ((F,), Label.BLUE, False),
+        ((L,), Label.BLUE, False),
+        ((R,), Label.WHITE, False),
+    }
+    assert seen(describe("white on both sides")) == {((L,), Label.WHITE, False), ((R,), Label.WHITE, False)}
+    assert seen(describe("white wall to the left and right")) == {
+        ((L,), Label.WHITE, False),
+        ((R,), Label.WHITE, False),
+    }
+    # two labels, two directions in one clause: paired in order, not the clause's last direction for both
+    assert seen(describe("Brown walls to the left blue to the right")) == {
+        ((L,), Label.BROWN, False),
+        ((R,), Label.BLUE, False),
+    }
+    # two directions for one place: either may hold
+    assert seen(describe("Red wall is up ahead to the left")) == {((F, L), Label.RED, False)}
+    # a label named twice ("white edge") is one mention
+    assert len(describe("The white edge wall is ahead")) == 1
+
+
+def test_the_edge_of_the_maze_is_the_tables_border_not_any_white_wall():
+    kinds = {
+        f.kind: f
+        for f in describe("I'm facing blue walls, with a white wall on my left and the edge of maze on my right")
+    }
+    assert kinds[Kind.EDGE].sectors == (R,) and kinds[Kind.EDGE].label == Label.WHITE
+    assert ((L,), Label.WHITE, False) in {(f.sectors, f.label, f.negated) for f in describe("white wall to my left")}
+    assert describe("the end of the maze which is white")[0].kind == Kind.EDGE
+
+
+def test_near_and_far():
+    (near,) = describe("To my immediate left i see a red wall")
+    (far,) = describe("blue far ahead")
+    assert (near.sectors, near.label, near.distance.value) == ((L,), Label.RED, "near")
+    assert (far.sectors, far.label, far.distance.value) == ((F,), Label.BLUE, "far")
+
+
+def test_negation():
+    facts = describe("i dont see a opening with yellow on right and white on left")
+    assert ((R,), Label.YELLOW, True) in seen(facts)
+    assert any(f.kind == Kind.CORRIDOR and f.negated for f in facts)
+    # an answering "no" before a statement negates nothing
+    facts = describe("no there is a red dead end")
+    assert seen(facts) == {((ANY,), Label.RED, False)}
+    assert [f.kind for f in facts if f.kind != Kind.LABEL] == [Kind.DEAD_END]
+    assert seen(describe("no red wall")) == {((ANY,), Label.RED, True)}
+
+
+def test_relations_and_shapes():
+    facts = describe("a yellow wall directly in front of me and a red wall next to it")
+    assert [(f.label, f.other) for f in facts if f.kind == Kind.NEXT_TO] == [(Label.YELLOW, Label.RED)]
+    facts = describe("i am now facing the red and yellow corner")
+    assert {(f.kind, f.label, f.other) for f in facts if f.kind != Kind.LABEL} == {
+        (Kind.NEXT_TO, Label.RED, Label.YELLOW),
+        (Kind.CORNER, None, None),
+    }
+    facts = describe("I see a gap between a blue and white wall with a brown wall at the end of it")
+    assert (Kind.NEXT_TO, Label.BLUE, Label.WHITE) in {(f.kind, f.label, f.other) for f in facts}
+    assert any(f.kind == Kind.CORRIDOR for f in facts)
+    assert ((ANY,), Label.BROWN, False) in seen(facts)
+    corridor = [
+        f for f in describe("my left is a long corridor with a brown wall at the end") if f.kind == Kind.CORRIDOR
+    ]
+    assert [f.sectors for f in corridor] == [(L,)]
+    assert [f.kind for f in describe("yellow wall to my left and white dead end in front of me")].count(
+        Kind.DEAD_END
+    ) == 1
+
+
+def test_yes_and_no_answers_to_the_commanders_questions():
+    yes = answer(question("is the edge on your right?"), "yes")
+    assert seen(yes) == {((R,), Label.WHITE, False)} and all(f.source == Source.ANSWER for f in yes)
+    assert seen(answer(question("are you facing a red wall"), "yes")) == {((F,), Label.RED, False)}
+    no = answer(question("Do you have red walls near you?"), "no")
+    assert seen(no) == {((ANY,), Label.RED, True)} and no[0].distance.value == "near"
+    # a choice: the side answered, for the question's first label
+    assert seen(answer(question("is the red wall to the left or right of the yellow wall?"), "left")) == {
+        ((L,), Label.RED, False)
+    }
+    # a label answered to "what is on your left": the question's side
+    assert seen(answer(question("What is on your left"), "the edge of the maze")) == {((L,), Label.WHITE, False)}
+    # "yes" to a choice says nothing
+    assert answer(question("is the red wall to the left or right of the yellow wall?"), "yes") == []
+
+
+def test_reported_turns():
+    assert turn_steps("I rotated 180 degrees, and now I see a yellow wall close to me") == 4
+    assert turn_steps("I turned left") == 2 and turn_steps("ok I turned to the right") == -2
+    assert turn_steps("I am facing a single yellow wall") == 0
+    assert question("can you turn around and tell me what you see?").turn == 4
+
+
+@pytest.fixture(scope="module")
+def bundled():
+    maze = MazeLibrary().load("gen-000")
+    graph = NavGraph.build(maze, "benchmark")
+    rays = RayTable.build(maze, graph)
+    return MazeContext("gen-000", graph), Scene.from_rays(rays.labels, rays.depth, graph.nodes)
+
+
+SIDES = ("in front of me", "to my left", "behind me", "to my right")
+
+
+def description(scene: Scene, node: int, heading: int) -> list[str]:
+    """What a Driver at the pose would say: each label a third of a sector's rays hit, with the
+    side, and "close" where most of its hits are near."""
+    out = []
+    for s, side in enumerate(SIDES):
+        near, far = scene.near[node, heading, s], scene.far[node, heading, s]
+        for label in np.flatnonzero(near + far >= 0.3):
+            if label != Label.FLOOR:
+                close = "close " if near[label] >= far[label] else ""
+                out.append(f"a {Label(label).word} wall {close}{side}")
+    return out
+
+
+def test_the_belief_settles_on_the_pose_a_description_was_written_from(bundled):
+    ctx, scene = bundled
+    g = ctx.graph
+    errors, gains = [], []
+    for node in np.flatnonzero(ctx.main)[::37]:
+        for heading in (0, 3):
+            belief = Belief(scene, ctx.main)
+            for message in description(scene, node, heading):
+                belief.message("navigator", message)
+            logits = belief.node_logits()
+            p = np.exp(logits - logits.max())
+            p /= p.sum()
+            around = g.dist[:, node] <= 0.25
+            gains.append(p[around].sum() / around[ctx.main].mean())
+            errors.append(g.dist[ctx.decide(logits), node])
+    assert len(errors) >= 20
+    assert np.mean(np.asarray(errors) <= 0.5) >= 0.8  # the estimate within 0.5 m of the pose
+    assert np.mean(gains) >= 10  # ten times the mass a uniform belief puts near it
+
+
+def test_a_reported_turn_moves_the_belief_to_the_new_heading(bundled):
+    ctx, scene = bundled
+    node = int(np.flatnonzero(ctx.main)[37 * 3])
+    belief = Belief(scene, ctx.main)
+    for message in description(scene, node, 0):
+        belief.message("navigator", message)
+    belief.message("navigator", "I turned around")
+    for message in description(scene, node, 4):
+        belief.message("navigator", message)
+    assert int(belief.log[node].argmax()) == 4
+    # without the turn the two descriptions contradict each other at this pose
+    still = Belief(scene, ctx.main)
+    for message in description(scene, node, 0) + description(scene, node, 4):
+        still.message("navigator", message)
+    assert still.log[node].max() < belief.log[node].max()
+
+
+def test_eval_ldh_dialog_writes_the_summary_and_the_per_turn_curve(tmp_path):
+    labels = wall_at_x(open_table(), 0.6, Label.BLUE, y_range=(0.4, 1.66))  # a strip along the west border
+    Maze.from_labels(labels, "m1").save(tmp_path / "mazedata" / "m1")
+    (tmp_path / "NDH-data").mkdir()
+    (tmp_path / "NDH-data" / "val_seen.json").write_text("[]")
+    (tmp_path / "LDH-data").mkdir()
+    item = {
+        "inst_idx": 0,
+        "scan": "mazedata/m1/maze/maze.labelled.npz-jar-[1.4 0.7]-[0.5 0.5]",
+        "target": "jar",
+        "agent_pose": [0.3, 1.0, 3.14],
+        "dialog_history": [
+            {"role": "oracle", "message": "what do you see?"},
+            {"role": "navigator", "message": "a red wall close in front of me, blue close behind me"},
+            {"role": "oracle", "message": "is there a red wall on your left?"},
+            {"role": "navigator", "message": "no"},
+        ],
+    }
+    (tmp_path / "LDH-data" / "val_seen.json").write_text(json.dumps([item, {**item, "inst_idx": 1, "agent_pose": [0.3, 0.6, 3.14]}]))
+    curve, plot = tmp_path / "out" / "curve.json", tmp_path / "out" / "curve.png"
+    args = ["eval", "ldh", "--benchmark", str(tmp_path), "--split", "val_seen", "--agent", "center,dialog"]
+    more = ["--json", "--curve", str(curve), "--plot", str(plot), "--versus", "dialog"]
+    result = CliRunner().invoke(root, [*args, *more])
+    assert result.exit_code == 0, result.output
+    out = json.loads(result.output)
+    summary = out["agents"]
+    (test,) = out["tests"]
+    assert (test["a"], test["b"], test["n"]) == ("center", "dialog", 2)
+    assert test["mean_b"] == pytest.approx(summary["dialog"]["td_mean"])
+    assert list(summary) == ["center", "dialog"]
+    assert {"td_mean", "td_median", "acc_0.25", "acc_0.5"} <= set(summary["dialog"])
+    # facing the border with the blue wall behind: in the strip
+    assert summary["dialog"]["td_mean"] < summary["center"]["td_mean"]
+    turns = json.loads(curve.read_text())
+    assert turns["turns"] == [0, 1, 2] and turns["n"] == [2, 2, 2]
+    dialog_td = turns["agents"]["dialog"]["td_mean"]
+    assert dialog_td[0] == pytest.approx(turns["agents"]["center"]["td_mean"][0])  # nothing said yet: the centre
+    assert dialog_td[-1] == pytest.approx(summary["dialog"]["td_mean"])
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
