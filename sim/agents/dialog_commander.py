@@ -43,7 +43,7 @@ from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
 from sim.language import instructions as ins
 from sim.language import lexicon
-from sim.language.describe import at_wall, near
+from sim.language.describe import near, wall_close, within_reach
 from sim.language.lexicon import describe
 from sim.language.localizer import Belief, Scene
 from sim.language.phrases import Kind, Phrases, Phrasing
@@ -99,19 +99,12 @@ class DialogCommander:
         self.main = reach[int(reach.sum(axis=1).argmax())]
         self._dist = np.where(np.isfinite(self.graph.dist), self.graph.dist, 1e3)
         self._seen = (self.scene.near + self.scene.far) > 0  # (N, 8, 4, labels): "is there ...?" yes
-        self._at_wall = self._mask(at_wall)
-        self._near = {
-            label: self._mask(lambda obs, lab=label: near(obs, lab) or obs.forward_blocked) for label in OBJECT_LABELS
-        }
+        # Where a walk "until the wall" / "until you see the mug" stops, by the Driver's rules.
+        every = np.ones(rays.labels.shape, dtype=bool)
+        blocked = np.asarray(rays.forward_blocked, dtype=bool)
+        self._at_wall = blocked | wall_close(rays.labels, rays.depth, every)
+        self._near = {label: blocked | within_reach(rays.labels, rays.depth, every, label) for label in OBJECT_LABELS}
         self.reset(SeatInfo(Speaker.COMMANDER, 0))
-
-    def _mask(self, rule: object) -> np.ndarray:
-        """(N, 8) booleans: where a walk by `rule` (a RayObservation predicate) stops."""
-        out = np.zeros((self.graph.n, HEADINGS), dtype=bool)
-        for node in range(self.graph.n):
-            for h in range(HEADINGS):
-                out[node, h] = rule(self.router.view(Pose(node, h)))  # type: ignore[operator]
-        return out
 
     def reset(self, info: SeatInfo) -> None:
         self.belief = Belief(self.scene, self.main)
