@@ -56,12 +56,12 @@ LOST_M = 0.6  # ... spread this far again while guiding: stop and ask
 MAX_QUESTIONS = 6  # questions before marking the estimate anyway (and, while guiding, per stop)
 SURE, SURE_M = 0.95, 0.25  # without a claim frame: confirm this much belief this close to the target
 REVISE_M = 0.3  # mark the estimate again when it moved this far from the last mark
-THERE_M = 0.3  # the estimate this close to the target: "it should be right there"
 MAX_WALK = 60  # the Driver's own cap on a walk "until"
 DEPTH_SCALE_M = 0.15  # a claim frame's ray this far off the map's depth counts as a wrong label
 VIEW_WEIGHT = 1.0
 ELSEWHERE = 1e-3  # after each instruction, the chance the belief lost the robot
 BLOCKED_PENALTY = 5.0  # log-likelihood against a pose whose way forward is free, when told it is not
+UNSEEN_PENALTY = 3.0  # ... against a pose with the target in reach, when the Driver speaks without claiming
 LOST_AFTER = 2  # instructions in a row not carried out: stop guiding and ask  # log-likelihood per mismatching ray of a claim frame
 # A report of an instruction not carried out in full: the Driver stopped somewhere along the way.
 _STUCK = ("hit", "cannot", "can only", "could not", "do not", "not the one", "no opening", "still", "not turned")
@@ -103,7 +103,8 @@ class DialogCommander:
         every = np.ones(rays.labels.shape, dtype=bool)
         blocked = np.asarray(rays.forward_blocked, dtype=bool)
         self._at_wall = blocked | wall_close(rays.labels, rays.depth, every)
-        self._near = {label: blocked | within_reach(rays.labels, rays.depth, every, label) for label in OBJECT_LABELS}
+        self._reach = {label: within_reach(rays.labels, rays.depth, every, label) for label in OBJECT_LABELS}
+        self._near = {label: blocked | self._reach[label] for label in OBJECT_LABELS}
         self.reset(SeatInfo(Speaker.COMMANDER, 0))
 
     def reset(self, info: SeatInfo) -> None:
@@ -164,6 +165,9 @@ class DialogCommander:
                     if label not in named
                 )
         self._looking = False
+        if self._phase == Phase.NAVIGATING and self._target is not None:
+            # A Driver told its target claims when it sees it within reach: it does not, so it is not.
+            self.belief.log = self.belief.log - np.where(self._reach[object_label(self._target)], UNSEEN_PENALTY, 0.0)
         if any(w in lowered for w in _BLOCKED):  # its way forward is barred where it stands
             self.belief.log = self.belief.log - np.where(self.graph.forward < 0, 0.0, BLOCKED_PENALTY)
         estimate = self.estimate()
@@ -312,12 +316,15 @@ class DialogCommander:
         self._asked.clear()
         estimate = self.estimate()
         label = object_label(self._target)
-        xy = self.maze.objects[self._target]
-        goal = self.graph.nearest_node(*xy)
-        if math.dist((estimate.x, estimate.y), xy) <= THERE_M:
-            # Close by: face the target and go up to it; the Driver claims once it sees it within reach.
-            bearing = math.atan2(xy[1] - estimate.y, xy[0] - estimate.x)
-            eighths = round((bearing - float(heading_angle(estimate.pose.heading))) / (math.pi / 4))
+        # The goal: the nearest place from which the target is in view within reach.
+        reach = self._reach[label]
+        places = np.flatnonzero(reach.any(axis=1))
+        goal = int(places[self._dist[estimate.pose.node, places].argmin()])
+        if estimate.pose.node == goal:
+            # There: face the target and go up to it; the Driver claims once it sees it within reach.
+            eighths = min(
+                ((int(h) - estimate.pose.heading + 4) % HEADINGS - 4 for h in np.flatnonzero(reach[goal])), key=abs
+            )
             turn = self.phrases.turn(eighths)
             until = self.phrases.say(Kind.UNTIL_TARGET, thing=OBJECT_WORDS[label])
             text = f"{turn}, then {until}" if turn else until
