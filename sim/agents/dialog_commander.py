@@ -44,10 +44,9 @@ from sim.core.observations import RayTable
 from sim.language import instructions as ins
 from sim.language import lexicon
 from sim.language.describe import near, wall_close, within_reach
-from sim.language.lexicon import describe
 from sim.language.localizer import Belief, Scene
 from sim.language.phrases import Kind, Phrases, Phrasing
-from sim.language.vocab import OBJECT_WORDS, Side, wall_name
+from sim.language.vocab import OBJECT_WORDS, SIDE_SECTOR, Side, wall_name
 from sim.robot.perception import RayObservation
 from sim.tasks.ldh_features import Sector
 
@@ -66,7 +65,7 @@ LOST_AFTER = 2  # instructions in a row not carried out: stop guiding and ask  #
 # A report of an instruction not carried out in full: the Driver stopped somewhere along the way.
 _STUCK = ("hit", "cannot", "can only", "could not", "do not", "not the one", "no opening", "still", "not turned")
 _BLOCKED = ("hit a wall", "can only go", "wall is in my way")
-_SECTOR = {Sector.FRONT: Side.AHEAD, Sector.LEFT: Side.LEFT, Sector.BEHIND: Side.BEHIND, Sector.RIGHT: Side.RIGHT}
+_SECTOR = {sector: side for side, sector in SIDE_SECTOR.items()}
 _YOUR_SIDE = {
     Side.AHEAD: "ahead of you",
     Side.LEFT: "on your left",
@@ -154,11 +153,11 @@ class DialogCommander:
             self._pending = None
             # A report after moving names what is ahead; its sides are the edges of the view ahead, not
             # the views to the left and right the belief's sectors are: only what is ahead counts.
-            self.belief.observe(f for f in describe(text) if set(f.sectors) <= {Sector.FRONT, Sector.ANY})
+            self.belief.observe(f for f in lexicon.facts(text) if set(f.sectors) <= {Sector.FRONT, Sector.ANY})
         else:
             self.belief.message("navigator", text)
             if self._looking:  # an object in view would have been named: those not named are not in view
-                named = {f.label for f in describe(text)}
+                named = {f.label for f in lexicon.facts(text)}
                 self.belief.observe(
                     lexicon.Fact(lexicon.Kind.LABEL, (Sector.ANY,), label, negated=True)
                     for label in OBJECT_LABELS
