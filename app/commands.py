@@ -1,4 +1,4 @@
-"""`robotslang serve|admin|db` (and `export`/`demo`, mounted from their packages)."""
+"""`robotslang serve|drivers|admin|db` (and `export`/`demo`, mounted from their packages)."""
 
 from __future__ import annotations
 
@@ -93,9 +93,33 @@ def db_upgrade() -> None:
     typer.echo(f"database at {settings.url.split('@')[-1]} is up to date")
 
 
+def drivers() -> None:
+    """Who can drive a trial: `human`, and each agent (`agent:`) or cheating baseline (`oracle:`),
+    with why it cannot start here where it cannot, and the caps on an agent Driver."""
+    from app.drivers.registry import available_drivers
+    from app.main import build_services
+    from app.settings import Settings
+
+    services = build_services(Settings())
+    try:
+        available = available_drivers(services)
+    finally:
+        services.engine.dispose()
+    typer.echo("human")
+    for spec, reason in available.items():
+        typer.echo(f"{spec}" + (f"  (unavailable: {reason})" if reason else ""))
+    s = services.settings
+    typer.echo(
+        f"an agent Driver stops after {s.agent_moves_per_target} moves per target or "
+        f"{s.agent_minutes_per_trial:g} minutes of trial clock (ROBOTSLANG_AGENT_MOVES_PER_TARGET, "
+        "ROBOTSLANG_AGENT_MINUTES_PER_TRIAL)"
+    )
+
+
 def register(root: typer.Typer) -> None:
     """Mount the server's commands on the root CLI."""
     root.command("serve")(serve)
+    root.command("drivers")(drivers)
     admin = typer.Typer(help="Experimenter accounts.", no_args_is_help=True)
     admin.command("create")(admin_create)
     admin.command("password")(admin_password)

@@ -2,7 +2,8 @@
 
 Score = trial-clock seconds from start to the last target confirmed + a penalty per move.
 Unfinished and aborted trials do not score. A trial whose Driver was an agent (`agent:<name>`)
-never counts on its team's row: it scores for the agent, with the team as its Commander.
+never counts on its team's row: it scores for the agent, with the team as its Commander. An
+oracle (`oracle:<name>`, a baseline that drives by the true pose) never ranks at all.
 """
 
 from __future__ import annotations

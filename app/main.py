@@ -61,7 +61,7 @@ def build_services(settings: Settings) -> Services:
     )
     services.hub = TrialHub(services)
     if settings.render_processes:
-        services.renderer = RenderProcesses(settings.render_processes, settings.benchmark)
+        services.renderer = RenderProcesses(settings.render_processes, settings.benchmark, settings.cache_dir)
     return services
 
 

@@ -40,24 +40,36 @@ PICTURES_KEPT = 64  # maps and target images (a few hundred kB per maze)
 class Kept:
     """`make(name)` once per name while anything uses the result, and for the last `size` names
     asked for: a maze in a live trial is never loaded twice, one nobody uses is released. Trials
-    open in threads: one lock, so that trials starting together on one maze share it."""
+    open in threads: a lock per name, so that trials starting together on one maze share it, and
+    trials on different mazes load theirs side by side (one lock for all made a crowd of trials
+    opening at once wait on each other's mazes)."""
 
     def __init__(self, make: Callable, size: int) -> None:
         self.make, self.size = make, size
         self._alive: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
         self._recent: OrderedDict = OrderedDict()
-        self._lock = threading.Lock()
+        self._lock = threading.Lock()  # the dictionaries, held briefly
+        self._making: dict[str, threading.Lock] = {}  # per name, while it is made
 
     def __call__(self, name: str):
         with self._lock:
             value = self._alive.get(name)
-            if value is None:
-                value = self._alive[name] = self.make(name)
+            making = self._making.setdefault(name, threading.Lock()) if value is None else None
+        if making is not None:
+            with making:
+                with self._lock:
+                    value = self._alive.get(name)
+                if value is None:
+                    value = self.make(name)
+                with self._lock:
+                    self._alive[name] = value
+                    self._making.pop(name, None)
+        with self._lock:
             self._recent[name] = value
             self._recent.move_to_end(name)
             while len(self._recent) > self.size:
                 self._recent.popitem(last=False)
-            return value
+        return value
 
     def __len__(self) -> int:
         return len(self._alive)

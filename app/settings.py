@@ -29,7 +29,9 @@ class Settings(BaseSettings):
     gil_switch_interval_s: float = 0.001
     # Processes that draw the simulator's frames (app.backends.render); 0: a thread of the server.
     render_processes: int = Field(default=1, ge=0)
-    agent_move_interval_s: float = 1.0  # pace of an agent Driver
+    # Caps on an agent Driver (shown on the experimenter's page): on either it says so and the trial aborts.
+    agent_moves_per_target: int = Field(default=300, ge=1)
+    agent_minutes_per_trial: float = Field(default=15.0, gt=0)  # of the trial clock
     redis_url: str | None = None  # fan-out between processes; in-process when unset
     # Origins (scheme://host[:port]) trusted beside the server's own, for state-changing requests and sockets.
     allowed_origins: list[str] = Field(default_factory=list)

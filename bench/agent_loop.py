@@ -4,8 +4,8 @@
 For each NDH episode (val_seen jar episodes, whose start is the recorded pose): the pure
 simulator (`models.evaluate.evaluate_agent`) and then a real trial on a virtual rover:
 `robotslang serve` and `robotslang robot virtual --start` as separate processes, the trial's
-Driver seat `agent:seq2seq` (observing the rays perceived from the rover's frames and the live
-particle filter's belief), a Commander socket that marks the start so navigation begins. The
+Driver seat `agent:seq2seq` (observing the rays it perceives from the rover's frames, counting
+its poses by its own odometry), a Commander socket that marks the start so navigation begins. The
 episode's dialog history is written into the trial's log before anyone joins, as the benchmark
 gives it to its agent. Both paths get the same cap on moves; TD through the rover is measured
 from the rover's true pose (its truth file) where the agent claimed or ran out of moves.
@@ -138,7 +138,6 @@ async def _rover_tds(benchmark: Path, checkpoint: Path, chosen, bench, tmp: Path
         "ROBOTSLANG_BENCHMARK": str(benchmark),
         "ROBOTSLANG_SEQ2SEQ_CHECKPOINT": str(checkpoint),
         "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
-        "ROBOTSLANG_AGENT_MOVE_INTERVAL_S": "0.05",
     }
     settings = Settings(
         data_dir=data, secret_key="bench-robot-loop", benchmark=benchmark, seq2seq_checkpoint=checkpoint

@@ -149,11 +149,13 @@ def make_trial(
 
 
 class ServerProcesses:
-    """CPU seconds and RSS of the server process and its children (the workers), from /proc."""
+    """CPU seconds and RSS of the server process and its children (workers, render processes),
+    from /proc: the peak of their sum, and each one's own peak."""
 
-    def __init__(self, pid: int) -> None:
-        self.pid = pid
+    def __init__(self, pid: int, workers: int = 1) -> None:
+        self.pid, self.workers = pid, workers
         self.peak_rss_mb = 0.0
+        self._peaks: dict[int, tuple[str, float]] = {}  # pid -> (kind, peak MB)
 
     def pids(self) -> list[int]:
         children: dict[int, list[int]] = {}
@@ -185,13 +187,35 @@ class ServerProcesses:
         rss = 0.0
         for pid in self.pids():
             try:
-                for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-                    if line.startswith("VmRSS:"):
-                        rss += int(line.split()[1]) / 1024
-            except OSError:
+                mb = next(
+                    int(line.split()[1]) / 1024
+                    for line in Path(f"/proc/{pid}/status").read_text().splitlines()
+                    if line.startswith("VmRSS:")
+                )
+                kind = self._peaks[pid][0] if pid in self._peaks else self._kind(pid)
+            except (OSError, StopIteration):
                 continue
+            rss += mb
+            self._peaks[pid] = (kind, max(mb, self._peaks.get(pid, (kind, 0.0))[1]))
         self.peak_rss_mb = max(self.peak_rss_mb, rss)
         return rss
+
+    def _kind(self, pid: int) -> str:
+        """`server` (the process started), `worker` (a server process it spawned, with several),
+        `render` (a render process), `tracker` (multiprocessing's resource tracker)."""
+        if pid == self.pid:
+            return "server"
+        command = Path(f"/proc/{pid}/cmdline").read_bytes()
+        if b"resource_tracker" in command:
+            return "tracker"
+        parent = int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
+        return "worker" if parent == self.pid and self.workers > 1 else "render"
+
+    def peaks(self) -> list[dict[str, Any]]:
+        """Each process seen: its pid, kind and peak RSS."""
+        return [
+            {"pid": pid, "kind": kind, "peak_rss_mb": round(mb, 1)} for pid, (kind, mb) in sorted(self._peaks.items())
+        ]
 
 
 class SeatClient:

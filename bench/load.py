@@ -1,16 +1,30 @@
 """Load on loopback: N concurrent simulator trials, each with a scripted Commander and Driver
 over websockets sending a chat message and a move every second.
 
-Prints p50/p99 of chat fan-out latency (Commander sends -> Driver receives) and of
-move-to-frame latency (Driver sends a move -> receives the new camera frame), events committed
-per second, lost chat messages (sent, never heard by the Driver) and unanswered moves (neither a
-frame nor a refusal came back), the server's CPU (cores busy) and peak RSS, all processes
-together, and the CPU of the bench's own seats (`client_cpu`: on a small machine they compete with
-the server for its cores). The server runs as its own process (`robotslang serve --workers W`),
-as in use: one process on SQLite (WAL); with W > 1 the processes share trials through Redis (`--redis-url`) and
-PostgreSQL (a private schema in `--postgres-url`, dropped afterwards).
+How the Driver moves (`--pattern`): `random` draws forward, forward, left or right at each move,
+so it mostly turns about and shuffles near where it started, and most frames are of poses drawn
+before; `walk` drives forward until a bump and then turns, as a person or an agent explores, so nearly
+every move is a new pose and a new render. `--mazes distinct` puts every trial on a maze of its
+own, drawn from the bundled and the benchmark's mazes (`--benchmark`), with generated ones added
+when there are not enough; `--mazes shared` (the default) puts them on the bundled mazes in turn. Seats open at most `OPEN_AT_ONCE` handshakes at a time, or all at
+once (`--open-at-once`, each handshake given `HANDSHAKE_TIMEOUT_S`, as a crowd arriving together).
+
+Prints p50/p99 of chat fan-out latency (Commander sends -> Driver receives), of move-to-frame
+latency (Driver sends a move -> receives the new camera frame) over the measured window, and of
+each trial's first move apart (its maze's first frame after the seat joined), the handshake times
+(socket opened -> upgrade answered: the server opens the trial before it answers), events
+committed per second, lost chat messages (sent, never heard by the Driver) and unanswered moves
+(neither a frame nor a refusal came back), the server's CPU (cores busy) and peak RSS, all
+processes together and each process (the server, its workers, its render processes), the CPU of
+the bench's own seats (`client_cpu`: on a small machine they compete with the server for its
+cores) and the machine's load average before the run and at its end. The server runs as its own
+process (`robotslang serve --workers W`), as in use: one process on SQLite (WAL); with W > 1 the
+processes share trials through Redis (`--redis-url`) and PostgreSQL (a private schema in
+`--postgres-url`, dropped afterwards). The mazes' graphs, ray tables and render scenes are built
+before the server starts, as on a machine that has run each maze once (they are cached on disk).
 
     python -m bench.load --trials 50 --workers 1 --duration 30 [--json]
+    python -m bench.load --trials 200 --pattern walk --mazes distinct --open-at-once
     python -m bench.load --find-max [--max-trials 400] [--duration 10]   # largest N with both p99 < 100 ms
     python -m bench.load --trials 100 --profile var/load.svg              # py-spy flame graph of the server
 """
@@ -19,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import json
 import os
 import random
@@ -28,7 +43,8 @@ import tempfile
 import time
 import uuid
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from enum import StrEnum
 from pathlib import Path
 
 import httpx
@@ -42,31 +58,85 @@ from app.db.models import Event
 from app.main import build_services
 from app.settings import Settings
 from bench.live import ServerProcesses, team_trial
+from sim.core.cache import cache_dir
 
 console = Console(stderr=True)
 P99_GOAL_MS = 100.0
 READY_WAIT_S = 180.0  # at most this long for every trial's seats to connect before the warm-up
 DRAIN_S = 3.0  # after the run: how long late answers may still arrive before they count as lost
+OPEN_AT_ONCE = 20  # handshakes in flight at a time, unless --open-at-once
+HANDSHAKE_TIMEOUT_S = 10.0  # with --open-at-once, as a browser's patience
+CONNECTED_GOAL_S = 5.0  # every seat opening at once connected within this
+GENERATED_SEED = 10_000  # seeds of the mazes generated when the library has too few
 
 
-def setup_trials(settings: Settings, n: int) -> tuple[list[tuple[str, str]], object]:
+class Pattern(StrEnum):
+    RANDOM = "random"  # forward, forward, left or right, drawn at each move
+    WALK = "walk"  # forward until a bump, then a turn
+
+
+class MazeChoice(StrEnum):
+    SHARED = "shared"  # the bundled mazes, in turn
+    DISTINCT = "distinct"  # every trial on a maze of its own
+
+
+def distinct_mazes(n: int, benchmark: Path | None, tmp: Path) -> Path | None:
+    """A benchmark folder whose library holds at least `n` mazes: `benchmark` itself, or (when it
+    and the bundled mazes are too few) a folder in `tmp` linking its runs and mazes generated once
+    into the cache (deterministic seeds, reused by later runs)."""
+    from sim.tasks.generator import generate_maze
+    from sim.tasks.library import MazeLibrary
+
+    have = len(MazeLibrary(benchmark=benchmark, cache=False))
+    if have >= n:
+        return benchmark
+    mazedata = tmp / "mazes" / "mazedata"
+    mazedata.mkdir(parents=True)
+    if benchmark is not None:
+        for run in (benchmark / "mazedata").iterdir():
+            (mazedata / run.name).symlink_to(run)
+    generated = cache_dir() / "bench-load-mazes"
+    for i in range(n - have):
+        name = f"load-{i:03d}"
+        if not (generated / name / "maze").is_dir():
+            console.print(f"generating maze {name} (once: it is kept in {generated})")
+            generate_maze(GENERATED_SEED + i, name=name).save(generated / name)
+        (mazedata / name).symlink_to(generated / name)
+    return mazedata.parent
+
+
+def setup_trials(settings: Settings, n: int, mazes: MazeChoice) -> tuple[list[tuple[str, str]], object, int]:
+    """`n` trials, each a team's, and their seats' tokens; the services and how many mazes they use."""
+    from sim.robot.render import cached_scene
+
     services = build_services(settings)
     maze_names = services.mazes.names()
+    if mazes == MazeChoice.SHARED:
+        maze_names = [name for name in maze_names if services.mazes.library.source(name) == "bundled"]
+    elif len(maze_names) < n:
+        raise SystemExit(f"{n} trials on distinct mazes need {n} mazes; the library holds {len(maze_names)}")
+    chosen = [maze_names[i % len(maze_names)] for i in range(n)]
     tokens = []
     with services.db.begin() as db:
-        for i in range(n):
-            maze = maze_names[i % len(maze_names)]
+        for i, maze in enumerate(chosen):
             trial_id = team_trial(db, f"load-team-{i}", maze, maze_names, services.clock.now_ns())
             tokens.append((services.seats.issue(trial_id, "commander"), services.seats.issue(trial_id, "driver")))
-    for name in set(maze_names[i % len(maze_names)] for i in range(n)):
-        services.mazes.rays(name)  # warm the graph and ray caches so the server does not build them under load
-    return tokens, services
+    with Progress(console=console, transient=True) as progress:
+        for name in progress.track(sorted(set(chosen)), description="graphs, rays and scenes (cached on disk)"):
+            # Built once per maze and machine, as a server that has run the maze before finds them.
+            services.mazes.rays(name)
+            cached_scene(services.mazes.load(name), settings.cache_dir)
+    return tokens, services, len(set(chosen))
 
 
 @dataclass
 class Figures:
     chat_ms: list[float] = field(default_factory=list)
-    frame_ms: list[float] = field(default_factory=list)
+    frame_ms: list[float] = field(default_factory=list)  # moves sent in the window but each trial's first
+    first_ms: list[float] = field(default_factory=list)  # each trial's first move, when it came
+    handshake_ms: list[float] = field(default_factory=list)  # every seat's that was answered
+    welcome_ms: list[float] = field(default_factory=list)  # socket opened -> the seat's welcome
+    handshakes_failed: int = 0
     chats_sent: int = 0
     chats_heard: int = 0
     moves_sent: int = 0
@@ -75,16 +145,47 @@ class Figures:
     recording: bool = False
 
 
+async def open_seat(url: str, figures: Figures, gate: asyncio.Semaphore | None, timeout: float):
+    """The seat's socket once welcomed, its handshake and its welcome timed (a failed one counted)."""
+    async with gate or contextlib.nullcontext():
+        t0 = time.perf_counter()
+        try:
+            ws = await websockets.connect(url, max_size=2**22, open_timeout=timeout)
+        except (OSError, TimeoutError, websockets.InvalidHandshake):
+            figures.handshakes_failed += 1
+            raise
+        figures.handshake_ms.append((time.perf_counter() - t0) * 1e3)
+        while json.loads(await ws.recv())["type"] != "welcome":  # its own joining may come first
+            pass
+        figures.welcome_ms.append((time.perf_counter() - t0) * 1e3)
+        return ws
+
+
 async def run_trial(
-    ws_url: str, tokens: tuple[str, str], figures: Figures, stop: asyncio.Event, drained: asyncio.Event
+    ws_url: str,
+    tokens: tuple[str, str],
+    pattern: Pattern,
+    gate: asyncio.Semaphore | None,
+    figures: Figures,
+    stop: asyncio.Event,
+    drained: asyncio.Event,
 ) -> None:
     commander_token, driver_token = tokens
-    async with (
-        websockets.connect(f"{ws_url}?token={commander_token}", max_size=2**22, open_timeout=60) as commander,
-        websockets.connect(f"{ws_url}?token={driver_token}", max_size=2**22, open_timeout=60) as driver,
-    ):
+    timeout = 60.0 if gate else HANDSHAKE_TIMEOUT_S
+    seats = await asyncio.gather(
+        open_seat(f"{ws_url}?token={commander_token}", figures, gate, timeout),
+        open_seat(f"{ws_url}?token={driver_token}", figures, gate, timeout),
+        return_exceptions=True,
+    )
+    if any(isinstance(seat, BaseException) for seat in seats):
+        for seat in seats:
+            if not isinstance(seat, BaseException):
+                await seat.close()
+        raise next(seat for seat in seats if isinstance(seat, BaseException))
+    async with seats[0] as commander, seats[1] as driver:
         chats: dict[str, tuple[float, bool]] = {}  # text -> (sent at, sent while recording)
-        move: list = []  # [sent at, counted] of the move waiting for its frame
+        move: list = []  # [sent at, counted, first] of the move waiting for its frame
+        bumped = [False]  # the last forward move collided: turn
 
         async def driver_reader():
             async for raw in driver:
@@ -97,13 +198,17 @@ async def run_trial(
                         figures.chats_heard += 1
                         if figures.recording:
                             figures.chat_ms.append((now - sent) * 1e3)
-                refused = kind == "error" or (kind == "move_executed" and message["payload"]["outcome"] == "refused")
+                outcome = message["payload"]["outcome"] if kind == "move_executed" else None
+                bumped[0] = bumped[0] if outcome is None else outcome == "collision"
+                refused = kind == "error" or outcome == "refused"
                 if move and (kind == "frame" or refused):
-                    sent, counted = move
+                    sent, counted, first = move
                     move.clear()
+                    if first and kind == "frame":
+                        figures.first_ms.append((now - sent) * 1e3)
                     if counted:
                         figures.moves_answered += 1
-                        if kind == "frame" and figures.recording:
+                        if kind == "frame" and figures.recording and not first:
                             figures.frame_ms.append((now - sent) * 1e3)
 
         async def commander_reader():
@@ -113,6 +218,7 @@ async def run_trial(
         readers = [asyncio.create_task(driver_reader()), asyncio.create_task(commander_reader())]
         figures.ready += 1
         rng = random.Random()
+        turn = rng.choice(["left", "right"])  # the walk's way round at a bump
         loop = asyncio.get_running_loop()
         # Each trial keeps its own phase in the second, on absolute deadlines: with sleeps measured
         # from the last send, every stall of this process lined up the trials' phases, and a minute
@@ -128,9 +234,12 @@ async def run_trial(
             await commander.send(json.dumps({"type": "chat", "token": commander_token, "text": text}))
             await asyncio.sleep(start + i + 0.5 - loop.time())
             if not move:  # one move at a time, as the Driver's page does
-                move[:] = [time.perf_counter(), figures.recording]
+                move[:] = [time.perf_counter(), figures.recording, i == 0]
                 figures.moves_sent += figures.recording
-                action = rng.choice(["forward", "forward", "left", "right"])
+                if pattern == Pattern.WALK:
+                    action = turn if bumped[0] else "forward"
+                else:
+                    action = rng.choice(["forward", "forward", "left", "right"])
                 await driver.send(json.dumps({"type": "move", "token": driver_token, "action": action}))
             i += 1
             await asyncio.sleep(start + i - loop.time())
@@ -144,19 +253,28 @@ def percentile(values: list[float], q: float) -> float:
 
 
 async def drive(
-    ws_url: str, tokens, warmup: float, duration: float, services, server: ServerProcesses
+    ws_url: str,
+    tokens,
+    pattern: Pattern,
+    open_at_once: bool,
+    warmup: float,
+    duration: float,
+    services,
+    server: ServerProcesses,
 ) -> tuple[Figures, int, float, float, float]:
     figures, stop, drained = Figures(), asyncio.Event(), asyncio.Event()
-    tasks = [asyncio.create_task(run_trial(ws_url, t, figures, stop, drained)) for t in tokens]
+    gate = None if open_at_once else asyncio.Semaphore(OPEN_AT_ONCE)
+    tasks = [asyncio.create_task(run_trial(ws_url, t, pattern, gate, figures, stop, drained)) for t in tokens]
     with Progress(console=console, transient=True) as progress:  # opening hundreds of trials takes a while
         bar = progress.add_task("seats connecting", total=len(tokens))
         for _ in range(int(READY_WAIT_S / 0.2)):
             progress.update(bar, completed=figures.ready)
+            server.sample_rss()
             if figures.ready == len(tokens) or all(t.done() for t in tasks):
                 break
             await asyncio.sleep(0.2)
     failed = [t.exception() for t in tasks if t.done() and t.exception() is not None]
-    if failed:
+    if failed and not open_at_once:  # all at once, the handshakes that failed are a figure
         raise SystemExit(f"{len(failed)} trials could not connect: {failed[0]!r}")
     await asyncio.sleep(warmup)
 
@@ -214,9 +332,20 @@ def database(workers: int, postgres_url: str):
         admin.dispose()
 
 
+@dataclass(frozen=True)
+class Load:
+    """What one run offers the server."""
+
+    trials: int
+    workers: int = 1
+    pattern: Pattern = Pattern.RANDOM
+    mazes: MazeChoice = MazeChoice.SHARED
+    open_at_once: bool = False
+    benchmark: Path | None = None
+
+
 def run_load(
-    trials: int,
-    workers: int,
+    load: Load,
     duration: float,
     warmup: float,
     port: int,
@@ -224,15 +353,22 @@ def run_load(
     postgres_url: str,
     profile: str | None = None,
 ) -> dict:
-    """One run: a fresh data directory, database and server, `trials` trials; returns the figures."""
+    """One run: a fresh data directory, database and server, `load.trials` trials; returns the figures."""
+    trials, workers = load.trials, load.workers
+    load_before = os.getloadavg()
     with tempfile.TemporaryDirectory(prefix="robotslang-load-") as tmp, database(workers, postgres_url) as url:
+        benchmark = None
+        if load.mazes == MazeChoice.DISTINCT:
+            benchmark = distinct_mazes(trials, load.benchmark, Path(tmp))
         env = {**os.environ, "ROBOTSLANG_DATA_DIR": str(Path(tmp) / "var"), "ROBOTSLANG_SECRET_KEY": "load"}
-        env.pop("ROBOTSLANG_DATABASE_URL", None)
-        env.pop("ROBOTSLANG_REDIS_URL", None)
+        for name in ("ROBOTSLANG_DATABASE_URL", "ROBOTSLANG_REDIS_URL", "ROBOTSLANG_BENCHMARK"):
+            env.pop(name, None)
         if workers > 1:
             env["ROBOTSLANG_REDIS_URL"], env["ROBOTSLANG_DATABASE_URL"] = redis_url, url
-        settings = Settings(data_dir=Path(tmp) / "var", secret_key="load", database_url=url)
-        tokens, services = setup_trials(settings, trials)
+        if benchmark is not None:
+            env["ROBOTSLANG_BENCHMARK"] = str(benchmark)
+        settings = Settings(data_dir=Path(tmp) / "var", secret_key="load", database_url=url, benchmark=benchmark)
+        tokens, services, maze_count = setup_trials(settings, trials, load.mazes)
         server = subprocess.Popen(
             [
                 sys.executable,
@@ -250,7 +386,7 @@ def run_load(
         spy = None
         try:
             wait_until_up(f"http://127.0.0.1:{port}", server)
-            processes = ServerProcesses(server.pid)
+            processes = ServerProcesses(server.pid, workers)
             if profile:  # the whole run, warm-up included, sampled from every server process
                 spy = subprocess.Popen(
                     [
@@ -271,7 +407,16 @@ def run_load(
                     stderr=subprocess.DEVNULL,
                 )
             figures, committed, window, cpu, client_cpu = asyncio.run(
-                drive(f"ws://127.0.0.1:{port}/ws/play", tokens, warmup, duration, services, processes)
+                drive(
+                    f"ws://127.0.0.1:{port}/ws/play",
+                    tokens,
+                    load.pattern,
+                    load.open_at_once,
+                    warmup,
+                    duration,
+                    services,
+                    processes,
+                )
             )
         finally:
             if spy is not None:
@@ -280,14 +425,31 @@ def run_load(
             server.terminate()
             server.wait(timeout=30)
             services.engine.dispose()
+    handshakes = figures.handshake_ms
     return {
         "trials": trials,
         "workers": workers,
+        "pattern": str(load.pattern),
+        "mazes": str(load.mazes),
+        "maze_count": maze_count,
+        "open_at_once": load.open_at_once,
         "duration_s": round(window, 1),
         "chat_p50_ms": round(percentile(figures.chat_ms, 50), 2),
         "chat_p99_ms": round(percentile(figures.chat_ms, 99), 2),
         "move_to_frame_p50_ms": round(percentile(figures.frame_ms, 50), 2),
         "move_to_frame_p99_ms": round(percentile(figures.frame_ms, 99), 2),
+        "first_move_p50_ms": round(percentile(figures.first_ms, 50), 2),
+        "first_move_p99_ms": round(percentile(figures.first_ms, 99), 2),
+        "first_moves": len(figures.first_ms),
+        "handshake_p50_ms": round(percentile(handshakes, 50), 2),
+        "handshake_p99_ms": round(percentile(handshakes, 99), 2),
+        "handshake_max_ms": round(max(handshakes, default=float("nan")), 2),
+        "handshakes": len(handshakes),
+        "handshakes_failed": figures.handshakes_failed,
+        "welcome_p50_ms": round(percentile(figures.welcome_ms, 50), 2),
+        "welcome_p99_ms": round(percentile(figures.welcome_ms, 99), 2),
+        "welcome_max_ms": round(max(figures.welcome_ms, default=float("nan")), 2),
+        "connected_within_goal": sum(ms <= CONNECTED_GOAL_S * 1e3 for ms in handshakes),
         "chats": len(figures.chat_ms),
         "moves": len(figures.frame_ms),
         "events_per_s": round(committed / window, 1),
@@ -297,6 +459,8 @@ def run_load(
         "server_cpu": round(cpu, 2),
         "client_cpu": round(client_cpu, 2),
         "server_rss_mb": round(processes.peak_rss_mb, 1),
+        "processes": processes.peaks(),
+        "load_average_before": [round(x, 2) for x in load_before],
         "load_average": [round(x, 2) for x in os.getloadavg()],
     }
 
@@ -307,16 +471,19 @@ def within_goal(figures: dict) -> bool:
         and figures["move_to_frame_p99_ms"] < P99_GOAL_MS
         and figures["lost"] == 0
         and figures["unanswered"] == 0
+        and figures["handshakes_failed"] == 0
     )
 
 
-def find_max(workers: int, args) -> tuple[int, list[dict]]:
+def find_max(load: Load, args) -> tuple[int, list[dict]]:
     """The largest trial count (a multiple of `--step`, at most `--max-trials`) with both p99s under
     100 ms and nothing lost: doubling from `--step`, then bisection; at most `--max-probes` runs."""
     runs: list[dict] = []
 
     def ok(n: int) -> bool:
-        figures = run_load(n, workers, args.duration, args.warmup, args.port, args.redis_url, args.postgres_url)
+        figures = run_load(
+            replace(load, trials=n), args.duration, args.warmup, args.port, args.redis_url, args.postgres_url
+        )
         runs.append(figures)
         report(figures)
         return within_goal(figures)
@@ -338,12 +505,26 @@ def find_max(workers: int, args) -> tuple[int, list[dict]]:
 
 
 def report(f: dict) -> None:
-    load = ", ".join(f"{x:.2f}" for x in f["load_average"])
+    before, after = (", ".join(f"{x:.2f}" for x in f[key]) for key in ("load_average_before", "load_average"))
     console.print(
-        f"[bold]bench.load[/]: {f['trials']} trials, {f['workers']} server process(es), "
-        f"1 chat + 1 move per second each, {f['duration_s']:.0f} s measured "
-        f"({os.cpu_count()} CPUs, {'SQLite WAL' if f['workers'] == 1 else 'PostgreSQL + Redis'}; "
-        f"load average {load})"
+        f"[bold]bench.load[/]: {f['trials']} trials on {f['maze_count']} mazes ({f['mazes']}), pattern "
+        f"{f['pattern']}, {f['workers']} server process(es), 1 chat + 1 move per second each, "
+        f"{f['duration_s']:.0f} s measured ({os.cpu_count()} CPUs, "
+        f"{'SQLite WAL' if f['workers'] == 1 else 'PostgreSQL + Redis'}; load average {before} before, {after} at the end)"
+    )
+    opened = "all at once" if f["open_at_once"] else f"{OPEN_AT_ONCE} at a time"
+    console.print(
+        f"  handshakes      p50 {f['handshake_p50_ms']:7.1f} ms   p99 {f['handshake_p99_ms']:7.1f} ms   "
+        f"max {f['handshake_max_ms']:.0f} ms   ({f['handshakes']} answered, opened {opened}; "
+        f"{f['connected_within_goal']} within {CONNECTED_GOAL_S:.0f} s, {f['handshakes_failed']} failed)"
+    )
+    console.print(
+        f"  welcome         p50 {f['welcome_p50_ms']:7.1f} ms   p99 {f['welcome_p99_ms']:7.1f} ms   "
+        f"max {f['welcome_max_ms']:.0f} ms   (socket opened -> the seat's welcome)"
+    )
+    console.print(
+        f"  first move      p50 {f['first_move_p50_ms']:7.1f} ms   p99 {f['first_move_p99_ms']:7.1f} ms   "
+        f"({f['first_moves']} trials' first move to its frame)"
     )
     console.print(
         f"  chat fan-out    p50 {f['chat_p50_ms']:7.1f} ms   p99 {f['chat_p99_ms']:7.1f} ms   "
@@ -355,13 +536,24 @@ def report(f: dict) -> None:
     )
     console.print(
         f"  events committed {f['events_per_s']:7.1f} /s   server CPU {f['server_cpu']:.2f} cores   "
-        f"(the bench's seats {f['client_cpu']:.2f})   peak RSS {f['server_rss_mb']:.0f} MB"
+        f"(the bench's seats {f['client_cpu']:.2f})   peak RSS {f['server_rss_mb']:.0f} MB all together"
     )
+    for p in f["processes"]:
+        console.print(f"    {p['kind']:<8} pid {p['pid']:<8} peak RSS {p['peak_rss_mb']:7.0f} MB")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--trials", type=int, default=50)
+    parser.add_argument("--pattern", type=Pattern, choices=list(Pattern), default=Pattern.RANDOM)
+    parser.add_argument("--mazes", type=MazeChoice, choices=list(MazeChoice), default=MazeChoice.SHARED)
+    parser.add_argument(
+        "--benchmark",
+        type=Path,
+        default=os.environ.get("ROBOTSLANG_BENCHMARK"),
+        help="with --mazes distinct: the benchmark whose mazes join the bundled ones (ROBOTSLANG_BENCHMARK)",
+    )
+    parser.add_argument("--open-at-once", action="store_true", help="every seat's socket opened at the same time")
     parser.add_argument(
         "--workers", type=int, help="server processes (over 1: needs Redis); default 1, with --find-max 1 and 2"
     )
@@ -384,10 +576,11 @@ def main() -> None:
     parser.add_argument("--max-probes", type=int, default=6, help="runs per process count in --find-max")
     args = parser.parse_args()
 
+    load = Load(args.trials, args.workers or 1, args.pattern, args.mazes, args.open_at_once, args.benchmark)
     if args.find_max:
         result = {}
         for workers in (1, 2) if args.workers is None else (args.workers,):
-            best, runs = find_max(workers, args)
+            best, runs = find_max(replace(load, workers=workers), args)
             console.print(
                 f"[bold]largest trial count with both p99 < {P99_GOAL_MS:.0f} ms, {workers} "
                 f"process(es): {best}[/] ({len(runs)} runs of {args.duration:.0f} s)"
@@ -398,8 +591,7 @@ def main() -> None:
             print(json.dumps(result))
         return
     figures = run_load(
-        args.trials,
-        args.workers or 1,
+        load,
         args.duration,
         args.warmup,
         args.port,

@@ -29,7 +29,9 @@ FEEDBACK_LR = {"teacher": 1e-4, "student": 1e-3}
 
 
 @dataclass(frozen=True)
-class Variant:
+class ModelSetup:
+    """A named learned Driver: its agent's options and how it is trained."""
+
     agent: dict  # AgentConfig options
     weight_average: float = 0.0  # decay of the running average of the weights that is validated
     # and saved for evaluation (0: the weights as trained)
@@ -37,19 +39,19 @@ class Variant:
     # the stop (the policy's and the stop head's) is learned where the goal is reached
 
 
-# Named model variants: the paper's model; the one that beats it (target flags, the actor-critic
+# Named model setups: the paper's model; the one that beats it (target flags, the actor-critic
 # loss on the distance covered, averaged weights, a stop head that ends its episodes, half of
 # each batch guided to the goal so the stop is learned, and at test time a cost on re-entering
 # poses); and attention with a progress monitor, tried and kept as an option
 # (docs/learned_driver.md).
 MODELS = {
-    "baseline": Variant({}),
-    "improved": Variant(
+    "baseline": ModelSetup({}),
+    "improved": ModelSetup(
         {"target_rays": True, "critic": True, "stop_head": True, "revisit_penalty": 1.0},
         weight_average=0.95,
         guided_share=0.5,
     ),
-    "attention": Variant({"attention": True, "progress_monitor": True, "target_rays": True}),
+    "attention": ModelSetup({"attention": True, "progress_monitor": True, "target_rays": True}),
 }
 
 

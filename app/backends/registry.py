@@ -48,14 +48,17 @@ async def simulator_backend(spec: str, trial: RobotTrial, services: Services) ->
     from sim.core.dynamics import snap_pose
 
     mazes, state = services.mazes, trial.state
-    # Reading a maze and building its graph take a while: off the loop, other trials keep moving.
-    graph = await asyncio.to_thread(mazes.graph, state.maze)
+    # Reading a maze and its graph take a while: off the loop, other trials keep moving. The maze
+    # is held from the start, so that the graph, the rays and the backend read it once.
+    maze = await asyncio.to_thread(mazes.load, state.maze)
+    graph = await asyncio.to_thread(mazes.graph, state.maze)  # hashes the maze too, off the loop
+    services.renderer.prepare(maze)  # the render process reads its scene while the rest loads here
     if state.pose is not None:  # resuming: the robot is where the log last saw it
         start = snap_pose(graph, *state.pose)
     else:
         start = await asyncio.to_thread(mazes.start_pose, state.maze, state.targets[0], trial.trial_id)
     rays = await asyncio.to_thread(mazes.rays, state.maze)
-    return SimulatorBackend(mazes.load(state.maze), graph, rays, start, services.clock, services.renderer)
+    return SimulatorBackend(maze, graph, rays, start, services.clock, services.renderer)
 
 
 register_backend("sim", simulator_backend)

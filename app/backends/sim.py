@@ -6,12 +6,15 @@ new pose is the camera frame, drawn by the server's `FrameRenderer` (`app.backen
 processes of their own by default). Poses are discrete (a graph node and one of eight headings), so
 the JPEG of each pose is kept (the last `FRAMES_KEPT` of this trial): a turn back, or a step back
 to where the robot was, costs no render; and the ray observation a frame carries is the maze's
-`RayTable` row for the pose (the maze's rays are cast once, not at every frame).
+`RayTable` row for the pose (the maze's rays are cast once, not at every frame). The first frame
+is drawn beside the trial's opening (`connect` does not wait for it): a crowd of trials opening
+at once does not hold its seats' welcomes on every maze's first frame; the first move waits for it.
 """
 
 from __future__ import annotations
 
 import asyncio
+import logging
 from collections import OrderedDict
 from collections.abc import AsyncIterator
 
@@ -28,6 +31,7 @@ from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
 from sim.robot.perception import RayObservation
 
+logger = logging.getLogger(__name__)
 FRAMES_KEPT = 32  # JPEGs of recent poses per trial (about 15 kB each)
 
 
@@ -41,21 +45,30 @@ class SimulatorBackend:
         clock: ServerClock,
         renderer: FrameRenderer | None = None,
     ) -> None:
-        self.maze, self.graph, self.rays, self.clock = maze, graph, rays, clock
+        self.maze, self.rays, self.clock = maze, rays, clock
+        # Only the moves: the graph's all-pairs tables are let go once the trial has its start.
+        self.moves = graph.moves()
         self.renderer = renderer or InThread()
         self._pose = start
         self._frames: asyncio.Queue[Frame | None] = asyncio.Queue()
         self._jpegs: OrderedDict[Pose, bytes] = OrderedDict()  # recent poses', oldest first
+        self._first: asyncio.Task[None] | None = None  # the first frame, while it is drawn
 
     @property
     def grid_pose(self) -> Pose:
         return self._pose
 
     async def connect(self) -> None:
-        await self._capture()
+        self._first = asyncio.get_running_loop().create_task(self._capture())
 
     async def execute(self, action: MoveAction) -> MoveOutcome:
-        self._pose, collided = step(self.graph, self._pose, Action.parse(action))
+        if self._first is not None:  # its frame comes before this move's
+            first, self._first = self._first, None
+            try:
+                await first
+            except Exception:  # this move's frame shows where the robot is all the same
+                logger.exception("the first simulator frame failed")
+        self._pose, collided = step(self.moves, self._pose, Action.parse(action))
         await self._capture()
         return MoveOutcome(action, Outcome.COLLISION if collided else Outcome.OK)
 
@@ -67,6 +80,8 @@ class SimulatorBackend:
         return self._continuous(self._pose)
 
     async def close(self) -> None:
+        if self._first is not None:
+            self._first.cancel()
         self._frames.put_nowait(None)
 
     async def _capture(self) -> None:
@@ -81,7 +96,7 @@ class SimulatorBackend:
         self._frames.put_nowait(frame)
 
     def _continuous(self, pose: Pose) -> tuple[float, float, float]:
-        x, y = self.graph.nodes[pose.node]
+        x, y = self.moves.nodes[pose.node]
         return float(x), float(y), float(heading_angle(pose.heading))
 
     def observation_at(self, pose: Pose) -> RayObservation:

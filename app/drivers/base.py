@@ -1,36 +1,39 @@
-"""`DriverPolicy`: an agent in the Driver's seat.
+"""Agents in the Driver's seat: what the seat hands them when it creates them.
 
-It sees what a human Driver sees: the dialog so far and the latest camera frame. The
-observation also carries the target the trial is on and, where the robot backend knows it,
-the true pose, which only oracle baselines may use.
+An agent Driver is a `sim.agents.turns.Agent`: it is reset with a `SeatInfo` (its role and how many
+targets the trial has) and then perceives, one at a time and in the log's order, what a human
+Driver's browser receives, as typed percepts: every chat message (`Heard`, its own too), its
+frame (`Saw`: the simulator's rays at that frame, or the rays perceived from a rover's pixels)
+at the start and after each of its moves' outcome (`Moved`; after a move not made, the frame as
+it stands), its claims (`Claimed`), the Commander's verdicts (`Judged`) and phase changes
+(`PhaseChanged`, with the target's number, never its name). It answers each with turns (`DoSay`, `DoMove`, `DoClaim`, `DoWait`) that the
+seat carries out through `DriverTrial`, so each is an event in the log like a person's. It is
+never woken by a timer, and never handed a pose, a map, a graph or a maze name.
 
-    reset(info)                    info: {"trial_id", "maze", "targets", "backend"}
-    act(dialog, observation) -> "forward" | "left" | "right" | "stop"
-        dialog:      [{"role": "commander"|"driver", "text": str}, ...] in order
-        observation: {"frame": bytes (JPEG) | None, "frame_id": int | None,
-                      "target": str, "target_index": int,
-                      "pose": (x, y, theta) | None,
-                      "rejected": int (claims of this target the Commander rejected),
-                      where the pose is None and the trial's particle filter runs (a rover):
-                      "rays": (OBS_FEATURES,) float32 perceived from the frame after the last
-                              move, in `RayTable.features` layout,
-                      "belief": {"x", "y", "heading", "spread_m"} (the filter's mean)}
-
-"stop" means "I think I found the target": the seat claims it, and the policy acts again
-once the Commander has confirmed (next target) or rejected (same target) the claim.
+A driver spec is `agent:<name>` (sees only the above) or `oracle:<name>`: a baseline that cheats,
+handed the maze, the targets and the true pose (`Oracle`); oracles never rank with the agents.
 """
 
 from __future__ import annotations
 
-from typing import Any, Protocol, runtime_checkable
+from collections.abc import Callable
+from dataclasses import dataclass
 
-from app.trial.vocabulary import MoveAction
-
-DRIVER_ACTIONS = (*(str(a) for a in MoveAction), "stop")
+AGENT, ORACLE = "agent:", "oracle:"
 
 
-@runtime_checkable
-class DriverPolicy(Protocol):
-    def reset(self, info: dict[str, Any]) -> None: ...
+@dataclass(frozen=True)
+class Oracle:
+    """What only an `oracle:` driver is handed: the maze, the targets in order and the true pose."""
 
-    def act(self, dialog: list[dict[str, str]], observation: dict[str, Any]) -> str: ...
+    maze: str
+    targets: tuple[str, ...]
+    true_pose: Callable[[], tuple[float, float, float] | None]
+
+
+@dataclass(frozen=True)
+class Seating:
+    """What a driver's factory gets besides the services."""
+
+    seed: int  # the trial's id: an agent's chance moves repeat per trial
+    oracle: Oracle | None = None  # for `oracle:` drivers only

@@ -1,58 +1,59 @@
-"""Baseline Drivers: `random` (uniform moves, claims now and then) and `shortest` (an oracle that
-follows the navigation graph's shortest path to the current target using the true pose)."""
+"""Baseline Drivers: `agent:random` (uniform moves, claims now and then; it sees nothing it
+does not use) and `oracle:shortest`, which cheats: it follows the navigation graph's shortest
+path to the current target from the true pose, so it never ranks with the agents."""
 
 from __future__ import annotations
 
 import random
-from typing import Any
 
+from app.drivers.base import Oracle, Seating
 from app.mazes import Mazes
-from app.trial.vocabulary import MoveAction
-from sim.core.dynamics import snap_pose, teacher_action
-from sim.core.maze import Maze
-from sim.core.navgraph import NavGraph
+from sim.agents.stepwise import StepwiseDriver
+from sim.agents.turns import Move
+from sim.core.dynamics import Action, snap_pose, teacher_action
 
 RANDOM_CLAIM_P = 0.02
 
 
-class RandomDriver:
-    def __init__(self) -> None:
-        self.rng = random.Random()  # seeded per trial in reset, so a trial's moves repeat
+class RandomDriver(StepwiseDriver):
+    def __init__(self, seed: int) -> None:
+        self.rng = random.Random(seed)  # seeded per trial, so a trial's moves repeat
 
-    def reset(self, info: dict[str, Any]) -> None:
-        self.rng.seed(info.get("trial_id", 0))
-
-    def act(self, dialog, observation) -> str:
+    def decide(self) -> Move | None:
         if self.rng.random() < RANDOM_CLAIM_P:
-            return "stop"
-        return str(self.rng.choice(list(MoveAction)))
+            return None
+        return self.rng.choice(list(Move))
 
 
-class ShortestPathDriver:
+class ShortestPathOracle(StepwiseDriver):
     """Needs the true pose (simulator); without one it claims at once."""
 
-    def __init__(self, mazes: Mazes) -> None:
-        self.mazes = mazes
-        self.maze: Maze | None = None
-        self.graph: NavGraph | None = None
+    def __init__(self, mazes: Mazes, oracle: Oracle) -> None:
+        self.oracle = oracle
+        self.maze, self.graph = mazes.load(oracle.maze), mazes.graph(oracle.maze)
 
-    def reset(self, info: dict[str, Any]) -> None:
-        self.maze, self.graph = self.mazes.load(info["maze"]), self.mazes.graph(info["maze"])
+    @property
+    def target(self) -> str | None:
+        index = self.target_index
+        return self.oracle.targets[index] if index is not None and index < len(self.oracle.targets) else None
 
-    def act(self, dialog, observation) -> str:
-        pose = observation.get("pose")
-        if pose is None:
-            return "stop"
-        maze, graph = self.maze, self.graph
-        if maze is None or graph is None:
-            raise RuntimeError("ShortestPathDriver.act before reset(info)")
-        goal = graph.nearest_node(*maze.objects[observation["target"]])
-        return teacher_action(graph, snap_pose(graph, *pose), goal).word
+    def claim_words(self) -> str:
+        return f"I think I found the {self.target}"
 
-
-def random_driver(info, services) -> RandomDriver:
-    return RandomDriver()
+    def decide(self) -> Move | None:
+        pose, target = self.oracle.true_pose(), self.target
+        if pose is None or target is None:
+            return None
+        goal = self.graph.nearest_node(*self.maze.objects[target])
+        action = teacher_action(self.graph, snap_pose(self.graph, *pose), goal)
+        return None if action == Action.STOP else Move(action.word)
 
 
-def shortest_driver(info, services) -> ShortestPathDriver:
-    return ShortestPathDriver(services.mazes)
+def random_driver(services, seating: Seating) -> RandomDriver:
+    return RandomDriver(seating.seed)
+
+
+def shortest_driver(services, seating: Seating) -> ShortestPathOracle:
+    if seating.oracle is None:
+        raise ValueError("oracle:shortest needs the oracle's view of the trial")
+    return ShortestPathOracle(services.mazes, seating.oracle)

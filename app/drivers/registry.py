@@ -1,10 +1,11 @@
-"""Agent Drivers by name: a trial's `driver` is `human` or `agent:<name>`.
+"""Driver agents by spec: a trial's `driver` is `human`, `agent:<name>` or `oracle:<name>`.
 
-A driver is a factory, `factory(info, services) -> DriverPolicy` (info: see `DriverPolicy.reset`;
-services: settings, and the mazes with their cached graphs), and optionally a check,
-`check(services) -> reason | None`, saying why it cannot start now (None: it can). The built-in
-ones are named here by "module:function" and imported on first look-up, so the learned one
-(`seq2seq`) imports torch only when it is checked or seated; `register_driver` adds more.
+A driver is a factory, `factory(services, seating) -> Agent` (`sim.agents.turns.Agent`; services:
+settings, and the mazes with their cached graphs; seating: `app.drivers.base.Seating`, whose
+`oracle` is set for `oracle:` drivers only), and optionally a check, `check(services) -> reason |
+None`, saying why it cannot start now (None: it can). The built-in ones are named here by
+"module:function" and imported on first look-up, so the learned ones import torch only when
+they are checked or seated; `register_driver` adds more.
 """
 
 from __future__ import annotations
@@ -12,20 +13,22 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
-from app.drivers.base import DriverPolicy
+from app.drivers.base import AGENT, ORACLE, Seating
+from sim.agents.turns import Agent
 
 if TYPE_CHECKING:
     from app.services import Services
 
-DriverFactory = Callable[[dict[str, Any], "Services"], DriverPolicy]
+DriverFactory = Callable[["Services", Seating], Agent]
 DriverCheck = Callable[["Services"], "str | None"]
 
 BUILTIN = {
-    "random": ("app.drivers.baselines:random_driver", None),
-    "shortest": ("app.drivers.baselines:shortest_driver", None),
-    "seq2seq": ("app.drivers.seq2seq:seq2seq_driver", "app.drivers.seq2seq:seq2seq_check"),
+    "agent:random": ("app.drivers.baselines:random_driver", None),
+    "agent:dialog": ("app.drivers.dialog:dialog_driver", None),
+    "agent:seq2seq": ("app.drivers.seq2seq:seq2seq_driver", "app.drivers.seq2seq:seq2seq_check"),
+    "oracle:shortest": ("app.drivers.baselines:shortest_driver", None),
 }
 
 
@@ -38,8 +41,14 @@ class DriverEntry:
 _REGISTERED: dict[str, DriverEntry] = {}
 
 
-def register_driver(name: str, factory: DriverFactory, check: DriverCheck | None = None) -> None:
-    _REGISTERED[name] = DriverEntry(factory, check)
+def is_driver_spec(spec: str) -> bool:
+    return spec.startswith((AGENT, ORACLE)) and len(spec.split(":", 1)[1]) > 0
+
+
+def register_driver(spec: str, factory: DriverFactory, check: DriverCheck | None = None) -> None:
+    if not is_driver_spec(spec):
+        raise ValueError(f"driver {spec!r}: name it agent:<name>, or oracle:<name> where it cheats")
+    _REGISTERED[spec] = DriverEntry(factory, check)
 
 
 def _resolve(path: str | None):
@@ -49,13 +58,13 @@ def _resolve(path: str | None):
     return getattr(importlib.import_module(module), name)
 
 
-def _entry(name: str) -> DriverEntry:
-    if name not in _REGISTERED and name in BUILTIN:
-        factory, check = BUILTIN[name]
-        _REGISTERED[name] = DriverEntry(_resolve(factory), _resolve(check))
-    if name not in _REGISTERED:
-        raise LookupError(f"unknown agent driver {name!r}; known: {', '.join(driver_names())}")
-    return _REGISTERED[name]
+def _entry(spec: str) -> DriverEntry:
+    if spec not in _REGISTERED and spec in BUILTIN:
+        factory, check = BUILTIN[spec]
+        _REGISTERED[spec] = DriverEntry(_resolve(factory), _resolve(check))
+    if spec not in _REGISTERED:
+        raise LookupError(f"unknown driver {spec!r}; known: {', '.join(driver_names())}")
+    return _REGISTERED[spec]
 
 
 def driver_names() -> list[str]:
@@ -63,13 +72,13 @@ def driver_names() -> list[str]:
 
 
 def available_drivers(services: Services) -> dict[str, str | None]:
-    """Every agent Driver by name, with the reason it cannot start now, or None when it can."""
+    """Every driver by spec, with the reason it cannot start now, or None when it can."""
     result = {}
-    for name in driver_names():
-        entry = _entry(name)
-        result[name] = entry.check(services) if entry.check is not None else None
+    for spec in driver_names():
+        entry = _entry(spec)
+        result[spec] = entry.check(services) if entry.check is not None else None
     return result
 
 
-def create_driver(name: str, info: dict[str, Any], services: Services) -> DriverPolicy:
-    return _entry(name).factory(info, services)
+def create_driver(spec: str, services: Services, seating: Seating) -> Agent:
+    return _entry(spec).factory(services, seating)

@@ -7,12 +7,13 @@ one shipped in the package (`models.shipped`).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from app.drivers.base import Seating
 
 if TYPE_CHECKING:
     from app.services import Services
-
-from pathlib import Path
 
 NO_CHECKPOINT = (
     "agent:seq2seq needs a checkpoint: this install ships none; set ROBOTSLANG_SEQ2SEQ_CHECKPOINT "
@@ -50,11 +51,10 @@ def seq2seq_check(services: Services) -> str | None:
     return services.driver_checks[key]
 
 
-def seq2seq_driver(info: dict[str, Any], services: Services):
+def seq2seq_driver(services: Services, seating: Seating):
     checkpoint = seq2seq_checkpoint(services)
     if checkpoint is None:
         raise LookupError(NO_CHECKPOINT)
     from models.driver import Seq2SeqDriver
 
-    mazes = services.mazes  # the server's, so the maze and its graph are not loaded again
-    return Seq2SeqDriver(checkpoint, lambda name: (mazes.load(name), mazes.graph(name)))
+    return Seq2SeqDriver(checkpoint)

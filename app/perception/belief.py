@@ -22,6 +22,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -152,12 +153,30 @@ class TrialBelief:
 class FilterWorker:
     """One turn at a time per process, off the event loop: every trial's filter turns run in the order they became due,
     and rests after each so that the filters take at most `share` of a core: under load a
-    trial's belief lags (its moves are folded in at its next turn), the moves' frames do not."""
+    trial's belief lags (its moves are folded in at its next turn), the moves' frames do not.
+    New trials' filters are built in the same share (`start`): a crowd of trials opening at once
+    gets its beliefs later, not its frames."""
 
     def __init__(self, share: float = FILTER_SHARE) -> None:
         self.share = share
         self._due: dict[TrialBelief, Callable[[], None]] = {}  # insertion order: turn order
         self._task: asyncio.Task | None = None
+        self._slot: asyncio.Lock | None = None  # one turn or build at a time, with its rest
+
+    async def _in_share(self, work: Callable[[], Any]) -> Any:
+        """`work()` in a thread, then a rest that keeps the filters' work within `share`."""
+        if self._slot is None:
+            self._slot = asyncio.Lock()
+        async with self._slot:
+            started = time.perf_counter()
+            result = await asyncio.to_thread(work)
+            await asyncio.sleep((time.perf_counter() - started) * (1 / self.share - 1))
+            return result
+
+    async def start(self, make: Callable[[], TrialBelief]) -> TrialBelief:
+        """A new trial's filter, `make()` in the filters' share of a core."""
+        belief: TrialBelief = await self._in_share(make)
+        return belief
 
     def due(self, belief: TrialBelief, done: Callable[[], None]) -> None:
         """`belief` has a frame kept: give it a turn; `done()` runs on the event loop after it."""
@@ -172,13 +191,10 @@ class FilterWorker:
         while self._due:
             belief = next(iter(self._due))
             done = self._due.pop(belief)
-            started = time.perf_counter()
             try:
-                observed = await asyncio.to_thread(belief.step)
+                observed = await self._in_share(belief.step)
             except Exception:  # a filter that fails is a lesser trial, never a stopped worker
                 logger.exception("particle filter turn failed")
                 observed = None
             if observed is not None:
                 done()
-            busy = time.perf_counter() - started
-            await asyncio.sleep(busy * (1 / self.share - 1))

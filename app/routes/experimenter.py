@@ -35,11 +35,6 @@ def experimenter(request: Request) -> int:
 router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter), Depends(csrf_protect)])
 
 
-def agent_drivers(services) -> dict[str, str | None]:
-    """Each agent Driver by its `agent:<name>` spec, with why it cannot start now (None: it can)."""
-    return {f"agent:{name}": reason for name, reason in sorted(available_drivers(services).items())}
-
-
 def controls_for(phase: str, paused: list[str] | tuple[str, ...] = ()) -> list[str]:
     """The experimenter's controls that apply to a trial in `phase` (pause, resume, abort)."""
     if phase in ("finished", "aborted"):
@@ -80,7 +75,8 @@ def dashboard(request: Request, error: str | None = None):
         mazes=maze_names,
         suggestions=suggestions,
         backends=backends,
-        agents=agent_drivers(services),
+        agents=available_drivers(services),
+        caps=(services.settings.agent_moves_per_target, services.settings.agent_minutes_per_trial),
         controls_for=controls_for,
         robots=robot_links(services).status(),
         links={t.id: join_links(request, t) for t in trials},

@@ -77,17 +77,25 @@ async def play(ws: WebSocket, token: str = "") -> None:
         seat = services.seats.admit(token)
         with services.db() as db:
             trial = db.get(Trial, seat.trial_id)
-        if trial is not None and (reason := over_reason(trial)) is not None:
+        if trial is None:
+            raise UnknownTrial(f"trial {seat.trial_id} does not exist")
+        if (reason := over_reason(trial)) is not None:
             raise InvalidToken(reason)
-        runtime = await services.hub.get(seat.trial_id)
     except (InvalidToken, UnknownTrial) as err:
+        await ws.close(code=1008, reason=str(err)[:120])
+        return
+    # Answered before the trial opens (its log read, its maze loaded): a crowd arriving at once
+    # is connected at once, and each seat's welcome follows as its trial opens.
+    await ws.accept()
+    try:
+        runtime = await services.hub.get(seat.trial_id)
+    except UnknownTrial as err:
         await ws.close(code=1008, reason=str(err)[:120])
         return
     except Exception as err:  # e.g. its maze left the library: say so instead of dropping the socket
         logger.exception("trial could not be opened")
         await ws.close(code=1011, reason=f"the trial could not be opened: {err}"[:120])
         return
-    await ws.accept()
     conn = SocketSeat(ws, seat.role)
     runtime.join(conn)
     try:

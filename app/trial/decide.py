@@ -99,7 +99,7 @@ class Resume:
 
 @dataclass(frozen=True)
 class Abort:
-    pass
+    reason: str | None = None  # e.g. an agent Driver's cap, logged with the phase change
 
 
 @dataclass(frozen=True)
@@ -181,8 +181,8 @@ def decide(state: TrialState, command: Command) -> list[ev.Event]:
             return [] if EXPERIMENTER_PAUSE in state.pause_reasons else [ev.Paused(reason=EXPERIMENTER_PAUSE)]
         case Resume():
             return [ev.Resumed(reason=EXPERIMENTER_PAUSE)] if EXPERIMENTER_PAUSE in state.pause_reasons else []
-        case Abort():
-            return [ev.PhaseChanged(phase=Phase.ABORTED)]
+        case Abort(reason=reason):
+            return [ev.PhaseChanged(phase=Phase.ABORTED, reason=reason)]
         case GraceExpired(role=role):
             return [ev.PhaseChanged(phase=Phase.ABORTED)] if role in state.away else []
     raise TypeError(f"not a trial command: {command!r}")

@@ -60,8 +60,10 @@ class Disconnected(Event):
 
 class PhaseChanged(Event):
     kind = "phase"
+    omit_if_none = ("reason",)
     phase: Phase
     target_index: int | None = None
+    reason: str | None = None  # why the trial was aborted, where one was given (logs before it have none)
 
 
 class Paused(Event):

@@ -46,7 +46,7 @@ class RobotTrial(TrialView, Protocol):
 
 
 class DriverTrial(TrialView, Protocol):
-    """The trial as an agent in the Driver's seat sees it."""
+    """The trial as an agent Driver's seat sees it: no true pose, no map, no particle filter."""
 
     async def request_move(self, action: MoveAction) -> Outcome:
         """Move the robot under the same rules as a person's move; returns what became of it."""
@@ -56,9 +56,5 @@ class DriverTrial(TrialView, Protocol):
     def claim(self) -> None:
         """Claim the current target (raises `Refused` when not allowed now)."""
 
-    def true_pose(self) -> tuple[float, float, float] | None:
-        """Where the backend knows the robot is (oracle baselines only)."""
-
-    @property
-    def belief(self) -> Any:
-        """The trial's live particle filter (`app.perception.belief.TrialBelief`), or None."""
+    def abort(self, reason: str | None = None) -> None:
+        """End the trial, aborted, with the reason logged (an agent Driver's cap)."""

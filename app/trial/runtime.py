@@ -74,12 +74,20 @@ class TrialRuntime:
         self.apply(d.Reopen())  # seats and moves of an earlier server process are gone
         if self.state.over:
             return
+        if self.state.driver != "human":
+            self.agent = self._seat_agent()
         await self._start_backend()
-        if self.state.driver.startswith("agent:"):
-            from app.drivers.seat import AgentSeat
-
-            self.agent = AgentSeat(self, self.services)
+        if self.agent is not None:
             self.agent.start()
+
+    def _seat_agent(self) -> AgentSeat:
+        """The agent Driver's seat, made before the backend so it hears the robot's first frame."""
+        from app.drivers.base import ORACLE, Oracle
+        from app.drivers.seat import AgentSeat
+
+        s = self.state
+        oracle = Oracle(s.maze, tuple(s.targets), self.true_pose) if s.driver.startswith(ORACLE) else None
+        return AgentSeat(self, self.services, oracle)
 
     async def _start_backend(self) -> None:
         self.backend = await create_backend(self.state.backend, self, self.services)
@@ -98,7 +106,7 @@ class TrialRuntime:
         try:
             calibration = await asyncio.to_thread(driver_calibration, self.state.backend, self.settings)
             maze = self.services.mazes.load(self.state.maze)
-            self.belief = await asyncio.to_thread(TrialBelief, maze, calibration, seed=self.trial_id)
+            self.belief = await self.services.filters.start(lambda: TrialBelief(maze, calibration, seed=self.trial_id))
         except CameraUnknown as err:
             logger.info("trial %s: no particle filter: %s", self.trial_id, err)
         except Exception:  # no belief is a lesser trial, not a broken one
@@ -245,6 +253,9 @@ class TrialRuntime:
                 rel = self._frame_file(frame.capture_ns, FrameSource.DRIVER)
                 # The file is written off the event loop (slow disks must not delay other trials).
                 await asyncio.to_thread(self._write_frame_file, rel, frame.jpeg)
+                frame_id = self.state.last_seq + 1  # the frame event's own seq
+                if frame.observation is not None and self.agent is not None:
+                    self.agent.note_observation(frame_id, frame.observation)  # the agent seat's alone
                 self._commit_frame(rel, frame.jpeg, frame.capture_ns, frame.width, frame.height, FrameSource.DRIVER)
             except Exception:  # a frame that cannot be stored must not stop the stream
                 logger.exception("trial %s: frame not recorded", self.trial_id)
@@ -517,8 +528,8 @@ class TrialRuntime:
     def resume(self) -> None:
         self.apply(d.Resume())
 
-    def abort(self) -> None:
-        self.apply(d.Abort())
+    def abort(self, reason: str | None = None) -> None:
+        self.apply(d.Abort(reason))
 
     def snapshot(self) -> dict[str, Any]:
         s = self.state

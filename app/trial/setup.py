@@ -48,15 +48,14 @@ def parse_targets(text: str, rng: random.Random) -> list[str]:
 
 
 def check_driver(driver: str, agents: Mapping[str, str | None] | None) -> None:
-    """`human`, or an agent that can start: `agents` is `available_drivers(services)`."""
+    """`human`, or an agent or oracle that can start: `agents` is `available_drivers(services)`."""
     if driver == "human":
         return
-    name = driver.removeprefix("agent:")
-    if not driver.startswith("agent:") or agents is None or name not in agents:
-        known = ", ".join(f"agent:{n}" for n in agents or ())
+    if agents is None or driver not in agents:
+        known = ", ".join(agents or ())
         raise TrialSetupError(f"driver {driver!r} is neither 'human' nor a known agent ({known})")
-    if agents[name] is not None:
-        raise TrialSetupError(f"driver {driver!r} cannot start: {agents[name]}")
+    if agents[driver] is not None:
+        raise TrialSetupError(f"driver {driver!r} cannot start: {agents[driver]}")
 
 
 def create_trial(

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from sim.core.geometry import HEADING_DI, HEADING_DJ, HEADINGS, heading_index
-from sim.core.navgraph import NavGraph
+from sim.core.navgraph import Moves, NavGraph
 
 
 class Action(IntEnum):
@@ -46,7 +46,7 @@ def snap_pose(graph: NavGraph, x: float, y: float, theta: float = 0.0) -> Pose:
     return Pose(graph.nearest_node(x, y), heading_index(theta))
 
 
-def step(graph: NavGraph, pose: Pose, action: Action) -> tuple[Pose, bool]:
+def step(graph: NavGraph | Moves, pose: Pose, action: Action) -> tuple[Pose, bool]:
     """Apply one action; returns the new pose and whether a forward move collided."""
     if action == Action.FORWARD:
         target = int(graph.forward[pose.node, pose.heading])

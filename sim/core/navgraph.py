@@ -85,6 +85,15 @@ def _edges(nodes: np.ndarray, node_ij: np.ndarray, mode: str) -> tuple[np.ndarra
 
 
 @dataclass(frozen=True, eq=False)
+class Moves:
+    """What driving on a graph needs (`sim.core.dynamics.step`): its nodes and where a forward move from
+    each leads, without the all-pairs tables (a few MB a maze), which a live simulator seat never reads."""
+
+    nodes: np.ndarray  # (N, 2) positions, metres
+    forward: np.ndarray  # (N, 8) node reached by a forward move per heading; -1 = collision
+
+
+@dataclass(frozen=True, eq=False)
 class NavGraph:
     mode: str
     nodes: np.ndarray  # (N, 2) positions, metres
@@ -98,6 +107,9 @@ class NavGraph:
     @property
     def n(self) -> int:
         return len(self.nodes)
+
+    def moves(self) -> Moves:
+        return Moves(self.nodes, self.forward)
 
     @classmethod
     def build(

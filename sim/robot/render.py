@@ -10,6 +10,11 @@ their footprints on the map (`maze.labels`): a second cast against the objects' 
 draws each as a solid of its colour and height rising from exactly where the observation rays
 meet it, in front of the walls it is nearer than, so a ray's label and depth can be read off
 the picture as `RayTable` gives them.
+
+What a frame needs of a maze (`Scene`) is built once and cached on disk by the maze's contents
+(`cached_scene`, `load_scene`): the edges, the grids as runs (a pixel is a binary search), and the
+walls' normals only on the band along the walls that a ray can enter, about 1 MB a maze where the
+maze and a full normal field are 17 MB, so a render process keeps every live maze's scene.
 """
 
 from __future__ import annotations
@@ -17,13 +22,16 @@ from __future__ import annotations
 import threading
 import weakref
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+from pathlib import Path
 from typing import Literal
 
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike
 
+from sim.core.cache import cache_dir as default_cache_dir
+from sim.core.cache import save_npz
 from sim.core.geometry import world_to_pixel
 from sim.core.labels import LABEL_BGR, N_LABELS, OBJECT_LABELS, PALETTE_BGR, Label
 from sim.core.maze import Maze
@@ -40,6 +48,31 @@ SKY_TOP, SKY_HORIZON = np.array([120, 104, 92.0]), np.array([200, 196, 190.0])
 FLOOR_NEAR, FLOOR_FAR = np.array([58, 58, 62.0]), np.array([22, 22, 24.0])
 OUTLINE = 0.45  # brightness of wall edges
 _NO_HIT = np.array(np.inf).view(np.int64)  # a column key: no wall met (label FLOOR)
+NORMAL_BAND_PX = 3  # normals are kept for pixels this near both a wall and the floor
+_SCENE_CACHE_VERSION = 1
+
+
+@dataclass(frozen=True, eq=False)
+class _Grid:
+    """A label grid as its runs along the flattened rows: a pixel is a binary search."""
+
+    shape: tuple[int, int]
+    starts: np.ndarray  # (R,) int32 flat index where each run begins
+    values: np.ndarray  # (R,) uint8 its label
+
+    @classmethod
+    def of(cls, grid: np.ndarray) -> _Grid:
+        flat = np.ascontiguousarray(grid, dtype=np.uint8).ravel()
+        starts = np.flatnonzero(np.concatenate([[True], flat[1:] != flat[:-1]])).astype(np.int32)
+        return cls((int(grid.shape[0]), int(grid.shape[1])), starts, flat[starts])
+
+    def __getitem__(self, at: tuple[int, int]) -> int:
+        row, col = at
+        return int(self.values[np.searchsorted(self.starts, row * self.shape[1] + col, side="right") - 1])
+
+    def array(self) -> np.ndarray:
+        lengths = np.diff(np.append(self.starts, self.shape[0] * self.shape[1]))
+        return np.repeat(self.values, lengths).reshape(self.shape)
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,7 +100,7 @@ class _Walls:
     crosses the nearest edge it meets from the floor side."""
 
     edges: tuple[_Edges, ...]
-    grid: np.ndarray  # the walls grid: is the camera inside a wall?
+    grid: _Grid  # the walls grid: is the camera inside a wall?
 
 
 def _edge_runs(entered: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -105,32 +138,60 @@ def _walls(grid: np.ndarray) -> _Walls:
                 floor_below = not into_next  # rows grow downward: the next row is at smaller y
             order = np.argsort(at, kind="stable")
             edges.append(_Edges(vertical, floor_below, at[order], lo[order], hi[order], label[order]))
-    return _Walls(tuple(edges), grid)
+    return _Walls(tuple(edges), _Grid.of(grid))
+
+
+def _normal_field(walls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pixel wall normal (x, y in the table frame) of the smoothed walls."""
+    solid = cv2.GaussianBlur((walls != Label.FLOOR).astype(np.float32), (0, 0), 6)
+    gx = cv2.Sobel(solid, cv2.CV_32F, 1, 0, ksize=3)
+    gy = -cv2.Sobel(solid, cv2.CV_32F, 0, 1, ksize=3)  # rows grow downward, y upward
+    norm = np.maximum(np.hypot(gx, gy), 1e-6)
+    return -gx / norm, -gy / norm
 
 
 @dataclass(frozen=True, eq=False)
-class _Scene:
-    """What the camera needs of one maze, built once."""
+class _Normals:
+    """The wall normals on the band along the walls, where the shading samples them (the pixel
+    a ray enters, just past the edge it crosses); elsewhere (a camera inside a wall) the whole
+    field is computed again, once for that frame."""
+
+    band: np.ndarray  # (K,) int32 sorted flat pixel indices
+    x: np.ndarray  # (K,) float32
+    y: np.ndarray
+    walls: _Grid
+
+    @classmethod
+    def of(cls, walls: np.ndarray) -> _Normals:
+        solid = (walls != Label.FLOOR).astype(np.uint8)
+        kernel = np.ones((2 * NORMAL_BAND_PX + 1, 2 * NORMAL_BAND_PX + 1), np.uint8)
+        near = np.logical_and(cv2.dilate(solid, kernel), cv2.dilate(1 - solid, kernel))
+        band = np.flatnonzero(near).astype(np.int32)
+        nx, ny = _normal_field(walls)
+        return cls(band, nx.ravel()[band], ny.ravel()[band], _Grid.of(walls))
+
+    def at(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        flat = (rows * self.walls.shape[1] + cols).astype(np.int32)
+        i = np.minimum(np.searchsorted(self.band, flat), self.band.size - 1)
+        if not (self.band[i] == flat).all():
+            nx, ny = _normal_field(self.walls.array())
+            return nx[rows, cols], ny[rows, cols]
+        return self.x[i], self.y[i]
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """What the camera needs of one maze, built once (`scene`, `cached_scene`)."""
 
     walls: _Walls
-    normal_x: np.ndarray  # per-pixel wall normal, x (table frame)
-    normal_y: np.ndarray
+    normals: _Normals
     objects: _Walls  # the objects' footprints (maze.labels without the walls) as edges
     centroids: np.ndarray  # (N_LABELS, 2) each object's centre, metres, to shade it round
     reach: np.ndarray  # (N_LABELS,) metres from that centre to the footprint's farthest pixel (0: none)
 
-
-_scenes: weakref.WeakKeyDictionary[Maze, _Scene] = weakref.WeakKeyDictionary()
-
-
-def _scene(maze: Maze) -> _Scene:
-    scene = _scenes.get(maze)
-    if scene is None:
-        solid = cv2.GaussianBlur((maze.walls != Label.FLOOR).astype(np.float32), (0, 0), 6)
-        gx = cv2.Sobel(solid, cv2.CV_32F, 1, 0, ksize=3)
-        gy = -cv2.Sobel(solid, cv2.CV_32F, 0, 1, ksize=3)  # rows grow downward, y upward
-        norm = np.maximum(np.hypot(gx, gy), 1e-6)
-        walls = _walls(np.ascontiguousarray(maze.walls, dtype=np.uint8))
+    @classmethod
+    def build(cls, maze: Maze) -> Scene:
+        walls = np.ascontiguousarray(maze.walls, dtype=np.uint8)
         footprints = np.where(np.isin(maze.labels, OBJECT_LABELS), maze.labels, Label.FLOOR).astype(np.uint8)
         centroids, reach = np.zeros((N_LABELS, 2)), np.zeros(N_LABELS)
         for name, (ox, oy) in maze.objects.items():
@@ -139,8 +200,70 @@ def _scene(maze: Maze) -> _Scene:
             centroids[label] = ox, oy
             px_x, px_y = world_to_pixel(ox, oy)
             reach[label] = np.hypot((cols - px_x) / PX_PER_M_X, (rows - px_y) / PX_PER_M_Y).max() + 1 / PX_PER_M_X
-        scene = _scenes[maze] = _Scene(walls, -gx / norm, -gy / norm, _walls(footprints), centroids, reach)
-    return scene
+        return cls(_walls(walls), _Normals.of(walls), _walls(footprints), centroids, reach)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Every array of the scene by a flat name (`load_scene` reads them back)."""
+        out = {"centroids": self.centroids, "reach": self.reach}
+        out |= {f"normals.{k}": getattr(self.normals, k) for k in ("band", "x", "y")}
+        for part in ("walls", "objects"):
+            walls: _Walls = getattr(self, part)
+            grid = walls.grid
+            out |= {f"{part}.shape": np.array(grid.shape), f"{part}.starts": grid.starts, f"{part}.values": grid.values}
+            for i, edges in enumerate(walls.edges):
+                out |= {f"{part}.{i}.{f.name}": np.asarray(getattr(edges, f.name)) for f in fields(_Edges)}
+        return out
+
+    @classmethod
+    def from_arrays(cls, a: dict[str, np.ndarray]) -> Scene:
+        parts = {}
+        for part in ("walls", "objects"):
+            grid = _Grid(tuple(int(v) for v in a[f"{part}.shape"]), a[f"{part}.starts"], a[f"{part}.values"])  # type: ignore[arg-type]
+            edges = tuple(
+                _Edges(
+                    bool(a[f"{part}.{i}.vertical"]),
+                    bool(a[f"{part}.{i}.floor_below"]),
+                    *(a[f"{part}.{i}.{k}"] for k in ("at", "lo", "hi", "label")),
+                )
+                for i in range(4)
+            )
+            parts[part] = _Walls(edges, grid)
+        normals = _Normals(a["normals.band"], a["normals.x"], a["normals.y"], parts["walls"].grid)
+        return cls(parts["walls"], normals, parts["objects"], a["centroids"], a["reach"])
+
+
+_scenes: weakref.WeakKeyDictionary[Maze, Scene] = weakref.WeakKeyDictionary()
+
+
+def scene(maze: Maze) -> Scene:
+    """The maze's scene, built once per maze object."""
+    found = _scenes.get(maze)
+    if found is None:
+        found = _scenes[maze] = Scene.build(maze)
+    return found
+
+
+def _scene_path(content_hash: str, cache_dir: str | Path | None) -> Path:
+    return default_cache_dir(cache_dir) / "scene" / f"{content_hash}-v{_SCENE_CACHE_VERSION}.npz"
+
+
+def load_scene(content_hash: str, cache_dir: str | Path | None = None) -> Scene | None:
+    """The cached scene of the maze with these contents (`Maze.content_hash`), if one was saved."""
+    try:
+        with np.load(_scene_path(content_hash, cache_dir)) as data:
+            return Scene.from_arrays({k: data[k] for k in data.files})
+    except (OSError, ValueError, KeyError):
+        return None  # none yet, or torn or stale: built again by `cached_scene`
+
+
+def cached_scene(maze: Maze, cache_dir: str | Path | None = None) -> Scene:
+    """The maze's scene, read from the cache by its contents, or built and saved there."""
+    found = _scenes.get(maze) or load_scene(maze.content_hash, cache_dir)
+    if found is None:
+        found = scene(maze)
+        save_npz(_scene_path(maze.content_hash, cache_dir), False, **found.arrays())
+    _scenes[maze] = found
+    return found
 
 
 @dataclass(frozen=True)
@@ -272,10 +395,15 @@ def _to_edge(x: float, y: float, dx: np.ndarray, dy: np.ndarray, w: int, h: int)
 
 def first_person(maze: Maze, x: float, y: float, theta: float, size: tuple[int, int] = (320, 240)) -> np.ndarray:
     """The Driver's camera at (x, y) metres facing `theta` radians: a (H, W, 3) BGR image."""
+    return draw(scene(maze), x, y, theta, size)
+
+
+def draw(scene: Scene, x: float, y: float, theta: float, size: tuple[int, int] = (320, 240)) -> np.ndarray:
+    """`first_person` from the maze's scene."""
     width, height = int(size[0]), int(size[1])
     if width < 8 or height < 8:
         raise ValueError(f"image size {size!r} too small; expected at least 8x8 pixels")
-    scene, cam = _scene(maze), _camera(width, height)
+    cam = _camera(width, height)
     angles = theta + cam.column_offsets
     labels, depth = _cast_columns(scene.walls, cam, x, y, theta, angles)
     z = np.maximum(depth * np.cos(cam.column_offsets), 1e-3)  # perpendicular: no fisheye
@@ -288,9 +416,13 @@ def first_person(maze: Maze, x: float, y: float, theta: float, size: tuple[int, 
     # Lambert-like shading from the wall's normal just inside the wall entered, then fade with distance.
     inward = depth + 1e-4  # metres: the wall pixel entered, not the floor pixel before it
     col_px, row_px = world_to_pixel(x + inward * np.cos(angles), y + inward * np.sin(angles))
-    ci = np.clip(np.rint(col_px).astype(np.int64), 0, maze.walls.shape[1] - 1)
-    ri = np.clip(np.rint(row_px).astype(np.int64), 0, maze.walls.shape[0] - 1)
-    facing = np.abs(scene.normal_x[ri, ci] * np.cos(angles) + scene.normal_y[ri, ci] * np.sin(angles))
+    h, w = scene.walls.grid.shape
+    ci = np.clip(np.rint(col_px).astype(np.int64), 0, w - 1)
+    ri = np.clip(np.rint(row_px).astype(np.int64), 0, h - 1)
+    # Only the walls' columns are painted: their normals are the band's.
+    normal_x, normal_y = scene.normals.at(ri[wall], ci[wall])
+    facing = np.zeros(width)
+    facing[wall] = np.abs(normal_x * np.cos(angles[wall]) + normal_y * np.sin(angles[wall]))
     light = (0.55 + 0.45 * facing) * FOG_M / (FOG_M + z)
     colour = PALETTE_BGR[labels].astype(np.float32) * light[:, None]
     # Edges where the wall changes colour or steps in depth, so corners read clearly.
@@ -318,7 +450,7 @@ OBJECT_HEIGHT_M[[Label.JAR, Label.MUG, Label.PADDLE]] = 0.14, 0.09, 0.17
 def paint_objects(
     packed: np.ndarray,
     mask: np.ndarray,
-    scene: _Scene,
+    scene: Scene,
     cam: _Camera,
     x: float,
     y: float,

@@ -47,7 +47,6 @@ def platform_settings(tmp_path, database_url: str | None = None, **overrides) ->
         secret_key="test-secret",
         min_move_interval_s=0.0,
         grace_period_s=30.0,
-        agent_move_interval_s=0.02,
         render_processes=0,  # frames drawn in a thread; tests/app/test_render_processes.py runs the pool
     )
     values.update(overrides)

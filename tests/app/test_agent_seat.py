@@ -1,4 +1,4 @@
-"""An agent in the Driver's seat plays through the same protocol and log as a person."""
+"""An agent (or an oracle baseline) in the Driver's seat plays through the same protocol and log as a person."""
 
 from __future__ import annotations
 
@@ -9,13 +9,15 @@ from sqlalchemy import select
 from app.db.models import Event
 from app.drivers.registry import driver_names, register_driver
 from bench.live import SeatClient, make_trial
+from sim.agents.stepwise import StepwiseDriver
+from sim.agents.turns import Move
 from tests.app.live import ServerThread
 
 
-def test_shortest_path_agent_drives_and_claims_each_target(settings):
+def test_shortest_path_oracle_drives_and_claims_each_target(settings):
     with ServerThread(settings) as server:
         services = server.services
-        trial_id = make_trial(services, services.mazes.names()[0], driver="agent:shortest")
+        trial_id = make_trial(services, services.mazes.names()[0], driver="oracle:shortest")
         token = services.seats.issue(trial_id, "commander")
 
         async def command():
@@ -50,16 +52,15 @@ def test_shortest_path_agent_drives_and_claims_each_target(settings):
 
 
 def test_register_driver_adds_a_named_agent(settings):
-    class AlwaysLeft:
-        def reset(self, info):
-            self.info = info
+    class AlwaysLeft(StepwiseDriver):
+        def decide(self):
+            assert self.rays is not None and len(self.rays.labels) == 13  # it sees its frame's rays
+            return Move.LEFT
 
-        def act(self, dialog, observation):
-            assert observation["frame"][:2] == b"\xff\xd8"
-            return "left"
-
-    register_driver("test-left", lambda info, services: AlwaysLeft())
-    assert {"random", "shortest", "test-left"} <= set(driver_names())
+    register_driver("agent:test-left", lambda services, seating: AlwaysLeft())
+    assert {"agent:random", "agent:seq2seq", "agent:dialog", "oracle:shortest", "agent:test-left"} <= set(
+        driver_names()
+    )
     with ServerThread(settings) as server:
         services = server.services
         trial_id = make_trial(services, services.mazes.names()[0], driver="agent:test-left")
@@ -68,6 +69,7 @@ def test_register_driver_adds_a_named_agent(settings):
         async def command():
             async with SeatClient(server.ws_url, token) as commander:
                 await commander.event("phase", phase="localizing")
+                await commander.send("localize", x=1.0, y=1.0)
                 runtime = services.hub.peek(trial_id)
                 for _ in range(500):
                     if runtime.state.moves >= 3:
@@ -83,10 +85,10 @@ def test_register_driver_adds_a_named_agent(settings):
 
 
 def test_an_agent_that_fails_is_logged_and_the_trial_stays_open(settings):
-    def broken(info, services):
+    def broken(services, seating):
         raise FileNotFoundError("no checkpoint at runs/missing.pt")
 
-    register_driver("test-broken", broken)
+    register_driver("agent:test-broken", broken)
     with ServerThread(settings) as server:
         services = server.services
         trial_id = make_trial(services, services.mazes.names()[0], driver="agent:test-broken")
@@ -103,4 +105,6 @@ def test_an_agent_that_fails_is_logged_and_the_trial_stays_open(settings):
             errors = db.scalars(
                 select(Event.payload).where(Event.trial_id == trial_id, Event.kind == "bad_message")
             ).all()
-        assert errors == [{"role": "driver", "error": "agent 'test-broken' failed: no checkpoint at runs/missing.pt"}]
+        assert errors == [
+            {"role": "driver", "error": "agent 'agent:test-broken' failed: no checkpoint at runs/missing.pt"}
+        ]

@@ -63,3 +63,16 @@ def test_an_ended_trial_takes_nothing_more():
     assert decide(state, Reopen()) == [] and decide(state, Leave(Role.DRIVER)) == [] and decide(state, Abort()) == []
     with pytest.raises(Refused, match="aborted"):
         decide(state, Say(Role.DRIVER, "hello?"))
+
+
+def test_an_abort_logs_its_reason_and_a_log_without_one_still_folds():
+    (aborted,) = decide(running(), Abort("agent Driver's cap: 300 moves for target 1"))
+    assert aborted.payload() == {
+        "phase": "aborted",
+        "target_index": None,
+        "reason": "agent Driver's cap: 300 moves for target 1",
+    }
+    assert "reason" not in decide(running(), Abort())[0].payload()  # the experimenter's abort: as before
+    for payload in (aborted.payload(), {"phase": "aborted", "target_index": None}):  # a log from before reasons
+        state = running(("phase", payload))
+        assert state.phase == Phase.ABORTED and state.over

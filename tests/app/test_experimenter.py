@@ -91,11 +91,11 @@ def test_experimenter_forms_make_a_trial_with_join_links(settings):
         assert "no registered rover with id '42'" in page
         page = html.unescape(client.post("/experimenter/trials", data={"team_id": 2, "driver": "agent:nobody"}).text)
         assert "neither 'human' nor a known agent" in page
-        client.post("/experimenter/trials", data={"team_id": 2, "driver": "agent:shortest"})
+        client.post("/experimenter/trials", data={"team_id": 2, "driver": "oracle:shortest"})
         with server.services.db() as db:
             second = db.scalar(select(Trial).where(Trial.team_id == 2))
         assert second.maze == names[1] and sorted(second.targets) == ["jar", "mug", "paddle"]
-        assert second.driver == "agent:shortest" and second.driver_id is None
+        assert second.driver == "oracle:shortest" and second.driver_id is None
         row = re.search(rf'data-trial="{second.id}".*?</tr>', client.get("/experimenter").text, re.S).group(0)
         assert "join-commander" in row and "join-driver" not in row, "an agent drives: no Driver link"
 

@@ -64,8 +64,9 @@ def test_agent_trials_rank_apart_and_never_count_for_the_team(settings):
         with services.db.begin() as db:
             team = db.scalar(select(Team).where(Team.name == "Owls"))
             for driver, active_s, moves in (
-                ("agent:shortest", 50.0, 30),
-                ("agent:shortest", 70.0, 30),
+                ("agent:dialog", 50.0, 30),
+                ("agent:dialog", 70.0, 30),
+                ("oracle:shortest", 10.0, 20),  # cheats: it ranks nowhere
                 ("agent:random", 500.0, 300),
                 ("agent:random", None, 9),
             ):
@@ -88,10 +89,11 @@ def test_agent_trials_rank_apart_and_never_count_for_the_team(settings):
             agents = agent_standings(db, move_penalty_s=1.0)
         assert [(r.team, r.completed, r.best_s, r.drivers) for r in teams] == [("Owls", 1, 240.0, ("Owls-b",))]
         assert [(r.rank, r.agent, r.completed, r.best_s, r.commanders) for r in agents] == [
-            (1, "agent:shortest", 2, 80.0, ("Owls",)),
+            (1, "agent:dialog", 2, 80.0, ("Owls",)),
             (2, "agent:random", 1, 800.0, ("Owls",)),
         ]
         page = httpx.get(server.url + "/leaderboard").text
         humans, machines = page.split('id="agent-leaderboard"')
         assert "Owls-b" in humans and "agent:" not in humans and "80.0" not in humans
-        assert machines.index("agent:shortest") < machines.index("agent:random")
+        assert machines.index("agent:dialog") < machines.index("agent:random")
+        assert "oracle:" not in page

@@ -49,3 +49,48 @@ def test_load_bench_offers_one_chat_and_one_move_per_trial_second_and_loses_noth
     # to a tenth in the JSON).
     assert figures["events"] >= trials
     assert abs(figures["events_per_s"] * window - figures["events"]) <= 0.05 * (window + figures["events_per_s"]) + 0.01
+
+
+WALK_KEYS = KEYS | {
+    "pattern",
+    "mazes",
+    "maze_count",
+    "first_move_p50_ms",
+    "first_move_p99_ms",
+    "first_moves",
+    "handshake_p50_ms",
+    "handshake_p99_ms",
+    "handshake_max_ms",
+    "handshakes",
+    "handshakes_failed",
+    "welcome_p50_ms",
+    "welcome_p99_ms",
+    "connected_within_goal",
+    "processes",
+    "load_average_before",
+    "load_average",
+}
+
+
+def test_walking_trials_on_distinct_mazes_opening_at_once_lose_nothing():
+    trials, duration = 24, 20.0
+    out = subprocess.run(
+        [sys.executable, "-m", "bench.load", "--trials", str(trials), "--duration", str(duration)]
+        + ["--pattern", "walk", "--mazes", "distinct", "--open-at-once"]
+        + ["--warmup", "2", "--port", str(free_port()), "--json"],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=True,
+    )
+    figures = json.loads(out.stdout.strip().splitlines()[-1])
+    assert figures.keys() >= WALK_KEYS
+    assert figures["pattern"] == "walk" and figures["mazes"] == "distinct" and figures["open_at_once"]
+    assert figures["maze_count"] == trials  # every trial on a maze of its own
+    assert figures["handshakes"] == 2 * trials and figures["handshakes_failed"] == 0
+    assert figures["first_moves"] == trials  # each trial's first move came back with its frame
+    assert figures["lost"] == 0 and figures["unanswered"] == 0
+    kinds = [p["kind"] for p in figures["processes"]]
+    assert kinds.count("server") == 1 and "render" in kinds  # each process of the server, with its peak
+    assert all(p["peak_rss_mb"] > 0 for p in figures["processes"])

@@ -116,8 +116,10 @@ def test_an_agent_that_cannot_start_is_not_offered_and_is_refused_with_its_reaso
         client = log_in(server)
         make_trial(server.services, server.services.mazes.names()[0])  # a team, so the trial form shows
         page = client.get("/experimenter").text
-        options = dict(re.findall(r'<option value="(agent:[a-z0-9_]+)"([^>]*)>', page))
-        assert "agent:shortest" in options and "disabled" not in options["agent:shortest"]
+        options = dict(re.findall(r'<option value="((?:agent|oracle):[a-z0-9_]+)"([^>]*)>', page))
+        for offered in ("agent:dialog", "agent:random", "oracle:shortest"):
+            assert offered in options and "disabled" not in options[offered]
+        assert "stops after 300 moves per target or 15 minutes of trial clock" in page  # the agent's caps
         assert "disabled" in options["agent:seq2seq"] and "unavailable:" in page
         token = csrf(client, "/experimenter")
         refused = client.post(

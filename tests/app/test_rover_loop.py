@@ -138,7 +138,7 @@ async def test_the_learned_driver_drives_a_virtual_rover_to_a_claim(
     tmp_path, start, camera_calibration, stopping_checkpoint
 ):
     lab = with_calibration(
-        Lab(tmp_path, seq2seq_checkpoint=stopping_checkpoint, agent_move_interval_s=0.2), camera_calibration
+        Lab(tmp_path, seq2seq_checkpoint=stopping_checkpoint, min_move_interval_s=0.2), camera_calibration
     )
     try:
         robot_id, token = lab.register("agent's rover")

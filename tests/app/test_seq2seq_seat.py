@@ -68,6 +68,7 @@ def test_learned_driver_claims_moves_after_a_rejection_and_claims_again(tmp_path
                 rejected = await commander.event("target_rejected", start=start)
                 again = await commander.event("target_claimed", timeout=30, start=start, target_index=0)
                 start = len(commander.received)
+                await commander.send("chat", text="yes, that is the jar. now the mug")
                 await commander.send("confirm")
                 # A new target re-encodes the dialog; the agent plays on and claims the mug.
                 await commander.event("target_claimed", timeout=30, start=start, target_index=1)
@@ -102,7 +103,7 @@ def test_without_a_setting_the_shipped_driver_plays_a_trial_on_a_bundled_maze(tm
     assert settings.seq2seq_checkpoint is None
     with ServerThread(settings) as server:
         services = server.services
-        assert available_drivers(services)["seq2seq"] is None
+        assert available_drivers(services)["agent:seq2seq"] is None
         maze = "gen-000"  # the first of the generated mazes shipped in sim/tasks/mazes/
         assert maze in services.mazes.names()
         trial_id = make_trial(services, maze, targets=("jar", "mug", "paddle"), driver="agent:seq2seq")
@@ -135,8 +136,8 @@ def test_seq2seq_that_cannot_start_is_not_offered_and_no_trial_is_created_for_it
         settings = platform_settings(tmp_path / f"var-{why[:8]}", seq2seq_checkpoint=checkpoint)
         services = build_services(settings)
         available = available_drivers(services)
-        assert available["random"] is None and available["shortest"] is None
-        assert why in available["seq2seq"]
+        assert available["agent:random"] is None and available["oracle:shortest"] is None
+        assert why in available["agent:seq2seq"]
         with pytest.raises(TrialSetupError, match="cannot start") as refused:
             make_trial(services, services.mazes.names()[0], driver="agent:seq2seq")
         assert why in str(refused.value)
@@ -147,5 +148,5 @@ def test_seq2seq_that_cannot_start_is_not_offered_and_no_trial_is_created_for_it
 
 def test_a_loadable_checkpoint_is_offered(tmp_path, stopping_checkpoint):
     services = build_services(platform_settings(tmp_path, seq2seq_checkpoint=stopping_checkpoint))
-    assert available_drivers(services)["seq2seq"] is None
+    assert available_drivers(services)["agent:seq2seq"] is None
     services.engine.dispose()

@@ -254,7 +254,7 @@ def test_leaderboard_ranks_agent_drivers_apart_and_says_who_drove(browser, serve
                 maze=human.maze,
                 targets=human.targets,
                 backend="sim",
-                driver="agent:shortest",
+                driver="agent:dialog",
                 commander_id=team.member_a_id,
                 phase="finished",
                 active_s=10.0,
@@ -268,7 +268,7 @@ def test_leaderboard_ranks_agent_drivers_apart_and_says_who_drove(browser, serve
     assert row.locator("td").nth(3).inner_text() == "1", "the agent's trial is not the team's"
     assert row.locator("td").nth(4).inner_text() == "120.0"
     agent = page.locator("#agent-leaderboard tbody tr").first
-    assert agent.locator(".agent").inner_text() == "agent:shortest"
+    assert agent.locator(".agent").inner_text() == "agent:dialog"
     assert team.name in agent.locator(".commanders").inner_text()
     assert "25.0" in agent.inner_text()
     ARTIFACTS.mkdir(exist_ok=True)

@@ -138,50 +138,112 @@ def test_vision_blind_agent_ignores_observations_and_language_blind_ignores_the_
         assert not (act(world, eps, "none") == act(scrambled, eps, "none")).all()
 
 
+def _rays_at(table, node: int, heading: int):
+    """The simulator's ray observation at a pose, as the Driver's frame there carries it."""
+    from sim.robot.perception import RayObservation
+
+    at = (node, heading)
+    return RayObservation(
+        table.labels[at], table.depth[at], table.too_close[at], np.ones(13, dtype=bool), bool(table.forward_blocked[at])
+    )
+
+
+def _heard(inst):
+    from sim.agents.turns import Heard, Speaker
+
+    return [Heard(Speaker.COMMANDER if role == "oracle" else Speaker.DRIVER, text) for role, text in inst.dialog]
+
+
 def test_seq2seq_driver_plays_from_a_growing_dialog(trained, bench, few):
     from models.driver import Seq2SeqDriver
+    from sim.agents.turns import (
+        Claimed,
+        DoClaim,
+        DoMove,
+        DoSay,
+        Judged,
+        Move,
+        Moved,
+        MoveResult,
+        Phase,
+        PhaseChanged,
+        Saw,
+        SeatInfo,
+        Speaker,
+    )
+    from sim.core.dynamics import Action
+    from sim.core.observations import RayTable
 
     _, out, _ = trained
     inst = few["val"][0]
     graph = bench.graph(inst.run)
-    driver = Seq2SeqDriver(out / "last.pt", lambda name: (bench.maze(name), graph))
-    driver.reset({"maze": inst.run, "targets": ["jar", "mug", "paddle"]})
-    dialog = [{"role": "commander" if role == "oracle" else "driver", "text": text} for role, text in inst.dialog]
-    blocked_poses = np.argwhere(graph.forward < 0)
-    node, heading = blocked_poses[0]
-    x, y = graph.nodes[node]
-    pose = (float(x), float(y), float(heading) * np.pi / 4)
-    for n in (3, 3, 5):
-        action = driver.act(dialog[:n], {"target": inst.target, "pose": pose, "rejected": 0})
-        assert action in ("left", "right", "stop")  # forward would collide here
-        assert driver.encoded_for == (n, inst.target)
-    # After a rejected claim it does not claim again before moving.
-    assert driver.act(dialog[:5], {"target": inst.target, "pose": pose, "rejected": 1}) != "stop"
+    node, heading = np.argwhere(graph.forward < 0)[0]
+    blocked = _rays_at(RayTable.build(bench.maze(inst.run), graph), int(node), int(heading))
+    driver = Seq2SeqDriver(out / "last.pt")
+    driver.reset(SeatInfo(Speaker.DRIVER, 3))
+    heard = _heard(inst)
+    assert driver.perceive(PhaseChanged(Phase.LOCALIZING, 0, 3)) == []
+    assert [driver.perceive(h) for h in heard[:3]] == [[]] * 3  # being localized, it holds still
+    assert driver.perceive(Saw(1, blocked)) == []
+    turns = driver.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3))
+    for n in (3, 5):
+        assert turns and turns[-1] != DoMove(Move.FORWARD)  # forward would collide here
+        assert driver.encoded_for == (n, driver.named or "")
+        for h in heard[n : n + 2]:
+            assert driver.perceive(h) == []  # heard while its move is under way
+        if isinstance(turns[-1], DoMove):
+            assert driver.perceive(Moved(turns[-1].move, MoveResult.OK)) == []
+            turns = driver.perceive(Saw(2, blocked))
+        else:
+            assert turns[-1] == DoClaim()
+            driver.perceive(Claimed(0))
+            turns = driver.perceive(Judged(False, 0))
+    # Once it wants to stop it claims; after a rejected claim it moves before it claims again.
+    with torch.no_grad():
+        driver.agent.policy.bias[int(Action.STOP)] = 50.0
+    if isinstance(turns[-1], DoMove):
+        assert driver.perceive(Moved(turns[-1].move, MoveResult.OK)) == []
+        turns = driver.perceive(Saw(3, blocked))
+    assert turns[-1] == DoClaim() and turns[0] == DoSay(
+        f"I think I found the {driver.named}" if driver.named else "I think I found it"
+    )
+    assert driver.perceive(Claimed(0)) == []
+    (move,) = driver.perceive(Judged(False, 0))
+    assert isinstance(move, DoMove) and move.move != Move.FORWARD
+    assert driver.perceive(Moved(move.move, MoveResult.OK)) == []
+    assert driver.perceive(Saw(4, blocked))[-1] == DoClaim()
 
 
-def test_the_web_driver_counts_its_poses_for_its_revisit_penalty(trained, bench, few):
+def test_the_web_driver_counts_its_poses_by_its_own_odometry_for_its_revisit_penalty(trained, bench, few):
     from models.driver import Seq2SeqDriver
+    from sim.agents.turns import DoMove, Moved, MoveResult, Phase, PhaseChanged, Saw, SeatInfo, Speaker
     from sim.core.dynamics import Action, snap_pose, step
+    from sim.core.observations import RayTable
 
     _, out, _ = trained
     inst = few["val"][0]
     graph = bench.graph(inst.run)
-    dialog = [{"role": "commander" if role == "oracle" else "driver", "text": text} for role, text in inst.dialog]
+    table = RayTable.build(bench.maze(inst.run), graph)
     start = next(node for node in range(len(graph.nodes)) if (graph.forward[node] >= 0).any())
     nodes = {}
     for penalty in (0.0, 20.0):
-        driver = Seq2SeqDriver(out / "last.pt", lambda name: (bench.maze(name), graph))
+        driver = Seq2SeqDriver(out / "last.pt")
         driver.agent.config.revisit_penalty = penalty
         with torch.no_grad():
             driver.agent.policy.bias[int(Action.LEFT)] = 10.0  # it wants to turn left, always
             driver.agent.policy.bias[int(Action.STOP)] = -50.0
-        driver.reset({"maze": inst.run, "targets": ["jar", "mug", "paddle"]})
+        driver.reset(SeatInfo(Speaker.DRIVER, 3))
+        for h in _heard(inst):
+            driver.perceive(h)
         pose = snap_pose(graph, *graph.nodes[start])
         nodes[penalty] = {pose.node}
-        for _ in range(12):
-            x, y = graph.nodes[pose.node]
-            word = driver.act(dialog, {"target": inst.target, "pose": (x, y, pose.heading * np.pi / 4), "rejected": 0})
-            pose, _ = step(graph, pose, Action.parse(word))
+        driver.perceive(Saw(0, _rays_at(table, pose.node, pose.heading)))
+        (turn,) = driver.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3))
+        for k in range(12):
+            assert isinstance(turn, DoMove)
+            pose, collided = step(graph, pose, Action.parse(turn.move))
             nodes[penalty].add(pose.node)
+            driver.perceive(Moved(turn.move, MoveResult.COLLISION if collided else MoveResult.OK))
+            (turn,) = driver.perceive(Saw(k + 1, _rays_at(table, pose.node, pose.heading)))
     assert nodes[0.0] == {start}
     assert len(nodes[20.0]) >= 2  # round once, then away from the poses it has been in

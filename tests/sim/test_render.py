@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.core.geometry import world_to_pixel
+from sim.core.geometry import pixel_to_world, world_to_pixel
 from sim.core.labels import LABEL_BGR, WALL_LABELS, Label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
@@ -177,18 +177,18 @@ def test_the_segment_camera_paints_what_the_grid_march_painted(benchmark_path, r
     camera reads it inside the wall pixel entered."""
     from bench.render_reference import first_person as reference
     from sim.core.observations import RayCaster
-    from sim.robot.render import _camera, _cast_columns, _scene
+    from sim.robot.render import _camera, _cast_columns, scene
 
     maze = Maze.from_dir(benchmark_path / "mazedata" / run)
     graph = NavGraph.build(maze)
-    caster, cam, scene = RayCaster(maze.walls), _camera(320, 240), _scene(maze)
+    caster, cam, drawn = RayCaster(maze.walls), _camera(320, 240), scene(maze)
     rng = np.random.default_rng(7)
     identical = within_two = total = same_columns = columns = 0
     for node in rng.integers(graph.n, size=40):
         x, y = (float(v) for v in graph.nodes[node])
         theta = float(rng.uniform(-np.pi, np.pi))
         angles = theta + cam.column_offsets
-        labels, depth = _cast_columns(scene.walls, cam, x, y, theta, angles)
+        labels, depth = _cast_columns(drawn.walls, cam, x, y, theta, angles)
         want_labels, want_depth = caster.cast(x, y, angles, window=32)
         same_columns += ((labels == want_labels) & (np.abs(depth - want_depth) < 1e-4)).sum()
         columns += labels.size
@@ -210,3 +210,23 @@ def test_frames_rendered_in_threads_at_once_are_each_their_own_pose():
         together = list(pool.map(lambda pose: first_person(maze, *pose), poses))
     for a, b in zip(alone, together):
         np.testing.assert_array_equal(a, b)
+
+
+def test_a_scene_read_back_from_the_cache_draws_the_same_frames(tmp_path):
+    """A render process draws from the cached scene alone (no maze): byte for byte the frames of
+    the maze itself, at the objects, along a wall, and with the camera inside a wall (where the
+    normals are not kept and are computed again)."""
+    from sim.robot.render import cached_scene, draw, load_scene
+    from sim.tasks.library import MazeLibrary
+
+    maze = MazeLibrary().load("gen-003")
+    assert load_scene(maze.content_hash, tmp_path) is None
+    cached_scene(maze, tmp_path)
+    scene = load_scene(maze.content_hash, tmp_path)
+    assert scene is not None
+    rows, cols = np.nonzero(maze.walls != Label.FLOOR)
+    wall_x, wall_y = (float(v) for v in pixel_to_world(cols[len(cols) // 2], rows[len(rows) // 2]))
+    poses = [(*maze.objects[name], theta) for name in maze.objects for theta in (0.0, 2.0, 4.0)]
+    poses += [(0.3 + 0.2 * i, 0.4 + 0.13 * i, 0.7 * i) for i in range(10)] + [(wall_x, wall_y, 1.0)]
+    for x, y, theta in poses:
+        assert np.array_equal(draw(scene, x, y, theta), first_person(maze, x, y, theta)), (x, y, theta)

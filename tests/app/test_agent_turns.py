@@ -1,0 +1,275 @@
+"""The agent Driver's turn (issue 22): an agent is woken by what a person in the Driver's seat
+would react to, answers through the trial like a person, is handed nothing a person is not
+(no pose, map, graph or maze name), and is stopped by its caps with the reason in the log."""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+import subprocess
+import sys
+from enum import Enum
+
+import numpy as np
+import pytest
+from sqlalchemy import select
+
+from app.backends.remote import create_robot
+from app.db.models import Event
+from app.drivers.base import Seating
+from app.drivers.registry import register_driver
+from bench.live import REPO, SeatClient, make_trial
+from sim.agents.dialog_driver import DialogDriver
+from sim.agents.stepwise import StepwiseDriver
+from sim.agents.turns import Heard, Move, Moved, MoveResult, Phase, PhaseChanged, Saw, SeatInfo, Speaker
+from sim.robot.perception import RayObservation
+from tests.app.conftest import platform_settings
+from tests.app.live import ServerThread
+from tests.app.test_experimenter import cli
+from tests.app.test_rover_loop import TARGETS, camera_calibration  # noqa: F401  (a fixture)
+from tests.app.test_virtual_rover import MAZE, START_S, maze, start  # noqa: F401  (fixtures)
+
+PRIVILEGED = {"pose", "x", "y", "heading", "maze", "graph", "map", "target", "targets", "true_pose", "belief"}
+
+
+class RecordingDialogDriver(DialogDriver):
+    """The dialog Driver, keeping every input it is handed for the test to read."""
+
+    def __init__(self, seating: Seating, inputs: list) -> None:
+        self.inputs: list = []  # its constructor resets it: not an input from the seat
+        super().__init__(seed=seating.seed)
+        self.inputs = inputs
+        inputs.append(seating)
+
+    def reset(self, info):
+        self.inputs.append(info)
+        super().reset(info)
+
+    def perceive(self, percept):
+        self.inputs.append(percept)
+        return super().perceive(percept)
+
+
+def assert_unprivileged(value) -> None:
+    """Only words, counts, flags, closed vocabularies and rays: no coordinate, no name of a place."""
+    if isinstance(value, RayObservation):
+        assert {f.name for f in dataclasses.fields(value)} <= {
+            "labels",
+            "depth",
+            "too_close",
+            "valid",
+            "forward_blocked",
+            "problem",
+        }
+        assert all(np.shape(getattr(value, f)) == (13,) for f in ("labels", "depth", "too_close", "valid"))
+        return
+    if dataclasses.is_dataclass(value):
+        for field in dataclasses.fields(value):
+            assert field.name not in PRIVILEGED, f"{type(value).__name__}.{field.name}"
+            assert_unprivileged(getattr(value, field.name))
+        return
+    assert value is None or isinstance(value, (str, int, bool, Enum)), f"{value!r} handed to an agent"
+    assert not isinstance(value, float)
+
+
+def events_of(services, trial_id: int, kind: str) -> list[dict]:
+    with services.db() as db:
+        rows = db.scalars(select(Event).where(Event.trial_id == trial_id, Event.kind == kind).order_by(Event.seq))
+        return [e.payload for e in rows]
+
+
+async def held_still(runtime, seconds: float) -> bool:
+    """No move asked for during `seconds` (polled, so a move at any moment is seen)."""
+    for _ in range(round(seconds / 0.05)):
+        if runtime.state.move_ids:
+            return False
+        await asyncio.sleep(0.05)
+    return True
+
+
+def test_the_agent_waits_answers_moves_when_told_and_sees_only_what_a_driver_sees(settings):
+    inputs: list = []
+    register_driver("agent:test-recording", lambda services, seating: RecordingDialogDriver(seating, inputs))
+    with ServerThread(settings) as server:
+        services = server.services
+        maze = services.mazes.names()[0]
+        trial_id = make_trial(services, maze, driver="agent:test-recording")
+
+        async def command():
+            async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+                await commander.event("phase", phase="localizing", timeout=30)
+                runtime = services.hub.peek(trial_id)
+                assert await held_still(runtime, 1.0)  # nobody has spoken: it neither moves nor talks
+                assert not [m for m in commander.received if m.get("kind") == "chat"]
+                start = len(commander.received)
+                await commander.send("chat", text="what do you see?")
+                answer = await commander.event("chat", role="driver", start=start, timeout=30)
+                await commander.send("localize", x=1.0, y=1.0)
+                await commander.event("phase", phase="navigating")
+                assert await held_still(runtime, 1.0)  # marked on the map, it waits to be told
+                start = len(commander.received)
+                await commander.send("chat", text="turn left")
+                report = await commander.event("chat", role="driver", start=start, timeout=30)
+                return runtime, answer["payload"]["text"], report["payload"]["text"]
+
+        runtime, answer, report = asyncio.run(command())
+        moves = events_of(services, trial_id, "move_executed")
+        chats = events_of(services, trial_id, "chat")
+        backend = runtime.backend
+        observed_now = backend.observation_at(backend.grid_pose) if backend is not None else None
+    assert answer and report
+    assert [m["action"] for m in moves] == ["left", "left"]  # a right angle: two 45-degree turns
+    assert all(m["outcome"] == "ok" for m in moves)
+    assert {"role": "driver", "text": answer} in chats and {"role": "driver", "text": report} in chats
+    seating, info, *percepts = inputs
+    assert seating == Seating(seed=trial_id) and seating.oracle is None
+    assert info == SeatInfo(Speaker.DRIVER, 3)
+    for value in (info, *percepts):
+        assert_unprivileged(value)
+    assert Heard(Speaker.COMMANDER, "what do you see?") in percepts
+    assert Heard(Speaker.DRIVER, answer) in percepts  # its own words too, as the page shows them
+    phases = [(p.phase, p.target_index) for p in percepts if isinstance(p, PhaseChanged)]
+    assert phases == [(Phase.LOCALIZING, 0), (Phase.NAVIGATING, 0)]
+    # It saw its first frame before the question, and the frame after its move right after the move.
+    saws = [i for i, p in enumerate(percepts) if isinstance(p, Saw)]
+    asked = percepts.index(Heard(Speaker.COMMANDER, "what do you see?"))
+    turned = [i for i, p in enumerate(percepts) if p == Moved(Move.LEFT, MoveResult.OK)]
+    assert saws[0] < asked and len(turned) == 2 and all(i + 1 in saws for i in turned)
+    after = percepts[turned[-1] + 1]
+    assert observed_now is not None and after.rays is not None
+    assert np.array_equal(after.rays.labels, observed_now.labels)  # the simulator's rays at that frame
+
+
+class AlwaysLeft(StepwiseDriver):
+    """Turns left on every frame once navigating: it never finds anything."""
+
+    def decide(self):
+        return Move.LEFT
+
+
+def aborted_with(services, trial_id: int) -> tuple[list[dict], list[str]]:
+    phases = events_of(services, trial_id, "phase")
+    said = [c["text"] for c in events_of(services, trial_id, "chat") if c["role"] == "driver"]
+    return phases, said
+
+
+def test_the_moves_cap_ends_the_trial_aborted_with_the_reason_logged(tmp_path):
+    register_driver("agent:test-always-left", lambda services, seating: AlwaysLeft())
+    with ServerThread(platform_settings(tmp_path, agent_moves_per_target=3)) as server:
+        services = server.services
+        trial_id = make_trial(services, services.mazes.names()[0], driver="agent:test-always-left")
+
+        async def command():
+            async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+                await commander.event("phase", phase="localizing", timeout=30)
+                await commander.send("localize", x=1.0, y=1.0)
+                return await commander.event("phase", phase="aborted", timeout=30)
+
+        seen = asyncio.run(command())
+        phases, said = aborted_with(services, trial_id)
+        moves = events_of(services, trial_id, "move_executed")
+    assert len(moves) == 3
+    assert phases[-1] == {
+        "phase": "aborted",
+        "target_index": None,
+        "reason": "agent Driver's cap: 3 moves for target 1",
+    }
+    assert seen["payload"]["reason"] == phases[-1]["reason"]  # the Commander's page hears why
+    assert said == ["I have made 3 moves looking for target 1 of 3, the most an agent may; I stop here"]
+
+
+def test_the_minutes_cap_ends_the_trial_aborted_with_the_reason_logged(tmp_path):
+    with ServerThread(platform_settings(tmp_path, agent_minutes_per_trial=0.02)) as server:
+        services = server.services
+        trial_id = make_trial(services, services.mazes.names()[0], driver="agent:dialog")
+
+        async def command():
+            async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+                await commander.event("phase", phase="localizing", timeout=30)
+                await commander.event("phase", phase="aborted", timeout=30)
+
+        asyncio.run(command())
+        phases, said = aborted_with(services, trial_id)
+        runtime = services.hub.peek(trial_id)
+    assert phases[-1]["reason"] == "agent Driver's cap: 0.02 minutes per trial"
+    assert said == ["my 0.02 minutes for this trial are over; I stop here"]
+    assert runtime is None or runtime.state.active_s(services.clock.now_ns()) >= 1.2
+
+
+def test_the_cli_lists_the_drivers_and_the_agent_caps(tmp_path):
+    env = {
+        "ROBOTSLANG_DATA_DIR": str(tmp_path / "var"),
+        "ROBOTSLANG_SECRET_KEY": "test-secret",
+        "ROBOTSLANG_SEQ2SEQ_CHECKPOINT": str(tmp_path / "missing.pt"),
+        "ROBOTSLANG_AGENT_MOVES_PER_TARGET": "120",
+    }
+    listed = cli("drivers", env=env)
+    assert listed.returncode == 0, listed.stderr
+    lines = listed.stdout.splitlines()
+    assert {"human", "agent:dialog", "agent:random", "oracle:shortest"} <= set(lines)
+    assert any(line.startswith("agent:seq2seq  (unavailable:") and "missing.pt" in line for line in lines)
+    assert "stops after 120 moves per target or 15 minutes of trial clock" in lines[-1]
+
+
+@pytest.mark.slow
+def test_on_a_virtual_rover_the_agent_sees_rays_perceived_from_its_frames_and_nothing_privileged(
+    tmp_path, start, camera_calibration
+):
+    """The same seat on `robotslang robot virtual` (a process on loopback): no simulator rays to
+    hand over, so the seat perceives each frame's rays itself with the Driver camera's calibration."""
+    inputs: list = []
+    register_driver("agent:test-recording-rover", lambda services, seating: RecordingDialogDriver(seating, inputs))
+    settings = platform_settings(tmp_path, camera_calibration=camera_calibration)
+    with ServerThread(settings) as server:
+        services = server.services
+        with services.db.begin() as db:
+            robot, token = create_robot(db, "rover for the agent", "driver")
+            robot_id = robot.id
+        trial_id = make_trial(
+            services, MAZE, targets=TARGETS, backend=f"robot:{robot_id}", driver="agent:test-recording-rover"
+        )
+        with open(tmp_path / "rover.log", "w") as log:
+            rover = subprocess.Popen(
+                [sys.executable, "-c", "from app.cli import main; main()", "robot", "virtual"]
+                + ["--server", server.url, "--token", token, "--maze", MAZE, "--seed", "4", "--fps", "5"]
+                + ["--start", f"{start.x},{start.y},{start.theta}"],
+                cwd=REPO,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+            )
+        try:
+
+            async def command():
+                async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+                    await commander.event("phase", phase="localizing", timeout=START_S)
+                    runtime = services.hub.peek(trial_id)
+                    for _ in range(round(START_S / 0.05)):  # the rover's first frame, as a person waits for it
+                        if runtime.state.last_frame_id is not None:
+                            break
+                        await asyncio.sleep(0.05)
+                    begun = len(commander.received)
+                    await commander.send("chat", text="what do you see?")
+                    await commander.event("chat", role="driver", start=begun, timeout=START_S)
+                    await commander.send("localize", x=start.x, y=start.y)
+                    await commander.event("phase", phase="navigating")
+                    localizing = len(events_of(services, trial_id, "move_executed"))
+                    begun = len(commander.received)
+                    await commander.send("chat", text="turn left")
+                    await commander.event("chat", role="driver", start=begun, timeout=START_S)
+                    return localizing
+
+            localizing = asyncio.run(command())
+            moves = events_of(services, trial_id, "move_executed")
+        finally:
+            rover.terminate()
+            rover.wait(timeout=20)
+    # Asked what it sees, it may look around, turning in place; then it turns left as told.
+    assert all(m["action"] != "forward" for m in moves[:localizing])
+    assert [m["action"] for m in moves[localizing:]] == ["left", "left"]
+    seating, info, *percepts = inputs
+    assert seating.oracle is None and info == SeatInfo(Speaker.DRIVER, 3)
+    for value in (info, *percepts):
+        assert_unprivileged(value)
+    saws = [p for p in percepts if isinstance(p, Saw)]
+    assert len(saws) >= 3  # the first frame, and the frame after each move
+    assert all(s.rays is not None and s.rays.valid.any() for s in saws)  # perceived from the pixels
