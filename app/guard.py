@@ -107,8 +107,8 @@ class HostNames:
 
 
 class GuardMiddleware:
-    """Refuses unknown Host headers, adds the security headers to every response and gives each
-    browser its id cookie (in `request.state.browser_id`)."""
+    """Refuses a request without exactly one known Host header, adds the security headers to
+    every response and gives each browser its id cookie (in `request.state.browser_id`)."""
 
     def __init__(self, app: ASGIApp, settings: Settings) -> None:
         self.app = app
@@ -119,7 +119,9 @@ class GuardMiddleware:
             await self.app(scope, receive, send)
             return
         headers = Headers(scope=scope)
-        if not self.hosts.allows(headers.get("host", "")):
+        # Exactly one Host: with two, a proxy and this server could each read another name.
+        hosts = headers.getlist("host")
+        if len(hosts) != 1 or not self.hosts.allows(hosts[0]):
             if scope["type"] == "websocket":
                 await send({"type": "websocket.close", "code": 1008, "reason": "host not allowed"})
             else:

@@ -86,9 +86,11 @@ class Studies:
         return str(self.services.settings.benchmark or "")
 
     def _allowed(self, source: str) -> Path:
-        """The benchmark the server is configured with, or a folder under its data directory (an export)."""
+        """The benchmark the server is configured with, or a folder under its data directory (an
+        export), given whole or relative to the data directory (`export`)."""
         settings = self.services.settings
-        path = Path(source).expanduser().resolve()
+        path = Path(source).expanduser()
+        path = (path if path.is_absolute() else settings.data_dir / path).resolve()
         roots = [settings.data_dir.resolve()] + ([settings.benchmark.resolve()] if settings.benchmark else [])
         if not any(path == root or root in path.parents for root in roots):
             raise StudyError(

@@ -1,9 +1,9 @@
 """The leaderboard: human teams and agent Drivers, ranked apart, each by its best finished trial.
 
 Score = trial-clock seconds from start to the last target confirmed + a penalty per move.
-Unfinished and aborted trials do not score. A trial whose Driver was an agent (`agent:<name>`)
-never counts on its team's row: it scores for the agent, with the team as its Commander. An
-oracle (`oracle:<name>`, a baseline that drives by the true pose) never ranks at all.
+Unfinished, aborted and excluded trials do not score. A trial whose Driver was an agent
+(`agent:<name>`) never counts on its team's row: it scores for the agent, with the team as its
+Commander. An oracle (`oracle:<name>`, a baseline that drives by the true pose) never ranks at all.
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ def _finished(db: Session):
     return db.execute(
         select(Trial, Team.name)
         .join(Team, Team.id == Trial.team_id)
-        .where(Trial.phase == Phase.FINISHED, Trial.active_s.is_not(None))
+        .where(Trial.phase == Phase.FINISHED, Trial.active_s.is_not(None), Trial.excluded_reason.is_(None))
     ).all()
 
 

@@ -1,16 +1,20 @@
 """`LoginGuard`: experimenter logins, rate-limited and checked off the event loop.
 
-Attempts are counted per account name and per client address (a moving window, `limits`: in
-Redis when the processes share one, so an attacker gains nothing by spreading attempts over
-them; else in this process's memory); an attempt counts until it succeeds, which clears the
-account's count. Password hashes are computed in worker threads, at most `concurrency` at once, so a burst
-of logins queues instead of taking every thread and hundreds of megabytes of hash memory.
+Attempts are counted per client address (an IPv6 client's /64, which one machine is given
+whole) and per account name from that address (a moving window, `limits`: in Redis when the
+processes share one, so an attacker gains nothing by spreading attempts over them; else in this
+process's memory); an attempt counts until it succeeds, which clears its client's count for the
+account. The guessing client is locked out, never the account: an attacker's guesses cannot keep
+the experimenter, at another address, from logging in. Password hashes are computed in worker
+threads, at most `concurrency` at once, so a burst of logins queues instead of taking every
+thread and hundreds of megabytes of hash memory.
 An unknown name is checked against a dummy hash, so it costs what a known one costs.
 """
 
 from __future__ import annotations
 
 import asyncio
+import ipaddress
 import os
 import secrets
 import time
@@ -52,12 +56,13 @@ class LoginGuard:
         async with self._slots:
             user_id = await asyncio.to_thread(self._check, name, password)
         if user_id is not None:
-            self._limiter.clear(self._per_account, "account", name)
+            self._limiter.clear(self._per_account, "account", name, client_key(address))
         return user_id
 
     def _count_attempt(self, name: str, address: str) -> None:
         # Both limits are tested before either is hit, so a refused attempt costs neither count.
-        limits = ((self._per_account, "account", name), (self._per_address, "address", address))
+        client = client_key(address)
+        limits = ((self._per_account, "account", name, client), (self._per_address, "address", client))
         for item, *key in limits:
             if not self._limiter.test(item, *key):
                 reset = self._limiter.get_window_stats(item, *key).reset_time
@@ -76,6 +81,19 @@ class LoginGuard:
             if needs_rehash(user.password_hash):  # e.g. an scrypt hash from before argon2
                 user.password_hash = hash_password(password)
             return user.id
+
+
+def client_key(address: str) -> str:
+    """What one client's attempts are counted under: its IPv4 address, or its IPv6 /64."""
+    try:
+        ip = ipaddress.ip_address(address)
+    except ValueError:
+        return address
+    if isinstance(ip, ipaddress.IPv6Address):
+        if ip.ipv4_mapped is not None:
+            return str(ip.ipv4_mapped)
+        return str(ipaddress.IPv6Network((ip, 64), strict=False))
+    return str(ip)
 
 
 def shared_counts(redis_url: str, key_prefix: str) -> Storage:

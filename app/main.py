@@ -94,6 +94,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             await services.relay.start()
         if isinstance(services.renderer, RenderProcesses):
             services.renderer.warm_up()
+        services.mazes.warm_layouts()
         await services.hub.resume_running()
         yield
         if services.relay is not None:

@@ -83,6 +83,8 @@ class Mazes:
     def __init__(self, settings: Settings) -> None:
         self.settings = settings
         self._library: MazeLibrary | None = None
+        self._layouts: dict[str, str] | None = None
+        self._layouts_lock = threading.Lock()  # the startup warm-up and a page: one grouping
         self.load = Kept(self._load, MAZES_KEPT)
         self.graph = Kept(self._graph, MAZES_KEPT)
         self.rays = Kept(self._rays, MAZES_KEPT)
@@ -99,6 +101,21 @@ class Mazes:
 
     def names(self) -> list[str]:
         return list(self.library.names())
+
+    def layouts(self) -> dict[str, str]:
+        """Each maze, in library order -> the id of its physical layout (`sim.tasks.layouts`). The
+        grouping is cached on disk; the first process to ask decodes every map (about 0.2 s a
+        map): the server asks at startup, in a thread (`warm_layouts`)."""
+        with self._layouts_lock:
+            if self._layouts is None:
+                from sim.tasks.layouts import layout_of
+
+                of = layout_of(self.library.layouts(cache_dir=self.settings.cache_dir))
+                self._layouts = {name: of[name] for name in self.names()}
+            return self._layouts
+
+    def warm_layouts(self) -> None:
+        threading.Thread(target=self.layouts, name="layouts", daemon=True).start()
 
     def _load(self, name: str) -> Maze:
         if name not in self.names():

@@ -11,6 +11,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from app.backends.render import FrameRenderer, InThread
 from app.clock import ServerClock
 from app.login import LoginGuard
+from app.login_sockets import LoginSockets
 from app.mazes import Mazes
 from app.perception.belief import FilterWorker
 from app.security import CsrfTokens, SeatTokens, Sessions
@@ -42,3 +43,4 @@ class Services:
     filters: FilterWorker = field(default_factory=FilterWorker)  # every trial's particle filter turns
     renderer: FrameRenderer = field(default_factory=InThread)  # where simulator frames are drawn
     driver_checks: dict[Any, str | None] = field(default_factory=dict)  # agents' start checks, by file version
+    login_sockets: LoginSockets = field(default_factory=LoginSockets)  # experimenters' watch sockets, by login

@@ -53,6 +53,9 @@ def uvicorn_options(settings: Settings) -> dict[str, Any]:
         "ws": ReplyingWebSocketProtocol,
         "ws_per_message_deflate": False,
         "ws_max_size": max(65536, 4 * settings.max_message_bytes, 2 * MAX_FRAME_BYTES),
+        # uvicorn would believe loopback (or FORWARDED_ALLOW_IPS) by default: only the configured proxies.
+        "proxy_headers": bool(settings.trusted_proxies),
+        "forwarded_allow_ips": settings.trusted_proxies or [],
     }
 
 
@@ -69,6 +72,10 @@ def serve_processes(host: str, port: int, workers: int, overrides: dict[str, Any
     from app.main import create_app
 
     settings = Settings(**overrides)
+    if "FORWARDED_ALLOW_IPS" in os.environ:
+        raise typer.BadParameter(
+            "FORWARDED_ALLOW_IPS is not read: name the proxies in ROBOTSLANG_TRUSTED_PROXIES (addresses or networks)"
+        )
     for name, value in overrides.items():  # each worker reads its settings from the environment
         os.environ[f"ROBOTSLANG_{name.upper()}"] = str(value)
     if workers > 1 and not settings.redis_url:

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import ipaddress
 import secrets
 from pathlib import Path
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 
@@ -23,6 +24,10 @@ class Settings(BaseSettings):
     grace_period_s: float = 120.0  # a disconnected seat may rejoin within this, else the trial aborts
     min_move_interval_s: float = 0.25  # moves closer together than this are refused
     max_message_bytes: int = 4096  # a websocket message larger than this is refused
+    # Messages of one seat recorded per second beyond a burst (moves and pings not counted): a
+    # fast typist never reaches it; a flood is dropped (not logged, not relayed), with a `rate_limited` reply.
+    seat_message_rate_per_s: float = Field(default=5.0, gt=0)
+    seat_message_burst: int = Field(default=20, ge=1)
     # How often the interpreter offers the GIL to another thread (Python's default: 5 ms). The
     # render, JPEG and particle-filter threads would otherwise hold it from the event loop for
     # whole slices: at 200 trials, move-to-frame p99 42-63 ms at 1 ms against 56-83 ms at 5 ms (bench.load).
@@ -40,8 +45,13 @@ class Settings(BaseSettings):
     join_link_ttl_s: float | None = (
         None  # a join link opens its seat this long after it is shown; None: until the trial ends
     )
-    login_limit_per_account: str = "5/minute"  # login attempts per account name (`limits` notation)
-    login_limit_per_address: str = "20/minute"  # login attempts per client address
+    # Wrong passwords for one account from one client address (`limits` notation): the guessing
+    # client is locked out, never the account, so an attacker cannot lock a lab out.
+    login_limit_per_account: str = "5/minute"
+    login_limit_per_address: str = "20/minute"  # login attempts per client address (an IPv6 /64)
+    # Proxies (addresses or networks) whose X-Forwarded-For and X-Forwarded-Proto are believed; the
+    # client is the right-most address they did not add. Empty: the socket's peer is the client.
+    trusted_proxies: list[str] = Field(default_factory=list)
     password_check_concurrency: int | None = None  # password hashes computed at once; None: the CPU cores
     overhead_calibration: Path | None = (
         None  # the overhead camera's calibration; default data_dir/overhead_calibration.json
@@ -49,6 +59,18 @@ class Settings(BaseSettings):
     camera_calibration: Path | None = (
         None  # the rovers' front camera (sim.robot.camera.CameraCalibration); default data_dir/camera_calibration.json
     )
+
+    @field_validator("trusted_proxies")
+    @classmethod
+    def _proxies_are_addresses(cls, proxies: list[str]) -> list[str]:
+        for proxy in proxies:
+            try:
+                ipaddress.ip_network(proxy)
+            except ValueError:
+                raise ValueError(
+                    f'trusted proxy {proxy!r} is not an address or network (a "*" would let any client name its address)'
+                ) from None
+        return proxies
 
     @model_validator(mode="after")
     def _default_paths(self) -> Settings:

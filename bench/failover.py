@@ -114,7 +114,7 @@ def main() -> None:
                     backend="sim",
                     driver="human",
                     commander_id=a.id,
-                    maze_names=names,
+                    layouts=services.mazes.layouts(),
                     now_ns=services.clock.now_ns(),
                 ).id
             ports = (free_port(), free_port())

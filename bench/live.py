@@ -118,7 +118,7 @@ def team_trial(
         backend=backend,
         driver=driver,
         commander_id=a.id,
-        maze_names=maze_names,
+        layouts={name: name for name in maze_names},  # a new team has seen no layout: no grouping needed
         now_ns=now_ns,
         agents=agents,
     )

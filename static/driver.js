@@ -1,5 +1,5 @@
 // Driver: the live camera, moves (buttons and arrow keys) and "I found the target".
-import {$, on, send} from "./seat.js";
+import {$, on, send, showError} from "./seat.js";
 import {showImage} from "./maputil.js";
 import {friendlyError, isRunning} from "./trial.js";
 
@@ -26,12 +26,12 @@ function camera(jpeg) { showImage($("camera"), `data:image/jpeg;base64,${jpeg}`)
 on("welcome", (msg) => { pending = null; if (msg.frame) camera(msg.frame.jpeg); });
 on("frame", (msg) => camera(msg.jpeg));
 on("status", (s) => {
-  // Buttons follow the trial: moves and claims only while it runs.
-  const live = isRunning(s);
+  // Buttons follow the trial: moves and claims only while it runs and no claim awaits the Commander.
+  const live = isRunning(s) && !s.claim_pending;
   ["forward", "left", "right"].forEach((a) => { $(a).disabled = !live; });
   $("found").disabled = !(live && s.phase === "navigating");
-  if (s.phase === "finished") note("All three targets found. Well done!");
-  else if (s.phase === "aborted") note("");
+  if (s.phase === "finished") { note("All three targets found. Well done!"); showError(""); }
+  else if (s.phase === "aborted") { note(""); showError(""); }
 });
 on("move_executed", (msg) => {
   const p = msg.payload;
@@ -40,5 +40,6 @@ on("move_executed", (msg) => {
     : p.outcome === "refused" ? friendlyError(p.reason) : "");
 });
 on("target_claimed", () => note("Waiting for the Commander to confirm…"));
-on("target_confirmed", () => note("Confirmed! On to the next target."));
-on("target_rejected", () => note("The Commander says that is not it. Keep looking."));
+// A decision answers the claim: a refusal shown while it was pending no longer applies.
+on("target_confirmed", () => { note("Confirmed! On to the next target."); showError(""); });
+on("target_rejected", () => { note("The Commander says that is not it. Keep looking."); showError(""); });

@@ -50,6 +50,13 @@ export function showImage(img, src, onFail = () => {}) {
 }
 
 // The CSRF token the server put in the page, for every state-changing request.
+// Headings (radians in events, counter-clockwise from +x) as the UI shows them: whole degrees
+// in -180..180, for the simulator and the rover alike.
+export function headingDegrees(rad) {
+  const deg = Math.round(rad * 180 / Math.PI);
+  return ((deg + 180) % 360 + 360) % 360 - 180 || 0;
+}
+
 export function csrfHeaders() {
   const meta = document.querySelector('meta[name="csrf-token"]');
   return meta && meta.content ? {"X-CSRF-Token": meta.content} : {};

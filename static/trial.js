@@ -8,7 +8,7 @@ export const OVER = new Set(["finished", "aborted"]);
 export function emptyStatus() {
   return {phase: "waiting", target_index: 0, targets_total: 3, moves: null, collisions: 0, confirmed: 0,
           paused: [], waiting_for: [], connected: [], active_ns: 0, last_t_ns: null, elapsed_s: 0,
-          from_server: false};
+          claim_pending: false, from_server: false};
 }
 
 export function isRunning(s) { return RUNNING.has(s.phase) && s.paused.length === 0; }
@@ -32,7 +32,9 @@ export function foldEvent(s, e) {
       if (p.outcome === "ok" || p.outcome === "collision") s.moves = (s.moves || 0) + 1;
       if (p.collision) s.collisions++;
       break;
-    case "target_confirmed": s.confirmed++; break;
+    case "target_claimed": s.claim_pending = true; break;
+    case "target_rejected": s.claim_pending = false; break;
+    case "target_confirmed": s.confirmed++; s.claim_pending = false; break;
   }
   if (!s.from_server) s.elapsed_s = s.active_ns / 1e9;
   return s;
@@ -40,7 +42,7 @@ export function foldEvent(s, e) {
 
 // The server's status message (or a dashboard snapshot of the same shape) replaces what the fold guessed.
 export function applyStatus(s, msg) {
-  for (const key of ["phase", "target_index", "targets_total", "elapsed_s", "moves", "paused", "waiting_for"])
+  for (const key of ["phase", "target_index", "targets_total", "elapsed_s", "moves", "paused", "waiting_for", "claim_pending"])
     if (msg[key] !== undefined && msg[key] !== null) s[key] = msg[key];
   s.from_server = true;
   s.status_at = performance.now();
@@ -82,6 +84,11 @@ export function statusText(s, role) {
     if (role === "driver") return "Tell the Commander what you see, so they can find the robot on the map.";
     return "Localizing: the Commander is finding the robot on the map.";
   }
+  if (s.claim_pending) {
+    if (role === "commander") return `The Driver says they found ${target}: confirm or reject it.`;
+    if (role === "driver") return "Waiting for the Commander to confirm your claim.";
+    return `The Driver claims ${target}: waiting for the Commander to decide.`;
+  }
   if (role === "commander") return `Guide the Driver to ${target}.`;
   if (role === "driver") return `Drive to ${target}. Press "I found the target" when you see it.`;
   return `Navigating to ${target}.`;
@@ -106,6 +113,7 @@ const ERRORS = [
   [/cannot mark the robot while/, "You can mark the robot once the trial has started."],
   [/the trial is (finished|aborted)/, "The trial is over."],
   [/bytes; the limit is|at most \d+ characters|string_too_long/, "That message is too long. Please shorten it."],
+  [/too many messages/, "Slow down: that was not sent. Wait a moment and send it again."],
   [/token|seat/, "This link no longer works. Ask the experimenter for a new one."],
   [/server restart/, "The server restarted. Please try again."],
 ];

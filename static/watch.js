@@ -1,7 +1,7 @@
 // The experimenter's view of one trial over its watch socket (/ws/watch/ID): status, clock and
 // moves, the full map with the true pose and the Commander's estimate, and the Driver's live
 // camera. Controls follow the trial's state.
-import {showImage, TableMap} from "./maputil.js";
+import {headingDegrees, showImage, TableMap} from "./maputil.js";
 import {confirmFirst, showControls} from "./controls.js";
 import {drawLDHBelief} from "./ldh_belief.js";
 import {applyStatus, clockSeconds, emptyStatus, formatClock, OVER, statusText} from "./trial.js";
@@ -20,13 +20,16 @@ map.src = `/experimenter/trials/${id}/map.png`;
 function draw() {
   if (map.complete && map.naturalWidth) ctx.drawImage(map, 0, 0, canvas.width, canvas.height);
   const est = seen.localization, pose = seen.pose;
-  if (status.phase === "localizing") drawLDHBelief(ctx, canvas, seen.ldh);
+  // The LDH model's discs, and their caption, only while the Commander is localizing.
+  const ldh = status.phase === "localizing" && seen.ldh && seen.ldh.length > 0;
+  if (ldh) drawLDHBelief(ctx, canvas, seen.ldh);
+  $("ldh-note").hidden = !ldh;
   if (seen.belief) drawBelief(seen.belief);
   if (est) TableMap.drawRobot(ctx, canvas, est.x, est.y, est.heading, "#ff8c00");
   if (pose) {
     TableMap.drawRobot(ctx, canvas, pose[0], pose[1], pose[2], "#1e6bff");
     $("pose-note").textContent = `True pose: x ${pose[0].toFixed(2)} m, y ${pose[1].toFixed(2)} m, ` +
-      `heading ${Math.round(pose[2] * 180 / Math.PI)}°`;
+      `heading ${headingDegrees(pose[2])}°`;
   }
 }
 

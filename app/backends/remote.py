@@ -405,9 +405,12 @@ class RemoteRobotBackend:
 
     @property
     def attended(self) -> bool:
-        """Someone is in the trial: only then are frames worth recording (a robot may have
-        several trials open, abandoned ones among them)."""
-        return any(role in self.trial.state.connected for role in PARTICIPANTS)
+        """Someone is in the trial and it is not paused by a disconnect: only then are frames worth
+        recording (a robot may have several trials open, abandoned ones among them; a pause for a
+        seat that dropped recorded 139 MB in 6 minutes of waiting)."""
+        state = self.trial.state
+        waiting = any(reason.startswith("disconnect:") for reason in state.pause_reasons)
+        return not waiting and any(role in state.connected for role in PARTICIPANTS)
 
     async def frames(self) -> AsyncIterator[Frame]:
         slot = self.links.slot(self.robot_id)

@@ -67,6 +67,8 @@ class Trial(Base):
     phase: Mapped[str] = mapped_column(String(16), default="waiting")
     active_s: Mapped[float | None] = mapped_column(Float, nullable=True)  # start to last confirmation
     moves: Mapped[int] = mapped_column(Integer, default=0)
+    # Set by the experimenter: the trial leaves the leaderboard and exports; its log is kept.
+    excluded_reason: Mapped[str | None] = mapped_column(Text, nullable=True)
 
 
 class Event(Base):

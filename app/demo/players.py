@@ -40,14 +40,16 @@ class Seat:
     trial_id: int
     token: str
     ws: ClientConnection
+    chat_interval_s: float = 0.0  # the server records a seat's messages this far apart at most
     inbox: asyncio.Queue = field(default_factory=asyncio.Queue)
     reader: asyncio.Task | None = None
+    last_chat: float = float("-inf")
 
     @classmethod
-    async def open(cls, server: str, trial_id: int, role: str, token: str) -> Seat:
+    async def open(cls, server: str, trial_id: int, role: str, token: str, chat_interval_s: float = 0.0) -> Seat:
         url = server.replace("http://", "ws://").replace("https://", "wss://").rstrip("/")
         ws = await connect(f"{url}/ws/play?token={token}", max_size=2**24)
-        seat = cls(role=role, trial_id=trial_id, token=token, ws=ws)
+        seat = cls(role=role, trial_id=trial_id, token=token, ws=ws, chat_interval_s=chat_interval_s)
         seat.reader = asyncio.get_running_loop().create_task(seat._read())
         return seat
 
@@ -62,6 +64,10 @@ class Seat:
         await self.ws.send(json.dumps({"type": type_, "token": self.token, **fields}))
 
     async def say(self, text: str) -> None:
+        # Typed no faster than the seat's rate limit lets the server record it, as a person types.
+        loop = asyncio.get_running_loop()
+        await asyncio.sleep(max(0.0, self.last_chat + self.chat_interval_s - loop.time()))
+        self.last_chat = loop.time()
         await self.send("chat", text=text)
 
     async def until(self, accept, what: str) -> dict:

@@ -20,7 +20,7 @@ from sqlalchemy import func, select
 from app.clock import ServerClock
 from app.db.engine import open_database
 from app.db.models import Team, Trial
-from app.demo.players import DemoError, ScriptedCommander, ScriptedDriver, Seat
+from app.demo.players import WAIT_S, DemoError, ScriptedCommander, ScriptedDriver, Seat
 from app.mazes import Mazes
 from app.security import SeatTokens
 from app.settings import Settings
@@ -58,7 +58,7 @@ class Demo:
 
     def create_trial(self) -> Trial:
         """A fresh demo team (so any maze is new to it) and a trial on its least-used maze."""
-        names = self.mazes.names()
+        layouts = self.mazes.layouts()
         with self.db.begin() as db:
             k = db.scalar(select(func.count()).select_from(Team).where(Team.name.like("demo team %"))) + 1
             while db.scalar(select(Team.id).where(Team.name == DEMO_TEAM.format(k=k))) is not None:
@@ -66,7 +66,7 @@ class Demo:
             a = create_participant(db, f"demo commander {k}")
             b = create_participant(db, f"demo driver {k}")
             team = create_team(db, DEMO_TEAM.format(k=k), a.id, b.id)
-            maze = suggest_maze(db, team, names)
+            maze = suggest_maze(db, team, layouts)
             if maze is None:
                 raise DemoError("the maze library is empty: no maze to run a demo trial in")
             return create_trial(
@@ -77,17 +77,22 @@ class Demo:
                 backend="sim",
                 driver="human",
                 commander_id=a.id,
-                maze_names=names,
+                layouts=layouts,
                 now_ns=ServerClock().now_ns(),
             )
 
-    def start_pose(self, trial: Trial) -> Pose:
-        """Where the simulator put the robot: the first pose in the log."""
-        poses = [e for e in self.log.load(trial.id) if e.is_(ev.PoseSampled)]
-        if not poses:
-            raise DemoError(f"trial {trial.id}: the server logged no robot pose; is it a simulator trial?")
-        p = poses[0].payload
-        return snap_pose(self.mazes.graph(trial.maze), p["x"], p["y"], p["heading"])
+    async def start_pose(self, trial: Trial) -> Pose:
+        """Where the simulator put the robot: the first pose in the log, written as the server
+        opens the trial (after it has answered the seats' sockets)."""
+        for _ in range(int(WAIT_S / 0.05)):
+            poses = [e for e in self.log.load(trial.id) if e.is_(ev.PoseSampled)]
+            if poses:
+                p = poses[0].payload
+                return snap_pose(self.mazes.graph(trial.maze), p["x"], p["y"], p["heading"])
+            await asyncio.sleep(0.05)
+        raise DemoError(
+            f"trial {trial.id}: the server logged no robot pose in {WAIT_S:.0f} s; is it a simulator trial?"
+        )
 
     async def play(self, server: str, trial: Trial) -> DemoResult:
         maze, graph = self.mazes.load(trial.maze), self.mazes.graph(trial.maze)
@@ -98,8 +103,16 @@ class Demo:
         error = None
         try:
             for role in PARTICIPANTS:
-                seats.append(await Seat.open(server, trial.id, role, self.seats.issue(trial.id, role)))
-            start = self.start_pose(trial)
+                seats.append(
+                    await Seat.open(
+                        server,
+                        trial.id,
+                        role,
+                        self.seats.issue(trial.id, role),
+                        chat_interval_s=1.0 / self.settings.seat_message_rate_per_s,
+                    )
+                )
+            start = await self.start_pose(trial)
             await asyncio.gather(commander.play(seats[0], start), driver.play(seats[1], start))
         except (DemoError, OSError) as err:
             error = str(err)

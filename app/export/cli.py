@@ -25,7 +25,9 @@ def register(root: typer.Typer) -> None:
 
 
 def export(
-    trial: str = typer.Argument(..., metavar="TRIAL_ID|all", help="A trial's id, or `all` for every finished trial."),
+    trial: str = typer.Argument(
+        ..., metavar="TRIAL_ID|all", help="A trial's id, or `all` for every finished trial not excluded."
+    ),
     format: Format = typer.Option(
         ..., "--format", help="mcap (Foxglove), ndh (benchmark JSON) or lerobot (LeRobotDataset v3)."
     ),
@@ -39,11 +41,14 @@ def export(
     episode: Episode = typer.Option(
         Episode.ndh, "--episode", help="LeRobot: one episode per NDH instance (ndh) or per trial (trial)."
     ),
+    include_aborted: bool = typer.Option(
+        False, "--include-aborted", help="With `all`: aborted trials too, with what they recorded (targets confirmed)."
+    ),
 ) -> None:
     """Export recorded trials from the data directory (ROBOTSLANG_DATA_DIR)."""
     from app.db.engine import make_engine, make_sessionmaker
     from app.export.record import ExportError
-    from app.export.source import finished_trial_ids, load_trial
+    from app.export.source import exported_trial_ids, load_trial
     from app.mazes import Mazes, UnknownMaze
     from app.settings import Settings
 
@@ -56,9 +61,10 @@ def export(
     sessions = make_sessionmaker(make_engine(settings))
     mazes = Mazes(settings)
     with sessions() as session:
-        ids: list[int | str] = [*finished_trial_ids(session)] if trial == "all" else [trial]
+        ids: list[int | str] = [*exported_trial_ids(session, include_aborted)] if trial == "all" else [trial]
         if not ids:
-            _fail(f"no finished trials in {settings.url.split('@')[-1]}")
+            which = "finished or aborted" if include_aborted else "finished"
+            _fail(f"no {which} trials (not excluded) in {settings.url.split('@')[-1]}")
         try:
             records = [load_trial(session, settings, i) for i in ids]
         except ExportError as err:

@@ -99,6 +99,7 @@ def ndh_instances(record: TrialRecord, maze: Maze) -> list[dict]:
                 "all_targets": all_targets,
                 "dialog_history": _dialog(events, e.seq),
                 "trial_id": str(record.trial_id),
+                "seats": seats(record),
             }
         )
     return out
@@ -130,8 +131,14 @@ def ldh_instances(record: TrialRecord, maze: Maze) -> list[dict]:
             "all_targets": all_targets,
             "dialog_history": _dialog(events, estimate.seq),
             "trial_id": str(record.trial_id),
+            "seats": seats(record),
         }
     ]
+
+
+def seats(record: TrialRecord) -> dict[str, str]:
+    """Who held each seat, by participant id (or the agent that drove), as `source.load_trial` says."""
+    return {"commander": str(record.info.get("commander", "")), "driver": str(record.info.get("driver_seat", ""))}
 
 
 def assign_splits(mazes: Iterable[str]) -> dict[str, str]:

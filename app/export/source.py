@@ -36,10 +36,18 @@ def load_trial(session: Session, settings: Settings, trial_id: int | str) -> Tri
             "backend": trial.backend,
             "driver": trial.driver,
             "phase": trial.phase,
+            # Seats by participant id (a pseudonym: names stay in the database).
+            "commander": f"participant {trial.commander_id}" if trial.commander_id is not None else "",
+            "driver_seat": f"participant {trial.driver_id}" if trial.driver_id is not None else trial.driver,
+            **({"excluded": trial.excluded_reason} if trial.excluded_reason is not None else {}),
             "created_at": trial.created_at.isoformat() if trial.created_at else "",
         },
     )
 
 
-def finished_trial_ids(session: Session) -> list[int]:
-    return list(session.scalars(select(Trial.id).where(Trial.phase == Phase.FINISHED).order_by(Trial.id)))
+def exported_trial_ids(session: Session, include_aborted: bool = False) -> list[int]:
+    """What `export all` writes: every finished trial (and aborted ones, with what they recorded,
+    when asked), never one the experimenter excluded."""
+    phases = [Phase.FINISHED, Phase.ABORTED] if include_aborted else [Phase.FINISHED]
+    query = select(Trial.id).where(Trial.phase.in_(phases), Trial.excluded_reason.is_(None))
+    return list(session.scalars(query.order_by(Trial.id)))

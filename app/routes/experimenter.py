@@ -15,6 +15,7 @@ from app.db.models import Participant, Robot, Team, Trial
 from app.drivers.registry import available_drivers
 from app.guard import csrf_protect, current_login
 from app.routes.pages import render, trial_or_404
+from app.trial.lifecycle import Refused, delete_participant, delete_robot, delete_team, exclude_trial
 from app.trial.setup import TrialSetupError, create_participant, create_team, create_trial, parse_targets, suggest_maze
 from app.trial.state import fold
 from app.trial.vocabulary import Role
@@ -44,6 +45,12 @@ def controls_for(phase: str, paused: list[str] | tuple[str, ...] = ()) -> list[s
     return ["resume" if "experimenter" in paused else "pause", "abort"]
 
 
+def seat_holders(trial: Trial, names: dict[int, str]) -> dict[str, str]:
+    """Who holds each seat: the participant's name, or the agent that drives."""
+    driver = names.get(trial.driver_id, "") if trial.driver_id is not None else trial.driver
+    return {Role.COMMANDER: names.get(trial.commander_id or 0, ""), Role.DRIVER: driver}
+
+
 def join_links(request: Request, trial: Trial) -> dict[str, str]:
     seats = request.app.state.services.seats
     roles = [Role.COMMANDER] + ([Role.DRIVER] if trial.driver == "human" else [])
@@ -60,8 +67,8 @@ def dashboard(request: Request, error: str | None = None):
         rovers = db.scalars(select(Robot).where(Robot.role == Role.DRIVER).order_by(Robot.name)).all()
         names = {p.id: p.name for p in participants}
         team_names = {t.id: t.name for t in teams}
-        maze_names = services.mazes.names()
-        suggestions = {t.id: suggest_maze(db, t, maze_names) for t in teams}
+        layouts = services.mazes.layouts()
+        suggestions = {t.id: suggest_maze(db, t, layouts) for t in teams}
     # The robot seat: the simulator or a registered rover, by the trial's backend spec.
     backends = {"sim": "simulator", **{f"robot:{r.id}": f"{r.name} (rover)" for r in rovers}}
     return render(
@@ -72,7 +79,7 @@ def dashboard(request: Request, error: str | None = None):
         trials=trials,
         names=names,
         team_names=team_names,
-        mazes=maze_names,
+        layouts=layouts,
         suggestions=suggestions,
         backends=backends,
         agents=available_drivers(services),
@@ -80,6 +87,7 @@ def dashboard(request: Request, error: str | None = None):
         controls_for=controls_for,
         robots=robot_links(services).status(),
         links={t.id: join_links(request, t) for t in trials},
+        holders={t.id: seat_holders(t, names) for t in trials},
         error=error,
     )
 
@@ -119,7 +127,7 @@ def add_trial(
     commander_id: int | None = Form(None),
 ):
     services = request.app.state.services
-    names = services.mazes.names()
+    layouts = services.mazes.layouts()
     try:
         if team_id is None:
             raise TrialSetupError("choose a team (form one first)")
@@ -127,9 +135,9 @@ def add_trial(
             team = db.get(Team, team_id)
             if team is None:
                 raise TrialSetupError(f"team {team_id} does not exist")
-            maze = maze or suggest_maze(db, team, names) or ""
+            maze = maze or suggest_maze(db, team, layouts) or ""
             if not maze:
-                raise TrialSetupError(f"team {team.name!r} has seen every maze in the library")
+                raise TrialSetupError(f"team {team.name!r} has seen every layout in the library")
             create_trial(
                 db,
                 team_id=team_id,
@@ -138,13 +146,50 @@ def add_trial(
                 backend=backend,
                 driver=driver,
                 commander_id=commander_id,
-                maze_names=names,
+                layouts=layouts,
                 now_ns=services.clock.now_ns(),
                 agents=available_drivers(services),
             )
     except TrialSetupError as err:
         return _redirect(str(err))
     return _redirect()
+
+
+@router.delete("/participants/{participant_id}")
+def remove_participant(request: Request, participant_id: int) -> dict:
+    return _delete(request, lambda db: delete_participant(db, participant_id))
+
+
+@router.delete("/teams/{team_id}")
+def remove_team(request: Request, team_id: int) -> dict:
+    return _delete(request, lambda db: delete_team(db, team_id))
+
+
+@router.delete("/robots/{robot_id}")
+def remove_robot(request: Request, robot_id: int) -> dict:
+    connected = any(r["id"] == robot_id and r["connected"] for r in robot_links(request.app.state.services).status())
+    return _delete(request, lambda db: delete_robot(db, robot_id, connected))
+
+
+def _delete(request: Request, delete) -> dict:
+    """One `lifecycle.delete_*` in a transaction; 409 naming why when it is refused."""
+    try:
+        with request.app.state.services.db.begin() as db:
+            delete(db)
+    except Refused as err:
+        raise HTTPException(409, str(err)) from None
+    return {"deleted": True}
+
+
+@router.post("/trials/{trial_id}/exclude")
+def exclude(request: Request, trial_id: int, reason: str = Form("", max_length=2000), back: str = Form("dashboard")):
+    """Set an ended trial aside from the leaderboard and exports, with a reason (its log is kept)."""
+    try:
+        with request.app.state.services.db.begin() as db:
+            exclude_trial(db, trial_id, reason)
+    except Refused as err:
+        return _redirect(str(err))
+    return RedirectResponse(f"/experimenter/trials/{trial_id}/replay" if back == "replay" else "/experimenter", 303)
 
 
 @router.post("/trials/{trial_id}/{action}")
@@ -183,12 +228,15 @@ def live(request: Request):
 def watch(request: Request, trial_id: int):
     trial = trial_or_404(request, trial_id)
     state = fold(request.app.state.services.log.load(trial_id))
+    with request.app.state.services.db() as db:
+        names = dict(db.execute(select(Participant.id, Participant.name)).tuples().all())
     return render(
         request,
         "watch.html",
         trial=trial,
         state=state,
         links=join_links(request, trial),
+        holders=seat_holders(trial, names),
         controls=controls_for(state.phase, sorted(state.pause_reasons)),
     )
 

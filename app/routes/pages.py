@@ -130,6 +130,7 @@ def logout(request: Request):
     login = current_login(request)
     if login is not None:
         request.app.state.services.sessions.end(login)
+        request.app.state.services.login_sockets.end(login)
     response = RedirectResponse("/", status_code=303)
     response.delete_cookie(SESSION_COOKIE)
     return response

@@ -80,6 +80,7 @@ def replay_log(request: Request, trial_id: int):
             "phase": trial.phase,
             "backend": trial.backend,
             "driver": trial.driver,
+            "excluded": trial.excluded_reason,
         },
         "events": events,
     }

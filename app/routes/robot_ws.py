@@ -3,9 +3,10 @@ experimenter's robot API: register a robot (its token is shown once) and see eac
 
 The first message must be a `hello` with the robot's token; a wrong token or role is answered
 with an error and the close code 4401, so the client stops retrying. Afterwards the server
-pings every 0.1 s (the rover's watchdog hears these), frames are mapped onto the server clock,
-and a malformed or oversized message gets an error reply, is logged as `bad_message` in the
-trials using the robot, and changes nothing else.
+pings every 0.1 s (the rover's watchdog hears these), frames are checked to be the JPEG their
+header says (`check_jpeg`) and mapped onto the server clock, and a malformed or oversized
+message gets an error reply, is logged as `bad_message` in the trials using the robot, and
+changes nothing else.
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ from robot_client.protocol import (
     encode,
     unpack_frame,
 )
+from sim.robot.frames import FrameError, check_jpeg
 
 router = APIRouter()
 logger = logging.getLogger(__name__)
@@ -180,6 +182,10 @@ async def _dispatch(raw: Mapping[str, Any], link: RobotLink, links, received_ns:
     data = raw.get("bytes")
     if data is not None:
         header, jpeg = unpack_frame(data, MAX_FRAME_BYTES)
+        try:
+            await asyncio.to_thread(check_jpeg, jpeg, header.width, header.height)  # a decode: off the loop
+        except FrameError as err:
+            raise ProtocolError(str(err)) from None
         await links.frame(link, link.on_frame(header, jpeg, received_ns))
         return
     message = decode(raw.get("text") or "", ROBOT_TYPES)

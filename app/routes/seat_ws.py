@@ -1,8 +1,10 @@
 """`/ws/play`: the Commander's and the Driver's socket; `/ws/watch/{trial_id}`: the experimenter's.
 
 The token is checked at the upgrade and again on every message (`TrialRuntime.receive`); the
-watch socket needs the experimenter's login cookie and only listens. The trial may run in this
-process or, with Redis, in another (`app.trial.relay`).
+watch socket needs the experimenter's login cookie, only listens, and is closed (4401) when
+that login ends: at once at a logout here, within `LOGIN_RECHECK_S` of one elsewhere or of a
+password change. The trial may run in this process or, with Redis, in another
+(`app.trial.relay`).
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from app.db.models import Trial
 from app.guard import socket_origin_allowed
 from app.routes.pages import over_reason
-from app.security import SESSION_COOKIE, InvalidToken
+from app.security import SESSION_COOKIE, InvalidToken, Sessions
 from app.serving import MESSAGE_TOO_BIG
 from app.trial.runtime import UnknownTrial
 from app.trial.views import EXPERIMENTER
@@ -26,6 +28,9 @@ from app.trial.vocabulary import Role
 router = APIRouter()
 logger = logging.getLogger(__name__)
 OUTBOX_LIMIT = 512  # messages waiting for a slow browser before it is dropped
+LOGIN_RECHECK_S = 1.0  # how often a watch socket checks that its login still stands
+LOGGED_OUT = 4401  # the close code of a watch socket whose login ended
+CLOSE_WAIT_S = 5.0  # how long a logged-out watch waits for the browser to answer its close
 
 
 class SocketSeat:
@@ -34,7 +39,8 @@ class SocketSeat:
     def __init__(self, ws: WebSocket, role: str) -> None:
         self.ws, self.role = ws, role
         self.outbox: asyncio.Queue = asyncio.Queue(OUTBOX_LIMIT)
-        self.writer = asyncio.get_running_loop().create_task(self._write())
+        self.loop = asyncio.get_running_loop()
+        self.writer = self.loop.create_task(self._write())
         self.dropped = False
 
     def deliver(self, message: dict) -> None:
@@ -51,6 +57,17 @@ class SocketSeat:
     async def _close_slow(self) -> None:
         with contextlib.suppress(RuntimeError, WebSocketDisconnect):
             await self.ws.close(code=1013, reason="too slow")
+
+    def log_out(self) -> None:
+        """The experimenter's login ended: nothing more goes out (from the moment this returns),
+        and the socket closes with `LOGGED_OUT`."""
+        self.dropped = True
+        self.loop.call_soon_threadsafe(self.writer.cancel)
+        asyncio.run_coroutine_threadsafe(self._close_logged_out(), self.loop)
+
+    async def _close_logged_out(self) -> None:
+        with contextlib.suppress(RuntimeError, WebSocketDisconnect):
+            await self.ws.close(code=LOGGED_OUT, reason="logged out: log in again to watch")
 
     async def _write(self) -> None:
         with contextlib.suppress(WebSocketDisconnect, RuntimeError, asyncio.CancelledError):
@@ -121,7 +138,9 @@ async def watch(ws: WebSocket, trial_id: int) -> None:
     if not socket_origin_allowed(ws.headers, ws.url.scheme, services.settings):
         await ws.close(code=1008, reason="origin not allowed")
         return
-    if services.sessions.verify(ws.cookies.get(SESSION_COOKIE)) is None:
+    cookie = ws.cookies.get(SESSION_COOKIE)
+    login = services.sessions.verify(cookie)
+    if login is None:
         await ws.close(code=1008, reason="log in as an experimenter first")
         return
     try:
@@ -132,11 +151,30 @@ async def watch(ws: WebSocket, trial_id: int) -> None:
     await ws.accept()
     conn = SocketSeat(ws, EXPERIMENTER)
     runtime.watch(conn)
+    services.login_sockets.add(login, conn)
+    listening = asyncio.create_task(_until_closed(ws))
+    logged_in = asyncio.create_task(_while_logged_in(services.sessions, cookie))
     try:
-        while (await ws.receive())["type"] != "websocket.disconnect":
-            pass  # the watch socket only listens
-    except WebSocketDisconnect:
-        pass
+        await asyncio.wait((listening, logged_in), return_when=asyncio.FIRST_COMPLETED)
+        if logged_in.done():
+            conn.log_out()
+            await asyncio.wait((listening,), timeout=CLOSE_WAIT_S)  # the client answers the close
     finally:
+        listening.cancel()
+        logged_in.cancel()
+        services.login_sockets.discard(login, conn)
         runtime.unwatch(conn)
         await conn.close()
+
+
+async def _until_closed(ws: WebSocket) -> None:
+    with contextlib.suppress(WebSocketDisconnect):
+        while (await ws.receive())["type"] != "websocket.disconnect":
+            pass  # the watch socket only listens
+
+
+async def _while_logged_in(sessions: Sessions, cookie: str | None) -> None:
+    """Returns once the login the socket opened with has ended in the database: a logout in
+    another process, or a password change (both bump the account's session version)."""
+    while await asyncio.to_thread(sessions.verify, cookie) is not None:
+        await asyncio.sleep(LOGIN_RECHECK_S)

@@ -85,6 +85,15 @@ class Restarted(Event):
     paused: list[str] = []
 
 
+class StillAway(Event):
+    """Logged every `AWAY_MARK_S` while a participant of a running trial is away: the server was
+    up at this stamp. After a crash the grace period goes on from the last event before it, so
+    the time away before the crash counts and the downtime does not."""
+
+    kind = "still_away"
+    roles: list[Role]
+
+
 class Chat(Event):
     kind = "chat"
     role: Role
@@ -172,6 +181,7 @@ KINDS: dict[str, type[Event]] = {
         Paused,
         Resumed,
         Restarted,
+        StillAway,
         Chat,
         MoveRequested,
         MoveExecuted,

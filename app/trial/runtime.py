@@ -13,6 +13,7 @@ from __future__ import annotations
 import asyncio
 import base64
 import logging
+import math
 import uuid
 from collections.abc import Coroutine
 from pathlib import Path
@@ -31,8 +32,10 @@ from app.trial.events import LoggedEvent
 from app.trial.ldh_belief import LiveBelief
 from app.trial.port import Connection
 from app.trial.state import TrialState, fold
+from app.trial.throttle import Throttle
 from app.trial.views import EXPERIMENTER, status_of, view
 from app.trial.vocabulary import PARTICIPANTS, FrameSource, MoveAction, Outcome, Phase, PoseSource, Role
+from sim.core.geometry import wrap_angle
 
 if TYPE_CHECKING:
     from app.drivers.seat import AgentSeat
@@ -40,6 +43,7 @@ if TYPE_CHECKING:
     from app.services import Services
 
 logger = logging.getLogger(__name__)
+AWAY_MARK_S = 1.0  # how much of a participant's time away a crash can lose from the grace period
 
 
 class UnknownTrial(LookupError):
@@ -56,6 +60,7 @@ class TrialRuntime:
         self.seats: dict[str, Connection] = {}
         self.watchers: set[Connection] = set()  # the experimenter's live views
         self._grace: dict[Role, asyncio.TimerHandle] = {}
+        self._away_marks: asyncio.Task[None] | None = None  # `still_away` events while anyone is away
         self._tasks: set[asyncio.Task[Any]] = set()
         self._status: dict[str, Any] | None = None  # the last status sent, less the clock
         self._ending = False
@@ -64,6 +69,7 @@ class TrialRuntime:
         self._belief_message: dict[str, Any] | None = None  # the latest, for the watch page
         self._frame_dirs: set[Path] = set()
         self.ldh = LiveBelief(self)  # the LDH model's belief, for the watchers only
+        self._throttles: dict[str, Throttle] = {}  # per seat: how often its messages may be recorded
 
     # -- life cycle ---------------------------------------------------------------
     async def start(self) -> None:
@@ -226,6 +232,17 @@ class TrialRuntime:
         for role in away:
             if role not in self._grace:
                 self._grace[role] = loop.call_later(self._grace_left_s(role), self._grace_expired, role)
+        if away and (self._away_marks is None or self._away_marks.done()):
+            self._away_marks = self._spawn(self._mark_time_away())
+
+    async def _mark_time_away(self) -> None:
+        """A restart knows when the server was last up only from the log: while anyone is away,
+        note it every `AWAY_MARK_S`, so their time away before a crash still counts."""
+        while True:
+            await asyncio.sleep(AWAY_MARK_S)
+            if not self.state.away:
+                return
+            self.apply(d.Note(ev.StillAway(roles=sorted(self.state.away))))
 
     def _grace_left_s(self, role: Role) -> float:
         gone = self.state.away[role].away_ns(self.services.clock.now_ns())
@@ -245,7 +262,7 @@ class TrialRuntime:
     def record_pose(self, pose: tuple[float, float, float]) -> None:
         x, y, theta = pose
         source = PoseSource.SIM if self.state.backend == "sim" else PoseSource.TRACKER
-        self.apply(d.Note(ev.PoseSampled(x=x, y=y, heading=theta, source=source)))
+        self.apply(d.Note(ev.PoseSampled(x=x, y=y, heading=wrap_angle(theta), source=source)))
 
     async def _pump_frames(self, backend: RobotBackend) -> None:
         async for frame in backend.frames():
@@ -404,26 +421,58 @@ class TrialRuntime:
         """One raw message from a seat's socket. A bad one gets an error reply and a
         `bad_message` event, and never ends the trial. Moves run beside the socket's reader,
         so a move sent while one is executing is refused rather than queued."""
+        counted = False  # against the seat's rate: all but pings and moves, and refused moves
         try:
             message = self._parse(seat, text)
             if isinstance(message, m.Move) and message.type in m.ALLOWED[seat.role]:
                 self._spawn(self._handle_reporting(conn, seat.role, message))
-            else:
-                await self.handle(seat.role, message)
+                return
+            if not isinstance(message, m.Ping):
+                counted = True
+                if not self._within_rate(conn, seat.role):
+                    return
+            await self.handle(seat.role, message)
         except Refused as err:
-            self.refuse(conn, seat.role, str(err))
+            if counted or self._within_rate(conn, seat.role):
+                self.refuse(conn, seat.role, str(err))
 
     async def _handle_reporting(self, conn: Connection, role: str, message: m.Move) -> None:
         try:
             await self.handle(role, message)
         except Refused as err:
-            self.refuse(conn, role, str(err))
+            if self._within_rate(conn, role):
+                self.refuse(conn, role, str(err))
 
     def refuse(self, conn: Connection, role: str, error: str) -> None:
         """The documented error reply, and the refusal in the log (while the trial runs)."""
         conn.deliver({"type": "error", "code": "bad_message", "error": error})
         if not self.state.over:
             self.report_bad_message(Role(role), error)
+
+    def _within_rate(self, conn: Connection, role: str) -> bool:
+        """Whether a seat's message may be recorded now; else neither the log nor the other seat
+        hears of it, and the first of a run of such messages gets the `rate_limited` reply (one
+        reply each would flood the sender's own socket)."""
+        throttle = self._throttles.get(role)
+        if throttle is None:
+            throttle = self._throttles[role] = Throttle(
+                self.settings.seat_message_rate_per_s, self.settings.seat_message_burst
+            )
+        wait_s = throttle.take()
+        if not wait_s:
+            throttle.told = False
+        elif not throttle.told:
+            throttle.told = True
+            conn.deliver(
+                {
+                    "type": "error",
+                    "code": "rate_limited",
+                    "error": f"too many messages at once (at most {throttle.rate_per_s:g} a second); "
+                    "this one and any more before the pause were not sent",
+                    "retry_after_s": math.ceil(wait_s * 1000) / 1000,
+                }
+            )
+        return not wait_s
 
     def _parse(self, seat: Seat, text: str | None) -> m.SeatMessage:
         limit = self.settings.max_message_bytes

@@ -1,5 +1,6 @@
-"""Creating trials: a maze the team has never seen (least used first), three targets in order,
-a robot backend and who drives. The `trial_created` event is written with the trial row."""
+"""Creating trials: a maze whose layout the team has never seen (least used first), three targets
+in order, a robot backend and who drives. Mazes are compared by physical layout (`sim.tasks.layouts`):
+`layouts` maps each maze of the library to its layout's id. The `trial_created` event is written with the trial row."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Event, Participant, Robot, Team, Trial
 from app.trial.events import TrialCreated
+from app.trial.lifecycle import live_trial_of
 from app.trial.vocabulary import Phase, Role
 from sim.core.labels import OBJECTS
 
@@ -20,19 +22,25 @@ class TrialSetupError(ValueError):
     """A trial that cannot be created as asked; the message names the field."""
 
 
-def mazes_seen(db: Session, team: Team) -> set[str]:
-    """Mazes either member has played in, in any team."""
+def layouts_seen(db: Session, team: Team, layouts: Mapping[str, str]) -> dict[str, str]:
+    """Each layout either member has played in, in any team -> a maze they played it as (a maze
+    no longer in the library is a layout of its own)."""
     members = (team.member_a_id, team.member_b_id)
     teams = select(Team.id).where(or_(Team.member_a_id.in_(members), Team.member_b_id.in_(members)))
-    return set(db.scalars(select(Trial.maze).where(Trial.team_id.in_(teams))))
+    played = sorted(set(db.scalars(select(Trial.maze).where(Trial.team_id.in_(teams)))))
+    return {layouts.get(maze, maze): maze for maze in played}
 
 
-def suggest_maze(db: Session, team: Team, names: list[str]) -> str | None:
-    """The least-used maze the team has never seen (ties by name)."""
-    seen = mazes_seen(db, team)
+def suggest_maze(db: Session, team: Team, layouts: Mapping[str, str]) -> str | None:
+    """A maze of the least-used layout the team has never seen; within it the least-used maze
+    (ties by name)."""
+    seen = layouts_seen(db, team, layouts)
     use = Counter(db.scalars(select(Trial.maze)))
-    fresh = [n for n in names if n not in seen]
-    return min(fresh, key=lambda n: (use[n], n)) if fresh else None
+    layout_use: Counter[str] = Counter()
+    for maze, count in use.items():
+        layout_use[layouts.get(maze, maze)] += count
+    fresh = [n for n, layout in layouts.items() if layout not in seen]
+    return min(fresh, key=lambda n: (layout_use[layouts[n]], use[n], n)) if fresh else None
 
 
 def parse_targets(text: str, rng: random.Random) -> list[str]:
@@ -67,19 +75,31 @@ def create_trial(
     backend: str,
     driver: str,
     commander_id: int | None,
-    maze_names: list[str],
+    layouts: Mapping[str, str],
     now_ns: int,
     agents: Mapping[str, str | None] | None = None,
 ) -> Trial:
-    """`agents` (`available_drivers(services)`) is needed when an agent drives."""
+    """`layouts`: each maze of the library -> its layout (`Mazes.layouts()`); `agents`
+    (`available_drivers(services)`) is needed when an agent drives."""
     check_driver(driver, agents)
     team = db.get(Team, team_id)
     if team is None:
         raise TrialSetupError(f"team {team_id} does not exist")
-    if maze not in maze_names:
+    live = live_trial_of(db, (team.member_a_id, team.member_b_id))
+    if live is not None:
+        raise TrialSetupError(
+            f"team {team.name!r}: a member is in trial {live.id}, which is {live.phase}; a participant "
+            f"is in one live trial at a time (let it finish, or abort it)"
+        )
+    if maze not in layouts:
         raise TrialSetupError(f"maze {maze!r} is not in the library")
-    if maze in mazes_seen(db, team):
+    played = layouts_seen(db, team, layouts).get(layouts[maze])
+    if played == maze:
         raise TrialSetupError(f"maze {maze!r}: team {team.name!r} has already seen it")
+    if played is not None:
+        raise TrialSetupError(
+            f"maze {maze!r} is layout {layouts[maze]}, which team {team.name!r} has already seen as {played}"
+        )
     if backend.startswith("robot:"):
         robot_id = backend.removeprefix("robot:")
         robot = db.get(Robot, int(robot_id)) if robot_id.isdigit() else None

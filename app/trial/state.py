@@ -107,7 +107,9 @@ class TrialState:
         if self.running and self.last_t_ns is not None and not restarted:
             self.active_ns += max(0, t_ns - self.last_t_ns)
         if restarted and self.last_t_ns is not None:
-            for away in self.away.values():  # the server's downtime counts for no one
+            # The server's downtime counts for no one; its last event (a `still_away` at most a
+            # second before the crash, while anyone is away) is when it was last up.
+            for away in self.away.values():
                 away.carried_ns, away.since_ns = away.away_ns(self.last_t_ns), t_ns
         self.last_t_ns = t_ns
         self.last_seq = seq

@@ -1,4 +1,4 @@
-"""`robotslang mazes generate | list | show`: the maze library from the command line."""
+"""`robotslang mazes generate | list | layouts | folds | show`: the maze library from the command line."""
 
 from __future__ import annotations
 
@@ -11,7 +11,9 @@ import typer
 from rich.progress import track
 
 from sim.core.maze import MazeError
+from sim.tasks.benchmark import Benchmark, BenchmarkError, Split
 from sim.tasks.generator import generate_maze
+from sim.tasks.layouts import fold_counts, layout_of
 from sim.tasks.library import MANIFEST, MazeLibrary, UnknownMazeError
 
 app = typer.Typer(help="Generate, list and draw mazes.", no_args_is_help=True)
@@ -75,11 +77,58 @@ def _library(benchmark: Path | None, extra: list[Path]) -> MazeLibrary:
 def list_mazes(
     benchmark: Path | None = BENCHMARK_OPTION,
     extra: list[Path] = typer.Option([], "--dir", help="A folder of mazes to include (repeatable)."),
+    with_layouts: bool = typer.Option(False, "--layouts", help="Add each maze's physical layout (a third column)."),
 ) -> None:
-    """Every maze name with where it comes from."""
+    """Every maze name with where it comes from (and its layout)."""
     library = _library(benchmark, extra)
+    of = layout_of(library.layouts()) if with_layouts else {}
     for name in library.names():
-        typer.echo(f"{name}\t{library.source(name)}")
+        typer.echo(f"{name}\t{library.source(name)}" + (f"\t{of[name]}" if with_layouts else ""))
+
+
+@app.command("layouts")
+def layouts(
+    benchmark: Path | None = BENCHMARK_OPTION,
+    extra: list[Path] = typer.Option([], "--dir", help="A folder of mazes to include (repeatable)."),
+    as_json: bool = typer.Option(False, "--json", help='Print {"layouts": [{"id", "runs"}]}.'),
+) -> None:
+    """The mazes grouped by physical layout: runs on the same table under different names."""
+    try:
+        found = _library(benchmark, extra).layouts()
+    except MazeError as e:
+        typer.echo(f"error: {e}", err=True)
+        raise typer.Exit(1) from None
+    if as_json:
+        typer.echo(json.dumps({"layouts": [layout.as_json() for layout in found]}))
+        return
+    for layout in found:
+        typer.echo(f"{layout.id}\t{' '.join(layout.runs)}")
+    typer.echo(f"{sum(len(layout.runs) for layout in found)} mazes, {len(found)} layouts")
+
+
+@app.command("folds")
+def folds(
+    benchmark: Path = typer.Option(..., "--benchmark", envvar="ROBOTSLANG_BENCHMARK", help="A benchmark clone."),
+    as_json: bool = typer.Option(False, "--json", help='Print {"folds": [...], "runs", "layouts"}.'),
+) -> None:
+    """The benchmark's splits counted in instances, runs and layouts, and the layouts two splits share."""
+    try:
+        bench = Benchmark(benchmark)
+        splits = {str(split): [inst.run for inst in bench.split(split)] for split in Split}
+    except BenchmarkError as e:
+        typer.echo(f"error: {e}", err=True)
+        raise typer.Exit(1) from None
+    of = layout_of(_library(benchmark, []).layouts())
+    runs = {run for split_runs in splits.values() for run in split_runs}
+    counts = fold_counts(splits, of)
+    total = {"runs": len(runs), "layouts": len({of.get(run, run) for run in runs})}
+    if as_json:
+        typer.echo(json.dumps({"folds": [c.as_json() for c in counts], **total}))
+        return
+    typer.echo("split\tinstances\truns\tlayouts\tlayouts in another split")
+    for c in counts:
+        typer.echo(f"{c.split}\t{c.instances}\t{c.runs}\t{c.layouts}\t{c.shared_layouts}")
+    typer.echo(f"all\t{sum(c.instances for c in counts)}\t{total['runs']}\t{total['layouts']}")
 
 
 @app.command("show")

@@ -6,6 +6,8 @@ Maps are 1401 x 1175 pixel images of a 2.4638 m x 2.0574 m table, row 0 at the t
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -41,6 +43,11 @@ def pixel_to_world(col: ArrayLike, row: ArrayLike) -> tuple[NDArray[np.float64],
 def heading_index(theta: float) -> int:
     """The nearest multiple of 45 degrees to `theta` (radians), as an index 0..7."""
     return int(np.round(float(theta) / TURN_RAD)) % HEADINGS
+
+
+def wrap_angle(theta: float) -> float:
+    """`theta` in (-pi, pi]: the one range headings are recorded in, simulator and rover alike."""
+    return math.remainder(float(theta), 2 * math.pi)
 
 
 def heading_angle(k: ArrayLike) -> NDArray[np.float64]:

@@ -63,8 +63,10 @@ def page_csrf_token(page: str) -> str:
 
 
 def browser(base_url: str) -> httpx.Client:
-    """A client that sends this server's Origin, as a browser does on the server's own pages."""
-    return httpx.Client(base_url=base_url, follow_redirects=True, headers={"Origin": base_url})
+    """A client that sends this server's Origin, as a browser does on the server's own pages. It
+    waits as a browser would: the first dashboard imports the agents' libraries (seconds, more on a
+    loaded machine), past httpx's 5 s default."""
+    return httpx.Client(base_url=base_url, follow_redirects=True, headers={"Origin": base_url}, timeout=60)
 
 
 def submit_login(client: httpx.Client, name: str, password: str) -> httpx.Response:

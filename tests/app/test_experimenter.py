@@ -77,6 +77,7 @@ def test_experimenter_forms_make_a_trial_with_join_links(settings):
         page = client.post("/experimenter/trials", data={"team_id": 1, "targets": "mug,jar,paddle"}).text
         links = dict(re.findall(r'class="join-(\w+)" href="([^"]+)"', page))
         assert set(links) == {"commander", "driver"}
+        assert "Commander Ada · Driver Ben" in page and ">commander (Ada)</a>" in page and ">driver (Ben)</a>" in page
         assert "Commander" in client.get(links["commander"]).text
         page = client.post("/experimenter/trials", data={"team_id": 1, "targets": "mug,mug,jar"}).text
         assert "give each of jar, mug, paddle once" in page
@@ -84,6 +85,10 @@ def test_experimenter_forms_make_a_trial_with_join_links(settings):
         with server.services.db() as db:
             first = db.scalar(select(Trial).where(Trial.team_id == 1))
         assert first.maze == names[0] and first.targets == ["mug", "jar", "paddle"]
+        # Ben holds a seat in Pair's trial, not yet over: team Other gets no trial until it ends.
+        page = html.unescape(client.post("/experimenter/trials", data={"team_id": 2}).text)
+        assert f"team 'Other': a member is in trial {first.id}, which is waiting;" in page
+        client.post(f"/experimenter/trials/{first.id}/abort")
         # Ben played maze 0 with Pair: team Other may not get it, and is given the next least used.
         page = client.post("/experimenter/trials", data={"team_id": 2, "maze": names[0]}).text
         assert "already seen it" in page

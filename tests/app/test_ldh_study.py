@@ -213,4 +213,9 @@ def test_a_study_of_the_platforms_own_trials(tmp_path):
     write_benchmark([(trial("9", mazes[0].name), mazes[0])], outside)
     with pytest.raises(StudyError, match="configured benchmark or a folder under"):
         studies.create(1, "not ours", str(outside), split, "prefix")
+    # A folder named relative to the data directory is the same folder; `..` cannot leave it.
+    relative = studies.create(1, "ours again", "export", split, "prefix")
+    assert studies.study(relative).source == studies.study(study_id).source
+    with pytest.raises(StudyError, match="configured benchmark or a folder under"):
+        studies.create(1, "not ours", "../elsewhere", split, "prefix")
     services.engine.dispose()

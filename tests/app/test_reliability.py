@@ -8,6 +8,8 @@ import contextlib
 import json
 import time
 
+import cv2
+import numpy as np
 import pytest
 import websockets
 from sqlalchemy import select
@@ -24,7 +26,7 @@ from tests.app.live import ServerThread, experimenter_client, session_cookie
 from tests.app.trial_play import move, start_trial
 
 S = 1_000_000_000
-JPEG = b"\xff\xd8\xff\xe0" + bytes(64) + b"\xff\xd9"
+JPEG = cv2.imencode(".jpg", np.zeros((240, 320, 3), np.uint8))[1].tobytes()  # what Rover.frame's header says
 
 
 def until(predicate, what: str, timeout: float = 20.0):
@@ -45,6 +47,7 @@ class Rover:
     def __init__(self, url: str, token: str, clock_offset_ns: int = 0) -> None:
         self.url, self.token, self.offset = url.replace("/ws/play", "/ws/robot"), token, clock_offset_ns
         self.moves: list[dict] = []
+        self.errors: list[dict] = []
 
     def now(self) -> int:
         return time.monotonic_ns() + self.offset
@@ -67,6 +70,8 @@ class Rover:
                     self.pongs += 1
                 elif message["type"] == "move":
                     self.moves.append(message)
+                elif message["type"] == "error":
+                    self.errors.append(message)
 
     async def frame(self, seq: int, capture_ns: int) -> None:
         await self.ws.send(pack_frame(seq, capture_ns, 320, 240, JPEG))
@@ -90,7 +95,7 @@ def rover_trial(services) -> tuple[int, str]:
             backend=f"robot:{robot.id}",
             driver="human",
             commander_id=a.id,
-            maze_names=services.mazes.names(),
+            layouts=services.mazes.layouts(),
             now_ns=services.clock.now_ns(),
         )
         return trial.id, token

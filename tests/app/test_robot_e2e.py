@@ -13,7 +13,9 @@ import threading
 import time
 from pathlib import Path
 
+import cv2
 import httpx
+import numpy as np
 import pytest
 import uvicorn
 import websockets
@@ -34,6 +36,7 @@ pytestmark = pytest.mark.anyio
 ROBOT = [sys.executable, "-m", "robot_client"]
 CALIBRATION = Calibration(forward_s=0.3, left_s=0.2, right_s=0.25)
 WATCHDOG_S = 0.5
+TINY_JPEG = cv2.imencode(".jpg", np.zeros((8, 8, 3), np.uint8))[1].tobytes()
 ROBOT_START_S = 60.0  # bound on waits that include starting a client process (seconds when idle)
 
 
@@ -426,7 +429,7 @@ async def test_malformed_and_oversized_messages_get_an_error_and_change_nothing(
         await ws.send(json.dumps({"type": "hello", "protocol": 1, "token": token, "role": "driver"}))
         assert json.loads(await ws.recv())["type"] == "welcome"
         await driver.event("phase", phase="localizing")
-        await ws.send(pack_frame(1, time.monotonic_ns(), 8, 8, b"\xff\xd8\xff\xd9"))
+        await ws.send(pack_frame(1, time.monotonic_ns(), 8, 8, TINY_JPEG))
         await driver.event("frame")
         before = [(e.kind, e.payload) for e in server.events(trial)]
         jpeg = b"\xff\xd8" + bytes(MAX_FRAME_BYTES)
@@ -445,7 +448,7 @@ async def test_malformed_and_oversized_messages_get_an_error_and_change_nothing(
             errors.append(reply["error"])
         # The link is still up: a good frame after the bad ones reaches the Driver.
         seen = len(driver.received)
-        await ws.send(pack_frame(3, time.monotonic_ns(), 8, 8, b"\xff\xd8\xff\xd9"))
+        await ws.send(pack_frame(3, time.monotonic_ns(), 8, 8, TINY_JPEG))
         await driver.event("frame", start=seen)
         after = [(e.kind, e.payload) for e in server.events(trial)]
     assert "not JSON" in errors[0] and "unknown message type 'dance'" in errors[1]
@@ -516,3 +519,24 @@ async def test_the_dashboard_page_shows_each_robot_and_offers_the_rover_for_tria
     cells = dict(re.findall(r'<td class="(\w+)">(.*?)</td>', row, re.S))
     assert cells["name"] == "dashboard" and cells["role"] == "driver" and cells["link"] == "connected"
     assert float(cells["fps"]) > 5 and cells["latency"].endswith(" ms") and cells["ack"] == "left done"
+
+
+async def test_frames_are_not_recorded_while_a_dropped_seat_pauses_the_trial(server, robots):
+    robot_id, token, trial = server.new_robot_trial("pause-rec")
+    robots(server.url, token)
+
+    def recorded() -> int:
+        with server.services.db() as db:
+            return len(db.scalars(select(FrameRow.id).where(FrameRow.trial_id == trial)).all())
+
+    async with server.seat(trial, "commander") as commander:
+        async with server.seat(trial, "driver") as driver:
+            await driver.event("phase", phase="localizing", timeout=ROBOT_START_S)
+            await until(lambda: recorded() >= 5, timeout=ROBOT_START_S, what="frames recorded")
+        await commander.wait_for(lambda m: m.get("type") == "status" and "disconnect:driver" in m["paused"])
+        await asyncio.sleep(0.3)  # a frame already on its way to the disk lands
+        paused_at = recorded()
+        await asyncio.sleep(1.5)  # 15 frames/s from the rover meanwhile
+        assert recorded() == paused_at, "frames recorded while the trial waited for the Driver"
+        async with server.seat(trial, "driver"):
+            await until(lambda: recorded() >= paused_at + 5, timeout=10, what="recording again once resumed")

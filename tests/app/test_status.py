@@ -4,17 +4,29 @@ the Driver's camera and the true pose, which no participant's view changes for."
 from __future__ import annotations
 
 import asyncio
+import math
 
 import pytest
 import websockets
 
-from app.db.models import Experimenter
+from app.db.models import Event, Experimenter
 from app.security import SESSION_COOKIE, hash_password
 from bench.live import SeatClient, make_trial
 from tests.app.live import ServerThread
-from tests.app.trial_play import move, start_trial
+from tests.app.trial_play import claim_and_decide, drive_to_target, move, start_trial
 
-FIELDS = {"type", "phase", "target_index", "targets_total", "elapsed_s", "running", "moves", "paused", "waiting_for"}
+FIELDS = {
+    "type",
+    "phase",
+    "target_index",
+    "targets_total",
+    "elapsed_s",
+    "running",
+    "moves",
+    "paused",
+    "waiting_for",
+    "claim_pending",
+}
 
 
 def statuses(client) -> list[dict]:
@@ -96,3 +108,32 @@ def test_the_watch_socket_needs_the_experimenter_login(settings):
             with pytest.raises(websockets.InvalidStatus) as refused:
                 asyncio.run(attempt(cookie))
             assert refused.value.response.status_code == 403
+
+
+def test_a_pending_claim_is_in_the_status_until_the_commander_decides(settings):
+    with ServerThread(settings) as server:
+        services = server.services
+        trial_id = make_trial(services, services.mazes.names()[0])
+        tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+
+        async def play():
+            async with (
+                SeatClient(server.ws_url, tokens["commander"]) as commander,
+                SeatClient(server.ws_url, tokens["driver"]) as driver,
+            ):
+                await start_trial(commander, driver)
+                await commander.send("localize", x=1.2, y=1.0, heading=0.5)
+                await driver.event("phase", phase="navigating", target_index=0)
+                await drive_to_target(services, trial_id, driver)
+                start = len(driver.received)
+                await claim_and_decide(commander, driver, confirm=False)
+                await driver.wait_for(lambda m: m.get("type") == "status" and not m["claim_pending"], start=start)
+                return [m["claim_pending"] for m in statuses(driver)[-2:]]
+
+        assert asyncio.run(play()) == [True, False], "the claim shows as pending, then as decided"
+        # Poses are recorded with headings in (-pi, pi] (to the event's 1 mrad), as the rover's tracker gives them.
+        with services.db() as db:
+            headings = {
+                round(e.payload["heading"], 3) for e in db.query(Event).filter_by(trial_id=trial_id, kind="pose")
+            }
+        assert len(headings) > 2 and all(-math.pi < h <= round(math.pi, 3) for h in headings), headings

@@ -137,6 +137,7 @@ def test_two_servers_behind_nginx_play_a_trial_over_tls(tmp_path, postgres_url, 
         "ROBOTSLANG_SECRET_KEY": SECRET,
         "ROBOTSLANG_DATA_DIR": str(tmp_path / "data"),
         "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+        "ROBOTSLANG_TRUSTED_PROXIES": '["127.0.0.1"]',  # nginx here; compose.yaml names its container
     }
     # What compose.yaml configures the platform with, this test configures too.
     for name in ("migrate", "server"):

@@ -136,8 +136,19 @@ def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, tmp_path):
             assert object_pixels(base64.b64decode(claimed), Label[target.upper()]) > 300, target
             if index == 0:
                 commander.screenshot(path=str(ARTIFACTS / "commander.png"))
+                # While the claim waits, the Driver cannot move or claim again, and every page says so.
+                driver.wait_for_selector("#forward:disabled")
+                assert driver.is_disabled("#found") and driver.is_disabled("#left")
+                driver.wait_for_selector("#status >> text=Waiting for the Commander to confirm your claim.")
                 driver.screenshot(path=str(ARTIFACTS / "driver-claim.png"))
+                admin.goto(f"{server.url}/experimenter/trials/{trial_id}")
+                admin.wait_for_selector("#status >> text=The Driver claims target 1 of 3")
+                assert admin.is_hidden("#ldh-note"), "no LDH caption without its discs"
+                admin.screenshot(path=str(ARTIFACTS / "watch-claim.png"))
             commander.click("#confirm")
+            if index == 0:
+                driver.wait_for_selector("#forward:enabled")
+                assert driver.inner_text("#error") == ""
             commander.wait_for_selector("#claim[hidden]", state="attached")
         commander.wait_for_selector("#status[data-phase=finished]")
         driver.wait_for_selector("#status[data-phase=finished]")
