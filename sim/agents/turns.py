@@ -71,9 +71,12 @@ class Moved:
 
 @dataclass(frozen=True)
 class Claimed:
-    """The Driver claimed (the Commander hears it)."""
+    """The Driver claimed (the Commander hears it). `rays`: the claim frame as the Commander's seat
+    perceives it from its pixels (None where not given, or unreadable); the Commander's only view
+    through the camera (issue 23; defaults keep issue 22's callers)."""
 
     target_index: int
+    rays: RayObservation | None = None
 
 
 @dataclass(frozen=True)
@@ -84,9 +87,13 @@ class Judged:
 
 @dataclass(frozen=True)
 class PhaseChanged:
+    """`target`: the target's name, for the Commander's seat only, as its page learns each target
+    when the trial reaches it; None for the Driver (issue 23; the default keeps issue 22's callers)."""
+
     phase: Phase
     target_index: int | None
     targets_total: int
+    target: str | None = None
 
 
 class TurnKind(StrEnum):

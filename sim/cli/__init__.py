@@ -7,8 +7,9 @@ import typer
 
 def register(root: typer.Typer, eval_app: typer.Typer) -> None:
     """Mount the simulator's commands on the root CLI."""
-    from sim.cli import eval, mazes, play
+    from sim.cli import eval, mazes, play, selfplay
 
     eval_app.command("baselines")(eval.eval_baselines)
+    eval_app.command("selfplay")(selfplay.eval_selfplay)
     play.register(root)
     mazes.register(root)

@@ -118,12 +118,22 @@ def brief(obs: RayObservation | None) -> str:
     return ", ".join(parts) if parts else "open floor ahead"
 
 
+def wall_close(labels: np.ndarray, depth: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """(...) of rays (..., 13): a wall or object within CLOSE_M straight ahead (the middle rays)."""
+    mid = CENTRE_RAYS
+    return np.asarray((valid[..., mid] & (labels[..., mid] != Label.FLOOR) & (depth[..., mid] <= CLOSE_M)).any(axis=-1))
+
+
 def at_wall(obs: RayObservation) -> bool:
     """Where a walk "until the wall" ends: the next move is blocked or a wall is close ahead."""
-    front = ahead(obs)
-    return obs.forward_blocked or (front is not None and front.depth <= CLOSE_M)
+    return obs.forward_blocked or bool(wall_close(obs.labels, obs.depth, obs.valid))
+
+
+def within_reach(labels: np.ndarray, depth: np.ndarray, valid: np.ndarray, label: Label) -> np.ndarray:
+    """(...) of rays (..., 13): `label` is in view within CLAIM_M."""
+    return np.asarray((valid & (labels == label) & (depth <= CLAIM_M)).any(axis=-1))
 
 
 def near(obs: RayObservation, label: Label) -> bool:
     """The object (or wall) `label` is in view within CLAIM_M: the Driver is at it."""
-    return any(s.label == label and s.depth <= CLAIM_M for s in seen(obs))
+    return bool(within_reach(obs.labels, obs.depth, obs.valid, label))

@@ -15,7 +15,8 @@ from dataclasses import dataclass, replace
 from enum import Enum
 
 from sim.core.labels import Label
-from sim.tasks.ldh_features import LABEL_WORDS, SECTOR_HEADING_OFFSET, Sector
+from sim.language.vocab import LABEL_WORDS, correct
+from sim.tasks.ldh_features import SECTOR_HEADING_OFFSET, Sector
 
 
 class Kind(str, Enum):
@@ -58,18 +59,7 @@ class Question:
     turn: int  # heading steps the question asks for first ("turn around: what do you see?")
 
 
-LABELS = {
-    **LABEL_WORDS,
-    "border": Label.WHITE,
-    "boundary": Label.WHITE,
-    "yelllow": Label.YELLOW,
-    "yelow": Label.YELLOW,
-    "grey": Label.WHITE,
-    "gray": Label.WHITE,
-    "blocks": Label.JAR,
-    "cubes": Label.JAR,
-    "pong": Label.PADDLE,
-}
+LABELS = {**LABEL_WORDS, "pong": Label.PADDLE}  # "ping-pong" is read as one word
 SECTORS = {
     "front": Sector.FRONT,
     "infront": Sector.FRONT,
@@ -121,9 +111,10 @@ AROUND_STEPS = SECTOR_HEADING_OFFSET[Sector.BEHIND]
 
 
 def tokens(text: str) -> list[str]:
-    """Lower-case words; "n't" as "not", the objects' hyphenated names as one word."""
+    """Lower-case words, spelling corrected (`vocab.correct`); "n't" as "not", the objects'
+    hyphenated names as one word."""
     text = text.lower().replace("n't", " not").replace("ping-pong", "pong").replace("end of the maze", "edge")
-    return _TOKEN.findall(text)
+    return [correct(w) for w in _TOKEN.findall(text)]
 
 
 def _sectors(words: list[str]) -> list[tuple[int, Sector]]:
@@ -272,21 +263,21 @@ def _relation_facts(words: list[str], sectors: tuple[Sector, ...]) -> list[Fact]
     return out
 
 
-def describe(text: str) -> list[Fact]:
+def facts(text: str) -> list[Fact]:
     """The facts one message states, in order."""
-    facts: list[Fact] = []
+    out: list[Fact] = []
     for chunk in _CHUNK.split(text.lower().replace("n't", " not")):
         words = tokens(chunk)
         if not words:
             continue
         named = tuple(dict.fromkeys(s for _, s in _sectors(words))) or (Sector.ANY,)
-        facts += _relation_facts(words, named)
+        out += _relation_facts(words, named)
         for piece in _pieces(words):
             distance = _distance(piece.words)
-            facts += _label_facts(piece, distance)
+            out += _label_facts(piece, distance)
             own = tuple(dict.fromkeys(s for _, s in piece.sectors)) or (Sector.ANY,)
-            facts += _shape_facts(piece, own)
-    return facts
+            out += _shape_facts(piece, own)
+    return out
 
 
 def turn_steps(text: str) -> int:
@@ -316,10 +307,10 @@ def is_question(text: str) -> bool:
 def question(text: str) -> Question:
     """A Commander's question as the Driver would state its content ("your" read as "my")."""
     mine = " ".join("my" if w == "your" else w for w in re.findall(r"[^\s]+", text.lower()))
-    facts = tuple(replace(f, source=Source.ANSWER) for f in describe(mine))
+    asked = tuple(replace(f, source=Source.ANSWER) for f in facts(mine))
     words = tokens(mine)
     return Question(
-        facts=facts,
+        facts=asked,
         labels=tuple(label for _, label in _labels(words)),
         sectors=tuple(dict.fromkeys(s for _, s in _sectors(words))),
         choice="or" in words,
@@ -335,7 +326,7 @@ def answer(q: Question, text: str) -> list[Fact]:
     words = tokens(text)
     if not words:
         return []
-    own = describe(text)
+    own = facts(text)
     if not q.choice and words[0] in YES and q.facts:
         return [*q.facts, *own]
     if not q.choice and words[0] in NO and q.facts:

@@ -26,7 +26,7 @@ from sim.language.lexicon import (
     Question,
     Source,
     answer,
-    describe,
+    facts,
     is_question,
     question,
     tokens,
@@ -196,7 +196,7 @@ class Belief:
             self.turn(reported)
         elif q is not None and q.turn and not declined:
             self.turn(q.turn)
-        self.observe(answer(q, text) if q is not None else describe(text))
+        self.observe(answer(q, text) if q is not None else facts(text))
 
     def node_logits(self) -> np.ndarray:
         """(N, 8) logits at the weights' sharpness (softmax them for probabilities)."""

@@ -1,7 +1,8 @@
 """The closed vocabularies of the maze dialogs and typo-tolerant word matching.
 
 The words are those the benchmark's Drivers and Commanders use (train split): wall colours, the
-three objects, sides, turn sizes, counts. A misspelt word ("rigth", "yelow") is matched to the
+three objects, sides, turn sizes, counts. Both readers of the dialog use them: the Driver's
+instruction parser (`instructions`) and the localizer's lexicon (`lexicon`). A misspelt word ("rigth", "yelow") is matched to the
 vocabulary word within one edit (two for words of 8 letters or more); common English words are never corrected,
 so "that" stays "that" rather than becoming "what"."""
 
@@ -11,6 +12,7 @@ import re
 from enum import StrEnum
 
 from sim.core.labels import Label
+from sim.tasks.ldh_features import SECTOR_HEADING_OFFSET, Sector
 
 
 class Side(StrEnum):
@@ -20,8 +22,10 @@ class Side(StrEnum):
     BEHIND = "behind"
 
 
-# Heading steps of 45 degrees (counter-clockwise) from the Driver's heading to look at each side.
-SIDE_STEPS = {Side.AHEAD: 0, Side.LEFT: 2, Side.BEHIND: 4, Side.RIGHT: 6}
+# The view sector of each side, and the heading steps of 45 degrees (counter-clockwise) from the
+# Driver's heading to look at it.
+SIDE_SECTOR = {Side.AHEAD: Sector.FRONT, Side.LEFT: Sector.LEFT, Side.BEHIND: Sector.BEHIND, Side.RIGHT: Sector.RIGHT}
+SIDE_STEPS = {side: SECTOR_HEADING_OFFSET[sector] for side, sector in SIDE_SECTOR.items()}
 SIDE_PHRASE = {Side.AHEAD: "ahead", Side.LEFT: "on my left", Side.RIGHT: "on my right", Side.BEHIND: "behind me"}
 
 LABEL_WORDS: dict[str, Label] = {
@@ -35,8 +39,13 @@ LABEL_WORDS: dict[str, Label] = {
     "yellow": Label.YELLOW,
     "white": Label.WHITE,
     "edge": Label.WHITE,
+    "border": Label.WHITE,  # the maze's edge
+    "boundary": Label.WHITE,
+    "grey": Label.WHITE,
+    "gray": Label.WHITE,
     "jar": Label.JAR,
     "blocks": Label.JAR,
+    "cubes": Label.JAR,
     "mug": Label.MUG,
     "cup": Label.MUG,
     "paddle": Label.PADDLE,
@@ -234,6 +243,7 @@ COMMON = frozenset(
         "tune",
         "mouse",
         "house",
+        "order",
     ]
 )
 _WORD = re.compile(r"[a-z0-9]+(?:-[a-z]+)?|[?]")

@@ -15,7 +15,7 @@ from sim.core.labels import Label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
-from sim.language.lexicon import Fact, Kind, Source, answer, describe, question, turn_steps
+from sim.language.lexicon import Fact, Kind, Source, answer, facts, question, turn_steps
 from sim.language.localizer import Belief, Scene
 from sim.tasks.ldh_eval import MazeContext
 from sim.tasks.ldh_features import Sector
@@ -32,74 +32,69 @@ def seen(facts: list[Fact]) -> set[tuple[tuple[Sector, ...], Label, bool]]:
 
 def test_every_direction_word_counts():
     # one label, two directions joined by "and": each holds
-    assert seen(describe("There are blue walls in front and to my left and the edge of the maze to my right")) == {
+    assert seen(facts("There are blue walls in front and to my left and the edge of the maze to my right")) == {
         ((F,), Label.BLUE, False),
         ((L,), Label.BLUE, False),
         ((R,), Label.WHITE, False),
     }
-    assert seen(describe("white on both sides")) == {((L,), Label.WHITE, False), ((R,), Label.WHITE, False)}
-    assert seen(describe("white wall to the left and right")) == {
+    assert seen(facts("white on both sides")) == {((L,), Label.WHITE, False), ((R,), Label.WHITE, False)}
+    assert seen(facts("white wall to the left and right")) == {
         ((L,), Label.WHITE, False),
         ((R,), Label.WHITE, False),
     }
     # two labels, two directions in one clause: paired in order, not the clause's last direction for both
-    assert seen(describe("Brown walls to the left blue to the right")) == {
+    assert seen(facts("Brown walls to the left blue to the right")) == {
         ((L,), Label.BROWN, False),
         ((R,), Label.BLUE, False),
     }
     # two directions for one place: either may hold
-    assert seen(describe("Red wall is up ahead to the left")) == {((F, L), Label.RED, False)}
+    assert seen(facts("Red wall is up ahead to the left")) == {((F, L), Label.RED, False)}
     # a label named twice ("white edge") is one mention
-    assert len(describe("The white edge wall is ahead")) == 1
+    assert len(facts("The white edge wall is ahead")) == 1
 
 
 def test_the_edge_of_the_maze_is_the_tables_border_not_any_white_wall():
     kinds = {
-        f.kind: f
-        for f in describe("I'm facing blue walls, with a white wall on my left and the edge of maze on my right")
+        f.kind: f for f in facts("I'm facing blue walls, with a white wall on my left and the edge of maze on my right")
     }
     assert kinds[Kind.EDGE].sectors == (R,) and kinds[Kind.EDGE].label == Label.WHITE
-    assert ((L,), Label.WHITE, False) in {(f.sectors, f.label, f.negated) for f in describe("white wall to my left")}
-    assert describe("the end of the maze which is white")[0].kind == Kind.EDGE
+    assert ((L,), Label.WHITE, False) in {(f.sectors, f.label, f.negated) for f in facts("white wall to my left")}
+    assert facts("the end of the maze which is white")[0].kind == Kind.EDGE
 
 
 def test_near_and_far():
-    (near,) = describe("To my immediate left i see a red wall")
-    (far,) = describe("blue far ahead")
+    (near,) = facts("To my immediate left i see a red wall")
+    (far,) = facts("blue far ahead")
     assert (near.sectors, near.label, near.distance.value) == ((L,), Label.RED, "near")
     assert (far.sectors, far.label, far.distance.value) == ((F,), Label.BLUE, "far")
 
 
 def test_negation():
-    facts = describe("i dont see a opening with yellow on right and white on left")
-    assert ((R,), Label.YELLOW, True) in seen(facts)
-    assert any(f.kind == Kind.CORRIDOR and f.negated for f in facts)
+    got = facts("i dont see a opening with yellow on right and white on left")
+    assert ((R,), Label.YELLOW, True) in seen(got)
+    assert any(f.kind == Kind.CORRIDOR and f.negated for f in got)
     # an answering "no" before a statement negates nothing
-    facts = describe("no there is a red dead end")
-    assert seen(facts) == {((ANY,), Label.RED, False)}
-    assert [f.kind for f in facts if f.kind != Kind.LABEL] == [Kind.DEAD_END]
-    assert seen(describe("no red wall")) == {((ANY,), Label.RED, True)}
+    got = facts("no there is a red dead end")
+    assert seen(got) == {((ANY,), Label.RED, False)}
+    assert [f.kind for f in got if f.kind != Kind.LABEL] == [Kind.DEAD_END]
+    assert seen(facts("no red wall")) == {((ANY,), Label.RED, True)}
 
 
 def test_relations_and_shapes():
-    facts = describe("a yellow wall directly in front of me and a red wall next to it")
-    assert [(f.label, f.other) for f in facts if f.kind == Kind.NEXT_TO] == [(Label.YELLOW, Label.RED)]
-    facts = describe("i am now facing the red and yellow corner")
-    assert {(f.kind, f.label, f.other) for f in facts if f.kind != Kind.LABEL} == {
+    got = facts("a yellow wall directly in front of me and a red wall next to it")
+    assert [(f.label, f.other) for f in got if f.kind == Kind.NEXT_TO] == [(Label.YELLOW, Label.RED)]
+    got = facts("i am now facing the red and yellow corner")
+    assert {(f.kind, f.label, f.other) for f in got if f.kind != Kind.LABEL} == {
         (Kind.NEXT_TO, Label.RED, Label.YELLOW),
         (Kind.CORNER, None, None),
     }
-    facts = describe("I see a gap between a blue and white wall with a brown wall at the end of it")
-    assert (Kind.NEXT_TO, Label.BLUE, Label.WHITE) in {(f.kind, f.label, f.other) for f in facts}
-    assert any(f.kind == Kind.CORRIDOR for f in facts)
-    assert ((ANY,), Label.BROWN, False) in seen(facts)
-    corridor = [
-        f for f in describe("my left is a long corridor with a brown wall at the end") if f.kind == Kind.CORRIDOR
-    ]
+    got = facts("I see a gap between a blue and white wall with a brown wall at the end of it")
+    assert (Kind.NEXT_TO, Label.BLUE, Label.WHITE) in {(f.kind, f.label, f.other) for f in got}
+    assert any(f.kind == Kind.CORRIDOR for f in got)
+    assert ((ANY,), Label.BROWN, False) in seen(got)
+    corridor = [f for f in facts("my left is a long corridor with a brown wall at the end") if f.kind == Kind.CORRIDOR]
     assert [f.sectors for f in corridor] == [(L,)]
-    assert [f.kind for f in describe("yellow wall to my left and white dead end in front of me")].count(
-        Kind.DEAD_END
-    ) == 1
+    assert [f.kind for f in facts("yellow wall to my left and white dead end in front of me")].count(Kind.DEAD_END) == 1
 
 
 def test_yes_and_no_answers_to_the_commanders_questions():

@@ -1,0 +1,332 @@
+"""A Commander that takes part in the dialog from what a person in its seat has: the map with the
+landmarks, the next target's name, the chat and the claim frames. It never has the true pose, the
+Driver's camera stream or its moves.
+
+Localization: a belief over (node, heading) (`sim.language.localizer.Belief`) read from the
+Driver's words after every message; the instructions it gave, as the Driver's parser reads them
+(`sim.language.instructions`), move the belief when the Driver reports carrying them out (in
+full when the report says done, anywhere along the way when it says it could not). It asks the
+question whose yes / no best halves its belief and marks its estimate on the map once the belief
+has settled, marking it again as the estimate moves. Guidance: the fewest-moves route from its
+estimate (`sim.agents.route`), one instruction at a time, each after the Driver's report; where
+the belief spreads out again it stops guiding and asks. Claims: the claim frame's rays decide
+(the target in view and within reach); a rejected frame is evidence of where the robot is."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from sim.agents.route import Router
+from sim.agents.turns import (
+    Claimed,
+    DoJudge,
+    DoLocalize,
+    DoSay,
+    Heard,
+    Judged,
+    Percept,
+    Phase,
+    PhaseChanged,
+    SeatInfo,
+    Speaker,
+    Turn,
+)
+from sim.core.dynamics import Pose
+from sim.core.geometry import HEADINGS, heading_angle
+from sim.core.labels import OBJECT_LABELS, Label, object_label
+from sim.core.maze import Maze
+from sim.core.navgraph import NavGraph
+from sim.core.observations import RayTable
+from sim.language import instructions as ins
+from sim.language import lexicon
+from sim.language.describe import near, wall_close, within_reach
+from sim.language.localizer import Belief, Scene
+from sim.language.phrases import Kind, Phrases, Phrasing
+from sim.language.vocab import OBJECT_WORDS, SIDE_SECTOR, Side, wall_name
+from sim.robot.perception import RayObservation
+from sim.tasks.ldh_features import Sector
+
+SETTLED_M = 0.3  # expected TD of the estimate under the belief: settled enough to mark and guide
+LOST_M = 0.6  # ... spread this far again while guiding: stop and ask
+MAX_QUESTIONS = 6  # questions before marking the estimate anyway (and, while guiding, per stop)
+SURE, SURE_M = 0.95, 0.25  # without a claim frame: confirm this much belief this close to the target
+REVISE_M = 0.3  # mark the estimate again when it moved this far from the last mark
+MAX_WALK = 60  # the Driver's own cap on a walk "until"
+DEPTH_SCALE_M = 0.15  # a claim frame's ray this far off the map's depth counts as a wrong label
+VIEW_WEIGHT = 1.0
+ELSEWHERE = 1e-3  # after each instruction, the chance the belief lost the robot
+BLOCKED_PENALTY = 5.0  # log-likelihood against a pose whose way forward is free, when told it is not
+UNSEEN_PENALTY = 3.0  # ... against a pose with the target in reach, when the Driver speaks without claiming
+LOST_AFTER = 2  # instructions in a row not carried out: stop guiding and ask  # log-likelihood per mismatching ray of a claim frame
+# A report of an instruction not carried out in full: the Driver stopped somewhere along the way.
+_STUCK = ("hit", "cannot", "can only", "could not", "do not", "not the one", "no opening", "still", "not turned")
+_BLOCKED = ("hit a wall", "can only go", "wall is in my way")
+_SECTOR = {sector: side for side, sector in SIDE_SECTOR.items()}
+_YOUR_SIDE = {
+    Side.AHEAD: "ahead of you",
+    Side.LEFT: "on your left",
+    Side.BEHIND: "behind you",
+    Side.RIGHT: "on your right",
+}
+LOOK_AROUND = "look around and tell me what you see"
+
+
+@dataclass(frozen=True)
+class Estimate:
+    pose: Pose
+    x: float
+    y: float
+    spread_m: float  # the belief's expected TD from the estimate's node
+
+
+class DialogCommander:
+    """The Commander's seat agent (`sim.agents.turns.Agent`) on one maze; deterministic given `seed`."""
+
+    def __init__(self, maze: Maze, seed: int = 0, cache_dir: str | Path | None = None) -> None:
+        self.maze = maze
+        self.graph = NavGraph.build(maze, "benchmark", cache_dir=cache_dir)
+        rays = RayTable.build(maze, self.graph, cache_dir=cache_dir)
+        self.rays = rays
+        self.scene = Scene.from_rays(rays.labels, rays.depth, self.graph.nodes)
+        self.phrases = Phrases(Phrasing.SCRIPTED, seed)
+        self.router = Router(self.graph, rays, self.phrases)
+        reach = np.isfinite(self.graph.dist)
+        self.main = reach[int(reach.sum(axis=1).argmax())]
+        self._dist = np.where(np.isfinite(self.graph.dist), self.graph.dist, 1e3)
+        self._seen = (self.scene.near + self.scene.far) > 0  # (N, 8, 4, labels): "is there ...?" yes
+        # Where a walk "until the wall" / "until you see the mug" stops, by the Driver's rules.
+        every = np.ones(rays.labels.shape, dtype=bool)
+        blocked = np.asarray(rays.forward_blocked, dtype=bool)
+        self._at_wall = blocked | wall_close(rays.labels, rays.depth, every)
+        self._reach = {label: within_reach(rays.labels, rays.depth, every, label) for label in OBJECT_LABELS}
+        self._near = {label: blocked | self._reach[label] for label in OBJECT_LABELS}
+        self.reset(SeatInfo(Speaker.COMMANDER, 0))
+
+    def reset(self, info: SeatInfo) -> None:
+        self.belief = Belief(self.scene, self.main)
+        self._phase = Phase.WAITING
+        self._target: str | None = None
+        self._pending: ins.Parsed | None = None  # the instruction out, not yet reported on
+        self._questions = 0  # asked since the belief last settled
+        self._asked: set[tuple[Sector, Label]] = set()  # at this stop
+        self._marked: tuple[float, float] | None = None
+        self._plain = False
+        self._looking = False  # the last question asked the Driver to look all around
+        self._stuck = 0  # reports in a row of instructions not carried out
+
+    # -- percepts -------------------------------------------------------------------------------
+
+    def perceive(self, percept: Percept) -> list[Turn]:
+        if isinstance(percept, PhaseChanged):
+            return self._phase_changed(percept)
+        if isinstance(percept, Heard):
+            return self._heard(percept.text) if percept.speaker == Speaker.DRIVER else []
+        if isinstance(percept, Claimed):
+            return self._claimed(percept)
+        if isinstance(percept, Judged):
+            return []  # its own verdict
+        return []  # Saw and Moved are the Driver seat's; a Commander never gets them
+
+    def _phase_changed(self, change: PhaseChanged) -> list[Turn]:
+        self._phase = change.phase
+        if change.phase == Phase.LOCALIZING:
+            return self._say(self.phrases.say(Kind.ASK_VIEW))
+        if change.phase == Phase.NAVIGATING and change.target is not None:
+            self._target = change.target
+            announce = self.phrases.say(Kind.ANNOUNCE, thing=OBJECT_WORDS[object_label(change.target)])
+            return self._guide(prefix=announce)
+        return []
+
+    def _heard(self, text: str) -> list[Turn]:
+        lowered = text.lower()
+        if "found" in lowered:
+            return []  # a claim is on its way
+        stuck = any(w in lowered for w in _STUCK)
+        if self._pending is not None:
+            self._move(self._pending, whole=not stuck)
+            self._plain = stuck
+            self._stuck = self._stuck + 1 if stuck else 0
+            self._pending = None
+            # A report after moving names what is ahead; its sides are the edges of the view ahead, not
+            # the views to the left and right the belief's sectors are: only what is ahead counts.
+            self.belief.observe(f for f in lexicon.facts(text) if set(f.sectors) <= {Sector.FRONT, Sector.ANY})
+        else:
+            self.belief.message("navigator", text)
+            if self._looking:  # an object in view would have been named: those not named are not in view
+                named = {f.label for f in lexicon.facts(text)}
+                self.belief.observe(
+                    lexicon.Fact(lexicon.Kind.LABEL, (Sector.ANY,), label, negated=True)
+                    for label in OBJECT_LABELS
+                    if label not in named
+                )
+        self._looking = False
+        if self._phase == Phase.NAVIGATING and self._target is not None:
+            # A Driver told its target claims when it sees it within reach: it does not, so it is not.
+            self.belief.log = self.belief.log - np.where(self._reach[object_label(self._target)], UNSEEN_PENALTY, 0.0)
+        if any(w in lowered for w in _BLOCKED):  # its way forward is barred where it stands
+            self.belief.log = self.belief.log - np.where(self.graph.forward < 0, 0.0, BLOCKED_PENALTY)
+        estimate = self.estimate()
+        if self._phase == Phase.LOCALIZING:
+            if estimate.spread_m <= SETTLED_M or self._questions >= MAX_QUESTIONS:
+                return self._mark(estimate)
+            return self._ask()
+        if self._phase != Phase.NAVIGATING or self._target is None:
+            return []
+        turns = self._revise(estimate)
+        if (estimate.spread_m > LOST_M or self._stuck >= LOST_AFTER) and self._questions < MAX_QUESTIONS:
+            self._stuck = 0
+            return turns + self._ask()
+        return turns + self._guide()
+
+    def _claimed(self, claim: Claimed) -> list[Turn]:
+        if self._pending is not None:
+            self._move(self._pending, whole=False)  # the claim cut the instruction short somewhere
+            self._pending = None
+        if self._target is None:
+            return [DoJudge(False)]
+        if claim.rays is None:  # no frame to judge from: the belief must be sure
+            return [DoJudge(self._mass_near(self.maze.objects[self._target]) >= SURE)]
+        self._observe_view(claim.rays)
+        return [DoJudge(near(claim.rays, object_label(self._target)))]
+
+    # -- belief ---------------------------------------------------------------------------------
+
+    def _mass_near(self, xy: tuple[float, float]) -> float:
+        log = self.belief.node_logits()
+        p = np.exp(log - log.max()).sum(axis=1)
+        close = np.hypot(*(self.graph.nodes - xy).T) <= SURE_M
+        return float(p[close].sum() / p.sum())
+
+    def estimate(self) -> Estimate:
+        """The node with the least expected TD under the belief, facing its likeliest heading."""
+        log = self.belief.node_logits()
+        p = np.exp(log - log.max()) if np.isfinite(log).any() else np.ones_like(log) * self.main[:, None]
+        p = p / p.sum()
+        node_p = p.sum(axis=1)
+        expected = self._dist @ node_p
+        expected[~self.main] = np.inf
+        node = int(expected.argmin())
+        heading = int(p[node].argmax())
+        x, y = self.graph.nodes[node]
+        return Estimate(Pose(node, heading), float(x), float(y), float(expected[node]))
+
+    def _move(self, said: ins.Parsed, whole: bool) -> None:
+        """Carry the belief through the moves `said` asks for: to where they end (`whole`), or to
+        any pose along the way, each as likely."""
+        log = self.belief.log
+        along = [log]
+        for item in said.instructions:
+            for step in self._steps(item):
+                log = self._shift(log, step)
+                along.append(log)
+        moved = log if whole else np.logaddexp.reduce(np.stack(along), axis=0)
+        moved = moved - np.logaddexp.reduce(moved, axis=None)  # normalised, to mix with the rest
+        # The robot may be anywhere else: a belief sure of a wrong place can still be talked out of it.
+        anywhere = np.where(self.main[:, None], math.log(ELSEWHERE / self.main.sum() / HEADINGS), -np.inf)
+        self.belief.log = np.logaddexp(moved + math.log(1 - ELSEWHERE), anywhere)
+
+    def _steps(self, item: ins.Instruction) -> list[np.ndarray | int]:
+        """An instruction as per-pose transitions: an int turns by that many eighths, an (N, 8)
+        mask walks one step forward wherever it is False (and the way is free)."""
+        if isinstance(item, ins.Turn):
+            return [item.eighths]
+        if isinstance(item, ins.Forward):
+            if item.steps is not None:
+                return [np.zeros_like(self._at_wall)] * item.steps
+            stop = self._near[item.until] if item.until in OBJECT_LABELS else self._at_wall
+            return [stop] * MAX_WALK
+        return []
+
+    def _shift(self, log: np.ndarray, step: np.ndarray | int) -> np.ndarray:
+        if isinstance(step, int):
+            return np.roll(log, step, axis=1)
+        forward = self.graph.forward
+        moves = ~step & (forward >= 0)
+        nodes = np.where(moves, forward, np.arange(self.graph.n)[:, None])
+        heads = np.broadcast_to(np.arange(HEADINGS), log.shape)
+        out = np.full_like(log, -np.inf)
+        np.logaddexp.at(out, (nodes, heads), log)
+        return out
+
+    def _observe_view(self, obs: RayObservation) -> None:
+        """A frame's rays against what every pose sees on the map: a ray of another label, or a
+        depth well off, counts against the pose."""
+        valid = obs.valid
+        wrong = (self.rays.labels[..., valid] != obs.labels[valid]).astype(np.float64)
+        off = np.minimum(np.abs(self.rays.depth[..., valid] - obs.depth[valid]) / DEPTH_SCALE_M, 1.0)
+        self.belief.log = self.belief.log - VIEW_WEIGHT * np.maximum(wrong, off).sum(axis=-1)
+
+    # -- turns ----------------------------------------------------------------------------------
+
+    def _say(self, text: str) -> list[Turn]:
+        """Say `text`; a question is read by the belief with the answer to it."""
+        self.belief.message("oracle", text)
+        parsed = ins.parse(text)
+        self._looking = any(isinstance(i, ins.Ask) and i.look_around for i in parsed.instructions)
+        self._pending = parsed if parsed.moves else None
+        return [DoSay(text)]
+
+    def _mark(self, estimate: Estimate) -> list[Turn]:
+        self._questions = 0
+        self._asked.clear()
+        self._marked = (estimate.x, estimate.y)
+        return [DoLocalize(estimate.x, estimate.y, float(heading_angle(estimate.pose.heading)))]
+
+    def _revise(self, estimate: Estimate) -> list[Turn]:
+        if self._marked is None or math.dist(self._marked, (estimate.x, estimate.y)) < REVISE_M:
+            return []
+        if estimate.spread_m > SETTLED_M:
+            return []
+        return self._mark(estimate)
+
+    def _ask(self) -> list[Turn]:
+        """The yes / no question that best halves the belief; first, a look around."""
+        self._questions += 1
+        if self._phase == Phase.NAVIGATING and not self._asked:
+            self._asked.add((Sector.ANY, Label.FLOOR))  # the look around, at this stop
+            return self._say(f"stop there. {LOOK_AROUND}?")
+        log = self.belief.node_logits()
+        p = np.exp(log - log.max())
+        p = p / p.sum()
+        yes = np.einsum("nh,nhsl->sl", p, self._seen)  # (4 sectors, labels)
+        best, best_split = None, -1.0
+        for sector in (Sector.FRONT, Sector.LEFT, Sector.RIGHT, Sector.BEHIND):
+            for label in Label:
+                if label == Label.FLOOR or (sector, label) in self._asked:
+                    continue
+                split = min(float(yes[sector, label]), 1.0 - float(yes[sector, label]))
+                if split > best_split:
+                    best, best_split = (sector, label), split
+        if best is None or best_split < 0.02:
+            self._questions = MAX_QUESTIONS
+            return self._mark(self.estimate()) if self._phase == Phase.LOCALIZING else self._guide()
+        self._asked.add(best)
+        sector, label = best
+        return self._say(f"is there a {wall_name(label)} {_YOUR_SIDE[_SECTOR[sector]]}?")
+
+    def _guide(self, prefix: str | None = None) -> list[Turn]:
+        """The next instruction from the estimate, towards the target."""
+        assert self._target is not None
+        self._questions = 0
+        self._asked.clear()
+        estimate = self.estimate()
+        label = object_label(self._target)
+        # The goal: the nearest place from which the target is in view within reach.
+        reach = self._reach[label]
+        places = np.flatnonzero(reach.any(axis=1))
+        goal = int(places[self._dist[estimate.pose.node, places].argmin()])
+        if estimate.pose.node == goal:
+            # There: face the target and go up to it; the Driver claims once it sees it within reach.
+            eighths = min(
+                ((int(h) - estimate.pose.heading + 4) % HEADINGS - 4 for h in np.flatnonzero(reach[goal])), key=abs
+            )
+            turn = self.phrases.turn(eighths)
+            until = self.phrases.say(Kind.UNTIL_TARGET, thing=OBJECT_WORDS[label])
+            text = f"{turn}, then {until}" if turn else until
+        else:
+            text = self.router.instruction(estimate.pose, label, goal, plain=self._plain)
+        return self._say(f"{prefix}. {text}" if prefix else text)

@@ -1,0 +1,128 @@
+"""A Commander's next instruction from a pose on the map: the fewest-moves route to the target,
+cut at its first straight run and said in the Commander's phrasing.
+
+Both Commanders use it: the oracle from the true pose, the dialog Commander from its estimate.
+It reads the map only (graph and the views each pose has), never the Driver's camera."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sim.agents.sight import pose_rays
+from sim.core.dynamics import Action, Pose, step
+from sim.core.geometry import HEADINGS
+from sim.core.labels import Label
+from sim.core.navgraph import NavGraph
+from sim.core.observations import RayTable
+from sim.language.describe import ahead, at_wall, near, seen
+from sim.language.phrases import Kind, Phrases
+from sim.language.vocab import OBJECT_WORDS, wall_name
+from sim.robot.perception import RayObservation
+
+MAX_PLAN = 400
+
+
+class Router:
+    """Plans on one maze's graph; the moves-to-go table of each goal is computed once."""
+
+    def __init__(self, graph: NavGraph, rays: RayTable, phrases: Phrases) -> None:
+        self.graph, self.rays, self.phrases = graph, rays, phrases
+        self._costs: dict[int, np.ndarray] = {}
+
+    def view(self, pose: Pose) -> RayObservation:
+        """What the map says a Driver at `pose` sees."""
+        return pose_rays(self.rays, pose)
+
+    def instruction(self, pose: Pose, label: Label, goal: int, plain: bool) -> str:
+        """The next instruction from `pose` towards the object `label` at node `goal`; `plain` (the
+        Driver asked) counts steps. It picks "at the red wall" or "until you see the mug" only where
+        a Driver stopping at the first close wall (or the object in reach) would stop where the path
+        turns; elsewhere it counts the steps."""
+        thing = OBJECT_WORDS[label]
+        actions, poses = self.plan(pose, goal)
+        k = 0
+        eighths = 0
+        while k < len(actions) and actions[k] != Action.FORWARD:
+            eighths += 1 if actions[k] == Action.LEFT else -1
+            k += 1
+        turn = self.phrases.turn(eighths)
+        start = k
+        while k < len(actions) and actions[k] == Action.FORWARD:
+            k += 1
+        run = k - start
+        if run == 0:
+            return turn or self.phrases.say(Kind.THERE, thing=thing)
+        words = [turn] if turn else []
+        if k == len(actions) and not plain and self._walk_ends(poses[start], label) == run:
+            return ", ".join([*words, self.phrases.say(Kind.UNTIL_TARGET, thing=thing)])
+        after = 0
+        while k < len(actions) and actions[k] != Action.FORWARD:
+            after += 1 if actions[k] == Action.LEFT else -1
+            k += 1
+        next_turn = self.phrases.turn(after)
+        wall = self._walk_ends(poses[start], None)
+        if next_turn and not plain and wall == run:
+            front = self._ahead_label(poses[start + run])
+            if front is not None and any(s.label == front for s in seen(self.view(poses[start]))):
+                return ", then ".join(
+                    [*words, self.phrases.say(Kind.TURN_AT_WALL, turn=next_turn, wall=wall_name(front))]
+                )
+        if next_turn:
+            return ", then ".join([*words, self.phrases.say(Kind.FORWARD_THEN_TURN, n=run, turn=next_turn)])
+        return ", then ".join([*words, self.phrases.say(Kind.FORWARD, n=run)])
+
+    def plan(self, start: Pose, goal: int) -> tuple[list[Action], list[Pose]]:
+        """Fewest moves (turns count) to the goal node, forward first among equals: straight runs
+        a Commander can name, where the teacher's next-hop path zig-zags at a turn per step."""
+        cost = self.moves_to_go(goal)
+        pose, actions, poses = start, [], [start]
+        while cost[pose.node, pose.heading] > 0:
+            for action in (Action.FORWARD, Action.LEFT, Action.RIGHT):
+                after, collided = step(self.graph, pose, action)
+                if not collided and cost[after.node, after.heading] == cost[pose.node, pose.heading] - 1:
+                    break
+            else:
+                break  # the goal is out of reach from here
+            pose = after
+            actions.append(action)
+            poses.append(pose)
+        return actions, poses
+
+    def moves_to_go(self, goal: int) -> np.ndarray:
+        """(N, 8) moves from each pose to the goal node, by a breadth-first search backwards."""
+        if goal in self._costs:
+            return self._costs[goal]
+        n = self.graph.n
+        cost = np.full((n, HEADINGS), -1, dtype=np.int64)
+        cost[goal] = 0
+        frontier = [(goal, h) for h in range(HEADINGS)]
+        came_from = [[np.flatnonzero(self.graph.forward[:, h] == m) for h in range(HEADINGS)] for m in range(n)]
+        while frontier:
+            nxt = []
+            for node, h in frontier:
+                c = cost[node, h] + 1
+                before = [(node, (h - 1) % HEADINGS), (node, (h + 1) % HEADINGS)]
+                before += [(int(m), h) for m in came_from[node][h]]
+                for m, hh in before:
+                    if cost[m, hh] < 0:
+                        cost[m, hh] = c
+                        nxt.append((m, hh))
+            frontier = nxt
+        cost[cost < 0] = np.iinfo(np.int64).max // 2  # unreachable
+        self._costs[goal] = cost
+        return cost
+
+    def _ahead_label(self, pose: Pose) -> Label | None:
+        front = ahead(self.view(pose))
+        return front.label if front is not None else None
+
+    def _walk_ends(self, pose: Pose, target: Label | None) -> int | None:
+        """How many forward moves a Driver walking "until the wall" (or the target) makes from `pose`."""
+        for moves in range(MAX_PLAN):
+            obs = self.view(pose)
+            if (near(obs, target) or obs.forward_blocked) if target is not None else at_wall(obs):
+                return moves
+            pose, collided = step(self.graph, pose, Action.FORWARD)
+            if collided:
+                return None
+        return None

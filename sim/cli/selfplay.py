@@ -1,0 +1,70 @@
+"""`robotslang eval selfplay`: whole trials with agents in both seats, offline (`sim.agents.selfplay`)."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import typer
+
+from sim.agents.selfplay import CommanderName, DriverName
+from sim.cli.eval import open_benchmark
+from sim.tasks.benchmark import Split
+
+
+def eval_selfplay(
+    benchmark: Path | None = typer.Option(
+        None,
+        "--benchmark",
+        help="A RobotSlangBenchmark clone: one trial per maze of --split from its recorded start. "
+        "Without it: the library's bundled mazes, from starts drawn from --seed.",
+    ),
+    split: Split = typer.Option(Split.VAL_SEEN, help="The benchmark's split (develop on val_seen)."),
+    commander: CommanderName = typer.Option(
+        CommanderName.DIALOG, help="The Commander's seat: dialog, or oracle (cheats: the true pose)."
+    ),
+    driver: DriverName = typer.Option(
+        DriverName.DIALOG, help="The Driver's seat: dialog, or oracle (cheats: answers from its true view)."
+    ),
+    limit: int | None = typer.Option(None, min=1, help="Only the first N trials."),
+    processes: int = typer.Option(2, min=1, help="Trials in parallel processes."),
+    seed: int = typer.Option(0, help="Bundled mazes: the seed of the starts."),
+    per_trial: Path | None = typer.Option(None, help="Write one JSON line per trial (its figures and dialog)."),
+    as_json: bool = typer.Option(False, "--json", help="Print the figures as one JSON object."),
+) -> None:
+    """Play whole trials (localize, three targets in order, claims judged) with agents in both seats
+    and print trials, completed, targets_confirmed_mean, moves_ratio, messages_mean,
+    first_estimate_td_m, false_confirmations and seconds_per_trial.
+
+    The trials run on the offline runner (the trial core's rules on the simulator's graph, no
+    server or event log): they are not recorded as trials."""
+    from tqdm import tqdm
+
+    from sim.agents.selfplay import Job, benchmark_trials, iter_results, library_trials, row, run_job, summarize
+
+    if benchmark is not None:
+        bench = open_benchmark(benchmark)
+        root = str(bench.root)
+        specs = benchmark_trials(bench, split.value)
+    else:
+        from sim.core.navgraph import NavGraph
+        from sim.tasks.library import BUNDLED_DIR, MazeLibrary
+
+        root = None
+        library = MazeLibrary(bundled=BUNDLED_DIR)
+        mazes = [(name, library.load(name)) for name in library.names()[:limit]]
+        specs = library_trials(mazes, [NavGraph.build(m, "benchmark") for _, m in mazes], seed)
+    jobs = [Job(spec, commander, driver, root) for spec in specs[:limit]]
+    results = list(
+        tqdm(
+            iter_results(jobs, run_job, processes),
+            total=len(jobs),
+            desc=f"self-play {commander}/{driver}",
+            file=sys.stderr,
+        )
+    )
+    if per_trial is not None:
+        per_trial.parent.mkdir(parents=True, exist_ok=True)
+        per_trial.write_text("".join(json.dumps(row(r)) + "\n" for r in results))
+    typer.echo(json.dumps(summarize(results), indent=None if as_json else 2))

@@ -1,0 +1,149 @@
+"""The dialog Commander on a bundled maze: its belief settles on where the Driver is from the
+Driver's words, it asks questions that split its belief, it judges claims from the claim frame,
+and it never gets a pose, the Driver's frames or its moves."""
+
+import inspect
+import math
+
+import numpy as np
+import pytest
+
+from sim.agents.dialog_commander import DialogCommander
+from sim.agents.dialog_driver import DialogDriver
+from sim.agents.oracle_driver import OracleDriver
+from sim.agents.selfplay import TrialSpec, play
+from sim.agents.sight import pose_rays
+from sim.agents.turns import (
+    Claimed,
+    DoJudge,
+    DoLocalize,
+    DoSay,
+    Heard,
+    Judged,
+    Move,
+    Moved,
+    Outcome,
+    Percept,
+    Phase,
+    PhaseChanged,
+    Saw,
+    SeatInfo,
+    Speaker,
+)
+from sim.core.dynamics import Pose
+from sim.core.geometry import SUCCESS_RADIUS_M
+from sim.core.labels import Label
+from sim.core.maze import Maze
+from sim.core.navgraph import NavGraph
+from sim.core.observations import RayTable
+from sim.language import instructions as ins
+from sim.language.describe import near, seen
+from sim.language.vocab import SIDE_STEPS
+from sim.robot.perception import RayObservation
+from sim.tasks.library import BUNDLED_DIR
+
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory):
+    cache = tmp_path_factory.mktemp("cache")
+    maze = Maze.from_dir(BUNDLED_DIR / "gen-000", cache_dir=cache)
+    graph = NavGraph.build(maze, "benchmark", cache_dir=cache)
+    return maze, graph, RayTable.build(maze, graph, cache_dir=cache), cache
+
+
+def _commander(world) -> DialogCommander:
+    maze, _, _, cache = world
+    commander = DialogCommander(maze, cache_dir=cache)
+    commander.reset(SeatInfo(Speaker.COMMANDER, 3))
+    return commander
+
+
+def _localize(world, commander, start: Pose) -> tuple[DoLocalize | None, list[str]]:
+    """The localization exchange with a Driver that answers from its true view (it stays put)."""
+    _, _, rays, _ = world
+    driver = OracleDriver(rays)
+    driver.reset(SeatInfo(Speaker.DRIVER, 3))
+    driver.pose = start
+    driver.perceive(PhaseChanged(Phase.LOCALIZING, None, 3))
+    driver.perceive(Saw(0, pose_rays(rays, start)))
+    said = []
+    turns = commander.perceive(PhaseChanged(Phase.LOCALIZING, None, 3))
+    for _ in range(12):
+        mark = next((t for t in turns if isinstance(t, DoLocalize)), None)
+        if mark is not None:
+            return mark, said
+        question = next(t for t in turns if isinstance(t, DoSay))
+        said.append(question.text)
+        answer = next(t for t in driver.perceive(Heard(Speaker.COMMANDER, question.text)) if isinstance(t, DoSay))
+        turns = commander.perceive(Heard(Speaker.DRIVER, answer.text))
+    return None, said
+
+
+@pytest.mark.parametrize("node_xy, heading", [((0.5, 0.5), 0), ((1.5, 1.2), 3), ((0.3, 1.6), 6)])
+def test_its_belief_settles_where_the_driver_is(world, node_xy, heading):
+    _, graph, _, _ = world
+    start = Pose(graph.nearest_node(*node_xy), heading)
+    mark, said = _localize(world, _commander(world), start)
+    assert mark is not None, said
+    assert graph.topological_distance((mark.x, mark.y), graph.nodes[start.node]) <= 0.5, said
+
+
+def test_it_asks_the_question_that_splits_its_belief(world):
+    _, graph, rays, _ = world
+    commander = _commander(world)
+    commander.perceive(PhaseChanged(Phase.LOCALIZING, None, 3))
+    turns = commander.perceive(Heard(Speaker.DRIVER, "i see a white wall"))  # true almost anywhere
+    question = next(t for t in turns if isinstance(t, DoSay)).text
+    asked = ins.parse(question).instructions[0]
+    assert isinstance(asked, ins.Ask) and asked.question == ins.Question.IS_THERE, question
+    assert asked.label is not None and asked.side is not None
+    log = commander.belief.node_logits()
+    p = np.exp(log - log.max())
+    p /= p.sum()
+    yes = sum(
+        p[n, h]
+        for n, h in zip(*np.nonzero(p > 1e-6), strict=True)
+        if any(
+            s.label == asked.label for s in seen(pose_rays(rays, Pose(int(n), (int(h) + SIDE_STEPS[asked.side]) % 8)))
+        )
+    )
+    assert 0.25 <= yes <= 0.75, (question, yes)
+
+
+def test_it_confirms_a_claim_from_a_frame_near_the_target_and_rejects_a_far_one(world):
+    maze, graph, rays, _ = world
+    jar = maze.objects["jar"]
+    poses = [Pose(n, h) for n in range(graph.n) for h in range(8)]
+    at_it = next(p for p in poses if near(pose_rays(rays, p), Label.JAR))
+    far = next(p for p in poses if math.dist(graph.nodes[p.node], jar) > 1.0)
+    assert math.dist(graph.nodes[at_it.node], jar) <= SUCCESS_RADIUS_M
+    for pose, confirmed in ((at_it, True), (far, False)):
+        commander = _commander(world)
+        commander.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3, target="jar"))
+        verdicts = [t for t in commander.perceive(Claimed(0, pose_rays(rays, pose))) if isinstance(t, DoJudge)]
+        assert verdicts == [DoJudge(confirmed)]
+
+
+def test_its_inputs_hold_no_pose_frames_or_moves(world):
+    maze, graph, rays, _ = world
+    assert list(inspect.signature(DialogCommander).parameters) == ["maze", "seed", "cache_dir"]
+    assert not hasattr(_commander(world), "pose")
+    commander = _commander(world)
+    commander.perceive(PhaseChanged(Phase.LOCALIZING, None, 3))
+    before = commander.belief.log.copy()
+    assert commander.perceive(Saw(1, pose_rays(rays, Pose(0, 0)))) == []
+    assert commander.perceive(Moved(Move.FORWARD, Outcome.OK)) == []
+    assert np.array_equal(commander.belief.log, before)  # nothing of them reaches the belief
+
+    class Recording(DialogCommander):
+        def perceive(self, percept: Percept):
+            got.append(percept)
+            return super().perceive(percept)
+
+    got: list[Percept] = []
+    start = Pose(graph.nearest_node(0.5, 0.5), 0)
+    targets = tuple((t, maze.objects[t]) for t in ("jar", "mug", "paddle"))
+    result = play(Recording(maze, 0, world[3]), DialogDriver(0), graph, rays, TrialSpec("gen-000", start, targets, 0))
+    assert result.moves > 0 and got
+    assert {type(p) for p in got} <= {Heard, PhaseChanged, Claimed, Judged}
+    assert all(isinstance(p.rays, RayObservation) for p in got if isinstance(p, Claimed))

@@ -1,0 +1,56 @@
+"""`robotslang eval selfplay` on the bundled mazes (no benchmark): whole trials with the project's
+agents in both seats, in parallel processes, printing the figures as JSON."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+KEYS = [
+    "trials",
+    "completed",
+    "targets_confirmed_mean",
+    "moves_ratio",
+    "messages_mean",
+    "first_estimate_td_m",
+    "false_confirmations",
+    "seconds_per_trial",
+]
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _selfplay(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    env = {k: v for k, v in os.environ.items() if k != "ROBOTSLANG_BENCHMARK"}
+    env["PYTHONPATH"] = str(ROOT)
+    return subprocess.run(
+        [sys.executable, "-m", "app.cli", "eval", "selfplay", *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        env=env,
+        timeout=300,
+    )
+
+
+def test_selfplay_on_bundled_mazes_completes_the_trials(tmp_path):
+    per_trial = tmp_path / "trials.jsonl"
+    result = _selfplay("--limit", "2", "--processes", "2", "--json", "--per-trial", str(per_trial), cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    figures = json.loads(result.stdout)
+    assert list(figures) == KEYS
+    assert figures["trials"] == 2 and figures["completed"] == 1.0 and figures["targets_confirmed_mean"] == 3.0
+    assert figures["false_confirmations"] == 0 and figures["first_estimate_td_m"] <= 0.5
+    rows = [json.loads(line) for line in per_trial.read_text().splitlines()]
+    assert [r["maze"] for r in rows] == ["gen-000", "gen-001"]
+    assert all(r["completed"] and r["dialog"][0][0] == "commander" for r in rows)
+
+
+def test_selfplay_with_the_cheating_driver_and_a_bad_benchmark(tmp_path):
+    result = _selfplay("--limit", "1", "--processes", "1", "--driver", "oracle", "--json", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["trials"] == 1
+    bad = _selfplay("--benchmark", str(tmp_path), "--json", cwd=tmp_path)
+    assert bad.returncode == 2 and "NDH-data" in bad.stderr
