@@ -42,3 +42,22 @@ def pytest_collection_modifyitems(items) -> None:
         on_postgres = callspec is not None and callspec.params.get("any_db_settings") == "postgres"
         if "postgres_url" in fixtures or on_postgres:
             item.add_marker(pytest.mark.postgres)
+
+
+REDIS_URL = "redis://127.0.0.1:6379/0"
+
+
+@pytest.fixture
+def redis_url():
+    import redis
+
+    try:
+        redis.Redis.from_url(REDIS_URL, socket_connect_timeout=2).ping()
+    except redis.RedisError as err:
+        pytest.skip(f"Redis at {REDIS_URL} not reachable: {err}")
+    return REDIS_URL
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"

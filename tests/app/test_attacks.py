@@ -29,16 +29,17 @@ from bench.live import REPO, SeatClient, ServerProcess, make_trial
 from robot_client.protocol import pack_frame
 from tests.app.conftest import platform_settings
 from tests.app.live import (
+    PASSWORD,
     ServerThread,
+    add_experimenter,
     experimenter_client,
     log_in,
     page_csrf_token,
     session_cookie,
     submit_login,
 )
-from tests.app.test_reliability import Rover, rover_trial
-from tests.app.test_security import PASSWORD, add_experimenter
 from tests.app.trial_play import start_trial
+from tests.app.wire_rover import Rover, rover_trial
 
 
 def from_address(server, address: str = "127.0.0.1") -> httpx.Client:

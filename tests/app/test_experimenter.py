@@ -4,10 +4,7 @@ teams and trials with join links, maze choice, and the database commands."""
 from __future__ import annotations
 
 import html
-import os
 import re
-import subprocess
-import sys
 
 import httpx
 import pytest
@@ -15,20 +12,7 @@ from sqlalchemy import create_engine, inspect, select
 
 from app.db.models import Trial
 from app.main import build_services, ensure_experimenter
-from bench.live import REPO
-from tests.app.live import ServerThread, browser, experimenter_client, submit_login
-
-
-def cli(*args: str, env: dict[str, str], input: str | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-c", "from app.cli import main; main()", *args],
-        env={**os.environ, **env},
-        cwd=REPO,
-        capture_output=True,
-        text=True,
-        input=input,
-        timeout=120,
-    )
+from tests.app.live import ServerThread, browser, cli, experimenter_client, submit_login
 
 
 def test_first_start_creates_admin_once(settings):

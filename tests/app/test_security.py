@@ -19,18 +19,11 @@ from sqlalchemy import select
 
 from app.db.engine import alembic_config, make_engine
 from app.db.models import Experimenter, Participant, Trial
-from app.security import SESSION_COOKIE, InvalidToken, Seat, SeatTokens, hash_password
+from app.security import SESSION_COOKIE, InvalidToken, Seat, SeatTokens
 from bench.live import REPO, SeatClient, make_trial
 from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread, browser, log_in, page_csrf_token, submit_login
+from tests.app.live import PASSWORD, ServerThread, add_experimenter, browser, log_in, page_csrf_token, submit_login
 from tests.app.trial_play import start_trial
-
-PASSWORD = "correct horse"
-
-
-def add_experimenter(server, name: str = "eve", password: str = PASSWORD) -> None:
-    with server.services.db.begin() as db:
-        db.add(Experimenter(name=name, password_hash=hash_password(password)))
 
 
 def participants(server) -> list[str]:

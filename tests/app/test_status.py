@@ -10,9 +10,9 @@ import pytest
 import websockets
 
 from app.db.models import Event, Experimenter
-from app.security import SESSION_COOKIE, hash_password
+from app.security import hash_password
 from bench.live import SeatClient, make_trial
-from tests.app.live import ServerThread
+from tests.app.live import ServerThread, Watch
 from tests.app.trial_play import claim_and_decide, drive_to_target, move, start_trial
 
 FIELDS = {
@@ -31,21 +31,6 @@ FIELDS = {
 
 def statuses(client) -> list[dict]:
     return [m for m in client.received if m.get("type") == "status"]
-
-
-class Watch(SeatClient):
-    """The experimenter's live view, logged in by cookie."""
-
-    def __init__(self, server, trial_id: int, cookie: str | None) -> None:
-        super().__init__(server.ws_url, "")
-        self.url = f"ws://127.0.0.1:{server.port}/ws/watch/{trial_id}"
-        self.cookie = cookie
-
-    async def __aenter__(self) -> Watch:
-        headers = {"Cookie": f"{SESSION_COOKIE}={self.cookie}"} if self.cookie else {}
-        self.ws = await websockets.connect(self.url, additional_headers=headers, max_size=2**22)
-        self._reader = asyncio.get_running_loop().create_task(self._read())
-        return self
 
 
 def test_seats_get_the_status_and_the_experimenter_watches_the_driver(settings):

@@ -13,15 +13,12 @@ import pytest
 
 from app.db.models import Experimenter
 from app.security import hash_password
-from bench.live import REPO
 from sim.core.dynamics import Action
 from sim.core.labels import Label
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread, wait_js
-from tests.app.test_sim_seat_objects import object_pixels
-from tests.app.trial_play import facing_action, oracle_action
-
-ARTIFACTS = REPO / "test-artifacts"
+from tests.app.trial_play import facing_action, object_pixels, oracle_action
+from tests.e2e.pages import ARTIFACTS
 
 pytestmark = pytest.mark.browser
 
