@@ -5,20 +5,23 @@ from __future__ import annotations
 
 import dataclasses
 import uuid
+from collections.abc import Iterator
 
 import pytest
 from sqlalchemy import create_engine, text
 
 from app.export.record import TrialRecord
 from app.perception.cameras import learned
+from app.security import SEAT_ROLES
 from app.settings import Settings
+from bench.live import make_trial
 from sim.core.geometry import heading_angle
 from sim.core.navgraph import NavGraph
 from sim.robot.camera import FrontCamera
 from sim.robot.rover import NOISE_MODELS, Rover, RoverPose
 from sim.tasks.benchmark import Benchmark
 from sim.tasks.library import MazeLibrary
-from tests.app.live import platform_settings
+from tests.app.live import ServerThread, platform_settings
 from tests.app.rover_lab import MAZE, Lab
 from tests.app.trial_log import trial_record
 
@@ -62,8 +65,31 @@ def any_db_settings(request, tmp_path):
 
 
 @pytest.fixture
-def settings(tmp_path) -> Settings:
-    return platform_settings(tmp_path)
+def settings(request, tmp_path) -> Settings:
+    """The platform's test settings; `@pytest.mark.settings(**overrides)` changes some for one test."""
+    marker = request.node.get_closest_marker("settings")
+    return platform_settings(tmp_path, **(marker.kwargs if marker else {}))
+
+
+@pytest.fixture
+def server(settings) -> Iterator[ServerThread]:
+    """The platform on `settings`, served on a loopback port for the test."""
+    with ServerThread(settings) as running:
+        yield running
+
+
+@pytest.fixture
+def trial(request, server) -> int:
+    """A team's trial on the server's first maze; `@pytest.mark.trial(**make_trial_options)` sets
+    its targets, Driver or backend."""
+    marker = request.node.get_closest_marker("trial")
+    return make_trial(server.services, server.services.mazes.names()[0], **(marker.kwargs if marker else {}))
+
+
+@pytest.fixture
+def seats(server, trial) -> dict[str, str]:
+    """The join tokens of the trial's seats, by role (what the experimenter's join links carry)."""
+    return {role: server.services.seats.issue(trial, role) for role in SEAT_ROLES}
 
 
 @pytest.fixture(scope="module")

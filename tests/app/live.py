@@ -1,6 +1,6 @@
-"""Helpers for the platform's tests: a real uvicorn server on a loopback port in a thread, and an
-experimenter's browser session. The server as a process, trials and seat clients are
-`bench.live`'s (the benchmarks drive the platform with them too)."""
+"""Helpers for the platform's tests: their settings, a real uvicorn server on a loopback port in a
+thread, an experimenter's browser session and live view, and the command line. The server as a
+process, trials and seat clients are `bench.live`'s (the benchmarks drive the platform with them too)."""
 
 from __future__ import annotations
 
@@ -23,6 +23,8 @@ from app.security import SESSION_COOKIE, hash_password
 from app.serving import uvicorn_options
 from app.settings import Settings
 from bench.live import REPO, SeatClient, free_port
+
+PASSWORD = "correct horse"
 
 
 class ServerThread:
@@ -129,6 +131,7 @@ class Watch(SeatClient):
 
 
 def cli(*args: str, env: dict[str, str], input: str | None = None) -> subprocess.CompletedProcess:
+    """`robotslang ARGS` as a process, with `env` added to this one's environment."""
     return subprocess.run(
         [sys.executable, "-c", "from app.cli import main; main()", *args],
         env={**os.environ, **env},
@@ -140,15 +143,14 @@ def cli(*args: str, env: dict[str, str], input: str | None = None) -> subprocess
     )
 
 
-PASSWORD = "correct horse"
-
-
 def add_experimenter(server, name: str = "eve", password: str = PASSWORD) -> None:
+    """An experimenter's account in the server's database."""
     with server.services.db.begin() as db:
         db.add(Experimenter(name=name, password_hash=hash_password(password)))
 
 
 def platform_settings(tmp_path, database_url: str | None = None, **overrides) -> Settings:
+    """The platform's settings for a test: its data under `tmp_path`, moves as fast as sent."""
     values = dict(
         data_dir=tmp_path / "var",
         database_url=database_url,

@@ -18,6 +18,7 @@ from bench.live import REPO, SeatClient, ServerProcess
 from tests.app.live import cli, platform_settings
 
 MAZE = "gen-000"
+TARGETS = ("jar", "mug", "paddle")  # the rover trials' targets, in visiting order
 START_S = 60.0  # bound on waits that include starting a process (seconds when the machine is idle)
 
 
@@ -105,6 +106,3 @@ def settled(truth: Path) -> list[TruthSample]:
 def turned(a: float, b: float) -> float:
     """Signed angle from heading a to heading b, radians in (-pi, pi]."""
     return (b - a + math.pi) % (2 * math.pi) - math.pi
-
-
-TARGETS = ("jar", "mug", "paddle")
