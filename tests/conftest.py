@@ -31,6 +31,12 @@ def _private_cache(tmp_path_factory) -> None:
         os.environ["ROBOTSLANG_CACHE_DIR"] = str(tmp_path_factory.mktemp("cache"))
 
 
+def pytest_configure(config) -> None:
+    # Options of the platform's fixtures (tests/app/conftest.py), set per test.
+    config.addinivalue_line("markers", "settings(**overrides): the `settings` (and so `server`) fixture's overrides")
+    config.addinivalue_line("markers", "trial(**options): `make_trial`'s options for the `trial` fixture")
+
+
 def pytest_collection_modifyitems(items) -> None:
     # Every test that reads the benchmark is marked, so `-m "not benchmark_data"` leaves them out;
     # likewise every test on PostgreSQL (its fixture, or the postgres run of `any_db_settings`).
@@ -42,3 +48,22 @@ def pytest_collection_modifyitems(items) -> None:
         on_postgres = callspec is not None and callspec.params.get("any_db_settings") == "postgres"
         if "postgres_url" in fixtures or on_postgres:
             item.add_marker(pytest.mark.postgres)
+
+
+REDIS_URL = "redis://127.0.0.1:6379/0"
+
+
+@pytest.fixture
+def redis_url():
+    import redis
+
+    try:
+        redis.Redis.from_url(REDIS_URL, socket_connect_timeout=2).ping()
+    except redis.RedisError as err:
+        pytest.skip(f"Redis at {REDIS_URL} not reachable: {err}")
+    return REDIS_URL
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"

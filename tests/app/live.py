@@ -1,23 +1,30 @@
-"""Helpers for the platform's tests: a real uvicorn server on a loopback port in a thread, and an
-experimenter's browser session. The server as a process, trials and seat clients are
-`bench.live`'s (the benchmarks drive the platform with them too)."""
+"""Helpers for the platform's tests: their settings, a real uvicorn server on a loopback port in a
+thread, an experimenter's browser session and live view, and the command line. The server as a
+process, trials and seat clients are `bench.live`'s (the benchmarks drive the platform with them too)."""
 
 from __future__ import annotations
 
+import asyncio
+import os
 import re
+import subprocess
+import sys
 import threading
 import time
 from typing import Any
 
 import httpx
 import uvicorn
+import websockets
 
 from app.db.models import Experimenter
 from app.main import create_app
 from app.security import SESSION_COOKIE, hash_password
 from app.serving import uvicorn_options
 from app.settings import Settings
-from bench.live import free_port
+from bench.live import REPO, SeatClient, free_port
+
+PASSWORD = "correct horse"
 
 
 class ServerThread:
@@ -106,3 +113,51 @@ def wait_js(page, expression: str, timeout_s: float = 30.0) -> None:
         if time.monotonic() > deadline:
             raise AssertionError(f"timed out after {timeout_s} s waiting for {expression!r}")
         page.wait_for_timeout(50)
+
+
+class Watch(SeatClient):
+    """The experimenter's live view, logged in by cookie."""
+
+    def __init__(self, server, trial_id: int, cookie: str | None) -> None:
+        super().__init__(server.ws_url, "")
+        self.url = f"ws://127.0.0.1:{server.port}/ws/watch/{trial_id}"
+        self.cookie = cookie
+
+    async def __aenter__(self) -> Watch:
+        headers = {"Cookie": f"{SESSION_COOKIE}={self.cookie}"} if self.cookie else {}
+        self.ws = await websockets.connect(self.url, additional_headers=headers, max_size=2**22)
+        self._reader = asyncio.get_running_loop().create_task(self._read())
+        return self
+
+
+def cli(*args: str, env: dict[str, str], input: str | None = None) -> subprocess.CompletedProcess:
+    """`robotslang ARGS` as a process, with `env` added to this one's environment."""
+    return subprocess.run(
+        [sys.executable, "-c", "from app.cli import main; main()", *args],
+        env={**os.environ, **env},
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        input=input,
+        timeout=120,
+    )
+
+
+def add_experimenter(server, name: str = "eve", password: str = PASSWORD) -> None:
+    """An experimenter's account in the server's database."""
+    with server.services.db.begin() as db:
+        db.add(Experimenter(name=name, password_hash=hash_password(password)))
+
+
+def platform_settings(tmp_path, database_url: str | None = None, **overrides) -> Settings:
+    """The platform's settings for a test: its data under `tmp_path`, moves as fast as sent."""
+    values = dict(
+        data_dir=tmp_path / "var",
+        database_url=database_url,
+        secret_key="test-secret",
+        min_move_interval_s=0.0,
+        grace_period_s=30.0,
+        render_processes=0,  # frames drawn in a thread; tests/app/test_render_processes.py runs the pool
+    )
+    values.update(overrides)
+    return Settings(**values)

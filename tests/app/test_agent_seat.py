@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 
+import pytest
 from sqlalchemy import select
 
 from app.db.models import Event
@@ -14,41 +15,38 @@ from sim.agents.turns import Move
 from tests.app.live import ServerThread
 
 
-def test_shortest_path_oracle_drives_and_claims_each_target(settings):
-    with ServerThread(settings) as server:
-        services = server.services
-        trial_id = make_trial(services, services.mazes.names()[0], driver="oracle:shortest")
-        token = services.seats.issue(trial_id, "commander")
+@pytest.mark.trial(driver="oracle:shortest")
+def test_shortest_path_oracle_drives_and_claims_each_target(server, trial):
+    services = server.services
+    token = services.seats.issue(trial, "commander")
 
-        async def command():
-            async with SeatClient(server.ws_url, token) as commander:
-                await commander.event("phase", phase="localizing")
-                await commander.send("localize", x=1.0, y=1.0)
-                for index in range(3):
-                    claimed = await commander.event("target_claimed", timeout=30, target_index=index)
-                    chat = await commander.event(
-                        "chat", role="driver", start=0, text=f"I think I found the {claimed['payload']['target']}"
-                    )
-                    assert chat
-                    if index == 1:  # the agent keeps going after a rejection and claims again
-                        start = len(commander.received)
-                        await commander.send("reject")
-                        await commander.event("target_claimed", timeout=30, start=start, target_index=1)
-                    await commander.send("confirm")
-                await commander.event("phase", phase="finished", timeout=10)
-                return commander
+    async def command():
+        async with SeatClient(server.ws_url, token) as commander:
+            await commander.event("phase", phase="localizing")
+            await commander.send("localize", x=1.0, y=1.0)
+            for index in range(3):
+                claimed = await commander.event("target_claimed", timeout=30, target_index=index)
+                chat = await commander.event(
+                    "chat", role="driver", start=0, text=f"I think I found the {claimed['payload']['target']}"
+                )
+                assert chat
+                if index == 1:  # the agent keeps going after a rejection and claims again
+                    start = len(commander.received)
+                    await commander.send("reject")
+                    await commander.event("target_claimed", timeout=30, start=start, target_index=1)
+                await commander.send("confirm")
+            await commander.event("phase", phase="finished", timeout=10)
+            return commander
 
-        commander = asyncio.run(command())
-        assert "frame" not in commander.kinds()
-        with services.db() as db:
-            confirmed = db.scalars(
-                select(Event.payload).where(Event.trial_id == trial_id, Event.kind == "target_confirmed")
-            ).all()
-            moves = db.scalars(
-                select(Event.payload).where(Event.trial_id == trial_id, Event.kind == "move_executed")
-            ).all()
-        assert all(c["truly_within"] for c in confirmed) and len(confirmed) == 3
-        assert moves and all(m["outcome"] == "ok" for m in moves)
+    commander = asyncio.run(command())
+    assert "frame" not in commander.kinds()
+    with services.db() as db:
+        confirmed = db.scalars(
+            select(Event.payload).where(Event.trial_id == trial, Event.kind == "target_confirmed")
+        ).all()
+        moves = db.scalars(select(Event.payload).where(Event.trial_id == trial, Event.kind == "move_executed")).all()
+    assert all(c["truly_within"] for c in confirmed) and len(confirmed) == 3
+    assert moves and all(m["outcome"] == "ok" for m in moves)
 
 
 def test_register_driver_adds_a_named_agent(settings):

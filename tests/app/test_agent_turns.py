@@ -37,10 +37,8 @@ from sim.agents.turns import (
 )
 from sim.robot.perception import RayObservation
 from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread, experimenter_client
-from tests.app.test_experimenter import cli
-from tests.app.test_rover_loop import TARGETS, camera_calibration  # noqa: F401  (a fixture)
-from tests.app.test_virtual_rover import MAZE, START_S, maze, start  # noqa: F401  (fixtures)
+from tests.app.live import ServerThread, cli, experimenter_client
+from tests.app.rover_lab import MAZE, START_S, TARGETS
 
 PRIVILEGED = {"pose", "x", "y", "heading", "maze", "graph", "map", "target", "targets", "true_pose", "belief"}
 

@@ -29,16 +29,17 @@ from bench.live import REPO, SeatClient, ServerProcess, make_trial
 from robot_client.protocol import pack_frame
 from tests.app.conftest import platform_settings
 from tests.app.live import (
+    PASSWORD,
     ServerThread,
+    add_experimenter,
     experimenter_client,
     log_in,
     page_csrf_token,
     session_cookie,
     submit_login,
 )
-from tests.app.test_reliability import Rover, rover_trial
-from tests.app.test_security import PASSWORD, add_experimenter
 from tests.app.trial_play import start_trial
+from tests.app.wire_rover import Rover, rover_trial
 
 
 def from_address(server, address: str = "127.0.0.1") -> httpx.Client:
@@ -73,27 +74,23 @@ def logged_in(answer: httpx.Response) -> bool:
 
 
 # -- client addresses ------------------------------------------------------------------
-def test_a_client_naming_another_address_in_x_forwarded_for_is_still_limited(settings):
+def test_a_client_naming_another_address_in_x_forwarded_for_is_still_limited(server):
     # No proxy configured: the header is the client's own word, and the socket's peer is the client.
-    with ServerThread(settings) as server:
-        statuses = guesses(from_address(server), [f"nobody{i}" for i in range(200)], lambda i: f"10.1.{i}.{i % 250}")
+    statuses = guesses(from_address(server), [f"nobody{i}" for i in range(200)], lambda i: f"10.1.{i}.{i % 250}")
     assert statuses[-1] == 429, f"{len(statuses)} guesses, none refused"
     assert statuses.count(401) == 20  # LOGIN_LIMIT_PER_ADDRESS
 
 
-def test_behind_a_trusted_proxy_the_right_most_address_it_did_not_add_is_the_client(tmp_path):
-    settings = platform_settings(tmp_path, trusted_proxies=["127.0.0.1"])
-    with ServerThread(settings) as server:
-        add_experimenter(server)
-        # nginx appends the address it saw; whatever the client wrote comes before it.
-        statuses = guesses(
-            from_address(server), [f"nobody{i}" for i in range(100)], lambda i: f"10.2.{i}.1, 203.0.113.7"
-        )
-        assert statuses[-1] == 429 and statuses.count(401) == 20
-        # Another client behind the same proxy is not limited by it.
-        other = from_address(server)
-        other.headers["X-Forwarded-For"] = "203.0.113.8"
-        assert logged_in(submit_login(other, "eve", PASSWORD))
+@pytest.mark.settings(trusted_proxies=["127.0.0.1"])
+def test_behind_a_trusted_proxy_the_right_most_address_it_did_not_add_is_the_client(server):
+    add_experimenter(server)
+    # nginx appends the address it saw; whatever the client wrote comes before it.
+    statuses = guesses(from_address(server), [f"nobody{i}" for i in range(100)], lambda i: f"10.2.{i}.1, 203.0.113.7")
+    assert statuses[-1] == 429 and statuses.count(401) == 20
+    # Another client behind the same proxy is not limited by it.
+    other = from_address(server)
+    other.headers["X-Forwarded-For"] = "203.0.113.8"
+    assert logged_in(submit_login(other, "eve", PASSWORD))
     with pytest.raises(ValidationError, match="not an address or network"):
         Settings(trusted_proxies=["*"])
 
@@ -122,25 +119,23 @@ def raw_status(port: int, headers: list[str]) -> int:
     return int(reply.split(b" ", 2)[1])
 
 
-def test_a_request_with_two_host_headers_is_refused(settings):
-    with ServerThread(settings) as server:
-        own = f"Host: 127.0.0.1:{server.port}"
-        assert raw_status(server.port, [own]) == 200
-        assert raw_status(server.port, [own, "Host: evil.example"]) == 400
-        assert raw_status(server.port, ["Host: evil.example", own]) == 400
-        assert raw_status(server.port, [own, own]) == 400
+def test_a_request_with_two_host_headers_is_refused(server):
+    own = f"Host: 127.0.0.1:{server.port}"
+    assert raw_status(server.port, [own]) == 200
+    assert raw_status(server.port, [own, "Host: evil.example"]) == 400
+    assert raw_status(server.port, ["Host: evil.example", own]) == 400
+    assert raw_status(server.port, [own, own]) == 400
 
 
 # -- lockout ---------------------------------------------------------------------------
-def test_guessing_locks_out_the_guesser_not_the_experimenter(settings):
-    with ServerThread(settings) as server:
-        add_experimenter(server)
-        attacker = from_address(server, "127.0.0.2")
-        statuses = guesses(attacker, ["eve"] * 10)
-        assert statuses == [401] * 5 + [429]  # LOGIN_LIMIT_PER_ACCOUNT, from that address
-        assert submit_login(attacker, "eve", PASSWORD).status_code == 429
-        # The experimenter, at another address, logs in while the attacker is locked out.
-        assert logged_in(submit_login(from_address(server, "127.0.0.3"), "eve", PASSWORD))
+def test_guessing_locks_out_the_guesser_not_the_experimenter(server):
+    add_experimenter(server)
+    attacker = from_address(server, "127.0.0.2")
+    statuses = guesses(attacker, ["eve"] * 10)
+    assert statuses == [401] * 5 + [429]  # LOGIN_LIMIT_PER_ACCOUNT, from that address
+    assert submit_login(attacker, "eve", PASSWORD).status_code == 429
+    # The experimenter, at another address, logs in while the attacker is locked out.
+    assert logged_in(submit_login(from_address(server, "127.0.0.3"), "eve", PASSWORD))
 
 
 # -- a flood of chat -------------------------------------------------------------------
@@ -238,51 +233,48 @@ def test_a_forged_rover_frame_is_refused_and_nothing_of_it_is_recorded(settings)
 
 
 # -- sockets after logout --------------------------------------------------------------
-def test_an_experimenters_watch_sockets_close_at_logout_and_at_a_password_change(settings):
+def test_an_experimenters_watch_sockets_close_at_logout_and_at_a_password_change(settings, server, trial, seats):
     env = {"ROBOTSLANG_DATA_DIR": str(settings.data_dir), "ROBOTSLANG_SECRET_KEY": settings.secret_key}
-    with ServerThread(settings) as server:
-        trial_id = make_trial(server.services, server.services.mazes.names()[0])
-        tokens = {r: server.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-        experimenter = experimenter_client(server.services, server.url)
+    experimenter = experimenter_client(server.services, server.url)
 
-        async def watch_until_closed(end_login) -> tuple[list[str], int]:
-            """A watch opened while logged in: what it heard, and its close code after `end_login`."""
-            async with websockets.connect(
-                f"ws://127.0.0.1:{server.port}/ws/watch/{trial_id}",
-                additional_headers={"Cookie": session_cookie(experimenter)},
-            ) as watch:
-                assert json.loads(await watch.recv())["type"] == "welcome"
-                async with SeatClient(server.ws_url, tokens["commander"]) as commander:
-                    await commander.send("chat", text="before")
-                    heard = [await asyncio.wait_for(watch.recv(), 10)]
-                    while '"before"' not in heard[-1]:
+    async def watch_until_closed(end_login) -> tuple[list[str], int]:
+        """A watch opened while logged in: what it heard, and its close code after `end_login`."""
+        async with websockets.connect(
+            f"ws://127.0.0.1:{server.port}/ws/watch/{trial}",
+            additional_headers={"Cookie": session_cookie(experimenter)},
+        ) as watch:
+            assert json.loads(await watch.recv())["type"] == "welcome"
+            async with SeatClient(server.ws_url, seats["commander"]) as commander:
+                await commander.send("chat", text="before")
+                heard = [await asyncio.wait_for(watch.recv(), 10)]
+                while '"before"' not in heard[-1]:
+                    heard.append(await asyncio.wait_for(watch.recv(), 10))
+                await asyncio.to_thread(end_login)
+                await commander.send("chat", text="after")
+                with pytest.raises(websockets.ConnectionClosed) as closed:
+                    while True:
                         heard.append(await asyncio.wait_for(watch.recv(), 10))
-                    await asyncio.to_thread(end_login)
-                    await commander.send("chat", text="after")
-                    with pytest.raises(websockets.ConnectionClosed) as closed:
-                        while True:
-                            heard.append(await asyncio.wait_for(watch.recv(), 10))
-                return heard, closed.value.rcvd.code
+            return heard, closed.value.rcvd.code
 
-        heard, code = asyncio.run(watch_until_closed(lambda: experimenter.post("/logout")))
-        assert code == 4401 and not any('"after"' in m for m in heard)
-        experimenter = log_in(server.url, "eve", PASSWORD)
+    heard, code = asyncio.run(watch_until_closed(lambda: experimenter.post("/logout")))
+    assert code == 4401 and not any('"after"' in m for m in heard)
+    experimenter = log_in(server.url, "eve", PASSWORD)
 
-        def change_password() -> None:
-            done = subprocess.run(
-                [sys.executable, "-c", "from app.cli import main; main()", "admin", "password", "eve"]
-                + ["--password", "a new horse"],
-                env={**os.environ, **env},
-                cwd=REPO,
-                capture_output=True,
-                text=True,
-                timeout=120,
-            )
-            assert done.returncode == 0, done.stderr
+    def change_password() -> None:
+        done = subprocess.run(
+            [sys.executable, "-c", "from app.cli import main; main()", "admin", "password", "eve"]
+            + ["--password", "a new horse"],
+            env={**os.environ, **env},
+            cwd=REPO,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert done.returncode == 0, done.stderr
 
-        # From another process: the socket's own check sees the login gone within a second.
-        _, code = asyncio.run(watch_until_closed(change_password))
-        assert code == 4401
+    # From another process: the socket's own check sees the login gone within a second.
+    _, code = asyncio.run(watch_until_closed(change_password))
+    assert code == 4401
 
 
 # -- grace after a crash ---------------------------------------------------------------

@@ -6,91 +6,81 @@ from __future__ import annotations
 import asyncio
 
 import httpx
+import pytest
 from sqlalchemy import select
 
 from app.db.models import Event
-from bench.live import SeatClient, make_trial
-from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread, experimenter_client
+from bench.live import SeatClient
+from tests.app.live import experimenter_client
 from tests.app.trial_play import move, start_trial
 
 
-def test_driver_drops_and_rejoins_within_grace(settings):
-    with ServerThread(settings) as server:
-        services = server.services
-        trial_id = make_trial(services, services.mazes.names()[0])
-        tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+def test_driver_drops_and_rejoins_within_grace(server, trial, seats):
+    services = server.services
 
-        async def play():
-            async with SeatClient(server.ws_url, tokens["commander"]) as commander:
-                async with SeatClient(server.ws_url, tokens["driver"]) as driver:
-                    await start_trial(commander, driver)
-                await commander.event("disconnect", role="driver")
-                await commander.event("paused", reason="disconnect:driver")
-                runtime = services.hub.peek(trial_id)
-                frozen = runtime.state.active_s(services.clock.now_ns())
-                await asyncio.sleep(0.4)
-                assert runtime.state.active_s(services.clock.now_ns()) == frozen, "the clock stops while away"
-                async with SeatClient(server.ws_url, tokens["driver"]) as driver:
-                    welcome = await driver.wait_for(lambda m: m.get("type") == "welcome")
-                    assert welcome["phase"] == "localizing" and "frame" in welcome
-                    await commander.event("resumed", reason="disconnect:driver")
-                    executed = await move(driver, "right")
-                    assert executed["payload"]["outcome"] == "ok"
-
-        asyncio.run(play())
-
-
-def test_seat_gone_past_grace_aborts_the_trial(tmp_path):
-    settings = platform_settings(tmp_path, grace_period_s=0.3)
-    with ServerThread(settings) as server:
-        services = server.services
-        trial_id = make_trial(services, services.mazes.names()[0])
-        tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-
-        async def play():
-            async with SeatClient(server.ws_url, tokens["commander"]) as commander:
-                async with SeatClient(server.ws_url, tokens["driver"]) as driver:
-                    await start_trial(commander, driver)
-                await commander.event("phase", phase="aborted", timeout=5)
-
-        asyncio.run(play())
-        with services.db() as db:
-            kinds = db.scalars(select(Event.kind).where(Event.trial_id == trial_id).order_by(Event.seq)).all()
-        # The camera's frames are their own stream: the start's frame may be logged after the
-        # Driver left (its render finishes on a thread), so the control sequence is read without them.
-        assert [k for k in kinds if k != "frame"][-3:] == ["disconnect", "paused", "phase"]
-
-
-def test_experimenter_pauses_resumes_and_aborts(settings):
-    with ServerThread(settings) as server:
-        services = server.services
-        trial_id = make_trial(services, services.mazes.names()[0])
-        tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-        experimenter = experimenter_client(server.services, server.url)
-
-        async def play():
-            async with (
-                SeatClient(server.ws_url, tokens["commander"]) as commander,
-                SeatClient(server.ws_url, tokens["driver"]) as driver,
-            ):
+    async def play():
+        async with SeatClient(server.ws_url, seats["commander"]) as commander:
+            async with SeatClient(server.ws_url, seats["driver"]) as driver:
                 await start_trial(commander, driver)
-                await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial_id}/pause")
-                await driver.event("paused", reason="experimenter")
-                refused = await move(driver, "left")
-                assert refused["payload"]["outcome"] == "refused" and "paused" in refused["payload"]["reason"]
-                live = (await asyncio.to_thread(experimenter.get, "/experimenter/api/trials")).json()["trials"]
-                assert live[0]["paused"] == ["experimenter"] and live[0]["pose"] is not None
-                await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial_id}/resume")
-                await driver.event("resumed", reason="experimenter")
-                assert (await move(driver, "left"))["payload"]["outcome"] == "ok"
-                await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial_id}/abort")
-                await commander.event("phase", phase="aborted")
-                await driver.send("chat", text="hello?")
-                error = await driver.wait_for(lambda m: m.get("type") == "error")
-                assert "aborted" in error["error"]
+            await commander.event("disconnect", role="driver")
+            await commander.event("paused", reason="disconnect:driver")
+            runtime = services.hub.peek(trial)
+            frozen = runtime.state.active_s(services.clock.now_ns())
+            await asyncio.sleep(0.4)
+            assert runtime.state.active_s(services.clock.now_ns()) == frozen, "the clock stops while away"
+            async with SeatClient(server.ws_url, seats["driver"]) as driver:
+                welcome = await driver.wait_for(lambda m: m.get("type") == "welcome")
+                assert welcome["phase"] == "localizing" and "frame" in welcome
+                await commander.event("resumed", reason="disconnect:driver")
+                executed = await move(driver, "right")
+                assert executed["payload"]["outcome"] == "ok"
 
-        asyncio.run(play())
-        # Anonymous visitors cannot control trials.
-        anonymous = httpx.post(f"{server.url}/experimenter/trials/{trial_id}/resume")
-        assert anonymous.status_code == 303 and anonymous.headers["location"] == "/"
+    asyncio.run(play())
+
+
+@pytest.mark.settings(grace_period_s=0.3)
+def test_seat_gone_past_grace_aborts_the_trial(server, trial, seats):
+    services = server.services
+
+    async def play():
+        async with SeatClient(server.ws_url, seats["commander"]) as commander:
+            async with SeatClient(server.ws_url, seats["driver"]) as driver:
+                await start_trial(commander, driver)
+            await commander.event("phase", phase="aborted", timeout=5)
+
+    asyncio.run(play())
+    with services.db() as db:
+        kinds = db.scalars(select(Event.kind).where(Event.trial_id == trial).order_by(Event.seq)).all()
+    # The camera's frames are their own stream: the start's frame may be logged after the
+    # Driver left (its render finishes on a thread), so the control sequence is read without them.
+    assert [k for k in kinds if k != "frame"][-3:] == ["disconnect", "paused", "phase"]
+
+
+def test_experimenter_pauses_resumes_and_aborts(server, trial, seats):
+    experimenter = experimenter_client(server.services, server.url)
+
+    async def play():
+        async with (
+            SeatClient(server.ws_url, seats["commander"]) as commander,
+            SeatClient(server.ws_url, seats["driver"]) as driver,
+        ):
+            await start_trial(commander, driver)
+            await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial}/pause")
+            await driver.event("paused", reason="experimenter")
+            refused = await move(driver, "left")
+            assert refused["payload"]["outcome"] == "refused" and "paused" in refused["payload"]["reason"]
+            live = (await asyncio.to_thread(experimenter.get, "/experimenter/api/trials")).json()["trials"]
+            assert live[0]["paused"] == ["experimenter"] and live[0]["pose"] is not None
+            await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial}/resume")
+            await driver.event("resumed", reason="experimenter")
+            assert (await move(driver, "left"))["payload"]["outcome"] == "ok"
+            await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial}/abort")
+            await commander.event("phase", phase="aborted")
+            await driver.send("chat", text="hello?")
+            error = await driver.wait_for(lambda m: m.get("type") == "error")
+            assert "aborted" in error["error"]
+
+    asyncio.run(play())
+    # Anonymous visitors cannot control trials.
+    anonymous = httpx.post(f"{server.url}/experimenter/trials/{trial}/resume")
+    assert anonymous.status_code == 303 and anonymous.headers["location"] == "/"

@@ -4,10 +4,7 @@ teams and trials with join links, maze choice, and the database commands."""
 from __future__ import annotations
 
 import html
-import os
 import re
-import subprocess
-import sys
 
 import httpx
 import pytest
@@ -15,20 +12,7 @@ from sqlalchemy import create_engine, inspect, select
 
 from app.db.models import Trial
 from app.main import build_services, ensure_experimenter
-from bench.live import REPO
-from tests.app.live import ServerThread, browser, experimenter_client, submit_login
-
-
-def cli(*args: str, env: dict[str, str], input: str | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-c", "from app.cli import main; main()", *args],
-        env={**os.environ, **env},
-        cwd=REPO,
-        capture_output=True,
-        text=True,
-        input=input,
-        timeout=120,
-    )
+from tests.app.live import ServerThread, browser, cli, experimenter_client, submit_login
 
 
 def test_first_start_creates_admin_once(settings):
@@ -62,47 +46,46 @@ def test_admin_create_and_db_upgrade_commands(tmp_path):
         assert "Participants" in submit_login(client, "bob", "another-pass").text
 
 
-def test_experimenter_forms_make_a_trial_with_join_links(settings):
-    with ServerThread(settings) as server:
-        assert httpx.get(server.url + "/experimenter").status_code == 303, "the dashboard is behind login"
-        client = experimenter_client(server.services, server.url)
-        for name in ("Ada", "Ben", "Cy"):
-            client.post("/experimenter/participants", data={"name": name})
-        page = client.post("/experimenter/participants", data={"name": "Ada"}).text
-        assert "already exists" in page
-        page = client.post("/experimenter/teams", data={"name": "Solo", "member_a": 1, "member_b": 1}).text
-        assert "two different participants" in page
-        client.post("/experimenter/teams", data={"name": "Pair", "member_a": 1, "member_b": 2})
-        client.post("/experimenter/teams", data={"name": "Other", "member_a": 2, "member_b": 3})
-        page = client.post("/experimenter/trials", data={"team_id": 1, "targets": "mug,jar,paddle"}).text
-        links = dict(re.findall(r'class="join-(\w+)" href="([^"]+)"', page))
-        assert set(links) == {"commander", "driver"}
-        assert "Commander Ada · Driver Ben" in page and ">commander (Ada)</a>" in page and ">driver (Ben)</a>" in page
-        assert "Commander" in client.get(links["commander"]).text
-        page = client.post("/experimenter/trials", data={"team_id": 1, "targets": "mug,mug,jar"}).text
-        assert "give each of jar, mug, paddle once" in page
-        names = sorted(server.services.mazes.names())
-        with server.services.db() as db:
-            first = db.scalar(select(Trial).where(Trial.team_id == 1))
-        assert first.maze == names[0] and first.targets == ["mug", "jar", "paddle"]
-        # Ben holds a seat in Pair's trial, not yet over: team Other gets no trial until it ends.
-        page = html.unescape(client.post("/experimenter/trials", data={"team_id": 2}).text)
-        assert f"team 'Other': a member is in trial {first.id}, which is waiting;" in page
-        client.post(f"/experimenter/trials/{first.id}/abort")
-        # Ben played maze 0 with Pair: team Other may not get it, and is given the next least used.
-        page = client.post("/experimenter/trials", data={"team_id": 2, "maze": names[0]}).text
-        assert "already seen it" in page
-        page = html.unescape(client.post("/experimenter/trials", data={"team_id": 2, "backend": "robot:42"}).text)
-        assert "no registered rover with id '42'" in page
-        page = html.unescape(client.post("/experimenter/trials", data={"team_id": 2, "driver": "agent:nobody"}).text)
-        assert "neither 'human' nor a known agent" in page
-        client.post("/experimenter/trials", data={"team_id": 2, "driver": "oracle:shortest"})
-        with server.services.db() as db:
-            second = db.scalar(select(Trial).where(Trial.team_id == 2))
-        assert second.maze == names[1] and sorted(second.targets) == ["jar", "mug", "paddle"]
-        assert second.driver == "oracle:shortest" and second.driver_id is None
-        row = re.search(rf'data-trial="{second.id}".*?</tr>', client.get("/experimenter").text, re.S).group(0)
-        assert "join-commander" in row and "join-driver" not in row, "an agent drives: no Driver link"
+def test_experimenter_forms_make_a_trial_with_join_links(server):
+    assert httpx.get(server.url + "/experimenter").status_code == 303, "the dashboard is behind login"
+    client = experimenter_client(server.services, server.url)
+    for name in ("Ada", "Ben", "Cy"):
+        client.post("/experimenter/participants", data={"name": name})
+    page = client.post("/experimenter/participants", data={"name": "Ada"}).text
+    assert "already exists" in page
+    page = client.post("/experimenter/teams", data={"name": "Solo", "member_a": 1, "member_b": 1}).text
+    assert "two different participants" in page
+    client.post("/experimenter/teams", data={"name": "Pair", "member_a": 1, "member_b": 2})
+    client.post("/experimenter/teams", data={"name": "Other", "member_a": 2, "member_b": 3})
+    page = client.post("/experimenter/trials", data={"team_id": 1, "targets": "mug,jar,paddle"}).text
+    links = dict(re.findall(r'class="join-(\w+)" href="([^"]+)"', page))
+    assert set(links) == {"commander", "driver"}
+    assert "Commander Ada · Driver Ben" in page and ">commander (Ada)</a>" in page and ">driver (Ben)</a>" in page
+    assert "Commander" in client.get(links["commander"]).text
+    page = client.post("/experimenter/trials", data={"team_id": 1, "targets": "mug,mug,jar"}).text
+    assert "give each of jar, mug, paddle once" in page
+    names = sorted(server.services.mazes.names())
+    with server.services.db() as db:
+        first = db.scalar(select(Trial).where(Trial.team_id == 1))
+    assert first.maze == names[0] and first.targets == ["mug", "jar", "paddle"]
+    # Ben holds a seat in Pair's trial, not yet over: team Other gets no trial until it ends.
+    page = html.unescape(client.post("/experimenter/trials", data={"team_id": 2}).text)
+    assert f"team 'Other': a member is in trial {first.id}, which is waiting;" in page
+    client.post(f"/experimenter/trials/{first.id}/abort")
+    # Ben played maze 0 with Pair: team Other may not get it, and is given the next least used.
+    page = client.post("/experimenter/trials", data={"team_id": 2, "maze": names[0]}).text
+    assert "already seen it" in page
+    page = html.unescape(client.post("/experimenter/trials", data={"team_id": 2, "backend": "robot:42"}).text)
+    assert "no registered rover with id '42'" in page
+    page = html.unescape(client.post("/experimenter/trials", data={"team_id": 2, "driver": "agent:nobody"}).text)
+    assert "neither 'human' nor a known agent" in page
+    client.post("/experimenter/trials", data={"team_id": 2, "driver": "oracle:shortest"})
+    with server.services.db() as db:
+        second = db.scalar(select(Trial).where(Trial.team_id == 2))
+    assert second.maze == names[1] and sorted(second.targets) == ["jar", "mug", "paddle"]
+    assert second.driver == "oracle:shortest" and second.driver_id is None
+    row = re.search(rf'data-trial="{second.id}".*?</tr>', client.get("/experimenter").text, re.S).group(0)
+    assert "join-commander" in row and "join-driver" not in row, "an agent drives: no Driver link"
 
 
 @pytest.mark.parametrize("kind", ["sqlite", "postgres"])

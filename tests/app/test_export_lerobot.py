@@ -22,7 +22,7 @@ from app.export.record import ExportError
 from app.settings import Settings
 from app.trial.log import EventLog
 from sim.core.dynamics import Action
-from tests.app.test_export_mcap import record, small_maze  # noqa: F401  (a small trial log)
+from tests.app.trial_log import small_maze
 from tests.packaging.conftest import REPO, clean_env
 
 av = pytest.importorskip("av", reason="the LeRobot export needs the `lerobot` extra (PyAV)")

@@ -17,7 +17,6 @@ from app.main import build_services
 from app.trial.relay import owner_key
 from bench.live import SeatClient, ServerProcess, make_trial
 from tests.app.conftest import platform_settings
-from tests.app.test_relay import redis_url  # noqa: F401  (the fixture)
 from tests.app.trial_play import move, start_trial
 
 

@@ -16,8 +16,7 @@ from sim.core.navgraph import NavGraph
 from sim.tasks.ldh_eval import MazeContext, colour_logits
 from sim.tasks.ldh_features import maze_views, mentions
 from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread
-from tests.app.test_status import Watch
+from tests.app.live import ServerThread, Watch
 from tests.app.trial_play import start_trial
 
 SAID = "I see a red wall on my left and a yellow wall ahead of me"

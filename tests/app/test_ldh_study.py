@@ -16,7 +16,7 @@ from sim.tasks.benchmark import Benchmark
 from sim.tasks.ldh import LDHInstance, Variant
 from sim.tasks.ldh_eval import MazeContext, score
 from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread, browser, page_csrf_token
+from tests.app.live import browser, page_csrf_token
 
 
 def participant(base_url: str, link: str) -> tuple[httpx.Client, str]:
@@ -34,12 +34,16 @@ def events(services, study_id: int) -> list[LDHStudyEvent]:
 
 
 @pytest.fixture
-def server(tmp_path, benchmark_path):
-    settings = platform_settings(tmp_path, benchmark=benchmark_path)
-    with ServerThread(settings) as running:
-        with running.services.db.begin() as db:
-            db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
-        yield running
+def settings(tmp_path, benchmark_path):
+    return platform_settings(tmp_path, benchmark=benchmark_path)
+
+
+@pytest.fixture
+def server(server):
+    """The platform on the benchmark, with an experimenter's account."""
+    with server.services.db.begin() as db:
+        db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
+    return server
 
 
 def make_study(services, benchmark_path, n: int = 2, name: str = "pilot") -> int:

@@ -8,7 +8,6 @@ from sqlalchemy import select
 from app.db.models import Team, Trial
 from app.leaderboard import agent_standings, standings
 from app.trial.setup import create_participant, create_team
-from tests.app.live import ServerThread
 
 
 def add_trials(services, team_name: str, trials: list[tuple[str, float | None, int]]) -> None:
@@ -31,69 +30,67 @@ def add_trials(services, team_name: str, trials: list[tuple[str, float | None, i
             )
 
 
-def test_teams_ranked_by_best_score_with_count_and_mean(settings):
-    with ServerThread(settings) as server:
-        services = server.services
-        add_trials(services, "Slow", [("finished", 300.0, 100)])  # 400 s
-        add_trials(
-            services,
-            "Steady",
-            [
-                ("finished", 100.0, 50),
-                ("finished", 150.0, 50),  # 150, 200
-                ("aborted", None, 5),
-                ("navigating", None, 40),
-            ],
-        )
-        add_trials(services, "Never", [("aborted", None, 3)])
-        with services.db() as db:
-            rows = standings(db, move_penalty_s=1.0)
-            halved = standings(db, move_penalty_s=0.5)
-        assert [(r.rank, r.team, r.completed) for r in rows] == [(1, "Steady", 2), (2, "Slow", 1)]
-        assert rows[0].best_s == 150.0 and rows[0].mean_s == 175.0 and rows[1].best_s == 400.0
-        assert halved[0].best_s == 125.0
-        page = httpx.get(server.url + "/leaderboard").text
-        assert page.index("Steady") < page.index("Slow") and "Never" not in page
-        assert "175.0" in page
+def test_teams_ranked_by_best_score_with_count_and_mean(server):
+    services = server.services
+    add_trials(services, "Slow", [("finished", 300.0, 100)])  # 400 s
+    add_trials(
+        services,
+        "Steady",
+        [
+            ("finished", 100.0, 50),
+            ("finished", 150.0, 50),  # 150, 200
+            ("aborted", None, 5),
+            ("navigating", None, 40),
+        ],
+    )
+    add_trials(services, "Never", [("aborted", None, 3)])
+    with services.db() as db:
+        rows = standings(db, move_penalty_s=1.0)
+        halved = standings(db, move_penalty_s=0.5)
+    assert [(r.rank, r.team, r.completed) for r in rows] == [(1, "Steady", 2), (2, "Slow", 1)]
+    assert rows[0].best_s == 150.0 and rows[0].mean_s == 175.0 and rows[1].best_s == 400.0
+    assert halved[0].best_s == 125.0
+    page = httpx.get(server.url + "/leaderboard").text
+    assert page.index("Steady") < page.index("Slow") and "Never" not in page
+    assert "175.0" in page
 
 
-def test_agent_trials_rank_apart_and_never_count_for_the_team(settings):
-    with ServerThread(settings) as server:
-        services = server.services
-        add_trials(services, "Owls", [("finished", 200.0, 40)])  # 240 s, driven by Owls-b
-        with services.db.begin() as db:
-            team = db.scalar(select(Team).where(Team.name == "Owls"))
-            for driver, active_s, moves in (
-                ("agent:dialog", 50.0, 30),
-                ("agent:dialog", 70.0, 30),
-                ("oracle:shortest", 10.0, 20),  # cheats: it ranks nowhere
-                ("agent:random", 500.0, 300),
-                ("agent:random", None, 9),
-            ):
-                db.add(
-                    Trial(
-                        team_id=team.id,
-                        maze="m9",
-                        targets=["jar", "mug", "paddle"],
-                        backend="sim",
-                        driver=driver,
-                        commander_id=team.member_a_id,
-                        phase="finished" if active_s else "aborted",
-                        active_s=active_s,
-                        moves=moves,
-                    )
+def test_agent_trials_rank_apart_and_never_count_for_the_team(server):
+    services = server.services
+    add_trials(services, "Owls", [("finished", 200.0, 40)])  # 240 s, driven by Owls-b
+    with services.db.begin() as db:
+        team = db.scalar(select(Team).where(Team.name == "Owls"))
+        for driver, active_s, moves in (
+            ("agent:dialog", 50.0, 30),
+            ("agent:dialog", 70.0, 30),
+            ("oracle:shortest", 10.0, 20),  # cheats: it ranks nowhere
+            ("agent:random", 500.0, 300),
+            ("agent:random", None, 9),
+        ):
+            db.add(
+                Trial(
+                    team_id=team.id,
+                    maze="m9",
+                    targets=["jar", "mug", "paddle"],
+                    backend="sim",
+                    driver=driver,
+                    commander_id=team.member_a_id,
+                    phase="finished" if active_s else "aborted",
+                    active_s=active_s,
+                    moves=moves,
                 )
-            db.get(Trial, 1).driver_id = team.member_b_id
-        with services.db() as db:
-            teams = standings(db, move_penalty_s=1.0)
-            agents = agent_standings(db, move_penalty_s=1.0)
-        assert [(r.team, r.completed, r.best_s, r.drivers) for r in teams] == [("Owls", 1, 240.0, ("Owls-b",))]
-        assert [(r.rank, r.agent, r.completed, r.best_s, r.commanders) for r in agents] == [
-            (1, "agent:dialog", 2, 80.0, ("Owls",)),
-            (2, "agent:random", 1, 800.0, ("Owls",)),
-        ]
-        page = httpx.get(server.url + "/leaderboard").text
-        humans, machines = page.split('id="agent-leaderboard"')
-        assert "Owls-b" in humans and "agent:" not in humans and "80.0" not in humans
-        assert machines.index("agent:dialog") < machines.index("agent:random")
-        assert "oracle:" not in page
+            )
+        db.get(Trial, 1).driver_id = team.member_b_id
+    with services.db() as db:
+        teams = standings(db, move_penalty_s=1.0)
+        agents = agent_standings(db, move_penalty_s=1.0)
+    assert [(r.team, r.completed, r.best_s, r.drivers) for r in teams] == [("Owls", 1, 240.0, ("Owls-b",))]
+    assert [(r.rank, r.agent, r.completed, r.best_s, r.commanders) for r in agents] == [
+        (1, "agent:dialog", 2, 80.0, ("Owls",)),
+        (2, "agent:random", 1, 800.0, ("Owls",)),
+    ]
+    page = httpx.get(server.url + "/leaderboard").text
+    humans, machines = page.split('id="agent-leaderboard"')
+    assert "Owls-b" in humans and "agent:" not in humans and "80.0" not in humans
+    assert machines.index("agent:dialog") < machines.index("agent:random")
+    assert "oracle:" not in page

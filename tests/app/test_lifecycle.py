@@ -32,65 +32,58 @@ def export(settings, *args: str) -> subprocess.CompletedProcess:
     )
 
 
-def test_only_what_nothing_uses_is_deleted_and_a_refusal_says_why(settings):
-    with ServerThread(settings) as server:
-        services = server.services
-        client = experimenter_client(services, server.url)
-        trial_id = make_trial(services, services.mazes.names()[0], team="Owls")  # members "Owls commander/driver"
-        with services.db.begin() as db:
-            loner = Participant(name="Loner")
-            db.add(loner)
-            rover, _ = create_robot(db, "rover-1")
-            spare, _ = create_robot(db, "spare", role="overhead")
-            db.flush()
-            ids = {"loner": loner.id, "rover": rover.id, "spare": spare.id}
-            owls = db.query(Team).filter_by(name="Owls").one()
-            member = owls.member_a_id
-        client.post(f"/experimenter/trials/{trial_id}/abort")
-        client.post("/experimenter/trials", data={"team_id": owls.id, "backend": f"robot:{ids['rover']}"})
-        rover_trial = trial_id + 1
+def test_only_what_nothing_uses_is_deleted_and_a_refusal_says_why(server):
+    services = server.services
+    client = experimenter_client(services, server.url)
+    trial_id = make_trial(services, services.mazes.names()[0], team="Owls")  # members "Owls commander/driver"
+    with services.db.begin() as db:
+        loner = Participant(name="Loner")
+        db.add(loner)
+        rover, _ = create_robot(db, "rover-1")
+        spare, _ = create_robot(db, "spare", role="overhead")
+        db.flush()
+        ids = {"loner": loner.id, "rover": rover.id, "spare": spare.id}
+        owls = db.query(Team).filter_by(name="Owls").one()
+        member = owls.member_a_id
+    client.post(f"/experimenter/trials/{trial_id}/abort")
+    client.post("/experimenter/trials", data={"team_id": owls.id, "backend": f"robot:{ids['rover']}"})
+    rover_trial = trial_id + 1
 
-        refused = client.delete(f"/experimenter/participants/{member}")
-        assert refused.status_code == 409
-        assert (
-            refused.json()["detail"] == "participant 'Owls commander' is a member of team 'Owls': delete the team first"
-        )
-        refused = client.delete(f"/experimenter/teams/{owls.id}")
-        assert refused.status_code == 409
-        assert (
-            refused.json()["detail"]
-            == f"team 'Owls' has played trials ({trial_id}, {rover_trial}): exclude them instead"
-        )
-        refused = client.delete(f"/experimenter/robots/{ids['rover']}")
-        assert refused.status_code == 409
-        assert (
-            refused.json()["detail"] == f"robot 'rover-1' is the robot of trial {rover_trial}: its recordings name it"
-        )
-        assert client.delete("/experimenter/participants/999").status_code == 409
+    refused = client.delete(f"/experimenter/participants/{member}")
+    assert refused.status_code == 409
+    assert refused.json()["detail"] == "participant 'Owls commander' is a member of team 'Owls': delete the team first"
+    refused = client.delete(f"/experimenter/teams/{owls.id}")
+    assert refused.status_code == 409
+    assert (
+        refused.json()["detail"] == f"team 'Owls' has played trials ({trial_id}, {rover_trial}): exclude them instead"
+    )
+    refused = client.delete(f"/experimenter/robots/{ids['rover']}")
+    assert refused.status_code == 409
+    assert refused.json()["detail"] == f"robot 'rover-1' is the robot of trial {rover_trial}: its recordings name it"
+    assert client.delete("/experimenter/participants/999").status_code == 409
 
-        assert client.delete(f"/experimenter/participants/{ids['loner']}").json() == {"deleted": True}
-        assert client.delete(f"/experimenter/robots/{ids['spare']}").json() == {"deleted": True}
-        with services.db() as db:
-            assert db.get(Participant, ids["loner"]) is None and db.get(Participant, member) is not None
-            assert [r.name for r in db.query(Robot)] == ["rover-1"] and db.get(Team, owls.id) is not None
-            assert [t.id for t in db.query(Trial).order_by(Trial.id)] == [trial_id, rover_trial]
-        page = client.get("/experimenter").text
-        assert "Loner" not in page and "spare" not in page
+    assert client.delete(f"/experimenter/participants/{ids['loner']}").json() == {"deleted": True}
+    assert client.delete(f"/experimenter/robots/{ids['spare']}").json() == {"deleted": True}
+    with services.db() as db:
+        assert db.get(Participant, ids["loner"]) is None and db.get(Participant, member) is not None
+        assert [r.name for r in db.query(Robot)] == ["rover-1"] and db.get(Team, owls.id) is not None
+        assert [t.id for t in db.query(Trial).order_by(Trial.id)] == [trial_id, rover_trial]
+    page = client.get("/experimenter").text
+    assert "Loner" not in page and "spare" not in page
 
 
-def test_a_participant_is_in_one_live_trial_at_a_time(settings):
-    with ServerThread(settings) as server:
-        services = server.services
-        client = experimenter_client(services, server.url)
-        trial_id = make_trial(services, services.mazes.names()[0], team="Owls")
-        with services.db() as db:
-            owls = db.query(Team).filter_by(name="Owls").one()
-        page = html.unescape(client.post("/experimenter/trials", data={"team_id": owls.id}).text)
-        assert f"team 'Owls': a member is in trial {trial_id}, which is waiting;" in page
-        client.post(f"/experimenter/trials/{trial_id}/abort")
-        client.post("/experimenter/trials", data={"team_id": owls.id})
-        with services.db() as db:
-            assert [t.phase for t in db.query(Trial).order_by(Trial.id)] == ["aborted", "waiting"]
+def test_a_participant_is_in_one_live_trial_at_a_time(server):
+    services = server.services
+    client = experimenter_client(services, server.url)
+    trial_id = make_trial(services, services.mazes.names()[0], team="Owls")
+    with services.db() as db:
+        owls = db.query(Team).filter_by(name="Owls").one()
+    page = html.unescape(client.post("/experimenter/trials", data={"team_id": owls.id}).text)
+    assert f"team 'Owls': a member is in trial {trial_id}, which is waiting;" in page
+    client.post(f"/experimenter/trials/{trial_id}/abort")
+    client.post("/experimenter/trials", data={"team_id": owls.id})
+    with services.db() as db:
+        assert [t.phase for t in db.query(Trial).order_by(Trial.id)] == ["aborted", "waiting"]
 
 
 def test_an_excluded_trial_leaves_the_leaderboard_and_exports_and_its_replay_says_why(tmp_path):

@@ -76,38 +76,36 @@ def csrf(client: httpx.Client, page: str) -> dict[str, str]:
     return {"csrf_token": token} if token else {}
 
 
-def test_people_get_html_error_pages_and_scripts_get_json(settings):
-    with ServerThread(settings) as server:
-        page = httpx.get(server.url + "/no/such/page", headers=HTML)
-        assert page.status_code == 404 and page.headers["content-type"].startswith("text/html")
-        assert 'id="error-page"' in page.text and "Page not found" in page.text
-        bad_link = httpx.get(server.url + "/play/not-a-token", headers=HTML)
-        assert bad_link.status_code == 403 and "Ask your experimenter for a new join link" in bad_link.text
-        assert httpx.get(server.url + "/no/such/page").json() == {"detail": "Not Found"}
-        # The favicon is served, so no page logs a 404 for it.
-        assert httpx.get(server.url + "/favicon.ico").headers["content-type"].startswith("image/svg")
+def test_people_get_html_error_pages_and_scripts_get_json(server):
+    page = httpx.get(server.url + "/no/such/page", headers=HTML)
+    assert page.status_code == 404 and page.headers["content-type"].startswith("text/html")
+    assert 'id="error-page"' in page.text and "Page not found" in page.text
+    bad_link = httpx.get(server.url + "/play/not-a-token", headers=HTML)
+    assert bad_link.status_code == 403 and "Ask your experimenter for a new join link" in bad_link.text
+    assert httpx.get(server.url + "/no/such/page").json() == {"detail": "Not Found"}
+    # The favicon is served, so no page logs a 404 for it.
+    assert httpx.get(server.url + "/favicon.ico").headers["content-type"].startswith("image/svg")
 
-        client = log_in(server)
-        missing = client.get("/experimenter/trials/999", headers=HTML)
-        assert missing.status_code == 404 and "trial 999 does not exist" in missing.text
-        assert client.get("/experimenter/trials/not-a-number", headers=HTML).status_code == 404
+    client = log_in(server)
+    missing = client.get("/experimenter/trials/999", headers=HTML)
+    assert missing.status_code == 404 and "trial 999 does not exist" in missing.text
+    assert client.get("/experimenter/trials/not-a-number", headers=HTML).status_code == 404
 
 
-def test_controls_answer_404_on_a_missing_trial_and_refuse_what_does_not_apply(settings):
-    with ServerThread(settings) as server:
-        client = log_in(server)
-        token = csrf(client, "/experimenter")
-        for action in ("pause", "resume", "abort"):
-            assert client.post(f"/experimenter/trials/999/{action}", data=token).status_code == 404
-        trial_id = make_trial(server.services, server.services.mazes.names()[0])
-        # A waiting trial cannot be paused; it can be aborted, and then nothing applies.
-        paused = client.post(f"/experimenter/trials/{trial_id}/pause", data=token, follow_redirects=True)
-        assert "pause does not apply" in paused.text
-        client.post(f"/experimenter/trials/{trial_id}/abort", data=token)
-        page = client.get(f"/experimenter/trials/{trial_id}", headers=HTML).text
-        assert all(re.search(rf'control-{a}"\s+hidden', page) for a in ("pause", "resume", "abort"))
-        again = client.post(f"/experimenter/trials/{trial_id}/abort", data=token, follow_redirects=True)
-        assert "aborted: abort does not apply" in again.text
+def test_controls_answer_404_on_a_missing_trial_and_refuse_what_does_not_apply(server):
+    client = log_in(server)
+    token = csrf(client, "/experimenter")
+    for action in ("pause", "resume", "abort"):
+        assert client.post(f"/experimenter/trials/999/{action}", data=token).status_code == 404
+    trial_id = make_trial(server.services, server.services.mazes.names()[0])
+    # A waiting trial cannot be paused; it can be aborted, and then nothing applies.
+    paused = client.post(f"/experimenter/trials/{trial_id}/pause", data=token, follow_redirects=True)
+    assert "pause does not apply" in paused.text
+    client.post(f"/experimenter/trials/{trial_id}/abort", data=token)
+    page = client.get(f"/experimenter/trials/{trial_id}", headers=HTML).text
+    assert all(re.search(rf'control-{a}"\s+hidden', page) for a in ("pause", "resume", "abort"))
+    again = client.post(f"/experimenter/trials/{trial_id}/abort", data=token, follow_redirects=True)
+    assert "aborted: abort does not apply" in again.text
 
 
 def test_an_agent_that_cannot_start_is_not_offered_and_is_refused_with_its_reason(settings, tmp_path):

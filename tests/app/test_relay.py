@@ -12,22 +12,8 @@ from app.db.models import Event, Experimenter, Trial
 from app.security import hash_password
 from bench.live import SeatClient, make_trial
 from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread, browser, experimenter_client, submit_login
-from tests.app.test_status import Watch
+from tests.app.live import ServerThread, Watch, browser, experimenter_client, submit_login
 from tests.app.trial_play import claim_and_decide, drive_to_target, move, start_trial
-
-REDIS_URL = "redis://127.0.0.1:6379/0"
-
-
-@pytest.fixture
-def redis_url():
-    import redis
-
-    try:
-        redis.Redis.from_url(REDIS_URL, socket_connect_timeout=2).ping()
-    except redis.RedisError as err:
-        pytest.skip(f"Redis at {REDIS_URL} not reachable: {err}")
-    return REDIS_URL
 
 
 @pytest.mark.slow

@@ -8,25 +8,20 @@ import contextlib
 import json
 import time
 
-import cv2
-import numpy as np
 import pytest
 import websockets
 from sqlalchemy import select
 
-from app.backends.remote import create_robot
 from app.db.models import Trial
 from app.main import build_services
-from app.trial.setup import create_participant, create_team, create_trial
 from app.trial.state import fold
 from bench.live import SeatClient, ServerProcess, make_trial
-from robot_client.protocol import pack_frame
 from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread, experimenter_client, session_cookie
+from tests.app.live import experimenter_client, session_cookie
 from tests.app.trial_play import move, start_trial
+from tests.app.wire_rover import Rover, rover_trial
 
 S = 1_000_000_000
-JPEG = cv2.imencode(".jpg", np.zeros((240, 320, 3), np.uint8))[1].tobytes()  # what Rover.frame's header says
 
 
 def until(predicate, what: str, timeout: float = 20.0):
@@ -38,67 +33,6 @@ def until(predicate, what: str, timeout: float = 20.0):
             return value
         time.sleep(0.05)
     raise AssertionError(f"{what}: not within {timeout} s")
-
-
-class Rover:
-    """A rover that speaks the wire protocol: hello, pongs on its own clock, frames; and moves it
-    never acknowledges unless told to (so a test can hold a move in flight)."""
-
-    def __init__(self, url: str, token: str, clock_offset_ns: int = 0) -> None:
-        self.url, self.token, self.offset = url.replace("/ws/play", "/ws/robot"), token, clock_offset_ns
-        self.moves: list[dict] = []
-        self.errors: list[dict] = []
-
-    def now(self) -> int:
-        return time.monotonic_ns() + self.offset
-
-    async def __aenter__(self) -> Rover:
-        self.ws = await websockets.connect(self.url, max_size=2**22)
-        await self.ws.send(json.dumps({"type": "hello", "protocol": 1, "token": self.token, "role": "driver"}))
-        welcome = json.loads(await self.ws.recv())
-        assert welcome["type"] == "welcome", welcome
-        self.pongs = 0
-        self._reader = asyncio.get_running_loop().create_task(self._read())
-        return self
-
-    async def _read(self) -> None:
-        with contextlib.suppress(websockets.ConnectionClosed):
-            async for raw in self.ws:
-                message = json.loads(raw)
-                if message["type"] == "ping":
-                    await self.ws.send(json.dumps({"type": "pong", "id": message["id"], "robot_ns": self.now()}))
-                    self.pongs += 1
-                elif message["type"] == "move":
-                    self.moves.append(message)
-                elif message["type"] == "error":
-                    self.errors.append(message)
-
-    async def frame(self, seq: int, capture_ns: int) -> None:
-        await self.ws.send(pack_frame(seq, capture_ns, 320, 240, JPEG))
-
-    async def __aexit__(self, *exc) -> None:
-        self._reader.cancel()
-        await self.ws.close()
-
-
-def rover_trial(services) -> tuple[int, str]:
-    """A registered rover and a trial on it; returns (trial id, the rover's token)."""
-    with services.db.begin() as db:
-        robot, token = create_robot(db, "rover")
-        a, b = create_participant(db, "ann"), create_participant(db, "bob")
-        team = create_team(db, "Team R", a.id, b.id)
-        trial = create_trial(
-            db,
-            team_id=team.id,
-            maze=services.mazes.names()[0],
-            targets=["jar", "mug", "paddle"],
-            backend=f"robot:{robot.id}",
-            driver="human",
-            commander_id=a.id,
-            layouts=services.mazes.layouts(),
-            now_ns=services.clock.now_ns(),
-        )
-        return trial.id, token
 
 
 @pytest.mark.slow
@@ -189,120 +123,111 @@ def test_a_seat_that_dropped_before_a_crash_still_times_out(tmp_path):
     services.engine.dispose()
 
 
-def test_a_trial_ended_by_its_grace_timer_leaves_the_live_list_and_reopens_without_a_new_event(tmp_path):
-    settings = platform_settings(tmp_path, grace_period_s=0.3)
-    with ServerThread(settings) as server:
-        services = server.services
-        trial_id = make_trial(services, services.mazes.names()[0])
-        tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+@pytest.mark.settings(grace_period_s=0.3)
+def test_a_trial_ended_by_its_grace_timer_leaves_the_live_list_and_reopens_without_a_new_event(server, trial, seats):
+    services = server.services
 
-        async def play():
-            async with (
-                SeatClient(server.ws_url, tokens["commander"]) as commander,
-                SeatClient(server.ws_url, tokens["driver"]) as driver,
-            ):
+    async def play():
+        async with (
+            SeatClient(server.ws_url, seats["commander"]) as commander,
+            SeatClient(server.ws_url, seats["driver"]) as driver,
+        ):
+            await start_trial(commander, driver)
+        # Both gone: the first grace timer to run out aborts the trial.
+        until(lambda: services.hub.peek(trial) is None, "the ended trial to leave this process")
+        assert services.hub.live() == []
+        ended = services.log.load(trial)
+        assert ended[-1].payload == {"phase": "aborted", "target_index": None}
+        # The seat's join link closed with the trial; the experimenter's watch reopens it.
+        with contextlib.suppress(websockets.exceptions.InvalidStatus):
+            async with SeatClient(server.ws_url, seats["commander"]):
+                raise AssertionError("a join link of an ended trial still opens its seat")
+        cookie = session_cookie(await asyncio.to_thread(experimenter_client, services, server.url))
+        async with websockets.connect(
+            f"ws://127.0.0.1:{server.port}/ws/watch/{trial}", additional_headers={"Cookie": cookie}
+        ) as watch:
+            welcome = json.loads(await watch.recv())
+            assert welcome["type"] == "welcome" and welcome["phase"] == "aborted"
+            assert welcome["status"]["running"] is False
+        assert services.log.load(trial) == ended, "reopening an ended trial appends nothing"
+
+    asyncio.run(play())
+
+
+def test_a_move_id_sent_twice_executes_once(server, trial, seats):
+    services = server.services
+
+    async def play():
+        async with (
+            SeatClient(server.ws_url, seats["commander"]) as commander,
+            SeatClient(server.ws_url, seats["driver"]) as driver,
+        ):
+            await start_trial(commander, driver)
+            await driver.send("move", action="left", move_id="once")
+            first = await driver.event("move_executed", move_id="once")
+            assert first["payload"]["outcome"] == "ok"
+            start = len(driver.received)
+            await driver.send("move", action="left", move_id="once")
+            error = await driver.wait_for(lambda m: m.get("type") == "error", start=start)
+            assert "'once' was already received" in error["error"]
+            await move(driver, "right")  # the next move is executed as usual
+
+    asyncio.run(play())
+    log = services.log.load(trial)
+    assert [e.kind for e in log if e.payload.get("move_id") == "once"] == ["move_requested", "move_executed"]
+    assert fold(log).moves == 2
+
+
+def test_frame_stamps_stay_monotonic_across_a_rover_reconnection(server):
+    services = server.services
+    trial_id, rover_token = rover_trial(services)
+    tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+
+    async def play():
+        async with (
+            SeatClient(server.ws_url, tokens["commander"]) as commander,
+            SeatClient(server.ws_url, tokens["driver"]) as driver,
+        ):
+            async with Rover(server.ws_url, rover_token) as rover:
                 await start_trial(commander, driver)
-            # Both gone: the first grace timer to run out aborts the trial.
-            until(lambda: services.hub.peek(trial_id) is None, "the ended trial to leave this process")
-            assert services.hub.live() == []
-            ended = services.log.load(trial_id)
-            assert ended[-1].payload == {"phase": "aborted", "target_index": None}
-            # The seat's join link closed with the trial; the experimenter's watch reopens it.
-            with contextlib.suppress(websockets.exceptions.InvalidStatus):
-                async with SeatClient(server.ws_url, tokens["commander"]):
-                    raise AssertionError("a join link of an ended trial still opens its seat")
-            cookie = session_cookie(await asyncio.to_thread(experimenter_client, services, server.url))
-            async with websockets.connect(
-                f"ws://127.0.0.1:{server.port}/ws/watch/{trial_id}", additional_headers={"Cookie": cookie}
-            ) as watch:
-                welcome = json.loads(await watch.recv())
-                assert welcome["type"] == "welcome" and welcome["phase"] == "aborted"
-                assert welcome["status"]["running"] is False
-            assert services.log.load(trial_id) == ended, "reopening an ended trial appends nothing"
-
-        asyncio.run(play())
-
-
-def test_a_move_id_sent_twice_executes_once(settings):
-    with ServerThread(settings) as server:
-        services = server.services
-        trial_id = make_trial(services, services.mazes.names()[0])
-        tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-
-        async def play():
-            async with (
-                SeatClient(server.ws_url, tokens["commander"]) as commander,
-                SeatClient(server.ws_url, tokens["driver"]) as driver,
-            ):
-                await start_trial(commander, driver)
-                await driver.send("move", action="left", move_id="once")
-                first = await driver.event("move_executed", move_id="once")
-                assert first["payload"]["outcome"] == "ok"
+                while rover.pongs < 3:  # the server knows the rover's clock
+                    await asyncio.sleep(0.02)
+                await rover.frame(1, rover.now())
+                first = await driver.event("frame")
+            # The rover comes back; the first frame it sends was captured before the link dropped.
+            async with Rover(server.ws_url, rover_token) as rover:
+                while rover.pongs < 3:
+                    await asyncio.sleep(0.02)
                 start = len(driver.received)
-                await driver.send("move", action="left", move_id="once")
-                error = await driver.wait_for(lambda m: m.get("type") == "error", start=start)
-                assert "'once' was already received" in error["error"]
-                await move(driver, "right")  # the next move is executed as usual
+                await rover.frame(2, rover.now() - 2 * S)
+                second = await driver.event("frame", start=start)
+                start = len(driver.received)
+                await rover.frame(3, rover.now())
+                third = await driver.event("frame", start=start)
+            return [m["payload"]["capture_ns"] for m in (first, second, third)]
 
-        asyncio.run(play())
-        log = services.log.load(trial_id)
-        assert [e.kind for e in log if e.payload.get("move_id") == "once"] == ["move_requested", "move_executed"]
-        assert fold(log).moves == 2
-
-
-def test_frame_stamps_stay_monotonic_across_a_rover_reconnection(tmp_path):
-    with ServerThread(platform_settings(tmp_path)) as server:
-        services = server.services
-        trial_id, rover_token = rover_trial(services)
-        tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-
-        async def play():
-            async with (
-                SeatClient(server.ws_url, tokens["commander"]) as commander,
-                SeatClient(server.ws_url, tokens["driver"]) as driver,
-            ):
-                async with Rover(server.ws_url, rover_token) as rover:
-                    await start_trial(commander, driver)
-                    while rover.pongs < 3:  # the server knows the rover's clock
-                        await asyncio.sleep(0.02)
-                    await rover.frame(1, rover.now())
-                    first = await driver.event("frame")
-                # The rover comes back; the first frame it sends was captured before the link dropped.
-                async with Rover(server.ws_url, rover_token) as rover:
-                    while rover.pongs < 3:
-                        await asyncio.sleep(0.02)
-                    start = len(driver.received)
-                    await rover.frame(2, rover.now() - 2 * S)
-                    second = await driver.event("frame", start=start)
-                    start = len(driver.received)
-                    await rover.frame(3, rover.now())
-                    third = await driver.event("frame", start=start)
-                return [m["payload"]["capture_ns"] for m in (first, second, third)]
-
-        stamps = asyncio.run(play())
-        assert stamps[0] < stamps[1] < stamps[2]
-        assert len({e.payload["path"] for e in services.log.load(trial_id) if e.kind == "frame"}) == 3
+    stamps = asyncio.run(play())
+    assert stamps[0] < stamps[1] < stamps[2]
+    assert len({e.payload["path"] for e in services.log.load(trial_id) if e.kind == "frame"}) == 3
 
 
-def test_a_message_over_the_transport_limit_gets_the_error_reply_and_is_logged(settings):
-    with ServerThread(settings) as server:
-        services = server.services
-        trial_id = make_trial(services, services.mazes.names()[0])
-        token = services.seats.issue(trial_id, "driver")
-        with server.services.db() as db:
-            assert db.scalar(select(Trial.phase).where(Trial.id == trial_id)) == "waiting"
+def test_a_message_over_the_transport_limit_gets_the_error_reply_and_is_logged(server, trial):
+    services = server.services
+    token = services.seats.issue(trial, "driver")
+    with server.services.db() as db:
+        assert db.scalar(select(Trial.phase).where(Trial.id == trial)) == "waiting"
 
-        async def play():
-            async with SeatClient(server.ws_url, token) as driver:
-                await driver.wait_for(lambda m: m.get("type") == "welcome")
-                with contextlib.suppress(websockets.ConnectionClosed):
-                    await driver.send("chat", text="x" * (8 * 1024 * 1024))
-                error = await driver.wait_for(lambda m: m.get("type") == "error")
-                await asyncio.wait_for(driver._reader, 10)  # then the server closes the socket
-                return error, driver.ws.close_code
+    async def play():
+        async with SeatClient(server.ws_url, token) as driver:
+            await driver.wait_for(lambda m: m.get("type") == "welcome")
+            with contextlib.suppress(websockets.ConnectionClosed):
+                await driver.send("chat", text="x" * (8 * 1024 * 1024))
+            error = await driver.wait_for(lambda m: m.get("type") == "error")
+            await asyncio.wait_for(driver._reader, 10)  # then the server closes the socket
+            return error, driver.ws.close_code
 
-        error, code = asyncio.run(play())
-        assert error["code"] == "bad_message" and "over the limit" in error["error"]
-        assert code == 1009
-        bad = until(lambda: [e for e in services.log.load(trial_id) if e.kind == "bad_message"], "the log entry")
-        assert bad[0].payload["role"] == "driver" and "over the limit" in bad[0].payload["error"]
+    error, code = asyncio.run(play())
+    assert error["code"] == "bad_message" and "over the limit" in error["error"]
+    assert code == 1009
+    bad = until(lambda: [e for e in services.log.load(trial) if e.kind == "bad_message"], "the log entry")
+    assert bad[0].payload["role"] == "driver" and "over the limit" in bad[0].payload["error"]

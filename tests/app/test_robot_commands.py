@@ -8,7 +8,7 @@ from sqlalchemy import create_engine
 from sqlalchemy.orm import Session
 
 from app.backends.remote import robot_for_token
-from tests.app.test_experimenter import cli
+from tests.app.live import cli
 
 
 @pytest.mark.slow

@@ -20,11 +20,6 @@ from robot_client.protocol import FrameHeader
 SKEW_NS = 5_000_000_000  # the robot's monotonic clock reads 5 s ahead of the server's
 
 
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
 CLOCK = ServerClock()
 
 

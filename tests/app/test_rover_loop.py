@@ -17,33 +17,12 @@ from sqlalchemy.orm import Session
 from app.db.models import Experimenter
 from app.export.ndh import ndh_instances
 from app.export.source import load_trial
-from app.perception.cameras import learned
 from bench.live import make_trial
 from sim.core.geometry import SUCCESS_RADIUS_M
-from sim.robot.camera import FrontCamera
-from tests.app.live import experimenter_client
-from tests.app.test_seq2seq_seat import stopping_checkpoint  # noqa: F401  (a fixture; needs the benchmark)
-from tests.app.test_status import Watch
-from tests.app.test_virtual_rover import (  # noqa: F401  (fixtures)
-    MAZE,
-    START_S,
-    Lab,
-    anyio_backend,
-    maze,
-    settled,
-    start,
-    turned,
-    until,
-)
+from tests.app.live import Watch, experimenter_client
+from tests.app.rover_lab import MAZE, START_S, TARGETS, Lab, settled, turned, until
 
 pytestmark = pytest.mark.anyio
-TARGETS = ("jar", "mug", "paddle")
-
-
-@pytest.fixture(scope="module")
-def camera_calibration(tmp_path_factory):
-    """The software rover's front camera as a lab would calibrate it (learned once per module)."""
-    return learned(FrontCamera()).save(tmp_path_factory.mktemp("lab") / "camera_calibration.json")
 
 
 def with_calibration(lab: Lab, path) -> Lab:

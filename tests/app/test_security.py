@@ -19,18 +19,11 @@ from sqlalchemy import select
 
 from app.db.engine import alembic_config, make_engine
 from app.db.models import Experimenter, Participant, Trial
-from app.security import SESSION_COOKIE, InvalidToken, Seat, SeatTokens, hash_password
+from app.security import SESSION_COOKIE, InvalidToken, Seat, SeatTokens
 from bench.live import REPO, SeatClient, make_trial
 from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread, browser, log_in, page_csrf_token, submit_login
+from tests.app.live import PASSWORD, ServerThread, add_experimenter, browser, log_in, page_csrf_token, submit_login
 from tests.app.trial_play import start_trial
-
-PASSWORD = "correct horse"
-
-
-def add_experimenter(server, name: str = "eve", password: str = PASSWORD) -> None:
-    with server.services.db.begin() as db:
-        db.add(Experimenter(name=name, password_hash=hash_password(password)))
 
 
 def participants(server) -> list[str]:
@@ -49,165 +42,156 @@ def other_port_of(server) -> str:
 
 
 # -- cross-site request forgery --------------------------------------------------------
-def test_a_page_on_another_port_cannot_create_participants_or_abort_a_trial(settings):
-    with ServerThread(settings) as server:
-        add_experimenter(server)
-        experimenter = log_in(server.url, "eve", PASSWORD)
-        token = experimenter.headers["X-CSRF-Token"]
-        trial_id = make_trial(server.services, server.services.mazes.names()[0])
-        seat_tokens = {r: server.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-        foreign = other_port_of(server)
+def test_a_page_on_another_port_cannot_create_participants_or_abort_a_trial(server):
+    add_experimenter(server)
+    experimenter = log_in(server.url, "eve", PASSWORD)
+    token = experimenter.headers["X-CSRF-Token"]
+    trial_id = make_trial(server.services, server.services.mazes.names()[0])
+    seat_tokens = {r: server.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+    foreign = other_port_of(server)
 
-        def forged(path: str, data: dict | None = None, **headers) -> httpx.Response:
-            """The experimenter's browser (its cookies) posting what another page sends."""
-            with httpx.Client(base_url=server.url, cookies=experimenter.cookies) as client:
-                return client.post(path, data=data or {"name": "Mallory"}, headers=headers, follow_redirects=True)
+    def forged(path: str, data: dict | None = None, **headers) -> httpx.Response:
+        """The experimenter's browser (its cookies) posting what another page sends."""
+        with httpx.Client(base_url=server.url, cookies=experimenter.cookies) as client:
+            return client.post(path, data=data or {"name": "Mallory"}, headers=headers, follow_redirects=True)
 
-        # Another page's form or fetch: its own Origin, and at best a token it does not have.
-        assert forged("/experimenter/participants", Origin=foreign).status_code == 403
-        assert forged("/experimenter/participants", Origin=foreign, **{"X-CSRF-Token": token}).status_code == 403
-        assert forged("/experimenter/participants", Origin="null").status_code == 403
-        assert forged("/experimenter/participants", Referer=foreign + "/attack.html").status_code == 403
-        # Even from this server's origin, a request without the page's token is refused.
-        refused = forged("/experimenter/participants", Origin=server.url)
-        assert refused.status_code == 403 and "token" in refused.json()["detail"]
-        assert forged("/experimenter/participants", Origin=server.url, **{"X-CSRF-Token": "0" * 64}).status_code == 403
-        assert forged("/experimenter/participants").status_code == 403, "no Origin and no Referer"
-        assert forged("/experimenter/api/robots", Origin=foreign).status_code == 403
-        assert "Mallory" not in participants(server)
+    # Another page's form or fetch: its own Origin, and at best a token it does not have.
+    assert forged("/experimenter/participants", Origin=foreign).status_code == 403
+    assert forged("/experimenter/participants", Origin=foreign, **{"X-CSRF-Token": token}).status_code == 403
+    assert forged("/experimenter/participants", Origin="null").status_code == 403
+    assert forged("/experimenter/participants", Referer=foreign + "/attack.html").status_code == 403
+    # Even from this server's origin, a request without the page's token is refused.
+    refused = forged("/experimenter/participants", Origin=server.url)
+    assert refused.status_code == 403 and "token" in refused.json()["detail"]
+    assert forged("/experimenter/participants", Origin=server.url, **{"X-CSRF-Token": "0" * 64}).status_code == 403
+    assert forged("/experimenter/participants").status_code == 403, "no Origin and no Referer"
+    assert forged("/experimenter/api/robots", Origin=foreign).status_code == 403
+    assert "Mallory" not in participants(server)
 
-        async def abort_attempts() -> None:
-            async with (
-                SeatClient(server.ws_url, seat_tokens["commander"]) as commander,
-                SeatClient(server.ws_url, seat_tokens["driver"]) as driver,
-            ):
-                await start_trial(commander, driver)
-                for headers in ({"Origin": foreign}, {"Origin": foreign, "X-CSRF-Token": token}, {}):
-                    answer = await asyncio.to_thread(forged, f"/experimenter/trials/{trial_id}/abort", **headers)
-                    assert answer.status_code == 403
-                assert phase(server, trial_id) == "localizing"
-                # The experimenter's own page still can (the token in its form, Referer for Origin).
-                page = await asyncio.to_thread(
-                    forged,
-                    f"/experimenter/trials/{trial_id}/abort",
-                    {"csrf_token": token},
-                    Referer=server.url + "/experimenter",
-                )
-                assert page.status_code == 200
-                await commander.event("phase", phase="aborted")
+    async def abort_attempts() -> None:
+        async with (
+            SeatClient(server.ws_url, seat_tokens["commander"]) as commander,
+            SeatClient(server.ws_url, seat_tokens["driver"]) as driver,
+        ):
+            await start_trial(commander, driver)
+            for headers in ({"Origin": foreign}, {"Origin": foreign, "X-CSRF-Token": token}, {}):
+                answer = await asyncio.to_thread(forged, f"/experimenter/trials/{trial_id}/abort", **headers)
+                assert answer.status_code == 403
+            assert phase(server, trial_id) == "localizing"
+            # The experimenter's own page still can (the token in its form, Referer for Origin).
+            page = await asyncio.to_thread(
+                forged,
+                f"/experimenter/trials/{trial_id}/abort",
+                {"csrf_token": token},
+                Referer=server.url + "/experimenter",
+            )
+            assert page.status_code == 200
+            await commander.event("phase", phase="aborted")
 
-        asyncio.run(abort_attempts())
-        experimenter.post("/experimenter/participants", data={"name": "Ada"})
-        assert "Ada" in participants(server) and "Mallory" not in participants(server)
-
-
-def test_allowed_origins_may_post_and_login_needs_the_home_pages_token(tmp_path):
-    settings = platform_settings(tmp_path, allowed_origins=["https://lab.example"])
-    with ServerThread(settings) as server:
-        add_experimenter(server)
-        client = browser(server.url)
-        token = page_csrf_token(client.get("/").text)
-        # Login CSRF: a form on another page cannot log this browser into an account.
-        forged = client.post(
-            "/login",
-            data={"name": "eve", "password": PASSWORD, "csrf_token": token},
-            headers={"Origin": other_port_of(server)},
-        )
-        assert forged.status_code == 403 and SESSION_COOKIE not in client.cookies
-        tokenless = client.post("/login", data={"name": "eve", "password": PASSWORD})
-        assert tokenless.status_code == 403 and SESSION_COOKIE not in client.cookies
-        # A token is bound to its browser: another browser's token does not do.
-        other_token = page_csrf_token(browser(server.url).get("/").text)
-        assert (
-            client.post("/login", data={"name": "eve", "password": PASSWORD, "csrf_token": other_token}).status_code
-            == 403
-        )
-        page = client.post(
-            "/login",
-            data={"name": "eve", "password": PASSWORD, "csrf_token": token},
-            headers={"Origin": "https://lab.example"},
-        )
-        assert page.status_code == 200 and "Participants" in page.text
-        # After login the token changes with the session: the anonymous one no longer counts.
-        assert client.post("/experimenter/participants", data={"name": "Ada", "csrf_token": token}).status_code == 403
-        client.post("/experimenter/participants", data={"name": "Ada", "csrf_token": page_csrf_token(page.text)})
-        assert "Ada" in participants(server) and "Mallory" not in participants(server)
+    asyncio.run(abort_attempts())
+    experimenter.post("/experimenter/participants", data={"name": "Ada"})
+    assert "Ada" in participants(server) and "Mallory" not in participants(server)
 
 
-def test_websocket_origins_compare_scheme_host_and_port(settings):
-    with ServerThread(settings) as server:
-        trial_id = make_trial(server.services, server.services.mazes.names()[0])
-        token = server.services.seats.issue(trial_id, "commander")
-        host = server.url.removeprefix("http://")
+@pytest.mark.settings(allowed_origins=["https://lab.example"])
+def test_allowed_origins_may_post_and_login_needs_the_home_pages_token(server):
+    add_experimenter(server)
+    client = browser(server.url)
+    token = page_csrf_token(client.get("/").text)
+    # Login CSRF: a form on another page cannot log this browser into an account.
+    forged = client.post(
+        "/login",
+        data={"name": "eve", "password": PASSWORD, "csrf_token": token},
+        headers={"Origin": other_port_of(server)},
+    )
+    assert forged.status_code == 403 and SESSION_COOKIE not in client.cookies
+    tokenless = client.post("/login", data={"name": "eve", "password": PASSWORD})
+    assert tokenless.status_code == 403 and SESSION_COOKIE not in client.cookies
+    # A token is bound to its browser: another browser's token does not do.
+    other_token = page_csrf_token(browser(server.url).get("/").text)
+    assert (
+        client.post("/login", data={"name": "eve", "password": PASSWORD, "csrf_token": other_token}).status_code == 403
+    )
+    page = client.post(
+        "/login",
+        data={"name": "eve", "password": PASSWORD, "csrf_token": token},
+        headers={"Origin": "https://lab.example"},
+    )
+    assert page.status_code == 200 and "Participants" in page.text
+    # After login the token changes with the session: the anonymous one no longer counts.
+    assert client.post("/experimenter/participants", data={"name": "Ada", "csrf_token": token}).status_code == 403
+    client.post("/experimenter/participants", data={"name": "Ada", "csrf_token": page_csrf_token(page.text)})
+    assert "Ada" in participants(server) and "Mallory" not in participants(server)
 
-        async def welcome(origin: str | None) -> dict:
-            async with SeatClient(server.ws_url, token, origin=origin) as seat:
-                return await seat.wait_for(lambda m: m.get("type") == "welcome")
 
-        for origin in (other_port_of(server), f"https://{host}", "http://localhost.evil.example"):
-            with pytest.raises(websockets.InvalidStatus):
-                asyncio.run(welcome(origin))
-        assert asyncio.run(welcome(server.url))["role"] == "commander"
-        assert asyncio.run(welcome(None))["role"] == "commander", "scripts send no Origin"
+def test_websocket_origins_compare_scheme_host_and_port(server, trial):
+    token = server.services.seats.issue(trial, "commander")
+    host = server.url.removeprefix("http://")
 
-        async def robot_socket(origin: str) -> None:
-            robot_url = f"ws://{host}/ws/robot"
-            async with websockets.connect(robot_url, origin=origin):
-                pass
+    async def welcome(origin: str | None) -> dict:
+        async with SeatClient(server.ws_url, token, origin=origin) as seat:
+            return await seat.wait_for(lambda m: m.get("type") == "welcome")
 
+    for origin in (other_port_of(server), f"https://{host}", "http://localhost.evil.example"):
         with pytest.raises(websockets.InvalidStatus):
-            asyncio.run(robot_socket(other_port_of(server)))
+            asyncio.run(welcome(origin))
+    assert asyncio.run(welcome(server.url))["role"] == "commander"
+    assert asyncio.run(welcome(None))["role"] == "commander", "scripts send no Origin"
+
+    async def robot_socket(origin: str) -> None:
+        robot_url = f"ws://{host}/ws/robot"
+        async with websockets.connect(robot_url, origin=origin):
+            pass
+
+    with pytest.raises(websockets.InvalidStatus):
+        asyncio.run(robot_socket(other_port_of(server)))
 
 
 # -- logins ----------------------------------------------------------------------------
-def test_failed_logins_are_limited_per_account_and_per_address(tmp_path):
-    settings = platform_settings(tmp_path, login_limit_per_account="3/minute", login_limit_per_address="5/minute")
-    with ServerThread(settings) as server:
-        add_experimenter(server)
-        add_experimenter(server, "zoe", "zoe's password")
-        client = browser(server.url)
-        assert [submit_login(client, "eve", "guess").status_code for _ in range(3)] == [401] * 3
-        limited = submit_login(client, "eve", PASSWORD)
-        assert limited.status_code == 429 and "too many login attempts" in limited.text
-        assert 1 <= int(limited.headers["Retry-After"]) <= 60
-        # Another account from the same address: two more attempts, then the address is limited too.
-        assert "Participants" in submit_login(client, "zoe", "zoe's password").text
-        client.post("/logout", data={"csrf_token": page_csrf_token(client.get("/experimenter").text)})
-        assert submit_login(client, "zoe", "guess").status_code == 401
-        assert submit_login(client, "nobody", "guess").status_code == 429
+@pytest.mark.settings(login_limit_per_account="3/minute", login_limit_per_address="5/minute")
+def test_failed_logins_are_limited_per_account_and_per_address(server):
+    add_experimenter(server)
+    add_experimenter(server, "zoe", "zoe's password")
+    client = browser(server.url)
+    assert [submit_login(client, "eve", "guess").status_code for _ in range(3)] == [401] * 3
+    limited = submit_login(client, "eve", PASSWORD)
+    assert limited.status_code == 429 and "too many login attempts" in limited.text
+    assert 1 <= int(limited.headers["Retry-After"]) <= 60
+    # Another account from the same address: two more attempts, then the address is limited too.
+    assert "Participants" in submit_login(client, "zoe", "zoe's password").text
+    client.post("/logout", data={"csrf_token": page_csrf_token(client.get("/experimenter").text)})
+    assert submit_login(client, "zoe", "guess").status_code == 401
+    assert submit_login(client, "nobody", "guess").status_code == 429
 
 
 @pytest.mark.slow
-def test_a_burst_of_wrong_logins_leaves_the_server_answering(tmp_path):
-    settings = platform_settings(tmp_path, login_limit_per_account="1000/minute", login_limit_per_address="1000/minute")
+@pytest.mark.settings(login_limit_per_account="1000/minute", login_limit_per_address="1000/minute")
+def test_a_burst_of_wrong_logins_leaves_the_server_answering(server):
     burst = 40
-    with ServerThread(settings) as server:
-        add_experimenter(server)
-        client = browser(server.url)
-        token = page_csrf_token(client.get("/").text)
+    add_experimenter(server)
+    client = browser(server.url)
+    token = page_csrf_token(client.get("/").text)
 
-        async def attack() -> tuple[list[int], int, int]:
-            async with httpx.AsyncClient(
-                base_url=server.url, cookies=client.cookies, headers={"Origin": server.url}, timeout=300
-            ) as http:
+    async def attack() -> tuple[list[int], int, int]:
+        async with httpx.AsyncClient(
+            base_url=server.url, cookies=client.cookies, headers={"Origin": server.url}, timeout=300
+        ) as http:
 
-                async def guess(i: int) -> int:
-                    name = "eve" if i % 2 else f"unknown{i}"
-                    answer = await http.post(
-                        "/login", data={"name": name, "password": f"guess {i}", "csrf_token": token}
-                    )
-                    return answer.status_code
+            async def guess(i: int) -> int:
+                name = "eve" if i % 2 else f"unknown{i}"
+                answer = await http.post("/login", data={"name": name, "password": f"guess {i}", "csrf_token": token})
+                return answer.status_code
 
-                guesses = [asyncio.create_task(guess(i)) for i in range(burst)]
-                await asyncio.sleep(0)
-                home = await http.get("/")
-                pending = sum(not g.done() for g in guesses)
-                return await asyncio.gather(*guesses), home.status_code, pending
+            guesses = [asyncio.create_task(guess(i)) for i in range(burst)]
+            await asyncio.sleep(0)
+            home = await http.get("/")
+            pending = sum(not g.done() for g in guesses)
+            return await asyncio.gather(*guesses), home.status_code, pending
 
-        statuses, home, pending = asyncio.run(attack())
-        assert home == 200
-        assert pending > 0, "GET / answered only after every password check"
-        assert set(statuses) <= {401, 429} and len(statuses) == burst
+    statuses, home, pending = asyncio.run(attack())
+    assert home == 200
+    assert pending > 0, "GET / answered only after every password check"
+    assert set(statuses) <= {401, 429} and len(statuses) == burst
 
 
 def _scrypt_hash(password: str) -> str:
@@ -240,130 +224,123 @@ def test_a_database_from_0001_opens_and_old_password_hashes_upgrade_at_login(tmp
 
 
 # -- sessions --------------------------------------------------------------------------
-def test_a_login_cookie_stops_working_at_logout_and_at_a_password_change(tmp_path):
-    settings = platform_settings(tmp_path)
+def test_a_login_cookie_stops_working_at_logout_and_at_a_password_change(settings, server):
     env = {"ROBOTSLANG_DATA_DIR": str(settings.data_dir), "ROBOTSLANG_SECRET_KEY": settings.secret_key}
-    with ServerThread(settings) as server:
-        add_experimenter(server)
+    add_experimenter(server)
 
-        def opens_dashboard(cookie: str) -> bool:
-            answer = httpx.get(server.url + "/experimenter", cookies={SESSION_COOKIE: cookie})
-            return answer.status_code == 200
+    def opens_dashboard(cookie: str) -> bool:
+        answer = httpx.get(server.url + "/experimenter", cookies={SESSION_COOKIE: cookie})
+        return answer.status_code == 200
 
-        client = log_in(server.url, "eve", PASSWORD)
-        stolen = client.cookies[SESSION_COOKIE]
-        assert opens_dashboard(stolen)
-        assert client.post("/logout").status_code == 200
-        assert not opens_dashboard(stolen), "a copy of the cookie outlives the logout"
+    client = log_in(server.url, "eve", PASSWORD)
+    stolen = client.cookies[SESSION_COOKIE]
+    assert opens_dashboard(stolen)
+    assert client.post("/logout").status_code == 200
+    assert not opens_dashboard(stolen), "a copy of the cookie outlives the logout"
 
-        client = log_in(server.url, "eve", PASSWORD)
-        stolen = client.cookies[SESSION_COOKIE]
-        done = subprocess.run(
-            [
-                sys.executable,
-                "-c",
-                "from app.cli import main; main()",
-                "admin",
-                "password",
-                "eve",
-                "--password",
-                "a new horse",
-            ],
-            env={**os.environ, **env},
-            cwd=REPO,
-            capture_output=True,
-            text=True,
-            timeout=120,
-        )
-        assert done.returncode == 0 and "password changed" in done.stdout, done.stderr
-        assert not opens_dashboard(stolen)
-        assert client.get("/experimenter").url.path == "/", "the browser is logged out too"
-        log_in(server.url, "eve", "a new horse")
-        done = subprocess.run(
-            [
-                sys.executable,
-                "-c",
-                "from app.cli import main; main()",
-                "admin",
-                "password",
-                "nobody",
-                "--password",
-                "whatever-long",
-            ],
-            env={**os.environ, **env},
-            cwd=REPO,
-            capture_output=True,
-            text=True,
-            timeout=120,
-        )
-        assert done.returncode != 0 and "no experimenter 'nobody'" in done.stderr
+    client = log_in(server.url, "eve", PASSWORD)
+    stolen = client.cookies[SESSION_COOKIE]
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "from app.cli import main; main()",
+            "admin",
+            "password",
+            "eve",
+            "--password",
+            "a new horse",
+        ],
+        env={**os.environ, **env},
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 0 and "password changed" in done.stdout, done.stderr
+    assert not opens_dashboard(stolen)
+    assert client.get("/experimenter").url.path == "/", "the browser is logged out too"
+    log_in(server.url, "eve", "a new horse")
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "from app.cli import main; main()",
+            "admin",
+            "password",
+            "nobody",
+            "--password",
+            "whatever-long",
+        ],
+        env={**os.environ, **env},
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode != 0 and "no experimenter 'nobody'" in done.stderr
 
 
 # -- join links ------------------------------------------------------------------------
-def test_a_join_link_closes_when_its_trial_ends(settings):
-    with ServerThread(settings) as server:
-        add_experimenter(server)
-        trial_id = make_trial(server.services, server.services.mazes.names()[0])
-        tokens = {r: server.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-        assert httpx.get(f"{server.url}/play/{tokens['commander']}").status_code == 200
-        log_in(server.url, "eve", PASSWORD).post(f"/experimenter/trials/{trial_id}/abort")
-        assert phase(server, trial_id) == "aborted"
-        page = httpx.get(f"{server.url}/play/{tokens['driver']}")
-        assert page.status_code == 410 and "this trial was stopped" in page.text and "<html" in page.text
-        assert httpx.get(f"{server.url}/play/{tokens['commander']}/map.png").status_code == 410
+def test_a_join_link_closes_when_its_trial_ends(server):
+    add_experimenter(server)
+    trial_id = make_trial(server.services, server.services.mazes.names()[0])
+    tokens = {r: server.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+    assert httpx.get(f"{server.url}/play/{tokens['commander']}").status_code == 200
+    log_in(server.url, "eve", PASSWORD).post(f"/experimenter/trials/{trial_id}/abort")
+    assert phase(server, trial_id) == "aborted"
+    page = httpx.get(f"{server.url}/play/{tokens['driver']}")
+    assert page.status_code == 410 and "this trial was stopped" in page.text and "<html" in page.text
+    assert httpx.get(f"{server.url}/play/{tokens['commander']}/map.png").status_code == 410
 
-        async def connect() -> None:
-            async with SeatClient(server.ws_url, tokens["commander"]):
+    async def connect() -> None:
+        async with SeatClient(server.ws_url, tokens["commander"]):
+            pass
+
+    with pytest.raises(websockets.InvalidStatus):
+        asyncio.run(connect())
+
+
+@pytest.mark.settings(join_link_ttl_s=1.0)
+def test_a_join_link_expires_after_its_ttl_but_an_open_seat_keeps_working(server, trial):
+    token = server.services.seats.issue(trial, "commander")
+    assert httpx.get(f"{server.url}/play/{token}").status_code == 200
+
+    async def play() -> None:
+        async with SeatClient(server.ws_url, token) as commander:
+            await commander.wait_for(lambda m: m.get("type") == "welcome")
+            await asyncio.sleep(2.2)  # link timestamps count whole seconds
+            await commander.send("chat", text="still here")
+            await commander.event("chat", text="still here")
+        with pytest.raises(websockets.InvalidStatus):
+            async with SeatClient(server.ws_url, token):
                 pass
 
-        with pytest.raises(websockets.InvalidStatus):
-            asyncio.run(connect())
-
-
-def test_a_join_link_expires_after_its_ttl_but_an_open_seat_keeps_working(tmp_path):
-    settings = platform_settings(tmp_path, join_link_ttl_s=1.0)
-    with ServerThread(settings) as server:
-        trial_id = make_trial(server.services, server.services.mazes.names()[0])
-        token = server.services.seats.issue(trial_id, "commander")
-        assert httpx.get(f"{server.url}/play/{token}").status_code == 200
-
-        async def play() -> None:
-            async with SeatClient(server.ws_url, token) as commander:
-                await commander.wait_for(lambda m: m.get("type") == "welcome")
-                await asyncio.sleep(2.2)  # link timestamps count whole seconds
-                await commander.send("chat", text="still here")
-                await commander.event("chat", text="still here")
-            with pytest.raises(websockets.InvalidStatus):
-                async with SeatClient(server.ws_url, token):
-                    pass
-
-        asyncio.run(play())
-        page = httpx.get(f"{server.url}/play/{token}")
-        assert page.status_code == 410 and "expired" in page.text
-        fresh = server.services.seats.issue(trial_id, "commander")
-        assert httpx.get(f"{server.url}/play/{fresh}").status_code == 200
+    asyncio.run(play())
+    page = httpx.get(f"{server.url}/play/{token}")
+    assert page.status_code == 410 and "expired" in page.text
+    fresh = server.services.seats.issue(trial, "commander")
+    assert httpx.get(f"{server.url}/play/{fresh}").status_code == 200
 
 
 # -- headers and host names ------------------------------------------------------------
-def test_every_response_carries_the_security_headers(settings):
-    with ServerThread(settings) as server:
-        trial_id = make_trial(server.services, server.services.mazes.names()[0])
-        paths = [
-            "/",
-            "/leaderboard",
-            "/static/style.css",
-            "/nowhere",
-            "/experimenter",
-            f"/play/{server.services.seats.issue(trial_id, 'commander')}",
-            "/play/forged",
-        ]
-        for path in paths:
-            answer = httpx.get(server.url + path)
-            csp = answer.headers["content-security-policy"]
-            assert "frame-ancestors 'none'" in csp and "script-src 'self'" in csp and "unsafe-inline" not in csp
-            assert answer.headers["x-content-type-options"] == "nosniff"
-            assert answer.headers["referrer-policy"] == "same-origin"
-            assert answer.headers["x-frame-options"] == "DENY"
+def test_every_response_carries_the_security_headers(server, trial):
+    paths = [
+        "/",
+        "/leaderboard",
+        "/static/style.css",
+        "/nowhere",
+        "/experimenter",
+        f"/play/{server.services.seats.issue(trial, 'commander')}",
+        "/play/forged",
+    ]
+    for path in paths:
+        answer = httpx.get(server.url + path)
+        csp = answer.headers["content-security-policy"]
+        assert "frame-ancestors 'none'" in csp and "script-src 'self'" in csp and "unsafe-inline" not in csp
+        assert answer.headers["x-content-type-options"] == "nosniff"
+        assert answer.headers["referrer-policy"] == "same-origin"
+        assert answer.headers["x-frame-options"] == "DENY"
 
 
 def test_inline_code_that_the_policy_would_block_is_absent_from_the_templates():

@@ -4,7 +4,6 @@ a real checkpoint trained here, the real server, a scripted Commander over a web
 from __future__ import annotations
 
 import asyncio
-import dataclasses
 
 import pytest
 from sqlalchemy import func, select
@@ -14,30 +13,10 @@ from app.drivers.registry import available_drivers
 from app.main import build_services
 from app.trial.setup import TrialSetupError
 from bench.live import SeatClient, make_trial
-from models.data import World
 from models.shipped import SHIPPED_CHECKPOINT, default_checkpoint
-from models.train import TrainConfig, load_agent, train
-from sim.tasks.benchmark import Benchmark
+from models.train import load_agent
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread
-
-
-@pytest.fixture(scope="module")
-def stopping_checkpoint(benchmark_path, tmp_path_factory):
-    """A tiny real checkpoint taught on episodes that start at their goal, so it stops at once:
-    its claims are deterministic, and after a rejection its forced move is the model's own choice."""
-    bench = Benchmark(benchmark_path)
-    jars = [i for i in bench.split("train") if len(i.agent_pose) > 2][:4]
-    # New scan and index: the episode cache is keyed by them and must not mix these with the originals.
-    at_goal = [
-        dataclasses.replace(i, inst_idx=100_000 + i.inst_idx, scan=f"{i.scan}@goal", agent_pose=(*i.target_pose, 0.0))
-        for i in jars
-    ]
-    world = World.build(bench, sorted({i.run for i in at_goal}))
-    out = tmp_path_factory.mktemp("seq2seq")
-    cfg = TrainConfig(feedback="teacher", iters=12, batch=4, lr=1e-2, eval_every=12, max_actions=10)
-    train(bench, cfg, out, world=world, progress=False, train_instances=at_goal, eval_instances=at_goal[:1])
-    return out / "last.pt"
 
 
 def events_of(services, trial_id: int, kind: str) -> list[Event]:

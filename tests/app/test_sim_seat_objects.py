@@ -5,7 +5,6 @@ from __future__ import annotations
 import asyncio
 import math
 
-import cv2
 import numpy as np
 import pytest
 
@@ -16,9 +15,10 @@ from app.mazes import Mazes
 from app.settings import Settings
 from sim.core.dynamics import Action, Pose, step, teacher_action
 from sim.core.geometry import heading_angle, heading_index
-from sim.core.labels import LABEL_BGR, OBJECTS, Label
+from sim.core.labels import OBJECTS, Label
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable, cast_rays, too_close
+from tests.app.trial_play import object_pixels
 
 MAZE = "gen-000"
 
@@ -37,16 +37,6 @@ def drive(maze, graph, start: Pose, actions) -> tuple[list[str], list[Frame], li
         return outcomes, [f async for f in backend.frames()], poses
 
     return asyncio.run(play())
-
-
-def object_pixels(jpeg: bytes, label: Label) -> int:
-    """Pixels whose colour points the way of the object's colour (JPEG blurs it a little)."""
-    image = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR).astype(np.float64)
-    norm = np.linalg.norm(image, axis=-1)
-    ref = np.array(LABEL_BGR[label], dtype=np.float64)
-    with np.errstate(invalid="ignore"):
-        off = np.linalg.norm(image / norm[..., None] - ref / np.linalg.norm(ref), axis=-1)
-    return int(((norm > 60) & (off < 0.12)).sum())
 
 
 def approach(maze, graph: NavGraph, target: str) -> tuple[Pose, list[Action]]:

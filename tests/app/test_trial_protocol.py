@@ -96,146 +96,126 @@ def test_full_trial_from_links_to_leaderboard(any_db_settings):
         assert f"{expected:.1f}" in page
 
 
-def test_seat_pages_show_only_their_own_view(settings):
-    with ServerThread(settings) as server:
-        services = server.services
-        trial_id = make_trial(services, first_maze(services))
-        commander = services.seats.issue(trial_id, "commander")
-        driver = services.seats.issue(trial_id, "driver")
-        assert httpx.get(f"{server.url}/play/{commander}/map.png").headers["content-type"] == "image/png"
-        assert httpx.get(f"{server.url}/play/{driver}/map.png").status_code == 403
-        assert httpx.get(f"{server.url}/play/{driver}/target/0.jpg").status_code == 403
-        assert httpx.get(f"{server.url}/play/{commander}/target/0.jpg").content[:2] == b"\xff\xd8"
-        assert httpx.get(f"{server.url}/play/{commander}/target/2.jpg").status_code == 404, "not a later target"
-        page = httpx.get(f"{server.url}/play/{driver}").text
-        assert 'id="camera"' in page and "map.png" not in page
-        page = httpx.get(f"{server.url}/play/{commander}").text
-        assert 'id="map"' in page and 'id="camera"' not in page
-        assert httpx.get(f"{server.url}/play/{driver[:-3]}xyz").status_code == 403
-        # A pasted join link on the home page leads to the seat; anything else is named as invalid.
-        joined = httpx.get(f"{server.url}/join", params={"link": f"{server.url}/play/{driver}"})
-        assert joined.status_code == 303 and joined.headers["location"] == f"/play/{driver}"
-        assert "not a valid join link" in httpx.get(f"{server.url}/join", params={"link": "http://x/play/abc"}).text
+def test_seat_pages_show_only_their_own_view(server, seats):
+    commander, driver = seats["commander"], seats["driver"]
+    assert httpx.get(f"{server.url}/play/{commander}/map.png").headers["content-type"] == "image/png"
+    assert httpx.get(f"{server.url}/play/{driver}/map.png").status_code == 403
+    assert httpx.get(f"{server.url}/play/{driver}/target/0.jpg").status_code == 403
+    assert httpx.get(f"{server.url}/play/{commander}/target/0.jpg").content[:2] == b"\xff\xd8"
+    assert httpx.get(f"{server.url}/play/{commander}/target/2.jpg").status_code == 404, "not a later target"
+    page = httpx.get(f"{server.url}/play/{driver}").text
+    assert 'id="camera"' in page and "map.png" not in page
+    page = httpx.get(f"{server.url}/play/{commander}").text
+    assert 'id="map"' in page and 'id="camera"' not in page
+    assert httpx.get(f"{server.url}/play/{driver[:-3]}xyz").status_code == 403
+    # A pasted join link on the home page leads to the seat; anything else is named as invalid.
+    joined = httpx.get(f"{server.url}/join", params={"link": f"{server.url}/play/{driver}"})
+    assert joined.status_code == 303 and joined.headers["location"] == f"/play/{driver}"
+    assert "not a valid join link" in httpx.get(f"{server.url}/join", params={"link": "http://x/play/abc"}).text
 
 
 @pytest.mark.parametrize("who", ["forged", "other trial"])
-def test_forged_or_foreign_token_is_refused_at_connect(settings, who):
+def test_forged_or_foreign_token_is_refused_at_connect(who, server, trial):
     import websockets
 
-    with ServerThread(settings) as server:
-        services = server.services
-        trial_id = make_trial(services, first_maze(services))
-        if who == "forged":
-            from app.security import SeatTokens
+    services = server.services
+    if who == "forged":
+        from app.security import SeatTokens
 
-            token = SeatTokens("not-the-server-key").issue(trial_id, "driver")
-        else:
-            token = services.seats.issue(trial_id + 999, "driver")
+        token = SeatTokens("not-the-server-key").issue(trial, "driver")
+    else:
+        token = services.seats.issue(trial + 999, "driver")
 
-        async def connect():
-            async with websockets.connect(f"{server.ws_url}?token={token}") as ws:
-                await ws.recv()
+    async def connect():
+        async with websockets.connect(f"{server.ws_url}?token={token}") as ws:
+            await ws.recv()
 
-        with pytest.raises(websockets.InvalidStatus) as err:
-            asyncio.run(connect())
-        assert err.value.response.status_code == 403
+    with pytest.raises(websockets.InvalidStatus) as err:
+        asyncio.run(connect())
+    assert err.value.response.status_code == 403
 
 
-def test_other_role_token_and_bad_messages_get_errors_and_never_end_the_trial(settings):
-    with ServerThread(settings) as server:
-        services = server.services
-        trial_id = make_trial(services, first_maze(services))
-        tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+def test_other_role_token_and_bad_messages_get_errors_and_never_end_the_trial(server, trial, seats):
+    services = server.services
 
-        async def play():
-            async with (
-                SeatClient(server.ws_url, tokens["commander"]) as commander,
-                SeatClient(server.ws_url, tokens["driver"]) as driver,
-            ):
-                await start_trial(commander, driver)
+    async def play():
+        async with (
+            SeatClient(server.ws_url, seats["commander"]) as commander,
+            SeatClient(server.ws_url, seats["driver"]) as driver,
+        ):
+            await start_trial(commander, driver)
 
-                async def refused(client, type_, expect: str, raw=None, **fields):
-                    start = len(client.received)
-                    if raw is not None:
-                        await client.ws.send(raw)
-                    else:
-                        await client.send(type_, **fields)
-                    error = await client.wait_for(lambda m: m.get("type") == "error", start=start)
-                    assert expect in error["error"], error
+            async def refused(client, type_, expect: str, raw=None, **fields):
+                start = len(client.received)
+                if raw is not None:
+                    await client.ws.send(raw)
+                else:
+                    await client.send(type_, **fields)
+                error = await client.wait_for(lambda m: m.get("type") == "error", start=start)
+                assert expect in error["error"], error
 
-                # The Driver's own link cannot act as the Commander, nor the Commander move.
-                await refused(driver, "confirm", "may not send 'confirm'")
-                await refused(commander, "move", "may not send 'move'", action="forward")
-                # A Commander's socket carrying the Driver's token is refused on the message.
-                await refused(commander, "chat", "token refused", token=tokens["driver"], text="hi")
-                await refused(driver, "chat", "token refused", token=tokens["driver"][:-2] + "xx", text="hi")
-                await refused(driver, None, "invalid message", raw="not json at all")
-                await refused(driver, None, "JSON text", raw=b"\x00\x01")
-                await refused(driver, "teleport", "invalid message")
-                await refused(driver, "move", "action", action="jump")
-                await refused(driver, "chat", "text", text="x" * 501)
-                await refused(driver, "chat", "limit is", text="y" * 480, padding="z" * 5000)
-                await refused(commander, "localize", "x", x=9.0, y=1.0)
-                # Wrong types are refused, never coerced.
-                await refused(commander, "localize", "valid number", x="0.5", y=1.0)
-                await refused(commander, "localize", "valid number", x=1.0, y=True)
-                await refused(commander, "confirm", "no claimed target")
-                await refused(driver, "claim", "once the Commander has marked the robot")
-                # The trial goes on.
-                await driver.send("chat", text="still here")
-                await commander.event("chat", text="still here")
+            # The Driver's own link cannot act as the Commander, nor the Commander move.
+            await refused(driver, "confirm", "may not send 'confirm'")
+            await refused(commander, "move", "may not send 'move'", action="forward")
+            # A Commander's socket carrying the Driver's token is refused on the message.
+            await refused(commander, "chat", "token refused", token=seats["driver"], text="hi")
+            await refused(driver, "chat", "token refused", token=seats["driver"][:-2] + "xx", text="hi")
+            await refused(driver, None, "invalid message", raw="not json at all")
+            await refused(driver, None, "JSON text", raw=b"\x00\x01")
+            await refused(driver, "teleport", "invalid message")
+            await refused(driver, "move", "action", action="jump")
+            await refused(driver, "chat", "text", text="x" * 501)
+            await refused(driver, "chat", "limit is", text="y" * 480, padding="z" * 5000)
+            await refused(commander, "localize", "x", x=9.0, y=1.0)
+            # Wrong types are refused, never coerced.
+            await refused(commander, "localize", "valid number", x="0.5", y=1.0)
+            await refused(commander, "localize", "valid number", x=1.0, y=True)
+            await refused(commander, "confirm", "no claimed target")
+            await refused(driver, "claim", "once the Commander has marked the robot")
+            # The trial goes on.
+            await driver.send("chat", text="still here")
+            await commander.event("chat", text="still here")
 
-        asyncio.run(play())
-        with services.db() as db:
-            bad = db.scalars(select(Event).where(Event.trial_id == trial_id, Event.kind == "bad_message")).all()
-            phase = db.get(Trial, trial_id).phase
-        assert len(bad) == 15 and {b.payload["role"] for b in bad} == {"commander", "driver"}
-        assert phase == "localizing"
+    asyncio.run(play())
+    with services.db() as db:
+        bad = db.scalars(select(Event).where(Event.trial_id == trial, Event.kind == "bad_message")).all()
+        phase = db.get(Trial, trial).phase
+    assert len(bad) == 15 and {b.payload["role"] for b in bad} == {"commander", "driver"}
+    assert phase == "localizing"
 
 
-def test_moves_faster_than_the_robot_are_refused_not_queued(tmp_path):
-    from tests.app.conftest import platform_settings
+@pytest.mark.settings(min_move_interval_s=2.0)
+def test_moves_faster_than_the_robot_are_refused_not_queued(server, seats):
+    async def play():
+        async with (
+            SeatClient(server.ws_url, seats["commander"]) as commander,
+            SeatClient(server.ws_url, seats["driver"]) as driver,
+        ):
+            await start_trial(commander, driver)
+            for i in range(5):  # a burst, as from a held-down key
+                await driver.send("move", action="left", move_id=f"burst{i}")
+            outcomes = [await driver.event("move_executed", move_id=f"burst{i}") for i in range(5)]
+            await asyncio.sleep(0.8)  # anything queued would have executed by now
+            return [o["payload"]["outcome"] for o in outcomes], driver
 
-    settings = platform_settings(tmp_path, min_move_interval_s=2.0)
-    with ServerThread(settings) as server:
-        services = server.services
-        trial_id = make_trial(services, first_maze(services))
-        tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-
-        async def play():
-            async with (
-                SeatClient(server.ws_url, tokens["commander"]) as commander,
-                SeatClient(server.ws_url, tokens["driver"]) as driver,
-            ):
-                await start_trial(commander, driver)
-                for i in range(5):  # a burst, as from a held-down key
-                    await driver.send("move", action="left", move_id=f"burst{i}")
-                outcomes = [await driver.event("move_executed", move_id=f"burst{i}") for i in range(5)]
-                await asyncio.sleep(0.8)  # anything queued would have executed by now
-                return [o["payload"]["outcome"] for o in outcomes], driver
-
-        outcomes, driver = asyncio.run(play())
-        assert outcomes[0] == "ok" and outcomes[1:] == ["refused"] * 4
-        executed = [m for m in driver.received if m.get("kind") == "move_executed"]
-        assert len(executed) == 5
+    outcomes, driver = asyncio.run(play())
+    assert outcomes[0] == "ok" and outcomes[1:] == ["refused"] * 4
+    executed = [m for m in driver.received if m.get("kind") == "move_executed"]
+    assert len(executed) == 5
 
 
-def test_websocket_from_another_origin_is_refused(tmp_path):
+@pytest.mark.settings(allowed_origins=["https://lab.example"])
+def test_websocket_from_another_origin_is_refused(server, trial):
     import websockets
 
-    from tests.app.conftest import platform_settings
+    services = server.services
+    token = services.seats.issue(trial, "commander")
 
-    settings = platform_settings(tmp_path, allowed_origins=["https://lab.example"])
-    with ServerThread(settings) as server:
-        services = server.services
-        trial_id = make_trial(services, first_maze(services))
-        token = services.seats.issue(trial_id, "commander")
+    async def connect(origin):
+        async with SeatClient(server.ws_url, token, origin=origin) as seat:
+            return await seat.wait_for(lambda m: m.get("type") == "welcome")
 
-        async def connect(origin):
-            async with SeatClient(server.ws_url, token, origin=origin) as seat:
-                return await seat.wait_for(lambda m: m.get("type") == "welcome")
-
-        with pytest.raises(websockets.InvalidStatus):
-            asyncio.run(connect("http://evil.example"))
-        assert asyncio.run(connect(server.url))["role"] == "commander"
-        assert asyncio.run(connect("https://lab.example"))["role"] == "commander"
+    with pytest.raises(websockets.InvalidStatus):
+        asyncio.run(connect("http://evil.example"))
+    assert asyncio.run(connect(server.url))["role"] == "commander"
+    assert asyncio.run(connect("https://lab.example"))["role"] == "commander"

@@ -7,152 +7,27 @@ from __future__ import annotations
 import asyncio
 import base64
 import math
-import os
 import signal
 import subprocess
 import sys
-import time
-from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 from websockets.asyncio.server import serve
 
-from app.main import build_services
 from app.virtual_rover.truth import TruthSample, read_truth
-from bench.live import REPO, SeatClient, ServerProcess, make_trial
+from bench.live import REPO, SeatClient, make_trial
 from robot_client.calibration import Calibration
-from sim.core.geometry import GRID_STEP_M, TURN_RAD, heading_angle
-from sim.core.navgraph import NavGraph
+from sim.core.geometry import GRID_STEP_M, TURN_RAD
 from sim.robot.camera import FrontCamera
-from sim.robot.rover import BODY_RADIUS_M, NOISE_MODELS, Rover, RoverPose
+from sim.robot.rover import BODY_RADIUS_M, Rover
 from sim.robot.tracking import OverheadTracker
-from sim.tasks.library import MazeLibrary
-from tests.app.conftest import platform_settings
-from tests.app.test_experimenter import cli
+from tests.app.live import cli
+from tests.app.rover_lab import MAZE, START_S, settled, turned, until
 from tests.robot_client.conftest import ScriptedServer
 
 pytestmark = pytest.mark.anyio
-MAZE = "gen-000"
-START_S = 60.0  # bound on waits that include starting a process (seconds when the machine is idle)
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"
-
-
-@pytest.fixture(scope="module")
-def maze():
-    return MazeLibrary().load(MAZE)
-
-
-@pytest.fixture(scope="module")
-def start(maze) -> RoverPose:
-    """A node and heading with 4 to 8 free steps ahead of an exact rover: room to move, a wall in reach."""
-    graph = NavGraph.build(maze, use_cache=False)
-    for x, y in graph.nodes:
-        for k in range(8):
-            pose = RoverPose(float(x), float(y), float(heading_angle(k)))
-            try:
-                rover = Rover(maze, pose, NOISE_MODELS["none"])
-            except ValueError:
-                break  # the body does not fit here
-            free = 0
-            while free < 12 and not rover.move("forward").collided:
-                free += 1
-            if 4 <= free <= 8:
-                return pose
-    raise AssertionError(f"no start pose with a wall 4 to 8 steps ahead on {MAZE}")
-
-
-class Lab:
-    """A server process on its own data directory, the trial's services in this process."""
-
-    def __init__(self, tmp_path: Path, **settings) -> None:
-        """`settings`: more of the server's settings, for both the server and these services."""
-        self.tmp_path = tmp_path
-        self.settings = platform_settings(tmp_path, cache_dir=tmp_path / "cache", **settings)
-        self.env = {
-            "ROBOTSLANG_DATA_DIR": str(self.settings.data_dir),
-            "ROBOTSLANG_SECRET_KEY": self.settings.secret_key,
-            "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
-            "ROBOTSLANG_CACHE_DIR": str(tmp_path / "cache"),
-            **{f"ROBOTSLANG_{k.upper()}": str(v) for k, v in settings.items()},
-        }
-        self.services = build_services(self.settings)
-        self.server = ServerProcess(self.env).start()
-        self.rovers: list[subprocess.Popen] = []
-
-    def register(self, name: str, role: str = "driver") -> tuple[int, str]:
-        made = cli("robot", "create", name, "--role", role, env=self.env)
-        assert made.returncode == 0, made.stderr
-        robot_id = int(made.stdout.split("robot:")[1].split()[0]) if role == "driver" else 0
-        return robot_id, made.stdout.splitlines()[2]
-
-    def rover(self, token: str, *args: str) -> subprocess.Popen:
-        # The child keeps its own copy of the descriptor: this one closes once it has started.
-        with open(self.tmp_path / f"rover-{len(self.rovers)}.log", "w") as log:
-            proc = subprocess.Popen(
-                [
-                    sys.executable,
-                    "-c",
-                    "from app.cli import main; main()",
-                    "robot",
-                    "virtual",
-                    "--server",
-                    self.server.url,
-                    "--token",
-                    token,
-                    "--maze",
-                    MAZE,
-                    *args,
-                ],
-                env={**os.environ, **self.env},
-                cwd=REPO,
-                stdout=log,
-                stderr=subprocess.STDOUT,
-            )
-        self.rovers.append(proc)
-        return proc
-
-    def seats(self, trial: int):
-        return [
-            SeatClient(self.server.ws_url, self.services.seats.issue(trial, role)) for role in ("commander", "driver")
-        ]
-
-    def close(self) -> None:
-        for proc in self.rovers:
-            if proc.poll() is None:
-                proc.send_signal(signal.SIGTERM)
-                try:
-                    proc.wait(timeout=10)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
-                    proc.wait()
-        self.server.stop()
-        self.services.engine.dispose()
-
-
-@pytest.fixture
-def lab(tmp_path):
-    lab = Lab(tmp_path)
-    yield lab
-    lab.close()
-
-
-async def until(predicate, what: str, timeout: float = START_S):
-    deadline = time.monotonic() + timeout
-    while not (value := predicate()):
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
-        await asyncio.sleep(0.02)
-    return value
-
-
-def settled(truth: Path) -> list[TruthSample]:
-    """The truth at rest: the start, then the end of each pulse."""
-    return [s for s in read_truth(truth) if not s.moving] if truth.exists() else []
 
 
 def decode(frame_event: dict) -> np.ndarray:
@@ -168,11 +43,6 @@ async def frame_after(driver: SeatClient, t_ns: int) -> np.ndarray:
         lambda m: m.get("type") == "event" and m["kind"] == "frame" and m["payload"]["capture_ns"] > t_ns
     )
     return decode(event)
-
-
-def turned(a: float, b: float) -> float:
-    """Signed angle from heading a to heading b, radians in (-pi, pi]."""
-    return (b - a + math.pi) % (2 * math.pi) - math.pi
 
 
 async def test_a_driver_drives_the_virtual_rover_frames_acks_truth_and_a_wall(lab, maze, start, tmp_path):

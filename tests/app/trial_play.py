@@ -5,8 +5,12 @@ from __future__ import annotations
 import itertools
 import math
 
+import cv2
+import numpy as np
+
 from sim.core.dynamics import Action, snap_pose, teacher_action
 from sim.core.geometry import heading_index
+from sim.core.labels import LABEL_BGR, Label
 
 _ids = itertools.count()
 
@@ -61,3 +65,13 @@ async def claim_and_decide(commander, driver, confirm: bool) -> dict:
     kind = "target_confirmed" if confirm else "target_rejected"
     await driver.event(kind, start=start_d)
     return claimed
+
+
+def object_pixels(jpeg: bytes, label: Label) -> int:
+    """Pixels whose colour points the way of the object's colour (JPEG blurs it a little)."""
+    image = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR).astype(np.float64)
+    norm = np.linalg.norm(image, axis=-1)
+    ref = np.array(LABEL_BGR[label], dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        off = np.linalg.norm(image / norm[..., None] - ref / np.linalg.norm(ref), axis=-1)
+    return int(((norm > 60) & (off < 0.12)).sum())

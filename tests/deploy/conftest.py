@@ -9,7 +9,6 @@ from pathlib import Path
 import yaml
 
 from tests.app.conftest import postgres_url  # noqa: F401  (fixture)
-from tests.app.test_relay import redis_url  # noqa: F401  (fixture)
 from tests.packaging.conftest import REPO
 
 DEPLOY = REPO / "deploy"

@@ -7,6 +7,9 @@ from pathlib import Path
 
 import pytest
 
+# The platform's fixtures (a server, a trial on it, its seats), for the browser tests too.
+from tests.app.conftest import seats, server, settings, trial  # noqa: F401
+
 CHROMIUM = Path("/usr/bin/chromium")
 FLAGS = [
     "--headless",

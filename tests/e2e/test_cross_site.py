@@ -13,8 +13,6 @@ from sqlalchemy import select
 from app.db.models import Experimenter, Participant, Trial
 from app.security import hash_password
 from bench.live import free_port, make_trial
-from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread
 
 pytestmark = pytest.mark.browser
 
@@ -56,37 +54,36 @@ class AttackerSite:
         self.server.server_close()
 
 
-def test_a_page_on_another_port_cannot_act_with_the_experimenters_cookie(browser, tmp_path):  # noqa: F811
-    with ServerThread(platform_settings(tmp_path)) as server:
-        services = server.services
-        with services.db.begin() as db:
-            db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
-        trial_id = make_trial(services, services.mazes.names()[0])
-        violations: list[str] = []
-        page = browser.new_context().new_page()
-        page.on("console", lambda m: violations.append(m.text) if "Content Security Policy" in m.text else None)
-        page.goto(server.url + "/")
-        page.fill("input[name=name]", "eve")
-        page.fill("input[name=password]", "correct horse")
-        page.click("#login")
-        page.wait_for_url(server.url + "/experimenter")
-        # The dashboard's own forms and scripts work: a participant added, a robot registered by fetch.
-        page.fill("input[aria-label='Participant name']", "Ada")
-        page.click("#add-participant")
-        page.locator("#participants li", has_text="Ada").wait_for()
-        page.fill("input[aria-label='Robot name']", "rover A")
-        page.click("#add-robot")
-        page.wait_for_selector("#robot-token:not([hidden]) .token:not(:empty)")
-        for role in ("commander", "driver"):
-            page.goto(f"{server.url}/play/{services.seats.issue(trial_id, role)}")
-            page.locator("#status", has_text="waiting for").wait_for()
+def test_a_page_on_another_port_cannot_act_with_the_experimenters_cookie(browser, server):
+    services = server.services
+    with services.db.begin() as db:
+        db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
+    trial_id = make_trial(services, services.mazes.names()[0])
+    violations: list[str] = []
+    page = browser.new_context().new_page()
+    page.on("console", lambda m: violations.append(m.text) if "Content Security Policy" in m.text else None)
+    page.goto(server.url + "/")
+    page.fill("input[name=name]", "eve")
+    page.fill("input[name=password]", "correct horse")
+    page.click("#login")
+    page.wait_for_url(server.url + "/experimenter")
+    # The dashboard's own forms and scripts work: a participant added, a robot registered by fetch.
+    page.fill("input[aria-label='Participant name']", "Ada")
+    page.click("#add-participant")
+    page.locator("#participants li", has_text="Ada").wait_for()
+    page.fill("input[aria-label='Robot name']", "rover A")
+    page.click("#add-robot")
+    page.wait_for_selector("#robot-token:not([hidden]) .token:not(:empty)")
+    for role in ("commander", "driver"):
+        page.goto(f"{server.url}/play/{services.seats.issue(trial_id, role)}")
+        page.locator("#status", has_text="waiting for").wait_for()
 
-        with AttackerSite(ATTACK.format(target=server.url, trial=trial_id)) as attacker:
-            page.goto(attacker.url)
-            page.wait_for_url(lambda url: url.startswith(server.url))  # the forged form was answered
-        with services.db() as db:
-            names = set(db.scalars(select(Participant.name)))
-            assert "Ada" in names and "Mallory" not in names
-            assert db.get(Trial, trial_id).phase == "waiting"
-        assert "refused" in page.content()
-        assert violations == []
+    with AttackerSite(ATTACK.format(target=server.url, trial=trial_id)) as attacker:
+        page.goto(attacker.url)
+        page.wait_for_url(lambda url: url.startswith(server.url))  # the forged form was answered
+    with services.db() as db:
+        names = set(db.scalars(select(Participant.name)))
+        assert "Ada" in names and "Mallory" not in names
+        assert db.get(Trial, trial_id).phase == "waiting"
+    assert "refused" in page.content()
+    assert violations == []

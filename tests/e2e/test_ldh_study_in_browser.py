@@ -19,7 +19,7 @@ from sim.tasks.ldh import LDHInstance, Variant
 from sim.tasks.ldh_eval import MazeContext, score
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread
-from tests.e2e.test_pages_in_browser import ARTIFACTS, H_M, W_M, experimenter, page_checks
+from tests.e2e.pages import ARTIFACTS, H_M, W_M, experimenter, page_checks
 
 pytestmark = pytest.mark.browser
 

@@ -14,13 +14,11 @@ import pytest
 
 from app.db.models import Experimenter, Team, Trial
 from app.security import hash_password
-from bench.live import REPO, make_trial
+from bench.live import make_trial
 from sim.core.labels import LABEL_BGR, OBJECT_LABELS
 from tests.app.conftest import platform_settings
 from tests.app.live import ServerThread, wait_js
-
-ARTIFACTS = REPO / "test-artifacts"
-W_M, H_M = 2.4638, 2.0574
+from tests.e2e.pages import ARTIFACTS, H_M, W_M, experimenter, page_checks
 
 pytestmark = pytest.mark.browser
 
@@ -42,16 +40,6 @@ def new_trial(server, **kw) -> tuple[int, str, str]:
     trial_id = make_trial(services, services.mazes.names()[0], team=f"Team {next(_teams)}", **kw)
     url = {r: f"{server.url}/play/{services.seats.issue(trial_id, r)}" for r in ("commander", "driver")}
     return trial_id, url["commander"], url["driver"]
-
-
-def experimenter(browser, server, **context):
-    page = browser.new_context(**context).new_page()
-    page.goto(server.url + "/")
-    page.fill("input[name=name]", "eve")
-    page.fill("input[name=password]", "correct horse")
-    page.click("#login")
-    page.wait_for_url(server.url + "/experimenter")
-    return page
 
 
 def wait_until(predicate, what: str, timeout: float = 10.0) -> None:
@@ -274,22 +262,6 @@ def test_leaderboard_ranks_agent_drivers_apart_and_says_who_drove(browser, serve
     ARTIFACTS.mkdir(exist_ok=True)
     page.screenshot(path=str(ARTIFACTS / "leaderboard-agents.png"), full_page=True)
     page.context.close()
-
-
-def page_checks(page, name: str) -> None:
-    """axe-core finds no serious or critical violation; nothing scrolls sideways at 390 px; no
-    image is a broken placeholder."""
-    from axe_playwright_python.sync_playwright import Axe
-
-    page.wait_for_load_state("load")
-    page.wait_for_timeout(300)  # the page scripts draw and fetch once
-    violations = [v for v in Axe().run(page).response["violations"] if v["impact"] in ("serious", "critical")]
-    assert not violations, (name, [(v["id"], [n["target"] for n in v["nodes"]][:3]) for v in violations])
-    width = page.evaluate("() => [document.documentElement.scrollWidth, window.innerWidth]")
-    assert width[0] <= width[1], (name, width)
-    broken = page.evaluate("""() => [...document.images].filter(i => !i.hidden && i.getClientRects().length
-        && !(i.complete && i.naturalWidth > 0)).map(i => i.id)""")
-    assert not broken, (name, broken)
 
 
 def test_every_page_passes_axe_and_reads_on_a_phone(browser, server):

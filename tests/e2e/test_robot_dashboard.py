@@ -11,8 +11,8 @@ from app.db.models import Experimenter
 from app.security import hash_password
 from tests.app.conftest import platform_settings
 from tests.app.live import wait_js
-from tests.app.test_robot_e2e import ROBOT_START_S, RobotProcess, RobotServer
-from tests.e2e.test_trial_in_browser import ARTIFACTS
+from tests.app.robot_rig import ROBOT_START_S, RobotProcess, RobotServer
+from tests.e2e.pages import ARTIFACTS
 
 pytestmark = pytest.mark.browser
 

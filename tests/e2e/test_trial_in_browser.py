@@ -13,15 +13,11 @@ import pytest
 
 from app.db.models import Experimenter
 from app.security import hash_password
-from bench.live import REPO
 from sim.core.dynamics import Action
 from sim.core.labels import Label
-from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread, wait_js
-from tests.app.test_sim_seat_objects import object_pixels
-from tests.app.trial_play import facing_action, oracle_action
-
-ARTIFACTS = REPO / "test-artifacts"
+from tests.app.live import wait_js
+from tests.app.trial_play import facing_action, object_pixels, oracle_action
+from tests.e2e.pages import ARTIFACTS
 
 pytestmark = pytest.mark.browser
 
@@ -42,128 +38,127 @@ def socket_log(page) -> list[str]:
 
 
 @pytest.mark.slow
-def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, tmp_path):
+@pytest.mark.settings(min_move_interval_s=0.0)
+def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, server):
     ARTIFACTS.mkdir(exist_ok=True)
-    settings = platform_settings(tmp_path, min_move_interval_s=0.0)
-    with ServerThread(settings) as server:
-        services = server.services
-        with services.db.begin() as db:
-            db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
+    services = server.services
+    with services.db.begin() as db:
+        db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
 
-        # The experimenter registers two participants, forms a team and creates a trial.
-        admin = browser.new_context(viewport={"width": 1400, "height": 900}).new_page()
-        admin.goto(server.url + "/")
-        admin.fill("input[name=name]", "eve")
-        admin.fill("input[name=password]", "correct horse")
-        admin.click("#login")
-        for name in ("Ada", "Ben"):
-            admin.fill("input[aria-label='Participant name']", name)
-            admin.click("#add-participant")
-        admin.fill("input[aria-label='Team name']", "Ada & Ben")
-        admin.click("#add-team")
-        admin.fill("input[aria-label='Targets']", "mug, paddle, jar")
-        admin.click("#create-trial")
-        commander_url = admin.get_attribute("a.join-commander", "href")
-        driver_url = admin.get_attribute("a.join-driver", "href")
-        trial_id = int(admin.get_attribute("tr[data-trial]", "data-trial"))
+    # The experimenter registers two participants, forms a team and creates a trial.
+    admin = browser.new_context(viewport={"width": 1400, "height": 900}).new_page()
+    admin.goto(server.url + "/")
+    admin.fill("input[name=name]", "eve")
+    admin.fill("input[name=password]", "correct horse")
+    admin.click("#login")
+    for name in ("Ada", "Ben"):
+        admin.fill("input[aria-label='Participant name']", name)
+        admin.click("#add-participant")
+    admin.fill("input[aria-label='Team name']", "Ada & Ben")
+    admin.click("#add-team")
+    admin.fill("input[aria-label='Targets']", "mug, paddle, jar")
+    admin.click("#create-trial")
+    commander_url = admin.get_attribute("a.join-commander", "href")
+    driver_url = admin.get_attribute("a.join-driver", "href")
+    trial_id = int(admin.get_attribute("tr[data-trial]", "data-trial"))
 
-        cctx = browser.new_context(viewport={"width": 1280, "height": 860})
-        dctx = browser.new_context(viewport={"width": 1280, "height": 860})
-        commander, driver = cctx.new_page(), dctx.new_page()
-        commander_heard, driver_heard = socket_log(commander), socket_log(driver)
-        driver_requests: list[str] = []
-        driver.on("request", lambda r: driver_requests.append(r.url))
-        commander.goto(commander_url)
-        driver.goto(driver_url)
-        commander.wait_for_selector("#status[data-phase=localizing]")
-        driver.wait_for_selector("#status[data-phase=localizing]")
-        wait_js(driver, "document.getElementById('camera').src.startsWith('data:image/jpeg')")
+    cctx = browser.new_context(viewport={"width": 1280, "height": 860})
+    dctx = browser.new_context(viewport={"width": 1280, "height": 860})
+    commander, driver = cctx.new_page(), dctx.new_page()
+    commander_heard, driver_heard = socket_log(commander), socket_log(driver)
+    driver_requests: list[str] = []
+    driver.on("request", lambda r: driver_requests.append(r.url))
+    commander.goto(commander_url)
+    driver.goto(driver_url)
+    commander.wait_for_selector("#status[data-phase=localizing]")
+    driver.wait_for_selector("#status[data-phase=localizing]")
+    wait_js(driver, "document.getElementById('camera').src.startsWith('data:image/jpeg')")
 
-        commander.fill("#chat-input", "Hi! What colours do you see?")
-        commander.press("#chat-input", "Enter")
-        driver.wait_for_selector("#messages li.commander >> text=What colours do you see?")
-        driver.fill("#chat-input", "A blue wall on my left and yellow ahead.")
-        driver.click(".chat button")
-        commander.wait_for_selector("#messages li.driver >> text=yellow ahead")
+    commander.fill("#chat-input", "Hi! What colours do you see?")
+    commander.press("#chat-input", "Enter")
+    driver.wait_for_selector("#messages li.commander >> text=What colours do you see?")
+    driver.fill("#chat-input", "A blue wall on my left and yellow ahead.")
+    driver.click(".chat button")
+    commander.wait_for_selector("#messages li.driver >> text=yellow ahead")
 
-        # "The robot is here": a click with a drag for the heading ends localization.
-        box = commander.locator("#map").bounding_box()
-        commander.mouse.move(box["x"] + box["width"] * 0.4, box["y"] + box["height"] * 0.5)
-        commander.mouse.down()
-        commander.mouse.move(box["x"] + box["width"] * 0.45, box["y"] + box["height"] * 0.5)
-        commander.mouse.up()
-        driver.wait_for_selector("#status[data-phase=navigating]")
-        runtime = services.hub.peek(trial_id)
-        assert runtime.state.localization["heading"] == pytest.approx(0.0, abs=0.05)
+    # "The robot is here": a click with a drag for the heading ends localization.
+    box = commander.locator("#map").bounding_box()
+    commander.mouse.move(box["x"] + box["width"] * 0.4, box["y"] + box["height"] * 0.5)
+    commander.mouse.down()
+    commander.mouse.move(box["x"] + box["width"] * 0.45, box["y"] + box["height"] * 0.5)
+    commander.mouse.up()
+    driver.wait_for_selector("#status[data-phase=navigating]")
+    runtime = services.hub.peek(trial_id)
+    assert runtime.state.localization["heading"] == pytest.approx(0.0, abs=0.05)
 
-        # The experimenter's dashboard shows the running trial with its true pose.
-        admin.goto(server.url + "/experimenter")
-        live = admin.locator(f'figure.live-trial[data-trial="{trial_id}"] figcaption')
-        live.filter(has_text="navigating").wait_for()
-        assert "commander ●" in live.inner_text() and "driver ●" in live.inner_text()
+    # The experimenter's dashboard shows the running trial with its true pose.
+    admin.goto(server.url + "/experimenter")
+    live = admin.locator(f'figure.live-trial[data-trial="{trial_id}"] figcaption')
+    live.filter(has_text="navigating").wait_for()
+    assert "commander ●" in live.inner_text() and "driver ●" in live.inner_text()
 
-        keys = {Action.FORWARD: "ArrowUp", Action.LEFT: "ArrowLeft", Action.RIGHT: "ArrowRight"}
-        buttons = {Action.FORWARD: "#forward", Action.LEFT: "#left", Action.RIGHT: "#right"}
-        for index in range(3):
-            for n in range(400):
-                if index == 0 and n == 6:
-                    driver.screenshot(path=str(ARTIFACTS / "driver.png"))
-                    admin.wait_for_timeout(1100)  # one dashboard refresh
-                    admin.screenshot(path=str(ARTIFACTS / "experimenter.png"))
-                action = oracle_action(services, trial_id)
-                if action == Action.STOP:  # at the target: look at it before claiming
-                    action = facing_action(services, trial_id)
-                if action == Action.STOP:
-                    break
-                before = runtime.state.moves
-                if n % 2:
-                    driver.keyboard.press(keys[action])
-                else:
-                    driver.click(buttons[action])
-                wait_until(
-                    lambda: runtime.state.moves > before  # noqa: B023  (waited on here)
-                    and runtime.state.last_frame_id is not None
-                    and not runtime.state.moves_in_flight,
-                    what="a move to execute",
-                )
-                driver.wait_for_timeout(30)  # the page takes the move's result before the next press
-            driver.click("#found")
-            commander.wait_for_selector("#claim:not([hidden])")
-            wait_js(commander, "document.getElementById('claim-image').src.startsWith('data:image/jpeg')")
-            # The landmark is a physical object: the claimed frame shows it, not the wall behind it.
-            claimed = commander.get_attribute("#claim-image", "src").split(",", 1)[1]
-            target = runtime.state.current_target
-            assert object_pixels(base64.b64decode(claimed), Label[target.upper()]) > 300, target
-            if index == 0:
-                commander.screenshot(path=str(ARTIFACTS / "commander.png"))
-                # While the claim waits, the Driver cannot move or claim again, and every page says so.
-                driver.wait_for_selector("#forward:disabled")
-                assert driver.is_disabled("#found") and driver.is_disabled("#left")
-                driver.wait_for_selector("#status >> text=Waiting for the Commander to confirm your claim.")
-                driver.screenshot(path=str(ARTIFACTS / "driver-claim.png"))
-                admin.goto(f"{server.url}/experimenter/trials/{trial_id}")
-                admin.wait_for_selector("#status >> text=The Driver claims target 1 of 3")
-                assert admin.is_hidden("#ldh-note"), "no LDH caption without its discs"
-                admin.screenshot(path=str(ARTIFACTS / "watch-claim.png"))
-            commander.click("#confirm")
-            if index == 0:
-                driver.wait_for_selector("#forward:enabled")
-                assert driver.inner_text("#error") == ""
-            commander.wait_for_selector("#claim[hidden]", state="attached")
-        commander.wait_for_selector("#status[data-phase=finished]")
-        driver.wait_for_selector("#status[data-phase=finished]")
-        commander.screenshot(path=str(ARTIFACTS / "commander-finished.png"))
-        driver.screenshot(path=str(ARTIFACTS / "driver-finished.png"))
+    keys = {Action.FORWARD: "ArrowUp", Action.LEFT: "ArrowLeft", Action.RIGHT: "ArrowRight"}
+    buttons = {Action.FORWARD: "#forward", Action.LEFT: "#left", Action.RIGHT: "#right"}
+    for index in range(3):
+        for n in range(400):
+            if index == 0 and n == 6:
+                driver.screenshot(path=str(ARTIFACTS / "driver.png"))
+                admin.wait_for_timeout(1100)  # one dashboard refresh
+                admin.screenshot(path=str(ARTIFACTS / "experimenter.png"))
+            action = oracle_action(services, trial_id)
+            if action == Action.STOP:  # at the target: look at it before claiming
+                action = facing_action(services, trial_id)
+            if action == Action.STOP:
+                break
+            before = runtime.state.moves
+            if n % 2:
+                driver.keyboard.press(keys[action])
+            else:
+                driver.click(buttons[action])
+            wait_until(
+                lambda: runtime.state.moves > before  # noqa: B023  (waited on here)
+                and runtime.state.last_frame_id is not None
+                and not runtime.state.moves_in_flight,
+                what="a move to execute",
+            )
+            driver.wait_for_timeout(30)  # the page takes the move's result before the next press
+        driver.click("#found")
+        commander.wait_for_selector("#claim:not([hidden])")
+        wait_js(commander, "document.getElementById('claim-image').src.startsWith('data:image/jpeg')")
+        # The landmark is a physical object: the claimed frame shows it, not the wall behind it.
+        claimed = commander.get_attribute("#claim-image", "src").split(",", 1)[1]
+        target = runtime.state.current_target
+        assert object_pixels(base64.b64decode(claimed), Label[target.upper()]) > 300, target
+        if index == 0:
+            commander.screenshot(path=str(ARTIFACTS / "commander.png"))
+            # While the claim waits, the Driver cannot move or claim again, and every page says so.
+            driver.wait_for_selector("#forward:disabled")
+            assert driver.is_disabled("#found") and driver.is_disabled("#left")
+            driver.wait_for_selector("#status >> text=Waiting for the Commander to confirm your claim.")
+            driver.screenshot(path=str(ARTIFACTS / "driver-claim.png"))
+            admin.goto(f"{server.url}/experimenter/trials/{trial_id}")
+            admin.wait_for_selector("#status >> text=The Driver claims target 1 of 3")
+            assert admin.is_hidden("#ldh-note"), "no LDH caption without its discs"
+            admin.screenshot(path=str(ARTIFACTS / "watch-claim.png"))
+        commander.click("#confirm")
+        if index == 0:
+            driver.wait_for_selector("#forward:enabled")
+            assert driver.inner_text("#error") == ""
+        commander.wait_for_selector("#claim[hidden]", state="attached")
+    commander.wait_for_selector("#status[data-phase=finished]")
+    driver.wait_for_selector("#status[data-phase=finished]")
+    commander.screenshot(path=str(ARTIFACTS / "commander-finished.png"))
+    driver.screenshot(path=str(ARTIFACTS / "driver-finished.png"))
 
-        board = browser.new_context().new_page()
-        board.goto(server.url + "/leaderboard")
-        row = board.locator("#leaderboard tbody tr").first
-        assert row.locator(".team").inner_text() == "Ada & Ben"
-        board.screenshot(path=str(ARTIFACTS / "leaderboard.png"))
+    board = browser.new_context().new_page()
+    board.goto(server.url + "/leaderboard")
+    row = board.locator("#leaderboard tbody tr").first
+    assert row.locator(".team").inner_text() == "Ada & Ben"
+    board.screenshot(path=str(ARTIFACTS / "leaderboard.png"))
 
-        # What each browser was sent: no camera frame to the Commander, no map to the Driver.
-        assert commander_heard and driver_heard
-        assert not any('"kind":"frame"' in m or '"kind":"pose"' in m for m in commander_heard)
-        assert any('"kind":"frame"' in m for m in driver_heard)
-        assert not any('"kind":"localization"' in m for m in driver_heard)
-        assert not any(re.search(r"map\.png|/target/", url) for url in driver_requests)
+    # What each browser was sent: no camera frame to the Commander, no map to the Driver.
+    assert commander_heard and driver_heard
+    assert not any('"kind":"frame"' in m or '"kind":"pose"' in m for m in commander_heard)
+    assert any('"kind":"frame"' in m for m in driver_heard)
+    assert not any('"kind":"localization"' in m for m in driver_heard)
+    assert not any(re.search(r"map\.png|/target/", url) for url in driver_requests)

@@ -11,7 +11,7 @@ import pytest
 from models.experiment import experiment_grid
 from models.report import write_report
 from sim.core.metrics import write_csv
-from tests.models.test_report import rows
+from tests.models.helpers import rows
 
 
 def test_the_default_grid_is_the_whole_protocol():

@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from app.cli import root
 from models.ldh import LDHConfig, Localizer, save
-from tests.sim.test_ldh import export_folder, exported, said
+from tests.sim.helpers import export_folder, exported, said
 
 
 def eval_learned(bench, checkpoint, agents="learned"):

@@ -9,29 +9,8 @@ import pytest
 
 from models.experiment import choose_iters
 from models.report import write_report
-from sim.core.metrics import EpisodeResult, write_csv
-
-
-def rows(split, agent, tds, seed=0):
-    return [
-        EpisodeResult(
-            split=split,
-            inst_idx=k,
-            agent=agent,
-            seed=seed,
-            start_x=0,
-            start_y=0,
-            start_heading=0,
-            goal_x=0,
-            goal_y=0,
-            td=float(td),
-            otd=float(td) * 0.9,
-            steps=10,
-            success=td < 0.5,
-            spl=0.5 if td < 0.5 else 0.0,
-        )
-        for k, td in enumerate(tds)
-    ]
+from sim.core.metrics import write_csv
+from tests.models.helpers import rows
 
 
 @pytest.fixture

@@ -81,8 +81,3 @@ async def scripted_server():
         port = ws_server.sockets[0].getsockname()[1]
         server.url = f"ws://127.0.0.1:{port}/ws/robot"
         yield server
-
-
-@pytest.fixture
-def anyio_backend() -> str:
-    return "asyncio"

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import json
+import re
+
 import numpy as np
 
 from sim.core.geometry import MAP_HEIGHT_PX, MAP_WIDTH_PX, world_to_pixel
 from sim.core.labels import Label
+from sim.core.maze import Maze
 
 
 def open_table(objects=((0.5, 0.5), (1.2, 1.0), (2.0, 1.5))) -> np.ndarray:
@@ -26,3 +30,32 @@ def wall_at_x(labels: np.ndarray, x: float, label: Label = Label.BLUE, y_range=(
     _, r1 = world_to_pixel(0, y_range[0])
     labels[int(max(r0, 0)) : int(min(r1, MAP_HEIGHT_PX)), int(c) - 5 : int(c) + 5] = label
     return labels
+
+
+def said(result) -> str:
+    """The CLI's output with rich's error box and line wrapping taken out."""
+    return " ".join(re.sub("[│╭╮╰╯─]", " ", result.output).split())
+
+
+def export_folder(tmp_path, instances):
+    """A platform export's layout: one maze, an empty NDH split and the given LDH instances."""
+    Maze.from_labels(open_table(), "m1").save(tmp_path / "mazedata" / "m1")
+    (tmp_path / "NDH-data").mkdir()
+    (tmp_path / "NDH-data" / "val_seen.json").write_text("[]")
+    (tmp_path / "LDH-data").mkdir()
+    (tmp_path / "LDH-data" / "val_seen.json").write_text(json.dumps(instances))
+    return tmp_path
+
+
+def exported(idx, pose):
+    return {
+        "inst_idx": idx,
+        "scan": "mazedata/m1/maze/maze.labelled.npz-jar-[1.4 0.7]-[0.5 0.5]",
+        "target": "jar",
+        "agent_pose": pose,
+        "start_pose": pose,
+        "commander_estimate": [1.0, 1.0, None],
+        "dialog_history": [{"role": "navigator", "message": "red wall to my left"}],
+        "all_targets": [[0.5, 0.5], [1.2, 1.0], [2.0, 1.5]],
+        "trial_id": "t",
+    }

@@ -4,7 +4,6 @@ and the metrics by hand on a small maze."""
 from __future__ import annotations
 
 import json
-import re
 
 import numpy as np
 import pytest
@@ -18,12 +17,7 @@ from sim.tasks.benchmark import Benchmark
 from sim.tasks.ldh import LDHInstance, Variant, load_split, localization_prefix
 from sim.tasks.ldh_eval import MazeContext, MazeContexts, evaluate, score, summarize
 from sim.tasks.ldh_features import Sector, mentions
-from tests.sim.helpers import open_table
-
-
-def said(result) -> str:
-    """The CLI's output with rich's error box and line wrapping taken out."""
-    return " ".join(re.sub("[│╭╮╰╯─]", " ", result.output).split())
+from tests.sim.helpers import export_folder, exported, open_table, said
 
 
 def dialog(*turns):
@@ -117,30 +111,6 @@ def test_summary_shape_and_sample_std(open_ctx, tmp_path):
     assert a["td_mean"] == pytest.approx(0.14) and a["td_std"] == pytest.approx(np.std([0, 0.28], ddof=1))
     assert a["td_median"] == pytest.approx(0.14)
     assert a["acc_0.25"] == 0.5 and a["acc_1.0"] == 1.0
-
-
-def export_folder(tmp_path, instances):
-    """A platform export's layout: one maze, an empty NDH split and the given LDH instances."""
-    Maze.from_labels(open_table(), "m1").save(tmp_path / "mazedata" / "m1")
-    (tmp_path / "NDH-data").mkdir()
-    (tmp_path / "NDH-data" / "val_seen.json").write_text("[]")
-    (tmp_path / "LDH-data").mkdir()
-    (tmp_path / "LDH-data" / "val_seen.json").write_text(json.dumps(instances))
-    return tmp_path
-
-
-def exported(idx, pose):
-    return {
-        "inst_idx": idx,
-        "scan": "mazedata/m1/maze/maze.labelled.npz-jar-[1.4 0.7]-[0.5 0.5]",
-        "target": "jar",
-        "agent_pose": pose,
-        "start_pose": pose,
-        "commander_estimate": [1.0, 1.0, None],
-        "dialog_history": [{"role": "navigator", "message": "red wall to my left"}],
-        "all_targets": [[0.5, 0.5], [1.2, 1.0], [2.0, 1.5]],
-        "trial_id": "t",
-    }
 
 
 def test_the_evaluator_reads_exported_trials_and_skips_those_without_a_true_pose(tmp_path):
