@@ -164,14 +164,18 @@ class FilterWorker:
         self._slot: asyncio.Lock | None = None  # one turn or build at a time, with its rest
 
     async def _in_share(self, work: Callable[[], Any]) -> Any:
-        """`work()` in a thread, then a rest that keeps the filters' work within `share`."""
+        """`work()` in a thread; its result at once, and the next work only after a rest that keeps
+        the filters' work within `share` (a trial's new filter is in use while the worker rests)."""
         if self._slot is None:
             self._slot = asyncio.Lock()
-        async with self._slot:
-            started = time.perf_counter()
-            result = await asyncio.to_thread(work)
-            await asyncio.sleep((time.perf_counter() - started) * (1 / self.share - 1))
-            return result
+        slot = self._slot
+        await slot.acquire()
+        started = time.perf_counter()
+        try:
+            return await asyncio.to_thread(work)
+        finally:
+            rest = (time.perf_counter() - started) * (1 / self.share - 1)
+            asyncio.get_running_loop().call_later(rest, slot.release)
 
     async def start(self, make: Callable[[], TrialBelief]) -> TrialBelief:
         """A new trial's filter, `make()` in the filters' share of a core."""

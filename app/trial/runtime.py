@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 from pydantic import ValidationError
 
-from app.backends.base import BackendUnavailable, RobotBackend
+from app.backends.base import BackendUnavailable, Frame, RobotBackend
 from app.backends.registry import create_backend
 from app.security import InvalidToken, Seat
 from app.trial import decide as d
@@ -67,6 +67,7 @@ class TrialRuntime:
         self.agent: AgentSeat | None = None
         self.belief: TrialBelief | None = None  # `TrialBelief` once the Driver camera's calibration is loaded
         self._belief_message: dict[str, Any] | None = None  # the latest, for the watch page
+        self._last_frame: Frame | None = None  # the Driver camera's latest, for a filter built after it
         self._frame_dirs: set[Path] = set()
         self.ldh = LiveBelief(self)  # the LDH model's belief, for the watchers only
         self._throttles: dict[str, Throttle] = {}  # per seat: how often its messages may be recorded
@@ -113,6 +114,10 @@ class TrialRuntime:
             calibration = await asyncio.to_thread(driver_calibration, self.state.backend, self.settings)
             maze = self.services.mazes.load(self.state.maze)
             self.belief = await self.services.filters.start(lambda: TrialBelief(maze, calibration, seed=self.trial_id))
+            # Built in the filters' share of a core, so frames may have come meanwhile: it starts
+            # from what the camera sees now (its prior is uniform, so the moves before do not count).
+            if self._last_frame is not None:
+                self._offer(self._last_frame)
         except CameraUnknown as err:
             logger.info("trial %s: no particle filter: %s", self.trial_id, err)
         except Exception:  # no belief is a lesser trial, not a broken one
@@ -277,13 +282,18 @@ class TrialRuntime:
             except Exception:  # a frame that cannot be stored must not stop the stream
                 logger.exception("trial %s: frame not recorded", self.trial_id)
                 continue
-            belief = self.belief
-            if (
-                belief is not None
-                and not self.state.moves_in_flight
-                and belief.offer(frame.jpeg, frame.capture_ns, frame.observation)
-            ):
-                self.services.filters.due(belief, self._believed)
+            self._last_frame = frame
+            self._offer(frame)
+
+    def _offer(self, frame: Frame) -> None:
+        """A Driver frame for the particle filter, taken in at its next turn (not while a move runs)."""
+        belief = self.belief
+        if (
+            belief is not None
+            and not self.state.moves_in_flight
+            and belief.offer(frame.jpeg, frame.capture_ns, frame.observation)
+        ):
+            self.services.filters.due(belief, self._believed)
 
     def _believed(self) -> None:
         """The filter has taken in a frame: the watchers see the new belief."""
