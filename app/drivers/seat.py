@@ -24,6 +24,7 @@ from typing import Any
 
 from app.drivers.base import Oracle, Seating
 from app.drivers.registry import create_driver
+from app.trial import events as ev
 from app.trial.decide import Refused
 from app.trial.port import DriverTrial
 from app.trial.vocabulary import Move, Role
@@ -96,20 +97,20 @@ class AgentSeat:
 
     def _event(self, kind: str, seq: int, payload: dict[str, Any], message: dict[str, Any]) -> None:
         put = self.inbox.put_nowait
-        if kind == "chat" and seq not in self.chat_seqs:
+        if kind == ev.Chat.kind and seq not in self.chat_seqs:
             self.chat_seqs.add(seq)
             put(t.Heard(t.Speaker(payload["role"]), payload["text"]))
-        elif kind == "phase":
+        elif kind == ev.PhaseChanged.kind:
             self._phase(t.Phase(payload["phase"]), payload.get("target_index"))
-        elif kind == "move_executed":
+        elif kind == ev.MoveExecuted.kind:
             moved = t.Moved(t.Move(payload["action"]), t.Outcome(payload["outcome"]), payload.get("reason"))
             put(_Outcome(moved, message["t_ns"]))
-        elif kind == "frame" and "jpeg" in message:
+        elif kind == ev.FrameRecorded.kind and "jpeg" in message:
             put(_FrameArrived(payload["frame_id"], payload["capture_ns"], base64.b64decode(message["jpeg"])))
-        elif kind == "target_claimed":
+        elif kind == ev.TargetClaimed.kind:
             put(t.Claimed(payload["target_index"]))
-        elif kind in ("target_confirmed", "target_rejected"):
-            put(t.Judged(kind == "target_confirmed", payload["target_index"]))
+        elif kind in (ev.TargetConfirmed.kind, ev.TargetRejected.kind):
+            put(t.Judged(kind == ev.TargetConfirmed.kind, payload["target_index"]))
 
     def _phase(self, phase: t.Phase, target_index: int | None) -> None:
         if (phase, target_index) != self.phase:  # the welcome and the event may both say it

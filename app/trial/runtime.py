@@ -205,7 +205,7 @@ class TrialRuntime:
         for conn in list(self.watchers):
             message = view(EXPERIMENTER, logged)
             if message is not None:
-                message.update(attachments.get(Role.DRIVER if logged.kind == "frame" else EXPERIMENTER, {}))
+                message.update(attachments.get(Role.DRIVER if logged.is_(ev.FrameRecorded) else EXPERIMENTER, {}))
                 self._send(conn, message)
 
     def _after_change(self) -> None:
@@ -403,7 +403,7 @@ class TrialRuntime:
             "history": [
                 msg
                 for e in self.services.log.load(self.trial_id)
-                if e.kind in ("chat", "phase", "target_confirmed", "target_rejected")
+                if e.is_(ev.Chat, ev.PhaseChanged, ev.TargetConfirmed, ev.TargetRejected)
                 and (msg := view(role, e)) is not None
             ],
             "status": self.status(),
@@ -537,7 +537,7 @@ class TrialRuntime:
                 min_interval_ns=int(self.settings.min_move_interval_s * 1e9),
             )
         )
-        if asked[-1].kind == "move_executed":  # refused at once
+        if asked[-1].is_(ev.MoveExecuted):  # refused at once
             return Outcome.REFUSED
         backend = self.backend
         assert backend is not None  # RequestMove refuses every move while there is no backend
