@@ -145,7 +145,7 @@ def test_the_installed_server_serves_pages_static_files_migrations_and_bundled_m
         css = httpx.get(url + "/static/style.css")
         assert css.status_code == 200 and css.headers["content-type"].startswith("text/css")
         with sqlite3.connect(data / "robotslang.db") as db:
-            assert db.execute("select version_num from alembic_version").fetchone() == ("0003",)  # head
+            assert db.execute("select version_num from alembic_version").fetchone() == ("0004",)  # head
         server.terminate()
         first_lines = server.communicate(timeout=20)[0]
         password = re.search(r"experimenter 'admin' created with password (\S+)", first_lines).group(1)
@@ -179,7 +179,7 @@ def trial_form_mazes(venv: Path, cwd: Path, url: str, user: str, password: str, 
             for name in ("Ada", "Ben"):
                 client.post("/experimenter/participants", data={"name": name})
             page = client.post("/experimenter/teams", data={"name": "A & B", "member_a": 1, "member_b": 2})
-            return set(re.findall(r"<option>([\w-]+)</option>", page.text))
+            return set(re.findall(r'<option value="([\w-]+)" data-layout=', page.text))
     finally:
         server.terminate()
         server.wait(timeout=20)
