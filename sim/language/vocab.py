@@ -12,6 +12,7 @@ import re
 from enum import StrEnum
 
 from sim.core.labels import Label
+from sim.tasks import ldh_features
 from sim.tasks.ldh_features import SECTOR_HEADING_OFFSET, Sector
 
 
@@ -28,27 +29,16 @@ SIDE_SECTOR = {Side.AHEAD: Sector.FRONT, Side.LEFT: Sector.LEFT, Side.BEHIND: Se
 SIDE_STEPS = {side: SECTOR_HEADING_OFFSET[sector] for side, sector in SIDE_SECTOR.items()}
 SIDE_PHRASE = {Side.AHEAD: "ahead", Side.LEFT: "on my left", Side.RIGHT: "on my right", Side.BEHIND: "behind me"}
 
+# The LDH features' colour and object words (what the `colours` localizer reads), and more that the
+# dialog agents read: the maze's border, grey for white, other names for the objects.
 LABEL_WORDS: dict[str, Label] = {
-    "red": Label.RED,
-    "orange": Label.RED,
-    "blue": Label.BLUE,
-    "green": Label.GREEN,
-    "brown": Label.BROWN,
-    "wooden": Label.BROWN,
-    "wood": Label.BROWN,
-    "yellow": Label.YELLOW,
-    "white": Label.WHITE,
-    "edge": Label.WHITE,
+    **ldh_features.LABEL_WORDS,
     "border": Label.WHITE,  # the maze's edge
     "boundary": Label.WHITE,
     "grey": Label.WHITE,
     "gray": Label.WHITE,
-    "jar": Label.JAR,
     "blocks": Label.JAR,
     "cubes": Label.JAR,
-    "mug": Label.MUG,
-    "cup": Label.MUG,
-    "paddle": Label.PADDLE,
     "racket": Label.PADDLE,  # "table-tennis-racket" (train split)
     "racquet": Label.PADDLE,
 }
