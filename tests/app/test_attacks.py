@@ -291,6 +291,7 @@ def test_after_a_crash_a_participant_away_before_it_keeps_only_the_grace_that_re
         "ROBOTSLANG_GRACE_PERIOD_S": str(grace_s),
     }
     server = ServerProcess(env).start()
+    killed_after_s: list[float] = []
     try:
 
         async def until_the_crash() -> None:
@@ -298,8 +299,10 @@ def test_after_a_crash_a_participant_away_before_it_keeps_only_the_grace_that_re
                 async with SeatClient(server.ws_url, tokens["driver"]) as driver:
                     await start_trial(commander, driver)
                 await commander.event("disconnect", role="driver")
+                left = time.monotonic()
                 await asyncio.sleep(away_before_crash_s)
                 server.kill()
+                killed_after_s.append(time.monotonic() - left)  # on a loaded machine, more than asked
 
         asyncio.run(until_the_crash())
         server.start()  # reopens the running trial, and its grace timers, at once
@@ -318,6 +321,9 @@ def test_after_a_crash_a_participant_away_before_it_keeps_only_the_grace_that_re
     # while they are away), not afresh; the Commander's, begun at the restart, is the longer.
     grace_after_restart_s = (aborted - restarted) / 1e9
     away_logged_s = (max(e.t_ns for e in events if e.t_ns < restarted) - left_driver) / 1e9
-    assert away_before_crash_s - 1.2 <= away_logged_s <= away_before_crash_s + 0.5
+    # Noted about every second up to the crash (a loaded server notes late; the Commander hears
+    # the disconnect a little after the server logs it).
+    assert killed_after_s[0] - 2.5 <= away_logged_s <= killed_after_s[0] + 1.0
     remained_s = grace_s - away_logged_s
-    assert remained_s - 0.1 <= grace_after_restart_s <= remained_s + 1.0  # a busy loop fires timers late
+    # A busy loop fires timers late, but never by the 4 s a fresh grace would add.
+    assert remained_s - 0.1 <= grace_after_restart_s <= remained_s + 2.0
