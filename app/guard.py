@@ -15,6 +15,7 @@ from urllib.parse import urlsplit
 
 from fastapi import HTTPException, Request
 from starlette.datastructures import Headers, MutableHeaders
+from starlette.requests import HTTPConnection
 from starlette.responses import PlainTextResponse
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
@@ -162,7 +163,7 @@ def _cookie(headers: Headers, name: str) -> str | None:
     return None
 
 
-def current_login(request: Request) -> Login | None:
+def current_login(request: HTTPConnection) -> Login | None:
     """The experimenter logged in with this request's cookie (looked up once per request)."""
     if not hasattr(request.state, "login"):
         sessions = request.app.state.services.sessions

@@ -20,6 +20,7 @@ from app.backends.render import RenderProcesses
 from app.clock import ServerClock
 from app.db.engine import make_engine, make_sessionmaker, upgrade
 from app.db.models import Experimenter
+from app.deps import LoginRequired
 from app.guard import GuardMiddleware, template_context
 from app.login import LoginGuard, shared_counts
 from app.mazes import Mazes
@@ -117,7 +118,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(replay.router)
     app.include_router(ldh_study.router)
 
-    @app.exception_handler(experimenter.LoginRequired)
+    @app.exception_handler(LoginRequired)
     async def _login_required(request: Request, exc: Exception):
         return RedirectResponse("/", status_code=303)
 

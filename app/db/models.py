@@ -60,6 +60,8 @@ class Trial(Base):
     targets: Mapped[list] = mapped_column(JSON)  # the three objects, in the order to reach them
     backend: Mapped[str] = mapped_column(String(40))  # 'sim' or 'robot:<id>'
     driver: Mapped[str] = mapped_column(String(40))  # 'human' or 'agent:<name>'
+    commander: Mapped[str] = mapped_column(String(40), default="human", server_default="human")  # as `driver`
+    study: Mapped[str | None] = mapped_column(String(80), nullable=True, index=True)  # the study's name, if any
     commander_id: Mapped[int | None] = mapped_column(ForeignKey("participant.id"), nullable=True)
     driver_id: Mapped[int | None] = mapped_column(ForeignKey("participant.id"), nullable=True)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)

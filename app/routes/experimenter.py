@@ -12,28 +12,17 @@ from sqlalchemy import select
 
 from app.backends.remote import robot_links
 from app.db.models import Participant, Robot, Team, Trial
+from app.deps import experimenter_id
 from app.drivers.registry import available_drivers
-from app.guard import csrf_protect, current_login
+from app.guard import csrf_protect
 from app.routes.pages import render, trial_or_404
 from app.trial.lifecycle import Refused, delete_participant, delete_robot, delete_team, exclude_trial
 from app.trial.setup import TrialSetupError, create_participant, create_team, create_trial, parse_targets, suggest_maze
 from app.trial.state import fold
 from app.trial.vocabulary import Role
 
-
-class LoginRequired(Exception):
-    """Raised by `experimenter` for anonymous requests; create_app answers with a redirect home."""
-
-
-def experimenter(request: Request) -> int:
-    login = current_login(request)
-    if login is None:
-        raise LoginRequired()
-    return login.experimenter_id
-
-
 # Every state-changing request also needs this server's Origin and the page's CSRF token.
-router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter), Depends(csrf_protect)])
+router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter_id), Depends(csrf_protect)])
 
 
 def controls_for(phase: str, paused: list[str] | tuple[str, ...] = ()) -> list[str]:

@@ -11,14 +11,14 @@ from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, JSONResponse, RedirectResponse, Response
 from pydantic import BaseModel, ConfigDict
 
+from app.deps import ExperimenterId, experimenter_id
 from app.guard import csrf_protect
 from app.ldh_study import CSV_COLUMNS, Studies, StudyError
-from app.routes.experimenter import experimenter
 from app.routes.pages import render
 from app.security import InvalidToken, StudyPass, StudyTokens
 
 router = APIRouter()
-studies_router = APIRouter(prefix="/experimenter/ldh", dependencies=[Depends(experimenter), Depends(csrf_protect)])
+studies_router = APIRouter(prefix="/experimenter/ldh", dependencies=[Depends(experimenter_id), Depends(csrf_protect)])
 
 
 def studies(request: Request) -> Studies:
@@ -57,6 +57,7 @@ def study_list(request: Request, error: str | None = None):
 @studies_router.post("")
 def create_study(
     request: Request,
+    experimenter: ExperimenterId,
     name: str = Form(max_length=80),
     source: str = Form(max_length=1000),
     split: str = Form("val_seen"),
@@ -64,7 +65,7 @@ def create_study(
     limit: int | None = Form(None),
 ):
     try:
-        study_id = studies(request).create(experimenter(request), name, source, split, variant, limit)
+        study_id = studies(request).create(experimenter, name, source, split, variant, limit)
     except StudyError as err:
         return _back(error=str(err))
     return _back(study_id)

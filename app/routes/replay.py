@@ -16,16 +16,16 @@ from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, Response
 from sqlalchemy import select
 
 from app.db.models import Frame, Team, Trial
+from app.deps import experimenter_id
 from app.export.record import ExportError, TrialRecord
 from app.export.source import load_trial
 from app.guard import csrf_protect
 from app.mazes import UnknownMaze
-from app.routes.experimenter import experimenter
 from app.routes.pages import render
 from app.trial import events as ev
 from sim.core.maze import Maze
 
-router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter), Depends(csrf_protect)])
+router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter_id), Depends(csrf_protect)])
 REPLAYABLE = ("finished", "aborted")
 
 

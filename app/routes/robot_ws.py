@@ -29,8 +29,8 @@ from app.backends.remote import (
     robot_for_token,
     robot_links,
 )
+from app.deps import experimenter_id
 from app.guard import csrf_protect, socket_origin_allowed
-from app.routes.experimenter import experimenter
 from app.serving import MESSAGE_TOO_BIG
 from robot_client.protocol import (
     CLOSE_REFUSED,
@@ -201,13 +201,13 @@ async def _dispatch(raw: Mapping[str, Any], link: RobotLink, links, received_ns:
 
 
 # -- the experimenter's robot API ------------------------------------------------------
-@router.get("/experimenter/api/robots", dependencies=[Depends(experimenter)])
+@router.get("/experimenter/api/robots", dependencies=[Depends(experimenter_id)])
 def robots_status(request: Request) -> dict:
     """Each registered robot: connected, frames per second, link latency, last acknowledgement."""
     return {"robots": robot_links(request.app.state.services).status()}
 
 
-@router.post("/experimenter/api/robots", dependencies=[Depends(experimenter), Depends(csrf_protect)])
+@router.post("/experimenter/api/robots", dependencies=[Depends(experimenter_id), Depends(csrf_protect)])
 def register_robot(request: Request, name: str = Form(max_length=80), role: str = Form("driver")) -> dict:
     """Register a robot. The answer holds its token: shown this once, stored only hashed."""
     try:
