@@ -69,7 +69,7 @@ def check_seat(role: Role, spec: str, agents: Mapping[str, str | None] | None) -
         return
     if agents is None or spec not in agents:
         known = ", ".join(agents or ())
-        raise TrialSetupError(f"{role} {spec!r} is neither 'human' nor a known {role} agent ({known})")
+        raise TrialSetupError(f"{role} {spec!r} is neither 'human' nor a known agent for the {role}'s seat ({known})")
     if agents[spec] is not None:
         raise TrialSetupError(f"{role} {spec!r} cannot start: {agents[spec]}")
 
