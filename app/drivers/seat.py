@@ -110,6 +110,7 @@ class AgentSeat:
         self.running = asyncio.Event()
         self.paused = False  # as the agent was last told (a trial starts unpaused)
         self.tasks: list[asyncio.Task] = []
+        self.said_for_target = 0  # its own messages since the trial reached the current target
 
     # -- what a browser in this seat would receive ------------------------------------------------
     def deliver(self, message: dict[str, Any]) -> None:
@@ -146,6 +147,8 @@ class AgentSeat:
 
     def _phase(self, phase: t.Phase, target_index: int | None, target: str | None) -> None:
         if (phase, target_index) != self.phase:  # the welcome and the event may both say it
+            if self.phase is None or self.phase[1] != target_index:
+                self.said_for_target = 0
             self.phase = (phase, target_index)
             self.inbox.put_nowait(t.PhaseChanged(phase, target_index, self.targets_total, target))
 
@@ -212,7 +215,7 @@ class AgentSeat:
         try:
             match turn:
                 case t.DoSay(text=text):
-                    self.trial.say(self.role, text)
+                    await self._say(text)
                 case t.DoWait():
                     pass
                 case _ if not await self._act(turn):
@@ -228,6 +231,26 @@ class AgentSeat:
     async def _act(self, turn: t.Turn) -> bool:
         """A turn of this seat's own; False where the seat has no such turn."""
         return False
+
+    async def _say(self, text: str) -> None:
+        cap = self.services.settings.agent_messages_per_target
+        if self.said_for_target >= cap:  # two agents can talk in circles: a cap, as on moves
+            index = self.phase[1] if self.phase and self.phase[1] is not None else 0
+            await self._give_up(
+                f"I have sent {cap} messages on target {index + 1} of {self.targets_total}, the most an agent "
+                "may; I stop here",
+                f"agent {self.role.title()}'s cap: {cap} messages for target {index + 1}",
+            )
+            return
+        self.said_for_target += 1
+        self.trial.say(self.role, text)
+
+    async def _give_up(self, words: str, reason: str) -> None:
+        trial = self.trial
+        if trial.state.over:
+            return
+        trial.say(self.role, words)
+        trial.abort(reason)
 
 
 _TURN_KIND: dict[type, t.TurnKind] = {
@@ -419,10 +442,3 @@ class DriverSeat(AgentSeat):
                 )
                 return
             await asyncio.sleep(max(left_s, 0.05))
-
-    async def _give_up(self, words: str, reason: str) -> None:
-        trial = self.trial
-        if trial.state.over:
-            return
-        self.port.say(Role.DRIVER, words)
-        self.port.abort(reason)

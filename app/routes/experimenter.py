@@ -75,7 +75,11 @@ def dashboard(request: Request, error: str | None = None):
         suggestions=suggestions,
         backends=backends,
         seat_agents=available_seats(services),
-        caps=(services.settings.agent_moves_per_target, services.settings.agent_minutes_per_trial),
+        caps=(
+            services.settings.agent_moves_per_target,
+            services.settings.agent_minutes_per_trial,
+            services.settings.agent_messages_per_target,
+        ),
         controls_for=controls_for,
         robots=robot_links(services).status(),
         links={t.id: join_links(request, t) for t in trials},

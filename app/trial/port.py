@@ -46,9 +46,12 @@ class RobotTrial(TrialView, Protocol):
 
 
 class SeatTrial(TrialView, Protocol):
-    """The trial as an agent's seat sees it: it may speak in the chat."""
+    """The trial as an agent's seat sees it: it may speak in the chat, and end the trial on its caps."""
 
     def say(self, role: Role, text: str) -> None: ...
+
+    def abort(self, reason: str | None = None) -> None:
+        """End the trial, aborted, with the reason logged (an agent's cap)."""
 
 
 class DriverTrial(SeatTrial, Protocol):
@@ -59,9 +62,6 @@ class DriverTrial(SeatTrial, Protocol):
 
     def claim(self) -> None:
         """Claim the current target (raises `Refused` when not allowed now)."""
-
-    def abort(self, reason: str | None = None) -> None:
-        """End the trial, aborted, with the reason logged (an agent Driver's cap)."""
 
 
 class CommanderTrial(SeatTrial, Protocol):
