@@ -130,3 +130,21 @@ def test_the_trial_form_seats_agents_in_either_seat_and_starts_an_agent_pair_at_
     row = re.search(rf'data-trial="{mixed.id}".*?</tr>', page, re.S).group(0)
     links = dict(re.findall(r'class="join-(\w+)" href="([^"]+)"', row))
     assert set(links) == {"driver"} and "Commander agent:dialog · Driver Ben" in row
+
+
+@pytest.mark.settings(min_move_interval_s=0.05, agent_messages_per_target=3)
+def test_agents_that_talk_past_their_message_cap_end_the_trial_saying_why(server):
+    services = server.services
+    client = experimenter_client(services, server.url)
+    trial_id = make_trial(services, MAZE, commander="agent:dialog", driver="agent:dialog")
+
+    async def watch() -> dict:
+        async with Watch(server, trial_id, session_cookie(client).split("=", 1)[1]) as w:
+            return await w.event("phase", timeout=60, phase="aborted")
+
+    aborted = asyncio.run(watch())
+    assert re.fullmatch(r"agent (Commander|Driver)'s cap: 3 messages for target 1", aborted["payload"]["reason"])
+    typed = [ev.typed(e) for e in logged(services, trial_id)]
+    chat = [e for e in typed if isinstance(e, ev.Chat)]
+    assert "the most an agent may; I stop here" in chat[-1].text
+    assert max(sum(c.role == role for c in chat[:-1]) for role in (Role.COMMANDER, Role.DRIVER)) <= 3
