@@ -111,8 +111,9 @@ def drivers() -> None:
     s = services.settings
     typer.echo(
         f"an agent Driver stops after {s.agent_moves_per_target} moves per target or "
-        f"{s.agent_minutes_per_trial:g} minutes of trial clock (ROBOTSLANG_AGENT_MOVES_PER_TARGET, "
-        "ROBOTSLANG_AGENT_MINUTES_PER_TRIAL)"
+        f"{s.agent_minutes_per_trial:g} minutes of trial clock, an agent in either seat after "
+        f"{s.agent_messages_per_target} of its own messages on one target (ROBOTSLANG_AGENT_MOVES_PER_TARGET, "
+        "ROBOTSLANG_AGENT_MINUTES_PER_TRIAL, ROBOTSLANG_AGENT_MESSAGES_PER_TARGET)"
     )
 
 

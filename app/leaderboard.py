@@ -1,20 +1,23 @@
-"""The leaderboard: human teams and agent Drivers, ranked apart, each by its best finished trial.
+"""The leaderboard: human teams, human-agent teams and agent pairs, ranked apart, each by its best
+finished trial.
 
 Score = trial-clock seconds from start to the last target confirmed + a penalty per move.
-Unfinished, aborted and excluded trials do not score. A trial whose Driver was an agent
-(`agent:<name>`) never counts on its team's row: it scores for the agent, with the team as its
-Commander. An oracle (`oracle:<name>`, a baseline that drives by the true pose) never ranks at all.
+Unfinished, aborted and excluded trials do not score. A trial with an agent (`agent:<name>`) in
+one seat never counts on its team's row: it scores for the agent in that seat, with the teams
+whose member held the other seat. A trial with agents in both seats scores for the pair (it has
+no team). An oracle (`oracle:<name>`, a baseline that plays by the true pose) never ranks at all.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.db.models import Participant, Team, Trial
-from app.trial.vocabulary import Phase
+from app.trial.vocabulary import Phase, Role
 
 HUMAN = "human"
 AGENT_PREFIX = "agent:"
@@ -34,11 +37,24 @@ class TeamStanding:
 
 @dataclass(frozen=True)
 class AgentStanding:
-    """An agent in the Driver's seat, with the teams whose member commanded it."""
+    """An agent in one seat, with the teams whose member held the other."""
 
     rank: int
+    seat: Role
     agent: str  # e.g. "agent:seq2seq"
-    commanders: tuple[str, ...]
+    partners: tuple[str, ...]
+    completed: int
+    best_s: float
+    mean_s: float
+
+
+@dataclass(frozen=True)
+class PairStanding:
+    """Agents in both seats."""
+
+    rank: int
+    commander: str
+    driver: str
     completed: int
     best_s: float
     mean_s: float
@@ -49,14 +65,15 @@ def trial_score(active_s: float, moves: int, move_penalty_s: float) -> float:
 
 
 def _finished(db: Session):
+    """(trial, its team's name, or None for an agent pair)."""
     return db.execute(
         select(Trial, Team.name)
-        .join(Team, Team.id == Trial.team_id)
+        .outerjoin(Team, Team.id == Trial.team_id)
         .where(Trial.phase == Phase.FINISHED, Trial.active_s.is_not(None), Trial.excluded_reason.is_(None))
     ).all()
 
 
-def _ranked(groups: dict[str, tuple[list[float], set[str]]]):
+def _ranked(groups: dict[Any, tuple[list[float], set[str]]]):
     """(rank, key, sorted names, count, best, mean), best first (ties by key)."""
     ordered = sorted(groups.items(), key=lambda kv: (min(kv[1][0]), kv[0]))
     return [
@@ -70,7 +87,7 @@ def standings(db: Session, move_penalty_s: float) -> list[TeamStanding]:
     names = dict(db.execute(select(Participant.id, Participant.name)).all())
     groups: dict[str, tuple[list[float], set[str]]] = {}
     for trial, team in _finished(db):
-        if trial.driver != HUMAN:
+        if trial.driver != HUMAN or trial.commander != HUMAN:
             continue
         scores, drivers = groups.setdefault(team, ([], set()))
         scores.append(trial_score(trial.active_s, trial.moves, move_penalty_s))
@@ -80,12 +97,31 @@ def standings(db: Session, move_penalty_s: float) -> list[TeamStanding]:
 
 
 def agent_standings(db: Session, move_penalty_s: float) -> list[AgentStanding]:
-    """Agent Drivers, by their best trial with any Commander."""
-    groups: dict[str, tuple[list[float], set[str]]] = {}
+    """Agents in one seat beside a person, by their best trial; Drivers first, then Commanders."""
+    groups: dict[tuple[Role, str], tuple[list[float], set[str]]] = {}
     for trial, team in _finished(db):
-        if not trial.driver.startswith(AGENT_PREFIX):
+        seats = {Role.DRIVER: trial.driver, Role.COMMANDER: trial.commander}
+        agents = [(role, spec) for role, spec in seats.items() if spec.startswith(AGENT_PREFIX)]
+        if len(agents) != 1 or HUMAN not in seats.values():
             continue
-        scores, commanders = groups.setdefault(trial.driver, ([], set()))
+        scores, partners = groups.setdefault(agents[0], ([], set()))
         scores.append(trial_score(trial.active_s, trial.moves, move_penalty_s))
-        commanders.add(team)
-    return [AgentStanding(*row) for row in _ranked(groups)]
+        partners.add(team)
+    rows = []
+    for seat in (Role.DRIVER, Role.COMMANDER):
+        mine = {agent: group for (role, agent), group in groups.items() if role == seat}
+        rows += [AgentStanding(rank, seat, agent, *rest) for rank, agent, *rest in _ranked(mine)]
+    return rows
+
+
+def pair_standings(db: Session, move_penalty_s: float) -> list[PairStanding]:
+    """Agents in both seats, by the pair's best trial."""
+    groups: dict[tuple[str, str], tuple[list[float], set[str]]] = {}
+    for trial, _team in _finished(db):
+        if trial.commander.startswith(AGENT_PREFIX) and trial.driver.startswith(AGENT_PREFIX):
+            scores, _ = groups.setdefault((trial.commander, trial.driver), ([], set()))
+            scores.append(trial_score(trial.active_s, trial.moves, move_penalty_s))
+    return [
+        PairStanding(rank, commander, driver, completed, best, mean)
+        for rank, (commander, driver), _, completed, best, mean in _ranked(groups)
+    ]

@@ -37,6 +37,9 @@ class Settings(BaseSettings):
     # Caps on an agent Driver (shown on the experimenter's page): on either it says so and the trial aborts.
     agent_moves_per_target: int = Field(default=300, ge=1)
     agent_minutes_per_trial: float = Field(default=15.0, gt=0)  # of the trial clock
+    agent_messages_per_target: int = Field(
+        default=150, ge=1
+    )  # an agent's own, either seat: two agents may talk in circles
     redis_url: str | None = None  # fan-out between processes; in-process when unset
     # Origins (scheme://host[:port]) trusted beside the server's own, for state-changing requests and sockets.
     allowed_origins: list[str] = Field(default_factory=list)

@@ -19,8 +19,9 @@ import httpx
 import websockets
 from sqlalchemy.orm import Session
 
-from app.drivers.registry import available_drivers
+from app.drivers.registry import available_agents
 from app.trial.setup import create_participant, create_team, create_trial
+from app.trial.vocabulary import Role
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -105,22 +106,29 @@ def team_trial(
     backend: str = "sim",
     driver: str = "human",
     agents: Mapping[str, str | None] | None = None,
+    commander: str = "human",
+    commanders: Mapping[str, str | None] | None = None,
 ) -> int:
-    """A team of two new participants and a trial for it, in the open session `db`: its id."""
-    a = create_participant(db, f"{team} commander")
-    b = create_participant(db, f"{team} driver")
-    t = create_team(db, team, a.id, b.id)
+    """A team of two new participants and a trial for it, in the open session `db`: its id. With
+    agents in both seats, no team: just the trial."""
+    a_id = t_id = None
+    if "human" in (commander, driver):
+        a = create_participant(db, f"{team} commander")
+        b = create_participant(db, f"{team} driver")
+        t_id, a_id = create_team(db, team, a.id, b.id).id, a.id
     trial = create_trial(
         db,
-        team_id=t.id,
+        team_id=t_id,
         maze=maze,
         targets=list(targets),
         backend=backend,
         driver=driver,
-        commander_id=a.id,
+        commander_id=a_id,
         layouts={name: name for name in maze_names},  # a new team has seen no layout: no grouping needed
         now_ns=now_ns,
         agents=agents,
+        commander=commander,
+        commanders=commanders,
     )
     return trial.id
 
@@ -132,6 +140,7 @@ def make_trial(
     driver: str = "human",
     team: str = "Team A",
     backend: str = "sim",
+    commander: str = "human",
 ) -> int:
     """`team_trial` on one of the server's mazes, in a transaction of its own."""
     with services.db.begin() as db:
@@ -144,7 +153,9 @@ def make_trial(
             targets=targets,
             backend=backend,
             driver=driver,
-            agents=available_drivers(services),
+            agents=available_agents(services, Role.DRIVER),
+            commander=commander,
+            commanders=available_agents(services, Role.COMMANDER),
         )
 
 

@@ -55,7 +55,7 @@ class Robot(Base):
 class Trial(Base):
     __tablename__ = "trial"
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    team_id: Mapped[int] = mapped_column(ForeignKey("team.id"))
+    team_id: Mapped[int | None] = mapped_column(ForeignKey("team.id"), nullable=True)  # None: agents in both seats
     maze: Mapped[str] = mapped_column(String(80))
     targets: Mapped[list] = mapped_column(JSON)  # the three objects, in the order to reach them
     backend: Mapped[str] = mapped_column(String(40))  # 'sim' or 'robot:<id>'

@@ -1,11 +1,19 @@
-"""`agent:dialog`: the Driver that takes part in the dialog (`sim.agents.dialog_driver`) in the
-Driver's seat: it answers, waits for instructions, follows them, reports and claims."""
+"""`agent:dialog` in either seat. The Driver (`sim.agents.dialog_driver`) answers, waits for
+instructions, follows them, reports and claims; the Commander (`sim.agents.dialog_commander`)
+localizes the Driver from its words on the trial's map, guides it in words and judges its claims."""
 
 from __future__ import annotations
 
 from app.drivers.base import Seating
+from sim.agents.dialog_commander import DialogCommander
 from sim.agents.dialog_driver import DialogDriver
 
 
 def dialog_driver(services, seating: Seating) -> DialogDriver:
     return DialogDriver(seed=seating.seed)
+
+
+def dialog_commander(services, seating: Seating) -> DialogCommander:
+    assert seating.maze is not None  # a Commander's seat always has its map
+    maze = services.mazes.load(seating.maze)
+    return DialogCommander(maze, seed=seating.seed, cache_dir=services.settings.cache_dir)

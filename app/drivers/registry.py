@@ -1,11 +1,14 @@
-"""Driver agents by spec: a trial's `driver` is `human`, `agent:<name>` or `oracle:<name>`.
+"""Seat agents by spec: a trial's `driver` and `commander` are each `human`, `agent:<name>` or
+`oracle:<name>`.
 
-A driver is a factory, `factory(services, seating) -> Agent` (`sim.agents.turns.Agent`; services:
-settings, and the mazes with their cached graphs; seating: `app.drivers.base.Seating`, whose
-`oracle` is set for `oracle:` drivers only), and optionally a check, `check(services) -> reason |
-None`, saying why it cannot start now (None: it can). The built-in ones are named here by
-"module:function" and imported on first look-up, so the learned ones import torch only when
-they are checked or seated; `register_driver` adds more.
+An agent is registered for a seat (`Role.DRIVER` or `Role.COMMANDER`); one name may name an agent
+in each (`agent:dialog`). A factory is `factory(services, seating) -> Agent`
+(`sim.agents.turns.Agent`; services: settings, and the mazes with their cached graphs; seating:
+`app.drivers.base.Seating`, whose `oracle` is set for `oracle:` drivers only and `maze` for
+Commanders only), with optionally a check, `check(services) -> reason | None`, saying why it
+cannot start now (None: it can). The built-in ones are named here by "module:function" and
+imported on first look-up, so the learned ones import torch only when they are checked or
+seated; `register_agent` (`register_driver` for the Driver's seat) adds more.
 """
 
 from __future__ import annotations
@@ -16,39 +19,49 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from app.drivers.base import AGENT, ORACLE, Seating
+from app.trial.vocabulary import Role
 from sim.agents.turns import Agent
 
 if TYPE_CHECKING:
     from app.services import Services
 
-DriverFactory = Callable[["Services", Seating], Agent]
-DriverCheck = Callable[["Services"], "str | None"]
+AgentFactory = Callable[["Services", Seating], Agent]
+AgentCheck = Callable[["Services"], "str | None"]
 
-BUILTIN = {
-    "agent:random": ("app.drivers.baselines:random_driver", None),
-    "agent:dialog": ("app.drivers.dialog:dialog_driver", None),
-    "agent:seq2seq": ("app.drivers.seq2seq:seq2seq_driver", "app.drivers.seq2seq:seq2seq_check"),
-    "oracle:shortest": ("app.drivers.baselines:shortest_driver", None),
+BUILTIN: dict[Role, dict[str, tuple[str, str | None]]] = {
+    Role.DRIVER: {
+        "agent:random": ("app.drivers.baselines:random_driver", None),
+        "agent:dialog": ("app.drivers.dialog:dialog_driver", None),
+        "agent:seq2seq": ("app.drivers.seq2seq:seq2seq_driver", "app.drivers.seq2seq:seq2seq_check"),
+        "oracle:shortest": ("app.drivers.baselines:shortest_driver", None),
+    },
+    Role.COMMANDER: {
+        "agent:dialog": ("app.drivers.dialog:dialog_commander", None),
+    },
 }
 
 
 @dataclass(frozen=True)
-class DriverEntry:
-    factory: DriverFactory
-    check: DriverCheck | None = None
+class AgentEntry:
+    factory: AgentFactory
+    check: AgentCheck | None = None
 
 
-_REGISTERED: dict[str, DriverEntry] = {}
+_REGISTERED: dict[Role, dict[str, AgentEntry]] = {role: {} for role in BUILTIN}
 
 
-def is_driver_spec(spec: str) -> bool:
+def is_agent_spec(spec: str) -> bool:
     return spec.startswith((AGENT, ORACLE)) and len(spec.split(":", 1)[1]) > 0
 
 
-def register_driver(spec: str, factory: DriverFactory, check: DriverCheck | None = None) -> None:
-    if not is_driver_spec(spec):
-        raise ValueError(f"driver {spec!r}: name it agent:<name>, or oracle:<name> where it cheats")
-    _REGISTERED[spec] = DriverEntry(factory, check)
+def register_agent(role: Role, spec: str, factory: AgentFactory, check: AgentCheck | None = None) -> None:
+    if not is_agent_spec(spec):
+        raise ValueError(f"agent {spec!r}: name it agent:<name>, or oracle:<name> where it cheats")
+    _REGISTERED[role][spec] = AgentEntry(factory, check)
+
+
+def register_driver(spec: str, factory: AgentFactory, check: AgentCheck | None = None) -> None:
+    register_agent(Role.DRIVER, spec, factory, check)
 
 
 def _resolve(path: str | None):
@@ -58,27 +71,41 @@ def _resolve(path: str | None):
     return getattr(importlib.import_module(module), name)
 
 
-def _entry(spec: str) -> DriverEntry:
-    if spec not in _REGISTERED and spec in BUILTIN:
-        factory, check = BUILTIN[spec]
-        _REGISTERED[spec] = DriverEntry(_resolve(factory), _resolve(check))
-    if spec not in _REGISTERED:
-        raise LookupError(f"unknown driver {spec!r}; known: {', '.join(driver_names())}")
-    return _REGISTERED[spec]
+def _entry(role: Role, spec: str) -> AgentEntry:
+    registered, builtin = _REGISTERED[role], BUILTIN[role]
+    if spec not in registered and spec in builtin:
+        factory, check = builtin[spec]
+        registered[spec] = AgentEntry(_resolve(factory), _resolve(check))
+    if spec not in registered:
+        raise LookupError(f"unknown {role} {spec!r}; known: {', '.join(agent_names(role))}")
+    return registered[spec]
+
+
+def agent_names(role: Role) -> list[str]:
+    return sorted(set(BUILTIN[role]) | set(_REGISTERED[role]))
 
 
 def driver_names() -> list[str]:
-    return sorted(set(BUILTIN) | set(_REGISTERED))
+    return agent_names(Role.DRIVER)
 
 
-def available_drivers(services: Services) -> dict[str, str | None]:
-    """Every driver by spec, with the reason it cannot start now, or None when it can."""
+def available_agents(services: Services, role: Role) -> dict[str, str | None]:
+    """Every agent for the seat by spec, with the reason it cannot start now, or None when it can."""
     result = {}
-    for spec in driver_names():
-        entry = _entry(spec)
+    for spec in agent_names(role):
+        entry = _entry(role, spec)
         result[spec] = entry.check(services) if entry.check is not None else None
     return result
 
 
-def create_driver(spec: str, services: Services, seating: Seating) -> Agent:
-    return _entry(spec).factory(services, seating)
+def available_drivers(services: Services) -> dict[str, str | None]:
+    return available_agents(services, Role.DRIVER)
+
+
+def available_seats(services: Services) -> dict[Role, dict[str, str | None]]:
+    """`available_agents` for both seats: what `create_trial` checks a trial's seats against."""
+    return {role: available_agents(services, role) for role in (Role.COMMANDER, Role.DRIVER)}
+
+
+def create_agent(role: Role, spec: str, services: Services, seating: Seating) -> Agent:
+    return _entry(role, spec).factory(services, seating)

@@ -1,15 +1,22 @@
-"""`AgentSeat`: an agent (`sim.agents.turns.Agent`) in the Driver's seat of a live trial.
+"""Agents in a trial's seats: `AgentSeat` is one agent (`sim.agents.turns.Agent`) in one seat of a
+live trial, `DriverSeat` and `CommanderSeat` what differs between the seats.
 
-It joins the trial like a browser Driver and hears the same filtered messages, which it turns
-into percepts (`app.drivers.base` says which); it wakes the agent on each, one `perceive` at a
-time off the event loop and in the log's order, and carries out the turns it returns through
-`DriverTrial` alone, so its words and moves go through the same rules and event log as a
-person's. A move is asked for only while the trial runs, one at a time and no sooner than a
-person's may be; the frame taken after it follows its outcome. A turn `DriverTrial` refuses comes
-back to the agent as `Refused`, and a pause and its end as `Paused`, as the Driver's page shows them. The frame's rays are the
+A seat joins the trial like a browser and hears the same filtered messages, which it turns into
+percepts (`app.drivers.base` says which); it wakes the agent on each, one `perceive` at a time off
+the event loop and in the log's order, and carries out the turns it returns through the trial's
+narrow port (`DriverTrial`, `CommanderTrial`) alone, so its words, moves, marks and verdicts go
+through the same rules and event log as a person's. A turn the trial refuses comes back to the
+agent as `Refused`, and a pause and its end as `Paused`, as a person's page shows them.
+
+The Driver's seat: a move is asked for only while the trial runs, one at a time and no sooner
+than a person's may be; the frame taken after it follows its outcome. The frame's rays are the
 simulator's (handed to this seat alone, `note_observation`), else perceived from its pixels with
 the Driver camera's calibration. Caps (settings): moves per target and trial-clock minutes; on
 either the agent says so in the chat and the trial ends, aborted, with the reason logged.
+
+The Commander's seat: the map is the trial's maze (`Seating.maze`), each target's name comes as the
+trial reaches it, and a claim's frame, as its page shows it, is perceived from its pixels with the
+Driver camera's calibration. It never hears a pose, a frame of the stream or a move.
 """
 
 from __future__ import annotations
@@ -20,21 +27,53 @@ import contextlib
 import logging
 from collections import OrderedDict
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from app.drivers.base import Oracle, Seating
-from app.drivers.registry import create_driver
+from app.drivers.base import ORACLE, Oracle, Seating
+from app.drivers.registry import create_agent
 from app.trial import events as ev
 from app.trial.decide import Refused
-from app.trial.port import DriverTrial
+from app.trial.port import CommanderTrial, DriverTrial, SeatTrial
 from app.trial.vocabulary import Move, Role
 from sim.agents import turns as t
 from sim.robot.frames import FrameError, decode_jpeg
 from sim.robot.perception import PerceptionError, RayObservation, perceive
 
+if TYPE_CHECKING:
+    from app.trial.runtime import TrialRuntime
+
 logger = logging.getLogger(__name__)
-_TURN_KIND: dict[type, t.TurnKind] = {t.DoSay: t.TurnKind.SAY, t.DoMove: t.TurnKind.MOVE, t.DoClaim: t.TurnKind.CLAIM}
 OBSERVATIONS_KEPT = 8  # the simulator's observations of the latest frames, until their events come
+HUMAN = "human"
+
+
+def seat_agents(runtime: TrialRuntime) -> tuple[DriverSeat | None, CommanderSeat | None]:
+    """The agent seats of a trial, made before its backend so the Driver's hears the first frame."""
+    s = runtime.state
+    driver = commander = None
+    if s.driver != HUMAN:
+        oracle = Oracle(s.maze, tuple(s.targets), runtime.true_pose) if s.driver.startswith(ORACLE) else None
+        driver = DriverSeat(runtime, runtime.services, Seating(seed=runtime.trial_id, oracle=oracle))
+    if s.commander != HUMAN:
+        commander = CommanderSeat(runtime, runtime.services, Seating(seed=runtime.trial_id, maze=s.maze))
+    return driver, commander
+
+
+def perceived(jpeg: bytes, calibration: Any) -> RayObservation | None:
+    """A frame's rays as read from its pixels; None where unreadable."""
+    try:
+        return perceive(decode_jpeg(jpeg), calibration)
+    except (FrameError, PerceptionError):
+        return None
+
+
+async def camera_calibration(backend: str, settings: Any) -> Any:
+    """The Driver camera's calibration of `backend`, or None where there is none."""
+    from app.perception.cameras import CameraUnknown, driver_calibration
+
+    with contextlib.suppress(CameraUnknown):
+        return await asyncio.to_thread(driver_calibration, backend, settings)
+    return None
 
 
 @dataclass(frozen=True)
@@ -50,45 +89,39 @@ class _Outcome:
     t_ns: int  # when the log recorded it
 
 
-class AgentSeat:
-    role = Role.DRIVER
+@dataclass(frozen=True)
+class _ClaimArrived:
+    target_index: int
+    jpeg: bytes | None  # the claim frame, as the Commander's page gets it
 
-    def __init__(self, trial: DriverTrial, services, oracle: Oracle | None = None) -> None:
-        self.trial, self.services, self.oracle = trial, services, oracle
-        self.spec = trial.state.driver
-        self.inbox: asyncio.Queue[t.Percept | _FrameArrived | _Outcome] = asyncio.Queue()
-        self.observations: OrderedDict[int, RayObservation] = OrderedDict()
+
+class AgentSeat:
+    """What both seats share: hearing, the loop that wakes the agent, speaking, pauses, failure."""
+
+    role: Role
+
+    def __init__(self, trial: SeatTrial, services, seating: Seating) -> None:
+        self.trial, self.services, self.seating = trial, services, seating
+        self.spec = trial.state.driver if self.role == Role.DRIVER else trial.state.commander
+        self.inbox: asyncio.Queue[Any] = asyncio.Queue()
         self.chat_seqs: set[int] = set()  # chat events already heard (the welcome repeats them)
         self.phase: tuple[t.Phase, int | None] | None = None
         self.targets_total = len(trial.state.targets)
-        self.latest: _FrameArrived | None = None
-        self.seen_first = False
-        self.move_started_ns: int | None = None  # a move asked for whose frame the agent has not seen
-        self.outcome_ns: int | None = None  # when that move's outcome was logged (None: not yet)
-        self.target_index: int | None = None
-        self.moves_for_target = 0
-        self.calibration: Any = None
         self.running = asyncio.Event()
         self.paused = False  # as the agent was last told (a trial starts unpaused)
         self.tasks: list[asyncio.Task] = []
+        self.said_for_target = 0  # its own messages since the trial reached the current target
 
-    # -- what a browser Driver would receive ------------------------------------------------
-    def note_observation(self, frame_id: int, observation: RayObservation) -> None:
-        """The simulator's rays at a frame about to be delivered (this seat's alone)."""
-        self.observations[frame_id] = observation
-        while len(self.observations) > OBSERVATIONS_KEPT:
-            self.observations.popitem(last=False)
-
+    # -- what a browser in this seat would receive ------------------------------------------------
     def deliver(self, message: dict[str, Any]) -> None:
         kind = message.get("type")
         if kind == "welcome":
             self.targets_total = message["targets_total"]
             for event in message["history"]:
-                self._event(event["kind"], event["seq"], event["payload"], event)
-            self._phase(t.Phase(message["phase"]), message["target_index"])
-            if "frame" in message:
-                frame = message["frame"]
-                self.inbox.put_nowait(_FrameArrived(frame["frame_id"], 0, base64.b64decode(frame["jpeg"])))
+                if event["kind"] != ev.PhaseChanged.kind:  # the phase now, below, is what counts
+                    self._event(event["kind"], event["seq"], event["payload"], event)
+            self._phase(t.Phase(message["phase"]), message["target_index"], message.get("target"))
+            self._welcomed(message)
         elif kind == "event":
             self._event(message["kind"], message["seq"], message["payload"], message)
         elif kind == "status":
@@ -96,26 +129,28 @@ class AgentSeat:
         self._sync_running()
 
     def _event(self, kind: str, seq: int, payload: dict[str, Any], message: dict[str, Any]) -> None:
-        put = self.inbox.put_nowait
         if kind == ev.Chat.kind and seq not in self.chat_seqs:
             self.chat_seqs.add(seq)
-            put(t.Heard(t.Speaker(payload["role"]), payload["text"]))
+            self.inbox.put_nowait(t.Heard(t.Speaker(payload["role"]), payload["text"]))
         elif kind == ev.PhaseChanged.kind:
-            self._phase(t.Phase(payload["phase"]), payload.get("target_index"))
-        elif kind == ev.MoveExecuted.kind:
-            moved = t.Moved(t.Move(payload["action"]), t.Outcome(payload["outcome"]), payload.get("reason"))
-            put(_Outcome(moved, message["t_ns"]))
-        elif kind == ev.FrameRecorded.kind and "jpeg" in message:
-            put(_FrameArrived(payload["frame_id"], payload["capture_ns"], base64.b64decode(message["jpeg"])))
-        elif kind == ev.TargetClaimed.kind:
-            put(t.Claimed(payload["target_index"]))
+            self._phase(t.Phase(payload["phase"]), payload.get("target_index"), message.get("target"))
         elif kind in (ev.TargetConfirmed.kind, ev.TargetRejected.kind):
-            put(t.Judged(kind == ev.TargetConfirmed.kind, payload["target_index"]))
+            self.inbox.put_nowait(t.Judged(kind == ev.TargetConfirmed.kind, payload["target_index"]))
+        else:
+            self._seat_event(kind, payload, message)
 
-    def _phase(self, phase: t.Phase, target_index: int | None) -> None:
+    def _seat_event(self, kind: str, payload: dict[str, Any], message: dict[str, Any]) -> None:
+        """An event only this seat reacts to."""
+
+    def _welcomed(self, message: dict[str, Any]) -> None:
+        """What else this seat's welcome holds (the Driver's frame, the Commander's pending claim)."""
+
+    def _phase(self, phase: t.Phase, target_index: int | None, target: str | None) -> None:
         if (phase, target_index) != self.phase:  # the welcome and the event may both say it
+            if self.phase is None or self.phase[1] != target_index:
+                self.said_for_target = 0
             self.phase = (phase, target_index)
-            self.inbox.put_nowait(t.PhaseChanged(phase, target_index, self.targets_total))
+            self.inbox.put_nowait(t.PhaseChanged(phase, target_index, self.targets_total, target))
 
     def _sync_running(self) -> None:
         state = self.trial.state
@@ -124,13 +159,13 @@ class AgentSeat:
         else:
             self.running.clear()
         paused = bool(state.pause_reasons)
-        if paused != self.paused:  # the Driver's page shows the pause too
+        if paused != self.paused:  # the page shows the pause too
             self.paused = paused
             self.inbox.put_nowait(t.Paused(paused))
 
     # -- life ---------------------------------------------------------------------------------
     def start(self) -> None:
-        self.tasks = [asyncio.get_running_loop().create_task(self._guarded(self._drive()))]
+        self.tasks = [asyncio.get_running_loop().create_task(self._guarded(self._run()))]
 
     async def stop(self) -> None:
         for task in list(self.tasks):
@@ -145,35 +180,191 @@ class AgentSeat:
         except asyncio.CancelledError:
             raise
         except Exception as err:  # a broken agent must show in the log, not hang the trial silently
-            logger.exception("driver %s failed in trial %s", self.spec, self.trial.trial_id)
+            logger.exception("%s %s failed in trial %s", self.role, self.spec, self.trial.trial_id)
             if not self.trial.state.over:
-                self.trial.report_bad_message(Role.DRIVER, f"agent {self.spec!r} failed: {err}")
+                self.trial.report_bad_message(self.role, f"agent {self.spec!r} failed: {err}")
 
-    async def _drive(self) -> None:
-        trial, settings = self.trial, self.services.settings
-        seating = Seating(seed=trial.trial_id, oracle=self.oracle)
-        agent = await asyncio.to_thread(create_driver, self.spec, self.services, seating)
-        await asyncio.to_thread(agent.reset, t.SeatInfo(t.Speaker.DRIVER, len(trial.state.targets)))
-        if trial.state.backend != "sim":  # the simulator hands its rays; a rover's are perceived
-            from app.perception.cameras import CameraUnknown, driver_calibration
-
-            with contextlib.suppress(CameraUnknown):
-                self.calibration = await asyncio.to_thread(driver_calibration, trial.state.backend, settings)
+    async def _run(self) -> None:
+        trial = self.trial
+        agent = await asyncio.to_thread(create_agent, self.role, self.spec, self.services, self.seating)
+        await asyncio.to_thread(agent.reset, t.SeatInfo(t.Speaker(self.role), len(trial.state.targets)))
+        await self._prepare()
         trial.join(self)
-        self.tasks.append(asyncio.get_running_loop().create_task(self._guarded(self._clock())))  # its cap
+        self._joined()
         while not trial.state.over:
-            item = await self.inbox.get()
-            if isinstance(item, _FrameArrived):
-                await self._frame(agent, item)
-                continue
-            if isinstance(item, t.PhaseChanged):
-                if item.target_index != self.target_index:
-                    self.moves_for_target = 0
-                self.target_index = item.target_index
-            if isinstance(item, _Outcome):
-                await self._moved(agent, item)
-            else:
-                await self._wake(agent, item)
+            await self._take(agent, await self.inbox.get())
+
+    async def _prepare(self) -> None:
+        """What the seat loads before it joins."""
+
+    def _joined(self) -> None:
+        """What the seat starts once it has joined."""
+
+    async def _take(self, agent: t.Agent, item: Any) -> None:
+        """One item of the inbox: a percept, or what the seat makes one of."""
+        await self._wake(agent, item)
+
+    async def _wake(self, agent: t.Agent, percept: t.Percept) -> None:
+        turns = await asyncio.to_thread(agent.perceive, percept)
+        for turn in turns:
+            if self.trial.state.over:
+                return
+            await self._carry_out(turn)
+
+    async def _carry_out(self, turn: t.Turn) -> None:
+        try:
+            match turn:
+                case t.DoSay(text=text):
+                    await self._say(text)
+                case t.DoWait():
+                    pass
+                case _ if not await self._act(turn):
+                    self.trial.report_bad_message(
+                        self.role, f"agent {self.spec!r}: {turn!r} is not a {self.role}'s turn"
+                    )
+        except Refused as err:  # as a person's refused message: in the log, and the trial goes on
+            self.trial.report_bad_message(self.role, str(err))
+            kind = _TURN_KIND.get(type(turn))
+            if kind is not None:  # the agent hears why, as a person's page shows the error
+                self.inbox.put_nowait(t.Refused(kind, str(err)))
+
+    async def _act(self, turn: t.Turn) -> bool:
+        """A turn of this seat's own; False where the seat has no such turn."""
+        return False
+
+    async def _say(self, text: str) -> None:
+        cap = self.services.settings.agent_messages_per_target
+        if self.said_for_target >= cap:  # two agents can talk in circles: a cap, as on moves
+            index = self.phase[1] if self.phase and self.phase[1] is not None else 0
+            await self._give_up(
+                f"I have sent {cap} messages on target {index + 1} of {self.targets_total}, the most an agent "
+                "may; I stop here",
+                f"agent {self.role.title()}'s cap: {cap} messages for target {index + 1}",
+            )
+            return
+        self.said_for_target += 1
+        self.trial.say(self.role, text)
+
+    async def _give_up(self, words: str, reason: str) -> None:
+        trial = self.trial
+        if trial.state.over:
+            return
+        trial.say(self.role, words)
+        trial.abort(reason)
+
+
+_TURN_KIND: dict[type, t.TurnKind] = {
+    t.DoSay: t.TurnKind.SAY,
+    t.DoMove: t.TurnKind.MOVE,
+    t.DoClaim: t.TurnKind.CLAIM,
+    t.DoJudge: t.TurnKind.JUDGE,
+    t.DoLocalize: t.TurnKind.LOCALIZE,
+}
+
+
+class CommanderSeat(AgentSeat):
+    """An agent in the Commander's seat: the map, the targets' names, the chat, the claim frames."""
+
+    role = Role.COMMANDER
+
+    def __init__(self, trial: CommanderTrial, services, seating: Seating) -> None:
+        super().__init__(trial, services, seating)
+        self.port = trial
+        self.calibration: Any = None
+
+    async def _prepare(self) -> None:
+        self.calibration = await camera_calibration(self.trial.state.backend, self.services.settings)
+
+    def _seat_event(self, kind: str, payload: dict[str, Any], message: dict[str, Any]) -> None:
+        if kind == ev.TargetClaimed.kind:
+            self._claim(payload["target_index"], message.get("claim"))
+
+    def _welcomed(self, message: dict[str, Any]) -> None:
+        if "claim" in message:  # a claim waiting for the verdict
+            self._claim(self.trial.state.target_index, message["claim"])
+
+    def _claim(self, target_index: int, claim: dict[str, Any] | None) -> None:
+        jpeg = claim.get("jpeg") if claim else None
+        self.inbox.put_nowait(_ClaimArrived(target_index, base64.b64decode(jpeg) if jpeg else None))
+
+    async def _take(self, agent: t.Agent, item: Any) -> None:
+        if isinstance(item, _ClaimArrived):
+            rays = None
+            if item.jpeg is not None and self.calibration is not None:
+                rays = await asyncio.to_thread(perceived, item.jpeg, self.calibration)
+            item = t.Claimed(item.target_index, rays)
+        await self._wake(agent, item)
+
+    async def _act(self, turn: t.Turn) -> bool:
+        match turn:
+            case t.DoLocalize(x=x, y=y, heading=heading):
+                self.port.localize(x, y, heading)
+            case t.DoJudge(confirmed=confirmed):
+                self.port.judge(confirmed)
+            case _:
+                return False
+        return True
+
+
+class DriverSeat(AgentSeat):
+    """An agent in the Driver's seat: the chat, its frames, its moves' outcomes, its claims."""
+
+    role = Role.DRIVER
+
+    def __init__(self, trial: DriverTrial, services, seating: Seating) -> None:
+        super().__init__(trial, services, seating)
+        self.port = trial
+        self.observations: OrderedDict[int, RayObservation] = OrderedDict()
+        self.latest: _FrameArrived | None = None
+        self.seen_first = False
+        self.move_started_ns: int | None = None  # a move asked for whose frame the agent has not seen
+        self.outcome_ns: int | None = None  # when that move's outcome was logged (None: not yet)
+        self.target_index: int | None = None
+        self.moves_for_target = 0
+        self.calibration: Any = None
+
+    # -- what a browser Driver would receive ------------------------------------------------
+    def note_observation(self, frame_id: int, observation: RayObservation) -> None:
+        """The simulator's rays at a frame about to be delivered (this seat's alone)."""
+        self.observations[frame_id] = observation
+        while len(self.observations) > OBSERVATIONS_KEPT:
+            self.observations.popitem(last=False)
+
+    def _welcomed(self, message: dict[str, Any]) -> None:
+        if "frame" in message:
+            frame = message["frame"]
+            self.inbox.put_nowait(_FrameArrived(frame["frame_id"], 0, base64.b64decode(frame["jpeg"])))
+
+    def _seat_event(self, kind: str, payload: dict[str, Any], message: dict[str, Any]) -> None:
+        put = self.inbox.put_nowait
+        if kind == ev.MoveExecuted.kind:
+            moved = t.Moved(t.Move(payload["action"]), t.Outcome(payload["outcome"]), payload.get("reason"))
+            put(_Outcome(moved, message["t_ns"]))
+        elif kind == ev.FrameRecorded.kind and "jpeg" in message:
+            put(_FrameArrived(payload["frame_id"], payload["capture_ns"], base64.b64decode(message["jpeg"])))
+        elif kind == ev.TargetClaimed.kind:
+            put(t.Claimed(payload["target_index"]))
+
+    # -- life ---------------------------------------------------------------------------------
+    async def _prepare(self) -> None:
+        if self.trial.state.backend != "sim":  # the simulator hands its rays; a rover's are perceived
+            self.calibration = await camera_calibration(self.trial.state.backend, self.services.settings)
+
+    def _joined(self) -> None:
+        self.tasks.append(asyncio.get_running_loop().create_task(self._guarded(self._clock())))  # its cap
+
+    async def _take(self, agent: t.Agent, item: Any) -> None:
+        if isinstance(item, _FrameArrived):
+            await self._frame(agent, item)
+            return
+        if isinstance(item, t.PhaseChanged):
+            if item.target_index != self.target_index:
+                self.moves_for_target = 0
+            self.target_index = item.target_index
+        if isinstance(item, _Outcome):
+            await self._moved(agent, item)
+        else:
+            await self._wake(agent, item)
 
     async def _moved(self, agent: t.Agent, outcome: _Outcome) -> None:
         """A move's outcome, then the frame after it where that came first (for a move not made,
@@ -205,41 +396,18 @@ class AgentSeat:
         self.seen_first, self.move_started_ns = True, None
         rays = self.observations.get(frame.frame_id)
         if rays is None and self.calibration is not None:
-            rays = await asyncio.to_thread(self._perceive, frame.jpeg)
+            rays = await asyncio.to_thread(perceived, frame.jpeg, self.calibration)
         await self._wake(agent, t.Saw(frame.frame_id, rays))
 
-    def _perceive(self, jpeg: bytes) -> RayObservation | None:
-        try:
-            return perceive(decode_jpeg(jpeg), self.calibration)
-        except (FrameError, PerceptionError):
-            return None
-
-    async def _wake(self, agent: t.Agent, percept: t.Percept) -> None:
-        turns = await asyncio.to_thread(agent.perceive, percept)
-        for turn in turns:
-            if self.trial.state.over:
-                return
-            await self._carry_out(turn)
-
-    async def _carry_out(self, turn: t.Turn) -> None:
-        trial = self.trial
-        kind = _TURN_KIND.get(type(turn))
-        try:
-            match turn:
-                case t.DoSay(text=text):
-                    trial.say(Role.DRIVER, text)
-                case t.DoMove(move=move):
-                    await self._move(move)
-                case t.DoClaim():
-                    trial.claim()
-                case t.DoWait():
-                    pass
-                case _:
-                    trial.report_bad_message(Role.DRIVER, f"agent {self.spec!r}: {turn!r} is not a Driver's turn")
-        except Refused as err:  # as a person's refused message: in the log, and the trial goes on
-            trial.report_bad_message(Role.DRIVER, str(err))
-            if kind is not None:  # the agent hears why, as a person's page shows the error
-                self.inbox.put_nowait(t.Refused(kind, str(err)))
+    async def _act(self, turn: t.Turn) -> bool:
+        match turn:
+            case t.DoMove(move=move):
+                await self._move(move)
+            case t.DoClaim():
+                self.port.claim()
+            case _:
+                return False
+        return True
 
     async def _move(self, move: t.Move) -> None:
         settings, clock = self.services.settings, self.services.clock
@@ -260,7 +428,7 @@ class AgentSeat:
             await asyncio.sleep(wait_ns / 1e9)  # again where the loop wakes a little early
         self.moves_for_target += 1
         self.move_started_ns, self.outcome_ns = clock.now_ns(), None
-        await self.trial.request_move(Move(move))
+        await self.port.request_move(Move(move))
 
     async def _clock(self) -> None:
         """The trial-clock cap: the clock runs only while the trial does, so sleep what is left."""
@@ -274,10 +442,3 @@ class AgentSeat:
                 )
                 return
             await asyncio.sleep(max(left_s, 0.05))
-
-    async def _give_up(self, words: str, reason: str) -> None:
-        trial = self.trial
-        if trial.state.over:
-            return
-        trial.say(Role.DRIVER, words)
-        trial.abort(reason)

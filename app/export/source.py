@@ -22,7 +22,7 @@ def load_trial(session: Session, settings: Settings, trial_id: int | str) -> Tri
     trial = session.get(Trial, key)
     if trial is None:
         raise ExportError(f"no trial {key} in {settings.url.split('@')[-1]}")
-    team = session.get(Team, trial.team_id)
+    team = session.get(Team, trial.team_id) if trial.team_id is not None else None  # None: an agent pair
     rows = session.scalars(select(EventRow).where(EventRow.trial_id == key).order_by(EventRow.seq))
     events = tuple(LoggedEvent(seq=r.seq, kind=r.kind, t_ns=r.t_ns, payload=dict(r.payload)) for r in rows)
     return TrialRecord(
@@ -37,7 +37,7 @@ def load_trial(session: Session, settings: Settings, trial_id: int | str) -> Tri
             "driver": trial.driver,
             "phase": trial.phase,
             # Seats by participant id (a pseudonym: names stay in the database).
-            "commander": f"participant {trial.commander_id}" if trial.commander_id is not None else "",
+            "commander": f"participant {trial.commander_id}" if trial.commander_id is not None else trial.commander,
             "driver_seat": f"participant {trial.driver_id}" if trial.driver_id is not None else trial.driver,
             **({"excluded": trial.excluded_reason} if trial.excluded_reason is not None else {}),
             "created_at": trial.created_at.isoformat() if trial.created_at else "",

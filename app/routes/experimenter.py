@@ -6,6 +6,7 @@ from __future__ import annotations
 import random
 from urllib.parse import quote
 
+from anyio import from_thread
 from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from sqlalchemy import select
@@ -13,7 +14,7 @@ from sqlalchemy import select
 from app.backends.remote import robot_links
 from app.db.models import Participant, Robot, Team, Trial
 from app.deps import experimenter_id
-from app.drivers.registry import available_drivers
+from app.drivers.registry import available_seats
 from app.guard import csrf_protect
 from app.routes.pages import render, trial_or_404
 from app.trial.lifecycle import Refused, delete_participant, delete_robot, delete_team, exclude_trial
@@ -35,14 +36,16 @@ def controls_for(phase: str, paused: list[str] | tuple[str, ...] = ()) -> list[s
 
 
 def seat_holders(trial: Trial, names: dict[int, str]) -> dict[str, str]:
-    """Who holds each seat: the participant's name, or the agent that drives."""
+    """Who holds each seat: the participant's name, or the agent in it."""
+    commander = names.get(trial.commander_id, "") if trial.commander_id is not None else trial.commander
     driver = names.get(trial.driver_id, "") if trial.driver_id is not None else trial.driver
-    return {Role.COMMANDER: names.get(trial.commander_id or 0, ""), Role.DRIVER: driver}
+    return {Role.COMMANDER: commander, Role.DRIVER: driver}
 
 
 def join_links(request: Request, trial: Trial) -> dict[str, str]:
+    """A link for each seat a person holds (none for an agent's)."""
     seats = request.app.state.services.seats
-    roles = [Role.COMMANDER] + ([Role.DRIVER] if trial.driver == "human" else [])
+    roles = [role for role, spec in ((Role.COMMANDER, trial.commander), (Role.DRIVER, trial.driver)) if spec == "human"]
     return {role: str(request.url_for("play", token=seats.issue(trial.id, role))) for role in roles}
 
 
@@ -71,8 +74,12 @@ def dashboard(request: Request, error: str | None = None):
         layouts=layouts,
         suggestions=suggestions,
         backends=backends,
-        agents=available_drivers(services),
-        caps=(services.settings.agent_moves_per_target, services.settings.agent_minutes_per_trial),
+        seat_agents=available_seats(services),
+        caps=(
+            services.settings.agent_moves_per_target,
+            services.settings.agent_minutes_per_trial,
+            services.settings.agent_messages_per_target,
+        ),
         controls_for=controls_for,
         robots=robot_links(services).status(),
         links={t.id: join_links(request, t) for t in trials},
@@ -113,21 +120,26 @@ def add_trial(
     targets: str = Form("random"),
     backend: str = Form("sim"),
     driver: str = Form("human"),
+    commander: str = Form("human"),
     commander_id: int | None = Form(None),
 ):
     services = request.app.state.services
     layouts = services.mazes.layouts()
+    agents = available_seats(services)
+    people = "human" in (driver, commander)  # agents in both seats play without a team
     try:
-        if team_id is None:
+        if people and team_id is None:
             raise TrialSetupError("choose a team (form one first)")
         with services.db.begin() as db:
-            team = db.get(Team, team_id)
-            if team is None:
+            team = db.get(Team, team_id) if people and team_id is not None else None
+            if people and team is None:
                 raise TrialSetupError(f"team {team_id} does not exist")
             maze = maze or suggest_maze(db, team, layouts) or ""
             if not maze:
-                raise TrialSetupError(f"team {team.name!r} has seen every layout in the library")
-            create_trial(
+                raise TrialSetupError(
+                    f"team {team.name!r} has seen every layout in the library" if team else "the maze library is empty"
+                )
+            trial = create_trial(
                 db,
                 team_id=team_id,
                 maze=maze,
@@ -137,10 +149,15 @@ def add_trial(
                 commander_id=commander_id,
                 layouts=layouts,
                 now_ns=services.clock.now_ns(),
-                agents=available_drivers(services),
+                agents=agents[Role.DRIVER],
+                commander=commander,
+                commanders=agents[Role.COMMANDER],
             )
+            trial_id = trial.id
     except TrialSetupError as err:
         return _redirect(str(err))
+    if not people:  # nobody will open a link: the trial starts now, its agents seated
+        from_thread.run(services.hub.get, trial_id)
     return _redirect()
 
 

@@ -7,7 +7,7 @@ from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
 from app.db.models import Trial
 from app.guard import csrf_protect, current_login
-from app.leaderboard import agent_standings, standings
+from app.leaderboard import agent_standings, pair_standings, standings
 from app.login import TooManyAttempts
 from app.security import SESSION_COOKIE, SESSION_MAX_AGE_S, ExpiredLink, InvalidToken, Seat
 from app.trial.state import fold
@@ -142,12 +142,14 @@ def leaderboard(request: Request):
     with services.db() as db:
         teams = standings(db, services.settings.move_penalty_s)
         agents = agent_standings(db, services.settings.move_penalty_s)
+        pairs = pair_standings(db, services.settings.move_penalty_s)
     is_experimenter = current_login(request) is not None
     return render(
         request,
         "leaderboard.html",
         rows=teams,
         agents=agents,
+        pairs=pairs,
         penalty=services.settings.move_penalty_s,
         experimenter=is_experimenter,
     )

@@ -34,7 +34,7 @@ def _trial(request: Request, trial_id: int) -> tuple[Trial, str]:
         trial = db.get(Trial, trial_id)
         if trial is None:
             raise HTTPException(404, f"trial {trial_id} does not exist")
-        team = db.get(Team, trial.team_id)
+        team = db.get(Team, trial.team_id) if trial.team_id is not None else None
         return trial, team.name if team else ""
 
 
@@ -44,7 +44,7 @@ def replays(request: Request, team: str | None = None):
     with request.app.state.services.db() as db:
         query = (
             select(Trial, Team.name)
-            .join(Team, Team.id == Trial.team_id)
+            .outerjoin(Team, Team.id == Trial.team_id)  # an agent pair has no team
             .where(Trial.phase.in_(REPLAYABLE))
             .order_by(Trial.id.desc())
         )

@@ -46,6 +46,7 @@ class TrialCreated(Event):
     targets: list[str]
     backend: str
     driver: str
+    commander: str = "human"  # logs from before agent Commanders have no such key
 
 
 class Connected(Event):

@@ -1,5 +1,5 @@
 """What the parts around a trial may do with it: narrow interfaces, so a robot backend or an
-agent in the Driver's seat never holds the runtime itself (and never reaches into it)."""
+agent in a seat never holds the runtime itself (and never reaches into it)."""
 
 from __future__ import annotations
 
@@ -45,16 +45,30 @@ class RobotTrial(TrialView, Protocol):
         """A pose (x, y, heading) of the robot measured from outside it (the overhead tracker)."""
 
 
-class DriverTrial(TrialView, Protocol):
+class SeatTrial(TrialView, Protocol):
+    """The trial as an agent's seat sees it: it may speak in the chat, and end the trial on its caps."""
+
+    def say(self, role: Role, text: str) -> None: ...
+
+    def abort(self, reason: str | None = None) -> None:
+        """End the trial, aborted, with the reason logged (an agent's cap)."""
+
+
+class DriverTrial(SeatTrial, Protocol):
     """The trial as an agent Driver's seat sees it: no true pose, no map, no particle filter."""
 
     async def request_move(self, action: Move) -> Outcome:
         """Move the robot under the same rules as a person's move; returns what became of it."""
 
-    def say(self, role: Role, text: str) -> None: ...
-
     def claim(self) -> None:
         """Claim the current target (raises `Refused` when not allowed now)."""
 
-    def abort(self, reason: str | None = None) -> None:
-        """End the trial, aborted, with the reason logged (an agent Driver's cap)."""
+
+class CommanderTrial(SeatTrial, Protocol):
+    """The trial as an agent Commander's seat sees it: what a person's Commander socket may send."""
+
+    def localize(self, x: float, y: float, heading: float | None) -> None:
+        """Mark the Driver on the map (a `localization` event), as a person's `localize` message does."""
+
+    def judge(self, confirmed: bool) -> None:
+        """Confirm or reject the pending claim (raises `Refused` when there is none)."""

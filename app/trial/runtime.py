@@ -38,7 +38,7 @@ from app.trial.vocabulary import PARTICIPANTS, FrameSource, Move, Outcome, Phase
 from sim.core.geometry import wrap_angle
 
 if TYPE_CHECKING:
-    from app.drivers.seat import AgentSeat
+    from app.drivers.seat import CommanderSeat, DriverSeat
     from app.perception.belief import TrialBelief
     from app.services import Services
 
@@ -64,7 +64,8 @@ class TrialRuntime:
         self._tasks: set[asyncio.Task[Any]] = set()
         self._status: dict[str, Any] | None = None  # the last status sent, less the clock
         self._ending = False
-        self.agent: AgentSeat | None = None
+        self.agent: DriverSeat | None = None  # an agent Driver's seat (the simulator's rays go to it alone)
+        self.commander_agent: CommanderSeat | None = None
         self.belief: TrialBelief | None = None  # `TrialBelief` once the Driver camera's calibration is loaded
         self._belief_message: dict[str, Any] | None = None  # the latest, for the watch page
         self._last_frame: Frame | None = None  # the Driver camera's latest, for a filter built after it
@@ -81,20 +82,13 @@ class TrialRuntime:
         self.apply(d.Reopen())  # seats and moves of an earlier server process are gone
         if self.state.over:
             return
-        if self.state.driver != "human":
-            self.agent = self._seat_agent()
+        from app.drivers.seat import seat_agents
+
+        self.agent, self.commander_agent = seat_agents(self)  # before the backend: the first frame is heard
         await self._start_backend()
-        if self.agent is not None:
-            self.agent.start()
-
-    def _seat_agent(self) -> AgentSeat:
-        """The agent Driver's seat, made before the backend so it hears the robot's first frame."""
-        from app.drivers.base import ORACLE, Oracle
-        from app.drivers.seat import AgentSeat
-
-        s = self.state
-        oracle = Oracle(s.maze, tuple(s.targets), self.true_pose) if s.driver.startswith(ORACLE) else None
-        return AgentSeat(self, self.services, oracle)
+        for seat in (self.agent, self.commander_agent):
+            if seat is not None:
+                seat.start()
 
     async def _start_backend(self) -> None:
         self.backend = await create_backend(self.state.backend, self, self.services)
@@ -132,10 +126,11 @@ class TrialRuntime:
         for task in list(self._tasks):
             if task is not asyncio.current_task():
                 task.cancel()
-        if self.agent is not None:
-            await self.agent.stop()
-            if self.seats.get(Role.DRIVER) is self.agent:
-                del self.seats[Role.DRIVER]
+        for seat in (self.agent, self.commander_agent):
+            if seat is not None:
+                await seat.stop()
+                if self.seats.get(seat.role) is seat:
+                    del self.seats[seat.role]
         if self.belief is not None:
             # Let go of the filter now: its particles and free-space map (several MB, and the
             # maze) sit in reference cycles with this runtime that the collector frees only later.
@@ -515,7 +510,7 @@ class TrialRuntime:
             case m.Move(action=action, move_id=move_id):
                 await self.request_move(action, move_id)
             case m.Localize(x=x, y=y, heading=heading):
-                self.apply(d.Localize(x, y, heading))
+                self.localize(x, y, heading)
             case m.Claim():
                 self.claim()
             case m.Confirm():
@@ -525,6 +520,9 @@ class TrialRuntime:
 
     def say(self, role: Role, text: str) -> None:
         self.apply(d.Say(role, text))
+
+    def localize(self, x: float, y: float, heading: float | None) -> None:
+        self.apply(d.Localize(x, y, heading))
 
     async def request_move(self, action: Move, move_id: str | None = None) -> Outcome:
         move_id = move_id or uuid.uuid4().hex[:12]

@@ -1,6 +1,8 @@
 """Creating trials: a maze whose layout the team has never seen (least used first), three targets
-in order, a robot backend and who drives. Mazes are compared by physical layout (`sim.tasks.layouts`):
-`layouts` maps each maze of the library to its layout's id. The `trial_created` event is written with the trial row."""
+in order, a robot backend and who holds each seat (`human`, or an agent for the seat: see
+`app.drivers.registry`). Mazes are compared by physical layout (`sim.tasks.layouts`): `layouts`
+maps each maze of the library to its layout's id. A trial with agents in both seats has no team:
+no person sits, so nobody sees its layout. The `trial_created` event is written with the trial row."""
 
 from __future__ import annotations
 
@@ -22,16 +24,21 @@ class TrialSetupError(ValueError):
     """A trial that cannot be created as asked; the message names the field."""
 
 
-def layouts_seen(db: Session, team: Team, layouts: Mapping[str, str]) -> dict[str, str]:
+HUMAN = "human"
+
+
+def layouts_seen(db: Session, team: Team | None, layouts: Mapping[str, str]) -> dict[str, str]:
     """Each layout either member has played in, in any team -> a maze they played it as (a maze
-    no longer in the library is a layout of its own)."""
+    no longer in the library is a layout of its own). No team (agents in both seats): none."""
+    if team is None:
+        return {}
     members = (team.member_a_id, team.member_b_id)
     teams = select(Team.id).where(or_(Team.member_a_id.in_(members), Team.member_b_id.in_(members)))
     played = sorted(set(db.scalars(select(Trial.maze).where(Trial.team_id.in_(teams)))))
     return {layouts.get(maze, maze): maze for maze in played}
 
 
-def suggest_maze(db: Session, team: Team, layouts: Mapping[str, str]) -> str | None:
+def suggest_maze(db: Session, team: Team | None, layouts: Mapping[str, str]) -> str | None:
     """A maze of the least-used layout the team has never seen; within it the least-used maze
     (ties by name)."""
     seen = layouts_seen(db, team, layouts)
@@ -55,21 +62,22 @@ def parse_targets(text: str, rng: random.Random) -> list[str]:
     return order
 
 
-def check_driver(driver: str, agents: Mapping[str, str | None] | None) -> None:
-    """`human`, or an agent or oracle that can start: `agents` is `available_drivers(services)`."""
-    if driver == "human":
+def check_seat(role: Role, spec: str, agents: Mapping[str, str | None] | None) -> None:
+    """`human`, or an agent or oracle for the seat that can start: `agents` is
+    `available_agents(services, role)`."""
+    if spec == HUMAN:
         return
-    if agents is None or driver not in agents:
+    if agents is None or spec not in agents:
         known = ", ".join(agents or ())
-        raise TrialSetupError(f"driver {driver!r} is neither 'human' nor a known agent ({known})")
-    if agents[driver] is not None:
-        raise TrialSetupError(f"driver {driver!r} cannot start: {agents[driver]}")
+        raise TrialSetupError(f"{role} {spec!r} is neither 'human' nor a known agent for the {role}'s seat ({known})")
+    if agents[spec] is not None:
+        raise TrialSetupError(f"{role} {spec!r} cannot start: {agents[spec]}")
 
 
 def create_trial(
     db: Session,
     *,
-    team_id: int,
+    team_id: int | None,
     maze: str,
     targets: list[str],
     backend: str,
@@ -78,28 +86,27 @@ def create_trial(
     layouts: Mapping[str, str],
     now_ns: int,
     agents: Mapping[str, str | None] | None = None,
+    commander: str = HUMAN,
+    commanders: Mapping[str, str | None] | None = None,
 ) -> Trial:
-    """`layouts`: each maze of the library -> its layout (`Mazes.layouts()`); `agents`
-    (`available_drivers(services)`) is needed when an agent drives."""
-    check_driver(driver, agents)
-    team = db.get(Team, team_id)
-    if team is None:
-        raise TrialSetupError(f"team {team_id} does not exist")
-    live = live_trial_of(db, (team.member_a_id, team.member_b_id))
-    if live is not None:
-        raise TrialSetupError(
-            f"team {team.name!r}: a member is in trial {live.id}, which is {live.phase}; a participant "
-            f"is in one live trial at a time (let it finish, or abort it)"
-        )
+    """`layouts`: each maze of the library -> its layout (`Mazes.layouts()`); `agents` and
+    `commanders` (`available_agents(services, role)`) are needed when an agent holds that seat.
+    `commander_id`: the member in the Commander's seat (default the team's first); with an agent
+    Commander, the member who drives. With agents in both seats the team is not asked for (none is
+    stored)."""
+    check_seat(Role.DRIVER, driver, agents)
+    check_seat(Role.COMMANDER, commander, commanders)
+    people = driver == HUMAN or commander == HUMAN
+    team = None
+    if people:
+        if team_id is None:
+            raise TrialSetupError("choose a team (form one first): a person holds a seat")
+        team = db.get(Team, team_id)
+        if team is None:
+            raise TrialSetupError(f"team {team_id} does not exist")
     if maze not in layouts:
         raise TrialSetupError(f"maze {maze!r} is not in the library")
-    played = layouts_seen(db, team, layouts).get(layouts[maze])
-    if played == maze:
-        raise TrialSetupError(f"maze {maze!r}: team {team.name!r} has already seen it")
-    if played is not None:
-        raise TrialSetupError(
-            f"maze {maze!r} is layout {layouts[maze]}, which team {team.name!r} has already seen as {played}"
-        )
+    commander_id, driver_id = _seated(db, team, maze, layouts, commander_id, commander, driver)
     if backend.startswith("robot:"):
         robot_id = backend.removeprefix("robot:")
         robot = db.get(Robot, int(robot_id)) if robot_id.isdigit() else None
@@ -107,19 +114,13 @@ def create_trial(
             raise TrialSetupError(f"backend {backend!r}: no registered rover with id {robot_id!r}")
     elif backend != "sim":
         raise TrialSetupError(f"backend {backend!r} is neither 'sim' nor 'robot:<id>'")
-    members = (team.member_a_id, team.member_b_id)
-    commander_id = commander_id or team.member_a_id
-    if commander_id not in members:
-        raise TrialSetupError(f"commander {commander_id} is not a member of team {team.name!r}")
-    driver_id = None
-    if driver == "human":
-        driver_id = members[1] if commander_id == members[0] else members[0]
     trial = Trial(
-        team_id=team.id,
+        team_id=team.id if team is not None else None,
         maze=maze,
         targets=targets,
         backend=backend,
         driver=driver,
+        commander=commander,
         commander_id=commander_id,
         driver_id=driver_id,
         phase=str(Phase.WAITING),
@@ -127,9 +128,45 @@ def create_trial(
     )
     db.add(trial)
     db.flush()
-    created = TrialCreated(maze=maze, targets=targets, backend=backend, driver=driver)
+    created = TrialCreated(maze=maze, targets=targets, backend=backend, driver=driver, commander=commander)
     db.add(Event(trial_id=trial.id, seq=1, kind=created.kind, t_ns=now_ns, payload=created.payload()))
     return trial
+
+
+def _seated(
+    db: Session,
+    team: Team | None,
+    maze: str,
+    layouts: Mapping[str, str],
+    member_id: int | None,
+    commander: str,
+    driver: str,
+) -> tuple[int | None, int | None]:
+    """(commander_id, driver_id): the team's members in the seats a person holds, once the team may
+    play `maze` (no member in a live trial, its layout unseen)."""
+    if team is None:
+        return None, None
+    members = (team.member_a_id, team.member_b_id)
+    live = live_trial_of(db, members)
+    if live is not None:
+        raise TrialSetupError(
+            f"team {team.name!r}: a member is in trial {live.id}, which is {live.phase}; a participant "
+            f"is in one live trial at a time (let it finish, or abort it)"
+        )
+    played = layouts_seen(db, team, layouts).get(layouts[maze])
+    if played == maze:
+        raise TrialSetupError(f"maze {maze!r}: team {team.name!r} has already seen it")
+    if played is not None:
+        raise TrialSetupError(
+            f"maze {maze!r} is layout {layouts[maze]}, which team {team.name!r} has already seen as {played}"
+        )
+    member_id = member_id or members[0]
+    if member_id not in members:
+        raise TrialSetupError(f"commander {member_id} is not a member of team {team.name!r}")
+    other = members[1] if member_id == members[0] else members[0]
+    if commander != HUMAN:
+        return None, member_id
+    return member_id, other if driver == HUMAN else None
 
 
 def create_team(db: Session, name: str, member_a_id: int, member_b_id: int) -> Team:

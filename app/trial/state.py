@@ -36,6 +36,7 @@ class TrialState:
     targets: list[str] = field(default_factory=list)
     backend: str = "sim"
     driver: str = "human"
+    commander: str = "human"
     phase: Phase = Phase.WAITING
     target_index: int = 0
     connected: set[Role] = field(default_factory=set)
@@ -116,7 +117,7 @@ class TrialState:
         match event:
             case ev.TrialCreated():
                 self.maze, self.targets = event.maze, list(event.targets)
-                self.backend, self.driver = event.backend, event.driver
+                self.backend, self.driver, self.commander = event.backend, event.driver, event.commander
             case ev.Connected(role=role):
                 self.connected.add(role)
                 self.away.pop(role, None)

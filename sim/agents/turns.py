@@ -100,6 +100,8 @@ class TurnKind(StrEnum):
     SAY = "say"
     MOVE = "move"
     CLAIM = "claim"
+    JUDGE = "judge"
+    LOCALIZE = "localize"
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,18 @@ from pathlib import Path
 
 import typer
 
-from sim.agents.selfplay import CommanderName, DriverName
+from sim.agents.selfplay import (
+    CommanderName,
+    DriverName,
+    Job,
+    TrialResult,
+    benchmark_trials,
+    iter_results,
+    library_trials,
+    row,
+    run_job,
+    summarize,
+)
 from sim.cli.eval import open_benchmark
 from sim.tasks.benchmark import Split
 
@@ -31,17 +42,24 @@ def eval_selfplay(
     processes: int = typer.Option(2, min=1, help="Trials in parallel processes."),
     seed: int = typer.Option(0, help="Bundled mazes: the seed of the starts."),
     per_trial: Path | None = typer.Option(None, help="Write one JSON line per trial (its figures and dialog)."),
+    record: Path | None = typer.Option(
+        None,
+        "--record",
+        help="A data directory: play each trial through the platform's trial core (its runtime, event "
+        "log and simulator backend, --processes trials at once in this process) with agent:dialog in "
+        "both seats, recorded there as an ordinary trial (replay, export). The robot starts where the "
+        "platform puts it; the pace is the platform's (ROBOTSLANG_ settings).",
+    ),
+    timeout_s: float = typer.Option(900.0, min=1.0, help="--record: abort a trial not over after this long."),
     as_json: bool = typer.Option(False, "--json", help="Print the figures as one JSON object."),
 ) -> None:
     """Play whole trials (localize, three targets in order, claims judged) with agents in both seats
     and print trials, completed, targets_confirmed_mean, moves_ratio, messages_mean,
     first_estimate_td_m, false_confirmations and seconds_per_trial.
 
-    The trials run on the offline runner (the trial core's rules on the simulator's graph, no
-    server or event log): they are not recorded as trials."""
-    from tqdm import tqdm
-
-    from sim.agents.selfplay import Job, benchmark_trials, iter_results, library_trials, row, run_job, summarize
+    Without --record the trials run on the offline runner (the trial core's rules on the
+    simulator's graph, no server or event log) and are not recorded; with it they are ordinary
+    recorded trials of the platform."""
 
     if benchmark is not None:
         bench = open_benchmark(benchmark)
@@ -55,16 +73,38 @@ def eval_selfplay(
         library = MazeLibrary(bundled=BUNDLED_DIR)
         mazes = [(name, library.load(name)) for name in library.names()[:limit]]
         specs = library_trials(mazes, [NavGraph.build(m, "benchmark") for _, m in mazes], seed)
-    jobs = [Job(spec, commander, driver, root) for spec in specs[:limit]]
-    results = list(
-        tqdm(
-            iter_results(jobs, run_job, processes),
-            total=len(jobs),
-            desc=f"self-play {commander}/{driver}",
-            file=sys.stderr,
+    if record is not None:
+        results = recorded(
+            record, benchmark, [spec.maze for spec in specs[:limit]], commander, driver, processes, timeout_s
         )
-    )
+    else:
+        jobs = [Job(spec, commander, driver, root) for spec in specs[:limit]]
+        results = offline(jobs, processes, f"self-play {commander}/{driver}")
     if per_trial is not None:
         per_trial.parent.mkdir(parents=True, exist_ok=True)
         per_trial.write_text("".join(json.dumps(row(r)) + "\n" for r in results))
     typer.echo(json.dumps(summarize(results), indent=None if as_json else 2))
+
+
+def offline(jobs: list[Job], processes: int, desc: str) -> list[TrialResult]:
+    from tqdm import tqdm
+
+    return list(tqdm(iter_results(jobs, run_job, processes), total=len(jobs), desc=desc, file=sys.stderr))
+
+
+def recorded(
+    data_dir: Path,
+    benchmark: Path | None,
+    mazes: list[str],
+    commander: CommanderName,
+    driver: DriverName,
+    processes: int,
+    timeout_s: float,
+) -> list[TrialResult]:
+    """The trials through the platform (the command line is where the layers meet: sim/ itself never
+    imports app/)."""
+    if (commander, driver) != (CommanderName.DIALOG, DriverName.DIALOG):
+        raise typer.BadParameter("--record seats agent:dialog in both seats: give --commander dialog --driver dialog")
+    from app.drivers.selfplay import record_trials
+
+    return record_trials(data_dir, benchmark, mazes, "agent:dialog", "agent:dialog", processes, timeout_s)

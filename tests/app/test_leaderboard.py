@@ -6,7 +6,7 @@ import httpx
 from sqlalchemy import select
 
 from app.db.models import Team, Trial
-from app.leaderboard import agent_standings, standings
+from app.leaderboard import agent_standings, pair_standings, standings
 from app.trial.setup import create_participant, create_team
 
 
@@ -85,12 +85,54 @@ def test_agent_trials_rank_apart_and_never_count_for_the_team(server):
         teams = standings(db, move_penalty_s=1.0)
         agents = agent_standings(db, move_penalty_s=1.0)
     assert [(r.team, r.completed, r.best_s, r.drivers) for r in teams] == [("Owls", 1, 240.0, ("Owls-b",))]
-    assert [(r.rank, r.agent, r.completed, r.best_s, r.commanders) for r in agents] == [
-        (1, "agent:dialog", 2, 80.0, ("Owls",)),
-        (2, "agent:random", 1, 800.0, ("Owls",)),
+    assert [(r.rank, r.seat, r.agent, r.completed, r.best_s, r.partners) for r in agents] == [
+        (1, "driver", "agent:dialog", 2, 80.0, ("Owls",)),
+        (2, "driver", "agent:random", 1, 800.0, ("Owls",)),
     ]
     page = httpx.get(server.url + "/leaderboard").text
     humans, machines = page.split('id="agent-leaderboard"')
     assert "Owls-b" in humans and "agent:" not in humans and "80.0" not in humans
     assert machines.index("agent:dialog") < machines.index("agent:random")
     assert "oracle:" not in page
+
+
+def test_agent_commanders_and_agent_pairs_rank_apart_saying_who_held_which_seat(server):
+    services = server.services
+    add_trials(services, "Larks", [("finished", 300.0, 20)])  # 320 s, both seats theirs
+    with services.db.begin() as db:
+        team = db.scalar(select(Team).where(Team.name == "Larks"))
+        for team_id, commander, driver, active_s in (
+            (team.id, "agent:dialog", "human", 90.0),  # a person drove the agent Commander
+            (None, "agent:dialog", "agent:dialog", 60.0),  # agents in both seats: no team
+            (None, "agent:dialog", "agent:dialog", 100.0),
+            (None, "agent:dialog", "oracle:shortest", 5.0),  # a cheat in one seat: ranks nowhere
+        ):
+            db.add(
+                Trial(
+                    team_id=team_id,
+                    maze="m7",
+                    targets=["jar", "mug", "paddle"],
+                    backend="sim",
+                    driver=driver,
+                    commander=commander,
+                    phase="finished",
+                    active_s=active_s,
+                    moves=10,
+                )
+            )
+    with services.db() as db:
+        teams = standings(db, move_penalty_s=1.0)
+        agents = agent_standings(db, move_penalty_s=1.0)
+        pairs = pair_standings(db, move_penalty_s=1.0)
+    assert [(r.team, r.completed, r.best_s) for r in teams] == [("Larks", 1, 320.0)]
+    assert [(r.seat, r.agent, r.partners, r.best_s) for r in agents] == [
+        ("commander", "agent:dialog", ("Larks",), 100.0)
+    ]
+    assert [(r.rank, r.commander, r.driver, r.completed, r.best_s, r.mean_s) for r in pairs] == [
+        (1, "agent:dialog", "agent:dialog", 2, 70.0, 90.0)
+    ]
+    page = httpx.get(server.url + "/leaderboard").text
+    humans, rest = page.split('id="agent-leaderboard"')
+    mixed, paired = rest.split('id="pair-leaderboard"')
+    assert "agent:" not in humans and "Larks" in mixed and "commander" in mixed
+    assert "70.0" in paired and "Larks" not in paired and "oracle:" not in page

@@ -257,7 +257,7 @@ def test_leaderboard_ranks_agent_drivers_apart_and_says_who_drove(browser, serve
     assert row.locator("td").nth(4).inner_text() == "120.0"
     agent = page.locator("#agent-leaderboard tbody tr").first
     assert agent.locator(".agent").inner_text() == "agent:dialog"
-    assert team.name in agent.locator(".commanders").inner_text()
+    assert team.name in agent.locator(".partners").inner_text() and agent.locator(".seat").inner_text() == "driver"
     assert "25.0" in agent.inner_text()
     ARTIFACTS.mkdir(exist_ok=True)
     page.screenshot(path=str(ARTIFACTS / "leaderboard-agents.png"), full_page=True)
