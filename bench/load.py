@@ -15,7 +15,9 @@ each trial's first move apart (its maze's first frame after the seat joined), th
 (socket opened -> upgrade answered: the server opens the trial before it answers), events
 committed per second, lost chat messages (sent, never heard by the Driver) and unanswered moves
 (neither a frame nor a refusal came back), the server's CPU (cores busy) and peak RSS, all
-processes together and each process (the server, its workers, its render processes), the CPU of
+processes together and each process (the server, its workers, its render processes), how many
+trials' particle filters had a belief at the end (`beliefs`: the peak memory holds only the filters
+built by then, in the filters' quarter of a core), the CPU of
 the bench's own seats (`client_cpu`: on a small machine they compete with the server for its
 cores) and the machine's load average before the run and at its end. The server runs as its own
 process (`robotslang serve --workers W`), as in use: one process on SQLite (WAL); with W > 1 the
