@@ -15,7 +15,9 @@ each trial's first move apart (its maze's first frame after the seat joined), th
 (socket opened -> upgrade answered: the server opens the trial before it answers), events
 committed per second, lost chat messages (sent, never heard by the Driver) and unanswered moves
 (neither a frame nor a refusal came back), the server's CPU (cores busy) and peak RSS, all
-processes together and each process (the server, its workers, its render processes), the CPU of
+processes together and each process (the server, its workers, its render processes), how many
+trials' particle filters had a belief at the end (`beliefs`: the peak memory holds only the filters
+built by then, in the filters' quarter of a core), the CPU of
 the bench's own seats (`client_cpu`: on a small machine they compete with the server for its
 cores) and the machine's load average before the run and at its end. The server runs as its own
 process (`robotslang serve --workers W`), as in use: one process on SQLite (WAL); with W > 1 the
@@ -63,8 +65,9 @@ from rich.console import Console
 from rich.progress import Progress
 from sqlalchemy import create_engine, func, select, text
 
-from app.db.models import Event, Trial
+from app.db.models import Event, Experimenter, Trial
 from app.main import build_services
+from app.security import SESSION_COOKIE
 from app.settings import Settings
 from bench.live import ServerProcesses, team_trial
 from sim.core.cache import cache_dir
@@ -354,7 +357,7 @@ async def drive(
     duration: float,
     services,
     server: ServerProcesses,
-) -> tuple[Figures, int, float, float, float]:
+) -> tuple[Figures, int, float, float, float, int]:
     figures, stop, drained = Figures(), asyncio.Event(), asyncio.Event()
     gate = None if open_at_once else asyncio.Semaphore(OPEN_AT_ONCE)
     tasks = [asyncio.create_task(run_trial(ws_url, t, pattern, gate, figures, stop, drained)) for t in tokens]
@@ -396,11 +399,28 @@ async def drive(
     cpu = (server.cpu_s() - cpu0) / window
     # The seats' own side: on a small machine the clients compete with the server for its cores.
     client_cpu = (time.process_time() - own0) / window
+    beliefs = await asyncio.to_thread(
+        beliefs_shown, ws_url.replace("ws://", "http://").removesuffix("/ws/play"), services
+    )
     stop.set()
     await asyncio.sleep(DRAIN_S)
     drained.set()
     await asyncio.gather(*tasks, return_exceptions=True)
-    return figures, committed, window, cpu, client_cpu
+    return figures, committed, window, cpu, client_cpu, beliefs
+
+
+def beliefs_shown(http_url: str, services) -> int:
+    """Live trials with a particle filter's belief, as the experimenter's `/experimenter/api/trials`
+    gives them (the process that answers: with one process, every trial). The peak memory counts
+    the filters only once they are built, in the filters' share of a core: all of them by the end,
+    or the run was too short to say what they cost."""
+    with services.db() as db:
+        experimenter = db.scalar(select(Experimenter.id).order_by(Experimenter.id).limit(1))
+    if experimenter is None:
+        return 0
+    cookies = {SESSION_COOKIE: services.sessions.issue(experimenter)}
+    trials = httpx.get(f"{http_url}/experimenter/api/trials", cookies=cookies, timeout=60).json()["trials"]
+    return sum(t["belief"] is not None for t in trials)
 
 
 def wait_until_up(url: str, server: subprocess.Popen) -> None:
@@ -508,7 +528,7 @@ def run_load(
                     stdout=subprocess.DEVNULL,
                     stderr=subprocess.DEVNULL,
                 )
-            figures, committed, window, cpu, client_cpu = asyncio.run(
+            figures, committed, window, cpu, client_cpu, beliefs = asyncio.run(
                 drive(
                     f"ws://127.0.0.1:{port}/ws/play",
                     tokens,
@@ -568,6 +588,7 @@ def run_load(
         "server_cpu": round(cpu, 2),
         "client_cpu": round(client_cpu, 2),
         "server_rss_mb": round(processes.peak_rss_mb, 1),
+        "beliefs": beliefs,
         "processes": processes.peaks(),
         "load_average_before": [round(x, 2) for x in load_before],
         "load_average": [round(x, 2) for x in os.getloadavg()],
@@ -656,6 +677,7 @@ def report(f: dict) -> None:
     )
     for p in f["processes"]:
         console.print(f"    {p['kind']:<8} pid {p['pid']:<8} peak RSS {p['peak_rss_mb']:7.0f} MB")
+    console.print(f"  particle filters with a belief at the end: {f['beliefs']} of {f['trials']} trials")
 
 
 def main() -> None:

@@ -59,15 +59,19 @@ class FreeSpace:
 
     def __init__(self, maze: Maze, clearance_m: float = WALL_CLEARANCE_M):
         dist_px = cv2.distanceTransform((maze.walls == Label.FLOOR).astype(np.uint8), cv2.DIST_L2, 5)
-        self.free = dist_px >= clearance_m * PX_PER_M_X
-        # The free cells as runs along the flattened rows (where each starts, and how many free
-        # cells come before it), not a list of every cell: some 20 kB a maze instead of 3.5 MB,
-        # and a server holds one per maze of its live trials. Cell k of the list is found by a
-        # binary search, so a sample draws the same cells as indexing the list would.
-        flat = np.concatenate([[False], self.free.ravel(), [False]])
+        free = dist_px >= clearance_m * PX_PER_M_X
+        self.shape: tuple[int, int] = free.shape
+        # The free cells as runs along the flattened rows (where each starts and ends, and how
+        # many free cells come before it), not a grid: some 100 kB a maze instead of 1.6 MB (a
+        # bool grid) or 3.5 MB (a list of every cell), and a server holds one per live trial's
+        # maze. A cell is found by a binary search, so a sample draws the same cells, and
+        # `contains` says the same, as the grid would.
+        flat = np.concatenate([[False], free.ravel(), [False]])
         edges = np.flatnonzero(flat[1:] != flat[:-1])
-        starts, lengths = edges[0::2], edges[1::2] - edges[0::2]
+        starts, ends = edges[0::2], edges[1::2]
+        lengths = ends - starts
         self._run_starts = starts.astype(np.int32)
+        self._run_ends = ends.astype(np.int32)
         self._run_first = (np.cumsum(lengths) - lengths).astype(np.int64)
         self.n_cells = int(lengths.sum())
         if self.n_cells == 0:
@@ -76,19 +80,22 @@ class FreeSpace:
     def contains(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         col, row = world_to_pixel(x, y)
         c, r = np.rint(col).astype(np.int64), np.rint(row).astype(np.int64)
-        h, w = self.free.shape
+        h, w = self.shape
         ok = (c >= 0) & (c < w) & (r >= 0) & (r < h)
+        k = r[ok] * w + c[ok]
+        run = np.searchsorted(self._run_starts, k, side="right") - 1
         out = np.zeros(np.shape(x), dtype=bool)
-        out[ok] = self.free[r[ok], c[ok]]
+        out[ok] = (run >= 0) & (k < self._run_ends[np.maximum(run, 0)])
         return out
 
     def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
         """(n, 3) poses uniform over the free space, headings uniform."""
         k = rng.integers(0, self.n_cells, n)
         run = np.searchsorted(self._run_first, k, side="right") - 1
-        rows, cols = np.divmod(self._run_starts[run] + (k - self._run_first[run]), self.free.shape[1])
-        x = (cols + rng.uniform(-0.5, 0.5, n)) / (self.free.shape[1] - 1) * TABLE_WIDTH_M
-        y = (1 - (rows + rng.uniform(-0.5, 0.5, n)) / (self.free.shape[0] - 1)) * TABLE_HEIGHT_M
+        h, w = self.shape
+        rows, cols = np.divmod(self._run_starts[run] + (k - self._run_first[run]), w)
+        x = (cols + rng.uniform(-0.5, 0.5, n)) / (w - 1) * TABLE_WIDTH_M
+        y = (1 - (rows + rng.uniform(-0.5, 0.5, n)) / (h - 1)) * TABLE_HEIGHT_M
         return np.column_stack(
             [np.clip(x, 0, TABLE_WIDTH_M), np.clip(y, 0, TABLE_HEIGHT_M), rng.uniform(-np.pi, np.pi, n)]
         )

@@ -2,21 +2,24 @@
 
 from __future__ import annotations
 
+import asyncio
 import math
+import os
+import time
 
 import cv2
 import numpy as np
 import pytest
 
 from app.backends.render import render_jpeg
-from app.perception.belief import TrialBelief
-from app.perception.cameras import CameraUnknown, driver_calibration, learned
+from app.perception.belief import FilterWorker, TrialBelief
+from app.perception.cameras import SIM_CALIBRATION, CameraUnknown, driver_calibration, learned
 from app.settings import Settings
 from sim.core.dynamics import Action, Pose, step
 from sim.core.geometry import heading_angle
 from sim.core.navgraph import NavGraph
 from sim.core.observations import OBS_FEATURES
-from sim.robot.camera import FrontCamera, capture
+from sim.robot.camera import CameraCalibration, FrontCamera, capture
 from sim.tasks.library import MazeLibrary
 
 
@@ -94,3 +97,31 @@ def test_a_rover_without_a_camera_calibration_is_not_known(tmp_path):
     settings = Settings(data_dir=tmp_path)
     with pytest.raises(CameraUnknown, match="camera_calibration"):
         driver_calibration("robot:1", settings)
+
+
+def test_a_trial_gets_its_belief_while_the_default_threads_are_busy(world):
+    # The server writes every frame to disk in the event loop's default threads; under a crowd
+    # of walking trials those are busy all the time. A new trial's filter is still built, and
+    # takes in its first frame, well before they are free (the filters have a thread of their own).
+    maze, graph = world
+    calibration = CameraCalibration.load(SIM_CALIBRATION)
+    busy_s = 8.0
+    default_threads = min(32, (os.cpu_count() or 1) + 4)  # ThreadPoolExecutor's default
+
+    async def crowd_and_one_trial() -> tuple[float, dict | None]:
+        loop = asyncio.get_running_loop()
+        blocked = [loop.run_in_executor(None, time.sleep, busy_s) for _ in range(default_threads)]
+        workers = FilterWorker()
+        started = time.monotonic()
+        belief = await workers.start(lambda: TrialBelief(maze, calibration, seed=3))
+        taken = asyncio.Event()
+        assert belief.offer(frame_at(maze, graph, Pose(0, 0)), time.monotonic_ns())
+        workers.due(belief, taken.set)
+        await asyncio.wait_for(taken.wait(), busy_s - 1)
+        elapsed = time.monotonic() - started
+        await asyncio.gather(*blocked)
+        return elapsed, belief.message()
+
+    elapsed, message = asyncio.run(crowd_and_one_trial())
+    assert elapsed < busy_s - 1  # the default threads were all busy until busy_s
+    assert message is not None and message["type"] == "belief" and message["moves"] == 0

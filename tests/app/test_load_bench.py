@@ -69,6 +69,7 @@ WALK_KEYS = KEYS | {
     "processes",
     "load_average_before",
     "load_average",
+    "beliefs",
 }
 
 
@@ -94,6 +95,7 @@ def test_walking_trials_on_distinct_mazes_opening_at_once_lose_nothing():
     kinds = [p["kind"] for p in figures["processes"]]
     assert kinds.count("server") == 1 and "render" in kinds  # each process of the server, with its peak
     assert all(p["peak_rss_mb"] > 0 for p in figures["processes"])
+    assert 1 <= figures["beliefs"] <= trials  # the experimenter's view has particle filters' beliefs
 
 
 AGENT_KEYS = KEYS | {

@@ -3,15 +3,19 @@ camera frames through perception, and frames that say nothing."""
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
 from sim.core.dynamics import Action
-from sim.core.geometry import GRID_STEP_M, TURN_RAD
+from sim.core.geometry import GRID_STEP_M, TURN_RAD, pixel_to_world
+from sim.core.labels import Label
 from sim.core.navgraph import NavGraph
+from sim.core.observations import PX_PER_M_X, WALL_CLEARANCE_M
 from sim.robot.camera import FrontCamera, capture
 from sim.robot.localization import (
     NO_NOISE,
+    FreeSpace,
     ParticleFilter,
     apply_move,
     evaluate_filter,
@@ -64,6 +68,27 @@ def test_the_belief_starts_uniform_and_compact_for_display(maze):
     assert b.cloud[:, 3].sum() == pytest.approx(1.0)
     assert free_space(maze).contains(pf.particles[:, 0], pf.particles[:, 1]).all()
     assert set(b.to_json()) == {"x", "y", "heading", "spread_m", "cloud"}
+
+
+def test_the_free_space_says_of_every_pixel_what_the_clearance_grid_says(maze):
+    # Kept as runs of free cells, not a grid; asked pixel by pixel it must be that grid.
+    dist_px = cv2.distanceTransform((maze.walls == Label.FLOOR).astype(np.uint8), cv2.DIST_L2, 5)
+    grid = dist_px >= WALL_CLEARANCE_M * PX_PER_M_X
+    rows, cols = np.indices(grid.shape)
+    x, y = pixel_to_world(cols.ravel(), rows.ravel())
+    space = FreeSpace(maze)
+    assert np.array_equal(space.contains(x, y), grid.ravel())
+    assert space.n_cells == grid.sum()
+    assert not space.contains(np.array([-0.01, 0.5, 9.0]), np.array([0.5, -0.01, 0.5])).any()  # off the table
+
+
+def test_a_filter_holds_little_beyond_its_maze_and_particles(maze):
+    # A server keeps a filter per live trial (each on its own maze in a study): its maps must
+    # not cost several maze grids each, as the float clearance and the bool free grid did.
+    pf = ParticleFilter(maze, n_particles=1500, seed=3)
+    maps = pf.caster.clearance.nbytes + sum(a.nbytes for a in vars(pf.space).values() if isinstance(a, np.ndarray))
+    assert maps < 0.25 * maze.labels.nbytes  # 1.6 MB: what one bool grid of the maze would cost
+    assert pf.caster.labels is maze.labels or np.shares_memory(pf.caster.labels, maze.labels)
 
 
 def test_an_unreadable_frame_leaves_the_belief_alone(maze, calibration):

@@ -17,9 +17,11 @@ from sim.core.observations import (
     PX_PER_M_Y,
     RAY_OFFSETS,
     TOO_CLOSE_M,
+    RayCaster,
     RayTable,
     cast_rays,
 )
+from sim.tasks.library import MazeLibrary
 from tests.sim.synthetic import BORDER_PX, OBJECT_RADIUS_PX, synthetic_maze
 
 EXACT = 1e-5  # metres: depths are exact to the pixel grid, up to float32 rounding
@@ -244,3 +246,40 @@ def test_a_wall_too_close_ahead_blocks_the_forward_move(benchmark_path, run):
     close = table.too_close[:, :, centre] & wall
     assert close.any()
     assert table.forward_blocked[close].all()
+
+
+def test_a_ray_clipping_a_wall_corner_after_a_long_jump_sees_it():
+    # Found comparing casters: this ray crosses open floor, then clips the lower-left corner of
+    # a magenta pixel (col 1261, row 695) by about a thousandth of a pixel. A jump bounded by a
+    # full-resolution float clearance went past it to the red wall 1.05 m away.
+    maze = MazeLibrary().load("gen-004")
+    x, y, angle = 2.1282949167261185, 1.5039933926321485, -1.436354983279942
+    labels, depth = cast_rays(maze, x, y, angle, offsets=[0.0])
+    t = np.arange(0.6714, 0.6716, 1e-8)  # the reference, finely around the corner
+    col, row = world_to_pixel(x + t * np.cos(angle), y + t * np.sin(angle))
+    seen = maze.labels[np.floor(row + 0.5).astype(int), np.floor(col + 0.5).astype(int)]
+    first = int(np.argmax(seen != Label.FLOOR))
+    assert seen[first] == maze.labels[695, 1261] == labels[0]
+    assert depth[0] == pytest.approx(t[first], abs=EXACT)
+
+
+def test_rays_from_anywhere_agree_with_dense_sampling_on_a_bundled_maze():
+    maze = MazeLibrary().load("gen-001")
+    rng = np.random.default_rng(3)
+    caster = RayCaster(maze.labels)
+    x, y = rng.uniform(0.1, 2.3, 150), rng.uniform(0.1, TABLE_HEIGHT_M - 0.1, 150)
+    angles = rng.uniform(-np.pi, np.pi, 150)
+    labels, depth = caster.cast(x, y, angles)
+    for i in range(150):
+        label, expected = _dense_ray(maze, x[i], y[i], angles[i])
+        assert labels[i] == label
+        assert depth[i] == pytest.approx(expected, abs=1e-4)  # the reference step
+
+
+def test_a_caster_keeps_a_small_clearance_map():
+    # A server keeps a caster per live trial's maze (its particle filter): the label grid is
+    # the maze's own, and the clearance that rays jump by is a 4x4-block lower bound in bytes.
+    maze = MazeLibrary().load("gen-001")
+    caster = RayCaster(maze.labels)
+    assert np.shares_memory(caster.labels, maze.labels)
+    assert caster.clearance.dtype == np.uint8 and caster.clearance.nbytes <= maze.labels.nbytes / 15
