@@ -16,22 +16,28 @@ from fastapi.templating import Jinja2Templates
 from sqlalchemy import select
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from app.backends.render import RenderProcesses
+from app.backends.registry import BackendParts
+from app.backends.remote import RobotLinks
+from app.backends.render import FrameRenderer, InThread, RenderProcesses
 from app.clock import ServerClock
 from app.db.engine import make_engine, make_sessionmaker, upgrade
 from app.db.models import Experimenter
 from app.deps import LoginRequired
+from app.drivers.registry import DriverParts
 from app.guard import GuardMiddleware, template_context
 from app.login import LoginGuard, shared_counts
 from app.mazes import Mazes
+from app.perception.belief import FilterWorker
 from app.resources import shipped
 from app.routes import experimenter, ldh_study, pages, replay, robot_ws, seat_ws
 from app.security import CsrfTokens, SeatTokens, Sessions, set_password
 from app.services import Services
 from app.settings import Settings
 from app.trial.hub import TrialHub
+from app.trial.ldh_belief import BeliefModel
 from app.trial.log import EventLog
 from app.trial.relay import key_prefix
+from app.trial.runtime import TrialParts
 
 logger = logging.getLogger("robotslang")
 
@@ -48,22 +54,41 @@ def build_services(settings: Settings) -> Services:
         settings.password_check_concurrency,
         storage=shared_counts(settings.redis_url, key_prefix(settings)) if settings.redis_url else None,
     )
-    services = Services(
+    clock, mazes, log = ServerClock(), Mazes(settings), EventLog(db)
+    seats = SeatTokens(key, settings.join_link_ttl_s)
+    robots = RobotLinks(db)
+    renderer: FrameRenderer = (
+        RenderProcesses(settings.render_processes, settings.benchmark, settings.cache_dir)
+        if settings.render_processes
+        else InThread()
+    )
+    trials = TrialParts(
+        settings=settings,
+        db=db,
+        log=log,
+        clock=clock,
+        mazes=mazes,
+        seats=seats,
+        filters=FilterWorker(),
+        backends=BackendParts(mazes, clock, renderer, db, robots, settings.overhead_calibration),
+        drivers=DriverParts(settings, mazes, clock),
+        ldh=BeliefModel(settings.ldh_checkpoint, settings.cache_dir),
+    )
+    return Services(
         settings=settings,
         engine=engine,
         db=db,
-        clock=ServerClock(),
-        log=EventLog(db),
-        seats=SeatTokens(key, settings.join_link_ttl_s),
+        clock=clock,
+        log=log,
+        seats=seats,
         sessions=Sessions(key, db),
         csrf=CsrfTokens(key),
         logins=logins,
-        mazes=Mazes(settings),
+        mazes=mazes,
+        robots=robots,
+        trials=trials,
+        hub=TrialHub(trials, settings.redis_url),
     )
-    services.hub = TrialHub(services)
-    if settings.render_processes:
-        services.renderer = RenderProcesses(settings.render_processes, settings.benchmark, settings.cache_dir)
-    return services
 
 
 def ensure_experimenter(services: Services) -> str | None:
@@ -88,21 +113,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):
-        if settings.redis_url:
-            from app.trial.relay import RedisRelay
-
-            services.relay = RedisRelay(services, settings.redis_url)
-            await services.relay.start()
-        if isinstance(services.renderer, RenderProcesses):
-            services.renderer.warm_up()
+        renderer = services.trials.backends.renderer
+        if isinstance(renderer, RenderProcesses):
+            renderer.warm_up()
         services.mazes.warm_layouts()
-        await services.hub.resume_running()
+        await services.hub.start()
         yield
-        if services.relay is not None:
-            await services.relay.close()  # hands its trials back first
         await services.hub.close()
         services.log.close()
-        services.renderer.close()
+        renderer.close()
         services.engine.dispose()
 
     # No /docs or /redoc: they load scripts from a CDN and run inline code, which the CSP forbids.

@@ -144,7 +144,7 @@ def make_trial(
             targets=targets,
             backend=backend,
             driver=driver,
-            agents=available_drivers(services),
+            agents=available_drivers(services.drivers),
         )
 
 

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import select
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import Session, sessionmaker
 
 from app.backends.base import BackendUnavailable, Frame, MoveOutcome
 from app.db.models import Robot
@@ -32,7 +32,7 @@ from app.trial.vocabulary import PARTICIPANTS, ROBOT_ROLES, FrameSource, Move, O
 from robot_client.protocol import FrameHeader
 
 if TYPE_CHECKING:
-    from app.services import Services
+    from app.backends.registry import BackendParts
 
 logger = logging.getLogger(__name__)
 
@@ -256,8 +256,8 @@ class FrameSlot:
 class RobotLinks:
     """Connected robots by id, the trials that use them, and the dashboard's view of both."""
 
-    def __init__(self, services) -> None:
-        self.services = services
+    def __init__(self, db: sessionmaker[Session]) -> None:
+        self.db = db  # the registered robots, for the dashboard
         self.links: dict[int, RobotLink] = {}
         self.slots: dict[int, FrameSlot] = {}
         self.backends: dict[int, set[RemoteRobotBackend]] = {}
@@ -319,7 +319,7 @@ class RobotLinks:
 
     def status(self) -> list[dict[str, Any]]:
         """Every registered robot with its link figures: what the experimenter's dashboard shows."""
-        with self.services.db() as db:
+        with self.db() as db:
             robots = db.scalars(select(Robot).order_by(Robot.name)).all()
         rows = []
         for robot in robots:
@@ -332,13 +332,6 @@ class RobotLinks:
             )
             rows.append(row)
         return rows
-
-
-def robot_links(services) -> RobotLinks:
-    """This server's `RobotLinks`, made on first use."""
-    if services.robots is None:
-        services.robots = RobotLinks(services)
-    return services.robots
 
 
 # -- the backend ----------------------------------------------------------------------
@@ -445,13 +438,13 @@ class RemoteRobotBackend:
         await self.links.slot(self.robot_id).wake()
 
 
-async def remote_backend(spec: str, trial: RobotTrial, services: Services) -> RemoteRobotBackend:
+async def remote_backend(spec: str, trial: RobotTrial, parts: BackendParts) -> RemoteRobotBackend:
     """`robot:<id>`: the registered driver robot with that id."""
     try:
         robot_id = int(spec.split(":", 1)[1])
     except (IndexError, ValueError):
         raise LookupError(f"robot backend {spec!r}: expected 'robot:<id>'") from None
-    with services.db() as db:
+    with parts.db() as db:
         robot = db.get(Robot, robot_id)
     if robot is None:
         raise LookupError(f"robot backend {spec!r}: no robot {robot_id} is registered")
@@ -460,8 +453,8 @@ async def remote_backend(spec: str, trial: RobotTrial, services: Services) -> Re
     return RemoteRobotBackend(
         robot.id,
         robot.name,
-        robot_links(services),
+        parts.robots,
         trial,
-        services.settings.overhead_calibration,
-        services.clock.now_ns,
+        parts.overhead_calibration,
+        parts.clock.now_ns,
     )

@@ -33,7 +33,7 @@ class Oracle:
 
 @dataclass(frozen=True)
 class Seating:
-    """What a driver's factory gets besides the services."""
+    """What a driver's factory gets besides the server's parts (`DriverParts`)."""
 
     seed: int  # the trial's id: an agent's chance moves repeat per trial
     oracle: Oracle | None = None  # for `oracle:` drivers only

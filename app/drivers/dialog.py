@@ -4,8 +4,9 @@ Driver's seat: it answers, waits for instructions, follows them, reports and cla
 from __future__ import annotations
 
 from app.drivers.base import Seating
+from app.drivers.registry import DriverParts
 from sim.agents.dialog_driver import DialogDriver
 
 
-def dialog_driver(services, seating: Seating) -> DialogDriver:
+def dialog_driver(parts: DriverParts, seating: Seating) -> DialogDriver:
     return DialogDriver(seed=seating.seed)

@@ -1,9 +1,9 @@
 """Driver agents by spec: a trial's `driver` is `human`, `agent:<name>` or `oracle:<name>`.
 
-A driver is a factory, `factory(services, seating) -> Agent` (`sim.agents.turns.Agent`; services:
-settings, and the mazes with their cached graphs; seating: `app.drivers.base.Seating`, whose
-`oracle` is set for `oracle:` drivers only), and optionally a check, `check(services) -> reason |
-None`, saying why it cannot start now (None: it can). The built-in ones are named here by
+A driver is a factory, `factory(parts, seating) -> Agent` (`sim.agents.turns.Agent`; parts:
+`DriverParts`, the settings and the mazes with their cached graphs; seating:
+`app.drivers.base.Seating`, whose `oracle` is set for `oracle:` drivers only), and optionally a
+check, `check(parts) -> reason | None`, saying why it cannot start now (None: it can). The built-in ones are named here by
 "module:function" and imported on first look-up, so the learned ones import torch only when
 they are checked or seated; `register_driver` adds more.
 """
@@ -12,17 +12,28 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from dataclasses import dataclass, field
+from typing import Any
 
+from app.clock import ServerClock
 from app.drivers.base import AGENT, ORACLE, Seating
+from app.mazes import Mazes
+from app.settings import Settings
 from sim.agents.turns import Agent
 
-if TYPE_CHECKING:
-    from app.services import Services
 
-DriverFactory = Callable[["Services", Seating], Agent]
-DriverCheck = Callable[["Services"], "str | None"]
+@dataclass(frozen=True)
+class DriverParts:
+    """What agent Drivers, their checks and their seats use of the server."""
+
+    settings: Settings
+    mazes: Mazes
+    clock: ServerClock
+    driver_checks: dict[Any, str | None] = field(default_factory=dict)  # agents' start checks, by file version
+
+
+DriverFactory = Callable[[DriverParts, Seating], Agent]
+DriverCheck = Callable[[DriverParts], "str | None"]
 
 BUILTIN = {
     "agent:random": ("app.drivers.baselines:random_driver", None),
@@ -71,14 +82,14 @@ def driver_names() -> list[str]:
     return sorted(set(BUILTIN) | set(_REGISTERED))
 
 
-def available_drivers(services: Services) -> dict[str, str | None]:
+def available_drivers(parts: DriverParts) -> dict[str, str | None]:
     """Every driver by spec, with the reason it cannot start now, or None when it can."""
     result = {}
     for spec in driver_names():
         entry = _entry(spec)
-        result[spec] = entry.check(services) if entry.check is not None else None
+        result[spec] = entry.check(parts) if entry.check is not None else None
     return result
 
 
-def create_driver(spec: str, services: Services, seating: Seating) -> Agent:
-    return _entry(spec).factory(services, seating)
+def create_driver(spec: str, parts: DriverParts, seating: Seating) -> Agent:
+    return _entry(spec).factory(parts, seating)

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from app.drivers.base import Oracle, Seating
-from app.drivers.registry import create_driver
+from app.drivers.registry import DriverParts, create_driver
 from app.trial import events as ev
 from app.trial.decide import Refused
 from app.trial.port import DriverTrial
@@ -53,8 +53,8 @@ class _Outcome:
 class AgentSeat:
     role = Role.DRIVER
 
-    def __init__(self, trial: DriverTrial, services, oracle: Oracle | None = None) -> None:
-        self.trial, self.services, self.oracle = trial, services, oracle
+    def __init__(self, trial: DriverTrial, parts: DriverParts, oracle: Oracle | None = None) -> None:
+        self.trial, self.parts, self.oracle = trial, parts, oracle
         self.spec = trial.state.driver
         self.inbox: asyncio.Queue[t.Percept | _FrameArrived | _Outcome] = asyncio.Queue()
         self.observations: OrderedDict[int, RayObservation] = OrderedDict()
@@ -150,9 +150,9 @@ class AgentSeat:
                 self.trial.report_bad_message(Role.DRIVER, f"agent {self.spec!r} failed: {err}")
 
     async def _drive(self) -> None:
-        trial, settings = self.trial, self.services.settings
+        trial, settings = self.trial, self.parts.settings
         seating = Seating(seed=trial.trial_id, oracle=self.oracle)
-        agent = await asyncio.to_thread(create_driver, self.spec, self.services, seating)
+        agent = await asyncio.to_thread(create_driver, self.spec, self.parts, seating)
         await asyncio.to_thread(agent.reset, t.SeatInfo(t.Speaker.DRIVER, len(trial.state.targets)))
         if trial.state.backend != "sim":  # the simulator hands its rays; a rover's are perceived
             from app.perception.cameras import CameraUnknown, driver_calibration
@@ -242,7 +242,7 @@ class AgentSeat:
                 self.inbox.put_nowait(t.Refused(kind, str(err)))
 
     async def _move(self, move: t.Move) -> None:
-        settings, clock = self.services.settings, self.services.clock
+        settings, clock = self.parts.settings, self.parts.clock
         cap = settings.agent_moves_per_target
         if self.moves_for_target >= cap:
             index = self.target_index or 0
@@ -264,9 +264,9 @@ class AgentSeat:
 
     async def _clock(self) -> None:
         """The trial-clock cap: the clock runs only while the trial does, so sleep what is left."""
-        minutes = self.services.settings.agent_minutes_per_trial
+        minutes = self.parts.settings.agent_minutes_per_trial
         while not self.trial.state.over:
-            left_s = minutes * 60 - self.trial.state.active_s(self.services.clock.now_ns())
+            left_s = minutes * 60 - self.trial.state.active_s(self.parts.clock.now_ns())
             if left_s <= 0:
                 await self._give_up(
                     f"my {minutes:g} minutes for this trial are over; I stop here",

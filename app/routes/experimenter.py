@@ -10,7 +10,6 @@ from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from sqlalchemy import select
 
-from app.backends.remote import robot_links
 from app.db.models import Participant, Robot, Team, Trial
 from app.deps import experimenter_id
 from app.drivers.registry import available_drivers
@@ -71,10 +70,10 @@ def dashboard(request: Request, error: str | None = None):
         layouts=layouts,
         suggestions=suggestions,
         backends=backends,
-        agents=available_drivers(services),
+        agents=available_drivers(services.drivers),
         caps=(services.settings.agent_moves_per_target, services.settings.agent_minutes_per_trial),
         controls_for=controls_for,
-        robots=robot_links(services).status(),
+        robots=services.robots.status(),
         links={t.id: join_links(request, t) for t in trials},
         holders={t.id: seat_holders(t, names) for t in trials},
         error=error,
@@ -137,7 +136,7 @@ def add_trial(
                 commander_id=commander_id,
                 layouts=layouts,
                 now_ns=services.clock.now_ns(),
-                agents=available_drivers(services),
+                agents=available_drivers(services.drivers),
             )
     except TrialSetupError as err:
         return _redirect(str(err))
@@ -156,7 +155,7 @@ def remove_team(request: Request, team_id: int) -> dict:
 
 @router.delete("/robots/{robot_id}")
 def remove_robot(request: Request, robot_id: int) -> dict:
-    connected = any(r["id"] == robot_id and r["connected"] for r in robot_links(request.app.state.services).status())
+    connected = any(r["id"] == robot_id and r["connected"] for r in request.app.state.services.robots.status())
     return _delete(request, lambda db: delete_robot(db, robot_id, connected))
 
 

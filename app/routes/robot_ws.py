@@ -27,7 +27,6 @@ from app.backends.remote import (
     RobotSetupError,
     create_robot,
     robot_for_token,
-    robot_links,
 )
 from app.deps import experimenter_id
 from app.guard import csrf_protect, socket_origin_allowed
@@ -61,7 +60,7 @@ class Refused(Exception):
 @router.websocket("/ws/robot")
 async def robot_socket(ws: WebSocket) -> None:
     services = ws.app.state.services
-    links = robot_links(services)
+    links = services.robots
     if not socket_origin_allowed(ws.headers, ws.url.scheme, services.settings):  # a page on another site
         await ws.close(code=1008, reason="origin not allowed")
         return
@@ -204,7 +203,7 @@ async def _dispatch(raw: Mapping[str, Any], link: RobotLink, links, received_ns:
 @router.get("/experimenter/api/robots", dependencies=[Depends(experimenter_id)])
 def robots_status(request: Request) -> dict:
     """Each registered robot: connected, frames per second, link latency, last acknowledgement."""
-    return {"robots": robot_links(request.app.state.services).status()}
+    return {"robots": request.app.state.services.robots.status()}
 
 
 @router.post("/experimenter/api/robots", dependencies=[Depends(experimenter_id), Depends(csrf_protect)])

@@ -35,8 +35,8 @@ from app.trial.vocabulary import Role
 if TYPE_CHECKING:
     from redis import Redis
 
-    from app.services import Services
     from app.settings import Settings
+    from app.trial.hub import TrialHub
     from app.trial.port import Connection
     from app.trial.runtime import TrialRuntime
 
@@ -63,10 +63,10 @@ def _channel(process: str) -> str:
 
 
 class RedisRelay:
-    def __init__(self, services: Services, url: str) -> None:
+    def __init__(self, hub: TrialHub, url: str, settings: Settings) -> None:
         import redis.asyncio as redis
 
-        self.services = services
+        self.hub, self.settings = hub, settings
         pool = redis.BlockingConnectionPool.from_url(
             url, max_connections=CONNECTIONS, timeout=None, decode_responses=True
         )
@@ -75,7 +75,7 @@ class RedisRelay:
         self._stop_beating = threading.Event()
         self._beater: threading.Thread | None = None
         self.id = f"{socket.gethostname()}-{os.getpid()}-{uuid.uuid4().hex[:8]}"  # names the process
-        self._keys = key_prefix(services.settings)
+        self._keys = key_prefix(settings)
         self.local: dict[str, Connection] = {}  # connection id -> this process's seat of a trial owned elsewhere
         self.relayed: dict[str, RelayedSeat] = {}  # connection id -> a remote seat of a trial owned here
         self.remotes: set[RemoteTrial] = set()  # trials owned elsewhere that seats here use
@@ -104,7 +104,7 @@ class RedisRelay:
         for task in self._tasks:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await task
-        for runtime in self.services.hub.live():
+        for runtime in self.hub.live():
             with contextlib.suppress(Exception):
                 if await self.redis.get(self._owner_key(runtime.trial_id)) == self.id:
                     await self.redis.delete(self._owner_key(runtime.trial_id))
@@ -114,7 +114,7 @@ class RedisRelay:
         await self.redis.aclose()
 
     def _owner_key(self, trial_id: int) -> str:
-        return owner_key(self.services.settings, trial_id)
+        return owner_key(self.settings, trial_id)
 
     def _alive_key(self, process: str) -> str:
         return f"{self._keys}:process:{process}:alive"
@@ -188,7 +188,7 @@ class RedisRelay:
             if conn is not None:
                 conn.deliver(msg["message"])
             return
-        runtime = await self.services.hub.local(msg["trial"])
+        runtime = await self.hub.local(msg["trial"])
         if op == "join":
             seat = RelayedSeat(self, conn_id, msg["role"], msg["from"])
             self.relayed[conn_id] = seat
@@ -256,7 +256,7 @@ class RemoteTrial:
             for conn_id, conn in conns:
                 self._command("join", conn=conn_id, role=conn.role)
             return
-        self.runtime = await self.relay.services.hub.local(self.trial_id)
+        self.runtime = await self.relay.hub.local(self.trial_id)
         self.relay.remotes.discard(self)
         self._ids.clear()
         for conn_id, conn in conns:

@@ -15,21 +15,28 @@ import base64
 import logging
 import math
 import uuid
-from collections.abc import Coroutine
+from collections.abc import Callable, Coroutine
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pydantic import ValidationError
+from sqlalchemy.orm import Session, sessionmaker
 
 from app.backends.base import BackendUnavailable, Frame, RobotBackend
-from app.backends.registry import create_backend
-from app.security import InvalidToken, Seat
+from app.backends.registry import BackendParts, create_backend
+from app.clock import ServerClock
+from app.mazes import Mazes
+from app.perception.belief import FilterWorker
+from app.security import InvalidToken, Seat, SeatTokens
+from app.settings import Settings
 from app.trial import decide as d
 from app.trial import events as ev
 from app.trial import messages as m
 from app.trial.decide import Refused
 from app.trial.events import LoggedEvent
-from app.trial.ldh_belief import LiveBelief
+from app.trial.ldh_belief import BeliefModel, LiveBelief
+from app.trial.log import EventLog
 from app.trial.port import Connection
 from app.trial.state import TrialState, fold
 from app.trial.throttle import Throttle
@@ -38,9 +45,9 @@ from app.trial.vocabulary import PARTICIPANTS, FrameSource, Move, Outcome, Phase
 from sim.core.geometry import wrap_angle
 
 if TYPE_CHECKING:
+    from app.drivers.registry import DriverParts
     from app.drivers.seat import AgentSeat
     from app.perception.belief import TrialBelief
-    from app.services import Services
 
 logger = logging.getLogger(__name__)
 AWAY_MARK_S = 1.0  # how much of a participant's time away a crash can lose from the grace period
@@ -50,11 +57,28 @@ class UnknownTrial(LookupError):
     pass
 
 
+@dataclass(frozen=True)
+class TrialParts:
+    """What a trial's runtime uses of the server, shared by every trial of this process."""
+
+    settings: Settings
+    db: sessionmaker[Session]
+    log: EventLog
+    clock: ServerClock
+    mazes: Mazes
+    seats: SeatTokens
+    filters: FilterWorker  # every trial's particle filter turns
+    backends: BackendParts
+    drivers: DriverParts
+    ldh: BeliefModel  # the watch page's LDH belief
+
+
 class TrialRuntime:
-    def __init__(self, trial_id: int, services: Services) -> None:
+    def __init__(self, trial_id: int, parts: TrialParts, forget: Callable[[int], None]) -> None:
         self.trial_id = trial_id
-        self.services = services
-        self.settings = services.settings
+        self.parts = parts
+        self.settings = parts.settings
+        self._forget = forget  # lets the hub drop a trial that is over and that nobody holds
         self.state = TrialState()
         self.backend: RobotBackend | None = None
         self.seats: dict[str, Connection] = {}
@@ -69,12 +93,12 @@ class TrialRuntime:
         self._belief_message: dict[str, Any] | None = None  # the latest, for the watch page
         self._last_frame: Frame | None = None  # the Driver camera's latest, for a filter built after it
         self._frame_dirs: set[Path] = set()
-        self.ldh = LiveBelief(self)  # the LDH model's belief, for the watchers only
+        self.ldh = LiveBelief(self, parts.ldh)  # the LDH model's belief, for the watchers only
         self._throttles: dict[str, Throttle] = {}  # per seat: how often its messages may be recorded
 
     # -- life cycle ---------------------------------------------------------------
     async def start(self) -> None:
-        events = self.services.log.load(self.trial_id)
+        events = self.parts.log.load(self.trial_id)
         if not events:
             raise UnknownTrial(f"trial {self.trial_id} does not exist")
         self.state = fold(events)
@@ -94,15 +118,15 @@ class TrialRuntime:
 
         s = self.state
         oracle = Oracle(s.maze, tuple(s.targets), self.true_pose) if s.driver.startswith(ORACLE) else None
-        return AgentSeat(self, self.services, oracle)
+        return AgentSeat(self, self.parts.drivers, oracle)
 
     async def _start_backend(self) -> None:
-        self.backend = await create_backend(self.state.backend, self, self.services)
+        self.backend = await create_backend(self.state.backend, self, self.parts.backends)
         pose = self.backend.pose()
         if pose is not None and self.state.pose is None:
             self.record_pose(pose)
-        self._spawn(self._pump_frames(self.backend))
-        self._spawn(self._start_belief())
+        self.spawn(self._pump_frames(self.backend))
+        self.spawn(self._start_belief())
         await self.backend.connect()
 
     async def _start_belief(self) -> None:
@@ -112,8 +136,8 @@ class TrialRuntime:
 
         try:
             calibration = await asyncio.to_thread(driver_calibration, self.state.backend, self.settings)
-            maze = self.services.mazes.load(self.state.maze)
-            self.belief = await self.services.filters.start(lambda: TrialBelief(maze, calibration, seed=self.trial_id))
+            maze = self.parts.mazes.load(self.state.maze)
+            self.belief = await self.parts.filters.start(lambda: TrialBelief(maze, calibration, seed=self.trial_id))
             # Built in the filters' share of a core, so frames may have come meanwhile: it starts
             # from what the camera sees now (its prior is uniform, so the moves before do not count).
             if self._last_frame is not None:
@@ -140,7 +164,7 @@ class TrialRuntime:
             # Let go of the filter now: its particles and free-space map (several MB, and the
             # maze) sit in reference cycles with this runtime that the collector frees only later.
             belief, self.belief = self.belief, None
-            self.services.filters.forget(belief)
+            self.parts.filters.forget(belief)
         if self.backend is not None:
             backend, self.backend = self.backend, None
             await backend.close()
@@ -148,9 +172,9 @@ class TrialRuntime:
     async def _end(self) -> None:
         await self.close()
         if not self.seats and not self.watchers:
-            self.services.hub.forget(self.trial_id)
+            self._forget(self.trial_id)
 
-    def _spawn(self, coro: Coroutine[Any, Any, Any]) -> asyncio.Task[Any]:
+    def spawn(self, coro: Coroutine[Any, Any, Any]) -> asyncio.Task[Any]:
         task = asyncio.get_running_loop().create_task(coro)
         self._tasks.add(task)
         task.add_done_callback(self._tasks.discard)
@@ -173,7 +197,7 @@ class TrialRuntime:
     def _record(
         self, event: ev.Event, attachments: dict[str, dict[str, Any]], frame: dict[str, Any] | None
     ) -> LoggedEvent:
-        t_ns = self.services.clock.now_ns()
+        t_ns = self.parts.clock.now_ns()
         if self.state.last_t_ns is not None:
             t_ns = max(t_ns, self.state.last_t_ns + 1)  # one trial's stamps never go back, even across restarts
         logged = LoggedEvent(self.state.last_seq + 1, event.kind, t_ns, event.payload())
@@ -184,7 +208,7 @@ class TrialRuntime:
         if isinstance(event, ev.PhaseChanged):
             active = self.state.active_s(t_ns) if event.phase == Phase.FINISHED else None
             cache = {"phase": str(event.phase), "moves": self.state.moves, "active_s": active}
-        self.services.log.append(
+        self.parts.log.append(
             self.trial_id, logged, frame=frame if isinstance(event, ev.FrameRecorded) else None, trial_cache=cache
         )
         self.state.apply_event(event, logged.seq, logged.t_ns)
@@ -194,7 +218,7 @@ class TrialRuntime:
 
     def _send(self, conn: Connection, message: dict[str, Any]) -> None:
         """What a seat hears of the log goes out once the log has committed it (group commit)."""
-        self.services.log.after_commit(self.trial_id, conn.deliver, message)
+        self.parts.log.after_commit(self.trial_id, conn.deliver, message)
 
     def _broadcast(self, logged: LoggedEvent, attachments: dict[str, dict[str, Any]]) -> None:
         for role, conn in list(self.seats.items()):
@@ -220,10 +244,10 @@ class TrialRuntime:
         self._sync_grace()
         if self.state.over and not self._ending:
             self._ending = True
-            self._spawn(self._end())
+            self.spawn(self._end())
 
     def status(self) -> dict[str, Any]:
-        return status_of(self.state, self.services.clock.now_ns())
+        return status_of(self.state, self.parts.clock.now_ns())
 
     # -- grace timers, from the log -------------------------------------------------
     def _sync_grace(self) -> None:
@@ -238,7 +262,7 @@ class TrialRuntime:
             if role not in self._grace:
                 self._grace[role] = loop.call_later(self._grace_left_s(role), self._grace_expired, role)
         if away and (self._away_marks is None or self._away_marks.done()):
-            self._away_marks = self._spawn(self._mark_time_away())
+            self._away_marks = self.spawn(self._mark_time_away())
 
     async def _mark_time_away(self) -> None:
         """A restart knows when the server was last up only from the log: while anyone is away,
@@ -250,7 +274,7 @@ class TrialRuntime:
             self.apply(d.Note(ev.StillAway(roles=sorted(self.state.away))))
 
     def _grace_left_s(self, role: Role) -> float:
-        gone = self.state.away[role].away_ns(self.services.clock.now_ns())
+        gone = self.state.away[role].away_ns(self.parts.clock.now_ns())
         return self.settings.grace_period_s - gone / 1e9
 
     def _grace_expired(self, role: Role) -> None:
@@ -293,7 +317,7 @@ class TrialRuntime:
             and not self.state.moves_in_flight
             and belief.offer(frame.jpeg, frame.capture_ns, frame.observation)
         ):
-            self.services.filters.due(belief, self._believed)
+            self.parts.filters.due(belief, self._believed)
 
     def _believed(self) -> None:
         """The filter has taken in a frame: the watchers see the new belief."""
@@ -337,8 +361,8 @@ class TrialRuntime:
 
         from app.db.models import Frame
 
-        self.services.log.flush()  # the frame may be in this turn's batch
-        with self.services.db() as db:
+        self.parts.log.flush()  # the frame may be in this turn's batch
+        with self.parts.db() as db:
             rel = db.scalar(select(Frame.path).where(Frame.trial_id == self.trial_id, Frame.seq == frame_id))
         if rel is None:
             return None
@@ -370,7 +394,7 @@ class TrialRuntime:
         del self.seats[conn.role]
         self.apply(d.Leave(Role(conn.role)))
         if self.state.over and not self.seats and not self.watchers:
-            self.services.hub.forget(self.trial_id)  # nobody left: this process can let it go
+            self._forget(self.trial_id)  # nobody left: this process can let it go
 
     def watch(self, conn: Connection) -> None:
         """An experimenter's live view: every seat's events, the Driver's camera, the true pose
@@ -384,7 +408,7 @@ class TrialRuntime:
     def unwatch(self, conn: Connection) -> None:
         self.watchers.discard(conn)
         if self.state.over and not self.seats and not self.watchers:
-            self.services.hub.forget(self.trial_id)
+            self._forget(self.trial_id)
 
     def welcome(self, role: str) -> dict[str, Any]:
         s = self.state
@@ -402,7 +426,7 @@ class TrialRuntime:
             "last_seq": s.last_seq,
             "history": [
                 msg
-                for e in self.services.log.load(self.trial_id)
+                for e in self.parts.log.load(self.trial_id)
                 if e.is_(ev.Chat, ev.PhaseChanged, ev.TargetConfirmed, ev.TargetRejected)
                 and (msg := view(role, e)) is not None
             ],
@@ -435,7 +459,7 @@ class TrialRuntime:
         try:
             message = self._parse(seat, text)
             if isinstance(message, m.Move) and message.type in m.ALLOWED[seat.role]:
-                self._spawn(self._handle_reporting(conn, seat.role, message))
+                self.spawn(self._handle_reporting(conn, seat.role, message))
                 return
             if not isinstance(message, m.Ping):
                 counted = True
@@ -496,7 +520,7 @@ class TrialRuntime:
         except ValidationError as err:
             raise Refused(f"invalid message: {_describe(err)}") from None
         try:
-            if self.services.seats.verify(message.token) != seat:
+            if self.parts.seats.verify(message.token) != seat:
                 raise InvalidToken("token is for another seat")
         except InvalidToken as err:
             raise Refused(f"token refused: {err}") from None
@@ -532,7 +556,7 @@ class TrialRuntime:
             d.RequestMove(
                 move_id,
                 Move(action),
-                self.services.clock.now_ns(),
+                self.parts.clock.now_ns(),
                 robot_ready=self.backend is not None,
                 min_interval_ns=int(self.settings.min_move_interval_s * 1e9),
             )
@@ -542,7 +566,7 @@ class TrialRuntime:
         backend = self.backend
         assert backend is not None  # RequestMove refuses every move while there is no backend
         reason = None
-        started_ns = self.services.clock.now_ns()
+        started_ns = self.parts.clock.now_ns()
         try:
             result = await backend.execute(action)
             outcome, reason = result.outcome, result.reason
@@ -576,7 +600,7 @@ class TrialRuntime:
         s, within_m = self.state, None
         pose = self.true_pose()
         if pose is not None and s.pending_claim is not None:
-            ox, oy = self.services.mazes.load(s.maze).objects[s.pending_claim["target"]]
+            ox, oy = self.parts.mazes.load(s.maze).objects[s.pending_claim["target"]]
             within_m = float(((pose[0] - ox) ** 2 + (pose[1] - oy) ** 2) ** 0.5)
         self.apply(d.Judge(confirmed, within_m))
 
@@ -597,7 +621,7 @@ class TrialRuntime:
             "phase": s.phase,
             "target_index": s.target_index,
             "target": s.current_target,
-            "elapsed_s": round(s.active_s(self.services.clock.now_ns()), 1),
+            "elapsed_s": round(s.active_s(self.parts.clock.now_ns()), 1),
             "moves": s.moves,
             "collisions": s.collisions,
             "pose": s.pose,

@@ -56,7 +56,7 @@ def parse_targets(text: str, rng: random.Random) -> list[str]:
 
 
 def check_driver(driver: str, agents: Mapping[str, str | None] | None) -> None:
-    """`human`, or an agent or oracle that can start: `agents` is `available_drivers(services)`."""
+    """`human`, or an agent or oracle that can start: `agents` is `available_drivers(services.drivers)`."""
     if driver == "human":
         return
     if agents is None or driver not in agents:
@@ -80,7 +80,7 @@ def create_trial(
     agents: Mapping[str, str | None] | None = None,
 ) -> Trial:
     """`layouts`: each maze of the library -> its layout (`Mazes.layouts()`); `agents`
-    (`available_drivers(services)`) is needed when an agent drives."""
+    (`available_drivers(services.drivers)`) is needed when an agent drives."""
     check_driver(driver, agents)
     team = db.get(Team, team_id)
     if team is None:
