@@ -25,12 +25,13 @@ from app.db.models import Experimenter
 from app.deps import LoginRequired
 from app.drivers.registry import DriverParts
 from app.guard import GuardMiddleware, template_context
+from app.ldh_study import Studies
 from app.login import LoginGuard, shared_counts
 from app.mazes import Mazes
 from app.perception.belief import FilterWorker
 from app.resources import shipped
 from app.routes import experimenter, ldh_study, pages, replay, robot_ws, seat_ws
-from app.security import CsrfTokens, SeatTokens, Sessions, set_password
+from app.security import CsrfTokens, SeatTokens, Sessions, StudyTokens, set_password
 from app.services import Services
 from app.settings import Settings
 from app.trial.hub import TrialHub
@@ -38,6 +39,7 @@ from app.trial.ldh_belief import BeliefModel
 from app.trial.log import EventLog
 from app.trial.relay import key_prefix
 from app.trial.runtime import TrialParts
+from app.web import error_page, wants_html
 
 logger = logging.getLogger("robotslang")
 
@@ -88,6 +90,8 @@ def build_services(settings: Settings) -> Services:
         robots=robots,
         trials=trials,
         hub=TrialHub(trials, settings.redis_url),
+        studies=Studies(settings, db, clock),
+        study_tokens=StudyTokens(key),
     )
 
 
@@ -144,15 +148,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     # A person following a link gets a page that says what to do; scripts keep the JSON error.
     @app.exception_handler(StarletteHTTPException)
     async def _http_error(request: Request, exc: StarletteHTTPException):
-        if not pages.wants_html(request):
+        if not wants_html(request):
             return await http_exception_handler(request, exc)
-        return pages.error_page(request, exc.status_code, str(exc.detail))
+        return error_page(request, exc.status_code, str(exc.detail))
 
     @app.exception_handler(RequestValidationError)
     async def _bad_request(request: Request, exc: RequestValidationError):
-        if not pages.wants_html(request):
+        if not wants_html(request):
             return await request_validation_exception_handler(request, exc)
-        return pages.error_page(request, 404 if request.method == "GET" else 422, None)
+        return error_page(request, 404 if request.method == "GET" else 422, None)
 
     @app.get("/favicon.ico", include_in_schema=False)
     async def _favicon():

@@ -15,10 +15,11 @@ from sqlalchemy.orm import Session, sessionmaker
 from app.backends.remote import RobotLinks
 from app.clock import ServerClock
 from app.drivers.registry import DriverParts
+from app.ldh_study import Studies
 from app.login import LoginGuard
 from app.login_sockets import LoginSockets
 from app.mazes import Mazes
-from app.security import CsrfTokens, SeatTokens, Sessions
+from app.security import CsrfTokens, SeatTokens, Sessions, StudyTokens
 from app.settings import Settings
 from app.trial.hub import TrialHub
 from app.trial.log import EventLog
@@ -40,6 +41,8 @@ class Services:
     robots: RobotLinks  # the rovers and cameras connected here
     trials: TrialParts  # what the live trials share (the filters, the renderer, the LDH belief, ...)
     hub: TrialHub  # the live trials of this process (and, with Redis, its relay to the others)
+    studies: Studies  # LDH human studies
+    study_tokens: StudyTokens  # their participants' links
     login_sockets: LoginSockets = field(default_factory=LoginSockets)  # experimenters' watch sockets, by login
 
     @property

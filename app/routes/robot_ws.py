@@ -18,7 +18,8 @@ import time
 from collections.abc import Mapping
 from typing import Any
 
-from fastapi import APIRouter, Depends, Form, HTTPException, Request, WebSocket, WebSocketDisconnect
+from fastapi import APIRouter, Depends, Form, HTTPException, WebSocket, WebSocketDisconnect
+from sqlalchemy.orm import Session, sessionmaker
 
 from app.backends.remote import (
     MAX_FRAME_BYTES,
@@ -28,7 +29,7 @@ from app.backends.remote import (
     create_robot,
     robot_for_token,
 )
-from app.deps import experimenter_id
+from app.deps import ClockDep, DbFactory, DbSession, RobotLinksDep, SettingsDep, experimenter_id
 from app.guard import csrf_protect, socket_origin_allowed
 from app.serving import MESSAGE_TOO_BIG
 from robot_client.protocol import (
@@ -58,15 +59,15 @@ class Refused(Exception):
 
 
 @router.websocket("/ws/robot")
-async def robot_socket(ws: WebSocket) -> None:
-    services = ws.app.state.services
-    links = services.robots
-    if not socket_origin_allowed(ws.headers, ws.url.scheme, services.settings):  # a page on another site
+async def robot_socket(
+    ws: WebSocket, links: RobotLinksDep, settings: SettingsDep, clock: ClockDep, db: DbFactory
+) -> None:
+    if not socket_origin_allowed(ws.headers, ws.url.scheme, settings):  # a page on another site
         await ws.close(code=1008, reason="origin not allowed")
         return
     await ws.accept()
     try:
-        robot_id, name, role = await _hello(ws, services)
+        robot_id, name, role = await _hello(ws, db)
     except Refused as refused:
         await _send(ws, {"type": "error", "code": refused.code, "error": str(refused)})
         await ws.close(code=CLOSE_REFUSED, reason=str(refused)[:120])
@@ -75,7 +76,7 @@ async def robot_socket(ws: WebSocket) -> None:
         return
 
     outbox: asyncio.Queue[str] = asyncio.Queue(OUTBOX_LIMIT)
-    link = RobotLink(robot_id, name, role, lambda m: _queue(outbox, m), services.clock)
+    link = RobotLink(robot_id, name, role, lambda m: _queue(outbox, m), clock)
     links.attach(link)
     _queue(
         outbox,
@@ -85,7 +86,7 @@ async def robot_socket(ws: WebSocket) -> None:
             "robot": {"id": robot_id, "name": name, "role": role},
             "ping_interval_s": PING_INTERVAL_S,
             "max_frame_bytes": MAX_FRAME_BYTES,
-            "server_ns": services.clock.now_ns(),
+            "server_ns": clock.now_ns(),
         },
     )
     logger.info("robot %r (%s) connected", name, role)
@@ -109,7 +110,7 @@ async def robot_socket(ws: WebSocket) -> None:
                 await ws.close()
 
 
-async def _hello(ws: WebSocket, services) -> tuple[int, str, str]:
+async def _hello(ws: WebSocket, sessions: sessionmaker[Session]) -> tuple[int, str, str]:
     raw = await asyncio.wait_for(ws.receive(), HELLO_TIMEOUT_S)
     if raw["type"] == "websocket.disconnect":
         raise WebSocketDisconnect(raw.get("code", 1000))
@@ -126,7 +127,7 @@ async def _hello(ws: WebSocket, services) -> tuple[int, str, str]:
     token, role = hello.get("token"), hello.get("role")
     if role not in ROLES:
         raise Refused("role", f"role {role!r}: expected one of {', '.join(ROLES)}")
-    with services.db() as db:
+    with sessions() as db:
         robot = robot_for_token(db, token) if isinstance(token, str) else None
     if robot is None:
         raise Refused("auth", "unknown robot token (copy it from the experimenter page)")
@@ -201,16 +202,16 @@ async def _dispatch(raw: Mapping[str, Any], link: RobotLink, links, received_ns:
 
 # -- the experimenter's robot API ------------------------------------------------------
 @router.get("/experimenter/api/robots", dependencies=[Depends(experimenter_id)])
-def robots_status(request: Request) -> dict:
+def robots_status(links: RobotLinksDep) -> dict:
     """Each registered robot: connected, frames per second, link latency, last acknowledgement."""
-    return {"robots": request.app.state.services.robots.status()}
+    return {"robots": links.status()}
 
 
 @router.post("/experimenter/api/robots", dependencies=[Depends(experimenter_id), Depends(csrf_protect)])
-def register_robot(request: Request, name: str = Form(max_length=80), role: str = Form("driver")) -> dict:
+def register_robot(db: DbSession, name: str = Form(max_length=80), role: str = Form("driver")) -> dict:
     """Register a robot. The answer holds its token: shown this once, stored only hashed."""
     try:
-        with request.app.state.services.db.begin() as db:
+        with db.begin():
             robot, token = create_robot(db, name, role)
             return {
                 "id": robot.id,

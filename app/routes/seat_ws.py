@@ -17,13 +17,14 @@ import logging
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
 from app.db.models import Trial
+from app.deps import DbFactory, HubDep, LoginSocketsDep, SeatTokensDep, SessionsDep, SettingsDep
 from app.guard import socket_origin_allowed
-from app.routes.pages import over_reason
 from app.security import SESSION_COOKIE, InvalidToken, Sessions
 from app.serving import MESSAGE_TOO_BIG
 from app.trial.runtime import UnknownTrial
 from app.trial.views import EXPERIMENTER
 from app.trial.vocabulary import Role
+from app.web import over_reason
 
 router = APIRouter()
 logger = logging.getLogger(__name__)
@@ -85,15 +86,16 @@ class SocketSeat:
 
 
 @router.websocket("/ws/play")
-async def play(ws: WebSocket, token: str = "") -> None:
-    services = ws.app.state.services
-    if not socket_origin_allowed(ws.headers, ws.url.scheme, services.settings):
+async def play(
+    ws: WebSocket, settings: SettingsDep, seats: SeatTokensDep, db: DbFactory, hub: HubDep, token: str = ""
+) -> None:
+    if not socket_origin_allowed(ws.headers, ws.url.scheme, settings):
         await ws.close(code=1008, reason="origin not allowed")
         return
     try:
-        seat = services.seats.admit(token)
-        with services.db() as db:
-            trial = db.get(Trial, seat.trial_id)
+        seat = seats.admit(token)
+        with db() as session:
+            trial = session.get(Trial, seat.trial_id)
         if trial is None:
             raise UnknownTrial(f"trial {seat.trial_id} does not exist")
         if (reason := over_reason(trial)) is not None:
@@ -105,7 +107,7 @@ async def play(ws: WebSocket, token: str = "") -> None:
     # is connected at once, and each seat's welcome follows as its trial opens.
     await ws.accept()
     try:
-        runtime = await services.hub.get(seat.trial_id)
+        runtime = await hub.get(seat.trial_id)
     except UnknownTrial as err:
         await ws.close(code=1008, reason=str(err)[:120])
         return
@@ -131,29 +133,35 @@ async def play(ws: WebSocket, token: str = "") -> None:
 
 
 @router.websocket("/ws/watch/{trial_id}")
-async def watch(ws: WebSocket, trial_id: int) -> None:
+async def watch(
+    ws: WebSocket,
+    trial_id: int,
+    settings: SettingsDep,
+    sessions: SessionsDep,
+    hub: HubDep,
+    login_sockets: LoginSocketsDep,
+) -> None:
     """The experimenter's live view of a trial: a `welcome` (with `status`, the last Driver frame
     and the pose), then every event but the overhead camera, frames with their JPEG, and `status`."""
-    services = ws.app.state.services
-    if not socket_origin_allowed(ws.headers, ws.url.scheme, services.settings):
+    if not socket_origin_allowed(ws.headers, ws.url.scheme, settings):
         await ws.close(code=1008, reason="origin not allowed")
         return
     cookie = ws.cookies.get(SESSION_COOKIE)
-    login = services.sessions.verify(cookie)
+    login = sessions.verify(cookie)
     if login is None:
         await ws.close(code=1008, reason="log in as an experimenter first")
         return
     try:
-        runtime = await services.hub.get(trial_id)
+        runtime = await hub.get(trial_id)
     except UnknownTrial as err:
         await ws.close(code=1008, reason=str(err)[:120])
         return
     await ws.accept()
     conn = SocketSeat(ws, EXPERIMENTER)
     runtime.watch(conn)
-    services.login_sockets.add(login, conn)
+    login_sockets.add(login, conn)
     listening = asyncio.create_task(_until_closed(ws))
-    logged_in = asyncio.create_task(_while_logged_in(services.sessions, cookie))
+    logged_in = asyncio.create_task(_while_logged_in(sessions, cookie))
     try:
         await asyncio.wait((listening, logged_in), return_when=asyncio.FIRST_COMPLETED)
         if logged_in.done():
@@ -162,7 +170,7 @@ async def watch(ws: WebSocket, trial_id: int) -> None:
     finally:
         listening.cancel()
         logged_in.cancel()
-        services.login_sockets.discard(login, conn)
+        login_sockets.discard(login, conn)
         runtime.unwatch(conn)
         await conn.close()
 
