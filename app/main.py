@@ -34,6 +34,7 @@ from app.routes import experimenter, ldh_study, pages, replay, robot_ws, seat_ws
 from app.security import CsrfTokens, SeatTokens, Sessions, StudyTokens, set_password
 from app.services import Services
 from app.settings import Settings
+from app.trial.frames_store import FrameStore
 from app.trial.hub import TrialHub
 from app.trial.ldh_belief import BeliefModel
 from app.trial.log import EventLog
@@ -72,6 +73,7 @@ def build_services(settings: Settings) -> Services:
         mazes=mazes,
         seats=seats,
         filters=FilterWorker(),
+        frames=FrameStore(settings.frames_dir, db, log),
         backends=BackendParts(mazes, clock, renderer, db, robots, settings.overhead_calibration),
         drivers=DriverParts(settings, mazes, clock),
         ldh=BeliefModel(settings.ldh_checkpoint, settings.cache_dir),

@@ -140,6 +140,11 @@ class Mazes:
         """Each landmark's centre in metres, for the legend and the next-target mark."""
         return {obj: (float(x), float(y)) for obj, (x, y) in self.load(name).objects.items()}
 
+    def distance_m(self, name: str, obj: str, pose: tuple[float, float, float]) -> float:
+        """How far a pose is from an object's centre, in metres: what a claim is judged by."""
+        ox, oy = self.load(name).objects[obj]
+        return math.hypot(pose[0] - ox, pose[1] - oy)
+
     def full_map_png(self, name: str) -> bytes:
         """Walls and objects: for the experimenter only."""
         return _encode(".png", self.load(name).image())

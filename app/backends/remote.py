@@ -28,7 +28,7 @@ from app.backends.base import BackendUnavailable, Frame, MoveOutcome
 from app.db.models import Robot
 from app.perception.tracker_seat import TrialTracker
 from app.trial.port import RobotTrial
-from app.trial.vocabulary import PARTICIPANTS, ROBOT_ROLES, FrameSource, Move, Outcome, Role
+from app.trial.vocabulary import PARTICIPANTS, ROBOT_ROLES, FrameSource, Move, Outcome, PoseSource, Role
 from robot_client.protocol import FrameHeader
 
 if TYPE_CHECKING:
@@ -345,6 +345,8 @@ class RobotSeat:
 
 
 class RemoteRobotBackend:
+    pose_source = PoseSource.TRACKER
+
     def __init__(
         self,
         robot_id: int,

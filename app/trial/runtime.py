@@ -17,7 +17,6 @@ import math
 import uuid
 from collections.abc import Callable, Coroutine
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pydantic import ValidationError
@@ -33,8 +32,10 @@ from app.settings import Settings
 from app.trial import decide as d
 from app.trial import events as ev
 from app.trial import messages as m
+from app.trial import views
 from app.trial.decide import Refused
 from app.trial.events import LoggedEvent
+from app.trial.frames_store import FrameStore
 from app.trial.ldh_belief import BeliefModel, LiveBelief
 from app.trial.log import EventLog
 from app.trial.port import Connection
@@ -68,6 +69,7 @@ class TrialParts:
     mazes: Mazes
     seats: SeatTokens
     filters: FilterWorker  # every trial's particle filter turns
+    frames: FrameStore  # the camera images' files
     backends: BackendParts
     drivers: DriverParts
     ldh: BeliefModel  # the watch page's LDH belief
@@ -92,7 +94,6 @@ class TrialRuntime:
         self.belief: TrialBelief | None = None  # `TrialBelief` once the Driver camera's calibration is loaded
         self._belief_message: dict[str, Any] | None = None  # the latest, for the watch page
         self._last_frame: Frame | None = None  # the Driver camera's latest, for a filter built after it
-        self._frame_dirs: set[Path] = set()
         self.ldh = LiveBelief(self, parts.ldh)  # the LDH model's belief, for the watchers only
         self._throttles: dict[str, Throttle] = {}  # per seat: how often its messages may be recorded
 
@@ -290,15 +291,15 @@ class TrialRuntime:
     # -- what the backend reports -------------------------------------------------
     def record_pose(self, pose: tuple[float, float, float]) -> None:
         x, y, theta = pose
-        source = PoseSource.SIM if self.state.backend == "sim" else PoseSource.TRACKER
+        source = self.backend.pose_source if self.backend is not None else PoseSource.TRACKER
         self.apply(d.Note(ev.PoseSampled(x=x, y=y, heading=wrap_angle(theta), source=source)))
 
     async def _pump_frames(self, backend: RobotBackend) -> None:
         async for frame in backend.frames():
             try:
-                rel = self._frame_file(frame.capture_ns, FrameSource.DRIVER)
+                rel = FrameStore.name(self.trial_id, frame.capture_ns, FrameSource.DRIVER)
                 # The file is written off the event loop (slow disks must not delay other trials).
-                await asyncio.to_thread(self._write_frame_file, rel, frame.jpeg)
+                await asyncio.to_thread(self.parts.frames.write, rel, frame.jpeg)
                 frame_id = self.state.last_seq + 1  # the frame event's own seq
                 if frame.observation is not None and self.agent is not None:
                     self.agent.note_observation(frame_id, frame.observation)  # the agent seat's alone
@@ -328,12 +329,9 @@ class TrialRuntime:
             conn.deliver(message)
 
     def record_frame(self, jpeg: bytes, capture_ns: int, width: int, height: int, source: FrameSource) -> int:
-        rel = self._frame_file(capture_ns, source)
-        self._write_frame_file(rel, jpeg)
+        rel = FrameStore.name(self.trial_id, capture_ns, source)
+        self.parts.frames.write(rel, jpeg)
         return self._commit_frame(rel, jpeg, capture_ns, width, height, source)
-
-    def _frame_file(self, capture_ns: int, source: str) -> str:
-        return f"{self.trial_id}/{capture_ns}-{source}.jpg"  # relative to frames_dir
 
     def _commit_frame(
         self, rel: str, jpeg: bytes, capture_ns: int, width: int, height: int, source: FrameSource
@@ -349,27 +347,8 @@ class TrialRuntime:
         self.apply(d.Note(event), attachments=attach, frame=row)
         return frame_id
 
-    def _write_frame_file(self, rel: str, jpeg: bytes) -> None:
-        path = self.settings.frames_dir / rel
-        if path.parent not in self._frame_dirs:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            self._frame_dirs.add(path.parent)
-        path.write_bytes(jpeg)
-
     def frame_jpeg(self, frame_id: int) -> bytes | None:
-        from sqlalchemy import select
-
-        from app.db.models import Frame
-
-        self.parts.log.flush()  # the frame may be in this turn's batch
-        with self.parts.db() as db:
-            rel = db.scalar(select(Frame.path).where(Frame.trial_id == self.trial_id, Frame.seq == frame_id))
-        if rel is None:
-            return None
-        try:
-            return (self.settings.frames_dir / rel).read_bytes()
-        except OSError:
-            return None
+        return self.parts.frames.read(self.trial_id, frame_id)
 
     def report_bad_message(self, role: Role, error: str) -> None:
         self.apply(d.Note(ev.BadMessage(role=role, error=error[:500])))
@@ -411,44 +390,8 @@ class TrialRuntime:
             self._forget(self.trial_id)
 
     def welcome(self, role: str) -> dict[str, Any]:
-        s = self.state
-        message: dict[str, Any] = {
-            "type": "welcome",
-            "role": role,
-            "trial_id": self.trial_id,
-            "phase": s.phase,
-            "target_index": s.target_index,
-            "targets_total": len(s.targets),
-            "connected": sorted(self.seats),
-            "seats_needed": list(s.seats_needed),
-            "paused": sorted(s.pause_reasons),
-            "pending_claim": s.pending_claim is not None,
-            "last_seq": s.last_seq,
-            "history": [
-                msg
-                for e in self.parts.log.load(self.trial_id)
-                if e.is_(ev.Chat, ev.PhaseChanged, ev.TargetConfirmed, ev.TargetRejected)
-                and (msg := view(role, e)) is not None
-            ],
-            "status": self.status(),
-        }
-        if role == Role.COMMANDER:
-            message["target"] = s.current_target
-            if s.pending_claim is not None:
-                message["claim"] = self._claim_attachment(s.pending_claim["frame_id"])
-        if role in (Role.DRIVER, EXPERIMENTER) and s.last_frame_id is not None:
-            jpeg = self.frame_jpeg(s.last_frame_id)
-            if jpeg is not None:
-                message["frame"] = {"frame_id": s.last_frame_id, "jpeg": base64.b64encode(jpeg).decode()}
-        if role == EXPERIMENTER:
-            message["pose"] = s.pose
-            message["targets"] = list(s.targets)
-            message["localization"] = s.localization
-        return message
-
-    def _claim_attachment(self, frame_id: int) -> dict[str, Any]:
-        jpeg = self.frame_jpeg(frame_id)
-        return {"frame_id": frame_id, "jpeg": base64.b64encode(jpeg).decode() if jpeg else None}
+        events = self.parts.log.load(self.trial_id)
+        return views.welcome(role, self.trial_id, self.state, self.seats, events, self.status(), self.frame_jpeg)
 
     # -- messages -----------------------------------------------------------------
     async def receive(self, conn: Connection, seat: Seat, text: str | None) -> None:
@@ -580,8 +523,8 @@ class TrialRuntime:
             outcome != Outcome.REFUSED
             and self.backend is not None
             and not self.state.over
-            and self.state.backend == "sim"
-        ):  # a rover's tracker records its own poses
+            and self.backend.pose_source == PoseSource.SIM
+        ):  # a simulator knows where the move left it; a rover's tracker records its own poses
             pose = self.backend.pose()
             if pose is not None:
                 self.record_pose(pose)
@@ -590,7 +533,7 @@ class TrialRuntime:
     def claim(self) -> None:
         s = self.state
         attach: dict[str, dict[str, Any]] | None = (
-            {Role.COMMANDER: {"claim": self._claim_attachment(s.last_frame_id)}}
+            {Role.COMMANDER: {"claim": views.claim_attachment(s.last_frame_id, self.frame_jpeg)}}
             if s.last_frame_id is not None
             else None
         )
@@ -600,8 +543,7 @@ class TrialRuntime:
         s, within_m = self.state, None
         pose = self.true_pose()
         if pose is not None and s.pending_claim is not None:
-            ox, oy = self.parts.mazes.load(s.maze).objects[s.pending_claim["target"]]
-            within_m = float(((pose[0] - ox) ** 2 + (pose[1] - oy) ** 2) ** 0.5)
+            within_m = self.parts.mazes.distance_m(s.maze, s.pending_claim["target"], pose)
         self.apply(d.Judge(confirmed, within_m))
 
     # -- experimenter -------------------------------------------------------------
@@ -615,24 +557,8 @@ class TrialRuntime:
         self.apply(d.Abort(reason))
 
     def snapshot(self) -> dict[str, Any]:
-        s = self.state
-        return {
-            "trial_id": self.trial_id,
-            "phase": s.phase,
-            "target_index": s.target_index,
-            "target": s.current_target,
-            "elapsed_s": round(s.active_s(self.parts.clock.now_ns()), 1),
-            "moves": s.moves,
-            "collisions": s.collisions,
-            "pose": s.pose,
-            "paused": sorted(s.pause_reasons),
-            "seats": {r: r in self.seats for r in s.seats_needed},
-            "waiting_for": s.waiting_for,
-            "backend": s.backend,
-            "localization": s.localization,
-            "maze": s.maze,
-            "belief": self._belief_message,
-        }
+        now_ns = self.parts.clock.now_ns()
+        return views.snapshot(self.trial_id, self.state, now_ns, self.seats, self._belief_message)
 
 
 def _describe(err: ValidationError) -> str:
