@@ -71,7 +71,6 @@ def build_services(settings: Settings) -> Services:
         log=log,
         clock=clock,
         mazes=mazes,
-        seats=seats,
         filters=FilterWorker(),
         frames=FrameStore(settings.frames_dir, db, log),
         backends=BackendParts(mazes, clock, renderer, db, robots, settings.overhead_calibration),

@@ -1,6 +1,7 @@
 """`/ws/play`: the Commander's and the Driver's socket; `/ws/watch/{trial_id}`: the experimenter's.
 
-The token is checked at the upgrade and again on every message (`TrialRuntime.receive`); the
+The token is checked at the upgrade and again on every message (`read_message`, which hands the
+runtime typed messages only); the
 watch socket needs the experimenter's login cookie, only listens, and is closed (4401) when
 that login ends: at once at a logout here, within `LOGIN_RECHECK_S` of one elsewhere or of a
 password change. The trial may run in this process or, with Redis, in another
@@ -15,12 +16,15 @@ import json
 import logging
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
+from pydantic import ValidationError
 
 from app.db.models import Trial
 from app.deps import DbFactory, HubDep, LoginSocketsDep, SeatTokensDep, SessionsDep, SettingsDep
 from app.guard import socket_origin_allowed
-from app.security import SESSION_COOKIE, InvalidToken, Sessions
+from app.security import SESSION_COOKIE, InvalidToken, Seat, SeatTokens, Sessions
 from app.serving import MESSAGE_TOO_BIG
+from app.trial import messages as m
+from app.trial.decide import Refused
 from app.trial.runtime import UnknownTrial
 from app.trial.views import EXPERIMENTER
 from app.trial.vocabulary import Role
@@ -124,7 +128,12 @@ async def play(
                 if raw.get("code") == MESSAGE_TOO_BIG:  # answered by the server (app.serving); now logged
                     runtime.report_bad_message(Role(seat.role), raw.get("reason") or "message too big")
                 break
-            await runtime.receive(conn, seat, raw.get("text"))
+            try:
+                message = read_message(raw.get("text"), seat, seats, settings.max_message_bytes)
+            except Refused as err:
+                runtime.refuse_unread(conn, seat.role, str(err))
+                continue
+            await runtime.receive(conn, seat.role, message)
     except WebSocketDisconnect:
         pass
     finally:
@@ -173,6 +182,35 @@ async def watch(
         login_sockets.discard(login, conn)
         runtime.unwatch(conn)
         await conn.close()
+
+
+def read_message(text: str | None, seat: Seat, seats: SeatTokens, limit: int) -> m.SeatMessage:
+    """One socket message as the seat's typed message; `Refused` saying why it cannot be read:
+    binary, over `limit` bytes, not a valid message, or not carrying this seat's token (each
+    message carries it, so a token that is revoked or for another seat stops working at once)."""
+    if text is None:
+        raise Refused("messages must be JSON text, not binary")
+    size = len(text.encode())
+    if size > limit:
+        raise Refused(f"message is {size} bytes; the limit is {limit}")
+    try:
+        message = m.seat_message.validate_json(text)
+    except ValidationError as err:
+        raise Refused(f"invalid message: {_describe(err)}") from None
+    try:
+        if seats.verify(message.token) != seat:
+            raise InvalidToken("token is for another seat")
+    except InvalidToken as err:
+        raise Refused(f"token refused: {err}") from None
+    return message
+
+
+def _describe(err: ValidationError) -> str:
+    parts = []
+    for e in err.errors()[:3]:
+        where = ".".join(str(p) for p in e["loc"]) or "message"
+        parts.append(f"{where}: {e['msg']}")
+    return "; ".join(parts)
 
 
 async def _until_closed(ws: WebSocket) -> None:

@@ -28,7 +28,8 @@ import threading
 import uuid
 from typing import TYPE_CHECKING, Any, cast
 
-from app.security import Seat
+from app.trial import messages as m
+from app.trial.messages import SeatMessage
 from app.trial.views import EXPERIMENTER
 from app.trial.vocabulary import Role
 
@@ -193,9 +194,12 @@ class RedisRelay:
             seat = RelayedSeat(self, conn_id, msg["role"], msg["from"])
             self.relayed[conn_id] = seat
             runtime.watch(seat) if seat.role == EXPERIMENTER else runtime.join(seat)
-        elif op == "text" and conn_id in self.relayed:
+        elif op == "message" and conn_id in self.relayed:
             seat = self.relayed[conn_id]
-            await runtime.receive(seat, Seat(msg["trial"], seat.role), msg["text"])
+            await runtime.receive(seat, seat.role, m.seat_message.validate_json(msg["message"]))
+        elif op == "unread" and conn_id in self.relayed:
+            seat = self.relayed[conn_id]
+            runtime.refuse_unread(seat, seat.role, msg["error"])
         elif op == "bad_message" and conn_id in self.relayed:
             runtime.report_bad_message(Role(self.relayed[conn_id].role), msg["error"])
         elif op == "leave" and conn_id in self.relayed:
@@ -263,10 +267,15 @@ class RemoteTrial:
             self.relay.local.pop(conn_id, None)
             _attach(self.runtime, conn)
 
-    async def receive(self, conn: Connection, seat: Seat, text: str | None) -> None:
+    async def receive(self, conn: Connection, role: str, message: SeatMessage) -> None:
         if self.runtime is not None:
-            return await self.runtime.receive(conn, seat, text)
-        self._command("text", conn=self._ids[id(conn)], text=text)
+            return await self.runtime.receive(conn, role, message)
+        self._command("message", conn=self._ids[id(conn)], message=message.model_dump_json())
+
+    def refuse_unread(self, conn: Connection, role: str, error: str) -> None:
+        if self.runtime is not None:
+            return self.runtime.refuse_unread(conn, role, error)
+        self._command("unread", conn=self._ids[id(conn)], error=error)
 
     def report_bad_message(self, role: Role, error: str) -> None:
         if self.runtime is not None:

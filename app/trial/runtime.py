@@ -19,7 +19,6 @@ from collections.abc import Callable, Coroutine
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from pydantic import ValidationError
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.backends.base import BackendUnavailable, Frame, RobotBackend
@@ -27,7 +26,6 @@ from app.backends.registry import BackendParts, create_backend
 from app.clock import ServerClock
 from app.mazes import Mazes
 from app.perception.belief import FilterWorker
-from app.security import InvalidToken, Seat, SeatTokens
 from app.settings import Settings
 from app.trial import decide as d
 from app.trial import events as ev
@@ -67,7 +65,6 @@ class TrialParts:
     log: EventLog
     clock: ServerClock
     mazes: Mazes
-    seats: SeatTokens
     filters: FilterWorker  # every trial's particle filter turns
     frames: FrameStore  # the camera images' files
     backends: BackendParts
@@ -394,24 +391,29 @@ class TrialRuntime:
         return views.welcome(role, self.trial_id, self.state, self.seats, events, self.status(), self.frame_jpeg)
 
     # -- messages -----------------------------------------------------------------
-    async def receive(self, conn: Connection, seat: Seat, text: str | None) -> None:
-        """One raw message from a seat's socket. A bad one gets an error reply and a
-        `bad_message` event, and never ends the trial. Moves run beside the socket's reader,
-        so a move sent while one is executing is refused rather than queued."""
+    async def receive(self, conn: Connection, role: str, message: m.SeatMessage) -> None:
+        """One message from a seat's socket, read and its token checked there. One not allowed
+        now gets an error reply and a `bad_message` event, and never ends the trial. Moves run
+        beside the socket's reader, so a move sent while one is executing is refused rather than queued."""
         counted = False  # against the seat's rate: all but pings and moves, and refused moves
         try:
-            message = self._parse(seat, text)
-            if isinstance(message, m.Move) and message.type in m.ALLOWED[seat.role]:
-                self.spawn(self._handle_reporting(conn, seat.role, message))
+            if isinstance(message, m.Move) and message.type in m.ALLOWED[role]:
+                self.spawn(self._handle_reporting(conn, role, message))
                 return
             if not isinstance(message, m.Ping):
                 counted = True
-                if not self._within_rate(conn, seat.role):
+                if not self._within_rate(conn, role):
                     return
-            await self.handle(seat.role, message)
+            await self.handle(role, message)
         except Refused as err:
-            if counted or self._within_rate(conn, seat.role):
-                self.refuse(conn, seat.role, str(err))
+            if counted or self._within_rate(conn, role):
+                self.refuse(conn, role, str(err))
+
+    def refuse_unread(self, conn: Connection, role: str, error: str) -> None:
+        """A message its socket could not read (not JSON, too big, another seat's token): refused
+        as any other, within the seat's rate."""
+        if self._within_rate(conn, role):
+            self.refuse(conn, role, error)
 
     async def _handle_reporting(self, conn: Connection, role: str, message: m.Move) -> None:
         try:
@@ -450,24 +452,6 @@ class TrialRuntime:
                 }
             )
         return not wait_s
-
-    def _parse(self, seat: Seat, text: str | None) -> m.SeatMessage:
-        limit = self.settings.max_message_bytes
-        if text is None:
-            raise Refused("messages must be JSON text, not binary")
-        size = len(text.encode())
-        if size > limit:
-            raise Refused(f"message is {size} bytes; the limit is {limit}")
-        try:
-            message = m.seat_message.validate_json(text)
-        except ValidationError as err:
-            raise Refused(f"invalid message: {_describe(err)}") from None
-        try:
-            if self.parts.seats.verify(message.token) != seat:
-                raise InvalidToken("token is for another seat")
-        except InvalidToken as err:
-            raise Refused(f"token refused: {err}") from None
-        return message
 
     async def handle(self, role: str, message: m.SeatMessage) -> None:
         """Apply one validated message from a seat; raises `Refused` when not allowed now."""
@@ -559,11 +543,3 @@ class TrialRuntime:
     def snapshot(self) -> dict[str, Any]:
         now_ns = self.parts.clock.now_ns()
         return views.snapshot(self.trial_id, self.state, now_ns, self.seats, self._belief_message)
-
-
-def _describe(err: ValidationError) -> str:
-    parts = []
-    for e in err.errors()[:3]:
-        where = ".".join(str(p) for p in e["loc"]) or "message"
-        parts.append(f"{where}: {e['msg']}")
-    return "; ".join(parts)
