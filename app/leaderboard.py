@@ -14,10 +14,8 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.db.models import Participant, Team, Trial
+from app.trial.specs import SeatKind, SeatSpec
 from app.trial.vocabulary import Phase
-
-HUMAN = "human"
-AGENT_PREFIX = "agent:"
 
 
 @dataclass(frozen=True)
@@ -70,7 +68,7 @@ def standings(db: Session, move_penalty_s: float) -> list[TeamStanding]:
     names = dict(db.execute(select(Participant.id, Participant.name)).all())
     groups: dict[str, tuple[list[float], set[str]]] = {}
     for trial, team in _finished(db):
-        if trial.driver != HUMAN:
+        if not SeatSpec.parse(trial.driver).human:
             continue
         scores, drivers = groups.setdefault(team, ([], set()))
         scores.append(trial_score(trial.active_s, trial.moves, move_penalty_s))
@@ -83,7 +81,7 @@ def agent_standings(db: Session, move_penalty_s: float) -> list[AgentStanding]:
     """Agent Drivers, by their best trial with any Commander."""
     groups: dict[str, tuple[list[float], set[str]]] = {}
     for trial, team in _finished(db):
-        if not trial.driver.startswith(AGENT_PREFIX):
+        if SeatSpec.parse(trial.driver).kind != SeatKind.AGENT:
             continue
         scores, commanders = groups.setdefault(trial.driver, ([], set()))
         scores.append(trial_score(trial.active_s, trial.moves, move_penalty_s))

@@ -21,6 +21,7 @@ from app.backends.render import FrameRenderer
 from app.clock import ServerClock
 from app.mazes import Mazes
 from app.trial.port import RobotTrial
+from app.trial.specs import BackendSpec
 
 if TYPE_CHECKING:
     from app.backends.remote import RobotLinks
@@ -55,7 +56,7 @@ def backend_kinds() -> list[str]:
 
 
 async def create_backend(spec: str, trial: RobotTrial, parts: BackendParts) -> RobotBackend:
-    kind = spec.split(":", 1)[0]
+    kind = BackendSpec.parse(spec).kind
     if kind not in _FACTORIES and kind in PLUGINS:
         module, name = PLUGINS[kind].split(":")
         _FACTORIES[kind] = getattr(importlib.import_module(module), name)

@@ -28,6 +28,7 @@ from app.backends.base import BackendUnavailable, Frame, MoveOutcome
 from app.db.models import Robot
 from app.perception.tracker_seat import TrialTracker
 from app.trial.port import RobotTrial
+from app.trial.specs import BackendSpec
 from app.trial.vocabulary import PARTICIPANTS, ROBOT_ROLES, FrameSource, Move, Outcome, PoseSource, Role
 from robot_client.protocol import FrameHeader
 
@@ -324,7 +325,7 @@ class RobotLinks:
         rows = []
         for robot in robots:
             link = self.links.get(robot.id)
-            row = {"id": robot.id, "name": robot.name, "role": robot.role, "backend": f"robot:{robot.id}"}
+            row = {"id": robot.id, "name": robot.name, "role": robot.role, "backend": str(BackendSpec.robot(robot.id))}
             row.update(
                 link.status()
                 if link is not None
@@ -443,9 +444,10 @@ class RemoteRobotBackend:
 async def remote_backend(spec: str, trial: RobotTrial, parts: BackendParts) -> RemoteRobotBackend:
     """`robot:<id>`: the registered driver robot with that id."""
     try:
-        robot_id = int(spec.split(":", 1)[1])
-    except (IndexError, ValueError):
-        raise LookupError(f"robot backend {spec!r}: expected 'robot:<id>'") from None
+        robot_id = BackendSpec.parse(spec).robot_id
+    except ValueError as err:
+        raise LookupError(str(err)) from None
+    assert robot_id is not None  # the registry hands this factory `robot:` specs only
     with parts.db() as db:
         robot = db.get(Robot, robot_id)
     if robot is None:

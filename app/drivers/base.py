@@ -19,8 +19,6 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-AGENT, ORACLE = "agent:", "oracle:"
-
 
 @dataclass(frozen=True)
 class Oracle:

@@ -16,9 +16,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from app.clock import ServerClock
-from app.drivers.base import AGENT, ORACLE, Seating
+from app.drivers.base import Seating
 from app.mazes import Mazes
 from app.settings import Settings
+from app.trial.specs import SeatSpec
 from sim.agents.turns import Agent
 
 
@@ -53,7 +54,10 @@ _REGISTERED: dict[str, DriverEntry] = {}
 
 
 def is_driver_spec(spec: str) -> bool:
-    return spec.startswith((AGENT, ORACLE)) and len(spec.split(":", 1)[1]) > 0
+    try:
+        return not SeatSpec.parse(spec).human
+    except ValueError:
+        return False
 
 
 def register_driver(spec: str, factory: DriverFactory, check: DriverCheck | None = None) -> None:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from app.trial.specs import SIM, BackendSpec
 from sim.robot.camera import CameraCalibration, FrontCamera
 
 SIM_CAMERA_SIZE = (320, 240)  # app.backends.sim.FRAME_SIZE, without importing the backend
@@ -46,7 +47,7 @@ def learned(camera: FrontCamera, seed: int = 1, progress: bool = False) -> Camer
 
 def driver_calibration(backend: str, settings) -> CameraCalibration:
     """The calibration of the Driver camera of a trial on `backend` ("sim" or "robot:<id>")."""
-    if backend == "sim":
+    if BackendSpec.parse(backend) == SIM:
         return CameraCalibration.load(SIM_CALIBRATION)
     path = settings.camera_calibration
     if path is None or not Path(path).exists():

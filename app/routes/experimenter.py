@@ -29,6 +29,7 @@ from app.guard import csrf_protect
 from app.security import SeatTokens
 from app.trial.lifecycle import Refused, delete_participant, delete_robot, delete_team, exclude_trial
 from app.trial.setup import TrialSetupError, create_participant, create_team, create_trial, parse_targets, suggest_maze
+from app.trial.specs import SIM, BackendSpec
 from app.trial.state import fold
 from app.trial.vocabulary import Role
 from app.web import render, trial_or_404
@@ -77,7 +78,7 @@ def dashboard(
     layouts = mazes.layouts()
     suggestions = {t.id: suggest_maze(db, t, layouts) for t in teams}
     # The robot seat: the simulator or a registered rover, by the trial's backend spec.
-    backends = {"sim": "simulator", **{f"robot:{r.id}": f"{r.name} (rover)" for r in rovers}}
+    backends = {str(SIM): "simulator", **{str(BackendSpec.robot(r.id)): f"{r.name} (rover)" for r in rovers}}
     return render(
         request,
         "experimenter.html",

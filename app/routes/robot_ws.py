@@ -32,6 +32,7 @@ from app.backends.remote import (
 from app.deps import ClockDep, DbFactory, DbSession, RobotLinksDep, SettingsDep, experimenter_id
 from app.guard import csrf_protect, socket_origin_allowed
 from app.serving import MESSAGE_TOO_BIG
+from app.trial.specs import BackendSpec
 from robot_client.protocol import (
     CLOSE_REFUSED,
     CLOSE_REPLACED,
@@ -218,7 +219,7 @@ def register_robot(db: DbSession, name: str = Form(max_length=80), role: str = F
                 "name": robot.name,
                 "role": robot.role,
                 "token": token,
-                "backend": f"robot:{robot.id}",
+                "backend": str(BackendSpec.robot(robot.id)),
             }
     except RobotSetupError as err:
         raise HTTPException(400, str(err)) from None

@@ -37,6 +37,7 @@ from app.trial.frames_store import FrameStore
 from app.trial.ldh_belief import BeliefModel, LiveBelief
 from app.trial.log import EventLog
 from app.trial.port import Connection
+from app.trial.specs import SeatKind, SeatSpec
 from app.trial.state import TrialState, fold
 from app.trial.throttle import Throttle
 from app.trial.views import EXPERIMENTER, status_of, view
@@ -103,7 +104,7 @@ class TrialRuntime:
         self.apply(d.Reopen())  # seats and moves of an earlier server process are gone
         if self.state.over:
             return
-        if self.state.driver != "human":
+        if not SeatSpec.parse(self.state.driver).human:
             self.agent = self._seat_agent()
         await self._start_backend()
         if self.agent is not None:
@@ -111,11 +112,12 @@ class TrialRuntime:
 
     def _seat_agent(self) -> AgentSeat:
         """The agent Driver's seat, made before the backend so it hears the robot's first frame."""
-        from app.drivers.base import ORACLE, Oracle
+        from app.drivers.base import Oracle
         from app.drivers.seat import AgentSeat
 
         s = self.state
-        oracle = Oracle(s.maze, tuple(s.targets), self.true_pose) if s.driver.startswith(ORACLE) else None
+        cheats = SeatSpec.parse(s.driver).kind == SeatKind.ORACLE
+        oracle = Oracle(s.maze, tuple(s.targets), self.true_pose) if cheats else None
         return AgentSeat(self, self.parts.drivers, oracle)
 
     async def _start_backend(self) -> None:

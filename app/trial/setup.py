@@ -14,6 +14,7 @@ from sqlalchemy.orm import Session
 from app.db.models import Event, Participant, Robot, Team, Trial
 from app.trial.events import TrialCreated
 from app.trial.lifecycle import live_trial_of
+from app.trial.specs import HUMAN, SIM, BackendSpec
 from app.trial.vocabulary import Phase, Role
 from sim.core.labels import OBJECTS
 
@@ -57,7 +58,7 @@ def parse_targets(text: str, rng: random.Random) -> list[str]:
 
 def check_driver(driver: str, agents: Mapping[str, str | None] | None) -> None:
     """`human`, or an agent or oracle that can start: `agents` is `available_drivers(services.drivers)`."""
-    if driver == "human":
+    if driver == str(HUMAN):
         return
     if agents is None or driver not in agents:
         known = ", ".join(agents or ())
@@ -100,19 +101,22 @@ def create_trial(
         raise TrialSetupError(
             f"maze {maze!r} is layout {layouts[maze]}, which team {team.name!r} has already seen as {played}"
         )
-    if backend.startswith("robot:"):
-        robot_id = backend.removeprefix("robot:")
-        robot = db.get(Robot, int(robot_id)) if robot_id.isdigit() else None
+    try:
+        spec = BackendSpec.parse(backend)
+    except ValueError:
+        spec = None
+    if spec is not None and spec.robot_id is not None:
+        robot = db.get(Robot, spec.robot_id)
         if robot is None or robot.role != Role.DRIVER:
-            raise TrialSetupError(f"backend {backend!r}: no registered rover with id {robot_id!r}")
-    elif backend != "sim":
+            raise TrialSetupError(f"backend {backend!r}: no registered rover with id {spec.arg!r}")
+    elif spec != SIM:
         raise TrialSetupError(f"backend {backend!r} is neither 'sim' nor 'robot:<id>'")
     members = (team.member_a_id, team.member_b_id)
     commander_id = commander_id or team.member_a_id
     if commander_id not in members:
         raise TrialSetupError(f"commander {commander_id} is not a member of team {team.name!r}")
     driver_id = None
-    if driver == "human":
+    if driver == str(HUMAN):
         driver_id = members[1] if commander_id == members[0] else members[0]
     trial = Trial(
         team_id=team.id,
