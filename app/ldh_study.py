@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass
 from enum import Enum
 from pathlib import Path
@@ -285,17 +286,19 @@ class Studies:
         return Answer(seq, t_ns, participant_id, position, x, y, heading, td, euclid)
 
     @staticmethod
-    def _answered(db, study_id: int, participant_id: int, position: int) -> bool:
+    def _answered(db: Session, study_id: int, participant_id: int, position: int) -> bool:
         """Whether the participant's answer to `position` is already in the log (a double submit)."""
-        rows = db.execute(
+        payloads: Iterable[dict[str, Any]] = db.scalars(
             select(LDHStudyEvent.payload).where(
                 LDHStudyEvent.study_id == study_id, LDHStudyEvent.kind == EventKind.ANSWERED.value
             )
         )
-        return any(p["participant_id"] == participant_id and p["position"] == position for (p,) in rows)
+        return any(p["participant_id"] == participant_id and p["position"] == position for p in payloads)
 
     # -- the log ----------------------------------------------------------------------
-    def _append(self, study_id: int, kind: EventKind, payload: dict[str, Any], unique=None) -> tuple[int, int]:
+    def _append(
+        self, study_id: int, kind: EventKind, payload: dict[str, Any], unique: Callable[[Session], bool] | None = None
+    ) -> tuple[int, int]:
         """Commit one event with the next seq and a stamp never before the last one; (seq, t_ns)."""
         for _ in range(APPEND_ATTEMPTS):
             try:

@@ -54,7 +54,9 @@ def _finished(db: Session):
     ).all()
 
 
-def _ranked(groups: dict[str, tuple[list[float], set[str]]]):
+def _ranked(
+    groups: dict[str, tuple[list[float], set[str]]],
+) -> list[tuple[int, str, tuple[str, ...], int, float, float]]:
     """(rank, key, sorted names, count, best, mean), best first (ties by key)."""
     ordered = sorted(groups.items(), key=lambda kv: (min(kv[1][0]), kv[0]))
     return [

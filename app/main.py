@@ -5,12 +5,13 @@ from __future__ import annotations
 import logging
 import secrets
 import sys
+from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
 from fastapi import FastAPI, Request
 from fastapi.exception_handlers import http_exception_handler, request_validation_exception_handler
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import FileResponse, RedirectResponse
+from fastapi.responses import FileResponse, RedirectResponse, Response
 from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 from sqlalchemy import select
@@ -117,7 +118,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         print(f"First start: experimenter 'admin' created with password {password} (shown only once)", flush=True)
 
     @asynccontextmanager
-    async def lifespan(app: FastAPI):
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         renderer = services.trials.backends.renderer
         if isinstance(renderer, RenderProcesses):
             renderer.warm_up()
@@ -143,24 +144,24 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(ldh_study.router)
 
     @app.exception_handler(LoginRequired)
-    async def _login_required(request: Request, exc: Exception):
+    async def _login_required(request: Request, exc: Exception) -> Response:
         return RedirectResponse("/", status_code=303)
 
     # A person following a link gets a page that says what to do; scripts keep the JSON error.
     @app.exception_handler(StarletteHTTPException)
-    async def _http_error(request: Request, exc: StarletteHTTPException):
+    async def _http_error(request: Request, exc: StarletteHTTPException) -> Response:
         if not wants_html(request):
             return await http_exception_handler(request, exc)
         return error_page(request, exc.status_code, str(exc.detail))
 
     @app.exception_handler(RequestValidationError)
-    async def _bad_request(request: Request, exc: RequestValidationError):
+    async def _bad_request(request: Request, exc: RequestValidationError) -> Response:
         if not wants_html(request):
             return await request_validation_exception_handler(request, exc)
         return error_page(request, 404 if request.method == "GET" else 422, None)
 
     @app.get("/favicon.ico", include_in_schema=False)
-    async def _favicon():
+    async def _favicon() -> FileResponse:
         return FileResponse(shipped("static") / "favicon.svg", media_type="image/svg+xml")
 
     return app

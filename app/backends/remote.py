@@ -17,7 +17,7 @@ import logging
 import secrets
 import time
 from collections import deque
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -25,6 +25,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.backends.base import BackendUnavailable, Frame, MoveOutcome
+from app.clock import ServerClock
 from app.db.models import Robot
 from app.perception.tracker_seat import TrialTracker
 from app.trial.port import RobotTrial
@@ -82,7 +83,9 @@ def robot_for_token(db: Session, token: str) -> Robot | None:
 class RobotLink:
     """The server's end of one robot's websocket. `send` queues a JSON message for the writer."""
 
-    def __init__(self, robot_id: int, name: str, role: str, send, clock) -> None:
+    def __init__(
+        self, robot_id: int, name: str, role: str, send: Callable[[dict[str, Any]], None], clock: ServerClock
+    ) -> None:
         self.robot_id, self.name, self.role = robot_id, name, role
         self._send = send
         self._clock = clock
@@ -90,7 +93,7 @@ class RobotLink:
         self._offsets: deque[tuple[int, int]] = deque(maxlen=OFFSET_SAMPLES)  # (rtt, offset)
         self._ping_id = 0
         self._pings: dict[int, int] = {}
-        self._pending: dict[str, asyncio.Future] = {}
+        self._pending: dict[str, asyncio.Future[dict[str, Any]]] = {}
         self._move_seq = 0
         self._arrivals: deque[int] = deque()
         self._last_capture_ns = 0
@@ -109,7 +112,7 @@ class RobotLink:
             self._pings.pop(min(self._pings))
         self._send({"type": "ping", "id": self._ping_id, "server_ns": sent})
 
-    def on_pong(self, message: dict, received_ns: int) -> None:
+    def on_pong(self, message: dict[str, Any], received_ns: int) -> None:
         sent = self._pings.pop(message.get("id", 0), None)  # ping ids start at 1
         robot_ns = message.get("robot_ns")
         if sent is None or not isinstance(robot_ns, int):
@@ -131,7 +134,7 @@ class RobotLink:
         (before the first pong, the arrival itself)."""
         offset = self.offset_ns
         mono = received_ns if offset is None else min(robot_ns - offset, received_ns)
-        return self._clock.now_ns() - (time.monotonic_ns() - mono)
+        return int(self._clock.now_ns() - (time.monotonic_ns() - mono))
 
     @property
     def last_capture_ns(self) -> int:
@@ -181,7 +184,7 @@ class RobotLink:
         finally:
             self._pending.pop(move_id, None)
 
-    def on_ack(self, message: dict, received_ns: int) -> None:
+    def on_ack(self, message: dict[str, Any], received_ns: int) -> None:
         ack = dict(message)
         for key in ("started_ns", "finished_ns"):
             if isinstance(ack.get(key), int):
@@ -232,7 +235,7 @@ class FrameSlot:
             self.frame = frame
             self._changed.notify_all()
 
-    async def newer_than(self, frame: Frame | None, stop) -> Frame | None:
+    async def newer_than(self, frame: Frame | None, stop: Callable[[], bool]) -> Frame | None:
         """The next frame after `frame`, or None once `stop()` is true (checked on `wake`)."""
         async with self._changed:
             await self._changed.wait_for(lambda: stop() or (self.frame is not None and self.frame is not frame))
@@ -355,7 +358,7 @@ class RemoteRobotBackend:
         links: RobotLinks,
         trial: RobotTrial,
         overhead_calibration: Path | None,
-        clock_ns,
+        clock_ns: Callable[[], int],
     ) -> None:
         self.robot_id, self.name = robot_id, name
         self.links, self.trial = links, trial

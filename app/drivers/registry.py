@@ -66,7 +66,7 @@ def register_driver(spec: str, factory: DriverFactory, check: DriverCheck | None
     _REGISTERED[spec] = DriverEntry(factory, check)
 
 
-def _resolve(path: str | None):
+def _resolve(path: str | None) -> Any:
     if path is None:
         return None
     module, name = path.split(":")

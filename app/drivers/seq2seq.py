@@ -14,6 +14,7 @@ from app.drivers.base import Seating
 
 if TYPE_CHECKING:
     from app.drivers.registry import DriverParts
+    from models.driver import Seq2SeqDriver
 
 NO_CHECKPOINT = (
     "agent:seq2seq needs a checkpoint: this install ships none; set ROBOTSLANG_SEQ2SEQ_CHECKPOINT "
@@ -51,7 +52,7 @@ def seq2seq_check(parts: DriverParts) -> str | None:
     return parts.driver_checks[key]
 
 
-def seq2seq_driver(parts: DriverParts, seating: Seating):
+def seq2seq_driver(parts: DriverParts, seating: Seating) -> Seq2SeqDriver:
     checkpoint = seq2seq_checkpoint(parts)
     if checkpoint is None:
         raise LookupError(NO_CHECKPOINT)

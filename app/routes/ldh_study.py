@@ -37,7 +37,7 @@ def _back(study_id: int | None = None, error: str | None = None) -> RedirectResp
 
 # -- the experimenter -----------------------------------------------------------------------
 @studies_router.get("", response_class=HTMLResponse)
-def study_list(request: Request, s: StudiesDep, error: str | None = None):
+def study_list(request: Request, s: StudiesDep, error: str | None = None) -> HTMLResponse:
     return render(request, "ldh_studies.html", studies=s.all_studies(), default_source=s.default_source(), error=error)
 
 
@@ -50,7 +50,7 @@ def create_study(
     split: str = Form("val_seen"),
     variant: str = Form("prefix"),
     limit: int | None = Form(None),
-):
+) -> RedirectResponse:
     try:
         study_id = studies.create(experimenter, name, source, split, variant, limit)
     except StudyError as err:
@@ -59,7 +59,7 @@ def create_study(
 
 
 @studies_router.post("/{study_id}/participants")
-def invite(studies: StudiesDep, study_id: int, name: str = Form(max_length=80)):
+def invite(studies: StudiesDep, study_id: int, name: str = Form(max_length=80)) -> RedirectResponse:
     _study_or_404(studies, study_id)
     try:
         studies.invite(study_id, name)
@@ -69,7 +69,9 @@ def invite(studies: StudiesDep, study_id: int, name: str = Form(max_length=80)):
 
 
 @studies_router.get("/{study_id}", response_class=HTMLResponse)
-def study_page(request: Request, s: StudiesDep, tokens: StudyTokensDep, study_id: int, error: str | None = None):
+def study_page(
+    request: Request, s: StudiesDep, tokens: StudyTokensDep, study_id: int, error: str | None = None
+) -> HTMLResponse:
     study = _study_or_404(s, study_id)
     links = {
         p.id: str(request.url_for("ldh_participant", token=tokens.issue(study_id, p.id)))
@@ -79,7 +81,7 @@ def study_page(request: Request, s: StudiesDep, tokens: StudyTokensDep, study_id
 
 
 @studies_router.get("/{study_id}/export.json")
-def export_json(studies: StudiesDep, study_id: int):
+def export_json(studies: StudiesDep, study_id: int) -> JSONResponse:
     _study_or_404(studies, study_id)
     return JSONResponse(
         studies.results(study_id),
@@ -88,7 +90,7 @@ def export_json(studies: StudiesDep, study_id: int):
 
 
 @studies_router.get("/{study_id}/export.csv")
-def export_csv(studies: StudiesDep, study_id: int):
+def export_csv(studies: StudiesDep, study_id: int) -> Response:
     _study_or_404(studies, study_id)
     out = io.StringIO()
     writer = csv.DictWriter(out, fieldnames=CSV_COLUMNS, extrasaction="ignore")
@@ -116,7 +118,7 @@ Granted = Annotated[StudyPass, Depends(study_pass)]
 
 
 @router.get("/ldh/{token}", response_class=HTMLResponse, name="ldh_participant")
-def participant_page(request: Request, token: str, granted: Granted, s: StudiesDep):
+def participant_page(request: Request, token: str, granted: Granted, s: StudiesDep) -> HTMLResponse:
     study, instances = s.study(granted.study_id), s.instances(granted.study_id)
     position = s.next_position(granted.study_id, granted.participant_id)
     if position is None:  # done: now, and only now, their answers beside the truth
@@ -137,7 +139,7 @@ def participant_page(request: Request, token: str, granted: Granted, s: StudiesD
 
 
 @router.get("/ldh/{token}/map/{position}.png")
-def participant_map(granted: Granted, s: StudiesDep, position: int):
+def participant_map(granted: Granted, s: StudiesDep, position: int) -> Response:
     instances = s.instances(granted.study_id)
     if not 0 <= position < len(instances):
         raise HTTPException(404, f"the study has no instance {position + 1}")
@@ -159,7 +161,7 @@ class Mark(BaseModel):
 
 
 @router.post("/ldh/{token}/answers", dependencies=[Depends(csrf_protect)])
-def submit(granted: Granted, s: StudiesDep, mark: Mark):
+def submit(granted: Granted, s: StudiesDep, mark: Mark) -> dict[str, int | None]:
     """Record one answer. The reply says only that it was taken (never the score or the truth)."""
     try:
         answer = s.answer(granted.study_id, granted.participant_id, mark.position, mark.x, mark.y, mark.heading)

@@ -51,14 +51,14 @@ def seat_of(seats: SeatTokens, db: Session, token: str) -> tuple[Seat, Trial]:
 
 
 @router.get("/", response_class=HTMLResponse)
-def home(request: Request, login: CurrentLogin):
+def home(request: Request, login: CurrentLogin) -> Response:
     if login is not None:
         return RedirectResponse("/experimenter", status_code=303)
     return render(request, "home.html", error=None, join_error=None)
 
 
 @router.get("/join")
-def join(request: Request, seats: SeatTokensDep, link: str = ""):
+def join(request: Request, seats: SeatTokensDep, link: str = "") -> Response:
     """A pasted join link (or its token) to the seat's page."""
     token = link.strip().rstrip("/").rsplit("/", 1)[-1]
     try:
@@ -75,7 +75,7 @@ async def login(
     sessions: SessionsDep,
     name: str = Form(max_length=80),
     password: str = Form(max_length=200),
-):
+) -> Response:
     try:
         user_id = await logins.authenticate(name, password, request.client.host if request.client else "")
     except TooManyAttempts as err:
@@ -99,7 +99,7 @@ async def login(
 
 
 @router.post("/logout", dependencies=[Depends(csrf_protect)])
-def logout(login: CurrentLogin, sessions: SessionsDep, login_sockets: LoginSocketsDep):
+def logout(login: CurrentLogin, sessions: SessionsDep, login_sockets: LoginSocketsDep) -> RedirectResponse:
     if login is not None:
         sessions.end(login)
         login_sockets.end(login)
@@ -109,7 +109,7 @@ def logout(login: CurrentLogin, sessions: SessionsDep, login_sockets: LoginSocke
 
 
 @router.get("/leaderboard", response_class=HTMLResponse)
-def leaderboard(request: Request, db: DbSession, settings: SettingsDep, login: CurrentLogin):
+def leaderboard(request: Request, db: DbSession, settings: SettingsDep, login: CurrentLogin) -> HTMLResponse:
     teams = standings(db, settings.move_penalty_s)
     agents = agent_standings(db, settings.move_penalty_s)
     is_experimenter = login is not None
@@ -124,7 +124,7 @@ def leaderboard(request: Request, db: DbSession, settings: SettingsDep, login: C
 
 
 @router.get("/play/{token}", response_class=HTMLResponse)
-def play(request: Request, token: str, seats: SeatTokensDep, db: DbSession, mazes: MazesDep):
+def play(request: Request, token: str, seats: SeatTokensDep, db: DbSession, mazes: MazesDep) -> HTMLResponse:
     try:
         seat, trial = seat_of(seats, db, token)
     except ClosedLink as closed:
@@ -138,7 +138,7 @@ def play(request: Request, token: str, seats: SeatTokensDep, db: DbSession, maze
 
 
 @router.get("/play/{token}/map.png")
-def commander_map(token: str, seats: SeatTokensDep, db: DbSession, mazes: MazesDep):
+def commander_map(token: str, seats: SeatTokensDep, db: DbSession, mazes: MazesDep) -> Response:
     """The map with the three landmarks, for the Commander alone."""
     seat, trial = seat_of(seats, db, token)
     if seat.role != "commander":
@@ -153,7 +153,7 @@ def commander_map(token: str, seats: SeatTokensDep, db: DbSession, mazes: MazesD
 @router.get("/play/{token}/target/{index}.jpg")
 def target_image(
     token: str, index: int, seats: SeatTokensDep, db: DbSession, hub: HubDep, log: LogDep, mazes: MazesDep
-):
+) -> Response:
     """The image of a target the Commander has reached or is looking for (never a later one)."""
     seat, trial = seat_of(seats, db, token)
     if seat.role != "commander":

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import tempfile
 from pathlib import Path
+from typing import Any
 
 from fastapi import APIRouter, Depends, HTTPException, Request
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, Response
@@ -38,7 +39,7 @@ def _trial(db: Session, trial_id: int) -> tuple[Trial, str]:
 
 
 @router.get("/replays", response_class=HTMLResponse)
-def replays(request: Request, db: DbSession, team: str | None = None):
+def replays(request: Request, db: DbSession, team: str | None = None) -> HTMLResponse:
     """Finished and aborted trials (of one team, when `team` is given), newest first."""
     query = (
         select(Trial, Team.name)
@@ -53,13 +54,13 @@ def replays(request: Request, db: DbSession, team: str | None = None):
 
 
 @router.get("/trials/{trial_id}/replay", response_class=HTMLResponse)
-def replay(request: Request, db: DbSession, trial_id: int):
+def replay(request: Request, db: DbSession, trial_id: int) -> HTMLResponse:
     trial, team = _trial(db, trial_id)
     return render(request, "replay.html", trial=trial, team=team)
 
 
 @router.get("/trials/{trial_id}/replay.json")
-def replay_log(db: DbSession, log: LogDep, trial_id: int):
+def replay_log(db: DbSession, log: LogDep, trial_id: int) -> dict[str, Any]:
     """The whole event log, with each frame's file replaced by the URL that serves it."""
     trial, team = _trial(db, trial_id)
     events = []
@@ -85,7 +86,7 @@ def replay_log(db: DbSession, log: LogDep, trial_id: int):
 
 
 @router.get("/trials/{trial_id}/frames/{frame_id}.jpg")
-def frame(db: DbSession, settings: SettingsDep, trial_id: int, frame_id: int):
+def frame(db: DbSession, settings: SettingsDep, trial_id: int, frame_id: int) -> FileResponse:
     rel = db.scalar(select(Frame.path).where(Frame.trial_id == trial_id, Frame.seq == frame_id))
     if rel is None:
         raise HTTPException(404, f"trial {trial_id} has no frame {frame_id}")
@@ -107,7 +108,7 @@ def _record(db: Session, settings: Settings, mazes: Mazes, trial_id: int) -> tup
 
 
 @router.get("/trials/{trial_id}/export.mcap")
-def export_mcap(db: DbSession, settings: SettingsDep, mazes: MazesDep, trial_id: int):
+def export_mcap(db: DbSession, settings: SettingsDep, mazes: MazesDep, trial_id: int) -> Response:
     """The trial as one MCAP file (Foxglove), as `robotslang export ID --format mcap` writes it."""
     from app.export.mcap import write_mcap
 
@@ -125,7 +126,7 @@ def export_mcap(db: DbSession, settings: SettingsDep, mazes: MazesDep, trial_id:
 
 
 @router.get("/trials/{trial_id}/export.ndh.json")
-def export_ndh(db: DbSession, settings: SettingsDep, mazes: MazesDep, trial_id: int):
+def export_ndh(db: DbSession, settings: SettingsDep, mazes: MazesDep, trial_id: int) -> JSONResponse:
     """The trial's NDH instances (one per confirmed target) and its LDH instance, benchmark JSON."""
     from app.export.ndh import ldh_instances, ndh_instances
 

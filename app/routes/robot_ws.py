@@ -25,6 +25,7 @@ from app.backends.remote import (
     MAX_FRAME_BYTES,
     PING_INTERVAL_S,
     RobotLink,
+    RobotLinks,
     RobotSetupError,
     create_robot,
     robot_for_token,
@@ -137,17 +138,17 @@ async def _hello(ws: WebSocket, sessions: sessionmaker[Session]) -> tuple[int, s
     return robot.id, robot.name, robot.role
 
 
-def _queue(outbox: asyncio.Queue, message: dict) -> None:
+def _queue(outbox: asyncio.Queue[str], message: dict[str, Any]) -> None:
     with contextlib.suppress(asyncio.QueueFull):  # a robot that stops reading is dropped by DEAD_LINK_S
         outbox.put_nowait(encode(message))
 
 
-async def _send(ws: WebSocket, message: dict) -> None:
+async def _send(ws: WebSocket, message: dict[str, Any]) -> None:
     with contextlib.suppress(RuntimeError, WebSocketDisconnect):
         await ws.send_text(encode(message))
 
 
-async def _write(ws: WebSocket, outbox: asyncio.Queue, link: RobotLink) -> None:
+async def _write(ws: WebSocket, outbox: asyncio.Queue[str], link: RobotLink) -> None:
     with contextlib.suppress(RuntimeError, WebSocketDisconnect):
         while not link.closed:
             text = await outbox.get()
@@ -163,7 +164,7 @@ async def _ping(link: RobotLink) -> None:
         await asyncio.sleep(PING_INTERVAL_S)
 
 
-async def _read(ws: WebSocket, link: RobotLink, links) -> None:
+async def _read(ws: WebSocket, link: RobotLink, links: RobotLinks) -> None:
     with contextlib.suppress(WebSocketDisconnect):
         while not link.closed:
             raw = await ws.receive()
@@ -179,7 +180,7 @@ async def _read(ws: WebSocket, link: RobotLink, links) -> None:
                 links.bad_message(link, str(err))
 
 
-async def _dispatch(raw: Mapping[str, Any], link: RobotLink, links, received_ns: int) -> None:
+async def _dispatch(raw: Mapping[str, Any], link: RobotLink, links: RobotLinks, received_ns: int) -> None:
     data = raw.get("bytes")
     if data is not None:
         header, jpeg = unpack_frame(data, MAX_FRAME_BYTES)
@@ -203,13 +204,13 @@ async def _dispatch(raw: Mapping[str, Any], link: RobotLink, links, received_ns:
 
 # -- the experimenter's robot API ------------------------------------------------------
 @router.get("/experimenter/api/robots", dependencies=[Depends(experimenter_id)])
-def robots_status(links: RobotLinksDep) -> dict:
+def robots_status(links: RobotLinksDep) -> dict[str, Any]:
     """Each registered robot: connected, frames per second, link latency, last acknowledgement."""
     return {"robots": links.status()}
 
 
 @router.post("/experimenter/api/robots", dependencies=[Depends(experimenter_id), Depends(csrf_protect)])
-def register_robot(db: DbSession, name: str = Form(max_length=80), role: str = Form("driver")) -> dict:
+def register_robot(db: DbSession, name: str = Form(max_length=80), role: str = Form("driver")) -> dict[str, Any]:
     """Register a robot. The answer holds its token: shown this once, stored only hashed."""
     try:
         with db.begin():

@@ -14,6 +14,7 @@ import asyncio
 import contextlib
 import json
 import logging
+from typing import Any
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from pydantic import ValidationError
@@ -43,12 +44,12 @@ class SocketSeat:
 
     def __init__(self, ws: WebSocket, role: str) -> None:
         self.ws, self.role = ws, role
-        self.outbox: asyncio.Queue = asyncio.Queue(OUTBOX_LIMIT)
+        self.outbox: asyncio.Queue[dict[str, Any]] = asyncio.Queue(OUTBOX_LIMIT)
         self.loop = asyncio.get_running_loop()
         self.writer = self.loop.create_task(self._write())
         self.dropped = False
 
-    def deliver(self, message: dict) -> None:
+    def deliver(self, message: dict[str, Any]) -> None:
         if self.dropped:
             return
         try:
