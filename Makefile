@@ -35,7 +35,7 @@ run: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest
 
-# ruff (lint, format check) and mypy, as pyproject.toml configures them: strict on sim/ and app/trial/.
+# ruff (lint, format check) and mypy, as pyproject.toml configures them: strict on sim/ and most of app/.
 lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .

@@ -102,7 +102,7 @@ def drivers() -> None:
 
     services = build_services(Settings())
     try:
-        available = available_drivers(services)
+        available = available_drivers(services.agents)
     finally:
         services.engine.dispose()
     typer.echo("human")

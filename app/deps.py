@@ -2,7 +2,8 @@
 
 A route names what it needs (`db: DbSession`, `mazes: MazesDep`, `_: ExperimenterId`) instead of
 reading `request.app.state`; tests override a dependency with `app.dependency_overrides`.
-Works for HTTP routes and websockets alike (both are an `HTTPConnection`).
+Works for HTTP routes and websockets alike (both are an `HTTPConnection`). Helpers called outside
+a route's parameters (a template's context, a middleware's check) use `get_services`.
 """
 
 from __future__ import annotations
@@ -12,12 +13,17 @@ from typing import Annotated
 
 from fastapi import Depends
 from fastapi.templating import Jinja2Templates
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import Session, sessionmaker
 from starlette.requests import HTTPConnection
 
-from app.guard import current_login
+from app.backends.remote import RobotLinks
+from app.clock import ServerClock
+from app.drivers.registry import AgentParts
+from app.ldh_study import Studies
+from app.login import LoginGuard
+from app.login_sockets import LoginSockets
 from app.mazes import Mazes
-from app.security import SeatTokens
+from app.security import SESSION_COOKIE, CsrfTokens, Login, SeatTokens, Sessions, StudyTokens
 from app.services import Services
 from app.settings import Settings
 from app.trial.hub import TrialHub
@@ -46,6 +52,11 @@ def get_db(services: ServicesDep) -> Iterator[Session]:
         yield db
 
 
+def get_db_factory(services: ServicesDep) -> sessionmaker[Session]:
+    """Sessions to open as needed: for a socket, which must not hold one for its whole life."""
+    return services.db
+
+
 def get_log(services: ServicesDep) -> EventLog:
     return services.log
 
@@ -62,9 +73,53 @@ def get_seat_tokens(services: ServicesDep) -> SeatTokens:
     return services.seats
 
 
+def get_robots(services: ServicesDep) -> RobotLinks:
+    return services.robots
+
+
+def get_agents(services: ServicesDep) -> AgentParts:
+    return services.agents
+
+
+def get_clock(services: ServicesDep) -> ServerClock:
+    return services.clock
+
+
+def get_sessions(services: ServicesDep) -> Sessions:
+    return services.sessions
+
+
+def get_csrf(services: ServicesDep) -> CsrfTokens:
+    return services.csrf
+
+
+def get_logins(services: ServicesDep) -> LoginGuard:
+    return services.logins
+
+
+def get_login_sockets(services: ServicesDep) -> LoginSockets:
+    return services.login_sockets
+
+
+def get_studies(services: ServicesDep) -> Studies:
+    return services.studies
+
+
+def get_study_tokens(services: ServicesDep) -> StudyTokens:
+    return services.study_tokens
+
+
 def get_templates(conn: HTTPConnection) -> Jinja2Templates:
     templates: Jinja2Templates = conn.app.state.templates
     return templates
+
+
+def current_login(conn: HTTPConnection) -> Login | None:
+    """The experimenter logged in with this request's cookie (looked up once per request)."""
+    if not hasattr(conn.state, "login"):
+        conn.state.login = get_services(conn).sessions.verify(conn.cookies.get(SESSION_COOKIE))
+    login: Login | None = conn.state.login
+    return login
 
 
 def experimenter_id(conn: HTTPConnection) -> int:
@@ -77,9 +132,20 @@ def experimenter_id(conn: HTTPConnection) -> int:
 
 SettingsDep = Annotated[Settings, Depends(get_settings)]
 DbSession = Annotated[Session, Depends(get_db)]
+DbFactory = Annotated[sessionmaker[Session], Depends(get_db_factory)]
 LogDep = Annotated[EventLog, Depends(get_log)]
 HubDep = Annotated[TrialHub, Depends(get_hub)]
 MazesDep = Annotated[Mazes, Depends(get_mazes)]
 SeatTokensDep = Annotated[SeatTokens, Depends(get_seat_tokens)]
+RobotLinksDep = Annotated[RobotLinks, Depends(get_robots)]
+AgentsDep = Annotated[AgentParts, Depends(get_agents)]
+ClockDep = Annotated[ServerClock, Depends(get_clock)]
+SessionsDep = Annotated[Sessions, Depends(get_sessions)]
+CsrfDep = Annotated[CsrfTokens, Depends(get_csrf)]
+LoginsDep = Annotated[LoginGuard, Depends(get_logins)]
+LoginSocketsDep = Annotated[LoginSockets, Depends(get_login_sockets)]
+StudiesDep = Annotated[Studies, Depends(get_studies)]
+StudyTokensDep = Annotated[StudyTokens, Depends(get_study_tokens)]
 TemplatesDep = Annotated[Jinja2Templates, Depends(get_templates)]
+CurrentLogin = Annotated[Login | None, Depends(current_login)]
 ExperimenterId = Annotated[int, Depends(experimenter_id)]

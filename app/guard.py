@@ -15,11 +15,10 @@ from urllib.parse import urlsplit
 
 from fastapi import HTTPException, Request
 from starlette.datastructures import Headers, MutableHeaders
-from starlette.requests import HTTPConnection
 from starlette.responses import PlainTextResponse
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from app.security import SESSION_COOKIE, Login
+from app.deps import CsrfDep, CurrentLogin, SettingsDep, current_login, get_services
 from app.settings import Settings
 
 BROWSER_COOKIE = "robotslang_browser"  # a random id per browser, which anonymous CSRF tokens bind to
@@ -163,36 +162,23 @@ def _cookie(headers: Headers, name: str) -> str | None:
     return None
 
 
-def current_login(request: HTTPConnection) -> Login | None:
-    """The experimenter logged in with this request's cookie (looked up once per request)."""
-    if not hasattr(request.state, "login"):
-        sessions = request.app.state.services.sessions
-        request.state.login = sessions.verify(request.cookies.get(SESSION_COOKIE))
-    return request.state.login
-
-
-def csrf_token(request: Request) -> str:
-    return request.app.state.services.csrf.issue(request.state.browser_id, current_login(request))
-
-
 def template_context(request: Request) -> dict[str, str]:
     """Every page's `csrf_token`, for `<meta name="csrf-token">` and its forms' `csrf_token` field."""
-    return {"csrf_token": csrf_token(request)}
+    return {"csrf_token": get_services(request).csrf.issue(request.state.browser_id, current_login(request))}
 
 
-async def csrf_protect(request: Request) -> None:
+async def csrf_protect(request: Request, settings: SettingsDep, csrf: CsrfDep, login: CurrentLogin) -> None:
     """A state-changing request must come from this server's pages: an allowed Origin (or Referer,
     where a browser sends no Origin) and the page's CSRF token, in X-CSRF-Token or the form."""
     if request.method in SAFE_METHODS:
         return
-    services = request.app.state.services
     origin = request.headers.get("origin") or request.headers.get("referer")
     if not origin:
         raise HTTPException(403, "refused: a state-changing request must carry an Origin or Referer header")
-    if not origin_allowed(origin, request.url.scheme, request.headers.get("host"), services.settings):
+    if not origin_allowed(origin, request.url.scheme, request.headers.get("host"), settings):
         raise HTTPException(403, f"refused: a page from {origin[:100]} may not change anything here")
     token: object = request.headers.get(CSRF_HEADER)
     if token is None:
         token = (await request.form()).get(CSRF_FIELD)
-    if not isinstance(token, str) or not services.csrf.verify(token, request.state.browser_id, current_login(request)):
+    if not isinstance(token, str) or not csrf.verify(token, request.state.browser_id, login):
         raise HTTPException(403, "refused: the page's security token is missing or stale; reload the page and retry")

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass
 from enum import Enum
 from pathlib import Path
@@ -20,9 +21,12 @@ from typing import Any
 
 from sqlalchemy import func, insert, select
 from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session, sessionmaker
 
+from app.clock import ServerClock
 from app.db.models import LDHStudy, LDHStudyEvent, LDHStudyInstance, LDHStudyParticipant
 from app.mazes import commander_map_png
+from app.settings import Settings
 from sim.core.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M
 from sim.tasks.benchmark import Benchmark, BenchmarkError, Split
 from sim.tasks.ldh import LDHInstance, Variant, load_split
@@ -72,8 +76,8 @@ class Answer:
 class Studies:
     """Studies on the server's database; benchmarks and graphs are loaded once per folder."""
 
-    def __init__(self, services) -> None:
-        self.services = services
+    def __init__(self, settings: Settings, db: sessionmaker[Session], clock: ServerClock) -> None:
+        self.settings, self.db, self.clock = settings, db, clock
         self._benchmarks: dict[str, Benchmark] = {}
         self._contexts: dict[tuple[str, str], MazeContext] = {}
         self._maps: dict[tuple[str, str], bytes] = {}
@@ -83,12 +87,12 @@ class Studies:
 
     # -- sources --------------------------------------------------------------------
     def default_source(self) -> str:
-        return str(self.services.settings.benchmark or "")
+        return str(self.settings.benchmark or "")
 
     def _allowed(self, source: str) -> Path:
         """The benchmark the server is configured with, or a folder under its data directory (an
         export), given whole or relative to the data directory (`export`)."""
-        settings = self.services.settings
+        settings = self.settings
         path = Path(source).expanduser()
         path = (path if path.is_absolute() else settings.data_dir / path).resolve()
         roots = [settings.data_dir.resolve()] + ([settings.benchmark.resolve()] if settings.benchmark else [])
@@ -102,7 +106,7 @@ class Studies:
     def benchmark(self, source: str) -> Benchmark:
         if source not in self._benchmarks:
             try:
-                self._benchmarks[source] = Benchmark(source, cache_dir=self.services.settings.cache_dir)
+                self._benchmarks[source] = Benchmark(source, cache_dir=self.settings.cache_dir)
             except BenchmarkError as err:
                 raise StudyError(str(err)) from None
         return self._benchmarks[source]
@@ -140,7 +144,7 @@ class Studies:
         instances = instances[:limit] if limit else instances
         if not instances:
             raise StudyError(f"{source}: split {split} has no LDH instances")
-        with self.services.db.begin() as db:
+        with self.db.begin() as db:
             study = LDHStudy(
                 name=name[:80],
                 source=source,
@@ -172,7 +176,7 @@ class Studies:
         if not name:
             raise StudyError("give the participant a name or a code")
         try:
-            with self.services.db.begin() as db:
+            with self.db.begin() as db:
                 participant = LDHStudyParticipant(study_id=self.study(study_id).id, name=name[:80])
                 db.add(participant)
                 db.flush()
@@ -183,18 +187,18 @@ class Studies:
         return participant_id
 
     def all_studies(self) -> list[LDHStudy]:
-        with self.services.db() as db:
+        with self.db() as db:
             return list(db.scalars(select(LDHStudy).order_by(LDHStudy.id.desc())))
 
     def study(self, study_id: int) -> LDHStudy:
-        with self.services.db() as db:
+        with self.db() as db:
             study = db.get(LDHStudy, study_id)
         if study is None:
             raise LookupError(f"LDH study {study_id} does not exist")
         return study
 
     def instances(self, study_id: int) -> list[LDHStudyInstance]:
-        with self.services.db() as db:
+        with self.db() as db:
             return list(
                 db.scalars(
                     select(LDHStudyInstance)
@@ -204,7 +208,7 @@ class Studies:
             )
 
     def participants(self, study_id: int) -> list[LDHStudyParticipant]:
-        with self.services.db() as db:
+        with self.db() as db:
             return list(
                 db.scalars(
                     select(LDHStudyParticipant)
@@ -215,14 +219,14 @@ class Studies:
 
     def participant(self, study_id: int, participant_id: int) -> LDHStudyParticipant:
         """The participant a link names, who must belong to the study it names."""
-        with self.services.db() as db:
+        with self.db() as db:
             p = db.get(LDHStudyParticipant, participant_id)
         if p is None or p.study_id != study_id:
             raise LookupError("this study link names no participant of its study")
         return p
 
     def answers(self, study_id: int, participant_id: int | None = None) -> list[Answer]:
-        with self.services.db() as db:
+        with self.db() as db:
             rows = db.scalars(
                 select(LDHStudyEvent)
                 .where(LDHStudyEvent.study_id == study_id, LDHStudyEvent.kind == EventKind.ANSWERED.value)
@@ -282,21 +286,23 @@ class Studies:
         return Answer(seq, t_ns, participant_id, position, x, y, heading, td, euclid)
 
     @staticmethod
-    def _answered(db, study_id: int, participant_id: int, position: int) -> bool:
+    def _answered(db: Session, study_id: int, participant_id: int, position: int) -> bool:
         """Whether the participant's answer to `position` is already in the log (a double submit)."""
-        rows = db.execute(
+        payloads: Iterable[dict[str, Any]] = db.scalars(
             select(LDHStudyEvent.payload).where(
                 LDHStudyEvent.study_id == study_id, LDHStudyEvent.kind == EventKind.ANSWERED.value
             )
         )
-        return any(p["participant_id"] == participant_id and p["position"] == position for (p,) in rows)
+        return any(p["participant_id"] == participant_id and p["position"] == position for p in payloads)
 
     # -- the log ----------------------------------------------------------------------
-    def _append(self, study_id: int, kind: EventKind, payload: dict[str, Any], unique=None) -> tuple[int, int]:
+    def _append(
+        self, study_id: int, kind: EventKind, payload: dict[str, Any], unique: Callable[[Session], bool] | None = None
+    ) -> tuple[int, int]:
         """Commit one event with the next seq and a stamp never before the last one; (seq, t_ns)."""
         for _ in range(APPEND_ATTEMPTS):
             try:
-                with self.services.db.begin() as db:
+                with self.db.begin() as db:
                     if unique is not None and unique(db):
                         raise StudyError("this instance is answered already")
                     last_seq, last_t = db.execute(
@@ -305,7 +311,7 @@ class Studies:
                         )
                     ).one()
                     seq = (last_seq or 0) + 1
-                    t_ns = max(self.services.clock.now_ns(), (last_t or 0) + 1)
+                    t_ns = max(self.clock.now_ns(), (last_t or 0) + 1)
                     db.execute(
                         insert(LDHStudyEvent),
                         {"study_id": study_id, "seq": seq, "kind": kind.value, "t_ns": t_ns, "payload": payload},

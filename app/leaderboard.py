@@ -17,10 +17,8 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.db.models import Participant, Team, Trial
+from app.trial.specs import SeatKind, SeatSpec
 from app.trial.vocabulary import Phase, Role
-
-HUMAN = "human"
-AGENT_PREFIX = "agent:"
 
 
 @dataclass(frozen=True)
@@ -73,7 +71,9 @@ def _finished(db: Session):
     ).all()
 
 
-def _ranked(groups: dict[Any, tuple[list[float], set[str]]]):
+def _ranked(
+    groups: dict[Any, tuple[list[float], set[str]]],
+) -> list[tuple[int, Any, tuple[str, ...], int, float, float]]:
     """(rank, key, sorted names, count, best, mean), best first (ties by key)."""
     ordered = sorted(groups.items(), key=lambda kv: (min(kv[1][0]), kv[0]))
     return [
@@ -87,7 +87,7 @@ def standings(db: Session, move_penalty_s: float) -> list[TeamStanding]:
     names = dict(db.execute(select(Participant.id, Participant.name)).all())
     groups: dict[str, tuple[list[float], set[str]]] = {}
     for trial, team in _finished(db):
-        if trial.driver != HUMAN or trial.commander != HUMAN:
+        if not (SeatSpec.parse(trial.driver).human and SeatSpec.parse(trial.commander).human):
             continue
         scores, drivers = groups.setdefault(team, ([], set()))
         scores.append(trial_score(trial.active_s, trial.moves, move_penalty_s))
@@ -101,8 +101,9 @@ def agent_standings(db: Session, move_penalty_s: float) -> list[AgentStanding]:
     groups: dict[tuple[Role, str], tuple[list[float], set[str]]] = {}
     for trial, team in _finished(db):
         seats = {Role.DRIVER: trial.driver, Role.COMMANDER: trial.commander}
-        agents = [(role, spec) for role, spec in seats.items() if spec.startswith(AGENT_PREFIX)]
-        if len(agents) != 1 or HUMAN not in seats.values():
+        kinds = {role: SeatSpec.parse(spec).kind for role, spec in seats.items()}
+        agents = [(role, seats[role]) for role, kind in kinds.items() if kind == SeatKind.AGENT]
+        if len(agents) != 1 or SeatKind.HUMAN not in kinds.values():
             continue
         scores, partners = groups.setdefault(agents[0], ([], set()))
         scores.append(trial_score(trial.active_s, trial.moves, move_penalty_s))
@@ -110,7 +111,10 @@ def agent_standings(db: Session, move_penalty_s: float) -> list[AgentStanding]:
     rows = []
     for seat in (Role.DRIVER, Role.COMMANDER):
         mine = {agent: group for (role, agent), group in groups.items() if role == seat}
-        rows += [AgentStanding(rank, seat, agent, *rest) for rank, agent, *rest in _ranked(mine)]
+        rows += [
+            AgentStanding(rank, seat, agent, partners, completed, best, mean)
+            for rank, agent, partners, completed, best, mean in _ranked(mine)
+        ]
     return rows
 
 
@@ -118,7 +122,7 @@ def pair_standings(db: Session, move_penalty_s: float) -> list[PairStanding]:
     """Agents in both seats, by the pair's best trial."""
     groups: dict[tuple[str, str], tuple[list[float], set[str]]] = {}
     for trial, _team in _finished(db):
-        if trial.commander.startswith(AGENT_PREFIX) and trial.driver.startswith(AGENT_PREFIX):
+        if SeatSpec.parse(trial.commander).kind == SeatSpec.parse(trial.driver).kind == SeatKind.AGENT:
             scores, _ = groups.setdefault((trial.commander, trial.driver), ([], set()))
             scores.append(trial_score(trial.active_s, trial.moves, move_penalty_s))
     return [

@@ -23,7 +23,7 @@ from limits import parse
 from limits.storage import MemoryStorage, RedisStorage, Storage
 from limits.strategies import MovingWindowRateLimiter
 from sqlalchemy import select
-from sqlalchemy.orm import sessionmaker
+from sqlalchemy.orm import Session, sessionmaker
 
 from app.db.models import Experimenter
 from app.security import hash_password, needs_rehash, verify_password
@@ -38,7 +38,7 @@ class TooManyAttempts(Exception):
 class LoginGuard:
     def __init__(
         self,
-        db: sessionmaker,
+        db: sessionmaker[Session],
         per_account: str,
         per_address: str,
         concurrency: int | None = None,
@@ -80,7 +80,7 @@ class LoginGuard:
                 return None
             if needs_rehash(user.password_hash):  # e.g. an scrypt hash from before argon2
                 user.password_hash = hash_password(password)
-            return user.id
+            return int(user.id)
 
 
 def client_key(address: str) -> str:

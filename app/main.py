@@ -5,33 +5,43 @@ from __future__ import annotations
 import logging
 import secrets
 import sys
+from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
 from fastapi import FastAPI, Request
 from fastapi.exception_handlers import http_exception_handler, request_validation_exception_handler
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import FileResponse, RedirectResponse
+from fastapi.responses import FileResponse, RedirectResponse, Response
 from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 from sqlalchemy import select
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from app.backends.render import RenderProcesses
+from app.backends.registry import BackendParts
+from app.backends.remote import RobotLinks
+from app.backends.render import FrameRenderer, InThread, RenderProcesses
 from app.clock import ServerClock
 from app.db.engine import make_engine, make_sessionmaker, upgrade
 from app.db.models import Experimenter
 from app.deps import LoginRequired
+from app.drivers.registry import AgentParts
 from app.guard import GuardMiddleware, template_context
+from app.ldh_study import Studies
 from app.login import LoginGuard, shared_counts
 from app.mazes import Mazes
+from app.perception.belief import FilterWorker
 from app.resources import shipped
 from app.routes import experimenter, ldh_study, pages, replay, robot_ws, seat_ws
-from app.security import CsrfTokens, SeatTokens, Sessions, set_password
+from app.security import CsrfTokens, SeatTokens, Sessions, StudyTokens, set_password
 from app.services import Services
 from app.settings import Settings
+from app.trial.frames_store import FrameStore
 from app.trial.hub import TrialHub
+from app.trial.ldh_belief import BeliefModel
 from app.trial.log import EventLog
 from app.trial.relay import key_prefix
+from app.trial.runtime import TrialParts
+from app.web import error_page, wants_html
 
 logger = logging.getLogger("robotslang")
 
@@ -48,22 +58,43 @@ def build_services(settings: Settings) -> Services:
         settings.password_check_concurrency,
         storage=shared_counts(settings.redis_url, key_prefix(settings)) if settings.redis_url else None,
     )
-    services = Services(
+    clock, mazes, log = ServerClock(), Mazes(settings), EventLog(db)
+    seats = SeatTokens(key, settings.join_link_ttl_s)
+    robots = RobotLinks(db)
+    renderer: FrameRenderer = (
+        RenderProcesses(settings.render_processes, settings.benchmark, settings.cache_dir)
+        if settings.render_processes
+        else InThread()
+    )
+    trials = TrialParts(
+        settings=settings,
+        db=db,
+        log=log,
+        clock=clock,
+        mazes=mazes,
+        filters=FilterWorker(),
+        frames=FrameStore(settings.frames_dir, db, log),
+        backends=BackendParts(mazes, clock, renderer, db, robots, settings.overhead_calibration),
+        agents=AgentParts(settings, mazes, clock),
+        ldh=BeliefModel(settings.ldh_checkpoint, settings.cache_dir),
+    )
+    return Services(
         settings=settings,
         engine=engine,
         db=db,
-        clock=ServerClock(),
-        log=EventLog(db),
-        seats=SeatTokens(key, settings.join_link_ttl_s),
+        clock=clock,
+        log=log,
+        seats=seats,
         sessions=Sessions(key, db),
         csrf=CsrfTokens(key),
         logins=logins,
-        mazes=Mazes(settings),
+        mazes=mazes,
+        robots=robots,
+        trials=trials,
+        hub=TrialHub(trials, settings.redis_url),
+        studies=Studies(settings, db, clock),
+        study_tokens=StudyTokens(key),
     )
-    services.hub = TrialHub(services)
-    if settings.render_processes:
-        services.renderer = RenderProcesses(settings.render_processes, settings.benchmark, settings.cache_dir)
-    return services
 
 
 def ensure_experimenter(services: Services) -> str | None:
@@ -87,22 +118,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         print(f"First start: experimenter 'admin' created with password {password} (shown only once)", flush=True)
 
     @asynccontextmanager
-    async def lifespan(app: FastAPI):
-        if settings.redis_url:
-            from app.trial.relay import RedisRelay
-
-            services.relay = RedisRelay(services, settings.redis_url)
-            await services.relay.start()
-        if isinstance(services.renderer, RenderProcesses):
-            services.renderer.warm_up()
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        renderer = services.trials.backends.renderer
+        if isinstance(renderer, RenderProcesses):
+            renderer.warm_up()
         services.mazes.warm_layouts()
-        await services.hub.resume_running()
+        await services.hub.start()
         yield
-        if services.relay is not None:
-            await services.relay.close()  # hands its trials back first
         await services.hub.close()
         services.log.close()
-        services.renderer.close()
+        renderer.close()
         services.engine.dispose()
 
     # No /docs or /redoc: they load scripts from a CDN and run inline code, which the CSP forbids.
@@ -119,24 +144,24 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(ldh_study.router)
 
     @app.exception_handler(LoginRequired)
-    async def _login_required(request: Request, exc: Exception):
+    async def _login_required(request: Request, exc: Exception) -> Response:
         return RedirectResponse("/", status_code=303)
 
     # A person following a link gets a page that says what to do; scripts keep the JSON error.
     @app.exception_handler(StarletteHTTPException)
-    async def _http_error(request: Request, exc: StarletteHTTPException):
-        if not pages.wants_html(request):
+    async def _http_error(request: Request, exc: StarletteHTTPException) -> Response:
+        if not wants_html(request):
             return await http_exception_handler(request, exc)
-        return pages.error_page(request, exc.status_code, str(exc.detail))
+        return error_page(request, exc.status_code, str(exc.detail))
 
     @app.exception_handler(RequestValidationError)
-    async def _bad_request(request: Request, exc: RequestValidationError):
-        if not pages.wants_html(request):
+    async def _bad_request(request: Request, exc: RequestValidationError) -> Response:
+        if not wants_html(request):
             return await request_validation_exception_handler(request, exc)
-        return pages.error_page(request, 404 if request.method == "GET" else 422, None)
+        return error_page(request, 404 if request.method == "GET" else 422, None)
 
     @app.get("/favicon.ico", include_in_schema=False)
-    async def _favicon():
+    async def _favicon() -> FileResponse:
         return FileResponse(shipped("static") / "favicon.svg", media_type="image/svg+xml")
 
     return app

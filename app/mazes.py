@@ -14,7 +14,7 @@ import weakref
 from collections import OrderedDict
 from collections.abc import Callable
 from functools import lru_cache
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Generic, TypeVar
 
 import cv2
 import numpy as np
@@ -37,21 +37,24 @@ MAZES_KEPT = 8  # mazes (and graphs) kept beyond those of live trials
 PICTURES_KEPT = 64  # maps and target images (a few hundred kB per maze)
 
 
-class Kept:
+T = TypeVar("T")
+
+
+class Kept(Generic[T]):
     """`make(name)` once per name while anything uses the result, and for the last `size` names
     asked for: a maze in a live trial is never loaded twice, one nobody uses is released. Trials
     open in threads: a lock per name, so that trials starting together on one maze share it, and
     trials on different mazes load theirs side by side (one lock for all made a crowd of trials
     opening at once wait on each other's mazes)."""
 
-    def __init__(self, make: Callable, size: int) -> None:
+    def __init__(self, make: Callable[[str], T], size: int) -> None:
         self.make, self.size = make, size
-        self._alive: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
-        self._recent: OrderedDict = OrderedDict()
+        self._alive: weakref.WeakValueDictionary[str, T] = weakref.WeakValueDictionary()
+        self._recent: OrderedDict[str, T] = OrderedDict()
         self._lock = threading.Lock()  # the dictionaries, held briefly
         self._making: dict[str, threading.Lock] = {}  # per name, while it is made
 
-    def __call__(self, name: str):
+    def __call__(self, name: str) -> T:
         with self._lock:
             value = self._alive.get(name)
             making = self._making.setdefault(name, threading.Lock()) if value is None else None
@@ -64,6 +67,7 @@ class Kept:
                 with self._lock:
                     self._alive[name] = value
                     self._making.pop(name, None)
+        assert value is not None  # alive already, or made above
         with self._lock:
             self._recent[name] = value
             self._recent.move_to_end(name)
@@ -139,6 +143,11 @@ class Mazes:
     def landmarks(self, name: str) -> dict[str, tuple[float, float]]:
         """Each landmark's centre in metres, for the legend and the next-target mark."""
         return {obj: (float(x), float(y)) for obj, (x, y) in self.load(name).objects.items()}
+
+    def distance_m(self, name: str, obj: str, pose: tuple[float, float, float]) -> float:
+        """How far a pose is from an object's centre, in metres: what a claim is judged by."""
+        ox, oy = self.load(name).objects[obj]
+        return math.hypot(pose[0] - ox, pose[1] - oy)
 
     def full_map_png(self, name: str) -> bytes:
         """Walls and objects: for the experimenter only."""

@@ -13,6 +13,7 @@ from typing import TypeVar
 
 import typer
 
+from app.trial.specs import BackendSpec
 from app.trial.vocabulary import ROBOT_ROLES
 
 T = TypeVar("T")
@@ -61,7 +62,7 @@ def robot_list() -> None:
         if not robots:
             typer.echo("no robots registered (robotslang robot create NAME)")
         for robot in robots:
-            backend = f"robot:{robot.id}" if robot.role == "driver" else "-"
+            backend = str(BackendSpec.robot(robot.id)) if robot.role == "driver" else "-"
             typer.echo(f"{robot.id:>4}  {robot.role:<8}  {backend:<10}  {robot.name}")
 
 

@@ -14,7 +14,7 @@ from functools import lru_cache, partial
 from argon2 import PasswordHasher
 from argon2.exceptions import InvalidHashError, VerificationError
 from itsdangerous import BadSignature, SignatureExpired, URLSafeTimedSerializer
-from sqlalchemy.orm import sessionmaker
+from sqlalchemy.orm import Session, sessionmaker
 
 from app.db.models import Experimenter
 
@@ -113,13 +113,16 @@ class Sessions:
     """Experimenter login: a signed, timed cookie naming the account and its session version.
     Logging out or changing the password bumps the version, which ends every cookie issued before."""
 
-    def __init__(self, secret: str, db: sessionmaker) -> None:
+    def __init__(self, secret: str, db: sessionmaker[Session]) -> None:
         self._serializer = URLSafeTimedSerializer(secret, salt="experimenter-session")
         self._db = db
 
     def issue(self, experimenter_id: int) -> str:
         with self._db() as db:
-            version = db.get(Experimenter, experimenter_id).session_version
+            experimenter = db.get(Experimenter, experimenter_id)
+        if experimenter is None:
+            raise LookupError(f"experimenter {experimenter_id} does not exist")
+        version = experimenter.session_version
         return self._serializer.dumps({"e": experimenter_id, "v": version})
 
     def verify(self, cookie: str | None) -> Login | None:

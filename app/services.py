@@ -1,27 +1,29 @@
-"""`Services`: what one server instance shares between requests (no module-level state)."""
+"""`Services`: what one server instance shares between requests (no module-level state).
+
+Built whole by `app.main.build_services`; each part gets only what it uses of the rest (the
+hub its `TrialParts`, the backends their `BackendParts`, agent Drivers their `AgentParts`),
+and routes ask for a part by a typed dependency (`app.deps`), never for the whole.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import Engine
 from sqlalchemy.orm import Session, sessionmaker
 
-from app.backends.render import FrameRenderer, InThread
+from app.backends.remote import RobotLinks
 from app.clock import ServerClock
+from app.drivers.registry import AgentParts
+from app.ldh_study import Studies
 from app.login import LoginGuard
 from app.login_sockets import LoginSockets
 from app.mazes import Mazes
-from app.perception.belief import FilterWorker
-from app.security import CsrfTokens, SeatTokens, Sessions
+from app.security import CsrfTokens, SeatTokens, Sessions, StudyTokens
 from app.settings import Settings
+from app.trial.hub import TrialHub
 from app.trial.log import EventLog
-
-if TYPE_CHECKING:
-    from app.trial.hub import TrialHub
-    from app.trial.ldh_belief import BeliefModel
-    from app.trial.relay import RedisRelay
+from app.trial.runtime import TrialParts
 
 
 @dataclass
@@ -36,11 +38,13 @@ class Services:
     csrf: CsrfTokens
     logins: LoginGuard
     mazes: Mazes
-    hub: TrialHub = None  # type: ignore[assignment]
-    relay: RedisRelay | None = None  # set when ROBOTSLANG_REDIS_URL is: trials shared between processes
-    robots: Any = None  # `RobotLinks`: the rovers and cameras connected here (made by `robot_links`)
-    ldh_belief: BeliefModel | None = None  # the watch page's LDH belief (made by `belief_model`)
-    filters: FilterWorker = field(default_factory=FilterWorker)  # every trial's particle filter turns
-    renderer: FrameRenderer = field(default_factory=InThread)  # where simulator frames are drawn
-    driver_checks: dict[Any, str | None] = field(default_factory=dict)  # agents' start checks, by file version
+    robots: RobotLinks  # the rovers and cameras connected here
+    trials: TrialParts  # what the live trials share (the filters, the renderer, the LDH belief, ...)
+    hub: TrialHub  # the live trials of this process (and, with Redis, its relay to the others)
+    studies: Studies  # LDH human studies
+    study_tokens: StudyTokens  # their participants' links
     login_sockets: LoginSockets = field(default_factory=LoginSockets)  # experimenters' watch sockets, by login
+
+    @property
+    def agents(self) -> AgentParts:
+        return self.trials.agents

@@ -153,9 +153,9 @@ def make_trial(
             targets=targets,
             backend=backend,
             driver=driver,
-            agents=available_agents(services, Role.DRIVER),
+            agents=available_agents(services.agents, Role.DRIVER),
             commander=commander,
-            commanders=available_agents(services, Role.COMMANDER),
+            commanders=available_agents(services.agents, Role.COMMANDER),
         )
 
 

@@ -136,7 +136,7 @@ def setup_trials(
         raise SystemExit(f"{n} trials on distinct mazes need {n} mazes; the library holds {len(maze_names)}")
     chosen = [maze_names[i % len(maze_names)] for i in range(n)]
     tokens: list[tuple[str, str | None]] = []
-    agents = available_drivers(services) if agent_drivers else None
+    agents = available_drivers(services.agents) if agent_drivers else None
     with services.db.begin() as db:
         for i, maze in enumerate(chosen):
             agent = i < agent_drivers

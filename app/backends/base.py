@@ -10,7 +10,7 @@ from collections.abc import AsyncIterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
-from app.trial.vocabulary import Move, Outcome
+from app.trial.vocabulary import Move, Outcome, PoseSource
 
 if TYPE_CHECKING:
     from sim.robot.perception import RayObservation
@@ -47,7 +47,13 @@ class BackendUnavailable(RuntimeError):
 @runtime_checkable
 class RobotBackend(Protocol):
     """The robot seat. `execute` returns once the move is done (or refused); each executed
-    move is followed by at least one frame on `frames()`."""
+    move is followed by at least one frame on `frames()`.
+
+    `pose_source` says where `pose()` comes from: the simulator's own truth (`sim`), known as
+    soon as a move ends and recorded by the runtime then, or a tracker outside the robot
+    (`tracker`), which records its poses itself as it sees them."""
+
+    pose_source: PoseSource
 
     async def connect(self) -> None: ...
 

@@ -17,22 +17,24 @@ import logging
 import secrets
 import time
 from collections import deque
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import select
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import Session, sessionmaker
 
 from app.backends.base import BackendUnavailable, Frame, MoveOutcome
+from app.clock import ServerClock
 from app.db.models import Robot
 from app.perception.tracker_seat import TrialTracker
 from app.trial.port import RobotTrial
-from app.trial.vocabulary import PARTICIPANTS, ROBOT_ROLES, FrameSource, Move, Outcome, Role
+from app.trial.specs import BackendSpec
+from app.trial.vocabulary import PARTICIPANTS, ROBOT_ROLES, FrameSource, Move, Outcome, PoseSource, Role
 from robot_client.protocol import FrameHeader
 
 if TYPE_CHECKING:
-    from app.services import Services
+    from app.backends.registry import BackendParts
 
 logger = logging.getLogger(__name__)
 
@@ -81,7 +83,9 @@ def robot_for_token(db: Session, token: str) -> Robot | None:
 class RobotLink:
     """The server's end of one robot's websocket. `send` queues a JSON message for the writer."""
 
-    def __init__(self, robot_id: int, name: str, role: str, send, clock) -> None:
+    def __init__(
+        self, robot_id: int, name: str, role: str, send: Callable[[dict[str, Any]], None], clock: ServerClock
+    ) -> None:
         self.robot_id, self.name, self.role = robot_id, name, role
         self._send = send
         self._clock = clock
@@ -89,7 +93,7 @@ class RobotLink:
         self._offsets: deque[tuple[int, int]] = deque(maxlen=OFFSET_SAMPLES)  # (rtt, offset)
         self._ping_id = 0
         self._pings: dict[int, int] = {}
-        self._pending: dict[str, asyncio.Future] = {}
+        self._pending: dict[str, asyncio.Future[dict[str, Any]]] = {}
         self._move_seq = 0
         self._arrivals: deque[int] = deque()
         self._last_capture_ns = 0
@@ -108,7 +112,7 @@ class RobotLink:
             self._pings.pop(min(self._pings))
         self._send({"type": "ping", "id": self._ping_id, "server_ns": sent})
 
-    def on_pong(self, message: dict, received_ns: int) -> None:
+    def on_pong(self, message: dict[str, Any], received_ns: int) -> None:
         sent = self._pings.pop(message.get("id", 0), None)  # ping ids start at 1
         robot_ns = message.get("robot_ns")
         if sent is None or not isinstance(robot_ns, int):
@@ -130,7 +134,7 @@ class RobotLink:
         (before the first pong, the arrival itself)."""
         offset = self.offset_ns
         mono = received_ns if offset is None else min(robot_ns - offset, received_ns)
-        return self._clock.now_ns() - (time.monotonic_ns() - mono)
+        return int(self._clock.now_ns() - (time.monotonic_ns() - mono))
 
     @property
     def last_capture_ns(self) -> int:
@@ -180,7 +184,7 @@ class RobotLink:
         finally:
             self._pending.pop(move_id, None)
 
-    def on_ack(self, message: dict, received_ns: int) -> None:
+    def on_ack(self, message: dict[str, Any], received_ns: int) -> None:
         ack = dict(message)
         for key in ("started_ns", "finished_ns"):
             if isinstance(ack.get(key), int):
@@ -231,7 +235,7 @@ class FrameSlot:
             self.frame = frame
             self._changed.notify_all()
 
-    async def newer_than(self, frame: Frame | None, stop) -> Frame | None:
+    async def newer_than(self, frame: Frame | None, stop: Callable[[], bool]) -> Frame | None:
         """The next frame after `frame`, or None once `stop()` is true (checked on `wake`)."""
         async with self._changed:
             await self._changed.wait_for(lambda: stop() or (self.frame is not None and self.frame is not frame))
@@ -256,8 +260,8 @@ class FrameSlot:
 class RobotLinks:
     """Connected robots by id, the trials that use them, and the dashboard's view of both."""
 
-    def __init__(self, services) -> None:
-        self.services = services
+    def __init__(self, db: sessionmaker[Session]) -> None:
+        self.db = db  # the registered robots, for the dashboard
         self.links: dict[int, RobotLink] = {}
         self.slots: dict[int, FrameSlot] = {}
         self.backends: dict[int, set[RemoteRobotBackend]] = {}
@@ -319,12 +323,12 @@ class RobotLinks:
 
     def status(self) -> list[dict[str, Any]]:
         """Every registered robot with its link figures: what the experimenter's dashboard shows."""
-        with self.services.db() as db:
+        with self.db() as db:
             robots = db.scalars(select(Robot).order_by(Robot.name)).all()
         rows = []
         for robot in robots:
             link = self.links.get(robot.id)
-            row = {"id": robot.id, "name": robot.name, "role": robot.role, "backend": f"robot:{robot.id}"}
+            row = {"id": robot.id, "name": robot.name, "role": robot.role, "backend": str(BackendSpec.robot(robot.id))}
             row.update(
                 link.status()
                 if link is not None
@@ -332,13 +336,6 @@ class RobotLinks:
             )
             rows.append(row)
         return rows
-
-
-def robot_links(services) -> RobotLinks:
-    """This server's `RobotLinks`, made on first use."""
-    if services.robots is None:
-        services.robots = RobotLinks(services)
-    return services.robots
 
 
 # -- the backend ----------------------------------------------------------------------
@@ -352,6 +349,8 @@ class RobotSeat:
 
 
 class RemoteRobotBackend:
+    pose_source = PoseSource.TRACKER
+
     def __init__(
         self,
         robot_id: int,
@@ -359,7 +358,7 @@ class RemoteRobotBackend:
         links: RobotLinks,
         trial: RobotTrial,
         overhead_calibration: Path | None,
-        clock_ns,
+        clock_ns: Callable[[], int],
     ) -> None:
         self.robot_id, self.name = robot_id, name
         self.links, self.trial = links, trial
@@ -445,13 +444,14 @@ class RemoteRobotBackend:
         await self.links.slot(self.robot_id).wake()
 
 
-async def remote_backend(spec: str, trial: RobotTrial, services: Services) -> RemoteRobotBackend:
+async def remote_backend(spec: str, trial: RobotTrial, parts: BackendParts) -> RemoteRobotBackend:
     """`robot:<id>`: the registered driver robot with that id."""
     try:
-        robot_id = int(spec.split(":", 1)[1])
-    except (IndexError, ValueError):
-        raise LookupError(f"robot backend {spec!r}: expected 'robot:<id>'") from None
-    with services.db() as db:
+        robot_id = BackendSpec.parse(spec).robot_id
+    except ValueError as err:
+        raise LookupError(str(err)) from None
+    assert robot_id is not None  # the registry hands this factory `robot:` specs only
+    with parts.db() as db:
         robot = db.get(Robot, robot_id)
     if robot is None:
         raise LookupError(f"robot backend {spec!r}: no robot {robot_id} is registered")
@@ -460,8 +460,8 @@ async def remote_backend(spec: str, trial: RobotTrial, services: Services) -> Re
     return RemoteRobotBackend(
         robot.id,
         robot.name,
-        robot_links(services),
+        parts.robots,
         trial,
-        services.settings.overhead_calibration,
-        services.clock.now_ns,
+        parts.overhead_calibration,
+        parts.clock.now_ns,
     )

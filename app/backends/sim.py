@@ -23,7 +23,7 @@ import numpy as np
 from app.backends.base import Frame, MoveOutcome
 from app.backends.render import FRAME_SIZE, FrameRenderer, InThread, render_jpeg
 from app.clock import ServerClock
-from app.trial.vocabulary import Move, Outcome
+from app.trial.vocabulary import Move, Outcome, PoseSource
 from sim.core.dynamics import Action, Pose, step
 from sim.core.geometry import heading_angle
 from sim.core.maze import Maze
@@ -36,6 +36,8 @@ FRAMES_KEPT = 32  # JPEGs of recent poses per trial (about 15 kB each)
 
 
 class SimulatorBackend:
+    pose_source = PoseSource.SIM
+
     def __init__(
         self,
         maze: Maze,

@@ -26,8 +26,6 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-AGENT, ORACLE = "agent:", "oracle:"
-
 
 @dataclass(frozen=True)
 class Oracle:
@@ -40,7 +38,7 @@ class Oracle:
 
 @dataclass(frozen=True)
 class Seating:
-    """What an agent's factory gets besides the services."""
+    """What a driver's factory gets besides the server's parts (`AgentParts`)."""
 
     seed: int  # the trial's id: an agent's chance moves repeat per trial
     oracle: Oracle | None = None  # for `oracle:` drivers only

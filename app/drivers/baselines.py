@@ -7,6 +7,7 @@ from __future__ import annotations
 import random
 
 from app.drivers.base import Oracle, Seating
+from app.drivers.registry import AgentParts
 from app.mazes import Mazes
 from sim.agents.stepwise import StepwiseDriver
 from sim.agents.turns import Move
@@ -49,11 +50,11 @@ class ShortestPathOracle(StepwiseDriver):
         return None if action == Action.STOP else Move(action.word)
 
 
-def random_driver(services, seating: Seating) -> RandomDriver:
+def random_driver(parts: AgentParts, seating: Seating) -> RandomDriver:
     return RandomDriver(seating.seed)
 
 
-def shortest_driver(services, seating: Seating) -> ShortestPathOracle:
+def shortest_driver(parts: AgentParts, seating: Seating) -> ShortestPathOracle:
     if seating.oracle is None:
         raise ValueError("oracle:shortest needs the oracle's view of the trial")
-    return ShortestPathOracle(services.mazes, seating.oracle)
+    return ShortestPathOracle(parts.mazes, seating.oracle)

@@ -5,15 +5,16 @@ localizes the Driver from its words on the trial's map, guides it in words and j
 from __future__ import annotations
 
 from app.drivers.base import Seating
+from app.drivers.registry import AgentParts
 from sim.agents.dialog_commander import DialogCommander
 from sim.agents.dialog_driver import DialogDriver
 
 
-def dialog_driver(services, seating: Seating) -> DialogDriver:
+def dialog_driver(parts: AgentParts, seating: Seating) -> DialogDriver:
     return DialogDriver(seed=seating.seed)
 
 
-def dialog_commander(services, seating: Seating) -> DialogCommander:
+def dialog_commander(parts: AgentParts, seating: Seating) -> DialogCommander:
     assert seating.maze is not None  # a Commander's seat always has its map
-    maze = services.mazes.load(seating.maze)
-    return DialogCommander(maze, seed=seating.seed, cache_dir=services.settings.cache_dir)
+    maze = parts.mazes.load(seating.maze)
+    return DialogCommander(maze, seed=seating.seed, cache_dir=parts.settings.cache_dir)

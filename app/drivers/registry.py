@@ -2,10 +2,10 @@
 `oracle:<name>`.
 
 An agent is registered for a seat (`Role.DRIVER` or `Role.COMMANDER`); one name may name an agent
-in each (`agent:dialog`). A factory is `factory(services, seating) -> Agent`
-(`sim.agents.turns.Agent`; services: settings, and the mazes with their cached graphs; seating:
+in each (`agent:dialog`). A factory is `factory(parts, seating) -> Agent`
+(`sim.agents.turns.Agent`; parts: `AgentParts`, the settings and the mazes with their cached graphs; seating:
 `app.drivers.base.Seating`, whose `oracle` is set for `oracle:` drivers only and `maze` for
-Commanders only), with optionally a check, `check(services) -> reason | None`, saying why it
+Commanders only), with optionally a check, `check(parts) -> reason | None`, saying why it
 cannot start now (None: it can). The built-in ones are named here by "module:function" and
 imported on first look-up, so the learned ones import torch only when they are checked or
 seated; `register_agent` (`register_driver` for the Driver's seat) adds more.
@@ -15,18 +15,30 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from dataclasses import dataclass, field
+from typing import Any
 
-from app.drivers.base import AGENT, ORACLE, Seating
+from app.clock import ServerClock
+from app.drivers.base import Seating
+from app.mazes import Mazes
+from app.settings import Settings
+from app.trial.specs import SeatSpec
 from app.trial.vocabulary import Role
 from sim.agents.turns import Agent
 
-if TYPE_CHECKING:
-    from app.services import Services
 
-AgentFactory = Callable[["Services", Seating], Agent]
-AgentCheck = Callable[["Services"], "str | None"]
+@dataclass(frozen=True)
+class AgentParts:
+    """What seat agents, their checks and their seats use of the server."""
+
+    settings: Settings
+    mazes: Mazes
+    clock: ServerClock
+    agent_checks: dict[Any, str | None] = field(default_factory=dict)  # agents' start checks, by file version
+
+
+AgentFactory = Callable[[AgentParts, Seating], Agent]
+AgentCheck = Callable[[AgentParts], "str | None"]
 
 BUILTIN: dict[Role, dict[str, tuple[str, str | None]]] = {
     Role.DRIVER: {
@@ -51,7 +63,10 @@ _REGISTERED: dict[Role, dict[str, AgentEntry]] = {role: {} for role in BUILTIN}
 
 
 def is_agent_spec(spec: str) -> bool:
-    return spec.startswith((AGENT, ORACLE)) and len(spec.split(":", 1)[1]) > 0
+    try:
+        return not SeatSpec.parse(spec).human
+    except ValueError:
+        return False
 
 
 def register_agent(role: Role, spec: str, factory: AgentFactory, check: AgentCheck | None = None) -> None:
@@ -64,7 +79,7 @@ def register_driver(spec: str, factory: AgentFactory, check: AgentCheck | None =
     register_agent(Role.DRIVER, spec, factory, check)
 
 
-def _resolve(path: str | None):
+def _resolve(path: str | None) -> Any:
     if path is None:
         return None
     module, name = path.split(":")
@@ -89,23 +104,23 @@ def driver_names() -> list[str]:
     return agent_names(Role.DRIVER)
 
 
-def available_agents(services: Services, role: Role) -> dict[str, str | None]:
+def available_agents(parts: AgentParts, role: Role) -> dict[str, str | None]:
     """Every agent for the seat by spec, with the reason it cannot start now, or None when it can."""
     result = {}
     for spec in agent_names(role):
         entry = _entry(role, spec)
-        result[spec] = entry.check(services) if entry.check is not None else None
+        result[spec] = entry.check(parts) if entry.check is not None else None
     return result
 
 
-def available_drivers(services: Services) -> dict[str, str | None]:
-    return available_agents(services, Role.DRIVER)
+def available_drivers(parts: AgentParts) -> dict[str, str | None]:
+    return available_agents(parts, Role.DRIVER)
 
 
-def available_seats(services: Services) -> dict[Role, dict[str, str | None]]:
+def available_seats(parts: AgentParts) -> dict[Role, dict[str, str | None]]:
     """`available_agents` for both seats: what `create_trial` checks a trial's seats against."""
-    return {role: available_agents(services, role) for role in (Role.COMMANDER, Role.DRIVER)}
+    return {role: available_agents(parts, role) for role in (Role.COMMANDER, Role.DRIVER)}
 
 
-def create_agent(role: Role, spec: str, services: Services, seating: Seating) -> Agent:
-    return _entry(role, spec).factory(services, seating)
+def create_agent(role: Role, spec: str, parts: AgentParts, seating: Seating) -> Agent:
+    return _entry(role, spec).factory(parts, seating)

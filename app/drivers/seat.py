@@ -29,11 +29,13 @@ from collections import OrderedDict
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from app.drivers.base import ORACLE, Oracle, Seating
-from app.drivers.registry import create_agent
+from app.drivers.base import Oracle, Seating
+from app.drivers.registry import AgentParts, create_agent
+from app.settings import Settings
 from app.trial import events as ev
 from app.trial.decide import Refused
 from app.trial.port import CommanderTrial, DriverTrial, SeatTrial
+from app.trial.specs import BackendKind, BackendSpec, SeatKind, SeatSpec
 from app.trial.vocabulary import Move, Role
 from sim.agents import turns as t
 from sim.robot.frames import FrameError, decode_jpeg
@@ -44,18 +46,19 @@ if TYPE_CHECKING:
 
 logger = logging.getLogger(__name__)
 OBSERVATIONS_KEPT = 8  # the simulator's observations of the latest frames, until their events come
-HUMAN = "human"
 
 
 def seat_agents(runtime: TrialRuntime) -> tuple[DriverSeat | None, CommanderSeat | None]:
     """The agent seats of a trial, made before its backend so the Driver's hears the first frame."""
-    s = runtime.state
+    s, parts = runtime.state, runtime.parts.agents
+    driver_spec, commander_spec = SeatSpec.parse(s.driver), SeatSpec.parse(s.commander)
     driver = commander = None
-    if s.driver != HUMAN:
-        oracle = Oracle(s.maze, tuple(s.targets), runtime.true_pose) if s.driver.startswith(ORACLE) else None
-        driver = DriverSeat(runtime, runtime.services, Seating(seed=runtime.trial_id, oracle=oracle))
-    if s.commander != HUMAN:
-        commander = CommanderSeat(runtime, runtime.services, Seating(seed=runtime.trial_id, maze=s.maze))
+    if not driver_spec.human:
+        cheats = driver_spec.kind == SeatKind.ORACLE
+        oracle = Oracle(s.maze, tuple(s.targets), runtime.true_pose) if cheats else None
+        driver = DriverSeat(runtime, parts, Seating(seed=runtime.trial_id, oracle=oracle))
+    if not commander_spec.human:
+        commander = CommanderSeat(runtime, parts, Seating(seed=runtime.trial_id, maze=s.maze))
     return driver, commander
 
 
@@ -67,7 +70,7 @@ def perceived(jpeg: bytes, calibration: Any) -> RayObservation | None:
         return None
 
 
-async def camera_calibration(backend: str, settings: Any) -> Any:
+async def camera_calibration(backend: str, settings: Settings) -> Any:
     """The Driver camera's calibration of `backend`, or None where there is none."""
     from app.perception.cameras import CameraUnknown, driver_calibration
 
@@ -100,8 +103,8 @@ class AgentSeat:
 
     role: Role
 
-    def __init__(self, trial: SeatTrial, services, seating: Seating) -> None:
-        self.trial, self.services, self.seating = trial, services, seating
+    def __init__(self, trial: SeatTrial, parts: AgentParts, seating: Seating) -> None:
+        self.trial, self.parts, self.seating = trial, parts, seating
         self.spec = trial.state.driver if self.role == Role.DRIVER else trial.state.commander
         self.inbox: asyncio.Queue[Any] = asyncio.Queue()
         self.chat_seqs: set[int] = set()  # chat events already heard (the welcome repeats them)
@@ -186,7 +189,7 @@ class AgentSeat:
 
     async def _run(self) -> None:
         trial = self.trial
-        agent = await asyncio.to_thread(create_agent, self.role, self.spec, self.services, self.seating)
+        agent = await asyncio.to_thread(create_agent, self.role, self.spec, self.parts, self.seating)
         await asyncio.to_thread(agent.reset, t.SeatInfo(t.Speaker(self.role), len(trial.state.targets)))
         await self._prepare()
         trial.join(self)
@@ -233,7 +236,7 @@ class AgentSeat:
         return False
 
     async def _say(self, text: str) -> None:
-        cap = self.services.settings.agent_messages_per_target
+        cap = self.parts.settings.agent_messages_per_target
         if self.said_for_target >= cap:  # two agents can talk in circles: a cap, as on moves
             index = self.phase[1] if self.phase and self.phase[1] is not None else 0
             await self._give_up(
@@ -267,13 +270,13 @@ class CommanderSeat(AgentSeat):
 
     role = Role.COMMANDER
 
-    def __init__(self, trial: CommanderTrial, services, seating: Seating) -> None:
-        super().__init__(trial, services, seating)
+    def __init__(self, trial: CommanderTrial, parts: AgentParts, seating: Seating) -> None:
+        super().__init__(trial, parts, seating)
         self.port = trial
         self.calibration: Any = None
 
     async def _prepare(self) -> None:
-        self.calibration = await camera_calibration(self.trial.state.backend, self.services.settings)
+        self.calibration = await camera_calibration(self.trial.state.backend, self.parts.settings)
 
     def _seat_event(self, kind: str, payload: dict[str, Any], message: dict[str, Any]) -> None:
         if kind == ev.TargetClaimed.kind:
@@ -311,8 +314,8 @@ class DriverSeat(AgentSeat):
 
     role = Role.DRIVER
 
-    def __init__(self, trial: DriverTrial, services, seating: Seating) -> None:
-        super().__init__(trial, services, seating)
+    def __init__(self, trial: DriverTrial, parts: AgentParts, seating: Seating) -> None:
+        super().__init__(trial, parts, seating)
         self.port = trial
         self.observations: OrderedDict[int, RayObservation] = OrderedDict()
         self.latest: _FrameArrived | None = None
@@ -347,8 +350,10 @@ class DriverSeat(AgentSeat):
 
     # -- life ---------------------------------------------------------------------------------
     async def _prepare(self) -> None:
-        if self.trial.state.backend != "sim":  # the simulator hands its rays; a rover's are perceived
-            self.calibration = await camera_calibration(self.trial.state.backend, self.services.settings)
+        if (
+            BackendSpec.parse(self.trial.state.backend).kind != BackendKind.SIM
+        ):  # the simulator hands its rays; a rover's are perceived
+            self.calibration = await camera_calibration(self.trial.state.backend, self.parts.settings)
 
     def _joined(self) -> None:
         self.tasks.append(asyncio.get_running_loop().create_task(self._guarded(self._clock())))  # its cap
@@ -410,7 +415,7 @@ class DriverSeat(AgentSeat):
         return True
 
     async def _move(self, move: t.Move) -> None:
-        settings, clock = self.services.settings, self.services.clock
+        settings, clock = self.parts.settings, self.parts.clock
         cap = settings.agent_moves_per_target
         if self.moves_for_target >= cap:
             index = self.target_index or 0
@@ -432,9 +437,9 @@ class DriverSeat(AgentSeat):
 
     async def _clock(self) -> None:
         """The trial-clock cap: the clock runs only while the trial does, so sleep what is left."""
-        minutes = self.services.settings.agent_minutes_per_trial
+        minutes = self.parts.settings.agent_minutes_per_trial
         while not self.trial.state.over:
-            left_s = minutes * 60 - self.trial.state.active_s(self.services.clock.now_ns())
+            left_s = minutes * 60 - self.trial.state.active_s(self.parts.clock.now_ns())
             if left_s <= 0:
                 await self._give_up(
                     f"my {minutes:g} minutes for this trial are over; I stop here",

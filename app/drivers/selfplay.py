@@ -45,7 +45,7 @@ def record_trials(
     settings = Settings(data_dir=data_dir, benchmark=benchmark)
     services = build_services(settings)
     try:
-        agents = {role: available_agents(services, role) for role in (Role.COMMANDER, Role.DRIVER)}
+        agents = {role: available_agents(services.agents, role) for role in (Role.COMMANDER, Role.DRIVER)}
         ids = []
         with services.db.begin() as db:
             for maze in mazes:
@@ -68,7 +68,7 @@ def record_trials(
         return [result_of(services, trial_id, s) for trial_id, s in zip(ids, seconds, strict=True)]
     finally:
         services.log.close()
-        services.renderer.close()
+        services.trials.backends.renderer.close()
         services.engine.dispose()
 
 

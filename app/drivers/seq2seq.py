@@ -13,7 +13,8 @@ from typing import TYPE_CHECKING
 from app.drivers.base import Seating
 
 if TYPE_CHECKING:
-    from app.services import Services
+    from app.drivers.registry import AgentParts
+    from models.driver import Seq2SeqDriver
 
 NO_CHECKPOINT = (
     "agent:seq2seq needs a checkpoint: this install ships none; set ROBOTSLANG_SEQ2SEQ_CHECKPOINT "
@@ -21,18 +22,18 @@ NO_CHECKPOINT = (
 )
 
 
-def seq2seq_checkpoint(services: Services) -> Path | None:
+def seq2seq_checkpoint(parts: AgentParts) -> Path | None:
     """The setting where given, else the package's shipped Driver (None where it has none)."""
-    if services.settings.seq2seq_checkpoint is not None:
-        return services.settings.seq2seq_checkpoint
+    if parts.settings.seq2seq_checkpoint is not None:
+        return parts.settings.seq2seq_checkpoint
     from models.shipped import default_checkpoint
 
     return default_checkpoint()
 
 
-def seq2seq_check(services: Services) -> str | None:
+def seq2seq_check(parts: AgentParts) -> str | None:
     """Why the checkpoint cannot be seated, or None; loaded once per version of the file."""
-    checkpoint = seq2seq_checkpoint(services)
+    checkpoint = seq2seq_checkpoint(parts)
     if checkpoint is None:
         return NO_CHECKPOINT
     try:
@@ -40,19 +41,19 @@ def seq2seq_check(services: Services) -> str | None:
     except OSError as err:
         return f"agent:seq2seq: checkpoint {checkpoint}: {err.strerror or err}"
     key = ("seq2seq", str(checkpoint), stat.st_mtime_ns, stat.st_size)
-    if key not in services.driver_checks:
+    if key not in parts.agent_checks:
         try:
             from models.train import load_agent
 
             load_agent(checkpoint)
-            services.driver_checks[key] = None
+            parts.agent_checks[key] = None
         except Exception as err:  # any failure to load is the reason it is not offered
-            services.driver_checks[key] = f"agent:seq2seq cannot load checkpoint {checkpoint}: {err}"
-    return services.driver_checks[key]
+            parts.agent_checks[key] = f"agent:seq2seq cannot load checkpoint {checkpoint}: {err}"
+    return parts.agent_checks[key]
 
 
-def seq2seq_driver(services: Services, seating: Seating):
-    checkpoint = seq2seq_checkpoint(services)
+def seq2seq_driver(parts: AgentParts, seating: Seating) -> Seq2SeqDriver:
+    checkpoint = seq2seq_checkpoint(parts)
     if checkpoint is None:
         raise LookupError(NO_CHECKPOINT)
     from models.driver import Seq2SeqDriver

@@ -16,8 +16,13 @@ the server never does it while a trial runs.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+from app.trial.specs import SIM, BackendSpec
 from sim.robot.camera import CameraCalibration, FrontCamera
+
+if TYPE_CHECKING:
+    from app.settings import Settings
 
 SIM_CAMERA_SIZE = (320, 240)  # app.backends.sim.FRAME_SIZE, without importing the backend
 SIM_CALIBRATION = Path(__file__).with_name("sim_camera.json")
@@ -44,9 +49,9 @@ def learned(camera: FrontCamera, seed: int = 1, progress: bool = False) -> Camer
     return simulated_calibration(camera, mazes, seed=seed, progress=progress)
 
 
-def driver_calibration(backend: str, settings) -> CameraCalibration:
+def driver_calibration(backend: str, settings: Settings) -> CameraCalibration:
     """The calibration of the Driver camera of a trial on `backend` ("sim" or "robot:<id>")."""
-    if backend == "sim":
+    if BackendSpec.parse(backend) == SIM:
         return CameraCalibration.load(SIM_CALIBRATION)
     path = settings.camera_calibration
     if path is None or not Path(path).exists():

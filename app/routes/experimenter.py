@@ -10,17 +10,30 @@ from anyio import from_thread
 from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from sqlalchemy import select
+from sqlalchemy.orm import Session
 
-from app.backends.remote import robot_links
 from app.db.models import Participant, Robot, Team, Trial
-from app.deps import experimenter_id
+from app.deps import (
+    AgentsDep,
+    ClockDep,
+    DbSession,
+    HubDep,
+    LogDep,
+    MazesDep,
+    RobotLinksDep,
+    SeatTokensDep,
+    SettingsDep,
+    experimenter_id,
+)
 from app.drivers.registry import available_seats
 from app.guard import csrf_protect
-from app.routes.pages import render, trial_or_404
+from app.security import SeatTokens
 from app.trial.lifecycle import Refused, delete_participant, delete_robot, delete_team, exclude_trial
 from app.trial.setup import TrialSetupError, create_participant, create_team, create_trial, parse_targets, suggest_maze
+from app.trial.specs import HUMAN, SIM, BackendSpec, SeatSpec
 from app.trial.state import fold
 from app.trial.vocabulary import Role
+from app.web import render, trial_or_404
 
 # Every state-changing request also needs this server's Origin and the page's CSRF token.
 router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter_id), Depends(csrf_protect)])
@@ -42,27 +55,34 @@ def seat_holders(trial: Trial, names: dict[int, str]) -> dict[str, str]:
     return {Role.COMMANDER: commander, Role.DRIVER: driver}
 
 
-def join_links(request: Request, trial: Trial) -> dict[str, str]:
+def join_links(request: Request, seats: SeatTokens, trial: Trial) -> dict[str, str]:
     """A link for each seat a person holds (none for an agent's)."""
-    seats = request.app.state.services.seats
-    roles = [role for role, spec in ((Role.COMMANDER, trial.commander), (Role.DRIVER, trial.driver)) if spec == "human"]
+    people = ((Role.COMMANDER, trial.commander), (Role.DRIVER, trial.driver))
+    roles = [role for role, spec in people if SeatSpec.parse(spec).human]
     return {role: str(request.url_for("play", token=seats.issue(trial.id, role))) for role in roles}
 
 
 @router.get("", response_class=HTMLResponse)
-def dashboard(request: Request, error: str | None = None):
-    services = request.app.state.services
-    with services.db() as db:
-        participants = db.scalars(select(Participant).order_by(Participant.name)).all()
-        teams = db.scalars(select(Team).order_by(Team.name)).all()
-        trials = db.scalars(select(Trial).order_by(Trial.id.desc()).limit(100)).all()
-        rovers = db.scalars(select(Robot).where(Robot.role == Role.DRIVER).order_by(Robot.name)).all()
-        names = {p.id: p.name for p in participants}
-        team_names = {t.id: t.name for t in teams}
-        layouts = services.mazes.layouts()
-        suggestions = {t.id: suggest_maze(db, t, layouts) for t in teams}
+def dashboard(
+    request: Request,
+    db: DbSession,
+    mazes: MazesDep,
+    settings: SettingsDep,
+    agents: AgentsDep,
+    robot_links: RobotLinksDep,
+    seats: SeatTokensDep,
+    error: str | None = None,
+):
+    participants = db.scalars(select(Participant).order_by(Participant.name)).all()
+    teams = db.scalars(select(Team).order_by(Team.name)).all()
+    trials = db.scalars(select(Trial).order_by(Trial.id.desc()).limit(100)).all()
+    rovers = db.scalars(select(Robot).where(Robot.role == Role.DRIVER).order_by(Robot.name)).all()
+    names = {p.id: p.name for p in participants}
+    team_names = {t.id: t.name for t in teams}
+    layouts = mazes.layouts()
+    suggestions = {t.id: suggest_maze(db, t, layouts) for t in teams}
     # The robot seat: the simulator or a registered rover, by the trial's backend spec.
-    backends = {"sim": "simulator", **{f"robot:{r.id}": f"{r.name} (rover)" for r in rovers}}
+    backends = {str(SIM): "simulator", **{str(BackendSpec.robot(r.id)): f"{r.name} (rover)" for r in rovers}}
     return render(
         request,
         "experimenter.html",
@@ -74,15 +94,11 @@ def dashboard(request: Request, error: str | None = None):
         layouts=layouts,
         suggestions=suggestions,
         backends=backends,
-        seat_agents=available_seats(services),
-        caps=(
-            services.settings.agent_moves_per_target,
-            services.settings.agent_minutes_per_trial,
-            services.settings.agent_messages_per_target,
-        ),
+        seat_agents=available_seats(agents),
+        caps=(settings.agent_moves_per_target, settings.agent_minutes_per_trial, settings.agent_messages_per_target),
         controls_for=controls_for,
-        robots=robot_links(services).status(),
-        links={t.id: join_links(request, t) for t in trials},
+        robots=robot_links.status(),
+        links={t.id: join_links(request, seats, t) for t in trials},
         holders={t.id: seat_holders(t, names) for t in trials},
         error=error,
     )
@@ -93,9 +109,9 @@ def _redirect(error: str | None = None) -> RedirectResponse:
 
 
 @router.post("/participants")
-def add_participant(request: Request, name: str = Form(max_length=80)):
+def add_participant(db: DbSession, name: str = Form(max_length=80)):
     try:
-        with request.app.state.services.db.begin() as db:
+        with db.begin():
             create_participant(db, name)
     except TrialSetupError as err:
         return _redirect(str(err))
@@ -103,9 +119,9 @@ def add_participant(request: Request, name: str = Form(max_length=80)):
 
 
 @router.post("/teams")
-def add_team(request: Request, name: str = Form(max_length=80), member_a: int = Form(), member_b: int = Form()):
+def add_team(db: DbSession, name: str = Form(max_length=80), member_a: int = Form(), member_b: int = Form()):
     try:
-        with request.app.state.services.db.begin() as db:
+        with db.begin():
             create_team(db, name, member_a, member_b)
     except TrialSetupError as err:
         return _redirect(str(err))
@@ -114,7 +130,11 @@ def add_team(request: Request, name: str = Form(max_length=80), member_a: int = 
 
 @router.post("/trials")
 def add_trial(
-    request: Request,
+    db: DbSession,
+    mazes: MazesDep,
+    clock: ClockDep,
+    agents: AgentsDep,
+    hub: HubDep,
     team_id: int | None = Form(None),
     maze: str = Form(""),
     targets: str = Form("random"),
@@ -123,14 +143,13 @@ def add_trial(
     commander: str = Form("human"),
     commander_id: int | None = Form(None),
 ):
-    services = request.app.state.services
-    layouts = services.mazes.layouts()
-    agents = available_seats(services)
-    people = "human" in (driver, commander)  # agents in both seats play without a team
+    layouts = mazes.layouts()
+    seat_agents = available_seats(agents)
+    people = str(HUMAN) in (driver, commander)  # agents in both seats play without a team
     try:
         if people and team_id is None:
             raise TrialSetupError("choose a team (form one first)")
-        with services.db.begin() as db:
+        with db.begin():
             team = db.get(Team, team_id) if people and team_id is not None else None
             if people and team is None:
                 raise TrialSetupError(f"team {team_id} does not exist")
@@ -148,39 +167,39 @@ def add_trial(
                 driver=driver,
                 commander_id=commander_id,
                 layouts=layouts,
-                now_ns=services.clock.now_ns(),
-                agents=agents[Role.DRIVER],
+                now_ns=clock.now_ns(),
+                agents=seat_agents[Role.DRIVER],
                 commander=commander,
-                commanders=agents[Role.COMMANDER],
+                commanders=seat_agents[Role.COMMANDER],
             )
             trial_id = trial.id
     except TrialSetupError as err:
         return _redirect(str(err))
     if not people:  # nobody will open a link: the trial starts now, its agents seated
-        from_thread.run(services.hub.get, trial_id)
+        from_thread.run(hub.get, trial_id)
     return _redirect()
 
 
 @router.delete("/participants/{participant_id}")
-def remove_participant(request: Request, participant_id: int) -> dict:
-    return _delete(request, lambda db: delete_participant(db, participant_id))
+def remove_participant(db: DbSession, participant_id: int) -> dict:
+    return _delete(db, lambda db: delete_participant(db, participant_id))
 
 
 @router.delete("/teams/{team_id}")
-def remove_team(request: Request, team_id: int) -> dict:
-    return _delete(request, lambda db: delete_team(db, team_id))
+def remove_team(db: DbSession, team_id: int) -> dict:
+    return _delete(db, lambda db: delete_team(db, team_id))
 
 
 @router.delete("/robots/{robot_id}")
-def remove_robot(request: Request, robot_id: int) -> dict:
-    connected = any(r["id"] == robot_id and r["connected"] for r in robot_links(request.app.state.services).status())
-    return _delete(request, lambda db: delete_robot(db, robot_id, connected))
+def remove_robot(db: DbSession, robot_links: RobotLinksDep, robot_id: int) -> dict:
+    connected = any(r["id"] == robot_id and r["connected"] for r in robot_links.status())
+    return _delete(db, lambda db: delete_robot(db, robot_id, connected))
 
 
-def _delete(request: Request, delete) -> dict:
+def _delete(db: Session, delete) -> dict:
     """One `lifecycle.delete_*` in a transaction; 409 naming why when it is refused."""
     try:
-        with request.app.state.services.db.begin() as db:
+        with db.begin():
             delete(db)
     except Refused as err:
         raise HTTPException(409, str(err)) from None
@@ -188,10 +207,10 @@ def _delete(request: Request, delete) -> dict:
 
 
 @router.post("/trials/{trial_id}/exclude")
-def exclude(request: Request, trial_id: int, reason: str = Form("", max_length=2000), back: str = Form("dashboard")):
+def exclude(db: DbSession, trial_id: int, reason: str = Form("", max_length=2000), back: str = Form("dashboard")):
     """Set an ended trial aside from the leaderboard and exports, with a reason (its log is kept)."""
     try:
-        with request.app.state.services.db.begin() as db:
+        with db.begin():
             exclude_trial(db, trial_id, reason)
     except Refused as err:
         return _redirect(str(err))
@@ -199,16 +218,16 @@ def exclude(request: Request, trial_id: int, reason: str = Form("", max_length=2
 
 
 @router.post("/trials/{trial_id}/{action}")
-async def control(request: Request, trial_id: int, action: str, back: str = Form("dashboard")):
+async def control(db: DbSession, log: LogDep, hub: HubDep, trial_id: int, action: str, back: str = Form("dashboard")):
     """Pause, resume or abort; back to the dashboard, or to the trial's page (`back=trial`)."""
     if action not in ("pause", "resume", "abort"):
         raise HTTPException(404, f"unknown trial action {action!r}")
-    trial_or_404(request, trial_id)
+    trial_or_404(db, trial_id)
     page = f"/experimenter/trials/{trial_id}" if back == "trial" else "/experimenter"
-    state = fold(request.app.state.services.log.load(trial_id))
+    state = fold(log.load(trial_id))
     if action not in controls_for(state.phase, sorted(state.pause_reasons)):
         return _redirect(f"trial {trial_id} is {_described(state)}: {action} does not apply")
-    runtime = await request.app.state.services.hub.get(trial_id)
+    runtime = await hub.get(trial_id)
     getattr(runtime, action)()
     return RedirectResponse(page, status_code=303)
 
@@ -218,36 +237,33 @@ def _described(state) -> str:
 
 
 @router.get("/api/trials")
-def live(request: Request):
+def live(db: DbSession, hub: HubDep):
     """Every trial this server has open: phase, clock, moves, seats and the true pose; and the
     recorded phase of the newest trials, so pages drop what is stale once a trial has ended."""
-    services = request.app.state.services
-    with services.db() as db:
-        phases = dict(db.execute(select(Trial.id, Trial.phase).order_by(Trial.id.desc()).limit(100)).all())
+    phases = dict(db.execute(select(Trial.id, Trial.phase).order_by(Trial.id.desc()).limit(100)).all())
     return {
-        "trials": [r.snapshot() for r in services.hub.live()],
+        "trials": [r.snapshot() for r in hub.live()],
         "phases": {str(trial_id): phase for trial_id, phase in phases.items()},
     }
 
 
 @router.get("/trials/{trial_id}", response_class=HTMLResponse)
-def watch(request: Request, trial_id: int):
-    trial = trial_or_404(request, trial_id)
-    state = fold(request.app.state.services.log.load(trial_id))
-    with request.app.state.services.db() as db:
-        names = dict(db.execute(select(Participant.id, Participant.name)).tuples().all())
+def watch(request: Request, db: DbSession, log: LogDep, seats: SeatTokensDep, trial_id: int):
+    trial = trial_or_404(db, trial_id)
+    state = fold(log.load(trial_id))
+    names = dict(db.execute(select(Participant.id, Participant.name)).tuples().all())
     return render(
         request,
         "watch.html",
         trial=trial,
         state=state,
-        links=join_links(request, trial),
+        links=join_links(request, seats, trial),
         holders=seat_holders(trial, names),
         controls=controls_for(state.phase, sorted(state.pause_reasons)),
     )
 
 
 @router.get("/trials/{trial_id}/map.png")
-def full_map(request: Request, trial_id: int):
-    trial = trial_or_404(request, trial_id)
-    return Response(request.app.state.services.mazes.full_map_png(trial.maze), media_type="image/png")
+def full_map(db: DbSession, mazes: MazesDep, trial_id: int):
+    trial = trial_or_404(db, trial_id)
+    return Response(mazes.full_map_png(trial.maze), media_type="image/png")

@@ -5,39 +5,27 @@ from __future__ import annotations
 
 import csv
 import io
+from typing import Annotated
 from urllib.parse import quote
 
 from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, JSONResponse, RedirectResponse, Response
 from pydantic import BaseModel, ConfigDict
 
-from app.deps import ExperimenterId, experimenter_id
+from app.db.models import LDHStudy
+from app.deps import ExperimenterId, StudiesDep, StudyTokensDep, experimenter_id
 from app.guard import csrf_protect
 from app.ldh_study import CSV_COLUMNS, Studies, StudyError
-from app.routes.pages import render
-from app.security import InvalidToken, StudyPass, StudyTokens
+from app.security import InvalidToken, StudyPass
+from app.web import render
 
 router = APIRouter()
 studies_router = APIRouter(prefix="/experimenter/ldh", dependencies=[Depends(experimenter_id), Depends(csrf_protect)])
 
 
-def studies(request: Request) -> Studies:
-    """This server's `Studies`, made on first use."""
-    state = request.app.state
-    if not hasattr(state, "ldh_studies"):
-        state.ldh_studies = Studies(state.services)
-        state.ldh_tokens = StudyTokens(state.services.settings.signing_key())
-    return state.ldh_studies
-
-
-def tokens(request: Request) -> StudyTokens:
-    studies(request)
-    return request.app.state.ldh_tokens
-
-
-def _study_or_404(request: Request, study_id: int):
+def _study_or_404(studies: Studies, study_id: int) -> LDHStudy:
     try:
-        return studies(request).study(study_id)
+        return studies.study(study_id)
     except LookupError as err:
         raise HTTPException(404, str(err)) from None
 
@@ -49,65 +37,65 @@ def _back(study_id: int | None = None, error: str | None = None) -> RedirectResp
 
 # -- the experimenter -----------------------------------------------------------------------
 @studies_router.get("", response_class=HTMLResponse)
-def study_list(request: Request, error: str | None = None):
-    s = studies(request)
+def study_list(request: Request, s: StudiesDep, error: str | None = None) -> HTMLResponse:
     return render(request, "ldh_studies.html", studies=s.all_studies(), default_source=s.default_source(), error=error)
 
 
 @studies_router.post("")
 def create_study(
-    request: Request,
+    studies: StudiesDep,
     experimenter: ExperimenterId,
     name: str = Form(max_length=80),
     source: str = Form(max_length=1000),
     split: str = Form("val_seen"),
     variant: str = Form("prefix"),
     limit: int | None = Form(None),
-):
+) -> RedirectResponse:
     try:
-        study_id = studies(request).create(experimenter, name, source, split, variant, limit)
+        study_id = studies.create(experimenter, name, source, split, variant, limit)
     except StudyError as err:
         return _back(error=str(err))
     return _back(study_id)
 
 
 @studies_router.post("/{study_id}/participants")
-def invite(request: Request, study_id: int, name: str = Form(max_length=80)):
-    _study_or_404(request, study_id)
+def invite(studies: StudiesDep, study_id: int, name: str = Form(max_length=80)) -> RedirectResponse:
+    _study_or_404(studies, study_id)
     try:
-        studies(request).invite(study_id, name)
+        studies.invite(study_id, name)
     except StudyError as err:
         return _back(study_id, str(err))
     return _back(study_id)
 
 
 @studies_router.get("/{study_id}", response_class=HTMLResponse)
-def study_page(request: Request, study_id: int, error: str | None = None):
-    study = _study_or_404(request, study_id)
-    s = studies(request)
+def study_page(
+    request: Request, s: StudiesDep, tokens: StudyTokensDep, study_id: int, error: str | None = None
+) -> HTMLResponse:
+    study = _study_or_404(s, study_id)
     links = {
-        p.id: str(request.url_for("ldh_participant", token=tokens(request).issue(study_id, p.id)))
+        p.id: str(request.url_for("ldh_participant", token=tokens.issue(study_id, p.id)))
         for p in s.participants(study_id)
     }
     return render(request, "ldh_study.html", study=study, results=s.results(study_id), links=links, error=error)
 
 
 @studies_router.get("/{study_id}/export.json")
-def export_json(request: Request, study_id: int):
-    _study_or_404(request, study_id)
+def export_json(studies: StudiesDep, study_id: int) -> JSONResponse:
+    _study_or_404(studies, study_id)
     return JSONResponse(
-        studies(request).results(study_id),
+        studies.results(study_id),
         headers={"Content-Disposition": f'attachment; filename="ldh-study-{study_id}.json"'},
     )
 
 
 @studies_router.get("/{study_id}/export.csv")
-def export_csv(request: Request, study_id: int):
-    _study_or_404(request, study_id)
+def export_csv(studies: StudiesDep, study_id: int) -> Response:
+    _study_or_404(studies, study_id)
     out = io.StringIO()
     writer = csv.DictWriter(out, fieldnames=CSV_COLUMNS, extrasaction="ignore")
     writer.writeheader()
-    writer.writerows(studies(request).results(study_id)["answers"])
+    writer.writerows(studies.results(study_id)["answers"])
     return Response(
         out.getvalue(),
         media_type="text/csv",
@@ -116,20 +104,21 @@ def export_csv(request: Request, study_id: int):
 
 
 # -- the participant --------------------------------------------------------------------------
-def study_pass(request: Request, token: str) -> StudyPass:
+def study_pass(token: str, tokens: StudyTokensDep, studies: StudiesDep) -> StudyPass:
     """The study and participant a link opens; 403 for a forged link or one naming another study's participant."""
     try:
-        granted = tokens(request).verify(token)
-        studies(request).participant(granted.study_id, granted.participant_id)
+        granted = tokens.verify(token)
+        studies.participant(granted.study_id, granted.participant_id)
     except (InvalidToken, LookupError) as err:
         raise HTTPException(403, str(err)) from None
     return granted
 
 
+Granted = Annotated[StudyPass, Depends(study_pass)]
+
+
 @router.get("/ldh/{token}", response_class=HTMLResponse, name="ldh_participant")
-def participant_page(request: Request, token: str):
-    granted = study_pass(request, token)
-    s = studies(request)
+def participant_page(request: Request, token: str, granted: Granted, s: StudiesDep) -> HTMLResponse:
     study, instances = s.study(granted.study_id), s.instances(granted.study_id)
     position = s.next_position(granted.study_id, granted.participant_id)
     if position is None:  # done: now, and only now, their answers beside the truth
@@ -150,9 +139,7 @@ def participant_page(request: Request, token: str):
 
 
 @router.get("/ldh/{token}/map/{position}.png")
-def participant_map(request: Request, token: str, position: int):
-    granted = study_pass(request, token)
-    s = studies(request)
+def participant_map(granted: Granted, s: StudiesDep, position: int) -> Response:
     instances = s.instances(granted.study_id)
     if not 0 <= position < len(instances):
         raise HTTPException(404, f"the study has no instance {position + 1}")
@@ -174,10 +161,8 @@ class Mark(BaseModel):
 
 
 @router.post("/ldh/{token}/answers", dependencies=[Depends(csrf_protect)])
-def submit(request: Request, token: str, mark: Mark):
+def submit(granted: Granted, s: StudiesDep, mark: Mark) -> dict[str, int | None]:
     """Record one answer. The reply says only that it was taken (never the score or the truth)."""
-    granted = study_pass(request, token)
-    s = studies(request)
     try:
         answer = s.answer(granted.study_id, granted.participant_id, mark.position, mark.x, mark.y, mark.heading)
     except StudyError as err:

@@ -10,62 +10,61 @@ from __future__ import annotations
 
 import tempfile
 from pathlib import Path
+from typing import Any
 
 from fastapi import APIRouter, Depends, HTTPException, Request
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, Response
 from sqlalchemy import select
+from sqlalchemy.orm import Session
 
 from app.db.models import Frame, Team, Trial
-from app.deps import experimenter_id
+from app.deps import DbSession, LogDep, MazesDep, SettingsDep, experimenter_id
 from app.export.record import ExportError, TrialRecord
 from app.export.source import load_trial
 from app.guard import csrf_protect
-from app.mazes import UnknownMaze
-from app.routes.pages import render
+from app.mazes import Mazes, UnknownMaze
+from app.settings import Settings
 from app.trial import events as ev
+from app.web import render, trial_or_404
 from sim.core.maze import Maze
 
 router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter_id), Depends(csrf_protect)])
 REPLAYABLE = ("finished", "aborted")
 
 
-def _trial(request: Request, trial_id: int) -> tuple[Trial, str]:
-    with request.app.state.services.db() as db:
-        trial = db.get(Trial, trial_id)
-        if trial is None:
-            raise HTTPException(404, f"trial {trial_id} does not exist")
-        team = db.get(Team, trial.team_id) if trial.team_id is not None else None
-        return trial, team.name if team else ""
+def _trial(db: Session, trial_id: int) -> tuple[Trial, str]:
+    trial = trial_or_404(db, trial_id)
+    team = db.get(Team, trial.team_id) if trial.team_id is not None else None
+    return trial, team.name if team else ""
 
 
 @router.get("/replays", response_class=HTMLResponse)
-def replays(request: Request, team: str | None = None):
+def replays(request: Request, db: DbSession, team: str | None = None) -> HTMLResponse:
     """Finished and aborted trials (of one team, when `team` is given), newest first."""
-    with request.app.state.services.db() as db:
-        query = (
-            select(Trial, Team.name)
-            .outerjoin(Team, Team.id == Trial.team_id)  # an agent pair has no team
-            .where(Trial.phase.in_(REPLAYABLE))
-            .order_by(Trial.id.desc())
-        )
-        if team:
-            query = query.where(Team.name == team)
-        rows = db.execute(query.limit(500)).all()
+    query = (
+        select(Trial, Team.name)
+        .outerjoin(Team, Team.id == Trial.team_id)  # an agent pair has no team
+        .where(Trial.phase.in_(REPLAYABLE))
+        .order_by(Trial.id.desc())
+    )
+    if team:
+        query = query.where(Team.name == team)
+    rows = db.execute(query.limit(500)).all()
     return render(request, "replays.html", rows=rows, team=team)
 
 
 @router.get("/trials/{trial_id}/replay", response_class=HTMLResponse)
-def replay(request: Request, trial_id: int):
-    trial, team = _trial(request, trial_id)
+def replay(request: Request, db: DbSession, trial_id: int) -> HTMLResponse:
+    trial, team = _trial(db, trial_id)
     return render(request, "replay.html", trial=trial, team=team)
 
 
 @router.get("/trials/{trial_id}/replay.json")
-def replay_log(request: Request, trial_id: int):
+def replay_log(db: DbSession, log: LogDep, trial_id: int) -> dict[str, Any]:
     """The whole event log, with each frame's file replaced by the URL that serves it."""
-    trial, team = _trial(request, trial_id)
+    trial, team = _trial(db, trial_id)
     events = []
-    for e in request.app.state.services.log.load(trial_id):
+    for e in log.load(trial_id):
         payload = dict(e.payload)
         if e.is_(ev.FrameRecorded):
             payload.pop("path", None)
@@ -87,37 +86,33 @@ def replay_log(request: Request, trial_id: int):
 
 
 @router.get("/trials/{trial_id}/frames/{frame_id}.jpg")
-def frame(request: Request, trial_id: int, frame_id: int):
-    services = request.app.state.services
-    with services.db() as db:
-        rel = db.scalar(select(Frame.path).where(Frame.trial_id == trial_id, Frame.seq == frame_id))
+def frame(db: DbSession, settings: SettingsDep, trial_id: int, frame_id: int) -> FileResponse:
+    rel = db.scalar(select(Frame.path).where(Frame.trial_id == trial_id, Frame.seq == frame_id))
     if rel is None:
         raise HTTPException(404, f"trial {trial_id} has no frame {frame_id}")
-    path = services.settings.frames_dir / rel
+    path = settings.frames_dir / rel
     if not path.is_file():
         raise HTTPException(404, f"frame {frame_id} of trial {trial_id}: file {rel} is missing")
     return FileResponse(path, media_type="image/jpeg", headers={"Cache-Control": "private, max-age=86400"})
 
 
-def _record(request: Request, trial_id: int) -> tuple[TrialRecord, Maze | None]:
-    services = request.app.state.services
-    with services.db() as db:
-        try:
-            record = load_trial(db, services.settings, trial_id)
-        except ExportError as err:
-            raise HTTPException(404, str(err)) from None
+def _record(db: Session, settings: Settings, mazes: Mazes, trial_id: int) -> tuple[TrialRecord, Maze | None]:
     try:
-        return record, services.mazes.load(record.maze)
+        record = load_trial(db, settings, trial_id)
+    except ExportError as err:
+        raise HTTPException(404, str(err)) from None
+    try:
+        return record, mazes.load(record.maze)
     except UnknownMaze:
         return record, None
 
 
 @router.get("/trials/{trial_id}/export.mcap")
-def export_mcap(request: Request, trial_id: int):
+def export_mcap(db: DbSession, settings: SettingsDep, mazes: MazesDep, trial_id: int) -> Response:
     """The trial as one MCAP file (Foxglove), as `robotslang export ID --format mcap` writes it."""
     from app.export.mcap import write_mcap
 
-    record, maze = _record(request, trial_id)
+    record, maze = _record(db, settings, mazes, trial_id)
     with tempfile.TemporaryDirectory() as tmp:
         try:
             data = write_mcap(record, maze, Path(tmp) / "trial.mcap").read_bytes()
@@ -131,11 +126,11 @@ def export_mcap(request: Request, trial_id: int):
 
 
 @router.get("/trials/{trial_id}/export.ndh.json")
-def export_ndh(request: Request, trial_id: int):
+def export_ndh(db: DbSession, settings: SettingsDep, mazes: MazesDep, trial_id: int) -> JSONResponse:
     """The trial's NDH instances (one per confirmed target) and its LDH instance, benchmark JSON."""
     from app.export.ndh import ldh_instances, ndh_instances
 
-    record, maze = _record(request, trial_id)
+    record, maze = _record(db, settings, mazes, trial_id)
     if maze is None:
         raise HTTPException(409, f"maze {record.maze!r} of trial {trial_id} is not in the maze library")
     return JSONResponse(

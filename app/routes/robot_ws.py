@@ -18,20 +18,22 @@ import time
 from collections.abc import Mapping
 from typing import Any
 
-from fastapi import APIRouter, Depends, Form, HTTPException, Request, WebSocket, WebSocketDisconnect
+from fastapi import APIRouter, Depends, Form, HTTPException, WebSocket, WebSocketDisconnect
+from sqlalchemy.orm import Session, sessionmaker
 
 from app.backends.remote import (
     MAX_FRAME_BYTES,
     PING_INTERVAL_S,
     RobotLink,
+    RobotLinks,
     RobotSetupError,
     create_robot,
     robot_for_token,
-    robot_links,
 )
-from app.deps import experimenter_id
+from app.deps import ClockDep, DbFactory, DbSession, RobotLinksDep, SettingsDep, experimenter_id
 from app.guard import csrf_protect, socket_origin_allowed
 from app.serving import MESSAGE_TOO_BIG
+from app.trial.specs import BackendSpec
 from robot_client.protocol import (
     CLOSE_REFUSED,
     CLOSE_REPLACED,
@@ -59,15 +61,15 @@ class Refused(Exception):
 
 
 @router.websocket("/ws/robot")
-async def robot_socket(ws: WebSocket) -> None:
-    services = ws.app.state.services
-    links = robot_links(services)
-    if not socket_origin_allowed(ws.headers, ws.url.scheme, services.settings):  # a page on another site
+async def robot_socket(
+    ws: WebSocket, links: RobotLinksDep, settings: SettingsDep, clock: ClockDep, db: DbFactory
+) -> None:
+    if not socket_origin_allowed(ws.headers, ws.url.scheme, settings):  # a page on another site
         await ws.close(code=1008, reason="origin not allowed")
         return
     await ws.accept()
     try:
-        robot_id, name, role = await _hello(ws, services)
+        robot_id, name, role = await _hello(ws, db)
     except Refused as refused:
         await _send(ws, {"type": "error", "code": refused.code, "error": str(refused)})
         await ws.close(code=CLOSE_REFUSED, reason=str(refused)[:120])
@@ -76,7 +78,7 @@ async def robot_socket(ws: WebSocket) -> None:
         return
 
     outbox: asyncio.Queue[str] = asyncio.Queue(OUTBOX_LIMIT)
-    link = RobotLink(robot_id, name, role, lambda m: _queue(outbox, m), services.clock)
+    link = RobotLink(robot_id, name, role, lambda m: _queue(outbox, m), clock)
     links.attach(link)
     _queue(
         outbox,
@@ -86,7 +88,7 @@ async def robot_socket(ws: WebSocket) -> None:
             "robot": {"id": robot_id, "name": name, "role": role},
             "ping_interval_s": PING_INTERVAL_S,
             "max_frame_bytes": MAX_FRAME_BYTES,
-            "server_ns": services.clock.now_ns(),
+            "server_ns": clock.now_ns(),
         },
     )
     logger.info("robot %r (%s) connected", name, role)
@@ -110,7 +112,7 @@ async def robot_socket(ws: WebSocket) -> None:
                 await ws.close()
 
 
-async def _hello(ws: WebSocket, services) -> tuple[int, str, str]:
+async def _hello(ws: WebSocket, sessions: sessionmaker[Session]) -> tuple[int, str, str]:
     raw = await asyncio.wait_for(ws.receive(), HELLO_TIMEOUT_S)
     if raw["type"] == "websocket.disconnect":
         raise WebSocketDisconnect(raw.get("code", 1000))
@@ -127,7 +129,7 @@ async def _hello(ws: WebSocket, services) -> tuple[int, str, str]:
     token, role = hello.get("token"), hello.get("role")
     if role not in ROLES:
         raise Refused("role", f"role {role!r}: expected one of {', '.join(ROLES)}")
-    with services.db() as db:
+    with sessions() as db:
         robot = robot_for_token(db, token) if isinstance(token, str) else None
     if robot is None:
         raise Refused("auth", "unknown robot token (copy it from the experimenter page)")
@@ -136,17 +138,17 @@ async def _hello(ws: WebSocket, services) -> tuple[int, str, str]:
     return robot.id, robot.name, robot.role
 
 
-def _queue(outbox: asyncio.Queue, message: dict) -> None:
+def _queue(outbox: asyncio.Queue[str], message: dict[str, Any]) -> None:
     with contextlib.suppress(asyncio.QueueFull):  # a robot that stops reading is dropped by DEAD_LINK_S
         outbox.put_nowait(encode(message))
 
 
-async def _send(ws: WebSocket, message: dict) -> None:
+async def _send(ws: WebSocket, message: dict[str, Any]) -> None:
     with contextlib.suppress(RuntimeError, WebSocketDisconnect):
         await ws.send_text(encode(message))
 
 
-async def _write(ws: WebSocket, outbox: asyncio.Queue, link: RobotLink) -> None:
+async def _write(ws: WebSocket, outbox: asyncio.Queue[str], link: RobotLink) -> None:
     with contextlib.suppress(RuntimeError, WebSocketDisconnect):
         while not link.closed:
             text = await outbox.get()
@@ -162,7 +164,7 @@ async def _ping(link: RobotLink) -> None:
         await asyncio.sleep(PING_INTERVAL_S)
 
 
-async def _read(ws: WebSocket, link: RobotLink, links) -> None:
+async def _read(ws: WebSocket, link: RobotLink, links: RobotLinks) -> None:
     with contextlib.suppress(WebSocketDisconnect):
         while not link.closed:
             raw = await ws.receive()
@@ -178,7 +180,7 @@ async def _read(ws: WebSocket, link: RobotLink, links) -> None:
                 links.bad_message(link, str(err))
 
 
-async def _dispatch(raw: Mapping[str, Any], link: RobotLink, links, received_ns: int) -> None:
+async def _dispatch(raw: Mapping[str, Any], link: RobotLink, links: RobotLinks, received_ns: int) -> None:
     data = raw.get("bytes")
     if data is not None:
         header, jpeg = unpack_frame(data, MAX_FRAME_BYTES)
@@ -202,23 +204,23 @@ async def _dispatch(raw: Mapping[str, Any], link: RobotLink, links, received_ns:
 
 # -- the experimenter's robot API ------------------------------------------------------
 @router.get("/experimenter/api/robots", dependencies=[Depends(experimenter_id)])
-def robots_status(request: Request) -> dict:
+def robots_status(links: RobotLinksDep) -> dict[str, Any]:
     """Each registered robot: connected, frames per second, link latency, last acknowledgement."""
-    return {"robots": robot_links(request.app.state.services).status()}
+    return {"robots": links.status()}
 
 
 @router.post("/experimenter/api/robots", dependencies=[Depends(experimenter_id), Depends(csrf_protect)])
-def register_robot(request: Request, name: str = Form(max_length=80), role: str = Form("driver")) -> dict:
+def register_robot(db: DbSession, name: str = Form(max_length=80), role: str = Form("driver")) -> dict[str, Any]:
     """Register a robot. The answer holds its token: shown this once, stored only hashed."""
     try:
-        with request.app.state.services.db.begin() as db:
+        with db.begin():
             robot, token = create_robot(db, name, role)
             return {
                 "id": robot.id,
                 "name": robot.name,
                 "role": robot.role,
                 "token": token,
-                "backend": f"robot:{robot.id}",
+                "backend": str(BackendSpec.robot(robot.id)),
             }
     except RobotSetupError as err:
         raise HTTPException(400, str(err)) from None

@@ -1,6 +1,7 @@
 """`/ws/play`: the Commander's and the Driver's socket; `/ws/watch/{trial_id}`: the experimenter's.
 
-The token is checked at the upgrade and again on every message (`TrialRuntime.receive`); the
+The token is checked at the upgrade and again on every message (`read_message`, which hands the
+runtime typed messages only); the
 watch socket needs the experimenter's login cookie, only listens, and is closed (4401) when
 that login ends: at once at a logout here, within `LOGIN_RECHECK_S` of one elsewhere or of a
 password change. The trial may run in this process or, with Redis, in another
@@ -13,17 +14,22 @@ import asyncio
 import contextlib
 import json
 import logging
+from typing import Any
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
+from pydantic import ValidationError
 
 from app.db.models import Trial
+from app.deps import DbFactory, HubDep, LoginSocketsDep, SeatTokensDep, SessionsDep, SettingsDep
 from app.guard import socket_origin_allowed
-from app.routes.pages import over_reason
-from app.security import SESSION_COOKIE, InvalidToken, Sessions
+from app.security import SESSION_COOKIE, InvalidToken, Seat, SeatTokens, Sessions
 from app.serving import MESSAGE_TOO_BIG
+from app.trial import messages as m
+from app.trial.decide import Refused
 from app.trial.runtime import UnknownTrial
 from app.trial.views import EXPERIMENTER
 from app.trial.vocabulary import Role
+from app.web import over_reason
 
 router = APIRouter()
 logger = logging.getLogger(__name__)
@@ -38,12 +44,12 @@ class SocketSeat:
 
     def __init__(self, ws: WebSocket, role: str) -> None:
         self.ws, self.role = ws, role
-        self.outbox: asyncio.Queue = asyncio.Queue(OUTBOX_LIMIT)
+        self.outbox: asyncio.Queue[dict[str, Any]] = asyncio.Queue(OUTBOX_LIMIT)
         self.loop = asyncio.get_running_loop()
         self.writer = self.loop.create_task(self._write())
         self.dropped = False
 
-    def deliver(self, message: dict) -> None:
+    def deliver(self, message: dict[str, Any]) -> None:
         if self.dropped:
             return
         try:
@@ -85,15 +91,16 @@ class SocketSeat:
 
 
 @router.websocket("/ws/play")
-async def play(ws: WebSocket, token: str = "") -> None:
-    services = ws.app.state.services
-    if not socket_origin_allowed(ws.headers, ws.url.scheme, services.settings):
+async def play(
+    ws: WebSocket, settings: SettingsDep, seats: SeatTokensDep, db: DbFactory, hub: HubDep, token: str = ""
+) -> None:
+    if not socket_origin_allowed(ws.headers, ws.url.scheme, settings):
         await ws.close(code=1008, reason="origin not allowed")
         return
     try:
-        seat = services.seats.admit(token)
-        with services.db() as db:
-            trial = db.get(Trial, seat.trial_id)
+        seat = seats.admit(token)
+        with db() as session:
+            trial = session.get(Trial, seat.trial_id)
         if trial is None:
             raise UnknownTrial(f"trial {seat.trial_id} does not exist")
         if (reason := over_reason(trial)) is not None:
@@ -105,7 +112,7 @@ async def play(ws: WebSocket, token: str = "") -> None:
     # is connected at once, and each seat's welcome follows as its trial opens.
     await ws.accept()
     try:
-        runtime = await services.hub.get(seat.trial_id)
+        runtime = await hub.get(seat.trial_id)
     except UnknownTrial as err:
         await ws.close(code=1008, reason=str(err)[:120])
         return
@@ -122,7 +129,12 @@ async def play(ws: WebSocket, token: str = "") -> None:
                 if raw.get("code") == MESSAGE_TOO_BIG:  # answered by the server (app.serving); now logged
                     runtime.report_bad_message(Role(seat.role), raw.get("reason") or "message too big")
                 break
-            await runtime.receive(conn, seat, raw.get("text"))
+            try:
+                message = read_message(raw.get("text"), seat, seats, settings.max_message_bytes)
+            except Refused as err:
+                runtime.refuse_unread(conn, seat.role, str(err))
+                continue
+            await runtime.receive(conn, seat.role, message)
     except WebSocketDisconnect:
         pass
     finally:
@@ -131,29 +143,35 @@ async def play(ws: WebSocket, token: str = "") -> None:
 
 
 @router.websocket("/ws/watch/{trial_id}")
-async def watch(ws: WebSocket, trial_id: int) -> None:
+async def watch(
+    ws: WebSocket,
+    trial_id: int,
+    settings: SettingsDep,
+    sessions: SessionsDep,
+    hub: HubDep,
+    login_sockets: LoginSocketsDep,
+) -> None:
     """The experimenter's live view of a trial: a `welcome` (with `status`, the last Driver frame
     and the pose), then every event but the overhead camera, frames with their JPEG, and `status`."""
-    services = ws.app.state.services
-    if not socket_origin_allowed(ws.headers, ws.url.scheme, services.settings):
+    if not socket_origin_allowed(ws.headers, ws.url.scheme, settings):
         await ws.close(code=1008, reason="origin not allowed")
         return
     cookie = ws.cookies.get(SESSION_COOKIE)
-    login = services.sessions.verify(cookie)
+    login = sessions.verify(cookie)
     if login is None:
         await ws.close(code=1008, reason="log in as an experimenter first")
         return
     try:
-        runtime = await services.hub.get(trial_id)
+        runtime = await hub.get(trial_id)
     except UnknownTrial as err:
         await ws.close(code=1008, reason=str(err)[:120])
         return
     await ws.accept()
     conn = SocketSeat(ws, EXPERIMENTER)
     runtime.watch(conn)
-    services.login_sockets.add(login, conn)
+    login_sockets.add(login, conn)
     listening = asyncio.create_task(_until_closed(ws))
-    logged_in = asyncio.create_task(_while_logged_in(services.sessions, cookie))
+    logged_in = asyncio.create_task(_while_logged_in(sessions, cookie))
     try:
         await asyncio.wait((listening, logged_in), return_when=asyncio.FIRST_COMPLETED)
         if logged_in.done():
@@ -162,9 +180,38 @@ async def watch(ws: WebSocket, trial_id: int) -> None:
     finally:
         listening.cancel()
         logged_in.cancel()
-        services.login_sockets.discard(login, conn)
+        login_sockets.discard(login, conn)
         runtime.unwatch(conn)
         await conn.close()
+
+
+def read_message(text: str | None, seat: Seat, seats: SeatTokens, limit: int) -> m.SeatMessage:
+    """One socket message as the seat's typed message; `Refused` saying why it cannot be read:
+    binary, over `limit` bytes, not a valid message, or not carrying this seat's token (each
+    message carries it, so a token that is revoked or for another seat stops working at once)."""
+    if text is None:
+        raise Refused("messages must be JSON text, not binary")
+    size = len(text.encode())
+    if size > limit:
+        raise Refused(f"message is {size} bytes; the limit is {limit}")
+    try:
+        message = m.seat_message.validate_json(text)
+    except ValidationError as err:
+        raise Refused(f"invalid message: {_describe(err)}") from None
+    try:
+        if seats.verify(message.token) != seat:
+            raise InvalidToken("token is for another seat")
+    except InvalidToken as err:
+        raise Refused(f"token refused: {err}") from None
+    return message
+
+
+def _describe(err: ValidationError) -> str:
+    parts = []
+    for e in err.errors()[:3]:
+        where = ".".join(str(p) for p in e["loc"]) or "message"
+        parts.append(f"{where}: {e['msg']}")
+    return "; ".join(parts)
 
 
 async def _until_closed(ws: WebSocket) -> None:

@@ -5,27 +5,27 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-from typing import TYPE_CHECKING
 
 from sqlalchemy import select
 
 from app.db.models import Trial
-from app.trial.relay import RemoteTrial
-from app.trial.runtime import TrialRuntime, UnknownTrial
+from app.trial.relay import RedisRelay, RemoteTrial
+from app.trial.runtime import TrialParts, TrialRuntime, UnknownTrial
 from app.trial.vocabulary import Phase
-
-if TYPE_CHECKING:
-    from app.services import Services
 
 logger = logging.getLogger(__name__)
 
 
 class TrialHub:
-    def __init__(self, services: Services) -> None:
-        self.services = services
+    """`start` and `close` with the server: they start and stop the relay (with Redis) too."""
+
+    def __init__(self, parts: TrialParts, relay_url: str | None = None) -> None:
+        self.parts = parts
         self._runtimes: dict[int, TrialRuntime] = {}
         self._opening: dict[int, asyncio.Lock] = {}
-        services.log.on_lost = self._lost
+        # With Redis, trials are shared between the processes on the same database.
+        self.relay = RedisRelay(self, relay_url, parts.settings) if relay_url else None
+        parts.log.on_lost = self._lost
 
     def _lost(self, trial_id: int, error: Exception) -> None:
         """Its events could not be committed (another process runs it now): stop running it here;
@@ -39,20 +39,22 @@ class TrialHub:
     async def get(self, trial_id: int) -> TrialRuntime | RemoteTrial:
         """Where the trial runs: its runtime here, or (with Redis) a `RemoteTrial` forwarding to
         the process that runs it."""
-        relay = self.services.relay
+        relay = self.relay
         if relay is None or trial_id in self._runtimes:
             return await self.local(trial_id)
         owner = await relay.owner(trial_id)
         if owner == relay.id:
             return await self.local(trial_id)
-        if not self.services.log.load(trial_id)[:1]:
+        if not self.parts.log.load(trial_id)[:1]:
             raise UnknownTrial(f"trial {trial_id} does not exist")
         return RemoteTrial(relay, trial_id, owner)
 
-    async def resume_running(self) -> None:
+    async def start(self) -> None:
         """At start: reopen the trials that were running when the server stopped, so their grace
         timers run even if no seat comes back (with Redis, the first process up takes them)."""
-        with self.services.db() as db:
+        if self.relay is not None:
+            await self.relay.start()
+        with self.parts.db() as db:
             ids = db.scalars(select(Trial.id).where(Trial.phase.in_([Phase.LOCALIZING, Phase.NAVIGATING]))).all()
         for trial_id in ids:
             try:
@@ -69,7 +71,7 @@ class TrialHub:
         async with lock:
             runtime = self._runtimes.get(trial_id)
             if runtime is None:
-                runtime = TrialRuntime(trial_id, self.services)
+                runtime = TrialRuntime(trial_id, self.parts, self.forget)
                 await runtime.start()
                 self._runtimes[trial_id] = runtime
         return runtime
@@ -89,6 +91,8 @@ class TrialHub:
         return [r for r in self._runtimes.values() if not r.state.over]
 
     async def close(self) -> None:
+        if self.relay is not None:
+            await self.relay.close()  # hands its trials back first
         for runtime in list(self._runtimes.values()):
             await runtime.close()
         self._runtimes.clear()

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import threading
 from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -27,7 +28,6 @@ from sim.tasks.ldh_eval import MazeContext, colour_logits
 from sim.tasks.ldh_features import maze_views, mentions
 
 if TYPE_CHECKING:
-    from app.services import Services
     from app.trial.runtime import TrialRuntime
     from models.ldh import TrainedLocalizer
 
@@ -38,20 +38,28 @@ DIALOG_ROLES = {Role.COMMANDER: "oracle", Role.DRIVER: "navigator"}  # the bench
 
 
 class BeliefModel:
-    """One per server: the localizer and each maze's graph and per-pose views, built once."""
+    """One per server: the localizer and each maze's graph and per-pose views, built once. The
+    learned localizer (torch) loads on the first belief asked for, not when the server starts."""
 
     def __init__(self, checkpoint: Path | None, cache_dir: Path) -> None:
         self.cache_dir = cache_dir
+        self._checkpoint = checkpoint
+        self._loading = threading.Lock()
         self.learned: TrainedLocalizer | None = None
         self.name = "colours"
-        if checkpoint is not None:
+        self._contexts: dict[str, MazeContext] = {}
+
+    def _load(self) -> None:
+        with self._loading:
+            if self._checkpoint is None:
+                return
+            checkpoint, self._checkpoint = self._checkpoint, None
             from models.ldh import load_localizer  # torch only where a checkpoint is configured
 
             try:
                 self.learned, self.name = load_localizer(checkpoint), "learned"
             except Exception as err:  # the server runs on; the page shows which model it sees
                 logger.error("LDH checkpoint %s not usable (%s): showing the colours localizer", checkpoint, err)
-        self._contexts: dict[str, MazeContext] = {}
 
     def context(self, maze: Maze) -> MazeContext:
         if maze.name not in self._contexts:
@@ -61,6 +69,7 @@ class BeliefModel:
 
     def node_belief(self, maze: Maze, dialog: Iterable[tuple[str, str]]) -> tuple[MazeContext, np.ndarray]:
         """(context, P(node)) over the main component, from the (role, message) turns so far."""
+        self._load()
         ctx = self.context(maze)
         counts = mentions(dialog)
         logits = (
@@ -81,39 +90,32 @@ class BeliefModel:
         ]
 
 
-def belief_model(services: Services) -> BeliefModel:
-    if services.ldh_belief is None:
-        settings = services.settings
-        services.ldh_belief = BeliefModel(settings.ldh_checkpoint, settings.cache_dir)
-    return services.ldh_belief
-
-
 class LiveBelief:
     """A trial's belief feed to its watchers: the runtime calls `after` per event, `welcome` per watcher."""
 
-    def __init__(self, runtime: TrialRuntime) -> None:
-        self.runtime = runtime
+    def __init__(self, runtime: TrialRuntime, model: BeliefModel) -> None:
+        self.runtime, self.model = runtime, model
         self._sent_upto = 0  # the last chat seq a belief was sent for
 
     def after(self, logged: LoggedEvent) -> None:
         if logged.is_(ev.Chat) and self.runtime.watchers and self.runtime.state.phase == Phase.LOCALIZING:
-            self.runtime._spawn(self._send(None))
+            self.runtime.spawn(self._send(None))
 
     def welcome(self, conn: Connection) -> None:
         if self.runtime.state.phase == Phase.LOCALIZING:
-            self.runtime._spawn(self._send(conn))
+            self.runtime.spawn(self._send(conn))
 
     async def _send(self, only: Connection | None) -> None:
         rt = self.runtime
-        chats = [e for e in rt.services.log.load(rt.trial_id) if e.is_(ev.Chat)]
+        chats = [e for e in rt.parts.log.load(rt.trial_id) if e.is_(ev.Chat)]
         if not chats:
             return
         dialog = tuple(
             (DIALOG_ROLES[e.payload["role"]], e.payload["text"]) for e in chats if e.payload.get("role") in DIALOG_ROLES
         )
-        model = belief_model(rt.services)
+        model = self.model
         try:
-            maze = rt.services.mazes.load(rt.state.maze)
+            maze = rt.parts.mazes.load(rt.state.maze)
             top = await asyncio.to_thread(model.top, maze, dialog)
         except Exception:  # the watch page goes without a belief; the trial is untouched
             logger.exception("trial %s: no LDH belief", rt.trial_id)

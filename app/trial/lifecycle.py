@@ -8,6 +8,7 @@ from sqlalchemy import or_, select
 from sqlalchemy.orm import Session
 
 from app.db.models import Participant, Robot, Team, Trial
+from app.trial.specs import BackendSpec
 from app.trial.vocabulary import Phase, Role
 
 LIVE_PHASES = tuple(str(p) for p in Phase if not p.over)
@@ -59,7 +60,7 @@ def delete_robot(db: Session, robot_id: int, connected: bool) -> None:
     if connected:
         raise Refused(f"robot {robot.name!r} is connected: stop it first")
     if robot.role == Role.DRIVER:
-        used = db.scalars(select(Trial.id).where(Trial.backend == f"robot:{robot_id}").limit(1)).first()
+        used = db.scalars(select(Trial.id).where(Trial.backend == str(BackendSpec.robot(robot_id))).limit(1)).first()
         if used is not None:
             raise Refused(f"robot {robot.name!r} is the robot of trial {used}: its recordings name it")
     db.delete(robot)

@@ -28,15 +28,16 @@ import threading
 import uuid
 from typing import TYPE_CHECKING, Any, cast
 
-from app.security import Seat
+from app.trial import messages as m
+from app.trial.messages import SeatMessage
 from app.trial.views import EXPERIMENTER
 from app.trial.vocabulary import Role
 
 if TYPE_CHECKING:
     from redis import Redis
 
-    from app.services import Services
     from app.settings import Settings
+    from app.trial.hub import TrialHub
     from app.trial.port import Connection
     from app.trial.runtime import TrialRuntime
 
@@ -63,10 +64,10 @@ def _channel(process: str) -> str:
 
 
 class RedisRelay:
-    def __init__(self, services: Services, url: str) -> None:
+    def __init__(self, hub: TrialHub, url: str, settings: Settings) -> None:
         import redis.asyncio as redis
 
-        self.services = services
+        self.hub, self.settings = hub, settings
         pool = redis.BlockingConnectionPool.from_url(
             url, max_connections=CONNECTIONS, timeout=None, decode_responses=True
         )
@@ -75,7 +76,7 @@ class RedisRelay:
         self._stop_beating = threading.Event()
         self._beater: threading.Thread | None = None
         self.id = f"{socket.gethostname()}-{os.getpid()}-{uuid.uuid4().hex[:8]}"  # names the process
-        self._keys = key_prefix(services.settings)
+        self._keys = key_prefix(settings)
         self.local: dict[str, Connection] = {}  # connection id -> this process's seat of a trial owned elsewhere
         self.relayed: dict[str, RelayedSeat] = {}  # connection id -> a remote seat of a trial owned here
         self.remotes: set[RemoteTrial] = set()  # trials owned elsewhere that seats here use
@@ -104,7 +105,7 @@ class RedisRelay:
         for task in self._tasks:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await task
-        for runtime in self.services.hub.live():
+        for runtime in self.hub.live():
             with contextlib.suppress(Exception):
                 if await self.redis.get(self._owner_key(runtime.trial_id)) == self.id:
                     await self.redis.delete(self._owner_key(runtime.trial_id))
@@ -114,7 +115,7 @@ class RedisRelay:
         await self.redis.aclose()
 
     def _owner_key(self, trial_id: int) -> str:
-        return owner_key(self.services.settings, trial_id)
+        return owner_key(self.settings, trial_id)
 
     def _alive_key(self, process: str) -> str:
         return f"{self._keys}:process:{process}:alive"
@@ -188,14 +189,17 @@ class RedisRelay:
             if conn is not None:
                 conn.deliver(msg["message"])
             return
-        runtime = await self.services.hub.local(msg["trial"])
+        runtime = await self.hub.local(msg["trial"])
         if op == "join":
             seat = RelayedSeat(self, conn_id, msg["role"], msg["from"])
             self.relayed[conn_id] = seat
             runtime.watch(seat) if seat.role == EXPERIMENTER else runtime.join(seat)
-        elif op == "text" and conn_id in self.relayed:
+        elif op == "message" and conn_id in self.relayed:
             seat = self.relayed[conn_id]
-            await runtime.receive(seat, Seat(msg["trial"], seat.role), msg["text"])
+            await runtime.receive(seat, seat.role, m.seat_message.validate_json(msg["message"]))
+        elif op == "unread" and conn_id in self.relayed:
+            seat = self.relayed[conn_id]
+            runtime.refuse_unread(seat, seat.role, msg["error"])
         elif op == "bad_message" and conn_id in self.relayed:
             runtime.report_bad_message(Role(self.relayed[conn_id].role), msg["error"])
         elif op == "leave" and conn_id in self.relayed:
@@ -256,17 +260,22 @@ class RemoteTrial:
             for conn_id, conn in conns:
                 self._command("join", conn=conn_id, role=conn.role)
             return
-        self.runtime = await self.relay.services.hub.local(self.trial_id)
+        self.runtime = await self.relay.hub.local(self.trial_id)
         self.relay.remotes.discard(self)
         self._ids.clear()
         for conn_id, conn in conns:
             self.relay.local.pop(conn_id, None)
             _attach(self.runtime, conn)
 
-    async def receive(self, conn: Connection, seat: Seat, text: str | None) -> None:
+    async def receive(self, conn: Connection, role: str, message: SeatMessage) -> None:
         if self.runtime is not None:
-            return await self.runtime.receive(conn, seat, text)
-        self._command("text", conn=self._ids[id(conn)], text=text)
+            return await self.runtime.receive(conn, role, message)
+        self._command("message", conn=self._ids[id(conn)], message=message.model_dump_json())
+
+    def refuse_unread(self, conn: Connection, role: str, error: str) -> None:
+        if self.runtime is not None:
+            return self.runtime.refuse_unread(conn, role, error)
+        self._command("unread", conn=self._ids[id(conn)], error=error)
 
     def report_bad_message(self, role: Role, error: str) -> None:
         if self.runtime is not None:

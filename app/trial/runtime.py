@@ -15,21 +15,27 @@ import base64
 import logging
 import math
 import uuid
-from collections.abc import Coroutine
-from pathlib import Path
+from collections.abc import Callable, Coroutine
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from pydantic import ValidationError
+from sqlalchemy.orm import Session, sessionmaker
 
 from app.backends.base import BackendUnavailable, Frame, RobotBackend
-from app.backends.registry import create_backend
-from app.security import InvalidToken, Seat
+from app.backends.registry import BackendParts, create_backend
+from app.clock import ServerClock
+from app.mazes import Mazes
+from app.perception.belief import FilterWorker
+from app.settings import Settings
 from app.trial import decide as d
 from app.trial import events as ev
 from app.trial import messages as m
+from app.trial import views
 from app.trial.decide import Refused
 from app.trial.events import LoggedEvent
-from app.trial.ldh_belief import LiveBelief
+from app.trial.frames_store import FrameStore
+from app.trial.ldh_belief import BeliefModel, LiveBelief
+from app.trial.log import EventLog
 from app.trial.port import Connection
 from app.trial.state import TrialState, fold
 from app.trial.throttle import Throttle
@@ -38,9 +44,9 @@ from app.trial.vocabulary import PARTICIPANTS, FrameSource, Move, Outcome, Phase
 from sim.core.geometry import wrap_angle
 
 if TYPE_CHECKING:
+    from app.drivers.registry import AgentParts
     from app.drivers.seat import CommanderSeat, DriverSeat
     from app.perception.belief import TrialBelief
-    from app.services import Services
 
 logger = logging.getLogger(__name__)
 AWAY_MARK_S = 1.0  # how much of a participant's time away a crash can lose from the grace period
@@ -50,11 +56,28 @@ class UnknownTrial(LookupError):
     pass
 
 
+@dataclass(frozen=True)
+class TrialParts:
+    """What a trial's runtime uses of the server, shared by every trial of this process."""
+
+    settings: Settings
+    db: sessionmaker[Session]
+    log: EventLog
+    clock: ServerClock
+    mazes: Mazes
+    filters: FilterWorker  # every trial's particle filter turns
+    frames: FrameStore  # the camera images' files
+    backends: BackendParts
+    agents: AgentParts
+    ldh: BeliefModel  # the watch page's LDH belief
+
+
 class TrialRuntime:
-    def __init__(self, trial_id: int, services: Services) -> None:
+    def __init__(self, trial_id: int, parts: TrialParts, forget: Callable[[int], None]) -> None:
         self.trial_id = trial_id
-        self.services = services
-        self.settings = services.settings
+        self.parts = parts
+        self.settings = parts.settings
+        self._forget = forget  # lets the hub drop a trial that is over and that nobody holds
         self.state = TrialState()
         self.backend: RobotBackend | None = None
         self.seats: dict[str, Connection] = {}
@@ -69,13 +92,12 @@ class TrialRuntime:
         self.belief: TrialBelief | None = None  # `TrialBelief` once the Driver camera's calibration is loaded
         self._belief_message: dict[str, Any] | None = None  # the latest, for the watch page
         self._last_frame: Frame | None = None  # the Driver camera's latest, for a filter built after it
-        self._frame_dirs: set[Path] = set()
-        self.ldh = LiveBelief(self)  # the LDH model's belief, for the watchers only
+        self.ldh = LiveBelief(self, parts.ldh)  # the LDH model's belief, for the watchers only
         self._throttles: dict[str, Throttle] = {}  # per seat: how often its messages may be recorded
 
     # -- life cycle ---------------------------------------------------------------
     async def start(self) -> None:
-        events = self.services.log.load(self.trial_id)
+        events = self.parts.log.load(self.trial_id)
         if not events:
             raise UnknownTrial(f"trial {self.trial_id} does not exist")
         self.state = fold(events)
@@ -91,12 +113,12 @@ class TrialRuntime:
                 seat.start()
 
     async def _start_backend(self) -> None:
-        self.backend = await create_backend(self.state.backend, self, self.services)
+        self.backend = await create_backend(self.state.backend, self, self.parts.backends)
         pose = self.backend.pose()
         if pose is not None and self.state.pose is None:
             self.record_pose(pose)
-        self._spawn(self._pump_frames(self.backend))
-        self._spawn(self._start_belief())
+        self.spawn(self._pump_frames(self.backend))
+        self.spawn(self._start_belief())
         await self.backend.connect()
 
     async def _start_belief(self) -> None:
@@ -106,8 +128,8 @@ class TrialRuntime:
 
         try:
             calibration = await asyncio.to_thread(driver_calibration, self.state.backend, self.settings)
-            maze = self.services.mazes.load(self.state.maze)
-            self.belief = await self.services.filters.start(lambda: TrialBelief(maze, calibration, seed=self.trial_id))
+            maze = self.parts.mazes.load(self.state.maze)
+            self.belief = await self.parts.filters.start(lambda: TrialBelief(maze, calibration, seed=self.trial_id))
             # Built in the filters' share of a core, so frames may have come meanwhile: it starts
             # from what the camera sees now (its prior is uniform, so the moves before do not count).
             if self._last_frame is not None:
@@ -135,7 +157,7 @@ class TrialRuntime:
             # Let go of the filter now: its particles and free-space map (several MB, and the
             # maze) sit in reference cycles with this runtime that the collector frees only later.
             belief, self.belief = self.belief, None
-            self.services.filters.forget(belief)
+            self.parts.filters.forget(belief)
         if self.backend is not None:
             backend, self.backend = self.backend, None
             await backend.close()
@@ -143,9 +165,9 @@ class TrialRuntime:
     async def _end(self) -> None:
         await self.close()
         if not self.seats and not self.watchers:
-            self.services.hub.forget(self.trial_id)
+            self._forget(self.trial_id)
 
-    def _spawn(self, coro: Coroutine[Any, Any, Any]) -> asyncio.Task[Any]:
+    def spawn(self, coro: Coroutine[Any, Any, Any]) -> asyncio.Task[Any]:
         task = asyncio.get_running_loop().create_task(coro)
         self._tasks.add(task)
         task.add_done_callback(self._tasks.discard)
@@ -168,7 +190,7 @@ class TrialRuntime:
     def _record(
         self, event: ev.Event, attachments: dict[str, dict[str, Any]], frame: dict[str, Any] | None
     ) -> LoggedEvent:
-        t_ns = self.services.clock.now_ns()
+        t_ns = self.parts.clock.now_ns()
         if self.state.last_t_ns is not None:
             t_ns = max(t_ns, self.state.last_t_ns + 1)  # one trial's stamps never go back, even across restarts
         logged = LoggedEvent(self.state.last_seq + 1, event.kind, t_ns, event.payload())
@@ -179,7 +201,7 @@ class TrialRuntime:
         if isinstance(event, ev.PhaseChanged):
             active = self.state.active_s(t_ns) if event.phase == Phase.FINISHED else None
             cache = {"phase": str(event.phase), "moves": self.state.moves, "active_s": active}
-        self.services.log.append(
+        self.parts.log.append(
             self.trial_id, logged, frame=frame if isinstance(event, ev.FrameRecorded) else None, trial_cache=cache
         )
         self.state.apply_event(event, logged.seq, logged.t_ns)
@@ -189,7 +211,7 @@ class TrialRuntime:
 
     def _send(self, conn: Connection, message: dict[str, Any]) -> None:
         """What a seat hears of the log goes out once the log has committed it (group commit)."""
-        self.services.log.after_commit(self.trial_id, conn.deliver, message)
+        self.parts.log.after_commit(self.trial_id, conn.deliver, message)
 
     def _broadcast(self, logged: LoggedEvent, attachments: dict[str, dict[str, Any]]) -> None:
         for role, conn in list(self.seats.items()):
@@ -215,10 +237,10 @@ class TrialRuntime:
         self._sync_grace()
         if self.state.over and not self._ending:
             self._ending = True
-            self._spawn(self._end())
+            self.spawn(self._end())
 
     def status(self) -> dict[str, Any]:
-        return status_of(self.state, self.services.clock.now_ns())
+        return status_of(self.state, self.parts.clock.now_ns())
 
     # -- grace timers, from the log -------------------------------------------------
     def _sync_grace(self) -> None:
@@ -233,7 +255,7 @@ class TrialRuntime:
             if role not in self._grace:
                 self._grace[role] = loop.call_later(self._grace_left_s(role), self._grace_expired, role)
         if away and (self._away_marks is None or self._away_marks.done()):
-            self._away_marks = self._spawn(self._mark_time_away())
+            self._away_marks = self.spawn(self._mark_time_away())
 
     async def _mark_time_away(self) -> None:
         """A restart knows when the server was last up only from the log: while anyone is away,
@@ -245,7 +267,7 @@ class TrialRuntime:
             self.apply(d.Note(ev.StillAway(roles=sorted(self.state.away))))
 
     def _grace_left_s(self, role: Role) -> float:
-        gone = self.state.away[role].away_ns(self.services.clock.now_ns())
+        gone = self.state.away[role].away_ns(self.parts.clock.now_ns())
         return self.settings.grace_period_s - gone / 1e9
 
     def _grace_expired(self, role: Role) -> None:
@@ -261,15 +283,15 @@ class TrialRuntime:
     # -- what the backend reports -------------------------------------------------
     def record_pose(self, pose: tuple[float, float, float]) -> None:
         x, y, theta = pose
-        source = PoseSource.SIM if self.state.backend == "sim" else PoseSource.TRACKER
+        source = self.backend.pose_source if self.backend is not None else PoseSource.TRACKER
         self.apply(d.Note(ev.PoseSampled(x=x, y=y, heading=wrap_angle(theta), source=source)))
 
     async def _pump_frames(self, backend: RobotBackend) -> None:
         async for frame in backend.frames():
             try:
-                rel = self._frame_file(frame.capture_ns, FrameSource.DRIVER)
+                rel = FrameStore.name(self.trial_id, frame.capture_ns, FrameSource.DRIVER)
                 # The file is written off the event loop (slow disks must not delay other trials).
-                await asyncio.to_thread(self._write_frame_file, rel, frame.jpeg)
+                await asyncio.to_thread(self.parts.frames.write, rel, frame.jpeg)
                 frame_id = self.state.last_seq + 1  # the frame event's own seq
                 if frame.observation is not None and self.agent is not None:
                     self.agent.note_observation(frame_id, frame.observation)  # the agent seat's alone
@@ -288,7 +310,7 @@ class TrialRuntime:
             and not self.state.moves_in_flight
             and belief.offer(frame.jpeg, frame.capture_ns, frame.observation)
         ):
-            self.services.filters.due(belief, self._believed)
+            self.parts.filters.due(belief, self._believed)
 
     def _believed(self) -> None:
         """The filter has taken in a frame: the watchers see the new belief."""
@@ -299,12 +321,9 @@ class TrialRuntime:
             conn.deliver(message)
 
     def record_frame(self, jpeg: bytes, capture_ns: int, width: int, height: int, source: FrameSource) -> int:
-        rel = self._frame_file(capture_ns, source)
-        self._write_frame_file(rel, jpeg)
+        rel = FrameStore.name(self.trial_id, capture_ns, source)
+        self.parts.frames.write(rel, jpeg)
         return self._commit_frame(rel, jpeg, capture_ns, width, height, source)
-
-    def _frame_file(self, capture_ns: int, source: str) -> str:
-        return f"{self.trial_id}/{capture_ns}-{source}.jpg"  # relative to frames_dir
 
     def _commit_frame(
         self, rel: str, jpeg: bytes, capture_ns: int, width: int, height: int, source: FrameSource
@@ -320,27 +339,8 @@ class TrialRuntime:
         self.apply(d.Note(event), attachments=attach, frame=row)
         return frame_id
 
-    def _write_frame_file(self, rel: str, jpeg: bytes) -> None:
-        path = self.settings.frames_dir / rel
-        if path.parent not in self._frame_dirs:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            self._frame_dirs.add(path.parent)
-        path.write_bytes(jpeg)
-
     def frame_jpeg(self, frame_id: int) -> bytes | None:
-        from sqlalchemy import select
-
-        from app.db.models import Frame
-
-        self.services.log.flush()  # the frame may be in this turn's batch
-        with self.services.db() as db:
-            rel = db.scalar(select(Frame.path).where(Frame.trial_id == self.trial_id, Frame.seq == frame_id))
-        if rel is None:
-            return None
-        try:
-            return (self.settings.frames_dir / rel).read_bytes()
-        except OSError:
-            return None
+        return self.parts.frames.read(self.trial_id, frame_id)
 
     def report_bad_message(self, role: Role, error: str) -> None:
         self.apply(d.Note(ev.BadMessage(role=role, error=error[:500])))
@@ -365,7 +365,7 @@ class TrialRuntime:
         del self.seats[conn.role]
         self.apply(d.Leave(Role(conn.role)))
         if self.state.over and not self.seats and not self.watchers:
-            self.services.hub.forget(self.trial_id)  # nobody left: this process can let it go
+            self._forget(self.trial_id)  # nobody left: this process can let it go
 
     def watch(self, conn: Connection) -> None:
         """An experimenter's live view: every seat's events, the Driver's camera, the true pose
@@ -379,67 +379,36 @@ class TrialRuntime:
     def unwatch(self, conn: Connection) -> None:
         self.watchers.discard(conn)
         if self.state.over and not self.seats and not self.watchers:
-            self.services.hub.forget(self.trial_id)
+            self._forget(self.trial_id)
 
     def welcome(self, role: str) -> dict[str, Any]:
-        s = self.state
-        message: dict[str, Any] = {
-            "type": "welcome",
-            "role": role,
-            "trial_id": self.trial_id,
-            "phase": s.phase,
-            "target_index": s.target_index,
-            "targets_total": len(s.targets),
-            "connected": sorted(self.seats),
-            "seats_needed": list(s.seats_needed),
-            "paused": sorted(s.pause_reasons),
-            "pending_claim": s.pending_claim is not None,
-            "last_seq": s.last_seq,
-            "history": [
-                msg
-                for e in self.services.log.load(self.trial_id)
-                if e.is_(ev.Chat, ev.PhaseChanged, ev.TargetConfirmed, ev.TargetRejected)
-                and (msg := view(role, e)) is not None
-            ],
-            "status": self.status(),
-        }
-        if role == Role.COMMANDER:
-            message["target"] = s.current_target
-            if s.pending_claim is not None:
-                message["claim"] = self._claim_attachment(s.pending_claim["frame_id"])
-        if role in (Role.DRIVER, EXPERIMENTER) and s.last_frame_id is not None:
-            jpeg = self.frame_jpeg(s.last_frame_id)
-            if jpeg is not None:
-                message["frame"] = {"frame_id": s.last_frame_id, "jpeg": base64.b64encode(jpeg).decode()}
-        if role == EXPERIMENTER:
-            message["pose"] = s.pose
-            message["targets"] = list(s.targets)
-            message["localization"] = s.localization
-        return message
-
-    def _claim_attachment(self, frame_id: int) -> dict[str, Any]:
-        jpeg = self.frame_jpeg(frame_id)
-        return {"frame_id": frame_id, "jpeg": base64.b64encode(jpeg).decode() if jpeg else None}
+        events = self.parts.log.load(self.trial_id)
+        return views.welcome(role, self.trial_id, self.state, self.seats, events, self.status(), self.frame_jpeg)
 
     # -- messages -----------------------------------------------------------------
-    async def receive(self, conn: Connection, seat: Seat, text: str | None) -> None:
-        """One raw message from a seat's socket. A bad one gets an error reply and a
-        `bad_message` event, and never ends the trial. Moves run beside the socket's reader,
-        so a move sent while one is executing is refused rather than queued."""
+    async def receive(self, conn: Connection, role: str, message: m.SeatMessage) -> None:
+        """One message from a seat's socket, read and its token checked there. One not allowed
+        now gets an error reply and a `bad_message` event, and never ends the trial. Moves run
+        beside the socket's reader, so a move sent while one is executing is refused rather than queued."""
         counted = False  # against the seat's rate: all but pings and moves, and refused moves
         try:
-            message = self._parse(seat, text)
-            if isinstance(message, m.Move) and message.type in m.ALLOWED[seat.role]:
-                self._spawn(self._handle_reporting(conn, seat.role, message))
+            if isinstance(message, m.Move) and message.type in m.ALLOWED[role]:
+                self.spawn(self._handle_reporting(conn, role, message))
                 return
             if not isinstance(message, m.Ping):
                 counted = True
-                if not self._within_rate(conn, seat.role):
+                if not self._within_rate(conn, role):
                     return
-            await self.handle(seat.role, message)
+            await self.handle(role, message)
         except Refused as err:
-            if counted or self._within_rate(conn, seat.role):
-                self.refuse(conn, seat.role, str(err))
+            if counted or self._within_rate(conn, role):
+                self.refuse(conn, role, str(err))
+
+    def refuse_unread(self, conn: Connection, role: str, error: str) -> None:
+        """A message its socket could not read (not JSON, too big, another seat's token): refused
+        as any other, within the seat's rate."""
+        if self._within_rate(conn, role):
+            self.refuse(conn, role, error)
 
     async def _handle_reporting(self, conn: Connection, role: str, message: m.Move) -> None:
         try:
@@ -479,24 +448,6 @@ class TrialRuntime:
             )
         return not wait_s
 
-    def _parse(self, seat: Seat, text: str | None) -> m.SeatMessage:
-        limit = self.settings.max_message_bytes
-        if text is None:
-            raise Refused("messages must be JSON text, not binary")
-        size = len(text.encode())
-        if size > limit:
-            raise Refused(f"message is {size} bytes; the limit is {limit}")
-        try:
-            message = m.seat_message.validate_json(text)
-        except ValidationError as err:
-            raise Refused(f"invalid message: {_describe(err)}") from None
-        try:
-            if self.services.seats.verify(message.token) != seat:
-                raise InvalidToken("token is for another seat")
-        except InvalidToken as err:
-            raise Refused(f"token refused: {err}") from None
-        return message
-
     async def handle(self, role: str, message: m.SeatMessage) -> None:
         """Apply one validated message from a seat; raises `Refused` when not allowed now."""
         if message.type not in m.ALLOWED[role]:
@@ -530,7 +481,7 @@ class TrialRuntime:
             d.RequestMove(
                 move_id,
                 Move(action),
-                self.services.clock.now_ns(),
+                self.parts.clock.now_ns(),
                 robot_ready=self.backend is not None,
                 min_interval_ns=int(self.settings.min_move_interval_s * 1e9),
             )
@@ -540,7 +491,7 @@ class TrialRuntime:
         backend = self.backend
         assert backend is not None  # RequestMove refuses every move while there is no backend
         reason = None
-        started_ns = self.services.clock.now_ns()
+        started_ns = self.parts.clock.now_ns()
         try:
             result = await backend.execute(action)
             outcome, reason = result.outcome, result.reason
@@ -554,8 +505,8 @@ class TrialRuntime:
             outcome != Outcome.REFUSED
             and self.backend is not None
             and not self.state.over
-            and self.state.backend == "sim"
-        ):  # a rover's tracker records its own poses
+            and self.backend.pose_source == PoseSource.SIM
+        ):  # a simulator knows where the move left it; a rover's tracker records its own poses
             pose = self.backend.pose()
             if pose is not None:
                 self.record_pose(pose)
@@ -564,7 +515,7 @@ class TrialRuntime:
     def claim(self) -> None:
         s = self.state
         attach: dict[str, dict[str, Any]] | None = (
-            {Role.COMMANDER: {"claim": self._claim_attachment(s.last_frame_id)}}
+            {Role.COMMANDER: {"claim": views.claim_attachment(s.last_frame_id, self.frame_jpeg)}}
             if s.last_frame_id is not None
             else None
         )
@@ -574,8 +525,7 @@ class TrialRuntime:
         s, within_m = self.state, None
         pose = self.true_pose()
         if pose is not None and s.pending_claim is not None:
-            ox, oy = self.services.mazes.load(s.maze).objects[s.pending_claim["target"]]
-            within_m = float(((pose[0] - ox) ** 2 + (pose[1] - oy) ** 2) ** 0.5)
+            within_m = self.parts.mazes.distance_m(s.maze, s.pending_claim["target"], pose)
         self.apply(d.Judge(confirmed, within_m))
 
     # -- experimenter -------------------------------------------------------------
@@ -589,29 +539,5 @@ class TrialRuntime:
         self.apply(d.Abort(reason))
 
     def snapshot(self) -> dict[str, Any]:
-        s = self.state
-        return {
-            "trial_id": self.trial_id,
-            "phase": s.phase,
-            "target_index": s.target_index,
-            "target": s.current_target,
-            "elapsed_s": round(s.active_s(self.services.clock.now_ns()), 1),
-            "moves": s.moves,
-            "collisions": s.collisions,
-            "pose": s.pose,
-            "paused": sorted(s.pause_reasons),
-            "seats": {r: r in self.seats for r in s.seats_needed},
-            "waiting_for": s.waiting_for,
-            "backend": s.backend,
-            "localization": s.localization,
-            "maze": s.maze,
-            "belief": self._belief_message,
-        }
-
-
-def _describe(err: ValidationError) -> str:
-    parts = []
-    for e in err.errors()[:3]:
-        where = ".".join(str(p) for p in e["loc"]) or "message"
-        parts.append(f"{where}: {e['msg']}")
-    return "; ".join(parts)
+        now_ns = self.parts.clock.now_ns()
+        return views.snapshot(self.trial_id, self.state, now_ns, self.seats, self._belief_message)

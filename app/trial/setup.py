@@ -16,15 +16,13 @@ from sqlalchemy.orm import Session
 from app.db.models import Event, Participant, Robot, Team, Trial
 from app.trial.events import TrialCreated
 from app.trial.lifecycle import live_trial_of
+from app.trial.specs import HUMAN, SIM, BackendSpec
 from app.trial.vocabulary import Phase, Role
 from sim.core.labels import OBJECTS
 
 
 class TrialSetupError(ValueError):
     """A trial that cannot be created as asked; the message names the field."""
-
-
-HUMAN = "human"
 
 
 def layouts_seen(db: Session, team: Team | None, layouts: Mapping[str, str]) -> dict[str, str]:
@@ -65,7 +63,7 @@ def parse_targets(text: str, rng: random.Random) -> list[str]:
 def check_seat(role: Role, spec: str, agents: Mapping[str, str | None] | None) -> None:
     """`human`, or an agent or oracle for the seat that can start: `agents` is
     `available_agents(services, role)`."""
-    if spec == HUMAN:
+    if spec == str(HUMAN):
         return
     if agents is None or spec not in agents:
         known = ", ".join(agents or ())
@@ -86,7 +84,7 @@ def create_trial(
     layouts: Mapping[str, str],
     now_ns: int,
     agents: Mapping[str, str | None] | None = None,
-    commander: str = HUMAN,
+    commander: str = str(HUMAN),
     commanders: Mapping[str, str | None] | None = None,
 ) -> Trial:
     """`layouts`: each maze of the library -> its layout (`Mazes.layouts()`); `agents` and
@@ -96,7 +94,7 @@ def create_trial(
     stored)."""
     check_seat(Role.DRIVER, driver, agents)
     check_seat(Role.COMMANDER, commander, commanders)
-    people = driver == HUMAN or commander == HUMAN
+    people = str(HUMAN) in (driver, commander)
     team = None
     if people:
         if team_id is None:
@@ -107,12 +105,15 @@ def create_trial(
     if maze not in layouts:
         raise TrialSetupError(f"maze {maze!r} is not in the library")
     commander_id, driver_id = _seated(db, team, maze, layouts, commander_id, commander, driver)
-    if backend.startswith("robot:"):
-        robot_id = backend.removeprefix("robot:")
-        robot = db.get(Robot, int(robot_id)) if robot_id.isdigit() else None
+    try:
+        spec = BackendSpec.parse(backend)
+    except ValueError:
+        spec = None
+    if spec is not None and spec.robot_id is not None:
+        robot = db.get(Robot, spec.robot_id)
         if robot is None or robot.role != Role.DRIVER:
-            raise TrialSetupError(f"backend {backend!r}: no registered rover with id {robot_id!r}")
-    elif backend != "sim":
+            raise TrialSetupError(f"backend {backend!r}: no registered rover with id {spec.arg!r}")
+    elif spec != SIM:
         raise TrialSetupError(f"backend {backend!r} is neither 'sim' nor 'robot:<id>'")
     trial = Trial(
         team_id=team.id if team is not None else None,
@@ -164,9 +165,9 @@ def _seated(
     if member_id not in members:
         raise TrialSetupError(f"commander {member_id} is not a member of team {team.name!r}")
     other = members[1] if member_id == members[0] else members[0]
-    if commander != HUMAN:
+    if commander != str(HUMAN):
         return None, member_id
-    return member_id, other if driver == HUMAN else None
+    return member_id, other if driver == str(HUMAN) else None
 
 
 def create_team(db: Session, name: str, member_a_id: int, member_b_id: int) -> Team:

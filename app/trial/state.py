@@ -14,6 +14,7 @@ from typing import Any
 
 from app.trial import events as ev
 from app.trial.events import LoggedEvent
+from app.trial.specs import BackendKind, BackendSpec
 from app.trial.vocabulary import PARTICIPANTS, FrameSource, Move, Outcome, Phase, Role
 
 __all__ = ["LoggedEvent", "TrialState", "fold"]
@@ -67,7 +68,8 @@ class TrialState:
     def seats_needed(self) -> tuple[Role, ...]:
         """The seats a trial waits for before it starts: both participants, and the rover when
         one is in the robot seat (a trial cannot start on a robot that is not connected)."""
-        return PARTICIPANTS + ((Role.ROBOT,) if self.backend.startswith("robot:") else ())
+        rover = BackendSpec.parse(self.backend).kind == BackendKind.ROBOT
+        return PARTICIPANTS + ((Role.ROBOT,) if rover else ())
 
     @property
     def waiting_for(self) -> list[Role]:

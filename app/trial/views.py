@@ -8,12 +8,17 @@ overhead camera (that is for annotation and replay), ground truth included.
 
 from __future__ import annotations
 
+import base64
+from collections.abc import Callable, Iterable
 from typing import Any
 
 from app.trial import events as ev
 from app.trial.events import LoggedEvent
 from app.trial.state import TrialState
 from app.trial.vocabulary import FrameSource, Role
+
+JpegOf = Callable[[int], bytes | None]  # a frame's image by its frame id (None: not stored)
+HISTORY: tuple[type[ev.Event], ...] = (ev.Chat, ev.PhaseChanged, ev.TargetConfirmed, ev.TargetRejected)
 
 EXPERIMENTER = "experimenter"  # the role of an experimenter's live view (not a seat of the trial)
 
@@ -69,4 +74,77 @@ def status_of(state: TrialState, now_ns: int) -> dict[str, Any]:
         "paused": sorted(state.pause_reasons),
         "waiting_for": [str(r) for r in state.waiting_for],
         "claim_pending": state.pending_claim is not None,  # the Commander has a claim to decide
+    }
+
+
+def claim_attachment(frame_id: int, jpeg_of: JpegOf) -> dict[str, Any]:
+    """The frame a claim was made on, for the Commander to judge."""
+    jpeg = jpeg_of(frame_id)
+    return {"frame_id": frame_id, "jpeg": base64.b64encode(jpeg).decode() if jpeg else None}
+
+
+def welcome(
+    role: str,
+    trial_id: int,
+    state: TrialState,
+    connected: Iterable[str],
+    events: Iterable[LoggedEvent],
+    status: dict[str, Any],
+    jpeg_of: JpegOf,
+) -> dict[str, Any]:
+    """What a seat (or the experimenter's watch) gets on joining: where the trial stands, the
+    dialog so far as this role may hear it, and what only this role sees (the Commander's target
+    and pending claim; the Driver's last frame; the experimenter's pose, targets and estimate)."""
+    s = state
+    message: dict[str, Any] = {
+        "type": "welcome",
+        "role": role,
+        "trial_id": trial_id,
+        "phase": s.phase,
+        "target_index": s.target_index,
+        "targets_total": len(s.targets),
+        "connected": sorted(connected),
+        "seats_needed": list(s.seats_needed),
+        "paused": sorted(s.pause_reasons),
+        "pending_claim": s.pending_claim is not None,
+        "last_seq": s.last_seq,
+        "history": [msg for e in events if e.is_(*HISTORY) and (msg := view(role, e)) is not None],
+        "status": status,
+    }
+    if role == Role.COMMANDER:
+        message["target"] = s.current_target
+        if s.pending_claim is not None:
+            message["claim"] = claim_attachment(s.pending_claim["frame_id"], jpeg_of)
+    if role in (Role.DRIVER, EXPERIMENTER) and s.last_frame_id is not None:
+        jpeg = jpeg_of(s.last_frame_id)
+        if jpeg is not None:
+            message["frame"] = {"frame_id": s.last_frame_id, "jpeg": base64.b64encode(jpeg).decode()}
+    if role == EXPERIMENTER:
+        message["pose"] = s.pose
+        message["targets"] = list(s.targets)
+        message["localization"] = s.localization
+    return message
+
+
+def snapshot(
+    trial_id: int, state: TrialState, now_ns: int, connected: Iterable[str], belief: dict[str, Any] | None
+) -> dict[str, Any]:
+    """One live trial on the experimenter's dashboard (`/experimenter/api/trials`)."""
+    s, here = state, set(connected)
+    return {
+        "trial_id": trial_id,
+        "phase": s.phase,
+        "target_index": s.target_index,
+        "target": s.current_target,
+        "elapsed_s": round(s.active_s(now_ns), 1),
+        "moves": s.moves,
+        "collisions": s.collisions,
+        "pose": s.pose,
+        "paused": sorted(s.pause_reasons),
+        "seats": {r: r in here for r in s.seats_needed},
+        "waiting_for": s.waiting_for,
+        "backend": s.backend,
+        "localization": s.localization,
+        "maze": s.maze,
+        "belief": belief,
     }

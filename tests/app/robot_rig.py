@@ -14,7 +14,7 @@ from pathlib import Path
 import uvicorn
 from sqlalchemy import select
 
-from app.backends.remote import create_robot, robot_links
+from app.backends.remote import create_robot
 from app.db.models import Event
 from app.main import create_app
 from app.serving import uvicorn_options
@@ -79,7 +79,7 @@ class RobotServer:
             return [e for e in db.scalars(query) if kind is None or e.kind == kind]
 
     def status(self, robot_id: int) -> dict:
-        return next(r for r in robot_links(self.services).status() if r["id"] == robot_id)
+        return next(r for r in self.services.robots.status() if r["id"] == robot_id)
 
 
 class RobotProcess:

@@ -8,7 +8,6 @@ import httpx
 import pytest
 
 from app.db.models import Experimenter, LDHStudyEvent
-from app.ldh_study import Studies
 from app.main import build_services, ensure_experimenter
 from app.security import StudyTokens, hash_password
 from bench.live import ServerProcess
@@ -47,7 +46,7 @@ def server(server):
 
 
 def make_study(services, benchmark_path, n: int = 2, name: str = "pilot") -> int:
-    return Studies(services).create(1, name, str(benchmark_path), "val_seen", "prefix", n)
+    return services.studies.create(1, name, str(benchmark_path), "val_seen", "prefix", n)
 
 
 def link(server, study_id: int, participant_id: int) -> str:
@@ -57,7 +56,7 @@ def link(server, study_id: int, participant_id: int) -> str:
 def test_forged_foreign_and_seat_links_open_nothing(server, benchmark_path):
     services = server.services
     a, b = make_study(services, benchmark_path, name="A"), make_study(services, benchmark_path, name="B")
-    studies = Studies(services)
+    studies = services.studies
     ann = studies.invite(a, "ann")
     bob = studies.invite(b, "bob")
     good, _ = participant(server.url, link(server, a, ann))
@@ -77,7 +76,7 @@ def test_forged_foreign_and_seat_links_open_nothing(server, benchmark_path):
 def test_bad_marks_are_refused_and_the_truth_is_hidden_until_done(server, benchmark_path):
     services = server.services
     study_id = make_study(services, benchmark_path, n=2)
-    studies = Studies(services)
+    studies = services.studies
     ann = studies.invite(study_id, "ann")
     client, page = participant(server.url, link(server, study_id, ann))
     truth = studies.instances(study_id)
@@ -130,7 +129,7 @@ def test_answers_survive_a_killed_server(tmp_path, benchmark_path):
     services = build_services(settings)
     ensure_experimenter(services)
     study_id = make_study(services, benchmark_path, n=2)
-    ann = Studies(services).invite(study_id, "ann")
+    ann = services.studies.invite(study_id, "ann")
     services.engine.dispose()
     url = f"/ldh/{StudyTokens(settings.signing_key()).issue(study_id, ann)}"
     env = {
@@ -150,7 +149,7 @@ def test_answers_survive_a_killed_server(tmp_path, benchmark_path):
         assert client.post(url + "/answers", json={"position": 1, "x": 0.6, "y": 0.6}).status_code == 200
     finally:
         server.stop()
-    answers = Studies(build_services(settings)).answers(study_id)
+    answers = build_services(settings).studies.answers(study_id)
     assert [(a.position, a.x, a.y) for a in answers] == [(0, 1.0, 1.0), (1, 0.6, 0.6)]
 
 
@@ -162,7 +161,7 @@ def test_answers_given_at_once_are_all_logged_in_one_order(any_db_settings, benc
     any_db_settings.benchmark = benchmark_path
     services = build_services(any_db_settings)
     ensure_experimenter(services)
-    studies = Studies(services)
+    studies = services.studies
     study_id = studies.create(1, "race", str(benchmark_path), "val_seen", "prefix", 4)
     people = [studies.invite(study_id, name) for name in ("ann", "bob", "cy")]
 
@@ -197,7 +196,7 @@ def test_a_study_of_the_platforms_own_trials(tmp_path):
     mazes = [maze_named(f"gen-{i:03d}", shift=10 * i) for i in range(3)]
     summary = write_benchmark([(trial(str(i), m.name), m) for i, m in enumerate(mazes)], settings.data_dir / "export")
     split = next(s for s, n in summary.ldh.items() if n)
-    studies = Studies(services)
+    studies = services.studies
     study_id = studies.create(1, "ours", str(settings.data_dir / "export"), split, "prefix")
     assert studies.study(study_id).variant == "exact"
     (inst,) = studies.instances(study_id)

@@ -75,7 +75,7 @@ def test_the_driver_sees_frames_drawn_in_a_render_process(tmp_path):
     settings = platform_settings(tmp_path, render_processes=1, cache_dir=tmp_path / "cache")
     with ServerThread(settings) as server:
         services = server.services
-        assert isinstance(services.renderer, RenderProcesses)
+        assert isinstance(services.trials.backends.renderer, RenderProcesses)
         trial_id = make_trial(services, services.mazes.names()[0])
         tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
 

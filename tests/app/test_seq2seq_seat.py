@@ -82,7 +82,7 @@ def test_without_a_setting_the_shipped_driver_plays_a_trial_on_a_bundled_maze(tm
     assert settings.seq2seq_checkpoint is None
     with ServerThread(settings) as server:
         services = server.services
-        assert available_drivers(services)["agent:seq2seq"] is None
+        assert available_drivers(services.agents)["agent:seq2seq"] is None
         maze = "gen-000"  # the first of the generated mazes shipped in sim/tasks/mazes/
         assert maze in services.mazes.names()
         trial_id = make_trial(services, maze, targets=("jar", "mug", "paddle"), driver="agent:seq2seq")
@@ -114,7 +114,7 @@ def test_seq2seq_that_cannot_start_is_not_offered_and_no_trial_is_created_for_it
     for checkpoint, why in ((broken, "cannot load checkpoint"), (tmp_path / "missing.pt", "missing.pt")):
         settings = platform_settings(tmp_path / f"var-{why[:8]}", seq2seq_checkpoint=checkpoint)
         services = build_services(settings)
-        available = available_drivers(services)
+        available = available_drivers(services.agents)
         assert available["agent:random"] is None and available["oracle:shortest"] is None
         assert why in available["agent:seq2seq"]
         with pytest.raises(TrialSetupError, match="cannot start") as refused:
@@ -127,5 +127,5 @@ def test_seq2seq_that_cannot_start_is_not_offered_and_no_trial_is_created_for_it
 
 def test_a_loadable_checkpoint_is_offered(tmp_path, stopping_checkpoint):
     services = build_services(platform_settings(tmp_path, seq2seq_checkpoint=stopping_checkpoint))
-    assert available_drivers(services)["agent:seq2seq"] is None
+    assert available_drivers(services.agents)["agent:seq2seq"] is None
     services.engine.dispose()

@@ -12,7 +12,6 @@ import math
 import pytest
 
 from app.db.models import Experimenter
-from app.ldh_study import Studies
 from app.security import StudyTokens, hash_password
 from sim.tasks.benchmark import Benchmark
 from sim.tasks.ldh import LDHInstance, Variant
@@ -82,7 +81,7 @@ def test_a_study_from_creation_to_export(browser, server, benchmark_path):
     links = {name: admin.get_attribute(f"tr[data-participant={name}] a.study-link", "href") for name in ("ann", "bob")}
     empty = admin.request.get(study_url + "/export.json").json()
     assert empty["study"]["n_instances"] == 2 and empty["answers"] == []
-    hidden = [{"true_x": i.true_x} for i in Studies(server.services).instances(empty["study"]["id"])]
+    hidden = [{"true_x": i.true_x} for i in server.services.studies.instances(empty["study"]["id"])]
 
     ann = browser.new_context().new_page()
     ann.goto(links["ann"])
@@ -154,7 +153,7 @@ def test_a_study_from_creation_to_export(browser, server, benchmark_path):
 
 
 def test_a_participant_mid_study_never_sees_the_truth(browser, server, benchmark_path):
-    studies = Studies(server.services)
+    studies = server.services.studies
     study_id = studies.create(1, "hidden", str(benchmark_path), "val_seen", "full", 2)
     carol = studies.invite(study_id, "carol")
     url = f"{server.url}/ldh/{StudyTokens(server.settings.signing_key()).issue(study_id, carol)}"
