@@ -5,11 +5,12 @@ from __future__ import annotations
 from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
-from app.db.models import Trial
+from app.annotation.access import annotator_sessions
+from app.db.models import Experimenter, Trial
 from app.guard import csrf_protect, current_login
 from app.leaderboard import agent_standings, standings
 from app.login import TooManyAttempts
-from app.security import SESSION_COOKIE, SESSION_MAX_AGE_S, ExpiredLink, InvalidToken, Seat
+from app.security import ANNOTATOR_COOKIE, SESSION_COOKIE, SESSION_MAX_AGE_S, ExpiredLink, InvalidToken, Seat
 from app.trial.state import fold
 
 router = APIRouter()
@@ -113,10 +114,14 @@ async def login(request: Request, name: str = Form(max_length=80), password: str
         response = render(request, "home.html", error="unknown name or wrong password", join_error=None)
         response.status_code = 401
         return response
-    redirect = RedirectResponse("/experimenter", status_code=303)
+    annotator = annotator_sessions(services)
+    with services.db() as db:
+        is_annotator = db.get(Experimenter, user_id).role == annotator.role
+    sessions, cookie = (annotator, ANNOTATOR_COOKIE) if is_annotator else (services.sessions, SESSION_COOKIE)
+    redirect = RedirectResponse("/annotate" if is_annotator else "/experimenter", status_code=303)
     redirect.set_cookie(
-        SESSION_COOKIE,
-        services.sessions.issue(user_id),
+        cookie,
+        sessions.issue(user_id),
         max_age=SESSION_MAX_AGE_S,
         httponly=True,
         samesite="strict",
