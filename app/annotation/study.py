@@ -16,4 +16,4 @@ def study_trial_ids(db: Session, study: str) -> list[int]:
 
 
 def annotator_names(db: Session) -> dict[int, str]:
-    return {i: n for i, n in db.execute(select(Experimenter.id, Experimenter.name)).tuples()}
+    return {i: n for i, n in db.execute(select(Experimenter.id, Experimenter.name))}

@@ -9,13 +9,19 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after choosing the backend)
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 
 def dialog_lengths(dialog: dict[str, Any], out: Path) -> Path:
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.5))
     for ax, key, label in ((axes[0], "messages", "messages per dialog"), (axes[1], "words", "words per dialog")):
         values = dialog["per_dialog"][key]
-        ax.hist(values, bins=min(20, max(1, len(set(values)))), color="#4878a8", edgecolor="white")
+        # Whole-number bins (at most 20), each centred on the counts it holds.
+        low, high = min(values, default=0), max(values, default=0)
+        step = max(1, -(-(high - low + 1) // 20))
+        ax.hist(values, bins=[b - 0.5 for b in range(low, high + step + 1, step)], color="#4878a8", edgecolor="white")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True))
         mean = dialog[key]["mean"]
         if mean is not None:
             ax.axvline(mean, color="#c03030", linestyle="--", label=f"mean {mean:.1f}")
@@ -45,6 +51,7 @@ def learning_curves(board: dict[str, Any], out: Path) -> Path:
     for team, row in board.items():
         if row["scores"]:
             ax.plot(range(1, len(row["scores"]) + 1), row["scores"], marker="o", label=team)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("trial number (the team's own order)")
     ax.set_ylabel("score (s)")
     ax.set_title("Learning curves")
