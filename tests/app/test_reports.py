@@ -43,7 +43,7 @@ async def play(server, trial_id: int, said: list[tuple[str, str]]) -> None:
         await commander.send("localize", x=1.2, y=1.0, heading=0.5)
         await driver.event("phase", phase="navigating", target_index=0)
         await commander.send("chat", text="now find the first one")
-        for k in range(3):
+        for _ in range(3):
             await drive_to_target(services, trial_id, driver)
             await claim_and_decide(commander, driver, confirm=True)
         await commander.event("phase", phase="finished")
