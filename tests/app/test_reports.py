@@ -5,10 +5,12 @@ annotated trial (its adjudicated cut)."""
 from __future__ import annotations
 
 import asyncio
+import html
 import json
 import statistics
 
 import pytest
+from mcap.reader import make_reader
 from sqlalchemy import select
 
 from app.annotation.events import Adjudicated, CutMarked, Submitted, Tagged
@@ -18,7 +20,7 @@ from app.leaderboard import trial_score
 from app.trial import events as ev
 from app.trial.setup import create_trial, suggest_maze
 from bench.live import SeatClient, make_trial
-from tests.app.live import ServerThread, cli, platform_settings
+from tests.app.live import ServerThread, cli, experimenter_client, platform_settings
 from tests.app.trial_play import claim_and_decide, drive_to_target, start_trial
 
 pytestmark = pytest.mark.slow
@@ -164,7 +166,18 @@ def test_assign_agreement_and_the_adjudicated_cut_in_the_ldh_export(study, tmp_p
     printed = cli("report", "agreement", "--study", STUDY, env=env).stdout
     assert "kappa Communication Repair: 0.000" in printed and "mean 0.50 messages" in printed
 
-    log.append(d1, account["admin"], Adjudicated(item="cut", value=3), 4)  # the experimenter
+    with ServerThread(settings) as server:  # the experimenter's agreement page, and adjudication on it
+        client = experimenter_client(server.services, server.url)
+        page = html.unescape(client.get(f"/experimenter/annotation?study={STUDY}").text)
+        assert "2 trials annotated by two annotators." in page and "mean distance 0.50 messages" in page
+        assert '<tr data-tag="communication_repair"><td>Communication Repair</td><td class="k">0.000</td>' in page
+        assert f'data-trial="{d1}" data-item="cut"' in page
+        decided = client.post(
+            "/experimenter/annotation/adjudicate", data={"trial_id": d1, "item": "cut", "value": "3", "study": STUDY}
+        )
+        assert decided.status_code == 200 and "ann: 2; bob: 3" in html.unescape(decided.text)
+    eve = AnnotationLog(sessions).records(d1)[-1]
+    assert eve.event == Adjudicated(item="cut", value=3) and eve.annotator_id not in (account["ann"], account["bob"])
     result = json.loads(cli("report", "agreement", "--study", STUDY, "--json", env=env).stdout)
     assert result["disagreements"][0]["adjudicated"] == 3 and result["disagreements"][0]["values"] == {
         "ann": 2,
@@ -184,6 +197,15 @@ def test_assign_agreement_and_the_adjudicated_cut_in_the_ldh_export(study, tmp_p
     assert [m["message"] for m in ldh[d1]["dialog_history"]] == chats[d1][:3]
     assert ldh[d2]["localization_source"] == "annotation" and len(ldh[d2]["dialog_history"]) == 1
     assert ldh[d2]["tags"] == {"needs_history": [2]}  # the disputed tag is not carried until adjudicated
+    mcap = tmp_path / "d1.mcap"
+    assert cli("export", str(d1), "--format", "mcap", "--out", str(mcap), env=env).returncode == 0
+    with mcap.open("rb") as f:
+        metadata = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
+    assert metadata["annotation"] == {
+        "tags": json.dumps({"needs_history": [1, 2]}),
+        "localized_after_message": "3",
+        "localization_source": "adjudicated",
+    }
     assert ldh[single]["localized_after_message"] == 2 and ldh[single]["tags"] == {"surrender_control": [1]}
 
     study_out = tmp_path / "report"
