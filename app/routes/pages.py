@@ -87,6 +87,10 @@ def over_reason(trial: Trial) -> str | None:
 def home(request: Request):
     if current_login(request) is not None:
         return RedirectResponse("/experimenter", status_code=303)
+    if request.cookies.get(ANNOTATOR_COOKIE) and annotator_sessions(request.app.state.services).verify(
+        request.cookies[ANNOTATOR_COOKIE]
+    ):
+        return RedirectResponse("/annotate", status_code=303)
     return render(request, "home.html", error=None, join_error=None)
 
 

@@ -115,10 +115,12 @@ def test_an_annotator_sees_no_names_and_no_experimenter_page(server, trial):
     for text in pages:
         for name in [*names, "Team A"]:
             assert name not in html.unescape(text)
-    # The experimenter's pages and data send an annotator to the login page.
+    # The experimenter's pages and data send an annotator home, and home is the annotator's queue.
     for path in ("/experimenter", f"/experimenter/trials/{trial}/replay.json", "/experimenter/annotation"):
+        response = client.get(path, follow_redirects=False)
+        assert response.status_code == 303 and response.headers["location"] == "/", path
         response = client.get(path)
-        assert str(response.url) == server.url + "/", path
+        assert str(response.url) == server.url + "/annotate", path
         assert 'action="/experimenter/participants"' not in response.text and '"events"' not in response.text, path
     # Another trial (not in the queue) is not shown.
     assert client.get(f"/annotate/trials/{trial + 1}").status_code == 404
