@@ -9,6 +9,7 @@ import html
 import json
 import statistics
 
+import pyarrow.parquet as pq
 import pytest
 from mcap.reader import make_reader
 from sqlalchemy import select
@@ -204,6 +205,15 @@ def test_assign_agreement_and_the_adjudicated_cut_in_the_ldh_export(study, tmp_p
     assert metadata["annotation"] == {
         "tags": json.dumps({"needs_history": [1, 2]}),
         "localized_after_message": "3",
+        "localization_source": "adjudicated",
+    }
+    lerobot = tmp_path / "lerobot"
+    made = cli("export", str(d1), "--format", "lerobot", "--out", str(lerobot), "--episode", "trial", env=env)
+    assert made.returncode == 0, made.stderr
+    (episode,) = pq.read_table(lerobot / "meta/episodes/chunk-000/file-000.parquet").to_pylist()
+    assert json.loads(episode["annotation"]) == {
+        "tags": {"needs_history": [1, 2]},
+        "localized_after_message": 3,
         "localization_source": "adjudicated",
     }
     assert ldh[single]["localized_after_message"] == 2 and ldh[single]["tags"] == {"surrender_control": [1]}
