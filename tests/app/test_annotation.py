@@ -12,6 +12,7 @@ from app.annotation.events import CutMarked, Tagged
 from app.annotation.log import Annotation, AnnotationLog, TrialAnnotations
 from app.db.models import AnnotationAssignment, Experimenter, Participant
 from app.security import AccountRole, hash_password
+from bench.live import make_trial
 from tests.app.live import ServerThread, browser, page_csrf_token, submit_login
 
 PASSWORD = "annotate well"
@@ -72,8 +73,10 @@ def post(client, trial_id: int, **data):
     return client.post(f"/annotate/trials/{trial_id}", data={"csrf_token": page_csrf_token(page.text), **data})
 
 
-def test_annotations_survive_a_restart_with_their_revisions(settings, trial):
+def test_annotations_survive_a_restart_with_their_revisions(any_db_settings):
+    settings = any_db_settings
     with ServerThread(settings) as server:
+        trial = make_trial(server.services, server.services.mazes.names()[0])
         ann = add_annotator(server, "ann", trial)
         client, _ = annotator_browser(server, "ann")
         assert post(client, trial, action="cut", cut="0").status_code == 200
