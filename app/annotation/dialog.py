@@ -64,7 +64,3 @@ def estimates(events: Sequence[LoggedEvent]) -> list[Estimate]:
                 )
             )
     return out
-
-
-def true_trace(events: Sequence[LoggedEvent]) -> list[tuple[float, float]]:
-    return [(float(e.payload["x"]), float(e.payload["y"])) for e in events if e.is_(ev.PoseSampled)]

@@ -16,7 +16,7 @@ from sqlalchemy import select
 
 from app.annotation.access import AnnotatorId, annotator_login, annotator_sessions
 from app.annotation.agreement import agreement
-from app.annotation.dialog import estimates, messages, true_trace
+from app.annotation.dialog import estimates, messages
 from app.annotation.events import Adjudicated, AnnotationEventModel, CutMarked, Phenomenon, Submitted, Tagged
 from app.annotation.log import AnnotationLog
 from app.annotation.study import annotator_names, study_trial_ids
@@ -24,10 +24,10 @@ from app.db.models import AnnotationAssignment, Trial
 from app.deps import DbSession, ExperimenterId, LogDep, MazesDep, ServicesDep
 from app.guard import csrf_protect
 from app.routes.pages import render
+from app.routes.replay import frame_file, replay_events
 from app.security import ANNOTATOR_COOKIE, Login
 
 router = APIRouter(dependencies=[Depends(csrf_protect)])
-MAP_W_M, MAP_H_M = 2.4638, 2.0574  # the table, as sim/core/geometry.py maps it
 
 
 def _assigned(db: DbSession, trial_id: int, annotator: int) -> Trial:
@@ -63,22 +63,34 @@ def annotate_trial(
     trial = _assigned(db, trial_id, annotator)
     events = log.load(trial_id)
     mine = AnnotationLog(services.db).state(trial_id).by_annotator.get(annotator)
-    estimated = estimates(events)
     tags = [(str(p), p.label) for p in Phenomenon]
     return render(
         request,
         "annotate/trial.html",
         trial=trial,
         messages=messages(events),
-        estimates={e.after_message: e for e in estimated},
-        all_estimates=estimated,
-        trace=" ".join(f"{x:.3f},{MAP_H_M - y:.3f}" for x, y in true_trace(events)),
-        map_h=MAP_H_M,
-        map_w=MAP_W_M,
+        estimates={e.after_message: e for e in estimates(events)},
         mine=mine,
         phenomena=tags,
         titles=dict(tags),
     )
+
+
+@router.get("/annotate/trials/{trial_id}/replay.json")
+def annotate_replay(trial_id: int, db: DbSession, log: LogDep, annotator: AnnotatorId):
+    """The trial's log as the replay page reads it (`static/replay.js`), without the team."""
+    trial = _assigned(db, trial_id, annotator)
+    base = f"/annotate/trials/{trial_id}"
+    return {
+        "trial": {"id": trial.id, "maze": trial.maze, "targets": trial.targets, "phase": trial.phase},
+        "events": replay_events(log.load(trial_id), base),
+    }
+
+
+@router.get("/annotate/trials/{trial_id}/frames/{frame_id}.jpg")
+def annotate_frame(trial_id: int, frame_id: int, db: DbSession, services: ServicesDep, annotator: AnnotatorId):
+    _assigned(db, trial_id, annotator)
+    return frame_file(services, trial_id, frame_id)
 
 
 @router.get("/annotate/trials/{trial_id}/map.png")

@@ -22,6 +22,7 @@ from app.export.source import load_trial
 from app.guard import csrf_protect
 from app.mazes import UnknownMaze
 from app.routes.pages import render
+from app.services import Services
 from app.trial import events as ev
 from sim.core.maze import Maze
 
@@ -64,13 +65,7 @@ def replay(request: Request, trial_id: int):
 def replay_log(request: Request, trial_id: int):
     """The whole event log, with each frame's file replaced by the URL that serves it."""
     trial, team = _trial(request, trial_id)
-    events = []
-    for e in request.app.state.services.log.load(trial_id):
-        payload = dict(e.payload)
-        if e.is_(ev.FrameRecorded):
-            payload.pop("path", None)
-            payload["url"] = f"/experimenter/trials/{trial_id}/frames/{payload['frame_id']}.jpg"
-        events.append({"seq": e.seq, "kind": e.kind, "t_ns": e.t_ns, "payload": payload})
+    events = replay_events(request.app.state.services.log.load(trial_id), f"/experimenter/trials/{trial_id}")
     return {
         "trial": {
             "id": trial.id,
@@ -86,9 +81,24 @@ def replay_log(request: Request, trial_id: int):
     }
 
 
+def replay_events(log: list[ev.LoggedEvent], base: str) -> list[dict]:
+    """The log as the replay page reads it: each frame's file replaced by its URL under `base`."""
+    events = []
+    for e in log:
+        payload = dict(e.payload)
+        if e.is_(ev.FrameRecorded):
+            payload.pop("path", None)
+            payload["url"] = f"{base}/frames/{payload['frame_id']}.jpg"
+        events.append({"seq": e.seq, "kind": e.kind, "t_ns": e.t_ns, "payload": payload})
+    return events
+
+
 @router.get("/trials/{trial_id}/frames/{frame_id}.jpg")
 def frame(request: Request, trial_id: int, frame_id: int):
-    services = request.app.state.services
+    return frame_file(request.app.state.services, trial_id, frame_id)
+
+
+def frame_file(services: Services, trial_id: int, frame_id: int) -> FileResponse:
     with services.db() as db:
         rel = db.scalar(select(Frame.path).where(Frame.trial_id == trial_id, Frame.seq == frame_id))
     if rel is None:

@@ -13,8 +13,9 @@ from app.annotation.log import AnnotationLog
 from app.db.models import AnnotationAssignment, Experimenter
 from app.security import AccountRole, hash_password
 from bench.live import SeatClient
+from tests.app.live import wait_js
 from tests.app.trial_play import start_trial
-from tests.e2e.pages import page_checks
+from tests.e2e.pages import ARTIFACTS, page_checks
 
 pytestmark = pytest.mark.browser
 SAID = [("commander", "what do you see"), ("driver", "a red wall"), ("commander", "turn left"), ("driver", "done")]
@@ -61,8 +62,17 @@ def test_an_annotator_marks_the_cut_and_tags_in_the_browser(browser, server, tri
     assert numbers == ["1", "2", "3", "4"]
     aid = page.locator("#dialog li.aid")
     assert aid.count() == 1 and "Commander's estimate (1.20, 1.00)" in aid.inner_text() and aid.is_visible()
+    # The replay (the experimenter's replay.js on the annotator's copy of the log) draws the trace
+    # and the estimate on the map, and shows the Driver's frames.
+    wait_js(page, "() => document.getElementById('replay').dataset.ready === '1'")
+    page.fill("#scrub", page.get_attribute("#scrub", "max"))
+    page.dispatch_event("#scrub", "input")
+    assert page.get_attribute("#map", "data-estimates") == "1" and int(page.get_attribute("#map", "data-poses")) > 0
+    wait_js(page, "() => { const i = document.getElementById('frame'); return !i.hidden && i.naturalWidth > 0; }")
+    ARTIFACTS.mkdir(exist_ok=True)
+    page.screenshot(path=str(ARTIFACTS / "annotate.png"), full_page=True)
     page.uncheck("#show-aids")
-    assert not aid.is_visible() and not page.locator(".annotate-map").is_visible()
+    assert not aid.is_visible() and not page.locator("#map").is_visible()
     page.check("#show-aids")
     assert aid.is_visible()
 
