@@ -13,7 +13,7 @@ from app.annotation.log import Annotation, AnnotationLog, TrialAnnotations
 from app.db.models import AnnotationAssignment, Experimenter, Participant
 from app.security import AccountRole, hash_password
 from bench.live import make_trial
-from tests.app.live import ServerThread, browser, page_csrf_token, submit_login
+from tests.app.live import ServerThread, browser, cli, page_csrf_token, submit_login
 
 PASSWORD = "annotate well"
 
@@ -127,3 +127,14 @@ def test_an_annotator_sees_no_names_and_no_experimenter_page(server, trial):
         assert 'action="/experimenter/participants"' not in response.text and '"events"' not in response.text, path
     # Another trial (not in the queue) is not shown.
     assert client.get(f"/annotate/trials/{trial + 1}").status_code == 404
+
+
+def test_admin_create_makes_annotators_and_refuses_an_unknown_role(tmp_path):
+    env = {"ROBOTSLANG_DATA_DIR": str(tmp_path / "var"), "ROBOTSLANG_SECRET_KEY": "k"}
+    made = cli("admin", "create", "ann", "--role", "annotator", "--password", PASSWORD, env=env)
+    assert made.returncode == 0 and "annotator 'ann' created" in made.stdout, made.stderr
+    refused = cli("admin", "create", "boss", "--role", "owner", "--password", PASSWORD, env=env)
+    assert refused.returncode != 0 and "--role" in refused.stderr and "experimenter, annotator" in refused.stderr
+    # An annotator stays one: `admin create` cannot turn the account into an experimenter.
+    again = cli("admin", "create", "ann", "--password", PASSWORD, env=env)
+    assert again.returncode != 0 and "exists as an annotator" in again.stderr
