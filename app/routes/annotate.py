@@ -162,6 +162,7 @@ def agreement_page(request: Request, db: DbSession, services: ServicesDep, _: Ex
 
 @router.post("/experimenter/annotation/adjudicate")
 def adjudicate(
+    db: DbSession,
     services: ServicesDep,
     experimenter: ExperimenterId,
     trial_id: Annotated[int, Form()],
@@ -170,6 +171,8 @@ def adjudicate(
     study: Annotated[str, Form(max_length=80)] = "",
 ):
     """The experimenter's value for a disagreement, stored beside both annotators' (theirs stay)."""
+    if db.get(Trial, trial_id) is None:
+        raise HTTPException(404, f"trial {trial_id} does not exist")
     decided: int | bool
     if item == "cut":
         if not value.isdigit():
