@@ -11,6 +11,8 @@ import typer
 
 from app import bench_cli
 from app import commands as app_commands
+from app.annotation import cli as annotation_commands
+from app.report import cli as report_commands
 from models import cli as model_commands
 from sim import cli as sim_commands
 
@@ -48,6 +50,8 @@ sim_commands.register(root, eval_app)
 model_commands.register(root, eval_app)
 app_commands.register(root)
 bench_cli.register(root)
+annotation_commands.register(root)
+report_commands.register(root)
 root.add_typer(eval_app, name="eval")
 
 

@@ -38,11 +38,18 @@ def serve(
 
 
 def admin_create(
-    name: str = typer.Argument(..., help="The experimenter's login name."),
+    name: str = typer.Argument(..., help="The account's login name."),
     password: str | None = typer.Option(None, help="Prompted for when not given."),
+    role: str = typer.Option(
+        "experimenter", "--role", help="experimenter, or annotator (sees only the annotation pages, never names)."
+    ),
 ) -> None:
-    """Create an experimenter account (or set the password of an existing one)."""
-    _set_password(name, password, create=True)
+    """Create an account (or set the password of an existing one)."""
+    from app.security import AccountRole
+
+    if role not in tuple(AccountRole):
+        raise typer.BadParameter(f"must be one of {', '.join(AccountRole)}", param_hint="--role")
+    _set_password(name, password, create=True, role=AccountRole(role))
 
 
 def admin_password(
@@ -53,7 +60,7 @@ def admin_password(
     _set_password(name, password, create=False)
 
 
-def _set_password(name: str, password: str | None, create: bool) -> None:
+def _set_password(name: str, password: str | None, create: bool, role: str | None = None) -> None:
     from sqlalchemy import select
 
     from app.db.engine import open_database
@@ -77,10 +84,13 @@ def _set_password(name: str, password: str | None, create: bool) -> None:
     with db_sessions.begin() as db:
         user = db.scalar(select(Experimenter).where(Experimenter.name == name))
         if user is None:
-            user = Experimenter(name=name)
+            user = Experimenter(name=name, role=role or "experimenter")
             db.add(user)
+        elif role is not None and user.role != role:
+            raise typer.BadParameter(f"{name!r} exists as an {user.role}, not an {role}", param_hint="NAME")
         set_password(user, password)
-    typer.echo(f"experimenter {name!r} " + ("created" if not exists else "password changed; its logins have ended"))
+        kind = user.role
+    typer.echo(f"{kind} {name!r} " + ("created" if not exists else "password changed; its logins have ended"))
 
 
 def db_upgrade() -> None:

@@ -16,6 +16,7 @@ from fastapi.templating import Jinja2Templates
 from sqlalchemy.orm import Session, sessionmaker
 from starlette.requests import HTTPConnection
 
+from app.annotation.log import AnnotationLog
 from app.backends.remote import RobotLinks
 from app.clock import ServerClock
 from app.drivers.registry import AgentParts
@@ -85,6 +86,14 @@ def get_clock(services: ServicesDep) -> ServerClock:
     return services.clock
 
 
+def get_annotations(services: ServicesDep) -> AnnotationLog:
+    return services.annotations
+
+
+def get_annotator_sessions(services: ServicesDep) -> Sessions:
+    return services.annotator_sessions
+
+
 def get_sessions(services: ServicesDep) -> Sessions:
     return services.sessions
 
@@ -141,6 +150,8 @@ RobotLinksDep = Annotated[RobotLinks, Depends(get_robots)]
 AgentsDep = Annotated[AgentParts, Depends(get_agents)]
 ClockDep = Annotated[ServerClock, Depends(get_clock)]
 SessionsDep = Annotated[Sessions, Depends(get_sessions)]
+AnnotationsDep = Annotated[AnnotationLog, Depends(get_annotations)]
+AnnotatorSessionsDep = Annotated[Sessions, Depends(get_annotator_sessions)]
 CsrfDep = Annotated[CsrfTokens, Depends(get_csrf)]
 LoginsDep = Annotated[LoginGuard, Depends(get_logins)]
 LoginSocketsDep = Annotated[LoginSockets, Depends(get_login_sockets)]

@@ -17,6 +17,7 @@ from fastapi.templating import Jinja2Templates
 from sqlalchemy import select
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
+from app.annotation.log import AnnotationLog
 from app.backends.registry import BackendParts
 from app.backends.remote import RobotLinks
 from app.backends.render import FrameRenderer, InThread, RenderProcesses
@@ -31,8 +32,8 @@ from app.login import LoginGuard, shared_counts
 from app.mazes import Mazes
 from app.perception.belief import FilterWorker
 from app.resources import shipped
-from app.routes import experimenter, ldh_study, pages, replay, robot_ws, seat_ws
-from app.security import CsrfTokens, SeatTokens, Sessions, StudyTokens, set_password
+from app.routes import annotate, experimenter, ldh_study, pages, replay, robot_ws, seat_ws
+from app.security import AccountRole, CsrfTokens, SeatTokens, Sessions, StudyTokens, set_password
 from app.services import Services
 from app.settings import Settings
 from app.trial.frames_store import FrameStore
@@ -86,6 +87,8 @@ def build_services(settings: Settings) -> Services:
         log=log,
         seats=seats,
         sessions=Sessions(key, db),
+        annotator_sessions=Sessions(key, db, role=AccountRole.ANNOTATOR),
+        annotations=AnnotationLog(db),
         csrf=CsrfTokens(key),
         logins=logins,
         mazes=mazes,
@@ -142,6 +145,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(robot_ws.router)
     app.include_router(replay.router)
     app.include_router(ldh_study.router)
+    app.include_router(annotate.router)
 
     @app.exception_handler(LoginRequired)
     async def _login_required(request: Request, exc: Exception) -> Response:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import hashlib
 import hmac
 from dataclasses import dataclass
+from enum import StrEnum
 from functools import lru_cache, partial
 
 from argon2 import PasswordHasher
@@ -20,6 +21,7 @@ from app.db.models import Experimenter
 
 SEAT_ROLES = ("commander", "driver")
 SESSION_COOKIE = "robotslang_session"
+ANNOTATOR_COOKIE = "robotslang_annotator"
 SESSION_MAX_AGE_S = 12 * 3600
 TOKENS_VERIFIED_KEPT = 4096  # genuine seat tokens remembered (two seats per live trial)
 # argon2id with the library's RFC 9106 low-memory profile; the parameters travel in each hash.
@@ -101,6 +103,13 @@ class StudyTokens:
             raise InvalidToken("study link is not valid (forged or damaged link)") from None
 
 
+class AccountRole(StrEnum):
+    """What an account's login opens: the experimenter's pages, or only the annotation pages."""
+
+    EXPERIMENTER = "experimenter"
+    ANNOTATOR = "annotator"
+
+
 @dataclass(frozen=True)
 class Login:
     """An experimenter's live login: valid while the account's session version is unchanged."""
@@ -110,12 +119,16 @@ class Login:
 
 
 class Sessions:
-    """Experimenter login: a signed, timed cookie naming the account and its session version.
-    Logging out or changing the password bumps the version, which ends every cookie issued before."""
+    """Login: a signed, timed cookie naming the account and its session version. Logging out or
+    changing the password bumps the version, which ends every cookie issued before. Each role has
+    its own salt and accepts only its own accounts, so an annotator's cookie opens no
+    experimenter page (and an experimenter's no annotator queue)."""
 
-    def __init__(self, secret: str, db: sessionmaker[Session]) -> None:
-        self._serializer = URLSafeTimedSerializer(secret, salt="experimenter-session")
+    def __init__(self, secret: str, db: sessionmaker[Session], role: AccountRole = AccountRole.EXPERIMENTER) -> None:
+        salt = "experimenter-session" if role == AccountRole.EXPERIMENTER else f"{role}-session"
+        self._serializer = URLSafeTimedSerializer(secret, salt=salt)
         self._db = db
+        self.role = role
 
     def issue(self, experimenter_id: int) -> str:
         with self._db() as db:
@@ -135,7 +148,8 @@ class Sessions:
             return None
         with self._db() as db:
             user = db.get(Experimenter, login.experimenter_id)
-        return login if user is not None and user.session_version == login.version else None
+        genuine = user is not None and user.session_version == login.version and user.role == self.role
+        return login if genuine else None
 
     def end(self, login: Login) -> None:
         """Log out: every cookie of this account stops working."""

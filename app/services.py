@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from sqlalchemy import Engine
 from sqlalchemy.orm import Session, sessionmaker
 
+from app.annotation.log import AnnotationLog
 from app.backends.remote import RobotLinks
 from app.clock import ServerClock
 from app.drivers.registry import AgentParts
@@ -34,7 +35,9 @@ class Services:
     clock: ServerClock
     log: EventLog
     seats: SeatTokens
-    sessions: Sessions
+    sessions: Sessions  # experimenters' logins
+    annotations: AnnotationLog  # annotators' log, beside the trials'
+    annotator_sessions: Sessions  # annotators' logins: their own cookie and salt
     csrf: CsrfTokens
     logins: LoginGuard
     mazes: Mazes

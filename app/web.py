@@ -1,4 +1,5 @@
-"""What every page route shares: rendering a template, the error page, and a trial or 404.
+"""What every page route shares: rendering a template, the error page, a trial or 404, and a
+trial's log and frames as the replay pages (the experimenter's and the annotator's) serve them.
 
 Routes import these from here, never from another route module.
 """
@@ -8,11 +9,14 @@ from __future__ import annotations
 from typing import Any
 
 from fastapi import HTTPException, Request
-from fastapi.responses import HTMLResponse
+from fastapi.responses import FileResponse, HTMLResponse
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.db.models import Trial
+from app.db.models import Frame, Trial
 from app.deps import get_templates
+from app.settings import Settings
+from app.trial import events as ev
 
 ADVICE = {
     403: (
@@ -58,3 +62,25 @@ def over_reason(trial: Trial) -> str | None:
         case "aborted":
             return "this trial was stopped: ask the experimenter what comes next"
     return None
+
+
+def replay_events(log: list[ev.LoggedEvent], base: str) -> list[dict[str, Any]]:
+    """The log as the replay page reads it: each frame's file replaced by its URL under `base`."""
+    events = []
+    for e in log:
+        payload = dict(e.payload)
+        if e.is_(ev.FrameRecorded):
+            payload.pop("path", None)
+            payload["url"] = f"{base}/frames/{payload['frame_id']}.jpg"
+        events.append({"seq": e.seq, "kind": e.kind, "t_ns": e.t_ns, "payload": payload})
+    return events
+
+
+def frame_file(db: Session, settings: Settings, trial_id: int, frame_id: int) -> FileResponse:
+    rel = db.scalar(select(Frame.path).where(Frame.trial_id == trial_id, Frame.seq == frame_id))
+    if rel is None:
+        raise HTTPException(404, f"trial {trial_id} has no frame {frame_id}")
+    path = settings.frames_dir / rel
+    if not path.is_file():
+        raise HTTPException(404, f"frame {frame_id} of trial {trial_id}: file {rel} is missing")
+    return FileResponse(path, media_type="image/jpeg", headers={"Cache-Control": "private, max-age=86400"})

@@ -5,11 +5,13 @@ import {emptyStatus, foldEvent, formatClock, statusText} from "./trial.js";
 {
   const root = document.getElementById("replay");
   const id = Number(root.dataset.trial);
+  // The experimenter's replay, or the annotator's (the same log, served under /annotate).
+  const base = root.dataset.base || `/experimenter/trials/${id}`;
   const $ = (x) => document.getElementById(x);
   const canvas = $("map"), ctx = canvas.getContext("2d");
   const scrub = $("scrub"), play = $("play"), speed = $("speed");
   const map = new Image();
-  map.src = `/experimenter/trials/${id}/map.png`;
+  map.src = `${base}/map.png`;
 
   let events = [], rel = [], chatItems = [], now = 0, end = 0, playing = false, last = null;
 
@@ -120,7 +122,7 @@ import {emptyStatus, foldEvent, formatClock, statusText} from "./trial.js";
   });
   map.onload = render;
 
-  fetch(`/experimenter/trials/${id}/replay.json`, {credentials: "same-origin"})
+  fetch(`${base}/replay.json`, {credentials: "same-origin"})
     .then((res) => { if (!res.ok) throw new Error(`replay log: HTTP ${res.status}`); return res.json(); })
     .then((log) => { prepare(log); root.dataset.ready = "1"; render(); })
     .catch((err) => { $("status").textContent = String(err); });

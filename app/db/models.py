@@ -24,6 +24,8 @@ class Experimenter(Base):
     password_hash: Mapped[str] = mapped_column(String(255))
     # Bumped by logout and by a password change: login cookies name the version they were issued at.
     session_version: Mapped[int] = mapped_column(Integer, default=0, server_default="0")
+    # app.security.AccountRole: an annotator's login opens only the annotation pages.
+    role: Mapped[str] = mapped_column(String(16), default="experimenter", server_default="experimenter")
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
@@ -143,3 +145,28 @@ class LDHStudyEvent(Base):
     kind: Mapped[str] = mapped_column(String(32))
     t_ns: Mapped[int] = mapped_column(BigInteger)
     payload: Mapped[dict] = mapped_column(JSON)
+
+
+class AnnotationEvent(Base):
+    """The annotations' own log (app.annotation.events): who annotated which trial, when, and
+    what; a later event of the same annotator, kind and key revises the one it names."""
+
+    __tablename__ = "annotation_event"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    trial_id: Mapped[int] = mapped_column(ForeignKey("trial.id"), index=True)
+    annotator_id: Mapped[int] = mapped_column(ForeignKey("experimenter.id"))
+    kind: Mapped[str] = mapped_column(String(32))
+    t_ns: Mapped[int] = mapped_column(BigInteger)
+    payload: Mapped[dict] = mapped_column(JSON)
+    revises: Mapped[int | None] = mapped_column(Integer, nullable=True)  # the id of the event it replaces
+
+
+class AnnotationAssignment(Base):
+    """A trial in an annotator's queue (two rows for a trial sampled for double annotation)."""
+
+    __tablename__ = "annotation_assignment"
+    __table_args__ = (UniqueConstraint("trial_id", "annotator_id", name="uq_assignment_trial_annotator"),)
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    trial_id: Mapped[int] = mapped_column(ForeignKey("trial.id"), index=True)
+    annotator_id: Mapped[int] = mapped_column(ForeignKey("experimenter.id"), index=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)

@@ -163,6 +163,15 @@ def write_lerobot(
     return totals
 
 
+def _annotation(record: TrialRecord) -> dict:
+    after = record.localized_after
+    return {
+        "tags": record.tags,
+        "localized_after_message": after[0] if after else None,
+        "localization_source": after[1] if after else None,
+    }
+
+
 def _write(loaded: Iterable[tuple[TrialRecord, Maze]], tmp: Path, per: Episode) -> dict[str, int]:
     import pandas as pd
     import pyarrow as pa
@@ -223,6 +232,9 @@ def _write(loaded: Iterable[tuple[TrialRecord, Maze]], tmp: Path, per: Episode) 
                     "meta/episodes/chunk_index": 0,
                     "meta/episodes/file_index": 0,
                     "trial_id": int(record.trial_id),
+                    # The trial's annotation (app.annotation): the dialog phenomena, anchored to
+                    # message numbers from 1, and the end of localization where one was marked.
+                    "annotation": json.dumps(_annotation(record)),
                 }
             )
     if not episodes:

@@ -168,6 +168,8 @@ def write_mcap(record: TrialRecord, maze: Maze | None, out: str | Path) -> Path:
             if event.is_(ev.PoseSampled):
                 add("/tf", _transform(message, robot_frame(sources[event.seq])), event.t_ns, event.t_ns, 0)
         writer.add_metadata("trial", _trial_metadata(record, maze))
+        if record.localized_after is not None or record.tags:
+            writer.add_metadata("annotation", _annotation_metadata(record))
         if maze is not None:
             created = events[0].t_ns if events else 0
             for name, walls_only in ((FIXED_MAP, False), (WALLS_MAP, True)):
@@ -190,6 +192,14 @@ def _trial_metadata(record: TrialRecord, maze: Maze | None) -> dict[str, str]:
     if maze is not None:
         meta["target_positions"] = json.dumps({t: maze.objects[t] for t in record.targets})
     meta.update({k: str(v) for k, v in record.info.items()})
+    return meta
+
+
+def _annotation_metadata(record: TrialRecord) -> dict[str, str]:
+    """The annotated end of localization and the dialog's phenomena (message numbers from 1)."""
+    meta = {"tags": json.dumps(record.tags)}
+    if record.localized_after is not None:
+        meta["localized_after_message"], meta["localization_source"] = map(str, record.localized_after)
     return meta
 
 

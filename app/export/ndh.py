@@ -106,32 +106,53 @@ def ndh_instances(record: TrialRecord, maze: Maze) -> list[dict]:
 
 
 def ldh_instances(record: TrialRecord, maze: Maze) -> list[dict]:
-    """The localization half of a trial: the dialog until the Commander's first estimate, the
-    estimate, and the true pose then and at the start where known (None where not)."""
+    """The localization half of a trial: the dialog until localization ended, the Commander's
+    estimate, and the true pose then and at the start where known (None where not).
+
+    Localization ends where an annotator marked it (`record.localized_after`: after that many
+    messages, the last estimate made before the next message), else at the Commander's first
+    estimate; `localization_source` says which.
+    """
     events = sorted(record.events, key=lambda e: e.seq)
     estimates = [e for e in events if e.is_(ev.Localized)]
-    if not estimates or not record.targets:
+    if not record.targets or not (estimates or record.localized_after):
         return []
-    estimate = estimates[0]
+    if record.localized_after is not None:
+        after, source = record.localized_after
+        chats = [e.seq for e in events if e.is_(ev.Chat)]
+        cut_seq = chats[after - 1] if 0 < after <= len(chats) else _start_seq(events)
+        next_seq = chats[after] if after < len(chats) else events[-1].seq + 1
+        made = [e for e in estimates if e.seq < next_seq]
+        estimate = made[-1] if made else None
+        dialog = _dialog(events, next_seq)
+    else:
+        estimate, source = estimates[0], "first_estimate"
+        cut_seq, dialog = estimate.seq, _dialog(events, estimate.seq)
     start = _pose_at(events, _start_seq(events))
-    truth = _pose_at(events, estimate.seq)
-    guess_xy = [float(estimate.payload["x"]), float(estimate.payload["y"])]
-    guess = [*guess_xy, None if estimate.payload.get("heading") is None else float(estimate.payload["heading"])]
-    error = None if truth is None else math.dist(truth[:2], guess_xy)
+    truth = _pose_at(events, max(cut_seq, estimate.seq) if estimate else cut_seq)
+    guess_xy = [float(estimate.payload["x"]), float(estimate.payload["y"])] if estimate else None
+    guess = None
+    if estimate is not None and guess_xy is not None:
+        heading = estimate.payload.get("heading")
+        guess = [*guess_xy, None if heading is None else float(heading)]
+    error = None if truth is None or guess_xy is None else math.dist(truth[:2], guess_xy)
     target = record.targets[0]
     all_targets = _positions(record, maze)
     return [
         {
-            "scan": scan_id(record.maze, target, start if start else guess_xy, all_targets[0]),
+            "scan": scan_id(record.maze, target, start or guess_xy or truth or [0.0, 0.0], all_targets[0]),
             "target": target,
             "agent_pose": truth,
             "start_pose": start,
             "commander_estimate": guess,
             "localization_error_m": error,
+            "localization_source": source,
+            "localized_after_message": len(dialog),
             "all_targets": all_targets,
-            "dialog_history": _dialog(events, estimate.seq),
+            "dialog_history": dialog,
             "trial_id": str(record.trial_id),
             "seats": seats(record),
+            **({"tags": record.tags} if record.tags else {}),
         }
     ]
 

@@ -26,6 +26,10 @@ class TrialRecord:
     events: tuple[LoggedEvent, ...]
     frames_root: Path | None  # frame payload `path`s are relative to this folder (None: no frames)
     info: dict[str, str] = field(default_factory=dict)  # anything else worth keeping as metadata
+    # The annotated end of localization: after this many messages, and where that comes from
+    # ("annotation" or "adjudicated", app.annotation); None: the Commander's first estimate ends it.
+    localized_after: tuple[int, str] | None = None
+    tags: dict[str, list[int]] = field(default_factory=dict)  # dialog phenomena -> message numbers
 
     def frame_bytes(self, event: LoggedEvent) -> bytes:
         """The encoded image a `frame` event points at."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from app.annotation.log import AnnotationLog
 from app.db.models import Event as EventRow
 from app.db.models import Team, Trial
 from app.export.record import ExportError, TrialRecord
@@ -25,7 +26,10 @@ def load_trial(session: Session, settings: Settings, trial_id: int | str) -> Tri
     team = session.get(Team, trial.team_id) if trial.team_id is not None else None  # None: an agent pair
     rows = session.scalars(select(EventRow).where(EventRow.trial_id == key).order_by(EventRow.seq))
     events = tuple(LoggedEvent(seq=r.seq, kind=r.kind, t_ns=r.t_ns, payload=dict(r.payload)) for r in rows)
+    annotations = AnnotationLog.fold_in(session, key)
     return TrialRecord(
+        localized_after=annotations.resolved_cut(),
+        tags=annotations.resolved_tags(),
         trial_id=str(key),
         team=team.name if team else "",
         maze=trial.maze,

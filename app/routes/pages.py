@@ -6,8 +6,9 @@ from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from sqlalchemy.orm import Session
 
-from app.db.models import Trial
+from app.db.models import Experimenter, Trial
 from app.deps import (
+    AnnotatorSessionsDep,
     CurrentLogin,
     DbSession,
     HubDep,
@@ -22,7 +23,15 @@ from app.deps import (
 from app.guard import csrf_protect
 from app.leaderboard import agent_standings, pair_standings, standings
 from app.login import TooManyAttempts
-from app.security import SESSION_COOKIE, SESSION_MAX_AGE_S, ExpiredLink, InvalidToken, Seat, SeatTokens
+from app.security import (
+    ANNOTATOR_COOKIE,
+    SESSION_COOKIE,
+    SESSION_MAX_AGE_S,
+    ExpiredLink,
+    InvalidToken,
+    Seat,
+    SeatTokens,
+)
 from app.trial.state import fold
 from app.web import over_reason, render, trial_or_404
 
@@ -51,9 +60,11 @@ def seat_of(seats: SeatTokens, db: Session, token: str) -> tuple[Seat, Trial]:
 
 
 @router.get("/", response_class=HTMLResponse)
-def home(request: Request, login: CurrentLogin) -> Response:
+def home(request: Request, login: CurrentLogin, annotators: AnnotatorSessionsDep) -> Response:
     if login is not None:
         return RedirectResponse("/experimenter", status_code=303)
+    if annotators.verify(request.cookies.get(ANNOTATOR_COOKIE)) is not None:
+        return RedirectResponse("/annotate", status_code=303)
     return render(request, "home.html", error=None, join_error=None)
 
 
@@ -73,6 +84,8 @@ async def login(
     request: Request,
     logins: LoginsDep,
     sessions: SessionsDep,
+    annotators: AnnotatorSessionsDep,
+    db: DbSession,
     name: str = Form(max_length=80),
     password: str = Form(max_length=200),
 ) -> Response:
@@ -86,9 +99,12 @@ async def login(
         response = render(request, "home.html", error="unknown name or wrong password", join_error=None)
         response.status_code = 401
         return response
-    redirect = RedirectResponse("/experimenter", status_code=303)
+    account = db.get(Experimenter, user_id)
+    is_annotator = account is not None and account.role == annotators.role
+    sessions, cookie = (annotators, ANNOTATOR_COOKIE) if is_annotator else (sessions, SESSION_COOKIE)
+    redirect = RedirectResponse("/annotate" if is_annotator else "/experimenter", status_code=303)
     redirect.set_cookie(
-        SESSION_COOKIE,
+        cookie,
         sessions.issue(user_id),
         max_age=SESSION_MAX_AGE_S,
         httponly=True,

@@ -17,15 +17,14 @@ from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, Response
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.db.models import Frame, Team, Trial
+from app.db.models import Team, Trial
 from app.deps import DbSession, LogDep, MazesDep, SettingsDep, experimenter_id
 from app.export.record import ExportError, TrialRecord
 from app.export.source import load_trial
 from app.guard import csrf_protect
 from app.mazes import Mazes, UnknownMaze
 from app.settings import Settings
-from app.trial import events as ev
-from app.web import render, trial_or_404
+from app.web import frame_file, render, replay_events, trial_or_404
 from sim.core.maze import Maze
 
 router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter_id), Depends(csrf_protect)])
@@ -63,13 +62,7 @@ def replay(request: Request, db: DbSession, trial_id: int) -> HTMLResponse:
 def replay_log(db: DbSession, log: LogDep, trial_id: int) -> dict[str, Any]:
     """The whole event log, with each frame's file replaced by the URL that serves it."""
     trial, team = _trial(db, trial_id)
-    events = []
-    for e in log.load(trial_id):
-        payload = dict(e.payload)
-        if e.is_(ev.FrameRecorded):
-            payload.pop("path", None)
-            payload["url"] = f"/experimenter/trials/{trial_id}/frames/{payload['frame_id']}.jpg"
-        events.append({"seq": e.seq, "kind": e.kind, "t_ns": e.t_ns, "payload": payload})
+    events = replay_events(log.load(trial_id), f"/experimenter/trials/{trial_id}")
     return {
         "trial": {
             "id": trial.id,
@@ -87,13 +80,7 @@ def replay_log(db: DbSession, log: LogDep, trial_id: int) -> dict[str, Any]:
 
 @router.get("/trials/{trial_id}/frames/{frame_id}.jpg")
 def frame(db: DbSession, settings: SettingsDep, trial_id: int, frame_id: int) -> FileResponse:
-    rel = db.scalar(select(Frame.path).where(Frame.trial_id == trial_id, Frame.seq == frame_id))
-    if rel is None:
-        raise HTTPException(404, f"trial {trial_id} has no frame {frame_id}")
-    path = settings.frames_dir / rel
-    if not path.is_file():
-        raise HTTPException(404, f"frame {frame_id} of trial {trial_id}: file {rel} is missing")
-    return FileResponse(path, media_type="image/jpeg", headers={"Cache-Control": "private, max-age=86400"})
+    return frame_file(db, settings, trial_id, frame_id)
 
 
 def _record(db: Session, settings: Settings, mazes: Mazes, trial_id: int) -> tuple[TrialRecord, Maze | None]:

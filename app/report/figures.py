@@ -1,0 +1,63 @@
+"""The dataset section's figures (PNG, matplotlib's Agg: no display needed)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402  (after choosing the backend)
+from matplotlib.ticker import MaxNLocator  # noqa: E402
+
+
+def dialog_lengths(dialog: dict[str, Any], out: Path) -> Path:
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.5))
+    for ax, key, label in ((axes[0], "messages", "messages per dialog"), (axes[1], "words", "words per dialog")):
+        values = dialog["per_dialog"][key]
+        # Whole-number bins (at most 20), each centred on the counts it holds.
+        low, high = min(values, default=0), max(values, default=0)
+        step = max(1, -(-(high - low + 1) // 20))
+        ax.hist(values, bins=[b - 0.5 for b in range(low, high + step + 1, step)], color="#4878a8", edgecolor="white")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+        mean = dialog[key]["mean"]
+        if mean is not None:
+            ax.axvline(mean, color="#c03030", linestyle="--", label=f"mean {mean:.1f}")
+            ax.legend()
+        ax.set_xlabel(label)
+        ax.set_ylabel("dialogs")
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
+def leaderboard(board: dict[str, Any], out: Path) -> Path:
+    ranked = [(team, row["best"]) for team, row in board.items() if row["best"] is not None]
+    fig, ax = plt.subplots(figsize=(7, 0.5 + 0.45 * max(1, len(ranked))))
+    ax.barh([t for t, _ in ranked][::-1], [s for _, s in ranked][::-1], color="#4878a8")
+    ax.set_xlabel("best score (s: time + penalty per move; lower is better)")
+    ax.set_title("Leaderboard")
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
+def learning_curves(board: dict[str, Any], out: Path) -> Path:
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for team, row in board.items():
+        if row["scores"]:
+            ax.plot(range(1, len(row["scores"]) + 1), row["scores"], marker="o", label=team)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_xlabel("trial number (the team's own order)")
+    ax.set_ylabel("score (s)")
+    ax.set_title("Learning curves")
+    if board:
+        ax.legend(fontsize="small")
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out

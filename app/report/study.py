@@ -1,0 +1,177 @@
+"""Every number of a study's dataset section, from its trials' event logs and annotations.
+
+Folds are drawn over layouts (`assign_splits` on layout ids), as the paper split its data, so
+that no two folds share a physical layout.
+"""
+
+from __future__ import annotations
+
+import statistics
+from collections import Counter, defaultdict
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from sqlalchemy.orm import Session, sessionmaker
+
+from app.annotation.agreement import agreement
+from app.annotation.dialog import messages
+from app.annotation.events import Phenomenon
+from app.annotation.log import AnnotationLog
+from app.annotation.study import annotator_names, study_trial_ids
+from app.db.models import Team, Trial
+from app.export.ndh import assign_splits, ldh_instances, ndh_instances
+from app.export.record import TrialRecord
+from app.export.source import load_trial
+from app.leaderboard import trial_score
+from app.mazes import Mazes
+from app.settings import Settings
+from app.trial import events as ev
+from sim.tasks.benchmark import Split
+
+
+def distribution(values: Sequence[float]) -> dict[str, float | None]:
+    if not values:
+        return {"mean": None, "median": None, "min": None, "max": None}
+    return {
+        "mean": statistics.fmean(values),
+        "median": float(statistics.median(values)),
+        "min": float(min(values)),
+        "max": float(max(values)),
+    }
+
+
+def words(text: str) -> int:
+    return len(text.split())
+
+
+def dialog_numbers(dialogs: Sequence[Sequence[tuple[str, str]]]) -> dict[str, Any]:
+    """Messages and words per dialog ((role, text) turns), overall and per role."""
+    roles = sorted({role for d in dialogs for role, _ in d})
+    msgs = [len(d) for d in dialogs]
+    wrds = [sum(words(t) for _, t in d) for d in dialogs]
+    return {
+        "messages_per_dialog": statistics.fmean(msgs) if msgs else None,
+        "words_per_dialog": statistics.fmean(wrds) if wrds else None,
+        "messages": distribution(msgs),
+        "words": distribution(wrds),
+        "per_dialog": {"messages": msgs, "words": wrds},
+        "per_role": {
+            role: {
+                "messages_per_dialog": statistics.fmean([sum(r == role for r, _ in d) for d in dialogs]),
+                "words_per_dialog": statistics.fmean([sum(words(t) for r, t in d if r == role) for d in dialogs]),
+            }
+            for role in roles
+        },
+    }
+
+
+def study_numbers(sessions: sessionmaker[Session], settings: Settings, mazes: Mazes, study: str) -> dict[str, Any]:
+    with sessions() as db:
+        return _study_numbers(db, AnnotationLog(sessions), settings, mazes, study)
+
+
+def _study_numbers(db: Session, log: AnnotationLog, settings: Settings, mazes: Mazes, study: str) -> dict[str, Any]:
+    ids = study_trial_ids(db, study)
+    records = [load_trial(db, settings, i) for i in ids]
+    trials = {t.id: t for t in (db.get(Trial, i) for i in ids) if t is not None}
+    layout_of = mazes.layouts()
+    teams: dict[str, list[int]] = defaultdict(list)
+    participants: set[int] = set()
+    for trial_id in ids:
+        trial = trials[trial_id]
+        team = db.get(Team, trial.team_id)
+        teams[team.name if team else str(trial.team_id)].append(trial_id)
+        if team is not None:
+            participants |= {team.member_a_id, team.member_b_id}
+        participants |= {p for p in (trial.commander_id, trial.driver_id) if p is not None}
+    dialogs = [[(m.role, m.text) for m in messages(r.events)] for r in records]
+    moves = [sum(1 for e in r.events if e.is_(ev.MoveExecuted)) for r in records]
+    durations = [trials[int(r.trial_id)].active_s or 0.0 for r in records]
+    penalty = settings.move_penalty_s
+    annotations = log.states(ids)
+    return {
+        "study": study,
+        "counts": {
+            "trials": len(ids),
+            "layouts": len({layout_of.get(r.maze, r.maze) for r in records}),
+            "mazes": len({r.maze for r in records}),
+            "participants": len(participants),
+            "teams": len(teams),
+            "trials_per_team": {name: len(t) for name, t in sorted(teams.items())},
+        },
+        **{k: v for k, v in dialog_numbers(dialogs).items() if k in ("messages_per_dialog", "words_per_dialog")},
+        "dialog": dialog_numbers(dialogs),
+        "duration_minutes": distribution([d / 60 for d in durations]),
+        "moves": distribution([float(m) for m in moves]),
+        "folds": fold_table(records, mazes, layout_of),
+        "phenomena": phenomena_table(records),
+        "agreement": agreement(annotations, annotator_names(db)),
+        "leaderboard": leaderboard(teams, trials, moves_by_trial=dict(zip(ids, moves, strict=True)), penalty=penalty),
+    }
+
+
+def fold_table(records: Sequence[TrialRecord], mazes: Mazes, layout_of: Mapping[str, str]) -> dict[str, Any]:
+    """Per fold: layouts, trials, NDH and LDH instances, and the same per layout."""
+    layout = {r.trial_id: layout_of.get(r.maze, r.maze) for r in records}
+    folds = assign_splits(layout.values())
+    table: dict[str, Any] = {
+        str(s): {"layouts": 0, "trials": 0, "ndh_instances": 0, "ldh_instances": 0, "by_layout": {}} for s in Split
+    }
+    for r in records:
+        fold = table[folds[layout[r.trial_id]]]
+        maze = mazes.load(r.maze)
+        row = fold["by_layout"].setdefault(layout[r.trial_id], {"trials": 0, "ndh_instances": 0, "ldh_instances": 0})
+        counts = {
+            "trials": 1,
+            "ndh_instances": len(ndh_instances(r, maze)),
+            "ldh_instances": len(ldh_instances(r, maze)),
+        }
+        for key, n in counts.items():
+            row[key] += n
+            fold[key] += n
+    for fold in table.values():
+        fold["layouts"] = len(fold["by_layout"])
+    return table
+
+
+def phenomena_table(records: Sequence[TrialRecord]) -> dict[str, Any]:
+    """Share of the annotated dialogs (those with a resolved cut or tag) showing each phenomenon,
+    and an example: the first message anchored to it."""
+    annotated = [r for r in records if r.tags or r.localized_after is not None]
+    found = Counter(tag for r in annotated for tag in r.tags)
+    tags = [str(p) for p in Phenomenon] + sorted(set(found) - {str(p) for p in Phenomenon})
+    table = {}
+    for tag in tags:
+        example = None
+        for r in annotated:
+            if tag in r.tags:
+                said = {m.number: m for m in messages(r.events)}
+                m = said.get(r.tags[tag][0])
+                if m is not None:
+                    example = {"trial": int(r.trial_id), "message": m.number, "role": m.role, "text": m.text}
+                    break
+        table[tag] = {
+            "dialogs": found[tag],
+            "frequency": found[tag] / len(annotated) if annotated else None,
+            "example": example,
+        }
+    return {"annotated_dialogs": len(annotated), "tags": table}
+
+
+def leaderboard(
+    teams: Mapping[str, Sequence[int]], trials: Mapping[int, Trial], moves_by_trial: Mapping[int, int], penalty: float
+) -> dict[str, Any]:
+    """Each team's scores in the order it played its trials (its learning curve), best and mean."""
+    out = {}
+    for name, ids in teams.items():
+        scores = [
+            trial_score(trials[i].active_s or 0.0, moves_by_trial[i], penalty)
+            for i in sorted(ids)
+            if trials[i].active_s is not None
+        ]
+        out[name] = {
+            "scores": scores,
+            "best": min(scores) if scores else None,
+            "mean": statistics.fmean(scores) if scores else None,
+        }
+    return dict(sorted(out.items(), key=lambda kv: (kv[1]["best"] is None, kv[1]["best"] or 0.0)))

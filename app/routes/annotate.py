@@ -1,0 +1,195 @@
+"""The annotation pages: an annotator's queue and progress, and per trial the dialog with its
+message numbers, the map with the true trace and the Commander's estimates (an aid that can be
+hidden), the localization cut and the phenomena tags. Annotators see layouts and dialogs, never
+a team's or a participant's name.
+
+The experimenter's side: agreement between annotators of a study, and adjudication.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Depends, Form, HTTPException, Request
+from fastapi.responses import HTMLResponse, RedirectResponse, Response
+from sqlalchemy import select
+
+from app.annotation.access import AnnotatorId, annotator_login
+from app.annotation.agreement import agreement
+from app.annotation.dialog import estimates, messages
+from app.annotation.events import Adjudicated, AnnotationEventModel, CutMarked, Phenomenon, Submitted, Tagged
+from app.annotation.study import annotator_names, study_trial_ids
+from app.db.models import AnnotationAssignment, Trial
+from app.deps import (
+    AnnotationsDep,
+    AnnotatorSessionsDep,
+    ClockDep,
+    DbSession,
+    ExperimenterId,
+    LogDep,
+    MazesDep,
+    SettingsDep,
+)
+from app.guard import csrf_protect
+from app.security import ANNOTATOR_COOKIE, Login
+from app.web import frame_file, render, replay_events
+
+router = APIRouter(dependencies=[Depends(csrf_protect)])
+
+
+def _assigned(db: DbSession, trial_id: int, annotator: int) -> Trial:
+    assigned = db.scalar(
+        select(AnnotationAssignment.id).where(
+            AnnotationAssignment.trial_id == trial_id, AnnotationAssignment.annotator_id == annotator
+        )
+    )
+    trial = db.get(Trial, trial_id)
+    if assigned is None or trial is None:
+        raise HTTPException(404, f"trial {trial_id} is not in your annotation queue")
+    return trial
+
+
+@router.get("/annotate", response_class=HTMLResponse)
+def queue(request: Request, db: DbSession, annotations: AnnotationsDep, annotator: AnnotatorId):
+    rows = db.execute(
+        select(Trial.id, Trial.maze)
+        .join(AnnotationAssignment, AnnotationAssignment.trial_id == Trial.id)
+        .where(AnnotationAssignment.annotator_id == annotator)
+        .order_by(Trial.id)
+    ).all()
+    states = annotations.states(r.id for r in rows)
+    items = [{"id": r.id, "maze": r.maze, "annotation": states[r.id].by_annotator.get(annotator)} for r in rows]
+    done = sum(1 for i in items if i["annotation"] is not None and i["annotation"].submitted)
+    return render(request, "annotate/queue.html", items=items, done=done)
+
+
+@router.get("/annotate/trials/{trial_id}", response_class=HTMLResponse)
+def annotate_trial(
+    request: Request, trial_id: int, db: DbSession, annotations: AnnotationsDep, log: LogDep, annotator: AnnotatorId
+):
+    trial = _assigned(db, trial_id, annotator)
+    events = log.load(trial_id)
+    mine = annotations.state(trial_id).by_annotator.get(annotator)
+    tags = [(str(p), p.label) for p in Phenomenon]
+    return render(
+        request,
+        "annotate/trial.html",
+        trial=trial,
+        messages=messages(events),
+        estimates={e.after_message: e for e in estimates(events)},
+        mine=mine,
+        phenomena=tags,
+        titles=dict(tags),
+    )
+
+
+@router.get("/annotate/trials/{trial_id}/replay.json")
+def annotate_replay(trial_id: int, db: DbSession, log: LogDep, annotator: AnnotatorId):
+    """The trial's log as the replay page reads it (`static/replay.js`), without the team."""
+    trial = _assigned(db, trial_id, annotator)
+    base = f"/annotate/trials/{trial_id}"
+    return {
+        "trial": {"id": trial.id, "maze": trial.maze, "targets": trial.targets, "phase": trial.phase},
+        "events": replay_events(log.load(trial_id), base),
+    }
+
+
+@router.get("/annotate/trials/{trial_id}/frames/{frame_id}.jpg")
+def annotate_frame(trial_id: int, frame_id: int, db: DbSession, settings: SettingsDep, annotator: AnnotatorId):
+    _assigned(db, trial_id, annotator)
+    return frame_file(db, settings, trial_id, frame_id)
+
+
+@router.get("/annotate/trials/{trial_id}/map.png")
+def annotate_map(trial_id: int, db: DbSession, mazes: MazesDep, annotator: AnnotatorId):
+    trial = _assigned(db, trial_id, annotator)
+    return Response(
+        mazes.full_map_png(trial.maze), media_type="image/png", headers={"Cache-Control": "private, max-age=3600"}
+    )
+
+
+@router.post("/annotate/trials/{trial_id}")
+def save(
+    trial_id: int,
+    db: DbSession,
+    annotations: AnnotationsDep,
+    clock: ClockDep,
+    log: LogDep,
+    annotator: AnnotatorId,
+    action: Annotated[str, Form()],
+    cut: Annotated[int | None, Form()] = None,
+    tag: Annotated[str, Form(max_length=60)] = "",
+    free_tag: Annotated[str, Form(max_length=60)] = "",
+    anchor: Annotated[list[int] | None, Form()] = None,
+):
+    """One change from the trial's form: `cut` (the radio checked), `tag` (the phenomenon or free
+    tag, anchored to the checked messages; none checked withdraws it) or `submit`."""
+    _assigned(db, trial_id, annotator)
+    said = len(messages(log.load(trial_id)))
+    anchors = sorted(set(anchor or []))
+    event: AnnotationEventModel
+    if action == "cut":
+        if cut is None or not 0 <= cut <= said:
+            raise HTTPException(422, f"pick the message after which the robot was localized (0 to {said})")
+        event = CutMarked(message=cut)
+    elif action == "tag":
+        name = free_tag.strip().lower() or tag
+        if not name:
+            raise HTTPException(422, "pick a phenomenon or write a tag")
+        if any(not 1 <= m <= said for m in anchors):
+            raise HTTPException(422, f"anchors must be message numbers from 1 to {said}")
+        event = Tagged(tag=name, messages=anchors)
+    elif action == "submit":
+        event = Submitted()
+    else:
+        raise HTTPException(422, f"unknown action {action!r}: cut, tag or submit")
+    annotations.append(trial_id, annotator, event, clock.now_ns())
+    target = "/annotate" if action == "submit" else f"/annotate/trials/{trial_id}"
+    return RedirectResponse(target, status_code=303)
+
+
+@router.post("/annotate/logout")
+def logout(sessions: AnnotatorSessionsDep, login: Annotated[Login | None, Depends(annotator_login)]):
+    if login is not None:
+        sessions.end(login)
+    response = RedirectResponse("/", status_code=303)
+    response.delete_cookie(ANNOTATOR_COOKIE)
+    return response
+
+
+@router.get("/experimenter/annotation", response_class=HTMLResponse)
+def agreement_page(request: Request, db: DbSession, annotations: AnnotationsDep, _: ExperimenterId, study: str = ""):
+    """Agreement between the study's annotators, and the disagreements to adjudicate."""
+    result = None
+    if study:
+        ids = study_trial_ids(db, study)
+        result = agreement(annotations.states(ids), annotator_names(db))
+    titles = {str(p): p.label for p in Phenomenon}
+    return render(request, "annotate/agreement.html", study=study, result=result, titles=titles)
+
+
+@router.post("/experimenter/annotation/adjudicate")
+def adjudicate(
+    db: DbSession,
+    annotations: AnnotationsDep,
+    clock: ClockDep,
+    experimenter: ExperimenterId,
+    trial_id: Annotated[int, Form()],
+    item: Annotated[str, Form(max_length=64)],
+    value: Annotated[str, Form(max_length=16)],
+    study: Annotated[str, Form(max_length=80)] = "",
+):
+    """The experimenter's value for a disagreement, stored beside both annotators' (theirs stay)."""
+    if db.get(Trial, trial_id) is None:
+        raise HTTPException(404, f"trial {trial_id} does not exist")
+    decided: int | bool
+    if item == "cut":
+        if not value.isdigit():
+            raise HTTPException(422, "the adjudicated cut is a message number")
+        decided = int(value)
+    elif value in ("yes", "no"):
+        decided = value == "yes"
+    else:
+        raise HTTPException(422, "a tag is adjudicated yes or no")
+    annotations.append(trial_id, experimenter, Adjudicated(item=item, value=decided), clock.now_ns())
+    return RedirectResponse(f"/experimenter/annotation?study={study}", status_code=303)
