@@ -48,7 +48,7 @@ def _root(
 
 sim_commands.register(root, eval_app)
 model_commands.register(root, eval_app)
-app_commands.register(root)
+app_commands.register(root, eval_app)
 bench_cli.register(root)
 annotation_commands.register(root)
 report_commands.register(root)

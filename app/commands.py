@@ -127,8 +127,11 @@ def drivers() -> None:
     )
 
 
-def register(root: typer.Typer) -> None:
+def register(root: typer.Typer, eval_app: typer.Typer) -> None:
     """Mount the server's commands on the root CLI."""
+    from app import selfplay_cli  # offline self-play or through the trial core: it takes both layers
+
+    eval_app.command("selfplay")(selfplay_cli.eval_selfplay)
     root.command("serve")(serve)
     root.command("drivers")(drivers)
     admin = typer.Typer(help="Experimenter accounts.", no_args_is_help=True)

@@ -251,7 +251,7 @@ def live(db: DbSession, hub: HubDep):
 def watch(request: Request, db: DbSession, log: LogDep, seats: SeatTokensDep, trial_id: int):
     trial = trial_or_404(db, trial_id)
     state = fold(log.load(trial_id))
-    names = dict(db.execute(select(Participant.id, Participant.name)).tuples().all())
+    names = dict(db.execute(select(Participant.id, Participant.name)).all())
     return render(
         request,
         "watch.html",

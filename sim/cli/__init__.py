@@ -7,9 +7,8 @@ import typer
 
 def register(root: typer.Typer, eval_app: typer.Typer) -> None:
     """Mount the simulator's commands on the root CLI."""
-    from sim.cli import eval, mazes, play, selfplay
+    from sim.cli import eval, mazes, play
 
     eval_app.command("baselines")(eval.eval_baselines)
-    eval_app.command("selfplay")(selfplay.eval_selfplay)
     play.register(root)
     mazes.register(root)

@@ -1,4 +1,6 @@
-"""`robotslang eval selfplay`: whole trials with agents in both seats, offline (`sim.agents.selfplay`)."""
+"""`robotslang eval selfplay`: whole trials with agents in both seats, offline (`sim.agents.selfplay`)
+or through the platform's trial core (`--record`, `app.drivers.selfplay`); it lives in app/ because
+it uses both layers (nothing in sim/ imports app/)."""
 
 from __future__ import annotations
 
@@ -101,8 +103,7 @@ def recorded(
     processes: int,
     timeout_s: float,
 ) -> list[TrialResult]:
-    """The trials through the platform (the command line is where the layers meet: sim/ itself never
-    imports app/)."""
+    """The trials through the platform, recorded in `data_dir`."""
     if (commander, driver) != (CommanderName.DIALOG, DriverName.DIALOG):
         raise typer.BadParameter("--record seats agent:dialog in both seats: give --commander dialog --driver dialog")
     from app.drivers.selfplay import record_trials
