@@ -1,4 +1,5 @@
-"""`robotslang export TRIAL_ID|all --format mcap|ndh|lerobot --out PATH [--episode ndh|trial]`."""
+"""`robotslang export TRIAL_ID|all --format mcap|ndh|lerobot --out PATH [--episode ndh|trial]
+[--study NAME] [--folds train:val:test=70:15:15 --seed S]`."""
 
 from __future__ import annotations
 
@@ -44,15 +45,32 @@ def export(
     include_aborted: bool = typer.Option(
         False, "--include-aborted", help="With `all`: aborted trials too, with what they recorded (targets confirmed)."
     ),
+    study: str | None = typer.Option(None, "--study", help="With `all`: only this study's trials."),
+    folds: str | None = typer.Option(
+        None,
+        "--folds",
+        help="NDH: split the study's layouts into folds with these shares, e.g. train:val:test=70:15:15 "
+        "(no layout in two folds); saved in the data directory (folds/<study>.json) and reused.",
+    ),
+    seed: int = typer.Option(0, "--seed", help="--folds: the seed of the draw."),
 ) -> None:
     """Export recorded trials from the data directory (ROBOTSLANG_DATA_DIR)."""
     from app.db.engine import make_engine, make_sessionmaker
+    from app.export.folds import FoldError, FoldShares, SavedFolds
     from app.export.record import ExportError
     from app.export.source import exported_trial_ids, load_trial
     from app.mazes import Mazes, UnknownMaze
     from app.settings import Settings
 
     settings = Settings()
+    shares = None
+    if folds is not None:
+        if format is not Format.ndh or study is None or trial != "all":
+            _fail("--folds splits a study's NDH and LDH export: give `all --format ndh --study NAME --folds ...`")
+        try:
+            shares = FoldShares.parse(folds)
+        except FoldError as err:
+            _fail(str(err))
     if settings.database_url is None and not settings.sqlite_path.exists():
         _fail(
             f"no database at {settings.sqlite_path}: set ROBOTSLANG_DATA_DIR to the data "
@@ -61,10 +79,11 @@ def export(
     sessions = make_sessionmaker(make_engine(settings))
     mazes = Mazes(settings)
     with sessions() as session:
-        ids: list[int | str] = [*exported_trial_ids(session, include_aborted)] if trial == "all" else [trial]
+        ids: list[int | str] = [*exported_trial_ids(session, include_aborted, study)] if trial == "all" else [trial]
         if not ids:
             which = "finished or aborted" if include_aborted else "finished"
-            _fail(f"no {which} trials (not excluded) in {settings.url.split('@')[-1]}")
+            of_study = f" of study {study!r}" if study else ""
+            _fail(f"no {which} trials{of_study} (not excluded) in {settings.url.split('@')[-1]}")
         try:
             records = [load_trial(session, settings, i) for i in ids]
         except ExportError as err:
@@ -82,13 +101,20 @@ def export(
         if format is Format.ndh:
             from app.export.ndh import write_benchmark
 
-            summary = write_benchmark(track(loaded, description="NDH export", console=console), out)
+            maze_folds = None
+            if shares is not None and study is not None:
+                layout_of = mazes.layouts()
+                by_layout = SavedFolds.of(settings.data_dir, study).split(
+                    {layout_of[r.maze] for r, _ in loaded}, shares, seed
+                )
+                maze_folds = {r.maze: by_layout[layout_of[r.maze]] for r, _ in loaded}
+            summary = write_benchmark(track(loaded, description="NDH export", console=console), out, maze_folds)
             console.print(f"{summary.trials} trial(s) -> {out}: NDH {summary.ndh}, LDH {summary.ldh}")
         elif format is Format.lerobot:
             _export_lerobot(loaded, out, episode)
         else:
             _export_mcap(loaded, out, single=trial != "all")
-    except ExportError as err:
+    except (ExportError, FoldError) as err:
         _fail(str(err))
 
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -189,15 +189,18 @@ class ExportSummary:
     trials: int = 0
 
 
-def write_benchmark(trials: Iterable[tuple[TrialRecord, Maze]], out_dir: str | Path) -> ExportSummary:
+def write_benchmark(
+    trials: Iterable[tuple[TrialRecord, Maze]], out_dir: str | Path, folds: Mapping[str, str] | None = None
+) -> ExportSummary:
     """Write the trials' NDH and LDH instances, maps and lookup table in the benchmark's layout.
 
+    `folds`: each maze -> its fold (`app.export.folds`, by layout); without it, `assign_splits` by maze.
     `inst_idx` counts from 0 across train, val_seen and test in that order, as in the benchmark.
     """
     out_dir = Path(out_dir)
     trials = list(trials)
     mazes = {maze.name: maze for _, maze in trials}
-    folds = assign_splits(mazes)
+    folds = dict(folds) if folds is not None else assign_splits(mazes)
     ndh: dict[str, list[dict]] = {s: [] for s in Split}
     ldh: dict[str, list[dict]] = {s: [] for s in Split}
     for record, maze in trials:

@@ -49,9 +49,11 @@ def load_trial(session: Session, settings: Settings, trial_id: int | str) -> Tri
     )
 
 
-def exported_trial_ids(session: Session, include_aborted: bool = False) -> list[int]:
+def exported_trial_ids(session: Session, include_aborted: bool = False, study: str | None = None) -> list[int]:
     """What `export all` writes: every finished trial (and aborted ones, with what they recorded,
-    when asked), never one the experimenter excluded."""
+    when asked), never one the experimenter excluded; with `study`, only that study's."""
     phases = [Phase.FINISHED, Phase.ABORTED] if include_aborted else [Phase.FINISHED]
     query = select(Trial.id).where(Trial.phase.in_(phases), Trial.excluded_reason.is_(None))
+    if study is not None:
+        query = query.where(Trial.study == study)
     return list(session.scalars(query.order_by(Trial.id)))

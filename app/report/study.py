@@ -1,7 +1,7 @@
 """Every number of a study's dataset section, from its trials' event logs and annotations.
 
-Folds are drawn over layouts (`assign_splits` on layout ids), as the paper split its data, so
-that no two folds share a physical layout.
+Folds are the study's split by layout (`app.export.folds`), as the paper split its data, so that no
+two folds share a physical layout.
 """
 
 from __future__ import annotations
@@ -19,7 +19,8 @@ from app.annotation.events import Phenomenon
 from app.annotation.log import AnnotationLog
 from app.annotation.study import annotator_names, study_trial_ids
 from app.db.models import Team, Trial
-from app.export.ndh import assign_splits, ldh_instances, ndh_instances
+from app.export.folds import SavedFolds
+from app.export.ndh import ldh_instances, ndh_instances
 from app.export.record import TrialRecord
 from app.export.source import load_trial
 from app.leaderboard import trial_score
@@ -103,17 +104,20 @@ def _study_numbers(db: Session, log: AnnotationLog, settings: Settings, mazes: M
         "dialog": dialog_numbers(dialogs),
         "duration_minutes": distribution([d / 60 for d in durations]),
         "moves": distribution([float(m) for m in moves]),
-        "folds": fold_table(records, mazes, layout_of),
+        "folds": fold_table(records, mazes, layout_of, SavedFolds.of(settings.data_dir, study)),
         "phenomena": phenomena_table(records),
         "agreement": agreement(annotations, annotator_names(db)),
         "leaderboard": leaderboard(teams, trials, moves_by_trial=dict(zip(ids, moves, strict=True)), penalty=penalty),
     }
 
 
-def fold_table(records: Sequence[TrialRecord], mazes: Mazes, layout_of: Mapping[str, str]) -> dict[str, Any]:
-    """Per fold: layouts, trials, NDH and LDH instances, and the same per layout."""
+def fold_table(
+    records: Sequence[TrialRecord], mazes: Mazes, layout_of: Mapping[str, str], saved: SavedFolds
+) -> dict[str, Any]:
+    """Per fold: layouts, trials, NDH and LDH instances, and the same per layout; the folds are the
+    study's saved split (`export --folds`), or the default one it would draw."""
     layout = {r.trial_id: layout_of.get(r.maze, r.maze) for r in records}
-    folds = assign_splits(layout.values())
+    folds = saved.preview(layout.values())
     table: dict[str, Any] = {
         str(s): {"layouts": 0, "trials": 0, "ndh_instances": 0, "ldh_instances": 0, "by_layout": {}} for s in Split
     }

@@ -260,3 +260,34 @@ def test_assign_agreement_and_the_adjudicated_cut_in_the_ldh_export(study, tmp_p
         assert data.startswith(b"\x89PNG") and len(data) > 5000, png
     markdown = (study_out / "study.md").read_text()
     assert "![learning curves](learning_curves.png)" in markdown and "Needs History" in markdown
+
+
+def test_the_ndh_export_splits_the_study_by_layout_saves_the_split_and_reuses_it(study, tmp_path):
+    settings, env, ids, logs = study
+    folds = ["--study", STUDY, "--folds", "train:val:test=50:50:0", "--seed", "2"]
+    out = tmp_path / "bench"
+    made = cli("export", "all", "--format", "ndh", "--out", str(out), *folds, env=env)
+    assert made.returncode == 0, made.stderr
+    saved = json.loads((settings.data_dir / "folds" / f"{STUDY}.json").read_text())
+    assert saved["shares"] == "train:val_seen:test=50:50:0" and saved["seed"] == 2
+    assert sorted(saved["layouts"].values()) == ["train", "val_seen"], "two layouts, one in each fold"
+    from app.mazes import Mazes
+
+    layout_of = Mazes(settings).layouts()
+    by_maze = json.loads((out / "splits.json").read_text())
+    assert by_maze == {maze: saved["layouts"][layout_of[maze]] for maze in by_maze}
+    for split in ("train", "val_seen"):
+        instances = json.loads((out / "NDH-data" / f"{split}.json").read_text())
+        assert instances and {by_maze[i["scan"].split("/")[1]] for i in instances} == {split}  # mazedata/<maze>/...
+
+    again = cli("export", "all", "--format", "ndh", "--out", str(tmp_path / "again"), *folds, env=env)
+    assert again.returncode == 0 and json.loads((tmp_path / "again" / "splits.json").read_text()) == by_maze
+    other = cli("export", "all", "--format", "ndh", "--out", str(tmp_path / "other"), *folds[:-1], "3", env=env)
+    assert other.returncode == 1 and "--seed 2" in other.stderr, "a study is split once"
+    refused = cli("export", "all", "--format", "mcap", "--out", str(tmp_path / "m"), *folds, env=env)
+    assert refused.returncode == 1 and "--folds splits a study's NDH" in refused.stderr
+
+    report = tmp_path / "report"
+    assert cli("report", "study", "--study", STUDY, "--out", str(report), env=env).returncode == 0
+    table = json.loads((report / "study.json").read_text())["folds"]
+    assert {layout: fold for fold, f in table.items() for layout in f["by_layout"]} == saved["layouts"]
