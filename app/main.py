@@ -25,7 +25,7 @@ from app.guard import GuardMiddleware, template_context
 from app.login import LoginGuard, shared_counts
 from app.mazes import Mazes
 from app.resources import shipped
-from app.routes import experimenter, ldh_study, pages, replay, robot_ws, seat_ws
+from app.routes import experimenter, ldh_study, pages, replay, robot_ws, seat_ws, study
 from app.security import CsrfTokens, SeatTokens, Sessions, set_password
 from app.services import Services
 from app.settings import Settings
@@ -117,6 +117,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(robot_ws.router)
     app.include_router(replay.router)
     app.include_router(ldh_study.router)
+    app.include_router(study.router)
+    app.include_router(study.experimenter_router)
 
     @app.exception_handler(LoginRequired)
     async def _login_required(request: Request, exc: Exception):
