@@ -158,6 +158,9 @@ class StudyParticipant(Base):
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     completed_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
     withdrawn_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    # The lobby (`app.study.lobby`): waiting since, and the last time the lobby page asked.
+    lobby_since: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    lobby_seen: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
 
 
 class StudyEvent(Base):

@@ -4,6 +4,7 @@ questionnaires, completion code, withdrawal), carried by a signed cookie (`app.s
 
 from __future__ import annotations
 
+from datetime import UTC, datetime
 from typing import Annotated
 from urllib.parse import quote
 
@@ -16,6 +17,7 @@ from app.guard import csrf_protect
 from app.security import InvalidToken
 from app.study.config import StudyConfig, StudyConfigError, StudyFiles, check_mazes, parse, template
 from app.study.enrolment import Enrolment, EnrolmentError
+from app.study.lobby import Lobby, Seated, TimedOut, Waiting
 from app.study.passes import PASS_COOKIE, ParticipantPasses
 
 router = APIRouter(dependencies=[Depends(csrf_protect)])
@@ -154,6 +156,26 @@ def my_study(me: ParticipationDep, request: Request, templates: TemplatesDep, er
         enrolled=me.enrolled,
         error=error,
     )
+
+
+@router.get("/study/{name}/lobby", response_class=HTMLResponse)
+def lobby_page(me: ParticipationDep, request: Request, templates: TemplatesDep):
+    return _page(templates, request, "lobby", study=me.config, code=me.code)
+
+
+@router.post("/study/{name}/lobby")
+def lobby_poll(me: ParticipationDep, services: ServicesDep, mazes: MazesDep) -> dict[str, object]:
+    """The lobby page's poll (about once a second): the seat's link once paired, else the count waiting."""
+    lobby = Lobby(me.db, me.config, mazes.layouts(), services.clock.now_ns())
+    with me.db.begin():
+        state = lobby.poll(me.enrolled, datetime.now(UTC))
+    match state:
+        case Seated(trial_id, role):
+            return {"state": "seated", "role": role, "link": f"/play/{services.seats.issue(trial_id, role)}"}
+        case Waiting(waiting):
+            return {"state": "waiting", "waiting": waiting}
+        case TimedOut(waited_s):
+            return {"state": "timed_out", "waited_s": round(waited_s)}
 
 
 @router.get("/study/{name}/trials/{trial_id}/questionnaire", response_class=HTMLResponse)

@@ -64,6 +64,7 @@ class StudyConfig(BaseModel):
     maze_pool: list[str] = Field(default_factory=list)  # maze names; empty: every maze the server has
     trials_per_participant: int = Field(default=5, ge=1, le=50)  # the paper: 16 people in 41 teams
     lobby_timeout_s: float = Field(default=600.0, gt=0)  # a participant waits this long for a partner
+    lobby_presence_s: float = Field(default=10.0, gt=0)  # a lobby page silent this long has left (not paired)
     move_penalty_s: float | None = Field(default=None, ge=0)  # None: the server's ROBOTSLANG_MOVE_PENALTY_S
     completion_code: str | None = Field(default=None, max_length=80)
     redirect_url: HttpUrl | None = None  # e.g. the recruiting site's completion link

@@ -25,6 +25,8 @@ def upgrade() -> None:
         sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
         sa.Column("completed_at", sa.DateTime(timezone=True), nullable=True),
         sa.Column("withdrawn_at", sa.DateTime(timezone=True), nullable=True),
+        sa.Column("lobby_since", sa.DateTime(timezone=True), nullable=True),
+        sa.Column("lobby_seen", sa.DateTime(timezone=True), nullable=True),
     )
     op.create_index("ix_study_participant_study", "study_participant", ["study"])
     op.create_table(

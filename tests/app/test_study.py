@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import html
 import json
+import time
 
 from click.testing import Result
 from sqlalchemy import select, text
@@ -195,3 +196,52 @@ def test_questionnaires_completion_and_withdrawal_erase_personal_data_only(serve
     assert enrolled.withdrawn_at is not None and enrolled.real_name is None
     assert kinds == ["consented", "answered", "withdrawn"], "pseudonymous events remain"
     assert trial.commander_id == enrolled.participant_id and ratings == {"difficulty": 3, "partner": 4}
+
+
+def poll(client, study: str = "pilot") -> dict:
+    reply = client.post(f"/study/{study}/lobby")
+    assert reply.status_code == 200, reply.text[:300]
+    return reply.json()
+
+
+def test_lobby_pairs_whoever_arrives_on_unseen_layouts_with_roles_balanced(server):
+    files = StudyFiles(server.settings.data_dir / "studies")
+    files.save(template("pilot").model_copy(update={"lobby_presence_s": 1.0}))
+    files.save(template("quick").model_copy(update={"lobby_timeout_s": 1.0}))
+    ann, ann_code = join(server, "pilot")
+    assert "Waiting for a partner" in ann.get("/study/pilot/lobby").text
+    assert poll(ann) == {"state": "waiting", "waiting": 1}
+    bob, _ = join(server, "pilot")
+    cat, cat_code = join(server, "pilot")
+    assert poll(bob)["state"] == "seated", "two waiting: the second to ask is paired"
+    assert poll(ann)["state"] == "seated"
+    # Bob's partner is Ann; now Bob's page closes before anyone else comes (he stops asking).
+    eve = experimenter_client(server.services, server.url)
+    with server.services.db() as db:
+        first = db.scalar(select(Trial).where(Trial.study == "pilot"))
+    assert eve.post(f"/experimenter/trials/{first.id}/abort").status_code == 200
+    assert poll(bob)["state"] == "waiting"
+    time.sleep(1.5)  # past the study's lobby_presence_s
+    seated = poll(cat)
+    assert seated == {"state": "waiting", "waiting": 1}, "Bob left the lobby: Cat is not paired with him"
+    ann_seat = poll(ann)
+    cat_seat = poll(cat)
+    assert ann_seat["state"] == cat_seat["state"] == "seated"
+    assert {ann_seat["role"], cat_seat["role"]} == {"commander", "driver"}
+    assert cat_seat["role"] == "commander", "Ann commanded before (or waited longer): Cat commands now"
+    second_browser = browser(server.url)
+    second_browser.cookies = ann.cookies
+    second_browser.headers["X-CSRF-Token"] = ann.headers["X-CSRF-Token"]
+    assert poll(second_browser) == ann_seat, "a second browser of Ann gets her one seat, not another"
+    assert browser(server.url).get(ann_seat["link"]).status_code == 200
+    with server.services.db() as db:
+        trials = list(db.scalars(select(Trial).where(Trial.study == "pilot").order_by(Trial.id)))
+        names = dict(db.execute(select(Participant.id, Participant.name)).all())
+    assert len(trials) == 2 and trials[0].maze != trials[1].maze, "Ann never gets a layout twice"
+    assert "gen-000" not in {t.maze for t in trials}, "the practice maze is not in the pool"
+    assert names[trials[1].commander_id] == cat_code and names[trials[1].driver_id] == ann_code
+
+    lone, _ = join(server, "quick")
+    assert poll(lone, "quick")["state"] == "waiting"
+    time.sleep(1.2)
+    assert poll(lone, "quick")["state"] == "timed_out"
