@@ -17,7 +17,7 @@ from app.guard import csrf_protect
 from app.security import InvalidToken
 from app.study.config import StudyConfig, StudyConfigError, StudyFiles, check_mazes, parse, template
 from app.study.enrolment import Enrolment, EnrolmentError
-from app.study.lobby import Lobby, Seated, TimedOut, Waiting
+from app.study.lobby import PRACTICE_REASON, Lobby, Seated, TimedOut, Waiting
 from app.study.passes import PASS_COOKIE, ParticipantPasses
 
 router = APIRouter(dependencies=[Depends(csrf_protect)])
@@ -154,6 +154,7 @@ def my_study(me: ParticipationDep, request: Request, templates: TemplatesDep, er
         trials=trials,
         answered=me.enrolment.answered(me.enrolled),
         enrolled=me.enrolled,
+        practice_reason=PRACTICE_REASON,
         error=error,
     )
 

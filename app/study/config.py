@@ -59,7 +59,8 @@ class StudyConfig(BaseModel):
     title: str = Field(min_length=1, max_length=200)
     consent: Consent
     instructions: RoleInstructions
-    practice_maze: str = "gen-000"  # a bundled maze: the same on every install
+    # A bundled maze (the same on every install) for each participant's first, unscored trial; None: no practice.
+    practice_maze: str | None = "gen-000"
     questionnaire: list[Question] = Field(default_factory=default_questionnaire)
     maze_pool: list[str] = Field(default_factory=list)  # maze names; empty: every maze the server has
     trials_per_participant: int = Field(default=5, ge=1, le=50)  # the paper: 16 people in 41 teams
@@ -95,7 +96,7 @@ class StudyConfig(BaseModel):
 
 def check_mazes(config: StudyConfig, bundled: set[str], known: set[str]) -> None:
     """The mazes a study names exist on this server; the practice maze is a bundled one."""
-    if config.practice_maze not in bundled:
+    if config.practice_maze is not None and config.practice_maze not in bundled:
         raise StudyConfigError(
             f"practice_maze {config.practice_maze!r} is not a bundled maze ({', '.join(sorted(bundled)[:4])}, ...)"
         )

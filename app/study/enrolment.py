@@ -14,6 +14,7 @@ from sqlalchemy.orm import Session
 from app.clock import ServerClock
 from app.db.models import Participant, StudyAnswer, StudyEvent, StudyParticipant, Trial
 from app.study.config import RATING_SCALE, QuestionKind, StudyConfig
+from app.study.lobby import PRACTICE_REASON
 
 CODE_ALPHABET = "ABCDEFGHJKLMNPQRSTUVWXYZ23456789"  # no 0/O, 1/I: read aloud and typed back
 CODE_LENGTH = 6
@@ -116,6 +117,8 @@ class Enrolment:
         trial = self.db.get(Trial, trial_id)
         if trial is None or trial not in self.trials(enrolled):
             raise EnrolmentError(f"trial {trial_id} is not one of yours in this study")
+        if trial.excluded_reason == PRACTICE_REASON:
+            raise EnrolmentError("the practice trial has no questionnaire")
         if trial.phase not in ("finished", "aborted"):
             raise EnrolmentError("the questionnaire opens when the trial is over")
         if trial_id in self.answered(enrolled):

@@ -1,5 +1,6 @@
 """The lobby: participants who arrive at different times wait; each lobby page's poll pairs the
-poller with whoever waited longest and is still there, on a maze of a layout neither has seen (the
+poller with whoever waited longest and is still there (newcomers with newcomers, for a practice
+trial on the study's bundled practice maze, set aside from scores), on a maze of a layout neither has seen (the
 trial form's `suggest_maze`, on the study's pool), the one who commanded less in the Commander's
 seat. A page that stops asking (a closed tab) is not paired; a waiter past the study's time-out is
 told so. One participant is in one live trial at a time, so two browsers of one participant are
@@ -12,7 +13,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 
-from sqlalchemy import func, select
+from sqlalchemy import func, or_, select
 from sqlalchemy.orm import Session
 
 from app.db.models import Participant, StudyParticipant, Team, Trial
@@ -39,6 +40,7 @@ class TimedOut:
 
 
 LobbyState = Seated | Waiting | TimedOut
+PRACTICE_REASON = "study practice: not scored"
 
 
 def _aware(t: datetime) -> datetime:
@@ -56,6 +58,10 @@ class Lobby:
         # The pool's mazes (all but the practice maze when the pool is empty) -> their layouts.
         pool = set(config.maze_pool) or set(layouts) - {config.practice_maze}
         self.layouts = {m: layout for m, layout in layouts.items() if m in pool}
+        practice = config.practice_maze
+        self.practice_layouts: dict[str, str] = (
+            {practice: layouts[practice]} if practice is not None and practice in layouts else {}
+        )
         self.now_ns = now_ns
 
     def poll(self, enrolled: StudyParticipant, now: datetime) -> LobbyState:
@@ -72,8 +78,11 @@ class Lobby:
             enrolled.lobby_since = None
             return TimedOut(waited)
         others = self.waiting(now, but=enrolled.id)
+        practice = self.needs_practice(enrolled)
         for other in others:
-            trial = self._pair(enrolled, other)
+            if self.needs_practice(other) != practice:
+                continue  # newcomers practise together; the others play the study's trials
+            trial = self._pair(enrolled, other, practice)
             if trial is not None:
                 enrolled.lobby_since = other.lobby_since = None
                 return seat_of(trial, enrolled.participant_id)
@@ -100,14 +109,26 @@ class Lobby:
         )
         return int(self.db.scalar(count) or 0)
 
-    def _pair(self, me: StudyParticipant, other: StudyParticipant) -> Trial | None:
-        """A trial of the two on a layout neither has seen, or None where there is none."""
+    def needs_practice(self, enrolled: StudyParticipant) -> bool:
+        if not self.practice_layouts:
+            return False
+        practised = select(Trial.id).where(
+            Trial.study == self.config.name,
+            Trial.excluded_reason == PRACTICE_REASON,
+            or_(Trial.commander_id == enrolled.participant_id, Trial.driver_id == enrolled.participant_id),
+        )
+        return self.db.scalar(practised.limit(1)) is None
+
+    def _pair(self, me: StudyParticipant, other: StudyParticipant, practice: bool) -> Trial | None:
+        """A trial of the two on a layout neither has seen (the practice maze when they need
+        practice), or None where there is none."""
         a, b = sorted((me.participant_id, other.participant_id))
         team = self.db.scalar(select(Team).where(Team.member_a_id == a, Team.member_b_id == b))
         if team is None:
             codes = self.db.scalars(select(Participant.name).where(Participant.id.in_((a, b))).order_by(Participant.id))
             team = create_team(self.db, " & ".join(codes), a, b)
-        maze = suggest_maze(self.db, team, self.layouts)
+        layouts = self.practice_layouts if practice else self.layouts
+        maze = suggest_maze(self.db, team, layouts)
         if maze is None:
             return None
         # Roles balanced: whoever has commanded less commands; on a tie, who waited longer.
@@ -123,10 +144,12 @@ class Lobby:
                 backend="sim",
                 driver="human",
                 commander_id=first.participant_id,
-                layouts=self.layouts,
+                layouts=layouts,
                 now_ns=self.now_ns,
             )
         except TrialSetupError:
             return None  # the other was seated by a poll of their own meanwhile
         trial.study = self.config.name
+        if practice:  # set aside like an excluded trial: off the leaderboard and the exports, log kept
+            trial.excluded_reason = PRACTICE_REASON
         return trial

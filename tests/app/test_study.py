@@ -204,9 +204,32 @@ def poll(client, study: str = "pilot") -> dict:
     return reply.json()
 
 
+def test_newcomers_practise_together_on_the_bundled_maze_set_aside_from_scores(server):
+    StudyFiles(server.settings.data_dir / "studies").save(template("pilot"))
+    (ann, _), (bob, _) = join(server, "pilot"), join(server, "pilot")
+    assert poll(ann)["state"] == "waiting" and poll(bob)["state"] == "seated"
+    eve = experimenter_client(server.services, server.url)
+    with server.services.db() as db:
+        practice = db.scalar(select(Trial).where(Trial.study == "pilot"))
+    assert practice.maze == "gen-000" and practice.excluded_reason == "study practice: not scored"
+    assert eve.post(f"/experimenter/trials/{practice.id}/abort").status_code == 200
+    refused = ann.post(f"/study/pilot/trials/{practice.id}/questionnaire", data=answers(""))
+    assert refused.status_code == 400 and "practice trial has no questionnaire" in refused.text
+    assert "practice: no questionnaire" in ann.get("/study/pilot/me").text
+    cat, _ = join(server, "pilot")
+    assert poll(ann)["state"] == "waiting" and poll(cat) == {"state": "waiting", "waiting": 2}, (
+        "a newcomer is not paired with someone who has practised"
+    )
+    real = poll(bob)
+    assert real["state"] == "seated"
+    with server.services.db() as db:
+        trial = db.scalars(select(Trial).where(Trial.study == "pilot").order_by(Trial.id.desc())).first()
+    assert trial.maze != "gen-000" and trial.excluded_reason is None
+
+
 def test_lobby_pairs_whoever_arrives_on_unseen_layouts_with_roles_balanced(server):
     files = StudyFiles(server.settings.data_dir / "studies")
-    files.save(template("pilot").model_copy(update={"lobby_presence_s": 1.0}))
+    files.save(template("pilot").model_copy(update={"lobby_presence_s": 1.0, "practice_maze": None}))
     files.save(template("quick").model_copy(update={"lobby_timeout_s": 1.0}))
     ann, ann_code = join(server, "pilot")
     assert "Waiting for a partner" in ann.get("/study/pilot/lobby").text
@@ -238,7 +261,6 @@ def test_lobby_pairs_whoever_arrives_on_unseen_layouts_with_roles_balanced(serve
         trials = list(db.scalars(select(Trial).where(Trial.study == "pilot").order_by(Trial.id)))
         names = dict(db.execute(select(Participant.id, Participant.name)).all())
     assert len(trials) == 2 and trials[0].maze != trials[1].maze, "Ann never gets a layout twice"
-    assert "gen-000" not in {t.maze for t in trials}, "the practice maze is not in the pool"
     assert names[trials[1].commander_id] == cat_code and names[trials[1].driver_id] == ann_code
 
     lone, _ = join(server, "quick")

@@ -2,7 +2,8 @@
 consent, give a code (one a real name), wait in the lobby and are paired by the server; one leaves
 the lobby and is paired on coming back; their trials end (aborted by the experimenter), they answer
 the questionnaires and get the completion code; an excluded trial leaves the exports; a participant
-withdraws and their name is gone from the database while their events remain."""
+withdraws and their name is gone from the database while their events remain. Newcomers play a
+practice trial first (the bundled maze, set aside from scores), then the study's trials."""
 
 from __future__ import annotations
 
@@ -82,9 +83,21 @@ def test_a_whole_study_with_four_strangers(browser, server, tmp_path):
     for page in (cy, dee):
         page.wait_for_url("**/play/**", timeout=30_000)
 
-    with server.services.db() as db:
-        trials = list(db.scalars(select(Trial).where(Trial.study == "pilot").order_by(Trial.id)))
-    assert len(trials) == 2 and trials[0].maze != "gen-000"
+    def study_trials():
+        with server.services.db() as db:
+            return list(db.scalars(select(Trial).where(Trial.study == "pilot").order_by(Trial.id)))
+
+    practice = study_trials()
+    assert [(t.maze, t.excluded_reason) for t in practice] == [("gen-000", "study practice: not scored")] * 2
+    for t in practice:  # the practice ends (here by the experimenter); everyone goes back to the lobby
+        assert eve.post(f"/experimenter/trials/{t.id}/abort").status_code == 200
+    for page in (ada, ben, cy, dee):
+        page.goto(server.url + "/study/pilot/lobby")
+    for page in (ada, ben, cy, dee):
+        page.wait_for_url("**/play/**", timeout=30_000)
+    trials = study_trials()[2:]
+    assert len(trials) == 2 and {t.excluded_reason for t in trials} == {None}
+    assert "gen-000" not in {t.maze for t in trials}
     for t in trials:
         assert eve.post(f"/experimenter/trials/{t.id}/abort").status_code == 200
     questionnaire_and_code(ada, server, f"I am {REAL_NAME}; the mug was hard to see")
