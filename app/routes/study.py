@@ -17,7 +17,7 @@ from app.guard import csrf_protect
 from app.security import InvalidToken
 from app.study.config import StudyConfig, StudyConfigError, StudyFiles, check_mazes, parse, template
 from app.study.enrolment import Enrolment, EnrolmentError
-from app.study.lobby import PRACTICE_REASON, Lobby, Seated, TimedOut, Waiting
+from app.study.lobby import PRACTICE_REASON, Lobby, LobbyError, Seated, TimedOut, Waiting
 from app.study.passes import PASS_COOKIE, ParticipantPasses
 
 router = APIRouter(dependencies=[Depends(csrf_protect)])
@@ -271,10 +271,13 @@ def edit_page(
     services: ServicesDep,
     templates: TemplatesDep,
     saved: int | None = None,
+    paired: int | None = None,
+    error: str | None = None,
 ):
     config = study_or_404(files, name)
     enrolment = Enrolment(db, services.clock, config)
-    return _editor(templates, request, enrolment, config.model_dump_json(indent=2), saved=saved)
+    text = config.model_dump_json(indent=2)
+    return _editor(templates, request, enrolment, text, saved=saved, paired=paired, error=error)
 
 
 @experimenter_router.post("/{name}")
@@ -300,3 +303,27 @@ def save_study(
         return _editor(templates, request, enrolment, config_json, status=400, error=str(err))
     saved = files.save(config)
     return RedirectResponse(f"/experimenter/studies/{name}?saved={saved.version}", status_code=303)
+
+
+@experimenter_router.post("/{name}/pair")
+def pair_by_hand(
+    name: str,
+    files: StudyFilesDep,
+    db: DbSession,
+    services: ServicesDep,
+    mazes: MazesDep,
+    a: str = Form(max_length=80),
+    b: str = Form(max_length=80),
+):
+    """Pair two of the study's participants (by code) now, by the lobby's rules."""
+    config = study_or_404(files, name)
+    enrolment = Enrolment(db, services.clock, config)
+    lobby = Lobby(db, config, mazes.layouts(), services.clock.now_ns())
+    try:
+        with db.begin():
+            first, second = (enrolment.by_code(code) for code in (a, b))
+            trial = lobby.pair(first, second)
+            trial_id = trial.id
+    except (LookupError, LobbyError) as err:
+        return RedirectResponse(f"/experimenter/studies/{name}?error={quote(str(err))}", status_code=303)
+    return RedirectResponse(f"/experimenter/studies/{name}?paired={trial_id}", status_code=303)

@@ -87,6 +87,16 @@ class Enrolment:
             raise LookupError("this browser's study pass names no participant of this study")
         return enrolled
 
+    def by_code(self, code: str) -> StudyParticipant:
+        enrolled = self.db.scalar(
+            select(StudyParticipant)
+            .join(Participant, Participant.id == StudyParticipant.participant_id)
+            .where(Participant.name == code.strip(), StudyParticipant.study == self.config.name)
+        )
+        if enrolled is None:
+            raise LookupError(f"no participant {code.strip()[:80]!r} in study {self.config.name!r}")
+        return enrolled
+
     def code(self, enrolled: StudyParticipant) -> str:
         return self.db.execute(select(Participant.name).where(Participant.id == enrolled.participant_id)).scalar_one()
 

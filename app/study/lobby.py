@@ -23,6 +23,10 @@ from app.trial.setup import TrialSetupError, create_team, create_trial, parse_ta
 from app.trial.vocabulary import Role
 
 
+class LobbyError(ValueError):
+    """A pairing that cannot be made; nothing was created."""
+
+
 @dataclass(frozen=True)
 class Seated:
     trial_id: int
@@ -108,6 +112,19 @@ class Lobby:
             Trial.study == self.config.name, Trial.commander_id == participant_id
         )
         return int(self.db.scalar(count) or 0)
+
+    def pair(self, a: StudyParticipant, b: StudyParticipant) -> Trial:
+        """The experimenter pairs two participants by hand (waiting or not): a practice trial when
+        both still need one, else a study trial; `LobbyError` says why not."""
+        if a.id == b.id:
+            raise LobbyError("choose two different participants")
+        if a.withdrawn_at is not None or b.withdrawn_at is not None:
+            raise LobbyError("a withdrawn participant cannot be paired")
+        trial = self._pair(a, b, self.needs_practice(a) and self.needs_practice(b))
+        if trial is None:
+            raise LobbyError("one of them is in a live trial, or the pool has no layout both have not seen")
+        a.lobby_since = b.lobby_since = None
+        return trial
 
     def needs_practice(self, enrolled: StudyParticipant) -> bool:
         if not self.practice_layouts:

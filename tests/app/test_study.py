@@ -267,3 +267,22 @@ def test_lobby_pairs_whoever_arrives_on_unseen_layouts_with_roles_balanced(serve
     assert poll(lone, "quick")["state"] == "waiting"
     time.sleep(1.2)
     assert poll(lone, "quick")["state"] == "timed_out"
+
+
+def test_the_experimenter_pairs_by_hand_by_the_lobbys_rules(server):
+    StudyFiles(server.settings.data_dir / "studies").save(template("pilot"))
+    (ann, ann_code), (bob, bob_code) = join(server, "pilot"), join(server, "pilot")
+    eve = experimenter_client(server.services, server.url)
+    for a, b, says in [
+        (ann_code, ann_code, "choose two different participants"),
+        (ann_code, "P-NOBODY", "no participant &#39;P-NOBODY&#39; in study &#39;pilot&#39;"),
+    ]:
+        page = eve.post("/experimenter/studies/pilot/pair", data={"a": a, "b": b})
+        assert says in page.text, page.text[:300]
+    page = eve.post("/experimenter/studies/pilot/pair", data={"a": ann_code, "b": bob_code})
+    assert "Paired: trial" in page.text
+    assert poll(ann)["state"] == poll(bob)["state"] == "seated", "their lobby pages open their seats"
+    again = eve.post("/experimenter/studies/pilot/pair", data={"a": ann_code, "b": bob_code})
+    assert "one of them is in a live trial" in again.text
+    with server.services.db() as db:
+        assert [t.maze for t in db.scalars(select(Trial).where(Trial.study == "pilot"))] == ["gen-000"]
