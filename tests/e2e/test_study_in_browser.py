@@ -98,6 +98,9 @@ def test_a_whole_study_with_four_strangers(browser, server, tmp_path):
     trials = study_trials()[2:]
     assert len(trials) == 2 and {t.excluded_reason for t in trials} == {None}
     assert "gen-000" not in {t.maze for t in trials}
+    for page in (ada, ben, cy, dee):  # the live seat pages (Ben's or Cy's may be Ada's partner's)
+        page.wait_for_load_state("load")
+        assert REAL_NAME not in page.content()
     for t in trials:
         assert eve.post(f"/experimenter/trials/{t.id}/abort").status_code == 200
     questionnaire_and_code(ada, server, f"I am {REAL_NAME}; the mug was hard to see")
