@@ -20,6 +20,8 @@ async function poll() {
     status.textContent = `Paired: you are the ${state.role}. Opening your trial…`;
     lobby.dataset.seat = state.role;
     window.location.assign(state.link);
+  } else if (state.state === "all_played") {
+    status.textContent = `You have played all ${state.trials} of your trials. Answer the last questionnaire and get your completion code on your page.`;
   } else if (state.state === "timed_out") {
     status.textContent = `Nobody arrived within ${Math.round(state.waited_s / 60)} minutes. Reload this page to wait again, or come back later.`;
   } else {

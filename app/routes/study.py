@@ -17,7 +17,7 @@ from app.guard import csrf_protect
 from app.security import InvalidToken
 from app.study.config import StudyConfig, StudyConfigError, StudyFiles, check_mazes, parse, template
 from app.study.enrolment import Enrolment, EnrolmentError
-from app.study.lobby import PRACTICE_REASON, Lobby, LobbyError, Seated, TimedOut, Waiting
+from app.study.lobby import PRACTICE_REASON, AllPlayed, Lobby, LobbyError, Seated, TimedOut, Waiting
 from app.study.passes import PASS_COOKIE, ParticipantPasses
 
 router = APIRouter(dependencies=[Depends(csrf_protect)])
@@ -177,6 +177,8 @@ def lobby_poll(me: ParticipationDep, services: ServicesDep, mazes: MazesDep) -> 
             return {"state": "waiting", "waiting": waiting}
         case TimedOut(waited_s):
             return {"state": "timed_out", "waited_s": round(waited_s)}
+        case AllPlayed(trials):
+            return {"state": "all_played", "trials": trials}
 
 
 @router.get("/study/{name}/trials/{trial_id}/questionnaire", response_class=HTMLResponse)

@@ -43,7 +43,12 @@ class TimedOut:
     waited_s: float
 
 
-LobbyState = Seated | Waiting | TimedOut
+@dataclass(frozen=True)
+class AllPlayed:
+    trials: int  # the study's trials_per_participant, all played
+
+
+LobbyState = Seated | Waiting | TimedOut | AllPlayed
 PRACTICE_REASON = "study practice: not scored"
 
 
@@ -74,6 +79,9 @@ class Lobby:
         if live is not None:
             enrolled.lobby_since = None
             return seat_of(live, enrolled.participant_id)
+        if self.played(enrolled) >= self.config.trials_per_participant:
+            enrolled.lobby_since = None
+            return AllPlayed(self.config.trials_per_participant)
         if enrolled.lobby_since is None:
             enrolled.lobby_since = now
         enrolled.lobby_seen = now
@@ -125,6 +133,16 @@ class Lobby:
             raise LobbyError("one of them is in a live trial, or the pool has no layout both have not seen")
         a.lobby_since = b.lobby_since = None
         return trial
+
+    def played(self, enrolled: StudyParticipant) -> int:
+        """The participant's study trials so far, the practice not counted."""
+        pid = enrolled.participant_id
+        trials = select(func.count(Trial.id)).where(
+            Trial.study == self.config.name,
+            or_(Trial.commander_id == pid, Trial.driver_id == pid),
+            or_(Trial.excluded_reason.is_(None), Trial.excluded_reason != PRACTICE_REASON),
+        )
+        return int(self.db.scalar(trials) or 0)
 
     def needs_practice(self, enrolled: StudyParticipant) -> bool:
         if not self.practice_layouts:

@@ -302,3 +302,16 @@ def test_the_experimenter_pairs_by_hand_by_the_lobbys_rules(server):
     assert "one of them is in a live trial" in again.text
     with server.services.db() as db:
         assert [t.maze for t in db.scalars(select(Trial).where(Trial.study == "pilot"))] == ["gen-000"]
+
+
+def test_the_lobby_stops_pairing_a_participant_who_played_the_plans_trials(server):
+    plan = {"practice_maze": None, "trials_per_participant": 1}
+    StudyFiles(server.settings.data_dir / "studies").save(template("pilot").model_copy(update=plan))
+    (ann, _), (bob, _), (cat, _) = join(server, "pilot"), join(server, "pilot"), join(server, "pilot")
+    assert poll(ann)["state"] == "waiting" and poll(bob)["state"] == "seated"
+    eve = experimenter_client(server.services, server.url)
+    with server.services.db() as db:
+        trial_id = db.scalar(select(Trial.id).where(Trial.study == "pilot"))
+    assert eve.post(f"/experimenter/trials/{trial_id}/abort").status_code == 200
+    assert poll(ann) == {"state": "all_played", "trials": 1}
+    assert poll(cat) == {"state": "waiting", "waiting": 1}, "Ann, done, does not wait"
