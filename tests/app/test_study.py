@@ -17,7 +17,7 @@ from app.cli import root
 from app.db.models import Participant, StudyAnswer, StudyEvent, StudyParticipant, Trial
 from app.study.config import StudyFiles, template
 from app.trial.setup import create_team, create_trial
-from tests.app.live import browser, experimenter_client, page_csrf_token
+from tests.app.live import ServerThread, browser, experimenter_client, page_csrf_token
 
 REAL_NAME = "Bob Okafor"
 FREE_TEXT = "I am Bob Okafor and the mug was hard to find"
@@ -243,7 +243,13 @@ def test_newcomers_practise_together_on_the_bundled_maze_set_aside_from_scores(s
     assert trial.maze != "gen-000" and trial.excluded_reason is None
 
 
-def test_lobby_pairs_whoever_arrives_on_unseen_layouts_with_roles_balanced(server):
+def test_lobby_pairs_whoever_arrives_on_unseen_layouts_with_roles_balanced(any_db_settings):
+    """On SQLite and on PostgreSQL (the lobby's times come back with and without their zone)."""
+    with ServerThread(any_db_settings) as server:
+        lobby_rounds(server)
+
+
+def lobby_rounds(server) -> None:
     files = StudyFiles(server.settings.data_dir / "studies")
     files.save(template("pilot").model_copy(update={"lobby_presence_s": 1.0, "practice_maze": None}))
     files.save(template("quick").model_copy(update={"lobby_timeout_s": 1.0}))
