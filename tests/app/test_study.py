@@ -251,13 +251,14 @@ def test_lobby_pairs_whoever_arrives_on_unseen_layouts_with_roles_balanced(any_d
 
 def lobby_rounds(server) -> None:
     files = StudyFiles(server.settings.data_dir / "studies")
-    files.save(template("pilot").model_copy(update={"lobby_presence_s": 1.0, "practice_maze": None}))
+    files.save(template("pilot").model_copy(update={"lobby_presence_s": 3.0, "practice_maze": None}))
     files.save(template("quick").model_copy(update={"lobby_timeout_s": 1.0}))
     ann, ann_code = join(server, "pilot")
     assert "Waiting for a partner" in ann.get("/study/pilot/lobby").text
     assert poll(ann) == {"state": "waiting", "waiting": 1}
     bob, _ = join(server, "pilot")
     cat, cat_code = join(server, "pilot")
+    assert poll(ann)["state"] == "waiting"  # her page asks again while the others arrive
     assert poll(bob)["state"] == "seated", "two waiting: the second to ask is paired"
     assert poll(ann)["state"] == "seated"
     # Bob's partner is Ann; now Bob's page closes before anyone else comes (he stops asking).
@@ -266,7 +267,7 @@ def lobby_rounds(server) -> None:
         first = db.scalar(select(Trial).where(Trial.study == "pilot"))
     assert eve.post(f"/experimenter/trials/{first.id}/abort").status_code == 200
     assert poll(bob)["state"] == "waiting"
-    time.sleep(1.5)  # past the study's lobby_presence_s
+    time.sleep(3.5)  # past the study's lobby_presence_s
     seated = poll(cat)
     assert seated == {"state": "waiting", "waiting": 1}, "Bob left the lobby: Cat is not paired with him"
     ann_seat = poll(ann)

@@ -61,7 +61,7 @@ def questionnaire_and_code(page, server, comment: str) -> None:
 
 def test_a_whole_study_with_four_strangers(browser, server, tmp_path):
     StudyFiles(server.settings.data_dir / "studies").save(
-        template("pilot").model_copy(update={"lobby_presence_s": 2.0})
+        template("pilot").model_copy(update={"lobby_presence_s": 3.0})
     )
     eve = experimenter_client(server.services, server.url)
 
@@ -74,7 +74,7 @@ def test_a_whole_study_with_four_strangers(browser, server, tmp_path):
     lobby_says(cy, "only one waiting")
     cy_browser = cy.context
     cy.close()  # Cy's tab closes in the lobby
-    ben.wait_for_timeout(2500)  # past the study's lobby_presence_s
+    ben.wait_for_timeout(3500)  # past the study's lobby_presence_s
     dee, _ = arrive(browser, server)
     lobby_says(dee, "only one waiting")  # Cy, gone, is neither counted nor paired
     cy = cy_browser.new_page()  # Cy comes back: the study link brings the same participant back
