@@ -32,7 +32,7 @@ from app.login import LoginGuard, shared_counts
 from app.mazes import Mazes
 from app.perception.belief import FilterWorker
 from app.resources import shipped
-from app.routes import annotate, experimenter, ldh_study, pages, replay, robot_ws, seat_ws
+from app.routes import annotate, experimenter, ldh_study, pages, replay, robot_ws, seat_ws, study
 from app.security import AccountRole, CsrfTokens, SeatTokens, Sessions, StudyTokens, set_password
 from app.services import Services
 from app.settings import Settings
@@ -146,6 +146,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(replay.router)
     app.include_router(ldh_study.router)
     app.include_router(annotate.router)
+    app.include_router(study.router)
+    app.include_router(study.experimenter_router)
 
     @app.exception_handler(LoginRequired)
     async def _login_required(request: Request, exc: Exception) -> Response:

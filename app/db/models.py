@@ -170,3 +170,48 @@ class AnnotationAssignment(Base):
     trial_id: Mapped[int] = mapped_column(ForeignKey("trial.id"), index=True)
     annotator_id: Mapped[int] = mapped_column(ForeignKey("experimenter.id"), index=True)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class StudyParticipant(Base):
+    """A participant of a study (`app.study`): the `Participant` row's public name is their code;
+    the real name is optional, private (experimenter's pages only) and erased on withdrawal."""
+
+    __tablename__ = "study_participant"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    study: Mapped[str] = mapped_column(String(80), index=True)
+    participant_id: Mapped[int] = mapped_column(ForeignKey("participant.id"), unique=True)
+    real_name: Mapped[str | None] = mapped_column(String(120), nullable=True)
+    consent_version: Mapped[str] = mapped_column(String(40))
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    completed_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    withdrawn_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    # The lobby (`app.study.lobby`): waiting since, and the last time the lobby page asked.
+    lobby_since: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    lobby_seen: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+
+
+class StudyEvent(Base):
+    """A study's pseudonymous log (consent with the text's version, declines, answers, withdrawal):
+    kept when a participant withdraws."""
+
+    __tablename__ = "study_event"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    study: Mapped[str] = mapped_column(String(80), index=True)
+    participant_id: Mapped[int | None] = mapped_column(ForeignKey("participant.id"), nullable=True)  # None: declined
+    kind: Mapped[str] = mapped_column(String(32))  # app.study.enrolment.StudyEventKind
+    t_ns: Mapped[int] = mapped_column(BigInteger)
+    payload: Mapped[dict] = mapped_column(JSON)
+
+
+class StudyAnswer(Base):
+    """One questionnaire after one trial. Ratings are pseudonymous; free text is personal data and
+    is erased (set to None) when the participant withdraws."""
+
+    __tablename__ = "study_answer"
+    __table_args__ = (UniqueConstraint("study_participant_id", "trial_id", name="uq_study_answer_trial"),)
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    study_participant_id: Mapped[int] = mapped_column(ForeignKey("study_participant.id"), index=True)
+    trial_id: Mapped[int] = mapped_column(ForeignKey("trial.id"))
+    ratings: Mapped[dict] = mapped_column(JSON)  # question id -> 1..5
+    free_text: Mapped[dict | None] = mapped_column(JSON, nullable=True)  # question id -> text
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)

@@ -1,0 +1,331 @@
+"""Participant studies over HTTP: the experimenter's pages to create and edit a study, and the
+participant's way through it without an account (consent, code, instructions, their trials'
+questionnaires, completion code, withdrawal), carried by a signed cookie (`app.study.passes`)."""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime
+from typing import Annotated
+from urllib.parse import quote
+
+from fastapi import APIRouter, Depends, Form, HTTPException, Request
+from fastapi.responses import HTMLResponse, RedirectResponse, Response
+from fastapi.templating import Jinja2Templates
+
+from app.deps import ClockDep, DbSession, MazesDep, SeatTokensDep, SettingsDep, TemplatesDep, experimenter_id
+from app.guard import csrf_protect
+from app.security import InvalidToken
+from app.study.config import StudyConfig, StudyConfigError, StudyFiles, check_mazes, parse, template
+from app.study.enrolment import Enrolment, EnrolmentError
+from app.study.lobby import PRACTICE_REASON, AllPlayed, Lobby, LobbyError, Seated, TimedOut, Waiting
+from app.study.passes import PASS_COOKIE, ParticipantPasses
+
+router = APIRouter(dependencies=[Depends(csrf_protect)])
+experimenter_router = APIRouter(
+    prefix="/experimenter/studies", dependencies=[Depends(experimenter_id), Depends(csrf_protect)]
+)
+
+
+def get_study_files(settings: SettingsDep) -> StudyFiles:
+    return StudyFiles(settings.data_dir / "studies")
+
+
+def get_passes(settings: SettingsDep) -> ParticipantPasses:
+    return ParticipantPasses(settings.signing_key())
+
+
+StudyFilesDep = Annotated[StudyFiles, Depends(get_study_files)]
+PassesDep = Annotated[ParticipantPasses, Depends(get_passes)]
+
+
+def study_or_404(files: StudyFiles, name: str) -> StudyConfig:
+    try:
+        return files.load(name)
+    except LookupError as err:
+        raise HTTPException(404, str(err)) from None
+    except StudyConfigError as err:
+        raise HTTPException(503, f"this study cannot run until the experimenter fixes it: {err}") from None
+
+
+class Participation:
+    """The participant a request comes from: their study, its enrolment and their record."""
+
+    def __init__(
+        self, name: str, request: Request, files: StudyFilesDep, passes: PassesDep, db: DbSession, clock: ClockDep
+    ) -> None:
+        self.config = study_or_404(files, name)
+        self.enrolment = Enrolment(db, clock, self.config)
+        self.db = db
+        cookie = request.cookies.get(PASS_COOKIE)
+        try:
+            study_pass = passes.verify(cookie or "")
+            if study_pass.study != name:
+                raise InvalidToken("another study's pass")
+            self.enrolled = self.enrolment.get(study_pass.enrolment_id)
+        except (InvalidToken, LookupError):
+            raise HTTPException(403, f"this browser has not joined the study yet: open /study/{name}") from None
+        if self.enrolled.withdrawn_at is not None:
+            raise HTTPException(410, "you have withdrawn from this study; thank you for your time")
+        self.code = self.enrolment.code(self.enrolled)
+        db.commit()  # end the reads' transaction (rows stay loaded) so a route may `with db.begin()`
+
+
+ParticipationDep = Annotated[Participation, Depends(Participation)]
+
+
+def _page(templates: TemplatesDep, request: Request, name: str, status: int = 200, **context: object) -> HTMLResponse:
+    return templates.TemplateResponse(request, f"study/{name}.html", context, status_code=status)
+
+
+# -- the participant ------------------------------------------------------------------------
+@router.get("/study/{name}", response_class=HTMLResponse)
+def information(name: str, request: Request, files: StudyFilesDep, passes: PassesDep, templates: TemplatesDep):
+    config = study_or_404(files, name)
+    try:
+        if passes.verify(request.cookies.get(PASS_COOKIE) or "").study == name:
+            return RedirectResponse(f"/study/{name}/me", status_code=303)
+    except InvalidToken:
+        pass
+    return _page(templates, request, "consent", study=config)
+
+
+@router.post("/study/{name}/consent")
+def consent(
+    name: str,
+    request: Request,
+    files: StudyFilesDep,
+    passes: PassesDep,
+    db: DbSession,
+    clock: ClockDep,
+    templates: TemplatesDep,
+    choice: str = Form(pattern="^(agree|decline)$"),
+    consent_version: str = Form(max_length=40),
+):
+    config = study_or_404(files, name)
+    if consent_version != config.consent.version:
+        error = "the information changed while the page was open: please read it again"
+        return _page(templates, request, "consent", status=409, study=config, error=error)
+    enrolment = Enrolment(db, clock, config)
+    with db.begin():
+        if choice == "decline":
+            enrolment.decline()
+        else:
+            enrolled = enrolment.consent()
+    if choice == "decline":
+        return _page(templates, request, "declined", study=config)
+    response = RedirectResponse(f"/study/{name}/code", status_code=303)
+    response.set_cookie(
+        PASS_COOKIE, passes.issue(name, enrolled.enrolment_id), httponly=True, samesite="lax", path="/study"
+    )
+    return response
+
+
+@router.get("/study/{name}/code", response_class=HTMLResponse)
+def code_page(me: ParticipationDep, request: Request, templates: TemplatesDep, error: str | None = None):
+    return _page(
+        templates, request, "code", study=me.config, code=me.code, real_name=me.enrolled.real_name, error=error
+    )
+
+
+@router.post("/study/{name}/name")
+def real_name(me: ParticipationDep, real_name: str = Form("", max_length=200)):
+    try:
+        with me.db.begin():
+            me.enrolment.set_real_name(me.enrolled, real_name)
+    except EnrolmentError as err:
+        return RedirectResponse(f"/study/{me.config.name}/code?error={quote(str(err))}", status_code=303)
+    return RedirectResponse(f"/study/{me.config.name}/instructions", status_code=303)
+
+
+@router.get("/study/{name}/instructions", response_class=HTMLResponse)
+def instructions(me: ParticipationDep, request: Request, templates: TemplatesDep):
+    return _page(templates, request, "instructions", study=me.config, code=me.code)
+
+
+@router.get("/study/{name}/me", response_class=HTMLResponse)
+def my_study(me: ParticipationDep, request: Request, templates: TemplatesDep, error: str | None = None):
+    trials = me.enrolment.trials(me.enrolled)
+    return _page(
+        templates,
+        request,
+        "me",
+        study=me.config,
+        code=me.code,
+        trials=trials,
+        answered=me.enrolment.answered(me.enrolled),
+        enrolled=me.enrolled,
+        practice_reason=PRACTICE_REASON,
+        error=error,
+    )
+
+
+@router.get("/study/{name}/lobby", response_class=HTMLResponse)
+def lobby_page(me: ParticipationDep, request: Request, templates: TemplatesDep):
+    return _page(templates, request, "lobby", study=me.config, code=me.code)
+
+
+@router.post("/study/{name}/lobby")
+def lobby_poll(me: ParticipationDep, clock: ClockDep, seats: SeatTokensDep, mazes: MazesDep) -> dict[str, object]:
+    """The lobby page's poll (about once a second): the seat's link once paired, else the count waiting."""
+    lobby = Lobby(me.db, me.config, mazes.layouts(), clock.now_ns())
+    with me.db.begin():
+        state = lobby.poll(me.enrolled, datetime.now(UTC))
+    match state:
+        case Seated(trial_id, role):
+            return {"state": "seated", "role": role, "link": f"/play/{seats.issue(trial_id, role)}"}
+        case Waiting(waiting):
+            return {"state": "waiting", "waiting": waiting}
+        case TimedOut(waited_s):
+            return {"state": "timed_out", "waited_s": round(waited_s)}
+        case AllPlayed(trials):
+            return {"state": "all_played", "trials": trials}
+
+
+@router.get("/study/{name}/trials/{trial_id}/questionnaire", response_class=HTMLResponse)
+def questionnaire(me: ParticipationDep, trial_id: int, request: Request, templates: TemplatesDep):
+    return _page(templates, request, "questionnaire", study=me.config, code=me.code, trial_id=trial_id, form={})
+
+
+@router.post("/study/{name}/trials/{trial_id}/questionnaire")
+async def answer(me: ParticipationDep, trial_id: int, request: Request, templates: TemplatesDep):
+    form = {k: v for k, v in (await request.form()).items() if isinstance(v, str)}
+    try:
+        with me.db.begin():
+            me.enrolment.answer(me.enrolled, trial_id, form)
+    except EnrolmentError as err:
+        return _page(
+            templates,
+            request,
+            "questionnaire",
+            status=400,
+            study=me.config,
+            code=me.code,
+            trial_id=trial_id,
+            form=form,
+            error=str(err),
+        )
+    return RedirectResponse(f"/study/{me.config.name}/me", status_code=303)
+
+
+@router.post("/study/{name}/complete", response_class=HTMLResponse)
+def complete(me: ParticipationDep, request: Request, templates: TemplatesDep):
+    with me.db.begin():
+        me.enrolment.complete(me.enrolled)
+    return _page(templates, request, "done", study=me.config, code=me.code)
+
+
+@router.post("/study/{name}/withdraw", response_class=HTMLResponse)
+def withdraw(me: ParticipationDep, request: Request, templates: TemplatesDep):
+    with me.db.begin():
+        me.enrolment.withdraw(me.enrolled)
+    response = _page(templates, request, "withdrawn", study=me.config)
+    response.delete_cookie(PASS_COOKIE, path="/study")
+    return response
+
+
+# -- the experimenter -----------------------------------------------------------------------
+@experimenter_router.get("", response_class=HTMLResponse)
+def study_list(request: Request, files: StudyFilesDep, templates: TemplatesDep, error: str | None = None):
+    return _page(templates, request, "list", studies=files.names(), error=error)
+
+
+@experimenter_router.post("")
+def create_study(files: StudyFilesDep, name: str = Form(max_length=80)):
+    try:
+        files.path(name)
+        if name in files.names():
+            raise StudyConfigError(f"a study named {name!r} exists: edit it")
+        files.save(template(name))
+    except (LookupError, StudyConfigError) as err:
+        message = (
+            "a study name is 1-80 lowercase letters, digits, '-' or '_'" if isinstance(err, LookupError) else str(err)
+        )
+        return RedirectResponse(f"/experimenter/studies?error={quote(message)}", status_code=303)
+    return RedirectResponse(f"/experimenter/studies/{name}", status_code=303)
+
+
+def _editor(
+    templates: Jinja2Templates,
+    request: Request,
+    enrolment: Enrolment,
+    text: str,
+    status: int = 200,
+    **context: object,
+) -> HTMLResponse:
+    return _page(
+        templates,
+        request,
+        "edit",
+        status=status,
+        study=enrolment.config,
+        text=text,
+        participants=enrolment.participants(),
+        **context,
+    )
+
+
+@experimenter_router.get("/{name}", response_class=HTMLResponse)
+def edit_page(
+    name: str,
+    request: Request,
+    files: StudyFilesDep,
+    db: DbSession,
+    clock: ClockDep,
+    templates: TemplatesDep,
+    saved: int | None = None,
+    paired: int | None = None,
+    error: str | None = None,
+):
+    config = study_or_404(files, name)
+    enrolment = Enrolment(db, clock, config)
+    text = config.model_dump_json(indent=2)
+    return _editor(templates, request, enrolment, text, saved=saved, paired=paired, error=error)
+
+
+@experimenter_router.post("/{name}")
+def save_study(
+    name: str,
+    request: Request,
+    files: StudyFilesDep,
+    db: DbSession,
+    clock: ClockDep,
+    mazes: MazesDep,
+    templates: TemplatesDep,
+    config_json: str = Form(max_length=200_000),
+) -> Response:
+    current = study_or_404(files, name)
+    try:
+        config = parse(config_json)
+        if config.name != name:
+            raise StudyConfigError(f"the name is {name!r}; make a new study to use another name")
+        bundled = {m for m in mazes.names() if mazes.library.source(m) == "bundled"}
+        check_mazes(config, bundled, set(mazes.names()))
+    except StudyConfigError as err:
+        enrolment = Enrolment(db, clock, current)
+        return _editor(templates, request, enrolment, config_json, status=400, error=str(err))
+    saved = files.save(config)
+    return RedirectResponse(f"/experimenter/studies/{name}?saved={saved.version}", status_code=303)
+
+
+@experimenter_router.post("/{name}/pair")
+def pair_by_hand(
+    name: str,
+    files: StudyFilesDep,
+    db: DbSession,
+    clock: ClockDep,
+    mazes: MazesDep,
+    a: str = Form(max_length=80),
+    b: str = Form(max_length=80),
+):
+    """Pair two of the study's participants (by code) now, by the lobby's rules."""
+    config = study_or_404(files, name)
+    enrolment = Enrolment(db, clock, config)
+    lobby = Lobby(db, config, mazes.layouts(), clock.now_ns())
+    try:
+        with db.begin():
+            first, second = (enrolment.by_code(code) for code in (a, b))
+            trial = lobby.pair(first, second)
+            trial_id = trial.id
+    except (LookupError, LobbyError) as err:
+        return RedirectResponse(f"/experimenter/studies/{name}?error={quote(str(err))}", status_code=303)
+    return RedirectResponse(f"/experimenter/studies/{name}?paired={trial_id}", status_code=303)

@@ -1,0 +1,186 @@
+"""Who takes part in a study: consent (recorded with the text's version), the participant code,
+questionnaires after trials, completion and withdrawal (personal data erased, events kept)."""
+
+from __future__ import annotations
+
+import secrets
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from enum import StrEnum
+
+from sqlalchemy import or_, select
+from sqlalchemy.orm import Session
+
+from app.clock import ServerClock
+from app.db.models import Participant, StudyAnswer, StudyEvent, StudyParticipant, Trial
+from app.study.config import RATING_SCALE, QuestionKind, StudyConfig
+from app.study.lobby import PRACTICE_REASON
+
+CODE_ALPHABET = "ABCDEFGHJKLMNPQRSTUVWXYZ23456789"  # no 0/O, 1/I: read aloud and typed back
+CODE_LENGTH = 6
+MAX_FREE_TEXT = 2000
+
+
+class StudyEventKind(StrEnum):
+    consented = "consented"
+    declined = "declined"
+    answered = "answered"
+    completed = "completed"
+    withdrawn = "withdrawn"
+
+
+class EnrolmentError(ValueError):
+    """A participant's request that cannot be taken; nothing was recorded."""
+
+
+@dataclass(frozen=True)
+class Enrolled:
+    enrolment_id: int
+    code: str
+
+
+def new_code(db: Session) -> str:
+    while True:
+        code = "P-" + "".join(secrets.choice(CODE_ALPHABET) for _ in range(CODE_LENGTH))
+        if db.scalar(select(Participant.id).where(Participant.name == code)) is None:
+            return code
+
+
+class Enrolment:
+    """A study's participants, in one database session the caller commits."""
+
+    def __init__(self, db: Session, clock: ServerClock, config: StudyConfig) -> None:
+        self.db = db
+        self.clock = clock
+        self.config = config
+
+    def _log(self, kind: StudyEventKind, participant_id: int | None, **payload: object) -> None:
+        self.db.add(
+            StudyEvent(
+                study=self.config.name,
+                participant_id=participant_id,
+                kind=kind,
+                t_ns=self.clock.now_ns(),
+                payload={"study_version": self.config.version, **payload},
+            )
+        )
+
+    def consent(self) -> Enrolled:
+        """A new participant who agreed to the consent text now shown: a code, no name yet."""
+        participant = Participant(name=new_code(self.db))
+        self.db.add(participant)
+        self.db.flush()
+        enrolled = StudyParticipant(
+            study=self.config.name, participant_id=participant.id, consent_version=self.config.consent.version
+        )
+        self.db.add(enrolled)
+        self.db.flush()
+        self._log(StudyEventKind.consented, participant.id, consent_version=self.config.consent.version)
+        return Enrolled(enrolled.id, participant.name)
+
+    def decline(self) -> None:
+        self._log(StudyEventKind.declined, None, consent_version=self.config.consent.version)
+
+    def get(self, enrolment_id: int) -> StudyParticipant:
+        enrolled = self.db.get(StudyParticipant, enrolment_id)
+        if enrolled is None or enrolled.study != self.config.name:
+            raise LookupError("this browser's study pass names no participant of this study")
+        return enrolled
+
+    def by_code(self, code: str) -> StudyParticipant:
+        enrolled = self.db.scalar(
+            select(StudyParticipant)
+            .join(Participant, Participant.id == StudyParticipant.participant_id)
+            .where(Participant.name == code.strip(), StudyParticipant.study == self.config.name)
+        )
+        if enrolled is None:
+            raise LookupError(f"no participant {code.strip()[:80]!r} in study {self.config.name!r}")
+        return enrolled
+
+    def code(self, enrolled: StudyParticipant) -> str:
+        return self.db.execute(select(Participant.name).where(Participant.id == enrolled.participant_id)).scalar_one()
+
+    def set_real_name(self, enrolled: StudyParticipant, name: str) -> None:
+        self._active(enrolled)
+        name = name.strip()
+        if len(name) > 120:
+            raise EnrolmentError("a name is at most 120 characters")
+        enrolled.real_name = name or None
+
+    def trials(self, enrolled: StudyParticipant) -> list[Trial]:
+        """The participant's trials in this study, oldest first."""
+        pid = enrolled.participant_id
+        return list(
+            self.db.scalars(
+                select(Trial)
+                .where(Trial.study == self.config.name, or_(Trial.commander_id == pid, Trial.driver_id == pid))
+                .order_by(Trial.id)
+            )
+        )
+
+    def answered(self, enrolled: StudyParticipant) -> set[int]:
+        return set(self.db.scalars(select(StudyAnswer.trial_id).where(StudyAnswer.study_participant_id == enrolled.id)))
+
+    def answer(self, enrolled: StudyParticipant, trial_id: int, form: dict[str, str]) -> None:
+        """The questionnaire after `trial_id`: every rating item answered 1-5, free text optional."""
+        self._active(enrolled)
+        trial = self.db.get(Trial, trial_id)
+        if trial is None or trial not in self.trials(enrolled):
+            raise EnrolmentError(f"trial {trial_id} is not one of yours in this study")
+        if trial.excluded_reason == PRACTICE_REASON:
+            raise EnrolmentError("the practice trial has no questionnaire")
+        if trial.phase not in ("finished", "aborted"):
+            raise EnrolmentError("the questionnaire opens when the trial is over")
+        if trial_id in self.answered(enrolled):
+            raise EnrolmentError("you have already answered the questionnaire for this trial")
+        ratings: dict[str, int] = {}
+        free_text: dict[str, str] = {}
+        for q in self.config.questionnaire:
+            value = form.get(q.id, "").strip()
+            if q.kind is QuestionKind.free_text:
+                if len(value) > MAX_FREE_TEXT:
+                    raise EnrolmentError(f"'{q.prompt}' takes at most {MAX_FREE_TEXT} characters")
+                if value:
+                    free_text[q.id] = value
+                continue
+            low, high = RATING_SCALE
+            if not value.isdigit() or not low <= int(value) <= high:
+                raise EnrolmentError(f"'{q.prompt}' needs a rating from {low} to {high}")
+            ratings[q.id] = int(value)
+        self.db.add(
+            StudyAnswer(
+                study_participant_id=enrolled.id, trial_id=trial_id, ratings=ratings, free_text=free_text or None
+            )
+        )
+        # The log keeps the ratings (pseudonymous) and never the free text (erasable personal data).
+        self._log(StudyEventKind.answered, enrolled.participant_id, trial_id=trial_id, ratings=ratings)
+
+    def complete(self, enrolled: StudyParticipant) -> None:
+        if enrolled.completed_at is None:
+            self._active(enrolled)
+            enrolled.completed_at = datetime.now(UTC)
+            self._log(StudyEventKind.completed, enrolled.participant_id)
+
+    def withdraw(self, enrolled: StudyParticipant) -> None:
+        """Erase the participant's personal data (real name, free text); keep pseudonymous events."""
+        if enrolled.withdrawn_at is not None:
+            return
+        enrolled.real_name = None
+        for answer in self.db.scalars(select(StudyAnswer).where(StudyAnswer.study_participant_id == enrolled.id)):
+            answer.free_text = None
+        enrolled.withdrawn_at = datetime.now(UTC)
+        self._log(StudyEventKind.withdrawn, enrolled.participant_id)
+
+    def _active(self, enrolled: StudyParticipant) -> None:
+        if enrolled.withdrawn_at is not None:
+            raise EnrolmentError("you have withdrawn from this study; nothing more is recorded")
+
+    def participants(self) -> list[tuple[StudyParticipant, str, int]]:
+        """Everyone enrolled: (enrolment, code, questionnaires answered), for the experimenter."""
+        rows = self.db.execute(
+            select(StudyParticipant, Participant.name)
+            .join(Participant, Participant.id == StudyParticipant.participant_id)
+            .where(StudyParticipant.study == self.config.name)
+            .order_by(StudyParticipant.id)
+        ).all()
+        return [(e, code, len(self.answered(e))) for e, code in rows]

@@ -1,0 +1,34 @@
+// The study lobby: ask the server about once a second; it pairs us when a partner waits, then
+// this page opens our seat. A closed page stops asking and is not paired.
+const lobby = document.getElementById("lobby");
+const status = document.getElementById("lobby-status");
+const csrf = document.querySelector('meta[name="csrf-token"]').content;
+const url = `/study/${encodeURIComponent(lobby.dataset.study)}/lobby`;
+
+async function poll() {
+  let state;
+  try {
+    const reply = await fetch(url, { method: "POST", headers: { "X-CSRF-Token": csrf } });
+    if (!reply.ok) throw new Error((await reply.json()).detail || reply.statusText);
+    state = await reply.json();
+  } catch (err) {
+    status.textContent = `Cannot reach the server (${err.message}); retrying…`;
+    setTimeout(poll, 2000);
+    return;
+  }
+  if (state.state === "seated") {
+    status.textContent = `Paired: you are the ${state.role}. Opening your trial…`;
+    lobby.dataset.seat = state.role;
+    window.location.assign(state.link);
+  } else if (state.state === "all_played") {
+    status.textContent = `You have played all ${state.trials} of your trials. Answer the last questionnaire and get your completion code on your page.`;
+  } else if (state.state === "timed_out") {
+    status.textContent = `Nobody arrived within ${Math.round(state.waited_s / 60)} minutes. Reload this page to wait again, or come back later.`;
+  } else {
+    const others = state.waiting - 1;
+    status.textContent = others ? `${others} other participant(s) waiting: pairing…` : "You are the only one waiting. A partner will be found as soon as one arrives.";
+    lobby.dataset.waiting = String(state.waiting);
+    setTimeout(poll, 1000);
+  }
+}
+poll();

@@ -1,0 +1,328 @@
+"""Participant studies over HTTP against a real server: the experimenter writes a versioned study;
+strangers consent (recorded with the text's version), get a code, may give a private name, answer
+a questionnaire after each trial, get the completion code, and withdraw (name and free text erased,
+pseudonymous events kept). No public page or export carries a real name."""
+
+from __future__ import annotations
+
+import html
+import json
+import time
+
+from click.testing import Result
+from sqlalchemy import select, text
+from typer.testing import CliRunner
+
+from app.cli import root
+from app.db.models import Participant, StudyAnswer, StudyEvent, StudyParticipant, Trial
+from app.study.config import StudyFiles, template
+from app.trial.setup import create_team, create_trial
+from tests.app.live import ServerThread, browser, experimenter_client, page_csrf_token
+
+REAL_NAME = "Bob Okafor"
+FREE_TEXT = "I am Bob Okafor and the mug was hard to find"
+
+
+def make_study(settings, name: str = "pilot"):
+    return StudyFiles(settings.data_dir / "studies").save(template(name))
+
+
+def join(server, study: str, real_name: str = ""):
+    """A stranger's browser through the study link: consent, code, optional name, instructions."""
+    client = browser(server.url)
+    page = client.get(f"/study/{study}")
+    assert page.status_code == 200 and "Information and consent" in page.text
+    version = template(study).consent.version
+    token = page_csrf_token(page.text)
+    page = client.post(
+        f"/study/{study}/consent", data={"choice": "agree", "consent_version": version, "csrf_token": token}
+    )
+    assert page.status_code == 200 and "Your participant code" in page.text, page.text[:300]
+    code = page.text.split('id="participant-code">')[1].split("<")[0]
+    page = client.post(f"/study/{study}/name", data={"real_name": real_name, "csrf_token": page_csrf_token(page.text)})
+    assert "How it works" in page.text and "The Commander" in page.text
+    client.headers["X-CSRF-Token"] = page_csrf_token(page.text)
+    return client, code
+
+
+def study_trial(server, study: str, codes: tuple[str, str]) -> int:
+    """A trial of the study for the two participants (as the lobby will make: here by hand)."""
+    services = server.services
+    with services.db.begin() as db:
+        a, b = (db.scalar(select(Participant.id).where(Participant.name == c)) for c in codes)
+        team = create_team(db, f"{codes[0]}+{codes[1]}", a, b)
+        maze = services.mazes.names()[0]
+        trial = create_trial(
+            db,
+            team_id=team.id,
+            maze=maze,
+            targets=["mug", "jar", "paddle"],
+            backend="sim",
+            driver="human",
+            commander_id=a,
+            layouts={m: m for m in services.mazes.names()},
+            now_ns=services.clock.now_ns(),
+        )
+        trial.study = study
+        return trial.id
+
+
+def answers(code: str, difficulty: str = "3", partner: str = "4", comments: str = "") -> dict[str, str]:
+    return {"difficulty": difficulty, "partner": partner, "comments": comments}
+
+
+def every_text_in_db(server) -> str:
+    with server.services.engine.connect() as conn:
+        tables = [r[0] for r in conn.execute(text("select name from sqlite_master where type='table'"))]
+        return "\n".join(str(row) for t in tables for row in conn.execute(text(f'select * from "{t}"')))
+
+
+def test_experimenter_writes_a_versioned_study_and_bad_input_changes_nothing(server):
+    assert browser(server.url).get("/experimenter/studies").url.path == "/", "behind login"
+    eve = experimenter_client(server.services, server.url)
+    page = eve.post("/experimenter/studies", data={"name": "pilot"})
+    assert page.status_code == 200 and "Study pilot, version 1" in page.text
+    assert eve.post("/experimenter/studies", data={"name": "Bad Name!"}).text.count("lowercase letters") == 1
+
+    files = StudyFiles(server.settings.data_dir / "studies")
+    config = files.load("pilot").model_dump(mode="json")
+    config["consent"] = {"version": "2026-12", "text": "New information."}
+    saved = eve.post("/experimenter/studies/pilot", data={"config_json": json.dumps(config)})
+    assert saved.status_code == 200 and "Saved as version 2" in saved.text
+    assert files.load("pilot").version == 2 and files.load("pilot").consent.version == "2026-12"
+    assert files.version("pilot", 1).consent.version == "1", "the version participants consented to before is kept"
+
+    before = (server.settings.data_dir / "studies" / "pilot.json").read_text()
+    for bad, says in [
+        ({**config, "practice_maze": "Run_999"}, "practice_maze 'Run_999' is not a bundled maze"),
+        ({**config, "maze_pool": ["nowhere"]}, "maze_pool names mazes this server does not have: nowhere"),
+        ({**config, "completion_code": None, "redirect_url": None}, "give a completion_code or a redirect_url"),
+        ({**config, "name": "other"}, "make a new study to use another name"),
+    ]:
+        page = eve.post("/experimenter/studies/pilot", data={"config_json": json.dumps(bad)})
+        shown = html.unescape(page.text)
+        assert page.status_code == 400 and says in shown, shown[:500]
+        assert json.dumps(bad) in shown, "the posted text is shown again to fix"
+    assert eve.post("/experimenter/studies/pilot", data={"config_json": "{not json"}).status_code == 400
+    assert (server.settings.data_dir / "studies" / "pilot.json").read_text() == before
+
+
+def test_consent_is_recorded_with_its_version_and_declining_records_no_one(server):
+    make_study(server.settings)
+    assert browser(server.url).get("/study/nosuch").status_code == 404
+    stranger = browser(server.url)
+    token = page_csrf_token(stranger.get("/study/pilot").text)
+    stale = stranger.post("/study/pilot/consent", data={"choice": "agree", "consent_version": "0", "csrf_token": token})
+    assert stale.status_code == 409 and "read it again" in stale.text
+    declined = stranger.post(
+        "/study/pilot/consent", data={"choice": "decline", "consent_version": "1", "csrf_token": token}
+    )
+    assert "You chose not to take part" in declined.text
+    assert stranger.get("/study/pilot/me").status_code == 403, "declining gives no pass"
+
+    client, code = join(server, "pilot")
+    assert client.get("/study/pilot").url.path == "/study/pilot/me", "the pass brings a participant back"
+    with server.services.db() as db:
+        participants = list(db.scalars(select(Participant.name)))
+        events = [(e.kind, e.participant_id is None, e.payload) for e in db.scalars(select(StudyEvent))]
+    assert participants == [code]
+    assert events == [
+        ("declined", True, {"study_version": 1, "consent_version": "1"}),
+        ("consented", False, {"study_version": 1, "consent_version": "1"}),
+    ]
+    other = browser(server.url)
+    other.cookies.set("robotslang_study", "forged", path="/study")
+    assert other.get("/study/pilot/me").status_code == 403
+
+
+def test_questionnaires_completion_and_withdrawal_erase_personal_data_only(server, tmp_path):
+    make_study(server.settings)
+    bob, bob_code = join(server, "pilot", real_name=REAL_NAME)
+    ann, ann_code = join(server, "pilot")
+    trial_id = study_trial(server, "pilot", (bob_code, ann_code))
+    url = f"/study/pilot/trials/{trial_id}/questionnaire"
+
+    early = bob.post(url, data=answers(bob_code, comments=FREE_TEXT))
+    assert early.status_code == 400 and "opens when the trial is over" in early.text
+    eve = experimenter_client(server.services, server.url)
+    assert eve.post(f"/experimenter/trials/{trial_id}/abort").status_code == 200
+    outsider, _ = join(server, "pilot")
+    assert "not one of yours" in outsider.post(url, data=answers("x")).text
+    bad = bob.post(url, data=answers(bob_code, partner="7", comments=FREE_TEXT))
+    assert bad.status_code == 400 and "needs a rating from 1 to 5" in bad.text and FREE_TEXT in bad.text
+    assert bob.post(url, data=answers(bob_code, comments=FREE_TEXT)).url.path == "/study/pilot/me"
+    assert "answered" in bob.get("/study/pilot/me").text
+    assert "already answered" in bob.post(url, data=answers(bob_code)).text
+    assert ann.post(url, data=answers(ann_code, difficulty="5", partner="2")).status_code == 200
+    with server.services.db() as db:
+        rows = {a.study_participant_id: (a.ratings, a.free_text) for a in db.scalars(select(StudyAnswer))}
+    assert sorted(rows.values(), key=str) == sorted(
+        [({"difficulty": 3, "partner": 4}, {"comments": FREE_TEXT}), ({"difficulty": 5, "partner": 2}, None)], key=str
+    )
+
+    done = ann.post("/study/pilot/complete")
+    assert 'id="completion-code">DONE-PILOT<' in done.text
+
+    # The experimenter (logged in) sees the private name; no public page or export does.
+    assert REAL_NAME in eve.get("/experimenter/studies/pilot").text
+    public = browser(server.url)
+    seat = server.services.seats.issue(trial_id, "driver")
+    values = {"token": seat, "trial_id": trial_id, "name": "pilot", "index": 0, "position": 0, "frame_id": 1}
+    values |= {"study_id": 1, "participant_id": 1, "team_id": 1, "robot_id": 1, "action": "pause"}
+    searched = []
+    for template_path, methods in server.app.openapi()["paths"].items():  # every route the server has
+        if "get" not in methods:
+            continue
+        path = template_path.format(**values)
+        for who, client in (("public", public), ("participant", ann), ("experimenter's export", eve)):
+            if who == "experimenter's export" and not path.startswith("/experimenter/trials/"):
+                continue  # the experimenter's own pages may show the private name; exports may not
+            reply = client.get(path)
+            if reply.status_code == 200:
+                searched.append(path)
+                assert REAL_NAME.encode() not in reply.content, (who, path)
+    assert {
+        "/",
+        "/leaderboard",
+        "/study/pilot/me",
+        f"/experimenter/trials/{trial_id}/export.mcap",
+    } <= set(searched), searched
+    env = {"ROBOTSLANG_DATA_DIR": str(server.settings.data_dir), "ROBOTSLANG_SECRET_KEY": "test-secret"}
+    for fmt in ("mcap", "ndh"):
+        out = tmp_path / fmt
+        result: Result = CliRunner().invoke(
+            root, ["export", "all", "--include-aborted", "--format", fmt, "--out", str(out)], env=env
+        )
+        assert result.exit_code == 0, result.output
+        written = [p for p in out.rglob("*") if p.is_file()]
+        assert written, f"{fmt}: the aborted study trial is exported"
+        assert not [p for p in written if REAL_NAME.encode() in p.read_bytes()], fmt
+
+    gone = bob.post("/study/pilot/withdraw")
+    assert "You have withdrawn" in gone.text
+    assert bob.get("/study/pilot/me").status_code == 403, "the pass is gone with the cookie"
+    assert REAL_NAME not in every_text_in_db(server) and FREE_TEXT not in every_text_in_db(server)
+    with server.services.db() as db:
+        enrolled = db.scalar(select(StudyParticipant).join(Participant).where(Participant.name == bob_code))
+        kinds = [
+            e.kind for e in db.scalars(select(StudyEvent).where(StudyEvent.participant_id == enrolled.participant_id))
+        ]
+        trial = db.get(Trial, trial_id)
+        ratings = db.scalar(select(StudyAnswer.ratings).where(StudyAnswer.study_participant_id == enrolled.id))
+    assert enrolled.withdrawn_at is not None and enrolled.real_name is None
+    assert kinds == ["consented", "answered", "withdrawn"], "pseudonymous events remain"
+    assert trial.commander_id == enrolled.participant_id and ratings == {"difficulty": 3, "partner": 4}
+
+
+def poll(client, study: str = "pilot") -> dict:
+    reply = client.post(f"/study/{study}/lobby")
+    assert reply.status_code == 200, reply.text[:300]
+    return reply.json()
+
+
+def test_newcomers_practise_together_on_the_bundled_maze_set_aside_from_scores(server):
+    StudyFiles(server.settings.data_dir / "studies").save(template("pilot"))
+    (ann, _), (bob, _) = join(server, "pilot"), join(server, "pilot")
+    assert poll(ann)["state"] == "waiting" and poll(bob)["state"] == "seated"
+    eve = experimenter_client(server.services, server.url)
+    with server.services.db() as db:
+        practice = db.scalar(select(Trial).where(Trial.study == "pilot"))
+    assert practice.maze == "gen-000" and practice.excluded_reason == "study practice: not scored"
+    assert eve.post(f"/experimenter/trials/{practice.id}/abort").status_code == 200
+    refused = ann.post(f"/study/pilot/trials/{practice.id}/questionnaire", data=answers(""))
+    assert refused.status_code == 400 and "practice trial has no questionnaire" in refused.text
+    assert "practice: no questionnaire" in ann.get("/study/pilot/me").text
+    cat, _ = join(server, "pilot")
+    assert poll(ann)["state"] == "waiting" and poll(cat) == {"state": "waiting", "waiting": 2}, (
+        "a newcomer is not paired with someone who has practised"
+    )
+    real = poll(bob)
+    assert real["state"] == "seated"
+    with server.services.db() as db:
+        trial = db.scalars(select(Trial).where(Trial.study == "pilot").order_by(Trial.id.desc())).first()
+    assert trial.maze != "gen-000" and trial.excluded_reason is None
+
+
+def test_lobby_pairs_whoever_arrives_on_unseen_layouts_with_roles_balanced(any_db_settings):
+    """On SQLite and on PostgreSQL (the lobby's times come back with and without their zone)."""
+    with ServerThread(any_db_settings) as server:
+        lobby_rounds(server)
+
+
+def lobby_rounds(server) -> None:
+    files = StudyFiles(server.settings.data_dir / "studies")
+    files.save(template("pilot").model_copy(update={"lobby_presence_s": 3.0, "practice_maze": None}))
+    files.save(template("quick").model_copy(update={"lobby_timeout_s": 1.0}))
+    ann, ann_code = join(server, "pilot")
+    assert "Waiting for a partner" in ann.get("/study/pilot/lobby").text
+    assert poll(ann) == {"state": "waiting", "waiting": 1}
+    bob, _ = join(server, "pilot")
+    cat, cat_code = join(server, "pilot")
+    assert poll(ann)["state"] == "waiting"  # her page asks again while the others arrive
+    assert poll(bob)["state"] == "seated", "two waiting: the second to ask is paired"
+    assert poll(ann)["state"] == "seated"
+    # Bob's partner is Ann; now Bob's page closes before anyone else comes (he stops asking).
+    eve = experimenter_client(server.services, server.url)
+    with server.services.db() as db:
+        first = db.scalar(select(Trial).where(Trial.study == "pilot"))
+    assert eve.post(f"/experimenter/trials/{first.id}/abort").status_code == 200
+    assert poll(bob)["state"] == "waiting"
+    time.sleep(3.5)  # past the study's lobby_presence_s
+    seated = poll(cat)
+    assert seated == {"state": "waiting", "waiting": 1}, "Bob left the lobby: Cat is not paired with him"
+    ann_seat = poll(ann)
+    cat_seat = poll(cat)
+    assert ann_seat["state"] == cat_seat["state"] == "seated"
+    assert {ann_seat["role"], cat_seat["role"]} == {"commander", "driver"}
+    assert cat_seat["role"] == "commander", "Ann commanded before (or waited longer): Cat commands now"
+    second_browser = browser(server.url)
+    second_browser.cookies = ann.cookies
+    second_browser.headers["X-CSRF-Token"] = ann.headers["X-CSRF-Token"]
+    again = poll(second_browser)
+    seat_of_link = server.services.seats.verify  # links are stamped when issued: compare the seats they open
+    assert seat_of_link(again["link"].removeprefix("/play/")) == seat_of_link(
+        ann_seat["link"].removeprefix("/play/")
+    ), "a second browser of Ann gets her one seat, not another"
+    assert browser(server.url).get(ann_seat["link"]).status_code == 200
+    with server.services.db() as db:
+        trials = list(db.scalars(select(Trial).where(Trial.study == "pilot").order_by(Trial.id)))
+        names = dict(db.execute(select(Participant.id, Participant.name)).all())
+    assert len(trials) == 2 and trials[0].maze != trials[1].maze, "Ann never gets a layout twice"
+    assert names[trials[1].commander_id] == cat_code and names[trials[1].driver_id] == ann_code
+
+    lone, _ = join(server, "quick")
+    assert poll(lone, "quick")["state"] == "waiting"
+    time.sleep(1.2)
+    assert poll(lone, "quick")["state"] == "timed_out"
+
+
+def test_the_experimenter_pairs_by_hand_by_the_lobbys_rules(server):
+    StudyFiles(server.settings.data_dir / "studies").save(template("pilot"))
+    (ann, ann_code), (bob, bob_code) = join(server, "pilot"), join(server, "pilot")
+    eve = experimenter_client(server.services, server.url)
+    for a, b, says in [
+        (ann_code, ann_code, "choose two different participants"),
+        (ann_code, "P-NOBODY", "no participant &#39;P-NOBODY&#39; in study &#39;pilot&#39;"),
+    ]:
+        page = eve.post("/experimenter/studies/pilot/pair", data={"a": a, "b": b})
+        assert says in page.text, page.text[:300]
+    page = eve.post("/experimenter/studies/pilot/pair", data={"a": ann_code, "b": bob_code})
+    assert "Paired: trial" in page.text
+    assert poll(ann)["state"] == poll(bob)["state"] == "seated", "their lobby pages open their seats"
+    again = eve.post("/experimenter/studies/pilot/pair", data={"a": ann_code, "b": bob_code})
+    assert "one of them is in a live trial" in again.text
+    with server.services.db() as db:
+        assert [t.maze for t in db.scalars(select(Trial).where(Trial.study == "pilot"))] == ["gen-000"]
+
+
+def test_the_lobby_stops_pairing_a_participant_who_played_the_plans_trials(server):
+    plan = {"practice_maze": None, "trials_per_participant": 1}
+    StudyFiles(server.settings.data_dir / "studies").save(template("pilot").model_copy(update=plan))
+    (ann, _), (bob, _), (cat, _) = join(server, "pilot"), join(server, "pilot"), join(server, "pilot")
+    assert poll(ann)["state"] == "waiting" and poll(bob)["state"] == "seated"
+    eve = experimenter_client(server.services, server.url)
+    with server.services.db() as db:
+        trial_id = db.scalar(select(Trial.id).where(Trial.study == "pilot"))
+    assert eve.post(f"/experimenter/trials/{trial_id}/abort").status_code == 200
+    assert poll(ann) == {"state": "all_played", "trials": 1}
+    assert poll(cat) == {"state": "waiting", "waiting": 1}, "Ann, done, does not wait"

@@ -1,0 +1,132 @@
+"""A study in headless Chromium: four strangers arrive at different times through the study link,
+consent, give a code (one a real name), wait in the lobby and are paired by the server; one leaves
+the lobby and is paired on coming back; their trials end (aborted by the experimenter), they answer
+the questionnaires and get the completion code; an excluded trial leaves the exports; a participant
+withdraws and their name is gone from the database while their events remain. Newcomers play a
+practice trial first (the bundled maze, set aside from scores), then the study's trials."""
+
+from __future__ import annotations
+
+import pytest
+from sqlalchemy import select, text
+from typer.testing import CliRunner
+
+from app.cli import root
+from app.db.models import Participant, StudyEvent, Trial
+from app.study.config import StudyFiles, template
+from tests.app.live import experimenter_client, wait_js
+from tests.e2e.pages import page_checks
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+REAL_NAME = "Ada Quist"
+
+
+def arrive(browser, server, real_name: str = "", checks: bool = False):
+    page = browser.new_context(viewport={"width": 390, "height": 800}).new_page()
+    page.goto(server.url + "/study/pilot")
+    if checks:
+        page_checks(page, "study consent")
+    page.click("#agree")
+    if checks:
+        page_checks(page, "study code")
+    code = page.inner_text("#participant-code")
+    page.fill("#real-name", real_name)
+    page.click("#continue")
+    if checks:
+        page_checks(page, "study instructions")
+    page.click("#to-lobby")
+    page.wait_for_url("**/study/pilot/lobby")
+    if checks:
+        page_checks(page, "study lobby")
+    return page, code
+
+
+def lobby_says(page, words: str) -> None:
+    wait_js(page, f"() => document.getElementById('lobby-status').textContent.includes({words!r})")
+
+
+def questionnaire_and_code(page, server, comment: str) -> None:
+    page.goto(server.url + "/study/pilot/me")
+    page.click("a.questionnaire")
+    page_checks(page, "study questionnaire")
+    page.check("fieldset[data-question=difficulty] input[value='4']")
+    page.check("fieldset[data-question=partner] input[value='5']")
+    page.fill("textarea[name=comments]", comment)
+    page.click("#send-answers")
+    page.wait_for_selector("#my-trials >> text=answered")
+    page.click("#finish")
+    assert page.inner_text("#completion-code") == "DONE-PILOT"
+    page_checks(page, "study done")
+
+
+def test_a_whole_study_with_four_strangers(browser, server, tmp_path):
+    StudyFiles(server.settings.data_dir / "studies").save(
+        template("pilot").model_copy(update={"lobby_presence_s": 3.0})
+    )
+    eve = experimenter_client(server.services, server.url)
+
+    ada, ada_code = arrive(browser, server, REAL_NAME, checks=True)
+    lobby_says(ada, "only one waiting")
+    ben, _ = arrive(browser, server)
+    for page in (ada, ben):
+        page.wait_for_url("**/play/**", timeout=30_000)
+    cy, _ = arrive(browser, server)
+    lobby_says(cy, "only one waiting")
+    cy_browser = cy.context
+    cy.close()  # Cy's tab closes in the lobby
+    ben.wait_for_timeout(3500)  # past the study's lobby_presence_s
+    dee, _ = arrive(browser, server)
+    lobby_says(dee, "only one waiting")  # Cy, gone, is neither counted nor paired
+    cy = cy_browser.new_page()  # Cy comes back: the study link brings the same participant back
+    cy.goto(server.url + "/study/pilot")
+    cy.click("#to-lobby")
+    for page in (cy, dee):
+        page.wait_for_url("**/play/**", timeout=30_000)
+
+    def study_trials():
+        with server.services.db() as db:
+            return list(db.scalars(select(Trial).where(Trial.study == "pilot").order_by(Trial.id)))
+
+    practice = study_trials()
+    assert [(t.maze, t.excluded_reason) for t in practice] == [("gen-000", "study practice: not scored")] * 2
+    for t in practice:  # the practice ends (here by the experimenter); everyone goes back to the lobby
+        assert eve.post(f"/experimenter/trials/{t.id}/abort").status_code == 200
+    for page in (ada, ben, cy, dee):
+        page.goto(server.url + "/study/pilot/lobby")
+    for page in (ada, ben, cy, dee):
+        page.wait_for_url("**/play/**", timeout=30_000)
+    trials = study_trials()[2:]
+    assert len(trials) == 2 and {t.excluded_reason for t in trials} == {None}
+    assert "gen-000" not in {t.maze for t in trials}
+    for page in (ada, ben, cy, dee):  # the live seat pages (Ben's or Cy's may be Ada's partner's)
+        page.wait_for_load_state("load")
+        assert REAL_NAME not in page.content()
+    for t in trials:
+        assert eve.post(f"/experimenter/trials/{t.id}/abort").status_code == 200
+    questionnaire_and_code(ada, server, f"I am {REAL_NAME}; the mug was hard to see")
+    for page in (ben, cy, dee):
+        questionnaire_and_code(page, server, "fine")
+
+    assert eve.post(f"/experimenter/trials/{trials[0].id}/exclude", data={"reason": "pilot trouble"}).status_code == 200
+    env = {"ROBOTSLANG_DATA_DIR": str(server.settings.data_dir), "ROBOTSLANG_SECRET_KEY": "test-secret"}
+    out = tmp_path / "mcap"
+    result = CliRunner().invoke(
+        root, ["export", "all", "--include-aborted", "--format", "mcap", "--out", str(out)], env=env
+    )
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in out.glob("*.mcap")) == [f"trial-{trials[1].id}.mcap"], (
+        "the excluded trial is left out"
+    )
+
+    ada.goto(server.url + "/study/pilot/me")
+    ada.click("#my-study summary")
+    ada.click("#withdraw")
+    ada.wait_for_selector("#withdrawn")
+    with server.services.engine.connect() as conn:
+        tables = [r[0] for r in conn.execute(text("select name from sqlite_master where type='table'"))]
+        everything = "\n".join(str(row) for t in tables for row in conn.execute(text(f'select * from "{t}"')))
+    assert REAL_NAME not in everything
+    with server.services.db() as db:
+        ada_id = db.scalar(select(Participant.id).where(Participant.name == ada_code))
+        kinds = [e.kind for e in db.scalars(select(StudyEvent).where(StudyEvent.participant_id == ada_id))]
+    assert ada_code in everything and kinds[0] == "consented" and kinds[-1] == "withdrawn"
