@@ -15,6 +15,7 @@ import pytest
 from app.backends.render import RenderProcesses, render_jpeg
 from app.mazes import Mazes
 from app.settings import Settings
+from app.trial import events as ev
 from bench.live import SeatClient, ServerProcess, ServerProcesses, make_trial
 from sim.core.geometry import heading_angle
 from tests.app.conftest import platform_settings
@@ -79,7 +80,7 @@ def test_the_driver_sees_frames_drawn_in_a_render_process(tmp_path):
         trial_id = make_trial(services, services.mazes.names()[0])
         tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
 
-        async def play() -> list[tuple[bytes, tuple[float, float, float]]]:
+        async def play() -> list[bytes]:
             async with (
                 SeatClient(server.ws_url, tokens["commander"]) as commander,
                 SeatClient(server.ws_url, tokens["driver"]) as driver,
@@ -89,13 +90,23 @@ def test_the_driver_sees_frames_drawn_in_a_render_process(tmp_path):
                 for action in ("left", "left", "right", "forward"):
                     executed = await move(driver, action)
                     frame = await driver.event("frame", start=driver.received.index(executed))
-                    seen.append((base64.b64decode(frame["jpeg"]), services.hub.peek(trial_id).backend.pose()))
+                    seen.append(base64.b64decode(frame["jpeg"]))
                 return seen
 
         seen = asyncio.run(play())
         maze = services.mazes.load(services.mazes.names()[0])
-    for jpeg, pose in seen:
-        assert jpeg == render_jpeg(maze, *pose)
+        # Each recorded frame against the same render in this process at the pose logged before it
+        # (the log, not the backend's pose read afterwards: on a loaded machine that may have moved on).
+        logged, pose = {}, None
+        for e in services.log.load(trial_id):
+            if e.is_(ev.PoseSampled):
+                pose = (e.payload["x"], e.payload["y"], e.payload["heading"])
+            elif e.is_(ev.FrameRecorded):
+                logged[e.seq] = (services.trials.frames.read(trial_id, e.seq), pose)
+    assert len(logged) >= 5, "the first frame and one after each move"
+    for jpeg, at in logged.values():
+        assert jpeg == render_jpeg(maze, *at)
+    assert set(seen) <= {jpeg for jpeg, _ in logged.values()}, "the Driver saw the frames recorded"
 
 
 def alive(pid: int) -> bool:
