@@ -27,6 +27,7 @@ from app.mazes import Mazes
 from app.security import SESSION_COOKIE, CsrfTokens, Login, SeatTokens, Sessions, StudyTokens
 from app.services import Services
 from app.settings import Settings
+from app.study.config import StudyFiles
 from app.trial.hub import TrialHub
 from app.trial.log import EventLog
 
@@ -84,6 +85,10 @@ def get_agents(services: ServicesDep) -> AgentParts:
 
 def get_clock(services: ServicesDep) -> ServerClock:
     return services.clock
+
+
+def get_study_files(settings: SettingsDep) -> StudyFiles:
+    return StudyFiles(settings.data_dir / "studies")
 
 
 def get_annotations(services: ServicesDep) -> AnnotationLog:
@@ -151,6 +156,7 @@ AgentsDep = Annotated[AgentParts, Depends(get_agents)]
 ClockDep = Annotated[ServerClock, Depends(get_clock)]
 SessionsDep = Annotated[Sessions, Depends(get_sessions)]
 AnnotationsDep = Annotated[AnnotationLog, Depends(get_annotations)]
+StudyFilesDep = Annotated[StudyFiles, Depends(get_study_files)]
 AnnotatorSessionsDep = Annotated[Sessions, Depends(get_annotator_sessions)]
 CsrfDep = Annotated[CsrfTokens, Depends(get_csrf)]
 LoginsDep = Annotated[LoginGuard, Depends(get_logins)]

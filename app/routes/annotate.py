@@ -29,9 +29,11 @@ from app.deps import (
     LogDep,
     MazesDep,
     SettingsDep,
+    StudyFilesDep,
 )
 from app.guard import csrf_protect
 from app.security import ANNOTATOR_COOKIE, Login
+from app.study.config import StudyFiles
 from app.web import frame_file, render, replay_events
 
 router = APIRouter(dependencies=[Depends(csrf_protect)])
@@ -63,9 +65,25 @@ def queue(request: Request, db: DbSession, annotations: AnnotationsDep, annotato
     return render(request, "annotate/queue.html", items=items, done=done)
 
 
+def study_tags(files: StudyFiles, trial: Trial) -> list[str] | None:
+    """The free tags the trial's study defines; None where it has no study file (any tag goes)."""
+    if trial.study is None:
+        return None
+    try:
+        return files.load(trial.study).annotation_tags
+    except LookupError:
+        return None
+
+
 @router.get("/annotate/trials/{trial_id}", response_class=HTMLResponse)
 def annotate_trial(
-    request: Request, trial_id: int, db: DbSession, annotations: AnnotationsDep, log: LogDep, annotator: AnnotatorId
+    request: Request,
+    trial_id: int,
+    db: DbSession,
+    annotations: AnnotationsDep,
+    log: LogDep,
+    files: StudyFilesDep,
+    annotator: AnnotatorId,
 ):
     trial = _assigned(db, trial_id, annotator)
     events = log.load(trial_id)
@@ -74,6 +92,7 @@ def annotate_trial(
     return render(
         request,
         "annotate/trial.html",
+        study_tags=study_tags(files, trial),
         trial=trial,
         messages=messages(events),
         estimates={e.after_message: e for e in estimates(events)},
@@ -115,6 +134,7 @@ def save(
     annotations: AnnotationsDep,
     clock: ClockDep,
     log: LogDep,
+    files: StudyFilesDep,
     annotator: AnnotatorId,
     action: Annotated[str, Form()],
     cut: Annotated[int | None, Form()] = None,
@@ -124,7 +144,7 @@ def save(
 ):
     """One change from the trial's form: `cut` (the radio checked), `tag` (the phenomenon or free
     tag, anchored to the checked messages; none checked withdraws it) or `submit`."""
-    _assigned(db, trial_id, annotator)
+    trial = _assigned(db, trial_id, annotator)
     said = len(messages(log.load(trial_id)))
     anchors = sorted(set(anchor or []))
     event: AnnotationEventModel
@@ -136,6 +156,13 @@ def save(
         name = free_tag.strip().lower() or tag
         if not name:
             raise HTTPException(422, "pick a phenomenon or write a tag")
+        allowed = study_tags(files, trial)
+        if allowed is not None and name not in allowed and name not in set(Phenomenon):
+            known = ", ".join(allowed) or "none"
+            raise HTTPException(
+                422,
+                f"{name!r} is not a tag of study {trial.study!r} (its tags: {known}); the experimenter adds tags in the study file",
+            )
         if any(not 1 <= m <= said for m in anchors):
             raise HTTPException(422, f"anchors must be message numbers from 1 to {said}")
         event = Tagged(tag=name, messages=anchors)

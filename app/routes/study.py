@@ -12,7 +12,16 @@ from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from fastapi.templating import Jinja2Templates
 
-from app.deps import ClockDep, DbSession, MazesDep, SeatTokensDep, SettingsDep, TemplatesDep, experimenter_id
+from app.deps import (
+    ClockDep,
+    DbSession,
+    MazesDep,
+    SeatTokensDep,
+    SettingsDep,
+    StudyFilesDep,
+    TemplatesDep,
+    experimenter_id,
+)
 from app.guard import csrf_protect
 from app.security import InvalidToken
 from app.study.config import StudyConfig, StudyConfigError, StudyFiles, check_mazes, parse, template
@@ -26,15 +35,10 @@ experimenter_router = APIRouter(
 )
 
 
-def get_study_files(settings: SettingsDep) -> StudyFiles:
-    return StudyFiles(settings.data_dir / "studies")
-
-
 def get_passes(settings: SettingsDep) -> ParticipantPasses:
     return ParticipantPasses(settings.signing_key())
 
 
-StudyFilesDep = Annotated[StudyFiles, Depends(get_study_files)]
 PassesDep = Annotated[ParticipantPasses, Depends(get_passes)]
 
 

@@ -8,6 +8,7 @@ import json
 import re
 from enum import StrEnum
 from pathlib import Path
+from typing import Annotated
 
 from pydantic import BaseModel, Field, HttpUrl, ValidationError, field_validator, model_validator
 
@@ -68,6 +69,9 @@ class StudyConfig(BaseModel):
     lobby_presence_s: float = Field(default=10.0, gt=0)  # a lobby page silent this long has left (not paired)
     move_penalty_s: float | None = Field(default=None, ge=0)  # None: the server's ROBOTSLANG_MOVE_PENALTY_S
     completion_code: str | None = Field(default=None, max_length=80)
+    # Annotators' tags beside the paper's five phenomena (`app.annotation`); only these are accepted
+    # for the study's trials.
+    annotation_tags: list[Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9 _-]{0,59}$")]] = Field(default_factory=list)
     redirect_url: HttpUrl | None = None  # e.g. the recruiting site's completion link
 
     @field_validator("name")

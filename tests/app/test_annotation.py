@@ -10,8 +10,9 @@ import pytest
 from app.annotation.agreement import agreement, cohen_kappa
 from app.annotation.events import CutMarked, Tagged
 from app.annotation.log import Annotation, AnnotationLog, TrialAnnotations
-from app.db.models import AnnotationAssignment, Experimenter, Participant
+from app.db.models import AnnotationAssignment, Experimenter, Participant, Trial
 from app.security import AccountRole, hash_password
+from app.study.config import StudyFiles, template
 from bench.live import make_trial
 from tests.app.live import ServerThread, browser, cli, page_csrf_token, submit_login
 
@@ -138,3 +139,21 @@ def test_admin_create_makes_annotators_and_refuses_an_unknown_role(tmp_path):
     # An annotator stays one: `admin create` cannot turn the account into an experimenter.
     again = cli("admin", "create", "ann", "--password", PASSWORD, env=env)
     assert again.returncode != 0 and "exists as an annotator" in again.stderr
+
+
+def test_a_study_file_declares_the_free_tags_its_annotators_may_use(server, trial):
+    files = StudyFiles(server.services.settings.data_dir / "studies")
+    config = template("pilot").model_copy(update={"annotation_tags": ["landmark naming", "map mismatch"]})
+    files.save(config)
+    with server.services.db.begin() as db:
+        db.get(Trial, trial).study = "pilot"
+    add_annotator(server, "ann", trial)
+    client, _ = annotator_browser(server, "ann")
+    page = client.get(f"/annotate/trials/{trial}").text
+    assert '<option value="landmark naming">' in page and '<option value="map mismatch">' in page
+    assert post(client, trial, action="tag", free_tag="Landmark naming").status_code == 200
+    assert post(client, trial, action="tag", tag="needs_history").status_code == 200  # the five always go
+    refused = post(client, trial, action="tag", free_tag="weather")
+    assert refused.status_code == 422 and "landmark naming, map mismatch" in html.unescape(refused.text)
+    tags = [r.event.tag for r in AnnotationLog(server.services.db).records(trial) if isinstance(r.event, Tagged)]
+    assert tags == ["landmark naming", "needs_history"], "the refused tag left nothing in the log"
