@@ -13,15 +13,16 @@ from app.annotation.log import AnnotationLog
 from app.db.models import AnnotationAssignment, Experimenter
 from app.security import AccountRole, hash_password
 from bench.live import SeatClient
-from tests.app.live import wait_js
-from tests.app.trial_play import start_trial
-from tests.e2e.pages import ARTIFACTS, page_checks
+from tests.app.live import experimenter_client, wait_js
+from tests.app.trial_play import claim_and_decide, drive_to_target, start_trial
+from tests.e2e.pages import ARTIFACTS, experimenter, page_checks
 
 pytestmark = pytest.mark.browser
 SAID = [("commander", "what do you see"), ("driver", "a red wall"), ("commander", "turn left"), ("driver", "done")]
 
 
-async def talk(server, seats) -> None:
+async def talk(server, seats, finish: bool = False) -> None:
+    """The dialog `SAID`, the estimate after message 2; with `finish`, the three targets reached."""
     async with (
         SeatClient(server.ws_url, seats["commander"]) as commander,
         SeatClient(server.ws_url, seats["driver"]) as driver,
@@ -36,6 +37,12 @@ async def talk(server, seats) -> None:
             if n == 1:
                 await commander.send("localize", x=1.2, y=1.0)
                 await driver.event("phase", phase="navigating")
+        if finish:  # only finished trials are annotated for agreement, exported and reported
+            trial_id = server.services.seats.verify(seats["driver"]).trial_id
+            for _ in range(3):
+                await drive_to_target(server.services, trial_id, driver)
+                await claim_and_decide(commander, driver, confirm=True)
+            await commander.event("phase", phase="finished")
 
 
 def test_an_annotator_marks_the_cut_and_tags_in_the_browser(browser, server, trial, seats):
@@ -97,3 +104,82 @@ def test_an_annotator_marks_the_cut_and_tags_in_the_browser(browser, server, tri
         Submitted(),
     ]
     assert {r.annotator_id for r in records} == {ann}
+
+
+def annotate(page, server, trial: int, cut: int, tags: dict[str, list[int]]) -> None:
+    """One annotator's whole trial in the page: the cut, each tag on its messages, submit."""
+    page.goto(f"{server.url}/annotate/trials/{trial}")
+    page.check(f"#dialog li[data-number='{cut}'] input[name=cut]")
+    page.click("#save-cut")
+    page.wait_for_selector(f"#dialog li.cut[data-number='{cut}']")
+    for tag, anchors in tags.items():
+        for n in anchors:
+            page.check(f"#dialog li[data-number='{n}'] input[name=anchor]")
+        page.select_option("#tag", tag)
+        page.click("#save-tag")
+        page.wait_for_selector(f"#tags li[data-tag={tag}]")
+    page.click("#submit")
+    page.wait_for_url(server.url + "/annotate")
+
+
+@pytest.mark.slow
+def test_two_annotators_agree_as_worked_by_hand_and_the_ldh_instance_takes_the_adjudicated_cut(browser, server):
+    from app.db.models import Trial
+    from app.export.ndh import ldh_instances
+    from app.export.source import load_trial
+    from bench.live import make_trial
+
+    services = server.services
+    names = services.mazes.names()
+    trials = [make_trial(services, names[i], team=team) for i, team in enumerate(("Owls", "Larks", "Wrens"))]
+    with ThreadPoolExecutor(1) as pool:
+        for t in trials:
+            seats = {r: services.seats.issue(t, r) for r in ("commander", "driver")}
+            pool.submit(asyncio.run, talk(server, seats, finish=True)).result(timeout=180)
+    with services.db.begin() as db:
+        ids = {}
+        for name in ("ann", "bob"):
+            account = Experimenter(name=name, password_hash=hash_password("annotate well"), role=AccountRole.ANNOTATOR)
+            db.add(account)
+            db.flush()
+            ids[name] = account.id
+        for t in trials:
+            db.get(Trial, t).study = "s25"
+            db.add(AnnotationAssignment(trial_id=t, annotator_id=ids["ann"]))
+        for t in trials[:2]:  # two trials for both, the third once
+            db.add(AnnotationAssignment(trial_id=t, annotator_id=ids["bob"]))
+    pages = {}
+    for name in ("ann", "bob"):
+        pages[name] = page = browser.new_context().new_page()
+        page.goto(server.url + "/")
+        page.fill("input[name=name]", name)
+        page.fill("input[name=password]", "annotate well")
+        page.click("#login")
+        page.wait_for_url(server.url + "/annotate")
+    t1, t2, t3 = trials
+    annotate(pages["ann"], server, t1, 2, {"needs_history": [1]})
+    annotate(pages["bob"], server, t1, 2, {"needs_history": [2]})
+    annotate(pages["ann"], server, t2, 2, {})
+    annotate(pages["bob"], server, t2, 4, {"needs_history": [1]})
+    annotate(pages["ann"], server, t3, 1, {"surrender_control": [4]})
+    assert pages["ann"].inner_text("#progress") == "3 of 3 trials submitted"
+    assert pages["bob"].inner_text("#progress") == "2 of 2 trials submitted"
+
+    # By hand, over the two trials both annotated: needs_history ann yes/no, bob yes/yes: p_o 0.5,
+    # p_e 0.5 * 1 + 0.5 * 0 = 0.5, kappa 0; the cuts 2/2 and 2/4: distances 0 and 2, mean 1.
+    experimenter_client(services, server.url).close()  # the account `experimenter` logs in with
+    eve = experimenter(browser, server)
+    eve.goto(f"{server.url}/experimenter/annotation?study=s25")
+    assert eve.inner_text("#double") == "2 trials annotated by two annotators."
+    assert eve.inner_text("#kappa tr[data-tag=needs_history] .k") == "0.000"
+    assert "mean distance 1.00 messages, the same cut in 50 % of trials" in eve.inner_text("#cut-distance")
+    row = eve.locator(f"#disagreements tr[data-trial='{t2}'][data-item=cut]")
+    assert "ann: 2; bob: 4" in row.inner_text()
+    row.locator("input[name=value]").fill("3")
+    row.locator("button").click()
+    eve.wait_for_selector(f"#disagreements tr[data-trial='{t2}'][data-item=cut] .adjudicated:text('3')")
+
+    with services.db() as db:
+        record = load_trial(db, services.settings, t2)
+    (instance,) = ldh_instances(record, services.mazes.load(record.maze))
+    assert instance["localization_source"] == "adjudicated" and instance["localized_after_message"] == 3
