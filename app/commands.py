@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import importlib
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import typer
+
+if TYPE_CHECKING:
+    from app.security import AccountRole
 
 # Packages under app/ that bring their own commands, each with `register(root)`.
 MOUNTED = ("app.export.cli", "app.demo.cli", "app.robot_commands")
@@ -60,12 +63,13 @@ def admin_password(
     _set_password(name, password, create=False)
 
 
-def _set_password(name: str, password: str | None, create: bool, role: str | None = None) -> None:
+def _set_password(name: str, password: str | None, create: bool, role: AccountRole | None = None) -> None:
     from sqlalchemy import select
 
+    from app.accounts import MIN_PASSWORD, AccountError, check_password, create_account
     from app.db.engine import open_database
     from app.db.models import Experimenter
-    from app.security import set_password
+    from app.security import AccountRole, set_password
     from app.settings import Settings
 
     if not name.strip() or len(name) > 80:
@@ -79,16 +83,18 @@ def _set_password(name: str, password: str | None, create: bool, role: str | Non
         )
     if password is None:
         password = typer.prompt("Password", hide_input=True, confirmation_prompt=True)
-    if len(password) < 8:
-        raise typer.BadParameter("must be at least 8 characters", param_hint="--password")
+    try:
+        check_password(password)
+    except AccountError:
+        raise typer.BadParameter(f"must be at least {MIN_PASSWORD} characters", param_hint="--password") from None
     with db_sessions.begin() as db:
         user = db.scalar(select(Experimenter).where(Experimenter.name == name))
         if user is None:
-            user = Experimenter(name=name, role=role or "experimenter")
-            db.add(user)
+            user = create_account(db, name, password, role or AccountRole.EXPERIMENTER)
         elif role is not None and user.role != role:
             raise typer.BadParameter(f"{name!r} exists as an {user.role}, not an {role}", param_hint="NAME")
-        set_password(user, password)
+        else:
+            set_password(user, password)
         kind = user.role
     typer.echo(f"{kind} {name!r} " + ("created" if not exists else "password changed; its logins have ended"))
 

@@ -9,17 +9,19 @@ The experimenter's side: agreement between annotators of a study, and adjudicati
 from __future__ import annotations
 
 from typing import Annotated
+from urllib.parse import quote
 
 from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from sqlalchemy import select
 
+from app.accounts import AccountError, create_account
 from app.annotation.access import AnnotatorId, annotator_login
 from app.annotation.agreement import agreement
 from app.annotation.dialog import estimates, messages
 from app.annotation.events import Adjudicated, AnnotationEventModel, CutMarked, Phenomenon, Submitted, Tagged
 from app.annotation.study import annotator_names, study_trial_ids
-from app.db.models import AnnotationAssignment, Trial
+from app.db.models import AnnotationAssignment, Experimenter, Trial
 from app.deps import (
     AnnotationsDep,
     AnnotatorSessionsDep,
@@ -32,7 +34,7 @@ from app.deps import (
     StudyFilesDep,
 )
 from app.guard import csrf_protect
-from app.security import ANNOTATOR_COOKIE, Login
+from app.security import ANNOTATOR_COOKIE, AccountRole, Login
 from app.study.config import StudyFiles
 from app.web import frame_file, render, replay_events
 
@@ -185,14 +187,48 @@ def logout(sessions: AnnotatorSessionsDep, login: Annotated[Login | None, Depend
 
 
 @router.get("/experimenter/annotation", response_class=HTMLResponse)
-def agreement_page(request: Request, db: DbSession, annotations: AnnotationsDep, _: ExperimenterId, study: str = ""):
-    """Agreement between the study's annotators, and the disagreements to adjudicate."""
+def agreement_page(
+    request: Request,
+    db: DbSession,
+    annotations: AnnotationsDep,
+    _: ExperimenterId,
+    study: str = "",
+    created: str = "",
+):
+    """Agreement between the study's annotators, the disagreements to adjudicate, and the form
+    that makes an annotator's account."""
     result = None
     if study:
         ids = study_trial_ids(db, study)
         result = agreement(annotations.states(ids), annotator_names(db))
     titles = {str(p): p.label for p in Phenomenon}
-    return render(request, "annotate/agreement.html", study=study, result=result, titles=titles)
+    annotators = sorted(db.scalars(select(Experimenter.name).where(Experimenter.role == AccountRole.ANNOTATOR)).all())
+    return render(
+        request,
+        "annotate/agreement.html",
+        study=study,
+        result=result,
+        titles=titles,
+        annotators=annotators,
+        created=created,
+    )
+
+
+@router.post("/experimenter/annotators")
+def add_annotator(
+    db: DbSession,
+    _: ExperimenterId,
+    name: Annotated[str, Form(max_length=80)],
+    password: Annotated[str, Form(max_length=200)],
+    study: Annotated[str, Form(max_length=80)] = "",
+):
+    """An annotator account (as `robotslang admin create NAME --role annotator`)."""
+    try:
+        with db.begin():
+            create_account(db, name, password, AccountRole.ANNOTATOR)
+    except AccountError as err:
+        raise HTTPException(422, str(err)) from None
+    return RedirectResponse(f"/experimenter/annotation?study={quote(study)}&created={quote(name.strip())}", 303)
 
 
 @router.post("/experimenter/annotation/adjudicate")

@@ -14,7 +14,7 @@ from app.db.models import AnnotationAssignment, Experimenter, Participant, Trial
 from app.security import AccountRole, hash_password
 from app.study.config import StudyFiles, template
 from bench.live import make_trial
-from tests.app.live import ServerThread, browser, cli, page_csrf_token, submit_login
+from tests.app.live import ServerThread, browser, cli, experimenter_client, page_csrf_token, submit_login
 
 PASSWORD = "annotate well"
 
@@ -157,3 +157,32 @@ def test_a_study_file_declares_the_free_tags_its_annotators_may_use(server, tria
     assert refused.status_code == 422 and "landmark naming, map mismatch" in html.unescape(refused.text)
     tags = [r.event.tag for r in AnnotationLog(server.services.db).records(trial) if isinstance(r.event, Tagged)]
     assert tags == ["landmark naming", "needs_history"], "the refused tag left nothing in the log"
+
+
+def test_the_experimenter_makes_an_annotator_on_the_annotation_page(server, trial):
+    client = experimenter_client(server.services, server.url)
+    page = client.get("/experimenter")
+    assert 'href="/experimenter/annotation"' in page.text
+    form = client.get("/experimenter/annotation").text
+    made = client.post(
+        "/experimenter/annotators",
+        data={"csrf_token": page_csrf_token(form), "name": "ann", "password": PASSWORD, "study": "pilot"},
+    )
+    assert (
+        made.status_code == 200 and "Created: ann." in made.text and str(made.url).endswith("study=pilot&created=ann")
+    )
+    short = client.post(
+        "/experimenter/annotators", data={"csrf_token": page_csrf_token(form), "name": "bob", "password": "short"}
+    )
+    twice = client.post(
+        "/experimenter/annotators", data={"csrf_token": page_csrf_token(form), "name": "ann", "password": PASSWORD}
+    )
+    assert short.status_code == 422 and "at least 8 characters" in short.text
+    assert twice.status_code == 422 and "already exists" in html.unescape(twice.text)
+    with server.services.db.begin() as db:
+        (account,) = db.query(Experimenter).filter_by(name="ann").all()
+        assert account.role == AccountRole.ANNOTATOR
+        db.add(AnnotationAssignment(trial_id=trial, annotator_id=account.id))
+    annotator, queue = annotator_browser(server, "ann")
+    assert f"trial {trial}" in queue.text
+    assert annotator.get("/experimenter", follow_redirects=False).status_code == 303
