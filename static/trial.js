@@ -22,6 +22,7 @@ export function foldEvent(s, e) {
     case "trial_created": s.targets_total = (p.targets || []).length || s.targets_total; break;
     case "phase":
       s.phase = p.phase;
+      if (p.phase === "aborted") s.abort_reason = p.reason || null;
       if (p.target_index !== null && p.target_index !== undefined) s.target_index = p.target_index;
       break;
     case "paused": if (!s.paused.includes(p.reason)) s.paused = [...s.paused, p.reason]; break;
@@ -42,7 +43,7 @@ export function foldEvent(s, e) {
 
 // The server's status message (or a dashboard snapshot of the same shape) replaces what the fold guessed.
 export function applyStatus(s, msg) {
-  for (const key of ["phase", "target_index", "targets_total", "elapsed_s", "moves", "paused", "waiting_for", "claim_pending"])
+  for (const key of ["phase", "target_index", "targets_total", "elapsed_s", "moves", "paused", "waiting_for", "claim_pending", "abort_reason"])
     if (msg[key] !== undefined && msg[key] !== null) s[key] = msg[key];
   s.from_server = true;
   s.status_at = performance.now();
@@ -69,7 +70,9 @@ export function statusText(s, role) {
   const partner = PARTNER[role];
   const target = `target ${Math.min(s.target_index + 1, s.targets_total)} of ${s.targets_total}`;
   if (s.phase === "finished") return "Finished: all three targets found. Thank you!";
-  if (s.phase === "aborted") return "This trial has ended early. You can close this page.";
+  if (s.phase === "aborted") {
+    return `This trial has ended early${s.abort_reason ? ` (${s.abort_reason})` : ""}. You can close this page.`;
+  }
   const missing = s.waiting_for.length ? s.waiting_for
     : (s.paused.filter((r) => r.startsWith("disconnect:")).map((r) => r.slice("disconnect:".length)));
   if (s.phase === "waiting") {

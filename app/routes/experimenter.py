@@ -218,8 +218,17 @@ def exclude(db: DbSession, trial_id: int, reason: str = Form("", max_length=2000
 
 
 @router.post("/trials/{trial_id}/{action}")
-async def control(db: DbSession, log: LogDep, hub: HubDep, trial_id: int, action: str, back: str = Form("dashboard")):
-    """Pause, resume or abort; back to the dashboard, or to the trial's page (`back=trial`)."""
+async def control(
+    db: DbSession,
+    log: LogDep,
+    hub: HubDep,
+    trial_id: int,
+    action: str,
+    back: str = Form("dashboard"),
+    reason: str = Form("", max_length=500),
+):
+    """Pause, resume or abort (with the experimenter's reason, logged and shown to the seats); back
+    to the dashboard, or to the trial's page (`back=trial`)."""
     if action not in ("pause", "resume", "abort"):
         raise HTTPException(404, f"unknown trial action {action!r}")
     trial_or_404(db, trial_id)
@@ -228,7 +237,12 @@ async def control(db: DbSession, log: LogDep, hub: HubDep, trial_id: int, action
     if action not in controls_for(state.phase, sorted(state.pause_reasons)):
         return _redirect(f"trial {trial_id} is {_described(state)}: {action} does not apply")
     runtime = await hub.get(trial_id)
-    getattr(runtime, action)()
+    if action == "abort":
+        runtime.abort(
+            f"stopped by the experimenter: {reason.strip()}" if reason.strip() else "stopped by the experimenter"
+        )
+    else:
+        getattr(runtime, action)()
     return RedirectResponse(page, status_code=303)
 
 

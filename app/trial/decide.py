@@ -184,7 +184,9 @@ def decide(state: TrialState, command: Command) -> list[ev.Event]:
         case Abort(reason=reason):
             return [ev.PhaseChanged(phase=Phase.ABORTED, reason=reason)]
         case GraceExpired(role=role):
-            return [ev.PhaseChanged(phase=Phase.ABORTED)] if role in state.away else []
+            if role not in state.away:
+                return []
+            return [ev.PhaseChanged(phase=Phase.ABORTED, reason=f"the {role} was away longer than the grace period")]
     raise TypeError(f"not a trial command: {command!r}")
 
 

@@ -205,6 +205,8 @@ class RedisRelay:
         elif op == "leave" and conn_id in self.relayed:
             seat = self.relayed.pop(conn_id)
             runtime.unwatch(seat) if seat.role == EXPERIMENTER else runtime.leave(seat)
+        elif op == "control" and msg["action"] == "abort":
+            runtime.abort(msg.get("reason"))
         elif op == "control":
             getattr(runtime, msg["action"])()
 
@@ -302,8 +304,11 @@ class RemoteTrial:
     def resume(self) -> None:
         self._control("resume")
 
-    def abort(self) -> None:
-        self._control("abort")
+    def abort(self, reason: str | None = None) -> None:
+        if self.runtime is not None:
+            self.runtime.abort(reason)
+            return
+        self._command("control", action="abort", reason=reason)
 
 
 def _attach(runtime: TrialRuntime, conn: Connection) -> None:

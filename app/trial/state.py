@@ -57,6 +57,7 @@ class TrialState:
     localization: dict[str, Any] | None = None
     confirmed: list[dict[str, Any]] = field(default_factory=list)
     finished_active_ns: int | None = None  # active time at the last confirmation
+    abort_reason: str | None = None  # why it was aborted, where the log says
     last_seq: int = 0
 
     # -- derived ------------------------------------------------------------------
@@ -127,7 +128,9 @@ class TrialState:
                 self.connected.discard(role)
                 if role in PARTICIPANTS and self.phase.running:
                     self.away[role] = Away(t_ns)
-            case ev.PhaseChanged(phase=phase, target_index=index):
+            case ev.PhaseChanged(phase=phase, target_index=index, reason=reason):
+                if phase == Phase.ABORTED:
+                    self.abort_reason = reason
                 if self.phase == Phase.WAITING and phase.running:
                     self.started_ns = t_ns
                 self.phase = phase

@@ -73,6 +73,7 @@ def status_of(state: TrialState, now_ns: int) -> dict[str, Any]:
         "moves": state.moves,
         "paused": sorted(state.pause_reasons),
         "waiting_for": [str(r) for r in state.waiting_for],
+        "abort_reason": state.abort_reason,
         "claim_pending": state.pending_claim is not None,  # the Commander has a claim to decide
     }
 

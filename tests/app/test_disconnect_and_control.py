@@ -46,7 +46,10 @@ def test_seat_gone_past_grace_aborts_the_trial(server, trial, seats):
         async with SeatClient(server.ws_url, seats["commander"]) as commander:
             async with SeatClient(server.ws_url, seats["driver"]) as driver:
                 await start_trial(commander, driver)
-            await commander.event("phase", phase="aborted", timeout=5)
+            aborted = await commander.event("phase", phase="aborted", timeout=5)
+            assert aborted["payload"]["reason"] == "the driver was away longer than the grace period"
+            status = await commander.wait_for(lambda m: m.get("type") == "status" and m["phase"] == "aborted")
+            assert status["abort_reason"] == aborted["payload"]["reason"]  # what the seat's page shows
 
     asyncio.run(play())
     with services.db() as db:
@@ -74,8 +77,13 @@ def test_experimenter_pauses_resumes_and_aborts(server, trial, seats):
             await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial}/resume")
             await driver.event("resumed", reason="experimenter")
             assert (await move(driver, "left"))["payload"]["outcome"] == "ok"
-            await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial}/abort")
-            await commander.event("phase", phase="aborted")
+            await asyncio.to_thread(
+                experimenter.post,
+                f"/experimenter/trials/{trial}/abort",
+                data={"reason": "the room's network went down"},
+            )
+            aborted = await commander.event("phase", phase="aborted")
+            assert aborted["payload"]["reason"] == "stopped by the experimenter: the room's network went down"
             await driver.send("chat", text="hello?")
             error = await driver.wait_for(lambda m: m.get("type") == "error")
             assert "aborted" in error["error"]
