@@ -29,7 +29,15 @@ from app.drivers.registry import available_seats
 from app.guard import csrf_protect
 from app.security import SeatTokens
 from app.trial.lifecycle import Refused, delete_participant, delete_robot, delete_team, exclude_trial
-from app.trial.setup import TrialSetupError, create_participant, create_team, create_trial, parse_targets, suggest_maze
+from app.trial.setup import (
+    TrialSetupError,
+    create_participant,
+    create_team,
+    create_trial,
+    parse_targets,
+    restart_trial,
+    suggest_maze,
+)
 from app.trial.specs import HUMAN, SIM, BackendSpec, SeatSpec
 from app.trial.state import fold
 from app.trial.vocabulary import Role
@@ -204,6 +212,29 @@ def _delete(db: Session, delete) -> dict:
     except Refused as err:
         raise HTTPException(409, str(err)) from None
     return {"deleted": True}
+
+
+@router.post("/trials/{trial_id}/restart")
+def restart(db: DbSession, mazes: MazesDep, clock: ClockDep, agents: AgentsDep, hub: HubDep, trial_id: int):
+    """An aborted trial again: the same seats, targets, robot and study, on a layout the team has
+    never seen."""
+    seat_agents = available_seats(agents)
+    try:
+        with db.begin():
+            trial = restart_trial(
+                db,
+                trial_id,
+                mazes.layouts(),
+                clock.now_ns(),
+                agents=seat_agents[Role.DRIVER],
+                commanders=seat_agents[Role.COMMANDER],
+            )
+            new_id, people = trial.id, str(HUMAN) in (trial.driver, trial.commander)
+    except TrialSetupError as err:
+        return _redirect(str(err))
+    if not people:
+        from_thread.run(hub.get, new_id)
+    return _redirect()
 
 
 @router.post("/trials/{trial_id}/exclude")

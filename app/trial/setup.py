@@ -170,6 +170,43 @@ def _seated(
     return member_id, other if driver == str(HUMAN) else None
 
 
+def restart_trial(
+    db: Session,
+    trial_id: int,
+    layouts: Mapping[str, str],
+    now_ns: int,
+    agents: Mapping[str, str | None] | None = None,
+    commanders: Mapping[str, str | None] | None = None,
+) -> Trial:
+    """A new trial for an aborted one: the same seats, targets, robot and study, on a layout the
+    team has never seen (the aborted one's counts as seen: its Commander may have had the map)."""
+    old = db.get(Trial, trial_id)
+    if old is None:
+        raise TrialSetupError(f"trial {trial_id} does not exist")
+    if old.phase != Phase.ABORTED:
+        raise TrialSetupError(f"trial {trial_id} is {old.phase}: only an aborted trial is restarted")
+    team = db.get(Team, old.team_id) if old.team_id is not None else None
+    maze = suggest_maze(db, team, layouts)
+    if maze is None:
+        raise TrialSetupError(f"team {team.name if team else '-'!r} has seen every layout in the library")
+    trial = create_trial(
+        db,
+        team_id=old.team_id,
+        maze=maze,
+        targets=list(old.targets),
+        backend=old.backend,
+        driver=old.driver,
+        commander_id=old.commander_id,
+        layouts=layouts,
+        now_ns=now_ns,
+        agents=agents,
+        commander=old.commander,
+        commanders=commanders,
+    )
+    trial.study = old.study
+    return trial
+
+
 def create_team(db: Session, name: str, member_a_id: int, member_b_id: int) -> Team:
     name = name.strip()
     if not name:

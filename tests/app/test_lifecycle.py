@@ -142,3 +142,35 @@ def test_export_all_includes_aborted_trials_with_the_targets_they_confirmed(sett
     assert [i["target"] for i in instances] == ["jar"], "the confirmed target of the aborted trial is exported"
     with_seats = {"commander": "participant 1", "driver": "participant 2"}  # ids: names stay in the database
     assert instances[0]["seats"] == with_seats
+
+
+def test_an_aborted_trial_restarts_with_the_same_seats_on_a_layout_the_team_has_not_seen(server, trial):
+    client = experimenter_client(server.services, server.url)
+    refused = html.unescape(client.post(f"/experimenter/trials/{trial}/restart").text)
+    assert f"trial {trial} is waiting: only an aborted trial is restarted" in refused
+    with server.services.db.begin() as db:
+        db.get(Trial, trial).study = "pilot"
+    client.post(f"/experimenter/trials/{trial}/abort", data={"reason": "the Driver's browser crashed"})
+    row = client.get("/experimenter").text
+    assert f'action="/experimenter/trials/{trial}/restart"' in row
+    client.post(f"/experimenter/trials/{trial}/restart")
+    layouts = server.services.mazes.layouts()
+    with server.services.db() as db:
+        old = db.get(Trial, trial)
+        (new,) = db.query(Trial).filter(Trial.id > trial).all()
+    assert (new.team_id, new.targets, new.backend, new.driver, new.commander) == (
+        old.team_id,
+        old.targets,
+        old.backend,
+        old.driver,
+        old.commander,
+    )
+    assert (new.commander_id, new.driver_id, new.study, new.phase) == (
+        old.commander_id,
+        old.driver_id,
+        "pilot",
+        "waiting",
+    )
+    assert layouts[new.maze] != layouts[old.maze], "the aborted layout counts as seen"
+    page = html.unescape(client.post(f"/experimenter/trials/{new.id}/restart").text)
+    assert f"trial {new.id} is waiting: only an aborted trial is restarted" in page
