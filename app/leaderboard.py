@@ -62,13 +62,16 @@ def trial_score(active_s: float, moves: int, move_penalty_s: float) -> float:
     return active_s + move_penalty_s * moves
 
 
-def _finished(db: Session):
-    """(trial, its team's name, or None for an agent pair)."""
-    return db.execute(
+def _finished(db: Session, study: str | None):
+    """(trial, its team's name, or None for an agent pair); with `study`, only that study's trials."""
+    query = (
         select(Trial, Team.name)
         .outerjoin(Team, Team.id == Trial.team_id)
         .where(Trial.phase == Phase.FINISHED, Trial.active_s.is_not(None), Trial.excluded_reason.is_(None))
-    ).all()
+    )
+    if study is not None:
+        query = query.where(Trial.study == study)
+    return db.execute(query).all()
 
 
 def _ranked(
@@ -82,11 +85,11 @@ def _ranked(
     ]
 
 
-def standings(db: Session, move_penalty_s: float) -> list[TeamStanding]:
+def standings(db: Session, move_penalty_s: float, study: str | None = None) -> list[TeamStanding]:
     """Human teams, by their best trial driven by one of their members."""
     names = dict(db.execute(select(Participant.id, Participant.name)).all())
     groups: dict[str, tuple[list[float], set[str]]] = {}
-    for trial, team in _finished(db):
+    for trial, team in _finished(db, study):
         if not (SeatSpec.parse(trial.driver).human and SeatSpec.parse(trial.commander).human):
             continue
         scores, drivers = groups.setdefault(team, ([], set()))
@@ -96,10 +99,10 @@ def standings(db: Session, move_penalty_s: float) -> list[TeamStanding]:
     return [TeamStanding(*row) for row in _ranked(groups)]
 
 
-def agent_standings(db: Session, move_penalty_s: float) -> list[AgentStanding]:
+def agent_standings(db: Session, move_penalty_s: float, study: str | None = None) -> list[AgentStanding]:
     """Agents in one seat beside a person, by their best trial; Drivers first, then Commanders."""
     groups: dict[tuple[Role, str], tuple[list[float], set[str]]] = {}
-    for trial, team in _finished(db):
+    for trial, team in _finished(db, study):
         seats = {Role.DRIVER: trial.driver, Role.COMMANDER: trial.commander}
         kinds = {role: SeatSpec.parse(spec).kind for role, spec in seats.items()}
         agents = [(role, seats[role]) for role, kind in kinds.items() if kind == SeatKind.AGENT]
@@ -118,10 +121,10 @@ def agent_standings(db: Session, move_penalty_s: float) -> list[AgentStanding]:
     return rows
 
 
-def pair_standings(db: Session, move_penalty_s: float) -> list[PairStanding]:
+def pair_standings(db: Session, move_penalty_s: float, study: str | None = None) -> list[PairStanding]:
     """Agents in both seats, by the pair's best trial."""
     groups: dict[tuple[str, str], tuple[list[float], set[str]]] = {}
-    for trial, _team in _finished(db):
+    for trial, _team in _finished(db, study):
         if SeatSpec.parse(trial.commander).kind == SeatSpec.parse(trial.driver).kind == SeatKind.AGENT:
             scores, _ = groups.setdefault((trial.commander, trial.driver), ([], set()))
             scores.append(trial_score(trial.active_s, trial.moves, move_penalty_s))

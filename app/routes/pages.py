@@ -19,6 +19,7 @@ from app.deps import (
     SeatTokensDep,
     SessionsDep,
     SettingsDep,
+    StudyFilesDep,
 )
 from app.guard import csrf_protect
 from app.leaderboard import agent_standings, pair_standings, standings
@@ -32,6 +33,7 @@ from app.security import (
     Seat,
     SeatTokens,
 )
+from app.study.config import StudyConfigError
 from app.trial.state import fold
 from app.web import over_reason, render, trial_or_404
 
@@ -125,10 +127,28 @@ def logout(login: CurrentLogin, sessions: SessionsDep, login_sockets: LoginSocke
 
 
 @router.get("/leaderboard", response_class=HTMLResponse)
-def leaderboard(request: Request, db: DbSession, settings: SettingsDep, login: CurrentLogin) -> HTMLResponse:
-    teams = standings(db, settings.move_penalty_s)
-    agents = agent_standings(db, settings.move_penalty_s)
-    pairs = pair_standings(db, settings.move_penalty_s)
+def leaderboard(
+    request: Request,
+    db: DbSession,
+    settings: SettingsDep,
+    login: CurrentLogin,
+    files: StudyFilesDep,
+    study: str | None = None,
+) -> HTMLResponse:
+    """Every finished trial, or one study's (`?study=NAME`, scored with the study's move penalty
+    where its file sets one)."""
+    penalty = settings.move_penalty_s
+    if study:
+        try:
+            own = files.load(study).move_penalty_s
+        except LookupError:
+            own = None
+        except StudyConfigError as err:
+            raise HTTPException(500, f"study {study!r}: {err}") from None
+        penalty = own if own is not None else penalty
+    teams = standings(db, penalty, study or None)
+    agents = agent_standings(db, penalty, study or None)
+    pairs = pair_standings(db, penalty, study or None)
     is_experimenter = login is not None
     return render(
         request,
@@ -136,7 +156,8 @@ def leaderboard(request: Request, db: DbSession, settings: SettingsDep, login: C
         rows=teams,
         agents=agents,
         pairs=pairs,
-        penalty=settings.move_penalty_s,
+        penalty=penalty,
+        study=study or None,
         experimenter=is_experimenter,
     )
 

@@ -136,3 +136,22 @@ def test_agent_commanders_and_agent_pairs_rank_apart_saying_who_held_which_seat(
     mixed, paired = rest.split('id="pair-leaderboard"')
     assert "agent:" not in humans and "Larks" in mixed and "commander" in mixed
     assert "70.0" in paired and "Larks" not in paired and "oracle:" not in page
+
+
+def test_a_study_has_its_own_leaderboard_scored_with_its_move_penalty(server):
+    from app.study.config import StudyFiles, template
+
+    services = server.services
+    add_trials(services, "Ours", [("finished", 100.0, 10)])
+    add_trials(services, "Theirs", [("finished", 90.0, 10)])
+    with services.db.begin() as db:
+        team = db.scalar(select(Team).where(Team.name == "Ours"))
+        db.query(Trial).filter(Trial.team_id == team.id).update({"study": "pilot"})
+    StudyFiles(services.settings.data_dir / "studies").save(
+        template("pilot").model_copy(update={"move_penalty_s": 5.0})
+    )
+    page = httpx.get(server.url + "/leaderboard?study=pilot").text
+    assert "study pilot" in page and "Ours" in page and "Theirs" not in page
+    assert "150.0" in page and "+ 5.0 s per move" in page, "100 s + 5 s x 10 moves"
+    everyone = httpx.get(server.url + "/leaderboard").text
+    assert "Ours" in everyone and "Theirs" in everyone
