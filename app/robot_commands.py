@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import typer
 
@@ -184,6 +184,78 @@ def calibrate_overhead(
     )
 
 
+def calibrate_camera(
+    virtual: bool = typer.Option(
+        False, "--virtual", help="The virtual rover's camera: colours learned from its renders on bundled mazes."
+    ),
+    frames: Path = typer.Option(
+        None,
+        help="A folder of the rover's frames taken at known poses on a known maze: its poses.json lists "
+        '[{"image": "f1.jpg", "x": 0.5, "y": 0.4, "heading_deg": 90}, ...] (metres, table frame).',
+    ),
+    maze: str = typer.Option(None, help="--frames: the maze the frames were taken on (a library name)."),
+    geometry: Path = typer.Option(
+        None,
+        help="--frames: a camera calibration JSON whose lens and mounting to keep (default: the rover's "
+        "standard Pi camera, as robot_client mounts it).",
+    ),
+    out: Path = typer.Option(
+        None,
+        help="Where to write it (default: the camera_calibration setting, DATA_DIR/camera_calibration.json).",
+    ),
+) -> None:
+    """Calibrate the rover's front camera for perception: its geometry and the colours of the walls
+    and objects, which the particle filter and agent Drivers read rays with."""
+    from app.settings import Settings
+    from sim.robot.calibration import CalibrationError
+    from sim.robot.camera import CameraCalibration, FrontCamera
+    from sim.robot.perception import PerceptionError
+
+    if virtual == (frames is not None):
+        raise typer.BadParameter("give exactly one of --virtual and --frames", param_hint="--virtual")
+    settings = Settings()
+    try:
+        if virtual:
+            from app.perception.cameras import learned
+
+            calibration = learned(FrontCamera(), progress=True)
+        else:
+            if maze is None:
+                raise typer.BadParameter("--frames needs the maze they were taken on", param_hint="--maze")
+            base = CameraCalibration.load(geometry) if geometry is not None else FrontCamera().calibration()
+            calibration = _calibrated_from_frames(frames, maze, base, settings)
+    except (CalibrationError, PerceptionError) as err:
+        typer.echo(f"error: {err}", err=True)
+        raise typer.Exit(1) from None
+    target = out or settings.camera_calibration
+    assert target is not None  # Settings fills in its default, DATA_DIR/camera_calibration.json
+    path = calibration.save(target)
+    typer.echo(f"camera calibrated: {len(calibration.colours)} colour classes; written to {path}")
+
+
+def _calibrated_from_frames(folder: Path, maze_name: str, base: Any, settings: Any) -> Any:
+    import json
+    import math
+
+    from app.mazes import Mazes, UnknownMaze
+    from sim.core.observations import cast_rays
+    from sim.robot.calibration import CalibrationError
+    from sim.robot.perception import calibrate_colours
+
+    try:
+        maze = Mazes(settings).load(maze_name)
+    except UnknownMaze:
+        raise typer.BadParameter(f"{maze_name!r} is not in the maze library", param_hint="--maze") from None
+    listing = folder / "poses.json"
+    try:
+        poses = json.loads(listing.read_text())
+        images = [_read_image(folder / p["image"]) for p in poses]
+        truths = [cast_rays(maze, float(p["x"]), float(p["y"]), math.radians(float(p["heading_deg"]))) for p in poses]
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        raise CalibrationError(f"{listing}: {err}") from None
+    return calibrate_colours(images, truths, base)
+
+
 def _read_image(path: Path):
     import cv2
 
@@ -216,5 +288,6 @@ def register(root: typer.Typer) -> None:
     robot.command("create")(robot_create)
     robot.command("list")(robot_list)
     robot.command("calibrate-overhead")(calibrate_overhead)
+    robot.command("calibrate-camera")(calibrate_camera)
     robot.command("virtual")(robot_virtual)
     root.add_typer(robot, name="robot")

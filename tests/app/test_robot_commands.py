@@ -96,3 +96,51 @@ def test_calibrate_overhead_refuses_a_view_without_the_markers_and_keeps_the_old
     neither = cli("robot", "calibrate-overhead", env=env)
     assert neither.returncode == 2 and "exactly one of --camera and --image" in neither.stderr
     assert stored.read_text() == "kept"
+
+
+@pytest.mark.slow
+def test_calibrate_camera_from_frames_at_known_poses_makes_a_camera_perception_reads(tmp_path):
+    import json
+    import math
+
+    import cv2
+    import numpy as np
+
+    from sim.core.navgraph import NavGraph
+    from sim.core.observations import cast_rays
+    from sim.robot.camera import CameraCalibration, FrontCamera, capture
+    from sim.robot.perception import perceive, random_poses
+    from sim.tasks.library import MazeLibrary
+
+    maze = MazeLibrary().load("gen-001")
+    poses = random_poses(maze, NavGraph.build(maze), 60, np.random.default_rng(3))
+    camera = FrontCamera()  # the rover's: lens distortion, noise
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    listing = []
+    for i, (x, y, theta) in enumerate(poses[:48]):
+        cv2.imwrite(str(folder / f"f{i}.png"), capture(maze, x, y, theta, camera, rng=i))
+        listing.append({"image": f"f{i}.png", "x": float(x), "y": float(y), "heading_deg": math.degrees(theta)})
+    (folder / "poses.json").write_text(json.dumps(listing))
+    env = {"ROBOTSLANG_DATA_DIR": str(tmp_path / "var")}
+    done = cli("robot", "calibrate-camera", "--frames", str(folder), "--maze", "gen-001", env=env)
+    assert done.returncode == 0, done.stderr
+    stored = tmp_path / "var" / "camera_calibration.json"
+    assert "camera calibrated" in done.stdout and str(stored) in done.stdout
+    calibration = CameraCalibration.load(stored)
+    # Frames it never saw: the rays' labels where perception is sure of them.
+    right = total = 0
+    for i, (x, y, theta) in enumerate(poses[48:]):
+        seen = perceive(capture(maze, x, y, theta, camera, rng=100 + i), calibration)
+        labels, _ = cast_rays(maze, x, y, theta)
+        right += int(np.sum(seen.labels[seen.valid] == labels[seen.valid]))
+        total += int(np.sum(seen.valid))
+    assert total > 12 * 13 * 0.5 and right / total > 0.9, (right, total)
+
+    (folder / "poses.json").write_text(json.dumps([{"image": "missing.png", "x": 1, "y": 1, "heading_deg": 0}]))
+    bad = cli(
+        "robot", "calibrate-camera", "--frames", str(folder), "--maze", "gen-001", "--out", str(tmp_path / "x"), env=env
+    )
+    assert bad.returncode != 0 and "missing.png" in bad.stderr and not (tmp_path / "x").exists()
+    both = cli("robot", "calibrate-camera", "--virtual", "--frames", str(folder), env=env)
+    assert both.returncode != 0 and "exactly one of --virtual and --frames" in both.stderr
