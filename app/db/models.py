@@ -73,6 +73,8 @@ class Trial(Base):
     moves: Mapped[int] = mapped_column(Integer, default=0)
     # Set by the experimenter: the trial leaves the leaderboard and exports; its log is kept.
     excluded_reason: Mapped[str | None] = mapped_column(Text, nullable=True)
+    # The experimenter's notes (private: shown on the trial's and replay's pages only).
+    notes: Mapped[str | None] = mapped_column(Text, nullable=True)
 
 
 class Event(Base):

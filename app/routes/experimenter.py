@@ -44,6 +44,8 @@ from app.trial.vocabulary import Role
 from app.web import render, trial_or_404
 
 # Every state-changing request also needs this server's Origin and the page's CSRF token.
+MAX_NOTES = 10_000  # characters of a trial's notes
+
 router = APIRouter(prefix="/experimenter", dependencies=[Depends(experimenter_id), Depends(csrf_protect)])
 
 
@@ -235,6 +237,15 @@ def restart(db: DbSession, mazes: MazesDep, clock: ClockDep, agents: AgentsDep, 
     if not people:
         from_thread.run(hub.get, new_id)
     return _redirect()
+
+
+@router.post("/trials/{trial_id}/notes")
+def save_notes(db: DbSession, trial_id: int, notes: str = Form("", max_length=MAX_NOTES), back: str = Form("trial")):
+    """The experimenter's notes on a trial, at any time (during or after it); private."""
+    with db.begin():
+        trial_or_404(db, trial_id).notes = notes.strip() or None
+    page = "replay" if back == "replay" else ""
+    return RedirectResponse(f"/experimenter/trials/{trial_id}" + (f"/{page}" if page else ""), status_code=303)
 
 
 @router.post("/trials/{trial_id}/exclude")

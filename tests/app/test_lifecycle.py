@@ -174,3 +174,23 @@ def test_an_aborted_trial_restarts_with_the_same_seats_on_a_layout_the_team_has_
     assert layouts[new.maze] != layouts[old.maze], "the aborted layout counts as seen"
     page = html.unescape(client.post(f"/experimenter/trials/{new.id}/restart").text)
     assert f"trial {new.id} is waiting: only an aborted trial is restarted" in page
+
+
+def test_the_experimenters_notes_stay_on_the_experimenters_pages(tmp_path):
+    settings = platform_settings(tmp_path)
+    (done,) = asyncio.run(Demo(settings, seed=4, pace_s=0.0).run(1))
+    notes = "Driver asked twice what a paddle is; lab door slammed at 3:10"
+    with ServerThread(settings) as server:
+        client = experimenter_client(server.services, server.url)
+        client.post(f"/experimenter/trials/{done.trial_id}/notes", data={"notes": notes, "back": "replay"})
+        assert notes in html.unescape(client.get(f"/experimenter/trials/{done.trial_id}").text)
+        assert notes in html.unescape(client.get(f"/experimenter/trials/{done.trial_id}/replay").text)
+        assert notes not in html.unescape(client.get("/leaderboard").text)
+        seat = server.services.seats.issue(done.trial_id, "commander")
+        assert notes not in html.unescape(client.get(f"/play/{seat}").text)
+        long = client.post(f"/experimenter/trials/{done.trial_id}/notes", data={"notes": "x" * 10_001})
+        assert long.status_code == 422
+        assert notes in html.unescape(client.get(f"/experimenter/trials/{done.trial_id}").text), "kept"
+    for fmt, out in (("ndh", tmp_path / "ndh"), ("mcap", tmp_path / "mcap")):
+        assert export(settings, "all", "--format", fmt, "--out", str(out)).returncode == 0
+        assert not any(notes.encode() in f.read_bytes() for f in out.rglob("*") if f.is_file()), fmt
