@@ -46,7 +46,41 @@ function drawBelief(b) {
   TableMap.drawRobot(ctx, canvas, b.mean[0], b.mean[1], b.mean[2], "#00a080");
 }
 
+const targets = root.dataset.targetNames.split(",");
+const penalty = Number(root.dataset.penalty);
+let claimPending = null;
+
+function addChat(p) {
+  const li = document.createElement("li");
+  li.className = p.role;
+  const who = document.createElement("b");
+  who.textContent = p.role === "commander" ? "Commander" : "Driver";
+  li.append(who, document.createTextNode(" " + p.text));
+  $("messages").append(li);
+}
+
+// A claim waits for the Commander's verdict; the verdict clears it (with the ground truth, ours only).
+const pendingText = (i) => `Claim pending: the Driver says target ${i + 1} (${targets[i]}) is here.`;
+function onClaimEvent(kind, p) {
+  if (kind === "target_claimed") claimPending = pendingText(p.target_index);
+  else if (kind === "target_confirmed" || kind === "target_rejected") {
+    const truth = p.within_m === undefined ? "" : ` (truly ${p.truly_within ? "within" : "not within"} reach, ${Number(p.within_m).toFixed(2)} m)`;
+    claimPending = null;
+    $("claim-note").dataset.last = `${kind === "target_confirmed" ? "Confirmed" : "Rejected"}${truth}.`;
+  }
+}
+
 function render() {
+  const over = OVER.has(status.phase);
+  $("next-target").textContent = over ? "—" : (targets[Math.min(status.target_index, targets.length - 1)] || "…");
+  const note = $("claim-note");
+  note.textContent = claimPending || note.dataset.last || "";
+  note.hidden = !note.textContent;
+  // The leaderboard's score, once the trial has finished: time plus the penalty per move.
+  $("score-box").hidden = status.phase !== "finished";
+  if (status.phase === "finished" && status.moves !== null) {
+    $("score").textContent = `${(clockSeconds(status) + penalty * status.moves).toFixed(1)} s`;
+  }
   const text = statusText(status, "experimenter");
   if (text !== announced) { $("status").textContent = text; announced = text; }
   $("status").dataset.phase = status.phase;
@@ -64,6 +98,9 @@ function onMessage(msg) {
   if (msg.type === "welcome") {
     applyStatus(status, msg.status);
     seen.pose = msg.pose; seen.localization = msg.localization;
+    $("messages").replaceChildren();
+    msg.history.forEach((e) => { if (e.kind === "chat") addChat(e.payload); else onClaimEvent(e.kind, e.payload); });
+    if (msg.pending_claim) claimPending = pendingText(status.target_index);
     if (msg.frame) camera(msg.frame.jpeg);
   } else if (msg.type === "belief") {
     seen.belief = msg;
@@ -76,6 +113,8 @@ function onMessage(msg) {
     if (msg.kind === "frame" && msg.jpeg) camera(msg.jpeg);
     else if (msg.kind === "pose") seen.pose = [msg.payload.x, msg.payload.y, msg.payload.heading];
     else if (msg.kind === "localization") seen.localization = msg.payload;
+    else if (msg.kind === "chat") addChat(msg.payload);
+    else onClaimEvent(msg.kind, msg.payload);
   }
   render(); draw();
 }

@@ -304,7 +304,7 @@ def live(db: DbSession, hub: HubDep):
 
 
 @router.get("/trials/{trial_id}", response_class=HTMLResponse)
-def watch(request: Request, db: DbSession, log: LogDep, seats: SeatTokensDep, trial_id: int):
+def watch(request: Request, db: DbSession, log: LogDep, seats: SeatTokensDep, settings: SettingsDep, trial_id: int):
     trial = trial_or_404(db, trial_id)
     state = fold(log.load(trial_id))
     names = dict(db.execute(select(Participant.id, Participant.name)).all())
@@ -316,6 +316,7 @@ def watch(request: Request, db: DbSession, log: LogDep, seats: SeatTokensDep, tr
         links=join_links(request, seats, trial),
         holders=seat_holders(trial, names),
         controls=controls_for(state.phase, sorted(state.pause_reasons)),
+        penalty=settings.move_penalty_s,
     )
 
 

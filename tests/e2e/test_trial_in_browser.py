@@ -139,6 +139,9 @@ def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, server):
             admin.goto(f"{server.url}/experimenter/trials/{trial_id}")
             admin.wait_for_selector("#status >> text=The Driver claims target 1 of 3")
             assert admin.is_hidden("#ldh-note"), "no LDH caption without its discs"
+            # The experimenter's page follows the dialog: the chat, the next target, the pending claim.
+            admin.wait_for_selector(f"#claim-note >> text=Claim pending: the Driver says target 1 ({target})")
+            assert admin.inner_text("#next-target") == target and admin.locator("#messages li").count() >= 1
             admin.screenshot(path=str(ARTIFACTS / "watch-claim.png"))
         commander.click("#confirm")
         if index == 0:
@@ -148,6 +151,9 @@ def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, server):
     commander.wait_for_selector("#status[data-phase=finished]")
     driver.wait_for_selector("#status[data-phase=finished]")
     commander.screenshot(path=str(ARTIFACTS / "commander-finished.png"))
+    admin.wait_for_selector("#score-box:not([hidden])")
+    assert float(admin.inner_text("#score").removesuffix(" s")) > 0  # the leaderboard's score, on the trial's page
+    admin.screenshot(path=str(ARTIFACTS / "watch-finished.png"))
     driver.screenshot(path=str(ARTIFACTS / "driver-finished.png"))
 
     board = browser.new_context().new_page()
