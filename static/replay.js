@@ -34,6 +34,24 @@ import {emptyStatus, foldEvent, formatClock, statusText} from "./trial.js";
       list.appendChild(li);
       chatItems.push({li, i});
     });
+    // Claims and verdicts: ticks on the timeline, and buttons that go to each.
+    const marks = $("marks"), ticks = $("timeline-marks");
+    const MARKED = {target_claimed: "claimed", target_confirmed: "confirmed", target_rejected: "rejected"};
+    events.forEach((e, i) => {
+      if (!(e.kind in MARKED)) return;
+      const option = document.createElement("option");
+      option.value = String(Math.round(rel[i]));
+      ticks.appendChild(option);
+      const li = document.createElement("li"), button = document.createElement("button");
+      button.type = "button";
+      button.className = `mark ${MARKED[e.kind]}`;
+      button.textContent = `${(rel[i] / 1000).toFixed(1)} s: target ${e.payload.target_index + 1} ${MARKED[e.kind]}`;
+      button.addEventListener("click", () => { setPlaying(false); now = rel[i]; render(); });
+      li.appendChild(button);
+      marks.appendChild(li);
+    });
+    // A rover trial's overhead camera, played beside the Driver's.
+    $("overhead-card").hidden = !events.some((e) => e.kind === "frame" && e.payload.source === "overhead");
   }
 
   // How many events have happened at `t` ms (binary search over the sorted times).
@@ -46,12 +64,13 @@ import {emptyStatus, foldEvent, formatClock, statusText} from "./trial.js";
   function render() {
     const n = count(now);
     const status = emptyStatus();
-    let frame = null, pose = null;
+    let frame = null, overhead = null, pose = null;
     const trace = [], estimates = [];
     for (let i = 0; i < n; i++) {
       const e = events[i], p = e.payload;
       foldEvent(status, e);
       if (e.kind === "frame" && (p.source || "driver") === "driver") frame = p;
+      else if (e.kind === "frame" && p.source === "overhead") overhead = p;
       else if (e.kind === "pose") { pose = p; trace.push(p); }
       else if (e.kind === "localization") estimates.push(p);
     }
@@ -72,6 +91,14 @@ import {emptyStatus, foldEvent, formatClock, statusText} from "./trial.js";
     } else if (!frame && img.dataset.frameId) {
       img.removeAttribute("src"); delete img.dataset.frameId; img.hidden = true; $("frame-wait").hidden = false;
       $("frame-info").textContent = "";
+    }
+
+    const top = $("overhead");
+    if (overhead && top.dataset.frameId !== String(overhead.frame_id)) {
+      top.src = overhead.url; top.dataset.frameId = overhead.frame_id; top.hidden = false;
+      $("overhead-info").textContent = `frame ${overhead.frame_id}`;
+    } else if (!overhead && top.dataset.frameId) {
+      top.removeAttribute("src"); delete top.dataset.frameId; top.hidden = true; $("overhead-info").textContent = "";
     }
 
     if (map.complete && map.naturalWidth) ctx.drawImage(map, 0, 0, canvas.width, canvas.height);

@@ -112,6 +112,18 @@ def test_replay_plays_the_log_in_sync(server, browser):
     assert shown(page) == held
     assert 5 < held["events"] < len(log["events"]), "paused part-way through"
     assert page.inner_text("#play") == "Play"
+
+    # Each claim and verdict is a mark on the timeline; a mark takes the replay to its moment.
+    t0 = next(e for e in log["events"] if e["kind"] != "trial_created")["t_ns"]
+    marked = [e for e in log["events"] if e["kind"] in ("target_claimed", "target_confirmed", "target_rejected")]
+    assert len(marked) >= 6, "three claims and their verdicts"
+    assert page.locator("#timeline-marks option").count() == len(marked) == page.locator("#marks button").count()
+    second = marked[3]
+    assert page.locator("#marks button").nth(3).inner_text().endswith("target 2 confirmed")
+    page.locator("#marks button").nth(3).click()
+    at = max(0.0, (second["t_ns"] - t0) / 1e6)
+    assert shown(page) == expected_at(log, at)
+    assert page.is_hidden("#overhead-card"), "a simulator trial has no overhead camera"
     page.close()
 
 
