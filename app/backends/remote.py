@@ -14,6 +14,7 @@ from __future__ import annotations
 import asyncio
 import hashlib
 import logging
+import math
 import secrets
 import time
 from collections import deque
@@ -32,6 +33,7 @@ from app.trial.port import RobotTrial
 from app.trial.specs import BackendSpec
 from app.trial.vocabulary import PARTICIPANTS, ROBOT_ROLES, FrameSource, Move, Outcome, PoseSource, Role
 from robot_client.protocol import FrameHeader
+from sim.core.geometry import GRID_STEP_M
 
 if TYPE_CHECKING:
     from app.backends.registry import BackendParts
@@ -42,6 +44,10 @@ PING_INTERVAL_S = 0.1  # well under the rover's 0.5 s watchdog, so a live link n
 MAX_FRAME_BYTES = 1024 * 1024  # a 1280x720 JPEG at quality 95 is about 300 KB
 ACK_TIMEOUT_S = 12.0  # the longest pulse a calibration allows (10 s) plus slack
 FRAME_AFTER_MOVE_S = 1.0  # how long execute() waits for a frame showing the move's result
+# A forward move the overhead camera saw go less than this share of a step ran into something: the
+# rover cannot sense a collision itself, so the tracker tells the Driver it bumped, as the
+# simulator does. Without a fresh sighting before and after, the move counts as made.
+BUMP_SHARE = 0.4
 OFFSET_SAMPLES = 32
 RATE_WINDOW_S = 2.0
 
@@ -389,6 +395,7 @@ class RemoteRobotBackend:
         link = self.links.links.get(self.robot_id)
         if link is None:
             raise BackendUnavailable(f"robot {self.name!r} is not connected")
+        before = self.tracker.latest if self.tracker.pose() is not None else None
         self._moving = True
         try:
             ack = await link.move(action)
@@ -400,7 +407,18 @@ class RemoteRobotBackend:
         finished = ack.get("finished_ns")
         if isinstance(finished, int):
             await self.links.slot(self.robot_id).captured_after(finished, FRAME_AFTER_MOVE_S)
-        return MoveOutcome(action, Outcome.OK)  # the rover cannot sense collisions; the overhead log can
+            if action == Move.FORWARD and before is not None:
+                after = await self.tracker.sighting_after(finished, FRAME_AFTER_MOVE_S)
+                if after is not None:
+                    moved = math.hypot(after.x - before.x, after.y - before.y)
+                    if moved < BUMP_SHARE * GRID_STEP_M:
+                        return MoveOutcome(
+                            action,
+                            Outcome.COLLISION,
+                            f"bumped: the overhead camera saw the rover move {moved * 100:.1f} of "
+                            f"{GRID_STEP_M * 100:.0f} cm",
+                        )
+        return MoveOutcome(action, Outcome.OK)
 
     @property
     def attended(self) -> bool:

@@ -57,6 +57,17 @@ class TrialTracker:
         if pose is not None:
             self.record_pose((pose.x, pose.y, pose.heading))
 
+    async def sighting_after(self, t_ns: int, timeout_s: float) -> TrackedPose | None:
+        """The first pose tracked in a frame taken at or after `t_ns` (server clock), waiting up to
+        `timeout_s`; None when no frame since showed the rover in time."""
+        deadline = self.clock_ns() + timeout_s * 1e9
+        while self.clock_ns() < deadline:
+            p = self.latest
+            if p is not None and p.t_ns >= t_ns:
+                return p
+            await asyncio.sleep(0.05)
+        return None
+
     def pose(self) -> tuple[float, float, float] | None:
         """The pose in the last frame tracked, while it is fresh; None when that frame did not show
         the rover."""

@@ -142,3 +142,46 @@ async def test_the_learned_driver_drives_a_virtual_rover_to_a_claim(
     # After the rejection the agent chose a move of its own; the rover made it, then it claimed again.
     assert executed and executed[0]["outcome"] == "ok"
     assert moved and moved[0].action == executed[0]["action"]
+
+
+@pytest.mark.slow
+async def test_a_rover_driven_into_a_wall_tells_the_driver_it_bumped(tmp_path, maze, start):
+    from sim.robot.rover import NOISE_MODELS, Rover
+
+    exact = Rover(maze, start, NOISE_MODELS["none"])
+    free = 0
+    while not exact.move("forward").collided:
+        free += 1
+    lab = Lab(tmp_path)
+    try:
+        robot_id, token = lab.register("bumping rover")
+        _, camera_token = lab.register("table camera", role="overhead")
+        trial = make_trial(lab.services, MAZE, targets=TARGETS, backend=f"robot:{robot_id}")
+        truth = tmp_path / "truth.jsonl"
+        lab.rover(
+            token,
+            "--truth",
+            str(truth),
+            "--noise",
+            "none",
+            "--fps",
+            "5",
+            "--start",
+            f"{start.x},{start.y},{start.theta}",
+        )
+        lab.rover(camera_token, "--role", "overhead", "--truth", str(truth), "--fps", "5")
+        commander, driver = lab.seats(trial)
+        async with commander, driver:
+            await driver.event("phase", phase="localizing", timeout=START_S)
+            await until(lambda: tracked(lab, trial), what="a tracked pose")
+            outcomes = []
+            for i in range(free + 2):  # the move that meets the wall may go part of a step; the next, none
+                await driver.send("move", action="forward", move_id=f"f{i}")
+                done = await driver.event("move_executed", move_id=f"f{i}", timeout=START_S)
+                outcomes.append((done["payload"]["outcome"], done["payload"].get("reason")))
+        assert [o for o, _ in outcomes[:free]] == ["ok"] * free, outcomes
+        outcome, reason = outcomes[-1]
+        assert outcome == "collision" and reason.startswith("bumped: the overhead camera saw the rover move"), outcomes
+        assert settled(truth)[-1].collision, "the virtual rover did push against the wall"
+    finally:
+        lab.close()
