@@ -139,7 +139,9 @@ async def test_malformed_server_messages_get_an_error_and_change_nothing(scripte
             assert error["code"] == "bad_message" and words in error["error"]
         await scripted_server.send({"type": "move", "id": 9, "action": "forward"})
         assert (await scripted_server.next("ack"))["status"] == "done"
-    assert on_spans(pin(factory, "GPIO4")) == [pytest.approx(0.2, abs=0.04)]
+    (span,) = on_spans(pin(factory, "GPIO4"))
+    # The pulse's calibrated 0.2 s; a loaded machine's sleeps overshoot, never end early.
+    assert 0.16 <= span <= 0.35, span
 
 
 async def test_wrong_token_is_refused_without_retrying(scripted_server):
