@@ -86,12 +86,14 @@ def create_trial(
     agents: Mapping[str, str | None] | None = None,
     commander: str = str(HUMAN),
     commanders: Mapping[str, str | None] | None = None,
+    start: tuple[float, float, float] | None = None,
 ) -> Trial:
     """`layouts`: each maze of the library -> its layout (`Mazes.layouts()`); `agents` and
     `commanders` (`available_agents(services, role)`) are needed when an agent holds that seat.
     `commander_id`: the member in the Commander's seat (default the team's first); with an agent
     Commander, the member who drives. With agents in both seats the team is not asked for (none is
-    stored)."""
+    stored). `start`: where the simulated robot starts (x, y, theta; snapped to the maze's graph),
+    logged with the trial; None: the simulator backend draws a start."""
     check_seat(Role.DRIVER, driver, agents)
     check_seat(Role.COMMANDER, commander, commanders)
     people = str(HUMAN) in (driver, commander)
@@ -115,6 +117,8 @@ def create_trial(
             raise TrialSetupError(f"backend {backend!r}: no registered rover with id {spec.arg!r}")
     elif spec != SIM:
         raise TrialSetupError(f"backend {backend!r} is neither 'sim' nor 'robot:<id>'")
+    if start is not None and spec != SIM:
+        raise TrialSetupError("a start pose is for the simulator: a rover starts where it stands")
     trial = Trial(
         team_id=team.id if team is not None else None,
         maze=maze,
@@ -129,7 +133,7 @@ def create_trial(
     )
     db.add(trial)
     db.flush()
-    created = TrialCreated(maze=maze, targets=targets, backend=backend, driver=driver, commander=commander)
+    created = TrialCreated(maze=maze, targets=targets, backend=backend, driver=driver, commander=commander, start=start)
     db.add(Event(trial_id=trial.id, seq=1, kind=created.kind, t_ns=now_ns, payload=created.payload()))
     return trial
 
@@ -177,6 +181,7 @@ def restart_trial(
     now_ns: int,
     agents: Mapping[str, str | None] | None = None,
     commanders: Mapping[str, str | None] | None = None,
+    start: tuple[float, float, float] | None = None,
 ) -> Trial:
     """A new trial for an aborted one: the same seats, targets, robot and study, on a layout the
     team has never seen (the aborted one's counts as seen: its Commander may have had the map)."""
