@@ -97,7 +97,9 @@ def test_selfplay_through_the_trial_core_records_ordinary_trials(tmp_path):
 
 def test_record_refuses_a_seat_the_platform_has_no_agent_for(tmp_path):
     data = tmp_path / "var"
-    done = cli("eval", "selfplay", "--record", str(data), "--limit", "1", "--commander", "oracle", env={"COLUMNS": "200"})
+    done = cli(
+        "eval", "selfplay", "--record", str(data), "--limit", "1", "--commander", "oracle", env={"COLUMNS": "200"}
+    )
     assert done.returncode != 0
     assert "--commander" in done.stderr and "no Commander 'oracle'" in done.stderr
     assert not (data / "robotslang.db").exists()  # nothing was created
