@@ -6,6 +6,7 @@ no person sits, so nobody sees its layout. The `trial_created` event is written 
 
 from __future__ import annotations
 
+import math
 import random
 from collections import Counter
 from collections.abc import Mapping
@@ -111,14 +112,16 @@ def create_trial(
         spec = BackendSpec.parse(backend)
     except ValueError:
         spec = None
+    if start is not None and spec != SIM:
+        raise TrialSetupError("a start pose is for the simulator: a rover starts where it stands")
     if spec is not None and spec.robot_id is not None:
         robot = db.get(Robot, spec.robot_id)
         if robot is None or robot.role != Role.DRIVER:
             raise TrialSetupError(f"backend {backend!r}: no registered rover with id {spec.arg!r}")
     elif spec != SIM:
         raise TrialSetupError(f"backend {backend!r} is neither 'sim' nor 'robot:<id>'")
-    if start is not None and spec != SIM:
-        raise TrialSetupError("a start pose is for the simulator: a rover starts where it stands")
+    if start is not None and not (len(start) == 3 and all(map(math.isfinite, start))):
+        raise TrialSetupError(f"start {start!r} is not a pose (x, y, theta: three finite numbers)")
     trial = Trial(
         team_id=team.id if team is not None else None,
         maze=maze,
@@ -181,7 +184,6 @@ def restart_trial(
     now_ns: int,
     agents: Mapping[str, str | None] | None = None,
     commanders: Mapping[str, str | None] | None = None,
-    start: tuple[float, float, float] | None = None,
 ) -> Trial:
     """A new trial for an aborted one: the same seats, targets, robot and study, on a layout the
     team has never seen (the aborted one's counts as seen: its Commander may have had the map)."""

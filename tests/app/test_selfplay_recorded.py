@@ -10,10 +10,11 @@ import math
 import pytest
 from sqlalchemy import select
 
-from app.db.engine import make_engine, make_sessionmaker
+from app.db.engine import make_engine, make_sessionmaker, open_database
 from app.db.models import Event, Trial
 from app.mazes import Mazes
 from app.settings import Settings
+from app.trial.setup import TrialSetupError, create_trial
 from sim.agents.selfplay import library_trials
 from sim.core.dynamics import continuous_pose, snap_pose
 from sim.core.navgraph import NavGraph
@@ -103,3 +104,31 @@ def test_record_refuses_a_seat_the_platform_has_no_agent_for(tmp_path):
     assert done.returncode != 0
     assert "--commander" in done.stderr and "no Commander 'oracle'" in done.stderr
     assert not (data / "robotslang.db").exists()  # nothing was created
+
+
+@pytest.mark.parametrize(
+    ("backend", "start", "error"),
+    [("sim", (math.nan, 1.0, 0.0), "is not a pose"), ("robot:1", (1.0, 1.0, 0.0), "for the simulator")],
+)
+def test_a_trial_start_must_be_a_pose_for_the_simulator(tmp_path, backend, start, error):
+    settings = Settings(data_dir=tmp_path)
+    sessions = open_database(settings)
+    maze = LIBRARY.names()[0]
+    with pytest.raises(TrialSetupError, match=error), sessions.begin() as db:
+        create_trial(
+            db,
+            team_id=None,
+            maze=maze,
+            targets=["jar", "mug", "paddle"],
+            backend=backend,
+            driver="agent:dialog",
+            commander="agent:dialog",
+            commander_id=None,
+            layouts={maze: maze},
+            now_ns=0,
+            agents={"agent:dialog": None},
+            commanders={"agent:dialog": None},
+            start=start,
+        )
+    with sessions() as db:
+        assert db.scalars(select(Trial)).all() == []  # nothing recorded
