@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import typer
@@ -25,6 +26,7 @@ from sim.agents.selfplay import (
 )
 from sim.cli.eval import open_benchmark
 from sim.core.dynamics import continuous_pose
+from sim.core.navgraph import NavGraph
 from sim.tasks.benchmark import Split
 
 
@@ -66,13 +68,13 @@ def eval_selfplay(
     simulator's graph, no server or event log) and are not recorded; with it they are ordinary
     recorded trials of the platform."""
 
+    graph_of: Callable[[str], NavGraph]  # a spec's maze -> the graph its start is a pose of
     if benchmark is not None:
         bench = open_benchmark(benchmark)
         root = str(bench.root)
         specs = benchmark_trials(bench, split.value)[:limit]
-        graphs = [bench.graph(spec.maze) for spec in specs]
+        graph_of = bench.graph
     else:
-        from sim.core.navgraph import NavGraph
         from sim.tasks.library import BUNDLED_DIR, MazeLibrary
 
         root = None
@@ -80,8 +82,9 @@ def eval_selfplay(
         mazes = [(name, library.load(name)) for name in library.names()[:limit]]
         graphs = [NavGraph.build(m, "benchmark") for _, m in mazes]
         specs = library_trials(mazes, graphs, seed)
+        graph_of = dict(zip([name for name, _ in mazes], graphs, strict=True)).__getitem__
     if record is not None:
-        starts = [Start(spec.maze, continuous_pose(g, spec.start)) for spec, g in zip(specs, graphs, strict=True)]
+        starts = [Start(spec.maze, continuous_pose(graph_of(spec.maze), spec.start)) for spec in specs]
         results = recorded(record, benchmark, starts, commander, driver, processes, timeout_s)
     else:
         jobs = [Job(spec, commander, driver, root) for spec in specs]
