@@ -6,10 +6,12 @@ from __future__ import annotations
 
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import typer
 
+from app.drivers.selfplay import Start, record_trials
 from sim.agents.selfplay import (
     CommanderName,
     DriverName,
@@ -23,6 +25,8 @@ from sim.agents.selfplay import (
     summarize,
 )
 from sim.cli.eval import open_benchmark
+from sim.core.dynamics import continuous_pose
+from sim.core.navgraph import NavGraph
 from sim.tasks.benchmark import Split
 
 
@@ -48,9 +52,10 @@ def eval_selfplay(
         None,
         "--record",
         help="A data directory: play each trial through the platform's trial core (its runtime, event "
-        "log and simulator backend, --processes trials at once in this process) with agent:dialog in "
-        "both seats, recorded there as an ordinary trial (replay, export). The robot starts where the "
-        "platform puts it; the pace is the platform's (ROBOTSLANG_ settings).",
+        "log and simulator backend, in --processes worker processes on the one database) with the "
+        "seats' platform agents (dialog: agent:dialog), recorded there as an ordinary trial (replay, "
+        "export) from the same start as without --record (logged with the trial); the pace is the "
+        "platform's (ROBOTSLANG_ settings).",
     ),
     timeout_s: float = typer.Option(900.0, min=1.0, help="--record: abort a trial not over after this long."),
     as_json: bool = typer.Option(False, "--json", help="Print the figures as one JSON object."),
@@ -63,24 +68,26 @@ def eval_selfplay(
     simulator's graph, no server or event log) and are not recorded; with it they are ordinary
     recorded trials of the platform."""
 
+    graph_of: Callable[[str], NavGraph]  # a spec's maze -> the graph its start is a pose of
     if benchmark is not None:
         bench = open_benchmark(benchmark)
         root = str(bench.root)
-        specs = benchmark_trials(bench, split.value)
+        specs = benchmark_trials(bench, split.value)[:limit]
+        graph_of = bench.graph
     else:
-        from sim.core.navgraph import NavGraph
         from sim.tasks.library import BUNDLED_DIR, MazeLibrary
 
         root = None
         library = MazeLibrary(bundled=BUNDLED_DIR)
         mazes = [(name, library.load(name)) for name in library.names()[:limit]]
-        specs = library_trials(mazes, [NavGraph.build(m, "benchmark") for _, m in mazes], seed)
+        graphs = [NavGraph.build(m, "benchmark") for _, m in mazes]
+        specs = library_trials(mazes, graphs, seed)
+        graph_of = dict(zip([name for name, _ in mazes], graphs, strict=True)).__getitem__
     if record is not None:
-        results = recorded(
-            record, benchmark, [spec.maze for spec in specs[:limit]], commander, driver, processes, timeout_s
-        )
+        starts = [Start(spec.maze, continuous_pose(graph_of(spec.maze), spec.start)) for spec in specs]
+        results = recorded(record, benchmark, starts, commander, driver, processes, timeout_s)
     else:
-        jobs = [Job(spec, commander, driver, root) for spec in specs[:limit]]
+        jobs = [Job(spec, commander, driver, root) for spec in specs]
         results = offline(jobs, processes, f"self-play {commander}/{driver}")
     if per_trial is not None:
         per_trial.parent.mkdir(parents=True, exist_ok=True)
@@ -94,18 +101,32 @@ def offline(jobs: list[Job], processes: int, desc: str) -> list[TrialResult]:
     return list(tqdm(iter_results(jobs, run_job, processes), total=len(jobs), desc=desc, file=sys.stderr))
 
 
+# The offline runner's agents as the platform seats them; a name missing here has no platform twin
+# (the oracles read the simulator's truth directly; the platform's `oracle:shortest` Driver does not talk).
+PLATFORM_COMMANDERS = {CommanderName.DIALOG: "agent:dialog"}
+PLATFORM_DRIVERS = {DriverName.DIALOG: "agent:dialog"}
+
+
 def recorded(
     data_dir: Path,
     benchmark: Path | None,
-    mazes: list[str],
+    starts: list[Start],
     commander: CommanderName,
     driver: DriverName,
     processes: int,
     timeout_s: float,
 ) -> list[TrialResult]:
     """The trials through the platform, recorded in `data_dir`."""
-    if (commander, driver) != (CommanderName.DIALOG, DriverName.DIALOG):
-        raise typer.BadParameter("--record seats agent:dialog in both seats: give --commander dialog --driver dialog")
-    from app.drivers.selfplay import record_trials
-
-    return record_trials(data_dir, benchmark, mazes, "agent:dialog", "agent:dialog", processes, timeout_s)
+    if commander not in PLATFORM_COMMANDERS:
+        raise typer.BadParameter(
+            f"--record: the platform has no Commander '{commander}' (it seats: {', '.join(PLATFORM_COMMANDERS)})",
+            param_hint="--commander",
+        )
+    if driver not in PLATFORM_DRIVERS:
+        raise typer.BadParameter(
+            f"--record: the platform has no Driver '{driver}' (it seats: {', '.join(PLATFORM_DRIVERS)})",
+            param_hint="--driver",
+        )
+    return record_trials(
+        data_dir, benchmark, starts, PLATFORM_COMMANDERS[commander], PLATFORM_DRIVERS[driver], processes, timeout_s
+    )

@@ -77,6 +77,8 @@ async def simulator_backend(spec: str, trial: RobotTrial, parts: BackendParts) -
     parts.renderer.prepare(maze)  # the render process reads its scene while the rest loads here
     if state.pose is not None:  # resuming: the robot is where the log last saw it
         start = snap_pose(graph, *state.pose)
+    elif state.start is not None:  # the start the trial was created with
+        start = snap_pose(graph, *state.start)
     else:
         start = await asyncio.to_thread(mazes.start_pose, state.maze, state.targets[0], trial.trial_id)
     rays = await asyncio.to_thread(mazes.rays, state.maze)

@@ -1,10 +1,14 @@
 """Self-play through the trial core: whole trials with agents in both seats, each an ordinary
-trial recorded in a data directory (the platform's runtime, event log and simulator backend, run in
-this process, several trials at once), read back from its log into the figures of `robotslang
-eval selfplay` (`sim.agents.selfplay.TrialResult`). Replay and every export work on them as on
-any trial. The robot starts where the platform puts a trial's robot (`Mazes.start_pose`, seeded by
-the trial's id), not at a benchmark's recorded start; the trial clock and the moves' pace are the
-platform's (settings from the environment)."""
+trial recorded in a data directory (the platform's runtime, event log and simulator backend), read
+back from its log into the figures of `robotslang eval selfplay` (`sim.agents.selfplay.TrialResult`).
+Replay and every export work on them as on any trial. Each trial starts from the pose it is created
+with (a benchmark's recorded start), logged in its `trial_created` event; the trial clock and the
+moves' pace are the platform's (settings from the environment).
+
+The trials are created here, in one transaction, and then played in `processes` worker processes,
+one trial at a time each, every worker with its own server core on the same database: SQLite (WAL,
+a 30 s busy timeout) takes the workers' writes one at a time, each trial's events written by the one
+process that plays it; with ROBOTSLANG_DATABASE_URL set they all write to that database instead."""
 
 from __future__ import annotations
 
@@ -12,6 +16,7 @@ import asyncio
 import math
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 from app.trial import events as ev
@@ -19,40 +24,55 @@ from app.trial.setup import create_trial
 from app.trial.state import fold
 from app.trial.vocabulary import Phase
 from sim.agents.route import Router
-from sim.agents.selfplay import TARGET_ORDER, TrialResult
+from sim.agents.selfplay import TARGET_ORDER, TrialResult, iter_results
 from sim.core.dynamics import snap_pose
 from sim.language.phrases import Phrases, Phrasing
 
 POLL_S = 0.2
 
 
+@dataclass(frozen=True)
+class Start:
+    """A trial to record: its maze and the robot's start there (x, y, theta)."""
+
+    maze: str
+    pose: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Share:
+    """One worker's trials (already created) and where they are recorded."""
+
+    data_dir: Path
+    benchmark: Path | None
+    ids: tuple[int, ...]
+    timeout_s: float
+
+
 def record_trials(
     data_dir: Path,
     benchmark: Path | None,
-    mazes: Sequence[str],
+    starts: Sequence[Start],
     commander: str,
     driver: str,
-    concurrency: int,
+    processes: int,
     timeout_s: float,
 ) -> list[TrialResult]:
-    """One recorded trial per maze (targets in the benchmark's order), `concurrency` at a time; a
-    trial not over after `timeout_s` is aborted, the reason logged."""
-    from app.drivers.registry import available_agents
-    from app.main import build_services
-    from app.settings import Settings
+    """One recorded trial per start (targets in the benchmark's order), in `processes` worker
+    processes; a trial not over after `timeout_s` is aborted, the reason logged. Results in the
+    order of `starts`."""
+    from app.drivers.registry import available_seats
     from app.trial.vocabulary import Role
 
-    settings = Settings(data_dir=data_dir, benchmark=benchmark)
-    services = build_services(settings)
+    services = _services(data_dir, benchmark)  # brings the schema up to date before the workers open it
     try:
-        agents = {role: available_agents(services.agents, role) for role in (Role.COMMANDER, Role.DRIVER)}
-        ids = []
+        seats = available_seats(services.agents)
         with services.db.begin() as db:
-            for maze in mazes:
-                trial = create_trial(
+            ids = [
+                create_trial(
                     db,
                     team_id=None,
-                    maze=maze,
+                    maze=start.maze,
                     targets=list(TARGET_ORDER),
                     backend="sim",
                     driver=driver,
@@ -60,34 +80,56 @@ def record_trials(
                     commander_id=None,
                     layouts=services.mazes.layouts(),
                     now_ns=services.clock.now_ns(),
-                    agents=agents[Role.DRIVER],
-                    commanders=agents[Role.COMMANDER],
-                )
-                ids.append(trial.id)
-        seconds = asyncio.run(_play_all(services, ids, concurrency, timeout_s))
-        return [result_of(services, trial_id, s) for trial_id, s in zip(ids, seconds, strict=True)]
+                    agents=seats[Role.DRIVER],
+                    commanders=seats[Role.COMMANDER],
+                    start=start.pose,
+                ).id
+                for start in starts
+            ]
     finally:
-        services.log.close()
-        services.trials.backends.renderer.close()
-        services.engine.dispose()
+        _close(services)
+    n = max(1, min(processes, len(ids)))
+    shares = [Share(data_dir, benchmark, tuple(ids[k::n]), timeout_s) for k in range(n)]
+    by_id = {r_id: r for played in iter_results(shares, play_share, n) for r_id, r in played}
+    return [by_id[i] for i in ids]
 
 
-async def _play_all(services, ids: Sequence[int], concurrency: int, timeout_s: float) -> list[float]:
-    gate = asyncio.Semaphore(concurrency)
+def play_share(share: Share) -> list[tuple[int, TrialResult]]:
+    """A worker: its own server core on the data directory, its trials one after another."""
+    services = _services(share.data_dir, share.benchmark)
+    try:
+        seconds = asyncio.run(_play_all(services, share.ids, share.timeout_s))
+        return [(i, result_of(services, i, s)) for i, s in zip(share.ids, seconds, strict=True)]
+    finally:
+        _close(services)
 
+
+def _services(data_dir: Path, benchmark: Path | None):
+    from app.main import build_services
+    from app.settings import Settings
+
+    return build_services(Settings(data_dir=data_dir, benchmark=benchmark))
+
+
+def _close(services) -> None:
+    services.log.close()
+    services.trials.backends.renderer.close()
+    services.engine.dispose()
+
+
+async def _play_all(services, ids: Sequence[int], timeout_s: float) -> list[float]:
     async def one(trial_id: int) -> float:
-        async with gate:
-            t0 = time.perf_counter()
-            runtime = await services.hub.get(trial_id)
-            while not runtime.state.over and time.perf_counter() - t0 < timeout_s:
-                await asyncio.sleep(POLL_S)
-            if not runtime.state.over:
-                runtime.abort(f"self-play: not over after {timeout_s:g} s")
-            await runtime.close()
-            return time.perf_counter() - t0
+        t0 = time.perf_counter()
+        runtime = await services.hub.get(trial_id)
+        while not runtime.state.over and time.perf_counter() - t0 < timeout_s:
+            await asyncio.sleep(POLL_S)
+        if not runtime.state.over:
+            runtime.abort(f"self-play: not over after {timeout_s:g} s")
+        await runtime.close()
+        return time.perf_counter() - t0
 
     try:
-        return list(await asyncio.gather(*(one(i) for i in ids)))
+        return [await one(i) for i in ids]
     finally:
         await services.hub.close()
 

@@ -42,11 +42,15 @@ class Event(BaseModel):
 
 class TrialCreated(Event):
     kind = "trial_created"
+    omit_if_none = ("start",)
     maze: str
     targets: list[str]
     backend: str
     driver: str
     commander: str = "human"  # logs from before agent Commanders have no such key
+    # The simulated robot's start (x, y, theta), where one was chosen (a benchmark's recorded start
+    # in self-play); without it the simulator backend draws one. The experimenter's record only.
+    start: tuple[float, float, float] | None = None
 
 
 class Connected(Event):

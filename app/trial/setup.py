@@ -6,6 +6,7 @@ no person sits, so nobody sees its layout. The `trial_created` event is written 
 
 from __future__ import annotations
 
+import math
 import random
 from collections import Counter
 from collections.abc import Mapping
@@ -86,12 +87,14 @@ def create_trial(
     agents: Mapping[str, str | None] | None = None,
     commander: str = str(HUMAN),
     commanders: Mapping[str, str | None] | None = None,
+    start: tuple[float, float, float] | None = None,
 ) -> Trial:
     """`layouts`: each maze of the library -> its layout (`Mazes.layouts()`); `agents` and
     `commanders` (`available_agents(services, role)`) are needed when an agent holds that seat.
     `commander_id`: the member in the Commander's seat (default the team's first); with an agent
     Commander, the member who drives. With agents in both seats the team is not asked for (none is
-    stored)."""
+    stored). `start`: where the simulated robot starts (x, y, theta; snapped to the maze's graph),
+    logged with the trial; None: the simulator backend draws a start."""
     check_seat(Role.DRIVER, driver, agents)
     check_seat(Role.COMMANDER, commander, commanders)
     people = str(HUMAN) in (driver, commander)
@@ -109,12 +112,16 @@ def create_trial(
         spec = BackendSpec.parse(backend)
     except ValueError:
         spec = None
+    if start is not None and spec != SIM:
+        raise TrialSetupError("a start pose is for the simulator: a rover starts where it stands")
     if spec is not None and spec.robot_id is not None:
         robot = db.get(Robot, spec.robot_id)
         if robot is None or robot.role != Role.DRIVER:
             raise TrialSetupError(f"backend {backend!r}: no registered rover with id {spec.arg!r}")
     elif spec != SIM:
         raise TrialSetupError(f"backend {backend!r} is neither 'sim' nor 'robot:<id>'")
+    if start is not None and not (len(start) == 3 and all(map(math.isfinite, start))):
+        raise TrialSetupError(f"start {start!r} is not a pose (x, y, theta: three finite numbers)")
     trial = Trial(
         team_id=team.id if team is not None else None,
         maze=maze,
@@ -129,7 +136,7 @@ def create_trial(
     )
     db.add(trial)
     db.flush()
-    created = TrialCreated(maze=maze, targets=targets, backend=backend, driver=driver, commander=commander)
+    created = TrialCreated(maze=maze, targets=targets, backend=backend, driver=driver, commander=commander, start=start)
     db.add(Event(trial_id=trial.id, seq=1, kind=created.kind, t_ns=now_ns, payload=created.payload()))
     return trial
 

@@ -54,6 +54,7 @@ class TrialState:
     last_frame_id: int | None = None
     pending_claim: dict[str, Any] | None = None
     pose: tuple[float, float, float] | None = None  # last sampled true pose (x, y, theta)
+    start: tuple[float, float, float] | None = None  # the simulated robot's start, where one was chosen
     localization: dict[str, Any] | None = None
     confirmed: list[dict[str, Any]] = field(default_factory=list)
     finished_active_ns: int | None = None  # active time at the last confirmation
@@ -121,6 +122,7 @@ class TrialState:
             case ev.TrialCreated():
                 self.maze, self.targets = event.maze, list(event.targets)
                 self.backend, self.driver, self.commander = event.backend, event.driver, event.commander
+                self.start = event.start
             case ev.Connected(role=role):
                 self.connected.add(role)
                 self.away.pop(role, None)

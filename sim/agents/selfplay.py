@@ -11,11 +11,11 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from enum import StrEnum
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -51,6 +51,8 @@ from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
 from sim.language.phrases import Phrases, Phrasing
 
+J = TypeVar("J")  # a job of `iter_results`
+R = TypeVar("R")  # and its result
 TARGET_ORDER = ("jar", "mug", "paddle")  # every benchmark trial's order
 MAX_MOVES = 600  # per trial: the trial is aborted there, as a seat's cap would
 MAX_MESSAGES = 150
@@ -258,8 +260,8 @@ def row(result: TrialResult) -> dict[str, Any]:
     return out
 
 
-def iter_results(jobs: Sequence[Any], worker: Any, processes: int) -> Iterator[TrialResult]:
-    """Trials in parallel processes (in order); one process plays them here."""
+def iter_results(jobs: Sequence[J], worker: Callable[[J], R], processes: int) -> Iterator[R]:
+    """The jobs' results from parallel processes (in order); one process plays them here."""
     if processes <= 1:
         yield from map(worker, jobs)
         return

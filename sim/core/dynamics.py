@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from robot_client.protocol import Move
-from sim.core.geometry import HEADING_DI, HEADING_DJ, HEADINGS, heading_index
+from sim.core.geometry import HEADING_DI, HEADING_DJ, HEADINGS, heading_angle, heading_index
 from sim.core.navgraph import Moves, NavGraph
 
 
@@ -52,6 +52,12 @@ class Pose:
 def snap_pose(graph: NavGraph, x: float, y: float, theta: float = 0.0) -> Pose:
     """The nearest navigable node and the nearest multiple of 45 degrees."""
     return Pose(graph.nearest_node(x, y), heading_index(theta))
+
+
+def continuous_pose(graph: NavGraph | Moves, pose: Pose) -> tuple[float, float, float]:
+    """A grid pose as (x, y, theta): its node's centre in metres and its heading's angle."""
+    x, y = graph.nodes[pose.node]
+    return float(x), float(y), float(heading_angle(pose.heading))
 
 
 def step(graph: NavGraph | Moves, pose: Pose, action: Action) -> tuple[Pose, bool]:

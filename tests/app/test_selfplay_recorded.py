@@ -1,17 +1,27 @@
 """`robotslang eval selfplay --record DIR`: whole trials with `agent:dialog` in both seats played
-through the platform's trial core, recorded as ordinary trials that replay and export."""
+through the platform's trial core in worker processes, from the offline runner's starts, recorded
+as ordinary trials that replay and export."""
 
 from __future__ import annotations
 
 import json
+import math
 
 import pytest
 from sqlalchemy import select
 
-from app.db.engine import make_engine, make_sessionmaker
+from app.db.engine import make_engine, make_sessionmaker, open_database
 from app.db.models import Event, Trial
+from app.mazes import Mazes
 from app.settings import Settings
+from app.trial.setup import TrialSetupError, create_trial
+from sim.agents.selfplay import library_trials
+from sim.core.dynamics import continuous_pose, snap_pose
+from sim.core.navgraph import NavGraph
+from sim.tasks.library import BUNDLED_DIR, MazeLibrary
 from tests.app.live import cli
+
+LIBRARY = MazeLibrary(bundled=BUNDLED_DIR)
 
 KEYS = {
     "trials",
@@ -25,40 +35,100 @@ KEYS = {
 }
 
 
+def bundled_starts(n: int, seed: int = 0) -> dict[str, tuple[float, float, float]]:
+    """The starts the offline runner gives the first `n` bundled mazes: what --record must start from."""
+    mazes = [(name, LIBRARY.load(name)) for name in LIBRARY.names()[:n]]
+    graphs = [NavGraph.build(m, "benchmark") for _, m in mazes]
+    return {
+        spec.maze: continuous_pose(g, spec.start)
+        for spec, g in zip(library_trials(mazes, graphs, seed), graphs, strict=True)
+    }
+
+
 @pytest.mark.slow
 def test_selfplay_through_the_trial_core_records_ordinary_trials(tmp_path):
     data = tmp_path / "var"
     env = {"ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0", "ROBOTSLANG_RENDER_PROCESSES": "0"}
-    done = cli("eval", "selfplay", "--record", str(data), "--limit", "1", "--json", env=env)
+    done = cli("eval", "selfplay", "--record", str(data), "--limit", "2", "--processes", "2", "--json", env=env)
     assert done.returncode == 0, done.stderr[-2000:]
     figures = json.loads(done.stdout.strip().splitlines()[-1])
     assert set(figures) == KEYS
-    assert figures["trials"] == 1 and figures["completed"] == 1.0 and figures["targets_confirmed_mean"] == 3
-    assert figures["false_confirmations"] == 0 and figures["first_estimate_td_m"] is not None
-    assert figures["moves_ratio"] >= 1.0 and figures["messages_mean"] > 0
+    assert figures["trials"] == 2 and figures["first_estimate_td_m"] is not None
+    assert figures["moves_ratio"] > 0 and figures["messages_mean"] > 0
 
     settings = Settings(data_dir=data)
     engine = make_engine(settings)
     with make_sessionmaker(engine)() as db:
-        (trial,) = db.scalars(select(Trial)).all()
-        kinds = set(db.scalars(select(Event.kind).where(Event.trial_id == trial.id)))
+        trials = db.scalars(select(Trial).order_by(Trial.id)).all()
+        logs = {
+            t.maze: db.scalars(select(Event).where(Event.trial_id == t.id).order_by(Event.seq)).all() for t in trials
+        }
     engine.dispose()
-    assert (trial.phase, trial.commander, trial.driver, trial.team_id) == (
-        "finished",
-        "agent:dialog",
-        "agent:dialog",
-        None,
-    )
-    assert {"chat", "localization", "move_executed", "frame", "target_confirmed"} <= kinds
+    # Both workers' trials are in the one database, each played to its end.
+    assert len(trials) == 2
+    for trial in trials:
+        assert trial.phase in ("finished", "aborted")
+        assert (trial.commander, trial.driver, trial.team_id) == ("agent:dialog", "agent:dialog", None)
+    mazes = Mazes(settings)
+    for maze, start in bundled_starts(2).items():
+        events = logs[maze]
+        assert {"chat", "localization", "move_executed", "frame"} <= {e.kind for e in events}
+        # The trial is created with the offline runner's start, logged, and the robot is first seen
+        # there (at the pose of the simulator's graph nearest to it: objects block the robot there).
+        assert events[0].kind == "trial_created" and events[0].payload["start"] == pytest.approx(list(start))
+        graph = mazes.graph(maze)
+        x, y, heading = continuous_pose(graph, snap_pose(graph, *start))
+        first = next(e.payload for e in events if e.kind == "pose")
+        assert (first["x"], first["y"]) == pytest.approx((x, y))
+        assert math.cos(first["heading"] - heading) == pytest.approx(1.0)
 
     exported = cli(
         "export",
         "all",
         "--format",
         "ndh",
+        "--include-aborted",  # a trial the agents did not finish replays and exports all the same
         "--out",
         str(tmp_path / "ndh"),
         env={**env, "ROBOTSLANG_DATA_DIR": str(data)},
     )
     assert exported.returncode == 0, exported.stderr[-2000:]
     assert (tmp_path / "ndh" / "NDH-data").is_dir()
+
+
+def test_record_refuses_a_seat_the_platform_has_no_agent_for(tmp_path):
+    data = tmp_path / "var"
+    done = cli(
+        "eval", "selfplay", "--record", str(data), "--limit", "1", "--commander", "oracle", env={"COLUMNS": "200"}
+    )
+    assert done.returncode != 0
+    assert "--commander" in done.stderr and "no Commander 'oracle'" in done.stderr
+    assert not (data / "robotslang.db").exists()  # nothing was created
+
+
+@pytest.mark.parametrize(
+    ("backend", "start", "error"),
+    [("sim", (math.nan, 1.0, 0.0), "is not a pose"), ("robot:1", (1.0, 1.0, 0.0), "for the simulator")],
+)
+def test_a_trial_start_must_be_a_pose_for_the_simulator(tmp_path, backend, start, error):
+    settings = Settings(data_dir=tmp_path)
+    sessions = open_database(settings)
+    maze = LIBRARY.names()[0]
+    with pytest.raises(TrialSetupError, match=error), sessions.begin() as db:
+        create_trial(
+            db,
+            team_id=None,
+            maze=maze,
+            targets=["jar", "mug", "paddle"],
+            backend=backend,
+            driver="agent:dialog",
+            commander="agent:dialog",
+            commander_id=None,
+            layouts={maze: maze},
+            now_ns=0,
+            agents={"agent:dialog": None},
+            commanders={"agent:dialog": None},
+            start=start,
+        )
+    with sessions() as db:
+        assert db.scalars(select(Trial)).all() == []  # nothing recorded
