@@ -26,6 +26,7 @@ FIELDS = {
     "paused",
     "waiting_for",
     "claim_pending",
+    "abort_reason",
 }
 
 
