@@ -34,11 +34,12 @@ import {emptyStatus, foldEvent, formatClock, statusText} from "./trial.js";
       list.appendChild(li);
       chatItems.push({li, i});
     });
-    // Claims and verdicts: ticks on the timeline, and buttons that go to each.
+    // Claims and verdicts: ticks on the timeline, and buttons that go to each (on the pages that
+    // have them: the annotator's page plays the same log without).
     const marks = $("marks"), ticks = $("timeline-marks");
     const MARKED = {target_claimed: "claimed", target_confirmed: "confirmed", target_rejected: "rejected"};
     events.forEach((e, i) => {
-      if (!(e.kind in MARKED)) return;
+      if (!marks || !ticks || !(e.kind in MARKED)) return;
       const option = document.createElement("option");
       option.value = String(Math.round(rel[i]));
       ticks.appendChild(option);
@@ -51,7 +52,9 @@ import {emptyStatus, foldEvent, formatClock, statusText} from "./trial.js";
       marks.appendChild(li);
     });
     // A rover trial's overhead camera, played beside the Driver's.
-    $("overhead-card").hidden = !events.some((e) => e.kind === "frame" && e.payload.source === "overhead");
+    if ($("overhead-card")) {
+      $("overhead-card").hidden = !events.some((e) => e.kind === "frame" && e.payload.source === "overhead");
+    }
   }
 
   // How many events have happened at `t` ms (binary search over the sorted times).
@@ -93,11 +96,11 @@ import {emptyStatus, foldEvent, formatClock, statusText} from "./trial.js";
       $("frame-info").textContent = "";
     }
 
-    const top = $("overhead");
-    if (overhead && top.dataset.frameId !== String(overhead.frame_id)) {
+    const top = $("overhead");  // none on the annotator's page
+    if (top && overhead && top.dataset.frameId !== String(overhead.frame_id)) {
       top.src = overhead.url; top.dataset.frameId = overhead.frame_id; top.hidden = false;
       $("overhead-info").textContent = `frame ${overhead.frame_id}`;
-    } else if (!overhead && top.dataset.frameId) {
+    } else if (top && !overhead && top.dataset.frameId) {
       top.removeAttribute("src"); delete top.dataset.frameId; top.hidden = true; $("overhead-info").textContent = "";
     }
 
