@@ -175,13 +175,15 @@ async def test_a_rover_driven_into_a_wall_tells_the_driver_it_bumped(tmp_path, m
             await driver.event("phase", phase="localizing", timeout=START_S)
             await until(lambda: tracked(lab, trial), what="a tracked pose")
             outcomes = []
-            for i in range(free + 2):  # the move that meets the wall may go part of a step; the next, none
+            # The move that meets the wall may go part of a step; the ones after, none. Several, so a
+            # loaded machine's late overhead sighting (the bump needs one within 1 s) does not decide.
+            for i in range(free + 4):
                 await driver.send("move", action="forward", move_id=f"f{i}")
                 done = await driver.event("move_executed", move_id=f"f{i}", timeout=START_S)
                 outcomes.append((done["payload"]["outcome"], done["payload"].get("reason")))
         assert [o for o, _ in outcomes[:free]] == ["ok"] * free, outcomes
-        outcome, reason = outcomes[-1]
-        assert outcome == "collision" and reason.startswith("bumped: the overhead camera saw the rover move"), outcomes
+        bumps = [reason for outcome, reason in outcomes[free:] if outcome == "collision"]
+        assert bumps and all(r.startswith("bumped: the overhead camera saw the rover move") for r in bumps), outcomes
         assert settled(truth)[-1].collision, "the virtual rover did push against the wall"
     finally:
         lab.close()
