@@ -89,7 +89,10 @@ class TrialRuntime:
         self._ending = False
         self.agent: DriverSeat | None = None  # an agent Driver's seat (the simulator's rays go to it alone)
         self.commander_agent: CommanderSeat | None = None
-        self.belief: TrialBelief | None = None  # `TrialBelief` once the Driver camera's calibration is loaded
+        # The particle filter runs only while someone watches: its belief is for the watch page alone,
+        # and a crowd's unwatched trials would otherwise give it a core and most of the memory.
+        self.belief: TrialBelief | None = None  # `TrialBelief` once built for a watcher
+        self._belief_task: asyncio.Task[None] | None = None
         self._belief_message: dict[str, Any] | None = None  # the latest, for the watch page
         self._last_frame: Frame | None = None  # the Driver camera's latest, for a filter built after it
         self.ldh = LiveBelief(self, parts.ldh)  # the LDH model's belief, for the watchers only
@@ -118,11 +121,27 @@ class TrialRuntime:
         if pose is not None and self.state.pose is None:
             self.record_pose(pose)
         self.spawn(self._pump_frames(self.backend))
-        self.spawn(self._start_belief())
+        self._want_belief()
         await self.backend.connect()
 
+    def _want_belief(self) -> None:
+        """Build the particle filter if someone watches a live trial and none is built or building."""
+        if self.watchers and self.backend is not None and self.belief is None and self._belief_task is None:
+            self._belief_task = self.spawn(self._start_belief())
+
+    def _drop_belief(self) -> None:
+        """The last watcher left: let go of the filter (its particles and free-space map are several MB)."""
+        if self._belief_task is not None:
+            self._belief_task.cancel()
+            self._belief_task = None
+        if self.belief is not None:
+            belief, self.belief = self.belief, None
+            self.parts.filters.forget(belief)
+        self._belief_message = None
+
     async def _start_belief(self) -> None:
-        """A live particle filter on the Driver camera (shown to the experimenter, never to a seat)."""
+        """A live particle filter on the Driver camera (shown to the experimenter, never to a seat);
+        built when the first watcher comes, from a uniform prior and the camera's latest frame."""
         from app.perception.belief import TrialBelief
         from app.perception.cameras import CameraUnknown, driver_calibration
 
@@ -138,6 +157,9 @@ class TrialRuntime:
             logger.info("trial %s: no particle filter: %s", self.trial_id, err)
         except Exception:  # no belief is a lesser trial, not a broken one
             logger.exception("trial %s: no particle filter", self.trial_id)
+        finally:
+            if self._belief_task is asyncio.current_task():  # not a newer one, after a drop
+                self._belief_task = None
 
     async def close(self) -> None:
         for timer in self._grace.values():
@@ -153,11 +175,9 @@ class TrialRuntime:
                 await seat.stop()
                 if self.seats.get(seat.role) is seat:
                     del self.seats[seat.role]
-        if self.belief is not None:
-            # Let go of the filter now: its particles and free-space map (several MB, and the
-            # maze) sit in reference cycles with this runtime that the collector frees only later.
-            belief, self.belief = self.belief, None
-            self.parts.filters.forget(belief)
+        # Let go of the filter now: its particles and free-space map (several MB, and the
+        # maze) sit in reference cycles with this runtime that the collector frees only later.
+        self._drop_belief()
         if self.backend is not None:
             backend, self.backend = self.backend, None
             await backend.close()
@@ -375,9 +395,13 @@ class TrialRuntime:
         self.ldh.welcome(conn)
         if self._belief_message is not None:
             conn.deliver(self._belief_message)
+        if not self.state.over:
+            self._want_belief()
 
     def unwatch(self, conn: Connection) -> None:
         self.watchers.discard(conn)
+        if not self.watchers:
+            self._drop_belief()
         if self.state.over and not self.seats and not self.watchers:
             self._forget(self.trial_id)
 
