@@ -35,6 +35,7 @@ from app.resources import shipped
 from app.routes import annotate, experimenter, ldh_study, pages, replay, robot_ws, seat_ws, study
 from app.security import AccountRole, CsrfTokens, SeatTokens, Sessions, StudyTokens, set_password
 from app.services import Services
+from app.serving import settle_collector
 from app.settings import Settings
 from app.trial.frames_store import FrameStore
 from app.trial.hub import TrialHub
@@ -127,6 +128,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             renderer.warm_up()
         services.mazes.warm_layouts()
         await services.hub.start()
+        settle_collector()
         yield
         await services.hub.close()
         services.log.close()
