@@ -16,8 +16,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from sim.core.cache import ARRAYS_SUFFIX, load_arrays, save_arrays
 from sim.core.cache import cache_dir as default_cache_dir
-from sim.core.cache import save_npz
 from sim.core.geometry import MAP_HEIGHT_PX, MAP_WIDTH_PX, pixel_to_world
 from sim.core.labels import LABEL_BGR, OBJECT_LABELS, OBJECTS, PALETTE_BGR, Label
 
@@ -91,18 +91,18 @@ class Maze:
         if walls_path is not None:
             pngs.append(Path(walls_path).read_bytes())
         key = hashlib.sha256(b"\0".join(pngs) + bytes([len(pngs)])).hexdigest()[:16]
-        path = default_cache_dir(cache_dir) / "labels" / f"{key}-v{_LABELS_CACHE_VERSION}.npz"
+        path = default_cache_dir(cache_dir) / "labels" / f"{key}-v{_LABELS_CACHE_VERSION}{ARRAYS_SUFFIX}"
         if use_cache and path.exists():
             try:
-                with np.load(path) as data:
-                    maze = cls(
-                        name=name,
-                        labels=data["labels"],
-                        walls=data["walls"],
-                        objects={w: (float(x), float(y)) for w, (x, y) in zip(OBJECTS, data["objects"])},
-                    )
-                    maze.__dict__["content_hash"] = str(data["content_hash"])  # the cached property
-                    return maze
+                data = load_arrays(path)
+                maze = cls(
+                    name=name,
+                    labels=data["labels"],
+                    walls=data["walls"],
+                    objects={w: (float(x), float(y)) for w, (x, y) in zip(OBJECTS, data["objects"])},
+                )
+                maze.__dict__["content_hash"] = str(data["content_hash"])  # the cached property
+                return maze
             except (OSError, ValueError, KeyError):
                 pass  # torn or stale: decoded again below
         labels = read_label_png(fixed_path)
@@ -111,7 +111,7 @@ class Maze:
             raise MazeError(f"{walls_path}: size differs from {fixed_path}")
         maze = cls.from_labels(labels, name, walls, source=str(fixed_path))
         if use_cache:
-            save_npz(
+            save_arrays(
                 path,
                 compressed=True,
                 labels=maze.labels,

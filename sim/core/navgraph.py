@@ -23,8 +23,8 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike
 
+from sim.core.cache import ARRAYS_SUFFIX, load_arrays, save_arrays
 from sim.core.cache import cache_dir as default_cache_dir
-from sim.core.cache import save_npz
 from sim.core.geometry import (
     GRID_STEP_M,
     HEADING_DI,
@@ -124,11 +124,12 @@ class NavGraph:
         if mode not in MODES:
             raise ValueError(f"unknown edge mode {mode!r}; expected one of {', '.join(MODES)}")
         kind = f"{mode}-objects" if objects_block else mode
-        path = default_cache_dir(cache_dir) / "navgraph" / f"{maze.content_hash}-{kind}-v{_CACHE_VERSION}.npz"
+        path = (
+            default_cache_dir(cache_dir) / "navgraph" / f"{maze.content_hash}-{kind}-v{_CACHE_VERSION}{ARRAYS_SUFFIX}"
+        )
         if use_cache and path.exists():
             try:
-                with np.load(path) as data:
-                    return cls(mode=mode, objects_block=objects_block, **{k: data[k] for k in data.files})
+                return cls(mode=mode, objects_block=objects_block, **load_arrays(path))
             except (OSError, ValueError, KeyError):
                 pass  # a torn or stale cache file is rebuilt below
         graph = cls._compute(maze.labels if objects_block else maze.walls, mode, objects_block)
@@ -183,7 +184,7 @@ class NavGraph:
         )
 
     def _save(self, path: Path) -> None:
-        save_npz(
+        save_arrays(
             path,
             nodes=self.nodes,
             node_ij=self.node_ij,

@@ -22,8 +22,8 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike
 
+from sim.core.cache import ARRAYS_SUFFIX, load_arrays, save_arrays
 from sim.core.cache import cache_dir as default_cache_dir
-from sim.core.cache import save_npz
 from sim.core.geometry import (
     GRID_STEP_M,
     HEADINGS,
@@ -230,19 +230,19 @@ class RayTable:
     ) -> RayTable:
         """Every (node, heading) observation of `graph` on `maze`, cached by maze and nodes."""
         key = hashlib.sha256(np.ascontiguousarray(graph.nodes).tobytes()).hexdigest()[:12]
-        path = default_cache_dir(cache_dir) / "rays" / f"{maze.content_hash}-{key}-v{_CACHE_VERSION}.npz"
+        path = default_cache_dir(cache_dir) / "rays" / f"{maze.content_hash}-{key}-v{_CACHE_VERSION}{ARRAYS_SUFFIX}"
         labels: np.ndarray | None = None
         depth: np.ndarray | None = None
         if use_cache and path.exists():
             try:
-                with np.load(path) as data:
-                    labels, depth = data["labels"], data["depth"]
+                data = load_arrays(path)
+                labels, depth = data["labels"], data["depth"]
             except (OSError, ValueError, KeyError):
                 labels = None  # a torn or stale cache file is rebuilt below
         if labels is None or labels.shape != (graph.n, HEADINGS, N_RAYS):
             labels, depth = node_rays(maze, graph.nodes)
             if use_cache:
-                save_npz(path, labels=labels, depth=depth)
+                save_arrays(path, labels=labels, depth=depth)
         assert depth is not None  # read or built with the labels
         return cls(
             labels=labels,

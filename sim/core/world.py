@@ -29,8 +29,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, DTypeLike
 
+from sim.core.cache import ARRAYS_SUFFIX, load_arrays, save_arrays
 from sim.core.cache import cache_dir as default_cache_dir
-from sim.core.cache import save_npz
 from sim.core.dynamics import Action
 from sim.core.geometry import HEADINGS
 
@@ -276,12 +276,12 @@ class EpisodeGeometry:
         from sim.tasks.benchmark import START_MODES, goal_node
 
         key = hashlib.sha256(f"{world.key}:{mode}:{start}:{[(i.run, i.scan, i.inst_idx) for i in instances]}".encode())
-        path = default_cache_dir(bench.cache_dir) / "world" / f"episodes-{key.hexdigest()[:16]}.npz"
+        path = default_cache_dir(bench.cache_dir) / "world" / f"episodes-{key.hexdigest()[:16]}{ARRAYS_SUFFIX}"
         fields = ("maze", "start_node", "start_heading", "goal_node", "goal_dist", "goal_next")
         if world.key and path.exists():
             try:
-                with np.load(path) as data:
-                    return cls(**{f: data[f] for f in fields})
+                data = load_arrays(path)
+                return cls(**{f: data[f] for f in fields})
             except (OSError, ValueError, KeyError):
                 pass  # torn or stale: recomputed below
         m, nmax = len(instances), int(world.size.max())
@@ -299,7 +299,7 @@ class EpisodeGeometry:
             dist, hop = goal_rows(graph, [g])
             out["goal_dist"][k, : graph.n], out["goal_next"][k, : graph.n] = dist[0], hop[0]
         if world.key:
-            save_npz(path, compressed=False, **out)
+            save_arrays(path, compressed=False, **out)
         return cls(**out)
 
     def __len__(self) -> int:

@@ -30,8 +30,8 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike
 
+from sim.core.cache import ARRAYS_SUFFIX, load_arrays, save_arrays
 from sim.core.cache import cache_dir as default_cache_dir
-from sim.core.cache import save_npz
 from sim.core.geometry import world_to_pixel
 from sim.core.labels import LABEL_BGR, N_LABELS, OBJECT_LABELS, PALETTE_BGR, Label
 from sim.core.maze import Maze
@@ -244,14 +244,13 @@ def scene(maze: Maze) -> Scene:
 
 
 def _scene_path(content_hash: str, cache_dir: str | Path | None) -> Path:
-    return default_cache_dir(cache_dir) / "scene" / f"{content_hash}-v{_SCENE_CACHE_VERSION}.npz"
+    return default_cache_dir(cache_dir) / "scene" / f"{content_hash}-v{_SCENE_CACHE_VERSION}{ARRAYS_SUFFIX}"
 
 
 def load_scene(content_hash: str, cache_dir: str | Path | None = None) -> Scene | None:
     """The cached scene of the maze with these contents (`Maze.content_hash`), if one was saved."""
     try:
-        with np.load(_scene_path(content_hash, cache_dir)) as data:
-            return Scene.from_arrays({k: data[k] for k in data.files})
+        return Scene.from_arrays(load_arrays(_scene_path(content_hash, cache_dir)))
     except (OSError, ValueError, KeyError):
         return None  # none yet, or torn or stale: built again by `cached_scene`
 
@@ -261,7 +260,7 @@ def cached_scene(maze: Maze, cache_dir: str | Path | None = None) -> Scene:
     found = _scenes.get(maze) or load_scene(maze.content_hash, cache_dir)
     if found is None:
         found = scene(maze)
-        save_npz(_scene_path(maze.content_hash, cache_dir), False, **found.arrays())
+        save_arrays(_scene_path(maze.content_hash, cache_dir), False, **found.arrays())
     _scenes[maze] = found
     return found
 

@@ -28,8 +28,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from sim.core.cache import ARRAYS_SUFFIX, load_arrays, save_arrays
 from sim.core.cache import cache_dir as default_cache_dir
-from sim.core.cache import save_npz
 from sim.core.geometry import TABLE_WIDTH_M
 from sim.core.labels import OBJECTS, Label
 from sim.core.maze import Maze
@@ -66,15 +66,15 @@ class LayoutSignature:
 
     @classmethod
     def cached(cls, maze: Maze, cache_dir: str | Path | None = None) -> LayoutSignature:
-        path = default_cache_dir(cache_dir) / "layouts" / f"{maze.content_hash}-v{_SIGNATURE_VERSION}.npz"
+        path = default_cache_dir(cache_dir) / "layouts" / f"{maze.content_hash}-v{_SIGNATURE_VERSION}{ARRAYS_SUFFIX}"
         if path.exists():
             try:
-                with np.load(path) as data:
-                    return cls(landmarks=data["landmarks"], walls=data["walls"], distance_m=data["distance_m"])
+                data = load_arrays(path)
+                return cls(landmarks=data["landmarks"], walls=data["walls"], distance_m=data["distance_m"])
             except (OSError, ValueError, KeyError):
                 pass  # a torn or stale cache file is rebuilt below
         signature = cls.of(maze)
-        save_npz(
+        save_arrays(
             path,
             compressed=True,
             landmarks=signature.landmarks,

@@ -43,7 +43,7 @@ def test_decoded_labels_are_cached_by_the_png_contents(tmp_path):
     library = MazeLibrary()
     run = library.path(library.names()[0])
     first = Maze.from_dir(run, cache_dir=tmp_path)
-    cached = list((tmp_path / "labels").glob("*.npz"))
+    cached = list((tmp_path / "labels").glob("*.arrays"))
     assert len(cached) == 1
     again = Maze.from_dir(run, cache_dir=tmp_path)  # read from the cache
     assert np.array_equal(again.labels, first.labels) and np.array_equal(again.walls, first.walls)
@@ -59,4 +59,4 @@ def test_decoded_labels_are_cached_by_the_png_contents(tmp_path):
     cv2.imwrite(str(fixed), image)
     changed = Maze.from_dir(copy, cache_dir=tmp_path)
     assert changed.labels[row, col] == Label.WHITE and changed.content_hash != first.content_hash
-    assert len(list((tmp_path / "labels").glob("*.npz"))) == 2
+    assert len(list((tmp_path / "labels").glob("*.arrays"))) == 2

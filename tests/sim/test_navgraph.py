@@ -83,7 +83,7 @@ def test_open_table_distances_are_grid_geometry():
 def test_graph_is_cached_by_maze_and_mode(tmp_path):
     maze = Maze.from_labels(open_table(), "open")
     g1 = NavGraph.build(maze, "benchmark", cache_dir=tmp_path)
-    files = list((tmp_path / "navgraph").glob("*.npz"))
+    files = list((tmp_path / "navgraph").glob("*.arrays"))
     assert len(files) == 1 and maze.content_hash in files[0].name and "benchmark" in files[0].name
     g2 = NavGraph.build(maze, "benchmark", cache_dir=tmp_path)
     assert np.array_equal(g1.dist, g2.dist) and np.array_equal(g1.forward, g2.forward)

@@ -167,7 +167,7 @@ def test_features_encode_labels_depths_flags(corridor):
 def test_table_is_cached_by_maze_and_nodes(tmp_path, corridor):
     maze, graph, table = corridor
     first = RayTable.build(maze, graph, cache_dir=tmp_path)
-    files = list((tmp_path / "rays").glob("*.npz"))
+    files = list((tmp_path / "rays").glob("*.arrays"))
     assert len(files) == 1 and maze.content_hash in files[0].name
     again = RayTable.build(maze, graph, cache_dir=tmp_path)
     assert np.array_equal(again.labels, first.labels) and np.array_equal(again.depth, table.depth)
