@@ -16,9 +16,9 @@ each trial's first move apart (its maze's first frame after the seat joined), th
 committed per second, lost chat messages (sent, never heard by the Driver) and unanswered moves
 (neither a frame nor a refusal came back), the server's CPU (cores busy) and peak RSS, all
 processes together and each process (the server, its workers, its render processes), how many
-trials' particle filters had a belief at the end (`beliefs`: the peak memory holds only the filters
-built by then, in the filters' quarter of a core), the CPU of
-the bench's own seats (`client_cpu`: on a small machine they compete with the server for its
+of the watched trials had a particle filter's belief at the end (`beliefs`: the server runs a
+trial's filter only while an experimenter watches it; `--watchers N` watches the first N, one by
+default, as a lab's experimenter watches a trial), the CPU of the bench's own seats (`client_cpu`: on a small machine they compete with the server for its
 cores) and the machine's load average before the run and at its end. The server runs as its own
 process (`robotslang serve --workers W`), as in use: one process on SQLite (WAL); with W > 1 the
 processes share trials through Redis (`--redis-url`) and PostgreSQL (a private schema in
@@ -44,6 +44,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import gc
 import json
 import os
 import random
@@ -357,6 +358,7 @@ async def drive(
     duration: float,
     services,
     server: ServerProcesses,
+    watched: list[int],
 ) -> tuple[Figures, int, float, float, float, int]:
     figures, stop, drained = Figures(), asyncio.Event(), asyncio.Event()
     gate = None if open_at_once else asyncio.Semaphore(OPEN_AT_ONCE)
@@ -372,6 +374,12 @@ async def drive(
     failed = [t.exception() for t in tasks if t.done() and t.exception() is not None]
     if failed and not open_at_once:  # all at once, the handshakes that failed are a figure
         raise SystemExit(f"{len(failed)} trials could not connect: {failed[0]!r}")
+    watching = [asyncio.create_task(watch(ws_url, trial_id, services)) for trial_id in watched]
+    # The seats' own collector: 400 sockets' objects made its full passes stop this loop 110-175 ms,
+    # and every message in flight then was counted as the server's latency. What the seats built
+    # to connect is theirs for the whole run; its passes now walk only what comes after.
+    gc.collect()
+    gc.freeze()
     await asyncio.sleep(warmup)
 
     def count() -> int:
@@ -405,8 +413,33 @@ async def drive(
     stop.set()
     await asyncio.sleep(DRAIN_S)
     drained.set()
-    await asyncio.gather(*tasks, return_exceptions=True)
+    for task in watching:
+        task.cancel()
+    await asyncio.gather(*tasks, *watching, return_exceptions=True)
     return figures, committed, window, cpu, client_cpu, beliefs
+
+
+def first_trials(services, n: int) -> list[int]:
+    with services.db() as db:
+        return list(db.scalars(select(Trial.id).order_by(Trial.id).limit(n)))
+
+
+async def watch(ws_url: str, trial_id: int, services) -> None:
+    """The experimenter's live view of one trial, as the watch page holds it: the server runs a
+    trial's particle filter only while someone watches it."""
+    cookie = f"{SESSION_COOKIE}={services.sessions.issue(first_experimenter(services))}"
+    url = ws_url.removesuffix("/ws/play") + f"/ws/watch/{trial_id}"
+    async with websockets.connect(url, additional_headers={"Cookie": cookie}, max_size=2**22) as ws:
+        async for _ in ws:
+            pass
+
+
+def first_experimenter(services) -> int:
+    with services.db() as db:
+        experimenter = db.scalar(select(Experimenter.id).order_by(Experimenter.id).limit(1))
+    if experimenter is None:
+        raise SystemExit("the server made no experimenter account at its first start")
+    return experimenter
 
 
 def beliefs_shown(http_url: str, services) -> int:
@@ -414,11 +447,7 @@ def beliefs_shown(http_url: str, services) -> int:
     gives them (the process that answers: with one process, every trial). The peak memory counts
     the filters only once they are built, in the filters' share of a core: all of them by the end,
     or the run was too short to say what they cost."""
-    with services.db() as db:
-        experimenter = db.scalar(select(Experimenter.id).order_by(Experimenter.id).limit(1))
-    if experimenter is None:
-        return 0
-    cookies = {SESSION_COOKIE: services.sessions.issue(experimenter)}
+    cookies = {SESSION_COOKIE: services.sessions.issue(first_experimenter(services))}
     trials = httpx.get(f"{http_url}/experimenter/api/trials", cookies=cookies, timeout=60).json()["trials"]
     return sum(t["belief"] is not None for t in trials)
 
@@ -464,6 +493,7 @@ class Load:
     open_at_once: bool = False
     benchmark: Path | None = None
     agent_drivers: int = 0  # of `trials`, seating AGENT_DRIVER in the Driver's seat
+    watchers: int = 1  # the experimenter's live views, on the first trials: their particle filters run
 
 
 def run_load(
@@ -538,6 +568,7 @@ def run_load(
                     duration,
                     services,
                     processes,
+                    first_trials(services, load.watchers),
                 )
             )
         finally:
@@ -589,6 +620,7 @@ def run_load(
         "client_cpu": round(client_cpu, 2),
         "server_rss_mb": round(processes.peak_rss_mb, 1),
         "beliefs": beliefs,
+        "watchers": load.watchers,
         "processes": processes.peaks(),
         "load_average_before": [round(x, 2) for x in load_before],
         "load_average": [round(x, 2) for x in os.getloadavg()],
@@ -677,7 +709,7 @@ def report(f: dict) -> None:
     )
     for p in f["processes"]:
         console.print(f"    {p['kind']:<8} pid {p['pid']:<8} peak RSS {p['peak_rss_mb']:7.0f} MB")
-    console.print(f"  particle filters with a belief at the end: {f['beliefs']} of {f['trials']} trials")
+    console.print(f"  particle filters with a belief at the end: {f['beliefs']} of the {f['watchers']} watched trials")
 
 
 def main() -> None:
@@ -697,6 +729,12 @@ def main() -> None:
     )
     parser.add_argument(
         "--workers", type=int, help="server processes (over 1: needs Redis); default 1, with --find-max 1 and 2"
+    )
+    parser.add_argument(
+        "--watchers",
+        type=int,
+        default=1,
+        help="experimenter live views opened on the first trials, as a lab watches one (their particle filters run)",
     )
     parser.add_argument("--duration", type=float, default=30.0, help="measured seconds")
     parser.add_argument("--warmup", type=float, default=5.0)
@@ -719,8 +757,17 @@ def main() -> None:
 
     if not 0 <= args.agent_drivers <= args.trials:
         parser.error(f"--agent-drivers must be between 0 and --trials ({args.trials})")
+    if not 0 <= args.watchers <= args.trials:
+        parser.error(f"--watchers must be between 0 and --trials ({args.trials})")
     load = Load(
-        args.trials, args.workers or 1, args.pattern, args.mazes, args.open_at_once, args.benchmark, args.agent_drivers
+        args.trials,
+        args.workers or 1,
+        args.pattern,
+        args.mazes,
+        args.open_at_once,
+        args.benchmark,
+        args.agent_drivers,
+        args.watchers,
     )
     if args.find_max:
         result = {}
