@@ -22,7 +22,7 @@ from app.backends.registry import BackendParts
 from app.backends.remote import RobotLinks
 from app.backends.render import FrameRenderer, InThread, RenderProcesses
 from app.clock import ServerClock
-from app.db.engine import make_engine, make_sessionmaker, upgrade
+from app.db.engine import WalCheckpointer, make_engine, make_sessionmaker, upgrade
 from app.db.models import Experimenter
 from app.deps import LoginRequired
 from app.drivers.registry import AgentParts
@@ -127,11 +127,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         if isinstance(renderer, RenderProcesses):
             renderer.warm_up()
         services.mazes.warm_layouts()
+        checkpoints = WalCheckpointer(services.engine)
+        checkpoints.start()
         await services.hub.start()
         settle_collector()
         yield
         await services.hub.close()
         services.log.close()
+        checkpoints.stop()
         renderer.close()
         services.engine.dispose()
 
