@@ -129,8 +129,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         services.mazes.warm_layouts()
         checkpoints = WalCheckpointer(services.engine)
         checkpoints.start()
+        settle_collector()  # before the trials reopen: theirs is not the start's to freeze
         await services.hub.start()
-        settle_collector()
         yield
         await services.hub.close()
         services.log.close()

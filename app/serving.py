@@ -63,8 +63,8 @@ def uvicorn_options(settings: Settings) -> dict[str, Any]:
 
 
 def settle_collector() -> None:
-    """Take what the process built to start (modules, the app, its services: some 170,000 objects)
-    out of the collector's full passes. Those passes stop the event loop for as long as they walk
+    """Take what the process built to start (modules, the app, its services: some 170,000 objects,
+    not the trials it reopens, which end and must be freed) out of the collector's full passes. Those passes stop the event loop for as long as they walk
     every long-lived object: 150-170 ms with 200 live trials on the 2-core machine, every half
     minute, the tail of every latency; without the start's objects they walk a third as many.
     Only in a process the server owns (`robotslang serve`, each of its workers): a test's server
