@@ -59,7 +59,8 @@ class EventLog:
         self.on_lost: Callable[[int, Exception], None] | None = None  # the hub drops a trial whose batch failed
 
     def load(self, trial_id: int) -> list[LoggedEvent]:
-        self.flush()  # read what this process has appended
+        if self._holds(trial_id):
+            self.flush()  # read what this process has appended to it
         with self.sessions() as db:
             rows = db.scalars(select(models.Event).where(models.Event.trial_id == trial_id).order_by(models.Event.seq))
             return [LoggedEvent(r.seq, r.kind, r.t_ns, r.payload) for r in rows]
@@ -114,6 +115,13 @@ class EventLog:
                 batch, self._pending = self._pending, _Batch()
                 self._deliver(batch, self._commit(batch))  # waiting anyway: commit here
         self._deliver_waiting()
+
+    def _holds(self, trial_id: int) -> bool:
+        """Whether events of this trial wait for (or are in) a commit. Only then must a read of it
+        commit first: a crowd of trials opening at once read their logs four times each, and
+        committing every other trial's events at each read was a synchronous commit per read."""
+        batches = (self._pending, self._inflight[1]) if self._inflight is not None else (self._pending,)
+        return any(e["trial_id"] == trial_id for batch in batches for e in batch.events)
 
     def close(self) -> None:
         """Commit what is queued and stop the writer (the server's shutdown)."""

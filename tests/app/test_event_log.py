@@ -14,6 +14,7 @@ from app.db.models import Event
 from app.trial.log import EventLog
 from app.trial.state import LoggedEvent
 from bench.live import team_trial
+from tests.app.live import platform_settings
 
 MAZE = "gen-000"
 TRIALS = 3
@@ -90,4 +91,28 @@ def test_a_conflicting_trial_loses_only_its_own_batch(any_db_settings, writer_th
     assert heard == [mine] and lost == [theirs]
     assert [e.payload.get("text") for e in log.load(mine)][1:] == ["mine"]
     assert [e.payload.get("text") for e in log.load(theirs)][1:] == ["another process wrote this"]
+    engine.dispose()
+
+
+@pytest.mark.parametrize("writer_thread", [False, True], ids=["on the loop", "writer thread"])
+def test_a_read_commits_only_when_its_own_trial_has_events_waiting(tmp_path, writer_thread):
+    settings = platform_settings(tmp_path)
+    engine = make_engine(settings)
+    upgrade(settings, engine)
+    sessions = make_sessionmaker(engine)
+    busy, reader = new_trials(sessions, 2)
+    log = EventLog(sessions, writer_thread=writer_thread)
+
+    async def play() -> tuple[list[int], int, list[int], int]:
+        log.append(busy, LoggedEvent(2, "chat", 2, {"text": "waiting for the turn's commit"}))
+        other = [e.seq for e in log.load(reader)]  # another trial's read: nothing of `busy` committed
+        waiting = committed_count(sessions, busy)
+        own = [e.seq for e in log.load(busy)]  # its own read sees what it appended
+        done = committed_count(sessions, busy)
+        log.close()
+        return other, waiting, own, done
+
+    other, waiting, own, done = asyncio.run(play())
+    assert other == [1] and waiting == 1
+    assert own == [1, 2] and done == 2
     engine.dispose()
