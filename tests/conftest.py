@@ -3,9 +3,17 @@
 from __future__ import annotations
 
 import os
+import uuid
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from sqlalchemy import create_engine, text
+
+from app.security import SEAT_ROLES
+from app.settings import Settings
+from bench.live import make_trial
+from tests.app.live import ServerThread, platform_settings
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -67,3 +75,64 @@ def redis_url():
 @pytest.fixture
 def anyio_backend() -> str:
     return "asyncio"
+
+
+# The machine's PostgreSQL, for the platform's and the deployment's tests.
+PG_ADMIN_URL = "postgresql+psycopg://postgres@127.0.0.1:5432/test"
+
+
+def postgres_reachable() -> str | None:
+    """None when the machine's PostgreSQL answers, else why not."""
+    try:
+        engine = create_engine(PG_ADMIN_URL, connect_args={"connect_timeout": 3})
+        with engine.connect() as conn:
+            conn.execute(text("select 1"))
+        engine.dispose()
+        return None
+    except Exception as err:  # any failure to connect means: skip, saying why
+        return f"PostgreSQL at 127.0.0.1:5432/test not reachable: {type(err).__name__}: {str(err)[:120]}"
+
+
+@pytest.fixture
+def postgres_url():
+    """A private schema in the `test` database, dropped afterwards."""
+    why = postgres_reachable()
+    if why:
+        pytest.skip(why)
+    schema = f"rs_{uuid.uuid4().hex[:12]}"
+    admin = create_engine(PG_ADMIN_URL)
+    with admin.begin() as conn:
+        conn.execute(text(f"create schema {schema}"))
+    yield f"{PG_ADMIN_URL}?options=-csearch_path%3D{schema}"
+    with admin.begin() as conn:
+        conn.execute(text(f"drop schema {schema} cascade"))
+    admin.dispose()
+
+
+# The platform's fixtures: a server, a trial on it, its seats (the app's and the browser tests).
+@pytest.fixture
+def settings(request, tmp_path) -> Settings:
+    """The platform's test settings; `@pytest.mark.settings(**overrides)` changes some for one test."""
+    marker = request.node.get_closest_marker("settings")
+    return platform_settings(tmp_path, **(marker.kwargs if marker else {}))
+
+
+@pytest.fixture
+def server(settings) -> Iterator[ServerThread]:
+    """The platform on `settings`, served on a loopback port for the test."""
+    with ServerThread(settings) as running:
+        yield running
+
+
+@pytest.fixture
+def trial(request, server) -> int:
+    """A team's trial on the server's first maze; `@pytest.mark.trial(**make_trial_options)` sets
+    its targets, Driver or backend."""
+    marker = request.node.get_closest_marker("trial")
+    return make_trial(server.services, server.services.mazes.names()[0], **(marker.kwargs if marker else {}))
+
+
+@pytest.fixture
+def seats(server, trial) -> dict[str, str]:
+    """The join tokens of the trial's seats, by role (what the experimenter's join links carry)."""
+    return {role: server.services.seats.issue(trial, role) for role in SEAT_ROLES}

@@ -36,8 +36,7 @@ from sim.agents.turns import (
     TurnKind,
 )
 from sim.robot.perception import RayObservation
-from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread, cli, experimenter_client
+from tests.app.live import ServerThread, cli, experimenter_client, platform_settings
 from tests.app.rover_lab import MAZE, START_S, TARGETS
 
 PRIVILEGED = {"pose", "x", "y", "heading", "maze", "graph", "map", "target", "targets", "true_pose", "belief"}

@@ -27,7 +27,6 @@ from app.settings import Settings
 from app.trial.state import fold
 from bench.live import REPO, SeatClient, ServerProcess, make_trial
 from robot_client.protocol import pack_frame
-from tests.app.conftest import platform_settings
 from tests.app.live import (
     PASSWORD,
     ServerThread,
@@ -35,6 +34,7 @@ from tests.app.live import (
     experimenter_client,
     log_in,
     page_csrf_token,
+    platform_settings,
     session_cookie,
     submit_login,
 )

@@ -98,7 +98,7 @@ def test_database_upgrade_is_idempotent(tmp_path, kind, request):
 
     from app.db.engine import make_engine, upgrade
     from app.db.models import Base
-    from tests.app.conftest import platform_settings
+    from tests.app.live import platform_settings
 
     url = request.getfixturevalue("postgres_url") if kind == "postgres" else None
     settings = platform_settings(tmp_path, database_url=url)

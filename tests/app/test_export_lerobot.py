@@ -23,7 +23,7 @@ from app.settings import Settings
 from app.trial.log import EventLog
 from sim.core.dynamics import Action
 from tests.app.trial_log import small_maze
-from tests.packaging.conftest import REPO, clean_env
+from tests.packaging.outside import REPO, clean_env
 
 av = pytest.importorskip("av", reason="the LeRobot export needs the `lerobot` extra (PyAV)")
 pq = pytest.importorskip("pyarrow.parquet", reason="the LeRobot export needs the `lerobot` extra (pyarrow)")

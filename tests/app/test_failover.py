@@ -16,7 +16,7 @@ from app.db.models import Event
 from app.main import build_services
 from app.trial.relay import owner_key
 from bench.live import SeatClient, ServerProcess, make_trial
-from tests.app.conftest import platform_settings
+from tests.app.live import platform_settings
 from tests.app.trial_play import move, start_trial
 
 

@@ -10,8 +10,7 @@ import shutil
 import pytest
 
 from sim.tasks.library import MazeLibrary
-from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread, experimenter_client
+from tests.app.live import ServerThread, experimenter_client, platform_settings
 
 ONE_TABLE = ("Run_114", "Run_117", "Run_119")
 OTHERS = ("Run_146", "Run_152")  # same walls as each other, landmarks elsewhere: two layouts

@@ -15,8 +15,7 @@ from bench.live import SeatClient, make_trial
 from sim.core.navgraph import NavGraph
 from sim.tasks.ldh_eval import MazeContext, colour_logits
 from sim.tasks.ldh_features import maze_views, mentions
-from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread, Watch
+from tests.app.live import ServerThread, Watch, platform_settings
 from tests.app.trial_play import start_trial
 
 SAID = "I see a red wall on my left and a yellow wall ahead of me"

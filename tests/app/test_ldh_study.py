@@ -14,8 +14,7 @@ from bench.live import ServerProcess
 from sim.tasks.benchmark import Benchmark
 from sim.tasks.ldh import LDHInstance, Variant
 from sim.tasks.ldh_eval import MazeContext, score
-from tests.app.conftest import platform_settings
-from tests.app.live import browser, page_csrf_token
+from tests.app.live import browser, page_csrf_token, platform_settings
 
 
 def participant(base_url: str, link: str) -> tuple[httpx.Client, str]:

@@ -15,8 +15,7 @@ from app.backends.remote import create_robot
 from app.db.models import Participant, Robot, Team, Trial
 from app.demo.runner import Demo
 from bench.live import REPO, SeatClient, make_trial
-from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread, experimenter_client
+from tests.app.live import ServerThread, experimenter_client, platform_settings
 from tests.app.trial_play import claim_and_decide, drive_to_target, start_trial
 
 

@@ -10,7 +10,7 @@ import subprocess
 import sys
 
 from bench.live import free_port
-from tests.conftest import REPO
+from tests.packaging.outside import REPO
 
 KEYS = {
     "chat_p50_ms",

@@ -21,8 +21,7 @@ from app.security import hash_password
 from bench.live import make_trial
 from sim.core.geometry import world_to_pixel
 from sim.core.labels import LABEL_BGR, OBJECT_LABELS
-from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread
+from tests.app.live import ServerThread, platform_settings
 
 HTML = {"Accept": "text/html,application/xhtml+xml"}
 

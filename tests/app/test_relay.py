@@ -11,8 +11,7 @@ from sqlalchemy import select
 from app.db.models import Event, Experimenter, Trial
 from app.security import hash_password
 from bench.live import SeatClient, make_trial
-from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread, Watch, browser, experimenter_client, submit_login
+from tests.app.live import ServerThread, Watch, browser, experimenter_client, platform_settings, submit_login
 from tests.app.trial_play import claim_and_decide, drive_to_target, move, start_trial
 
 

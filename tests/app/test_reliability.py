@@ -16,8 +16,7 @@ from app.db.models import Trial
 from app.main import build_services
 from app.trial.state import fold
 from bench.live import SeatClient, ServerProcess, make_trial
-from tests.app.conftest import platform_settings
-from tests.app.live import experimenter_client, session_cookie
+from tests.app.live import experimenter_client, platform_settings, session_cookie
 from tests.app.trial_play import move, start_trial
 from tests.app.wire_rover import Rover, rover_trial
 

@@ -18,8 +18,7 @@ from app.settings import Settings
 from app.trial import events as ev
 from bench.live import SeatClient, ServerProcess, ServerProcesses, make_trial
 from sim.core.geometry import heading_angle
-from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread
+from tests.app.live import ServerThread, platform_settings
 from tests.app.trial_play import move, start_trial
 
 POSES = [(100, 0), (200, 3), (300, 5), (400, 7)]

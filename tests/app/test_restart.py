@@ -10,7 +10,7 @@ from app.main import build_services
 from app.trial.state import fold
 from bench.live import SeatClient, ServerProcess, make_trial
 from sim.core.dynamics import Action, snap_pose, teacher_action
-from tests.app.conftest import platform_settings
+from tests.app.live import platform_settings
 from tests.app.trial_play import claim_and_decide, move, start_trial
 
 

@@ -20,8 +20,7 @@ from app.db.models import Frame as FrameRow
 from bench.live import SeatClient
 from robot_client.calibration import Calibration
 from robot_client.protocol import pack_frame
-from tests.app.conftest import platform_settings
-from tests.app.live import page_csrf_token
+from tests.app.live import page_csrf_token, platform_settings
 from tests.app.robot_rig import ROBOT_START_S, WATCHDOG_S, RobotProcess, RobotServer
 
 pytestmark = pytest.mark.anyio

@@ -21,8 +21,16 @@ from app.db.engine import alembic_config, make_engine
 from app.db.models import Experimenter, Participant, Trial
 from app.security import SESSION_COOKIE, InvalidToken, Seat, SeatTokens
 from bench.live import REPO, SeatClient, make_trial
-from tests.app.conftest import platform_settings
-from tests.app.live import PASSWORD, ServerThread, add_experimenter, browser, log_in, page_csrf_token, submit_login
+from tests.app.live import (
+    PASSWORD,
+    ServerThread,
+    add_experimenter,
+    browser,
+    log_in,
+    page_csrf_token,
+    platform_settings,
+    submit_login,
+)
 from tests.app.trial_play import start_trial
 
 

@@ -15,8 +15,7 @@ from app.trial.setup import TrialSetupError
 from bench.live import SeatClient, make_trial
 from models.shipped import SHIPPED_CHECKPOINT, default_checkpoint
 from models.train import load_agent
-from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread
+from tests.app.live import ServerThread, platform_settings
 
 
 def events_of(services, trial_id: int, kind: str) -> list[Event]:

@@ -25,7 +25,7 @@ from sim.robot.rover import BODY_RADIUS_M, Rover
 from sim.robot.tracking import OverheadTracker
 from tests.app.live import cli
 from tests.app.rover_lab import MAZE, START_S, settled, turned, until
-from tests.robot_client.conftest import ScriptedServer
+from tests.robot_client.scripted_server import ScriptedServer
 
 pytestmark = pytest.mark.anyio
 

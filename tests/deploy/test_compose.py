@@ -10,8 +10,8 @@ import subprocess
 import pytest
 import yaml
 
-from tests.deploy.conftest import DEPLOY, compose_services, service_command
-from tests.packaging.conftest import clean_env
+from tests.deploy.compose_file import DEPLOY, compose_services, service_command
+from tests.packaging.outside import clean_env
 
 SERVICES = {"postgres", "redis", "migrate", "server", "nginx"}
 # What compose.yaml requires (`${VAR:?}`) to render, with stand-in values.

@@ -25,8 +25,8 @@ from app.main import build_services
 from app.security import SeatTokens
 from app.settings import Settings
 from bench.live import ServerProcess, free_port, make_trial
-from tests.deploy.conftest import CONSOLE_SCRIPTS, DEPLOY, compose_services, service_command
-from tests.packaging.conftest import REPO, clean_env
+from tests.deploy.compose_file import CONSOLE_SCRIPTS, DEPLOY, compose_services, service_command
+from tests.packaging.outside import REPO, clean_env
 
 NGINX = shutil.which("nginx") or "/usr/sbin/nginx"
 SECRET = "deploy-test-secret"

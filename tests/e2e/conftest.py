@@ -3,23 +3,9 @@ browser Playwright downloads); the tests skip, saying why, where it is not insta
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
 
-# The platform's fixtures (a server, a trial on it, its seats), for the browser tests too.
-from tests.app.conftest import seats, server, settings, trial  # noqa: F401
-
-CHROMIUM = Path("/usr/bin/chromium")
-FLAGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
+from tests.e2e.pages import CHROMIUM, FLAGS
 
 
 @pytest.fixture(scope="module")

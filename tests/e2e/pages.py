@@ -3,7 +3,21 @@ and the checks every page passes."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from bench.live import REPO
+
+# Debian's chromium, headless: never a browser Playwright downloads.
+CHROMIUM = Path("/usr/bin/chromium")
+FLAGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
 
 ARTIFACTS = REPO / "test-artifacts"
 W_M, H_M = 2.4638, 2.0574

@@ -23,8 +23,7 @@ from sim.agents import turns as t
 from sim.agents.dialog_driver import DialogDriver
 from sim.agents.sight import pose_rays
 from sim.core.dynamics import snap_pose
-from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread
+from tests.app.live import ServerThread, platform_settings
 
 ARTIFACTS = REPO / "test-artifacts"
 MAZE = "gen-000"  # one of the mazes bundled in sim/tasks/mazes/

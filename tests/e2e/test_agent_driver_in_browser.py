@@ -19,8 +19,7 @@ from sim.agents.oracle_commander import OracleCommander
 from sim.agents.turns import Phase, PhaseChanged, SeatInfo, Speaker
 from sim.core.dynamics import snap_pose
 from sim.core.observations import RayTable
-from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread, wait_js
+from tests.app.live import ServerThread, platform_settings, wait_js
 
 ARTIFACTS = REPO / "test-artifacts"
 MAZE = "gen-000"  # one of the mazes bundled in sim/tasks/mazes/

@@ -16,8 +16,7 @@ from app.security import StudyTokens, hash_password
 from sim.tasks.benchmark import Benchmark
 from sim.tasks.ldh import LDHInstance, Variant
 from sim.tasks.ldh_eval import MazeContext, score
-from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread
+from tests.app.live import ServerThread, platform_settings
 from tests.e2e.pages import ARTIFACTS, H_M, W_M, experimenter, page_checks
 
 pytestmark = pytest.mark.browser

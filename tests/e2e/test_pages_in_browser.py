@@ -16,8 +16,7 @@ from app.db.models import Experimenter, Team, Trial
 from app.security import hash_password
 from bench.live import make_trial
 from sim.core.labels import LABEL_BGR, OBJECT_LABELS
-from tests.app.conftest import platform_settings
-from tests.app.live import ServerThread, wait_js
+from tests.app.live import ServerThread, platform_settings, wait_js
 from tests.e2e.pages import ARTIFACTS, H_M, W_M, experimenter, page_checks
 
 pytestmark = pytest.mark.browser

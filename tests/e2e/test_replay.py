@@ -12,7 +12,7 @@ from app.demo.runner import Demo
 from app.security import hash_password
 from app.settings import Settings
 from tests.app.live import ServerThread, wait_js
-from tests.e2e.conftest import CHROMIUM
+from tests.e2e.pages import CHROMIUM
 
 # A test artifact, like the other browser tests' (docs/img/replay.png is a copy of one).
 SCREENSHOT = Path(__file__).resolve().parents[2] / "test-artifacts" / "replay.png"

@@ -9,8 +9,7 @@ import pytest
 
 from app.db.models import Experimenter
 from app.security import hash_password
-from tests.app.conftest import platform_settings
-from tests.app.live import wait_js
+from tests.app.live import platform_settings, wait_js
 from tests.app.robot_rig import ROBOT_START_S, RobotProcess, RobotServer
 from tests.e2e.pages import ARTIFACTS
 

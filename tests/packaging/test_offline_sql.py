@@ -5,7 +5,7 @@ from __future__ import annotations
 import subprocess
 import sys
 
-from tests.packaging.conftest import REPO, clean_env
+from tests.packaging.outside import REPO, clean_env
 
 
 def offline_sql(tmp_path, **env: str) -> str:

@@ -22,7 +22,7 @@ import httpx
 import pytest
 
 from tests.app.live import browser, page_csrf_token, submit_login
-from tests.packaging.conftest import REPO, clean_env, free_port
+from tests.packaging.outside import REPO, clean_env, free_port
 
 pytestmark = pytest.mark.slow
 

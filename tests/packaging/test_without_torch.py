@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from tests.packaging.conftest import REPO, clean_env
+from tests.packaging.outside import REPO, clean_env
 
 # Each test starts the whole CLI in a fresh interpreter.
 pytestmark = pytest.mark.slow

@@ -1,5 +1,4 @@
-"""The machine's PostgreSQL and Redis, as the platform's multi-process tests use them, and
-deploy/compose.yaml's services, whose commands the deployment test runs."""
+"""deploy/compose.yaml's services, whose commands the deployment tests run."""
 
 from __future__ import annotations
 
@@ -8,8 +7,7 @@ from pathlib import Path
 
 import yaml
 
-from tests.app.conftest import postgres_url  # noqa: F401  (fixture)
-from tests.packaging.conftest import REPO
+from tests.packaging.outside import REPO
 
 DEPLOY = REPO / "deploy"
 # The `robotslang` the services run: this venv's console script (its `app` is the checkout's).
