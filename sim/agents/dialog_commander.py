@@ -88,7 +88,8 @@ class DialogCommander:
 
     def __init__(self, maze: Maze, seed: int = 0, cache_dir: str | Path | None = None) -> None:
         self.maze = maze
-        self.graph = NavGraph.build(maze, "benchmark", cache_dir=cache_dir)
+        # It plans on the graph the robot drives on: its map shows the landmarks, and they block.
+        self.graph = NavGraph.for_robot(maze, cache_dir=cache_dir)
         rays = RayTable.build(maze, self.graph, cache_dir=cache_dir)
         self.rays = rays
         self.scene = Scene.from_rays(rays.labels, rays.depth, self.graph.nodes)
