@@ -54,6 +54,8 @@ def test_selfplay_through_the_trial_core_records_ordinary_trials(tmp_path):
     figures = json.loads(done.stdout.strip().splitlines()[-1])
     assert set(figures) == KEYS
     assert figures["trials"] == 2 and figures["first_estimate_td_m"] is not None
+    # gen-000 and gen-001: the Commander once routed the robot through the paddle there.
+    assert figures["completed"] == 1.0 and figures["false_confirmations"] == 0
     assert figures["moves_ratio"] > 0 and figures["messages_mean"] > 0
 
     settings = Settings(data_dir=data)

@@ -146,6 +146,27 @@ def test_its_routes_never_pass_through_a_landmark(world):
     assert ways >= 50  # routes were planned, not just found out of reach
 
 
+def test_after_a_rejected_claim_it_guides_the_driver_closer(world):
+    """On the platform it reads the claim frame's pixels, and can put the target just beyond reach
+    where the Driver's view has it within: it then guides the Driver to a place closer to the
+    target, where it sent it up to the target from where it stood again and again."""
+    maze, graph, rays, _ = world
+    jar = maze.objects["jar"]
+    poses = [Pose(n, h) for n in range(graph.n) for h in range(8)]
+    in_reach = [p for p in poses if near(pose_rays(rays, p), Label.JAR)]
+    at = max(in_reach, key=lambda p: math.dist(graph.nodes[p.node], jar))  # the farthest in reach
+    short = next(p for p in poses if any(s.label == Label.JAR for s in seen(pose_rays(rays, p))) and p not in in_reach)
+    commander = _commander(world)
+    commander.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3, target="jar"))
+    commander.belief.log = np.where(np.arange(graph.n)[:, None] == at.node, 0.0, -1e9) * np.ones((1, 8))
+    assert commander.goal(at.node) == at.node  # there already: it sends the Driver up to the jar
+    verdicts = [t for t in commander.perceive(Claimed(0, pose_rays(rays, short))) if isinstance(t, DoJudge)]
+    assert verdicts == [DoJudge(False)] and commander.estimate().pose.node == at.node
+    goal = commander.goal(at.node)
+    assert goal in {p.node for p in in_reach}
+    assert math.dist(graph.nodes[goal], jar) < math.dist(graph.nodes[at.node], jar)
+
+
 def test_its_inputs_hold_no_pose_frames_or_moves(world):
     maze, graph, rays, _ = world
     assert list(inspect.signature(DialogCommander).parameters) == ["maze", "seed", "cache_dir"]
