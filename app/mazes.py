@@ -127,7 +127,7 @@ class Mazes:
         return self.library.load(name)
 
     def _graph(self, name: str) -> NavGraph:
-        return NavGraph.build(self.load(name), cache_dir=self.settings.cache_dir, objects_block=True)
+        return NavGraph.for_robot(self.load(name), cache_dir=self.settings.cache_dir)
 
     def _rays(self, name: str) -> RayTable:
         """The observation of every pose of the maze's graph: a simulator frame's rays are a lookup."""

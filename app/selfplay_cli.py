@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import sys
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 
 import typer
@@ -20,6 +21,7 @@ from sim.agents.selfplay import (
     benchmark_trials,
     iter_results,
     library_trials,
+    robot_graph,
     row,
     run_job,
     summarize,
@@ -68,19 +70,19 @@ def eval_selfplay(
     simulator's graph, no server or event log) and are not recorded; with it they are ordinary
     recorded trials of the platform."""
 
-    graph_of: Callable[[str], NavGraph]  # a spec's maze -> the graph its start is a pose of
+    graph_of: Callable[[str], NavGraph]  # a spec's maze -> the robot's graph, its start a pose of
     if benchmark is not None:
         bench = open_benchmark(benchmark)
         root = str(bench.root)
         specs = benchmark_trials(bench, split.value)[:limit]
-        graph_of = bench.graph
+        graph_of = partial(robot_graph, bench)
     else:
         from sim.tasks.library import BUNDLED_DIR, MazeLibrary
 
         root = None
         library = MazeLibrary(bundled=BUNDLED_DIR)
         mazes = [(name, library.load(name)) for name in library.names()[:limit]]
-        graphs = [NavGraph.build(m, "benchmark") for _, m in mazes]
+        graphs = [NavGraph.for_robot(m) for _, m in mazes]
         specs = library_trials(mazes, graphs, seed)
         graph_of = dict(zip([name for name, _ in mazes], graphs, strict=True)).__getitem__
     if record is not None:

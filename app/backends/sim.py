@@ -24,8 +24,7 @@ from app.backends.base import Frame, MoveOutcome
 from app.backends.render import FRAME_SIZE, FrameRenderer, InThread, render_jpeg
 from app.clock import ServerClock
 from app.trial.vocabulary import Move, Outcome, PoseSource
-from sim.core.dynamics import Action, Pose, step
-from sim.core.geometry import heading_angle
+from sim.core.dynamics import Action, Pose, continuous_pose, step
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
@@ -79,7 +78,7 @@ class SimulatorBackend:
             yield frame
 
     def pose(self) -> tuple[float, float, float]:
-        return self._continuous(self._pose)
+        return continuous_pose(self.moves, self._pose)
 
     async def close(self) -> None:
         if self._first is not None:
@@ -90,16 +89,12 @@ class SimulatorBackend:
         pose = self._pose
         jpeg = self._jpegs.pop(pose, None)
         if jpeg is None:  # drawn off the event loop: other trials keep moving
-            jpeg = await self.renderer.jpeg(self.maze, *self._continuous(pose))
+            jpeg = await self.renderer.jpeg(self.maze, *continuous_pose(self.moves, pose))
         self._jpegs[pose] = jpeg
         while len(self._jpegs) > FRAMES_KEPT:
             self._jpegs.popitem(last=False)
         frame = Frame(jpeg, self.clock.now_ns(), *FRAME_SIZE, observation=self.observation_at(pose))
         self._frames.put_nowait(frame)
-
-    def _continuous(self, pose: Pose) -> tuple[float, float, float]:
-        x, y = self.moves.nodes[pose.node]
-        return float(x), float(y), float(heading_angle(pose.heading))
 
     def observation_at(self, pose: Pose) -> RayObservation:
         """The simulator's ray observation at `pose` (what its frame shows): the ray table's row."""
@@ -115,4 +110,4 @@ class SimulatorBackend:
 
     def frame_at(self, pose: Pose) -> tuple[bytes, RayObservation]:
         """The frame at `pose`, drawn here, and its observation."""
-        return render_jpeg(self.maze, *self._continuous(pose)), self.observation_at(pose)
+        return render_jpeg(self.maze, *continuous_pose(self.moves, pose)), self.observation_at(pose)

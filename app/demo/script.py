@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.core.dynamics import Action, Pose, step, teacher_action
+from sim.core.dynamics import Action, Pose, continuous_pose, step, teacher_action
 from sim.core.geometry import GRID_STEP_M, heading_angle
 from sim.core.labels import Label
 from sim.core.maze import Maze
@@ -30,11 +30,6 @@ OBJECT_WORDS = {label.word: name for label, name in vocab.OBJECT_WORDS.items()}
 PHRASES = Phrases(Phrasing.SCRIPTED)  # one template per kind: the scripted Commander's words
 MAX_LEG_ACTIONS = 400
 CORNER_TOLERANCE_M = 0.1
-
-
-def _xy_theta(graph: NavGraph, pose: Pose) -> tuple[float, float, float]:
-    x, y = graph.nodes[pose.node]
-    return float(x), float(y), float(heading_angle(pose.heading))
 
 
 def what_is_at(maze: Maze, x: float, y: float, angle: float) -> tuple[Label, float]:
@@ -135,7 +130,7 @@ def plan_leg(maze: Maze, graph: NavGraph, start: Pose, target: str) -> Leg:
 def describe_view(maze: Maze, graph: NavGraph, pose: Pose) -> str:
     """The scripted Driver's answer to "what do you see?": the map's rays ahead, left and right, in
     the words the dialog Driver uses for its frames (`sim.language.describe`)."""
-    x, y, theta = _xy_theta(graph, pose)
+    x, y, theta = continuous_pose(graph, pose)
     views = {}
     for side in (vocab.Side.AHEAD, vocab.Side.LEFT, vocab.Side.RIGHT):
         labels, depth = ray_caster(maze).cast(x, y, theta + vocab.SIDE_STEPS[side] * math.pi / 4 + RAY_OFFSETS)

@@ -88,7 +88,8 @@ class DialogCommander:
 
     def __init__(self, maze: Maze, seed: int = 0, cache_dir: str | Path | None = None) -> None:
         self.maze = maze
-        self.graph = NavGraph.build(maze, "benchmark", cache_dir=cache_dir)
+        # It plans on the graph the robot drives on: its map shows the landmarks, and they block.
+        self.graph = NavGraph.for_robot(maze, cache_dir=cache_dir)
         rays = RayTable.build(maze, self.graph, cache_dir=cache_dir)
         self.rays = rays
         self.scene = Scene.from_rays(rays.labels, rays.depth, self.graph.nodes)
@@ -110,6 +111,8 @@ class DialogCommander:
         self.belief = Belief(self.scene, self.main)
         self._phase = Phase.WAITING
         self._target: str | None = None
+        # After a claim on the target rejected: only places closer to it than its estimate then.
+        self._closer_than_m = math.inf
         self._pending: ins.Parsed | None = None  # the instruction out, not yet reported on
         self._questions = 0  # asked since the belief last settled
         self._asked: set[tuple[Sector, Label]] = set()  # at this stop
@@ -137,6 +140,7 @@ class DialogCommander:
             return self._say(self.phrases.say(Kind.ASK_VIEW))
         if change.phase == Phase.NAVIGATING and change.target is not None:
             self._target = change.target
+            self._closer_than_m = math.inf
             announce = self.phrases.say(Kind.ANNOUNCE, thing=OBJECT_WORDS[object_label(change.target)])
             return self._guide(prefix=announce)
         return []
@@ -191,7 +195,14 @@ class DialogCommander:
         if claim.rays is None:  # no frame to judge from: the belief must be sure
             return [DoJudge(self._mass_near(self.maze.objects[self._target]) >= SURE)]
         self._observe_view(claim.rays)
-        return [DoJudge(near(claim.rays, object_label(self._target)))]
+        confirmed = near(claim.rays, object_label(self._target))
+        if not confirmed:
+            # Not within reach from there by the frame: guide it closer, not back to a place as far.
+            target = self.maze.objects[self._target]
+            self._closer_than_m = min(
+                self._closer_than_m, math.dist(self.graph.nodes[self.estimate().pose.node], target)
+            )
+        return [DoJudge(confirmed)]
 
     # -- belief ---------------------------------------------------------------------------------
 
@@ -308,6 +319,17 @@ class DialogCommander:
         sector, label = best
         return self._say(f"is there a {wall_name(label)} {_YOUR_SIDE[_SECTOR[sector]]}?")
 
+    def goal(self, node: int) -> int:
+        """Where it guides the Driver from `node`: the nearest place from which the target is in view
+        within reach; after a rejected claim, the nearest such place closer to the target than the
+        estimate was then (the frame's pixels can put the target beyond reach where its rays do not)."""
+        assert self._target is not None
+        places = np.flatnonzero(self._reach[object_label(self._target)].any(axis=1))
+        away = np.hypot(*(self.graph.nodes[places] - self.maze.objects[self._target]).T)
+        closer = places[away < self._closer_than_m]
+        places = closer if closer.size else places
+        return int(places[self._dist[node, places].argmin()])
+
     def _guide(self, prefix: str | None = None) -> list[Turn]:
         """The next instruction from the estimate, towards the target."""
         assert self._target is not None
@@ -315,10 +337,8 @@ class DialogCommander:
         self._asked.clear()
         estimate = self.estimate()
         label = object_label(self._target)
-        # The goal: the nearest place from which the target is in view within reach.
         reach = self._reach[label]
-        places = np.flatnonzero(reach.any(axis=1))
-        goal = int(places[self._dist[estimate.pose.node, places].argmin()])
+        goal = self.goal(estimate.pose.node)
         if estimate.pose.node == goal:
             # There: face the target and go up to it; the Driver claims once it sees it within reach.
             eighths = min(

@@ -322,7 +322,9 @@ class DialogDriver:
             return DoSay("i cannot see clearly. what should i do?")
         front = ahead(view)
         if task.until is not None and task.until in OBJECT_LABELS:
-            reached = near(view, task.until) or view.forward_blocked
+            # Where its claim was rejected it is not close enough yet: it goes on up to the target.
+            close = near(view, task.until) and self._odo.here not in self._rejected_at
+            reached = close or view.forward_blocked
         else:
             reached = at_wall(view)
         if reached:

@@ -11,7 +11,7 @@ import numpy as np
 from sim.agents.sight import pose_rays
 from sim.core.dynamics import Action, Pose, step
 from sim.core.geometry import HEADINGS
-from sim.core.labels import Label
+from sim.core.labels import WALL_LABELS, Label
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
 from sim.language.describe import ahead, at_wall, near, seen
@@ -63,7 +63,9 @@ class Router:
         wall = self._walk_ends(poses[start], None)
         if next_turn and not plain and wall == run:
             front = self._ahead_label(poses[start + run])
-            if front is not None and any(s.label == front for s in seen(self.view(poses[start]))):
+            # Only a wall is named to turn at: a landmark ahead (it blocks the robot) named there
+            # reads as the thing to find ("... at the ping-pong paddle": the Driver claims it).
+            if front in WALL_LABELS and any(s.label == front for s in seen(self.view(poses[start]))):
                 return ", then ".join(
                     [*words, self.phrases.say(Kind.TURN_AT_WALL, turn=next_turn, wall=wall_name(front))]
                 )

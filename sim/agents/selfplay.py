@@ -1,6 +1,7 @@
 """Whole trials with agents in both seats, offline: localize, the three targets in order, each
 claim judged by the Commander. The harness is the referee: it alone holds the true pose, steps it
-on the graph by the trial's rules (`sim.core.dynamics.step`), hands the Driver the RayTable row of
+on the robot's graph (`NavGraph.for_robot`: the landmarks block, as on the platform) by the trial's
+rules (`sim.core.dynamics.step`), hands the Driver the RayTable row of
 each pose as its `Saw` and the Commander the claim frame's rays in `Claimed`, and measures.
 
 Agents are named: `dialog` in either seat (percepts only); `oracle` in either seat cheats (the
@@ -205,7 +206,8 @@ def seat_agents(
 
 def benchmark_trials(bench: Any, split: str) -> list[TrialSpec]:
     """One trial per maze of the split: from the recorded start of its first target's instance
-    (the jar's where the split has it), to the maze's three objects in the benchmark's order."""
+    (the jar's where the split has it, snapped to the robot's graph), to the maze's three objects
+    in the benchmark's order."""
     from sim.tasks.benchmark import recorded_start
 
     specs = []
@@ -215,10 +217,15 @@ def benchmark_trials(bench: Any, split: str) -> list[TrialSpec]:
     for run, instances in by_run.items():
         first = next((i for i in instances if i.target == TARGET_ORDER[0]), instances[0])
         maze = bench.maze(run)
-        start = recorded_start(bench.graph(run), first)
+        start = recorded_start(robot_graph(bench, run), first)
         targets = tuple((name, maze.objects[name]) for name in TARGET_ORDER)
         specs.append(TrialSpec(run, start, targets, first.inst_idx))
     return specs
+
+
+def robot_graph(bench: Any, run: str) -> NavGraph:
+    """The robot's graph of a benchmark run (`bench` a `sim.tasks.benchmark.Benchmark`)."""
+    return NavGraph.for_robot(bench.maze(run), cache_dir=bench.cache_dir)
 
 
 def library_trials(mazes: Sequence[tuple[str, Maze]], graphs: Sequence[NavGraph], seed: int = 0) -> list[TrialSpec]:
@@ -283,19 +290,20 @@ _worlds: dict[tuple[str | None, str], tuple[Maze, NavGraph, RayTable]] = {}
 
 
 def world(benchmark: str | None, name: str) -> tuple[Maze, NavGraph, RayTable]:
-    """A maze with its graph and views, loaded once per process (graphs and views cached on disk)."""
+    """A maze with the robot's graph and its views, loaded once per process (graphs and views
+    cached on disk)."""
     if (benchmark, name) not in _worlds:
         if benchmark is not None:
             from sim.tasks.benchmark import Benchmark
 
             bench = Benchmark(benchmark)
-            maze, graph = bench.maze(name), bench.graph(name)
+            maze, cache = bench.maze(name), bench.cache_dir
         else:
             from sim.tasks.library import MazeLibrary
 
-            maze = MazeLibrary().load(name)
-            graph = NavGraph.build(maze, "benchmark")
-        _worlds[benchmark, name] = (maze, graph, RayTable.build(maze, graph))
+            maze, cache = MazeLibrary().load(name), None
+        graph = NavGraph.for_robot(maze, cache_dir=cache)
+        _worlds[benchmark, name] = (maze, graph, RayTable.build(maze, graph, cache_dir=cache))
     return _worlds[benchmark, name]
 
 

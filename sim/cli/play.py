@@ -18,8 +18,8 @@ import cv2
 import numpy as np
 import typer
 
-from sim.core.dynamics import Action, Pose, snap_pose, step
-from sim.core.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M, heading_angle
+from sim.core.dynamics import Action, Pose, continuous_pose, snap_pose, step
+from sim.core.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M
 from sim.core.labels import Label
 from sim.core.maze import Maze, MazeError
 from sim.core.navgraph import MODES, NavGraph
@@ -75,11 +75,6 @@ class Drive:
         self.path.append(self.pose.node)
         self.write_frames()
 
-    @property
-    def xytheta(self) -> tuple[float, float, float]:
-        x, y = self.graph.nodes[self.pose.node]
-        return float(x), float(y), float(heading_angle(self.pose.heading))
-
     def move(self, action: Action) -> bool:
         """Apply one move and write its frames; returns whether a forward move collided."""
         self.pose, collided = step(self.graph, self.pose, action)
@@ -91,7 +86,7 @@ class Drive:
         return collided
 
     def write_frames(self) -> None:
-        x, y, theta = self.xytheta
+        x, y, theta = continuous_pose(self.graph, self.pose)
         frames = {
             "first-person": first_person(self.maze, x, y, theta, size=(640, 480)),
             "top-down": top_down(self.maze, pose=(x, y, theta), path=self.graph.nodes[self.path], rays=True),
@@ -102,7 +97,7 @@ class Drive:
 
     def describe(self) -> str:
         """One status line: pose, what is straight ahead, how far each object is by the graph."""
-        x, y, theta = self.xytheta
+        x, y, theta = continuous_pose(self.graph, self.pose)
         labels, depth = cast_rays(self.maze, x, y, theta)
         ahead = Label(int(labels[N_RAYS // 2]))
         seen = sorted({Label(int(v)).word for v in labels if v != Label.FLOOR})

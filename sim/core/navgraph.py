@@ -7,10 +7,13 @@ computes it) is above 0 and at most sqrt(2) * 0.07. Rounding in that test drops 
 the diagonal edges; the published numbers depend on it, so that is the `benchmark` mode.
 The `exact` mode joins every pair of 8-neighbours.
 
-The benchmark's graph is built on the walls-only map, so the objects are walkable. The live
-simulator seat builds it with `objects_block=True`, on the map with the objects: a move into
-a landmark is then a collision, as it would be on the real table, and the robot stops in front
-of the target it claims. Scoring against the benchmark always uses the walls-only graph.
+The benchmark's graph is built on the walls-only map, so the objects are walkable. The robot's
+graph (`NavGraph.for_robot`) is built on the map with the objects: a move into a landmark is a
+collision, as on the real table, and the robot stops in front of the target it claims. It is the
+one notion of what blocks the robot on the platform: the live simulator seat drives on it, and
+every planner of a trial (the Commanders' routes, the dialog Commander's belief, self-play's
+shortest paths) plans on it. Scoring against the benchmark (NDH, LDH, the baselines) always uses
+the walls-only graph, as the paper does.
 """
 
 from __future__ import annotations
@@ -120,7 +123,7 @@ class NavGraph:
         use_cache: bool = True,
         objects_block: bool = False,
     ) -> NavGraph:
-        """The graph of `maze` (cached by its contents); `objects_block=True` for the live seat."""
+        """The graph of `maze` (cached by its contents); `objects_block=True`: `for_robot`."""
         if mode not in MODES:
             raise ValueError(f"unknown edge mode {mode!r}; expected one of {', '.join(MODES)}")
         kind = f"{mode}-objects" if objects_block else mode
@@ -136,6 +139,12 @@ class NavGraph:
         if use_cache:
             graph._save(path)
         return graph
+
+    @classmethod
+    def for_robot(cls, maze: Maze, cache_dir: str | Path | None = None, use_cache: bool = True) -> NavGraph:
+        """The graph the robot drives on: the walls and the landmarks block it. A Commander may plan
+        on it: the map it is shown has the landmarks."""
+        return cls.build(maze, "benchmark", cache_dir=cache_dir, use_cache=use_cache, objects_block=True)
 
     @classmethod
     def _compute(cls, grid: np.ndarray, mode: str, objects_block: bool = False) -> NavGraph:

@@ -38,7 +38,7 @@ KEYS = {
 def bundled_starts(n: int, seed: int = 0) -> dict[str, tuple[float, float, float]]:
     """The starts the offline runner gives the first `n` bundled mazes: what --record must start from."""
     mazes = [(name, LIBRARY.load(name)) for name in LIBRARY.names()[:n]]
-    graphs = [NavGraph.build(m, "benchmark") for _, m in mazes]
+    graphs = [NavGraph.for_robot(m) for _, m in mazes]
     return {
         spec.maze: continuous_pose(g, spec.start)
         for spec, g in zip(library_trials(mazes, graphs, seed), graphs, strict=True)
@@ -54,6 +54,8 @@ def test_selfplay_through_the_trial_core_records_ordinary_trials(tmp_path):
     figures = json.loads(done.stdout.strip().splitlines()[-1])
     assert set(figures) == KEYS
     assert figures["trials"] == 2 and figures["first_estimate_td_m"] is not None
+    # gen-000 and gen-001: the Commander once routed the robot through the paddle there.
+    assert figures["completed"] == 1.0 and figures["false_confirmations"] == 0
     assert figures["moves_ratio"] > 0 and figures["messages_mean"] > 0
 
     settings = Settings(data_dir=data)
@@ -74,10 +76,11 @@ def test_selfplay_through_the_trial_core_records_ordinary_trials(tmp_path):
         events = logs[maze]
         assert {"chat", "localization", "move_executed", "frame"} <= {e.kind for e in events}
         # The trial is created with the offline runner's start, logged, and the robot is first seen
-        # there (at the pose of the simulator's graph nearest to it: objects block the robot there).
+        # there: both runners drive the robot on the one graph (the landmarks block it).
         assert events[0].kind == "trial_created" and events[0].payload["start"] == pytest.approx(list(start))
         graph = mazes.graph(maze)
         x, y, heading = continuous_pose(graph, snap_pose(graph, *start))
+        assert (x, y) == pytest.approx(start[:2])
         first = next(e.payload for e in events if e.kind == "pose")
         assert (first["x"], first["y"]) == pytest.approx((x, y))
         assert math.cos(first["heading"] - heading) == pytest.approx(1.0)

@@ -31,8 +31,8 @@ from sim.agents.turns import (
     Speaker,
 )
 from sim.core.dynamics import Pose
-from sim.core.geometry import SUCCESS_RADIUS_M
-from sim.core.labels import Label
+from sim.core.geometry import SUCCESS_RADIUS_M, world_to_pixel
+from sim.core.labels import OBJECT_LABELS, Label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
@@ -47,7 +47,7 @@ from sim.tasks.library import BUNDLED_DIR
 def world(tmp_path_factory):
     cache = tmp_path_factory.mktemp("cache")
     maze = Maze.from_dir(BUNDLED_DIR / "gen-000", cache_dir=cache)
-    graph = NavGraph.build(maze, "benchmark", cache_dir=cache)
+    graph = NavGraph.for_robot(maze, cache_dir=cache)  # the robot's: the landmarks block it
     return maze, graph, RayTable.build(maze, graph, cache_dir=cache), cache
 
 
@@ -122,6 +122,49 @@ def test_it_confirms_a_claim_from_a_frame_near_the_target_and_rejects_a_far_one(
         commander.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3, target="jar"))
         verdicts = [t for t in commander.perceive(Claimed(0, pose_rays(rays, pose))) if isinstance(t, DoJudge)]
         assert verdicts == [DoJudge(confirmed)]
+
+
+def test_its_routes_never_pass_through_a_landmark(world):
+    """gen-000's paddle stands in the way of many routes: the Commander plans around it, since
+    the robot cannot drive through it (its map shows the landmarks)."""
+    maze, _, _, _ = world
+    commander = _commander(world)
+    graph = commander.graph
+    landmark = np.isin(maze.labels, OBJECT_LABELS)
+    rng = np.random.default_rng(0)
+    ways = 0
+    for start_node, heading, goal in zip(
+        rng.integers(graph.n, size=60), rng.integers(8, size=60), rng.integers(graph.n, size=60), strict=True
+    ):
+        _, poses = commander.router.plan(Pose(int(start_node), int(heading)), int(goal))
+        xy = graph.nodes[[p.node for p in poses]]
+        # Every point of the way (a centimetre apart), between and at the nodes.
+        along = np.concatenate([a + np.linspace(0, 1, 11)[:, None] * (b - a) for a, b in zip(xy, xy[1:])] + [xy])
+        cols, rows = world_to_pixel(along[:, 0], along[:, 1])
+        assert not landmark[np.rint(rows).astype(int), np.rint(cols).astype(int)].any()
+        ways += len(poses) > 1
+    assert ways >= 50  # routes were planned, not just found out of reach
+
+
+def test_after_a_rejected_claim_it_guides_the_driver_closer(world):
+    """On the platform it reads the claim frame's pixels, and can put the target just beyond reach
+    where the Driver's view has it within: it then guides the Driver to a place closer to the
+    target, where it sent it up to the target from where it stood again and again."""
+    maze, graph, rays, _ = world
+    jar = maze.objects["jar"]
+    poses = [Pose(n, h) for n in range(graph.n) for h in range(8)]
+    in_reach = [p for p in poses if near(pose_rays(rays, p), Label.JAR)]
+    at = max(in_reach, key=lambda p: math.dist(graph.nodes[p.node], jar))  # the farthest in reach
+    short = next(p for p in poses if any(s.label == Label.JAR for s in seen(pose_rays(rays, p))) and p not in in_reach)
+    commander = _commander(world)
+    commander.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3, target="jar"))
+    commander.belief.log = np.where(np.arange(graph.n)[:, None] == at.node, 0.0, -1e9) * np.ones((1, 8))
+    assert commander.goal(at.node) == at.node  # there already: it sends the Driver up to the jar
+    verdicts = [t for t in commander.perceive(Claimed(0, pose_rays(rays, short))) if isinstance(t, DoJudge)]
+    assert verdicts == [DoJudge(False)] and commander.estimate().pose.node == at.node
+    goal = commander.goal(at.node)
+    assert goal in {p.node for p in in_reach}
+    assert math.dist(graph.nodes[goal], jar) < math.dist(graph.nodes[at.node], jar)
 
 
 def test_its_inputs_hold_no_pose_frames_or_moves(world):

@@ -26,9 +26,11 @@ from sim.agents.turns import (
     Speaker,
 )
 from sim.core.dynamics import Action, Pose, step
+from sim.core.labels import Label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
+from sim.language.describe import near
 from sim.language.phrases import Phrasing
 from sim.tasks.library import BUNDLED_DIR
 
@@ -173,3 +175,29 @@ def test_it_asks_when_it_bumps_is_rejected_or_does_not_understand(world):
     assert turns[-1] == DoClaim()
     (said,) = driver.perceive(Judged(confirmed=False, target_index=0))
     assert said.text.endswith("where should i go?")
+
+
+def test_rejected_where_it_sees_the_target_it_goes_on_up_to_it(world):
+    """Its claim rejected with the jar in reach (a Commander's reading of the frame can be stricter
+    than its own), told again to go up to the jar, it goes closer and claims again: stopping where
+    it stands, it answered "ok, at the jar" to the same instruction until the message cap."""
+    _, graph, _ = world
+    poses = [Pose(n, h) for n in range(graph.n) for h in range(8)]
+    start = next(
+        p
+        for p in poses
+        if near(_rays(world, p), Label.JAR)
+        and not step(graph, p, Action.FORWARD)[1]
+        and near(_rays(world, step(graph, p, Action.FORWARD)[0]), Label.JAR)
+    )
+    driver = DialogDriver(0)
+    driver.reset(SeatInfo(Speaker.DRIVER, 3))
+    driver.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3))
+    driver.perceive(Saw(0, _rays(world, start)))
+    assert driver.perceive(Heard(Speaker.COMMANDER, "now find the jar of blocks"))[-1] == DoClaim()
+    driver.perceive(Judged(confirmed=False, target_index=0))
+    (move,) = driver.perceive(Heard(Speaker.COMMANDER, "go forward until you see the jar of blocks"))
+    assert move == DoMove(Move.FORWARD)
+    driver.perceive(Moved(Move.FORWARD, Outcome.OK))
+    turns = driver.perceive(Saw(1, _rays(world, step(graph, start, Action.FORWARD)[0])))
+    assert turns[-1] == DoClaim()

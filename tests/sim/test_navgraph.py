@@ -101,7 +101,7 @@ def test_unknown_mode_is_refused():
 def test_objects_block_makes_a_move_into_a_landmark_a_collision(tmp_path):
     maze = Maze.from_labels(open_table(), "open")
     walls_only = NavGraph.build(maze, cache_dir=tmp_path)
-    live = NavGraph.build(maze, cache_dir=tmp_path, objects_block=True)
+    live = NavGraph.for_robot(maze, cache_dir=tmp_path)
     assert not walls_only.objects_block and live.objects_block
     jar = np.asarray(maze.objects["jar"])
     # The node a few steps left of the jar, heading +x (heading 0) toward it.
