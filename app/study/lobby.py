@@ -1,8 +1,8 @@
 """The lobby: participants who arrive at different times wait; each lobby page's poll pairs the
 poller with whoever waited longest and is still there (newcomers with newcomers, for a practice
-trial on the study's bundled practice maze, set aside from scores), on a maze of a layout neither has seen (the
-trial form's `suggest_maze`, on the study's pool), the one who commanded less in the Commander's
-seat. A page that stops asking (a closed tab) is not paired; a waiter past the study's time-out is
+trial on the study's bundled practice maze, set aside from scores), by the study's team plan (`app.study.plan`: a new
+partner first, roles balanced, a layout neither has seen: the trial form's `suggest_maze`, on the
+study's pool). A page that stops asking (a closed tab) is not paired; a waiter past the study's time-out is
 told so. One participant is in one live trial at a time, so two browsers of one participant are
 sent to the same seat, never two."""
 
@@ -13,11 +13,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 
-from sqlalchemy import func, or_, select
+from sqlalchemy import or_, select
 from sqlalchemy.orm import Session
 
 from app.db.models import Participant, StudyParticipant, Team, Trial
 from app.study.config import StudyConfig
+from app.study.plan import History, Pairing, choose_pair, roles
 from app.trial.lifecycle import live_trial_of
 from app.trial.setup import TrialSetupError, create_team, create_trial, parse_targets, suggest_maze
 from app.trial.vocabulary import Role
@@ -91,10 +92,20 @@ class Lobby:
             return TimedOut(waited)
         others = self.waiting(now, but=enrolled.id)
         practice = self.needs_practice(enrolled)
-        for other in others:
-            if self.needs_practice(other) != practice:
-                continue  # newcomers practise together; the others play the study's trials
-            trial = self._pair(enrolled, other, practice)
+        if practice:  # newcomers practise together, whoever waited longest first
+            partners = [o for o in others if self.needs_practice(o)]
+            plan = roles(self.history(partners[0]), self.history(enrolled)) if partners else None
+        else:
+            players = [o for o in others if not self.needs_practice(o)]
+            plan = choose_pair(
+                self.history(enrolled),
+                [self.history(o) for o in players],
+                frozenset(self.layouts.values()),
+                self.config.teams_per_participant,
+            )
+        if plan is not None:
+            other = next(o for o in others if o.participant_id in (plan.commander_id, plan.driver_id))
+            trial = self._pair(enrolled, other, practice, plan)
             if trial is not None:
                 enrolled.lobby_since = other.lobby_since = None
                 return seat_of(trial, enrolled.participant_id)
@@ -115,11 +126,32 @@ class Lobby:
         )
         return [e for e in rows if e.lobby_seen is not None and _aware(e.lobby_seen) >= present]
 
-    def _commands(self, participant_id: int) -> int:
-        count = select(func.count(Trial.id)).where(
-            Trial.study == self.config.name, Trial.commander_id == participant_id
+    def _study_trials(self, participant_id: int) -> list[Trial]:
+        """The participant's study trials, the practice not counted."""
+        return list(
+            self.db.scalars(
+                select(Trial).where(
+                    Trial.study == self.config.name,
+                    or_(Trial.commander_id == participant_id, Trial.driver_id == participant_id),
+                    or_(Trial.excluded_reason.is_(None), Trial.excluded_reason != PRACTICE_REASON),
+                )
+            )
         )
-        return int(self.db.scalar(count) or 0)
+
+    def history(self, enrolled: StudyParticipant) -> History:
+        pid = enrolled.participant_id
+        trials = self._study_trials(pid)
+        teams = select(Team.id).where(or_(Team.member_a_id == pid, Team.member_b_id == pid))
+        played = self.db.scalars(select(Trial.maze).where(Trial.team_id.in_(teams)))
+        return History(
+            participant_id=pid,
+            partners=frozenset(
+                seat for t in trials for seat in (t.commander_id, t.driver_id) if seat is not None and seat != pid
+            ),
+            commanded=sum(t.commander_id == pid for t in trials),
+            driven=sum(t.driver_id == pid for t in trials),
+            seen=frozenset(self.layouts.get(maze, maze) for maze in played),
+        )
 
     def pair(self, a: StudyParticipant, b: StudyParticipant) -> Trial:
         """The experimenter pairs two participants by hand (waiting or not): a practice trial when
@@ -128,7 +160,9 @@ class Lobby:
             raise LobbyError("choose two different participants")
         if a.withdrawn_at is not None or b.withdrawn_at is not None:
             raise LobbyError("a withdrawn participant cannot be paired")
-        trial = self._pair(a, b, self.needs_practice(a) and self.needs_practice(b))
+        trial = self._pair(
+            a, b, self.needs_practice(a) and self.needs_practice(b), roles(self.history(a), self.history(b))
+        )
         if trial is None:
             raise LobbyError("one of them is in a live trial, or the pool has no layout both have not seen")
         a.lobby_since = b.lobby_since = None
@@ -136,13 +170,7 @@ class Lobby:
 
     def played(self, enrolled: StudyParticipant) -> int:
         """The participant's study trials so far, the practice not counted."""
-        pid = enrolled.participant_id
-        trials = select(func.count(Trial.id)).where(
-            Trial.study == self.config.name,
-            or_(Trial.commander_id == pid, Trial.driver_id == pid),
-            or_(Trial.excluded_reason.is_(None), Trial.excluded_reason != PRACTICE_REASON),
-        )
-        return int(self.db.scalar(trials) or 0)
+        return len(self._study_trials(enrolled.participant_id))
 
     def needs_practice(self, enrolled: StudyParticipant) -> bool:
         if not self.practice_layouts:
@@ -154,7 +182,7 @@ class Lobby:
         )
         return self.db.scalar(practised.limit(1)) is None
 
-    def _pair(self, me: StudyParticipant, other: StudyParticipant, practice: bool) -> Trial | None:
+    def _pair(self, me: StudyParticipant, other: StudyParticipant, practice: bool, plan: Pairing) -> Trial | None:
         """A trial of the two on a layout neither has seen (the practice maze when they need
         practice), or None where there is none."""
         a, b = sorted((me.participant_id, other.participant_id))
@@ -166,10 +194,6 @@ class Lobby:
         maze = suggest_maze(self.db, team, layouts)
         if maze is None:
             return None
-        # Roles balanced: whoever has commanded less commands; on a tie, who waited longer.
-        first, second = (
-            (other, me) if self._commands(other.participant_id) <= self._commands(me.participant_id) else (me, other)
-        )
         try:
             trial = create_trial(
                 self.db,
@@ -178,7 +202,7 @@ class Lobby:
                 targets=parse_targets("random", random.Random()),
                 backend="sim",
                 driver="human",
-                commander_id=first.participant_id,
+                commander_id=plan.commander_id,
                 layouts=layouts,
                 now_ns=self.now_ns,
             )

@@ -326,3 +326,24 @@ def test_the_lobby_stops_pairing_a_participant_who_played_the_plans_trials(serve
     assert eve.post(f"/experimenter/trials/{trial_id}/abort").status_code == 200
     assert poll(ann) == {"state": "all_played", "trials": 1}
     assert poll(cat) == {"state": "waiting", "waiting": 1}, "Ann, done, does not wait"
+
+
+def test_the_lobby_follows_the_team_plan_new_partners_first_and_no_team_past_the_plan(server):
+    plan = {"practice_maze": None, "teams_per_participant": 1}
+    StudyFiles(server.settings.data_dir / "studies").save(template("pilot").model_copy(update=plan))
+    (ann, _), (bob, _) = join(server, "pilot"), join(server, "pilot")
+    assert poll(ann)["state"] == "waiting" and poll(bob)["state"] == "seated"
+    eve = experimenter_client(server.services, server.url)
+    with server.services.db() as db:
+        first = db.scalar(select(Trial).where(Trial.study == "pilot"))
+    assert eve.post(f"/experimenter/trials/{first.id}/abort").status_code == 200
+    cat, _ = join(server, "pilot")
+    assert poll(cat)["state"] == "waiting"
+    assert poll(ann) == {"state": "waiting", "waiting": 2}, "Ann has her one team: not teamed with Cat"
+    seat = poll(bob)
+    assert seat["state"] == "seated", "Bob, her one partner, is"
+    with server.services.db() as db:
+        trials = list(db.scalars(select(Trial).where(Trial.study == "pilot").order_by(Trial.id)))
+    assert trials[1].team_id == first.team_id and trials[1].maze != first.maze
+    assert {trials[1].commander_id, trials[1].driver_id} == {first.commander_id, first.driver_id}
+    assert trials[1].commander_id == first.driver_id, "the one who commanded drives now"
