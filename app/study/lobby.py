@@ -20,7 +20,7 @@ from app.db.models import Participant, StudyParticipant, Team, Trial
 from app.study.config import StudyConfig
 from app.study.plan import History, Pairing, choose_pair, roles
 from app.trial.lifecycle import live_trial_of
-from app.trial.setup import TrialSetupError, create_team, create_trial, parse_targets, suggest_maze
+from app.trial.setup import TrialSetupError, create_team, create_trial, mazes_played, parse_targets, suggest_maze
 from app.trial.vocabulary import Role
 
 
@@ -141,8 +141,6 @@ class Lobby:
     def history(self, enrolled: StudyParticipant) -> History:
         pid = enrolled.participant_id
         trials = self._study_trials(pid)
-        teams = select(Team.id).where(or_(Team.member_a_id == pid, Team.member_b_id == pid))
-        played = self.db.scalars(select(Trial.maze).where(Trial.team_id.in_(teams)))
         return History(
             participant_id=pid,
             partners=frozenset(
@@ -150,7 +148,7 @@ class Lobby:
             ),
             commanded=sum(t.commander_id == pid for t in trials),
             driven=sum(t.driver_id == pid for t in trials),
-            seen=frozenset(self.layouts.get(maze, maze) for maze in played),
+            seen=frozenset(self.layouts.get(maze, maze) for maze in mazes_played(self.db, (pid,))),
         )
 
     def pair(self, a: StudyParticipant, b: StudyParticipant) -> Trial:

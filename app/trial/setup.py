@@ -9,13 +9,13 @@ from __future__ import annotations
 import math
 import random
 from collections import Counter
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 
 from sqlalchemy import or_, select
 from sqlalchemy.orm import Session
 
 from app.db.models import Event, Participant, Robot, Team, Trial
-from app.trial.events import TrialCreated
+from app.trial.events import Connected, TrialCreated
 from app.trial.lifecycle import live_trial_of
 from app.trial.specs import HUMAN, SIM, BackendSpec
 from app.trial.vocabulary import Phase, Role
@@ -26,14 +26,30 @@ class TrialSetupError(ValueError):
     """A trial that cannot be created as asked; the message names the field."""
 
 
+def commander_had_map(db: Session, trial_ids: Collection[int]) -> set[int]:
+    """Those of the trials whose Commander's seat connected: its page, which shows the map, was
+    open. An aborted trial without it showed its layout to no one."""
+    rows = db.execute(
+        select(Event.trial_id, Event.payload).where(Event.kind == Connected.kind, Event.trial_id.in_(trial_ids))
+    )
+    return {row.trial_id for row in rows if row.payload.get("role") == Role.COMMANDER}
+
+
+def mazes_played(db: Session, participant_ids: Collection[int]) -> list[str]:
+    """The mazes of every trial of a team with any of these participants, but an aborted trial
+    whose Commander never had the map (nobody saw its layout)."""
+    teams = select(Team.id).where(or_(Team.member_a_id.in_(participant_ids), Team.member_b_id.in_(participant_ids)))
+    trials = list(db.execute(select(Trial.id, Trial.maze, Trial.phase).where(Trial.team_id.in_(teams))))
+    shown = commander_had_map(db, [t.id for t in trials if t.phase == Phase.ABORTED])
+    return sorted({t.maze for t in trials if t.phase != Phase.ABORTED or t.id in shown})
+
+
 def layouts_seen(db: Session, team: Team | None, layouts: Mapping[str, str]) -> dict[str, str]:
     """Each layout either member has played in, in any team -> a maze they played it as (a maze
     no longer in the library is a layout of its own). No team (agents in both seats): none."""
     if team is None:
         return {}
-    members = (team.member_a_id, team.member_b_id)
-    teams = select(Team.id).where(or_(Team.member_a_id.in_(members), Team.member_b_id.in_(members)))
-    played = sorted(set(db.scalars(select(Trial.maze).where(Trial.team_id.in_(teams)))))
+    played = mazes_played(db, (team.member_a_id, team.member_b_id))
     return {layouts.get(maze, maze): maze for maze in played}
 
 
@@ -185,15 +201,15 @@ def restart_trial(
     agents: Mapping[str, str | None] | None = None,
     commanders: Mapping[str, str | None] | None = None,
 ) -> Trial:
-    """A new trial for an aborted one: the same seats, targets, robot and study, on a layout the
-    team has never seen (the aborted one's counts as seen: its Commander may have had the map)."""
+    """A new trial for an aborted one: the same seats, targets, robot and study, on the same maze
+    when its Commander never had the map, else on a layout the team has never seen."""
     old = db.get(Trial, trial_id)
     if old is None:
         raise TrialSetupError(f"trial {trial_id} does not exist")
     if old.phase != Phase.ABORTED:
         raise TrialSetupError(f"trial {trial_id} is {old.phase}: only an aborted trial is restarted")
     team = db.get(Team, old.team_id) if old.team_id is not None else None
-    maze = suggest_maze(db, team, layouts)
+    maze = old.maze if not commander_had_map(db, (old.id,)) else suggest_maze(db, team, layouts)
     if maze is None:
         raise TrialSetupError(f"team {team.name if team else '-'!r} has seen every layout in the library")
     trial = create_trial(

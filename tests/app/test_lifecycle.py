@@ -143,7 +143,7 @@ def test_export_all_includes_aborted_trials_with_the_targets_they_confirmed(sett
     assert instances[0]["seats"] == with_seats
 
 
-def test_an_aborted_trial_restarts_with_the_same_seats_on_a_layout_the_team_has_not_seen(server, trial):
+def test_an_aborted_trial_restarts_with_the_same_seats_on_the_same_maze_until_the_commander_had_the_map(server, trial):
     client = experimenter_client(server.services, server.url)
     refused = html.unescape(client.post(f"/experimenter/trials/{trial}/restart").text)
     assert f"trial {trial} is waiting: only an aborted trial is restarted" in refused
@@ -170,9 +170,20 @@ def test_an_aborted_trial_restarts_with_the_same_seats_on_a_layout_the_team_has_
         "pilot",
         "waiting",
     )
-    assert layouts[new.maze] != layouts[old.maze], "the aborted layout counts as seen"
+    assert new.maze == old.maze, "the Commander never opened the map: nobody saw the layout"
     page = html.unescape(client.post(f"/experimenter/trials/{new.id}/restart").text)
     assert f"trial {new.id} is waiting: only an aborted trial is restarted" in page
+
+    async def commander_opens_the_map() -> None:
+        async with SeatClient(server.ws_url, server.services.seats.issue(new.id, "commander")) as commander:
+            await commander.wait_for(lambda msg: msg.get("type") == "welcome")
+
+    asyncio.run(commander_opens_the_map())
+    client.post(f"/experimenter/trials/{new.id}/abort", data={"reason": "the Driver never came"})
+    client.post(f"/experimenter/trials/{new.id}/restart")
+    with server.services.db() as db:
+        (third,) = db.query(Trial).filter(Trial.id > new.id).all()
+    assert layouts[third.maze] != layouts[old.maze], "the Commander had the map: its layout counts as seen"
 
 
 def test_the_experimenters_notes_stay_on_the_experimenters_pages(tmp_path):
