@@ -83,7 +83,10 @@ class Lobby:
         if self.played(enrolled) >= self.config.trials_per_participant:
             enrolled.lobby_since = None
             return AllPlayed(self.config.trials_per_participant)
-        if enrolled.lobby_since is None:
+        left = enrolled.lobby_seen is not None and (now - _aware(enrolled.lobby_seen)).total_seconds() > (
+            self.config.lobby_presence_s
+        )
+        if enrolled.lobby_since is None or left:  # one whose page stopped asking waits anew on coming back
             enrolled.lobby_since = now
         enrolled.lobby_seen = now
         waited = (now - _aware(enrolled.lobby_since)).total_seconds()

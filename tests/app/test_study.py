@@ -347,3 +347,17 @@ def test_the_lobby_follows_the_team_plan_new_partners_first_and_no_team_past_the
     assert trials[1].team_id == first.team_id and trials[1].maze != first.maze
     assert {trials[1].commander_id, trials[1].driver_id} == {first.commander_id, first.driver_id}
     assert trials[1].commander_id == first.driver_id, "the one who commanded drives now"
+
+
+def test_a_participant_who_left_the_lobby_waits_anew_on_coming_back(server):
+    quick = {"practice_maze": None, "lobby_presence_s": 2.0, "lobby_timeout_s": 3.0}
+    StudyFiles(server.settings.data_dir / "studies").save(template("pilot").model_copy(update=quick))
+    ann, _ = join(server, "pilot")
+    assert poll(ann)["state"] == "waiting"
+    time.sleep(3.3)  # her tab closed past the time-out: she had left the lobby, not waited in it
+    assert poll(ann) == {"state": "waiting", "waiting": 1}, "back: a new wait, not a timed-out one"
+    for pause in (1.0, 1.0):
+        time.sleep(pause)
+        assert poll(ann)["state"] == "waiting"
+    time.sleep(1.3)
+    assert poll(ann)["state"] == "timed_out", "asking all along past lobby_timeout_s"
