@@ -62,8 +62,8 @@ def trial_score(active_s: float, moves: int, move_penalty_s: float) -> float:
     return active_s + move_penalty_s * moves
 
 
-def _finished(db: Session, study: str | None):
-    """(trial, its team's name, or None for an agent pair); with `study`, only that study's trials."""
+def _finished(db: Session, study: str | None) -> list[tuple[Trial, str | None, float]]:
+    """(trial, its team's name, or None for an agent pair, its active seconds); with `study`, only that study's trials."""
     query = (
         select(Trial, Team.name)
         .outerjoin(Team, Team.id == Trial.team_id)
@@ -71,7 +71,7 @@ def _finished(db: Session, study: str | None):
     )
     if study is not None:
         query = query.where(Trial.study == study)
-    return db.execute(query).all()
+    return [(trial, team, trial.active_s) for trial, team in db.execute(query).tuples() if trial.active_s is not None]
 
 
 def _ranked(
@@ -89,11 +89,11 @@ def standings(db: Session, move_penalty_s: float, study: str | None = None) -> l
     """Human teams, by their best trial driven by one of their members."""
     names = dict(db.execute(select(Participant.id, Participant.name)).all())
     groups: dict[str, tuple[list[float], set[str]]] = {}
-    for trial, team in _finished(db, study):
-        if not (SeatSpec.parse(trial.driver).human and SeatSpec.parse(trial.commander).human):
+    for trial, team, active_s in _finished(db, study):
+        if team is None or not (SeatSpec.parse(trial.driver).human and SeatSpec.parse(trial.commander).human):
             continue
         scores, drivers = groups.setdefault(team, ([], set()))
-        scores.append(trial_score(trial.active_s, trial.moves, move_penalty_s))
+        scores.append(trial_score(active_s, trial.moves, move_penalty_s))
         if trial.driver_id in names:
             drivers.add(names[trial.driver_id])
     return [TeamStanding(*row) for row in _ranked(groups)]
@@ -102,14 +102,14 @@ def standings(db: Session, move_penalty_s: float, study: str | None = None) -> l
 def agent_standings(db: Session, move_penalty_s: float, study: str | None = None) -> list[AgentStanding]:
     """Agents in one seat beside a person, by their best trial; Drivers first, then Commanders."""
     groups: dict[tuple[Role, str], tuple[list[float], set[str]]] = {}
-    for trial, team in _finished(db, study):
+    for trial, team, active_s in _finished(db, study):
         seats = {Role.DRIVER: trial.driver, Role.COMMANDER: trial.commander}
         kinds = {role: SeatSpec.parse(spec).kind for role, spec in seats.items()}
         agents = [(role, seats[role]) for role, kind in kinds.items() if kind == SeatKind.AGENT]
-        if len(agents) != 1 or SeatKind.HUMAN not in kinds.values():
+        if len(agents) != 1 or SeatKind.HUMAN not in kinds.values() or team is None:
             continue
         scores, partners = groups.setdefault(agents[0], ([], set()))
-        scores.append(trial_score(trial.active_s, trial.moves, move_penalty_s))
+        scores.append(trial_score(active_s, trial.moves, move_penalty_s))
         partners.add(team)
     rows = []
     for seat in (Role.DRIVER, Role.COMMANDER):
@@ -124,10 +124,10 @@ def agent_standings(db: Session, move_penalty_s: float, study: str | None = None
 def pair_standings(db: Session, move_penalty_s: float, study: str | None = None) -> list[PairStanding]:
     """Agents in both seats, by the pair's best trial."""
     groups: dict[tuple[str, str], tuple[list[float], set[str]]] = {}
-    for trial, _team in _finished(db, study):
+    for trial, _team, active_s in _finished(db, study):
         if SeatSpec.parse(trial.commander).kind == SeatSpec.parse(trial.driver).kind == SeatKind.AGENT:
             scores, _ = groups.setdefault((trial.commander, trial.driver), ([], set()))
-            scores.append(trial_score(trial.active_s, trial.moves, move_penalty_s))
+            scores.append(trial_score(active_s, trial.moves, move_penalty_s))
     return [
         PairStanding(rank, commander, driver, completed, best, mean)
         for rank, (commander, driver), _, completed, best, mean in _ranked(groups)

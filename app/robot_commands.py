@@ -9,17 +9,21 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import typer
 
 from app.trial.specs import BackendSpec
 from app.trial.vocabulary import ROBOT_ROLES
 
+if TYPE_CHECKING:  # the database and numpy load only for the commands that use them
+    import numpy as np
+    from sqlalchemy.orm import Session, sessionmaker
+
 T = TypeVar("T")
 
 
-def _sessions():
+def _sessions() -> sessionmaker[Session]:
     from app.db.engine import open_database
     from app.settings import Settings
 
@@ -256,7 +260,7 @@ def _calibrated_from_frames(folder: Path, maze_name: str, base: Any, settings: A
     return calibrate_colours(images, truths, base)
 
 
-def _read_image(path: Path):
+def _read_image(path: Path) -> np.ndarray:
     import cv2
 
     frame = cv2.imread(str(path), cv2.IMREAD_COLOR)
@@ -265,7 +269,7 @@ def _read_image(path: Path):
     return frame
 
 
-def _grab_frame(camera: str):
+def _grab_frame(camera: str) -> np.ndarray:
     import cv2
 
     capture = cv2.VideoCapture(int(camera) if camera.isdigit() else camera)

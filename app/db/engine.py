@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import logging
+import sqlite3
 import threading
 import weakref
 
 from alembic import command
 from alembic.config import Config
 from sqlalchemy import Engine, create_engine, event
-from sqlalchemy.orm import sessionmaker
+from sqlalchemy.orm import Session, sessionmaker
 
 from app.resources import shipped
 from app.settings import Settings
@@ -22,7 +23,7 @@ def make_engine(settings: Settings) -> Engine:
         engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": 30})
 
         @event.listens_for(engine, "connect")
-        def _sqlite_pragmas(dbapi_connection, _record) -> None:
+        def _sqlite_pragmas(dbapi_connection: sqlite3.Connection, _record: object) -> None:
             # WAL: readers never block the writer; NORMAL is durable across a process kill.
             cursor = dbapi_connection.cursor()
             cursor.execute("PRAGMA journal_mode=WAL")
@@ -82,7 +83,7 @@ class WalCheckpointer:
             logger.exception("WAL checkpoint failed")
 
 
-def make_sessionmaker(engine: Engine) -> sessionmaker:
+def make_sessionmaker(engine: Engine) -> sessionmaker[Session]:
     return sessionmaker(engine, expire_on_commit=False)
 
 
@@ -102,7 +103,7 @@ def upgrade(settings: Settings, engine: Engine | None = None) -> None:
         command.upgrade(config, "head")
 
 
-def open_database(settings: Settings) -> sessionmaker:
+def open_database(settings: Settings) -> sessionmaker[Session]:
     """Sessions on the settings' database, brought up to date first (for commands run outside the server)."""
     engine = make_engine(settings)
     upgrade(settings, engine)

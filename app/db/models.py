@@ -4,9 +4,13 @@ kept for the leaderboard and dashboard, rewritten with each phase change."""
 from __future__ import annotations
 
 from datetime import UTC, datetime
+from typing import Any
 
 from sqlalchemy import JSON, BigInteger, DateTime, Float, ForeignKey, Integer, String, Text, UniqueConstraint
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
+
+# An event's payload as the JSON column holds it: its shape is the event kind's (app.trial.events).
+JsonObject = dict[str, Any]
 
 
 def utcnow() -> datetime:
@@ -59,7 +63,7 @@ class Trial(Base):
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     team_id: Mapped[int | None] = mapped_column(ForeignKey("team.id"), nullable=True)  # None: agents in both seats
     maze: Mapped[str] = mapped_column(String(80))
-    targets: Mapped[list] = mapped_column(JSON)  # the three objects, in the order to reach them
+    targets: Mapped[list[str]] = mapped_column(JSON)  # the three objects, in the order to reach them
     backend: Mapped[str] = mapped_column(String(40))  # 'sim' or 'robot:<id>'
     driver: Mapped[str] = mapped_column(String(40))  # 'human' or 'agent:<name>'
     commander: Mapped[str] = mapped_column(String(40), default="human", server_default="human")  # as `driver`
@@ -85,7 +89,7 @@ class Event(Base):
     seq: Mapped[int] = mapped_column(Integer)
     kind: Mapped[str] = mapped_column(String(32))
     t_ns: Mapped[int] = mapped_column(BigInteger)
-    payload: Mapped[dict] = mapped_column(JSON)
+    payload: Mapped[JsonObject] = mapped_column(JSON)
 
 
 class Frame(Base):
@@ -121,7 +125,7 @@ class LDHStudyInstance(Base):
     position: Mapped[int] = mapped_column(Integer)  # the order participants see them in, from 0
     inst_idx: Mapped[int] = mapped_column(Integer)
     run: Mapped[str] = mapped_column(String(80))
-    dialog: Mapped[list] = mapped_column(JSON)  # [[role, message], ...]
+    dialog: Mapped[list[list[str]]] = mapped_column(JSON)  # [[role, message], ...]
     true_x: Mapped[float] = mapped_column(Float)
     true_y: Mapped[float] = mapped_column(Float)
     true_heading: Mapped[float | None] = mapped_column(Float, nullable=True)
@@ -146,7 +150,7 @@ class LDHStudyEvent(Base):
     seq: Mapped[int] = mapped_column(Integer)
     kind: Mapped[str] = mapped_column(String(32))
     t_ns: Mapped[int] = mapped_column(BigInteger)
-    payload: Mapped[dict] = mapped_column(JSON)
+    payload: Mapped[JsonObject] = mapped_column(JSON)
 
 
 class AnnotationEvent(Base):
@@ -159,7 +163,7 @@ class AnnotationEvent(Base):
     annotator_id: Mapped[int] = mapped_column(ForeignKey("experimenter.id"))
     kind: Mapped[str] = mapped_column(String(32))
     t_ns: Mapped[int] = mapped_column(BigInteger)
-    payload: Mapped[dict] = mapped_column(JSON)
+    payload: Mapped[JsonObject] = mapped_column(JSON)
     revises: Mapped[int | None] = mapped_column(Integer, nullable=True)  # the id of the event it replaces
 
 
@@ -202,7 +206,7 @@ class StudyEvent(Base):
     participant_id: Mapped[int | None] = mapped_column(ForeignKey("participant.id"), nullable=True)  # None: declined
     kind: Mapped[str] = mapped_column(String(32))  # app.study.enrolment.StudyEventKind
     t_ns: Mapped[int] = mapped_column(BigInteger)
-    payload: Mapped[dict] = mapped_column(JSON)
+    payload: Mapped[JsonObject] = mapped_column(JSON)
 
 
 class StudyAnswer(Base):
@@ -214,6 +218,6 @@ class StudyAnswer(Base):
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     study_participant_id: Mapped[int] = mapped_column(ForeignKey("study_participant.id"), index=True)
     trial_id: Mapped[int] = mapped_column(ForeignKey("trial.id"))
-    ratings: Mapped[dict] = mapped_column(JSON)  # question id -> 1..5
-    free_text: Mapped[dict | None] = mapped_column(JSON, nullable=True)  # question id -> text
+    ratings: Mapped[dict[str, int]] = mapped_column(JSON)  # question id -> 1..5
+    free_text: Mapped[dict[str, str] | None] = mapped_column(JSON, nullable=True)  # question id -> text
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)

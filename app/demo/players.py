@@ -11,7 +11,9 @@ from __future__ import annotations
 import asyncio
 import json
 import random
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 from websockets.asyncio.client import ClientConnection, connect
@@ -22,6 +24,9 @@ from sim.core.dynamics import Action, Pose, step, teacher_action
 from sim.core.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M, heading_angle
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
+
+# A message from the server as it arrives on the socket (decoded JSON; app.trial.views builds them).
+ServerMessage = dict[str, Any]
 
 WAIT_S = 60.0  # longest a player waits for its partner or the server before giving up
 QUESTIONS = ("should i keep going this way?", "is this the right way?", "which way now?", "do i turn here?")
@@ -41,8 +46,8 @@ class Seat:
     token: str
     ws: ClientConnection
     chat_interval_s: float = 0.0  # the server records a seat's messages this far apart at most
-    inbox: asyncio.Queue = field(default_factory=asyncio.Queue)
-    reader: asyncio.Task | None = None
+    inbox: asyncio.Queue[ServerMessage] = field(default_factory=asyncio.Queue)
+    reader: asyncio.Task[None] | None = None
     last_chat: float = float("-inf")
 
     @classmethod
@@ -70,7 +75,7 @@ class Seat:
         self.last_chat = loop.time()
         await self.send("chat", text=text)
 
-    async def until(self, accept, what: str) -> dict:
+    async def until(self, accept: Callable[[ServerMessage], bool], what: str) -> ServerMessage:
         """The next message for which `accept(message)` is true."""
         try:
             async with asyncio.timeout(WAIT_S):
@@ -86,8 +91,8 @@ class Seat:
         except TimeoutError:
             raise DemoError(f"trial {self.trial_id}: the {self.role} waited {WAIT_S:.0f} s for {what}") from None
 
-    async def event(self, kind: str, **match: Any) -> dict:
-        def accept(m: dict) -> bool:
+    async def event(self, kind: str, **match: Any) -> ServerMessage:
+        def accept(m: ServerMessage) -> bool:
             return (
                 m.get("type") == "event"
                 and m.get("kind") == kind
@@ -102,7 +107,7 @@ class Seat:
             await asyncio.gather(self.reader, return_exceptions=True)
 
 
-def _is_phase(message: dict, phase: str, index: int | None = None) -> bool:
+def _is_phase(message: ServerMessage, phase: str, index: int | None = None) -> bool:
     return (
         message.get("type") == "event"
         and message.get("kind") == "phase"
@@ -124,7 +129,7 @@ class ScriptedCommander:
         await self._localize(seat, start)
         pose = start
         for k, target in enumerate(self.targets):
-            await seat.until(lambda m, k=k: _is_phase(m, Phase.NAVIGATING, k), f"navigating to target {k}")
+            await seat.until(partial(_is_phase, phase=Phase.NAVIGATING, index=k), f"navigating to target {k}")
             leg = plan_leg(self.maze, self.graph, pose, target)
             await seat.say(f"now find the {OBJECT_WORDS[target]}")
             for line in leg.instructions:
@@ -152,7 +157,7 @@ class ScriptedCommander:
         await seat.send("localize", x=float(x), y=float(y), heading=heading)
 
     @staticmethod
-    def _driver_chat(message: dict) -> bool:
+    def _driver_chat(message: ServerMessage) -> bool:
         return (
             message.get("type") == "event"
             and message.get("kind") == "chat"
@@ -160,7 +165,7 @@ class ScriptedCommander:
         )
 
 
-def _claim(message: dict) -> bool:
+def _claim(message: ServerMessage) -> bool:
     return message.get("type") == "event" and message.get("kind") == "target_claimed"
 
 
@@ -188,7 +193,7 @@ class ScriptedDriver:
         await seat.say(describe_view(self.maze, self.graph, start))
         pose = start
         for k, target in enumerate(self.targets):
-            await seat.until(lambda m, k=k: _is_phase(m, Phase.NAVIGATING, k), f"navigating to target {k}")
+            await seat.until(partial(_is_phase, phase=Phase.NAVIGATING, index=k), f"navigating to target {k}")
             pose = await self._drive_to(seat, pose, self.graph.nearest_node(*self.maze.objects[target]))
             await seat.say(f"i think i found the {OBJECT_WORDS[target]}")
             await seat.send("claim")

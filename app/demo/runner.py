@@ -60,7 +60,7 @@ class Demo:
         """A fresh demo team (so any maze is new to it) and a trial on its least-used maze."""
         layouts = self.mazes.layouts()
         with self.db.begin() as db:
-            k = db.scalar(select(func.count()).select_from(Team).where(Team.name.like("demo team %"))) + 1
+            k = (db.scalar(select(func.count()).select_from(Team).where(Team.name.like("demo team %"))) or 0) + 1
             while db.scalar(select(Team.id).where(Team.name == DEMO_TEAM.format(k=k))) is not None:
                 k += 1
             a = create_participant(db, f"demo commander {k}")
@@ -120,7 +120,7 @@ class Demo:
             for seat in seats:
                 await seat.close()
         with self.db() as db:
-            row = db.get(Trial, trial.id)
+            row = db.get_one(Trial, trial.id)
             return DemoResult(trial.id, trial.maze, tuple(trial.targets), row.phase, row.moves, error)
 
     async def run(
@@ -193,4 +193,5 @@ async def _check_reachable(server: str) -> None:
 def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+        port: int = s.getsockname()[1]
+        return port

@@ -26,6 +26,7 @@ import base64
 import contextlib
 import logging
 from collections import OrderedDict
+from collections.abc import Coroutine
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -112,7 +113,7 @@ class AgentSeat:
         self.targets_total = len(trial.state.targets)
         self.running = asyncio.Event()
         self.paused = False  # as the agent was last told (a trial starts unpaused)
-        self.tasks: list[asyncio.Task] = []
+        self.tasks: list[asyncio.Task[None]] = []
         self.said_for_target = 0  # its own messages since the trial reached the current target
 
     # -- what a browser in this seat would receive ------------------------------------------------
@@ -177,7 +178,7 @@ class AgentSeat:
                 with contextlib.suppress(asyncio.CancelledError):
                     await task
 
-    async def _guarded(self, work) -> None:
+    async def _guarded(self, work: Coroutine[Any, Any, None]) -> None:
         try:
             await work
         except asyncio.CancelledError:

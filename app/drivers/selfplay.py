@@ -18,6 +18,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from app.trial import events as ev
 from app.trial.setup import create_trial
@@ -27,6 +28,9 @@ from sim.agents.route import Router
 from sim.agents.selfplay import TARGET_ORDER, TrialResult, iter_results
 from sim.core.dynamics import snap_pose
 from sim.language.phrases import Phrases, Phrasing
+
+if TYPE_CHECKING:  # the server's parts load in the worker processes only
+    from app.services import Services
 
 POLL_S = 0.2
 
@@ -104,23 +108,23 @@ def play_share(share: Share) -> list[tuple[int, TrialResult]]:
         _close(services)
 
 
-def _services(data_dir: Path, benchmark: Path | None):
+def _services(data_dir: Path, benchmark: Path | None) -> Services:
     from app.main import build_services
     from app.settings import Settings
 
     return build_services(Settings(data_dir=data_dir, benchmark=benchmark))
 
 
-def _close(services) -> None:
+def _close(services: Services) -> None:
     services.log.close()
     services.trials.backends.renderer.close()
     services.engine.dispose()
 
 
-async def _play_all(services, ids: Sequence[int], timeout_s: float) -> list[float]:
+async def _play_all(services: Services, ids: Sequence[int], timeout_s: float) -> list[float]:
     async def one(trial_id: int) -> float:
         t0 = time.perf_counter()
-        runtime = await services.hub.get(trial_id)
+        runtime = await services.hub.local(trial_id)  # self-play runs its trials in this process
         while not runtime.state.over and time.perf_counter() - t0 < timeout_s:
             await asyncio.sleep(POLL_S)
         if not runtime.state.over:
@@ -134,7 +138,7 @@ async def _play_all(services, ids: Sequence[int], timeout_s: float) -> list[floa
         await services.hub.close()
 
 
-def result_of(services, trial_id: int, seconds: float) -> TrialResult:
+def result_of(services: Services, trial_id: int, seconds: float) -> TrialResult:
     """A recorded trial's figures, from its log alone (the poses the simulator logged are the truth)."""
     events = services.log.load(trial_id)
     state = fold(events)

@@ -5,12 +5,17 @@ from __future__ import annotations
 
 from enum import Enum
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 from rich.console import Console
 from rich.progress import track
 
 from app.export import Episode
+
+if TYPE_CHECKING:  # the exporters load only for the command that runs
+    from app.export.record import TrialRecord
+    from sim.core.maze import Maze
 
 console = Console(stderr=True)
 
@@ -88,7 +93,7 @@ def export(
             records = [load_trial(session, settings, i) for i in ids]
         except ExportError as err:
             _fail(str(err))
-    loaded = []
+    loaded: list[tuple[TrialRecord, Maze]] = []
     for record in records:
         try:
             loaded.append((record, mazes.load(record.maze)))
@@ -118,7 +123,7 @@ def export(
         _fail(str(err))
 
 
-def _export_mcap(loaded, out: Path, single: bool) -> None:
+def _export_mcap(loaded: list[tuple[TrialRecord, Maze]], out: Path, single: bool) -> None:
     from app.export.mcap import write_mcap
 
     if single and not out.is_dir():
@@ -130,7 +135,7 @@ def _export_mcap(loaded, out: Path, single: bool) -> None:
     console.print(f"{len(loaded)} trial(s) -> {out}")
 
 
-def _export_lerobot(loaded, out: Path, per: Episode) -> None:
+def _export_lerobot(loaded: list[tuple[TrialRecord, Maze]], out: Path, per: Episode) -> None:
     from app.export.lerobot import write_lerobot
 
     try:

@@ -8,6 +8,7 @@ Everything is in the `table` frame (x right, y up, metres), standing on the tabl
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -27,11 +28,11 @@ def colour(label: Label, alpha: float = 1.0) -> dict[str, float]:
     return {"r": r / 255, "g": g / 255, "b": b / 255, "a": alpha}
 
 
-def _pose(x: float, y: float, z: float) -> dict:
+def _pose(x: float, y: float, z: float) -> dict[str, Any]:
     return {"position": {"x": x, "y": y, "z": z}, "orientation": dict(_IDENTITY)}
 
 
-def _entity(stamp: dict, frame: str, entity_id: str, **primitives) -> dict:
+def _entity(stamp: dict[str, Any], frame: str, entity_id: str, **primitives: list[dict[str, Any]]) -> dict[str, Any]:
     entity = {
         "timestamp": stamp,
         "frame_id": frame,
@@ -59,10 +60,11 @@ def wall_cells(maze: Maze) -> np.ndarray:
     np.add.at(counts, (cell_r[r_idx], cell_c[c_idx], maze.walls[r_idx, c_idx]), 1)
     cells = counts.argmax(axis=2).astype(np.uint8)
     cells[counts.sum(axis=2) == 0] = Label.FLOOR
-    return cells
+    cells_u8: np.ndarray = cells
+    return cells_u8
 
 
-def wall_cubes(maze: Maze) -> list[dict]:
+def wall_cubes(maze: Maze) -> list[dict[str, Any]]:
     cells = wall_cells(maze)
     cubes = []
     for row, line in enumerate(cells):
@@ -84,7 +86,7 @@ def wall_cubes(maze: Maze) -> list[dict]:
     return cubes
 
 
-def scene_update(maze: Maze, targets: tuple[str, ...], stamp: dict, frame: str) -> dict:
+def scene_update(maze: Maze, targets: tuple[str, ...], stamp: dict[str, Any], frame: str) -> dict[str, Any]:
     """Walls and the trial's targets, numbered in the order the trial visits them."""
     entities = [_entity(stamp, frame, "maze/walls", cubes=wall_cubes(maze))]
     for order, target in enumerate(targets, start=1):

@@ -21,6 +21,7 @@ import shutil
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -50,15 +51,15 @@ class Step:
     state: list[float]
     action: Action
     task: str
-    messages: list[dict] = field(default_factory=list)
+    messages: list[dict[str, Any]] = field(default_factory=list)
 
 
-def _chat(event: LoggedEvent) -> dict:
+def _chat(event: LoggedEvent) -> dict[str, Any]:
     p = event.payload
     return {"speaker": p.get("role", ""), "text": p.get("text", ""), "t_ns": event.t_ns, "seq": event.seq}
 
 
-def _state(maze: Maze, pose: dict | None) -> list[float]:
+def _state(maze: Maze, pose: dict[str, Any] | None) -> list[float]:
     if pose is None:
         return [math.nan] * len(STATE_NAMES)
     x, y, heading = float(pose["x"]), float(pose["y"]), float(pose.get("heading") or 0.0)
@@ -71,7 +72,7 @@ def episodes_of(record: TrialRecord, maze: Maze, per: Episode) -> list[list[Step
     events = sorted(record.events, key=lambda e: e.seq)
     confirmed = [e.seq for e in events if e.is_(ev.TargetConfirmed)]
     steps: list[Step] = []
-    pose: dict | None = None
+    pose: dict[str, Any] | None = None
     pending: Step | None = None
     for event in events:
         if event.is_(ev.PoseSampled):
@@ -133,7 +134,7 @@ def _encode_video(path: Path, images: Sequence[bytes]) -> tuple[int, int]:
     return height, width
 
 
-def _stats(values: np.ndarray) -> dict[str, list]:
+def _stats(values: np.ndarray) -> dict[str, list[Any]]:
     values = values.reshape(len(values), -1).astype(np.float64)
     return {
         "min": np.nanmin(values, 0).tolist(),
@@ -163,7 +164,7 @@ def write_lerobot(
     return totals
 
 
-def _annotation(record: TrialRecord) -> dict:
+def _annotation(record: TrialRecord) -> dict[str, Any]:
     after = record.localized_after
     return {
         "tags": record.tags,
@@ -177,7 +178,7 @@ def _write(loaded: Iterable[tuple[TrialRecord, Maze]], tmp: Path, per: Episode) 
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    rows: dict[str, list] = {
+    rows: dict[str, list[Any]] = {
         k: []
         for k in (
             "observation.state",
@@ -193,7 +194,7 @@ def _write(loaded: Iterable[tuple[TrialRecord, Maze]], tmp: Path, per: Episode) 
         )
     }
     tasks: dict[str, int] = {}
-    episodes: list[dict] = []
+    episodes: list[dict[str, Any]] = []
     shape: tuple[int, int] = (0, 0)
     for record, maze in loaded:
         for group in episodes_of(record, maze, per):

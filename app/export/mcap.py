@@ -20,6 +20,7 @@ import json
 import math
 from functools import cache
 from pathlib import Path
+from typing import Any
 
 import cv2
 from mcap.writer import Writer
@@ -47,7 +48,7 @@ def robot_frame(source: PoseSource) -> str:
     return f"robot/{source.value}"
 
 
-_ROBOTSLANG_SCHEMAS: dict[str, dict] = {
+_ROBOTSLANG_SCHEMAS: dict[str, dict[str, Any]] = {
     "robotslang.DriverCommand": {
         "title": "robotslang.DriverCommand",
         "type": "object",
@@ -71,7 +72,7 @@ _ROBOTSLANG_SCHEMAS: dict[str, dict] = {
 
 
 @cache
-def schemas() -> dict[str, dict]:
+def schemas() -> dict[str, dict[str, Any]]:
     """Schema name -> JSON schema: Foxglove's published ones and the platform's own two."""
     published = {name: json.loads((SCHEMA_DIR / f"{name}.json").read_text()) for name in FOXGLOVE_SCHEMAS}
     return {**published, **_ROBOTSLANG_SCHEMAS}
@@ -150,7 +151,7 @@ def write_mcap(record: TrialRecord, maze: Maze | None, out: str | Path) -> Path:
             for topic, schema in CHANNELS.items()
         }
 
-        def add(topic: str, message: dict, log_ns: int, publish_ns: int, sequence: int) -> None:
+        def add(topic: str, message: dict[str, Any], log_ns: int, publish_ns: int, sequence: int) -> None:
             writer.add_message(
                 channel_id=channel_ids[topic],
                 log_time=log_ns,
@@ -177,7 +178,7 @@ def write_mcap(record: TrialRecord, maze: Maze | None, out: str | Path) -> Path:
                 writer.add_attachment(
                     create_time=created, log_time=created, name=name, media_type="image/png", data=png.tobytes()
                 )
-        writer.finish()
+        writer.finish()  # type: ignore[no-untyped-call]  # mcap's Writer.finish is not annotated
     tmp.replace(out)
     return out
 
@@ -207,7 +208,7 @@ def _stamp(ns: int) -> dict[str, int]:
     return {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
 
 
-def _message(record: TrialRecord, event: LoggedEvent, image: bytes | None) -> tuple[dict, int]:
+def _message(record: TrialRecord, event: LoggedEvent, image: bytes | None) -> tuple[dict[str, Any], int]:
     p = event.payload
     if event.is_(ev.FrameRecorded):
         capture = int(p.get("capture_ns") or event.t_ns)
@@ -247,7 +248,7 @@ def _message(record: TrialRecord, event: LoggedEvent, image: bytes | None) -> tu
     return {"seq": event.seq, "kind": event.kind, "payload": p}, event.t_ns
 
 
-def _pose_in_frame(t_ns: int, x: float, y: float, heading: float | None) -> dict:
+def _pose_in_frame(t_ns: int, x: float, y: float, heading: float | None) -> dict[str, Any]:
     """A pose in the table frame; a heading the Commander left out is the identity rotation."""
     half = float(heading or 0.0) / 2
     return {
@@ -260,7 +261,7 @@ def _pose_in_frame(t_ns: int, x: float, y: float, heading: float | None) -> dict
     }
 
 
-def _transform(pose: dict, child: str) -> dict:
+def _transform(pose: dict[str, Any], child: str) -> dict[str, Any]:
     return {
         "timestamp": pose["timestamp"],
         "parent_frame_id": TABLE_FRAME,

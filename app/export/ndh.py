@@ -22,6 +22,7 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -72,7 +73,7 @@ def _positions(record: TrialRecord, maze: Maze) -> list[list[float]]:
     return [list(map(float, maze.objects[t])) for t in record.targets]
 
 
-def ndh_instances(record: TrialRecord, maze: Maze) -> list[dict]:
+def ndh_instances(record: TrialRecord, maze: Maze) -> list[dict[str, Any]]:
     """One NDH instance per confirmed target, in the order reached (without `inst_idx`).
 
     The first target's instance needs the true start pose; a trial without one (a real robot
@@ -105,7 +106,7 @@ def ndh_instances(record: TrialRecord, maze: Maze) -> list[dict]:
     return out
 
 
-def ldh_instances(record: TrialRecord, maze: Maze) -> list[dict]:
+def ldh_instances(record: TrialRecord, maze: Maze) -> list[dict[str, Any]]:
     """The localization half of a trial: the dialog until localization ended, the Commander's
     estimate, and the true pose then and at the start where known (None where not).
 
@@ -201,15 +202,15 @@ def write_benchmark(
     trials = list(trials)
     mazes = {maze.name: maze for _, maze in trials}
     folds = dict(folds) if folds is not None else assign_splits(mazes)
-    ndh: dict[str, list[dict]] = {s: [] for s in Split}
-    ldh: dict[str, list[dict]] = {s: [] for s in Split}
+    ndh: dict[str, list[dict[str, Any]]] = {s: [] for s in Split}
+    ldh: dict[str, list[dict[str, Any]]] = {s: [] for s in Split}
     for record, maze in trials:
         ndh[folds[maze.name]].extend(ndh_instances(record, maze))
         ldh[folds[maze.name]].extend(ldh_instances(record, maze))
 
     for name, maze in mazes.items():
         maze.save(out_dir / "mazedata" / name)
-    lookup: dict[str, list] = {}
+    lookup: dict[str, list[Any]] = {}
     for kind, by_split in (("NDH-data", ndh), ("LDH-data", ldh)):
         (out_dir / kind).mkdir(parents=True, exist_ok=True)
         index = 0

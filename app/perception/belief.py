@@ -137,7 +137,7 @@ class TrialBelief:
         """The belief has taken in the frame after the last move."""
         return self._wanted_after_ns is None and self.latest is not None
 
-    def message(self) -> dict | None:
+    def message(self) -> dict[str, Any] | None:
         """The experimenter's belief message: mean (x, y, heading) and the cloud's (x, y, weight)."""
         if self.latest is None:
             return None
@@ -163,7 +163,7 @@ class FilterWorker:
     def __init__(self, share: float = FILTER_SHARE) -> None:
         self.share = share
         self._due: dict[TrialBelief, Callable[[], None]] = {}  # insertion order: turn order
-        self._task: asyncio.Task | None = None
+        self._task: asyncio.Task[None] | None = None
         self._slot: asyncio.Lock | None = None  # one turn or build at a time, with its rest
         self._thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="particle-filters")
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+from collections.abc import Callable
 from pathlib import Path
 
 from sim.robot.calibration import CalibrationError
@@ -23,7 +24,12 @@ FRESH_S = 5.0  # a tracked pose older than this is not where the rover is now (t
 
 
 class TrialTracker:
-    def __init__(self, calibration_path: Path | None, clock_ns, record_pose) -> None:
+    def __init__(
+        self,
+        calibration_path: Path | None,
+        clock_ns: Callable[[], int],
+        record_pose: Callable[[tuple[float, float, float]], None],
+    ) -> None:
         """`clock_ns()` is the server clock; each tracked pose goes to `record_pose((x, y, heading))`."""
         calibration = None
         if calibration_path is not None and Path(calibration_path).exists():
@@ -37,7 +43,7 @@ class TrialTracker:
         self._busy = False
         self._last_t_ns = 0
 
-    def offer(self, jpeg: bytes, capture_ns: int) -> asyncio.Task | None:
+    def offer(self, jpeg: bytes, capture_ns: int) -> asyncio.Task[None] | None:
         """Track this frame unless one is being tracked; returns the task doing it."""
         if self._busy or capture_ns <= self._last_t_ns:
             return None

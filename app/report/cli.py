@@ -5,8 +5,14 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
+
+if TYPE_CHECKING:  # the database loads only for the commands that use it
+    from sqlalchemy.orm import Session, sessionmaker
+
+    from app.settings import Settings
 
 
 def register(root: typer.Typer) -> None:
@@ -16,7 +22,7 @@ def register(root: typer.Typer) -> None:
     root.add_typer(app, name="report")
 
 
-def _database():
+def _database() -> tuple[Settings, sessionmaker[Session]]:
     from app.db.engine import make_engine, make_sessionmaker
     from app.settings import Settings
 

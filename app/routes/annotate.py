@@ -8,11 +8,11 @@ The experimenter's side: agreement between annotators of a study, and adjudicati
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 from urllib.parse import quote
 
 from fastapi import APIRouter, Depends, Form, HTTPException, Request
-from fastapi.responses import HTMLResponse, RedirectResponse, Response
+from fastapi.responses import FileResponse, HTMLResponse, RedirectResponse, Response
 from sqlalchemy import select
 
 from app.accounts import AccountError, create_account
@@ -54,7 +54,7 @@ def _assigned(db: DbSession, trial_id: int, annotator: int) -> Trial:
 
 
 @router.get("/annotate", response_class=HTMLResponse)
-def queue(request: Request, db: DbSession, annotations: AnnotationsDep, annotator: AnnotatorId):
+def queue(request: Request, db: DbSession, annotations: AnnotationsDep, annotator: AnnotatorId) -> HTMLResponse:
     rows = db.execute(
         select(Trial.id, Trial.maze)
         .join(AnnotationAssignment, AnnotationAssignment.trial_id == Trial.id)
@@ -86,7 +86,7 @@ def annotate_trial(
     log: LogDep,
     files: StudyFilesDep,
     annotator: AnnotatorId,
-):
+) -> HTMLResponse:
     trial = _assigned(db, trial_id, annotator)
     events = log.load(trial_id)
     mine = annotations.state(trial_id).by_annotator.get(annotator)
@@ -105,7 +105,7 @@ def annotate_trial(
 
 
 @router.get("/annotate/trials/{trial_id}/replay.json")
-def annotate_replay(trial_id: int, db: DbSession, log: LogDep, annotator: AnnotatorId):
+def annotate_replay(trial_id: int, db: DbSession, log: LogDep, annotator: AnnotatorId) -> dict[str, Any]:
     """The trial's log as the replay page reads it (`static/replay.js`), without the team."""
     trial = _assigned(db, trial_id, annotator)
     base = f"/annotate/trials/{trial_id}"
@@ -116,13 +116,15 @@ def annotate_replay(trial_id: int, db: DbSession, log: LogDep, annotator: Annota
 
 
 @router.get("/annotate/trials/{trial_id}/frames/{frame_id}.jpg")
-def annotate_frame(trial_id: int, frame_id: int, db: DbSession, settings: SettingsDep, annotator: AnnotatorId):
+def annotate_frame(
+    trial_id: int, frame_id: int, db: DbSession, settings: SettingsDep, annotator: AnnotatorId
+) -> FileResponse:
     _assigned(db, trial_id, annotator)
     return frame_file(db, settings, trial_id, frame_id)
 
 
 @router.get("/annotate/trials/{trial_id}/map.png")
-def annotate_map(trial_id: int, db: DbSession, mazes: MazesDep, annotator: AnnotatorId):
+def annotate_map(trial_id: int, db: DbSession, mazes: MazesDep, annotator: AnnotatorId) -> Response:
     trial = _assigned(db, trial_id, annotator)
     return Response(
         mazes.full_map_png(trial.maze), media_type="image/png", headers={"Cache-Control": "private, max-age=3600"}
@@ -143,7 +145,7 @@ def save(
     tag: Annotated[str, Form(max_length=60)] = "",
     free_tag: Annotated[str, Form(max_length=60)] = "",
     anchor: Annotated[list[int] | None, Form()] = None,
-):
+) -> RedirectResponse:
     """One change from the trial's form: `cut` (the radio checked), `tag` (the phenomenon or free
     tag, anchored to the checked messages; none checked withdraws it) or `submit`."""
     trial = _assigned(db, trial_id, annotator)
@@ -178,7 +180,9 @@ def save(
 
 
 @router.post("/annotate/logout")
-def logout(sessions: AnnotatorSessionsDep, login: Annotated[Login | None, Depends(annotator_login)]):
+def logout(
+    sessions: AnnotatorSessionsDep, login: Annotated[Login | None, Depends(annotator_login)]
+) -> RedirectResponse:
     if login is not None:
         sessions.end(login)
     response = RedirectResponse("/", status_code=303)
@@ -194,7 +198,7 @@ def agreement_page(
     _: ExperimenterId,
     study: str = "",
     created: str = "",
-):
+) -> HTMLResponse:
     """Agreement between the study's annotators, the disagreements to adjudicate, and the form
     that makes an annotator's account."""
     result = None
@@ -221,7 +225,7 @@ def add_annotator(
     name: Annotated[str, Form(max_length=80)],
     password: Annotated[str, Form(max_length=200)],
     study: Annotated[str, Form(max_length=80)] = "",
-):
+) -> RedirectResponse:
     """An annotator account (as `robotslang admin create NAME --role annotator`)."""
     try:
         with db.begin():
@@ -241,7 +245,7 @@ def adjudicate(
     item: Annotated[str, Form(max_length=64)],
     value: Annotated[str, Form(max_length=16)],
     study: Annotated[str, Form(max_length=80)] = "",
-):
+) -> RedirectResponse:
     """The experimenter's value for a disagreement, stored beside both annotators' (theirs stay)."""
     if db.get(Trial, trial_id) is None:
         raise HTTPException(404, f"trial {trial_id} does not exist")

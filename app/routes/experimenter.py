@@ -4,6 +4,8 @@ and the live dashboard with the true pose, each robot's link, pause, resume and 
 from __future__ import annotations
 
 import random
+from collections.abc import Callable
+from typing import Any
 from urllib.parse import quote
 
 from anyio import from_thread
@@ -39,7 +41,7 @@ from app.trial.setup import (
     suggest_maze,
 )
 from app.trial.specs import HUMAN, SIM, BackendSpec, SeatSpec
-from app.trial.state import fold
+from app.trial.state import TrialState, fold
 from app.trial.vocabulary import Role
 from app.web import render, trial_or_404
 
@@ -82,7 +84,7 @@ def dashboard(
     robot_links: RobotLinksDep,
     seats: SeatTokensDep,
     error: str | None = None,
-):
+) -> HTMLResponse:
     participants = db.scalars(select(Participant).order_by(Participant.name)).all()
     teams = db.scalars(select(Team).order_by(Team.name)).all()
     trials = db.scalars(select(Trial).order_by(Trial.id.desc()).limit(100)).all()
@@ -119,7 +121,7 @@ def _redirect(error: str | None = None) -> RedirectResponse:
 
 
 @router.post("/participants")
-def add_participant(db: DbSession, name: str = Form(max_length=80)):
+def add_participant(db: DbSession, name: str = Form(max_length=80)) -> RedirectResponse:
     try:
         with db.begin():
             create_participant(db, name)
@@ -129,7 +131,9 @@ def add_participant(db: DbSession, name: str = Form(max_length=80)):
 
 
 @router.post("/teams")
-def add_team(db: DbSession, name: str = Form(max_length=80), member_a: int = Form(), member_b: int = Form()):
+def add_team(
+    db: DbSession, name: str = Form(max_length=80), member_a: int = Form(), member_b: int = Form()
+) -> RedirectResponse:
     try:
         with db.begin():
             create_team(db, name, member_a, member_b)
@@ -152,7 +156,7 @@ def add_trial(
     driver: str = Form("human"),
     commander: str = Form("human"),
     commander_id: int | None = Form(None),
-):
+) -> RedirectResponse:
     layouts = mazes.layouts()
     seat_agents = available_seats(agents)
     people = str(HUMAN) in (driver, commander)  # agents in both seats play without a team
@@ -191,22 +195,22 @@ def add_trial(
 
 
 @router.delete("/participants/{participant_id}")
-def remove_participant(db: DbSession, participant_id: int) -> dict:
+def remove_participant(db: DbSession, participant_id: int) -> dict[str, bool]:
     return _delete(db, lambda db: delete_participant(db, participant_id))
 
 
 @router.delete("/teams/{team_id}")
-def remove_team(db: DbSession, team_id: int) -> dict:
+def remove_team(db: DbSession, team_id: int) -> dict[str, bool]:
     return _delete(db, lambda db: delete_team(db, team_id))
 
 
 @router.delete("/robots/{robot_id}")
-def remove_robot(db: DbSession, robot_links: RobotLinksDep, robot_id: int) -> dict:
+def remove_robot(db: DbSession, robot_links: RobotLinksDep, robot_id: int) -> dict[str, bool]:
     connected = any(r["id"] == robot_id and r["connected"] for r in robot_links.status())
     return _delete(db, lambda db: delete_robot(db, robot_id, connected))
 
 
-def _delete(db: Session, delete) -> dict:
+def _delete(db: Session, delete: Callable[[Session], object]) -> dict[str, bool]:
     """One `lifecycle.delete_*` in a transaction; 409 naming why when it is refused."""
     try:
         with db.begin():
@@ -217,7 +221,9 @@ def _delete(db: Session, delete) -> dict:
 
 
 @router.post("/trials/{trial_id}/restart")
-def restart(db: DbSession, mazes: MazesDep, clock: ClockDep, agents: AgentsDep, hub: HubDep, trial_id: int):
+def restart(
+    db: DbSession, mazes: MazesDep, clock: ClockDep, agents: AgentsDep, hub: HubDep, trial_id: int
+) -> RedirectResponse:
     """An aborted trial again: the same seats, targets, robot and study, on a layout the team has
     never seen."""
     seat_agents = available_seats(agents)
@@ -240,7 +246,9 @@ def restart(db: DbSession, mazes: MazesDep, clock: ClockDep, agents: AgentsDep, 
 
 
 @router.post("/trials/{trial_id}/notes")
-def save_notes(db: DbSession, trial_id: int, notes: str = Form("", max_length=MAX_NOTES), back: str = Form("trial")):
+def save_notes(
+    db: DbSession, trial_id: int, notes: str = Form("", max_length=MAX_NOTES), back: str = Form("trial")
+) -> RedirectResponse:
     """The experimenter's notes on a trial, at any time (during or after it); private."""
     with db.begin():
         trial_or_404(db, trial_id).notes = notes.strip() or None
@@ -249,7 +257,9 @@ def save_notes(db: DbSession, trial_id: int, notes: str = Form("", max_length=MA
 
 
 @router.post("/trials/{trial_id}/exclude")
-def exclude(db: DbSession, trial_id: int, reason: str = Form("", max_length=2000), back: str = Form("dashboard")):
+def exclude(
+    db: DbSession, trial_id: int, reason: str = Form("", max_length=2000), back: str = Form("dashboard")
+) -> RedirectResponse:
     """Set an ended trial aside from the leaderboard and exports, with a reason (its log is kept)."""
     try:
         with db.begin():
@@ -268,7 +278,7 @@ async def control(
     action: str,
     back: str = Form("dashboard"),
     reason: str = Form("", max_length=500),
-):
+) -> RedirectResponse:
     """Pause, resume or abort (with the experimenter's reason, logged and shown to the seats); back
     to the dashboard, or to the trial's page (`back=trial`)."""
     if action not in ("pause", "resume", "abort"):
@@ -288,12 +298,12 @@ async def control(
     return RedirectResponse(page, status_code=303)
 
 
-def _described(state) -> str:
+def _described(state: TrialState) -> str:
     return state.phase + (" and paused" if "experimenter" in state.pause_reasons else "")
 
 
 @router.get("/api/trials")
-def live(db: DbSession, hub: HubDep):
+def live(db: DbSession, hub: HubDep) -> dict[str, Any]:
     """Every trial this server has open: phase, clock, moves, seats and the true pose; and the
     recorded phase of the newest trials, so pages drop what is stale once a trial has ended."""
     phases = dict(db.execute(select(Trial.id, Trial.phase).order_by(Trial.id.desc()).limit(100)).all())
@@ -304,7 +314,9 @@ def live(db: DbSession, hub: HubDep):
 
 
 @router.get("/trials/{trial_id}", response_class=HTMLResponse)
-def watch(request: Request, db: DbSession, log: LogDep, seats: SeatTokensDep, settings: SettingsDep, trial_id: int):
+def watch(
+    request: Request, db: DbSession, log: LogDep, seats: SeatTokensDep, settings: SettingsDep, trial_id: int
+) -> HTMLResponse:
     trial = trial_or_404(db, trial_id)
     state = fold(log.load(trial_id))
     names = dict(db.execute(select(Participant.id, Participant.name)).all())
@@ -321,6 +333,6 @@ def watch(request: Request, db: DbSession, log: LogDep, seats: SeatTokensDep, se
 
 
 @router.get("/trials/{trial_id}/map.png")
-def full_map(db: DbSession, mazes: MazesDep, trial_id: int):
+def full_map(db: DbSession, mazes: MazesDep, trial_id: int) -> Response:
     trial = trial_or_404(db, trial_id)
     return Response(mazes.full_map_png(trial.maze), media_type="image/png")

@@ -83,7 +83,9 @@ def _page(templates: TemplatesDep, request: Request, name: str, status: int = 20
 
 # -- the participant ------------------------------------------------------------------------
 @router.get("/study/{name}", response_class=HTMLResponse)
-def information(name: str, request: Request, files: StudyFilesDep, passes: PassesDep, templates: TemplatesDep):
+def information(
+    name: str, request: Request, files: StudyFilesDep, passes: PassesDep, templates: TemplatesDep
+) -> Response:
     config = study_or_404(files, name)
     try:
         if passes.verify(request.cookies.get(PASS_COOKIE) or "").study == name:
@@ -104,7 +106,7 @@ def consent(
     templates: TemplatesDep,
     choice: str = Form(pattern="^(agree|decline)$"),
     consent_version: str = Form(max_length=40),
-):
+) -> Response:
     config = study_or_404(files, name)
     if consent_version != config.consent.version:
         error = "the information changed while the page was open: please read it again"
@@ -125,14 +127,16 @@ def consent(
 
 
 @router.get("/study/{name}/code", response_class=HTMLResponse)
-def code_page(me: ParticipationDep, request: Request, templates: TemplatesDep, error: str | None = None):
+def code_page(
+    me: ParticipationDep, request: Request, templates: TemplatesDep, error: str | None = None
+) -> HTMLResponse:
     return _page(
         templates, request, "code", study=me.config, code=me.code, real_name=me.enrolled.real_name, error=error
     )
 
 
 @router.post("/study/{name}/name")
-def real_name(me: ParticipationDep, real_name: str = Form("", max_length=200)):
+def real_name(me: ParticipationDep, real_name: str = Form("", max_length=200)) -> RedirectResponse:
     try:
         with me.db.begin():
             me.enrolment.set_real_name(me.enrolled, real_name)
@@ -142,12 +146,12 @@ def real_name(me: ParticipationDep, real_name: str = Form("", max_length=200)):
 
 
 @router.get("/study/{name}/instructions", response_class=HTMLResponse)
-def instructions(me: ParticipationDep, request: Request, templates: TemplatesDep):
+def instructions(me: ParticipationDep, request: Request, templates: TemplatesDep) -> HTMLResponse:
     return _page(templates, request, "instructions", study=me.config, code=me.code)
 
 
 @router.get("/study/{name}/me", response_class=HTMLResponse)
-def my_study(me: ParticipationDep, request: Request, templates: TemplatesDep, error: str | None = None):
+def my_study(me: ParticipationDep, request: Request, templates: TemplatesDep, error: str | None = None) -> HTMLResponse:
     trials = me.enrolment.trials(me.enrolled)
     return _page(
         templates,
@@ -164,7 +168,7 @@ def my_study(me: ParticipationDep, request: Request, templates: TemplatesDep, er
 
 
 @router.get("/study/{name}/lobby", response_class=HTMLResponse)
-def lobby_page(me: ParticipationDep, request: Request, templates: TemplatesDep):
+def lobby_page(me: ParticipationDep, request: Request, templates: TemplatesDep) -> HTMLResponse:
     return _page(templates, request, "lobby", study=me.config, code=me.code)
 
 
@@ -186,12 +190,12 @@ def lobby_poll(me: ParticipationDep, clock: ClockDep, seats: SeatTokensDep, maze
 
 
 @router.get("/study/{name}/trials/{trial_id}/questionnaire", response_class=HTMLResponse)
-def questionnaire(me: ParticipationDep, trial_id: int, request: Request, templates: TemplatesDep):
+def questionnaire(me: ParticipationDep, trial_id: int, request: Request, templates: TemplatesDep) -> HTMLResponse:
     return _page(templates, request, "questionnaire", study=me.config, code=me.code, trial_id=trial_id, form={})
 
 
 @router.post("/study/{name}/trials/{trial_id}/questionnaire")
-async def answer(me: ParticipationDep, trial_id: int, request: Request, templates: TemplatesDep):
+async def answer(me: ParticipationDep, trial_id: int, request: Request, templates: TemplatesDep) -> Response:
     form = {k: v for k, v in (await request.form()).items() if isinstance(v, str)}
     try:
         with me.db.begin():
@@ -212,14 +216,14 @@ async def answer(me: ParticipationDep, trial_id: int, request: Request, template
 
 
 @router.post("/study/{name}/complete", response_class=HTMLResponse)
-def complete(me: ParticipationDep, request: Request, templates: TemplatesDep):
+def complete(me: ParticipationDep, request: Request, templates: TemplatesDep) -> HTMLResponse:
     with me.db.begin():
         me.enrolment.complete(me.enrolled)
     return _page(templates, request, "done", study=me.config, code=me.code)
 
 
 @router.post("/study/{name}/withdraw", response_class=HTMLResponse)
-def withdraw(me: ParticipationDep, request: Request, templates: TemplatesDep):
+def withdraw(me: ParticipationDep, request: Request, templates: TemplatesDep) -> HTMLResponse:
     with me.db.begin():
         me.enrolment.withdraw(me.enrolled)
     response = _page(templates, request, "withdrawn", study=me.config)
@@ -229,12 +233,14 @@ def withdraw(me: ParticipationDep, request: Request, templates: TemplatesDep):
 
 # -- the experimenter -----------------------------------------------------------------------
 @experimenter_router.get("", response_class=HTMLResponse)
-def study_list(request: Request, files: StudyFilesDep, templates: TemplatesDep, error: str | None = None):
+def study_list(
+    request: Request, files: StudyFilesDep, templates: TemplatesDep, error: str | None = None
+) -> HTMLResponse:
     return _page(templates, request, "list", studies=files.names(), error=error)
 
 
 @experimenter_router.post("")
-def create_study(files: StudyFilesDep, name: str = Form(max_length=80)):
+def create_study(files: StudyFilesDep, name: str = Form(max_length=80)) -> RedirectResponse:
     try:
         files.path(name)
         if name in files.names():
@@ -279,7 +285,7 @@ def edit_page(
     saved: int | None = None,
     paired: int | None = None,
     error: str | None = None,
-):
+) -> HTMLResponse:
     config = study_or_404(files, name)
     enrolment = Enrolment(db, clock, config)
     text = config.model_dump_json(indent=2)
@@ -320,7 +326,7 @@ def pair_by_hand(
     mazes: MazesDep,
     a: str = Form(max_length=80),
     b: str = Form(max_length=80),
-):
+) -> RedirectResponse:
     """Pair two of the study's participants (by code) now, by the lobby's rules."""
     config = study_or_404(files, name)
     enrolment = Enrolment(db, clock, config)

@@ -4,6 +4,8 @@ participant is seated in one live trial at a time. Each refusal names why."""
 
 from __future__ import annotations
 
+from typing import TypeVar
+
 from sqlalchemy import or_, select
 from sqlalchemy.orm import Session
 
@@ -19,6 +21,16 @@ class Refused(ValueError):
     """A change that would lose or contradict what is recorded; the message says why."""
 
 
+Row = TypeVar("Row", Participant, Team, Robot, Trial)
+
+
+def _existing(db: Session, model: type[Row], row_id: int, what: str) -> Row:
+    row = db.get(model, row_id)
+    if row is None:
+        raise Refused(f"{what} {row_id} does not exist")
+    return row
+
+
 def live_trial_of(db: Session, participant_ids: tuple[int, ...]) -> Trial | None:
     """A trial not yet over in which one of these participants holds a seat, or whose team they
     are in (a team has one live trial at a time)."""
@@ -30,9 +42,7 @@ def live_trial_of(db: Session, participant_ids: tuple[int, ...]) -> Trial | None
 
 
 def delete_participant(db: Session, participant_id: int) -> None:
-    participant = db.get(Participant, participant_id)
-    if participant is None:
-        raise Refused(f"participant {participant_id} does not exist")
+    participant = _existing(db, Participant, participant_id, "participant")
     team = db.scalars(
         select(Team.name).where(or_(Team.member_a_id == participant_id, Team.member_b_id == participant_id))
     ).first()
@@ -42,9 +52,7 @@ def delete_participant(db: Session, participant_id: int) -> None:
 
 
 def delete_team(db: Session, team_id: int) -> None:
-    team = db.get(Team, team_id)
-    if team is None:
-        raise Refused(f"team {team_id} does not exist")
+    team = _existing(db, Team, team_id, "team")
     trials = db.scalars(select(Trial.id).where(Trial.team_id == team_id)).all()
     if trials:
         listed = ", ".join(str(t) for t in trials[:5]) + (", ..." if len(trials) > 5 else "")
@@ -54,9 +62,7 @@ def delete_team(db: Session, team_id: int) -> None:
 
 def delete_robot(db: Session, robot_id: int, connected: bool) -> None:
     """`connected`: whether the robot is on its link now (a connected robot is kept)."""
-    robot = db.get(Robot, robot_id)
-    if robot is None:
-        raise Refused(f"robot {robot_id} does not exist")
+    robot = _existing(db, Robot, robot_id, "robot")
     if connected:
         raise Refused(f"robot {robot.name!r} is connected: stop it first")
     if robot.role == Role.DRIVER:
@@ -68,9 +74,7 @@ def delete_robot(db: Session, robot_id: int, connected: bool) -> None:
 
 def exclude_trial(db: Session, trial_id: int, reason: str) -> None:
     """Set an ended trial aside from the leaderboard and exports; `reason` is kept and shown."""
-    trial = db.get(Trial, trial_id)
-    if trial is None:
-        raise Refused(f"trial {trial_id} does not exist")
+    trial = _existing(db, Trial, trial_id, "trial")
     reason = " ".join(reason.split())
     if not reason:
         raise Refused("give a reason for excluding the trial")

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import threading
 import time
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -22,6 +24,10 @@ from robot_client.calibration import Calibration
 from robot_client.protocol import Move
 from sim.core.maze import Maze
 from sim.robot.rover import Pulse, Rover, RoverPose
+
+if TYPE_CHECKING:  # the renderers load on first use
+    from sim.robot.camera import FrontCamera
+    from sim.robot.overhead import OverheadCamera
 
 
 class VirtualMotors:
@@ -112,7 +118,7 @@ class VirtualMotors:
 class FrontCameraSource:
     """The rover's webcam: `sim.robot.camera.capture` at the true pose of the moment it is read."""
 
-    def __init__(self, maze: Maze, motors: VirtualMotors, camera, seed: int | None) -> None:
+    def __init__(self, maze: Maze, motors: VirtualMotors, camera: FrontCamera, seed: int | None) -> None:
         from sim.robot.camera import capture
 
         self._capture = capture
@@ -138,7 +144,7 @@ class OverheadCameraSource:
     The two processes share nothing but the truth file: the driver rover writes it, this
     camera follows it (no rover on the table until it has a first line)."""
 
-    def __init__(self, maze: Maze, truth_path, camera, seed: int) -> None:
+    def __init__(self, maze: Maze, truth_path: Path, camera: OverheadCamera, seed: int) -> None:
         from sim.robot.overhead import render_overhead
 
         self._render = render_overhead

@@ -16,7 +16,7 @@ from enum import Enum
 
 from sim.core.labels import Label
 from sim.language.vocab import LABEL_WORDS, correct
-from sim.tasks.ldh_features import SECTOR_HEADING_OFFSET, Sector
+from sim.tasks.ldh_features import SECTOR_HEADING_OFFSET, SECTOR_WORDS, Sector
 
 
 class Kind(str, Enum):
@@ -60,19 +60,8 @@ class Question:
 
 
 LABELS = {**LABEL_WORDS, "pong": Label.PADDLE}  # "ping-pong" is read as one word
-SECTORS = {
-    "front": Sector.FRONT,
-    "infront": Sector.FRONT,
-    "ahead": Sector.FRONT,
-    "facing": Sector.FRONT,
-    "straight": Sector.FRONT,
-    "forward": Sector.FRONT,
-    "left": Sector.LEFT,
-    "right": Sector.RIGHT,
-    "behind": Sector.BEHIND,
-    "back": Sector.BEHIND,
-    "rear": Sector.BEHIND,
-}
+# ldh_features' sector words, and the variants that a parser of free text also meets.
+SECTORS = {**SECTOR_WORDS, "infront": Sector.FRONT, "rear": Sector.BEHIND}
 # "right" that means "directly" ("right in front", "right behind"), not the side.
 _RIGHT_AS_NEAR = {"in", "behind", "ahead", "next", "by", "beside", "there", "here", "now", "at", "up", "on"}
 # "back" that is a move or a return, not the sector behind.
