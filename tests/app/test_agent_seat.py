@@ -12,7 +12,6 @@ from app.drivers.registry import driver_names, register_driver
 from bench.live import SeatClient, make_trial
 from sim.agents.stepwise import StepwiseDriver
 from sim.agents.turns import Move
-from tests.app.live import ServerThread
 
 
 @pytest.mark.trial(driver="oracle:shortest")
@@ -49,7 +48,7 @@ def test_shortest_path_oracle_drives_and_claims_each_target(server, trial):
     assert moves and all(m["outcome"] == "ok" for m in moves)
 
 
-def test_register_driver_adds_a_named_agent(settings):
+def test_register_driver_adds_a_named_agent(server):
     class AlwaysLeft(StepwiseDriver):
         def decide(self):
             assert self.rays is not None and len(self.rays.labels) == 13  # it sees its frame's rays
@@ -59,50 +58,44 @@ def test_register_driver_adds_a_named_agent(settings):
     assert {"agent:random", "agent:seq2seq", "agent:dialog", "oracle:shortest", "agent:test-left"} <= set(
         driver_names()
     )
-    with ServerThread(settings) as server:
-        services = server.services
-        trial_id = make_trial(services, services.mazes.names()[0], driver="agent:test-left")
-        token = services.seats.issue(trial_id, "commander")
+    services = server.services
+    trial_id = make_trial(services, services.mazes.names()[0], driver="agent:test-left")
+    token = services.seats.issue(trial_id, "commander")
 
-        async def command():
-            async with SeatClient(server.ws_url, token) as commander:
-                await commander.event("phase", phase="localizing")
-                await commander.send("localize", x=1.0, y=1.0)
-                runtime = services.hub.peek(trial_id)
-                for _ in range(500):
-                    if runtime.state.moves >= 3:
-                        break
-                    await asyncio.sleep(0.02)
+    async def command():
+        async with SeatClient(server.ws_url, token) as commander:
+            await commander.event("phase", phase="localizing")
+            await commander.send("localize", x=1.0, y=1.0)
+            runtime = services.hub.peek(trial_id)
+            for _ in range(500):
+                if runtime.state.moves >= 3:
+                    break
+                await asyncio.sleep(0.02)
 
-        asyncio.run(command())
-        with services.db() as db:
-            actions = db.scalars(
-                select(Event.payload).where(Event.trial_id == trial_id, Event.kind == "move_executed")
-            ).all()
-        assert len(actions) >= 3 and {a["action"] for a in actions} == {"left"}
+    asyncio.run(command())
+    with services.db() as db:
+        actions = db.scalars(
+            select(Event.payload).where(Event.trial_id == trial_id, Event.kind == "move_executed")
+        ).all()
+    assert len(actions) >= 3 and {a["action"] for a in actions} == {"left"}
 
 
-def test_an_agent_that_fails_is_logged_and_the_trial_stays_open(settings):
+def test_an_agent_that_fails_is_logged_and_the_trial_stays_open(server):
     def broken(services, seating):
         raise FileNotFoundError("no checkpoint at runs/missing.pt")
 
     register_driver("agent:test-broken", broken)
-    with ServerThread(settings) as server:
-        services = server.services
-        trial_id = make_trial(services, services.mazes.names()[0], driver="agent:test-broken")
+    services = server.services
+    trial_id = make_trial(services, services.mazes.names()[0], driver="agent:test-broken")
 
-        async def command():
-            async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
-                await commander.wait_for(lambda m: m.get("type") == "welcome")
-                await asyncio.sleep(0.5)
-                await commander.send("chat", text="anyone there?")
-                await commander.event("chat", text="anyone there?")
+    async def command():
+        async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+            await commander.wait_for(lambda m: m.get("type") == "welcome")
+            await asyncio.sleep(0.5)
+            await commander.send("chat", text="anyone there?")
+            await commander.event("chat", text="anyone there?")
 
-        asyncio.run(command())
-        with services.db() as db:
-            errors = db.scalars(
-                select(Event.payload).where(Event.trial_id == trial_id, Event.kind == "bad_message")
-            ).all()
-        assert errors == [
-            {"role": "driver", "error": "agent 'agent:test-broken' failed: no checkpoint at runs/missing.pt"}
-        ]
+    asyncio.run(command())
+    with services.db() as db:
+        errors = db.scalars(select(Event.payload).where(Event.trial_id == trial_id, Event.kind == "bad_message")).all()
+    assert errors == [{"role": "driver", "error": "agent 'agent:test-broken' failed: no checkpoint at runs/missing.pt"}]

@@ -99,36 +99,35 @@ async def held_still(runtime, seconds: float) -> bool:
     return True
 
 
-def test_the_agent_waits_answers_moves_when_told_and_sees_only_what_a_driver_sees(settings):
+def test_the_agent_waits_answers_moves_when_told_and_sees_only_what_a_driver_sees(server):
     inputs: list = []
     register_driver("agent:test-recording", lambda services, seating: RecordingDialogDriver(seating, inputs))
-    with ServerThread(settings) as server:
-        services = server.services
-        maze = services.mazes.names()[0]
-        trial_id = make_trial(services, maze, driver="agent:test-recording")
+    services = server.services
+    maze = services.mazes.names()[0]
+    trial_id = make_trial(services, maze, driver="agent:test-recording")
 
-        async def command():
-            async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
-                await commander.event("phase", phase="localizing", timeout=30)
-                runtime = services.hub.peek(trial_id)
-                assert await held_still(runtime, 1.0)  # nobody has spoken: it neither moves nor talks
-                assert not [m for m in commander.received if m.get("kind") == "chat"]
-                start = len(commander.received)
-                await commander.send("chat", text="what do you see?")
-                answer = await commander.event("chat", role="driver", start=start, timeout=30)
-                await commander.send("localize", x=1.0, y=1.0)
-                await commander.event("phase", phase="navigating")
-                assert await held_still(runtime, 1.0)  # marked on the map, it waits to be told
-                start = len(commander.received)
-                await commander.send("chat", text="turn left")
-                report = await commander.event("chat", role="driver", start=start, timeout=30)
-                return runtime, answer["payload"]["text"], report["payload"]["text"]
+    async def command():
+        async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+            await commander.event("phase", phase="localizing", timeout=30)
+            runtime = services.hub.peek(trial_id)
+            assert await held_still(runtime, 1.0)  # nobody has spoken: it neither moves nor talks
+            assert not [m for m in commander.received if m.get("kind") == "chat"]
+            start = len(commander.received)
+            await commander.send("chat", text="what do you see?")
+            answer = await commander.event("chat", role="driver", start=start, timeout=30)
+            await commander.send("localize", x=1.0, y=1.0)
+            await commander.event("phase", phase="navigating")
+            assert await held_still(runtime, 1.0)  # marked on the map, it waits to be told
+            start = len(commander.received)
+            await commander.send("chat", text="turn left")
+            report = await commander.event("chat", role="driver", start=start, timeout=30)
+            return runtime, answer["payload"]["text"], report["payload"]["text"]
 
-        runtime, answer, report = asyncio.run(command())
-        moves = events_of(services, trial_id, "move_executed")
-        chats = events_of(services, trial_id, "chat")
-        backend = runtime.backend
-        observed_now = backend.observation_at(backend.grid_pose) if backend is not None else None
+    runtime, answer, report = asyncio.run(command())
+    moves = events_of(services, trial_id, "move_executed")
+    chats = events_of(services, trial_id, "chat")
+    backend = runtime.backend
+    observed_now = backend.observation_at(backend.grid_pose) if backend is not None else None
     assert answer and report
     assert [m["action"] for m in moves] == ["left", "left"]  # a right angle: two 45-degree turns
     assert all(m["outcome"] == "ok" for m in moves)
@@ -165,37 +164,36 @@ def aborted_with(services, trial_id: int) -> tuple[list[dict], list[str]]:
     return phases, said
 
 
-def test_a_claim_refused_while_paused_is_made_again_once_the_trial_runs(settings):
+def test_a_claim_refused_while_paused_is_made_again_once_the_trial_runs(server):
     inputs: list = []
     register_driver("agent:test-recording", lambda services, seating: RecordingDialogDriver(seating, inputs))
-    with ServerThread(settings) as server:
-        services = server.services
-        trial_id = make_trial(services, services.mazes.names()[0], driver="agent:test-recording")
-        experimenter = experimenter_client(services, server.url)
+    services = server.services
+    trial_id = make_trial(services, services.mazes.names()[0], driver="agent:test-recording")
+    experimenter = experimenter_client(services, server.url)
 
-        async def command():
-            async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
-                await commander.event("phase", phase="localizing", timeout=30)
-                await commander.send("localize", x=1.0, y=1.0)
-                await commander.event("phase", phase="navigating")
-                for _ in range(600):  # its first frame: a claim sends it
-                    if any(isinstance(p, Saw) for p in inputs):
-                        break
-                    await asyncio.sleep(0.05)
-                await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial_id}/pause")
-                await commander.event("paused", reason="experimenter")
-                await commander.send("chat", text="claim it")
-                await commander.event("chat", role="driver", timeout=30)  # "i think i found ...", then its claim
-                for _ in range(200):
-                    if events_of(services, trial_id, "bad_message"):
-                        break
-                    await asyncio.sleep(0.05)
-                assert "target_claimed" not in commander.kinds()  # refused while paused: no verdict to wait for
-                await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial_id}/resume")
-                await commander.event("target_claimed", timeout=30)
+    async def command():
+        async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+            await commander.event("phase", phase="localizing", timeout=30)
+            await commander.send("localize", x=1.0, y=1.0)
+            await commander.event("phase", phase="navigating")
+            for _ in range(600):  # its first frame: a claim sends it
+                if any(isinstance(p, Saw) for p in inputs):
+                    break
+                await asyncio.sleep(0.05)
+            await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial_id}/pause")
+            await commander.event("paused", reason="experimenter")
+            await commander.send("chat", text="claim it")
+            await commander.event("chat", role="driver", timeout=30)  # "i think i found ...", then its claim
+            for _ in range(200):
+                if events_of(services, trial_id, "bad_message"):
+                    break
+                await asyncio.sleep(0.05)
+            assert "target_claimed" not in commander.kinds()  # refused while paused: no verdict to wait for
+            await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial_id}/resume")
+            await commander.event("target_claimed", timeout=30)
 
-        asyncio.run(command())
-        refusals = events_of(services, trial_id, "bad_message")
+    asyncio.run(command())
+    refusals = events_of(services, trial_id, "bad_message")
     assert len(refusals) == 1 and "paused" in refusals[0]["error"]
     refused = [p for p in inputs if isinstance(p, Refused)]
     assert refused == [Refused(TurnKind.CLAIM, refusals[0]["error"])]
@@ -204,21 +202,21 @@ def test_a_claim_refused_while_paused_is_made_again_once_the_trial_runs(settings
     assert inputs.index(paused[0]) < inputs.index(refused[0]) < inputs.index(paused[1])
 
 
-def test_the_moves_cap_ends_the_trial_aborted_with_the_reason_logged(tmp_path):
+@pytest.mark.settings(agent_moves_per_target=3)
+def test_the_moves_cap_ends_the_trial_aborted_with_the_reason_logged(server):
     register_driver("agent:test-always-left", lambda services, seating: AlwaysLeft())
-    with ServerThread(platform_settings(tmp_path, agent_moves_per_target=3)) as server:
-        services = server.services
-        trial_id = make_trial(services, services.mazes.names()[0], driver="agent:test-always-left")
+    services = server.services
+    trial_id = make_trial(services, services.mazes.names()[0], driver="agent:test-always-left")
 
-        async def command():
-            async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
-                await commander.event("phase", phase="localizing", timeout=30)
-                await commander.send("localize", x=1.0, y=1.0)
-                return await commander.event("phase", phase="aborted", timeout=30)
+    async def command():
+        async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+            await commander.event("phase", phase="localizing", timeout=30)
+            await commander.send("localize", x=1.0, y=1.0)
+            return await commander.event("phase", phase="aborted", timeout=30)
 
-        seen = asyncio.run(command())
-        phases, said = aborted_with(services, trial_id)
-        moves = events_of(services, trial_id, "move_executed")
+    seen = asyncio.run(command())
+    phases, said = aborted_with(services, trial_id)
+    moves = events_of(services, trial_id, "move_executed")
     assert len(moves) == 3
     assert phases[-1] == {
         "phase": "aborted",
@@ -229,19 +227,19 @@ def test_the_moves_cap_ends_the_trial_aborted_with_the_reason_logged(tmp_path):
     assert said == ["I have made 3 moves looking for target 1 of 3, the most an agent may; I stop here"]
 
 
-def test_the_minutes_cap_ends_the_trial_aborted_with_the_reason_logged(tmp_path):
-    with ServerThread(platform_settings(tmp_path, agent_minutes_per_trial=0.02)) as server:
-        services = server.services
-        trial_id = make_trial(services, services.mazes.names()[0], driver="agent:dialog")
+@pytest.mark.settings(agent_minutes_per_trial=0.02)
+def test_the_minutes_cap_ends_the_trial_aborted_with_the_reason_logged(server):
+    services = server.services
+    trial_id = make_trial(services, services.mazes.names()[0], driver="agent:dialog")
 
-        async def command():
-            async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
-                await commander.event("phase", phase="localizing", timeout=30)
-                await commander.event("phase", phase="aborted", timeout=30)
+    async def command():
+        async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+            await commander.event("phase", phase="localizing", timeout=30)
+            await commander.event("phase", phase="aborted", timeout=30)
 
-        asyncio.run(command())
-        phases, said = aborted_with(services, trial_id)
-        runtime = services.hub.peek(trial_id)
+    asyncio.run(command())
+    phases, said = aborted_with(services, trial_id)
+    runtime = services.hub.peek(trial_id)
     assert phases[-1]["reason"] == "agent Driver's cap: 0.02 minutes per trial"
     assert said == ["my 0.02 minutes for this trial are over; I stop here"]
     assert runtime is None or runtime.state.active_s(services.clock.now_ns()) >= 1.2

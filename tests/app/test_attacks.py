@@ -187,37 +187,36 @@ def chats(server, trial_id: int) -> list[str]:
 
 
 # -- forged rover frames ---------------------------------------------------------------
-def test_a_forged_rover_frame_is_refused_and_nothing_of_it_is_recorded(settings):
-    with ServerThread(settings) as server:
-        trial_id, rover_token = rover_trial(server.services)
-        tokens = {r: server.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-        forgeries = {
-            "not a JPEG": b"\xff\xd8" + random.Random(27).randbytes(20_000) + b"\xff\xd9",
-            "but the JPEG is 8x8": cv2.imencode(".jpg", np.zeros((8, 8, 3), np.uint8))[1].tobytes(),
-        }
+def test_a_forged_rover_frame_is_refused_and_nothing_of_it_is_recorded(settings, server):
+    trial_id, rover_token = rover_trial(server.services)
+    tokens = {r: server.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+    forgeries = {
+        "not a JPEG": b"\xff\xd8" + random.Random(27).randbytes(20_000) + b"\xff\xd9",
+        "but the JPEG is 8x8": cv2.imencode(".jpg", np.zeros((8, 8, 3), np.uint8))[1].tobytes(),
+    }
 
-        async def play() -> tuple[list[dict], list[dict]]:
-            async with (
-                Rover(server.ws_url, rover_token) as rover,
-                SeatClient(server.ws_url, tokens["commander"]) as commander,
-                SeatClient(server.ws_url, tokens["driver"]) as driver,
-            ):
-                await start_trial(commander, driver)
-                await rover.frame(1, rover.now())
-                await driver.event("frame")
-                for seq, payload in enumerate(forgeries.values(), start=2):
-                    await rover.ws.send(pack_frame(seq, rover.now(), 320, 240, payload))
-                    deadline = time.monotonic() + 10
-                    while len(rover.errors) < seq - 1:
-                        assert time.monotonic() < deadline, "the forged frame got no error reply"
-                        await asyncio.sleep(0.05)
-                seen = len(driver.received)
-                await rover.frame(4, rover.now())  # the link is up: a real frame is still recorded
-                await driver.event("frame", start=seen)
-                return rover.errors, driver.received
+    async def play() -> tuple[list[dict], list[dict]]:
+        async with (
+            Rover(server.ws_url, rover_token) as rover,
+            SeatClient(server.ws_url, tokens["commander"]) as commander,
+            SeatClient(server.ws_url, tokens["driver"]) as driver,
+        ):
+            await start_trial(commander, driver)
+            await rover.frame(1, rover.now())
+            await driver.event("frame")
+            for seq, payload in enumerate(forgeries.values(), start=2):
+                await rover.ws.send(pack_frame(seq, rover.now(), 320, 240, payload))
+                deadline = time.monotonic() + 10
+                while len(rover.errors) < seq - 1:
+                    assert time.monotonic() < deadline, "the forged frame got no error reply"
+                    await asyncio.sleep(0.05)
+            seen = len(driver.received)
+            await rover.frame(4, rover.now())  # the link is up: a real frame is still recorded
+            await driver.event("frame", start=seen)
+            return rover.errors, driver.received
 
-        errors, to_driver = asyncio.run(play())
-        events = server.services.log.load(trial_id)
+    errors, to_driver = asyncio.run(play())
+    events = server.services.log.load(trial_id)
     assert [e["code"] for e in errors] == ["bad_message"] * 2
     for error, expected in zip(errors, forgeries, strict=True):
         assert expected in error["error"], error

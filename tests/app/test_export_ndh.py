@@ -9,53 +9,8 @@ import numpy as np
 import pytest
 
 from app.export.ndh import assign_splits, ldh_instances, ndh_instances, scan_id, write_benchmark
-from app.export.record import TrialRecord
-from app.trial.state import LoggedEvent
-from sim.core.labels import Label
-from sim.core.maze import Maze
 from sim.tasks.benchmark import Benchmark, NDHInstance
-
-
-def maze_named(name: str, shift: int = 0) -> Maze:
-    labels = np.zeros((1175, 1401), np.uint8)
-    labels[:12, :], labels[-12:, :] = Label.RED, Label.BLUE
-    labels[:, :12], labels[:, -12:] = Label.GREEN, Label.YELLOW
-    labels[300:330, 200 + shift : 230 + shift] = Label.JAR
-    labels[800:830, 900:930], labels[500:530, 1200:1230] = Label.MUG, Label.PADDLE
-    return Maze.from_labels(labels, name)
-
-
-def trial(trial_id: str, maze: str, targets=("jar", "mug", "paddle"), confirmed=3, with_pose=True) -> TrialRecord:
-    raw = [
-        ("trial_created", {"maze": maze, "targets": list(targets), "backend": "sim", "driver": "human"}),
-        ("chat", {"role": "commander", "text": "hello before the start"}),
-        ("phase", {"phase": "localizing", "target_index": 0}),
-    ]
-    if with_pose:
-        raw.append(("pose", {"x": 0.5, "y": 0.6, "heading": -math.pi / 2, "source": "sim"}))
-    raw += [
-        ("chat", {"role": "commander", "text": "what do you see?"}),
-        ("chat", {"role": "driver", "text": "a red wall"}),
-        ("move_requested", {"move_id": 1, "action": "forward"}),
-    ]
-    if with_pose:
-        raw.append(("pose", {"x": 0.5, "y": 0.53, "heading": -math.pi / 2, "source": "sim"}))
-    raw += [
-        ("localization", {"x": 0.45, "y": 0.5, "heading": None}),
-        ("phase", {"phase": "navigating", "target_index": 0}),
-    ]
-    for k in range(confirmed):
-        raw += [
-            ("chat", {"role": "commander", "text": f"go to the {targets[k]}"}),
-            ("chat", {"role": "driver", "text": f"found the {targets[k]}"}),
-            ("target_claimed", {"target": targets[k], "target_index": k, "frame_id": k}),
-            ("target_confirmed", {"target": targets[k], "target_index": k, "within_m": 0.1, "truly_within": True}),
-        ]
-    raw.append(("chat", {"role": "driver", "text": "after the last target"}))
-    events = tuple(
-        LoggedEvent(seq=i, kind=k, t_ns=10**18 + i * 10**7, payload=p) for i, (k, p) in enumerate(raw, start=1)
-    )
-    return TrialRecord(trial_id=trial_id, team="t", maze=maze, targets=tuple(targets), events=events, frames_root=None)
+from tests.app.trial_log import maze_named, ndh_trial_record
 
 
 def test_scan_string_has_the_benchmarks_shape_and_parses():
@@ -77,7 +32,7 @@ def test_scan_string_has_the_benchmarks_shape_and_parses():
 
 def test_one_instance_per_confirmed_target_with_growing_dialog():
     maze = maze_named("m")
-    record = trial("1", "m", targets=("mug", "jar", "paddle"), confirmed=2)
+    record = ndh_trial_record("1", "m", targets=("mug", "jar", "paddle"), confirmed=2)
     instances = ndh_instances(record, maze)
     assert [i["target"] for i in instances] == ["mug", "jar"]
     first, second = instances
@@ -93,15 +48,15 @@ def test_one_instance_per_confirmed_target_with_growing_dialog():
 
 def test_without_a_true_start_pose_the_first_target_is_left_out():
     maze = maze_named("m")
-    instances = ndh_instances(trial("1", "m", with_pose=False), maze)
+    instances = ndh_instances(ndh_trial_record("1", "m", with_pose=False), maze)
     assert [i["target"] for i in instances] == ["mug", "paddle"]
-    (ldh,) = ldh_instances(trial("1", "m", with_pose=False), maze)
+    (ldh,) = ldh_instances(ndh_trial_record("1", "m", with_pose=False), maze)
     assert ldh["agent_pose"] is None and ldh["localization_error_m"] is None
 
 
 def test_ldh_has_dialog_to_the_estimate_and_its_error():
     maze = maze_named("m")
-    (ldh,) = ldh_instances(trial("1", "m"), maze)
+    (ldh,) = ldh_instances(ndh_trial_record("1", "m"), maze)
     assert [d["message"] for d in ldh["dialog_history"]] == ["hello before the start", "what do you see?", "a red wall"]
     assert ldh["commander_estimate"] == [0.45, 0.5, None]
     assert ldh["agent_pose"][:2] == [0.5, 0.53]
@@ -118,7 +73,7 @@ def test_splits_never_share_a_maze_and_train_comes_first():
 
 def test_export_reads_back_with_the_benchmark_loader(tmp_path):
     mazes = [maze_named(f"gen-{i:03d}", shift=10 * i) for i in range(3)]
-    records = [(trial(str(i), m.name), m) for i, m in enumerate(mazes)]
+    records = [(ndh_trial_record(str(i), m.name), m) for i, m in enumerate(mazes)]
     summary = write_benchmark(records, tmp_path)
     assert sum(summary.ndh.values()) == 9 and all(n == 3 for n in summary.ndh.values())
     bench = Benchmark(tmp_path)

@@ -10,7 +10,7 @@ import shutil
 import pytest
 
 from sim.tasks.library import MazeLibrary
-from tests.app.live import ServerThread, experimenter_client, platform_settings
+from tests.app.live import experimenter_client, platform_settings
 
 ONE_TABLE = ("Run_114", "Run_117", "Run_119")
 OTHERS = ("Run_146", "Run_152")  # same walls as each other, landmarks elsewhere: two layouts
@@ -36,33 +36,38 @@ def _trials(page: str) -> list[tuple[str, str]]:
     return [(tid, re.sub(r"<[^>]+>", "", cell).strip()) for tid, cell in rows]
 
 
-def test_a_team_that_played_a_layout_is_never_offered_it_again(tmp_path, small_benchmark):
+@pytest.fixture
+def settings(tmp_path, small_benchmark):
+    """The `server` fixture's settings here: the five maps, their layouts grouped beforehand."""
     settings = platform_settings(tmp_path, benchmark=small_benchmark)
     MazeLibrary(small_benchmark).layouts(cache_dir=settings.cache_dir)  # as `robotslang mazes layouts` does
-    with ServerThread(settings) as server:
-        client = experimenter_client(server.services, server.url)
-        for name in ("Ada", "Ben"):
-            client.post("/experimenter/participants", data={"name": name})
-        client.post("/experimenter/teams", data={"name": "Pair", "member_a": 1, "member_b": 2})
-        page = client.get("/experimenter").text
-        assert 'data-layout="Run_114">Run_117 (layout Run_114)</option>' in page
-        client.post("/experimenter/trials", data={"team_id": 1, "maze": "Run_114"})
-        page = client.post("/experimenter/trials/1/abort").text
-        for twin in ("Run_117", "Run_119"):
-            page = client.post("/experimenter/trials", data={"team_id": 1, "maze": twin}).text
-            assert _error(page) == (f"maze '{twin}' is layout Run_114, which team 'Pair' has already seen as Run_114")
-        offered = []
-        while "suggested maze" in page:  # the suggestion, taken each time: each other layout once
-            offered.append(re.search(r"suggested maze ([^,)]+)\)", page).group(1))  # its own layout: none named
-            client.post("/experimenter/trials", data={"team_id": 1})
-            page = client.post(f"/experimenter/trials/{len(offered) + 1}/abort").text
-        others = [name for name in MazeLibrary(small_benchmark).names() if name not in ONE_TABLE]
-        assert sorted(offered) == sorted(others)
-        page = client.post("/experimenter/trials", data={"team_id": 1}).text
-        assert _error(page) == "team 'Pair' has seen every layout in the library"
-        assert sorted(maze for _, maze in _trials(page)) == sorted(["Run_114", *others])
-        # A new member's team has seen Run_114's layout through Ada: Run_117 is refused for it too.
-        client.post("/experimenter/participants", data={"name": "Cy"})
-        client.post("/experimenter/teams", data={"name": "Ada and Cy", "member_a": 1, "member_b": 3})
-        page = client.post("/experimenter/trials", data={"team_id": 2, "maze": "Run_117"}).text
-        assert "already seen as Run_114" in _error(page)
+    return settings
+
+
+def test_a_team_that_played_a_layout_is_never_offered_it_again(server, small_benchmark):
+    client = experimenter_client(server.services, server.url)
+    for name in ("Ada", "Ben"):
+        client.post("/experimenter/participants", data={"name": name})
+    client.post("/experimenter/teams", data={"name": "Pair", "member_a": 1, "member_b": 2})
+    page = client.get("/experimenter").text
+    assert 'data-layout="Run_114">Run_117 (layout Run_114)</option>' in page
+    client.post("/experimenter/trials", data={"team_id": 1, "maze": "Run_114"})
+    page = client.post("/experimenter/trials/1/abort").text
+    for twin in ("Run_117", "Run_119"):
+        page = client.post("/experimenter/trials", data={"team_id": 1, "maze": twin}).text
+        assert _error(page) == (f"maze '{twin}' is layout Run_114, which team 'Pair' has already seen as Run_114")
+    offered = []
+    while "suggested maze" in page:  # the suggestion, taken each time: each other layout once
+        offered.append(re.search(r"suggested maze ([^,)]+)\)", page).group(1))  # its own layout: none named
+        client.post("/experimenter/trials", data={"team_id": 1})
+        page = client.post(f"/experimenter/trials/{len(offered) + 1}/abort").text
+    others = [name for name in MazeLibrary(small_benchmark).names() if name not in ONE_TABLE]
+    assert sorted(offered) == sorted(others)
+    page = client.post("/experimenter/trials", data={"team_id": 1}).text
+    assert _error(page) == "team 'Pair' has seen every layout in the library"
+    assert sorted(maze for _, maze in _trials(page)) == sorted(["Run_114", *others])
+    # A new member's team has seen Run_114's layout through Ada: Run_117 is refused for it too.
+    client.post("/experimenter/participants", data={"name": "Cy"})
+    client.post("/experimenter/teams", data={"name": "Ada and Cy", "member_a": 1, "member_b": 3})
+    page = client.post("/experimenter/trials", data={"team_id": 2, "maze": "Run_117"}).text
+    assert "already seen as Run_114" in _error(page)

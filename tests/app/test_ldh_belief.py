@@ -15,7 +15,7 @@ from bench.live import SeatClient, make_trial
 from sim.core.navgraph import NavGraph
 from sim.tasks.ldh_eval import MazeContext, colour_logits
 from sim.tasks.ldh_features import maze_views, mentions
-from tests.app.live import ServerThread, Watch, platform_settings
+from tests.app.live import Watch, platform_settings
 from tests.app.trial_play import start_trial
 
 SAID = "I see a red wall on my left and a yellow wall ahead of me"
@@ -30,42 +30,64 @@ def expected_node_p(maze, cache_dir, dialog, logits_of) -> tuple[NavGraph, np.nd
     return graph, p / p.sum()
 
 
-def watch_a_localization(settings):
+@pytest.fixture
+def ldh_model(tmp_path):
+    """A learned localizer whose weights are away from the colours baseline, and its checkpoint file."""
+    torch = pytest.importorskip("torch")
+    from models.ldh import LDHConfig, Localizer, save
+
+    torch.manual_seed(0)
+    model = Localizer(dropout=0.5, prior=True)
+    with torch.no_grad():  # so the two beliefs differ
+        model.bilinear.normal_(0.0, 0.5)
+    path = tmp_path / "best.pt"
+    save(model, LDHConfig(), path)
+    return model, path
+
+
+@pytest.fixture
+def settings(request, tmp_path):
+    """The `server` fixture's settings here: a test that takes `ldh_model` has the server load it."""
+    if "ldh_model" in request.fixturenames:
+        return platform_settings(tmp_path, ldh_checkpoint=request.getfixturevalue("ldh_model")[1])
+    return platform_settings(tmp_path)
+
+
+def watch_a_localization(server):
     """Two seats and a watcher through the localization phase; every message each one got."""
-    with ServerThread(settings) as server:
-        services = server.services
-        maze_name = services.mazes.names()[0]
-        trial_id = make_trial(services, maze_name)
-        with services.db.begin() as db:
-            eve = Experimenter(name="eve", password_hash=hash_password("correct horse"))
-            db.add(eve)
-            db.flush()
-            eve_id = eve.id
-        cookie = services.sessions.issue(eve_id)
+    services = server.services
+    maze_name = services.mazes.names()[0]
+    trial_id = make_trial(services, maze_name)
+    with services.db.begin() as db:
+        eve = Experimenter(name="eve", password_hash=hash_password("correct horse"))
+        db.add(eve)
+        db.flush()
+        eve_id = eve.id
+    cookie = services.sessions.issue(eve_id)
 
-        async def play():
-            async with (
-                SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander,
-                SeatClient(server.ws_url, services.seats.issue(trial_id, "driver")) as driver,
-                Watch(server, trial_id, cookie) as watch,
-            ):
-                await start_trial(commander, driver)
-                await commander.send("chat", text="what do you see?")
-                await watch.wait_for(lambda m: m.get("type") == "ldh_belief")
-                await driver.send("chat", text=SAID)
-                said = await watch.wait_for(lambda m: m.get("kind") == "chat" and m["payload"]["text"] == SAID)
-                belief = await watch.wait_for(lambda m: m.get("type") == "ldh_belief" and m["upto_seq"] == said["seq"])
-                async with Watch(server, trial_id, cookie) as late:  # a watcher that opens the page now
-                    on_open = await late.wait_for(lambda m: m.get("type") == "ldh_belief")
-                await commander.send("localize", x=1.0, y=1.0, heading=None)
-                await watch.wait_for(lambda m: m.get("type") == "status" and m["phase"] == "navigating")
-                await driver.send("chat", text="moving on, the blue wall is behind me")
-                await watch.wait_for(lambda m: m.get("kind") == "chat" and "blue" in m["payload"]["text"])
-                await commander.send("chat", text="good")
-                await watch.wait_for(lambda m: m.get("kind") == "chat" and m["payload"]["text"] == "good")
-                return commander, driver, watch, belief, on_open
+    async def play():
+        async with (
+            SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander,
+            SeatClient(server.ws_url, services.seats.issue(trial_id, "driver")) as driver,
+            Watch(server, trial_id, cookie) as watch,
+        ):
+            await start_trial(commander, driver)
+            await commander.send("chat", text="what do you see?")
+            await watch.wait_for(lambda m: m.get("type") == "ldh_belief")
+            await driver.send("chat", text=SAID)
+            said = await watch.wait_for(lambda m: m.get("kind") == "chat" and m["payload"]["text"] == SAID)
+            belief = await watch.wait_for(lambda m: m.get("type") == "ldh_belief" and m["upto_seq"] == said["seq"])
+            async with Watch(server, trial_id, cookie) as late:  # a watcher that opens the page now
+                on_open = await late.wait_for(lambda m: m.get("type") == "ldh_belief")
+            await commander.send("localize", x=1.0, y=1.0, heading=None)
+            await watch.wait_for(lambda m: m.get("type") == "status" and m["phase"] == "navigating")
+            await driver.send("chat", text="moving on, the blue wall is behind me")
+            await watch.wait_for(lambda m: m.get("kind") == "chat" and "blue" in m["payload"]["text"])
+            await commander.send("chat", text="good")
+            await watch.wait_for(lambda m: m.get("kind") == "chat" and m["payload"]["text"] == "good")
+            return commander, driver, watch, belief, on_open
 
-        return services.mazes.load(maze_name), asyncio.run(play())
+    return services.mazes.load(maze_name), asyncio.run(play())
 
 
 def check(maze, settings, run, logits_of, model: str) -> None:
@@ -86,24 +108,16 @@ def check(maze, settings, run, logits_of, model: str) -> None:
         assert not [m for m in seat.received if m.get("type") == "ldh_belief"]
 
 
-def test_the_colours_belief_follows_the_dialog(tmp_path):
-    settings = platform_settings(tmp_path)
-    maze, run = watch_a_localization(settings)
+def test_the_colours_belief_follows_the_dialog(settings, server):
+    maze, run = watch_a_localization(server)
     check(maze, settings, run, lambda counts, ctx: colour_logits(counts, ctx.views), "colours")
 
 
-def test_a_configured_checkpoint_gives_the_learned_belief(tmp_path):
-    torch = pytest.importorskip("torch")
-    from models.ldh import LDHConfig, Localizer, TrainedLocalizer, save
+def test_a_configured_checkpoint_gives_the_learned_belief(ldh_model, settings, server):
+    from models.ldh import TrainedLocalizer
 
-    torch.manual_seed(0)
-    model = Localizer(dropout=0.5, prior=True)
-    with torch.no_grad():  # weights away from the colours baseline, so the two beliefs differ
-        model.bilinear.normal_(0.0, 0.5)
-    path = tmp_path / "best.pt"
-    save(model, LDHConfig(), path)
-    settings = platform_settings(tmp_path, ldh_checkpoint=path)
-    maze, run = watch_a_localization(settings)
+    model, _ = ldh_model
+    maze, run = watch_a_localization(server)
     learned = TrainedLocalizer(model)
     check(maze, settings, run, learned.logits, "learned")
     _, colours = expected_node_p(

@@ -187,13 +187,15 @@ def test_a_study_of_the_platforms_own_trials(tmp_path):
 
     from app.export.ndh import write_benchmark
     from app.ldh_study import StudyError
-    from tests.app.test_export_ndh import maze_named, trial
+    from tests.app.trial_log import maze_named, ndh_trial_record
 
     settings = platform_settings(tmp_path)
     services = build_services(settings)
     ensure_experimenter(services)
     mazes = [maze_named(f"gen-{i:03d}", shift=10 * i) for i in range(3)]
-    summary = write_benchmark([(trial(str(i), m.name), m) for i, m in enumerate(mazes)], settings.data_dir / "export")
+    summary = write_benchmark(
+        [(ndh_trial_record(str(i), m.name), m) for i, m in enumerate(mazes)], settings.data_dir / "export"
+    )
     split = next(s for s, n in summary.ldh.items() if n)
     studies = services.studies
     study_id = studies.create(1, "ours", str(settings.data_dir / "export"), split, "prefix")
@@ -212,7 +214,7 @@ def test_a_study_of_the_platforms_own_trials(tmp_path):
     ann = studies.invite(study_id, "ann")
     assert studies.answer(study_id, ann, 0, 0.5, 0.53, None).td == 0.0
     outside = tmp_path / "elsewhere"
-    write_benchmark([(trial("9", mazes[0].name), mazes[0])], outside)
+    write_benchmark([(ndh_trial_record("9", mazes[0].name), mazes[0])], outside)
     with pytest.raises(StudyError, match="configured benchmark or a folder under"):
         studies.create(1, "not ours", str(outside), split, "prefix")
     # A folder named relative to the data directory is the same folder; `..` cannot leave it.

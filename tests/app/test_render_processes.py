@@ -18,7 +18,7 @@ from app.settings import Settings
 from app.trial import events as ev
 from bench.live import SeatClient, ServerProcess, ServerProcesses, make_trial
 from sim.core.geometry import heading_angle
-from tests.app.live import ServerThread, platform_settings
+from tests.app.live import platform_settings
 from tests.app.trial_play import move, start_trial
 
 POSES = [(100, 0), (200, 3), (300, 5), (400, 7)]
@@ -71,40 +71,39 @@ def test_a_killed_render_process_costs_no_frame(maze_and_graph):
     assert drawn == [render_jpeg(maze, *continuous(graph, n, h)) for n, h in POSES]
 
 
-def test_the_driver_sees_frames_drawn_in_a_render_process(tmp_path):
-    settings = platform_settings(tmp_path, render_processes=1, cache_dir=tmp_path / "cache")
-    with ServerThread(settings) as server:
-        services = server.services
-        assert isinstance(services.trials.backends.renderer, RenderProcesses)
-        trial_id = make_trial(services, services.mazes.names()[0])
-        tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+@pytest.mark.settings(render_processes=1)
+def test_the_driver_sees_frames_drawn_in_a_render_process(server):
+    services = server.services
+    assert isinstance(services.trials.backends.renderer, RenderProcesses)
+    trial_id = make_trial(services, services.mazes.names()[0])
+    tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
 
-        async def play() -> list[bytes]:
-            async with (
-                SeatClient(server.ws_url, tokens["commander"]) as commander,
-                SeatClient(server.ws_url, tokens["driver"]) as driver,
-            ):
-                await start_trial(commander, driver)
-                seen = []
-                for action in ("left", "left", "right", "forward"):
-                    executed = await move(driver, action)
-                    frame = await driver.event("frame", start=driver.received.index(executed))
-                    seen.append(base64.b64decode(frame["jpeg"]))
-                return seen
+    async def play() -> list[bytes]:
+        async with (
+            SeatClient(server.ws_url, tokens["commander"]) as commander,
+            SeatClient(server.ws_url, tokens["driver"]) as driver,
+        ):
+            await start_trial(commander, driver)
+            seen = []
+            for action in ("left", "left", "right", "forward"):
+                executed = await move(driver, action)
+                frame = await driver.event("frame", start=driver.received.index(executed))
+                seen.append(base64.b64decode(frame["jpeg"]))
+            return seen
 
-        seen = asyncio.run(play())
-        maze = services.mazes.load(services.mazes.names()[0])
-        # Each recorded frame is the render, in this process, at one of the poses the trial logged
-        # (a frame drawn in the render process is recorded when it comes back, which on a loaded
-        # machine may be after the next pose event: the log's order does not pair them).
-        poses = [
-            (e.payload["x"], e.payload["y"], e.payload["heading"])
-            for e in services.log.load(trial_id)
-            if e.is_(ev.PoseSampled)
-        ]
-        frames = [
-            services.trials.frames.read(trial_id, e.seq) for e in services.log.load(trial_id) if e.is_(ev.FrameRecorded)
-        ]
+    seen = asyncio.run(play())
+    maze = services.mazes.load(services.mazes.names()[0])
+    # Each recorded frame is the render, in this process, at one of the poses the trial logged
+    # (a frame drawn in the render process is recorded when it comes back, which on a loaded
+    # machine may be after the next pose event: the log's order does not pair them).
+    poses = [
+        (e.payload["x"], e.payload["y"], e.payload["heading"])
+        for e in services.log.load(trial_id)
+        if e.is_(ev.PoseSampled)
+    ]
+    frames = [
+        services.trials.frames.read(trial_id, e.seq) for e in services.log.load(trial_id) if e.is_(ev.FrameRecorded)
+    ]
     assert len(frames) >= 5, "the first frame and one after each move"
     renders = {render_jpeg(maze, *pose) for pose in poses}
     assert all(jpeg in renders for jpeg in frames)

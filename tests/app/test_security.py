@@ -359,38 +359,35 @@ def test_inline_code_that_the_policy_would_block_is_absent_from_the_templates():
         assert not re.search(r"\son[a-z]+=", text), f"{template.name}: inline event handler"
 
 
-def test_the_host_header_must_name_this_server(tmp_path):
-    settings = platform_settings(
-        tmp_path, allowed_hosts=["lab.example"], allowed_origins=["https://study.example:8443"]
-    )
-    with ServerThread(settings) as server:
+@pytest.mark.settings(allowed_hosts=["lab.example"], allowed_origins=["https://study.example:8443"])
+def test_the_host_header_must_name_this_server(server):
+    def status(host: str) -> int:
+        return httpx.get(server.url + "/", headers={"Host": host}).status_code
 
-        def status(host: str) -> int:
-            return httpx.get(server.url + "/", headers={"Host": host}).status_code
+    # DNS rebinding: a page of evil.example whose name now points at this machine.
+    assert status(f"evil.example:{server.port}") == 400
+    assert status("lab.example.evil.example") == 400
+    for served in (
+        f"lab.example:{server.port}",
+        "study.example",
+        f"127.0.0.1:{server.port}",
+        f"[::1]:{server.port}",
+        f"192.168.1.20:{server.port}",
+    ):
+        assert status(served) == 200, served
 
-        # DNS rebinding: a page of evil.example whose name now points at this machine.
-        assert status(f"evil.example:{server.port}") == 400
-        assert status("lab.example.evil.example") == 400
-        for served in (
-            f"lab.example:{server.port}",
-            "study.example",
-            f"127.0.0.1:{server.port}",
-            f"[::1]:{server.port}",
-            f"192.168.1.20:{server.port}",
-        ):
-            assert status(served) == 200, served
+    async def socket(host: str) -> None:
+        async with websockets.connect(f"ws://{host}:{server.port}/ws/robot", host="127.0.0.1", port=server.port):
+            pass
 
-        async def socket(host: str) -> None:
-            async with websockets.connect(f"ws://{host}:{server.port}/ws/robot", host="127.0.0.1", port=server.port):
-                pass
+    with pytest.raises(websockets.InvalidStatus):
+        asyncio.run(socket("evil.example"))
 
-        with pytest.raises(websockets.InvalidStatus):
-            asyncio.run(socket("evil.example"))
-    default = platform_settings(tmp_path)
-    assert default.allowed_hosts == ["127.0.0.1", "localhost", "[::1]"]
-    with ServerThread(default) as server:
-        assert httpx.get(server.url + "/", headers={"Host": f"localhost:{server.port}"}).status_code == 200
-        assert httpx.get(server.url + "/", headers={"Host": "lab.example"}).status_code == 400
+
+def test_by_default_only_loopback_names_are_served(settings, server):
+    assert settings.allowed_hosts == ["127.0.0.1", "localhost", "[::1]"]
+    assert httpx.get(server.url + "/", headers={"Host": f"localhost:{server.port}"}).status_code == 200
+    assert httpx.get(server.url + "/", headers={"Host": "lab.example"}).status_code == 400
 
 
 def test_a_seat_token_checked_once_still_refuses_every_forgery():

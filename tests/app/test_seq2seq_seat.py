@@ -74,32 +74,30 @@ def test_the_shipped_driver_loads_as_the_command_trained_it():
 
 
 @pytest.mark.slow
-def test_without_a_setting_the_shipped_driver_plays_a_trial_on_a_bundled_maze(tmp_path):
+def test_without_a_setting_the_shipped_driver_plays_a_trial_on_a_bundled_maze(settings, server):
     """A fresh install: no ROBOTSLANG_SEQ2SEQ_CHECKPOINT, so agent:seq2seq is the shipped Driver; it is
     offered, seated, and drives the simulated robot on one of the bundled generated mazes."""
-    settings = platform_settings(tmp_path)
     assert settings.seq2seq_checkpoint is None
-    with ServerThread(settings) as server:
-        services = server.services
-        assert available_drivers(services.agents)["agent:seq2seq"] is None
-        maze = "gen-000"  # the first of the generated mazes shipped in sim/tasks/mazes/
-        assert maze in services.mazes.names()
-        trial_id = make_trial(services, maze, targets=("jar", "mug", "paddle"), driver="agent:seq2seq")
-        token = services.seats.issue(trial_id, "commander")
+    services = server.services
+    assert available_drivers(services.agents)["agent:seq2seq"] is None
+    maze = "gen-000"  # the first of the generated mazes shipped in sim/tasks/mazes/
+    assert maze in services.mazes.names()
+    trial_id = make_trial(services, maze, targets=("jar", "mug", "paddle"), driver="agent:seq2seq")
+    token = services.seats.issue(trial_id, "commander")
 
-        async def command():
-            async with SeatClient(server.ws_url, token) as commander:
-                await commander.event("phase", phase="localizing", timeout=30)
-                await commander.send("chat", text="go forward and look for the jar by the wall")
-                await commander.send("localize", x=1.0, y=1.0)
-                for _ in range(1200):  # bounded wait for the Driver's first moves
-                    if len(events_of(services, trial_id, "move_executed")) >= 5:
-                        break
-                    await asyncio.sleep(0.05)
+    async def command():
+        async with SeatClient(server.ws_url, token) as commander:
+            await commander.event("phase", phase="localizing", timeout=30)
+            await commander.send("chat", text="go forward and look for the jar by the wall")
+            await commander.send("localize", x=1.0, y=1.0)
+            for _ in range(1200):  # bounded wait for the Driver's first moves
+                if len(events_of(services, trial_id, "move_executed")) >= 5:
+                    break
+                await asyncio.sleep(0.05)
 
-        asyncio.run(command())
-        executed = events_of(services, trial_id, "move_executed")
-        requested = events_of(services, trial_id, "move_requested")
+    asyncio.run(command())
+    executed = events_of(services, trial_id, "move_executed")
+    requested = events_of(services, trial_id, "move_requested")
     assert len(executed) >= 5, "the shipped Driver made fewer than 5 moves"
     assert {e.payload["action"] for e in requested} <= {"forward", "left", "right", "stop"}
     assert {e.payload["move_id"] for e in executed} <= {e.payload["move_id"] for e in requested}

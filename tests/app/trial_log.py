@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numpy as np
 
@@ -98,3 +100,48 @@ def trial_record(tmp_path) -> TrialRecord:
         events=tuple(events),
         frames_root=tmp_path,
     )
+
+
+def maze_named(name: str, shift: int = 0) -> Maze:
+    labels = np.zeros((1175, 1401), np.uint8)
+    labels[:12, :], labels[-12:, :] = Label.RED, Label.BLUE
+    labels[:, :12], labels[:, -12:] = Label.GREEN, Label.YELLOW
+    labels[300:330, 200 + shift : 230 + shift] = Label.JAR
+    labels[800:830, 900:930], labels[500:530, 1200:1230] = Label.MUG, Label.PADDLE
+    return Maze.from_labels(labels, name)
+
+
+def ndh_trial_record(
+    trial_id: str, maze: str, targets=("jar", "mug", "paddle"), confirmed=3, with_pose=True
+) -> TrialRecord:
+    """A finished sim trial's record on `maze`: dialog, a tracked pose (or none), `confirmed` targets found."""
+    raw = [
+        ("trial_created", {"maze": maze, "targets": list(targets), "backend": "sim", "driver": "human"}),
+        ("chat", {"role": "commander", "text": "hello before the start"}),
+        ("phase", {"phase": "localizing", "target_index": 0}),
+    ]
+    if with_pose:
+        raw.append(("pose", {"x": 0.5, "y": 0.6, "heading": -math.pi / 2, "source": "sim"}))
+    raw += [
+        ("chat", {"role": "commander", "text": "what do you see?"}),
+        ("chat", {"role": "driver", "text": "a red wall"}),
+        ("move_requested", {"move_id": 1, "action": "forward"}),
+    ]
+    if with_pose:
+        raw.append(("pose", {"x": 0.5, "y": 0.53, "heading": -math.pi / 2, "source": "sim"}))
+    raw += [
+        ("localization", {"x": 0.45, "y": 0.5, "heading": None}),
+        ("phase", {"phase": "navigating", "target_index": 0}),
+    ]
+    for k in range(confirmed):
+        raw += [
+            ("chat", {"role": "commander", "text": f"go to the {targets[k]}"}),
+            ("chat", {"role": "driver", "text": f"found the {targets[k]}"}),
+            ("target_claimed", {"target": targets[k], "target_index": k, "frame_id": k}),
+            ("target_confirmed", {"target": targets[k], "target_index": k, "within_m": 0.1, "truly_within": True}),
+        ]
+    raw.append(("chat", {"role": "driver", "text": "after the last target"}))
+    events = tuple(
+        LoggedEvent(seq=i, kind=k, t_ns=10**18 + i * 10**7, payload=p) for i, (k, p) in enumerate(raw, start=1)
+    )
+    return TrialRecord(trial_id=trial_id, team="t", maze=maze, targets=tuple(targets), events=events, frames_root=None)
