@@ -1,14 +1,17 @@
 """The trial form compares mazes by physical layout: a team that has played Run_114 is never
-offered, nor given, Run_117 or Run_119 (the same table under other names)."""
+offered, nor given, Run_117 or Run_119 (the same table under other names). A layout counts as
+played once the Commander's page had its map, aborted or not."""
 
 from __future__ import annotations
 
+import asyncio
 import html
 import re
 import shutil
 
 import pytest
 
+from bench.live import SeatClient
 from sim.tasks.library import MazeLibrary
 from tests.app.live import experimenter_client, platform_settings
 
@@ -44,6 +47,17 @@ def settings(tmp_path, small_benchmark):
     return settings
 
 
+def played_and_aborted(client, server, trial_id: int) -> str:
+    """The Commander opens the trial (its page gets the map), then the experimenter aborts it."""
+
+    async def commander_opens() -> None:
+        async with SeatClient(server.ws_url, server.services.seats.issue(trial_id, "commander")) as commander:
+            await commander.wait_for(lambda m: m.get("type") == "welcome")
+
+    asyncio.run(commander_opens())
+    return client.post(f"/experimenter/trials/{trial_id}/abort").text
+
+
 def test_a_team_that_played_a_layout_is_never_offered_it_again(server, small_benchmark):
     client = experimenter_client(server.services, server.url)
     for name in ("Ada", "Ben"):
@@ -52,7 +66,7 @@ def test_a_team_that_played_a_layout_is_never_offered_it_again(server, small_ben
     page = client.get("/experimenter").text
     assert 'data-layout="Run_114">Run_117 (layout Run_114)</option>' in page
     client.post("/experimenter/trials", data={"team_id": 1, "maze": "Run_114"})
-    page = client.post("/experimenter/trials/1/abort").text
+    page = played_and_aborted(client, server, 1)
     for twin in ("Run_117", "Run_119"):
         page = client.post("/experimenter/trials", data={"team_id": 1, "maze": twin}).text
         assert _error(page) == (f"maze '{twin}' is layout Run_114, which team 'Pair' has already seen as Run_114")
@@ -60,7 +74,7 @@ def test_a_team_that_played_a_layout_is_never_offered_it_again(server, small_ben
     while "suggested maze" in page:  # the suggestion, taken each time: each other layout once
         offered.append(re.search(r"suggested maze ([^,)]+)\)", page).group(1))  # its own layout: none named
         client.post("/experimenter/trials", data={"team_id": 1})
-        page = client.post(f"/experimenter/trials/{len(offered) + 1}/abort").text
+        page = played_and_aborted(client, server, len(offered) + 1)
     others = [name for name in MazeLibrary(small_benchmark).names() if name not in ONE_TABLE]
     assert sorted(offered) == sorted(others)
     page = client.post("/experimenter/trials", data={"team_id": 1}).text
