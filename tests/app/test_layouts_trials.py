@@ -4,16 +4,15 @@ played once the Commander's page had its map, aborted or not."""
 
 from __future__ import annotations
 
-import asyncio
 import html
 import re
 import shutil
 
 import pytest
 
-from bench.live import SeatClient
 from sim.tasks.library import MazeLibrary
 from tests.app.live import experimenter_client, platform_settings
+from tests.app.trial_play import commander_had_the_map
 
 ONE_TABLE = ("Run_114", "Run_117", "Run_119")
 OTHERS = ("Run_146", "Run_152")  # same walls as each other, landmarks elsewhere: two layouts
@@ -49,12 +48,7 @@ def settings(tmp_path, small_benchmark):
 
 def played_and_aborted(client, server, trial_id: int) -> str:
     """The Commander opens the trial (its page gets the map), then the experimenter aborts it."""
-
-    async def commander_opens() -> None:
-        async with SeatClient(server.ws_url, server.services.seats.issue(trial_id, "commander")) as commander:
-            await commander.wait_for(lambda m: m.get("type") == "welcome")
-
-    asyncio.run(commander_opens())
+    commander_had_the_map(server, trial_id)
     return client.post(f"/experimenter/trials/{trial_id}/abort").text
 
 
