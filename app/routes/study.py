@@ -181,8 +181,8 @@ def lobby_poll(me: ParticipationDep, clock: ClockDep, seats: SeatTokensDep, maze
             return {"state": "waiting", "waiting": waiting}
         case TimedOut(waited_s):
             return {"state": "timed_out", "waited_s": round(waited_s)}
-        case AllPlayed(trials):
-            return {"state": "all_played", "trials": trials}
+        case AllPlayed(trials, teams):
+            return {"state": "all_played", "trials": trials, "teams": teams}
 
 
 @router.get("/study/{name}/trials/{trial_id}/questionnaire", response_class=HTMLResponse)

@@ -1,8 +1,8 @@
 """The lobby: participants who arrive at different times wait; each lobby page's poll pairs the
-poller with whoever waited longest and is still there (newcomers with newcomers, for a practice
-trial on the study's bundled practice maze, set aside from scores), on a maze of a layout neither has seen (the
-trial form's `suggest_maze`, on the study's pool), the one who commanded less in the Commander's
-seat. A page that stops asking (a closed tab) is not paired; a waiter past the study's time-out is
+poller by the team plan (`app.study.pairing`: a new partner before an old one, then whoever waited
+longest and is still there; roles balanced; newcomers with newcomers, for a practice trial on the
+study's bundled practice maze, set aside from scores), on a maze of a layout neither has seen (the
+trial form's `suggest_maze`, on the study's pool). A page that stops asking (a closed tab) is not paired; a waiter past the study's time-out is
 told so. One participant is in one live trial at a time, so two browsers of one participant are
 sent to the same seat, never two."""
 
@@ -18,8 +18,16 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Participant, StudyParticipant, Team, Trial
 from app.study.config import StudyConfig
+from app.study.pairing import History, Pair, next_pair, plan_done
 from app.trial.lifecycle import live_trial_of
-from app.trial.setup import TrialSetupError, create_team, create_trial, parse_targets, suggest_maze
+from app.trial.setup import (
+    TrialSetupError,
+    create_team,
+    create_trial,
+    layouts_seen_by,
+    parse_targets,
+    suggest_maze,
+)
 from app.trial.vocabulary import Role
 
 
@@ -45,7 +53,8 @@ class TimedOut:
 
 @dataclass(frozen=True)
 class AllPlayed:
-    trials: int  # the study's trials_per_participant, all played
+    trials: int  # study trials played (the practice not counted)
+    teams: int  # teams they were in
 
 
 LobbyState = Seated | Waiting | TimedOut | AllPlayed
@@ -64,6 +73,7 @@ class Lobby:
     def __init__(self, db: Session, config: StudyConfig, layouts: Mapping[str, str], now_ns: int) -> None:
         self.db = db
         self.config = config
+        self.all_layouts = layouts
         # The pool's mazes (all but the practice maze when the pool is empty) -> their layouts.
         pool = set(config.maze_pool) or set(layouts) - {config.practice_maze}
         self.layouts = {m: layout for m, layout in layouts.items() if m in pool}
@@ -79,9 +89,10 @@ class Lobby:
         if live is not None:
             enrolled.lobby_since = None
             return seat_of(live, enrolled.participant_id)
-        if self.played(enrolled) >= self.config.trials_per_participant:
+        done = self.done(enrolled)
+        if done is not None:
             enrolled.lobby_since = None
-            return AllPlayed(self.config.trials_per_participant)
+            return done
         if enrolled.lobby_since is None:
             enrolled.lobby_since = now
         enrolled.lobby_seen = now
@@ -91,14 +102,22 @@ class Lobby:
             return TimedOut(waited)
         others = self.waiting(now, but=enrolled.id)
         practice = self.needs_practice(enrolled)
-        for other in others:
-            if self.needs_practice(other) != practice:
-                continue  # newcomers practise together; the others play the study's trials
-            trial = self._pair(enrolled, other, practice)
-            if trial is not None:
-                enrolled.lobby_since = other.lobby_since = None
-                return seat_of(trial, enrolled.participant_id)
+        alike = [other for other in others if self.needs_practice(other) == practice]  # newcomers practise together
+        trial = self._pair(enrolled, alike, practice)
+        if trial is not None:
+            for seated in (enrolled, *alike):
+                if trial.commander_id == seated.participant_id or trial.driver_id == seated.participant_id:
+                    seated.lobby_since = None
+            return seat_of(trial, enrolled.participant_id)
         return Waiting(len(others) + 1)
+
+    def done(self, enrolled: StudyParticipant) -> AllPlayed | None:
+        """The plan is played out for this participant: its trials, or its teams."""
+        played = self.played(enrolled)
+        history = self.history(enrolled)
+        if played >= self.config.trials_per_participant or plan_done(history, self.config.teams_per_participant):
+            return AllPlayed(played, history.teams)
+        return None
 
     def waiting(self, now: datetime, but: int | None = None) -> list[StudyParticipant]:
         """Who waits and is still there, longest first."""
@@ -115,11 +134,29 @@ class Lobby:
         )
         return [e for e in rows if e.lobby_seen is not None and _aware(e.lobby_seen) >= present]
 
-    def _commands(self, participant_id: int) -> int:
-        count = select(func.count(Trial.id)).where(
-            Trial.study == self.config.name, Trial.commander_id == participant_id
-        )
-        return int(self.db.scalar(count) or 0)
+    def history(self, enrolled: StudyParticipant) -> History:
+        """What the pairing rule knows of a participant: partners and seats in the study's trials
+        (the practice not counted) and every layout they have seen."""
+        pid = enrolled.participant_id
+        partners: set[int] = set()
+        commanded = drove = 0
+        for trial in self.db.scalars(
+            select(Trial).where(
+                Trial.study == self.config.name,
+                or_(Trial.commander_id == pid, Trial.driver_id == pid),
+                or_(Trial.excluded_reason.is_(None), Trial.excluded_reason != PRACTICE_REASON),
+            )
+        ):
+            if trial.commander_id == pid:
+                commanded += 1
+                partner = trial.driver_id
+            else:
+                drove += 1
+                partner = trial.commander_id
+            if partner is not None:
+                partners.add(partner)
+        seen = frozenset(layouts_seen_by(self.db, (pid,), self.all_layouts))
+        return History(pid, frozenset(partners), commanded, drove, seen)
 
     def pair(self, a: StudyParticipant, b: StudyParticipant) -> Trial:
         """The experimenter pairs two participants by hand (waiting or not): a practice trial when
@@ -128,9 +165,14 @@ class Lobby:
             raise LobbyError("choose two different participants")
         if a.withdrawn_at is not None or b.withdrawn_at is not None:
             raise LobbyError("a withdrawn participant cannot be paired")
-        trial = self._pair(a, b, self.needs_practice(a) and self.needs_practice(b))
+        for enrolled in (a, b):
+            if live_trial_of(self.db, (enrolled.participant_id,)) is not None:
+                raise LobbyError("one of them is in a live trial")
+            if self.done(enrolled) is not None:
+                raise LobbyError("one of them has played the plan's trials or teams")
+        trial = self._pair(a, [b], self.needs_practice(a) and self.needs_practice(b))
         if trial is None:
-            raise LobbyError("one of them is in a live trial, or the pool has no layout both have not seen")
+            raise LobbyError("the pool has no layout both have not seen")
         a.lobby_since = b.lobby_since = None
         return trial
 
@@ -154,22 +196,30 @@ class Lobby:
         )
         return self.db.scalar(practised.limit(1)) is None
 
-    def _pair(self, me: StudyParticipant, other: StudyParticipant, practice: bool) -> Trial | None:
-        """A trial of the two on a layout neither has seen (the practice maze when they need
-        practice), or None where there is none."""
-        a, b = sorted((me.participant_id, other.participant_id))
+    def _pair(self, me: StudyParticipant, others: list[StudyParticipant], practice: bool) -> Trial | None:
+        """A trial of `me` and the partner the plan gives among `others`, on a layout neither has
+        seen (the practice maze when they need practice), or None where the plan gives none."""
+        layouts = self.practice_layouts if practice else self.layouts
+        candidates = [other for other in others if self.done(other) is None]
+        pair = next_pair(
+            self.history(me),
+            [self.history(other) for other in candidates],
+            set(layouts.values()),
+            self.config.teams_per_participant,
+        )
+        if pair is None:
+            return None
+        return self._create(pair, layouts, practice)
+
+    def _create(self, pair: Pair, layouts: Mapping[str, str], practice: bool) -> Trial | None:
+        a, b = sorted((pair.commander, pair.driver))
         team = self.db.scalar(select(Team).where(Team.member_a_id == a, Team.member_b_id == b))
         if team is None:
             codes = self.db.scalars(select(Participant.name).where(Participant.id.in_((a, b))).order_by(Participant.id))
             team = create_team(self.db, " & ".join(codes), a, b)
-        layouts = self.practice_layouts if practice else self.layouts
         maze = suggest_maze(self.db, team, layouts)
         if maze is None:
             return None
-        # Roles balanced: whoever has commanded less commands; on a tie, who waited longer.
-        first, second = (
-            (other, me) if self._commands(other.participant_id) <= self._commands(me.participant_id) else (me, other)
-        )
         try:
             trial = create_trial(
                 self.db,
@@ -178,7 +228,7 @@ class Lobby:
                 targets=parse_targets("random", random.Random()),
                 backend="sim",
                 driver="human",
-                commander_id=first.participant_id,
+                commander_id=pair.commander,
                 layouts=layouts,
                 now_ns=self.now_ns,
             )

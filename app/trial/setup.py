@@ -31,7 +31,11 @@ def layouts_seen(db: Session, team: Team | None, layouts: Mapping[str, str]) -> 
     no longer in the library is a layout of its own). No team (agents in both seats): none."""
     if team is None:
         return {}
-    members = (team.member_a_id, team.member_b_id)
+    return layouts_seen_by(db, (team.member_a_id, team.member_b_id), layouts)
+
+
+def layouts_seen_by(db: Session, members: tuple[int, ...], layouts: Mapping[str, str]) -> dict[str, str]:
+    """Each layout these participants have played in, in any team -> a maze they played it as."""
     teams = select(Team.id).where(or_(Team.member_a_id.in_(members), Team.member_b_id.in_(members)))
     played = sorted(set(db.scalars(select(Trial.maze).where(Trial.team_id.in_(teams)))))
     return {layouts.get(maze, maze): maze for maze in played}

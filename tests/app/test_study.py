@@ -324,5 +324,34 @@ def test_the_lobby_stops_pairing_a_participant_who_played_the_plans_trials(serve
     with server.services.db() as db:
         trial_id = db.scalar(select(Trial.id).where(Trial.study == "pilot"))
     assert eve.post(f"/experimenter/trials/{trial_id}/abort").status_code == 200
-    assert poll(ann) == {"state": "all_played", "trials": 1}
+    assert poll(ann) == {"state": "all_played", "trials": 1, "teams": 1}
     assert poll(cat) == {"state": "waiting", "waiting": 1}, "Ann, done, does not wait"
+
+
+def end(server, eve) -> None:
+    """The experimenter aborts the study's live trial (as if it were played)."""
+    with server.services.db() as db:
+        trial_id = db.scalar(select(Trial.id).where(Trial.study == "pilot", Trial.phase == "waiting"))
+    assert eve.post(f"/experimenter/trials/{trial_id}/abort").status_code == 200
+
+
+def test_the_lobby_pairs_by_the_team_plan_and_stops_at_the_plans_teams(server):
+    plan = {"practice_maze": None, "teams_per_participant": 2, "trials_per_participant": 10}
+    StudyFiles(server.settings.data_dir / "studies").save(template("pilot").model_copy(update=plan))
+    (ann, ann_code), (bob, bob_code), (cat, cat_code) = (join(server, "pilot") for _ in range(3))
+    eve = experimenter_client(server.services, server.url)
+    assert poll(ann)["state"] == "waiting" and poll(bob)["state"] == "seated"
+    assert poll(cat)["state"] == "waiting"
+    end(server, eve)
+    second = poll(ann)
+    assert second["state"] == "seated" and second["role"] == "driver", "Ann commanded with Bob: she drives now"
+    end(server, eve)
+    assert poll(ann) == {"state": "all_played", "trials": 2, "teams": 2}, "two teams: Ann's plan is done"
+    assert poll(bob)["state"] == "waiting" and poll(cat)["state"] == "seated"
+    with server.services.db() as db:
+        names = dict(db.execute(select(Participant.id, Participant.name)).all())
+        teams = [
+            {names[t.commander_id], names[t.driver_id]}
+            for t in db.scalars(select(Trial).where(Trial.study == "pilot").order_by(Trial.id))
+        ]
+    assert teams == [{ann_code, bob_code}, {ann_code, cat_code}, {bob_code, cat_code}]
