@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 
-from sqlalchemy import func, or_, select
+from sqlalchemy import or_, select
 from sqlalchemy.orm import Session
 
 from app.db.models import Participant, StudyParticipant, Team, Trial
@@ -25,6 +25,7 @@ from app.trial.setup import (
     create_team,
     create_trial,
     layouts_seen_by,
+    never_joined,
     parse_targets,
     suggest_maze,
 )
@@ -39,6 +40,7 @@ class LobbyError(ValueError):
 class Seated:
     trial_id: int
     role: Role
+    paired_now: bool = False  # this ask made the pair: the seats' join time-out starts
 
 
 @dataclass(frozen=True)
@@ -94,7 +96,7 @@ class Lobby:
             enrolled.lobby_since = None
             return done
         if enrolled.lobby_since is None:
-            enrolled.lobby_since = now
+            enrolled.lobby_since = self._stood_up(enrolled) or now
         enrolled.lobby_seen = now
         waited = (now - _aware(enrolled.lobby_since)).total_seconds()
         if waited > self.config.lobby_timeout_s:
@@ -108,8 +110,23 @@ class Lobby:
             for seated in (enrolled, *alike):
                 if trial.commander_id == seated.participant_id or trial.driver_id == seated.participant_id:
                     seated.lobby_since = None
-            return seat_of(trial, enrolled.participant_id)
+            return Seated(trial.id, seat_of(trial, enrolled.participant_id).role, paired_now=True)
         return Waiting(len(others) + 1)
+
+    def _stood_up(self, enrolled: StudyParticipant) -> datetime | None:
+        """When their last trial was paired, if it was aborted because the partner never opened
+        their seat while they had opened theirs: they go back to the head of the lobby."""
+        pid = enrolled.participant_id
+        last = self.db.scalars(
+            select(Trial)
+            .where(Trial.study == self.config.name, or_(Trial.commander_id == pid, Trial.driver_id == pid))
+            .order_by(Trial.id.desc())
+        ).first()
+        if last is None:
+            return None
+        absent = never_joined(self.db, (last.id,)).get(last.id, [])
+        mine = Role.COMMANDER if last.commander_id == pid else Role.DRIVER
+        return _aware(last.created_at) if absent and mine not in absent else None
 
     def done(self, enrolled: StudyParticipant) -> AllPlayed | None:
         """The plan is played out for this participant: its trials, or its teams."""
@@ -140,13 +157,7 @@ class Lobby:
         pid = enrolled.participant_id
         partners: set[int] = set()
         commanded = drove = 0
-        for trial in self.db.scalars(
-            select(Trial).where(
-                Trial.study == self.config.name,
-                or_(Trial.commander_id == pid, Trial.driver_id == pid),
-                or_(Trial.excluded_reason.is_(None), Trial.excluded_reason != PRACTICE_REASON),
-            )
-        ):
+        for trial in self._trials(enrolled):
             if trial.commander_id == pid:
                 commanded += 1
                 partner = trial.driver_id
@@ -176,15 +187,24 @@ class Lobby:
         a.lobby_since = b.lobby_since = None
         return trial
 
-    def played(self, enrolled: StudyParticipant) -> int:
-        """The participant's study trials so far, the practice not counted."""
+    def _trials(self, enrolled: StudyParticipant) -> list[Trial]:
+        """The participant's study trials: not the practice, nor one aborted with a seat never opened."""
         pid = enrolled.participant_id
-        trials = select(func.count(Trial.id)).where(
-            Trial.study == self.config.name,
-            or_(Trial.commander_id == pid, Trial.driver_id == pid),
-            or_(Trial.excluded_reason.is_(None), Trial.excluded_reason != PRACTICE_REASON),
+        trials = list(
+            self.db.scalars(
+                select(Trial).where(
+                    Trial.study == self.config.name,
+                    or_(Trial.commander_id == pid, Trial.driver_id == pid),
+                    or_(Trial.excluded_reason.is_(None), Trial.excluded_reason != PRACTICE_REASON),
+                )
+            )
         )
-        return int(self.db.scalar(trials) or 0)
+        unopened = never_joined(self.db, [t.id for t in trials])
+        return [t for t in trials if t.id not in unopened]
+
+    def played(self, enrolled: StudyParticipant) -> int:
+        """The participant's study trials so far (the practice, and trials never joined, not counted)."""
+        return len(self._trials(enrolled))
 
     def needs_practice(self, enrolled: StudyParticipant) -> bool:
         if not self.practice_layouts:

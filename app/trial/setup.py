@@ -9,13 +9,13 @@ from __future__ import annotations
 import math
 import random
 from collections import Counter
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 
 from sqlalchemy import or_, select
 from sqlalchemy.orm import Session
 
 from app.db.models import Event, Participant, Robot, Team, Trial
-from app.trial.events import TrialCreated
+from app.trial.events import Connected, TrialCreated
 from app.trial.lifecycle import live_trial_of
 from app.trial.specs import HUMAN, SIM, BackendSpec
 from app.trial.vocabulary import Phase, Role
@@ -35,10 +35,33 @@ def layouts_seen(db: Session, team: Team | None, layouts: Mapping[str, str]) -> 
 
 
 def layouts_seen_by(db: Session, members: tuple[int, ...], layouts: Mapping[str, str]) -> dict[str, str]:
-    """Each layout these participants have played in, in any team -> a maze they played it as."""
+    """Each layout these participants have played in, in any team -> a maze they played it as
+    (not the layouts of trials aborted before a person's seat was ever opened)."""
     teams = select(Team.id).where(or_(Team.member_a_id.in_(members), Team.member_b_id.in_(members)))
-    played = sorted(set(db.scalars(select(Trial.maze).where(Trial.team_id.in_(teams)))))
+    trials = dict(db.execute(select(Trial.id, Trial.maze).where(Trial.team_id.in_(teams))).all())
+    unseen = never_joined(db, trials)
+    played = sorted({maze for trial_id, maze in trials.items() if trial_id not in unseen})
     return {layouts.get(maze, maze): maze for maze in played}
+
+
+def never_joined(db: Session, trial_ids: Collection[int]) -> dict[int, list[Role]]:
+    """The aborted ones of these trials in which a person's seat was never opened -> those seats.
+    Such a trial never happened for the study: its layout is not seen, it is no one's trial."""
+    aborted = {
+        t.id: t for t in db.scalars(select(Trial).where(Trial.id.in_(trial_ids), Trial.phase == str(Phase.ABORTED)))
+    }
+    joined: dict[int, set[str]] = {i: set() for i in aborted}
+    for event in db.scalars(select(Event).where(Event.trial_id.in_(aborted), Event.kind == Connected.kind)):
+        joined[event.trial_id].add(str(event.payload.get("role")))
+    missing = {
+        i: [
+            role
+            for role, spec in ((Role.COMMANDER, t.commander), (Role.DRIVER, t.driver))
+            if spec == str(HUMAN) and str(role) not in joined[i]
+        ]
+        for i, t in aborted.items()
+    }
+    return {i: roles for i, roles in missing.items() if roles}
 
 
 def suggest_maze(db: Session, team: Team | None, layouts: Mapping[str, str]) -> str | None:
@@ -190,14 +213,16 @@ def restart_trial(
     commanders: Mapping[str, str | None] | None = None,
 ) -> Trial:
     """A new trial for an aborted one: the same seats, targets, robot and study, on a layout the
-    team has never seen (the aborted one's counts as seen: its Commander may have had the map)."""
+    team has never seen (the aborted one's counts as seen: its Commander may have had the map), or
+    on the same maze when the Commander's seat was never opened (nobody saw it)."""
     old = db.get(Trial, trial_id)
     if old is None:
         raise TrialSetupError(f"trial {trial_id} does not exist")
     if old.phase != Phase.ABORTED:
         raise TrialSetupError(f"trial {trial_id} is {old.phase}: only an aborted trial is restarted")
     team = db.get(Team, old.team_id) if old.team_id is not None else None
-    maze = suggest_maze(db, team, layouts)
+    unopened = never_joined(db, (old.id,)).get(old.id, [])
+    maze = old.maze if Role.COMMANDER in unopened and old.maze in layouts else suggest_maze(db, team, layouts)
     if maze is None:
         raise TrialSetupError(f"team {team.name if team else '-'!r} has seen every layout in the library")
     trial = create_trial(

@@ -149,6 +149,7 @@ def test_an_aborted_trial_restarts_with_the_same_seats_on_a_layout_the_team_has_
     assert f"trial {trial} is waiting: only an aborted trial is restarted" in refused
     with server.services.db.begin() as db:
         db.get(Trial, trial).study = "pilot"
+    asyncio.run(open_seats(server, trial, "commander", "driver"))  # both loaded their pages: the map was seen
     client.post(f"/experimenter/trials/{trial}/abort", data={"reason": "the Driver's browser crashed"})
     row = client.get("/experimenter").text
     assert f'action="/experimenter/trials/{trial}/restart"' in row
@@ -173,6 +174,30 @@ def test_an_aborted_trial_restarts_with_the_same_seats_on_a_layout_the_team_has_
     assert layouts[new.maze] != layouts[old.maze], "the aborted layout counts as seen"
     page = html.unescape(client.post(f"/experimenter/trials/{new.id}/restart").text)
     assert f"trial {new.id} is waiting: only an aborted trial is restarted" in page
+
+
+async def open_seats(server, trial_id: int, *roles: str) -> None:
+    for role in roles:
+        async with SeatClient(server.ws_url, server.services.seats.issue(trial_id, role)) as seat:
+            await seat.wait_for(lambda message: True)
+
+
+def test_a_trial_whose_commander_never_loaded_the_map_restarts_on_the_same_layout(server, trial):
+    client = experimenter_client(server.services, server.url)
+    asyncio.run(open_seats(server, trial, "driver"))  # the Commander's page never opened
+    client.post(f"/experimenter/trials/{trial}/abort")
+    client.post(f"/experimenter/trials/{trial}/restart")
+    with server.services.db() as db:
+        old = db.get(Trial, trial)
+        (new,) = db.query(Trial).filter(Trial.id > trial).all()
+    assert new.maze == old.maze and new.phase == "waiting", "nobody saw the map: the layout is still unseen"
+    asyncio.run(open_seats(server, new.id, "commander", "driver"))
+    client.post(f"/experimenter/trials/{new.id}/abort")
+    client.post(f"/experimenter/trials/{new.id}/restart")
+    with server.services.db() as db:
+        newest = db.query(Trial).filter(Trial.id > new.id).one()
+    layouts = server.services.mazes.layouts()
+    assert layouts[newest.maze] != layouts[old.maze], "once the Commander loaded it, the layout counts as seen"
 
 
 def test_the_experimenters_notes_stay_on_the_experimenters_pages(tmp_path):

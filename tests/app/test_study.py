@@ -5,6 +5,7 @@ pseudonymous events kept). No public page or export carries a real name."""
 
 from __future__ import annotations
 
+import asyncio
 import html
 import json
 import time
@@ -14,9 +15,10 @@ from sqlalchemy import select, text
 from typer.testing import CliRunner
 
 from app.cli import root
-from app.db.models import Participant, StudyAnswer, StudyEvent, StudyParticipant, Trial
+from app.db.models import Event, Participant, StudyAnswer, StudyEvent, StudyParticipant, Trial
 from app.study.config import StudyFiles, template
 from app.trial.setup import create_team, create_trial
+from bench.live import SeatClient
 from tests.app.live import ServerThread, browser, experimenter_client, page_csrf_token
 
 REAL_NAME = "Bob Okafor"
@@ -263,9 +265,7 @@ def lobby_rounds(server) -> None:
     assert poll(ann)["state"] == "seated"
     # Bob's partner is Ann; now Bob's page closes before anyone else comes (he stops asking).
     eve = experimenter_client(server.services, server.url)
-    with server.services.db() as db:
-        first = db.scalar(select(Trial).where(Trial.study == "pilot"))
-    assert eve.post(f"/experimenter/trials/{first.id}/abort").status_code == 200
+    end(server, eve)
     assert poll(bob)["state"] == "waiting"
     time.sleep(3.5)  # past the study's lobby_presence_s
     seated = poll(cat)
@@ -321,17 +321,18 @@ def test_the_lobby_stops_pairing_a_participant_who_played_the_plans_trials(serve
     (ann, _), (bob, _), (cat, _) = join(server, "pilot"), join(server, "pilot"), join(server, "pilot")
     assert poll(ann)["state"] == "waiting" and poll(bob)["state"] == "seated"
     eve = experimenter_client(server.services, server.url)
-    with server.services.db() as db:
-        trial_id = db.scalar(select(Trial.id).where(Trial.study == "pilot"))
-    assert eve.post(f"/experimenter/trials/{trial_id}/abort").status_code == 200
+    end(server, eve)
     assert poll(ann) == {"state": "all_played", "trials": 1, "teams": 1}
     assert poll(cat) == {"state": "waiting", "waiting": 1}, "Ann, done, does not wait"
 
 
-def end(server, eve) -> None:
-    """The experimenter aborts the study's live trial (as if it were played)."""
-    with server.services.db() as db:
-        trial_id = db.scalar(select(Trial.id).where(Trial.study == "pilot", Trial.phase == "waiting"))
+def end(server, eve, trial_id: int | None = None) -> None:
+    """Both seats of the study's live trial open, then the experimenter aborts it (played: it counts)."""
+    if trial_id is None:
+        with server.services.db() as db:
+            trial_id = db.scalar(select(Trial.id).where(Trial.study == "pilot", Trial.phase == "waiting"))
+    for role in ("commander", "driver"):
+        asyncio.run(hold_seat(server, f"/play/{server.services.seats.issue(trial_id, role)}", 0.0))
     assert eve.post(f"/experimenter/trials/{trial_id}/abort").status_code == 200
 
 
@@ -355,3 +356,35 @@ def test_the_lobby_pairs_by_the_team_plan_and_stops_at_the_plans_teams(server):
             for t in db.scalars(select(Trial).where(Trial.study == "pilot").order_by(Trial.id))
         ]
     assert teams == [{ann_code, bob_code}, {ann_code, cat_code}, {bob_code, cat_code}]
+
+
+async def hold_seat(server, link: str, seconds: float) -> None:
+    """A participant's seat page open for `seconds` (its socket joins the trial)."""
+    async with SeatClient(server.ws_url, link.removeprefix("/play/")) as seat:
+        await seat.wait_for(lambda message: True)
+        await asyncio.sleep(seconds)
+
+
+def test_a_partner_who_never_opens_their_seat_aborts_the_trial_and_the_other_is_paired_again(server):
+    maze = server.services.mazes.names()[0]
+    plan = {"practice_maze": None, "join_timeout_s": 1.0, "maze_pool": [maze], "trials_per_participant": 1}
+    StudyFiles(server.settings.data_dir / "studies").save(template("pilot").model_copy(update=plan))
+    (ann, ann_code), (bob, _), (cat, cat_code) = (join(server, "pilot") for _ in range(3))
+    assert poll(ann)["state"] == "waiting" and poll(bob)["state"] == "seated"
+    ann_seat = poll(ann)
+    assert ann_seat["role"] == "commander"
+    asyncio.run(hold_seat(server, ann_seat["link"], 2.0))  # Bob never opens his
+    with server.services.db() as db:
+        trial = db.scalar(select(Trial).where(Trial.study == "pilot"))
+        reasons = [e.payload.get("reason") for e in db.scalars(select(Event).where(Event.trial_id == trial.id))]
+    assert trial.phase == "aborted" and "the driver never joined" in reasons
+    assert poll(ann) == {"state": "waiting", "waiting": 1}, "the trial does not count: Ann waits for another"
+    with server.services.db() as db:
+        since = db.scalar(select(StudyParticipant.lobby_since).join(Participant).where(Participant.name == ann_code))
+    assert since == trial.created_at, "Ann waits from when she was first paired: the head of the lobby"
+    seated = poll(cat)
+    assert seated["state"] == "seated", "Bob left the lobby; Ann and Cat are paired on the one layout of the pool"
+    with server.services.db() as db:
+        names = dict(db.execute(select(Participant.id, Participant.name)).all())
+        second = db.scalars(select(Trial).where(Trial.study == "pilot").order_by(Trial.id.desc())).first()
+    assert second.maze == maze and {names[second.commander_id], names[second.driver_id]} == {ann_code, cat_code}
