@@ -36,17 +36,17 @@ def layouts_seen(db: Session, team: Team | None, layouts: Mapping[str, str]) -> 
 
 def layouts_seen_by(db: Session, members: tuple[int, ...], layouts: Mapping[str, str]) -> dict[str, str]:
     """Each layout these participants have played in, in any team -> a maze they played it as
-    (not the layouts of trials aborted before a person's seat was ever opened)."""
+    (not the layout of a trial aborted with its Commander's seat never opened: nobody saw the map)."""
     teams = select(Team.id).where(or_(Team.member_a_id.in_(members), Team.member_b_id.in_(members)))
     trials = dict(db.execute(select(Trial.id, Trial.maze).where(Trial.team_id.in_(teams))).all())
-    unseen = never_joined(db, trials)
+    unseen = [i for i, roles in never_joined(db, trials).items() if Role.COMMANDER in roles]
     played = sorted({maze for trial_id, maze in trials.items() if trial_id not in unseen})
     return {layouts.get(maze, maze): maze for maze in played}
 
 
 def never_joined(db: Session, trial_ids: Collection[int]) -> dict[int, list[Role]]:
     """The aborted ones of these trials in which a person's seat was never opened -> those seats.
-    Such a trial never happened for the study: its layout is not seen, it is no one's trial."""
+    Such a trial is no one's in a study's plan; its layout is unseen when it was the Commander's."""
     aborted = {
         t.id: t for t in db.scalars(select(Trial).where(Trial.id.in_(trial_ids), Trial.phase == str(Phase.ABORTED)))
     }

@@ -3,12 +3,14 @@ offered, nor given, Run_117 or Run_119 (the same table under other names)."""
 
 from __future__ import annotations
 
+import asyncio
 import html
 import re
 import shutil
 
 import pytest
 
+from bench.live import SeatClient
 from sim.tasks.library import MazeLibrary
 from tests.app.live import ServerThread, experimenter_client, platform_settings
 
@@ -36,6 +38,17 @@ def _trials(page: str) -> list[tuple[str, str]]:
     return [(tid, re.sub(r"<[^>]+>", "", cell).strip()) for tid, cell in rows]
 
 
+def played(server, client, trial_id: int) -> str:
+    """The Commander loads the map (the layout is seen), then the experimenter aborts the trial."""
+
+    async def load_map() -> None:
+        async with SeatClient(server.ws_url, server.services.seats.issue(trial_id, "commander")) as seat:
+            await seat.wait_for(lambda message: True)
+
+    asyncio.run(load_map())
+    return client.post(f"/experimenter/trials/{trial_id}/abort").text
+
+
 def test_a_team_that_played_a_layout_is_never_offered_it_again(tmp_path, small_benchmark):
     settings = platform_settings(tmp_path, benchmark=small_benchmark)
     MazeLibrary(small_benchmark).layouts(cache_dir=settings.cache_dir)  # as `robotslang mazes layouts` does
@@ -47,7 +60,7 @@ def test_a_team_that_played_a_layout_is_never_offered_it_again(tmp_path, small_b
         page = client.get("/experimenter").text
         assert 'data-layout="Run_114">Run_117 (layout Run_114)</option>' in page
         client.post("/experimenter/trials", data={"team_id": 1, "maze": "Run_114"})
-        page = client.post("/experimenter/trials/1/abort").text
+        page = played(server, client, 1)
         for twin in ("Run_117", "Run_119"):
             page = client.post("/experimenter/trials", data={"team_id": 1, "maze": twin}).text
             assert _error(page) == (f"maze '{twin}' is layout Run_114, which team 'Pair' has already seen as Run_114")
@@ -55,7 +68,7 @@ def test_a_team_that_played_a_layout_is_never_offered_it_again(tmp_path, small_b
         while "suggested maze" in page:  # the suggestion, taken each time: each other layout once
             offered.append(re.search(r"suggested maze ([^,)]+)\)", page).group(1))  # its own layout: none named
             client.post("/experimenter/trials", data={"team_id": 1})
-            page = client.post(f"/experimenter/trials/{len(offered) + 1}/abort").text
+            page = played(server, client, len(offered) + 1)
         others = [name for name in MazeLibrary(small_benchmark).names() if name not in ONE_TABLE]
         assert sorted(offered) == sorted(others)
         page = client.post("/experimenter/trials", data={"team_id": 1}).text

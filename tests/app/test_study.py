@@ -370,14 +370,14 @@ def test_a_partner_who_never_opens_their_seat_aborts_the_trial_and_the_other_is_
     plan = {"practice_maze": None, "join_timeout_s": 1.0, "maze_pool": [maze], "trials_per_participant": 1}
     StudyFiles(server.settings.data_dir / "studies").save(template("pilot").model_copy(update=plan))
     (ann, ann_code), (bob, _), (cat, cat_code) = (join(server, "pilot") for _ in range(3))
-    assert poll(ann)["state"] == "waiting" and poll(bob)["state"] == "seated"
+    assert poll(bob)["state"] == "waiting"
     ann_seat = poll(ann)
-    assert ann_seat["role"] == "commander"
-    asyncio.run(hold_seat(server, ann_seat["link"], 2.0))  # Bob never opens his
+    assert ann_seat["role"] == "driver", "Bob waited longer: he commands"
+    asyncio.run(hold_seat(server, ann_seat["link"], 2.0))  # Bob never opens his: nobody sees the map
     with server.services.db() as db:
         trial = db.scalar(select(Trial).where(Trial.study == "pilot"))
         reasons = [e.payload.get("reason") for e in db.scalars(select(Event).where(Event.trial_id == trial.id))]
-    assert trial.phase == "aborted" and "the driver never joined" in reasons
+    assert trial.phase == "aborted" and "the commander never joined" in reasons
     assert poll(ann) == {"state": "waiting", "waiting": 1}, "the trial does not count: Ann waits for another"
     with server.services.db() as db:
         since = db.scalar(select(StudyParticipant.lobby_since).join(Participant).where(Participant.name == ann_code))
