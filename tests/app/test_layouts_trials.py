@@ -3,16 +3,14 @@ offered, nor given, Run_117 or Run_119 (the same table under other names)."""
 
 from __future__ import annotations
 
-import asyncio
 import html
 import re
 import shutil
 
 import pytest
 
-from bench.live import SeatClient
 from sim.tasks.library import MazeLibrary
-from tests.app.live import ServerThread, experimenter_client, platform_settings
+from tests.app.live import ServerThread, experimenter_client, open_seats, platform_settings
 
 ONE_TABLE = ("Run_114", "Run_117", "Run_119")
 OTHERS = ("Run_146", "Run_152")  # same walls as each other, landmarks elsewhere: two layouts
@@ -40,12 +38,7 @@ def _trials(page: str) -> list[tuple[str, str]]:
 
 def played(server, client, trial_id: int) -> str:
     """The Commander loads the map (the layout is seen), then the experimenter aborts the trial."""
-
-    async def load_map() -> None:
-        async with SeatClient(server.ws_url, server.services.seats.issue(trial_id, "commander")) as seat:
-            await seat.wait_for(lambda message: True)
-
-    asyncio.run(load_map())
+    open_seats(server, trial_id, "commander")
     return client.post(f"/experimenter/trials/{trial_id}/abort").text
 
 

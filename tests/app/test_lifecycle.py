@@ -15,7 +15,7 @@ from app.backends.remote import create_robot
 from app.db.models import Participant, Robot, Team, Trial
 from app.demo.runner import Demo
 from bench.live import REPO, SeatClient, make_trial
-from tests.app.live import ServerThread, experimenter_client, platform_settings
+from tests.app.live import ServerThread, experimenter_client, open_seats, platform_settings
 from tests.app.trial_play import claim_and_decide, drive_to_target, start_trial
 
 
@@ -149,7 +149,7 @@ def test_an_aborted_trial_restarts_with_the_same_seats_on_a_layout_the_team_has_
     assert f"trial {trial} is waiting: only an aborted trial is restarted" in refused
     with server.services.db.begin() as db:
         db.get(Trial, trial).study = "pilot"
-    asyncio.run(open_seats(server, trial, "commander", "driver"))  # both loaded their pages: the map was seen
+    open_seats(server, trial, "commander", "driver")  # both loaded their pages: the map was seen
     client.post(f"/experimenter/trials/{trial}/abort", data={"reason": "the Driver's browser crashed"})
     row = client.get("/experimenter").text
     assert f'action="/experimenter/trials/{trial}/restart"' in row
@@ -176,22 +176,16 @@ def test_an_aborted_trial_restarts_with_the_same_seats_on_a_layout_the_team_has_
     assert f"trial {new.id} is waiting: only an aborted trial is restarted" in page
 
 
-async def open_seats(server, trial_id: int, *roles: str) -> None:
-    for role in roles:
-        async with SeatClient(server.ws_url, server.services.seats.issue(trial_id, role)) as seat:
-            await seat.wait_for(lambda message: True)
-
-
 def test_a_trial_whose_commander_never_loaded_the_map_restarts_on_the_same_layout(server, trial):
     client = experimenter_client(server.services, server.url)
-    asyncio.run(open_seats(server, trial, "driver"))  # the Commander's page never opened
+    open_seats(server, trial, "driver")  # the Commander's page never opened
     client.post(f"/experimenter/trials/{trial}/abort")
     client.post(f"/experimenter/trials/{trial}/restart")
     with server.services.db() as db:
         old = db.get(Trial, trial)
         (new,) = db.query(Trial).filter(Trial.id > trial).all()
     assert new.maze == old.maze and new.phase == "waiting", "nobody saw the map: the layout is still unseen"
-    asyncio.run(open_seats(server, new.id, "commander", "driver"))
+    open_seats(server, new.id, "commander", "driver")
     client.post(f"/experimenter/trials/{new.id}/abort")
     client.post(f"/experimenter/trials/{new.id}/restart")
     with server.services.db() as db:

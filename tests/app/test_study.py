@@ -19,7 +19,7 @@ from app.db.models import Event, Participant, StudyAnswer, StudyEvent, StudyPart
 from app.study.config import StudyFiles, template
 from app.trial.setup import create_team, create_trial
 from bench.live import SeatClient
-from tests.app.live import ServerThread, browser, experimenter_client, page_csrf_token
+from tests.app.live import ServerThread, browser, experimenter_client, open_seats, page_csrf_token
 
 REAL_NAME = "Bob Okafor"
 FREE_TEXT = "I am Bob Okafor and the mug was hard to find"
@@ -331,8 +331,7 @@ def end(server, eve, trial_id: int | None = None) -> None:
     if trial_id is None:
         with server.services.db() as db:
             trial_id = db.scalar(select(Trial.id).where(Trial.study == "pilot", Trial.phase == "waiting"))
-    for role in ("commander", "driver"):
-        asyncio.run(hold_seat(server, f"/play/{server.services.seats.issue(trial_id, role)}", 0.0))
+    open_seats(server, trial_id, "commander", "driver")
     assert eve.post(f"/experimenter/trials/{trial_id}/abort").status_code == 200
 
 
