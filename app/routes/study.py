@@ -322,6 +322,13 @@ def save_study(
     return RedirectResponse(f"/experimenter/studies/{name}?saved={saved.version}", status_code=303)
 
 
+@experimenter_router.get("/{name}/lobby")
+def lobby_view(name: str, files: StudyFilesDep, db: DbSession, clock: ClockDep, mazes: MazesDep) -> dict[str, object]:
+    """Who waits in the study's lobby now, for the study page's live view (polled)."""
+    config = study_or_404(files, name)
+    return {"waiting": Lobby(db, config, mazes.layouts(), clock.now_ns()).view(datetime.now(UTC))}
+
+
 @experimenter_router.post("/{name}/pair")
 def pair_by_hand(
     name: str,

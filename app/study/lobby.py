@@ -136,6 +136,25 @@ class Lobby:
             return AllPlayed(played, history.teams)
         return None
 
+    def view(self, now: datetime) -> list[dict[str, object]]:
+        """The experimenter's live lobby: who waits (longest first), how long, and their plan so far."""
+        rows: list[dict[str, object]] = []
+        for enrolled in self.waiting(now):
+            history = self.history(enrolled)
+            code = self.db.scalar(select(Participant.name).where(Participant.id == enrolled.participant_id))
+            since = enrolled.lobby_since
+            rows.append(
+                {
+                    "code": code,
+                    "waited_s": round((now - _aware(since)).total_seconds()) if since is not None else 0,
+                    "teams": history.teams,
+                    "commanded": history.commanded,
+                    "drove": history.drove,
+                    "practice": self.needs_practice(enrolled),
+                }
+            )
+        return rows
+
     def waiting(self, now: datetime, but: int | None = None) -> list[StudyParticipant]:
         """Who waits and is still there, longest first."""
         present = now - timedelta(seconds=self.config.lobby_presence_s)

@@ -306,8 +306,14 @@ def test_the_experimenter_pairs_by_hand_by_the_lobbys_rules(server):
     ]:
         page = eve.post("/experimenter/studies/pilot/pair", data={"a": a, "b": b})
         assert says in page.text, page.text[:300]
+    assert browser(server.url).get("/experimenter/studies/pilot/lobby").url.path == "/", "behind login"
+    assert poll(ann)["state"] == "waiting"
+    live = eve.get("/experimenter/studies/pilot/lobby").json()["waiting"]
+    assert [(w["code"], w["teams"], w["practice"]) for w in live] == [(ann_code, 0, True)]
+    assert "study_lobby_live.js" in eve.get("/experimenter/studies/pilot").text
     page = eve.post("/experimenter/studies/pilot/pair", data={"a": ann_code, "b": bob_code})
     assert "Paired: trial" in page.text
+    assert eve.get("/experimenter/studies/pilot/lobby").json() == {"waiting": []}, "paired: out of the lobby"
     assert poll(ann)["state"] == poll(bob)["state"] == "seated", "their lobby pages open their seats"
     again = eve.post("/experimenter/studies/pilot/pair", data={"a": ann_code, "b": bob_code})
     assert "one of them is in a live trial" in again.text
