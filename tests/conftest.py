@@ -1,4 +1,8 @@
-"""Shared fixtures: where the benchmark is, and a private cache and data directory per test run."""
+"""Shared fixtures: where the benchmark is, a private cache and data directory per test run, the
+machine's PostgreSQL, and the platform's server, trial and seats.
+
+The platform's parts are imported inside their fixtures: the rover client's tests run with this
+file in a venv of the client's own (`.ci/robot-client-floors`), which has no server to import."""
 
 from __future__ import annotations
 
@@ -6,14 +10,13 @@ import os
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
-from sqlalchemy import create_engine, text
 
-from app.security import SEAT_ROLES
-from app.settings import Settings
-from bench.live import make_trial
-from tests.app.live import ServerThread, platform_settings
+if TYPE_CHECKING:
+    from app.settings import Settings
+    from tests.app.live import ServerThread
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -83,6 +86,8 @@ PG_ADMIN_URL = "postgresql+psycopg://postgres@127.0.0.1:5432/test"
 
 def postgres_reachable() -> str | None:
     """None when the machine's PostgreSQL answers, else why not."""
+    from sqlalchemy import create_engine, text
+
     try:
         engine = create_engine(PG_ADMIN_URL, connect_args={"connect_timeout": 3})
         with engine.connect() as conn:
@@ -96,6 +101,8 @@ def postgres_reachable() -> str | None:
 @pytest.fixture
 def postgres_url():
     """A private schema in the `test` database, dropped afterwards."""
+    from sqlalchemy import create_engine, text
+
     why = postgres_reachable()
     if why:
         pytest.skip(why)
@@ -113,6 +120,8 @@ def postgres_url():
 @pytest.fixture
 def settings(request, tmp_path) -> Settings:
     """The platform's test settings; `@pytest.mark.settings(**overrides)` changes some for one test."""
+    from tests.app.live import platform_settings
+
     marker = request.node.get_closest_marker("settings")
     return platform_settings(tmp_path, **(marker.kwargs if marker else {}))
 
@@ -120,6 +129,8 @@ def settings(request, tmp_path) -> Settings:
 @pytest.fixture
 def server(settings) -> Iterator[ServerThread]:
     """The platform on `settings`, served on a loopback port for the test."""
+    from tests.app.live import ServerThread
+
     with ServerThread(settings) as running:
         yield running
 
@@ -128,6 +139,8 @@ def server(settings) -> Iterator[ServerThread]:
 def trial(request, server) -> int:
     """A team's trial on the server's first maze; `@pytest.mark.trial(**make_trial_options)` sets
     its targets, Driver or backend."""
+    from bench.live import make_trial
+
     marker = request.node.get_closest_marker("trial")
     return make_trial(server.services, server.services.mazes.names()[0], **(marker.kwargs if marker else {}))
 
@@ -135,4 +148,6 @@ def trial(request, server) -> int:
 @pytest.fixture
 def seats(server, trial) -> dict[str, str]:
     """The join tokens of the trial's seats, by role (what the experimenter's join links carry)."""
+    from app.security import SEAT_ROLES
+
     return {role: server.services.seats.issue(trial, role) for role in SEAT_ROLES}

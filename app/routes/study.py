@@ -8,6 +8,7 @@ from datetime import UTC, datetime
 from typing import Annotated
 from urllib.parse import quote
 
+from anyio import from_thread
 from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from fastapi.templating import Jinja2Templates
@@ -15,6 +16,7 @@ from fastapi.templating import Jinja2Templates
 from app.deps import (
     ClockDep,
     DbSession,
+    HubDep,
     MazesDep,
     SeatTokensDep,
     SettingsDep,
@@ -28,6 +30,7 @@ from app.study.config import StudyConfig, StudyConfigError, StudyFiles, check_ma
 from app.study.enrolment import Enrolment, EnrolmentError
 from app.study.lobby import PRACTICE_REASON, AllPlayed, Lobby, LobbyError, Seated, TimedOut, Waiting
 from app.study.passes import PASS_COOKIE, ParticipantPasses
+from app.trial.hub import TrialHub
 
 router = APIRouter(dependencies=[Depends(csrf_protect)])
 experimenter_router = APIRouter(
@@ -172,21 +175,29 @@ def lobby_page(me: ParticipationDep, request: Request, templates: TemplatesDep) 
     return _page(templates, request, "lobby", study=me.config, code=me.code)
 
 
+async def _expect_joins(hub: TrialHub, trial_id: int, timeout_s: float) -> None:
+    (await hub.local(trial_id)).expect_joins(timeout_s)
+
+
 @router.post("/study/{name}/lobby")
-def lobby_poll(me: ParticipationDep, clock: ClockDep, seats: SeatTokensDep, mazes: MazesDep) -> dict[str, object]:
+def lobby_poll(
+    me: ParticipationDep, clock: ClockDep, seats: SeatTokensDep, mazes: MazesDep, hub: HubDep
+) -> dict[str, object]:
     """The lobby page's poll (about once a second): the seat's link once paired, else the count waiting."""
     lobby = Lobby(me.db, me.config, mazes.layouts(), clock.now_ns())
     with me.db.begin():
         state = lobby.poll(me.enrolled, datetime.now(UTC))
     match state:
-        case Seated(trial_id, role):
+        case Seated(trial_id, role, paired_now):
+            if paired_now:
+                from_thread.run(_expect_joins, hub, trial_id, me.config.join_timeout_s)
             return {"state": "seated", "role": role, "link": f"/play/{seats.issue(trial_id, role)}"}
         case Waiting(waiting):
             return {"state": "waiting", "waiting": waiting}
         case TimedOut(waited_s):
             return {"state": "timed_out", "waited_s": round(waited_s)}
-        case AllPlayed(trials):
-            return {"state": "all_played", "trials": trials}
+        case AllPlayed(trials, teams):
+            return {"state": "all_played", "trials": trials, "teams": teams}
 
 
 @router.get("/study/{name}/trials/{trial_id}/questionnaire", response_class=HTMLResponse)
@@ -317,6 +328,13 @@ def save_study(
     return RedirectResponse(f"/experimenter/studies/{name}?saved={saved.version}", status_code=303)
 
 
+@experimenter_router.get("/{name}/lobby")
+def lobby_view(name: str, files: StudyFilesDep, db: DbSession, clock: ClockDep, mazes: MazesDep) -> dict[str, object]:
+    """Who waits in the study's lobby now, for the study page's live view (polled)."""
+    config = study_or_404(files, name)
+    return {"waiting": Lobby(db, config, mazes.layouts(), clock.now_ns()).view(datetime.now(UTC))}
+
+
 @experimenter_router.post("/{name}/pair")
 def pair_by_hand(
     name: str,
@@ -324,6 +342,7 @@ def pair_by_hand(
     db: DbSession,
     clock: ClockDep,
     mazes: MazesDep,
+    hub: HubDep,
     a: str = Form(max_length=80),
     b: str = Form(max_length=80),
 ) -> RedirectResponse:
@@ -338,4 +357,5 @@ def pair_by_hand(
             trial_id = trial.id
     except (LookupError, LobbyError) as err:
         return RedirectResponse(f"/experimenter/studies/{name}?error={quote(str(err))}", status_code=303)
+    from_thread.run(_expect_joins, hub, trial_id, config.join_timeout_s)
     return RedirectResponse(f"/experimenter/studies/{name}?paired={trial_id}", status_code=303)

@@ -64,10 +64,10 @@ class StudyConfig(BaseModel):
     practice_maze: str | None = "gen-000"
     questionnaire: list[Question] = Field(default_factory=default_questionnaire)
     maze_pool: list[str] = Field(default_factory=list)  # maze names; empty: every maze the server has
-    trials_per_participant: int = Field(default=5, ge=1, le=50)
-    # The team plan: a participant is teamed with this many partners at most (the paper: 16 people in 41 teams).
-    teams_per_participant: int = Field(default=5, ge=1, le=50)
+    trials_per_participant: int = Field(default=5, ge=1, le=50)  # study trials a participant plays at most
+    teams_per_participant: int = Field(default=5, ge=1, le=50)  # partners at most: the paper's 16 people in 41 teams
     lobby_timeout_s: float = Field(default=600.0, gt=0)  # a participant waits this long for a partner
+    join_timeout_s: float = Field(default=60.0, gt=0)  # a paired seat unopened this long: the trial is aborted
     lobby_presence_s: float = Field(default=10.0, gt=0)  # a lobby page silent this long has left (not paired)
     move_penalty_s: float | None = Field(default=None, ge=0)  # None: the server's ROBOTSLANG_MOVE_PENALTY_S
     completion_code: str | None = Field(default=None, max_length=80)

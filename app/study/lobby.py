@@ -1,8 +1,8 @@
 """The lobby: participants who arrive at different times wait; each lobby page's poll pairs the
-poller with whoever waited longest and is still there (newcomers with newcomers, for a practice
-trial on the study's bundled practice maze, set aside from scores), by the study's team plan (`app.study.plan`: a new
-partner first, roles balanced, a layout neither has seen: the trial form's `suggest_maze`, on the
-study's pool). A page that stops asking (a closed tab) is not paired; a waiter past the study's time-out is
+poller by the team plan (`app.study.pairing`: a new partner before an old one, then whoever waited
+longest and is still there; roles balanced; newcomers with newcomers, for a practice trial on the
+study's bundled practice maze, set aside from scores), on a maze of a layout neither has seen (the
+trial form's `suggest_maze`, on the study's pool). A page that stops asking (a closed tab) is not paired; a waiter past the study's time-out is
 told so. One participant is in one live trial at a time, so two browsers of one participant are
 sent to the same seat, never two."""
 
@@ -18,9 +18,17 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Participant, StudyParticipant, Team, Trial
 from app.study.config import StudyConfig
-from app.study.plan import History, Pairing, choose_pair, roles
+from app.study.pairing import History, Pair, next_pair, plan_done
 from app.trial.lifecycle import live_trial_of
-from app.trial.setup import TrialSetupError, create_team, create_trial, mazes_played, parse_targets, suggest_maze
+from app.trial.setup import (
+    TrialSetupError,
+    create_team,
+    create_trial,
+    layouts_seen_by,
+    never_joined,
+    parse_targets,
+    suggest_maze,
+)
 from app.trial.vocabulary import Role
 
 
@@ -32,6 +40,7 @@ class LobbyError(ValueError):
 class Seated:
     trial_id: int
     role: Role
+    paired_now: bool = False  # this ask made the pair: the seats' join time-out starts
 
 
 @dataclass(frozen=True)
@@ -46,7 +55,8 @@ class TimedOut:
 
 @dataclass(frozen=True)
 class AllPlayed:
-    trials: int  # the study's trials_per_participant, all played
+    trials: int  # study trials played (the practice not counted)
+    teams: int  # teams they were in
 
 
 LobbyState = Seated | Waiting | TimedOut | AllPlayed
@@ -65,6 +75,7 @@ class Lobby:
     def __init__(self, db: Session, config: StudyConfig, layouts: Mapping[str, str], now_ns: int) -> None:
         self.db = db
         self.config = config
+        self.all_layouts = layouts
         # The pool's mazes (all but the practice maze when the pool is empty) -> their layouts.
         pool = set(config.maze_pool) or set(layouts) - {config.practice_maze}
         self.layouts = {m: layout for m, layout in layouts.items() if m in pool}
@@ -80,14 +91,15 @@ class Lobby:
         if live is not None:
             enrolled.lobby_since = None
             return seat_of(live, enrolled.participant_id)
-        if self.played(enrolled) >= self.config.trials_per_participant:
+        done = self.done(enrolled)
+        if done is not None:
             enrolled.lobby_since = None
-            return AllPlayed(self.config.trials_per_participant)
+            return done
         left = enrolled.lobby_seen is not None and (now - _aware(enrolled.lobby_seen)).total_seconds() > (
             self.config.lobby_presence_s
         )
         if enrolled.lobby_since is None or left:  # one whose page stopped asking waits anew on coming back
-            enrolled.lobby_since = now
+            enrolled.lobby_since = self._stood_up(enrolled) or now
         enrolled.lobby_seen = now
         waited = (now - _aware(enrolled.lobby_since)).total_seconds()
         if waited > self.config.lobby_timeout_s:
@@ -95,24 +107,56 @@ class Lobby:
             return TimedOut(waited)
         others = self.waiting(now, but=enrolled.id)
         practice = self.needs_practice(enrolled)
-        if practice:  # newcomers practise together, whoever waited longest first
-            partners = [o for o in others if self.needs_practice(o)]
-            plan = roles(self.history(partners[0]), self.history(enrolled)) if partners else None
-        else:
-            players = [o for o in others if not self.needs_practice(o)]
-            plan = choose_pair(
-                self.history(enrolled),
-                [self.history(o) for o in players],
-                frozenset(self.layouts.values()),
-                self.config.teams_per_participant,
-            )
-        if plan is not None:
-            other = next(o for o in others if o.participant_id in (plan.commander_id, plan.driver_id))
-            trial = self._pair(enrolled, other, practice, plan)
-            if trial is not None:
-                enrolled.lobby_since = other.lobby_since = None
-                return seat_of(trial, enrolled.participant_id)
+        alike = [other for other in others if self.needs_practice(other) == practice]  # newcomers practise together
+        trial = self._pair(enrolled, alike, practice)
+        if trial is not None:
+            for seated in (enrolled, *alike):
+                if trial.commander_id == seated.participant_id or trial.driver_id == seated.participant_id:
+                    seated.lobby_since = None
+            return Seated(trial.id, seat_of(trial, enrolled.participant_id).role, paired_now=True)
         return Waiting(len(others) + 1)
+
+    def _stood_up(self, enrolled: StudyParticipant) -> datetime | None:
+        """When their last trial was paired, if it was aborted because the partner never opened
+        their seat while they had opened theirs: they go back to the head of the lobby."""
+        pid = enrolled.participant_id
+        last = self.db.scalars(
+            select(Trial)
+            .where(Trial.study == self.config.name, or_(Trial.commander_id == pid, Trial.driver_id == pid))
+            .order_by(Trial.id.desc())
+        ).first()
+        if last is None:
+            return None
+        absent = never_joined(self.db, (last.id,)).get(last.id, [])
+        mine = Role.COMMANDER if last.commander_id == pid else Role.DRIVER
+        return _aware(last.created_at) if absent and mine not in absent else None
+
+    def done(self, enrolled: StudyParticipant) -> AllPlayed | None:
+        """The plan is played out for this participant: its trials, or its teams."""
+        played = self.played(enrolled)
+        history = self.history(enrolled)
+        if played >= self.config.trials_per_participant or plan_done(history, self.config.teams_per_participant):
+            return AllPlayed(played, history.teams)
+        return None
+
+    def view(self, now: datetime) -> list[dict[str, object]]:
+        """The experimenter's live lobby: who waits (longest first), how long, and their plan so far."""
+        rows: list[dict[str, object]] = []
+        for enrolled in self.waiting(now):
+            history = self.history(enrolled)
+            code = self.db.scalar(select(Participant.name).where(Participant.id == enrolled.participant_id))
+            since = enrolled.lobby_since
+            rows.append(
+                {
+                    "code": code,
+                    "waited_s": round((now - _aware(since)).total_seconds()) if since is not None else 0,
+                    "teams": history.teams,
+                    "commanded": history.commanded,
+                    "drove": history.drove,
+                    "practice": self.needs_practice(enrolled),
+                }
+            )
+        return rows
 
     def waiting(self, now: datetime, but: int | None = None) -> list[StudyParticipant]:
         """Who waits and is still there, longest first."""
@@ -129,30 +173,23 @@ class Lobby:
         )
         return [e for e in rows if e.lobby_seen is not None and _aware(e.lobby_seen) >= present]
 
-    def _study_trials(self, participant_id: int) -> list[Trial]:
-        """The participant's study trials, the practice not counted."""
-        return list(
-            self.db.scalars(
-                select(Trial).where(
-                    Trial.study == self.config.name,
-                    or_(Trial.commander_id == participant_id, Trial.driver_id == participant_id),
-                    or_(Trial.excluded_reason.is_(None), Trial.excluded_reason != PRACTICE_REASON),
-                )
-            )
-        )
-
     def history(self, enrolled: StudyParticipant) -> History:
+        """What the pairing rule knows of a participant: partners and seats in the study's trials
+        (the practice not counted) and every layout they have seen."""
         pid = enrolled.participant_id
-        trials = self._study_trials(pid)
-        return History(
-            participant_id=pid,
-            partners=frozenset(
-                seat for t in trials for seat in (t.commander_id, t.driver_id) if seat is not None and seat != pid
-            ),
-            commanded=sum(t.commander_id == pid for t in trials),
-            driven=sum(t.driver_id == pid for t in trials),
-            seen=frozenset(self.layouts.get(maze, maze) for maze in mazes_played(self.db, (pid,))),
-        )
+        partners: set[int] = set()
+        commanded = drove = 0
+        for trial in self._trials(enrolled):
+            if trial.commander_id == pid:
+                commanded += 1
+                partner = trial.driver_id
+            else:
+                drove += 1
+                partner = trial.commander_id
+            if partner is not None:
+                partners.add(partner)
+        seen = frozenset(layouts_seen_by(self.db, (pid,), self.all_layouts))
+        return History(pid, frozenset(partners), commanded, drove, seen)
 
     def pair(self, a: StudyParticipant, b: StudyParticipant) -> Trial:
         """The experimenter pairs two participants by hand (waiting or not): a practice trial when
@@ -161,17 +198,35 @@ class Lobby:
             raise LobbyError("choose two different participants")
         if a.withdrawn_at is not None or b.withdrawn_at is not None:
             raise LobbyError("a withdrawn participant cannot be paired")
-        trial = self._pair(
-            a, b, self.needs_practice(a) and self.needs_practice(b), roles(self.history(a), self.history(b))
-        )
+        for enrolled in (a, b):
+            if live_trial_of(self.db, (enrolled.participant_id,)) is not None:
+                raise LobbyError("one of them is in a live trial")
+            if self.done(enrolled) is not None:
+                raise LobbyError("one of them has played the plan's trials or teams")
+        trial = self._pair(a, [b], self.needs_practice(a) and self.needs_practice(b))
         if trial is None:
-            raise LobbyError("one of them is in a live trial, or the pool has no layout both have not seen")
+            raise LobbyError("the pool has no layout both have not seen")
         a.lobby_since = b.lobby_since = None
         return trial
 
+    def _trials(self, enrolled: StudyParticipant) -> list[Trial]:
+        """The participant's study trials: not the practice, nor one aborted with a seat never opened."""
+        pid = enrolled.participant_id
+        trials = list(
+            self.db.scalars(
+                select(Trial).where(
+                    Trial.study == self.config.name,
+                    or_(Trial.commander_id == pid, Trial.driver_id == pid),
+                    or_(Trial.excluded_reason.is_(None), Trial.excluded_reason != PRACTICE_REASON),
+                )
+            )
+        )
+        unopened = never_joined(self.db, [t.id for t in trials])
+        return [t for t in trials if t.id not in unopened]
+
     def played(self, enrolled: StudyParticipant) -> int:
-        """The participant's study trials so far, the practice not counted."""
-        return len(self._study_trials(enrolled.participant_id))
+        """The participant's study trials so far (the practice, and trials never joined, not counted)."""
+        return len(self._trials(enrolled))
 
     def needs_practice(self, enrolled: StudyParticipant) -> bool:
         if not self.practice_layouts:
@@ -183,15 +238,27 @@ class Lobby:
         )
         return self.db.scalar(practised.limit(1)) is None
 
-    def _pair(self, me: StudyParticipant, other: StudyParticipant, practice: bool, plan: Pairing) -> Trial | None:
-        """A trial of the two on a layout neither has seen (the practice maze when they need
-        practice), or None where there is none."""
-        a, b = sorted((me.participant_id, other.participant_id))
+    def _pair(self, me: StudyParticipant, others: list[StudyParticipant], practice: bool) -> Trial | None:
+        """A trial of `me` and the partner the plan gives among `others`, on a layout neither has
+        seen (the practice maze when they need practice), or None where the plan gives none."""
+        layouts = self.practice_layouts if practice else self.layouts
+        candidates = [other for other in others if self.done(other) is None]
+        pair = next_pair(
+            self.history(me),
+            [self.history(other) for other in candidates],
+            set(layouts.values()),
+            self.config.teams_per_participant,
+        )
+        if pair is None:
+            return None
+        return self._create(pair, layouts, practice)
+
+    def _create(self, pair: Pair, layouts: Mapping[str, str], practice: bool) -> Trial | None:
+        a, b = sorted((pair.commander, pair.driver))
         team = self.db.scalar(select(Team).where(Team.member_a_id == a, Team.member_b_id == b))
         if team is None:
             codes = self.db.scalars(select(Participant.name).where(Participant.id.in_((a, b))).order_by(Participant.id))
             team = create_team(self.db, " & ".join(codes), a, b)
-        layouts = self.practice_layouts if practice else self.layouts
         maze = suggest_maze(self.db, team, layouts)
         if maze is None:
             return None
@@ -203,7 +270,7 @@ class Lobby:
                 targets=parse_targets("random", random.Random()),
                 backend="sim",
                 driver="human",
-                commander_id=plan.commander_id,
+                commander_id=pair.commander,
                 layouts=layouts,
                 now_ns=self.now_ns,
             )

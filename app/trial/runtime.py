@@ -37,6 +37,7 @@ from app.trial.frames_store import FrameStore
 from app.trial.ldh_belief import BeliefModel, LiveBelief
 from app.trial.log import EventLog
 from app.trial.port import Connection
+from app.trial.specs import HUMAN
 from app.trial.state import TrialState, fold
 from app.trial.throttle import Throttle
 from app.trial.views import EXPERIMENTER, status_of, view
@@ -561,6 +562,18 @@ class TrialRuntime:
 
     def abort(self, reason: str | None = None) -> None:
         self.apply(d.Abort(reason))
+
+    def expect_joins(self, timeout_s: float) -> None:
+        """A trial a study's lobby paired: if a person's seat is still unopened after `timeout_s`
+        and the trial has not started, it is aborted, saying whose (the lobby re-pairs)."""
+        asyncio.get_running_loop().call_later(timeout_s, self._joins_due)
+
+    def _joins_due(self) -> None:
+        s = self.state
+        people = [role for role, spec in ((Role.COMMANDER, s.commander), (Role.DRIVER, s.driver)) if spec == str(HUMAN)]
+        absent = [role for role in people if role not in s.joined]
+        if s.phase == Phase.WAITING and absent:
+            self.apply(d.Abort(" and ".join(f"the {role}" for role in absent) + " never joined"))
 
     def snapshot(self) -> dict[str, Any]:
         now_ns = self.parts.clock.now_ns()

@@ -26,31 +26,42 @@ class TrialSetupError(ValueError):
     """A trial that cannot be created as asked; the message names the field."""
 
 
-def commander_had_map(db: Session, trial_ids: Collection[int]) -> set[int]:
-    """Those of the trials whose Commander's seat connected: its page, which shows the map, was
-    open. An aborted trial without it showed its layout to no one."""
-    rows = db.execute(
-        select(Event.trial_id, Event.payload).where(Event.kind == Connected.kind, Event.trial_id.in_(trial_ids))
-    )
-    return {row.trial_id for row in rows if row.payload.get("role") == Role.COMMANDER}
-
-
-def mazes_played(db: Session, participant_ids: Collection[int]) -> list[str]:
-    """The mazes of every trial of a team with any of these participants, but an aborted trial
-    whose Commander never had the map (nobody saw its layout)."""
-    teams = select(Team.id).where(or_(Team.member_a_id.in_(participant_ids), Team.member_b_id.in_(participant_ids)))
-    trials = list(db.execute(select(Trial.id, Trial.maze, Trial.phase).where(Trial.team_id.in_(teams))))
-    shown = commander_had_map(db, [t.id for t in trials if t.phase == Phase.ABORTED])
-    return sorted({t.maze for t in trials if t.phase != Phase.ABORTED or t.id in shown})
-
-
 def layouts_seen(db: Session, team: Team | None, layouts: Mapping[str, str]) -> dict[str, str]:
     """Each layout either member has played in, in any team -> a maze they played it as (a maze
     no longer in the library is a layout of its own). No team (agents in both seats): none."""
     if team is None:
         return {}
-    played = mazes_played(db, (team.member_a_id, team.member_b_id))
+    return layouts_seen_by(db, (team.member_a_id, team.member_b_id), layouts)
+
+
+def layouts_seen_by(db: Session, members: tuple[int, ...], layouts: Mapping[str, str]) -> dict[str, str]:
+    """Each layout these participants have played in, in any team -> a maze they played it as
+    (not the layout of a trial aborted with its Commander's seat never opened: nobody saw the map)."""
+    teams = select(Team.id).where(or_(Team.member_a_id.in_(members), Team.member_b_id.in_(members)))
+    trials = dict(db.execute(select(Trial.id, Trial.maze).where(Trial.team_id.in_(teams))).all())
+    unseen = [i for i, roles in never_joined(db, trials).items() if Role.COMMANDER in roles]
+    played = sorted({maze for trial_id, maze in trials.items() if trial_id not in unseen})
     return {layouts.get(maze, maze): maze for maze in played}
+
+
+def never_joined(db: Session, trial_ids: Collection[int]) -> dict[int, list[Role]]:
+    """The aborted ones of these trials in which a person's seat was never opened -> those seats.
+    Such a trial is no one's in a study's plan; its layout is unseen when it was the Commander's."""
+    aborted = {
+        t.id: t for t in db.scalars(select(Trial).where(Trial.id.in_(trial_ids), Trial.phase == str(Phase.ABORTED)))
+    }
+    joined: dict[int, set[str]] = {i: set() for i in aborted}
+    for event in db.scalars(select(Event).where(Event.trial_id.in_(aborted), Event.kind == Connected.kind)):
+        joined[event.trial_id].add(str(event.payload.get("role")))
+    missing = {
+        i: [
+            role
+            for role, spec in ((Role.COMMANDER, t.commander), (Role.DRIVER, t.driver))
+            if spec == str(HUMAN) and str(role) not in joined[i]
+        ]
+        for i, t in aborted.items()
+    }
+    return {i: roles for i, roles in missing.items() if roles}
 
 
 def suggest_maze(db: Session, team: Team | None, layouts: Mapping[str, str]) -> str | None:
@@ -201,15 +212,17 @@ def restart_trial(
     agents: Mapping[str, str | None] | None = None,
     commanders: Mapping[str, str | None] | None = None,
 ) -> Trial:
-    """A new trial for an aborted one: the same seats, targets, robot and study, on the same maze
-    when its Commander never had the map, else on a layout the team has never seen."""
+    """A new trial for an aborted one: the same seats, targets, robot and study, on a layout the
+    team has never seen (the aborted one's counts as seen: its Commander may have had the map), or
+    on the same maze when the Commander's seat was never opened (nobody saw it)."""
     old = db.get(Trial, trial_id)
     if old is None:
         raise TrialSetupError(f"trial {trial_id} does not exist")
     if old.phase != Phase.ABORTED:
         raise TrialSetupError(f"trial {trial_id} is {old.phase}: only an aborted trial is restarted")
     team = db.get(Team, old.team_id) if old.team_id is not None else None
-    maze = old.maze if not commander_had_map(db, (old.id,)) else suggest_maze(db, team, layouts)
+    unopened = never_joined(db, (old.id,)).get(old.id, [])
+    maze = old.maze if Role.COMMANDER in unopened and old.maze in layouts else suggest_maze(db, team, layouts)
     if maze is None:
         raise TrialSetupError(f"team {team.name if team else '-'!r} has seen every layout in the library")
     trial = create_trial(

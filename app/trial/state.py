@@ -41,6 +41,7 @@ class TrialState:
     phase: Phase = Phase.WAITING
     target_index: int = 0
     connected: set[Role] = field(default_factory=set)
+    joined: set[Role] = field(default_factory=set)  # every seat that was ever opened
     pause_reasons: set[str] = field(default_factory=set)
     active_ns: int = 0  # clock time while running, up to `last_t_ns`
     last_t_ns: int | None = None
@@ -125,6 +126,7 @@ class TrialState:
                 self.start = event.start
             case ev.Connected(role=role):
                 self.connected.add(role)
+                self.joined.add(role)
                 self.away.pop(role, None)
             case ev.Disconnected(role=role):
                 self.connected.discard(role)

@@ -115,6 +115,17 @@ def wait_js(page, expression: str, timeout_s: float = 30.0) -> None:
         page.wait_for_timeout(50)
 
 
+def open_seats(server, trial_id: int, *roles: str) -> None:
+    """Each seat's page opened once (its socket joins the trial: a Commander's loads the map)."""
+
+    async def open_each() -> None:
+        for role in roles:
+            async with SeatClient(server.ws_url, server.services.seats.issue(trial_id, role)) as seat:
+                await seat.wait_for(lambda message: True)
+
+    asyncio.run(open_each())
+
+
 class Watch(SeatClient):
     """The experimenter's live view, logged in by cookie."""
 

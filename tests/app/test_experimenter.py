@@ -12,8 +12,7 @@ from sqlalchemy import create_engine, inspect, select
 
 from app.db.models import Trial
 from app.main import build_services, ensure_experimenter
-from tests.app.live import ServerThread, browser, cli, experimenter_client, submit_login
-from tests.app.trial_play import commander_had_the_map
+from tests.app.live import ServerThread, browser, cli, experimenter_client, open_seats, submit_login
 
 
 def test_first_start_creates_admin_once(settings):
@@ -72,7 +71,7 @@ def test_experimenter_forms_make_a_trial_with_join_links(server):
     # Ben holds a seat in Pair's trial, not yet over: team Other gets no trial until it ends.
     page = html.unescape(client.post("/experimenter/trials", data={"team_id": 2}).text)
     assert f"team 'Other': a member is in trial {first.id}, which is waiting;" in page
-    commander_had_the_map(server, first.id)
+    open_seats(server, first.id, "commander", "driver")
     client.post(f"/experimenter/trials/{first.id}/abort")
     # Ben played maze 0 with Pair: team Other may not get its layout, and is given the next unseen one
     # (with the benchmark present, Run_117 is Run_114's layout under another name).

@@ -15,7 +15,7 @@ from app.backends.remote import create_robot
 from app.db.models import Participant, Robot, Team, Trial
 from app.demo.runner import Demo
 from bench.live import REPO, SeatClient, make_trial
-from tests.app.live import ServerThread, experimenter_client, platform_settings
+from tests.app.live import ServerThread, experimenter_client, open_seats, platform_settings
 from tests.app.trial_play import claim_and_decide, drive_to_target, start_trial
 
 
@@ -143,12 +143,13 @@ def test_export_all_includes_aborted_trials_with_the_targets_they_confirmed(sett
     assert instances[0]["seats"] == with_seats
 
 
-def test_an_aborted_trial_restarts_with_the_same_seats_on_the_same_maze_until_the_commander_had_the_map(server, trial):
+def test_an_aborted_trial_restarts_with_the_same_seats_on_a_layout_the_team_has_not_seen(server, trial):
     client = experimenter_client(server.services, server.url)
     refused = html.unescape(client.post(f"/experimenter/trials/{trial}/restart").text)
     assert f"trial {trial} is waiting: only an aborted trial is restarted" in refused
     with server.services.db.begin() as db:
         db.get(Trial, trial).study = "pilot"
+    open_seats(server, trial, "commander", "driver")  # both loaded their pages: the map was seen
     client.post(f"/experimenter/trials/{trial}/abort", data={"reason": "the Driver's browser crashed"})
     row = client.get("/experimenter").text
     assert f'action="/experimenter/trials/{trial}/restart"' in row
@@ -170,20 +171,27 @@ def test_an_aborted_trial_restarts_with_the_same_seats_on_the_same_maze_until_th
         "pilot",
         "waiting",
     )
-    assert new.maze == old.maze, "the Commander never opened the map: nobody saw the layout"
+    assert layouts[new.maze] != layouts[old.maze], "the aborted layout counts as seen"
     page = html.unescape(client.post(f"/experimenter/trials/{new.id}/restart").text)
     assert f"trial {new.id} is waiting: only an aborted trial is restarted" in page
 
-    async def commander_opens_the_map() -> None:
-        async with SeatClient(server.ws_url, server.services.seats.issue(new.id, "commander")) as commander:
-            await commander.wait_for(lambda msg: msg.get("type") == "welcome")
 
-    asyncio.run(commander_opens_the_map())
-    client.post(f"/experimenter/trials/{new.id}/abort", data={"reason": "the Driver never came"})
+def test_a_trial_whose_commander_never_loaded_the_map_restarts_on_the_same_layout(server, trial):
+    client = experimenter_client(server.services, server.url)
+    open_seats(server, trial, "driver")  # the Commander's page never opened
+    client.post(f"/experimenter/trials/{trial}/abort")
+    client.post(f"/experimenter/trials/{trial}/restart")
+    with server.services.db() as db:
+        old = db.get(Trial, trial)
+        (new,) = db.query(Trial).filter(Trial.id > trial).all()
+    assert new.maze == old.maze and new.phase == "waiting", "nobody saw the map: the layout is still unseen"
+    open_seats(server, new.id, "commander", "driver")
+    client.post(f"/experimenter/trials/{new.id}/abort")
     client.post(f"/experimenter/trials/{new.id}/restart")
     with server.services.db() as db:
-        (third,) = db.query(Trial).filter(Trial.id > new.id).all()
-    assert layouts[third.maze] != layouts[old.maze], "the Commander had the map: its layout counts as seen"
+        newest = db.query(Trial).filter(Trial.id > new.id).one()
+    layouts = server.services.mazes.layouts()
+    assert layouts[newest.maze] != layouts[old.maze], "once the Commander loaded it, the layout counts as seen"
 
 
 def test_the_experimenters_notes_stay_on_the_experimenters_pages(tmp_path):

@@ -5,6 +5,7 @@ pseudonymous events kept). No public page or export carries a real name."""
 
 from __future__ import annotations
 
+import asyncio
 import html
 import json
 import time
@@ -14,10 +15,11 @@ from sqlalchemy import select, text
 from typer.testing import CliRunner
 
 from app.cli import root
-from app.db.models import Participant, StudyAnswer, StudyEvent, StudyParticipant, Trial
+from app.db.models import Event, Participant, StudyAnswer, StudyEvent, StudyParticipant, Trial
 from app.study.config import StudyFiles, template
 from app.trial.setup import create_team, create_trial
-from tests.app.live import ServerThread, browser, experimenter_client, page_csrf_token
+from bench.live import SeatClient
+from tests.app.live import ServerThread, browser, experimenter_client, open_seats, page_csrf_token
 
 REAL_NAME = "Bob Okafor"
 FREE_TEXT = "I am Bob Okafor and the mug was hard to find"
@@ -263,9 +265,7 @@ def lobby_rounds(server) -> None:
     assert poll(ann)["state"] == "seated"
     # Bob's partner is Ann; now Bob's page closes before anyone else comes (he stops asking).
     eve = experimenter_client(server.services, server.url)
-    with server.services.db() as db:
-        first = db.scalar(select(Trial).where(Trial.study == "pilot"))
-    assert eve.post(f"/experimenter/trials/{first.id}/abort").status_code == 200
+    end(server, eve)
     assert poll(bob)["state"] == "waiting"
     time.sleep(3.5)  # past the study's lobby_presence_s
     seated = poll(cat)
@@ -306,8 +306,14 @@ def test_the_experimenter_pairs_by_hand_by_the_lobbys_rules(server):
     ]:
         page = eve.post("/experimenter/studies/pilot/pair", data={"a": a, "b": b})
         assert says in page.text, page.text[:300]
+    assert browser(server.url).get("/experimenter/studies/pilot/lobby").url.path == "/", "behind login"
+    assert poll(ann)["state"] == "waiting"
+    live = eve.get("/experimenter/studies/pilot/lobby").json()["waiting"]
+    assert [(w["code"], w["teams"], w["practice"]) for w in live] == [(ann_code, 0, True)]
+    assert "study_lobby_live.js" in eve.get("/experimenter/studies/pilot").text
     page = eve.post("/experimenter/studies/pilot/pair", data={"a": ann_code, "b": bob_code})
     assert "Paired: trial" in page.text
+    assert eve.get("/experimenter/studies/pilot/lobby").json() == {"waiting": []}, "paired: out of the lobby"
     assert poll(ann)["state"] == poll(bob)["state"] == "seated", "their lobby pages open their seats"
     again = eve.post("/experimenter/studies/pilot/pair", data={"a": ann_code, "b": bob_code})
     assert "one of them is in a live trial" in again.text
@@ -321,32 +327,72 @@ def test_the_lobby_stops_pairing_a_participant_who_played_the_plans_trials(serve
     (ann, _), (bob, _), (cat, _) = join(server, "pilot"), join(server, "pilot"), join(server, "pilot")
     assert poll(ann)["state"] == "waiting" and poll(bob)["state"] == "seated"
     eve = experimenter_client(server.services, server.url)
-    with server.services.db() as db:
-        trial_id = db.scalar(select(Trial.id).where(Trial.study == "pilot"))
-    assert eve.post(f"/experimenter/trials/{trial_id}/abort").status_code == 200
-    assert poll(ann) == {"state": "all_played", "trials": 1}
+    end(server, eve)
+    assert poll(ann) == {"state": "all_played", "trials": 1, "teams": 1}
     assert poll(cat) == {"state": "waiting", "waiting": 1}, "Ann, done, does not wait"
 
 
-def test_the_lobby_follows_the_team_plan_new_partners_first_and_no_team_past_the_plan(server):
-    plan = {"practice_maze": None, "teams_per_participant": 1}
+def end(server, eve, trial_id: int | None = None) -> None:
+    """Both seats of the study's live trial open, then the experimenter aborts it (played: it counts)."""
+    if trial_id is None:
+        with server.services.db() as db:
+            trial_id = db.scalar(select(Trial.id).where(Trial.study == "pilot", Trial.phase == "waiting"))
+    open_seats(server, trial_id, "commander", "driver")
+    assert eve.post(f"/experimenter/trials/{trial_id}/abort").status_code == 200
+
+
+def test_the_lobby_pairs_by_the_team_plan_and_stops_at_the_plans_teams(server):
+    plan = {"practice_maze": None, "teams_per_participant": 2, "trials_per_participant": 10}
     StudyFiles(server.settings.data_dir / "studies").save(template("pilot").model_copy(update=plan))
-    (ann, _), (bob, _) = join(server, "pilot"), join(server, "pilot")
-    assert poll(ann)["state"] == "waiting" and poll(bob)["state"] == "seated"
+    (ann, ann_code), (bob, bob_code), (cat, cat_code) = (join(server, "pilot") for _ in range(3))
     eve = experimenter_client(server.services, server.url)
-    with server.services.db() as db:
-        first = db.scalar(select(Trial).where(Trial.study == "pilot"))
-    assert eve.post(f"/experimenter/trials/{first.id}/abort").status_code == 200
-    cat, _ = join(server, "pilot")
+    assert poll(ann)["state"] == "waiting" and poll(bob)["state"] == "seated"
     assert poll(cat)["state"] == "waiting"
-    assert poll(ann) == {"state": "waiting", "waiting": 2}, "Ann has her one team: not teamed with Cat"
-    seat = poll(bob)
-    assert seat["state"] == "seated", "Bob, her one partner, is"
+    end(server, eve)
+    second = poll(ann)
+    assert second["state"] == "seated" and second["role"] == "driver", "Ann commanded with Bob: she drives now"
+    end(server, eve)
+    assert poll(ann) == {"state": "all_played", "trials": 2, "teams": 2}, "two teams: Ann's plan is done"
+    assert poll(bob)["state"] == "waiting" and poll(cat)["state"] == "seated"
     with server.services.db() as db:
-        trials = list(db.scalars(select(Trial).where(Trial.study == "pilot").order_by(Trial.id)))
-    assert trials[1].team_id == first.team_id and trials[1].maze != first.maze
-    assert {trials[1].commander_id, trials[1].driver_id} == {first.commander_id, first.driver_id}
-    assert trials[1].commander_id == first.driver_id, "the one who commanded drives now"
+        names = dict(db.execute(select(Participant.id, Participant.name)).all())
+        teams = [
+            {names[t.commander_id], names[t.driver_id]}
+            for t in db.scalars(select(Trial).where(Trial.study == "pilot").order_by(Trial.id))
+        ]
+    assert teams == [{ann_code, bob_code}, {ann_code, cat_code}, {bob_code, cat_code}]
+
+
+async def hold_seat(server, link: str, seconds: float) -> None:
+    """A participant's seat page open for `seconds` (its socket joins the trial)."""
+    async with SeatClient(server.ws_url, link.removeprefix("/play/")) as seat:
+        await seat.wait_for(lambda message: True)
+        await asyncio.sleep(seconds)
+
+
+def test_a_partner_who_never_opens_their_seat_aborts_the_trial_and_the_other_is_paired_again(server):
+    maze = server.services.mazes.names()[0]
+    plan = {"practice_maze": None, "join_timeout_s": 1.0, "maze_pool": [maze], "trials_per_participant": 1}
+    StudyFiles(server.settings.data_dir / "studies").save(template("pilot").model_copy(update=plan))
+    (ann, ann_code), (bob, _), (cat, cat_code) = (join(server, "pilot") for _ in range(3))
+    assert poll(bob)["state"] == "waiting"
+    ann_seat = poll(ann)
+    assert ann_seat["role"] == "driver", "Bob waited longer: he commands"
+    asyncio.run(hold_seat(server, ann_seat["link"], 2.0))  # Bob never opens his: nobody sees the map
+    with server.services.db() as db:
+        trial = db.scalar(select(Trial).where(Trial.study == "pilot"))
+        reasons = [e.payload.get("reason") for e in db.scalars(select(Event).where(Event.trial_id == trial.id))]
+    assert trial.phase == "aborted" and "the commander never joined" in reasons
+    assert poll(ann) == {"state": "waiting", "waiting": 1}, "the trial does not count: Ann waits for another"
+    with server.services.db() as db:
+        since = db.scalar(select(StudyParticipant.lobby_since).join(Participant).where(Participant.name == ann_code))
+    assert since == trial.created_at, "Ann waits from when she was first paired: the head of the lobby"
+    seated = poll(cat)
+    assert seated["state"] == "seated", "Bob left the lobby; Ann and Cat are paired on the one layout of the pool"
+    with server.services.db() as db:
+        names = dict(db.execute(select(Participant.id, Participant.name)).all())
+        second = db.scalars(select(Trial).where(Trial.study == "pilot").order_by(Trial.id.desc())).first()
+    assert second.maze == maze and {names[second.commander_id], names[second.driver_id]} == {ann_code, cat_code}
 
 
 def test_a_participant_who_left_the_lobby_waits_anew_on_coming_back(server):

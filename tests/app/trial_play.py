@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import asyncio
 import itertools
 import math
 
 import cv2
 import numpy as np
 
-from bench.live import SeatClient
 from sim.core.dynamics import Action, snap_pose, teacher_action
 from sim.core.geometry import heading_index
 from sim.core.labels import LABEL_BGR, Label
@@ -77,14 +75,3 @@ def object_pixels(jpeg: bytes, label: Label) -> int:
     with np.errstate(invalid="ignore"):
         off = np.linalg.norm(image / norm[..., None] - ref / np.linalg.norm(ref), axis=-1)
     return int(((norm > 60) & (off < 0.12)).sum())
-
-
-def commander_had_the_map(server, trial_id: int) -> None:
-    """The Commander's page opens its seat and gets the welcome with the map: from then on the
-    trial's layout counts as seen, even if the trial is aborted."""
-
-    async def opens() -> None:
-        async with SeatClient(server.ws_url, server.services.seats.issue(trial_id, "commander")) as commander:
-            await commander.wait_for(lambda m: m.get("type") == "welcome")
-
-    asyncio.run(opens())
