@@ -111,6 +111,9 @@ def test_a_watcher_on_another_process_sees_the_trials_particle_filter(tmp_path, 
             ):
                 await start_trial(commander, driver)
                 async with Watch(second, trial_id, cookie) as watch:
+                    # The filter is built when the first watcher comes (in the filters' share of a
+                    # core): a move made before it stands is not one it can count.
+                    await watch.wait_for(lambda m: m.get("type") == "belief", timeout=30)
                     await commander.send("localize", x=1.0, y=1.0)
                     await driver.event("phase", phase="navigating")
                     assert (await move(driver, "left"))["payload"]["outcome"] == "ok"

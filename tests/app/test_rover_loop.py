@@ -59,6 +59,8 @@ async def test_a_rover_trial_records_tracked_poses_belief_truly_within_and_all_n
         async with commander, driver, Watch(lab.server, trial, cookie) as watch:
             await driver.event("phase", phase="localizing", timeout=START_S)
             await until(lambda: tracked(lab, trial), what="a tracked pose")
+            # The filter, built for the watcher, stands before the first move it must count.
+            await watch.wait_for(lambda m: m.get("type") == "belief", timeout=START_S)
             for i, action in enumerate(["forward", "left", "forward", "right"]):
                 await driver.send("move", action=action, move_id=f"t{i}")
                 await driver.event("move_executed", move_id=f"t{i}", timeout=START_S)
