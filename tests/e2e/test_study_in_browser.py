@@ -15,7 +15,7 @@ from app.cli import root
 from app.db.models import Participant, StudyEvent, Trial
 from app.study.config import StudyFiles, template
 from tests.app.live import experimenter_client, wait_js
-from tests.e2e.pages import page_checks
+from tests.e2e.pages import ARTIFACTS, experimenter, page_checks
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 REAL_NAME = "Ada Quist"
@@ -70,8 +70,16 @@ def test_a_whole_study_with_four_strangers(browser, server, tmp_path):
     ben, _ = arrive(browser, server)
     for page in (ada, ben):
         page.wait_for_url("**/play/**", timeout=30_000)
-    cy, _ = arrive(browser, server)
+    cy, cy_code = arrive(browser, server)
     lobby_says(cy, "only one waiting")
+    # The experimenter's study page shows the lobby live; "Choose" puts a code in the pair-by-hand form.
+    study_page = experimenter(browser, server)
+    study_page.goto(server.url + "/experimenter/studies/pilot")
+    wait_js(study_page, f"() => !!document.querySelector('#lobby-live tr[data-code=\"{cy_code}\"]')")
+    page_checks(study_page, "study page, the lobby live")
+    study_page.screenshot(path=str(ARTIFACTS / "study-lobby-live.png"), full_page=True)
+    study_page.click(f'#lobby-live tr[data-code="{cy_code}"] button')
+    assert study_page.input_value("#pair-by-hand [name=a]") == cy_code
     cy_browser = cy.context
     cy.close()  # Cy's tab closes in the lobby
     ben.wait_for_timeout(3500)  # past the study's lobby_presence_s
