@@ -71,7 +71,7 @@ def _finished(db: Session, study: str | None) -> list[tuple[Trial, str | None, f
     )
     if study is not None:
         query = query.where(Trial.study == study)
-    return [(trial, team, trial.active_s) for trial, team in db.execute(query).tuples() if trial.active_s is not None]
+    return [(trial, team, trial.active_s) for trial, team in db.execute(query) if trial.active_s is not None]
 
 
 def _ranked(

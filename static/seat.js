@@ -41,9 +41,23 @@ function renderStatus() {
   const over = OVER.has(status.phase);  // nothing to send once the trial has ended
   $("chat-input").disabled = over;
   $("chat-form").querySelector("button").disabled = over;
+  goOn(over);
   if (text !== announced) { $("announce").textContent = text; announced = text; }
   renderClock();
   emit("status", status);
+}
+
+// A study's participant goes on once the trial is over. A trial that ended before it began
+// (a partner never came) has nothing to look back on: back to the lobby's head on its own.
+const after = $("after-trial");
+let lastPhase = null;
+function goOn(over) {
+  if (!after) return;
+  after.hidden = !over;
+  if (over && lastPhase === "waiting" && status.phase === "aborted") {
+    setTimeout(() => window.location.assign($("continue").href), 3000);
+  }
+  lastPhase = status.phase;
 }
 
 function renderClock() {

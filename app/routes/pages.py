@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from urllib.parse import quote
+
 from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from sqlalchemy.orm import Session
@@ -43,8 +45,14 @@ router = APIRouter()
 class ClosedLink(HTTPException):
     """A genuine join link that opens nothing any more: expired, or its trial is over (410 Gone)."""
 
-    def __init__(self, reason: str) -> None:
+    def __init__(self, reason: str, after_url: str | None = None) -> None:
         super().__init__(410, reason)
+        self.after_url = after_url
+
+
+def after_trial_url(trial: Trial) -> str | None:
+    """Where a study's participant goes on from a seat once its trial is over (questionnaire or lobby)."""
+    return f"/study/{quote(trial.study)}/trials/{trial.id}/next" if trial.study else None
 
 
 def seat_of(seats: SeatTokens, db: Session, token: str) -> tuple[Seat, Trial]:
@@ -57,7 +65,7 @@ def seat_of(seats: SeatTokens, db: Session, token: str) -> tuple[Seat, Trial]:
         raise HTTPException(403, str(err)) from None
     trial = trial_or_404(db, seat.trial_id)
     if (reason := over_reason(trial)) is not None:
-        raise ClosedLink(reason)
+        raise ClosedLink(reason, after_trial_url(trial))
     return seat, trial
 
 
@@ -167,13 +175,14 @@ def play(request: Request, token: str, seats: SeatTokensDep, db: DbSession, maze
     try:
         seat, trial = seat_of(seats, db, token)
     except ClosedLink as closed:
-        response = render(request, "link_closed.html", reason=closed.detail)
+        response = render(request, "link_closed.html", reason=closed.detail, after_url=closed.after_url)
         response.status_code = 410
         return response
+    after_url = after_trial_url(trial)
     if seat.role == "commander":  # where the landmarks are: the Commander's to know, never the Driver's
         landmarks = mazes.landmarks(trial.maze)
-        return render(request, "commander.html", token=token, trial=trial, landmarks=landmarks)
-    return render(request, f"{seat.role}.html", token=token, trial=trial)
+        return render(request, "commander.html", token=token, trial=trial, landmarks=landmarks, after_url=after_url)
+    return render(request, f"{seat.role}.html", token=token, trial=trial, after_url=after_url)
 
 
 @router.get("/play/{token}/map.png")

@@ -27,7 +27,7 @@ from app.deps import (
 from app.guard import csrf_protect
 from app.security import InvalidToken
 from app.study.config import StudyConfig, StudyConfigError, StudyFiles, check_mazes, parse, template
-from app.study.enrolment import Enrolment, EnrolmentError
+from app.study.enrolment import AfterTrial, Enrolment, EnrolmentError
 from app.study.lobby import PRACTICE_REASON, AllPlayed, Lobby, LobbyError, Seated, TimedOut, Waiting
 from app.study.passes import PASS_COOKIE, ParticipantPasses
 from app.trial.hub import TrialHub
@@ -164,6 +164,7 @@ def my_study(me: ParticipationDep, request: Request, templates: TemplatesDep, er
         code=me.code,
         trials=trials,
         answered=me.enrolment.answered(me.enrolled),
+        unplayed=me.enrolment.unplayed(trials),
         enrolled=me.enrolled,
         practice_reason=PRACTICE_REASON,
         error=error,
@@ -198,6 +199,22 @@ def lobby_poll(
             return {"state": "timed_out", "waited_s": round(waited_s)}
         case AllPlayed(trials, teams):
             return {"state": "all_played", "trials": trials, "teams": teams}
+
+
+@router.get("/study/{name}/trials/{trial_id}/next")
+def after_trial(me: ParticipationDep, trial_id: int) -> RedirectResponse:
+    """The seat page's "Continue" once a trial is over: its questionnaire, or the lobby where there
+    is nothing to rate (the practice, a trial a partner never opened), or the participant's page."""
+    try:
+        step = me.enrolment.after(me.enrolled, trial_id)
+    except EnrolmentError as err:
+        raise HTTPException(404, str(err)) from err
+    pages = {
+        AfterTrial.questionnaire: f"trials/{trial_id}/questionnaire",
+        AfterTrial.lobby: "lobby",
+        AfterTrial.study_page: "me",
+    }
+    return RedirectResponse(f"/study/{me.config.name}/{pages[step]}", status_code=303)
 
 
 @router.get("/study/{name}/trials/{trial_id}/questionnaire", response_class=HTMLResponse)

@@ -15,6 +15,7 @@ from app.clock import ServerClock
 from app.db.models import Participant, StudyAnswer, StudyEvent, StudyParticipant, Trial
 from app.study.config import RATING_SCALE, QuestionKind, StudyConfig
 from app.study.lobby import PRACTICE_REASON
+from app.trial.setup import never_joined
 
 CODE_ALPHABET = "ABCDEFGHJKLMNPQRSTUVWXYZ23456789"  # no 0/O, 1/I: read aloud and typed back
 CODE_LENGTH = 6
@@ -27,6 +28,14 @@ class StudyEventKind(StrEnum):
     answered = "answered"
     completed = "completed"
     withdrawn = "withdrawn"
+
+
+class AfterTrial(StrEnum):
+    """Where a participant's seat page sends them once their trial is over."""
+
+    questionnaire = "questionnaire"  # a trial they played, not yet rated
+    lobby = "lobby"  # the practice, or a trial a partner never opened: straight on to the next
+    study_page = "me"  # rated already, or not over yet: their page says what is next
 
 
 class EnrolmentError(ValueError):
@@ -118,19 +127,39 @@ class Enrolment:
             )
         )
 
+    def unplayed(self, trials: list[Trial]) -> set[int]:
+        """Of `trials`, those a seat was never opened in (aborted before anyone played)."""
+        return set(never_joined(self.db, [t.id for t in trials]))
+
+    def _own(self, enrolled: StudyParticipant, trial_id: int) -> Trial:
+        trial = self.db.get(Trial, trial_id)
+        if trial is None or trial not in self.trials(enrolled):
+            raise EnrolmentError(f"trial {trial_id} is not one of yours in this study")
+        return trial
+
+    def after(self, enrolled: StudyParticipant, trial_id: int) -> AfterTrial:
+        trial = self._own(enrolled, trial_id)
+        if trial.phase not in ("finished", "aborted"):
+            return AfterTrial.study_page
+        if trial.excluded_reason == PRACTICE_REASON or self.unplayed([trial]):
+            return AfterTrial.lobby
+        if trial_id in self.answered(enrolled) or enrolled.withdrawn_at is not None:
+            return AfterTrial.study_page
+        return AfterTrial.questionnaire
+
     def answered(self, enrolled: StudyParticipant) -> set[int]:
         return set(self.db.scalars(select(StudyAnswer.trial_id).where(StudyAnswer.study_participant_id == enrolled.id)))
 
     def answer(self, enrolled: StudyParticipant, trial_id: int, form: dict[str, str]) -> None:
         """The questionnaire after `trial_id`: every rating item answered 1-5, free text optional."""
         self._active(enrolled)
-        trial = self.db.get(Trial, trial_id)
-        if trial is None or trial not in self.trials(enrolled):
-            raise EnrolmentError(f"trial {trial_id} is not one of yours in this study")
+        trial = self._own(enrolled, trial_id)
         if trial.excluded_reason == PRACTICE_REASON:
             raise EnrolmentError("the practice trial has no questionnaire")
         if trial.phase not in ("finished", "aborted"):
             raise EnrolmentError("the questionnaire opens when the trial is over")
+        if self.unplayed([trial]):
+            raise EnrolmentError("this trial never started (a seat was never opened): it has no questionnaire")
         if trial_id in self.answered(enrolled):
             raise EnrolmentError("you have already answered the questionnaire for this trial")
         ratings: dict[str, int] = {}

@@ -146,14 +146,20 @@ def test_questionnaires_completion_and_withdrawal_erase_personal_data_only(serve
 
     early = bob.post(url, data=answers(bob_code, comments=FREE_TEXT))
     assert early.status_code == 400 and "opens when the trial is over" in early.text
+    after = f"/study/pilot/trials/{trial_id}/next"
+    assert bob.get(after, follow_redirects=False).headers["location"] == "/study/pilot/me", "not over yet"
     eve = experimenter_client(server.services, server.url)
+    open_seats(server, trial_id, "commander", "driver")
     assert eve.post(f"/experimenter/trials/{trial_id}/abort").status_code == 200
+    # The seat page's "Continue" leads to the questionnaire of a trial played, then to their page.
+    assert bob.get(after, follow_redirects=False).headers["location"] == url
     outsider, _ = join(server, "pilot")
     assert "not one of yours" in outsider.post(url, data=answers("x")).text
     bad = bob.post(url, data=answers(bob_code, partner="7", comments=FREE_TEXT))
     assert bad.status_code == 400 and "needs a rating from 1 to 5" in bad.text and FREE_TEXT in bad.text
     assert bob.post(url, data=answers(bob_code, comments=FREE_TEXT)).url.path == "/study/pilot/me"
     assert "answered" in bob.get("/study/pilot/me").text
+    assert bob.get(after, follow_redirects=False).headers["location"] == "/study/pilot/me"
     assert "already answered" in bob.post(url, data=answers(bob_code)).text
     assert ann.post(url, data=answers(ann_code, difficulty="5", partner="2")).status_code == 200
     with server.services.db() as db:
@@ -233,6 +239,8 @@ def test_newcomers_practise_together_on_the_bundled_maze_set_aside_from_scores(s
     assert eve.post(f"/experimenter/trials/{practice.id}/abort").status_code == 200
     refused = ann.post(f"/study/pilot/trials/{practice.id}/questionnaire", data=answers(""))
     assert refused.status_code == 400 and "practice trial has no questionnaire" in refused.text
+    after = ann.get(f"/study/pilot/trials/{practice.id}/next", follow_redirects=False)
+    assert after.headers["location"] == "/study/pilot/lobby", "on from the practice to the first real trial"
     assert "practice: no questionnaire" in ann.get("/study/pilot/me").text
     cat, _ = join(server, "pilot")
     assert poll(ann)["state"] == "waiting" and poll(cat) == {"state": "waiting", "waiting": 2}, (
@@ -383,6 +391,14 @@ def test_a_partner_who_never_opens_their_seat_aborts_the_trial_and_the_other_is_
         trial = db.scalar(select(Trial).where(Trial.study == "pilot"))
         reasons = [e.payload.get("reason") for e in db.scalars(select(Event).where(Event.trial_id == trial.id))]
     assert trial.phase == "aborted" and "the commander never joined" in reasons
+    # Nothing to rate in a trial that never started: Ann's seat page sends her back to the lobby.
+    after = ann.get(f"/study/pilot/trials/{trial.id}/next", follow_redirects=False)
+    assert after.status_code == 303 and after.headers["location"] == "/study/pilot/lobby"
+    refused = ann.post(f"/study/pilot/trials/{trial.id}/questionnaire", data=answers(ann_code))
+    assert refused.status_code == 400 and "never started" in refused.text
+    assert "never started: no questionnaire" in ann.get("/study/pilot/me").text
+    seat_page = ann.get(ann_seat["link"]).text
+    assert f'href="/study/pilot/trials/{trial.id}/next" id="continue"' in seat_page
     assert poll(ann) == {"state": "waiting", "waiting": 1}, "the trial does not count: Ann waits for another"
     with server.services.db() as db:
         since = db.scalar(select(StudyParticipant.lobby_since).join(Participant).where(Participant.name == ann_code))

@@ -21,8 +21,11 @@ pytestmark = [pytest.mark.browser, pytest.mark.slow]
 REAL_NAME = "Ada Quist"
 
 
-def arrive(browser, server, real_name: str = "", checks: bool = False):
-    page = browser.new_context(viewport={"width": 390, "height": 800}).new_page()
+def arrive(browser, server, real_name: str = "", checks: bool = False, opens_seats: bool = True):
+    context = browser.new_context(viewport={"width": 390, "height": 800})
+    if not opens_seats:  # a participant whose browser never loads the seat page it is sent to
+        context.route("**/play/**", lambda route: route.abort())
+    page = context.new_page()
     page.goto(server.url + "/study/pilot")
     if checks:
         page_checks(page, "study consent")
@@ -45,9 +48,14 @@ def lobby_says(page, words: str) -> None:
     wait_js(page, f"() => document.getElementById('lobby-status').textContent.includes({words!r})")
 
 
-def questionnaire_and_code(page, server, comment: str) -> None:
-    page.goto(server.url + "/study/pilot/me")
-    page.click("a.questionnaire")
+def go_on(page) -> None:
+    """The seat page's "Continue", shown once the trial is over."""
+    page.click("#after-trial:not([hidden]) #continue", timeout=30_000)
+
+
+def questionnaire_and_code(page, comment: str) -> None:
+    go_on(page)  # from the seat page of the trial just over to its questionnaire
+    page.wait_for_url("**/questionnaire")
     page_checks(page, "study questionnaire")
     page.check("fieldset[data-question=difficulty] input[value='4']")
     page.check("fieldset[data-question=partner] input[value='5']")
@@ -100,7 +108,7 @@ def test_a_whole_study_with_four_strangers(browser, server, tmp_path):
     for t in practice:  # the practice ends (here by the experimenter); everyone goes back to the lobby
         assert eve.post(f"/experimenter/trials/{t.id}/abort").status_code == 200
     for page in (ada, ben, cy, dee):
-        page.goto(server.url + "/study/pilot/lobby")
+        go_on(page)  # the practice has no questionnaire: on to the lobby
     for page in (ada, ben, cy, dee):
         page.wait_for_url("**/play/**", timeout=30_000)
     trials = study_trials()[2:]
@@ -111,9 +119,9 @@ def test_a_whole_study_with_four_strangers(browser, server, tmp_path):
         assert REAL_NAME not in page.content()
     for t in trials:
         assert eve.post(f"/experimenter/trials/{t.id}/abort").status_code == 200
-    questionnaire_and_code(ada, server, f"I am {REAL_NAME}; the mug was hard to see")
+    questionnaire_and_code(ada, f"I am {REAL_NAME}; the mug was hard to see")
     for page in (ben, cy, dee):
-        questionnaire_and_code(page, server, "fine")
+        questionnaire_and_code(page, "fine")
 
     assert eve.post(f"/experimenter/trials/{trials[0].id}/exclude", data={"reason": "pilot trouble"}).status_code == 200
     env = {"ROBOTSLANG_DATA_DIR": str(server.settings.data_dir), "ROBOTSLANG_SECRET_KEY": "test-secret"}
@@ -138,3 +146,16 @@ def test_a_whole_study_with_four_strangers(browser, server, tmp_path):
         ada_id = db.scalar(select(Participant.id).where(Participant.name == ada_code))
         kinds = [e.kind for e in db.scalars(select(StudyEvent).where(StudyEvent.participant_id == ada_id))]
     assert ada_code in everything and kinds[0] == "consented" and kinds[-1] == "withdrawn"
+
+
+def test_a_partner_who_never_comes_sends_the_other_back_to_the_lobby(browser, server):
+    plan = {"practice_maze": None, "join_timeout_s": 3.0}
+    StudyFiles(server.settings.data_dir / "studies").save(template("pilot").model_copy(update=plan))
+    ann, _ = arrive(browser, server)
+    bob, _ = arrive(browser, server, opens_seats=False)
+    ann.wait_for_url("**/play/**", timeout=30_000)
+    wait_js(ann, "() => !document.getElementById('after-trial').hidden")
+    assert "never joined" in ann.inner_text("#announce")
+    ann.wait_for_url("**/study/pilot/lobby", timeout=30_000)  # on its own, with nothing to rate
+    lobby_says(ann, "only one waiting")
+    bob.context.close()
