@@ -176,8 +176,9 @@ def lobby_page(me: ParticipationDep, request: Request, templates: TemplatesDep) 
     return _page(templates, request, "lobby", study=me.config, code=me.code)
 
 
-async def _expect_joins(hub: TrialHub, trial_id: int, timeout_s: float) -> None:
-    (await hub.local(trial_id)).expect_joins(timeout_s)
+async def _open(hub: TrialHub, trial_id: int) -> None:
+    """Run a trial the lobby just paired, so its join deadline (in its log) runs even if no seat comes."""
+    await hub.get(trial_id)
 
 
 @router.post("/study/{name}/lobby")
@@ -191,7 +192,7 @@ def lobby_poll(
     match state:
         case Seated(trial_id, role, paired_now):
             if paired_now:
-                from_thread.run(_expect_joins, hub, trial_id, me.config.join_timeout_s)
+                from_thread.run(_open, hub, trial_id)
             return {"state": "seated", "role": role, "link": f"/play/{seats.issue(trial_id, role)}"}
         case Waiting(waiting):
             return {"state": "waiting", "waiting": waiting}
@@ -374,5 +375,5 @@ def pair_by_hand(
             trial_id = trial.id
     except (LookupError, LobbyError) as err:
         return RedirectResponse(f"/experimenter/studies/{name}?error={quote(str(err))}", status_code=303)
-    from_thread.run(_expect_joins, hub, trial_id, config.join_timeout_s)
+    from_thread.run(_open, hub, trial_id)
     return RedirectResponse(f"/experimenter/studies/{name}?paired={trial_id}", status_code=303)

@@ -273,6 +273,7 @@ class Lobby:
                 commander_id=pair.commander,
                 layouts=layouts,
                 now_ns=self.now_ns,
+                join_timeout_s=self.config.join_timeout_s,
             )
         except TrialSetupError:
             return None  # the other was seated by a poll of their own meanwhile

@@ -42,7 +42,7 @@ class Event(BaseModel):
 
 class TrialCreated(Event):
     kind = "trial_created"
-    omit_if_none = ("start",)
+    omit_if_none = ("start", "join_timeout_s")
     maze: str
     targets: list[str]
     backend: str
@@ -51,6 +51,9 @@ class TrialCreated(Event):
     # The simulated robot's start (x, y, theta), where one was chosen (a benchmark's recorded start
     # in self-play); without it the simulator backend draws one. The experimenter's record only.
     start: tuple[float, float, float] | None = None
+    # A study's lobby paired the seats: one still unopened this long after creation aborts the
+    # trial. In the log, so a restarted server (or another process) keeps the same deadline.
+    join_timeout_s: float | None = None
 
 
 class Connected(Event):

@@ -51,11 +51,14 @@ class TrialHub:
 
     async def start(self) -> None:
         """At start: reopen the trials that were running when the server stopped, so their grace
-        timers run even if no seat comes back (with Redis, the first process up takes them)."""
+        timers run even if no seat comes back, and a study's trials still waiting for their seats,
+        so their join deadlines do (with Redis, the first process up takes them)."""
         if self.relay is not None:
             await self.relay.start()
         with self.parts.db() as db:
-            ids = db.scalars(select(Trial.id).where(Trial.phase.in_([Phase.LOCALIZING, Phase.NAVIGATING]))).all()
+            running = Trial.phase.in_([Phase.LOCALIZING, Phase.NAVIGATING])
+            paired = (Trial.phase == Phase.WAITING) & Trial.study.is_not(None)
+            ids = db.scalars(select(Trial.id).where(running | paired)).all()
         for trial_id in ids:
             try:
                 await self.get(trial_id)

@@ -84,6 +84,7 @@ class TrialRuntime:
         self.seats: dict[str, Connection] = {}
         self.watchers: set[Connection] = set()  # the experimenter's live views
         self._grace: dict[Role, asyncio.TimerHandle] = {}
+        self._join_timer: asyncio.TimerHandle | None = None  # a lobby's trial: seats unopened by its deadline
         self._away_marks: asyncio.Task[None] | None = None  # `still_away` events while anyone is away
         self._tasks: set[asyncio.Task[Any]] = set()
         self._status: dict[str, Any] | None = None  # the last status sent, less the clock
@@ -108,6 +109,7 @@ class TrialRuntime:
         self.apply(d.Reopen())  # seats and moves of an earlier server process are gone
         if self.state.over:
             return
+        self._expect_joins()
         from app.drivers.seat import seat_agents
 
         self.agent, self.commander_agent = seat_agents(self)  # before the backend: the first frame is heard
@@ -166,6 +168,8 @@ class TrialRuntime:
         for timer in self._grace.values():
             timer.cancel()
         self._grace.clear()
+        if self._join_timer is not None:
+            self._join_timer.cancel()
         if self.state.over:
             self.apply(d.AbandonMoves(f"the trial is {self.state.phase}"))
         for task in list(self._tasks):
@@ -563,10 +567,13 @@ class TrialRuntime:
     def abort(self, reason: str | None = None) -> None:
         self.apply(d.Abort(reason))
 
-    def expect_joins(self, timeout_s: float) -> None:
-        """A trial a study's lobby paired: if a person's seat is still unopened after `timeout_s`
-        and the trial has not started, it is aborted, saying whose (the lobby re-pairs)."""
-        asyncio.get_running_loop().call_later(timeout_s, self._joins_due)
+    def _expect_joins(self) -> None:
+        """A trial a study's lobby paired: if a person's seat is still unopened at the logged
+        deadline and the trial has not started, it is aborted, saying whose (the lobby re-pairs)."""
+        s = self.state
+        if s.join_by_ns is not None and s.phase == Phase.WAITING:
+            left_s = max(0.0, (s.join_by_ns - self.parts.clock.now_ns()) / 1e9)
+            self._join_timer = asyncio.get_running_loop().call_later(left_s, self._joins_due)
 
     def _joins_due(self) -> None:
         s = self.state

@@ -115,13 +115,15 @@ def create_trial(
     commander: str = str(HUMAN),
     commanders: Mapping[str, str | None] | None = None,
     start: tuple[float, float, float] | None = None,
+    join_timeout_s: float | None = None,
 ) -> Trial:
     """`layouts`: each maze of the library -> its layout (`Mazes.layouts()`); `agents` and
     `commanders` (`available_agents(services, role)`) are needed when an agent holds that seat.
     `commander_id`: the member in the Commander's seat (default the team's first); with an agent
     Commander, the member who drives. With agents in both seats the team is not asked for (none is
     stored). `start`: where the simulated robot starts (x, y, theta; snapped to the maze's graph),
-    logged with the trial; None: the simulator backend draws a start."""
+    logged with the trial; None: the simulator backend draws a start. `join_timeout_s`: a seat a
+    person has not opened this long after creation aborts the trial (a study's lobby pairs)."""
     check_seat(Role.DRIVER, driver, agents)
     check_seat(Role.COMMANDER, commander, commanders)
     people = str(HUMAN) in (driver, commander)
@@ -163,7 +165,15 @@ def create_trial(
     )
     db.add(trial)
     db.flush()
-    created = TrialCreated(maze=maze, targets=targets, backend=backend, driver=driver, commander=commander, start=start)
+    created = TrialCreated(
+        maze=maze,
+        targets=targets,
+        backend=backend,
+        driver=driver,
+        commander=commander,
+        start=start,
+        join_timeout_s=join_timeout_s,
+    )
     db.add(Event(trial_id=trial.id, seq=1, kind=created.kind, t_ns=now_ns, payload=created.payload()))
     return trial
 

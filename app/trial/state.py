@@ -60,6 +60,7 @@ class TrialState:
     confirmed: list[dict[str, Any]] = field(default_factory=list)
     finished_active_ns: int | None = None  # active time at the last confirmation
     abort_reason: str | None = None  # why it was aborted, where the log says
+    join_by_ns: int | None = None  # a lobby's trial: when seats still unopened abort it
     last_seq: int = 0
 
     # -- derived ------------------------------------------------------------------
@@ -124,6 +125,8 @@ class TrialState:
                 self.maze, self.targets = event.maze, list(event.targets)
                 self.backend, self.driver, self.commander = event.backend, event.driver, event.commander
                 self.start = event.start
+                if event.join_timeout_s is not None:
+                    self.join_by_ns = t_ns + round(event.join_timeout_s * 1e9)
             case ev.Connected(role=role):
                 self.connected.add(role)
                 self.joined.add(role)

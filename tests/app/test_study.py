@@ -10,16 +10,26 @@ import html
 import json
 import time
 
+import pytest
 from click.testing import Result
 from sqlalchemy import select, text
 from typer.testing import CliRunner
 
 from app.cli import root
 from app.db.models import Event, Participant, StudyAnswer, StudyEvent, StudyParticipant, Trial
+from app.main import build_services
 from app.study.config import StudyFiles, template
+from app.trial.events import LoggedEvent
 from app.trial.setup import create_team, create_trial
-from bench.live import SeatClient
-from tests.app.live import ServerThread, browser, experimenter_client, open_seats, page_csrf_token
+from bench.live import SeatClient, ServerProcess
+from tests.app.live import (
+    ServerThread,
+    browser,
+    experimenter_client,
+    open_seats,
+    page_csrf_token,
+    platform_settings,
+)
 
 REAL_NAME = "Bob Okafor"
 FREE_TEXT = "I am Bob Okafor and the mug was hard to find"
@@ -380,13 +390,14 @@ async def hold_seat(server, link: str, seconds: float) -> None:
 
 def test_a_partner_who_never_opens_their_seat_aborts_the_trial_and_the_other_is_paired_again(server):
     maze = server.services.mazes.names()[0]
-    plan = {"practice_maze": None, "join_timeout_s": 1.0, "maze_pool": [maze], "trials_per_participant": 1}
+    # Ann's seat opens well within the deadline, on a loaded machine too; Bob's never does.
+    plan = {"practice_maze": None, "join_timeout_s": 3.0, "maze_pool": [maze], "trials_per_participant": 1}
     StudyFiles(server.settings.data_dir / "studies").save(template("pilot").model_copy(update=plan))
     (ann, ann_code), (bob, _), (cat, cat_code) = (join(server, "pilot") for _ in range(3))
     assert poll(bob)["state"] == "waiting"
     ann_seat = poll(ann)
     assert ann_seat["role"] == "driver", "Bob waited longer: he commands"
-    asyncio.run(hold_seat(server, ann_seat["link"], 2.0))  # Bob never opens his: nobody sees the map
+    asyncio.run(hold_seat(server, ann_seat["link"], 4.0))  # Bob never opens his: nobody sees the map
     with server.services.db() as db:
         trial = db.scalar(select(Trial).where(Trial.study == "pilot"))
         reasons = [e.payload.get("reason") for e in db.scalars(select(Event).where(Event.trial_id == trial.id))]
@@ -409,6 +420,42 @@ def test_a_partner_who_never_opens_their_seat_aborts_the_trial_and_the_other_is_
         names = dict(db.execute(select(Participant.id, Participant.name)).all())
         second = db.scalars(select(Trial).where(Trial.study == "pilot").order_by(Trial.id.desc())).first()
     assert second.maze == maze and {names[second.commander_id], names[second.driver_id]} == {ann_code, cat_code}
+
+
+@pytest.mark.slow
+def test_a_paired_trials_join_deadline_outlives_a_server_crash(tmp_path):
+    timeout_s = 4.0
+    settings = platform_settings(tmp_path)
+    plan = {"practice_maze": None, "join_timeout_s": timeout_s}
+    StudyFiles(settings.data_dir / "studies").save(template("pilot").model_copy(update=plan))
+    server = ServerProcess({"ROBOTSLANG_DATA_DIR": str(settings.data_dir), "ROBOTSLANG_SECRET_KEY": "test-secret"})
+    services = build_services(settings)
+
+    def log() -> list[LoggedEvent]:
+        with services.db() as db:
+            trial_id = db.scalar(select(Trial.id).where(Trial.study == "pilot"))
+        return services.log.load(trial_id)
+
+    try:
+        server.start()
+        (ann, _), (bob, _) = join(server, "pilot"), join(server, "pilot")
+        assert poll(ann)["state"] == "waiting" and poll(bob)["state"] == "seated"
+        server.kill()  # at once: neither seat opened, the deadline seconds away
+        time.sleep(2.5)  # down a while
+        server.start()  # and nobody comes
+        up_ns = time.time_ns()
+        deadline = time.monotonic() + 30
+        while log()[-1].payload.get("phase") != "aborted":
+            assert time.monotonic() < deadline, "the restarted server never aborted the unjoined trial"
+            time.sleep(0.2)
+    finally:
+        server.stop()
+        services.engine.dispose()
+    created, aborted = log()[0], log()[-1]
+    assert "never joined" in aborted.payload["reason"]
+    due_ns = created.t_ns + timeout_s * 1e9
+    assert aborted.t_ns >= due_ns, "never early"
+    assert aborted.t_ns < max(due_ns, up_ns) + 1.5e9, "the deadline counts from the pairing, not from the restart"
 
 
 def test_a_participant_who_left_the_lobby_waits_anew_on_coming_back(server):
