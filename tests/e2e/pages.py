@@ -1,11 +1,15 @@
 """What the browser tests share: where screenshots go, the maze's size, the experimenter's page,
-and the checks every page passes."""
+the checks every page passes, and a Driver's page that knows the way."""
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 from bench.live import REPO
+from sim.core.dynamics import Action
+from tests.app.trial_play import facing_action, oracle_action
 
 # Debian's chromium, headless: never a browser Playwright downloads.
 CHROMIUM = Path("/usr/bin/chromium")
@@ -47,3 +51,43 @@ def page_checks(page, name: str) -> None:
     broken = page.evaluate("""() => [...document.images].filter(i => !i.hidden && i.getClientRects().length
         && !(i.complete && i.naturalWidth > 0)).map(i => i.id)""")
     assert not broken, (name, broken)
+
+
+def wait_until(predicate: Callable[[], bool], what: str, timeout: float = 10.0) -> None:
+    deadline = time.time() + timeout
+    while not predicate():
+        if time.time() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.02)
+
+
+KEYS = {Action.FORWARD: "ArrowUp", Action.LEFT: "ArrowLeft", Action.RIGHT: "ArrowRight"}
+BUTTONS = {Action.FORWARD: "#forward", Action.LEFT: "#left", Action.RIGHT: "#right"}
+
+
+def drive_to_target(services, trial_id: int, driver, on_move: Callable[[int], None] | None = None) -> None:
+    """The Driver's page, its buttons and arrow keys in turn, drives the shortest path to the
+    current target and turns to face it (a person who knows the way); `on_move(n)` before each."""
+    runtime = services.hub.peek(trial_id)
+    driver.wait_for_selector("#forward:enabled")  # a verdict just given: the page takes it first
+    for n in range(400):
+        if on_move is not None:
+            on_move(n)
+        action = oracle_action(services, trial_id)
+        if action == Action.STOP:  # at the target: look at it before claiming
+            action = facing_action(services, trial_id)
+        if action == Action.STOP:
+            return
+        before = runtime.state.moves
+        if n % 2:
+            driver.keyboard.press(KEYS[action])
+        else:
+            driver.click(BUTTONS[action])
+        wait_until(
+            lambda: runtime.state.moves > before  # noqa: B023  (waited on here)
+            and runtime.state.last_frame_id is not None
+            and not runtime.state.moves_in_flight,
+            "a move to execute",
+        )
+        driver.wait_for_timeout(30)  # the page takes the move's result before the next press
+    raise AssertionError("the target was not reached in 400 moves")

@@ -6,7 +6,6 @@ agent leaderboard, and on every page axe-core and a 390 px wide phone."""
 from __future__ import annotations
 
 import math
-import time
 
 import cv2
 import numpy as np
@@ -17,7 +16,7 @@ from app.security import hash_password
 from bench.live import make_trial
 from sim.core.labels import LABEL_BGR, OBJECT_LABELS
 from tests.app.live import ServerThread, platform_settings, wait_js
-from tests.e2e.pages import ARTIFACTS, H_M, W_M, experimenter, page_checks
+from tests.e2e.pages import ARTIFACTS, H_M, W_M, experimenter, page_checks, wait_until
 
 pytestmark = pytest.mark.browser
 
@@ -39,14 +38,6 @@ def new_trial(server, **kw) -> tuple[int, str, str]:
     trial_id = make_trial(services, services.mazes.names()[0], team=f"Team {next(_teams)}", **kw)
     url = {r: f"{server.url}/play/{services.seats.issue(trial_id, r)}" for r in ("commander", "driver")}
     return trial_id, url["commander"], url["driver"]
-
-
-def wait_until(predicate, what: str, timeout: float = 10.0) -> None:
-    deadline = time.time() + timeout
-    while not predicate():
-        if time.time() > deadline:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.02)
 
 
 def seat_pages(browser, commander_url: str, driver_url: str):

@@ -1,9 +1,10 @@
 """A study in headless Chromium: four strangers arrive at different times through the study link,
 consent, give a code (one a real name), wait in the lobby and are paired by the server; one leaves
-the lobby and is paired on coming back; their trials end (aborted by the experimenter), they answer
-the questionnaires and get the completion code; an excluded trial leaves the exports; a participant
-withdraws and their name is gone from the database while their events remain. Newcomers play a
-practice trial first (the bundled maze, set aside from scores), then the study's trials."""
+the lobby and is paired on coming back; one team plays its trial to the end, the other's is stopped
+by the experimenter; they answer the questionnaires and get the completion code; the played trial,
+excluded, leaves the leaderboard and the exports; a participant withdraws and their name is gone
+from the database while their events remain. Newcomers play a practice trial first (the bundled
+maze, set aside from scores), then the study's trials."""
 
 from __future__ import annotations
 
@@ -13,9 +14,10 @@ from typer.testing import CliRunner
 
 from app.cli import root
 from app.db.models import Participant, StudyEvent, Trial
+from app.security import Seat
 from app.study.config import StudyFiles, template
 from tests.app.live import experimenter_client, wait_js
-from tests.e2e.pages import ARTIFACTS, experimenter, page_checks
+from tests.e2e.pages import ARTIFACTS, drive_to_target, experimenter, page_checks
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 REAL_NAME = "Ada Quist"
@@ -65,6 +67,24 @@ def questionnaire_and_code(page, comment: str) -> None:
     page.click("#finish")
     assert page.inner_text("#completion-code") == "DONE-PILOT"
     page_checks(page, "study done")
+
+
+def play_through(services, trial_id: int, pages) -> None:
+    """Of the participants' seat pages, the two of `trial_id` play it: the Commander marks the
+    robot on the map, the Driver drives to each target and claims it, the Commander confirms."""
+    seats = {services.seats.verify(page.url.rsplit("/play/", 1)[1]): page for page in pages}
+    commander, driver = (seats[Seat(trial_id, role)] for role in ("commander", "driver"))
+    commander.wait_for_selector("#status[data-phase=localizing]")
+    driver.fill("#chat-input", "I see a blue wall on my left")
+    driver.press("#chat-input", "Enter")
+    commander.click("#map")  # "the robot is here"
+    driver.wait_for_selector("#status[data-phase=navigating]")
+    for _ in range(3):
+        drive_to_target(services, trial_id, driver)
+        driver.click("#found")
+        commander.click("#claim:not([hidden]) #confirm")
+    for page in (commander, driver):
+        page.wait_for_selector("#status[data-phase=finished]")
 
 
 def test_a_whole_study_with_four_strangers(browser, server, tmp_path):
@@ -117,13 +137,18 @@ def test_a_whole_study_with_four_strangers(browser, server, tmp_path):
     for page in (ada, ben, cy, dee):  # the live seat pages (Ben's or Cy's may be Ada's partner's)
         page.wait_for_load_state("load")
         assert REAL_NAME not in page.content()
-    for t in trials:
-        assert eve.post(f"/experimenter/trials/{t.id}/abort").status_code == 200
+    play_through(server.services, trials[0].id, (ada, ben, cy, dee))  # one team plays its trial to the end
+    assert eve.post(f"/experimenter/trials/{trials[1].id}/abort").status_code == 200  # the other is stopped
+    board = browser.new_context().new_page()
+    board.goto(server.url + "/leaderboard?study=pilot")
+    assert board.locator("#leaderboard td.team").count() == 1
     questionnaire_and_code(ada, f"I am {REAL_NAME}; the mug was hard to see")
     for page in (ben, cy, dee):
         questionnaire_and_code(page, "fine")
 
     assert eve.post(f"/experimenter/trials/{trials[0].id}/exclude", data={"reason": "pilot trouble"}).status_code == 200
+    board.reload()
+    assert board.locator("#leaderboard td.team").count() == 0, "the excluded trial left the leaderboard"
     env = {"ROBOTSLANG_DATA_DIR": str(server.settings.data_dir), "ROBOTSLANG_SECRET_KEY": "test-secret"}
     out = tmp_path / "mcap"
     result = CliRunner().invoke(

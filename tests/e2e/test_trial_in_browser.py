@@ -7,27 +7,17 @@ from __future__ import annotations
 
 import base64
 import re
-import time
 
 import pytest
 
 from app.db.models import Experimenter
 from app.security import hash_password
-from sim.core.dynamics import Action
 from sim.core.labels import Label
 from tests.app.live import wait_js
-from tests.app.trial_play import facing_action, object_pixels, oracle_action
-from tests.e2e.pages import ARTIFACTS
+from tests.app.trial_play import object_pixels
+from tests.e2e.pages import ARTIFACTS, drive_to_target
 
 pytestmark = pytest.mark.browser
-
-
-def wait_until(predicate, timeout: float = 10.0, what: str = "condition") -> None:
-    deadline = time.time() + timeout
-    while not predicate():
-        if time.time() > deadline:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.02)
 
 
 def socket_log(page) -> list[str]:
@@ -97,31 +87,14 @@ def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, server):
     live.filter(has_text="navigating").wait_for()
     assert "commander ●" in live.inner_text() and "driver ●" in live.inner_text()
 
-    keys = {Action.FORWARD: "ArrowUp", Action.LEFT: "ArrowLeft", Action.RIGHT: "ArrowRight"}
-    buttons = {Action.FORWARD: "#forward", Action.LEFT: "#left", Action.RIGHT: "#right"}
+    def screenshots(n: int) -> None:
+        if n == 6:
+            driver.screenshot(path=str(ARTIFACTS / "driver.png"))
+            admin.wait_for_timeout(1100)  # one dashboard refresh
+            admin.screenshot(path=str(ARTIFACTS / "experimenter.png"))
+
     for index in range(3):
-        for n in range(400):
-            if index == 0 and n == 6:
-                driver.screenshot(path=str(ARTIFACTS / "driver.png"))
-                admin.wait_for_timeout(1100)  # one dashboard refresh
-                admin.screenshot(path=str(ARTIFACTS / "experimenter.png"))
-            action = oracle_action(services, trial_id)
-            if action == Action.STOP:  # at the target: look at it before claiming
-                action = facing_action(services, trial_id)
-            if action == Action.STOP:
-                break
-            before = runtime.state.moves
-            if n % 2:
-                driver.keyboard.press(keys[action])
-            else:
-                driver.click(buttons[action])
-            wait_until(
-                lambda: runtime.state.moves > before  # noqa: B023  (waited on here)
-                and runtime.state.last_frame_id is not None
-                and not runtime.state.moves_in_flight,
-                what="a move to execute",
-            )
-            driver.wait_for_timeout(30)  # the page takes the move's result before the next press
+        drive_to_target(services, trial_id, driver, on_move=screenshots if index == 0 else None)
         driver.click("#found")
         commander.wait_for_selector("#claim:not([hidden])")
         wait_js(commander, "document.getElementById('claim-image').src.startsWith('data:image/jpeg')")
