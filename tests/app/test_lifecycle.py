@@ -107,27 +107,26 @@ def test_an_excluded_trial_leaves_the_leaderboard_and_exports_and_its_replay_say
     assert result.returncode == 1 and "no finished trials (not excluded)" in result.stderr
 
 
-def test_export_all_includes_aborted_trials_with_the_targets_they_confirmed(settings, tmp_path):
-    with ServerThread(settings) as server:
-        services = server.services
-        client = experimenter_client(services, server.url)
-        trial_id = make_trial(services, services.mazes.names()[0], targets=("jar", "mug", "paddle"), team="Owls")
-        tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+def test_export_all_includes_aborted_trials_with_the_targets_they_confirmed(server, settings, tmp_path):
+    services = server.services
+    client = experimenter_client(services, server.url)
+    trial_id = make_trial(services, services.mazes.names()[0], targets=("jar", "mug", "paddle"), team="Owls")
+    tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
 
-        async def first_target_then_abort() -> None:
-            async with (
-                SeatClient(server.ws_url, tokens["commander"]) as commander,
-                SeatClient(server.ws_url, tokens["driver"]) as driver,
-            ):
-                await start_trial(commander, driver)
-                await commander.send("localize", x=1.2, y=1.0, heading=0.5)
-                await driver.event("phase", phase="navigating", target_index=0)
-                await drive_to_target(services, trial_id, driver)
-                await claim_and_decide(commander, driver, confirm=True)
-                await asyncio.to_thread(client.post, f"/experimenter/trials/{trial_id}/abort")
-                await commander.event("phase", phase="aborted")
+    async def first_target_then_abort() -> None:
+        async with (
+            SeatClient(server.ws_url, tokens["commander"]) as commander,
+            SeatClient(server.ws_url, tokens["driver"]) as driver,
+        ):
+            await start_trial(commander, driver)
+            await commander.send("localize", x=1.2, y=1.0, heading=0.5)
+            await driver.event("phase", phase="navigating", target_index=0)
+            await drive_to_target(services, trial_id, driver)
+            await claim_and_decide(commander, driver, confirm=True)
+            await asyncio.to_thread(client.post, f"/experimenter/trials/{trial_id}/abort")
+            await commander.event("phase", phase="aborted")
 
-        asyncio.run(first_target_then_abort())
+    asyncio.run(first_target_then_abort())
     out = tmp_path / "ndh"
     result = export(settings, "all", "--format", "ndh", "--out", str(out))
     assert result.returncode == 1 and "no finished trials" in result.stderr

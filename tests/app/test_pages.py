@@ -7,10 +7,12 @@ from __future__ import annotations
 import asyncio
 import json
 import re
+from pathlib import Path
 
 import cv2
 import httpx
 import numpy as np
+import pytest
 from mcap.reader import make_reader
 
 from app.db.models import Experimenter
@@ -61,7 +63,9 @@ def test_benchmark_maze_map_marks_the_three_landmarks(tmp_path, benchmark_path):
 def log_in(server) -> httpx.Client:
     with server.services.db.begin() as db:
         db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
-    client = httpx.Client(base_url=server.url, headers={"Origin": server.url, "Referer": server.url + "/"})
+    # Patient as a browser: the first dashboard loads the shipped Driver to check it (torch: seconds).
+    headers = {"Origin": server.url, "Referer": server.url + "/"}
+    client = httpx.Client(base_url=server.url, headers=headers, timeout=60)
     client.post("/login", data={"name": "eve", "password": "correct horse", **csrf(client, "/")})
     return client
 
@@ -107,24 +111,23 @@ def test_controls_answer_404_on_a_missing_trial_and_refuse_what_does_not_apply(s
     assert "aborted: abort does not apply" in again.text
 
 
-def test_an_agent_that_cannot_start_is_not_offered_and_is_refused_with_its_reason(settings, tmp_path):
-    settings = settings.model_copy(update={"seq2seq_checkpoint": tmp_path / "missing.pt"})
-    with ServerThread(settings) as server:
-        client = log_in(server)
-        make_trial(server.services, server.services.mazes.names()[0])  # a team, so the trial form shows
-        page = client.get("/experimenter").text
-        options = dict(re.findall(r'<option value="((?:agent|oracle):[a-z0-9_]+)"([^>]*)>', page))
-        for offered in ("agent:dialog", "agent:random", "oracle:shortest"):
-            assert offered in options and "disabled" not in options[offered]
-        assert "stops after 300 moves per target or 15 minutes of trial clock" in page  # the agent's caps
-        assert "disabled" in options["agent:seq2seq"] and "unavailable:" in page
-        token = csrf(client, "/experimenter")
-        refused = client.post(
-            "/experimenter/trials",
-            follow_redirects=True,
-            data={"team_id": 1, "driver": "agent:seq2seq", "targets": "random", **token},
-        )
-        assert "cannot start" in refused.text and "agent:seq2seq" in refused.text
+@pytest.mark.settings(seq2seq_checkpoint=Path("/nonexistent/missing.pt"))
+def test_an_agent_that_cannot_start_is_not_offered_and_is_refused_with_its_reason(server):
+    client = log_in(server)
+    make_trial(server.services, server.services.mazes.names()[0])  # a team, so the trial form shows
+    page = client.get("/experimenter").text
+    options = dict(re.findall(r'<option value="((?:agent|oracle):[a-z0-9_]+)"([^>]*)>', page))
+    for offered in ("agent:dialog", "agent:random", "oracle:shortest"):
+        assert offered in options and "disabled" not in options[offered]
+    assert "stops after 300 moves per target or 15 minutes of trial clock" in page  # the agent's caps
+    assert "disabled" in options["agent:seq2seq"] and "unavailable:" in page
+    token = csrf(client, "/experimenter")
+    refused = client.post(
+        "/experimenter/trials",
+        follow_redirects=True,
+        data={"team_id": 1, "driver": "agent:seq2seq", "targets": "random", **token},
+    )
+    assert "cannot start" in refused.text and "agent:seq2seq" in refused.text
 
 
 def test_replay_page_links_its_mcap_and_ndh_exports(tmp_path):

@@ -60,7 +60,7 @@ def test_a_page_on_another_port_cannot_create_participants_or_abort_a_trial(serv
 
     def forged(path: str, data: dict | None = None, **headers) -> httpx.Response:
         """The experimenter's browser (its cookies) posting what another page sends."""
-        with httpx.Client(base_url=server.url, cookies=experimenter.cookies) as client:
+        with httpx.Client(base_url=server.url, cookies=experimenter.cookies, timeout=60) as client:
             return client.post(path, data=data or {"name": "Mallory"}, headers=headers, follow_redirects=True)
 
     # Another page's form or fetch: its own Origin, and at best a token it does not have.
