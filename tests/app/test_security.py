@@ -237,7 +237,7 @@ def test_a_login_cookie_stops_working_at_logout_and_at_a_password_change(setting
     add_experimenter(server)
 
     def opens_dashboard(cookie: str) -> bool:
-        answer = httpx.get(server.url + "/experimenter", cookies={SESSION_COOKIE: cookie})
+        answer = httpx.get(server.url + "/experimenter", cookies={SESSION_COOKIE: cookie}, timeout=60)
         return answer.status_code == 200
 
     client = log_in(server.url, "eve", PASSWORD)
