@@ -34,7 +34,7 @@ function addChat(p) {
 
 let announced = "";
 function renderStatus() {
-  const text = statusText(status, role);
+  const text = after ? statusText(status, role, "Press Continue to go on.") : statusText(status, role);
   $("status").textContent = text;
   $("status").dataset.phase = status.phase;
   document.body.dataset.phase = status.phase;

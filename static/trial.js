@@ -66,12 +66,13 @@ export function formatClock(seconds) {
 const PARTNER = {commander: "Driver", driver: "Commander"};
 
 // What is going on, in words a participant (or the experimenter) needs: what to do now.
-export function statusText(s, role) {
+// `afterwards`: what to do once the trial ended early (a study's seat goes on from the page).
+export function statusText(s, role, afterwards = "You can close this page.") {
   const partner = PARTNER[role];
   const target = `target ${Math.min(s.target_index + 1, s.targets_total)} of ${s.targets_total}`;
   if (s.phase === "finished") return "Finished: all three targets found. Thank you!";
   if (s.phase === "aborted") {
-    return `This trial has ended early${s.abort_reason ? ` (${s.abort_reason})` : ""}. You can close this page.`;
+    return `This trial has ended early${s.abort_reason ? ` (${s.abort_reason})` : ""}. ${afterwards}`;
   }
   const missing = s.waiting_for.length ? s.waiting_for
     : (s.paused.filter((r) => r.startsWith("disconnect:")).map((r) => r.slice("disconnect:".length)));

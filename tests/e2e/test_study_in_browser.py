@@ -181,6 +181,7 @@ def test_a_partner_who_never_comes_sends_the_other_back_to_the_lobby(browser, se
     ann.wait_for_url("**/play/**", timeout=30_000)
     wait_js(ann, "() => !document.getElementById('after-trial').hidden")
     assert "never joined" in ann.inner_text("#announce")
+    ann.screenshot(path=str(ARTIFACTS / "study-partner-never-came.png"))
     ann.wait_for_url("**/study/pilot/lobby", timeout=30_000)  # on its own, with nothing to rate
     lobby_says(ann, "only one waiting")
     bob.context.close()
