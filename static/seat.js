@@ -8,6 +8,7 @@ export const $ = (id) => document.getElementById(id);
 const root = $("seat");
 export const token = root.dataset.token, role = root.dataset.role;
 export const status = emptyStatus();
+const after = $("after-trial");  // a study's seat: where its participant goes on (seat_status.html)
 const handlers = {};
 let ws = null, delay = 500, replaced = false, seatsNeeded = [];
 
@@ -34,7 +35,7 @@ function addChat(p) {
 
 let announced = "";
 function renderStatus() {
-  const text = after ? statusText(status, role, "Press Continue to go on.") : statusText(status, role);
+  const text = statusText(status, role, after ? "Press Continue to go on." : undefined);
   $("status").textContent = text;
   $("status").dataset.phase = status.phase;
   document.body.dataset.phase = status.phase;
@@ -49,7 +50,6 @@ function renderStatus() {
 
 // A study's participant goes on once the trial is over. A trial that ended before it began
 // (a partner never came) has nothing to look back on: back to the lobby's head on its own.
-const after = $("after-trial");
 let lastPhase = null;
 function goOn(over) {
   if (!after) return;

@@ -441,9 +441,9 @@ def test_a_paired_trials_join_deadline_outlives_a_server_crash(tmp_path):
         (ann, _), (bob, _) = join(server, "pilot"), join(server, "pilot")
         assert poll(ann)["state"] == "waiting" and poll(bob)["state"] == "seated"
         server.kill()  # at once: neither seat opened, the deadline seconds away
-        time.sleep(2.5)  # down a while
+        time.sleep(timeout_s + 0.5)  # down past the deadline
         server.start()  # and nobody comes
-        up_ns = time.time_ns()
+        up_ns = time.time_ns()  # it answers only once started: a trial it reopened is open by now
         deadline = time.monotonic() + 30
         while log()[-1].payload.get("phase") != "aborted":
             assert time.monotonic() < deadline, "the restarted server never aborted the unjoined trial"
@@ -451,11 +451,12 @@ def test_a_paired_trials_join_deadline_outlives_a_server_crash(tmp_path):
     finally:
         server.stop()
         services.engine.dispose()
-    created, aborted = log()[0], log()[-1]
+    events = log()
+    created, aborted = events[0], events[-1]
     assert "never joined" in aborted.payload["reason"]
-    due_ns = created.t_ns + timeout_s * 1e9
-    assert aborted.t_ns >= due_ns, "never early"
-    assert aborted.t_ns < max(due_ns, up_ns) + 1.5e9, "the deadline counts from the pairing, not from the restart"
+    assert aborted.t_ns >= created.t_ns + timeout_s * 1e9, "never early"
+    # Due while the server was down: aborted as it reopened the trial, not a fresh timeout later.
+    assert aborted.t_ns < up_ns, "the deadline counts from the pairing, not from the restart"
 
 
 def test_a_participant_who_left_the_lobby_waits_anew_on_coming_back(server):

@@ -65,7 +65,7 @@ KEYS = {Action.FORWARD: "ArrowUp", Action.LEFT: "ArrowLeft", Action.RIGHT: "Arro
 BUTTONS = {Action.FORWARD: "#forward", Action.LEFT: "#left", Action.RIGHT: "#right"}
 
 
-def drive_to_target(services, trial_id: int, driver, on_move: Callable[[int], None] | None = None) -> None:
+def drive_page_to_target(services, trial_id: int, driver, on_move: Callable[[int], None] | None = None) -> None:
     """The Driver's page, its buttons and arrow keys in turn, drives the shortest path to the
     current target and turns to face it (a person who knows the way); `on_move(n)` before each."""
     runtime = services.hub.peek(trial_id)

@@ -17,7 +17,7 @@ from app.db.models import Participant, StudyEvent, Trial
 from app.security import Seat
 from app.study.config import StudyFiles, template
 from tests.app.live import experimenter_client, wait_js
-from tests.e2e.pages import ARTIFACTS, drive_to_target, experimenter, page_checks
+from tests.e2e.pages import ARTIFACTS, drive_page_to_target, experimenter, page_checks
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 REAL_NAME = "Ada Quist"
@@ -80,7 +80,7 @@ def play_through(services, trial_id: int, pages) -> None:
     commander.click("#map")  # "the robot is here"
     driver.wait_for_selector("#status[data-phase=navigating]")
     for _ in range(3):
-        drive_to_target(services, trial_id, driver)
+        drive_page_to_target(services, trial_id, driver)
         driver.click("#found")
         commander.click("#claim:not([hidden]) #confirm")
     for page in (commander, driver):
@@ -174,7 +174,7 @@ def test_a_whole_study_with_four_strangers(browser, server, tmp_path):
 
 
 def test_a_partner_who_never_comes_sends_the_other_back_to_the_lobby(browser, server):
-    plan = {"practice_maze": None, "join_timeout_s": 3.0}
+    plan = {"practice_maze": None, "join_timeout_s": 6.0}  # Ann's page opens her seat well within it
     StudyFiles(server.settings.data_dir / "studies").save(template("pilot").model_copy(update=plan))
     ann, _ = arrive(browser, server)
     bob, _ = arrive(browser, server, opens_seats=False)

@@ -15,7 +15,7 @@ from app.security import hash_password
 from sim.core.labels import Label
 from tests.app.live import wait_js
 from tests.app.trial_play import object_pixels
-from tests.e2e.pages import ARTIFACTS, drive_to_target
+from tests.e2e.pages import ARTIFACTS, drive_page_to_target
 
 pytestmark = pytest.mark.browser
 
@@ -94,7 +94,7 @@ def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, server):
             admin.screenshot(path=str(ARTIFACTS / "experimenter.png"))
 
     for index in range(3):
-        drive_to_target(services, trial_id, driver, on_move=screenshots if index == 0 else None)
+        drive_page_to_target(services, trial_id, driver, on_move=screenshots if index == 0 else None)
         driver.click("#found")
         commander.wait_for_selector("#claim:not([hidden])")
         wait_js(commander, "document.getElementById('claim-image').src.startsWith('data:image/jpeg')")
