@@ -295,6 +295,7 @@ async def control(
         )
     else:
         getattr(runtime, action)()
+    await log.settled()  # the pages and the lobby read the trial's phase from the database
     return RedirectResponse(page, status_code=303)
 
 

@@ -33,7 +33,8 @@ from app.trial.state import LoggedEvent
 
 logger = logging.getLogger(__name__)
 
-Send = tuple[int, Callable[..., None], tuple[Any, ...]]  # (trial id, send, its arguments)
+# (trial id, send, its arguments); no trial id: sent once the commit is done, whatever became of any trial's part
+Send = tuple[int | None, Callable[..., None], tuple[Any, ...]]
 
 
 @dataclass
@@ -92,12 +93,24 @@ class EventLog:
             self._kicked = True
             loop.call_soon(self._kick)  # at the end of this turn: the turn's events are one batch
 
-    def after_commit(self, trial_id: int, send: Callable[..., None], *args: Any) -> None:
+    def after_commit(self, trial_id: int | None, send: Callable[..., None], *args: Any) -> None:
         """Call `send(*args)` once everything appended so far is committed (now, if it is)."""
         if self._pending.events or self._pending.after or self._inflight is not None:
             self._pending.after.append((trial_id, send, args))
         else:
             send(*args)
+
+    async def settled(self) -> None:
+        """Once everything appended so far has been through a commit: an HTTP answer that reports
+        a change (the experimenter's abort) comes only when a reader of the database sees it."""
+        done: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+
+        def settle() -> None:
+            if not done.done():  # a request cancelled meanwhile (its client went away) cancelled it
+                done.set_result(None)
+
+        self.after_commit(None, settle)
+        await done
 
     def flush(self) -> None:
         """Commit everything appended so far and send what waited for it, before returning. On the
@@ -177,8 +190,8 @@ class EventLog:
         for trial_id, err in lost.items():
             if self.on_lost is not None:
                 self.on_lost(trial_id, err)
-        for trial_id, send, args in batch.after:
-            if trial_id not in lost:
+        for of_trial, send, args in batch.after:
+            if of_trial not in lost:
                 send(*args)
 
     def _commit(self, batch: _Batch) -> dict[int, Exception]:

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from app.db.models import Experimenter
+from app.db.models import Experimenter, Trial
 from app.demo.runner import Demo
 from app.export.mcap import DERIVED_TOPICS
 from app.mazes import Mazes, commander_map
@@ -105,6 +105,8 @@ def test_controls_answer_404_on_a_missing_trial_and_refuse_what_does_not_apply(s
     paused = client.post(f"/experimenter/trials/{trial_id}/pause", data=token, follow_redirects=True)
     assert "pause does not apply" in paused.text
     client.post(f"/experimenter/trials/{trial_id}/abort", data=token)
+    with server.services.db() as db:  # committed by the time the answer came
+        assert db.get(Trial, trial_id).phase == "aborted"
     page = client.get(f"/experimenter/trials/{trial_id}", headers=HTML).text
     assert all(re.search(rf'control-{a}"\s+hidden', page) for a in ("pause", "resume", "abort"))
     again = client.post(f"/experimenter/trials/{trial_id}/abort", data=token, follow_redirects=True)
