@@ -8,11 +8,17 @@ const MOVE_TIMEOUT_MS = 5000;  // a move whose result never came (e.g. the serve
 let pending = null, pendingSince = 0;
 const note = (text) => { $("move-note").textContent = text; };
 
+// The camera is busy while a move waits for its result (assistive technology, and scripts, can tell).
+function setPending(id) {
+  pending = id;
+  $("camera").setAttribute("aria-busy", String(id !== null));
+}
+
 function move(action) {
   if (pending && performance.now() - pendingSince < MOVE_TIMEOUT_MS) { note("Wait: the robot is still moving."); return; }
-  pending = Math.random().toString(36).slice(2, 10);
+  setPending(Math.random().toString(36).slice(2, 10));
   pendingSince = performance.now();
-  if (!send("move", {action, move_id: pending})) pending = null;
+  if (!send("move", {action, move_id: pending})) setPending(null);
 }
 ["forward", "left", "right"].forEach((a) => $(a).addEventListener("click", () => move(a)));
 document.addEventListener("keydown", (ev) => {
@@ -23,7 +29,7 @@ $("found").addEventListener("click", () => send("claim"));
 
 function camera(jpeg) { showImage($("camera"), `data:image/jpeg;base64,${jpeg}`); $("camera-wait").hidden = true; }
 
-on("welcome", (msg) => { pending = null; if (msg.frame) camera(msg.frame.jpeg); });
+on("welcome", (msg) => { setPending(null); if (msg.frame) camera(msg.frame.jpeg); });
 on("frame", (msg) => camera(msg.jpeg));
 on("status", (s) => {
   // Buttons follow the trial: moves and claims only while it runs and no claim awaits the Commander.
@@ -35,7 +41,7 @@ on("status", (s) => {
 });
 on("move_executed", (msg) => {
   const p = msg.payload;
-  if (p.move_id === pending) pending = null;
+  if (p.move_id === pending) setPending(null);
   note(p.outcome === "collision" ? "Bump! Something is in the way."
     : p.outcome === "refused" ? friendlyError(p.reason) : "");
 });

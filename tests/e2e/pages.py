@@ -89,5 +89,5 @@ def drive_page_to_target(services, trial_id: int, driver, on_move: Callable[[int
             and not runtime.state.moves_in_flight,
             "a move to execute",
         )
-        driver.wait_for_timeout(30)  # the page takes the move's result before the next press
+        driver.wait_for_selector("#camera[aria-busy=false]")  # the page has the result: it takes the next press
     raise AssertionError("the target was not reached in 400 moves")
