@@ -54,9 +54,9 @@ def trial_or_404(db: Session, trial_id: int) -> Trial:
     return trial
 
 
-def over_reason(trial: Trial) -> str | None:
-    """Why a join link of this trial opens nothing any more; None while the trial runs."""
-    match trial.phase:
+def over_reason(phase: str) -> str | None:
+    """Why a join link of a trial in `phase` opens nothing any more; None while the trial runs."""
+    match phase:
         case "finished":
             return "this trial is over: thank you for taking part"
         case "aborted":

@@ -64,7 +64,7 @@ def seat_of(seats: SeatTokens, db: Session, token: str) -> tuple[Seat, Trial]:
     except InvalidToken as err:
         raise HTTPException(403, str(err)) from None
     trial = trial_or_404(db, seat.trial_id)
-    if (reason := over_reason(trial)) is not None:
+    if (reason := over_reason(trial.phase)) is not None:
         raise ClosedLink(reason, after_trial_url(trial))
     return seat, trial
 

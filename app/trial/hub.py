@@ -45,7 +45,7 @@ class TrialHub:
         owner = await relay.owner(trial_id)
         if owner == relay.id:
             return await self.local(trial_id)
-        if not self.parts.log.load(trial_id)[:1]:
+        if not self.parts.log.exists(trial_id):
             raise UnknownTrial(f"trial {trial_id} does not exist")
         return RemoteTrial(relay, trial_id, owner)
 

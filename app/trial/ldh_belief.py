@@ -107,7 +107,7 @@ class LiveBelief:
 
     async def _send(self, only: Connection | None) -> None:
         rt = self.runtime
-        chats = [e for e in rt.parts.log.load(rt.trial_id) if e.is_(ev.Chat)]
+        chats = [e for e in rt.history if e.is_(ev.Chat)]
         if not chats:
             return
         dialog = tuple(

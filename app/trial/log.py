@@ -66,6 +66,15 @@ class EventLog:
             rows = db.scalars(select(models.Event).where(models.Event.trial_id == trial_id).order_by(models.Event.seq))
             return [LoggedEvent(r.seq, r.kind, r.t_ns, r.payload) for r in rows]
 
+    def exists(self, trial_id: int) -> bool:
+        """Whether the trial has a log (every trial's begins with `trial_created`): one indexed row,
+        where `load` reads them all."""
+        if self._holds(trial_id):
+            return True
+        with self.sessions() as db:
+            first = select(models.Event.seq).where(models.Event.trial_id == trial_id).limit(1)
+            return db.scalars(first).first() is not None
+
     def append(
         self,
         trial_id: int,

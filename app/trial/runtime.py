@@ -99,6 +99,9 @@ class TrialRuntime:
         self._last_frame: Frame | None = None  # the Driver camera's latest, for a filter built after it
         self.ldh = LiveBelief(self, parts.ldh)  # the LDH model's belief, for the watchers only
         self._throttles: dict[str, Throttle] = {}  # per seat: how often its messages may be recorded
+        # The dialog so far (`views.HISTORY` events), kept from the log: a crowd joining at once
+        # read the whole log back, after a synchronous commit, for every welcome.
+        self.history: list[LoggedEvent] = []
 
     # -- life cycle ---------------------------------------------------------------
     async def start(self) -> None:
@@ -106,6 +109,7 @@ class TrialRuntime:
         if not events:
             raise UnknownTrial(f"trial {self.trial_id} does not exist")
         self.state = fold(events)
+        self.history = [e for e in events if e.is_(*views.HISTORY)]
         self.apply(d.Reopen())  # seats and moves of an earlier server process are gone
         if self.state.over:
             return
@@ -230,6 +234,8 @@ class TrialRuntime:
             self.trial_id, logged, frame=frame if isinstance(event, ev.FrameRecorded) else None, trial_cache=cache
         )
         self.state.apply_event(event, logged.seq, logged.t_ns)
+        if logged.is_(*views.HISTORY):
+            self.history.append(logged)
         self._broadcast(logged, attachments)
         self.ldh.after(logged)
         return logged
@@ -382,7 +388,7 @@ class TrialRuntime:
             previous.deliver({"type": "replaced"})
         else:
             self.apply(d.Join(Role(role)))
-        conn.deliver(self.welcome(role))
+        self._send(conn, self.welcome(role))
 
     def leave(self, conn: Connection) -> None:
         if self.seats.get(conn.role) is not conn:
@@ -396,7 +402,7 @@ class TrialRuntime:
         """An experimenter's live view: every seat's events, the Driver's camera, the true pose
         and the particle filter's belief (`{"type": "belief", ...}`, after each perceived frame)."""
         self.watchers.add(conn)
-        conn.deliver(self.welcome(EXPERIMENTER))
+        self._send(conn, self.welcome(EXPERIMENTER))
         self.ldh.welcome(conn)
         if self._belief_message is not None:
             conn.deliver(self._belief_message)
@@ -411,8 +417,8 @@ class TrialRuntime:
             self._forget(self.trial_id)
 
     def welcome(self, role: str) -> dict[str, Any]:
-        events = self.parts.log.load(self.trial_id)
-        return views.welcome(role, self.trial_id, self.state, self.seats, events, self.status(), self.frame_jpeg)
+        """Sent as the seat's events are, once the log has committed what it tells."""
+        return views.welcome(role, self.trial_id, self.state, self.seats, self.history, self.status(), self.frame_jpeg)
 
     # -- messages -----------------------------------------------------------------
     async def receive(self, conn: Connection, role: str, message: m.SeatMessage) -> None:
