@@ -444,7 +444,7 @@ def first_experimenter(services) -> int:
 
 def beliefs_shown(http_url: str, services) -> int:
     """Live trials with a particle filter's belief, as the experimenter's `/experimenter/api/trials`
-    gives them (the process that answers: with one process, every trial). The peak memory counts
+    gives them (every process's trials: with Redis each publishes its own). The peak memory counts
     the filters only once they are built, in the filters' share of a core: all of them by the end,
     or the run was too short to say what they cost."""
     cookies = {SESSION_COOKIE: services.sessions.issue(first_experimenter(services))}

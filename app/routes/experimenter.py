@@ -305,11 +305,12 @@ def _described(state: TrialState) -> str:
 
 @router.get("/api/trials")
 def live(db: DbSession, hub: HubDep) -> dict[str, Any]:
-    """Every trial this server has open: phase, clock, moves, seats and the true pose; and the
-    recorded phase of the newest trials, so pages drop what is stale once a trial has ended."""
+    """Every trial the server has open, in any of its processes: phase, clock, moves, seats and the
+    true pose; and the recorded phase of the newest trials, so pages drop what is stale once a
+    trial has ended."""
     phases = dict(db.execute(select(Trial.id, Trial.phase).order_by(Trial.id.desc()).limit(100)).all())
     return {
-        "trials": [r.snapshot() for r in hub.live()],
+        "trials": from_thread.run(hub.snapshots),
         "phases": {str(trial_id): phase for trial_id, phase in phases.items()},
     }
 

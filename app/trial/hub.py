@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+from typing import Any
 
 from sqlalchemy import select
 
@@ -92,6 +93,15 @@ class TrialHub:
     def live(self) -> list[TrialRuntime]:
         """The trials this process runs that are not over."""
         return [r for r in self._runtimes.values() if not r.state.over]
+
+    async def snapshots(self) -> list[dict[str, Any]]:
+        """Every live trial of the server for the dashboard: this process's, and with Redis the
+        other processes' (a trial taken over meanwhile is listed once, as this process has it)."""
+        mine = [runtime.snapshot() for runtime in self.live()]
+        if self.relay is None:
+            return mine
+        here = {snapshot["trial_id"] for snapshot in mine}
+        return mine + [s for s in await self.relay.others_snapshots() if s["trial_id"] not in here]
 
     async def close(self) -> None:
         if self.relay is not None:

@@ -6,6 +6,10 @@ the first process a seat of the trial reaches). A seat that reaches another proc
 seat may hear, filtered by the owner as for local seats. Each process listens on one channel;
 messages on it keep their order.
 
+The experimenter's dashboard lists every process's trials: each process publishes the snapshots
+of the trials it owns every `SNAPSHOTS_EVERY_S` (a Redis hash by process), and the process that
+answers adds the others', as last published, to its own.
+
 Failover: every process keeps a heartbeat key alive (`HEARTBEAT_TTL_S`, renewed every
 `HEARTBEAT_EVERY_S` by a thread of its own, so that a loaded event loop that falls seconds behind
 is not taken for a dead process). An owner whose heartbeat has lapsed is dead: the next process that needs
@@ -44,6 +48,7 @@ if TYPE_CHECKING:
 logger = logging.getLogger(__name__)
 HEARTBEAT_TTL_S = 2.0  # a process silent this long is taken for dead and its trials are taken over
 HEARTBEAT_EVERY_S = 0.5
+SNAPSHOTS_EVERY_S = 1.0  # how often a process publishes its live trials for the others' dashboards
 CONNECTIONS = 32  # to Redis per process; a command waits for a free one (400 seats joining at once)
 # Take the owner key from a dead process, unless another process already did.
 TAKE_OVER = "if redis.call('get', KEYS[1]) == ARGV[1] then redis.call('set', KEYS[1], ARGV[2]) return 1 end return 0"
@@ -97,6 +102,7 @@ class RedisRelay:
             loop.create_task(self._listen()),
             loop.create_task(self._send()),
             loop.create_task(self._watch_owners()),
+            loop.create_task(self._publish_snapshots()),
         ]
 
     async def close(self) -> None:
@@ -111,6 +117,7 @@ class RedisRelay:
                     await self.redis.delete(self._owner_key(runtime.trial_id))
         with contextlib.suppress(Exception):
             await self.redis.delete(self._alive_key(self.id))
+            await self.redis.hdel(self._snapshots_key, self.id)
         await self._pubsub.aclose()  # type: ignore[no-untyped-call]  # redis-py leaves PubSub.aclose unannotated
         await self.redis.aclose()
 
@@ -119,6 +126,33 @@ class RedisRelay:
 
     def _alive_key(self, process: str) -> str:
         return f"{self._keys}:process:{process}:alive"
+
+    @property
+    def _snapshots_key(self) -> str:
+        return f"{self._keys}:snapshots"
+
+    async def _publish_snapshots(self) -> None:
+        while True:
+            await asyncio.sleep(SNAPSHOTS_EVERY_S)
+            try:
+                snapshots = [runtime.snapshot() for runtime in self.hub.live()]
+                await self.redis.hset(self._snapshots_key, self.id, json.dumps(snapshots, separators=(",", ":")))
+            except Exception:
+                logger.exception("relay: publishing the dashboard's snapshots failed")
+
+    async def others_snapshots(self) -> list[dict[str, Any]]:
+        """The live trials of the other live processes, as each last published them (up to
+        `SNAPSHOTS_EVERY_S` old); a dead process's are dropped."""
+        published = cast(dict[str, str], await self.redis.hgetall(self._snapshots_key))
+        snapshots: list[dict[str, Any]] = []
+        for process, data in published.items():
+            if process == self.id:
+                continue
+            if await self.redis.exists(self._alive_key(process)):
+                snapshots.extend(json.loads(data))
+            else:
+                await self.redis.hdel(self._snapshots_key, process)
+        return snapshots
 
     async def owner(self, trial_id: int) -> str:
         """The process running the trial: a live one, or this one when none is (taking the trial
