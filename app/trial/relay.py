@@ -87,6 +87,7 @@ class RedisRelay:
         self.remotes: set[RemoteTrial] = set()  # trials owned elsewhere that seats here use
         self._outbox: asyncio.Queue[tuple[str, str]] = asyncio.Queue()
         self._tasks: list[asyncio.Task[None]] = []
+        self._opening: dict[int, list[dict[str, Any]]] = {}  # trial id -> its messages while it opens here
 
     async def start(self) -> None:
         self._pubsub = self.redis.pubsub()
@@ -217,13 +218,41 @@ class RedisRelay:
                 logger.exception("relay: message not handled")
 
     async def _dispatch(self, msg: dict[str, Any]) -> None:
-        op, conn_id = msg["op"], msg.get("conn", "")  # control messages name no connection
-        if op == "deliver":
-            conn = self.local.get(conn_id)
+        if msg["op"] == "deliver":
+            conn = self.local.get(msg["conn"])
             if conn is not None:
                 conn.deliver(msg["message"])
             return
-        runtime = await self.hub.local(msg["trial"])
+        trial_id = msg["trial"]
+        runtime = self.hub.peek(trial_id)
+        if runtime is not None and trial_id not in self._opening:
+            await self._apply(runtime, msg)
+        elif trial_id in self._opening:
+            self._opening[trial_id].append(msg)
+        else:
+            self._opening[trial_id] = [msg]
+            self._tasks.append(asyncio.get_running_loop().create_task(self._open_then_apply(trial_id)))
+
+    async def _open_then_apply(self, trial_id: int) -> None:
+        """Open a trial (its log read, its maze loaded: a while) beside the listener, and then
+        apply what came for it meanwhile, in order: opened in the listener, each trial a crowd
+        opened through the relay held up every other trial's moves and frames to this process."""
+        try:
+            runtime = await self.hub.local(trial_id)
+            waiting = self._opening[trial_id]
+            while waiting:  # messages that come while one is applied join the queue
+                try:
+                    await self._apply(runtime, waiting.pop(0))
+                except Exception:
+                    logger.exception("relay: message not handled")
+        except Exception:
+            logger.exception("relay: trial %s not opened here", trial_id)
+        finally:
+            del self._opening[trial_id]
+            self._tasks = [task for task in self._tasks if not task.done()]
+
+    async def _apply(self, runtime: TrialRuntime, msg: dict[str, Any]) -> None:
+        op, conn_id = msg["op"], msg.get("conn", "")  # control messages name no connection
         if op == "join":
             seat = RelayedSeat(self, conn_id, msg["role"], msg["from"])
             self.relayed[conn_id] = seat
