@@ -37,7 +37,7 @@ from app.trial import events as ev
 from app.trial.decide import Refused
 from app.trial.port import CommanderTrial, DriverTrial, SeatTrial
 from app.trial.specs import BackendKind, BackendSpec, SeatKind, SeatSpec
-from app.trial.vocabulary import Move, Role
+from app.trial.vocabulary import Move, Role, ServerMessage
 from sim.agents import turns as t
 from sim.robot.frames import FrameError, decode_jpeg
 from sim.robot.perception import PerceptionError, RayObservation, perceive
@@ -119,16 +119,16 @@ class AgentSeat:
     # -- what a browser in this seat would receive ------------------------------------------------
     def deliver(self, message: dict[str, Any]) -> None:
         kind = message.get("type")
-        if kind == "welcome":
+        if kind == ServerMessage.WELCOME:
             self.targets_total = message["targets_total"]
             for event in message["history"]:
                 if event["kind"] != ev.PhaseChanged.kind:  # the phase now, below, is what counts
                     self._event(event["kind"], event["seq"], event["payload"], event)
             self._phase(t.Phase(message["phase"]), message["target_index"], message.get("target"))
             self._welcomed(message)
-        elif kind == "event":
+        elif kind == ServerMessage.EVENT:
             self._event(message["kind"], message["seq"], message["payload"], message)
-        elif kind == "status":
+        elif kind == ServerMessage.STATUS:
             self.targets_total = message["targets_total"]
         self._sync_running()
 

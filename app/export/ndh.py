@@ -210,7 +210,6 @@ def write_benchmark(
 
     for name, maze in mazes.items():
         maze.save(out_dir / "mazedata" / name)
-    lookup: dict[str, list[Any]] = {}
     for kind, by_split in (("NDH-data", ndh), ("LDH-data", ldh)):
         (out_dir / kind).mkdir(parents=True, exist_ok=True)
         index = 0
@@ -218,9 +217,8 @@ def write_benchmark(
             for inst in by_split[split]:
                 inst["inst_idx"] = index
                 index += 1
-                if kind == "NDH-data":
-                    lookup[inst["scan"]] = inst["all_targets"]
             (out_dir / kind / f"{split}.json").write_text(json.dumps(by_split[split], indent=1))
+    lookup = {inst["scan"]: inst["all_targets"] for split in Split for inst in ndh[split]}
     (out_dir / "lookup_scans.json").write_text(json.dumps(lookup, indent=1))
     (out_dir / "splits.json").write_text(json.dumps(folds, indent=1, sort_keys=True))
     return ExportSummary(

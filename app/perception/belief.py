@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from app.trial.vocabulary import ServerMessage
 from sim.core.dynamics import Action
 from sim.core.maze import Maze
 from sim.robot.camera import CameraCalibration
@@ -143,7 +144,7 @@ class TrialBelief:
             return None
         b = self.latest.belief
         return {
-            "type": "belief",
+            "type": ServerMessage.BELIEF,
             "mean": [round(b.x, 4), round(b.y, 4), round(b.heading, 4)],
             "spread_m": round(b.spread_m, 4),
             "moves": self.latest.moves,

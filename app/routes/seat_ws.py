@@ -29,7 +29,7 @@ from app.trial import messages as m
 from app.trial.decide import Refused
 from app.trial.runtime import UnknownTrial
 from app.trial.views import EXPERIMENTER
-from app.trial.vocabulary import Role
+from app.trial.vocabulary import Role, ServerMessage
 from app.web import over_reason
 
 router = APIRouter()
@@ -81,7 +81,7 @@ class SocketSeat:
             while True:
                 message = await self.outbox.get()
                 await self.ws.send_text(json.dumps(message, separators=(",", ":")))
-                if message.get("type") == "replaced":
+                if message.get("type") == ServerMessage.REPLACED:
                     await self.ws.close(code=4409, reason="seat opened elsewhere")
                     return
 

@@ -21,7 +21,7 @@ import numpy as np
 from app.trial import events as ev
 from app.trial.events import LoggedEvent
 from app.trial.port import Connection
-from app.trial.vocabulary import Phase, Role
+from app.trial.vocabulary import Phase, Role, ServerMessage
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.tasks.ldh_eval import MazeContext, colour_logits
@@ -122,7 +122,12 @@ class LiveBelief:
             return
         if rt.state.phase != Phase.LOCALIZING:
             return  # localization ended while the model ran
-        message: dict[str, Any] = {"type": "ldh_belief", "model": model.name, "upto_seq": chats[-1].seq, "top": top}
+        message: dict[str, Any] = {
+            "type": ServerMessage.LDH_BELIEF,
+            "model": model.name,
+            "upto_seq": chats[-1].seq,
+            "top": top,
+        }
         if only is not None:
             only.deliver(message)
             return

@@ -41,7 +41,7 @@ from app.trial.specs import HUMAN
 from app.trial.state import TrialState, fold
 from app.trial.throttle import Throttle
 from app.trial.views import EXPERIMENTER, status_of, view
-from app.trial.vocabulary import PARTICIPANTS, FrameSource, Move, Outcome, Phase, PoseSource, Role
+from app.trial.vocabulary import PARTICIPANTS, FrameSource, Move, Outcome, Phase, PoseSource, Role, ServerMessage
 from sim.core.geometry import wrap_angle
 
 if TYPE_CHECKING:
@@ -385,7 +385,7 @@ class TrialRuntime:
         previous = self.seats.get(role)
         self.seats[role] = conn
         if previous is not None:  # the same seat opened again (a second tab): the newest wins
-            previous.deliver({"type": "replaced"})
+            previous.deliver({"type": ServerMessage.REPLACED})
         else:
             self.apply(d.Join(Role(role)))
         self._send(conn, self.welcome(role))
@@ -454,7 +454,7 @@ class TrialRuntime:
 
     def refuse(self, conn: Connection, role: str, error: str) -> None:
         """The documented error reply, and the refusal in the log (while the trial runs)."""
-        conn.deliver({"type": "error", "code": "bad_message", "error": error})
+        conn.deliver({"type": ServerMessage.ERROR, "code": "bad_message", "error": error})
         if not self.state.over:
             self.report_bad_message(Role(role), error)
 
@@ -474,7 +474,7 @@ class TrialRuntime:
             throttle.told = True
             conn.deliver(
                 {
-                    "type": "error",
+                    "type": ServerMessage.ERROR,
                     "code": "rate_limited",
                     "error": f"too many messages at once (at most {throttle.rate_per_s:g} a second); "
                     "this one and any more before the pause were not sent",

@@ -15,7 +15,7 @@ from typing import Any
 from app.trial import events as ev
 from app.trial.events import LoggedEvent
 from app.trial.state import TrialState
-from app.trial.vocabulary import FrameSource, Role
+from app.trial.vocabulary import FrameSource, Role, ServerMessage
 
 JpegOf = Callable[[int], bytes | None]  # a frame's image by its frame id (None: not stored)
 HISTORY: tuple[type[ev.Event], ...] = (ev.Chat, ev.PhaseChanged, ev.TargetConfirmed, ev.TargetRejected)
@@ -57,14 +57,14 @@ def view(role: str, event: LoggedEvent) -> dict[str, Any] | None:
     )
     if event.is_(ev.FrameRecorded):
         payload.pop("path", None)
-    return {"type": "event", "seq": event.seq, "kind": event.kind, "t_ns": event.t_ns, "payload": payload}
+    return {"type": ServerMessage.EVENT, "seq": event.seq, "kind": event.kind, "t_ns": event.t_ns, "payload": payload}
 
 
 def status_of(state: TrialState, now_ns: int) -> dict[str, Any]:
     """What every seat shows of where the trial stands (docs/protocol.md, "status"). Sent after
     each event that changes any field but the clock; pages run the clock themselves while running."""
     return {
-        "type": "status",
+        "type": ServerMessage.STATUS,
         "phase": str(state.phase),
         "target_index": state.target_index,
         "targets_total": len(state.targets),
@@ -98,7 +98,7 @@ def welcome(
     and pending claim; the Driver's last frame; the experimenter's pose, targets and estimate)."""
     s = state
     message: dict[str, Any] = {
-        "type": "welcome",
+        "type": ServerMessage.WELCOME,
         "role": role,
         "trial_id": trial_id,
         "phase": s.phase,

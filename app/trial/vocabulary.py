@@ -27,6 +27,18 @@ ROBOT_ROLES = (Role.DRIVER, Role.OVERHEAD)  # a rover registers as the trial's `
 PARTICIPANTS = (Role.COMMANDER, Role.DRIVER)
 
 
+class ServerMessage(StrEnum):
+    """The `type` of each message the server sends a seat's or a watcher's socket."""
+
+    WELCOME = "welcome"  # on joining: where the trial stands and the dialog so far
+    EVENT = "event"  # one logged event, as this role may hear it
+    STATUS = "status"  # the clock, seats and pauses
+    ERROR = "error"  # a message refused, with a code
+    REPLACED = "replaced"  # the seat was opened elsewhere
+    BELIEF = "belief"  # the particle filter's, to watchers
+    LDH_BELIEF = "ldh_belief"  # the LDH model's, to watchers
+
+
 class FrameSource(StrEnum):
     DRIVER = "driver"  # the rover's front camera
     OVERHEAD = "overhead"  # the tracker camera over the table
