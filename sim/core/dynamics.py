@@ -2,7 +2,8 @@
 
 A pose is a node and a heading index (k * 45 degrees, counter-clockwise from +x). A forward
 move goes to the neighbouring grid point along the heading (0.07 m straight, 0.099 m diagonal);
-when that point is not navigable the move is a collision and the pose is unchanged.
+when that point is not navigable the move is a collision and the pose is unchanged. The teacher
+is one rule, `shortest_actions`, whichever table the next hops come from.
 """
 
 from __future__ import annotations
@@ -80,26 +81,26 @@ _STEP_HEADING[HEADING_DI + 1, HEADING_DJ + 1] = np.arange(HEADINGS)
 
 
 def teacher_actions(graph: NavGraph, nodes: ArrayLike, headings: ArrayLike, goals: ArrayLike) -> np.ndarray:
-    """Shortest-path actions for arrays of poses and goal nodes.
-
-    Turns toward the next hop by the smaller turn (left on a tie), forward when aligned,
-    stop at the goal's node or where no path to it exists.
-    """
+    """Shortest-path actions for arrays of poses and goal nodes on `graph`."""
     at, facing, goal = (np.asarray(a, dtype=np.int64) for a in (nodes, headings, goals))
-    hop = graph.next_hop[at, goal]
-    stop = (at == goal) | (hop < 0)
-    hop = np.where(stop, at, hop)
-    actions = actions_toward(graph.node_ij[hop] - graph.node_ij[at], facing)
-    return np.where(stop, Action.STOP, actions).astype(np.int64)
-
-
-def actions_toward(delta: np.ndarray, headings: np.ndarray) -> np.ndarray:
-    """The action that heads for grid steps `delta` (..., 2) from `headings`: forward when
-    aligned, else the smaller turn (left on a tie). Shared by both teachers so they agree."""
-    wanted = _STEP_HEADING[delta[..., 0] + 1, delta[..., 1] + 1]
-    turn = (wanted - headings) % HEADINGS
-    return np.where(turn == 0, Action.FORWARD, np.where(turn <= 4, Action.LEFT, Action.RIGHT))
+    return shortest_actions(graph.node_ij, at, facing, goal, graph.next_hop[at, goal])
 
 
 def teacher_action(graph: NavGraph, pose: Pose, goal_node: int) -> Action:
     return Action(int(teacher_actions(graph, [pose.node], [pose.heading], [goal_node])[0]))
+
+
+def shortest_actions(
+    ij: np.ndarray, nodes: np.ndarray, headings: np.ndarray, goals: np.ndarray, hops: np.ndarray
+) -> np.ndarray:
+    """The teacher: from poses (`nodes`, `headings`) whose next node toward `goals` is `hops` (-1
+    where there is no path), turn toward the hop by the smaller turn (left on a tie), go forward
+    when aligned, stop at the goal's node or where no path to it exists. `ij` holds the nodes'
+    grid indices. The graph's teacher (`teacher_actions`) and the batch's
+    (`BatchStepper.teacher_actions`) differ only in where they read the hops."""
+    stop = (nodes == goals) | (hops < 0)
+    delta = ij[np.where(stop, nodes, hops)] - ij[nodes]
+    wanted = _STEP_HEADING[delta[..., 0] + 1, delta[..., 1] + 1]
+    turn = (wanted - headings) % HEADINGS
+    actions = np.where(turn == 0, Action.FORWARD, np.where(turn <= 4, Action.LEFT, Action.RIGHT))
+    return np.where(stop, Action.STOP, actions).astype(np.int64)

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from sim.core.dynamics import Action, actions_toward
+from sim.core.dynamics import Action, shortest_actions
 from sim.core.geometry import HEADINGS
 from sim.core.world import ACTIONS, World
 
@@ -181,15 +181,10 @@ class BatchStepper:
         return self._collides[self.slot * ACTIONS + _FORWARD]
 
     def teacher_actions(self) -> np.ndarray:
-        """Shortest-path actions for the current poses: toward the next hop by the smaller turn
-        (left on a tie), forward when aligned, stop at the goal's node or where no path exists.
-        The rule is `sim.core.dynamics.actions_toward`, shared with the reference teacher."""
-        node, heading = self.node, self.heading
-        hop = self._next_flat[self._base + node]
-        stop = (node == self.goal) | (hop < 0)
-        hop = np.where(stop, node, hop)
-        actions = actions_toward(self.world.ij[hop] - self.world.ij[node], heading)
-        return np.where(stop, Action.STOP, actions).astype(np.int64)
+        """Shortest-path actions for the current poses (`sim.core.dynamics.shortest_actions`), the
+        next hops read from the episodes' goal rows."""
+        node = self.node
+        return shortest_actions(self.world.ij, node, self.heading, self.goal, self._next_flat[self._base + node])
 
     def distance(self, node: ArrayLike) -> np.ndarray:
         """Metres from (B,) global nodes to each episode's goal."""
