@@ -22,7 +22,7 @@ from app.backends.sim import SimulatorBackend
 from app.clock import ServerClock
 from app.perception.belief import CONVERGED_PARTICLES, TrialBelief
 from app.perception.cameras import SIM_CALIBRATION
-from sim.core.dynamics import Action, Pose, step
+from sim.core.dynamics import Action, Pose
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
 from sim.robot.camera import CameraCalibration
@@ -47,7 +47,7 @@ def run(trials: int, moves: int, perceive: bool, converged_particles: int | None
             collided = False
             if i > 0:
                 action = Action.FORWARD if rng.random() < 0.7 else Action(rng.choice([Action.LEFT, Action.RIGHT]))
-                pose, collided = step(graph, pose, action)
+                pose, collided = graph.moves.step(pose, action)
             jpeg, observation = sim.frame_at(pose)  # rendered before the clock starts
             started = time.thread_time()
             if i > 0:

@@ -1,9 +1,9 @@
 """`SimulatorBackend`: the replay simulator in the robot seat.
 
-Moves follow the grid dynamics of `sim.core.dynamics` (0.07 m forward, 45 degree turns, a
-collision leaves the robot where it was); after each move the first-person render of the
-new pose is the camera frame, drawn by the server's `FrameRenderer` (`app.backends.render`: in
-processes of their own by default). Poses are discrete (a graph node and one of eight headings), so
+Moves go through the graph's `sim.core.stepper.Moves`, the simulator's one stepper (0.07 m
+forward, 45 degree turns, a collision leaves the robot where it was); after each move the
+first-person render of the new pose is the camera frame, drawn by the server's `FrameRenderer`
+(`app.backends.render`: in processes of their own by default). Poses are discrete (a graph node and one of eight headings), so
 the JPEG of each pose is kept (the last `FRAMES_KEPT` of this trial): a turn back, or a step back
 to where the robot was, costs no render; and the ray observation a frame carries is the maze's
 `RayTable` row for the pose (the maze's rays are cast once, not at every frame). The first frame
@@ -24,7 +24,7 @@ from app.backends.base import Frame, MoveOutcome
 from app.backends.render import FRAME_SIZE, FrameRenderer, InThread, render_jpeg
 from app.clock import ServerClock
 from app.trial.vocabulary import Move, Outcome, PoseSource
-from sim.core.dynamics import Action, Pose, continuous_pose, step
+from sim.core.dynamics import Action, Pose, continuous_pose
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
@@ -47,8 +47,9 @@ class SimulatorBackend:
         renderer: FrameRenderer | None = None,
     ) -> None:
         self.maze, self.rays, self.clock = maze, rays, clock
-        # Only the moves: the graph's all-pairs tables are let go once the trial has its start.
-        self.moves = graph.moves()
+        # Only the moves (compiled once per graph, shared by its trials): the graph's all-pairs
+        # tables are let go once the trial has its start.
+        self.moves = graph.moves
         self.renderer = renderer or InThread()
         self._pose = start
         self._frames: asyncio.Queue[Frame | None] = asyncio.Queue()
@@ -69,7 +70,7 @@ class SimulatorBackend:
                 await first
             except Exception:  # this move's frame shows where the robot is all the same
                 logger.exception("the first simulator frame failed")
-        self._pose, collided = step(self.moves, self._pose, Action.parse(action))
+        self._pose, collided = self.moves.step(self._pose, Action.parse(action))
         await self._capture()
         return MoveOutcome(action, Outcome.COLLISION if collided else Outcome.OK)
 

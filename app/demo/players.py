@@ -20,7 +20,7 @@ from websockets.asyncio.client import ClientConnection, connect
 
 from app.demo.script import OBJECT_WORDS, describe_view, plan_leg
 from app.trial.vocabulary import Phase, Role
-from sim.core.dynamics import Action, Pose, step, teacher_action
+from sim.core.dynamics import Action, Pose, teacher_action
 from sim.core.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M, heading_angle
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
@@ -220,7 +220,7 @@ class ScriptedDriver:
             done = await seat.event("move_executed", move_id=move_id)
             outcome = done["payload"]["outcome"]
             if outcome == "ok":
-                return step(self.graph, pose, action)[0]
+                return self.graph.moves.step(pose, action)[0]
             if outcome == "collision":
                 await seat.say("oops, i bumped into a wall")
                 return pose

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.core.dynamics import Action, Pose, continuous_pose, step, teacher_action
+from sim.core.dynamics import Action, Pose, continuous_pose, teacher_action
 from sim.core.geometry import GRID_STEP_M, heading_angle
 from sim.core.labels import Label
 from sim.core.maze import Maze
@@ -47,7 +47,7 @@ def leg_actions(graph: NavGraph, start: Pose, goal_node: int) -> tuple[list[Acti
         action = teacher_action(graph, pose, goal_node)
         if action == Action.STOP:
             break
-        pose, _ = step(graph, pose, action)
+        pose, _ = graph.moves.step(pose, action)
         actions.append(action)
         poses.append(pose)
     return actions, poses

@@ -31,7 +31,7 @@ from sim.agents.turns import (
     SeatInfo,
     Speaker,
 )
-from sim.core.dynamics import Action, Pose, step
+from sim.core.dynamics import Action, Pose
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
 
@@ -96,7 +96,7 @@ def run(
                 driver_messages += who == "driver"
             elif isinstance(turn, DoMove):
                 out.moves += 1
-                pose, collided = step(commander.graph, commander.pose, Action.of(turn.move))
+                pose, collided = commander.graph.moves.step(commander.pose, Action.of(turn.move))
                 commander.pose = pose
                 frame += 1
                 result = Outcome.COLLISION if collided else Outcome.OK
@@ -139,7 +139,7 @@ def replay(
             move = next((t for t in turns if isinstance(t, DoMove)), None)
             if move is None:
                 break
-            pose, collided = step(graph, pose, Action.of(move.move))
+            pose, collided = graph.moves.step(pose, Action.of(move.move))
             moves += 1
             nodes.append(pose.node)
             result = Outcome.COLLISION if collided else Outcome.OK

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from sim.agents.sight import pose_rays
-from sim.core.dynamics import Action, Pose, step
+from sim.core.dynamics import Action, Pose
 from sim.core.geometry import HEADINGS
 from sim.core.labels import WALL_LABELS, Label
 from sim.core.navgraph import NavGraph
@@ -80,7 +80,7 @@ class Router:
         pose, actions, poses = start, [], [start]
         while cost[pose.node, pose.heading] > 0:
             for action in (Action.FORWARD, Action.LEFT, Action.RIGHT):
-                after, collided = step(self.graph, pose, action)
+                after, collided = self.graph.moves.step(pose, action)
                 if not collided and cost[after.node, after.heading] == cost[pose.node, pose.heading] - 1:
                     break
             else:
@@ -124,7 +124,7 @@ class Router:
             obs = self.view(pose)
             if (near(obs, target) or obs.forward_blocked) if target is not None else at_wall(obs):
                 return moves
-            pose, collided = step(self.graph, pose, Action.FORWARD)
+            pose, collided = self.graph.moves.step(pose, Action.FORWARD)
             if collided:
                 return None
         return None

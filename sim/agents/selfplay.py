@@ -1,7 +1,7 @@
 """Whole trials with agents in both seats, offline: localize, the three targets in order, each
 claim judged by the Commander. The harness is the referee: it alone holds the true pose, steps it
 on the robot's graph (`NavGraph.for_robot`: the landmarks block, as on the platform) by the trial's
-rules (`sim.core.dynamics.step`), hands the Driver the RayTable row of
+rules (`graph.moves.step`, `sim.core.stepper.Moves`), hands the Driver the RayTable row of
 each pose as its `Saw` and the Commander the claim frame's rays in `Claimed`, and measures.
 
 Agents are named: `dialog` in either seat (percepts only); `oracle` in either seat cheats (the
@@ -45,7 +45,7 @@ from sim.agents.turns import (
     SeatInfo,
     Speaker,
 )
-from sim.core.dynamics import Action, Pose, step
+from sim.core.dynamics import Action, Pose
 from sim.core.geometry import HEADINGS, SUCCESS_RADIUS_M
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
@@ -144,7 +144,7 @@ def play(commander: Agent, driver: Agent, graph: NavGraph, rays: RayTable, spec:
                 queue += [(Speaker.DRIVER, Heard(who, turn.text)), (Speaker.COMMANDER, Heard(who, turn.text))]
             elif isinstance(turn, DoMove) and who == Speaker.DRIVER:
                 out.moves += 1
-                pose, collided = step(graph, pose, Action.of(turn.move))
+                pose, collided = graph.moves.step(pose, Action.of(turn.move))
                 frame += 1
                 result = Outcome.COLLISION if collided else Outcome.OK
                 queue += [

@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 import typer
 
-from sim.core.dynamics import Action, Pose, continuous_pose, snap_pose, step
+from sim.core.dynamics import Action, Pose, continuous_pose, snap_pose
 from sim.core.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M
 from sim.core.labels import Label
 from sim.core.maze import Maze, MazeError
@@ -77,7 +77,7 @@ class Drive:
 
     def move(self, action: Action) -> bool:
         """Apply one move and write its frames; returns whether a forward move collided."""
-        self.pose, collided = step(self.graph, self.pose, action)
+        self.pose, collided = self.graph.moves.step(self.pose, action)
         self.steps += 1
         self.collisions += collided
         if self.path[-1] != self.pose.node:
@@ -106,7 +106,7 @@ class Drive:
             f"{name} {self.graph.dist[here, self.graph.nearest_node(*xy)]:.2f} m"
             for name, xy in self.maze.objects.items()
         )
-        blocked = " (forward blocked)" if self.graph.forward[here, self.pose.heading] < 0 else ""
+        blocked = " (forward blocked)" if self.graph.moves.blocked(self.pose) else ""
         return (
             f"step {self.steps}: x={x:.2f} y={y:.2f} heading={np.rad2deg(theta):.0f} deg; "
             f"ahead {ahead.word} at {depth[N_RAYS // 2]:.3f} m{blocked}; "

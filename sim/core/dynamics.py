@@ -1,22 +1,27 @@
-"""Agent dynamics on the navigation grid: actions, poses, collisions and the teacher.
+"""Agent dynamics on the navigation grid: actions, poses and the teacher.
 
-A pose is a node and a heading index (k * 45 degrees, counter-clockwise from +x). A forward
-move goes to the neighbouring grid point along the heading (0.07 m straight, 0.099 m diagonal);
-when that point is not navigable the move is a collision and the pose is unchanged. The teacher
-is one rule, `shortest_actions`, whichever table the next hops come from.
+A pose is a node and a heading index (k * 45 degrees, counter-clockwise from +x). What a move
+does (0.07 m straight or 0.099 m diagonal forward, a 45 degree turn, a forward into a wall a
+collision that leaves the pose) is said once, in `sim.core.stepper.Moves`, and every consumer
+steps through it: `graph.moves.step(pose, action)` a pose at a time, `BatchStepper` a batch.
+The teacher is one rule too, `shortest_actions`, whichever table the next hops come from.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import IntEnum
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from robot_client.protocol import Move
 from sim.core.geometry import HEADING_DI, HEADING_DJ, HEADINGS, heading_angle, heading_index
-from sim.core.navgraph import Moves, NavGraph
+
+if TYPE_CHECKING:  # both import this module at run time
+    from sim.core.navgraph import NavGraph
+    from sim.core.stepper import Moves
 
 
 class Action(IntEnum):
@@ -59,20 +64,6 @@ def continuous_pose(graph: NavGraph | Moves, pose: Pose) -> tuple[float, float, 
     """A grid pose as (x, y, theta): its node's centre in metres and its heading's angle."""
     x, y = graph.nodes[pose.node]
     return float(x), float(y), float(heading_angle(pose.heading))
-
-
-def step(graph: NavGraph | Moves, pose: Pose, action: Action) -> tuple[Pose, bool]:
-    """Apply one action; returns the new pose and whether a forward move collided."""
-    if action == Action.FORWARD:
-        target = int(graph.forward[pose.node, pose.heading])
-        if target < 0:
-            return pose, True
-        return Pose(target, pose.heading), False
-    if action == Action.LEFT:
-        return Pose(pose.node, (pose.heading + 1) % HEADINGS), False
-    if action == Action.RIGHT:
-        return Pose(pose.node, (pose.heading - 1) % HEADINGS), False
-    return pose, False
 
 
 # Heading index of each grid step (di, dj) in {-1, 0, 1}^2, indexed [di + 1, dj + 1].

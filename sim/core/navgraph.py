@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import cv2
@@ -39,6 +40,7 @@ from sim.core.geometry import (
     world_to_pixel,
 )
 from sim.core.maze import Maze
+from sim.core.stepper import Moves
 
 MODES = ("benchmark", "exact")
 WALL_CLEARANCE_PX = int(round(MAP_WIDTH_PX / TABLE_WIDTH_M * GRID_STEP_M))  # 40
@@ -88,15 +90,6 @@ def _edges(nodes: np.ndarray, node_ij: np.ndarray, mode: str) -> tuple[np.ndarra
 
 
 @dataclass(frozen=True, eq=False)
-class Moves:
-    """What driving on a graph needs (`sim.core.dynamics.step`): its nodes and where a forward move from
-    each leads, without the all-pairs tables (a few MB a maze), which a live simulator seat never reads."""
-
-    nodes: np.ndarray  # (N, 2) positions, metres
-    forward: np.ndarray  # (N, 8) node reached by a forward move per heading; -1 = collision
-
-
-@dataclass(frozen=True, eq=False)
 class NavGraph:
     mode: str
     nodes: np.ndarray  # (N, 2) positions, metres
@@ -111,8 +104,11 @@ class NavGraph:
     def n(self) -> int:
         return len(self.nodes)
 
+    @cached_property
     def moves(self) -> Moves:
-        return Moves(self.nodes, self.forward)
+        """The move rules on this graph, compiled once: what driving on it needs (`Moves.step`), without
+        the all-pairs tables (a few MB a maze), which a live simulator seat never reads."""
+        return Moves.compile(self.nodes, self.forward, np.int32)
 
     @classmethod
     def build(

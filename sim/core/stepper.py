@@ -1,4 +1,16 @@
-"""`BatchStepper`: the simulator core. A batch of Driver episodes on a `World`, stepped at once.
+"""The simulator core: the move rules, once, and the two ways they are stepped.
+
+`Moves` is what each action does from each pose of a node space, tabulated: per slot (a pose,
+`8 * node + heading`) and action, the slot reached, the metres moved and whether it was a
+collision. Its `compile` is the only statement of the rules in the project: a forward goes to the
+neighbouring grid point along the heading (the graph's `forward` table), and where that point is
+not navigable it is a collision that leaves the pose; left and right turn by 45 degrees (left
+counter-clockwise); stop stays. Every consumer steps through such a table:
+
+- a pose at a time, `graph.moves.step(pose, action)` (`NavGraph.moves`, compiled once per graph):
+  the live simulator seat, the demo's players, `sim play`, the benchmark's start protocol, offline
+  self-play and the agents' episodes, the Commanders' router, `run_episode`;
+- a batch at once, `BatchStepper` on a `World`'s table (`World.moves`, every maze in one node space):
 
     stepper = BatchStepper(world, batch=B)
     stepper.start(envs, node, heading, goal, goal_dist, goal_next)  # (re)start some episodes
@@ -7,43 +19,101 @@
     stepper.teacher_actions()                    # the shortest-path actions
     stepper.td, .otd, .path_length, .steps, .done, .stopped   # per episode
 
-Every learner, baseline and environment of the project runs on this class: the Gymnasium
-vector env (`sim.tasks.batch_env.BatchNavEnv`) and `RobotSlang/NDH-v0` (`sim.tasks.env`, a batch of one),
-the NDH baselines (`sim.tasks.evaluation`) and the learned Driver's rollouts (`models.rollout`).
-`sim.core.dynamics.step` is the readable reference it is tested against, step for step.
+  the Gymnasium vector env (`sim.tasks.batch_env.BatchNavEnv`) and `RobotSlang/NDH-v0`
+  (`sim.tasks.env`, a batch of one), the NDH baselines (`sim.tasks.evaluation`) and the learned
+  Driver's rollouts (`models.rollout`).
 
-Semantics: a forward into a non-navigable grid point is a collision and leaves the pose
-unchanged. An episode is done after STOP or after `max_actions` moves (forward, left, right;
-the stop is not counted, as in `sim.core.metrics`); actions of finished episodes are ignored.
-A pose is a slot, `8 * node + heading` in the world's global node space, so a step is one
-look-up in each of the world's per-(slot, action) tables.
+`tests/sim/test_dynamics.py` and `tests/sim/test_stepper.py` hold both against the rules written
+plainly (`tests/sim/helpers.reference_step`), step for step.
+
+Batch semantics: an episode is done after STOP or after `max_actions` moves (forward, left, right;
+the stop is not counted, as in `sim.core.metrics`); actions of finished episodes are ignored. The
+teacher is `sim.core.dynamics.shortest_actions`, the same rule as the graph's teacher.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, DTypeLike
 
-from sim.core.dynamics import Action, shortest_actions
+from sim.core.dynamics import Action, Pose, shortest_actions
 from sim.core.geometry import HEADINGS
-from sim.core.world import ACTIONS, World
 
+if TYPE_CHECKING:
+    from sim.core.world import World
+
+ACTIONS = len(Action)
 _FORWARD, _STOP = int(Action.FORWARD), int(Action.STOP)  # plain ints: a member look-up costs a microsecond a step
 _MOVE_ACTIONS = np.arange(_STOP, dtype=np.int64)  # forward, left, right
-
+# A `Moves.table` entry: the slot reached << 6 | the index of the metres moved in `lengths` << 1 | collided.
+_SLOT_SHIFT, _LOW, _MAX_LENGTHS = 6, 63, 32
+# Heading change per action: forward 0, left +1, right -1, stop 0.
+_TURN = np.array([0, 1, -1, 0], dtype=np.int64)
 
 MAX_EPISODE_ACTIONS = 120  # the benchmark's cap on a Driver episode's moves
 
 
+@dataclass(frozen=True, eq=False)
+class Moves:
+    """The rules tabulated over a node space: one maze's graph (`NavGraph.moves`) or a world's."""
+
+    nodes: np.ndarray  # (N, 2) positions, metres
+    table: np.ndarray  # (N * 8 * 4,) the entry of action a from slot s at 4 s + a
+    lengths: np.ndarray  # (L <= 32,) the distinct metres of a move, ascending
+
+    @classmethod
+    def compile(cls, nodes: np.ndarray, forward: np.ndarray, dtype: DTypeLike = np.int64) -> Moves:
+        """The rules for every pose: `forward` (N, 8) is the node a forward move reaches per heading,
+        -1 where that grid point is not navigable. A world's table is int64 (numpy's index type):
+        the batch indexes with its entries, and an int32 table cost a conversion per look-up. A
+        graph's (`NavGraph.moves`) is int32: half the memory a live trial holds, and a single
+        pose's look-up converts nothing."""
+        if len(nodes) * HEADINGS << _SLOT_SHIFT > np.iinfo(dtype).max:
+            raise ValueError(f"{len(nodes)} nodes: too many for a {np.dtype(dtype)} moves table")
+        slot = np.arange(len(nodes) * HEADINGS)
+        node, heading = slot // HEADINGS, slot % HEADINGS
+        ahead = np.asarray(forward).reshape(-1)
+        reached = np.empty((slot.size, ACTIONS), dtype=np.int64)
+        reached[:, _FORWARD] = np.where(ahead >= 0, ahead * HEADINGS + heading, slot)  # a collision stays
+        for a in (Action.LEFT, Action.RIGHT, Action.STOP):
+            reached[:, a] = node * HEADINGS + (heading + _TURN[a]) % HEADINGS
+        collided = np.zeros((slot.size, ACTIONS), dtype=np.int64)
+        collided[:, _FORWARD] = ahead < 0
+        metres = np.zeros((slot.size, ACTIONS))
+        span = np.linalg.norm(nodes[np.maximum(ahead, 0)] - nodes[node], axis=1)
+        metres[:, _FORWARD] = np.where(ahead >= 0, span, 0.0)
+        lengths = np.unique(metres)
+        if lengths.size > _MAX_LENGTHS:
+            raise ValueError(f"{lengths.size} distinct move lengths: the moves table holds {_MAX_LENGTHS}")
+        index = np.searchsorted(lengths, metres).astype(np.int64)
+        table = ((reached << _SLOT_SHIFT) | (index << 1) | collided).reshape(-1)
+        return cls(nodes, table.astype(dtype, copy=False), lengths)
+
+    def step(self, pose: Pose, action: Action) -> tuple[Pose, bool]:
+        """One action from one pose: the pose after it, and whether it was a forward into a wall."""
+        entry = int(self.table[(pose.node * HEADINGS + pose.heading) * ACTIONS + action])
+        node, heading = divmod(entry >> _SLOT_SHIFT, HEADINGS)
+        return Pose(node, heading), bool(entry & 1)
+
+    def blocked(self, pose: Pose) -> bool:
+        """Whether a forward move from `pose` would collide."""
+        return bool(self.table[(pose.node * HEADINGS + pose.heading) * ACTIONS + _FORWARD] & 1)
+
+
 class BatchStepper:
+    """A batch of Driver episodes on a `World`, stepped at once through its `Moves` table."""
+
     def __init__(self, world: World, batch: int, max_actions: int = MAX_EPISODE_ACTIONS, record: bool = False):
         if batch < 1:
             raise ValueError(f"batch={batch}: must be at least 1")
         if max_actions < 1:
             raise ValueError(f"max_actions={max_actions}: must be at least 1")
         self.world, self.size, self.max_actions, self.record = world, batch, max_actions, record
-        self._moves = world.moves
-        self._collides = world.collides
+        moves = world.moves
+        self._moves = moves.table
         width = int(world.size.max())
         self._width = width
         # Goal rows, one per episode: distance and global next hop toward its goal from each node.
@@ -68,10 +138,10 @@ class BatchStepper:
         self._counted = np.empty(batch, bool)
         self._scratch = np.empty(batch)
         self._moved = np.empty(batch, self._moves.dtype)
-        # Metres and collision flag by the low 6 bits of a `World.moves` entry, so that one
-        # mask serves both look-ups.
-        code = np.arange(64)
-        self._metres = np.append(world.move_lengths, np.zeros(32 - world.move_lengths.size))[code >> 1 & 31]
+        # Metres and collision flag by the low 6 bits of a table entry, so that one mask serves
+        # both look-ups.
+        code = np.arange(_LOW + 1)
+        self._metres = np.append(moves.lengths, np.zeros(_MAX_LENGTHS - moves.lengths.size))[code >> 1]
         self._hit = (code & 1).astype(bool)
 
     # -- episodes -------------------------------------------------------------------
@@ -146,8 +216,8 @@ class BatchStepper:
         np.multiply(self.slot, ACTIONS, out=k)
         k += a
         self._moves.take(k, out=moved, mode="clip")  # slot << 6 | length index << 1 | collided
-        np.right_shift(moved, 6, out=self.slot)
-        moved &= 63
+        np.right_shift(moved, _SLOT_SHIFT, out=self.slot)
+        moved &= _LOW
         self.path_length += self._metres.take(moved, out=self._scratch, mode="clip")
         collided = self._hit.take(moved, mode="clip")
         self.collisions += collided
@@ -174,11 +244,12 @@ class BatchStepper:
 
     def next_slots(self) -> np.ndarray:
         """(B, 3) the pose that forward, left and right would lead to (a collision: the same)."""
-        slots: np.ndarray = self._moves[self.slot[:, None] * ACTIONS + _MOVE_ACTIONS] >> 6
+        slots: np.ndarray = self._moves[self.slot[:, None] * ACTIONS + _MOVE_ACTIONS] >> _SLOT_SHIFT
         return slots
 
     def forward_blocked(self) -> np.ndarray:
-        return self._collides[self.slot * ACTIONS + _FORWARD]
+        blocked: np.ndarray = (self._moves[self.slot * ACTIONS + _FORWARD] & 1).astype(bool)
+        return blocked
 
     def teacher_actions(self) -> np.ndarray:
         """Shortest-path actions for the current poses (`sim.core.dynamics.shortest_actions`), the

@@ -1,9 +1,10 @@
 """`World`: mazes compiled into one global node space, the tables the simulator core reads.
 
 Maze k's node i is global node `offset[k] + i`, and a pose is the slot `8 * node + heading`.
-From the graphs' forward tables the world derives, per slot and action, the slot reached
-(`transition`), whether it was a collision and the metres moved, so that a step of a whole
-batch is one look-up per table (`sim.core.stepper.BatchStepper`).
+From the graphs' forward tables the world compiles the move rules over the whole node space
+(`moves`, a `sim.core.stepper.Moves`: per slot and action the slot reached, the metres moved and
+whether it was a collision), so that a step of a whole batch is one look-up
+(`sim.core.stepper.BatchStepper`).
 
 `World.compile` builds one in memory from (name, maze, graph) triples; `World.build` builds
 the benchmark's runs with a disk cache keyed on the map files' bytes (reading them is much
@@ -31,8 +32,8 @@ from numpy.typing import ArrayLike, DTypeLike
 
 from sim.core.cache import ARRAYS_SUFFIX, load_arrays, save_arrays
 from sim.core.cache import cache_dir as default_cache_dir
-from sim.core.dynamics import Action
 from sim.core.geometry import HEADINGS
+from sim.core.stepper import Moves
 
 if TYPE_CHECKING:
     from sim.core.maze import Maze
@@ -40,18 +41,11 @@ if TYPE_CHECKING:
     from sim.core.observations import RayTable
     from sim.tasks.benchmark import Benchmark, NDHInstance
 
-ACTIONS = len(Action)
-_WORLD_VERSION = 6  # 4: names, observations optional, derived tables; 5: the fused moves table; 6: int64 moves
+# 4: names, observations optional, derived tables; 5: the fused moves table; 6: int64 moves;
+# 7: only the moves table (`Moves`) is derived
+_WORLD_VERSION = 7
 _ARRAYS = ("offset", "size", "xy", "ij", "forward")
-_TABLES = (
-    "transition",
-    "collides",
-    "move_length",
-    "move_lengths",
-    "moves",
-)  # derived, cached too: a warm process reads them
-# Heading change per action: forward 0, left +1, right -1, stop 0.
-_TURN = np.array([0, 1, -1, 0], dtype=np.int64)
+_MOVES = ("moves", "move_lengths")  # `moves.table` and `moves.lengths`, cached too: a warm process reads them
 
 
 @dataclass(frozen=True, eq=False)
@@ -152,8 +146,8 @@ class World:
             world = cls(
                 names=tuple(json.loads((folder / "names.json").read_text())), obs=obs, key=folder.name, **arrays
             )
-            for k in _TABLES:  # filling the cached properties
-                world.__dict__[k] = np.load(folder / f"{k}.npy", mmap_mode="r")
+            table, lengths = (np.load(folder / f"{k}.npy", mmap_mode="r") for k in _MOVES)
+            world.__dict__["moves"] = Moves(world.xy, table, lengths)  # filling the cached property
             return world
         except (OSError, ValueError):
             return None  # torn or stale: rebuilt
@@ -163,8 +157,10 @@ class World:
         # with observations replaces one without.
         folder.parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(dir=folder.parent))
-        for k in _ARRAYS + _TABLES + (("obs",) if self.obs is not None else ()):
+        for k in _ARRAYS + (("obs",) if self.obs is not None else ()):
             np.save(tmp / f"{k}.npy", getattr(self, k))
+        for k, table in zip(_MOVES, (self.moves.table, self.moves.lengths)):
+            np.save(tmp / f"{k}.npy", table)
         (tmp / "names.json").write_text(json.dumps(list(self.names)))
         if self.obs is not None and folder.exists():
             shutil.rmtree(folder, ignore_errors=True)
@@ -195,53 +191,9 @@ class World:
         return {name: k for k, name in enumerate(self.names)}
 
     @cached_property
-    def transition(self) -> np.ndarray:
-        """(G * 8 * 4,) slot after action a from slot s, at 4 s + a; a collision keeps the slot."""
-        slot = np.arange(self.nodes * HEADINGS)
-        node, heading = slot // HEADINGS, slot % HEADINGS
-        out = np.empty((slot.size, ACTIONS), dtype=np.int64)
-        ahead = np.asarray(self.forward).reshape(-1)
-        out[:, Action.FORWARD] = np.where(ahead >= 0, ahead * HEADINGS + heading, slot)
-        for a in (Action.LEFT, Action.RIGHT):
-            out[:, a] = node * HEADINGS + (heading + _TURN[a]) % HEADINGS
-        out[:, Action.STOP] = slot
-        return out.reshape(-1)
-
-    @cached_property
-    def collides(self) -> np.ndarray:
-        """(G * 8 * 4,) whether action a from slot s is a forward into a wall."""
-        out = np.zeros((self.nodes * HEADINGS, ACTIONS), dtype=bool)
-        out[:, Action.FORWARD] = np.asarray(self.forward).reshape(-1) < 0
-        return out.reshape(-1)
-
-    @cached_property
-    def move_length(self) -> np.ndarray:
-        """(G * 8 * 4,) metres moved by action a from slot s (0 but for a forward that moves)."""
-        ahead = np.asarray(self.forward).reshape(-1)
-        source = np.repeat(np.arange(self.nodes), HEADINGS)
-        length = np.linalg.norm(self.xy[np.maximum(ahead, 0)] - self.xy[source], axis=1)
-        out = np.zeros((ahead.size, ACTIONS))
-        out[:, Action.FORWARD] = np.where(ahead >= 0, length, 0.0)
-        return out.reshape(-1)
-
-    @cached_property
-    def move_lengths(self) -> np.ndarray:
-        """The distinct values of `move_length`, ascending (a few dozen: the grid's steps)."""
-        return np.unique(np.asarray(self.move_length))
-
-    @cached_property
-    def moves(self) -> np.ndarray:
-        """`transition`, `collides` and `move_length` at 4 s + a fused into one integer, so a
-        step reads one table: the slot after the action << 6, the index of the metres moved in
-        `move_lengths` << 1, the collision flag. int64 (numpy's index type): the stepper indexes
-        with its entries, and an int32 table cost a conversion per look-up."""
-        lengths = np.searchsorted(self.move_lengths, np.asarray(self.move_length))
-        if self.move_lengths.size > 32:
-            raise ValueError(f"{self.move_lengths.size} distinct move lengths: the moves table holds 32")
-        transition = np.asarray(self.transition, dtype=np.int64)
-        collides = np.asarray(self.collides, dtype=np.int64)
-        moves: np.ndarray = (transition << 6) | (lengths.astype(np.int64) << 1) | collides
-        return moves
+    def moves(self) -> Moves:
+        """The move rules over every slot of the world."""
+        return Moves.compile(np.asarray(self.xy), np.asarray(self.forward))
 
 
 def goal_rows(graph: NavGraph, goals: ArrayLike) -> tuple[np.ndarray, np.ndarray]:

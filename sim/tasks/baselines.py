@@ -42,7 +42,7 @@ class RandomAgent:
         self.graph, self.rng = graph, rng
 
     def act(self, pose: Pose) -> Action:
-        if self.graph.forward[pose.node, pose.heading] < 0:
+        if self.graph.moves.blocked(pose):
             return Action(self.rng.choice((Action.LEFT, Action.RIGHT)))
         return Action(self.rng.choice((Action.FORWARD, Action.LEFT, Action.RIGHT)))
 

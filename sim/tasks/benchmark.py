@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.core.dynamics import Action, Pose, snap_pose, step, teacher_actions
+from sim.core.dynamics import Action, Pose, snap_pose, teacher_action
 from sim.core.geometry import GRID_STEP_M
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
@@ -150,20 +150,20 @@ def episode_start(graph: NavGraph, inst: NDHInstance) -> Pose:
         return pose
     goal = goal_node(graph, inst)
     for _ in range(EPISODE_START_AWAY_ACTIONS):
-        action = Action(int(teacher_actions(graph, [pose.node], [pose.heading], [goal])[0]))
+        action = teacher_action(graph, pose, goal)
         if action == Action.STOP:
             break
-        pose, _ = step(graph, pose, action)
+        pose, _ = graph.moves.step(pose, action)
     back = graph.nearest_node(*previous)
     target = np.asarray(previous)
     # Bounded: a path visits each (node, heading) at most once on the way back.
     for _ in range(graph.n * 8):
         if np.linalg.norm(graph.nodes[pose.node] - target) < EPISODE_START_RADIUS_M:
             break
-        action = Action(int(teacher_actions(graph, [pose.node], [pose.heading], [back])[0]))
+        action = teacher_action(graph, pose, back)
         if action == Action.STOP:
             break
-        pose, _ = step(graph, pose, action)
+        pose, _ = graph.moves.step(pose, action)
     return pose
 
 

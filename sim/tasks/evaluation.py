@@ -2,8 +2,8 @@
 
 `evaluate_baselines` runs every (instance, agent, seed) episode of a split as one batch of
 `BatchStepper`: Immediate Stop, Shortest (the core's teacher) and Random. `run_episode` plays
-one `sim.tasks.baselines` policy on `sim.core.dynamics.step`, the readable reference that the batched
-figures are held against, episode for episode.
+one `sim.tasks.baselines` policy a pose at a time (`graph.moves.step`), what the batched figures
+are held against, episode for episode.
 
 The Random agent draws from its own stream per (seed, instance), `episode_seed`, exactly as
 `sim.tasks.baselines.RandomAgent` does: `Generator.choice` of 2 or 3 actions is Lemire's bounded
@@ -17,7 +17,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from sim.core.dynamics import Action, Pose, step
+from sim.core.dynamics import Action, Pose
 from sim.core.geometry import SUCCESS_RADIUS_M, heading_angle
 from sim.core.metrics import EpisodeResult
 from sim.core.navgraph import NavGraph
@@ -44,7 +44,7 @@ def run_episode(
         action = policy.act(pose)
         if action == Action.STOP:
             break
-        pose, _ = step(graph, pose, action)
+        pose, _ = graph.moves.step(pose, action)
         nodes.append(pose.node)
         moves += 1
     return nodes, moves

@@ -15,7 +15,7 @@ from app.backends.render import render_jpeg
 from app.perception.belief import FilterWorker, TrialBelief
 from app.perception.cameras import SIM_CALIBRATION, CameraUnknown, driver_calibration, learned
 from app.settings import Settings
-from sim.core.dynamics import Action, Pose, step
+from sim.core.dynamics import Action, Pose
 from sim.core.geometry import heading_angle
 from sim.core.navgraph import NavGraph
 from sim.core.observations import OBS_FEATURES
@@ -69,7 +69,7 @@ def test_walks_seen_by_the_rover_camera_concentrate_the_belief_on_the_truth(worl
                 if ahead and rng.random() < 0.8
                 else (Action.LEFT if rng.random() < 0.5 else Action.RIGHT)
             )
-            pose, collided = step(graph, pose, action)
+            pose, collided = graph.moves.step(pose, action)
             belief.moved(None if collided else action.word, t + 1)
             assert not belief.settled and belief.wants(t + 2) and not belief.wants(t)
             t += 2

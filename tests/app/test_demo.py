@@ -14,7 +14,7 @@ from app.db.models import Team, Trial
 from app.demo.script import OBJECT_WORDS, describe_view, plan_leg
 from app.mazes import Mazes
 from app.trial.log import EventLog
-from sim.core.dynamics import Action, Pose, snap_pose, step, teacher_action
+from sim.core.dynamics import Action, Pose, snap_pose, teacher_action
 
 
 @pytest.fixture(scope="module")
@@ -113,7 +113,7 @@ def test_route_words_follow_the_shortest_path(demo_dir):
     pose = Pose(graph.nearest_node(start["x"], start["y"]), 0)
     leg = plan_leg(maze, graph, pose, trial.targets[0])
     for action in leg.actions:
-        pose, collided = step(graph, pose, action)
+        pose, collided = graph.moves.step(pose, action)
         assert not collided
     assert pose == leg.end and pose.node == graph.nearest_node(*maze.objects[trial.targets[0]])
     turns = sum(a != Action.FORWARD for a in leg.actions)

@@ -13,7 +13,7 @@ from app.backends.sim import SimulatorBackend
 from app.clock import ServerClock
 from app.mazes import Mazes
 from app.settings import Settings
-from sim.core.dynamics import Action, Pose, step, teacher_action
+from sim.core.dynamics import Action, Pose, teacher_action
 from sim.core.geometry import heading_angle, heading_index
 from sim.core.labels import OBJECTS, Label
 from sim.core.navgraph import NavGraph
@@ -48,7 +48,7 @@ def approach(maze, graph: NavGraph, target: str) -> tuple[Pose, list[Action]]:
     actions = []
     while (a := teacher_action(graph, pose, goal)) != Action.STOP:
         actions.append(a)
-        pose, _ = step(graph, pose, a)
+        pose, _ = graph.moves.step(pose, a)
     (x, y), (ox, oy) = graph.nodes[goal], maze.objects[target]
     facing = heading_index(math.atan2(oy - y, ox - x))
     turn = (facing - pose.heading) % 8

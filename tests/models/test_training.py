@@ -217,7 +217,7 @@ def test_seq2seq_driver_plays_from_a_growing_dialog(trained, bench, few):
 def test_the_web_driver_counts_its_poses_by_its_own_odometry_for_its_revisit_penalty(trained, bench, few):
     from models.driver import Seq2SeqDriver
     from sim.agents.turns import DoMove, Moved, Outcome, Phase, PhaseChanged, Saw, SeatInfo, Speaker
-    from sim.core.dynamics import Action, snap_pose, step
+    from sim.core.dynamics import Action, snap_pose
     from sim.core.observations import RayTable
 
     _, out, _ = trained
@@ -241,7 +241,7 @@ def test_the_web_driver_counts_its_poses_by_its_own_odometry_for_its_revisit_pen
         (turn,) = driver.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3))
         for k in range(12):
             assert isinstance(turn, DoMove)
-            pose, collided = step(graph, pose, Action.parse(turn.move))
+            pose, collided = graph.moves.step(pose, Action.parse(turn.move))
             nodes[penalty].add(pose.node)
             driver.perceive(Moved(turn.move, Outcome.COLLISION if collided else Outcome.OK))
             (turn,) = driver.perceive(Saw(k + 1, _rays_at(table, pose.node, pose.heading)))

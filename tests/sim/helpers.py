@@ -1,4 +1,5 @@
-"""Small synthetic mazes whose graphs and observations are known by hand."""
+"""Small synthetic mazes whose graphs and observations are known by hand, and the move rules
+written plainly (`reference_step`), what the simulator's stepper is held against."""
 
 from __future__ import annotations
 
@@ -7,9 +8,27 @@ import re
 
 import numpy as np
 
-from sim.core.geometry import MAP_HEIGHT_PX, MAP_WIDTH_PX, world_to_pixel
+from sim.core.dynamics import Action, Pose
+from sim.core.geometry import HEADINGS, MAP_HEIGHT_PX, MAP_WIDTH_PX, world_to_pixel
 from sim.core.labels import Label
 from sim.core.maze import Maze
+from sim.core.navgraph import NavGraph
+
+
+def reference_step(graph: NavGraph, pose: Pose, action: Action) -> tuple[Pose, bool]:
+    """One action, as the rules say it: a forward goes to the graph's next node along the heading,
+    or, where there is none, is a collision that leaves the pose; left turns 45 degrees
+    counter-clockwise, right clockwise; stop changes nothing. Returns the pose and the collision."""
+    if action == Action.FORWARD:
+        target = int(graph.forward[pose.node, pose.heading])
+        if target < 0:
+            return pose, True
+        return Pose(target, pose.heading), False
+    if action == Action.LEFT:
+        return Pose(pose.node, (pose.heading + 1) % HEADINGS), False
+    if action == Action.RIGHT:
+        return Pose(pose.node, (pose.heading - 1) % HEADINGS), False
+    return pose, False
 
 
 def open_table(objects=((0.5, 0.5), (1.2, 1.0), (2.0, 1.5))) -> np.ndarray:

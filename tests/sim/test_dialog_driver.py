@@ -25,7 +25,7 @@ from sim.agents.turns import (
     SeatInfo,
     Speaker,
 )
-from sim.core.dynamics import Action, Pose, step
+from sim.core.dynamics import Action, Pose
 from sim.core.labels import Label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
@@ -119,7 +119,7 @@ def _carry_out(driver, world, pose, text):
             return pose, said
         (move,) = [t for t in turns if isinstance(t, DoMove)]
         action = {Move.FORWARD: Action.FORWARD, Move.LEFT: Action.LEFT, Move.RIGHT: Action.RIGHT}[move.move]
-        pose, collided = step(graph, pose, action)
+        pose, collided = graph.moves.step(pose, action)
         result = Outcome.COLLISION if collided else Outcome.OK
         turns = driver.perceive(Moved(move.move, result)) + driver.perceive(Saw(0, _rays(world, pose)))
     raise AssertionError("the Driver never spoke")
@@ -187,8 +187,8 @@ def test_rejected_where_it_sees_the_target_it_goes_on_up_to_it(world):
         p
         for p in poses
         if near(_rays(world, p), Label.JAR)
-        and not step(graph, p, Action.FORWARD)[1]
-        and near(_rays(world, step(graph, p, Action.FORWARD)[0]), Label.JAR)
+        and not graph.moves.step(p, Action.FORWARD)[1]
+        and near(_rays(world, graph.moves.step(p, Action.FORWARD)[0]), Label.JAR)
     )
     driver = DialogDriver(0)
     driver.reset(SeatInfo(Speaker.DRIVER, 3))
@@ -199,5 +199,5 @@ def test_rejected_where_it_sees_the_target_it_goes_on_up_to_it(world):
     (move,) = driver.perceive(Heard(Speaker.COMMANDER, "go forward until you see the jar of blocks"))
     assert move == DoMove(Move.FORWARD)
     driver.perceive(Moved(Move.FORWARD, Outcome.OK))
-    turns = driver.perceive(Saw(1, _rays(world, step(graph, start, Action.FORWARD)[0])))
+    turns = driver.perceive(Saw(1, _rays(world, graph.moves.step(start, Action.FORWARD)[0])))
     assert turns[-1] == DoClaim()

@@ -1,18 +1,20 @@
-"""Agent dynamics: snapping, turns, forward moves, collisions and the teacher."""
+"""Agent dynamics: snapping, turns, forward moves, collisions (`graph.moves`, the one stepper,
+against the readable reference of the rules) and the teacher."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from sim.core.dynamics import Action, Pose, snap_pose, step, teacher_action
+from sim.core.dynamics import Action, Pose, snap_pose, teacher_action
 from sim.core.geometry import GRID_STEP_M
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.tasks.baselines import ShortestAgent
 from sim.tasks.benchmark import Benchmark
 from sim.tasks.evaluation import run_episode
-from tests.sim.helpers import open_table, wall_at_x
+from sim.tasks.library import MazeLibrary
+from tests.sim.helpers import open_table, reference_step, wall_at_x
 
 
 @pytest.fixture(scope="module")
@@ -29,17 +31,17 @@ def test_snap_to_nearest_node_and_45_degrees(walled):
 
 def test_turns_are_counter_clockwise_left(walled):
     pose = Pose(walled.nearest_node(0.5, 0.7), 0)
-    left, collided = step(walled, pose, Action.LEFT)
+    left, collided = walled.moves.step(pose, Action.LEFT)
     assert left.heading == 1 and left.node == pose.node and not collided
-    assert step(walled, pose, Action.RIGHT)[0].heading == 7
+    assert walled.moves.step(pose, Action.RIGHT)[0].heading == 7
 
 
 def test_forward_moves_one_grid_step_straight_or_diagonal(walled):
     start = Pose(walled.nearest_node(0.49, 0.7), 0)
-    ahead, collided = step(walled, start, Action.FORWARD)
+    ahead, collided = walled.moves.step(start, Action.FORWARD)
     assert not collided
     assert np.linalg.norm(walled.nodes[ahead.node] - walled.nodes[start.node]) == pytest.approx(GRID_STEP_M)
-    diag, _ = step(walled, Pose(start.node, 1), Action.FORWARD)
+    diag, _ = walled.moves.step(Pose(start.node, 1), Action.FORWARD)
     assert np.linalg.norm(walled.nodes[diag.node] - walled.nodes[start.node]) == pytest.approx(0.099, abs=1e-3)
 
 
@@ -48,13 +50,32 @@ def test_forward_into_a_wall_is_a_collision_and_leaves_the_pose(walled):
     xs = walled.nodes[:, 0]
     edge = walled.nearest_node(xs[xs < 1.0].max(), 1.0)
     pose = Pose(edge, 0)
-    after, collided = step(walled, pose, Action.FORWARD)
-    assert collided and after == pose
+    after, collided = walled.moves.step(pose, Action.FORWARD)
+    assert collided and after == pose and walled.moves.blocked(pose)
+    assert not walled.moves.blocked(Pose(edge, 4))
 
 
 def test_stop_changes_nothing(walled):
     pose = Pose(3, 5)
-    assert step(walled, pose, Action.STOP) == (pose, False)
+    assert walled.moves.step(pose, Action.STOP) == (pose, False)
+
+
+def test_every_move_of_every_pose_is_the_reference_rules(walled, benchmark_path):
+    library, bench = MazeLibrary(), Benchmark(benchmark_path)
+    graphs = [walled, NavGraph.for_robot(library.load(library.names()[0]))]
+    graphs += [bench.graph(run, mode) for run in ("Run_318", "Run_135") for mode in ("benchmark", "exact")]
+    for graph in graphs:
+        assert graph.moves is graph.moves  # compiled once per graph
+        collisions = 0
+        for node in range(graph.n):
+            for heading in range(8):
+                for action in Action:
+                    pose = Pose(node, heading)
+                    expected = reference_step(graph, pose, action)
+                    assert graph.moves.step(pose, action) == expected
+                    collisions += expected[1]
+                assert graph.moves.blocked(pose) == reference_step(graph, pose, Action.FORWARD)[1]
+        assert collisions > 0
 
 
 def test_teacher_turns_by_the_smaller_turn_and_stops_at_goal(walled):

@@ -1,17 +1,18 @@
-"""The simulator core, BatchStepper, held step for step against the reference dynamics."""
+"""The simulator core, BatchStepper, held step for step against the reference rules."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from sim.core.dynamics import Action, Pose, step, teacher_actions
+from sim.core.dynamics import Action, Pose, teacher_actions
 from sim.core.metrics import score_trajectory
 from sim.core.navgraph import NavGraph
 from sim.core.stepper import MAX_EPISODE_ACTIONS, BatchStepper
 from sim.core.world import World, goal_rows
 from sim.tasks.benchmark import Benchmark, episode_start, goal_node
 from sim.tasks.library import MazeLibrary
+from tests.sim.helpers import reference_step
 
 RUNS = ("Run_318", "Run_114", "Run_135", "Run_345")
 
@@ -59,9 +60,11 @@ def check_agreement(world, graphs, count=200, steps=60, observations=True):
         actions = rng.choice(3, size=count, p=[0.6, 0.2, 0.2])  # mostly forward: walls are met
         collided = stepper.step(actions)
         obs = stepper.observations() if observations else None
+        blocked = stepper.forward_blocked()
         for k, (m, _, goal) in enumerate(episodes):
-            poses[k], hit = step(graphs[m], poses[k], Action(int(actions[k])))
+            poses[k], hit = reference_step(graphs[m], poses[k], Action(int(actions[k])))
             assert collided[k] == hit
+            assert blocked[k] == reference_step(graphs[m], poses[k], Action.FORWARD)[1]
             assert stepper.node[k] - world.offset[m] == poses[k].node and stepper.heading[k] == poses[k].heading
             assert stepper.td[k] == graphs[m].dist[poses[k].node, goal]
             if observations:
@@ -72,7 +75,7 @@ def check_agreement(world, graphs, count=200, steps=60, observations=True):
     assert np.array_equal(stepper.steps, np.full(count, steps))
 
 
-def test_agrees_step_by_step_with_the_dynamics_and_the_ray_tables(bench, world):
+def test_agrees_step_by_step_with_the_reference_and_the_ray_tables(bench, world):
     from sim.core.observations import RayTable
 
     check_agreement(world, [bench.graph(r) for r in RUNS])
@@ -92,6 +95,29 @@ def test_agrees_step_by_step_on_the_bundled_mazes():
     library = MazeLibrary()
     items = [(n, library.load(n), NavGraph.build(library.load(n))) for n in library.names()[:3]]
     check_agreement(World.compile(items), [g for _, _, g in items])
+
+
+def test_a_worlds_moves_are_its_mazes_moves(bench, world):
+    """One compile of the rules: the world's table over the global node space is each graph's,
+    its slots shifted by the maze's offset, the same collisions and metres."""
+    for m, run in enumerate(RUNS):
+        mine = bench.graph(run).moves
+        rows = slice(world.offset[m] * 8 * 4, (world.offset[m] + world.size[m]) * 8 * 4)
+        theirs = world.moves.table[rows]
+        assert np.array_equal(theirs >> 6, (mine.table >> 6) + world.offset[m] * 8)
+        assert np.array_equal(theirs & 1, mine.table & 1)
+        assert np.array_equal(world.moves.lengths[theirs >> 1 & 31], mine.lengths[mine.table >> 1 & 31])
+
+
+def test_the_cached_world_steps_as_the_compiled_one(bench, tmp_path):
+    runs = list(RUNS[:2])
+    built = World.build(bench, runs, cache_dir=tmp_path, observations=False, progress=False)
+    loaded = World.build(bench, runs, cache_dir=tmp_path, observations=False, progress=False)
+    assert isinstance(loaded.moves.table, np.memmap)  # read from the cache, not compiled again
+    compiled = compile_world(bench, runs, observations=False).moves
+    for moves in (built.moves, loaded.moves):
+        assert np.array_equal(moves.table, compiled.table) and np.array_equal(moves.lengths, compiled.lengths)
+    check_agreement(loaded, [bench.graph(r) for r in runs], count=50, steps=20, observations=False)
 
 
 def test_teacher_matches_the_single_pose_teacher(bench, world):
