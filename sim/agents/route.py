@@ -91,28 +91,22 @@ class Router:
         return actions, poses
 
     def moves_to_go(self, goal: int) -> np.ndarray:
-        """(N, 8) moves from each pose to the goal node, by a breadth-first search backwards."""
+        """(N, 8) moves from each pose to the goal node, by a breadth-first search backwards over
+        where each move leads (`NavGraph.moves`: a collision leads nowhere new)."""
         if goal in self._costs:
             return self._costs[goal]
-        n = self.graph.n
-        cost = np.full((n, HEADINGS), -1, dtype=np.int64)
-        cost[goal] = 0
-        frontier = [(goal, h) for h in range(HEADINGS)]
-        came_from = [[np.flatnonzero(self.graph.forward[:, h] == m) for h in range(HEADINGS)] for m in range(n)]
-        while frontier:
-            nxt = []
-            for node, h in frontier:
-                c = cost[node, h] + 1
-                before = [(node, (h - 1) % HEADINGS), (node, (h + 1) % HEADINGS)]
-                before += [(int(m), h) for m in came_from[node][h]]
-                for m, hh in before:
-                    if cost[m, hh] < 0:
-                        cost[m, hh] = c
-                        nxt.append((m, hh))
-            frontier = nxt
+        after = self.graph.moves.after()
+        cost = np.full(len(after), -1, dtype=np.int64)
+        cost[goal * HEADINGS : (goal + 1) * HEADINGS] = 0
+        reached = cost == 0
+        for c in range(1, len(cost) + 1):
+            reached = (cost < 0) & reached[after].any(axis=1)
+            if not reached.any():
+                break
+            cost[reached] = c
         cost[cost < 0] = np.iinfo(np.int64).max // 2  # unreachable
-        self._costs[goal] = cost
-        return cost
+        self._costs[goal] = cost.reshape(-1, HEADINGS)
+        return self._costs[goal]
 
     def _ahead_label(self, pose: Pose) -> Label | None:
         front = ahead(self.view(pose))

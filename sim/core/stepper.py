@@ -102,6 +102,11 @@ class Moves:
         """Whether a forward move from `pose` would collide."""
         return bool(self.table[(pose.node * HEADINGS + pose.heading) * ACTIONS + _FORWARD] & 1)
 
+    def after(self) -> np.ndarray:
+        """(N * 8, 3) the slot that forward, left and right lead to from each slot (a collision: the same)."""
+        slots: np.ndarray = self.table.reshape(-1, ACTIONS)[:, :_STOP] >> _SLOT_SHIFT
+        return slots
+
 
 class BatchStepper:
     """A batch of Driver episodes on a `World`, stepped at once through its `Moves` table."""

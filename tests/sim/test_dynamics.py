@@ -66,6 +66,7 @@ def test_every_move_of_every_pose_is_the_reference_rules(walled, benchmark_path)
     graphs += [bench.graph(run, mode) for run in ("Run_318", "Run_135") for mode in ("benchmark", "exact")]
     for graph in graphs:
         assert graph.moves is graph.moves  # compiled once per graph
+        after = graph.moves.after()  # (N * 8, 3): where forward, left and right lead
         collisions = 0
         for node in range(graph.n):
             for heading in range(8):
@@ -74,6 +75,8 @@ def test_every_move_of_every_pose_is_the_reference_rules(walled, benchmark_path)
                     expected = reference_step(graph, pose, action)
                     assert graph.moves.step(pose, action) == expected
                     collisions += expected[1]
+                    if action != Action.STOP:
+                        assert after[node * 8 + heading, action] == expected[0].node * 8 + expected[0].heading
                 assert graph.moves.blocked(pose) == reference_step(graph, pose, Action.FORWARD)[1]
         assert collisions > 0
 
