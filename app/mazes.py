@@ -127,7 +127,9 @@ class Mazes:
         return self.library.load(name)
 
     def _graph(self, name: str) -> NavGraph:
-        return NavGraph.for_robot(self.load(name), cache_dir=self.settings.cache_dir)
+        graph = NavGraph.for_robot(self.load(name), cache_dir=self.settings.cache_dir)
+        graph.moves  # noqa: B018 -- its moves compiled here, where the graph loads, not on the event loop at a seat's start
+        return graph
 
     def _rays(self, name: str) -> RayTable:
         """The observation of every pose of the maze's graph: a simulator frame's rays are a lookup."""
