@@ -136,6 +136,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         services.log.close()
         checkpoints.stop()
         renderer.close()
+        services.mazes.close()
         services.engine.dispose()
 
     # No /docs or /redoc: they load scripts from a CDN and run inline code, which the CSP forbids.

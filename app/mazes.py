@@ -8,6 +8,7 @@ the benchmark's mazes over a study stays bounded (`python -m bench.memory`)."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 import threading
 import weakref
@@ -89,6 +90,8 @@ class Mazes:
         self._library: MazeLibrary | None = None
         self._layouts: dict[str, str] | None = None
         self._layouts_lock = threading.Lock()  # the startup warm-up and a page: one grouping
+        self._warming: threading.Thread | None = None
+        self._stop_warming = threading.Event()
         self.load = Kept(self._load, MAZES_KEPT)
         self.graph = Kept(self._graph, MAZES_KEPT)
         self.rays = Kept(self._rays, MAZES_KEPT)
@@ -106,7 +109,7 @@ class Mazes:
     def names(self) -> list[str]:
         return list(self.library.names())
 
-    def layouts(self) -> dict[str, str]:
+    def layouts(self, stop: threading.Event | None = None) -> dict[str, str]:
         """Each maze, in library order -> the id of its physical layout (`sim.tasks.layouts`). The
         grouping is cached on disk; the first process to ask decodes every map (about 0.2 s a
         map): the server asks at startup, in a thread (`warm_layouts`)."""
@@ -114,12 +117,26 @@ class Mazes:
             if self._layouts is None:
                 from sim.tasks.layouts import layout_of
 
-                of = layout_of(self.library.layouts(cache_dir=self.settings.cache_dir))
+                of = layout_of(self.library.layouts(cache_dir=self.settings.cache_dir, stop=stop))
                 self._layouts = {name: of[name] for name in self.names()}
             return self._layouts
 
     def warm_layouts(self) -> None:
-        threading.Thread(target=self.layouts, name="layouts", daemon=True).start()
+        self._warming = threading.Thread(target=self._warm, name="layouts", daemon=True)
+        self._warming.start()
+
+    def _warm(self) -> None:
+        from sim.tasks.library import LayoutsStopped
+
+        with contextlib.suppress(LayoutsStopped):  # the next process to ask goes on from the maps read
+            self.layouts(stop=self._stop_warming)
+
+    def close(self) -> None:
+        """Stop the warm-up within a map: a thread still decoding maps (OpenCV) as the interpreter
+        exits aborts the process (SIGABRT, exit status 134), as a test run's did after passing."""
+        self._stop_warming.set()
+        if self._warming is not None:
+            self._warming.join()
 
     def _load(self, name: str) -> Maze:
         if name not in self.names():

@@ -12,6 +12,7 @@ from __future__ import annotations
 import re
 from collections.abc import Iterable
 from pathlib import Path
+from threading import Event
 
 from sim.core.maze import FIXED_MAP, WALLS_MAP, Maze
 from sim.core.validation import check_reachable
@@ -108,9 +109,10 @@ class MazeLibrary:
             self._cache[name] = maze
         return maze
 
-    def layouts(self, cache_dir: str | Path | None = None) -> list[Layout]:
+    def layouts(self, cache_dir: str | Path | None = None, stop: Event | None = None) -> list[Layout]:
         """Every maze grouped by physical layout (`sim.tasks.layouts`), in library order. Cached keyed on
-        the map files: after the first call (about 0.2 s a maze), no map is decoded."""
+        the map files: after the first call (about 0.2 s a maze), no map is decoded. Raises
+        `LayoutsStopped` once `stop` is set, between two maps (each map's signature is kept)."""
         maps = {
             name: [f for f in (self.path(name) / "maze" / m for m in (FIXED_MAP, WALLS_MAP)) if f.is_file()]
             for name in self.names()
@@ -119,11 +121,17 @@ class MazeLibrary:
         def build() -> list[Layout]:
             signatures = {}
             for name in maps:
+                if stop is not None and stop.is_set():
+                    raise LayoutsStopped(f"stopped before {name}")
                 kind, run = self._entry(name)
                 signatures[name] = LayoutSignature.cached(Maze.from_dir(run, name=name, cache_dir=cache_dir), cache_dir)
             return group_layouts(signatures)
 
         return cached_grouping(grouping_key(maps), build, cache_dir)
+
+
+class LayoutsStopped(Exception):
+    """`MazeLibrary.layouts` was asked to stop before it had read every map."""
 
 
 def _natural_key(path: Path) -> list[int | str]:
