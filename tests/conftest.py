@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -43,8 +43,11 @@ def _private_cache(tmp_path_factory) -> None:
 
 
 def pytest_configure(config) -> None:
-    # Options of the platform's fixtures (tests/app/conftest.py), set per test.
-    config.addinivalue_line("markers", "settings(**overrides): the `settings` (and so `server`) fixture's overrides")
+    # Options of the platform's fixtures (below), set per test.
+    config.addinivalue_line(
+        "markers",
+        "settings(**overrides): overrides of the `settings` fixture (and so of `server`, `start_server`, `cluster`)",
+    )
     config.addinivalue_line("markers", "trial(**options): `make_trial`'s options for the `trial` fixture")
 
 
@@ -117,22 +120,83 @@ def postgres_url():
 
 
 # The platform's fixtures: a server, a trial on it, its seats (the app's and the browser tests).
+# Only these build servers (`ServerThread`): a test asks for one, and it is stopped when the test ends.
+def _settings_overrides(request) -> dict:
+    marker = request.node.get_closest_marker("settings")
+    return dict(marker.kwargs) if marker else {}
+
+
+class StartServer:
+    """`start_server(settings=None, **overrides)`: a started server, stopped when the fixture's
+    scope ends (or earlier, by its `stop()`). Without `settings`, the fixture's own settings with
+    `overrides` changed."""
+
+    def __init__(self, node, default: Callable[..., Settings]) -> None:
+        self._node = node  # the test (or module) whose end stops the servers
+        self._default = default
+
+    def __call__(self, settings: Settings | None = None, **overrides) -> ServerThread:
+        from tests.app.live import ServerThread
+
+        if settings is None:
+            settings = self._default(**overrides)
+        elif overrides:
+            raise TypeError("start_server takes settings or overrides of the default settings, not both")
+        server = ServerThread(settings)
+        # Registered now, not at the fixture's teardown: a server started on a database fixture
+        # set up after `start_server` (a PostgreSQL schema) still stops before that is dropped.
+        self._node.addfinalizer(server.stop)
+        return server.start()
+
+
 @pytest.fixture
 def settings(request, tmp_path) -> Settings:
     """The platform's test settings; `@pytest.mark.settings(**overrides)` changes some for one test."""
     from tests.app.live import platform_settings
 
-    marker = request.node.get_closest_marker("settings")
-    return platform_settings(tmp_path, **(marker.kwargs if marker else {}))
+    return platform_settings(tmp_path, **_settings_overrides(request))
 
 
 @pytest.fixture
-def server(settings) -> Iterator[ServerThread]:
-    """The platform on `settings`, served on a loopback port for the test."""
-    from tests.app.live import ServerThread
+def start_server(request, settings, tmp_path) -> StartServer:
+    """Servers the test starts itself: after writing what the server must find (a database,
+    mazes, a study), on settings of its own, or again on the same data to see what survived."""
+    from tests.app.live import platform_settings
 
-    with ServerThread(settings) as running:
-        yield running
+    def default(**overrides) -> Settings:
+        if not overrides:
+            return settings
+        return platform_settings(tmp_path, **{**_settings_overrides(request), **overrides})
+
+    return StartServer(request.node, default)
+
+
+@pytest.fixture(scope="module")
+def start_module_server(request, tmp_path_factory) -> StartServer:
+    """`start_server` for a module's fixtures: its servers serve every test of the module. Without
+    `settings`, each is on a data directory of its own."""
+    from tests.app.live import platform_settings
+
+    def default(**overrides) -> Settings:
+        return platform_settings(tmp_path_factory.mktemp("server"), **overrides)
+
+    return StartServer(request.node, default)
+
+
+@pytest.fixture
+def server(settings, start_server) -> ServerThread:
+    """The platform on `settings`, served on a loopback port for the test."""
+    return start_server(settings)
+
+
+@pytest.fixture
+def cluster(request, tmp_path, postgres_url, redis_url, start_server) -> tuple[ServerThread, ServerThread]:
+    """Two servers on one PostgreSQL database and one Redis, as two processes of a deployment
+    share them (`@pytest.mark.settings` applies to both); the second started after the first."""
+    from tests.app.live import platform_settings
+
+    shared = platform_settings(tmp_path, database_url=postgres_url, redis_url=redis_url, **_settings_overrides(request))
+    return start_server(shared), start_server(shared)
 
 
 @pytest.fixture

@@ -28,7 +28,8 @@ PASSWORD = "correct horse"
 
 
 class ServerThread:
-    """`create_app(settings)` served by uvicorn on 127.0.0.1 in a background thread."""
+    """`create_app(settings)` served by uvicorn on 127.0.0.1 in a background thread. Tests take one
+    from conftest's fixtures (`server`, `start_server`, `cluster`), which stop it when the test ends."""
 
     def __init__(self, settings: Settings) -> None:
         self.settings = settings
@@ -40,6 +41,7 @@ class ServerThread:
         )
         self.server = uvicorn.Server(config)
         self.thread = threading.Thread(target=self.server.run, daemon=True)
+        self.stopped = False
 
     @property
     def url(self) -> str:
@@ -49,7 +51,8 @@ class ServerThread:
     def ws_url(self) -> str:
         return f"ws://127.0.0.1:{self.port}/ws/play"
 
-    def __enter__(self) -> ServerThread:
+    def start(self) -> ServerThread:
+        """Serving: returns once the server answers."""
         self.thread.start()
         deadline = time.time() + 20
         while not self.server.started:
@@ -58,10 +61,20 @@ class ServerThread:
             time.sleep(0.02)
         return self
 
-    def __exit__(self, *exc) -> None:
+    def stop(self) -> None:
+        """Shut down as the server does (what it still had to write is written); again: nothing."""
+        if self.stopped:
+            return
+        self.stopped = True
         self.server.should_exit = True
         self.thread.join(timeout=20)
         self.services.engine.dispose()
+
+    def __enter__(self) -> ServerThread:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
 
 
 def page_csrf_token(page: str) -> str:

@@ -11,126 +11,121 @@ from sqlalchemy import select
 from app.db.models import Event, Experimenter, Trial
 from app.security import hash_password
 from bench.live import SeatClient, make_trial
-from tests.app.live import ServerThread, Watch, browser, experimenter_client, platform_settings, submit_login
+from tests.app.live import Watch, browser, experimenter_client, submit_login
 from tests.app.trial_play import claim_and_decide, drive_to_target, move, start_trial
 
 
 @pytest.mark.slow
-def test_seats_on_two_processes_play_one_trial(tmp_path, postgres_url, redis_url):
-    settings = platform_settings(tmp_path, database_url=postgres_url, redis_url=redis_url)
-    with ServerThread(settings) as first, ServerThread(settings) as second:
-        trial_id = make_trial(first.services, first.services.mazes.names()[0])
-        tokens = {r: first.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-        experimenter = experimenter_client(second.services, second.url)
+def test_seats_on_two_processes_play_one_trial(cluster):
+    first, second = cluster
+    trial_id = make_trial(first.services, first.services.mazes.names()[0])
+    tokens = {r: first.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+    experimenter = experimenter_client(second.services, second.url)
 
-        async def play():
-            async with SeatClient(first.ws_url, tokens["commander"]) as commander:
-                await commander.wait_for(lambda m: m.get("type") == "welcome")
-                async with SeatClient(second.ws_url, tokens["driver"]) as driver:
-                    await start_trial(commander, driver)
-                    owner = first.services.hub.peek(trial_id)
-                    assert owner is not None and second.services.hub.peek(trial_id) is None
-                    await driver.send("chat", text="hello from the other server")
-                    await commander.event("chat", text="hello from the other server")
-                    await commander.send("localize", x=1.0, y=1.0)
-                    await driver.event("phase", phase="navigating")
-                    # The experimenter's controls work from any process.
-                    await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial_id}/pause")
-                    await driver.event("paused", reason="experimenter")
-                    await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial_id}/resume")
-                    await commander.event("resumed", reason="experimenter")
-                    await driver.send("confirm")  # a bad message through the relay
-                    error = await driver.wait_for(lambda m: m.get("type") == "error")
-                    assert "may not send 'confirm'" in error["error"]
-                    assert (await move(driver, "left"))["payload"]["outcome"] == "ok"
-                    for _ in range(3):
-                        await drive_to_target(first.services, trial_id, driver)
-                        await claim_and_decide(commander, driver, confirm=True)
-                    await driver.event("phase", phase="finished")
-                    return commander, driver
-
-        commander, driver = asyncio.run(play())
-        assert "frame" in driver.kinds() and "frame" not in commander.kinds()
-        with first.services.db() as db:
-            assert db.get(Trial, trial_id).phase == "finished"
-            kinds = db.scalars(select(Event.kind).where(Event.trial_id == trial_id)).all()
-        assert "bad_message" in kinds
-
-
-def test_a_process_that_stops_hands_its_trials_to_another(tmp_path, postgres_url, redis_url):
-    settings = platform_settings(tmp_path, database_url=postgres_url, redis_url=redis_url)
-    with ServerThread(settings) as second:
-        with ServerThread(settings) as first:
-            trial_id = make_trial(first.services, first.services.mazes.names()[0])
-            tokens = {r: first.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-
-            async def before():
-                async with (
-                    SeatClient(first.ws_url, tokens["commander"]) as commander,
-                    SeatClient(first.ws_url, tokens["driver"]) as driver,
-                ):
-                    await start_trial(commander, driver)
-                    await commander.send("localize", x=1.0, y=1.0)
-                    await driver.event("phase", phase="navigating")
-                    assert (await move(driver, "right"))["payload"]["outcome"] == "ok"
-
-            asyncio.run(before())
-
-        async def after():  # the first process is gone; the second takes the trial over
-            async with (
-                SeatClient(second.ws_url, tokens["commander"]) as commander,
-                SeatClient(second.ws_url, tokens["driver"]) as driver,
-            ):
-                welcome = await driver.wait_for(lambda m: m.get("type") == "welcome")
-                assert welcome["phase"] == "navigating"
-                assert second.services.hub.peek(trial_id) is not None
+    async def play():
+        async with SeatClient(first.ws_url, tokens["commander"]) as commander:
+            await commander.wait_for(lambda m: m.get("type") == "welcome")
+            async with SeatClient(second.ws_url, tokens["driver"]) as driver:
+                await start_trial(commander, driver)
+                owner = first.services.hub.peek(trial_id)
+                assert owner is not None and second.services.hub.peek(trial_id) is None
+                await driver.send("chat", text="hello from the other server")
+                await commander.event("chat", text="hello from the other server")
+                await commander.send("localize", x=1.0, y=1.0)
+                await driver.event("phase", phase="navigating")
+                # The experimenter's controls work from any process.
+                await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial_id}/pause")
+                await driver.event("paused", reason="experimenter")
+                await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial_id}/resume")
+                await commander.event("resumed", reason="experimenter")
+                await driver.send("confirm")  # a bad message through the relay
+                error = await driver.wait_for(lambda m: m.get("type") == "error")
+                assert "may not send 'confirm'" in error["error"]
                 assert (await move(driver, "left"))["payload"]["outcome"] == "ok"
-                await driver.send("chat", text="still here")
-                await commander.event("chat", text="still here")
+                for _ in range(3):
+                    await drive_to_target(first.services, trial_id, driver)
+                    await claim_and_decide(commander, driver, confirm=True)
+                await driver.event("phase", phase="finished")
+                return commander, driver
 
-        asyncio.run(after())
+    commander, driver = asyncio.run(play())
+    assert "frame" in driver.kinds() and "frame" not in commander.kinds()
+    with first.services.db() as db:
+        assert db.get(Trial, trial_id).phase == "finished"
+        kinds = db.scalars(select(Event.kind).where(Event.trial_id == trial_id)).all()
+    assert "bad_message" in kinds
+
+
+def test_a_process_that_stops_hands_its_trials_to_another(cluster):
+    first, second = cluster
+    trial_id = make_trial(first.services, first.services.mazes.names()[0])
+    tokens = {r: first.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+
+    async def before():
+        async with (
+            SeatClient(first.ws_url, tokens["commander"]) as commander,
+            SeatClient(first.ws_url, tokens["driver"]) as driver,
+        ):
+            await start_trial(commander, driver)
+            await commander.send("localize", x=1.0, y=1.0)
+            await driver.event("phase", phase="navigating")
+            assert (await move(driver, "right"))["payload"]["outcome"] == "ok"
+
+    asyncio.run(before())
+    first.stop()
+
+    async def after():  # the first process is gone; the second takes the trial over
+        async with (
+            SeatClient(second.ws_url, tokens["commander"]) as commander,
+            SeatClient(second.ws_url, tokens["driver"]) as driver,
+        ):
+            welcome = await driver.wait_for(lambda m: m.get("type") == "welcome")
+            assert welcome["phase"] == "navigating"
+            assert second.services.hub.peek(trial_id) is not None
+            assert (await move(driver, "left"))["payload"]["outcome"] == "ok"
+            await driver.send("chat", text="still here")
+            await commander.event("chat", text="still here")
+
+    asyncio.run(after())
 
 
 @pytest.mark.slow
-def test_a_watcher_on_another_process_sees_the_trials_particle_filter(tmp_path, postgres_url, redis_url):
-    settings = platform_settings(tmp_path, database_url=postgres_url, redis_url=redis_url)
-    with ServerThread(settings) as first, ServerThread(settings) as second:
-        trial_id = make_trial(first.services, first.services.mazes.names()[0])
-        tokens = {r: first.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-        with first.services.db.begin() as db:
-            eve = Experimenter(name="eve", password_hash=hash_password("correct horse"))
-            db.add(eve)
-            db.flush()
-            eve_id = eve.id
-        cookie = second.services.sessions.issue(eve_id)
+def test_a_watcher_on_another_process_sees_the_trials_particle_filter(cluster):
+    first, second = cluster
+    trial_id = make_trial(first.services, first.services.mazes.names()[0])
+    tokens = {r: first.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+    with first.services.db.begin() as db:
+        eve = Experimenter(name="eve", password_hash=hash_password("correct horse"))
+        db.add(eve)
+        db.flush()
+        eve_id = eve.id
+    cookie = second.services.sessions.issue(eve_id)
 
-        async def play():
-            async with (
-                SeatClient(first.ws_url, tokens["commander"]) as commander,
-                SeatClient(first.ws_url, tokens["driver"]) as driver,
-            ):
-                await start_trial(commander, driver)
-                async with Watch(second, trial_id, cookie) as watch:
-                    # The filter is built when the first watcher comes (in the filters' share of a
-                    # core): a move made before it stands is not one it can count.
-                    await watch.wait_for(lambda m: m.get("type") == "belief", timeout=30)
-                    await commander.send("localize", x=1.0, y=1.0)
-                    await driver.event("phase", phase="navigating")
-                    assert (await move(driver, "left"))["payload"]["outcome"] == "ok"
-                    seen = await watch.wait_for(lambda m: m.get("type") == "belief" and m["moves"] >= 1, timeout=30)
-                    assert seen["points"] and len(seen["mean"]) == 3
-                    assert first.services.hub.peek(trial_id) is not None and second.services.hub.peek(trial_id) is None
+    async def play():
+        async with (
+            SeatClient(first.ws_url, tokens["commander"]) as commander,
+            SeatClient(first.ws_url, tokens["driver"]) as driver,
+        ):
+            await start_trial(commander, driver)
+            async with Watch(second, trial_id, cookie) as watch:
+                # The filter is built when the first watcher comes (in the filters' share of a
+                # core): a move made before it stands is not one it can count.
+                await watch.wait_for(lambda m: m.get("type") == "belief", timeout=30)
+                await commander.send("localize", x=1.0, y=1.0)
+                await driver.event("phase", phase="navigating")
+                assert (await move(driver, "left"))["payload"]["outcome"] == "ok"
+                seen = await watch.wait_for(lambda m: m.get("type") == "belief" and m["moves"] >= 1, timeout=30)
+                assert seen["points"] and len(seen["mean"]) == 3
+                assert first.services.hub.peek(trial_id) is not None and second.services.hub.peek(trial_id) is None
 
-        asyncio.run(play())
+    asyncio.run(play())
 
 
-def test_login_attempts_count_on_every_process(tmp_path, postgres_url, redis_url):
-    settings = platform_settings(
-        tmp_path, database_url=postgres_url, redis_url=redis_url, login_limit_per_account="3/minute"
-    )
-    with ServerThread(settings) as first, ServerThread(settings) as second:
-        with first.services.db.begin() as db:
-            db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
-        assert [submit_login(browser(first.url), "eve", "guess").status_code for _ in range(3)] == [401] * 3
-        limited = submit_login(browser(second.url), "eve", "correct horse")
-        assert limited.status_code == 429 and "too many login attempts" in limited.text
+@pytest.mark.settings(login_limit_per_account="3/minute")
+def test_login_attempts_count_on_every_process(cluster):
+    first, second = cluster
+    with first.services.db.begin() as db:
+        db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
+    assert [submit_login(browser(first.url), "eve", "guess").status_code for _ in range(3)] == [401] * 3
+    limited = submit_login(browser(second.url), "eve", "correct horse")
+    assert limited.status_code == 429 and "too many login attempts" in limited.text
