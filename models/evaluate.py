@@ -45,11 +45,11 @@ def evaluate_agent(
         roll = run_episodes(agent, world, episodes, idx, "argmax", blind, max_actions)
         for row, k in enumerate(idx):
             inst = episodes.instances[k]
-            off = world.offset[episodes.maze[k]]
+            off = world.offset[episodes.geometry.maze[k]]
             moves = int(((roll.actions[row] >= 0) & (roll.actions[row] != STOP)).sum())
             local = roll.nodes[row, : moves + 1] - off
             graph = bench.graph(inst.run)
-            score = score_trajectory(graph, local, int(episodes.goal_node[k] - off))
+            score = score_trajectory(graph, local, int(episodes.geometry.goal_node[k] - off))
             sx, sy = graph.nodes[local[0]]
             results.append(
                 EpisodeResult(
@@ -59,7 +59,7 @@ def evaluate_agent(
                     seed=seed,
                     start_x=float(sx),
                     start_y=float(sy),
-                    start_heading=float(heading_angle(int(episodes.start_heading[k]))),
+                    start_heading=float(heading_angle(int(episodes.geometry.start_heading[k]))),
                     goal_x=float(inst.target_pose[0]),
                     goal_y=float(inst.target_pose[1]),
                     td=score.td,

@@ -81,7 +81,7 @@ def run_episodes(
     ctx, ctx_mask, state = agent.encode(tokens, lengths)
 
     stepper = BatchStepper(world, b, max_actions=max_actions)
-    episodes.start(stepper, idx)
+    episodes.geometry.start(stepper, idx)
     node = stepper.node
     start_dist = np.maximum(stepper.td, 1e-6)
     prev = torch.full((b,), START, dtype=torch.long)

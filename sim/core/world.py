@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike, DTypeLike
 from sim.core.cache import ARRAYS_SUFFIX, load_arrays, save_arrays
 from sim.core.cache import cache_dir as default_cache_dir
 from sim.core.geometry import HEADINGS
-from sim.core.stepper import Moves
+from sim.core.stepper import BatchStepper, Moves
 
 if TYPE_CHECKING:
     from sim.core.maze import Maze
@@ -256,3 +256,14 @@ class EpisodeGeometry:
 
     def __len__(self) -> int:
         return len(self.maze)
+
+    def start(self, stepper: BatchStepper, episodes: np.ndarray) -> None:
+        """Start `episodes` (indices into these) in `stepper`'s positions 0, 1, ..., one each."""
+        stepper.start(
+            np.arange(len(episodes)),
+            self.start_node[episodes],
+            self.start_heading[episodes],
+            self.goal_node[episodes],
+            self.goal_dist[episodes],
+            self.goal_next[episodes],
+        )

@@ -113,14 +113,7 @@ def evaluate_baselines(
     inst = np.array([k for k, _, _ in order], dtype=np.int64)
     agent = np.array([name for _, name, _ in order])
     stepper = BatchStepper(world, len(order), record=True)
-    stepper.start(
-        np.arange(len(order)),
-        geometry.start_node[inst],
-        geometry.start_heading[inst],
-        geometry.goal_node[inst],
-        geometry.goal_dist[inst],
-        geometry.goal_next[inst],
-    )
+    geometry.start(stepper, inst)
     stop, shortest, random = (np.flatnonzero(agent == name) for name in ("stop", "shortest", "random"))
     draws = (
         _RandomDraws([episode_seed(seed, instances[k].inst_idx) for k, name, seed in order if name == "random"])

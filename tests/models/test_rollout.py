@@ -28,7 +28,7 @@ def test_batched_teacher_matches_the_simulator_teacher(bench, few):
     rng = np.random.default_rng(0)
     for k, inst in enumerate(few["train"]):
         graph = bench.graph(inst.run)
-        off = world.offset[eps.maze[k]]
+        off = world.offset[eps.geometry.maze[k]]
         nodes = rng.integers(0, graph.n, 200)
         headings = rng.integers(0, 8, 200)
         goal = goal_node(graph, inst)
@@ -38,12 +38,12 @@ def test_batched_teacher_matches_the_simulator_teacher(bench, few):
             np.arange(200),
             nodes + off,
             headings,
-            np.full(200, eps.goal_node[k]),
-            eps.goal_dist[[k] * 200],
-            eps.goal_next[[k] * 200],
+            np.full(200, eps.geometry.goal_node[k]),
+            eps.geometry.goal_dist[[k] * 200],
+            eps.geometry.goal_next[[k] * 200],
         )
         assert (stepper.teacher_actions() == expected).all()
-        assert eps.start_node[k] - off == episode_start(graph, inst).node
+        assert eps.geometry.start_node[k] - off == episode_start(graph, inst).node
 
 
 def test_teacher_forcing_reaches_every_goal_and_stops_there(few):
@@ -51,7 +51,7 @@ def test_teacher_forcing_reaches_every_goal_and_stops_there(few):
     agent = Seq2SeqAgent(AgentConfig(vocab_size=len(few["tokenizer"]), obs_features=world.obs_features))
     idx = np.arange(len(eps))
     roll = run_episodes(agent, world, eps, idx, "teacher")
-    assert (roll.final_node == eps.goal_node).all()
+    assert (roll.final_node == eps.geometry.goal_node).all()
     assert (goal_distance(world, eps, idx, roll.final_node) == 0).all()
 
 
@@ -82,7 +82,7 @@ def test_student_forcing_stops_only_at_the_goal_however_much_the_agent_wants_to(
     assert (greedy.steps == 1).all()  # evaluation lets it stop at once
     roll = run_episodes(agent, world, eps, idx, "student", generator=torch.Generator().manual_seed(1), max_actions=30)
     stopped = (roll.actions == STOP).any(axis=1)
-    assert (roll.final_node[stopped] == eps.goal_node[stopped]).all()
+    assert (roll.final_node[stopped] == eps.geometry.goal_node[stopped]).all()
     assert (~stopped).any() and (roll.steps[~stopped] == 30).all()  # elsewhere it had to go on
 
 
@@ -120,9 +120,9 @@ def test_rewards_are_the_metres_covered_in_forward_steps_and_a_bonus_for_stoppin
 
     world, eps = few["world"], few["train_set"]
     idx = np.array([0, 0, 0, 0])
-    goal = eps.goal_node[0]
-    off = world.offset[eps.maze[0]]
-    far = off + int(np.argmax(np.where(np.isfinite(eps.goal_dist[0]), eps.goal_dist[0], -1)))
+    goal = eps.geometry.goal_node[0]
+    off = world.offset[eps.geometry.maze[0]]
+    far = off + int(np.argmax(np.where(np.isfinite(eps.geometry.goal_dist[0]), eps.geometry.goal_dist[0], -1)))
     moved = world.forward[far][world.forward[far] >= 0][0]
     before = np.array([far, far, goal, far])
     after = np.array([moved, far, goal, moved])
@@ -176,7 +176,7 @@ def test_an_agent_with_a_critic_may_stop_anywhere_under_student_forcing(few):
     idx = np.arange(len(eps))
     roll = run_episodes(agent, world, eps, idx, "student", generator=torch.Generator().manual_seed(1), train=True)
     stopped = (roll.actions == STOP).any(axis=1)
-    assert (roll.final_node[stopped] != eps.goal_node[stopped]).any()  # untrained: stops short
+    assert (roll.final_node[stopped] != eps.geometry.goal_node[stopped]).any()  # untrained: stops short
     assert torch.isfinite(roll.loss)
     roll.loss.backward()
     assert agent.value.weight.grad.abs().sum() > 0  # the critic learns from the returns
@@ -195,7 +195,7 @@ def test_guided_episodes_follow_the_teacher_and_teach_only_the_cross_entropy_and
     teacher = run_episodes(agent, world, eps, idx, "teacher")
     half = len(idx) // 2
     assert (roll.actions[:half] == teacher.actions[:half]).all()  # the first half is guided
-    assert (roll.final_node[:half] == eps.goal_node[:half]).all()
+    assert (roll.final_node[:half] == eps.geometry.goal_node[:half]).all()
     assert (roll.actions[half:] != teacher.actions[half:]).any()  # the rest is the student's
 
     all_guided = run_episodes(agent, world, eps, idx, "student", generator=gen, train=True, guided_share=1.0)
@@ -273,7 +273,7 @@ def test_next_slots_are_where_each_move_leads(few):
     idx = np.arange(len(eps))
     for action in (FORWARD, LEFT, RIGHT):
         stepper = BatchStepper(world, len(idx))
-        eps.start(stepper, idx)
+        eps.geometry.start(stepper, idx)
         expected = stepper.next_slots()[:, action]
         stepper.step(np.full(len(idx), action))
         assert (stepper.slot == expected).all()
