@@ -14,7 +14,7 @@ from app.db.models import AnnotationAssignment, Experimenter, Participant, Trial
 from app.security import AccountRole, hash_password
 from app.study.config import StudyFiles, template
 from bench.live import make_trial
-from tests.app.live import ServerThread, browser, cli, experimenter_client, page_csrf_token, submit_login
+from tests.app.live import browser, cli, experimenter_client, page_csrf_token, submit_login
 
 PASSWORD = "annotate well"
 
@@ -74,39 +74,37 @@ def post(client, trial_id: int, **data):
     return client.post(f"/annotate/trials/{trial_id}", data={"csrf_token": page_csrf_token(page.text), **data})
 
 
-def test_annotations_survive_a_restart_with_their_revisions(any_db_settings):
-    settings = any_db_settings
-    with ServerThread(settings) as server:
-        trial = make_trial(server.services, server.services.mazes.names()[0])
-        ann = add_annotator(server, "ann", trial)
-        client, _ = annotator_browser(server, "ann")
-        assert post(client, trial, action="cut", cut="0").status_code == 200
-        assert post(client, trial, action="cut", cut="0").status_code == 200  # a revision, kept beside the first
-        assert post(client, trial, action="tag", tag="surrender_control", anchor="0").status_code == 422  # no message 0
-        assert post(client, trial, action="tag", free_tag="Landmark naming").status_code == 200  # none anchored
-        assert post(client, trial, action="cut", cut="3").status_code == 422  # the trial has no messages yet
-    with ServerThread(settings) as server:
-        client, queue = annotator_browser(server, "ann")
-        assert (
-            f"trial {trial}" in queue.text and "in progress" in queue.text and "0 of 1 trials submitted" in queue.text
-        )
-        records = AnnotationLog(server.services.db).records(trial)
-        assert [(r.annotator_id, r.event) for r in records] == [
-            (ann, CutMarked(message=0)),
-            (ann, CutMarked(message=0)),
-            (ann, Tagged(tag="landmark naming", messages=[])),
-        ]
-        assert records[1].revises == records[0].id and records[0].revises is None and records[0].t_ns > 0
-        page = client.get(f"/annotate/trials/{trial}").text
-        assert "localized after message 0" in page
-        assert (
-            client.post(
-                f"/annotate/trials/{trial}", data={"csrf_token": page_csrf_token(page), "action": "submit"}
-            ).status_code
-            == 200
-        )
-        assert "1 of 1 trials submitted" in client.get("/annotate").text
-        assert AnnotationLog(server.services.db).state(trial).by_annotator[ann].submitted
+def test_annotations_survive_a_restart_with_their_revisions(any_db_settings, start_server):
+    server = start_server(any_db_settings)
+    trial = make_trial(server.services, server.services.mazes.names()[0])
+    ann = add_annotator(server, "ann", trial)
+    client, _ = annotator_browser(server, "ann")
+    assert post(client, trial, action="cut", cut="0").status_code == 200
+    assert post(client, trial, action="cut", cut="0").status_code == 200  # a revision, kept beside the first
+    assert post(client, trial, action="tag", tag="surrender_control", anchor="0").status_code == 422  # no message 0
+    assert post(client, trial, action="tag", free_tag="Landmark naming").status_code == 200  # none anchored
+    assert post(client, trial, action="cut", cut="3").status_code == 422  # the trial has no messages yet
+    server.stop()
+    server = start_server(any_db_settings)  # again, on the same database
+    client, queue = annotator_browser(server, "ann")
+    assert f"trial {trial}" in queue.text and "in progress" in queue.text and "0 of 1 trials submitted" in queue.text
+    records = AnnotationLog(server.services.db).records(trial)
+    assert [(r.annotator_id, r.event) for r in records] == [
+        (ann, CutMarked(message=0)),
+        (ann, CutMarked(message=0)),
+        (ann, Tagged(tag="landmark naming", messages=[])),
+    ]
+    assert records[1].revises == records[0].id and records[0].revises is None and records[0].t_ns > 0
+    page = client.get(f"/annotate/trials/{trial}").text
+    assert "localized after message 0" in page
+    assert (
+        client.post(
+            f"/annotate/trials/{trial}", data={"csrf_token": page_csrf_token(page), "action": "submit"}
+        ).status_code
+        == 200
+    )
+    assert "1 of 1 trials submitted" in client.get("/annotate").text
+    assert AnnotationLog(server.services.db).state(trial).by_annotator[ann].submitted
 
 
 def test_an_annotator_sees_no_names_and_no_experimenter_page(server, trial):

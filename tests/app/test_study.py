@@ -23,7 +23,6 @@ from app.trial.events import LoggedEvent
 from app.trial.setup import create_team, create_trial
 from bench.live import SeatClient, ServerProcess
 from tests.app.live import (
-    ServerThread,
     browser,
     experimenter_client,
     open_seats,
@@ -263,10 +262,9 @@ def test_newcomers_practise_together_on_the_bundled_maze_set_aside_from_scores(s
     assert trial.maze != "gen-000" and trial.excluded_reason is None
 
 
-def test_lobby_pairs_whoever_arrives_on_unseen_layouts_with_roles_balanced(any_db_settings):
+def test_lobby_pairs_whoever_arrives_on_unseen_layouts_with_roles_balanced(any_db_settings, start_server):
     """On SQLite and on PostgreSQL (the lobby's times come back with and without their zone)."""
-    with ServerThread(any_db_settings) as server:
-        lobby_rounds(server)
+    lobby_rounds(start_server(any_db_settings))
 
 
 def lobby_rounds(server) -> None:

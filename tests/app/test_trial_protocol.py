@@ -13,7 +13,6 @@ from sqlalchemy import select
 
 from app.db.models import Event, Frame, Trial
 from bench.live import SeatClient, make_trial
-from tests.app.live import ServerThread
 from tests.app.trial_play import claim_and_decide, drive_to_target, move, start_trial
 
 
@@ -21,79 +20,79 @@ def first_maze(services) -> str:
     return services.mazes.names()[0]
 
 
-def test_full_trial_from_links_to_leaderboard(any_db_settings):
-    with ServerThread(any_db_settings) as server:
-        services = server.services
-        trial_id = make_trial(services, first_maze(services), targets=("paddle", "mug", "jar"), team="Owls")
-        tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+def test_full_trial_from_links_to_leaderboard(any_db_settings, start_server):
+    server = start_server(any_db_settings)
+    services = server.services
+    trial_id = make_trial(services, first_maze(services), targets=("paddle", "mug", "jar"), team="Owls")
+    tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
 
-        async def play():
-            async with (
-                SeatClient(server.ws_url, tokens["commander"]) as commander,
-                SeatClient(server.ws_url, tokens["driver"]) as driver,
-            ):
-                await start_trial(commander, driver)
-                # Chat goes both ways; the first frame reaches the Driver.
-                await commander.send("chat", text="I see a blue wall on my map. What do you see?")
-                await driver.event("chat", role="commander")
-                await driver.send("chat", text="A red wall straight ahead.")
-                await commander.event("chat", role="driver")
-                # The Driver sees the camera from the start: in the welcome, or right after it.
-                welcome = await driver.wait_for(lambda m: m.get("type") == "welcome")
-                first = welcome["frame"] if "frame" in welcome else await driver.event("frame")
-                assert first["jpeg"]
-                executed = await move(driver, "left")
-                await driver.event("frame", start=driver.received.index(executed))
-                # The Commander's first mark ends localization.
-                await commander.send("localize", x=1.2, y=1.0, heading=0.5)
-                await driver.event("phase", phase="navigating", target_index=0)
-                for index in range(3):
-                    await drive_to_target(services, trial_id, driver)
-                    if index == 0:  # a wrong call first: rejected, and the trial goes on
-                        await claim_and_decide(commander, driver, confirm=False)
-                    claimed = await claim_and_decide(commander, driver, confirm=True)
-                    assert claimed["claim"]["jpeg"], "the Commander sees the Driver's frame at a claim"
-                await commander.event("phase", phase="finished")
-                return commander, driver
+    async def play():
+        async with (
+            SeatClient(server.ws_url, tokens["commander"]) as commander,
+            SeatClient(server.ws_url, tokens["driver"]) as driver,
+        ):
+            await start_trial(commander, driver)
+            # Chat goes both ways; the first frame reaches the Driver.
+            await commander.send("chat", text="I see a blue wall on my map. What do you see?")
+            await driver.event("chat", role="commander")
+            await driver.send("chat", text="A red wall straight ahead.")
+            await commander.event("chat", role="driver")
+            # The Driver sees the camera from the start: in the welcome, or right after it.
+            welcome = await driver.wait_for(lambda m: m.get("type") == "welcome")
+            first = welcome["frame"] if "frame" in welcome else await driver.event("frame")
+            assert first["jpeg"]
+            executed = await move(driver, "left")
+            await driver.event("frame", start=driver.received.index(executed))
+            # The Commander's first mark ends localization.
+            await commander.send("localize", x=1.2, y=1.0, heading=0.5)
+            await driver.event("phase", phase="navigating", target_index=0)
+            for index in range(3):
+                await drive_to_target(services, trial_id, driver)
+                if index == 0:  # a wrong call first: rejected, and the trial goes on
+                    await claim_and_decide(commander, driver, confirm=False)
+                claimed = await claim_and_decide(commander, driver, confirm=True)
+                assert claimed["claim"]["jpeg"], "the Commander sees the Driver's frame at a claim"
+            await commander.event("phase", phase="finished")
+            return commander, driver
 
-        commander, driver = asyncio.run(play())
-        deadline = time.time() + 5
-        while services.hub.peek(trial_id) is not None:  # over, and both seats gone
-            assert time.time() < deadline, "a finished trial with no seats stays in the hub"
-            time.sleep(0.05)
+    commander, driver = asyncio.run(play())
+    deadline = time.time() + 5
+    while services.hub.peek(trial_id) is not None:  # over, and both seats gone
+        assert time.time() < deadline, "a finished trial with no seats stays in the hub"
+        time.sleep(0.05)
 
-        # The Commander never got a camera frame, a move or the true pose; the Driver never
-        # the Commander's localization; neither the simulator's ground truth.
-        assert not commander.kinds() & {"frame", "pose", "move_executed", "move_requested"}
-        assert not any("frame" in m for m in commander.received if m.get("type") == "welcome")
-        assert not driver.kinds() & {"pose", "localization", "move_requested"}
-        for m in commander.received + driver.received:
-            if m.get("kind") in ("target_confirmed", "target_rejected"):
-                assert "within_m" not in m["payload"] and "truly_within" not in m["payload"]
-        assert driver.kinds() >= {"frame", "move_executed", "chat", "target_confirmed"}
+    # The Commander never got a camera frame, a move or the true pose; the Driver never
+    # the Commander's localization; neither the simulator's ground truth.
+    assert not commander.kinds() & {"frame", "pose", "move_executed", "move_requested"}
+    assert not any("frame" in m for m in commander.received if m.get("type") == "welcome")
+    assert not driver.kinds() & {"pose", "localization", "move_requested"}
+    for m in commander.received + driver.received:
+        if m.get("kind") in ("target_confirmed", "target_rejected"):
+            assert "within_m" not in m["payload"] and "truly_within" not in m["payload"]
+    assert driver.kinds() >= {"frame", "move_executed", "chat", "target_confirmed"}
 
-        with services.db() as db:
-            events = db.scalars(select(Event).where(Event.trial_id == trial_id).order_by(Event.seq)).all()
-            frames = db.scalars(select(Frame).where(Frame.trial_id == trial_id)).all()
-            trial = db.get(Trial, trial_id)
-        assert [e.seq for e in events] == list(range(1, len(events) + 1))
-        assert all(a.t_ns < b.t_ns for a, b in zip(events, events[1:])), "one clock, strictly increasing per trial"
-        confirmed = [e.payload for e in events if e.kind == "target_confirmed"]
-        assert [c["target"] for c in confirmed] == ["paddle", "mug", "jar"]
-        assert all(c["truly_within"] and c["within_m"] <= 0.508 for c in confirmed)
-        assert [e.payload["target"] for e in events if e.kind == "target_rejected"] == ["paddle"]
-        frame_events = [e for e in events if e.kind == "frame"]
-        assert len(frames) == len(frame_events) > 3
-        for f in frames:
-            assert (any_db_settings.frames_dir / f.path).read_bytes()[:2] == b"\xff\xd8"  # a JPEG on disk
-        assert trial.phase == "finished" and trial.moves == sum(
-            1 for e in events if e.kind == "move_executed" and e.payload["outcome"] != "refused"
-        )
+    with services.db() as db:
+        events = db.scalars(select(Event).where(Event.trial_id == trial_id).order_by(Event.seq)).all()
+        frames = db.scalars(select(Frame).where(Frame.trial_id == trial_id)).all()
+        trial = db.get(Trial, trial_id)
+    assert [e.seq for e in events] == list(range(1, len(events) + 1))
+    assert all(a.t_ns < b.t_ns for a, b in zip(events, events[1:])), "one clock, strictly increasing per trial"
+    confirmed = [e.payload for e in events if e.kind == "target_confirmed"]
+    assert [c["target"] for c in confirmed] == ["paddle", "mug", "jar"]
+    assert all(c["truly_within"] and c["within_m"] <= 0.508 for c in confirmed)
+    assert [e.payload["target"] for e in events if e.kind == "target_rejected"] == ["paddle"]
+    frame_events = [e for e in events if e.kind == "frame"]
+    assert len(frames) == len(frame_events) > 3
+    for f in frames:
+        assert (any_db_settings.frames_dir / f.path).read_bytes()[:2] == b"\xff\xd8"  # a JPEG on disk
+    assert trial.phase == "finished" and trial.moves == sum(
+        1 for e in events if e.kind == "move_executed" and e.payload["outcome"] != "refused"
+    )
 
-        page = httpx.get(server.url + "/leaderboard").text
-        assert "Owls" in page
-        expected = trial.active_s + any_db_settings.move_penalty_s * trial.moves
-        assert f"{expected:.1f}" in page
+    page = httpx.get(server.url + "/leaderboard").text
+    assert "Owls" in page
+    expected = trial.active_s + any_db_settings.move_penalty_s * trial.moves
+    assert f"{expected:.1f}" in page
 
 
 def test_seat_pages_show_only_their_own_view(server, seats):
