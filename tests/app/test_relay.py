@@ -129,3 +129,39 @@ def test_login_attempts_count_on_every_process(cluster):
     assert [submit_login(browser(first.url), "eve", "guess").status_code for _ in range(3)] == [401] * 3
     limited = submit_login(browser(second.url), "eve", "correct horse")
     assert limited.status_code == 429 and "too many login attempts" in limited.text
+
+
+def test_either_process_dashboard_lists_every_live_trial(cluster):
+    first, second = cluster
+    trial_id = make_trial(first.services, first.services.mazes.names()[0])
+    tokens = {r: first.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+    experimenter = experimenter_client(second.services, second.url)
+
+    def listed() -> dict[int, dict]:
+        trials = experimenter.get("/experimenter/api/trials").json()["trials"]
+        return {row["trial_id"]: row for row in trials}
+
+    async def until_listed(moves: int) -> dict:
+        for _ in range(100):  # each process publishes its trials once a second
+            row = (await asyncio.to_thread(listed)).get(trial_id)
+            if row is not None and row["moves"] == moves:
+                return row
+            await asyncio.sleep(0.1)
+        raise AssertionError(f"trial {trial_id} with {moves} moves never listed by the other process")
+
+    async def play():
+        async with (
+            SeatClient(first.ws_url, tokens["commander"]) as commander,
+            SeatClient(first.ws_url, tokens["driver"]) as driver,
+        ):
+            await start_trial(commander, driver)
+            assert second.services.hub.peek(trial_id) is None  # it runs in the first process alone
+            await move(driver, "left")
+            return await until_listed(moves=1)
+
+    row = asyncio.run(play())
+    assert row["phase"] == "localizing" and row["maze"] == first.services.mazes.names()[0]
+    assert row["seats"] == {"commander": True, "driver": True}
+    assert row["pose"] is not None  # the experimenter's view: the true pose, as on its own process
+    first.stop()  # its trials leave the other process's dashboard with it
+    assert trial_id not in listed()
