@@ -36,7 +36,7 @@ from sim.agents.turns import (
     TurnKind,
 )
 from sim.robot.perception import RayObservation
-from tests.app.live import ServerThread, cli, experimenter_client, platform_settings
+from tests.app.live import cli, experimenter_client
 from tests.app.rover_lab import MAZE, START_S, TARGETS
 
 PRIVILEGED = {"pose", "x", "y", "heading", "maze", "graph", "map", "target", "targets", "true_pose", "belief"}
@@ -262,56 +262,55 @@ def test_the_cli_lists_the_drivers_and_the_agent_caps(tmp_path):
 
 @pytest.mark.slow
 def test_on_a_virtual_rover_the_agent_sees_rays_perceived_from_its_frames_and_nothing_privileged(
-    tmp_path, start, camera_calibration
+    tmp_path, start, camera_calibration, start_server
 ):
     """The same seat on `robotslang robot virtual` (a process on loopback): no simulator rays to
     hand over, so the seat perceives each frame's rays itself with the Driver camera's calibration."""
     inputs: list = []
     register_driver("agent:test-recording-rover", lambda services, seating: RecordingDialogDriver(seating, inputs))
-    settings = platform_settings(tmp_path, camera_calibration=camera_calibration)
-    with ServerThread(settings) as server:
-        services = server.services
-        with services.db.begin() as db:
-            robot, token = create_robot(db, "rover for the agent", "driver")
-            robot_id = robot.id
-        trial_id = make_trial(
-            services, MAZE, targets=TARGETS, backend=f"robot:{robot_id}", driver="agent:test-recording-rover"
+    server = start_server(camera_calibration=camera_calibration)
+    services = server.services
+    with services.db.begin() as db:
+        robot, token = create_robot(db, "rover for the agent", "driver")
+        robot_id = robot.id
+    trial_id = make_trial(
+        services, MAZE, targets=TARGETS, backend=f"robot:{robot_id}", driver="agent:test-recording-rover"
+    )
+    with open(tmp_path / "rover.log", "w") as log:
+        rover = subprocess.Popen(
+            [sys.executable, "-c", "from app.cli import main; main()", "robot", "virtual"]
+            + ["--server", server.url, "--token", token, "--maze", MAZE, "--seed", "4", "--fps", "5"]
+            + ["--start", f"{start.x},{start.y},{start.theta}"],
+            cwd=REPO,
+            stdout=log,
+            stderr=subprocess.STDOUT,
         )
-        with open(tmp_path / "rover.log", "w") as log:
-            rover = subprocess.Popen(
-                [sys.executable, "-c", "from app.cli import main; main()", "robot", "virtual"]
-                + ["--server", server.url, "--token", token, "--maze", MAZE, "--seed", "4", "--fps", "5"]
-                + ["--start", f"{start.x},{start.y},{start.theta}"],
-                cwd=REPO,
-                stdout=log,
-                stderr=subprocess.STDOUT,
-            )
-        try:
+    try:
 
-            async def command():
-                async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
-                    await commander.event("phase", phase="localizing", timeout=START_S)
-                    runtime = services.hub.peek(trial_id)
-                    for _ in range(round(START_S / 0.05)):  # the rover's first frame, as a person waits for it
-                        if runtime.state.last_frame_id is not None:
-                            break
-                        await asyncio.sleep(0.05)
-                    begun = len(commander.received)
-                    await commander.send("chat", text="what do you see?")
-                    await commander.event("chat", role="driver", start=begun, timeout=START_S)
-                    await commander.send("localize", x=start.x, y=start.y)
-                    await commander.event("phase", phase="navigating")
-                    localizing = len(events_of(services, trial_id, "move_executed"))
-                    begun = len(commander.received)
-                    await commander.send("chat", text="turn left")
-                    await commander.event("chat", role="driver", start=begun, timeout=START_S)
-                    return localizing
+        async def command():
+            async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+                await commander.event("phase", phase="localizing", timeout=START_S)
+                runtime = services.hub.peek(trial_id)
+                for _ in range(round(START_S / 0.05)):  # the rover's first frame, as a person waits for it
+                    if runtime.state.last_frame_id is not None:
+                        break
+                    await asyncio.sleep(0.05)
+                begun = len(commander.received)
+                await commander.send("chat", text="what do you see?")
+                await commander.event("chat", role="driver", start=begun, timeout=START_S)
+                await commander.send("localize", x=start.x, y=start.y)
+                await commander.event("phase", phase="navigating")
+                localizing = len(events_of(services, trial_id, "move_executed"))
+                begun = len(commander.received)
+                await commander.send("chat", text="turn left")
+                await commander.event("chat", role="driver", start=begun, timeout=START_S)
+                return localizing
 
-            localizing = asyncio.run(command())
-            moves = events_of(services, trial_id, "move_executed")
-        finally:
-            rover.terminate()
-            rover.wait(timeout=20)
+        localizing = asyncio.run(command())
+        moves = events_of(services, trial_id, "move_executed")
+    finally:
+        rover.terminate()
+        rover.wait(timeout=20)
     # Asked what it sees, it may look around, turning in place; then it turns left as told.
     assert all(m["action"] != "forward" for m in moves[:localizing])
     assert [m["action"] for m in moves[localizing:]] == ["left", "left"]

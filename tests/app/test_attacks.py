@@ -29,7 +29,6 @@ from bench.live import REPO, SeatClient, ServerProcess, make_trial
 from robot_client.protocol import pack_frame
 from tests.app.live import (
     PASSWORD,
-    ServerThread,
     add_experimenter,
     experimenter_client,
     log_in,
@@ -139,33 +138,33 @@ def test_guessing_locks_out_the_guesser_not_the_experimenter(server):
 
 
 # -- a flood of chat -------------------------------------------------------------------
-def test_a_flood_of_chat_from_one_seat_is_rate_limited_and_nothing_accepted_is_lost(settings):
+def test_a_flood_of_chat_from_one_seat_is_rate_limited_and_nothing_accepted_is_lost(settings, server):
     flood = 1000
-    with ServerThread(settings) as server:
-        trial_id = make_trial(server.services, server.services.mazes.names()[0])
-        tokens = {r: server.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+    trial_id = make_trial(server.services, server.services.mazes.names()[0])
+    tokens = {r: server.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
 
-        async def attack() -> tuple[list[dict], list[dict], float]:
-            async with (
-                SeatClient(server.ws_url, tokens["commander"]) as commander,
-                SeatClient(server.ws_url, tokens["driver"]) as driver,
-            ):
-                await start_trial(commander, driver)
-                await driver.send("chat", text="before the flood")
-                await commander.event("chat", text="before the flood")
-                start, began = len(commander.received), time.monotonic()
-                for i in range(flood):
-                    await commander.send("chat", text=f"flood {i}")
-                # A seat's messages are handled in order: once this is heard, so was the flood
-                # (sent again while the server, still at the flood, refuses it).
-                for _ in range(30):
-                    await commander.send("chat", text="after the flood")
-                    with contextlib.suppress(AssertionError):
-                        await driver.event("chat", text="after the flood", timeout=2)
-                        break
-                return commander.received[start:], driver.received, time.monotonic() - began
+    async def attack() -> tuple[list[dict], list[dict], float]:
+        async with (
+            SeatClient(server.ws_url, tokens["commander"]) as commander,
+            SeatClient(server.ws_url, tokens["driver"]) as driver,
+        ):
+            await start_trial(commander, driver)
+            await driver.send("chat", text="before the flood")
+            await commander.event("chat", text="before the flood")
+            start, began = len(commander.received), time.monotonic()
+            for i in range(flood):
+                await commander.send("chat", text=f"flood {i}")
+            # A seat's messages are handled in order: once this is heard, so was the flood
+            # (sent again while the server, still at the flood, refuses it).
+            for _ in range(30):
+                await commander.send("chat", text="after the flood")
+                with contextlib.suppress(AssertionError):
+                    await driver.event("chat", text="after the flood", timeout=2)
+                    break
+            return commander.received[start:], driver.received, time.monotonic() - began
 
-        to_commander, to_driver, took_s = asyncio.run(attack())
+    to_commander, to_driver, took_s = asyncio.run(attack())
+    server.stop()  # what it still had to record is recorded
     logged = chats(server, trial_id)
     flood_logged = [text for text in logged if text.startswith("flood ")]
     # The burst went through, then at most the rate; what was refused is nowhere in the log.

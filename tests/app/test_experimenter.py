@@ -12,7 +12,7 @@ from sqlalchemy import create_engine, inspect, select
 
 from app.db.models import Trial
 from app.main import build_services, ensure_experimenter
-from tests.app.live import ServerThread, browser, cli, experimenter_client, open_seats, submit_login
+from tests.app.live import browser, cli, experimenter_client, open_seats, submit_login
 
 
 def test_first_start_creates_admin_once(settings):
@@ -24,7 +24,7 @@ def test_first_start_creates_admin_once(settings):
 
 
 @pytest.mark.slow
-def test_admin_create_and_db_upgrade_commands(tmp_path):
+def test_admin_create_and_db_upgrade_commands(tmp_path, start_server):
     env = {"ROBOTSLANG_DATA_DIR": str(tmp_path / "var"), "ROBOTSLANG_SECRET_KEY": "k"}
     done = cli("db", "upgrade", env=env)
     assert done.returncode == 0, done.stderr
@@ -39,11 +39,11 @@ def test_admin_create_and_db_upgrade_commands(tmp_path):
 
     from app.settings import Settings
 
-    with ServerThread(Settings(data_dir=tmp_path / "var", secret_key="k")) as server:
-        client = browser(server.url)
-        bad = submit_login(client, "alice", "wrong")
-        assert bad.status_code == 401 and "wrong password" in bad.text
-        assert "Participants" in submit_login(client, "bob", "another-pass").text
+    server = start_server(Settings(data_dir=tmp_path / "var", secret_key="k"))  # as the commands set it
+    client = browser(server.url)
+    bad = submit_login(client, "alice", "wrong")
+    assert bad.status_code == 401 and "wrong password" in bad.text
+    assert "Participants" in submit_login(client, "bob", "another-pass").text
 
 
 def test_experimenter_forms_make_a_trial_with_join_links(server):

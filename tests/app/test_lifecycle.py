@@ -15,7 +15,7 @@ from app.backends.remote import create_robot
 from app.db.models import Participant, Robot, Team, Trial
 from app.demo.runner import Demo
 from bench.live import REPO, SeatClient, make_trial
-from tests.app.live import ServerThread, experimenter_client, open_seats, platform_settings
+from tests.app.live import experimenter_client, open_seats
 from tests.app.trial_play import claim_and_decide, drive_to_target, start_trial
 
 
@@ -85,24 +85,24 @@ def test_a_participant_is_in_one_live_trial_at_a_time(server):
         assert [t.phase for t in db.query(Trial).order_by(Trial.id)] == ["aborted", "waiting"]
 
 
-def test_an_excluded_trial_leaves_the_leaderboard_and_exports_and_its_replay_says_why(tmp_path):
-    settings = platform_settings(tmp_path)
+def test_an_excluded_trial_leaves_the_leaderboard_and_exports_and_its_replay_says_why(settings, start_server, tmp_path):
     (done,) = asyncio.run(Demo(settings, seed=3, pace_s=0.0).run(1))
     assert done.phase == "finished"
-    with ServerThread(settings) as server:
-        client = experimenter_client(server.services, server.url)
-        team = f"demo team {1}"
-        assert team in client.get("/leaderboard").text
-        page = client.post(f"/experimenter/trials/{done.trial_id}/exclude", data={"reason": "  "}).text
-        assert "give a reason for excluding the trial" in page
-        reason = "the Driver's partner helped by phone"
-        client.post(f"/experimenter/trials/{done.trial_id}/exclude", data={"reason": reason, "back": "replay"})
-        assert team not in client.get("/leaderboard").text
-        replay = html.unescape(client.get(f"/experimenter/trials/{done.trial_id}/replay").text)
-        assert f"Excluded from the leaderboard and exports: {reason}" in replay
-        log = client.get(f"/experimenter/trials/{done.trial_id}/replay.json").json()
-        assert log["trial"]["excluded"] == reason and log["events"][-1]["kind"] == "phase"  # the log is kept
-        assert f"(excluded: {reason})" in html.unescape(client.get("/experimenter").text)
+    server = start_server()  # on the demo's database
+    client = experimenter_client(server.services, server.url)
+    team = f"demo team {1}"
+    assert team in client.get("/leaderboard").text
+    page = client.post(f"/experimenter/trials/{done.trial_id}/exclude", data={"reason": "  "}).text
+    assert "give a reason for excluding the trial" in page
+    reason = "the Driver's partner helped by phone"
+    client.post(f"/experimenter/trials/{done.trial_id}/exclude", data={"reason": reason, "back": "replay"})
+    assert team not in client.get("/leaderboard").text
+    replay = html.unescape(client.get(f"/experimenter/trials/{done.trial_id}/replay").text)
+    assert f"Excluded from the leaderboard and exports: {reason}" in replay
+    log = client.get(f"/experimenter/trials/{done.trial_id}/replay.json").json()
+    assert log["trial"]["excluded"] == reason and log["events"][-1]["kind"] == "phase"  # the log is kept
+    assert f"(excluded: {reason})" in html.unescape(client.get("/experimenter").text)
+    server.stop()
     result = export(settings, "all", "--format", "ndh", "--out", str(tmp_path / "ndh"))
     assert result.returncode == 1 and "no finished trials (not excluded)" in result.stderr
 
@@ -193,21 +193,21 @@ def test_a_trial_whose_commander_never_loaded_the_map_restarts_on_the_same_layou
     assert layouts[newest.maze] != layouts[old.maze], "once the Commander loaded it, the layout counts as seen"
 
 
-def test_the_experimenters_notes_stay_on_the_experimenters_pages(tmp_path):
-    settings = platform_settings(tmp_path)
+def test_the_experimenters_notes_stay_on_the_experimenters_pages(settings, start_server, tmp_path):
     (done,) = asyncio.run(Demo(settings, seed=4, pace_s=0.0).run(1))
     notes = "Driver asked twice what a paddle is; lab door slammed at 3:10"
-    with ServerThread(settings) as server:
-        client = experimenter_client(server.services, server.url)
-        client.post(f"/experimenter/trials/{done.trial_id}/notes", data={"notes": notes, "back": "replay"})
-        assert notes in html.unescape(client.get(f"/experimenter/trials/{done.trial_id}").text)
-        assert notes in html.unescape(client.get(f"/experimenter/trials/{done.trial_id}/replay").text)
-        assert notes not in html.unescape(client.get("/leaderboard").text)
-        seat = server.services.seats.issue(done.trial_id, "commander")
-        assert notes not in html.unescape(client.get(f"/play/{seat}").text)
-        long = client.post(f"/experimenter/trials/{done.trial_id}/notes", data={"notes": "x" * 10_001})
-        assert long.status_code == 422
-        assert notes in html.unescape(client.get(f"/experimenter/trials/{done.trial_id}").text), "kept"
+    server = start_server()  # on the demo's database
+    client = experimenter_client(server.services, server.url)
+    client.post(f"/experimenter/trials/{done.trial_id}/notes", data={"notes": notes, "back": "replay"})
+    assert notes in html.unescape(client.get(f"/experimenter/trials/{done.trial_id}").text)
+    assert notes in html.unescape(client.get(f"/experimenter/trials/{done.trial_id}/replay").text)
+    assert notes not in html.unescape(client.get("/leaderboard").text)
+    seat = server.services.seats.issue(done.trial_id, "commander")
+    assert notes not in html.unescape(client.get(f"/play/{seat}").text)
+    long = client.post(f"/experimenter/trials/{done.trial_id}/notes", data={"notes": "x" * 10_001})
+    assert long.status_code == 422
+    assert notes in html.unescape(client.get(f"/experimenter/trials/{done.trial_id}").text), "kept"
+    server.stop()
     for fmt, out in (("ndh", tmp_path / "ndh"), ("mcap", tmp_path / "mcap")):
         assert export(settings, "all", "--format", fmt, "--out", str(out)).returncode == 0
         assert not any(notes.encode() in f.read_bytes() for f in out.rglob("*") if f.is_file()), fmt

@@ -23,7 +23,7 @@ from app.security import hash_password
 from bench.live import make_trial
 from sim.core.geometry import world_to_pixel
 from sim.core.labels import LABEL_BGR, OBJECT_LABELS
-from tests.app.live import ServerThread, platform_settings
+from tests.app.live import platform_settings
 
 HTML = {"Accept": "text/html,application/xhtml+xml"}
 
@@ -132,26 +132,26 @@ def test_an_agent_that_cannot_start_is_not_offered_and_is_refused_with_its_reaso
     assert "cannot start" in refused.text and "agent:seq2seq" in refused.text
 
 
-def test_replay_page_links_its_mcap_and_ndh_exports(tmp_path):
+def test_replay_page_links_its_mcap_and_ndh_exports(tmp_path, start_server):
     settings = platform_settings(tmp_path, min_move_interval_s=0.0)
     (result,) = asyncio.run(Demo(settings, seed=5, pace_s=0.0).run(1))
     assert result.phase == "finished"
-    with ServerThread(settings) as server:
-        client = log_in(server)
-        page = client.get(f"/experimenter/trials/{result.trial_id}/replay").text
-        mcap_url = re.search(r'id="export-mcap" href="([^"]+)"', page).group(1)
-        ndh_url = re.search(r'id="export-ndh" href="([^"]+)"', page).group(1)
-        log = client.get(f"/experimenter/trials/{result.trial_id}/replay.json").json()
+    server = start_server(settings)  # on the demo's database
+    client = log_in(server)
+    page = client.get(f"/experimenter/trials/{result.trial_id}/replay").text
+    mcap_url = re.search(r'id="export-mcap" href="([^"]+)"', page).group(1)
+    ndh_url = re.search(r'id="export-ndh" href="([^"]+)"', page).group(1)
+    log = client.get(f"/experimenter/trials/{result.trial_id}/replay.json").json()
 
-        mcap = client.get(mcap_url)
-        assert mcap.status_code == 200 and "attachment" in mcap.headers["content-disposition"]
-        (tmp_path / "t.mcap").write_bytes(mcap.content)
-        with open(tmp_path / "t.mcap", "rb") as stream:
-            messages = [m for _, c, m in make_reader(stream).iter_messages() if c.topic not in DERIVED_TOPICS]
-        assert len(messages) == len(log["events"])
+    mcap = client.get(mcap_url)
+    assert mcap.status_code == 200 and "attachment" in mcap.headers["content-disposition"]
+    (tmp_path / "t.mcap").write_bytes(mcap.content)
+    with open(tmp_path / "t.mcap", "rb") as stream:
+        messages = [m for _, c, m in make_reader(stream).iter_messages() if c.topic not in DERIVED_TOPICS]
+    assert len(messages) == len(log["events"])
 
-        ndh = json.loads(client.get(ndh_url).content)
-        assert [i["target"] for i in ndh["ndh"]] == log["trial"]["targets"]
-        assert len(ndh["ldh"]) == 1
-        assert client.get("/experimenter/trials/999/export.mcap").status_code == 404
-        assert httpx.get(server.url + mcap_url, follow_redirects=False).status_code == 303, "experimenters only"
+    ndh = json.loads(client.get(ndh_url).content)
+    assert [i["target"] for i in ndh["ndh"]] == log["trial"]["targets"]
+    assert len(ndh["ldh"]) == 1
+    assert client.get("/experimenter/trials/999/export.mcap").status_code == 404
+    assert httpx.get(server.url + mcap_url, follow_redirects=False).status_code == 303, "experimenters only"

@@ -21,7 +21,7 @@ from app.leaderboard import trial_score
 from app.trial import events as ev
 from app.trial.setup import create_trial, suggest_maze
 from bench.live import SeatClient, make_trial
-from tests.app.live import ServerThread, cli, experimenter_client, platform_settings
+from tests.app.live import cli, experimenter_client
 from tests.app.trial_play import claim_and_decide, drive_to_target, start_trial
 
 pytestmark = pytest.mark.slow
@@ -65,42 +65,42 @@ DIALOGS = [
 
 
 @pytest.fixture(scope="module")
-def study(tmp_path_factory):
+def study(start_module_server):
     """Three finished trials of study `pilot` (two by team Owls, one by Larks), played for real."""
-    tmp = tmp_path_factory.mktemp("study")
-    settings = platform_settings(tmp)
-    with ServerThread(settings) as server:
-        services = server.services
-        names = services.mazes.names()
-        first = make_trial(services, names[0], team="Owls")
-        asyncio.run(play(server, first, DIALOGS[0]))
-        layouts = services.mazes.layouts()
-        with services.db.begin() as db:
-            owls = db.scalar(select(Team).where(Team.name == "Owls"))
-            second = create_trial(
-                db,
-                team_id=owls.id,
-                maze=suggest_maze(db, owls, layouts),
-                targets=["jar", "mug", "paddle"],
-                backend="sim",
-                driver="human",
-                commander_id=owls.member_a_id,
-                layouts=layouts,
-                now_ns=services.clock.now_ns(),
-            ).id
-        asyncio.run(play(server, second, DIALOGS[1]))
-        third = make_trial(services, names[0], team="Larks")
-        asyncio.run(play(server, third, DIALOGS[2]))
-        ids = [first, second, third]
-        with services.db.begin() as db:
-            for trial_id in ids:
-                db.get(Trial, trial_id).study = STUDY
-        logs = {i: services.log.load(i) for i in ids}
+    server = start_module_server()
+    settings = server.settings
+    services = server.services
+    names = services.mazes.names()
+    first = make_trial(services, names[0], team="Owls")
+    asyncio.run(play(server, first, DIALOGS[0]))
+    layouts = services.mazes.layouts()
+    with services.db.begin() as db:
+        owls = db.scalar(select(Team).where(Team.name == "Owls"))
+        second = create_trial(
+            db,
+            team_id=owls.id,
+            maze=suggest_maze(db, owls, layouts),
+            targets=["jar", "mug", "paddle"],
+            backend="sim",
+            driver="human",
+            commander_id=owls.member_a_id,
+            layouts=layouts,
+            now_ns=services.clock.now_ns(),
+        ).id
+    asyncio.run(play(server, second, DIALOGS[1]))
+    third = make_trial(services, names[0], team="Larks")
+    asyncio.run(play(server, third, DIALOGS[2]))
+    ids = [first, second, third]
+    with services.db.begin() as db:
+        for trial_id in ids:
+            db.get(Trial, trial_id).study = STUDY
+    logs = {i: services.log.load(i) for i in ids}
+    server.stop()  # the tests' commands have the database to themselves
     env = {"ROBOTSLANG_DATA_DIR": str(settings.data_dir), "ROBOTSLANG_SECRET_KEY": "test-secret"}
     return settings, env, ids, logs
 
 
-def test_assign_agreement_and_the_adjudicated_cut_in_the_ldh_export(study, tmp_path):
+def test_assign_agreement_and_the_adjudicated_cut_in_the_ldh_export(study, tmp_path, start_server):
     settings, env, ids, logs = study
     for name in ("ann", "bob"):
         made = cli("admin", "create", name, "--role", "annotator", "--password", "annotate well", env=env)
@@ -167,16 +167,17 @@ def test_assign_agreement_and_the_adjudicated_cut_in_the_ldh_export(study, tmp_p
     printed = cli("report", "agreement", "--study", STUDY, env=env).stdout
     assert "kappa Communication Repair: 0.000" in printed and "mean 0.50 messages" in printed
 
-    with ServerThread(settings) as server:  # the experimenter's agreement page, and adjudication on it
-        client = experimenter_client(server.services, server.url)
-        page = html.unescape(client.get(f"/experimenter/annotation?study={STUDY}").text)
-        assert "2 trials annotated by two annotators." in page and "mean distance 0.50 messages" in page
-        assert '<tr data-tag="communication_repair"><td>Communication Repair</td><td class="k">0.000</td>' in page
-        assert f'data-trial="{d1}" data-item="cut"' in page
-        decided = client.post(
-            "/experimenter/annotation/adjudicate", data={"trial_id": d1, "item": "cut", "value": "3", "study": STUDY}
-        )
-        assert decided.status_code == 200 and "ann: 2; bob: 3" in html.unescape(decided.text)
+    server = start_server(settings)  # the experimenter's agreement page, and adjudication on it
+    client = experimenter_client(server.services, server.url)
+    page = html.unescape(client.get(f"/experimenter/annotation?study={STUDY}").text)
+    assert "2 trials annotated by two annotators." in page and "mean distance 0.50 messages" in page
+    assert '<tr data-tag="communication_repair"><td>Communication Repair</td><td class="k">0.000</td>' in page
+    assert f'data-trial="{d1}" data-item="cut"' in page
+    decided = client.post(
+        "/experimenter/annotation/adjudicate", data={"trial_id": d1, "item": "cut", "value": "3", "study": STUDY}
+    )
+    assert decided.status_code == 200 and "ann: 2; bob: 3" in html.unescape(decided.text)
+    server.stop()
     eve = AnnotationLog(sessions).records(d1)[-1]
     assert eve.event == Adjudicated(item="cut", value=3) and eve.annotator_id not in (account["ann"], account["bob"])
     result = json.loads(cli("report", "agreement", "--study", STUDY, "--json", env=env).stdout)

@@ -23,12 +23,10 @@ from app.security import SESSION_COOKIE, InvalidToken, Seat, SeatTokens
 from bench.live import REPO, SeatClient, make_trial
 from tests.app.live import (
     PASSWORD,
-    ServerThread,
     add_experimenter,
     browser,
     log_in,
     page_csrf_token,
-    platform_settings,
     submit_login,
 )
 from tests.app.trial_play import start_trial
@@ -208,8 +206,7 @@ def _scrypt_hash(password: str) -> str:
     return f"scrypt${salt.hex()}${hashlib.scrypt(password.encode(), salt=salt, n=2**14, r=8, p=1).hex()}"
 
 
-def test_a_database_from_0001_opens_and_old_password_hashes_upgrade_at_login(tmp_path):
-    settings = platform_settings(tmp_path)
+def test_a_database_from_0001_opens_and_old_password_hashes_upgrade_at_login(settings, start_server):
     engine = make_engine(settings)
     config = alembic_config(settings)
     with engine.begin() as connection:
@@ -220,15 +217,15 @@ def test_a_database_from_0001_opens_and_old_password_hashes_upgrade_at_login(tmp
             (_scrypt_hash(PASSWORD),),
         )
     engine.dispose()
-    with ServerThread(settings) as server:
-        assert submit_login(browser(server.url), "eve", "wrong").status_code == 401
-        with server.services.db() as db:
-            assert db.scalar(select(Experimenter.password_hash)).startswith("scrypt$"), "no upgrade on failure"
-        log_in(server.url, "eve", PASSWORD)
-        with server.services.db() as db:
-            upgraded = db.scalar(select(Experimenter.password_hash))
-        assert upgraded.startswith("$argon2id$v=19$m=") and ",t=" in upgraded, "parameters are in the hash"
-        log_in(server.url, "eve", PASSWORD)
+    server = start_server()  # on the database written above
+    assert submit_login(browser(server.url), "eve", "wrong").status_code == 401
+    with server.services.db() as db:
+        assert db.scalar(select(Experimenter.password_hash)).startswith("scrypt$"), "no upgrade on failure"
+    log_in(server.url, "eve", PASSWORD)
+    with server.services.db() as db:
+        upgraded = db.scalar(select(Experimenter.password_hash))
+    assert upgraded.startswith("$argon2id$v=19$m=") and ",t=" in upgraded, "parameters are in the hash"
+    log_in(server.url, "eve", PASSWORD)
 
 
 # -- sessions --------------------------------------------------------------------------

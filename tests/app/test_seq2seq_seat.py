@@ -15,7 +15,7 @@ from app.trial.setup import TrialSetupError
 from bench.live import SeatClient, make_trial
 from models.shipped import SHIPPED_CHECKPOINT, default_checkpoint
 from models.train import load_agent
-from tests.app.live import ServerThread, platform_settings
+from tests.app.live import platform_settings
 
 
 def events_of(services, trial_id: int, kind: str) -> list[Event]:
@@ -24,39 +24,36 @@ def events_of(services, trial_id: int, kind: str) -> list[Event]:
 
 
 @pytest.mark.slow
-def test_learned_driver_claims_moves_after_a_rejection_and_claims_again(tmp_path, stopping_checkpoint):
-    settings = platform_settings(tmp_path, seq2seq_checkpoint=stopping_checkpoint)
-    with ServerThread(settings) as server:
-        services = server.services
-        trial_id = make_trial(
-            services, services.mazes.names()[0], targets=("jar", "mug", "paddle"), driver="agent:seq2seq"
-        )
-        token = services.seats.issue(trial_id, "commander")
+def test_learned_driver_claims_moves_after_a_rejection_and_claims_again(stopping_checkpoint, start_server):
+    server = start_server(seq2seq_checkpoint=stopping_checkpoint)
+    services = server.services
+    trial_id = make_trial(services, services.mazes.names()[0], targets=("jar", "mug", "paddle"), driver="agent:seq2seq")
+    token = services.seats.issue(trial_id, "commander")
 
-        async def command():
-            async with SeatClient(server.ws_url, token) as commander:
-                await commander.event("phase", phase="localizing", timeout=30)
-                await commander.send("chat", text="find the jar, it is by the red wall")
-                await commander.send("localize", x=1.0, y=1.0)
-                await commander.event("target_claimed", timeout=30, target_index=0)
-                await commander.event("chat", role="driver", text="I think I found the jar")
-                start = len(commander.received)
-                await commander.send("chat", text="no, keep looking")
-                await commander.send("reject")
-                rejected = await commander.event("target_rejected", start=start)
-                again = await commander.event("target_claimed", timeout=30, start=start, target_index=0)
-                start = len(commander.received)
-                await commander.send("chat", text="yes, that is the jar. now the mug")
-                await commander.send("confirm")
-                # A new target re-encodes the dialog; the agent plays on and claims the mug.
-                await commander.event("target_claimed", timeout=30, start=start, target_index=1)
-                await commander.event("chat", role="driver", start=start, text="I think I found the mug")
-                return rejected["seq"], again["seq"], again["payload"]["frame_id"]
+    async def command():
+        async with SeatClient(server.ws_url, token) as commander:
+            await commander.event("phase", phase="localizing", timeout=30)
+            await commander.send("chat", text="find the jar, it is by the red wall")
+            await commander.send("localize", x=1.0, y=1.0)
+            await commander.event("target_claimed", timeout=30, target_index=0)
+            await commander.event("chat", role="driver", text="I think I found the jar")
+            start = len(commander.received)
+            await commander.send("chat", text="no, keep looking")
+            await commander.send("reject")
+            rejected = await commander.event("target_rejected", start=start)
+            again = await commander.event("target_claimed", timeout=30, start=start, target_index=0)
+            start = len(commander.received)
+            await commander.send("chat", text="yes, that is the jar. now the mug")
+            await commander.send("confirm")
+            # A new target re-encodes the dialog; the agent plays on and claims the mug.
+            await commander.event("target_claimed", timeout=30, start=start, target_index=1)
+            await commander.event("chat", role="driver", start=start, text="I think I found the mug")
+            return rejected["seq"], again["seq"], again["payload"]["frame_id"]
 
-        rejected_seq, again_seq, again_frame_id = asyncio.run(command())
-        requested = [e for e in events_of(services, trial_id, "move_requested") if e.seq > rejected_seq]
-        executed = [e for e in events_of(services, trial_id, "move_executed") if rejected_seq < e.seq < again_seq]
-        frames = [e for e in events_of(services, trial_id, "frame") if e.seq > rejected_seq]
+    rejected_seq, again_seq, again_frame_id = asyncio.run(command())
+    requested = [e for e in events_of(services, trial_id, "move_requested") if e.seq > rejected_seq]
+    executed = [e for e in events_of(services, trial_id, "move_executed") if rejected_seq < e.seq < again_seq]
+    frames = [e for e in events_of(services, trial_id, "frame") if e.seq > rejected_seq]
     assert requested and requested[0].payload["action"] in ("forward", "left", "right")
     assert executed and executed[0].payload["move_id"] == requested[0].payload["move_id"]
     assert executed[0].payload["outcome"] == "ok"
