@@ -23,7 +23,6 @@ from sim.agents import turns as t
 from sim.agents.dialog_driver import DialogDriver
 from sim.agents.sight import pose_rays
 from sim.core.dynamics import snap_pose
-from tests.app.live import ServerThread, platform_settings
 
 ARTIFACTS = REPO / "test-artifacts"
 MAZE = "gen-000"  # one of the mazes bundled in sim/tasks/mazes/
@@ -120,49 +119,49 @@ class Reached(Exception):
 
 
 @pytest.mark.slow
-def test_a_person_drives_to_the_first_target_guided_by_the_agent_commander(browser, tmp_path):
+def test_a_person_drives_to_the_first_target_guided_by_the_agent_commander(browser, start_server):
     ARTIFACTS.mkdir(exist_ok=True)
-    with ServerThread(platform_settings(tmp_path, min_move_interval_s=0.1)) as server:
-        services = server.services
-        with services.db.begin() as db:
-            db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
-        admin = browser.new_context(viewport={"width": 1400, "height": 900}).new_page()
-        admin.goto(server.url + "/")
-        admin.fill("input[name=name]", "eve")
-        admin.fill("input[name=password]", "correct horse")
-        admin.click("#login")
-        for name in ("Ada", "Ben"):
-            admin.fill("input[aria-label='Participant name']", name)
-            admin.click("#add-participant")
-        admin.fill("input[aria-label='Team name']", "Ada & Ben")
-        admin.click("#add-team")
-        admin.select_option("select[name=maze]", MAZE)
-        admin.fill("input[aria-label='Targets']", "mug, paddle, jar")
-        admin.select_option("select[name=commander]", "agent:dialog")
-        admin.click("#create-trial")
-        trial_id = int(admin.get_attribute("tr[data-trial]", "data-trial"))
-        assert admin.locator("a.join-commander").count() == 0, "no link for the agent's seat"
-        assert "Commander agent:dialog" in admin.inner_text(f'tr[data-trial="{trial_id}"] .seats')
-        driver_url = admin.get_attribute("a.join-driver", "href")
+    server = start_server(min_move_interval_s=0.1)
+    services = server.services
+    with services.db.begin() as db:
+        db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
+    admin = browser.new_context(viewport={"width": 1400, "height": 900}).new_page()
+    admin.goto(server.url + "/")
+    admin.fill("input[name=name]", "eve")
+    admin.fill("input[name=password]", "correct horse")
+    admin.click("#login")
+    for name in ("Ada", "Ben"):
+        admin.fill("input[aria-label='Participant name']", name)
+        admin.click("#add-participant")
+    admin.fill("input[aria-label='Team name']", "Ada & Ben")
+    admin.click("#add-team")
+    admin.select_option("select[name=maze]", MAZE)
+    admin.fill("input[aria-label='Targets']", "mug, paddle, jar")
+    admin.select_option("select[name=commander]", "agent:dialog")
+    admin.click("#create-trial")
+    trial_id = int(admin.get_attribute("tr[data-trial]", "data-trial"))
+    assert admin.locator("a.join-commander").count() == 0, "no link for the agent's seat"
+    assert "Commander agent:dialog" in admin.inner_text(f'tr[data-trial="{trial_id}"] .seats')
+    driver_url = admin.get_attribute("a.join-driver", "href")
 
-        page = browser.new_context(viewport={"width": 1280, "height": 860}).new_page()
-        page.goto(driver_url)
-        page.wait_for_selector("#status[data-phase=localizing]")
-        page.wait_for_selector("#camera:not([hidden])")
-        person = Person(page, services, trial_id)
-        deadline = time.monotonic() + LEG_S
-        try:
-            while time.monotonic() < deadline:
-                if not person.look():
-                    page.wait_for_timeout(100)
-                person.think()
-            raise AssertionError(f"no confirmation in {LEG_S} s; the person said {person.said[-5:]}")
-        except Reached:
-            pass
-        page.screenshot(path=str(ARTIFACTS / "agent-commander-driver.png"), full_page=True)
+    page = browser.new_context(viewport={"width": 1280, "height": 860}).new_page()
+    page.goto(driver_url)
+    page.wait_for_selector("#status[data-phase=localizing]")
+    page.wait_for_selector("#camera:not([hidden])")
+    person = Person(page, services, trial_id)
+    deadline = time.monotonic() + LEG_S
+    try:
+        while time.monotonic() < deadline:
+            if not person.look():
+                page.wait_for_timeout(100)
+            person.think()
+        raise AssertionError(f"no confirmation in {LEG_S} s; the person said {person.said[-5:]}")
+    except Reached:
+        pass
+    page.screenshot(path=str(ARTIFACTS / "agent-commander-driver.png"), full_page=True)
 
-        with services.db() as db:
-            events = db.scalars(select(Event).where(Event.trial_id == trial_id).order_by(Event.seq)).all()
+    with services.db() as db:
+        events = db.scalars(select(Event).where(Event.trial_id == trial_id).order_by(Event.seq)).all()
     chat = [(e.payload["role"], e.payload["text"]) for e in events if e.kind == "chat"]
     assert all(("driver", text) in chat for text in person.said), "the person's words are Driver chat events"
     assert any(role == "commander" and "?" in text for role, text in chat), "the Commander asked"

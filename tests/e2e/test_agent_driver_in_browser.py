@@ -19,7 +19,7 @@ from sim.agents.oracle_commander import OracleCommander
 from sim.agents.turns import Phase, PhaseChanged, SeatInfo, Speaker
 from sim.core.dynamics import snap_pose
 from sim.core.observations import RayTable
-from tests.app.live import ServerThread, platform_settings, wait_js
+from tests.app.live import wait_js
 
 ARTIFACTS = REPO / "test-artifacts"
 MAZE = "gen-000"  # one of the mazes bundled in sim/tasks/mazes/
@@ -53,68 +53,68 @@ def held_still(runtime, seconds: float) -> bool:
 
 
 @pytest.mark.slow
-def test_a_commander_talks_the_dialog_agent_to_its_first_target(browser, tmp_path):
+def test_a_commander_talks_the_dialog_agent_to_its_first_target(browser, start_server):
     ARTIFACTS.mkdir(exist_ok=True)
-    with ServerThread(platform_settings(tmp_path, min_move_interval_s=0.1)) as server:
-        services = server.services
-        with services.db.begin() as db:
-            db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
-        admin = browser.new_context(viewport={"width": 1400, "height": 900}).new_page()
-        admin.goto(server.url + "/")
-        admin.fill("input[name=name]", "eve")
-        admin.fill("input[name=password]", "correct horse")
-        admin.click("#login")
-        for name in ("Ada", "Ben"):
-            admin.fill("input[aria-label='Participant name']", name)
-            admin.click("#add-participant")
-        admin.fill("input[aria-label='Team name']", "Ada & Ben")
-        admin.click("#add-team")
-        admin.select_option("select[name=maze]", MAZE)
-        admin.fill("input[aria-label='Targets']", "mug, paddle, jar")
-        admin.select_option("select[name=driver]", "agent:dialog")
-        assert "stops after 300 moves per target" in admin.inner_text("#agent-caps")
-        admin.click("#create-trial")
-        trial_id = int(admin.get_attribute("tr[data-trial]", "data-trial"))
-        commander_url = admin.get_attribute("a.join-commander", "href")
+    server = start_server(min_move_interval_s=0.1)
+    services = server.services
+    with services.db.begin() as db:
+        db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
+    admin = browser.new_context(viewport={"width": 1400, "height": 900}).new_page()
+    admin.goto(server.url + "/")
+    admin.fill("input[name=name]", "eve")
+    admin.fill("input[name=password]", "correct horse")
+    admin.click("#login")
+    for name in ("Ada", "Ben"):
+        admin.fill("input[aria-label='Participant name']", name)
+        admin.click("#add-participant")
+    admin.fill("input[aria-label='Team name']", "Ada & Ben")
+    admin.click("#add-team")
+    admin.select_option("select[name=maze]", MAZE)
+    admin.fill("input[aria-label='Targets']", "mug, paddle, jar")
+    admin.select_option("select[name=driver]", "agent:dialog")
+    assert "stops after 300 moves per target" in admin.inner_text("#agent-caps")
+    admin.click("#create-trial")
+    trial_id = int(admin.get_attribute("tr[data-trial]", "data-trial"))
+    commander_url = admin.get_attribute("a.join-commander", "href")
 
-        page = browser.new_context(viewport={"width": 1280, "height": 860}).new_page()
-        page.goto(commander_url)
-        page.wait_for_selector("#status[data-phase=localizing]")
-        runtime = services.hub.peek(trial_id)
-        assert held_still(runtime, 1.0), "the agent moved before anyone spoke"
-        described = say(page, "hi! what do you see?")
-        assert held_still(runtime, 0.5), "asked what it sees, it drove off"
+    page = browser.new_context(viewport={"width": 1280, "height": 860}).new_page()
+    page.goto(commander_url)
+    page.wait_for_selector("#status[data-phase=localizing]")
+    runtime = services.hub.peek(trial_id)
+    assert held_still(runtime, 1.0), "the agent moved before anyone spoke"
+    described = say(page, "hi! what do you see?")
+    assert held_still(runtime, 0.5), "asked what it sees, it drove off"
 
-        # "The robot is here": a click with a drag for the heading ends localization.
-        box = page.locator("#map").bounding_box()
-        page.mouse.move(box["x"] + box["width"] * 0.4, box["y"] + box["height"] * 0.5)
-        page.mouse.down()
-        page.mouse.move(box["x"] + box["width"] * 0.45, box["y"] + box["height"] * 0.5)
-        page.mouse.up()
-        page.wait_for_selector("#status[data-phase=navigating]")
-        assert held_still(runtime, 1.0), "marked on the map, it drove off before it was told"
+    # "The robot is here": a click with a drag for the heading ends localization.
+    box = page.locator("#map").bounding_box()
+    page.mouse.move(box["x"] + box["width"] * 0.4, box["y"] + box["height"] * 0.5)
+    page.mouse.down()
+    page.mouse.move(box["x"] + box["width"] * 0.45, box["y"] + box["height"] * 0.5)
+    page.mouse.up()
+    page.wait_for_selector("#status[data-phase=navigating]")
+    assert held_still(runtime, 1.0), "marked on the map, it drove off before it was told"
 
-        # The person reads the map: where the robot is, where the mug is, and says the next step.
-        maze, graph = services.mazes.load(MAZE), services.mazes.graph(MAZE)
-        person = OracleCommander(graph, RayTable.build(maze, graph), [("mug", maze.objects["mug"])])
-        person.reset(SeatInfo(Speaker.COMMANDER, 3))
-        backend = runtime.backend
+    # The person reads the map: where the robot is, where the mug is, and says the next step.
+    maze, graph = services.mazes.load(MAZE), services.mazes.graph(MAZE)
+    person = OracleCommander(graph, RayTable.build(maze, graph), [("mug", maze.objects["mug"])])
+    person.reset(SeatInfo(Speaker.COMMANDER, 3))
+    backend = runtime.backend
+    person.pose = snap_pose(graph, *backend.pose())
+    (first,) = person.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3))
+    answers = [say(page, first.text)]
+    for _ in range(MAX_INSTRUCTIONS):
+        if page.locator("#claim:not([hidden])").count():
+            break
         person.pose = snap_pose(graph, *backend.pose())
-        (first,) = person.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3))
-        answers = [say(page, first.text)]
-        for _ in range(MAX_INSTRUCTIONS):
-            if page.locator("#claim:not([hidden])").count():
-                break
-            person.pose = snap_pose(graph, *backend.pose())
-            answers.append(say(page, person.instruction(plain="?" in answers[-1])))
-        page.wait_for_selector("#claim:not([hidden])", timeout=30_000)
-        wait_js(page, "document.getElementById('claim-image').src.startsWith('data:image/jpeg')")
-        page.screenshot(path=str(ARTIFACTS / "agent-driver-claim.png"), full_page=True)
-        page.click("#confirm")
-        page.wait_for_selector("#claim[hidden]", state="attached")
+        answers.append(say(page, person.instruction(plain="?" in answers[-1])))
+    page.wait_for_selector("#claim:not([hidden])", timeout=30_000)
+    wait_js(page, "document.getElementById('claim-image').src.startsWith('data:image/jpeg')")
+    page.screenshot(path=str(ARTIFACTS / "agent-driver-claim.png"), full_page=True)
+    page.click("#confirm")
+    page.wait_for_selector("#claim[hidden]", state="attached")
 
-        with services.db() as db:
-            events = db.scalars(select(Event).where(Event.trial_id == trial_id).order_by(Event.seq)).all()
+    with services.db() as db:
+        events = db.scalars(select(Event).where(Event.trial_id == trial_id).order_by(Event.seq)).all()
     said = [e.payload["text"] for e in events if e.kind == "chat" and e.payload["role"] == "driver"]
     assert described in said and all(a in said for a in answers)  # its words are Driver chat events
     kinds = [e.kind for e in events]

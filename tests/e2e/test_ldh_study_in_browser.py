@@ -16,19 +16,17 @@ from app.security import StudyTokens, hash_password
 from sim.tasks.benchmark import Benchmark
 from sim.tasks.ldh import LDHInstance, Variant
 from sim.tasks.ldh_eval import MazeContext, score
-from tests.app.live import ServerThread, platform_settings
 from tests.e2e.pages import ARTIFACTS, H_M, W_M, experimenter, page_checks
 
 pytestmark = pytest.mark.browser
 
 
 @pytest.fixture(scope="module")
-def server(tmp_path_factory, benchmark_path):
-    settings = platform_settings(tmp_path_factory.mktemp("ldh"), benchmark=benchmark_path)
-    with ServerThread(settings) as running:
-        with running.services.db.begin() as db:
-            db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
-        yield running
+def server(start_module_server, benchmark_path):
+    running = start_module_server(benchmark=benchmark_path)
+    with running.services.db.begin() as db:
+        db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
+    return running
 
 
 def canvas_point(page, fx: float, fy: float) -> tuple[float, float]:

@@ -15,19 +15,18 @@ from app.db.models import Experimenter, Team, Trial
 from app.security import hash_password
 from bench.live import make_trial
 from sim.core.labels import LABEL_BGR, OBJECT_LABELS
-from tests.app.live import ServerThread, platform_settings, wait_js
+from tests.app.live import wait_js
 from tests.e2e.pages import ARTIFACTS, H_M, W_M, experimenter, page_checks, wait_until
 
 pytestmark = pytest.mark.browser
 
 
 @pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    settings = platform_settings(tmp_path_factory.mktemp("pages"), min_move_interval_s=0.0)
-    with ServerThread(settings) as running:
-        with running.services.db.begin() as db:
-            db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
-        yield running
+def server(start_module_server):
+    running = start_module_server(min_move_interval_s=0.0)
+    with running.services.db.begin() as db:
+        db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
+    return running
 
 
 _teams = iter(range(1000))

@@ -11,7 +11,7 @@ from app.db.models import Experimenter
 from app.demo.runner import Demo
 from app.security import hash_password
 from app.settings import Settings
-from tests.app.live import ServerThread, wait_js
+from tests.app.live import wait_js
 from tests.e2e.pages import CHROMIUM
 
 # A test artifact, like the other browser tests' (docs/img/replay.png is a copy of one).
@@ -21,7 +21,7 @@ pytestmark = pytest.mark.browser
 
 
 @pytest.fixture(scope="module")
-def server(tmp_path_factory):
+def server(tmp_path_factory, start_module_server):
     if not CHROMIUM.exists():
         pytest.skip(f"{CHROMIUM} not found: the replay page is checked in Debian's chromium")
     settings = Settings(
@@ -32,8 +32,7 @@ def server(tmp_path_factory):
     assert result.phase == "finished", result
     with demo.db.begin() as db:
         db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
-    with ServerThread(settings) as running:
-        yield running, result.trial_id
+    return start_module_server(settings), result.trial_id
 
 
 def log_in(page, url: str) -> None:
