@@ -70,12 +70,6 @@ class ServerThread:
         self.thread.join(timeout=20)
         self.services.engine.dispose()
 
-    def __enter__(self) -> ServerThread:
-        return self.start()
-
-    def __exit__(self, *exc) -> None:
-        self.stop()
-
 
 def page_csrf_token(page: str) -> str:
     """The CSRF token a page carries in `<meta name="csrf-token">` (what the page's scripts send)."""
