@@ -148,6 +148,9 @@ class BatchStepper:
         code = np.arange(_LOW + 1)
         self._metres = np.append(moves.lengths, np.zeros(_MAX_LENGTHS - moves.lengths.size))[code >> 1]
         self._hit = (code & 1).astype(bool)
+        # The forward's collision bit per slot, apart: the action mask reads it every step, and
+        # masking it out of the table there cost an env step 1 us (6 %).
+        self._blocked = (self._moves[_FORWARD::ACTIONS] & 1).astype(bool)
 
     # -- episodes -------------------------------------------------------------------
     def start(
@@ -253,7 +256,7 @@ class BatchStepper:
         return slots
 
     def forward_blocked(self) -> np.ndarray:
-        blocked: np.ndarray = (self._moves[self.slot * ACTIONS + _FORWARD] & 1).astype(bool)
+        blocked: np.ndarray = self._blocked[self.slot]
         return blocked
 
     def teacher_actions(self) -> np.ndarray:
