@@ -176,12 +176,20 @@ class RedisRelay:
         self._outbox.put_nowait((process, json.dumps(message, separators=(",", ":"))))
 
     async def _send(self) -> None:
-        while True:  # one publisher: messages to a process arrive in the order they were sent
-            process, data = await self._outbox.get()
+        """One publisher, so messages to a process arrive in the order they were sent. What queued
+        meanwhile goes in one pipeline, in that order: awaited one by one, each publish's round
+        trip held up the next, and the relay's queue grew with the load."""
+        while True:
+            batch = [await self._outbox.get()]
+            while not self._outbox.empty():
+                batch.append(self._outbox.get_nowait())
             try:
-                await self.redis.publish(_channel(process), data)
+                async with self.redis.pipeline(transaction=False) as pipe:
+                    for process, data in batch:
+                        pipe.publish(_channel(process), data)
+                    await pipe.execute()
             except Exception:
-                logger.exception("relay: publish to %s failed", process)
+                logger.exception("relay: publishing %d messages failed", len(batch))
 
     def _beat(self, beats: Redis) -> None:
         beats.set(self._alive_key(self.id), "1", px=int(HEARTBEAT_TTL_S * 1000))
