@@ -19,7 +19,6 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from app.annotation.log import AnnotationLog
 from app.backends.registry import BackendParts
-from app.backends.remote import RobotLinks
 from app.backends.render import FrameRenderer, InThread, RenderProcesses
 from app.clock import ServerClock
 from app.db.engine import WalCheckpointer, make_engine, make_sessionmaker, upgrade
@@ -33,6 +32,7 @@ from app.mazes import Mazes
 from app.perception.belief import FilterWorker
 from app.resources import shipped
 from app.routes import annotate, experimenter, ldh_study, pages, replay, robot_ws, seat_ws, study
+from app.rover.links import RobotLinks
 from app.security import AccountRole, CsrfTokens, SeatTokens, Sessions, StudyTokens, set_password
 from app.services import Services
 from app.serving import settle_collector

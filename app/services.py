@@ -13,13 +13,13 @@ from sqlalchemy import Engine
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.annotation.log import AnnotationLog
-from app.backends.remote import RobotLinks
 from app.clock import ServerClock
 from app.drivers.registry import AgentParts
 from app.ldh_study import Studies
 from app.login import LoginGuard
 from app.login_sockets import LoginSockets
 from app.mazes import Mazes
+from app.rover.links import RobotLinks
 from app.security import CsrfTokens, SeatTokens, Sessions, StudyTokens
 from app.settings import Settings
 from app.trial.hub import TrialHub

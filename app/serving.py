@@ -50,7 +50,7 @@ class ReplyingWebSocketProtocol(WebSocketsSansIOProtocol):
 def uvicorn_options(settings: Settings) -> dict[str, Any]:
     """Frames and claims are sent inline: the transport limit stays above the message limit. No
     per-message deflate: the largest messages are JPEGs, which do not compress."""
-    from app.backends.remote import MAX_FRAME_BYTES  # the rover's camera frames are the largest messages
+    from app.rover.links import MAX_FRAME_BYTES  # the rover's camera frames are the largest messages
 
     return {
         "ws": ReplyingWebSocketProtocol,

@@ -123,11 +123,11 @@ def agent_figures(
 async def _rover_tds(benchmark: Path, checkpoint: Path, chosen, bench, tmp: Path, calibration, log) -> list[float]:
     from tqdm import tqdm
 
-    from app.backends.remote import create_robot
     from app.main import build_services
+    from app.rover.records import create_robot
+    from app.rover.virtual.truth import read_truth
     from app.settings import Settings
     from app.trial.events import LoggedEvent
-    from app.virtual_rover.truth import read_truth
     from bench.live import REPO, SeatClient, ServerProcess, make_trial
     from robot_client.calibration import Calibration
 

@@ -31,9 +31,9 @@ from rich.table import Table
 from sqlalchemy import func, select
 from tqdm import tqdm
 
-from app.backends.remote import create_robot
 from app.db.engine import make_engine, make_sessionmaker, upgrade
 from app.db.models import Event
+from app.rover.records import create_robot
 from app.security import SeatTokens
 from app.settings import Settings
 from bench.live import free_port, team_trial

@@ -50,7 +50,7 @@ def log(text: str) -> None:
 def rover_trajectory(maze, graph: NavGraph, moves: int, seed: int) -> np.ndarray:
     """(N, 3) true poses of a virtual rover wandering `moves` pulses: frames during each pulse
     and one at rest after it, as the overhead camera sees a trial."""
-    from app.virtual_rover.command import random_start
+    from app.rover.virtual.command import random_start
 
     rng = np.random.default_rng(seed)
     rover = Rover(maze, random_start(maze, graph, seed), NOISE_MODELS["default"], seed=seed)

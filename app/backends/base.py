@@ -1,7 +1,7 @@
 """`RobotBackend`: the robot seat of a trial.
 
 The trial runtime only talks to this protocol; the simulator (`app.backends.sim`) and the
-remote rover (`app.backends.remote`) implement it. Actions are the Driver's three moves.
+remote rover (`app.rover.backend`) implement it. Actions are the Driver's three moves.
 """
 
 from __future__ import annotations

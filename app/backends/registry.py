@@ -24,7 +24,7 @@ from app.trial.port import RobotTrial
 from app.trial.specs import BackendSpec
 
 if TYPE_CHECKING:
-    from app.backends.remote import RobotLinks
+    from app.rover.links import RobotLinks
 
 
 @dataclass(frozen=True)
@@ -44,7 +44,7 @@ BackendFactory = Callable[[str, RobotTrial, BackendParts], Awaitable[RobotBacken
 
 _FACTORIES: dict[str, BackendFactory] = {}
 # Backend kinds whose factory ("module:function") is imported on the first trial of that kind.
-PLUGINS = {"robot": "app.backends.remote:remote_backend"}
+PLUGINS = {"robot": "app.rover.backend:remote_backend"}
 
 
 def register_backend(kind: str, factory: BackendFactory) -> None:

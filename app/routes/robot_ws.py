@@ -21,17 +21,10 @@ from typing import Any
 from fastapi import APIRouter, Depends, Form, HTTPException, WebSocket, WebSocketDisconnect
 from sqlalchemy.orm import Session, sessionmaker
 
-from app.backends.remote import (
-    MAX_FRAME_BYTES,
-    PING_INTERVAL_S,
-    RobotLink,
-    RobotLinks,
-    RobotSetupError,
-    create_robot,
-    robot_for_token,
-)
 from app.deps import ClockDep, DbFactory, DbSession, RobotLinksDep, SettingsDep, experimenter_id
 from app.guard import csrf_protect, socket_origin_allowed
+from app.rover.links import MAX_FRAME_BYTES, PING_INTERVAL_S, RobotLink, RobotLinks
+from app.rover.records import RobotSetupError, create_robot, robot_for_token
 from app.serving import MESSAGE_TOO_BIG
 from app.trial.specs import BackendSpec
 from robot_client.protocol import (

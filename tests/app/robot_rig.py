@@ -14,9 +14,9 @@ from pathlib import Path
 import uvicorn
 from sqlalchemy import select
 
-from app.backends.remote import create_robot
 from app.db.models import Event
 from app.main import create_app
+from app.rover.records import create_robot
 from app.serving import uvicorn_options
 from bench.live import SeatClient, free_port, team_trial
 from robot_client.calibration import Calibration

@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 
 from app.main import build_services
-from app.virtual_rover.truth import TruthSample, read_truth
+from app.rover.virtual.truth import TruthSample, read_truth
 from bench.live import REPO, SeatClient, ServerProcess
 from tests.app.live import cli, platform_settings
 

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 from sqlalchemy import select
 
-from app.backends.remote import create_robot
 from app.db.models import Event
 from app.drivers.base import Seating
 from app.drivers.registry import register_driver
+from app.rover.records import create_robot
 from bench.live import REPO, SeatClient, make_trial
 from sim.agents.dialog_driver import DialogDriver
 from sim.agents.stepwise import StepwiseDriver

@@ -11,9 +11,9 @@ import os
 import subprocess
 import sys
 
-from app.backends.remote import create_robot
 from app.db.models import Participant, Robot, Team, Trial
 from app.demo.runner import Demo
+from app.rover.records import create_robot
 from bench.live import REPO, SeatClient, make_trial
 from tests.app.live import experimenter_client, open_seats
 from tests.app.trial_play import claim_and_decide, drive_to_target, start_trial

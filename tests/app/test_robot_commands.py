@@ -7,7 +7,7 @@ import pytest
 from sqlalchemy import create_engine
 from sqlalchemy.orm import Session
 
-from app.backends.remote import robot_for_token
+from app.rover.records import robot_for_token
 from tests.app.live import cli
 
 

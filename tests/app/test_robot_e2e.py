@@ -15,8 +15,8 @@ import pytest
 import websockets
 from sqlalchemy import select
 
-from app.backends.remote import MAX_FRAME_BYTES
 from app.db.models import Frame as FrameRow
+from app.rover.links import MAX_FRAME_BYTES
 from bench.live import SeatClient
 from robot_client.calibration import Calibration
 from robot_client.protocol import pack_frame

@@ -11,10 +11,11 @@ import pytest
 from sqlalchemy import select
 
 from app.backends.base import BackendUnavailable
-from app.backends.remote import RobotLink, RobotSetupError, create_robot, hash_token, robot_for_token
 from app.clock import ServerClock
 from app.db.engine import make_engine, make_sessionmaker, upgrade
 from app.db.models import Robot
+from app.rover.links import RobotLink
+from app.rover.records import RobotSetupError, create_robot, hash_token, robot_for_token
 from robot_client.protocol import FrameHeader
 
 SKEW_NS = 5_000_000_000  # the robot's monotonic clock reads 5 s ahead of the server's

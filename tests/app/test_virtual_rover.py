@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from websockets.asyncio.server import serve
 
-from app.virtual_rover.truth import TruthSample, read_truth
+from app.rover.virtual.truth import TruthSample, read_truth
 from bench.live import REPO, SeatClient, make_trial
 from robot_client.calibration import Calibration
 from sim.core.geometry import GRID_STEP_M, TURN_RAD
@@ -272,7 +272,7 @@ def test_bad_options_are_refused_by_name(tmp_path, maze):
 
 
 def test_the_truth_follower_sees_only_whole_lines_and_follows_a_restarted_rover(tmp_path):
-    from app.virtual_rover.truth import TruthFollower, TruthLog
+    from app.rover.virtual.truth import TruthFollower, TruthLog
 
     path = tmp_path / "truth.jsonl"
     follower = TruthFollower(path)

@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 import websockets
 
-from app.backends.remote import create_robot
+from app.rover.records import create_robot
 from app.trial.setup import create_participant, create_team, create_trial
 from robot_client.protocol import pack_frame
 

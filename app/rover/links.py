@@ -1,91 +1,38 @@
-"""`RemoteRobotBackend`: the real rover in the robot seat, through its websocket (docs/protocol.md).
-
-`RobotLink` is one connected robot as the server sees it: clock offset from pings, frames
+"""`RobotLink` is one connected robot as the server sees it: clock offset from pings, frames
 mapped onto the server clock, moves awaiting their acknowledgement, and the figures the
 experimenter's dashboard shows. `RobotLinks` holds the links of this server by robot id and
-tells the trials that use a robot when it comes and goes: the robot joins the trial as the
-`robot` seat: a trial waits for it to start, losing it pauses the trial and its return resumes it. Overhead cameras
-(`role: overhead`) are recorded into every live trial on a real robot, never shown to a seat;
-each trial's tracker (`app.perception.tracker_seat`) turns them into `pose` events.
-"""
+tells the trials that use a robot when it comes and goes. Overhead cameras (`role: overhead`)
+are recorded into every live trial on a real robot, never shown to a seat; each trial's tracker
+(`app.rover.tracker_seat`) turns them into `pose` events."""
 
 from __future__ import annotations
 
 import asyncio
-import hashlib
-import logging
-import math
-import secrets
 import time
 from collections import deque
-from collections.abc import AsyncIterator, Callable
-from pathlib import Path
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session, sessionmaker
 
-from app.backends.base import BackendUnavailable, Frame, MoveOutcome
+from app.backends.base import BackendUnavailable, Frame
 from app.clock import ServerClock
 from app.db.models import Robot
-from app.perception.tracker_seat import TrialTracker
-from app.trial.port import RobotTrial
 from app.trial.specs import BackendSpec
-from app.trial.vocabulary import PARTICIPANTS, ROBOT_ROLES, FrameSource, Move, Outcome, PoseSource, Role
+from app.trial.vocabulary import Move, Role
 from robot_client.protocol import FrameHeader
-from sim.core.geometry import GRID_STEP_M
 
 if TYPE_CHECKING:
-    from app.backends.registry import BackendParts
-
-logger = logging.getLogger(__name__)
+    from app.rover.backend import RemoteRobotBackend
 
 PING_INTERVAL_S = 0.1  # well under the rover's 0.5 s watchdog, so a live link never trips it
 MAX_FRAME_BYTES = 1024 * 1024  # a 1280x720 JPEG at quality 95 is about 300 KB
 ACK_TIMEOUT_S = 12.0  # the longest pulse a calibration allows (10 s) plus slack
-FRAME_AFTER_MOVE_S = 1.0  # how long execute() waits for a frame showing the move's result
-# A forward move the overhead camera saw go less than this share of a step ran into something: the
-# rover cannot sense a collision itself, so the tracker tells the Driver it bumped, as the
-# simulator does. Without a fresh sighting before and after, the move counts as made.
-BUMP_SHARE = 0.4
 OFFSET_SAMPLES = 32
 RATE_WINDOW_S = 2.0
 
 
-# -- robots and their tokens --------------------------------------------------------
-
-
-class RobotSetupError(ValueError):
-    """A robot that cannot be registered as asked; the message names the field."""
-
-
-def hash_token(token: str) -> str:
-    # Tokens are 256 random bits, so one SHA-256 is as good as a slow hash and can be looked up.
-    return "sha256$" + hashlib.sha256(token.encode()).hexdigest()
-
-
-def create_robot(db: Session, name: str, role: str = "driver") -> tuple[Robot, str]:
-    """Register a robot; returns it with its token, which is stored only hashed (show it once)."""
-    name = name.strip()
-    if not name:
-        raise RobotSetupError("robot name is empty")
-    if role not in ROBOT_ROLES:
-        raise RobotSetupError(f"robot role {role!r}: expected one of {', '.join(ROBOT_ROLES)}")
-    if db.scalar(select(Robot).where(Robot.name == name)) is not None:
-        raise RobotSetupError(f"robot {name!r} already exists")
-    # Hex, not base64: a token starting with '-' would read as an option on the rover's command line.
-    token = secrets.token_hex(32)
-    robot = Robot(name=name, role=role, token_hash=hash_token(token))
-    db.add(robot)
-    db.flush()
-    return robot, token
-
-
-def robot_for_token(db: Session, token: str) -> Robot | None:
-    return db.scalar(select(Robot).where(Robot.token_hash == hash_token(token)))
-
-
-# -- one connected robot ------------------------------------------------------------
 class RobotLink:
     """The server's end of one robot's websocket. `send` queues a JSON message for the writer."""
 
@@ -342,144 +289,3 @@ class RobotLinks:
             )
             rows.append(row)
         return rows
-
-
-# -- the backend ----------------------------------------------------------------------
-class RobotSeat:
-    """The rover as a seat of the trial: its presence pauses and resumes the trial; it hears nothing."""
-
-    role = Role.ROBOT
-
-    def deliver(self, message: dict[str, Any]) -> None:
-        pass
-
-
-class RemoteRobotBackend:
-    pose_source = PoseSource.TRACKER
-
-    def __init__(
-        self,
-        robot_id: int,
-        name: str,
-        links: RobotLinks,
-        trial: RobotTrial,
-        overhead_calibration: Path | None,
-        clock_ns: Callable[[], int],
-    ) -> None:
-        self.robot_id, self.name = robot_id, name
-        self.links, self.trial = links, trial
-        self.tracker = TrialTracker(overhead_calibration, clock_ns, self._tracked)
-        self._seat: RobotSeat | None = None
-        self._moving = False
-        self._closed = False
-
-    async def connect(self) -> None:
-        """Follow the robot's link. The rover is a seat the trial needs: until it joins, the trial
-        stays `waiting` (`TrialState.waiting_for`), and a running trial it left stays paused
-        (the trial's reopening recorded its absence)."""
-        self.links.backends.setdefault(self.robot_id, set()).add(self)
-        link = self.links.links.get(self.robot_id)
-        if link is not None:
-            self.link_up(link)
-
-    def link_up(self, link: RobotLink) -> None:
-        self._seat = RobotSeat()
-        self.trial.join(self._seat)
-
-    def link_down(self, link: RobotLink) -> None:
-        if self._seat is not None:
-            seat, self._seat = self._seat, None
-            self.trial.leave(seat)
-
-    async def execute(self, action: Move) -> MoveOutcome:
-        link = self.links.links.get(self.robot_id)
-        if link is None:
-            raise BackendUnavailable(f"robot {self.name!r} is not connected")
-        before = self.tracker.latest if self.tracker.pose() is not None else None
-        self._moving = True
-        try:
-            ack = await link.move(action)
-        finally:
-            self._moving = False
-        if ack.get("status") != "done":
-            return MoveOutcome(action, Outcome.REFUSED, f"robot: {ack.get('reason', 'refused')}")
-        # The Driver should see where the move left the robot: wait for a frame taken after it.
-        finished = ack.get("finished_ns")
-        if isinstance(finished, int):
-            await self.links.slot(self.robot_id).captured_after(finished, FRAME_AFTER_MOVE_S)
-            if action == Move.FORWARD and before is not None:
-                after = await self.tracker.sighting_after(finished, FRAME_AFTER_MOVE_S)
-                if after is not None:
-                    moved = math.hypot(after.x - before.x, after.y - before.y)
-                    if moved < BUMP_SHARE * GRID_STEP_M:
-                        return MoveOutcome(
-                            action,
-                            Outcome.COLLISION,
-                            f"bumped: the overhead camera saw the rover move {moved * 100:.1f} of "
-                            f"{GRID_STEP_M * 100:.0f} cm",
-                        )
-        return MoveOutcome(action, Outcome.OK)
-
-    @property
-    def attended(self) -> bool:
-        """Someone is in the trial and it is not paused by a disconnect: only then are frames worth
-        recording (a robot may have several trials open, abandoned ones among them; a pause for a
-        seat that dropped recorded 139 MB in 6 minutes of waiting)."""
-        state = self.trial.state
-        waiting = any(reason.startswith("disconnect:") for reason in state.pause_reasons)
-        return not waiting and any(role in state.connected for role in PARTICIPANTS)
-
-    async def frames(self) -> AsyncIterator[Frame]:
-        slot = self.links.slot(self.robot_id)
-        frame = slot.frame
-        while (frame := await slot.newer_than(frame, lambda: self._closed)) is not None:
-            if self.attended:
-                yield frame
-
-    def pose(self) -> tuple[float, float, float] | None:
-        """Where the overhead camera's tracker last saw the rover (None without a fresh sighting)."""
-        return self.tracker.pose()
-
-    def record_overhead(self, frame: Frame) -> None:
-        if self.attended and not self.trial.state.over:
-            self.trial.record_frame(frame.jpeg, frame.capture_ns, frame.width, frame.height, FrameSource.OVERHEAD)
-            self.tracker.offer(frame.jpeg, frame.capture_ns)
-
-    def _tracked(self, pose: tuple[float, float, float]) -> None:
-        if not self._closed and not self.trial.state.over:
-            self.trial.record_pose(pose)
-
-    def record_bad_message(self, role: Role, error: str) -> None:
-        if not self.trial.state.over:
-            self.trial.report_bad_message(role, error)
-
-    async def close(self) -> None:
-        self._closed = True
-        self.links.backends.get(self.robot_id, set()).discard(self)
-        link = self.links.links.get(self.robot_id)
-        if link is not None and self._moving:  # only this trial's own move: another may be running
-            link.stop()
-        await self.links.slot(self.robot_id).wake()
-
-
-async def remote_backend(spec: str, trial: RobotTrial, parts: BackendParts) -> RemoteRobotBackend:
-    """`robot:<id>`: the registered driver robot with that id."""
-    try:
-        robot_id = BackendSpec.parse(spec).robot_id
-    except ValueError as err:
-        raise LookupError(str(err)) from None
-    assert robot_id is not None  # the registry hands this factory `robot:` specs only
-    with parts.db() as db:
-        robot = db.get(Robot, robot_id)
-    if robot is None:
-        raise LookupError(f"robot backend {spec!r}: no robot {robot_id} is registered")
-    if robot.role != Role.DRIVER:
-        raise LookupError(f"robot backend {spec!r}: robot {robot.name!r} is an {robot.role} camera, not a rover")
-    return RemoteRobotBackend(
-        robot.id,
-        robot.name,
-        parts.robots,
-        trial,
-        parts.overhead_calibration,
-        parts.clock.now_ns,
-    )

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from app.virtual_rover.truth import SAMPLE_S, TruthFollower, TruthLog, TruthSample
+from app.rover.virtual.truth import SAMPLE_S, TruthFollower, TruthLog, TruthSample
 from robot_client.calibration import Calibration
 from robot_client.protocol import Move
 from sim.core.maze import Maze

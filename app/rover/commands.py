@@ -37,7 +37,7 @@ def robot_create(
     ),
 ) -> None:
     """Register a robot and print its token (shown only this once)."""
-    from app.backends.remote import RobotSetupError, create_robot
+    from app.rover.records import RobotSetupError, create_robot
 
     if len(name) > 80:
         raise typer.BadParameter("must be at most 80 characters", param_hint="NAME")
@@ -98,8 +98,8 @@ def robot_virtual(
     import sys
 
     from app.mazes import Mazes, UnknownMaze
+    from app.rover.virtual.command import VirtualRoverSpec, parse_start, run
     from app.settings import Settings
-    from app.virtual_rover.command import VirtualRoverSpec, parse_start, run
     from robot_client.calibration import Calibration, CalibrationError
     from robot_client.client import robot_url
     from sim.robot.rover import MotionNoise

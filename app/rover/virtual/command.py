@@ -16,8 +16,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from app.virtual_rover.devices import FrontCameraSource, OverheadCameraSource, VirtualMotors
-from app.virtual_rover.truth import TruthLog
+from app.rover.virtual.devices import FrontCameraSource, OverheadCameraSource, VirtualMotors
+from app.rover.virtual.truth import TruthLog
 from robot_client.calibration import Calibration
 from robot_client.camera import CameraSettings, FrameGrabber
 from robot_client.cli import serve
