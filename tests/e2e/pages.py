@@ -37,6 +37,15 @@ def experimenter(browser, server, **context):
     return page
 
 
+def team_of_two(page) -> None:
+    """On the experimenter's dashboard: participants Ada and Ben, and their team "Ada & Ben"."""
+    for name in ("Ada", "Ben"):
+        page.fill("input[aria-label='Participant name']", name)
+        page.click("#add-participant")
+    page.fill("input[aria-label='Team name']", "Ada & Ben")
+    page.click("#add-team")
+
+
 def page_checks(page, name: str) -> None:
     """axe-core finds no serious or critical violation; nothing scrolls sideways at 390 px; no
     image is a broken placeholder."""

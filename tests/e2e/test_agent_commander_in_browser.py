@@ -16,15 +16,14 @@ from collections import deque
 import pytest
 from sqlalchemy import select
 
-from app.db.models import Event, Experimenter
-from app.security import hash_password
-from bench.live import REPO
+from app.db.models import Event
 from sim.agents import turns as t
 from sim.agents.dialog_driver import DialogDriver
 from sim.agents.sight import pose_rays
 from sim.core.dynamics import snap_pose
+from tests.app.live import add_experimenter
+from tests.e2e.pages import ARTIFACTS, experimenter, team_of_two
 
-ARTIFACTS = REPO / "test-artifacts"
 MAZE = "gen-000"  # one of the mazes bundled in sim/tasks/mazes/
 LEG_S = 300  # the first target, on a loaded 2-core machine (about a minute alone)
 BUTTONS = {t.Move.FORWARD: "#forward", t.Move.LEFT: "#left", t.Move.RIGHT: "#right"}
@@ -123,18 +122,10 @@ def test_a_person_drives_to_the_first_target_guided_by_the_agent_commander(brows
     ARTIFACTS.mkdir(exist_ok=True)
     server = start_server(min_move_interval_s=0.1)
     services = server.services
-    with services.db.begin() as db:
-        db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
-    admin = browser.new_context(viewport={"width": 1400, "height": 900}).new_page()
-    admin.goto(server.url + "/")
-    admin.fill("input[name=name]", "eve")
-    admin.fill("input[name=password]", "correct horse")
-    admin.click("#login")
-    for name in ("Ada", "Ben"):
-        admin.fill("input[aria-label='Participant name']", name)
-        admin.click("#add-participant")
-    admin.fill("input[aria-label='Team name']", "Ada & Ben")
-    admin.click("#add-team")
+    add_experimenter(server)
+    # The experimenter registers two participants, forms a team and creates a trial.
+    admin = experimenter(browser, server, viewport={"width": 1400, "height": 900})
+    team_of_two(admin)
     admin.select_option("select[name=maze]", MAZE)
     admin.fill("input[aria-label='Targets']", "mug, paddle, jar")
     admin.select_option("select[name=commander]", "agent:dialog")

@@ -12,16 +12,14 @@ import time
 import pytest
 from sqlalchemy import select
 
-from app.db.models import Event, Experimenter
-from app.security import hash_password
-from bench.live import REPO
+from app.db.models import Event
 from sim.agents.oracle_commander import OracleCommander
 from sim.agents.turns import Phase, PhaseChanged, SeatInfo, Speaker
 from sim.core.dynamics import snap_pose
 from sim.core.observations import RayTable
-from tests.app.live import wait_js
+from tests.app.live import add_experimenter, wait_js
+from tests.e2e.pages import ARTIFACTS, experimenter, team_of_two
 
-ARTIFACTS = REPO / "test-artifacts"
 MAZE = "gen-000"  # one of the mazes bundled in sim/tasks/mazes/
 MAX_INSTRUCTIONS = 30
 
@@ -57,18 +55,10 @@ def test_a_commander_talks_the_dialog_agent_to_its_first_target(browser, start_s
     ARTIFACTS.mkdir(exist_ok=True)
     server = start_server(min_move_interval_s=0.1)
     services = server.services
-    with services.db.begin() as db:
-        db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
-    admin = browser.new_context(viewport={"width": 1400, "height": 900}).new_page()
-    admin.goto(server.url + "/")
-    admin.fill("input[name=name]", "eve")
-    admin.fill("input[name=password]", "correct horse")
-    admin.click("#login")
-    for name in ("Ada", "Ben"):
-        admin.fill("input[aria-label='Participant name']", name)
-        admin.click("#add-participant")
-    admin.fill("input[aria-label='Team name']", "Ada & Ben")
-    admin.click("#add-team")
+    add_experimenter(server)
+    # The experimenter registers two participants, forms a team and creates a trial.
+    admin = experimenter(browser, server, viewport={"width": 1400, "height": 900})
+    team_of_two(admin)
     admin.select_option("select[name=maze]", MAZE)
     admin.fill("input[aria-label='Targets']", "mug, paddle, jar")
     admin.select_option("select[name=driver]", "agent:dialog")

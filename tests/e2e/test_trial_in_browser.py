@@ -10,12 +10,10 @@ import re
 
 import pytest
 
-from app.db.models import Experimenter
-from app.security import hash_password
 from sim.core.labels import Label
-from tests.app.live import wait_js
+from tests.app.live import add_experimenter, wait_js
 from tests.app.trial_play import object_pixels
-from tests.e2e.pages import ARTIFACTS, drive_page_to_target
+from tests.e2e.pages import ARTIFACTS, drive_page_to_target, experimenter, team_of_two
 
 pytestmark = pytest.mark.browser
 
@@ -32,20 +30,10 @@ def socket_log(page) -> list[str]:
 def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, server):
     ARTIFACTS.mkdir(exist_ok=True)
     services = server.services
-    with services.db.begin() as db:
-        db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
-
+    add_experimenter(server)
     # The experimenter registers two participants, forms a team and creates a trial.
-    admin = browser.new_context(viewport={"width": 1400, "height": 900}).new_page()
-    admin.goto(server.url + "/")
-    admin.fill("input[name=name]", "eve")
-    admin.fill("input[name=password]", "correct horse")
-    admin.click("#login")
-    for name in ("Ada", "Ben"):
-        admin.fill("input[aria-label='Participant name']", name)
-        admin.click("#add-participant")
-    admin.fill("input[aria-label='Team name']", "Ada & Ben")
-    admin.click("#add-team")
+    admin = experimenter(browser, server, viewport={"width": 1400, "height": 900})
+    team_of_two(admin)
     admin.fill("input[aria-label='Targets']", "mug, paddle, jar")
     admin.click("#create-trial")
     commander_url = admin.get_attribute("a.join-commander", "href")
