@@ -118,6 +118,7 @@ function connect() {
   ws.onmessage = (ev) => handle(JSON.parse(ev.data));
   ws.onclose = (ev) => {
     if (ev.code === 4409 || replaced) { replaced = false; elsewhere(true); return; }
+    if (ev.code === 4410) { location.reload(); return; }  // the trial ended: its link's page says so, and where to go on
     if (ev.code === 1008) { showError(friendlyError(ev.reason || "token refused")); return; }
     if (OVER.has(status.phase)) return;
     $("status").textContent = "Connection lost; reconnecting…";

@@ -37,6 +37,7 @@ logger = logging.getLogger(__name__)
 OUTBOX_LIMIT = 512  # messages waiting for a slow browser before it is dropped
 LOGIN_RECHECK_S = 1.0  # how often a watch socket checks that its login still stands
 LOGGED_OUT = 4401  # the close code of a watch socket whose login ended
+TRIAL_OVER = 4410  # the close code of a seat's socket whose trial has ended (the reason says how)
 CLOSE_WAIT_S = 5.0  # how long a logged-out watch waits for the browser to answer its close
 
 
@@ -104,10 +105,15 @@ async def play(
             phase = session.scalar(select(Trial.phase).where(Trial.id == seat.trial_id))
         if phase is None:
             raise UnknownTrial(f"trial {seat.trial_id} does not exist")
-        if (reason := over_reason(phase)) is not None:
-            raise InvalidToken(reason)
     except (InvalidToken, UnknownTrial) as err:
         await ws.close(code=1008, reason=str(err)[:120])
+        return
+    if (reason := over_reason(phase)) is not None:
+        # Accepted to be closed: a close before the upgrade is a bare 403 the browser cannot read, and
+        # a seat page whose trial ended while it connected would reconnect forever. With this code
+        # and the reason it loads its link again, which now shows the trial over and the way on.
+        await ws.accept()
+        await ws.close(code=TRIAL_OVER, reason=reason[:120])
         return
     # Answered before the trial opens (its log read, its maze loaded): a crowd arriving at once
     # is connected at once, and each seat's welcome follows as its trial opens.

@@ -14,6 +14,7 @@ from sqlalchemy import select
 
 from app.db.models import Trial
 from app.main import build_services
+from app.routes.seat_ws import TRIAL_OVER
 from app.trial.state import fold
 from bench.live import SeatClient, ServerProcess, make_trial
 from tests.app.live import experimenter_client, platform_settings, session_cookie
@@ -138,10 +139,15 @@ def test_a_trial_ended_by_its_grace_timer_leaves_the_live_list_and_reopens_witho
         ended = services.log.load(trial)
         away = {f"the {role} was away longer than the grace period" for role in ("commander", "driver")}
         assert ended[-1].payload["phase"] == "aborted" and ended[-1].payload["reason"] in away
-        # The seat's join link closed with the trial; the experimenter's watch reopens it.
-        with contextlib.suppress(websockets.exceptions.InvalidStatus):
-            async with SeatClient(server.ws_url, seats["commander"]):
-                raise AssertionError("a join link of an ended trial still opens its seat")
+        # The seat's join link closed with the trial: its socket is closed at once with the code
+        # the seat page reloads on, and why (a bare 403 left the page reconnecting forever).
+        async with websockets.connect(f"{server.ws_url}?token={seats['commander']}") as seat:
+            with pytest.raises(websockets.exceptions.ConnectionClosed) as closed:
+                await asyncio.wait_for(seat.recv(), 5)
+        assert closed.value.rcvd.code == TRIAL_OVER
+        assert closed.value.rcvd.reason == "this trial was stopped: ask the experimenter what comes next"
+        assert services.hub.peek(trial) is None, "the closed link opened nothing"
+        # The experimenter's watch reopens it.
         cookie = session_cookie(await asyncio.to_thread(experimenter_client, services, server.url))
         async with websockets.connect(
             f"ws://127.0.0.1:{server.port}/ws/watch/{trial}", additional_headers={"Cookie": cookie}
