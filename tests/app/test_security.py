@@ -19,6 +19,7 @@ from sqlalchemy import select
 
 from app.db.engine import alembic_config, make_engine
 from app.db.models import Experimenter, Participant, Trial
+from app.routes.seat_ws import TRIAL_OVER
 from app.security import SESSION_COOKIE, InvalidToken, Seat, SeatTokens
 from bench.live import REPO, SeatClient, make_trial
 from tests.app.live import (
@@ -298,12 +299,15 @@ def test_a_join_link_closes_when_its_trial_ends(server):
     assert page.status_code == 410 and "this trial was stopped" in page.text and "<html" in page.text
     assert httpx.get(f"{server.url}/play/{tokens['commander']}/map.png").status_code == 410
 
-    async def connect() -> None:
-        async with SeatClient(server.ws_url, tokens["commander"]):
-            pass
+    async def connect() -> websockets.exceptions.ConnectionClosed:
+        async with websockets.connect(f"{server.ws_url}?token={tokens['commander']}") as seat:
+            with pytest.raises(websockets.exceptions.ConnectionClosed) as closed:
+                await asyncio.wait_for(seat.recv(), 5)
+            return closed.value
 
-    with pytest.raises(websockets.InvalidStatus):
-        asyncio.run(connect())
+    # The socket is closed at once with the code its page reloads on (then the 410 page above).
+    closed = asyncio.run(connect())
+    assert closed.rcvd.code == TRIAL_OVER and "this trial was stopped" in closed.rcvd.reason
 
 
 @pytest.mark.settings(join_link_ttl_s=1.0)
