@@ -110,6 +110,15 @@ class Benchmark:
             raise BenchmarkError(f"{path}: no such split; expected one of {', '.join(Split)}")
         return [NDHInstance.from_json(item) for item in json.loads(path.read_text())]
 
+    def dialogs(self, name: str) -> dict[str, tuple[tuple[str, str], ...]]:
+        """Each run's whole recorded dialog in a split: its instances' histories are prefixes of
+        one another, so the longest is the run's dialog."""
+        out: dict[str, tuple[tuple[str, str], ...]] = {}
+        for inst in self.split(name):
+            if len(inst.dialog) > len(out.get(inst.run, ())):
+                out[inst.run] = inst.dialog
+        return out
+
     @cached_property
     def lookup_scans(self) -> dict[str, list[Any]]:
         path = self.root / "lookup_scans.json"
