@@ -2,6 +2,7 @@
 
     python -m bench.dialog_driver --benchmark PATH --json [--splits val_seen,test] [--limit N] [--processes 2]
     python -m bench.dialog_driver --benchmark PATH --ndh --json [--splits ...]
+    python -m bench.dialog_driver --benchmark PATH --phrasing personas --json [--splits ...]
 
 Each NDH instance is one leg: the Driver starts at the recorded start (`sim.tasks.benchmark.recorded_start`)
 and is told its target; the oracle Commander (handed the true pose: it cheats) guides it in the scripted
@@ -14,6 +15,10 @@ the `colours` LDH localizer reading the Driver's words puts the robot within 0.5
 episodes; the reference is the benchmark's human Drivers' words (LDH prefix-v1) through the same
 localizer. reply_p95_s / act_p95_s: the Driver's compute time for a perceive call that answers a
 Commander message / decides a move. Develop on val_seen; run test only for final figures.
+
+`--phrasing personas` speaks in the five frozen Commander personas instead (terse, chatty, typos,
+landmarks, metric: `sim/language/personas/`, written by someone who had not read the parser) and
+prints each one's figures under `personas`.
 
 `--ndh` runs the NDH episodes instead: from the benchmark's episode start, the leg's own recorded
 human Commander messages reach the Driver one at a time (each once it has finished the last), up to
@@ -40,7 +45,7 @@ from sim.agents.turns import Phase
 from sim.core.metrics import TrajectoryScore, score_trajectory
 from sim.core.observations import RayTable
 from sim.core.stepper import MAX_EPISODE_ACTIONS
-from sim.language.phrases import Phrasing
+from sim.language.phrases import Persona, Phrasing, style
 from sim.tasks.benchmark import Benchmark, NDHInstance, episode_start, goal_node, recorded_start
 from sim.tasks.ldh import FIRST_TARGET, LDHInstance, Variant, derive, load_split
 from sim.tasks.ldh_eval import MazeContexts, colours_localizer, score
@@ -59,7 +64,7 @@ def _play(job: tuple[str, str, int, str]) -> tuple[str, str, LegResult]:
     inst = _bench.split(split)[k]
     graph = _bench.graph(inst.run)
     rays = RayTable.build(_bench.maze(inst.run), graph, cache_dir=_bench.cache_dir)
-    phrasing = Phrasing.SCRIPTED if mode == "localize" else Phrasing(mode)
+    phrasing = Phrasing.SCRIPTED if mode == "localize" else style(mode)
     commander = OracleCommander(graph, rays, [(inst.target, inst.target_pose)], phrasing, seed=inst.inst_idx)
     start = recorded_start(graph, inst)
     if mode == "localize":
@@ -113,6 +118,12 @@ def main() -> None:
     parser.add_argument("--limit", type=int, default=None, help="the first N instances of each split")
     parser.add_argument("--processes", type=int, default=2)
     parser.add_argument("--ndh", action="store_true", help="replay the recorded Commanders' messages instead")
+    parser.add_argument(
+        "--phrasing",
+        choices=["standard", "personas"],
+        default="standard",
+        help="scripted and held-out, or the personas",
+    )
     args = parser.parse_args()
     bench = Benchmark(args.benchmark)
     splits = args.splits.split(",")
@@ -129,12 +140,13 @@ def main() -> None:
         }
         print(json.dumps({"ndh": ndh, "splits": splits, "episodes": len(scores)}, indent=None if args.json else 2))
         return
+    modes = ["scripted", "held_out"] if args.phrasing == "standard" else [f"persona:{p.value}" for p in Persona]
     jobs: list[tuple[str, str, int, str]] = []
     firsts: dict[int, Any] = {}
     for split in splits:
         instances = bench.split(split)[: args.limit]
-        jobs += [(str(bench.root), split, k, mode) for k in range(len(instances)) for mode in ("scripted", "held_out")]
-        if split == "val_seen":
+        jobs += [(str(bench.root), split, k, mode) for k in range(len(instances)) for mode in modes]
+        if split == "val_seen" and args.phrasing == "standard":
             for k, inst in enumerate(instances):
                 if inst.target == FIRST_TARGET:
                     jobs.append((str(bench.root), split, k, "localize"))
@@ -143,7 +155,7 @@ def main() -> None:
     with Pool(args.processes) as pool:
         for item in tqdm(pool.imap(_play, jobs), total=len(jobs), desc="dialog driver", file=sys.stderr):
             results.append(item)
-    by_mode = {mode: [r for _, m, r in results if m == mode] for mode in ("scripted", "held_out", "localize")}
+    by_mode = {mode: [r for _, m, r in results if m == mode] for mode in (*modes, "localize")}
     localization: dict[str, float | None] = {"within_0_5m": None, "reference_within_0_5m": None}
     if firsts:
         contexts = MazeContexts(bench)
@@ -159,15 +171,19 @@ def main() -> None:
         reference = [i for i in load_split(bench, "val_seen") if i.inst_idx in idx]
         ref = [score(contexts[i.run], colours_localizer(i, contexts[i.run]), i)[2][1] for i in reference]
         localization = {"within_0_5m": float(np.mean(ours)), "reference_within_0_5m": float(np.mean(ref))}
-    legs = by_mode["scripted"] + by_mode["held_out"] + by_mode["localize"]
+    legs = [r for results_of_mode in by_mode.values() for r in results_of_mode]
+    spoken: dict[str, Any] = (
+        {mode: _summary(by_mode[mode]) for mode in modes}
+        if args.phrasing == "standard"
+        else {"personas": {mode.removeprefix("persona:"): _summary(by_mode[mode]) for mode in modes}}
+    )
     figures = {
-        "scripted": _summary(by_mode["scripted"]),
-        "held_out": _summary(by_mode["held_out"]),
+        **spoken,
         "localization": localization,
         "reply_p95_s": float(np.percentile([t for r in legs for t in r.reply_s], 95)),
         "act_p95_s": float(np.percentile([t for r in legs for t in r.act_s], 95)),
         "splits": splits,
-        "episodes": len(by_mode["scripted"]),
+        "episodes": len(by_mode[modes[0]]),
     }
     print(json.dumps(figures, indent=None if args.json else 2))
 

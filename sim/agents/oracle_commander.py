@@ -30,7 +30,7 @@ from sim.core.geometry import SUCCESS_RADIUS_M
 from sim.core.labels import Label, object_label
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
-from sim.language.phrases import Kind, Phrases, Phrasing
+from sim.language.phrases import Kind, Persona, Phrases, Phrasing
 from sim.language.vocab import OBJECT_WORDS
 from sim.robot.perception import RayObservation
 
@@ -45,11 +45,11 @@ class OracleCommander:
         graph: NavGraph,
         rays: RayTable,
         targets: list[tuple[str, tuple[float, float]]],
-        phrasing: Phrasing = Phrasing.SCRIPTED,
+        phrasing: Phrasing | Persona = Phrasing.SCRIPTED,
         seed: int = 0,
     ) -> None:
         self.graph, self.rays, self.targets = graph, rays, targets
-        self.phrases = Phrases(Phrasing(phrasing), seed)
+        self.phrases = Phrases(phrasing, seed)
         self.router = Router(graph, rays, self.phrases)
         self.pose = Pose(0, 0)
         self._index: int | None = None

@@ -1,11 +1,16 @@
-"""The Commander's words: the scripted templates (app/demo's Commander) and the frozen held-out set.
+"""The Commander's words: the scripted templates (app/demo's Commander), the frozen held-out set
+and the frozen personas.
 
 Each kind of instruction has its templates; the scripted set is one template per kind, the words the
 project's scripted Commander has always used; the held-out set (`held_out_commander.json`) was
-paraphrased from the train split's Commander turns and frozen before the Driver's parser was tuned."""
+paraphrased from the train split's Commander turns and frozen before the Driver's parser was tuned.
+The personas (`personas/commander_*.json`: terse, chatty, typos, landmarks, metric) were written by
+someone who had not read the parsers, from the train split's human turns, and frozen (their hashes
+below) before the Driver's understanding was developed against them."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 import random
 from enum import StrEnum
@@ -19,6 +24,32 @@ NUMBER_NAMES = "zero one two three four five six seven eight nine ten eleven twe
 class Phrasing(StrEnum):
     SCRIPTED = "scripted"
     HELD_OUT = "held_out"
+
+
+class Persona(StrEnum):
+    """The frozen Commander personas: how five kinds of person phrase the same instructions."""
+
+    TERSE = "terse"
+    CHATTY = "chatty"
+    TYPOS = "typos"
+    LANDMARKS = "landmarks"
+    METRIC = "metric"
+
+    @property
+    def path(self) -> Path:
+        return PERSONAS_DIR / f"commander_{self.value}.json"
+
+
+PERSONAS_DIR = Path(__file__).with_name("personas")
+# sha256 of each persona's file as frozen: a persona is never edited to fit the parser.
+PERSONA_SHA256 = {
+    Persona.TERSE: "a49dcede09c3868301258789535ab90ddb5db0bff986f27fae20661cecac38fc",
+    Persona.CHATTY: "2a1715787146e2f021d9b8e4661cb97fe814813481a90f844bf316b09f261d07",
+    Persona.TYPOS: "fcc0eaa30440e9ee993ee8e06130bbc1a290a21814b3f4db1b1c59379805a866",
+    Persona.LANDMARKS: "da1a9a5b65623effde90611d30bf397acf3efa911edc2c3675d5e5a4ecc8f19f",
+    Persona.METRIC: "8eac56f8dd1a290da6a609aa7bdcfc4a576403bdac3289e6181a91cddfa06664",
+}
+STEP_CM = 7  # a forward move, for the personas that count in centimetres
 
 
 class Kind(StrEnum):
@@ -46,17 +77,32 @@ SCRIPTED: dict[str, Any] = {
 }
 
 
-def load(phrasing: Phrasing) -> dict[str, Any]:
+def load(phrasing: Phrasing | Persona) -> dict[str, Any]:
     if phrasing == Phrasing.SCRIPTED:
         return SCRIPTED
+    if isinstance(phrasing, Persona):
+        raw = phrasing.path.read_bytes()
+        if hashlib.sha256(raw).hexdigest() != PERSONA_SHA256[phrasing]:
+            raise ValueError(
+                f"{phrasing.path} is not the frozen persona (its sha256 changed); personas are never edited"
+            )
+        persona: dict[str, Any] = json.loads(raw)
+        return persona
     held_out: dict[str, Any] = json.loads(HELD_OUT_PATH.read_text())
     return held_out
+
+
+def style(name: str) -> Phrasing | Persona:
+    """A phrasing by its name: "scripted", "held_out" or "persona:NAME"."""
+    if name.startswith("persona:"):
+        return Persona(name.removeprefix("persona:"))
+    return Phrasing(name)
 
 
 class Phrases:
     """Templates of one phrasing, filled in; which template of a kind is drawn from `seed`."""
 
-    def __init__(self, phrasing: Phrasing, seed: int = 0) -> None:
+    def __init__(self, phrasing: Phrasing | Persona, seed: int = 0) -> None:
         self.templates = load(phrasing)
         self._rng = random.Random(seed)
 
@@ -64,6 +110,8 @@ class Phrases:
         return options[self._rng.randrange(len(options))]
 
     def number(self, n: int) -> str:
+        if self.templates.get("units") == "cm":
+            return str(n * STEP_CM)
         return NUMBER_NAMES[n] if self.templates["numbers"] == "words" and n < len(NUMBER_NAMES) else str(n)
 
     def turn(self, eighths: int) -> str | None:
