@@ -214,10 +214,29 @@ def experiment_ndh(
     )
 
 
+def train_language(
+    benchmark: Path = BENCHMARK_OPTION,
+    seed: int = typer.Option(0, help="Random seed."),
+    out: Path = typer.Option(..., help="Folder for commander.npz, driver.npz and training.json."),
+    epochs: int = typer.Option(40, help="Passes over the examples."),
+) -> None:
+    """Train the dialog readers on the train split (docs/model_card_language.md); about 10 minutes on 2 cores."""
+    from models.language import Config, train
+
+    report = train(open_benchmark(benchmark), Config(seed=seed, epochs=epochs), out)
+    for role, figures in report["readers"].items():
+        typer.echo(
+            f"{role}: {figures['hand_labelled']} hand-labelled + {figures['rules_labelled']} rules-labelled turns, "
+            f"final loss {figures['loss'][-1]:.4f}"
+        )
+    typer.echo(f"{report['seconds'] / 60:.1f} min; readers -> {out}")
+
+
 def register(root: typer.Typer, eval_app: typer.Typer) -> None:
     """Mount this package's commands on the root CLI."""
-    train_app = typer.Typer(help="Train learned Drivers.", no_args_is_help=True)
+    train_app = typer.Typer(help="Train learned Drivers and the dialog readers.", no_args_is_help=True)
     train_app.command("ndh")(train_ndh)
+    train_app.command("language")(train_language)
     root.add_typer(train_app, name="train")
     eval_app.command("ndh")(eval_ndh)
     report_app = typer.Typer(help="Reports of experiments.", no_args_is_help=True)

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 
 from sim.core.labels import OBJECT_LABELS, Label
-from sim.language.vocab import LABEL_WORDS, ORDINAL_WORDS, Side, number, words
+from sim.language.vocab import LABEL_WORDS, ORDINAL_WORDS, SHARP_WORDS, SLIGHT_WORDS, Side, number, words
 
 
 class Question(StrEnum):
@@ -138,10 +138,10 @@ def _side(ws: list[str]) -> Side | None:
     return None
 
 
-def _turn_size(text: str, ws: list[str]) -> int:
-    if re.search(r"\b(slightly|slight|bit|little|45|veer|bear)\b", text):
+def _turn_size(ws: list[str]) -> int:
+    if SLIGHT_WORDS.intersection(ws) or "45" in ws:
         return 1
-    if re.search(r"\b(sharply|sharp|hard|135)\b", text):
+    if SHARP_WORDS.intersection(ws) or "135" in ws:
         return 3
     return 2
 
@@ -216,7 +216,7 @@ def _clause(text: str, prev: Instruction | None) -> list[Instruction]:
         elif turn_side is None:
             out.append(Forward(None, objects[0] if objects else None))
     if turn_side is not None:
-        size = _turn_size(text, ws) * (1 if turn_side == Side.LEFT else -1)
+        size = _turn_size(ws) * (1 if turn_side == Side.LEFT else -1)
         out += [Turn(size)] * (2 if "twice" in ws else 1)
     if not out and _STOP.search(text):
         return [Stop(claim=False)]

@@ -70,6 +70,9 @@ NUMBER_WORDS = {
     "few": 3,
 }
 ORDINAL_WORDS = {"first": 1, "second": 2, "third": 3, "fourth": 4, "fifth": 5, "next": 1}
+# Words that make a turn an eighth ("veer left a bit") or three ("a hard right") rather than two.
+SLIGHT_WORDS = frozenset({"slightly", "slight", "bit", "little", "veer", "bear"})
+SHARP_WORDS = frozenset({"sharply", "sharp", "hard"})
 
 KEYWORDS = frozenset(
     [*LABEL_WORDS, *NUMBER_WORDS, *ORDINAL_WORDS, *(s.value for s in Side)]
