@@ -40,6 +40,8 @@ class Settings(BaseSettings):
     agent_messages_per_target: int = Field(
         default=150, ge=1
     )  # an agent's own, either seat: two agents may talk in circles
+    # The agent Driver says a long plan back in short before carrying it out, to a person Commander.
+    agent_read_back: bool = True
     redis_url: str | None = None  # fan-out between processes; in-process when unset
     # Origins (scheme://host[:port]) trusted beside the server's own, for state-changing requests and sockets.
     allowed_origins: list[str] = Field(default_factory=list)

@@ -43,3 +43,4 @@ class Seating:
     seed: int  # the trial's id: an agent's chance moves repeat per trial
     oracle: Oracle | None = None  # for `oracle:` drivers only
     maze: str | None = None  # for Commanders only: the maze their map shows
+    partner_human: bool = True  # a person holds the other seat (an agent talks to them as to a person)

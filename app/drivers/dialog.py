@@ -11,7 +11,7 @@ from sim.agents.dialog_driver import DialogDriver
 
 
 def dialog_driver(parts: AgentParts, seating: Seating) -> DialogDriver:
-    return DialogDriver(seed=seating.seed)
+    return DialogDriver(seed=seating.seed, read_back=parts.settings.agent_read_back and seating.partner_human)
 
 
 def dialog_commander(parts: AgentParts, seating: Seating) -> DialogCommander:

@@ -57,9 +57,11 @@ def seat_agents(runtime: TrialRuntime) -> tuple[DriverSeat | None, CommanderSeat
     if not driver_spec.human:
         cheats = driver_spec.kind == SeatKind.ORACLE
         oracle = Oracle(s.maze, tuple(s.targets), runtime.true_pose) if cheats else None
-        driver = DriverSeat(runtime, parts, Seating(seed=runtime.trial_id, oracle=oracle))
+        seating = Seating(seed=runtime.trial_id, oracle=oracle, partner_human=commander_spec.human)
+        driver = DriverSeat(runtime, parts, seating)
     if not commander_spec.human:
-        commander = CommanderSeat(runtime, parts, Seating(seed=runtime.trial_id, maze=s.maze))
+        seating = Seating(seed=runtime.trial_id, maze=s.maze, partner_human=driver_spec.human)
+        commander = CommanderSeat(runtime, parts, seating)
     return driver, commander
 
 

@@ -40,12 +40,29 @@ from sim.core.geometry import HEADING_DI, HEADING_DJ, HEADINGS
 from sim.core.labels import OBJECT_LABELS, Label
 from sim.language import instructions as ins
 from sim.language.describe import LEFT_EDGE, RIGHT_EDGE, ahead, at_wall, brief, describe, near, seen
+from sim.language.meaning import Clause, Op, Program, program_of
+from sim.language.understanding import Understanding, instructions, read_back
 from sim.language.vocab import SIDE_PHRASE, SIDE_STEPS, Side, wall_name
 from sim.robot.perception import RayObservation
 from sim.tasks.ldh_features import NEAR_M
 
 OPENING_M = 0.6  # a side ray further than this after a nearer one: an opening on that side
 MAX_WALK = 60  # forward moves one "until" may take before the Driver asks
+# The reader this unsure of a message: say its best reading and ask before acting (on val_seen's
+# gold turns 7 of 206 fall below, and the reader had 1 of those 7 right; 70 % of the rest).
+ASK_BELOW = 0.8
+READ_BACK_CLAUSES = 2  # with read-back on, a plan of this many moving clauses is said before it is done
+FAILED_TRIES = 2  # instructions in a row it could not carry out: ask for one move at a time
+_MOVING_OPS = (Op.TURN, Op.FORWARD, Op.FOLLOW, Op.OPENING, Op.BACK)
+_YES = Clause.of(Op.ANSWER, value="yes")
+_NO = Clause.of(Op.ANSWER, value="no")
+
+
+def _moves(program: Program) -> int:
+    """How many of a program's clauses move the robot."""
+    return sum(c.op in _MOVING_OPS for c in program)
+
+
 NEXT = ("what next?", "where to now?", "what should i do next?")
 
 
@@ -107,8 +124,12 @@ class _Odometry:
 class DialogDriver:
     """The Driver's seat agent (`sim.agents.turns.Agent`); deterministic given `seed`."""
 
-    def __init__(self, seed: int = 0) -> None:
+    def __init__(self, seed: int = 0, read_back: bool = False, understanding: Understanding | None = None) -> None:
+        """`read_back`: say a long plan in short before carrying it out (for a person's benefit);
+        `understanding`: how it reads the Commander (the shipped readers by default)."""
         self._rng = random.Random(seed)
+        self._read_back = read_back
+        self._understanding = understanding or Understanding.trained()
         self.reset(SeatInfo(Speaker.DRIVER, 0))
 
     def reset(self, info: SeatInfo) -> None:
@@ -125,6 +146,9 @@ class DialogDriver:
         self._claim_on_resume = False  # its claim was refused while paused: claim again once it runs
         self._rejected_at: set[tuple[int, int]] = set()
         self._done_words = ""
+        self._before: tuple[str, str] | None = None  # the dialog's last message, for the reader
+        self._offered: tuple[Program, str] | None = None  # a reading it asked about, and its message
+        self._failed = 0  # instructions in a row it could not carry out
 
     # -- percepts -------------------------------------------------------------------------------
 
@@ -135,7 +159,9 @@ class DialogDriver:
             self._phase = percept.phase
             return []
         if isinstance(percept, Heard):
-            return self._heard(percept.text) if percept.speaker == Speaker.COMMANDER else []
+            turns = self._heard(percept.text) if percept.speaker == Speaker.COMMANDER else []
+            self._before = ("c" if percept.speaker == Speaker.COMMANDER else "d", percept.text)
+            return turns
         if isinstance(percept, Moved):
             return self._moved(percept)
         if isinstance(percept, Saw):
@@ -176,7 +202,7 @@ class DialogDriver:
         if moved.result != Outcome.OK:
             self._plan.clear()
             if moved.result == Outcome.COLLISION:
-                return [DoSay("i hit a wall, which way now?")]
+                return [self._failure("i hit a wall, which way now?")]
             return [DoSay(f"i could not move ({moved.reason or 'refused'}). what should i do?")]
         if moved.move == Move.FORWARD:
             self._odo.i += int(HEADING_DI[self._odo.heading])
@@ -190,14 +216,57 @@ class DialogDriver:
     # -- instructions -> tasks ------------------------------------------------------------------
 
     def _heard(self, text: str) -> list[Turn]:
-        parsed = ins.parse(text)
+        understood = self._understanding.program(text, self._before)
+        program, offered, self._offered = understood.meaning, self._offered, None
+        if offered is not None and program == (_YES,):
+            program, text = offered  # "yes": the reading it asked about
+        elif offered is not None and program == (_NO,):
+            self._plan.clear()
+            return [DoSay("ok, i did not get it then. could you say it another way, one move at a time?")]
+        elif self._phase == Phase.NAVIGATING and (
+            understood.confidence < ASK_BELOW or not _moves(program) and _moves(program_of(ins.parse(text)))
+        ):
+            return self._ask_about(program, text)  # unsure, or the rules hear moves where the reader heard none
+        unclear = [c for c in program if c.op == Op.UNCLEAR]
+        if unclear and len(unclear) < len(program):
+            program = tuple(c for c in program if c.op != Op.UNCLEAR)  # act on what it understood
+        return self._follow(program, text, said_unclear=bool(unclear))
+
+    def _ask_about(self, program: Program, text: str) -> list[Turn]:
+        """Not sure what was meant: say its best reading (the rules' where it read no move) and ask."""
+        best = program if _moves(program) else program_of(ins.parse(text))
+        if not _moves(best):
+            return self._follow(program, text, said_unclear=False)
+        self._plan.clear()
+        self._offered = (best, text)
+        return [DoSay(f"i am not sure i got '{text.strip()}'. do you mean: {read_back(best)}?")]
+
+    def _failure(self, text: str) -> DoSay:
+        """It could not carry out what it was told; after FAILED_TRIES in a row it asks for less at a time."""
+        self._failed += 1
+        if self._failed >= FAILED_TRIES:
+            return DoSay(f"{text} could you give me one move at a time?")
+        return DoSay(text)
+
+    def _follow(self, program: Program, text: str, said_unclear: bool) -> list[Turn]:
+        parsed = ins.Parsed(tuple(instructions(program, text)))
         self._plan.clear()
         self._claim_on_resume = False
         tasks: list[_Task] = []
         for item in parsed.instructions:
             tasks += self._tasks(item)
         if parsed.unclear:
-            tasks = [_Task(Task.SAY, text="sorry, i did not understand. which way should i go?")]
+            tasks = [
+                _Task(
+                    Task.SAY,
+                    text=f"sorry, i did not understand '{text.strip()}'. could you say it another way, "
+                    "for example 'turn left' or 'go forward to the red wall'?",
+                )
+            ]
+        elif said_unclear and tasks:
+            tasks.append(_Task(Task.SAY, text="i did the part i understood; i did not get the rest. what next?"))
+        if self._read_back and _moves(program) >= READ_BACK_CLAUSES and self._phase == Phase.NAVIGATING:
+            tasks.insert(0, _Task(Task.SAY, text=f"ok: {read_back(program)}"))
         if self._phase == Phase.LOCALIZING and any(t.kind in MOVING for t in tasks):
             tasks = [t for t in tasks if t.kind not in MOVING]
             tasks.append(
@@ -292,6 +361,8 @@ class DialogDriver:
             self._claiming = True
             thing = wall_name(self._target) if self._target is not None else "target"
             return [DoSay(f"i think i found the {thing}"), DoClaim()]
+        if not task.text:
+            self._failed = 0  # an instruction set carried out to its end
         text = task.text or f"ok, {self._done_words or 'done'}, {brief(self._view)}. {self._rng.choice(NEXT)}"
         return DoSay(text)
 
@@ -314,7 +385,7 @@ class DialogDriver:
                 return None
             if view is not None and view.forward_blocked:
                 self._plan.clear()
-                return DoSay(f"i can only go {task.done} steps, {brief(view)}. which way now?")
+                return self._failure(f"i can only go {task.done} steps, {brief(view)}. which way now?")
             task.done += 1
             return DoMove(Move.FORWARD)
         if view is None or view.problem is not None:
@@ -332,19 +403,19 @@ class DialogDriver:
             if task.until is not None and label != task.until and task.until not in OBJECT_LABELS:
                 self._plan.clear()
                 found = wall_name(label) if label is not None else "something"
-                return DoSay(f"i am at a {found}, i do not see a {wall_name(task.until)} ahead. which way now?")
+                return self._failure(f"i am at a {found}, i do not see a {wall_name(task.until)} ahead. which way now?")
             if label is not None and label in task.exclude:
                 self._plan.clear()
-                return DoSay(f"i am at the {wall_name(label)}, which you said is not the one. which way now?")
+                return self._failure(f"i am at the {wall_name(label)}, which you said is not the one. which way now?")
             self._done_words = f"at the {wall_name(label)}" if label is not None else "at the wall"
             return None
         wall = task.until if task.until not in OBJECT_LABELS else None
         if task.done == 0 and wall is not None and not any(s.label == wall for s in seen(view)):
             self._plan.clear()
-            return DoSay(f"i do not see a {wall_name(wall)} ahead, {brief(view)}. which way?")
+            return self._failure(f"i do not see a {wall_name(wall)} ahead, {brief(view)}. which way?")
         if task.done >= MAX_WALK:
             self._plan.clear()
-            return DoSay(f"i have gone {task.done} steps and still {brief(view)}. where am i going?")
+            return self._failure(f"i have gone {task.done} steps and still {brief(view)}. where am i going?")
         task.done += 1
         return DoMove(Move.FORWARD)
 
@@ -365,7 +436,7 @@ class DialogDriver:
             return None
         if view.forward_blocked or task.done >= MAX_WALK:
             self._plan.clear()
-            return DoSay(f"i found no opening on my {task.side}, {brief(view)}. which way now?")
+            return self._failure(f"i found no opening on my {task.side}, {brief(view)}. which way now?")
         task.done += 1
         return DoMove(Move.FORWARD)
 
@@ -381,7 +452,7 @@ class DialogDriver:
         if turn == 0:
             if self._view is not None and self._view.forward_blocked:
                 self._plan.clear()
-                return DoSay(f"a wall is in my way {task.text}, {brief(self._view)}. which way?")
+                return self._failure(f"a wall is in my way {task.text}, {brief(self._view)}. which way?")
             return DoMove(Move.FORWARD)
         return DoMove(Move.LEFT if turn <= 4 else Move.RIGHT)
 

@@ -180,8 +180,9 @@ class Belief:
         """The robot turned `steps` x 45 degrees counter-clockwise: what was heading h is h + steps."""
         self.log = np.roll(self.log, steps, axis=1)
 
-    def message(self, role: str, text: str) -> None:
-        """Update on one message of the dialog (role: oracle = Commander, navigator = Driver)."""
+    def message(self, role: str, text: str, read: Iterable[Fact] | None = None) -> None:
+        """Update on one message of the dialog (role: oracle = Commander, navigator = Driver); a
+        Driver's facts are `read` where a reader made them, the lexicon's otherwise."""
         if role not in ROLES:
             raise ValueError(f"unknown role {role!r}; expected one of {', '.join(ROLES)}")
         if role == "oracle":
@@ -196,7 +197,7 @@ class Belief:
             self.turn(reported)
         elif q is not None and q.turn and not declined:
             self.turn(q.turn)
-        self.observe(answer(q, text) if q is not None else facts(text))
+        self.observe(read if read is not None else answer(q, text) if q is not None else facts(text))
 
     def node_logits(self) -> np.ndarray:
         """(N, 8) logits at the weights' sharpness (softmax them for probabilities)."""
