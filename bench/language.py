@@ -9,10 +9,12 @@ hashes as annotated stops the run. The set's own hashes are checked before anyth
 so an edited set cannot be scored (errata go in a second file, counted both ways).
 
 Commander turns are scored as programs (exact match in order, clause F1 as multisets); Driver
-turns as fact sets (fact F1). `commander` / `driver` are the readers the agents use;
-`baseline` is the rules alone (`instructions.parse`, and `lexicon` as the Commander agent reads
-a Driver). understand_p95_ms: the agents' reading time of one turn; model_mb: the resident
-memory the readers added. Develop on val_seen; score test once per release.
+turns as fact sets (fact F1). `commander` / `driver` are what the agents understand
+(`sim.language.understanding`: the trained readers, the rules where a reader is unsure);
+`baseline` is the rules alone (`instructions.parse`, and `lexicon` as the Commander agent read
+a Driver before the readers); `parts` gives the reader alone, the rules alone and the two
+together. understand_p95_ms: the agents' time to understand one turn; model_mb: the resident memory that
+loading the readers and reading the set added. Develop on val_seen; score test once per release.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ import os
 import resource
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -32,6 +34,8 @@ from typing import Any
 from sim.language import instructions as ins
 from sim.language import lexicon
 from sim.language.meaning import Clause, FactForm, Program, Score, facts_of, program_of, score_facts, score_programs
+from sim.language.reader import Reader, Role, shipped
+from sim.language.understanding import Understanding
 from sim.tasks.benchmark import Benchmark, Split
 
 GOLD_DIR = Path(__file__).parent / "language_gold"
@@ -68,6 +72,13 @@ class RecordedTurn:
             if lexicon.is_question(text):
                 return text
         return None
+
+    def previous(self) -> tuple[str, str] | None:
+        """The turn before, as the agents' reader takes it ("c" Commander, "d" Driver)."""
+        if not self.before:
+            return None
+        role, text = self.before[-1]
+        return ("c" if role == "oracle" else "d", text)
 
 
 def text_hash(text: str) -> str:
@@ -151,36 +162,39 @@ def _figures(commander: Score, driver: Score) -> dict[str, Any]:
     }
 
 
-def evaluate(
-    benchmark: Benchmark,
-    split: str,
-    read_program: Callable[[RecordedTurn], Program] = rules_program,
-    read_facts: Callable[[RecordedTurn], frozenset[FactForm]] = rules_facts,
-) -> dict[str, Any]:
+def evaluate(benchmark: Benchmark, split: str, understanding: Understanding) -> dict[str, Any]:
+    """The agents' understanding against the gold set, with the rules alone beside it (`baseline`)
+    and the trained reader alone and with its rules fallback (`parts`)."""
     commander, driver = gold(benchmark, split)
     baseline = _figures(
         score_programs((rules_program(t), want) for t, want in commander),
         score_facts((rules_facts(t), want) for t, want in driver),
     )
-    before_mb = _rss_mb()
-    times: list[float] = []
-
-    def timed(read: Callable[[RecordedTurn], Any], turn: RecordedTurn) -> Any:
-        start = time.perf_counter()
-        out = read(turn)
-        times.append(time.perf_counter() - start)
-        return out
-
-    figures = _figures(
-        score_programs((timed(read_program, t), want) for t, want in commander),
-        score_facts((timed(read_facts, t), want) for t, want in driver),
+    reader_alone = Understanding(understanding.commander_reader, understanding.driver_reader, unsure=0.0)
+    alone = _figures(
+        score_programs((reader_alone.program(t.text, t.previous()).meaning, want) for t, want in commander),
+        score_facts((reader_alone.facts(t.text, t.previous(), t.asked()).meaning, want) for t, want in driver),
     )
+    times: list[float] = []
+    programs, facts = [], []
+    for t, want in commander:
+        start = time.perf_counter()
+        programs.append((understanding.program(t.text, t.previous()).meaning, want))
+        times.append(time.perf_counter() - start)
+    for t, wanted in driver:
+        start = time.perf_counter()
+        facts.append((understanding.facts(t.text, t.previous(), t.asked()).meaning, wanted))
+        times.append(time.perf_counter() - start)
     times.sort()
     return {
-        **figures,
+        **_figures(score_programs(programs), score_facts(facts)),
         "baseline": baseline,
+        "parts": {
+            "reader": alone,
+            "rules": baseline,
+            "together": _figures(score_programs(programs), score_facts(facts)),
+        },
         "understand_p95_ms": round(1000 * times[int(0.95 * (len(times) - 1))], 3) if times else 0.0,
-        "model_mb": round(max(0.0, _rss_mb() - before_mb), 1),
         "split": split,
     }
 
@@ -190,10 +204,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--benchmark", default=os.environ.get("ROBOTSLANG_BENCHMARK"), help="the benchmark's folder")
     parser.add_argument("--split", default=Split.VAL_SEEN.value, choices=[s.value for s in GOLD_SPLITS])
     parser.add_argument("--json", action="store_true", help="print the figures as JSON on the last line")
+    parser.add_argument(
+        "--readers", type=Path, default=None, help="a `train language` output folder; default the shipped readers"
+    )
     args = parser.parse_args(argv)
     if not args.benchmark:
         parser.error("--benchmark PATH (or ROBOTSLANG_BENCHMARK) is required")
-    figures = evaluate(Benchmark(args.benchmark), args.split)
+    bench = Benchmark(args.benchmark)
+    before_mb = _rss_mb()
+    readers = (
+        (Reader(args.readers / "commander.npz"), Reader(args.readers / "driver.npz"))
+        if args.readers
+        else (shipped(Role.COMMANDER), shipped(Role.DRIVER))
+    )
+    figures = evaluate(bench, args.split, Understanding(*readers))
+    figures["model_mb"] = round(_rss_mb() - before_mb, 1)  # the readers' weights, and what reading kept
     print(
         f"load average {' '.join(f'{v:.2f}' for v in os.getloadavg())}; peak RSS {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024} MB",
         file=sys.stderr,

@@ -86,7 +86,7 @@ def test_scores_count_order_for_exact_match_and_multisets_for_f1():
 def test_the_bench_prints_the_issues_figures_as_its_last_line(benchmark_path, capsys):
     language.main(["--benchmark", str(benchmark_path), "--split", "val_seen", "--json"])
     figures = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-    assert set(figures) == {"commander", "driver", "baseline", "understand_p95_ms", "model_mb", "split"}
+    assert {"commander", "driver", "baseline", "understand_p95_ms", "model_mb", "split"} <= set(figures)
     assert set(figures["commander"]) == set(figures["baseline"]["commander"]) == {"exact_match", "clause_f1", "turns"}
     assert set(figures["driver"]) == set(figures["baseline"]["driver"]) == {"fact_f1", "turns"}
     assert figures["split"] == "val_seen" and figures["commander"]["turns"] > 150
