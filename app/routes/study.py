@@ -220,6 +220,11 @@ def after_trial(me: ParticipationDep, trial_id: int) -> RedirectResponse:
 
 @router.get("/study/{name}/trials/{trial_id}/questionnaire", response_class=HTMLResponse)
 def questionnaire(me: ParticipationDep, trial_id: int, request: Request, templates: TemplatesDep) -> HTMLResponse:
+    """Served only where an answer would be taken: a trial of theirs, played and over, not rated yet."""
+    try:
+        me.enrolment.questionnaire_due(me.enrolled, trial_id)
+    except EnrolmentError as err:
+        raise HTTPException(404, str(err)) from err
     return _page(templates, request, "questionnaire", study=me.config, code=me.code, trial_id=trial_id, form={})
 
 

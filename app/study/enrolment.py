@@ -150,8 +150,9 @@ class Enrolment:
     def answered(self, enrolled: StudyParticipant) -> set[int]:
         return set(self.db.scalars(select(StudyAnswer.trial_id).where(StudyAnswer.study_participant_id == enrolled.id)))
 
-    def answer(self, enrolled: StudyParticipant, trial_id: int, form: dict[str, str]) -> None:
-        """The questionnaire after `trial_id`: every rating item answered 1-5, free text optional."""
+    def questionnaire_due(self, enrolled: StudyParticipant, trial_id: int) -> None:
+        """Whether the questionnaire after `trial_id` may be shown and answered: a trial of the
+        participant's, played and over, not the practice, not answered yet; else `EnrolmentError`."""
         self._active(enrolled)
         trial = self._own(enrolled, trial_id)
         if trial.excluded_reason == PRACTICE_REASON:
@@ -162,6 +163,10 @@ class Enrolment:
             raise EnrolmentError("this trial never started (a seat was never opened): it has no questionnaire")
         if trial_id in self.answered(enrolled):
             raise EnrolmentError("you have already answered the questionnaire for this trial")
+
+    def answer(self, enrolled: StudyParticipant, trial_id: int, form: dict[str, str]) -> None:
+        """The questionnaire after `trial_id`: every rating item answered 1-5, free text optional."""
+        self.questionnaire_due(enrolled, trial_id)
         ratings: dict[str, int] = {}
         free_text: dict[str, str] = {}
         for q in self.config.questionnaire:

@@ -231,6 +231,32 @@ def test_questionnaires_completion_and_withdrawal_erase_personal_data_only(serve
     assert trial.commander_id == enrolled.participant_id and ratings == {"difficulty": 3, "partner": 4}
 
 
+def test_the_questionnaire_opens_only_for_a_trial_the_participant_played_that_has_ended(server):
+    make_study(server.settings)
+    bob, bob_code = join(server, "pilot")
+    ann_code, cat_code, dan_code = (join(server, "pilot")[1] for _ in range(3))
+    ours, theirs = (
+        study_trial(server, "pilot", (bob_code, ann_code)),
+        study_trial(server, "pilot", (cat_code, dan_code)),
+    )
+    form = "/study/pilot/trials/{}/questionnaire"
+    open_seats(server, ours, "commander", "driver")
+    running = bob.get(form.format(ours))
+    assert running.status_code == 404 and "opens when the trial is over" in running.text
+    eve = experimenter_client(server.services, server.url)
+    for trial_id in (ours, theirs):
+        open_seats(server, trial_id, "commander", "driver")
+        assert eve.post(f"/experimenter/trials/{trial_id}/abort").status_code == 200
+    other_pairs = bob.get(form.format(theirs))
+    assert other_pairs.status_code == 404 and "not one of yours" in other_pairs.text
+    assert bob.get(form.format(theirs + 1000)).status_code == 404, "no such trial"
+    page = bob.get(form.format(ours))
+    assert page.status_code == 200 and 'name="difficulty"' in page.text
+    assert bob.post(form.format(ours), data=answers(bob_code)).url.path == "/study/pilot/me"
+    answered = bob.get(form.format(ours))
+    assert answered.status_code == 404 and "already answered" in answered.text
+
+
 def poll(client, study: str = "pilot") -> dict:
     reply = client.post(f"/study/{study}/lobby")
     assert reply.status_code == 200, reply.text[:300]
