@@ -13,6 +13,7 @@ from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from fastapi.templating import Jinja2Templates
 
+from app.db.engine import truncate_wal
 from app.deps import (
     ClockDep,
     DbSession,
@@ -260,6 +261,7 @@ def complete(me: ParticipationDep, request: Request, templates: TemplatesDep) ->
 def withdraw(me: ParticipationDep, request: Request, templates: TemplatesDep) -> HTMLResponse:
     with me.db.begin():
         me.enrolment.withdraw(me.enrolled)
+    truncate_wal(me.db.get_bind().engine)  # no copy of the erased text stays in SQLite's WAL file
     response = _page(templates, request, "withdrawn", study=me.config)
     response.delete_cookie(PASS_COOKIE, path="/study")
     return response

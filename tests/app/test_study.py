@@ -31,7 +31,9 @@ from tests.app.live import (
 )
 
 REAL_NAME = "Bob Okafor"
-FREE_TEXT = "I am Bob Okafor and the mug was hard to find"
+# As long as a participant may write, in a script of three bytes a character: past a page, so
+# SQLite keeps it on overflow pages of its own.
+FREE_TEXT = "I am Bob Okafor and the mug was hard to find. " + "杯子很难找到。" * 270
 
 
 def make_study(settings, name: str = "pilot"):
@@ -219,6 +221,12 @@ def test_questionnaires_completion_and_withdrawal_erase_personal_data_only(serve
     assert "You have withdrawn" in gone.text
     assert bob.get("/study/pilot/me").status_code == 403, "the pass is gone with the cookie"
     assert REAL_NAME not in every_text_in_db(server) and FREE_TEXT not in every_text_in_db(server)
+    # Nor in the files' bytes: not in the database's free space, not in a stale frame of the WAL
+    # (the free text as stored: in a JSON column, its characters escaped).
+    erased = [REAL_NAME.encode(), FREE_TEXT.encode(), json.dumps(FREE_TEXT)[1:-1].encode()]
+    for path in [server.settings.data_dir / f"robotslang.db{suffix}" for suffix in ("", "-wal")]:
+        raw = path.read_bytes() if path.exists() else b""
+        assert not [text[:20] for text in erased if text in raw], path.name
     with server.services.db() as db:
         enrolled = db.scalar(select(StudyParticipant).join(Participant).where(Participant.name == bob_code))
         kinds = [
