@@ -53,6 +53,12 @@ class Settings(BaseSettings):
     # client is locked out, never the account, so an attacker cannot lock a lab out.
     login_limit_per_account: str = "5/minute"
     login_limit_per_address: str = "20/minute"  # login attempts per client address (an IPv6 /64)
+    # A study's sign-ups (`limits` notation, `;` between several): consents and lobby joins from
+    # one client address (an IPv6 /64), and into one study from everyone (app.study.signups).
+    study_consent_limit_per_address: str = "20/minute;100/hour"
+    study_consent_limit_per_study: str = "120/minute"
+    study_lobby_limit_per_address: str = "60/minute"
+    study_lobby_limit_per_study: str = "600/minute"
     # Proxies (addresses or networks) whose X-Forwarded-For and X-Forwarded-Proto are believed; the
     # client is the right-most address they did not add. Empty: the socket's peer is the client.
     trusted_proxies: list[str] = Field(default_factory=list)

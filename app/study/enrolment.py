@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from enum import StrEnum
 
-from sqlalchemy import or_, select
+from sqlalchemy import func, or_, select
 from sqlalchemy.orm import Session
 
 from app.clock import ServerClock
@@ -40,6 +40,10 @@ class AfterTrial(StrEnum):
 
 class EnrolmentError(ValueError):
     """A participant's request that cannot be taken; nothing was recorded."""
+
+
+class StudyFull(EnrolmentError):
+    """The study has taken its `max_participants`."""
 
 
 @dataclass(frozen=True)
@@ -74,8 +78,20 @@ class Enrolment:
             )
         )
 
+    def full(self) -> bool:
+        """Whether the study has taken its `max_participants` (withdrawn ones count: they took part)."""
+        cap = self.config.max_participants
+        if cap is None:
+            return False
+        taken = self.db.scalar(
+            select(func.count()).select_from(StudyParticipant).where(StudyParticipant.study == self.config.name)
+        )
+        return (taken or 0) >= cap
+
     def consent(self) -> Enrolled:
         """A new participant who agreed to the consent text now shown: a code, no name yet."""
+        if self.full():
+            raise StudyFull(f"study {self.config.name!r} has taken all its {self.config.max_participants} participants")
         participant = Participant(name=new_code(self.db))
         self.db.add(participant)
         self.db.flush()

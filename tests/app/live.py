@@ -76,11 +76,15 @@ def page_csrf_token(page: str) -> str:
     return re.search(r'<meta name="csrf-token" content="([^"]+)"', page).group(1)
 
 
-def browser(base_url: str) -> httpx.Client:
+def browser(base_url: str, address: str | None = None) -> httpx.Client:
     """A client that sends this server's Origin, as a browser does on the server's own pages. It
     waits as a browser would: the first dashboard imports the agents' libraries (seconds, more on a
-    loaded machine), past httpx's 5 s default."""
-    return httpx.Client(base_url=base_url, follow_redirects=True, headers={"Origin": base_url}, timeout=60)
+    loaded machine), past httpx's 5 s default. From `address`, as far as the server can tell: its
+    socket bound to that loopback address (all of 127.0.0.0/8 reaches this machine)."""
+    transport = httpx.HTTPTransport(local_address=address) if address else None
+    return httpx.Client(
+        base_url=base_url, follow_redirects=True, headers={"Origin": base_url}, timeout=60, transport=transport
+    )
 
 
 def submit_login(client: httpx.Client, name: str, password: str) -> httpx.Response:

@@ -32,6 +32,7 @@ from robot_client.protocol import pack_frame
 from tests.app.live import (
     PASSWORD,
     add_experimenter,
+    browser,
     experimenter_client,
     log_in,
     page_csrf_token,
@@ -45,15 +46,8 @@ from tests.app.wire_rover import Rover, rover_trial
 
 
 def from_address(server, address: str = "127.0.0.1") -> httpx.Client:
-    """A browser at `address`, as far as the server can tell: its socket bound to that loopback
-    address (all of 127.0.0.0/8 reaches this machine). Patient: a login hashes a password."""
-    return httpx.Client(
-        base_url=server.url,
-        follow_redirects=True,
-        headers={"Origin": server.url},
-        transport=httpx.HTTPTransport(local_address=address),
-        timeout=60,
-    )
+    """A browser at `address` (patient: a login hashes a password)."""
+    return browser(server.url, address)
 
 
 def guesses(client: httpx.Client, names, forwarded_for=None) -> list[int]:

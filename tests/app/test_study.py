@@ -148,6 +148,57 @@ def test_consent_is_recorded_with_its_version_and_declining_records_no_one(serve
     assert other.get("/study/pilot/me").status_code == 403
 
 
+def agree(server, study: str = "pilot", address: str | None = None):
+    """A new browser (at `address`) agreeing on the study's information page: the browser, ready
+    for the study's pages' scripts, and the reply."""
+    client = browser(server.url, address)
+    token = page_csrf_token(client.get(f"/study/{study}").text)
+    reply = client.post(
+        f"/study/{study}/consent", data={"choice": "agree", "consent_version": "1", "csrf_token": token}
+    )
+    client.headers["X-CSRF-Token"] = page_csrf_token(reply.text)
+    return client, reply
+
+
+def participants(server) -> int:
+    with server.services.db() as db:
+        return len(db.scalars(select(StudyParticipant)).all())
+
+
+@pytest.mark.settings(
+    study_consent_limit_per_address="3/minute",
+    study_consent_limit_per_study="5/minute",
+    study_lobby_limit_per_address="2/minute",
+)
+def test_sign_ups_are_limited_per_address_and_per_study_and_lobby_joins_per_address(server):
+    make_study(server.settings)
+    looped = [agree(server) for _ in range(5)]  # one address, a new browser each time
+    assert [reply.status_code for _, reply in looped] == [200, 200, 200, 429, 429]
+    busy = looped[-1][1]
+    assert "Please try again in" in busy.text and int(busy.headers["Retry-After"]) > 0
+    # Another address still signs up, until the study's own rate is spent (5 a minute from anyone).
+    others = [agree(server, address=f"127.0.0.{i}")[1] for i in (2, 3, 4)]
+    assert [reply.status_code for reply in others] == [200, 200, 429]
+    assert participants(server) == 5, "nothing recorded for the refused"
+    # Lobby joins from one address: the third participant to enter the lobby from it waits a while.
+    lobby = [client for client, _ in looped[:3]]
+    assert poll(lobby[0])["state"] == "waiting" and poll(lobby[1])["state"] == "seated"
+    refused = lobby[2].post("/study/pilot/lobby")
+    assert refused.status_code == 429 and "joining the lobby" in refused.json()["detail"]
+    assert poll(lobby[0])["state"] == "seated", "asking again once in is not joining again"
+
+
+def test_a_study_with_a_cap_turns_the_next_participant_away_with_a_page(server):
+    StudyFiles(server.settings.data_dir / "studies").save(template("pilot").model_copy(update={"max_participants": 2}))
+    assert [agree(server)[1].status_code for _ in range(2)] == [200, 200]
+    page = browser(server.url).get("/study/pilot")
+    assert page.status_code == 200 and "This study is full" in page.text and "All 2 places" in page.text
+    assert 'id="agree"' not in page.text, "no consent form to fill in for nothing"
+    _, late = agree(server)  # a consent page opened before the cap was reached
+    assert late.status_code == 409 and "This study is full" in late.text
+    assert participants(server) == 2
+
+
 def test_questionnaires_completion_and_withdrawal_erase_personal_data_only(server, tmp_path):
     make_study(server.settings)
     bob, bob_code = join(server, "pilot", real_name=REAL_NAME)
