@@ -220,10 +220,6 @@ def test_a_flood_of_moves_is_rate_limited_and_its_refusals_logged_as_runs(settin
         m["payload"]["move_id"] for m in executed
     ]
     move_events = [e for e in log if e.kind in ("move_requested", "move_executed", "moves_refused")]
-    print(
-        f"flood {gap_s}: {took_s:.1f} s, {len(limited)} rate_limited, {len(executed)} executed, "
-        f"{len(refusals)} refused in {len(runs)} runs, {len(move_events)} move events"
-    )
     # A run ends at an executed move, a change of reason or REFUSED_RUN_S after its first request.
     assert len(runs) <= 2 * len(executed) + took_s / REFUSED_RUN_S + 1 and len(move_events) < flood / 10
 
