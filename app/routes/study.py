@@ -93,10 +93,9 @@ def _page(templates: TemplatesDep, request: Request, name: str, status: int = 20
 # -- the participant ------------------------------------------------------------------------
 def _busy(templates: TemplatesDep, request: Request, config: StudyConfig, limited: Limited) -> HTMLResponse:
     """The page for a sign-up over the study's rate: when to come back."""
-    minutes = math.ceil(limited.retry_after_s / 60)
-    wait = (
-        f"{limited.retry_after_s} seconds" if limited.retry_after_s < 60 else f"{minutes} minute{'s' * (minutes > 1)}"
-    )
+    seconds = limited.retry_after_s
+    count, unit = (seconds, "second") if seconds < 60 else (math.ceil(seconds / 60), "minute")
+    wait = f"{count} {unit}{'s' * (count > 1)}"
     response = _page(templates, request, "busy", status=429, study=config, wait=wait)
     response.headers["Retry-After"] = str(limited.retry_after_s)
     return response
@@ -240,8 +239,8 @@ def lobby_poll(
     signups: SignupsDep,
 ) -> dict[str, object]:
     """The lobby page's poll (about once a second): the seat's link once paired, else the count
-    waiting. Entering the lobby (a poll while not waiting) counts against the study's lobby rate;
-    over it, 429 and the page asks again."""
+    waiting. Entering the lobby (a poll while neither waiting nor in a live trial) counts against
+    the lobby's rates; over one, 429 and the page asks again."""
     lobby = Lobby(me.db, me.config, mazes.layouts(), clock.now_ns())
     with me.db.begin():
         if me.enrolled.lobby_since is None and live_trial_of(me.db, (me.enrolled.participant_id,)) is None:
