@@ -28,6 +28,7 @@ from app.security import SESSION_COOKIE, CsrfTokens, Login, SeatTokens, Sessions
 from app.services import Services
 from app.settings import Settings
 from app.study.config import StudyFiles
+from app.study.signups import SignupLimits
 from app.trial.hub import TrialHub
 from app.trial.log import EventLog
 
@@ -115,6 +116,10 @@ def get_login_sockets(services: ServicesDep) -> LoginSockets:
     return services.login_sockets
 
 
+def get_signups(services: ServicesDep) -> SignupLimits:
+    return services.signups
+
+
 def get_studies(services: ServicesDep) -> Studies:
     return services.studies
 
@@ -163,6 +168,7 @@ LoginsDep = Annotated[LoginGuard, Depends(get_logins)]
 LoginSocketsDep = Annotated[LoginSockets, Depends(get_login_sockets)]
 StudiesDep = Annotated[Studies, Depends(get_studies)]
 StudyTokensDep = Annotated[StudyTokens, Depends(get_study_tokens)]
+SignupsDep = Annotated[SignupLimits, Depends(get_signups)]
 TemplatesDep = Annotated[Jinja2Templates, Depends(get_templates)]
 CurrentLogin = Annotated[Login | None, Depends(current_login)]
 ExperimenterId = Annotated[int, Depends(experimenter_id)]

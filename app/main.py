@@ -14,12 +14,14 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import FileResponse, RedirectResponse, Response
 from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
+from limits.storage import Storage
 from sqlalchemy import select
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from app.annotation.log import AnnotationLog
 from app.backends.registry import BackendParts
 from app.backends.render import FrameRenderer, InThread, RenderProcesses
+from app.client_limits import shared_counts
 from app.clock import ServerClock
 from app.db.engine import WalCheckpointer, make_engine, make_sessionmaker, upgrade
 from app.db.models import Experimenter
@@ -27,7 +29,7 @@ from app.deps import LoginRequired
 from app.drivers.registry import AgentParts
 from app.guard import GuardMiddleware, template_context
 from app.ldh_study import Studies
-from app.login import LoginGuard, shared_counts
+from app.login import LoginGuard
 from app.mazes import Mazes
 from app.perception.belief import FilterWorker
 from app.resources import shipped
@@ -37,6 +39,7 @@ from app.security import AccountRole, CsrfTokens, SeatTokens, Sessions, StudyTok
 from app.services import Services
 from app.serving import settle_collector
 from app.settings import Settings
+from app.study.signups import SignupLimits
 from app.trial.frames_store import FrameStore
 from app.trial.hub import TrialHub
 from app.trial.ldh_belief import BeliefModel
@@ -53,12 +56,16 @@ def build_services(settings: Settings) -> Services:
     upgrade(settings, engine)
     db = make_sessionmaker(engine)
     key = settings.signing_key()
+
+    def counts(what: str) -> Storage | None:  # shared by the processes on one Redis
+        return shared_counts(settings.redis_url, key_prefix(settings), what) if settings.redis_url else None
+
     logins = LoginGuard(
         db,
         settings.login_limit_per_account,
         settings.login_limit_per_address,
         settings.password_check_concurrency,
-        storage=shared_counts(settings.redis_url, key_prefix(settings)) if settings.redis_url else None,
+        storage=counts("logins"),
     )
     clock, mazes, log = ServerClock(), Mazes(settings), EventLog(db)
     seats = SeatTokens(key, settings.join_link_ttl_s)
@@ -98,6 +105,7 @@ def build_services(settings: Settings) -> Services:
         hub=TrialHub(trials, settings.redis_url),
         studies=Studies(settings, db, clock),
         study_tokens=StudyTokens(key),
+        signups=SignupLimits(settings, counts("signups")),
     )
 
 

@@ -291,5 +291,18 @@ class SeatClient:
             start,
         )
 
+    async def moved(self, move_id: str, timeout: float = 10.0, start: int = 0) -> dict[str, Any]:
+        """A move's outcome as its `move_executed` payload (`outcome`: ok, collision or refused,
+        `reason`); a move refused as it was asked for is answered `move_refused` instead of logged."""
+        message = await self.wait_for(
+            lambda m: (m.get("type") == "move_refused" and m["move_id"] == move_id)
+            or (m.get("type") == "event" and m["kind"] == "move_executed" and m["payload"]["move_id"] == move_id),
+            timeout,
+            start,
+        )
+        if message["type"] == "move_refused":
+            return {"move_id": move_id, "action": message["action"], "outcome": "refused", "reason": message["reason"]}
+        return message["payload"]
+
     def kinds(self) -> set[str]:
         return {m["kind"] for m in self.received if m.get("type") == "event"}

@@ -238,7 +238,7 @@ async def run_trial(
                             figures.chat_ms.append((now - sent) * 1e3)
                 outcome = message["payload"]["outcome"] if kind == "move_executed" else None
                 bumped[0] = bumped[0] if outcome is None else outcome == "collision"
-                refused = kind == "error" or outcome == "refused"
+                refused = kind in ("error", "move_refused") or outcome == "refused"
                 if move and (kind == "frame" or refused):
                     sent, counted, first = move
                     move.clear()

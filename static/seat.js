@@ -94,6 +94,7 @@ function handle(msg) {
     case "status": applyStatus(status, msg); renderStatus(); return;
     case "error": showError(friendlyError(msg.error)); emit("error", msg); return;
     case "replaced": replaced = true; return;
+    case "move_refused": emit("move_refused", msg); return;
     case "event": break;
     default: return;
   }

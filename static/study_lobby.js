@@ -9,6 +9,11 @@ async function poll() {
   let state;
   try {
     const reply = await fetch(url, { method: "POST", headers: { "X-CSRF-Token": csrf } });
+    if (reply.status === 429) {  // over the lobby's rate: the server says when; ask again then
+      status.textContent = `Please wait: ${(await reply.json()).detail}.`;
+      setTimeout(poll, 1000 * Number(reply.headers.get("Retry-After") || 2));
+      return;
+    }
     if (!reply.ok) throw new Error((await reply.json()).detail || reply.statusText);
     state = await reply.json();
   } catch (err) {

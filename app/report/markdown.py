@@ -41,7 +41,7 @@ def study_markdown(n: dict[str, Any], figures: dict[str, str]) -> str:
         f"![dialog lengths]({figures['dialog_lengths']})",
         "",
         f"Trials took {_f(n['duration_minutes']['mean'])} minutes on average (start to the last target) "
-        f"and {_f(n['moves']['mean'])} moves.",
+        f"and {_f(n['moves']['mean'])} moves ({_f(n['refused_moves']['mean'])} move requests refused).",
         "",
         "## Folds (split by layout: no layout in two folds)",
         "",

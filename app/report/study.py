@@ -26,7 +26,7 @@ from app.export.source import load_trial
 from app.leaderboard import trial_score
 from app.mazes import Mazes
 from app.settings import Settings
-from app.trial import events as ev
+from app.trial.state import fold
 from sim.tasks.benchmark import Split
 
 
@@ -86,7 +86,8 @@ def _study_numbers(db: Session, log: AnnotationLog, settings: Settings, mazes: M
             participants |= {team.member_a_id, team.member_b_id}
         participants |= {p for p in (trial.commander_id, trial.driver_id) if p is not None}
     dialogs = [[(m.role, m.text) for m in messages(r.events)] for r in records]
-    moves = [sum(1 for e in r.events if e.is_(ev.MoveExecuted)) for r in records]
+    states = [fold(r.events) for r in records]
+    moves = [s.moves for s in states]  # executed, as the leaderboard scores them
     durations = [trials[int(r.trial_id)].active_s or 0.0 for r in records]
     penalty = settings.move_penalty_s
     annotations = log.states(ids)
@@ -104,6 +105,7 @@ def _study_numbers(db: Session, log: AnnotationLog, settings: Settings, mazes: M
         "dialog": dialog_numbers(dialogs),
         "duration_minutes": distribution([d / 60 for d in durations]),
         "moves": distribution([float(m) for m in moves]),
+        "refused_moves": distribution([float(s.refused) for s in states]),  # requests, counted apart
         "folds": fold_table(records, mazes, layout_of, SavedFolds.of(settings.data_dir, study)),
         "phenomena": phenomena_table(records),
         "agreement": agreement(annotations, annotator_names(db)),

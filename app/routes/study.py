@@ -4,6 +4,7 @@ questionnaires, completion code, withdrawal), carried by a signed cookie (`app.s
 
 from __future__ import annotations
 
+import math
 from datetime import UTC, datetime
 from typing import Annotated
 from urllib.parse import quote
@@ -13,6 +14,8 @@ from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from fastapi.templating import Jinja2Templates
 
+from app.client_limits import Limited
+from app.db.engine import truncate_wal
 from app.deps import (
     ClockDep,
     DbSession,
@@ -20,6 +23,7 @@ from app.deps import (
     MazesDep,
     SeatTokensDep,
     SettingsDep,
+    SignupsDep,
     StudyFilesDep,
     TemplatesDep,
     experimenter_id,
@@ -27,10 +31,12 @@ from app.deps import (
 from app.guard import csrf_protect
 from app.security import InvalidToken
 from app.study.config import StudyConfig, StudyConfigError, StudyFiles, check_mazes, parse, template
-from app.study.enrolment import AfterTrial, Enrolment, EnrolmentError
+from app.study.enrolment import AfterTrial, Enrolment, EnrolmentError, StudyFull
 from app.study.lobby import PRACTICE_REASON, AllPlayed, Lobby, LobbyError, Seated, TimedOut, Waiting
 from app.study.passes import PASS_COOKIE, ParticipantPasses
+from app.study.signups import SignupLimits, Step
 from app.trial.hub import TrialHub
+from app.trial.lifecycle import live_trial_of
 
 router = APIRouter(dependencies=[Depends(csrf_protect)])
 experimenter_router = APIRouter(
@@ -85,9 +91,29 @@ def _page(templates: TemplatesDep, request: Request, name: str, status: int = 20
 
 
 # -- the participant ------------------------------------------------------------------------
+def _busy(templates: TemplatesDep, request: Request, config: StudyConfig, limited: Limited) -> HTMLResponse:
+    """The page for a sign-up over the study's rate: when to come back."""
+    seconds = limited.retry_after_s
+    count, unit = (seconds, "second") if seconds < 60 else (math.ceil(seconds / 60), "minute")
+    wait = f"{count} {unit}{'s' * (count > 1)}"
+    response = _page(templates, request, "busy", status=429, study=config, wait=wait)
+    response.headers["Retry-After"] = str(limited.retry_after_s)
+    return response
+
+
+def _address(request: Request) -> str:
+    return request.client.host if request.client else ""
+
+
 @router.get("/study/{name}", response_class=HTMLResponse)
 def information(
-    name: str, request: Request, files: StudyFilesDep, passes: PassesDep, templates: TemplatesDep
+    name: str,
+    request: Request,
+    files: StudyFilesDep,
+    passes: PassesDep,
+    db: DbSession,
+    clock: ClockDep,
+    templates: TemplatesDep,
 ) -> Response:
     config = study_or_404(files, name)
     try:
@@ -95,6 +121,8 @@ def information(
             return RedirectResponse(f"/study/{name}/me", status_code=303)
     except InvalidToken:
         pass
+    if Enrolment(db, clock, config).full():
+        return _page(templates, request, "full", study=config)
     return _page(templates, request, "consent", study=config)
 
 
@@ -106,6 +134,7 @@ def consent(
     passes: PassesDep,
     db: DbSession,
     clock: ClockDep,
+    signups: SignupsDep,
     templates: TemplatesDep,
     choice: str = Form(pattern="^(agree|decline)$"),
     consent_version: str = Form(max_length=40),
@@ -114,12 +143,19 @@ def consent(
     if consent_version != config.consent.version:
         error = "the information changed while the page was open: please read it again"
         return _page(templates, request, "consent", status=409, study=config, error=error)
+    try:
+        signups.take(Step.consent, name, _address(request))
+    except Limited as limited:
+        return _busy(templates, request, config, limited)
     enrolment = Enrolment(db, clock, config)
-    with db.begin():
-        if choice == "decline":
-            enrolment.decline()
-        else:
-            enrolled = enrolment.consent()
+    try:
+        with db.begin():
+            if choice == "decline":
+                enrolment.decline()
+            else:
+                enrolled = enrolment.consent()
+    except StudyFull:
+        return _page(templates, request, "full", status=409, study=config)
     if choice == "decline":
         return _page(templates, request, "declined", study=config)
     response = RedirectResponse(f"/study/{name}/code", status_code=303)
@@ -181,13 +217,34 @@ async def _open(hub: TrialHub, trial_id: int) -> None:
     await hub.get(trial_id)
 
 
+def _enter_lobby(signups: SignupLimits, study: str, address: str) -> None:
+    try:
+        signups.take(Step.lobby, study, address)
+    except Limited as limited:
+        raise HTTPException(
+            429,
+            f"more people are joining the lobby than it takes at once; trying again in {limited.retry_after_s} s",
+            headers={"Retry-After": str(limited.retry_after_s)},
+        ) from None
+
+
 @router.post("/study/{name}/lobby")
 def lobby_poll(
-    me: ParticipationDep, clock: ClockDep, seats: SeatTokensDep, mazes: MazesDep, hub: HubDep
+    me: ParticipationDep,
+    request: Request,
+    clock: ClockDep,
+    seats: SeatTokensDep,
+    mazes: MazesDep,
+    hub: HubDep,
+    signups: SignupsDep,
 ) -> dict[str, object]:
-    """The lobby page's poll (about once a second): the seat's link once paired, else the count waiting."""
+    """The lobby page's poll (about once a second): the seat's link once paired, else the count
+    waiting. Entering the lobby (a poll while neither waiting nor in a live trial) counts against
+    the lobby's rates; over one, 429 and the page asks again."""
     lobby = Lobby(me.db, me.config, mazes.layouts(), clock.now_ns())
     with me.db.begin():
+        if me.enrolled.lobby_since is None and live_trial_of(me.db, (me.enrolled.participant_id,)) is None:
+            _enter_lobby(signups, me.config.name, _address(request))
         state = lobby.poll(me.enrolled, datetime.now(UTC))
     match state:
         case Seated(trial_id, role, paired_now):
@@ -220,6 +277,11 @@ def after_trial(me: ParticipationDep, trial_id: int) -> RedirectResponse:
 
 @router.get("/study/{name}/trials/{trial_id}/questionnaire", response_class=HTMLResponse)
 def questionnaire(me: ParticipationDep, trial_id: int, request: Request, templates: TemplatesDep) -> HTMLResponse:
+    """Served only where an answer would be taken: a trial of theirs, played and over, not rated yet."""
+    try:
+        me.enrolment.questionnaire_due(me.enrolled, trial_id)
+    except EnrolmentError as err:
+        raise HTTPException(404, str(err)) from err
     return _page(templates, request, "questionnaire", study=me.config, code=me.code, trial_id=trial_id, form={})
 
 
@@ -255,6 +317,7 @@ def complete(me: ParticipationDep, request: Request, templates: TemplatesDep) ->
 def withdraw(me: ParticipationDep, request: Request, templates: TemplatesDep) -> HTMLResponse:
     with me.db.begin():
         me.enrolment.withdraw(me.enrolled)
+    truncate_wal(me.db.get_bind().engine)  # no copy of the erased text stays in SQLite's WAL file
     response = _page(templates, request, "withdrawn", study=me.config)
     response.delete_cookie(PASS_COOKIE, path="/study")
     return response

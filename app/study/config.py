@@ -66,6 +66,7 @@ class StudyConfig(BaseModel):
     maze_pool: list[str] = Field(default_factory=list)  # maze names; empty: every maze the server has
     trials_per_participant: int = Field(default=5, ge=1, le=50)  # study trials a participant plays at most
     teams_per_participant: int = Field(default=5, ge=1, le=50)  # partners at most: the paper's 16 people in 41 teams
+    max_participants: int | None = Field(default=None, ge=1)  # consents taken at most; None: no cap
     lobby_timeout_s: float = Field(default=600.0, gt=0)  # a participant waits this long for a partner
     join_timeout_s: float = Field(default=60.0, gt=0)  # a paired seat unopened this long: the trial is aborted
     lobby_presence_s: float = Field(default=10.0, gt=0)  # a lobby page silent this long has left (not paired)

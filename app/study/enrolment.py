@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from enum import StrEnum
 
-from sqlalchemy import or_, select
+from sqlalchemy import func, or_, select
 from sqlalchemy.orm import Session
 
 from app.clock import ServerClock
@@ -40,6 +40,10 @@ class AfterTrial(StrEnum):
 
 class EnrolmentError(ValueError):
     """A participant's request that cannot be taken; nothing was recorded."""
+
+
+class StudyFull(EnrolmentError):
+    """The study has taken its `max_participants`."""
 
 
 @dataclass(frozen=True)
@@ -74,8 +78,20 @@ class Enrolment:
             )
         )
 
+    def full(self) -> bool:
+        """Whether the study has taken its `max_participants` (withdrawn ones count: they took part)."""
+        cap = self.config.max_participants
+        if cap is None:
+            return False
+        taken = self.db.scalar(
+            select(func.count()).select_from(StudyParticipant).where(StudyParticipant.study == self.config.name)
+        )
+        return (taken or 0) >= cap
+
     def consent(self) -> Enrolled:
         """A new participant who agreed to the consent text now shown: a code, no name yet."""
+        if self.full():
+            raise StudyFull(f"study {self.config.name!r} has taken all its {self.config.max_participants} participants")
         participant = Participant(name=new_code(self.db))
         self.db.add(participant)
         self.db.flush()
@@ -150,8 +166,9 @@ class Enrolment:
     def answered(self, enrolled: StudyParticipant) -> set[int]:
         return set(self.db.scalars(select(StudyAnswer.trial_id).where(StudyAnswer.study_participant_id == enrolled.id)))
 
-    def answer(self, enrolled: StudyParticipant, trial_id: int, form: dict[str, str]) -> None:
-        """The questionnaire after `trial_id`: every rating item answered 1-5, free text optional."""
+    def questionnaire_due(self, enrolled: StudyParticipant, trial_id: int) -> None:
+        """Whether the questionnaire after `trial_id` may be shown and answered: a trial of the
+        participant's, played and over, not the practice, not answered yet; else `EnrolmentError`."""
         self._active(enrolled)
         trial = self._own(enrolled, trial_id)
         if trial.excluded_reason == PRACTICE_REASON:
@@ -162,6 +179,10 @@ class Enrolment:
             raise EnrolmentError("this trial never started (a seat was never opened): it has no questionnaire")
         if trial_id in self.answered(enrolled):
             raise EnrolmentError("you have already answered the questionnaire for this trial")
+
+    def answer(self, enrolled: StudyParticipant, trial_id: int, form: dict[str, str]) -> None:
+        """The questionnaire after `trial_id`: every rating item answered 1-5, free text optional."""
+        self.questionnaire_due(enrolled, trial_id)
         ratings: dict[str, int] = {}
         free_text: dict[str, str] = {}
         for q in self.config.questionnaire:

@@ -47,6 +47,7 @@ class TrialState:
     last_t_ns: int | None = None
     started_ns: int | None = None
     moves: int = 0  # executed moves (ok or collision); refused ones do not count
+    refused: int = 0  # move requests refused: as they came (`MovesRefused.count`) or by the robot
     collisions: int = 0
     moves_in_flight: dict[str, tuple[Move, int]] = field(default_factory=dict)  # id -> (action, asked at)
     move_ids: set[str] = field(default_factory=set)  # every move id ever requested
@@ -161,8 +162,12 @@ class TrialState:
                 if outcome != Outcome.REFUSED:
                     self.moves += 1
                     self.last_move_ns = asked_ns
+                else:
+                    self.refused += 1
                 if collision:
                     self.collisions += 1
+            case ev.MovesRefused(count=count):
+                self.refused += count
             case ev.FrameRecorded(source=FrameSource.DRIVER, frame_id=frame_id):
                 self.last_frame_id = frame_id
             case ev.PoseSampled(x=x, y=y, heading=heading):

@@ -37,7 +37,16 @@ SEES: dict[str, set[type[ev.Event]]] = {
     Role.COMMANDER: SHARED | {ev.Localized},
     Role.DRIVER: SHARED | {ev.MoveExecuted, ev.FrameRecorded},
     EXPERIMENTER: SHARED
-    | {ev.Localized, ev.MoveRequested, ev.MoveExecuted, ev.FrameRecorded, ev.PoseSampled, ev.BadMessage, ev.Restarted},
+    | {
+        ev.Localized,
+        ev.MoveRequested,
+        ev.MoveExecuted,
+        ev.MovesRefused,
+        ev.FrameRecorded,
+        ev.PoseSampled,
+        ev.BadMessage,
+        ev.Restarted,
+    },
 }
 VISIBLE = {role: frozenset(model.kind for model in models) for role, models in SEES.items()}  # by logged kind
 

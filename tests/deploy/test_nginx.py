@@ -25,6 +25,7 @@ from app.main import build_services
 from app.security import SeatTokens
 from app.settings import Settings
 from bench.live import ServerProcess, free_port, make_trial
+from tests.app.live import UNPACED_ENV
 from tests.deploy.compose_file import CONSOLE_SCRIPTS, DEPLOY, compose_services, service_command
 from tests.packaging.outside import REPO, clean_env
 
@@ -136,7 +137,7 @@ def test_two_servers_behind_nginx_play_a_trial_over_tls(tmp_path, postgres_url, 
         "ROBOTSLANG_REDIS_URL": redis_url,
         "ROBOTSLANG_SECRET_KEY": SECRET,
         "ROBOTSLANG_DATA_DIR": str(tmp_path / "data"),
-        "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+        **UNPACED_ENV,
         "ROBOTSLANG_TRUSTED_PROXIES": '["127.0.0.1"]',  # nginx here; compose.yaml names its container
     }
     # What compose.yaml configures the platform with, this test configures too.
