@@ -148,12 +148,9 @@ def leaderboard(
     penalty = settings.move_penalty_s
     if study:
         try:
-            own = files.load(study).move_penalty_s
-        except LookupError:
-            own = None
+            penalty = files.move_penalty_s(study, penalty)
         except StudyConfigError as err:
             raise HTTPException(500, f"study {study!r}: {err}") from None
-        penalty = own if own is not None else penalty
     teams = standings(db, penalty, study or None)
     agents = agent_standings(db, penalty, study or None)
     pairs = pair_standings(db, penalty, study or None)

@@ -26,6 +26,7 @@ from app.deps import (
 )
 from app.guard import csrf_protect
 from app.security import InvalidToken
+from app.study.answers import asked, items, study_answers
 from app.study.config import StudyConfig, StudyConfigError, StudyFiles, check_mazes, parse, template
 from app.study.enrolment import AfterTrial, Enrolment, EnrolmentError
 from app.study.lobby import PRACTICE_REASON, AllPlayed, Lobby, LobbyError, Seated, TimedOut, Waiting
@@ -286,11 +287,14 @@ def create_study(files: StudyFilesDep, name: str = Form(max_length=80)) -> Redir
 def _editor(
     templates: Jinja2Templates,
     request: Request,
+    files: StudyFiles,
     enrolment: Enrolment,
     text: str,
     status: int = 200,
     **context: object,
 ) -> HTMLResponse:
+    name = enrolment.config.name
+    answers = study_answers(enrolment.db, name)
     return _page(
         templates,
         request,
@@ -299,6 +303,8 @@ def _editor(
         study=enrolment.config,
         text=text,
         participants=enrolment.participants(),
+        answers=answers,
+        questions=items(asked(files, name, answers)),
         **context,
     )
 
@@ -318,7 +324,7 @@ def edit_page(
     config = study_or_404(files, name)
     enrolment = Enrolment(db, clock, config)
     text = config.model_dump_json(indent=2)
-    return _editor(templates, request, enrolment, text, saved=saved, paired=paired, error=error)
+    return _editor(templates, request, files, enrolment, text, saved=saved, paired=paired, error=error)
 
 
 @experimenter_router.post("/{name}")
@@ -341,7 +347,7 @@ def save_study(
         check_mazes(config, bundled, set(mazes.names()))
     except StudyConfigError as err:
         enrolment = Enrolment(db, clock, current)
-        return _editor(templates, request, enrolment, config_json, status=400, error=str(err))
+        return _editor(templates, request, files, enrolment, config_json, status=400, error=str(err))
     saved = files.save(config)
     return RedirectResponse(f"/experimenter/studies/{name}?saved={saved.version}", status_code=303)
 

@@ -147,6 +147,11 @@ class StudyFiles:
     def __init__(self, root: Path) -> None:
         self.root = root
 
+    @classmethod
+    def of(cls, data_dir: Path) -> StudyFiles:
+        """The studies of the server whose data directory this is."""
+        return cls(data_dir / "studies")
+
     def path(self, name: str) -> Path:
         if not NAME_PATTERN.match(name):
             raise LookupError(f"no study named {name[:80]!r}")
@@ -163,6 +168,14 @@ class StudyFiles:
         if config.name != name:
             raise StudyConfigError(f"{path} names the study {config.name!r}; rename one of them")
         return config
+
+    def move_penalty_s(self, name: str, default: float) -> float:
+        """The study's penalty per move where its file sets one, else `default` (the server's)."""
+        try:
+            own = self.load(name).move_penalty_s
+        except LookupError:  # trials marked with a study's name that has no file
+            own = None
+        return default if own is None else own
 
     def version(self, name: str, version: int) -> StudyConfig:
         """The study as it was at `version` (the current one, or one kept before it)."""
