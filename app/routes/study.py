@@ -29,9 +29,10 @@ from app.security import InvalidToken
 from app.study.answers import asked, items, study_answers
 from app.study.config import StudyConfig, StudyConfigError, StudyFiles, check_mazes, parse, template
 from app.study.enrolment import AfterTrial, Enrolment, EnrolmentError
-from app.study.lobby import PRACTICE_REASON, AllPlayed, Lobby, LobbyError, Seated, TimedOut, Waiting
+from app.study.lobby import PRACTICE_REASON, AllPlayed, Lobby, LobbyError, Seated, TimedOut, Waiting, seat_of
 from app.study.passes import PASS_COOKIE, ParticipantPasses
 from app.trial.hub import TrialHub
+from app.trial.lifecycle import live_trial_of
 
 router = APIRouter(dependencies=[Depends(csrf_protect)])
 experimenter_router = APIRouter(
@@ -201,6 +202,17 @@ def lobby_poll(
             return {"state": "timed_out", "waited_s": round(waited_s)}
         case AllPlayed(trials, teams):
             return {"state": "all_played", "trials": trials, "teams": teams}
+
+
+@router.get("/study/{name}/seat")
+def my_seat(me: ParticipationDep, seats: SeatTokensDep) -> dict[str, object]:
+    """The participant's live trial's seat, or none: the seat page of a trial that is over asks, and
+    follows the experimenter's restart of it to the new trial's seat."""
+    live = live_trial_of(me.db, (me.enrolled.participant_id,))
+    if live is None:
+        return {"trial_id": None, "link": None}
+    role = seat_of(live, me.enrolled.participant_id).role
+    return {"trial_id": live.id, "role": role, "link": f"/play/{seats.issue(live.id, role)}"}
 
 
 @router.get("/study/{name}/trials/{trial_id}/next")

@@ -27,6 +27,7 @@ from app.trial.setup import (
     layouts_seen_by,
     never_joined,
     parse_targets,
+    restart_trial,
     suggest_maze,
 )
 from app.trial.vocabulary import Role
@@ -207,6 +208,30 @@ class Lobby:
         if trial is None:
             raise LobbyError("the pool has no layout both have not seen")
         a.lobby_since = b.lobby_since = None
+        return trial
+
+    def restart(self, trial_id: int) -> Trial:
+        """The experimenter restarts an aborted trial of the study: it stays in the study, on a
+        maze of its pool (a practice whose map nobody saw on the practice maze again, still set
+        aside from scores), its seats given the study's join deadline from now."""
+        old = self.db.get(Trial, trial_id)
+        if old is None or old.study != self.config.name:
+            raise TrialSetupError(f"trial {trial_id} is not a trial of study {self.config.name!r}")
+        practice = old.excluded_reason == PRACTICE_REASON
+        if practice and Role.COMMANDER not in never_joined(self.db, (old.id,)).get(old.id, []):
+            raise TrialSetupError(
+                f"trial {trial_id} was a practice whose map was seen: a practice is played once, and the "
+                "lobby pairs these participants for the study's trials next"
+            )
+        trial = restart_trial(
+            self.db,
+            trial_id,
+            self.practice_layouts if practice else self.layouts,
+            self.now_ns,
+            join_timeout_s=self.config.join_timeout_s,
+        )
+        if practice:
+            trial.excluded_reason = PRACTICE_REASON
         return trial
 
     def _trials(self, enrolled: StudyParticipant) -> list[Trial]:
