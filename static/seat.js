@@ -1,7 +1,7 @@
 // A seat's socket, shared by the Commander and Driver pages: the token on every message,
 // reconnects with back-off, the chat, the trial clock, the move count and the status line
 // (announced to screen readers when it changes). Page modules subscribe with on(kind, handler).
-import {applyStatus, clockSeconds, emptyStatus, foldEvent, formatClock, friendlyError, OVER,
+import {applyStatus, clockSeconds, emptyStatus, foldEvent, formatClock, friendlyError, joinSecondsLeft, OVER,
         statusText} from "./trial.js";
 
 export const $ = (id) => document.getElementById(id);
@@ -73,6 +73,12 @@ async function followRestart() {
 }
 
 function renderClock() {
+  const left = joinSecondsLeft(status), countdown = $("join-countdown");
+  countdown.hidden = left === null;
+  if (left !== null) {
+    $("join-left").textContent = formatClock(Math.ceil(left));
+    $("join-left").dataset.seconds = left.toFixed(1);
+  }
   $("clock").textContent = formatClock(clockSeconds(status));
   $("clock").dataset.seconds = clockSeconds(status).toFixed(1);
   const moves = $("moves");

@@ -1,9 +1,19 @@
 // The study lobby: ask the server about once a second; it pairs us when a partner waits, then
-// this page opens our seat. A closed page stops asking and is not paired.
+// this page opens our seat. Leaving (the button, or the page closing) tells the server at once,
+// so nobody is paired with us once we have gone.
 const lobby = document.getElementById("lobby");
 const status = document.getElementById("lobby-status");
 const csrf = document.querySelector('meta[name="csrf-token"]').content;
 const url = `/study/${encodeURIComponent(lobby.dataset.study)}/lobby`;
+let gone = false;  // seated, or left by the button: nothing to tell as the page closes
+
+document.getElementById("leave-lobby").addEventListener("submit", () => { gone = true; });
+window.addEventListener("pagehide", () => {
+  if (gone) return;
+  const form = new FormData();
+  form.append("csrf_token", csrf);
+  navigator.sendBeacon(`${url}/leave`, form);
+});
 
 async function poll() {
   let state;
@@ -19,6 +29,7 @@ async function poll() {
   if (state.state === "seated") {
     status.textContent = `Paired: you are the ${state.role}. Opening your trial…`;
     lobby.dataset.seat = state.role;
+    gone = true;
     window.location.assign(state.link);
   } else if (state.state === "all_played") {
     status.textContent = `You have played all ${state.trials} of your trials. Answer the last questionnaire and get your completion code on your page.`;

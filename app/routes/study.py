@@ -204,6 +204,15 @@ def lobby_poll(
             return {"state": "all_played", "trials": trials, "teams": teams}
 
 
+@router.post("/study/{name}/lobby/leave")
+def lobby_leave(me: ParticipationDep, clock: ClockDep, mazes: MazesDep) -> RedirectResponse:
+    """The lobby page's "Leave the lobby", and its beacon as the page closes: out of the lobby at
+    once, so the next arrival is not paired with someone who has gone."""
+    with me.db.begin():
+        Lobby(me.db, me.config, mazes.layouts(), clock.now_ns()).leave(me.enrolled)
+    return RedirectResponse(f"/study/{me.config.name}/me", status_code=303)
+
+
 @router.get("/study/{name}/seat")
 def my_seat(me: ParticipationDep, seats: SeatTokensDep) -> dict[str, object]:
     """The participant's live trial's seat, or none: the seat page of a trial that is over asks, and

@@ -3,7 +3,8 @@ poller by the team plan (`app.study.pairing`: a new partner before an old one, t
 longest and is still there; roles balanced; newcomers with newcomers, for a practice trial on the
 study's bundled practice maze, set aside from scores), on a maze of a layout neither has seen (the
 trial form's `suggest_maze`, on the study's pool). A page that stops asking (a closed tab) is not paired; a waiter past the study's time-out is
-told so. One participant is in one live trial at a time, so two browsers of one participant are
+told so; one who leaves (the button, or the page closing: it says so at once) is not paired from
+then on. One participant is in one live trial at a time, so two browsers of one participant are
 sent to the same seat, never two."""
 
 from __future__ import annotations
@@ -116,6 +117,11 @@ class Lobby:
                     seated.lobby_since = None
             return Seated(trial.id, seat_of(trial, enrolled.participant_id).role, paired_now=True)
         return Waiting(len(others) + 1)
+
+    def leave(self, enrolled: StudyParticipant) -> None:
+        """They left the lobby (its button, or their page closing): nobody is paired with them from
+        now on, and coming back is a new wait."""
+        enrolled.lobby_since = enrolled.lobby_seen = None
 
     def _stood_up(self, enrolled: StudyParticipant) -> datetime | None:
         """When their last trial was paired, if it was aborted because the partner never opened

@@ -1,8 +1,10 @@
 """A study's participants on every path through it, over HTTP and websockets against a real server:
-a restarted trial stays in the study and their seat pages are sent on to it."""
+a restarted trial stays in the study and their seat pages are sent on to it; one who leaves the
+lobby is not paired, and a paired seat counts down to its partner's join deadline."""
 
 from __future__ import annotations
 
+import asyncio
 import html
 
 from sqlalchemy import select
@@ -10,6 +12,7 @@ from sqlalchemy import select
 from app.db.models import Participant, Trial
 from app.study.config import StudyFiles, template
 from app.study.lobby import PRACTICE_REASON
+from bench.live import SeatClient
 from tests.app.live import browser, experimenter_client, open_seats
 from tests.app.test_study import join, poll
 
@@ -90,3 +93,36 @@ def test_a_restarted_practice_is_a_practice_again_and_one_whose_map_was_seen_is_
     assert "a practice is played once" in refused
     with server.services.db() as db:
         assert db.scalars(select(Trial.id).where(Trial.id > again.id)).first() is None, "nothing created"
+
+
+def test_one_who_leaves_the_lobby_is_not_paired_and_a_paired_seat_counts_down_to_the_join_deadline(server):
+    plan = {"practice_maze": None, "join_timeout_s": 40.0}  # lobby_presence_s stays 10 s: the test is within it
+    StudyFiles.of(server.settings.data_dir).save(template("pilot").model_copy(update=plan))
+    ann, _ = join(server, "pilot")
+    assert poll(ann) == {"state": "waiting", "waiting": 1}
+    left = ann.post("/study/pilot/lobby/leave", follow_redirects=False)
+    assert left.status_code == 303 and left.headers["location"] == "/study/pilot/me"
+    bob, bob_code = join(server, "pilot")
+    assert poll(bob) == {"state": "waiting", "waiting": 1}, "Ann has gone: Bob is not paired with her"
+    cat, cat_code = join(server, "pilot")
+    cat_seat = poll(cat)
+    assert cat_seat["state"] == "seated"
+    with server.services.db() as db:
+        names = dict(db.execute(select(Participant.id, Participant.name)).all())
+        trial = db.scalar(select(Trial).where(Trial.study == "pilot"))
+    assert {names[trial.commander_id], names[trial.driver_id]} == {bob_code, cat_code}
+
+    async def seats() -> tuple[dict, dict]:
+        async with SeatClient(server.ws_url, cat_seat["link"].removeprefix("/play/")) as mine:
+            welcome = await mine.wait_for(lambda m: m.get("type") == "welcome")
+            await asyncio.sleep(1.0)
+            async with SeatClient(server.ws_url, server.services.seats.issue(trial.id, bob_role)) as _:
+                started = await mine.wait_for(lambda m: m.get("type") == "status" and m["phase"] != "waiting")
+        return welcome["status"], started
+
+    bob_role = "driver" if names[trial.commander_id] == cat_code else "commander"
+    waiting, started = asyncio.run(seats())
+    assert waiting["phase"] == "waiting" and waiting["waiting_for"] == [bob_role]
+    assert 0 < waiting["join_left_s"] <= 40.0, "the seconds left to open the seats, from the pairing"
+    assert started["join_left_s"] is None, "both came: no countdown"
+    assert ann.post("/study/pilot/lobby/leave").url.path == "/study/pilot/me", "leaving twice changes nothing"
