@@ -33,8 +33,13 @@ async function poll() {
     window.location.assign(state.link);
   } else if (state.state === "all_played") {
     status.textContent = `You have played all ${state.trials} of your trials. Answer the last questionnaire and get your completion code on your page.`;
-  } else if (state.state === "timed_out") {
-    status.textContent = `Nobody arrived within ${Math.round(state.waited_s / 60)} minutes. Reload this page to wait again, or come back later.`;
+  } else if (state.state === "timed_out" || state.state === "ended") {
+    // The end of the way, recorded already: its page gives the outcome's code.
+    status.textContent = state.state === "timed_out"
+      ? `Nobody arrived within ${Math.round(state.waited_s / 60)} minutes. Thank you for waiting: your completion code is next.`
+      : "Your part in the study has ended. Your completion code is next.";
+    gone = true;
+    setTimeout(() => window.location.assign(state.next), 3000);
   } else {
     const others = state.waiting - 1;
     status.textContent = others ? `${others} other participant(s) waiting: pairing…` : "You are the only one waiting. A partner will be found as soon as one arrives.";

@@ -18,7 +18,7 @@ from sqlalchemy import or_, select
 from sqlalchemy.orm import Session
 
 from app.db.models import Participant, StudyParticipant, Team, Trial
-from app.study.config import StudyConfig
+from app.study.config import StudyConfig, StudyOutcome
 from app.study.pairing import History, Pair, next_pair, plan_done
 from app.trial.lifecycle import live_trial_of
 from app.trial.setup import (
@@ -31,7 +31,7 @@ from app.trial.setup import (
     restart_trial,
     suggest_maze,
 )
-from app.trial.vocabulary import Role
+from app.trial.vocabulary import Phase, Role
 
 
 class LobbyError(ValueError):
@@ -61,7 +61,17 @@ class AllPlayed:
     teams: int  # teams they were in
 
 
-LobbyState = Seated | Waiting | TimedOut | AllPlayed
+@dataclass(frozen=True)
+class Ended:
+    """Their way through the study has ended (`Enrolment.outcome` says how): never paired again."""
+
+
+@dataclass(frozen=True)
+class TimeUp:
+    """The study's `time_limit_s` since they consented has passed: their way ends here."""
+
+
+LobbyState = Seated | Waiting | TimedOut | AllPlayed | Ended | TimeUp
 PRACTICE_REASON = "study practice: not scored"
 
 
@@ -93,10 +103,14 @@ class Lobby:
         if live is not None:
             enrolled.lobby_since = None
             return seat_of(live, enrolled.participant_id)
+        if enrolled.completed_at is not None:
+            return Ended()
         done = self.done(enrolled)
         if done is not None:
             enrolled.lobby_since = None
             return done
+        if self.time_up(enrolled, now):
+            return TimeUp()
         left = enrolled.lobby_seen is not None and (now - _aware(enrolled.lobby_seen)).total_seconds() > (
             self.config.lobby_presence_s
         )
@@ -117,6 +131,27 @@ class Lobby:
                     seated.lobby_since = None
             return Seated(trial.id, seat_of(trial, enrolled.participant_id).role, paired_now=True)
         return Waiting(len(others) + 1)
+
+    def time_up(self, enrolled: StudyParticipant, now: datetime) -> bool:
+        limit = self.config.time_limit_s
+        return limit is not None and (now - _aware(enrolled.created_at)).total_seconds() > limit
+
+    def finishing(self, enrolled: StudyParticipant, now: datetime) -> StudyOutcome | None:
+        """What "I have finished" ends with now: the plan played (not mid-trial), the study's time
+        up, a partner who never came (nothing else played), a partial completion after at least one
+        trial; None: nothing played yet, so nothing to finish."""
+        live = live_trial_of(self.db, (enrolled.participant_id,))
+        if live is None and self.done(enrolled) is not None:
+            return StudyOutcome.completed
+        if self.time_up(enrolled, now):
+            return StudyOutcome.timed_out
+        if self.finished(enrolled):
+            return StudyOutcome.partial
+        return StudyOutcome.no_partner if self._stood_up(enrolled) is not None else None
+
+    def finished(self, enrolled: StudyParticipant) -> int:
+        """Study trials played to their end (the practice, trials never joined and a live one not counted)."""
+        return sum(1 for t in self._trials(enrolled) if Phase(t.phase).over)
 
     def leave(self, enrolled: StudyParticipant) -> None:
         """They left the lobby (its button, or their page closing): nobody is paired with them from
@@ -174,6 +209,7 @@ class Lobby:
                 StudyParticipant.study == self.config.name,
                 StudyParticipant.lobby_since.is_not(None),
                 StudyParticipant.withdrawn_at.is_(None),
+                StudyParticipant.completed_at.is_(None),
                 StudyParticipant.id != (but or -1),
             )
             .order_by(StudyParticipant.lobby_since, StudyParticipant.id)
@@ -205,6 +241,8 @@ class Lobby:
             raise LobbyError("choose two different participants")
         if a.withdrawn_at is not None or b.withdrawn_at is not None:
             raise LobbyError("a withdrawn participant cannot be paired")
+        if a.completed_at is not None or b.completed_at is not None:
+            raise LobbyError("one of them has ended their way through the study")
         for enrolled in (a, b):
             if live_trial_of(self.db, (enrolled.participant_id,)) is not None:
                 raise LobbyError("one of them is in a live trial")
