@@ -89,7 +89,7 @@ def get_clock(services: ServicesDep) -> ServerClock:
 
 
 def get_study_files(settings: SettingsDep) -> StudyFiles:
-    return StudyFiles(settings.data_dir / "studies")
+    return StudyFiles.of(settings.data_dir)
 
 
 def get_annotations(services: ServicesDep) -> AnnotationLog:

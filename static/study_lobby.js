@@ -1,9 +1,19 @@
 // The study lobby: ask the server about once a second; it pairs us when a partner waits, then
-// this page opens our seat. A closed page stops asking and is not paired.
+// this page opens our seat. Leaving (the button, or the page closing) tells the server at once,
+// so nobody is paired with us once we have gone.
 const lobby = document.getElementById("lobby");
 const status = document.getElementById("lobby-status");
 const csrf = document.querySelector('meta[name="csrf-token"]').content;
 const url = `/study/${encodeURIComponent(lobby.dataset.study)}/lobby`;
+let gone = false;  // seated, or left by the button: nothing to tell as the page closes
+
+document.getElementById("leave-lobby").addEventListener("submit", () => { gone = true; });
+window.addEventListener("pagehide", () => {
+  if (gone) return;
+  const form = new FormData();
+  form.append("csrf_token", csrf);
+  navigator.sendBeacon(`${url}/leave`, form);
+});
 
 async function poll() {
   let state;
@@ -24,11 +34,17 @@ async function poll() {
   if (state.state === "seated") {
     status.textContent = `Paired: you are the ${state.role}. Opening your trial…`;
     lobby.dataset.seat = state.role;
+    gone = true;
     window.location.assign(state.link);
   } else if (state.state === "all_played") {
     status.textContent = `You have played all ${state.trials} of your trials. Answer the last questionnaire and get your completion code on your page.`;
-  } else if (state.state === "timed_out") {
-    status.textContent = `Nobody arrived within ${Math.round(state.waited_s / 60)} minutes. Reload this page to wait again, or come back later.`;
+  } else if (state.state === "timed_out" || state.state === "ended") {
+    // The end of the way, recorded already: its page gives the outcome's code.
+    status.textContent = state.state === "timed_out"
+      ? `Nobody arrived within ${Math.round(state.waited_s / 60)} minutes. Thank you for waiting: your completion code is next.`
+      : "Your part in the study has ended. Your completion code is next.";
+    gone = true;
+    setTimeout(() => window.location.assign(state.next), 3000);
   } else {
     const others = state.waiting - 1;
     status.textContent = others ? `${others} other participant(s) waiting: pairing…` : "You are the only one waiting. A partner will be found as soon as one arrives.";

@@ -14,6 +14,8 @@ from rich.progress import track
 from app.export import Episode
 
 if TYPE_CHECKING:  # the exporters load only for the command that runs
+    from sqlalchemy.orm import Session, sessionmaker
+
     from app.export.record import TrialRecord
     from sim.core.maze import Maze
 
@@ -59,7 +61,8 @@ def export(
     ),
     seed: int = typer.Option(0, "--seed", help="--folds: the seed of the draw."),
 ) -> None:
-    """Export recorded trials from the data directory (ROBOTSLANG_DATA_DIR)."""
+    """Export recorded trials from the data directory (ROBOTSLANG_DATA_DIR); with `all --study
+    NAME`, the study's questionnaire answers too (questionnaires.csv and .json in --out)."""
     from app.db.engine import make_engine, make_sessionmaker
     from app.export.folds import FoldError, FoldShares, SavedFolds
     from app.export.record import ExportError
@@ -121,6 +124,31 @@ def export(
             _export_mcap(loaded, out, single=trial != "all")
     except (ExportError, FoldError) as err:
         _fail(str(err))
+    if study is not None and trial == "all":
+        _export_answers(sessions, settings.data_dir, study, out)
+
+
+def _export_answers(sessions: sessionmaker[Session], data_dir: Path, study: str, out: Path) -> None:
+    """The study's questionnaire answers beside its trials: a CSV, and a JSON with the items each
+    study version asked."""
+    import json
+
+    from app.study.answers import answers_csv, answers_json, asked, items, study_answers
+    from app.study.config import StudyConfigError, StudyFiles
+
+    with sessions() as session:
+        answers = study_answers(session, study)
+    files = StudyFiles.of(data_dir)
+    if not answers and study not in files.names():
+        return  # trials given a study's name by hand, with no study file: nobody was asked anything
+    try:
+        questionnaires = asked(files, study, answers)
+    except (LookupError, StudyConfigError) as err:
+        _fail(f"the questionnaire answers need the study's file: {err}")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "questionnaires.csv").write_text(answers_csv(study, answers, items(questionnaires)))
+    (out / "questionnaires.json").write_text(json.dumps(answers_json(study, answers, questionnaires), indent=1))
+    console.print(f"{len(answers)} questionnaire answer(s) -> {out}/questionnaires.csv, questionnaires.json")
 
 
 def _export_mcap(loaded: list[tuple[TrialRecord, Maze]], out: Path, single: bool) -> None:

@@ -25,11 +25,14 @@ from app.deps import (
     RobotLinksDep,
     SeatTokensDep,
     SettingsDep,
+    StudyFilesDep,
     experimenter_id,
 )
 from app.drivers.registry import available_seats
 from app.guard import csrf_protect
 from app.security import SeatTokens
+from app.study.config import StudyConfigError
+from app.study.lobby import Lobby
 from app.trial.lifecycle import Refused, delete_participant, delete_robot, delete_team, exclude_trial
 from app.trial.setup import (
     TrialSetupError,
@@ -222,25 +225,36 @@ def _delete(db: Session, delete: Callable[[Session], object]) -> dict[str, bool]
 
 @router.post("/trials/{trial_id}/restart")
 def restart(
-    db: DbSession, mazes: MazesDep, clock: ClockDep, agents: AgentsDep, hub: HubDep, trial_id: int
+    db: DbSession,
+    mazes: MazesDep,
+    clock: ClockDep,
+    agents: AgentsDep,
+    hub: HubDep,
+    files: StudyFilesDep,
+    trial_id: int,
 ) -> RedirectResponse:
     """An aborted trial again: the same seats, targets, robot and study, on a layout the team has
-    never seen."""
+    never seen (a study's: of its pool, with its join deadline; its seat pages follow it)."""
     seat_agents = available_seats(agents)
     try:
         with db.begin():
-            trial = restart_trial(
-                db,
-                trial_id,
-                mazes.layouts(),
-                clock.now_ns(),
-                agents=seat_agents[Role.DRIVER],
-                commanders=seat_agents[Role.COMMANDER],
-            )
+            study = trial_or_404(db, trial_id).study
+            in_study = study is not None and study in files.names()  # (a study's name given by hand has no file)
+            if study is not None and in_study:
+                trial = Lobby(db, files.load(study), mazes.layouts(), clock.now_ns()).restart(trial_id)
+            else:
+                trial = restart_trial(
+                    db,
+                    trial_id,
+                    mazes.layouts(),
+                    clock.now_ns(),
+                    agents=seat_agents[Role.DRIVER],
+                    commanders=seat_agents[Role.COMMANDER],
+                )
             new_id, people = trial.id, str(HUMAN) in (trial.driver, trial.commander)
-    except TrialSetupError as err:
+    except (TrialSetupError, StudyConfigError) as err:
         return _redirect(str(err))
-    if not people:
+    if in_study or not people:  # a study's join deadline runs from now, seats opened or not
         from_thread.run(hub.get, new_id)
     return _redirect()
 

@@ -148,12 +148,9 @@ def leaderboard(
     penalty = settings.move_penalty_s
     if study:
         try:
-            own = files.load(study).move_penalty_s
-        except LookupError:
-            own = None
+            penalty = files.move_penalty_s(study, penalty)
         except StudyConfigError as err:
             raise HTTPException(500, f"study {study!r}: {err}") from None
-        penalty = own if own is not None else penalty
     teams = standings(db, penalty, study or None)
     agents = agent_standings(db, penalty, study or None)
     pairs = pair_standings(db, penalty, study or None)
@@ -171,7 +168,9 @@ def leaderboard(
 
 
 @router.get("/play/{token}", response_class=HTMLResponse)
-def play(request: Request, token: str, seats: SeatTokensDep, db: DbSession, mazes: MazesDep) -> HTMLResponse:
+def play(
+    request: Request, token: str, seats: SeatTokensDep, db: DbSession, mazes: MazesDep, settings: SettingsDep
+) -> HTMLResponse:
     try:
         seat, trial = seat_of(seats, db, token)
     except ClosedLink as closed:
@@ -182,7 +181,11 @@ def play(request: Request, token: str, seats: SeatTokensDep, db: DbSession, maze
     if seat.role == "commander":  # where the landmarks are: the Commander's to know, never the Driver's
         landmarks = mazes.landmarks(trial.maze)
         return render(request, "commander.html", token=token, trial=trial, landmarks=landmarks, after_url=after_url)
-    return render(request, f"{seat.role}.html", token=token, trial=trial, after_url=after_url)
+    # The Driver's page sends a press no sooner than the server takes a move (`min_move_interval_s`).
+    interval = settings.min_move_interval_s
+    return render(
+        request, f"{seat.role}.html", token=token, trial=trial, after_url=after_url, min_move_interval_s=interval
+    )
 
 
 @router.get("/play/{token}/map.png")

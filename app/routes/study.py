@@ -30,9 +30,21 @@ from app.deps import (
 )
 from app.guard import csrf_protect
 from app.security import InvalidToken
-from app.study.config import StudyConfig, StudyConfigError, StudyFiles, check_mazes, parse, template
+from app.study.answers import asked, items, study_answers
+from app.study.config import StudyConfig, StudyConfigError, StudyFiles, StudyOutcome, check_mazes, parse, template
 from app.study.enrolment import AfterTrial, Enrolment, EnrolmentError, StudyFull
-from app.study.lobby import PRACTICE_REASON, AllPlayed, Lobby, LobbyError, Seated, TimedOut, Waiting
+from app.study.lobby import (
+    PRACTICE_REASON,
+    AllPlayed,
+    Ended,
+    Lobby,
+    LobbyError,
+    Seated,
+    TimedOut,
+    TimeUp,
+    Waiting,
+    seat_of,
+)
 from app.study.passes import PASS_COOKIE, ParticipantPasses
 from app.study.signups import SignupLimits, Step
 from app.trial.hub import TrialHub
@@ -246,6 +258,14 @@ def lobby_poll(
         if me.enrolled.lobby_since is None and live_trial_of(me.db, (me.enrolled.participant_id,)) is None:
             _enter_lobby(signups, me.config.name, _address(request))
         state = lobby.poll(me.enrolled, datetime.now(UTC))
+        match state:  # the ends of a way that the lobby finds, recorded before anyone is told
+            case TimedOut():
+                outcome = me.enrolment.end(me.enrolled, StudyOutcome.no_partner, lobby.finished(me.enrolled))
+            case TimeUp():
+                outcome = me.enrolment.end(me.enrolled, StudyOutcome.timed_out, lobby.finished(me.enrolled))
+            case Ended():
+                outcome = me.enrolment.outcome(me.enrolled) or StudyOutcome.completed
+    done = f"/study/{me.config.name}/done"
     match state:
         case Seated(trial_id, role, paired_now):
             if paired_now:
@@ -254,9 +274,31 @@ def lobby_poll(
         case Waiting(waiting):
             return {"state": "waiting", "waiting": waiting}
         case TimedOut(waited_s):
-            return {"state": "timed_out", "waited_s": round(waited_s)}
+            return {"state": "timed_out", "waited_s": round(waited_s), "outcome": outcome, "next": done}
         case AllPlayed(trials, teams):
             return {"state": "all_played", "trials": trials, "teams": teams}
+        case TimeUp() | Ended():
+            return {"state": "ended", "outcome": outcome, "next": done}
+
+
+@router.post("/study/{name}/lobby/leave")
+def lobby_leave(me: ParticipationDep, clock: ClockDep, mazes: MazesDep) -> RedirectResponse:
+    """The lobby page's "Leave the lobby", and its beacon as the page closes: out of the lobby at
+    once, so the next arrival is not paired with someone who has gone."""
+    with me.db.begin():
+        Lobby(me.db, me.config, mazes.layouts(), clock.now_ns()).leave(me.enrolled)
+    return RedirectResponse(f"/study/{me.config.name}/me", status_code=303)
+
+
+@router.get("/study/{name}/seat")
+def my_seat(me: ParticipationDep, seats: SeatTokensDep) -> dict[str, object]:
+    """The participant's live trial's seat, or none: the seat page of a trial that is over asks, and
+    follows the experimenter's restart of it to the new trial's seat."""
+    live = live_trial_of(me.db, (me.enrolled.participant_id,))
+    if live is None:
+        return {"trial_id": None, "link": None}
+    role = seat_of(live, me.enrolled.participant_id).role
+    return {"trial_id": live.id, "role": role, "link": f"/play/{seats.issue(live.id, role)}"}
 
 
 @router.get("/study/{name}/trials/{trial_id}/next")
@@ -307,18 +349,64 @@ async def answer(me: ParticipationDep, trial_id: int, request: Request, template
 
 
 @router.post("/study/{name}/complete", response_class=HTMLResponse)
-def complete(me: ParticipationDep, request: Request, templates: TemplatesDep) -> HTMLResponse:
+def complete(
+    me: ParticipationDep,
+    request: Request,
+    templates: TemplatesDep,
+    clock: ClockDep,
+    mazes: MazesDep,
+    confirm: str = Form("", max_length=10),
+) -> Response:
+    """ "I have finished": the plan played ends the way at once; anything short of it is said
+    first and ends only once confirmed (a partial completion, or the outcome it is); with nothing
+    played there is nothing to finish. The code is shown only once the end is committed."""
+    lobby = Lobby(me.db, me.config, mazes.layouts(), clock.now_ns())
     with me.db.begin():
-        me.enrolment.complete(me.enrolled)
-    return _page(templates, request, "done", study=me.config, code=me.code)
+        outcome = me.enrolment.outcome(me.enrolled) or lobby.finishing(me.enrolled, datetime.now(UTC))
+        finished = lobby.finished(me.enrolled)
+        if outcome is None or (
+            me.enrolled.completed_at is None and outcome is not StudyOutcome.completed and confirm != "yes"
+        ):
+            return _page(
+                templates,
+                request,
+                "finish",
+                study=me.config,
+                code=me.code,
+                outcome=outcome,
+                finished=finished,
+                live=live_trial_of(me.db, (me.enrolled.participant_id,)) is not None,
+            )
+        me.enrolment.end(me.enrolled, outcome, finished)
+    return RedirectResponse(f"/study/{me.config.name}/done", status_code=303)
+
+
+@router.get("/study/{name}/done", response_class=HTMLResponse)
+def done_page(me: ParticipationDep, request: Request, templates: TemplatesDep) -> Response:
+    """The end of a participant's way: how it ended, and that outcome's code (recorded already)."""
+    outcome = me.enrolment.outcome(me.enrolled)
+    if outcome is None:
+        return RedirectResponse(f"/study/{me.config.name}/me", status_code=303)
+    return _page(
+        templates,
+        request,
+        "done",
+        study=me.config,
+        code=me.code,
+        outcome=outcome,
+        completion=me.config.code_for(outcome),
+    )
 
 
 @router.post("/study/{name}/withdraw", response_class=HTMLResponse)
 def withdraw(me: ParticipationDep, request: Request, templates: TemplatesDep) -> HTMLResponse:
     with me.db.begin():
+        ended = me.enrolment.outcome(me.enrolled)
         me.enrolment.withdraw(me.enrolled)
     truncate_wal(me.db.get_bind().engine)  # no copy of the erased text stays in SQLite's WAL file
-    response = _page(templates, request, "withdrawn", study=me.config)
+    # The withdrawal's code, for one whose way had not ended otherwise (that code they were given then).
+    completion = me.config.code_for(StudyOutcome.withdrew) if ended is None else None
+    response = _page(templates, request, "withdrawn", study=me.config, code=me.code, completion=completion)
     response.delete_cookie(PASS_COOKIE, path="/study")
     return response
 
@@ -349,11 +437,15 @@ def create_study(files: StudyFilesDep, name: str = Form(max_length=80)) -> Redir
 def _editor(
     templates: Jinja2Templates,
     request: Request,
+    files: StudyFiles,
     enrolment: Enrolment,
     text: str,
     status: int = 200,
     **context: object,
 ) -> HTMLResponse:
+    name = enrolment.config.name
+    answers = study_answers(enrolment.db, name)
+    participants = enrolment.participants()
     return _page(
         templates,
         request,
@@ -361,7 +453,10 @@ def _editor(
         status=status,
         study=enrolment.config,
         text=text,
-        participants=enrolment.participants(),
+        participants=participants,
+        outcomes={e.id: enrolment.outcome(e) for e, _, _ in participants},
+        answers=answers,
+        questions=items(asked(files, name, answers)),
         **context,
     )
 
@@ -376,12 +471,15 @@ def edit_page(
     templates: TemplatesDep,
     saved: int | None = None,
     paired: int | None = None,
+    screened: str | None = None,
     error: str | None = None,
 ) -> HTMLResponse:
     config = study_or_404(files, name)
     enrolment = Enrolment(db, clock, config)
     text = config.model_dump_json(indent=2)
-    return _editor(templates, request, enrolment, text, saved=saved, paired=paired, error=error)
+    return _editor(
+        templates, request, files, enrolment, text, saved=saved, paired=paired, screened=screened, error=error
+    )
 
 
 @experimenter_router.post("/{name}")
@@ -404,7 +502,7 @@ def save_study(
         check_mazes(config, bundled, set(mazes.names()))
     except StudyConfigError as err:
         enrolment = Enrolment(db, clock, current)
-        return _editor(templates, request, enrolment, config_json, status=400, error=str(err))
+        return _editor(templates, request, files, enrolment, config_json, status=400, error=str(err))
     saved = files.save(config)
     return RedirectResponse(f"/experimenter/studies/{name}?saved={saved.version}", status_code=303)
 
@@ -414,6 +512,27 @@ def lobby_view(name: str, files: StudyFilesDep, db: DbSession, clock: ClockDep, 
     """Who waits in the study's lobby now, for the study page's live view (polled)."""
     config = study_or_404(files, name)
     return {"waiting": Lobby(db, config, mazes.layouts(), clock.now_ns()).view(datetime.now(UTC))}
+
+
+@experimenter_router.post("/{name}/screen-out")
+def screen_out(
+    name: str, files: StudyFilesDep, db: DbSession, clock: ClockDep, mazes: MazesDep, code: str = Form(max_length=80)
+) -> RedirectResponse:
+    """The experimenter screens a participant out: their way ends with that outcome (and its code,
+    which their pages show from then on); a live trial of theirs is the experimenter's to stop."""
+    config = study_or_404(files, name)
+    enrolment = Enrolment(db, clock, config)
+    lobby = Lobby(db, config, mazes.layouts(), clock.now_ns())
+    try:
+        with db.begin():
+            enrolled = enrolment.by_code(code)
+            before = enrolment.outcome(enrolled)
+            if before is not None:
+                raise EnrolmentError(f"{code.strip()}'s way had already ended: {before}")
+            enrolment.end(enrolled, StudyOutcome.screened_out, lobby.finished(enrolled))
+    except (LookupError, EnrolmentError) as err:
+        return RedirectResponse(f"/experimenter/studies/{name}?error={quote(str(err))}", status_code=303)
+    return RedirectResponse(f"/experimenter/studies/{name}?screened={quote(code.strip())}", status_code=303)
 
 
 @experimenter_router.post("/{name}/pair")

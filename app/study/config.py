@@ -26,6 +26,17 @@ class QuestionKind(StrEnum):
     free_text = "free_text"  # personal data: erased when the participant withdraws
 
 
+class StudyOutcome(StrEnum):
+    """How a participant's way through a study ended; each may have its own completion code."""
+
+    completed = "completed"  # played the plan (`completion_code`)
+    partial = "partial"  # "I have finished" before the plan, confirmed, after at least one trial
+    no_partner = "no_partner"  # no partner within the lobby's time, or the partner never came
+    withdrew = "withdrew"
+    screened_out = "screened_out"  # by the experimenter
+    timed_out = "timed_out"  # past the study's time_limit_s since consenting
+
+
 class Question(BaseModel):
     id: str = Field(pattern=r"^[a-z0-9_]{1,40}$")
     kind: QuestionKind
@@ -71,7 +82,10 @@ class StudyConfig(BaseModel):
     join_timeout_s: float = Field(default=60.0, gt=0)  # a paired seat unopened this long: the trial is aborted
     lobby_presence_s: float = Field(default=10.0, gt=0)  # a lobby page silent this long has left (not paired)
     move_penalty_s: float | None = Field(default=None, ge=0)  # None: the server's ROBOTSLANG_MOVE_PENALTY_S
-    completion_code: str | None = Field(default=None, max_length=80)
+    completion_code: str | None = Field(default=None, max_length=80)  # the plan completed
+    # The other outcomes' codes (a panel's, e.g. for partial or waiting pay); an outcome without one gets none.
+    outcome_codes: dict[StudyOutcome, Annotated[str, Field(min_length=1, max_length=80)]] = Field(default_factory=dict)
+    time_limit_s: float | None = Field(default=None, gt=0)  # since consenting; past it the lobby ends their way
     # Annotators' tags beside the paper's five phenomena (`app.annotation`); only these are accepted
     # for the study's trials.
     annotation_tags: list[Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9 _-]{0,59}$")]] = Field(default_factory=list)
@@ -98,7 +112,13 @@ class StudyConfig(BaseModel):
     def _ends_somewhere(self) -> StudyConfig:
         if self.completion_code is None and self.redirect_url is None:
             raise ValueError("give a completion_code or a redirect_url: participants must be told they are done")
+        if StudyOutcome.completed in self.outcome_codes:
+            raise ValueError("the plan's code is completion_code: outcome_codes holds the other outcomes'")
         return self
+
+    def code_for(self, outcome: StudyOutcome) -> str | None:
+        """The completion code a participant whose way ended so is given (None: none)."""
+        return self.completion_code if outcome is StudyOutcome.completed else self.outcome_codes.get(outcome)
 
 
 def check_mazes(config: StudyConfig, bundled: set[str], known: set[str]) -> None:
@@ -148,6 +168,11 @@ class StudyFiles:
     def __init__(self, root: Path) -> None:
         self.root = root
 
+    @classmethod
+    def of(cls, data_dir: Path) -> StudyFiles:
+        """The studies of the server whose data directory this is."""
+        return cls(data_dir / "studies")
+
     def path(self, name: str) -> Path:
         if not NAME_PATTERN.match(name):
             raise LookupError(f"no study named {name[:80]!r}")
@@ -164,6 +189,14 @@ class StudyFiles:
         if config.name != name:
             raise StudyConfigError(f"{path} names the study {config.name!r}; rename one of them")
         return config
+
+    def move_penalty_s(self, name: str, default: float) -> float:
+        """The study's penalty per move where its file sets one, else `default` (the server's)."""
+        try:
+            own = self.load(name).move_penalty_s
+        except LookupError:  # trials marked with a study's name that has no file
+            own = None
+        return default if own is None else own
 
     def version(self, name: str, version: int) -> StudyConfig:
         """The study as it was at `version` (the current one, or one kept before it)."""

@@ -13,7 +13,7 @@ from sqlalchemy.orm import Session
 
 from app.clock import ServerClock
 from app.db.models import Participant, StudyAnswer, StudyEvent, StudyParticipant, Trial
-from app.study.config import RATING_SCALE, QuestionKind, StudyConfig
+from app.study.config import RATING_SCALE, QuestionKind, StudyConfig, StudyOutcome
 from app.study.lobby import PRACTICE_REASON
 from app.trial.setup import never_joined
 
@@ -26,7 +26,7 @@ class StudyEventKind(StrEnum):
     consented = "consented"
     declined = "declined"
     answered = "answered"
-    completed = "completed"
+    completed = "completed"  # the participant's way ended: `outcome` (a `StudyOutcome`), `trials` played
     withdrawn = "withdrawn"
 
 
@@ -205,11 +205,33 @@ class Enrolment:
         # The log keeps the ratings (pseudonymous) and never the free text (erasable personal data).
         self._log(StudyEventKind.answered, enrolled.participant_id, trial_id=trial_id, ratings=ratings)
 
-    def complete(self, enrolled: StudyParticipant) -> None:
-        if enrolled.completed_at is None:
-            self._active(enrolled)
-            enrolled.completed_at = datetime.now(UTC)
-            self._log(StudyEventKind.completed, enrolled.participant_id)
+    def outcome(self, enrolled: StudyParticipant) -> StudyOutcome | None:
+        """How the participant's way ended, where it has: the end recorded first (a withdrawal
+        after it keeps it), else `withdrew` for a withdrawal."""
+        ended = self.db.scalars(
+            select(StudyEvent.payload)
+            .where(
+                StudyEvent.study == self.config.name,
+                StudyEvent.participant_id == enrolled.participant_id,
+                StudyEvent.kind == StudyEventKind.completed,
+            )
+            .order_by(StudyEvent.id)
+        ).first()
+        if ended is not None:
+            return StudyOutcome(ended.get("outcome", StudyOutcome.completed))  # older logs: the plan
+        return StudyOutcome.withdrew if enrolled.withdrawn_at is not None else None
+
+    def end(self, enrolled: StudyParticipant, outcome: StudyOutcome, trials: int) -> StudyOutcome:
+        """Record the end of the participant's way (`trials`: study trials played); once: a second
+        end keeps the first. The code is theirs once the caller has committed this."""
+        ended = self.outcome(enrolled)
+        if ended is not None:
+            return ended
+        self._active(enrolled)
+        enrolled.completed_at = datetime.now(UTC)
+        enrolled.lobby_since = enrolled.lobby_seen = None
+        self._log(StudyEventKind.completed, enrolled.participant_id, outcome=str(outcome), trials=trials)
+        return outcome
 
     def withdraw(self, enrolled: StudyParticipant) -> None:
         """Erase the participant's personal data (real name, free text); keep pseudonymous events."""

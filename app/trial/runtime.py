@@ -293,8 +293,8 @@ class TrialRuntime:
 
     def _after_change(self) -> None:
         status = self.status()
-        if {k: v for k, v in status.items() if k != "elapsed_s"} != self._status:
-            self._status = {k: v for k, v in status.items() if k != "elapsed_s"}
+        if {k: v for k, v in status.items() if k not in views.CLOCK_FIELDS} != self._status:
+            self._status = {k: v for k, v in status.items() if k not in views.CLOCK_FIELDS}
             for role, conn in list(self.seats.items()):
                 if role in PARTICIPANTS:
                     self._send(conn, status)

@@ -221,10 +221,12 @@ def restart_trial(
     now_ns: int,
     agents: Mapping[str, str | None] | None = None,
     commanders: Mapping[str, str | None] | None = None,
+    join_timeout_s: float | None = None,
 ) -> Trial:
-    """A new trial for an aborted one: the same seats, targets, robot and study, on a layout the
-    team has never seen (the aborted one's counts as seen: its Commander may have had the map), or
-    on the same maze when the Commander's seat was never opened (nobody saw it)."""
+    """A new trial for an aborted one: the same seats, targets, robot and study, on a layout of
+    `layouts` the team has never seen (the aborted one's counts as seen: its Commander may have had
+    the map), or on the same maze when the Commander's seat was never opened (nobody saw it).
+    `join_timeout_s`: as `create_trial`'s (a study's restart keeps its deadline)."""
     old = db.get(Trial, trial_id)
     if old is None:
         raise TrialSetupError(f"trial {trial_id} does not exist")
@@ -248,6 +250,7 @@ def restart_trial(
         agents=agents,
         commander=old.commander,
         commanders=commanders,
+        join_timeout_s=join_timeout_s,
     )
     trial.study = old.study
     return trial

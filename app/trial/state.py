@@ -17,7 +17,13 @@ from app.trial.events import LoggedEvent
 from app.trial.specs import BackendKind, BackendSpec
 from app.trial.vocabulary import PARTICIPANTS, FrameSource, Move, Outcome, Phase, Role
 
-__all__ = ["LoggedEvent", "TrialState", "fold"]
+__all__ = ["LoggedEvent", "TrialState", "fold", "trial_score"]
+
+
+def trial_score(active_s: float, moves: int, move_penalty_s: float) -> float:
+    """A finished trial's score: trial-clock seconds to the last target confirmed plus a penalty
+    per executed move (the leaderboard's and the report's one rule)."""
+    return active_s + move_penalty_s * moves
 
 
 @dataclass
@@ -104,7 +110,7 @@ class TrialState:
         """Time from start to the last target confirmed plus a penalty per move; None until finished."""
         if self.phase != Phase.FINISHED or self.finished_active_ns is None:
             return None
-        return self.finished_active_ns / 1e9 + move_penalty_s * self.moves
+        return trial_score(self.finished_active_ns / 1e9, self.moves, move_penalty_s)
 
     # -- the fold -----------------------------------------------------------------
     def apply(self, logged: LoggedEvent) -> TrialState:

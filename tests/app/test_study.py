@@ -200,7 +200,10 @@ def test_a_study_with_a_cap_turns_the_next_participant_away_with_a_page(server):
 
 
 def test_questionnaires_completion_and_withdrawal_erase_personal_data_only(server, tmp_path):
-    make_study(server.settings)
+    # One planned trial: once it is played, "I have finished" gives the plan's code.
+    StudyFiles(server.settings.data_dir / "studies").save(
+        template("pilot").model_copy(update={"trials_per_participant": 1})
+    )
     bob, bob_code = join(server, "pilot", real_name=REAL_NAME)
     ann, ann_code = join(server, "pilot")
     trial_id = study_trial(server, "pilot", (bob_code, ann_code))

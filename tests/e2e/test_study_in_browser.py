@@ -88,8 +88,8 @@ def play_through(services, trial_id: int, pages) -> None:
 
 
 def test_a_whole_study_with_four_strangers(browser, server, tmp_path):
-    StudyFiles(server.settings.data_dir / "studies").save(
-        template("pilot").model_copy(update={"lobby_presence_s": 3.0})
+    StudyFiles(server.settings.data_dir / "studies").save(  # one planned trial after the practice
+        template("pilot").model_copy(update={"lobby_presence_s": 3.0, "trials_per_participant": 1})
     )
     eve = experimenter_client(server.services, server.url)
 
