@@ -35,8 +35,7 @@ async def play_to_the_end(server, trial_id: int) -> None:
     tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
     async with SeatClient(server.ws_url, tokens["driver"]) as driver:
         await driver.send("move", action="forward", move_id="early")
-        refused = await driver.event("move_executed", move_id="early")
-        assert refused["payload"]["outcome"] == "refused"
+        assert (await driver.moved("early"))["outcome"] == "refused"
         async with SeatClient(server.ws_url, tokens["commander"]) as commander:
             await start_trial(commander, driver)
             await commander.send("localize", x=1.2, y=1.0, heading=0.5)
