@@ -143,9 +143,10 @@ def make_trial(
     backend: str = "sim",
     commander: str = "human",
 ) -> int:
-    """`team_trial` on one of the server's mazes, in a transaction of its own."""
+    """`team_trial` on one of the server's mazes, in a transaction of its own; its maze is
+    prepared next (`app.preparation`), as the experimenter's page has it."""
     with services.db.begin() as db:
-        return team_trial(
+        trial_id = team_trial(
             db,
             team,
             maze,
@@ -158,6 +159,8 @@ def make_trial(
             commander=commander,
             commanders=_offered(services, Role.COMMANDER, commander),
         )
+    services.mazes.preparation.first(maze)
+    return trial_id
 
 
 def _offered(services, role: Role, spec: str) -> dict[str, str | None] | None:

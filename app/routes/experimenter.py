@@ -110,6 +110,7 @@ def dashboard(
         caps=(settings.agent_moves_per_target, settings.agent_minutes_per_trial, settings.agent_messages_per_target),
         controls_for=controls_for,
         robots=robot_links.status(),
+        preparation=mazes.preparation.progress(),
         links={t.id: join_links(request, seats, t) for t in trials},
         holders={t.id: seat_holders(t, names) for t in trials},
         error=error,
@@ -189,6 +190,7 @@ def add_trial(
             trial_id = trial.id
     except TrialSetupError as err:
         return _redirect(str(err))
+    mazes.preparation.first(maze)  # ready before the links are followed
     if not people:  # nobody will open a link: the trial starts now, its agents seated
         from_thread.run(hub.get, trial_id)
     return _redirect()
@@ -237,9 +239,10 @@ def restart(
                 agents=seat_agents[Role.DRIVER],
                 commanders=seat_agents[Role.COMMANDER],
             )
-            new_id, people = trial.id, str(HUMAN) in (trial.driver, trial.commander)
+            new_id, maze, people = trial.id, trial.maze, str(HUMAN) in (trial.driver, trial.commander)
     except TrialSetupError as err:
         return _redirect(str(err))
+    mazes.preparation.first(maze)
     if not people:
         from_thread.run(hub.get, new_id)
     return _redirect()

@@ -44,7 +44,7 @@ from sim.core.stepper import Moves
 
 MODES = ("benchmark", "exact")
 WALL_CLEARANCE_PX = int(round(MAP_WIDTH_PX / TABLE_WIDTH_M * GRID_STEP_M))  # 40
-_CACHE_VERSION = 1
+CACHE_VERSION = 1
 
 
 def candidate_grid() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -124,7 +124,7 @@ class NavGraph:
             raise ValueError(f"unknown edge mode {mode!r}; expected one of {', '.join(MODES)}")
         kind = f"{mode}-objects" if objects_block else mode
         path = (
-            default_cache_dir(cache_dir) / "navgraph" / f"{maze.content_hash}-{kind}-v{_CACHE_VERSION}{ARRAYS_SUFFIX}"
+            default_cache_dir(cache_dir) / "navgraph" / f"{maze.content_hash}-{kind}-v{CACHE_VERSION}{ARRAYS_SUFFIX}"
         )
         if use_cache and path.exists():
             try:

@@ -66,7 +66,7 @@ BLOCK_SHIFT = CLEARANCE_BLOCK.bit_length() - 1
 _SAFE_PX = 1.5  # a point is at most sqrt(2)/2 px from its pixel's centre, on both ends of a jump
 _PAST_PX = np.float32(1e-3)  # a crossing's sample lies this far into the pixel entered
 _FAR = 1e9  # boundary gap of an axis a ray never crosses
-_CACHE_VERSION = 2  # 2: exact traversal (1 could skip a grazed wall corner)
+CACHE_VERSION = 2  # 2: exact traversal (1 could skip a grazed wall corner)
 
 
 class RayCaster:
@@ -230,7 +230,7 @@ class RayTable:
     ) -> RayTable:
         """Every (node, heading) observation of `graph` on `maze`, cached by maze and nodes."""
         key = hashlib.sha256(np.ascontiguousarray(graph.nodes).tobytes()).hexdigest()[:12]
-        path = default_cache_dir(cache_dir) / "rays" / f"{maze.content_hash}-{key}-v{_CACHE_VERSION}{ARRAYS_SUFFIX}"
+        path = default_cache_dir(cache_dir) / "rays" / f"{maze.content_hash}-{key}-v{CACHE_VERSION}{ARRAYS_SUFFIX}"
         labels: np.ndarray | None = None
         depth: np.ndarray | None = None
         if use_cache and path.exists():

@@ -1,0 +1,175 @@
+"""Mazes prepared before anyone waits: what a trial needs of a maze, built into the cache ahead.
+
+A trial's seats need four things of its maze, each cached on disk by the maze's contents: its
+decoded maps (`Maze`), the robot's graph with its all-pairs tables (`NavGraph.for_robot`), that
+graph's ray table (`RayTable`) and the render scene (`sim.robot.render`). Built, they take a few
+tenths of a second a maze; read back, a few milliseconds. `prepare_maze` builds what is missing,
+then writes the maze's marker `prepared/KEY-VERSION` (KEY: its map files' bytes,
+`MazeLibrary.maps_key`; VERSION: the four caches' versions), so that telling whether a maze is
+prepared decodes nothing. The caches survive restarts and upgrades: a cache written by a version
+whose tables differ holds no marker of this version, and its mazes are prepared again, in the
+background.
+
+`Preparation` does it in a thread of the server from its start: the mazes of trials just
+created first (`first`), then every maze of the library, in order, with its progress in the log
+and on the experimenter's dashboard. A seat whose maze is not prepared yet (`ensure`) waits for
+the thread where it is on that maze, else prepares it itself: never behind the others.
+`robotslang mazes prepare` does the same on demand (`app.commands`).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from sim.core.maze import LABELS_CACHE_VERSION
+
+if TYPE_CHECKING:
+    from sim.tasks.library import MazeLibrary
+
+logger = logging.getLogger(__name__)
+LOG_EVERY_S = 5.0  # progress lines while preparing
+
+
+def prepared_version() -> str:
+    """The versions of the four caches a prepared maze holds: a marker of another names other tables."""
+    from sim.core import navgraph, observations
+    from sim.robot.render import SCENE_CACHE_VERSION
+
+    return f"labels{LABELS_CACHE_VERSION}-graph{navgraph.CACHE_VERSION}-rays{observations.CACHE_VERSION}-scene{SCENE_CACHE_VERSION}"
+
+
+def marker(library: MazeLibrary, name: str, cache_dir: Path) -> Path:
+    return cache_dir / "prepared" / f"{library.maps_key(name)}-{prepared_version()}"
+
+
+def prepare_maze(library: MazeLibrary, name: str, cache_dir: Path) -> bool:
+    """Build what is missing of what a trial needs of maze `name` into `cache_dir`; False when it
+    was prepared already (nothing decoded). Raises `MazeError` for a malformed map."""
+    from sim.core.navgraph import NavGraph
+    from sim.core.observations import RayTable
+    from sim.robot.render import cached_scene
+
+    done = marker(library, name, cache_dir)
+    if done.exists():
+        return False
+    maze = library.load(name)
+    graph = NavGraph.for_robot(maze, cache_dir=cache_dir)
+    RayTable.build(maze, graph, cache_dir=cache_dir)
+    cached_scene(maze, cache_dir)
+    done.parent.mkdir(parents=True, exist_ok=True)
+    done.write_text(json.dumps({"maze": name, "content_hash": maze.content_hash}))
+    return True
+
+
+@dataclass(frozen=True)
+class Progress:
+    ready: int  # prepared, found so or built here
+    total: int  # the library's mazes (0 until the thread has listed them)
+    built: int  # of those ready, prepared by this process
+    failed: int  # malformed maps: their trials fail as they would have
+
+    @property
+    def done(self) -> bool:
+        return self.total > 0 and self.ready + self.failed >= self.total
+
+    def __str__(self) -> str:
+        failed = f", {self.failed} failed" if self.failed else ""
+        return f"{self.ready} of {self.total} mazes ready ({self.built} prepared here{failed})"
+
+
+class Preparation:
+    """Every maze of the library prepared in a thread of the server, those of new trials first."""
+
+    def __init__(self, library: Callable[[], MazeLibrary], cache_dir: Path) -> None:
+        self._library, self.cache_dir = library, cache_dir
+        self._lock = threading.Lock()
+        self._first: deque[str] = deque()  # mazes of trials created, in order
+        self._ready: set[str] = set()
+        self._failed: set[str] = set()
+        self._making: dict[str, threading.Event] = {}  # per maze, while a thread prepares it
+        self._built, self._total = 0, 0
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._run, name="mazes", daemon=True)
+        self._thread.start()
+
+    def close(self) -> None:
+        """Stop after the maze in hand (its caches are whole: each is written then renamed)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+
+    def first(self, name: str) -> None:
+        """A trial was created on `name`: it is prepared next (a seat may already be on its way)."""
+        with self._lock:
+            if name not in self._ready and name not in self._first:
+                self._first.append(name)
+
+    def progress(self) -> Progress:
+        with self._lock:
+            return Progress(len(self._ready), self._total, self._built, len(self._failed))
+
+    def ensure(self, name: str) -> None:
+        """Return once maze `name` is prepared (or found malformed): at once where it is, after the
+        thread where the thread is on it, else after preparing it here."""
+        with self._lock:
+            if name in self._ready or name in self._failed:
+                return
+            making = self._making.get(name)
+            if making is None:
+                making = self._making[name] = threading.Event()
+                mine = True
+            else:
+                mine = False
+        if not mine:
+            making.wait()
+            return
+        try:
+            built = prepare_maze(self._library(), name, self.cache_dir)
+        except Exception as err:  # a malformed map: logged, and its trial fails as it would have
+            logger.error("maze %s could not be prepared: %s", name, err)
+            with self._lock:
+                self._failed.add(name)
+        else:
+            with self._lock:
+                self._ready.add(name)
+                self._built += built
+        finally:
+            with self._lock:
+                del self._making[name]
+            making.set()
+
+    def _run(self) -> None:
+        started = time.monotonic()
+        names = self._library().names()
+        with self._lock:
+            self._total = len(names)
+        logger.info("mazes: preparing what trials need of %d mazes in %s", len(names), self.cache_dir)
+        rest, logged = deque(names), started
+        while (name := self._next(rest)) is not None:
+            self.ensure(name)
+            if time.monotonic() - logged >= LOG_EVERY_S:
+                logger.info("mazes: %s", self.progress())
+                logged = time.monotonic()
+        if not self._stop.is_set():
+            logger.info("mazes: %s in %.1f s", self.progress(), time.monotonic() - started)
+
+    def _next(self, rest: deque[str]) -> str | None:
+        """The next maze to prepare: a new trial's, else the library's next; None once stopped or done."""
+        with self._lock:
+            for queue in (self._first, rest):
+                while queue and not self._stop.is_set():
+                    name = queue.popleft()
+                    if name not in self._ready and name not in self._failed:
+                        return name
+            return None
