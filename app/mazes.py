@@ -8,12 +8,11 @@ the benchmark's mazes over a study stays bounded (`python -m bench.memory`)."""
 
 from __future__ import annotations
 
-import contextlib
 import math
 import threading
 import weakref
 from collections import OrderedDict
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Mapping
 from functools import lru_cache
 from typing import TYPE_CHECKING, Generic, TypeVar
 
@@ -85,6 +84,23 @@ class UnknownMaze(LookupError):
     pass
 
 
+class _LayoutsWhenRead(Mapping[str, str]):
+    def __init__(self, mazes: Mazes) -> None:
+        self._mazes, self._names = mazes, mazes.names()
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._names
+
+    def __getitem__(self, name: str) -> str:
+        return self._mazes.layouts()[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._names)
+
+    def __len__(self) -> int:
+        return len(self._names)
+
+
 class Mazes:
     def __init__(self, settings: Settings) -> None:
         self.settings = settings
@@ -125,23 +141,31 @@ class Mazes:
                 self._layouts = {name: of[name] for name in self.names()}
             return self._layouts
 
+    def layouts_when_read(self) -> Mapping[str, str]:
+        """`layouts()`, grouped only once a layout is read: creating a trial for a team that has
+        played nothing reads none, so a fresh install's first trials do not wait for the grouping."""
+        return _LayoutsWhenRead(self)
+
     def warm_up(self) -> None:
-        """At the server's start, in threads: the layouts, and every maze prepared (`app.preparation`)."""
-        self._warming = threading.Thread(target=self._warm, name="layouts", daemon=True)
+        """At the server's start, in a thread: the layouts (which trial creation waits for), then
+        every maze prepared for trials (`app.preparation`)."""
+        self._warming = threading.Thread(target=self._warm, name="mazes", daemon=True)
         self._warming.start()
-        self.preparation.start()
 
     def _warm(self) -> None:
         from sim.tasks.library import LayoutsStopped
 
-        with contextlib.suppress(LayoutsStopped):  # the next process to ask goes on from the maps read
+        try:
             self.layouts(stop=self._stop_warming)
+        except LayoutsStopped:  # the next process to ask goes on from the maps read
+            return
+        self.preparation.run()
 
     def close(self) -> None:
         """Stop the warm-up within a map: a thread still decoding maps (OpenCV) as the interpreter
         exits aborts the process (SIGABRT, exit status 134), as a test run's did after passing."""
         self._stop_warming.set()
-        self.preparation.close()
+        self.preparation.stop()
         if self._warming is not None:
             self._warming.join()
 

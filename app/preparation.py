@@ -10,9 +10,10 @@ prepared decodes nothing. The caches survive restarts and upgrades: a cache writ
 whose tables differ holds no marker of this version, and its mazes are prepared again, in the
 background.
 
-`Preparation` does it in a thread of the server from its start: the mazes of trials just
-created first (`first`), then every maze of the library, in order, with its progress in the log
-and on the experimenter's dashboard. A seat whose maze is not prepared yet (`ensure`) waits for
+`Preparation.run` does it in the server's warm-up thread (`Mazes.warm_up`), once the library is
+grouped into layouts (which the dashboard waits for, and which decodes every map): every maze of
+the library, in order, with its progress in the log and on the experimenter's dashboard. The
+maze of a trial just created (`first`) is prepared at once, in a thread of its own. A seat whose maze is not prepared yet (`ensure`) waits for
 the thread where it is on that maze, else prepares it itself: never behind the others.
 `robotslang mazes prepare` does the same on demand (`app.commands`).
 """
@@ -72,7 +73,7 @@ def prepare_maze(library: MazeLibrary, name: str, cache_dir: Path) -> bool:
 @dataclass(frozen=True)
 class Progress:
     ready: int  # prepared, found so or built here
-    total: int  # the library's mazes (0 until the thread has listed them)
+    total: int  # the library's mazes
     built: int  # of those ready, prepared by this process
     failed: int  # malformed maps: their trials fail as they would have
 
@@ -86,7 +87,7 @@ class Progress:
 
 
 class Preparation:
-    """Every maze of the library prepared in a thread of the server, those of new trials first."""
+    """Every maze of the library prepared in the server's warm-up thread, those of new trials at once."""
 
     def __init__(self, library: Callable[[], MazeLibrary], cache_dir: Path) -> None:
         self._library, self.cache_dir = library, cache_dir
@@ -95,29 +96,43 @@ class Preparation:
         self._ready: set[str] = set()
         self._failed: set[str] = set()
         self._making: dict[str, threading.Event] = {}  # per maze, while a thread prepares it
-        self._built, self._total = 0, 0
+        self._built = 0
         self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._firsts: threading.Thread | None = None  # prepares new trials' mazes, while there are any
 
-    def start(self) -> None:
-        self._thread = threading.Thread(target=self._run, name="mazes", daemon=True)
-        self._thread.start()
-
-    def close(self) -> None:
-        """Stop after the maze in hand (its caches are whole: each is written then renamed)."""
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join()
+    def stop(self) -> None:
+        """`run` returns after the maze in hand (its caches are whole: each is written, then renamed),
+        and so does the thread on new trials' mazes, which this waits for."""
+        with self._lock:
+            self._stop.set()
+            firsts = self._firsts
+        if firsts is not None:
+            firsts.join()
 
     def first(self, name: str) -> None:
-        """A trial was created on `name`: it is prepared next (a seat may already be on its way)."""
+        """A trial was created on `name`: it is prepared now, in a thread of its own that takes the
+        new trials' mazes in turn (even while the library is still being grouped into layouts)."""
         with self._lock:
-            if name not in self._ready and name not in self._first:
-                self._first.append(name)
+            if name in self._ready or name in self._first or self._stop.is_set():
+                return
+            self._first.append(name)
+            if self._firsts is None:
+                self._firsts = threading.Thread(target=self._prepare_firsts, name="mazes-first", daemon=True)
+                self._firsts.start()
+
+    def _prepare_firsts(self) -> None:
+        while True:
+            with self._lock:
+                name = self._next_locked(deque())
+                if name is None:
+                    self._firsts = None  # under the lock: a trial created from now on starts another
+                    return
+            self.ensure(name)
 
     def progress(self) -> Progress:
+        total = len(self._library().names())
         with self._lock:
-            return Progress(len(self._ready), self._total, self._built, len(self._failed))
+            return Progress(len(self._ready), total, self._built, len(self._failed))
 
     def ensure(self, name: str) -> None:
         """Return once maze `name` is prepared (or found malformed): at once where it is, after the
@@ -149,11 +164,10 @@ class Preparation:
                 del self._making[name]
             making.set()
 
-    def _run(self) -> None:
+    def run(self) -> None:
+        """Prepare every maze of the library, those of new trials first, logging the progress."""
         started = time.monotonic()
         names = self._library().names()
-        with self._lock:
-            self._total = len(names)
         logger.info("mazes: preparing what trials need of %d mazes in %s", len(names), self.cache_dir)
         rest, logged = deque(names), started
         while (name := self._next(rest)) is not None:
@@ -167,9 +181,12 @@ class Preparation:
     def _next(self, rest: deque[str]) -> str | None:
         """The next maze to prepare: a new trial's, else the library's next; None once stopped or done."""
         with self._lock:
-            for queue in (self._first, rest):
-                while queue and not self._stop.is_set():
-                    name = queue.popleft()
-                    if name not in self._ready and name not in self._failed:
-                        return name
-            return None
+            return self._next_locked(rest)
+
+    def _next_locked(self, rest: deque[str]) -> str | None:
+        for queue in (self._first, rest):
+            while queue and not self._stop.is_set():
+                name = queue.popleft()
+                if name not in self._ready and name not in self._failed:
+                    return name
+        return None

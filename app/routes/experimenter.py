@@ -27,7 +27,7 @@ from app.deps import (
     SettingsDep,
     experimenter_id,
 )
-from app.drivers.registry import available_seats
+from app.drivers.registry import available_seats, offered_agents
 from app.guard import csrf_protect
 from app.security import SeatTokens
 from app.trial.lifecycle import Refused, delete_participant, delete_robot, delete_team, exclude_trial
@@ -158,8 +158,7 @@ def add_trial(
     commander: str = Form("human"),
     commander_id: int | None = Form(None),
 ) -> RedirectResponse:
-    layouts = mazes.layouts()
-    seat_agents = available_seats(agents)
+    layouts = mazes.layouts_when_read()  # a new team's trial on a maze it names reads none
     people = str(HUMAN) in (driver, commander)  # agents in both seats play without a team
     try:
         if people and team_id is None:
@@ -183,9 +182,9 @@ def add_trial(
                 commander_id=commander_id,
                 layouts=layouts,
                 now_ns=clock.now_ns(),
-                agents=seat_agents[Role.DRIVER],
+                agents=offered_agents(agents, Role.DRIVER, driver),
                 commander=commander,
-                commanders=seat_agents[Role.COMMANDER],
+                commanders=offered_agents(agents, Role.COMMANDER, commander),
             )
             trial_id = trial.id
     except TrialSetupError as err:
