@@ -123,9 +123,7 @@ class NavGraph:
         if mode not in MODES:
             raise ValueError(f"unknown edge mode {mode!r}; expected one of {', '.join(MODES)}")
         kind = f"{mode}-objects" if objects_block else mode
-        path = (
-            default_cache_dir(cache_dir) / "navgraph" / f"{maze.content_hash}-{kind}-v{CACHE_VERSION}{ARRAYS_SUFFIX}"
-        )
+        path = default_cache_dir(cache_dir) / "navgraph" / f"{maze.content_hash}-{kind}-v{CACHE_VERSION}{ARRAYS_SUFFIX}"
         if use_cache and path.exists():
             try:
                 return cls(mode=mode, objects_block=objects_block, **load_arrays(path))
@@ -164,8 +162,11 @@ class NavGraph:
         node_grid = np.full(tuple(ij.max(axis=0) + 1), -1, dtype=np.int32)  # (NX, NY)
         node_grid[node_ij[:, 0], node_ij[:, 1]] = np.arange(n, dtype=np.int32)
 
-        weights = csr_matrix(np.where(adjacent, d, 0.0))
-        dist, pred = shortest_path(weights, method="D", directed=False, return_predecessors=True)
+        rows, cols = np.nonzero(adjacent)  # row-major: the CSR's order, as from the dense matrix
+        weights = csr_matrix((d[rows, cols], (rows, cols)), shape=(n, n))
+        # The weights are symmetric (cdist's d[i, j] == d[j, i]), so the directed search finds the
+        # same distances and predecessors as the undirected one, which relaxes every edge twice.
+        dist, pred = shortest_path(weights, method="D", directed=True, return_predecessors=True)
         # Undirected: the predecessor of i on the path from j is i's next hop toward j.
         next_hop = pred.T.astype(np.int32)
         next_hop[next_hop < 0] = -1
