@@ -109,7 +109,7 @@ class Mazes:
         self._layouts_lock = threading.Lock()  # the startup warm-up and a page: one grouping
         self._warming: threading.Thread | None = None
         self._stop_warming = threading.Event()
-        self.preparation = Preparation(lambda: self.library, settings.cache_dir)
+        self.preparation = Preparation(lambda: self.library, settings.benchmark, settings.cache_dir)
         self.load = Kept(self._load, MAZES_KEPT)
         self.graph = Kept(self._graph, MAZES_KEPT)
         self.rays = Kept(self._rays, MAZES_KEPT)
