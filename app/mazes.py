@@ -147,7 +147,7 @@ class Mazes:
         return _LayoutsWhenRead(self)
 
     def warm_up(self) -> None:
-        """At the server's start, in a thread: the layouts (which trial creation waits for), then
+        """At the server's start, in a thread: the layouts (which the dashboard waits for), then
         every maze prepared for trials (`app.preparation`)."""
         self._warming = threading.Thread(target=self._warm, name="mazes", daemon=True)
         self._warming.start()
