@@ -163,7 +163,8 @@ class Preparation:
         try:
             built = not marker(self._library(), name, self.cache_dir).exists() and self._build(name)
         except Exception as err:  # a malformed map: logged, and its trial fails as it would have
-            logger.error("maze %s could not be prepared: %s", name, err)
+            if not self._stop.is_set():  # else the server is stopping and its builder is gone
+                logger.error("maze %s could not be prepared: %s", name, err)
             with self._lock:
                 self._failed.add(name)
         else:
