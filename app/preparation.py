@@ -26,13 +26,14 @@ demand (`app.commands`).
 
 from __future__ import annotations
 
+import asyncio
 import json
 import logging
 import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from multiprocessing import get_context
@@ -105,7 +106,7 @@ class Preparation:
         self._first: deque[str] = deque()  # mazes of trials created, in order
         self._ready: set[str] = set()
         self._failed: set[str] = set()
-        self._making: dict[str, threading.Event] = {}  # per maze, while a thread prepares it
+        self._making: dict[str, Future[None]] = {}  # per maze, while it is prepared
         self._built = 0
         self._stop = threading.Event()
         self._firsts: threading.Thread | None = None  # prepares new trials' mazes, while there are any
@@ -148,38 +149,80 @@ class Preparation:
 
     def ensure(self, name: str) -> None:
         """Return once maze `name` is prepared (or found malformed): at once where it is, after the
-        thread where the thread is on it, else after preparing it here."""
+        thread that has it in hand, else after having it built."""
+        making, mine = self._claim(name)
+        if making is None:
+            return
+        if not mine:
+            making.result()
+            return
+        built = None
+        try:
+            built = not self._prepared(name) and self._built_by(name, *self._submit(name))
+        except Exception as err:
+            self._failure(name, err)
+        finally:
+            self._settle(name, making, built)
+
+    async def ready(self, name: str) -> None:
+        """`ensure` for a coroutine: no thread is held while the maze is built (a crowd of seats on
+        mazes being built held every thread of the event loop's executor, which other trials'
+        frames are written in)."""
+        making, mine = self._claim(name)
+        if making is None:
+            return
+        if not mine:
+            await asyncio.wrap_future(making)
+            return
+        built = None
+        try:
+            if not await asyncio.to_thread(self._prepared, name):
+                built_here, builder = self._submit(name)
+                try:
+                    built = await asyncio.wrap_future(built_here)
+                except BrokenProcessPool:
+                    built = await asyncio.to_thread(self._lost, builder, name)
+            else:
+                built = False
+        except Exception as err:
+            self._failure(name, err)
+        finally:
+            self._settle(name, making, built)
+
+    def _claim(self, name: str) -> tuple[Future[None] | None, bool]:
+        """None where the maze is prepared or found malformed; else the future of its preparation,
+        and whether the caller is the one to do it."""
         with self._lock:
             if name in self._ready or name in self._failed:
-                return
+                return None, False
             making = self._making.get(name)
-            if making is None:
-                making = self._making[name] = threading.Event()
-                mine = True
-            else:
-                mine = False
-        if not mine:
-            making.wait()
-            return
-        try:
-            built = not marker(self._library(), name, self.cache_dir).exists() and self._build(name)
-        except Exception as err:  # a malformed map: logged, and its trial fails as it would have
-            if not self._stop.is_set():  # else the server is stopping and its builder is gone
-                logger.error("maze %s could not be prepared: %s", name, err)
-            with self._lock:
+            if making is not None:
+                return making, False
+            making = self._making[name] = Future()
+            return making, True
+
+    def _settle(self, name: str, making: Future[None], built: bool | None) -> None:
+        """`built` None: it failed."""
+        with self._lock:
+            if built is None:
                 self._failed.add(name)
-        else:
-            with self._lock:
+            else:
                 self._ready.add(name)
                 self._built += built
-        finally:
-            with self._lock:
-                del self._making[name]
-            making.set()
+            del self._making[name]
+        making.set_result(None)
 
-    def _build(self, name: str) -> bool:
-        """`prepare_maze` in the builder process (started here the first time); in this thread where
-        that process was lost (killed, out of memory), and a new one for the next maze."""
+    def _failure(self, name: str, err: Exception) -> None:
+        # A malformed map: logged, and its trial fails as it would have. A server stopping has let
+        # its builder go: nothing to say.
+        if not self._stop.is_set():
+            logger.error("maze %s could not be prepared: %s", name, err)
+
+    def _prepared(self, name: str) -> bool:
+        return marker(self._library(), name, self.cache_dir).exists()
+
+    def _submit(self, name: str) -> tuple[Future[bool], ProcessPoolExecutor]:
+        """`prepare_maze` in the builder process (started here the first time)."""
         with self._lock:
             if self._builder is None:
                 self._builder = ProcessPoolExecutor(
@@ -189,14 +232,22 @@ class Preparation:
                     initargs=(self.benchmark, self.cache_dir),
                 )
             builder = self._builder
+        return builder.submit(_build, name), builder
+
+    def _built_by(self, name: str, built: Future[bool], builder: ProcessPoolExecutor) -> bool:
         try:
-            return builder.submit(_build, name).result()
+            return built.result()
         except BrokenProcessPool:
-            logger.error("mazes: the process preparing them was lost; maze %s prepared in the server", name)
-            with self._lock:
-                if self._builder is builder:
-                    self._builder = None
-            return prepare_maze(self._library(), name, self.cache_dir)
+            return self._lost(builder, name)
+
+    def _lost(self, builder: ProcessPoolExecutor, name: str) -> bool:
+        """The builder process was lost (killed, out of memory): this maze is built here, the next
+        in a new one."""
+        logger.error("mazes: the process preparing them was lost; maze %s prepared in the server", name)
+        with self._lock:
+            if self._builder is builder:
+                self._builder = None
+        return prepare_maze(self._library(), name, self.cache_dir)
 
     def run(self) -> None:
         """Prepare every maze of the library, those of new trials first, logging the progress."""

@@ -5,12 +5,13 @@ nothing; a cache of another version is prepared again; a new trial's maze goes f
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import time
 from pathlib import Path
 
 from app.preparation import prepared_version
-from bench.live import make_trial
+from bench.live import SeatClient, make_trial, team_trial
 from sim.core import observations
 from sim.tasks.generator import generate_maze
 from sim.tasks.library import MazeLibrary
@@ -123,3 +124,21 @@ def test_mazes_prepare_prepares_into_the_cache_dir_with_a_progress_bar(tmp_path)
 
     again = cli(*prepare, env={})
     assert again.returncode == 0 and f"{n} of {n} mazes ready in {cache} (0 prepared now)" in again.stdout
+
+
+def test_a_seat_whose_maze_is_not_prepared_yet_is_welcomed_once_it_is_built(start_server, tmp_path):
+    """A trial made before its maze is prepared (not through the dashboard, which puts it first):
+    the Driver's seat waits for its maze's build, then is welcomed on its graph."""
+    cache = tmp_path / "cache"
+    server = start_server(cache_dir=cache)
+    maze = server.services.mazes.names()[-1]  # the library's last: the sweep reaches it last
+    with server.services.db.begin() as db:
+        trial_id = team_trial(db, "Team A", maze, server.services.mazes.names(), server.services.clock.now_ns())
+
+    async def driver_welcome() -> dict:
+        async with SeatClient(server.ws_url, server.services.seats.issue(trial_id, "driver")) as driver:
+            return await driver.wait_for(lambda m: m.get("type") == "welcome", timeout=PREPARED_WITHIN_S)
+
+    assert asyncio.run(driver_welcome())["type"] == "welcome"
+    library = server.services.mazes.library
+    assert (cache / "prepared" / f"{library.maps_key(maze)}-{prepared_version()}").exists()
