@@ -134,7 +134,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         renderer = services.trials.backends.renderer
         if isinstance(renderer, RenderProcesses):
             renderer.warm_up()
-        services.mazes.warm_layouts()
+        services.mazes.warm_up()
         checkpoints = WalCheckpointer(services.engine)
         checkpoints.start()
         settle_collector()  # before the trials reopen: theirs is not the start's to freeze

@@ -28,7 +28,7 @@ from app.deps import (
     StudyFilesDep,
     experimenter_id,
 )
-from app.drivers.registry import available_seats
+from app.drivers.registry import available_seats, offered_agents
 from app.guard import csrf_protect
 from app.security import SeatTokens
 from app.study.config import StudyConfigError
@@ -113,6 +113,7 @@ def dashboard(
         caps=(settings.agent_moves_per_target, settings.agent_minutes_per_trial, settings.agent_messages_per_target),
         controls_for=controls_for,
         robots=robot_links.status(),
+        preparation=mazes.preparation.progress(),
         links={t.id: join_links(request, seats, t) for t in trials},
         holders={t.id: seat_holders(t, names) for t in trials},
         error=error,
@@ -160,8 +161,7 @@ def add_trial(
     commander: str = Form("human"),
     commander_id: int | None = Form(None),
 ) -> RedirectResponse:
-    layouts = mazes.layouts()
-    seat_agents = available_seats(agents)
+    layouts = mazes.layouts_when_read()  # a new team's trial on a maze it names reads none
     people = str(HUMAN) in (driver, commander)  # agents in both seats play without a team
     try:
         if people and team_id is None:
@@ -185,13 +185,14 @@ def add_trial(
                 commander_id=commander_id,
                 layouts=layouts,
                 now_ns=clock.now_ns(),
-                agents=seat_agents[Role.DRIVER],
+                agents=offered_agents(agents, Role.DRIVER, driver),
                 commander=commander,
-                commanders=seat_agents[Role.COMMANDER],
+                commanders=offered_agents(agents, Role.COMMANDER, commander),
             )
             trial_id = trial.id
     except TrialSetupError as err:
         return _redirect(str(err))
+    mazes.preparation.first(maze)  # ready before the links are followed
     if not people:  # nobody will open a link: the trial starts now, its agents seated
         from_thread.run(hub.get, trial_id)
     return _redirect()
@@ -251,9 +252,10 @@ def restart(
                     agents=seat_agents[Role.DRIVER],
                     commanders=seat_agents[Role.COMMANDER],
                 )
-            new_id, people = trial.id, str(HUMAN) in (trial.driver, trial.commander)
+            new_id, maze, people = trial.id, trial.maze, str(HUMAN) in (trial.driver, trial.commander)
     except (TrialSetupError, StudyConfigError) as err:
         return _redirect(str(err))
+    mazes.preparation.first(maze)
     if in_study or not people:  # a study's join deadline runs from now, seats opened or not
         from_thread.run(hub.get, new_id)
     return _redirect()

@@ -198,7 +198,8 @@ def _seated(
             f"team {team.name!r}: a member is in trial {live.id}, which is {live.phase}; a participant "
             f"is in one live trial at a time (let it finish, or abort it)"
         )
-    played = layouts_seen(db, team, layouts).get(layouts[maze])
+    seen = layouts_seen(db, team, layouts)
+    played = seen.get(layouts[maze]) if seen else None  # a team that has seen nothing reads no layout
     if played == maze:
         raise TrialSetupError(f"maze {maze!r}: team {team.name!r} has already seen it")
     if played is not None:
