@@ -47,14 +47,15 @@ def team_of_two(page) -> None:
 
 
 def page_checks(page, name: str) -> None:
-    """axe-core finds no serious or critical violation; nothing scrolls sideways at 390 px; no
-    image is a broken placeholder."""
+    """axe-core finds no serious or critical violation; the page has a main heading (h1); nothing
+    scrolls sideways at 390 px; no image is a broken placeholder."""
     from axe_playwright_python.sync_playwright import Axe
 
     page.wait_for_load_state("load")
     page.wait_for_timeout(300)  # the page scripts draw and fetch once
     violations = [v for v in Axe().run(page).response["violations"] if v["impact"] in ("serious", "critical")]
     assert not violations, (name, [(v["id"], [n["target"] for n in v["nodes"]][:3]) for v in violations])
+    assert page.locator("h1").count() >= 1, (name, "no h1")
     width = page.evaluate("() => [document.documentElement.scrollWidth, window.innerWidth]")
     assert width[0] <= width[1], (name, width)
     broken = page.evaluate("""() => [...document.images].filter(i => !i.hidden && i.getClientRects().length
