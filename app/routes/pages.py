@@ -180,8 +180,10 @@ def play(request: Request, token: str, seats: SeatTokensDep, db: DbSession, maze
         return response
     after_url = after_trial_url(trial)
     if seat.role == "commander":  # where the landmarks are: the Commander's to know, never the Driver's
-        landmarks = mazes.landmarks(trial.maze)
-        return render(request, "commander.html", token=token, trial=trial, landmarks=landmarks, after_url=after_url)
+        landmarks, walls = mazes.landmarks(trial.maze), mazes.map_walls(trial.maze)
+        return render(
+            request, "commander.html", token=token, trial=trial, landmarks=landmarks, walls=walls, after_url=after_url
+        )
     return render(request, f"{seat.role}.html", token=token, trial=trial, after_url=after_url)
 
 

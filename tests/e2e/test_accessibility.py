@@ -177,3 +177,55 @@ def test_every_page_has_no_serious_or_critical_axe_violation(browser, server):
         visits.check(person, "study done")
 
     assert visits.routes - visits.seen == set(), "pages no visit checked"
+
+
+def test_the_commanders_map_in_words_names_the_walls_the_landmarks_and_the_mark_as_it_moves(browser, server):
+    services = server.services
+    maze = services.mazes.names()[0]
+    trial = make_trial(services, maze, targets=("mug", "jar", "paddle"))
+    link = f"{server.url}/play/{services.seats.issue(trial, 'commander')}"
+    commander, driver = (browser.new_context().new_page() for _ in range(2))
+    commander.goto(link)
+    driver.goto(f"{server.url}/play/{services.seats.issue(trial, 'driver')}")
+    commander.wait_for_selector("#status[data-phase=localizing]")
+    commander.click("#map-text summary")
+    wait_js(commander, "() => document.querySelectorAll('#map-text-landmarks li').length === 3")
+
+    walls = services.mazes.map_walls(maze)
+    said = commander.locator("#map-text-walls li").all_inner_texts()
+    assert len(said) == len(walls) > 3
+    for wall, words in zip(walls, said, strict=True):
+        assert words.startswith(f"{wall['colour']} wall"), words
+        if wall["shape"] == "straight":
+            (x0, y0), (x1, y1) = wall["from"], wall["to"]
+            assert f"(x {x0:.2f}, y {y0:.2f}) to " in words and words.endswith(f"(x {x1:.2f}, y {y1:.2f})"), words
+    landmarks = commander.locator("#map-text-landmarks li").all_inner_texts()
+    for name, (x, y) in services.mazes.landmarks(maze).items():
+        (words,) = [w for w in landmarks if w.startswith(name + " ")]
+        assert f"(x {x:.2f}, y {y:.2f})" in words
+        assert words.endswith("the next target") == (name == "mug"), words
+    assert commander.inner_text("#map-text-mark") == "You have not marked the robot yet."
+
+    # Marked by keyboard from the centre (1.23, 1.03): 0.2 m east, 0.1 m north, turned to face north.
+    commander.focus("#map")
+    for key in ["ArrowRight"] * 4 + ["ArrowUp"] * 2 + ["["] * 2:
+        commander.keyboard.press(key)
+    commander.keyboard.press("Enter")
+    wait_js(commander, "() => document.getElementById('map-text-mark').textContent.includes('facing north')")
+    assert (
+        commander.inner_text("#map-text-mark")
+        == "Your mark of the robot: in the centre (x 1.43, y 1.13), facing north."
+    )
+
+    # The same link opened on a phone takes the seat and the mark from the server; a tap moves it.
+    phone = browser.new_context(**PHONE).new_page()
+    phone.goto(link)
+    phone.wait_for_selector("#status[data-phase=navigating]")
+    wait_js(phone, "() => document.getElementById('map-text-mark').textContent.includes('facing north')")
+    assert phone.text_content("#map-text-mark") == commander.text_content("#map-text-mark")
+    box = phone.locator("#map").bounding_box()
+    phone.tap("#map", position={"x": box["width"] * 0.1, "y": box["height"] * 0.9})
+    wait_js(phone, "() => document.getElementById('map-text-mark').textContent.includes('south-west')")
+    assert phone.text_content("#map-text-mark") == "Your mark of the robot: in the south-west (x 0.25, y 0.21)."
+    for page in (commander, driver, phone):
+        page.context.close()
