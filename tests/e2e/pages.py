@@ -27,14 +27,19 @@ ARTIFACTS = REPO / "test-artifacts"
 W_M, H_M = 2.4638, 2.0574
 
 
-def experimenter(browser, server, **context):
+def log_in(browser, server, name: str, password: str, lands_on: str, **context):
+    """A new browser context logged in with the home page's form, on the page it lands on."""
     page = browser.new_context(**context).new_page()
     page.goto(server.url + "/")
-    page.fill("input[name=name]", "eve")
-    page.fill("input[name=password]", "correct horse")
+    page.fill("input[name=name]", name)
+    page.fill("input[name=password]", password)
     page.click("#login")
-    page.wait_for_url(server.url + "/experimenter")
+    page.wait_for_url(server.url + lands_on)
     return page
+
+
+def experimenter(browser, server, **context):
+    return log_in(browser, server, "eve", "correct horse", "/experimenter", **context)
 
 
 def team_of_two(page) -> None:

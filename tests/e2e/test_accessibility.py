@@ -19,7 +19,7 @@ from app.study.config import StudyFiles, template
 from bench.live import make_trial
 from tests.app.live import add_experimenter, wait_js
 from tests.app.trial_log import maze_named, ndh_trial_record
-from tests.e2e.pages import experimenter, page_checks
+from tests.e2e.pages import experimenter, log_in, page_checks
 
 pytestmark = pytest.mark.browser
 PHONE = {"viewport": {"width": 390, "height": 844}, "has_touch": True, "is_mobile": True}
@@ -47,16 +47,6 @@ class Visits:
         page_checks(page, name)
         path = page.url.split("://", 1)[1].split("/", 1)[1].split("?")[0]
         self.seen |= {route for route, pattern in self.patterns.items() if pattern.match("/" + path)}
-
-
-def log_in(browser, server, name: str, password: str, lands_on: str):
-    page = browser.new_context(**PHONE).new_page()
-    page.goto(server.url + "/")
-    page.fill("input[name=name]", name)
-    page.fill("input[name=password]", password)
-    page.click("#login")
-    page.wait_for_url(server.url + lands_on)
-    return page
 
 
 def test_every_page_has_no_serious_or_critical_axe_violation(browser, server):
@@ -141,7 +131,7 @@ def test_every_page_has_no_serious_or_critical_axe_violation(browser, server):
         admin.goto(server.url + path)
         visits.check(admin, name)
 
-    annotator = log_in(browser, server, "ann", "annotate well", "/annotate")
+    annotator = log_in(browser, server, "ann", "annotate well", "/annotate", **PHONE)
     visits.check(annotator, "annotation queue")
     annotator.goto(f"{server.url}/annotate/trials/{live}")
     wait_js(annotator, "() => document.getElementById('replay').dataset.ready === '1'")
