@@ -195,6 +195,7 @@ def test_the_commanders_map_in_words_names_the_walls_the_landmarks_and_the_mark_
         assert f"(x {x:.2f}, y {y:.2f})" in words
         assert words.endswith("the next target") == (name == "mug"), words
     assert commander.inner_text("#map-text-mark") == "You have not marked the robot yet."
+    page_checks(commander, "Commander, the map in words open, on a desktop")
 
     # Marked by keyboard from the centre (1.23, 1.03): 0.2 m east, 0.1 m north, turned to face north.
     commander.focus("#map")
