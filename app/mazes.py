@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Generic, TypeVar
 import cv2
 import numpy as np
 
+from app.map_text import walls
 from app.preparation import Preparation
 from app.settings import Settings
 from sim.core.dynamics import Pose
@@ -115,6 +116,7 @@ class Mazes:
         self.rays = Kept(self._rays, MAZES_KEPT)
         self.map_png = lru_cache(maxsize=PICTURES_KEPT)(self._map_png)
         self.target_jpeg = lru_cache(maxsize=3 * PICTURES_KEPT)(self._target_jpeg)
+        self.map_walls = lru_cache(maxsize=PICTURES_KEPT)(self._map_walls)
 
     @property
     def library(self) -> MazeLibrary:
@@ -191,6 +193,10 @@ class Mazes:
         """The Commander's map: the walls, and each landmark as a disc in its benchmark colour
         (as the annotated `maze.map-fixed.png` colours it), as the paper's Commander saw them."""
         return commander_map_png(self.load(name))
+
+    def _map_walls(self, name: str) -> list[dict[str, object]]:
+        """The map's walls for its description in words (`app.map_text`)."""
+        return [wall.as_json() for wall in walls(self.load(name))]
 
     def landmarks(self, name: str) -> dict[str, tuple[float, float]]:
         """Each landmark's centre in metres, for the legend and the next-target mark."""

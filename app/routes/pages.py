@@ -179,8 +179,10 @@ def play(
         return response
     after_url = after_trial_url(trial)
     if seat.role == "commander":  # where the landmarks are: the Commander's to know, never the Driver's
-        landmarks = mazes.landmarks(trial.maze)
-        return render(request, "commander.html", token=token, trial=trial, landmarks=landmarks, after_url=after_url)
+        landmarks, walls = mazes.landmarks(trial.maze), mazes.map_walls(trial.maze)
+        return render(
+            request, "commander.html", token=token, trial=trial, landmarks=landmarks, walls=walls, after_url=after_url
+        )
     # The Driver's page sends a press no sooner than the server takes a move (`min_move_interval_s`).
     interval = settings.min_move_interval_s
     return render(

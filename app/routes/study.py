@@ -138,7 +138,7 @@ def information(
     return _page(templates, request, "consent", study=config)
 
 
-@router.post("/study/{name}/consent")
+@router.post("/study/{name}/consent", response_class=HTMLResponse)
 def consent(
     name: str,
     request: Request,

@@ -110,8 +110,8 @@ def welcome(
     jpeg_of: JpegOf,
 ) -> dict[str, Any]:
     """What a seat (or the experimenter's watch) gets on joining: where the trial stands, the
-    dialog so far as this role may hear it, and what only this role sees (the Commander's target
-    and pending claim; the Driver's last frame; the experimenter's pose, targets and estimate)."""
+    dialog so far as this role may hear it, and what only this role sees (the Commander's target,
+    mark and pending claim; the Driver's last frame; the experimenter's pose, targets and estimate)."""
     s = state
     message: dict[str, Any] = {
         "type": ServerMessage.WELCOME,
@@ -130,6 +130,7 @@ def welcome(
     }
     if role == Role.COMMANDER:
         message["target"] = s.current_target
+        message["localization"] = s.localization  # their own mark, for a window opened later
         if s.pending_claim is not None:
             message["claim"] = claim_attachment(s.pending_claim["frame_id"], jpeg_of)
     if role in (Role.DRIVER, EXPERIMENTER) and s.last_frame_id is not None:
