@@ -41,7 +41,8 @@ from app.study.lobby import (
     Waiting,
     seat_of,
 )
-from app.study.passes import PASS_COOKIE, ParticipantPasses
+from app.study.passes import PANEL_COOKIE, PASS_COOKIE, ParticipantPasses
+from app.study.roster import roster, roster_csv
 from app.trial.hub import TrialHub
 from app.trial.lifecycle import live_trial_of
 
@@ -100,14 +101,36 @@ def _page(templates: TemplatesDep, request: Request, name: str, status: int = 20
 # -- the participant ------------------------------------------------------------------------
 @router.get("/study/{name}", response_class=HTMLResponse)
 def information(
-    name: str, request: Request, files: StudyFilesDep, passes: PassesDep, templates: TemplatesDep
+    name: str,
+    request: Request,
+    files: StudyFilesDep,
+    passes: PassesDep,
+    db: DbSession,
+    clock: ClockDep,
+    templates: TemplatesDep,
 ) -> Response:
     config = study_or_404(files, name)
+    enrolment = Enrolment(db, clock, config)
     try:
-        if passes.verify(request.cookies.get(PASS_COOKIE) or "").study == name:
-            return RedirectResponse(f"/study/{name}/me", status_code=303)
-    except InvalidToken:
-        pass
+        study_pass = passes.verify(request.cookies.get(PASS_COOKIE) or "")
+        enrolled = enrolment.get(study_pass.enrolment_id) if study_pass.study == name else None
+    except (InvalidToken, LookupError):
+        enrolled = None
+    if config.panel is not None and config.panel.carried_by(request.query_params):
+        # A panel's link: its identifiers are kept (with the participant, or until they consent)
+        # and the address bar is cleaned of them at once.
+        response = RedirectResponse(f"/study/{name}", status_code=303)
+        ids = config.panel.read(request.query_params)
+        if ids is not None and enrolled is not None:
+            enrolment.set_panel(enrolled, ids)
+            db.commit()
+        elif ids is not None:
+            response.set_cookie(
+                PANEL_COOKIE, passes.issue_panel(name, ids), httponly=True, samesite="lax", path="/study"
+            )
+        return response
+    if enrolled is not None:
+        return RedirectResponse(f"/study/{name}/me", status_code=303)
     return _page(templates, request, "consent", study=config)
 
 
@@ -132,13 +155,15 @@ def consent(
         if choice == "decline":
             enrolment.decline()
         else:
-            enrolled = enrolment.consent()
+            enrolled = enrolment.consent(passes.panel_of(request.cookies.get(PANEL_COOKIE) or "", name))
     if choice == "decline":
-        return _page(templates, request, "declined", study=config)
-    response = RedirectResponse(f"/study/{name}/code", status_code=303)
-    response.set_cookie(
-        PASS_COOKIE, passes.issue(name, enrolled.enrolment_id), httponly=True, samesite="lax", path="/study"
-    )
+        response: Response = _page(templates, request, "declined", study=config)
+    else:
+        response = RedirectResponse(f"/study/{name}/code", status_code=303)
+        response.set_cookie(
+            PASS_COOKIE, passes.issue(name, enrolled.enrolment_id), httponly=True, samesite="lax", path="/study"
+        )
+    response.delete_cookie(PANEL_COOKIE, path="/study")  # stored with the participant, or declined: not kept
     return response
 
 
@@ -320,12 +345,26 @@ def complete(
     return RedirectResponse(f"/study/{me.config.name}/done", status_code=303)
 
 
+ONWARD_AFTER_S = 5  # the end page's code is read (and can be copied) before it sends the participant on
+
+
+def onward(config: StudyConfig, completion: str | None) -> str | None:
+    """Where the end page sends the participant: the panel's completion address with their code,
+    else the study's `redirect_url`."""
+    if config.panel is not None and completion is not None:
+        address = config.panel.completion(completion)
+        if address is not None:
+            return address
+    return None if config.redirect_url is None else str(config.redirect_url)
+
+
 @router.get("/study/{name}/done", response_class=HTMLResponse)
 def done_page(me: ParticipationDep, request: Request, templates: TemplatesDep) -> Response:
     """The end of a participant's way: how it ended, and that outcome's code (recorded already)."""
     outcome = me.enrolment.outcome(me.enrolled)
     if outcome is None:
         return RedirectResponse(f"/study/{me.config.name}/me", status_code=303)
+    completion = me.config.code_for(outcome)
     return _page(
         templates,
         request,
@@ -333,7 +372,9 @@ def done_page(me: ParticipationDep, request: Request, templates: TemplatesDep) -
         study=me.config,
         code=me.code,
         outcome=outcome,
-        completion=me.config.code_for(outcome),
+        completion=completion,
+        onward=onward(me.config, completion),
+        onward_after_s=ONWARD_AFTER_S,
     )
 
 
@@ -344,7 +385,16 @@ def withdraw(me: ParticipationDep, request: Request, templates: TemplatesDep) ->
         me.enrolment.withdraw(me.enrolled)
     # The withdrawal's code, for one whose way had not ended otherwise (that code they were given then).
     completion = me.config.code_for(StudyOutcome.withdrew) if ended is None else None
-    response = _page(templates, request, "withdrawn", study=me.config, code=me.code, completion=completion)
+    response = _page(
+        templates,
+        request,
+        "withdrawn",
+        study=me.config,
+        code=me.code,
+        completion=completion,
+        onward=onward(me.config, completion) if completion is not None else None,
+        onward_after_s=ONWARD_AFTER_S,
+    )
     response.delete_cookie(PASS_COOKIE, path="/study")
     return response
 
@@ -443,6 +493,17 @@ def save_study(
         return _editor(templates, request, files, enrolment, config_json, status=400, error=str(err))
     saved = files.save(config)
     return RedirectResponse(f"/experimenter/studies/{name}?saved={saved.version}", status_code=303)
+
+
+@experimenter_router.get("/{name}/participants.csv")
+def participants_csv(name: str, files: StudyFilesDep, db: DbSession, clock: ClockDep) -> Response:
+    """The study's roster for paying its participants (`app.study.roster`)."""
+    enrolment = Enrolment(db, clock, study_or_404(files, name))
+    return Response(
+        roster_csv(roster(enrolment, datetime.now(UTC))),
+        media_type="text/csv",
+        headers={"Content-Disposition": f'attachment; filename="{name}-participants.csv"'},
+    )
 
 
 @experimenter_router.get("/{name}/lobby")
