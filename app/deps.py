@@ -28,6 +28,7 @@ from app.security import SESSION_COOKIE, CsrfTokens, Login, SeatTokens, Sessions
 from app.services import Services
 from app.settings import Settings
 from app.study.config import StudyFiles
+from app.study.webhook import StudyWebhooks
 from app.trial.hub import TrialHub
 from app.trial.log import EventLog
 
@@ -89,6 +90,10 @@ def get_clock(services: ServicesDep) -> ServerClock:
 
 def get_study_files(settings: SettingsDep) -> StudyFiles:
     return StudyFiles.of(settings.data_dir)
+
+
+def get_webhooks(services: ServicesDep) -> StudyWebhooks:
+    return services.webhooks
 
 
 def get_annotations(services: ServicesDep) -> AnnotationLog:
@@ -157,6 +162,7 @@ ClockDep = Annotated[ServerClock, Depends(get_clock)]
 SessionsDep = Annotated[Sessions, Depends(get_sessions)]
 AnnotationsDep = Annotated[AnnotationLog, Depends(get_annotations)]
 StudyFilesDep = Annotated[StudyFiles, Depends(get_study_files)]
+WebhooksDep = Annotated[StudyWebhooks, Depends(get_webhooks)]
 AnnotatorSessionsDep = Annotated[Sessions, Depends(get_annotator_sessions)]
 CsrfDep = Annotated[CsrfTokens, Depends(get_csrf)]
 LoginsDep = Annotated[LoginGuard, Depends(get_logins)]

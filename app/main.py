@@ -37,6 +37,7 @@ from app.security import AccountRole, CsrfTokens, SeatTokens, Sessions, StudyTok
 from app.services import Services
 from app.serving import settle_collector
 from app.settings import Settings
+from app.study.webhook import StudyWebhooks
 from app.trial.frames_store import FrameStore
 from app.trial.hub import TrialHub
 from app.trial.ldh_belief import BeliefModel
@@ -68,6 +69,7 @@ def build_services(settings: Settings) -> Services:
         if settings.render_processes
         else InThread()
     )
+    webhooks = StudyWebhooks(settings.data_dir, db)
     trials = TrialParts(
         settings=settings,
         db=db,
@@ -79,6 +81,7 @@ def build_services(settings: Settings) -> Services:
         backends=BackendParts(mazes, clock, renderer, db, robots, settings.overhead_calibration),
         agents=AgentParts(settings, mazes, clock),
         ldh=BeliefModel(settings.ldh_checkpoint, settings.cache_dir),
+        over=webhooks.trial_over,
     )
     return Services(
         settings=settings,
@@ -98,6 +101,7 @@ def build_services(settings: Settings) -> Services:
         hub=TrialHub(trials, settings.redis_url),
         studies=Studies(settings, db, clock),
         study_tokens=StudyTokens(key),
+        webhooks=webhooks,
     )
 
 
@@ -134,6 +138,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         yield
         await services.hub.close()
         services.log.close()
+        services.webhooks.close()
         checkpoints.stop()
         renderer.close()
         services.mazes.close()

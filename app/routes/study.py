@@ -22,6 +22,7 @@ from app.deps import (
     SettingsDep,
     StudyFilesDep,
     TemplatesDep,
+    WebhooksDep,
     experimenter_id,
 )
 from app.guard import csrf_protect
@@ -221,7 +222,12 @@ async def _open(hub: TrialHub, trial_id: int) -> None:
 
 @router.post("/study/{name}/lobby")
 def lobby_poll(
-    me: ParticipationDep, clock: ClockDep, seats: SeatTokensDep, mazes: MazesDep, hub: HubDep
+    me: ParticipationDep,
+    clock: ClockDep,
+    seats: SeatTokensDep,
+    mazes: MazesDep,
+    hub: HubDep,
+    webhooks: WebhooksDep,
 ) -> dict[str, object]:
     """The lobby page's poll (about once a second): the seat's link once paired, else the count waiting."""
     lobby = Lobby(me.db, me.config, mazes.layouts(), clock.now_ns())
@@ -239,6 +245,7 @@ def lobby_poll(
         case Seated(trial_id, role, paired_now):
             if paired_now:
                 from_thread.run(_open, hub, trial_id)
+                webhooks.paired(trial_id)
             return {"state": "seated", "role": role, "link": f"/play/{seats.issue(trial_id, role)}"}
         case Waiting(waiting):
             return {"state": "waiting", "waiting": waiting}
@@ -379,10 +386,11 @@ def done_page(me: ParticipationDep, request: Request, templates: TemplatesDep) -
 
 
 @router.post("/study/{name}/withdraw", response_class=HTMLResponse)
-def withdraw(me: ParticipationDep, request: Request, templates: TemplatesDep) -> HTMLResponse:
+def withdraw(me: ParticipationDep, request: Request, templates: TemplatesDep, webhooks: WebhooksDep) -> HTMLResponse:
     with me.db.begin():
         ended = me.enrolment.outcome(me.enrolled)
         me.enrolment.withdraw(me.enrolled)
+    webhooks.withdrawal(me.config.name, me.code)
     # The withdrawal's code, for one whose way had not ended otherwise (that code they were given then).
     completion = me.config.code_for(StudyOutcome.withdrew) if ended is None else None
     response = _page(
@@ -542,6 +550,7 @@ def pair_by_hand(
     clock: ClockDep,
     mazes: MazesDep,
     hub: HubDep,
+    webhooks: WebhooksDep,
     a: str = Form(max_length=80),
     b: str = Form(max_length=80),
 ) -> RedirectResponse:
@@ -557,4 +566,5 @@ def pair_by_hand(
     except (LookupError, LobbyError) as err:
         return RedirectResponse(f"/experimenter/studies/{name}?error={quote(str(err))}", status_code=303)
     from_thread.run(_open, hub, trial_id)
+    webhooks.paired(trial_id)
     return RedirectResponse(f"/experimenter/studies/{name}?paired={trial_id}", status_code=303)

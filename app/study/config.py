@@ -143,6 +143,7 @@ class StudyConfig(BaseModel):
     # for the study's trials.
     annotation_tags: list[Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9 _-]{0,59}$")]] = Field(default_factory=list)
     redirect_url: HttpUrl | None = None  # e.g. the recruiting site's completion link
+    webhook_url: HttpUrl | None = None  # receives the study's events as JSON (`app.study.webhook`)
     panel: PanelLink | None = None  # participants recruited on a panel (Prolific, ...): its link and completion address
 
     @field_validator("name")

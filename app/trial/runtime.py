@@ -71,6 +71,7 @@ class TrialParts:
     backends: BackendParts
     agents: AgentParts
     ldh: BeliefModel  # the watch page's LDH belief
+    over: Callable[[int, Phase], None]  # told once, as a trial of this process becomes over (a study's webhook)
 
 
 class TrialRuntime:
@@ -211,9 +212,12 @@ class TrialRuntime:
     ) -> list[LoggedEvent]:
         """Decide, commit, fold and tell the seats; raises `Refused` (recording nothing)."""
         events = d.decide(self.state, command)
+        was_over = self.state.over
         logged = [self._record(event, attachments or {}, frame) for event in events]
         if logged:
             self._after_change()
+            if self.state.over and not was_over:
+                self.parts.over(self.trial_id, self.state.phase)
         return logged
 
     def _record(
