@@ -18,6 +18,7 @@ from starlette.requests import HTTPConnection
 
 from app.annotation.log import AnnotationLog
 from app.clock import ServerClock
+from app.cookies import read_cookie
 from app.drivers.registry import AgentParts
 from app.ldh_study import Studies
 from app.login import LoginGuard
@@ -136,7 +137,7 @@ def get_templates(conn: HTTPConnection) -> Jinja2Templates:
 def current_login(conn: HTTPConnection) -> Login | None:
     """The experimenter logged in with this request's cookie (looked up once per request)."""
     if not hasattr(conn.state, "login"):
-        conn.state.login = get_services(conn).sessions.verify(conn.cookies.get(SESSION_COOKIE))
+        conn.state.login = get_services(conn).sessions.verify(read_cookie(conn, SESSION_COOKIE))
     login: Login | None = conn.state.login
     return login
 

@@ -7,6 +7,7 @@ import secrets
 import sys
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from datetime import UTC, datetime
 
 from fastapi import FastAPI, Request
 from fastapi.exception_handlers import http_exception_handler, request_validation_exception_handler
@@ -37,6 +38,8 @@ from app.security import AccountRole, CsrfTokens, SeatTokens, Sessions, StudyTok
 from app.services import Services
 from app.serving import settle_collector
 from app.settings import Settings
+from app.study.config import StudyFiles
+from app.study.purge import purge_due
 from app.study.webhook import StudyWebhooks
 from app.trial.frames_store import FrameStore
 from app.trial.hub import TrialHub
@@ -122,6 +125,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     sys.setswitchinterval(settings.gil_switch_interval_s)
     services = build_services(settings)
     password = ensure_experimenter(services)
+    with services.db.begin() as db:  # studies whose personal data are due for deletion
+        for name, participants in purge_due(
+            db, StudyFiles.of(settings.data_dir), services.clock, datetime.now(UTC)
+        ).items():
+            logger.info("study %s: personal data of %d participant(s) deleted (purge_after_days)", name, participants)
     if password is not None:
         print(f"First start: experimenter 'admin' created with password {password} (shown only once)", flush=True)
 

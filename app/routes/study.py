@@ -4,6 +4,7 @@ questionnaires, completion code, withdrawal), carried by a signed cookie (`app.s
 
 from __future__ import annotations
 
+import json
 from datetime import UTC, datetime
 from typing import Annotated
 from urllib.parse import quote
@@ -13,6 +14,7 @@ from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from fastapi.templating import Jinja2Templates
 
+from app.cookies import clear_site_data, delete_cookie, read_cookie, set_cookie
 from app.deps import (
     ClockDep,
     DbSession,
@@ -42,6 +44,7 @@ from app.study.lobby import (
     Waiting,
     seat_of,
 )
+from app.study.own_data import own_data
 from app.study.passes import PANEL_COOKIE, PASS_COOKIE, ParticipantPasses
 from app.study.roster import roster, roster_csv
 from app.trial.hub import TrialHub
@@ -78,7 +81,7 @@ class Participation:
         self.config = study_or_404(files, name)
         self.enrolment = Enrolment(db, clock, self.config)
         self.db = db
-        cookie = request.cookies.get(PASS_COOKIE)
+        cookie = read_cookie(request, PASS_COOKIE)
         try:
             study_pass = passes.verify(cookie or "")
             if study_pass.study != name:
@@ -113,7 +116,7 @@ def information(
     config = study_or_404(files, name)
     enrolment = Enrolment(db, clock, config)
     try:
-        study_pass = passes.verify(request.cookies.get(PASS_COOKIE) or "")
+        study_pass = passes.verify(read_cookie(request, PASS_COOKIE) or "")
         enrolled = enrolment.get(study_pass.enrolment_id) if study_pass.study == name else None
     except (InvalidToken, LookupError):
         enrolled = None
@@ -126,12 +129,12 @@ def information(
             enrolment.set_panel(enrolled, ids)
             db.commit()
         elif ids is not None:
-            response.set_cookie(
-                PANEL_COOKIE, passes.issue_panel(name, ids), httponly=True, samesite="lax", path="/study"
-            )
+            set_cookie(response, request, PANEL_COOKIE, passes.issue_panel(name, ids), path="/study")
         return response
     if enrolled is not None:
         return RedirectResponse(f"/study/{name}/me", status_code=303)
+    if config.closed(datetime.now(UTC)):
+        return _page(templates, request, "closed", status=410, study=config)
     return _page(templates, request, "consent", study=config)
 
 
@@ -148,6 +151,8 @@ def consent(
     consent_version: str = Form(max_length=40),
 ) -> Response:
     config = study_or_404(files, name)
+    if config.closed(datetime.now(UTC)):
+        return _page(templates, request, "closed", status=410, study=config)
     if consent_version != config.consent.version:
         error = "the information changed while the page was open: please read it again"
         return _page(templates, request, "consent", status=409, study=config, error=error)
@@ -156,15 +161,13 @@ def consent(
         if choice == "decline":
             enrolment.decline()
         else:
-            enrolled = enrolment.consent(passes.panel_of(request.cookies.get(PANEL_COOKIE) or "", name))
+            enrolled = enrolment.consent(passes.panel_of(read_cookie(request, PANEL_COOKIE) or "", name))
     if choice == "decline":
         response: Response = _page(templates, request, "declined", study=config)
     else:
         response = RedirectResponse(f"/study/{name}/code", status_code=303)
-        response.set_cookie(
-            PASS_COOKIE, passes.issue(name, enrolled.enrolment_id), httponly=True, samesite="lax", path="/study"
-        )
-    response.delete_cookie(PANEL_COOKIE, path="/study")  # stored with the participant, or declined: not kept
+        set_cookie(response, request, PASS_COOKIE, passes.issue(name, enrolled.enrolment_id), path="/study")
+    delete_cookie(response, request, PANEL_COOKIE, path="/study")  # stored with the participant, or declined: not kept
     return response
 
 
@@ -207,6 +210,17 @@ def my_study(me: ParticipationDep, request: Request, templates: TemplatesDep, er
         enrolled=me.enrolled,
         practice_reason=PRACTICE_REASON,
         error=error,
+    )
+
+
+@router.get("/study/{name}/me/data.json")
+def my_data(me: ParticipationDep) -> Response:
+    """Everything recorded about the participant, as a JSON download (`app.study.own_data`)."""
+    data = own_data(me.enrolment, me.enrolled, me.code)
+    return Response(
+        json.dumps(data, indent=1),
+        media_type="application/json",
+        headers={"Content-Disposition": f'attachment; filename="{me.config.name}-{me.code}.json"'},
     )
 
 
@@ -403,7 +417,8 @@ def withdraw(me: ParticipationDep, request: Request, templates: TemplatesDep, we
         onward=onward(me.config, completion) if completion is not None else None,
         onward_after_s=ONWARD_AFTER_S,
     )
-    response.delete_cookie(PASS_COOKIE, path="/study")
+    delete_cookie(response, request, PASS_COOKIE, path="/study")
+    clear_site_data(response)  # the browser keeps nothing of them: cookies, storage, cache
     return response
 
 

@@ -8,12 +8,13 @@ import json
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
+from datetime import datetime, timedelta
 from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
 from urllib.parse import quote
 
-from pydantic import BaseModel, Field, HttpUrl, ValidationError, field_validator, model_validator
+from pydantic import AwareDatetime, BaseModel, Field, HttpUrl, ValidationError, field_validator, model_validator
 
 NAME_PATTERN = re.compile(r"^[a-z0-9][a-z0-9_-]{0,79}$")
 RATING_SCALE = (1, 5)
@@ -143,6 +144,10 @@ class StudyConfig(BaseModel):
     # for the study's trials.
     annotation_tags: list[Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9 _-]{0,59}$")]] = Field(default_factory=list)
     redirect_url: HttpUrl | None = None  # e.g. the recruiting site's completion link
+    # The study closes (no one new consents from then); `purge_after_days` after it, the personal
+    # data (real names, free text, panel identifiers) are deleted (`app.study.purge`).
+    closed_at: AwareDatetime | None = None
+    purge_after_days: int | None = Field(default=None, ge=0)
     webhook_url: HttpUrl | None = None  # receives the study's events as JSON (`app.study.webhook`)
     panel: PanelLink | None = None  # participants recruited on a panel (Prolific, ...): its link and completion address
 
@@ -177,6 +182,17 @@ class StudyConfig(BaseModel):
         if StudyOutcome.completed in self.outcome_codes:
             raise ValueError("the plan's code is completion_code: outcome_codes holds the other outcomes'")
         return self
+
+    def closed(self, now: datetime) -> bool:
+        return self.closed_at is not None and now >= self.closed_at
+
+    def purge_due(self, now: datetime) -> bool:
+        """Its personal data are to be deleted by now (closed `purge_after_days` ago)."""
+        return (
+            self.closed_at is not None
+            and self.purge_after_days is not None
+            and now >= self.closed_at + timedelta(days=self.purge_after_days)
+        )
 
     def code_for(self, outcome: StudyOutcome) -> str | None:
         """The completion code a participant whose way ended so is given (None: none)."""

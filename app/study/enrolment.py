@@ -28,6 +28,7 @@ class StudyEventKind(StrEnum):
     answered = "answered"
     completed = "completed"  # the participant's way ended: `outcome` (a `StudyOutcome`), `trials` played
     withdrawn = "withdrawn"
+    purged = "purged"  # the study's personal data deleted (`app.study.purge`): `participants` who had some
 
 
 class AfterTrial(StrEnum):
