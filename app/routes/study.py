@@ -366,7 +366,7 @@ def complete(
     return RedirectResponse(f"/study/{me.config.name}/done", status_code=303)
 
 
-ONWARD_AFTER_S = 5  # the end page's code is read (and can be copied) before it sends the participant on
+ONWARD_AFTER_S = 10  # the end page's countdown (which they may stop) before it sends the participant on
 
 
 def onward(config: StudyConfig, completion: str | None) -> str | None:

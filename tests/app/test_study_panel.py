@@ -57,10 +57,10 @@ def backdate(server, code: str, waiting_min: float, in_study_min: float) -> None
 
 
 def onward(page: str) -> tuple[str, str]:
-    """The end page's link on and the address its refresh sends the browser to."""
-    link = html.unescape(page.split('id="completion-link" href="')[1].split('"')[0])
-    refresh = html.unescape(page.split('http-equiv="refresh" content="')[1].split('"')[0])
-    return link, refresh.split(";url=", 1)[1]
+    """The end page's link on (to the panel, with the code) and the countdown's seconds before
+    its script follows it (the browser test sees it followed)."""
+    link = page.split('id="completion-link" href="')[1].split(">")[0]
+    return html.unescape(link.split('"')[0]), link.split('data-after-s="')[1].split('"')[0]
 
 
 def test_a_panel_link_is_stored_with_the_pseudonym_on_no_public_page_and_each_end_goes_to_the_panel(server):
@@ -84,7 +84,7 @@ def test_a_panel_link_is_stored_with_the_pseudonym_on_no_public_page_and_each_en
     end(server, eve)
     done = finish(ann)  # the plan's one trial played
     assert done.url.path == "/study/pilot/done", "the end page's own address carries no identifiers"
-    assert onward(done.text) == (PROLIFIC.format(code="DONE-PILOT"),) * 2
+    assert onward(done.text) == (PROLIFIC.format(code="DONE-PILOT"), "10")
 
     pages = [ann.get(p).text for p in ("/study/pilot/me", "/study/pilot/code", "/study/pilot/instructions")]
     pages += [done.text, ann.get("/leaderboard?study=pilot").text, bob.get(seat["link"]).text]
@@ -94,14 +94,14 @@ def test_a_panel_link_is_stored_with_the_pseudonym_on_no_public_page_and_each_en
 
     cat, _ = arrive(server, "PID-CAT", "SE-3")
     gone = cat.post("/study/pilot/withdraw").text
-    assert onward(gone) == (PROLIFIC.format(code="WITHDREW-3"),) * 2
+    assert onward(gone) == (PROLIFIC.format(code="WITHDREW-3"), "10")
 
     dan, dan_code = arrive(server, "PID-DAN", "SE-4")
     assert poll(dan)["state"] == "waiting"
     backdate(server, dan_code, waiting_min=12, in_study_min=20)  # Dan has waited 12 minutes, 20 since consenting
     state = poll(dan)
     assert state["state"] == "timed_out" and state["outcome"] == "no_partner"
-    assert onward(dan.get(state["next"]).text) == (PROLIFIC.format(code="NOPAIR-2"),) * 2
+    assert onward(dan.get(state["next"]).text) == (PROLIFIC.format(code="NOPAIR-2"), "10")
 
     # A returning browser's link opened again is cleaned too, and keeps the identifiers stored.
     again = ann.get("/study/pilot?PROLIFIC_PID=PID-OTHER&STUDY_ID=X&SESSION_ID=Y", follow_redirects=False)
