@@ -103,10 +103,16 @@ def test_a_panel_link_is_stored_with_the_pseudonym_on_no_public_page_and_each_en
     assert state["state"] == "timed_out" and state["outcome"] == "no_partner"
     assert onward(dan.get(state["next"]).text) == (PROLIFIC.format(code="NOPAIR-2"), "10")
 
-    # A returning browser's link opened again is cleaned too, and keeps the identifiers stored.
+    # A returning browser's link opened again is cleaned too, and keeps the identifiers stored;
+    # one who came by the plain link and then by the panel's has theirs stored then.
     again = ann.get("/study/pilot?PROLIFIC_PID=PID-OTHER&STUDY_ID=X&SESSION_ID=Y", follow_redirects=False)
     assert again.status_code == 303 and again.headers["location"] == "/study/pilot"
     assert stored(server, ann_code).panel_participant == "PID-ANN"
+    fay, fay_code = join(server, "pilot")
+    assert stored(server, fay_code).panel_participant is None
+    fay.get("/study/pilot?PROLIFIC_PID=PID-FAY&STUDY_ID=ST-77&SESSION_ID=SE-5")
+    row = stored(server, fay_code)
+    assert (row.panel_participant, row.panel_study, row.panel_session) == ("PID-FAY", "ST-77", "SE-5")
 
 
 def test_the_roster_has_one_row_per_participant_with_the_panels_ids_outcome_code_and_minutes(server, tmp_path):
