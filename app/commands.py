@@ -12,7 +12,7 @@ if TYPE_CHECKING:
     from app.security import AccountRole
 
 # Packages under app/ that bring their own commands, each with `register(root)`.
-MOUNTED = ("app.export.cli", "app.demo.cli", "app.rover.commands")
+MOUNTED = ("app.export.cli", "app.demo.cli", "app.rover.commands", "app.study.cli")
 
 
 def serve(

@@ -7,6 +7,7 @@ import secrets
 import sys
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from datetime import UTC, datetime
 
 from fastapi import FastAPI, Request
 from fastapi.exception_handlers import http_exception_handler, request_validation_exception_handler
@@ -39,7 +40,10 @@ from app.security import AccountRole, CsrfTokens, SeatTokens, Sessions, StudyTok
 from app.services import Services
 from app.serving import settle_collector
 from app.settings import Settings
+from app.study.config import StudyFiles
+from app.study.purge import purge_due
 from app.study.signups import SignupLimits
+from app.study.webhook import StudyWebhooks
 from app.trial.frames_store import FrameStore
 from app.trial.hub import TrialHub
 from app.trial.ldh_belief import BeliefModel
@@ -75,6 +79,7 @@ def build_services(settings: Settings) -> Services:
         if settings.render_processes
         else InThread()
     )
+    webhooks = StudyWebhooks(settings.data_dir, db)
     trials = TrialParts(
         settings=settings,
         db=db,
@@ -86,6 +91,7 @@ def build_services(settings: Settings) -> Services:
         backends=BackendParts(mazes, clock, renderer, db, robots, settings.overhead_calibration),
         agents=AgentParts(settings, mazes, clock),
         ldh=BeliefModel(settings.ldh_checkpoint, settings.cache_dir),
+        over=webhooks.trial_over,
     )
     return Services(
         settings=settings,
@@ -106,6 +112,7 @@ def build_services(settings: Settings) -> Services:
         studies=Studies(settings, db, clock),
         study_tokens=StudyTokens(key),
         signups=SignupLimits(settings, counts("signups")),
+        webhooks=webhooks,
     )
 
 
@@ -126,6 +133,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     sys.setswitchinterval(settings.gil_switch_interval_s)
     services = build_services(settings)
     password = ensure_experimenter(services)
+    with services.db.begin() as db:  # studies whose personal data are due for deletion
+        for name, participants in purge_due(
+            db, StudyFiles.of(settings.data_dir), services.clock, datetime.now(UTC)
+        ).items():
+            logger.info("study %s: personal data of %d participant(s) deleted (purge_after_days)", name, participants)
     if password is not None:
         print(f"First start: experimenter 'admin' created with password {password} (shown only once)", flush=True)
 
@@ -142,6 +154,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         yield
         await services.hub.close()
         services.log.close()
+        services.webhooks.close()
         checkpoints.stop()
         renderer.close()
         services.mazes.close()

@@ -5,6 +5,7 @@ import {showImage, TableMap} from "./maputil.js";
 import {markTool} from "./marktool.js";
 import {landmarkWords, markWords, wallWords} from "./mapwords.js";
 import {RUNNING} from "./trial.js";
+import {calm, raise} from "./alert.js";
 
 const root = $("seat");
 const landmarks = JSON.parse(root.dataset.landmarks);  // name -> [x, y] metres
@@ -86,8 +87,9 @@ function showTarget() {
 }
 function showClaim(claim) {
   const box = $("claim");
-  if (!claim || !claim.jpeg) { box.hidden = true; return; }
+  if (!claim || !claim.jpeg) { box.hidden = true; calm(); return; }
   showImage($("claim-image"), `data:image/jpeg;base64,${claim.jpeg}`);
+  if (box.hidden) raise("Claim to judge");  // once per claim, not again on a reconnect's welcome
   box.hidden = false;
   $("confirm").focus();
 }

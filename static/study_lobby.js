@@ -1,11 +1,21 @@
 // The study lobby: ask the server about once a second; it pairs us when a partner waits, then
 // this page opens our seat. Leaving (the button, or the page closing) tells the server at once,
-// so nobody is paired with us once we have gone.
+// so nobody is paired with us once we have gone. Being paired raises an alert (title, beep, the
+// partner's seat) a moment before the seat opens, for one who looked away while waiting.
+import { beep, raise, unlockSound } from "./alert.js";
+
 const lobby = document.getElementById("lobby");
 const status = document.getElementById("lobby-status");
 const csrf = document.querySelector('meta[name="csrf-token"]').content;
 const url = `/study/${encodeURIComponent(lobby.dataset.study)}/lobby`;
 let gone = false;  // seated, or left by the button: nothing to tell as the page closes
+const SEATS = { commander: "the Commander (you see the map)", driver: "the Driver (you see the camera and move)" };
+const OPEN_SEAT_AFTER_MS = 2000;  // the alert is seen and heard before the seat page replaces it
+
+document.getElementById("sound-on").addEventListener("click", async (event) => {
+  await unlockSound();
+  event.target.textContent = beep() ? "Sound is on" : "Sound is blocked by this browser";
+});
 
 document.getElementById("leave-lobby").addEventListener("submit", () => { gone = true; });
 window.addEventListener("pagehide", () => {
@@ -32,10 +42,13 @@ async function poll() {
     return;
   }
   if (state.state === "seated") {
-    status.textContent = `Paired: you are the ${state.role}. Opening your trial…`;
+    const partner = state.role === "commander" ? "driver" : "commander";
+    status.textContent = `Paired! You are ${SEATS[state.role]}; your partner is ${SEATS[partner]}. Opening your trial…`;
     lobby.dataset.seat = state.role;
+    lobby.dataset.partnerSeat = partner;
+    raise("Paired!");
     gone = true;
-    window.location.assign(state.link);
+    setTimeout(() => window.location.assign(state.link), OPEN_SEAT_AFTER_MS);
   } else if (state.state === "all_played") {
     status.textContent = `You have played all ${state.trials} of your trials. Answer the last questionnaire and get your completion code on your page.`;
   } else if (state.state === "timed_out" || state.state === "ended") {

@@ -17,6 +17,7 @@ if TYPE_CHECKING:  # the exporters load only for the command that runs
     from sqlalchemy.orm import Session, sessionmaker
 
     from app.export.record import TrialRecord
+    from app.study.config import StudyFiles
     from sim.core.maze import Maze
 
 console = Console(stderr=True)
@@ -62,7 +63,8 @@ def export(
     seed: int = typer.Option(0, "--seed", help="--folds: the seed of the draw."),
 ) -> None:
     """Export recorded trials from the data directory (ROBOTSLANG_DATA_DIR); with `all --study
-    NAME`, the study's questionnaire answers too (questionnaires.csv and .json in --out)."""
+    NAME`, the study's questionnaire answers (questionnaires.csv and .json in --out) and its
+    participants' roster for paying them (participants.csv) too."""
     from app.db.engine import make_engine, make_sessionmaker
     from app.export.folds import FoldError, FoldShares, SavedFolds
     from app.export.record import ExportError
@@ -141,6 +143,7 @@ def _export_answers(sessions: sessionmaker[Session], data_dir: Path, study: str,
     files = StudyFiles.of(data_dir)
     if not answers and study not in files.names():
         return  # trials given a study's name by hand, with no study file: nobody was asked anything
+    _export_roster(sessions, files, study, out)
     try:
         questionnaires = asked(files, study, answers)
     except (LookupError, StudyConfigError) as err:
@@ -149,6 +152,26 @@ def _export_answers(sessions: sessionmaker[Session], data_dir: Path, study: str,
     (out / "questionnaires.csv").write_text(answers_csv(study, answers, items(questionnaires)))
     (out / "questionnaires.json").write_text(json.dumps(answers_json(study, answers, questionnaires), indent=1))
     console.print(f"{len(answers)} questionnaire answer(s) -> {out}/questionnaires.csv, questionnaires.json")
+
+
+def _export_roster(sessions: sessionmaker[Session], files: StudyFiles, study: str, out: Path) -> None:
+    """One row per participant for paying them (`app.study.roster`): participants.csv in --out."""
+    from datetime import UTC, datetime
+
+    from app.clock import ServerClock
+    from app.study.config import StudyConfigError
+    from app.study.enrolment import Enrolment
+    from app.study.roster import roster, roster_csv
+
+    try:
+        config = files.load(study)
+    except (LookupError, StudyConfigError) as err:
+        _fail(f"the participants' roster needs the study's file: {err}")
+    with sessions() as session:
+        rows = roster(Enrolment(session, ServerClock(), config), datetime.now(UTC))
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "participants.csv").write_text(roster_csv(rows))
+    console.print(f"{len(rows)} participant(s) -> {out}/participants.csv")
 
 
 def _export_mcap(loaded: list[tuple[TrialRecord, Maze]], out: Path, single: bool) -> None:

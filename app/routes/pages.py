@@ -8,6 +8,7 @@ from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from sqlalchemy.orm import Session
 
+from app.cookies import clear_site_data, delete_cookie, read_cookie, set_cookie
 from app.db.models import Experimenter, Trial
 from app.deps import (
     AnnotatorSessionsDep,
@@ -73,7 +74,7 @@ def seat_of(seats: SeatTokens, db: Session, token: str) -> tuple[Seat, Trial]:
 def home(request: Request, login: CurrentLogin, annotators: AnnotatorSessionsDep) -> Response:
     if login is not None:
         return RedirectResponse("/experimenter", status_code=303)
-    if annotators.verify(request.cookies.get(ANNOTATOR_COOKIE)) is not None:
+    if annotators.verify(read_cookie(request, ANNOTATOR_COOKIE)) is not None:
         return RedirectResponse("/annotate", status_code=303)
     return render(request, "home.html", error=None, join_error=None)
 
@@ -113,24 +114,20 @@ async def login(
     is_annotator = account is not None and account.role == annotators.role
     sessions, cookie = (annotators, ANNOTATOR_COOKIE) if is_annotator else (sessions, SESSION_COOKIE)
     redirect = RedirectResponse("/annotate" if is_annotator else "/experimenter", status_code=303)
-    redirect.set_cookie(
-        cookie,
-        sessions.issue(user_id),
-        max_age=SESSION_MAX_AGE_S,
-        httponly=True,
-        samesite="strict",
-        secure=request.url.scheme == "https",
-    )
+    set_cookie(redirect, request, cookie, sessions.issue(user_id), samesite="strict", max_age=SESSION_MAX_AGE_S)
     return redirect
 
 
 @router.post("/logout", dependencies=[Depends(csrf_protect)])
-def logout(login: CurrentLogin, sessions: SessionsDep, login_sockets: LoginSocketsDep) -> RedirectResponse:
+def logout(
+    request: Request, login: CurrentLogin, sessions: SessionsDep, login_sockets: LoginSocketsDep
+) -> RedirectResponse:
     if login is not None:
         sessions.end(login)
         login_sockets.end(login)
     response = RedirectResponse("/", status_code=303)
-    response.delete_cookie(SESSION_COOKIE)
+    delete_cookie(response, request, SESSION_COOKIE)
+    clear_site_data(response)
     return response
 
 

@@ -4,6 +4,7 @@ questionnaires, completion code, withdrawal), carried by a signed cookie (`app.s
 
 from __future__ import annotations
 
+import json
 import math
 from datetime import UTC, datetime
 from typing import Annotated
@@ -15,6 +16,7 @@ from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from fastapi.templating import Jinja2Templates
 
 from app.client_limits import Limited
+from app.cookies import clear_site_data, delete_cookie, read_cookie, set_cookie
 from app.db.engine import truncate_wal
 from app.deps import (
     ClockDep,
@@ -26,6 +28,7 @@ from app.deps import (
     SignupsDep,
     StudyFilesDep,
     TemplatesDep,
+    WebhooksDep,
     experimenter_id,
 )
 from app.guard import csrf_protect
@@ -45,7 +48,9 @@ from app.study.lobby import (
     Waiting,
     seat_of,
 )
-from app.study.passes import PASS_COOKIE, ParticipantPasses
+from app.study.own_data import own_data
+from app.study.passes import PANEL_COOKIE, PASS_COOKIE, ParticipantPasses
+from app.study.roster import roster, roster_csv
 from app.study.signups import SignupLimits, Step
 from app.trial.hub import TrialHub
 from app.trial.lifecycle import live_trial_of
@@ -81,7 +86,7 @@ class Participation:
         self.config = study_or_404(files, name)
         self.enrolment = Enrolment(db, clock, self.config)
         self.db = db
-        cookie = request.cookies.get(PASS_COOKIE)
+        cookie = read_cookie(request, PASS_COOKIE)
         try:
             study_pass = passes.verify(cookie or "")
             if study_pass.study != name:
@@ -128,13 +133,29 @@ def information(
     templates: TemplatesDep,
 ) -> Response:
     config = study_or_404(files, name)
+    enrolment = Enrolment(db, clock, config)
     try:
-        if passes.verify(request.cookies.get(PASS_COOKIE) or "").study == name:
-            return RedirectResponse(f"/study/{name}/me", status_code=303)
-    except InvalidToken:
-        pass
-    if Enrolment(db, clock, config).full():
+        study_pass = passes.verify(read_cookie(request, PASS_COOKIE) or "")
+        enrolled = enrolment.get(study_pass.enrolment_id) if study_pass.study == name else None
+    except (InvalidToken, LookupError):
+        enrolled = None
+    if config.panel is not None and config.panel.carried_by(request.query_params):
+        # A panel's link: its identifiers are kept (with the participant, or until they consent)
+        # and the address bar is cleaned of them at once.
+        response = RedirectResponse(f"/study/{name}", status_code=303)
+        ids = config.panel.read(request.query_params)
+        if ids is not None and enrolled is not None:
+            enrolment.set_panel(enrolled, ids)
+            db.commit()
+        elif ids is not None:
+            set_cookie(response, request, PANEL_COOKIE, passes.issue_panel(name, ids), path="/study")
+        return response
+    if enrolled is not None:
+        return RedirectResponse(f"/study/{name}/me", status_code=303)
+    if enrolment.full():
         return _page(templates, request, "full", study=config)
+    if config.closed(datetime.now(UTC)):
+        return _page(templates, request, "closed", status=410, study=config)
     return _page(templates, request, "consent", study=config)
 
 
@@ -152,6 +173,8 @@ def consent(
     consent_version: str = Form(max_length=40),
 ) -> Response:
     config = study_or_404(files, name)
+    if config.closed(datetime.now(UTC)):
+        return _page(templates, request, "closed", status=410, study=config)
     if consent_version != config.consent.version:
         error = "the information changed while the page was open: please read it again"
         return _page(templates, request, "consent", status=409, study=config, error=error)
@@ -165,15 +188,15 @@ def consent(
             if choice == "decline":
                 enrolment.decline()
             else:
-                enrolled = enrolment.consent()
+                enrolled = enrolment.consent(passes.panel_of(read_cookie(request, PANEL_COOKIE) or "", name))
     except StudyFull:
         return _page(templates, request, "full", status=409, study=config)
     if choice == "decline":
-        return _page(templates, request, "declined", study=config)
-    response = RedirectResponse(f"/study/{name}/code", status_code=303)
-    response.set_cookie(
-        PASS_COOKIE, passes.issue(name, enrolled.enrolment_id), httponly=True, samesite="lax", path="/study"
-    )
+        response: Response = _page(templates, request, "declined", study=config)
+    else:
+        response = RedirectResponse(f"/study/{name}/code", status_code=303)
+        set_cookie(response, request, PASS_COOKIE, passes.issue(name, enrolled.enrolment_id), path="/study")
+    delete_cookie(response, request, PANEL_COOKIE, path="/study")  # stored with the participant, or declined: not kept
     return response
 
 
@@ -219,6 +242,17 @@ def my_study(me: ParticipationDep, request: Request, templates: TemplatesDep, er
     )
 
 
+@router.get("/study/{name}/me/data.json")
+def my_data(me: ParticipationDep) -> Response:
+    """Everything recorded about the participant, as a JSON download (`app.study.own_data`)."""
+    data = own_data(me.enrolment, me.enrolled, me.code)
+    return Response(
+        json.dumps(data, indent=1),
+        media_type="application/json",
+        headers={"Content-Disposition": f'attachment; filename="{me.config.name}-{me.code}.json"'},
+    )
+
+
 @router.get("/study/{name}/lobby", response_class=HTMLResponse)
 def lobby_page(me: ParticipationDep, request: Request, templates: TemplatesDep) -> HTMLResponse:
     return _page(templates, request, "lobby", study=me.config, code=me.code)
@@ -249,6 +283,7 @@ def lobby_poll(
     mazes: MazesDep,
     hub: HubDep,
     signups: SignupsDep,
+    webhooks: WebhooksDep,
 ) -> dict[str, object]:
     """The lobby page's poll (about once a second): the seat's link once paired, else the count
     waiting. Entering the lobby (a poll while neither waiting nor in a live trial) counts against
@@ -270,6 +305,7 @@ def lobby_poll(
         case Seated(trial_id, role, paired_now):
             if paired_now:
                 from_thread.run(_open, hub, trial_id)
+                webhooks.paired(trial_id)
             return {"state": "seated", "role": role, "link": f"/play/{seats.issue(trial_id, role)}"}
         case Waiting(waiting):
             return {"state": "waiting", "waiting": waiting}
@@ -381,12 +417,26 @@ def complete(
     return RedirectResponse(f"/study/{me.config.name}/done", status_code=303)
 
 
+ONWARD_AFTER_S = 10  # the end page's countdown (which they may stop) before it sends the participant on
+
+
+def onward(config: StudyConfig, completion: str | None) -> str | None:
+    """Where the end page sends the participant: the panel's completion address with their code,
+    else the study's `redirect_url`."""
+    if config.panel is not None and completion is not None:
+        address = config.panel.completion(completion)
+        if address is not None:
+            return address
+    return None if config.redirect_url is None else str(config.redirect_url)
+
+
 @router.get("/study/{name}/done", response_class=HTMLResponse)
 def done_page(me: ParticipationDep, request: Request, templates: TemplatesDep) -> Response:
     """The end of a participant's way: how it ended, and that outcome's code (recorded already)."""
     outcome = me.enrolment.outcome(me.enrolled)
     if outcome is None:
         return RedirectResponse(f"/study/{me.config.name}/me", status_code=303)
+    completion = me.config.code_for(outcome)
     return _page(
         templates,
         request,
@@ -394,20 +444,33 @@ def done_page(me: ParticipationDep, request: Request, templates: TemplatesDep) -
         study=me.config,
         code=me.code,
         outcome=outcome,
-        completion=me.config.code_for(outcome),
+        completion=completion,
+        onward=onward(me.config, completion),
+        onward_after_s=ONWARD_AFTER_S,
     )
 
 
 @router.post("/study/{name}/withdraw", response_class=HTMLResponse)
-def withdraw(me: ParticipationDep, request: Request, templates: TemplatesDep) -> HTMLResponse:
+def withdraw(me: ParticipationDep, request: Request, templates: TemplatesDep, webhooks: WebhooksDep) -> HTMLResponse:
     with me.db.begin():
         ended = me.enrolment.outcome(me.enrolled)
         me.enrolment.withdraw(me.enrolled)
     truncate_wal(me.db.get_bind().engine)  # no copy of the erased text stays in SQLite's WAL file
+    webhooks.withdrawal(me.config.name, me.code)
     # The withdrawal's code, for one whose way had not ended otherwise (that code they were given then).
     completion = me.config.code_for(StudyOutcome.withdrew) if ended is None else None
-    response = _page(templates, request, "withdrawn", study=me.config, code=me.code, completion=completion)
-    response.delete_cookie(PASS_COOKIE, path="/study")
+    response = _page(
+        templates,
+        request,
+        "withdrawn",
+        study=me.config,
+        code=me.code,
+        completion=completion,
+        onward=onward(me.config, completion) if completion is not None else None,
+        onward_after_s=ONWARD_AFTER_S,
+    )
+    delete_cookie(response, request, PASS_COOKIE, path="/study")
+    clear_site_data(response)  # the browser keeps nothing of them: cookies, storage, cache
     return response
 
 
@@ -507,6 +570,17 @@ def save_study(
     return RedirectResponse(f"/experimenter/studies/{name}?saved={saved.version}", status_code=303)
 
 
+@experimenter_router.get("/{name}/participants.csv")
+def participants_csv(name: str, files: StudyFilesDep, db: DbSession, clock: ClockDep) -> Response:
+    """The study's roster for paying its participants (`app.study.roster`)."""
+    enrolment = Enrolment(db, clock, study_or_404(files, name))
+    return Response(
+        roster_csv(roster(enrolment, datetime.now(UTC))),
+        media_type="text/csv",
+        headers={"Content-Disposition": f'attachment; filename="{name}-participants.csv"'},
+    )
+
+
 @experimenter_router.get("/{name}/lobby")
 def lobby_view(name: str, files: StudyFilesDep, db: DbSession, clock: ClockDep, mazes: MazesDep) -> dict[str, object]:
     """Who waits in the study's lobby now, for the study page's live view (polled)."""
@@ -543,6 +617,7 @@ def pair_by_hand(
     clock: ClockDep,
     mazes: MazesDep,
     hub: HubDep,
+    webhooks: WebhooksDep,
     a: str = Form(max_length=80),
     b: str = Form(max_length=80),
 ) -> RedirectResponse:
@@ -558,4 +633,5 @@ def pair_by_hand(
     except (LookupError, LobbyError) as err:
         return RedirectResponse(f"/experimenter/studies/{name}?error={quote(str(err))}", status_code=303)
     from_thread.run(_open, hub, trial_id)
+    webhooks.paired(trial_id)
     return RedirectResponse(f"/experimenter/studies/{name}?paired={trial_id}", status_code=303)

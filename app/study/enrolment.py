@@ -13,8 +13,8 @@ from sqlalchemy.orm import Session
 
 from app.clock import ServerClock
 from app.db.models import Participant, StudyAnswer, StudyEvent, StudyParticipant, Trial
-from app.study.config import RATING_SCALE, QuestionKind, StudyConfig, StudyOutcome
-from app.study.lobby import PRACTICE_REASON
+from app.study.config import RATING_SCALE, PanelIds, QuestionKind, StudyConfig, StudyOutcome
+from app.study.lobby import PRACTICE_REASON, end_wait
 from app.trial.setup import never_joined
 
 CODE_ALPHABET = "ABCDEFGHJKLMNPQRSTUVWXYZ23456789"  # no 0/O, 1/I: read aloud and typed back
@@ -28,6 +28,7 @@ class StudyEventKind(StrEnum):
     answered = "answered"
     completed = "completed"  # the participant's way ended: `outcome` (a `StudyOutcome`), `trials` played
     withdrawn = "withdrawn"
+    purged = "purged"  # the study's personal data deleted (`app.study.purge`): `participants` who had some
 
 
 class AfterTrial(StrEnum):
@@ -88,8 +89,9 @@ class Enrolment:
         )
         return (taken or 0) >= cap
 
-    def consent(self) -> Enrolled:
-        """A new participant who agreed to the consent text now shown: a code, no name yet."""
+    def consent(self, panel: PanelIds | None = None) -> Enrolled:
+        """A new participant who agreed to the consent text now shown: a code, no name yet (and the
+        panel's identifiers where a panel's link brought them)."""
         if self.full():
             raise StudyFull(f"study {self.config.name!r} has taken all its {self.config.max_participants} participants")
         participant = Participant(name=new_code(self.db))
@@ -99,9 +101,17 @@ class Enrolment:
             study=self.config.name, participant_id=participant.id, consent_version=self.config.consent.version
         )
         self.db.add(enrolled)
+        if panel is not None:
+            self.set_panel(enrolled, panel)
         self.db.flush()
         self._log(StudyEventKind.consented, participant.id, consent_version=self.config.consent.version)
         return Enrolled(enrolled.id, participant.name)
+
+    def set_panel(self, enrolled: StudyParticipant, panel: PanelIds) -> None:
+        """The panel's identifiers for this participant; one already stored is kept (a link opened again)."""
+        enrolled.panel_participant = enrolled.panel_participant or panel.participant
+        enrolled.panel_study = enrolled.panel_study or panel.study
+        enrolled.panel_session = enrolled.panel_session or panel.session
 
     def decline(self) -> None:
         self._log(StudyEventKind.declined, None, consent_version=self.config.consent.version)
@@ -229,7 +239,8 @@ class Enrolment:
             return ended
         self._active(enrolled)
         enrolled.completed_at = datetime.now(UTC)
-        enrolled.lobby_since = enrolled.lobby_seen = None
+        end_wait(enrolled, enrolled.completed_at)
+        enrolled.lobby_seen = None
         self._log(StudyEventKind.completed, enrolled.participant_id, outcome=str(outcome), trials=trials)
         return outcome
 

@@ -75,8 +75,32 @@ LobbyState = Seated | Waiting | TimedOut | AllPlayed | Ended | TimeUp
 PRACTICE_REASON = "study practice: not scored"
 
 
-def _aware(t: datetime) -> datetime:
+def aware(t: datetime) -> datetime:
     return t if t.tzinfo else t.replace(tzinfo=UTC)  # SQLite gives stamps back without their zone
+
+
+def end_wait(enrolled: StudyParticipant, until: datetime) -> None:
+    """Their wait in the lobby ends at `until`: its time is added to what they have waited, each
+    moment once (a wait that restarts from an earlier pairing is not counted twice)."""
+    if enrolled.lobby_since is not None:
+        start = aware(enrolled.lobby_since)
+        if enrolled.lobby_waited_to is not None:
+            start = max(start, aware(enrolled.lobby_waited_to))
+        if until > start:
+            enrolled.lobby_waited_s = (enrolled.lobby_waited_s or 0.0) + (until - start).total_seconds()
+            enrolled.lobby_waited_to = until
+    enrolled.lobby_since = None
+
+
+def waited_s(enrolled: StudyParticipant) -> float:
+    """Seconds they have waited in the lobby, a wait still going counted to their page's last ask."""
+    waited = enrolled.lobby_waited_s or 0.0
+    if enrolled.lobby_since is not None and enrolled.lobby_seen is not None:
+        start = aware(enrolled.lobby_since)
+        if enrolled.lobby_waited_to is not None:
+            start = max(start, aware(enrolled.lobby_waited_to))
+        waited += max(0.0, (aware(enrolled.lobby_seen) - start).total_seconds())
+    return waited
 
 
 def seat_of(trial: Trial, participant_id: int) -> Seated:
@@ -101,25 +125,27 @@ class Lobby:
         """This participant's lobby page asks: their seat, or how many wait (after pairing them if it can)."""
         live = live_trial_of(self.db, (enrolled.participant_id,))
         if live is not None:
-            enrolled.lobby_since = None
+            end_wait(enrolled, now)
             return seat_of(live, enrolled.participant_id)
         if enrolled.completed_at is not None:
             return Ended()
         done = self.done(enrolled)
         if done is not None:
-            enrolled.lobby_since = None
+            end_wait(enrolled, now)
             return done
         if self.time_up(enrolled, now):
             return TimeUp()
-        left = enrolled.lobby_seen is not None and (now - _aware(enrolled.lobby_seen)).total_seconds() > (
+        left = enrolled.lobby_seen is not None and (now - aware(enrolled.lobby_seen)).total_seconds() > (
             self.config.lobby_presence_s
         )
         if enrolled.lobby_since is None or left:  # one whose page stopped asking waits anew on coming back
+            if left and enrolled.lobby_seen is not None:
+                end_wait(enrolled, aware(enrolled.lobby_seen))  # the wait they left: counted to their last ask
             enrolled.lobby_since = self._stood_up(enrolled) or now
         enrolled.lobby_seen = now
-        waited = (now - _aware(enrolled.lobby_since)).total_seconds()
+        waited = (now - aware(enrolled.lobby_since)).total_seconds()
         if waited > self.config.lobby_timeout_s:
-            enrolled.lobby_since = None
+            end_wait(enrolled, now)
             return TimedOut(waited)
         others = self.waiting(now, but=enrolled.id)
         practice = self.needs_practice(enrolled)
@@ -128,13 +154,13 @@ class Lobby:
         if trial is not None:
             for seated in (enrolled, *alike):
                 if trial.commander_id == seated.participant_id or trial.driver_id == seated.participant_id:
-                    seated.lobby_since = None
+                    end_wait(seated, now)
             return Seated(trial.id, seat_of(trial, enrolled.participant_id).role, paired_now=True)
         return Waiting(len(others) + 1)
 
     def time_up(self, enrolled: StudyParticipant, now: datetime) -> bool:
         limit = self.config.time_limit_s
-        return limit is not None and (now - _aware(enrolled.created_at)).total_seconds() > limit
+        return limit is not None and (now - aware(enrolled.created_at)).total_seconds() > limit
 
     def finishing(self, enrolled: StudyParticipant, now: datetime) -> StudyOutcome | None:
         """What "I have finished" ends with now: the plan played (not mid-trial), the study's time
@@ -156,7 +182,8 @@ class Lobby:
     def leave(self, enrolled: StudyParticipant) -> None:
         """They left the lobby (its button, or their page closing): nobody is paired with them from
         now on, and coming back is a new wait."""
-        enrolled.lobby_since = enrolled.lobby_seen = None
+        end_wait(enrolled, datetime.now(UTC))
+        enrolled.lobby_seen = None
 
     def _stood_up(self, enrolled: StudyParticipant) -> datetime | None:
         """When their last trial was paired, if it was aborted because the partner never opened
@@ -171,7 +198,7 @@ class Lobby:
             return None
         absent = never_joined(self.db, (last.id,)).get(last.id, [])
         mine = Role.COMMANDER if last.commander_id == pid else Role.DRIVER
-        return _aware(last.created_at) if absent and mine not in absent else None
+        return aware(last.created_at) if absent and mine not in absent else None
 
     def done(self, enrolled: StudyParticipant) -> AllPlayed | None:
         """The plan is played out for this participant: its trials, or its teams."""
@@ -191,7 +218,7 @@ class Lobby:
             rows.append(
                 {
                     "code": code,
-                    "waited_s": round((now - _aware(since)).total_seconds()) if since is not None else 0,
+                    "waited_s": round((now - aware(since)).total_seconds()) if since is not None else 0,
                     "teams": history.teams,
                     "commanded": history.commanded,
                     "drove": history.drove,
@@ -214,7 +241,7 @@ class Lobby:
             )
             .order_by(StudyParticipant.lobby_since, StudyParticipant.id)
         )
-        return [e for e in rows if e.lobby_seen is not None and _aware(e.lobby_seen) >= present]
+        return [e for e in rows if e.lobby_seen is not None and aware(e.lobby_seen) >= present]
 
     def history(self, enrolled: StudyParticipant) -> History:
         """What the pairing rule knows of a participant: partners and seats in the study's trials
@@ -251,7 +278,8 @@ class Lobby:
         trial = self._pair(a, [b], self.needs_practice(a) and self.needs_practice(b))
         if trial is None:
             raise LobbyError("the pool has no layout both have not seen")
-        a.lobby_since = b.lobby_since = None
+        for enrolled in (a, b):
+            end_wait(enrolled, datetime.now(UTC))
         return trial
 
     def restart(self, trial_id: int) -> Trial:

@@ -72,6 +72,7 @@ class TrialParts:
     backends: BackendParts
     agents: AgentParts
     ldh: BeliefModel  # the watch page's LDH belief
+    over: Callable[[int, Phase], None]  # told once, as a trial of this process becomes over (a study's webhook)
 
 
 class TrialRuntime:
@@ -224,9 +225,12 @@ class TrialRuntime:
     ) -> list[LoggedEvent]:
         if events:
             self._log_refused_run()  # the refusals came first: the log keeps them in order
+        was_over = self.state.over
         logged = [self._record(event, attachments or {}, frame) for event in events]
         if logged:
             self._after_change()
+            if self.state.over and not was_over:
+                self.parts.over(self.trial_id, self.state.phase)
         return logged
 
     def _hold_refusal(self, refusal: ev.MovesRefused) -> None:

@@ -10,6 +10,7 @@ import html
 import json
 import time
 
+import httpx
 import pytest
 from click.testing import Result
 from sqlalchemy import select, text
@@ -40,9 +41,10 @@ def make_study(settings, name: str = "pilot"):
     return StudyFiles(settings.data_dir / "studies").save(template(name))
 
 
-def join(server, study: str, real_name: str = ""):
-    """A stranger's browser through the study link: consent, code, optional name, instructions."""
-    client = browser(server.url)
+def join(server, study: str, real_name: str = "", client: httpx.Client | None = None):
+    """A stranger's browser through the study link: consent, code, optional name, instructions
+    (`client`: a browser that has opened a panel's link already)."""
+    client = client or browser(server.url)
     page = client.get(f"/study/{study}")
     assert page.status_code == 200 and "Information and consent" in page.text
     version = template(study).consent.version
