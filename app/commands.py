@@ -1,4 +1,4 @@
-"""`robotslang serve|drivers|admin|db` (and `export`/`demo`, mounted from their packages)."""
+"""`robotslang serve|drivers|admin|db`, `mazes prepare` (and `export`/`demo`, mounted from their packages)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ if TYPE_CHECKING:
     from app.security import AccountRole
 
 # Packages under app/ that bring their own commands, each with `register(root)`.
-MOUNTED = ("app.export.cli", "app.demo.cli", "app.rover.commands")
+MOUNTED = ("app.export.cli", "app.demo.cli", "app.rover.commands", "app.study.cli")
 
 
 def serve(
@@ -38,6 +38,47 @@ def serve(
         name: value for name, value in (("data_dir", data_dir), ("benchmark", benchmark)) if value is not None
     }
     serve_processes(host, port, workers, overrides)
+
+
+def mazes_prepare(
+    benchmark: Path | None = typer.Option(
+        None,
+        "--benchmark",
+        help="A RobotSlangBenchmark clone whose mazes join the bundled ones (default ROBOTSLANG_BENCHMARK).",
+    ),
+    cache_dir: Path | None = typer.Option(
+        None, "--cache-dir", help="Where to prepare them (default ROBOTSLANG_CACHE_DIR, else ~/.cache/robotslang)."
+    ),
+) -> None:
+    """Prepare what trials need of every maze (graphs, all-pairs and ray tables, render scenes) in
+    the cache, as a server does in the background from its start."""
+    from rich.progress import track
+
+    from app.preparation import prepare_maze
+    from app.settings import Settings
+    from sim.core.maze import MazeError
+    from sim.tasks.library import MazeLibrary
+
+    overrides: dict[str, Any] = {
+        name: value for name, value in (("benchmark", benchmark), ("cache_dir", cache_dir)) if value is not None
+    }
+    settings = Settings(**overrides)
+    try:
+        library = MazeLibrary(settings.benchmark, cache=False, cache_dir=settings.cache_dir)
+        names = library.names()
+    except FileNotFoundError as err:
+        raise typer.BadParameter(str(err), param_hint="--benchmark") from None
+    built, failed = 0, []
+    for name in track(names, description="Preparing mazes"):
+        try:
+            built += prepare_maze(library, name, settings.cache_dir)
+        except MazeError as err:
+            failed.append(name)
+            typer.echo(f"error: {err}", err=True)
+    ready = len(names) - len(failed)
+    typer.echo(f"{ready} of {len(names)} mazes ready in {settings.cache_dir} ({built} prepared now)")
+    if failed:
+        raise typer.Exit(1)
 
 
 def admin_create(
@@ -140,6 +181,9 @@ def register(root: typer.Typer, eval_app: typer.Typer) -> None:
     eval_app.command("selfplay")(selfplay_cli.eval_selfplay)
     root.command("serve")(serve)
     root.command("drivers")(drivers)
+    from sim.cli.mazes import app as mazes_app  # the library's commands, and this one that prepares it for the server
+
+    mazes_app.command("prepare")(mazes_prepare)
     admin = typer.Typer(help="Experimenter accounts.", no_args_is_help=True)
     admin.command("create")(admin_create)
     admin.command("password")(admin_password)

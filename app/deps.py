@@ -18,6 +18,7 @@ from starlette.requests import HTTPConnection
 
 from app.annotation.log import AnnotationLog
 from app.clock import ServerClock
+from app.cookies import read_cookie
 from app.drivers.registry import AgentParts
 from app.ldh_study import Studies
 from app.login import LoginGuard
@@ -28,6 +29,8 @@ from app.security import SESSION_COOKIE, CsrfTokens, Login, SeatTokens, Sessions
 from app.services import Services
 from app.settings import Settings
 from app.study.config import StudyFiles
+from app.study.signups import SignupLimits
+from app.study.webhook import StudyWebhooks
 from app.trial.hub import TrialHub
 from app.trial.log import EventLog
 
@@ -88,7 +91,11 @@ def get_clock(services: ServicesDep) -> ServerClock:
 
 
 def get_study_files(settings: SettingsDep) -> StudyFiles:
-    return StudyFiles(settings.data_dir / "studies")
+    return StudyFiles.of(settings.data_dir)
+
+
+def get_webhooks(services: ServicesDep) -> StudyWebhooks:
+    return services.webhooks
 
 
 def get_annotations(services: ServicesDep) -> AnnotationLog:
@@ -115,6 +122,10 @@ def get_login_sockets(services: ServicesDep) -> LoginSockets:
     return services.login_sockets
 
 
+def get_signups(services: ServicesDep) -> SignupLimits:
+    return services.signups
+
+
 def get_studies(services: ServicesDep) -> Studies:
     return services.studies
 
@@ -131,7 +142,7 @@ def get_templates(conn: HTTPConnection) -> Jinja2Templates:
 def current_login(conn: HTTPConnection) -> Login | None:
     """The experimenter logged in with this request's cookie (looked up once per request)."""
     if not hasattr(conn.state, "login"):
-        conn.state.login = get_services(conn).sessions.verify(conn.cookies.get(SESSION_COOKIE))
+        conn.state.login = get_services(conn).sessions.verify(read_cookie(conn, SESSION_COOKIE))
     login: Login | None = conn.state.login
     return login
 
@@ -157,12 +168,14 @@ ClockDep = Annotated[ServerClock, Depends(get_clock)]
 SessionsDep = Annotated[Sessions, Depends(get_sessions)]
 AnnotationsDep = Annotated[AnnotationLog, Depends(get_annotations)]
 StudyFilesDep = Annotated[StudyFiles, Depends(get_study_files)]
+WebhooksDep = Annotated[StudyWebhooks, Depends(get_webhooks)]
 AnnotatorSessionsDep = Annotated[Sessions, Depends(get_annotator_sessions)]
 CsrfDep = Annotated[CsrfTokens, Depends(get_csrf)]
 LoginsDep = Annotated[LoginGuard, Depends(get_logins)]
 LoginSocketsDep = Annotated[LoginSockets, Depends(get_login_sockets)]
 StudiesDep = Annotated[Studies, Depends(get_studies)]
 StudyTokensDep = Annotated[StudyTokens, Depends(get_study_tokens)]
+SignupsDep = Annotated[SignupLimits, Depends(get_signups)]
 TemplatesDep = Annotated[Jinja2Templates, Depends(get_templates)]
 CurrentLogin = Annotated[Login | None, Depends(current_login)]
 ExperimenterId = Annotated[int, Depends(experimenter_id)]

@@ -18,6 +18,7 @@ from starlette.datastructures import Headers, MutableHeaders
 from starlette.responses import PlainTextResponse
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from app.cookies import cookie_name
 from app.deps import CsrfDep, CurrentLogin, SettingsDep, current_login, get_services
 from app.settings import Settings
 
@@ -133,7 +134,8 @@ class GuardMiddleware:
         if scope["type"] == "websocket":
             await self.app(scope, receive, send)
             return
-        browser_id = _cookie(headers, BROWSER_COOKIE)
+        browser_cookie = cookie_name(BROWSER_COOKIE, scope.get("scheme"))
+        browser_id = _cookie(headers, browser_cookie)
         new_browser = browser_id is None or not _BROWSER_ID.fullmatch(browser_id)
         if new_browser:
             browser_id = secrets.token_urlsafe(24)
@@ -147,7 +149,7 @@ class GuardMiddleware:
                     response_headers[name] = value
                 if new_browser:
                     response_headers.append(
-                        "set-cookie", f"{BROWSER_COOKIE}={browser_id}; Path=/; HttpOnly; SameSite=Strict{secure}"
+                        "set-cookie", f"{browser_cookie}={browser_id}; Path=/; HttpOnly; SameSite=Strict{secure}"
                     )
             await send(message)
 

@@ -18,6 +18,7 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Participant, Team, Trial
 from app.trial.specs import SeatKind, SeatSpec
+from app.trial.state import trial_score
 from app.trial.vocabulary import Phase, Role
 
 
@@ -56,10 +57,6 @@ class PairStanding:
     completed: int
     best_s: float
     mean_s: float
-
-
-def trial_score(active_s: float, moves: int, move_penalty_s: float) -> float:
-    return active_s + move_penalty_s * moves
 
 
 def _finished(db: Session, study: str | None) -> list[tuple[Trial, str | None, float]]:

@@ -1,30 +1,27 @@
 """`LoginGuard`: experimenter logins, rate-limited and checked off the event loop.
 
 Attempts are counted per client address (an IPv6 client's /64, which one machine is given
-whole) and per account name from that address (a moving window, `limits`: in Redis when the
-processes share one, so an attacker gains nothing by spreading attempts over them; else in this
-process's memory); an attempt counts until it succeeds, which clears its client's count for the
-account. The guessing client is locked out, never the account: an attacker's guesses cannot keep
-the experimenter, at another address, from logging in. Password hashes are computed in worker
-threads, at most `concurrency` at once, so a burst of logins queues instead of taking every
-thread and hundreds of megabytes of hash memory.
+whole) and per account name from that address (`app.client_limits`: in Redis when the processes
+share one, else in this process's memory); an attempt counts until it succeeds, which clears its
+client's count for the account. The guessing client is locked out, never the account: an
+attacker's guesses cannot keep the experimenter, at another address, from logging in. Password
+hashes are computed in worker threads, at most `concurrency` at once, so a burst of logins queues
+instead of taking every thread and hundreds of megabytes of hash memory.
 An unknown name is checked against a dummy hash, so it costs what a known one costs.
 """
 
 from __future__ import annotations
 
 import asyncio
-import ipaddress
 import os
 import secrets
-import time
 
 from limits import parse
-from limits.storage import MemoryStorage, RedisStorage, Storage
-from limits.strategies import MovingWindowRateLimiter
+from limits.storage import Storage
 from sqlalchemy import select
 from sqlalchemy.orm import Session, sessionmaker
 
+from app.client_limits import Counts, Limit, Limited, client_key
 from app.db.models import Experimenter
 from app.security import hash_password, needs_rehash, verify_password
 
@@ -45,7 +42,7 @@ class LoginGuard:
         storage: Storage | None = None,
     ) -> None:
         self._db = db
-        self._limiter = MovingWindowRateLimiter(storage or MemoryStorage())
+        self._counts = Counts(storage)
         self._per_account, self._per_address = parse(per_account), parse(per_address)
         self._slots = asyncio.Semaphore(concurrency or len(os.sched_getaffinity(0)))
         self._dummy_hash = hash_password(secrets.token_urlsafe(16))
@@ -56,19 +53,19 @@ class LoginGuard:
         async with self._slots:
             user_id = await asyncio.to_thread(self._check, name, password)
         if user_id is not None:
-            self._limiter.clear(self._per_account, "account", name, client_key(address))
+            self._counts.clear(self._account_limit(name, address))
         return user_id
 
+    def _account_limit(self, name: str, address: str) -> Limit:
+        return Limit(self._per_account, ("account", name, client_key(address)))
+
     def _count_attempt(self, name: str, address: str) -> None:
-        # Both limits are tested before either is hit, so a refused attempt costs neither count.
-        client = client_key(address)
-        limits = ((self._per_account, "account", name, client), (self._per_address, "address", client))
-        for item, *key in limits:
-            if not self._limiter.test(item, *key):
-                reset = self._limiter.get_window_stats(item, *key).reset_time
-                raise TooManyAttempts(max(1, int(reset - time.time() + 0.999)))
-        for item, *key in limits:
-            self._limiter.hit(item, *key)
+        try:
+            self._counts.take(
+                self._account_limit(name, address), Limit(self._per_address, ("address", client_key(address)))
+            )
+        except Limited as err:
+            raise TooManyAttempts(err.retry_after_s) from None
 
     def _check(self, name: str, password: str) -> int | None:
         with self._db.begin() as db:
@@ -81,22 +78,3 @@ class LoginGuard:
             if needs_rehash(user.password_hash):  # e.g. an scrypt hash from before argon2
                 user.password_hash = hash_password(password)
             return int(user.id)
-
-
-def client_key(address: str) -> str:
-    """What one client's attempts are counted under: its IPv4 address, or its IPv6 /64."""
-    try:
-        ip = ipaddress.ip_address(address)
-    except ValueError:
-        return address
-    if isinstance(ip, ipaddress.IPv6Address):
-        if ip.ipv4_mapped is not None:
-            return str(ip.ipv4_mapped)
-        return str(ipaddress.IPv6Network((ip, 64), strict=False))
-    return str(ip)
-
-
-def shared_counts(redis_url: str, key_prefix: str) -> Storage:
-    """The attempt counts of every process on `redis_url` (one round trip per count, on loopback
-    a fraction of a millisecond: logins are rare)."""
-    return RedisStorage(redis_url, key_prefix=f"{key_prefix}:logins")

@@ -7,6 +7,7 @@ import secrets
 import sys
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from datetime import UTC, datetime
 
 from fastapi import FastAPI, Request
 from fastapi.exception_handlers import http_exception_handler, request_validation_exception_handler
@@ -14,12 +15,14 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import FileResponse, RedirectResponse, Response
 from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
+from limits.storage import Storage
 from sqlalchemy import select
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from app.annotation.log import AnnotationLog
 from app.backends.registry import BackendParts
 from app.backends.render import FrameRenderer, InThread, RenderProcesses
+from app.client_limits import shared_counts
 from app.clock import ServerClock
 from app.db.engine import WalCheckpointer, make_engine, make_sessionmaker, upgrade
 from app.db.models import Experimenter
@@ -27,7 +30,7 @@ from app.deps import LoginRequired
 from app.drivers.registry import AgentParts
 from app.guard import GuardMiddleware, template_context
 from app.ldh_study import Studies
-from app.login import LoginGuard, shared_counts
+from app.login import LoginGuard
 from app.mazes import Mazes
 from app.perception.belief import FilterWorker
 from app.resources import shipped
@@ -37,6 +40,10 @@ from app.security import AccountRole, CsrfTokens, SeatTokens, Sessions, StudyTok
 from app.services import Services
 from app.serving import settle_collector
 from app.settings import Settings
+from app.study.config import StudyFiles
+from app.study.purge import purge_due
+from app.study.signups import SignupLimits
+from app.study.webhook import StudyWebhooks
 from app.trial.frames_store import FrameStore
 from app.trial.hub import TrialHub
 from app.trial.ldh_belief import BeliefModel
@@ -53,12 +60,16 @@ def build_services(settings: Settings) -> Services:
     upgrade(settings, engine)
     db = make_sessionmaker(engine)
     key = settings.signing_key()
+
+    def counts(what: str) -> Storage | None:  # shared by the processes on one Redis
+        return shared_counts(settings.redis_url, key_prefix(settings), what) if settings.redis_url else None
+
     logins = LoginGuard(
         db,
         settings.login_limit_per_account,
         settings.login_limit_per_address,
         settings.password_check_concurrency,
-        storage=shared_counts(settings.redis_url, key_prefix(settings)) if settings.redis_url else None,
+        storage=counts("logins"),
     )
     clock, mazes, log = ServerClock(), Mazes(settings), EventLog(db)
     seats = SeatTokens(key, settings.join_link_ttl_s)
@@ -68,6 +79,7 @@ def build_services(settings: Settings) -> Services:
         if settings.render_processes
         else InThread()
     )
+    webhooks = StudyWebhooks(settings.data_dir, db)
     trials = TrialParts(
         settings=settings,
         db=db,
@@ -79,6 +91,7 @@ def build_services(settings: Settings) -> Services:
         backends=BackendParts(mazes, clock, renderer, db, robots, settings.overhead_calibration),
         agents=AgentParts(settings, mazes, clock),
         ldh=BeliefModel(settings.ldh_checkpoint, settings.cache_dir),
+        over=webhooks.trial_over,
     )
     return Services(
         settings=settings,
@@ -98,6 +111,8 @@ def build_services(settings: Settings) -> Services:
         hub=TrialHub(trials, settings.redis_url),
         studies=Studies(settings, db, clock),
         study_tokens=StudyTokens(key),
+        signups=SignupLimits(settings, counts("signups")),
+        webhooks=webhooks,
     )
 
 
@@ -118,6 +133,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     sys.setswitchinterval(settings.gil_switch_interval_s)
     services = build_services(settings)
     password = ensure_experimenter(services)
+    with services.db.begin() as db:  # studies whose personal data are due for deletion
+        for name, participants in purge_due(
+            db, StudyFiles.of(settings.data_dir), services.clock, datetime.now(UTC)
+        ).items():
+            logger.info("study %s: personal data of %d participant(s) deleted (purge_after_days)", name, participants)
     if password is not None:
         print(f"First start: experimenter 'admin' created with password {password} (shown only once)", flush=True)
 
@@ -126,7 +146,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         renderer = services.trials.backends.renderer
         if isinstance(renderer, RenderProcesses):
             renderer.warm_up()
-        services.mazes.warm_layouts()
+        services.mazes.warm_up()
         checkpoints = WalCheckpointer(services.engine)
         checkpoints.start()
         settle_collector()  # before the trials reopen: theirs is not the start's to freeze
@@ -134,6 +154,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         yield
         await services.hub.close()
         services.log.close()
+        services.webhooks.close()
         checkpoints.stop()
         renderer.close()
         services.mazes.close()

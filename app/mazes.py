@@ -8,18 +8,19 @@ the benchmark's mazes over a study stays bounded (`python -m bench.memory`)."""
 
 from __future__ import annotations
 
-import contextlib
 import math
 import threading
 import weakref
 from collections import OrderedDict
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Mapping
 from functools import lru_cache
 from typing import TYPE_CHECKING, Generic, TypeVar
 
 import cv2
 import numpy as np
 
+from app.map_text import walls
+from app.preparation import Preparation
 from app.settings import Settings
 from sim.core.dynamics import Pose
 from sim.core.geometry import TABLE_WIDTH_M, world_to_pixel
@@ -84,6 +85,23 @@ class UnknownMaze(LookupError):
     pass
 
 
+class _LayoutsWhenRead(Mapping[str, str]):
+    def __init__(self, mazes: Mazes) -> None:
+        self._mazes, self._names = mazes, mazes.names()
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._names
+
+    def __getitem__(self, name: str) -> str:
+        return self._mazes.layouts()[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._names)
+
+    def __len__(self) -> int:
+        return len(self._names)
+
+
 class Mazes:
     def __init__(self, settings: Settings) -> None:
         self.settings = settings
@@ -92,18 +110,22 @@ class Mazes:
         self._layouts_lock = threading.Lock()  # the startup warm-up and a page: one grouping
         self._warming: threading.Thread | None = None
         self._stop_warming = threading.Event()
+        self.preparation = Preparation(lambda: self.library, settings.benchmark, settings.cache_dir)
         self.load = Kept(self._load, MAZES_KEPT)
         self.graph = Kept(self._graph, MAZES_KEPT)
         self.rays = Kept(self._rays, MAZES_KEPT)
         self.map_png = lru_cache(maxsize=PICTURES_KEPT)(self._map_png)
         self.target_jpeg = lru_cache(maxsize=3 * PICTURES_KEPT)(self._target_jpeg)
+        self.map_walls = lru_cache(maxsize=PICTURES_KEPT)(self._map_walls)
 
     @property
     def library(self) -> MazeLibrary:
         if self._library is None:
             from sim.tasks.library import MazeLibrary
 
-            self._library = MazeLibrary(benchmark=self.settings.benchmark, cache=False)  # `Kept` caches
+            self._library = MazeLibrary(  # `Kept` caches
+                benchmark=self.settings.benchmark, cache=False, cache_dir=self.settings.cache_dir
+            )
         return self._library
 
     def names(self) -> list[str]:
@@ -112,7 +134,7 @@ class Mazes:
     def layouts(self, stop: threading.Event | None = None) -> dict[str, str]:
         """Each maze, in library order -> the id of its physical layout (`sim.tasks.layouts`). The
         grouping is cached on disk; the first process to ask decodes every map (about 0.2 s a
-        map): the server asks at startup, in a thread (`warm_layouts`)."""
+        map): the server asks at startup, in a thread (`warm_up`)."""
         with self._layouts_lock:
             if self._layouts is None:
                 from sim.tasks.layouts import layout_of
@@ -121,20 +143,31 @@ class Mazes:
                 self._layouts = {name: of[name] for name in self.names()}
             return self._layouts
 
-    def warm_layouts(self) -> None:
-        self._warming = threading.Thread(target=self._warm, name="layouts", daemon=True)
+    def layouts_when_read(self) -> Mapping[str, str]:
+        """`layouts()`, grouped only once a layout is read: creating a trial for a team that has
+        played nothing reads none, so a fresh install's first trials do not wait for the grouping."""
+        return _LayoutsWhenRead(self)
+
+    def warm_up(self) -> None:
+        """At the server's start, in a thread: the layouts (which the dashboard waits for), then
+        every maze prepared for trials (`app.preparation`)."""
+        self._warming = threading.Thread(target=self._warm, name="mazes", daemon=True)
         self._warming.start()
 
     def _warm(self) -> None:
         from sim.tasks.library import LayoutsStopped
 
-        with contextlib.suppress(LayoutsStopped):  # the next process to ask goes on from the maps read
+        try:
             self.layouts(stop=self._stop_warming)
+        except LayoutsStopped:  # the next process to ask goes on from the maps read
+            return
+        self.preparation.run()
 
     def close(self) -> None:
         """Stop the warm-up within a map: a thread still decoding maps (OpenCV) as the interpreter
         exits aborts the process (SIGABRT, exit status 134), as a test run's did after passing."""
         self._stop_warming.set()
+        self.preparation.stop()
         if self._warming is not None:
             self._warming.join()
 
@@ -144,7 +177,9 @@ class Mazes:
         return self.library.load(name)
 
     def _graph(self, name: str) -> NavGraph:
-        graph = NavGraph.for_robot(self.load(name), cache_dir=self.settings.cache_dir)
+        maze = self.load(name)
+        self.preparation.ensure(name)  # then read from the cache, and its rays and scene are there too
+        graph = NavGraph.for_robot(maze, cache_dir=self.settings.cache_dir)
         graph.moves  # noqa: B018 -- its moves compiled here, where the graph loads, not on the event loop at a seat's start
         return graph
 
@@ -158,6 +193,10 @@ class Mazes:
         """The Commander's map: the walls, and each landmark as a disc in its benchmark colour
         (as the annotated `maze.map-fixed.png` colours it), as the paper's Commander saw them."""
         return commander_map_png(self.load(name))
+
+    def _map_walls(self, name: str) -> list[dict[str, object]]:
+        """The map's walls for its description in words (`app.map_text`)."""
+        return [wall.as_json() for wall in walls(self.load(name))]
 
     def landmarks(self, name: str) -> dict[str, tuple[float, float]]:
         """Each landmark's centre in metres, for the legend and the next-target mark."""

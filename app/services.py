@@ -22,6 +22,8 @@ from app.mazes import Mazes
 from app.rover.links import RobotLinks
 from app.security import CsrfTokens, SeatTokens, Sessions, StudyTokens
 from app.settings import Settings
+from app.study.signups import SignupLimits
+from app.study.webhook import StudyWebhooks
 from app.trial.hub import TrialHub
 from app.trial.log import EventLog
 from app.trial.runtime import TrialParts
@@ -46,6 +48,8 @@ class Services:
     hub: TrialHub  # the live trials of this process (and, with Redis, its relay to the others)
     studies: Studies  # LDH human studies
     study_tokens: StudyTokens  # their participants' links
+    signups: SignupLimits  # participant studies' consents and lobby joins, per address and per study
+    webhooks: StudyWebhooks  # participant studies' webhooks
     login_sockets: LoginSockets = field(default_factory=LoginSockets)  # experimenters' watch sockets, by login
 
     @property

@@ -24,8 +24,9 @@ class Settings(BaseSettings):
     grace_period_s: float = 120.0  # a disconnected seat may rejoin within this, else the trial aborts
     min_move_interval_s: float = 0.25  # moves closer together than this are refused
     max_message_bytes: int = 4096  # a websocket message larger than this is refused
-    # Messages of one seat recorded per second beyond a burst (moves and pings not counted): a
-    # fast typist never reaches it; a flood is dropped (not logged, not relayed), with a `rate_limited` reply.
+    # Messages of one seat taken per second beyond a burst (every one but pings, moves executed or
+    # refused): a fast typist never reaches it; a flood is dropped (not logged, not
+    # relayed), with a `rate_limited` reply.
     seat_message_rate_per_s: float = Field(default=5.0, gt=0)
     seat_message_burst: int = Field(default=20, ge=1)
     # How often the interpreter offers the GIL to another thread (Python's default: 5 ms). The
@@ -54,6 +55,12 @@ class Settings(BaseSettings):
     # client is locked out, never the account, so an attacker cannot lock a lab out.
     login_limit_per_account: str = "5/minute"
     login_limit_per_address: str = "20/minute"  # login attempts per client address (an IPv6 /64)
+    # A study's sign-ups (`limits` notation, `;` between several): consents and lobby joins from
+    # one client address (an IPv6 /64), and into one study from everyone (app.study.signups).
+    study_consent_limit_per_address: str = "20/minute;100/hour"
+    study_consent_limit_per_study: str = "120/minute"
+    study_lobby_limit_per_address: str = "60/minute"
+    study_lobby_limit_per_study: str = "600/minute"
     # Proxies (addresses or networks) whose X-Forwarded-For and X-Forwarded-Proto are believed; the
     # client is the right-most address they did not add. Empty: the socket's peer is the client.
     trusted_proxies: list[str] = Field(default_factory=list)

@@ -25,6 +25,7 @@ import numpy as np
 
 from app.main import build_services
 from app.settings import Settings
+from app.trial.state import fold
 from bench.live import SeatClient, ServerProcess, make_trial
 from sim.agents.oracle_commander import OracleCommander
 from sim.agents.turns import Phase, PhaseChanged, SeatInfo, Speaker
@@ -42,7 +43,9 @@ def pose_of(services, trial: int) -> tuple[float, float, float]:
 
 
 def moves_of(services, trial: int) -> int:
-    return sum(e.kind == "move_executed" for e in services.log.load(trial))
+    """Every move the agent asked for, executed or refused (a run of refusals logs its count)."""
+    state = fold(services.log.load(trial))
+    return state.moves + state.refused
 
 
 async def play(server, services, maze: str, out: dict[str, list]) -> None:

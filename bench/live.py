@@ -19,9 +19,8 @@ import httpx
 import websockets
 from sqlalchemy.orm import Session
 
-from app.drivers.registry import available_agents
+from app.drivers.registry import offered_agents
 from app.trial.setup import create_participant, create_team, create_trial
-from app.trial.specs import HUMAN
 from app.trial.vocabulary import Role
 
 REPO = Path(__file__).resolve().parent.parent
@@ -143,9 +142,10 @@ def make_trial(
     backend: str = "sim",
     commander: str = "human",
 ) -> int:
-    """`team_trial` on one of the server's mazes, in a transaction of its own."""
+    """`team_trial` on one of the server's mazes, in a transaction of its own; its maze is
+    prepared next (`app.preparation`), as the experimenter's page has it."""
     with services.db.begin() as db:
-        return team_trial(
+        trial_id = team_trial(
             db,
             team,
             maze,
@@ -154,16 +154,12 @@ def make_trial(
             targets=targets,
             backend=backend,
             driver=driver,
-            agents=_offered(services, Role.DRIVER, driver),
+            agents=offered_agents(services.agents, Role.DRIVER, driver),
             commander=commander,
-            commanders=_offered(services, Role.COMMANDER, commander),
+            commanders=offered_agents(services.agents, Role.COMMANDER, commander),
         )
-
-
-def _offered(services, role: Role, spec: str) -> dict[str, str | None] | None:
-    """The agents that can hold the seat, asked only when an agent is to: their checks load the
-    learned agents' checkpoints (torch), seconds a trial of people does not need."""
-    return None if spec == str(HUMAN) else available_agents(services.agents, role)
+    services.mazes.preparation.first(maze)
+    return trial_id
 
 
 class ServerProcesses:
@@ -290,6 +286,19 @@ class SeatClient:
             timeout,
             start,
         )
+
+    async def moved(self, move_id: str, timeout: float = 10.0, start: int = 0) -> dict[str, Any]:
+        """A move's outcome as its `move_executed` payload (`outcome`: ok, collision or refused,
+        `reason`); a move refused as it was asked for is answered `move_refused` instead of logged."""
+        message = await self.wait_for(
+            lambda m: (m.get("type") == "move_refused" and m["move_id"] == move_id)
+            or (m.get("type") == "event" and m["kind"] == "move_executed" and m["payload"]["move_id"] == move_id),
+            timeout,
+            start,
+        )
+        if message["type"] == "move_refused":
+            return {"move_id": move_id, "action": message["action"], "outcome": "refused", "reason": message["reason"]}
+        return message["payload"]
 
     def kinds(self) -> set[str]:
         return {m["kind"] for m in self.received if m.get("type") == "event"}

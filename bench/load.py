@@ -22,11 +22,15 @@ default, as a lab's experimenter watches a trial), the CPU of the bench's own se
 cores) and the machine's load average before the run and at its end. The server runs as its own
 process (`robotslang serve --workers W`), as in use: one process on SQLite (WAL); with W > 1 the
 processes share trials through Redis (`--redis-url`) and PostgreSQL (a private schema in
-`--postgres-url`, dropped afterwards). The mazes' graphs, ray tables and render scenes are built
-before the server starts, as on a machine that has run each maze once (they are cached on disk).
+`--postgres-url`, dropped afterwards). The trials, each with its two participants and team, are
+created once the server is up, over HTTP with the experimenter's forms, and each answer is timed
+(trial creation p50/p95, participants' and teams' p95). What trials need of the mazes (graphs,
+ray tables, render scenes) is prepared before the server starts, as on a machine that has run
+each maze once (it is cached on disk), unless `--fresh-caches`: then the run has an empty cache
+directory of its own, as a fresh install, and the server prepares the mazes from its start.
 
     python -m bench.load --trials 50 --workers 1 --duration 30 [--json]
-    python -m bench.load --trials 200 --pattern walk --mazes distinct --open-at-once
+    python -m bench.load --trials 200 --pattern walk --mazes distinct --open-at-once [--fresh-caches]
     python -m bench.load --find-max [--max-trials 400] [--duration 10]   # largest N with both p99 < 100 ms
     python -m bench.load --trials 100 --profile var/load.svg              # py-spy flame graph of the server
     python -m bench.load --trials 200 --agent-drivers 50 --duration 20    # 50 of them with agent:dialog driving
@@ -48,6 +52,7 @@ import gc
 import json
 import os
 import random
+import re
 import subprocess
 import sys
 import tempfile
@@ -66,11 +71,11 @@ from rich.console import Console
 from rich.progress import Progress
 from sqlalchemy import create_engine, func, select, text
 
-from app.db.models import Event, Experimenter, Trial
+from app.db.models import Event, Experimenter, Participant, Team, Trial
 from app.main import build_services
-from app.security import SESSION_COOKIE
+from app.security import SESSION_COOKIE, hash_password
 from app.settings import Settings
-from bench.live import ServerProcesses, team_trial
+from bench.live import ServerProcesses
 from sim.core.cache import cache_dir
 
 console = Console(stderr=True)
@@ -84,6 +89,7 @@ GENERATED_SEED = 10_000  # seeds of the mazes generated when the library has too
 AGENT_DRIVER = "agent:dialog"
 AGENT_INSTRUCTIONS = ("what do you see?", "turn left", "go forward 3 steps", "turn right", "what is on your left?")
 REPLY_WAIT_S = 5.0  # an agent's reply not come by then: counted unreplied, and the Commander speaks again
+LOAD_EXPERIMENTER = ("load", "the load bench's experimenter")  # name, password: who creates the trials
 
 
 class Pattern(StrEnum):
@@ -121,13 +127,14 @@ def distinct_mazes(n: int, benchmark: Path | None, tmp: Path) -> Path | None:
     return mazedata.parent
 
 
-def setup_trials(
-    settings: Settings, n: int, mazes: MazeChoice, agent_drivers: int = 0
-) -> tuple[list[tuple[str, str | None]], object, int]:
-    """`n` trials, each a team's, and their seats' tokens (no Driver's for the first `agent_drivers`,
-    whose Driver is `AGENT_DRIVER`); the services and how many mazes they use."""
-    from app.drivers.registry import available_drivers
-    from sim.robot.render import cached_scene
+def setup_services(
+    settings: Settings, n: int, mazes: MazeChoice, fresh_caches: bool
+) -> tuple[object, list[str], list[str]]:
+    """The bench's own handle on the server's database (the seats' tokens, the watchers, the
+    events counted), its experimenter `LOAD_EXPERIMENTER`, and the maze of each of the `n` trials
+    (and the library's names). Unless `fresh_caches`, what trials need of those mazes is prepared
+    before the server starts, as on a machine that has run each maze once."""
+    from app.preparation import prepare_maze
 
     services = build_services(settings)
     maze_names = services.mazes.names()
@@ -136,28 +143,81 @@ def setup_trials(
     elif len(maze_names) < n:
         raise SystemExit(f"{n} trials on distinct mazes need {n} mazes; the library holds {len(maze_names)}")
     chosen = [maze_names[i % len(maze_names)] for i in range(n)]
-    tokens: list[tuple[str, str | None]] = []
-    agents = available_drivers(services.agents) if agent_drivers else None
     with services.db.begin() as db:
-        for i, maze in enumerate(chosen):
+        db.add(Experimenter(name=LOAD_EXPERIMENTER[0], password_hash=hash_password(LOAD_EXPERIMENTER[1])))
+    if not fresh_caches:
+        with Progress(console=console, transient=True) as progress:
+            for name in progress.track(sorted(set(chosen)), description="preparing the mazes (cached on disk)"):
+                prepare_maze(services.mazes.library, name, settings.cache_dir)
+    return services, chosen, maze_names
+
+
+@dataclass
+class Creation:
+    """How long the experimenter's requests that set up the trials took to answer, ms."""
+
+    participant_ms: list[float] = field(default_factory=list)
+    team_ms: list[float] = field(default_factory=list)
+    trial_ms: list[float] = field(default_factory=list)
+
+
+def create_trials(
+    url: str, services, chosen: list[str], agent_drivers: int = 0
+) -> tuple[list[tuple[str, str | None]], Creation]:
+    """A trial on each of `chosen`, with its two participants and team, created as the experimenter
+    does it, over HTTP with the dashboard's forms (each answer timed, the dashboard it redirects to
+    not fetched); the seats' tokens (no Driver's for the first `agent_drivers`, whose Driver is
+    `AGENT_DRIVER`)."""
+    creation, tokens = Creation(), []
+    with httpx.Client(base_url=url, headers={"Origin": url}, timeout=120) as client:
+        login = re.search(r'name="csrf_token" value="([^"]+)"', client.get("/").text)
+        name, password = LOAD_EXPERIMENTER
+        client.post("/login", data={"name": name, "password": password, "csrf_token": login.group(1)})
+        page = client.get("/experimenter/replays")
+        client.headers["X-CSRF-Token"] = re.search(r'<meta name="csrf-token" content="([^"]+)"', page.text).group(1)
+
+        def post(path: str, times: list[float], **form) -> None:
+            started = time.perf_counter()
+            answer = client.post(path, data=form)
+            times.append(1e3 * (time.perf_counter() - started))
+            refused = "error=" in answer.headers.get("location", "")
+            if answer.status_code != 303 or refused:
+                raise SystemExit(f"POST {path} {form}: {answer.status_code} {answer.headers.get('location', '')}")
+
+        for i, maze in progress_over(chosen, "creating trials over HTTP"):
+            people = [f"load-{i} commander", f"load-{i} driver"]
+            for person in people:
+                post("/experimenter/participants", creation.participant_ms, name=person)
+            with services.db() as db:
+                a, b = (db.scalar(select(Participant.id).where(Participant.name == p)) for p in people)
+            team = f"load-team-{i}"
+            post("/experimenter/teams", creation.team_ms, name=team, member_a=a, member_b=b)
+            with services.db() as db:
+                team_id = db.scalar(select(Team.id).where(Team.name == team))
             agent = i < agent_drivers
-            trial_id = team_trial(
-                db,
-                f"load-team-{i}",
-                maze,
-                maze_names,
-                services.clock.now_ns(),
-                driver=AGENT_DRIVER if agent else "human",
-                agents=agents,
+            driver = AGENT_DRIVER if agent else "human"
+            post(
+                "/experimenter/trials",
+                creation.trial_ms,
+                team_id=team_id,
+                maze=maze,
+                targets="mug,jar,paddle",
+                driver=driver,
             )
-            driver = None if agent else services.seats.issue(trial_id, "driver")
-            tokens.append((services.seats.issue(trial_id, "commander"), driver))
+            with services.db() as db:
+                trial_id = db.scalar(select(Trial.id).where(Trial.team_id == team_id))
+            tokens.append(
+                (
+                    services.seats.issue(trial_id, "commander"),
+                    None if agent else services.seats.issue(trial_id, "driver"),
+                )
+            )
+    return tokens, creation
+
+
+def progress_over(items: list[str], description: str):
     with Progress(console=console, transient=True) as progress:
-        for name in progress.track(sorted(set(chosen)), description="graphs, rays and scenes (cached on disk)"):
-            # Built once per maze and machine, as a server that has run the maze before finds them.
-            services.mazes.rays(name)
-            cached_scene(services.mazes.load(name), settings.cache_dir)
-    return tokens, services, len(set(chosen))
+        yield from enumerate(progress.track(items, description=description))
 
 
 @dataclass
@@ -238,7 +298,7 @@ async def run_trial(
                             figures.chat_ms.append((now - sent) * 1e3)
                 outcome = message["payload"]["outcome"] if kind == "move_executed" else None
                 bumped[0] = bumped[0] if outcome is None else outcome == "collision"
-                refused = kind == "error" or outcome == "refused"
+                refused = kind in ("error", "move_refused") or outcome == "refused"
                 if move and (kind == "frame" or refused):
                     sent, counted, first = move
                     move.clear()
@@ -494,6 +554,7 @@ class Load:
     benchmark: Path | None = None
     agent_drivers: int = 0  # of `trials`, seating AGENT_DRIVER in the Driver's seat
     watchers: int = 1  # the experimenter's live views, on the first trials: their particle filters run
+    fresh_caches: bool = False  # an empty cache directory of its own, as a fresh install's
 
 
 def run_load(
@@ -519,8 +580,12 @@ def run_load(
             env["ROBOTSLANG_REDIS_URL"], env["ROBOTSLANG_DATABASE_URL"] = redis_url, url
         if benchmark is not None:
             env["ROBOTSLANG_BENCHMARK"] = str(benchmark)
-        settings = Settings(data_dir=Path(tmp) / "var", secret_key="load", database_url=url, benchmark=benchmark)
-        tokens, services, maze_count = setup_trials(settings, trials, load.mazes, load.agent_drivers)
+        cache = Path(tmp) / "cache" if load.fresh_caches else cache_dir()
+        env["ROBOTSLANG_CACHE_DIR"] = str(cache)
+        settings = Settings(
+            data_dir=Path(tmp) / "var", secret_key="load", database_url=url, benchmark=benchmark, cache_dir=cache
+        )
+        services, chosen, maze_names = setup_services(settings, trials, load.mazes, load.fresh_caches)
         server = subprocess.Popen(
             [
                 sys.executable,
@@ -539,6 +604,7 @@ def run_load(
         try:
             wait_until_up(f"http://127.0.0.1:{port}", server)
             processes = ServerProcesses(server.pid, workers)
+            tokens, creation = create_trials(f"http://127.0.0.1:{port}", services, chosen, load.agent_drivers)
             if profile:  # the whole run, warm-up included, sampled from every server process
                 spy = subprocess.Popen(
                     [
@@ -584,7 +650,13 @@ def run_load(
         "workers": workers,
         "pattern": str(load.pattern),
         "mazes": str(load.mazes),
-        "maze_count": maze_count,
+        "maze_count": len(set(chosen)),
+        "fresh_caches": load.fresh_caches,
+        "create_trial_p50_ms": round(percentile(creation.trial_ms, 50), 2),
+        "create_trial_p95_ms": round(percentile(creation.trial_ms, 95), 2),
+        "create_trial_max_ms": round(max(creation.trial_ms), 2),
+        "create_participant_p95_ms": round(percentile(creation.participant_ms, 95), 2),
+        "create_team_p95_ms": round(percentile(creation.team_ms, 95), 2),
         "open_at_once": load.open_at_once,
         "duration_s": round(window, 1),
         "chat_p50_ms": round(percentile(figures.chat_ms, 50), 2),
@@ -674,6 +746,12 @@ def report(f: dict) -> None:
         f"{f['duration_s']:.0f} s measured ({os.cpu_count()} CPUs, "
         f"{'SQLite WAL' if f['workers'] == 1 else 'PostgreSQL + Redis'}; load average {before} before, {after} at the end)"
     )
+    console.print(
+        f"  trial creation  p50 {f['create_trial_p50_ms']:7.1f} ms   p95 {f['create_trial_p95_ms']:7.1f} ms   "
+        f"max {f['create_trial_max_ms']:.0f} ms   (over HTTP, {f['trials']} trials; each's participants p95 "
+        f"{f['create_participant_p95_ms']:.1f} ms, team p95 {f['create_team_p95_ms']:.1f} ms; "
+        f"{'fresh caches' if f['fresh_caches'] else 'mazes prepared before the start'})"
+    )
     opened = "all at once" if f["open_at_once"] else f"{OPEN_AT_ONCE} at a time"
     console.print(
         f"  handshakes      p50 {f['handshake_p50_ms']:7.1f} ms   p99 {f['handshake_p99_ms']:7.1f} ms   "
@@ -725,6 +803,12 @@ def main() -> None:
     )
     parser.add_argument("--open-at-once", action="store_true", help="every seat's socket opened at the same time")
     parser.add_argument(
+        "--fresh-caches",
+        action="store_true",
+        help="an empty cache directory (and data directory) for the run, as on a fresh install: the server "
+        "prepares the mazes from its start, and nothing is prepared before",
+    )
+    parser.add_argument(
         "--agent-drivers", type=int, default=0, help=f"of the trials, how many seat {AGENT_DRIVER} as the Driver"
     )
     parser.add_argument(
@@ -768,6 +852,7 @@ def main() -> None:
         args.benchmark,
         args.agent_drivers,
         args.watchers,
+        args.fresh_caches,
     )
     if args.find_max:
         result = {}

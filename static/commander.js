@@ -3,11 +3,14 @@
 import {$, on, send, status, token} from "./seat.js";
 import {showImage, TableMap} from "./maputil.js";
 import {markTool} from "./marktool.js";
+import {landmarkWords, markWords, wallWords} from "./mapwords.js";
 import {RUNNING} from "./trial.js";
+import {calm, raise} from "./alert.js";
 
 const root = $("seat");
 const landmarks = JSON.parse(root.dataset.landmarks);  // name -> [x, y] metres
 const targets = JSON.parse(root.dataset.targets);
+const walls = JSON.parse(root.dataset.walls);
 const canvas = $("map"), ctx = canvas.getContext("2d");
 const map = new Image();
 const STORE = `robotslang:estimate:${token}`;
@@ -43,6 +46,21 @@ function draw() {
     li.classList.toggle("next", isNext);
     li.querySelector(".next-note").textContent = isNext ? " (next target)" : "";
   });
+  inWords(next);
+}
+
+// The map in words: the walls once, the landmarks and the mark as they change (never on a cursor move).
+function fill(list, lines) {
+  list.replaceChildren(...lines.map((line) => Object.assign(document.createElement("li"), {textContent: line})));
+}
+fill($("map-text-walls"), walls.map(wallWords));
+let said = null;
+function inWords(next) {
+  const now = JSON.stringify([next, estimate]);
+  if (now === said) return;
+  said = now;
+  fill($("map-text-landmarks"), Object.entries(landmarks).map(([name, xy]) => landmarkWords(name, xy, name === next)));
+  $("map-text-mark").textContent = markWords(estimate);
 }
 
 function localize(x, y, heading) {
@@ -69,14 +87,15 @@ function showTarget() {
 }
 function showClaim(claim) {
   const box = $("claim");
-  if (!claim || !claim.jpeg) { box.hidden = true; return; }
+  if (!claim || !claim.jpeg) { box.hidden = true; calm(); return; }
   showImage($("claim-image"), `data:image/jpeg;base64,${claim.jpeg}`);
+  if (box.hidden) raise("Claim to judge");  // once per claim, not again on a reconnect's welcome
   box.hidden = false;
   $("confirm").focus();
 }
 
 on("welcome", (msg) => {
-  if (msg.localization) keep(msg.localization);  // the server's copy wins over this browser's
+  if (msg.localization) { keep(msg.localization); draw(); }  // the server's copy wins over this browser's
   showClaim(msg.claim || null);
 });
 on("status", showTarget);

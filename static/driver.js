@@ -4,47 +4,93 @@ import {showImage} from "./maputil.js";
 import {friendlyError, isRunning} from "./trial.js";
 
 const KEYS = {ArrowUp: "forward", ArrowLeft: "left", ArrowRight: "right"};
+const WORDS = {forward: "forward", left: "left", right: "right"};
 const MOVE_TIMEOUT_MS = 5000;  // a move whose result never came (e.g. the server restarted)
-let pending = null, pendingSince = 0;
+const MARGIN_MS = 30;  // on top of the server's interval: the two clocks see a send a little apart
+const minIntervalMs = 1000 * Number($("seat").dataset.minMoveIntervalS || 0);
+// One move at a time: `pending` is the move in flight; one press made meanwhile (or sooner after the
+// last move than the server takes one) waits in `queued` and goes once the server would take it.
+let pending = null, pendingAction = null, pendingSince = -Infinity, queued = null, timer = null;
 const note = (text) => { $("move-note").textContent = text; };
 
-// The camera is busy while a move waits for its result (assistive technology, and scripts, can tell).
-function setPending(id) {
-  pending = id;
-  $("camera").setAttribute("aria-busy", String(id !== null));
+function showProgress() {
+  const moving = pending !== null;
+  // The camera is busy while a move waits for its result (assistive technology, and scripts, can tell).
+  $("camera").setAttribute("aria-busy", String(moving));
+  $("seat").dataset.moving = String(moving);
+  $("seat").dataset.queued = queued || "";
+  $("move-progress").hidden = !moving && !queued;
+  $("move-progress").textContent = moving ? `Moving ${WORDS[pendingAction]}…${queued ? ` then ${WORDS[queued]}.` : ""}`
+    : queued ? `Next: ${WORDS[queued]}.` : "";
+}
+
+function sendMove(action) {
+  pending = Math.random().toString(36).slice(2, 10);
+  pendingAction = action;
+  pendingSince = performance.now();
+  if (!send("move", {action, move_id: pending})) pending = null;
+  showProgress();
+}
+
+// Send the queued press once nothing is in flight and the server's interval since the last move has passed.
+function drain() {
+  clearTimeout(timer);
+  if (!queued || pending !== null) return;
+  const wait = pendingSince + minIntervalMs + MARGIN_MS - performance.now();
+  if (wait > 0) { timer = setTimeout(drain, wait); return; }
+  const action = queued;
+  queued = null;
+  sendMove(action);
 }
 
 function move(action) {
-  if (pending && performance.now() - pendingSince < MOVE_TIMEOUT_MS) { note("Wait: the robot is still moving."); return; }
-  setPending(Math.random().toString(36).slice(2, 10));
-  pendingSince = performance.now();
-  if (!send("move", {action, move_id: pending})) setPending(null);
+  if (pending !== null && performance.now() - pendingSince > MOVE_TIMEOUT_MS) pending = null;  // its result is lost
+  if (queued) { note("Wait: the robot is still moving, and your next move is queued."); return; }
+  queued = action;
+  drain();
+  showProgress();
 }
+
+function dropQueue() { queued = null; clearTimeout(timer); showProgress(); }
+
 ["forward", "left", "right"].forEach((a) => $(a).addEventListener("click", () => move(a)));
 document.addEventListener("keydown", (ev) => {
   if (ev.target.tagName === "INPUT" || ev.target.tagName === "TEXTAREA" || !KEYS[ev.key]) return;
-  ev.preventDefault(); move(KEYS[ev.key]);
+  ev.preventDefault();
+  if (!ev.repeat) move(KEYS[ev.key]);  // a held key is one press: the browser's repeats are not moves
 });
 $("found").addEventListener("click", () => send("claim"));
 
 function camera(jpeg) { showImage($("camera"), `data:image/jpeg;base64,${jpeg}`); $("camera-wait").hidden = true; }
 
-on("welcome", (msg) => { setPending(null); if (msg.frame) camera(msg.frame.jpeg); });
+on("welcome", (msg) => { pending = null; dropQueue(); if (msg.frame) camera(msg.frame.jpeg); });
 on("frame", (msg) => camera(msg.jpeg));
 on("status", (s) => {
   // Buttons follow the trial: moves and claims only while it runs and no claim awaits the Commander.
   const live = isRunning(s) && !s.claim_pending;
   ["forward", "left", "right"].forEach((a) => { $(a).disabled = !live; });
+  if (!live) dropQueue();  // a press queued before a pause or a claim is not carried past it
   $("found").disabled = !(live && s.phase === "navigating");
   if (s.phase === "finished") { note("All three targets found. Well done!"); showError(""); }
   else if (s.phase === "aborted") { note(""); showError(""); }
 });
 on("move_executed", (msg) => {
   const p = msg.payload;
-  if (p.move_id === pending) setPending(null);
+  if (p.move_id !== pending) return;  // not this page's (another window of the seat), or given up on
+  pending = null;
+  if (p.outcome === "refused") dropQueue();
   note(p.outcome === "collision" ? "Bump! Something is in the way."
     : p.outcome === "refused" ? friendlyError(p.reason) : "");
+  showProgress();
+  drain();
 });
+// Refused as it was asked for (too soon, paused, one still executing): nothing moved.
+on("move_refused", (msg) => {
+  if (msg.move_id === pending) setPending(null);
+  note(friendlyError(msg.reason));
+});
+// Over the seat's rate the move was dropped unanswered: a press after the pause may go.
+on("error", (msg) => { if (msg.code === "rate_limited") setPending(null); });
 on("target_claimed", () => note("Waiting for the Commander to confirm…"));
 // A decision answers the claim: a refusal shown while it was pending no longer applies.
 on("target_confirmed", () => { note("Confirmed! On to the next target."); showError(""); });

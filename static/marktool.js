@@ -2,13 +2,12 @@
 // the robot is and drag towards where it faces (mouse or touch), or use the keyboard: arrows move
 // a cursor (Shift for small steps), [ and ] (or Q and E) turn it, Enter marks, Escape removes it.
 import {TableMap} from "./maputil.js";
+import {facing} from "./mapwords.js";
 
 const STEP_M = 0.05, TURN = Math.PI / 4;
-const COMPASS = ["east", "north-east", "north", "north-west", "west", "south-west", "south", "south-east"];
 
 function describe(c) {
-  const k = ((Math.round(c.heading / TURN) % 8) + 8) % 8;
-  return `Cursor ${c.x.toFixed(2)} m from the left, ${c.y.toFixed(2)} m from the bottom, facing ${COMPASS[k]}. ` +
+  return `Cursor ${c.x.toFixed(2)} m from the left, ${c.y.toFixed(2)} m from the bottom, facing ${facing(c.heading)}. ` +
     "Press Enter to mark the robot here.";
 }
 

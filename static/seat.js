@@ -1,7 +1,7 @@
 // A seat's socket, shared by the Commander and Driver pages: the token on every message,
 // reconnects with back-off, the chat, the trial clock, the move count and the status line
 // (announced to screen readers when it changes). Page modules subscribe with on(kind, handler).
-import {applyStatus, clockSeconds, emptyStatus, foldEvent, formatClock, friendlyError, OVER,
+import {applyStatus, clockSeconds, emptyStatus, foldEvent, formatClock, friendlyError, joinSecondsLeft, OVER,
         statusText} from "./trial.js";
 
 export const $ = (id) => document.getElementById(id);
@@ -50,17 +50,35 @@ function renderStatus() {
 
 // A study's participant goes on once the trial is over. A trial that ended before it began
 // (a partner never came) has nothing to look back on: back to the lobby's head on its own.
-let lastPhase = null;
+// An aborted one the experimenter restarts: the page follows to the new trial's seat.
+let lastPhase = null, following = false;
 function goOn(over) {
   if (!after) return;
   after.hidden = !over;
   if (over && lastPhase === "waiting" && status.phase === "aborted") {
     setTimeout(() => window.location.assign($("continue").href), 3000);
   }
+  if (status.phase === "aborted" && !following) { following = true; followRestart(); }
   lastPhase = status.phase;
 }
 
+async function followRestart() {
+  try {
+    const reply = await fetch(after.dataset.follow, {headers: {Accept: "application/json"}});
+    if (!reply.ok && reply.status < 500) return;  // no longer in the study (withdrawn): nothing to follow
+    const seat = reply.ok ? await reply.json() : {};
+    if (seat.link && String(seat.trial_id) !== after.dataset.trial) { window.location.assign(seat.link); return; }
+  } catch (err) { /* the server is away for a moment: ask again */ }
+  setTimeout(followRestart, 2000);
+}
+
 function renderClock() {
+  const left = joinSecondsLeft(status), countdown = $("join-countdown");
+  countdown.hidden = left === null;
+  if (left !== null) {
+    $("join-left").textContent = formatClock(Math.ceil(left));
+    $("join-left").dataset.seconds = left.toFixed(1);
+  }
   $("clock").textContent = formatClock(clockSeconds(status));
   $("clock").dataset.seconds = clockSeconds(status).toFixed(1);
   const moves = $("moves");
@@ -94,6 +112,7 @@ function handle(msg) {
     case "status": applyStatus(status, msg); renderStatus(); return;
     case "error": showError(friendlyError(msg.error)); emit("error", msg); return;
     case "replaced": replaced = true; return;
+    case "move_refused": emit("move_refused", msg); return;
     case "event": break;
     default: return;
   }

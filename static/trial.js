@@ -45,6 +45,7 @@ export function foldEvent(s, e) {
 export function applyStatus(s, msg) {
   for (const key of ["phase", "target_index", "targets_total", "elapsed_s", "moves", "paused", "waiting_for", "claim_pending", "abort_reason"])
     if (msg[key] !== undefined && msg[key] !== null) s[key] = msg[key];
+  s.join_left_s = msg.join_left_s ?? null;  // null once every seat is open
   s.from_server = true;
   s.status_at = performance.now();
   return s;
@@ -55,6 +56,12 @@ export function clockSeconds(s, nowMs = performance.now(), wallNs = Date.now() *
   if (!isRunning(s)) return s.elapsed_s;
   if (s.from_server) return s.elapsed_s + Math.max(0, nowMs - s.status_at) / 1000;
   return (s.active_ns + (s.last_t_ns === null ? 0 : Math.max(0, wallNs - s.last_t_ns))) / 1e9;
+}
+
+// Seconds left to open the seats before a study's trial is called off (null: no deadline running).
+export function joinSecondsLeft(s, nowMs = performance.now()) {
+  if (s.join_left_s === null || s.join_left_s === undefined || s.phase !== "waiting") return null;
+  return Math.max(0, s.join_left_s - Math.max(0, nowMs - s.status_at) / 1000);
 }
 
 export function formatClock(seconds) {

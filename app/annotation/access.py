@@ -8,13 +8,14 @@ from typing import Annotated
 from fastapi import Depends
 from starlette.requests import HTTPConnection
 
+from app.cookies import read_cookie
 from app.deps import AnnotatorSessionsDep, LoginRequired
 from app.security import ANNOTATOR_COOKIE, Login
 
 
 def annotator_login(conn: HTTPConnection, sessions: AnnotatorSessionsDep) -> Login | None:
     if not hasattr(conn.state, "annotator_login"):
-        conn.state.annotator_login = sessions.verify(conn.cookies.get(ANNOTATOR_COOKIE))
+        conn.state.annotator_login = sessions.verify(read_cookie(conn, ANNOTATOR_COOKIE))
     login: Login | None = conn.state.annotator_login
     return login
 

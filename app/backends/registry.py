@@ -73,6 +73,7 @@ async def simulator_backend(spec: str, trial: RobotTrial, parts: BackendParts) -
     # Reading a maze and its graph take a while: off the loop, other trials keep moving. The maze
     # is held from the start, so that the graph, the rays and the backend read it once.
     maze = await asyncio.to_thread(mazes.load, state.maze)
+    await mazes.preparation.ready(state.maze)  # built, if it is not yet, without holding a thread
     graph = await asyncio.to_thread(mazes.graph, state.maze)  # hashes the maze too, off the loop
     parts.renderer.prepare(maze)  # the render process reads its scene while the rest loads here
     if state.pose is not None:  # resuming: the robot is where the log last saw it

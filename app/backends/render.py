@@ -131,8 +131,8 @@ def _start_worker(benchmark: str | None, cache_dir: str | None, server: int) -> 
     from sim.tasks.library import MazeLibrary
 
     global _library, _cache_dir
-    _library = MazeLibrary(benchmark=Path(benchmark) if benchmark else None, cache=False)
     _cache_dir = Path(cache_dir) if cache_dir else None
+    _library = MazeLibrary(benchmark=Path(benchmark) if benchmark else None, cache=False, cache_dir=_cache_dir)
     threading.Thread(target=_exit_with, args=(server,), daemon=True).start()
 
 

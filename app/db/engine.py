@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 import sqlite3
 import threading
+import time
 import weakref
 
 from alembic import command
@@ -29,6 +30,10 @@ def make_engine(settings: Settings) -> Engine:
             cursor.execute("PRAGMA journal_mode=WAL")
             cursor.execute("PRAGMA synchronous=NORMAL")
             cursor.execute("PRAGMA foreign_keys=ON")
+            # What is erased (a withdrawal's name and free text) is overwritten with zeros, not left
+            # in free space or freed pages (Debian builds SQLite so; others do not); its older
+            # copies in the WAL go with `truncate_wal`.
+            cursor.execute("PRAGMA secure_delete=ON")
             if engine in _CHECKPOINTED:  # a `WalCheckpointer` copies the WAL back, not the commits
                 cursor.execute("PRAGMA wal_autocheckpoint=0")
             cursor.close()
@@ -81,6 +86,24 @@ class WalCheckpointer:
                 conn.exec_driver_sql("PRAGMA wal_checkpoint(PASSIVE)")
         except Exception:  # the next one catches up; a commit never depends on it
             logger.exception("WAL checkpoint failed")
+
+
+def truncate_wal(engine: Engine, attempts: int = 10) -> bool:
+    """On SQLite, copy the whole WAL back and cut its file to nothing: rows just erased leave no
+    older copy in a frame of it (a PASSIVE checkpoint copies frames back but keeps the file, and a
+    reset WAL overwrites it only as it is written again). It waits for readers and writers, up to
+    the busy timeout per attempt; False (logged) if they never let it finish. Elsewhere nothing to
+    do here (docs/study.md: PostgreSQL's VACUUM)."""
+    if engine.dialect.name != "sqlite":
+        return True
+    for _ in range(attempts):
+        with engine.connect() as conn:
+            busy, _, _ = conn.exec_driver_sql("PRAGMA wal_checkpoint(TRUNCATE)").one()
+        if not busy:
+            return True
+        time.sleep(0.1)
+    logger.warning("the WAL could not be truncated: erased rows may keep a copy in it until the next checkpoint")
+    return False
 
 
 def make_sessionmaker(engine: Engine) -> sessionmaker[Session]:

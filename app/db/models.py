@@ -194,6 +194,14 @@ class StudyParticipant(Base):
     # The lobby (`app.study.lobby`): waiting since, and the last time the lobby page asked.
     lobby_since: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
     lobby_seen: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    # Seconds waited in the lobby over every wait that has ended (for paying waiting time).
+    lobby_waited_s: Mapped[float] = mapped_column(Float, default=0.0, server_default="0")
+    lobby_waited_to: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)  # counted so far
+    # The recruiting panel's identifiers from the study link (`StudyConfig.panel`): personal data,
+    # on no public page; kept through a withdrawal (the panel pays by them) until the study's purge.
+    panel_participant: Mapped[str | None] = mapped_column(String(200), nullable=True)
+    panel_study: Mapped[str | None] = mapped_column(String(200), nullable=True)
+    panel_session: Mapped[str | None] = mapped_column(String(200), nullable=True)
 
 
 class StudyEvent(Base):

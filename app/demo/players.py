@@ -45,16 +45,16 @@ class Seat:
     trial_id: int
     token: str
     ws: ClientConnection
-    chat_interval_s: float = 0.0  # the server records a seat's messages this far apart at most
+    message_interval_s: float = 0.0  # the server takes a seat's messages (moves too) this far apart at most
     inbox: asyncio.Queue[ServerMessage] = field(default_factory=asyncio.Queue)
     reader: asyncio.Task[None] | None = None
-    last_chat: float = float("-inf")
+    last_sent: float = float("-inf")
 
     @classmethod
-    async def open(cls, server: str, trial_id: int, role: str, token: str, chat_interval_s: float = 0.0) -> Seat:
+    async def open(cls, server: str, trial_id: int, role: str, token: str, message_interval_s: float = 0.0) -> Seat:
         url = server.replace("http://", "ws://").replace("https://", "wss://").rstrip("/")
         ws = await connect(f"{url}/ws/play?token={token}", max_size=2**24)
-        seat = cls(role=role, trial_id=trial_id, token=token, ws=ws, chat_interval_s=chat_interval_s)
+        seat = cls(role=role, trial_id=trial_id, token=token, ws=ws, message_interval_s=message_interval_s)
         seat.reader = asyncio.get_running_loop().create_task(seat._read())
         return seat
 
@@ -66,13 +66,13 @@ class Seat:
             await self.inbox.put({"type": "closed"})
 
     async def send(self, type_: str, **fields: Any) -> None:
+        # No faster than the seat's rate limit lets the server take them, as a person plays.
+        loop = asyncio.get_running_loop()
+        await asyncio.sleep(max(0.0, self.last_sent + self.message_interval_s - loop.time()))
+        self.last_sent = loop.time()
         await self.ws.send(json.dumps({"type": type_, "token": self.token, **fields}))
 
     async def say(self, text: str) -> None:
-        # Typed no faster than the seat's rate limit lets the server record it, as a person types.
-        loop = asyncio.get_running_loop()
-        await asyncio.sleep(max(0.0, self.last_chat + self.chat_interval_s - loop.time()))
-        self.last_chat = loop.time()
         await self.send("chat", text=text)
 
     async def until(self, accept: Callable[[ServerMessage], bool], what: str) -> ServerMessage:
@@ -100,6 +100,18 @@ class Seat:
             )
 
         return await self.until(accept, f"a {kind!r} event {match or ''}".strip())
+
+    async def move_outcome(self, move_id: str) -> str:
+        """`ok`, `collision` or `refused`: its `move_executed` event, or the `move_refused` reply
+        to a move refused as it was asked for."""
+
+        def accept(m: ServerMessage) -> bool:
+            if m.get("type") == "move_refused":
+                return bool(m["move_id"] == move_id)
+            return m.get("type") == "event" and m.get("kind") == "move_executed" and m["payload"]["move_id"] == move_id
+
+        done = await self.until(accept, f"the outcome of move {move_id!r}")
+        return "refused" if done["type"] == "move_refused" else str(done["payload"]["outcome"])
 
     async def close(self) -> None:
         await self.ws.close()
@@ -217,8 +229,7 @@ class ScriptedDriver:
             move_id = f"d{self.moves}"
             self.moves += 1
             await seat.send("move", action=action.word, move_id=move_id)
-            done = await seat.event("move_executed", move_id=move_id)
-            outcome = done["payload"]["outcome"]
+            outcome = await seat.move_outcome(move_id)
             if outcome == "ok":
                 return self.graph.moves.step(pose, action)[0]
             if outcome == "collision":

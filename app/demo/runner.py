@@ -109,7 +109,7 @@ class Demo:
                         trial.id,
                         role,
                         self.seats.issue(trial.id, role),
-                        chat_interval_s=1.0 / self.settings.seat_message_rate_per_s,
+                        message_interval_s=1.0 / self.settings.seat_message_rate_per_s,
                     )
                 )
             start = await self.start_pose(trial)

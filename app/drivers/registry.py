@@ -22,7 +22,7 @@ from app.clock import ServerClock
 from app.drivers.base import Seating
 from app.mazes import Mazes
 from app.settings import Settings
-from app.trial.specs import SeatSpec
+from app.trial.specs import HUMAN, SeatSpec
 from app.trial.vocabulary import Role
 from sim.agents.turns import Agent
 
@@ -115,6 +115,13 @@ def available_agents(parts: AgentParts, role: Role) -> dict[str, str | None]:
 
 def available_drivers(parts: AgentParts) -> dict[str, str | None]:
     return available_agents(parts, Role.DRIVER)
+
+
+def offered_agents(parts: AgentParts, role: Role, spec: str) -> dict[str, str | None] | None:
+    """`available_agents` for a seat that `spec` gives an agent, else None (a person's: nothing to
+    check). The checks load the learned agents' checkpoints (torch): seconds, at a server's first
+    trial, that a trial of people does not need."""
+    return None if spec == str(HUMAN) else available_agents(parts, role)
 
 
 def available_seats(parts: AgentParts) -> dict[Role, dict[str, str | None]]:

@@ -130,6 +130,8 @@ class AgentSeat:
             self._welcomed(message)
         elif kind == ServerMessage.EVENT:
             self._event(message["kind"], message["seq"], message["payload"], message)
+        elif kind == ServerMessage.MOVE_REFUSED:
+            self._seat_event(kind, message, message)
         elif kind == ServerMessage.STATUS:
             self.targets_total = message["targets_total"]
         self._sync_running()
@@ -146,7 +148,7 @@ class AgentSeat:
             self._seat_event(kind, payload, message)
 
     def _seat_event(self, kind: str, payload: dict[str, Any], message: dict[str, Any]) -> None:
-        """An event only this seat reacts to."""
+        """An event (or a `move_refused` reply) only this seat reacts to."""
 
     def _welcomed(self, message: dict[str, Any]) -> None:
         """What else this seat's welcome holds (the Driver's frame, the Commander's pending claim)."""
@@ -346,6 +348,8 @@ class DriverSeat(AgentSeat):
         if kind == ev.MoveExecuted.kind:
             moved = t.Moved(t.Move(payload["action"]), t.Outcome(payload["outcome"]), payload.get("reason"))
             put(_Outcome(moved, message["t_ns"]))
+        elif kind == ServerMessage.MOVE_REFUSED:  # refused as it was asked for: no event of its own
+            put(_Outcome(t.Moved(t.Move(payload["action"]), t.Outcome.REFUSED, payload["reason"]), message["t_ns"]))
         elif kind == ev.FrameRecorded.kind and "jpeg" in message:
             put(_FrameArrived(payload["frame_id"], payload["capture_ns"], base64.b64decode(message["jpeg"])))
         elif kind == ev.TargetClaimed.kind:

@@ -14,7 +14,10 @@ from rich.progress import track
 from app.export import Episode
 
 if TYPE_CHECKING:  # the exporters load only for the command that runs
+    from sqlalchemy.orm import Session, sessionmaker
+
     from app.export.record import TrialRecord
+    from app.study.config import StudyFiles
     from sim.core.maze import Maze
 
 console = Console(stderr=True)
@@ -59,7 +62,9 @@ def export(
     ),
     seed: int = typer.Option(0, "--seed", help="--folds: the seed of the draw."),
 ) -> None:
-    """Export recorded trials from the data directory (ROBOTSLANG_DATA_DIR)."""
+    """Export recorded trials from the data directory (ROBOTSLANG_DATA_DIR); with `all --study
+    NAME`, the study's questionnaire answers (questionnaires.csv and .json in --out) and its
+    participants' roster for paying them (participants.csv) too."""
     from app.db.engine import make_engine, make_sessionmaker
     from app.export.folds import FoldError, FoldShares, SavedFolds
     from app.export.record import ExportError
@@ -121,6 +126,52 @@ def export(
             _export_mcap(loaded, out, single=trial != "all")
     except (ExportError, FoldError) as err:
         _fail(str(err))
+    if study is not None and trial == "all":
+        _export_answers(sessions, settings.data_dir, study, out)
+
+
+def _export_answers(sessions: sessionmaker[Session], data_dir: Path, study: str, out: Path) -> None:
+    """The study's questionnaire answers beside its trials: a CSV, and a JSON with the items each
+    study version asked."""
+    import json
+
+    from app.study.answers import answers_csv, answers_json, asked, items, study_answers
+    from app.study.config import StudyConfigError, StudyFiles
+
+    with sessions() as session:
+        answers = study_answers(session, study)
+    files = StudyFiles.of(data_dir)
+    if not answers and study not in files.names():
+        return  # trials given a study's name by hand, with no study file: nobody was asked anything
+    _export_roster(sessions, files, study, out)
+    try:
+        questionnaires = asked(files, study, answers)
+    except (LookupError, StudyConfigError) as err:
+        _fail(f"the questionnaire answers need the study's file: {err}")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "questionnaires.csv").write_text(answers_csv(study, answers, items(questionnaires)))
+    (out / "questionnaires.json").write_text(json.dumps(answers_json(study, answers, questionnaires), indent=1))
+    console.print(f"{len(answers)} questionnaire answer(s) -> {out}/questionnaires.csv, questionnaires.json")
+
+
+def _export_roster(sessions: sessionmaker[Session], files: StudyFiles, study: str, out: Path) -> None:
+    """One row per participant for paying them (`app.study.roster`): participants.csv in --out."""
+    from datetime import UTC, datetime
+
+    from app.clock import ServerClock
+    from app.study.config import StudyConfigError
+    from app.study.enrolment import Enrolment
+    from app.study.roster import roster, roster_csv
+
+    try:
+        config = files.load(study)
+    except (LookupError, StudyConfigError) as err:
+        _fail(f"the participants' roster needs the study's file: {err}")
+    with sessions() as session:
+        rows = roster(Enrolment(session, ServerClock(), config), datetime.now(UTC))
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "participants.csv").write_text(roster_csv(rows))
+    console.print(f"{len(rows)} participant(s) -> {out}/participants.csv")
 
 
 def _export_mcap(loaded: list[tuple[TrialRecord, Maze]], out: Path, single: bool) -> None:

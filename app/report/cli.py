@@ -94,11 +94,16 @@ def study(
         typer.echo(markdown)
         return
     from app.report.study import study_numbers
+    from app.study.config import StudyConfigError
 
     settings, sessions = _database()
     if benchmark is not None:
         settings = settings.model_copy(update={"benchmark": benchmark})
-    numbers = study_numbers(sessions, settings, Mazes(settings), study)
+    try:
+        numbers = study_numbers(sessions, settings, Mazes(settings), study)
+    except (LookupError, StudyConfigError) as err:
+        typer.echo(f"error: study {study!r}: {err}", err=True)
+        raise typer.Exit(1) from None
     if not numbers["counts"]["trials"]:
         typer.echo(f"error: study {study!r} has no finished trials (not excluded)", err=True)
         raise typer.Exit(1)
@@ -106,6 +111,7 @@ def study(
         "dialog_lengths": figures.dialog_lengths(numbers["dialog"], out / "dialog_lengths.png").name,
         "leaderboard": figures.leaderboard(numbers["leaderboard"], out / "leaderboard.png").name,
         "learning_curves": figures.learning_curves(numbers["leaderboard"], out / "learning_curves.png").name,
+        "questionnaire": figures.questionnaire(numbers["questionnaire"]["items"], out / "questionnaire.png").name,
     }
     (out / "study.json").write_text(json.dumps(numbers, indent=1))
     (out / "study.md").write_text(study_markdown(numbers, drawn))

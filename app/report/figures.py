@@ -61,3 +61,28 @@ def learning_curves(board: dict[str, Any], out: Path) -> Path:
     fig.savefig(out, dpi=110)
     plt.close(fig)
     return out
+
+
+def questionnaire(items: dict[str, Any], out: Path) -> Path:
+    """Each rating item's answers by seat: how many gave each rating (grouped bars per seat)."""
+    fig, axes = plt.subplots(1, max(1, len(items)), figsize=(4.5 * max(1, len(items)), 3.5), squeeze=False)
+    for ax, (item_id, item) in zip(axes[0], items.items(), strict=False):
+        seats = item["by_seat"]
+        ratings = [int(r) for r in next(iter(seats.values()))["counts"]]
+        width = 0.8 / len(seats)
+        for k, (seat, row) in enumerate(seats.items()):
+            offsets = [r - 0.4 + width * (k + 0.5) for r in ratings]
+            ax.bar(offsets, list(row["counts"].values()), width, label=f"{seat} (n={row['n']})")
+        ax.set_xticks(ratings)
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.set_xlabel("rating")
+        ax.set_ylabel("answers")
+        ax.set_title(item_id)
+        ax.legend(fontsize="small")
+    if not items:
+        axes[0][0].set_axis_off()
+        axes[0][0].text(0.5, 0.5, "no rating items answered", ha="center", va="center")
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out

@@ -41,7 +41,8 @@ def study_markdown(n: dict[str, Any], figures: dict[str, str]) -> str:
         f"![dialog lengths]({figures['dialog_lengths']})",
         "",
         f"Trials took {_f(n['duration_minutes']['mean'])} minutes on average (start to the last target) "
-        f"and {_f(n['moves']['mean'])} moves.",
+        f"and {_f(n['moves']['mean'])} moves (executed; {_f(n['refused_moves']['mean'])} move requests refused "
+        "besides, not counted).",
         "",
         "## Folds (split by layout: no layout in two folds)",
         "",
@@ -89,6 +90,22 @@ def study_markdown(n: dict[str, Any], figures: dict[str, str]) -> str:
         f"![leaderboard]({figures['leaderboard']})",
         "",
         f"![learning curves]({figures['learning_curves']})",
+        "",
+        "## Questionnaires",
+        "",
+        f"{n['questionnaire']['answers']} questionnaires answered after trials (ratings 1-5, by the seat held).",
+        "",
+        "| item | seat | answers | mean | 1 | 2 | 3 | 4 | 5 |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        *(
+            f"| {item['prompt']} | {seat} | {row['n']} | {_f(row['mean'], 2)} | "
+            + " | ".join(str(k) for k in row["counts"].values())
+            + " |"
+            for item in n["questionnaire"]["items"].values()
+            for seat, row in item["by_seat"].items()
+        ),
+        "",
+        f"![questionnaire ratings]({figures['questionnaire']})",
         "",
     ]
     return "\n".join(lines)

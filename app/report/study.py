@@ -23,10 +23,11 @@ from app.export.folds import SavedFolds
 from app.export.ndh import ldh_instances, ndh_instances
 from app.export.record import TrialRecord
 from app.export.source import load_trial
-from app.leaderboard import trial_score
 from app.mazes import Mazes
 from app.settings import Settings
-from app.trial import events as ev
+from app.study.answers import asked, items, rating_distributions, study_answers
+from app.study.config import StudyFiles
+from app.trial.state import TrialState, fold
 from sim.tasks.benchmark import Split
 
 
@@ -86,9 +87,13 @@ def _study_numbers(db: Session, log: AnnotationLog, settings: Settings, mazes: M
             participants |= {team.member_a_id, team.member_b_id}
         participants |= {p for p in (trial.commander_id, trial.driver_id) if p is not None}
     dialogs = [[(m.role, m.text) for m in messages(r.events)] for r in records]
-    moves = [sum(1 for e in r.events if e.is_(ev.MoveExecuted)) for r in records]
+    # Moves and scores by the trial's own fold, as the leaderboard counts them: executed moves
+    # only; refused requests apart.
+    states = {int(r.trial_id): fold(r.events) for r in records}
+    files = StudyFiles.of(settings.data_dir)
+    penalty = files.move_penalty_s(study, settings.move_penalty_s)
     durations = [trials[int(r.trial_id)].active_s or 0.0 for r in records]
-    penalty = settings.move_penalty_s
+    answers = study_answers(db, study)
     annotations = log.states(ids)
     return {
         "study": study,
@@ -103,11 +108,21 @@ def _study_numbers(db: Session, log: AnnotationLog, settings: Settings, mazes: M
         **{k: v for k, v in dialog_numbers(dialogs).items() if k in ("messages_per_dialog", "words_per_dialog")},
         "dialog": dialog_numbers(dialogs),
         "duration_minutes": distribution([d / 60 for d in durations]),
-        "moves": distribution([float(m) for m in moves]),
+        "moves": distribution([float(state.moves) for state in states.values()]),
+        "refused_moves": distribution([float(state.refused) for state in states.values()]),
+        "move_penalty_s": penalty,
+        "trials": {
+            str(i): {"moves": state.moves, "refused_moves": state.refused, "score": state.score(penalty)}
+            for i, state in states.items()
+        },
         "folds": fold_table(records, mazes, layout_of, SavedFolds.of(settings.data_dir, study)),
         "phenomena": phenomena_table(records),
         "agreement": agreement(annotations, annotator_names(db)),
-        "leaderboard": leaderboard(teams, trials, moves_by_trial=dict(zip(ids, moves, strict=True)), penalty=penalty),
+        "leaderboard": leaderboard(teams, states, penalty),
+        "questionnaire": {
+            "answers": len(answers),
+            "items": rating_distributions(answers, items(asked(files, study, answers)) if answers else []),
+        },
     }
 
 
@@ -162,17 +177,11 @@ def phenomena_table(records: Sequence[TrialRecord]) -> dict[str, Any]:
     return {"annotated_dialogs": len(annotated), "tags": table}
 
 
-def leaderboard(
-    teams: Mapping[str, Sequence[int]], trials: Mapping[int, Trial], moves_by_trial: Mapping[int, int], penalty: float
-) -> dict[str, Any]:
+def leaderboard(teams: Mapping[str, Sequence[int]], states: Mapping[int, TrialState], penalty: float) -> dict[str, Any]:
     """Each team's scores in the order it played its trials (its learning curve), best and mean."""
     out = {}
     for name, ids in teams.items():
-        scores = [
-            trial_score(trials[i].active_s or 0.0, moves_by_trial[i], penalty)
-            for i in sorted(ids)
-            if trials[i].active_s is not None
-        ]
+        scores = [score for i in sorted(ids) if (score := states[i].score(penalty)) is not None]
         out[name] = {
             "scores": scores,
             "best": min(scores) if scores else None,

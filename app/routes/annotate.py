@@ -21,6 +21,7 @@ from app.annotation.agreement import agreement
 from app.annotation.dialog import estimates, messages
 from app.annotation.events import Adjudicated, AnnotationEventModel, CutMarked, Phenomenon, Submitted, Tagged
 from app.annotation.study import annotator_names, study_trial_ids
+from app.cookies import clear_site_data, delete_cookie
 from app.db.models import AnnotationAssignment, Experimenter, Trial
 from app.deps import (
     AnnotationsDep,
@@ -181,12 +182,13 @@ def save(
 
 @router.post("/annotate/logout")
 def logout(
-    sessions: AnnotatorSessionsDep, login: Annotated[Login | None, Depends(annotator_login)]
+    request: Request, sessions: AnnotatorSessionsDep, login: Annotated[Login | None, Depends(annotator_login)]
 ) -> RedirectResponse:
     if login is not None:
         sessions.end(login)
     response = RedirectResponse("/", status_code=303)
-    response.delete_cookie(ANNOTATOR_COOKIE)
+    delete_cookie(response, request, ANNOTATOR_COOKIE)
+    clear_site_data(response)
     return response
 
 

@@ -25,11 +25,14 @@ from app.deps import (
     RobotLinksDep,
     SeatTokensDep,
     SettingsDep,
+    StudyFilesDep,
     experimenter_id,
 )
-from app.drivers.registry import available_seats
+from app.drivers.registry import available_seats, offered_agents
 from app.guard import csrf_protect
 from app.security import SeatTokens
+from app.study.config import StudyConfigError
+from app.study.lobby import Lobby
 from app.trial.lifecycle import Refused, delete_participant, delete_robot, delete_team, exclude_trial
 from app.trial.setup import (
     TrialSetupError,
@@ -110,6 +113,7 @@ def dashboard(
         caps=(settings.agent_moves_per_target, settings.agent_minutes_per_trial, settings.agent_messages_per_target),
         controls_for=controls_for,
         robots=robot_links.status(),
+        preparation=mazes.preparation.progress(),
         links={t.id: join_links(request, seats, t) for t in trials},
         holders={t.id: seat_holders(t, names) for t in trials},
         error=error,
@@ -157,8 +161,7 @@ def add_trial(
     commander: str = Form("human"),
     commander_id: int | None = Form(None),
 ) -> RedirectResponse:
-    layouts = mazes.layouts()
-    seat_agents = available_seats(agents)
+    layouts = mazes.layouts_when_read()  # a new team's trial on a maze it names reads none
     people = str(HUMAN) in (driver, commander)  # agents in both seats play without a team
     try:
         if people and team_id is None:
@@ -182,13 +185,14 @@ def add_trial(
                 commander_id=commander_id,
                 layouts=layouts,
                 now_ns=clock.now_ns(),
-                agents=seat_agents[Role.DRIVER],
+                agents=offered_agents(agents, Role.DRIVER, driver),
                 commander=commander,
-                commanders=seat_agents[Role.COMMANDER],
+                commanders=offered_agents(agents, Role.COMMANDER, commander),
             )
             trial_id = trial.id
     except TrialSetupError as err:
         return _redirect(str(err))
+    mazes.preparation.first(maze)  # ready before the links are followed
     if not people:  # nobody will open a link: the trial starts now, its agents seated
         from_thread.run(hub.get, trial_id)
     return _redirect()
@@ -222,25 +226,37 @@ def _delete(db: Session, delete: Callable[[Session], object]) -> dict[str, bool]
 
 @router.post("/trials/{trial_id}/restart")
 def restart(
-    db: DbSession, mazes: MazesDep, clock: ClockDep, agents: AgentsDep, hub: HubDep, trial_id: int
+    db: DbSession,
+    mazes: MazesDep,
+    clock: ClockDep,
+    agents: AgentsDep,
+    hub: HubDep,
+    files: StudyFilesDep,
+    trial_id: int,
 ) -> RedirectResponse:
     """An aborted trial again: the same seats, targets, robot and study, on a layout the team has
-    never seen."""
+    never seen (a study's: of its pool, with its join deadline; its seat pages follow it)."""
     seat_agents = available_seats(agents)
     try:
         with db.begin():
-            trial = restart_trial(
-                db,
-                trial_id,
-                mazes.layouts(),
-                clock.now_ns(),
-                agents=seat_agents[Role.DRIVER],
-                commanders=seat_agents[Role.COMMANDER],
-            )
-            new_id, people = trial.id, str(HUMAN) in (trial.driver, trial.commander)
-    except TrialSetupError as err:
+            study = trial_or_404(db, trial_id).study
+            in_study = study is not None and study in files.names()  # (a study's name given by hand has no file)
+            if study is not None and in_study:
+                trial = Lobby(db, files.load(study), mazes.layouts(), clock.now_ns()).restart(trial_id)
+            else:
+                trial = restart_trial(
+                    db,
+                    trial_id,
+                    mazes.layouts(),
+                    clock.now_ns(),
+                    agents=seat_agents[Role.DRIVER],
+                    commanders=seat_agents[Role.COMMANDER],
+                )
+            new_id, maze, people = trial.id, trial.maze, str(HUMAN) in (trial.driver, trial.commander)
+    except (TrialSetupError, StudyConfigError) as err:
         return _redirect(str(err))
-    if not people:
+    mazes.preparation.first(maze)
+    if in_study or not people:  # a study's join deadline runs from now, seats opened or not
         from_thread.run(hub.get, new_id)
     return _redirect()
 

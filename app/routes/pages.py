@@ -8,6 +8,7 @@ from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from sqlalchemy.orm import Session
 
+from app.cookies import clear_site_data, delete_cookie, read_cookie, set_cookie
 from app.db.models import Experimenter, Trial
 from app.deps import (
     AnnotatorSessionsDep,
@@ -73,7 +74,7 @@ def seat_of(seats: SeatTokens, db: Session, token: str) -> tuple[Seat, Trial]:
 def home(request: Request, login: CurrentLogin, annotators: AnnotatorSessionsDep) -> Response:
     if login is not None:
         return RedirectResponse("/experimenter", status_code=303)
-    if annotators.verify(request.cookies.get(ANNOTATOR_COOKIE)) is not None:
+    if annotators.verify(read_cookie(request, ANNOTATOR_COOKIE)) is not None:
         return RedirectResponse("/annotate", status_code=303)
     return render(request, "home.html", error=None, join_error=None)
 
@@ -113,24 +114,20 @@ async def login(
     is_annotator = account is not None and account.role == annotators.role
     sessions, cookie = (annotators, ANNOTATOR_COOKIE) if is_annotator else (sessions, SESSION_COOKIE)
     redirect = RedirectResponse("/annotate" if is_annotator else "/experimenter", status_code=303)
-    redirect.set_cookie(
-        cookie,
-        sessions.issue(user_id),
-        max_age=SESSION_MAX_AGE_S,
-        httponly=True,
-        samesite="strict",
-        secure=request.url.scheme == "https",
-    )
+    set_cookie(redirect, request, cookie, sessions.issue(user_id), samesite="strict", max_age=SESSION_MAX_AGE_S)
     return redirect
 
 
 @router.post("/logout", dependencies=[Depends(csrf_protect)])
-def logout(login: CurrentLogin, sessions: SessionsDep, login_sockets: LoginSocketsDep) -> RedirectResponse:
+def logout(
+    request: Request, login: CurrentLogin, sessions: SessionsDep, login_sockets: LoginSocketsDep
+) -> RedirectResponse:
     if login is not None:
         sessions.end(login)
         login_sockets.end(login)
     response = RedirectResponse("/", status_code=303)
-    response.delete_cookie(SESSION_COOKIE)
+    delete_cookie(response, request, SESSION_COOKIE)
+    clear_site_data(response)
     return response
 
 
@@ -148,12 +145,9 @@ def leaderboard(
     penalty = settings.move_penalty_s
     if study:
         try:
-            own = files.load(study).move_penalty_s
-        except LookupError:
-            own = None
+            penalty = files.move_penalty_s(study, penalty)
         except StudyConfigError as err:
             raise HTTPException(500, f"study {study!r}: {err}") from None
-        penalty = own if own is not None else penalty
     teams = standings(db, penalty, study or None)
     agents = agent_standings(db, penalty, study or None)
     pairs = pair_standings(db, penalty, study or None)
@@ -171,7 +165,9 @@ def leaderboard(
 
 
 @router.get("/play/{token}", response_class=HTMLResponse)
-def play(request: Request, token: str, seats: SeatTokensDep, db: DbSession, mazes: MazesDep) -> HTMLResponse:
+def play(
+    request: Request, token: str, seats: SeatTokensDep, db: DbSession, mazes: MazesDep, settings: SettingsDep
+) -> HTMLResponse:
     try:
         seat, trial = seat_of(seats, db, token)
     except ClosedLink as closed:
@@ -180,9 +176,15 @@ def play(request: Request, token: str, seats: SeatTokensDep, db: DbSession, maze
         return response
     after_url = after_trial_url(trial)
     if seat.role == "commander":  # where the landmarks are: the Commander's to know, never the Driver's
-        landmarks = mazes.landmarks(trial.maze)
-        return render(request, "commander.html", token=token, trial=trial, landmarks=landmarks, after_url=after_url)
-    return render(request, f"{seat.role}.html", token=token, trial=trial, after_url=after_url)
+        landmarks, walls = mazes.landmarks(trial.maze), mazes.map_walls(trial.maze)
+        return render(
+            request, "commander.html", token=token, trial=trial, landmarks=landmarks, walls=walls, after_url=after_url
+        )
+    # The Driver's page sends a press no sooner than the server takes a move (`min_move_interval_s`).
+    interval = settings.min_move_interval_s
+    return render(
+        request, f"{seat.role}.html", token=token, trial=trial, after_url=after_url, min_move_interval_s=interval
+    )
 
 
 @router.get("/play/{token}/map.png")

@@ -20,6 +20,7 @@ from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from pydantic import ValidationError
 from sqlalchemy import select
 
+from app.cookies import read_cookie
 from app.db.models import Trial
 from app.deps import DbFactory, HubDep, LoginSocketsDep, SeatTokensDep, SessionsDep, SettingsDep
 from app.guard import socket_origin_allowed
@@ -163,7 +164,7 @@ async def watch(
     if not socket_origin_allowed(ws.headers, ws.url.scheme, settings):
         await ws.close(code=1008, reason="origin not allowed")
         return
-    cookie = ws.cookies.get(SESSION_COOKIE)
+    cookie = read_cookie(ws, SESSION_COOKIE)
     login = sessions.verify(cookie)
     if login is None:
         await ws.close(code=1008, reason="log in as an experimenter first")

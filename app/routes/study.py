@@ -4,6 +4,8 @@ questionnaires, completion code, withdrawal), carried by a signed cookie (`app.s
 
 from __future__ import annotations
 
+import json
+import math
 from datetime import UTC, datetime
 from typing import Annotated
 from urllib.parse import quote
@@ -13,6 +15,9 @@ from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from fastapi.templating import Jinja2Templates
 
+from app.client_limits import Limited
+from app.cookies import clear_site_data, delete_cookie, read_cookie, set_cookie
+from app.db.engine import truncate_wal
 from app.deps import (
     ClockDep,
     DbSession,
@@ -20,17 +25,35 @@ from app.deps import (
     MazesDep,
     SeatTokensDep,
     SettingsDep,
+    SignupsDep,
     StudyFilesDep,
     TemplatesDep,
+    WebhooksDep,
     experimenter_id,
 )
 from app.guard import csrf_protect
 from app.security import InvalidToken
-from app.study.config import StudyConfig, StudyConfigError, StudyFiles, check_mazes, parse, template
-from app.study.enrolment import AfterTrial, Enrolment, EnrolmentError
-from app.study.lobby import PRACTICE_REASON, AllPlayed, Lobby, LobbyError, Seated, TimedOut, Waiting
-from app.study.passes import PASS_COOKIE, ParticipantPasses
+from app.study.answers import asked, items, study_answers
+from app.study.config import StudyConfig, StudyConfigError, StudyFiles, StudyOutcome, check_mazes, parse, template
+from app.study.enrolment import AfterTrial, Enrolment, EnrolmentError, StudyFull
+from app.study.lobby import (
+    PRACTICE_REASON,
+    AllPlayed,
+    Ended,
+    Lobby,
+    LobbyError,
+    Seated,
+    TimedOut,
+    TimeUp,
+    Waiting,
+    seat_of,
+)
+from app.study.own_data import own_data
+from app.study.passes import PANEL_COOKIE, PASS_COOKIE, ParticipantPasses
+from app.study.roster import roster, roster_csv
+from app.study.signups import SignupLimits, Step
 from app.trial.hub import TrialHub
+from app.trial.lifecycle import live_trial_of
 
 router = APIRouter(dependencies=[Depends(csrf_protect)])
 experimenter_router = APIRouter(
@@ -63,7 +86,7 @@ class Participation:
         self.config = study_or_404(files, name)
         self.enrolment = Enrolment(db, clock, self.config)
         self.db = db
-        cookie = request.cookies.get(PASS_COOKIE)
+        cookie = read_cookie(request, PASS_COOKIE)
         try:
             study_pass = passes.verify(cookie or "")
             if study_pass.study != name:
@@ -85,21 +108,22 @@ def _page(templates: TemplatesDep, request: Request, name: str, status: int = 20
 
 
 # -- the participant ------------------------------------------------------------------------
+def _busy(templates: TemplatesDep, request: Request, config: StudyConfig, limited: Limited) -> HTMLResponse:
+    """The page for a sign-up over the study's rate: when to come back."""
+    seconds = limited.retry_after_s
+    count, unit = (seconds, "second") if seconds < 60 else (math.ceil(seconds / 60), "minute")
+    wait = f"{count} {unit}{'s' * (count > 1)}"
+    response = _page(templates, request, "busy", status=429, study=config, wait=wait)
+    response.headers["Retry-After"] = str(limited.retry_after_s)
+    return response
+
+
+def _address(request: Request) -> str:
+    return request.client.host if request.client else ""
+
+
 @router.get("/study/{name}", response_class=HTMLResponse)
 def information(
-    name: str, request: Request, files: StudyFilesDep, passes: PassesDep, templates: TemplatesDep
-) -> Response:
-    config = study_or_404(files, name)
-    try:
-        if passes.verify(request.cookies.get(PASS_COOKIE) or "").study == name:
-            return RedirectResponse(f"/study/{name}/me", status_code=303)
-    except InvalidToken:
-        pass
-    return _page(templates, request, "consent", study=config)
-
-
-@router.post("/study/{name}/consent")
-def consent(
     name: str,
     request: Request,
     files: StudyFilesDep,
@@ -107,25 +131,72 @@ def consent(
     db: DbSession,
     clock: ClockDep,
     templates: TemplatesDep,
+) -> Response:
+    config = study_or_404(files, name)
+    enrolment = Enrolment(db, clock, config)
+    try:
+        study_pass = passes.verify(read_cookie(request, PASS_COOKIE) or "")
+        enrolled = enrolment.get(study_pass.enrolment_id) if study_pass.study == name else None
+    except (InvalidToken, LookupError):
+        enrolled = None
+    if config.panel is not None and config.panel.carried_by(request.query_params):
+        # A panel's link: its identifiers are kept (with the participant, or until they consent)
+        # and the address bar is cleaned of them at once.
+        response = RedirectResponse(f"/study/{name}", status_code=303)
+        ids = config.panel.read(request.query_params)
+        if ids is not None and enrolled is not None:
+            enrolment.set_panel(enrolled, ids)
+            db.commit()
+        elif ids is not None:
+            set_cookie(response, request, PANEL_COOKIE, passes.issue_panel(name, ids), path="/study")
+        return response
+    if enrolled is not None:
+        return RedirectResponse(f"/study/{name}/me", status_code=303)
+    if enrolment.full():
+        return _page(templates, request, "full", study=config)
+    if config.closed(datetime.now(UTC)):
+        return _page(templates, request, "closed", status=410, study=config)
+    return _page(templates, request, "consent", study=config)
+
+
+@router.post("/study/{name}/consent", response_class=HTMLResponse)
+def consent(
+    name: str,
+    request: Request,
+    files: StudyFilesDep,
+    passes: PassesDep,
+    db: DbSession,
+    clock: ClockDep,
+    signups: SignupsDep,
+    templates: TemplatesDep,
     choice: str = Form(pattern="^(agree|decline)$"),
     consent_version: str = Form(max_length=40),
 ) -> Response:
     config = study_or_404(files, name)
+    if config.closed(datetime.now(UTC)):
+        return _page(templates, request, "closed", status=410, study=config)
     if consent_version != config.consent.version:
         error = "the information changed while the page was open: please read it again"
         return _page(templates, request, "consent", status=409, study=config, error=error)
+    try:
+        signups.take(Step.consent, name, _address(request))
+    except Limited as limited:
+        return _busy(templates, request, config, limited)
     enrolment = Enrolment(db, clock, config)
-    with db.begin():
-        if choice == "decline":
-            enrolment.decline()
-        else:
-            enrolled = enrolment.consent()
+    try:
+        with db.begin():
+            if choice == "decline":
+                enrolment.decline()
+            else:
+                enrolled = enrolment.consent(passes.panel_of(read_cookie(request, PANEL_COOKIE) or "", name))
+    except StudyFull:
+        return _page(templates, request, "full", status=409, study=config)
     if choice == "decline":
-        return _page(templates, request, "declined", study=config)
-    response = RedirectResponse(f"/study/{name}/code", status_code=303)
-    response.set_cookie(
-        PASS_COOKIE, passes.issue(name, enrolled.enrolment_id), httponly=True, samesite="lax", path="/study"
-    )
+        response: Response = _page(templates, request, "declined", study=config)
+    else:
+        response = RedirectResponse(f"/study/{name}/code", status_code=303)
+        set_cookie(response, request, PASS_COOKIE, passes.issue(name, enrolled.enrolment_id), path="/study")
+    delete_cookie(response, request, PANEL_COOKIE, path="/study")  # stored with the participant, or declined: not kept
     return response
 
 
@@ -171,6 +242,17 @@ def my_study(me: ParticipationDep, request: Request, templates: TemplatesDep, er
     )
 
 
+@router.get("/study/{name}/me/data.json")
+def my_data(me: ParticipationDep) -> Response:
+    """Everything recorded about the participant, as a JSON download (`app.study.own_data`)."""
+    data = own_data(me.enrolment, me.enrolled, me.code)
+    return Response(
+        json.dumps(data, indent=1),
+        media_type="application/json",
+        headers={"Content-Disposition": f'attachment; filename="{me.config.name}-{me.code}.json"'},
+    )
+
+
 @router.get("/study/{name}/lobby", response_class=HTMLResponse)
 def lobby_page(me: ParticipationDep, request: Request, templates: TemplatesDep) -> HTMLResponse:
     return _page(templates, request, "lobby", study=me.config, code=me.code)
@@ -181,25 +263,78 @@ async def _open(hub: TrialHub, trial_id: int) -> None:
     await hub.get(trial_id)
 
 
+def _enter_lobby(signups: SignupLimits, study: str, address: str) -> None:
+    try:
+        signups.take(Step.lobby, study, address)
+    except Limited as limited:
+        raise HTTPException(
+            429,
+            f"more people are joining the lobby than it takes at once; trying again in {limited.retry_after_s} s",
+            headers={"Retry-After": str(limited.retry_after_s)},
+        ) from None
+
+
 @router.post("/study/{name}/lobby")
 def lobby_poll(
-    me: ParticipationDep, clock: ClockDep, seats: SeatTokensDep, mazes: MazesDep, hub: HubDep
+    me: ParticipationDep,
+    request: Request,
+    clock: ClockDep,
+    seats: SeatTokensDep,
+    mazes: MazesDep,
+    hub: HubDep,
+    signups: SignupsDep,
+    webhooks: WebhooksDep,
 ) -> dict[str, object]:
-    """The lobby page's poll (about once a second): the seat's link once paired, else the count waiting."""
+    """The lobby page's poll (about once a second): the seat's link once paired, else the count
+    waiting. Entering the lobby (a poll while neither waiting nor in a live trial) counts against
+    the lobby's rates; over one, 429 and the page asks again."""
     lobby = Lobby(me.db, me.config, mazes.layouts(), clock.now_ns())
     with me.db.begin():
+        if me.enrolled.lobby_since is None and live_trial_of(me.db, (me.enrolled.participant_id,)) is None:
+            _enter_lobby(signups, me.config.name, _address(request))
         state = lobby.poll(me.enrolled, datetime.now(UTC))
+        match state:  # the ends of a way that the lobby finds, recorded before anyone is told
+            case TimedOut():
+                outcome = me.enrolment.end(me.enrolled, StudyOutcome.no_partner, lobby.finished(me.enrolled))
+            case TimeUp():
+                outcome = me.enrolment.end(me.enrolled, StudyOutcome.timed_out, lobby.finished(me.enrolled))
+            case Ended():
+                outcome = me.enrolment.outcome(me.enrolled) or StudyOutcome.completed
+    done = f"/study/{me.config.name}/done"
     match state:
         case Seated(trial_id, role, paired_now):
             if paired_now:
                 from_thread.run(_open, hub, trial_id)
+                webhooks.paired(trial_id)
             return {"state": "seated", "role": role, "link": f"/play/{seats.issue(trial_id, role)}"}
         case Waiting(waiting):
             return {"state": "waiting", "waiting": waiting}
         case TimedOut(waited_s):
-            return {"state": "timed_out", "waited_s": round(waited_s)}
+            return {"state": "timed_out", "waited_s": round(waited_s), "outcome": outcome, "next": done}
         case AllPlayed(trials, teams):
             return {"state": "all_played", "trials": trials, "teams": teams}
+        case TimeUp() | Ended():
+            return {"state": "ended", "outcome": outcome, "next": done}
+
+
+@router.post("/study/{name}/lobby/leave")
+def lobby_leave(me: ParticipationDep, clock: ClockDep, mazes: MazesDep) -> RedirectResponse:
+    """The lobby page's "Leave the lobby", and its beacon as the page closes: out of the lobby at
+    once, so the next arrival is not paired with someone who has gone."""
+    with me.db.begin():
+        Lobby(me.db, me.config, mazes.layouts(), clock.now_ns()).leave(me.enrolled)
+    return RedirectResponse(f"/study/{me.config.name}/me", status_code=303)
+
+
+@router.get("/study/{name}/seat")
+def my_seat(me: ParticipationDep, seats: SeatTokensDep) -> dict[str, object]:
+    """The participant's live trial's seat, or none: the seat page of a trial that is over asks, and
+    follows the experimenter's restart of it to the new trial's seat."""
+    live = live_trial_of(me.db, (me.enrolled.participant_id,))
+    if live is None:
+        return {"trial_id": None, "link": None}
+    role = seat_of(live, me.enrolled.participant_id).role
+    return {"trial_id": live.id, "role": role, "link": f"/play/{seats.issue(live.id, role)}"}
 
 
 @router.get("/study/{name}/trials/{trial_id}/next")
@@ -220,6 +355,11 @@ def after_trial(me: ParticipationDep, trial_id: int) -> RedirectResponse:
 
 @router.get("/study/{name}/trials/{trial_id}/questionnaire", response_class=HTMLResponse)
 def questionnaire(me: ParticipationDep, trial_id: int, request: Request, templates: TemplatesDep) -> HTMLResponse:
+    """Served only where an answer would be taken: a trial of theirs, played and over, not rated yet."""
+    try:
+        me.enrolment.questionnaire_due(me.enrolled, trial_id)
+    except EnrolmentError as err:
+        raise HTTPException(404, str(err)) from err
     return _page(templates, request, "questionnaire", study=me.config, code=me.code, trial_id=trial_id, form={})
 
 
@@ -245,18 +385,92 @@ async def answer(me: ParticipationDep, trial_id: int, request: Request, template
 
 
 @router.post("/study/{name}/complete", response_class=HTMLResponse)
-def complete(me: ParticipationDep, request: Request, templates: TemplatesDep) -> HTMLResponse:
+def complete(
+    me: ParticipationDep,
+    request: Request,
+    templates: TemplatesDep,
+    clock: ClockDep,
+    mazes: MazesDep,
+    confirm: str = Form("", max_length=10),
+) -> Response:
+    """ "I have finished": the plan played ends the way at once; anything short of it is said
+    first and ends only once confirmed (a partial completion, or the outcome it is); with nothing
+    played there is nothing to finish. The code is shown only once the end is committed."""
+    lobby = Lobby(me.db, me.config, mazes.layouts(), clock.now_ns())
     with me.db.begin():
-        me.enrolment.complete(me.enrolled)
-    return _page(templates, request, "done", study=me.config, code=me.code)
+        outcome = me.enrolment.outcome(me.enrolled) or lobby.finishing(me.enrolled, datetime.now(UTC))
+        finished = lobby.finished(me.enrolled)
+        if outcome is None or (
+            me.enrolled.completed_at is None and outcome is not StudyOutcome.completed and confirm != "yes"
+        ):
+            return _page(
+                templates,
+                request,
+                "finish",
+                study=me.config,
+                code=me.code,
+                outcome=outcome,
+                finished=finished,
+                live=live_trial_of(me.db, (me.enrolled.participant_id,)) is not None,
+            )
+        me.enrolment.end(me.enrolled, outcome, finished)
+    return RedirectResponse(f"/study/{me.config.name}/done", status_code=303)
+
+
+ONWARD_AFTER_S = 10  # the end page's countdown (which they may stop) before it sends the participant on
+
+
+def onward(config: StudyConfig, completion: str | None) -> str | None:
+    """Where the end page sends the participant: the panel's completion address with their code,
+    else the study's `redirect_url`."""
+    if config.panel is not None and completion is not None:
+        address = config.panel.completion(completion)
+        if address is not None:
+            return address
+    return None if config.redirect_url is None else str(config.redirect_url)
+
+
+@router.get("/study/{name}/done", response_class=HTMLResponse)
+def done_page(me: ParticipationDep, request: Request, templates: TemplatesDep) -> Response:
+    """The end of a participant's way: how it ended, and that outcome's code (recorded already)."""
+    outcome = me.enrolment.outcome(me.enrolled)
+    if outcome is None:
+        return RedirectResponse(f"/study/{me.config.name}/me", status_code=303)
+    completion = me.config.code_for(outcome)
+    return _page(
+        templates,
+        request,
+        "done",
+        study=me.config,
+        code=me.code,
+        outcome=outcome,
+        completion=completion,
+        onward=onward(me.config, completion),
+        onward_after_s=ONWARD_AFTER_S,
+    )
 
 
 @router.post("/study/{name}/withdraw", response_class=HTMLResponse)
-def withdraw(me: ParticipationDep, request: Request, templates: TemplatesDep) -> HTMLResponse:
+def withdraw(me: ParticipationDep, request: Request, templates: TemplatesDep, webhooks: WebhooksDep) -> HTMLResponse:
     with me.db.begin():
+        ended = me.enrolment.outcome(me.enrolled)
         me.enrolment.withdraw(me.enrolled)
-    response = _page(templates, request, "withdrawn", study=me.config)
-    response.delete_cookie(PASS_COOKIE, path="/study")
+    truncate_wal(me.db.get_bind().engine)  # no copy of the erased text stays in SQLite's WAL file
+    webhooks.withdrawal(me.config.name, me.code)
+    # The withdrawal's code, for one whose way had not ended otherwise (that code they were given then).
+    completion = me.config.code_for(StudyOutcome.withdrew) if ended is None else None
+    response = _page(
+        templates,
+        request,
+        "withdrawn",
+        study=me.config,
+        code=me.code,
+        completion=completion,
+        onward=onward(me.config, completion) if completion is not None else None,
+        onward_after_s=ONWARD_AFTER_S,
+    )
+    delete_cookie(response, request, PASS_COOKIE, path="/study")
+    clear_site_data(response)  # the browser keeps nothing of them: cookies, storage, cache
     return response
 
 
@@ -286,11 +500,15 @@ def create_study(files: StudyFilesDep, name: str = Form(max_length=80)) -> Redir
 def _editor(
     templates: Jinja2Templates,
     request: Request,
+    files: StudyFiles,
     enrolment: Enrolment,
     text: str,
     status: int = 200,
     **context: object,
 ) -> HTMLResponse:
+    name = enrolment.config.name
+    answers = study_answers(enrolment.db, name)
+    participants = enrolment.participants()
     return _page(
         templates,
         request,
@@ -298,7 +516,10 @@ def _editor(
         status=status,
         study=enrolment.config,
         text=text,
-        participants=enrolment.participants(),
+        participants=participants,
+        outcomes={e.id: enrolment.outcome(e) for e, _, _ in participants},
+        answers=answers,
+        questions=items(asked(files, name, answers)),
         **context,
     )
 
@@ -313,12 +534,15 @@ def edit_page(
     templates: TemplatesDep,
     saved: int | None = None,
     paired: int | None = None,
+    screened: str | None = None,
     error: str | None = None,
 ) -> HTMLResponse:
     config = study_or_404(files, name)
     enrolment = Enrolment(db, clock, config)
     text = config.model_dump_json(indent=2)
-    return _editor(templates, request, enrolment, text, saved=saved, paired=paired, error=error)
+    return _editor(
+        templates, request, files, enrolment, text, saved=saved, paired=paired, screened=screened, error=error
+    )
 
 
 @experimenter_router.post("/{name}")
@@ -341,9 +565,20 @@ def save_study(
         check_mazes(config, bundled, set(mazes.names()))
     except StudyConfigError as err:
         enrolment = Enrolment(db, clock, current)
-        return _editor(templates, request, enrolment, config_json, status=400, error=str(err))
+        return _editor(templates, request, files, enrolment, config_json, status=400, error=str(err))
     saved = files.save(config)
     return RedirectResponse(f"/experimenter/studies/{name}?saved={saved.version}", status_code=303)
+
+
+@experimenter_router.get("/{name}/participants.csv")
+def participants_csv(name: str, files: StudyFilesDep, db: DbSession, clock: ClockDep) -> Response:
+    """The study's roster for paying its participants (`app.study.roster`)."""
+    enrolment = Enrolment(db, clock, study_or_404(files, name))
+    return Response(
+        roster_csv(roster(enrolment, datetime.now(UTC))),
+        media_type="text/csv",
+        headers={"Content-Disposition": f'attachment; filename="{name}-participants.csv"'},
+    )
 
 
 @experimenter_router.get("/{name}/lobby")
@@ -351,6 +586,27 @@ def lobby_view(name: str, files: StudyFilesDep, db: DbSession, clock: ClockDep, 
     """Who waits in the study's lobby now, for the study page's live view (polled)."""
     config = study_or_404(files, name)
     return {"waiting": Lobby(db, config, mazes.layouts(), clock.now_ns()).view(datetime.now(UTC))}
+
+
+@experimenter_router.post("/{name}/screen-out")
+def screen_out(
+    name: str, files: StudyFilesDep, db: DbSession, clock: ClockDep, mazes: MazesDep, code: str = Form(max_length=80)
+) -> RedirectResponse:
+    """The experimenter screens a participant out: their way ends with that outcome (and its code,
+    which their pages show from then on); a live trial of theirs is the experimenter's to stop."""
+    config = study_or_404(files, name)
+    enrolment = Enrolment(db, clock, config)
+    lobby = Lobby(db, config, mazes.layouts(), clock.now_ns())
+    try:
+        with db.begin():
+            enrolled = enrolment.by_code(code)
+            before = enrolment.outcome(enrolled)
+            if before is not None:
+                raise EnrolmentError(f"{code.strip()}'s way had already ended: {before}")
+            enrolment.end(enrolled, StudyOutcome.screened_out, lobby.finished(enrolled))
+    except (LookupError, EnrolmentError) as err:
+        return RedirectResponse(f"/experimenter/studies/{name}?error={quote(str(err))}", status_code=303)
+    return RedirectResponse(f"/experimenter/studies/{name}?screened={quote(code.strip())}", status_code=303)
 
 
 @experimenter_router.post("/{name}/pair")
@@ -361,6 +617,7 @@ def pair_by_hand(
     clock: ClockDep,
     mazes: MazesDep,
     hub: HubDep,
+    webhooks: WebhooksDep,
     a: str = Form(max_length=80),
     b: str = Form(max_length=80),
 ) -> RedirectResponse:
@@ -376,4 +633,5 @@ def pair_by_hand(
     except (LookupError, LobbyError) as err:
         return RedirectResponse(f"/experimenter/studies/{name}?error={quote(str(err))}", status_code=303)
     from_thread.run(_open, hub, trial_id)
+    webhooks.paired(trial_id)
     return RedirectResponse(f"/experimenter/studies/{name}?paired={trial_id}", status_code=303)

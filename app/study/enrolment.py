@@ -8,13 +8,13 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from enum import StrEnum
 
-from sqlalchemy import or_, select
+from sqlalchemy import func, or_, select
 from sqlalchemy.orm import Session
 
 from app.clock import ServerClock
 from app.db.models import Participant, StudyAnswer, StudyEvent, StudyParticipant, Trial
-from app.study.config import RATING_SCALE, QuestionKind, StudyConfig
-from app.study.lobby import PRACTICE_REASON
+from app.study.config import RATING_SCALE, PanelIds, QuestionKind, StudyConfig, StudyOutcome
+from app.study.lobby import PRACTICE_REASON, end_wait
 from app.trial.setup import never_joined
 
 CODE_ALPHABET = "ABCDEFGHJKLMNPQRSTUVWXYZ23456789"  # no 0/O, 1/I: read aloud and typed back
@@ -26,8 +26,9 @@ class StudyEventKind(StrEnum):
     consented = "consented"
     declined = "declined"
     answered = "answered"
-    completed = "completed"
+    completed = "completed"  # the participant's way ended: `outcome` (a `StudyOutcome`), `trials` played
     withdrawn = "withdrawn"
+    purged = "purged"  # the study's personal data deleted (`app.study.purge`): `participants` who had some
 
 
 class AfterTrial(StrEnum):
@@ -40,6 +41,10 @@ class AfterTrial(StrEnum):
 
 class EnrolmentError(ValueError):
     """A participant's request that cannot be taken; nothing was recorded."""
+
+
+class StudyFull(EnrolmentError):
+    """The study has taken its `max_participants`."""
 
 
 @dataclass(frozen=True)
@@ -74,8 +79,21 @@ class Enrolment:
             )
         )
 
-    def consent(self) -> Enrolled:
-        """A new participant who agreed to the consent text now shown: a code, no name yet."""
+    def full(self) -> bool:
+        """Whether the study has taken its `max_participants` (withdrawn ones count: they took part)."""
+        cap = self.config.max_participants
+        if cap is None:
+            return False
+        taken = self.db.scalar(
+            select(func.count()).select_from(StudyParticipant).where(StudyParticipant.study == self.config.name)
+        )
+        return (taken or 0) >= cap
+
+    def consent(self, panel: PanelIds | None = None) -> Enrolled:
+        """A new participant who agreed to the consent text now shown: a code, no name yet (and the
+        panel's identifiers where a panel's link brought them)."""
+        if self.full():
+            raise StudyFull(f"study {self.config.name!r} has taken all its {self.config.max_participants} participants")
         participant = Participant(name=new_code(self.db))
         self.db.add(participant)
         self.db.flush()
@@ -83,9 +101,17 @@ class Enrolment:
             study=self.config.name, participant_id=participant.id, consent_version=self.config.consent.version
         )
         self.db.add(enrolled)
+        if panel is not None:
+            self.set_panel(enrolled, panel)
         self.db.flush()
         self._log(StudyEventKind.consented, participant.id, consent_version=self.config.consent.version)
         return Enrolled(enrolled.id, participant.name)
+
+    def set_panel(self, enrolled: StudyParticipant, panel: PanelIds) -> None:
+        """The panel's identifiers for this participant; one already stored is kept (a link opened again)."""
+        enrolled.panel_participant = enrolled.panel_participant or panel.participant
+        enrolled.panel_study = enrolled.panel_study or panel.study
+        enrolled.panel_session = enrolled.panel_session or panel.session
 
     def decline(self) -> None:
         self._log(StudyEventKind.declined, None, consent_version=self.config.consent.version)
@@ -150,8 +176,9 @@ class Enrolment:
     def answered(self, enrolled: StudyParticipant) -> set[int]:
         return set(self.db.scalars(select(StudyAnswer.trial_id).where(StudyAnswer.study_participant_id == enrolled.id)))
 
-    def answer(self, enrolled: StudyParticipant, trial_id: int, form: dict[str, str]) -> None:
-        """The questionnaire after `trial_id`: every rating item answered 1-5, free text optional."""
+    def questionnaire_due(self, enrolled: StudyParticipant, trial_id: int) -> None:
+        """Whether the questionnaire after `trial_id` may be shown and answered: a trial of the
+        participant's, played and over, not the practice, not answered yet; else `EnrolmentError`."""
         self._active(enrolled)
         trial = self._own(enrolled, trial_id)
         if trial.excluded_reason == PRACTICE_REASON:
@@ -162,6 +189,10 @@ class Enrolment:
             raise EnrolmentError("this trial never started (a seat was never opened): it has no questionnaire")
         if trial_id in self.answered(enrolled):
             raise EnrolmentError("you have already answered the questionnaire for this trial")
+
+    def answer(self, enrolled: StudyParticipant, trial_id: int, form: dict[str, str]) -> None:
+        """The questionnaire after `trial_id`: every rating item answered 1-5, free text optional."""
+        self.questionnaire_due(enrolled, trial_id)
         ratings: dict[str, int] = {}
         free_text: dict[str, str] = {}
         for q in self.config.questionnaire:
@@ -184,11 +215,34 @@ class Enrolment:
         # The log keeps the ratings (pseudonymous) and never the free text (erasable personal data).
         self._log(StudyEventKind.answered, enrolled.participant_id, trial_id=trial_id, ratings=ratings)
 
-    def complete(self, enrolled: StudyParticipant) -> None:
-        if enrolled.completed_at is None:
-            self._active(enrolled)
-            enrolled.completed_at = datetime.now(UTC)
-            self._log(StudyEventKind.completed, enrolled.participant_id)
+    def outcome(self, enrolled: StudyParticipant) -> StudyOutcome | None:
+        """How the participant's way ended, where it has: the end recorded first (a withdrawal
+        after it keeps it), else `withdrew` for a withdrawal."""
+        ended = self.db.scalars(
+            select(StudyEvent.payload)
+            .where(
+                StudyEvent.study == self.config.name,
+                StudyEvent.participant_id == enrolled.participant_id,
+                StudyEvent.kind == StudyEventKind.completed,
+            )
+            .order_by(StudyEvent.id)
+        ).first()
+        if ended is not None:
+            return StudyOutcome(ended.get("outcome", StudyOutcome.completed))  # older logs: the plan
+        return StudyOutcome.withdrew if enrolled.withdrawn_at is not None else None
+
+    def end(self, enrolled: StudyParticipant, outcome: StudyOutcome, trials: int) -> StudyOutcome:
+        """Record the end of the participant's way (`trials`: study trials played); once: a second
+        end keeps the first. The code is theirs once the caller has committed this."""
+        ended = self.outcome(enrolled)
+        if ended is not None:
+            return ended
+        self._active(enrolled)
+        enrolled.completed_at = datetime.now(UTC)
+        end_wait(enrolled, enrolled.completed_at)
+        enrolled.lobby_seen = None
+        self._log(StudyEventKind.completed, enrolled.participant_id, outcome=str(outcome), trials=trials)
+        return outcome
 
     def withdraw(self, enrolled: StudyParticipant) -> None:
         """Erase the participant's personal data (real name, free text); keep pseudonymous events."""

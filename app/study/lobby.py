@@ -3,7 +3,8 @@ poller by the team plan (`app.study.pairing`: a new partner before an old one, t
 longest and is still there; roles balanced; newcomers with newcomers, for a practice trial on the
 study's bundled practice maze, set aside from scores), on a maze of a layout neither has seen (the
 trial form's `suggest_maze`, on the study's pool). A page that stops asking (a closed tab) is not paired; a waiter past the study's time-out is
-told so. One participant is in one live trial at a time, so two browsers of one participant are
+told so; one who leaves (the button, or the page closing: it says so at once) is not paired from
+then on. One participant is in one live trial at a time, so two browsers of one participant are
 sent to the same seat, never two."""
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from sqlalchemy import or_, select
 from sqlalchemy.orm import Session
 
 from app.db.models import Participant, StudyParticipant, Team, Trial
-from app.study.config import StudyConfig
+from app.study.config import StudyConfig, StudyOutcome
 from app.study.pairing import History, Pair, next_pair, plan_done
 from app.trial.lifecycle import live_trial_of
 from app.trial.setup import (
@@ -27,9 +28,10 @@ from app.trial.setup import (
     layouts_seen_by,
     never_joined,
     parse_targets,
+    restart_trial,
     suggest_maze,
 )
-from app.trial.vocabulary import Role
+from app.trial.vocabulary import Phase, Role
 
 
 class LobbyError(ValueError):
@@ -59,12 +61,46 @@ class AllPlayed:
     teams: int  # teams they were in
 
 
-LobbyState = Seated | Waiting | TimedOut | AllPlayed
+@dataclass(frozen=True)
+class Ended:
+    """Their way through the study has ended (`Enrolment.outcome` says how): never paired again."""
+
+
+@dataclass(frozen=True)
+class TimeUp:
+    """The study's `time_limit_s` since they consented has passed: their way ends here."""
+
+
+LobbyState = Seated | Waiting | TimedOut | AllPlayed | Ended | TimeUp
 PRACTICE_REASON = "study practice: not scored"
 
 
-def _aware(t: datetime) -> datetime:
+def aware(t: datetime) -> datetime:
     return t if t.tzinfo else t.replace(tzinfo=UTC)  # SQLite gives stamps back without their zone
+
+
+def end_wait(enrolled: StudyParticipant, until: datetime) -> None:
+    """Their wait in the lobby ends at `until`: its time is added to what they have waited, each
+    moment once (a wait that restarts from an earlier pairing is not counted twice)."""
+    if enrolled.lobby_since is not None:
+        start = aware(enrolled.lobby_since)
+        if enrolled.lobby_waited_to is not None:
+            start = max(start, aware(enrolled.lobby_waited_to))
+        if until > start:
+            enrolled.lobby_waited_s = (enrolled.lobby_waited_s or 0.0) + (until - start).total_seconds()
+            enrolled.lobby_waited_to = until
+    enrolled.lobby_since = None
+
+
+def waited_s(enrolled: StudyParticipant) -> float:
+    """Seconds they have waited in the lobby, a wait still going counted to their page's last ask."""
+    waited = enrolled.lobby_waited_s or 0.0
+    if enrolled.lobby_since is not None and enrolled.lobby_seen is not None:
+        start = aware(enrolled.lobby_since)
+        if enrolled.lobby_waited_to is not None:
+            start = max(start, aware(enrolled.lobby_waited_to))
+        waited += max(0.0, (aware(enrolled.lobby_seen) - start).total_seconds())
+    return waited
 
 
 def seat_of(trial: Trial, participant_id: int) -> Seated:
@@ -89,21 +125,27 @@ class Lobby:
         """This participant's lobby page asks: their seat, or how many wait (after pairing them if it can)."""
         live = live_trial_of(self.db, (enrolled.participant_id,))
         if live is not None:
-            enrolled.lobby_since = None
+            end_wait(enrolled, now)
             return seat_of(live, enrolled.participant_id)
+        if enrolled.completed_at is not None:
+            return Ended()
         done = self.done(enrolled)
         if done is not None:
-            enrolled.lobby_since = None
+            end_wait(enrolled, now)
             return done
-        left = enrolled.lobby_seen is not None and (now - _aware(enrolled.lobby_seen)).total_seconds() > (
+        if self.time_up(enrolled, now):
+            return TimeUp()
+        left = enrolled.lobby_seen is not None and (now - aware(enrolled.lobby_seen)).total_seconds() > (
             self.config.lobby_presence_s
         )
         if enrolled.lobby_since is None or left:  # one whose page stopped asking waits anew on coming back
+            if left and enrolled.lobby_seen is not None:
+                end_wait(enrolled, aware(enrolled.lobby_seen))  # the wait they left: counted to their last ask
             enrolled.lobby_since = self._stood_up(enrolled) or now
         enrolled.lobby_seen = now
-        waited = (now - _aware(enrolled.lobby_since)).total_seconds()
+        waited = (now - aware(enrolled.lobby_since)).total_seconds()
         if waited > self.config.lobby_timeout_s:
-            enrolled.lobby_since = None
+            end_wait(enrolled, now)
             return TimedOut(waited)
         others = self.waiting(now, but=enrolled.id)
         practice = self.needs_practice(enrolled)
@@ -112,9 +154,36 @@ class Lobby:
         if trial is not None:
             for seated in (enrolled, *alike):
                 if trial.commander_id == seated.participant_id or trial.driver_id == seated.participant_id:
-                    seated.lobby_since = None
+                    end_wait(seated, now)
             return Seated(trial.id, seat_of(trial, enrolled.participant_id).role, paired_now=True)
         return Waiting(len(others) + 1)
+
+    def time_up(self, enrolled: StudyParticipant, now: datetime) -> bool:
+        limit = self.config.time_limit_s
+        return limit is not None and (now - aware(enrolled.created_at)).total_seconds() > limit
+
+    def finishing(self, enrolled: StudyParticipant, now: datetime) -> StudyOutcome | None:
+        """What "I have finished" ends with now: the plan played (not mid-trial), the study's time
+        up, a partner who never came (nothing else played), a partial completion after at least one
+        trial; None: nothing played yet, so nothing to finish."""
+        live = live_trial_of(self.db, (enrolled.participant_id,))
+        if live is None and self.done(enrolled) is not None:
+            return StudyOutcome.completed
+        if self.time_up(enrolled, now):
+            return StudyOutcome.timed_out
+        if self.finished(enrolled):
+            return StudyOutcome.partial
+        return StudyOutcome.no_partner if self._stood_up(enrolled) is not None else None
+
+    def finished(self, enrolled: StudyParticipant) -> int:
+        """Study trials played to their end (the practice, trials never joined and a live one not counted)."""
+        return sum(1 for t in self._trials(enrolled) if Phase(t.phase).over)
+
+    def leave(self, enrolled: StudyParticipant) -> None:
+        """They left the lobby (its button, or their page closing): nobody is paired with them from
+        now on, and coming back is a new wait."""
+        end_wait(enrolled, datetime.now(UTC))
+        enrolled.lobby_seen = None
 
     def _stood_up(self, enrolled: StudyParticipant) -> datetime | None:
         """When their last trial was paired, if it was aborted because the partner never opened
@@ -129,7 +198,7 @@ class Lobby:
             return None
         absent = never_joined(self.db, (last.id,)).get(last.id, [])
         mine = Role.COMMANDER if last.commander_id == pid else Role.DRIVER
-        return _aware(last.created_at) if absent and mine not in absent else None
+        return aware(last.created_at) if absent and mine not in absent else None
 
     def done(self, enrolled: StudyParticipant) -> AllPlayed | None:
         """The plan is played out for this participant: its trials, or its teams."""
@@ -149,7 +218,7 @@ class Lobby:
             rows.append(
                 {
                     "code": code,
-                    "waited_s": round((now - _aware(since)).total_seconds()) if since is not None else 0,
+                    "waited_s": round((now - aware(since)).total_seconds()) if since is not None else 0,
                     "teams": history.teams,
                     "commanded": history.commanded,
                     "drove": history.drove,
@@ -167,11 +236,12 @@ class Lobby:
                 StudyParticipant.study == self.config.name,
                 StudyParticipant.lobby_since.is_not(None),
                 StudyParticipant.withdrawn_at.is_(None),
+                StudyParticipant.completed_at.is_(None),
                 StudyParticipant.id != (but or -1),
             )
             .order_by(StudyParticipant.lobby_since, StudyParticipant.id)
         )
-        return [e for e in rows if e.lobby_seen is not None and _aware(e.lobby_seen) >= present]
+        return [e for e in rows if e.lobby_seen is not None and aware(e.lobby_seen) >= present]
 
     def history(self, enrolled: StudyParticipant) -> History:
         """What the pairing rule knows of a participant: partners and seats in the study's trials
@@ -198,6 +268,8 @@ class Lobby:
             raise LobbyError("choose two different participants")
         if a.withdrawn_at is not None or b.withdrawn_at is not None:
             raise LobbyError("a withdrawn participant cannot be paired")
+        if a.completed_at is not None or b.completed_at is not None:
+            raise LobbyError("one of them has ended their way through the study")
         for enrolled in (a, b):
             if live_trial_of(self.db, (enrolled.participant_id,)) is not None:
                 raise LobbyError("one of them is in a live trial")
@@ -206,7 +278,32 @@ class Lobby:
         trial = self._pair(a, [b], self.needs_practice(a) and self.needs_practice(b))
         if trial is None:
             raise LobbyError("the pool has no layout both have not seen")
-        a.lobby_since = b.lobby_since = None
+        for enrolled in (a, b):
+            end_wait(enrolled, datetime.now(UTC))
+        return trial
+
+    def restart(self, trial_id: int) -> Trial:
+        """The experimenter restarts an aborted trial of the study: it stays in the study, on a
+        maze of its pool (a practice whose map nobody saw on the practice maze again, still set
+        aside from scores), its seats given the study's join deadline from now."""
+        old = self.db.get(Trial, trial_id)
+        if old is None or old.study != self.config.name:
+            raise TrialSetupError(f"trial {trial_id} is not a trial of study {self.config.name!r}")
+        practice = old.excluded_reason == PRACTICE_REASON
+        if practice and Role.COMMANDER not in never_joined(self.db, (old.id,)).get(old.id, []):
+            raise TrialSetupError(
+                f"trial {trial_id} was a practice whose map was seen: a practice is played once, and the "
+                "lobby pairs these participants for the study's trials next"
+            )
+        trial = restart_trial(
+            self.db,
+            trial_id,
+            self.practice_layouts if practice else self.layouts,
+            self.now_ns,
+            join_timeout_s=self.config.join_timeout_s,
+        )
+        if practice:
+            trial.excluded_reason = PRACTICE_REASON
         return trial
 
     def _trials(self, enrolled: StudyParticipant) -> list[Trial]:

@@ -247,10 +247,9 @@ def _request_move(state: TrialState, command: RequestMove) -> list[ev.Event]:
         reason = "too soon after the previous move"
     elif not command.robot_ready:
         reason = "the robot is not connected"
-    events: list[ev.Event] = [ev.MoveRequested(move_id=move_id, action=action)]
-    if reason is not None:
-        events.append(_refused(move_id, action, reason))
-    return events
+    if reason is not None:  # nothing moves and no move id is spent; the runtime counts it in its run
+        return [ev.MovesRefused(reason=reason)]
+    return [ev.MoveRequested(move_id=move_id, action=action)]
 
 
 def _refused(move_id: str, action: Move, reason: str) -> ev.MoveExecuted:

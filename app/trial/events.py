@@ -124,6 +124,18 @@ class MoveExecuted(Event):
     reason: str | None = None
 
 
+class MovesRefused(Event):
+    """A run of move requests refused as they came (the trial not running, a move still
+    executing, too soon after the last), for one reason: logged once, with how many, when the
+    run ends (another event, another reason, or `REFUSED_RUN_S` after its first), so a flood of
+    requests is not a flood of events. A move the robot refused after it was asked for is a
+    `MoveExecuted` with outcome `refused`."""
+
+    kind = "moves_refused"
+    reason: str
+    count: int = 1
+
+
 class FrameRecorded(Event):
     kind = "frame"
     frame_id: int
@@ -193,6 +205,7 @@ KINDS: dict[str, type[Event]] = {
         Chat,
         MoveRequested,
         MoveExecuted,
+        MovesRefused,
         FrameRecorded,
         PoseSampled,
         Localized,

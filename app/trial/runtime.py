@@ -51,6 +51,7 @@ if TYPE_CHECKING:
 
 logger = logging.getLogger(__name__)
 AWAY_MARK_S = 1.0  # how much of a participant's time away a crash can lose from the grace period
+REFUSED_RUN_S = 1.0  # a run of refused move requests is logged at the latest this long after its first
 
 
 class UnknownTrial(LookupError):
@@ -71,6 +72,7 @@ class TrialParts:
     backends: BackendParts
     agents: AgentParts
     ldh: BeliefModel  # the watch page's LDH belief
+    over: Callable[[int, Phase], None]  # told once, as a trial of this process becomes over (a study's webhook)
 
 
 class TrialRuntime:
@@ -99,6 +101,8 @@ class TrialRuntime:
         self._last_frame: Frame | None = None  # the Driver camera's latest, for a filter built after it
         self.ldh = LiveBelief(self, parts.ldh)  # the LDH model's belief, for the watchers only
         self._throttles: dict[str, Throttle] = {}  # per seat: how often its messages may be recorded
+        self._refused_run: ev.MovesRefused | None = None  # move requests refused since the last event
+        self._refused_timer: asyncio.TimerHandle | None = None  # logs that run at the latest
         # The dialog so far (`views.HISTORY` events), kept from the log: a crowd joining at once
         # read the whole log back, after a synchronous commit, for every welcome.
         self.history: list[LoggedEvent] = []
@@ -174,6 +178,7 @@ class TrialRuntime:
         self._grace.clear()
         if self._join_timer is not None:
             self._join_timer.cancel()
+        self._log_refused_run()
         if self.state.over:
             self.apply(d.AbandonMoves(f"the trial is {self.state.phase}"))
         for task in list(self._tasks):
@@ -210,11 +215,45 @@ class TrialRuntime:
         frame: dict[str, Any] | None = None,
     ) -> list[LoggedEvent]:
         """Decide, commit, fold and tell the seats; raises `Refused` (recording nothing)."""
-        events = d.decide(self.state, command)
+        return self._commit(d.decide(self.state, command), attachments, frame)
+
+    def _commit(
+        self,
+        events: list[ev.Event],
+        attachments: dict[str, dict[str, Any]] | None = None,
+        frame: dict[str, Any] | None = None,
+    ) -> list[LoggedEvent]:
+        if events:
+            self._log_refused_run()  # the refusals came first: the log keeps them in order
+        was_over = self.state.over
         logged = [self._record(event, attachments or {}, frame) for event in events]
         if logged:
             self._after_change()
+            if self.state.over and not was_over:
+                self.parts.over(self.trial_id, self.state.phase)
         return logged
+
+    def _hold_refusal(self, refusal: ev.MovesRefused) -> None:
+        """Count a refused move request in the run it belongs to: the same reason, nothing
+        logged since. The run is logged as one event when it ends, or `REFUSED_RUN_S` after its
+        first request, so a crash loses at most that much of the count."""
+        run = self._refused_run
+        if run is not None and run.reason != refusal.reason:
+            self._log_refused_run()
+            run = None
+        if run is None:
+            self._refused_run = refusal
+            self._refused_timer = asyncio.get_running_loop().call_later(REFUSED_RUN_S, self._log_refused_run)
+        else:
+            self._refused_run = run.model_copy(update={"count": run.count + refusal.count})
+
+    def _log_refused_run(self) -> None:
+        if self._refused_timer is not None:
+            self._refused_timer.cancel()
+            self._refused_timer = None
+        run, self._refused_run = self._refused_run, None
+        if run is not None:
+            self._record(run, {}, None)
 
     def _record(
         self, event: ev.Event, attachments: dict[str, dict[str, Any]], frame: dict[str, Any] | None
@@ -258,8 +297,8 @@ class TrialRuntime:
 
     def _after_change(self) -> None:
         status = self.status()
-        if {k: v for k, v in status.items() if k != "elapsed_s"} != self._status:
-            self._status = {k: v for k, v in status.items() if k != "elapsed_s"}
+        if {k: v for k, v in status.items() if k not in views.CLOCK_FIELDS} != self._status:
+            self._status = {k: v for k, v in status.items() if k not in views.CLOCK_FIELDS}
             for role, conn in list(self.seats.items()):
                 if role in PARTICIPANTS:
                     self._send(conn, status)
@@ -424,20 +463,17 @@ class TrialRuntime:
     async def receive(self, conn: Connection, role: str, message: m.SeatMessage) -> None:
         """One message from a seat's socket, read and its token checked there. One not allowed
         now gets an error reply and a `bad_message` event, and never ends the trial. Moves run
-        beside the socket's reader, so a move sent while one is executing is refused rather than queued."""
-        counted = False  # against the seat's rate: all but pings and moves, and refused moves
+        beside the socket's reader, so a move sent while one is executing is refused rather than queued.
+        Every message but a ping counts against the seat's rate, a move whether executed or refused."""
+        if not isinstance(message, m.Ping) and not self._within_rate(conn, role):
+            return
+        if isinstance(message, m.Move) and message.type in m.ALLOWED[role]:
+            self.spawn(self._handle_reporting(conn, role, message))
+            return
         try:
-            if isinstance(message, m.Move) and message.type in m.ALLOWED[role]:
-                self.spawn(self._handle_reporting(conn, role, message))
-                return
-            if not isinstance(message, m.Ping):
-                counted = True
-                if not self._within_rate(conn, role):
-                    return
             await self.handle(role, message)
         except Refused as err:
-            if counted or self._within_rate(conn, role):
-                self.refuse(conn, role, str(err))
+            self.refuse(conn, role, str(err))
 
     def refuse_unread(self, conn: Connection, role: str, error: str) -> None:
         """A message its socket could not read (not JSON, too big, another seat's token): refused
@@ -449,8 +485,7 @@ class TrialRuntime:
         try:
             await self.handle(role, message)
         except Refused as err:
-            if self._within_rate(conn, role):
-                self.refuse(conn, role, str(err))
+            self.refuse(conn, role, str(err))
 
     def refuse(self, conn: Connection, role: str, error: str) -> None:
         """The documented error reply, and the refusal in the log (while the trial runs)."""
@@ -512,17 +547,33 @@ class TrialRuntime:
 
     async def request_move(self, action: Move, move_id: str | None = None) -> Outcome:
         move_id = move_id or uuid.uuid4().hex[:12]
-        asked = self.apply(
+        now_ns = self.parts.clock.now_ns()
+        asked = d.decide(
+            self.state,
             d.RequestMove(
                 move_id,
                 Move(action),
-                self.parts.clock.now_ns(),
+                now_ns,
                 robot_ready=self.backend is not None,
                 min_interval_ns=int(self.settings.min_move_interval_s * 1e9),
-            )
+            ),
         )
-        if asked[-1].is_(ev.MoveExecuted):  # refused at once
+        if isinstance(refusal := asked[0], ev.MovesRefused):  # the Driver hears why now, the log with its run
+            self._hold_refusal(refusal)
+            driver = self.seats.get(Role.DRIVER)
+            if driver is not None:
+                self._send(
+                    driver,
+                    {
+                        "type": ServerMessage.MOVE_REFUSED,
+                        "move_id": move_id,
+                        "action": str(Move(action)),
+                        "reason": refusal.reason,
+                        "t_ns": now_ns,
+                    },
+                )
             return Outcome.REFUSED
+        self._commit(asked)
         backend = self.backend
         assert backend is not None  # RequestMove refuses every move while there is no backend
         reason = None

@@ -198,7 +198,8 @@ def _seated(
             f"team {team.name!r}: a member is in trial {live.id}, which is {live.phase}; a participant "
             f"is in one live trial at a time (let it finish, or abort it)"
         )
-    played = layouts_seen(db, team, layouts).get(layouts[maze])
+    seen = layouts_seen(db, team, layouts)
+    played = seen.get(layouts[maze]) if seen else None  # a team that has seen nothing reads no layout
     if played == maze:
         raise TrialSetupError(f"maze {maze!r}: team {team.name!r} has already seen it")
     if played is not None:
@@ -221,10 +222,12 @@ def restart_trial(
     now_ns: int,
     agents: Mapping[str, str | None] | None = None,
     commanders: Mapping[str, str | None] | None = None,
+    join_timeout_s: float | None = None,
 ) -> Trial:
-    """A new trial for an aborted one: the same seats, targets, robot and study, on a layout the
-    team has never seen (the aborted one's counts as seen: its Commander may have had the map), or
-    on the same maze when the Commander's seat was never opened (nobody saw it)."""
+    """A new trial for an aborted one: the same seats, targets, robot and study, on a layout of
+    `layouts` the team has never seen (the aborted one's counts as seen: its Commander may have had
+    the map), or on the same maze when the Commander's seat was never opened (nobody saw it).
+    `join_timeout_s`: as `create_trial`'s (a study's restart keeps its deadline)."""
     old = db.get(Trial, trial_id)
     if old is None:
         raise TrialSetupError(f"trial {trial_id} does not exist")
@@ -248,6 +251,7 @@ def restart_trial(
         agents=agents,
         commander=old.commander,
         commanders=commanders,
+        join_timeout_s=join_timeout_s,
     )
     trial.study = old.study
     return trial

@@ -17,7 +17,13 @@ from app.trial.events import LoggedEvent
 from app.trial.specs import BackendKind, BackendSpec
 from app.trial.vocabulary import PARTICIPANTS, FrameSource, Move, Outcome, Phase, Role
 
-__all__ = ["LoggedEvent", "TrialState", "fold"]
+__all__ = ["LoggedEvent", "TrialState", "fold", "trial_score"]
+
+
+def trial_score(active_s: float, moves: int, move_penalty_s: float) -> float:
+    """A finished trial's score: trial-clock seconds to the last target confirmed plus a penalty
+    per executed move (the leaderboard's and the report's one rule)."""
+    return active_s + move_penalty_s * moves
 
 
 @dataclass
@@ -47,6 +53,7 @@ class TrialState:
     last_t_ns: int | None = None
     started_ns: int | None = None
     moves: int = 0  # executed moves (ok or collision); refused ones do not count
+    refused: int = 0  # move requests refused: as they came (`MovesRefused.count`) or by the robot
     collisions: int = 0
     moves_in_flight: dict[str, tuple[Move, int]] = field(default_factory=dict)  # id -> (action, asked at)
     move_ids: set[str] = field(default_factory=set)  # every move id ever requested
@@ -103,7 +110,7 @@ class TrialState:
         """Time from start to the last target confirmed plus a penalty per move; None until finished."""
         if self.phase != Phase.FINISHED or self.finished_active_ns is None:
             return None
-        return self.finished_active_ns / 1e9 + move_penalty_s * self.moves
+        return trial_score(self.finished_active_ns / 1e9, self.moves, move_penalty_s)
 
     # -- the fold -----------------------------------------------------------------
     def apply(self, logged: LoggedEvent) -> TrialState:
@@ -161,8 +168,12 @@ class TrialState:
                 if outcome != Outcome.REFUSED:
                     self.moves += 1
                     self.last_move_ns = asked_ns
+                else:
+                    self.refused += 1
                 if collision:
                     self.collisions += 1
+            case ev.MovesRefused(count=count):
+                self.refused += count
             case ev.FrameRecorded(source=FrameSource.DRIVER, frame_id=frame_id):
                 self.last_frame_id = frame_id
             case ev.PoseSampled(x=x, y=y, heading=heading):

@@ -1,8 +1,8 @@
 """`Throttle`: how often one seat may have a message recorded (a token bucket).
 
-Every message a seat sends is logged, as what it asked for or as a `bad_message`; a seat sending
-hundreds a second would fill the log and its partner's page. Moves have their own pace
-(`min_move_interval_s`) and pings are not logged, so neither is counted.
+Every message a seat sends is logged, as what it asked for, a refused move (counted in its run)
+or a `bad_message`; a seat sending hundreds a second would fill the log and its partner's page.
+Every message but a ping (never logged) is counted, a move whether executed or refused.
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ from typing import Any
 from app.trial import events as ev
 from app.trial.events import LoggedEvent
 from app.trial.state import TrialState
-from app.trial.vocabulary import FrameSource, Role, ServerMessage
+from app.trial.vocabulary import FrameSource, Phase, Role, ServerMessage
 
 JpegOf = Callable[[int], bytes | None]  # a frame's image by its frame id (None: not stored)
 HISTORY: tuple[type[ev.Event], ...] = (ev.Chat, ev.PhaseChanged, ev.TargetConfirmed, ev.TargetRejected)
@@ -37,7 +37,16 @@ SEES: dict[str, set[type[ev.Event]]] = {
     Role.COMMANDER: SHARED | {ev.Localized},
     Role.DRIVER: SHARED | {ev.MoveExecuted, ev.FrameRecorded},
     EXPERIMENTER: SHARED
-    | {ev.Localized, ev.MoveRequested, ev.MoveExecuted, ev.FrameRecorded, ev.PoseSampled, ev.BadMessage, ev.Restarted},
+    | {
+        ev.Localized,
+        ev.MoveRequested,
+        ev.MoveExecuted,
+        ev.MovesRefused,
+        ev.FrameRecorded,
+        ev.PoseSampled,
+        ev.BadMessage,
+        ev.Restarted,
+    },
 }
 VISIBLE = {role: frozenset(model.kind for model in models) for role, models in SEES.items()}  # by logged kind
 
@@ -60,9 +69,15 @@ def view(role: str, event: LoggedEvent) -> dict[str, Any] | None:
     return {"type": ServerMessage.EVENT, "seq": event.seq, "kind": event.kind, "t_ns": event.t_ns, "payload": payload}
 
 
+CLOCK_FIELDS = ("elapsed_s", "join_left_s")  # figures of the moment of sending, which pages run on themselves
+
+
 def status_of(state: TrialState, now_ns: int) -> dict[str, Any]:
-    """What every seat shows of where the trial stands (docs/protocol.md, "status"). Sent after
-    each event that changes any field but the clock; pages run the clock themselves while running."""
+    """What every seat shows of where the trial stands (docs/platform.md, "status"). Sent after
+    each event that changes any field but the clocks; pages run the clocks themselves."""
+    join_left_s = None
+    if state.phase == Phase.WAITING and state.join_by_ns is not None:  # a study's pairing: seats not all opened
+        join_left_s = round(max(0.0, (state.join_by_ns - now_ns) / 1e9), 1)
     return {
         "type": ServerMessage.STATUS,
         "phase": str(state.phase),
@@ -75,6 +90,7 @@ def status_of(state: TrialState, now_ns: int) -> dict[str, Any]:
         "waiting_for": [str(r) for r in state.waiting_for],
         "abort_reason": state.abort_reason,
         "claim_pending": state.pending_claim is not None,  # the Commander has a claim to decide
+        "join_left_s": join_left_s,  # seconds until a seat still unopened calls the trial off
     }
 
 
@@ -94,8 +110,8 @@ def welcome(
     jpeg_of: JpegOf,
 ) -> dict[str, Any]:
     """What a seat (or the experimenter's watch) gets on joining: where the trial stands, the
-    dialog so far as this role may hear it, and what only this role sees (the Commander's target
-    and pending claim; the Driver's last frame; the experimenter's pose, targets and estimate)."""
+    dialog so far as this role may hear it, and what only this role sees (the Commander's target,
+    mark and pending claim; the Driver's last frame; the experimenter's pose, targets and estimate)."""
     s = state
     message: dict[str, Any] = {
         "type": ServerMessage.WELCOME,
@@ -114,6 +130,7 @@ def welcome(
     }
     if role == Role.COMMANDER:
         message["target"] = s.current_target
+        message["localization"] = s.localization  # their own mark, for a window opened later
         if s.pending_claim is not None:
             message["claim"] = claim_attachment(s.pending_claim["frame_id"], jpeg_of)
     if role in (Role.DRIVER, EXPERIMENTER) and s.last_frame_id is not None:

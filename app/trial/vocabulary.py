@@ -34,6 +34,7 @@ class ServerMessage(StrEnum):
     EVENT = "event"  # one logged event, as this role may hear it
     STATUS = "status"  # the clock, seats and pauses
     ERROR = "error"  # a message refused, with a code
+    MOVE_REFUSED = "move_refused"  # to the Driver: its move request refused as it came, and why
     REPLACED = "replaced"  # the seat was opened elsewhere
     BELIEF = "belief"  # the particle filter's, to watchers
     LDH_BELIEF = "ldh_belief"  # the LDH model's, to watchers

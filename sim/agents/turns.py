@@ -107,7 +107,7 @@ class TurnKind(StrEnum):
 @dataclass(frozen=True)
 class Refused:
     """One of its turns was not allowed now, as a person's page shows an error: `reason` says why.
-    A move asked for and refused comes as `Moved` (result REFUSED), as the log records it."""
+    A move asked for and refused comes as `Moved` (result REFUSED), as the Driver's page hears it."""
 
     turn: TurnKind
     reason: str

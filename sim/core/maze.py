@@ -21,7 +21,7 @@ from sim.core.cache import cache_dir as default_cache_dir
 from sim.core.geometry import MAP_HEIGHT_PX, MAP_WIDTH_PX, pixel_to_world
 from sim.core.labels import LABEL_BGR, OBJECT_LABELS, OBJECTS, PALETTE_BGR, Label
 
-_LABELS_CACHE_VERSION = 1
+LABELS_CACHE_VERSION = 1
 FIXED_MAP = "maze.map-fixed.png"
 WALLS_MAP = "maze.map.png"
 
@@ -87,11 +87,8 @@ class Maze:
         them is ~20 times cheaper than decoding (about 50 ms a map)."""
         fixed_path = Path(fixed_path)
         name = name or fixed_path.parent.parent.name
-        pngs = [fixed_path.read_bytes() if fixed_path.exists() else b""]
-        if walls_path is not None:
-            pngs.append(Path(walls_path).read_bytes())
-        key = hashlib.sha256(b"\0".join(pngs) + bytes([len(pngs)])).hexdigest()[:16]
-        path = default_cache_dir(cache_dir) / "labels" / f"{key}-v{_LABELS_CACHE_VERSION}{ARRAYS_SUFFIX}"
+        key = maps_key(fixed_path, walls_path)
+        path = default_cache_dir(cache_dir) / "labels" / f"{key}-v{LABELS_CACHE_VERSION}{ARRAYS_SUFFIX}"
         if use_cache and path.exists():
             try:
                 data = load_arrays(path)
@@ -124,12 +121,10 @@ class Maze:
     @classmethod
     def from_dir(cls, run_dir: str | Path, name: str | None = None, cache_dir: str | Path | None = None) -> Maze:
         """A maze in the benchmark's layout: `RUN_DIR/maze/maze.map-fixed.png` and `maze.map.png`."""
-        run_dir = Path(run_dir)
-        fixed = run_dir / "maze" / FIXED_MAP
-        walls = run_dir / "maze" / WALLS_MAP
+        fixed, walls = map_files(run_dir)
         if not fixed.exists():
             raise MazeError(f"{fixed}: no such map file")
-        return cls.from_png(fixed, walls if walls.exists() else None, name=name or run_dir.name, cache_dir=cache_dir)
+        return cls.from_png(fixed, walls, name=name or Path(run_dir).name, cache_dir=cache_dir)
 
     # -- output -------------------------------------------------------------------
     def image(self, walls_only: bool = False) -> np.ndarray:
@@ -144,6 +139,21 @@ class Maze:
         cv2.imwrite(str(folder / FIXED_MAP), self.image())
         cv2.imwrite(str(folder / WALLS_MAP), self.image(walls_only=True))
         return folder
+
+
+def map_files(run_dir: str | Path) -> tuple[Path, Path | None]:
+    """A maze folder's maps in the benchmark's layout: `maze.map-fixed.png`, and `maze.map.png` where there is one."""
+    folder = Path(run_dir) / "maze"
+    walls = folder / WALLS_MAP
+    return folder / FIXED_MAP, walls if walls.exists() else None
+
+
+def maps_key(fixed_path: Path, walls_path: str | Path | None = None) -> str:
+    """The key of a maze's map files by their bytes: what its decoded grids are cached under."""
+    pngs = [fixed_path.read_bytes() if fixed_path.exists() else b""]
+    if walls_path is not None:
+        pngs.append(Path(walls_path).read_bytes())
+    return hashlib.sha256(b"\0".join(pngs) + bytes([len(pngs)])).hexdigest()[:16]
 
 
 def read_label_png(path: Path) -> np.ndarray:

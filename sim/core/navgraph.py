@@ -44,7 +44,7 @@ from sim.core.stepper import Moves
 
 MODES = ("benchmark", "exact")
 WALL_CLEARANCE_PX = int(round(MAP_WIDTH_PX / TABLE_WIDTH_M * GRID_STEP_M))  # 40
-_CACHE_VERSION = 1
+CACHE_VERSION = 1
 
 
 def candidate_grid() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -78,15 +78,23 @@ def navigable_mask(walls: np.ndarray, pixels: np.ndarray) -> np.ndarray:
     return navigable
 
 
-def _edges(nodes: np.ndarray, node_ij: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray]:
-    """Pairwise float64 distances (as scipy's `cdist`) and which pairs the mode joins."""
-    from scipy.spatial.distance import cdist
-
-    d = cdist(nodes, nodes)
-    if mode == "benchmark":
-        return d, (d > 0) & (d <= np.sqrt(2) * GRID_STEP_M)
-    step = np.abs(node_ij[:, None, :] - node_ij[None, :, :]).max(axis=2)
-    return d, step == 1
+def _edges(nodes: np.ndarray, node_ij: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pairs the mode joins, both ways, in row-major order: (i, j, metres), each the float64
+    Euclidean distance as scipy's `cdist` computes it (the root of the summed squares). Only
+    8-neighbours on the grid can be joined (the next point over is two steps away), so only they
+    are measured: all N x N pairs were a tenth of a graph's build."""
+    grid = np.full(tuple(node_ij.max(axis=0) + 3), -1, dtype=np.int64)  # a border of -1 all round
+    grid[node_ij[:, 0] + 1, node_ij[:, 1] + 1] = np.arange(len(nodes))
+    around = [grid[node_ij[:, 0] + 1 + di, node_ij[:, 1] + 1 + dj] for di in (-1, 0, 1) for dj in (-1, 0, 1)]
+    j = np.stack(around, axis=1)  # (N, 9), the node itself among them: at distance 0, never joined
+    i = np.broadcast_to(np.arange(len(nodes))[:, None], j.shape)
+    i, j = i[j >= 0], j[j >= 0]
+    order = np.lexsort((j, i))
+    i, j = i[order], j[order]
+    step = nodes[i] - nodes[j]
+    d = np.sqrt((step * step).sum(axis=1))
+    joined = (d > 0) & (d <= np.sqrt(2) * GRID_STEP_M) if mode == "benchmark" else i != j
+    return i[joined], j[joined], d[joined]
 
 
 @dataclass(frozen=True, eq=False)
@@ -123,9 +131,7 @@ class NavGraph:
         if mode not in MODES:
             raise ValueError(f"unknown edge mode {mode!r}; expected one of {', '.join(MODES)}")
         kind = f"{mode}-objects" if objects_block else mode
-        path = (
-            default_cache_dir(cache_dir) / "navgraph" / f"{maze.content_hash}-{kind}-v{_CACHE_VERSION}{ARRAYS_SUFFIX}"
-        )
+        path = default_cache_dir(cache_dir) / "navgraph" / f"{maze.content_hash}-{kind}-v{CACHE_VERSION}{ARRAYS_SUFFIX}"
         if use_cache and path.exists():
             try:
                 return cls(mode=mode, objects_block=objects_block, **load_arrays(path))
@@ -151,21 +157,25 @@ class NavGraph:
 
         positions, ij, pixels = candidate_grid()
         keep = navigable_mask(grid, pixels)
-        d, adjacent = _edges(positions[keep], ij[keep], mode)
+        i, j, d = _edges(positions[keep], ij[keep], mode)
         if objects_block:
             # An object beside a wall can cut a pocket off the maze: keep the maze's main part,
             # so that a target's nearest node is one the rest of the maze can reach.
-            _, component = connected_components(csr_matrix(adjacent), directed=False)
+            m = int(keep.sum())
+            _, component = connected_components(csr_matrix((d, (i, j)), shape=(m, m)), directed=False)
             main = component == np.bincount(component).argmax()
             keep[np.flatnonzero(keep)[~main]] = False
-            d, adjacent = d[np.ix_(main, main)], adjacent[np.ix_(main, main)]
+            inside, renumbered = main[i] & main[j], np.cumsum(main) - 1
+            i, j, d = renumbered[i[inside]], renumbered[j[inside]], d[inside]
         nodes, node_ij = positions[keep], ij[keep]
         n = len(nodes)
         node_grid = np.full(tuple(ij.max(axis=0) + 1), -1, dtype=np.int32)  # (NX, NY)
         node_grid[node_ij[:, 0], node_ij[:, 1]] = np.arange(n, dtype=np.int32)
 
-        weights = csr_matrix(np.where(adjacent, d, 0.0))
-        dist, pred = shortest_path(weights, method="D", directed=False, return_predecessors=True)
+        weights = csr_matrix((d, (i, j)), shape=(n, n))
+        # The weights are symmetric (the same squares summed either way), so the directed search finds the
+        # same distances and predecessors as the undirected one, which relaxes every edge twice.
+        dist, pred = shortest_path(weights, method="D", directed=True, return_predecessors=True)
         # Undirected: the predecessor of i on the path from j is i's next hop toward j.
         next_hop = pred.T.astype(np.int32)
         next_hop[next_hop < 0] = -1

@@ -66,7 +66,7 @@ BLOCK_SHIFT = CLEARANCE_BLOCK.bit_length() - 1
 _SAFE_PX = 1.5  # a point is at most sqrt(2)/2 px from its pixel's centre, on both ends of a jump
 _PAST_PX = np.float32(1e-3)  # a crossing's sample lies this far into the pixel entered
 _FAR = 1e9  # boundary gap of an axis a ray never crosses
-_CACHE_VERSION = 2  # 2: exact traversal (1 could skip a grazed wall corner)
+CACHE_VERSION = 2  # 2: exact traversal (1 could skip a grazed wall corner)
 
 
 class RayCaster:
@@ -81,7 +81,7 @@ class RayCaster:
         # a server holds one per live trial's maze). The rays meet the same pixels; they take a
         # few more jumps to get there.
         chamfer = cv2.distanceTransform((self.labels == Label.FLOOR).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
-        self.clearance = _block_min_px(chamfer * np.float32(CHAMFER_SAFETY), CLEARANCE_BLOCK)
+        self.clearance = _block_min_px(chamfer, CLEARANCE_BLOCK, np.float32(CHAMFER_SAFETY))
 
     def cast(self, x: ArrayLike, y: ArrayLike, angles: ArrayLike, window: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """Rays from (x, y) metres at absolute angles (radians, broadcast together).
@@ -129,10 +129,14 @@ class RayCaster:
         n = x.size
         hit_label = np.zeros(n, dtype=np.uint8)
         hit_t = np.zeros(n, dtype=f32)
-        # The rays still marching, compacted: id, origin, direction, boundaries, exit.
-        state = (np.arange(n), col0, row0, uc, ur, gap_c, gap_r, side_c, side_r, t_exit)
+        # The rays still marching: id, origin, direction, boundaries, exit. Compacted once a
+        # quarter of them have stopped (every round cost more in copies than the stopped ones
+        # cost marching on: they stay on the table, clamped at its edge, and are not recorded again).
+        state: tuple[np.ndarray, ...] = (np.arange(n), col0, row0, uc, ur, gap_c, gap_r, side_c, side_r, t_exit)
         t = np.zeros(n, dtype=f32)
-        while state[0].size:
+        marching = np.ones(n, dtype=bool)
+        left = n
+        while left:
             ids, c, r, u, v, gc, gr, sc, sr, te = state
             # Samples: the point at t, then just past each of the next boundary crossings.
             pc, pr = c + u * t, r + v * t
@@ -153,34 +157,42 @@ class RayCaster:
                 ts = np.minimum(t[:, None] + cross, te[:, None])
                 row_px = (r[:, None] + v[:, None] * ts).astype(np.int32)
                 col_px = (c[:, None] + u[:, None] * ts).astype(np.int32)
-            label = flat_labels[row_px * w + col_px]
+            label = flat_labels.take(row_px * w + col_px)
             stop = (label != 0) | (ts >= te[:, None])
-            first = stop.argmax(axis=1)
-            done = stop[np.arange(ids.size), first]
-            clear = flat_clear[(row_px >> BLOCK_SHIFT) * block_w + (col_px >> BLOCK_SHIFT)]
-            jump = (ts + clear).max(axis=1) - _SAFE_PX
-            t = np.minimum(np.maximum(t + advance + _PAST_PX, jump), te)  # exits at the edge
-            if done.any():
-                rows = np.nonzero(done)[0]
-                hit_label[ids[rows]] = label[rows, first[rows]]
-                hit_t[ids[rows]] = ts[rows, first[rows]]
-                go = ~done
-                state = tuple(a[go] for a in state)
-                t = t[go]
+            reach = ts + flat_clear.take((row_px >> BLOCK_SHIFT) * block_w + (col_px >> BLOCK_SHIFT))
+            if window == 1:
+                done, label, at, reach = stop[:, 0], label[:, 0], ts[:, 0], reach[:, 0]
+            else:
+                rows, first = np.arange(ids.size), stop.argmax(axis=1)
+                done, label, at, reach = stop[rows, first], label[rows, first], ts[rows, first], reach.max(axis=1)
+            t = np.minimum(np.maximum(t + advance + _PAST_PX, reach - _SAFE_PX), te)  # exits at the edge
+            stopped = np.flatnonzero(done & marching)  # a few of the many: indices, not masks
+            if stopped.size:
+                hit_label[ids[stopped]] = label[stopped]
+                hit_t[ids[stopped]] = at[stopped]
+                marching[stopped] = False
+                left -= stopped.size
+                if left <= ids.size * 3 // 4:
+                    keep = np.flatnonzero(marching)
+                    state = tuple(a.take(keep) for a in state)
+                    t, marching = t.take(keep), np.ones(left, dtype=bool)
         # Where the ray entered the pixel it stopped in.
         hit_t = np.where(hit_t > 0, hit_t - _PAST_PX, 0).astype(np.float64)
         return hit_label.reshape(shape), (hit_t / px_per_m).reshape(shape)
 
 
-def _block_min_px(clearance: np.ndarray, block: int) -> np.ndarray:
-    """uint8 (ceil(H / block), ceil(W / block)): the least of `clearance` over each block, in
-    whole pixels rounded down and capped at 255 (a lower bound for every pixel of the block)."""
-    h, w = clearance.shape
-    padded = np.zeros((-(-h // block) * block, -(-w // block) * block), dtype=np.float32)
-    padded[:h, :w] = clearance
-    blocks = padded.reshape(padded.shape[0] // block, block, padded.shape[1] // block, block).min(axis=(1, 3))
-    least: np.ndarray = np.minimum(np.floor(blocks), 255).astype(np.uint8)
-    return least
+def _block_min_px(distance: np.ndarray, block: int, scale: np.float32) -> np.ndarray:
+    """uint8 (ceil(H / block), ceil(W / block)): the least of `distance * scale` over each block,
+    in whole pixels rounded down and capped at 255 (a lower bound for every pixel of the block); 0
+    for a block the map's edge cuts. Scaled after the least is taken: rounding a product is
+    monotonic, so the least of the products is the product of the least."""
+    h, w = distance.shape
+    full_h, full_w = h // block, w // block
+    least = np.zeros((-(-h // block), -(-w // block)), dtype=np.float32)
+    rows = distance[: full_h * block, : full_w * block].reshape(full_h, block, full_w * block).min(axis=1)
+    least[:full_h, :full_w] = rows.reshape(full_h, full_w, block).min(axis=2) * scale
+    clearance: np.ndarray = np.minimum(np.floor(least), 255).astype(np.uint8)
+    return clearance
 
 
 def _exit_time(p0: np.ndarray, u: np.ndarray, size: int) -> np.ndarray:
@@ -230,7 +242,7 @@ class RayTable:
     ) -> RayTable:
         """Every (node, heading) observation of `graph` on `maze`, cached by maze and nodes."""
         key = hashlib.sha256(np.ascontiguousarray(graph.nodes).tobytes()).hexdigest()[:12]
-        path = default_cache_dir(cache_dir) / "rays" / f"{maze.content_hash}-{key}-v{_CACHE_VERSION}{ARRAYS_SUFFIX}"
+        path = default_cache_dir(cache_dir) / "rays" / f"{maze.content_hash}-{key}-v{CACHE_VERSION}{ARRAYS_SUFFIX}"
         labels: np.ndarray | None = None
         depth: np.ndarray | None = None
         if use_cache and path.exists():

@@ -49,7 +49,7 @@ FLOOR_NEAR, FLOOR_FAR = np.array([58, 58, 62.0]), np.array([22, 22, 24.0])
 OUTLINE = 0.45  # brightness of wall edges
 _NO_HIT = np.array(np.inf).view(np.int64)  # a column key: no wall met (label FLOOR)
 NORMAL_BAND_PX = 3  # normals are kept for pixels this near both a wall and the floor
-_SCENE_CACHE_VERSION = 1
+SCENE_CACHE_VERSION = 1
 
 
 @dataclass(frozen=True, eq=False)
@@ -244,7 +244,7 @@ def scene(maze: Maze) -> Scene:
 
 
 def _scene_path(content_hash: str, cache_dir: str | Path | None) -> Path:
-    return default_cache_dir(cache_dir) / "scene" / f"{content_hash}-v{_SCENE_CACHE_VERSION}{ARRAYS_SUFFIX}"
+    return default_cache_dir(cache_dir) / "scene" / f"{content_hash}-v{SCENE_CACHE_VERSION}{ARRAYS_SUFFIX}"
 
 
 def load_scene(content_hash: str, cache_dir: str | Path | None = None) -> Scene | None:

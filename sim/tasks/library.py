@@ -14,7 +14,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from threading import Event
 
-from sim.core.maze import FIXED_MAP, WALLS_MAP, Maze
+from sim.core.maze import FIXED_MAP, WALLS_MAP, Maze, map_files, maps_key
 from sim.core.validation import check_reachable
 from sim.tasks.layouts import Layout, LayoutSignature, cached_grouping, group_layouts, grouping_key
 
@@ -36,9 +36,12 @@ class MazeLibrary:
         extra_dirs: Iterable[Path] = (),
         bundled: Path | None = BUNDLED_DIR,
         cache: bool = True,
+        cache_dir: Path | None = None,
     ) -> None:
         """`benchmark`: a clone of the benchmark (its `mazedata/` is read); `extra_dirs`: folders
-        of mazes in the benchmark's layout (`NAME/maze/maze.map-fixed.png`)."""
+        of mazes in the benchmark's layout (`NAME/maze/maze.map-fixed.png`); `cache_dir`: where
+        decoded maps are cached (default `sim.core.cache.cache_dir()`)."""
+        self.cache_dir = cache_dir
         self._roots: list[tuple[str, Path]] = []
         if bundled is not None:
             self._roots.append(("bundled", Path(bundled)))
@@ -102,12 +105,17 @@ class MazeLibrary:
         if self._cache is not None and name in self._cache:
             return self._cache[name]
         kind, run = self._entry(name)
-        maze = Maze.from_dir(run, name=name)
+        maze = Maze.from_dir(run, name=name, cache_dir=self.cache_dir)
         if kind != "benchmark":
             check_reachable(maze, source=str(run / "maze" / FIXED_MAP))
         if self._cache is not None:
             self._cache[name] = maze
         return maze
+
+    def maps_key(self, name: str) -> str:
+        """The key of the maze's map files by their bytes (`sim.core.maze.maps_key`): it changes
+        with them, and costs a read and a hash, no decoding."""
+        return maps_key(*map_files(self.path(name)))
 
     def layouts(self, cache_dir: str | Path | None = None, stop: Event | None = None) -> list[Layout]:
         """Every maze grouped by physical layout (`sim.tasks.layouts`), in library order. Cached keyed on

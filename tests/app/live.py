@@ -76,11 +76,15 @@ def page_csrf_token(page: str) -> str:
     return re.search(r'<meta name="csrf-token" content="([^"]+)"', page).group(1)
 
 
-def browser(base_url: str) -> httpx.Client:
+def browser(base_url: str, address: str | None = None) -> httpx.Client:
     """A client that sends this server's Origin, as a browser does on the server's own pages. It
     waits as a browser would: the first dashboard imports the agents' libraries (seconds, more on a
-    loaded machine), past httpx's 5 s default."""
-    return httpx.Client(base_url=base_url, follow_redirects=True, headers={"Origin": base_url}, timeout=60)
+    loaded machine), past httpx's 5 s default. From `address`, as far as the server can tell: its
+    socket bound to that loopback address (all of 127.0.0.0/8 reaches this machine)."""
+    transport = httpx.HTTPTransport(local_address=address) if address else None
+    return httpx.Client(
+        base_url=base_url, follow_redirects=True, headers={"Origin": base_url}, timeout=60, transport=transport
+    )
 
 
 def submit_login(client: httpx.Client, name: str, password: str) -> httpx.Response:
@@ -167,13 +171,24 @@ def add_experimenter(server, name: str = "eve", password: str = PASSWORD) -> Non
         db.add(Experimenter(name=name, password_hash=hash_password(password)))
 
 
+# Scripted players move and speak as fast as the server answers: moves unpaced, a seat's rate far
+# above theirs (the tests of floods take the platform's own, `platform_rate`).
+UNPACED = {"min_move_interval_s": 0.0, "seat_message_rate_per_s": 1000.0, "seat_message_burst": 1000}
+UNPACED_ENV = {f"ROBOTSLANG_{name.upper()}": str(value) for name, value in UNPACED.items()}
+
+
+def platform_rate() -> dict[str, float]:
+    """A seat's rate as the platform ships it (`platform_settings` lifts it for scripted players)."""
+    return {name: Settings.model_fields[name].default for name in ("seat_message_rate_per_s", "seat_message_burst")}
+
+
 def platform_settings(tmp_path, database_url: str | None = None, **overrides) -> Settings:
     """The platform's settings for a test: its data under `tmp_path`, moves as fast as sent."""
     values = dict(
         data_dir=tmp_path / "var",
         database_url=database_url,
         secret_key="test-secret",
-        min_move_interval_s=0.0,
+        **UNPACED,
         grace_period_s=30.0,
         render_processes=0,  # frames drawn in a thread; tests/app/test_render_processes.py runs the pool
     )

@@ -15,7 +15,7 @@ from pathlib import Path
 from app.main import build_services
 from app.rover.virtual.truth import TruthSample, read_truth
 from bench.live import REPO, SeatClient, ServerProcess
-from tests.app.live import cli, platform_settings
+from tests.app.live import UNPACED_ENV, cli, platform_settings
 
 MAZE = "gen-000"
 TARGETS = ("jar", "mug", "paddle")  # the rover trials' targets, in visiting order
@@ -32,7 +32,7 @@ class Lab:
         self.env = {
             "ROBOTSLANG_DATA_DIR": str(self.settings.data_dir),
             "ROBOTSLANG_SECRET_KEY": self.settings.secret_key,
-            "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+            **UNPACED_ENV,
             "ROBOTSLANG_CACHE_DIR": str(tmp_path / "cache"),
             **{f"ROBOTSLANG_{k.upper()}": str(v) for k, v in settings.items()},
         }

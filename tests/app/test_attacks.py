@@ -1,6 +1,7 @@
 """What an independent attacker tried against a running server (issue 27): spoofed client
 addresses, a second Host header, locking a lab out, sockets outliving a logout, forged rover
-frames and a flood of chat. Each test runs a real server on a loopback port."""
+frames and a flood of chat; and a Driver's flood of moves (issue 35). Each test runs a real
+server on a loopback port."""
 
 from __future__ import annotations
 
@@ -24,15 +25,18 @@ from pydantic import ValidationError
 
 from app.main import build_services
 from app.settings import Settings
+from app.trial.runtime import REFUSED_RUN_S
 from app.trial.state import fold
 from bench.live import REPO, SeatClient, ServerProcess, make_trial
 from robot_client.protocol import pack_frame
 from tests.app.live import (
     PASSWORD,
     add_experimenter,
+    browser,
     experimenter_client,
     log_in,
     page_csrf_token,
+    platform_rate,
     platform_settings,
     session_cookie,
     submit_login,
@@ -42,15 +46,8 @@ from tests.app.wire_rover import Rover, rover_trial
 
 
 def from_address(server, address: str = "127.0.0.1") -> httpx.Client:
-    """A browser at `address`, as far as the server can tell: its socket bound to that loopback
-    address (all of 127.0.0.0/8 reaches this machine). Patient: a login hashes a password."""
-    return httpx.Client(
-        base_url=server.url,
-        follow_redirects=True,
-        headers={"Origin": server.url},
-        transport=httpx.HTTPTransport(local_address=address),
-        timeout=60,
-    )
+    """A browser at `address` (patient: a login hashes a password)."""
+    return browser(server.url, address)
 
 
 def guesses(client: httpx.Client, names, forwarded_for=None) -> list[int]:
@@ -138,6 +135,7 @@ def test_guessing_locks_out_the_guesser_not_the_experimenter(server):
 
 
 # -- a flood of chat -------------------------------------------------------------------
+@pytest.mark.settings(**platform_rate())
 def test_a_flood_of_chat_from_one_seat_is_rate_limited_and_nothing_accepted_is_lost(settings, server):
     flood = 1000
     trial_id = make_trial(server.services, server.services.mazes.names()[0])
@@ -179,6 +177,51 @@ def test_a_flood_of_chat_from_one_seat_is_rate_limited_and_nothing_accepted_is_l
     heard = [m["payload"]["text"] for m in to_driver if m.get("type") == "event" and m["kind"] == "chat"]
     assert logged[0] == "before the flood" and logged[-1] == "after the flood"
     assert heard == logged
+
+
+# -- a flood of moves ------------------------------------------------------------------
+@pytest.mark.settings(**platform_rate(), min_move_interval_s=Settings.model_fields["min_move_interval_s"].default)
+@pytest.mark.parametrize("gap_s", [0.0, 0.008], ids=["as-fast-as-it-can", "the-issues-2.4-s"])
+def test_a_flood_of_moves_is_rate_limited_and_its_refusals_logged_as_runs(settings, server, trial, seats, gap_s):
+    flood = 300
+
+    async def attack() -> tuple[list[dict], float]:
+        async with (
+            SeatClient(server.ws_url, seats["commander"]) as commander,
+            SeatClient(server.ws_url, seats["driver"]) as driver,
+        ):
+            await start_trial(commander, driver)
+            start, began = len(driver.received), time.monotonic()
+            for i in range(flood):
+                await driver.send("move", action="left", move_id=f"f{i}")
+                await asyncio.sleep(gap_s)
+            # A seat's messages are taken in order: once this is heard, so was the flood.
+            for _ in range(30):
+                await driver.send("chat", text="after the flood")
+                with contextlib.suppress(AssertionError):
+                    await commander.event("chat", text="after the flood", timeout=2)
+                    break
+            return driver.received[start:], time.monotonic() - began
+
+    to_driver, took_s = asyncio.run(attack())
+    server.stop()  # the last run of refusals is logged as the trial's runtime closes
+    log = server.services.log.load(trial)
+    # Every request counted against the seat's rate, executed or refused: the flood was told to slow down.
+    limited = [m for m in to_driver if m.get("type") == "error" and m["code"] == "rate_limited"]
+    refusals = [m for m in to_driver if m.get("type") == "move_refused"]
+    executed = [m for m in to_driver if m.get("kind") == "move_executed"]
+    assert limited and executed and refusals
+    taken = len(refusals) + len(executed)
+    assert taken <= settings.seat_message_burst + settings.seat_message_rate_per_s * took_s
+    # Each refused request was answered; the log counts them all, in a handful of events.
+    runs = [e for e in log if e.kind == "moves_refused"]
+    assert sum(e.payload["count"] for e in runs) == len(refusals) == fold(log).refused
+    assert [e.payload["move_id"] for e in log if e.kind == "move_executed"] == [
+        m["payload"]["move_id"] for m in executed
+    ]
+    move_events = [e for e in log if e.kind in ("move_requested", "move_executed", "moves_refused")]
+    # A run ends at an executed move, a change of reason or REFUSED_RUN_S after its first request.
+    assert len(runs) <= 2 * len(executed) + took_s / REFUSED_RUN_S + 1 and len(move_events) < flood / 10
 
 
 def chats(server, trial_id: int) -> list[str]:

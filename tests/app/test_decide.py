@@ -44,6 +44,17 @@ def test_a_move_id_is_executed_once():
     ]
 
 
+def test_a_move_asked_too_soon_is_refused_without_spending_its_id():
+    state = running(
+        ("move_requested", {"move_id": "m1", "action": "left"}),
+        ("move_executed", {"move_id": "m1", "action": "left", "outcome": "ok", "collision": False}),
+    )
+    soon = RequestMove("m2", Move.LEFT, now_ns=state.last_move_ns + S // 10, robot_ready=True, min_interval_ns=S // 4)
+    assert decide(state, soon) == [ev.MovesRefused(reason="too soon after the previous move")]
+    later = RequestMove("m2", Move.LEFT, now_ns=state.last_move_ns + S, robot_ready=True, min_interval_ns=S // 4)
+    assert decide(state, later) == [ev.MoveRequested(move_id="m2", action=Move.LEFT)]
+
+
 def test_reopening_refuses_the_move_in_flight_and_lets_the_seats_go():
     state = running(("move_requested", {"move_id": "m1", "action": "forward"}))
     events = decide(state, Reopen())

@@ -15,6 +15,7 @@ from app.demo.script import OBJECT_WORDS, describe_view, plan_leg
 from app.mazes import Mazes
 from app.trial.log import EventLog
 from sim.core.dynamics import Action, Pose, snap_pose, teacher_action
+from tests.app.live import UNPACED_ENV
 
 
 @pytest.fixture(scope="module")
@@ -24,7 +25,7 @@ def demo_dir(tmp_path_factory):
     env = {
         "ROBOTSLANG_DATA_DIR": str(data),
         "ROBOTSLANG_SECRET_KEY": "demo-test",
-        "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+        **UNPACED_ENV,
     }
     result = CliRunner().invoke(
         root, ["demo", "--trials", "2", "--parallel", "2", "--pace", "0", "--seed", "3"], env=env

@@ -33,7 +33,7 @@ def test_driver_drops_and_rejoins_within_grace(server, trial, seats):
                 assert welcome["phase"] == "localizing" and "frame" in welcome
                 await commander.event("resumed", reason="disconnect:driver")
                 executed = await move(driver, "right")
-                assert executed["payload"]["outcome"] == "ok"
+                assert executed["outcome"] == "ok"
 
     asyncio.run(play())
 
@@ -71,12 +71,12 @@ def test_experimenter_pauses_resumes_and_aborts(server, trial, seats):
             await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial}/pause")
             await driver.event("paused", reason="experimenter")
             refused = await move(driver, "left")
-            assert refused["payload"]["outcome"] == "refused" and "paused" in refused["payload"]["reason"]
+            assert refused["outcome"] == "refused" and "paused" in refused["reason"]
             live = (await asyncio.to_thread(experimenter.get, "/experimenter/api/trials")).json()["trials"]
             assert live[0]["paused"] == ["experimenter"] and live[0]["pose"] is not None
             await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial}/resume")
             await driver.event("resumed", reason="experimenter")
-            assert (await move(driver, "left"))["payload"]["outcome"] == "ok"
+            assert (await move(driver, "left"))["outcome"] == "ok"
             await asyncio.to_thread(
                 experimenter.post,
                 f"/experimenter/trials/{trial}/abort",

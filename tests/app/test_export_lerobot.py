@@ -22,6 +22,7 @@ from app.export.record import ExportError
 from app.settings import Settings
 from app.trial.log import EventLog
 from sim.core.dynamics import Action
+from tests.app.live import UNPACED_ENV
 from tests.app.trial_log import small_maze
 from tests.packaging.outside import REPO, clean_env
 
@@ -35,7 +36,7 @@ def recorded(tmp_path_factory):
     env = {
         "ROBOTSLANG_DATA_DIR": str(data),
         "ROBOTSLANG_SECRET_KEY": "lerobot-test",
-        "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+        **UNPACED_ENV,
     }
     result = CliRunner().invoke(root, ["demo", "--trials", "1", "--pace", "0", "--seed", "5"], env=env)
     assert result.exit_code == 0, result.output

@@ -23,6 +23,7 @@ from app.mazes import Mazes
 from app.settings import Settings
 from app.trial.log import EventLog
 from sim.tasks.benchmark import Benchmark, recorded_start
+from tests.app.live import UNPACED_ENV
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +33,7 @@ def recorded(tmp_path_factory):
     env = {
         "ROBOTSLANG_DATA_DIR": str(data),
         "ROBOTSLANG_SECRET_KEY": "export-test",
-        "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+        **UNPACED_ENV,
     }
     result = CliRunner().invoke(root, ["demo", "--trials", "2", "--pace", "0", "--seed", "7"], env=env)
     assert result.exit_code == 0, result.output
@@ -201,7 +202,7 @@ def test_demo_and_exports_on_postgresql(postgres_url, tmp_path):
         "ROBOTSLANG_DATA_DIR": str(tmp_path / "var"),
         "ROBOTSLANG_DATABASE_URL": postgres_url,
         "ROBOTSLANG_SECRET_KEY": "pg-test",
-        "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+        **UNPACED_ENV,
     }
     run(env, "demo", "--trials", "1", "--pace", "0")
     settings = Settings(data_dir=tmp_path / "var", database_url=postgres_url, secret_key="pg-test")

@@ -16,7 +16,7 @@ from app.db.models import Event
 from app.main import build_services
 from app.trial.relay import owner_key
 from bench.live import SeatClient, ServerProcess, make_trial
-from tests.app.live import platform_settings
+from tests.app.live import UNPACED_ENV, platform_settings
 from tests.app.trial_play import move, start_trial
 
 
@@ -26,7 +26,7 @@ def server_env(settings) -> dict[str, str]:
         "ROBOTSLANG_SECRET_KEY": settings.secret_key,
         "ROBOTSLANG_DATABASE_URL": settings.database_url,
         "ROBOTSLANG_REDIS_URL": settings.redis_url,
-        "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+        **UNPACED_ENV,
         "ROBOTSLANG_CACHE_DIR": str(settings.cache_dir),
     }
 
@@ -72,7 +72,7 @@ def test_two_workers_share_one_trial(tmp_path, postgres_url, redis_url):  # noqa
                 await commander.send("localize", x=1.0, y=1.0)
                 await driver.event("phase", phase="navigating")
                 mark = len(driver.received)
-                assert (await move(driver, "left"))["payload"]["outcome"] == "ok"
+                assert (await move(driver, "left"))["outcome"] == "ok"
                 await driver.event("frame", start=mark)
 
         asyncio.run(play())
@@ -105,7 +105,7 @@ def test_the_owner_killed_mid_trial_is_taken_over_and_its_seats_served_again(tmp
             await start_trial(commander, driver)
             await commander.send("localize", x=1.0, y=1.0)
             await driver.event("phase", phase="navigating")
-            assert (await move(driver, "forward"))["payload"]["outcome"] in ("ok", "collision")
+            assert (await move(driver, "forward"))["outcome"] in ("ok", "collision")
             await chat_both_ways(commander, driver, "before")
 
             assert owner_pid(services, redis_url, trial_id) == first.proc.pid
@@ -121,7 +121,7 @@ def test_the_owner_killed_mid_trial_is_taken_over_and_its_seats_served_again(tmp
             async with SeatClient(second.ws_url, tokens["commander"]) as commander:
                 await commander.wait_for(lambda m: m.get("type") == "welcome")
                 await chat_both_ways(commander, driver, "after")
-                assert (await move(driver, "left"))["payload"]["outcome"] == "ok"
+                assert (await move(driver, "left"))["outcome"] == "ok"
             assert owner_pid(services, redis_url, trial_id) == second.proc.pid
             await driver.__aexit__(None, None, None)
             return committed

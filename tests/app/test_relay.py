@@ -41,7 +41,7 @@ def test_seats_on_two_processes_play_one_trial(cluster):
                 await driver.send("confirm")  # a bad message through the relay
                 error = await driver.wait_for(lambda m: m.get("type") == "error")
                 assert "may not send 'confirm'" in error["error"]
-                assert (await move(driver, "left"))["payload"]["outcome"] == "ok"
+                assert (await move(driver, "left"))["outcome"] == "ok"
                 for _ in range(3):
                     await drive_to_target(first.services, trial_id, driver)
                     await claim_and_decide(commander, driver, confirm=True)
@@ -69,7 +69,7 @@ def test_a_process_that_stops_hands_its_trials_to_another(cluster):
             await start_trial(commander, driver)
             await commander.send("localize", x=1.0, y=1.0)
             await driver.event("phase", phase="navigating")
-            assert (await move(driver, "right"))["payload"]["outcome"] == "ok"
+            assert (await move(driver, "right"))["outcome"] == "ok"
 
     asyncio.run(before())
     first.stop()
@@ -82,7 +82,7 @@ def test_a_process_that_stops_hands_its_trials_to_another(cluster):
             welcome = await driver.wait_for(lambda m: m.get("type") == "welcome")
             assert welcome["phase"] == "navigating"
             assert second.services.hub.peek(trial_id) is not None
-            assert (await move(driver, "left"))["payload"]["outcome"] == "ok"
+            assert (await move(driver, "left"))["outcome"] == "ok"
             await driver.send("chat", text="still here")
             await commander.event("chat", text="still here")
 
@@ -113,7 +113,7 @@ def test_a_watcher_on_another_process_sees_the_trials_particle_filter(cluster):
                 await watch.wait_for(lambda m: m.get("type") == "belief", timeout=30)
                 await commander.send("localize", x=1.0, y=1.0)
                 await driver.event("phase", phase="navigating")
-                assert (await move(driver, "left"))["payload"]["outcome"] == "ok"
+                assert (await move(driver, "left"))["outcome"] == "ok"
                 seen = await watch.wait_for(lambda m: m.get("type") == "belief" and m["moves"] >= 1, timeout=30)
                 assert seen["points"] and len(seen["mean"]) == 3
                 assert first.services.hub.peek(trial_id) is not None and second.services.hub.peek(trial_id) is None

@@ -17,7 +17,7 @@ from app.main import build_services
 from app.routes.seat_ws import TRIAL_OVER
 from app.trial.state import fold
 from bench.live import SeatClient, ServerProcess, make_trial
-from tests.app.live import experimenter_client, platform_settings, session_cookie
+from tests.app.live import UNPACED_ENV, experimenter_client, platform_settings, session_cookie
 from tests.app.trial_play import move, start_trial
 from tests.app.wire_rover import Rover, rover_trial
 
@@ -44,7 +44,7 @@ def test_a_crash_neither_scores_the_downtime_nor_leaves_a_move_requested(tmp_pat
     env = {
         "ROBOTSLANG_DATA_DIR": str(settings.data_dir),
         "ROBOTSLANG_SECRET_KEY": settings.secret_key,
-        "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+        **UNPACED_ENV,
     }
     server = ServerProcess(env).start()
     try:

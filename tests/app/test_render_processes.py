@@ -86,7 +86,7 @@ def test_the_driver_sees_frames_drawn_in_a_render_process(server):
             await start_trial(commander, driver)
             seen = []
             for action in ("left", "left", "right", "forward"):
-                executed = await move(driver, action)
+                executed = await driver.event("move_executed", move_id=(await move(driver, action))["move_id"])
                 frame = await driver.event("frame", start=driver.received.index(executed))
                 seen.append(base64.b64decode(frame["jpeg"]))
             return seen

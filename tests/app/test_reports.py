@@ -17,9 +17,9 @@ from sqlalchemy import select
 from app.annotation.events import Adjudicated, CutMarked, Submitted, Tagged
 from app.annotation.log import AnnotationLog
 from app.db.models import AnnotationAssignment, Experimenter, Team, Trial
-from app.leaderboard import trial_score
 from app.trial import events as ev
 from app.trial.setup import create_trial, suggest_maze
+from app.trial.state import trial_score
 from bench.live import SeatClient, make_trial
 from tests.app.live import cli, experimenter_client
 from tests.app.trial_play import claim_and_decide, drive_to_target, start_trial
@@ -173,10 +173,19 @@ def test_assign_agreement_and_the_adjudicated_cut_in_the_ldh_export(study, tmp_p
     assert "2 trials annotated by two annotators." in page and "mean distance 0.50 messages" in page
     assert '<tr data-tag="communication_repair"><td>Communication Repair</td><td class="k">0.000</td>' in page
     assert f'data-trial="{d1}" data-item="cut"' in page
+    assert "ann: yes; bob: no" in page, "a tag's answers read as the yes/no its adjudication offers"
     decided = client.post(
         "/experimenter/annotation/adjudicate", data={"trial_id": d1, "item": "cut", "value": "3", "study": STUDY}
     )
     assert decided.status_code == 200 and "ann: 2; bob: 3" in html.unescape(decided.text)
+    decided = client.post(
+        "/experimenter/annotation/adjudicate",
+        data={"trial_id": d2, "item": "communication_repair", "value": "no", "study": STUDY},
+    )
+    assert '<td class="adjudicated">no</td>' in decided.text and "True" not in decided.text
+    unpaired = html.unescape(client.get("/experimenter/annotation?study=nobody-twice").text)
+    assert "No trial of this study has been submitted by two annotators yet" in unpaired
+    assert "n/a" not in unpaired and 'id="kappa"' not in unpaired
     server.stop()
     eve = AnnotationLog(sessions).records(d1)[-1]
     assert eve.event == Adjudicated(item="cut", value=3) and eve.annotator_id not in (account["ann"], account["bob"])

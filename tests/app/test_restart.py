@@ -10,7 +10,7 @@ from app.main import build_services
 from app.trial.state import fold
 from bench.live import SeatClient, ServerProcess, make_trial
 from sim.core.dynamics import Action, snap_pose, teacher_action
-from tests.app.live import platform_settings
+from tests.app.live import UNPACED_ENV, platform_settings
 from tests.app.trial_play import claim_and_decide, move, start_trial
 
 
@@ -31,7 +31,7 @@ def test_kill_and_restart_mid_trial_loses_no_committed_event(tmp_path):
     env = {
         "ROBOTSLANG_DATA_DIR": str(settings.data_dir),
         "ROBOTSLANG_SECRET_KEY": settings.secret_key,
-        "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+        **UNPACED_ENV,
         "ROBOTSLANG_CACHE_DIR": str(tmp_path / "cache"),
     }
     server = ServerProcess(env).start()

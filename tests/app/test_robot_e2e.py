@@ -149,9 +149,9 @@ async def test_a_move_is_refused_while_the_robot_is_not_connected_and_the_trial_
         welcome = await driver.wait_for(lambda m: m["type"] == "welcome")
         assert welcome["seats_needed"] == ["commander", "driver", "robot"] and "robot" not in welcome["connected"]
         await driver.send("move", action="forward", move_id="early")
-        refused = await driver.event("move_executed", move_id="early")
-        assert refused["payload"]["outcome"] == "refused"
-        assert refused["payload"]["reason"] == "the trial is waiting for the robot to connect"
+        refused = await driver.moved("early")
+        assert refused["outcome"] == "refused"
+        assert refused["reason"] == "the trial is waiting for the robot to connect"
         assert "phase" not in driver.kinds()
 
         robots(server.url, token)  # a fresh process: slow to start on a loaded machine

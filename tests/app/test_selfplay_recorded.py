@@ -19,7 +19,7 @@ from sim.agents.selfplay import library_trials
 from sim.core.dynamics import continuous_pose, snap_pose
 from sim.core.navgraph import NavGraph
 from sim.tasks.library import BUNDLED_DIR, MazeLibrary
-from tests.app.live import cli
+from tests.app.live import UNPACED_ENV, cli
 
 LIBRARY = MazeLibrary(bundled=BUNDLED_DIR)
 
@@ -48,7 +48,7 @@ def bundled_starts(n: int, seed: int = 0) -> dict[str, tuple[float, float, float
 @pytest.mark.slow
 def test_selfplay_through_the_trial_core_records_ordinary_trials(tmp_path):
     data = tmp_path / "var"
-    env = {"ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0", "ROBOTSLANG_RENDER_PROCESSES": "0"}
+    env = {**UNPACED_ENV, "ROBOTSLANG_RENDER_PROCESSES": "0"}
     done = cli("eval", "selfplay", "--record", str(data), "--limit", "2", "--processes", "2", "--json", env=env)
     assert done.returncode == 0, done.stderr[-2000:]
     figures = json.loads(done.stdout.strip().splitlines()[-1])

@@ -45,12 +45,14 @@ def test_score_is_time_to_last_confirmation_plus_move_penalty():
                 "reason": "too soon after the previous move",
             },
         ),
+        (4, "moves_refused", {"reason": "the previous move is still executing", "count": 7}),
         (5, "target_claimed", {"target": "jar", "target_index": 0, "frame_id": 9}),
         (6, "target_confirmed", {"target": "jar", "target_index": 0}),
         (31, "phase", {"phase": "finished", "target_index": 3}),
     )
     state = fold(events)
     assert state.moves == 2 and state.collisions == 1 and state.pending_claim is None
+    assert state.refused == 1 + 7  # the robot's refusal and a run of seven refused as they came
     assert state.score(move_penalty_s=1.0) == 32.0
     assert state.score(move_penalty_s=0.5) == 31.0
 

@@ -27,6 +27,7 @@ FIELDS = {
     "waiting_for",
     "claim_pending",
     "abort_reason",
+    "join_left_s",
 }
 
 
@@ -48,6 +49,7 @@ def test_seats_get_the_status_and_the_experimenter_watches_the_driver(server, tr
             welcome = await commander.wait_for(lambda m: m.get("type") == "welcome")
             assert set(welcome["status"]) == FIELDS
             assert welcome["status"]["phase"] == "waiting" and welcome["status"]["waiting_for"] == ["driver"]
+            assert welcome["status"]["join_left_s"] is None, "no join deadline outside a study's lobby"
             async with (
                 Watch(server, trial, cookie) as watch,
                 SeatClient(server.ws_url, services.seats.issue(trial, "driver")) as driver,

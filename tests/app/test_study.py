@@ -10,6 +10,7 @@ import html
 import json
 import time
 
+import httpx
 import pytest
 from click.testing import Result
 from sqlalchemy import select, text
@@ -31,16 +32,19 @@ from tests.app.live import (
 )
 
 REAL_NAME = "Bob Okafor"
-FREE_TEXT = "I am Bob Okafor and the mug was hard to find"
+# As long as a participant may write, in a script of three bytes a character: past a page, so
+# SQLite keeps it on overflow pages of its own.
+FREE_TEXT = "I am Bob Okafor and the mug was hard to find. " + "杯子很难找到。" * 270
 
 
 def make_study(settings, name: str = "pilot"):
     return StudyFiles(settings.data_dir / "studies").save(template(name))
 
 
-def join(server, study: str, real_name: str = ""):
-    """A stranger's browser through the study link: consent, code, optional name, instructions."""
-    client = browser(server.url)
+def join(server, study: str, real_name: str = "", client: httpx.Client | None = None):
+    """A stranger's browser through the study link: consent, code, optional name, instructions
+    (`client`: a browser that has opened a panel's link already)."""
+    client = client or browser(server.url)
     page = client.get(f"/study/{study}")
     assert page.status_code == 200 and "Information and consent" in page.text
     version = template(study).consent.version
@@ -146,8 +150,62 @@ def test_consent_is_recorded_with_its_version_and_declining_records_no_one(serve
     assert other.get("/study/pilot/me").status_code == 403
 
 
-def test_questionnaires_completion_and_withdrawal_erase_personal_data_only(server, tmp_path):
+def agree(server, study: str = "pilot", address: str | None = None):
+    """A new browser (at `address`) agreeing on the study's information page: the browser, ready
+    for the study's pages' scripts, and the reply."""
+    client = browser(server.url, address)
+    token = page_csrf_token(client.get(f"/study/{study}").text)
+    reply = client.post(
+        f"/study/{study}/consent", data={"choice": "agree", "consent_version": "1", "csrf_token": token}
+    )
+    client.headers["X-CSRF-Token"] = page_csrf_token(reply.text)
+    return client, reply
+
+
+def participants(server) -> int:
+    with server.services.db() as db:
+        return len(db.scalars(select(StudyParticipant)).all())
+
+
+@pytest.mark.settings(
+    study_consent_limit_per_address="3/minute",
+    study_consent_limit_per_study="5/minute",
+    study_lobby_limit_per_address="2/minute",
+)
+def test_sign_ups_are_limited_per_address_and_per_study_and_lobby_joins_per_address(server):
     make_study(server.settings)
+    looped = [agree(server) for _ in range(5)]  # one address, a new browser each time
+    assert [reply.status_code for _, reply in looped] == [200, 200, 200, 429, 429]
+    busy = looped[-1][1]
+    assert "Please try again in" in busy.text and int(busy.headers["Retry-After"]) > 0
+    # Another address still signs up, until the study's own rate is spent (5 a minute from anyone).
+    others = [agree(server, address=f"127.0.0.{i}")[1] for i in (2, 3, 4)]
+    assert [reply.status_code for reply in others] == [200, 200, 429]
+    assert participants(server) == 5, "nothing recorded for the refused"
+    # Lobby joins from one address: the third participant to enter the lobby from it waits a while.
+    lobby = [client for client, _ in looped[:3]]
+    assert poll(lobby[0])["state"] == "waiting" and poll(lobby[1])["state"] == "seated"
+    refused = lobby[2].post("/study/pilot/lobby")
+    assert refused.status_code == 429 and "joining the lobby" in refused.json()["detail"]
+    assert poll(lobby[0])["state"] == "seated", "asking again once in is not joining again"
+
+
+def test_a_study_with_a_cap_turns_the_next_participant_away_with_a_page(server):
+    StudyFiles(server.settings.data_dir / "studies").save(template("pilot").model_copy(update={"max_participants": 2}))
+    assert [agree(server)[1].status_code for _ in range(2)] == [200, 200]
+    page = browser(server.url).get("/study/pilot")
+    assert page.status_code == 200 and "This study is full" in page.text and "All 2 places" in page.text
+    assert 'id="agree"' not in page.text, "no consent form to fill in for nothing"
+    _, late = agree(server)  # a consent page opened before the cap was reached
+    assert late.status_code == 409 and "This study is full" in late.text
+    assert participants(server) == 2
+
+
+def test_questionnaires_completion_and_withdrawal_erase_personal_data_only(server, tmp_path):
+    # One planned trial: once it is played, "I have finished" gives the plan's code.
+    StudyFiles(server.settings.data_dir / "studies").save(
+        template("pilot").model_copy(update={"trials_per_participant": 1})
+    )
     bob, bob_code = join(server, "pilot", real_name=REAL_NAME)
     ann, ann_code = join(server, "pilot")
     trial_id = study_trial(server, "pilot", (bob_code, ann_code))
@@ -219,6 +277,12 @@ def test_questionnaires_completion_and_withdrawal_erase_personal_data_only(serve
     assert "You have withdrawn" in gone.text
     assert bob.get("/study/pilot/me").status_code == 403, "the pass is gone with the cookie"
     assert REAL_NAME not in every_text_in_db(server) and FREE_TEXT not in every_text_in_db(server)
+    # Nor in the files' bytes: not in the database's free space, not in a stale frame of the WAL
+    # (the free text as stored: in a JSON column, its characters escaped).
+    erased = [REAL_NAME.encode(), FREE_TEXT.encode(), json.dumps(FREE_TEXT)[1:-1].encode()]
+    for path in [server.settings.data_dir / f"robotslang.db{suffix}" for suffix in ("", "-wal")]:
+        raw = path.read_bytes() if path.exists() else b""
+        assert not [text[:20] for text in erased if text in raw], path.name
     with server.services.db() as db:
         enrolled = db.scalar(select(StudyParticipant).join(Participant).where(Participant.name == bob_code))
         kinds = [
@@ -229,6 +293,32 @@ def test_questionnaires_completion_and_withdrawal_erase_personal_data_only(serve
     assert enrolled.withdrawn_at is not None and enrolled.real_name is None
     assert kinds == ["consented", "answered", "withdrawn"], "pseudonymous events remain"
     assert trial.commander_id == enrolled.participant_id and ratings == {"difficulty": 3, "partner": 4}
+
+
+def test_the_questionnaire_opens_only_for_a_trial_the_participant_played_that_has_ended(server):
+    make_study(server.settings)
+    bob, bob_code = join(server, "pilot")
+    ann_code, cat_code, dan_code = (join(server, "pilot")[1] for _ in range(3))
+    ours, theirs = (
+        study_trial(server, "pilot", (bob_code, ann_code)),
+        study_trial(server, "pilot", (cat_code, dan_code)),
+    )
+    form = "/study/pilot/trials/{}/questionnaire"
+    open_seats(server, ours, "commander", "driver")
+    running = bob.get(form.format(ours))
+    assert running.status_code == 404 and "opens when the trial is over" in running.text
+    eve = experimenter_client(server.services, server.url)
+    for trial_id in (ours, theirs):
+        open_seats(server, trial_id, "commander", "driver")
+        assert eve.post(f"/experimenter/trials/{trial_id}/abort").status_code == 200
+    other_pairs = bob.get(form.format(theirs))
+    assert other_pairs.status_code == 404 and "not one of yours" in other_pairs.text
+    assert bob.get(form.format(theirs + 1000)).status_code == 404, "no such trial"
+    page = bob.get(form.format(ours))
+    assert page.status_code == 200 and 'name="difficulty"' in page.text
+    assert bob.post(form.format(ours), data=answers(bob_code)).url.path == "/study/pilot/me"
+    answered = bob.get(form.format(ours))
+    assert answered.status_code == 404 and "already answered" in answered.text
 
 
 def poll(client, study: str = "pilot") -> dict:

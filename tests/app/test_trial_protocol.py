@@ -20,6 +20,22 @@ def first_maze(services) -> str:
     return services.mazes.names()[0]
 
 
+async def logged_runs(services, trial_id: int, requests: int) -> list[dict]:
+    """The trial's `moves_refused` events once they count `requests` (a run is logged when it
+    ends, at the latest `REFUSED_RUN_S` after its first request)."""
+    for _ in range(60):
+        with services.db() as db:
+            runs = [
+                e.payload
+                for e in db.scalars(select(Event).where(Event.trial_id == trial_id, Event.kind == "moves_refused"))
+            ]
+        if sum(r["count"] for r in runs) >= requests:
+            assert sum(r["count"] for r in runs) == requests, runs
+            return runs
+        await asyncio.sleep(0.1)
+    raise AssertionError(f"the log counts {sum(r['count'] for r in runs)} refused requests, not {requests}")
+
+
 def test_full_trial_from_links_to_leaderboard(any_db_settings, start_server):
     server = start_server(any_db_settings)
     services = server.services
@@ -41,7 +57,7 @@ def test_full_trial_from_links_to_leaderboard(any_db_settings, start_server):
             welcome = await driver.wait_for(lambda m: m.get("type") == "welcome")
             first = welcome["frame"] if "frame" in welcome else await driver.event("frame")
             assert first["jpeg"]
-            executed = await move(driver, "left")
+            executed = await driver.event("move_executed", move_id=(await move(driver, "left"))["move_id"])
             await driver.event("frame", start=driver.received.index(executed))
             # The Commander's first mark ends localization.
             await commander.send("localize", x=1.2, y=1.0, heading=0.5)
@@ -184,7 +200,7 @@ def test_other_role_token_and_bad_messages_get_errors_and_never_end_the_trial(se
 
 
 @pytest.mark.settings(min_move_interval_s=2.0)
-def test_moves_faster_than_the_robot_are_refused_not_queued(server, seats):
+def test_moves_faster_than_the_robot_are_refused_not_queued(server, trial, seats):
     async def play():
         async with (
             SeatClient(server.ws_url, seats["commander"]) as commander,
@@ -193,14 +209,22 @@ def test_moves_faster_than_the_robot_are_refused_not_queued(server, seats):
             await start_trial(commander, driver)
             for i in range(5):  # a burst, as from a held-down key
                 await driver.send("move", action="left", move_id=f"burst{i}")
-            outcomes = [await driver.event("move_executed", move_id=f"burst{i}") for i in range(5)]
+            outcomes = [await driver.moved(f"burst{i}") for i in range(5)]
             await asyncio.sleep(0.8)  # anything queued would have executed by now
-            return [o["payload"]["outcome"] for o in outcomes], driver
+            return [o["outcome"] for o in outcomes], driver
 
     outcomes, driver = asyncio.run(play())
     assert outcomes[0] == "ok" and outcomes[1:] == ["refused"] * 4
     executed = [m for m in driver.received if m.get("kind") == "move_executed"]
-    assert len(executed) == 5
+    assert len(executed) == 1
+    refusals = [m for m in driver.received if m.get("type") == "move_refused"]
+    assert [m["move_id"] for m in refusals] == [f"burst{i}" for i in range(1, 5)]
+    assert {m["reason"] for m in refusals} <= {
+        "the previous move is still executing",
+        "too soon after the previous move",
+    }
+    runs = asyncio.run(logged_runs(server.services, trial, requests=4))
+    assert len(runs) <= 2  # one event a run of refusals (a reason each), not one a request
 
 
 @pytest.mark.settings(allowed_origins=["https://lab.example"])

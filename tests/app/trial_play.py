@@ -37,9 +37,10 @@ def facing_action(services, trial_id: int) -> Action:
 
 
 async def move(driver, action: str) -> dict:
+    """The move's outcome (`SeatClient.moved`: ok, collision or refused, and why)."""
     move_id = f"m{next(_ids)}"
     await driver.send("move", action=action, move_id=move_id)
-    return await driver.event("move_executed", move_id=move_id)
+    return await driver.moved(move_id)
 
 
 async def drive_to_target(services, trial_id: int, driver, max_moves: int = 400) -> int:
@@ -48,7 +49,7 @@ async def drive_to_target(services, trial_id: int, driver, max_moves: int = 400)
         if action == Action.STOP:
             return n
         executed = await move(driver, action.word)
-        assert executed["payload"]["outcome"] == "ok", executed
+        assert executed["outcome"] == "ok", executed
     raise AssertionError(f"target not reached in {max_moves} moves")
 
 

@@ -25,6 +25,7 @@ from app.main import build_services
 from app.security import SeatTokens
 from app.settings import Settings
 from bench.live import ServerProcess, free_port, make_trial
+from tests.app.live import UNPACED_ENV, page_csrf_token
 from tests.deploy.compose_file import CONSOLE_SCRIPTS, DEPLOY, compose_services, service_command
 from tests.packaging.outside import REPO, clean_env
 
@@ -136,7 +137,7 @@ def test_two_servers_behind_nginx_play_a_trial_over_tls(tmp_path, postgres_url, 
         "ROBOTSLANG_REDIS_URL": redis_url,
         "ROBOTSLANG_SECRET_KEY": SECRET,
         "ROBOTSLANG_DATA_DIR": str(tmp_path / "data"),
-        "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
+        **UNPACED_ENV,
         "ROBOTSLANG_TRUSTED_PROXIES": '["127.0.0.1"]',  # nginx here; compose.yaml names its container
     }
     # What compose.yaml configures the platform with, this test configures too.
@@ -181,6 +182,28 @@ def test_two_servers_behind_nginx_play_a_trial_over_tls(tmp_path, postgres_url, 
             proxy = f"https://127.0.0.1:{https_port}"
             plain = httpx.get(f"http://127.0.0.1:{http_port}/leaderboard")
             assert plain.status_code == 301 and plain.headers["location"] == f"{proxy}/leaderboard"
+            # Over TLS: HSTS from nginx, and the server's cookies are __Host- and Secure (it believes
+            # nginx's X-Forwarded-Proto), so an experimenter's session works through the proxy.
+            with httpx.Client(
+                base_url=proxy,
+                verify=ssl.create_default_context(cafile=str(cert)),
+                headers={"Origin": proxy},
+                timeout=60,  # a loaded machine's first page
+            ) as browser:
+                home = browser.get("/")
+                assert home.headers["strict-transport-security"] == "max-age=31536000"
+                assert re.match(
+                    r"__Host-robotslang_browser=[^;]+; Path=/; HttpOnly; SameSite=Strict; Secure$",
+                    home.headers["set-cookie"],
+                )
+                login = browser.post(
+                    "/login",
+                    data={"name": "admin", "password": "deploy-test-pw", "csrf_token": page_csrf_token(home.text)},
+                )
+                assert login.status_code == 303 and login.headers["location"] == "/experimenter"
+                assert "__Host-robotslang_session=" in login.headers["set-cookie"]
+                assert "secure" in login.headers["set-cookie"].lower() and "Path=/" in login.headers["set-cookie"]
+                assert browser.get("/experimenter").status_code == 200, "the __Host- session is read back"
             # The demo's seats (Commander, then Driver) connect through the proxy, trusting its cert.
             demo = subprocess.run(
                 [sys.executable, "-c", "from app.cli import main; main()", "demo", "--trials", "1", "--server", proxy],

@@ -27,14 +27,19 @@ ARTIFACTS = REPO / "test-artifacts"
 W_M, H_M = 2.4638, 2.0574
 
 
-def experimenter(browser, server, **context):
+def log_in(browser, server, name: str, password: str, lands_on: str, **context):
+    """A new browser context logged in with the home page's form, on the page it lands on."""
     page = browser.new_context(**context).new_page()
     page.goto(server.url + "/")
-    page.fill("input[name=name]", "eve")
-    page.fill("input[name=password]", "correct horse")
+    page.fill("input[name=name]", name)
+    page.fill("input[name=password]", password)
     page.click("#login")
-    page.wait_for_url(server.url + "/experimenter")
+    page.wait_for_url(server.url + lands_on)
     return page
+
+
+def experimenter(browser, server, **context):
+    return log_in(browser, server, "eve", "correct horse", "/experimenter", **context)
 
 
 def team_of_two(page) -> None:
@@ -47,14 +52,15 @@ def team_of_two(page) -> None:
 
 
 def page_checks(page, name: str) -> None:
-    """axe-core finds no serious or critical violation; nothing scrolls sideways at 390 px; no
-    image is a broken placeholder."""
+    """axe-core finds no serious or critical violation; the page has a main heading (h1); nothing
+    scrolls sideways at 390 px; no image is a broken placeholder."""
     from axe_playwright_python.sync_playwright import Axe
 
     page.wait_for_load_state("load")
     page.wait_for_timeout(300)  # the page scripts draw and fetch once
     violations = [v for v in Axe().run(page).response["violations"] if v["impact"] in ("serious", "critical")]
     assert not violations, (name, [(v["id"], [n["target"] for n in v["nodes"]][:3]) for v in violations])
+    assert page.locator("h1").count() >= 1, (name, "no h1")
     width = page.evaluate("() => [document.documentElement.scrollWidth, window.innerWidth]")
     assert width[0] <= width[1], (name, width)
     broken = page.evaluate("""() => [...document.images].filter(i => !i.hidden && i.getClientRects().length

@@ -15,7 +15,7 @@ from app.security import AccountRole, hash_password
 from bench.live import SeatClient
 from tests.app.live import experimenter_client, wait_js
 from tests.app.trial_play import claim_and_decide, drive_to_target, start_trial
-from tests.e2e.pages import ARTIFACTS, experimenter, page_checks
+from tests.e2e.pages import ARTIFACTS, experimenter, log_in, page_checks
 
 pytestmark = pytest.mark.browser
 SAID = [("commander", "what do you see"), ("driver", "a red wall"), ("commander", "turn left"), ("driver", "done")]
@@ -55,12 +55,7 @@ def test_an_annotator_marks_the_cut_and_tags_in_the_browser(browser, server, tri
         db.flush()
         ann = account.id
         db.add(AnnotationAssignment(trial_id=trial, annotator_id=ann))
-    page = browser.new_context().new_page()
-    page.goto(server.url + "/")
-    page.fill("input[name=name]", "ann")
-    page.fill("input[name=password]", "annotate well")
-    page.click("#login")
-    page.wait_for_url(server.url + "/annotate")
+    page = log_in(browser, server, "ann", "annotate well", "/annotate")
     assert page.inner_text("#progress") == "0 of 1 trials submitted"
     page.click(f"a[href='/annotate/trials/{trial}']")
     page.wait_for_url(f"{server.url}/annotate/trials/{trial}")
@@ -150,12 +145,7 @@ def test_two_annotators_agree_as_worked_by_hand_and_the_ldh_instance_takes_the_a
             db.add(AnnotationAssignment(trial_id=t, annotator_id=ids["bob"]))
     pages = {}
     for name in ("ann", "bob"):
-        pages[name] = page = browser.new_context().new_page()
-        page.goto(server.url + "/")
-        page.fill("input[name=name]", name)
-        page.fill("input[name=password]", "annotate well")
-        page.click("#login")
-        page.wait_for_url(server.url + "/annotate")
+        pages[name] = log_in(browser, server, name, "annotate well", "/annotate")
     t1, t2, t3 = trials
     annotate(pages["ann"], server, t1, 2, {"needs_history": [1]})
     annotate(pages["bob"], server, t1, 2, {"needs_history": [2]})
@@ -183,3 +173,41 @@ def test_two_annotators_agree_as_worked_by_hand_and_the_ldh_instance_takes_the_a
         record = load_trial(db, services.settings, t2)
     (instance,) = ldh_instances(record, services.mazes.load(record.maze))
     assert instance["localization_source"] == "adjudicated" and instance["localized_after_message"] == 3
+
+
+async def long_talk(server, seats, n: int) -> None:
+    """`n` messages, the two seats in turn."""
+    async with (
+        SeatClient(server.ws_url, seats["commander"]) as commander,
+        SeatClient(server.ws_url, seats["driver"]) as driver,
+    ):
+        await start_trial(commander, driver)
+        for k in range(n):
+            said, other = (commander, driver) if k % 2 == 0 else (driver, commander)
+            start = len(other.received)
+            await said.send("chat", text=f"message {k + 1}")
+            await other.event("chat", text=f"message {k + 1}", start=start)
+
+
+@pytest.mark.settings(seat_message_burst=100)  # 60 messages at once, not a person's pace
+def test_the_controls_stay_in_view_along_a_long_dialog(browser, server, trial, seats):
+    with ThreadPoolExecutor(1) as pool:
+        pool.submit(asyncio.run, long_talk(server, seats, 60)).result(timeout=60)
+    with server.services.db.begin() as db:
+        account = Experimenter(name="ann", password_hash=hash_password("annotate well"), role=AccountRole.ANNOTATOR)
+        db.add(account)
+        db.flush()
+        db.add(AnnotationAssignment(trial_id=trial, annotator_id=account.id))
+    page = log_in(browser, server, "ann", "annotate well", "/annotate", viewport={"width": 1280, "height": 800})
+    page.goto(f"{server.url}/annotate/trials/{trial}")
+    in_view = """(sel) => { const r = document.querySelector(sel).getBoundingClientRect();
+                            return r.top >= -1 && r.bottom <= innerHeight + 1; }"""
+    for n in (1, 30):  # the dialog's start, and its middle scrolled to the top of the window
+        page.eval_on_selector(f"#dialog li[data-number='{n}']", "e => e.scrollIntoView({block: 'start'})")
+        assert page.evaluate(in_view, f"#dialog li[data-number='{n}']")
+        for control in ("#save-cut", "#tag", "#save-tag", "#submit"):
+            assert page.evaluate(in_view, control), f"{control} is out of view at message {n}"
+    page.screenshot(path=str(ARTIFACTS / "annotate-long-dialog.png"))
+    page.check("#dialog li[data-number='30'] input[name=cut]")
+    page.click("#save-cut")
+    page.wait_for_selector("#dialog li.cut[data-number='30']")

@@ -1,7 +1,7 @@
 """The pages a new user meets, in headless Chromium against a real server on loopback: the
 Commander's map with its landmarks, the participants' clock, moves and plain status through a
 pause and an abort, localization by keyboard and by touch, a seat taken over and back, the
-agent leaderboard, and on every page axe-core and a 390 px wide phone."""
+agent leaderboard (every page's axe-core check and phone width: test_accessibility.py)."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from app.security import hash_password
 from bench.live import make_trial
 from sim.core.labels import LABEL_BGR, OBJECT_LABELS
 from tests.app.live import wait_js
-from tests.e2e.pages import ARTIFACTS, H_M, W_M, experimenter, page_checks, wait_until
+from tests.e2e.pages import ARTIFACTS, H_M, W_M, experimenter, wait_until
 
 pytestmark = pytest.mark.browser
 
@@ -251,45 +251,3 @@ def test_leaderboard_ranks_agent_drivers_apart_and_says_who_drove(browser, serve
     ARTIFACTS.mkdir(exist_ok=True)
     page.screenshot(path=str(ARTIFACTS / "leaderboard-agents.png"), full_page=True)
     page.context.close()
-
-
-def test_every_page_passes_axe_and_reads_on_a_phone(browser, server):
-    trial_id, commander_url, driver_url = new_trial(server)
-    commander, driver = seat_pages(browser, commander_url, driver_url)
-    ended, _, _ = new_trial(server)
-    admin = experimenter(browser, server, viewport={"width": 390, "height": 844})
-    admin.goto(f"{server.url}/experimenter/trials/{ended}")
-    admin.once("dialog", lambda d: d.accept())
-    admin.click("form.control-abort button")
-    admin.wait_for_selector("#status[data-phase=aborted]")
-
-    for name, path in [
-        ("dashboard", "/experimenter"),
-        ("trial", f"/experimenter/trials/{trial_id}"),
-        ("replays", "/experimenter/replays"),
-        ("replay", f"/experimenter/trials/{ended}/replay"),
-        ("leaderboard", "/leaderboard"),
-        ("not found", "/no/such/page"),
-    ]:
-        admin.goto(server.url + path)
-        page_checks(admin, name)
-    admin.goto(f"{server.url}/experimenter/trials/{ended}/replay")
-    admin.wait_for_selector("#replay[data-ready='1']")
-    page_checks(admin, "replay, loaded")
-
-    phone = browser.new_context(viewport={"width": 390, "height": 844}, has_touch=True, is_mobile=True).new_page()
-    for name, path in [
-        ("home", "/"),
-        ("bad join link", "/join?link=nonsense"),
-        ("bad seat link", "/play/nonsense"),
-        ("leaderboard", "/leaderboard"),
-    ]:
-        phone.goto(server.url + path)
-        page_checks(phone, name)
-    for page in (commander, driver):
-        page.set_viewport_size({"width": 390, "height": 844})
-        page_checks(page, page.url)
-    ARTIFACTS.mkdir(exist_ok=True)
-    commander.screenshot(path=str(ARTIFACTS / "commander-phone.png"), full_page=True)
-    for page in (commander, driver, admin, phone):
-        page.context.close()

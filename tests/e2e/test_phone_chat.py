@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 
 from bench.live import REPO
+from tests.app.live import wait_js
 
 ARTIFACTS = REPO / "test-artifacts"
 PHONE = {"viewport": {"width": 390, "height": 844}, "has_touch": True, "is_mobile": True}
@@ -61,4 +62,47 @@ def test_the_newest_messages_and_the_input_stay_on_a_phone_screen(browser, serve
         assert hidden == 0, f"{role}: the chat covers {work}"
         assert page.evaluate("document.documentElement.scrollWidth") <= 390, "nothing scrolls sideways"
     for page in pages.values():
+        page.context.close()
+
+
+def below_the_chat(page, selector: str) -> bool:
+    """Some of the element lies under the docked chat."""
+    return page.evaluate(
+        """(sel) => document.querySelector(sel).getBoundingClientRect().bottom
+                    > document.querySelector('.chat').getBoundingClientRect().top""",
+        selector,
+    )
+
+
+@pytest.mark.settings(min_move_interval_s=0.0)
+def test_on_a_phone_the_target_photo_and_a_claim_are_above_the_chat_and_the_moves_read_left_to_right(
+    browser, server, trial
+):
+    services = server.services
+    commander, driver = (browser.new_context(**PHONE).new_page() for _ in range(2))
+    commander.goto(f"{server.url}/play/{services.seats.issue(trial, 'commander')}")
+    driver.goto(f"{server.url}/play/{services.seats.issue(trial, 'driver')}")
+    driver.wait_for_selector("#status[data-phase=localizing]")
+    commander.tap("#map")
+    driver.wait_for_selector("#status[data-phase=navigating]")
+    commander.wait_for_selector("#target-image:not([hidden])")
+    commander.evaluate("scrollTo(0, 0)")
+    commander.wait_for_timeout(100)
+    assert on_screen(commander, "#target-image") and not below_the_chat(commander, "#target-image")
+    assert not below_the_chat(commander, "#map"), "the map and the target's photo are seen together"
+    commander.screenshot(path=str(ARTIFACTS / "phone-commander-target.png"))
+
+    # Left, forward and right side by side in that order, as the arrow keys; the claim below them.
+    boxes = {b: driver.locator(f"#{b}").bounding_box() for b in ("left", "forward", "right", "found")}
+    assert boxes["left"]["y"] == boxes["forward"]["y"] == boxes["right"]["y"] < boxes["found"]["y"]
+    assert boxes["left"]["x"] < boxes["forward"]["x"] < boxes["right"]["x"]
+    driver.screenshot(path=str(ARTIFACTS / "phone-driver-buttons.png"))
+
+    # A claim: the Commander's Confirm takes the focus, in view above the chat.
+    commander.evaluate("scrollTo(0, document.body.scrollHeight)")
+    driver.click("#found")
+    commander.wait_for_selector("#claim:not([hidden])")
+    wait_js(commander, "document.activeElement && document.activeElement.id === 'confirm'")
+    assert on_screen(commander, "#confirm") and not below_the_chat(commander, "#confirm")
+    for page in (commander, driver):
         page.context.close()

@@ -4,7 +4,7 @@ the lobby and is paired on coming back; one team plays its trial to the end, the
 by the experimenter; they answer the questionnaires and get the completion code; the played trial,
 excluded, leaves the leaderboard and the exports; a participant withdraws and their name is gone
 from the database while their events remain. Newcomers play a practice trial first (the bundled
-maze, set aside from scores), then the study's trials."""
+maze, set aside from scores), then the study's trials. A lobby over its rate says to wait."""
 
 from __future__ import annotations
 
@@ -88,8 +88,8 @@ def play_through(services, trial_id: int, pages) -> None:
 
 
 def test_a_whole_study_with_four_strangers(browser, server, tmp_path):
-    StudyFiles(server.settings.data_dir / "studies").save(
-        template("pilot").model_copy(update={"lobby_presence_s": 3.0})
+    StudyFiles(server.settings.data_dir / "studies").save(  # one planned trial after the practice
+        template("pilot").model_copy(update={"lobby_presence_s": 3.0, "trials_per_participant": 1})
     )
     eve = experimenter_client(server.services, server.url)
 
@@ -185,3 +185,15 @@ def test_a_partner_who_never_comes_sends_the_other_back_to_the_lobby(browser, se
     ann.wait_for_url("**/study/pilot/lobby", timeout=30_000)  # on its own, with nothing to rate
     lobby_says(ann, "only one waiting")
     bob.context.close()
+
+
+@pytest.mark.settings(study_lobby_limit_per_address="1/minute")
+def test_a_lobby_over_its_rate_says_to_wait_and_pairs_no_one(browser, server):
+    StudyFiles(server.settings.data_dir / "studies").save(template("pilot"))
+    ann, _ = arrive(browser, server)
+    lobby_says(ann, "You are the only one waiting")
+    bob, _ = arrive(browser, server)  # the same address: its second entry into the lobby this minute
+    lobby_says(bob, "Please wait: more people are joining the lobby than it takes at once")
+    page_checks(bob, "study lobby over its rate")
+    ann.wait_for_timeout(1500)  # Ann's page asked again meanwhile: Bob was not let in to be paired
+    assert "You are the only one waiting" in ann.inner_text("#lobby-status")

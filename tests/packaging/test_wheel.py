@@ -21,7 +21,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from tests.app.live import browser, page_csrf_token, submit_login
+from tests.app.live import UNPACED_ENV, browser, page_csrf_token, submit_login
 from tests.packaging.outside import REPO, clean_env, free_port
 
 pytestmark = pytest.mark.slow
@@ -213,7 +213,7 @@ def test_the_installed_server_takes_the_benchmark_data_dir_and_port_flags(venv, 
 
 
 def test_the_installed_demo_plays_a_trial(venv, tmp_path):
-    env = {"ROBOTSLANG_DATA_DIR": str(tmp_path / "d"), "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0"}  # unpaced: no waiting
+    env = {"ROBOTSLANG_DATA_DIR": str(tmp_path / "d"), **UNPACED_ENV}  # unpaced: no waiting
     out = run(venv, "robotslang", "demo", "--trials", "1", cwd=tmp_path, **env)
     assert out.returncode == 0, out.stdout + out.stderr
     assert ": finished," in out.stderr

@@ -1,0 +1,144 @@
+"""Mazes prepared before anyone waits (`app.preparation`): a server on an empty cache prepares every
+maze in the background and says how far it is; a second start on the same cache prepares
+nothing; a cache of another version is prepared again; a new trial's maze goes first; and
+`robotslang mazes prepare` does it on demand. On the bundled mazes only (a dozen)."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from pathlib import Path
+
+from app.preparation import prepared_version
+from bench.live import SeatClient, make_trial, team_trial
+from sim.core import observations
+from sim.tasks.generator import generate_maze
+from sim.tasks.library import MazeLibrary
+from tests.app.live import cli, experimenter_client
+
+PREPARED_WITHIN_S = 120  # a dozen mazes take a few seconds; a loaded machine many more
+
+
+def wait_prepared(server) -> None:
+    deadline = time.monotonic() + PREPARED_WITHIN_S
+    while not server.services.mazes.preparation.progress().done:
+        assert time.monotonic() < deadline, f"mazes still not prepared: {server.services.mazes.preparation.progress()}"
+        time.sleep(0.1)
+
+
+def preparation_log(caplog) -> list[str]:
+    return [r.getMessage() for r in caplog.records if r.name == "app.preparation"]
+
+
+def markers(cache: Path) -> dict[str, float]:
+    return {p.name: p.stat().st_mtime_ns for p in (cache / "prepared").iterdir()}
+
+
+def test_a_server_on_an_empty_cache_prepares_every_maze_and_shows_how_far_it_is(start_server, tmp_path, caplog):
+    caplog.set_level(logging.INFO, logger="app.preparation")
+    cache = tmp_path / "cache"
+    server = start_server(cache_dir=cache)
+    names = server.services.mazes.names()
+    wait_prepared(server)
+
+    log = preparation_log(caplog)
+    assert f"mazes: preparing what trials need of {len(names)} mazes in {cache}" in log
+    assert any(
+        line.startswith(f"mazes: {len(names)} of {len(names)} mazes ready ({len(names)} prepared here)") for line in log
+    )
+    page = experimenter_client(server.services, server.url).get("/experimenter").text
+    assert f"All {len(names)} mazes are ready" in page
+    # Each maze's graph, rays and scene are in the cache, and a marker of this version says so.
+    assert len(markers(cache)) == len(names) and all(m.endswith(prepared_version()) for m in markers(cache))
+    for folder in ("navgraph", "rays", "scene"):
+        assert len(list((cache / folder).iterdir())) == len(names), folder
+
+
+def test_a_second_start_on_the_same_cache_prepares_nothing(start_server, tmp_path, caplog):
+    cache = tmp_path / "cache"
+    first = start_server(cache_dir=cache)
+    wait_prepared(first)
+    first.stop()
+    before = {p: p.stat().st_mtime_ns for p in cache.rglob("*") if p.is_file()}
+
+    caplog.set_level(logging.INFO, logger="app.preparation")
+    second = start_server(cache_dir=cache)
+    wait_prepared(second)
+    n = len(second.services.mazes.names())
+    assert any(line.startswith(f"mazes: {n} of {n} mazes ready (0 prepared here)") for line in preparation_log(caplog))
+    assert {p: p.stat().st_mtime_ns for p in cache.rglob("*") if p.is_file()} == before  # nothing written
+
+
+def test_a_cache_of_another_version_is_prepared_again_in_the_background(start_server, tmp_path, caplog):
+    """As after an upgrade that changed the ray tables: the old version's files are there, the
+    current version's are not; the server builds them from its start, not at a seat's request."""
+    cache = tmp_path / "cache"
+    first = start_server(cache_dir=cache)
+    wait_prepared(first)
+    first.stop()
+    current, older = f"-v{observations.CACHE_VERSION}", f"-v{observations.CACHE_VERSION - 1}"
+    for rays in (cache / "rays").iterdir():
+        rays.rename(rays.with_name(rays.name.replace(current, older)))
+    old_version = prepared_version().replace(
+        f"rays{observations.CACHE_VERSION}", f"rays{observations.CACHE_VERSION - 1}"
+    )
+    for marker in (cache / "prepared").iterdir():
+        marker.rename(marker.with_name(marker.name.replace(prepared_version(), old_version)))
+
+    caplog.set_level(logging.INFO, logger="app.preparation")
+    second = start_server(cache_dir=cache)
+    wait_prepared(second)
+    n = len(second.services.mazes.names())
+    assert any(
+        line.startswith(f"mazes: {n} of {n} mazes ready ({n} prepared here)") for line in preparation_log(caplog)
+    )
+    assert sum(current in p.name for p in (cache / "rays").iterdir()) == n
+
+
+def test_a_new_trials_maze_is_prepared_before_the_rest_of_the_library(start_server, tmp_path):
+    cache = tmp_path / "cache"
+    server = start_server(cache_dir=cache)
+    names = server.services.mazes.names()
+    make_trial(server.services, names[-1])  # the library's last: the sweep would reach it last
+    wait_prepared(server)
+    library = server.services.mazes.library
+    done_at = {
+        name: (cache / "prepared" / f"{library.maps_key(name)}-{prepared_version()}").stat().st_mtime_ns
+        for name in names
+    }
+    assert sorted(names, key=done_at.get).index(names[-1]) < len(names) // 2
+
+
+def test_mazes_prepare_prepares_into_the_cache_dir_with_a_progress_bar(tmp_path):
+    """The bundled mazes and a benchmark's (here a benchmark folder of one maze)."""
+    benchmark, cache = tmp_path / "benchmark", tmp_path / "cache"
+    generate_maze(1000, name="Run_1").save(benchmark / "mazedata" / "Run_1")
+    n = len(MazeLibrary(benchmark))
+    prepare = ("mazes", "prepare", "--benchmark", str(benchmark), "--cache-dir", str(cache))
+    done = cli(*prepare, env={})
+    assert done.returncode == 0, done.stderr
+    assert "Preparing mazes" in done.stdout and "100%" in done.stdout
+    assert f"{n} of {n} mazes ready in {cache} ({n} prepared now)" in done.stdout
+    assert len(markers(cache)) == n and len(list((cache / "rays").iterdir())) == n
+
+    again = cli(*prepare, env={})
+    assert again.returncode == 0 and f"{n} of {n} mazes ready in {cache} (0 prepared now)" in again.stdout
+
+
+def test_a_seat_whose_maze_is_not_prepared_yet_is_welcomed_once_it_is_built(start_server, tmp_path):
+    """A trial made before its maze is prepared (not through the dashboard, which puts it first):
+    the Driver's seat waits for its maze's build, then is welcomed on its graph."""
+    cache = tmp_path / "cache"
+    server = start_server(cache_dir=cache)
+    maze = server.services.mazes.names()[-1]  # the library's last: the sweep reaches it last
+    with server.services.db.begin() as db:
+        trial_id = team_trial(db, "Team A", maze, server.services.mazes.names(), server.services.clock.now_ns())
+
+    async def driver_welcome() -> dict:
+        async with SeatClient(server.ws_url, server.services.seats.issue(trial_id, "driver")) as driver:
+            return await driver.wait_for(lambda m: m.get("type") == "welcome", timeout=PREPARED_WITHIN_S)
+
+    assert asyncio.run(driver_welcome())["type"] == "welcome"
+    library = server.services.mazes.library
+    assert (cache / "prepared" / f"{library.maps_key(maze)}-{prepared_version()}").exists()
