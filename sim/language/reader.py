@@ -227,6 +227,8 @@ class Reader:
             self.source = [str(t) for t in saved["vocab_source"]]
             self.target = [str(t) for t in saved["vocab_target"]]
         self._source_index = {t: i for i, t in enumerate(self.source)}
+        if len(self._source_index) != len(self.source):
+            raise ValueError(f"{path}: a word appears twice in the reader's vocabulary")
         self._target_index = {t: i for i, t in enumerate(self.target)}
         self._masks = self._grammar_masks()
 
@@ -293,7 +295,7 @@ class Reader:
             else:
                 pending = [f"{token}.{field}" for field in DOMAINS[token]]
             out.append(token)
-        return _whole(out, self.role), float(np.mean(probs))
+        return complete(out, self.role), float(np.mean(probs))
 
     def read(self, text: str, before: tuple[str, str] | None = None) -> Reading:
         """`before`: the turn before this one, as (speaker "c" or "d", its text), if any. A turn
@@ -307,7 +309,7 @@ class Reader:
         return Reading(decode_meaning(self.role, out, numbers), confidence)
 
 
-def _whole(tokens: list[str], role: Role) -> list[str]:
+def complete(tokens: list[str], role: Role) -> list[str]:
     """The tokens up to the last head written with all its fields."""
     whole: list[str] = []
     i = 0

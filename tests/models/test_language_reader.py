@@ -10,15 +10,17 @@ import numpy as np
 import pytest
 import torch
 
-from models.language import LABELS_DIR, Config, Seq2Seq, export, hand_examples, train
+from models.language import FIXED_SOURCE, LABELS_DIR, Config, Seq2Seq, export, hand_examples, train
 from sim.language.meaning import Clause, FactForm, Op
 from sim.language.reader import (
     BOS,
     DOMAINS,
     EOS,
     HEADS,
+    MAX_OUTPUT,
     Reader,
     Role,
+    complete,
     decode_meaning,
     output_vocabulary,
     shipped,
@@ -29,12 +31,12 @@ from sim.tasks.benchmark import Benchmark
 
 def _torch_greedy(model: Seq2Seq, reader: Reader, tokens: list[str]) -> list[str]:
     """The torch network's greedy reading under the reader's grammar (teacher forcing what it wrote)."""
-    src = torch.tensor([[reader.source.index(t) if t in reader.source else 1 for t in tokens]])
+    src = torch.tensor([[reader.source.index(t) for t in tokens]])
     written = [reader.target.index(BOS)]
     out: list[str] = []
     pending: list[str] = []
     with torch.no_grad():
-        for _ in range(12):
+        for _ in range(MAX_OUTPUT):
             logits = model(src, torch.tensor([len(tokens)]), torch.tensor([written]))[0, -1].double().numpy()
             mask = reader._masks[pending[0] if pending else "start"]  # noqa: SLF001 - the grammar under test
             token = reader.target[int(np.argmax(logits + mask))]
@@ -46,28 +48,23 @@ def _torch_greedy(model: Seq2Seq, reader: Reader, tokens: list[str]) -> list[str
                 pending = [f"{token}.{field}" for field in DOMAINS[token]]
             out.append(token)
             written.append(reader.target.index(token))
-    return out
+    return complete(out, reader.role)
 
 
 def test_numpy_reads_as_the_torch_network_it_was_exported_from(tmp_path):
     torch.manual_seed(3)
     sentences = ["turn left at the red wall", "go forward 3 steps then turn right", "what do you see?"]
-    source = [
-        "<pad>",
-        "<unk>",
-        "<sep>",
-        "<c>",
-        "<d>",
-        *sorted({t for s in sentences for t in source_tokens(s, None)[0]}),
-    ]
+    words = {t for s in sentences for t in source_tokens(s, None)[0]}
+    source = FIXED_SOURCE + sorted(words - set(FIXED_SOURCE))  # as training builds it
     target = output_vocabulary(Role.COMMANDER)
     model = Seq2Seq(len(source), len(target), Config(embed=8, hidden=8, decoder=12)).eval()
     export(model, Role.COMMANDER, source, target, tmp_path / "commander.npz")
     reader = Reader(tmp_path / "commander.npz")
     for sentence in sentences:
         tokens, numbers = source_tokens(sentence, None)
-        expected = decode_meaning(Role.COMMANDER, _torch_greedy(model, reader, tokens), numbers)
-        assert reader.read(sentence).meaning == expected
+        written = _torch_greedy(model, reader, tokens)
+        assert reader.decode(tokens)[0] == written
+        assert reader.read(sentence).meaning == decode_meaning(Role.COMMANDER, written, numbers)
 
 
 def test_the_shipped_readers_read_the_train_splits_turns_as_labelled(benchmark_path):
