@@ -9,11 +9,12 @@ hashes as annotated stops the run. The set's own hashes are checked before anyth
 so an edited set cannot be scored (errata go in a second file, counted both ways).
 
 Commander turns are scored as programs (exact match in order, clause F1 as multisets); Driver
-turns as fact sets (fact F1). `commander` / `driver` are what the agents understand
-(`sim.language.understanding`: the trained readers, the rules where a reader is unsure);
-`baseline` is the rules alone (`instructions.parse`, and `lexicon` as the Commander agent read
-a Driver before the readers); `parts` gives the reader alone, the rules alone and the two
-together. understand_p95_ms: the agents' time to understand one turn; model_mb: the resident memory that
+turns as fact sets (fact F1). `commander` / `driver` are the trained readers as the agents use
+them (`sim.language.understanding`; the dialog Commander reads a Driver by the rules unless seated
+with the trained reader, docs/model_card_language.md); `baseline` is the rules alone
+(`instructions.parse`, and `lexicon` as the Commander agent reads a Driver); `parts` gives the
+reader alone, the rules alone and the two together.
+understand_p95_ms: the agents' time to understand one turn; model_mb: the resident memory that
 loading the readers and reading the set added. Develop on val_seen; score test once per release.
 """
 
