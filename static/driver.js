@@ -86,11 +86,11 @@ on("move_executed", (msg) => {
 });
 // Refused as it was asked for (too soon, paused, one still executing): nothing moved.
 on("move_refused", (msg) => {
-  if (msg.move_id === pending) setPending(null);
+  if (msg.move_id === pending) { pending = null; dropQueue(); }
   note(friendlyError(msg.reason));
 });
 // Over the seat's rate the move was dropped unanswered: a press after the pause may go.
-on("error", (msg) => { if (msg.code === "rate_limited") setPending(null); });
+on("error", (msg) => { if (msg.code === "rate_limited") { pending = null; showProgress(); drain(); } });
 on("target_claimed", () => note("Waiting for the Commander to confirm…"));
 // A decision answers the claim: a refusal shown while it was pending no longer applies.
 on("target_confirmed", () => { note("Confirmed! On to the next target."); showError(""); });

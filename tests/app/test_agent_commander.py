@@ -71,7 +71,8 @@ def test_the_commander_agent_hears_no_pose_no_frame_stream_and_no_moves(server):
         assert time.monotonic() < deadline, "the Commander agent never heard its claim confirmed"
         time.sleep(0.05)
 
-    assert seatings == [Seating(seed=trial_id, oracle=None, maze=MAZE)], "the map, and nothing that cheats"
+    # The map, nothing that cheats, and that its partner is an agent (no read-back owed to a person).
+    assert seatings == [Seating(seed=trial_id, oracle=None, maze=MAZE, partner_human=False)]
     assert heard and all(isinstance(p, COMMANDER_HEARS) for p in heard), {type(p).__name__ for p in heard}
     assert services.hub.peek(trial_id).state.moves > 0, "the robot moved, and the Commander never heard a move"
     said = [p for p in heard if isinstance(p, t.Heard)]

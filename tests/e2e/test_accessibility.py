@@ -166,6 +166,15 @@ def test_every_page_has_no_serious_or_critical_axe_violation(browser, server):
         person.goto(server.url + "/study/pilot/me")
         visits.check(person, "study, my page")
         person.click("#finish")
+        visits.check(person, "study, finishing")  # with nothing played, nothing to finish yet
+        # The experimenter screens them out: their way ends, and the end page gives its code.
+        person.goto(server.url + "/study/pilot/me")
+        code = person.inner_text("#participant-code")
+        admin.goto(server.url + "/experimenter/studies/pilot")
+        admin.fill("#screen-out input[name=code]", code)
+        admin.click("#screen")
+        person.goto(server.url + "/study/pilot/done")
+        person.wait_for_url("**/study/pilot/done")
         visits.check(person, "study done")
 
     assert visits.routes - visits.seen == set(), "pages the app serves that no visit checked"
