@@ -146,6 +146,11 @@ def _turn_size(ws: list[str]) -> int:
     return 2
 
 
+def asks_to_look(message: str) -> bool:
+    """Whether a message asks the Driver to look all around (turn in place: eight moves)."""
+    return bool(_LOOK.search(" ".join(words(message))))
+
+
 def _question(text: str, ws: list[str]) -> Ask:
     look = bool(_LOOK.search(text))
     labels = _labels(ws)

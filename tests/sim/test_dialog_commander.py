@@ -169,7 +169,7 @@ def test_after_a_rejected_claim_it_guides_the_driver_closer(world):
 
 def test_its_inputs_hold_no_pose_frames_or_moves(world):
     maze, graph, rays, _ = world
-    assert list(inspect.signature(DialogCommander).parameters) == ["maze", "seed", "cache_dir"]
+    assert list(inspect.signature(DialogCommander).parameters) == ["maze", "seed", "cache_dir", "understanding"]
     assert not hasattr(_commander(world), "pose")
     commander = _commander(world)
     commander.perceive(PhaseChanged(Phase.LOCALIZING, None, 3))
