@@ -12,8 +12,8 @@ Commander turns are scored as programs (exact match in order, clause F1 as multi
 turns as fact sets (fact F1). `commander` / `driver` are the trained readers as the agents use
 them (`sim.language.understanding`; the dialog Commander reads a Driver by the rules unless seated
 with the trained reader, docs/model_card_language.md); `baseline` is the rules alone
-(`instructions.parse`, and `lexicon` as the Commander agent reads a Driver); `parts` gives the
-reader alone, the rules alone and the two together.
+(`instructions.parse`, and `lexicon` as the Commander agent reads a Driver). The readers are used
+alone: the rules as a fallback below a reader's confidence scored no better (model card).
 understand_p95_ms: the agents' time to understand one turn; model_mb: the resident memory that
 loading the readers and reading the set added. Develop on val_seen; score test once per release.
 """
@@ -37,7 +37,7 @@ from sim.language import lexicon
 from sim.language.meaning import Clause, FactForm, Program, Score, facts_of, program_of, score_facts, score_programs
 from sim.language.reader import Reader, Role, shipped
 from sim.language.understanding import Understanding
-from sim.tasks.benchmark import Benchmark, Split
+from sim.tasks.benchmark import Benchmark, Split, text_hash
 
 GOLD_DIR = Path(__file__).parent / "language_gold"
 # The frozen set: sha256 of each file, committed before the code it judges changes.
@@ -67,12 +67,7 @@ class RecordedTurn:
 
     def asked(self) -> str | None:
         """The Commander's latest question since the Driver last spoke (what a Driver turn answers)."""
-        for role, text in reversed(self.before):
-            if role == "navigator":
-                return None
-            if lexicon.is_question(text):
-                return text
-        return None
+        return lexicon.asked((role == "oracle", text) for role, text in self.before)
 
     def previous(self) -> tuple[str, str] | None:
         """The turn before, as the agents' reader takes it ("c" Commander, "d" Driver)."""
@@ -80,10 +75,6 @@ class RecordedTurn:
             return None
         role, text = self.before[-1]
         return ("c" if role == "oracle" else "d", text)
-
-
-def text_hash(text: str) -> str:
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def check_frozen(directory: Path = GOLD_DIR) -> None:
@@ -164,17 +155,11 @@ def _figures(commander: Score, driver: Score) -> dict[str, Any]:
 
 
 def evaluate(benchmark: Benchmark, split: str, understanding: Understanding) -> dict[str, Any]:
-    """The agents' understanding against the gold set, with the rules alone beside it (`baseline`)
-    and the trained reader alone and with its rules fallback (`parts`)."""
+    """An understanding against the gold set, with the rules alone beside it (`baseline`)."""
     commander, driver = gold(benchmark, split)
     baseline = _figures(
         score_programs((rules_program(t), want) for t, want in commander),
         score_facts((rules_facts(t), want) for t, want in driver),
-    )
-    reader_alone = Understanding(understanding.commander_reader, understanding.driver_reader, unsure=0.0)
-    alone = _figures(
-        score_programs((reader_alone.program(t.text, t.previous()).meaning, want) for t, want in commander),
-        score_facts((reader_alone.facts(t.text, t.previous(), t.asked()).meaning, want) for t, want in driver),
     )
     times: list[float] = []
     programs, facts = [], []
@@ -190,11 +175,6 @@ def evaluate(benchmark: Benchmark, split: str, understanding: Understanding) -> 
     return {
         **_figures(score_programs(programs), score_facts(facts)),
         "baseline": baseline,
-        "parts": {
-            "reader": alone,
-            "rules": baseline,
-            "together": _figures(score_programs(programs), score_facts(facts)),
-        },
         "understand_p95_ms": round(1000 * times[int(0.95 * (len(times) - 1))], 3) if times else 0.0,
         "split": split,
     }

@@ -36,6 +36,7 @@ from sim.agents.oracle_commander import OracleCommander
 from sim.agents.turns import Agent
 from sim.core.labels import OBJECT_LABELS, WALL_LABELS
 from sim.language import instructions as ins
+from sim.language import lexicon
 from sim.language.meaning import Clause, FactForm, facts_of, program_of
 from sim.language.phrases import Kind, Phrases, Phrasing
 from sim.language.reader import (
@@ -52,7 +53,7 @@ from sim.language.reader import (
 )
 from sim.language.understanding import Understanding
 from sim.language.vocab import OBJECT_WORDS, wall_name
-from sim.tasks.benchmark import Benchmark, Split
+from sim.tasks.benchmark import Benchmark, Split, text_hash
 
 LABELS_DIR = Path(__file__).with_name("language_data")
 # The benchmark's speaker names and self-play's (`Speaker` values), as the reader's context tags.
@@ -93,22 +94,8 @@ def _before(dialog: Sequence[tuple[str, str]], index: int) -> tuple[str, str] | 
     return SPEAKER[role], text
 
 
-def _asked(dialog: Sequence[tuple[str, str]], index: int) -> str | None:
-    """The Commander's latest question since the Driver last spoke (as the Commander agent reads)."""
-    from sim.language import lexicon
-
-    for role, text in reversed(dialog[:index]):
-        if SPEAKER[role] == "d":
-            return None
-        if lexicon.is_question(text):
-            return text
-    return None
-
-
 def hand_examples(bench: Benchmark, role: Role, labels_dir: Path = LABELS_DIR) -> list[Example]:
     """The hand-labelled train turns of `role`; a turn whose text changed stops training."""
-    import hashlib
-
     dialogs = bench.dialogs(Split.TRAIN)
     out: list[Example] = []
     key = "program" if role == Role.COMMANDER else "facts"
@@ -120,7 +107,7 @@ def hand_examples(bench: Benchmark, role: Role, labels_dir: Path = LABELS_DIR) -
                 raise ValueError(f"{record['id']}: the reader is trained on the train split only")
             dialog = dialogs[run]
             speaker, text = dialog[int(index)]
-            if hashlib.sha256(text.encode()).hexdigest()[:16] != record["text_sha256"] or ROLE_OF[speaker] != role:
+            if text_hash(text) != record["text_sha256"] or ROLE_OF[speaker] != role:
                 raise ValueError(f"{record['id']}: not the turn that was labelled (benchmark changed?)")
             meaning: Any = (
                 tuple(Clause.from_json(c) for c in record[key])
@@ -216,7 +203,14 @@ def selfplay_examples(bench: Benchmark, trials: int, seed: int) -> dict[Role, li
             if SPEAKER[speaker] == "c":
                 out[Role.COMMANDER].append(_example(Role.COMMANDER, text, before, program_of(ins.parse(text))))
             else:
-                out[Role.DRIVER].append(_example(Role.DRIVER, text, before, facts_of(text, _asked(dialog, index))))
+                out[Role.DRIVER].append(
+                    _example(
+                        Role.DRIVER,
+                        text,
+                        before,
+                        facts_of(text, lexicon.asked((SPEAKER[r] == "c", t) for r, t in dialog[:index])),
+                    )
+                )
     return out
 
 

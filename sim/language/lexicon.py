@@ -11,6 +11,7 @@ around") as heading steps of 45 degrees, counter-clockwise.
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from enum import Enum
 
@@ -286,6 +287,17 @@ def turn_steps(text: str) -> int:
     if "right" in after:
         return -LEFT_STEPS
     return 0
+
+
+def asked(before: Iterable[tuple[bool, str]]) -> str | None:
+    """The Commander's latest question since the Driver last spoke: what a Driver's next turn
+    answers. `before`: the dialog so far, as (said by the Commander, text)."""
+    for by_commander, text in reversed(list(before)):
+        if not by_commander:
+            return None
+        if is_question(text):
+            return text
+    return None
 
 
 def is_question(text: str) -> bool:

@@ -6,6 +6,7 @@ same layout). The start-pose protocol of NDH episodes lives here too.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import re
 from dataclasses import dataclass
@@ -41,6 +42,11 @@ _SCAN = re.compile(
 
 class BenchmarkError(ValueError):
     """Benchmark files missing or not in the expected form."""
+
+
+def text_hash(text: str) -> str:
+    """A dialog turn's text as hand labels name it without holding it: 16 hex digits of its SHA-256."""
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def scan_run(scan: str) -> str:
