@@ -51,6 +51,29 @@ def team_of_two(page) -> None:
     page.click("#add-team")
 
 
+def trial_with_an_agent(browser, server, maze: str, seat: str, targets: str | None = None):
+    """The experimenter creates a trial of Ada & Ben on `maze` with `agent:dialog` in `seat`
+    (commander or driver); their dashboard page and the trial's id."""
+    admin = experimenter(browser, server, viewport={"width": 1400, "height": 900})
+    team_of_two(admin)
+    admin.select_option("select[name=maze]", maze)
+    if targets is not None:
+        admin.fill("input[aria-label='Targets']", targets)
+    admin.select_option(f"select[name={seat}]", "agent:dialog")
+    admin.click("#create-trial")
+    return admin, int(admin.get_attribute("tr[data-trial]", "data-trial"))
+
+
+def mark_on_map(page, x: float = 0.4, y: float = 0.5) -> None:
+    """The Commander marks the robot on the map: a press at (x, y) of its width and height, dragged
+    to the right for the heading; it ends localization."""
+    box = page.locator("#map").bounding_box()
+    page.mouse.move(box["x"] + box["width"] * x, box["y"] + box["height"] * y)
+    page.mouse.down()
+    page.mouse.move(box["x"] + box["width"] * (x + 0.05), box["y"] + box["height"] * y)
+    page.mouse.up()
+
+
 def page_checks(page, name: str) -> None:
     """axe-core finds no serious or critical violation; the page has a main heading (h1); nothing
     scrolls sideways at 390 px; no image is a broken placeholder."""

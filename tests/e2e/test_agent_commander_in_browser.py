@@ -22,7 +22,7 @@ from sim.agents.dialog_driver import DialogDriver
 from sim.agents.sight import pose_rays
 from sim.core.dynamics import snap_pose
 from tests.app.live import add_experimenter
-from tests.e2e.pages import ARTIFACTS, experimenter, team_of_two
+from tests.e2e.pages import ARTIFACTS, trial_with_an_agent
 
 MAZE = "gen-000"  # one of the mazes bundled in sim/tasks/mazes/
 LEG_S = 300  # the first target, on a loaded 2-core machine (about a minute alone)
@@ -124,13 +124,7 @@ def test_a_person_drives_to_the_first_target_guided_by_the_agent_commander(brows
     services = server.services
     add_experimenter(server)
     # The experimenter registers two participants, forms a team and creates a trial.
-    admin = experimenter(browser, server, viewport={"width": 1400, "height": 900})
-    team_of_two(admin)
-    admin.select_option("select[name=maze]", MAZE)
-    admin.fill("input[aria-label='Targets']", "mug, paddle, jar")
-    admin.select_option("select[name=commander]", "agent:dialog")
-    admin.click("#create-trial")
-    trial_id = int(admin.get_attribute("tr[data-trial]", "data-trial"))
+    admin, trial_id = trial_with_an_agent(browser, server, MAZE, "commander", targets="mug, paddle, jar")
     assert admin.locator("a.join-commander").count() == 0, "no link for the agent's seat"
     assert "Commander agent:dialog" in admin.inner_text(f'tr[data-trial="{trial_id}"] .seats')
     driver_url = admin.get_attribute("a.join-driver", "href")

@@ -9,7 +9,7 @@ import math
 import pytest
 
 from tests.app.live import add_experimenter
-from tests.e2e.pages import ARTIFACTS, experimenter, team_of_two
+from tests.e2e.pages import ARTIFACTS, mark_on_map, trial_with_an_agent
 from tests.e2e.test_agent_driver_in_browser import held_still, say
 
 MAZE = "gen-000"
@@ -29,20 +29,11 @@ def test_told_in_words_it_never_met_it_asks_and_then_does_it(browser, start_serv
     server = start_server(min_move_interval_s=0.1)
     services = server.services
     add_experimenter(server)
-    admin = experimenter(browser, server, viewport={"width": 1400, "height": 900})
-    team_of_two(admin)
-    admin.select_option("select[name=maze]", MAZE)
-    admin.select_option("select[name=driver]", "agent:dialog")
-    admin.click("#create-trial")
-    trial_id = int(admin.get_attribute("tr[data-trial]", "data-trial"))
+    admin, trial_id = trial_with_an_agent(browser, server, MAZE, "driver")
     page = browser.new_context(viewport={"width": 1280, "height": 860}).new_page()
     page.goto(admin.get_attribute("a.join-commander", "href"))
     page.wait_for_selector("#status[data-phase=localizing]")
-    box = page.locator("#map").bounding_box()
-    page.mouse.move(box["x"] + box["width"] * 0.4, box["y"] + box["height"] * 0.5)
-    page.mouse.down()
-    page.mouse.move(box["x"] + box["width"] * 0.45, box["y"] + box["height"] * 0.5)
-    page.mouse.up()
+    mark_on_map(page)
     page.wait_for_selector("#status[data-phase=navigating]")
     runtime = services.hub.peek(trial_id)
     backend = runtime.backend

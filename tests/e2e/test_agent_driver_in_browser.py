@@ -18,7 +18,7 @@ from sim.agents.turns import Phase, PhaseChanged, SeatInfo, Speaker
 from sim.core.dynamics import snap_pose
 from sim.core.observations import RayTable
 from tests.app.live import add_experimenter, wait_js
-from tests.e2e.pages import ARTIFACTS, experimenter, team_of_two
+from tests.e2e.pages import ARTIFACTS, experimenter, mark_on_map, team_of_two
 
 MAZE = "gen-000"  # one of the mazes bundled in sim/tasks/mazes/
 MAX_INSTRUCTIONS = 30
@@ -76,11 +76,7 @@ def test_a_commander_talks_the_dialog_agent_to_its_first_target(browser, start_s
     assert held_still(runtime, 0.5), "asked what it sees, it drove off"
 
     # "The robot is here": a click with a drag for the heading ends localization.
-    box = page.locator("#map").bounding_box()
-    page.mouse.move(box["x"] + box["width"] * 0.4, box["y"] + box["height"] * 0.5)
-    page.mouse.down()
-    page.mouse.move(box["x"] + box["width"] * 0.45, box["y"] + box["height"] * 0.5)
-    page.mouse.up()
+    mark_on_map(page, 0.4, 0.5)
     page.wait_for_selector("#status[data-phase=navigating]")
     assert held_still(runtime, 1.0), "marked on the map, it drove off before it was told"
 
