@@ -20,15 +20,20 @@ from tests.app.test_study_paths import study
 
 
 @contextmanager
-def receiver(delay_s: float = 0.0) -> Iterator[tuple[str, queue.Queue[dict]]]:
-    """An HTTP server on a free loopback port that keeps each JSON body POSTed to /hook."""
+def receiver(hold: threading.Event | None = None) -> Iterator[tuple[str, queue.Queue[dict], queue.Queue[dict]]]:
+    """An HTTP server on a free loopback port that keeps each JSON body POSTed to /hook: in `held`
+    as it arrives, in `received` once answered (with `hold`, not before it is set)."""
     received: queue.Queue[dict] = queue.Queue()
+    held: queue.Queue[dict] = queue.Queue()
 
     class Hook(BaseHTTPRequestHandler):
         def do_POST(self) -> None:
             body = self.rfile.read(int(self.headers["Content-Length"]))
-            time.sleep(delay_s)
-            received.put({"path": self.path, "type": self.headers["Content-Type"], **json.loads(body)})
+            item = {"path": self.path, "type": self.headers["Content-Type"], **json.loads(body)}
+            held.put(item)
+            if hold is not None:
+                hold.wait(60)
+            received.put(item)
             self.send_response(204)
             self.end_headers()
 
@@ -39,14 +44,14 @@ def receiver(delay_s: float = 0.0) -> Iterator[tuple[str, queue.Queue[dict]]]:
     thread = threading.Thread(target=httpd.serve_forever, daemon=True)
     thread.start()
     try:
-        yield f"http://127.0.0.1:{httpd.server_address[1]}/hook", received
+        yield f"http://127.0.0.1:{httpd.server_address[1]}/hook", received, held
     finally:
         httpd.shutdown()
         httpd.server_close()
 
 
 def test_the_studys_events_reach_its_webhook_as_json_with_codes_only(server):
-    with receiver() as (url, received):
+    with receiver() as (url, received, _):
         StudyFiles.of(server.settings.data_dir).save(
             study("pilot", practice_maze=None, trials_per_participant=1, webhook_url=url)
         )
@@ -70,23 +75,23 @@ def test_the_studys_events_reach_its_webhook_as_json_with_codes_only(server):
 
 
 def test_a_slow_or_failing_webhook_delays_no_participant_and_is_logged(server, caplog):
-    with receiver(delay_s=3.0) as (url, received):
+    hold = threading.Event()  # the receiver answers nothing until the participants are served
+    with receiver(hold) as (url, received, held):
         StudyFiles.of(server.settings.data_dir).save(study("pilot", practice_maze=None, webhook_url=url))
         (ann, _), (bob, _) = join(server, "pilot"), join(server, "pilot")
         assert poll(ann)["state"] == "waiting"
-        started = time.monotonic()
         assert poll(bob)["state"] == "seated"
+        assert held.get(timeout=10)["event"] == "paired"  # its delivery is out, and held
         cat, _ = join(server, "pilot")
-        cat.post("/study/pilot/withdraw")
-        assert time.monotonic() - started < 2.0, "the receiver's 3 s per event kept nobody waiting"
+        assert "You have withdrawn" in cat.post("/study/pilot/withdraw").text
+        assert received.empty(), "participants were answered while the webhook still waited"
+        hold.set()
         assert received.get(timeout=10)["event"] == "paired"
 
     caplog.set_level(logging.WARNING, logger="robotslang.study.webhook")
     StudyFiles.of(server.settings.data_dir).save(study("pilot", practice_maze=None, webhook_url=url))  # gone now
     dan, _ = join(server, "pilot")
-    started = time.monotonic()
     assert "You have withdrawn" in dan.post("/study/pilot/withdraw").text
-    assert time.monotonic() - started < 2.0
     deadline = time.monotonic() + 15
     while not any("webhook" in r.getMessage() and "failed" in r.getMessage() for r in caplog.records):
         assert time.monotonic() < deadline, "the failed delivery is logged"
