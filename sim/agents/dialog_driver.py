@@ -249,13 +249,6 @@ class DialogDriver:
         return DoSay(text)
 
     def _follow(self, program: Program, text: str, said_unclear: bool) -> list[Turn]:
-        if not ins.asks_to_look(text):  # looking around costs eight scored moves: only when asked in words
-            program = tuple(
-                Clause.of(Op.ASK, question="view", side=None, label=None)
-                if c == Clause.of(Op.ASK, question="look_around", side=None, label=None)
-                else c
-                for c in program
-            )
         parsed = ins.Parsed(tuple(instructions(program, text)))
         self._plan.clear()
         self._claim_on_resume = False

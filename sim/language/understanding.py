@@ -119,7 +119,8 @@ def instructions(program: Program, text: str) -> list[ins.Instruction]:
                         _QUESTION.get(question, ins.Question.VIEW),
                         _side(args["side"]),
                         _label(args["label"]),
-                        look_around=question == "look_around",
+                        # Looking all around is eight scored moves: only when the words ask for it.
+                        look_around=question == "look_around" and ins.asks_to_look(text),
                     )
                 )
             case Op.STOP:
