@@ -153,8 +153,8 @@ def db_upgrade() -> None:
 def drivers() -> None:
     """Who can drive a trial: `human`, and each agent (`agent:`) or cheating baseline (`oracle:`),
     with why it cannot start here where it cannot, and the caps on an agent Driver."""
-    from app.drivers.registry import available_drivers
     from app.main import build_services
+    from app.seats.registry import available_drivers
     from app.settings import Settings
 
     services = build_services(Settings())

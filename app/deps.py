@@ -19,12 +19,12 @@ from starlette.requests import HTTPConnection
 from app.annotation.log import AnnotationLog
 from app.clock import ServerClock
 from app.cookies import read_cookie
-from app.drivers.registry import AgentParts
 from app.ldh_study import Studies
 from app.login import LoginGuard
 from app.login_sockets import LoginSockets
 from app.mazes import Mazes
 from app.rover.links import RobotLinks
+from app.seats.registry import AgentParts
 from app.security import SESSION_COOKIE, CsrfTokens, Login, SeatTokens, Sessions, StudyTokens
 from app.services import Services
 from app.settings import Settings

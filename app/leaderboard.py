@@ -17,9 +17,9 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.db.models import Participant, Team, Trial
-from app.trial.specs import SeatKind, SeatSpec
-from app.trial.state import trial_score
-from app.trial.vocabulary import Phase, Role
+from sim.trial.specs import SeatKind, SeatSpec
+from sim.trial.state import trial_score
+from sim.trial.vocabulary import Phase, Role
 
 
 @dataclass(frozen=True)

@@ -27,7 +27,6 @@ from app.clock import ServerClock
 from app.db.engine import WalCheckpointer, make_engine, make_sessionmaker, upgrade
 from app.db.models import Experimenter
 from app.deps import LoginRequired
-from app.drivers.registry import AgentParts
 from app.guard import GuardMiddleware, template_context
 from app.ldh_study import Studies
 from app.login import LoginGuard
@@ -36,6 +35,7 @@ from app.perception.belief import FilterWorker
 from app.resources import shipped
 from app.routes import annotate, experimenter, ldh_study, pages, replay, robot_ws, seat_ws, study
 from app.rover.links import RobotLinks
+from app.seats.registry import AgentParts
 from app.security import AccountRole, CsrfTokens, SeatTokens, Sessions, StudyTokens, set_password
 from app.services import Services
 from app.serving import settle_collector
@@ -152,13 +152,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         settle_collector()  # before the trials reopen: theirs is not the start's to freeze
         await services.hub.start()
         yield
-        await services.hub.close()
-        services.log.close()
-        services.webhooks.close()
         checkpoints.stop()
-        renderer.close()
-        services.mazes.close()
-        services.engine.dispose()
+        await services.close()
 
     # No /docs or /redoc: they load scripts from a CDN and run inline code, which the CSP forbids.
     app = FastAPI(title="RobotSlang", lifespan=lifespan, docs_url=None, redoc_url=None)

@@ -1,5 +1,5 @@
 """`robotslang eval selfplay`: whole trials with agents in both seats, offline (`sim.agents.selfplay`)
-or through the platform's trial core (`--record`, `app.drivers.selfplay`); it lives in app/ because
+or through the platform's trial core (`--record`, `app.seats.selfplay`); it lives in app/ because
 it uses both layers (nothing in sim/ imports app/)."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import typer
 
-from app.drivers.selfplay import Start, record_trials
+from app.seats.selfplay import Start, record_trials
 from sim.agents.selfplay import (
     CommanderName,
     DriverName,
@@ -86,7 +86,7 @@ def eval_selfplay(
         specs = library_trials(mazes, graphs, seed)
         graph_of = dict(zip([name for name, _ in mazes], graphs, strict=True)).__getitem__
     if record is not None:
-        starts = [Start(spec.maze, continuous_pose(graph_of(spec.maze), spec.start)) for spec in specs]
+        starts = [Start(spec.maze, continuous_pose(graph_of(spec.maze), spec.start), spec.seed) for spec in specs]
         results = recorded(record, benchmark, starts, commander, driver, processes, timeout_s)
     else:
         jobs = [Job(spec, commander, driver, root) for spec in specs]

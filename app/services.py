@@ -14,12 +14,12 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from app.annotation.log import AnnotationLog
 from app.clock import ServerClock
-from app.drivers.registry import AgentParts
 from app.ldh_study import Studies
 from app.login import LoginGuard
 from app.login_sockets import LoginSockets
 from app.mazes import Mazes
 from app.rover.links import RobotLinks
+from app.seats.registry import AgentParts
 from app.security import CsrfTokens, SeatTokens, Sessions, StudyTokens
 from app.settings import Settings
 from app.study.signups import SignupLimits
@@ -55,3 +55,12 @@ class Services:
     @property
     def agents(self) -> AgentParts:
         return self.trials.agents
+
+    async def close(self) -> None:
+        """Let every trial, process and file go: the server's shutdown, and a self-play worker's."""
+        await self.hub.close()
+        self.log.close()
+        self.webhooks.close()
+        self.trials.backends.renderer.close()
+        self.mazes.close()
+        self.engine.dispose()

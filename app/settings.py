@@ -9,6 +9,8 @@ from pathlib import Path
 from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from sim.trial.table import Caps
+
 
 class Settings(BaseSettings):
     model_config = SettingsConfigDict(env_prefix="ROBOTSLANG_", extra="ignore")
@@ -35,12 +37,14 @@ class Settings(BaseSettings):
     gil_switch_interval_s: float = 0.001
     # Processes that draw the simulator's frames (app.backends.render); 0: a thread of the server.
     render_processes: int = Field(default=1, ge=0)
-    # Caps on an agent Driver (shown on the experimenter's page): on either it says so and the trial aborts.
-    agent_moves_per_target: int = Field(default=300, ge=1)
+    # Caps on agents (shown on the experimenter's page; `sim.trial.table.Caps`): on any the agent
+    # says so and the trial aborts. Messages: an agent's own, either seat (two may talk in circles).
+    agent_moves_per_target: int = Field(default=Caps.moves_per_target, ge=1)
     agent_minutes_per_trial: float = Field(default=15.0, gt=0)  # of the trial clock
-    agent_messages_per_target: int = Field(
-        default=150, ge=1
-    )  # an agent's own, either seat: two agents may talk in circles
+    agent_messages_per_target: int = Field(default=Caps.messages_per_target, ge=1)
+    # Two agents together move as fast as the simulator answers where False (self-play recording):
+    # no person waits on their pace, and no move of theirs is refused as too soon.
+    agent_pairs_paced: bool = True
     # The agent Driver says a long plan back in short before carrying it out, to a person Commander.
     agent_read_back: bool = True
     redis_url: str | None = None  # fan-out between processes; in-process when unset

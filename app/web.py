@@ -16,7 +16,7 @@ from sqlalchemy.orm import Session
 from app.db.models import Frame, Trial
 from app.deps import get_templates
 from app.settings import Settings
-from app.trial import events as ev
+from sim.trial import events as ev
 
 ADVICE = {
     403: (

@@ -127,9 +127,9 @@ async def _rover_tds(benchmark: Path, checkpoint: Path, chosen, bench, tmp: Path
     from app.rover.records import create_robot
     from app.rover.virtual.truth import read_truth
     from app.settings import Settings
-    from app.trial.events import LoggedEvent
     from bench.live import REPO, SeatClient, ServerProcess, make_trial
     from robot_client.calibration import Calibration
+    from sim.trial.events import LoggedEvent
 
     data = tmp / "var"
     env = {

@@ -25,13 +25,15 @@ import numpy as np
 
 from app.main import build_services
 from app.settings import Settings
-from app.trial.state import fold
 from bench.live import SeatClient, ServerProcess, make_trial
 from sim.agents.oracle_commander import OracleCommander
-from sim.agents.turns import Phase, PhaseChanged, SeatInfo, Speaker
 from sim.core.dynamics import snap_pose
 from sim.core.geometry import SUCCESS_RADIUS_M
 from sim.core.observations import RayTable
+from sim.trial.agent import SeatInfo
+from sim.trial.percepts import PhaseBegan
+from sim.trial.state import fold
+from sim.trial.vocabulary import Phase, Role
 
 MAX_INSTRUCTIONS = 30
 ANSWER_TIMEOUT_S = 120.0
@@ -66,9 +68,9 @@ async def play(server, services, maze: str, out: dict[str, list]) -> None:
         graph = services.mazes.graph(maze)
         m = services.mazes.load(maze)
         person = OracleCommander(graph, RayTable.build(m, graph), [("mug", m.objects["mug"])])
-        person.reset(SeatInfo(Speaker.COMMANDER, 3))
+        person.reset(SeatInfo(Role.COMMANDER, 3))
         person.pose = snap_pose(graph, *pose_of(services, trial))
-        (first,) = person.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3))
+        (first,) = person.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
         text = first.text
         for _ in range(MAX_INSTRUCTIONS):
             before = moves_of(services, trial)

@@ -41,7 +41,6 @@ from tqdm import tqdm
 from sim.agents.dialog_driver import DialogDriver
 from sim.agents.episode import LegResult, replay, run
 from sim.agents.oracle_commander import OracleCommander
-from sim.agents.turns import Phase
 from sim.core.metrics import TrajectoryScore, score_trajectory
 from sim.core.observations import RayTable
 from sim.core.stepper import MAX_EPISODE_ACTIONS
@@ -49,6 +48,7 @@ from sim.language.phrases import Persona, Phrasing, style
 from sim.tasks.benchmark import Benchmark, NDHInstance, episode_start, goal_node, recorded_start
 from sim.tasks.ldh import FIRST_TARGET, LDHInstance, Variant, derive, load_split
 from sim.tasks.ldh_eval import MazeContexts, colours_localizer, score
+from sim.trial.vocabulary import Phase
 
 MAX_LEG_MOVES = 400
 LOCALIZATION_MESSAGES = 6

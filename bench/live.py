@@ -19,9 +19,9 @@ import httpx
 import websockets
 from sqlalchemy.orm import Session
 
-from app.drivers.registry import offered_agents
+from app.seats.registry import offered_agents
 from app.trial.setup import create_participant, create_team, create_trial
-from app.trial.vocabulary import Role
+from sim.trial.vocabulary import Role
 
 REPO = Path(__file__).resolve().parent.parent
 

@@ -22,12 +22,12 @@ import torch
 
 from models.agent import START, STOP, greedy_actions, observation_input
 from sim.agents.stepwise import StepwiseDriver
-from sim.agents.turns import Move, Outcome
 from sim.core.dynamics import Action
 from sim.core.geometry import HEADING_DI, HEADING_DJ, HEADINGS
 from sim.core.labels import object_label
 from sim.core.observations import OBS_FEATURES
 from sim.robot.perception import features
+from sim.trial.vocabulary import Move, Outcome
 
 Odometry = tuple[int, int, int]  # grid steps (i, j) from the start, heading index
 MOVES = (Move.FORWARD, Move.LEFT, Move.RIGHT)  # the order of `greedy_actions`' visits

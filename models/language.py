@@ -33,7 +33,6 @@ from tqdm import tqdm
 from sim.agents.dialog_commander import LOOK_AROUND, DialogCommander
 from sim.agents.dialog_driver import DialogDriver
 from sim.agents.oracle_commander import OracleCommander
-from sim.agents.turns import Agent
 from sim.core.labels import OBJECT_LABELS, WALL_LABELS
 from sim.language import instructions as ins
 from sim.language import lexicon
@@ -54,6 +53,7 @@ from sim.language.reader import (
 from sim.language.understanding import Understanding
 from sim.language.vocab import OBJECT_WORDS, wall_name
 from sim.tasks.benchmark import Benchmark, Split, text_hash
+from sim.trial.agent import Agent
 
 LABELS_DIR = Path(__file__).with_name("language_data")
 # The benchmark's speaker names and self-play's (`Speaker` values), as the reader's context tags.

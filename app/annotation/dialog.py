@@ -7,8 +7,8 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from app.trial import events as ev
-from app.trial.state import LoggedEvent
+from sim.trial import events as ev
+from sim.trial.state import LoggedEvent
 
 
 @dataclass(frozen=True)

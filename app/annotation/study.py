@@ -6,7 +6,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.db.models import Experimenter, Trial
-from app.trial.vocabulary import Phase
+from sim.trial.vocabulary import Phase
 
 
 def study_trial_ids(db: Session, study: str) -> list[int]:

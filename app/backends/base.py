@@ -10,10 +10,10 @@ from collections.abc import AsyncIterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
-from app.trial.vocabulary import Move, Outcome, PoseSource
+from sim.trial.vocabulary import Move, Outcome, PoseSource
 
 if TYPE_CHECKING:
-    from sim.robot.perception import RayObservation
+    from sim.core.rays import RayObservation
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from app.backends.render import FrameRenderer
 from app.clock import ServerClock
 from app.mazes import Mazes
 from app.trial.port import RobotTrial
-from app.trial.specs import BackendSpec
+from sim.trial.specs import BackendSpec
 
 if TYPE_CHECKING:
     from app.rover.links import RobotLinks

@@ -18,17 +18,15 @@ import logging
 from collections import OrderedDict
 from collections.abc import AsyncIterator
 
-import numpy as np
-
 from app.backends.base import Frame, MoveOutcome
 from app.backends.render import FRAME_SIZE, FrameRenderer, InThread, render_jpeg
 from app.clock import ServerClock
-from app.trial.vocabulary import Move, Outcome, PoseSource
 from sim.core.dynamics import Action, Pose, continuous_pose
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
-from sim.robot.perception import RayObservation
+from sim.core.rays import RayObservation
+from sim.trial.vocabulary import Move, Outcome, PoseSource
 
 logger = logging.getLogger(__name__)
 FRAMES_KEPT = 32  # JPEGs of recent poses per trial (about 15 kB each)
@@ -70,7 +68,7 @@ class SimulatorBackend:
                 await first
             except Exception:  # this move's frame shows where the robot is all the same
                 logger.exception("the first simulator frame failed")
-        self._pose, collided = self.moves.step(self._pose, Action.parse(action))
+        self._pose, collided = self.moves.step(self._pose, Action.of(action))
         await self._capture()
         return MoveOutcome(action, Outcome.COLLISION if collided else Outcome.OK)
 
@@ -94,21 +92,9 @@ class SimulatorBackend:
         self._jpegs[pose] = jpeg
         while len(self._jpegs) > FRAMES_KEPT:
             self._jpegs.popitem(last=False)
-        frame = Frame(jpeg, self.clock.now_ns(), *FRAME_SIZE, observation=self.observation_at(pose))
+        frame = Frame(jpeg, self.clock.now_ns(), *FRAME_SIZE, observation=self.rays.observation(*pose))
         self._frames.put_nowait(frame)
-
-    def observation_at(self, pose: Pose) -> RayObservation:
-        """The simulator's ray observation at `pose` (what its frame shows): the ray table's row."""
-        at = (pose.node, pose.heading)
-        rays = self.rays
-        return RayObservation(
-            rays.labels[at],
-            rays.depth[at],
-            rays.too_close[at],
-            np.ones(rays.labels.shape[-1], dtype=bool),
-            bool(rays.forward_blocked[at]),
-        )
 
     def frame_at(self, pose: Pose) -> tuple[bytes, RayObservation]:
         """The frame at `pose`, drawn here, and its observation."""
-        return render_jpeg(self.maze, *continuous_pose(self.moves, pose)), self.observation_at(pose)
+        return render_jpeg(self.maze, *continuous_pose(self.moves, pose)), self.rays.observation(*pose)

@@ -9,7 +9,7 @@ from typing import Any
 from sqlalchemy import JSON, BigInteger, DateTime, Float, ForeignKey, Integer, String, Text, UniqueConstraint
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
-# An event's payload as the JSON column holds it: its shape is the event kind's (app.trial.events).
+# An event's payload as the JSON column holds it: its shape is the event kind's (sim.trial.events).
 JsonObject = dict[str, Any]
 
 

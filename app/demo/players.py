@@ -19,11 +19,11 @@ from typing import Any
 from websockets.asyncio.client import ClientConnection, connect
 
 from app.demo.script import OBJECT_WORDS, describe_view, plan_leg
-from app.trial.vocabulary import Phase, Role
 from sim.core.dynamics import Action, Pose, teacher_action
 from sim.core.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M, heading_angle
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
+from sim.trial.vocabulary import Phase, Role
 
 # A message from the server as it arrives on the socket (decoded JSON; app.trial.views builds them).
 ServerMessage = dict[str, Any]

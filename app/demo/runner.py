@@ -24,11 +24,11 @@ from app.demo.players import WAIT_S, DemoError, ScriptedCommander, ScriptedDrive
 from app.mazes import Mazes
 from app.security import SeatTokens
 from app.settings import Settings
-from app.trial import events as ev
 from app.trial.log import EventLog
 from app.trial.setup import create_participant, create_team, create_trial, parse_targets, suggest_maze
-from app.trial.vocabulary import PARTICIPANTS
 from sim.core.dynamics import Pose, snap_pose
+from sim.trial import events as ev
+from sim.trial.vocabulary import PARTICIPANTS
 
 DEMO_TEAM = "demo team {k}"
 

@@ -20,10 +20,10 @@ from sim.core.labels import Label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import N_RAYS, RAY_OFFSETS, ray_caster, too_close
+from sim.core.rays import RayObservation
 from sim.language import vocab
 from sim.language.describe import describe
 from sim.language.phrases import Kind, Phrases, Phrasing
-from sim.robot.perception import RayObservation
 
 NEAR_WALL_M = 0.35  # a wall this close ahead is "reached"
 OBJECT_WORDS = {label.word: name for label, name in vocab.OBJECT_WORDS.items()}

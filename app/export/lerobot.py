@@ -28,11 +28,12 @@ import numpy as np
 
 from app.export import Episode
 from app.export.record import ExportError, TrialRecord
-from app.trial import events as ev
-from app.trial.state import LoggedEvent
 from sim.core.dynamics import Action
 from sim.core.maze import Maze
 from sim.core.observations import N_RAYS, cast_rays
+from sim.trial import events as ev
+from sim.trial.state import LoggedEvent
+from sim.trial.vocabulary import Move
 
 CODEBASE_VERSION = "v3.0"
 FPS = 10  # nominal: a frame is a Driver step, not a clock tick
@@ -82,7 +83,7 @@ def episodes_of(record: TrialRecord, maze: Maze, per: Episode) -> list[list[Step
             task = record.targets[min(reached, len(record.targets) - 1)]
             pending = Step(event, _state(maze, pose), Action.STOP, task)
         elif event.is_(ev.MoveExecuted) and pending is not None:
-            pending.action = Action.parse(event.payload["action"])
+            pending.action = Action.of(Move(event.payload["action"]))
             steps.append(pending)
             pending = None
     if pending is not None:

@@ -27,10 +27,10 @@ from mcap.writer import Writer
 
 from app.export.foxglove_scene import scene_update
 from app.export.record import ExportError, TrialRecord
-from app.trial import events as ev
-from app.trial.state import LoggedEvent
-from app.trial.vocabulary import PoseSource
 from sim.core.maze import FIXED_MAP, WALLS_MAP, Maze
+from sim.trial import events as ev
+from sim.trial.state import LoggedEvent
+from sim.trial.vocabulary import PoseSource
 
 PROFILE = ""  # plain JSON messages: no ROS profile
 TABLE_FRAME = "table"

@@ -27,11 +27,11 @@ from typing import Any
 import numpy as np
 
 from app.export.record import TrialRecord
-from app.trial import events as ev
-from app.trial.state import LoggedEvent
-from app.trial.vocabulary import Phase, Role
 from sim.core.maze import Maze
 from sim.tasks.benchmark import Split
+from sim.trial import events as ev
+from sim.trial.state import LoggedEvent
+from sim.trial.vocabulary import Phase, Role
 
 HELD_OUT_FRACTION = 0.15  # of mazes, for each of val_seen and test (the benchmark: 26 + 26 of 170)
 ROLES = {Role.COMMANDER: "oracle", Role.DRIVER: "navigator"}

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from app.trial.state import LoggedEvent
+from sim.trial.state import LoggedEvent
 
 
 class ExportError(RuntimeError):

@@ -10,8 +10,8 @@ from app.db.models import Event as EventRow
 from app.db.models import Team, Trial
 from app.export.record import ExportError, TrialRecord
 from app.settings import Settings
-from app.trial.state import LoggedEvent
-from app.trial.vocabulary import Phase
+from sim.trial.state import LoggedEvent
+from sim.trial.vocabulary import Phase
 
 
 def load_trial(session: Session, settings: Settings, trial_id: int | str) -> TrialRecord:

@@ -27,13 +27,15 @@ from typing import Any
 
 import numpy as np
 
-from app.trial.vocabulary import ServerMessage
+from app.trial.messages import ServerMessage
 from sim.core.dynamics import Action
 from sim.core.maze import Maze
+from sim.core.rays import RayObservation
 from sim.robot.camera import CameraCalibration
 from sim.robot.frames import FrameError, decode_jpeg
 from sim.robot.localization import Belief, ParticleFilter
-from sim.robot.perception import PerceptionError, RayObservation, features, perceive
+from sim.robot.perception import PerceptionError, features, perceive
+from sim.trial.vocabulary import Move
 
 logger = logging.getLogger(__name__)
 
@@ -79,11 +81,11 @@ class TrialBelief:
         self._kept: _Kept | None = None
         self.latest: Observed | None = None
 
-    def moved(self, action: str | None, started_ns: int) -> None:
+    def moved(self, move: Move | None, started_ns: int) -> None:
         """An executed move (None: one that left the robot where it was); the next frame
         captured after `started_ns` and taken in once the move is over shows where it ended."""
         with self._lock:
-            self._unfolded.append(Action.parse(action) if action is not None else None)
+            self._unfolded.append(Action.of(move) if move is not None else None)
             self._moves += 1
             self._wanted_after_ns = started_ns
             self._kept = None

@@ -18,8 +18,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from app.trial.specs import SIM, BackendSpec
 from sim.robot.camera import CameraCalibration, FrontCamera
+from sim.trial.specs import SIM, BackendSpec
 
 if TYPE_CHECKING:
     from app.settings import Settings

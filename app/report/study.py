@@ -27,8 +27,8 @@ from app.mazes import Mazes
 from app.settings import Settings
 from app.study.answers import asked, items, rating_distributions, study_answers
 from app.study.config import StudyFiles
-from app.trial.state import TrialState, fold
 from sim.tasks.benchmark import Split
+from sim.trial.state import TrialState, fold
 
 
 def distribution(values: Sequence[float]) -> dict[str, float | None]:

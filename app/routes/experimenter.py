@@ -28,8 +28,8 @@ from app.deps import (
     StudyFilesDep,
     experimenter_id,
 )
-from app.drivers.registry import available_seats, offered_agents
 from app.guard import csrf_protect
+from app.seats.registry import available_seats, offered_agents
 from app.security import SeatTokens
 from app.study.config import StudyConfigError
 from app.study.lobby import Lobby
@@ -43,10 +43,10 @@ from app.trial.setup import (
     restart_trial,
     suggest_maze,
 )
-from app.trial.specs import HUMAN, SIM, BackendSpec, SeatSpec
-from app.trial.state import TrialState, fold
-from app.trial.vocabulary import Role
 from app.web import render, trial_or_404
+from sim.trial.specs import HUMAN, SIM, BackendSpec, SeatSpec
+from sim.trial.state import TrialState, fold
+from sim.trial.vocabulary import Role
 
 # Every state-changing request also needs this server's Origin and the page's CSRF token.
 MAX_NOTES = 10_000  # characters of a trial's notes

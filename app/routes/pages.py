@@ -37,8 +37,8 @@ from app.security import (
     SeatTokens,
 )
 from app.study.config import StudyConfigError
-from app.trial.state import fold
 from app.web import over_reason, render, trial_or_404
+from sim.trial.state import fold
 
 router = APIRouter()
 

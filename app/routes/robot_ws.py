@@ -26,7 +26,6 @@ from app.guard import csrf_protect, socket_origin_allowed
 from app.rover.links import MAX_FRAME_BYTES, PING_INTERVAL_S, RobotLink, RobotLinks
 from app.rover.records import RobotSetupError, create_robot, robot_for_token
 from app.serving import MESSAGE_TOO_BIG
-from app.trial.specs import BackendSpec
 from robot_client.protocol import (
     CLOSE_REFUSED,
     CLOSE_REPLACED,
@@ -39,6 +38,7 @@ from robot_client.protocol import (
     unpack_frame,
 )
 from sim.robot.frames import FrameError, check_jpeg
+from sim.trial.specs import BackendSpec
 
 router = APIRouter()
 logger = logging.getLogger(__name__)

@@ -27,11 +27,12 @@ from app.guard import socket_origin_allowed
 from app.security import SESSION_COOKIE, InvalidToken, Seat, SeatTokens, Sessions
 from app.serving import MESSAGE_TOO_BIG
 from app.trial import messages as m
-from app.trial.decide import Refused
+from app.trial.messages import ServerMessage
 from app.trial.runtime import UnknownTrial
 from app.trial.views import EXPERIMENTER
-from app.trial.vocabulary import Role, ServerMessage
 from app.web import over_reason
+from sim.trial.decide import Refused
+from sim.trial.vocabulary import Role
 
 router = APIRouter()
 logger = logging.getLogger(__name__)

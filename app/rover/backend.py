@@ -15,9 +15,9 @@ from app.db.models import Robot
 from app.rover.links import RobotLink, RobotLinks
 from app.rover.tracker_seat import TrialTracker
 from app.trial.port import RobotTrial
-from app.trial.specs import BackendSpec
-from app.trial.vocabulary import PARTICIPANTS, FrameSource, Move, Outcome, PoseSource, Role
 from sim.core.geometry import GRID_STEP_M
+from sim.trial.specs import BackendSpec
+from sim.trial.vocabulary import PARTICIPANTS, FrameSource, Move, Outcome, PoseSource, Role
 
 if TYPE_CHECKING:
     from app.backends.registry import BackendParts

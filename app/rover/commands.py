@@ -13,8 +13,8 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import typer
 
-from app.trial.specs import BackendSpec
-from app.trial.vocabulary import ROBOT_ROLES
+from sim.trial.specs import BackendSpec
+from sim.trial.vocabulary import ROBOT_ROLES
 
 if TYPE_CHECKING:  # the database and numpy load only for the commands that use them
     import numpy as np

@@ -19,9 +19,9 @@ from sqlalchemy.orm import Session, sessionmaker
 from app.backends.base import BackendUnavailable, Frame
 from app.clock import ServerClock
 from app.db.models import Robot
-from app.trial.specs import BackendSpec
-from app.trial.vocabulary import Move, Role
 from robot_client.protocol import FrameHeader
+from sim.trial.specs import BackendSpec
+from sim.trial.vocabulary import Move, Role
 
 if TYPE_CHECKING:
     from app.rover.backend import RemoteRobotBackend

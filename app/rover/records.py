@@ -10,7 +10,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.db.models import Robot
-from app.trial.vocabulary import ROBOT_ROLES
+from sim.trial.vocabulary import ROBOT_ROLES
 
 
 class RobotSetupError(ValueError):

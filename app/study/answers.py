@@ -17,7 +17,7 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Participant, StudyAnswer, StudyEvent, StudyParticipant, Trial
 from app.study.config import RATING_SCALE, Question, QuestionKind, StudyFiles
-from app.trial.vocabulary import Role
+from sim.trial.vocabulary import Role
 
 
 @dataclass(frozen=True)

@@ -31,7 +31,7 @@ from app.trial.setup import (
     restart_trial,
     suggest_maze,
 )
-from app.trial.vocabulary import Phase, Role
+from sim.trial.vocabulary import Phase, Role
 
 
 class LobbyError(ValueError):

@@ -13,7 +13,7 @@ from sqlalchemy import select
 from app.db.models import Event, StudyAnswer, StudyEvent, StudyParticipant
 from app.study.enrolment import Enrolment
 from app.study.lobby import PRACTICE_REASON, seat_of
-from app.trial.vocabulary import Role
+from sim.trial.vocabulary import Role
 
 # The events a seat makes without naming itself in the payload (chat, connects and bad messages do).
 SEAT_ACTS = {

@@ -20,7 +20,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from app.db.models import Participant, Trial
 from app.study.config import StudyConfigError, StudyFiles
 from app.study.lobby import PRACTICE_REASON
-from app.trial.vocabulary import Phase
+from sim.trial.vocabulary import Phase
 
 logger = logging.getLogger("robotslang.study.webhook")
 TIMEOUT_S = 5.0  # a receiver slower than this is logged as failing

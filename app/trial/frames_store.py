@@ -10,7 +10,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from app.db.models import Frame
 from app.trial.log import EventLog
-from app.trial.vocabulary import FrameSource
+from sim.trial.vocabulary import FrameSource
 
 
 class FrameStore:

@@ -12,7 +12,7 @@ from sqlalchemy import select
 from app.db.models import Trial
 from app.trial.relay import RedisRelay, RemoteTrial
 from app.trial.runtime import TrialParts, TrialRuntime, UnknownTrial
-from app.trial.vocabulary import Phase
+from sim.trial.vocabulary import Phase
 
 logger = logging.getLogger(__name__)
 

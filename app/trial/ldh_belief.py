@@ -18,14 +18,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from app.trial import events as ev
-from app.trial.events import LoggedEvent
+from app.trial.messages import ServerMessage
 from app.trial.port import Connection
-from app.trial.vocabulary import Phase, Role, ServerMessage
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.tasks.ldh_eval import MazeContext, colour_logits
 from sim.tasks.ldh_features import maze_views, mentions
+from sim.trial import events as ev
+from sim.trial.events import LoggedEvent
+from sim.trial.vocabulary import Phase, Role
 
 if TYPE_CHECKING:
     from app.trial.runtime import TrialRuntime

@@ -10,8 +10,8 @@ from sqlalchemy import or_, select
 from sqlalchemy.orm import Session
 
 from app.db.models import Participant, Robot, Team, Trial
-from app.trial.specs import BackendSpec
-from app.trial.vocabulary import Phase, Role
+from sim.trial.specs import BackendSpec
+from sim.trial.vocabulary import Phase, Role
 
 LIVE_PHASES = tuple(str(p) for p in Phase if not p.over)
 MAX_REASON = 500

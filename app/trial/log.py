@@ -29,7 +29,7 @@ from sqlalchemy import insert, select, update
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.db import models
-from app.trial.state import LoggedEvent
+from sim.trial.state import LoggedEvent
 
 logger = logging.getLogger(__name__)
 

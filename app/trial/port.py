@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from typing import Any, Protocol
 
-from app.trial.state import TrialState
-from app.trial.vocabulary import FrameSource, Move, Outcome, Role
+from sim.trial.state import TrialState
+from sim.trial.vocabulary import FrameSource, Role
 
 
 class Connection(Protocol):
@@ -43,32 +43,3 @@ class RobotTrial(TrialView, Protocol):
 
     def record_pose(self, pose: tuple[float, float, float]) -> None:
         """A pose (x, y, heading) of the robot measured from outside it (the overhead tracker)."""
-
-
-class SeatTrial(TrialView, Protocol):
-    """The trial as an agent's seat sees it: it may speak in the chat, and end the trial on its caps."""
-
-    def say(self, role: Role, text: str) -> None: ...
-
-    def abort(self, reason: str | None = None) -> None:
-        """End the trial, aborted, with the reason logged (an agent's cap)."""
-
-
-class DriverTrial(SeatTrial, Protocol):
-    """The trial as an agent Driver's seat sees it: no true pose, no map, no particle filter."""
-
-    async def request_move(self, action: Move) -> Outcome:
-        """Move the robot under the same rules as a person's move; returns what became of it."""
-
-    def claim(self) -> None:
-        """Claim the current target (raises `Refused` when not allowed now)."""
-
-
-class CommanderTrial(SeatTrial, Protocol):
-    """The trial as an agent Commander's seat sees it: what a person's Commander socket may send."""
-
-    def localize(self, x: float, y: float, heading: float | None) -> None:
-        """Mark the Driver on the map (a `localization` event), as a person's `localize` message does."""
-
-    def judge(self, confirmed: bool) -> None:
-        """Confirm or reject the pending claim (raises `Refused` when there is none)."""

@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Any, cast
 from app.trial import messages as m
 from app.trial.messages import SeatMessage
 from app.trial.views import EXPERIMENTER
-from app.trial.vocabulary import Role
+from sim.trial.vocabulary import Role
 
 if TYPE_CHECKING:
     from redis import Redis

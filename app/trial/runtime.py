@@ -1,6 +1,6 @@
 """`TrialRuntime`: one live trial in this process. It only does input and output.
 
-Everything that happens becomes a command for `app.trial.decide`; the events it returns are
+Everything that happens becomes a command for `sim.trial.decide`; the events it returns are
 appended to the log (`EventLog`, committed at the end of this event-loop turn) and folded into
 the state, and what each seat may hear of them (`app.trial.views`) is sent once they are committed. The runtime holds the sockets, the robot backend and the grace
 timers, and the timers are derived from the log (`TrialState.away`), so they survive a restart.
@@ -16,7 +16,7 @@ import logging
 import math
 import uuid
 from collections.abc import Callable, Coroutine
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 from sqlalchemy.orm import Session, sessionmaker
@@ -26,28 +26,30 @@ from app.backends.registry import BackendParts, create_backend
 from app.clock import ServerClock
 from app.mazes import Mazes
 from app.perception.belief import FilterWorker
+from app.seats.seat import AgentSeat, AgentSeats
 from app.settings import Settings
-from app.trial import decide as d
-from app.trial import events as ev
 from app.trial import messages as m
 from app.trial import views
-from app.trial.decide import Refused
-from app.trial.events import LoggedEvent
 from app.trial.frames_store import FrameStore
 from app.trial.ldh_belief import BeliefModel, LiveBelief
 from app.trial.log import EventLog
+from app.trial.messages import ServerMessage
 from app.trial.port import Connection
-from app.trial.specs import HUMAN
-from app.trial.state import TrialState, fold
 from app.trial.throttle import Throttle
 from app.trial.views import EXPERIMENTER, status_of, view
-from app.trial.vocabulary import PARTICIPANTS, FrameSource, Move, Outcome, Phase, PoseSource, Role, ServerMessage
 from sim.core.geometry import wrap_angle
+from sim.core.rays import RayObservation
+from sim.trial import commands as c
+from sim.trial import events as ev
+from sim.trial.decide import Refused, decide
+from sim.trial.events import LoggedEvent
+from sim.trial.specs import HUMAN
+from sim.trial.state import TrialState, fold
+from sim.trial.vocabulary import PARTICIPANTS, FrameSource, Outcome, Phase, PoseSource, Role
 
 if TYPE_CHECKING:
-    from app.drivers.registry import AgentParts
-    from app.drivers.seat import CommanderSeat, DriverSeat
     from app.perception.belief import TrialBelief
+    from app.seats.registry import AgentParts
 
 logger = logging.getLogger(__name__)
 AWAY_MARK_S = 1.0  # how much of a participant's time away a crash can lose from the grace period
@@ -91,8 +93,7 @@ class TrialRuntime:
         self._tasks: set[asyncio.Task[Any]] = set()
         self._status: dict[str, Any] | None = None  # the last status sent, less the clock
         self._ending = False
-        self.agent: DriverSeat | None = None  # an agent Driver's seat (the simulator's rays go to it alone)
-        self.commander_agent: CommanderSeat | None = None
+        self.agents: AgentSeats | None = None  # the seats agents hold
         # The particle filter runs only while someone watches: its belief is for the watch page alone,
         # and a crowd's unwatched trials would otherwise give it a core and most of the memory.
         self.belief: TrialBelief | None = None  # `TrialBelief` once built for a watcher
@@ -114,17 +115,14 @@ class TrialRuntime:
             raise UnknownTrial(f"trial {self.trial_id} does not exist")
         self.state = fold(events)
         self.history = [e for e in events if e.is_(*views.HISTORY)]
-        self.apply(d.Reopen())  # seats and moves of an earlier server process are gone
+        self.apply(c.Reopen())  # seats and moves of an earlier server process are gone
         if self.state.over:
             return
         self._expect_joins()
-        from app.drivers.seat import seat_agents
-
-        self.agent, self.commander_agent = seat_agents(self)  # before the backend: the first frame is heard
+        self.agents = AgentSeats.of(self, self.parts.agents)  # before the backend: the first frame is seen
         await self._start_backend()
-        for seat in (self.agent, self.commander_agent):
-            if seat is not None:
-                seat.start()
+        if self.agents is not None:
+            self.agents.start()
 
     async def _start_backend(self) -> None:
         self.backend = await create_backend(self.state.backend, self, self.parts.backends)
@@ -180,15 +178,15 @@ class TrialRuntime:
             self._join_timer.cancel()
         self._log_refused_run()
         if self.state.over:
-            self.apply(d.AbandonMoves(f"the trial is {self.state.phase}"))
+            self.apply(c.AbandonMoves(f"the trial is {self.state.phase}"))
         for task in list(self._tasks):
             if task is not asyncio.current_task():
                 task.cancel()
-        for seat in (self.agent, self.commander_agent):
-            if seat is not None:
-                await seat.stop()
-                if self.seats.get(seat.role) is seat:
-                    del self.seats[seat.role]
+        if self.agents is not None:
+            await self.agents.stop()
+            for role, conn in list(self.seats.items()):
+                if isinstance(conn, AgentSeat):
+                    del self.seats[role]
         # Let go of the filter now: its particles and free-space map (several MB, and the
         # maze) sit in reference cycles with this runtime that the collector frees only later.
         self._drop_belief()
@@ -210,12 +208,12 @@ class TrialRuntime:
     # -- the log ------------------------------------------------------------------
     def apply(
         self,
-        command: d.Command,
+        command: c.Command,
         attachments: dict[str, dict[str, Any]] | None = None,
         frame: dict[str, Any] | None = None,
     ) -> list[LoggedEvent]:
         """Decide, commit, fold and tell the seats; raises `Refused` (recording nothing)."""
-        return self._commit(d.decide(self.state, command), attachments, frame)
+        return self._commit(decide(self.state, command), attachments, frame)
 
     def _commit(
         self,
@@ -273,6 +271,8 @@ class TrialRuntime:
             self.trial_id, logged, frame=frame if isinstance(event, ev.FrameRecorded) else None, trial_cache=cache
         )
         self.state.apply_event(event, logged.seq, logged.t_ns)
+        if self.agents is not None:
+            self.agents.see(event, logged.t_ns)
         if logged.is_(*views.HISTORY):
             self.history.append(logged)
         self._broadcast(logged, attachments)
@@ -334,7 +334,7 @@ class TrialRuntime:
             await asyncio.sleep(AWAY_MARK_S)
             if not self.state.away:
                 return
-            self.apply(d.Note(ev.StillAway(roles=sorted(self.state.away))))
+            self.apply(c.Note(ev.StillAway(roles=sorted(self.state.away))))
 
     def _grace_left_s(self, role: Role) -> float:
         gone = self.state.away[role].away_ns(self.parts.clock.now_ns())
@@ -348,13 +348,13 @@ class TrialRuntime:
         if left_s > 0:  # event loops may wake a little early (uvloop: to the millisecond)
             self._grace[role] = asyncio.get_running_loop().call_later(left_s, self._grace_expired, role)
             return
-        self.apply(d.GraceExpired(role))
+        self.apply(c.GraceExpired(role))
 
     # -- what the backend reports -------------------------------------------------
     def record_pose(self, pose: tuple[float, float, float]) -> None:
         x, y, theta = pose
         source = self.backend.pose_source if self.backend is not None else PoseSource.TRACKER
-        self.apply(d.Note(ev.PoseSampled(x=x, y=y, heading=wrap_angle(theta), source=source)))
+        self.apply(c.Note(ev.PoseSampled(x=x, y=y, heading=wrap_angle(theta), source=source)))
 
     async def _pump_frames(self, backend: RobotBackend) -> None:
         async for frame in backend.frames():
@@ -362,10 +362,9 @@ class TrialRuntime:
                 rel = FrameStore.name(self.trial_id, frame.capture_ns, FrameSource.DRIVER)
                 # The file is written off the event loop (slow disks must not delay other trials).
                 await asyncio.to_thread(self.parts.frames.write, rel, frame.jpeg)
-                frame_id = self.state.last_seq + 1  # the frame event's own seq
-                if frame.observation is not None and self.agent is not None:
-                    self.agent.note_observation(frame_id, frame.observation)  # the agent seat's alone
-                self._commit_frame(rel, frame.jpeg, frame.capture_ns, frame.width, frame.height, FrameSource.DRIVER)
+                self._commit_frame(
+                    rel, frame.jpeg, frame.capture_ns, frame.width, frame.height, FrameSource.DRIVER, frame.observation
+                )
             except Exception:  # a frame that cannot be stored must not stop the stream
                 logger.exception("trial %s: frame not recorded", self.trial_id)
                 continue
@@ -396,24 +395,32 @@ class TrialRuntime:
         return self._commit_frame(rel, jpeg, capture_ns, width, height, source)
 
     def _commit_frame(
-        self, rel: str, jpeg: bytes, capture_ns: int, width: int, height: int, source: FrameSource
+        self,
+        rel: str,
+        jpeg: bytes,
+        capture_ns: int,
+        width: int,
+        height: int,
+        source: FrameSource,
+        rays: RayObservation | None = None,
     ) -> int:
         row = {"source": str(source), "path": rel, "capture_ns": capture_ns, "width": width, "height": height}
         frame_id = self.state.last_seq + 1  # the frame event's own seq
+        seen = {"rays": rays, "jpeg": jpeg} if source == FrameSource.DRIVER else {}  # for the agent seats
         event = ev.FrameRecorded(
-            frame_id=frame_id, source=source, path=rel, capture_ns=capture_ns, width=width, height=height
+            frame_id=frame_id, source=source, path=rel, capture_ns=capture_ns, width=width, height=height, **seen
         )
         attach: dict[str, dict[str, Any]] = (
             {Role.DRIVER: {"jpeg": base64.b64encode(jpeg).decode()}} if source == FrameSource.DRIVER else {}
         )
-        self.apply(d.Note(event), attachments=attach, frame=row)
+        self.apply(c.Note(event), attachments=attach, frame=row)
         return frame_id
 
     def frame_jpeg(self, frame_id: int) -> bytes | None:
         return self.parts.frames.read(self.trial_id, frame_id)
 
     def report_bad_message(self, role: Role, error: str) -> None:
-        self.apply(d.Note(ev.BadMessage(role=role, error=error[:500])))
+        self.apply(c.Note(ev.BadMessage(role=role, error=error[:500])))
 
     def true_pose(self) -> tuple[float, float, float] | None:
         return self.backend.pose() if self.backend is not None else None
@@ -426,14 +433,14 @@ class TrialRuntime:
         if previous is not None:  # the same seat opened again (a second tab): the newest wins
             previous.deliver({"type": ServerMessage.REPLACED})
         else:
-            self.apply(d.Join(Role(role)))
+            self.apply(c.Join(Role(role)))
         self._send(conn, self.welcome(role))
 
     def leave(self, conn: Connection) -> None:
         if self.seats.get(conn.role) is not conn:
             return
         del self.seats[conn.role]
-        self.apply(d.Leave(Role(conn.role)))
+        self.apply(c.Leave(Role(conn.role)))
         if self.state.over and not self.seats and not self.watchers:
             self._forget(self.trial_id)  # nobody left: this process can let it go
 
@@ -465,15 +472,14 @@ class TrialRuntime:
         now gets an error reply and a `bad_message` event, and never ends the trial. Moves run
         beside the socket's reader, so a move sent while one is executing is refused rather than queued.
         Every message but a ping counts against the seat's rate, a move whether executed or refused."""
-        if not isinstance(message, m.Ping) and not self._within_rate(conn, role):
+        action = m.action_of(message)
+        if action is None or not self._within_rate(conn, role):
             return
-        if isinstance(message, m.Move) and message.type in m.ALLOWED[role]:
-            self.spawn(self._handle_reporting(conn, role, message))
-            return
-        try:
-            await self.handle(role, message)
-        except Refused as err:
-            self.refuse(conn, role, str(err))
+        acting = self._act_reporting(conn, c.Act(Role(role), action))
+        if isinstance(action, c.RequestMove):
+            self.spawn(acting)
+        else:
+            await acting
 
     def refuse_unread(self, conn: Connection, role: str, error: str) -> None:
         """A message its socket could not read (not JSON, too big, another seat's token): refused
@@ -481,11 +487,11 @@ class TrialRuntime:
         if self._within_rate(conn, role):
             self.refuse(conn, role, error)
 
-    async def _handle_reporting(self, conn: Connection, role: str, message: m.Move) -> None:
+    async def _act_reporting(self, conn: Connection, act: c.Act) -> None:
         try:
-            await self.handle(role, message)
+            await self.act(act)
         except Refused as err:
-            self.refuse(conn, role, str(err))
+            self.refuse(conn, act.role, str(err))
 
     def refuse(self, conn: Connection, role: str, error: str) -> None:
         """The documented error reply, and the refusal in the log (while the trial runs)."""
@@ -518,46 +524,37 @@ class TrialRuntime:
             )
         return not wait_s
 
-    async def handle(self, role: str, message: m.SeatMessage) -> None:
-        """Apply one validated message from a seat; raises `Refused` when not allowed now."""
-        if message.type not in m.ALLOWED[role]:
-            raise Refused(f"the {role} may not send {message.type!r} messages")
-        role = Role(role)
-        match message:
-            case m.Ping():
-                return
-            case m.Chat(text=text):
-                self.apply(d.Say(role, text))
-            case m.Move(action=action, move_id=move_id):
-                await self.request_move(action, move_id)
-            case m.Localize(x=x, y=y, heading=heading):
-                self.localize(x, y, heading)
-            case m.Claim():
-                self.claim()
-            case m.Confirm():
-                self.judge(confirmed=True)
-            case m.Reject():
-                self.judge(confirmed=False)
-
-    def say(self, role: Role, text: str) -> None:
-        self.apply(d.Say(role, text))
-
-    def localize(self, x: float, y: float, heading: float | None) -> None:
-        self.apply(d.Localize(x, y, heading))
-
-    async def request_move(self, action: Move, move_id: str | None = None) -> Outcome:
-        move_id = move_id or uuid.uuid4().hex[:12]
-        now_ns = self.parts.clock.now_ns()
-        asked = d.decide(
-            self.state,
-            d.RequestMove(
-                move_id,
-                Move(action),
-                now_ns,
-                robot_ready=self.backend is not None,
-                min_interval_ns=int(self.settings.min_move_interval_s * 1e9),
-            ),
+    async def act(self, act: c.Act, paced: bool = True) -> list[ev.Event]:
+        """A seat's action, from its socket or its agent: decided, recorded and carried out (a
+        move up to its outcome); returns the events decided. Raises `Refused`, recording nothing.
+        `paced`: moves no sooner than `min_move_interval_s` after the last (two agents may be unpaced)."""
+        now = c.Now(
+            t_ns=self.parts.clock.now_ns(),
+            robot_ready=self.backend is not None,
+            min_move_interval_ns=int(self.settings.min_move_interval_s * 1e9) if paced else 0,
         )
+        match act.action:
+            case c.RequestMove():
+                return await self._move(replace(act, now=now))
+            case c.Claim() if self.state.last_frame_id is not None:
+                claim = views.claim_attachment(self.state.last_frame_id, self.frame_jpeg)
+                return self._decide(replace(act, now=now), {Role.COMMANDER: {"claim": claim}})
+            case c.Judge():
+                s, pose, within_m = self.state, self.true_pose(), None
+                if pose is not None and s.pending_claim is not None:
+                    within_m = self.parts.mazes.distance_m(s.maze, s.pending_claim["target"], pose)
+                return self._decide(replace(act, now=replace(now, within_m=within_m)))
+        return self._decide(replace(act, now=now))
+
+    def _decide(self, command: c.Command, attachments: dict[str, dict[str, Any]] | None = None) -> list[ev.Event]:
+        events = decide(self.state, command)
+        self._commit(events, attachments)
+        return events
+
+    async def _move(self, act: c.Act) -> list[ev.Event]:
+        assert isinstance(act.action, c.RequestMove)
+        move_id = act.action.move_id or uuid.uuid4().hex[:12]
+        asked = decide(self.state, replace(act, action=replace(act.action, move_id=move_id)))
         if isinstance(refusal := asked[0], ev.MovesRefused):  # the Driver hears why now, the log with its run
             self._hold_refusal(refusal)
             driver = self.seats.get(Role.DRIVER)
@@ -567,26 +564,28 @@ class TrialRuntime:
                     {
                         "type": ServerMessage.MOVE_REFUSED,
                         "move_id": move_id,
-                        "action": str(Move(action)),
+                        "action": str(act.action.move),
                         "reason": refusal.reason,
-                        "t_ns": now_ns,
+                        "t_ns": act.now.t_ns,
                     },
                 )
-            return Outcome.REFUSED
+            return asked
         self._commit(asked)
+        (requested,) = asked
+        assert isinstance(requested, ev.MoveRequested)
         backend = self.backend
         assert backend is not None  # RequestMove refuses every move while there is no backend
         reason = None
         started_ns = self.parts.clock.now_ns()
         try:
-            result = await backend.execute(action)
+            result = await backend.execute(requested.action)
             outcome, reason = result.outcome, result.reason
         except BackendUnavailable as err:
             outcome, reason = Outcome.REFUSED, str(err)
         if outcome != Outcome.REFUSED and self.belief is not None:
             # A collision on the simulator leaves the robot where it was; a rover cannot tell.
-            self.belief.moved(action if outcome == Outcome.OK else None, started_ns)
-        self.apply(d.FinishMove(move_id, outcome, reason))
+            self.belief.moved(requested.action if outcome == Outcome.OK else None, started_ns)
+        self.apply(c.FinishMove(requested.move_id, outcome, reason))
         if (
             outcome != Outcome.REFUSED
             and self.backend is not None
@@ -596,33 +595,17 @@ class TrialRuntime:
             pose = self.backend.pose()
             if pose is not None:
                 self.record_pose(pose)
-        return outcome
-
-    def claim(self) -> None:
-        s = self.state
-        attach: dict[str, dict[str, Any]] | None = (
-            {Role.COMMANDER: {"claim": views.claim_attachment(s.last_frame_id, self.frame_jpeg)}}
-            if s.last_frame_id is not None
-            else None
-        )
-        self.apply(d.Claim(), attachments=attach)
-
-    def judge(self, confirmed: bool) -> None:
-        s, within_m = self.state, None
-        pose = self.true_pose()
-        if pose is not None and s.pending_claim is not None:
-            within_m = self.parts.mazes.distance_m(s.maze, s.pending_claim["target"], pose)
-        self.apply(d.Judge(confirmed, within_m))
+        return asked
 
     # -- experimenter -------------------------------------------------------------
     def pause(self) -> None:
-        self.apply(d.Pause())
+        self.apply(c.Pause())
 
     def resume(self) -> None:
-        self.apply(d.Resume())
+        self.apply(c.Resume())
 
     def abort(self, reason: str | None = None) -> None:
-        self.apply(d.Abort(reason))
+        self.apply(c.Abort(reason))
 
     def _expect_joins(self) -> None:
         """A trial a study's lobby paired: if a person's seat is still unopened at the logged
@@ -637,7 +620,7 @@ class TrialRuntime:
         people = [role for role, spec in ((Role.COMMANDER, s.commander), (Role.DRIVER, s.driver)) if spec == str(HUMAN)]
         absent = [role for role in people if role not in s.joined]
         if s.phase == Phase.WAITING and absent:
-            self.apply(d.Abort(" and ".join(f"the {role}" for role in absent) + " never joined"))
+            self.apply(c.Abort(" and ".join(f"the {role}" for role in absent) + " never joined"))
 
     def snapshot(self) -> dict[str, Any]:
         now_ns = self.parts.clock.now_ns()

@@ -1,6 +1,6 @@
 """Creating trials: a maze whose layout the team has never seen (least used first), three targets
 in order, a robot backend and who holds each seat (`human`, or an agent for the seat: see
-`app.drivers.registry`). Mazes are compared by physical layout (`sim.tasks.layouts`): `layouts`
+`app.seats.registry`). Mazes are compared by physical layout (`sim.tasks.layouts`): `layouts`
 maps each maze of the library to its layout's id. A trial with agents in both seats has no team:
 no person sits, so nobody sees its layout. The `trial_created` event is written with the trial row."""
 
@@ -15,11 +15,11 @@ from sqlalchemy import or_, select
 from sqlalchemy.orm import Session
 
 from app.db.models import Event, Participant, Robot, Team, Trial
-from app.trial.events import Connected, TrialCreated
 from app.trial.lifecycle import live_trial_of
-from app.trial.specs import HUMAN, SIM, BackendSpec
-from app.trial.vocabulary import Phase, Role
 from sim.core.labels import OBJECTS
+from sim.trial.events import Connected, TrialCreated
+from sim.trial.specs import HUMAN, SIM, BackendSpec
+from sim.trial.vocabulary import Phase, Role
 
 
 class TrialSetupError(ValueError):
@@ -116,6 +116,7 @@ def create_trial(
     commanders: Mapping[str, str | None] | None = None,
     start: tuple[float, float, float] | None = None,
     join_timeout_s: float | None = None,
+    seed: int | None = None,
 ) -> Trial:
     """`layouts`: each maze of the library -> its layout (`Mazes.layouts()`); `agents` and
     `commanders` (`available_agents(services, role)`) are needed when an agent holds that seat.
@@ -123,7 +124,8 @@ def create_trial(
     Commander, the member who drives. With agents in both seats the team is not asked for (none is
     stored). `start`: where the simulated robot starts (x, y, theta; snapped to the maze's graph),
     logged with the trial; None: the simulator backend draws a start. `join_timeout_s`: a seat a
-    person has not opened this long after creation aborts the trial (a study's lobby pairs)."""
+    person has not opened this long after creation aborts the trial (a study's lobby pairs).
+    `seed`: the agents' (default the trial's id), logged with the trial."""
     check_seat(Role.DRIVER, driver, agents)
     check_seat(Role.COMMANDER, commander, commanders)
     people = str(HUMAN) in (driver, commander)
@@ -173,6 +175,7 @@ def create_trial(
         commander=commander,
         start=start,
         join_timeout_s=join_timeout_s,
+        seed=seed,
     )
     db.add(Event(trial_id=trial.id, seq=1, kind=created.kind, t_ns=now_ns, payload=created.payload()))
     return trial
@@ -223,6 +226,7 @@ def restart_trial(
     agents: Mapping[str, str | None] | None = None,
     commanders: Mapping[str, str | None] | None = None,
     join_timeout_s: float | None = None,
+    seed: int | None = None,
 ) -> Trial:
     """A new trial for an aborted one: the same seats, targets, robot and study, on a layout of
     `layouts` the team has never seen (the aborted one's counts as seen: its Commander may have had
@@ -252,6 +256,7 @@ def restart_trial(
         commander=old.commander,
         commanders=commanders,
         join_timeout_s=join_timeout_s,
+        seed=seed,
     )
     trial.study = old.study
     return trial

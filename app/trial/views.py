@@ -12,10 +12,11 @@ import base64
 from collections.abc import Callable, Iterable
 from typing import Any
 
-from app.trial import events as ev
-from app.trial.events import LoggedEvent
-from app.trial.state import TrialState
-from app.trial.vocabulary import FrameSource, Phase, Role, ServerMessage
+from app.trial.messages import ServerMessage
+from sim.trial import events as ev
+from sim.trial.events import LoggedEvent
+from sim.trial.state import TrialState
+from sim.trial.vocabulary import FrameSource, Phase, Role
 
 JpegOf = Callable[[int], bytes | None]  # a frame's image by its frame id (None: not stored)
 HISTORY: tuple[type[ev.Event], ...] = (ev.Chat, ev.PhaseChanged, ev.TargetConfirmed, ev.TargetRejected)

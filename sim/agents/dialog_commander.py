@@ -21,26 +21,13 @@ from pathlib import Path
 import numpy as np
 
 from sim.agents.route import Router
-from sim.agents.turns import (
-    Claimed,
-    DoJudge,
-    DoLocalize,
-    DoSay,
-    Heard,
-    Judged,
-    Percept,
-    Phase,
-    PhaseChanged,
-    SeatInfo,
-    Speaker,
-    Turn,
-)
 from sim.core.dynamics import Pose
 from sim.core.geometry import HEADINGS, heading_angle
 from sim.core.labels import OBJECT_LABELS, Label, object_label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
+from sim.core.rays import RayObservation
 from sim.language import instructions as ins
 from sim.language import lexicon
 from sim.language.describe import near, wall_close, within_reach
@@ -49,8 +36,11 @@ from sim.language.localizer import Belief, Scene
 from sim.language.phrases import Kind, Phrases, Phrasing
 from sim.language.understanding import Understanding, belief_facts
 from sim.language.vocab import OBJECT_WORDS, SIDE_SECTOR, Side, wall_name
-from sim.robot.perception import RayObservation
 from sim.tasks.ldh_features import Sector
+from sim.trial.agent import SeatInfo
+from sim.trial.commands import Action, Judge, Localize, Say
+from sim.trial.percepts import Claimed, Heard, Judged, Percept, PhaseBegan
+from sim.trial.vocabulary import Phase, Role
 
 SETTLED_M = 0.3  # expected TD of the estimate under the belief: settled enough to mark and guide
 LOST_M = 0.6  # ... spread this far again while guiding: stop and ask
@@ -118,7 +108,7 @@ class DialogCommander:
         # The rules read the Driver by default: with the trained Driver reader its first mark was
         # 0.29 m off instead of 0.07 m in self-play (val_seen), and fewer trials completed.
         self._understanding = understanding or Understanding.by_rules()
-        self.reset(SeatInfo(Speaker.COMMANDER, 0))
+        self.reset(SeatInfo(Role.COMMANDER, 0))
 
     def reset(self, info: SeatInfo) -> None:
         self.belief = Belief(self.scene, self.main)
@@ -138,12 +128,12 @@ class DialogCommander:
 
     # -- percepts -------------------------------------------------------------------------------
 
-    def perceive(self, percept: Percept) -> list[Turn]:
-        if isinstance(percept, PhaseChanged):
+    def perceive(self, percept: Percept) -> list[Action]:
+        if isinstance(percept, PhaseBegan):
             return self._phase_changed(percept)
         if isinstance(percept, Heard):
-            turns = self._heard(percept.text) if percept.speaker == Speaker.DRIVER else []
-            self._before = ("d" if percept.speaker == Speaker.DRIVER else "c", percept.text)
+            turns = self._heard(percept.text) if percept.speaker == Role.DRIVER else []
+            self._before = ("d" if percept.speaker == Role.DRIVER else "c", percept.text)
             return turns
         if isinstance(percept, Claimed):
             return self._claimed(percept)
@@ -151,7 +141,7 @@ class DialogCommander:
             return []  # its own verdict
         return []  # Saw and Moved are the Driver seat's; a Commander never gets them
 
-    def _phase_changed(self, change: PhaseChanged) -> list[Turn]:
+    def _phase_changed(self, change: PhaseBegan) -> list[Action]:
         self._phase = change.phase
         if change.phase == Phase.LOCALIZING:
             return self._say(self.phrases.say(Kind.ASK_VIEW))
@@ -162,7 +152,7 @@ class DialogCommander:
             return self._guide(prefix=announce)
         return []
 
-    def _heard(self, text: str) -> list[Turn]:
+    def _heard(self, text: str) -> list[Action]:
         lowered = text.lower()
         if "found" in lowered:
             return []  # a claim is on its way
@@ -207,14 +197,14 @@ class DialogCommander:
         why_not, self._why_not = self._why_not, None
         return turns + self._guide(prefix=why_not)
 
-    def _claimed(self, claim: Claimed) -> list[Turn]:
+    def _claimed(self, claim: Claimed) -> list[Action]:
         if self._pending is not None:
             self._move(self._pending, whole=False)  # the claim cut the instruction short somewhere
             self._pending = None
         if self._target is None:
-            return [DoJudge(False)]
+            return [Judge(False)]
         if claim.rays is None:  # no frame to judge from: the belief must be sure
-            return [DoJudge(self._mass_near(self.maze.objects[self._target]) >= SURE)]
+            return [Judge(self._mass_near(self.maze.objects[self._target]) >= SURE)]
         self._observe_view(claim.rays)
         confirmed = near(claim.rays, object_label(self._target))
         if not confirmed:
@@ -231,7 +221,7 @@ class DialogCommander:
                 else f"i do not see the {thing} in your picture"
             )
             self._why_not = f"not yet: {why}"  # said with the next instruction
-        return [DoJudge(confirmed)]
+        return [Judge(confirmed)]
 
     # -- belief ---------------------------------------------------------------------------------
 
@@ -302,28 +292,28 @@ class DialogCommander:
 
     # -- turns ----------------------------------------------------------------------------------
 
-    def _say(self, text: str) -> list[Turn]:
+    def _say(self, text: str) -> list[Action]:
         """Say `text`; a question is read by the belief with the answer to it."""
         self.belief.message("oracle", text)
         parsed = ins.parse(text)
         self._looking = any(isinstance(i, ins.Ask) and i.look_around for i in parsed.instructions)
         self._pending = parsed if parsed.moves else None
-        return [DoSay(text)]
+        return [Say(text)]
 
-    def _mark(self, estimate: Estimate) -> list[Turn]:
+    def _mark(self, estimate: Estimate) -> list[Action]:
         self._questions = 0
         self._asked.clear()
         self._marked = (estimate.x, estimate.y)
-        return [DoLocalize(estimate.x, estimate.y, float(heading_angle(estimate.pose.heading)))]
+        return [Localize(estimate.x, estimate.y, float(heading_angle(estimate.pose.heading)))]
 
-    def _revise(self, estimate: Estimate) -> list[Turn]:
+    def _revise(self, estimate: Estimate) -> list[Action]:
         if self._marked is None or math.dist(self._marked, (estimate.x, estimate.y)) < REVISE_M:
             return []
         if estimate.spread_m > SETTLED_M:
             return []
         return self._mark(estimate)
 
-    def _ask(self) -> list[Turn]:
+    def _ask(self) -> list[Action]:
         """The yes / no question that best halves the belief; first, a look around."""
         self._questions += 1
         if self._phase == Phase.NAVIGATING and not self._asked:
@@ -359,7 +349,7 @@ class DialogCommander:
         places = closer if closer.size else places
         return int(places[self._dist[node, places].argmin()])
 
-    def _guide(self, prefix: str | None = None) -> list[Turn]:
+    def _guide(self, prefix: str | None = None) -> list[Action]:
         """The next instruction from the estimate, towards the target."""
         assert self._target is not None
         self._questions = 0

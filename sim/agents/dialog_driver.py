@@ -16,35 +16,19 @@ from collections import deque
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-from sim.agents.turns import (
-    DoClaim,
-    DoMove,
-    DoSay,
-    Heard,
-    Judged,
-    Move,
-    Moved,
-    Outcome,
-    Paused,
-    Percept,
-    Phase,
-    PhaseChanged,
-    Refused,
-    Saw,
-    SeatInfo,
-    Speaker,
-    Turn,
-    TurnKind,
-)
 from sim.core.geometry import HEADING_DI, HEADING_DJ, HEADINGS
 from sim.core.labels import OBJECT_LABELS, Label
+from sim.core.rays import RayObservation
 from sim.language import instructions as ins
 from sim.language.describe import LEFT_EDGE, RIGHT_EDGE, ahead, at_wall, brief, describe, near, seen
 from sim.language.meaning import Clause, Op, Program, program_of
 from sim.language.understanding import Understanding, instructions, read_back
 from sim.language.vocab import SIDE_PHRASE, SIDE_STEPS, Side, wall_name
-from sim.robot.perception import RayObservation
 from sim.tasks.ldh_features import NEAR_M
+from sim.trial.agent import SeatInfo
+from sim.trial.commands import Action, Claim, RequestMove, Say
+from sim.trial.percepts import Declined, Heard, Judged, Moved, PauseSet, Percept, PhaseBegan, Saw
+from sim.trial.vocabulary import Move, Outcome, Phase, Role
 
 OPENING_M = 0.6  # a side ray further than this after a nearer one: an opening on that side
 MAX_WALK = 60  # forward moves one "until" may take before the Driver asks
@@ -130,7 +114,7 @@ class DialogDriver:
         self._rng = random.Random(seed)
         self._read_back = read_back
         self._understanding = understanding or Understanding.trained()
-        self.reset(SeatInfo(Speaker.DRIVER, 0))
+        self.reset(SeatInfo(Role.DRIVER, 0))
 
     def reset(self, info: SeatInfo) -> None:
         self._phase = Phase.WAITING
@@ -152,15 +136,15 @@ class DialogDriver:
 
     # -- percepts -------------------------------------------------------------------------------
 
-    def perceive(self, percept: Percept) -> list[Turn]:
-        if isinstance(percept, PhaseChanged):
+    def perceive(self, percept: Percept) -> list[Action]:
+        if isinstance(percept, PhaseBegan):
             if percept.phase == Phase.NAVIGATING and self._phase == Phase.NAVIGATING:
                 self._target = None  # a confirmed target: the next one is told anew
             self._phase = percept.phase
             return []
         if isinstance(percept, Heard):
-            turns = self._heard(percept.text) if percept.speaker == Speaker.COMMANDER else []
-            self._before = ("c" if percept.speaker == Speaker.COMMANDER else "d", percept.text)
+            turns = self._heard(percept.text) if percept.speaker == Role.COMMANDER else []
+            self._before = ("c" if percept.speaker == Role.COMMANDER else "d", percept.text)
             return turns
         if isinstance(percept, Moved):
             return self._moved(percept)
@@ -174,36 +158,36 @@ class DialogDriver:
             if percept.confirmed:
                 return []
             self._rejected_at.add(self._odo.here)
-            return [DoSay("ok, not here then. where should i go?")]
-        if isinstance(percept, Paused):
+            return [Say("ok, not here then. where should i go?")]
+        if isinstance(percept, PauseSet):
             self._paused = percept.paused
             if percept.paused or not self._claim_on_resume:
                 return []
             self._claim_on_resume = False
             self._plan.appendleft(_Task(Task.CLAIM))
             return self._advance()
-        if isinstance(percept, Refused):
+        if isinstance(percept, Declined):
             return self._refused(percept)
         return []  # Claimed: its own claim, already waiting for the verdict
 
-    def _refused(self, refused: Refused) -> list[Turn]:
+    def _refused(self, refused: Declined) -> list[Action]:
         """A turn not allowed now: a claim refused while paused is made again once the trial runs;
         otherwise it drops its plan and asks (its words refused: nothing to say)."""
-        if refused.turn == TurnKind.SAY:
+        if isinstance(refused.action, Say):
             return []
         self._claiming = self._moving = False
         self._plan.clear()
-        if refused.turn == TurnKind.CLAIM and self._paused:
+        if isinstance(refused.action, Claim) and self._paused:
             self._claim_on_resume = True
             return []
-        return [DoSay(f"i could not {refused.turn} ({refused.reason}). what should i do?")]
+        return [Say(f"i could not {refused.what} ({refused.reason}). what should i do?")]
 
-    def _moved(self, moved: Moved) -> list[Turn]:
+    def _moved(self, moved: Moved) -> list[Action]:
         if moved.result != Outcome.OK:
             self._plan.clear()
             if moved.result == Outcome.COLLISION:
                 return [self._failure("i hit a wall, which way now?")]
-            return [DoSay(f"i could not move ({moved.reason or 'refused'}). what should i do?")]
+            return [Say(f"i could not move ({moved.reason or 'refused'}). what should i do?")]
         if moved.move == Move.FORWARD:
             self._odo.i += int(HEADING_DI[self._odo.heading])
             self._odo.j += int(HEADING_DJ[self._odo.heading])
@@ -215,14 +199,14 @@ class DialogDriver:
 
     # -- instructions -> tasks ------------------------------------------------------------------
 
-    def _heard(self, text: str) -> list[Turn]:
+    def _heard(self, text: str) -> list[Action]:
         understood = self._understanding.program(text, self._before)
         program, offered, self._offered = understood.meaning, self._offered, None
         if offered is not None and program == (_YES,):
             program, text = offered  # "yes": the reading it asked about
         elif offered is not None and program == (_NO,):
             self._plan.clear()
-            return [DoSay("ok, i did not get it then. could you say it another way, one move at a time?")]
+            return [Say("ok, i did not get it then. could you say it another way, one move at a time?")]
         elif self._phase == Phase.NAVIGATING and (
             understood.confidence < ASK_BELOW or not _moves(program) and _moves(program_of(ins.parse(text)))
         ):
@@ -232,23 +216,23 @@ class DialogDriver:
             program = tuple(c for c in program if c.op != Op.UNCLEAR)  # act on what it understood
         return self._follow(program, text, said_unclear=bool(unclear))
 
-    def _ask_about(self, program: Program, text: str) -> list[Turn]:
+    def _ask_about(self, program: Program, text: str) -> list[Action]:
         """Not sure what was meant: say its best reading (the rules' where it read no move) and ask."""
         best = program if _moves(program) else program_of(ins.parse(text))
         if not _moves(best):
             return self._follow(program, text, said_unclear=False)
         self._plan.clear()
         self._offered = (best, text)
-        return [DoSay(f"i am not sure i got '{text.strip()}'. do you mean: {read_back(best)}?")]
+        return [Say(f"i am not sure i got '{text.strip()}'. do you mean: {read_back(best)}?")]
 
-    def _failure(self, text: str) -> DoSay:
+    def _failure(self, text: str) -> Say:
         """It could not carry out what it was told; after FAILED_TRIES in a row it asks for less at a time."""
         self._failed += 1
         if self._failed >= FAILED_TRIES:
-            return DoSay(f"{text} could you give me one move at a time?")
-        return DoSay(text)
+            return Say(f"{text} could you give me one move at a time?")
+        return Say(text)
 
-    def _follow(self, program: Program, text: str, said_unclear: bool) -> list[Turn]:
+    def _follow(self, program: Program, text: str, said_unclear: bool) -> list[Action]:
         parsed = ins.Parsed(tuple(instructions(program, text)))
         self._plan.clear()
         self._claim_on_resume = False
@@ -315,8 +299,8 @@ class DialogDriver:
 
     # -- carrying tasks out ---------------------------------------------------------------------
 
-    def _advance(self) -> list[Turn]:
-        out: list[Turn] = []
+    def _advance(self) -> list[Action]:
+        out: list[Action] = []
         while self._plan and not self._moving and not self._claiming:
             if self._sees_target() and self._plan[0].kind != Task.CLAIM:
                 self._plan.clear()
@@ -327,7 +311,7 @@ class DialogDriver:
                 break  # a claim sends the Driver's frame: none yet
             task = self._plan.popleft()
             step = self._step(task)  # may clear the plan or put tasks before what is left
-            if isinstance(step, DoMove):
+            if isinstance(step, RequestMove):
                 self._plan.appendleft(task)
                 self._moving = True
                 out.append(step)
@@ -343,7 +327,7 @@ class DialogDriver:
             return False
         return near(self._view, self._target)
 
-    def _step(self, task: _Task) -> DoMove | DoSay | list[Turn] | None:
+    def _step(self, task: _Task) -> RequestMove | Say | list[Action] | None:
         """The task's next move, or None (or its closing words) when it is finished."""
         if task.kind == Task.TURN:
             return self._turn(task)
@@ -357,16 +341,16 @@ class DialogDriver:
             return self._look(task)
         if task.kind == Task.CLAIM:
             if self._phase != Phase.NAVIGATING:
-                return DoSay("you have not placed me on the map yet; tell me when i may go")
+                return Say("you have not placed me on the map yet; tell me when i may go")
             self._claiming = True
             thing = wall_name(self._target) if self._target is not None else "target"
-            return [DoSay(f"i think i found the {thing}"), DoClaim()]
+            return [Say(f"i think i found the {thing}"), Claim()]
         if not task.text:
             self._failed = 0  # an instruction set carried out to its end
         text = task.text or f"ok, {self._done_words or 'done'}, {brief(self._view)}. {self._rng.choice(NEXT)}"
-        return DoSay(text)
+        return Say(text)
 
-    def _turn(self, task: _Task) -> DoMove | None:
+    def _turn(self, task: _Task) -> RequestMove | None:
         if task.turns == 0:
             return None
         if task.done == 0 and abs(task.turns) >= 2:
@@ -375,9 +359,9 @@ class DialogDriver:
         step = 1 if task.turns > 0 else -1
         task.turns -= step
         self._done_words = f"turned {'left' if step > 0 else 'right'}"
-        return DoMove(Move.LEFT if step > 0 else Move.RIGHT)
+        return RequestMove(Move.LEFT if step > 0 else Move.RIGHT)
 
-    def _walk(self, task: _Task) -> DoMove | DoSay | None:
+    def _walk(self, task: _Task) -> RequestMove | Say | None:
         view = self._view
         if task.steps is not None:
             if task.done >= task.steps:
@@ -387,10 +371,10 @@ class DialogDriver:
                 self._plan.clear()
                 return self._failure(f"i can only go {task.done} steps, {brief(view)}. which way now?")
             task.done += 1
-            return DoMove(Move.FORWARD)
+            return RequestMove(Move.FORWARD)
         if view is None or view.problem is not None:
             self._plan.clear()
-            return DoSay("i cannot see clearly. what should i do?")
+            return Say("i cannot see clearly. what should i do?")
         front = ahead(view)
         if task.until is not None and task.until in OBJECT_LABELS:
             # Where its claim was rejected it is not close enough yet: it goes on up to the target.
@@ -417,13 +401,13 @@ class DialogDriver:
             self._plan.clear()
             return self._failure(f"i have gone {task.done} steps and still {brief(view)}. where am i going?")
         task.done += 1
-        return DoMove(Move.FORWARD)
+        return RequestMove(Move.FORWARD)
 
-    def _opening(self, task: _Task) -> DoMove | DoSay | None:
+    def _opening(self, task: _Task) -> RequestMove | Say | None:
         view = self._view
         if view is None or view.problem is not None:
             self._plan.clear()
-            return DoSay("i cannot see clearly. what should i do?")
+            return Say("i cannot see clearly. what should i do?")
         ray = LEFT_EDGE if task.side == Side.LEFT else RIGHT_EDGE
         far = not view.valid[ray] or view.labels[ray] == Label.FLOOR or float(view.depth[ray]) > OPENING_M
         if task.edge_near and far:
@@ -438,9 +422,9 @@ class DialogDriver:
             self._plan.clear()
             return self._failure(f"i found no opening on my {task.side}, {brief(view)}. which way now?")
         task.done += 1
-        return DoMove(Move.FORWARD)
+        return RequestMove(Move.FORWARD)
 
-    def _goto(self, task: _Task) -> DoMove | DoSay | None:
+    def _goto(self, task: _Task) -> RequestMove | Say | None:
         while task.route and task.route[0] == self._odo.here:
             task.route.pop(0)
         if not task.route:
@@ -453,11 +437,11 @@ class DialogDriver:
             if self._view is not None and self._view.forward_blocked:
                 self._plan.clear()
                 return self._failure(f"a wall is in my way {task.text}, {brief(self._view)}. which way?")
-            return DoMove(Move.FORWARD)
-        return DoMove(Move.LEFT if turn <= 4 else Move.RIGHT)
+            return RequestMove(Move.FORWARD)
+        return RequestMove(Move.LEFT if turn <= 4 else Move.RIGHT)
 
-    def _look(self, task: _Task) -> DoMove | DoSay:
-        """Turn in place until the sides the question needs have been seen (and back), then answer."""
+    def _look(self, task: _Task) -> RequestMove | Say:
+        """Action in place until the sides the question needs have been seen (and back), then answer."""
         ask = task.question
         assert ask is not None  # look tasks are made from questions
         if ask.look_around:
@@ -474,17 +458,17 @@ class DialogDriver:
         missing = [s for s in sides if (home + SIDE_STEPS[s]) % HEADINGS not in self._views]
         facing = (home + SIDE_STEPS[missing[0]]) % HEADINGS if missing else home
         if self._odo.heading != facing:  # the shorter way round to the next side to see, then back
-            return DoMove(Move.LEFT if (facing - self._odo.heading) % HEADINGS <= 4 else Move.RIGHT)
+            return RequestMove(Move.LEFT if (facing - self._odo.heading) % HEADINGS <= 4 else Move.RIGHT)
         views = {s: self._views[(home + SIDE_STEPS[s]) % HEADINGS] for s in sides}
         if ask.question == ins.Question.IS_THERE and ask.label is not None:
-            return DoSay(self._is_there(ask.label, sides[0], views[sides[0]]))
+            return Say(self._is_there(ask.label, sides[0], views[sides[0]]))
         if ask.question == ins.Question.VIEW and not ask.look_around:
             views = {
                 s: self._views[(home + SIDE_STEPS[s]) % HEADINGS]
                 for s in Side
                 if (home + SIDE_STEPS[s]) % HEADINGS in self._views
             }
-        return DoSay(describe(views))
+        return Say(describe(views))
 
     def _is_there(self, label: Label, side: Side, view: RayObservation | None) -> str:
         hits = [s for s in seen(view) if s.label == label] if view is not None else []

@@ -13,26 +13,18 @@ import math
 import numpy as np
 
 from sim.agents.route import Router
-from sim.agents.turns import (
-    Claimed,
-    DoJudge,
-    DoSay,
-    Heard,
-    Percept,
-    Phase,
-    PhaseChanged,
-    SeatInfo,
-    Speaker,
-    Turn,
-)
 from sim.core.dynamics import Pose
 from sim.core.geometry import SUCCESS_RADIUS_M
 from sim.core.labels import Label, object_label
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
+from sim.core.rays import RayObservation
 from sim.language.phrases import Kind, Persona, Phrases, Phrasing
 from sim.language.vocab import OBJECT_WORDS
-from sim.robot.perception import RayObservation
+from sim.trial.agent import SeatInfo
+from sim.trial.commands import Action, Judge, Say
+from sim.trial.percepts import Claimed, Heard, Percept, PhaseBegan
+from sim.trial.vocabulary import Phase, Role
 
 THERE_M = 0.35  # the Commander says "you are there" this close to the target
 
@@ -69,15 +61,15 @@ class OracleCommander:
         _, _, xy, _ = self._target()
         return float(math.dist(self.graph.nodes[pose.node], xy))
 
-    def perceive(self, percept: Percept) -> list[Turn]:
-        if isinstance(percept, PhaseChanged):
+    def perceive(self, percept: Percept) -> list[Action]:
+        if isinstance(percept, PhaseBegan):
             if percept.phase == Phase.LOCALIZING:
-                return [DoSay(self.phrases.say(Kind.ASK_VIEW))]
+                return [Say(self.phrases.say(Kind.ASK_VIEW))]
             if percept.phase == Phase.NAVIGATING and percept.target_index is not None:
                 self._index = percept.target_index
                 name = self._target()[0]
                 return [
-                    DoSay(
+                    Say(
                         f"{self.phrases.say(Kind.ANNOUNCE, thing=OBJECT_WORDS[object_label(name)])}. "
                         f"{self.instruction(plain=False)}"
                     )
@@ -85,12 +77,12 @@ class OracleCommander:
             return []
         if isinstance(percept, Claimed):
             if self.distance(self.pose) <= SUCCESS_RADIUS_M:
-                return [DoJudge(True)]
-            return [DoJudge(False), DoSay(self.phrases.say(Kind.REJECT))]
-        if isinstance(percept, Heard) and percept.speaker == Speaker.DRIVER and self._index is not None:
+                return [Judge(True)]
+            return [Judge(False), Say(self.phrases.say(Kind.REJECT))]
+        if isinstance(percept, Heard) and percept.speaker == Role.DRIVER and self._index is not None:
             if "found" in percept.text:
                 return []  # a claim is on its way
-            return [DoSay(self.instruction(plain="?" in percept.text))]
+            return [Say(self.instruction(plain="?" in percept.text))]
         return []
 
     def instruction(self, plain: bool) -> str:

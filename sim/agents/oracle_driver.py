@@ -6,14 +6,13 @@ never ranks with agents."""
 from __future__ import annotations
 
 from sim.agents.dialog_driver import DialogDriver, Task, _Task
-from sim.agents.sight import pose_rays
-from sim.agents.turns import DoMove, DoSay
 from sim.core.dynamics import Pose
 from sim.core.geometry import HEADINGS
 from sim.core.observations import RayTable
 from sim.language import instructions as ins
 from sim.language.describe import describe
 from sim.language.vocab import SIDE_STEPS, Side
+from sim.trial.commands import RequestMove, Say
 
 
 class OracleDriver(DialogDriver):
@@ -24,16 +23,16 @@ class OracleDriver(DialogDriver):
         self.pose = Pose(0, 0)
         super().__init__(seed)
 
-    def _look(self, task: _Task) -> DoMove | DoSay:
+    def _look(self, task: _Task) -> RequestMove | Say:
         ask = task.question
         assert ask is not None and task.kind == Task.LOOK  # look tasks are made from questions
         views = {
-            side: pose_rays(self.rays, Pose(self.pose.node, (self.pose.heading + SIDE_STEPS[side]) % HEADINGS))
+            side: self.rays.observation(*Pose(self.pose.node, (self.pose.heading + SIDE_STEPS[side]) % HEADINGS))
             for side in Side
         }
         if ask.question == ins.Question.IS_THERE and ask.label is not None:
             side = ask.side or Side.AHEAD
-            return DoSay(self._is_there(ask.label, side, views[side]))
+            return Say(self._is_there(ask.label, side, views[side]))
         if ask.question == ins.Question.SIDE and ask.side is not None:
-            return DoSay(describe({ask.side: views[ask.side]}))
-        return DoSay(describe(views))
+            return Say(describe({ask.side: views[ask.side]}))
+        return Say(describe(views))

@@ -8,16 +8,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.agents.sight import pose_rays
 from sim.core.dynamics import Action, Pose
 from sim.core.geometry import HEADINGS
 from sim.core.labels import WALL_LABELS, Label
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
+from sim.core.rays import RayObservation
 from sim.language.describe import ahead, at_wall, near, seen
 from sim.language.phrases import Kind, Phrases
 from sim.language.vocab import OBJECT_WORDS, wall_name
-from sim.robot.perception import RayObservation
 
 MAX_PLAN = 400
 
@@ -31,7 +30,7 @@ class Router:
 
     def view(self, pose: Pose) -> RayObservation:
         """What the map says a Driver at `pose` sees."""
-        return pose_rays(self.rays, pose)
+        return self.rays.observation(*pose)
 
     def instruction(self, pose: Pose, label: Label, goal: int, plain: bool) -> str:
         """The next instruction from `pose` towards the object `label` at node `goal`; `plain` (the

@@ -1,17 +1,17 @@
 """Whole trials with agents in both seats, offline: localize, the three targets in order, each
-claim judged by the Commander. The harness is the referee: it alone holds the true pose, steps it
-on the robot's graph (`NavGraph.for_robot`: the landmarks block, as on the platform) by the trial's
-rules (`graph.moves.step`, `sim.core.stepper.Moves`), hands the Driver the RayTable row of
-each pose as its `Saw` and the Commander the claim frame's rays in `Claimed`, and measures.
+claim judged by the Commander. The referee is the trial core's (`sim.trial.offline.OfflineTrial`:
+the platform's rules and events, the simulator's moves on the robot's graph, `NavGraph.for_robot`)
+and the seats are a `sim.trial.table.Table`, as on the platform; the figures are read from the
+trial's log (`measure`), as a recorded trial's are.
 
 Agents are named: `dialog` in either seat (percepts only); `oracle` in either seat cheats (the
 Commander is handed the true pose, the Driver answers from its true view without turning)."""
 
 from __future__ import annotations
 
+import asyncio
 import math
 import time
-from collections import deque
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from enum import StrEnum
@@ -25,39 +25,25 @@ from sim.agents.dialog_driver import DialogDriver
 from sim.agents.oracle_commander import OracleCommander
 from sim.agents.oracle_driver import OracleDriver
 from sim.agents.route import Router
-from sim.agents.sight import pose_rays
-from sim.agents.turns import (
-    Agent,
-    Claimed,
-    DoClaim,
-    DoJudge,
-    DoLocalize,
-    DoMove,
-    DoSay,
-    Heard,
-    Judged,
-    Moved,
-    Outcome,
-    Percept,
-    Phase,
-    PhaseChanged,
-    Saw,
-    SeatInfo,
-    Speaker,
-)
-from sim.core.dynamics import Action, Pose
-from sim.core.geometry import HEADINGS, SUCCESS_RADIUS_M
+from sim.core.dynamics import Pose, snap_pose
+from sim.core.geometry import HEADINGS
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
 from sim.language.phrases import Phrases, Phrasing
+from sim.trial import events as ev
+from sim.trial.agent import Agent
+from sim.trial.commands import Abort, Action
+from sim.trial.events import LoggedEvent
+from sim.trial.offline import OfflineTrial
+from sim.trial.percepts import Heard, Percept
+from sim.trial.state import fold
+from sim.trial.table import SILENCE, Caps, Table
+from sim.trial.vocabulary import Phase, Role
 
 J = TypeVar("J")  # a job of `iter_results`
 R = TypeVar("R")  # and its result
 TARGET_ORDER = ("jar", "mug", "paddle")  # every benchmark trial's order
-MAX_MOVES = 600  # per trial: the trial is aborted there, as a seat's cap would
-MAX_MESSAGES = 150
-MAX_REJECTIONS = 3  # per target
 BUNDLED_START_MIN_M = 1.0  # a bundled maze's start: at least this far (path) from the first target
 
 
@@ -90,7 +76,7 @@ class TrialResult:
     first_estimate_td_m: float | None = None  # TD of the Commander's first mark from the true pose then
     false_confirmations: int = 0  # confirmed with the robot further than 2 robot lengths from the target
     rejections: int = 0
-    ended: str = "finished"  # or the cap that ended it
+    ended: str = "finished"  # or why it was aborted (an agent's cap, both seats silent)
     seconds: float = 0.0
     update_s: list[float] = field(default_factory=list)  # the Commander's time per Driver message
     dialog: list[tuple[str, str]] = field(default_factory=list)
@@ -100,89 +86,66 @@ class TrialResult:
         return self.targets_confirmed == self.targets_total
 
 
-def play(commander: Agent, driver: Agent, graph: NavGraph, rays: RayTable, spec: TrialSpec) -> TrialResult:
+def play(
+    commander: Agent, driver: Agent, graph: NavGraph, rays: RayTable, spec: TrialSpec, caps: Caps | None = None
+) -> TrialResult:
     """One trial from `spec.start`; an agent with a `pose` (the oracles) is handed the true pose."""
     t0 = time.perf_counter()
-    out = TrialResult(spec.maze, len(spec.targets))
-    router = Router(graph, rays, Phrases(Phrasing.SCRIPTED))
-    pose, frame, index = spec.start, 0, -1
-    phase = Phase.LOCALIZING
-    rejected = 0
-    claim_open = False
-    total = len(spec.targets)
-    seats = {Speaker.COMMANDER: commander, Speaker.DRIVER: driver}
-    commander.reset(SeatInfo(Speaker.COMMANDER, total))
-    driver.reset(SeatInfo(Speaker.DRIVER, total))
-    queue: deque[tuple[Speaker, Percept]] = deque()
+    table = Table({Role.DRIVER: driver, Role.COMMANDER: commander}, [name for name, _ in spec.targets], caps)
+    trial = OfflineTrial(spec.maze, list(spec.targets), spec.start, graph, rays, table)
+    update_s: list[float] = []
 
-    def begin(k: int) -> None:
-        nonlocal index
-        index = k
-        name, xy = spec.targets[k]
-        out.shortest += int(router.moves_to_go(graph.nearest_node(*xy))[pose.node, pose.heading])
-        queue.append((Speaker.DRIVER, PhaseChanged(Phase.NAVIGATING, k, total)))
-        queue.append((Speaker.COMMANDER, PhaseChanged(Phase.NAVIGATING, k, total, target=name)))
-
-    queue += [
-        (Speaker.DRIVER, PhaseChanged(Phase.LOCALIZING, None, total)),
-        (Speaker.DRIVER, Saw(0, pose_rays(rays, pose))),
-        (Speaker.COMMANDER, PhaseChanged(Phase.LOCALIZING, None, total)),
-    ]
-    while queue and phase in (Phase.LOCALIZING, Phase.NAVIGATING):
-        who, percept = queue.popleft()
-        agent = seats[who]
+    async def wake(role: Role, agent: Agent, percept: Percept) -> list[Action]:
         if isinstance(agent, OracleCommander | OracleDriver):
-            agent.pose = pose
+            agent.pose = trial.pose
         started = time.perf_counter()
-        turns = agent.perceive(percept)
-        if who == Speaker.COMMANDER and isinstance(percept, Heard) and percept.speaker == Speaker.DRIVER:
-            out.update_s.append(time.perf_counter() - started)
-        for turn in turns:
-            if isinstance(turn, DoSay):
+        actions = agent.perceive(percept)
+        if role == Role.COMMANDER and isinstance(percept, Heard) and percept.speaker == Role.DRIVER:
+            update_s.append(time.perf_counter() - started)
+        return actions
+
+    asyncio.run(table.play(trial, wake))
+    if not trial.state.over:
+        trial.apply(Abort(SILENCE))
+    out = measure(trial.log, dict(spec.targets), graph, rays, time.perf_counter() - t0)
+    out.update_s = update_s
+    return out
+
+
+def measure(
+    log: Sequence[LoggedEvent], objects: dict[str, tuple[float, float]], graph: NavGraph, rays: RayTable, seconds: float
+) -> TrialResult:
+    """A trial's figures, from its log alone (the poses the simulator logged are the truth)."""
+    state = fold(log)
+    router = Router(graph, rays, Phrases(Phrasing.SCRIPTED))
+    out = TrialResult(state.maze, len(state.targets), moves=state.moves, seconds=seconds)
+    pose: tuple[float, float, float] | None = None
+    legs: set[int | None] = set()
+    for logged in log:
+        event = ev.typed(logged)
+        match event:
+            case ev.PoseSampled(x=x, y=y, heading=heading):
+                pose = (x, y, heading)
+            case ev.PhaseChanged(phase=Phase.NAVIGATING, target_index=k) if k not in legs:
+                legs.add(k)
+                if pose is not None and k is not None:
+                    at = snap_pose(graph, *pose)
+                    goal = graph.nearest_node(*objects[state.targets[k]])
+                    out.shortest += int(router.moves_to_go(goal)[at.node, at.heading])
+            case ev.Localized(x=x, y=y) if out.first_estimate_td_m is None and pose is not None:
+                out.first_estimate_td_m = graph.topological_distance((x, y), pose[:2])
+            case ev.Chat(role=role, text=text):
                 out.messages += 1
-                out.dialog.append((who.value, turn.text))
-                queue += [(Speaker.DRIVER, Heard(who, turn.text)), (Speaker.COMMANDER, Heard(who, turn.text))]
-            elif isinstance(turn, DoMove) and who == Speaker.DRIVER:
-                out.moves += 1
-                pose, collided = graph.moves.step(pose, Action.of(turn.move))
-                frame += 1
-                result = Outcome.COLLISION if collided else Outcome.OK
-                queue += [
-                    (Speaker.DRIVER, Moved(turn.move, result)),
-                    (Speaker.DRIVER, Saw(frame, pose_rays(rays, pose))),
-                ]
-            elif isinstance(turn, DoClaim) and who == Speaker.DRIVER and phase == Phase.NAVIGATING:
-                claim_open = True
-                queue.append((Speaker.COMMANDER, Claimed(index, pose_rays(rays, pose))))
-            elif isinstance(turn, DoJudge) and who == Speaker.COMMANDER and claim_open:
-                claim_open = False
-                queue += [(s, Judged(turn.confirmed, index)) for s in Speaker]
-                if not turn.confirmed:
-                    out.rejections += 1
-                    rejected += 1
-                    continue
+                out.dialog.append((str(role), text))
+            case ev.TargetConfirmed(truly_within=truly):
                 out.targets_confirmed += 1
-                rejected = 0
-                if math.dist(graph.nodes[pose.node], spec.targets[index][1]) > SUCCESS_RADIUS_M:
-                    out.false_confirmations += 1
-                if index + 1 == total:
-                    phase = Phase.FINISHED
-                    break
-                begin(index + 1)
-            elif isinstance(turn, DoLocalize) and who == Speaker.COMMANDER:
-                if out.first_estimate_td_m is None:
-                    out.first_estimate_td_m = graph.topological_distance((turn.x, turn.y), graph.nodes[pose.node])
-                if phase == Phase.LOCALIZING:
-                    phase = Phase.NAVIGATING
-                    begin(0)
-        if out.moves >= MAX_MOVES or out.messages >= MAX_MESSAGES or rejected >= MAX_REJECTIONS:
-            phase = Phase.ABORTED
-            out.ended = (
-                "moves" if out.moves >= MAX_MOVES else "messages" if out.messages >= MAX_MESSAGES else "rejections"
-            )
-    if phase in (Phase.LOCALIZING, Phase.NAVIGATING):
-        out.ended = "silence"  # both seats waiting on the other
-    out.seconds = time.perf_counter() - t0
+                out.false_confirmations += truly is False
+            case ev.TargetRejected():
+                out.rejections += 1
+            case ev.PhaseChanged(phase=Phase.ABORTED, reason=reason):
+                out.ended = reason or "aborted"
+    if not math.isfinite(out.first_estimate_td_m or 0.0):
+        out.first_estimate_td_m = None
     return out
 
 
@@ -272,10 +235,13 @@ def iter_results(jobs: Sequence[J], worker: Callable[[J], R], processes: int) ->
     if processes <= 1:
         yield from map(worker, jobs)
         return
+    from concurrent.futures import ProcessPoolExecutor
     from multiprocessing import get_context
 
-    with get_context("spawn").Pool(processes) as pool:
-        yield from pool.imap(worker, jobs)
+    # Not a multiprocessing Pool: its workers are daemons, which may start no processes of their
+    # own (a recording worker's server draws frames in a render pool).
+    with ProcessPoolExecutor(processes, mp_context=get_context("spawn")) as pool:
+        yield from pool.map(worker, jobs)
 
 
 @dataclass(frozen=True)

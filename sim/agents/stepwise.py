@@ -8,29 +8,12 @@ from __future__ import annotations
 
 import re
 
-from sim.agents.turns import (
-    Claimed,
-    DoClaim,
-    DoMove,
-    DoSay,
-    Heard,
-    Judged,
-    Move,
-    Moved,
-    Outcome,
-    Paused,
-    Percept,
-    Phase,
-    PhaseChanged,
-    Refused,
-    Saw,
-    SeatInfo,
-    Speaker,
-    Turn,
-    TurnKind,
-)
 from sim.core.labels import OBJECTS
-from sim.robot.perception import RayObservation
+from sim.core.rays import RayObservation
+from sim.trial.agent import SeatInfo
+from sim.trial.commands import Action, Claim, RequestMove, Say
+from sim.trial.percepts import Claimed, Declined, Heard, Judged, Moved, PauseSet, Percept, PhaseBegan, Saw
+from sim.trial.vocabulary import Move, Outcome, Phase, Role
 
 _OBJECT_WORD = re.compile(rf"\b({'|'.join(OBJECTS)})s?\b", re.IGNORECASE)
 
@@ -40,7 +23,7 @@ class StepwiseDriver:
         self.info = info
         self.phase = Phase.WAITING
         self.target_index: int | None = None
-        self.dialog: list[tuple[Speaker, str]] = []
+        self.dialog: list[tuple[Role, str]] = []
         self.rays: RayObservation | None = None
         self.seen = False  # no frame yet: nothing to drive by (a claim would have no frame either)
         self.moving = False  # a move asked for whose frame has not come yet
@@ -52,16 +35,16 @@ class StepwiseDriver:
         self.claimed_name: str | None = None
         self.found: set[str] = set()
 
-    def perceive(self, percept: Percept) -> list[Turn]:
+    def perceive(self, percept: Percept) -> list[Action]:
         match percept:
             case Heard(speaker=speaker, text=text):
                 self.dialog.append((speaker, text))
                 words = [w.lower() for w in _OBJECT_WORD.findall(text) if w.lower() not in self.found]
-                if speaker == Speaker.COMMANDER and words:
+                if speaker == Role.COMMANDER and words:
                     self.named = words[-1]
-                if speaker == Speaker.COMMANDER and not self.paused:
+                if speaker == Role.COMMANDER and not self.paused:
                     self.held = False
-            case PhaseChanged(phase=phase, target_index=index):
+            case PhaseBegan(phase=phase, target_index=index):
                 self.phase, self.held = phase, False
                 if index != self.target_index:
                     self.target_index = index
@@ -83,9 +66,9 @@ class StepwiseDriver:
                         self.found.add(self.claimed_name)
                     return []  # the next target comes with the phase change
                 self.on_rejected()
-            case Refused(turn=turn, reason=reason):
-                return self._refused(turn, reason)
-            case Paused(paused=paused):
+            case Declined():
+                return self._refused(percept)
+            case PauseSet(paused=paused):
                 self.paused = paused
                 if not paused:
                     self.held = False
@@ -94,30 +77,30 @@ class StepwiseDriver:
                         return self._claim()
         return self._act()
 
-    def _refused(self, turn: TurnKind, reason: str) -> list[Turn]:
+    def _refused(self, refused: Declined) -> list[Action]:
         """A claim refused while paused is made again once the trial runs; any other refused
         turn it asks about, and it waits to be spoken to (no loop of refused turns)."""
-        if turn == TurnKind.SAY:
+        if isinstance(refused.action, Say):
             return []
         self.moving = self.claiming = False
         self.held = True
-        if turn == TurnKind.CLAIM and self.paused:
+        if isinstance(refused.action, Claim) and self.paused:
             self.claim_on_resume = True
             return []
-        return [DoSay(f"I could not {turn} ({reason}). What should I do?")]
+        return [Say(f"I could not {refused.what} ({refused.reason}). What should I do?")]
 
-    def _act(self) -> list[Turn]:
+    def _act(self) -> list[Action]:
         if self.phase != Phase.NAVIGATING or not self.seen or self.moving or self.claiming or self.held:
             return []
         move = self.decide()
         if move is not None:
             self.moving = True
-            return [DoMove(move)]
+            return [RequestMove(move)]
         return self._claim()
 
-    def _claim(self) -> list[Turn]:
+    def _claim(self) -> list[Action]:
         self.claiming = True
-        return [DoSay(self.claim_words()), DoClaim()]
+        return [Say(self.claim_words()), Claim()]
 
     def claim_words(self) -> str:
         return f"I think I found the {self.named}" if self.named else "I think I found it"

@@ -9,6 +9,7 @@ The teacher is one rule too, `shortest_actions`, whichever table the next hops c
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import TYPE_CHECKING
@@ -53,6 +54,11 @@ class Action(IntEnum):
 class Pose:
     node: int
     heading: int  # 0..7
+
+    def __iter__(self) -> Iterator[int]:
+        """`node, heading = pose`, and a pose indexes the tables kept per (node, heading)."""
+        yield self.node
+        yield self.heading
 
 
 def snap_pose(graph: NavGraph, x: float, y: float, theta: float = 0.0) -> Pose:

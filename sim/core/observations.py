@@ -36,6 +36,7 @@ from sim.core.geometry import (
 from sim.core.labels import N_LABELS, Label
 from sim.core.maze import Maze
 from sim.core.navgraph import WALL_CLEARANCE_PX, NavGraph
+from sim.core.rays import RayObservation
 
 N_RAYS = 13
 FOV_DEG = 78.0
@@ -261,6 +262,16 @@ class RayTable:
             depth=depth,
             too_close=too_close(depth, np.arange(HEADINGS)[None, :, None]),
             forward_blocked=graph.forward < 0,
+        )
+
+    def observation(self, node: int, heading: int) -> RayObservation:
+        """What the camera sees at a pose: every ray read."""
+        return RayObservation(
+            labels=self.labels[node, heading],
+            depth=self.depth[node, heading],
+            too_close=self.too_close[node, heading],
+            valid=np.ones(self.labels.shape[-1], dtype=bool),
+            forward_blocked=bool(self.forward_blocked[node, heading]),
         )
 
     def features(self) -> np.ndarray:

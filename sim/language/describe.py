@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.core.labels import OBJECT_LABELS, Label
+from sim.core.rays import RayObservation
 from sim.language.vocab import SIDE_PHRASE, Side, wall_name
-from sim.robot.perception import RayObservation
 from sim.tasks.ldh_features import NEAR_M
 
 MIN_RAYS = 2

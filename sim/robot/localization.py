@@ -24,8 +24,9 @@ from sim.core.geometry import GRID_STEP_M, TABLE_HEIGHT_M, TABLE_WIDTH_M, TURN_R
 from sim.core.labels import N_LABELS, Label
 from sim.core.maze import Maze
 from sim.core.observations import PX_PER_M_X, RAY_OFFSETS, WALL_CLEARANCE_M, ray_caster
+from sim.core.rays import RayObservation
 from sim.robot.camera import CameraCalibration, FrontCamera, capture
-from sim.robot.perception import RayObservation, perceive, simulated_calibration
+from sim.robot.perception import perceive, simulated_calibration
 
 DEPTH_CAP_M = 2.0  # beyond this a depth says little (the wall base is near the horizon)
 

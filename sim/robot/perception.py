@@ -18,7 +18,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from enum import Enum
 from typing import Any, TypeVar
 
 import cv2
@@ -36,6 +35,7 @@ from sim.core.observations import (
     cast_rays,
     too_close,
 )
+from sim.core.rays import FrameProblem, RayObservation
 from sim.robot.camera import (
     COLOUR_CLASSES,
     CameraCalibration,
@@ -57,28 +57,6 @@ SATURATED_FRACTION = 0.25  # more clipped pixels than this: overexposed
 
 class PerceptionError(ValueError):
     """A frame or calibration perception cannot work with; the message says what is wrong."""
-
-
-class FrameProblem(str, Enum):
-    DARK = "dark"
-    OVEREXPOSED = "overexposed"
-
-
-@dataclass(frozen=True, eq=False)
-class RayObservation:
-    """What the camera says about the 13 rays, in the simulator's terms."""
-
-    labels: np.ndarray  # (13,) uint8 Label; FLOOR where nothing was met (or not valid)
-    depth: np.ndarray  # (13,) float32 metres
-    too_close: np.ndarray  # (13,) bool
-    valid: np.ndarray  # (13,) bool: the ray's colour was recognised and its depth measured
-    forward_blocked: bool
-    problem: FrameProblem | None = None  # the whole frame was unreadable
-
-    @property
-    def confidence(self) -> float:
-        """Fraction of rays read; 0 for an unreadable frame."""
-        return float(self.valid.mean())
 
 
 def features(obs: RayObservation) -> np.ndarray:

@@ -11,19 +11,22 @@ import pytest
 from sqlalchemy import select
 
 from app.db.models import Event, Trial
-from app.drivers.base import Seating
-from app.drivers.dialog import dialog_commander
-from app.drivers.registry import register_agent
-from app.trial import events as ev
-from app.trial.events import LoggedEvent
-from app.trial.vocabulary import Role
+from app.seats.base import Seating
+from app.seats.dialog import dialog_commander
+from app.seats.registry import register_agent
 from bench.live import make_trial
-from sim.agents import turns as t
+from sim.trial import agent as ta
+from sim.trial import commands as c
+from sim.trial import events as ev
+from sim.trial import percepts as p
+from sim.trial import vocabulary as v
+from sim.trial.events import LoggedEvent
+from sim.trial.vocabulary import Role
 from tests.app.live import Watch, experimenter_client, session_cookie
 
 MAZE = "gen-000"  # bundled in sim/tasks/mazes/
 LEG_S = 240  # a whole leg on a loaded 2-core machine; it takes about 5 s alone
-COMMANDER_HEARS = (t.Heard, t.PhaseChanged, t.Claimed, t.Judged, t.Paused, t.Refused)
+COMMANDER_HEARS = (p.Heard, p.PhaseBegan, p.Claimed, p.Judged, p.PauseSet, p.Declined)
 
 
 async def first_target_confirmed(server, trial_id: int, client) -> list[dict]:
@@ -44,7 +47,7 @@ def logged(services, trial_id: int) -> list[LoggedEvent]:
 @pytest.mark.settings(min_move_interval_s=0.05)
 def test_the_commander_agent_hears_no_pose_no_frame_stream_and_no_moves(server):
     services = server.services
-    heard: list[t.Percept] = []
+    heard: list[p.Percept] = []
     seatings: list[Seating] = []
 
     class Listening:
@@ -54,10 +57,10 @@ def test_the_commander_agent_hears_no_pose_no_frame_stream_and_no_moves(server):
             seatings.append(seating)
             self.agent = dialog_commander(services, seating)
 
-        def reset(self, info: t.SeatInfo) -> None:
+        def reset(self, info: ta.SeatInfo) -> None:
             self.agent.reset(info)
 
-        def perceive(self, percept: t.Percept) -> list[t.Turn]:
+        def perceive(self, percept: p.Percept) -> list[c.Action]:
             heard.append(percept)
             return self.agent.perceive(percept)
 
@@ -67,19 +70,19 @@ def test_the_commander_agent_hears_no_pose_no_frame_stream_and_no_moves(server):
     # The watcher hears the confirmation as it is logged; the agent's seat hands it on in its own
     # time (later on a loaded machine).
     deadline = time.monotonic() + 30
-    while not any(isinstance(p, t.Judged) and p.confirmed for p in heard):
+    while not any(isinstance(q, p.Judged) and q.confirmed for q in heard):
         assert time.monotonic() < deadline, "the Commander agent never heard its claim confirmed"
         time.sleep(0.05)
 
     # The map, nothing that cheats, and that its partner is an agent (no read-back owed to a person).
     assert seatings == [Seating(seed=trial_id, oracle=None, maze=MAZE, partner_human=False)]
-    assert heard and all(isinstance(p, COMMANDER_HEARS) for p in heard), {type(p).__name__ for p in heard}
+    assert heard and all(isinstance(q, COMMANDER_HEARS) for q in heard), {type(q).__name__ for q in heard}
     assert services.hub.peek(trial_id).state.moves > 0, "the robot moved, and the Commander never heard a move"
-    said = [p for p in heard if isinstance(p, t.Heard)]
-    assert {p.speaker for p in said} == {t.Speaker.COMMANDER, t.Speaker.DRIVER}
-    legs = [p for p in heard if isinstance(p, t.PhaseChanged) and p.phase == t.Phase.NAVIGATING]
+    said = [q for q in heard if isinstance(q, p.Heard)]
+    assert {q.speaker for q in said} == {v.Role.COMMANDER, v.Role.DRIVER}
+    legs = [q for q in heard if isinstance(q, p.PhaseBegan) and q.phase == v.Phase.NAVIGATING]
     assert legs[0].target == "mug", "the Commander's page learns the target as the trial reaches it"
-    claims = [p for p in heard if isinstance(p, t.Claimed)]
+    claims = [q for q in heard if isinstance(q, p.Claimed)]
     # The claim frame, read from its pixels as a person's page shows it: 13 rays, never a pose.
     assert claims and all(c.rays is not None and len(c.rays.labels) == 13 for c in claims)
 

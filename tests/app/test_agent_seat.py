@@ -8,10 +8,10 @@ import pytest
 from sqlalchemy import select
 
 from app.db.models import Event
-from app.drivers.registry import driver_names, register_driver
+from app.seats.registry import driver_names, register_driver
 from bench.live import SeatClient, make_trial
 from sim.agents.stepwise import StepwiseDriver
-from sim.agents.turns import Move
+from sim.trial.vocabulary import Move
 
 
 @pytest.mark.trial(driver="oracle:shortest")

@@ -15,27 +15,17 @@ import pytest
 from sqlalchemy import select
 
 from app.db.models import Event
-from app.drivers.base import Seating
-from app.drivers.registry import register_driver
 from app.rover.records import create_robot
+from app.seats.base import Seating
+from app.seats.registry import register_driver
 from bench.live import REPO, SeatClient, make_trial
 from sim.agents.dialog_driver import DialogDriver
 from sim.agents.stepwise import StepwiseDriver
-from sim.agents.turns import (
-    Heard,
-    Move,
-    Moved,
-    Outcome,
-    Paused,
-    Phase,
-    PhaseChanged,
-    Refused,
-    Saw,
-    SeatInfo,
-    Speaker,
-    TurnKind,
-)
-from sim.robot.perception import RayObservation
+from sim.core.rays import RayObservation
+from sim.trial.agent import SeatInfo
+from sim.trial.commands import Claim
+from sim.trial.percepts import Declined, Heard, Moved, PauseSet, PhaseBegan, Saw
+from sim.trial.vocabulary import Move, Outcome, Phase, Role
 from tests.app.live import cli, experimenter_client
 from tests.app.rover_lab import MAZE, START_S, TARGETS
 
@@ -75,7 +65,7 @@ def assert_unprivileged(value) -> None:
         return
     if dataclasses.is_dataclass(value):
         for field in dataclasses.fields(value):
-            # A field only the Commander's seat fills (`PhaseChanged.target`) reaches the Driver empty.
+            # A field only the Commander's seat fills (`PhaseBegan.target`) reaches the Driver empty.
             held = getattr(value, field.name)
             assert field.name not in PRIVILEGED or held is None, f"{type(value).__name__}.{field.name}"
             assert_unprivileged(held)
@@ -127,23 +117,23 @@ def test_the_agent_waits_answers_moves_when_told_and_sees_only_what_a_driver_see
     moves = events_of(services, trial_id, "move_executed")
     chats = events_of(services, trial_id, "chat")
     backend = runtime.backend
-    observed_now = backend.observation_at(backend.grid_pose) if backend is not None else None
+    observed_now = backend.rays.observation(*backend.grid_pose) if backend is not None else None
     assert answer and report
     assert [m["action"] for m in moves] == ["left", "left"]  # a right angle: two 45-degree turns
     assert all(m["outcome"] == "ok" for m in moves)
     assert {"role": "driver", "text": answer} in chats and {"role": "driver", "text": report} in chats
     seating, info, *percepts = inputs
     assert seating == Seating(seed=trial_id) and seating.oracle is None
-    assert info == SeatInfo(Speaker.DRIVER, 3)
+    assert info == SeatInfo(Role.DRIVER, 3)
     for value in (info, *percepts):
         assert_unprivileged(value)
-    assert Heard(Speaker.COMMANDER, "what do you see?") in percepts
-    assert Heard(Speaker.DRIVER, answer) in percepts  # its own words too, as the page shows them
-    phases = [(p.phase, p.target_index) for p in percepts if isinstance(p, PhaseChanged)]
+    assert Heard(Role.COMMANDER, "what do you see?") in percepts
+    assert Heard(Role.DRIVER, answer) in percepts  # its own words too, as the page shows them
+    phases = [(p.phase, p.target_index) for p in percepts if isinstance(p, PhaseBegan)]
     assert phases == [(Phase.LOCALIZING, 0), (Phase.NAVIGATING, 0)]
     # It saw its first frame before the question, and the frame after its move right after the move.
     saws = [i for i, p in enumerate(percepts) if isinstance(p, Saw)]
-    asked = percepts.index(Heard(Speaker.COMMANDER, "what do you see?"))
+    asked = percepts.index(Heard(Role.COMMANDER, "what do you see?"))
     turned = [i for i, p in enumerate(percepts) if p == Moved(Move.LEFT, Outcome.OK)]
     assert saws[0] < asked and len(turned) == 2 and all(i + 1 in saws for i in turned)
     after = percepts[turned[-1] + 1]
@@ -195,10 +185,10 @@ def test_a_claim_refused_while_paused_is_made_again_once_the_trial_runs(server):
     asyncio.run(command())
     refusals = events_of(services, trial_id, "bad_message")
     assert len(refusals) == 1 and "paused" in refusals[0]["error"]
-    refused = [p for p in inputs if isinstance(p, Refused)]
-    assert refused == [Refused(TurnKind.CLAIM, refusals[0]["error"])]
-    paused = [p for p in inputs if isinstance(p, Paused)]
-    assert paused[:2] == [Paused(True), Paused(False)]  # (then the Commander's leaving pauses it)
+    refused = [p for p in inputs if isinstance(p, Declined)]
+    assert refused == [Declined(Claim(), refusals[0]["error"])]
+    paused = [p for p in inputs if isinstance(p, PauseSet)]
+    assert paused[:2] == [PauseSet(True), PauseSet(False)]  # (then the Commander's leaving pauses it)
     assert inputs.index(paused[0]) < inputs.index(refused[0]) < inputs.index(paused[1])
 
 
@@ -315,7 +305,7 @@ def test_on_a_virtual_rover_the_agent_sees_rays_perceived_from_its_frames_and_no
     assert all(m["action"] != "forward" for m in moves[:localizing])
     assert [m["action"] for m in moves[localizing:]] == ["left", "left"]
     seating, info, *percepts = inputs
-    assert seating.oracle is None and info == SeatInfo(Speaker.DRIVER, 3)
+    assert seating.oracle is None and info == SeatInfo(Role.DRIVER, 3)
     for value in (info, *percepts):
         assert_unprivileged(value)
     saws = [p for p in percepts if isinstance(p, Saw)]

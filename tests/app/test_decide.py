@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import pytest
 
-from app.trial import events as ev
-from app.trial.decide import Abort, FinishMove, Join, Leave, Refused, Reopen, RequestMove, Say, decide
-from app.trial.state import LoggedEvent, fold
-from app.trial.vocabulary import Move, Outcome, Phase, Role
+from sim.trial import events as ev
+from sim.trial.commands import Abort, Act, Claim, FinishMove, Join, Leave, Now, Reopen, RequestMove, Say
+from sim.trial.decide import Refused, decide
+from sim.trial.state import LoggedEvent, fold
+from sim.trial.vocabulary import Move, Outcome, Phase, Role
 
 S = 1_000_000_000
 CREATED = {"maze": "m", "targets": ["jar", "mug", "paddle"], "backend": "sim", "driver": "human"}
@@ -38,8 +39,8 @@ def test_a_move_id_is_executed_once():
         ("move_executed", {"move_id": "m1", "action": "left", "outcome": "ok", "collision": False}),
     )
     with pytest.raises(Refused, match="already received"):
-        decide(state, RequestMove("m1", Move.LEFT, now_ns=100 * S, robot_ready=True))
-    assert decide(state, RequestMove("m2", Move.LEFT, now_ns=100 * S, robot_ready=True)) == [
+        decide(state, Act(Role.DRIVER, RequestMove(Move.LEFT, "m1"), Now(t_ns=100 * S)))
+    assert decide(state, Act(Role.DRIVER, RequestMove(Move.LEFT, "m2"), Now(t_ns=100 * S))) == [
         ev.MoveRequested(move_id="m2", action=Move.LEFT)
     ]
 
@@ -49,9 +50,13 @@ def test_a_move_asked_too_soon_is_refused_without_spending_its_id():
         ("move_requested", {"move_id": "m1", "action": "left"}),
         ("move_executed", {"move_id": "m1", "action": "left", "outcome": "ok", "collision": False}),
     )
-    soon = RequestMove("m2", Move.LEFT, now_ns=state.last_move_ns + S // 10, robot_ready=True, min_interval_ns=S // 4)
+    soon = Act(
+        Role.DRIVER, RequestMove(Move.LEFT, "m2"), Now(t_ns=state.last_move_ns + S // 10, min_move_interval_ns=S // 4)
+    )
     assert decide(state, soon) == [ev.MovesRefused(reason="too soon after the previous move")]
-    later = RequestMove("m2", Move.LEFT, now_ns=state.last_move_ns + S, robot_ready=True, min_interval_ns=S // 4)
+    later = Act(
+        Role.DRIVER, RequestMove(Move.LEFT, "m2"), Now(t_ns=state.last_move_ns + S, min_move_interval_ns=S // 4)
+    )
     assert decide(state, later) == [ev.MoveRequested(move_id="m2", action=Move.LEFT)]
 
 
@@ -72,7 +77,7 @@ def test_an_ended_trial_takes_nothing_more():
     state = running(("phase", {"phase": "aborted", "target_index": None}))
     assert decide(state, Reopen()) == [] and decide(state, Leave(Role.DRIVER)) == [] and decide(state, Abort()) == []
     with pytest.raises(Refused, match="aborted"):
-        decide(state, Say(Role.DRIVER, "hello?"))
+        decide(state, Act(Role.DRIVER, Say("hello?")))
 
 
 def test_an_abort_logs_its_reason_and_a_log_without_one_still_folds():
@@ -86,3 +91,12 @@ def test_an_abort_logs_its_reason_and_a_log_without_one_still_folds():
     for payload in (aborted.payload(), {"phase": "aborted", "target_index": None}):  # a log from before reasons
         state = running(("phase", payload))
         assert state.phase == Phase.ABORTED and state.over
+
+
+def test_a_seat_takes_only_its_own_actions():
+    state = running()
+    with pytest.raises(Refused, match="may not send 'move'"):
+        decide(state, Act(Role.COMMANDER, RequestMove(Move.FORWARD)))
+    with pytest.raises(Refused, match="may not send 'claim'"):
+        decide(state, Act(Role.COMMANDER, Claim()))
+    assert decide(state, Act(Role.COMMANDER, Say("hello"))) == [ev.Chat(role=Role.COMMANDER, text="hello")]

@@ -12,8 +12,8 @@ from sqlalchemy import func, select
 from app.db.engine import make_engine, make_sessionmaker, upgrade
 from app.db.models import Event
 from app.trial.log import EventLog
-from app.trial.state import LoggedEvent
 from bench.live import team_trial
+from sim.trial.state import LoggedEvent
 from tests.app.live import platform_settings
 
 MAZE = "gen-000"

@@ -14,8 +14,8 @@ from mcap.reader import make_reader
 from app.export.foxglove_scene import CELL_M, wall_cells
 from app.export.mcap import CHANNELS, DERIVED_TOPICS, schemas, write_mcap
 from app.export.record import ExportError, TrialRecord
-from app.trial.state import LoggedEvent
 from sim.core.labels import Label
+from sim.trial.state import LoggedEvent
 from tests.app.trial_log import small_maze
 
 

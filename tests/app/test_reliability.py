@@ -15,8 +15,8 @@ from sqlalchemy import select
 from app.db.models import Trial
 from app.main import build_services
 from app.routes.seat_ws import TRIAL_OVER
-from app.trial.state import fold
 from bench.live import SeatClient, ServerProcess, make_trial
+from sim.trial.state import fold
 from tests.app.live import UNPACED_ENV, experimenter_client, platform_settings, session_cookie
 from tests.app.trial_play import move, start_trial
 from tests.app.wire_rover import Rover, rover_trial

@@ -15,9 +15,9 @@ import pytest
 from app.backends.render import RenderProcesses, render_jpeg
 from app.mazes import Mazes
 from app.settings import Settings
-from app.trial import events as ev
 from bench.live import SeatClient, ServerProcess, ServerProcesses, make_trial
 from sim.core.geometry import heading_angle
+from sim.trial import events as ev
 from tests.app.live import platform_settings
 from tests.app.trial_play import move, start_trial
 

@@ -17,10 +17,10 @@ from sqlalchemy import select
 from app.annotation.events import Adjudicated, CutMarked, Submitted, Tagged
 from app.annotation.log import AnnotationLog
 from app.db.models import AnnotationAssignment, Experimenter, Team, Trial
-from app.trial import events as ev
 from app.trial.setup import create_trial, suggest_maze
-from app.trial.state import trial_score
 from bench.live import SeatClient, make_trial
+from sim.trial import events as ev
+from sim.trial.state import trial_score
 from tests.app.live import cli, experimenter_client
 from tests.app.trial_play import claim_and_decide, drive_to_target, start_trial
 

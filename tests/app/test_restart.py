@@ -7,9 +7,9 @@ import asyncio
 import pytest
 
 from app.main import build_services
-from app.trial.state import fold
 from bench.live import SeatClient, ServerProcess, make_trial
 from sim.core.dynamics import Action, snap_pose, teacher_action
+from sim.trial.state import fold
 from tests.app.live import UNPACED_ENV, platform_settings
 from tests.app.trial_play import claim_and_decide, move, start_trial
 

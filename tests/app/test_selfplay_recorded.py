@@ -1,6 +1,6 @@
 """`robotslang eval selfplay --record DIR`: whole trials with `agent:dialog` in both seats played
-through the platform's trial core in worker processes, from the offline runner's starts, recorded
-as ordinary trials that replay and export."""
+through the platform in worker processes, from the offline runner's starts and seeds, recorded as
+ordinary trials that replay and export, and played as the offline runner plays them: one referee."""
 
 from __future__ import annotations
 
@@ -43,6 +43,29 @@ def bundled_starts(n: int, seed: int = 0) -> dict[str, tuple[float, float, float
         spec.maze: continuous_pose(g, spec.start)
         for spec, g in zip(library_trials(mazes, graphs, seed), graphs, strict=True)
     }
+
+
+SAME = ("maze", "targets_confirmed", "moves", "shortest", "messages", "first_estimate_td_m", "ended", "dialog")
+
+
+def played(tmp_path, name, *args, env=None):
+    """`eval selfplay ARGS` with its per-trial rows."""
+    rows = tmp_path / f"{name}.jsonl"
+    done = cli("eval", "selfplay", *args, "--per-trial", str(rows), "--json", env=env or {})
+    assert done.returncode == 0, done.stderr[-2000:]
+    return [json.loads(line) for line in rows.read_text().splitlines()]
+
+
+@pytest.mark.slow
+def test_recorded_selfplay_plays_each_val_seen_trial_as_the_offline_runner_does(tmp_path, benchmark_path):
+    """The platform and the offline runner are one referee: the same trial from the same start,
+    move for move and word for word (two recording processes, the default)."""
+    split = ("--benchmark", str(benchmark_path), "--split", "val_seen", "--limit", "2")
+    offline = played(tmp_path, "offline", *split)
+    recorded = played(tmp_path, "recorded", *split, "--record", str(tmp_path / "var"))
+    assert [r["maze"] for r in recorded] == [r["maze"] for r in offline]
+    for on_platform, here in zip(recorded, offline, strict=True):
+        assert {k: on_platform[k] for k in SAME} == {k: here[k] for k in SAME}
 
 
 @pytest.mark.slow

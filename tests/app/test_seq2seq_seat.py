@@ -9,8 +9,8 @@ import pytest
 from sqlalchemy import func, select
 
 from app.db.models import Event, Trial
-from app.drivers.registry import available_drivers
 from app.main import build_services
+from app.seats.registry import available_drivers
 from app.trial.setup import TrialSetupError
 from bench.live import SeatClient, make_trial
 from models.shipped import SHIPPED_CHECKPOINT, default_checkpoint

@@ -3,7 +3,7 @@ a malformed one is refused with what it should have been."""
 
 import pytest
 
-from app.trial.specs import HUMAN, SIM, BackendKind, BackendSpec, SeatKind, SeatSpec
+from sim.trial.specs import HUMAN, SIM, BackendKind, BackendSpec, SeatKind, SeatSpec
 
 
 @pytest.mark.parametrize("text", ["human", "agent:dialog", "agent:seq2seq", "oracle:shortest"])

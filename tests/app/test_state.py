@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from app.trial.state import LoggedEvent, fold
+from sim.trial.state import LoggedEvent, fold
 
 S = 1_000_000_000
 

@@ -20,9 +20,9 @@ from app.cli import root
 from app.db.models import Event, Participant, StudyAnswer, StudyEvent, StudyParticipant, Trial
 from app.main import build_services
 from app.study.config import StudyFiles, template
-from app.trial.events import LoggedEvent
 from app.trial.setup import create_team, create_trial
 from bench.live import SeatClient, ServerProcess
+from sim.trial.events import LoggedEvent
 from tests.app.live import (
     browser,
     experimenter_client,

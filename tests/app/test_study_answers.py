@@ -19,8 +19,8 @@ from typer.testing import CliRunner
 from app.cli import root
 from app.db.models import Trial
 from app.study.config import StudyFiles, template
-from app.trial.state import fold
 from bench.live import SeatClient
+from sim.trial.state import fold
 from tests.app.live import browser, experimenter_client
 from tests.app.test_study import answers, join, study_trial
 from tests.app.trial_play import claim_and_decide, drive_to_target, start_trial

@@ -8,9 +8,9 @@ import cv2
 import numpy as np
 
 from app.export.record import TrialRecord
-from app.trial.state import LoggedEvent
 from sim.core.labels import Label
 from sim.core.maze import Maze
+from sim.trial.state import LoggedEvent
 
 
 def small_maze() -> Maze:

@@ -17,16 +17,18 @@ import pytest
 from sqlalchemy import select
 
 from app.db.models import Event
-from sim.agents import turns as t
 from sim.agents.dialog_driver import DialogDriver
-from sim.agents.sight import pose_rays
 from sim.core.dynamics import snap_pose
+from sim.trial import agent as ta
+from sim.trial import commands as c
+from sim.trial import percepts as p
+from sim.trial import vocabulary as v
 from tests.app.live import add_experimenter
 from tests.e2e.pages import ARTIFACTS, trial_with_an_agent
 
 MAZE = "gen-000"  # one of the mazes bundled in sim/tasks/mazes/
 LEG_S = 300  # the first target, on a loaded 2-core machine (about a minute alone)
-BUTTONS = {t.Move.FORWARD: "#forward", t.Move.LEFT: "#left", t.Move.RIGHT: "#right"}
+BUTTONS = {v.Move.FORWARD: "#forward", v.Move.LEFT: "#left", v.Move.RIGHT: "#right"}
 
 pytestmark = pytest.mark.browser
 
@@ -40,18 +42,18 @@ class Person:
         self.runtime = services.hub.peek(trial_id)
         self.graph, self.rays = services.mazes.graph(MAZE), services.mazes.rays(MAZE)
         self.mind = DialogDriver(seed=7)
-        self.mind.reset(t.SeatInfo(t.Speaker.DRIVER, 3))
-        self.percepts: deque[t.Percept] = deque()
+        self.mind.reset(ta.SeatInfo(v.Role.DRIVER, 3))
+        self.percepts: deque[p.Percept] = deque()
         self.read = 0  # the Commander's messages read so far
         self.phase: str | None = None
         self.frames = 0
         self.said: list[str] = []
 
-    def view(self) -> t.Saw:
+    def view(self) -> p.Saw:
         """What the camera shows now (the simulator's view at the robot's pose)."""
         self.frames += 1
         pose = snap_pose(self.graph, *self.runtime.backend.pose())
-        return t.Saw(self.frames, pose_rays(self.rays, pose))
+        return p.Saw(self.frames, self.rays.observation(*pose))
 
     def look(self) -> bool:
         """Read the page: a new phase, new Commander messages. Whether there was anything new."""
@@ -59,12 +61,12 @@ class Person:
         new = False
         if phase != self.phase and phase in ("localizing", "navigating"):
             self.phase, new = phase, True
-            self.percepts.append(t.PhaseChanged(t.Phase(phase), 0, 3))
+            self.percepts.append(p.PhaseBegan(v.Phase(phase), 0, 3))
             if phase == "localizing":
                 self.percepts.append(self.view())
         lines = self.page.locator("#messages li.commander").all_inner_texts()
         for line in lines[self.read :]:
-            self.percepts.append(t.Heard(t.Speaker.COMMANDER, line.removeprefix("Commander ").strip()))
+            self.percepts.append(p.Heard(v.Role.COMMANDER, line.removeprefix("Commander ").strip()))
             new = True
         self.read = len(lines)
         return new
@@ -74,23 +76,23 @@ class Person:
             for turn in self.mind.perceive(self.percepts.popleft()):
                 self.act(turn)
 
-    def act(self, turn: t.Turn) -> None:
+    def act(self, turn: c.Action) -> None:
         page = self.page
         match turn:
-            case t.DoSay(text=text):
+            case c.Say(text=text):
                 page.fill("#chat-input", text)
                 page.press("#chat-input", "Enter")
                 self.said.append(text)
-            case t.DoMove(move=move):
+            case c.RequestMove(move=move):
                 bumped = self.press(BUTTONS[move])
-                self.percepts.append(t.Moved(move, t.Outcome.COLLISION if bumped else t.Outcome.OK))
+                self.percepts.append(p.Moved(move, v.Outcome.COLLISION if bumped else v.Outcome.OK))
                 self.percepts.append(self.view())
-            case t.DoClaim():
+            case c.Claim():
                 page.wait_for_selector("#found:enabled")
                 page.click("#found")
                 page.wait_for_selector("#move-note >> text=/Confirmed|not it/", timeout=30_000)
                 confirmed = "Confirmed" in page.inner_text("#move-note")
-                self.percepts.append(t.Judged(confirmed, 0))
+                self.percepts.append(p.Judged(confirmed, 0))
                 if confirmed:
                     raise Reached
 

@@ -14,9 +14,11 @@ from sqlalchemy import select
 
 from app.db.models import Event
 from sim.agents.oracle_commander import OracleCommander
-from sim.agents.turns import Phase, PhaseChanged, SeatInfo, Speaker
 from sim.core.dynamics import snap_pose
 from sim.core.observations import RayTable
+from sim.trial.agent import SeatInfo
+from sim.trial.percepts import PhaseBegan
+from sim.trial.vocabulary import Phase, Role
 from tests.app.live import add_experimenter, wait_js
 from tests.e2e.pages import ARTIFACTS, experimenter, mark_on_map, team_of_two
 
@@ -83,10 +85,10 @@ def test_a_commander_talks_the_dialog_agent_to_its_first_target(browser, start_s
     # The person reads the map: where the robot is, where the mug is, and says the next step.
     maze, graph = services.mazes.load(MAZE), services.mazes.graph(MAZE)
     person = OracleCommander(graph, RayTable.build(maze, graph), [("mug", maze.objects["mug"])])
-    person.reset(SeatInfo(Speaker.COMMANDER, 3))
+    person.reset(SeatInfo(Role.COMMANDER, 3))
     backend = runtime.backend
     person.pose = snap_pose(graph, *backend.pose())
-    (first,) = person.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3))
+    (first,) = person.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
     answers = [say(page, first.text)]
     for _ in range(MAX_INSTRUCTIONS):
         if page.locator("#claim:not([hidden])").count():

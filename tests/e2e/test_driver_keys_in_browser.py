@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from app.trial import events as ev
+from sim.trial import events as ev
 from tests.app.live import wait_js
 from tests.e2e.pages import wait_until
 

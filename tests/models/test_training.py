@@ -140,7 +140,7 @@ def test_vision_blind_agent_ignores_observations_and_language_blind_ignores_the_
 
 def _rays_at(table, node: int, heading: int):
     """The simulator's ray observation at a pose, as the Driver's frame there carries it."""
-    from sim.robot.perception import RayObservation
+    from sim.core.rays import RayObservation
 
     at = (node, heading)
     return RayObservation(
@@ -149,30 +149,20 @@ def _rays_at(table, node: int, heading: int):
 
 
 def _heard(inst):
-    from sim.agents.turns import Heard, Speaker
+    from sim.trial.percepts import Heard
+    from sim.trial.vocabulary import Role as Speaker
 
     return [Heard(Speaker.COMMANDER if role == "oracle" else Speaker.DRIVER, text) for role, text in inst.dialog]
 
 
 def test_seq2seq_driver_plays_from_a_growing_dialog(trained, bench, few):
     from models.driver import Seq2SeqDriver
-    from sim.agents.turns import (
-        Claimed,
-        DoClaim,
-        DoMove,
-        DoSay,
-        Judged,
-        Move,
-        Moved,
-        Outcome,
-        Phase,
-        PhaseChanged,
-        Saw,
-        SeatInfo,
-        Speaker,
-    )
     from sim.core.dynamics import Action
     from sim.core.observations import RayTable
+    from sim.trial.agent import SeatInfo
+    from sim.trial.commands import Claim, RequestMove, Say
+    from sim.trial.percepts import Claimed, Judged, Moved, PhaseBegan, Saw
+    from sim.trial.vocabulary import Move, Outcome, Phase, Role
 
     _, out, _ = trained
     inst = few["val"][0]
@@ -180,45 +170,48 @@ def test_seq2seq_driver_plays_from_a_growing_dialog(trained, bench, few):
     node, heading = np.argwhere(graph.forward < 0)[0]
     blocked = _rays_at(RayTable.build(bench.maze(inst.run), graph), int(node), int(heading))
     driver = Seq2SeqDriver(out / "last.pt")
-    driver.reset(SeatInfo(Speaker.DRIVER, 3))
+    driver.reset(SeatInfo(Role.DRIVER, 3))
     heard = _heard(inst)
-    assert driver.perceive(PhaseChanged(Phase.LOCALIZING, 0, 3)) == []
+    assert driver.perceive(PhaseBegan(Phase.LOCALIZING, 0, 3)) == []
     assert [driver.perceive(h) for h in heard[:3]] == [[]] * 3  # being localized, it holds still
     assert driver.perceive(Saw(1, blocked)) == []
-    turns = driver.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3))
+    turns = driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
     for n in (3, 5):
-        assert turns and turns[-1] != DoMove(Move.FORWARD)  # forward would collide here
+        assert turns and turns[-1] != RequestMove(Move.FORWARD)  # forward would collide here
         assert driver.encoded_for == (n, driver.named or "")
         for h in heard[n : n + 2]:
             assert driver.perceive(h) == []  # heard while its move is under way
-        if isinstance(turns[-1], DoMove):
+        if isinstance(turns[-1], RequestMove):
             assert driver.perceive(Moved(turns[-1].move, Outcome.OK)) == []
             turns = driver.perceive(Saw(2, blocked))
         else:
-            assert turns[-1] == DoClaim()
+            assert turns[-1] == Claim()
             driver.perceive(Claimed(0))
             turns = driver.perceive(Judged(False, 0))
     # Once it wants to stop it claims; after a rejected claim it moves before it claims again.
     with torch.no_grad():
         driver.agent.policy.bias[int(Action.STOP)] = 50.0
-    if isinstance(turns[-1], DoMove):
+    if isinstance(turns[-1], RequestMove):
         assert driver.perceive(Moved(turns[-1].move, Outcome.OK)) == []
         turns = driver.perceive(Saw(3, blocked))
-    assert turns[-1] == DoClaim() and turns[0] == DoSay(
+    assert turns[-1] == Claim() and turns[0] == Say(
         f"I think I found the {driver.named}" if driver.named else "I think I found it"
     )
     assert driver.perceive(Claimed(0)) == []
     (move,) = driver.perceive(Judged(False, 0))
-    assert isinstance(move, DoMove) and move.move != Move.FORWARD
+    assert isinstance(move, RequestMove) and move.move != Move.FORWARD
     assert driver.perceive(Moved(move.move, Outcome.OK)) == []
-    assert driver.perceive(Saw(4, blocked))[-1] == DoClaim()
+    assert driver.perceive(Saw(4, blocked))[-1] == Claim()
 
 
 def test_the_web_driver_counts_its_poses_by_its_own_odometry_for_its_revisit_penalty(trained, bench, few):
     from models.driver import Seq2SeqDriver
-    from sim.agents.turns import DoMove, Moved, Outcome, Phase, PhaseChanged, Saw, SeatInfo, Speaker
     from sim.core.dynamics import Action, snap_pose
     from sim.core.observations import RayTable
+    from sim.trial.agent import SeatInfo
+    from sim.trial.commands import RequestMove
+    from sim.trial.percepts import Moved, PhaseBegan, Saw
+    from sim.trial.vocabulary import Outcome, Phase, Role
 
     _, out, _ = trained
     inst = few["val"][0]
@@ -232,16 +225,16 @@ def test_the_web_driver_counts_its_poses_by_its_own_odometry_for_its_revisit_pen
         with torch.no_grad():
             driver.agent.policy.bias[int(Action.LEFT)] = 10.0  # it wants to turn left, always
             driver.agent.policy.bias[int(Action.STOP)] = -50.0
-        driver.reset(SeatInfo(Speaker.DRIVER, 3))
+        driver.reset(SeatInfo(Role.DRIVER, 3))
         for h in _heard(inst):
             driver.perceive(h)
         pose = snap_pose(graph, *graph.nodes[start])
         nodes[penalty] = {pose.node}
         driver.perceive(Saw(0, _rays_at(table, pose.node, pose.heading)))
-        (turn,) = driver.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3))
+        (turn,) = driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
         for k in range(12):
-            assert isinstance(turn, DoMove)
-            pose, collided = graph.moves.step(pose, Action.parse(turn.move))
+            assert isinstance(turn, RequestMove)
+            pose, collided = graph.moves.step(pose, Action.of(turn.move))
             nodes[penalty].add(pose.node)
             driver.perceive(Moved(turn.move, Outcome.COLLISION if collided else Outcome.OK))
             (turn,) = driver.perceive(Saw(k + 1, _rays_at(table, pose.node, pose.heading)))

@@ -12,35 +12,21 @@ from sim.agents.dialog_commander import DialogCommander
 from sim.agents.dialog_driver import DialogDriver
 from sim.agents.oracle_driver import OracleDriver
 from sim.agents.selfplay import TrialSpec, play
-from sim.agents.sight import pose_rays
-from sim.agents.turns import (
-    Claimed,
-    DoJudge,
-    DoLocalize,
-    DoSay,
-    Heard,
-    Judged,
-    Move,
-    Moved,
-    Outcome,
-    Percept,
-    Phase,
-    PhaseChanged,
-    Saw,
-    SeatInfo,
-    Speaker,
-)
 from sim.core.dynamics import Pose
 from sim.core.geometry import SUCCESS_RADIUS_M, world_to_pixel
 from sim.core.labels import OBJECT_LABELS, Label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
+from sim.core.rays import RayObservation
 from sim.language import instructions as ins
 from sim.language.describe import near, seen
 from sim.language.vocab import SIDE_STEPS
-from sim.robot.perception import RayObservation
 from sim.tasks.library import BUNDLED_DIR
+from sim.trial.agent import SeatInfo
+from sim.trial.commands import Judge, Localize, Say
+from sim.trial.percepts import Claimed, Heard, Judged, Moved, Percept, PhaseBegan, Saw
+from sim.trial.vocabulary import Move, Outcome, Phase, Role
 
 
 @pytest.fixture(scope="module")
@@ -54,28 +40,28 @@ def world(tmp_path_factory):
 def _commander(world) -> DialogCommander:
     maze, _, _, cache = world
     commander = DialogCommander(maze, cache_dir=cache)
-    commander.reset(SeatInfo(Speaker.COMMANDER, 3))
+    commander.reset(SeatInfo(Role.COMMANDER, 3))
     return commander
 
 
-def _localize(world, commander, start: Pose) -> tuple[DoLocalize | None, list[str]]:
+def _localize(world, commander, start: Pose) -> tuple[Localize | None, list[str]]:
     """The localization exchange with a Driver that answers from its true view (it stays put)."""
     _, _, rays, _ = world
     driver = OracleDriver(rays)
-    driver.reset(SeatInfo(Speaker.DRIVER, 3))
+    driver.reset(SeatInfo(Role.DRIVER, 3))
     driver.pose = start
-    driver.perceive(PhaseChanged(Phase.LOCALIZING, None, 3))
-    driver.perceive(Saw(0, pose_rays(rays, start)))
+    driver.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
+    driver.perceive(Saw(0, rays.observation(*start)))
     said = []
-    turns = commander.perceive(PhaseChanged(Phase.LOCALIZING, None, 3))
+    turns = commander.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
     for _ in range(12):
-        mark = next((t for t in turns if isinstance(t, DoLocalize)), None)
+        mark = next((t for t in turns if isinstance(t, Localize)), None)
         if mark is not None:
             return mark, said
-        question = next(t for t in turns if isinstance(t, DoSay))
+        question = next(t for t in turns if isinstance(t, Say))
         said.append(question.text)
-        answer = next(t for t in driver.perceive(Heard(Speaker.COMMANDER, question.text)) if isinstance(t, DoSay))
-        turns = commander.perceive(Heard(Speaker.DRIVER, answer.text))
+        answer = next(t for t in driver.perceive(Heard(Role.COMMANDER, question.text)) if isinstance(t, Say))
+        turns = commander.perceive(Heard(Role.DRIVER, answer.text))
     return None, said
 
 
@@ -91,9 +77,9 @@ def test_its_belief_settles_where_the_driver_is(world, node_xy, heading):
 def test_it_asks_the_question_that_splits_its_belief(world):
     _, graph, rays, _ = world
     commander = _commander(world)
-    commander.perceive(PhaseChanged(Phase.LOCALIZING, None, 3))
-    turns = commander.perceive(Heard(Speaker.DRIVER, "i see a white wall"))  # true almost anywhere
-    question = next(t for t in turns if isinstance(t, DoSay)).text
+    commander.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
+    turns = commander.perceive(Heard(Role.DRIVER, "i see a white wall"))  # true almost anywhere
+    question = next(t for t in turns if isinstance(t, Say)).text
     asked = ins.parse(question).instructions[0]
     assert isinstance(asked, ins.Ask) and asked.question == ins.Question.IS_THERE, question
     assert asked.label is not None and asked.side is not None
@@ -104,7 +90,7 @@ def test_it_asks_the_question_that_splits_its_belief(world):
         p[n, h]
         for n, h in zip(*np.nonzero(p > 1e-6), strict=True)
         if any(
-            s.label == asked.label for s in seen(pose_rays(rays, Pose(int(n), (int(h) + SIDE_STEPS[asked.side]) % 8)))
+            s.label == asked.label for s in seen(rays.observation(*Pose(int(n), (int(h) + SIDE_STEPS[asked.side]) % 8)))
         )
     )
     assert 0.25 <= yes <= 0.75, (question, yes)
@@ -114,14 +100,14 @@ def test_it_confirms_a_claim_from_a_frame_near_the_target_and_rejects_a_far_one(
     maze, graph, rays, _ = world
     jar = maze.objects["jar"]
     poses = [Pose(n, h) for n in range(graph.n) for h in range(8)]
-    at_it = next(p for p in poses if near(pose_rays(rays, p), Label.JAR))
+    at_it = next(p for p in poses if near(rays.observation(*p), Label.JAR))
     far = next(p for p in poses if math.dist(graph.nodes[p.node], jar) > 1.0)
     assert math.dist(graph.nodes[at_it.node], jar) <= SUCCESS_RADIUS_M
     for pose, confirmed in ((at_it, True), (far, False)):
         commander = _commander(world)
-        commander.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3, target="jar"))
-        verdicts = [t for t in commander.perceive(Claimed(0, pose_rays(rays, pose))) if isinstance(t, DoJudge)]
-        assert verdicts == [DoJudge(confirmed)]
+        commander.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3, target="jar"))
+        verdicts = [t for t in commander.perceive(Claimed(0, rays.observation(*pose))) if isinstance(t, Judge)]
+        assert verdicts == [Judge(confirmed)]
 
 
 def test_its_routes_never_pass_through_a_landmark(world):
@@ -153,15 +139,17 @@ def test_after_a_rejected_claim_it_guides_the_driver_closer(world):
     maze, graph, rays, _ = world
     jar = maze.objects["jar"]
     poses = [Pose(n, h) for n in range(graph.n) for h in range(8)]
-    in_reach = [p for p in poses if near(pose_rays(rays, p), Label.JAR)]
+    in_reach = [p for p in poses if near(rays.observation(*p), Label.JAR)]
     at = max(in_reach, key=lambda p: math.dist(graph.nodes[p.node], jar))  # the farthest in reach
-    short = next(p for p in poses if any(s.label == Label.JAR for s in seen(pose_rays(rays, p))) and p not in in_reach)
+    short = next(
+        p for p in poses if any(s.label == Label.JAR for s in seen(rays.observation(*p))) and p not in in_reach
+    )
     commander = _commander(world)
-    commander.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3, target="jar"))
+    commander.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3, target="jar"))
     commander.belief.log = np.where(np.arange(graph.n)[:, None] == at.node, 0.0, -1e9) * np.ones((1, 8))
     assert commander.goal(at.node) == at.node  # there already: it sends the Driver up to the jar
-    verdicts = [t for t in commander.perceive(Claimed(0, pose_rays(rays, short))) if isinstance(t, DoJudge)]
-    assert verdicts == [DoJudge(False)] and commander.estimate().pose.node == at.node
+    verdicts = [t for t in commander.perceive(Claimed(0, rays.observation(*short))) if isinstance(t, Judge)]
+    assert verdicts == [Judge(False)] and commander.estimate().pose.node == at.node
     goal = commander.goal(at.node)
     assert goal in {p.node for p in in_reach}
     assert math.dist(graph.nodes[goal], jar) < math.dist(graph.nodes[at.node], jar)
@@ -172,9 +160,9 @@ def test_its_inputs_hold_no_pose_frames_or_moves(world):
     assert list(inspect.signature(DialogCommander).parameters) == ["maze", "seed", "cache_dir", "understanding"]
     assert not hasattr(_commander(world), "pose")
     commander = _commander(world)
-    commander.perceive(PhaseChanged(Phase.LOCALIZING, None, 3))
+    commander.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
     before = commander.belief.log.copy()
-    assert commander.perceive(Saw(1, pose_rays(rays, Pose(0, 0)))) == []
+    assert commander.perceive(Saw(1, rays.observation(*Pose(0, 0)))) == []
     assert commander.perceive(Moved(Move.FORWARD, Outcome.OK)) == []
     assert np.array_equal(commander.belief.log, before)  # nothing of them reaches the belief
 
@@ -188,5 +176,5 @@ def test_its_inputs_hold_no_pose_frames_or_moves(world):
     targets = tuple((t, maze.objects[t]) for t in ("jar", "mug", "paddle"))
     result = play(Recording(maze, 0, world[3]), DialogDriver(0), graph, rays, TrialSpec("gen-000", start, targets, 0))
     assert result.moves > 0 and got
-    assert {type(p) for p in got} <= {Heard, PhaseChanged, Claimed, Judged}
+    assert {type(p) for p in got} <= {Heard, PhaseBegan, Claimed, Judged}
     assert all(isinstance(p.rays, RayObservation) for p in got if isinstance(p, Claimed))

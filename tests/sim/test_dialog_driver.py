@@ -9,22 +9,6 @@ import pytest
 from sim.agents.dialog_driver import DialogDriver
 from sim.agents.episode import run
 from sim.agents.oracle_commander import OracleCommander
-from sim.agents.turns import (
-    DoClaim,
-    DoMove,
-    DoSay,
-    Heard,
-    Judged,
-    Move,
-    Moved,
-    Outcome,
-    Percept,
-    Phase,
-    PhaseChanged,
-    Saw,
-    SeatInfo,
-    Speaker,
-)
 from sim.core.dynamics import Action, Pose
 from sim.core.labels import Label
 from sim.core.maze import Maze
@@ -33,6 +17,10 @@ from sim.core.observations import RayTable
 from sim.language.describe import near
 from sim.language.phrases import Phrasing
 from sim.tasks.library import BUNDLED_DIR
+from sim.trial.agent import SeatInfo
+from sim.trial.commands import Claim, RequestMove, Say
+from sim.trial.percepts import Heard, Judged, Moved, Percept, PhaseBegan, Saw
+from sim.trial.vocabulary import Move, Outcome, Phase, Role
 
 BUNDLED = BUNDLED_DIR / "gen-000"
 
@@ -78,23 +66,23 @@ def _rays(world, pose):
 
 def test_while_localized_it_answers_and_turns_in_place_but_does_not_drive_off(world):
     driver = DialogDriver(0)
-    driver.reset(SeatInfo(Speaker.DRIVER, 3))
-    assert driver.perceive(PhaseChanged(Phase.LOCALIZING, None, 3)) == []
+    driver.reset(SeatInfo(Role.DRIVER, 3))
+    assert driver.perceive(PhaseBegan(Phase.LOCALIZING, None, 3)) == []
     pose = Pose(100, 0)
     assert driver.perceive(Saw(0, _rays(world, pose))) == []
-    answer = driver.perceive(Heard(Speaker.COMMANDER, "what do you see?"))
-    assert len(answer) == 1 and isinstance(answer[0], DoSay) and "ahead" in answer[0].text
-    turns = driver.perceive(Heard(Speaker.COMMANDER, "go forward 3 steps"))
-    assert not any(isinstance(t, DoMove) for t in turns) and "stay here" in turns[0].text
+    answer = driver.perceive(Heard(Role.COMMANDER, "what do you see?"))
+    assert len(answer) == 1 and isinstance(answer[0], Say) and "ahead" in answer[0].text
+    turns = driver.perceive(Heard(Role.COMMANDER, "go forward 3 steps"))
+    assert not any(isinstance(t, RequestMove) for t in turns) and "stay here" in turns[0].text
     # Asked what is behind it, it turns on the spot (never forward) and answers once it has looked.
-    turns = driver.perceive(Heard(Speaker.COMMANDER, "what is behind you?"))
+    turns = driver.perceive(Heard(Role.COMMANDER, "what is behind you?"))
     heading, said = 0, []
     for _ in range(12):
-        assert turns and isinstance(turns[0], DoMove) and turns[0].move != Move.FORWARD
+        assert turns and isinstance(turns[0], RequestMove) and turns[0].move != Move.FORWARD
         heading = (heading + (1 if turns[0].move == Move.LEFT else -1)) % 8
         assert driver.perceive(Moved(turns[0].move, Outcome.OK)) == []
         turns = driver.perceive(Saw(1, _rays(world, Pose(100, heading))))
-        said = [t for t in turns if isinstance(t, DoSay)]
+        said = [t for t in turns if isinstance(t, Say)]
         if said:
             break
     assert said and "behind me" in said[0].text and heading == 0
@@ -103,22 +91,22 @@ def test_while_localized_it_answers_and_turns_in_place_but_does_not_drive_off(wo
 def test_asked_before_its_first_frame_it_answers_once_the_frame_comes(world):
     # On a rover the Commander can speak before the Driver's camera has sent a frame.
     driver = DialogDriver(0)
-    driver.reset(SeatInfo(Speaker.DRIVER, 3))
-    driver.perceive(PhaseChanged(Phase.LOCALIZING, None, 3))
-    assert driver.perceive(Heard(Speaker.COMMANDER, "what do you see?")) == []
+    driver.reset(SeatInfo(Role.DRIVER, 3))
+    driver.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
+    assert driver.perceive(Heard(Role.COMMANDER, "what do you see?")) == []
     (answer,) = driver.perceive(Saw(0, _rays(world, Pose(100, 0))))
-    assert isinstance(answer, DoSay) and "ahead" in answer.text
+    assert isinstance(answer, Say) and "ahead" in answer.text
 
 
 def _carry_out(driver, world, pose, text):
     """The Commander says `text`; the Driver's moves are stepped on the graph until it speaks."""
     _, graph, _ = world
-    turns = driver.perceive(Heard(Speaker.COMMANDER, text))
+    turns = driver.perceive(Heard(Role.COMMANDER, text))
     for _ in range(200):
-        said = [t.text for t in turns if isinstance(t, DoSay)]
+        said = [t.text for t in turns if isinstance(t, Say)]
         if said:
             return pose, said
-        (move,) = [t for t in turns if isinstance(t, DoMove)]
+        (move,) = [t for t in turns if isinstance(t, RequestMove)]
         action = {Move.FORWARD: Action.FORWARD, Move.LEFT: Action.LEFT, Move.RIGHT: Action.RIGHT}[move.move]
         pose, collided = graph.moves.step(pose, action)
         result = Outcome.COLLISION if collided else Outcome.OK
@@ -143,8 +131,8 @@ def test_it_goes_back_to_where_it_started_by_its_own_odometry(world):
     _, graph, _ = world
     start = _room_for(graph, 3, 2)
     driver = DialogDriver(0)
-    driver.reset(SeatInfo(Speaker.DRIVER, 3))
-    driver.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3))
+    driver.reset(SeatInfo(Role.DRIVER, 3))
+    driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
     driver.perceive(Saw(0, _rays(world, start)))
     pose, said = _carry_out(driver, world, start, "go forward 3 steps, then turn left")
     pose, said = _carry_out(driver, world, pose, "go forward 2 steps")
@@ -162,18 +150,18 @@ def test_it_asks_when_it_bumps_is_rejected_or_does_not_understand(world):
     _, graph, _ = world
     start = _room_for(graph, 3, 0)
     driver = DialogDriver(0)
-    driver.reset(SeatInfo(Speaker.DRIVER, 3))
-    driver.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3))
+    driver.reset(SeatInfo(Role.DRIVER, 3))
+    driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
     driver.perceive(Saw(0, _rays(world, start)))
-    (said,) = driver.perceive(Heard(Speaker.COMMANDER, "blorp the snark"))
-    assert isinstance(said, DoSay) and "did not understand 'blorp the snark'" in said.text  # says what it missed
-    (move,) = driver.perceive(Heard(Speaker.COMMANDER, "go forward 3 steps"))
-    assert move == DoMove(Move.FORWARD)
+    (said,) = driver.perceive(Heard(Role.COMMANDER, "blorp the snark"))
+    assert isinstance(said, Say) and "did not understand 'blorp the snark'" in said.text  # says what it missed
+    (move,) = driver.perceive(Heard(Role.COMMANDER, "go forward 3 steps"))
+    assert move == RequestMove(Move.FORWARD)
     (said,) = driver.perceive(Moved(Move.FORWARD, Outcome.COLLISION))
-    assert said == DoSay("i hit a wall, which way now?")
+    assert said == Say("i hit a wall, which way now?")
     assert driver.perceive(Saw(1, _rays(world, start))) == []  # the rest of the walk is dropped
-    turns = driver.perceive(Heard(Speaker.COMMANDER, "stop there and take a picture"))
-    assert turns[-1] == DoClaim()
+    turns = driver.perceive(Heard(Role.COMMANDER, "stop there and take a picture"))
+    assert turns[-1] == Claim()
     (said,) = driver.perceive(Judged(confirmed=False, target_index=0))
     assert said.text.endswith("where should i go?")
 
@@ -192,13 +180,13 @@ def test_rejected_where_it_sees_the_target_it_goes_on_up_to_it(world):
         and near(_rays(world, graph.moves.step(p, Action.FORWARD)[0]), Label.JAR)
     )
     driver = DialogDriver(0)
-    driver.reset(SeatInfo(Speaker.DRIVER, 3))
-    driver.perceive(PhaseChanged(Phase.NAVIGATING, 0, 3))
+    driver.reset(SeatInfo(Role.DRIVER, 3))
+    driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
     driver.perceive(Saw(0, _rays(world, start)))
-    assert driver.perceive(Heard(Speaker.COMMANDER, "now find the jar of blocks"))[-1] == DoClaim()
+    assert driver.perceive(Heard(Role.COMMANDER, "now find the jar of blocks"))[-1] == Claim()
     driver.perceive(Judged(confirmed=False, target_index=0))
-    (move,) = driver.perceive(Heard(Speaker.COMMANDER, "go forward until you see the jar of blocks"))
-    assert move == DoMove(Move.FORWARD)
+    (move,) = driver.perceive(Heard(Role.COMMANDER, "go forward until you see the jar of blocks"))
+    assert move == RequestMove(Move.FORWARD)
     driver.perceive(Moved(Move.FORWARD, Outcome.OK))
     turns = driver.perceive(Saw(1, _rays(world, graph.moves.step(start, Action.FORWARD)[0])))
-    assert turns[-1] == DoClaim()
+    assert turns[-1] == Claim()

@@ -4,6 +4,7 @@ understands, including negation, counts, history and typos, and how it describes
 import numpy as np
 
 from sim.core.labels import Label
+from sim.core.rays import RayObservation
 from sim.language.describe import describe
 from sim.language.instructions import (
     Ask,
@@ -18,7 +19,6 @@ from sim.language.instructions import (
     parse,
 )
 from sim.language.vocab import Side, correct
-from sim.robot.perception import RayObservation
 from sim.tasks.ldh_features import Sector, mentions
 
 

@@ -10,11 +10,10 @@ from sim.core.geometry import HEADINGS, TURN_RAD, heading_index
 from sim.core.labels import N_LABELS, OBJECT_LABELS, WALL_LABELS
 from sim.core.navgraph import NavGraph
 from sim.core.observations import N_RAYS, OBS_FEATURES, RayTable, cast_rays, too_close
+from sim.core.rays import FrameProblem, RayObservation
 from sim.robot.camera import CameraCalibration, FrontCamera, capture
 from sim.robot.perception import (
-    FrameProblem,
     PerceptionError,
-    RayObservation,
     evaluate_perception,
     features,
     perceive,

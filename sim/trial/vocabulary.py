@@ -1,16 +1,13 @@
 """The trial's closed vocabularies. The values are the strings stored in the event log.
 
-A trial's `Phase` and a move's `Outcome` are what an agent in a seat perceives too, so they are
-defined with the agents' interface (`sim.agents.turns`); `Move` is the wire protocol's
-(`robot_client.protocol`), the one move vocabulary from the rover to the learners."""
+`Move` is the wire protocol's (`robot_client.protocol`), the one move vocabulary from the rover
+to the learners."""
 
 from __future__ import annotations
 
 from enum import StrEnum
 
 from robot_client.protocol import Move as Move
-from sim.agents.turns import Outcome as Outcome
-from sim.agents.turns import Phase as Phase
 
 
 class Role(StrEnum):
@@ -27,17 +24,31 @@ ROBOT_ROLES = (Role.DRIVER, Role.OVERHEAD)  # a rover registers as the trial's `
 PARTICIPANTS = (Role.COMMANDER, Role.DRIVER)
 
 
-class ServerMessage(StrEnum):
-    """The `type` of each message the server sends a seat's or a watcher's socket."""
+class Phase(StrEnum):
+    """Where a trial stands."""
 
-    WELCOME = "welcome"  # on joining: where the trial stands and the dialog so far
-    EVENT = "event"  # one logged event, as this role may hear it
-    STATUS = "status"  # the clock, seats and pauses
-    ERROR = "error"  # a message refused, with a code
-    MOVE_REFUSED = "move_refused"  # to the Driver: its move request refused as it came, and why
-    REPLACED = "replaced"  # the seat was opened elsewhere
-    BELIEF = "belief"  # the particle filter's, to watchers
-    LDH_BELIEF = "ldh_belief"  # the LDH model's, to watchers
+    WAITING = "waiting"
+    LOCALIZING = "localizing"
+    NAVIGATING = "navigating"
+    FINISHED = "finished"
+    ABORTED = "aborted"
+
+    @property
+    def running(self) -> bool:
+        """The phases the trial clock runs in (unless paused)."""
+        return self in (Phase.LOCALIZING, Phase.NAVIGATING)
+
+    @property
+    def over(self) -> bool:
+        return self in (Phase.FINISHED, Phase.ABORTED)
+
+
+class Outcome(StrEnum):
+    """What became of a move: executed, bumped into something (the robot stayed), or not executed."""
+
+    OK = "ok"
+    COLLISION = "collision"
+    REFUSED = "refused"
 
 
 class FrameSource(StrEnum):

@@ -4,7 +4,7 @@
 An agent is registered for a seat (`Role.DRIVER` or `Role.COMMANDER`); one name may name an agent
 in each (`agent:dialog`). A factory is `factory(parts, seating) -> Agent`
 (`sim.agents.turns.Agent`; parts: `AgentParts`, the settings and the mazes with their cached graphs; seating:
-`app.drivers.base.Seating`, whose `oracle` is set for `oracle:` drivers only and `maze` for
+`app.seats.base.Seating`, whose `oracle` is set for `oracle:` drivers only and `maze` for
 Commanders only), with optionally a check, `check(parts) -> reason | None`, saying why it
 cannot start now (None: it can). The built-in ones are named here by "module:function" and
 imported on first look-up, so the learned ones import torch only when they are checked or
@@ -19,12 +19,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from app.clock import ServerClock
-from app.drivers.base import Seating
 from app.mazes import Mazes
+from app.seats.base import Seating
 from app.settings import Settings
-from app.trial.specs import HUMAN, SeatSpec
-from app.trial.vocabulary import Role
-from sim.agents.turns import Agent
+from sim.trial.agent import Agent
+from sim.trial.specs import HUMAN, SeatSpec
+from sim.trial.vocabulary import Role
 
 
 @dataclass(frozen=True)
@@ -42,13 +42,13 @@ AgentCheck = Callable[[AgentParts], "str | None"]
 
 BUILTIN: dict[Role, dict[str, tuple[str, str | None]]] = {
     Role.DRIVER: {
-        "agent:random": ("app.drivers.baselines:random_driver", None),
-        "agent:dialog": ("app.drivers.dialog:dialog_driver", None),
-        "agent:seq2seq": ("app.drivers.seq2seq:seq2seq_driver", "app.drivers.seq2seq:seq2seq_check"),
-        "oracle:shortest": ("app.drivers.baselines:shortest_driver", None),
+        "agent:random": ("app.seats.baselines:random_driver", None),
+        "agent:dialog": ("app.seats.dialog:dialog_driver", None),
+        "agent:seq2seq": ("app.seats.seq2seq:seq2seq_driver", "app.seats.seq2seq:seq2seq_check"),
+        "oracle:shortest": ("app.seats.baselines:shortest_driver", None),
     },
     Role.COMMANDER: {
-        "agent:dialog": ("app.drivers.dialog:dialog_commander", None),
+        "agent:dialog": ("app.seats.dialog:dialog_commander", None),
     },
 }
 

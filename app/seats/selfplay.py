@@ -1,9 +1,11 @@
 """Self-play through the trial core: whole trials with agents in both seats, each an ordinary
 trial recorded in a data directory (the platform's runtime, event log and simulator backend), read
 back from its log into the figures of `robotslang eval selfplay` (`sim.agents.selfplay.TrialResult`).
-Replay and every export work on them as on any trial. Each trial starts from the pose it is created
-with (a benchmark's recorded start), logged in its `trial_created` event; the trial clock and the
-moves' pace are the platform's (settings from the environment).
+Replay and every export work on them as on any trial. Each trial starts from the pose and with the
+agents' seed it is created with (the offline runner's), logged in its `trial_created` event, so it
+plays as the offline trial does: the same referee, the same table. The trial clock is the platform's
+(settings from the environment) but the agents are unpaced (`agent_pairs_paced=False`): each move
+goes as soon as the frame before it is in.
 
 The trials are created here, in one transaction, and then played in `processes` worker processes,
 one trial at a time each, every worker with its own server core on the same database: SQLite (WAL,
@@ -13,21 +15,15 @@ process that plays it; with ROBOTSLANG_DATABASE_URL set they all write to that d
 from __future__ import annotations
 
 import asyncio
-import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from app.trial import events as ev
 from app.trial.setup import create_trial
-from app.trial.state import fold
-from app.trial.vocabulary import Phase
-from sim.agents.route import Router
-from sim.agents.selfplay import TARGET_ORDER, TrialResult, iter_results
-from sim.core.dynamics import snap_pose
-from sim.language.phrases import Phrases, Phrasing
+from sim.agents.selfplay import TARGET_ORDER, TrialResult, iter_results, measure
+from sim.trial.state import fold
 
 if TYPE_CHECKING:  # the server's parts load in the worker processes only
     from app.services import Services
@@ -41,6 +37,7 @@ class Start:
 
     maze: str
     pose: tuple[float, float, float]
+    seed: int  # the agents'
 
 
 @dataclass(frozen=True)
@@ -65,8 +62,8 @@ def record_trials(
     """One recorded trial per start (targets in the benchmark's order), in `processes` worker
     processes; a trial not over after `timeout_s` is aborted, the reason logged. Results in the
     order of `starts`."""
-    from app.drivers.registry import available_seats
-    from app.trial.vocabulary import Role
+    from app.seats.registry import available_seats
+    from sim.trial.vocabulary import Role
 
     services = _services(data_dir, benchmark)  # brings the schema up to date before the workers open it
     try:
@@ -87,11 +84,12 @@ def record_trials(
                     agents=seats[Role.DRIVER],
                     commanders=seats[Role.COMMANDER],
                     start=start.pose,
+                    seed=start.seed,
                 ).id
                 for start in starts
             ]
     finally:
-        _close(services)
+        asyncio.run(services.close())
     n = max(1, min(processes, len(ids)))
     shares = [Share(data_dir, benchmark, tuple(ids[k::n]), timeout_s) for k in range(n)]
     by_id = {r_id: r for played in iter_results(shares, play_share, n) for r_id, r in played}
@@ -101,24 +99,22 @@ def record_trials(
 def play_share(share: Share) -> list[tuple[int, TrialResult]]:
     """A worker: its own server core on the data directory, its trials one after another."""
     services = _services(share.data_dir, share.benchmark)
-    try:
-        seconds = asyncio.run(_play_all(services, share.ids, share.timeout_s))
-        return [(i, result_of(services, i, s)) for i, s in zip(share.ids, seconds, strict=True)]
-    finally:
-        _close(services)
+
+    async def play() -> list[tuple[int, TrialResult]]:
+        try:
+            seconds = await _play_all(services, share.ids, share.timeout_s)
+            return [(i, result_of(services, i, s)) for i, s in zip(share.ids, seconds, strict=True)]
+        finally:
+            await services.close()
+
+    return asyncio.run(play())
 
 
 def _services(data_dir: Path, benchmark: Path | None) -> Services:
     from app.main import build_services
     from app.settings import Settings
 
-    return build_services(Settings(data_dir=data_dir, benchmark=benchmark))
-
-
-def _close(services: Services) -> None:
-    services.log.close()
-    services.trials.backends.renderer.close()
-    services.engine.dispose()
+    return build_services(Settings(data_dir=data_dir, benchmark=benchmark, agent_pairs_paced=False))
 
 
 async def _play_all(services: Services, ids: Sequence[int], timeout_s: float) -> list[float]:
@@ -132,45 +128,12 @@ async def _play_all(services: Services, ids: Sequence[int], timeout_s: float) ->
         await runtime.close()
         return time.perf_counter() - t0
 
-    try:
-        return [await one(i) for i in ids]
-    finally:
-        await services.hub.close()
+    return [await one(i) for i in ids]
 
 
 def result_of(services: Services, trial_id: int, seconds: float) -> TrialResult:
-    """A recorded trial's figures, from its log alone (the poses the simulator logged are the truth)."""
+    """A recorded trial's figures, from its log alone, as an offline trial's are."""
     events = services.log.load(trial_id)
-    state = fold(events)
-    maze = services.mazes.load(state.maze)
-    graph, rays = services.mazes.graph(state.maze), services.mazes.rays(state.maze)
-    router = Router(graph, rays, Phrases(Phrasing.SCRIPTED))
-    out = TrialResult(state.maze, len(state.targets), moves=state.moves, seconds=seconds)
-    pose: tuple[float, float, float] | None = None
-    legs: set[int | None] = set()
-    for logged in events:
-        event = ev.typed(logged)
-        match event:
-            case ev.PoseSampled(x=x, y=y, heading=heading):
-                pose = (x, y, heading)
-            case ev.PhaseChanged(phase=Phase.NAVIGATING, target_index=k) if k not in legs:
-                legs.add(k)
-                if pose is not None and k is not None:
-                    at = snap_pose(graph, *pose)
-                    goal = graph.nearest_node(*maze.objects[state.targets[k]])
-                    out.shortest += int(router.moves_to_go(goal)[at.node, at.heading])
-            case ev.Localized(x=x, y=y) if out.first_estimate_td_m is None and pose is not None:
-                out.first_estimate_td_m = graph.topological_distance((x, y), pose[:2])
-            case ev.Chat(role=role, text=text):
-                out.messages += 1
-                out.dialog.append((str(role), text))
-            case ev.TargetConfirmed(truly_within=truly):
-                out.targets_confirmed += 1
-                out.false_confirmations += truly is False
-            case ev.TargetRejected():
-                out.rejections += 1
-            case ev.PhaseChanged(phase=Phase.ABORTED, reason=reason):
-                out.ended = reason or "aborted"
-    if not math.isfinite(out.first_estimate_td_m or 0.0):
-        out.first_estimate_td_m = None
-    return out
+    name = fold(events).maze
+    maze, graph, rays = services.mazes.load(name), services.mazes.graph(name), services.mazes.rays(name)
+    return measure(events, maze.objects, graph, rays, seconds)

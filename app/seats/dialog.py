@@ -4,8 +4,8 @@ localizes the Driver from its words on the trial's map, guides it in words and j
 
 from __future__ import annotations
 
-from app.drivers.base import Seating
-from app.drivers.registry import AgentParts
+from app.seats.base import Seating
+from app.seats.registry import AgentParts
 from sim.agents.dialog_commander import DialogCommander
 from sim.agents.dialog_driver import DialogDriver
 

@@ -12,10 +12,10 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
-from app.trial import events as ev
-from app.trial.events import LoggedEvent
-from app.trial.specs import BackendKind, BackendSpec
-from app.trial.vocabulary import PARTICIPANTS, FrameSource, Move, Outcome, Phase, Role
+from sim.trial import events as ev
+from sim.trial.events import LoggedEvent
+from sim.trial.specs import BackendKind, BackendSpec
+from sim.trial.vocabulary import PARTICIPANTS, FrameSource, Move, Outcome, Phase, Role
 
 __all__ = ["LoggedEvent", "TrialState", "fold", "trial_score"]
 
@@ -63,6 +63,7 @@ class TrialState:
     pending_claim: dict[str, Any] | None = None
     pose: tuple[float, float, float] | None = None  # last sampled true pose (x, y, theta)
     start: tuple[float, float, float] | None = None  # the simulated robot's start, where one was chosen
+    seed: int | None = None  # the agents' seed, where one was chosen
     localization: dict[str, Any] | None = None
     confirmed: list[dict[str, Any]] = field(default_factory=list)
     finished_active_ns: int | None = None  # active time at the last confirmation
@@ -131,7 +132,7 @@ class TrialState:
             case ev.TrialCreated():
                 self.maze, self.targets = event.maze, list(event.targets)
                 self.backend, self.driver, self.commander = event.backend, event.driver, event.commander
-                self.start = event.start
+                self.start, self.seed = event.start, event.seed
                 if event.join_timeout_s is not None:
                     self.join_by_ns = t_ns + round(event.join_timeout_s * 1e9)
             case ev.Connected(role=role):

@@ -8,127 +8,36 @@ words a participant can act on; nothing is recorded for it but the refusal.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
-from app.trial import events as ev
-from app.trial.state import TrialState
-from app.trial.vocabulary import EXPERIMENTER_PAUSE, Move, Outcome, Phase, Role, disconnect_pause
 from sim.core.geometry import SUCCESS_RADIUS_M
+from sim.trial import events as ev
+from sim.trial.commands import (
+    MAY,
+    AbandonMoves,
+    Abort,
+    Act,
+    Claim,
+    Command,
+    FinishMove,
+    GraceExpired,
+    Join,
+    Judge,
+    Leave,
+    Localize,
+    Note,
+    Now,
+    Pause,
+    Reopen,
+    RequestMove,
+    Resume,
+    Say,
+    named,
+)
+from sim.trial.state import TrialState
+from sim.trial.vocabulary import EXPERIMENTER_PAUSE, Move, Outcome, Phase, Role, disconnect_pause
 
 
 class Refused(ValueError):
     """A command that is well formed but not allowed now; the message says why."""
-
-
-# -- commands ----------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Join:
-    role: Role
-
-
-@dataclass(frozen=True)
-class Leave:
-    role: Role
-
-
-@dataclass(frozen=True)
-class Say:
-    role: Role
-    text: str
-
-
-@dataclass(frozen=True)
-class RequestMove:
-    move_id: str
-    action: Move
-    now_ns: int
-    robot_ready: bool  # a backend is in the robot seat
-    min_interval_ns: int = 0
-
-
-@dataclass(frozen=True)
-class FinishMove:
-    move_id: str
-    outcome: Outcome
-    reason: str | None = None
-
-
-@dataclass(frozen=True)
-class AbandonMoves:
-    """Moves that will never be finished (the server restarted, or the trial ended mid-move)."""
-
-    reason: str
-
-
-@dataclass(frozen=True)
-class Localize:
-    x: float
-    y: float
-    heading: float | None = None
-
-
-@dataclass(frozen=True)
-class Claim:
-    pass
-
-
-@dataclass(frozen=True)
-class Judge:
-    """The Commander's verdict on the pending claim; `within_m` is the ground truth where known."""
-
-    confirmed: bool
-    within_m: float | None = None
-
-
-@dataclass(frozen=True)
-class Note:
-    """A fact from a sensor or a seat with no rule attached (frame, pose, bad message)."""
-
-    event: ev.Event
-
-
-@dataclass(frozen=True)
-class Pause:
-    pass
-
-
-@dataclass(frozen=True)
-class Resume:
-    pass
-
-
-@dataclass(frozen=True)
-class Abort:
-    reason: str | None = None  # e.g. an agent Driver's cap, logged with the phase change
-
-
-@dataclass(frozen=True)
-class GraceExpired:
-    role: Role
-
-
-@dataclass(frozen=True)
-class Reopen:
-    """A server opens a trial from its log: seats and moves of the process before are gone."""
-
-
-Command = (
-    Join
-    | Leave
-    | Say
-    | RequestMove
-    | FinishMove
-    | AbandonMoves
-    | Localize
-    | Claim
-    | Judge
-    | Note
-    | Pause
-    | Resume
-    | Abort
-    | GraceExpired
-    | Reopen
-)
 
 
 # -- the rules ---------------------------------------------------------------------------
@@ -151,30 +60,15 @@ def decide(state: TrialState, command: Command) -> list[ev.Event]:
                     reason=reason,
                 )
             ]
+    if isinstance(command, Act):
+        return _act(state, command)
     if state.over:
-        if isinstance(command, (Say, RequestMove, Localize, Claim, Judge)):
-            raise Refused(f"the trial is {state.phase}")
         return []
     match command:
         case Join(role=role):
             return _join(state, role)
         case Leave(role=role):
             return _leave(state, role)
-        case Say(role=role, text=text):
-            return [ev.Chat(role=role, text=text)]
-        case RequestMove():
-            return _request_move(state, command)
-        case Localize(x=x, y=y, heading=heading):
-            if not state.phase.running:
-                raise Refused(f"the robot can be marked once the trial has started (it is {state.phase})")
-            events: list[ev.Event] = [ev.Localized(x=x, y=y, heading=heading)]
-            if state.phase == Phase.LOCALIZING:
-                events.append(ev.PhaseChanged(phase=Phase.NAVIGATING, target_index=0))
-            return events
-        case Claim():
-            return [_claim(state)]
-        case Judge(confirmed=confirmed, within_m=within_m):
-            return _judge(state, confirmed, within_m)
         case Note(event=event):
             return [event]
         case Pause():
@@ -188,6 +82,32 @@ def decide(state: TrialState, command: Command) -> list[ev.Event]:
                 return []
             return [ev.PhaseChanged(phase=Phase.ABORTED, reason=f"the {role} was away longer than the grace period")]
     raise TypeError(f"not a trial command: {command!r}")
+
+
+def _act(state: TrialState, act: Act) -> list[ev.Event]:
+    """A seat's action: its own seat's to take, and allowed now."""
+    role, action = act.role, act.action
+    if not isinstance(action, MAY.get(role, ())):
+        raise Refused(f"the {role} may not send {named(action)!r} messages")
+    if state.over:
+        raise Refused(f"the trial is {state.phase}")
+    match action:
+        case Say(text=text):
+            return [ev.Chat(role=role, text=text)]
+        case RequestMove():
+            return _request_move(state, action, act.now)
+        case Localize(x=x, y=y, heading=heading):
+            if not state.phase.running:
+                raise Refused(f"the robot can be marked once the trial has started (it is {state.phase})")
+            events: list[ev.Event] = [ev.Localized(x=x, y=y, heading=heading)]
+            if state.phase == Phase.LOCALIZING:
+                events.append(ev.PhaseChanged(phase=Phase.NAVIGATING, target_index=0))
+            return events
+        case Claim():
+            return [_claim(state)]
+        case Judge(confirmed=confirmed):
+            return _judge(state, confirmed, act.now.within_m)
+    raise TypeError(f"not a seat's action: {action!r}")
 
 
 def _reopen(state: TrialState) -> list[ev.Event]:
@@ -234,8 +154,8 @@ def why_not_running(state: TrialState) -> str:
     return "the trial is paused" if state.pause_reasons else f"the trial is {state.phase}"
 
 
-def _request_move(state: TrialState, command: RequestMove) -> list[ev.Event]:
-    move_id, action = command.move_id, command.action
+def _request_move(state: TrialState, request: RequestMove, now: Now) -> list[ev.Event]:
+    move_id, action = request.move_id or f"auto-{len(state.move_ids) + 1}", request.move
     if move_id in state.move_ids:
         raise Refused(f"move {move_id!r} was already received; it is not executed twice")
     reason = None
@@ -243,9 +163,9 @@ def _request_move(state: TrialState, command: RequestMove) -> list[ev.Event]:
         reason = why_not_running(state)
     elif state.moves_in_flight:
         reason = "the previous move is still executing"
-    elif state.last_move_ns is not None and command.now_ns - state.last_move_ns < command.min_interval_ns:
+    elif state.last_move_ns is not None and now.t_ns - state.last_move_ns < now.min_move_interval_ns:
         reason = "too soon after the previous move"
-    elif not command.robot_ready:
+    elif not now.robot_ready:
         reason = "the robot is not connected"
     if reason is not None:  # nothing moves and no move id is spent; the runtime counts it in its run
         return [ev.MovesRefused(reason=reason)]

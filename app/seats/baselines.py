@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import random
 
-from app.drivers.base import Oracle, Seating
-from app.drivers.registry import AgentParts
 from app.mazes import Mazes
+from app.seats.base import Oracle, Seating
+from app.seats.registry import AgentParts
 from sim.agents.stepwise import StepwiseDriver
-from sim.agents.turns import Move
 from sim.core.dynamics import Action, snap_pose, teacher_action
+from sim.trial.vocabulary import Move
 
 RANDOM_CLAIM_P = 0.02
 

@@ -10,9 +10,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, Field
 
-from app.trial.vocabulary import FrameSource, Move, Outcome, Phase, PoseSource, Role
+from sim.core.rays import RayObservation
+from sim.trial.vocabulary import FrameSource, Move, Outcome, Phase, PoseSource, Role
 
 
 @dataclass(frozen=True)
@@ -42,7 +43,7 @@ class Event(BaseModel):
 
 class TrialCreated(Event):
     kind = "trial_created"
-    omit_if_none = ("start", "join_timeout_s")
+    omit_if_none = ("start", "join_timeout_s", "seed")
     maze: str
     targets: list[str]
     backend: str
@@ -54,6 +55,8 @@ class TrialCreated(Event):
     # A study's lobby paired the seats: one still unopened this long after creation aborts the
     # trial. In the log, so a restarted server (or another process) keeps the same deadline.
     join_timeout_s: float | None = None
+    # The agents' seed, where one was chosen (self-play repeats an offline trial); else the trial's id.
+    seed: int | None = None
 
 
 class Connected(Event):
@@ -137,6 +140,10 @@ class MovesRefused(Event):
 
 
 class FrameRecorded(Event):
+    """A camera image stored. `rays` and `jpeg` are what it shows, for the seats of the process that
+    recorded it (the simulator's rays, the image itself); never logged: the file holds the image."""
+
+    model_config = ConfigDict(frozen=True, extra="ignore", arbitrary_types_allowed=True)
     kind = "frame"
     frame_id: int
     source: FrameSource = FrameSource.DRIVER
@@ -145,6 +152,8 @@ class FrameRecorded(Event):
     width: int
     height: int
     mime: str = "image/jpeg"
+    rays: RayObservation | None = Field(default=None, exclude=True)
+    jpeg: bytes | None = Field(default=None, exclude=True, repr=False)
 
 
 class PoseSampled(Event):

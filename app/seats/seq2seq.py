@@ -10,10 +10,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from app.drivers.base import Seating
+from app.seats.base import Seating
 
 if TYPE_CHECKING:
-    from app.drivers.registry import AgentParts
+    from app.seats.registry import AgentParts
     from models.driver import Seq2SeqDriver
 
 NO_CHECKPOINT = (
