@@ -50,6 +50,7 @@ from app.trial.ldh_belief import BeliefModel
 from app.trial.log import EventLog
 from app.trial.relay import key_prefix
 from app.trial.runtime import TrialParts
+from app.trial.watch import WatchParts
 from app.web import error_page, wants_html
 
 logger = logging.getLogger("robotslang")
@@ -86,11 +87,10 @@ def build_services(settings: Settings) -> Services:
         log=log,
         clock=clock,
         mazes=mazes,
-        filters=FilterWorker(),
         frames=FrameStore(settings.frames_dir, db, log),
         backends=BackendParts(mazes, clock, renderer, db, robots, settings.overhead_calibration),
         agents=AgentParts(settings, mazes, clock),
-        ldh=BeliefModel(settings.ldh_checkpoint, settings.cache_dir),
+        watch=WatchParts(settings, mazes, FilterWorker(), BeliefModel(settings.ldh_checkpoint, settings.cache_dir)),
         over=webhooks.trial_over,
     )
     return Services(

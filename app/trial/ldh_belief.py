@@ -12,9 +12,9 @@ from __future__ import annotations
 import asyncio
 import logging
 import threading
-from collections.abc import Iterable
+from collections.abc import Coroutine, Iterable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -26,11 +26,16 @@ from sim.tasks.ldh_eval import MazeContext, colour_logits
 from sim.tasks.ldh_features import maze_views, mentions
 from sim.trial import events as ev
 from sim.trial.events import LoggedEvent
+from sim.trial.state import TrialState
 from sim.trial.vocabulary import Phase, Role
 
 if TYPE_CHECKING:
-    from app.trial.runtime import TrialRuntime
     from models.ldh import TrainedLocalizer
+
+
+class MazeSource(Protocol):
+    def load(self, name: str) -> Maze: ...
+
 
 logger = logging.getLogger(__name__)
 
@@ -91,23 +96,33 @@ class BeliefModel:
         ]
 
 
-class LiveBelief:
-    """A trial's belief feed to its watchers: the runtime calls `after` per event, `welcome` per watcher."""
+class DialogTrial(Protocol):
+    trial_id: int
+    history: list[LoggedEvent]  # the dialog so far
 
-    def __init__(self, runtime: TrialRuntime, model: BeliefModel) -> None:
-        self.runtime, self.model = runtime, model
+    @property
+    def state(self) -> TrialState: ...
+
+    def spawn(self, coro: Coroutine[Any, Any, Any]) -> asyncio.Task[Any]: ...
+
+
+class LiveBelief:
+    """A trial's belief feed to its watchers: `after` per event, `welcome` per watcher."""
+
+    def __init__(self, trial: DialogTrial, watchers: set[Connection], model: BeliefModel, mazes: MazeSource) -> None:
+        self.trial, self.watchers, self.model, self.mazes = trial, watchers, model, mazes
         self._sent_upto = 0  # the last chat seq a belief was sent for
 
     def after(self, logged: LoggedEvent) -> None:
-        if logged.is_(ev.Chat) and self.runtime.watchers and self.runtime.state.phase == Phase.LOCALIZING:
-            self.runtime.spawn(self._send(None))
+        if logged.is_(ev.Chat) and self.watchers and self.trial.state.phase == Phase.LOCALIZING:
+            self.trial.spawn(self._send(None))
 
     def welcome(self, conn: Connection) -> None:
-        if self.runtime.state.phase == Phase.LOCALIZING:
-            self.runtime.spawn(self._send(conn))
+        if self.trial.state.phase == Phase.LOCALIZING:
+            self.trial.spawn(self._send(conn))
 
     async def _send(self, only: Connection | None) -> None:
-        rt = self.runtime
+        rt = self.trial
         chats = [e for e in rt.history if e.is_(ev.Chat)]
         if not chats:
             return
@@ -116,7 +131,7 @@ class LiveBelief:
         )
         model = self.model
         try:
-            maze = rt.parts.mazes.load(rt.state.maze)
+            maze = self.mazes.load(rt.state.maze)
             top = await asyncio.to_thread(model.top, maze, dialog)
         except Exception:  # the watch page goes without a belief; the trial is untouched
             logger.exception("trial %s: no LDH belief", rt.trial_id)
@@ -135,5 +150,5 @@ class LiveBelief:
         if chats[-1].seq <= self._sent_upto:
             return
         self._sent_upto = chats[-1].seq
-        for conn in list(rt.watchers):
+        for conn in list(self.watchers):
             conn.deliver(message)

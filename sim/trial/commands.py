@@ -141,8 +141,15 @@ class GraceExpired:
 
 
 @dataclass(frozen=True)
+class JoinsDue:
+    """A lobby's trial reached its join deadline (`TrialState.join_by_ns`)."""
+
+
+@dataclass(frozen=True)
 class Reopen:
     """A server opens a trial from its log: seats and moves of the process before are gone."""
 
 
-Command = Act | Join | Leave | FinishMove | AbandonMoves | Note | Pause | Resume | Abort | GraceExpired | Reopen
+Command = (
+    Act | Join | Leave | FinishMove | AbandonMoves | Note | Pause | Resume | Abort | GraceExpired | JoinsDue | Reopen
+)

@@ -20,6 +20,7 @@ from sim.trial.commands import (
     FinishMove,
     GraceExpired,
     Join,
+    JoinsDue,
     Judge,
     Leave,
     Localize,
@@ -32,6 +33,7 @@ from sim.trial.commands import (
     Say,
     named,
 )
+from sim.trial.specs import HUMAN
 from sim.trial.state import TrialState
 from sim.trial.vocabulary import EXPERIMENTER_PAUSE, Move, Outcome, Phase, Role, disconnect_pause
 
@@ -81,6 +83,18 @@ def decide(state: TrialState, command: Command) -> list[ev.Event]:
             if role not in state.away:
                 return []
             return [ev.PhaseChanged(phase=Phase.ABORTED, reason=f"the {role} was away longer than the grace period")]
+        case JoinsDue():
+            # A lobby paired the seats: one a person has not opened by the deadline aborts the
+            # trial, saying whose (the lobby pairs again).
+            people = [
+                r for r, spec in ((Role.COMMANDER, state.commander), (Role.DRIVER, state.driver)) if spec == str(HUMAN)
+            ]
+            absent = [role for role in people if role not in state.joined]
+            if state.phase != Phase.WAITING or not absent:
+                return []
+            return [
+                ev.PhaseChanged(phase=Phase.ABORTED, reason=" and ".join(f"the {r}" for r in absent) + " never joined")
+            ]
     raise TypeError(f"not a trial command: {command!r}")
 
 

@@ -116,7 +116,7 @@ def test_the_agent_waits_answers_moves_when_told_and_sees_only_what_a_driver_see
     runtime, answer, report = asyncio.run(command())
     moves = events_of(services, trial_id, "move_executed")
     chats = events_of(services, trial_id, "chat")
-    backend = runtime.backend
+    backend = runtime.robot.backend
     observed_now = backend.rays.observation(*backend.grid_pose) if backend is not None else None
     assert answer and report
     assert [m["action"] for m in moves] == ["left", "left"]  # a right angle: two 45-degree turns

@@ -25,7 +25,7 @@ from pydantic import ValidationError
 
 from app.main import build_services
 from app.settings import Settings
-from app.trial.runtime import REFUSED_RUN_S
+from app.trial.refusals import REFUSED_RUN_S
 from bench.live import REPO, SeatClient, ServerProcess, make_trial
 from robot_client.protocol import pack_frame
 from sim.trial.state import fold

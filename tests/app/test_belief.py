@@ -136,7 +136,7 @@ def test_the_filter_runs_only_while_someone_watches_the_trial(server, trial, sea
     cookie = session_cookie(experimenter_client(server.services, server.url)).split("=", 1)[1]
 
     def filter_built() -> bool:
-        return next(r for r in server.services.hub.live() if r.trial_id == trial).belief is not None
+        return next(r for r in server.services.hub.live() if r.trial_id == trial).watching.belief is not None
 
     async def play() -> None:
         async with (

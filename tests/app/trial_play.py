@@ -21,7 +21,7 @@ def oracle_action(services, trial_id: int) -> Action:
     state = runtime.state
     graph, maze = services.mazes.graph(state.maze), services.mazes.load(state.maze)
     goal = graph.nearest_node(*maze.objects[state.current_target])
-    return teacher_action(graph, snap_pose(graph, *runtime.backend.pose()), goal)
+    return teacher_action(graph, snap_pose(graph, *runtime.robot.backend.pose()), goal)
 
 
 def facing_action(services, trial_id: int) -> Action:
@@ -30,7 +30,7 @@ def facing_action(services, trial_id: int) -> Action:
     runtime = services.hub.peek(trial_id)
     state = runtime.state
     graph, maze = services.mazes.graph(state.maze), services.mazes.load(state.maze)
-    pose = snap_pose(graph, *runtime.backend.pose())
+    pose = snap_pose(graph, *runtime.robot.backend.pose())
     (x, y), (ox, oy) = graph.nodes[pose.node], maze.objects[state.current_target]
     turn = (heading_index(math.atan2(oy - y, ox - x)) - pose.heading) % 8
     return Action.STOP if turn == 0 else Action.LEFT if turn <= 4 else Action.RIGHT

@@ -52,7 +52,7 @@ class Person:
     def view(self) -> p.Saw:
         """What the camera shows now (the simulator's view at the robot's pose)."""
         self.frames += 1
-        pose = snap_pose(self.graph, *self.runtime.backend.pose())
+        pose = snap_pose(self.graph, *self.runtime.robot.backend.pose())
         return p.Saw(self.frames, self.rays.observation(*pose))
 
     def look(self) -> bool:

@@ -36,7 +36,7 @@ def test_told_in_words_it_never_met_it_asks_and_then_does_it(browser, start_serv
     mark_on_map(page)
     page.wait_for_selector("#status[data-phase=navigating]")
     runtime = services.hub.peek(trial_id)
-    backend = runtime.backend
+    backend = runtime.robot.backend
     start = _heading(backend)
 
     asked = say(page, UNHEARD)

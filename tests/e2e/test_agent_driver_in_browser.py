@@ -86,7 +86,7 @@ def test_a_commander_talks_the_dialog_agent_to_its_first_target(browser, start_s
     maze, graph = services.mazes.load(MAZE), services.mazes.graph(MAZE)
     person = OracleCommander(graph, RayTable.build(maze, graph), [("mug", maze.objects["mug"])])
     person.reset(SeatInfo(Role.COMMANDER, 3))
-    backend = runtime.backend
+    backend = runtime.robot.backend
     person.pose = snap_pose(graph, *backend.pose())
     (first,) = person.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
     answers = [say(page, first.text)]
