@@ -87,7 +87,7 @@ class AgentSeats:
         self.trial, self.parts, self.seats = trial, parts, seats
         settings = parts.settings
         self.caps = Caps(settings.agent_moves_per_target, settings.agent_messages_per_target)
-        self.pair = agent_pair(dict.fromkeys(seats, None))
+        self.pair = agent_pair(seats.keys())
         self.paced = settings.agent_pairs_paced or not self.pair
         self.table: Table | None = None
         self.news = asyncio.Event()  # a percept queued while the table waited

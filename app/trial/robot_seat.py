@@ -100,17 +100,19 @@ class RobotSeat:
             self.watching.frame(frame)
 
     def _log_frame(self, rel: str, frame: Frame, source: FrameSource) -> int:
-        size = {"capture_ns": frame.capture_ns, "width": frame.width, "height": frame.height}
         frame_id = self.trial.state.last_seq + 1  # the frame event's own seq
         driver = source == FrameSource.DRIVER
         event = ev.FrameRecorded(
             frame_id=frame_id,
             source=source,
             path=rel,
-            **size,
+            capture_ns=frame.capture_ns,
+            width=frame.width,
+            height=frame.height,
             rays=frame.observation if driver else None,  # what the agent seats see of it
             jpeg=frame.jpeg if driver else None,
         )
+        row = {"source": str(source), "path": rel, "capture_ns": frame.capture_ns}
         attach = {Role.DRIVER: {"jpeg": base64.b64encode(frame.jpeg).decode()}} if driver else {}
-        self.trial.apply(c.Note(event), attach, frame={"source": str(source), "path": rel, **size})
+        self.trial.apply(c.Note(event), attach, frame=row | {"width": frame.width, "height": frame.height})
         return frame_id

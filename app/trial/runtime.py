@@ -263,22 +263,23 @@ class TrialRuntime:
             case c.Claim() if (frame_id := self.state.last_frame_id) is not None:
                 claim = views.claim_attachment(frame_id, self.frame_jpeg)
                 return self.apply(replace(act, now=now), {Role.COMMANDER: {"claim": claim}})
-            case c.Judge() if (pose := self.true_pose()) is not None and (claim := self.state.pending_claim):
-                within_m = self.parts.mazes.distance_m(self.state.maze, claim["target"], pose)
+            case c.Judge() if (pose := self.true_pose()) is not None and (claimed := self.state.pending_claim):
+                within_m = self.parts.mazes.distance_m(self.state.maze, claimed["target"], pose)
                 return self.apply(replace(act, now=replace(now, within_m=within_m)))
         return self.apply(replace(act, now=now))
 
     async def _move(self, act: c.Act) -> list[ev.Event]:
         assert isinstance(act.action, c.RequestMove)  # a socket names its move; one is drawn for an agent's
-        act = replace(act, action=replace(act.action, move_id=act.action.move_id or uuid.uuid4().hex[:12]))
+        request = replace(act.action, move_id=act.action.move_id or uuid.uuid4().hex[:12])
+        act = replace(act, action=request)
         asked = decide(self.state, act)
         if isinstance(refusal := asked[0], ev.MovesRefused):  # the Driver hears why now, the log with its run
             self.refusals.hold(refusal)
-            self.audience.move_refused(act.action, refusal.reason, act.now.t_ns)
+            self.audience.move_refused(request, refusal.reason, act.now.t_ns)
             return asked
         self.apply(act)
-        outcome, reason = await self.robot.execute(act.action.move)
-        self.apply(c.FinishMove(str(act.action.move_id), outcome, reason))
+        outcome, reason = await self.robot.execute(request.move)
+        self.apply(c.FinishMove(str(request.move_id), outcome, reason))
         if outcome != Outcome.REFUSED:
             self.robot.moved()
         return asked

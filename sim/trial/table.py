@@ -11,7 +11,7 @@ per target; at either the agent says so and the trial ends, aborted, the reason 
 from __future__ import annotations
 
 from collections import Counter, deque
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Collection
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -132,6 +132,6 @@ class Table:
         return None
 
 
-def agent_pair(agents: dict[Role, Agent]) -> bool:
+def agent_pair(agent_roles: Collection[Role]) -> bool:
     """Agents in both participants' seats: nothing but the table can move the trial on."""
-    return all(role in agents for role in PARTICIPANTS)
+    return all(role in agent_roles for role in PARTICIPANTS)
