@@ -14,7 +14,6 @@ import asyncio
 import contextlib
 import json
 import logging
-from typing import Any
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from pydantic import ValidationError
@@ -27,7 +26,7 @@ from app.guard import socket_origin_allowed
 from app.security import SESSION_COOKIE, InvalidToken, Seat, SeatTokens, Sessions
 from app.serving import MESSAGE_TOO_BIG
 from app.trial import messages as m
-from app.trial.messages import ServerMessage
+from app.trial.messages import Message, ServerMessage
 from app.trial.runtime import UnknownTrial
 from app.trial.views import EXPERIMENTER
 from app.web import over_reason
@@ -48,12 +47,12 @@ class SocketSeat:
 
     def __init__(self, ws: WebSocket, role: str) -> None:
         self.ws, self.role = ws, role
-        self.outbox: asyncio.Queue[dict[str, Any]] = asyncio.Queue(OUTBOX_LIMIT)
+        self.outbox: asyncio.Queue[Message] = asyncio.Queue(OUTBOX_LIMIT)
         self.loop = asyncio.get_running_loop()
         self.writer = self.loop.create_task(self._write())
         self.dropped = False
 
-    def deliver(self, message: dict[str, Any]) -> None:
+    def deliver(self, message: Message) -> None:
         if self.dropped:
             return
         try:

@@ -8,12 +8,13 @@ from __future__ import annotations
 import math
 from collections.abc import AsyncIterator, Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from app.backends.base import BackendUnavailable, Frame, MoveOutcome
 from app.db.models import Robot
 from app.rover.links import RobotLink, RobotLinks
 from app.rover.tracker_seat import TrialTracker
+from app.trial.messages import Message
 from app.trial.port import RobotTrial
 from sim.core.geometry import GRID_STEP_M
 from sim.trial.specs import BackendSpec
@@ -34,7 +35,7 @@ class RobotSeat:
 
     role = Role.ROBOT
 
-    def deliver(self, message: dict[str, Any]) -> None:
+    def deliver(self, message: Message) -> None:
         pass
 
 

@@ -27,6 +27,7 @@ from typing import Any, Protocol
 from app.perception.cameras import CameraUnknown, driver_calibration
 from app.seats.base import Oracle, Seating
 from app.seats.registry import AgentParts, create_agent
+from app.trial.messages import Message
 from sim.core.rays import RayObservation
 from sim.robot.frames import FrameError, decode_jpeg
 from sim.robot.perception import PerceptionError, perceive
@@ -78,7 +79,7 @@ class AgentSeat:
     def __init__(self, role: Role) -> None:
         self.role = role
 
-    def deliver(self, message: dict[str, Any]) -> None:
+    def deliver(self, message: Message) -> None:
         pass
 
 

@@ -5,27 +5,25 @@ status when any field but the clocks changes; all of it once the log has committ
 
 from __future__ import annotations
 
-from typing import Any
-
 from app.trial import views
 from app.trial.log import EventLog
-from app.trial.messages import ServerMessage
+from app.trial.messages import Message, ServerMessage, StatusMessage
 from app.trial.port import Connection
 from sim.trial import events as ev
 from sim.trial.commands import RequestMove
 from sim.trial.events import LoggedEvent
 from sim.trial.vocabulary import PARTICIPANTS, Role
 
-Attachments = dict[str, dict[str, Any]]  # per role: what its message of an event carries besides the event
+Attachments = dict[str, dict[str, object]]  # per role: what its message of an event carries besides the event
 
 
 class Audience:
     def __init__(self, trial_id: int, log: EventLog, watchers: set[Connection]) -> None:
         self.trial_id, self.log, self.watchers = trial_id, log, watchers
         self.seats: dict[str, Connection] = {}
-        self._status: dict[str, Any] | None = None  # the last status sent, less the clocks
+        self._status: dict[str, object] | None = None  # the last status sent, less the clocks
 
-    def send(self, conn: Connection, message: dict[str, Any]) -> None:
+    def send(self, conn: Connection, message: Message) -> None:
         self.log.after_commit(self.trial_id, conn.deliver, message)
 
     def hear(self, logged: LoggedEvent, attachments: Attachments) -> None:
@@ -36,7 +34,7 @@ class Audience:
                 hears_as = Role.DRIVER if role == views.EXPERIMENTER and logged.is_(ev.FrameRecorded) else role
                 self.send(conn, message | attachments.get(hears_as, {}))
 
-    def status(self, status: dict[str, Any]) -> None:
+    def status(self, status: StatusMessage) -> None:
         unclocked = {k: v for k, v in status.items() if k not in views.CLOCK_FIELDS}
         if unclocked == self._status:
             return

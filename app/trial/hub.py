@@ -5,11 +5,11 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-from typing import Any
 
 from sqlalchemy import select
 
 from app.db.models import Trial
+from app.trial.messages import TrialSnapshot
 from app.trial.relay import RedisRelay, RemoteTrial
 from app.trial.runtime import TrialParts, TrialRuntime, UnknownTrial
 from sim.trial.vocabulary import Phase
@@ -94,7 +94,7 @@ class TrialHub:
         """The trials this process runs that are not over."""
         return [r for r in self._runtimes.values() if not r.state.over]
 
-    async def snapshots(self) -> list[dict[str, Any]]:
+    async def snapshots(self) -> list[TrialSnapshot]:
         """Every live trial of the server for the dashboard: this process's, and with Redis the
         other processes' (a trial taken over meanwhile is listed once, as this process has it)."""
         mine = [runtime.snapshot() for runtime in self.live()]

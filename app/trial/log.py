@@ -23,7 +23,7 @@ import threading
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypedDict
 
 from sqlalchemy import insert, select, update
 from sqlalchemy.orm import Session, sessionmaker
@@ -37,11 +37,42 @@ logger = logging.getLogger(__name__)
 Send = tuple[int | None, Callable[..., None], tuple[Any, ...]]
 
 
+class EventRow(TypedDict):
+    trial_id: int
+    seq: int
+    kind: str
+    t_ns: int
+    payload: dict[str, Any]
+
+
+class FrameRow(TypedDict):
+    """A camera image's row beside its `frame` event (the trial and seq are the event's)."""
+
+    source: str
+    path: str
+    capture_ns: int
+    width: int
+    height: int
+
+
+class FrameRecord(FrameRow):
+    trial_id: int
+    seq: int
+
+
+class TrialCache(TypedDict):
+    """The trial row's columns kept from its log, as a phase changes."""
+
+    phase: str
+    moves: int
+    active_s: float | None
+
+
 @dataclass
 class _Batch:
-    events: list[dict[str, Any]] = field(default_factory=list)
-    frames: list[dict[str, Any]] = field(default_factory=list)
-    caches: dict[int, dict[str, Any]] = field(default_factory=dict)
+    events: list[EventRow] = field(default_factory=list)
+    frames: list[FrameRecord] = field(default_factory=list)
+    caches: dict[int, TrialCache] = field(default_factory=dict)
     after: list[Send] = field(default_factory=list)
 
 
@@ -80,19 +111,19 @@ class EventLog:
         trial_id: int,
         event: LoggedEvent,
         *,
-        frame: dict[str, Any] | None = None,
-        trial_cache: dict[str, Any] | None = None,
+        frame: FrameRow | None = None,
+        trial_cache: TrialCache | None = None,
     ) -> None:
         """Queue one event, with its frame row and the trial's cached columns, for the next
         commit; a seq already taken (another process wrote this trial) fails that trial's part."""
         batch = self._pending
         batch.events.append(
-            {"trial_id": trial_id, "seq": event.seq, "kind": event.kind, "t_ns": event.t_ns, "payload": event.payload}
+            EventRow(trial_id=trial_id, seq=event.seq, kind=event.kind, t_ns=event.t_ns, payload=event.payload)
         )
         if frame is not None:
-            batch.frames.append({"trial_id": trial_id, "seq": event.seq, **frame})
+            batch.frames.append(FrameRecord(trial_id=trial_id, seq=event.seq, **frame))
         if trial_cache:
-            batch.caches.setdefault(trial_id, {}).update(trial_cache)
+            batch.caches[trial_id] = trial_cache  # the latest phase's
         loop = _running_loop()
         if loop is None:
             self.flush()
@@ -221,9 +252,7 @@ class EventLog:
                     lost[trial_id] = err
         return lost
 
-    def _write(
-        self, events: list[dict[str, Any]], frames: list[dict[str, Any]], caches: dict[int, dict[str, Any]]
-    ) -> None:
+    def _write(self, events: list[EventRow], frames: list[FrameRecord], caches: dict[int, TrialCache]) -> None:
         # Core statements, not the ORM: this runs for every event of every live trial.
         with self.engine.begin() as conn:
             conn.execute(insert(models.Event), events)

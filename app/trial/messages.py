@@ -6,8 +6,9 @@ strict: a coordinate "0.5" or true is a bad message, not a number (integers are 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from enum import StrEnum
-from typing import Annotated, Literal
+from typing import Annotated, Literal, NotRequired, TypedDict
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
 
@@ -29,6 +30,85 @@ class ServerMessage(StrEnum):
     REPLACED = "replaced"  # the seat was opened elsewhere
     BELIEF = "belief"  # the particle filter's, to watchers
     LDH_BELIEF = "ldh_belief"  # the LDH model's, to watchers
+
+
+Message = Mapping[str, object]  # any message the server sends: one of the typed ones below, or a reply
+
+
+class EventMessage(TypedDict):
+    """One logged event, as a role may hear it (`views.view`)."""
+
+    type: ServerMessage
+    seq: int
+    kind: str
+    t_ns: int
+    payload: dict[str, object]
+
+
+class StatusMessage(TypedDict):
+    """Where the trial stands (docs/platform.md, "status")."""
+
+    type: ServerMessage
+    phase: str
+    target_index: int
+    targets_total: int
+    elapsed_s: float
+    running: bool
+    moves: int
+    paused: list[str]
+    waiting_for: list[str]
+    abort_reason: str | None
+    claim_pending: bool
+    join_left_s: float | None
+
+
+class Photo(TypedDict):
+    """A frame for a page: a claim's, or the Driver's latest (base64 JPEG; None: not stored)."""
+
+    frame_id: int
+    jpeg: str | None
+
+
+class WelcomeMessage(TypedDict):
+    type: ServerMessage
+    role: str
+    trial_id: int
+    phase: str
+    target_index: int
+    targets_total: int
+    connected: list[str]
+    seats_needed: list[str]
+    paused: list[str]
+    pending_claim: bool
+    last_seq: int
+    history: list[EventMessage]
+    status: StatusMessage
+    target: NotRequired[str | None]  # the Commander's
+    localization: NotRequired[dict[str, object] | None]  # the Commander's own mark; the experimenter's
+    claim: NotRequired[Photo]  # the Commander's pending claim
+    frame: NotRequired[Photo]  # the Driver's and the experimenter's
+    pose: NotRequired[tuple[float, float, float] | None]  # the experimenter's
+    targets: NotRequired[list[str]]
+
+
+class TrialSnapshot(TypedDict):
+    """One live trial on the experimenter's dashboard (`/experimenter/api/trials`)."""
+
+    trial_id: int
+    phase: str
+    target_index: int
+    target: str | None
+    elapsed_s: float
+    moves: int
+    collisions: int
+    pose: tuple[float, float, float] | None
+    paused: list[str]
+    seats: dict[str, bool]
+    waiting_for: list[str]
+    backend: str
+    localization: dict[str, object] | None
+    maze: str
+    belief: Message | None
 
 
 class _Message(BaseModel):

@@ -3,8 +3,9 @@ agent in a seat never holds the runtime itself (and never reaches into it)."""
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from typing import Protocol
 
+from app.trial.messages import Message
 from sim.trial.state import TrialState
 from sim.trial.vocabulary import FrameSource, Role
 
@@ -16,7 +17,7 @@ class Connection(Protocol):
     def role(self) -> str:
         """The seat's role (read-only here, so a seat may hold it as a `Role`)."""
 
-    def deliver(self, message: dict[str, Any]) -> None:
+    def deliver(self, message: Message) -> None:
         """Queue a message for this seat; never blocks."""
 
 

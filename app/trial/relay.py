@@ -33,7 +33,7 @@ import uuid
 from typing import TYPE_CHECKING, Any, cast
 
 from app.trial import messages as m
-from app.trial.messages import SeatMessage
+from app.trial.messages import Message, SeatMessage, TrialSnapshot
 from app.trial.views import EXPERIMENTER
 from sim.trial.vocabulary import Role
 
@@ -141,11 +141,11 @@ class RedisRelay:
             except Exception:
                 logger.exception("relay: publishing the dashboard's snapshots failed")
 
-    async def others_snapshots(self) -> list[dict[str, Any]]:
+    async def others_snapshots(self) -> list[TrialSnapshot]:
         """The live trials of the other live processes, as each last published them (up to
         `SNAPSHOTS_EVERY_S` old); a dead process's are dropped."""
         published = cast(dict[str, str], await self.redis.hgetall(self._snapshots_key))
-        snapshots: list[dict[str, Any]] = []
+        snapshots: list[TrialSnapshot] = []
         for process, data in published.items():
             if process == self.id:
                 continue
@@ -288,7 +288,7 @@ class RelayedSeat:
     def __init__(self, relay: RedisRelay, conn_id: str, role: str, process: str) -> None:
         self.relay, self.conn_id, self.role, self.process = relay, conn_id, role, process
 
-    def deliver(self, message: dict[str, Any]) -> None:
+    def deliver(self, message: Message) -> None:
         self.relay.send(self.process, {"op": "deliver", "conn": self.conn_id, "message": message})
 
 

@@ -13,7 +13,9 @@ from typing import Any, Protocol
 from app.backends.base import BackendUnavailable, Frame, RobotBackend
 from app.backends.registry import BackendParts, create_backend
 from app.clock import ServerClock
+from app.trial.audience import Attachments
 from app.trial.frames_store import FrameStore
+from app.trial.log import FrameRow
 from app.trial.port import RobotTrial
 from app.trial.watch import Watch
 from sim.core.geometry import wrap_angle
@@ -29,7 +31,9 @@ class Recording(RobotTrial, Protocol):
     @property
     def state(self) -> TrialState: ...
 
-    def apply(self, command: c.Command, attachments: Any = None, frame: dict[str, Any] | None = None) -> Any: ...
+    def apply(
+        self, command: c.Command, attachments: Attachments | None = None, frame: FrameRow | None = None
+    ) -> Any: ...
 
     def spawn(self, coro: Coroutine[Any, Any, Any]) -> asyncio.Task[Any]: ...
 
@@ -112,7 +116,9 @@ class RobotSeat:
             rays=frame.observation if driver else None,  # what the agent seats see of it
             jpeg=frame.jpeg if driver else None,
         )
-        row = {"source": str(source), "path": rel, "capture_ns": frame.capture_ns}
-        attach = {Role.DRIVER: {"jpeg": base64.b64encode(frame.jpeg).decode()}} if driver else {}
-        self.trial.apply(c.Note(event), attach, frame=row | {"width": frame.width, "height": frame.height})
+        row = FrameRow(
+            source=str(source), path=rel, capture_ns=frame.capture_ns, width=frame.width, height=frame.height
+        )
+        attach: Attachments = {Role.DRIVER: {"jpeg": base64.b64encode(frame.jpeg).decode()}} if driver else {}
+        self.trial.apply(c.Note(event), attach, frame=row)
         return frame_id

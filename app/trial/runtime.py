@@ -28,8 +28,8 @@ from app.trial import messages as m
 from app.trial import views
 from app.trial.audience import Attachments, Audience
 from app.trial.frames_store import FrameStore
-from app.trial.log import EventLog
-from app.trial.messages import ServerMessage
+from app.trial.log import EventLog, FrameRow, TrialCache
+from app.trial.messages import ServerMessage, StatusMessage, TrialSnapshot, WelcomeMessage
 from app.trial.port import Connection
 from app.trial.refusals import RefusedRuns
 from app.trial.robot_seat import RobotSeat
@@ -127,7 +127,7 @@ class TrialRuntime:
 
     # -- the log ------------------------------------------------------------------
     def apply(
-        self, command: c.Command, attachments: Attachments | None = None, frame: dict[str, Any] | None = None
+        self, command: c.Command, attachments: Attachments | None = None, frame: FrameRow | None = None
     ) -> list[ev.Event]:
         """Decide, commit, fold and tell the seats; returns the events. Raises `Refused`, recording nothing."""
         events = decide(self.state, command)
@@ -142,17 +142,17 @@ class TrialRuntime:
                 self.parts.over(self.trial_id, self.state.phase)
         return events
 
-    def _record(self, event: ev.Event, attachments: Attachments, frame: dict[str, Any] | None = None) -> None:
+    def _record(self, event: ev.Event, attachments: Attachments, frame: FrameRow | None = None) -> None:
         t_ns = self.parts.clock.now_ns()
         if self.state.last_t_ns is not None:
             t_ns = max(t_ns, self.state.last_t_ns + 1)  # one trial's stamps never go back, even across restarts
         logged = LoggedEvent(self.state.last_seq + 1, event.kind, t_ns, event.payload())
-        cache = None
+        cache: TrialCache | None = None
         if isinstance(event, ev.PhaseChanged):
             if event.phase.running and event.target_index is not None:  # the Commander learns each target as reached
                 attachments = {**attachments, Role.COMMANDER: {"target": self.state.targets[event.target_index]}}
             active = self.state.active_s(t_ns) if event.phase == Phase.FINISHED else None
-            cache = {"phase": str(event.phase), "moves": self.state.moves, "active_s": active}
+            cache = TrialCache(phase=str(event.phase), moves=self.state.moves, active_s=active)
         frame = frame if isinstance(event, ev.FrameRecorded) else None
         self.parts.log.append(self.trial_id, logged, frame=frame, trial_cache=cache)
         self.state.apply_event(event, logged.seq, logged.t_ns)
@@ -170,7 +170,7 @@ class TrialRuntime:
             self._ending = True
             self.spawn(self._end())
 
-    def status(self) -> dict[str, Any]:
+    def status(self) -> StatusMessage:
         return views.status_of(self.state, self.parts.clock.now_ns())
 
     # -- the robot ----------------------------------------------------------------
@@ -215,7 +215,7 @@ class TrialRuntime:
         self.watching.remove(conn)
         self._forget_if_unheld()
 
-    def welcome(self, role: str) -> dict[str, Any]:  # sent once the log has committed what it tells
+    def welcome(self, role: str) -> WelcomeMessage:  # sent once the log has committed what it tells
         seats = self.audience.seats
         return views.welcome(role, self.trial_id, self.state, seats, self.history, self.status(), self.frame_jpeg)
 
@@ -294,6 +294,6 @@ class TrialRuntime:
     def abort(self, reason: str | None = None) -> None:
         self.apply(c.Abort(reason))
 
-    def snapshot(self) -> dict[str, Any]:
+    def snapshot(self) -> TrialSnapshot:
         now_ns = self.parts.clock.now_ns()
         return views.snapshot(self.trial_id, self.state, now_ns, self.audience.seats, self.watching.message)

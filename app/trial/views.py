@@ -10,9 +10,8 @@ from __future__ import annotations
 
 import base64
 from collections.abc import Callable, Iterable
-from typing import Any
 
-from app.trial.messages import ServerMessage
+from app.trial.messages import EventMessage, Message, Photo, ServerMessage, StatusMessage, TrialSnapshot, WelcomeMessage
 from sim.trial import events as ev
 from sim.trial.events import LoggedEvent
 from sim.trial.state import TrialState
@@ -54,7 +53,7 @@ VISIBLE = {role: frozenset(model.kind for model in models) for role, models in S
 GROUND_TRUTH = ("within_m", "truly_within")
 
 
-def view(role: str, event: LoggedEvent) -> dict[str, Any] | None:
+def view(role: str, event: LoggedEvent) -> EventMessage | None:
     """The message a seat gets for `event`, or None when it must not see it."""
     if event.kind not in VISIBLE.get(role, ()):
         return None
@@ -73,7 +72,7 @@ def view(role: str, event: LoggedEvent) -> dict[str, Any] | None:
 CLOCK_FIELDS = ("elapsed_s", "join_left_s")  # figures of the moment of sending, which pages run on themselves
 
 
-def status_of(state: TrialState, now_ns: int) -> dict[str, Any]:
+def status_of(state: TrialState, now_ns: int) -> StatusMessage:
     """What every seat shows of where the trial stands (docs/platform.md, "status"). Sent after
     each event that changes any field but the clocks; pages run the clocks themselves."""
     join_left_s = None
@@ -95,7 +94,7 @@ def status_of(state: TrialState, now_ns: int) -> dict[str, Any]:
     }
 
 
-def claim_attachment(frame_id: int, jpeg_of: JpegOf) -> dict[str, Any]:
+def claim_attachment(frame_id: int, jpeg_of: JpegOf) -> Photo:
     """The frame a claim was made on, for the Commander to judge."""
     jpeg = jpeg_of(frame_id)
     return {"frame_id": frame_id, "jpeg": base64.b64encode(jpeg).decode() if jpeg else None}
@@ -107,14 +106,14 @@ def welcome(
     state: TrialState,
     connected: Iterable[str],
     events: Iterable[LoggedEvent],
-    status: dict[str, Any],
+    status: StatusMessage,
     jpeg_of: JpegOf,
-) -> dict[str, Any]:
+) -> WelcomeMessage:
     """What a seat (or the experimenter's watch) gets on joining: where the trial stands, the
     dialog so far as this role may hear it, and what only this role sees (the Commander's target,
     mark and pending claim; the Driver's last frame; the experimenter's pose, targets and estimate)."""
     s = state
-    message: dict[str, Any] = {
+    message: WelcomeMessage = {
         "type": ServerMessage.WELCOME,
         "role": role,
         "trial_id": trial_id,
@@ -146,8 +145,8 @@ def welcome(
 
 
 def snapshot(
-    trial_id: int, state: TrialState, now_ns: int, connected: Iterable[str], belief: dict[str, Any] | None
-) -> dict[str, Any]:
+    trial_id: int, state: TrialState, now_ns: int, connected: Iterable[str], belief: Message | None
+) -> TrialSnapshot:
     """One live trial on the experimenter's dashboard (`/experimenter/api/trials`)."""
     s, here = state, set(connected)
     return {
@@ -161,7 +160,7 @@ def snapshot(
         "pose": s.pose,
         "paused": sorted(s.pause_reasons),
         "seats": {r: r in here for r in s.seats_needed},
-        "waiting_for": s.waiting_for,
+        "waiting_for": [str(r) for r in s.waiting_for],
         "backend": s.backend,
         "localization": s.localization,
         "maze": s.maze,

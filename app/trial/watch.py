@@ -21,6 +21,7 @@ from app.perception.belief import FilterWorker, TrialBelief
 from app.perception.cameras import CameraUnknown, driver_calibration
 from app.settings import Settings
 from app.trial.ldh_belief import BeliefModel, LiveBelief
+from app.trial.messages import Message
 from app.trial.port import Connection
 from sim.trial.events import LoggedEvent
 from sim.trial.state import TrialState
@@ -52,7 +53,7 @@ class Watch:
         self.trial, self.parts = trial, parts
         self.watchers: set[Connection] = set()
         self.belief: TrialBelief | None = None
-        self.message: dict[str, Any] | None = None  # the filter's latest belief, for the watch page
+        self.message: Message | None = None  # the filter's latest belief, for the watch page
         self._building: asyncio.Task[None] | None = None
         self._last_frame: Frame | None = None  # the Driver camera's latest, for a filter built after it
         self.ldh = LiveBelief(trial, self.watchers, parts.ldh, parts.mazes)
