@@ -22,7 +22,7 @@ import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 import cv2
 import numpy as np
@@ -105,12 +105,17 @@ def _fraction_far(walls: NDArray[np.bool_], distance_m: NDArray[np.float32]) -> 
     return float((distance_m[walls] > WALL_TOLERANCE_M).sum()) / count if count else 0.0
 
 
+class LayoutRow(TypedDict):
+    id: str
+    runs: list[str]
+
+
 @dataclass(frozen=True)
 class Layout:
     id: str  # the name of its first maze, in the order given
     runs: tuple[str, ...]
 
-    def as_json(self) -> dict[str, Any]:
+    def as_json(self) -> LayoutRow:
         return {"id": self.id, "runs": list(self.runs)}
 
 
@@ -173,6 +178,14 @@ def cached_grouping(key: str, build: Callable[[], list[Layout]], cache_dir: str 
     return layouts
 
 
+class FoldCountRow(TypedDict):
+    split: str
+    instances: int
+    runs: int
+    layouts: int
+    shared_layouts: int
+
+
 @dataclass(frozen=True)
 class FoldCount:
     split: str
@@ -181,7 +194,7 @@ class FoldCount:
     layouts: int
     shared_layouts: int  # its layouts that another split also holds (under any run's name)
 
-    def as_json(self) -> dict[str, Any]:
+    def as_json(self) -> FoldCountRow:
         return {
             "split": self.split,
             "instances": self.instances,
