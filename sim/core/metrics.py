@@ -12,7 +12,7 @@ import math
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
@@ -79,6 +79,25 @@ def score_trajectory(graph: NavGraph, nodes: Iterable[int], goal: int) -> Trajec
     )
 
 
+class AgentSummary(TypedDict):
+    td_mean: float
+    td_std: float
+    otd_mean: float
+    otd_std: float
+    sr: float
+    spl: float
+    steps_mean: float
+    unreachable: int  # instances left out of the means: the goal cannot be reached from the stop
+
+
+class Summary(TypedDict):
+    """The JSON of `robotslang eval baselines` / `eval ndh`."""
+
+    split: str
+    n: int
+    agents: dict[str, AgentSummary]
+
+
 def _mean_std(values: np.ndarray) -> tuple[float, float]:
     if values.size == 0:
         return math.nan, math.nan
@@ -86,7 +105,7 @@ def _mean_std(values: np.ndarray) -> tuple[float, float]:
     return float(values.mean()), std
 
 
-def summarize_agent(results: list[EpisodeResult]) -> dict[str, Any]:
+def summarize_agent(results: list[EpisodeResult]) -> AgentSummary:
     """Mean and sample std (ddof=1) over instances; seeds are averaged per instance first.
 
     Instances whose goal cannot be reached from where the agent stopped have an infinite TD:
@@ -116,7 +135,7 @@ def summarize_agent(results: list[EpisodeResult]) -> dict[str, Any]:
     }
 
 
-def summarize(split: str, results: list[EpisodeResult]) -> dict[str, Any]:
+def summarize(split: str, results: list[EpisodeResult]) -> Summary:
     """The JSON of `robotslang eval baselines` / `eval ndh`: {split, n, agents: {NAME: {...}}}."""
     agents: dict[str, list[EpisodeResult]] = {}
     for r in results:

@@ -66,23 +66,19 @@ class Kind(StrEnum):
 
 # A phrasing's JSON file (held_out_commander.json, personas/commander_*.json): per kind of
 # instruction its templates, "turn" by 45-degree steps ("1" to "4").
-PhrasingFile = TypedDict(
-    "PhrasingFile",
-    {
-        "about": str,
-        "numbers": str,  # "digits" or "words"
-        "units": NotRequired[str],  # "cm": forward moves in centimetres
-        "turn": dict[str, list[str]],
-        "announce": list[str],
-        "ask_view": list[str],
-        "forward": list[str],
-        "forward_then_turn": list[str],
-        "turn_at_wall": list[str],
-        "until_target": list[str],
-        "there": list[str],
-        "reject": list[str],
-    },
-)
+class PhrasingFile(TypedDict):
+    about: str
+    numbers: str  # "digits" or "words"
+    units: NotRequired[str]  # "cm": forward moves in centimetres
+    turn: dict[str, list[str]]
+    announce: list[str]
+    ask_view: list[str]
+    forward: list[str]
+    forward_then_turn: list[str]
+    turn_at_wall: list[str]
+    until_target: list[str]
+    there: list[str]
+    reject: list[str]
 
 
 @dataclass(frozen=True)

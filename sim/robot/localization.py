@@ -14,7 +14,7 @@ import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 import cv2
 import numpy as np
@@ -136,6 +136,14 @@ def apply_move(
     return poses, collided
 
 
+class BeliefJson(TypedDict):
+    x: float
+    y: float
+    heading: float
+    spread_m: float
+    cloud: list[list[float]]
+
+
 @dataclass(frozen=True)
 class Belief:
     x: float
@@ -144,7 +152,7 @@ class Belief:
     spread_m: float  # root mean square distance of the particles from (x, y)
     cloud: np.ndarray  # (K <= 200, 4): x, y, heading, weight (weights sum to 1)
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> BeliefJson:
         return {
             "x": self.x,
             "y": self.y,
@@ -267,6 +275,15 @@ def _explore_action(pose: np.ndarray, space: FreeSpace, rng: np.random.Generator
     return Action.LEFT if rng.random() < 0.5 else Action.RIGHT
 
 
+class FilterResult(TypedDict):
+    converged_fraction_20_moves: float
+    err_median_m_20_moves: float
+    curve: list[float]  # median error of the belief's mean after each move, from the start
+    episodes: int
+    moves: int
+    particles: int
+
+
 def evaluate_filter(
     mazes: Maze | Sequence[Maze],
     episodes: int = 20,
@@ -279,7 +296,7 @@ def evaluate_filter(
     truth_noise: MotionNoise = MotionNoise(),
     within_m: float = 0.15,
     progress: bool = False,
-) -> dict[str, Any]:
+) -> FilterResult:
     """Episodes from a uniform belief: the true rover moves with `truth_noise` (collisions stop
     it), each frame goes through the camera model and perception, the filter gets the moves and
     the perceived rays. Error = distance from the belief's mean to the true position."""
@@ -321,7 +338,7 @@ def evaluate_filter(
     }
 
 
-def plot_filter_curve(result: dict[str, Any], path: str | Path) -> None:
+def plot_filter_curve(result: FilterResult, path: str | Path) -> None:
     """The median belief error against moves, as a PNG."""
     import matplotlib
 

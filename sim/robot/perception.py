@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any, TypeVar
+from typing import TypeVar
 
 import cv2
 import numpy as np
@@ -466,7 +466,7 @@ def evaluate_perception(
     camera: FrontCamera | None = None,
     calibration: CameraCalibration | None = None,
     progress: bool = False,
-) -> dict[str, Any]:
+) -> dict[str, float]:
     """Perceived rays against `cast_rays` at the same true poses, over random poses on `mazes`
     (a `Maze` or a list). label_accuracy: over all rays, a ray not read counting as wrong;
     depth_mae_m: over the read rays whose true hit is a wall within 1 m; too_close_accuracy:

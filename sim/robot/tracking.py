@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import cv2
 import numpy as np
@@ -23,7 +23,7 @@ from tqdm import tqdm
 
 from sim.robot import fiducials
 from sim.robot.calibration import CalibrationError, load_json, save_json
-from sim.robot.fiducials import MarkerLayout
+from sim.robot.fiducials import MarkerLayout, MarkerLayoutJson
 from sim.robot.frames import decode_jpeg
 from sim.robot.overhead import Imaging, OverheadCamera, render_overhead
 
@@ -41,6 +41,17 @@ class TrackedPose:
     heading: float  # radians, (-pi, pi], counter-clockwise from +x
     t_ns: int  # the frame's time, as given to `update`
     quality: float  # (0, 1]: how exactly the marker seen is the marker printed
+
+
+class OverheadCalibrationFile(TypedDict):
+    """The overhead camera's calibration file (`OverheadCalibration.save`)."""
+
+    version: int
+    image_size: list[int]  # width, height
+    homography: list[list[float]]  # table metres -> pixels
+    camera_matrix: list[list[float]]
+    layout: MarkerLayoutJson
+    reprojection_px: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -75,7 +86,7 @@ class OverheadCalibration:
         return float(np.median(np.concatenate(errors))) if errors else None
 
     # -- JSON ---------------------------------------------------------------------
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> OverheadCalibrationFile:
         return {
             "version": CALIBRATION_VERSION,
             "image_size": list(self.image_size),
@@ -350,7 +361,7 @@ def evaluate_tracker(
     camera: OverheadCamera | None = None,
     imaging: Imaging | None = None,
     progress: bool = False,
-) -> dict[str, Any]:
+) -> dict[str, float]:
     """The tracker against known truth: each of `poses` ((x, y, heading), one per frame at
     `fps`) rendered by the overhead camera, sent as a JPEG of `jpeg_quality` as the server
     receives it, tracked after a calibration from a JPEG of the empty table. Errors are over
