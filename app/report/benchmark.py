@@ -8,7 +8,7 @@ from typing import TypedDict
 
 from app.report.study import DialogNumbers, dialog_numbers
 from sim.tasks.benchmark import Benchmark, Split
-from sim.tasks.layouts import FoldCountRow, fold_counts
+from sim.tasks.layouts import FoldCount, fold_counts
 
 
 class Paper(TypedDict):
@@ -31,7 +31,7 @@ class BenchmarkNumbers(TypedDict):
     messages_per_dialog: float | None
     words_per_dialog: float | None
     dialog: DialogNumbers
-    folds: list[FoldCountRow]
+    folds: list[FoldCount]
     paper: Paper
     not_in_files: dict[str, str]  # a number of the paper -> why the files cannot give it
 
@@ -67,14 +67,13 @@ def benchmark_numbers(path: Path, layout_of: dict[str, str]) -> BenchmarkNumbers
                 longest[inst.run] = inst.dialog
     dialogs = [longest[run] for run in sorted(longest)]
     numbers = dialog_numbers(dialogs)
-    counts = fold_counts({s: [i.run for i in insts] for s, insts in splits.items()}, layout_of)
     return {
         "source": str(path),
         "counts": {"trials": len(longest), "layouts": len({layout_of.get(r, r) for r in longest})},
         "messages_per_dialog": numbers["messages_per_dialog"],
         "words_per_dialog": numbers["words_per_dialog"],
         "dialog": numbers,
-        "folds": [c.as_json() for c in counts],
+        "folds": fold_counts({s: [i.run for i in insts] for s, insts in splits.items()}, layout_of),
         "paper": PAPER,
         "not_in_files": NOT_IN_FILES,
     }

@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Iterable
-from dataclasses import asdict, dataclass, fields
+from collections.abc import Iterable, Mapping
+from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, TypedDict
+from typing import TypedDict
 
 import numpy as np
 
@@ -53,6 +53,26 @@ class EpisodeResult:
     steps: int  # moves made (forward, left, right), not counting the final stop
     success: bool
     spl: float
+
+    @classmethod
+    def from_row(cls, row: Mapping[str, str]) -> EpisodeResult:
+        """A row of `write_csv`'s file."""
+        return cls(
+            row["split"],
+            int(row["inst_idx"]),
+            row["agent"],
+            int(row["seed"]),
+            float(row["start_x"]),
+            float(row["start_y"]),
+            float(row["start_heading"]),
+            float(row["goal_x"]),
+            float(row["goal_y"]),
+            float(row["td"]),
+            float(row["otd"]),
+            int(row["steps"]),
+            bool(int(row["success"])),
+            float(row["spl"]),
+        )
 
 
 @dataclass(frozen=True)
@@ -157,21 +177,5 @@ def write_csv(path: str | Path, results: Iterable[EpisodeResult]) -> None:
 
 
 def read_csv(path: str | Path) -> list[EpisodeResult]:
-    types = {f.name: f.type for f in fields(EpisodeResult)}
-    out = []
     with Path(path).open() as f:
-        for row in csv.DictReader(f):
-            values: dict[str, Any] = {
-                k: (
-                    row[k]
-                    if types[k] == "str"
-                    else bool(int(row[k]))
-                    if types[k] == "bool"
-                    else int(row[k])
-                    if types[k] == "int"
-                    else float(row[k])
-                )
-                for k in CSV_COLUMNS
-            }
-            out.append(EpisodeResult(**values))
-    return out
+        return [EpisodeResult.from_row(row) for row in csv.DictReader(f)]

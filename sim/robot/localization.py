@@ -26,7 +26,7 @@ from sim.core.maze import Maze
 from sim.core.observations import PX_PER_M_X, RAY_OFFSETS, WALL_CLEARANCE_M, ray_caster
 from sim.core.rays import RayObservation
 from sim.robot.camera import CameraCalibration, FrontCamera, capture
-from sim.robot.perception import perceive, simulated_calibration
+from sim.robot.perception import evaluation_rig, perceive, progress_bar
 
 DEPTH_CAP_M = 2.0  # beyond this a depth says little (the wall base is near the horizon)
 
@@ -142,6 +142,15 @@ class BeliefJson(TypedDict):
     heading: float
     spread_m: float
     cloud: list[list[float]]
+
+
+class FilterResult(TypedDict):
+    converged_fraction_20_moves: float
+    err_median_m_20_moves: float
+    curve: list[float]  # median error of the belief's mean after each move, from the start
+    episodes: int
+    moves: int
+    particles: int
 
 
 @dataclass(frozen=True)
@@ -275,15 +284,6 @@ def _explore_action(pose: np.ndarray, space: FreeSpace, rng: np.random.Generator
     return Action.LEFT if rng.random() < 0.5 else Action.RIGHT
 
 
-class FilterResult(TypedDict):
-    converged_fraction_20_moves: float
-    err_median_m_20_moves: float
-    curve: list[float]  # median error of the belief's mean after each move, from the start
-    episodes: int
-    moves: int
-    particles: int
-
-
 def evaluate_filter(
     mazes: Maze | Sequence[Maze],
     episodes: int = 20,
@@ -300,21 +300,11 @@ def evaluate_filter(
     """Episodes from a uniform belief: the true rover moves with `truth_noise` (collisions stop
     it), each frame goes through the camera model and perception, the filter gets the moves and
     the perceived rays. Error = distance from the belief's mean to the true position."""
-    from sim.core.navgraph import NavGraph
-
-    mazes = [mazes] if isinstance(mazes, Maze) else list(mazes)
-    camera = camera or FrontCamera()
-    if calibration is None:
-        calibration = simulated_calibration(camera, [(m, NavGraph.build(m)) for m in mazes], seed=seed + 1000)
+    worlds, camera, calibration = evaluation_rig(mazes, seed, camera, calibration)
     rng = np.random.default_rng(seed)
     errors = np.zeros((episodes, moves + 1))
-    items = range(episodes)
-    if progress:
-        from tqdm import tqdm
-
-        items = tqdm(items, desc="particle filter")
-    for e in items:
-        maze = mazes[e % len(mazes)]
+    for e in progress_bar(range(episodes), progress, "particle filter"):
+        maze = worlds[e % len(worlds)][0]
         space = free_space(maze)
         pf = ParticleFilter(maze, n_particles, seed=int(rng.integers(2**31)), converged_particles=converged_particles)
         truth = space.sample(1, rng)

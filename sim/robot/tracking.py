@@ -352,24 +352,27 @@ def _mean(ms: list[_Measurement]) -> tuple[float, float, float]:
     return sum(m.x for m in ms) / len(ms), sum(m.y for m in ms) / len(ms), heading
 
 
+class TrackerScores(TypedDict):
+    pos_err_median_m: float
+    pos_err_p95_m: float
+    heading_err_median_deg: float
+    tracked_fraction: float  # of the frames, those that gave a pose
+
+
 def evaluate_tracker(
     maze: Maze,
     poses: ArrayLike,
     seed: int = 0,
     fps: float = 5.0,
     jpeg_quality: int = 80,
-    camera: OverheadCamera | None = None,
-    imaging: Imaging | None = None,
+    camera: OverheadCamera = OverheadCamera(),
+    imaging: Imaging = Imaging(),
     progress: bool = False,
-) -> dict[str, float]:
+) -> TrackerScores:
     """The tracker against known truth: each of `poses` ((x, y, heading), one per frame at
     `fps`) rendered by the overhead camera, sent as a JPEG of `jpeg_quality` as the server
     receives it, tracked after a calibration from a JPEG of the empty table. Errors are over
     the frames that gave a pose; `tracked_fraction` says how many did."""
-
-    from sim.robot.overhead import Imaging, OverheadCamera
-
-    camera, imaging = camera or OverheadCamera(), imaging or Imaging()
     rng = np.random.default_rng(seed)
 
     def jpeg(pose: np.ndarray | None) -> bytes:
