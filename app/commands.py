@@ -34,7 +34,7 @@ def serve(
     from app.serving import serve_processes
 
     # Flags override the environment; what is not given keeps its ROBOTSLANG_* value.
-    overrides: dict[str, Any] = {
+    overrides: dict[str, Path] = {
         name: value for name, value in (("data_dir", data_dir), ("benchmark", benchmark)) if value is not None
     }
     serve_processes(host, port, workers, overrides)

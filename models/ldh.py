@@ -182,6 +182,7 @@ def train(
     model = Localizer(cfg.dropout, cfg.prior)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=1e-4)
     history, best = [], {"epoch": None, "val_td": math.inf}
+    best_td = math.inf
     start = time.time()
     bar = tqdm(range(cfg.epochs), desc=f"train ldh seed {cfg.seed}", disable=not progress)
     for epoch in bar:
@@ -212,8 +213,8 @@ def train(
         val_td = val["agents"]["learned"]["td_mean"]
         history.append({"epoch": epoch, "loss": total / len(examples), "val_td": val_td})
         bar.set_postfix(loss=f"{total / len(examples):.3f}", val_td=f"{val_td:.3f}")
-        if val_td < best["val_td"]:
-            best = {"epoch": epoch, "val_td": val_td}
+        if val_td < best_td:
+            best, best_td = {"epoch": epoch, "val_td": val_td}, val_td
             save(model, cfg, out / "best.pt")
         model.train()
     result = {"config": asdict(cfg), "best": best, "history": history, "seconds": time.time() - start}

@@ -8,11 +8,15 @@ from __future__ import annotations
 import json
 from enum import Enum
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 
 from sim.cli.eval import BENCHMARK_OPTION, open_benchmark, parse_list
 from sim.tasks.benchmark import Split
+
+if TYPE_CHECKING:
+    from sim.tasks.ldh_eval import LDHSummary
 
 LEARNED = "learned"
 HUMANS_TD_M = 0.446  # the paper's people reading the dialogs
@@ -23,7 +27,7 @@ class VariantOption(str, Enum):
     full = "full"
 
 
-def print_table(summary: dict) -> None:
+def print_table(summary: LDHSummary) -> None:
     from rich.console import Console
     from rich.table import Table
 

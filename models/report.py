@@ -9,6 +9,7 @@ DIR/significance_seeds.json, DIR/td_distribution.png and DIR/learning_curves.png
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -108,7 +109,7 @@ def _marks(agent: str, metric: str, tests: list[Comparison]) -> str:
     return marks
 
 
-def _cell(summary: dict, metric: str, marks: str) -> str:
+def _cell(summary: Mapping[str, object], metric: str, marks: str) -> str:
     if metric == "success":
         return f"{summary['sr']:.3f}{marks}"
     if metric == "spl":

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TypedDict
 
 from app.annotation.events import Phenomenon
 from app.annotation.log import TrialAnnotations
@@ -28,6 +28,27 @@ def cohen_kappa(a: Sequence[bool], b: Sequence[bool]) -> float | None:
     return (observed - expected) / (1 - expected)
 
 
+class DisagreementRow(TypedDict):
+    trial: int
+    item: str
+    values: dict[str, int | bool]
+    adjudicated: int | bool | None
+
+
+class CutDistance(TypedDict):
+    per_trial: dict[str, int]  # trial id -> messages between the two cuts
+    mean: float | None
+    max: int | None
+    exact_share: float | None
+
+
+class AgreementNumbers(TypedDict):
+    double_annotated_trials: int
+    kappa: dict[str, float | None]  # per tag
+    cut_distance: CutDistance
+    disagreements: list[DisagreementRow]
+
+
 @dataclass(frozen=True)
 class Disagreement:
     trial_id: int
@@ -35,11 +56,11 @@ class Disagreement:
     values: dict[str, int | bool]  # annotator name -> their value
     adjudicated: int | bool | None
 
-    def as_json(self) -> dict[str, Any]:
+    def as_json(self) -> DisagreementRow:
         return {"trial": self.trial_id, "item": self.item, "values": self.values, "adjudicated": self.adjudicated}
 
 
-def agreement(annotations: Mapping[int, TrialAnnotations], names: Mapping[int, str]) -> dict[str, Any]:
+def agreement(annotations: Mapping[int, TrialAnnotations], names: Mapping[int, str]) -> AgreementNumbers:
     """Over the trials two annotators have submitted (the first two, by account id, where more
     did): kappa per phenomenon and per free tag, cut distances, and the disagreements."""
     pairs: dict[int, tuple[int, int]] = {}

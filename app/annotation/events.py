@@ -7,8 +7,9 @@ log keeps both (`AnnotationLog`).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from enum import StrEnum
-from typing import Any, ClassVar
+from typing import ClassVar
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -41,7 +42,7 @@ class AnnotationEventModel(BaseModel):
         """What a later event of this kind by the same annotator revises (one value per key)."""
         return self.kind
 
-    def payload(self) -> dict[str, Any]:
+    def payload(self) -> dict[str, object]:
         return self.model_dump(mode="json")
 
 
@@ -84,7 +85,7 @@ class Adjudicated(AnnotationEventModel):
 KINDS: dict[str, type[AnnotationEventModel]] = {cls.kind: cls for cls in (CutMarked, Tagged, Submitted, Adjudicated)}
 
 
-def parse(kind: str, payload: dict[str, Any]) -> AnnotationEventModel:
+def parse(kind: str, payload: Mapping[str, object]) -> AnnotationEventModel:
     cls = KINDS.get(kind)
     if cls is None:
         raise ValueError(f"unknown annotation event kind {kind!r}; expected one of {', '.join(KINDS)}")

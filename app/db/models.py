@@ -21,6 +21,16 @@ class Base(DeclarativeBase):
     pass
 
 
+class LogEntry:
+    """The columns of a row of any of the logs: what happened (its kind), when (the server's
+    clock, ns) and the JSON payload its kind defines."""
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    kind: Mapped[str] = mapped_column(String(32))
+    t_ns: Mapped[int] = mapped_column(BigInteger)
+    payload: Mapped[JsonObject] = mapped_column(JSON)
+
+
 class Experimenter(Base):
     __tablename__ = "experimenter"
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
@@ -81,15 +91,11 @@ class Trial(Base):
     notes: Mapped[str | None] = mapped_column(Text, nullable=True)
 
 
-class Event(Base):
+class Event(LogEntry, Base):
     __tablename__ = "event"
     __table_args__ = (UniqueConstraint("trial_id", "seq", name="uq_event_trial_seq"),)
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     trial_id: Mapped[int] = mapped_column(ForeignKey("trial.id"), index=True)
     seq: Mapped[int] = mapped_column(Integer)
-    kind: Mapped[str] = mapped_column(String(32))
-    t_ns: Mapped[int] = mapped_column(BigInteger)
-    payload: Mapped[JsonObject] = mapped_column(JSON)
 
 
 class Frame(Base):
@@ -140,30 +146,22 @@ class LDHStudyParticipant(Base):
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
-class LDHStudyEvent(Base):
+class LDHStudyEvent(LogEntry, Base):
     """A study's log: every answer, committed before the participant hears it was taken."""
 
     __tablename__ = "ldh_study_event"
     __table_args__ = (UniqueConstraint("study_id", "seq", name="uq_ldh_event_study_seq"),)
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     study_id: Mapped[int] = mapped_column(ForeignKey("ldh_study.id"), index=True)
     seq: Mapped[int] = mapped_column(Integer)
-    kind: Mapped[str] = mapped_column(String(32))
-    t_ns: Mapped[int] = mapped_column(BigInteger)
-    payload: Mapped[JsonObject] = mapped_column(JSON)
 
 
-class AnnotationEvent(Base):
+class AnnotationEvent(LogEntry, Base):
     """The annotations' own log (app.annotation.events): who annotated which trial, when, and
     what; a later event of the same annotator, kind and key revises the one it names."""
 
     __tablename__ = "annotation_event"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     trial_id: Mapped[int] = mapped_column(ForeignKey("trial.id"), index=True)
     annotator_id: Mapped[int] = mapped_column(ForeignKey("experimenter.id"))
-    kind: Mapped[str] = mapped_column(String(32))
-    t_ns: Mapped[int] = mapped_column(BigInteger)
-    payload: Mapped[JsonObject] = mapped_column(JSON)
     revises: Mapped[int | None] = mapped_column(Integer, nullable=True)  # the id of the event it replaces
 
 
@@ -204,17 +202,13 @@ class StudyParticipant(Base):
     panel_session: Mapped[str | None] = mapped_column(String(200), nullable=True)
 
 
-class StudyEvent(Base):
+class StudyEvent(LogEntry, Base):
     """A study's pseudonymous log (consent with the text's version, declines, answers, withdrawal):
-    kept when a participant withdraws."""
+    kept when a participant withdraws. Its kinds: `app.study.enrolment.StudyEventKind`."""
 
     __tablename__ = "study_event"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     study: Mapped[str] = mapped_column(String(80), index=True)
     participant_id: Mapped[int | None] = mapped_column(ForeignKey("participant.id"), nullable=True)  # None: declined
-    kind: Mapped[str] = mapped_column(String(32))  # app.study.enrolment.StudyEventKind
-    t_ns: Mapped[int] = mapped_column(BigInteger)
-    payload: Mapped[JsonObject] = mapped_column(JSON)
 
 
 class StudyAnswer(Base):

@@ -21,7 +21,7 @@ import shutil
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 import cv2
 import numpy as np
@@ -46,24 +46,44 @@ EPISODES_FILE = "meta/episodes/chunk-000/file-000.parquet"
 VIDEO_PATH = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4"
 
 
+class ChatMessage(TypedDict):
+    """One message of `language.messages`."""
+
+    speaker: str
+    text: str
+    t_ns: int
+    seq: int
+
+
+class Annotation(TypedDict):
+    """An episode's `annotation` (as a JSON string): the trial's dialog phenomena, anchored to
+    message numbers from 1, and the end of localization where one was marked."""
+
+    tags: dict[str, list[int]]
+    localized_after_message: int | None
+    localization_source: str | None
+
+
 @dataclass
 class Step:
     frame: LoggedEvent
     state: list[float]
     action: Action
     task: str
-    messages: list[dict[str, Any]] = field(default_factory=list)
+    messages: list[ChatMessage] = field(default_factory=list)
 
 
-def _chat(event: LoggedEvent) -> dict[str, Any]:
+def _chat(event: LoggedEvent) -> ChatMessage:
     p = event.payload
     return {"speaker": p.get("role", ""), "text": p.get("text", ""), "t_ns": event.t_ns, "seq": event.seq}
 
 
-def _state(maze: Maze, pose: dict[str, Any] | None) -> list[float]:
+def _state(maze: Maze, pose: LoggedEvent | None) -> list[float]:
+    """The state at the last true pose logged (NaN before any)."""
     if pose is None:
         return [math.nan] * len(STATE_NAMES)
-    x, y, heading = float(pose["x"]), float(pose["y"]), float(pose.get("heading") or 0.0)
+    p = pose.payload
+    x, y, heading = float(p["x"]), float(p["y"]), float(p.get("heading") or 0.0)
     labels, depth = cast_rays(maze, x, y, heading)
     return [x, y, heading, *map(float, depth), *map(float, labels)]
 
@@ -73,11 +93,11 @@ def episodes_of(record: TrialRecord, maze: Maze, per: Episode) -> list[list[Step
     events = sorted(record.events, key=lambda e: e.seq)
     confirmed = [e.seq for e in events if e.is_(ev.TargetConfirmed)]
     steps: list[Step] = []
-    pose: dict[str, Any] | None = None
+    pose: LoggedEvent | None = None
     pending: Step | None = None
     for event in events:
         if event.is_(ev.PoseSampled):
-            pose = event.payload
+            pose = event
         elif event.is_(ev.FrameRecorded) and event.payload.get("source", "driver") == "driver":
             reached = sum(c < event.seq for c in confirmed)
             task = record.targets[min(reached, len(record.targets) - 1)]
@@ -165,7 +185,7 @@ def write_lerobot(
     return totals
 
 
-def _annotation(record: TrialRecord) -> dict[str, Any]:
+def _annotation(record: TrialRecord) -> Annotation:
     after = record.localized_after
     return {
         "tags": record.tags,
@@ -195,7 +215,7 @@ def _write(loaded: Iterable[tuple[TrialRecord, Maze]], tmp: Path, per: Episode) 
         )
     }
     tasks: dict[str, int] = {}
-    episodes: list[dict[str, Any]] = []
+    episodes: list[dict[str, int | float | str | list[str]]] = []  # rows of the episodes table
     shape: tuple[int, int] = (0, 0)
     for record, maze in loaded:
         for group in episodes_of(record, maze, per):
@@ -234,8 +254,6 @@ def _write(loaded: Iterable[tuple[TrialRecord, Maze]], tmp: Path, per: Episode) 
                     "meta/episodes/chunk_index": 0,
                     "meta/episodes/file_index": 0,
                     "trial_id": int(record.trial_id),
-                    # The trial's annotation (app.annotation): the dialog phenomena, anchored to
-                    # message numbers from 1, and the end of localization where one was marked.
                     "annotation": json.dumps(_annotation(record)),
                 }
             )

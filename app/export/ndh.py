@@ -22,19 +22,34 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import NotRequired, TypedDict
 
 import numpy as np
 
 from app.export.record import TrialRecord
 from sim.core.maze import Maze
 from sim.tasks.benchmark import Split
+from sim.tasks.ldh import DialogTurn, LDHInstanceJson
 from sim.trial import events as ev
 from sim.trial.state import LoggedEvent
 from sim.trial.vocabulary import Phase, Role
 
 HELD_OUT_FRACTION = 0.15  # of mazes, for each of val_seen and test (the benchmark: 26 + 26 of 170)
 ROLES = {Role.COMMANDER: "oracle", Role.DRIVER: "navigator"}
+
+
+class NDHInstanceJson(TypedDict):
+    """One NDH instance as `NDH-data/<split>.json` lists them."""
+
+    scan: str
+    target: str
+    agent_pose: list[float]
+    target_pose: list[float]
+    all_targets: list[list[float]]
+    dialog_history: list[DialogTurn]
+    trial_id: str
+    seats: dict[str, str]
+    inst_idx: NotRequired[int]  # set when the split is written
 
 
 def scan_id(maze: str, target: str, agent_pose: Sequence[float], target_pose: Sequence[float]) -> str:
@@ -45,7 +60,7 @@ def scan_id(maze: str, target: str, agent_pose: Sequence[float], target_pose: Se
     return f"mazedata/{maze}/maze/maze.labelled.npz-{target}-{start}-{goal}"
 
 
-def _dialog(events: Iterable[LoggedEvent], before_seq: int) -> list[dict[str, str]]:
+def _dialog(events: Iterable[LoggedEvent], before_seq: int) -> list[DialogTurn]:
     return [
         {"role": ROLES[e.payload["role"]], "message": e.payload["text"]}
         for e in events
@@ -73,7 +88,7 @@ def _positions(record: TrialRecord, maze: Maze) -> list[list[float]]:
     return [list(map(float, maze.objects[t])) for t in record.targets]
 
 
-def ndh_instances(record: TrialRecord, maze: Maze) -> list[dict[str, Any]]:
+def ndh_instances(record: TrialRecord, maze: Maze) -> list[NDHInstanceJson]:
     """One NDH instance per confirmed target, in the order reached (without `inst_idx`).
 
     The first target's instance needs the true start pose; a trial without one (a real robot
@@ -82,7 +97,7 @@ def ndh_instances(record: TrialRecord, maze: Maze) -> list[dict[str, Any]]:
     events = sorted(record.events, key=lambda e: e.seq)
     all_targets = _positions(record, maze)
     start = _pose_at(events, _start_seq(events))
-    out = []
+    out: list[NDHInstanceJson] = []
     for e in events:
         if not e.is_(ev.TargetConfirmed):
             continue
@@ -106,7 +121,7 @@ def ndh_instances(record: TrialRecord, maze: Maze) -> list[dict[str, Any]]:
     return out
 
 
-def ldh_instances(record: TrialRecord, maze: Maze) -> list[dict[str, Any]]:
+def ldh_instances(record: TrialRecord, maze: Maze) -> list[LDHInstanceJson]:
     """The localization half of a trial: the dialog until localization ended, the Commander's
     estimate, and the true pose then and at the start where known (None where not).
 
@@ -139,23 +154,23 @@ def ldh_instances(record: TrialRecord, maze: Maze) -> list[dict[str, Any]]:
     error = None if truth is None or guess_xy is None else math.dist(truth[:2], guess_xy)
     target = record.targets[0]
     all_targets = _positions(record, maze)
-    return [
-        {
-            "scan": scan_id(record.maze, target, start or guess_xy or truth or [0.0, 0.0], all_targets[0]),
-            "target": target,
-            "agent_pose": truth,
-            "start_pose": start,
-            "commander_estimate": guess,
-            "localization_error_m": error,
-            "localization_source": source,
-            "localized_after_message": len(dialog),
-            "all_targets": all_targets,
-            "dialog_history": dialog,
-            "trial_id": str(record.trial_id),
-            "seats": seats(record),
-            **({"tags": record.tags} if record.tags else {}),
-        }
-    ]
+    instance: LDHInstanceJson = {
+        "scan": scan_id(record.maze, target, start or guess_xy or truth or [0.0, 0.0], all_targets[0]),
+        "target": target,
+        "agent_pose": truth,
+        "start_pose": start,
+        "commander_estimate": guess,
+        "localization_error_m": error,
+        "localization_source": source,
+        "localized_after_message": len(dialog),
+        "all_targets": all_targets,
+        "dialog_history": dialog,
+        "trial_id": str(record.trial_id),
+        "seats": seats(record),
+    }
+    if record.tags:
+        instance["tags"] = record.tags
+    return [instance]
 
 
 def seats(record: TrialRecord) -> dict[str, str]:
@@ -202,8 +217,8 @@ def write_benchmark(
     trials = list(trials)
     mazes = {maze.name: maze for _, maze in trials}
     folds = dict(folds) if folds is not None else assign_splits(mazes)
-    ndh: dict[str, list[dict[str, Any]]] = {s: [] for s in Split}
-    ldh: dict[str, list[dict[str, Any]]] = {s: [] for s in Split}
+    ndh: dict[str, list[NDHInstanceJson]] = {s: [] for s in Split}
+    ldh: dict[str, list[LDHInstanceJson]] = {s: [] for s in Split}
     for record, maze in trials:
         ndh[folds[maze.name]].extend(ndh_instances(record, maze))
         ldh[folds[maze.name]].extend(ldh_instances(record, maze))

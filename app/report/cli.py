@@ -48,9 +48,9 @@ def agreement(
     with sessions() as db:
         ids = study_trial_ids(db, study)
         names = annotator_names(db)
-    result = {"study": study, **compute(AnnotationLog(sessions).states(ids), names)}
+    result = compute(AnnotationLog(sessions).states(ids), names)
     if as_json:
-        typer.echo(json.dumps(result, indent=1))
+        typer.echo(json.dumps({"study": study, **result}, indent=1))
         return
     titles = {str(p): p.label for p in Phenomenon}
     typer.echo(f"study {study}: {result['double_annotated_trials']} trials annotated twice")
@@ -87,9 +87,9 @@ def study(
 
         assert benchmark is not None
         settings = Settings(benchmark=benchmark)
-        numbers = benchmark_numbers(benchmark, Mazes(settings).layouts())
-        markdown = benchmark_markdown(numbers)
-        (out / "benchmark.json").write_text(json.dumps(numbers, indent=1))
+        public = benchmark_numbers(benchmark, Mazes(settings).layouts())
+        markdown = benchmark_markdown(public)
+        (out / "benchmark.json").write_text(json.dumps(public, indent=1))
         (out / "benchmark.md").write_text(markdown)
         typer.echo(markdown)
         return

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 from app.annotation.events import Phenomenon
+from app.report.benchmark import BenchmarkNumbers
+from app.report.study import StudyNumbers
 
 TITLES = {str(p): p.label for p in Phenomenon}
 
@@ -13,7 +13,7 @@ def _f(value: float | None, digits: int = 1) -> str:
     return "n/a" if value is None else f"{value:.{digits}f}"
 
 
-def study_markdown(n: dict[str, Any], figures: dict[str, str]) -> str:
+def study_markdown(n: StudyNumbers, figures: dict[str, str]) -> str:
     c, d = n["counts"], n["dialog"]
     lines = [
         f"# Dataset: study {n['study']}",
@@ -111,7 +111,7 @@ def study_markdown(n: dict[str, Any], figures: dict[str, str]) -> str:
     return "\n".join(lines)
 
 
-def benchmark_markdown(n: dict[str, Any]) -> str:
+def benchmark_markdown(n: BenchmarkNumbers) -> str:
     paper = n["paper"]
     lines = [
         f"# Dataset: the public benchmark ({n['source']})",

@@ -9,11 +9,11 @@ from __future__ import annotations
 import statistics
 from collections import Counter, defaultdict
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TypedDict
 
 from sqlalchemy.orm import Session, sessionmaker
 
-from app.annotation.agreement import agreement
+from app.annotation.agreement import AgreementNumbers, agreement
 from app.annotation.dialog import messages
 from app.annotation.events import Phenomenon
 from app.annotation.log import AnnotationLog
@@ -25,13 +25,114 @@ from app.export.record import TrialRecord
 from app.export.source import load_trial
 from app.mazes import Mazes
 from app.settings import Settings
-from app.study.answers import asked, items, rating_distributions, study_answers
+from app.study.answers import ItemRatings, asked, items, rating_distributions, study_answers
 from app.study.config import StudyFiles
 from sim.tasks.benchmark import Split
 from sim.trial.state import TrialState, fold
 
 
-def distribution(values: Sequence[float]) -> dict[str, float | None]:
+class Distribution(TypedDict):
+    mean: float | None
+    median: float | None
+    min: float | None
+    max: float | None
+
+
+class RoleNumbers(TypedDict):
+    messages_per_dialog: float
+    words_per_dialog: float
+
+
+class PerDialog(TypedDict):
+    messages: list[int]
+    words: list[int]
+
+
+class DialogNumbers(TypedDict):
+    messages_per_dialog: float | None
+    words_per_dialog: float | None
+    messages: Distribution
+    words: Distribution
+    per_dialog: PerDialog
+    per_role: dict[str, RoleNumbers]
+
+
+class StudyCounts(TypedDict):
+    trials: int
+    layouts: int
+    mazes: int
+    participants: int
+    teams: int
+    trials_per_team: dict[str, int]
+
+
+class TrialNumbers(TypedDict):
+    moves: int
+    refused_moves: int
+    score: float | None
+
+
+class LayoutRow(TypedDict):
+    trials: int
+    ndh_instances: int
+    ldh_instances: int
+
+
+class FoldRow(LayoutRow):
+    layouts: int
+    by_layout: dict[str, LayoutRow]
+
+
+class Example(TypedDict):
+    trial: int
+    message: int
+    role: str
+    text: str
+
+
+class PhenomenonRow(TypedDict):
+    dialogs: int
+    frequency: float | None  # share of the annotated dialogs
+    example: Example | None
+
+
+class PhenomenaTable(TypedDict):
+    annotated_dialogs: int
+    tags: dict[str, PhenomenonRow]
+
+
+class TeamScores(TypedDict):
+    scores: list[float]  # in the order the team played its trials
+    best: float | None
+    mean: float | None
+
+
+class QuestionnaireNumbers(TypedDict):
+    answers: int
+    items: dict[str, ItemRatings]
+
+
+class StudyNumbers(TypedDict):
+    """study.json of `report study`: every number of the study's dataset section."""
+
+    study: str
+    counts: StudyCounts
+    messages_per_dialog: float | None
+    words_per_dialog: float | None
+    dialog: DialogNumbers
+    duration_minutes: Distribution
+    moves: Distribution
+    refused_moves: Distribution
+    move_penalty_s: float
+    trials: dict[str, TrialNumbers]
+    folds: dict[str, FoldRow]
+    phenomena: PhenomenaTable
+    agreement: AgreementNumbers
+    leaderboard: dict[str, TeamScores]
+    questionnaire: QuestionnaireNumbers
+
+
+def distribution(values: Sequence[float]) -> Distribution:
     if not values:
         return {"mean": None, "median": None, "min": None, "max": None}
     return {
@@ -46,7 +147,7 @@ def words(text: str) -> int:
     return len(text.split())
 
 
-def dialog_numbers(dialogs: Sequence[Sequence[tuple[str, str]]]) -> dict[str, Any]:
+def dialog_numbers(dialogs: Sequence[Sequence[tuple[str, str]]]) -> DialogNumbers:
     """Messages and words per dialog ((role, text) turns), overall and per role."""
     roles = sorted({role for d in dialogs for role, _ in d})
     msgs = [len(d) for d in dialogs]
@@ -67,12 +168,12 @@ def dialog_numbers(dialogs: Sequence[Sequence[tuple[str, str]]]) -> dict[str, An
     }
 
 
-def study_numbers(sessions: sessionmaker[Session], settings: Settings, mazes: Mazes, study: str) -> dict[str, Any]:
+def study_numbers(sessions: sessionmaker[Session], settings: Settings, mazes: Mazes, study: str) -> StudyNumbers:
     with sessions() as db:
         return _study_numbers(db, AnnotationLog(sessions), settings, mazes, study)
 
 
-def _study_numbers(db: Session, log: AnnotationLog, settings: Settings, mazes: Mazes, study: str) -> dict[str, Any]:
+def _study_numbers(db: Session, log: AnnotationLog, settings: Settings, mazes: Mazes, study: str) -> StudyNumbers:
     ids = study_trial_ids(db, study)
     records = [load_trial(db, settings, i) for i in ids]
     trials = {t.id: t for t in (db.get(Trial, i) for i in ids) if t is not None}
@@ -95,6 +196,7 @@ def _study_numbers(db: Session, log: AnnotationLog, settings: Settings, mazes: M
     durations = [trials[int(r.trial_id)].active_s or 0.0 for r in records]
     answers = study_answers(db, study)
     annotations = log.states(ids)
+    dialog = dialog_numbers(dialogs)
     return {
         "study": study,
         "counts": {
@@ -105,8 +207,9 @@ def _study_numbers(db: Session, log: AnnotationLog, settings: Settings, mazes: M
             "teams": len(teams),
             "trials_per_team": {name: len(t) for name, t in sorted(teams.items())},
         },
-        **{k: v for k, v in dialog_numbers(dialogs).items() if k in ("messages_per_dialog", "words_per_dialog")},
-        "dialog": dialog_numbers(dialogs),
+        "messages_per_dialog": dialog["messages_per_dialog"],
+        "words_per_dialog": dialog["words_per_dialog"],
+        "dialog": dialog,
         "duration_minutes": distribution([d / 60 for d in durations]),
         "moves": distribution([float(state.moves) for state in states.values()]),
         "refused_moves": distribution([float(state.refused) for state in states.values()]),
@@ -128,40 +231,37 @@ def _study_numbers(db: Session, log: AnnotationLog, settings: Settings, mazes: M
 
 def fold_table(
     records: Sequence[TrialRecord], mazes: Mazes, layout_of: Mapping[str, str], saved: SavedFolds
-) -> dict[str, Any]:
+) -> dict[str, FoldRow]:
     """Per fold: layouts, trials, NDH and LDH instances, and the same per layout; the folds are the
     study's saved split (`export --folds`), or the default one it would draw."""
     layout = {r.trial_id: layout_of.get(r.maze, r.maze) for r in records}
     folds = saved.preview(layout.values())
-    table: dict[str, Any] = {
+    table: dict[str, FoldRow] = {
         str(s): {"layouts": 0, "trials": 0, "ndh_instances": 0, "ldh_instances": 0, "by_layout": {}} for s in Split
     }
     for r in records:
         fold = table[folds[layout[r.trial_id]]]
         maze = mazes.load(r.maze)
         row = fold["by_layout"].setdefault(layout[r.trial_id], {"trials": 0, "ndh_instances": 0, "ldh_instances": 0})
-        counts = {
-            "trials": 1,
-            "ndh_instances": len(ndh_instances(r, maze)),
-            "ldh_instances": len(ldh_instances(r, maze)),
-        }
-        for key, n in counts.items():
-            row[key] += n
-            fold[key] += n
+        ndh, ldh = len(ndh_instances(r, maze)), len(ldh_instances(r, maze))
+        for counted in (row, fold):
+            counted["trials"] += 1
+            counted["ndh_instances"] += ndh
+            counted["ldh_instances"] += ldh
     for fold in table.values():
         fold["layouts"] = len(fold["by_layout"])
     return table
 
 
-def phenomena_table(records: Sequence[TrialRecord]) -> dict[str, Any]:
+def phenomena_table(records: Sequence[TrialRecord]) -> PhenomenaTable:
     """Share of the annotated dialogs (those with a resolved cut or tag) showing each phenomenon,
     and an example: the first message anchored to it."""
     annotated = [r for r in records if r.tags or r.localized_after is not None]
     found = Counter(tag for r in annotated for tag in r.tags)
     tags = [str(p) for p in Phenomenon] + sorted(set(found) - {str(p) for p in Phenomenon})
-    table = {}
+    table: dict[str, PhenomenonRow] = {}
     for tag in tags:
-        example = None
+        example: Example | None = None
         for r in annotated:
             if tag in r.tags:
                 said = {m.number: m for m in messages(r.events)}
@@ -177,9 +277,11 @@ def phenomena_table(records: Sequence[TrialRecord]) -> dict[str, Any]:
     return {"annotated_dialogs": len(annotated), "tags": table}
 
 
-def leaderboard(teams: Mapping[str, Sequence[int]], states: Mapping[int, TrialState], penalty: float) -> dict[str, Any]:
+def leaderboard(
+    teams: Mapping[str, Sequence[int]], states: Mapping[int, TrialState], penalty: float
+) -> dict[str, TeamScores]:
     """Each team's scores in the order it played its trials (its learning curve), best and mean."""
-    out = {}
+    out: dict[str, TeamScores] = {}
     for name, ids in teams.items():
         scores = [score for i in sorted(ids) if (score := states[i].score(penalty)) is not None]
         out[name] = {

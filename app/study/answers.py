@@ -10,7 +10,7 @@ import io
 import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TypedDict
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
@@ -18,6 +18,36 @@ from sqlalchemy.orm import Session
 from app.db.models import Participant, StudyAnswer, StudyEvent, StudyParticipant, Trial
 from app.study.config import RATING_SCALE, Question, QuestionKind, StudyFiles
 from sim.trial.vocabulary import Role
+
+
+class AnswerRow(TypedDict):
+    trial_id: int
+    trial_phase: str
+    participant: str
+    seat: str
+    partner: str | None
+    partner_seat: str
+    study_version: int
+    ratings: dict[str, int]
+    free_text: dict[str, str]
+
+
+class SeatRatings(TypedDict):
+    n: int
+    counts: dict[str, int]  # each rating of the scale ("1" to "5") -> how many gave it
+    mean: float | None
+
+
+class ItemRatings(TypedDict):
+    kind: str
+    prompt: str
+    by_seat: dict[str, SeatRatings]
+
+
+class AnswersFile(TypedDict):
+    study: str
+    questionnaires: dict[str, list[dict[str, object]]]  # version -> its items (`Question` as JSON)
+    answers: list[AnswerRow]
 
 
 @dataclass(frozen=True)
@@ -32,7 +62,7 @@ class Answer:
     ratings: dict[str, int]
     free_text: dict[str, str]  # empty where none was given, or the participant withdrew
 
-    def row(self) -> dict[str, Any]:
+    def row(self) -> AnswerRow:
         return {
             "trial_id": self.trial_id,
             "trial_phase": self.trial_phase,
@@ -97,14 +127,14 @@ def items(questionnaires: dict[int, list[Question]]) -> list[Question]:
     return list(latest.values())
 
 
-def rating_distributions(answers: Sequence[Answer], questions: Sequence[Question]) -> dict[str, Any]:
+def rating_distributions(answers: Sequence[Answer], questions: Sequence[Question]) -> dict[str, ItemRatings]:
     """Per rating item, per seat: how many gave each rating, their number and mean."""
     low, high = RATING_SCALE
-    table: dict[str, Any] = {}
+    table: dict[str, ItemRatings] = {}
     for q in questions:
         if q.kind is QuestionKind.free_text:
             continue
-        by_seat = {}
+        by_seat: dict[str, SeatRatings] = {}
         for seat in (Role.COMMANDER, Role.DRIVER):
             given = [a.ratings[q.id] for a in answers if a.seat == seat and q.id in a.ratings]
             by_seat[str(seat)] = {
@@ -116,7 +146,7 @@ def rating_distributions(answers: Sequence[Answer], questions: Sequence[Question
     return table
 
 
-def answers_json(study: str, answers: Sequence[Answer], questionnaires: dict[int, list[Question]]) -> dict[str, Any]:
+def answers_json(study: str, answers: Sequence[Answer], questionnaires: dict[int, list[Question]]) -> AnswersFile:
     return {
         "study": study,
         "questionnaires": {

@@ -6,11 +6,12 @@ the events their seat made (what they wrote, moved, marked, claimed or judged)."
 from __future__ import annotations
 
 from datetime import UTC, datetime
-from typing import Any
+from typing import TypedDict
 
 from sqlalchemy import select
 
 from app.db.models import Event, StudyAnswer, StudyEvent, StudyParticipant
+from app.study.config import StudyOutcome
 from app.study.enrolment import Enrolment
 from app.study.lobby import PRACTICE_REASON, seat_of
 from sim.trial.vocabulary import Role
@@ -30,7 +31,45 @@ def _iso(t: datetime | None) -> str | None:
     return None if t is None else t.isoformat()
 
 
-def own_data(enrolment: Enrolment, enrolled: StudyParticipant, code: str) -> dict[str, Any]:
+class Panel(TypedDict):
+    participant: str | None
+    study: str | None
+    session: str | None
+
+
+class OwnAnswer(TypedDict):
+    trial_id: int
+    ratings: dict[str, int]
+    free_text: dict[str, str] | None
+    at: str | None
+
+
+class OwnTrial(TypedDict):
+    trial_id: int
+    seat: Role
+    maze: str
+    phase: str
+    practice: bool
+    events: list[dict[str, object]]  # seq, kind, at and the event's own payload
+
+
+class OwnData(TypedDict):
+    """The participant's download (`/study/NAME/me/data.json`)."""
+
+    study: str
+    participant: str
+    real_name: str | None
+    panel: Panel
+    consent_version: str
+    enrolled_at: str | None
+    completed_at: str | None
+    outcome: StudyOutcome | None
+    study_events: list[dict[str, object]]  # kind, at and the study event's own payload
+    answers: list[OwnAnswer]
+    trials: list[OwnTrial]
+
+
+def own_data(enrolment: Enrolment, enrolled: StudyParticipant, code: str) -> OwnData:
     db = enrolment.db
     log = db.scalars(
         select(StudyEvent)
@@ -40,7 +79,7 @@ def own_data(enrolment: Enrolment, enrolled: StudyParticipant, code: str) -> dic
     answers = db.scalars(
         select(StudyAnswer).where(StudyAnswer.study_participant_id == enrolled.id).order_by(StudyAnswer.id)
     )
-    trials = []
+    trials: list[OwnTrial] = []
     for trial in enrolment.trials(enrolled):
         seat = seat_of(trial, enrolled.participant_id).role
         events = db.scalars(select(Event).where(Event.trial_id == trial.id).order_by(Event.seq))

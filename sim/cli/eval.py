@@ -6,7 +6,7 @@ import json
 from collections.abc import Iterable
 from enum import Enum
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import typer
 from rich.console import Console
@@ -14,6 +14,9 @@ from rich.table import Table
 
 from sim.tasks.baselines import BASELINES
 from sim.tasks.benchmark import Benchmark, BenchmarkError, Split
+
+if TYPE_CHECKING:
+    from sim.core.metrics import Summary
 
 BENCHMARK_OPTION = typer.Option(
     ..., "--benchmark", envvar="ROBOTSLANG_BENCHMARK", help="A RobotSlangBenchmark clone (or an export in its layout)."
@@ -49,7 +52,7 @@ def parse_list(text: str, kind: str, allowed: Iterable[str] | None = None) -> li
     return items
 
 
-def print_table(summary: dict[str, Any], console: Console) -> None:
+def print_table(summary: Summary, console: Console) -> None:
     table = Table(title=f"{summary['split']} (n={summary['n']})")
     for col in ("agent", "TD", "OTD", "SR", "SPL", "steps"):
         table.add_column(col, justify="right" if col != "agent" else "left")

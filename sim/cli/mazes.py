@@ -123,12 +123,12 @@ def folds(
     counts = fold_counts(splits, of)
     total = {"runs": len(runs), "layouts": len({of.get(run, run) for run in runs})}
     if as_json:
-        typer.echo(json.dumps({"folds": [c.as_json() for c in counts], **total}))
+        typer.echo(json.dumps({"folds": counts, **total}))
         return
     typer.echo("split\tinstances\truns\tlayouts\tlayouts in another split")
     for c in counts:
-        typer.echo(f"{c.split}\t{c.instances}\t{c.runs}\t{c.layouts}\t{c.shared_layouts}")
-    typer.echo(f"all\t{sum(c.instances for c in counts)}\t{total['runs']}\t{total['layouts']}")
+        typer.echo(f"{c['split']}\t{c['instances']}\t{c['runs']}\t{c['layouts']}\t{c['shared_layouts']}")
+    typer.echo(f"all\t{sum(c['instances'] for c in counts)}\t{total['runs']}\t{total['layouts']}")
 
 
 @app.command("show")

@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Iterable
-from dataclasses import asdict, dataclass, fields
+from collections.abc import Iterable, Mapping
+from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 
@@ -54,6 +54,26 @@ class EpisodeResult:
     success: bool
     spl: float
 
+    @classmethod
+    def from_row(cls, row: Mapping[str, str]) -> EpisodeResult:
+        """A row of `write_csv`'s file."""
+        return cls(
+            row["split"],
+            int(row["inst_idx"]),
+            row["agent"],
+            int(row["seed"]),
+            float(row["start_x"]),
+            float(row["start_y"]),
+            float(row["start_heading"]),
+            float(row["goal_x"]),
+            float(row["goal_y"]),
+            float(row["td"]),
+            float(row["otd"]),
+            int(row["steps"]),
+            bool(int(row["success"])),
+            float(row["spl"]),
+        )
+
 
 @dataclass(frozen=True)
 class TrajectoryScore:
@@ -79,6 +99,25 @@ def score_trajectory(graph: NavGraph, nodes: Iterable[int], goal: int) -> Trajec
     )
 
 
+class AgentSummary(TypedDict):
+    td_mean: float
+    td_std: float
+    otd_mean: float
+    otd_std: float
+    sr: float
+    spl: float
+    steps_mean: float
+    unreachable: int  # instances left out of the means: the goal cannot be reached from the stop
+
+
+class Summary(TypedDict):
+    """The JSON of `robotslang eval baselines` / `eval ndh`."""
+
+    split: str
+    n: int
+    agents: dict[str, AgentSummary]
+
+
 def _mean_std(values: np.ndarray) -> tuple[float, float]:
     if values.size == 0:
         return math.nan, math.nan
@@ -86,7 +125,7 @@ def _mean_std(values: np.ndarray) -> tuple[float, float]:
     return float(values.mean()), std
 
 
-def summarize_agent(results: list[EpisodeResult]) -> dict[str, Any]:
+def summarize_agent(results: list[EpisodeResult]) -> AgentSummary:
     """Mean and sample std (ddof=1) over instances; seeds are averaged per instance first.
 
     Instances whose goal cannot be reached from where the agent stopped have an infinite TD:
@@ -116,7 +155,7 @@ def summarize_agent(results: list[EpisodeResult]) -> dict[str, Any]:
     }
 
 
-def summarize(split: str, results: list[EpisodeResult]) -> dict[str, Any]:
+def summarize(split: str, results: list[EpisodeResult]) -> Summary:
     """The JSON of `robotslang eval baselines` / `eval ndh`: {split, n, agents: {NAME: {...}}}."""
     agents: dict[str, list[EpisodeResult]] = {}
     for r in results:
@@ -138,21 +177,5 @@ def write_csv(path: str | Path, results: Iterable[EpisodeResult]) -> None:
 
 
 def read_csv(path: str | Path) -> list[EpisodeResult]:
-    types = {f.name: f.type for f in fields(EpisodeResult)}
-    out = []
     with Path(path).open() as f:
-        for row in csv.DictReader(f):
-            values: dict[str, Any] = {
-                k: (
-                    row[k]
-                    if types[k] == "str"
-                    else bool(int(row[k]))
-                    if types[k] == "bool"
-                    else int(row[k])
-                    if types[k] == "int"
-                    else float(row[k])
-                )
-                for k in CSV_COLUMNS
-            }
-            out.append(EpisodeResult(**values))
-    return out
+        return [EpisodeResult.from_row(row) for row in csv.DictReader(f)]

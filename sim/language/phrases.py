@@ -13,9 +13,10 @@ from __future__ import annotations
 import hashlib
 import json
 import random
+from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
-from typing import Any
+from typing import NotRequired, TypedDict
 
 HELD_OUT_PATH = Path(__file__).with_name("held_out_commander.json")
 NUMBER_NAMES = "zero one two three four five six seven eight nine ten eleven twelve thirteen fourteen fifteen sixteen seventeen eighteen nineteen twenty".split()  # noqa: SIM905
@@ -63,21 +64,69 @@ class Kind(StrEnum):
     REJECT = "reject"
 
 
-SCRIPTED: dict[str, Any] = {
-    "numbers": "digits",
-    Kind.ANNOUNCE: ["now find the {thing}"],
-    Kind.ASK_VIEW: ["hi! what do you see around you? look around and tell me"],
-    "turn": {"1": ["turn slightly {d}"], "2": ["turn {d}"], "3": ["turn sharply {d}"], "4": ["turn around"]},
-    Kind.FORWARD: ["go forward about {n} steps"],
-    Kind.FORWARD_THEN_TURN: ["go forward about {n} steps, then {turn}"],
-    Kind.TURN_AT_WALL: ["{turn} at the {wall}"],
-    Kind.UNTIL_TARGET: ["go forward until you see the {thing}"],
-    Kind.THERE: ["the {thing} should be right there"],
-    Kind.REJECT: ["no, that is not it"],
-}
+# A phrasing's JSON file (held_out_commander.json, personas/commander_*.json): per kind of
+# instruction its templates, "turn" by 45-degree steps ("1" to "4").
+class PhrasingFile(TypedDict):
+    about: str
+    numbers: str  # "digits" or "words"
+    units: NotRequired[str]  # "cm": forward moves in centimetres
+    turn: dict[str, list[str]]
+    announce: list[str]
+    ask_view: list[str]
+    forward: list[str]
+    forward_then_turn: list[str]
+    turn_at_wall: list[str]
+    until_target: list[str]
+    there: list[str]
+    reject: list[str]
 
 
-def load(phrasing: Phrasing | Persona) -> dict[str, Any]:
+@dataclass(frozen=True)
+class Phrasebook:
+    """One phrasing's templates: per kind of instruction, per turn (in 45-degree steps, 1 to 4),
+    and how numbers are written ("digits" or "words"; steps in "cm" for the metric persona)."""
+
+    numbers: str
+    kinds: dict[Kind, list[str]]
+    turns: dict[int, list[str]]
+    units: str | None = None
+
+    @classmethod
+    def from_json(cls, data: PhrasingFile) -> Phrasebook:
+        return cls(
+            numbers=data["numbers"],
+            kinds={
+                Kind.ANNOUNCE: data["announce"],
+                Kind.ASK_VIEW: data["ask_view"],
+                Kind.FORWARD: data["forward"],
+                Kind.FORWARD_THEN_TURN: data["forward_then_turn"],
+                Kind.TURN_AT_WALL: data["turn_at_wall"],
+                Kind.UNTIL_TARGET: data["until_target"],
+                Kind.THERE: data["there"],
+                Kind.REJECT: data["reject"],
+            },
+            turns={int(steps): templates for steps, templates in data["turn"].items()},
+            units=data.get("units"),
+        )
+
+
+SCRIPTED = Phrasebook(
+    numbers="digits",
+    kinds={
+        Kind.ANNOUNCE: ["now find the {thing}"],
+        Kind.ASK_VIEW: ["hi! what do you see around you? look around and tell me"],
+        Kind.FORWARD: ["go forward about {n} steps"],
+        Kind.FORWARD_THEN_TURN: ["go forward about {n} steps, then {turn}"],
+        Kind.TURN_AT_WALL: ["{turn} at the {wall}"],
+        Kind.UNTIL_TARGET: ["go forward until you see the {thing}"],
+        Kind.THERE: ["the {thing} should be right there"],
+        Kind.REJECT: ["no, that is not it"],
+    },
+    turns={1: ["turn slightly {d}"], 2: ["turn {d}"], 3: ["turn sharply {d}"], 4: ["turn around"]},
+)
+
+
+def load(phrasing: Phrasing | Persona) -> Phrasebook:
     if phrasing == Phrasing.SCRIPTED:
         return SCRIPTED
     if isinstance(phrasing, Persona):
@@ -86,10 +135,8 @@ def load(phrasing: Phrasing | Persona) -> dict[str, Any]:
             raise ValueError(
                 f"{phrasing.path} is not the frozen persona (its sha256 changed); personas are never edited"
             )
-        persona: dict[str, Any] = json.loads(raw)
-        return persona
-    held_out: dict[str, Any] = json.loads(HELD_OUT_PATH.read_text())
-    return held_out
+        return Phrasebook.from_json(json.loads(raw))
+    return Phrasebook.from_json(json.loads(HELD_OUT_PATH.read_text()))
 
 
 def style(name: str) -> Phrasing | Persona:
@@ -103,16 +150,16 @@ class Phrases:
     """Templates of one phrasing, filled in; which template of a kind is drawn from `seed`."""
 
     def __init__(self, phrasing: Phrasing | Persona, seed: int = 0) -> None:
-        self.templates = load(phrasing)
+        self.book = load(phrasing)
         self._rng = random.Random(seed)
 
     def _pick(self, options: list[str]) -> str:
         return options[self._rng.randrange(len(options))]
 
     def number(self, n: int) -> str:
-        if self.templates.get("units") == "cm":
+        if self.book.units == "cm":
             return str(n * STEP_CM)
-        return NUMBER_NAMES[n] if self.templates["numbers"] == "words" and n < len(NUMBER_NAMES) else str(n)
+        return NUMBER_NAMES[n] if self.book.numbers == "words" and n < len(NUMBER_NAMES) else str(n)
 
     def turn(self, eighths: int) -> str | None:
         """A turn of `eighths` 45-degree steps (left positive) in words; None for no turn."""
@@ -120,9 +167,9 @@ class Phrases:
         if eighths == 0:
             return None
         side = "left" if eighths > 0 else "right"
-        return self._pick(self.templates["turn"][str(min(abs(eighths), 4))]).format(d=side)
+        return self._pick(self.book.turns[min(abs(eighths), 4)]).format(d=side)
 
     def say(self, kind: Kind, **slots: str | int) -> str:
         if "n" in slots:
             slots["n"] = self.number(int(slots["n"]))
-        return self._pick(self.templates[kind]).format(**slots)
+        return self._pick(self.book.kinds[kind]).format(**slots)

@@ -4,22 +4,22 @@ one JSON reader and writer, so every calibration is refused in the same clear wo
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
 
 class CalibrationError(ValueError):
     """A calibration that is missing, unreadable, inconsistent or cannot be measured; the text says which."""
 
 
-def save_json(data: dict[str, Any], path: str | Path) -> Path:
+def save_json(data: Mapping[str, object], path: str | Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(data, indent=2) + "\n")
     return path
 
 
-def load_json(path: str | Path, what: str) -> dict[str, Any]:
+def load_json(path: str | Path, what: str) -> dict[str, object]:
     """The JSON object in `path`, or `CalibrationError` naming the file and what is wrong with it."""
     path = Path(path)
     try:

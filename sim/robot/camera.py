@@ -21,7 +21,7 @@ import math
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 import cv2
 import numpy as np
@@ -167,6 +167,36 @@ def undistort_normalized(
 COLOUR_CLASSES = ("floor",) + tuple(label.word for label in Label if label != Label.FLOOR)
 
 
+class ColourClassJson(TypedDict):
+    mean: list[float]
+    cov: list[list[float]]
+
+
+class Intrinsics(TypedDict):
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+
+
+class Distortion(TypedDict):
+    k1: float
+    k2: float
+
+
+class CameraCalibrationFile(TypedDict):
+    """A front camera's calibration file (`CameraCalibration.save`)."""
+
+    version: int
+    image_size: list[int]  # width, height
+    intrinsics: Intrinsics
+    distortion: Distortion
+    camera_height_m: float
+    camera_pitch_rad: float
+    colours: dict[str, ColourClassJson]
+    object_depth_offset_m: float
+
+
 @dataclass(frozen=True)
 class ColourClass:
     """One colour class under a lab's light, a Gaussian over `perception.colour_features`."""
@@ -174,7 +204,7 @@ class ColourClass:
     mean: tuple[float, ...]
     cov: tuple[tuple[float, ...], ...]
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> ColourClassJson:
         return {"mean": list(self.mean), "cov": [list(row) for row in self.cov]}
 
     @classmethod
@@ -252,7 +282,7 @@ class CameraCalibration:
             float(object_depth_offset_m),
         )
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> CameraCalibrationFile:
         return {
             "version": CALIBRATION_VERSION,
             "image_size": [self.width, self.height],

@@ -8,8 +8,8 @@ lab prints and places its markers to match it.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
-from typing import Any
+from dataclasses import dataclass
+from typing import TypedDict
 
 import cv2
 import numpy as np
@@ -17,6 +17,17 @@ import numpy as np
 from sim.core.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M
 
 DICTIONARY = cv2.aruco.DICT_4X4_50
+
+
+class MarkerLayoutJson(TypedDict, total=False):
+    """A layout as a calibration file holds it; a key left out takes the default."""
+
+    corner_ids: list[int]
+    rover_id: int
+    corner_size_m: float
+    corner_gap_m: float
+    rover_size_m: float
+    rover_height_m: float
 
 
 @dataclass(frozen=True)
@@ -40,12 +51,28 @@ class MarkerLayout:
         cy = -reach if k in (0, 1) else TABLE_HEIGHT_M + reach
         return square(cx, cy, np.pi / 2, self.corner_size_m)
 
-    def to_json(self) -> dict[str, Any]:
-        return {**asdict(self), "corner_ids": list(self.corner_ids)}
+    def to_json(self) -> MarkerLayoutJson:
+        return {
+            "corner_ids": list(self.corner_ids),
+            "rover_id": self.rover_id,
+            "corner_size_m": self.corner_size_m,
+            "corner_gap_m": self.corner_gap_m,
+            "rover_size_m": self.rover_size_m,
+            "rover_height_m": self.rover_height_m,
+        }
 
     @classmethod
-    def from_json(cls, data: dict[str, Any]) -> MarkerLayout:
-        return cls(**{**data, "corner_ids": tuple(int(i) for i in data["corner_ids"])})
+    def from_json(cls, data: MarkerLayoutJson) -> MarkerLayout:
+        default = cls()
+        a, b, c, d = (int(i) for i in data.get("corner_ids", default.corner_ids))
+        return cls(
+            (a, b, c, d),
+            int(data.get("rover_id", default.rover_id)),
+            float(data.get("corner_size_m", default.corner_size_m)),
+            float(data.get("corner_gap_m", default.corner_gap_m)),
+            float(data.get("rover_size_m", default.rover_size_m)),
+            float(data.get("rover_height_m", default.rover_height_m)),
+        )
 
 
 def square(cx: float, cy: float, up: float, size: float) -> np.ndarray:

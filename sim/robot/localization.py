@@ -14,7 +14,7 @@ import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 import cv2
 import numpy as np
@@ -26,7 +26,7 @@ from sim.core.maze import Maze
 from sim.core.observations import PX_PER_M_X, RAY_OFFSETS, WALL_CLEARANCE_M, ray_caster
 from sim.core.rays import RayObservation
 from sim.robot.camera import CameraCalibration, FrontCamera, capture
-from sim.robot.perception import perceive, simulated_calibration
+from sim.robot.perception import evaluation_rig, perceive, progress_bar
 
 DEPTH_CAP_M = 2.0  # beyond this a depth says little (the wall base is near the horizon)
 
@@ -136,6 +136,23 @@ def apply_move(
     return poses, collided
 
 
+class BeliefJson(TypedDict):
+    x: float
+    y: float
+    heading: float
+    spread_m: float
+    cloud: list[list[float]]
+
+
+class FilterResult(TypedDict):
+    converged_fraction_20_moves: float
+    err_median_m_20_moves: float
+    curve: list[float]  # median error of the belief's mean after each move, from the start
+    episodes: int
+    moves: int
+    particles: int
+
+
 @dataclass(frozen=True)
 class Belief:
     x: float
@@ -144,7 +161,7 @@ class Belief:
     spread_m: float  # root mean square distance of the particles from (x, y)
     cloud: np.ndarray  # (K <= 200, 4): x, y, heading, weight (weights sum to 1)
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> BeliefJson:
         return {
             "x": self.x,
             "y": self.y,
@@ -279,25 +296,15 @@ def evaluate_filter(
     truth_noise: MotionNoise = MotionNoise(),
     within_m: float = 0.15,
     progress: bool = False,
-) -> dict[str, Any]:
+) -> FilterResult:
     """Episodes from a uniform belief: the true rover moves with `truth_noise` (collisions stop
     it), each frame goes through the camera model and perception, the filter gets the moves and
     the perceived rays. Error = distance from the belief's mean to the true position."""
-    from sim.core.navgraph import NavGraph
-
-    mazes = [mazes] if isinstance(mazes, Maze) else list(mazes)
-    camera = camera or FrontCamera()
-    if calibration is None:
-        calibration = simulated_calibration(camera, [(m, NavGraph.build(m)) for m in mazes], seed=seed + 1000)
+    worlds, camera, calibration = evaluation_rig(mazes, seed, camera, calibration)
     rng = np.random.default_rng(seed)
     errors = np.zeros((episodes, moves + 1))
-    items = range(episodes)
-    if progress:
-        from tqdm import tqdm
-
-        items = tqdm(items, desc="particle filter")
-    for e in items:
-        maze = mazes[e % len(mazes)]
+    for e in progress_bar(range(episodes), progress, "particle filter"):
+        maze = worlds[e % len(worlds)][0]
         space = free_space(maze)
         pf = ParticleFilter(maze, n_particles, seed=int(rng.integers(2**31)), converged_particles=converged_particles)
         truth = space.sample(1, rng)
@@ -321,7 +328,7 @@ def evaluate_filter(
     }
 
 
-def plot_filter_curve(result: dict[str, Any], path: str | Path) -> None:
+def plot_filter_curve(result: FilterResult, path: str | Path) -> None:
     """The median belief error against moves, as a PNG."""
     import matplotlib
 

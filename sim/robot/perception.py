@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any, TypeVar
+from typing import TypedDict, TypeVar
 
 import cv2
 import numpy as np
@@ -431,7 +431,7 @@ def simulated_calibration(
     worlds = list(mazes)
     images: list[np.ndarray | bytes] = []
     truths: list[tuple[np.ndarray, np.ndarray]] = []
-    for i in _progress(range(n_frames), progress, "calibrating colours"):
+    for i in progress_bar(range(n_frames), progress, "calibrating colours"):
         if i % 4:
             maze, graph = worlds[i % len(worlds)]
             x, y, theta = random_poses(maze, graph, 1, rng)[0]
@@ -459,6 +459,33 @@ def _facing(maze: Maze, graph: NavGraph, name: str, rng: np.random.Generator, tr
     return anywhere
 
 
+def evaluation_rig(
+    mazes: Maze | Sequence[Maze], seed: int, camera: FrontCamera | None, calibration: CameraCalibration | None
+) -> tuple[list[tuple[Maze, NavGraph]], FrontCamera, CameraCalibration]:
+    """What an evaluation of the front camera runs on: the mazes with their graphs, the camera
+    (default: the simulated one) and its colour calibration, given or calibrated on other poses
+    (seed + 1000) than the evaluation's."""
+    worlds = [(m, NavGraph.build(m)) for m in ([mazes] if isinstance(mazes, Maze) else mazes)]
+    camera = camera or FrontCamera()
+    if calibration is None:
+        calibration = simulated_calibration(camera, worlds, seed=seed + 1000)
+    return worlds, camera, calibration
+
+
+class PerceptionScores(TypedDict):
+    label_accuracy: float
+    depth_mae_m: float
+    too_close_accuracy: float
+    walls_label_accuracy: float
+    walls_too_close_accuracy: float
+    objects_label_accuracy: float
+    objects_too_close_accuracy: float
+    rays_read: float
+    object_rays: float
+    poses: int
+    near_wall_rays: int
+
+
 def evaluate_perception(
     mazes: Maze | Sequence[Maze],
     n_poses: int = 300,
@@ -466,17 +493,14 @@ def evaluate_perception(
     camera: FrontCamera | None = None,
     calibration: CameraCalibration | None = None,
     progress: bool = False,
-) -> dict[str, Any]:
+) -> PerceptionScores:
     """Perceived rays against `cast_rays` at the same true poses, over random poses on `mazes`
     (a `Maze` or a list). label_accuracy: over all rays, a ray not read counting as wrong;
     depth_mae_m: over the read rays whose true hit is a wall within 1 m; too_close_accuracy:
     over all rays. Label and too-close accuracy over the rays whose true hit is a wall come as
     `walls_*`, over those that meet an object's footprint as `objects_*`. Colours are
     calibrated on other poses than those measured, unless `calibration` is given."""
-    worlds = [(m, NavGraph.build(m)) for m in ([mazes] if isinstance(mazes, Maze) else mazes)]
-    camera = camera or FrontCamera()
-    if calibration is None:
-        calibration = simulated_calibration(camera, worlds, seed=seed + 1000)
+    worlds, camera, calibration = evaluation_rig(mazes, seed, camera, calibration)
     rng = np.random.default_rng(seed)
     rights: list[np.ndarray] = []
     close_oks: list[np.ndarray] = []
@@ -484,7 +508,7 @@ def evaluate_perception(
     things: list[np.ndarray] = []
     reads: list[np.ndarray] = []
     depth_err: list[float] = []
-    for i in _progress(range(n_poses), progress, "perception"):
+    for i in progress_bar(range(n_poses), progress, "perception"):
         maze, graph = worlds[i % len(worlds)]
         x, y, theta = random_poses(maze, graph, 1, rng)[0]
         heading = heading_index(theta)
@@ -516,7 +540,7 @@ def evaluate_perception(
 _T = TypeVar("_T")
 
 
-def _progress(items: Iterable[_T], enabled: bool, desc: str) -> Iterable[_T]:
+def progress_bar(items: Iterable[_T], enabled: bool, desc: str) -> Iterable[_T]:
     if not enabled:
         return items
     from tqdm import tqdm

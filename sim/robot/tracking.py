@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import cv2
 import numpy as np
@@ -23,7 +23,7 @@ from tqdm import tqdm
 
 from sim.robot import fiducials
 from sim.robot.calibration import CalibrationError, load_json, save_json
-from sim.robot.fiducials import MarkerLayout
+from sim.robot.fiducials import MarkerLayout, MarkerLayoutJson
 from sim.robot.frames import decode_jpeg
 from sim.robot.overhead import Imaging, OverheadCamera, render_overhead
 
@@ -41,6 +41,17 @@ class TrackedPose:
     heading: float  # radians, (-pi, pi], counter-clockwise from +x
     t_ns: int  # the frame's time, as given to `update`
     quality: float  # (0, 1]: how exactly the marker seen is the marker printed
+
+
+class OverheadCalibrationFile(TypedDict):
+    """The overhead camera's calibration file (`OverheadCalibration.save`)."""
+
+    version: int
+    image_size: list[int]  # width, height
+    homography: list[list[float]]  # table metres -> pixels
+    camera_matrix: list[list[float]]
+    layout: MarkerLayoutJson
+    reprojection_px: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -75,7 +86,7 @@ class OverheadCalibration:
         return float(np.median(np.concatenate(errors))) if errors else None
 
     # -- JSON ---------------------------------------------------------------------
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> OverheadCalibrationFile:
         return {
             "version": CALIBRATION_VERSION,
             "image_size": list(self.image_size),
@@ -341,24 +352,27 @@ def _mean(ms: list[_Measurement]) -> tuple[float, float, float]:
     return sum(m.x for m in ms) / len(ms), sum(m.y for m in ms) / len(ms), heading
 
 
+class TrackerScores(TypedDict):
+    pos_err_median_m: float
+    pos_err_p95_m: float
+    heading_err_median_deg: float
+    tracked_fraction: float  # of the frames, those that gave a pose
+
+
 def evaluate_tracker(
     maze: Maze,
     poses: ArrayLike,
     seed: int = 0,
     fps: float = 5.0,
     jpeg_quality: int = 80,
-    camera: OverheadCamera | None = None,
-    imaging: Imaging | None = None,
+    camera: OverheadCamera = OverheadCamera(),
+    imaging: Imaging = Imaging(),
     progress: bool = False,
-) -> dict[str, Any]:
+) -> TrackerScores:
     """The tracker against known truth: each of `poses` ((x, y, heading), one per frame at
     `fps`) rendered by the overhead camera, sent as a JPEG of `jpeg_quality` as the server
     receives it, tracked after a calibration from a JPEG of the empty table. Errors are over
     the frames that gave a pose; `tracked_fraction` says how many did."""
-
-    from sim.robot.overhead import Imaging, OverheadCamera
-
-    camera, imaging = camera or OverheadCamera(), imaging or Imaging()
     rng = np.random.default_rng(seed)
 
     def jpeg(pose: np.ndarray | None) -> bytes:

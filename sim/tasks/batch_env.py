@@ -18,9 +18,7 @@ neither flag. `info` holds, per sub-env, `collided` and `steps`, and with
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from pathlib import Path
-from typing import Any
+from typing import Any, NotRequired, TypedDict, Unpack, cast
 
 import gymnasium as gym
 import numpy as np
@@ -32,10 +30,30 @@ from numpy.typing import ArrayLike
 from sim.core.dynamics import Action
 from sim.core.geometry import SUCCESS_RADIUS_M
 from sim.core.labels import OBJECTS
-from sim.core.maze import Maze
 from sim.core.stepper import MAX_EPISODE_ACTIONS, BatchStepper
-from sim.tasks.benchmark import Benchmark
-from sim.tasks.env import SUCCESS_REWARD, EpisodeSource, observation_space, start_episodes
+from sim.tasks.env import (
+    SUCCESS_REWARD,
+    EpisodeOptions,
+    EpisodeSource,
+    SourceOptions,
+    observation_space,
+    start_episodes,
+)
+
+
+class BatchObservation(TypedDict):
+    """`sim.tasks.env.Observation`, each entry batched over the sub-envs."""
+
+    rays: np.ndarray
+    target: np.ndarray
+    dialog: tuple[str, ...]
+    action_mask: np.ndarray
+
+
+class BatchInfo(TypedDict):
+    collided: np.ndarray
+    steps: np.ndarray
+    td: NotRequired[np.ndarray]  # with privileged_info only
 
 
 class BatchNavEnv(gym.vector.VectorEnv):
@@ -44,18 +62,13 @@ class BatchNavEnv(gym.vector.VectorEnv):
     def __init__(
         self,
         num_envs: int = 1,
-        benchmark: str | Path | Benchmark | None = None,
-        split: str = "val_seen",
-        start: str = "episode",
-        edges: str = "benchmark",
-        mazes: Sequence[str | Maze] | None = None,
         max_actions: int = MAX_EPISODE_ACTIONS,
-        cache_dir: str | Path | None = None,
         privileged_info: bool = False,
+        **source: Unpack[SourceOptions],
     ):
         if num_envs < 1:
             raise ValueError(f"num_envs={num_envs}: must be at least 1")
-        self.source = EpisodeSource(benchmark, split, start, edges, mazes, cache_dir)
+        self.source = EpisodeSource(**source)
         self.num_envs, self.privileged_info = num_envs, privileged_info
         self.stepper = BatchStepper(self.source.world(), num_envs, max_actions)
         self.single_observation_space = observation_space()
@@ -68,13 +81,13 @@ class BatchNavEnv(gym.vector.VectorEnv):
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[dict[str, Any], dict[str, Any]]:
+    ) -> tuple[BatchObservation, dict[str, Any]]:
         super().reset(seed=seed)
-        self._start(np.arange(self.num_envs), options or {})
+        self._start(np.arange(self.num_envs), cast(EpisodeOptions, options or {}))
         self._autoreset[:] = False
-        return self._observations(), self._info(np.zeros(self.num_envs, dtype=bool))
+        return self._observations(), dict(self._info(np.zeros(self.num_envs, dtype=bool)))  # Gymnasium's plain dict
 
-    def step(self, actions: ArrayLike) -> tuple[dict[str, Any], np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+    def step(self, actions: ArrayLike) -> tuple[BatchObservation, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         actions = np.asarray(actions)
         stepper, restart = self.stepper, self._autoreset.copy()
         before = stepper.td
@@ -88,16 +101,16 @@ class BatchNavEnv(gym.vector.VectorEnv):
         if restart.any():
             self._start(np.flatnonzero(restart), {})
         self._autoreset = terminated | truncated
-        return self._observations(), reward, terminated, truncated, self._info(collided)
+        return self._observations(), reward, terminated, truncated, dict(self._info(collided))
 
-    def _start(self, envs: np.ndarray, options: dict[str, Any]) -> None:
+    def _start(self, envs: np.ndarray, options: EpisodeOptions) -> None:
         episodes = [self.source.sample(self.np_random, options) for _ in envs]
         start_episodes(self.stepper, self.source, envs, episodes)
         for env, ep in zip(envs, episodes):
             self._target[env] = OBJECTS.index(ep.target)
             self._dialog[env] = ep.dialog
 
-    def _observations(self) -> dict[str, Any]:
+    def _observations(self) -> BatchObservation:
         mask = np.ones((self.num_envs, len(Action)), dtype=np.int8)
         mask[:, Action.FORWARD] = ~self.stepper.forward_blocked()
         return {
@@ -107,8 +120,8 @@ class BatchNavEnv(gym.vector.VectorEnv):
             "action_mask": mask,
         }
 
-    def _info(self, collided: np.ndarray) -> dict[str, Any]:
-        info = {"collided": collided, "steps": self.stepper.steps.copy()}
+    def _info(self, collided: np.ndarray) -> BatchInfo:
+        info: BatchInfo = {"collided": collided, "steps": self.stepper.steps.copy()}
         if self.privileged_info:
             info["td"] = self.stepper.td.copy()
         return info

@@ -38,7 +38,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, SupportsInt
+from typing import Any, NotRequired, SupportsInt, TypedDict, Unpack, cast
 
 import gymnasium as gym
 import numpy as np
@@ -84,6 +84,36 @@ def dialog_text(dialog: Sequence[tuple[str, str]]) -> str:
     return text[-MAX_DIALOG_CHARS:]
 
 
+class EpisodeOptions(TypedDict, total=False):
+    """`reset(options=...)`: a benchmark episode by `inst_idx`, or a maze episode's maze and target
+    (Gymnasium passes them as a plain dict)."""
+
+    inst_idx: int
+    maze: str
+    target: str
+
+
+class Observation(TypedDict):
+    rays: np.ndarray  # (OBS_FEATURES,) float32
+    target: int  # index into OBJECTS
+    dialog: str
+    action_mask: np.ndarray  # (4,) int8
+
+
+class StepInfo(TypedDict):
+    collided: bool
+    steps: int
+    td: NotRequired[float]  # with privileged_info only: metres to the goal
+    pose: NotRequired[Pose]  # with privileged_info only
+
+
+class ResetInfo(StepInfo):
+    target: str
+    maze: str
+    inst_idx: int | None
+    goal: NotRequired[int]  # with privileged_info only: the goal's node
+
+
 @dataclass(frozen=True)
 class Episode:
     maze: str
@@ -92,6 +122,17 @@ class Episode:
     target: str
     dialog: str
     inst_idx: int | None
+
+
+class SourceOptions(TypedDict, total=False):
+    """An environment's keyword arguments that say where its episodes come from (`EpisodeSource`)."""
+
+    benchmark: str | Path | Benchmark | None
+    split: str
+    start: str
+    edges: str
+    mazes: Sequence[str | Maze] | None
+    cache_dir: str | Path | None
 
 
 class EpisodeSource:
@@ -172,10 +213,10 @@ class EpisodeSource:
             )
         return self._worlds[names]
 
-    def sample(self, rng: np.random.Generator, options: dict[str, Any]) -> Episode:
+    def sample(self, rng: np.random.Generator, options: EpisodeOptions) -> Episode:
         return self._ndh_episode(rng, options) if self.benchmark is not None else self._random_episode(rng, options)
 
-    def _ndh_episode(self, rng: np.random.Generator, options: dict[str, Any]) -> Episode:
+    def _ndh_episode(self, rng: np.random.Generator, options: EpisodeOptions) -> Episode:
         if "inst_idx" in options:
             k = self._by_inst_idx.get(int(options["inst_idx"]))
             if k is None:
@@ -195,7 +236,7 @@ class EpisodeSource:
             )
         return self._episodes[k]
 
-    def _random_episode(self, rng: np.random.Generator, options: dict[str, Any]) -> Episode:
+    def _random_episode(self, rng: np.random.Generator, options: EpisodeOptions) -> Episode:
         name = options.get("maze")
         if name is None:
             name = self.names[int(rng.integers(len(self.names)))]
@@ -234,16 +275,11 @@ class NDHEnv(gym.Env):
 
     def __init__(
         self,
-        benchmark: str | Path | Benchmark | None = None,
-        split: str = "val_seen",
-        start: str = "episode",
-        edges: str = "benchmark",
-        mazes: Sequence[str | Maze] | None = None,
         render_mode: str | None = None,
         render_view: str = "first_person",
         max_actions: int = MAX_EPISODE_ACTIONS,
-        cache_dir: str | Path | None = None,
         privileged_info: bool = False,
+        **source: Unpack[SourceOptions],
     ):
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode={render_mode!r}: expected None or 'rgb_array'")
@@ -251,7 +287,7 @@ class NDHEnv(gym.Env):
             raise ValueError(f"render_view={render_view!r}: expected one of {', '.join(RENDER_VIEWS)}")
         if max_actions < 1:
             raise ValueError(f"max_actions={max_actions}: must be at least 1")
-        self.source = EpisodeSource(benchmark, split, start, edges, mazes, cache_dir)
+        self.source = EpisodeSource(**source)
         self.render_mode, self.render_view = render_mode, render_view
         self.max_actions, self.privileged_info = max_actions, privileged_info
         self.action_space = spaces.Discrete(len(Action))
@@ -267,16 +303,16 @@ class NDHEnv(gym.Env):
     # -- the Gymnasium interface ----------------------------------------------------
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[dict[str, Any], dict[str, Any]]:
+    ) -> tuple[Observation, dict[str, Any]]:
         super().reset(seed=seed)
-        episode = self.source.sample(self.np_random, options or {})
+        episode = self.source.sample(self.np_random, cast(EpisodeOptions, options or {}))
         if episode.maze not in self._steppers:
             self._steppers[episode.maze] = BatchStepper(
                 self.source.world([episode.maze]), 1, self.max_actions, record=True
             )
         self._episode, self._stepper = episode, self._steppers[episode.maze]
         start_episodes(self._stepper, self.source, [0], [episode])
-        info: dict[str, Any] = {
+        info: ResetInfo = {
             "collided": False,
             "steps": 0,
             "target": episode.target,
@@ -284,10 +320,10 @@ class NDHEnv(gym.Env):
             "inst_idx": episode.inst_idx,
         }
         if self.privileged_info:
-            info.update(td=float(self._stepper.td[0]), pose=episode.start, goal=episode.goal)
-        return self._observation(), info
+            info["td"], info["pose"], info["goal"] = float(self._stepper.td[0]), episode.start, episode.goal
+        return self._observation(), dict(info)  # Gymnasium's info is a plain dict
 
-    def step(self, action: SupportsInt) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
+    def step(self, action: SupportsInt) -> tuple[Observation, float, bool, bool, dict[str, Any]]:
         stepper = self._stepper
         if stepper is None or stepper.done[0]:
             raise RuntimeError("step() after the episode ended: call reset() first")
@@ -302,12 +338,12 @@ class NDHEnv(gym.Env):
         if terminated and td <= SUCCESS_RADIUS_M:
             reward += SUCCESS_REWARD
         truncated = bool(stepper.done[0]) and not terminated
-        info: dict[str, Any] = {"collided": collided, "steps": int(stepper.steps[0])}
+        info: StepInfo = {"collided": collided, "steps": int(stepper.steps[0])}
         if self.privileged_info:
-            info.update(td=td, pose=self.pose)
-        return self._observation(), reward, terminated, truncated, info
+            info["td"], info["pose"] = td, self.pose
+        return self._observation(), reward, terminated, truncated, dict(info)
 
-    def _observation(self) -> dict[str, Any]:
+    def _observation(self) -> Observation:
         stepper, episode = self._stepper, self._episode
         assert stepper is not None and episode is not None, "reset() starts an episode first"
         mask = np.ones(_STOP + 1, dtype=np.int8)

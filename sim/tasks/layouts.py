@@ -20,9 +20,9 @@ import json
 import os
 import tempfile
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 import cv2
 import numpy as np
@@ -70,17 +70,11 @@ class LayoutSignature:
         if path.exists():
             try:
                 data = load_arrays(path)
-                return cls(landmarks=data["landmarks"], walls=data["walls"], distance_m=data["distance_m"])
+                return cls(**{f.name: data[f.name] for f in fields(cls)})
             except (OSError, ValueError, KeyError):
                 pass  # a torn or stale cache file is rebuilt below
         signature = cls.of(maze)
-        save_arrays(
-            path,
-            compressed=True,
-            landmarks=signature.landmarks,
-            walls=signature.walls,
-            distance_m=signature.distance_m,
-        )
+        save_arrays(path, compressed=True, **{f.name: getattr(signature, f.name) for f in fields(signature)})
         return signature
 
     def landmark_shift_m(self, other: LayoutSignature) -> float:
@@ -105,12 +99,17 @@ def _fraction_far(walls: NDArray[np.bool_], distance_m: NDArray[np.float32]) -> 
     return float((distance_m[walls] > WALL_TOLERANCE_M).sum()) / count if count else 0.0
 
 
+class LayoutRow(TypedDict):
+    id: str
+    runs: list[str]
+
+
 @dataclass(frozen=True)
 class Layout:
     id: str  # the name of its first maze, in the order given
     runs: tuple[str, ...]
 
-    def as_json(self) -> dict[str, Any]:
+    def as_json(self) -> LayoutRow:
         return {"id": self.id, "runs": list(self.runs)}
 
 
@@ -173,38 +172,30 @@ def cached_grouping(key: str, build: Callable[[], list[Layout]], cache_dir: str 
     return layouts
 
 
-@dataclass(frozen=True)
-class FoldCount:
+class FoldCount(TypedDict):
+    """One split's counts (a row of `mazes folds --json` and of benchmark.json's folds)."""
+
     split: str
     instances: int
     runs: int
     layouts: int
     shared_layouts: int  # its layouts that another split also holds (under any run's name)
 
-    def as_json(self) -> dict[str, Any]:
-        return {
-            "split": self.split,
-            "instances": self.instances,
-            "runs": self.runs,
-            "layouts": self.layouts,
-            "shared_layouts": self.shared_layouts,
-        }
-
 
 def fold_counts(splits: Mapping[str, Sequence[str]], layout_of: Mapping[str, str]) -> list[FoldCount]:
     """Per split (split -> the run of each instance): instances, runs, layouts and the layouts it
     shares with another split. A run missing from `layout_of` is a layout of its own."""
     layouts = {split: {layout_of.get(run, run) for run in runs} for split, runs in splits.items()}
-    counts = []
+    counts: list[FoldCount] = []
     for split, runs in splits.items():
         others = set().union(*(ls for s, ls in layouts.items() if s != split))
         counts.append(
-            FoldCount(
-                split=split,
-                instances=len(runs),
-                runs=len(set(runs)),
-                layouts=len(layouts[split]),
-                shared_layouts=len(layouts[split] & others),
-            )
+            {
+                "split": split,
+                "instances": len(runs),
+                "runs": len(set(runs)),
+                "layouts": len(layouts[split]),
+                "shared_layouts": len(layouts[split] & others),
+            }
         )
     return counts

@@ -15,7 +15,7 @@ import json
 import re
 from dataclasses import dataclass
 from enum import Enum
-from typing import Any
+from typing import NotRequired, TypedDict
 
 from sim.tasks.benchmark import Benchmark, BenchmarkError, NDHInstance, scan_run
 
@@ -66,6 +66,30 @@ def localization_prefix(dialog: Dialog) -> int:
     return len(dialog)
 
 
+class DialogTurn(TypedDict):
+    role: str  # "oracle" (the Commander) or "navigator" (the Driver)
+    message: str
+
+
+class LDHInstanceJson(TypedDict):
+    """One exported LDH instance, as `LDH-data/<split>.json` lists them (`app.export.ndh`)."""
+
+    scan: str
+    target: str
+    agent_pose: list[float] | None  # the true pose (x, y, heading) when localization ended
+    start_pose: list[float] | None
+    commander_estimate: list[float | None] | None  # x, y and the heading where one was given
+    localization_error_m: float | None
+    localization_source: str
+    localized_after_message: int
+    all_targets: list[list[float]]
+    dialog_history: list[DialogTurn]
+    trial_id: str
+    seats: dict[str, str]
+    tags: NotRequired[dict[str, list[int]]]  # the dialog's phenomena, where annotated
+    inst_idx: NotRequired[int]  # set when the split is written
+
+
 @dataclass(frozen=True)
 class LDHInstance:
     inst_idx: int
@@ -97,7 +121,7 @@ def derive(inst: NDHInstance, variant: Variant) -> LDHInstance:
     )
 
 
-def exact_from_json(item: dict[str, Any]) -> LDHInstance | None:
+def exact_from_json(item: LDHInstanceJson) -> LDHInstance | None:
     """An exported LDH instance; None where the trial has no true pose (no overhead tracker)."""
     pose = item.get("agent_pose")
     if pose is None:

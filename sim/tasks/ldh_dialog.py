@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 
@@ -56,15 +56,19 @@ def driver_cuts(inst: LDHInstance) -> list[int]:
     return [first] + [k + 1 for k, (role, _) in enumerate(inst.dialog) if role == "navigator"]
 
 
+class TurnCurves(TypedDict):
+    turns: list[int]  # 0, 1, ...
+    n: list[int]  # instances with at least that many Driver turns
+    agents: dict[str, dict[str, list[float]]]  # NAME -> td_mean, td_median, acc_0.25, acc_0.5: one per turn
+
+
 def per_turn(
     bench: Benchmark,
     instances: list[LDHInstance],
     agents: dict[str, Localizer],
     contexts: MazeContexts | None = None,
-) -> dict[str, Any]:
-    """{"turns": [0, 1, ...], "n": [instances with at least that many Driver turns],
-    "agents": {NAME: {"td_mean": [...], "td_median": [...], "acc_0.25": [...], "acc_0.5": [...]}}}:
-    after turn t, each instance's TD with its dialog cut after its t-th Driver turn, or whole
+) -> TurnCurves:
+    """After turn t, each instance's TD with its dialog cut after its t-th Driver turn, or whole
     when it has fewer (the estimate stays where its dialog left it)."""
     contexts = contexts or MazeContexts(bench)
     cuts = {inst.inst_idx: driver_cuts(inst) for inst in instances}
@@ -76,7 +80,7 @@ def per_turn(
         for name, localizer in agents.items():
             row = [score(ctx, localizer(replace(inst, dialog=inst.dialog[:cut]), ctx), inst)[0] for cut in inst_cuts]
             tds[name][i] = row + [row[-1]] * (turns - len(row))
-    out: dict[str, Any] = {
+    out: TurnCurves = {
         "turns": list(range(turns)),
         "n": [sum(len(c) > t for c in cuts.values()) for t in range(turns)],
         "agents": {},
@@ -89,7 +93,7 @@ def per_turn(
     return out
 
 
-def plot_curve(curve: dict[str, Any], path: str | Path, title: str, humans_m: float | None = None) -> None:
+def plot_curve(curve: TurnCurves, path: str | Path, title: str, humans_m: float | None = None) -> None:
     """Mean TD after each Driver turn, one line per agent (and the humans' final TD, dashed)."""
     import matplotlib
 

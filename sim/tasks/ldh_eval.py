@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass
 from functools import cached_property
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, NotRequired, Protocol, TypedDict
 
 import numpy as np
 
@@ -202,6 +202,16 @@ def evaluate(
     return out
 
 
+class LDHSummary(TypedDict):
+    """The JSON of `robotslang eval ldh`."""
+
+    split: str
+    variant: str
+    n: int
+    agents: dict[str, dict[str, float]]  # td_mean, td_std, td_median, euclid_mean, acc_<radius>
+    tests: NotRequired[list[dict[str, object]]]  # `eval ldh --versus`: paired tests (models.stats.Comparison)
+
+
 def _mean_std(values: list[float]) -> tuple[float, float]:
     if not values:
         return math.nan, math.nan
@@ -209,7 +219,7 @@ def _mean_std(values: list[float]) -> tuple[float, float]:
     return float(a.mean()), float(a.std(ddof=1)) if a.size > 1 else 0.0
 
 
-def summarize_agent(results: list[LDHResult]) -> dict[str, Any]:
+def summarize_agent(results: list[LDHResult]) -> dict[str, float]:
     """Means over instances (seeds averaged per instance first); td_std is the sample std."""
     by_inst: dict[int, list[LDHResult]] = {}
     for r in results:
@@ -228,7 +238,7 @@ def summarize_agent(results: list[LDHResult]) -> dict[str, Any]:
     return out
 
 
-def summarize(split: str, variant: str, n: int, results: list[LDHResult]) -> dict[str, Any]:
+def summarize(split: str, variant: str, n: int, results: list[LDHResult]) -> LDHSummary:
     """The JSON of `robotslang eval ldh`: {split, variant, n, agents: {NAME: {...}}}."""
     agents: dict[str, list[LDHResult]] = {}
     for r in results:

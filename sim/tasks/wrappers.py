@@ -8,13 +8,24 @@ in the Dict passes through.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TypedDict
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from sim.tasks.env import Observation
+
 DEFAULT_MAX_CHARS = 256
+
+
+class CodedObservation(TypedDict):
+    """`Observation` with the dialog as (max_chars,) int64 codes."""
+
+    rays: np.ndarray
+    target: int
+    dialog: np.ndarray
+    action_mask: np.ndarray
 
 
 class DialogCodes(gym.ObservationWrapper):
@@ -33,7 +44,7 @@ class DialogCodes(gym.ObservationWrapper):
             }
         )
 
-    def observation(self, observation: dict[str, Any]) -> dict[str, Any]:
+    def observation(self, observation: Observation) -> CodedObservation:
         codes = np.zeros(self.max_chars, dtype=np.int64)
         tail = observation["dialog"][-self.max_chars :]
         if tail:
