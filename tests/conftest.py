@@ -16,7 +16,7 @@ import pytest
 
 if TYPE_CHECKING:
     from app.settings import Settings
-    from tests.app.live import ServerThread
+    from tests.app.live import PlatformProcess, ServerThread, TrialHandle, Trials
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -46,9 +46,10 @@ def pytest_configure(config) -> None:
     # Options of the platform's fixtures (below), set per test.
     config.addinivalue_line(
         "markers",
-        "settings(**overrides): overrides of the `settings` fixture (and so of `server`, `start_server`, `cluster`)",
+        "settings(**overrides): overrides of the `settings` fixture (and so of `server`, `start_server`, `cluster`,"
+        " `server_process`)",
     )
-    config.addinivalue_line("markers", "trial(**options): `make_trial`'s options for the `trial` fixture")
+    config.addinivalue_line("markers", "trial(**options): `trials.new`'s options for the `trial` fixture")
 
 
 def pytest_collection_modifyitems(items) -> None:
@@ -119,8 +120,9 @@ def postgres_url():
     admin.dispose()
 
 
-# The platform's fixtures: a server, a trial on it, its seats (the app's and the browser tests).
-# Only these build servers (`ServerThread`): a test asks for one, and it is stopped when the test ends.
+# The platform's fixtures: a server, trials on it and their seats (the app's and the browser tests).
+# Only these build servers (`ServerThread`, `PlatformProcess`): a test asks for one, and it is
+# stopped when the test ends.
 def _settings_overrides(request) -> dict:
     marker = request.node.get_closest_marker("settings")
     return dict(marker.kwargs) if marker else {}
@@ -200,18 +202,33 @@ def cluster(request, tmp_path, postgres_url, redis_url, start_server) -> tuple[S
 
 
 @pytest.fixture
-def trial(request, server) -> int:
-    """A team's trial on the server's first maze; `@pytest.mark.trial(**make_trial_options)` sets
-    its targets, Driver or backend."""
-    from bench.live import make_trial
+def server_process(request, settings) -> Callable[..., PlatformProcess]:
+    """`server_process(own_settings=None, workers=1)`: `robotslang serve` as a process on
+    `own_settings`, else the `settings` fixture's, with the platform's services beside it; built
+    unstarted, so a test sets up its data before `start()`; stopped when the test ends."""
+    from tests.app.live import PlatformProcess
 
-    marker = request.node.get_closest_marker("trial")
-    return make_trial(server.services, server.services.mazes.names()[0], **(marker.kwargs if marker else {}))
+    def build(own_settings: Settings | None = None, workers: int = 1) -> PlatformProcess:
+        server = PlatformProcess(own_settings or settings, workers=workers)
+        request.node.addfinalizer(server.close)
+        return server
+
+    return build
 
 
 @pytest.fixture
-def seats(server, trial) -> dict[str, str]:
-    """The join tokens of the trial's seats, by role (what the experimenter's join links carry)."""
-    from app.security import SEAT_ROLES
+def trials(request) -> Trials:
+    """`trials.new(on=None, maze=None, **options)`: a new team's trial, `trials.of(trial_id, on=None)`:
+    one the platform made; each a `TrialHandle` (its id, its seats' tokens and links), on the
+    server `on`, by default the `server` fixture's."""
+    from tests.app.live import Trials
 
-    return {role: server.services.seats.issue(trial, role) for role in SEAT_ROLES}
+    return Trials(lambda: request.getfixturevalue("server"))
+
+
+@pytest.fixture
+def trial(request, trials) -> TrialHandle:
+    """A team's trial on the `server` fixture's first maze; `@pytest.mark.trial(**options)` sets
+    its targets, Driver or backend (`trials.new`'s options)."""
+    marker = request.node.get_closest_marker("trial")
+    return trials.new(**(marker.kwargs if marker else {}))

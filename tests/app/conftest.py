@@ -4,6 +4,7 @@ virtual rover's maze, start and lab; a small recorded trial; a tiny learned Driv
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable, Iterator
 
 import pytest
 
@@ -53,10 +54,24 @@ def start(maze) -> RoverPose:
 
 
 @pytest.fixture
-def lab(tmp_path):
-    lab = Lab(tmp_path)
-    yield lab
-    lab.close()
+def start_lab(tmp_path, server_process) -> Iterator[Callable[..., Lab]]:
+    """`start_lab(**settings)`: the virtual rover's lab, its server on more settings of its own
+    (for the server and the services beside it); closed when the test ends."""
+    labs = []
+
+    def start(**settings) -> Lab:
+        server = server_process(platform_settings(tmp_path, cache_dir=tmp_path / "cache", **settings))
+        labs.append(Lab(tmp_path, server))
+        return labs[-1]
+
+    yield start
+    for lab in labs:
+        lab.close()
+
+
+@pytest.fixture
+def lab(start_lab) -> Lab:
+    return start_lab()
 
 
 @pytest.fixture(scope="module")

@@ -1,28 +1,34 @@
 """Helpers for the platform's tests: their settings, a real uvicorn server on a loopback port in a
-thread, an experimenter's browser session and live view, and the command line. The server as a
-process, trials and seat clients are `bench.live`'s (the benchmarks drive the platform with them too)."""
+thread or `robotslang serve` as a process, a trial's handle (its seats' tokens and links), an
+experimenter's browser session and live view, and the command line. Tests take servers and trials
+from conftest's fixtures; trials are set up and seats played by `bench.live`'s helpers (the
+benchmarks drive the platform with them too)."""
 
 from __future__ import annotations
 
 import asyncio
+import functools
+import json
 import os
 import re
 import subprocess
 import sys
 import threading
 import time
-from typing import Any
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol
 
 import httpx
 import uvicorn
 import websockets
 
 from app.db.models import Experimenter
-from app.main import create_app
-from app.security import SESSION_COOKIE, hash_password
+from app.main import build_services, create_app
+from app.security import SEAT_ROLES, SESSION_COOKIE, hash_password
 from app.serving import uvicorn_options
 from app.settings import Settings
-from bench.live import REPO, SeatClient, free_port
+from bench.live import REPO, SeatClient, ServerProcess, free_port, make_trial
 
 PASSWORD = "correct horse"
 
@@ -69,6 +75,91 @@ class ServerThread:
         self.server.should_exit = True
         self.thread.join(timeout=20)
         self.services.engine.dispose()
+
+
+class PlatformProcess(ServerProcess):
+    """`robotslang serve` as a process on `settings` (what they set, passed in its environment),
+    so a test can kill it and start it again; beside it, the platform's services on the same data in
+    this process (to set up trials and read their logs). Tests take one from conftest's
+    `server_process`, which builds it unstarted and stops it when the test ends."""
+
+    def __init__(self, settings: Settings, workers: int = 1) -> None:
+        super().__init__(settings_env(settings), workers=workers)
+        self.settings = settings
+
+    @functools.cached_property
+    def services(self) -> Any:
+        """Built when first asked for (a test that only watches the process needs none)."""
+        return build_services(self.settings)
+
+    def close(self) -> None:
+        self.stop()
+        if "services" in self.__dict__:
+            self.services.engine.dispose()
+
+
+def settings_env(settings: Settings) -> dict[str, str]:
+    """The environment that gives `robotslang serve` the settings `settings` set."""
+    env = {}
+    for name, value in settings.model_dump(exclude_unset=True).items():
+        if value is not None:
+            env[f"ROBOTSLANG_{name.upper()}"] = json.dumps(value) if isinstance(value, list) else str(value)
+    return env
+
+
+class Served(Protocol):
+    """A test server, in a thread or a process: where it serves, and its services."""
+
+    services: Any
+
+    @property
+    def url(self) -> str: ...
+
+    @property
+    def ws_url(self) -> str: ...
+
+
+@dataclass(frozen=True)
+class TrialHandle:
+    """A trial on a test server: its id, and its seats' join tokens by role (what the
+    experimenter's join links carry). Tests take them from conftest's `trial` and `trials`."""
+
+    id: int
+    tokens: dict[str, str]
+    url: str  # the server's
+    ws_url: str  # its seats' socket
+
+    @classmethod
+    def on(cls, server: Served, trial_id: int) -> TrialHandle:
+        """The handle of trial `trial_id` on `server`: a join token issued for each seat."""
+        tokens = {role: server.services.seats.issue(trial_id, role) for role in SEAT_ROLES}
+        return cls(trial_id, tokens, server.url, server.ws_url)
+
+    def play_url(self, role: str) -> str:
+        """The seat's join link: its page on the server."""
+        return f"{self.url}/play/{self.tokens[role]}"
+
+    def seat(self, role: str, origin: str | None = None) -> SeatClient:
+        """The seat's websocket client (opened by `async with`)."""
+        return SeatClient(self.ws_url, self.tokens[role], origin=origin)
+
+
+class Trials:
+    """Trials on a test server, `default()` unless another is named, as `TrialHandle`s. Tests
+    take one from conftest's `trials`, whose default is the `server` fixture."""
+
+    def __init__(self, default: Callable[[], Served]) -> None:
+        self._default = default
+
+    def new(self, on: Served | None = None, maze: str | None = None, **options) -> TrialHandle:
+        """A new team's trial (`bench.live.make_trial`'s `options`) on `maze`, else the server's first."""
+        server = on if on is not None else self._default()
+        services = server.services
+        return TrialHandle.on(server, make_trial(services, maze or services.mazes.names()[0], **options))
+
+    def of(self, trial_id: int, on: Served | None = None) -> TrialHandle:
+        """The handle of a trial the platform made (a study's, a rover's): its seats' tokens."""
+        return TrialHandle.on(on if on is not None else self._default(), trial_id)
 
 
 def page_csrf_token(page: str) -> str:
@@ -126,12 +217,13 @@ def wait_js(page, expression: str, timeout_s: float = 30.0) -> None:
         page.wait_for_timeout(50)
 
 
-def open_seats(server, trial_id: int, *roles: str) -> None:
+def open_seats(server: Served, trial_id: int, *roles: str) -> None:
     """Each seat's page opened once (its socket joins the trial: a Commander's loads the map)."""
+    trial = TrialHandle.on(server, trial_id)
 
     async def open_each() -> None:
         for role in roles:
-            async with SeatClient(server.ws_url, server.services.seats.issue(trial_id, role)) as seat:
+            async with trial.seat(role) as seat:
                 await seat.wait_for(lambda message: True)
 
     asyncio.run(open_each())

@@ -1,5 +1,6 @@
-"""The rover's link end to end: the server in a thread with `robotslang serve`'s transport limit,
-and the rover's real client (`python -m robot_client`) as a process."""
+"""The rover's link end to end: a robot and a trial on it on the test server (in a thread, with
+`robotslang serve`'s transport limit), and the rover's real client (`python -m robot_client`) as a
+process."""
 
 from __future__ import annotations
 
@@ -7,19 +8,16 @@ import json
 import signal
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
-import uvicorn
 from sqlalchemy import select
 
 from app.db.models import Event
-from app.main import create_app
 from app.rover.records import create_robot
-from app.serving import uvicorn_options
-from bench.live import SeatClient, free_port, team_trial
+from bench.live import team_trial
 from robot_client.calibration import Calibration
+from tests.app.live import ServerThread, TrialHandle
 
 ROBOT = [sys.executable, "-m", "robot_client"]
 CALIBRATION = Calibration(forward_s=0.3, left_s=0.2, right_s=0.25)
@@ -27,59 +25,34 @@ WATCHDOG_S = 0.5
 ROBOT_START_S = 60.0  # bound on waits that include starting a client process (seconds when idle)
 
 
-class RobotServer:
-    """`create_app` under uvicorn in a thread, with the transport limit `robotslang serve` uses."""
-
-    def __init__(self, settings) -> None:
-        self.app = create_app(settings)
-        self.services = self.app.state.services
-        self.port = free_port()
-        config = uvicorn.Config(
-            self.app, host="127.0.0.1", port=self.port, log_level="warning", lifespan="on", **uvicorn_options(settings)
+def new_robot_trial(server: ServerThread, name: str, role: str = "driver") -> tuple[int, str, TrialHandle | None]:
+    """A robot on `server`, and (for a rover) a trial of a new team on it: (robot id, token, trial)."""
+    services = server.services
+    with services.db.begin() as db:
+        robot, token = create_robot(db, name, role)
+        if role != "driver":
+            return robot.id, token, None
+        trial_id = team_trial(
+            db,
+            f"{name} team",
+            "table",
+            ["table"],
+            services.clock.now_ns(),
+            targets=["jar", "mug", "paddle"],
+            backend=f"robot:{robot.id}",
         )
-        self.server = uvicorn.Server(config)
-        self.thread = threading.Thread(target=self.server.run, daemon=True)
-        self.thread.start()
-        deadline = time.time() + 20
-        while not self.server.started:
-            assert time.time() < deadline and self.thread.is_alive(), "test server did not start"
-            time.sleep(0.02)
+    return robot.id, token, TrialHandle.on(server, trial_id)
 
-    url = property(lambda self: f"http://127.0.0.1:{self.port}")
-    play_url = property(lambda self: f"ws://127.0.0.1:{self.port}/ws/play")
 
-    def stop(self) -> None:
-        self.server.should_exit = True
-        self.thread.join(timeout=20)
-        self.services.engine.dispose()
+def trial_events(server: ServerThread, trial: TrialHandle, kind: str | None = None) -> list[Event]:
+    """The trial's events (of `kind`), in order."""
+    with server.services.db() as db:
+        query = select(Event).where(Event.trial_id == trial.id).order_by(Event.seq)
+        return [e for e in db.scalars(query) if kind is None or e.kind == kind]
 
-    def new_robot_trial(self, name: str, role: str = "driver") -> tuple[int, str, int | None]:
-        """A robot, and (for a rover) a trial of a new team on it: (robot id, token, trial id)."""
-        with self.services.db.begin() as db:
-            robot, token = create_robot(db, name, role)
-            if role != "driver":
-                return robot.id, token, None
-            trial_id = team_trial(
-                db,
-                f"{name} team",
-                "table",
-                ["table"],
-                self.services.clock.now_ns(),
-                targets=["jar", "mug", "paddle"],
-                backend=f"robot:{robot.id}",
-            )
-            return robot.id, token, trial_id
 
-    def seat(self, trial_id: int, role: str) -> SeatClient:
-        return SeatClient(self.play_url, self.services.seats.issue(trial_id, role))
-
-    def events(self, trial_id: int, kind: str | None = None) -> list[Event]:
-        with self.services.db() as db:
-            query = select(Event).where(Event.trial_id == trial_id).order_by(Event.seq)
-            return [e for e in db.scalars(query) if kind is None or e.kind == kind]
-
-    def status(self, robot_id: int) -> dict:
-        return next(r for r in self.services.robots.status() if r["id"] == robot_id)
+def robot_status(server: ServerThread, robot_id: int) -> dict:
+    return next(r for r in server.services.robots.status() if r["id"] == robot_id)
 
 
 class RobotProcess:

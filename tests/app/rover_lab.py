@@ -1,5 +1,6 @@
 """The virtual rover's lab: `robotslang serve` as a process with the trial's services beside it, the
-software rover (`robotslang robot virtual`) as more processes, and waits on the rover's truth file."""
+software rover (`robotslang robot virtual`) as more processes, and waits on the rover's truth file.
+Tests take a lab from conftest's `lab` or `start_lab`."""
 
 from __future__ import annotations
 
@@ -12,10 +13,9 @@ import sys
 import time
 from pathlib import Path
 
-from app.main import build_services
 from app.rover.virtual.truth import TruthSample, read_truth
-from bench.live import REPO, SeatClient, ServerProcess
-from tests.app.live import UNPACED_ENV, cli, platform_settings
+from bench.live import REPO
+from tests.app.live import PlatformProcess, cli
 
 MAZE = "gen-000"
 TARGETS = ("jar", "mug", "paddle")  # the rover trials' targets, in visiting order
@@ -23,21 +23,15 @@ START_S = 60.0  # bound on waits that include starting a process (seconds when t
 
 
 class Lab:
-    """A server process on its own data directory, the trial's services in this process."""
+    """A server process (started here), the trial's services beside it, rovers and the command
+    line on the server's settings; its files under `tmp_path`."""
 
-    def __init__(self, tmp_path: Path, **settings) -> None:
-        """`settings`: more of the server's settings, for both the server and these services."""
+    def __init__(self, tmp_path: Path, server: PlatformProcess) -> None:
         self.tmp_path = tmp_path
-        self.settings = platform_settings(tmp_path, cache_dir=tmp_path / "cache", **settings)
-        self.env = {
-            "ROBOTSLANG_DATA_DIR": str(self.settings.data_dir),
-            "ROBOTSLANG_SECRET_KEY": self.settings.secret_key,
-            **UNPACED_ENV,
-            "ROBOTSLANG_CACHE_DIR": str(tmp_path / "cache"),
-            **{f"ROBOTSLANG_{k.upper()}": str(v) for k, v in settings.items()},
-        }
-        self.services = build_services(self.settings)
-        self.server = ServerProcess(self.env).start()
+        self.settings = server.settings
+        self.env = server.env  # the server's environment: its settings
+        self.services = server.services
+        self.server = server.start()
         self.rovers: list[subprocess.Popen] = []
 
     def register(self, name: str, role: str = "driver") -> tuple[int, str]:
@@ -72,11 +66,6 @@ class Lab:
         self.rovers.append(proc)
         return proc
 
-    def seats(self, trial: int):
-        return [
-            SeatClient(self.server.ws_url, self.services.seats.issue(trial, role)) for role in ("commander", "driver")
-        ]
-
     def close(self) -> None:
         for proc in self.rovers:
             if proc.poll() is None:
@@ -86,8 +75,7 @@ class Lab:
                 except subprocess.TimeoutExpired:
                     proc.kill()
                     proc.wait()
-        self.server.stop()
-        self.services.engine.dispose()
+        self.server.close()
 
 
 async def until(predicate, what: str, timeout: float = START_S):

@@ -14,7 +14,6 @@ from app.db.models import Event, Trial
 from app.seats.base import Seating
 from app.seats.dialog import dialog_commander
 from app.seats.registry import register_agent
-from bench.live import make_trial
 from sim.trial import agent as ta
 from sim.trial import commands as c
 from sim.trial import events as ev
@@ -45,7 +44,7 @@ def logged(services, trial_id: int) -> list[LoggedEvent]:
 
 @pytest.mark.slow
 @pytest.mark.settings(min_move_interval_s=0.05)
-def test_the_commander_agent_hears_no_pose_no_frame_stream_and_no_moves(server):
+def test_the_commander_agent_hears_no_pose_no_frame_stream_and_no_moves(server, trials):
     services = server.services
     heard: list[p.Percept] = []
     seatings: list[Seating] = []
@@ -65,8 +64,8 @@ def test_the_commander_agent_hears_no_pose_no_frame_stream_and_no_moves(server):
             return self.agent.perceive(percept)
 
     register_agent(Role.COMMANDER, "agent:test-listening", lambda services, seating: Listening(seating))
-    trial_id = make_trial(services, MAZE, commander="agent:test-listening", driver="agent:dialog")
-    asyncio.run(first_target_confirmed(server, trial_id, experimenter_client(services, server.url)))
+    trial = trials.new(maze=MAZE, commander="agent:test-listening", driver="agent:dialog")
+    asyncio.run(first_target_confirmed(server, trial.id, experimenter_client(services, server.url)))
     # The watcher hears the confirmation as it is logged; the agent's seat hands it on in its own
     # time (later on a loaded machine).
     deadline = time.monotonic() + 30
@@ -75,9 +74,9 @@ def test_the_commander_agent_hears_no_pose_no_frame_stream_and_no_moves(server):
         time.sleep(0.05)
 
     # The map, nothing that cheats, and that its partner is an agent (no read-back owed to a person).
-    assert seatings == [Seating(seed=trial_id, oracle=None, maze=MAZE, partner_human=False)]
+    assert seatings == [Seating(seed=trial.id, oracle=None, maze=MAZE, partner_human=False)]
     assert heard and all(isinstance(q, COMMANDER_HEARS) for q in heard), {type(q).__name__ for q in heard}
-    assert services.hub.peek(trial_id).state.moves > 0, "the robot moved, and the Commander never heard a move"
+    assert services.hub.peek(trial.id).state.moves > 0, "the robot moved, and the Commander never heard a move"
     said = [q for q in heard if isinstance(q, p.Heard)]
     assert {q.speaker for q in said} == {v.Role.COMMANDER, v.Role.DRIVER}
     legs = [q for q in heard if isinstance(q, p.PhaseBegan) and q.phase == v.Phase.NAVIGATING]
@@ -89,13 +88,13 @@ def test_the_commander_agent_hears_no_pose_no_frame_stream_and_no_moves(server):
 
 @pytest.mark.slow
 @pytest.mark.settings(min_move_interval_s=0.05)
-def test_agents_in_both_seats_reach_the_first_target_through_the_trial_log(server):
+def test_agents_in_both_seats_reach_the_first_target_through_the_trial_log(server, trials):
     services = server.services
     client = experimenter_client(services, server.url)
-    trial_id = make_trial(services, MAZE, commander="agent:dialog", driver="agent:dialog")
-    watched = asyncio.run(first_target_confirmed(server, trial_id, client))
+    trial = trials.new(maze=MAZE, commander="agent:dialog", driver="agent:dialog")
+    watched = asyncio.run(first_target_confirmed(server, trial.id, client))
 
-    events = logged(services, trial_id)
+    events = logged(services, trial.id)
     typed = [ev.typed(e) for e in events]
     assert all(e is not None for e in typed), "every event is an ordinary, typed event"
     chat = [e for e in typed if isinstance(e, ev.Chat)]
@@ -109,9 +108,9 @@ def test_agents_in_both_seats_reach_the_first_target_through_the_trial_log(serve
     assert any(m.get("kind") == ev.TargetConfirmed.kind for m in watched)
 
     with services.db() as db:
-        trial = db.get(Trial, trial_id)
-        assert (trial.team_id, trial.commander, trial.driver) == (None, "agent:dialog", "agent:dialog")
-    row = re.search(rf'data-trial="{trial_id}".*?</tr>', client.get("/experimenter").text, re.S).group(0)
+        row = db.get(Trial, trial.id)
+        assert (row.team_id, row.commander, row.driver) == (None, "agent:dialog", "agent:dialog")
+    row = re.search(rf'data-trial="{trial.id}".*?</tr>', client.get("/experimenter").text, re.S).group(0)
     assert "Commander agent:dialog · Driver agent:dialog" in row and "join-" not in row, "no join links for agents"
 
 
@@ -143,18 +142,18 @@ def test_the_trial_form_seats_agents_in_either_seat_and_starts_an_agent_pair_at_
 
 
 @pytest.mark.settings(min_move_interval_s=0.05, agent_messages_per_target=3)
-def test_agents_that_talk_past_their_message_cap_end_the_trial_saying_why(server):
+def test_agents_that_talk_past_their_message_cap_end_the_trial_saying_why(server, trials):
     services = server.services
     client = experimenter_client(services, server.url)
-    trial_id = make_trial(services, MAZE, commander="agent:dialog", driver="agent:dialog")
+    trial = trials.new(maze=MAZE, commander="agent:dialog", driver="agent:dialog")
 
     async def watch() -> dict:
-        async with Watch(server, trial_id, session_cookie(client).split("=", 1)[1]) as w:
+        async with Watch(server, trial.id, session_cookie(client).split("=", 1)[1]) as w:
             return await w.event("phase", timeout=60, phase="aborted")
 
     aborted = asyncio.run(watch())
     assert re.fullmatch(r"agent (Commander|Driver)'s cap: 3 messages for target 1", aborted["payload"]["reason"])
-    typed = [ev.typed(e) for e in logged(services, trial_id)]
+    typed = [ev.typed(e) for e in logged(services, trial.id)]
     chat = [e for e in typed if isinstance(e, ev.Chat)]
     assert "the most an agent may; I stop here" in chat[-1].text
     assert max(sum(c.role == role for c in chat[:-1]) for role in (Role.COMMANDER, Role.DRIVER)) <= 3

@@ -9,7 +9,6 @@ from sqlalchemy import select
 
 from app.db.models import Event
 from app.seats.registry import driver_names, register_driver
-from bench.live import SeatClient, make_trial
 from sim.agents.stepwise import StepwiseDriver
 from sim.trial.vocabulary import Move
 
@@ -17,10 +16,9 @@ from sim.trial.vocabulary import Move
 @pytest.mark.trial(driver="oracle:shortest")
 def test_shortest_path_oracle_drives_and_claims_each_target(server, trial):
     services = server.services
-    token = services.seats.issue(trial, "commander")
 
     async def command():
-        async with SeatClient(server.ws_url, token) as commander:
+        async with trial.seat("commander") as commander:
             await commander.event("phase", phase="localizing")
             await commander.send("localize", x=1.0, y=1.0)
             for index in range(3):
@@ -41,14 +39,14 @@ def test_shortest_path_oracle_drives_and_claims_each_target(server, trial):
     assert "frame" not in commander.kinds()
     with services.db() as db:
         confirmed = db.scalars(
-            select(Event.payload).where(Event.trial_id == trial, Event.kind == "target_confirmed")
+            select(Event.payload).where(Event.trial_id == trial.id, Event.kind == "target_confirmed")
         ).all()
-        moves = db.scalars(select(Event.payload).where(Event.trial_id == trial, Event.kind == "move_executed")).all()
+        moves = db.scalars(select(Event.payload).where(Event.trial_id == trial.id, Event.kind == "move_executed")).all()
     assert all(c["truly_within"] for c in confirmed) and len(confirmed) == 3
     assert moves and all(m["outcome"] == "ok" for m in moves)
 
 
-def test_register_driver_adds_a_named_agent(server):
+def test_register_driver_adds_a_named_agent(server, trials):
     class AlwaysLeft(StepwiseDriver):
         def decide(self):
             assert self.rays is not None and len(self.rays.labels) == 13  # it sees its frame's rays
@@ -59,14 +57,13 @@ def test_register_driver_adds_a_named_agent(server):
         driver_names()
     )
     services = server.services
-    trial_id = make_trial(services, services.mazes.names()[0], driver="agent:test-left")
-    token = services.seats.issue(trial_id, "commander")
+    trial = trials.new(driver="agent:test-left")
 
     async def command():
-        async with SeatClient(server.ws_url, token) as commander:
+        async with trial.seat("commander") as commander:
             await commander.event("phase", phase="localizing")
             await commander.send("localize", x=1.0, y=1.0)
-            runtime = services.hub.peek(trial_id)
+            runtime = services.hub.peek(trial.id)
             for _ in range(500):
                 if runtime.state.moves >= 3:
                     break
@@ -75,21 +72,21 @@ def test_register_driver_adds_a_named_agent(server):
     asyncio.run(command())
     with services.db() as db:
         actions = db.scalars(
-            select(Event.payload).where(Event.trial_id == trial_id, Event.kind == "move_executed")
+            select(Event.payload).where(Event.trial_id == trial.id, Event.kind == "move_executed")
         ).all()
     assert len(actions) >= 3 and {a["action"] for a in actions} == {"left"}
 
 
-def test_an_agent_that_fails_is_logged_and_the_trial_stays_open(server):
+def test_an_agent_that_fails_is_logged_and_the_trial_stays_open(server, trials):
     def broken(services, seating):
         raise FileNotFoundError("no checkpoint at runs/missing.pt")
 
     register_driver("agent:test-broken", broken)
     services = server.services
-    trial_id = make_trial(services, services.mazes.names()[0], driver="agent:test-broken")
+    trial = trials.new(driver="agent:test-broken")
 
     async def command():
-        async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+        async with trial.seat("commander") as commander:
             await commander.wait_for(lambda m: m.get("type") == "welcome")
             await asyncio.sleep(0.5)
             await commander.send("chat", text="anyone there?")
@@ -97,5 +94,5 @@ def test_an_agent_that_fails_is_logged_and_the_trial_stays_open(server):
 
     asyncio.run(command())
     with services.db() as db:
-        errors = db.scalars(select(Event.payload).where(Event.trial_id == trial_id, Event.kind == "bad_message")).all()
+        errors = db.scalars(select(Event.payload).where(Event.trial_id == trial.id, Event.kind == "bad_message")).all()
     assert errors == [{"role": "driver", "error": "agent 'agent:test-broken' failed: no checkpoint at runs/missing.pt"}]

@@ -18,7 +18,7 @@ from app.db.models import Event
 from app.rover.records import create_robot
 from app.seats.base import Seating
 from app.seats.registry import register_driver
-from bench.live import REPO, SeatClient, make_trial
+from bench.live import REPO
 from sim.agents.dialog_driver import DialogDriver
 from sim.agents.stepwise import StepwiseDriver
 from sim.core.rays import RayObservation
@@ -89,17 +89,17 @@ async def held_still(runtime, seconds: float) -> bool:
     return True
 
 
-def test_the_agent_waits_answers_moves_when_told_and_sees_only_what_a_driver_sees(server):
+def test_the_agent_waits_answers_moves_when_told_and_sees_only_what_a_driver_sees(server, trials):
     inputs: list = []
     register_driver("agent:test-recording", lambda services, seating: RecordingDialogDriver(seating, inputs))
     services = server.services
     maze = services.mazes.names()[0]
-    trial_id = make_trial(services, maze, driver="agent:test-recording")
+    trial = trials.new(maze=maze, driver="agent:test-recording")
 
     async def command():
-        async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+        async with trial.seat("commander") as commander:
             await commander.event("phase", phase="localizing", timeout=30)
-            runtime = services.hub.peek(trial_id)
+            runtime = services.hub.peek(trial.id)
             assert await held_still(runtime, 1.0)  # nobody has spoken: it neither moves nor talks
             assert not [m for m in commander.received if m.get("kind") == "chat"]
             start = len(commander.received)
@@ -114,8 +114,8 @@ def test_the_agent_waits_answers_moves_when_told_and_sees_only_what_a_driver_see
             return runtime, answer["payload"]["text"], report["payload"]["text"]
 
     runtime, answer, report = asyncio.run(command())
-    moves = events_of(services, trial_id, "move_executed")
-    chats = events_of(services, trial_id, "chat")
+    moves = events_of(services, trial.id, "move_executed")
+    chats = events_of(services, trial.id, "chat")
     backend = runtime.robot.backend
     observed_now = backend.rays.observation(*backend.grid_pose) if backend is not None else None
     assert answer and report
@@ -123,7 +123,7 @@ def test_the_agent_waits_answers_moves_when_told_and_sees_only_what_a_driver_see
     assert all(m["outcome"] == "ok" for m in moves)
     assert {"role": "driver", "text": answer} in chats and {"role": "driver", "text": report} in chats
     seating, info, *percepts = inputs
-    assert seating == Seating(seed=trial_id) and seating.oracle is None
+    assert seating == Seating(seed=trial.id) and seating.oracle is None
     assert info == SeatInfo(Role.DRIVER, 3)
     for value in (info, *percepts):
         assert_unprivileged(value)
@@ -154,15 +154,15 @@ def aborted_with(services, trial_id: int) -> tuple[list[dict], list[str]]:
     return phases, said
 
 
-def test_a_claim_refused_while_paused_is_made_again_once_the_trial_runs(server):
+def test_a_claim_refused_while_paused_is_made_again_once_the_trial_runs(server, trials):
     inputs: list = []
     register_driver("agent:test-recording", lambda services, seating: RecordingDialogDriver(seating, inputs))
     services = server.services
-    trial_id = make_trial(services, services.mazes.names()[0], driver="agent:test-recording")
+    trial = trials.new(driver="agent:test-recording")
     experimenter = experimenter_client(services, server.url)
 
     async def command():
-        async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+        async with trial.seat("commander") as commander:
             await commander.event("phase", phase="localizing", timeout=30)
             await commander.send("localize", x=1.0, y=1.0)
             await commander.event("phase", phase="navigating")
@@ -170,20 +170,20 @@ def test_a_claim_refused_while_paused_is_made_again_once_the_trial_runs(server):
                 if any(isinstance(p, Saw) for p in inputs):
                     break
                 await asyncio.sleep(0.05)
-            await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial_id}/pause")
+            await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial.id}/pause")
             await commander.event("paused", reason="experimenter")
             await commander.send("chat", text="claim it")
             await commander.event("chat", role="driver", timeout=30)  # "i think i found ...", then its claim
             for _ in range(200):
-                if events_of(services, trial_id, "bad_message"):
+                if events_of(services, trial.id, "bad_message"):
                     break
                 await asyncio.sleep(0.05)
             assert "target_claimed" not in commander.kinds()  # refused while paused: no verdict to wait for
-            await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial_id}/resume")
+            await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial.id}/resume")
             await commander.event("target_claimed", timeout=30)
 
     asyncio.run(command())
-    refusals = events_of(services, trial_id, "bad_message")
+    refusals = events_of(services, trial.id, "bad_message")
     assert len(refusals) == 1 and "paused" in refusals[0]["error"]
     refused = [p for p in inputs if isinstance(p, Declined)]
     assert refused == [Declined(Claim(), refusals[0]["error"])]
@@ -193,20 +193,20 @@ def test_a_claim_refused_while_paused_is_made_again_once_the_trial_runs(server):
 
 
 @pytest.mark.settings(agent_moves_per_target=3)
-def test_the_moves_cap_ends_the_trial_aborted_with_the_reason_logged(server):
+def test_the_moves_cap_ends_the_trial_aborted_with_the_reason_logged(server, trials):
     register_driver("agent:test-always-left", lambda services, seating: AlwaysLeft())
     services = server.services
-    trial_id = make_trial(services, services.mazes.names()[0], driver="agent:test-always-left")
+    trial = trials.new(driver="agent:test-always-left")
 
     async def command():
-        async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+        async with trial.seat("commander") as commander:
             await commander.event("phase", phase="localizing", timeout=30)
             await commander.send("localize", x=1.0, y=1.0)
             return await commander.event("phase", phase="aborted", timeout=30)
 
     seen = asyncio.run(command())
-    phases, said = aborted_with(services, trial_id)
-    moves = events_of(services, trial_id, "move_executed")
+    phases, said = aborted_with(services, trial.id)
+    moves = events_of(services, trial.id, "move_executed")
     assert len(moves) == 3
     assert phases[-1] == {
         "phase": "aborted",
@@ -218,18 +218,18 @@ def test_the_moves_cap_ends_the_trial_aborted_with_the_reason_logged(server):
 
 
 @pytest.mark.settings(agent_minutes_per_trial=0.02)
-def test_the_minutes_cap_ends_the_trial_aborted_with_the_reason_logged(server):
+def test_the_minutes_cap_ends_the_trial_aborted_with_the_reason_logged(server, trials):
     services = server.services
-    trial_id = make_trial(services, services.mazes.names()[0], driver="agent:dialog")
+    trial = trials.new(driver="agent:dialog")
 
     async def command():
-        async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+        async with trial.seat("commander") as commander:
             await commander.event("phase", phase="localizing", timeout=30)
             await commander.event("phase", phase="aborted", timeout=30)
 
     asyncio.run(command())
-    phases, said = aborted_with(services, trial_id)
-    runtime = services.hub.peek(trial_id)
+    phases, said = aborted_with(services, trial.id)
+    runtime = services.hub.peek(trial.id)
     assert phases[-1]["reason"] == "agent Driver's cap: 0.02 minutes per trial"
     assert said == ["my 0.02 minutes for this trial are over; I stop here"]
     assert runtime is None or runtime.state.active_s(services.clock.now_ns()) >= 1.2
@@ -252,7 +252,7 @@ def test_the_cli_lists_the_drivers_and_the_agent_caps(tmp_path):
 
 @pytest.mark.slow
 def test_on_a_virtual_rover_the_agent_sees_rays_perceived_from_its_frames_and_nothing_privileged(
-    tmp_path, start, camera_calibration, start_server
+    tmp_path, start, camera_calibration, start_server, trials
 ):
     """The same seat on `robotslang robot virtual` (a process on loopback): no simulator rays to
     hand over, so the seat perceives each frame's rays itself with the Driver camera's calibration."""
@@ -263,9 +263,7 @@ def test_on_a_virtual_rover_the_agent_sees_rays_perceived_from_its_frames_and_no
     with services.db.begin() as db:
         robot, token = create_robot(db, "rover for the agent", "driver")
         robot_id = robot.id
-    trial_id = make_trial(
-        services, MAZE, targets=TARGETS, backend=f"robot:{robot_id}", driver="agent:test-recording-rover"
-    )
+    trial = trials.new(server, MAZE, targets=TARGETS, backend=f"robot:{robot_id}", driver="agent:test-recording-rover")
     with open(tmp_path / "rover.log", "w") as log:
         rover = subprocess.Popen(
             [sys.executable, "-c", "from app.cli import main; main()", "robot", "virtual"]
@@ -278,9 +276,9 @@ def test_on_a_virtual_rover_the_agent_sees_rays_perceived_from_its_frames_and_no
     try:
 
         async def command():
-            async with SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander:
+            async with trial.seat("commander") as commander:
                 await commander.event("phase", phase="localizing", timeout=START_S)
-                runtime = services.hub.peek(trial_id)
+                runtime = services.hub.peek(trial.id)
                 for _ in range(round(START_S / 0.05)):  # the rover's first frame, as a person waits for it
                     if runtime.state.last_frame_id is not None:
                         break
@@ -290,14 +288,14 @@ def test_on_a_virtual_rover_the_agent_sees_rays_perceived_from_its_frames_and_no
                 await commander.event("chat", role="driver", start=begun, timeout=START_S)
                 await commander.send("localize", x=start.x, y=start.y)
                 await commander.event("phase", phase="navigating")
-                localizing = len(events_of(services, trial_id, "move_executed"))
+                localizing = len(events_of(services, trial.id, "move_executed"))
                 begun = len(commander.received)
                 await commander.send("chat", text="turn left")
                 await commander.event("chat", role="driver", start=begun, timeout=START_S)
                 return localizing
 
         localizing = asyncio.run(command())
-        moves = events_of(services, trial_id, "move_executed")
+        moves = events_of(services, trial.id, "move_executed")
     finally:
         rover.terminate()
         rover.wait(timeout=20)

@@ -13,7 +13,6 @@ from app.annotation.log import Annotation, AnnotationLog, TrialAnnotations
 from app.db.models import AnnotationAssignment, Experimenter, Participant, Trial
 from app.security import AccountRole, hash_password
 from app.study.config import StudyFiles, template
-from bench.live import make_trial
 from tests.app.live import browser, cli, experimenter_client, page_csrf_token, submit_login
 
 PASSWORD = "annotate well"
@@ -74,58 +73,58 @@ def post(client, trial_id: int, **data):
     return client.post(f"/annotate/trials/{trial_id}", data={"csrf_token": page_csrf_token(page.text), **data})
 
 
-def test_annotations_survive_a_restart_with_their_revisions(any_db_settings, start_server):
+def test_annotations_survive_a_restart_with_their_revisions(any_db_settings, start_server, trials):
     server = start_server(any_db_settings)
-    trial = make_trial(server.services, server.services.mazes.names()[0])
-    ann = add_annotator(server, "ann", trial)
+    trial = trials.new(server)
+    ann = add_annotator(server, "ann", trial.id)
     client, _ = annotator_browser(server, "ann")
-    assert post(client, trial, action="cut", cut="0").status_code == 200
-    assert post(client, trial, action="cut", cut="0").status_code == 200  # a revision, kept beside the first
-    assert post(client, trial, action="tag", tag="surrender_control", anchor="0").status_code == 422  # no message 0
-    assert post(client, trial, action="tag", free_tag="Landmark naming").status_code == 200  # none anchored
-    assert post(client, trial, action="cut", cut="3").status_code == 422  # the trial has no messages yet
+    assert post(client, trial.id, action="cut", cut="0").status_code == 200
+    assert post(client, trial.id, action="cut", cut="0").status_code == 200  # a revision, kept beside the first
+    assert post(client, trial.id, action="tag", tag="surrender_control", anchor="0").status_code == 422  # no message 0
+    assert post(client, trial.id, action="tag", free_tag="Landmark naming").status_code == 200  # none anchored
+    assert post(client, trial.id, action="cut", cut="3").status_code == 422  # the trial has no messages yet
     server.stop()
     server = start_server(any_db_settings)  # again, on the same database
     client, queue = annotator_browser(server, "ann")
-    assert f"trial {trial}" in queue.text and "in progress" in queue.text and "0 of 1 trials submitted" in queue.text
-    records = AnnotationLog(server.services.db).records(trial)
+    assert f"trial {trial.id}" in queue.text and "in progress" in queue.text and "0 of 1 trials submitted" in queue.text
+    records = AnnotationLog(server.services.db).records(trial.id)
     assert [(r.annotator_id, r.event) for r in records] == [
         (ann, CutMarked(message=0)),
         (ann, CutMarked(message=0)),
         (ann, Tagged(tag="landmark naming", messages=[])),
     ]
     assert records[1].revises == records[0].id and records[0].revises is None and records[0].t_ns > 0
-    page = client.get(f"/annotate/trials/{trial}").text
+    page = client.get(f"/annotate/trials/{trial.id}").text
     assert "localized after message 0" in page
     assert (
         client.post(
-            f"/annotate/trials/{trial}", data={"csrf_token": page_csrf_token(page), "action": "submit"}
+            f"/annotate/trials/{trial.id}", data={"csrf_token": page_csrf_token(page), "action": "submit"}
         ).status_code
         == 200
     )
     assert "1 of 1 trials submitted" in client.get("/annotate").text
-    assert AnnotationLog(server.services.db).state(trial).by_annotator[ann].submitted
+    assert AnnotationLog(server.services.db).state(trial.id).by_annotator[ann].submitted
 
 
 def test_an_annotator_sees_no_names_and_no_experimenter_page(server, trial):
-    add_annotator(server, "ann", trial)
+    add_annotator(server, "ann", trial.id)
     with server.services.db() as db:
         names = [p.name for p in db.query(Participant)]
     assert names, "the trial's team has participants"
     client, queue = annotator_browser(server, "ann")
-    pages = [queue.text, client.get(f"/annotate/trials/{trial}").text]
+    pages = [queue.text, client.get(f"/annotate/trials/{trial.id}").text]
     for text in pages:
         for name in [*names, "Team A"]:
             assert name not in html.unescape(text)
     # The experimenter's pages and data send an annotator home, and home is the annotator's queue.
-    for path in ("/experimenter", f"/experimenter/trials/{trial}/replay.json", "/experimenter/annotation"):
+    for path in ("/experimenter", f"/experimenter/trials/{trial.id}/replay.json", "/experimenter/annotation"):
         response = client.get(path, follow_redirects=False)
         assert response.status_code == 303 and response.headers["location"] == "/", path
         response = client.get(path)
         assert str(response.url) == server.url + "/annotate", path
         assert 'action="/experimenter/participants"' not in response.text and '"events"' not in response.text, path
     # Another trial (not in the queue) is not shown.
-    assert client.get(f"/annotate/trials/{trial + 1}").status_code == 404
+    assert client.get(f"/annotate/trials/{trial.id + 1}").status_code == 404
 
 
 def test_admin_create_makes_annotators_and_refuses_an_unknown_role(tmp_path):
@@ -144,16 +143,16 @@ def test_a_study_file_declares_the_free_tags_its_annotators_may_use(server, tria
     config = template("pilot").model_copy(update={"annotation_tags": ["landmark naming", "map mismatch"]})
     files.save(config)
     with server.services.db.begin() as db:
-        db.get(Trial, trial).study = "pilot"
-    add_annotator(server, "ann", trial)
+        db.get(Trial, trial.id).study = "pilot"
+    add_annotator(server, "ann", trial.id)
     client, _ = annotator_browser(server, "ann")
-    page = client.get(f"/annotate/trials/{trial}").text
+    page = client.get(f"/annotate/trials/{trial.id}").text
     assert '<option value="landmark naming">' in page and '<option value="map mismatch">' in page
-    assert post(client, trial, action="tag", free_tag="Landmark naming").status_code == 200
-    assert post(client, trial, action="tag", tag="needs_history").status_code == 200  # the five always go
-    refused = post(client, trial, action="tag", free_tag="weather")
+    assert post(client, trial.id, action="tag", free_tag="Landmark naming").status_code == 200
+    assert post(client, trial.id, action="tag", tag="needs_history").status_code == 200  # the five always go
+    refused = post(client, trial.id, action="tag", free_tag="weather")
     assert refused.status_code == 422 and "landmark naming, map mismatch" in html.unescape(refused.text)
-    tags = [r.event.tag for r in AnnotationLog(server.services.db).records(trial) if isinstance(r.event, Tagged)]
+    tags = [r.event.tag for r in AnnotationLog(server.services.db).records(trial.id) if isinstance(r.event, Tagged)]
     assert tags == ["landmark naming", "needs_history"], "the refused tag left nothing in the log"
 
 
@@ -180,7 +179,7 @@ def test_the_experimenter_makes_an_annotator_on_the_annotation_page(server, tria
     with server.services.db.begin() as db:
         (account,) = db.query(Experimenter).filter_by(name="ann").all()
         assert account.role == AccountRole.ANNOTATOR
-        db.add(AnnotationAssignment(trial_id=trial, annotator_id=account.id))
+        db.add(AnnotationAssignment(trial_id=trial.id, annotator_id=account.id))
     annotator, queue = annotator_browser(server, "ann")
-    assert f"trial {trial}" in queue.text
+    assert f"trial {trial.id}" in queue.text
     assert annotator.get("/experimenter", follow_redirects=False).status_code == 303

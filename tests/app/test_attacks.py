@@ -23,10 +23,9 @@ import pytest
 import websockets
 from pydantic import ValidationError
 
-from app.main import build_services
 from app.settings import Settings
 from app.trial.refusals import REFUSED_RUN_S
-from bench.live import REPO, SeatClient, ServerProcess, make_trial
+from bench.live import REPO
 from robot_client.protocol import pack_frame
 from sim.trial.state import fold
 from tests.app.live import (
@@ -37,7 +36,6 @@ from tests.app.live import (
     log_in,
     page_csrf_token,
     platform_rate,
-    platform_settings,
     session_cookie,
     submit_login,
 )
@@ -136,15 +134,14 @@ def test_guessing_locks_out_the_guesser_not_the_experimenter(server):
 
 # -- a flood of chat -------------------------------------------------------------------
 @pytest.mark.settings(**platform_rate())
-def test_a_flood_of_chat_from_one_seat_is_rate_limited_and_nothing_accepted_is_lost(settings, server):
+def test_a_flood_of_chat_from_one_seat_is_rate_limited_and_nothing_accepted_is_lost(settings, server, trials):
     flood = 1000
-    trial_id = make_trial(server.services, server.services.mazes.names()[0])
-    tokens = {r: server.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+    trial = trials.new()
 
     async def attack() -> tuple[list[dict], list[dict], float]:
         async with (
-            SeatClient(server.ws_url, tokens["commander"]) as commander,
-            SeatClient(server.ws_url, tokens["driver"]) as driver,
+            trial.seat("commander") as commander,
+            trial.seat("driver") as driver,
         ):
             await start_trial(commander, driver)
             await driver.send("chat", text="before the flood")
@@ -163,7 +160,7 @@ def test_a_flood_of_chat_from_one_seat_is_rate_limited_and_nothing_accepted_is_l
 
     to_commander, to_driver, took_s = asyncio.run(attack())
     server.stop()  # what it still had to record is recorded
-    logged = chats(server, trial_id)
+    logged = chats(server, trial.id)
     flood_logged = [text for text in logged if text.startswith("flood ")]
     # The burst went through, then at most the rate; what was refused is nowhere in the log.
     assert flood_logged[: settings.seat_message_burst] == [f"flood {i}" for i in range(settings.seat_message_burst)]
@@ -182,13 +179,13 @@ def test_a_flood_of_chat_from_one_seat_is_rate_limited_and_nothing_accepted_is_l
 # -- a flood of moves ------------------------------------------------------------------
 @pytest.mark.settings(**platform_rate(), min_move_interval_s=Settings.model_fields["min_move_interval_s"].default)
 @pytest.mark.parametrize("gap_s", [0.0, 0.008], ids=["as-fast-as-it-can", "the-issues-2.4-s"])
-def test_a_flood_of_moves_is_rate_limited_and_its_refusals_logged_as_runs(settings, server, trial, seats, gap_s):
+def test_a_flood_of_moves_is_rate_limited_and_its_refusals_logged_as_runs(settings, server, trial, gap_s):
     flood = 300
 
     async def attack() -> tuple[list[dict], float]:
         async with (
-            SeatClient(server.ws_url, seats["commander"]) as commander,
-            SeatClient(server.ws_url, seats["driver"]) as driver,
+            trial.seat("commander") as commander,
+            trial.seat("driver") as driver,
         ):
             await start_trial(commander, driver)
             start, began = len(driver.received), time.monotonic()
@@ -205,7 +202,7 @@ def test_a_flood_of_moves_is_rate_limited_and_its_refusals_logged_as_runs(settin
 
     to_driver, took_s = asyncio.run(attack())
     server.stop()  # the last run of refusals is logged as the trial's runtime closes
-    log = server.services.log.load(trial)
+    log = server.services.log.load(trial.id)
     # Every request counted against the seat's rate, executed or refused: the flood was told to slow down.
     limited = [m for m in to_driver if m.get("type") == "error" and m["code"] == "rate_limited"]
     refusals = [m for m in to_driver if m.get("type") == "move_refused"]
@@ -229,9 +226,9 @@ def chats(server, trial_id: int) -> list[str]:
 
 
 # -- forged rover frames ---------------------------------------------------------------
-def test_a_forged_rover_frame_is_refused_and_nothing_of_it_is_recorded(settings, server):
+def test_a_forged_rover_frame_is_refused_and_nothing_of_it_is_recorded(settings, server, trials):
     trial_id, rover_token = rover_trial(server.services)
-    tokens = {r: server.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+    trial = trials.of(trial_id)
     forgeries = {
         "not a JPEG": b"\xff\xd8" + random.Random(27).randbytes(20_000) + b"\xff\xd9",
         "but the JPEG is 8x8": cv2.imencode(".jpg", np.zeros((8, 8, 3), np.uint8))[1].tobytes(),
@@ -240,8 +237,8 @@ def test_a_forged_rover_frame_is_refused_and_nothing_of_it_is_recorded(settings,
     async def play() -> tuple[list[dict], list[dict]]:
         async with (
             Rover(server.ws_url, rover_token) as rover,
-            SeatClient(server.ws_url, tokens["commander"]) as commander,
-            SeatClient(server.ws_url, tokens["driver"]) as driver,
+            trial.seat("commander") as commander,
+            trial.seat("driver") as driver,
         ):
             await start_trial(commander, driver)
             await rover.frame(1, rover.now())
@@ -274,18 +271,18 @@ def test_a_forged_rover_frame_is_refused_and_nothing_of_it_is_recorded(settings,
 
 
 # -- sockets after logout --------------------------------------------------------------
-def test_an_experimenters_watch_sockets_close_at_logout_and_at_a_password_change(settings, server, trial, seats):
+def test_an_experimenters_watch_sockets_close_at_logout_and_at_a_password_change(settings, server, trial):
     env = {"ROBOTSLANG_DATA_DIR": str(settings.data_dir), "ROBOTSLANG_SECRET_KEY": settings.secret_key}
     experimenter = experimenter_client(server.services, server.url)
 
     async def watch_until_closed(end_login) -> tuple[list[str], int]:
         """A watch opened while logged in: what it heard, and its close code after `end_login`."""
         async with websockets.connect(
-            f"ws://127.0.0.1:{server.port}/ws/watch/{trial}",
+            f"ws://127.0.0.1:{server.port}/ws/watch/{trial.id}",
             additional_headers={"Cookie": session_cookie(experimenter)},
         ) as watch:
             assert json.loads(await watch.recv())["type"] == "welcome"
-            async with SeatClient(server.ws_url, seats["commander"]) as commander:
+            async with trial.seat("commander") as commander:
                 await commander.send("chat", text="before")
                 heard = [await asyncio.wait_for(watch.recv(), 10)]
                 while '"before"' not in heard[-1]:
@@ -320,24 +317,21 @@ def test_an_experimenters_watch_sockets_close_at_logout_and_at_a_password_change
 
 # -- grace after a crash ---------------------------------------------------------------
 @pytest.mark.slow
-def test_after_a_crash_a_participant_away_before_it_keeps_only_the_grace_that_remained(tmp_path):
-    grace_s, away_before_crash_s = 12.0, 4.1
-    settings = platform_settings(tmp_path, grace_period_s=grace_s)
-    services = build_services(settings)
-    trial_id = make_trial(services, services.mazes.names()[0])
-    tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-    env = {
-        "ROBOTSLANG_DATA_DIR": str(settings.data_dir),
-        "ROBOTSLANG_SECRET_KEY": settings.secret_key,
-        "ROBOTSLANG_GRACE_PERIOD_S": str(grace_s),
-    }
-    server = ServerProcess(env).start()
+@pytest.mark.settings(grace_period_s=12.0)
+def test_after_a_crash_a_participant_away_before_it_keeps_only_the_grace_that_remained(
+    settings, server_process, trials
+):
+    grace_s, away_before_crash_s = settings.grace_period_s, 4.1
+    server = server_process()
+    services = server.services
+    trial = trials.new(server)
+    server.start()
     killed_after_s: list[float] = []
     try:
 
         async def until_the_crash() -> None:
-            async with SeatClient(server.ws_url, tokens["commander"]) as commander:
-                async with SeatClient(server.ws_url, tokens["driver"]) as driver:
+            async with trial.seat("commander") as commander:
+                async with trial.seat("driver") as driver:
                     await start_trial(commander, driver)
                 await commander.event("disconnect", role="driver")
                 left = time.monotonic()
@@ -348,12 +342,11 @@ def test_after_a_crash_a_participant_away_before_it_keeps_only_the_grace_that_re
         asyncio.run(until_the_crash())
         server.start()  # reopens the running trial, and its grace timers, at once
         deadline = time.monotonic() + 3 * grace_s
-        while fold(events := services.log.load(trial_id)).phase != "aborted":
+        while fold(events := services.log.load(trial.id)).phase != "aborted":
             assert time.monotonic() < deadline, "the trial never aborted"
             time.sleep(0.2)
     finally:
         server.stop()
-        services.engine.dispose()
     left_driver = next(e.t_ns for e in events if e.kind == "disconnect" and e.payload["role"] == "driver")
     restarted = next(e.t_ns for e in events if e.kind == "restarted")
     aborted = events[-1].t_ns

@@ -21,7 +21,7 @@ from sim.core.navgraph import NavGraph
 from sim.core.observations import OBS_FEATURES
 from sim.robot.camera import CameraCalibration, FrontCamera, capture
 from sim.tasks.library import MazeLibrary
-from tests.app.live import SeatClient, Watch, experimenter_client, session_cookie
+from tests.app.live import Watch, experimenter_client, session_cookie
 from tests.app.trial_play import start_trial
 
 
@@ -129,26 +129,26 @@ def test_a_trial_gets_its_belief_while_the_default_threads_are_busy(world):
     assert message is not None and message["type"] == "belief" and message["moves"] == 0
 
 
-def test_the_filter_runs_only_while_someone_watches_the_trial(server, trial, seats):
+def test_the_filter_runs_only_while_someone_watches_the_trial(server, trial):
     # The belief is the watch page's alone: an unwatched trial builds no filter (a crowd of
     # trials would give it a core), a watcher gets one from the frames that come after it opens,
     # and the last watcher leaving lets it go.
     cookie = session_cookie(experimenter_client(server.services, server.url)).split("=", 1)[1]
 
     def filter_built() -> bool:
-        return next(r for r in server.services.hub.live() if r.trial_id == trial).watching.belief is not None
+        return next(r for r in server.services.hub.live() if r.trial_id == trial.id).watching.belief is not None
 
     async def play() -> None:
         async with (
-            SeatClient(server.ws_url, seats["commander"]) as commander,
-            SeatClient(server.ws_url, seats["driver"]) as driver,
+            trial.seat("commander") as commander,
+            trial.seat("driver") as driver,
         ):
             await start_trial(commander, driver)
             await driver.send("move", action="left", move_id="m0")
             await driver.event("move_executed", move_id="m0")
             await asyncio.sleep(1.0)  # time enough to build one (about 60 ms) had it been wanted
             assert not filter_built()
-            async with Watch(server, trial, cookie) as watch:
+            async with Watch(server, trial.id, cookie) as watch:
                 await driver.send("move", action="left", move_id="m1")
                 seen = await watch.wait_for(lambda m: m.get("type") == "belief", timeout=30)
                 assert seen["points"] and filter_built()

@@ -13,22 +13,10 @@ import redis
 from sqlalchemy import select
 
 from app.db.models import Event
-from app.main import build_services
 from app.trial.relay import owner_key
-from bench.live import SeatClient, ServerProcess, make_trial
-from tests.app.live import UNPACED_ENV, platform_settings
+from bench.live import SeatClient
+from tests.app.live import platform_settings
 from tests.app.trial_play import move, start_trial
-
-
-def server_env(settings) -> dict[str, str]:
-    return {
-        "ROBOTSLANG_DATA_DIR": str(settings.data_dir),
-        "ROBOTSLANG_SECRET_KEY": settings.secret_key,
-        "ROBOTSLANG_DATABASE_URL": settings.database_url,
-        "ROBOTSLANG_REDIS_URL": settings.redis_url,
-        **UNPACED_ENV,
-        "ROBOTSLANG_CACHE_DIR": str(settings.cache_dir),
-    }
 
 
 def logged(services, trial_id: int) -> list[tuple[int, str, dict]]:
@@ -54,18 +42,18 @@ async def chat_both_ways(commander: SeatClient, driver: SeatClient, tag: str) ->
 
 
 @pytest.mark.slow
-def test_two_workers_share_one_trial(tmp_path, postgres_url, redis_url):  # noqa: F811
+def test_two_workers_share_one_trial(tmp_path, postgres_url, redis_url, server_process, trials):  # noqa: F811
     settings = platform_settings(tmp_path, database_url=postgres_url, redis_url=redis_url)
-    services = build_services(settings)
-    trial_id = make_trial(services, services.mazes.names()[0])
-    tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-    server = ServerProcess(server_env(settings), workers=2).start()
+    server = server_process(settings, workers=2)
+    services = server.services
+    trial = trials.new(server)
+    server.start()
     try:
 
         async def play():
             async with (
-                SeatClient(server.ws_url, tokens["commander"]) as commander,
-                SeatClient(server.ws_url, tokens["driver"]) as driver,
+                trial.seat("commander") as commander,
+                trial.seat("driver") as driver,
             ):
                 await start_trial(commander, driver)
                 await chat_both_ways(commander, driver, "hello")
@@ -78,38 +66,40 @@ def test_two_workers_share_one_trial(tmp_path, postgres_url, redis_url):  # noqa
         asyncio.run(play())
     finally:
         server.stop()
-    kinds = [kind for _, kind, _ in logged(services, trial_id)]
+    kinds = [kind for _, kind, _ in logged(services, trial.id)]
     assert kinds.count("connect") == 2 and "move_executed" in kinds and "frame" in kinds
-    seqs = [seq for seq, _, _ in logged(services, trial_id)]
+    seqs = [seq for seq, _, _ in logged(services, trial.id)]
     assert seqs == list(range(1, len(seqs) + 1)), "one total order, no gaps"
 
 
 @pytest.mark.slow
-def test_the_owner_killed_mid_trial_is_taken_over_and_its_seats_served_again(tmp_path, postgres_url, redis_url):  # noqa: F811
+def test_the_owner_killed_mid_trial_is_taken_over_and_its_seats_served_again(
+    tmp_path, postgres_url, redis_url, server_process, trials
+):
     """Two processes (two machines behind one proxy, as far as the trial can tell): the Commander
     on the first, which owns the trial, the Driver on the second. The first is killed; the second
     takes the trial over from the log and serves the Driver, and the Commander, reconnecting, is
     served there too."""
     settings = platform_settings(tmp_path, database_url=postgres_url, redis_url=redis_url)
-    services = build_services(settings)
-    trial_id = make_trial(services, services.mazes.names()[0])
-    tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-    first = ServerProcess(server_env(settings)).start()
-    second = ServerProcess(server_env(settings)).start()
+    first, second = server_process(settings), server_process(settings)
+    services = first.services
+    trial = trials.new(first)
+    first.start()
+    second.start()
     try:
 
         async def play():
-            commander = await SeatClient(first.ws_url, tokens["commander"]).__aenter__()
+            commander = await trial.seat("commander").__aenter__()
             await commander.wait_for(lambda m: m.get("type") == "welcome")
-            driver = await SeatClient(second.ws_url, tokens["driver"]).__aenter__()
+            driver = await SeatClient(second.ws_url, trial.tokens["driver"]).__aenter__()
             await start_trial(commander, driver)
             await commander.send("localize", x=1.0, y=1.0)
             await driver.event("phase", phase="navigating")
             assert (await move(driver, "forward"))["outcome"] in ("ok", "collision")
             await chat_both_ways(commander, driver, "before")
 
-            assert owner_pid(services, redis_url, trial_id) == first.proc.pid
-            committed = logged(services, trial_id)
+            assert owner_pid(services, redis_url, trial.id) == first.proc.pid
+            committed = logged(services, trial.id)
             os.kill(first.proc.pid, signal.SIGKILL)
             first.proc.wait(timeout=10)
             # The Driver's socket, on the surviving process, stays open: it is served again there.
@@ -118,11 +108,11 @@ def test_the_owner_killed_mid_trial_is_taken_over_and_its_seats_served_again(tmp
             assert welcome["phase"] == "navigating"
             # The Commander's socket died with its process: it reconnects to the survivor.
             await commander.__aexit__(None, None, None)
-            async with SeatClient(second.ws_url, tokens["commander"]) as commander:
+            async with SeatClient(second.ws_url, trial.tokens["commander"]) as commander:
                 await commander.wait_for(lambda m: m.get("type") == "welcome")
                 await chat_both_ways(commander, driver, "after")
                 assert (await move(driver, "left"))["outcome"] == "ok"
-            assert owner_pid(services, redis_url, trial_id) == second.proc.pid
+            assert owner_pid(services, redis_url, trial.id) == second.proc.pid
             await driver.__aexit__(None, None, None)
             return committed
 
@@ -131,7 +121,7 @@ def test_the_owner_killed_mid_trial_is_taken_over_and_its_seats_served_again(tmp
         first.stop()
         second.stop()
 
-    after = logged(services, trial_id)
+    after = logged(services, trial.id)
     assert after[: len(committed)] == committed, "every event committed before the kill is still there, in order"
     later = [kind for _, kind, _ in after[len(committed) :]]
     assert "restarted" in later, "the new owner logs the takeover"

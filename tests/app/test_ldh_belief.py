@@ -11,11 +11,10 @@ import pytest
 
 from app.db.models import Experimenter
 from app.security import hash_password
-from bench.live import SeatClient, make_trial
 from sim.core.navgraph import NavGraph
 from sim.tasks.ldh_eval import MazeContext, colour_logits
 from sim.tasks.ldh_features import maze_views, mentions
-from tests.app.live import Watch, platform_settings
+from tests.app.live import TrialHandle, Watch, platform_settings
 from tests.app.trial_play import start_trial
 
 SAID = "I see a red wall on my left and a yellow wall ahead of me"
@@ -53,11 +52,10 @@ def settings(request, tmp_path):
     return platform_settings(tmp_path)
 
 
-def watch_a_localization(server):
-    """Two seats and a watcher through the localization phase; every message each one got."""
+def watch_a_localization(server, trial: TrialHandle):
+    """`trial`'s two seats and a watcher through the localization phase; every message each one got."""
     services = server.services
-    maze_name = services.mazes.names()[0]
-    trial_id = make_trial(services, maze_name)
+    maze_name = services.mazes.names()[0]  # the `trial` fixture's
     with services.db.begin() as db:
         eve = Experimenter(name="eve", password_hash=hash_password("correct horse"))
         db.add(eve)
@@ -67,9 +65,9 @@ def watch_a_localization(server):
 
     async def play():
         async with (
-            SeatClient(server.ws_url, services.seats.issue(trial_id, "commander")) as commander,
-            SeatClient(server.ws_url, services.seats.issue(trial_id, "driver")) as driver,
-            Watch(server, trial_id, cookie) as watch,
+            trial.seat("commander") as commander,
+            trial.seat("driver") as driver,
+            Watch(server, trial.id, cookie) as watch,
         ):
             await start_trial(commander, driver)
             await commander.send("chat", text="what do you see?")
@@ -77,7 +75,7 @@ def watch_a_localization(server):
             await driver.send("chat", text=SAID)
             said = await watch.wait_for(lambda m: m.get("kind") == "chat" and m["payload"]["text"] == SAID)
             belief = await watch.wait_for(lambda m: m.get("type") == "ldh_belief" and m["upto_seq"] == said["seq"])
-            async with Watch(server, trial_id, cookie) as late:  # a watcher that opens the page now
+            async with Watch(server, trial.id, cookie) as late:  # a watcher that opens the page now
                 on_open = await late.wait_for(lambda m: m.get("type") == "ldh_belief")
             await commander.send("localize", x=1.0, y=1.0, heading=None)
             await watch.wait_for(lambda m: m.get("type") == "status" and m["phase"] == "navigating")
@@ -108,16 +106,16 @@ def check(maze, settings, run, logits_of, model: str) -> None:
         assert not [m for m in seat.received if m.get("type") == "ldh_belief"]
 
 
-def test_the_colours_belief_follows_the_dialog(settings, server):
-    maze, run = watch_a_localization(server)
+def test_the_colours_belief_follows_the_dialog(settings, server, trial):
+    maze, run = watch_a_localization(server, trial)
     check(maze, settings, run, lambda counts, ctx: colour_logits(counts, ctx.views), "colours")
 
 
-def test_a_configured_checkpoint_gives_the_learned_belief(ldh_model, settings, server):
+def test_a_configured_checkpoint_gives_the_learned_belief(ldh_model, settings, server, trial):
     from models.ldh import TrainedLocalizer
 
     model, _ = ldh_model
-    maze, run = watch_a_localization(server)
+    maze, run = watch_a_localization(server, trial)
     learned = TrainedLocalizer(model)
     check(maze, settings, run, learned.logits, "learned")
     _, colours = expected_node_p(

@@ -10,7 +10,6 @@ import pytest
 from app.db.models import Experimenter, LDHStudyEvent
 from app.main import build_services, ensure_experimenter
 from app.security import StudyTokens, hash_password
-from bench.live import ServerProcess
 from sim.tasks.benchmark import Benchmark
 from sim.tasks.ldh import LDHInstance, Variant
 from sim.tasks.ldh_eval import MazeContext, score
@@ -52,7 +51,7 @@ def link(server, study_id: int, participant_id: int) -> str:
     return f"/ldh/{StudyTokens(server.settings.signing_key()).issue(study_id, participant_id)}"
 
 
-def test_forged_foreign_and_seat_links_open_nothing(server, benchmark_path):
+def test_forged_foreign_and_seat_links_open_nothing(server, benchmark_path, trials):
     services = server.services
     a, b = make_study(services, benchmark_path, name="A"), make_study(services, benchmark_path, name="B")
     studies = services.studies
@@ -61,7 +60,7 @@ def test_forged_foreign_and_seat_links_open_nothing(server, benchmark_path):
     good, _ = participant(server.url, link(server, a, ann))
     before = len(events(services, a))
     crossed = link(server, a, bob)  # genuinely signed, but bob is not a participant of study A
-    seat = f"/ldh/{services.seats.issue(1, 'commander')}"  # a trial's join link: another salt
+    seat = f"/ldh/{trials.of(1).tokens['commander']}"  # a trial's join link: another salt
     forged = link(server, a, ann)[:-3] + "abc"
     for bad in (crossed, seat, forged):
         assert good.get(bad).status_code == 403
@@ -123,32 +122,25 @@ def test_study_pages_need_the_experimenter(server, benchmark_path):
         assert response.status_code == 303 and response.headers["location"] == "/"
 
 
-def test_answers_survive_a_killed_server(tmp_path, benchmark_path):
-    settings = platform_settings(tmp_path, benchmark=benchmark_path)
-    services = build_services(settings)
+def test_answers_survive_a_killed_server(tmp_path, benchmark_path, server_process):
+    server = server_process(platform_settings(tmp_path, benchmark=benchmark_path))
+    services = server.services
     ensure_experimenter(services)
     study_id = make_study(services, benchmark_path, n=2)
     ann = services.studies.invite(study_id, "ann")
-    services.engine.dispose()
-    url = f"/ldh/{StudyTokens(settings.signing_key()).issue(study_id, ann)}"
-    env = {
-        "ROBOTSLANG_DATA_DIR": str(settings.data_dir),
-        "ROBOTSLANG_SECRET_KEY": settings.secret_key,
-        "ROBOTSLANG_BENCHMARK": str(benchmark_path),
-        "ROBOTSLANG_CACHE_DIR": str(tmp_path / "cache"),
-    }
-    server = ServerProcess(env).start()
+    url = f"/ldh/{StudyTokens(server.settings.signing_key()).issue(study_id, ann)}"
+    server.start()
     try:
         client, _ = participant(server.url, url)
         assert client.post(url + "/answers", json={"position": 0, "x": 1.0, "y": 1.0}).status_code == 200
         server.kill()  # SIGKILL right after the acknowledgement: no shutdown to flush anything
-        server = ServerProcess(env, port=server.port).start()
+        server.start()  # again, on the same port
         page = client.get(url).text
         assert "2 of 2" in page  # the server resumes the participant at the second instance
         assert client.post(url + "/answers", json={"position": 1, "x": 0.6, "y": 0.6}).status_code == 200
     finally:
         server.stop()
-    answers = build_services(settings).studies.answers(study_id)
+    answers = services.studies.answers(study_id)
     assert [(a.position, a.x, a.y) for a in answers] == [(0, 1.0, 1.0), (1, 0.6, 0.6)]
 
 

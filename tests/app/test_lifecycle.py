@@ -14,7 +14,7 @@ import sys
 from app.db.models import Participant, Robot, Team, Trial
 from app.demo.runner import Demo
 from app.rover.records import create_robot
-from bench.live import REPO, SeatClient, make_trial
+from bench.live import REPO
 from tests.app.live import experimenter_client, open_seats
 from tests.app.trial_play import claim_and_decide, drive_to_target, start_trial
 
@@ -31,10 +31,10 @@ def export(settings, *args: str) -> subprocess.CompletedProcess:
     )
 
 
-def test_only_what_nothing_uses_is_deleted_and_a_refusal_says_why(server):
+def test_only_what_nothing_uses_is_deleted_and_a_refusal_says_why(server, trials):
     services = server.services
     client = experimenter_client(services, server.url)
-    trial_id = make_trial(services, services.mazes.names()[0], team="Owls")  # members "Owls commander/driver"
+    trial = trials.new(team="Owls")  # members "Owls commander/driver"
     with services.db.begin() as db:
         loner = Participant(name="Loner")
         db.add(loner)
@@ -44,9 +44,9 @@ def test_only_what_nothing_uses_is_deleted_and_a_refusal_says_why(server):
         ids = {"loner": loner.id, "rover": rover.id, "spare": spare.id}
         owls = db.query(Team).filter_by(name="Owls").one()
         member = owls.member_a_id
-    client.post(f"/experimenter/trials/{trial_id}/abort")
+    client.post(f"/experimenter/trials/{trial.id}/abort")
     client.post("/experimenter/trials", data={"team_id": owls.id, "backend": f"robot:{ids['rover']}"})
-    rover_trial = trial_id + 1
+    rover_trial = trial.id + 1
 
     refused = client.delete(f"/experimenter/participants/{member}")
     assert refused.status_code == 409
@@ -54,7 +54,7 @@ def test_only_what_nothing_uses_is_deleted_and_a_refusal_says_why(server):
     refused = client.delete(f"/experimenter/teams/{owls.id}")
     assert refused.status_code == 409
     assert (
-        refused.json()["detail"] == f"team 'Owls' has played trials ({trial_id}, {rover_trial}): exclude them instead"
+        refused.json()["detail"] == f"team 'Owls' has played trials ({trial.id}, {rover_trial}): exclude them instead"
     )
     refused = client.delete(f"/experimenter/robots/{ids['rover']}")
     assert refused.status_code == 409
@@ -66,20 +66,20 @@ def test_only_what_nothing_uses_is_deleted_and_a_refusal_says_why(server):
     with services.db() as db:
         assert db.get(Participant, ids["loner"]) is None and db.get(Participant, member) is not None
         assert [r.name for r in db.query(Robot)] == ["rover-1"] and db.get(Team, owls.id) is not None
-        assert [t.id for t in db.query(Trial).order_by(Trial.id)] == [trial_id, rover_trial]
+        assert [t.id for t in db.query(Trial).order_by(Trial.id)] == [trial.id, rover_trial]
     page = client.get("/experimenter").text
     assert "Loner" not in page and "spare" not in page
 
 
-def test_a_participant_is_in_one_live_trial_at_a_time(server):
+def test_a_participant_is_in_one_live_trial_at_a_time(server, trials):
     services = server.services
     client = experimenter_client(services, server.url)
-    trial_id = make_trial(services, services.mazes.names()[0], team="Owls")
+    trial = trials.new(team="Owls")
     with services.db() as db:
         owls = db.query(Team).filter_by(name="Owls").one()
     page = html.unescape(client.post("/experimenter/trials", data={"team_id": owls.id}).text)
-    assert f"team 'Owls': a member is in trial {trial_id}, which is waiting;" in page
-    client.post(f"/experimenter/trials/{trial_id}/abort")
+    assert f"team 'Owls': a member is in trial {trial.id}, which is waiting;" in page
+    client.post(f"/experimenter/trials/{trial.id}/abort")
     client.post("/experimenter/trials", data={"team_id": owls.id})
     with services.db() as db:
         assert [t.phase for t in db.query(Trial).order_by(Trial.id)] == ["aborted", "waiting"]
@@ -107,23 +107,22 @@ def test_an_excluded_trial_leaves_the_leaderboard_and_exports_and_its_replay_say
     assert result.returncode == 1 and "no finished trials (not excluded)" in result.stderr
 
 
-def test_export_all_includes_aborted_trials_with_the_targets_they_confirmed(server, settings, tmp_path):
+def test_export_all_includes_aborted_trials_with_the_targets_they_confirmed(server, settings, tmp_path, trials):
     services = server.services
     client = experimenter_client(services, server.url)
-    trial_id = make_trial(services, services.mazes.names()[0], targets=("jar", "mug", "paddle"), team="Owls")
-    tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+    trial = trials.new(targets=("jar", "mug", "paddle"), team="Owls")
 
     async def first_target_then_abort() -> None:
         async with (
-            SeatClient(server.ws_url, tokens["commander"]) as commander,
-            SeatClient(server.ws_url, tokens["driver"]) as driver,
+            trial.seat("commander") as commander,
+            trial.seat("driver") as driver,
         ):
             await start_trial(commander, driver)
             await commander.send("localize", x=1.2, y=1.0, heading=0.5)
             await driver.event("phase", phase="navigating", target_index=0)
-            await drive_to_target(services, trial_id, driver)
+            await drive_to_target(services, trial.id, driver)
             await claim_and_decide(commander, driver, confirm=True)
-            await asyncio.to_thread(client.post, f"/experimenter/trials/{trial_id}/abort")
+            await asyncio.to_thread(client.post, f"/experimenter/trials/{trial.id}/abort")
             await commander.event("phase", phase="aborted")
 
     asyncio.run(first_target_then_abort())
@@ -144,19 +143,19 @@ def test_export_all_includes_aborted_trials_with_the_targets_they_confirmed(serv
 
 def test_an_aborted_trial_restarts_with_the_same_seats_on_a_layout_the_team_has_not_seen(server, trial):
     client = experimenter_client(server.services, server.url)
-    refused = html.unescape(client.post(f"/experimenter/trials/{trial}/restart").text)
-    assert f"trial {trial} is waiting: only an aborted trial is restarted" in refused
+    refused = html.unescape(client.post(f"/experimenter/trials/{trial.id}/restart").text)
+    assert f"trial {trial.id} is waiting: only an aborted trial is restarted" in refused
     with server.services.db.begin() as db:
-        db.get(Trial, trial).study = "pilot"
-    open_seats(server, trial, "commander", "driver")  # both loaded their pages: the map was seen
-    client.post(f"/experimenter/trials/{trial}/abort", data={"reason": "the Driver's browser crashed"})
+        db.get(Trial, trial.id).study = "pilot"
+    open_seats(server, trial.id, "commander", "driver")  # both loaded their pages: the map was seen
+    client.post(f"/experimenter/trials/{trial.id}/abort", data={"reason": "the Driver's browser crashed"})
     row = client.get("/experimenter").text
-    assert f'action="/experimenter/trials/{trial}/restart"' in row
-    client.post(f"/experimenter/trials/{trial}/restart")
+    assert f'action="/experimenter/trials/{trial.id}/restart"' in row
+    client.post(f"/experimenter/trials/{trial.id}/restart")
     layouts = server.services.mazes.layouts()
     with server.services.db() as db:
-        old = db.get(Trial, trial)
-        (new,) = db.query(Trial).filter(Trial.id > trial).all()
+        old = db.get(Trial, trial.id)
+        (new,) = db.query(Trial).filter(Trial.id > trial.id).all()
     assert (new.team_id, new.targets, new.backend, new.driver, new.commander) == (
         old.team_id,
         old.targets,
@@ -177,12 +176,12 @@ def test_an_aborted_trial_restarts_with_the_same_seats_on_a_layout_the_team_has_
 
 def test_a_trial_whose_commander_never_loaded_the_map_restarts_on_the_same_layout(server, trial):
     client = experimenter_client(server.services, server.url)
-    open_seats(server, trial, "driver")  # the Commander's page never opened
-    client.post(f"/experimenter/trials/{trial}/abort")
-    client.post(f"/experimenter/trials/{trial}/restart")
+    open_seats(server, trial.id, "driver")  # the Commander's page never opened
+    client.post(f"/experimenter/trials/{trial.id}/abort")
+    client.post(f"/experimenter/trials/{trial.id}/restart")
     with server.services.db() as db:
-        old = db.get(Trial, trial)
-        (new,) = db.query(Trial).filter(Trial.id > trial).all()
+        old = db.get(Trial, trial.id)
+        (new,) = db.query(Trial).filter(Trial.id > trial.id).all()
     assert new.maze == old.maze and new.phase == "waiting", "nobody saw the map: the layout is still unseen"
     open_seats(server, new.id, "commander", "driver")
     client.post(f"/experimenter/trials/{new.id}/abort")
@@ -193,7 +192,7 @@ def test_a_trial_whose_commander_never_loaded_the_map_restarts_on_the_same_layou
     assert layouts[newest.maze] != layouts[old.maze], "once the Commander loaded it, the layout counts as seen"
 
 
-def test_the_experimenters_notes_stay_on_the_experimenters_pages(settings, start_server, tmp_path):
+def test_the_experimenters_notes_stay_on_the_experimenters_pages(settings, start_server, tmp_path, trials):
     (done,) = asyncio.run(Demo(settings, seed=4, pace_s=0.0).run(1))
     notes = "Driver asked twice what a paddle is; lab door slammed at 3:10"
     server = start_server()  # on the demo's database
@@ -202,7 +201,7 @@ def test_the_experimenters_notes_stay_on_the_experimenters_pages(settings, start
     assert notes in html.unescape(client.get(f"/experimenter/trials/{done.trial_id}").text)
     assert notes in html.unescape(client.get(f"/experimenter/trials/{done.trial_id}/replay").text)
     assert notes not in html.unescape(client.get("/leaderboard").text)
-    seat = server.services.seats.issue(done.trial_id, "commander")
+    seat = trials.of(done.trial_id, on=server).tokens["commander"]
     assert notes not in html.unescape(client.get(f"/play/{seat}").text)
     long = client.post(f"/experimenter/trials/{done.trial_id}/notes", data={"notes": "x" * 10_001})
     assert long.status_code == 422

@@ -20,7 +20,6 @@ from app.demo.runner import Demo
 from app.export.mcap import DERIVED_TOPICS
 from app.mazes import Mazes, commander_map
 from app.security import hash_password
-from bench.live import make_trial
 from sim.core.geometry import world_to_pixel
 from sim.core.labels import LABEL_BGR, OBJECT_LABELS
 from tests.app.live import platform_settings
@@ -95,28 +94,28 @@ def test_people_get_html_error_pages_and_scripts_get_json(server):
     assert client.get("/experimenter/trials/not-a-number", headers=HTML).status_code == 404
 
 
-def test_controls_answer_404_on_a_missing_trial_and_refuse_what_does_not_apply(server):
+def test_controls_answer_404_on_a_missing_trial_and_refuse_what_does_not_apply(server, trials):
     client = log_in(server)
     token = csrf(client, "/experimenter")
     for action in ("pause", "resume", "abort"):
         assert client.post(f"/experimenter/trials/999/{action}", data=token).status_code == 404
-    trial_id = make_trial(server.services, server.services.mazes.names()[0])
+    trial = trials.new()
     # A waiting trial cannot be paused; it can be aborted, and then nothing applies.
-    paused = client.post(f"/experimenter/trials/{trial_id}/pause", data=token, follow_redirects=True)
+    paused = client.post(f"/experimenter/trials/{trial.id}/pause", data=token, follow_redirects=True)
     assert "pause does not apply" in paused.text
-    client.post(f"/experimenter/trials/{trial_id}/abort", data=token)
+    client.post(f"/experimenter/trials/{trial.id}/abort", data=token)
     with server.services.db() as db:  # committed by the time the answer came
-        assert db.get(Trial, trial_id).phase == "aborted"
-    page = client.get(f"/experimenter/trials/{trial_id}", headers=HTML).text
+        assert db.get(Trial, trial.id).phase == "aborted"
+    page = client.get(f"/experimenter/trials/{trial.id}", headers=HTML).text
     assert all(re.search(rf'control-{a}"\s+hidden', page) for a in ("pause", "resume", "abort"))
-    again = client.post(f"/experimenter/trials/{trial_id}/abort", data=token, follow_redirects=True)
+    again = client.post(f"/experimenter/trials/{trial.id}/abort", data=token, follow_redirects=True)
     assert "aborted: abort does not apply" in again.text
 
 
 @pytest.mark.settings(seq2seq_checkpoint=Path("/nonexistent/missing.pt"))
-def test_an_agent_that_cannot_start_is_not_offered_and_is_refused_with_its_reason(server):
+def test_an_agent_that_cannot_start_is_not_offered_and_is_refused_with_its_reason(server, trials):
     client = log_in(server)
-    make_trial(server.services, server.services.mazes.names()[0])  # a team, so the trial form shows
+    trials.new()  # a team, so the trial form shows
     page = client.get("/experimenter").text
     options = dict(re.findall(r'<option value="((?:agent|oracle):[a-z0-9_]+)"([^>]*)>', page))
     for offered in ("agent:dialog", "agent:random", "oracle:shortest"):

@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 from app.preparation import prepared_version
-from bench.live import SeatClient, make_trial, team_trial
+from bench.live import team_trial
 from sim.core import observations
 from sim.tasks.generator import generate_maze
 from sim.tasks.library import MazeLibrary
@@ -96,11 +96,11 @@ def test_a_cache_of_another_version_is_prepared_again_in_the_background(start_se
     assert sum(current in p.name for p in (cache / "rays").iterdir()) == n
 
 
-def test_a_new_trials_maze_is_prepared_before_the_rest_of_the_library(start_server, tmp_path):
+def test_a_new_trials_maze_is_prepared_before_the_rest_of_the_library(start_server, tmp_path, trials):
     cache = tmp_path / "cache"
     server = start_server(cache_dir=cache)
     names = server.services.mazes.names()
-    make_trial(server.services, names[-1])  # the library's last: the sweep would reach it last
+    trials.new(server, names[-1])  # the library's last: the sweep would reach it last
     wait_prepared(server)
     library = server.services.mazes.library
     done_at = {
@@ -126,17 +126,19 @@ def test_mazes_prepare_prepares_into_the_cache_dir_with_a_progress_bar(tmp_path)
     assert again.returncode == 0 and f"{n} of {n} mazes ready in {cache} (0 prepared now)" in again.stdout
 
 
-def test_a_seat_whose_maze_is_not_prepared_yet_is_welcomed_once_it_is_built(start_server, tmp_path):
+def test_a_seat_whose_maze_is_not_prepared_yet_is_welcomed_once_it_is_built(start_server, tmp_path, trials):
     """A trial made before its maze is prepared (not through the dashboard, which puts it first):
     the Driver's seat waits for its maze's build, then is welcomed on its graph."""
     cache = tmp_path / "cache"
     server = start_server(cache_dir=cache)
     maze = server.services.mazes.names()[-1]  # the library's last: the sweep reaches it last
     with server.services.db.begin() as db:
-        trial_id = team_trial(db, "Team A", maze, server.services.mazes.names(), server.services.clock.now_ns())
+        trial = trials.of(
+            team_trial(db, "Team A", maze, server.services.mazes.names(), server.services.clock.now_ns()), on=server
+        )
 
     async def driver_welcome() -> dict:
-        async with SeatClient(server.ws_url, server.services.seats.issue(trial_id, "driver")) as driver:
+        async with trial.seat("driver") as driver:
             return await driver.wait_for(lambda m: m.get("type") == "welcome", timeout=PREPARED_WITHIN_S)
 
     assert asyncio.run(driver_welcome())["type"] == "welcome"

@@ -13,11 +13,9 @@ import websockets
 from sqlalchemy import select
 
 from app.db.models import Trial
-from app.main import build_services
 from app.routes.seat_ws import TRIAL_OVER
-from bench.live import SeatClient, ServerProcess, make_trial
 from sim.trial.state import fold
-from tests.app.live import UNPACED_ENV, experimenter_client, platform_settings, session_cookie
+from tests.app.live import experimenter_client, session_cookie
 from tests.app.trial_play import move, start_trial
 from tests.app.wire_rover import Rover, rover_trial
 
@@ -36,24 +34,19 @@ def until(predicate, what: str, timeout: float = 20.0):
 
 
 @pytest.mark.slow
-def test_a_crash_neither_scores_the_downtime_nor_leaves_a_move_requested(tmp_path):
-    settings = platform_settings(tmp_path)
-    services = build_services(settings)
+def test_a_crash_neither_scores_the_downtime_nor_leaves_a_move_requested(server_process, trials):
+    server = server_process()
+    services = server.services
     trial_id, rover_token = rover_trial(services)
-    tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-    env = {
-        "ROBOTSLANG_DATA_DIR": str(settings.data_dir),
-        "ROBOTSLANG_SECRET_KEY": settings.secret_key,
-        **UNPACED_ENV,
-    }
-    server = ServerProcess(env).start()
+    trial = trials.of(trial_id, on=server)
+    server.start()
     try:
 
         async def until_crash():
             async with (
                 Rover(server.ws_url, rover_token) as rover,
-                SeatClient(server.ws_url, tokens["commander"]) as commander,
-                SeatClient(server.ws_url, tokens["driver"]) as driver,
+                trial.seat("commander") as commander,
+                trial.seat("driver") as driver,
             ):
                 await start_trial(commander, driver)
                 await driver.send("move", action="forward", move_id="held")
@@ -75,27 +68,21 @@ def test_a_crash_neither_scores_the_downtime_nor_leaves_a_move_requested(tmp_pat
     assert [(e.payload["outcome"], e.payload["reason"]) for e in done] == [("refused", "server restart")]
     assert fold(before + after).active_ns == fold(before).active_ns, "the clock stopped at the last event"
     assert fold(before + after).moves_in_flight == {}
-    services.engine.dispose()
 
 
+@pytest.mark.settings(grace_period_s=4.0)
 @pytest.mark.slow
-def test_a_seat_that_dropped_before_a_crash_still_times_out(tmp_path):
-    grace_s = 4.0
-    settings = platform_settings(tmp_path)
-    services = build_services(settings)
-    trial_id = make_trial(services, services.mazes.names()[0])
-    tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-    env = {
-        "ROBOTSLANG_DATA_DIR": str(settings.data_dir),
-        "ROBOTSLANG_SECRET_KEY": settings.secret_key,
-        "ROBOTSLANG_GRACE_PERIOD_S": str(grace_s),
-    }
-    server = ServerProcess(env).start()
+def test_a_seat_that_dropped_before_a_crash_still_times_out(settings, server_process, trials):
+    grace_s = settings.grace_period_s
+    server = server_process()
+    services = server.services
+    trial = trials.new(server)
+    server.start()
     try:
 
         async def until_crash():
-            async with SeatClient(server.ws_url, tokens["commander"]) as commander:
-                async with SeatClient(server.ws_url, tokens["driver"]) as driver:
+            async with trial.seat("commander") as commander:
+                async with trial.seat("driver") as driver:
                     await start_trial(commander, driver)
                 await commander.event("paused", reason="disconnect:driver")
                 await asyncio.sleep(1.0)
@@ -104,12 +91,12 @@ def test_a_seat_that_dropped_before_a_crash_still_times_out(tmp_path):
                 server.kill()
 
         asyncio.run(until_crash())
-        before = services.log.load(trial_id)
+        before = services.log.load(trial.id)
         server.start()  # nobody comes back
-        until(lambda: fold(services.log.load(trial_id)).over, "the grace timer's abort", timeout=30)
+        until(lambda: fold(services.log.load(trial.id)).over, "the grace timer's abort", timeout=30)
     finally:
         server.stop()
-    log = services.log.load(trial_id)
+    log = services.log.load(trial.id)
     dropped = next(e for e in before if e.kind == "disconnect" and e.payload["role"] == "driver")
     reopened = next(e for e in log if e.kind == "restarted")
     aborted = log[-1]
@@ -119,54 +106,53 @@ def test_a_seat_that_dropped_before_a_crash_still_times_out(tmp_path):
     remaining_ns = grace_s * S - (before[-1].t_ns - dropped.t_ns)
     assert aborted.t_ns - reopened.t_ns >= remaining_ns
     with services.db() as db:
-        assert db.get(Trial, trial_id).phase == "aborted"
-    services.engine.dispose()
+        assert db.get(Trial, trial.id).phase == "aborted"
 
 
 @pytest.mark.settings(grace_period_s=0.3)
-def test_a_trial_ended_by_its_grace_timer_leaves_the_live_list_and_reopens_without_a_new_event(server, trial, seats):
+def test_a_trial_ended_by_its_grace_timer_leaves_the_live_list_and_reopens_without_a_new_event(server, trial):
     services = server.services
 
     async def play():
         async with (
-            SeatClient(server.ws_url, seats["commander"]) as commander,
-            SeatClient(server.ws_url, seats["driver"]) as driver,
+            trial.seat("commander") as commander,
+            trial.seat("driver") as driver,
         ):
             await start_trial(commander, driver)
         # Both gone: the first grace timer to run out aborts the trial.
-        until(lambda: services.hub.peek(trial) is None, "the ended trial to leave this process")
+        until(lambda: services.hub.peek(trial.id) is None, "the ended trial to leave this process")
         assert services.hub.live() == []
-        ended = services.log.load(trial)
+        ended = services.log.load(trial.id)
         away = {f"the {role} was away longer than the grace period" for role in ("commander", "driver")}
         assert ended[-1].payload["phase"] == "aborted" and ended[-1].payload["reason"] in away
         # The seat's join link closed with the trial: its socket is closed at once with the code
         # the seat page reloads on, and why (a bare 403 left the page reconnecting forever).
-        async with websockets.connect(f"{server.ws_url}?token={seats['commander']}") as seat:
+        async with websockets.connect(f"{server.ws_url}?token={trial.tokens['commander']}") as seat:
             with pytest.raises(websockets.exceptions.ConnectionClosed) as closed:
                 await asyncio.wait_for(seat.recv(), 5)
         assert closed.value.rcvd.code == TRIAL_OVER
         assert closed.value.rcvd.reason == "this trial was stopped: ask the experimenter what comes next"
-        assert services.hub.peek(trial) is None, "the closed link opened nothing"
+        assert services.hub.peek(trial.id) is None, "the closed link opened nothing"
         # The experimenter's watch reopens it.
         cookie = session_cookie(await asyncio.to_thread(experimenter_client, services, server.url))
         async with websockets.connect(
-            f"ws://127.0.0.1:{server.port}/ws/watch/{trial}", additional_headers={"Cookie": cookie}
+            f"ws://127.0.0.1:{server.port}/ws/watch/{trial.id}", additional_headers={"Cookie": cookie}
         ) as watch:
             welcome = json.loads(await watch.recv())
             assert welcome["type"] == "welcome" and welcome["phase"] == "aborted"
             assert welcome["status"]["running"] is False
-        assert services.log.load(trial) == ended, "reopening an ended trial appends nothing"
+        assert services.log.load(trial.id) == ended, "reopening an ended trial appends nothing"
 
     asyncio.run(play())
 
 
-def test_a_move_id_sent_twice_executes_once(server, trial, seats):
+def test_a_move_id_sent_twice_executes_once(server, trial):
     services = server.services
 
     async def play():
         async with (
-            SeatClient(server.ws_url, seats["commander"]) as commander,
-            SeatClient(server.ws_url, seats["driver"]) as driver,
+            trial.seat("commander") as commander,
+            trial.seat("driver") as driver,
         ):
             await start_trial(commander, driver)
             await driver.send("move", action="left", move_id="once")
@@ -179,20 +165,20 @@ def test_a_move_id_sent_twice_executes_once(server, trial, seats):
             await move(driver, "right")  # the next move is executed as usual
 
     asyncio.run(play())
-    log = services.log.load(trial)
+    log = services.log.load(trial.id)
     assert [e.kind for e in log if e.payload.get("move_id") == "once"] == ["move_requested", "move_executed"]
     assert fold(log).moves == 2
 
 
-def test_frame_stamps_stay_monotonic_across_a_rover_reconnection(server):
+def test_frame_stamps_stay_monotonic_across_a_rover_reconnection(server, trials):
     services = server.services
     trial_id, rover_token = rover_trial(services)
-    tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+    trial = trials.of(trial_id)
 
     async def play():
         async with (
-            SeatClient(server.ws_url, tokens["commander"]) as commander,
-            SeatClient(server.ws_url, tokens["driver"]) as driver,
+            trial.seat("commander") as commander,
+            trial.seat("driver") as driver,
         ):
             async with Rover(server.ws_url, rover_token) as rover:
                 await start_trial(commander, driver)
@@ -219,12 +205,11 @@ def test_frame_stamps_stay_monotonic_across_a_rover_reconnection(server):
 
 def test_a_message_over_the_transport_limit_gets_the_error_reply_and_is_logged(server, trial):
     services = server.services
-    token = services.seats.issue(trial, "driver")
     with server.services.db() as db:
-        assert db.scalar(select(Trial.phase).where(Trial.id == trial)) == "waiting"
+        assert db.scalar(select(Trial.phase).where(Trial.id == trial.id)) == "waiting"
 
     async def play():
-        async with SeatClient(server.ws_url, token) as driver:
+        async with trial.seat("driver") as driver:
             await driver.wait_for(lambda m: m.get("type") == "welcome")
             with contextlib.suppress(websockets.ConnectionClosed):
                 await driver.send("chat", text="x" * (8 * 1024 * 1024))
@@ -235,5 +220,5 @@ def test_a_message_over_the_transport_limit_gets_the_error_reply_and_is_logged(s
     error, code = asyncio.run(play())
     assert error["code"] == "bad_message" and "over the limit" in error["error"]
     assert code == 1009
-    bad = until(lambda: [e for e in services.log.load(trial) if e.kind == "bad_message"], "the log entry")
+    bad = until(lambda: [e for e in services.log.load(trial.id) if e.kind == "bad_message"], "the log entry")
     assert bad[0].payload["role"] == "driver" and "over the limit" in bad[0].payload["error"]

@@ -15,7 +15,7 @@ import pytest
 from app.backends.render import RenderProcesses, render_jpeg
 from app.mazes import Mazes
 from app.settings import Settings
-from bench.live import SeatClient, ServerProcess, ServerProcesses, make_trial
+from bench.live import ServerProcesses
 from sim.core.geometry import heading_angle
 from sim.trial import events as ev
 from tests.app.live import platform_settings
@@ -72,16 +72,15 @@ def test_a_killed_render_process_costs_no_frame(maze_and_graph):
 
 
 @pytest.mark.settings(render_processes=1)
-def test_the_driver_sees_frames_drawn_in_a_render_process(server):
+def test_the_driver_sees_frames_drawn_in_a_render_process(server, trials):
     services = server.services
     assert isinstance(services.trials.backends.renderer, RenderProcesses)
-    trial_id = make_trial(services, services.mazes.names()[0])
-    tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+    trial = trials.new()
 
     async def play() -> list[bytes]:
         async with (
-            SeatClient(server.ws_url, tokens["commander"]) as commander,
-            SeatClient(server.ws_url, tokens["driver"]) as driver,
+            trial.seat("commander") as commander,
+            trial.seat("driver") as driver,
         ):
             await start_trial(commander, driver)
             seen = []
@@ -98,11 +97,11 @@ def test_the_driver_sees_frames_drawn_in_a_render_process(server):
     # machine may be after the next pose event: the log's order does not pair them).
     poses = [
         (e.payload["x"], e.payload["y"], e.payload["heading"])
-        for e in services.log.load(trial_id)
+        for e in services.log.load(trial.id)
         if e.is_(ev.PoseSampled)
     ]
     frames = [
-        services.trials.frames.read(trial_id, e.seq) for e in services.log.load(trial_id) if e.is_(ev.FrameRecorded)
+        services.trials.frames.read(trial.id, e.seq) for e in services.log.load(trial.id) if e.is_(ev.FrameRecorded)
     ]
     assert len(frames) >= 5, "the first frame and one after each move"
     renders = {render_jpeg(maze, *pose) for pose in poses}
@@ -119,15 +118,8 @@ def alive(pid: int) -> bool:
 
 
 @pytest.mark.slow
-def test_render_processes_end_with_a_server_killed_by_sigkill(tmp_path):
-    settings = platform_settings(tmp_path, render_processes=1, cache_dir=tmp_path / "cache")
-    env = {
-        "ROBOTSLANG_DATA_DIR": str(settings.data_dir),
-        "ROBOTSLANG_SECRET_KEY": "render-test",
-        "ROBOTSLANG_CACHE_DIR": str(tmp_path / "cache"),
-        "ROBOTSLANG_RENDER_PROCESSES": "1",
-    }
-    server = ServerProcess(env).start()
+def test_render_processes_end_with_a_server_killed_by_sigkill(tmp_path, server_process):
+    server = server_process(platform_settings(tmp_path, render_processes=1, cache_dir=tmp_path / "cache")).start()
     try:
         deadline = time.monotonic() + 60
         while (

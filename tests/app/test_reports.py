@@ -18,23 +18,21 @@ from app.annotation.events import Adjudicated, CutMarked, Submitted, Tagged
 from app.annotation.log import AnnotationLog
 from app.db.models import AnnotationAssignment, Experimenter, Team, Trial
 from app.trial.setup import create_trial, suggest_maze
-from bench.live import SeatClient, make_trial
 from sim.trial import events as ev
 from sim.trial.state import trial_score
-from tests.app.live import cli, experimenter_client
+from tests.app.live import TrialHandle, Trials, cli, experimenter_client
 from tests.app.trial_play import claim_and_decide, drive_to_target, start_trial
 
 pytestmark = pytest.mark.slow
 STUDY = "pilot"
 
 
-async def play(server, trial_id: int, said: list[tuple[str, str]]) -> None:
+async def play(server, trial: TrialHandle, said: list[tuple[str, str]]) -> None:
     """The trial start to finish: the dialog `said` before the estimate, one message after it."""
     services = server.services
-    tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
     async with (
-        SeatClient(server.ws_url, tokens["commander"]) as commander,
-        SeatClient(server.ws_url, tokens["driver"]) as driver,
+        trial.seat("commander") as commander,
+        trial.seat("driver") as driver,
     ):
         seat = {"commander": commander, "driver": driver}
         await start_trial(commander, driver)
@@ -47,7 +45,7 @@ async def play(server, trial_id: int, said: list[tuple[str, str]]) -> None:
         await driver.event("phase", phase="navigating", target_index=0)
         await commander.send("chat", text="now find the first one")
         for _ in range(3):
-            await drive_to_target(services, trial_id, driver)
+            await drive_to_target(services, trial.id, driver)
             await claim_and_decide(commander, driver, confirm=True)
         await commander.event("phase", phase="finished")
 
@@ -68,10 +66,10 @@ DIALOGS = [
 def study(start_module_server):
     """Three finished trials of study `pilot` (two by team Owls, one by Larks), played for real."""
     server = start_module_server()
+    trials = Trials(lambda: server)
     settings = server.settings
     services = server.services
-    names = services.mazes.names()
-    first = make_trial(services, names[0], team="Owls")
+    first = trials.new(team="Owls")
     asyncio.run(play(server, first, DIALOGS[0]))
     layouts = services.mazes.layouts()
     with services.db.begin() as db:
@@ -87,10 +85,10 @@ def study(start_module_server):
             layouts=layouts,
             now_ns=services.clock.now_ns(),
         ).id
-    asyncio.run(play(server, second, DIALOGS[1]))
-    third = make_trial(services, names[0], team="Larks")
+    asyncio.run(play(server, trials.of(second), DIALOGS[1]))
+    third = trials.new(team="Larks")
     asyncio.run(play(server, third, DIALOGS[2]))
-    ids = [first, second, third]
+    ids = [first.id, second, third.id]
     with services.db.begin() as db:
         for trial_id in ids:
             db.get(Trial, trial_id).study = STUDY

@@ -6,11 +6,9 @@ import asyncio
 
 import pytest
 
-from app.main import build_services
-from bench.live import SeatClient, ServerProcess, make_trial
 from sim.core.dynamics import Action, snap_pose, teacher_action
 from sim.trial.state import fold
-from tests.app.live import UNPACED_ENV, platform_settings
+from tests.app.live import platform_settings
 from tests.app.trial_play import claim_and_decide, move, start_trial
 
 
@@ -23,33 +21,26 @@ def logged_action(services, trial_id: int) -> Action:
 
 
 @pytest.mark.slow
-def test_kill_and_restart_mid_trial_loses_no_committed_event(tmp_path):
-    settings = platform_settings(tmp_path, cache_dir=tmp_path / "cache")
-    services = build_services(settings)
-    trial_id = make_trial(services, services.mazes.names()[0], targets=("jar", "paddle", "mug"))
-    tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-    env = {
-        "ROBOTSLANG_DATA_DIR": str(settings.data_dir),
-        "ROBOTSLANG_SECRET_KEY": settings.secret_key,
-        **UNPACED_ENV,
-        "ROBOTSLANG_CACHE_DIR": str(tmp_path / "cache"),
-    }
-    server = ServerProcess(env).start()
+def test_kill_and_restart_mid_trial_loses_no_committed_event(tmp_path, server_process, trials):
+    server = server_process(platform_settings(tmp_path, cache_dir=tmp_path / "cache"))
+    services = server.services
+    trial = trials.new(server, targets=("jar", "paddle", "mug"))
+    server.start()
     try:
 
         async def first_half():
             async with (
-                SeatClient(server.ws_url, tokens["commander"]) as commander,
-                SeatClient(server.ws_url, tokens["driver"]) as driver,
+                trial.seat("commander") as commander,
+                trial.seat("driver") as driver,
             ):
                 await start_trial(commander, driver)
                 await commander.send("localize", x=1.0, y=1.0)
                 await driver.event("phase", phase="navigating")
-                while (action := logged_action(services, trial_id)) != Action.STOP:
+                while (action := logged_action(services, trial.id)) != Action.STOP:
                     await move(driver, action.word)
                 await claim_and_decide(commander, driver, confirm=True)
                 for _ in range(3):
-                    await move(driver, logged_action(services, trial_id).word)
+                    await move(driver, logged_action(services, trial.id).word)
                 await commander.send("chat", text="keep going")
                 await driver.event("chat", text="keep going")
                 # Moves in flight while the server dies.
@@ -60,7 +51,7 @@ def test_kill_and_restart_mid_trial_loses_no_committed_event(tmp_path):
                 return commander.received + driver.received
 
         heard = asyncio.run(first_half())
-        before = services.log.load(trial_id)
+        before = services.log.load(trial.id)
         committed = {e.seq: e for e in before}
         for message in heard:  # everything any seat heard of had been committed, as it was sent
             if message.get("type") == "event":
@@ -75,15 +66,15 @@ def test_kill_and_restart_mid_trial_loses_no_committed_event(tmp_path):
 
         async def second_half():
             async with (
-                SeatClient(server.ws_url, tokens["commander"]) as commander,
-                SeatClient(server.ws_url, tokens["driver"]) as driver,
+                trial.seat("commander") as commander,
+                trial.seat("driver") as driver,
             ):
                 welcome = await driver.wait_for(lambda m: m.get("type") == "welcome")
                 assert welcome["phase"] == "navigating" and welcome["target_index"] == 1
                 assert [h["payload"]["text"] for h in welcome["history"] if h["kind"] == "chat"] == ["keep going"]
                 await commander.event("resumed", reason="disconnect:driver")
                 for _ in range(2):
-                    while (action := logged_action(services, trial_id)) != Action.STOP:
+                    while (action := logged_action(services, trial.id)) != Action.STOP:
                         await move(driver, action.word)
                     await claim_and_decide(commander, driver, confirm=True)
                 await commander.event("phase", phase="finished")
@@ -92,7 +83,7 @@ def test_kill_and_restart_mid_trial_loses_no_committed_event(tmp_path):
     finally:
         server.stop()
 
-    after = services.log.load(trial_id)
+    after = services.log.load(trial.id)
     assert after[: len(before)] == before, "no committed event lost or changed by the restart"
     assert [e.seq for e in after] == list(range(1, len(after) + 1))
     restart = after[len(before) :]
@@ -104,4 +95,3 @@ def test_kill_and_restart_mid_trial_loses_no_committed_event(tmp_path):
     assert not any(e.kind == "pose" for e in restart[:first_move]), "the robot resumes where it was, not re-placed"
     final = fold(after)
     assert final.phase == "finished" and len(final.confirmed) == 3
-    services.engine.dispose()

@@ -20,19 +20,23 @@ from app.rover.links import MAX_FRAME_BYTES
 from bench.live import SeatClient
 from robot_client.calibration import Calibration
 from robot_client.protocol import pack_frame
-from tests.app.live import page_csrf_token, platform_settings
-from tests.app.robot_rig import ROBOT_START_S, WATCHDOG_S, RobotProcess, RobotServer
+from tests.app.live import page_csrf_token
+from tests.app.robot_rig import (
+    ROBOT_START_S,
+    WATCHDOG_S,
+    RobotProcess,
+    new_robot_trial,
+    robot_status,
+    trial_events,
+)
 
 pytestmark = pytest.mark.anyio
 TINY_JPEG = cv2.imencode(".jpg", np.zeros((8, 8, 3), np.uint8))[1].tobytes()
 
 
 @pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    settings = platform_settings(tmp_path_factory.mktemp("robot-server"), min_move_interval_s=0.0)
-    server = RobotServer(settings)
-    yield server
-    server.stop()
+def server(start_module_server):
+    return start_module_server(min_move_interval_s=0.0)
 
 
 @pytest.fixture
@@ -80,9 +84,9 @@ def frame_events(seat: SeatClient) -> list[dict]:
 
 
 async def test_frames_reach_the_driver_and_the_log_with_monotonic_times(server, robots):
-    robot_id, token, trial = server.new_robot_trial("frames")
+    robot_id, token, trial = new_robot_trial(server, "frames")
     robots(server.url, token)
-    async with server.seat(trial, "commander") as commander, server.seat(trial, "driver") as driver:
+    async with trial.seat("commander") as commander, trial.seat("driver") as driver:
         await driver.event("phase", phase="localizing", timeout=ROBOT_START_S)
         await until(lambda: len(frame_events(driver)) >= 12, timeout=ROBOT_START_S, what="12 frames at the Driver")
     frames = frame_events(driver)
@@ -95,28 +99,28 @@ async def test_frames_reach_the_driver_and_the_log_with_monotonic_times(server, 
     assert all(f["payload"]["source"] == "driver" and f["payload"]["width"] == 320 for f in frames)
     assert not any(m.get("kind") == "frame" for m in commander.received)
 
-    logged = server.events(trial, "frame")
+    logged = trial_events(server, trial, "frame")
     ids = {f["payload"]["frame_id"] for f in frames}
     assert ids <= {e.seq for e in logged}
     with server.services.db() as db:
-        rows = db.scalars(select(FrameRow).where(FrameRow.trial_id == trial).order_by(FrameRow.seq)).all()
+        rows = db.scalars(select(FrameRow).where(FrameRow.trial_id == trial.id).order_by(FrameRow.seq)).all()
     assert [r.capture_ns for r in rows] == sorted(r.capture_ns for r in rows)
     assert (server.services.settings.frames_dir / rows[0].path).read_bytes()[:2] == b"\xff\xd8"
-    status = server.status(robot_id)
+    status = robot_status(server, robot_id)
     assert status["connected"] and status["fps"] > 5 and status["latency_ms"] is not None
 
 
 async def test_moves_execute_in_order_with_the_calibrated_pin_pulses(server, robots):
-    robot_id, token, trial = server.new_robot_trial("moves")
+    robot_id, token, trial = new_robot_trial(server, "moves")
     robot = robots(server.url, token)
-    async with server.seat(trial, "commander"), server.seat(trial, "driver") as driver:
+    async with trial.seat("commander"), trial.seat("driver") as driver:
         await driver.event("phase", phase="localizing", timeout=ROBOT_START_S)
         await driver.event("frame")  # the robot is connected: the trial runs
         for i, action in enumerate(["forward", "left", "right", "forward"]):
             await driver.send("move", action=action, move_id=f"m{i}")
             executed = await driver.event("move_executed", move_id=f"m{i}")
             assert executed["payload"]["outcome"] == "ok", executed["payload"]
-    order = [(e.payload["move_id"], e.payload["action"]) for e in server.events(trial, "move_executed")]
+    order = [(e.payload["move_id"], e.payload["action"]) for e in trial_events(server, trial, "move_executed")]
     assert order == [("m0", "forward"), ("m1", "left"), ("m2", "right"), ("m3", "forward")]
     # forward: both forward pins (GPIO4 left, GPIO17 right); left: GPIO17 + GPIO14 (left backward);
     # right: GPIO4 + GPIO18 (right backward). Each pulse lasts its calibrated time.
@@ -124,21 +128,21 @@ async def test_moves_execute_in_order_with_the_calibrated_pin_pulses(server, rob
     assert [p for p, _, _ in found] == ["GPIO4", "GPIO17", "GPIO17", "GPIO14", "GPIO4", "GPIO18", "GPIO4", "GPIO17"]
     expected = [0.3, 0.3, 0.2, 0.2, 0.25, 0.25, 0.3, 0.3]
     assert [s for _, s, _ in found] == pytest.approx(expected, abs=0.04)
-    assert server.status(robot_id)["last_ack"]["status"] == "done"
+    assert robot_status(server, robot_id)["last_ack"]["status"] == "done"
 
 
 async def test_a_move_is_refused_while_the_robot_is_not_connected_and_the_trial_waits(server, robots):
-    robot_id, token, trial = server.new_robot_trial("late")
+    robot_id, token, trial = new_robot_trial(server, "late")
     cookies = {"robotslang_session": server.services.sessions.issue(1)}
     async with (
         httpx.AsyncClient(base_url=server.url, cookies=cookies) as http,
-        server.seat(trial, "commander"),
-        server.seat(trial, "driver") as driver,
+        trial.seat("commander"),
+        trial.seat("driver") as driver,
     ):
 
         async def dashboard() -> dict | None:
             trials = (await http.get("/experimenter/api/trials")).json()["trials"]
-            return next((t for t in trials if t["trial_id"] == trial), None)
+            return next((t for t in trials if t["trial_id"] == trial.id), None)
 
         waiting = await until(
             lambda: _when(dashboard(), lambda t: t and t["seats"]["commander"] and t["seats"]["driver"]),
@@ -163,7 +167,7 @@ async def test_a_move_is_refused_while_the_robot_is_not_connected_and_the_trial_
         assert later["payload"]["outcome"] == "ok", later["payload"].get("reason")
     kinds = [
         (e.kind, e.payload.get("role", e.payload.get("phase", e.payload.get("reason"))))
-        for e in server.events(trial)
+        for e in trial_events(server, trial)
         if e.kind in ("connect", "phase", "paused", "resumed")
     ]
     # The trial started (and its clock with it) only once the rover had joined; it was never "paused".
@@ -211,12 +215,12 @@ class Proxy:
 
 
 async def test_losing_the_link_stops_the_motors_within_the_watchdog_and_the_trial_resumes(server, robots):
-    robot_id, token, trial = server.new_robot_trial("link")
+    robot_id, token, trial = new_robot_trial(server, "link")
     proxy = Proxy(server.port)
     await proxy.start()
     robot = robots(f"http://127.0.0.1:{proxy.port}", token, calibration=Calibration(forward_s=1.8))
     try:
-        async with server.seat(trial, "commander"), server.seat(trial, "driver") as driver:
+        async with trial.seat("commander"), trial.seat("driver") as driver:
             await driver.event("phase", phase="localizing", timeout=ROBOT_START_S)
             await driver.event("frame")
             await driver.send("move", action="forward", move_id="long")
@@ -247,10 +251,10 @@ async def test_losing_the_link_stops_the_motors_within_the_watchdog_and_the_tria
 
 
 async def test_a_restarted_client_reconnects_and_the_trial_continues(server, robots):
-    robot_id, token, trial = server.new_robot_trial("restart")
+    robot_id, token, trial = new_robot_trial(server, "restart")
     first = robots(server.url, token)
-    await until(lambda: server.status(robot_id)["connected"], timeout=ROBOT_START_S, what="the robot to connect")
-    async with server.seat(trial, "commander"), server.seat(trial, "driver") as driver:
+    await until(lambda: robot_status(server, robot_id)["connected"], timeout=ROBOT_START_S, what="the robot to connect")
+    async with trial.seat("commander"), trial.seat("driver") as driver:
         await driver.event("phase", phase="localizing")
         await driver.event("frame")
         await driver.send("move", action="forward", move_id="before")
@@ -266,29 +270,29 @@ async def test_a_restarted_client_reconnects_and_the_trial_continues(server, rob
         assert (await driver.event("move_executed", move_id="after"))["payload"]["outcome"] == "ok"
     kinds = [
         e.kind
-        for e in server.events(trial)
+        for e in trial_events(server, trial)
         if e.kind in ("connect", "disconnect", "paused", "resumed")
         and e.payload.get("role", e.payload.get("reason", "")).endswith("robot")
     ]
     assert kinds == ["connect", "disconnect", "paused", "connect", "resumed"]
-    assert server.events(trial, "phase")[-1].payload["phase"] == "localizing"
+    assert trial_events(server, trial, "phase")[-1].payload["phase"] == "localizing"
 
 
 async def test_a_wrong_token_is_refused(server, robots):
-    robot_id, token, trial = server.new_robot_trial("wrong")
+    robot_id, token, trial = new_robot_trial(server, "wrong")
     robot = robots(server.url, token + "x")
     assert robot.proc.wait(timeout=ROBOT_START_S) == 3
     assert "the server refused this robot: auth: unknown robot token" in robot.stop()
-    assert not server.status(robot_id)["connected"]
-    assert not [e for e in server.events(trial, "connect") if e.payload["role"] == "robot"]
+    assert not robot_status(server, robot_id)["connected"]
+    assert not [e for e in trial_events(server, trial, "connect") if e.payload["role"] == "robot"]
 
 
 async def test_malformed_and_oversized_messages_get_an_error_and_change_nothing(server, robots):
-    robot_id, token, trial = server.new_robot_trial("garbage")
+    robot_id, token, trial = new_robot_trial(server, "garbage")
     url = f"ws://127.0.0.1:{server.port}/ws/robot"
     async with (
-        server.seat(trial, "commander"),
-        server.seat(trial, "driver") as driver,
+        trial.seat("commander"),
+        trial.seat("driver") as driver,
         websockets.connect(url, max_size=None, compression=None) as ws,
     ):
         await ws.send(json.dumps({"type": "hello", "protocol": 1, "token": token, "role": "driver"}))
@@ -296,7 +300,7 @@ async def test_malformed_and_oversized_messages_get_an_error_and_change_nothing(
         await driver.event("phase", phase="localizing")
         await ws.send(pack_frame(1, time.monotonic_ns(), 8, 8, TINY_JPEG))
         await driver.event("frame")
-        before = [(e.kind, e.payload) for e in server.events(trial)]
+        before = [(e.kind, e.payload) for e in trial_events(server, trial)]
         jpeg = b"\xff\xd8" + bytes(MAX_FRAME_BYTES)
         bad = [
             "{not json",
@@ -315,7 +319,7 @@ async def test_malformed_and_oversized_messages_get_an_error_and_change_nothing(
         seen = len(driver.received)
         await ws.send(pack_frame(3, time.monotonic_ns(), 8, 8, TINY_JPEG))
         await driver.event("frame", start=seen)
-        after = [(e.kind, e.payload) for e in server.events(trial)]
+        after = [(e.kind, e.payload) for e in trial_events(server, trial)]
     assert "not JSON" in errors[0] and "unknown message type 'dance'" in errors[1]
     assert "'type'" in errors[2] and "expected b'RSF1'" in errors[3] and "limit is" in errors[4]
     added = after[len(before) :]
@@ -325,19 +329,19 @@ async def test_malformed_and_oversized_messages_get_an_error_and_change_nothing(
 
 
 async def test_overhead_frames_are_logged_but_never_reach_a_seat(server, robots):
-    _, rover_token, trial = server.new_robot_trial("table")
-    _, overhead_token, _ = server.new_robot_trial("table-camera", role="overhead")
+    _, rover_token, trial = new_robot_trial(server, "table")
+    _, overhead_token, _ = new_robot_trial(server, "table-camera", role="overhead")
     robots(server.url, rover_token)
     robots(server.url, overhead_token, role="overhead", fps=5)
-    async with server.seat(trial, "commander") as commander, server.seat(trial, "driver") as driver:
+    async with trial.seat("commander") as commander, trial.seat("driver") as driver:
         await driver.event("phase", phase="localizing", timeout=ROBOT_START_S)
         await until(
-            lambda: len(server.events(trial, "frame")) >= 20
-            and any(e.payload["source"] == "overhead" for e in server.events(trial, "frame")),
+            lambda: len(trial_events(server, trial, "frame")) >= 20
+            and any(e.payload["source"] == "overhead" for e in trial_events(server, trial, "frame")),
             timeout=ROBOT_START_S,
             what="overhead frames in the log",
         )
-    sources = {e.payload["source"] for e in server.events(trial, "frame")}
+    sources = {e.payload["source"] for e in trial_events(server, trial, "frame")}
     assert sources == {"driver", "overhead"}
     assert all(m["payload"]["source"] == "driver" for m in frame_events(driver))
     assert not frame_events(commander)
@@ -353,7 +357,7 @@ async def test_the_experimenter_registers_robots_and_sees_their_links(server, ro
         assert again.status_code == 400 and "already exists" in again.json()["detail"]
         robots(server.url, made["token"])
         await until(
-            lambda: server.status(made["id"])["fps"] > 5, timeout=ROBOT_START_S, what="frames from the new robot"
+            lambda: robot_status(server, made["id"])["fps"] > 5, timeout=ROBOT_START_S, what="frames from the new robot"
         )
         rows = (await http.get("/experimenter/api/robots")).json()["robots"]
         mine = next(r for r in rows if r["id"] == made["id"])
@@ -364,7 +368,7 @@ async def test_the_experimenter_registers_robots_and_sees_their_links(server, ro
 
 
 async def test_the_dashboard_page_shows_each_robot_and_offers_the_rover_for_trials(server, robots):
-    robot_id, token, trial = server.new_robot_trial("dashboard")
+    robot_id, token, trial = new_robot_trial(server, "dashboard")
     cookies = {"robotslang_session": server.services.sessions.issue(1)}
     async with httpx.AsyncClient(base_url=server.url, cookies=cookies) as http:
 
@@ -375,8 +379,10 @@ async def test_the_dashboard_page_shows_each_robot_and_offers_the_rover_for_tria
         assert "not connected" in robot_row(page)
         assert f'<option value="robot:{robot_id}">dashboard (rover)</option>' in page
         robots(server.url, token)
-        await until(lambda: server.status(robot_id)["fps"] > 5, timeout=ROBOT_START_S, what="frames from the robot")
-        async with server.seat(trial, "commander"), server.seat(trial, "driver") as driver:
+        await until(
+            lambda: robot_status(server, robot_id)["fps"] > 5, timeout=ROBOT_START_S, what="frames from the robot"
+        )
+        async with trial.seat("commander"), trial.seat("driver") as driver:
             await driver.event("phase", phase="localizing", timeout=ROBOT_START_S)
             await driver.send("move", action="left", move_id="seen")
             await driver.event("move_executed", move_id="seen", timeout=ROBOT_START_S)
@@ -387,15 +393,15 @@ async def test_the_dashboard_page_shows_each_robot_and_offers_the_rover_for_tria
 
 
 async def test_frames_are_not_recorded_while_a_dropped_seat_pauses_the_trial(server, robots):
-    robot_id, token, trial = server.new_robot_trial("pause-rec")
+    robot_id, token, trial = new_robot_trial(server, "pause-rec")
     robots(server.url, token)
 
     def recorded() -> int:
         with server.services.db() as db:
-            return len(db.scalars(select(FrameRow.id).where(FrameRow.trial_id == trial)).all())
+            return len(db.scalars(select(FrameRow.id).where(FrameRow.trial_id == trial.id)).all())
 
-    async with server.seat(trial, "commander") as commander:
-        async with server.seat(trial, "driver") as driver:
+    async with trial.seat("commander") as commander:
+        async with trial.seat("driver") as driver:
             await driver.event("phase", phase="localizing", timeout=ROBOT_START_S)
             await until(lambda: recorded() >= 5, timeout=ROBOT_START_S, what="frames recorded")
         await commander.wait_for(lambda m: m.get("type") == "status" and "disconnect:driver" in m["paused"])
@@ -403,5 +409,5 @@ async def test_frames_are_not_recorded_while_a_dropped_seat_pauses_the_trial(ser
         paused_at = recorded()
         await asyncio.sleep(1.5)  # 15 frames/s from the rover meanwhile
         assert recorded() == paused_at, "frames recorded while the trial waited for the Driver"
-        async with server.seat(trial, "driver"):
+        async with trial.seat("driver"):
             await until(lambda: recorded() >= paused_at + 5, timeout=10, what="recording again once resumed")

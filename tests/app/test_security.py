@@ -21,7 +21,7 @@ from app.db.engine import alembic_config, make_engine
 from app.db.models import Experimenter, Participant, Trial
 from app.routes.seat_ws import TRIAL_OVER
 from app.security import SESSION_COOKIE, InvalidToken, Seat, SeatTokens
-from bench.live import REPO, SeatClient, make_trial
+from bench.live import REPO
 from tests.app.live import (
     PASSWORD,
     add_experimenter,
@@ -49,12 +49,11 @@ def other_port_of(server) -> str:
 
 
 # -- cross-site request forgery --------------------------------------------------------
-def test_a_page_on_another_port_cannot_create_participants_or_abort_a_trial(server):
+def test_a_page_on_another_port_cannot_create_participants_or_abort_a_trial(server, trials):
     add_experimenter(server)
     experimenter = log_in(server.url, "eve", PASSWORD)
     token = experimenter.headers["X-CSRF-Token"]
-    trial_id = make_trial(server.services, server.services.mazes.names()[0])
-    seat_tokens = {r: server.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+    trial = trials.new()
     foreign = other_port_of(server)
 
     def forged(path: str, data: dict | None = None, **headers) -> httpx.Response:
@@ -77,18 +76,18 @@ def test_a_page_on_another_port_cannot_create_participants_or_abort_a_trial(serv
 
     async def abort_attempts() -> None:
         async with (
-            SeatClient(server.ws_url, seat_tokens["commander"]) as commander,
-            SeatClient(server.ws_url, seat_tokens["driver"]) as driver,
+            trial.seat("commander") as commander,
+            trial.seat("driver") as driver,
         ):
             await start_trial(commander, driver)
             for headers in ({"Origin": foreign}, {"Origin": foreign, "X-CSRF-Token": token}, {}):
-                answer = await asyncio.to_thread(forged, f"/experimenter/trials/{trial_id}/abort", **headers)
+                answer = await asyncio.to_thread(forged, f"/experimenter/trials/{trial.id}/abort", **headers)
                 assert answer.status_code == 403
-            assert phase(server, trial_id) == "localizing"
+            assert phase(server, trial.id) == "localizing"
             # The experimenter's own page still can (the token in its form, Referer for Origin).
             page = await asyncio.to_thread(
                 forged,
-                f"/experimenter/trials/{trial_id}/abort",
+                f"/experimenter/trials/{trial.id}/abort",
                 {"csrf_token": token},
                 Referer=server.url + "/experimenter",
             )
@@ -132,11 +131,10 @@ def test_allowed_origins_may_post_and_login_needs_the_home_pages_token(server):
 
 
 def test_websocket_origins_compare_scheme_host_and_port(server, trial):
-    token = server.services.seats.issue(trial, "commander")
     host = server.url.removeprefix("http://")
 
     async def welcome(origin: str | None) -> dict:
-        async with SeatClient(server.ws_url, token, origin=origin) as seat:
+        async with trial.seat("commander", origin=origin) as seat:
             return await seat.wait_for(lambda m: m.get("type") == "welcome")
 
     for origin in (other_port_of(server), f"https://{host}", "http://localhost.evil.example"):
@@ -288,19 +286,18 @@ def test_a_login_cookie_stops_working_at_logout_and_at_a_password_change(setting
 
 
 # -- join links ------------------------------------------------------------------------
-def test_a_join_link_closes_when_its_trial_ends(server):
+def test_a_join_link_closes_when_its_trial_ends(server, trials):
     add_experimenter(server)
-    trial_id = make_trial(server.services, server.services.mazes.names()[0])
-    tokens = {r: server.services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-    assert httpx.get(f"{server.url}/play/{tokens['commander']}").status_code == 200
-    log_in(server.url, "eve", PASSWORD).post(f"/experimenter/trials/{trial_id}/abort")
-    assert phase(server, trial_id) == "aborted"
-    page = httpx.get(f"{server.url}/play/{tokens['driver']}")
+    trial = trials.new()
+    assert httpx.get(trial.play_url("commander")).status_code == 200
+    log_in(server.url, "eve", PASSWORD).post(f"/experimenter/trials/{trial.id}/abort")
+    assert phase(server, trial.id) == "aborted"
+    page = httpx.get(trial.play_url("driver"))
     assert page.status_code == 410 and "this trial was stopped" in page.text and "<html" in page.text
-    assert httpx.get(f"{server.url}/play/{tokens['commander']}/map.png").status_code == 410
+    assert httpx.get(f"{server.url}/play/{trial.tokens['commander']}/map.png").status_code == 410
 
     async def connect() -> websockets.exceptions.ConnectionClosed:
-        async with websockets.connect(f"{server.ws_url}?token={tokens['commander']}") as seat:
+        async with websockets.connect(f"{server.ws_url}?token={trial.tokens['commander']}") as seat:
             with pytest.raises(websockets.exceptions.ConnectionClosed) as closed:
                 await asyncio.wait_for(seat.recv(), 5)
             return closed.value
@@ -311,25 +308,24 @@ def test_a_join_link_closes_when_its_trial_ends(server):
 
 
 @pytest.mark.settings(join_link_ttl_s=1.0)
-def test_a_join_link_expires_after_its_ttl_but_an_open_seat_keeps_working(server, trial):
-    token = server.services.seats.issue(trial, "commander")
-    assert httpx.get(f"{server.url}/play/{token}").status_code == 200
+def test_a_join_link_expires_after_its_ttl_but_an_open_seat_keeps_working(server, trial, trials):
+    assert httpx.get(trial.play_url("commander")).status_code == 200
 
     async def play() -> None:
-        async with SeatClient(server.ws_url, token) as commander:
+        async with trial.seat("commander") as commander:
             await commander.wait_for(lambda m: m.get("type") == "welcome")
             await asyncio.sleep(2.2)  # link timestamps count whole seconds
             await commander.send("chat", text="still here")
             await commander.event("chat", text="still here")
         with pytest.raises(websockets.InvalidStatus):
-            async with SeatClient(server.ws_url, token):
+            async with trial.seat("commander"):
                 pass
 
     asyncio.run(play())
-    page = httpx.get(f"{server.url}/play/{token}")
+    page = httpx.get(trial.play_url("commander"))
     assert page.status_code == 410 and "expired" in page.text
-    fresh = server.services.seats.issue(trial, "commander")
-    assert httpx.get(f"{server.url}/play/{fresh}").status_code == 200
+    fresh = trials.of(trial.id)  # its links issued again
+    assert httpx.get(fresh.play_url("commander")).status_code == 200
 
 
 # -- headers and host names ------------------------------------------------------------
@@ -340,7 +336,7 @@ def test_every_response_carries_the_security_headers(server, trial):
         "/static/style.css",
         "/nowhere",
         "/experimenter",
-        f"/play/{server.services.seats.issue(trial, 'commander')}",
+        f"/play/{trial.tokens['commander']}",
         "/play/forged",
     ]
     for path in paths:

@@ -12,7 +12,7 @@ from app.db.models import Event, Trial
 from app.main import build_services
 from app.seats.registry import available_drivers
 from app.trial.setup import TrialSetupError
-from bench.live import SeatClient, make_trial
+from bench.live import make_trial
 from models.shipped import SHIPPED_CHECKPOINT, default_checkpoint
 from models.train import load_agent
 from tests.app.live import platform_settings
@@ -24,14 +24,13 @@ def events_of(services, trial_id: int, kind: str) -> list[Event]:
 
 
 @pytest.mark.slow
-def test_learned_driver_claims_moves_after_a_rejection_and_claims_again(stopping_checkpoint, start_server):
+def test_learned_driver_claims_moves_after_a_rejection_and_claims_again(stopping_checkpoint, start_server, trials):
     server = start_server(seq2seq_checkpoint=stopping_checkpoint)
     services = server.services
-    trial_id = make_trial(services, services.mazes.names()[0], targets=("jar", "mug", "paddle"), driver="agent:seq2seq")
-    token = services.seats.issue(trial_id, "commander")
+    trial = trials.new(server, targets=("jar", "mug", "paddle"), driver="agent:seq2seq")
 
     async def command():
-        async with SeatClient(server.ws_url, token) as commander:
+        async with trial.seat("commander") as commander:
             await commander.event("phase", phase="localizing", timeout=30)
             await commander.send("chat", text="find the jar, it is by the red wall")
             await commander.send("localize", x=1.0, y=1.0)
@@ -51,9 +50,9 @@ def test_learned_driver_claims_moves_after_a_rejection_and_claims_again(stopping
             return rejected["seq"], again["seq"], again["payload"]["frame_id"]
 
     rejected_seq, again_seq, again_frame_id = asyncio.run(command())
-    requested = [e for e in events_of(services, trial_id, "move_requested") if e.seq > rejected_seq]
-    executed = [e for e in events_of(services, trial_id, "move_executed") if rejected_seq < e.seq < again_seq]
-    frames = [e for e in events_of(services, trial_id, "frame") if e.seq > rejected_seq]
+    requested = [e for e in events_of(services, trial.id, "move_requested") if e.seq > rejected_seq]
+    executed = [e for e in events_of(services, trial.id, "move_executed") if rejected_seq < e.seq < again_seq]
+    frames = [e for e in events_of(services, trial.id, "frame") if e.seq > rejected_seq]
     assert requested and requested[0].payload["action"] in ("forward", "left", "right")
     assert executed and executed[0].payload["move_id"] == requested[0].payload["move_id"]
     assert executed[0].payload["outcome"] == "ok"
@@ -71,7 +70,7 @@ def test_the_shipped_driver_loads_as_the_command_trained_it():
 
 
 @pytest.mark.slow
-def test_without_a_setting_the_shipped_driver_plays_a_trial_on_a_bundled_maze(settings, server):
+def test_without_a_setting_the_shipped_driver_plays_a_trial_on_a_bundled_maze(settings, server, trials):
     """A fresh install: no ROBOTSLANG_SEQ2SEQ_CHECKPOINT, so agent:seq2seq is the shipped Driver; it is
     offered, seated, and drives the simulated robot on one of the bundled generated mazes."""
     assert settings.seq2seq_checkpoint is None
@@ -79,22 +78,21 @@ def test_without_a_setting_the_shipped_driver_plays_a_trial_on_a_bundled_maze(se
     assert available_drivers(services.agents)["agent:seq2seq"] is None
     maze = "gen-000"  # the first of the generated mazes shipped in sim/tasks/mazes/
     assert maze in services.mazes.names()
-    trial_id = make_trial(services, maze, targets=("jar", "mug", "paddle"), driver="agent:seq2seq")
-    token = services.seats.issue(trial_id, "commander")
+    trial = trials.new(maze=maze, targets=("jar", "mug", "paddle"), driver="agent:seq2seq")
 
     async def command():
-        async with SeatClient(server.ws_url, token) as commander:
+        async with trial.seat("commander") as commander:
             await commander.event("phase", phase="localizing", timeout=30)
             await commander.send("chat", text="go forward and look for the jar by the wall")
             await commander.send("localize", x=1.0, y=1.0)
             for _ in range(1200):  # bounded wait for the Driver's first moves
-                if len(events_of(services, trial_id, "move_executed")) >= 5:
+                if len(events_of(services, trial.id, "move_executed")) >= 5:
                     break
                 await asyncio.sleep(0.05)
 
     asyncio.run(command())
-    executed = events_of(services, trial_id, "move_executed")
-    requested = events_of(services, trial_id, "move_requested")
+    executed = events_of(services, trial.id, "move_executed")
+    requested = events_of(services, trial.id, "move_requested")
     assert len(executed) >= 5, "the shipped Driver made fewer than 5 moves"
     assert {e.payload["action"] for e in requested} <= {"forward", "left", "right", "stop"}
     assert {e.payload["move_id"] for e in executed} <= {e.payload["move_id"] for e in requested}

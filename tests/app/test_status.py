@@ -11,7 +11,6 @@ import websockets
 
 from app.db.models import Event, Experimenter
 from app.security import hash_password
-from bench.live import SeatClient
 from tests.app.live import Watch
 from tests.app.trial_play import claim_and_decide, drive_to_target, move, start_trial
 
@@ -45,14 +44,14 @@ def test_seats_get_the_status_and_the_experimenter_watches_the_driver(server, tr
     cookie = services.sessions.issue(eve_id)  # once eve is committed: the session reads her version
 
     async def play():
-        async with SeatClient(server.ws_url, services.seats.issue(trial, "commander")) as commander:
+        async with trial.seat("commander") as commander:
             welcome = await commander.wait_for(lambda m: m.get("type") == "welcome")
             assert set(welcome["status"]) == FIELDS
             assert welcome["status"]["phase"] == "waiting" and welcome["status"]["waiting_for"] == ["driver"]
             assert welcome["status"]["join_left_s"] is None, "no join deadline outside a study's lobby"
             async with (
-                Watch(server, trial, cookie) as watch,
-                SeatClient(server.ws_url, services.seats.issue(trial, "driver")) as driver,
+                Watch(server, trial.id, cookie) as watch,
+                trial.seat("driver") as driver,
             ):
                 await start_trial(commander, driver)
                 started = await commander.wait_for(lambda m: m.get("type") == "status" and m["running"])
@@ -84,7 +83,7 @@ def test_seats_get_the_status_and_the_experimenter_watches_the_driver(server, tr
 
 def test_the_watch_socket_needs_the_experimenter_login(server, trial):
     async def attempt(cookie):
-        async with Watch(server, trial, cookie):
+        async with Watch(server, trial.id, cookie):
             pass
 
     for cookie in (None, "forged"):
@@ -93,18 +92,18 @@ def test_the_watch_socket_needs_the_experimenter_login(server, trial):
         assert refused.value.response.status_code == 403
 
 
-def test_a_pending_claim_is_in_the_status_until_the_commander_decides(server, trial, seats):
+def test_a_pending_claim_is_in_the_status_until_the_commander_decides(server, trial):
     services = server.services
 
     async def play():
         async with (
-            SeatClient(server.ws_url, seats["commander"]) as commander,
-            SeatClient(server.ws_url, seats["driver"]) as driver,
+            trial.seat("commander") as commander,
+            trial.seat("driver") as driver,
         ):
             await start_trial(commander, driver)
             await commander.send("localize", x=1.2, y=1.0, heading=0.5)
             await driver.event("phase", phase="navigating", target_index=0)
-            await drive_to_target(services, trial, driver)
+            await drive_to_target(services, trial.id, driver)
             start = len(driver.received)
             await claim_and_decide(commander, driver, confirm=False)
             await driver.wait_for(lambda m: m.get("type") == "status" and not m["claim_pending"], start=start)
@@ -113,5 +112,5 @@ def test_a_pending_claim_is_in_the_status_until_the_commander_decides(server, tr
     assert asyncio.run(play()) == [True, False], "the claim shows as pending, then as decided"
     # Poses are recorded with headings in (-pi, pi] (to the event's 1 mrad), as the rover's tracker gives them.
     with services.db() as db:
-        headings = {round(e.payload["heading"], 3) for e in db.query(Event).filter_by(trial_id=trial, kind="pose")}
+        headings = {round(e.payload["heading"], 3) for e in db.query(Event).filter_by(trial_id=trial.id, kind="pose")}
     assert len(headings) > 2 and all(-math.pi < h <= round(math.pi, 3) for h in headings), headings

@@ -18,17 +18,15 @@ from typer.testing import CliRunner
 
 from app.cli import root
 from app.db.models import Event, Participant, StudyAnswer, StudyEvent, StudyParticipant, Trial
-from app.main import build_services
 from app.study.config import StudyFiles, template
 from app.trial.setup import create_team, create_trial
-from bench.live import SeatClient, ServerProcess
+from bench.live import SeatClient
 from sim.trial.events import LoggedEvent
 from tests.app.live import (
     browser,
     experimenter_client,
     open_seats,
     page_csrf_token,
-    platform_settings,
 )
 
 REAL_NAME = "Bob Okafor"
@@ -201,7 +199,7 @@ def test_a_study_with_a_cap_turns_the_next_participant_away_with_a_page(server):
     assert participants(server) == 2
 
 
-def test_questionnaires_completion_and_withdrawal_erase_personal_data_only(server, tmp_path):
+def test_questionnaires_completion_and_withdrawal_erase_personal_data_only(server, tmp_path, trials):
     # One planned trial: once it is played, "I have finished" gives the plan's code.
     StudyFiles(server.settings.data_dir / "studies").save(
         template("pilot").model_copy(update={"trials_per_participant": 1})
@@ -241,7 +239,7 @@ def test_questionnaires_completion_and_withdrawal_erase_personal_data_only(serve
     # The experimenter (logged in) sees the private name; no public page or export does.
     assert REAL_NAME in eve.get("/experimenter/studies/pilot").text
     public = browser(server.url)
-    seat = server.services.seats.issue(trial_id, "driver")
+    seat = trials.of(trial_id).tokens["driver"]
     values = {"token": seat, "trial_id": trial_id, "name": "pilot", "index": 0, "position": 0, "frame_id": 1}
     values |= {"study_id": 1, "participant_id": 1, "team_id": 1, "robot_id": 1, "action": "pause"}
     searched = []
@@ -511,13 +509,12 @@ def test_a_partner_who_never_opens_their_seat_aborts_the_trial_and_the_other_is_
 
 
 @pytest.mark.slow
-def test_a_paired_trials_join_deadline_outlives_a_server_crash(tmp_path):
+def test_a_paired_trials_join_deadline_outlives_a_server_crash(settings, server_process):
     timeout_s = 4.0
-    settings = platform_settings(tmp_path)
     plan = {"practice_maze": None, "join_timeout_s": timeout_s}
     StudyFiles(settings.data_dir / "studies").save(template("pilot").model_copy(update=plan))
-    server = ServerProcess({"ROBOTSLANG_DATA_DIR": str(settings.data_dir), "ROBOTSLANG_SECRET_KEY": "test-secret"})
-    services = build_services(settings)
+    server = server_process()
+    services = server.services
 
     def log() -> list[LoggedEvent]:
         with services.db() as db:
@@ -538,7 +535,6 @@ def test_a_paired_trials_join_deadline_outlives_a_server_crash(tmp_path):
             time.sleep(0.2)
     finally:
         server.stop()
-        services.engine.dispose()
     events = log()
     created, aborted = events[0], events[-1]
     assert "never joined" in aborted.payload["reason"]

@@ -19,39 +19,37 @@ from typer.testing import CliRunner
 from app.cli import root
 from app.db.models import Trial
 from app.study.config import StudyFiles, template
-from bench.live import SeatClient
 from sim.trial.state import fold
-from tests.app.live import browser, experimenter_client
+from tests.app.live import TrialHandle, browser, experimenter_client
 from tests.app.test_study import answers, join, study_trial
 from tests.app.trial_play import claim_and_decide, drive_to_target, start_trial
 
 PENALTY_S = 2.5  # the study's own, not the server's 1.0: the report and the leaderboard both use it
 
 
-async def play_to_the_end(server, trial_id: int) -> None:
+async def play_to_the_end(server, trial: TrialHandle) -> None:
     """The Driver's page opens first and asks for a move before the trial starts (refused: it
     waits for the Commander); then both play all three targets."""
     services = server.services
-    tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
-    async with SeatClient(server.ws_url, tokens["driver"]) as driver:
+    async with trial.seat("driver") as driver:
         await driver.send("move", action="forward", move_id="early")
         assert (await driver.moved("early"))["outcome"] == "refused"
-        async with SeatClient(server.ws_url, tokens["commander"]) as commander:
+        async with trial.seat("commander") as commander:
             await start_trial(commander, driver)
             await commander.send("localize", x=1.2, y=1.0, heading=0.5)
             await driver.event("phase", phase="navigating", target_index=0)
             for _ in range(3):
-                await drive_to_target(services, trial_id, driver)
+                await drive_to_target(services, trial.id, driver)
                 await claim_and_decide(commander, driver, confirm=True)
             await commander.event("phase", phase="finished")
 
 
-def test_answers_on_the_study_page_in_the_export_and_the_report_with_the_leaderboards_moves(server, tmp_path):
+def test_answers_on_the_study_page_in_the_export_and_the_report_with_the_leaderboards_moves(server, tmp_path, trials):
     files = StudyFiles.of(server.settings.data_dir)
     files.save(template("pilot").model_copy(update={"practice_maze": None, "move_penalty_s": PENALTY_S}))
     (ann, ann_code), (bob, bob_code) = join(server, "pilot"), join(server, "pilot")
     trial_id = study_trial(server, "pilot", (ann_code, bob_code))  # Ann commands, Bob drives
-    asyncio.run(play_to_the_end(server, trial_id))
+    asyncio.run(play_to_the_end(server, trials.of(trial_id)))
 
     url = f"/study/pilot/trials/{trial_id}/questionnaire"
     assert (

@@ -17,8 +17,7 @@ from typer.testing import CliRunner
 from app.cli import root
 from app.db.models import StudyAnswer, StudyEvent, StudyParticipant
 from app.study.config import StudyFiles
-from bench.live import SeatClient
-from tests.app.live import browser, experimenter_client, page_csrf_token
+from tests.app.live import TrialHandle, browser, experimenter_client, page_csrf_token
 from tests.app.test_study import answers, join, poll
 from tests.app.test_study_panel import arrive, stored
 from tests.app.test_study_paths import study
@@ -31,20 +30,20 @@ def played(server, ann, bob) -> int:
     assert poll(ann)["state"] == "waiting"
     seat = poll(bob)
     ann_role = "driver" if seat["role"] == "commander" else "commander"
-    trial_id = server.services.seats.verify(seat["link"].rsplit("/play/", 1)[1]).trial_id
+    trial = TrialHandle.on(server, server.services.seats.verify(seat["link"].rsplit("/play/", 1)[1]).trial_id)
 
     async def talk() -> None:
-        async with SeatClient(server.ws_url, server.services.seats.issue(trial_id, ann_role)) as mine:
+        async with trial.seat(ann_role) as mine:
             await mine.wait_for(lambda m: m["type"] == "welcome")
-            async with SeatClient(server.ws_url, server.services.seats.issue(trial_id, seat["role"])) as theirs:
+            async with trial.seat(seat["role"]) as theirs:
                 await theirs.wait_for(lambda m: m["type"] == "welcome")
                 await mine.send("chat", text="hello from Ann")
                 await theirs.wait_for(lambda m: m.get("payload", {}).get("text") == "hello from Ann")
 
     asyncio.run(talk())
     eve = experimenter_client(server.services, server.url)
-    assert eve.post(f"/experimenter/trials/{trial_id}/abort").status_code == 200
-    return trial_id
+    assert eve.post(f"/experimenter/trials/{trial.id}/abort").status_code == 200
+    return trial.id
 
 
 def test_a_participant_downloads_everything_recorded_about_them_and_nobody_elses(server):

@@ -97,7 +97,7 @@ def test_a_restarted_practice_is_a_practice_again_and_one_whose_map_was_seen_is_
         assert db.scalars(select(Trial.id).where(Trial.id > again.id)).first() is None, "nothing created"
 
 
-def test_one_who_leaves_the_lobby_is_not_paired_and_a_paired_seat_counts_down_to_the_join_deadline(server):
+def test_one_who_leaves_the_lobby_is_not_paired_and_a_paired_seat_counts_down_to_the_join_deadline(server, trials):
     plan = {"practice_maze": None, "join_timeout_s": 40.0}  # lobby_presence_s stays 10 s: the test is within it
     StudyFiles.of(server.settings.data_dir).save(template("pilot").model_copy(update=plan))
     ann, _ = join(server, "pilot")
@@ -118,7 +118,7 @@ def test_one_who_leaves_the_lobby_is_not_paired_and_a_paired_seat_counts_down_to
         async with SeatClient(server.ws_url, cat_seat["link"].removeprefix("/play/")) as mine:
             welcome = await mine.wait_for(lambda m: m.get("type") == "welcome")
             await asyncio.sleep(1.0)
-            async with SeatClient(server.ws_url, server.services.seats.issue(trial.id, bob_role)) as _:
+            async with trials.of(trial.id).seat(bob_role) as _:
                 started = await mine.wait_for(lambda m: m.get("type") == "status" and m["phase"] != "waiting")
         return welcome["status"], started
 

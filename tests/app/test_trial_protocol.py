@@ -12,7 +12,6 @@ import pytest
 from sqlalchemy import select
 
 from app.db.models import Event, Frame, Trial
-from bench.live import SeatClient, make_trial
 from tests.app.trial_play import claim_and_decide, drive_to_target, move, start_trial
 
 
@@ -36,16 +35,15 @@ async def logged_runs(services, trial_id: int, requests: int) -> list[dict]:
     raise AssertionError(f"the log counts {sum(r['count'] for r in runs)} refused requests, not {requests}")
 
 
-def test_full_trial_from_links_to_leaderboard(any_db_settings, start_server):
+def test_full_trial_from_links_to_leaderboard(any_db_settings, start_server, trials):
     server = start_server(any_db_settings)
     services = server.services
-    trial_id = make_trial(services, first_maze(services), targets=("paddle", "mug", "jar"), team="Owls")
-    tokens = {r: services.seats.issue(trial_id, r) for r in ("commander", "driver")}
+    trial = trials.new(server, first_maze(services), targets=("paddle", "mug", "jar"), team="Owls")
 
     async def play():
         async with (
-            SeatClient(server.ws_url, tokens["commander"]) as commander,
-            SeatClient(server.ws_url, tokens["driver"]) as driver,
+            trial.seat("commander") as commander,
+            trial.seat("driver") as driver,
         ):
             await start_trial(commander, driver)
             # Chat goes both ways; the first frame reaches the Driver.
@@ -63,7 +61,7 @@ def test_full_trial_from_links_to_leaderboard(any_db_settings, start_server):
             await commander.send("localize", x=1.2, y=1.0, heading=0.5)
             await driver.event("phase", phase="navigating", target_index=0)
             for index in range(3):
-                await drive_to_target(services, trial_id, driver)
+                await drive_to_target(services, trial.id, driver)
                 if index == 0:  # a wrong call first: rejected, and the trial goes on
                     await claim_and_decide(commander, driver, confirm=False)
                 claimed = await claim_and_decide(commander, driver, confirm=True)
@@ -73,7 +71,7 @@ def test_full_trial_from_links_to_leaderboard(any_db_settings, start_server):
 
     commander, driver = asyncio.run(play())
     deadline = time.time() + 5
-    while services.hub.peek(trial_id) is not None:  # over, and both seats gone
+    while services.hub.peek(trial.id) is not None:  # over, and both seats gone
         assert time.time() < deadline, "a finished trial with no seats stays in the hub"
         time.sleep(0.05)
 
@@ -88,9 +86,9 @@ def test_full_trial_from_links_to_leaderboard(any_db_settings, start_server):
     assert driver.kinds() >= {"frame", "move_executed", "chat", "target_confirmed"}
 
     with services.db() as db:
-        events = db.scalars(select(Event).where(Event.trial_id == trial_id).order_by(Event.seq)).all()
-        frames = db.scalars(select(Frame).where(Frame.trial_id == trial_id)).all()
-        trial = db.get(Trial, trial_id)
+        events = db.scalars(select(Event).where(Event.trial_id == trial.id).order_by(Event.seq)).all()
+        frames = db.scalars(select(Frame).where(Frame.trial_id == trial.id)).all()
+        row = db.get(Trial, trial.id)
     assert [e.seq for e in events] == list(range(1, len(events) + 1))
     assert all(a.t_ns < b.t_ns for a, b in zip(events, events[1:])), "one clock, strictly increasing per trial"
     confirmed = [e.payload for e in events if e.kind == "target_confirmed"]
@@ -101,18 +99,18 @@ def test_full_trial_from_links_to_leaderboard(any_db_settings, start_server):
     assert len(frames) == len(frame_events) > 3
     for f in frames:
         assert (any_db_settings.frames_dir / f.path).read_bytes()[:2] == b"\xff\xd8"  # a JPEG on disk
-    assert trial.phase == "finished" and trial.moves == sum(
+    assert row.phase == "finished" and row.moves == sum(
         1 for e in events if e.kind == "move_executed" and e.payload["outcome"] != "refused"
     )
 
     page = httpx.get(server.url + "/leaderboard").text
     assert "Owls" in page
-    expected = trial.active_s + any_db_settings.move_penalty_s * trial.moves
+    expected = row.active_s + any_db_settings.move_penalty_s * row.moves
     assert f"{expected:.1f}" in page
 
 
-def test_seat_pages_show_only_their_own_view(server, seats):
-    commander, driver = seats["commander"], seats["driver"]
+def test_seat_pages_show_only_their_own_view(server, trial):
+    commander, driver = trial.tokens["commander"], trial.tokens["driver"]
     assert httpx.get(f"{server.url}/play/{commander}/map.png").headers["content-type"] == "image/png"
     assert httpx.get(f"{server.url}/play/{driver}/map.png").status_code == 403
     assert httpx.get(f"{server.url}/play/{driver}/target/0.jpg").status_code == 403
@@ -130,16 +128,15 @@ def test_seat_pages_show_only_their_own_view(server, seats):
 
 
 @pytest.mark.parametrize("who", ["forged", "other trial"])
-def test_forged_or_foreign_token_is_refused_at_connect(who, server, trial):
+def test_forged_or_foreign_token_is_refused_at_connect(who, server, trial, trials):
     import websockets
 
-    services = server.services
     if who == "forged":
         from app.security import SeatTokens
 
-        token = SeatTokens("not-the-server-key").issue(trial, "driver")
+        token = SeatTokens("not-the-server-key").issue(trial.id, "driver")
     else:
-        token = services.seats.issue(trial + 999, "driver")
+        token = trials.of(trial.id + 999).tokens["driver"]
 
     async def connect():
         async with websockets.connect(f"{server.ws_url}?token={token}") as ws:
@@ -150,13 +147,13 @@ def test_forged_or_foreign_token_is_refused_at_connect(who, server, trial):
     assert err.value.response.status_code == 403
 
 
-def test_other_role_token_and_bad_messages_get_errors_and_never_end_the_trial(server, trial, seats):
+def test_other_role_token_and_bad_messages_get_errors_and_never_end_the_trial(server, trial):
     services = server.services
 
     async def play():
         async with (
-            SeatClient(server.ws_url, seats["commander"]) as commander,
-            SeatClient(server.ws_url, seats["driver"]) as driver,
+            trial.seat("commander") as commander,
+            trial.seat("driver") as driver,
         ):
             await start_trial(commander, driver)
 
@@ -173,8 +170,8 @@ def test_other_role_token_and_bad_messages_get_errors_and_never_end_the_trial(se
             await refused(driver, "confirm", "may not send 'confirm'")
             await refused(commander, "move", "may not send 'move'", action="forward")
             # A Commander's socket carrying the Driver's token is refused on the message.
-            await refused(commander, "chat", "token refused", token=seats["driver"], text="hi")
-            await refused(driver, "chat", "token refused", token=seats["driver"][:-2] + "xx", text="hi")
+            await refused(commander, "chat", "token refused", token=trial.tokens["driver"], text="hi")
+            await refused(driver, "chat", "token refused", token=trial.tokens["driver"][:-2] + "xx", text="hi")
             await refused(driver, None, "invalid message", raw="not json at all")
             await refused(driver, None, "JSON text", raw=b"\x00\x01")
             await refused(driver, "teleport", "invalid message")
@@ -193,18 +190,18 @@ def test_other_role_token_and_bad_messages_get_errors_and_never_end_the_trial(se
 
     asyncio.run(play())
     with services.db() as db:
-        bad = db.scalars(select(Event).where(Event.trial_id == trial, Event.kind == "bad_message")).all()
-        phase = db.get(Trial, trial).phase
+        bad = db.scalars(select(Event).where(Event.trial_id == trial.id, Event.kind == "bad_message")).all()
+        phase = db.get(Trial, trial.id).phase
     assert len(bad) == 15 and {b.payload["role"] for b in bad} == {"commander", "driver"}
     assert phase == "localizing"
 
 
 @pytest.mark.settings(min_move_interval_s=2.0)
-def test_moves_faster_than_the_robot_are_refused_not_queued(server, trial, seats):
+def test_moves_faster_than_the_robot_are_refused_not_queued(server, trial):
     async def play():
         async with (
-            SeatClient(server.ws_url, seats["commander"]) as commander,
-            SeatClient(server.ws_url, seats["driver"]) as driver,
+            trial.seat("commander") as commander,
+            trial.seat("driver") as driver,
         ):
             await start_trial(commander, driver)
             for i in range(5):  # a burst, as from a held-down key
@@ -223,7 +220,7 @@ def test_moves_faster_than_the_robot_are_refused_not_queued(server, trial, seats
         "the previous move is still executing",
         "too soon after the previous move",
     }
-    runs = asyncio.run(logged_runs(server.services, trial, requests=4))
+    runs = asyncio.run(logged_runs(server.services, trial.id, requests=4))
     assert len(runs) <= 2  # one event a run of refusals (a reason each), not one a request
 
 
@@ -231,11 +228,8 @@ def test_moves_faster_than_the_robot_are_refused_not_queued(server, trial, seats
 def test_websocket_from_another_origin_is_refused(server, trial):
     import websockets
 
-    services = server.services
-    token = services.seats.issue(trial, "commander")
-
     async def connect(origin):
-        async with SeatClient(server.ws_url, token, origin=origin) as seat:
+        async with trial.seat("commander", origin=origin) as seat:
             return await seat.wait_for(lambda m: m.get("type") == "welcome")
 
     with pytest.raises(websockets.InvalidStatus):

@@ -17,7 +17,7 @@ import pytest
 from websockets.asyncio.server import serve
 
 from app.rover.virtual.truth import TruthSample, read_truth
-from bench.live import REPO, SeatClient, make_trial
+from bench.live import REPO, SeatClient
 from robot_client.calibration import Calibration
 from sim.core.geometry import GRID_STEP_M, TURN_RAD
 from sim.robot.camera import FrontCamera
@@ -45,16 +45,15 @@ async def frame_after(driver: SeatClient, t_ns: int) -> np.ndarray:
     return decode(event)
 
 
-async def test_a_driver_drives_the_virtual_rover_frames_acks_truth_and_a_wall(lab, maze, start, tmp_path):
+async def test_a_driver_drives_the_virtual_rover_frames_acks_truth_and_a_wall(lab, maze, start, tmp_path, trials):
     robot_id, token = lab.register("virtual rover")
-    trial = make_trial(lab.services, MAZE, backend=f"robot:{robot_id}")
+    trial = trials.new(lab.server, MAZE, backend=f"robot:{robot_id}")
     truth = tmp_path / "truth.jsonl"
     lab.rover(
         token, "--truth", str(truth), "--seed", "5", "--fps", "10", "--start", f"{start.x},{start.y},{start.theta}"
     )
-    commander, driver = lab.seats(trial)
     camera = FrontCamera()
-    async with commander, driver:
+    async with trial.seat("commander"), trial.seat("driver") as driver:
         await driver.event("phase", phase="localizing", timeout=START_S)
         first = decode(await driver.event("frame"))
         assert first.shape == (camera.height, camera.width, 3)
@@ -103,9 +102,11 @@ async def test_a_driver_drives_the_virtual_rover_frames_acks_truth_and_a_wall(la
     assert t == sorted(t)
 
 
-async def test_killing_the_server_stops_the_rover_and_it_reconnects_when_the_server_returns(lab, start, tmp_path):
+async def test_killing_the_server_stops_the_rover_and_it_reconnects_when_the_server_returns(
+    lab, start, tmp_path, trials
+):
     robot_id, token = lab.register("resilient rover")
-    trial = make_trial(lab.services, MAZE, backend=f"robot:{robot_id}")
+    trial = trials.new(lab.server, MAZE, backend=f"robot:{robot_id}")
     truth, timings = tmp_path / "truth.jsonl", tmp_path / "calibration.json"
     Calibration(forward_s=1.8).save(timings)  # a long pulse, so the link dies during it
     lab.rover(
@@ -121,8 +122,7 @@ async def test_killing_the_server_stops_the_rover_and_it_reconnects_when_the_ser
         "--start",
         f"{start.x},{start.y},{start.theta}",
     )
-    commander, driver = lab.seats(trial)
-    async with commander, driver:
+    async with trial.seat("commander"), trial.seat("driver") as driver:
         await driver.event("phase", phase="localizing", timeout=START_S)
         await driver.send("move", action="forward", move_id="long")
         await until(
@@ -137,12 +137,12 @@ async def test_killing_the_server_stops_the_rover_and_it_reconnects_when_the_ser
     assert settled(truth)[-1] == stopped and not read_truth(truth)[-1].moving  # and it stays stopped
 
     lab.server.start()
-    commander, driver = lab.seats(trial)
-    async with commander, driver:
+    async with trial.seat("commander"), trial.seat("driver") as driver:
         # The rover may reconnect before or after the seats do: read the resumption from the log.
         await until(
             lambda: any(
-                e.kind == "resumed" and e.payload["reason"] == "disconnect:robot" for e in lab.services.log.load(trial)
+                e.kind == "resumed" and e.payload["reason"] == "disconnect:robot"
+                for e in lab.services.log.load(trial.id)
             ),
             what="the trial to resume for the rover",
         )
@@ -155,10 +155,10 @@ async def test_killing_the_server_stops_the_rover_and_it_reconnects_when_the_ser
     assert (turn.x, turn.y) == (stopped.x, stopped.y)
 
 
-async def test_the_virtual_overhead_camera_films_the_driver_rover_where_its_truth_says(lab, start, tmp_path):
+async def test_the_virtual_overhead_camera_films_the_driver_rover_where_its_truth_says(lab, start, tmp_path, trials):
     robot_id, token = lab.register("filmed rover")
     _, camera_token = lab.register("table camera", role="overhead")
-    trial = make_trial(lab.services, MAZE, backend=f"robot:{robot_id}")
+    trial = trials.new(lab.server, MAZE, backend=f"robot:{robot_id}")
     truth = tmp_path / "truth.jsonl"
     lab.rover(
         token, "--truth", str(truth), "--seed", "2", "--fps", "5", "--start", f"{start.x},{start.y},{start.theta}"
@@ -169,19 +169,20 @@ async def test_the_virtual_overhead_camera_films_the_driver_rover_where_its_trut
         return next(
             (
                 e.payload
-                for e in lab.services.log.load(trial)
+                for e in lab.services.log.load(trial.id)
                 if e.kind == "frame" and e.payload["source"] == "overhead" and e.payload["capture_ns"] > t_ns
             ),
             None,
         )
 
-    commander, driver = lab.seats(trial)
-    async with commander, driver:
+    async with trial.seat("commander") as commander, trial.seat("driver") as driver:
         await driver.event("phase", phase="localizing", timeout=START_S)
         # The camera may have joined before the rover's first truth line (an empty table then),
         # and its first frames are stamped on arrival until the clocks are matched: let it settle.
         await until(
-            lambda: sum(e.kind == "frame" and e.payload["source"] == "overhead" for e in lab.services.log.load(trial))
+            lambda: sum(
+                e.kind == "frame" and e.payload["source"] == "overhead" for e in lab.services.log.load(trial.id)
+            )
             >= 3,
             what="overhead frames",
         )

@@ -18,7 +18,6 @@ from app.db.models import AnnotationAssignment, Experimenter, Trial
 from app.export.ndh import write_benchmark
 from app.security import AccountRole, StudyTokens, hash_password
 from app.study.config import StudyFiles, template
-from bench.live import make_trial
 from tests.app.live import add_experimenter, wait_js
 from tests.app.trial_log import maze_named, ndh_trial_record
 from tests.e2e.pages import experimenter, log_in, page_checks
@@ -51,7 +50,7 @@ class Visits:
         self.seen |= {route for route, pattern in self.patterns.items() if pattern.match(path)}
 
 
-def test_every_page_has_no_serious_or_critical_axe_violation(browser, server):
+def test_every_page_has_no_serious_or_critical_axe_violation(browser, server, trials):
     services, settings = server.services, server.settings
     visits = Visits(page_routes(server.app))
     add_experimenter(server)
@@ -59,9 +58,9 @@ def test_every_page_has_no_serious_or_critical_axe_violation(browser, server):
     # What the pages show: a live trial (its seats open), one ended, a finished trial of study
     # "s1" two annotators disagree on, an LDH study of an export, and a participant study.
     names = services.mazes.names()
-    live = make_trial(services, names[0], team="Live")
-    ended = make_trial(services, names[1], team="Ended")
-    annotated = make_trial(services, names[2], team="Annotated")
+    live = trials.new(maze=names[0], team="Live")
+    ended = trials.new(maze=names[1], team="Ended")
+    annotated = trials.new(maze=names[2], team="Annotated").id
     with services.db.begin() as db:
         db.execute(update(Trial).where(Trial.id == annotated).values(phase="finished", study="s1", active_s=60.0))
         annotators = []
@@ -70,7 +69,7 @@ def test_every_page_has_no_serious_or_critical_axe_violation(browser, server):
             db.add(account)
             db.flush()
             annotators.append(account.id)
-            db.add(AnnotationAssignment(trial_id=live, annotator_id=account.id))
+            db.add(AnnotationAssignment(trial_id=live.id, annotator_id=account.id))
     for who, cut, tagged in zip(annotators, (1, 2), (True, False), strict=True):
         services.annotations.append(annotated, who, CutMarked(message=cut), 1)
         if tagged:
@@ -84,10 +83,9 @@ def test_every_page_has_no_serious_or_critical_axe_violation(browser, server):
     StudyFiles(settings.data_dir / "studies").save(template("pilot"))
 
     # The seat pages of the live trial; the Commander marks the robot and both chat.
-    seat = {role: f"{server.url}/play/{services.seats.issue(live, role)}" for role in ("commander", "driver")}
     commander, driver = (browser.new_context(**PHONE).new_page() for _ in range(2))
-    commander.goto(seat["commander"])
-    driver.goto(seat["driver"])
+    commander.goto(live.play_url("commander"))
+    driver.goto(live.play_url("driver"))
     for page in (commander, driver):
         page.wait_for_selector("#status[data-phase=localizing]")
     visits.check(commander, "Commander, localizing")
@@ -111,18 +109,18 @@ def test_every_page_has_no_serious_or_critical_axe_violation(browser, server):
         visits.check(anyone, name)
 
     admin = experimenter(browser, server, **PHONE)
-    admin.goto(f"{server.url}/experimenter/trials/{ended}")
+    admin.goto(f"{server.url}/experimenter/trials/{ended.id}")
     admin.once("dialog", lambda d: d.accept())
     admin.click("form.control-abort button")
     admin.wait_for_selector("#status[data-phase=aborted]")
-    anyone.goto(f"{server.url}/play/{services.seats.issue(ended, 'driver')}")
+    anyone.goto(ended.play_url("driver"))
     visits.check(anyone, "a seat link of an ended trial")
     for name, path in [
         ("dashboard", "/experimenter"),
-        ("trial, live", f"/experimenter/trials/{live}"),
-        ("trial, ended", f"/experimenter/trials/{ended}"),
+        ("trial, live", f"/experimenter/trials/{live.id}"),
+        ("trial, ended", f"/experimenter/trials/{ended.id}"),
         ("replays", "/experimenter/replays"),
-        ("replay", f"/experimenter/trials/{ended}/replay"),
+        ("replay", f"/experimenter/trials/{ended.id}/replay"),
         ("annotation agreement, no study", "/experimenter/annotation"),
         ("annotation agreement", "/experimenter/annotation?study=s1"),
         ("LDH studies", "/experimenter/ldh"),
@@ -135,7 +133,7 @@ def test_every_page_has_no_serious_or_critical_axe_violation(browser, server):
 
     annotator = log_in(browser, server, "ann", "annotate well", "/annotate", **PHONE)
     visits.check(annotator, "annotation queue")
-    annotator.goto(f"{server.url}/annotate/trials/{live}")
+    annotator.goto(f"{server.url}/annotate/trials/{live.id}")
     wait_js(annotator, "() => document.getElementById('replay').dataset.ready === '1'")
     visits.check(annotator, "annotating a trial")
 
@@ -161,7 +159,7 @@ def test_every_page_has_no_serious_or_critical_axe_violation(browser, server):
         person.click("#to-lobby")
         person.wait_for_url("**/study/pilot/lobby")
         visits.check(person, "study lobby")
-        person.goto(f"{server.url}/study/pilot/trials/{ended}/questionnaire")
+        person.goto(f"{server.url}/study/pilot/trials/{ended.id}/questionnaire")
         visits.check(person, "study questionnaire")
         person.goto(server.url + "/study/pilot/me")
         visits.check(person, "study, my page")
@@ -180,14 +178,12 @@ def test_every_page_has_no_serious_or_critical_axe_violation(browser, server):
     assert visits.routes - visits.seen == set(), "pages the app serves that no visit checked"
 
 
-def test_the_commanders_map_in_words_names_the_walls_the_landmarks_and_the_mark_as_it_moves(browser, server):
+def test_the_commanders_map_in_words_names_the_walls_the_landmarks_and_the_mark_as_it_moves(browser, server, trial):
     services = server.services
-    maze = services.mazes.names()[0]
-    trial = make_trial(services, maze, targets=("mug", "jar", "paddle"))
-    link = f"{server.url}/play/{services.seats.issue(trial, 'commander')}"
+    maze = services.mazes.names()[0]  # the `trial` fixture's, its targets mug, jar, paddle
     commander, driver = (browser.new_context().new_page() for _ in range(2))
-    commander.goto(link)
-    driver.goto(f"{server.url}/play/{services.seats.issue(trial, 'driver')}")
+    commander.goto(trial.play_url("commander"))
+    driver.goto(trial.play_url("driver"))
     commander.wait_for_selector("#status[data-phase=localizing]")
     commander.click("#map-text summary")
     wait_js(commander, "() => document.querySelectorAll('#map-text-landmarks li').length === 3")
@@ -221,7 +217,7 @@ def test_the_commanders_map_in_words_names_the_walls_the_landmarks_and_the_mark_
 
     # The same link opened on a phone takes the seat and the mark from the server; a tap moves it.
     phone = browser.new_context(**PHONE).new_page()
-    phone.goto(link)
+    phone.goto(trial.play_url("commander"))
     phone.wait_for_selector("#status[data-phase=navigating]")
     wait_js(phone, "() => document.getElementById('map-text-mark').textContent.includes('facing north')")
     assert phone.text_content("#map-text-mark") == commander.text_content("#map-text-mark")

@@ -12,8 +12,7 @@ from app.annotation.events import CutMarked, Submitted, Tagged
 from app.annotation.log import AnnotationLog
 from app.db.models import AnnotationAssignment, Experimenter
 from app.security import AccountRole, hash_password
-from bench.live import SeatClient
-from tests.app.live import experimenter_client, wait_js
+from tests.app.live import TrialHandle, experimenter_client, wait_js
 from tests.app.trial_play import claim_and_decide, drive_to_target, start_trial
 from tests.e2e.pages import ARTIFACTS, experimenter, log_in, page_checks
 
@@ -21,11 +20,11 @@ pytestmark = pytest.mark.browser
 SAID = [("commander", "what do you see"), ("driver", "a red wall"), ("commander", "turn left"), ("driver", "done")]
 
 
-async def talk(server, seats, finish: bool = False) -> None:
-    """The dialog `SAID`, the estimate after message 2; with `finish`, the three targets reached."""
+async def talk(server, trial: TrialHandle, finish: bool = False) -> None:
+    """`trial`'s dialog `SAID`, the estimate after message 2; with `finish`, the three targets reached."""
     async with (
-        SeatClient(server.ws_url, seats["commander"]) as commander,
-        SeatClient(server.ws_url, seats["driver"]) as driver,
+        trial.seat("commander") as commander,
+        trial.seat("driver") as driver,
     ):
         seat = {"commander": commander, "driver": driver}
         await start_trial(commander, driver)
@@ -38,27 +37,26 @@ async def talk(server, seats, finish: bool = False) -> None:
                 await commander.send("localize", x=1.2, y=1.0)
                 await driver.event("phase", phase="navigating")
         if finish:  # only finished trials are annotated for agreement, exported and reported
-            trial_id = server.services.seats.verify(seats["driver"]).trial_id
             for _ in range(3):
-                await drive_to_target(server.services, trial_id, driver)
+                await drive_to_target(server.services, trial.id, driver)
                 await claim_and_decide(commander, driver, confirm=True)
             await commander.event("phase", phase="finished")
 
 
-def test_an_annotator_marks_the_cut_and_tags_in_the_browser(browser, server, trial, seats):
+def test_an_annotator_marks_the_cut_and_tags_in_the_browser(browser, server, trial):
     # Playwright's sync API runs a loop in this thread: the seats talk from another one.
     with ThreadPoolExecutor(1) as pool:
-        pool.submit(asyncio.run, talk(server, seats)).result(timeout=60)
+        pool.submit(asyncio.run, talk(server, trial)).result(timeout=60)
     with server.services.db.begin() as db:
         account = Experimenter(name="ann", password_hash=hash_password("annotate well"), role=AccountRole.ANNOTATOR)
         db.add(account)
         db.flush()
         ann = account.id
-        db.add(AnnotationAssignment(trial_id=trial, annotator_id=ann))
+        db.add(AnnotationAssignment(trial_id=trial.id, annotator_id=ann))
     page = log_in(browser, server, "ann", "annotate well", "/annotate")
     assert page.inner_text("#progress") == "0 of 1 trials submitted"
-    page.click(f"a[href='/annotate/trials/{trial}']")
-    page.wait_for_url(f"{server.url}/annotate/trials/{trial}")
+    page.click(f"a[href='/annotate/trials/{trial.id}']")
+    page.wait_for_url(f"{server.url}/annotate/trials/{trial.id}")
     page_checks(page, "annotate")
     numbers = page.eval_on_selector_all("#dialog li.message[data-number]", "els => els.map(e => e.dataset.number)")
     assert numbers == ["1", "2", "3", "4"]
@@ -92,7 +90,7 @@ def test_an_annotator_marks_the_cut_and_tags_in_the_browser(browser, server, tri
     page.wait_for_url(server.url + "/annotate")
     assert page.inner_text("#progress") == "1 of 1 trials submitted"
 
-    records = AnnotationLog(server.services.db).records(trial)
+    records = AnnotationLog(server.services.db).records(trial.id)
     assert [r.event for r in records] == [
         CutMarked(message=2),
         Tagged(tag="communication_repair", messages=[1, 3]),
@@ -118,19 +116,18 @@ def annotate(page, server, trial: int, cut: int, tags: dict[str, list[int]]) -> 
 
 
 @pytest.mark.slow
-def test_two_annotators_agree_as_worked_by_hand_and_the_ldh_instance_takes_the_adjudicated_cut(browser, server):
+def test_two_annotators_agree_as_worked_by_hand_and_the_ldh_instance_takes_the_adjudicated_cut(browser, server, trials):
     from app.db.models import Trial
     from app.export.ndh import ldh_instances
     from app.export.source import load_trial
-    from bench.live import make_trial
 
     services = server.services
     names = services.mazes.names()
-    trials = [make_trial(services, names[i], team=team) for i, team in enumerate(("Owls", "Larks", "Wrens"))]
+    played = [trials.new(maze=names[i], team=team) for i, team in enumerate(("Owls", "Larks", "Wrens"))]
     with ThreadPoolExecutor(1) as pool:
-        for t in trials:
-            seats = {r: services.seats.issue(t, r) for r in ("commander", "driver")}
-            pool.submit(asyncio.run, talk(server, seats, finish=True)).result(timeout=180)
+        for trial in played:
+            pool.submit(asyncio.run, talk(server, trial, finish=True)).result(timeout=180)
+    trial_ids = [trial.id for trial in played]
     with services.db.begin() as db:
         ids = {}
         for name in ("ann", "bob"):
@@ -138,15 +135,15 @@ def test_two_annotators_agree_as_worked_by_hand_and_the_ldh_instance_takes_the_a
             db.add(account)
             db.flush()
             ids[name] = account.id
-        for t in trials:
+        for t in trial_ids:
             db.get(Trial, t).study = "s25"
             db.add(AnnotationAssignment(trial_id=t, annotator_id=ids["ann"]))
-        for t in trials[:2]:  # two trials for both, the third once
+        for t in trial_ids[:2]:  # two trials for both, the third once
             db.add(AnnotationAssignment(trial_id=t, annotator_id=ids["bob"]))
     pages = {}
     for name in ("ann", "bob"):
         pages[name] = log_in(browser, server, name, "annotate well", "/annotate")
-    t1, t2, t3 = trials
+    t1, t2, t3 = trial_ids
     annotate(pages["ann"], server, t1, 2, {"needs_history": [1]})
     annotate(pages["bob"], server, t1, 2, {"needs_history": [2]})
     annotate(pages["ann"], server, t2, 2, {})
@@ -175,11 +172,11 @@ def test_two_annotators_agree_as_worked_by_hand_and_the_ldh_instance_takes_the_a
     assert instance["localization_source"] == "adjudicated" and instance["localized_after_message"] == 3
 
 
-async def long_talk(server, seats, n: int) -> None:
-    """`n` messages, the two seats in turn."""
+async def long_talk(trial: TrialHandle, n: int) -> None:
+    """`n` messages, `trial`'s two seats in turn."""
     async with (
-        SeatClient(server.ws_url, seats["commander"]) as commander,
-        SeatClient(server.ws_url, seats["driver"]) as driver,
+        trial.seat("commander") as commander,
+        trial.seat("driver") as driver,
     ):
         await start_trial(commander, driver)
         for k in range(n):
@@ -190,16 +187,16 @@ async def long_talk(server, seats, n: int) -> None:
 
 
 @pytest.mark.settings(seat_message_burst=100)  # 60 messages at once, not a person's pace
-def test_the_controls_stay_in_view_along_a_long_dialog(browser, server, trial, seats):
+def test_the_controls_stay_in_view_along_a_long_dialog(browser, server, trial):
     with ThreadPoolExecutor(1) as pool:
-        pool.submit(asyncio.run, long_talk(server, seats, 60)).result(timeout=60)
+        pool.submit(asyncio.run, long_talk(trial, 60)).result(timeout=60)
     with server.services.db.begin() as db:
         account = Experimenter(name="ann", password_hash=hash_password("annotate well"), role=AccountRole.ANNOTATOR)
         db.add(account)
         db.flush()
-        db.add(AnnotationAssignment(trial_id=trial, annotator_id=account.id))
+        db.add(AnnotationAssignment(trial_id=trial.id, annotator_id=account.id))
     page = log_in(browser, server, "ann", "annotate well", "/annotate", viewport={"width": 1280, "height": 800})
-    page.goto(f"{server.url}/annotate/trials/{trial}")
+    page.goto(f"{server.url}/annotate/trials/{trial.id}")
     in_view = """(sel) => { const r = document.querySelector(sel).getBoundingClientRect();
                             return r.top >= -1 && r.bottom <= innerHeight + 1; }"""
     for n in (1, 30):  # the dialog's start, and its middle scrolled to the top of the window

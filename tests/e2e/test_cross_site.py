@@ -12,7 +12,7 @@ from sqlalchemy import select
 
 from app.db.models import Experimenter, Participant, Trial
 from app.security import hash_password
-from bench.live import free_port, make_trial
+from bench.live import free_port
 
 pytestmark = pytest.mark.browser
 
@@ -54,11 +54,11 @@ class AttackerSite:
         self.server.server_close()
 
 
-def test_a_page_on_another_port_cannot_act_with_the_experimenters_cookie(browser, server):
+def test_a_page_on_another_port_cannot_act_with_the_experimenters_cookie(browser, server, trials):
     services = server.services
     with services.db.begin() as db:
         db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
-    trial_id = make_trial(services, services.mazes.names()[0])
+    trial = trials.new()
     violations: list[str] = []
     page = browser.new_context().new_page()
     page.on("console", lambda m: violations.append(m.text) if "Content Security Policy" in m.text else None)
@@ -75,15 +75,15 @@ def test_a_page_on_another_port_cannot_act_with_the_experimenters_cookie(browser
     page.click("#add-robot")
     page.wait_for_selector("#robot-token:not([hidden]) .token:not(:empty)")
     for role in ("commander", "driver"):
-        page.goto(f"{server.url}/play/{services.seats.issue(trial_id, role)}")
+        page.goto(trial.play_url(role))
         page.locator("#status", has_text="waiting for").wait_for()
 
-    with AttackerSite(ATTACK.format(target=server.url, trial=trial_id)) as attacker:
+    with AttackerSite(ATTACK.format(target=server.url, trial=trial.id)) as attacker:
         page.goto(attacker.url)
         page.wait_for_url(lambda url: url.startswith(server.url))  # the forged form was answered
     with services.db() as db:
         names = set(db.scalars(select(Participant.name)))
         assert "Ada" in names and "Mallory" not in names
-        assert db.get(Trial, trial_id).phase == "waiting"
+        assert db.get(Trial, trial.id).phase == "waiting"
     assert "refused" in page.content()
     assert violations == []

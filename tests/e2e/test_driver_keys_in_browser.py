@@ -23,11 +23,11 @@ def moves(server, trial: int) -> tuple[list[str], int]:
 
 
 @pytest.mark.settings(min_move_interval_s=0.4)
-def test_a_held_key_is_one_move_and_a_press_while_moving_waits_its_turn(browser, server, trial, seats):
+def test_a_held_key_is_one_move_and_a_press_while_moving_waits_its_turn(browser, server, trial):
     pages = {}
     for role in ("commander", "driver"):
         pages[role] = browser.new_context().new_page()
-        pages[role].goto(f"{server.url}/play/{seats[role]}")
+        pages[role].goto(trial.play_url(role))
     driver = pages["driver"]
     driver.wait_for_selector("#status[data-phase=localizing]")
     wait_js(driver, "() => !document.getElementById('left').disabled")
@@ -37,9 +37,9 @@ def test_a_held_key_is_one_move_and_a_press_while_moving_waits_its_turn(browser,
         driver.wait_for_timeout(40)
         driver.keyboard.down("ArrowLeft")  # Playwright sends these with repeat=true, as a held key does
     driver.keyboard.up("ArrowLeft")
-    wait_until(lambda: moves(server, trial)[0] == ["left"], "the held key's one move")
+    wait_until(lambda: moves(server, trial.id)[0] == ["left"], "the held key's one move")
     driver.wait_for_timeout(600)
-    assert moves(server, trial) == (["left"], 0), "one move, no refused requests"
+    assert moves(server, trial.id) == (["left"], 0), "one move, no refused requests"
 
     driver.keyboard.press("ArrowRight")
     driver.keyboard.press("ArrowLeft")  # while the right turn is in flight (or sooner than the server takes one)
@@ -47,14 +47,16 @@ def test_a_held_key_is_one_move_and_a_press_while_moving_waits_its_turn(browser,
     assert driver.is_visible("#move-progress"), "the page shows the move in progress and the one queued"
     driver.keyboard.press("ArrowRight")  # a third press while one waits: not queued (one at most)
     assert "queued" in driver.inner_text("#move-note")
-    wait_until(lambda: len(moves(server, trial)[0]) == 3, "the queued press executed")
+    wait_until(lambda: len(moves(server, trial.id)[0]) == 3, "the queued press executed")
     driver.wait_for_timeout(600)
-    assert moves(server, trial) == (["left", "right", "left"], 0), "the queued press was sent when the server took it"
+    assert moves(server, trial.id) == (["left", "right", "left"], 0), (
+        "the queued press was sent when the server took it"
+    )
 
     driver.keyboard.press("ArrowRight")
     driver.wait_for_timeout(320)  # the press the issue saw dropped: 0.32 s after the last
     driver.keyboard.press("ArrowLeft")
-    wait_until(lambda: len(moves(server, trial)[0]) == 5, "both presses executed")
-    assert moves(server, trial) == (["left", "right", "left", "right", "left"], 0)
+    wait_until(lambda: len(moves(server, trial.id)[0]) == 5, "both presses executed")
+    assert moves(server, trial.id) == (["left", "right", "left", "right", "left"], 0)
     wait_js(driver, "() => document.getElementById('move-progress').hidden")
     assert driver.get_attribute("#seat", "data-moving") == "false"

@@ -13,7 +13,6 @@ import pytest
 
 from app.db.models import Experimenter, Team, Trial
 from app.security import hash_password
-from bench.live import make_trial
 from sim.core.labels import LABEL_BGR, OBJECT_LABELS
 from tests.app.live import wait_js
 from tests.e2e.pages import ARTIFACTS, H_M, W_M, experimenter, wait_until
@@ -32,11 +31,10 @@ def server(start_module_server):
 _teams = iter(range(1000))
 
 
-def new_trial(server, **kw) -> tuple[int, str, str]:
-    services = server.services
-    trial_id = make_trial(services, services.mazes.names()[0], team=f"Team {next(_teams)}", **kw)
-    url = {r: f"{server.url}/play/{services.seats.issue(trial_id, r)}" for r in ("commander", "driver")}
-    return trial_id, url["commander"], url["driver"]
+def new_trial(trials, **kw) -> tuple[int, str, str]:
+    """A trial of a team of its own (the module's server keeps every test's): its id and join links."""
+    trial = trials.new(team=f"Team {next(_teams)}", **kw)
+    return trial.id, trial.play_url("commander"), trial.play_url("driver")
 
 
 def seat_pages(browser, commander_url: str, driver_url: str):
@@ -54,8 +52,8 @@ def click_map(page, fx: float, fy: float) -> None:
     page.mouse.click(box["x"] + box["width"] * fx, box["y"] + box["height"] * fy)
 
 
-def test_commander_map_shows_the_landmarks_and_no_driver_request_gets_it(browser, server):
-    trial_id, commander_url, driver_url = new_trial(server, targets=("mug", "jar", "paddle"))
+def test_commander_map_shows_the_landmarks_and_no_driver_request_gets_it(browser, server, trials):
+    trial_id, commander_url, driver_url = new_trial(trials, targets=("mug", "jar", "paddle"))
     driver_requests: list[str] = []
     commander, driver = seat_pages(browser, commander_url, driver_url)
     driver.on("request", lambda r: driver_requests.append(r.url))
@@ -100,9 +98,9 @@ def test_commander_map_shows_the_landmarks_and_no_driver_request_gets_it(browser
         page.context.close()
 
 
-def test_participants_see_the_clock_their_moves_and_what_to_do(browser, server):
+def test_participants_see_the_clock_their_moves_and_what_to_do(browser, server, trials):
     services = server.services
-    trial_id, commander_url, driver_url = new_trial(server)
+    trial_id, commander_url, driver_url = new_trial(trials)
     commander, driver = seat_pages(browser, commander_url, driver_url)
     runtime = services.hub.peek(trial_id)
     assert "mark it on the map" in commander.inner_text("#status")
@@ -180,8 +178,8 @@ def test_participants_see_the_clock_their_moves_and_what_to_do(browser, server):
         page.context.close()
 
 
-def test_localize_by_keyboard_and_by_touch_and_take_the_seat_back(browser, server):
-    trial_id, commander_url, driver_url = new_trial(server)
+def test_localize_by_keyboard_and_by_touch_and_take_the_seat_back(browser, server, trials):
+    trial_id, commander_url, driver_url = new_trial(trials)
     commander, driver = seat_pages(browser, commander_url, driver_url)
     runtime = server.services.hub.peek(trial_id)
 
@@ -218,9 +216,9 @@ def test_localize_by_keyboard_and_by_touch_and_take_the_seat_back(browser, serve
         page.context.close()
 
 
-def test_leaderboard_ranks_agent_drivers_apart_and_says_who_drove(browser, server):
+def test_leaderboard_ranks_agent_drivers_apart_and_says_who_drove(browser, server, trials):
     services = server.services
-    trial_id, _, _ = new_trial(server)
+    trial_id, _, _ = new_trial(trials)
     with services.db.begin() as db:
         human = db.get(Trial, trial_id)
         team = db.get(Team, human.team_id)

@@ -25,11 +25,10 @@ def on_screen(page, selector: str) -> bool:
 
 @pytest.mark.settings(min_move_interval_s=0.0)
 def test_the_newest_messages_and_the_input_stay_on_a_phone_screen(browser, server, trial):
-    services = server.services
     pages = {}
     for role in ("commander", "driver"):
         page = browser.new_context(**PHONE).new_page()
-        page.goto(f"{server.url}/play/{services.seats.issue(trial, role)}")
+        page.goto(trial.play_url(role))
         pages[role] = page
     for page in pages.values():
         page.wait_for_selector("#status[data-phase=localizing]")
@@ -78,10 +77,9 @@ def below_the_chat(page, selector: str) -> bool:
 def test_on_a_phone_the_target_photo_and_a_claim_are_above_the_chat_and_the_moves_read_left_to_right(
     browser, server, trial
 ):
-    services = server.services
     commander, driver = (browser.new_context(**PHONE).new_page() for _ in range(2))
-    commander.goto(f"{server.url}/play/{services.seats.issue(trial, 'commander')}")
-    driver.goto(f"{server.url}/play/{services.seats.issue(trial, 'driver')}")
+    commander.goto(trial.play_url("commander"))
+    driver.goto(trial.play_url("driver"))
     driver.wait_for_selector("#status[data-phase=localizing]")
     commander.tap("#map")
     driver.wait_for_selector("#status[data-phase=navigating]")

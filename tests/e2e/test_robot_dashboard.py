@@ -9,16 +9,15 @@ import pytest
 
 from app.db.models import Experimenter
 from app.security import hash_password
-from tests.app.live import platform_settings, wait_js
-from tests.app.robot_rig import ROBOT_START_S, RobotProcess, RobotServer
+from tests.app.live import wait_js
+from tests.app.robot_rig import ROBOT_START_S, RobotProcess
 from tests.e2e.pages import ARTIFACTS
 
 pytestmark = pytest.mark.browser
 
 
-def test_a_robot_registered_on_the_dashboard_connects_with_its_token_and_shows_live(browser, tmp_path):  # noqa: F811
+def test_a_robot_registered_on_the_dashboard_connects_with_its_token_and_shows_live(browser, server, tmp_path):  # noqa: F811
     ARTIFACTS.mkdir(exist_ok=True)
-    server = RobotServer(platform_settings(tmp_path))
     robot = None
     try:
         with server.services.db.begin() as db:
@@ -83,4 +82,3 @@ def test_a_robot_registered_on_the_dashboard_connects_with_its_token_and_shows_l
     finally:
         if robot is not None:
             robot.stop()
-        server.stop()
