@@ -96,7 +96,10 @@ def _ndh(job: tuple[str, str, int]) -> TrajectoryScore:
     graph = _bench.graph(inst.run)
     rays = RayTable.build(_bench.maze(inst.run), graph, cache_dir=_bench.cache_dir)
     start = episode_start(graph, inst)
-    nodes = replay(DialogDriver(inst.inst_idx), graph, rays, start, _leg_dialog(instances, k), MAX_EPISODE_ACTIONS)
+    target = (inst.target, inst.target_pose)
+    nodes = replay(
+        DialogDriver(inst.inst_idx), graph, rays, start, target, _leg_dialog(instances, k), MAX_EPISODE_ACTIONS
+    )
     return score_trajectory(graph, nodes, goal_node(graph, inst))
 
 

@@ -1,26 +1,34 @@
-"""A Driver agent offline, with the oracle Commander (`run`) or with a recorded human Commander's
-messages (`replay`): the trial's turn-taking without a server. The simulator's stepper rules move
-the Driver on the graph; the RayTable row of each pose is the Driver's `Saw` (frames are not
-rendered). The Driver gets percepts only; the oracle Commander is handed the true pose."""
+"""A Driver agent in offline episodes of the benchmark, stepped through the trial core: with the
+oracle Commander (`run`: one leg, or the localization exchange) or with a recorded human
+Commander's messages (`replay`: an NDH episode). The referee is the core's `OfflineTrial` (the
+trial's rules, the simulator's moves on the graph, each frame's rays the ray table's row) and the
+seats a `Table`. What is the episode's own: where it begins (the recorded start, on its leg) and
+where the bench ends it (its caps, its end), as an experimenter would abort a trial. The Driver
+gets percepts only; the oracle Commander is handed the true pose."""
 
 from __future__ import annotations
 
+import asyncio
 import time
-from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 from sim.agents.oracle_commander import OracleCommander
-from sim.core.dynamics import Action, Pose
+from sim.core.dynamics import Pose, snap_pose
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
-from sim.trial.agent import Agent, SeatInfo
-from sim.trial.commands import Claim, Judge, Localize, RequestMove, Say
-from sim.trial.percepts import Claimed, Heard, Judged, Moved, Percept, PhaseBegan, Saw
-from sim.trial.vocabulary import Outcome, Phase, Role
+from sim.trial import events as ev
+from sim.trial.agent import Agent
+from sim.trial.commands import Abort, Act, Action, Claim, Localize, RequestMove, Say
+from sim.trial.offline import OfflineTrial
+from sim.trial.percepts import Heard, Percept
+from sim.trial.state import TrialState
+from sim.trial.table import Caps, Table
+from sim.trial.vocabulary import Phase, Role
 
 MAX_MESSAGES = 80
 MAX_REJECTIONS = 3
+OVER = "the episode is over"  # the bench's abort
 
 
 @dataclass
@@ -36,6 +44,45 @@ class LegResult:
     act_s: list[float] = field(default_factory=list)  # the Driver's time to decide a move
 
 
+class Episode(OfflineTrial):
+    """An offline trial the bench ends: `ends(state, act)` says, of each seat's action, whether
+    the episode ends there instead (the action is not carried out); `feed`: recorded Commander
+    messages, one each time the table is idle. It begins navigating its one target."""
+
+    def __init__(
+        self,
+        target: tuple[str, tuple[float, float]],
+        start: Pose,
+        graph: NavGraph,
+        rays: RayTable,
+        table: Table,
+        navigating: bool,
+        ends: Callable[[TrialState, Act], bool] = lambda state, act: False,
+        feed: Sequence[str] = (),
+    ) -> None:
+        self.ends, self.feed = ends, iter(feed)
+        super().__init__("episode", [target], start, graph, rays, table, navigating=navigating)
+
+    async def act(self, act: Act) -> list[ev.Event]:
+        if self.ends(self.state, act):
+            self.apply(Abort(OVER))
+            return []
+        events = await super().act(act)
+        if isinstance(act.action, Localize) and not self.state.over:  # a localization exchange ends at the mark
+            self.apply(Abort(OVER))
+        return events
+
+    async def idle(self) -> bool:
+        message = next(self.feed, None)
+        if message is None:
+            return False
+        await super().act(Act(Role.COMMANDER, Say(message)))
+        return True
+
+    def of(self, model: type[ev.Event]) -> list[ev.Event]:
+        return [e for e in map(ev.typed, self.log) if isinstance(e, model)]
+
+
 def run(
     driver: Agent,
     commander: OracleCommander,
@@ -47,85 +94,69 @@ def run(
     """Play from `start` in `phase` (LOCALIZING: the exchange up to the Commander's estimate or
     `max_driver_messages`; NAVIGATING: target 0 of the commander's targets until confirmed or a cap)."""
     out = LegResult()
-    index = 0 if phase == Phase.NAVIGATING else None
-    if index is not None:
-        goal = commander.graph.nearest_node(*commander.targets[0][1])
+    graph, targets = commander.graph, commander.targets
+    if phase == Phase.NAVIGATING:
+        goal = graph.nearest_node(*targets[0][1])
         out.shortest = int(commander.moves_to_go(goal)[start.node, start.heading])
-    commander.pose = start
-    driver.reset(SeatInfo(Role.DRIVER, len(commander.targets)))
-    commander.reset(SeatInfo(Role.COMMANDER, len(commander.targets)))
-    queue: deque[tuple[str, Percept]] = deque()
-    change = PhaseBegan(phase, index, len(commander.targets))
-    queue += [("driver", change), ("driver", Saw(0, commander.view(start))), ("commander", change)]
-    frame = 0
-    driver_messages = 0
-    while queue:
-        who, percept = queue.popleft()
-        if who == "driver":
-            t0 = time.perf_counter()
-            turns = driver.perceive(percept)
-            spent = time.perf_counter() - t0
+    # The bench stops first: the seats' caps lie beyond its own.
+    caps = Caps(moves_per_target=max_moves + 1, messages_per_target=MAX_MESSAGES + 1)
+    table = Table({Role.DRIVER: driver, Role.COMMANDER: commander}, [targets[0][0]], caps)
+    episode = Episode(targets[0], start, graph, commander.rays, table, navigating=phase == Phase.NAVIGATING)
+
+    async def wake(role: Role, agent: Agent, percept: Percept) -> list[Action]:
+        chats = episode.of(ev.Chat)
+        capped = (
+            episode.state.moves >= max_moves
+            or len(chats) >= MAX_MESSAGES
+            or len(episode.of(ev.TargetRejected)) >= MAX_REJECTIONS
+            or (phase == Phase.LOCALIZING and sum(c.role == Role.DRIVER for c in chats) >= max_driver_messages)
+        )
+        if capped:
+            episode.apply(Abort(OVER))
+            return []
+        commander.pose = episode.pose
+        started = time.perf_counter()
+        actions = agent.perceive(percept)
+        if role == Role.DRIVER:
+            spent = time.perf_counter() - started
             if isinstance(percept, Heard) and percept.speaker == Role.COMMANDER:
                 out.reply_s.append(spent)
-            if any(isinstance(t, RequestMove) for t in turns):
+            if any(isinstance(a, RequestMove) for a in actions):
                 out.act_s.append(spent)
-        else:
-            turns = commander.perceive(percept)
-        for turn in turns:
-            if isinstance(turn, Say):
-                out.messages += 1
-                out.dialog.append(("navigator" if who == "driver" else "oracle", turn.text))
-                speaker = Role.DRIVER if who == "driver" else Role.COMMANDER
-                queue += [("driver", Heard(speaker, turn.text)), ("commander", Heard(speaker, turn.text))]
-                driver_messages += who == "driver"
-            elif isinstance(turn, RequestMove):
-                out.moves += 1
-                pose, collided = commander.graph.moves.step(commander.pose, Action.of(turn.move))
-                commander.pose = pose
-                frame += 1
-                result = Outcome.COLLISION if collided else Outcome.OK
-                queue += [("driver", Moved(turn.move, result)), ("driver", Saw(frame, commander.view(pose)))]
-            elif isinstance(turn, Claim):
-                out.claims += 1
-                queue.append(("commander", Claimed(0)))
-            elif isinstance(turn, Judge):
-                queue.append(("driver", Judged(turn.confirmed, 0)))
-                if turn.confirmed:
-                    out.success = True
-                    return out
-                out.rejected += 1
-            elif isinstance(turn, Localize):
-                return out
-        if out.moves >= max_moves or out.messages >= MAX_MESSAGES or out.rejected >= MAX_REJECTIONS:
-            break
-        if phase == Phase.LOCALIZING and driver_messages >= max_driver_messages:
-            break
+        return actions
+
+    asyncio.run(table.play(episode, wake))
+    out.moves = episode.state.moves
+    out.success = bool(episode.of(ev.TargetConfirmed))
+    out.claims, out.rejected = len(episode.of(ev.TargetClaimed)), len(episode.of(ev.TargetRejected))
+    out.dialog = [("navigator" if c.role == Role.DRIVER else "oracle", c.text) for c in episode.of(ev.Chat)]
+    out.messages = len(out.dialog)
     return out
 
 
 def replay(
-    driver: Agent, graph: NavGraph, rays: RayTable, start: Pose, dialog: Sequence[tuple[str, str]], max_moves: int
+    driver: Agent,
+    graph: NavGraph,
+    rays: RayTable,
+    start: Pose,
+    target: tuple[str, tuple[float, float]],
+    dialog: Sequence[tuple[str, str]],
+    max_moves: int,
 ) -> list[int]:
     """An NDH episode: the recorded Commander's messages (role "oracle") reach the Driver one at a
     time, each once it has finished with the last (spoken or stopped moving); it ends at the Driver's
-    claim, after the last message, or at `max_moves`. Returns the nodes it stood on, start first."""
-    driver.reset(SeatInfo(Role.DRIVER, 1))
-    pose, nodes, moves = start, [start.node], 0
-    driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 1))
-    driver.perceive(Saw(0, rays.observation(*pose)))
-    for role, message in dialog:
-        if role != "oracle":
-            continue
-        turns = driver.perceive(Heard(Role.COMMANDER, message))
-        while True:
-            if any(isinstance(t, Claim) for t in turns) or moves >= max_moves:
-                return nodes
-            move = next((t for t in turns if isinstance(t, RequestMove)), None)
-            if move is None:
-                break
-            pose, collided = graph.moves.step(pose, Action.of(move.move))
-            moves += 1
-            nodes.append(pose.node)
-            result = Outcome.COLLISION if collided else Outcome.OK
-            turns = driver.perceive(Moved(move.move, result)) + driver.perceive(Saw(moves, rays.observation(*pose)))
-    return nodes
+    claim, after the last message, or at `max_moves`. The Driver's words go nowhere (the recording
+    does not answer): the bench keeps them out of the trial. Returns the nodes it stood on, start first."""
+    table = Table({Role.DRIVER: driver}, [target[0]], Caps(moves_per_target=max_moves + 1))
+
+    def ends(state: TrialState, act: Act) -> bool:
+        return isinstance(act.action, Claim) or (isinstance(act.action, RequestMove) and state.moves >= max_moves)
+
+    feed = [text for role, text in dialog if role == "oracle"]
+    episode = Episode(target, start, graph, rays, table, navigating=True, ends=ends, feed=feed)
+
+    async def wake(role: Role, agent: Agent, percept: Percept) -> list[Action]:
+        return [a for a in agent.perceive(percept) if not isinstance(a, Say)]
+
+    asyncio.run(table.play(episode, wake))
+    return [snap_pose(graph, p.x, p.y, p.heading).node for p in episode.of(ev.PoseSampled)]

@@ -2,7 +2,11 @@
 the same events and fold, with the simulator in the robot seat as its backend on the platform
 runs it (moves stepped on the robot's graph, one frame per move, its rays the maze's ray table
 row) but no image drawn and no clock: each event is stamped one nanosecond after the one before.
-Its log is what a recorded trial's would be, and is measured the same way."""
+Its log is what a recorded trial's would be, and is measured the same way.
+
+The seats take their places once the trial is set up, as agents joining a trial do: they hear where
+it stands (its phase, the Driver its frame) and every event from then on. A benchmark's leg begins
+navigating (`navigating`): the robot marked where it truly is, as a Commander would have."""
 
 from __future__ import annotations
 
@@ -12,7 +16,7 @@ from sim.core.dynamics import Action, Pose, continuous_pose
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
 from sim.trial import events as ev
-from sim.trial.commands import Act, Command, FinishMove, Join, Judge, Note, Now
+from sim.trial.commands import Act, Command, FinishMove, Join, Judge, Localize, Note, Now
 from sim.trial.decide import decide
 from sim.trial.events import LoggedEvent
 from sim.trial.state import TrialState
@@ -34,11 +38,13 @@ class OfflineTrial:
         rays: RayTable,
         table: Table,
         seats: tuple[str, str] = ("agent", "agent"),  # (driver, commander) as the log names them
+        navigating: bool = False,
     ) -> None:
         self.graph, self.rays, self.table, self.targets = graph, rays, table, dict(targets)
         self.state = TrialState()
         self.log: list[LoggedEvent] = []
         self.pose = start
+        self._seated = False  # the table hears the events once the seats have taken their places
         driver, commander = seats
         self._record(
             ev.TrialCreated(
@@ -51,9 +57,16 @@ class OfflineTrial:
             )
         )
         self._sample()
-        table.reset()
         for role in (Role.DRIVER, Role.COMMANDER):
             self.apply(Join(role))
+        if navigating:
+            x, y, heading = continuous_pose(graph, start)
+            self.apply(Act(Role.COMMANDER, Localize(x, y, heading)))
+        table.reset()
+        self._seated = True
+        table.see(
+            ev.PhaseChanged(phase=self.state.phase, target_index=self.state.target_index), self._now(), self.state
+        )
 
     def apply(self, command: Command) -> None:
         for event in decide(self.state, command):
@@ -102,4 +115,5 @@ class OfflineTrial:
         logged = LoggedEvent(self.state.last_seq + 1, event.kind, t_ns, event.payload())
         self.state.apply_event(event, logged.seq, t_ns)
         self.log.append(logged)
-        self.table.see(event, t_ns, self.state)
+        if self._seated or isinstance(event, ev.FrameRecorded):  # the Driver's page shows the frame it joins to
+            self.table.see(event, t_ns, self.state)
