@@ -12,6 +12,7 @@ import asyncio
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 from sim.agents.oracle_commander import OracleCommander
 from sim.core.dynamics import Pose, snap_pose
@@ -29,6 +30,7 @@ from sim.trial.vocabulary import Phase, Role
 MAX_MESSAGES = 80
 MAX_REJECTIONS = 3
 OVER = "the episode is over"  # the bench's abort
+E = TypeVar("E", bound=ev.Event)
 
 
 @dataclass
@@ -79,7 +81,7 @@ class Episode(OfflineTrial):
         await super().act(Act(Role.COMMANDER, Say(message)))
         return True
 
-    def of(self, model: type[ev.Event]) -> list[ev.Event]:
+    def of(self, model: type[E]) -> list[E]:
         return [e for e in map(ev.typed, self.log) if isinstance(e, model)]
 
 
