@@ -245,8 +245,8 @@ class AgentSeats:
             return percept
         frames = next(iter(self.table.views.values())).frames
         if isinstance(percept, Saw | Claimed) and percept.rays is None:
-            claim = self.state.pending_claim or {}
-            frame_id = percept.frame_id if isinstance(percept, Saw) else claim.get("frame_id")
+            claim = self.state.pending_claim
+            frame_id = percept.frame_id if isinstance(percept, Saw) else claim.frame_id if claim else None
             frame = frames.get(frame_id) if frame_id is not None else None
             if frame is not None and frame.jpeg is not None:
                 rays = await asyncio.to_thread(perceived, frame.jpeg, self.calibration)

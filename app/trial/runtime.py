@@ -264,7 +264,7 @@ class TrialRuntime:
                 claim = views.claim_attachment(frame_id, self.frame_jpeg)
                 return self.apply(replace(act, now=now), {Role.COMMANDER: {"claim": claim}})
             case c.Judge() if (pose := self.true_pose()) is not None and (claimed := self.state.pending_claim):
-                within_m = self.parts.mazes.distance_m(self.state.maze, claimed["target"], pose)
+                within_m = self.parts.mazes.distance_m(self.state.maze, claimed.target, pose)
                 return self.apply(replace(act, now=replace(now, within_m=within_m)))
         return self.apply(replace(act, now=now))
 

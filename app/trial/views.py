@@ -128,11 +128,12 @@ def welcome(
         "history": [msg for e in events if e.is_(*HISTORY) and (msg := view(role, e)) is not None],
         "status": status,
     }
+    mark = s.localization.payload() if s.localization else None
     if role == Role.COMMANDER:
         message["target"] = s.current_target
-        message["localization"] = s.localization  # their own mark, for a window opened later
+        message["localization"] = mark  # their own mark, for a window opened later
         if s.pending_claim is not None:
-            message["claim"] = claim_attachment(s.pending_claim["frame_id"], jpeg_of)
+            message["claim"] = claim_attachment(s.pending_claim.frame_id, jpeg_of)
     if role in (Role.DRIVER, EXPERIMENTER) and s.last_frame_id is not None:
         jpeg = jpeg_of(s.last_frame_id)
         if jpeg is not None:
@@ -140,7 +141,7 @@ def welcome(
     if role == EXPERIMENTER:
         message["pose"] = s.pose
         message["targets"] = list(s.targets)
-        message["localization"] = s.localization
+        message["localization"] = mark
     return message
 
 
@@ -162,7 +163,7 @@ def snapshot(
         "seats": {r: r in here for r in s.seats_needed},
         "waiting_for": [str(r) for r in s.waiting_for],
         "backend": s.backend,
-        "localization": s.localization,
+        "localization": s.localization.payload() if s.localization else None,
         "maze": s.maze,
         "belief": belief,
     }

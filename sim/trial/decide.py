@@ -210,7 +210,7 @@ def _judge(state: TrialState, confirmed: bool, within_m: float | None) -> list[e
     claim = state.pending_claim
     if claim is None:
         raise Refused("there is no claimed target to confirm or reject")
-    target, index = claim["target"], claim["target_index"]
+    target, index = claim.target, claim.target_index
     truly = None if within_m is None else within_m <= SUCCESS_RADIUS_M
     verdict = ev.TargetConfirmed if confirmed else ev.TargetRejected
     events: list[ev.Event] = [verdict(target=target, target_index=index, within_m=within_m, truly_within=truly)]

@@ -104,7 +104,7 @@ class OfflineTrial:
         if claim is None:
             return None
         x, y, _ = continuous_pose(self.graph, self.pose)
-        ox, oy = self.targets[claim["target"]]
+        ox, oy = self.targets[claim.target]
         return math.hypot(x - ox, y - oy)
 
     def _now(self) -> int:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Any
 
 from sim.trial import events as ev
 from sim.trial.events import LoggedEvent
@@ -60,12 +59,12 @@ class TrialState:
     last_move_ns: int | None = None  # when the last executed move was requested
     away: dict[Role, Away] = field(default_factory=dict)
     last_frame_id: int | None = None
-    pending_claim: dict[str, Any] | None = None
+    pending_claim: ev.TargetClaimed | None = None
     pose: tuple[float, float, float] | None = None  # last sampled true pose (x, y, theta)
     start: tuple[float, float, float] | None = None  # the simulated robot's start, where one was chosen
     seed: int | None = None  # the agents' seed, where one was chosen
-    localization: dict[str, Any] | None = None
-    confirmed: list[dict[str, Any]] = field(default_factory=list)
+    localization: ev.Localized | None = None  # the Commander's mark
+    confirmed: list[ev.TargetConfirmed] = field(default_factory=list)
     finished_active_ns: int | None = None  # active time at the last confirmation
     abort_reason: str | None = None  # why it was aborted, where the log says
     join_by_ns: int | None = None  # a lobby's trial: when seats still unopened abort it
@@ -180,12 +179,12 @@ class TrialState:
             case ev.PoseSampled(x=x, y=y, heading=heading):
                 self.pose = (x, y, heading)
             case ev.Localized():
-                self.localization = event.payload()
+                self.localization = event
             case ev.TargetClaimed():
-                self.pending_claim = event.payload()
+                self.pending_claim = event
             case ev.TargetConfirmed():
                 self.pending_claim = None
-                self.confirmed.append(event.payload())
+                self.confirmed.append(event)
             case ev.TargetRejected():
                 self.pending_claim = None
         return self

@@ -190,8 +190,8 @@ def test_localize_by_keyboard_and_by_touch_and_take_the_seat_back(browser, serve
     commander.keyboard.press("Enter")
     driver.wait_for_selector("#status[data-phase=navigating]")
     estimate = runtime.state.localization
-    assert (estimate["x"], estimate["y"]) == pytest.approx((W_M / 2 + 0.2, H_M / 2 + 0.1))
-    assert estimate["heading"] == pytest.approx(math.pi / 2)
+    assert (estimate.x, estimate.y) == pytest.approx((W_M / 2 + 0.2, H_M / 2 + 0.1))
+    assert estimate.heading == pytest.approx(math.pi / 2)
 
     # A reload keeps the Commander's mark.
     shown = commander.get_attribute("#map", "data-estimate")
@@ -206,8 +206,8 @@ def test_localize_by_keyboard_and_by_touch_and_take_the_seat_back(browser, serve
     commander.wait_for_selector("#elsewhere:not([hidden])")
     box = phone.locator("#map").bounding_box()
     phone.tap("#map", position={"x": box["width"] * 0.25, "y": box["height"] * 0.75})
-    wait_until(lambda: runtime.state.localization["x"] == pytest.approx(W_M * 0.25, abs=0.01), "the tapped mark")
-    assert runtime.state.localization["y"] == pytest.approx(H_M * 0.25, abs=0.01)
+    wait_until(lambda: runtime.state.localization.x == pytest.approx(W_M * 0.25, abs=0.01), "the tapped mark")
+    assert runtime.state.localization.y == pytest.approx(H_M * 0.25, abs=0.01)
     commander.click("#take-back")
     phone.wait_for_selector("#elsewhere:not([hidden])")
     commander.wait_for_selector("#elsewhere", state="hidden")

@@ -67,7 +67,7 @@ def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, server):
     commander.mouse.up()
     driver.wait_for_selector("#status[data-phase=navigating]")
     runtime = services.hub.peek(trial_id)
-    assert runtime.state.localization["heading"] == pytest.approx(0.0, abs=0.05)
+    assert runtime.state.localization.heading == pytest.approx(0.0, abs=0.05)
 
     # The experimenter's dashboard shows the running trial with its true pose.
     admin.goto(server.url + "/experimenter")
