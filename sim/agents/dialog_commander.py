@@ -34,9 +34,9 @@ from sim.language.describe import near, wall_close, within_reach
 from sim.language.describe import seen as describe_seen
 from sim.language.localizer import Belief, Scene
 from sim.language.phrases import Kind, Phrases, Phrasing
+from sim.language.sectors import Sector
 from sim.language.understanding import Understanding, belief_facts
 from sim.language.vocab import OBJECT_WORDS, SIDE_SECTOR, Side, wall_name
-from sim.tasks.ldh_features import Sector
 from sim.trial.agent import SeatInfo
 from sim.trial.commands import Action, Judge, Localize, Say
 from sim.trial.percepts import Claimed, Heard, Judged, Percept, PhaseBegan

@@ -22,9 +22,9 @@ from sim.core.rays import RayObservation
 from sim.language import instructions as ins
 from sim.language.describe import LEFT_EDGE, RIGHT_EDGE, ahead, at_wall, brief, describe, near, seen
 from sim.language.meaning import Clause, Op, Program, program_of
+from sim.language.sectors import NEAR_M
 from sim.language.understanding import Understanding, instructions, read_back
 from sim.language.vocab import SIDE_PHRASE, SIDE_STEPS, Side, wall_name
-from sim.tasks.ldh_features import NEAR_M
 from sim.trial.agent import SeatInfo
 from sim.trial.commands import Action, Claim, RequestMove, Say
 from sim.trial.percepts import Declined, Heard, Judged, Moved, PauseSet, Percept, PhaseBegan, Saw

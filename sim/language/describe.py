@@ -16,8 +16,8 @@ import numpy as np
 
 from sim.core.labels import OBJECT_LABELS, Label
 from sim.core.rays import RayObservation
+from sim.language.sectors import NEAR_M
 from sim.language.vocab import SIDE_PHRASE, Side, wall_name
-from sim.tasks.ldh_features import NEAR_M
 
 MIN_RAYS = 2
 CLOSE_M = 0.25  # a wall this close ahead is one the Driver is "at"

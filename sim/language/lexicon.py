@@ -16,8 +16,8 @@ from dataclasses import dataclass, replace
 from enum import Enum
 
 from sim.core.labels import Label
+from sim.language.sectors import SECTOR_HEADING_OFFSET, SECTOR_WORDS, Sector
 from sim.language.vocab import LABEL_WORDS, correct
-from sim.tasks.ldh_features import SECTOR_HEADING_OFFSET, SECTOR_WORDS, Sector
 
 
 class Kind(str, Enum):

@@ -32,7 +32,7 @@ from sim.language.lexicon import (
     tokens,
     turn_steps,
 )
-from sim.tasks.ldh_features import NEAR_M, SECTOR_HEADING_OFFSET, Sector
+from sim.language.sectors import NEAR_M, SECTOR_HEADING_OFFSET, Sector
 
 OPEN_M = 0.6  # a ray that travels this far sees open space (a corridor)
 EDGE_M = 0.05  # a white hit this close to the table's side is the maze's edge

@@ -17,8 +17,8 @@ from enum import StrEnum
 from sim.core.labels import Label
 from sim.language import instructions as ins
 from sim.language import lexicon
+from sim.language.sectors import Sector
 from sim.language.vocab import Side
-from sim.tasks.ldh_features import Sector
 
 Value = str | int | bool | None
 

@@ -18,8 +18,8 @@ from sim.language import instructions as ins
 from sim.language import lexicon
 from sim.language.meaning import CLAUSE_FIELDS, FACT_FIELDS, FactForm, FactKind, Op, Program, facts_of, program_of
 from sim.language.reader import Reader, Role, shipped
+from sim.language.sectors import Sector
 from sim.language.vocab import Side, wall_name
-from sim.tasks.ldh_features import Sector
 
 M = TypeVar("M", Program, frozenset[FactForm])
 

@@ -12,8 +12,8 @@ import re
 from enum import StrEnum
 
 from sim.core.labels import Label
-from sim.tasks import ldh_features
-from sim.tasks.ldh_features import SECTOR_HEADING_OFFSET, Sector
+from sim.language import sectors
+from sim.language.sectors import SECTOR_HEADING_OFFSET, Sector
 
 
 class Side(StrEnum):
@@ -32,7 +32,7 @@ SIDE_PHRASE = {Side.AHEAD: "ahead", Side.LEFT: "on my left", Side.RIGHT: "on my 
 # The LDH features' colour and object words (what the `colours` localizer reads), and more that the
 # dialog agents read: the maze's border, grey for white, other names for the objects.
 LABEL_WORDS: dict[str, Label] = {
-    **ldh_features.LABEL_WORDS,
+    **sectors.LABEL_WORDS,
     "border": Label.WHITE,  # the maze's edge
     "boundary": Label.WHITE,
     "grey": Label.WHITE,

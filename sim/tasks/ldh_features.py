@@ -12,61 +12,22 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterable
-from enum import IntEnum
 from pathlib import Path
 
 import numpy as np
 
 from sim.core.geometry import HEADINGS
-from sim.core.labels import N_LABELS, Label
+from sim.core.labels import N_LABELS
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
-
-NEAR_M = 0.5
-
-
-class Sector(IntEnum):
-    FRONT = 0
-    LEFT = 1
-    BEHIND = 2
-    RIGHT = 3
-    ANY = 4  # a label named with no direction
-
+from sim.language.sectors import LABEL_WORDS, NEAR_M, SECTOR_HEADING_OFFSET, SECTOR_WORDS, Sector
 
 N_VIEW_SECTORS = 4
 N_SECTORS = len(Sector)
-SECTOR_HEADING_OFFSET = (0, 2, 4, 6)  # heading steps of 45 degrees, counter-clockwise
 MENTION_FEATURES = N_SECTORS * N_LABELS
 VIEW_FEATURES = N_VIEW_SECTORS * N_LABELS * 2  # near and far
 
-LABEL_WORDS = {
-    "red": Label.RED,
-    "orange": Label.RED,
-    "blue": Label.BLUE,
-    "green": Label.GREEN,
-    "brown": Label.BROWN,
-    "wooden": Label.BROWN,
-    "wood": Label.BROWN,
-    "yellow": Label.YELLOW,
-    "white": Label.WHITE,
-    "edge": Label.WHITE,
-    "jar": Label.JAR,
-    "mug": Label.MUG,
-    "cup": Label.MUG,
-    "paddle": Label.PADDLE,
-}
-SECTOR_WORDS = {
-    "front": Sector.FRONT,
-    "ahead": Sector.FRONT,
-    "facing": Sector.FRONT,
-    "straight": Sector.FRONT,
-    "forward": Sector.FRONT,
-    "left": Sector.LEFT,
-    "right": Sector.RIGHT,
-    "behind": Sector.BEHIND,
-    "back": Sector.BEHIND,
-}
 _WORD = re.compile(r"[a-z]+")
 _CLAUSE = re.compile(r"[,.;!?]|\band\b|\bbut\b")
 

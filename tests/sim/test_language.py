@@ -18,8 +18,9 @@ from sim.language.instructions import (
     Turn,
     parse,
 )
+from sim.language.sectors import Sector
 from sim.language.vocab import Side, correct
-from sim.tasks.ldh_features import Sector, mentions
+from sim.tasks.ldh_features import mentions
 
 
 def test_turns_and_walks_of_train_sentences_keep_their_order():

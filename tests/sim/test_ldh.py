@@ -13,10 +13,11 @@ from app.cli import root
 from sim.core.labels import Label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
+from sim.language.sectors import Sector
 from sim.tasks.benchmark import Benchmark
 from sim.tasks.ldh import LDHInstance, Variant, load_split, localization_prefix
 from sim.tasks.ldh_eval import MazeContext, MazeContexts, evaluate, score, summarize
-from sim.tasks.ldh_features import Sector, mentions
+from sim.tasks.ldh_features import mentions
 from tests.sim.helpers import export_folder, exported, open_table, said
 
 

@@ -17,8 +17,8 @@ from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
 from sim.language.lexicon import Fact, Kind, Source, answer, facts, question, turn_steps
 from sim.language.localizer import Belief, Scene
+from sim.language.sectors import Sector
 from sim.tasks.ldh_eval import MazeContext
-from sim.tasks.ldh_features import Sector
 from sim.tasks.library import MazeLibrary
 from tests.sim.helpers import open_table, wall_at_x
 
