@@ -37,7 +37,7 @@ from sim.core.labels import OBJECT_LABELS, WALL_LABELS
 from sim.language import instructions as ins
 from sim.language import lexicon
 from sim.language.meaning import Clause, FactForm, facts_of, program_of
-from sim.language.phrases import Kind, Phrases, Phrasing
+from sim.language.phrases import PhraseKind, Phrases, Phrasing
 from sim.language.reader import (
     BOS,
     EOS,
@@ -136,10 +136,10 @@ def vocabulary_examples(seed: int, n: int = 2500) -> list[Example]:
         words = [turn() for _ in range(rng.choice([0, 0, 1]))]
         last = rng.choice(
             [
-                lambda: said.say(Kind.FORWARD, n=rng.randint(1, 20)),
-                lambda: said.say(Kind.FORWARD_THEN_TURN, n=rng.randint(1, 20), turn=turn()),
-                lambda: said.say(Kind.TURN_AT_WALL, turn=turn(), wall=rng.choice(walls)),
-                lambda: said.say(Kind.UNTIL_TARGET, thing=rng.choice(things)),
+                lambda: said.say(PhraseKind.FORWARD, n=rng.randint(1, 20)),
+                lambda: said.say(PhraseKind.FORWARD_THEN_TURN, n=rng.randint(1, 20), turn=turn()),
+                lambda: said.say(PhraseKind.TURN_AT_WALL, turn=turn(), wall=rng.choice(walls)),
+                lambda: said.say(PhraseKind.UNTIL_TARGET, thing=rng.choice(things)),
             ]
         )()
         return ", then ".join([*words, last])
@@ -148,9 +148,9 @@ def vocabulary_examples(seed: int, n: int = 2500) -> list[Example]:
         route,
         route,
         route,
-        lambda: f"{said.say(Kind.ANNOUNCE, thing=rng.choice(things))}. {route()}",
-        lambda: said.say(Kind.THERE, thing=rng.choice(things)),
-        lambda: said.say(Kind.ASK_VIEW),
+        lambda: f"{said.say(PhraseKind.ANNOUNCE, thing=rng.choice(things))}. {route()}",
+        lambda: said.say(PhraseKind.THERE, thing=rng.choice(things)),
+        lambda: said.say(PhraseKind.ASK_VIEW),
         lambda: f"stop there. {LOOK_AROUND}?",
         lambda: f"is there a {rng.choice(walls)} {rng.choice(sides)}?",
         lambda: f"what is {rng.choice(sides)}?",

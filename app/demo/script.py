@@ -23,7 +23,7 @@ from sim.core.observations import N_RAYS, RAY_OFFSETS, ray_caster, too_close
 from sim.core.rays import RayObservation
 from sim.language import vocab
 from sim.language.describe import describe
-from sim.language.phrases import Kind, Phrases, Phrasing
+from sim.language.phrases import PhraseKind, Phrases, Phrasing
 
 NEAR_WALL_M = 0.35  # a wall this close ahead is "reached"
 OBJECT_WORDS = {label.word: name for label, name in vocab.OBJECT_WORDS.items()}
@@ -99,7 +99,7 @@ def plan_leg(maze: Maze, graph: NavGraph, start: Pose, target: str) -> Leg:
     nodes = [start.node] + [p.node for p in poses]
     nodes = [n for i, n in enumerate(nodes) if i == 0 or n != nodes[i - 1]]
     if len(nodes) < 2:
-        there = PHRASES.say(Kind.THERE, thing=thing)
+        there = PHRASES.say(PhraseKind.THERE, thing=thing)
         return Leg(target, start, poses[-1] if poses else start, tuple(actions), (there,))
     points = graph.nodes[nodes]
     idx = corners(points)
@@ -113,16 +113,16 @@ def plan_leg(maze: Maze, graph: NavGraph, start: Pose, target: str) -> Leg:
         length = float(np.hypot(*(points[b] - points[a])))
         steps = max(1, int(round(length / GRID_STEP_M)))
         if b == idx[-1]:
-            words.append(PHRASES.say(Kind.UNTIL_TARGET, thing=thing))
+            words.append(PHRASES.say(PhraseKind.UNTIL_TARGET, thing=thing))
             break
         after = math.atan2(*(points[idx[n + 2]] - points[b])[::-1])
         next_turn = _turn_phrase(_wrap(after - direction)) or "keep going"
         x, y = points[b]
         label, depth = what_is_at(maze, x, y, direction)
         if label != Label.FLOOR and depth < 2 * NEAR_WALL_M:
-            words.append(PHRASES.say(Kind.TURN_AT_WALL, turn=next_turn, wall=vocab.wall_name(label)))
+            words.append(PHRASES.say(PhraseKind.TURN_AT_WALL, turn=next_turn, wall=vocab.wall_name(label)))
         else:
-            words.append(PHRASES.say(Kind.FORWARD_THEN_TURN, n=steps, turn=next_turn))
+            words.append(PHRASES.say(PhraseKind.FORWARD_THEN_TURN, n=steps, turn=next_turn))
         heading = direction
     return Leg(target, start, poses[-1], tuple(actions), tuple(words))
 

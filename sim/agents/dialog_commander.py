@@ -33,7 +33,7 @@ from sim.language import lexicon
 from sim.language.describe import near, wall_close, within_reach
 from sim.language.describe import seen as describe_seen
 from sim.language.localizer import Belief, Scene
-from sim.language.phrases import Kind, Phrases, Phrasing
+from sim.language.phrases import PhraseKind, Phrases, Phrasing
 from sim.language.sectors import Sector
 from sim.language.understanding import Understanding, belief_facts
 from sim.language.vocab import OBJECT_WORDS, SIDE_SECTOR, Side, wall_name
@@ -144,11 +144,11 @@ class DialogCommander:
     def _phase_changed(self, change: PhaseBegan) -> list[Action]:
         self._phase = change.phase
         if change.phase == Phase.LOCALIZING:
-            return self._say(self.phrases.say(Kind.ASK_VIEW))
+            return self._say(self.phrases.say(PhraseKind.ASK_VIEW))
         if change.phase == Phase.NAVIGATING and change.target is not None:
             self._target = change.target
             self._closer_than_m = math.inf
-            announce = self.phrases.say(Kind.ANNOUNCE, thing=OBJECT_WORDS[object_label(change.target)])
+            announce = self.phrases.say(PhraseKind.ANNOUNCE, thing=OBJECT_WORDS[object_label(change.target)])
             return self._guide(prefix=announce)
         return []
 
@@ -173,7 +173,7 @@ class DialogCommander:
             if self._looking:  # an object in view would have been named: those not named are not in view
                 named = {f.label for f in view}
                 self.belief.observe(
-                    lexicon.Fact(lexicon.Kind.LABEL, (Sector.ANY,), label, negated=True)
+                    lexicon.Fact(lexicon.ViewKind.LABEL, (Sector.ANY,), label, negated=True)
                     for label in OBJECT_LABELS
                     if label not in named
                 )
@@ -364,7 +364,7 @@ class DialogCommander:
                 ((int(h) - estimate.pose.heading + 4) % HEADINGS - 4 for h in np.flatnonzero(reach[goal])), key=abs
             )
             turn = self.phrases.turn(eighths)
-            until = self.phrases.say(Kind.UNTIL_TARGET, thing=OBJECT_WORDS[label])
+            until = self.phrases.say(PhraseKind.UNTIL_TARGET, thing=OBJECT_WORDS[label])
             text = f"{turn}, then {until}" if turn else until
         else:
             text = self.router.instruction(estimate.pose, label, goal, plain=self._plain)

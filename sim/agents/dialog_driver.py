@@ -446,9 +446,9 @@ class DialogDriver:
         assert ask is not None  # look tasks are made from questions
         if ask.look_around:
             sides = list(Side)
-        elif ask.question == ins.Question.SIDE and ask.side is not None:
+        elif ask.question == ins.AskedAbout.SIDE and ask.side is not None:
             sides = [ask.side]
-        elif ask.question == ins.Question.IS_THERE:
+        elif ask.question == ins.AskedAbout.IS_THERE:
             sides = [ask.side or Side.AHEAD]
         else:
             sides = [Side.AHEAD]
@@ -460,9 +460,9 @@ class DialogDriver:
         if self._odo.heading != facing:  # the shorter way round to the next side to see, then back
             return RequestMove(Move.LEFT if (facing - self._odo.heading) % HEADINGS <= 4 else Move.RIGHT)
         views = {s: self._views[(home + SIDE_STEPS[s]) % HEADINGS] for s in sides}
-        if ask.question == ins.Question.IS_THERE and ask.label is not None:
+        if ask.question == ins.AskedAbout.IS_THERE and ask.label is not None:
             return Say(self._is_there(ask.label, sides[0], views[sides[0]]))
-        if ask.question == ins.Question.VIEW and not ask.look_around:
+        if ask.question == ins.AskedAbout.VIEW and not ask.look_around:
             views = {
                 s: self._views[(home + SIDE_STEPS[s]) % HEADINGS]
                 for s in Side

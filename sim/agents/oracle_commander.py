@@ -19,7 +19,7 @@ from sim.core.labels import Label, object_label
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
 from sim.core.rays import RayObservation
-from sim.language.phrases import Kind, Persona, Phrases, Phrasing
+from sim.language.phrases import Persona, PhraseKind, Phrases, Phrasing
 from sim.language.vocab import OBJECT_WORDS
 from sim.trial.agent import SeatInfo
 from sim.trial.commands import Action, Judge, Say
@@ -64,13 +64,13 @@ class OracleCommander:
     def perceive(self, percept: Percept) -> list[Action]:
         if isinstance(percept, PhaseBegan):
             if percept.phase == Phase.LOCALIZING:
-                return [Say(self.phrases.say(Kind.ASK_VIEW))]
+                return [Say(self.phrases.say(PhraseKind.ASK_VIEW))]
             if percept.phase == Phase.NAVIGATING and percept.target_index is not None:
                 self._index = percept.target_index
                 name = self._target()[0]
                 return [
                     Say(
-                        f"{self.phrases.say(Kind.ANNOUNCE, thing=OBJECT_WORDS[object_label(name)])}. "
+                        f"{self.phrases.say(PhraseKind.ANNOUNCE, thing=OBJECT_WORDS[object_label(name)])}. "
                         f"{self.instruction(plain=False)}"
                     )
                 ]
@@ -78,7 +78,7 @@ class OracleCommander:
         if isinstance(percept, Claimed):
             if self.distance(self.pose) <= SUCCESS_RADIUS_M:
                 return [Judge(True)]
-            return [Judge(False), Say(self.phrases.say(Kind.REJECT))]
+            return [Judge(False), Say(self.phrases.say(PhraseKind.REJECT))]
         if isinstance(percept, Heard) and percept.speaker == Role.DRIVER and self._index is not None:
             if "found" in percept.text:
                 return []  # a claim is on its way
@@ -89,7 +89,7 @@ class OracleCommander:
         """The next instruction from the true pose; `plain` (the Driver asked) counts steps."""
         _, label, _, goal = self._target()
         if self.distance(self.pose) <= THERE_M:
-            return self.phrases.say(Kind.THERE, thing=OBJECT_WORDS[label])
+            return self.phrases.say(PhraseKind.THERE, thing=OBJECT_WORDS[label])
         return self.router.instruction(self.pose, label, goal, plain)
 
     def moves_to_go(self, goal: int) -> np.ndarray:

@@ -30,9 +30,9 @@ class OracleDriver(DialogDriver):
             side: self.rays.observation(*Pose(self.pose.node, (self.pose.heading + SIDE_STEPS[side]) % HEADINGS))
             for side in Side
         }
-        if ask.question == ins.Question.IS_THERE and ask.label is not None:
+        if ask.question == ins.AskedAbout.IS_THERE and ask.label is not None:
             side = ask.side or Side.AHEAD
             return Say(self._is_there(ask.label, side, views[side]))
-        if ask.question == ins.Question.SIDE and ask.side is not None:
+        if ask.question == ins.AskedAbout.SIDE and ask.side is not None:
             return Say(describe({ask.side: views[ask.side]}))
         return Say(describe(views))

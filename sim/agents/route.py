@@ -15,7 +15,7 @@ from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
 from sim.core.rays import RayObservation
 from sim.language.describe import ahead, at_wall, near, seen
-from sim.language.phrases import Kind, Phrases
+from sim.language.phrases import PhraseKind, Phrases
 from sim.language.vocab import OBJECT_WORDS, wall_name
 
 MAX_PLAN = 400
@@ -50,10 +50,10 @@ class Router:
             k += 1
         run = k - start
         if run == 0:
-            return turn or self.phrases.say(Kind.THERE, thing=thing)
+            return turn or self.phrases.say(PhraseKind.THERE, thing=thing)
         words = [turn] if turn else []
         if k == len(actions) and not plain and self._walk_ends(poses[start], label) == run:
-            return ", ".join([*words, self.phrases.say(Kind.UNTIL_TARGET, thing=thing)])
+            return ", ".join([*words, self.phrases.say(PhraseKind.UNTIL_TARGET, thing=thing)])
         after = 0
         while k < len(actions) and actions[k] != Action.FORWARD:
             after += 1 if actions[k] == Action.LEFT else -1
@@ -66,11 +66,11 @@ class Router:
             # reads as the thing to find ("... at the ping-pong paddle": the Driver claims it).
             if front in WALL_LABELS and any(s.label == front for s in seen(self.view(poses[start]))):
                 return ", then ".join(
-                    [*words, self.phrases.say(Kind.TURN_AT_WALL, turn=next_turn, wall=wall_name(front))]
+                    [*words, self.phrases.say(PhraseKind.TURN_AT_WALL, turn=next_turn, wall=wall_name(front))]
                 )
         if next_turn:
-            return ", then ".join([*words, self.phrases.say(Kind.FORWARD_THEN_TURN, n=run, turn=next_turn)])
-        return ", then ".join([*words, self.phrases.say(Kind.FORWARD, n=run)])
+            return ", then ".join([*words, self.phrases.say(PhraseKind.FORWARD_THEN_TURN, n=run, turn=next_turn)])
+        return ", then ".join([*words, self.phrases.say(PhraseKind.FORWARD, n=run)])
 
     def plan(self, start: Pose, goal: int) -> tuple[list[Action], list[Pose]]:
         """Fewest moves (turns count) to the goal node, forward first among equals: straight runs

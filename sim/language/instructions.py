@@ -17,7 +17,7 @@ from sim.core.labels import OBJECT_LABELS, Label
 from sim.language.vocab import LABEL_WORDS, ORDINAL_WORDS, SHARP_WORDS, SLIGHT_WORDS, Side, number, words
 
 
-class Question(StrEnum):
+class AskedAbout(StrEnum):
     VIEW = "view"  # what do you see?
     SIDE = "side"  # what is on your left?
     IS_THERE = "is_there"  # is there a red wall ahead?
@@ -54,7 +54,7 @@ class Target:
 
 @dataclass(frozen=True)
 class Ask:
-    question: Question
+    question: AskedAbout
     side: Side | None = None
     label: Label | None = None
     look_around: bool = False  # "look around and tell me"
@@ -156,10 +156,10 @@ def _question(text: str, ws: list[str]) -> Ask:
     labels = _labels(ws)
     side = _side([w for w in ws if w not in ("forward",)])
     if labels and re.search(r"^(is|are|do|does|can|any)\b|\bsee (?:a|any|the)\b|\?$", text):
-        return Ask(Question.IS_THERE, side, labels[0], look)
+        return Ask(AskedAbout.IS_THERE, side, labels[0], look)
     if side is not None and re.search(r"\b(what|whats|anything|describe)\b", text) and not look:
-        return Ask(Question.SIDE, side)
-    return Ask(Question.VIEW, None, None, look)
+        return Ask(AskedAbout.SIDE, side)
+    return Ask(AskedAbout.VIEW, None, None, look)
 
 
 def _clause(text: str, prev: Instruction | None) -> list[Instruction]:
@@ -198,7 +198,7 @@ def _clause(text: str, prev: Instruction | None) -> list[Instruction]:
         return [Target(objects[0])]
     if labels and not objects and _EXPECT.search(text):
         # "you should have blue walls on your right": a check of the view, answered like a question
-        return [Ask(Question.IS_THERE, _side(ws) or Side.AHEAD, labels[0])]
+        return [Ask(AskedAbout.IS_THERE, _side(ws) or Side.AHEAD, labels[0])]
     if _UTURN.search(text):
         return [Turn(4)]
     opening = re.search(r"\b(first|second|third|fourth|fifth|next) (left|right)\b", text)
@@ -238,7 +238,7 @@ def parse(message: str) -> Parsed:
     if _QUESTION.search(text) and not _CLAIM.search(" ".join(words(text))):
         ask = _question(" ".join(words(text)), words(text))
         moves: list[Instruction] = []
-        if ask.question == Question.VIEW and _UTURN.search(text) and not ask.look_around:
+        if ask.question == AskedAbout.VIEW and _UTURN.search(text) and not ask.look_around:
             moves.append(Turn(4))
         return Parsed(tuple(moves) + (ask,))
     out: list[Instruction] = []

@@ -20,7 +20,7 @@ from sim.language.sectors import SECTOR_HEADING_OFFSET, SECTOR_WORDS, Sector
 from sim.language.vocab import LABEL_WORDS, correct
 
 
-class Kind(str, Enum):
+class ViewKind(str, Enum):
     LABEL = "label"  # the label is seen in the sectors
     EDGE = "edge"  # the maze's edge (the table's white border) is seen in the sectors
     CORRIDOR = "corridor"  # open space: the sector's rays travel far
@@ -42,7 +42,7 @@ class Source(str, Enum):
 
 @dataclass(frozen=True)
 class Fact:
-    kind: Kind
+    kind: ViewKind
     sectors: tuple[Sector, ...]  # alternatives ("ahead to the right"); (ANY,) when none named
     label: Label | None = None
     other: Label | None = None  # the second label of NEXT_TO
@@ -52,7 +52,7 @@ class Fact:
 
 
 @dataclass(frozen=True)
-class Question:
+class QuestionFacts:
     facts: tuple[Fact, ...]
     labels: tuple[Label, ...]  # in order of mention
     sectors: tuple[Sector, ...]
@@ -214,7 +214,7 @@ def _label_facts(piece: _Piece, distance: Distance) -> list[Fact]:
             groups = [(s,) for s in dict.fromkeys(sectors)]
         else:
             groups = [tuple(dict.fromkeys(sectors))]
-        kind = Kind.EDGE if label == Label.WHITE and EDGE_WORDS & set(words[k : k + 3]) else Kind.LABEL
+        kind = ViewKind.EDGE if label == Label.WHITE and EDGE_WORDS & set(words[k : k + 3]) else ViewKind.LABEL
         out += [Fact(kind, g, label, distance=distance, negated=negated) for g in groups]
     return out
 
@@ -224,11 +224,11 @@ def _shape_facts(piece: _Piece, sectors: tuple[Sector, ...]) -> list[Fact]:
     negated = bool(_negations(words))
     out = []
     if _has(words, DEAD_END):
-        out.append(Fact(Kind.DEAD_END, (Sector.FRONT,), negated=negated))
+        out.append(Fact(ViewKind.DEAD_END, (Sector.FRONT,), negated=negated))
     elif any(w in CORRIDOR_WORDS for w in words) and not _has(words, ("no", "way")):
-        out.append(Fact(Kind.CORRIDOR, sectors if sectors != (Sector.ANY,) else (Sector.FRONT,), negated=negated))
+        out.append(Fact(ViewKind.CORRIDOR, sectors if sectors != (Sector.ANY,) else (Sector.FRONT,), negated=negated))
     if any(w in CORNER_WORDS for w in words):
-        out.append(Fact(Kind.CORNER, (Sector.FRONT,), negated=negated))
+        out.append(Fact(ViewKind.CORNER, (Sector.FRONT,), negated=negated))
     return out
 
 
@@ -249,7 +249,7 @@ def _relation_facts(words: list[str], sectors: tuple[Sector, ...]) -> list[Fact]
         else:
             continue
         if len(pair) == 2 and pair[0] != pair[1]:
-            out.append(Fact(Kind.NEXT_TO, sectors, pair[0], pair[1]))
+            out.append(Fact(ViewKind.NEXT_TO, sectors, pair[0], pair[1]))
     return out
 
 
@@ -305,12 +305,12 @@ def is_question(text: str) -> bool:
     return text.strip().endswith("?") or bool(words and words[0] in _QUESTION_START)
 
 
-def question(text: str) -> Question:
+def question(text: str) -> QuestionFacts:
     """A Commander's question as the Driver would state its content ("your" read as "my")."""
     mine = " ".join("my" if w == "your" else w for w in re.findall(r"[^\s]+", text.lower()))
     asked = tuple(replace(f, source=Source.ANSWER) for f in facts(mine))
     words = tokens(mine)
-    return Question(
+    return QuestionFacts(
         facts=asked,
         labels=tuple(label for _, label in _labels(words)),
         sectors=tuple(dict.fromkeys(s for _, s in _sectors(words))),
@@ -319,7 +319,7 @@ def question(text: str) -> Question:
     )
 
 
-def answer(q: Question, text: str) -> list[Fact]:
+def answer(q: QuestionFacts, text: str) -> list[Fact]:
     """The facts a Driver's reply to `q` states: the question's own facts on "yes", each of them
     negated on "no" (pairs side by side left out: either label may be the one missing), and
     for a reply naming only a side ("left") or only a label ("the edge") the question's first
@@ -331,11 +331,11 @@ def answer(q: Question, text: str) -> list[Fact]:
     if not q.choice and words[0] in YES and q.facts:
         return [*q.facts, *own]
     if not q.choice and words[0] in NO and q.facts:
-        return [replace(f, negated=not f.negated) for f in q.facts if f.kind != Kind.NEXT_TO] + own
+        return [replace(f, negated=not f.negated) for f in q.facts if f.kind != ViewKind.NEXT_TO] + own
     sectors = tuple(dict.fromkeys(s for _, s in _sectors(words)))
     labels = [label for _, label in _labels(words)]
     if sectors and not labels and q.labels:
-        return [Fact(Kind.LABEL, (s,), q.labels[0], source=Source.ANSWER) for s in sectors] + own
+        return [Fact(ViewKind.LABEL, (s,), q.labels[0], source=Source.ANSWER) for s in sectors] + own
     if labels and not sectors and len(q.sectors) == 1:
         return [replace(f, sectors=q.sectors, source=Source.ANSWER) if f.sectors == (Sector.ANY,) else f for f in own]
     return own

@@ -22,9 +22,9 @@ from sim.language.lexicon import (
     NO,
     Distance,
     Fact,
-    Kind,
-    Question,
+    QuestionFacts,
     Source,
+    ViewKind,
     answer,
     facts,
     is_question,
@@ -118,7 +118,7 @@ def _over(share: np.ndarray, sectors: tuple[Sector, ...]) -> np.ndarray:
 
 def fact_share(fact: Fact, scene: Scene, w: Weights) -> np.ndarray:
     """(N, 8) in [0, 1]: how well each pose bears the fact out (before negation)."""
-    if fact.kind == Kind.LABEL:
+    if fact.kind == ViewKind.LABEL:
         assert fact.label is not None
         near, far = scene.near[..., fact.label], scene.far[..., fact.label]
         if fact.distance == Distance.NEAR:
@@ -128,14 +128,14 @@ def fact_share(fact: Fact, scene: Scene, w: Weights) -> np.ndarray:
         else:
             share = near + w.far_weight * far
         return _over(share, fact.sectors)
-    if fact.kind == Kind.CORRIDOR:
+    if fact.kind == ViewKind.CORRIDOR:
         return _over(scene.open, fact.sectors)
-    if fact.kind == Kind.EDGE:
+    if fact.kind == ViewKind.EDGE:
         return _over(scene.edge, fact.sectors)
     close = scene.close
-    if fact.kind == Kind.CORNER:
+    if fact.kind == ViewKind.CORNER:
         return np.asarray(close[:, :, Sector.FRONT] * np.maximum(close[:, :, Sector.LEFT], close[:, :, Sector.RIGHT]))
-    if fact.kind == Kind.DEAD_END:
+    if fact.kind == ViewKind.DEAD_END:
         return np.asarray(close[:, :, Sector.FRONT] * close[:, :, Sector.LEFT] * close[:, :, Sector.RIGHT])
     assert fact.label is not None and fact.other is not None
     pair = scene.adjacent[..., fact.label, fact.other].astype(np.float32)
@@ -146,17 +146,17 @@ def fact_loglik(fact: Fact, scene: Scene, w: Weights) -> np.ndarray:
     """(N, 8) weighted log-likelihood of one fact at every pose."""
     share = fact_share(fact, scene, w)
     if fact.negated:
-        gain = w.negation_gain if fact.kind == Kind.LABEL else 1.0
+        gain = w.negation_gain if fact.kind == ViewKind.LABEL else 1.0
         loglik = w.negated * np.log(w.floor + np.clip(1.0 - gain * share, 0.0, 1.0))
     else:
         loglik = np.log(w.floor + share)
     weight = {
-        Kind.LABEL: w.label,
-        Kind.EDGE: w.edge,
-        Kind.CORRIDOR: w.corridor,
-        Kind.CORNER: w.corner,
-        Kind.DEAD_END: w.dead_end,
-        Kind.NEXT_TO: w.next_to,
+        ViewKind.LABEL: w.label,
+        ViewKind.EDGE: w.edge,
+        ViewKind.CORRIDOR: w.corridor,
+        ViewKind.CORNER: w.corner,
+        ViewKind.DEAD_END: w.dead_end,
+        ViewKind.NEXT_TO: w.next_to,
     }[fact.kind]
     if fact.source == Source.ANSWER:
         weight *= w.answer
@@ -170,7 +170,7 @@ class Belief:
         self.scene = scene
         self.weights = weights
         self.log = np.where(np.asarray(allowed, dtype=bool)[:, None], 0.0, -np.inf) * np.ones((1, HEADINGS))
-        self._question: Question | None = None
+        self._question: QuestionFacts | None = None
 
     def observe(self, facts: Iterable[Fact]) -> None:
         for fact in facts:

@@ -85,7 +85,7 @@ _SECTOR_SIDE = {
     Sector.BEHIND: "behind",
     Sector.ANY: "any",
 }
-_QUESTION = {ins.Question.VIEW: "view", ins.Question.SIDE: "side", ins.Question.IS_THERE: "is_there"}
+_QUESTION = {ins.AskedAbout.VIEW: "view", ins.AskedAbout.SIDE: "side", ins.AskedAbout.IS_THERE: "is_there"}
 
 
 @dataclass(frozen=True)
@@ -187,22 +187,22 @@ def program_of(parsed: ins.Parsed) -> Program:
 def _forms(fact: lexicon.Fact) -> list[FactForm]:
     sides = [_SECTOR_SIDE[s] for s in fact.sectors]
     match fact.kind:
-        case lexicon.Kind.LABEL if fact.label is not None:
+        case lexicon.ViewKind.LABEL if fact.label is not None:
             return [
                 FactForm.of(
                     FactKind.LABEL, label=fact.label.word, side=side, distance=fact.distance.value, negated=fact.negated
                 )
                 for side in sides
             ]
-        case lexicon.Kind.EDGE:
+        case lexicon.ViewKind.EDGE:
             return [FactForm.of(FactKind.EDGE, side=side, negated=fact.negated) for side in sides]
-        case lexicon.Kind.CORRIDOR if not fact.negated:
+        case lexicon.ViewKind.CORRIDOR if not fact.negated:
             return [FactForm.of(FactKind.CORRIDOR, side=side) for side in sides]
-        case lexicon.Kind.CORNER if not fact.negated:
+        case lexicon.ViewKind.CORNER if not fact.negated:
             return [FactForm.of(FactKind.CORNER, side=side) for side in sides]
-        case lexicon.Kind.DEAD_END if not fact.negated:
+        case lexicon.ViewKind.DEAD_END if not fact.negated:
             return [FactForm.of(FactKind.DEAD_END)]
-        case lexicon.Kind.NEXT_TO if fact.label is not None and fact.other is not None and not fact.negated:
+        case lexicon.ViewKind.NEXT_TO if fact.label is not None and fact.other is not None and not fact.negated:
             first, second = sorted((fact.label.word, fact.other.word))
             return [FactForm.of(FactKind.NEXT_TO, label=first, other=second)]
     return []

@@ -53,7 +53,7 @@ PERSONA_SHA256 = {
 STEP_CM = 7  # a forward move, for the personas that count in centimetres
 
 
-class Kind(StrEnum):
+class PhraseKind(StrEnum):
     ANNOUNCE = "announce"
     ASK_VIEW = "ask_view"
     FORWARD = "forward"
@@ -87,7 +87,7 @@ class Phrasebook:
     and how numbers are written ("digits" or "words"; steps in "cm" for the metric persona)."""
 
     numbers: str
-    kinds: dict[Kind, list[str]]
+    kinds: dict[PhraseKind, list[str]]
     turns: dict[int, list[str]]
     units: str | None = None
 
@@ -96,14 +96,14 @@ class Phrasebook:
         return cls(
             numbers=data["numbers"],
             kinds={
-                Kind.ANNOUNCE: data["announce"],
-                Kind.ASK_VIEW: data["ask_view"],
-                Kind.FORWARD: data["forward"],
-                Kind.FORWARD_THEN_TURN: data["forward_then_turn"],
-                Kind.TURN_AT_WALL: data["turn_at_wall"],
-                Kind.UNTIL_TARGET: data["until_target"],
-                Kind.THERE: data["there"],
-                Kind.REJECT: data["reject"],
+                PhraseKind.ANNOUNCE: data["announce"],
+                PhraseKind.ASK_VIEW: data["ask_view"],
+                PhraseKind.FORWARD: data["forward"],
+                PhraseKind.FORWARD_THEN_TURN: data["forward_then_turn"],
+                PhraseKind.TURN_AT_WALL: data["turn_at_wall"],
+                PhraseKind.UNTIL_TARGET: data["until_target"],
+                PhraseKind.THERE: data["there"],
+                PhraseKind.REJECT: data["reject"],
             },
             turns={int(steps): templates for steps, templates in data["turn"].items()},
             units=data.get("units"),
@@ -113,14 +113,14 @@ class Phrasebook:
 SCRIPTED = Phrasebook(
     numbers="digits",
     kinds={
-        Kind.ANNOUNCE: ["now find the {thing}"],
-        Kind.ASK_VIEW: ["hi! what do you see around you? look around and tell me"],
-        Kind.FORWARD: ["go forward about {n} steps"],
-        Kind.FORWARD_THEN_TURN: ["go forward about {n} steps, then {turn}"],
-        Kind.TURN_AT_WALL: ["{turn} at the {wall}"],
-        Kind.UNTIL_TARGET: ["go forward until you see the {thing}"],
-        Kind.THERE: ["the {thing} should be right there"],
-        Kind.REJECT: ["no, that is not it"],
+        PhraseKind.ANNOUNCE: ["now find the {thing}"],
+        PhraseKind.ASK_VIEW: ["hi! what do you see around you? look around and tell me"],
+        PhraseKind.FORWARD: ["go forward about {n} steps"],
+        PhraseKind.FORWARD_THEN_TURN: ["go forward about {n} steps, then {turn}"],
+        PhraseKind.TURN_AT_WALL: ["{turn} at the {wall}"],
+        PhraseKind.UNTIL_TARGET: ["go forward until you see the {thing}"],
+        PhraseKind.THERE: ["the {thing} should be right there"],
+        PhraseKind.REJECT: ["no, that is not it"],
     },
     turns={1: ["turn slightly {d}"], 2: ["turn {d}"], 3: ["turn sharply {d}"], 4: ["turn around"]},
 )
@@ -169,7 +169,7 @@ class Phrases:
         side = "left" if eighths > 0 else "right"
         return self._pick(self.book.turns[min(abs(eighths), 4)]).format(d=side)
 
-    def say(self, kind: Kind, **slots: str | int) -> str:
+    def say(self, kind: PhraseKind, **slots: str | int) -> str:
         if "n" in slots:
             slots["n"] = self.number(int(slots["n"]))
         return self._pick(self.book.kinds[kind]).format(**slots)

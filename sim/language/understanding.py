@@ -77,7 +77,7 @@ def _side(word: object) -> Side | None:
     return Side(word) if isinstance(word, str) and word in ("ahead", "left", "right", "behind") else None
 
 
-_QUESTION = {"view": ins.Question.VIEW, "side": ins.Question.SIDE, "is_there": ins.Question.IS_THERE}
+_QUESTION = {"view": ins.AskedAbout.VIEW, "side": ins.AskedAbout.SIDE, "is_there": ins.AskedAbout.IS_THERE}
 
 
 def instructions(program: Program, text: str) -> list[ins.Instruction]:
@@ -116,7 +116,7 @@ def instructions(program: Program, text: str) -> list[ins.Instruction]:
                 question = str(args["question"])
                 out.append(
                     ins.Ask(
-                        _QUESTION.get(question, ins.Question.VIEW),
+                        _QUESTION.get(question, ins.AskedAbout.VIEW),
                         _side(args["side"]),
                         _label(args["label"]),
                         # Looking all around is eight scored moves: only when the words ask for it.
@@ -150,19 +150,19 @@ def belief_facts(facts: frozenset[FactForm]) -> list[lexicon.Fact]:
                 label = _label(f["label"])
                 if label is not None:
                     distance = lexicon.Distance(str(f["distance"]))
-                    out.append(lexicon.Fact(lexicon.Kind.LABEL, sectors, label, None, distance, bool(f["negated"])))
+                    out.append(lexicon.Fact(lexicon.ViewKind.LABEL, sectors, label, None, distance, bool(f["negated"])))
             case FactKind.EDGE:
-                out.append(lexicon.Fact(lexicon.Kind.EDGE, sectors, negated=bool(f["negated"])))
+                out.append(lexicon.Fact(lexicon.ViewKind.EDGE, sectors, negated=bool(f["negated"])))
             case FactKind.CORRIDOR:
-                out.append(lexicon.Fact(lexicon.Kind.CORRIDOR, sectors))
+                out.append(lexicon.Fact(lexicon.ViewKind.CORRIDOR, sectors))
             case FactKind.CORNER:
-                out.append(lexicon.Fact(lexicon.Kind.CORNER, sectors))
+                out.append(lexicon.Fact(lexicon.ViewKind.CORNER, sectors))
             case FactKind.DEAD_END:
-                out.append(lexicon.Fact(lexicon.Kind.DEAD_END, (Sector.FRONT,)))
+                out.append(lexicon.Fact(lexicon.ViewKind.DEAD_END, (Sector.FRONT,)))
             case FactKind.NEXT_TO:
                 first, second = _label(f["label"]), _label(f["other"])
                 if first is not None and second is not None:
-                    out.append(lexicon.Fact(lexicon.Kind.NEXT_TO, (Sector.ANY,), first, second))
+                    out.append(lexicon.Fact(lexicon.ViewKind.NEXT_TO, (Sector.ANY,), first, second))
     return out
 
 

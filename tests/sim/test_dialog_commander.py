@@ -81,7 +81,7 @@ def test_it_asks_the_question_that_splits_its_belief(world):
     turns = commander.perceive(Heard(Role.DRIVER, "i see a white wall"))  # true almost anywhere
     question = next(t for t in turns if isinstance(t, Say)).text
     asked = ins.parse(question).instructions[0]
-    assert isinstance(asked, ins.Ask) and asked.question == ins.Question.IS_THERE, question
+    assert isinstance(asked, ins.Ask) and asked.question == ins.AskedAbout.IS_THERE, question
     assert asked.label is not None and asked.side is not None
     log = commander.belief.node_logits()
     p = np.exp(log - log.max())

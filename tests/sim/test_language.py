@@ -8,10 +8,10 @@ from sim.core.rays import RayObservation
 from sim.language.describe import describe
 from sim.language.instructions import (
     Ask,
+    AskedAbout,
     Forward,
     GoBack,
     Place,
-    Question,
     Stop,
     TakeOpening,
     Target,
@@ -38,7 +38,7 @@ def test_acknowledgements_ask_nothing_and_expectations_are_checked():
     assert parse("Got it").instructions == () and not parse("Got it").unclear
     assert parse("now the  mug").instructions == (Target(Label.MUG),)
     assert parse("You should then have red on your left and blue on your right").instructions[0] == Ask(
-        Question.IS_THERE, Side.LEFT, Label.RED
+        AskedAbout.IS_THERE, Side.LEFT, Label.RED
     )
 
 
@@ -76,10 +76,10 @@ def test_targets_questions_and_claim_cues():
     assert parse("Your second objective is a black  coffee-mug").instructions == (Target(Label.MUG),)
     assert parse("The  jar will be on your left").instructions == (Target(Label.JAR, Side.LEFT),)
     assert parse("Is there a blue wall on your right?").instructions == (
-        Ask(Question.IS_THERE, Side.RIGHT, Label.BLUE),
+        Ask(AskedAbout.IS_THERE, Side.RIGHT, Label.BLUE),
     )
-    assert parse("Describe your surroundings.").instructions == (Ask(Question.VIEW),)
-    assert parse("what is on your left?").instructions == (Ask(Question.SIDE, Side.LEFT),)
+    assert parse("Describe your surroundings.").instructions == (Ask(AskedAbout.VIEW),)
+    assert parse("what is on your left?").instructions == (Ask(AskedAbout.SIDE, Side.LEFT),)
     assert parse("stop, you are there").instructions == (Stop(claim=True),)
     assert parse("wibble wobble").unclear
 

@@ -15,7 +15,7 @@ from sim.core.labels import Label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
-from sim.language.lexicon import Fact, Kind, Source, answer, facts, question, turn_steps
+from sim.language.lexicon import Fact, Source, ViewKind, answer, facts, question, turn_steps
 from sim.language.localizer import Belief, Scene
 from sim.language.sectors import Sector
 from sim.tasks.ldh_eval import MazeContext
@@ -27,7 +27,11 @@ F, L, B, R, ANY = Sector.FRONT, Sector.LEFT, Sector.BEHIND, Sector.RIGHT, Sector
 
 def seen(facts: list[Fact]) -> set[tuple[tuple[Sector, ...], Label, bool]]:
     """The label and edge facts as (sectors, label, negated); the edge's label is white."""
-    return {(f.sectors, f.label, f.negated) for f in facts if f.kind in (Kind.LABEL, Kind.EDGE) and f.label is not None}
+    return {
+        (f.sectors, f.label, f.negated)
+        for f in facts
+        if f.kind in (ViewKind.LABEL, ViewKind.EDGE) and f.label is not None
+    }
 
 
 def test_every_direction_word_counts():
@@ -57,9 +61,9 @@ def test_the_edge_of_the_maze_is_the_tables_border_not_any_white_wall():
     kinds = {
         f.kind: f for f in facts("I'm facing blue walls, with a white wall on my left and the edge of maze on my right")
     }
-    assert kinds[Kind.EDGE].sectors == (R,) and kinds[Kind.EDGE].label == Label.WHITE
+    assert kinds[ViewKind.EDGE].sectors == (R,) and kinds[ViewKind.EDGE].label == Label.WHITE
     assert ((L,), Label.WHITE, False) in {(f.sectors, f.label, f.negated) for f in facts("white wall to my left")}
-    assert facts("the end of the maze which is white")[0].kind == Kind.EDGE
+    assert facts("the end of the maze which is white")[0].kind == ViewKind.EDGE
 
 
 def test_near_and_far():
@@ -72,29 +76,33 @@ def test_near_and_far():
 def test_negation():
     got = facts("i dont see a opening with yellow on right and white on left")
     assert ((R,), Label.YELLOW, True) in seen(got)
-    assert any(f.kind == Kind.CORRIDOR and f.negated for f in got)
+    assert any(f.kind == ViewKind.CORRIDOR and f.negated for f in got)
     # an answering "no" before a statement negates nothing
     got = facts("no there is a red dead end")
     assert seen(got) == {((ANY,), Label.RED, False)}
-    assert [f.kind for f in got if f.kind != Kind.LABEL] == [Kind.DEAD_END]
+    assert [f.kind for f in got if f.kind != ViewKind.LABEL] == [ViewKind.DEAD_END]
     assert seen(facts("no red wall")) == {((ANY,), Label.RED, True)}
 
 
 def test_relations_and_shapes():
     got = facts("a yellow wall directly in front of me and a red wall next to it")
-    assert [(f.label, f.other) for f in got if f.kind == Kind.NEXT_TO] == [(Label.YELLOW, Label.RED)]
+    assert [(f.label, f.other) for f in got if f.kind == ViewKind.NEXT_TO] == [(Label.YELLOW, Label.RED)]
     got = facts("i am now facing the red and yellow corner")
-    assert {(f.kind, f.label, f.other) for f in got if f.kind != Kind.LABEL} == {
-        (Kind.NEXT_TO, Label.RED, Label.YELLOW),
-        (Kind.CORNER, None, None),
+    assert {(f.kind, f.label, f.other) for f in got if f.kind != ViewKind.LABEL} == {
+        (ViewKind.NEXT_TO, Label.RED, Label.YELLOW),
+        (ViewKind.CORNER, None, None),
     }
     got = facts("I see a gap between a blue and white wall with a brown wall at the end of it")
-    assert (Kind.NEXT_TO, Label.BLUE, Label.WHITE) in {(f.kind, f.label, f.other) for f in got}
-    assert any(f.kind == Kind.CORRIDOR for f in got)
+    assert (ViewKind.NEXT_TO, Label.BLUE, Label.WHITE) in {(f.kind, f.label, f.other) for f in got}
+    assert any(f.kind == ViewKind.CORRIDOR for f in got)
     assert ((ANY,), Label.BROWN, False) in seen(got)
-    corridor = [f for f in facts("my left is a long corridor with a brown wall at the end") if f.kind == Kind.CORRIDOR]
+    corridor = [
+        f for f in facts("my left is a long corridor with a brown wall at the end") if f.kind == ViewKind.CORRIDOR
+    ]
     assert [f.sectors for f in corridor] == [(L,)]
-    assert [f.kind for f in facts("yellow wall to my left and white dead end in front of me")].count(Kind.DEAD_END) == 1
+    assert [f.kind for f in facts("yellow wall to my left and white dead end in front of me")].count(
+        ViewKind.DEAD_END
+    ) == 1
 
 
 def test_yes_and_no_answers_to_the_commanders_questions():

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from sim.language import phrases
-from sim.language.phrases import Kind, Persona, Phrases
+from sim.language.phrases import Persona, PhraseKind, Phrases
 
 SLOTS = {"thing": "coffee mug", "n": 3, "turn": "turn left", "wall": "red wall"}
 
@@ -14,7 +14,7 @@ SLOTS = {"thing": "coffee mug", "n": 3, "turn": "turn left", "wall": "red wall"}
 def test_each_persona_says_every_instruction_in_full(persona):
     said = Phrases(persona, seed=1)
     for _ in range(8):  # several draws: every template of a kind is reached
-        for kind in Kind:
+        for kind in PhraseKind:
             text = said.say(kind, **SLOTS)
             assert text and "{" not in text and "}" not in text
         for eighths in (1, 2, 3, 4, -1, -2, -3):
@@ -24,7 +24,7 @@ def test_each_persona_says_every_instruction_in_full(persona):
 
 def test_the_metric_persona_counts_centimetres():
     assert Phrases(Persona.METRIC).number(3) == "21"
-    assert "21" in Phrases(Persona.METRIC).say(Kind.FORWARD, n=3)
+    assert "21" in Phrases(Persona.METRIC).say(PhraseKind.FORWARD, n=3)
 
 
 def test_an_edited_persona_is_refused(tmp_path, monkeypatch):
