@@ -30,14 +30,42 @@ def serve(
         1, min=1, help="Server processes sharing trials (over 1: needs ROBOTSLANG_REDIS_URL; see docs/platform.md)."
     ),
 ) -> None:
-    """Serve the platform (pages, trial sockets) on HOST:PORT."""
-    from app.serving import serve_processes
+    """Serve the platform (pages, trial sockets) on HOST:PORT: one process (`make run`: SQLite, no
+    Redis), or `workers` processes sharing one listening socket; they share trials through Redis
+    and one database (`app.trial.relay`), each trial run by one process at a time."""
+    import os
 
-    # Flags override the environment; what is not given keeps its ROBOTSLANG_* value.
-    overrides: dict[str, Path] = {
+    import uvicorn
+
+    from app.main import create_app
+    from app.serving import uvicorn_options
+    from app.settings import Settings
+
+    # Flags override the environment (in every worker too); what is not given keeps its ROBOTSLANG_* value.
+    overrides: dict[str, Any] = {
         name: value for name, value in (("data_dir", data_dir), ("benchmark", benchmark)) if value is not None
     }
-    serve_processes(host, port, workers, overrides)
+    settings = Settings(**overrides)
+    if "FORWARDED_ALLOW_IPS" in os.environ:
+        raise typer.BadParameter(
+            "FORWARDED_ALLOW_IPS is not read: name the proxies in ROBOTSLANG_TRUSTED_PROXIES (addresses or networks)"
+        )
+    for name, value in overrides.items():  # each worker reads its settings from the environment
+        os.environ[f"ROBOTSLANG_{name.upper()}"] = str(value)
+    if workers > 1 and not settings.redis_url:
+        raise typer.BadParameter(
+            "several workers share trials through Redis: set ROBOTSLANG_REDIS_URL", param_hint="--workers"
+        )
+    typer.echo(
+        f"RobotSlang on http://{host}:{port} (data in {settings.data_dir.resolve()}"
+        f"{f', {workers} processes' if workers > 1 else ''})"
+    )
+    options = {"host": host, "port": port, "log_level": "warning", **uvicorn_options(settings)}
+    if workers == 1:
+        uvicorn.run(create_app(settings), **options)
+    else:  # each worker builds its own app from the same environment
+        create_app(settings)  # upgrade the database once, before the workers race to
+        uvicorn.run("app.main:create_app", factory=True, workers=workers, **options)
 
 
 def mazes_prepare(

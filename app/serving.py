@@ -73,38 +73,3 @@ def settle_collector() -> None:
         return
     gc.collect()
     gc.freeze()
-
-
-def serve_processes(host: str, port: int, workers: int, overrides: dict[str, Any]) -> None:
-    """`robotslang serve`: one process (`make run`: SQLite, no Redis), or `workers` processes
-    sharing one listening socket; they share trials through Redis and one database
-    (`app.trial.relay`), each trial run by one process at a time. `overrides` (the command's
-    flags) win over the environment, in every worker too."""
-    import os
-
-    import typer
-    import uvicorn
-
-    from app.main import create_app
-
-    settings = Settings(**overrides)
-    if "FORWARDED_ALLOW_IPS" in os.environ:
-        raise typer.BadParameter(
-            "FORWARDED_ALLOW_IPS is not read: name the proxies in ROBOTSLANG_TRUSTED_PROXIES (addresses or networks)"
-        )
-    for name, value in overrides.items():  # each worker reads its settings from the environment
-        os.environ[f"ROBOTSLANG_{name.upper()}"] = str(value)
-    if workers > 1 and not settings.redis_url:
-        raise typer.BadParameter(
-            "several workers share trials through Redis: set ROBOTSLANG_REDIS_URL", param_hint="--workers"
-        )
-    typer.echo(
-        f"RobotSlang on http://{host}:{port} (data in {settings.data_dir.resolve()}"
-        f"{f', {workers} processes' if workers > 1 else ''})"
-    )
-    options = {"host": host, "port": port, "log_level": "warning", **uvicorn_options(settings)}
-    if workers == 1:
-        uvicorn.run(create_app(settings), **options)
-    else:  # each worker builds its own app from the same environment
-        create_app(settings)  # upgrade the database once, before the workers race to
-        uvicorn.run("app.main:create_app", factory=True, workers=workers, **options)

@@ -13,8 +13,9 @@ import numpy as np
 
 from models.tokenizer import Tokenizer
 from sim.core.labels import object_label
-from sim.core.world import EpisodeGeometry, World
+from sim.core.world import World
 from sim.tasks.benchmark import Benchmark, NDHInstance
+from sim.tasks.episode_geometry import EpisodeGeometry
 
 
 @dataclass

@@ -1,6 +1,6 @@
 """`SimulatorBackend`: the replay simulator in the robot seat.
 
-Moves go through the graph's `sim.core.stepper.Moves`, the simulator's one stepper (0.07 m
+Moves go through the graph's `sim.core.moves.Moves`, the simulator's one stepper (0.07 m
 forward, 45 degree turns, a collision leaves the robot where it was); after each move the
 first-person render of the new pose is the camera frame, drawn by the server's `FrameRenderer`
 (`app.backends.render`: in processes of their own by default). Poses are discrete (a graph node and one of eight headings), so

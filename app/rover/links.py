@@ -11,7 +11,7 @@ import asyncio
 import time
 from collections import deque
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session, sessionmaker
@@ -22,9 +22,6 @@ from app.db.models import Robot
 from robot_client.protocol import FrameHeader
 from sim.trial.specs import BackendSpec
 from sim.trial.vocabulary import Move, Role
-
-if TYPE_CHECKING:
-    from app.rover.backend import RemoteRobotBackend
 
 PING_INTERVAL_S = 0.1  # well under the rover's 0.5 s watchdog, so a live link never trips it
 MAX_FRAME_BYTES = 1024 * 1024  # a 1280x720 JPEG at quality 95 is about 300 KB
@@ -210,6 +207,18 @@ class FrameSlot:
 
 
 # -- all robots of this server ------------------------------------------------------
+class RobotTrialLink(Protocol):
+    """A live trial on a robot (its backend), as the links tell it what its robot sends."""
+
+    def link_up(self, link: RobotLink) -> None: ...
+
+    def link_down(self, link: RobotLink) -> None: ...
+
+    def record_overhead(self, frame: Frame) -> None: ...
+
+    def record_bad_message(self, role: Role, error: str) -> None: ...
+
+
 class RobotLinks:
     """Connected robots by id, the trials that use them, and the dashboard's view of both."""
 
@@ -217,7 +226,7 @@ class RobotLinks:
         self.db = db  # the registered robots, for the dashboard
         self.links: dict[int, RobotLink] = {}
         self.slots: dict[int, FrameSlot] = {}
-        self.backends: dict[int, set[RemoteRobotBackend]] = {}
+        self.backends: dict[int, set[RobotTrialLink]] = {}
         self._stamps: dict[int, int] = {}  # robot id -> last capture stamp of its links that are gone
 
     def slot(self, robot_id: int) -> FrameSlot:
@@ -254,7 +263,7 @@ class RobotLinks:
         for backend in list(self.backends.get(link.robot_id, ())):
             backend.link_down(link)
 
-    def trials_of(self, link: RobotLink) -> list[RemoteRobotBackend]:
+    def trials_of(self, link: RobotLink) -> list[RobotTrialLink]:
         """The backends (one per live trial) a link's data belongs to: a rover's own trials, or,
         for the overhead camera over the table, every trial on a real robot."""
         if link.role == Role.DRIVER:

@@ -30,7 +30,7 @@ import os
 import socket
 import threading
 import uuid
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any, Protocol, cast
 
 from app.trial import messages as m
 from app.trial.messages import Message, SeatMessage, TrialSnapshot
@@ -41,7 +41,6 @@ if TYPE_CHECKING:
     from redis import Redis
 
     from app.settings import Settings
-    from app.trial.hub import TrialHub
     from app.trial.port import Connection
     from app.trial.runtime import TrialRuntime
 
@@ -68,8 +67,18 @@ def _channel(process: str) -> str:
     return f"robotslang:process:{process}"
 
 
+class LocalTrials(Protocol):
+    """The trials this process runs, as the relay reaches them (the hub, passed in)."""
+
+    def live(self) -> list[TrialRuntime]: ...
+
+    def peek(self, trial_id: int) -> TrialRuntime | None: ...
+
+    async def local(self, trial_id: int) -> TrialRuntime: ...
+
+
 class RedisRelay:
-    def __init__(self, hub: TrialHub, url: str, settings: Settings) -> None:
+    def __init__(self, hub: LocalTrials, url: str, settings: Settings) -> None:
         import redis.asyncio as redis
 
         self.hub, self.settings = hub, settings

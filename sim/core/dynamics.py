@@ -2,7 +2,7 @@
 
 A pose is a node and a heading index (k * 45 degrees, counter-clockwise from +x). What a move
 does (0.07 m straight or 0.099 m diagonal forward, a 45 degree turn, a forward into a wall a
-collision that leaves the pose) is said once, in `sim.core.stepper.Moves`, and every consumer
+collision that leaves the pose) is said once, in `sim.core.moves.Moves`, and every consumer
 steps through it: `graph.moves.step(pose, action)` a pose at a time, `BatchStepper` a batch.
 The teacher is one rule too, `shortest_actions`, whichever table the next hops come from.
 """
@@ -12,17 +12,13 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass
 from enum import IntEnum
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from robot_client.protocol import Move
 from sim.core.geometry import HEADING_DI, HEADING_DJ, HEADINGS, heading_angle, heading_index
-
-if TYPE_CHECKING:  # both import this module at run time
-    from sim.core.navgraph import NavGraph
-    from sim.core.stepper import Moves
 
 
 class Action(IntEnum):
@@ -61,12 +57,35 @@ class Pose:
         yield self.heading
 
 
-def snap_pose(graph: NavGraph, x: float, y: float, theta: float = 0.0) -> Pose:
+class NodeSpace(Protocol):
+    """Where the nodes are: a maze's graph (`sim.core.navgraph.NavGraph`) or its moves table
+    (`sim.core.moves.Moves`), both built on the actions and poses here."""
+
+    @property
+    def nodes(self) -> np.ndarray:
+        """(N, 2) positions, metres."""
+
+
+class Routes(NodeSpace, Protocol):
+    """What snapping and the teacher read of a maze's graph (`NavGraph`)."""
+
+    @property
+    def node_ij(self) -> np.ndarray:
+        """(N, 2) grid indices."""
+
+    @property
+    def next_hop(self) -> np.ndarray:
+        """(N, N) next node from i toward j; -1 where no path."""
+
+    def nearest_node(self, x: float, y: float) -> int: ...
+
+
+def snap_pose(graph: Routes, x: float, y: float, theta: float = 0.0) -> Pose:
     """The nearest navigable node and the nearest multiple of 45 degrees."""
     return Pose(graph.nearest_node(x, y), heading_index(theta))
 
 
-def continuous_pose(graph: NavGraph | Moves, pose: Pose) -> tuple[float, float, float]:
+def continuous_pose(graph: NodeSpace, pose: Pose) -> tuple[float, float, float]:
     """A grid pose as (x, y, theta): its node's centre in metres and its heading's angle."""
     x, y = graph.nodes[pose.node]
     return float(x), float(y), float(heading_angle(pose.heading))
@@ -77,13 +96,13 @@ _STEP_HEADING = np.full((3, 3), -1, dtype=np.int64)
 _STEP_HEADING[HEADING_DI + 1, HEADING_DJ + 1] = np.arange(HEADINGS)
 
 
-def teacher_actions(graph: NavGraph, nodes: ArrayLike, headings: ArrayLike, goals: ArrayLike) -> np.ndarray:
+def teacher_actions(graph: Routes, nodes: ArrayLike, headings: ArrayLike, goals: ArrayLike) -> np.ndarray:
     """Shortest-path actions for arrays of poses and goal nodes on `graph`."""
     at, facing, goal = (np.asarray(a, dtype=np.int64) for a in (nodes, headings, goals))
     return shortest_actions(graph.node_ij, at, facing, goal, graph.next_hop[at, goal])
 
 
-def teacher_action(graph: NavGraph, pose: Pose, goal_node: int) -> Action:
+def teacher_action(graph: Routes, pose: Pose, goal_node: int) -> Action:
     return Action(int(teacher_actions(graph, [pose.node], [pose.heading], [goal_node])[0]))
 
 

@@ -40,7 +40,7 @@ from sim.core.geometry import (
     world_to_pixel,
 )
 from sim.core.maze import Maze
-from sim.core.stepper import Moves
+from sim.core.moves import Moves
 
 MODES = ("benchmark", "exact")
 WALL_CLEARANCE_PX = int(round(MAP_WIDTH_PX / TABLE_WIDTH_M * GRID_STEP_M))  # 40

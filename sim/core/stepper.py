@@ -1,11 +1,6 @@
-"""The simulator core: the move rules, once, and the two ways they are stepped.
+"""The two ways the move rules are stepped.
 
-`Moves` is what each action does from each pose of a node space, tabulated: per slot (a pose,
-`8 * node + heading`) and action, the slot reached, the metres moved and whether it was a
-collision. Its `compile` is the only statement of the rules in the project: a forward goes to the
-neighbouring grid point along the heading (the graph's `forward` table), and where that point is
-not navigable it is a collision that leaves the pose; left and right turn by 45 degrees (left
-counter-clockwise); stop stays. Every consumer steps through such a table:
+The move rules are said once, in `sim.core.moves.Moves` (a table per node space). Every consumer steps through such a table:
 
 - a pose at a time, `graph.moves.step(pose, action)` (`NavGraph.moves`, compiled once per graph):
   the live simulator seat, the demo's players, `sim play`, the benchmark's start protocol, offline
@@ -33,79 +28,22 @@ teacher is `sim.core.dynamics.shortest_actions`, the same rule as the graph's te
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import ArrayLike, DTypeLike
+from numpy.typing import ArrayLike
 
-from sim.core.dynamics import Action, Pose, shortest_actions
+from sim.core.dynamics import Action, shortest_actions
 from sim.core.geometry import HEADINGS
+from sim.core.moves import ACTIONS, ENTRY_LOW, MAX_LENGTHS, SLOT_SHIFT
 
 if TYPE_CHECKING:
     from sim.core.world import World
 
-ACTIONS = len(Action)
 _FORWARD, _STOP = int(Action.FORWARD), int(Action.STOP)  # plain ints: a member look-up costs a microsecond a step
 _MOVE_ACTIONS = np.arange(_STOP, dtype=np.int64)  # forward, left, right
-# A `Moves.table` entry: the slot reached << 6 | the index of the metres moved in `lengths` << 1 | collided.
-_SLOT_SHIFT, _LOW, _MAX_LENGTHS = 6, 63, 32
-# Heading change per action: forward 0, left +1, right -1, stop 0.
-_TURN = np.array([0, 1, -1, 0], dtype=np.int64)
 
 MAX_EPISODE_ACTIONS = 120  # the benchmark's cap on a Driver episode's moves
-
-
-@dataclass(frozen=True, eq=False)
-class Moves:
-    """The rules tabulated over a node space: one maze's graph (`NavGraph.moves`) or a world's."""
-
-    nodes: np.ndarray  # (N, 2) positions, metres
-    table: np.ndarray  # (N * 8 * 4,) the entry of action a from slot s at 4 s + a
-    lengths: np.ndarray  # (L <= 32,) the distinct metres of a move, ascending
-
-    @classmethod
-    def compile(cls, nodes: np.ndarray, forward: np.ndarray, dtype: DTypeLike = np.int64) -> Moves:
-        """The rules for every pose: `forward` (N, 8) is the node a forward move reaches per heading,
-        -1 where that grid point is not navigable. A world's table is int64 (numpy's index type):
-        the batch indexes with its entries, and an int32 table cost a conversion per look-up. A
-        graph's (`NavGraph.moves`) is int32: half the memory a live trial holds, and a single
-        pose's look-up converts nothing."""
-        if len(nodes) * HEADINGS << _SLOT_SHIFT > np.iinfo(dtype).max:
-            raise ValueError(f"{len(nodes)} nodes: too many for a {np.dtype(dtype)} moves table")
-        slot = np.arange(len(nodes) * HEADINGS)
-        node, heading = slot // HEADINGS, slot % HEADINGS
-        ahead = np.asarray(forward).reshape(-1)
-        reached = np.empty((slot.size, ACTIONS), dtype=np.int64)
-        reached[:, _FORWARD] = np.where(ahead >= 0, ahead * HEADINGS + heading, slot)  # a collision stays
-        for a in (Action.LEFT, Action.RIGHT, Action.STOP):
-            reached[:, a] = node * HEADINGS + (heading + _TURN[a]) % HEADINGS
-        collided = np.zeros((slot.size, ACTIONS), dtype=np.int64)
-        collided[:, _FORWARD] = ahead < 0
-        metres = np.zeros((slot.size, ACTIONS))
-        span = np.linalg.norm(nodes[np.maximum(ahead, 0)] - nodes[node], axis=1)
-        metres[:, _FORWARD] = np.where(ahead >= 0, span, 0.0)
-        lengths = np.unique(metres)
-        if lengths.size > _MAX_LENGTHS:
-            raise ValueError(f"{lengths.size} distinct move lengths: the moves table holds {_MAX_LENGTHS}")
-        index = np.searchsorted(lengths, metres).astype(np.int64)
-        table = ((reached << _SLOT_SHIFT) | (index << 1) | collided).reshape(-1)
-        return cls(nodes, table.astype(dtype, copy=False), lengths)
-
-    def step(self, pose: Pose, action: Action) -> tuple[Pose, bool]:
-        """One action from one pose: the pose after it, and whether it was a forward into a wall."""
-        entry = int(self.table[(pose.node * HEADINGS + pose.heading) * ACTIONS + action])
-        node, heading = divmod(entry >> _SLOT_SHIFT, HEADINGS)
-        return Pose(node, heading), bool(entry & 1)
-
-    def blocked(self, pose: Pose) -> bool:
-        """Whether a forward move from `pose` would collide."""
-        return bool(self.table[(pose.node * HEADINGS + pose.heading) * ACTIONS + _FORWARD] & 1)
-
-    def after(self) -> np.ndarray:
-        """(N * 8, 3) the slot that forward, left and right lead to from each slot (a collision: the same)."""
-        slots: np.ndarray = self.table.reshape(-1, ACTIONS)[:, :_STOP] >> _SLOT_SHIFT
-        return slots
 
 
 class BatchStepper:
@@ -145,8 +83,8 @@ class BatchStepper:
         self._moved = np.empty(batch, self._moves.dtype)
         # Metres and collision flag by the low 6 bits of a table entry, so that one mask serves
         # both look-ups.
-        code = np.arange(_LOW + 1)
-        self._metres = np.append(moves.lengths, np.zeros(_MAX_LENGTHS - moves.lengths.size))[code >> 1]
+        code = np.arange(ENTRY_LOW + 1)
+        self._metres = np.append(moves.lengths, np.zeros(MAX_LENGTHS - moves.lengths.size))[code >> 1]
         self._hit = (code & 1).astype(bool)
         # The forward's collision bit per slot, apart: the action mask reads it every step, and
         # masking it out of the table there cost an env step 1 us (6 %).
@@ -224,8 +162,8 @@ class BatchStepper:
         np.multiply(self.slot, ACTIONS, out=k)
         k += a
         self._moves.take(k, out=moved, mode="clip")  # slot << 6 | length index << 1 | collided
-        np.right_shift(moved, _SLOT_SHIFT, out=self.slot)
-        moved &= _LOW
+        np.right_shift(moved, SLOT_SHIFT, out=self.slot)
+        moved &= ENTRY_LOW
         self.path_length += self._metres.take(moved, out=self._scratch, mode="clip")
         collided = self._hit.take(moved, mode="clip")
         self.collisions += collided
@@ -252,7 +190,7 @@ class BatchStepper:
 
     def next_slots(self) -> np.ndarray:
         """(B, 3) the pose that forward, left and right would lead to (a collision: the same)."""
-        slots: np.ndarray = self._moves[self.slot[:, None] * ACTIONS + _MOVE_ACTIONS] >> _SLOT_SHIFT
+        slots: np.ndarray = self._moves[self.slot[:, None] * ACTIONS + _MOVE_ACTIONS] >> SLOT_SHIFT
         return slots
 
     def forward_blocked(self) -> np.ndarray:

@@ -2,16 +2,14 @@
 
 Maze k's node i is global node `offset[k] + i`, and a pose is the slot `8 * node + heading`.
 From the graphs' forward tables the world compiles the move rules over the whole node space
-(`moves`, a `sim.core.stepper.Moves`: per slot and action the slot reached, the metres moved and
+(`moves`, a `sim.core.moves.Moves`: per slot and action the slot reached, the metres moved and
 whether it was a collision), so that a step of a whole batch is one look-up
 (`sim.core.stepper.BatchStepper`).
 
 `World.compile` builds one in memory from (name, maze, graph) triples; `World.build` builds
 the benchmark's runs with a disk cache keyed on the map files' bytes (reading them is much
 cheaper than decoding them), memory-mapped when warm, so a warm process decodes no PNG and
-builds no graph. `EpisodeGeometry` holds NDH instances compiled onto a world: start pose, goal
-node and the goal rows (distance and next hop toward the goal from every node of its maze),
-cached the same way.
+builds no graph.
 """
 
 from __future__ import annotations
@@ -25,27 +23,39 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, DTypeLike
 
-from sim.core.cache import ARRAYS_SUFFIX, load_arrays, save_arrays
 from sim.core.cache import cache_dir as default_cache_dir
 from sim.core.geometry import HEADINGS
-from sim.core.stepper import BatchStepper, Moves
+from sim.core.moves import Moves
 
 if TYPE_CHECKING:
     from sim.core.maze import Maze
     from sim.core.navgraph import NavGraph
     from sim.core.observations import RayTable
-    from sim.tasks.benchmark import Benchmark, NDHInstance
 
 # 4: names, observations optional, derived tables; 5: the fused moves table; 6: int64 moves;
 # 7: only the moves table (`Moves`) is derived
 _WORLD_VERSION = 7
 _ARRAYS = ("offset", "size", "xy", "ij", "forward")
 _MOVES = ("moves", "move_lengths")  # `moves.table` and `moves.lengths`, cached too: a warm process reads them
+
+
+class MazeRuns(Protocol):
+    """Where `World.build` reads its runs: the benchmark clone (`sim.tasks.benchmark.Benchmark`)."""
+
+    @property
+    def root(self) -> Path: ...
+
+    @property
+    def cache_dir(self) -> str | Path | None: ...
+
+    def maze(self, run: str) -> Maze: ...
+
+    def graph(self, run: str, mode: str = "benchmark") -> NavGraph: ...
 
 
 @dataclass(frozen=True, eq=False)
@@ -100,7 +110,7 @@ class World:
     @classmethod
     def build(
         cls,
-        bench: Benchmark,
+        bench: MazeRuns,
         runs: Sequence[str],
         cache_dir: str | Path | None = None,
         mode: str = "benchmark",
@@ -201,69 +211,3 @@ def goal_rows(graph: NavGraph, goals: ArrayLike) -> tuple[np.ndarray, np.ndarray
     goals = np.asarray(goals, dtype=np.int64)
     # Columns, not the transposed rows: Dijkstra's sums differ in the last bit.
     return graph.dist[:, goals].T, graph.next_hop[:, goals].T.astype(np.int64)
-
-
-@dataclass(frozen=True, eq=False)
-class EpisodeGeometry:
-    """NDH instances on a world: start pose, goal, and goal rows padded to the largest maze."""
-
-    maze: np.ndarray  # (M,) index into World.names
-    start_node: np.ndarray  # (M,) global
-    start_heading: np.ndarray  # (M,)
-    goal_node: np.ndarray  # (M,) global
-    goal_dist: np.ndarray  # (M, Nmax) shortest-path metres to the goal from each local node
-    goal_next: np.ndarray  # (M, Nmax) next local node toward the goal; -1 where no path
-
-    @classmethod
-    def build(
-        cls,
-        bench: Benchmark,
-        world: World,
-        instances: Sequence[NDHInstance],
-        start: str = "episode",
-        mode: str = "benchmark",
-    ) -> EpisodeGeometry:
-        """Cached on disk beside the world (the start protocol walks the teacher, and the
-        goal rows come from the all-pairs tables)."""
-        from sim.tasks.benchmark import START_MODES, goal_node
-
-        key = hashlib.sha256(f"{world.key}:{mode}:{start}:{[(i.run, i.scan, i.inst_idx) for i in instances]}".encode())
-        path = default_cache_dir(bench.cache_dir) / "world" / f"episodes-{key.hexdigest()[:16]}{ARRAYS_SUFFIX}"
-        fields = ("maze", "start_node", "start_heading", "goal_node", "goal_dist", "goal_next")
-        if world.key and path.exists():
-            try:
-                data = load_arrays(path)
-                return cls(**{f: data[f] for f in fields})
-            except (OSError, ValueError, KeyError):
-                pass  # torn or stale: recomputed below
-        m, nmax = len(instances), int(world.size.max())
-        out = {f: np.zeros(m, dtype=np.int64) for f in fields[:4]}
-        out["goal_dist"] = np.full((m, nmax), np.inf, dtype=np.float64)
-        out["goal_next"] = np.full((m, nmax), -1, dtype=np.int64)
-        for k, inst in enumerate(instances):
-            graph = bench.graph(inst.run, mode)
-            r = world.index(inst.run)
-            off = world.offset[r]
-            pose = START_MODES[start](graph, inst)
-            g = goal_node(graph, inst)
-            out["maze"][k], out["start_node"][k], out["start_heading"][k] = r, off + pose.node, pose.heading
-            out["goal_node"][k] = off + g
-            dist, hop = goal_rows(graph, [g])
-            out["goal_dist"][k, : graph.n], out["goal_next"][k, : graph.n] = dist[0], hop[0]
-        if world.key:
-            save_arrays(path, compressed=False, **out)
-        return cls(**out)
-
-    def __len__(self) -> int:
-        return len(self.maze)
-
-    def start(self, stepper: BatchStepper, episodes: np.ndarray) -> None:
-        """Start `episodes` (indices into these) in `stepper`'s positions 0, 1, ..., one each."""
-        stepper.start(
-            np.arange(len(episodes)),
-            self.start_node[episodes],
-            self.start_heading[episodes],
-            self.goal_node[episodes],
-            self.goal_dist[episodes],
-            self.goal_next[episodes],
-        )

@@ -22,9 +22,10 @@ from sim.core.geometry import SUCCESS_RADIUS_M, heading_angle
 from sim.core.metrics import EpisodeResult
 from sim.core.navgraph import NavGraph
 from sim.core.stepper import MAX_EPISODE_ACTIONS, BatchStepper
-from sim.core.world import EpisodeGeometry, World
+from sim.core.world import World
 from sim.tasks.baselines import BASELINES, Policy
 from sim.tasks.benchmark import START_MODES, Benchmark, NDHInstance
+from sim.tasks.episode_geometry import EpisodeGeometry
 
 _STREAM_WORDS = 2 * MAX_EPISODE_ACTIONS  # 32-bit words drawn per Random episode up front
 

@@ -16,7 +16,7 @@ ROBOTSLANG = Path(sys.executable).parent / "robotslang"
 @pytest.mark.slow
 def test_bench_sim_prints_every_figure(benchmark_path, tmp_path):
     env = {**os.environ, "COLUMNS": "160"}
-    # Run from elsewhere: the installed command must find bench/ in the checkout by itself.
+    # Run from elsewhere: the installed command finds `bench` as an installed package.
     result = subprocess.run(
         [str(ROBOTSLANG), "bench", "sim", "--benchmark", str(benchmark_path), "--maps", "2"],
         capture_output=True,
