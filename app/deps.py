@@ -19,7 +19,7 @@ from starlette.requests import HTTPConnection
 from app.annotation.log import AnnotationLog
 from app.clock import ServerClock
 from app.cookies import read_cookie
-from app.ldh_study import Studies
+from app.localization_study import LocalizationStudies
 from app.login import LoginGuard
 from app.login_sockets import LoginSockets
 from app.mazes import Mazes
@@ -126,7 +126,7 @@ def get_signups(services: ServicesDep) -> SignupLimits:
     return services.signups
 
 
-def get_studies(services: ServicesDep) -> Studies:
+def get_localization_studies(services: ServicesDep) -> LocalizationStudies:
     return services.studies
 
 
@@ -173,7 +173,7 @@ AnnotatorSessionsDep = Annotated[Sessions, Depends(get_annotator_sessions)]
 CsrfDep = Annotated[CsrfTokens, Depends(get_csrf)]
 LoginsDep = Annotated[LoginGuard, Depends(get_logins)]
 LoginSocketsDep = Annotated[LoginSockets, Depends(get_login_sockets)]
-StudiesDep = Annotated[Studies, Depends(get_studies)]
+LocalizationStudiesDep = Annotated[LocalizationStudies, Depends(get_localization_studies)]
 StudyTokensDep = Annotated[StudyTokens, Depends(get_study_tokens)]
 SignupsDep = Annotated[SignupLimits, Depends(get_signups)]
 TemplatesDep = Annotated[Jinja2Templates, Depends(get_templates)]

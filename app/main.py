@@ -28,12 +28,12 @@ from app.db.engine import WalCheckpointer, make_engine, make_sessionmaker, upgra
 from app.db.models import Experimenter
 from app.deps import LoginRequired
 from app.guard import GuardMiddleware, template_context
-from app.ldh_study import Studies
+from app.localization_study import LocalizationStudies
 from app.login import LoginGuard
 from app.mazes import Mazes
 from app.perception.belief import FilterWorker
 from app.resources import shipped
-from app.routes import annotate, experimenter, ldh_study, pages, replay, robot_ws, seat_ws, study
+from app.routes import annotate, experimenter, localization_study, pages, replay, robot_ws, seat_ws, study
 from app.rover.links import RobotLinks
 from app.seats.registry import AgentParts
 from app.security import AccountRole, CsrfTokens, SeatTokens, Sessions, StudyTokens, set_password
@@ -109,7 +109,7 @@ def build_services(settings: Settings) -> Services:
         robots=robots,
         trials=trials,
         hub=TrialHub(trials, settings.redis_url),
-        studies=Studies(settings, db, clock),
+        studies=LocalizationStudies(settings, db, clock),
         study_tokens=StudyTokens(key),
         signups=SignupLimits(settings, counts("signups")),
         webhooks=webhooks,
@@ -166,7 +166,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(seat_ws.router)
     app.include_router(robot_ws.router)
     app.include_router(replay.router)
-    app.include_router(ldh_study.router)
+    app.include_router(localization_study.router)
     app.include_router(annotate.router)
     app.include_router(study.router)
     app.include_router(study.experimenter_router)

@@ -14,7 +14,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from app.annotation.log import AnnotationLog
 from app.clock import ServerClock
-from app.ldh_study import Studies
+from app.localization_study import LocalizationStudies
 from app.login import LoginGuard
 from app.login_sockets import LoginSockets
 from app.mazes import Mazes
@@ -46,7 +46,7 @@ class Services:
     robots: RobotLinks  # the rovers and cameras connected here
     trials: TrialParts  # what the live trials share (the filters, the renderer, the LDH belief, ...)
     hub: TrialHub  # the live trials of this process (and, with Redis, its relay to the others)
-    studies: Studies  # LDH human studies
+    studies: LocalizationStudies  # LDH human studies
     study_tokens: StudyTokens  # their participants' links
     signups: SignupLimits  # participant studies' consents and lobby joins, per address and per study
     webhooks: StudyWebhooks  # participant studies' webhooks

@@ -178,7 +178,7 @@ def test_a_study_of_the_platforms_own_trials(tmp_path):
     import numpy as np
 
     from app.export.ndh import write_benchmark
-    from app.ldh_study import StudyError
+    from app.localization_study import LocalizationStudyError
     from tests.app.trial_log import maze_named, ndh_trial_record
 
     settings = platform_settings(tmp_path)
@@ -207,11 +207,11 @@ def test_a_study_of_the_platforms_own_trials(tmp_path):
     assert studies.answer(study_id, ann, 0, 0.5, 0.53, None).td == 0.0
     outside = tmp_path / "elsewhere"
     write_benchmark([(ndh_trial_record("9", mazes[0].name), mazes[0])], outside)
-    with pytest.raises(StudyError, match="configured benchmark or a folder under"):
+    with pytest.raises(LocalizationStudyError, match="configured benchmark or a folder under"):
         studies.create(1, "not ours", str(outside), split, "prefix")
     # A folder named relative to the data directory is the same folder; `..` cannot leave it.
     relative = studies.create(1, "ours again", "export", split, "prefix")
     assert studies.study(relative).source == studies.study(study_id).source
-    with pytest.raises(StudyError, match="configured benchmark or a folder under"):
+    with pytest.raises(LocalizationStudyError, match="configured benchmark or a folder under"):
         studies.create(1, "not ours", "../elsewhere", split, "prefix")
     services.engine.dispose()

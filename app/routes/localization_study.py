@@ -13,9 +13,9 @@ from fastapi.responses import HTMLResponse, JSONResponse, RedirectResponse, Resp
 from pydantic import BaseModel, ConfigDict
 
 from app.db.models import LDHStudy
-from app.deps import ExperimenterId, StudiesDep, StudyTokensDep, experimenter_id
+from app.deps import ExperimenterId, LocalizationStudiesDep, StudyTokensDep, experimenter_id
 from app.guard import csrf_protect
-from app.ldh_study import CSV_COLUMNS, Studies, StudyError
+from app.localization_study import CSV_COLUMNS, LocalizationStudies, LocalizationStudyError
 from app.security import InvalidToken, StudyPass
 from app.web import render
 
@@ -23,7 +23,7 @@ router = APIRouter()
 studies_router = APIRouter(prefix="/experimenter/ldh", dependencies=[Depends(experimenter_id), Depends(csrf_protect)])
 
 
-def _study_or_404(studies: Studies, study_id: int) -> LDHStudy:
+def _study_or_404(studies: LocalizationStudies, study_id: int) -> LDHStudy:
     try:
         return studies.study(study_id)
     except LookupError as err:
@@ -37,13 +37,13 @@ def _back(study_id: int | None = None, error: str | None = None) -> RedirectResp
 
 # -- the experimenter -----------------------------------------------------------------------
 @studies_router.get("", response_class=HTMLResponse)
-def study_list(request: Request, s: StudiesDep, error: str | None = None) -> HTMLResponse:
+def study_list(request: Request, s: LocalizationStudiesDep, error: str | None = None) -> HTMLResponse:
     return render(request, "ldh_studies.html", studies=s.all_studies(), default_source=s.default_source(), error=error)
 
 
 @studies_router.post("")
 def create_study(
-    studies: StudiesDep,
+    studies: LocalizationStudiesDep,
     experimenter: ExperimenterId,
     name: str = Form(max_length=80),
     source: str = Form(max_length=1000),
@@ -53,24 +53,24 @@ def create_study(
 ) -> RedirectResponse:
     try:
         study_id = studies.create(experimenter, name, source, split, variant, limit)
-    except StudyError as err:
+    except LocalizationStudyError as err:
         return _back(error=str(err))
     return _back(study_id)
 
 
 @studies_router.post("/{study_id}/participants")
-def invite(studies: StudiesDep, study_id: int, name: str = Form(max_length=80)) -> RedirectResponse:
+def invite(studies: LocalizationStudiesDep, study_id: int, name: str = Form(max_length=80)) -> RedirectResponse:
     _study_or_404(studies, study_id)
     try:
         studies.invite(study_id, name)
-    except StudyError as err:
+    except LocalizationStudyError as err:
         return _back(study_id, str(err))
     return _back(study_id)
 
 
 @studies_router.get("/{study_id}", response_class=HTMLResponse)
 def study_page(
-    request: Request, s: StudiesDep, tokens: StudyTokensDep, study_id: int, error: str | None = None
+    request: Request, s: LocalizationStudiesDep, tokens: StudyTokensDep, study_id: int, error: str | None = None
 ) -> HTMLResponse:
     study = _study_or_404(s, study_id)
     links = {
@@ -81,7 +81,7 @@ def study_page(
 
 
 @studies_router.get("/{study_id}/export.json")
-def export_json(studies: StudiesDep, study_id: int) -> JSONResponse:
+def export_json(studies: LocalizationStudiesDep, study_id: int) -> JSONResponse:
     _study_or_404(studies, study_id)
     return JSONResponse(
         studies.results(study_id),
@@ -90,7 +90,7 @@ def export_json(studies: StudiesDep, study_id: int) -> JSONResponse:
 
 
 @studies_router.get("/{study_id}/export.csv")
-def export_csv(studies: StudiesDep, study_id: int) -> Response:
+def export_csv(studies: LocalizationStudiesDep, study_id: int) -> Response:
     _study_or_404(studies, study_id)
     out = io.StringIO()
     writer = csv.DictWriter(out, fieldnames=CSV_COLUMNS, extrasaction="ignore")
@@ -104,7 +104,7 @@ def export_csv(studies: StudiesDep, study_id: int) -> Response:
 
 
 # -- the participant --------------------------------------------------------------------------
-def study_pass(token: str, tokens: StudyTokensDep, studies: StudiesDep) -> StudyPass:
+def study_pass(token: str, tokens: StudyTokensDep, studies: LocalizationStudiesDep) -> StudyPass:
     """The study and participant a link opens; 403 for a forged link or one naming another study's participant."""
     try:
         granted = tokens.verify(token)
@@ -118,7 +118,7 @@ Granted = Annotated[StudyPass, Depends(study_pass)]
 
 
 @router.get("/ldh/{token}", response_class=HTMLResponse, name="ldh_participant")
-def participant_page(request: Request, token: str, granted: Granted, s: StudiesDep) -> HTMLResponse:
+def participant_page(request: Request, token: str, granted: Granted, s: LocalizationStudiesDep) -> HTMLResponse:
     study, instances = s.study(granted.study_id), s.instances(granted.study_id)
     position = s.next_position(granted.study_id, granted.participant_id)
     if position is None:  # done: now, and only now, their answers beside the truth
@@ -139,7 +139,7 @@ def participant_page(request: Request, token: str, granted: Granted, s: StudiesD
 
 
 @router.get("/ldh/{token}/map/{position}.png")
-def participant_map(granted: Granted, s: StudiesDep, position: int) -> Response:
+def participant_map(granted: Granted, s: LocalizationStudiesDep, position: int) -> Response:
     instances = s.instances(granted.study_id)
     if not 0 <= position < len(instances):
         raise HTTPException(404, f"the study has no instance {position + 1}")
@@ -161,11 +161,11 @@ class Mark(BaseModel):
 
 
 @router.post("/ldh/{token}/answers", dependencies=[Depends(csrf_protect)])
-def submit(granted: Granted, s: StudiesDep, mark: Mark) -> dict[str, int | None]:
+def submit(granted: Granted, s: LocalizationStudiesDep, mark: Mark) -> dict[str, int | None]:
     """Record one answer. The reply says only that it was taken (never the score or the truth)."""
     try:
         answer = s.answer(granted.study_id, granted.participant_id, mark.position, mark.x, mark.y, mark.heading)
-    except StudyError as err:
+    except LocalizationStudyError as err:
         raise HTTPException(409, str(err)) from None
     return {"recorded": answer.seq, "next": s.next_position(granted.study_id, granted.participant_id)}
 

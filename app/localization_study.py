@@ -35,7 +35,7 @@ from sim.tasks.ldh_eval import ACC_RADII_M, MazeContext, score
 APPEND_ATTEMPTS = 5  # two answers racing for the same seq: the loser takes the next one
 
 
-class StudyError(ValueError):
+class LocalizationStudyError(ValueError):
     """A study that cannot be made or an answer that cannot be taken, with the reason why."""
 
 
@@ -73,8 +73,8 @@ class Answer:
         )
 
 
-class Studies:
-    """Studies on the server's database; benchmarks and graphs are loaded once per folder."""
+class LocalizationStudies:
+    """LDH localization studies on the server's database; benchmarks and graphs are loaded once per folder."""
 
     def __init__(self, settings: Settings, db: sessionmaker[Session], clock: ServerClock) -> None:
         self.settings, self.db, self.clock = settings, db, clock
@@ -97,7 +97,7 @@ class Studies:
         path = (path if path.is_absolute() else settings.data_dir / path).resolve()
         roots = [settings.data_dir.resolve()] + ([settings.benchmark.resolve()] if settings.benchmark else [])
         if not any(path == root or root in path.parents for root in roots):
-            raise StudyError(
+            raise LocalizationStudyError(
                 f"{source}: a study draws from the configured benchmark or a folder under "
                 f"{settings.data_dir} (an export of this platform's trials)"
             )
@@ -108,7 +108,7 @@ class Studies:
             try:
                 self._benchmarks[source] = Benchmark(source, cache_dir=self.settings.cache_dir)
             except BenchmarkError as err:
-                raise StudyError(str(err)) from None
+                raise LocalizationStudyError(str(err)) from None
         return self._benchmarks[source]
 
     def context(self, source: str, run: str) -> MazeContext:
@@ -129,21 +129,21 @@ class Studies:
         """A new study of the split's instances (the first `limit` of them); its id."""
         name = name.strip()
         if not name:
-            raise StudyError("give the study a name")
+            raise LocalizationStudyError("give the study a name")
         if split not in tuple(Split):
-            raise StudyError(f"unknown split {split!r}; expected one of {', '.join(Split)}")
+            raise LocalizationStudyError(f"unknown split {split!r}; expected one of {', '.join(Split)}")
         try:
             chosen = Variant(variant)
         except ValueError:
-            raise StudyError(f"unknown variant {variant!r}; expected prefix or full") from None
+            raise LocalizationStudyError(f"unknown variant {variant!r}; expected prefix or full") from None
         source = str(self._allowed(source))
         try:
             instances = load_split(self.benchmark(source), split, chosen)
         except (BenchmarkError, OSError) as err:
-            raise StudyError(str(err)) from None
+            raise LocalizationStudyError(str(err)) from None
         instances = instances[:limit] if limit else instances
         if not instances:
-            raise StudyError(f"{source}: split {split} has no LDH instances")
+            raise LocalizationStudyError(f"{source}: split {split} has no LDH instances")
         with self.db.begin() as db:
             study = LDHStudy(
                 name=name[:80],
@@ -174,7 +174,7 @@ class Studies:
     def invite(self, study_id: int, name: str) -> int:
         name = name.strip()
         if not name:
-            raise StudyError("give the participant a name or a code")
+            raise LocalizationStudyError("give the participant a name or a code")
         try:
             with self.db.begin() as db:
                 participant = LDHStudyParticipant(study_id=self.study(study_id).id, name=name[:80])
@@ -182,7 +182,7 @@ class Studies:
                 db.flush()
                 participant_id = participant.id
         except IntegrityError:
-            raise StudyError(f"this study already has a participant called {name!r}") from None
+            raise LocalizationStudyError(f"this study already has a participant called {name!r}") from None
         self._append(study_id, EventKind.INVITED, {"participant_id": participant_id, "name": name[:80]})
         return participant_id
 
@@ -254,13 +254,15 @@ class Studies:
     ) -> Answer:
         expected = self.next_position(study_id, participant_id)
         if expected is None:
-            raise StudyError("you have answered every instance of this study")
+            raise LocalizationStudyError("you have answered every instance of this study")
         if position != expected:
-            raise StudyError(f"instance {position + 1} is not the one to answer now (that is {expected + 1})")
+            raise LocalizationStudyError(
+                f"instance {position + 1} is not the one to answer now (that is {expected + 1})"
+            )
         if not (math.isfinite(x) and math.isfinite(y) and 0 <= x <= TABLE_WIDTH_M and 0 <= y <= TABLE_HEIGHT_M):
-            raise StudyError("the mark must lie on the map")
+            raise LocalizationStudyError("the mark must lie on the map")
         if heading is not None and not math.isfinite(heading):
-            raise StudyError("the heading must be a number of radians")
+            raise LocalizationStudyError("the heading must be a number of radians")
         study, inst = self.study(study_id), self.instances(study_id)[position]
         truth = LDHInstance(
             inst.inst_idx, inst.run, inst.true_x, inst.true_y, inst.true_heading, (), Variant(study.variant)
@@ -304,7 +306,7 @@ class Studies:
             try:
                 with self.db.begin() as db:
                     if unique is not None and unique(db):
-                        raise StudyError("this instance is answered already")
+                        raise LocalizationStudyError("this instance is answered already")
                     last_seq, last_t = db.execute(
                         select(func.max(LDHStudyEvent.seq), func.max(LDHStudyEvent.t_ns)).where(
                             LDHStudyEvent.study_id == study_id
@@ -319,7 +321,7 @@ class Studies:
                 return seq, t_ns
             except IntegrityError:
                 continue
-        raise StudyError("the study's log is busy; submit again")
+        raise LocalizationStudyError("the study's log is busy; submit again")
 
     # -- results ----------------------------------------------------------------------
     def results(self, study_id: int) -> dict[str, Any]:
