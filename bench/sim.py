@@ -25,7 +25,7 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
-from rich.console import Console
+from rich.console import Console, JustifyMethod
 from rich.table import Table
 from tqdm import tqdm
 
@@ -161,6 +161,7 @@ def bench_batch(graphs: list[NavGraph], world: World, batch: int, steps: int = 3
         off = int(world.offset[m])
         stepper.start([k], [off + node], [int(rng.integers(8))], [off + goal], dist, hop)
     actions = rng.integers(0, 3, (steps, batch))
+    assert world.obs is not None  # compiled with observations above
     obs = np.empty((batch, world.obs_features), dtype=world.obs.dtype)
     for a in actions[:10]:
         stepper.step(a)
@@ -212,6 +213,7 @@ def bench_rollout(benchmark: Benchmark, runs: list[str], iterations: int = 3, ba
                 agent, world, episodes, idx, "student", generator=torch.Generator().manual_seed(it), train=True
             )
             optimizer.zero_grad()
+            assert roll.loss is not None  # a training rollout has its loss
             roll.loss.backward()
             optimizer.step()
         watches.append(watch)
@@ -257,14 +259,15 @@ def _number(v: float) -> str:
 
 def print_table(console: Console, figures: list[Figure], title: str) -> None:
     table = Table(title=title)
-    for col, justify in (
+    justified: tuple[tuple[str, JustifyMethod], ...] = (
         ("figure", "left"),
         ("wall clock", "right"),
         ("CPU time", "right"),
         ("unit", "left"),
         ("target", "left"),
         ("", "left"),
-    ):
+    )
+    for col, justify in justified:
         table.add_column(col, justify=justify)
     for f in figures:
         mark = "" if f.ok is None else "[green]ok[/]" if f.ok else "[red]missed[/]"
