@@ -52,6 +52,20 @@ def held_still(runtime, seconds: float) -> bool:
     return True
 
 
+def settled(runtime, quiet_s: float = 0.8, timeout_s: float = 20.0) -> None:
+    """As a person watching the chat waits for the Driver to carry its instruction out: until no
+    move has been asked for a while (a loaded machine slows the moves, not the person)."""
+    deadline = time.monotonic() + timeout_s
+    seen, since = len(runtime.state.move_ids), time.monotonic()
+    while time.monotonic() < deadline:
+        time.sleep(0.05)
+        now = len(runtime.state.move_ids)
+        if now != seen or runtime.state.moves_in_flight:
+            seen, since = now, time.monotonic()
+        elif time.monotonic() - since >= quiet_s:
+            return
+
+
 @pytest.mark.slow
 def test_a_commander_talks_the_dialog_agent_to_its_first_target(browser, start_server):
     ARTIFACTS.mkdir(exist_ok=True)
@@ -91,6 +105,7 @@ def test_a_commander_talks_the_dialog_agent_to_its_first_target(browser, start_s
     (first,) = person.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
     answers = [say(page, first.text)]
     for _ in range(MAX_INSTRUCTIONS):
+        settled(runtime)
         if page.locator("#claim:not([hidden])").count():
             break
         person.pose = snap_pose(graph, *backend.pose())
