@@ -6,7 +6,7 @@ import {friendlyError, isRunning} from "./trial.js";
 const KEYS = {ArrowUp: "forward", ArrowLeft: "left", ArrowRight: "right"};
 const WORDS = {forward: "forward", left: "left", right: "right"};
 const MOVE_TIMEOUT_MS = 5000;  // a move whose result never came (e.g. the server restarted)
-const MARGIN_MS = 30;  // on top of the server's interval: the two clocks see a send a little apart
+const MARGIN_MS = 100;  // on top of the server's interval: a loaded server may take the last move up to this late
 const minIntervalMs = 1000 * Number($("seat").dataset.minMoveIntervalS || 0);
 // One move at a time: `pending` is the move in flight; one press made meanwhile (or sooner after the
 // last move than the server takes one) waits in `queued` and goes once the server would take it.
