@@ -8,20 +8,10 @@ Everything is in the `table` frame (x right, y up, metres), standing on the tabl
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
-from app.export.foxglove import (
-    Color,
-    CubePrimitive,
-    CylinderPrimitive,
-    Pose,
-    Quaternion,
-    SceneEntity,
-    SceneUpdate,
-    TextPrimitive,
-    Time,
-)
 from sim.core.geometry import MAP_HEIGHT_PX, MAP_WIDTH_PX, TABLE_HEIGHT_M, TABLE_WIDTH_M
 from sim.core.labels import LABEL_BGR, WALL_LABELS, Label, object_label
 from sim.core.maze import Maze
@@ -30,42 +20,30 @@ CELL_M = 0.02
 WALL_HEIGHT_M = 0.10
 TARGET_RADIUS_M = 0.05
 TARGET_HEIGHT_M = 0.15
-_IDENTITY: Quaternion = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
+_IDENTITY = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
 
 
-def colour(label: Label, alpha: float = 1.0) -> Color:
+def colour(label: Label, alpha: float = 1.0) -> dict[str, float]:
     b, g, r = LABEL_BGR[label]
     return {"r": r / 255, "g": g / 255, "b": b / 255, "a": alpha}
 
 
-def _pose(x: float, y: float, z: float) -> Pose:
-    return {"position": {"x": x, "y": y, "z": z}, "orientation": _IDENTITY.copy()}
+def _pose(x: float, y: float, z: float) -> dict[str, Any]:
+    return {"position": {"x": x, "y": y, "z": z}, "orientation": dict(_IDENTITY)}
 
 
-def _entity(
-    stamp: Time,
-    frame: str,
-    entity_id: str,
-    cubes: list[CubePrimitive] | None = None,
-    cylinders: list[CylinderPrimitive] | None = None,
-    texts: list[TextPrimitive] | None = None,
-) -> SceneEntity:
-    return {
+def _entity(stamp: dict[str, Any], frame: str, entity_id: str, **primitives: list[dict[str, Any]]) -> dict[str, Any]:
+    entity = {
         "timestamp": stamp,
         "frame_id": frame,
         "id": entity_id,
         "lifetime": {"sec": 0, "nsec": 0},
         "frame_locked": True,
         "metadata": [],
-        "arrows": [],
-        "cubes": cubes or [],
-        "spheres": [],
-        "cylinders": cylinders or [],
-        "lines": [],
-        "triangles": [],
-        "texts": texts or [],
-        "models": [],
     }
+    for kind in ("arrows", "cubes", "spheres", "cylinders", "lines", "triangles", "texts", "models"):
+        entity[kind] = primitives.get(kind, [])
+    return entity
 
 
 def wall_cells(maze: Maze) -> np.ndarray:
@@ -86,9 +64,9 @@ def wall_cells(maze: Maze) -> np.ndarray:
     return cells_u8
 
 
-def wall_cubes(maze: Maze) -> list[CubePrimitive]:
+def wall_cubes(maze: Maze) -> list[dict[str, Any]]:
     cells = wall_cells(maze)
-    cubes: list[CubePrimitive] = []
+    cubes = []
     for row, line in enumerate(cells):
         col = 0
         while col < len(line):
@@ -108,7 +86,7 @@ def wall_cubes(maze: Maze) -> list[CubePrimitive]:
     return cubes
 
 
-def scene_update(maze: Maze, targets: tuple[str, ...], stamp: Time, frame: str) -> SceneUpdate:
+def scene_update(maze: Maze, targets: tuple[str, ...], stamp: dict[str, Any], frame: str) -> dict[str, Any]:
     """Walls and the trial's targets, numbered in the order the trial visits them."""
     entities = [_entity(stamp, frame, "maze/walls", cubes=wall_cubes(maze))]
     for order, target in enumerate(targets, start=1):

@@ -18,15 +18,13 @@ from __future__ import annotations
 import base64
 import json
 import math
-from collections.abc import Mapping
 from functools import cache
 from pathlib import Path
+from typing import Any
 
 import cv2
 from mcap.writer import Writer
 
-from app.export.foxglove import DriverCommand, Message, PoseInFrame, Time, TrialEvent
-from app.export.foxglove import FrameTransform as FrameTransformMessage
 from app.export.foxglove_scene import scene_update
 from app.export.record import ExportError, TrialRecord
 from sim.core.maze import FIXED_MAP, WALLS_MAP, Maze
@@ -50,7 +48,7 @@ def robot_frame(source: PoseSource) -> str:
     return f"robot/{source.value}"
 
 
-_ROBOTSLANG_SCHEMAS: dict[str, Mapping[str, object]] = {
+_ROBOTSLANG_SCHEMAS: dict[str, dict[str, Any]] = {
     "robotslang.DriverCommand": {
         "title": "robotslang.DriverCommand",
         "type": "object",
@@ -74,7 +72,7 @@ _ROBOTSLANG_SCHEMAS: dict[str, Mapping[str, object]] = {
 
 
 @cache
-def schemas() -> dict[str, Mapping[str, object]]:
+def schemas() -> dict[str, dict[str, Any]]:
     """Schema name -> JSON schema: Foxglove's published ones and the platform's own two."""
     published = {name: json.loads((SCHEMA_DIR / f"{name}.json").read_text()) for name in FOXGLOVE_SCHEMAS}
     return {**published, **_ROBOTSLANG_SCHEMAS}
@@ -153,7 +151,7 @@ def write_mcap(record: TrialRecord, maze: Maze | None, out: str | Path) -> Path:
             for topic, schema in CHANNELS.items()
         }
 
-        def add(topic: str, message: Message, log_ns: int, publish_ns: int, sequence: int) -> None:
+        def add(topic: str, message: dict[str, Any], log_ns: int, publish_ns: int, sequence: int) -> None:
             writer.add_message(
                 channel_id=channel_ids[topic],
                 log_time=log_ns,
@@ -169,7 +167,7 @@ def write_mcap(record: TrialRecord, maze: Maze | None, out: str | Path) -> Path:
             message, publish_ns = _message(record, event, images.get(event.seq))
             add(topic_of(event), message, event.t_ns, publish_ns, event.seq)
             if event.is_(ev.PoseSampled):
-                add("/tf", _transform(_pose_of(event), robot_frame(sources[event.seq])), event.t_ns, event.t_ns, 0)
+                add("/tf", _transform(message, robot_frame(sources[event.seq])), event.t_ns, event.t_ns, 0)
         writer.add_metadata("trial", _trial_metadata(record, maze))
         if record.localized_after is not None or record.tags:
             writer.add_metadata("annotation", _annotation_metadata(record))
@@ -206,11 +204,11 @@ def _annotation_metadata(record: TrialRecord) -> dict[str, str]:
     return meta
 
 
-def _stamp(ns: int) -> Time:
+def _stamp(ns: int) -> dict[str, int]:
     return {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
 
 
-def _message(record: TrialRecord, event: LoggedEvent, image: bytes | None) -> tuple[Message, int]:
+def _message(record: TrialRecord, event: LoggedEvent, image: bytes | None) -> tuple[dict[str, Any], int]:
     p = event.payload
     if event.is_(ev.FrameRecorded):
         capture = int(p.get("capture_ns") or event.t_ns)
@@ -237,36 +235,33 @@ def _message(record: TrialRecord, event: LoggedEvent, image: bytes | None) -> tu
             "line": 0,
         }, event.t_ns
     if event.is_(ev.MoveRequested, ev.MoveExecuted):
-        command: DriverCommand = {
+        return {
             "stage": event.kind.removeprefix("move_"),
             "move_id": p.get("move_id"),
             "action": p.get("action"),
             "outcome": p.get("outcome"),
             "collision": p.get("collision"),
             "reason": p.get("reason"),
-        }
-        return command, event.t_ns
+        }, event.t_ns
     if event.is_(ev.PoseSampled, ev.Localized):
-        return _pose_of(event), event.t_ns
-    other: TrialEvent = {"seq": event.seq, "kind": event.kind, "payload": p}
-    return other, event.t_ns
+        return _pose_in_frame(event.t_ns, float(p["x"]), float(p["y"]), p.get("heading")), event.t_ns
+    return {"seq": event.seq, "kind": event.kind, "payload": p}, event.t_ns
 
 
-def _pose_of(event: LoggedEvent) -> PoseInFrame:
-    """A pose event's pose in the table frame; a heading the Commander left out is the identity rotation."""
-    p = event.payload
-    half = float(p.get("heading") or 0.0) / 2
+def _pose_in_frame(t_ns: int, x: float, y: float, heading: float | None) -> dict[str, Any]:
+    """A pose in the table frame; a heading the Commander left out is the identity rotation."""
+    half = float(heading or 0.0) / 2
     return {
-        "timestamp": _stamp(event.t_ns),
+        "timestamp": _stamp(t_ns),
         "frame_id": TABLE_FRAME,
         "pose": {
-            "position": {"x": float(p["x"]), "y": float(p["y"]), "z": 0.0},
+            "position": {"x": x, "y": y, "z": 0.0},
             "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(half), "w": math.cos(half)},
         },
     }
 
 
-def _transform(pose: PoseInFrame, child: str) -> FrameTransformMessage:
+def _transform(pose: dict[str, Any], child: str) -> dict[str, Any]:
     return {
         "timestamp": pose["timestamp"],
         "parent_frame_id": TABLE_FRAME,
