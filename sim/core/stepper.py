@@ -4,7 +4,7 @@ The move rules are said once, in `sim.core.moves.Moves` (a table per node space)
 
 - a pose at a time, `graph.moves.step(pose, action)` (`NavGraph.moves`, compiled once per graph):
   the live simulator seat, the demo's players, `sim play`, the benchmark's start protocol, offline
-  self-play and the agents' episodes, the Commanders' router, `run_episode`;
+  self-play and the agents' episodes, the Commanders' router;
 - a batch at once, `BatchStepper` on a `World`'s table (`World.moves`, every maze in one node space):
 
     stepper = BatchStepper(world, batch=B)

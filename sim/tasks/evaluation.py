@@ -1,14 +1,12 @@
 """The NDH baselines over a benchmark split, on the simulator core, scored with the NDH metrics.
 
 `evaluate_baselines` runs every (instance, agent, seed) episode of a split as one batch of
-`BatchStepper`: Immediate Stop, Shortest (the core's teacher) and Random. `run_episode` plays
-one `sim.tasks.baselines` policy a pose at a time (`graph.moves.step`), what the batched figures
-are held against, episode for episode.
+`BatchStepper`: Immediate Stop, Shortest (the core's teacher) and Random.
 
-The Random agent draws from its own stream per (seed, instance), `episode_seed`, exactly as
-`sim.tasks.baselines.RandomAgent` does: `Generator.choice` of 2 or 3 actions is Lemire's bounded
-draw on one 32-bit word of the stream, so the batch reads the same words and gets the same
-actions (and redraws where Lemire's method rejects, as numpy does).
+The Random agent draws from its own stream per (seed, instance), `episode_seed`, as a policy
+played one pose at a time would with `Generator.choice` (the tests' reference): a choice of 2 or
+3 actions is Lemire's bounded draw on one 32-bit word of the stream, so the batch reads the same
+words and gets the same actions (and redraws where Lemire's method rejects, as numpy does).
 """
 
 from __future__ import annotations
@@ -17,38 +15,16 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from sim.core.dynamics import Action, Pose
+from sim.core.dynamics import Action
 from sim.core.geometry import SUCCESS_RADIUS_M, heading_angle
 from sim.core.metrics import EpisodeResult
-from sim.core.navgraph import NavGraph
 from sim.core.stepper import MAX_EPISODE_ACTIONS, BatchStepper
 from sim.core.world import World
-from sim.tasks.baselines import BASELINES, Policy
+from sim.tasks.baselines import BASELINES
 from sim.tasks.benchmark import START_MODES, Benchmark, NDHInstance
 from sim.tasks.episode_geometry import EpisodeGeometry
 
 _STREAM_WORDS = 2 * MAX_EPISODE_ACTIONS  # 32-bit words drawn per Random episode up front
-
-
-def run_episode(
-    graph: NavGraph,
-    start: Pose,
-    goal: int,
-    policy: Policy,
-    rng: np.random.Generator,
-    max_actions: int = MAX_EPISODE_ACTIONS,
-) -> tuple[list[int], int]:
-    """Roll a policy out; returns the nodes visited (start first) and the moves made."""
-    policy.reset(graph, start, goal, rng)
-    pose, nodes, moves = start, [start.node], 0
-    while moves < max_actions:
-        action = policy.act(pose)
-        if action == Action.STOP:
-            break
-        pose, _ = graph.moves.step(pose, action)
-        nodes.append(pose.node)
-        moves += 1
-    return nodes, moves
 
 
 def episode_seed(seed: int, inst_idx: int) -> np.random.Generator:

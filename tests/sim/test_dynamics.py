@@ -10,11 +10,10 @@ from sim.core.dynamics import Action, Pose, snap_pose, teacher_action
 from sim.core.geometry import GRID_STEP_M
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
-from sim.tasks.baselines import ShortestAgent
 from sim.tasks.benchmark import Benchmark
-from sim.tasks.evaluation import run_episode
 from sim.tasks.library import MazeLibrary
 from tests.sim.helpers import open_table, reference_step, wall_at_x
+from tests.sim.reference_baselines import ShortestAgent, run_episode
 
 
 @pytest.fixture(scope="module")

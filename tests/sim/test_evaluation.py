@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from sim.core.geometry import heading_angle
 from sim.core.metrics import EpisodeResult, score_trajectory
-from sim.tasks.baselines import make_baseline
 from sim.tasks.benchmark import Benchmark, episode_start, goal_node
-from sim.tasks.evaluation import episode_seed, evaluate_baselines, run_episode
+from sim.tasks.evaluation import episode_seed, evaluate_baselines
+from tests.sim.reference_baselines import make_baseline, run_episode
 
 
 def reference(bench, split, instances, agents, seeds):
