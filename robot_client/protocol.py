@@ -99,15 +99,6 @@ def decode(text: str | bytes, expected: tuple[str, ...] | None = None) -> dict:
     return message
 
 
-def require(message: dict, field: str, kind: type | tuple[type, ...]) -> object:
-    """The value of a required field of the expected type, or ProtocolError naming it."""
-    value = message.get(field)
-    if not isinstance(value, kind) or isinstance(value, bool) and kind is not bool:
-        names = kind.__name__ if isinstance(kind, type) else " or ".join(k.__name__ for k in kind)
-        raise ProtocolError(f"{message.get('type')} message needs field {field!r} of type {names}, got {value!r}")
-    return value
-
-
 # Messages the server sends to the rover, and the rover to the server.
 SERVER_TYPES = ("welcome", "ping", "move", "stop", "error")
 ROBOT_TYPES = ("hello", "pong", "ack", "error")

@@ -13,7 +13,6 @@ from __future__ import annotations
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TypedDict
 
 import cv2
@@ -326,25 +325,3 @@ def evaluate_filter(
         "moves": moves,
         "particles": n_particles,
     }
-
-
-def plot_filter_curve(result: FilterResult, path: str | Path) -> None:
-    """The median belief error against moves, as a PNG."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    curve = result["curve"]
-    fig, ax = plt.subplots(figsize=(5, 3.2), dpi=120)
-    ax.plot(range(len(curve)), curve, marker="o", ms=3)
-    ax.axhline(0.15, color="grey", ls="--", lw=1, label="0.15 m")
-    ax.set_xlabel("moves")
-    ax.set_ylabel("median error of belief mean (m)")
-    ax.set_title(
-        f"particle filter, {result['episodes']} episodes: {result['converged_fraction_20_moves']:.0%} within 0.15 m"
-    )
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)

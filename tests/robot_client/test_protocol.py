@@ -7,7 +7,6 @@ from robot_client.protocol import (
     decode,
     encode,
     pack_frame,
-    require,
     unpack_frame,
 )
 
@@ -51,11 +50,3 @@ def test_text_messages_must_be_typed_json_objects():
         decode('{"type": "dance"}', ("ping", "move"))
     with pytest.raises(ProtocolError, match="limit"):
         decode('{"type": "x", "pad": "' + "a" * MAX_TEXT_BYTES + '"}')
-
-
-def test_require_names_the_missing_field():
-    assert require({"type": "move", "id": "m1"}, "id", str) == "m1"
-    with pytest.raises(ProtocolError, match="move message needs field 'action' of type str"):
-        require({"type": "move"}, "action", str)
-    with pytest.raises(ProtocolError, match="of type int"):
-        require({"type": "pong", "robot_ns": True}, "robot_ns", int)

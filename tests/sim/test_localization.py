@@ -20,7 +20,6 @@ from sim.robot.localization import (
     apply_move,
     evaluate_filter,
     free_space,
-    plot_filter_curve,
 )
 from sim.robot.perception import perceive, simulated_calibration
 from sim.tasks.library import MazeLibrary
@@ -99,10 +98,8 @@ def test_an_unreadable_frame_leaves_the_belief_alone(maze, calibration):
     assert np.array_equal(pf.particles, before[0]) and np.array_equal(pf.log_w, before[1])
 
 
-def test_the_filter_finds_the_rover_from_a_uniform_start(maze, calibration, tmp_path):
+def test_the_filter_finds_the_rover_from_a_uniform_start(maze, calibration):
     result = evaluate_filter(maze, episodes=5, moves=20, seed=4, n_particles=1000, calibration=calibration)
     assert result["converged_fraction_20_moves"] >= 0.8
     assert len(result["curve"]) == 21
     assert result["curve"][-1] < result["curve"][0]
-    plot_filter_curve(result, tmp_path / "curve.png")
-    assert (tmp_path / "curve.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
