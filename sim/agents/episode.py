@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import time
+from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TypeVar
@@ -63,6 +64,9 @@ class Episode(OfflineTrial):
         feed: Sequence[str] = (),
     ) -> None:
         self.ends, self.feed = ends, iter(feed)
+        self.events: list[ev.Event] = []  # as recorded, typed: the bench's caps count them as they come
+        self.counts: Counter[type[ev.Event]] = Counter()
+        self.driver_chats = 0
         super().__init__("episode", [target], start, graph, rays, table, navigating=navigating)
 
     async def act(self, act: Act) -> list[ev.Event]:
@@ -81,8 +85,14 @@ class Episode(OfflineTrial):
         await super().act(Act(Role.COMMANDER, Say(message)))
         return True
 
+    def _record(self, event: ev.Event) -> None:
+        super()._record(event)
+        self.events.append(event)
+        self.counts[type(event)] += 1
+        self.driver_chats += isinstance(event, ev.Chat) and event.role == Role.DRIVER
+
     def of(self, model: type[E]) -> list[E]:
-        return [e for e in map(ev.typed, self.log) if isinstance(e, model)]
+        return [e for e in self.events if isinstance(e, model)]
 
 
 def run(
@@ -106,12 +116,11 @@ def run(
     episode = Episode(targets[0], start, graph, commander.rays, table, navigating=phase == Phase.NAVIGATING)
 
     async def wake(role: Role, agent: Agent, percept: Percept) -> list[Action]:
-        chats = episode.of(ev.Chat)
         capped = (
             episode.state.moves >= max_moves
-            or len(chats) >= MAX_MESSAGES
-            or len(episode.of(ev.TargetRejected)) >= MAX_REJECTIONS
-            or (phase == Phase.LOCALIZING and sum(c.role == Role.DRIVER for c in chats) >= max_driver_messages)
+            or episode.counts[ev.Chat] >= MAX_MESSAGES
+            or episode.counts[ev.TargetRejected] >= MAX_REJECTIONS
+            or (phase == Phase.LOCALIZING and episode.driver_chats >= max_driver_messages)
         )
         if capped:
             episode.apply(Abort(OVER))
