@@ -10,6 +10,7 @@ import os
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -21,6 +22,7 @@ from sqlalchemy.orm import Session
 
 from app.seats.registry import offered_agents
 from app.trial.setup import create_participant, create_team, create_trial
+from bench.report import rss_mb
 from sim.trial.vocabulary import Role
 
 REPO = Path(__file__).resolve().parent.parent
@@ -32,13 +34,27 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
+def wait_until_up(url: str, server: subprocess.Popen, seconds: float = 60.0) -> None:
+    """Until the server at `url` answers; RuntimeError if it exits or stays silent `seconds`."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        if server.poll() is not None:
+            raise RuntimeError(f"robotslang serve exited with status {server.returncode}")
+        with contextlib.suppress(httpx.HTTPError):
+            if httpx.get(url + "/leaderboard", timeout=1).status_code == 200:
+                return
+        time.sleep(0.1)
+    raise RuntimeError(f"robotslang serve did not answer on {url} within {seconds:g} s")
+
+
 class ServerProcess:
     """`robotslang serve` as a separate process, so a test can kill it the hard way."""
 
     def __init__(
-        self, env: dict[str, str], port: int | None = None, workers: int = 1, argv: list[str] | None = None
+        self, env: Mapping[str, str | None], port: int | None = None, workers: int = 1, argv: list[str] | None = None
     ) -> None:
-        self.env = {**os.environ, **env}
+        # A variable given as None is unset for the server (a database URL of the caller's, say).
+        self.env = {k: v for k, v in {**os.environ, **env}.items() if v is not None}
         self.port = port or free_port()
         self.workers = workers
         # `argv`: a command of its own that serves on 127.0.0.1:`port` (a deployment's, say).
@@ -54,6 +70,8 @@ class ServerProcess:
         return f"ws://127.0.0.1:{self.port}/ws/play"
 
     def start(self) -> ServerProcess:
+        # Its output goes to a file open while it runs, not a pipe nobody reads: a full pipe would stall it.
+        self.output = tempfile.TemporaryFile("w+")  # noqa: SIM115
         self.proc = subprocess.Popen(
             self.argv
             or [
@@ -68,20 +86,17 @@ class ServerProcess:
             ],
             env=self.env,
             cwd=REPO,
-            stdout=subprocess.PIPE,
+            stdout=self.output,
             stderr=subprocess.STDOUT,
             text=True,
         )
-        deadline = time.time() + 30
-        while time.time() < deadline:
-            if self.proc.poll() is not None:
-                raise RuntimeError(f"server exited: {self.proc.stdout.read()}")
-            try:
-                if httpx.get(self.url + "/leaderboard", timeout=1).status_code == 200:
-                    return self
-            except httpx.HTTPError:
-                time.sleep(0.1)
-        raise RuntimeError("server did not start in 30 s")
+        try:
+            wait_until_up(self.url, self.proc)
+        except RuntimeError as error:
+            self.stop()
+            self.output.seek(0)
+            raise RuntimeError(f"{error}: {self.output.read()}") from None
+        return self
 
     def kill(self) -> None:
         self.proc.kill()
@@ -201,11 +216,7 @@ class ServerProcesses:
         rss = 0.0
         for pid in self.pids():
             try:
-                mb = next(
-                    int(line.split()[1]) / 1024
-                    for line in Path(f"/proc/{pid}/status").read_text().splitlines()
-                    if line.startswith("VmRSS:")
-                )
+                mb = rss_mb(pid)
                 kind = self._peaks[pid][0] if pid in self._peaks else self._kind(pid)
             except (OSError, StopIteration):
                 continue
