@@ -26,6 +26,7 @@ import numpy as np
 from app.main import build_services
 from app.settings import Settings
 from bench.live import SeatClient, ServerProcess, make_trial
+from bench.report import percentile
 from sim.agents.oracle_commander import OracleCommander
 from sim.core.dynamics import snap_pose
 from sim.core.geometry import SUCCESS_RADIUS_M
@@ -106,16 +107,11 @@ async def run(trials: int) -> dict:
         finally:
             server.stop()
             services.engine.dispose()
-    pct = lambda xs, q: round(float(np.percentile(xs, q)), 3)  # noqa: E731
+    answers = {"question_answer": "question_s", "instruction_answer": "instruction_s", "per_move": "per_move_s"}
     return {
         "trials": len(out["reached"]),
         "first_target_reached": round(sum(out["reached"]) / len(out["reached"]), 3),
-        "question_answer_p50_s": pct(out["question_s"], 50),
-        "question_answer_p95_s": pct(out["question_s"], 95),
-        "instruction_answer_p50_s": pct(out["instruction_s"], 50),
-        "instruction_answer_p95_s": pct(out["instruction_s"], 95),
-        "per_move_p50_s": pct(out["per_move_s"], 50),
-        "per_move_p95_s": pct(out["per_move_s"], 95),
+        **{f"{name}_p{q}_s": round(percentile(out[key], q), 3) for name, key in answers.items() for q in (50, 95)},
         "instructions": len(out["instruction_s"]),
     }
 
