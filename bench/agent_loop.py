@@ -17,7 +17,6 @@ The checkpoint is the one given, else whichever Driver the package ships
 from __future__ import annotations
 
 import asyncio
-import os
 import subprocess
 import sys
 import tempfile
@@ -120,7 +119,9 @@ def agent_figures(
     }
 
 
-async def _rover_tds(benchmark: Path, checkpoint: Path, chosen, bench, tmp: Path, calibration, log) -> list[float]:
+async def _rover_tds(
+    benchmark: Path, checkpoint: Path, chosen, bench, tmp: Path, calibration, log
+) -> tuple[list[float], list[int]]:
     from tqdm import tqdm
 
     from app.main import build_services
@@ -167,30 +168,10 @@ async def _rover_tds(benchmark: Path, checkpoint: Path, chosen, bench, tmp: Path
             _seed_dialog(services, trial, inst, LoggedEvent)
             truth = tmp / f"truth-{k}.jsonl"
             rover = subprocess.Popen(
-                [
-                    sys.executable,
-                    "-c",
-                    "from app.cli import main; main()",
-                    "robot",
-                    "virtual",
-                    "--server",
-                    server.url,
-                    "--token",
-                    token,
-                    "--maze",
-                    inst.run,
-                    "--seed",
-                    str(k),
-                    "--fps",
-                    "10",
-                    "--truth",
-                    str(truth),
-                    "--calibration",
-                    str(timings),
-                    "--start",
-                    f"{start.x},{start.y},{start.theta}",
-                ],
-                env={**os.environ, **env},
+                [sys.executable, "-c", "from app.cli import main; main()", "robot", "virtual", "--server", server.url]
+                + ["--token", token, "--maze", inst.run, "--seed", str(k), "--fps", "10", "--truth", str(truth)]
+                + ["--calibration", str(timings), "--start", f"{start.x},{start.y},{start.theta}"],
+                env=server.env,
                 cwd=REPO,
                 stdout=subprocess.DEVNULL,
                 stderr=subprocess.DEVNULL,
