@@ -128,7 +128,7 @@ async def _rover_tds(
     from app.rover.records import create_robot
     from app.rover.virtual.truth import read_truth
     from app.settings import Settings
-    from bench.live import REPO, SeatClient, ServerProcess, make_trial
+    from bench.live import CLI, REPO, SeatClient, ServerProcess, make_trial
     from robot_client.calibration import Calibration
     from sim.trial.events import LoggedEvent
 
@@ -168,8 +168,8 @@ async def _rover_tds(
             _seed_dialog(services, trial, inst, LoggedEvent)
             truth = tmp / f"truth-{k}.jsonl"
             rover = subprocess.Popen(
-                [sys.executable, "-c", "from app.cli import main; main()", "robot", "virtual", "--server", server.url]
-                + ["--token", token, "--maze", inst.run, "--seed", str(k), "--fps", "10", "--truth", str(truth)]
+                [*CLI, "robot", "virtual", "--server", server.url, "--token", token, "--maze", inst.run]
+                + ["--seed", str(k), "--fps", "10", "--truth", str(truth)]
                 + ["--calibration", str(timings), "--start", f"{start.x},{start.y},{start.theta}"],
                 env=server.env,
                 cwd=REPO,

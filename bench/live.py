@@ -26,6 +26,7 @@ from bench.report import rss_mb
 from sim.trial.vocabulary import Role
 
 REPO = Path(__file__).resolve().parent.parent
+CLI = [sys.executable, "-c", "from app.cli import main; main()"]  # `robotslang`, from this checkout
 
 
 def free_port() -> int:
@@ -73,17 +74,7 @@ class ServerProcess:
         # Its output goes to a file open while it runs, not a pipe nobody reads: a full pipe would stall it.
         self.output = tempfile.TemporaryFile("w+")  # noqa: SIM115
         self.proc = subprocess.Popen(
-            self.argv
-            or [
-                sys.executable,
-                "-c",
-                "from app.cli import main; main()",
-                "serve",
-                "--port",
-                str(self.port),
-                "--workers",
-                str(self.workers),
-            ],
+            self.argv or [*CLI, "serve", "--port", str(self.port), "--workers", str(self.workers)],
             env=self.env,
             cwd=REPO,
             stdout=self.output,
@@ -177,6 +168,11 @@ def make_trial(
     return trial_id
 
 
+def _stat(pid: int) -> list[str]:
+    """/proc/PID/stat's fields after the command: [1] the parent, [11] and [12] user and system CPU."""
+    return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+
+
 class ServerProcesses:
     """CPU seconds and RSS of the server process and its children (workers, render processes),
     from /proc: the peak of their sum, and each one's own peak."""
@@ -191,7 +187,7 @@ class ServerProcesses:
         for entry in Path("/proc").iterdir():
             if entry.name.isdigit():
                 try:
-                    ppid = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+                    ppid = int(_stat(int(entry.name))[1])
                 except (OSError, IndexError, ValueError):
                     continue
                 children.setdefault(ppid, []).append(int(entry.name))
@@ -206,7 +202,7 @@ class ServerProcesses:
         total = 0.0
         for pid in self.pids():
             try:
-                fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+                fields = _stat(pid)
             except OSError:
                 continue
             total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
@@ -233,8 +229,7 @@ class ServerProcesses:
         command = Path(f"/proc/{pid}/cmdline").read_bytes()
         if b"resource_tracker" in command:
             return "tracker"
-        parent = int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
-        return "worker" if parent == self.pid and self.workers > 1 else "render"
+        return "worker" if int(_stat(pid)[1]) == self.pid and self.workers > 1 else "render"
 
     def peaks(self) -> list[dict[str, Any]]:
         """Each process seen: its pid, kind and peak RSS."""
