@@ -25,7 +25,7 @@ import numpy as np
 
 from app.main import build_services
 from app.settings import Settings
-from bench.live import SeatClient, ServerProcess, make_trial
+from bench.live import SeatClient, ServerProcess, make_trial, settings_env
 from bench.report import percentile
 from sim.agents.oracle_commander import OracleCommander
 from sim.core.dynamics import snap_pose
@@ -95,10 +95,9 @@ async def play(server, services, maze: str, out: dict[str, list]) -> None:
 
 async def run(trials: int) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
-        data = Path(tmp) / "var"
-        env = {"ROBOTSLANG_DATA_DIR": str(data), "ROBOTSLANG_SECRET_KEY": "bench-agent-seat"}
-        services = build_services(Settings(data_dir=data, secret_key="bench-agent-seat"))
-        server = ServerProcess(env).start()
+        settings = Settings(data_dir=Path(tmp) / "var", secret_key="bench-agent-seat")
+        services = build_services(settings)
+        server = ServerProcess(settings_env(settings)).start()
         out: dict[str, list] = {"question_s": [], "instruction_s": [], "per_move_s": [], "reached": []}
         try:
             mazes = [n for n in services.mazes.names() if n.startswith("gen-")][:trials]

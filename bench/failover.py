@@ -23,7 +23,7 @@ from sqlalchemy import func, select
 from app.db.models import Event
 from app.main import build_services
 from app.settings import Settings
-from bench.live import SeatClient, ServerProcess, team_trial
+from bench.live import SeatClient, ServerProcess, settings_env, team_trial
 from bench.load import database
 from bench.report import load_average
 
@@ -72,12 +72,7 @@ def main() -> None:
     for run in range(args.runs):
         with tempfile.TemporaryDirectory(prefix="robotslang-failover-") as tmp, database(2, args.postgres_url) as url:
             settings = Settings(data_dir=Path(tmp) / "var", secret_key="failover", database_url=url)
-            env = {
-                "ROBOTSLANG_DATA_DIR": str(settings.data_dir),
-                "ROBOTSLANG_SECRET_KEY": "failover",
-                "ROBOTSLANG_DATABASE_URL": url,
-                "ROBOTSLANG_REDIS_URL": args.redis_url,
-            }
+            env = {**settings_env(settings), "ROBOTSLANG_REDIS_URL": args.redis_url}
             services = build_services(settings)
             names = services.mazes.names()
             with services.db.begin() as db:

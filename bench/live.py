@@ -21,6 +21,7 @@ import websockets
 from sqlalchemy.orm import Session
 
 from app.seats.registry import offered_agents
+from app.settings import Settings
 from app.trial.setup import create_participant, create_team, create_trial
 from bench.report import rss_mb
 from sim.trial.vocabulary import Role
@@ -46,6 +47,15 @@ def wait_until_up(url: str, server: subprocess.Popen, seconds: float = 60.0) -> 
                 return
         time.sleep(0.1)
     raise RuntimeError(f"robotslang serve did not answer on {url} within {seconds:g} s")
+
+
+def settings_env(settings: Settings) -> dict[str, str | None]:
+    """The environment that gives `robotslang serve` the settings `settings` set (None: unset)."""
+    env: dict[str, str | None] = {}
+    for name, value in settings.model_dump(exclude_unset=True).items():
+        text = json.dumps(value) if isinstance(value, list) else None if value is None else str(value)
+        env[f"ROBOTSLANG_{name.upper()}"] = text
+    return env
 
 
 class ServerProcess:

@@ -28,7 +28,7 @@ from app.db.models import Experimenter
 from app.main import build_services
 from app.security import hash_password
 from app.settings import Settings
-from bench.live import ServerProcess
+from bench.live import ServerProcess, settings_env
 from bench.report import percentile, rss_mb
 
 console = Console()
@@ -106,18 +106,13 @@ def main() -> None:
     parser.add_argument("--port", type=int, default=8766)
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        services = build_services(Settings(data_dir=Path(tmp) / "var", secret_key="bench"))
+        limits = {"login_limit_per_account": "100000/minute", "login_limit_per_address": "100000/minute"}
+        settings = Settings(data_dir=Path(tmp) / "var", secret_key="bench", database_url=None, **limits)
+        services = build_services(settings)
         with services.db.begin() as db:
             db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
         services.engine.dispose()
-        env = {
-            "ROBOTSLANG_DATA_DIR": str(Path(tmp) / "var"),
-            "ROBOTSLANG_SECRET_KEY": "bench",
-            "ROBOTSLANG_LOGIN_LIMIT_PER_ACCOUNT": "100000/minute",
-            "ROBOTSLANG_LOGIN_LIMIT_PER_ADDRESS": "100000/minute",
-            "ROBOTSLANG_DATABASE_URL": None,
-        }
-        server = ServerProcess(env, port=args.port).start()
+        server = ServerProcess(settings_env(settings), port=args.port).start()
         try:
             asyncio.run(burst(server.url, args.logins, server.proc.pid))
         finally:

@@ -32,7 +32,7 @@ from app.db.models import Event
 from app.main import build_services
 from app.rover.records import create_robot
 from app.settings import Settings
-from bench.live import REPO, ServerProcess, team_trial
+from bench.live import REPO, ServerProcess, settings_env, team_trial
 from bench.report import percentile
 
 SECRET = "bench-robot"
@@ -95,11 +95,10 @@ def main() -> None:
 
     console = Console(width=100)
     with tempfile.TemporaryDirectory(prefix="bench-robot-") as tmp:
-        data = Path(tmp) / "var"
-        services = build_services(Settings(data_dir=data, secret_key=SECRET, database_url=None))
+        settings = Settings(data_dir=Path(tmp) / "var", secret_key=SECRET, database_url=None)
+        services = build_services(settings)
         runs = prepare(services, len(args.fps))
-        env = {"ROBOTSLANG_DATA_DIR": str(data), "ROBOTSLANG_SECRET_KEY": SECRET, "ROBOTSLANG_DATABASE_URL": None}
-        server = ServerProcess(env).start()
+        server = ServerProcess(settings_env(settings)).start()
         rows = []
         try:
             for fps, (token, trial_id) in zip(args.fps, runs):
