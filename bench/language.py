@@ -62,10 +62,6 @@ class RecordedTurn:
     text: str
     before: tuple[tuple[str, str], ...]
 
-    @property
-    def split(self) -> str:
-        return self.id.split("/")[0]
-
     def asked(self) -> str | None:
         """The Commander's latest question since the Driver last spoke (what a Driver turn answers)."""
         return lexicon.asked((role == "oracle", text) for role, text in self.before)
