@@ -17,7 +17,6 @@ The checkpoint is the one given, else whichever Driver the package ships
 from __future__ import annotations
 
 import asyncio
-import os
 import subprocess
 import sys
 import tempfile
@@ -120,77 +119,48 @@ def agent_figures(
     }
 
 
-async def _rover_tds(benchmark: Path, checkpoint: Path, chosen, bench, tmp: Path, calibration, log) -> list[float]:
+async def _rover_tds(
+    benchmark: Path, checkpoint: Path, chosen, bench, tmp: Path, calibration, log
+) -> tuple[list[float], list[int]]:
     from tqdm import tqdm
 
     from app.main import build_services
     from app.rover.records import create_robot
     from app.rover.virtual.truth import read_truth
     from app.settings import Settings
-    from bench.live import REPO, SeatClient, ServerProcess, make_trial
+    from bench.live import CLI, REPO, SeatClient, ServerProcess, make_trial, settings_env
     from robot_client.calibration import Calibration
     from sim.trial.events import LoggedEvent
 
-    data = tmp / "var"
-    env = {
-        "ROBOTSLANG_DATA_DIR": str(data),
-        "ROBOTSLANG_SECRET_KEY": "bench-robot-loop",
-        "ROBOTSLANG_BENCHMARK": str(benchmark),
-        "ROBOTSLANG_SEQ2SEQ_CHECKPOINT": str(checkpoint),
-        "ROBOTSLANG_MIN_MOVE_INTERVAL_S": "0",
-    }
     settings = Settings(
-        data_dir=data, secret_key="bench-robot-loop", benchmark=benchmark, seq2seq_checkpoint=checkpoint
+        data_dir=tmp / "var",
+        secret_key="bench-robot-loop",
+        benchmark=benchmark,
+        seq2seq_checkpoint=checkpoint,
+        min_move_interval_s=0,
     )
     services = build_services(settings)
     if calibration is not None:
         calibration.save(settings.camera_calibration)  # the lab's camera: the software rover's
     timings = tmp / "timings.json"
     Calibration(**FAST_PULSES).save(timings)
-    server = ServerProcess(env).start()
+    server = ServerProcess(settings_env(settings)).start()
     tds, moves = [], []
     try:
         for k, (inst, start) in enumerate(tqdm(chosen, desc="agent on the virtual rover", file=sys.stderr)):
             graph = bench.graph(inst.run)
             with services.db.begin() as db:
                 robot, token = create_robot(db, f"bench rover {k}")
-                robot_id = robot.id
+                backend = f"robot:{robot.id}"
             targets = [inst.target] + [t for t in ("jar", "mug", "paddle") if t != inst.target]
-            trial = make_trial(
-                services,
-                inst.run,
-                targets=targets,
-                driver="agent:seq2seq",
-                team=f"bench {k}",
-                backend=f"robot:{robot_id}",
-            )
+            trial = make_trial(services, inst.run, targets, "agent:seq2seq", team=f"bench {k}", backend=backend)
             _seed_dialog(services, trial, inst, LoggedEvent)
             truth = tmp / f"truth-{k}.jsonl"
             rover = subprocess.Popen(
-                [
-                    sys.executable,
-                    "-c",
-                    "from app.cli import main; main()",
-                    "robot",
-                    "virtual",
-                    "--server",
-                    server.url,
-                    "--token",
-                    token,
-                    "--maze",
-                    inst.run,
-                    "--seed",
-                    str(k),
-                    "--fps",
-                    "10",
-                    "--truth",
-                    str(truth),
-                    "--calibration",
-                    str(timings),
-                    "--start",
-                    f"{start.x},{start.y},{start.theta}",
-                ],
-                env={**os.environ, **env},
+                [*CLI, "robot", "virtual", "--server", server.url, "--token", token, "--maze", inst.run]
+                + ["--seed", str(k), "--fps", "10", "--truth", str(truth)]
+                + ["--calibration", str(timings), "--start", f"{start.x},{start.y},{start.theta}"],
+                env=server.env,
                 cwd=REPO,
                 stdout=subprocess.DEVNULL,
                 stderr=subprocess.DEVNULL,
@@ -203,8 +173,7 @@ async def _rover_tds(benchmark: Path, checkpoint: Path, chosen, bench, tmp: Path
             finally:
                 rover.terminate()
                 rover.wait(timeout=20)
-            rest = [s for s in read_truth(truth) if not s.moving and s.move_id <= MAX_MOVES]
-            end = rest[-1]
+            end = [s for s in read_truth(truth) if not s.moving and s.move_id <= MAX_MOVES][-1]
             node = graph.nearest_node(end.x, end.y)
             goal = graph.nearest_node(*inst.target_pose)
             tds.append(float(graph.dist[node, goal]))

@@ -25,7 +25,8 @@ import numpy as np
 
 from app.main import build_services
 from app.settings import Settings
-from bench.live import SeatClient, ServerProcess, make_trial
+from bench.live import SeatClient, ServerProcess, make_trial, settings_env
+from bench.report import percentile
 from sim.agents.oracle_commander import OracleCommander
 from sim.core.dynamics import snap_pose
 from sim.core.geometry import SUCCESS_RADIUS_M
@@ -94,10 +95,9 @@ async def play(server, services, maze: str, out: dict[str, list]) -> None:
 
 async def run(trials: int) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
-        data = Path(tmp) / "var"
-        env = {"ROBOTSLANG_DATA_DIR": str(data), "ROBOTSLANG_SECRET_KEY": "bench-agent-seat"}
-        services = build_services(Settings(data_dir=data, secret_key="bench-agent-seat"))
-        server = ServerProcess(env).start()
+        settings = Settings(data_dir=Path(tmp) / "var", secret_key="bench-agent-seat")
+        services = build_services(settings)
+        server = ServerProcess(settings_env(settings)).start()
         out: dict[str, list] = {"question_s": [], "instruction_s": [], "per_move_s": [], "reached": []}
         try:
             mazes = [n for n in services.mazes.names() if n.startswith("gen-")][:trials]
@@ -106,16 +106,11 @@ async def run(trials: int) -> dict:
         finally:
             server.stop()
             services.engine.dispose()
-    pct = lambda xs, q: round(float(np.percentile(xs, q)), 3)  # noqa: E731
+    answers = {"question_answer": "question_s", "instruction_answer": "instruction_s", "per_move": "per_move_s"}
     return {
         "trials": len(out["reached"]),
         "first_target_reached": round(sum(out["reached"]) / len(out["reached"]), 3),
-        "question_answer_p50_s": pct(out["question_s"], 50),
-        "question_answer_p95_s": pct(out["question_s"], 95),
-        "instruction_answer_p50_s": pct(out["instruction_s"], 50),
-        "instruction_answer_p95_s": pct(out["instruction_s"], 95),
-        "per_move_p50_s": pct(out["per_move_s"], 50),
-        "per_move_p95_s": pct(out["per_move_s"], 95),
+        **{f"{name}_p{q}_s": round(percentile(out[key], q), 3) for name, key in answers.items() for q in (50, 95)},
         "instructions": len(out["instruction_s"]),
     }
 

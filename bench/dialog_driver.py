@@ -29,6 +29,7 @@ the benchmark's 120 moves, ending at its claim or after the last message; it pri
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 from multiprocessing import Pool
@@ -53,17 +54,19 @@ from sim.trial.vocabulary import Phase
 MAX_LEG_MOVES = 400
 LOCALIZATION_MESSAGES = 6
 
-_bench: Benchmark | None = None
+
+@functools.cache
+def _benchmark(root: str) -> Benchmark:
+    """The benchmark, loaded once per worker process."""
+    return Benchmark(root)
 
 
 def _play(job: tuple[str, str, int, str]) -> tuple[str, str, LegResult]:
     root, split, k, mode = job
-    global _bench
-    if _bench is None or str(_bench.root) != root:
-        _bench = Benchmark(root)
-    inst = _bench.split(split)[k]
-    graph = _bench.graph(inst.run)
-    rays = RayTable.build(_bench.maze(inst.run), graph, cache_dir=_bench.cache_dir)
+    bench = _benchmark(root)
+    inst = bench.split(split)[k]
+    graph = bench.graph(inst.run)
+    rays = RayTable.build(bench.maze(inst.run), graph, cache_dir=bench.cache_dir)
     phrasing = Phrasing.SCRIPTED if mode == "localize" else style(mode)
     commander = OracleCommander(graph, rays, [(inst.target, inst.target_pose)], phrasing, seed=inst.inst_idx)
     start = recorded_start(graph, inst)
@@ -88,13 +91,11 @@ def _leg_dialog(instances: list[NDHInstance], k: int) -> tuple[tuple[str, str], 
 
 def _ndh(job: tuple[str, str, int]) -> TrajectoryScore:
     root, split, k = job
-    global _bench
-    if _bench is None or str(_bench.root) != root:
-        _bench = Benchmark(root)
-    instances = _bench.split(split)
+    bench = _benchmark(root)
+    instances = bench.split(split)
     inst = instances[k]
-    graph = _bench.graph(inst.run)
-    rays = RayTable.build(_bench.maze(inst.run), graph, cache_dir=_bench.cache_dir)
+    graph = bench.graph(inst.run)
+    rays = RayTable.build(bench.maze(inst.run), graph, cache_dir=bench.cache_dir)
     start = episode_start(graph, inst)
     target = (inst.target, inst.target_pose)
     nodes = replay(

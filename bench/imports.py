@@ -7,8 +7,11 @@ import, also those inside functions and under `TYPE_CHECKING`, and `sys.path` ed
 from __future__ import annotations
 
 import ast
-import sys
 from pathlib import Path
+
+import numpy as np
+from scipy.sparse import csr_array
+from scipy.sparse.csgraph import connected_components
 
 PACKAGES = ("app", "sim", "models", "robot_client", "bench")
 
@@ -49,39 +52,14 @@ def imports(name: str, path: Path, known: dict[str, Path]) -> set[str]:
 
 
 def circles(graph: dict[str, set[str]]) -> list[list[str]]:
-    """Tarjan's strongly connected components with more than one module."""
-    index: dict[str, int] = {}
-    low: dict[str, int] = {}
-    stack: list[str] = []
-    on: set[str] = set()
-    found: list[list[str]] = []
-    sys.setrecursionlimit(10_000)
-
-    def visit(v: str) -> None:
-        index[v] = low[v] = len(index)
-        stack.append(v)
-        on.add(v)
-        for w in graph[v]:
-            if w not in index:
-                visit(w)
-                low[v] = min(low[v], low[w])
-            elif w in on:
-                low[v] = min(low[v], index[w])
-        if low[v] == index[v]:
-            group = []
-            while True:
-                w = stack.pop()
-                on.discard(w)
-                group.append(w)
-                if w == v:
-                    break
-            if len(group) > 1:
-                found.append(sorted(group))
-
-    for v in sorted(graph):
-        if v not in index:
-            visit(v)
-    return found
+    """The strongly connected groups of more than one module, each sorted, in order."""
+    names = sorted(graph)
+    at = {name: i for i, name in enumerate(names)}
+    edges = np.array([(at[a], at[b]) for a in names for b in graph[a]], dtype=np.int64).reshape(-1, 2)
+    matrix = csr_array((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(len(names), len(names)))
+    _, labels = connected_components(matrix, directed=True, connection="strong")
+    groups = [[n for n, label in zip(names, labels) if label == k] for k in range(labels.max(initial=-1) + 1)]
+    return sorted(group for group in groups if len(group) > 1)
 
 
 def main() -> None:

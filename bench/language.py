@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from bench.report import percentile, rss_mb
 from sim.language import instructions as ins
 from sim.language import lexicon
 from sim.language.meaning import Clause, FactForm, Program, Score, facts_of, program_of, score_facts, score_programs
@@ -60,10 +61,6 @@ class RecordedTurn:
     role: str  # oracle (Commander) or navigator (Driver)
     text: str
     before: tuple[tuple[str, str], ...]
-
-    @property
-    def split(self) -> str:
-        return self.id.split("/")[0]
 
     def asked(self) -> str | None:
         """The Commander's latest question since the Driver last spoke (what a Driver turn answers)."""
@@ -138,11 +135,6 @@ def rules_facts(turn: RecordedTurn) -> frozenset[FactForm]:
     return facts_of(turn.text, turn.asked())
 
 
-def _rss_mb() -> float:
-    with open(f"/proc/{os.getpid()}/statm") as f:
-        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
-
-
 def _figures(commander: Score, driver: Score) -> dict[str, Any]:
     return {
         "commander": {
@@ -171,11 +163,10 @@ def evaluate(benchmark: Benchmark, split: str, understanding: Understanding) -> 
         start = time.perf_counter()
         facts.append((understanding.facts(t.text, t.previous(), t.asked()).meaning, wanted))
         times.append(time.perf_counter() - start)
-    times.sort()
     return {
         **_figures(score_programs(programs), score_facts(facts)),
         "baseline": baseline,
-        "understand_p95_ms": round(1000 * times[int(0.95 * (len(times) - 1))], 3) if times else 0.0,
+        "understand_p95_ms": round(1000 * percentile(times, 95), 3) if times else 0.0,
         "split": split,
     }
 
@@ -192,14 +183,14 @@ def main(argv: list[str] | None = None) -> int:
     if not args.benchmark:
         parser.error("--benchmark PATH (or ROBOTSLANG_BENCHMARK) is required")
     bench = Benchmark(args.benchmark)
-    before_mb = _rss_mb()
+    before_mb = rss_mb(os.getpid())
     readers = (
         (Reader(args.readers / "commander.npz"), Reader(args.readers / "driver.npz"))
         if args.readers
         else (shipped(Role.COMMANDER), shipped(Role.DRIVER))
     )
     figures = evaluate(bench, args.split, Understanding(*readers))
-    figures["model_mb"] = round(_rss_mb() - before_mb, 1)  # the readers' weights, and what reading kept
+    figures["model_mb"] = round(rss_mb(os.getpid()) - before_mb, 1)  # the readers' weights, and what reading kept
     print(
         f"load average {' '.join(f'{v:.2f}' for v in os.getloadavg())}; peak RSS {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024} MB",
         file=sys.stderr,

@@ -10,6 +10,7 @@ import os
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -20,10 +21,13 @@ import websockets
 from sqlalchemy.orm import Session
 
 from app.seats.registry import offered_agents
+from app.settings import Settings
 from app.trial.setup import create_participant, create_team, create_trial
+from bench.report import rss_mb
 from sim.trial.vocabulary import Role
 
 REPO = Path(__file__).resolve().parent.parent
+CLI = [sys.executable, "-c", "from app.cli import main; main()"]  # `robotslang`, from this checkout
 
 
 def free_port() -> int:
@@ -32,13 +36,36 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
+def wait_until_up(url: str, server: subprocess.Popen, seconds: float = 60.0) -> None:
+    """Until the server at `url` answers; RuntimeError if it exits or stays silent `seconds`."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        if server.poll() is not None:
+            raise RuntimeError(f"robotslang serve exited with status {server.returncode}")
+        with contextlib.suppress(httpx.HTTPError):
+            if httpx.get(url + "/leaderboard", timeout=1).status_code == 200:
+                return
+        time.sleep(0.1)
+    raise RuntimeError(f"robotslang serve did not answer on {url} within {seconds:g} s")
+
+
+def settings_env(settings: Settings) -> dict[str, str | None]:
+    """The environment that gives `robotslang serve` the settings `settings` set (None: unset)."""
+    env: dict[str, str | None] = {}
+    for name, value in settings.model_dump(exclude_unset=True).items():
+        text = json.dumps(value) if isinstance(value, list) else None if value is None else str(value)
+        env[f"ROBOTSLANG_{name.upper()}"] = text
+    return env
+
+
 class ServerProcess:
     """`robotslang serve` as a separate process, so a test can kill it the hard way."""
 
     def __init__(
-        self, env: dict[str, str], port: int | None = None, workers: int = 1, argv: list[str] | None = None
+        self, env: Mapping[str, str | None], port: int | None = None, workers: int = 1, argv: list[str] | None = None
     ) -> None:
-        self.env = {**os.environ, **env}
+        # A variable given as None is unset for the server (a database URL of the caller's, say).
+        self.env = {k: v for k, v in {**os.environ, **env}.items() if v is not None}
         self.port = port or free_port()
         self.workers = workers
         # `argv`: a command of its own that serves on 127.0.0.1:`port` (a deployment's, say).
@@ -54,34 +81,23 @@ class ServerProcess:
         return f"ws://127.0.0.1:{self.port}/ws/play"
 
     def start(self) -> ServerProcess:
+        # Its output goes to a file open while it runs, not a pipe nobody reads: a full pipe would stall it.
+        self.output = tempfile.TemporaryFile("w+")  # noqa: SIM115
         self.proc = subprocess.Popen(
-            self.argv
-            or [
-                sys.executable,
-                "-c",
-                "from app.cli import main; main()",
-                "serve",
-                "--port",
-                str(self.port),
-                "--workers",
-                str(self.workers),
-            ],
+            self.argv or [*CLI, "serve", "--port", str(self.port), "--workers", str(self.workers)],
             env=self.env,
             cwd=REPO,
-            stdout=subprocess.PIPE,
+            stdout=self.output,
             stderr=subprocess.STDOUT,
             text=True,
         )
-        deadline = time.time() + 30
-        while time.time() < deadline:
-            if self.proc.poll() is not None:
-                raise RuntimeError(f"server exited: {self.proc.stdout.read()}")
-            try:
-                if httpx.get(self.url + "/leaderboard", timeout=1).status_code == 200:
-                    return self
-            except httpx.HTTPError:
-                time.sleep(0.1)
-        raise RuntimeError("server did not start in 30 s")
+        try:
+            wait_until_up(self.url, self.proc)
+        except RuntimeError as error:
+            self.stop()
+            self.output.seek(0)
+            raise RuntimeError(f"{error}: {self.output.read()}") from None
+        return self
 
     def kill(self) -> None:
         self.proc.kill()
@@ -162,6 +178,11 @@ def make_trial(
     return trial_id
 
 
+def _stat(pid: int) -> list[str]:
+    """/proc/PID/stat's fields after the command: [1] the parent, [11] and [12] user and system CPU."""
+    return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+
+
 class ServerProcesses:
     """CPU seconds and RSS of the server process and its children (workers, render processes),
     from /proc: the peak of their sum, and each one's own peak."""
@@ -176,7 +197,7 @@ class ServerProcesses:
         for entry in Path("/proc").iterdir():
             if entry.name.isdigit():
                 try:
-                    ppid = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+                    ppid = int(_stat(int(entry.name))[1])
                 except (OSError, IndexError, ValueError):
                     continue
                 children.setdefault(ppid, []).append(int(entry.name))
@@ -191,7 +212,7 @@ class ServerProcesses:
         total = 0.0
         for pid in self.pids():
             try:
-                fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+                fields = _stat(pid)
             except OSError:
                 continue
             total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
@@ -201,11 +222,7 @@ class ServerProcesses:
         rss = 0.0
         for pid in self.pids():
             try:
-                mb = next(
-                    int(line.split()[1]) / 1024
-                    for line in Path(f"/proc/{pid}/status").read_text().splitlines()
-                    if line.startswith("VmRSS:")
-                )
+                mb = rss_mb(pid)
                 kind = self._peaks[pid][0] if pid in self._peaks else self._kind(pid)
             except (OSError, StopIteration):
                 continue
@@ -222,8 +239,7 @@ class ServerProcesses:
         command = Path(f"/proc/{pid}/cmdline").read_bytes()
         if b"resource_tracker" in command:
             return "tracker"
-        parent = int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
-        return "worker" if parent == self.pid and self.workers > 1 else "render"
+        return "worker" if int(_stat(pid)[1]) == self.pid and self.workers > 1 else "render"
 
     def peaks(self) -> list[dict[str, Any]]:
         """Each process seen: its pid, kind and peak RSS."""

@@ -65,7 +65,6 @@ from enum import StrEnum
 from pathlib import Path
 
 import httpx
-import numpy as np
 import websockets
 from rich.console import Console
 from rich.progress import Progress
@@ -75,7 +74,8 @@ from app.db.models import Event, Experimenter, Participant, Team, Trial
 from app.main import build_services
 from app.security import SESSION_COOKIE, hash_password
 from app.settings import Settings
-from bench.live import ServerProcesses
+from bench.live import ServerProcesses, wait_until_up
+from bench.report import percentile
 from sim.core.cache import cache_dir
 
 console = Console(stderr=True)
@@ -405,10 +405,6 @@ async def run_agent_trial(
         task.cancel()
 
 
-def percentile(values: list[float], q: float) -> float:
-    return float(np.percentile(values, q)) if values else float("nan")
-
-
 async def drive(
     ws_url: str,
     tokens,
@@ -510,18 +506,6 @@ def beliefs_shown(http_url: str, services) -> int:
     cookies = {SESSION_COOKIE: services.sessions.issue(first_experimenter(services))}
     trials = httpx.get(f"{http_url}/experimenter/api/trials", cookies=cookies, timeout=60).json()["trials"]
     return sum(t["belief"] is not None for t in trials)
-
-
-def wait_until_up(url: str, server: subprocess.Popen) -> None:
-    for _ in range(600):
-        try:
-            httpx.get(url + "/leaderboard", timeout=1)
-            return
-        except httpx.HTTPError:
-            if server.poll() is not None:
-                raise SystemExit(f"robotslang serve exited with status {server.returncode}") from None
-            time.sleep(0.1)
-    raise SystemExit(f"robotslang serve did not answer on {url} within 60 s")
 
 
 @contextmanager

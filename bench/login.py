@@ -16,8 +16,6 @@ import asyncio
 import collections
 import os
 import re
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -30,13 +28,10 @@ from app.db.models import Experimenter
 from app.main import build_services
 from app.security import hash_password
 from app.settings import Settings
+from bench.live import ServerProcess, settings_env
+from bench.report import percentile, rss_mb
 
 console = Console()
-
-
-def rss_mib(pid: int) -> float:
-    status = Path(f"/proc/{pid}/status").read_text()
-    return int(re.search(r"VmRSS:\s+(\d+) kB", status).group(1)) / 1024
 
 
 async def probe(http: httpx.AsyncClient, stop: asyncio.Event) -> list[float]:
@@ -75,13 +70,13 @@ async def burst(url: str, logins: int, pid: int) -> None:
             answer = await http.post("/login", data={"name": name, "password": f"guess {i}", "csrf_token": token})
             answers["known" if i % 2 else "unknown"].append((answer.status_code, time.perf_counter() - started))
 
-        peak = before = rss_mib(pid)
+        peak = before = rss_mb(pid)
         stop = asyncio.Event()
         during = asyncio.create_task(probe(http, stop))
         started = time.perf_counter()
         guesses = asyncio.gather(*(guess(i) for i in range(logins)))
         while not guesses.done():
-            peak = max(peak, rss_mib(pid))
+            peak = max(peak, rss_mb(pid))
             await asyncio.sleep(0.05)
         await guesses
         took = time.perf_counter() - started
@@ -93,8 +88,8 @@ async def burst(url: str, logins: int, pid: int) -> None:
     for label, values in (("idle", idle_latency), ("during the burst", during_latency)):
         ms = np.array(values) * 1000
         console.print(
-            f"GET / {label}: {len(ms)} requests, p50 {np.percentile(ms, 50):.1f} ms, "
-            f"p99 {np.percentile(ms, 99):.1f} ms, max {ms.max():.1f} ms"
+            f"GET / {label}: {len(ms)} requests, p50 {percentile(ms, 50):.1f} ms, "
+            f"p99 {percentile(ms, 99):.1f} ms, max {ms.max():.1f} ms"
         )
     console.print(f"server RSS: {before:.0f} MiB before the burst, peak {peak:.0f} MiB during it")
     for label in ("known", "unknown"):
@@ -111,38 +106,17 @@ def main() -> None:
     parser.add_argument("--port", type=int, default=8766)
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        env = {
-            **os.environ,
-            "ROBOTSLANG_DATA_DIR": str(Path(tmp) / "var"),
-            "ROBOTSLANG_SECRET_KEY": "bench",
-            "ROBOTSLANG_LOGIN_LIMIT_PER_ACCOUNT": "100000/minute",
-            "ROBOTSLANG_LOGIN_LIMIT_PER_ADDRESS": "100000/minute",
-        }
-        env.pop("ROBOTSLANG_DATABASE_URL", None)
-        services = build_services(Settings(data_dir=Path(tmp) / "var", secret_key="bench"))
+        limits = {"login_limit_per_account": "100000/minute", "login_limit_per_address": "100000/minute"}
+        settings = Settings(data_dir=Path(tmp) / "var", secret_key="bench", database_url=None, **limits)
+        services = build_services(settings)
         with services.db.begin() as db:
             db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
         services.engine.dispose()
-        server = subprocess.Popen(
-            [sys.executable, "-c", "from app.cli import main; main()", "serve", "--port", str(args.port)],
-            env=env,
-            stdout=subprocess.DEVNULL,
-        )
-        url = f"http://127.0.0.1:{args.port}"
+        server = ServerProcess(settings_env(settings), port=args.port).start()
         try:
-            deadline = time.time() + 30
-            while True:
-                try:
-                    if httpx.get(url + "/leaderboard", timeout=1).status_code == 200:
-                        break
-                except httpx.HTTPError:
-                    if server.poll() is not None or time.time() > deadline:
-                        raise SystemExit("robotslang serve did not start") from None
-                    time.sleep(0.1)
-            asyncio.run(burst(url, args.logins, server.pid))
+            asyncio.run(burst(server.url, args.logins, server.proc.pid))
         finally:
-            server.terminate()
-            server.wait(timeout=20)
+            server.stop()
 
 
 if __name__ == "__main__":

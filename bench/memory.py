@@ -22,6 +22,7 @@ from rich.progress import Progress
 from app.main import create_app
 from app.settings import Settings
 from bench.live import ServerProcesses, team_trial
+from bench.report import load_average
 
 console = Console()
 
@@ -31,11 +32,6 @@ def rss_mb() -> float:
     return ServerProcesses(os.getpid()).sample_rss()
 
 
-def new_trial(services, i: int, maze: str, names: list[str]) -> int:
-    with services.db.begin() as db:
-        return team_trial(db, f"mem-team-{i}", maze, names, services.clock.now_ns())
-
-
 async def study(services, live: int, limit: int | None) -> dict:
     names = services.mazes.names()[:limit]
     running: collections.deque = collections.deque()
@@ -43,7 +39,9 @@ async def study(services, live: int, limit: int | None) -> dict:
     with Progress(console=console, transient=True) as progress:
         bar = progress.add_task(f"trials on {len(names)} mazes, {live} at a time", total=len(names))
         for i, maze in enumerate(names):
-            runtime = await services.hub.local(new_trial(services, i, maze, names))
+            with services.db.begin() as db:
+                trial = team_trial(db, f"mem-team-{i}", maze, names, services.clock.now_ns())
+            runtime = await services.hub.local(trial)
             while runtime.state.last_frame_id is None:  # its first frame, as a seat would see it
                 await asyncio.sleep(0.01)
             running.append(runtime)
@@ -78,10 +76,9 @@ def main() -> None:
             console.print("[yellow]ROBOTSLANG_BENCHMARK is not set: only the bundled mazes[/]")
         services = create_app(settings).state.services
         figures = asyncio.run(study(services, args.live, args.mazes))
-    load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
     console.print(
         f"[bold]bench.memory[/]: trials on {figures['mazes']} mazes, {figures['live']} live at a time "
-        f"(load average {load})"
+        f"(load average {load_average()})"
     )
     console.print(
         f"  RSS start {figures['rss_start_mb']:.0f} MB, peak {figures['rss_peak_mb']:.0f} MB, "

@@ -35,19 +35,8 @@ PARTS = [
 ]
 NOT_HOT = ("app/cli.py", "app/commands.py", "app/serving.py")  # on every stack: the server's start
 # A thread with nothing to do: its leaf is one of these waits, in one of these files.
-IDLE_LEAVES = {
-    "run",
-    "wait",
-    "select",
-    "poll",
-    "_worker",
-    "get",
-    "_recv",
-    "_recv_bytes",
-    "recv_bytes",
-    "__enter__",
-    "acquire",
-}
+RECEIVES = {"_recv", "_recv_bytes", "recv_bytes"}
+IDLE_LEAVES = {"run", "wait", "select", "poll", "_worker", "get", "__enter__", "acquire", *RECEIVES}
 IDLE_FILES = ("threading.py", "runners.py", "thread.py", "queue.py", "connection.py", "synchronize.py")
 # (leaf, file) of threads that only wait: a render process watching for its server's death, and
 # multiprocessing's resource tracker (a process of its own, which py-spy counts with the render processes)

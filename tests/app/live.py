@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import asyncio
 import functools
-import json
 import os
 import re
 import subprocess
@@ -28,7 +27,7 @@ from app.main import build_services, create_app
 from app.security import SEAT_ROLES, SESSION_COOKIE, hash_password
 from app.serving import uvicorn_options
 from app.settings import Settings
-from bench.live import REPO, SeatClient, ServerProcess, free_port, make_trial
+from bench.live import REPO, SeatClient, ServerProcess, free_port, make_trial, settings_env
 
 PASSWORD = "correct horse"
 
@@ -96,15 +95,6 @@ class PlatformProcess(ServerProcess):
         self.stop()
         if "services" in self.__dict__:
             self.services.engine.dispose()
-
-
-def settings_env(settings: Settings) -> dict[str, str]:
-    """The environment that gives `robotslang serve` the settings `settings` set."""
-    env = {}
-    for name, value in settings.model_dump(exclude_unset=True).items():
-        if value is not None:
-            env[f"ROBOTSLANG_{name.upper()}"] = json.dumps(value) if isinstance(value, list) else str(value)
-    return env
 
 
 class Served(Protocol):
