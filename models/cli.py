@@ -11,7 +11,7 @@ from pathlib import Path
 
 import typer
 
-from sim.cli.eval import BENCHMARK_OPTION, open_benchmark
+from sim.cli.eval import BENCHMARK_OPTION, open_benchmark, parse_list, parse_seeds
 from sim.tasks.benchmark import Split
 
 
@@ -169,25 +169,15 @@ def experiment_ndh(
     """The whole protocol: 6 configurations x seeds (or the subset --feedbacks x --ablations),
     validation, retraining for test, tests, report."""
     from models.experiment import experiment_grid, run_experiment
-    from models.train import MODELS
 
-    model_list = [m.strip() for m in models.split(",") if m.strip()]
-    unknown = [m for m in model_list if m not in MODELS]
-    if not model_list or unknown:
-        raise typer.BadParameter(
-            f"unknown model(s) {', '.join(unknown) or '(none given)'}; expected {', '.join(MODELS)}",
-            param_hint="--models",
-        )
-    try:
-        seed_list = [int(s) for s in seeds.split(",") if s.strip()]
-    except ValueError:
-        raise typer.BadParameter(f"seeds must be integers, got {seeds!r}", param_hint="--seeds") from None
-    feedback_list = [f.strip() for f in feedbacks.split(",") if f.strip()]
-    ablation_list = [b.strip() for b in ablations.split(",") if b.strip()]
+    model_list, feedback_list, ablation_list = (
+        parse_list(text, kind) for text, kind in ((models, "model"), (feedbacks, "feedback"), (ablations, "ablation"))
+    )
+    seed_list = parse_seeds(seeds)
     try:
         experiment_grid(model_list, feedback_list, ablation_list, seed_list)
     except ValueError as e:
-        raise typer.BadParameter(str(e), param_hint="--feedbacks/--ablations") from None
+        raise typer.BadParameter(str(e), param_hint="--models/--feedbacks/--ablations") from None
     if address is not None and executor is not Executor.ray:
         raise typer.BadParameter("--address is for --executor ray", param_hint="--address")
     if executor is Executor.ray:

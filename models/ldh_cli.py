@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import typer
 
-from sim.cli.eval import BENCHMARK_OPTION, open_benchmark, parse_list
+from sim.cli.eval import BENCHMARK_OPTION, open_benchmark, parse_list, parse_seeds
 from sim.tasks.benchmark import Split
 
 if TYPE_CHECKING:
@@ -177,11 +177,7 @@ def experiment_ldh(
     """Baselines, the learned localizer and its ablations (3 seeds) on val_seen, then test once."""
     from models.ldh_experiment import run_experiment
 
-    try:
-        seed_list = [int(s) for s in parse_list(seeds, "seed")]
-    except ValueError:
-        raise typer.BadParameter(f"seeds must be integers, got {seeds!r}", param_hint="--seeds") from None
-    meta = run_experiment(open_benchmark(benchmark), out, seed_list, doc)
+    meta = run_experiment(open_benchmark(benchmark), out, parse_seeds(seeds), doc)
     learned = meta["test"]["agents"]["learned"]
     typer.echo(
         f"test TD learned {learned['td_mean']:.3f} m; {meta['timing']['total_s'] / 60:.1f} min; "

@@ -52,6 +52,13 @@ def parse_list(text: str, kind: str, allowed: Iterable[str] | None = None) -> li
     return items
 
 
+def parse_seeds(text: str) -> list[int]:
+    try:
+        return [int(s) for s in parse_list(text, "seed")]
+    except ValueError:
+        raise typer.BadParameter(f"seeds must be integers, got {text!r}", param_hint="--seeds") from None
+
+
 def print_table(summary: Summary, console: Console) -> None:
     table = Table(title=f"{summary['split']} (n={summary['n']})")
     for col in ("agent", "TD", "OTD", "SR", "SPL", "steps"):
@@ -92,10 +99,7 @@ def eval_baselines(
     from sim.tasks.evaluation import evaluate_baselines
 
     agents = parse_list(agent, "agent", BASELINES)
-    try:
-        seed_list = [int(s) for s in parse_list(seeds, "seed")]
-    except ValueError:
-        raise typer.BadParameter(f"seeds must be integers, got {seeds!r}") from None
+    seed_list = parse_seeds(seeds)
     try:
         bench = open_benchmark(benchmark)
         results = evaluate_baselines(
