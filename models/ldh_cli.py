@@ -70,6 +70,8 @@ def eval_ldh(
     ),
 ) -> None:
     """Score localizers on LDH: TD and Euclidean error (m), accuracy within 0.25/0.5/1.0 m."""
+    from rich.progress import track
+
     from sim.tasks.benchmark import BenchmarkError
     from sim.tasks.ldh import Variant, load_split
     from sim.tasks.ldh_dialog import DIALOG, DialogLocalizer, per_turn, plot_curve
@@ -100,19 +102,14 @@ def eval_ldh(
         raise typer.BadParameter(f"split {split.value} has no LDH instances", param_hint="--split")
     shown = instances[0].variant.value
     contexts = MazeContexts(bench)
-    if as_json:
-        results = evaluate(bench, split.value, instances, agents, contexts=contexts)
-    else:
-        from rich.progress import track
-
-        results = evaluate(
-            bench,
-            split.value,
-            instances,
-            agents,
-            contexts=contexts,
-            progress=lambda it: track(it, description="localizing"),
-        )
+    results = evaluate(
+        bench,
+        split.value,
+        instances,
+        agents,
+        contexts=contexts,
+        progress=lambda it: track(it, description="localizing", disable=as_json),
+    )
     summary = summarize(split.value, shown, len(instances), results)
     if versus is not None and len(instances) > 1:
         from models.stats import paired_tests
