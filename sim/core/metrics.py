@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import TypedDict
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from sim.core.geometry import SUCCESS_RADIUS_M
 from sim.core.navgraph import NavGraph
@@ -118,11 +119,12 @@ class Summary(TypedDict):
     agents: dict[str, AgentSummary]
 
 
-def _mean_std(values: np.ndarray) -> tuple[float, float]:
-    if values.size == 0:
+def mean_std(values: ArrayLike) -> tuple[float, float]:
+    """Mean and sample std (ddof=1; 0 for one value), nan for none."""
+    a = np.asarray(values)
+    if a.size == 0:
         return math.nan, math.nan
-    std = float(values.std(ddof=1)) if values.size > 1 else 0.0
-    return float(values.mean()), std
+    return float(a.mean()), float(a.std(ddof=1)) if a.size > 1 else 0.0
 
 
 def summarize_agent(results: list[EpisodeResult]) -> AgentSummary:
@@ -141,8 +143,8 @@ def summarize_agent(results: list[EpisodeResult]) -> AgentSummary:
     td = np.array([p["td"] for p in per.values()])
     otd = np.array([p["otd"] for p in per.values()])
     finite = np.isfinite(td)
-    td_mean, td_std = _mean_std(td[finite])
-    otd_mean, otd_std = _mean_std(otd[np.isfinite(otd)])
+    td_mean, td_std = mean_std(td[finite])
+    otd_mean, otd_std = mean_std(otd[np.isfinite(otd)])
     return {
         "td_mean": td_mean,
         "td_std": td_std,

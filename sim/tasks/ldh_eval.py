@@ -21,6 +21,7 @@ from typing import Any, NotRequired, Protocol, TypedDict
 
 import numpy as np
 
+from sim.core.metrics import mean_std
 from sim.core.navgraph import NavGraph
 from sim.tasks.benchmark import Benchmark
 from sim.tasks.ldh import LDHInstance
@@ -212,13 +213,6 @@ class LDHSummary(TypedDict):
     tests: NotRequired[list[dict[str, object]]]  # `eval ldh --versus`: paired tests (models.stats.Comparison)
 
 
-def _mean_std(values: list[float]) -> tuple[float, float]:
-    if not values:
-        return math.nan, math.nan
-    a = np.asarray(values)
-    return float(a.mean()), float(a.std(ddof=1)) if a.size > 1 else 0.0
-
-
 def summarize_agent(results: list[LDHResult]) -> dict[str, float]:
     """Means over instances (seeds averaged per instance first); td_std is the sample std."""
     by_inst: dict[int, list[LDHResult]] = {}
@@ -226,15 +220,15 @@ def summarize_agent(results: list[LDHResult]) -> dict[str, float]:
         by_inst.setdefault(r.inst_idx, []).append(r)
     td = [float(np.mean([r.td for r in rs])) for rs in by_inst.values()]
     euclid = [float(np.mean([r.euclid for r in rs])) for rs in by_inst.values()]
-    td_mean, td_std = _mean_std(td)
+    td_mean, td_std = mean_std(td)
     out = {
         "td_mean": td_mean,
         "td_std": td_std,
         "td_median": float(np.median(td)) if td else math.nan,
-        "euclid_mean": _mean_std(euclid)[0],
+        "euclid_mean": mean_std(euclid)[0],
     }
     for k, radius in enumerate(ACC_RADII_M):
-        out[f"acc_{radius}"] = _mean_std([float(np.mean([r.acc[k] for r in rs])) for rs in by_inst.values()])[0]
+        out[f"acc_{radius}"] = mean_std([float(np.mean([r.acc[k] for r in rs])) for rs in by_inst.values()])[0]
     return out
 
 
