@@ -75,6 +75,21 @@ class EpisodeResult:
             float(row["spl"]),
         )
 
+    @classmethod
+    def scored(
+        cls,
+        split: str,
+        inst_idx: int,
+        agent: str,
+        seed: int,
+        start: tuple[float, float, float],
+        goal: tuple[float, float],
+        steps: int,
+        score: TrajectoryScore,
+    ) -> EpisodeResult:
+        """An episode from its `start` (x, y, heading in radians), `goal` (x, y) and score."""
+        return cls(split, inst_idx, agent, seed, *start, *goal, score.td, score.otd, steps, score.success, score.spl)
+
 
 @dataclass(frozen=True)
 class TrajectoryScore:
@@ -85,19 +100,20 @@ class TrajectoryScore:
     success: bool
     spl: float
 
+    @classmethod
+    def of(cls, td: float, otd: float, path_length: float, shortest: float) -> TrajectoryScore:
+        """Success within the radius; SPL as the benchmark weighs it."""
+        success = td <= SUCCESS_RADIUS_M
+        spl = shortest / max(path_length, shortest) if success and shortest > 0 else float(success)
+        return cls(td, otd, path_length, shortest, success, spl)
+
 
 def score_trajectory(graph: NavGraph, nodes: Iterable[int], goal: int) -> TrajectoryScore:
     """Score the nodes an agent visited (first = start, last = where it stopped)."""
     nodes = np.asarray(list(nodes), dtype=np.int64)
     to_goal = graph.dist[nodes, goal]
-    td = float(to_goal[-1])
-    shortest = float(to_goal[0])
     path_length = float(np.linalg.norm(np.diff(graph.nodes[nodes], axis=0), axis=1).sum())
-    success = td <= SUCCESS_RADIUS_M
-    spl = shortest / max(path_length, shortest) if success and shortest > 0 else float(success)
-    return TrajectoryScore(
-        td=td, otd=float(to_goal.min()), path_length=path_length, shortest=shortest, success=success, spl=spl
-    )
+    return TrajectoryScore.of(float(to_goal[-1]), float(to_goal.min()), path_length, float(to_goal[0]))
 
 
 class AgentSummary(TypedDict):
