@@ -10,7 +10,7 @@ from __future__ import annotations
 import csv
 import math
 from collections.abc import Iterable, Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import TypedDict
 
@@ -19,23 +19,6 @@ from numpy.typing import ArrayLike
 
 from sim.core.geometry import SUCCESS_RADIUS_M
 from sim.core.navgraph import NavGraph
-
-CSV_COLUMNS = (
-    "split",
-    "inst_idx",
-    "agent",
-    "seed",
-    "start_x",
-    "start_y",
-    "start_heading",
-    "goal_x",
-    "goal_y",
-    "td",
-    "otd",
-    "steps",
-    "success",
-    "spl",
-)
 
 
 @dataclass(frozen=True)
@@ -89,6 +72,9 @@ class EpisodeResult:
     ) -> EpisodeResult:
         """An episode from its `start` (x, y, heading in radians), `goal` (x, y) and score."""
         return cls(split, inst_idx, agent, seed, *start, *goal, score.td, score.otd, steps, score.success, score.spl)
+
+
+CSV_COLUMNS = tuple(f.name for f in fields(EpisodeResult))  # `write_csv`'s header
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import csv
 import math
 from collections.abc import Callable, Iterable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from functools import cached_property
 from pathlib import Path
 from typing import Any, NotRequired, Protocol, TypedDict
@@ -28,21 +28,6 @@ from sim.tasks.ldh import LDHInstance
 from sim.tasks.ldh_features import maze_views, mentions
 
 ACC_RADII_M = (0.25, 0.5, 1.0)
-CSV_COLUMNS = (
-    "split",
-    "variant",
-    "inst_idx",
-    "agent",
-    "seed",
-    "run",
-    "true_x",
-    "true_y",
-    "td",
-    "euclid",
-    "acc_0.25",
-    "acc_0.5",
-    "acc_1.0",
-)
 
 
 @dataclass(frozen=True, eq=False)
@@ -168,6 +153,10 @@ class LDHResult:
     td: float  # expected over the belief
     euclid: float
     acc: tuple[float, ...]  # per ACC_RADII_M
+
+
+# `write_csv`'s header: a column per field, the accuracy one per radius.
+CSV_COLUMNS = (*(f.name for f in fields(LDHResult) if f.name != "acc"), *(f"acc_{r}" for r in ACC_RADII_M))
 
 
 def score(ctx: MazeContext, belief: np.ndarray, inst: LDHInstance) -> tuple[float, float, tuple[float, ...]]:
