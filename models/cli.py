@@ -5,7 +5,6 @@ torch is imported inside the commands, so that `robotslang --help` stays fast.
 
 from __future__ import annotations
 
-import json
 from enum import Enum
 from pathlib import Path
 
@@ -105,12 +104,9 @@ def eval_ndh(
     name: str | None = typer.Option(None, help="Agent name in the output; default from the checkpoint."),
 ) -> None:
     """Score a trained Driver: TD, OTD, SR, SPL (mean ± std)."""
-    from rich.console import Console
-
     from models.evaluate import evaluate_checkpoint
     from models.shipped import default_checkpoint
-    from sim.cli.eval import print_table
-    from sim.core.metrics import summarize, write_csv
+    from sim.cli.eval import print_results
 
     checkpoint = checkpoint or default_checkpoint()
     if checkpoint is None:
@@ -120,13 +116,7 @@ def eval_ndh(
         results = evaluate_checkpoint(bench, None, checkpoint, split.value, name=name)
     except (FileNotFoundError, ValueError) as e:
         raise typer.BadParameter(str(e), param_hint="--checkpoint") from None
-    summary = summarize(split.value, results)
-    if per_instance is not None:
-        write_csv(per_instance, results)
-    if as_json:
-        typer.echo(json.dumps(summary, indent=2))
-    else:
-        print_table(summary, Console())
+    print_results(split.value, results, as_json, per_instance)
 
 
 def report_ndh(directory: Path = typer.Argument(..., help="An experiment folder (`experiment ndh --out`).")) -> None:
