@@ -128,14 +128,10 @@ def _write_doc(doc: Path, meta: dict, plot: Path) -> None:
         "| agent | TD (m) | Euclid (m) | acc@0.25 | acc@0.5 | acc@1.0 |",
         "|---|---|---|---|---|---|",
     ]
-    for name, s in test["agents"].items():
+    per_seed = ((f"learned seed {seed}", s) for seed, s in meta["test_per_seed"].items())
+    for name, s in [*test["agents"].items(), *per_seed]:
         lines.append(
             f"| {name} | {s['td_mean']:.3f} ± {s['td_std']:.3f} | {s['euclid_mean']:.3f} | "
-            f"{s['acc_0.25']:.3f} | {s['acc_0.5']:.3f} | {s['acc_1.0']:.3f} |"
-        )
-    for seed, s in meta["test_per_seed"].items():
-        lines.append(
-            f"| learned seed {seed} | {s['td_mean']:.3f} ± {s['td_std']:.3f} | {s['euclid_mean']:.3f} | "
             f"{s['acc_0.25']:.3f} | {s['acc_0.5']:.3f} | {s['acc_1.0']:.3f} |"
         )
     lines += [
