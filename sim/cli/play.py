@@ -200,9 +200,3 @@ def play(
                 return
 
     run(drive, lines(), echo=typer.echo)
-
-
-def register(root: typer.Typer) -> None:
-    sim_app = typer.Typer(help="The replay simulator by hand.", no_args_is_help=True)
-    sim_app.command("play")(play)
-    root.add_typer(sim_app, name="sim")
