@@ -227,4 +227,6 @@ def register(root: typer.Typer, eval_app: typer.Typer) -> None:
     root.add_typer(experiment_app, name="experiment")
     from models import ldh_cli
 
-    ldh_cli.register(train_app, eval_app, experiment_app)
+    eval_app.command("ldh")(ldh_cli.eval_ldh)
+    train_app.command("ldh")(ldh_cli.train_ldh)
+    experiment_app.command("ldh")(ldh_cli.experiment_ldh)

@@ -180,9 +180,3 @@ def experiment_ldh(
         f"test TD learned {learned['td_mean']:.3f} m; {meta['timing']['total_s'] / 60:.1f} min; "
         f"results -> {out / 'results.json'}, {doc}"
     )
-
-
-def register(train_app: typer.Typer, eval_app: typer.Typer, experiment_app: typer.Typer) -> None:
-    eval_app.command("ldh")(eval_ldh)
-    train_app.command("ldh")(train_ldh)
-    experiment_app.command("ldh")(experiment_ldh)
