@@ -9,16 +9,19 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
-from typing import TypedDict
+from typing import TypedDict, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from sim.core.geometry import SUCCESS_RADIUS_M
 from sim.core.navgraph import NavGraph
+
+T = TypeVar("T")
+K = TypeVar("K")
 
 
 @dataclass(frozen=True)
@@ -121,6 +124,14 @@ class Summary(TypedDict):
     agents: dict[str, AgentSummary]
 
 
+def group_by(items: Iterable[T], key: Callable[[T], K]) -> dict[K, list[T]]:
+    """`items` listed by `key`, keys in the order they first come."""
+    groups: dict[K, list[T]] = {}
+    for item in items:
+        groups.setdefault(key(item), []).append(item)
+    return groups
+
+
 def mean_std(values: ArrayLike) -> tuple[float, float]:
     """Mean and sample std (ddof=1; 0 for one value), nan for none."""
     a = np.asarray(values)
@@ -135,9 +146,7 @@ def summarize_agent(results: list[EpisodeResult]) -> AgentSummary:
     Instances whose goal cannot be reached from where the agent stopped have an infinite TD:
     they are counted in `unreachable` and left out of the means, never silently averaged.
     """
-    by_inst: dict[int, list[EpisodeResult]] = {}
-    for r in results:
-        by_inst.setdefault(r.inst_idx, []).append(r)
+    by_inst = group_by(results, lambda r: r.inst_idx)
     per = {
         k: {f: float(np.mean([getattr(r, f) for r in rs])) for f in ("td", "otd", "steps", "success", "spl")}
         for k, rs in by_inst.items()
@@ -161,9 +170,7 @@ def summarize_agent(results: list[EpisodeResult]) -> AgentSummary:
 
 def summarize(split: str, results: list[EpisodeResult]) -> Summary:
     """The JSON of `robotslang eval baselines` / `eval ndh`: {split, n, agents: {NAME: {...}}}."""
-    agents: dict[str, list[EpisodeResult]] = {}
-    for r in results:
-        agents.setdefault(r.agent, []).append(r)
+    agents = group_by(results, lambda r: r.agent)
     n = len({r.inst_idx for r in results})
     return {"split": split, "n": n, "agents": {name: summarize_agent(rs) for name, rs in agents.items()}}
 

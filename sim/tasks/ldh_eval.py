@@ -21,7 +21,7 @@ from typing import Any, NotRequired, Protocol, TypedDict
 
 import numpy as np
 
-from sim.core.metrics import mean_std
+from sim.core.metrics import group_by, mean_std
 from sim.core.navgraph import NavGraph
 from sim.tasks.benchmark import Benchmark
 from sim.tasks.ldh import LDHInstance
@@ -204,9 +204,7 @@ class LDHSummary(TypedDict):
 
 def summarize_agent(results: list[LDHResult]) -> dict[str, float]:
     """Means over instances (seeds averaged per instance first); td_std is the sample std."""
-    by_inst: dict[int, list[LDHResult]] = {}
-    for r in results:
-        by_inst.setdefault(r.inst_idx, []).append(r)
+    by_inst = group_by(results, lambda r: r.inst_idx)
     td = [float(np.mean([r.td for r in rs])) for rs in by_inst.values()]
     euclid = [float(np.mean([r.euclid for r in rs])) for rs in by_inst.values()]
     td_mean, td_std = mean_std(td)
@@ -223,9 +221,7 @@ def summarize_agent(results: list[LDHResult]) -> dict[str, float]:
 
 def summarize(split: str, variant: str, n: int, results: list[LDHResult]) -> LDHSummary:
     """The JSON of `robotslang eval ldh`: {split, variant, n, agents: {NAME: {...}}}."""
-    agents: dict[str, list[LDHResult]] = {}
-    for r in results:
-        agents.setdefault(r.agent, []).append(r)
+    agents = group_by(results, lambda r: r.agent)
     return {
         "split": split,
         "variant": variant,
