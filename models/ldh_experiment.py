@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from models.ldh import LDHConfig, load_localizer, train
-from models.stats import paired_tests
+from models.stats import paired_tests, per_instance
 from sim.tasks.benchmark import Benchmark
 from sim.tasks.ldh import CUT_RULE, Variant, load_split
 from sim.tasks.ldh_eval import BASELINES, MazeContexts, evaluate, summarize, summarize_agent, write_csv
@@ -96,13 +96,10 @@ def _plot(results, path: Path) -> Path:
     import matplotlib.pyplot as plt
 
     path.parent.mkdir(parents=True, exist_ok=True)
-    by_agent: dict[str, dict[int, list[float]]] = {}
-    for r in results:
-        by_agent.setdefault(r.agent, {}).setdefault(r.inst_idx, []).append(r.td)
     fig, (hist, cdf) = plt.subplots(1, 2, figsize=(10, 3.6))
     top = max(r.td for r in results)
-    for agent, per in by_agent.items():
-        td = np.sort([np.mean(v) for v in per.values()])
+    for agent, per in per_instance(results, "td").items():  # seeds averaged
+        td = np.sort(list(per.values()))
         hist.hist(td, bins=np.arange(0, top + 0.25, 0.25), histtype="step", label=agent, linewidth=1.5)
         cdf.step(td, np.arange(1, td.size + 1) / td.size, where="post", label=agent)
     cdf.axvline(HUMAN_TD_M, color="grey", linestyle=":", label=f"humans, mean ({HUMAN_TD_M} m)")
