@@ -19,7 +19,6 @@ if TYPE_CHECKING:
     from sim.tasks.ldh_eval import LDHSummary
 
 LEARNED = "learned"
-HUMANS_TD_M = 0.446  # the paper's people reading the dialogs
 
 
 class VariantOption(str, Enum):
@@ -124,7 +123,7 @@ def eval_ldh(
             curve.parent.mkdir(parents=True, exist_ok=True)
             curve.write_text(json.dumps({"split": split.value, "variant": shown, **turns}, indent=2))
         if plot is not None:
-            plot_curve(turns, plot, f"LDH {split.value} ({shown}): TD after each Driver turn", HUMANS_TD_M)
+            plot_curve(turns, plot, f"LDH {split.value} ({shown}): TD after each Driver turn")
     if as_json:
         typer.echo(json.dumps(summary, indent=2))
     else:

@@ -20,10 +20,9 @@ import numpy as np
 from models.ldh import LDHConfig, load_localizer, train
 from models.stats import paired_tests, per_instance
 from sim.tasks.benchmark import Benchmark
-from sim.tasks.ldh import CUT_RULE, Variant, load_split
+from sim.tasks.ldh import CUT_RULE, HUMANS_TD_M, Variant, load_split
 from sim.tasks.ldh_eval import BASELINES, MazeContexts, evaluate, summarize, summarize_agent, write_csv
 
-HUMAN_TD_M = 0.446  # the paper's human study (8 people)
 MAIN = LDHConfig()
 ABLATIONS = {  # name -> the main configuration with one ingredient added (+) or removed (-)
     "learned": MAIN,
@@ -102,7 +101,7 @@ def _plot(results, path: Path) -> Path:
         td = np.sort(list(per.values()))
         hist.hist(td, bins=np.arange(0, top + 0.25, 0.25), histtype="step", label=agent, linewidth=1.5)
         cdf.step(td, np.arange(1, td.size + 1) / td.size, where="post", label=agent)
-    cdf.axvline(HUMAN_TD_M, color="grey", linestyle=":", label=f"humans, mean ({HUMAN_TD_M} m)")
+    cdf.axvline(HUMANS_TD_M, color="grey", linestyle=":", label=f"humans, mean ({HUMANS_TD_M} m)")
     hist.set_xlabel("TD per test instance (m; learned: mean of seeds)")
     hist.set_ylabel("instances")
     cdf.set_xlabel("TD (m)")
@@ -132,7 +131,7 @@ def _write_doc(doc: Path, meta: dict, plot: Path) -> None:
             f"{s['acc_0.25']:.3f} | {s['acc_0.5']:.3f} | {s['acc_1.0']:.3f} |"
         )
     lines += [
-        f"| humans (paper) | {HUMAN_TD_M} | | | | |",
+        f"| humans (paper) | {HUMANS_TD_M} | | | | |",
         "",
         "Paired t-tests on per-instance TD, Benjamini-Yekutieli over the family:",
         "",
