@@ -37,14 +37,10 @@ class DialogLocalizer:
             self._scenes[ctx.run] = Scene.from_rays(rays.labels, rays.depth, ctx.graph.nodes)
         return self._scenes[ctx.run]
 
-    def belief(self, inst: LDHInstance, ctx: MazeContext) -> Belief:
+    def __call__(self, inst: LDHInstance, ctx: MazeContext) -> np.ndarray:
         belief = Belief(self.scene(ctx), ctx.main, self.weights)
         for role, message in inst.dialog:
             belief.message(role, message)
-        return belief
-
-    def __call__(self, inst: LDHInstance, ctx: MazeContext) -> np.ndarray:
-        belief = self.belief(inst, ctx)
         if not np.isfinite(belief.log).any() or np.ptp(belief.log[np.isfinite(belief.log)]) == 0:
             return ctx.one_hot(ctx.center)  # nothing said yet: the map's centre
         return ctx.one_hot(ctx.decide(belief.node_logits()))
