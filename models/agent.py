@@ -11,7 +11,7 @@ on the distance covered, `models.rollout`).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import torch
 from torch import nn
@@ -52,9 +52,6 @@ class AgentConfig:
     @property
     def obs_inputs(self) -> int:
         return self.obs_features + (N_RAYS if self.target_rays else 0)
-
-    def to_dict(self) -> dict:
-        return asdict(self)
 
 
 class Seq2SeqAgent(nn.Module):

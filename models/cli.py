@@ -5,13 +5,12 @@ torch is imported inside the commands, so that `robotslang --help` stays fast.
 
 from __future__ import annotations
 
-import json
 from enum import Enum
 from pathlib import Path
 
 import typer
 
-from sim.cli.eval import BENCHMARK_OPTION, open_benchmark
+from sim.cli.eval import BENCHMARK_OPTION, open_benchmark, parse_list, parse_seeds
 from sim.tasks.benchmark import Split
 
 
@@ -105,12 +104,9 @@ def eval_ndh(
     name: str | None = typer.Option(None, help="Agent name in the output; default from the checkpoint."),
 ) -> None:
     """Score a trained Driver: TD, OTD, SR, SPL (mean ± std)."""
-    from rich.console import Console
-
     from models.evaluate import evaluate_checkpoint
     from models.shipped import default_checkpoint
-    from sim.cli.eval import print_table
-    from sim.core.metrics import summarize, write_csv
+    from sim.cli.eval import print_results
 
     checkpoint = checkpoint or default_checkpoint()
     if checkpoint is None:
@@ -120,13 +116,7 @@ def eval_ndh(
         results = evaluate_checkpoint(bench, None, checkpoint, split.value, name=name)
     except (FileNotFoundError, ValueError) as e:
         raise typer.BadParameter(str(e), param_hint="--checkpoint") from None
-    summary = summarize(split.value, results)
-    if per_instance is not None:
-        write_csv(per_instance, results)
-    if as_json:
-        typer.echo(json.dumps(summary, indent=2))
-    else:
-        print_table(summary, Console())
+    print_results(split.value, results, as_json, per_instance)
 
 
 def report_ndh(directory: Path = typer.Argument(..., help="An experiment folder (`experiment ndh --out`).")) -> None:
@@ -169,25 +159,15 @@ def experiment_ndh(
     """The whole protocol: 6 configurations x seeds (or the subset --feedbacks x --ablations),
     validation, retraining for test, tests, report."""
     from models.experiment import experiment_grid, run_experiment
-    from models.train import MODELS
 
-    model_list = [m.strip() for m in models.split(",") if m.strip()]
-    unknown = [m for m in model_list if m not in MODELS]
-    if not model_list or unknown:
-        raise typer.BadParameter(
-            f"unknown model(s) {', '.join(unknown) or '(none given)'}; expected {', '.join(MODELS)}",
-            param_hint="--models",
-        )
-    try:
-        seed_list = [int(s) for s in seeds.split(",") if s.strip()]
-    except ValueError:
-        raise typer.BadParameter(f"seeds must be integers, got {seeds!r}", param_hint="--seeds") from None
-    feedback_list = [f.strip() for f in feedbacks.split(",") if f.strip()]
-    ablation_list = [b.strip() for b in ablations.split(",") if b.strip()]
+    model_list, feedback_list, ablation_list = (
+        parse_list(text, kind) for text, kind in ((models, "model"), (feedbacks, "feedback"), (ablations, "ablation"))
+    )
+    seed_list = parse_seeds(seeds)
     try:
         experiment_grid(model_list, feedback_list, ablation_list, seed_list)
     except ValueError as e:
-        raise typer.BadParameter(str(e), param_hint="--feedbacks/--ablations") from None
+        raise typer.BadParameter(str(e), param_hint="--models/--feedbacks/--ablations") from None
     if address is not None and executor is not Executor.ray:
         raise typer.BadParameter("--address is for --executor ray", param_hint="--address")
     if executor is Executor.ray:
@@ -247,4 +227,6 @@ def register(root: typer.Typer, eval_app: typer.Typer) -> None:
     root.add_typer(experiment_app, name="experiment")
     from models import ldh_cli
 
-    ldh_cli.register(train_app, eval_app, experiment_app)
+    eval_app.command("ldh")(ldh_cli.eval_ldh)
+    train_app.command("ldh")(ldh_cli.train_ldh)
+    experiment_app.command("ldh")(ldh_cli.experiment_ldh)

@@ -51,23 +51,9 @@ def evaluate_agent(
             graph = bench.graph(inst.run)
             score = score_trajectory(graph, local, int(episodes.geometry.goal_node[k] - off))
             sx, sy = graph.nodes[local[0]]
+            start = (float(sx), float(sy), float(heading_angle(int(episodes.geometry.start_heading[k]))))
             results.append(
-                EpisodeResult(
-                    split=episodes.split,
-                    inst_idx=inst.inst_idx,
-                    agent=name,
-                    seed=seed,
-                    start_x=float(sx),
-                    start_y=float(sy),
-                    start_heading=float(heading_angle(int(episodes.geometry.start_heading[k]))),
-                    goal_x=float(inst.target_pose[0]),
-                    goal_y=float(inst.target_pose[1]),
-                    td=score.td,
-                    otd=score.otd,
-                    steps=moves,
-                    success=score.success,
-                    spl=score.spl,
-                )
+                EpisodeResult.scored(episodes.split, inst.inst_idx, name, seed, start, inst.target_pose, moves, score)
             )
     return results
 

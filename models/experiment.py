@@ -55,7 +55,11 @@ def experiment_grid(
 ) -> list[tuple[str, str, str, int]]:
     """Every (model, feedback, ablation, seed) run of the protocol, in its canonical order; a
     subset of the feedbacks or ablations runs only those configurations."""
-    for name, chosen, known in (("feedback", feedbacks, FEEDBACKS), ("ablation", ablations, ABLATIONS)):
+    for name, chosen, known in (
+        ("model", models, tuple(MODELS)),
+        ("feedback", feedbacks, FEEDBACKS),
+        ("ablation", ablations, ABLATIONS),
+    ):
         unknown = [c for c in chosen if c not in known]
         if not chosen or unknown:
             raise ValueError(f"unknown {name}(s) {', '.join(unknown) or '(none given)'}; expected {', '.join(known)}")
@@ -171,9 +175,6 @@ def run_experiment(
         raise ValueError(f"unknown executor {executor!r}; expected one of {', '.join(EXECUTORS)}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    for m in models:
-        if m not in MODELS:
-            raise ValueError(f"unknown model {m!r}; expected one of {', '.join(MODELS)}")
     feedbacks = list(feedbacks or FEEDBACKS)
     ablations = list(ablations or ABLATIONS)
     grid = experiment_grid(models, feedbacks, ablations, seeds)

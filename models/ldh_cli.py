@@ -12,14 +12,13 @@ from typing import TYPE_CHECKING
 
 import typer
 
-from sim.cli.eval import BENCHMARK_OPTION, open_benchmark, parse_list
+from sim.cli.eval import BENCHMARK_OPTION, open_benchmark, parse_list, parse_seeds
 from sim.tasks.benchmark import Split
 
 if TYPE_CHECKING:
     from sim.tasks.ldh_eval import LDHSummary
 
 LEARNED = "learned"
-HUMANS_TD_M = 0.446  # the paper's people reading the dialogs
 
 
 class VariantOption(str, Enum):
@@ -70,6 +69,8 @@ def eval_ldh(
     ),
 ) -> None:
     """Score localizers on LDH: TD and Euclidean error (m), accuracy within 0.25/0.5/1.0 m."""
+    from rich.progress import track
+
     from sim.tasks.benchmark import BenchmarkError
     from sim.tasks.ldh import Variant, load_split
     from sim.tasks.ldh_dialog import DIALOG, DialogLocalizer, per_turn, plot_curve
@@ -100,19 +101,14 @@ def eval_ldh(
         raise typer.BadParameter(f"split {split.value} has no LDH instances", param_hint="--split")
     shown = instances[0].variant.value
     contexts = MazeContexts(bench)
-    if as_json:
-        results = evaluate(bench, split.value, instances, agents, contexts=contexts)
-    else:
-        from rich.progress import track
-
-        results = evaluate(
-            bench,
-            split.value,
-            instances,
-            agents,
-            contexts=contexts,
-            progress=lambda it: track(it, description="localizing"),
-        )
+    results = evaluate(
+        bench,
+        split.value,
+        instances,
+        agents,
+        contexts=contexts,
+        progress=lambda it: track(it, description="localizing", disable=as_json),
+    )
     summary = summarize(split.value, shown, len(instances), results)
     if versus is not None and len(instances) > 1:
         from models.stats import paired_tests
@@ -127,7 +123,7 @@ def eval_ldh(
             curve.parent.mkdir(parents=True, exist_ok=True)
             curve.write_text(json.dumps({"split": split.value, "variant": shown, **turns}, indent=2))
         if plot is not None:
-            plot_curve(turns, plot, f"LDH {split.value} ({shown}): TD after each Driver turn", HUMANS_TD_M)
+            plot_curve(turns, plot, f"LDH {split.value} ({shown}): TD after each Driver turn")
     if as_json:
         typer.echo(json.dumps(summary, indent=2))
     else:
@@ -177,19 +173,9 @@ def experiment_ldh(
     """Baselines, the learned localizer and its ablations (3 seeds) on val_seen, then test once."""
     from models.ldh_experiment import run_experiment
 
-    try:
-        seed_list = [int(s) for s in parse_list(seeds, "seed")]
-    except ValueError:
-        raise typer.BadParameter(f"seeds must be integers, got {seeds!r}", param_hint="--seeds") from None
-    meta = run_experiment(open_benchmark(benchmark), out, seed_list, doc)
+    meta = run_experiment(open_benchmark(benchmark), out, parse_seeds(seeds), doc)
     learned = meta["test"]["agents"]["learned"]
     typer.echo(
         f"test TD learned {learned['td_mean']:.3f} m; {meta['timing']['total_s'] / 60:.1f} min; "
         f"results -> {out / 'results.json'}, {doc}"
     )
-
-
-def register(train_app: typer.Typer, eval_app: typer.Typer, experiment_app: typer.Typer) -> None:
-    eval_app.command("ldh")(eval_ldh)
-    train_app.command("ldh")(train_ldh)
-    experiment_app.command("ldh")(experiment_ldh)

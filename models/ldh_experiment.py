@@ -18,12 +18,11 @@ from pathlib import Path
 import numpy as np
 
 from models.ldh import LDHConfig, load_localizer, train
-from models.stats import paired_tests
+from models.stats import paired_tests, per_instance
 from sim.tasks.benchmark import Benchmark
-from sim.tasks.ldh import CUT_RULE, Variant, load_split
+from sim.tasks.ldh import CUT_RULE, HUMANS_TD_M, Variant, load_split
 from sim.tasks.ldh_eval import BASELINES, MazeContexts, evaluate, summarize, summarize_agent, write_csv
 
-HUMAN_TD_M = 0.446  # the paper's human study (8 people)
 MAIN = LDHConfig()
 ABLATIONS = {  # name -> the main configuration with one ingredient added (+) or removed (-)
     "learned": MAIN,
@@ -96,16 +95,13 @@ def _plot(results, path: Path) -> Path:
     import matplotlib.pyplot as plt
 
     path.parent.mkdir(parents=True, exist_ok=True)
-    by_agent: dict[str, dict[int, list[float]]] = {}
-    for r in results:
-        by_agent.setdefault(r.agent, {}).setdefault(r.inst_idx, []).append(r.td)
     fig, (hist, cdf) = plt.subplots(1, 2, figsize=(10, 3.6))
     top = max(r.td for r in results)
-    for agent, per in by_agent.items():
-        td = np.sort([np.mean(v) for v in per.values()])
+    for agent, per in per_instance(results, "td").items():  # seeds averaged
+        td = np.sort(list(per.values()))
         hist.hist(td, bins=np.arange(0, top + 0.25, 0.25), histtype="step", label=agent, linewidth=1.5)
         cdf.step(td, np.arange(1, td.size + 1) / td.size, where="post", label=agent)
-    cdf.axvline(HUMAN_TD_M, color="grey", linestyle=":", label=f"humans, mean ({HUMAN_TD_M} m)")
+    cdf.axvline(HUMANS_TD_M, color="grey", linestyle=":", label=f"humans, mean ({HUMANS_TD_M} m)")
     hist.set_xlabel("TD per test instance (m; learned: mean of seeds)")
     hist.set_ylabel("instances")
     cdf.set_xlabel("TD (m)")
@@ -128,18 +124,14 @@ def _write_doc(doc: Path, meta: dict, plot: Path) -> None:
         "| agent | TD (m) | Euclid (m) | acc@0.25 | acc@0.5 | acc@1.0 |",
         "|---|---|---|---|---|---|",
     ]
-    for name, s in test["agents"].items():
+    per_seed = ((f"learned seed {seed}", s) for seed, s in meta["test_per_seed"].items())
+    for name, s in [*test["agents"].items(), *per_seed]:
         lines.append(
             f"| {name} | {s['td_mean']:.3f} ± {s['td_std']:.3f} | {s['euclid_mean']:.3f} | "
             f"{s['acc_0.25']:.3f} | {s['acc_0.5']:.3f} | {s['acc_1.0']:.3f} |"
         )
-    for seed, s in meta["test_per_seed"].items():
-        lines.append(
-            f"| learned seed {seed} | {s['td_mean']:.3f} ± {s['td_std']:.3f} | {s['euclid_mean']:.3f} | "
-            f"{s['acc_0.25']:.3f} | {s['acc_0.5']:.3f} | {s['acc_1.0']:.3f} |"
-        )
     lines += [
-        f"| humans (paper) | {HUMAN_TD_M} | | | | |",
+        f"| humans (paper) | {HUMANS_TD_M} | | | | |",
         "",
         "Paired t-tests on per-instance TD, Benjamini-Yekutieli over the family:",
         "",

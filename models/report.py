@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from models.stats import Comparison, paired_tests, per_seed, seed_tests
-from sim.core.metrics import EpisodeResult, read_csv, summarize_agent
+from sim.core.metrics import EpisodeResult, group_by, read_csv, summarize_agent
 from sim.core.stepper import MAX_EPISODE_ACTIONS
 from sim.tasks.benchmark import EVAL_SPLITS
 
@@ -118,10 +118,7 @@ def _cell(summary: Mapping[str, object], metric: str, marks: str) -> str:
 
 
 def tables_markdown(results: dict[str, list[EpisodeResult]], tests: dict[str, list[Comparison]]) -> str:
-    by_agent: dict[str, dict[str, list[EpisodeResult]]] = {s: {} for s in results}
-    for split, rs in results.items():
-        for r in rs:
-            by_agent[split].setdefault(r.agent, []).append(r)
+    by_agent = {split: group_by(rs, lambda r: r.agent) for split, rs in results.items()}
     agents = set().union(*(set(a) for a in by_agent.values()))
     rows = [(BASELINE_LABEL[a], a) for a in BASELINE_LABEL if a in agents]
     rows += [(f"{m}: {FEEDBACK_LABEL[f]}, {BLIND_LABEL[b]}", f"{m}/{f}/{b}") for m, f, b in configurations(agents)]
@@ -170,11 +167,8 @@ def plot_td_distributions(results: dict[str, list[EpisodeResult]], path: Path) -
         agents += ["/".join(c) for c in configurations({r.agent for r in rs})]
         data = []
         for a in agents:
-            per: dict[int, list[float]] = {}
-            for r in rs:
-                if r.agent == a and np.isfinite(r.td):
-                    per.setdefault(r.inst_idx, []).append(r.td)
-            data.append([float(np.mean(v)) for v in per.values()])
+            per = group_by((r for r in rs if r.agent == a and np.isfinite(r.td)), lambda r: r.inst_idx)
+            data.append([float(np.mean([r.td for r in v])) for v in per.values()])
         ax.boxplot(data, orientation="horizontal", showmeans=True)
         ax.set_yticks(range(1, len(agents) + 1), agents, fontsize=8)
         ax.set_xlabel("topological distance to goal (m), mean over seeds per instance")

@@ -61,7 +61,6 @@ def run_episodes(
     blind: str = "none",
     max_actions: int = MAX_ACTIONS,
     generator: torch.Generator | None = None,
-    progress_weight: float = 1.0,
     train: bool = False,
     guided_share: float = 0.0,
 ) -> Rollout:
@@ -164,7 +163,7 @@ def run_episodes(
         total = (ce * active.flatten()).sum()
         if step_progress:
             err = (torch.stack(step_progress) - torch.stack(step_goal)) ** 2
-            total = total + progress_weight * (err * active).sum()
+            total = total + (err * active).sum()
         if step_stop:
             near = F.binary_cross_entropy(
                 torch.stack(step_stop).clamp(1e-6, 1 - 1e-6), torch.stack(step_near), reduction="none"

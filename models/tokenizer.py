@@ -12,7 +12,6 @@ import json
 import re
 from collections import Counter
 from collections.abc import Iterable, Sequence
-from pathlib import Path
 
 PAD, UNK = "<PAD>", "<UNK>"
 COMMANDER, DRIVER, TARGET = "<COM>", "<DRI>", "<TAR>"
@@ -72,14 +71,10 @@ class Tokenizer:
     def __len__(self) -> int:
         return len(self.vocab)
 
-    @property
-    def unk_id(self) -> int:
-        return self.index[UNK]
-
     def encode(self, dialog: Iterable[tuple[str, str]], target: str) -> list[int]:
         """Ids of the most recent `max_tokens` tokens; unknown words become `<UNK>`."""
         tokens = dialog_tokens(dialog, target)[-self.max_tokens :]
-        return [self.index.get(t, self.unk_id) for t in tokens]
+        return [self.index.get(t, self.index[UNK]) for t in tokens]
 
     def to_json(self) -> str:
         return json.dumps({"vocab": self.vocab, "max_tokens": self.max_tokens})
@@ -88,6 +83,3 @@ class Tokenizer:
     def from_json(cls, text: str) -> Tokenizer:
         data = json.loads(text)
         return cls(data["vocab"], data["max_tokens"])
-
-    def save(self, path: str | Path) -> None:
-        Path(path).write_text(self.to_json())

@@ -146,7 +146,7 @@ def save_checkpoint(path: Path, agent, averaged, optimizer, tokenizer, cfg, iter
     tmp = path.with_suffix(".tmp")
     torch.save(
         {
-            "agent_config": agent.config.to_dict(),
+            "agent_config": asdict(agent.config),
             "state_dict": agent.state_dict(),
             "eval_state_dict": averaged.state_dict() if averaged is not None else None,
             "optimizer": optimizer.state_dict(),

@@ -10,5 +10,7 @@ def register(root: typer.Typer, eval_app: typer.Typer) -> None:
     from sim.cli import eval, mazes, play
 
     eval_app.command("baselines")(eval.eval_baselines)
-    play.register(root)
-    mazes.register(root)
+    sim_app = typer.Typer(help="The replay simulator by hand.", no_args_is_help=True)
+    sim_app.command("play")(play.play)
+    root.add_typer(sim_app, name="sim")
+    root.add_typer(mazes.app, name="mazes")

@@ -16,7 +16,7 @@ from sim.tasks.baselines import BASELINES
 from sim.tasks.benchmark import Benchmark, BenchmarkError, Split
 
 if TYPE_CHECKING:
-    from sim.core.metrics import Summary
+    from sim.core.metrics import EpisodeResult, Summary
 
 BENCHMARK_OPTION = typer.Option(
     ..., "--benchmark", envvar="ROBOTSLANG_BENCHMARK", help="A RobotSlangBenchmark clone (or an export in its layout)."
@@ -50,6 +50,26 @@ def parse_list(text: str, kind: str, allowed: Iterable[str] | None = None) -> li
         if unknown:
             raise typer.BadParameter(f"unknown {kind} {', '.join(unknown)}; expected {', '.join(allowed)}")
     return items
+
+
+def parse_seeds(text: str) -> list[int]:
+    try:
+        return [int(s) for s in parse_list(text, "seed")]
+    except ValueError:
+        raise typer.BadParameter(f"seeds must be integers, got {text!r}", param_hint="--seeds") from None
+
+
+def print_results(split: str, results: list[EpisodeResult], as_json: bool, per_instance: Path | None) -> None:
+    """The split's summary, as JSON or a table, and a CSV row per result where asked."""
+    from sim.core.metrics import summarize, write_csv
+
+    summary = summarize(split, results)
+    if per_instance is not None:
+        write_csv(per_instance, results)
+    if as_json:
+        typer.echo(json.dumps(summary, indent=2))
+    else:
+        print_table(summary, Console())
 
 
 def print_table(summary: Summary, console: Console) -> None:
@@ -88,14 +108,10 @@ def eval_baselines(
     per_instance: Path | None = typer.Option(None, help="Write a CSV row per instance, agent and seed."),
 ) -> None:
     """Score the baseline Drivers on an NDH split (TD, OTD, SR, SPL)."""
-    from sim.core.metrics import summarize, write_csv
     from sim.tasks.evaluation import evaluate_baselines
 
     agents = parse_list(agent, "agent", BASELINES)
-    try:
-        seed_list = [int(s) for s in parse_list(seeds, "seed")]
-    except ValueError:
-        raise typer.BadParameter(f"seeds must be integers, got {seeds!r}") from None
+    seed_list = parse_seeds(seeds)
     try:
         bench = open_benchmark(benchmark)
         results = evaluate_baselines(
@@ -103,10 +119,4 @@ def eval_baselines(
         )
     except BenchmarkError as e:
         raise typer.BadParameter(str(e), param_hint="--benchmark") from None
-    summary = summarize(split.value, results)
-    if per_instance is not None:
-        write_csv(per_instance, results)
-    if as_json:
-        typer.echo(json.dumps(summary, indent=2))
-    else:
-        print_table(summary, Console())
+    print_results(split.value, results, as_json, per_instance)

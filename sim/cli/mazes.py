@@ -26,10 +26,6 @@ BENCHMARK_OPTION = typer.Option(
 )
 
 
-def register(root: typer.Typer) -> None:
-    root.add_typer(app, name="mazes")
-
-
 def generate_set(out: Path, count: int, seed: int, prefix: str = "gen", progress: bool = True) -> dict[str, Any]:
     """Write `count` mazes (`PREFIX-000` ... from seeds seed, seed+1, ...) and their manifest."""
     out.mkdir(parents=True, exist_ok=True)

@@ -27,18 +27,11 @@ from sim.core.observations import N_RAYS, cast_rays
 from sim.robot.render import first_person, top_down
 from sim.tasks.library import MazeLibrary, UnknownMazeError
 
+# Each action by its word, its initial and its key (w a d s).
 WORDS = {
-    "w": Action.FORWARD,
-    "forward": Action.FORWARD,
-    "f": Action.FORWARD,
-    "a": Action.LEFT,
-    "left": Action.LEFT,
-    "l": Action.LEFT,
-    "d": Action.RIGHT,
-    "right": Action.RIGHT,
-    "r": Action.RIGHT,
-    "s": Action.STOP,
-    "stop": Action.STOP,
+    **{action.word: action for action in Action},
+    **{action.word[0]: action for action in Action},
+    **dict(zip("wads", (Action.FORWARD, Action.LEFT, Action.RIGHT, Action.STOP), strict=True)),
 }
 QUIT = {"q", "quit", "exit"}
 
@@ -207,9 +200,3 @@ def play(
                 return
 
     run(drive, lines(), echo=typer.echo)
-
-
-def register(root: typer.Typer) -> None:
-    sim_app = typer.Typer(help="The replay simulator by hand.", no_args_is_help=True)
-    sim_app.command("play")(play)
-    root.add_typer(sim_app, name="sim")

@@ -38,13 +38,6 @@ class Action(IntEnum):
         """The index of one of the Driver's moves."""
         return cls[Move(move).name]
 
-    @classmethod
-    def parse(cls, word: str) -> Action:
-        try:
-            return cls[word.upper()]
-        except KeyError:
-            raise ValueError(f"unknown action {word!r}; expected forward, left, right or stop") from None
-
 
 @dataclass(frozen=True)
 class Pose:

@@ -49,10 +49,7 @@ PALETTE_BGR = np.array([LABEL_BGR[label] for label in Label], dtype=np.uint8)
 
 def object_label(name: str) -> Label:
     """'jar' -> Label.JAR; a clear error for anything else."""
-    try:
-        label = Label[name.upper()]
-    except KeyError:
-        raise ValueError(f"unknown object {name!r}; expected one of {', '.join(OBJECTS)}") from None
-    if label not in OBJECT_LABELS:
+    label = Label.__members__.get(name.upper())
+    if label is None or label not in OBJECT_LABELS:
         raise ValueError(f"unknown object {name!r}; expected one of {', '.join(OBJECTS)}")
     return label

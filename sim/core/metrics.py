@@ -9,32 +9,19 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Iterable, Mapping
-from dataclasses import asdict, dataclass
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
-from typing import TypedDict
+from typing import TypedDict, TypeVar
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from sim.core.geometry import SUCCESS_RADIUS_M
 from sim.core.navgraph import NavGraph
 
-CSV_COLUMNS = (
-    "split",
-    "inst_idx",
-    "agent",
-    "seed",
-    "start_x",
-    "start_y",
-    "start_heading",
-    "goal_x",
-    "goal_y",
-    "td",
-    "otd",
-    "steps",
-    "success",
-    "spl",
-)
+T = TypeVar("T")
+K = TypeVar("K")
 
 
 @dataclass(frozen=True)
@@ -74,6 +61,24 @@ class EpisodeResult:
             float(row["spl"]),
         )
 
+    @classmethod
+    def scored(
+        cls,
+        split: str,
+        inst_idx: int,
+        agent: str,
+        seed: int,
+        start: tuple[float, float, float],
+        goal: tuple[float, float],
+        steps: int,
+        score: TrajectoryScore,
+    ) -> EpisodeResult:
+        """An episode from its `start` (x, y, heading in radians), `goal` (x, y) and score."""
+        return cls(split, inst_idx, agent, seed, *start, *goal, score.td, score.otd, steps, score.success, score.spl)
+
+
+CSV_COLUMNS = tuple(f.name for f in fields(EpisodeResult))  # `write_csv`'s header
+
 
 @dataclass(frozen=True)
 class TrajectoryScore:
@@ -84,19 +89,20 @@ class TrajectoryScore:
     success: bool
     spl: float
 
+    @classmethod
+    def of(cls, td: float, otd: float, path_length: float, shortest: float) -> TrajectoryScore:
+        """Success within the radius; SPL as the benchmark weighs it."""
+        success = td <= SUCCESS_RADIUS_M
+        spl = shortest / max(path_length, shortest) if success and shortest > 0 else float(success)
+        return cls(td, otd, path_length, shortest, success, spl)
+
 
 def score_trajectory(graph: NavGraph, nodes: Iterable[int], goal: int) -> TrajectoryScore:
     """Score the nodes an agent visited (first = start, last = where it stopped)."""
     nodes = np.asarray(list(nodes), dtype=np.int64)
     to_goal = graph.dist[nodes, goal]
-    td = float(to_goal[-1])
-    shortest = float(to_goal[0])
     path_length = float(np.linalg.norm(np.diff(graph.nodes[nodes], axis=0), axis=1).sum())
-    success = td <= SUCCESS_RADIUS_M
-    spl = shortest / max(path_length, shortest) if success and shortest > 0 else float(success)
-    return TrajectoryScore(
-        td=td, otd=float(to_goal.min()), path_length=path_length, shortest=shortest, success=success, spl=spl
-    )
+    return TrajectoryScore.of(float(to_goal[-1]), float(to_goal.min()), path_length, float(to_goal[0]))
 
 
 class AgentSummary(TypedDict):
@@ -118,11 +124,20 @@ class Summary(TypedDict):
     agents: dict[str, AgentSummary]
 
 
-def _mean_std(values: np.ndarray) -> tuple[float, float]:
-    if values.size == 0:
+def group_by(items: Iterable[T], key: Callable[[T], K]) -> dict[K, list[T]]:
+    """`items` listed by `key`, keys in the order they first come."""
+    groups: dict[K, list[T]] = {}
+    for item in items:
+        groups.setdefault(key(item), []).append(item)
+    return groups
+
+
+def mean_std(values: ArrayLike) -> tuple[float, float]:
+    """Mean and sample std (ddof=1; 0 for one value), nan for none."""
+    a = np.asarray(values)
+    if a.size == 0:
         return math.nan, math.nan
-    std = float(values.std(ddof=1)) if values.size > 1 else 0.0
-    return float(values.mean()), std
+    return float(a.mean()), float(a.std(ddof=1)) if a.size > 1 else 0.0
 
 
 def summarize_agent(results: list[EpisodeResult]) -> AgentSummary:
@@ -131,9 +146,7 @@ def summarize_agent(results: list[EpisodeResult]) -> AgentSummary:
     Instances whose goal cannot be reached from where the agent stopped have an infinite TD:
     they are counted in `unreachable` and left out of the means, never silently averaged.
     """
-    by_inst: dict[int, list[EpisodeResult]] = {}
-    for r in results:
-        by_inst.setdefault(r.inst_idx, []).append(r)
+    by_inst = group_by(results, lambda r: r.inst_idx)
     per = {
         k: {f: float(np.mean([getattr(r, f) for r in rs])) for f in ("td", "otd", "steps", "success", "spl")}
         for k, rs in by_inst.items()
@@ -141,8 +154,8 @@ def summarize_agent(results: list[EpisodeResult]) -> AgentSummary:
     td = np.array([p["td"] for p in per.values()])
     otd = np.array([p["otd"] for p in per.values()])
     finite = np.isfinite(td)
-    td_mean, td_std = _mean_std(td[finite])
-    otd_mean, otd_std = _mean_std(otd[np.isfinite(otd)])
+    td_mean, td_std = mean_std(td[finite])
+    otd_mean, otd_std = mean_std(otd[np.isfinite(otd)])
     return {
         "td_mean": td_mean,
         "td_std": td_std,
@@ -157,9 +170,7 @@ def summarize_agent(results: list[EpisodeResult]) -> AgentSummary:
 
 def summarize(split: str, results: list[EpisodeResult]) -> Summary:
     """The JSON of `robotslang eval baselines` / `eval ndh`: {split, n, agents: {NAME: {...}}}."""
-    agents: dict[str, list[EpisodeResult]] = {}
-    for r in results:
-        agents.setdefault(r.agent, []).append(r)
+    agents = group_by(results, lambda r: r.agent)
     n = len({r.inst_idx for r in results})
     return {"split": split, "n": n, "agents": {name: summarize_agent(rs) for name, rs in agents.items()}}
 

@@ -11,7 +11,6 @@ import json
 import re
 from dataclasses import dataclass
 from enum import StrEnum
-from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -124,12 +123,6 @@ class Benchmark:
             if len(inst.dialog) > len(out.get(inst.run, ())):
                 out[inst.run] = inst.dialog
         return out
-
-    @cached_property
-    def lookup_scans(self) -> dict[str, list[Any]]:
-        path = self.root / "lookup_scans.json"
-        scans: dict[str, list[Any]] = json.loads(path.read_text()) if path.exists() else {}
-        return scans
 
     def runs(self) -> list[str]:
         """Run folders that have a full map, in natural order."""

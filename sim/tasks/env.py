@@ -296,10 +296,6 @@ class NDHEnv(gym.Env):
         self._episode: Episode | None = None
         self._stepper: BatchStepper | None = None
 
-    @property
-    def benchmark(self) -> Benchmark | None:
-        return self.source.benchmark
-
     # -- the Gymnasium interface ----------------------------------------------------
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None

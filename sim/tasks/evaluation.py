@@ -16,8 +16,8 @@ from collections.abc import Iterable
 import numpy as np
 
 from sim.core.dynamics import Action
-from sim.core.geometry import SUCCESS_RADIUS_M, heading_angle
-from sim.core.metrics import EpisodeResult
+from sim.core.geometry import heading_angle
+from sim.core.metrics import EpisodeResult, TrajectoryScore
 from sim.core.stepper import MAX_EPISODE_ACTIONS, BatchStepper
 from sim.core.world import World
 from sim.tasks.baselines import BASELINES
@@ -116,25 +116,14 @@ def evaluate_baselines(
     start_xy = xy[0]
     results = []
     for e, (k, name, seed) in enumerate(order):
-        td, best = float(stepper.td[e]), float(stepper.shortest[e])
-        success = td <= SUCCESS_RADIUS_M
-        spl = best / max(path_length[e], best) if success and best > 0 else float(success)
+        score = TrajectoryScore.of(
+            float(stepper.td[e]), float(stepper.otd[e]), path_length[e], float(stepper.shortest[e])
+        )
+        pose = (float(start_xy[e, 0]), float(start_xy[e, 1]), float(heading_angle(int(geometry.start_heading[k]))))
+        instance = instances[k]
         results.append(
-            EpisodeResult(
-                split=split,
-                inst_idx=instances[k].inst_idx,
-                agent=name,
-                seed=seed,
-                start_x=float(start_xy[e, 0]),
-                start_y=float(start_xy[e, 1]),
-                start_heading=float(heading_angle(int(geometry.start_heading[k]))),
-                goal_x=float(instances[k].target_pose[0]),
-                goal_y=float(instances[k].target_pose[1]),
-                td=td,
-                otd=float(stepper.otd[e]),
-                steps=int(stepper.steps[e]),
-                success=success,
-                spl=spl,
+            EpisodeResult.scored(
+                split, instance.inst_idx, name, seed, pose, instance.target_pose, int(stepper.steps[e]), score
             )
         )
     return results

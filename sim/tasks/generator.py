@@ -136,16 +136,10 @@ def _draw_chain(
     """One polyline of segments, from the table edge or open floor; returns segments drawn."""
     x0, y0, x1, y1 = inner
     if rng.random() < 0.4:  # start on the table edge, heading inward
-        side = int(rng.integers(4))
-        start: tuple[float, float]
-        if side == 0:
-            start, angle = (x0, rng.uniform(y0 + 80, y1 - 80)), 0.0
-        elif side == 1:
-            start, angle = (x1, rng.uniform(y0 + 80, y1 - 80)), 180.0
-        elif side == 2:
-            start, angle = (rng.uniform(x0 + 80, x1 - 80), y0), 90.0
-        else:
-            start, angle = (rng.uniform(x0 + 80, x1 - 80), y1), 270.0
+        side = int(rng.integers(4))  # left, right, top, bottom
+        along = rng.uniform(y0 + 80, y1 - 80) if side < 2 else rng.uniform(x0 + 80, x1 - 80)
+        start: tuple[float, float] = ((x0, along), (x1, along), (along, y0), (along, y1))[side]
+        angle = (0.0, 180.0, 90.0, 270.0)[side]
         from_edge = True
     else:
         start = (rng.uniform(x0 + 100, x1 - 100), rng.uniform(y0 + 100, y1 - 100))

@@ -77,10 +77,6 @@ class LayoutSignature:
         save_arrays(path, compressed=True, **{f.name: getattr(signature, f.name) for f in fields(signature)})
         return signature
 
-    def landmark_shift_m(self, other: LayoutSignature) -> float:
-        """The largest distance between a landmark and the same landmark in `other`."""
-        return float(np.linalg.norm(self.landmarks - other.landmarks, axis=1).max())
-
     def wall_mismatch(self, other: LayoutSignature) -> float:
         """The larger fraction, of either maze's wall cells, farther than the tolerance from the
         other's walls (1.0 for grids of different sizes)."""
@@ -89,9 +85,6 @@ class LayoutSignature:
         mine = _fraction_far(self.walls, other.distance_m)
         theirs = _fraction_far(other.walls, self.distance_m)
         return max(mine, theirs)
-
-    def same_layout(self, other: LayoutSignature) -> bool:
-        return self.landmark_shift_m(other) <= LANDMARK_TOLERANCE_M and self.wall_mismatch(other) <= WALL_MISMATCH_MAX
 
 
 def _fraction_far(walls: NDArray[np.bool_], distance_m: NDArray[np.float32]) -> float:

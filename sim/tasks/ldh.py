@@ -20,6 +20,7 @@ from typing import NotRequired, TypedDict
 from sim.tasks.benchmark import Benchmark, BenchmarkError, NDHInstance, scan_run
 
 CUT_RULE = "prefix-v1"
+HUMANS_TD_M = 0.446  # the paper's human study (8 people reading the dialogs)
 FIRST_TARGET = "jar"  # every benchmark trial visits jar, mug, paddle in that order
 
 

@@ -17,7 +17,7 @@ import numpy as np
 from sim.core.observations import RayTable
 from sim.language.localizer import TUNED, Belief, Scene, Weights
 from sim.tasks.benchmark import Benchmark
-from sim.tasks.ldh import LDHInstance
+from sim.tasks.ldh import HUMANS_TD_M, LDHInstance
 from sim.tasks.ldh_eval import ACC_RADII_M, Localizer, MazeContext, MazeContexts, score
 
 DIALOG = "dialog"
@@ -37,14 +37,10 @@ class DialogLocalizer:
             self._scenes[ctx.run] = Scene.from_rays(rays.labels, rays.depth, ctx.graph.nodes)
         return self._scenes[ctx.run]
 
-    def belief(self, inst: LDHInstance, ctx: MazeContext) -> Belief:
+    def __call__(self, inst: LDHInstance, ctx: MazeContext) -> np.ndarray:
         belief = Belief(self.scene(ctx), ctx.main, self.weights)
         for role, message in inst.dialog:
             belief.message(role, message)
-        return belief
-
-    def __call__(self, inst: LDHInstance, ctx: MazeContext) -> np.ndarray:
-        belief = self.belief(inst, ctx)
         if not np.isfinite(belief.log).any() or np.ptp(belief.log[np.isfinite(belief.log)]) == 0:
             return ctx.one_hot(ctx.center)  # nothing said yet: the map's centre
         return ctx.one_hot(ctx.decide(belief.node_logits()))
@@ -93,7 +89,7 @@ def per_turn(
     return out
 
 
-def plot_curve(curve: TurnCurves, path: str | Path, title: str, humans_m: float | None = None) -> None:
+def plot_curve(curve: TurnCurves, path: str | Path, title: str) -> None:
     """Mean TD after each Driver turn, one line per agent (and the humans' final TD, dashed)."""
     import matplotlib
 
@@ -103,8 +99,7 @@ def plot_curve(curve: TurnCurves, path: str | Path, title: str, humans_m: float 
     fig, ax = plt.subplots(figsize=(6.4, 3.8))
     for name, c in curve["agents"].items():
         ax.plot(curve["turns"], c["td_mean"], marker="o", ms=3, label=name)
-    if humans_m is not None:
-        ax.axhline(humans_m, color="grey", ls="--", lw=1, label=f"humans (paper) {humans_m} m")
+    ax.axhline(HUMANS_TD_M, color="grey", ls="--", lw=1, label=f"humans (paper) {HUMANS_TD_M} m")
     ax.set_xlabel("Driver turns read")
     ax.set_ylabel("mean TD (m)")
     ax.set_title(title)

@@ -14,34 +14,20 @@ from __future__ import annotations
 import csv
 import math
 from collections.abc import Callable, Iterable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from functools import cached_property
 from pathlib import Path
 from typing import Any, NotRequired, Protocol, TypedDict
 
 import numpy as np
 
+from sim.core.metrics import group_by, mean_std
 from sim.core.navgraph import NavGraph
 from sim.tasks.benchmark import Benchmark
 from sim.tasks.ldh import LDHInstance
 from sim.tasks.ldh_features import maze_views, mentions
 
 ACC_RADII_M = (0.25, 0.5, 1.0)
-CSV_COLUMNS = (
-    "split",
-    "variant",
-    "inst_idx",
-    "agent",
-    "seed",
-    "run",
-    "true_x",
-    "true_y",
-    "td",
-    "euclid",
-    "acc_0.25",
-    "acc_0.5",
-    "acc_1.0",
-)
 
 
 @dataclass(frozen=True, eq=False)
@@ -169,6 +155,10 @@ class LDHResult:
     acc: tuple[float, ...]  # per ACC_RADII_M
 
 
+# `write_csv`'s header: a column per field, the accuracy one per radius.
+CSV_COLUMNS = (*(f.name for f in fields(LDHResult) if f.name != "acc"), *(f"acc_{r}" for r in ACC_RADII_M))
+
+
 def score(ctx: MazeContext, belief: np.ndarray, inst: LDHInstance) -> tuple[float, float, tuple[float, ...]]:
     """Expected (TD, Euclidean error, accuracy per radius) of a belief over nodes."""
     true = ctx.graph.nearest_node(inst.x, inst.y)
@@ -212,37 +202,26 @@ class LDHSummary(TypedDict):
     tests: NotRequired[list[dict[str, object]]]  # `eval ldh --versus`: paired tests (models.stats.Comparison)
 
 
-def _mean_std(values: list[float]) -> tuple[float, float]:
-    if not values:
-        return math.nan, math.nan
-    a = np.asarray(values)
-    return float(a.mean()), float(a.std(ddof=1)) if a.size > 1 else 0.0
-
-
 def summarize_agent(results: list[LDHResult]) -> dict[str, float]:
     """Means over instances (seeds averaged per instance first); td_std is the sample std."""
-    by_inst: dict[int, list[LDHResult]] = {}
-    for r in results:
-        by_inst.setdefault(r.inst_idx, []).append(r)
+    by_inst = group_by(results, lambda r: r.inst_idx)
     td = [float(np.mean([r.td for r in rs])) for rs in by_inst.values()]
     euclid = [float(np.mean([r.euclid for r in rs])) for rs in by_inst.values()]
-    td_mean, td_std = _mean_std(td)
+    td_mean, td_std = mean_std(td)
     out = {
         "td_mean": td_mean,
         "td_std": td_std,
         "td_median": float(np.median(td)) if td else math.nan,
-        "euclid_mean": _mean_std(euclid)[0],
+        "euclid_mean": mean_std(euclid)[0],
     }
     for k, radius in enumerate(ACC_RADII_M):
-        out[f"acc_{radius}"] = _mean_std([float(np.mean([r.acc[k] for r in rs])) for rs in by_inst.values()])[0]
+        out[f"acc_{radius}"] = mean_std([float(np.mean([r.acc[k] for r in rs])) for rs in by_inst.values()])[0]
     return out
 
 
 def summarize(split: str, variant: str, n: int, results: list[LDHResult]) -> LDHSummary:
     """The JSON of `robotslang eval ldh`: {split, variant, n, agents: {NAME: {...}}}."""
-    agents: dict[str, list[LDHResult]] = {}
-    for r in results:
-        agents.setdefault(r.agent, []).append(r)
+    agents = group_by(results, lambda r: r.agent)
     return {
         "split": split,
         "variant": variant,

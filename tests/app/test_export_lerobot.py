@@ -58,7 +58,7 @@ def driver_steps(log):
         if e.kind == "frame" and e.payload.get("source", "driver") == "driver":
             pending = [e, Action.STOP]
         elif e.kind == "move_executed" and pending is not None:
-            pending[1] = Action.parse(e.payload["action"])
+            pending[1] = Action.of(e.payload["action"])
             steps.append(pending)
             pending = None
     return steps + ([pending] if pending else [])

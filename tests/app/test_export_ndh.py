@@ -77,12 +77,13 @@ def test_export_reads_back_with_the_benchmark_loader(tmp_path):
     summary = write_benchmark(records, tmp_path)
     assert sum(summary.ndh.values()) == 9 and all(n == 3 for n in summary.ndh.values())
     bench = Benchmark(tmp_path)
+    lookup_scans = json.loads((tmp_path / "lookup_scans.json").read_text())
     seen_idx, runs_by_split = [], {}
     for split in ("train", "val_seen", "test"):
         for inst in bench.split(split):
             seen_idx.append(inst.inst_idx)
             runs_by_split.setdefault(inst.run, set()).add(split)
-            assert bench.lookup_scans[inst.scan] == [list(t) for t in inst.all_targets]
+            assert lookup_scans[inst.scan] == [list(t) for t in inst.all_targets]
             maze = bench.maze(inst.run)
             assert np.array_equal(maze.labels, next(m for m in mazes if m.name == inst.run).labels)
     assert seen_idx == list(range(9))

@@ -9,6 +9,7 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
+from sim import cli as sim_commands
 from sim.cli import play
 from sim.core.dynamics import Action
 from sim.core.labels import Label
@@ -18,8 +19,7 @@ from tests.sim.synthetic import synthetic_maze
 @pytest.fixture(scope="module")
 def cli():
     root = typer.Typer()
-    play.register(root)
-    root.command("noop")(lambda: None)  # a second command keeps `sim` a subcommand
+    sim_commands.register(root, typer.Typer())
     return root
 
 
