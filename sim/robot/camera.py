@@ -258,14 +258,6 @@ class CameraCalibration:
         if unknown:
             raise CalibrationError(f"unknown colour classes {sorted(unknown)}; expected {', '.join(COLOUR_CLASSES)}")
 
-    @property
-    def matrix(self) -> np.ndarray:
-        return np.array([[self.fx, 0, self.cx], [0, self.fy, self.cy], [0, 0, 1]], dtype=np.float64)
-
-    @property
-    def distortion(self) -> np.ndarray:
-        return np.array([self.k1, self.k2, 0.0, 0.0], dtype=np.float64)
-
     def with_colours(self, colours: dict[str, ColourClass], object_depth_offset_m: float = 0.0) -> CameraCalibration:
         return CameraCalibration(
             self.width,

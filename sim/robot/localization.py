@@ -39,9 +39,6 @@ class MotionNoise:
     turn_std_rad: float = np.deg2rad(3.0)
 
 
-NO_NOISE = MotionNoise(0.0, 0.0, 0.0)
-
-
 @dataclass(frozen=True)
 class SensorModel:
     """How much a perceived ray is trusted."""
@@ -135,14 +132,6 @@ def apply_move(
     return poses, collided
 
 
-class BeliefJson(TypedDict):
-    x: float
-    y: float
-    heading: float
-    spread_m: float
-    cloud: list[list[float]]
-
-
 class FilterResult(TypedDict):
     converged_fraction_20_moves: float
     err_median_m_20_moves: float
@@ -159,15 +148,6 @@ class Belief:
     heading: float  # radians, circular mean
     spread_m: float  # root mean square distance of the particles from (x, y)
     cloud: np.ndarray  # (K <= 200, 4): x, y, heading, weight (weights sum to 1)
-
-    def to_json(self) -> BeliefJson:
-        return {
-            "x": self.x,
-            "y": self.y,
-            "heading": self.heading,
-            "spread_m": self.spread_m,
-            "cloud": np.round(self.cloud, 4).tolist(),
-        }
 
 
 class ParticleFilter:
