@@ -18,7 +18,7 @@ pitch) plus the colours of its walls and objects under its light; `save`/`load` 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 from typing import Any, TypedDict
@@ -259,20 +259,7 @@ class CameraCalibration:
             raise CalibrationError(f"unknown colour classes {sorted(unknown)}; expected {', '.join(COLOUR_CLASSES)}")
 
     def with_colours(self, colours: dict[str, ColourClass], object_depth_offset_m: float = 0.0) -> CameraCalibration:
-        return CameraCalibration(
-            self.width,
-            self.height,
-            self.fx,
-            self.fy,
-            self.cx,
-            self.cy,
-            self.k1,
-            self.k2,
-            self.camera_height_m,
-            self.camera_pitch_rad,
-            dict(colours),
-            float(object_depth_offset_m),
-        )
+        return replace(self, colours=dict(colours), object_depth_offset_m=float(object_depth_offset_m))
 
     def to_json(self) -> CameraCalibrationFile:
         return {

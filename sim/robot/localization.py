@@ -17,6 +17,7 @@ from typing import TypedDict
 
 import cv2
 import numpy as np
+from tqdm import tqdm
 
 from sim.core.dynamics import Action
 from sim.core.geometry import GRID_STEP_M, TABLE_HEIGHT_M, TABLE_WIDTH_M, TURN_RAD, world_to_pixel
@@ -25,7 +26,7 @@ from sim.core.maze import Maze
 from sim.core.observations import PX_PER_M_X, RAY_OFFSETS, WALL_CLEARANCE_M, ray_caster
 from sim.core.rays import RayObservation
 from sim.robot.camera import CameraCalibration, FrontCamera, capture
-from sim.robot.perception import evaluation_rig, perceive, progress_bar
+from sim.robot.perception import evaluation_rig, perceive
 
 DEPTH_CAP_M = 2.0  # beyond this a depth says little (the wall base is near the horizon)
 
@@ -282,7 +283,7 @@ def evaluate_filter(
     worlds, camera, calibration = evaluation_rig(mazes, seed, camera, calibration)
     rng = np.random.default_rng(seed)
     errors = np.zeros((episodes, moves + 1))
-    for e in progress_bar(range(episodes), progress, "particle filter"):
+    for e in tqdm(range(episodes), "particle filter", disable=not progress):
         maze = worlds[e % len(worlds)][0]
         space = free_space(maze)
         pf = ParticleFilter(maze, n_particles, seed=int(rng.integers(2**31)), converged_particles=converged_particles)

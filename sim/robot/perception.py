@@ -18,10 +18,11 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import TypedDict, TypeVar
+from typing import TypedDict
 
 import cv2
 import numpy as np
+from tqdm import tqdm
 
 from sim.core.geometry import GRID_STEP_M, HEADINGS, TURN_RAD, heading_index
 from sim.core.labels import N_LABELS, OBJECT_LABELS, OBJECTS, WALL_LABELS, Label
@@ -431,7 +432,7 @@ def simulated_calibration(
     worlds = list(mazes)
     images: list[np.ndarray | bytes] = []
     truths: list[tuple[np.ndarray, np.ndarray]] = []
-    for i in progress_bar(range(n_frames), progress, "calibrating colours"):
+    for i in tqdm(range(n_frames), "calibrating colours", disable=not progress):
         if i % 4:
             maze, graph = worlds[i % len(worlds)]
             x, y, theta = random_poses(maze, graph, 1, rng)[0]
@@ -508,7 +509,7 @@ def evaluate_perception(
     things: list[np.ndarray] = []
     reads: list[np.ndarray] = []
     depth_err: list[float] = []
-    for i in progress_bar(range(n_poses), progress, "perception"):
+    for i in tqdm(range(n_poses), "perception", disable=not progress):
         maze, graph = worlds[i % len(worlds)]
         x, y, theta = random_poses(maze, graph, 1, rng)[0]
         heading = heading_index(theta)
@@ -535,15 +536,3 @@ def evaluate_perception(
         "poses": n_poses,
         "near_wall_rays": len(depth_err),
     }
-
-
-_T = TypeVar("_T")
-
-
-def progress_bar(items: Iterable[_T], enabled: bool, desc: str) -> Iterable[_T]:
-    if not enabled:
-        return items
-    from tqdm import tqdm
-
-    shown: Iterable[_T] = tqdm(items, desc=desc)
-    return shown
