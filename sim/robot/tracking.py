@@ -124,16 +124,11 @@ class OverheadCalibration:
         return cls.from_json(load_json(path, "an overhead calibration"), source=str(path))
 
 
-def calibrate(
-    image: np.ndarray,
-    fov_deg: float | None = None,
-    layout: MarkerLayout = MarkerLayout(),
-    camera_matrix: np.ndarray | None = None,
-) -> OverheadCalibration:
+def calibrate(image: np.ndarray, fov_deg: float | None = None) -> OverheadCalibration:
     """The calibration from one BGR image showing the four corner markers. The focal length is
     measured from the homography (square pixels, principal point at the centre) unless the
-    camera's horizontal field of view `fov_deg` or its `camera_matrix` is given."""
-    return _calibrate(image, fiducials.detect(fiducials.detector(), image), fov_deg, layout, camera_matrix)
+    camera's horizontal field of view `fov_deg` is given."""
+    return _calibrate(image, fiducials.detect(fiducials.detector(), image), fov_deg, MarkerLayout(), None)
 
 
 def _calibrate(
@@ -254,10 +249,6 @@ class OverheadTracker:
         if measurement is None or not self._plausible(measurement):
             return None
         return self._smoothed(measurement)
-
-    def reset(self) -> None:
-        """Forget the track (a new trial); the calibration stays."""
-        self._last, self._candidates, self._still = None, [], []
 
     # -- steps of `update` --------------------------------------------------------
     def _calibrated(self, image: np.ndarray, found: dict[int, list[np.ndarray]]) -> bool:
