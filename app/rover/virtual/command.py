@@ -31,7 +31,6 @@ if TYPE_CHECKING:
     from sim.robot.overhead import OverheadCamera
 
 CAMERA_SOURCE = "virtual"  # the hello's camera.source, where the real client names its camera
-JPEG_QUALITY = 80  # the real client's default
 
 
 @dataclass(frozen=True)
@@ -103,7 +102,7 @@ def build(spec: VirtualRoverSpec, graph: NavGraph | None = None) -> RobotClient:
             raise ValueError("--role overhead needs --truth FILE: the driver rover's truth file, whose poses it films")
         camera = OverheadCamera()
         source = OverheadCameraSource(spec.maze, spec.truth, camera, seed=spec.seed)
-    settings = CameraSettings(camera.width, camera.height, spec.fps, JPEG_QUALITY)
+    settings = CameraSettings(camera.width, camera.height, spec.fps)  # the real client's JPEG quality
     return RobotClient(link, FrameGrabber(source, settings), motors, settings.info(CAMERA_SOURCE))
 
 
