@@ -209,15 +209,6 @@ class TrackerConfig:
     stale_px: float = 4.0  # corner markers this far from where the calibration puts them: the camera moved
 
 
-@dataclass
-class _Measurement:
-    x: float
-    y: float
-    heading: float
-    t_ns: int
-    quality: float
-
-
 class OverheadTracker:
     """Overhead frames in, rover poses out, one frame at a time (frames in time order).
 
@@ -233,9 +224,9 @@ class OverheadTracker:
         self.config = config
         self._detector = fiducials.detector()
         self._plane: np.ndarray | None = None  # image -> rover-top plane, for `calibration`
-        self._last: _Measurement | None = None  # the last accepted measurement
-        self._candidates: list[_Measurement] = []  # consistent rejected ones, for re-acquiring
-        self._still: list[_Measurement] = []  # the current run of still measurements
+        self._last: TrackedPose | None = None  # the last accepted measurement
+        self._candidates: list[TrackedPose] = []  # consistent rejected ones, for re-acquiring
+        self._still: list[TrackedPose] = []  # the current run of still measurements
 
     def update(self, frame: bytes | np.ndarray, t_ns: int) -> TrackedPose | None:
         """The rover's pose in this frame (JPEG bytes or a BGR image), or None."""
@@ -272,7 +263,7 @@ class OverheadTracker:
         self._plane = np.linalg.inv(self.calibration.plane_homography(self.layout.rover_height_m))
         return True
 
-    def _measure(self, quads: list[np.ndarray], t_ns: int) -> _Measurement | None:
+    def _measure(self, quads: list[np.ndarray], t_ns: int) -> TrackedPose | None:
         """The rover's marker mapped onto its plane; None unless exactly one marker seen is a
         square of the printed size (or exactly one is, near the last pose)."""
         assert self._plane is not None  # set by `_calibrated`, which comes first
@@ -286,7 +277,7 @@ class OverheadTracker:
             if error <= self.config.shape_tolerance:
                 x, y = corners.mean(axis=0)
                 measurements.append(
-                    _Measurement(
+                    TrackedPose(
                         float(x),
                         float(y),
                         fiducials.marker_heading(corners),
@@ -298,7 +289,7 @@ class OverheadTracker:
             measurements = [m for m in measurements if self._reachable(self._last, m)]
         return measurements[0] if len(measurements) == 1 else None
 
-    def _reachable(self, a: _Measurement, b: _Measurement) -> bool:
+    def _reachable(self, a: TrackedPose, b: TrackedPose) -> bool:
         dt = (b.t_ns - a.t_ns) * 1e-9
         c = self.config
         return (
@@ -306,7 +297,7 @@ class OverheadTracker:
             and abs(_angle(b.heading - a.heading)) <= c.max_turn_rad_s * dt + c.jump_slack_rad
         )
 
-    def _plausible(self, m: _Measurement) -> bool:
+    def _plausible(self, m: TrackedPose) -> bool:
         """Accept `m` if the rover could have got there since the last accepted pose; a run of
         `reacquire_frames` measurements consistent with each other but not with the track
         restarts it (the rover was carried, or the first pose was wrong)."""
@@ -321,7 +312,7 @@ class OverheadTracker:
         self._last, self._candidates, self._still = m, [], []
         return True
 
-    def _smoothed(self, m: _Measurement) -> TrackedPose:
+    def _smoothed(self, m: TrackedPose) -> TrackedPose:
         """The mean of the current run of still measurements: a standing rover's pose is averaged
         over up to `window` frames, a moving one's is the measurement itself (no lag)."""
         still = self._still
@@ -338,7 +329,7 @@ class OverheadTracker:
         return TrackedPose(x, y, heading, m.t_ns, m.quality)
 
 
-def _mean(ms: list[_Measurement]) -> tuple[float, float, float]:
+def _mean(ms: list[TrackedPose]) -> tuple[float, float, float]:
     heading = math.atan2(sum(math.sin(m.heading) for m in ms), sum(math.cos(m.heading) for m in ms))
     return sum(m.x for m in ms) / len(ms), sum(m.y for m in ms) / len(ms), heading
 
