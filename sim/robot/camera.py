@@ -147,14 +147,12 @@ def capture(
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
-def undistort_normalized(
-    xd: ArrayLike, yd: ArrayLike, k1: float, k2: float, iterations: int = 30
-) -> tuple[np.ndarray, np.ndarray]:
+def undistort_normalized(xd: ArrayLike, yd: ArrayLike, k1: float, k2: float) -> tuple[np.ndarray, np.ndarray]:
     """Invert the radial model x_d = x_u (1 + k1 r_u^2 + k2 r_u^4) by fixed-point iteration
     (it converges in a few steps for mild distortion); normalized coordinates in and out."""
     xn, yn = np.asarray(xd, dtype=np.float64), np.asarray(yd, dtype=np.float64)
     xu, yu = xn, yn
-    for _ in range(iterations):
+    for _ in range(30):
         r2 = xu * xu + yu * yu
         scale = 1 + k1 * r2 + k2 * r2 * r2
         xu, yu = xn / scale, yn / scale

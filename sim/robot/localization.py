@@ -273,13 +273,11 @@ def evaluate_filter(
     converged_particles: int | None = None,
     camera: FrontCamera | None = None,
     calibration: CameraCalibration | None = None,
-    truth_noise: MotionNoise = MotionNoise(),
-    within_m: float = 0.15,
     progress: bool = False,
 ) -> FilterResult:
-    """Episodes from a uniform belief: the true rover moves with `truth_noise` (collisions stop
-    it), each frame goes through the camera model and perception, the filter gets the moves and
-    the perceived rays. Error = distance from the belief's mean to the true position."""
+    """Episodes from a uniform belief: the true rover moves with the filter's own noise model
+    (collisions stop it), each frame goes through the camera model and perception, the filter gets
+    the moves and the perceived rays. Error = distance from the belief's mean to the true position."""
     worlds, camera, calibration = evaluation_rig(mazes, seed, camera, calibration)
     rng = np.random.default_rng(seed)
     errors = np.zeros((episodes, moves + 1))
@@ -291,7 +289,7 @@ def evaluate_filter(
         for t in range(moves + 1):
             if t > 0:
                 action = _explore_action(truth[0], space, rng)
-                truth, _ = apply_move(truth, action, rng, space, truth_noise)
+                truth, _ = apply_move(truth, action, rng, space)
                 pf.move(action)
             x, y, theta = truth[0]
             pf.update(perceive(capture(maze, x, y, theta, camera, rng), calibration))
@@ -299,7 +297,7 @@ def evaluate_filter(
             errors[e, t] = np.hypot(b.x - x, b.y - y)
     final = errors[:, -1]
     return {
-        "converged_fraction_20_moves": float((final <= within_m).mean()),
+        "converged_fraction_20_moves": float((final <= 0.15).mean()),  # within 0.15 m
         "err_median_m_20_moves": float(np.median(final)),
         "curve": [float(v) for v in np.median(errors, axis=0)],
         "episodes": episodes,

@@ -54,6 +54,7 @@ MAX_MAHALANOBIS2 = 30.0  # farther than this from every class: an unknown colour
 MIN_BRIGHTNESS_STD = 0.08  # in colour_features brightness units: about a third brighter or darker
 DARK_LEVEL = 25  # mean of the brightest channel below this: too dark to read
 SATURATED_FRACTION = 0.25  # more clipped pixels than this: overexposed
+JITTER_M, JITTER_RAD = 0.015, np.deg2rad(3)  # how far a rover's drifting moves leave it off a node
 
 
 class PerceptionError(ValueError):
@@ -401,20 +402,13 @@ def _fit_gaussian(f: np.ndarray, min_brightness_std: float = 0.0, rounds: int = 
 # -- measured against the simulator ------------------------------------------------------------
 
 
-def random_poses(
-    maze: Maze,
-    graph: NavGraph,
-    n: int,
-    rng: np.random.Generator,
-    jitter_m: float = 0.015,
-    jitter_rad: float = np.deg2rad(3),
-) -> np.ndarray:
+def random_poses(maze: Maze, graph: NavGraph, n: int, rng: np.random.Generator) -> np.ndarray:
     """(n, 3) continuous poses (x, y, theta) near the graph's nodes and headings, as a rover's
     drifting moves leave it."""
     nodes = graph.nodes[rng.integers(0, graph.n, n)]
     headings = rng.integers(0, HEADINGS, n) * TURN_RAD
     return np.column_stack(
-        [nodes + rng.uniform(-jitter_m, jitter_m, (n, 2)), headings + rng.uniform(-jitter_rad, jitter_rad, n)]
+        [nodes + rng.uniform(-JITTER_M, JITTER_M, (n, 2)), headings + rng.uniform(-JITTER_RAD, JITTER_RAD, n)]
     )
 
 
@@ -452,7 +446,7 @@ def _facing(maze: Maze, graph: NavGraph, name: str, rng: np.random.Generator, tr
     away = np.hypot(graph.nodes[:, 0] - ox, graph.nodes[:, 1] - oy)
     near = np.nonzero((away > 0.15) & (away < 0.6))[0]
     for _ in range(tries if near.size else 0):
-        x, y = graph.nodes[rng.choice(near)] + rng.uniform(-0.015, 0.015, 2)
+        x, y = graph.nodes[rng.choice(near)] + rng.uniform(-JITTER_M, JITTER_M, 2)
         theta = float(np.arctan2(oy - y, ox - x) + rng.uniform(-0.3, 0.3))
         if cast_rays(maze, x, y, theta)[0][N_RAYS // 2] == Label[name.upper()]:
             return np.array([x, y, theta])

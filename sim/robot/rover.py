@@ -114,9 +114,8 @@ class Rover:
         pose: RoverPose,
         noise: MotionNoise = MotionNoise(),
         seed: int | None = None,
-        radius_m: float = BODY_RADIUS_M,
     ) -> None:
-        self.maze, self.noise, self.radius_m = maze, noise, radius_m
+        self.maze, self.noise = maze, noise
         self._clearance = clearance_map(maze)
         self._rng = np.random.default_rng(seed)
         where = f"start pose ({pose.x:.3f}, {pose.y:.3f}) m on maze {maze.name!r}"
@@ -124,7 +123,7 @@ class Rover:
             raise ValueError(f"{where} is off the {TABLE_WIDTH_M} x {TABLE_HEIGHT_M} m table")
         if not self.is_free(pose.x, pose.y):
             raise ValueError(
-                f"{where} is within {radius_m:.3f} m (the rover's radius) of a wall, an object or the table's edge"
+                f"{where} is within {BODY_RADIUS_M:.3f} m (the rover's radius) of a wall, an object or the table's edge"
             )
         self.pose = _pose(np.array([pose.x, pose.y, pose.theta]))
 
@@ -137,7 +136,7 @@ class Rover:
         return float(self._clearance[min(int(round(float(row))), h - 1), min(int(round(float(col))), w - 1)])
 
     def is_free(self, x: float, y: float) -> bool:
-        return self.clearance_m(x, y) >= self.radius_m
+        return self.clearance_m(x, y) >= BODY_RADIUS_M
 
     def plan(self, move: Move | str) -> Pulse:
         """Sample this pulse's error and sweep its path for the first contact."""
@@ -186,7 +185,7 @@ class Rover:
         h, w = self._clearance.shape
         r = np.clip(np.rint(row).astype(np.int64), 0, h - 1)
         c = np.clip(np.rint(col).astype(np.int64), 0, w - 1)
-        free = on_table & (self._clearance[r, c] >= self.radius_m)
+        free = on_table & (self._clearance[r, c] >= BODY_RADIUS_M)
         # The first sample is where the rover already stands: it is never its own obstacle.
         free[0] = True
         return np.asarray(free)
