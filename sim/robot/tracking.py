@@ -21,11 +21,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 from tqdm import tqdm
 
+from robot_client.camera import CameraSettings
 from sim.robot import fiducials
 from sim.robot.calibration import CalibrationError, load_json, save_json
 from sim.robot.fiducials import MarkerLayout, MarkerLayoutJson
 from sim.robot.frames import decode_jpeg
-from sim.robot.overhead import Imaging, OverheadCamera, render_overhead
+from sim.robot.overhead import render_overhead
 
 if TYPE_CHECKING:
     from sim.core.maze import Maze
@@ -346,20 +347,17 @@ def evaluate_tracker(
     poses: ArrayLike,
     seed: int = 0,
     fps: float = 5.0,
-    jpeg_quality: int = 80,
-    camera: OverheadCamera = OverheadCamera(),
-    imaging: Imaging = Imaging(),
     progress: bool = False,
 ) -> TrackerScores:
     """The tracker against known truth: each of `poses` ((x, y, heading), one per frame at
-    `fps`) rendered by the overhead camera, sent as a JPEG of `jpeg_quality` as the server
-    receives it, tracked after a calibration from a JPEG of the empty table. Errors are over
+    `fps`) rendered by the overhead camera, sent as a JPEG of the rover client's quality as the
+    server receives it, tracked after a calibration from a JPEG of the empty table. Errors are over
     the frames that gave a pose; `tracked_fraction` says how many did."""
     rng = np.random.default_rng(seed)
 
     def jpeg(pose: np.ndarray | None) -> bytes:
-        image = render_overhead(maze, pose, camera, imaging, seed=int(rng.integers(2**31)))
-        ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality])
+        image = render_overhead(maze, pose, seed=int(rng.integers(2**31)))
+        ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, CameraSettings().quality])
         return data.tobytes()
 
     tracker = OverheadTracker(calibrate(decode_jpeg(jpeg(None))))
