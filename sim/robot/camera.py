@@ -70,14 +70,10 @@ class FrontCamera:
         t = math.tan(self.hfov_rad / 2)
         return (self.width / 2) / (t * (1 + self.k1 * t**2 + self.k2 * t**4))
 
-    @property
-    def principal_point(self) -> tuple[float, float]:
-        """(cx, cy) in OpenCV's convention (pixel centres at integers): the render's horizon row."""
-        return (self.width - 1) / 2, HORIZON * self.height - 0.5
-
     def calibration(self, colours: dict[str, ColourClass] | None = None) -> CameraCalibration:
         """What a perfect checkerboard calibration of this camera would measure."""
-        cx, cy = self.principal_point
+        # (cx, cy) in OpenCV's convention (pixel centres at integers): the render's horizon row.
+        cx, cy = (self.width - 1) / 2, HORIZON * self.height - 0.5
         return CameraCalibration(
             width=self.width,
             height=self.height,

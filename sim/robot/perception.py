@@ -140,12 +140,8 @@ class _Strips:
 _strips: dict[tuple[float, ...], _Strips] = {}
 
 
-def _geometry_key(c: CameraCalibration) -> tuple[float, ...]:
-    return (c.width, c.height, c.fx, c.fy, c.cx, c.cy, c.k1, c.k2, c.camera_height_m, c.camera_pitch_rad)
-
-
 def _ray_strips(c: CameraCalibration) -> _Strips:
-    key = _geometry_key(c)
+    key = (c.width, c.height, c.fx, c.fy, c.cx, c.cy, c.k1, c.k2, c.camera_height_m, c.camera_pitch_rad)
     strips = _strips.get(key)
     if strips is None:
         h, pitch = c.camera_height_m, c.camera_pitch_rad

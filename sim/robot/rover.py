@@ -76,10 +76,6 @@ class Pulse:
     path: np.ndarray  # (K + 1, 3): x, y, theta at fractions 0, 1/K, ..., 1 of the pulse
     contact: int | None  # index of the last free sample before the body touched, or None
 
-    @property
-    def collided(self) -> bool:
-        return self.contact is not None
-
     def pose_at(self, fraction: float) -> RoverPose:
         """Where the rover is after `fraction` (0..1) of the pulse: held at the contact."""
         k = len(self.path) - 1
@@ -121,7 +117,7 @@ class Rover:
         where = f"start pose ({pose.x:.3f}, {pose.y:.3f}) m on maze {maze.name!r}"
         if not (0 <= pose.x <= TABLE_WIDTH_M and 0 <= pose.y <= TABLE_HEIGHT_M):
             raise ValueError(f"{where} is off the {TABLE_WIDTH_M} x {TABLE_HEIGHT_M} m table")
-        if not self.is_free(pose.x, pose.y):
+        if self.clearance_m(pose.x, pose.y) < BODY_RADIUS_M:
             raise ValueError(
                 f"{where} is within {BODY_RADIUS_M:.3f} m (the rover's radius) of a wall, an object or the table's edge"
             )
@@ -134,9 +130,6 @@ class Rover:
         col, row = world_to_pixel(x, y)
         h, w = self._clearance.shape
         return float(self._clearance[min(int(round(float(row))), h - 1), min(int(round(float(col))), w - 1)])
-
-    def is_free(self, x: float, y: float) -> bool:
-        return self.clearance_m(x, y) >= BODY_RADIUS_M
 
     def plan(self, move: Move | str) -> Pulse:
         """Sample this pulse's error and sweep its path for the first contact."""
