@@ -36,6 +36,10 @@ class CameraSettings:
         if not 1 <= self.quality <= 100:
             raise CameraError(f"JPEG quality must be 1..100, got {self.quality}")
 
+    def info(self, source: str) -> dict:
+        """The hello's `camera`: where the frames come from, and how they are taken."""
+        return {"source": source, "width": self.width, "height": self.height, "fps": self.fps, "quality": self.quality}
+
 
 class SyntheticCamera:
     """A moving colour pattern with the frame number written on it: no hardware needed.

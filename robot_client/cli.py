@@ -118,26 +118,19 @@ def main(argv: list[str] | None = None) -> None:
         camera = open_camera(args.camera, camera_settings)
     except (ValueError, CameraError, MotorError) as exc:  # CalibrationError is a ValueError
         parser.exit(2, f"error: {exc}\n")
-    grabber = FrameGrabber(camera, camera_settings)
-    client = RobotClient(
-        settings,
-        grabber,
-        motors,
-        camera_info={
-            "source": args.camera,
-            "width": args.width,
-            "height": args.height,
-            "fps": args.fps,
-            "quality": args.quality,
-        },
-    )
+    client = RobotClient(settings, FrameGrabber(camera, camera_settings), motors, camera_settings.info(args.camera))
+    sys.exit(run(client))
+
+
+def run(client: RobotClient) -> int:
+    """`serve` the client, then close its motors and its camera, however it ended."""
     try:
-        code = asyncio.run(serve(client))
+        return asyncio.run(serve(client))
     finally:
-        if motors is not None:
-            motors.close()
-        grabber.stop()
-    sys.exit(code)
+        if client.motors is not None:
+            client.motors.close()
+        if client.grabber is not None:
+            client.grabber.stop()
 
 
 async def serve(client: RobotClient) -> int:

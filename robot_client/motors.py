@@ -32,6 +32,8 @@ class MotorDriver(Protocol):
 
     def stop(self) -> None: ...
 
+    def close(self) -> None: ...
+
 
 class MotorError(RuntimeError):
     """The motors could not be set up (no GPIO access, pins in use); the text says why."""

@@ -33,9 +33,6 @@ class Move(str, Enum):
 
 
 ROLES = ("driver", "overhead")
-# Why a move was refused: another move is running; the robot was stopped (stop command,
-# watchdog, shutdown) before or while it ran; the action (or this robot's role) is not a move.
-REFUSE_REASONS = ("busy", "stopped", "unknown")
 
 MAX_TEXT_BYTES = 64 * 1024
 DEFAULT_MAX_FRAME_BYTES = 2 * 1024 * 1024

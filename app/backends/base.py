@@ -24,10 +24,6 @@ class MoveOutcome:
     outcome: Outcome
     reason: str | None = None
 
-    @property
-    def collision(self) -> bool:
-        return self.outcome == Outcome.COLLISION
-
 
 @dataclass(frozen=True)
 class Frame:

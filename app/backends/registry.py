@@ -1,15 +1,12 @@
-"""Which backend fills a trial's robot seat, by the trial's `backend` spec.
-
-`sim` registers here; the rover (`robot:<id>`) is found in `PLUGINS` and imported on first use.
-A factory gets the spec, the trial (as a `RobotTrial`: its state, its seats, its cameras) and
-`BackendParts` (what backends use of the server), and returns a `RobotBackend` that is not yet connected.
+"""Which backend fills a trial's robot seat, by the kind of the trial's `backend` spec: the
+simulator (`sim`) or the rover (`robot:<id>`, its module imported on the first rover trial). A
+backend gets the trial (as a `RobotTrial`: its state, its seats, its cameras) and `BackendParts`
+(what backends use of the server), and is not yet connected.
 """
 
 from __future__ import annotations
 
 import asyncio
-import importlib
-from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -19,9 +16,11 @@ from sqlalchemy.orm import Session, sessionmaker
 from app.backends.base import RobotBackend
 from app.backends.render import FrameRenderer
 from app.clock import ServerClock
+from app.db.models import Robot
 from app.mazes import Mazes
 from app.trial.port import RobotTrial
-from sim.trial.specs import BackendSpec
+from sim.trial.specs import BackendKind, BackendSpec
+from sim.trial.vocabulary import Role
 
 if TYPE_CHECKING:
     from app.rover.links import RobotLinks
@@ -40,32 +39,16 @@ class BackendParts:
     overhead_calibration: Path | None
 
 
-BackendFactory = Callable[[str, RobotTrial, BackendParts], Awaitable[RobotBackend]]
-
-_FACTORIES: dict[str, BackendFactory] = {}
-# Backend kinds whose factory ("module:function") is imported on the first trial of that kind.
-PLUGINS = {"robot": "app.rover.backend:remote_backend"}
-
-
-def register_backend(kind: str, factory: BackendFactory) -> None:
-    _FACTORIES[kind] = factory
-
-
-def backend_kinds() -> list[str]:
-    return sorted(set(_FACTORIES) | set(PLUGINS))
-
-
 async def create_backend(spec: str, trial: RobotTrial, parts: BackendParts) -> RobotBackend:
-    kind = BackendSpec.parse(spec).kind
-    if kind not in _FACTORIES and kind in PLUGINS:
-        module, name = PLUGINS[kind].split(":")
-        _FACTORIES[kind] = getattr(importlib.import_module(module), name)
-    if kind not in _FACTORIES:
-        raise LookupError(f"unknown robot backend {spec!r}; known kinds: {', '.join(backend_kinds())}")
-    return await _FACTORIES[kind](spec, trial, parts)
+    parsed = BackendSpec.parse(spec)
+    if parsed.kind == BackendKind.SIM:
+        return await simulator_backend(trial, parts)
+    if parsed.kind == BackendKind.ROBOT:
+        return robot_backend(spec, parsed.robot_id, trial, parts)
+    raise LookupError(f"unknown robot backend {spec!r}; known kinds: {', '.join(sorted(BackendKind))}")
 
 
-async def simulator_backend(spec: str, trial: RobotTrial, parts: BackendParts) -> RobotBackend:
+async def simulator_backend(trial: RobotTrial, parts: BackendParts) -> RobotBackend:
     from app.backends.sim import SimulatorBackend
     from sim.core.dynamics import snap_pose
 
@@ -86,4 +69,21 @@ async def simulator_backend(spec: str, trial: RobotTrial, parts: BackendParts) -
     return SimulatorBackend(maze, graph, rays, start, parts.clock, parts.renderer)
 
 
-register_backend("sim", simulator_backend)
+def robot_backend(spec: str, robot_id: int | None, trial: RobotTrial, parts: BackendParts) -> RobotBackend:
+    """`robot:<id>`: the registered driver robot with that id."""
+    from app.rover.backend import RemoteRobotBackend
+
+    with parts.db() as db:
+        robot = db.get(Robot, robot_id)
+    if robot is None:
+        raise LookupError(f"robot backend {spec!r}: no robot {robot_id} is registered")
+    if robot.role != Role.DRIVER:
+        raise LookupError(f"robot backend {spec!r}: robot {robot.name!r} is an {robot.role} camera, not a rover")
+    return RemoteRobotBackend(
+        robot.id,
+        robot.name,
+        parts.robots,
+        trial,
+        parts.overhead_calibration,
+        parts.clock.now_ns,
+    )

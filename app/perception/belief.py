@@ -4,9 +4,8 @@ Each executed move is the filter's odometry; the first Driver frame captured aft
 trial's first frame) weighs the particles: a rover's through `sim.robot.perception.perceive`, a
 simulator's by the simulator's own ray observation at the frame's pose (`Frame.observation`:
 its frames are ideal renders, so perceiving their pixels would cost four times the update and
-say nothing more). The rays (in `RayTable.features` layout) and the belief are what an agent
-Driver on a rover observes in place of the simulator's ray table; the belief cloud is shown to
-the experimenter only (`message()`), never to a participant.
+say nothing more). The belief cloud is shown to the experimenter only (`message()`), never to
+a participant.
 
 The event loop only notes moves and keeps the frame to take in (`moved`, `offer`); the particles
 are touched by one `FilterWorker` thread per process, which folds in every move noted since
@@ -34,7 +33,7 @@ from sim.core.rays import RayObservation
 from sim.robot.camera import CameraCalibration
 from sim.robot.frames import FrameError, decode_jpeg
 from sim.robot.localization import Belief, ParticleFilter
-from sim.robot.perception import PerceptionError, features, perceive
+from sim.robot.perception import PerceptionError, perceive
 from sim.trial.vocabulary import Move
 
 logger = logging.getLogger(__name__)
@@ -46,11 +45,8 @@ FILTER_SHARE = 0.25  # of one core, at most, for all of a process's filters (it 
 
 @dataclass(frozen=True)
 class Observed:
-    """What the camera said at one frame, and the belief after it."""
+    """The belief after one frame."""
 
-    frame_capture_ns: int
-    rays: np.ndarray  # (OBS_FEATURES,) float32, RayTable.features layout
-    observation: RayObservation
     belief: Belief
     moves: int  # executed moves the belief has folded in
 
@@ -102,12 +98,6 @@ class TrialBelief:
             self._kept = _Kept(jpeg, capture_ns, observation)
             return True
 
-    def observe(self, jpeg: bytes, capture_ns: int, observation: RayObservation | None = None) -> Observed | None:
-        """Take in one frame now (`offer`, then `step`)."""
-        if not self.offer(jpeg, capture_ns, observation):
-            return self.latest  # another frame got there first
-        return self.step()
-
     def step(self) -> Observed | None:
         """Fold in the moves noted and weigh the particles by the frame kept; None for bytes that
         are not an image of this camera (the belief is left as it was, the frame dropped)."""
@@ -128,17 +118,12 @@ class TrialBelief:
                 except (FrameError, PerceptionError):
                     return None
             self.filter.update(obs)
-            observed = Observed(kept.capture_ns, features(obs), obs, self.filter.belief(CLOUD_POINTS), moves)
+            observed = Observed(self.filter.belief(CLOUD_POINTS), moves)
             with self._lock:
                 self.latest = observed
                 if self._moves == moves:  # no move since: this frame shows where the last one ended
                     self._wanted_after_ns = None
             return observed
-
-    @property
-    def settled(self) -> bool:
-        """The belief has taken in the frame after the last move."""
-        return self._wanted_after_ns is None and self.latest is not None
 
     def message(self) -> dict[str, Any] | None:
         """The experimenter's belief message: mean (x, y, heading) and the cloud's (x, y, weight)."""

@@ -18,13 +18,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from app.backends.render import FRAME_SIZE
 from sim.robot.camera import CameraCalibration, FrontCamera
 from sim.trial.specs import SIM, BackendSpec
 
 if TYPE_CHECKING:
     from app.settings import Settings
 
-SIM_CAMERA_SIZE = (320, 240)  # app.backends.sim.FRAME_SIZE, without importing the backend
 SIM_CALIBRATION = Path(__file__).with_name("sim_camera.json")
 COLOUR_MAZES = 3  # bundled mazes whose renders teach the colours
 
@@ -34,7 +34,7 @@ class CameraUnknown(LookupError):
 
 
 def sim_camera() -> FrontCamera:
-    w, h = SIM_CAMERA_SIZE
+    w, h = FRAME_SIZE
     return FrontCamera(width=w, height=h, k1=0.0, k2=0.0, noise_std=0.0, supersample=1)
 
 

@@ -8,20 +8,14 @@ from __future__ import annotations
 import math
 from collections.abc import AsyncIterator, Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from app.backends.base import BackendUnavailable, Frame, MoveOutcome
-from app.db.models import Robot
 from app.rover.links import RobotLink, RobotLinks
 from app.rover.tracker_seat import TrialTracker
 from app.trial.messages import Message
 from app.trial.port import RobotTrial
 from sim.core.geometry import GRID_STEP_M
-from sim.trial.specs import BackendSpec
 from sim.trial.vocabulary import PARTICIPANTS, FrameSource, Move, Outcome, PoseSource, Role
-
-if TYPE_CHECKING:
-    from app.backends.registry import BackendParts
 
 FRAME_AFTER_MOVE_S = 1.0  # how long execute() waits for a frame showing the move's result
 # A forward move the overhead camera saw go less than this share of a step ran into something: the
@@ -145,26 +139,3 @@ class RemoteRobotBackend:
         if link is not None and self._moving:  # only this trial's own move: another may be running
             link.stop()
         await self.links.slot(self.robot_id).wake()
-
-
-async def remote_backend(spec: str, trial: RobotTrial, parts: BackendParts) -> RemoteRobotBackend:
-    """`robot:<id>`: the registered driver robot with that id."""
-    try:
-        robot_id = BackendSpec.parse(spec).robot_id
-    except ValueError as err:
-        raise LookupError(str(err)) from None
-    assert robot_id is not None  # the registry hands this factory `robot:` specs only
-    with parts.db() as db:
-        robot = db.get(Robot, robot_id)
-    if robot is None:
-        raise LookupError(f"robot backend {spec!r}: no robot {robot_id} is registered")
-    if robot.role != Role.DRIVER:
-        raise LookupError(f"robot backend {spec!r}: robot {robot.name!r} is an {robot.role} camera, not a rover")
-    return RemoteRobotBackend(
-        robot.id,
-        robot.name,
-        parts.robots,
-        trial,
-        parts.overhead_calibration,
-        parts.clock.now_ns,
-    )

@@ -102,7 +102,7 @@ def robot_virtual(
     from app.settings import Settings
     from robot_client.calibration import Calibration, CalibrationError
     from robot_client.client import robot_url
-    from sim.robot.rover import MotionNoise
+    from sim.robot.rover import MotionNoise, Rover
 
     if role not in ROBOT_ROLES:
         raise typer.BadParameter(f"expected one of {', '.join(ROBOT_ROLES)}, got {role!r}", param_hint="--role")
@@ -129,13 +129,7 @@ def robot_virtual(
         raise typer.BadParameter(
             "the overhead camera films the driver rover's truth file: give its path", param_hint="--truth"
         )
-    if start_pose is not None:
-        from sim.robot.rover import Rover
-
-        try:
-            Rover(table, start_pose)
-        except ValueError as err:
-            raise typer.BadParameter(str(err), param_hint="--start") from None
+    checked("--start", lambda: Rover(table, start_pose) if start_pose else None)  # the rover fits there
     spec = VirtualRoverSpec(
         server=server,
         token=token,

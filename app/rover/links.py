@@ -46,7 +46,7 @@ class RobotLink:
         self._pending: dict[str, asyncio.Future[dict[str, Any]]] = {}
         self._move_seq = 0
         self._arrivals: deque[int] = deque()
-        self._last_capture_ns = 0
+        self.last_capture_ns = 0  # the latest frame's stamp: the next one comes after it
         self.frames_received = 0
         self.last_ack: dict[str, Any] | None = None
         self.last_heard_ns = time.monotonic_ns()
@@ -86,19 +86,11 @@ class RobotLink:
         mono = received_ns if offset is None else min(robot_ns - offset, received_ns)
         return int(self._clock.now_ns() - (time.monotonic_ns() - mono))
 
-    @property
-    def last_capture_ns(self) -> int:
-        return self._last_capture_ns
-
-    def stamp_after(self, t_ns: int) -> None:
-        """Stamp every frame of this link after `t_ns` (the robot's last frame on an earlier link)."""
-        self._last_capture_ns = max(self._last_capture_ns, t_ns)
-
     def capture_time(self, robot_ns: int, received_ns: int) -> int:
         """A frame's capture time on the server clock, strictly after the previous frame's
         (of this link, and of the robot's links before it: `RobotLinks.last_capture_ns`)."""
-        t_ns = max(self.server_time(robot_ns, received_ns), self._last_capture_ns + 1)
-        self._last_capture_ns = t_ns
+        t_ns = max(self.server_time(robot_ns, received_ns), self.last_capture_ns + 1)
+        self.last_capture_ns = t_ns
         return t_ns
 
     # frames
@@ -245,7 +237,7 @@ class RobotLinks:
         """Make `link` the robot's link; an older one is closed (its socket notices and ends)."""
         # Stamps of one robot never go back, even when its link is new (a frame buffered across
         # the reconnection, a different clock offset): frames are ordered and named by them.
-        link.stamp_after(self.last_capture_ns(link.robot_id))
+        link.last_capture_ns = max(link.last_capture_ns, self.last_capture_ns(link.robot_id))
         previous = self.links.get(link.robot_id)
         if previous is not None:
             previous.replaced = True

@@ -18,7 +18,7 @@ pitch) plus the colours of its walls and objects under its light; `save`/`load` 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 from typing import Any, TypedDict
@@ -70,14 +70,10 @@ class FrontCamera:
         t = math.tan(self.hfov_rad / 2)
         return (self.width / 2) / (t * (1 + self.k1 * t**2 + self.k2 * t**4))
 
-    @property
-    def principal_point(self) -> tuple[float, float]:
-        """(cx, cy) in OpenCV's convention (pixel centres at integers): the render's horizon row."""
-        return (self.width - 1) / 2, HORIZON * self.height - 0.5
-
     def calibration(self, colours: dict[str, ColourClass] | None = None) -> CameraCalibration:
         """What a perfect checkerboard calibration of this camera would measure."""
-        cx, cy = self.principal_point
+        # (cx, cy) in OpenCV's convention (pixel centres at integers): the render's horizon row.
+        cx, cy = (self.width - 1) / 2, HORIZON * self.height - 0.5
         return CameraCalibration(
             width=self.width,
             height=self.height,
@@ -147,14 +143,12 @@ def capture(
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
-def undistort_normalized(
-    xd: ArrayLike, yd: ArrayLike, k1: float, k2: float, iterations: int = 30
-) -> tuple[np.ndarray, np.ndarray]:
+def undistort_normalized(xd: ArrayLike, yd: ArrayLike, k1: float, k2: float) -> tuple[np.ndarray, np.ndarray]:
     """Invert the radial model x_d = x_u (1 + k1 r_u^2 + k2 r_u^4) by fixed-point iteration
     (it converges in a few steps for mild distortion); normalized coordinates in and out."""
     xn, yn = np.asarray(xd, dtype=np.float64), np.asarray(yd, dtype=np.float64)
     xu, yu = xn, yn
-    for _ in range(iterations):
+    for _ in range(30):
         r2 = xu * xu + yu * yu
         scale = 1 + k1 * r2 + k2 * r2 * r2
         xu, yu = xn / scale, yn / scale
@@ -258,29 +252,8 @@ class CameraCalibration:
         if unknown:
             raise CalibrationError(f"unknown colour classes {sorted(unknown)}; expected {', '.join(COLOUR_CLASSES)}")
 
-    @property
-    def matrix(self) -> np.ndarray:
-        return np.array([[self.fx, 0, self.cx], [0, self.fy, self.cy], [0, 0, 1]], dtype=np.float64)
-
-    @property
-    def distortion(self) -> np.ndarray:
-        return np.array([self.k1, self.k2, 0.0, 0.0], dtype=np.float64)
-
     def with_colours(self, colours: dict[str, ColourClass], object_depth_offset_m: float = 0.0) -> CameraCalibration:
-        return CameraCalibration(
-            self.width,
-            self.height,
-            self.fx,
-            self.fy,
-            self.cx,
-            self.cy,
-            self.k1,
-            self.k2,
-            self.camera_height_m,
-            self.camera_pitch_rad,
-            dict(colours),
-            float(object_depth_offset_m),
-        )
+        return replace(self, colours=dict(colours), object_depth_offset_m=float(object_depth_offset_m))
 
     def to_json(self) -> CameraCalibrationFile:
         return {

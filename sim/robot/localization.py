@@ -17,6 +17,7 @@ from typing import TypedDict
 
 import cv2
 import numpy as np
+from tqdm import tqdm
 
 from sim.core.dynamics import Action
 from sim.core.geometry import GRID_STEP_M, TABLE_HEIGHT_M, TABLE_WIDTH_M, TURN_RAD, world_to_pixel
@@ -25,7 +26,7 @@ from sim.core.maze import Maze
 from sim.core.observations import PX_PER_M_X, RAY_OFFSETS, WALL_CLEARANCE_M, ray_caster
 from sim.core.rays import RayObservation
 from sim.robot.camera import CameraCalibration, FrontCamera, capture
-from sim.robot.perception import evaluation_rig, perceive, progress_bar
+from sim.robot.perception import evaluation_rig, perceive
 
 DEPTH_CAP_M = 2.0  # beyond this a depth says little (the wall base is near the horizon)
 
@@ -37,9 +38,6 @@ class MotionNoise:
     forward_std_m: float = 0.006
     drift_std_rad: float = np.deg2rad(1.5)
     turn_std_rad: float = np.deg2rad(3.0)
-
-
-NO_NOISE = MotionNoise(0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -135,14 +133,6 @@ def apply_move(
     return poses, collided
 
 
-class BeliefJson(TypedDict):
-    x: float
-    y: float
-    heading: float
-    spread_m: float
-    cloud: list[list[float]]
-
-
 class FilterResult(TypedDict):
     converged_fraction_20_moves: float
     err_median_m_20_moves: float
@@ -159,15 +149,6 @@ class Belief:
     heading: float  # radians, circular mean
     spread_m: float  # root mean square distance of the particles from (x, y)
     cloud: np.ndarray  # (K <= 200, 4): x, y, heading, weight (weights sum to 1)
-
-    def to_json(self) -> BeliefJson:
-        return {
-            "x": self.x,
-            "y": self.y,
-            "heading": self.heading,
-            "spread_m": self.spread_m,
-            "cloud": np.round(self.cloud, 4).tolist(),
-        }
 
 
 class ParticleFilter:
@@ -292,17 +273,15 @@ def evaluate_filter(
     converged_particles: int | None = None,
     camera: FrontCamera | None = None,
     calibration: CameraCalibration | None = None,
-    truth_noise: MotionNoise = MotionNoise(),
-    within_m: float = 0.15,
     progress: bool = False,
 ) -> FilterResult:
-    """Episodes from a uniform belief: the true rover moves with `truth_noise` (collisions stop
-    it), each frame goes through the camera model and perception, the filter gets the moves and
-    the perceived rays. Error = distance from the belief's mean to the true position."""
+    """Episodes from a uniform belief: the true rover moves with the filter's own noise model
+    (collisions stop it), each frame goes through the camera model and perception, the filter gets
+    the moves and the perceived rays. Error = distance from the belief's mean to the true position."""
     worlds, camera, calibration = evaluation_rig(mazes, seed, camera, calibration)
     rng = np.random.default_rng(seed)
     errors = np.zeros((episodes, moves + 1))
-    for e in progress_bar(range(episodes), progress, "particle filter"):
+    for e in tqdm(range(episodes), "particle filter", disable=not progress):
         maze = worlds[e % len(worlds)][0]
         space = free_space(maze)
         pf = ParticleFilter(maze, n_particles, seed=int(rng.integers(2**31)), converged_particles=converged_particles)
@@ -310,7 +289,7 @@ def evaluate_filter(
         for t in range(moves + 1):
             if t > 0:
                 action = _explore_action(truth[0], space, rng)
-                truth, _ = apply_move(truth, action, rng, space, truth_noise)
+                truth, _ = apply_move(truth, action, rng, space)
                 pf.move(action)
             x, y, theta = truth[0]
             pf.update(perceive(capture(maze, x, y, theta, camera, rng), calibration))
@@ -318,7 +297,7 @@ def evaluate_filter(
             errors[e, t] = np.hypot(b.x - x, b.y - y)
     final = errors[:, -1]
     return {
-        "converged_fraction_20_moves": float((final <= within_m).mean()),
+        "converged_fraction_20_moves": float((final <= 0.15).mean()),  # within 0.15 m
         "err_median_m_20_moves": float(np.median(final)),
         "curve": [float(v) for v in np.median(errors, axis=0)],
         "episodes": episodes,

@@ -16,7 +16,6 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from numpy.typing import ArrayLike
 
 from sim.core.geometry import MAP_HEIGHT_PX, MAP_WIDTH_PX, ROBOT_LENGTH_M, TABLE_HEIGHT_M, TABLE_WIDTH_M
 from sim.core.labels import Label
@@ -68,14 +67,6 @@ class OverheadCamera:
         t = -r @ np.asarray(self.position, dtype=np.float64)
         homography: np.ndarray = self.camera_matrix @ np.column_stack([r[:, 0], r[:, 1], r[:, 2] * z + t])
         return homography
-
-    def project(self, points: ArrayLike) -> np.ndarray:
-        """(N, 3) table points -> (N, 2) pixels."""
-        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        cam = (p - np.asarray(self.position)) @ self.rotation.T
-        uvw = cam @ self.camera_matrix.T
-        pixels: np.ndarray = uvw[:, :2] / uvw[:, 2:]
-        return pixels
 
 
 @dataclass(frozen=True)

@@ -18,10 +18,11 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import TypedDict, TypeVar
+from typing import TypedDict
 
 import cv2
 import numpy as np
+from tqdm import tqdm
 
 from sim.core.geometry import GRID_STEP_M, HEADINGS, TURN_RAD, heading_index
 from sim.core.labels import N_LABELS, OBJECT_LABELS, OBJECTS, WALL_LABELS, Label
@@ -53,6 +54,7 @@ MAX_MAHALANOBIS2 = 30.0  # farther than this from every class: an unknown colour
 MIN_BRIGHTNESS_STD = 0.08  # in colour_features brightness units: about a third brighter or darker
 DARK_LEVEL = 25  # mean of the brightest channel below this: too dark to read
 SATURATED_FRACTION = 0.25  # more clipped pixels than this: overexposed
+JITTER_M, JITTER_RAD = 0.015, np.deg2rad(3)  # how far a rover's drifting moves leave it off a node
 
 
 class PerceptionError(ValueError):
@@ -138,12 +140,8 @@ class _Strips:
 _strips: dict[tuple[float, ...], _Strips] = {}
 
 
-def _geometry_key(c: CameraCalibration) -> tuple[float, ...]:
-    return (c.width, c.height, c.fx, c.fy, c.cx, c.cy, c.k1, c.k2, c.camera_height_m, c.camera_pitch_rad)
-
-
 def _ray_strips(c: CameraCalibration) -> _Strips:
-    key = _geometry_key(c)
+    key = (c.width, c.height, c.fx, c.fy, c.cx, c.cy, c.k1, c.k2, c.camera_height_m, c.camera_pitch_rad)
     strips = _strips.get(key)
     if strips is None:
         h, pitch = c.camera_height_m, c.camera_pitch_rad
@@ -400,20 +398,13 @@ def _fit_gaussian(f: np.ndarray, min_brightness_std: float = 0.0, rounds: int = 
 # -- measured against the simulator ------------------------------------------------------------
 
 
-def random_poses(
-    maze: Maze,
-    graph: NavGraph,
-    n: int,
-    rng: np.random.Generator,
-    jitter_m: float = 0.015,
-    jitter_rad: float = np.deg2rad(3),
-) -> np.ndarray:
+def random_poses(maze: Maze, graph: NavGraph, n: int, rng: np.random.Generator) -> np.ndarray:
     """(n, 3) continuous poses (x, y, theta) near the graph's nodes and headings, as a rover's
     drifting moves leave it."""
     nodes = graph.nodes[rng.integers(0, graph.n, n)]
     headings = rng.integers(0, HEADINGS, n) * TURN_RAD
     return np.column_stack(
-        [nodes + rng.uniform(-jitter_m, jitter_m, (n, 2)), headings + rng.uniform(-jitter_rad, jitter_rad, n)]
+        [nodes + rng.uniform(-JITTER_M, JITTER_M, (n, 2)), headings + rng.uniform(-JITTER_RAD, JITTER_RAD, n)]
     )
 
 
@@ -431,7 +422,7 @@ def simulated_calibration(
     worlds = list(mazes)
     images: list[np.ndarray | bytes] = []
     truths: list[tuple[np.ndarray, np.ndarray]] = []
-    for i in progress_bar(range(n_frames), progress, "calibrating colours"):
+    for i in tqdm(range(n_frames), "calibrating colours", disable=not progress):
         if i % 4:
             maze, graph = worlds[i % len(worlds)]
             x, y, theta = random_poses(maze, graph, 1, rng)[0]
@@ -451,7 +442,7 @@ def _facing(maze: Maze, graph: NavGraph, name: str, rng: np.random.Generator, tr
     away = np.hypot(graph.nodes[:, 0] - ox, graph.nodes[:, 1] - oy)
     near = np.nonzero((away > 0.15) & (away < 0.6))[0]
     for _ in range(tries if near.size else 0):
-        x, y = graph.nodes[rng.choice(near)] + rng.uniform(-0.015, 0.015, 2)
+        x, y = graph.nodes[rng.choice(near)] + rng.uniform(-JITTER_M, JITTER_M, 2)
         theta = float(np.arctan2(oy - y, ox - x) + rng.uniform(-0.3, 0.3))
         if cast_rays(maze, x, y, theta)[0][N_RAYS // 2] == Label[name.upper()]:
             return np.array([x, y, theta])
@@ -508,7 +499,7 @@ def evaluate_perception(
     things: list[np.ndarray] = []
     reads: list[np.ndarray] = []
     depth_err: list[float] = []
-    for i in progress_bar(range(n_poses), progress, "perception"):
+    for i in tqdm(range(n_poses), "perception", disable=not progress):
         maze, graph = worlds[i % len(worlds)]
         x, y, theta = random_poses(maze, graph, 1, rng)[0]
         heading = heading_index(theta)
@@ -535,15 +526,3 @@ def evaluate_perception(
         "poses": n_poses,
         "near_wall_rays": len(depth_err),
     }
-
-
-_T = TypeVar("_T")
-
-
-def progress_bar(items: Iterable[_T], enabled: bool, desc: str) -> Iterable[_T]:
-    if not enabled:
-        return items
-    from tqdm import tqdm
-
-    shown: Iterable[_T] = tqdm(items, desc=desc)
-    return shown

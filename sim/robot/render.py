@@ -408,10 +408,6 @@ def draw(scene: Scene, x: float, y: float, theta: float, size: tuple[int, int] =
     z = np.maximum(depth * np.cos(cam.column_offsets), 1e-3)  # perpendicular: no fisheye
     wall = labels != Label.FLOOR
 
-    top = np.clip(cam.horizon - cam.focal * (WALL_HEIGHT_M - CAMERA_HEIGHT_M) / z, 0, height)
-    bottom = np.clip(cam.horizon + cam.focal * CAMERA_HEIGHT_M / z, 0, height)
-    top, bottom = np.where(wall, top, 0).astype(np.int32), np.where(wall, bottom, 0).astype(np.int32)
-
     # Lambert-like shading from the wall's normal just inside the wall entered, then fade with distance.
     inward = depth + 1e-4  # metres: the wall pixel entered, not the floor pixel before it
     col_px, row_px = world_to_pixel(x + inward * np.cos(angles), y + inward * np.sin(angles))
@@ -422,21 +418,14 @@ def draw(scene: Scene, x: float, y: float, theta: float, size: tuple[int, int] =
     normal_x, normal_y = scene.normals.at(ri[wall], ci[wall])
     facing = np.zeros(width)
     facing[wall] = np.abs(normal_x * np.cos(angles[wall]) + normal_y * np.sin(angles[wall]))
-    light = (0.55 + 0.45 * facing) * FOG_M / (FOG_M + z)
-    colour = PALETTE_BGR[labels].astype(np.float32) * light[:, None]
     # Edges where the wall changes colour or steps in depth, so corners read clearly.
     edge = np.zeros(width, dtype=bool)
     edge[1:] = (labels[1:] != labels[:-1]) | (np.abs(np.diff(z)) > 0.2 * z[1:])
-    colour[edge & wall] *= OUTLINE
 
     # Painted as packed 32-bit pixels into the camera's buffers: one select per pixel.
     mask, packed = cam.buffers()
-    np.greater_equal(cam.rows, top, out=mask)
-    np.logical_and(mask, cam.rows < bottom, out=mask)
     np.copyto(packed, cam.background)
-    np.copyto(packed, _pack(colour), where=mask)
-    cols = np.nonzero(wall & (bottom > top))[0]
-    packed[top[cols], cols] = _pack(colour[cols] * OUTLINE)  # the wall's top edge
+    _paint_columns(packed, mask, cam, labels, z, WALL_HEIGHT_M, wall, facing, edge)
     paint_objects(packed, mask, scene, cam, x, y, theta, depth)
     return cv2.cvtColor(packed.view(np.uint8).reshape(height, width, 4), cv2.COLOR_BGRA2BGR)
 
@@ -478,24 +467,41 @@ def paint_objects(
     if not seen.any():
         return
     z = np.maximum(depth * np.cos(cam.column_offsets), 1e-3)
-    top = np.clip(cam.horizon - cam.focal * (OBJECT_HEIGHT_M[labels] - CAMERA_HEIGHT_M) / z, 0, cam.height)
-    bottom = np.clip(cam.horizon + cam.focal * CAMERA_HEIGHT_M / z, 0, cam.height)
-    top, bottom = np.where(seen, top, 0).astype(np.int32), np.where(seen, bottom, 0).astype(np.int32)
     # The surface's normal points away from the object's centre.
     dx, dy = np.cos(angles), np.sin(angles)
     nx, ny = x + depth * dx - scene.centroids[labels, 0], y + depth * dy - scene.centroids[labels, 1]
     facing = np.abs(nx * dx + ny * dy) / np.maximum(np.hypot(nx, ny), 1e-6)
     facing[depth == 0] = 0.0  # the camera inside a footprint is up against the object, in its shadow
-    light = (0.55 + 0.45 * facing) * FOG_M / (FOG_M + z)
-    colour = PALETTE_BGR[labels].astype(np.float32) * light[:, None]
     edge = np.zeros(cam.width, dtype=bool)
     edge[1:] = seen[1:] != seen[:-1]
-    colour[edge & seen] *= OUTLINE
+    _paint_columns(packed, mask, cam, labels, z, OBJECT_HEIGHT_M[labels], seen, facing, edge)
+
+
+def _paint_columns(
+    packed: np.ndarray,
+    mask: np.ndarray,
+    cam: _Camera,
+    labels: np.ndarray,
+    z: np.ndarray,
+    height_m: float | np.ndarray,
+    shown: np.ndarray,
+    facing: np.ndarray,
+    edge: np.ndarray,
+) -> None:
+    """Paint each `shown` column's solid (a wall, an object) from the floor up to `height_m` at
+    perpendicular distance `z`, lit by how squarely it faces the ray and faded with distance,
+    outlined along `edge` and its top (`mask` is scratch)."""
+    top = np.clip(cam.horizon - cam.focal * (height_m - CAMERA_HEIGHT_M) / z, 0, cam.height)
+    bottom = np.clip(cam.horizon + cam.focal * CAMERA_HEIGHT_M / z, 0, cam.height)
+    top, bottom = np.where(shown, top, 0).astype(np.int32), np.where(shown, bottom, 0).astype(np.int32)
+    light = (0.55 + 0.45 * facing) * FOG_M / (FOG_M + z)
+    colour = PALETTE_BGR[labels].astype(np.float32) * light[:, None]
+    colour[edge & shown] *= OUTLINE
     np.greater_equal(cam.rows, top, out=mask)
     np.logical_and(mask, cam.rows < bottom, out=mask)
     np.copyto(packed, _pack(colour), where=mask)
-    cols = np.nonzero(seen & (bottom > top))[0]
-    packed[top[cols], cols] = _pack(colour[cols] * OUTLINE)  # the object's top edge
+    cols = np.nonzero(shown & (bottom > top))[0]
+    packed[top[cols], cols] = _pack(colour[cols] * OUTLINE)  # the top edge
 
 
 def top_down(

@@ -76,10 +76,6 @@ class Pulse:
     path: np.ndarray  # (K + 1, 3): x, y, theta at fractions 0, 1/K, ..., 1 of the pulse
     contact: int | None  # index of the last free sample before the body touched, or None
 
-    @property
-    def collided(self) -> bool:
-        return self.contact is not None
-
     def pose_at(self, fraction: float) -> RoverPose:
         """Where the rover is after `fraction` (0..1) of the pulse: held at the contact."""
         k = len(self.path) - 1
@@ -114,17 +110,16 @@ class Rover:
         pose: RoverPose,
         noise: MotionNoise = MotionNoise(),
         seed: int | None = None,
-        radius_m: float = BODY_RADIUS_M,
     ) -> None:
-        self.maze, self.noise, self.radius_m = maze, noise, radius_m
+        self.maze, self.noise = maze, noise
         self._clearance = clearance_map(maze)
         self._rng = np.random.default_rng(seed)
         where = f"start pose ({pose.x:.3f}, {pose.y:.3f}) m on maze {maze.name!r}"
         if not (0 <= pose.x <= TABLE_WIDTH_M and 0 <= pose.y <= TABLE_HEIGHT_M):
             raise ValueError(f"{where} is off the {TABLE_WIDTH_M} x {TABLE_HEIGHT_M} m table")
-        if not self.is_free(pose.x, pose.y):
+        if self.clearance_m(pose.x, pose.y) < BODY_RADIUS_M:
             raise ValueError(
-                f"{where} is within {radius_m:.3f} m (the rover's radius) of a wall, an object or the table's edge"
+                f"{where} is within {BODY_RADIUS_M:.3f} m (the rover's radius) of a wall, an object or the table's edge"
             )
         self.pose = _pose(np.array([pose.x, pose.y, pose.theta]))
 
@@ -135,9 +130,6 @@ class Rover:
         col, row = world_to_pixel(x, y)
         h, w = self._clearance.shape
         return float(self._clearance[min(int(round(float(row))), h - 1), min(int(round(float(col))), w - 1)])
-
-    def is_free(self, x: float, y: float) -> bool:
-        return self.clearance_m(x, y) >= self.radius_m
 
     def plan(self, move: Move | str) -> Pulse:
         """Sample this pulse's error and sweep its path for the first contact."""
@@ -186,7 +178,7 @@ class Rover:
         h, w = self._clearance.shape
         r = np.clip(np.rint(row).astype(np.int64), 0, h - 1)
         c = np.clip(np.rint(col).astype(np.int64), 0, w - 1)
-        free = on_table & (self._clearance[r, c] >= self.radius_m)
+        free = on_table & (self._clearance[r, c] >= BODY_RADIUS_M)
         # The first sample is where the rover already stands: it is never its own obstacle.
         free[0] = True
         return np.asarray(free)

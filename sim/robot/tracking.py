@@ -21,11 +21,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 from tqdm import tqdm
 
+from robot_client.camera import CameraSettings
 from sim.robot import fiducials
 from sim.robot.calibration import CalibrationError, load_json, save_json
 from sim.robot.fiducials import MarkerLayout, MarkerLayoutJson
 from sim.robot.frames import decode_jpeg
-from sim.robot.overhead import Imaging, OverheadCamera, render_overhead
+from sim.robot.overhead import render_overhead
 
 if TYPE_CHECKING:
     from sim.core.maze import Maze
@@ -124,16 +125,11 @@ class OverheadCalibration:
         return cls.from_json(load_json(path, "an overhead calibration"), source=str(path))
 
 
-def calibrate(
-    image: np.ndarray,
-    fov_deg: float | None = None,
-    layout: MarkerLayout = MarkerLayout(),
-    camera_matrix: np.ndarray | None = None,
-) -> OverheadCalibration:
+def calibrate(image: np.ndarray, fov_deg: float | None = None) -> OverheadCalibration:
     """The calibration from one BGR image showing the four corner markers. The focal length is
     measured from the homography (square pixels, principal point at the centre) unless the
-    camera's horizontal field of view `fov_deg` or its `camera_matrix` is given."""
-    return _calibrate(image, fiducials.detect(fiducials.detector(), image), fov_deg, layout, camera_matrix)
+    camera's horizontal field of view `fov_deg` is given."""
+    return _calibrate(image, fiducials.detect(fiducials.detector(), image), fov_deg, MarkerLayout(), None)
 
 
 def _calibrate(
@@ -214,15 +210,6 @@ class TrackerConfig:
     stale_px: float = 4.0  # corner markers this far from where the calibration puts them: the camera moved
 
 
-@dataclass
-class _Measurement:
-    x: float
-    y: float
-    heading: float
-    t_ns: int
-    quality: float
-
-
 class OverheadTracker:
     """Overhead frames in, rover poses out, one frame at a time (frames in time order).
 
@@ -238,9 +225,9 @@ class OverheadTracker:
         self.config = config
         self._detector = fiducials.detector()
         self._plane: np.ndarray | None = None  # image -> rover-top plane, for `calibration`
-        self._last: _Measurement | None = None  # the last accepted measurement
-        self._candidates: list[_Measurement] = []  # consistent rejected ones, for re-acquiring
-        self._still: list[_Measurement] = []  # the current run of still measurements
+        self._last: TrackedPose | None = None  # the last accepted measurement
+        self._candidates: list[TrackedPose] = []  # consistent rejected ones, for re-acquiring
+        self._still: list[TrackedPose] = []  # the current run of still measurements
 
     def update(self, frame: bytes | np.ndarray, t_ns: int) -> TrackedPose | None:
         """The rover's pose in this frame (JPEG bytes or a BGR image), or None."""
@@ -254,10 +241,6 @@ class OverheadTracker:
         if measurement is None or not self._plausible(measurement):
             return None
         return self._smoothed(measurement)
-
-    def reset(self) -> None:
-        """Forget the track (a new trial); the calibration stays."""
-        self._last, self._candidates, self._still = None, [], []
 
     # -- steps of `update` --------------------------------------------------------
     def _calibrated(self, image: np.ndarray, found: dict[int, list[np.ndarray]]) -> bool:
@@ -281,7 +264,7 @@ class OverheadTracker:
         self._plane = np.linalg.inv(self.calibration.plane_homography(self.layout.rover_height_m))
         return True
 
-    def _measure(self, quads: list[np.ndarray], t_ns: int) -> _Measurement | None:
+    def _measure(self, quads: list[np.ndarray], t_ns: int) -> TrackedPose | None:
         """The rover's marker mapped onto its plane; None unless exactly one marker seen is a
         square of the printed size (or exactly one is, near the last pose)."""
         assert self._plane is not None  # set by `_calibrated`, which comes first
@@ -295,7 +278,7 @@ class OverheadTracker:
             if error <= self.config.shape_tolerance:
                 x, y = corners.mean(axis=0)
                 measurements.append(
-                    _Measurement(
+                    TrackedPose(
                         float(x),
                         float(y),
                         fiducials.marker_heading(corners),
@@ -307,7 +290,7 @@ class OverheadTracker:
             measurements = [m for m in measurements if self._reachable(self._last, m)]
         return measurements[0] if len(measurements) == 1 else None
 
-    def _reachable(self, a: _Measurement, b: _Measurement) -> bool:
+    def _reachable(self, a: TrackedPose, b: TrackedPose) -> bool:
         dt = (b.t_ns - a.t_ns) * 1e-9
         c = self.config
         return (
@@ -315,7 +298,7 @@ class OverheadTracker:
             and abs(_angle(b.heading - a.heading)) <= c.max_turn_rad_s * dt + c.jump_slack_rad
         )
 
-    def _plausible(self, m: _Measurement) -> bool:
+    def _plausible(self, m: TrackedPose) -> bool:
         """Accept `m` if the rover could have got there since the last accepted pose; a run of
         `reacquire_frames` measurements consistent with each other but not with the track
         restarts it (the rover was carried, or the first pose was wrong)."""
@@ -330,7 +313,7 @@ class OverheadTracker:
         self._last, self._candidates, self._still = m, [], []
         return True
 
-    def _smoothed(self, m: _Measurement) -> TrackedPose:
+    def _smoothed(self, m: TrackedPose) -> TrackedPose:
         """The mean of the current run of still measurements: a standing rover's pose is averaged
         over up to `window` frames, a moving one's is the measurement itself (no lag)."""
         still = self._still
@@ -347,7 +330,7 @@ class OverheadTracker:
         return TrackedPose(x, y, heading, m.t_ns, m.quality)
 
 
-def _mean(ms: list[_Measurement]) -> tuple[float, float, float]:
+def _mean(ms: list[TrackedPose]) -> tuple[float, float, float]:
     heading = math.atan2(sum(math.sin(m.heading) for m in ms), sum(math.cos(m.heading) for m in ms))
     return sum(m.x for m in ms) / len(ms), sum(m.y for m in ms) / len(ms), heading
 
@@ -364,20 +347,17 @@ def evaluate_tracker(
     poses: ArrayLike,
     seed: int = 0,
     fps: float = 5.0,
-    jpeg_quality: int = 80,
-    camera: OverheadCamera = OverheadCamera(),
-    imaging: Imaging = Imaging(),
     progress: bool = False,
 ) -> TrackerScores:
     """The tracker against known truth: each of `poses` ((x, y, heading), one per frame at
-    `fps`) rendered by the overhead camera, sent as a JPEG of `jpeg_quality` as the server
-    receives it, tracked after a calibration from a JPEG of the empty table. Errors are over
+    `fps`) rendered by the overhead camera, sent as a JPEG of the rover client's quality as the
+    server receives it, tracked after a calibration from a JPEG of the empty table. Errors are over
     the frames that gave a pose; `tracked_fraction` says how many did."""
     rng = np.random.default_rng(seed)
 
     def jpeg(pose: np.ndarray | None) -> bytes:
-        image = render_overhead(maze, pose, camera, imaging, seed=int(rng.integers(2**31)))
-        ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality])
+        image = render_overhead(maze, pose, seed=int(rng.integers(2**31)))
+        ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, CameraSettings().quality])
         return data.tobytes()
 
     tracker = OverheadTracker(calibrate(decode_jpeg(jpeg(None))))

@@ -51,7 +51,7 @@ class BackendKind(StrEnum):
 
 @dataclass(frozen=True)
 class BackendSpec:
-    kind: str  # a `BackendKind`, or a kind a plugin registered (`register_backend`)
+    kind: str  # a `BackendKind` (the backend registry refuses any other)
     arg: str = ""  # what follows the colon: a rover's id
 
     @classmethod

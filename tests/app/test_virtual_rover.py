@@ -21,13 +21,17 @@ from bench.live import REPO, SeatClient
 from robot_client.calibration import Calibration
 from sim.core.geometry import GRID_STEP_M, TURN_RAD
 from sim.robot.camera import FrontCamera
-from sim.robot.rover import BODY_RADIUS_M, Rover
+from sim.robot.rover import BODY_RADIUS_M, Rover, RoverPose
 from sim.robot.tracking import OverheadTracker
 from tests.app.live import cli
 from tests.app.rover_lab import MAZE, START_S, settled, turned, until
 from tests.robot_client.scripted_server import ScriptedServer
 
 pytestmark = pytest.mark.anyio
+
+
+def pose_of(sample: TruthSample) -> RoverPose:
+    return RoverPose(sample.x, sample.y, sample.theta)
 
 
 def decode(frame_event: dict) -> np.ndarray:
@@ -57,7 +61,7 @@ async def test_a_driver_drives_the_virtual_rover_frames_acks_truth_and_a_wall(la
         await driver.event("phase", phase="localizing", timeout=START_S)
         first = decode(await driver.event("frame"))
         assert first.shape == (camera.height, camera.width, 3)
-        assert settled(truth)[0].pose == start and settled(truth)[0].move_id == 0
+        assert pose_of(settled(truth)[0]) == start and settled(truth)[0].move_id == 0
 
         async def move(action: str, move_id: str) -> tuple[TruthSample, TruthSample, np.ndarray]:
             before = settled(truth)[-1]
@@ -93,9 +97,9 @@ async def test_a_driver_drives_the_virtual_rover_frames_acks_truth_and_a_wall(la
                 break
         else:
             raise AssertionError("the rover never reached the wall ahead")
-        assert BODY_RADIUS_M <= Rover(maze, after.pose).clearance_m(after.x, after.y) < BODY_RADIUS_M + 0.01
+        assert BODY_RADIUS_M <= Rover(maze, pose_of(after)).clearance_m(after.x, after.y) < BODY_RADIUS_M + 0.01
         _, pressed, _ = await move("forward", "again")
-        assert pressed.collision and pressed.pose == after.pose
+        assert pressed.collision and pose_of(pressed) == pose_of(after)
     during = [s for s in read_truth(truth) if s.moving]
     assert during and all(s.move_id >= 1 for s in during)  # sampled while the pulses ran
     t = [s.t_ns for s in read_truth(truth)]

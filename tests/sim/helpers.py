@@ -1,5 +1,6 @@
 """Small synthetic mazes whose graphs and observations are known by hand, and the move rules
-written plainly (`reference_step`), what the simulator's stepper is held against."""
+written plainly (`reference_step`), what the simulator's stepper is held against; the overhead
+camera's pinhole projection written plainly (`project`), what its homographies are held against."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from sim.core.geometry import HEADINGS, MAP_HEIGHT_PX, MAP_WIDTH_PX, world_to_pi
 from sim.core.labels import Label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
+from sim.robot.overhead import OverheadCamera
 
 
 def reference_step(graph: NavGraph, pose: Pose, action: Action) -> tuple[Pose, bool]:
@@ -29,6 +31,13 @@ def reference_step(graph: NavGraph, pose: Pose, action: Action) -> tuple[Pose, b
     if action == Action.RIGHT:
         return Pose(pose.node, (pose.heading - 1) % HEADINGS), False
     return pose, False
+
+
+def project(camera: OverheadCamera, points: np.ndarray) -> np.ndarray:
+    """(N, 3) table points -> (N, 2) pixels of `camera`."""
+    cam = (np.asarray(points, dtype=np.float64).reshape(-1, 3) - np.asarray(camera.position)) @ camera.rotation.T
+    uvw = cam @ camera.camera_matrix.T
+    return uvw[:, :2] / uvw[:, 2:]
 
 
 def open_table(objects=((0.5, 0.5), (1.2, 1.0), (2.0, 1.5))) -> np.ndarray:

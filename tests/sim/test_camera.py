@@ -51,7 +51,8 @@ def test_undistorting_with_the_calibration_recovers_the_pinhole_view(maze):
         (640, 480),
         flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
     ).astype(np.float32)
-    undistorted = cv2.undistort(frame, calib.matrix, calib.distortion).astype(np.float32)
+    matrix = np.array([[calib.fx, 0, calib.cx], [0, calib.fy, calib.cy], [0, 0, 1]])
+    undistorted = cv2.undistort(frame, matrix, np.array([calib.k1, calib.k2, 0.0, 0.0])).astype(np.float32)
     inner = (slice(60, 420), slice(80, 560))
     raw_err = np.abs(frame[inner] - ideal[inner]).mean()
     fixed_err = np.abs(undistorted[inner] - ideal[inner]).mean()

@@ -8,6 +8,7 @@ import pytest
 from sim.robot.fiducials import MarkerLayout, detect, detector, square
 from sim.robot.overhead import Imaging, OverheadCamera, render_overhead
 from sim.tasks.library import MazeLibrary
+from tests.sim.helpers import project
 
 LAYOUT = MarkerLayout()
 
@@ -26,9 +27,9 @@ def test_every_marker_is_seen_where_the_camera_model_projects_it(maze, camera):
     assert image.shape == (camera.height, camera.width, 3) and image.dtype == np.uint8
     found = detect(detector(), image)
     assert sorted(found) == sorted((*LAYOUT.corner_ids, LAYOUT.rover_id))
-    expected = {i: camera.project(np.c_[LAYOUT.corner_points(i), np.zeros(4)]) for i in LAYOUT.corner_ids}
-    expected[LAYOUT.rover_id] = camera.project(
-        np.c_[square(*pose, LAYOUT.rover_size_m), np.full(4, LAYOUT.rover_height_m)]
+    expected = {i: project(camera, np.c_[LAYOUT.corner_points(i), np.zeros(4)]) for i in LAYOUT.corner_ids}
+    expected[LAYOUT.rover_id] = project(
+        camera, np.c_[square(*pose, LAYOUT.rover_size_m), np.full(4, LAYOUT.rover_height_m)]
     )
     # In ArUco's corner order, so the rover's marker is printed up along its heading; the
     # detector's own sub-pixel error on markers 25-45 px across is what remains.
@@ -42,7 +43,7 @@ def test_the_plane_homography_agrees_with_the_projection():
     for z in (0.0, 0.09):
         h = camera.plane_homography(z)
         uvw = np.c_[points, np.ones(3)] @ h.T
-        assert np.allclose(uvw[:, :2] / uvw[:, 2:], camera.project(np.c_[points, np.full(3, z)]))
+        assert np.allclose(uvw[:, :2] / uvw[:, 2:], project(camera, np.c_[points, np.full(3, z)]))
 
 
 def test_a_render_is_the_same_for_a_seed_and_its_noise_differs_between_seeds(maze):

@@ -23,6 +23,7 @@ from sim.robot.tracking import (
     evaluate_tracker,
 )
 from sim.tasks.library import MazeLibrary
+from tests.sim.helpers import project
 
 CAMERA, LAYOUT = OverheadCamera(), MarkerLayout()
 POSE = (1.0, 1.2, 0.6)
@@ -79,7 +80,7 @@ def error(pose, truth) -> tuple[float, float]:
 
 def marker_pixels(pose) -> np.ndarray:
     """Where the camera sees the rover marker's corners."""
-    return CAMERA.project(np.c_[square(*pose, LAYOUT.rover_size_m), np.full(4, LAYOUT.rover_height_m)])
+    return project(CAMERA, np.c_[square(*pose, LAYOUT.rover_size_m), np.full(4, LAYOUT.rover_height_m)])
 
 
 # -- accuracy -----------------------------------------------------------------------------
@@ -124,7 +125,7 @@ def test_a_standing_rover_is_averaged_and_a_moving_one_is_not_delayed(maze, cali
 def test_calibration_measures_the_homography_and_focal_length_and_round_trips(maze, calibration, tmp_path):
     corners = np.array([[0, 0], [TABLE_WIDTH_M, 0], [TABLE_WIDTH_M, TABLE_HEIGHT_M], [0, TABLE_HEIGHT_M]])
     seen = cv2.perspectiveTransform(corners.reshape(-1, 1, 2), calibration.homography).reshape(-1, 2)
-    assert np.abs(seen - CAMERA.project(np.c_[corners, np.zeros(4)])).max() < 1.0
+    assert np.abs(seen - project(CAMERA, np.c_[corners, np.zeros(4)])).max() < 1.0
     assert calibration.camera_matrix[0, 0] == pytest.approx(CAMERA.camera_matrix[0, 0], rel=0.02)
     assert calibration.image_size == (CAMERA.width, CAMERA.height)
     loaded = OverheadCalibration.load(calibration.save(tmp_path / "cal.json"))
@@ -137,7 +138,7 @@ def test_calibration_measures_the_homography_and_focal_length_and_round_trips(ma
 
 def test_calibration_needs_all_four_corner_markers(maze):
     image = render_overhead(maze, None)
-    corner = CAMERA.project(np.c_[LAYOUT.corner_points(LAYOUT.corner_ids[2]), np.zeros(4)])
+    corner = project(CAMERA, np.c_[LAYOUT.corner_points(LAYOUT.corner_ids[2]), np.zeros(4)])
     cv2.fillPoly(image, [np.round(corner).astype(np.int32)], (90, 90, 90))
     with pytest.raises(CalibrationError, match=r"corner markers \[2\] not seen"):
         calibrate(image)
@@ -190,7 +191,7 @@ def test_after_the_camera_moves_a_stale_calibration_gives_no_pose_until_the_corn
     moved = OverheadCamera(position=(1.16, -0.34, 2.48), roll_deg=3.0)
     tracker = OverheadTracker(old)
     partial = render_overhead(maze, POSE, camera=moved, seed=1)
-    corner = moved.project(np.c_[LAYOUT.corner_points(LAYOUT.corner_ids[0]), np.zeros(4)])
+    corner = project(moved, np.c_[LAYOUT.corner_points(LAYOUT.corner_ids[0]), np.zeros(4)])
     cv2.fillPoly(partial, [np.round(corner).astype(np.int32)], (90, 90, 90))
     assert tracker.update(jpeg(partial), SECOND) is None, "three corners disagree with the calibration"
     pose = tracker.update(jpeg(render_overhead(maze, POSE, camera=moved, seed=2)), 2 * SECOND)

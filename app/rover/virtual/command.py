@@ -7,7 +7,6 @@ client; only the motors and the camera source are simulated.
 
 from __future__ import annotations
 
-import asyncio
 import logging
 import math
 from dataclasses import dataclass
@@ -20,7 +19,7 @@ from app.rover.virtual.devices import FrontCameraSource, OverheadCameraSource, V
 from app.rover.virtual.truth import TruthLog
 from robot_client.calibration import Calibration
 from robot_client.camera import CameraSettings, FrameGrabber
-from robot_client.cli import serve
+from robot_client.cli import run as run_client
 from robot_client.client import LinkSettings, RobotClient, robot_url
 from sim.core.geometry import world_to_pixel
 from sim.core.maze import Maze
@@ -32,7 +31,6 @@ if TYPE_CHECKING:
     from sim.robot.overhead import OverheadCamera
 
 CAMERA_SOURCE = "virtual"  # the hello's camera.source, where the real client names its camera
-JPEG_QUALITY = 80  # the real client's default
 
 
 @dataclass(frozen=True)
@@ -73,9 +71,7 @@ def random_start(maze: Maze, graph: NavGraph, seed: int) -> RoverPose:
     return RoverPose(float(x), float(y), float(rng.integers(8)) * math.pi / 4)
 
 
-def build(
-    spec: VirtualRoverSpec, graph: NavGraph | None = None
-) -> tuple[RobotClient, FrameGrabber, VirtualMotors | None]:
+def build(spec: VirtualRoverSpec, graph: NavGraph | None = None) -> RobotClient:
     """The real client with simulated devices; raises ValueError naming a bad input."""
     robot_url(spec.server)
     link = LinkSettings(server=spec.server, token=spec.token, role=spec.role, watchdog_s=spec.watchdog_s)
@@ -95,6 +91,10 @@ def build(
         truth = TruthLog(spec.truth) if spec.truth is not None else None
         motors = VirtualMotors(rover, spec.calibration, truth)
         source = FrontCameraSource(spec.maze, motors, camera, seed=spec.seed)
+        p = rover.pose
+        logging.getLogger("robotslang.robot").info(
+            "virtual rover on %s at (%.3f, %.3f) m, heading %.3f rad", spec.maze.name, p.x, p.y, p.theta
+        )
     else:
         from sim.robot.overhead import OverheadCamera
 
@@ -102,35 +102,11 @@ def build(
             raise ValueError("--role overhead needs --truth FILE: the driver rover's truth file, whose poses it films")
         camera = OverheadCamera()
         source = OverheadCameraSource(spec.maze, spec.truth, camera, seed=spec.seed)
-    settings = CameraSettings(camera.width, camera.height, spec.fps, JPEG_QUALITY)
-    grabber = FrameGrabber(source, settings)
-    client = RobotClient(
-        link,
-        grabber,
-        motors,
-        camera_info={
-            "source": CAMERA_SOURCE,
-            "width": camera.width,
-            "height": camera.height,
-            "fps": spec.fps,
-            "quality": JPEG_QUALITY,
-        },
-    )
-    return client, grabber, motors
+    settings = CameraSettings(camera.width, camera.height, spec.fps)  # the real client's JPEG quality
+    return RobotClient(link, FrameGrabber(source, settings), motors, settings.info(CAMERA_SOURCE))
 
 
 def run(spec: VirtualRoverSpec, graph: NavGraph | None = None) -> int:
     """Serve until a signal (0), a refusal by the server (3) or a camera failure (4)."""
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(message)s")
-    client, grabber, motors = build(spec, graph)
-    if motors is not None:
-        p = motors.rover.pose
-        logging.getLogger("robotslang.robot").info(
-            "virtual rover on %s at (%.3f, %.3f) m, heading %.3f rad", spec.maze.name, p.x, p.y, p.theta
-        )
-    try:
-        return asyncio.run(serve(client))
-    finally:
-        if motors is not None:
-            motors.close()
-        grabber.stop()
+    return run_client(build(spec, graph))

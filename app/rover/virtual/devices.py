@@ -5,9 +5,9 @@
 calibrated pulse length, so the pose at any instant is the part of the move done by then: a
 `stop` (the server's, the watchdog's, a shutdown's) leaves the rover part way, exactly as the
 client's safety rules cut a real pulse. The cameras are sources for `robot_client`'s
-`FrameGrabber` (`read() -> BGR`, `close()`): the front camera renders through the lens model at
-the true pose of that instant; the overhead camera renders the table with the rover at the
-newest pose of the driver rover's truth file.
+`FrameGrabber` (`read_stamped() -> (BGR, when it was exposed)`, `close()`): the front camera
+renders through the lens model at the true pose of that instant; the overhead camera renders the
+table with the rover at the newest pose of the driver rover's truth file.
 """
 
 from __future__ import annotations
@@ -131,9 +131,6 @@ class FrontCameraSource:
         p = self.motors.pose()
         return self._capture(self.maze, p.x, p.y, p.theta, self.camera, self._rng), t_ns
 
-    def read(self) -> np.ndarray:
-        return self.read_stamped()[0]
-
     def close(self) -> None:
         pass
 
@@ -160,9 +157,6 @@ class OverheadCameraSource:
         self._count += 1
         pose = None if sample is None else (sample.x, sample.y, sample.theta)
         return self._render(self.maze, pose, self.camera, seed=self._seed * 1_000_003 + self._count), t_ns
-
-    def read(self) -> np.ndarray:
-        return self.read_stamped()[0]
 
     def close(self) -> None:
         self._truth.close()

@@ -17,8 +17,6 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TextIO
 
-from sim.robot.rover import RoverPose
-
 SAMPLE_S = 0.01
 
 
@@ -32,10 +30,6 @@ class TruthSample:
     action: str | None
     moving: bool
     collision: bool
-
-    @property
-    def pose(self) -> RoverPose:
-        return RoverPose(self.x, self.y, self.theta)
 
     @classmethod
     def from_json(cls, line: str) -> TruthSample:
