@@ -12,8 +12,8 @@ from dataclasses import dataclass
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.annotation.study import study_trial_ids
 from app.db.models import AnnotationAssignment, Experimenter, Trial
+from app.export.source import exported_trial_ids
 from app.security import AccountRole
 
 DOUBLE_SHARE = 0.2  # the paper tagged a 20 % sample
@@ -60,7 +60,7 @@ def assign(
     if len(ids) < (2 if share > 0 else 1):
         raise AssignmentError("double annotation needs at least two annotators")
     taken = set(db.scalars(select(AnnotationAssignment.trial_id)))
-    trials = db.scalars(select(Trial).where(Trial.id.in_(study_trial_ids(db, study)))).all()
+    trials = db.scalars(select(Trial).where(Trial.id.in_(exported_trial_ids(db, study=study)))).all()
     by_layout: dict[str, list[int]] = {}
     for t in trials:
         if t.id not in taken:

@@ -33,7 +33,6 @@ class Annotation:
     cut: int | None = None
     tags: dict[str, list[int]] = field(default_factory=dict)  # only tags with messages
     submitted: bool = False
-    revisions: int = 0  # events that replaced an earlier one
 
 
 @dataclass
@@ -136,7 +135,6 @@ def fold(records: Iterable[AnnotationRecord]) -> TrialAnnotations:
             out.adjudicated[e.item] = e.value
             continue
         a = out.by_annotator.setdefault(r.annotator_id, Annotation())
-        a.revisions += r.revises is not None
         if isinstance(e, CutMarked):
             a.cut = e.message
         elif isinstance(e, Tagged):

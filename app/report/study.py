@@ -13,16 +13,16 @@ from typing import TypedDict
 
 from sqlalchemy.orm import Session, sessionmaker
 
-from app.annotation.agreement import AgreementNumbers, agreement
+from app.annotation.agreement import AgreementNumbers
 from app.annotation.dialog import messages
 from app.annotation.events import Phenomenon
 from app.annotation.log import AnnotationLog
-from app.annotation.study import annotator_names, study_trial_ids
+from app.annotation.study import study_agreement
 from app.db.models import Team, Trial
 from app.export.folds import SavedFolds
 from app.export.ndh import ldh_instances, ndh_instances
 from app.export.record import TrialRecord
-from app.export.source import load_trial
+from app.export.source import exported_trial_ids, load_trial
 from app.mazes import Mazes
 from app.settings import Settings
 from app.study.answers import ItemRatings, asked, items, rating_distributions, study_answers
@@ -174,7 +174,7 @@ def study_numbers(sessions: sessionmaker[Session], settings: Settings, mazes: Ma
 
 
 def _study_numbers(db: Session, log: AnnotationLog, settings: Settings, mazes: Mazes, study: str) -> StudyNumbers:
-    ids = study_trial_ids(db, study)
+    ids = exported_trial_ids(db, study=study)
     records = [load_trial(db, settings, i) for i in ids]
     trials = {t.id: t for t in (db.get(Trial, i) for i in ids) if t is not None}
     layout_of = mazes.layouts()
@@ -195,7 +195,6 @@ def _study_numbers(db: Session, log: AnnotationLog, settings: Settings, mazes: M
     penalty = files.move_penalty_s(study, settings.move_penalty_s)
     durations = [trials[int(r.trial_id)].active_s or 0.0 for r in records]
     answers = study_answers(db, study)
-    annotations = log.states(ids)
     dialog = dialog_numbers(dialogs)
     return {
         "study": study,
@@ -220,7 +219,7 @@ def _study_numbers(db: Session, log: AnnotationLog, settings: Settings, mazes: M
         },
         "folds": fold_table(records, mazes, layout_of, SavedFolds.of(settings.data_dir, study)),
         "phenomena": phenomena_table(records),
-        "agreement": agreement(annotations, annotator_names(db)),
+        "agreement": study_agreement(db, log, study),
         "leaderboard": leaderboard(teams, states, penalty),
         "questionnaire": {
             "answers": len(answers),

@@ -17,10 +17,9 @@ from sqlalchemy import select
 
 from app.accounts import AccountError, create_account
 from app.annotation.access import AnnotatorId, annotator_login
-from app.annotation.agreement import agreement
 from app.annotation.dialog import estimates, messages
-from app.annotation.events import Adjudicated, AnnotationEventModel, CutMarked, Phenomenon, Submitted, Tagged
-from app.annotation.study import annotator_names, study_trial_ids
+from app.annotation.events import TITLES, Adjudicated, AnnotationEventModel, CutMarked, Submitted, Tagged
+from app.annotation.study import study_agreement
 from app.cookies import clear_site_data, delete_cookie
 from app.db.models import AnnotationAssignment, Experimenter, Trial
 from app.deps import (
@@ -91,7 +90,6 @@ def annotate_trial(
     trial = _assigned(db, trial_id, annotator)
     events = log.load(trial_id)
     mine = annotations.state(trial_id).by_annotator.get(annotator)
-    tags = [(str(p), p.label) for p in Phenomenon]
     return render(
         request,
         "annotate/trial.html",
@@ -100,8 +98,8 @@ def annotate_trial(
         messages=messages(events),
         estimates={e.after_message: e for e in estimates(events)},
         mine=mine,
-        phenomena=tags,
-        titles=dict(tags),
+        phenomena=list(TITLES.items()),
+        titles=TITLES,
     )
 
 
@@ -162,7 +160,7 @@ def save(
         if not name:
             raise HTTPException(422, "pick a phenomenon or write a tag")
         allowed = study_tags(files, trial)
-        if allowed is not None and name not in allowed and name not in set(Phenomenon):
+        if allowed is not None and name not in allowed and name not in TITLES:
             known = ", ".join(allowed) or "none"
             raise HTTPException(
                 422,
@@ -203,18 +201,14 @@ def agreement_page(
 ) -> HTMLResponse:
     """Agreement between the study's annotators, the disagreements to adjudicate, and the form
     that makes an annotator's account."""
-    result = None
-    if study:
-        ids = study_trial_ids(db, study)
-        result = agreement(annotations.states(ids), annotator_names(db))
-    titles = {str(p): p.label for p in Phenomenon}
+    result = study_agreement(db, annotations, study) if study else None
     annotators = sorted(db.scalars(select(Experimenter.name).where(Experimenter.role == AccountRole.ANNOTATOR)).all())
     return render(
         request,
         "annotate/agreement.html",
         study=study,
         result=result,
-        titles=titles,
+        titles=TITLES,
         annotators=annotators,
         created=created,
     )
