@@ -18,14 +18,15 @@ def utcnow() -> datetime:
 
 
 class Base(DeclarativeBase):
-    pass
+    """Every table's row has an integer id, its primary key."""
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, sort_order=-1)  # the first column
 
 
 class LogEntry:
     """The columns of a row of any of the logs: what happened (its kind), when (the server's
     clock, ns) and the JSON payload its kind defines."""
 
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     kind: Mapped[str] = mapped_column(String(32))
     t_ns: Mapped[int] = mapped_column(BigInteger)
     payload: Mapped[JsonObject] = mapped_column(JSON)
@@ -33,7 +34,6 @@ class LogEntry:
 
 class Experimenter(Base):
     __tablename__ = "experimenter"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     name: Mapped[str] = mapped_column(String(80), unique=True)
     password_hash: Mapped[str] = mapped_column(String(255))
     # Bumped by logout and by a password change: login cookies name the version they were issued at.
@@ -45,14 +45,12 @@ class Experimenter(Base):
 
 class Participant(Base):
     __tablename__ = "participant"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     name: Mapped[str] = mapped_column(String(80), unique=True)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
 class Team(Base):
     __tablename__ = "team"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     name: Mapped[str] = mapped_column(String(80), unique=True)
     member_a_id: Mapped[int] = mapped_column(ForeignKey("participant.id"))
     member_b_id: Mapped[int] = mapped_column(ForeignKey("participant.id"))
@@ -61,7 +59,6 @@ class Team(Base):
 
 class Robot(Base):
     __tablename__ = "robot"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     name: Mapped[str] = mapped_column(String(80), unique=True)
     token_hash: Mapped[str] = mapped_column(String(255))
     role: Mapped[str] = mapped_column(String(16))  # 'driver' (the rover) or 'overhead' (tracker camera)
@@ -70,7 +67,6 @@ class Robot(Base):
 
 class Trial(Base):
     __tablename__ = "trial"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     team_id: Mapped[int | None] = mapped_column(ForeignKey("team.id"), nullable=True)  # None: agents in both seats
     maze: Mapped[str] = mapped_column(String(80))
     targets: Mapped[list[str]] = mapped_column(JSON)  # the three objects, in the order to reach them
@@ -100,7 +96,6 @@ class Event(LogEntry, Base):
 
 class Frame(Base):
     __tablename__ = "frame"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     trial_id: Mapped[int] = mapped_column(ForeignKey("trial.id"), index=True)
     seq: Mapped[int] = mapped_column(Integer)  # the `frame` event's seq
     source: Mapped[str] = mapped_column(String(16))  # 'driver' (robot camera) or 'overhead'
@@ -114,7 +109,6 @@ class LDHStudy(Base):
     """A human LDH study: its instances are frozen at creation (`LDHStudyInstance`)."""
 
     __tablename__ = "ldh_study"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     name: Mapped[str] = mapped_column(String(80))
     source: Mapped[str] = mapped_column(Text)  # the folder in the benchmark's layout it was drawn from
     split: Mapped[str] = mapped_column(String(16))
@@ -126,7 +120,6 @@ class LDHStudy(Base):
 class LDHStudyInstance(Base):
     __tablename__ = "ldh_study_instance"
     __table_args__ = (UniqueConstraint("study_id", "position", name="uq_ldh_instance_position"),)
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     study_id: Mapped[int] = mapped_column(ForeignKey("ldh_study.id"), index=True)
     position: Mapped[int] = mapped_column(Integer)  # the order participants see them in, from 0
     inst_idx: Mapped[int] = mapped_column(Integer)
@@ -140,7 +133,6 @@ class LDHStudyInstance(Base):
 class LDHStudyParticipant(Base):
     __tablename__ = "ldh_study_participant"
     __table_args__ = (UniqueConstraint("study_id", "name", name="uq_ldh_participant_name"),)
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     study_id: Mapped[int] = mapped_column(ForeignKey("ldh_study.id"), index=True)
     name: Mapped[str] = mapped_column(String(80))
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
@@ -170,7 +162,6 @@ class AnnotationAssignment(Base):
 
     __tablename__ = "annotation_assignment"
     __table_args__ = (UniqueConstraint("trial_id", "annotator_id", name="uq_assignment_trial_annotator"),)
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     trial_id: Mapped[int] = mapped_column(ForeignKey("trial.id"), index=True)
     annotator_id: Mapped[int] = mapped_column(ForeignKey("experimenter.id"), index=True)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
@@ -181,7 +172,6 @@ class StudyParticipant(Base):
     the real name is optional, private (experimenter's pages only) and erased on withdrawal."""
 
     __tablename__ = "study_participant"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     study: Mapped[str] = mapped_column(String(80), index=True)
     participant_id: Mapped[int] = mapped_column(ForeignKey("participant.id"), unique=True)
     real_name: Mapped[str | None] = mapped_column(String(120), nullable=True)
@@ -217,7 +207,6 @@ class StudyAnswer(Base):
 
     __tablename__ = "study_answer"
     __table_args__ = (UniqueConstraint("study_participant_id", "trial_id", name="uq_study_answer_trial"),)
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     study_participant_id: Mapped[int] = mapped_column(ForeignKey("study_participant.id"), index=True)
     trial_id: Mapped[int] = mapped_column(ForeignKey("trial.id"))
     ratings: Mapped[dict[str, int]] = mapped_column(JSON)  # question id -> 1..5
