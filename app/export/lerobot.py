@@ -132,11 +132,10 @@ def episodes_of(record: TrialRecord, maze: Maze, per: Episode) -> list[list[Step
     groups = [g for g in groups if g]
     for group in groups:
         group[-1].action = Action.STOP
-    flat = [s for g in groups for s in g]
     for event in events:
         if event.is_(ev.Chat):
-            before = [s for s in flat if s.frame.seq <= event.seq]
-            (before[-1] if before else flat[0]).messages.append(_chat(event))
+            before = [s for s in steps if s.frame.seq <= event.seq]
+            (before[-1] if before else steps[0]).messages.append(_chat(event))
     return groups
 
 

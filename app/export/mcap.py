@@ -168,11 +168,10 @@ def write_mcap(record: TrialRecord, maze: Maze | None, out: str | Path) -> Path:
         if record.localized_after is not None or record.tags:
             writer.add_metadata("annotation", _annotation_metadata(record))
         if maze is not None:
-            created = events[0].t_ns if events else 0
             for name, walls_only in ((FIXED_MAP, False), (WALLS_MAP, True)):
                 ok, png = cv2.imencode(".png", maze.image(walls_only=walls_only))
                 writer.add_attachment(
-                    create_time=created, log_time=created, name=name, media_type="image/png", data=png.tobytes()
+                    create_time=start_ns, log_time=start_ns, name=name, media_type="image/png", data=png.tobytes()
                 )
         writer.finish()  # type: ignore[no-untyped-call]  # mcap's Writer.finish is not annotated
     tmp.replace(out)
