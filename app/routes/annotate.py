@@ -41,7 +41,8 @@ from app.web import frame_file, render, replay_events
 router = APIRouter(dependencies=[Depends(csrf_protect)])
 
 
-def _assigned(db: DbSession, trial_id: int, annotator: int) -> Trial:
+def assigned_trial(trial_id: int, db: DbSession, annotator: AnnotatorId) -> Trial:
+    """The trial the path names, if it is in this annotator's queue (404 otherwise)."""
     assigned = db.scalar(
         select(AnnotationAssignment.id).where(
             AnnotationAssignment.trial_id == trial_id, AnnotationAssignment.annotator_id == annotator
@@ -51,6 +52,9 @@ def _assigned(db: DbSession, trial_id: int, annotator: int) -> Trial:
     if assigned is None or trial is None:
         raise HTTPException(404, f"trial {trial_id} is not in your annotation queue")
     return trial
+
+
+AssignedTrial = Annotated[Trial, Depends(assigned_trial)]
 
 
 @router.get("/annotate", response_class=HTMLResponse)
@@ -80,16 +84,14 @@ def study_tags(files: StudyFiles, trial: Trial) -> list[str] | None:
 @router.get("/annotate/trials/{trial_id}", response_class=HTMLResponse)
 def annotate_trial(
     request: Request,
-    trial_id: int,
-    db: DbSession,
+    trial: AssignedTrial,
     annotations: AnnotationsDep,
     log: LogDep,
     files: StudyFilesDep,
     annotator: AnnotatorId,
 ) -> HTMLResponse:
-    trial = _assigned(db, trial_id, annotator)
-    events = log.load(trial_id)
-    mine = annotations.state(trial_id).by_annotator.get(annotator)
+    events = log.load(trial.id)
+    mine = annotations.state(trial.id).by_annotator.get(annotator)
     return render(
         request,
         "annotate/trial.html",
@@ -104,27 +106,21 @@ def annotate_trial(
 
 
 @router.get("/annotate/trials/{trial_id}/replay.json")
-def annotate_replay(trial_id: int, db: DbSession, log: LogDep, annotator: AnnotatorId) -> dict[str, Any]:
+def annotate_replay(trial: AssignedTrial, log: LogDep) -> dict[str, Any]:
     """The trial's log as the replay page reads it (`static/replay.js`), without the team."""
-    trial = _assigned(db, trial_id, annotator)
-    base = f"/annotate/trials/{trial_id}"
     return {
         "trial": {"id": trial.id, "maze": trial.maze, "targets": trial.targets, "phase": trial.phase},
-        "events": replay_events(log.load(trial_id), base),
+        "events": replay_events(log.load(trial.id), f"/annotate/trials/{trial.id}"),
     }
 
 
 @router.get("/annotate/trials/{trial_id}/frames/{frame_id}.jpg")
-def annotate_frame(
-    trial_id: int, frame_id: int, db: DbSession, settings: SettingsDep, annotator: AnnotatorId
-) -> FileResponse:
-    _assigned(db, trial_id, annotator)
-    return frame_file(db, settings, trial_id, frame_id)
+def annotate_frame(trial: AssignedTrial, frame_id: int, db: DbSession, settings: SettingsDep) -> FileResponse:
+    return frame_file(db, settings, trial.id, frame_id)
 
 
 @router.get("/annotate/trials/{trial_id}/map.png")
-def annotate_map(trial_id: int, db: DbSession, mazes: MazesDep, annotator: AnnotatorId) -> Response:
-    trial = _assigned(db, trial_id, annotator)
+def annotate_map(trial: AssignedTrial, mazes: MazesDep) -> Response:
     return Response(
         mazes.full_map_png(trial.maze), media_type="image/png", headers={"Cache-Control": "private, max-age=3600"}
     )
@@ -132,8 +128,7 @@ def annotate_map(trial_id: int, db: DbSession, mazes: MazesDep, annotator: Annot
 
 @router.post("/annotate/trials/{trial_id}")
 def save(
-    trial_id: int,
-    db: DbSession,
+    trial: AssignedTrial,
     annotations: AnnotationsDep,
     clock: ClockDep,
     log: LogDep,
@@ -147,8 +142,7 @@ def save(
 ) -> RedirectResponse:
     """One change from the trial's form: `cut` (the radio checked), `tag` (the phenomenon or free
     tag, anchored to the checked messages; none checked withdraws it) or `submit`."""
-    trial = _assigned(db, trial_id, annotator)
-    said = len(messages(log.load(trial_id)))
+    said = len(messages(log.load(trial.id)))
     anchors = sorted(set(anchor or []))
     event: AnnotationEventModel
     if action == "cut":
@@ -173,8 +167,8 @@ def save(
         event = Submitted()
     else:
         raise HTTPException(422, f"unknown action {action!r}: cut, tag or submit")
-    annotations.append(trial_id, annotator, event, clock.now_ns())
-    target = "/annotate" if action == "submit" else f"/annotate/trials/{trial_id}"
+    annotations.append(trial.id, annotator, event, clock.now_ns())
+    target = "/annotate" if action == "submit" else f"/annotate/trials/{trial.id}"
     return RedirectResponse(target, status_code=303)
 
 
