@@ -17,9 +17,9 @@ from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, fields
 from enum import Enum
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
-from sqlalchemy import func, insert, select
+from sqlalchemy import Select, func, insert, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, sessionmaker
 
@@ -32,6 +32,7 @@ from sim.tasks.benchmark import Benchmark, BenchmarkError, Split
 from sim.tasks.ldh import LDHInstance, Variant, load_split
 from sim.tasks.ldh_eval import ACC_RADII_M, MazeContext, score
 
+Row = TypeVar("Row")
 APPEND_ATTEMPTS = 5  # two answers racing for the same seq: the loser takes the next one
 
 
@@ -176,9 +177,12 @@ class LocalizationStudies:
         self._append(study_id, EventKind.INVITED, {"participant_id": participant_id, "name": name[:80]})
         return participant_id
 
-    def all_studies(self) -> list[LDHStudy]:
+    def _rows(self, query: Select[Row]) -> list[Row]:
         with self.db() as db:
-            return list(db.scalars(select(LDHStudy).order_by(LDHStudy.id.desc())))
+            return list(db.scalars(query))
+
+    def all_studies(self) -> list[LDHStudy]:
+        return self._rows(select(LDHStudy).order_by(LDHStudy.id.desc()))
 
     def study(self, study_id: int) -> LDHStudy:
         with self.db() as db:
@@ -188,24 +192,12 @@ class LocalizationStudies:
         return study
 
     def instances(self, study_id: int) -> list[LDHStudyInstance]:
-        with self.db() as db:
-            return list(
-                db.scalars(
-                    select(LDHStudyInstance)
-                    .where(LDHStudyInstance.study_id == study_id)
-                    .order_by(LDHStudyInstance.position)
-                )
-            )
+        of_study = select(LDHStudyInstance).where(LDHStudyInstance.study_id == study_id)
+        return self._rows(of_study.order_by(LDHStudyInstance.position))
 
     def participants(self, study_id: int) -> list[LDHStudyParticipant]:
-        with self.db() as db:
-            return list(
-                db.scalars(
-                    select(LDHStudyParticipant)
-                    .where(LDHStudyParticipant.study_id == study_id)
-                    .order_by(LDHStudyParticipant.id)
-                )
-            )
+        of_study = select(LDHStudyParticipant).where(LDHStudyParticipant.study_id == study_id)
+        return self._rows(of_study.order_by(LDHStudyParticipant.id))
 
     def participant(self, study_id: int, participant_id: int) -> LDHStudyParticipant:
         """The participant a link names, who must belong to the study it names."""
