@@ -80,8 +80,6 @@ def _turn_phrase(turn: float) -> str | None:
 
 @dataclass(frozen=True)
 class Leg:
-    target: str
-    start: Pose
     end: Pose
     actions: tuple[Action, ...]
     instructions: tuple[str, ...]
@@ -96,7 +94,7 @@ def plan_leg(maze: Maze, graph: NavGraph, start: Pose, target: str) -> Leg:
     nodes = [n for i, n in enumerate(nodes) if i == 0 or n != nodes[i - 1]]
     if len(nodes) < 2:
         there = PHRASES.say(PhraseKind.THERE, thing=thing)
-        return Leg(target, start, poses[-1] if poses else start, tuple(actions), (there,))
+        return Leg(poses[-1] if poses else start, tuple(actions), (there,))
     points = graph.nodes[nodes]
     idx = corners(points)
     words = []
@@ -120,7 +118,7 @@ def plan_leg(maze: Maze, graph: NavGraph, start: Pose, target: str) -> Leg:
         else:
             words.append(PHRASES.say(PhraseKind.FORWARD_THEN_TURN, n=steps, turn=next_turn))
         heading = direction
-    return Leg(target, start, poses[-1], tuple(actions), tuple(words))
+    return Leg(poses[-1], tuple(actions), tuple(words))
 
 
 def describe_view(maze: Maze, graph: NavGraph, pose: Pose) -> str:
