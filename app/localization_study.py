@@ -14,12 +14,12 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Callable, Iterable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from enum import Enum
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
-from sqlalchemy import func, insert, select
+from sqlalchemy import Select, func, insert, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, sessionmaker
 
@@ -32,6 +32,7 @@ from sim.tasks.benchmark import Benchmark, BenchmarkError, Split
 from sim.tasks.ldh import LDHInstance, Variant, load_split
 from sim.tasks.ldh_eval import ACC_RADII_M, MazeContext, score
 
+Row = TypeVar("Row")
 APPEND_ATTEMPTS = 5  # two answers racing for the same seq: the loser takes the next one
 
 
@@ -59,18 +60,8 @@ class Answer:
 
     @classmethod
     def of(cls, event: LDHStudyEvent) -> Answer:
-        p = event.payload
-        return cls(
-            event.seq,
-            event.t_ns,
-            p["participant_id"],
-            p["position"],
-            p["x"],
-            p["y"],
-            p["heading"],
-            p["td"],
-            p["euclid"],
-        )
+        logged = {f.name: event.payload[f.name] for f in fields(cls)[2:]}  # the payload holds all but seq, t_ns
+        return cls(event.seq, event.t_ns, **logged)
 
 
 class LocalizationStudies:
@@ -186,9 +177,12 @@ class LocalizationStudies:
         self._append(study_id, EventKind.INVITED, {"participant_id": participant_id, "name": name[:80]})
         return participant_id
 
-    def all_studies(self) -> list[LDHStudy]:
+    def _rows(self, query: Select[Row]) -> list[Row]:
         with self.db() as db:
-            return list(db.scalars(select(LDHStudy).order_by(LDHStudy.id.desc())))
+            return list(db.scalars(query))
+
+    def all_studies(self) -> list[LDHStudy]:
+        return self._rows(select(LDHStudy).order_by(LDHStudy.id.desc()))
 
     def study(self, study_id: int) -> LDHStudy:
         with self.db() as db:
@@ -198,24 +192,12 @@ class LocalizationStudies:
         return study
 
     def instances(self, study_id: int) -> list[LDHStudyInstance]:
-        with self.db() as db:
-            return list(
-                db.scalars(
-                    select(LDHStudyInstance)
-                    .where(LDHStudyInstance.study_id == study_id)
-                    .order_by(LDHStudyInstance.position)
-                )
-            )
+        of_study = select(LDHStudyInstance).where(LDHStudyInstance.study_id == study_id)
+        return self._rows(of_study.order_by(LDHStudyInstance.position))
 
     def participants(self, study_id: int) -> list[LDHStudyParticipant]:
-        with self.db() as db:
-            return list(
-                db.scalars(
-                    select(LDHStudyParticipant)
-                    .where(LDHStudyParticipant.study_id == study_id)
-                    .order_by(LDHStudyParticipant.id)
-                )
-            )
+        of_study = select(LDHStudyParticipant).where(LDHStudyParticipant.study_id == study_id)
+        return self._rows(of_study.order_by(LDHStudyParticipant.id))
 
     def participant(self, study_id: int, participant_id: int) -> LDHStudyParticipant:
         """The participant a link names, who must belong to the study it names."""
@@ -247,45 +229,40 @@ class LocalizationStudies:
     ) -> Answer:
         """Score and record a mark; refused for any instance but the one the participant is on."""
         with self._answering:
-            return self._answer(study_id, participant_id, position, x, y, heading)
-
-    def _answer(
-        self, study_id: int, participant_id: int, position: int, x: float, y: float, heading: float | None
-    ) -> Answer:
-        expected = self.next_position(study_id, participant_id)
-        if expected is None:
-            raise LocalizationStudyError("you have answered every instance of this study")
-        if position != expected:
-            raise LocalizationStudyError(
-                f"instance {position + 1} is not the one to answer now (that is {expected + 1})"
+            expected = self.next_position(study_id, participant_id)
+            if expected is None:
+                raise LocalizationStudyError("you have answered every instance of this study")
+            if position != expected:
+                raise LocalizationStudyError(
+                    f"instance {position + 1} is not the one to answer now (that is {expected + 1})"
+                )
+            if not (math.isfinite(x) and math.isfinite(y) and 0 <= x <= TABLE_WIDTH_M and 0 <= y <= TABLE_HEIGHT_M):
+                raise LocalizationStudyError("the mark must lie on the map")
+            if heading is not None and not math.isfinite(heading):
+                raise LocalizationStudyError("the heading must be a number of radians")
+            study, inst = self.study(study_id), self.instances(study_id)[position]
+            truth = LDHInstance(
+                inst.inst_idx, inst.run, inst.true_x, inst.true_y, inst.true_heading, (), Variant(study.variant)
             )
-        if not (math.isfinite(x) and math.isfinite(y) and 0 <= x <= TABLE_WIDTH_M and 0 <= y <= TABLE_HEIGHT_M):
-            raise LocalizationStudyError("the mark must lie on the map")
-        if heading is not None and not math.isfinite(heading):
-            raise LocalizationStudyError("the heading must be a number of radians")
-        study, inst = self.study(study_id), self.instances(study_id)[position]
-        truth = LDHInstance(
-            inst.inst_idx, inst.run, inst.true_x, inst.true_y, inst.true_heading, (), Variant(study.variant)
-        )
-        ctx = self.context(study.source, inst.run)
-        td, euclid, _ = score(ctx, ctx.one_hot(ctx.node_at(x, y)), truth)
-        payload = {
-            "participant_id": participant_id,
-            "position": position,
-            "inst_idx": inst.inst_idx,
-            "x": x,
-            "y": y,
-            "heading": heading,
-            "td": td,
-            "euclid": euclid,
-        }
-        seq, t_ns = self._append(
-            study_id,
-            EventKind.ANSWERED,
-            payload,
-            unique=lambda db: self._answered(db, study_id, participant_id, position),
-        )
-        return Answer(seq, t_ns, participant_id, position, x, y, heading, td, euclid)
+            ctx = self.context(study.source, inst.run)
+            td, euclid, _ = score(ctx, ctx.one_hot(ctx.node_at(x, y)), truth)
+            payload = {
+                "participant_id": participant_id,
+                "position": position,
+                "inst_idx": inst.inst_idx,
+                "x": x,
+                "y": y,
+                "heading": heading,
+                "td": td,
+                "euclid": euclid,
+            }
+            seq, t_ns = self._append(
+                study_id,
+                EventKind.ANSWERED,
+                payload,
+                unique=lambda db: self._answered(db, study_id, participant_id, position),
+            )
+            return Answer(seq, t_ns, participant_id, position, x, y, heading, td, euclid)
 
     @staticmethod
     def _answered(db: Session, study_id: int, participant_id: int, position: int) -> bool:

@@ -27,10 +27,6 @@ MESSAGE_TOO_BIG = 1009
 LINGER_S = 2.0  # how long the rest of an oversized message may keep arriving after the reply
 
 
-def too_big_error(limit: int) -> str:
-    return f"message is over the limit of {limit} bytes"
-
-
 class ReplyingWebSocketProtocol(WebSocketsSansIOProtocol):
     def handle_parser_exception(self) -> None:
         if self.close_sent:  # the rest of an oversized message: the parser discards it
@@ -38,7 +34,7 @@ class ReplyingWebSocketProtocol(WebSocketsSansIOProtocol):
         if not isinstance(self.conn.parser_exc, PayloadTooBig):
             super().handle_parser_exception()
             return
-        error = too_big_error(self.config.ws_max_size)
+        error = f"message is over the limit of {self.config.ws_max_size} bytes"
         self.queue.put_nowait({"type": "websocket.disconnect", "code": MESSAGE_TOO_BIG, "reason": error})
         reply = json.dumps({"type": "error", "code": "bad_message", "error": error})
         self.transport.write(Frame(Opcode.TEXT, reply.encode()).serialize(mask=False))

@@ -5,7 +5,6 @@ disagreements the experimenter adjudicates."""
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from typing import TypedDict
 
 from app.annotation.events import Phenomenon
@@ -49,17 +48,6 @@ class AgreementNumbers(TypedDict):
     disagreements: list[DisagreementRow]
 
 
-@dataclass(frozen=True)
-class Disagreement:
-    trial_id: int
-    item: str  # "cut" or a tag
-    values: dict[str, int | bool]  # annotator name -> their value
-    adjudicated: int | bool | None
-
-    def as_json(self) -> DisagreementRow:
-        return {"trial": self.trial_id, "item": self.item, "values": self.values, "adjudicated": self.adjudicated}
-
-
 def agreement(annotations: Mapping[int, TrialAnnotations], names: Mapping[int, str]) -> AgreementNumbers:
     """Over the trials two annotators have submitted (the first two, by account id, where more
     did): kappa per phenomenon and per free tag, cut distances, and the disagreements."""
@@ -70,23 +58,25 @@ def agreement(annotations: Mapping[int, TrialAnnotations], names: Mapping[int, s
             pairs[trial_id] = (done[0], done[1])
     tags = [str(p) for p in Phenomenon]
     tags += sorted({tag for t in pairs for i in pairs[t] for tag in annotations[t].by_annotator[i].tags} - set(tags))
+
+    def disagreement(trial_id: int, item: str, x: int | bool, y: int | bool) -> DisagreementRow:
+        """The pair's two values of an item they differ on, beside the experimenter's (if any)."""
+        first, second = pairs[trial_id]
+        values = {names[first]: x, names[second]: y}
+        return {
+            "trial": trial_id,
+            "item": item,
+            "values": values,
+            "adjudicated": annotations[trial_id].adjudicated.get(item),
+        }
+
     kappa: dict[str, float | None] = {}
-    disagreements: list[Disagreement] = []
+    disagreements: list[DisagreementRow] = []
     for tag in tags:
         a = [tag in annotations[t].by_annotator[pairs[t][0]].tags for t in pairs]
         b = [tag in annotations[t].by_annotator[pairs[t][1]].tags for t in pairs]
         kappa[tag] = cohen_kappa(a, b)
-        for trial_id, x, y in zip(pairs, a, b, strict=True):
-            if x != y:
-                first, second = pairs[trial_id]
-                disagreements.append(
-                    Disagreement(
-                        trial_id,
-                        tag,
-                        {names[first]: x, names[second]: y},
-                        annotations[trial_id].adjudicated.get(tag),
-                    )
-                )
+        disagreements += [disagreement(t, tag, x, y) for t, x, y in zip(pairs, a, b, strict=True) if x != y]
     distances: dict[int, int] = {}
     for trial_id, (first, second) in pairs.items():
         by = annotations[trial_id].by_annotator
@@ -95,14 +85,7 @@ def agreement(annotations: Mapping[int, TrialAnnotations], names: Mapping[int, s
             continue
         distances[trial_id] = abs(cut_a - cut_b)
         if cut_a != cut_b:
-            disagreements.append(
-                Disagreement(
-                    trial_id,
-                    "cut",
-                    {names[first]: cut_a, names[second]: cut_b},
-                    annotations[trial_id].adjudicated.get("cut"),
-                )
-            )
+            disagreements.append(disagreement(trial_id, "cut", cut_a, cut_b))
     values = list(distances.values())
     return {
         "double_annotated_trials": len(pairs),
@@ -113,5 +96,5 @@ def agreement(annotations: Mapping[int, TrialAnnotations], names: Mapping[int, s
             "max": max(values) if values else None,
             "exact_share": sum(d == 0 for d in values) / len(values) if values else None,
         },
-        "disagreements": [d.as_json() for d in sorted(disagreements, key=lambda d: (d.trial_id, d.item))],
+        "disagreements": sorted(disagreements, key=lambda d: (d["trial"], d["item"])),
     }

@@ -4,6 +4,7 @@ queue is not drawn again, so running it after more trials were recorded assigns 
 
 from __future__ import annotations
 
+import itertools
 import math
 import random
 from collections.abc import Mapping, Sequence
@@ -12,8 +13,8 @@ from dataclasses import dataclass
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.annotation.study import study_trial_ids
 from app.db.models import AnnotationAssignment, Experimenter, Trial
+from app.export.source import exported_trial_ids
 from app.security import AccountRole
 
 DOUBLE_SHARE = 0.2  # the paper tagged a 20 % sample
@@ -60,7 +61,7 @@ def assign(
     if len(ids) < (2 if share > 0 else 1):
         raise AssignmentError("double annotation needs at least two annotators")
     taken = set(db.scalars(select(AnnotationAssignment.trial_id)))
-    trials = db.scalars(select(Trial).where(Trial.id.in_(study_trial_ids(db, study)))).all()
+    trials = db.scalars(select(Trial).where(Trial.id.in_(exported_trial_ids(db, study=study)))).all()
     by_layout: dict[str, list[int]] = {}
     for t in trials:
         if t.id not in taken:
@@ -68,14 +69,11 @@ def assign(
     rng = random.Random(seed)
     double = sample_double(by_layout, share, rng)
     single = sorted(set().union(*by_layout.values()) - set(double)) if by_layout else []
-    names = list(ids)
-    queues: dict[str, list[int]] = {n: [] for n in names}
-    turn = 0
-    for trial_id in double + single:
-        for _ in range(2 if trial_id in double else 1):
-            queues[names[turn % len(names)]].append(trial_id)
-            turn += 1
-    for name, trial_ids in queues.items():
-        for trial_id in trial_ids:
-            db.add(AnnotationAssignment(trial_id=trial_id, annotator_id=ids[name]))
+    queues: dict[str, list[int]] = {n: [] for n in ids}
+    in_turn = itertools.cycle(ids)  # a double trial goes to the next two annotators
+    for trial_id in [t for t in double for _ in range(2)] + single:
+        queues[next(in_turn)].append(trial_id)
+    db.add_all(
+        AnnotationAssignment(trial_id=t, annotator_id=ids[name]) for name, queue in queues.items() for t in queue
+    )
     return Assignment(double, single, queues)

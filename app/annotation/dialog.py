@@ -54,13 +54,5 @@ def estimates(events: Sequence[LoggedEvent]) -> list[Estimate]:
         elif e.is_(ev.PoseSampled):
             truth = (float(e.payload["x"]), float(e.payload["y"]))
         elif e.is_(ev.Localized):
-            out.append(
-                Estimate(
-                    said,
-                    float(e.payload["x"]),
-                    float(e.payload["y"]),
-                    truth[0] if truth else None,
-                    truth[1] if truth else None,
-                )
-            )
+            out.append(Estimate(said, float(e.payload["x"]), float(e.payload["y"]), *(truth or (None, None))))
     return out

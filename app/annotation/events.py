@@ -23,15 +23,15 @@ class Phenomenon(StrEnum):
     SURRENDER_CONTROL = "surrender_control"
     PERCEPTUAL_DIFFERENCES = "perceptual_differences"
 
-    @property
-    def label(self) -> str:
-        return {
-            Phenomenon.NEEDS_HISTORY: "Needs History",
-            Phenomenon.COMMUNICATION_REPAIR: "Communication Repair",
-            Phenomenon.RELOCALIZATION_REPAIR: "Re-localization Repair",
-            Phenomenon.SURRENDER_CONTROL: "Surrender Control",
-            Phenomenon.PERCEPTUAL_DIFFERENCES: "Perceptual Differences",
-        }[self]
+
+# Each phenomenon's name as the paper writes it (a study's free tags are shown as they are).
+TITLES: dict[str, str] = {
+    Phenomenon.NEEDS_HISTORY: "Needs History",
+    Phenomenon.COMMUNICATION_REPAIR: "Communication Repair",
+    Phenomenon.RELOCALIZATION_REPAIR: "Re-localization Repair",
+    Phenomenon.SURRENDER_CONTROL: "Surrender Control",
+    Phenomenon.PERCEPTUAL_DIFFERENCES: "Perceptual Differences",
+}
 
 
 class AnnotationEventModel(BaseModel):

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Any
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session, sessionmaker
@@ -33,7 +32,6 @@ class Annotation:
     cut: int | None = None
     tags: dict[str, list[int]] = field(default_factory=dict)  # only tags with messages
     submitted: bool = False
-    revisions: int = 0  # events that replaced an earlier one
 
 
 @dataclass
@@ -77,7 +75,7 @@ class AnnotationLog:
         with self.sessions.begin() as db:
             earlier = [
                 r
-                for r in self._records(db, trial_id)
+                for r in self._records(db, [trial_id])
                 if r.event.key() == event.key() and (isinstance(event, Adjudicated) or r.annotator_id == annotator_id)
             ]
             row = AnnotationEvent(
@@ -95,11 +93,11 @@ class AnnotationLog:
     @classmethod
     def fold_in(cls, db: Session, trial_id: int) -> TrialAnnotations:
         """The trial's annotations, read in an open session (the exports')."""
-        return fold(cls._records(db, trial_id))
+        return fold(cls._records(db, [trial_id]))
 
     def records(self, trial_id: int) -> list[AnnotationRecord]:
         with self.sessions() as db:
-            return self._records(db, trial_id)
+            return self._records(db, [trial_id])
 
     def state(self, trial_id: int) -> TrialAnnotations:
         return fold(self.records(trial_id))
@@ -107,24 +105,19 @@ class AnnotationLog:
     def states(self, trial_ids: Iterable[int]) -> dict[int, TrialAnnotations]:
         ids = list(trial_ids)
         with self.sessions() as db:
-            rows = db.scalars(
-                select(AnnotationEvent).where(AnnotationEvent.trial_id.in_(ids)).order_by(AnnotationEvent.id)
-            ).all()
-            records = [_record(r) for r in rows]
+            records = self._records(db, ids)
         return {i: fold(r for r in records if r.trial_id == i) for i in ids}
 
     @staticmethod
-    def _records(db: Session, trial_id: int) -> list[AnnotationRecord]:
+    def _records(db: Session, trial_ids: list[int]) -> list[AnnotationRecord]:
+        """The trials' annotation events in the order they were logged."""
         rows = db.scalars(
-            select(AnnotationEvent).where(AnnotationEvent.trial_id == trial_id).order_by(AnnotationEvent.id)
+            select(AnnotationEvent).where(AnnotationEvent.trial_id.in_(trial_ids)).order_by(AnnotationEvent.id)
         )
-        return [_record(r) for r in rows]
-
-
-def _record(row: Any) -> AnnotationRecord:
-    return AnnotationRecord(
-        row.id, row.trial_id, row.annotator_id, row.t_ns, parse(row.kind, dict(row.payload)), row.revises
-    )
+        return [
+            AnnotationRecord(r.id, r.trial_id, r.annotator_id, r.t_ns, parse(r.kind, dict(r.payload)), r.revises)
+            for r in rows
+        ]
 
 
 def fold(records: Iterable[AnnotationRecord]) -> TrialAnnotations:
@@ -136,7 +129,6 @@ def fold(records: Iterable[AnnotationRecord]) -> TrialAnnotations:
             out.adjudicated[e.item] = e.value
             continue
         a = out.by_annotator.setdefault(r.annotator_id, Annotation())
-        a.revisions += r.revises is not None
         if isinstance(e, CutMarked):
             a.cut = e.message
         elif isinstance(e, Tagged):

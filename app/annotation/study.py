@@ -1,19 +1,18 @@
-"""The database side of a study's annotation: its trials and the accounts' names."""
+"""The database side of a study's annotation: the agreement between its trials' annotators."""
 
 from __future__ import annotations
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.db.models import Experimenter, Trial
-from sim.trial.vocabulary import Phase
+from app.annotation.agreement import AgreementNumbers, agreement
+from app.annotation.log import AnnotationLog
+from app.db.models import Experimenter
+from app.export.source import exported_trial_ids
 
 
-def study_trial_ids(db: Session, study: str) -> list[int]:
-    """The study's finished trials not excluded (those annotated, exported and reported)."""
-    query = select(Trial.id).where(Trial.study == study, Trial.phase == Phase.FINISHED, Trial.excluded_reason.is_(None))
-    return list(db.scalars(query.order_by(Trial.id)))
-
-
-def annotator_names(db: Session) -> dict[int, str]:
-    return {i: n for i, n in db.execute(select(Experimenter.id, Experimenter.name))}
+def study_agreement(db: Session, log: AnnotationLog, study: str) -> AgreementNumbers:
+    """Agreement over the study's trials that are annotated, exported and reported (finished, not
+    excluded), with the annotators by their accounts' names."""
+    names = {i: n for i, n in db.execute(select(Experimenter.id, Experimenter.name))}
+    return agreement(log.states(exported_trial_ids(db, study=study)), names)

@@ -18,59 +18,57 @@ def utcnow() -> datetime:
 
 
 class Base(DeclarativeBase):
-    pass
+    """Every table's row has an integer id, its primary key."""
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, sort_order=-1)  # the first column
+
+
+class Created:
+    """When the row was made (the server's wall clock)."""
+
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
 class LogEntry:
     """The columns of a row of any of the logs: what happened (its kind), when (the server's
     clock, ns) and the JSON payload its kind defines."""
 
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     kind: Mapped[str] = mapped_column(String(32))
     t_ns: Mapped[int] = mapped_column(BigInteger)
     payload: Mapped[JsonObject] = mapped_column(JSON)
 
 
-class Experimenter(Base):
+class Experimenter(Created, Base):
     __tablename__ = "experimenter"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     name: Mapped[str] = mapped_column(String(80), unique=True)
     password_hash: Mapped[str] = mapped_column(String(255))
     # Bumped by logout and by a password change: login cookies name the version they were issued at.
     session_version: Mapped[int] = mapped_column(Integer, default=0, server_default="0")
     # app.security.AccountRole: an annotator's login opens only the annotation pages.
     role: Mapped[str] = mapped_column(String(16), default="experimenter", server_default="experimenter")
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
-class Participant(Base):
+class Participant(Created, Base):
     __tablename__ = "participant"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     name: Mapped[str] = mapped_column(String(80), unique=True)
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
-class Team(Base):
+class Team(Created, Base):
     __tablename__ = "team"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     name: Mapped[str] = mapped_column(String(80), unique=True)
     member_a_id: Mapped[int] = mapped_column(ForeignKey("participant.id"))
     member_b_id: Mapped[int] = mapped_column(ForeignKey("participant.id"))
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
-class Robot(Base):
+class Robot(Created, Base):
     __tablename__ = "robot"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     name: Mapped[str] = mapped_column(String(80), unique=True)
     token_hash: Mapped[str] = mapped_column(String(255))
     role: Mapped[str] = mapped_column(String(16))  # 'driver' (the rover) or 'overhead' (tracker camera)
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
-class Trial(Base):
+class Trial(Created, Base):
     __tablename__ = "trial"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     team_id: Mapped[int | None] = mapped_column(ForeignKey("team.id"), nullable=True)  # None: agents in both seats
     maze: Mapped[str] = mapped_column(String(80))
     targets: Mapped[list[str]] = mapped_column(JSON)  # the three objects, in the order to reach them
@@ -80,7 +78,6 @@ class Trial(Base):
     study: Mapped[str | None] = mapped_column(String(80), nullable=True, index=True)  # the study's name, if any
     commander_id: Mapped[int | None] = mapped_column(ForeignKey("participant.id"), nullable=True)
     driver_id: Mapped[int | None] = mapped_column(ForeignKey("participant.id"), nullable=True)
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     # Cache of the event log (see module docstring).
     phase: Mapped[str] = mapped_column(String(16), default="waiting")
     active_s: Mapped[float | None] = mapped_column(Float, nullable=True)  # start to last confirmation
@@ -100,7 +97,6 @@ class Event(LogEntry, Base):
 
 class Frame(Base):
     __tablename__ = "frame"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     trial_id: Mapped[int] = mapped_column(ForeignKey("trial.id"), index=True)
     seq: Mapped[int] = mapped_column(Integer)  # the `frame` event's seq
     source: Mapped[str] = mapped_column(String(16))  # 'driver' (robot camera) or 'overhead'
@@ -110,23 +106,20 @@ class Frame(Base):
     height: Mapped[int] = mapped_column(Integer)
 
 
-class LDHStudy(Base):
+class LDHStudy(Created, Base):
     """A human LDH study: its instances are frozen at creation (`LDHStudyInstance`)."""
 
     __tablename__ = "ldh_study"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     name: Mapped[str] = mapped_column(String(80))
     source: Mapped[str] = mapped_column(Text)  # the folder in the benchmark's layout it was drawn from
     split: Mapped[str] = mapped_column(String(16))
     variant: Mapped[str] = mapped_column(String(16))  # sim.tasks.ldh.Variant
     experimenter_id: Mapped[int] = mapped_column(ForeignKey("experimenter.id"))
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
 class LDHStudyInstance(Base):
     __tablename__ = "ldh_study_instance"
     __table_args__ = (UniqueConstraint("study_id", "position", name="uq_ldh_instance_position"),)
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     study_id: Mapped[int] = mapped_column(ForeignKey("ldh_study.id"), index=True)
     position: Mapped[int] = mapped_column(Integer)  # the order participants see them in, from 0
     inst_idx: Mapped[int] = mapped_column(Integer)
@@ -137,13 +130,11 @@ class LDHStudyInstance(Base):
     true_heading: Mapped[float | None] = mapped_column(Float, nullable=True)
 
 
-class LDHStudyParticipant(Base):
+class LDHStudyParticipant(Created, Base):
     __tablename__ = "ldh_study_participant"
     __table_args__ = (UniqueConstraint("study_id", "name", name="uq_ldh_participant_name"),)
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     study_id: Mapped[int] = mapped_column(ForeignKey("ldh_study.id"), index=True)
     name: Mapped[str] = mapped_column(String(80))
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
 class LDHStudyEvent(LogEntry, Base):
@@ -165,28 +156,24 @@ class AnnotationEvent(LogEntry, Base):
     revises: Mapped[int | None] = mapped_column(Integer, nullable=True)  # the id of the event it replaces
 
 
-class AnnotationAssignment(Base):
+class AnnotationAssignment(Created, Base):
     """A trial in an annotator's queue (two rows for a trial sampled for double annotation)."""
 
     __tablename__ = "annotation_assignment"
     __table_args__ = (UniqueConstraint("trial_id", "annotator_id", name="uq_assignment_trial_annotator"),)
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     trial_id: Mapped[int] = mapped_column(ForeignKey("trial.id"), index=True)
     annotator_id: Mapped[int] = mapped_column(ForeignKey("experimenter.id"), index=True)
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
-class StudyParticipant(Base):
+class StudyParticipant(Created, Base):
     """A participant of a study (`app.study`): the `Participant` row's public name is their code;
     the real name is optional, private (experimenter's pages only) and erased on withdrawal."""
 
     __tablename__ = "study_participant"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     study: Mapped[str] = mapped_column(String(80), index=True)
     participant_id: Mapped[int] = mapped_column(ForeignKey("participant.id"), unique=True)
     real_name: Mapped[str | None] = mapped_column(String(120), nullable=True)
     consent_version: Mapped[str] = mapped_column(String(40))
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     completed_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
     withdrawn_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
     # The lobby (`app.study.lobby`): waiting since, and the last time the lobby page asked.
@@ -211,15 +198,13 @@ class StudyEvent(LogEntry, Base):
     participant_id: Mapped[int | None] = mapped_column(ForeignKey("participant.id"), nullable=True)  # None: declined
 
 
-class StudyAnswer(Base):
+class StudyAnswer(Created, Base):
     """One questionnaire after one trial. Ratings are pseudonymous; free text is personal data and
     is erased (set to None) when the participant withdraws."""
 
     __tablename__ = "study_answer"
     __table_args__ = (UniqueConstraint("study_participant_id", "trial_id", name="uq_study_answer_trial"),)
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     study_participant_id: Mapped[int] = mapped_column(ForeignKey("study_participant.id"), index=True)
     trial_id: Mapped[int] = mapped_column(ForeignKey("trial.id"))
     ratings: Mapped[dict[str, int]] = mapped_column(JSON)  # question id -> 1..5
     free_text: Mapped[dict[str, str] | None] = mapped_column(JSON, nullable=True)  # question id -> text
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)

@@ -91,15 +91,11 @@ class Seat:
         except TimeoutError:
             raise DemoError(f"trial {self.trial_id}: the {self.role} waited {WAIT_S:.0f} s for {what}") from None
 
-    async def event(self, kind: str, **match: Any) -> ServerMessage:
-        def accept(m: ServerMessage) -> bool:
-            return (
-                m.get("type") == "event"
-                and m.get("kind") == kind
-                and all(m["payload"].get(k) == v for k, v in match.items())
-            )
-
-        return await self.until(accept, f"a {kind!r} event {match or ''}".strip())
+    async def event(self, kind: str, what: str | None = None, **match: Any) -> ServerMessage:
+        """The next logged event of this kind whose payload has the values `match` gives."""
+        return await self.until(
+            partial(_is_event, kind=kind, **match), what or f"a {kind!r} event {match or ''}".strip()
+        )
 
     async def move_outcome(self, move_id: str) -> str:
         """`ok`, `collision` or `refused`: its `move_executed` event, or the `move_refused` reply
@@ -108,7 +104,7 @@ class Seat:
         def accept(m: ServerMessage) -> bool:
             if m.get("type") == "move_refused":
                 return bool(m["move_id"] == move_id)
-            return m.get("type") == "event" and m.get("kind") == "move_executed" and m["payload"]["move_id"] == move_id
+            return _is_event(m, "move_executed", move_id=move_id)
 
         done = await self.until(accept, f"the outcome of move {move_id!r}")
         return "refused" if done["type"] == "move_refused" else str(done["payload"]["outcome"])
@@ -119,29 +115,38 @@ class Seat:
             await asyncio.gather(self.reader, return_exceptions=True)
 
 
-def _is_phase(message: ServerMessage, phase: str, index: int | None = None) -> bool:
+def _is_event(message: ServerMessage, kind: str, **match: Any) -> bool:
     return (
         message.get("type") == "event"
-        and message.get("kind") == "phase"
-        and message["payload"].get("phase") == phase
-        and (index is None or message["payload"].get("target_index") == index)
+        and message.get("kind") == kind
+        and all(message["payload"].get(k) == v for k, v in match.items())
     )
 
 
-class ScriptedCommander:
-    def __init__(
-        self, maze: Maze, graph: NavGraph, targets: list[str], rng: random.Random, pace_s: float = 0.0
-    ) -> None:
-        self.maze, self.graph, self.targets, self.rng, self.pace_s = maze, graph, targets, rng, pace_s
+_driver_chat = partial(_is_event, kind="chat", role=Role.DRIVER)
+_claim = partial(_is_event, kind="target_claimed")
 
+
+@dataclass
+class Player:
+    """What both scripted players know: the maze, its graph, the targets; and their own dice."""
+
+    maze: Maze
+    graph: NavGraph
+    targets: list[str]
+    rng: random.Random
+    pace_s: float = 0.0
+
+
+class ScriptedCommander(Player):
     async def play(self, seat: Seat, start: Pose) -> None:
-        await seat.until(lambda m: _is_phase(m, Phase.LOCALIZING), "the localizing phase")
+        await seat.event("phase", "the localizing phase", phase=Phase.LOCALIZING)
         await seat.say("hi! what do you see around you?")
-        await seat.until(self._driver_chat, "the driver's description")
+        await seat.until(_driver_chat, "the driver's description")
         await self._localize(seat, start)
         pose = start
         for k, target in enumerate(self.targets):
-            await seat.until(partial(_is_phase, phase=Phase.NAVIGATING, index=k), f"navigating to target {k}")
+            await seat.event("phase", f"navigating to target {k}", phase=Phase.NAVIGATING, target_index=k)
             leg = plan_leg(self.maze, self.graph, pose, target)
             await seat.say(f"now find the {OBJECT_WORDS[target]}")
             for line in leg.instructions:
@@ -150,14 +155,14 @@ class ScriptedCommander:
             pose = leg.end
             while True:  # answer questions until the Driver claims the target
                 message = await seat.until(
-                    lambda m: self._driver_chat(m) or _claim(m), f"the driver's claim of the {target}"
+                    lambda m: _driver_chat(m) or _claim(m), f"the driver's claim of the {target}"
                 )
                 if _claim(message):
                     break
                 if message["payload"]["text"].endswith("?"):
                     await seat.say(self.rng.choice(ANSWERS))
             await seat.send("confirm")
-        await seat.until(lambda m: _is_phase(m, Phase.FINISHED), "the end of the trial")
+        await seat.event("phase", "the end of the trial", phase=Phase.FINISHED)
 
     async def _localize(self, seat: Seat, start: Pose) -> None:
         # The Commander's estimate: close to the truth, as a good team's is.
@@ -168,44 +173,23 @@ class ScriptedCommander:
         await seat.say("ok, i think i know where you are")
         await seat.send("localize", x=float(x), y=float(y), heading=heading)
 
-    @staticmethod
-    def _driver_chat(message: ServerMessage) -> bool:
-        return (
-            message.get("type") == "event"
-            and message.get("kind") == "chat"
-            and message["payload"].get("role") == Role.DRIVER
-        )
 
-
-def _claim(message: ServerMessage) -> bool:
-    return message.get("type") == "event" and message.get("kind") == "target_claimed"
-
-
-class ScriptedDriver:
+@dataclass
+class ScriptedDriver(Player):
     """Follows the shortest path, with a wrong move now and then (`mistake_rate` per move) and a
     question now and then (`question_rate` per move)."""
 
-    def __init__(
-        self,
-        maze: Maze,
-        graph: NavGraph,
-        targets: list[str],
-        rng: random.Random,
-        pace_s: float = 0.0,
-        mistake_rate: float = 0.03,
-        question_rate: float = 0.03,
-    ) -> None:
-        self.maze, self.graph, self.targets, self.rng = maze, graph, targets, rng
-        self.pace_s, self.mistake_rate, self.question_rate = pace_s, mistake_rate, question_rate
-        self.moves = 0
+    mistake_rate: float = 0.03
+    question_rate: float = 0.03
+    moves: int = field(default=0, init=False)
 
     async def play(self, seat: Seat, start: Pose) -> None:
-        await seat.until(lambda m: _is_phase(m, Phase.LOCALIZING), "the localizing phase")
+        await seat.event("phase", "the localizing phase", phase=Phase.LOCALIZING)
         await seat.event("chat", role=Role.COMMANDER)
         await seat.say(describe_view(self.maze, self.graph, start))
         pose = start
         for k, target in enumerate(self.targets):
-            await seat.until(partial(_is_phase, phase=Phase.NAVIGATING, index=k), f"navigating to target {k}")
+            await seat.event("phase", f"navigating to target {k}", phase=Phase.NAVIGATING, target_index=k)
             pose = await self._drive_to(seat, pose, self.graph.nearest_node(*self.maze.objects[target]))
             await seat.say(f"i think i found the {OBJECT_WORDS[target]}")
             await seat.send("claim")

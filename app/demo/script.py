@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.core.dynamics import Action, Pose, continuous_pose, teacher_action
-from sim.core.geometry import GRID_STEP_M, heading_angle
+from sim.core.geometry import GRID_STEP_M, heading_angle, wrap_angle
 from sim.core.labels import Label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
@@ -78,14 +78,8 @@ def _turn_phrase(turn: float) -> str | None:
     return PHRASES.turn(int(round(turn / (math.pi / 4))))
 
 
-def _wrap(angle: float) -> float:
-    return (angle + math.pi) % (2 * math.pi) - math.pi
-
-
 @dataclass(frozen=True)
 class Leg:
-    target: str
-    start: Pose
     end: Pose
     actions: tuple[Action, ...]
     instructions: tuple[str, ...]
@@ -100,14 +94,14 @@ def plan_leg(maze: Maze, graph: NavGraph, start: Pose, target: str) -> Leg:
     nodes = [n for i, n in enumerate(nodes) if i == 0 or n != nodes[i - 1]]
     if len(nodes) < 2:
         there = PHRASES.say(PhraseKind.THERE, thing=thing)
-        return Leg(target, start, poses[-1] if poses else start, tuple(actions), (there,))
+        return Leg(poses[-1] if poses else start, tuple(actions), (there,))
     points = graph.nodes[nodes]
     idx = corners(points)
     words = []
     heading = float(heading_angle(start.heading))
     for n, (a, b) in enumerate(zip(idx, idx[1:])):
         direction = math.atan2(*(points[b] - points[a])[::-1])
-        turn = _turn_phrase(_wrap(direction - heading))
+        turn = _turn_phrase(wrap_angle(direction - heading))
         if n == 0 and turn:
             words.append(turn)
         length = float(np.hypot(*(points[b] - points[a])))
@@ -116,7 +110,7 @@ def plan_leg(maze: Maze, graph: NavGraph, start: Pose, target: str) -> Leg:
             words.append(PHRASES.say(PhraseKind.UNTIL_TARGET, thing=thing))
             break
         after = math.atan2(*(points[idx[n + 2]] - points[b])[::-1])
-        next_turn = _turn_phrase(_wrap(after - direction)) or "keep going"
+        next_turn = _turn_phrase(wrap_angle(after - direction)) or "keep going"
         x, y = points[b]
         label, depth = what_is_at(maze, x, y, direction)
         if label != Label.FLOOR and depth < 2 * NEAR_WALL_M:
@@ -124,7 +118,7 @@ def plan_leg(maze: Maze, graph: NavGraph, start: Pose, target: str) -> Leg:
         else:
             words.append(PHRASES.say(PhraseKind.FORWARD_THEN_TURN, n=steps, turn=next_turn))
         heading = direction
-    return Leg(target, start, poses[-1], tuple(actions), tuple(words))
+    return Leg(poses[-1], tuple(actions), tuple(words))
 
 
 def describe_view(maze: Maze, graph: NavGraph, pose: Pose) -> str:

@@ -44,6 +44,20 @@ STATE_NAMES = (
 DATA_FILE = "data/chunk-000/file-000.parquet"
 EPISODES_FILE = "meta/episodes/chunk-000/file-000.parquet"
 VIDEO_PATH = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4"
+# The data file's columns in its order, with their dtypes, and the shape and names of those not scalar.
+COLUMNS = {
+    "observation.state": "float32",
+    "action": "int64",
+    "language.messages": "string",
+    "frame_seq": "int64",
+    "trial_id": "int64",
+    "timestamp": "float32",
+    "frame_index": "int64",
+    "episode_index": "int64",
+    "index": "int64",
+    "task_index": "int64",
+}
+SHAPES = {"observation.state": ([len(STATE_NAMES)], STATE_NAMES), "action": ([1], [a.word for a in Action])}
 
 
 class ChatMessage(TypedDict):
@@ -118,11 +132,10 @@ def episodes_of(record: TrialRecord, maze: Maze, per: Episode) -> list[list[Step
     groups = [g for g in groups if g]
     for group in groups:
         group[-1].action = Action.STOP
-    flat = [s for g in groups for s in g]
     for event in events:
         if event.is_(ev.Chat):
-            before = [s for s in flat if s.frame.seq <= event.seq]
-            (before[-1] if before else flat[0]).messages.append(_chat(event))
+            before = [s for s in steps if s.frame.seq <= event.seq]
+            (before[-1] if before else steps[0]).messages.append(_chat(event))
     return groups
 
 
@@ -199,21 +212,7 @@ def _write(loaded: Iterable[tuple[TrialRecord, Maze]], tmp: Path, per: Episode) 
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    rows: dict[str, list[Any]] = {
-        k: []
-        for k in (
-            "observation.state",
-            "action",
-            "language.messages",
-            "frame_seq",
-            "trial_id",
-            "timestamp",
-            "frame_index",
-            "episode_index",
-            "index",
-            "task_index",
-        )
-    }
+    rows: dict[str, list[Any]] = {k: [] for k in COLUMNS}
     tasks: dict[str, int] = {}
     episodes: list[dict[str, int | float | str | list[str]]] = []  # rows of the episodes table
     shape: tuple[int, int] = (0, 0)
@@ -260,17 +259,9 @@ def _write(loaded: Iterable[tuple[TrialRecord, Maze]], tmp: Path, per: Episode) 
     if not episodes:
         raise ExportError("no episodes to write")
     n = len(rows["index"])
-    table = pa.table(
-        {
-            "observation.state": pa.array(rows["observation.state"], pa.list_(pa.float32(), len(STATE_NAMES))),
-            "action": pa.array(rows["action"], pa.int64()),
-            "language.messages": pa.array(rows["language.messages"], pa.string()),
-            "frame_seq": pa.array(rows["frame_seq"], pa.int64()),
-            "trial_id": pa.array(rows["trial_id"], pa.int64()),
-            "timestamp": pa.array(rows["timestamp"], pa.float32()),
-            **{k: pa.array(rows[k], pa.int64()) for k in ("frame_index", "episode_index", "index", "task_index")},
-        }
-    )
+    arrow = {k: pa.type_for_alias(dtype) for k, dtype in COLUMNS.items()}
+    arrow["observation.state"] = pa.list_(arrow["observation.state"], len(STATE_NAMES))
+    table = pa.table({k: pa.array(rows[k], arrow[k]) for k in COLUMNS})
     (tmp / DATA_FILE).parent.mkdir(parents=True, exist_ok=True)
     pq.write_table(table, tmp / DATA_FILE)
     (tmp / EPISODES_FILE).parent.mkdir(parents=True, exist_ok=True)
@@ -279,8 +270,7 @@ def _write(loaded: Iterable[tuple[TrialRecord, Maze]], tmp: Path, per: Episode) 
         tmp / "meta/tasks.parquet"
     )
     height, width = shape
-    scalar = {"shape": [1], "names": None}
-    features = {
+    features: dict[str, dict[str, object]] = {
         VIDEO_KEY: {
             "dtype": "video",
             "shape": [height, width, 3],
@@ -296,14 +286,10 @@ def _write(loaded: Iterable[tuple[TrialRecord, Maze]], tmp: Path, per: Episode) 
                 "has_audio": False,
             },
         },
-        "observation.state": {"dtype": "float32", "shape": [len(STATE_NAMES)], "names": STATE_NAMES},
-        "action": {"dtype": "int64", "shape": [1], "names": [a.word for a in Action]},
-        "language.messages": {"dtype": "string", **scalar},
-        "frame_seq": {"dtype": "int64", **scalar},
-        "trial_id": {"dtype": "int64", **scalar},
-        "timestamp": {"dtype": "float32", **scalar},
-        **{k: {"dtype": "int64", **scalar} for k in ("frame_index", "episode_index", "index", "task_index")},
     }
+    for k, dtype in COLUMNS.items():
+        dims, names = SHAPES.get(k, ([1], None))
+        features[k] = {"dtype": dtype, "shape": dims, "names": names}
     info = {
         "codebase_version": CODEBASE_VERSION,
         "robot_type": "robotslang_rover",
@@ -320,13 +306,6 @@ def _write(loaded: Iterable[tuple[TrialRecord, Maze]], tmp: Path, per: Episode) 
         "features": features,
     }
     (tmp / "meta/info.json").write_text(json.dumps(info, indent=2))
-    numeric = {
-        "observation.state": np.array(rows["observation.state"]),
-        "action": np.array(rows["action"]),
-        **{
-            k: np.array(rows[k])
-            for k in ("frame_seq", "trial_id", "timestamp", "frame_index", "episode_index", "index", "task_index")
-        },
-    }
+    numeric = {k: np.array(rows[k]) for k, dtype in COLUMNS.items() if dtype != "string"}
     (tmp / "meta/stats.json").write_text(json.dumps({k: _stats(v) for k, v in numeric.items()}, indent=2))
     return {"episodes": len(episodes), "frames": n, "tasks": len(tasks)}

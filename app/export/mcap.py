@@ -44,10 +44,6 @@ FOXGLOVE_SCHEMAS = (
 )
 
 
-def robot_frame(source: PoseSource) -> str:
-    return f"robot/{source.value}"
-
-
 _ROBOTSLANG_SCHEMAS: dict[str, dict[str, Any]] = {
     "robotslang.DriverCommand": {
         "title": "robotslang.DriverCommand",
@@ -167,16 +163,15 @@ def write_mcap(record: TrialRecord, maze: Maze | None, out: str | Path) -> Path:
             message, publish_ns = _message(record, event, images.get(event.seq))
             add(topic_of(event), message, event.t_ns, publish_ns, event.seq)
             if event.is_(ev.PoseSampled):
-                add("/tf", _transform(message, robot_frame(sources[event.seq])), event.t_ns, event.t_ns, 0)
+                add("/tf", _transform(message, f"robot/{sources[event.seq].value}"), event.t_ns, event.t_ns, 0)
         writer.add_metadata("trial", _trial_metadata(record, maze))
         if record.localized_after is not None or record.tags:
             writer.add_metadata("annotation", _annotation_metadata(record))
         if maze is not None:
-            created = events[0].t_ns if events else 0
             for name, walls_only in ((FIXED_MAP, False), (WALLS_MAP, True)):
                 ok, png = cv2.imencode(".png", maze.image(walls_only=walls_only))
                 writer.add_attachment(
-                    create_time=created, log_time=created, name=name, media_type="image/png", data=png.tobytes()
+                    create_time=start_ns, log_time=start_ns, name=name, media_type="image/png", data=png.tobytes()
                 )
         writer.finish()  # type: ignore[no-untyped-call]  # mcap's Writer.finish is not annotated
     tmp.replace(out)
@@ -235,14 +230,8 @@ def _message(record: TrialRecord, event: LoggedEvent, image: bytes | None) -> tu
             "line": 0,
         }, event.t_ns
     if event.is_(ev.MoveRequested, ev.MoveExecuted):
-        return {
-            "stage": event.kind.removeprefix("move_"),
-            "move_id": p.get("move_id"),
-            "action": p.get("action"),
-            "outcome": p.get("outcome"),
-            "collision": p.get("collision"),
-            "reason": p.get("reason"),
-        }, event.t_ns
+        fields = list(_ROBOTSLANG_SCHEMAS["robotslang.DriverCommand"]["properties"])[1:]  # after `stage`
+        return {"stage": event.kind.removeprefix("move_"), **{k: p.get(k) for k in fields}}, event.t_ns
     if event.is_(ev.PoseSampled, ev.Localized):
         return _pose_in_frame(event.t_ns, float(p["x"]), float(p["y"]), p.get("heading")), event.t_ns
     return {"seq": event.seq, "kind": event.kind, "payload": p}, event.t_ns

@@ -147,10 +147,8 @@ def ldh_instances(record: TrialRecord, maze: Maze) -> list[LDHInstanceJson]:
     start = _pose_at(events, _start_seq(events))
     truth = _pose_at(events, max(cut_seq, estimate.seq) if estimate else cut_seq)
     guess_xy = [float(estimate.payload["x"]), float(estimate.payload["y"])] if estimate else None
-    guess = None
-    if estimate is not None and guess_xy is not None:
-        heading = estimate.payload.get("heading")
-        guess = [*guess_xy, None if heading is None else float(heading)]
+    heading = estimate.payload.get("heading") if estimate else None
+    guess = None if guess_xy is None else [*guess_xy, None if heading is None else float(heading)]
     error = None if truth is None or guess_xy is None else math.dist(truth[:2], guess_xy)
     target = record.targets[0]
     all_targets = _positions(record, maze)
@@ -198,7 +196,6 @@ def assign_splits(mazes: Iterable[str]) -> dict[str, str]:
 
 @dataclass
 class ExportSummary:
-    out_dir: Path
     ndh: dict[str, int] = field(default_factory=dict)  # split -> instances
     ldh: dict[str, int] = field(default_factory=dict)
     splits: dict[str, str] = field(default_factory=dict)  # maze -> split
@@ -237,7 +234,6 @@ def write_benchmark(
     (out_dir / "lookup_scans.json").write_text(json.dumps(lookup, indent=1))
     (out_dir / "splits.json").write_text(json.dumps(folds, indent=1, sort_keys=True))
     return ExportSummary(
-        out_dir=out_dir,
         ndh={s: len(v) for s, v in ndh.items()},
         ldh={s: len(v) for s, v in ldh.items()},
         splits=folds,

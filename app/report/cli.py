@@ -39,23 +39,19 @@ def agreement(
 ) -> None:
     """Cohen's kappa per phenomenon and the distance between localization cuts, over the trials
     two annotators submitted, and the disagreements (with the adjudicated value, if any)."""
-    from app.annotation.agreement import agreement as compute
-    from app.annotation.events import Phenomenon
+    from app.annotation.events import TITLES
     from app.annotation.log import AnnotationLog
-    from app.annotation.study import annotator_names, study_trial_ids
+    from app.annotation.study import study_agreement
 
     _, sessions = _database()
     with sessions() as db:
-        ids = study_trial_ids(db, study)
-        names = annotator_names(db)
-    result = compute(AnnotationLog(sessions).states(ids), names)
+        result = study_agreement(db, AnnotationLog(sessions), study)
     if as_json:
         typer.echo(json.dumps({"study": study, **result}, indent=1))
         return
-    titles = {str(p): p.label for p in Phenomenon}
     typer.echo(f"study {study}: {result['double_annotated_trials']} trials annotated twice")
     for tag, k in result["kappa"].items():
-        typer.echo(f"  kappa {titles.get(tag, tag)}: {'n/a' if k is None else f'{k:.3f}'}")
+        typer.echo(f"  kappa {TITLES.get(tag, tag)}: {'n/a' if k is None else f'{k:.3f}'}")
     cut = result["cut_distance"]
     mean = "n/a" if cut["mean"] is None else f"{cut['mean']:.2f}"
     typer.echo(f"  localization cut distance: mean {mean} messages, max {cut['max']}")

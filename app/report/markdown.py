@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-from app.annotation.events import Phenomenon
+from app.annotation.events import TITLES
 from app.report.benchmark import BenchmarkNumbers
 from app.report.study import StudyNumbers
-
-TITLES = {str(p): p.label for p in Phenomenon}
 
 
 def _f(value: float | None, digits: int = 1) -> str:

@@ -13,16 +13,16 @@ from typing import TypedDict
 
 from sqlalchemy.orm import Session, sessionmaker
 
-from app.annotation.agreement import AgreementNumbers, agreement
+from app.annotation.agreement import AgreementNumbers
 from app.annotation.dialog import messages
 from app.annotation.events import Phenomenon
 from app.annotation.log import AnnotationLog
-from app.annotation.study import annotator_names, study_trial_ids
+from app.annotation.study import study_agreement
 from app.db.models import Team, Trial
 from app.export.folds import SavedFolds
 from app.export.ndh import ldh_instances, ndh_instances
 from app.export.record import TrialRecord
-from app.export.source import load_trial
+from app.export.source import exported_trial_ids, load_trial
 from app.mazes import Mazes
 from app.settings import Settings
 from app.study.answers import ItemRatings, asked, items, rating_distributions, study_answers
@@ -170,63 +170,58 @@ def dialog_numbers(dialogs: Sequence[Sequence[tuple[str, str]]]) -> DialogNumber
 
 def study_numbers(sessions: sessionmaker[Session], settings: Settings, mazes: Mazes, study: str) -> StudyNumbers:
     with sessions() as db:
-        return _study_numbers(db, AnnotationLog(sessions), settings, mazes, study)
-
-
-def _study_numbers(db: Session, log: AnnotationLog, settings: Settings, mazes: Mazes, study: str) -> StudyNumbers:
-    ids = study_trial_ids(db, study)
-    records = [load_trial(db, settings, i) for i in ids]
-    trials = {t.id: t for t in (db.get(Trial, i) for i in ids) if t is not None}
-    layout_of = mazes.layouts()
-    teams: dict[str, list[int]] = defaultdict(list)
-    participants: set[int] = set()
-    for trial_id in ids:
-        trial = trials[trial_id]
-        team = db.get(Team, trial.team_id)
-        teams[team.name if team else str(trial.team_id)].append(trial_id)
-        if team is not None:
-            participants |= {team.member_a_id, team.member_b_id}
-        participants |= {p for p in (trial.commander_id, trial.driver_id) if p is not None}
-    dialogs = [[(m.role, m.text) for m in messages(r.events)] for r in records]
-    # Moves and scores by the trial's own fold, as the leaderboard counts them: executed moves
-    # only; refused requests apart.
-    states = {int(r.trial_id): fold(r.events) for r in records}
-    files = StudyFiles.of(settings.data_dir)
-    penalty = files.move_penalty_s(study, settings.move_penalty_s)
-    durations = [trials[int(r.trial_id)].active_s or 0.0 for r in records]
-    answers = study_answers(db, study)
-    annotations = log.states(ids)
-    dialog = dialog_numbers(dialogs)
-    return {
-        "study": study,
-        "counts": {
-            "trials": len(ids),
-            "layouts": len({layout_of.get(r.maze, r.maze) for r in records}),
-            "mazes": len({r.maze for r in records}),
-            "participants": len(participants),
-            "teams": len(teams),
-            "trials_per_team": {name: len(t) for name, t in sorted(teams.items())},
-        },
-        "messages_per_dialog": dialog["messages_per_dialog"],
-        "words_per_dialog": dialog["words_per_dialog"],
-        "dialog": dialog,
-        "duration_minutes": distribution([d / 60 for d in durations]),
-        "moves": distribution([float(state.moves) for state in states.values()]),
-        "refused_moves": distribution([float(state.refused) for state in states.values()]),
-        "move_penalty_s": penalty,
-        "trials": {
-            str(i): {"moves": state.moves, "refused_moves": state.refused, "score": state.score(penalty)}
-            for i, state in states.items()
-        },
-        "folds": fold_table(records, mazes, layout_of, SavedFolds.of(settings.data_dir, study)),
-        "phenomena": phenomena_table(records),
-        "agreement": agreement(annotations, annotator_names(db)),
-        "leaderboard": leaderboard(teams, states, penalty),
-        "questionnaire": {
-            "answers": len(answers),
-            "items": rating_distributions(answers, items(asked(files, study, answers)) if answers else []),
-        },
-    }
+        ids = exported_trial_ids(db, study=study)
+        records = [load_trial(db, settings, i) for i in ids]
+        trials = {t.id: t for t in (db.get(Trial, i) for i in ids) if t is not None}
+        layout_of = mazes.layouts()
+        teams: dict[str, list[int]] = defaultdict(list)
+        participants: set[int] = set()
+        for trial_id in ids:
+            trial = trials[trial_id]
+            team = db.get(Team, trial.team_id)
+            teams[team.name if team else str(trial.team_id)].append(trial_id)
+            if team is not None:
+                participants |= {team.member_a_id, team.member_b_id}
+            participants |= {p for p in (trial.commander_id, trial.driver_id) if p is not None}
+        dialogs = [[(m.role, m.text) for m in messages(r.events)] for r in records]
+        # Moves and scores by the trial's own fold, as the leaderboard counts them: executed moves
+        # only; refused requests apart.
+        states = {int(r.trial_id): fold(r.events) for r in records}
+        files = StudyFiles.of(settings.data_dir)
+        penalty = files.move_penalty_s(study, settings.move_penalty_s)
+        durations = [trials[int(r.trial_id)].active_s or 0.0 for r in records]
+        answers = study_answers(db, study)
+        dialog = dialog_numbers(dialogs)
+        return {
+            "study": study,
+            "counts": {
+                "trials": len(ids),
+                "layouts": len({layout_of.get(r.maze, r.maze) for r in records}),
+                "mazes": len({r.maze for r in records}),
+                "participants": len(participants),
+                "teams": len(teams),
+                "trials_per_team": {name: len(t) for name, t in sorted(teams.items())},
+            },
+            "messages_per_dialog": dialog["messages_per_dialog"],
+            "words_per_dialog": dialog["words_per_dialog"],
+            "dialog": dialog,
+            "duration_minutes": distribution([d / 60 for d in durations]),
+            "moves": distribution([float(state.moves) for state in states.values()]),
+            "refused_moves": distribution([float(state.refused) for state in states.values()]),
+            "move_penalty_s": penalty,
+            "trials": {
+                str(i): {"moves": state.moves, "refused_moves": state.refused, "score": state.score(penalty)}
+                for i, state in states.items()
+            },
+            "folds": fold_table(records, mazes, layout_of, SavedFolds.of(settings.data_dir, study)),
+            "phenomena": phenomena_table(records),
+            "agreement": study_agreement(db, AnnotationLog(sessions), study),
+            "leaderboard": leaderboard(teams, states, penalty),
+            "questionnaire": {
+                "answers": len(answers),
+                "items": rating_distributions(answers, items(asked(files, study, answers)) if answers else []),
+            },
+        }
 
 
 def fold_table(

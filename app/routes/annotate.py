@@ -17,10 +17,9 @@ from sqlalchemy import select
 
 from app.accounts import AccountError, create_account
 from app.annotation.access import AnnotatorId, annotator_login
-from app.annotation.agreement import agreement
 from app.annotation.dialog import estimates, messages
-from app.annotation.events import Adjudicated, AnnotationEventModel, CutMarked, Phenomenon, Submitted, Tagged
-from app.annotation.study import annotator_names, study_trial_ids
+from app.annotation.events import TITLES, Adjudicated, AnnotationEventModel, CutMarked, Submitted, Tagged
+from app.annotation.study import study_agreement
 from app.cookies import clear_site_data, delete_cookie
 from app.db.models import AnnotationAssignment, Experimenter, Trial
 from app.deps import (
@@ -42,7 +41,8 @@ from app.web import frame_file, render, replay_events
 router = APIRouter(dependencies=[Depends(csrf_protect)])
 
 
-def _assigned(db: DbSession, trial_id: int, annotator: int) -> Trial:
+def assigned_trial(trial_id: int, db: DbSession, annotator: AnnotatorId) -> Trial:
+    """The trial the path names, if it is in this annotator's queue (404 otherwise)."""
     assigned = db.scalar(
         select(AnnotationAssignment.id).where(
             AnnotationAssignment.trial_id == trial_id, AnnotationAssignment.annotator_id == annotator
@@ -52,6 +52,9 @@ def _assigned(db: DbSession, trial_id: int, annotator: int) -> Trial:
     if assigned is None or trial is None:
         raise HTTPException(404, f"trial {trial_id} is not in your annotation queue")
     return trial
+
+
+AssignedTrial = Annotated[Trial, Depends(assigned_trial)]
 
 
 @router.get("/annotate", response_class=HTMLResponse)
@@ -81,17 +84,14 @@ def study_tags(files: StudyFiles, trial: Trial) -> list[str] | None:
 @router.get("/annotate/trials/{trial_id}", response_class=HTMLResponse)
 def annotate_trial(
     request: Request,
-    trial_id: int,
-    db: DbSession,
+    trial: AssignedTrial,
     annotations: AnnotationsDep,
     log: LogDep,
     files: StudyFilesDep,
     annotator: AnnotatorId,
 ) -> HTMLResponse:
-    trial = _assigned(db, trial_id, annotator)
-    events = log.load(trial_id)
-    mine = annotations.state(trial_id).by_annotator.get(annotator)
-    tags = [(str(p), p.label) for p in Phenomenon]
+    events = log.load(trial.id)
+    mine = annotations.state(trial.id).by_annotator.get(annotator)
     return render(
         request,
         "annotate/trial.html",
@@ -100,33 +100,27 @@ def annotate_trial(
         messages=messages(events),
         estimates={e.after_message: e for e in estimates(events)},
         mine=mine,
-        phenomena=tags,
-        titles=dict(tags),
+        phenomena=list(TITLES.items()),
+        titles=TITLES,
     )
 
 
 @router.get("/annotate/trials/{trial_id}/replay.json")
-def annotate_replay(trial_id: int, db: DbSession, log: LogDep, annotator: AnnotatorId) -> dict[str, Any]:
+def annotate_replay(trial: AssignedTrial, log: LogDep) -> dict[str, Any]:
     """The trial's log as the replay page reads it (`static/replay.js`), without the team."""
-    trial = _assigned(db, trial_id, annotator)
-    base = f"/annotate/trials/{trial_id}"
     return {
         "trial": {"id": trial.id, "maze": trial.maze, "targets": trial.targets, "phase": trial.phase},
-        "events": replay_events(log.load(trial_id), base),
+        "events": replay_events(log.load(trial.id), f"/annotate/trials/{trial.id}"),
     }
 
 
 @router.get("/annotate/trials/{trial_id}/frames/{frame_id}.jpg")
-def annotate_frame(
-    trial_id: int, frame_id: int, db: DbSession, settings: SettingsDep, annotator: AnnotatorId
-) -> FileResponse:
-    _assigned(db, trial_id, annotator)
-    return frame_file(db, settings, trial_id, frame_id)
+def annotate_frame(trial: AssignedTrial, frame_id: int, db: DbSession, settings: SettingsDep) -> FileResponse:
+    return frame_file(db, settings, trial.id, frame_id)
 
 
 @router.get("/annotate/trials/{trial_id}/map.png")
-def annotate_map(trial_id: int, db: DbSession, mazes: MazesDep, annotator: AnnotatorId) -> Response:
-    trial = _assigned(db, trial_id, annotator)
+def annotate_map(trial: AssignedTrial, mazes: MazesDep) -> Response:
     return Response(
         mazes.full_map_png(trial.maze), media_type="image/png", headers={"Cache-Control": "private, max-age=3600"}
     )
@@ -134,8 +128,7 @@ def annotate_map(trial_id: int, db: DbSession, mazes: MazesDep, annotator: Annot
 
 @router.post("/annotate/trials/{trial_id}")
 def save(
-    trial_id: int,
-    db: DbSession,
+    trial: AssignedTrial,
     annotations: AnnotationsDep,
     clock: ClockDep,
     log: LogDep,
@@ -149,8 +142,7 @@ def save(
 ) -> RedirectResponse:
     """One change from the trial's form: `cut` (the radio checked), `tag` (the phenomenon or free
     tag, anchored to the checked messages; none checked withdraws it) or `submit`."""
-    trial = _assigned(db, trial_id, annotator)
-    said = len(messages(log.load(trial_id)))
+    said = len(messages(log.load(trial.id)))
     anchors = sorted(set(anchor or []))
     event: AnnotationEventModel
     if action == "cut":
@@ -162,7 +154,7 @@ def save(
         if not name:
             raise HTTPException(422, "pick a phenomenon or write a tag")
         allowed = study_tags(files, trial)
-        if allowed is not None and name not in allowed and name not in set(Phenomenon):
+        if allowed is not None and name not in allowed and name not in TITLES:
             known = ", ".join(allowed) or "none"
             raise HTTPException(
                 422,
@@ -175,8 +167,8 @@ def save(
         event = Submitted()
     else:
         raise HTTPException(422, f"unknown action {action!r}: cut, tag or submit")
-    annotations.append(trial_id, annotator, event, clock.now_ns())
-    target = "/annotate" if action == "submit" else f"/annotate/trials/{trial_id}"
+    annotations.append(trial.id, annotator, event, clock.now_ns())
+    target = "/annotate" if action == "submit" else f"/annotate/trials/{trial.id}"
     return RedirectResponse(target, status_code=303)
 
 
@@ -203,18 +195,14 @@ def agreement_page(
 ) -> HTMLResponse:
     """Agreement between the study's annotators, the disagreements to adjudicate, and the form
     that makes an annotator's account."""
-    result = None
-    if study:
-        ids = study_trial_ids(db, study)
-        result = agreement(annotations.states(ids), annotator_names(db))
-    titles = {str(p): p.label for p in Phenomenon}
+    result = study_agreement(db, annotations, study) if study else None
     annotators = sorted(db.scalars(select(Experimenter.name).where(Experimenter.role == AccountRole.ANNOTATOR)).all())
     return render(
         request,
         "annotate/agreement.html",
         study=study,
         result=result,
-        titles=titles,
+        titles=TITLES,
         annotators=annotators,
         created=created,
     )

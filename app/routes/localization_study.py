@@ -15,7 +15,7 @@ from pydantic import BaseModel, ConfigDict
 from app.db.models import LDHStudy
 from app.deps import ExperimenterId, LocalizationStudiesDep, StudyTokensDep, experimenter_id
 from app.guard import csrf_protect
-from app.localization_study import CSV_COLUMNS, LocalizationStudies, LocalizationStudyError
+from app.localization_study import CSV_COLUMNS, LocalizationStudyError
 from app.security import InvalidToken, StudyPass
 from app.web import render
 
@@ -23,11 +23,14 @@ router = APIRouter()
 studies_router = APIRouter(prefix="/experimenter/ldh", dependencies=[Depends(experimenter_id), Depends(csrf_protect)])
 
 
-def _study_or_404(studies: LocalizationStudies, study_id: int) -> LDHStudy:
+def existing_study(study_id: int, studies: LocalizationStudiesDep) -> LDHStudy:
     try:
         return studies.study(study_id)
     except LookupError as err:
         raise HTTPException(404, str(err)) from None
+
+
+ExistingStudy = Annotated[LDHStudy, Depends(existing_study)]
 
 
 def _back(study_id: int | None = None, error: str | None = None) -> RedirectResponse:
@@ -59,47 +62,43 @@ def create_study(
 
 
 @studies_router.post("/{study_id}/participants")
-def invite(studies: LocalizationStudiesDep, study_id: int, name: str = Form(max_length=80)) -> RedirectResponse:
-    _study_or_404(studies, study_id)
+def invite(studies: LocalizationStudiesDep, study: ExistingStudy, name: str = Form(max_length=80)) -> RedirectResponse:
     try:
-        studies.invite(study_id, name)
+        studies.invite(study.id, name)
     except LocalizationStudyError as err:
-        return _back(study_id, str(err))
-    return _back(study_id)
+        return _back(study.id, str(err))
+    return _back(study.id)
 
 
 @studies_router.get("/{study_id}", response_class=HTMLResponse)
 def study_page(
-    request: Request, s: LocalizationStudiesDep, tokens: StudyTokensDep, study_id: int, error: str | None = None
+    request: Request, s: LocalizationStudiesDep, tokens: StudyTokensDep, study: ExistingStudy, error: str | None = None
 ) -> HTMLResponse:
-    study = _study_or_404(s, study_id)
     links = {
-        p.id: str(request.url_for("ldh_participant", token=tokens.issue(study_id, p.id)))
-        for p in s.participants(study_id)
+        p.id: str(request.url_for("ldh_participant", token=tokens.issue(study.id, p.id)))
+        for p in s.participants(study.id)
     }
-    return render(request, "ldh_study.html", study=study, results=s.results(study_id), links=links, error=error)
+    return render(request, "ldh_study.html", study=study, results=s.results(study.id), links=links, error=error)
 
 
 @studies_router.get("/{study_id}/export.json")
-def export_json(studies: LocalizationStudiesDep, study_id: int) -> JSONResponse:
-    _study_or_404(studies, study_id)
+def export_json(studies: LocalizationStudiesDep, study: ExistingStudy) -> JSONResponse:
     return JSONResponse(
-        studies.results(study_id),
-        headers={"Content-Disposition": f'attachment; filename="ldh-study-{study_id}.json"'},
+        studies.results(study.id),
+        headers={"Content-Disposition": f'attachment; filename="ldh-study-{study.id}.json"'},
     )
 
 
 @studies_router.get("/{study_id}/export.csv")
-def export_csv(studies: LocalizationStudiesDep, study_id: int) -> Response:
-    _study_or_404(studies, study_id)
+def export_csv(studies: LocalizationStudiesDep, study: ExistingStudy) -> Response:
     out = io.StringIO()
     writer = csv.DictWriter(out, fieldnames=CSV_COLUMNS, extrasaction="ignore")
     writer.writeheader()
-    writer.writerows(studies.results(study_id)["answers"])
+    writer.writerows(studies.results(study.id)["answers"])
     return Response(
         out.getvalue(),
         media_type="text/csv",
-        headers={"Content-Disposition": f'attachment; filename="ldh-study-{study_id}.csv"'},
+        headers={"Content-Disposition": f'attachment; filename="ldh-study-{study.id}.csv"'},
     )
 
 

@@ -64,7 +64,8 @@ async def robot_socket(
     try:
         robot_id, name, role = await _hello(ws, db)
     except Refused as refused:
-        await _send(ws, {"type": "error", "code": refused.code, "error": str(refused)})
+        with contextlib.suppress(RuntimeError, WebSocketDisconnect):
+            await ws.send_text(encode({"type": "error", "code": refused.code, "error": str(refused)}))
         await ws.close(code=CLOSE_REFUSED, reason=str(refused)[:120])
         return
     except (WebSocketDisconnect, TimeoutError):
@@ -134,11 +135,6 @@ async def _hello(ws: WebSocket, sessions: sessionmaker[Session]) -> tuple[int, s
 def _queue(outbox: asyncio.Queue[str], message: dict[str, Any]) -> None:
     with contextlib.suppress(asyncio.QueueFull):  # a robot that stops reading is dropped by DEAD_LINK_S
         outbox.put_nowait(encode(message))
-
-
-async def _send(ws: WebSocket, message: dict[str, Any]) -> None:
-    with contextlib.suppress(RuntimeError, WebSocketDisconnect):
-        await ws.send_text(encode(message))
 
 
 async def _write(ws: WebSocket, outbox: asyncio.Queue[str], link: RobotLink) -> None:
