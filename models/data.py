@@ -55,8 +55,3 @@ def goal_distance(world: World, episodes: EpisodeSet, idx: np.ndarray, node: np.
     """Topological distance (metres) from global nodes to each episode's goal node."""
     g = episodes.geometry
     return g.goal_dist[idx, node - world.offset[g.maze[idx]]]
-
-
-def splits_runs(bench: Benchmark, splits: list[str]) -> list[str]:
-    """The runs that the given splits use, sorted."""
-    return sorted({inst.run for s in splits for inst in bench.split(s)}, key=lambda r: (len(r), r))

@@ -20,7 +20,7 @@ import torch
 from tqdm import tqdm
 
 from models.agent import AgentConfig, Seq2SeqAgent
-from models.data import EpisodeSet, World, goal_distance, splits_runs
+from models.data import EpisodeSet, World, goal_distance
 from models.rollout import BLINDS, MAX_ACTIONS, run_episodes
 from models.tokenizer import Tokenizer
 from sim.tasks.benchmark import Benchmark, NDHInstance, Split
@@ -91,7 +91,8 @@ class TrainConfig:
 
 def build_world(bench: Benchmark, cache_dir=None) -> World:
     """One world for every split, so each maze is compiled (and cached) once."""
-    return World.build(bench, splits_runs(bench, [str(s) for s in Split]), cache_dir=cache_dir)
+    runs = sorted({inst.run for split in Split for inst in bench.split(split)}, key=lambda r: (len(r), r))
+    return World.build(bench, runs, cache_dir=cache_dir)
 
 
 def load_glove(path: str | Path, tokenizer: Tokenizer) -> tuple[torch.Tensor, int]:

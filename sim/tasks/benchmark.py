@@ -69,13 +69,10 @@ class NDHInstance:
 
     @classmethod
     def from_json(cls, item: dict[str, Any]) -> NDHInstance:
-        match = _SCAN.match(item["scan"])
-        if not match:
-            raise BenchmarkError(f"instance {item.get('inst_idx')}: unrecognised scan {item['scan']!r}")
         return cls(
             inst_idx=int(item["inst_idx"]),
             scan=item["scan"],
-            run=match["run"],
+            run=scan_run(item["scan"]),
             target=item["target"],
             agent_pose=tuple(float(v) for v in item["agent_pose"]),
             target_pose=(float(item["target_pose"][0]), float(item["target_pose"][1])),
