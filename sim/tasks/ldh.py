@@ -101,10 +101,6 @@ class LDHInstance:
     dialog: Dialog
     variant: Variant
 
-    @property
-    def position(self) -> tuple[float, float]:
-        return (self.x, self.y)
-
 
 def derive(inst: NDHInstance, variant: Variant) -> LDHInstance:
     """The LDH instance of a trial from its first target's NDH instance."""

@@ -163,7 +163,7 @@ def score(ctx: MazeContext, belief: np.ndarray, inst: LDHInstance) -> tuple[floa
     """Expected (TD, Euclidean error, accuracy per radius) of a belief over nodes."""
     true = ctx.graph.nearest_node(inst.x, inst.y)
     td = ctx.graph.dist[:, true]
-    euclid = np.linalg.norm(ctx.graph.nodes - np.asarray(inst.position), axis=1)
+    euclid = np.linalg.norm(ctx.graph.nodes - np.asarray((inst.x, inst.y)), axis=1)
     support = belief > 0
     b, td, euclid = belief[support], td[support], euclid[support]
     return float(b @ td), float(b @ euclid), tuple(float(b @ (td <= r)) for r in ACC_RADII_M)

@@ -74,9 +74,6 @@ class MazeLibrary:
         """All maze names: bundled first, then extra folders, then the benchmark's runs."""
         return list(self._entries())
 
-    def __contains__(self, name: str) -> bool:
-        return name in self._entries()
-
     def __len__(self) -> int:
         return len(self._entries())
 

@@ -117,7 +117,7 @@ def test_summary_shape_and_sample_std(open_ctx, tmp_path):
 def test_the_evaluator_reads_exported_trials_and_skips_those_without_a_true_pose(tmp_path):
     root_dir = export_folder(tmp_path, [exported(0, [1.4, 0.7, 0.0]), exported(1, None)])
     (inst,) = load_split(Benchmark(root_dir), "val_seen")
-    assert inst.variant == Variant.EXACT and inst.run == "m1" and inst.position == (1.4, 0.7)
+    assert inst.variant == Variant.EXACT and inst.run == "m1" and (inst.x, inst.y) == (1.4, 0.7)
     result = CliRunner().invoke(
         root, ["eval", "ldh", "--benchmark", str(root_dir), "--split", "val_seen", "--agent", "random,center", "--json"]
     )
