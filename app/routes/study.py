@@ -82,7 +82,9 @@ def study_or_404(files: StudyFiles, name: str) -> StudyConfig:
     except LookupError as err:
         raise HTTPException(404, str(err)) from None
     except StudyConfigError as err:
-        raise HTTPException(503, Text("this study cannot run until the experimenter fixes it")) from err
+        raise HTTPException(
+            503, Text("this study cannot run until the experimenter fixes it: {problem}", problem=err)
+        ) from None
 
 
 class Participation:
