@@ -22,11 +22,10 @@ from jinja2.runtime import Context
 from starlette.requests import HTTPConnection
 
 LOCALE = Path(__file__).resolve().parent / "locale"
-SOURCE = "en"  # the language the messages are written in
 
 
 class Language(StrEnum):
-    en = "en"
+    en = "en"  # the messages' own: no catalog
     de = "de"
 
 
@@ -40,7 +39,7 @@ def catalog(language: Language) -> Catalog:
 @cache
 def translations(language: Language) -> NullTranslations:
     """gettext's translations for `language` (fuzzy entries left out: English until reviewed)."""
-    if language == SOURCE:
+    if language == Language.en:
         return NullTranslations()
     mo = BytesIO()
     write_mo(mo, catalog(language))
@@ -51,7 +50,7 @@ def translations(language: Language) -> NullTranslations:
 @cache
 def browser_messages(language: Language) -> dict[str, str]:
     """The translations of the messages static/*.js uses (the catalog knows where each is used)."""
-    if language == SOURCE:
+    if language == Language.en:
         return {}
     return {
         str(m.id): str(m.string)
@@ -68,7 +67,7 @@ def language_of(conn: HTTPConnection) -> Language:
 class Text(str):
     """A message of the server's that a participant may read: the English text as a str (logs,
     JSON replies) and `in_(language)` where a page shows it. Its msgid is a str.format template;
-    `Text` is an extraction keyword (app/locale/babel.cfg)."""
+    `make messages` extracts it."""
 
     message: str
     params: dict[str, Any]
