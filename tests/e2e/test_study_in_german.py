@@ -20,6 +20,7 @@ pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 WORD = re.compile(r"[^\W\d_]+")
 PLACEHOLDER = re.compile(r"\{\w+\}|%\(\w+\)[sd]")
+CODE = re.compile(r"\bP-[A-Z2-9]+\b")  # a participant's code: random letters ("P-A7KX" is no English "a")
 
 
 def words(text: str) -> set[str]:
@@ -47,7 +48,7 @@ SEEN = """() => [document.title, document.body.textContent,
 def in_german(page, name: str) -> None:
     page.wait_for_load_state("load")
     assert page.get_attribute("html", "lang") == "de", name
-    left = words(page.evaluate(SEEN)) & ENGLISH
+    left = words(CODE.sub(" ", page.evaluate(SEEN))) & ENGLISH
     assert not left, (name, sorted(left))
 
 
@@ -78,8 +79,10 @@ def arrive(browser, server):
     page.goto(server.url + "/study/roboter")
     in_german(page, "consent")
     page.click("#agree")
+    page.wait_for_url("**/code")  # each page checked once it is there, not while the last one goes
     in_german(page, "code")
     page.click("#continue")
+    page.wait_for_url("**/instructions")
     in_german(page, "instructions")
     page.click("#to-lobby")
     page.wait_for_url("**/lobby")
@@ -97,6 +100,7 @@ def test_every_participant_page_of_a_german_study_is_in_german(browser, server):
     cy = browser.new_context().new_page()  # Cy declines
     cy.goto(server.url + "/study/roboter")
     cy.click("#decline")
+    cy.wait_for_selector("#declined")
     in_german(cy, "declined")
     cy.goto(server.url + "/study/roboter/me")  # and has no pass: the error page
     assert cy.locator("#error-page[data-status='403']").count() == 1
@@ -158,6 +162,7 @@ def test_every_participant_page_of_a_german_study_is_in_german(browser, server):
     in_german(commander, "404")
     commander.goto(server.url + "/study/roboter/me")
     commander.click("#finish")
+    commander.wait_for_selector("#finish-confirm")
     in_german(commander, "finish early?")
     commander.click("#confirm-finish")
     assert commander.inner_text("#completion-code") == "TEIL"
