@@ -17,7 +17,7 @@ LEROBOT_VENV  := .venv-lerobot
 LEROBOT_STAMP := $(LEROBOT_VENV)/.installed-stamp
 LEROBOT_REQS  := tests/app/lerobot_env/requirements.txt
 
-.PHONY: run test lint bench clean lerobot-venv
+.PHONY: run test lint bench clean lerobot-venv messages
 
 $(STAMP): pyproject.toml robot_client/pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -44,6 +44,13 @@ lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy
+
+# The participant pages' messages (app/i18n.py, docs/study.md): extracted from the code into the
+# template, then merged into each language's catalog for its translator (new ones empty, changed ones
+# fuzzy). The server reads the .po files themselves: there is nothing to compile.
+messages: $(STAMP)
+	$(BIN)/pybabel extract -F app/locale/babel.cfg -k Text -k t --project=RobotSlang --no-wrap -o app/locale/messages.pot .
+	$(BIN)/pybabel update -i app/locale/messages.pot -d app/locale --no-wrap
 
 $(LEROBOT_STAMP): $(LEROBOT_REQS)
 	$(PYTHON) -m venv $(LEROBOT_VENV)

@@ -20,6 +20,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from app.cookies import cookie_name
 from app.deps import CsrfDep, CurrentLogin, SettingsDep, current_login, get_services
+from app.i18n import Text, browser_messages, language_of
 from app.settings import Settings
 
 BROWSER_COOKIE = "robotslang_browser"  # a random id per browser, which anonymous CSRF tokens bind to
@@ -164,9 +165,15 @@ def _cookie(headers: Headers, name: str) -> str | None:
     return None
 
 
-def template_context(request: Request) -> dict[str, str]:
-    """Every page's `csrf_token`, for `<meta name="csrf-token">` and its forms' `csrf_token` field."""
-    return {"csrf_token": get_services(request).csrf.issue(request.state.browser_id, current_login(request))}
+def template_context(request: Request) -> dict[str, object]:
+    """Every page's `csrf_token`, for `<meta name="csrf-token">` and its forms' `csrf_token` field,
+    and its language (`app.i18n`): `lang` and the translations its scripts use."""
+    lang = language_of(request)
+    return {
+        "csrf_token": get_services(request).csrf.issue(request.state.browser_id, current_login(request)),
+        "lang": lang,
+        "browser_messages": browser_messages(lang),
+    }
 
 
 async def csrf_protect(request: Request, settings: SettingsDep, csrf: CsrfDep, login: CurrentLogin) -> None:
@@ -183,4 +190,6 @@ async def csrf_protect(request: Request, settings: SettingsDep, csrf: CsrfDep, l
     if token is None:
         token = (await request.form()).get(CSRF_FIELD)
     if not isinstance(token, str) or not csrf.verify(token, request.state.browser_id, login):
-        raise HTTPException(403, "refused: the page's security token is missing or stale; reload the page and retry")
+        raise HTTPException(
+            403, Text("refused: the page's security token is missing or stale; reload the page and retry")
+        )

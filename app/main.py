@@ -19,6 +19,7 @@ from limits.storage import Storage
 from sqlalchemy import select
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
+from app import i18n
 from app.annotation.log import AnnotationLog
 from app.backends.registry import BackendParts
 from app.backends.render import FrameRenderer, InThread, RenderProcesses
@@ -28,6 +29,7 @@ from app.db.engine import WalCheckpointer, make_engine, make_sessionmaker, upgra
 from app.db.models import Experimenter
 from app.deps import LoginRequired
 from app.guard import GuardMiddleware, template_context
+from app.i18n import language_of, said
 from app.localization_study import LocalizationStudies
 from app.login import LoginGuard
 from app.mazes import Mazes
@@ -159,6 +161,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app = FastAPI(title="RobotSlang", lifespan=lifespan, docs_url=None, redoc_url=None)
     app.state.services = services
     app.state.templates = Jinja2Templates(directory=str(shipped("templates")), context_processors=[template_context])
+    i18n.install(app.state.templates.env)
     app.add_middleware(GuardMiddleware, settings=settings)
     app.mount("/static", StaticFiles(directory=str(shipped("static"))), name="static")
     app.include_router(pages.router)
@@ -178,9 +181,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     # A person following a link gets a page that says what to do; scripts keep the JSON error.
     @app.exception_handler(StarletteHTTPException)
     async def _http_error(request: Request, exc: StarletteHTTPException) -> Response:
-        if not wants_html(request):
+        if not wants_html(request):  # a participant's page script may show the detail: in their language
+            exc.detail = said(exc.detail, language_of(request))
             return await http_exception_handler(request, exc)
-        return error_page(request, exc.status_code, str(exc.detail))
+        return error_page(request, exc.status_code, exc.detail)
 
     @app.exception_handler(RequestValidationError)
     async def _bad_request(request: Request, exc: RequestValidationError) -> Response:

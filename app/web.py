@@ -15,19 +15,33 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Frame, Trial
 from app.deps import get_templates
+from app.i18n import Text, language_of, said
 from app.settings import Settings
+from app.study.config import StudyFiles
 from sim.trial import events as ev
 
 ADVICE = {
     403: (
-        "Not allowed",
-        "This page or action is not open to you. If you followed a join link, it may be "
-        "mistyped or belong to another trial. Ask your experimenter for a new join link.",
+        Text("Not allowed"),
+        Text(
+            "This page or action is not open to you. If you followed a join link, it may be "
+            "mistyped or belong to another trial. Ask your experimenter for a new join link."
+        ),
     ),
-    404: ("Page not found", "There is nothing at this address. Check the link, or start from the home page."),
-    409: ("Not possible now", "That cannot be done in the trial's present state. Go back and reload the page."),
-    422: ("That did not work", "Something in the request was not filled in as expected. Go back and try again."),
+    404: (
+        Text("Page not found"),
+        Text("There is nothing at this address. Check the link, or start from the home page."),
+    ),
+    409: (
+        Text("Not possible now"),
+        Text("That cannot be done in the trial's present state. Go back and reload the page."),
+    ),
+    422: (
+        Text("That did not work"),
+        Text("Something in the request was not filled in as expected. Go back and try again."),
+    ),
 }
+SOMETHING_WRONG = (Text("Something went wrong"), Text("Go back and try again."))
 
 
 def wants_html(request: Request) -> bool:
@@ -35,9 +49,18 @@ def wants_html(request: Request) -> bool:
     return "text/html" in request.headers.get("accept", "")
 
 
-def error_page(request: Request, status_code: int, detail: str | None) -> HTMLResponse:
-    heading, advice = ADVICE.get(status_code, ("Something went wrong", "Go back and try again."))
-    response = render(request, "error.html", status_code=status_code, heading=heading, advice=advice, detail=detail)
+def error_page(request: Request, status_code: int, detail: object) -> HTMLResponse:
+    """A page saying what went wrong and what to do, in the request's language (`app.i18n`)."""
+    lang = language_of(request)
+    heading, advice = (said(t, lang) for t in ADVICE.get(status_code, SOMETHING_WRONG))
+    response = render(
+        request,
+        "error.html",
+        status_code=status_code,
+        heading=heading,
+        advice=advice,
+        detail=said(detail, lang) if detail else None,
+    )
     response.status_code = status_code
     return response
 
@@ -54,13 +77,19 @@ def trial_or_404(db: Session, trial_id: int) -> Trial:
     return trial
 
 
-def over_reason(phase: str) -> str | None:
+def speak_study(request: Request, files: StudyFiles, study: str | None) -> None:
+    """The request's pages and messages in the study's language (`app.i18n`), where it is a study's."""
+    if study:
+        request.state.language = files.language(study)
+
+
+def over_reason(phase: str) -> Text | None:
     """Why a join link of a trial in `phase` opens nothing any more; None while the trial runs."""
     match phase:
         case "finished":
-            return "this trial is over: thank you for taking part"
+            return Text("this trial is over: thank you for taking part")
         case "aborted":
-            return "this trial was stopped: ask the experimenter what comes next"
+            return Text("this trial was stopped: ask the experimenter what comes next")
     return None
 
 

@@ -3,9 +3,10 @@
 import {$, on, send, status, token} from "./seat.js";
 import {showImage, TableMap} from "./maputil.js";
 import {markTool} from "./marktool.js";
-import {landmarkWords, markWords, wallWords} from "./mapwords.js";
+import {landmarkWords, markWords, thing, wallWords} from "./mapwords.js";
 import {RUNNING} from "./trial.js";
 import {calm, raise} from "./alert.js";
+import {t} from "./i18n.js";
 
 const root = $("seat");
 const landmarks = JSON.parse(root.dataset.landmarks);  // name -> [x, y] metres
@@ -17,7 +18,7 @@ const STORE = `robotslang:estimate:${token}`;
 let estimate = load();
 
 map.onload = draw;
-map.onerror = () => { $("map-hint").textContent = "The map could not be loaded. Reload the page."; };
+map.onerror = () => { $("map-hint").textContent = t("The map could not be loaded. Reload the page."); };
 map.src = `/play/${encodeURIComponent(token)}/map.png`;
 
 function load() {
@@ -44,7 +45,7 @@ function draw() {
   document.querySelectorAll("#legend li[data-landmark]").forEach((li) => {
     const isNext = li.dataset.landmark === next;
     li.classList.toggle("next", isNext);
-    li.querySelector(".next-note").textContent = isNext ? " (next target)" : "";
+    li.querySelector(".next-note").textContent = isNext ? t(" (next target)") : "";
   });
   inWords(next);
 }
@@ -73,23 +74,23 @@ const tool = markTool(canvas, {start: () => estimate, mark: localize, redraw: dr
 // -- the next target and claims -----------------------------------------------------------------
 function showTarget() {
   const next = nextTarget(), index = status.target_index;
-  $("target-name").textContent = status.phase === "finished" ? "all three found!" : (next || "—");
+  $("target-name").textContent = status.phase === "finished" ? t("all three found!") : (next ? thing(next) : "—");
   const img = $("target-image"), src = next ? `/play/${encodeURIComponent(token)}/target/${index}.jpg` : "";
   if (img.dataset.src !== src) {
     img.dataset.src = src;
-    img.alt = next ? `the ${next}, as the robot's camera would see it` : "";
+    img.alt = next ? t("the {thing}, as the robot's camera would see it", {thing: thing(next)}) : "";
     showImage(img, src);
   }
   $("map-hint").textContent = status.phase === "localizing"
-    ? "Mark where you think the robot is: click (drag to give its heading), tap, or use the keyboard."
-    : RUNNING.has(status.phase) ? "You can mark the robot again at any time." : "";
+    ? t("Mark where you think the robot is: click (drag to give its heading), tap, or use the keyboard.")
+    : RUNNING.has(status.phase) ? t("You can mark the robot again at any time.") : "";
   draw();
 }
 function showClaim(claim) {
   const box = $("claim");
   if (!claim || !claim.jpeg) { box.hidden = true; calm(); return; }
   showImage($("claim-image"), `data:image/jpeg;base64,${claim.jpeg}`);
-  if (box.hidden) raise("Claim to judge");  // once per claim, not again on a reconnect's welcome
+  if (box.hidden) raise(t("Claim to judge"));  // once per claim, not again on a reconnect's welcome
   box.hidden = false;
   $("confirm").focus();
 }

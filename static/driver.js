@@ -2,9 +2,10 @@
 import {$, on, send, showError} from "./seat.js";
 import {showImage} from "./maputil.js";
 import {friendlyError, isRunning} from "./trial.js";
+import {t} from "./i18n.js";
 
 const KEYS = {ArrowUp: "forward", ArrowLeft: "left", ArrowRight: "right"};
-const WORDS = {forward: "forward", left: "left", right: "right"};
+const WORDS = {forward: t("forward"), left: t("left"), right: t("right")};
 const MOVE_TIMEOUT_MS = 5000;  // a move whose result never came (e.g. the server restarted)
 const MARGIN_MS = 100;  // on top of the server's interval: a loaded server may take the last move up to this late
 const minIntervalMs = 1000 * Number($("seat").dataset.minMoveIntervalS || 0);
@@ -20,8 +21,8 @@ function showProgress() {
   $("seat").dataset.moving = String(moving);
   $("seat").dataset.queued = queued || "";
   $("move-progress").hidden = !moving && !queued;
-  $("move-progress").textContent = moving ? `Moving ${WORDS[pendingAction]}…${queued ? ` then ${WORDS[queued]}.` : ""}`
-    : queued ? `Next: ${WORDS[queued]}.` : "";
+  $("move-progress").textContent = moving ? (queued ? t("Moving {way}… then {next}.", {way: WORDS[pendingAction], next: WORDS[queued]})
+    : t("Moving {way}…", {way: WORDS[pendingAction]})) : queued ? t("Next: {way}.", {way: WORDS[queued]}) : "";
 }
 
 function sendMove(action) {
@@ -45,7 +46,7 @@ function drain() {
 
 function move(action) {
   if (pending !== null && performance.now() - pendingSince > MOVE_TIMEOUT_MS) pending = null;  // its result is lost
-  if (queued) { note("Wait: the robot is still moving, and your next move is queued."); return; }
+  if (queued) { note(t("Wait: the robot is still moving, and your next move is queued.")); return; }
   queued = action;
   drain();
   showProgress();
@@ -71,7 +72,7 @@ on("status", (s) => {
   ["forward", "left", "right"].forEach((a) => { $(a).disabled = !live; });
   if (!live) dropQueue();  // a press queued before a pause or a claim is not carried past it
   $("found").disabled = !(live && s.phase === "navigating");
-  if (s.phase === "finished") { note("All three targets found. Well done!"); showError(""); }
+  if (s.phase === "finished") { note(t("All three targets found. Well done!")); showError(""); }
   else if (s.phase === "aborted") { note(""); showError(""); }
 });
 on("move_executed", (msg) => {
@@ -79,7 +80,7 @@ on("move_executed", (msg) => {
   if (p.move_id !== pending) return;  // not this page's (another window of the seat), or given up on
   pending = null;
   if (p.outcome === "refused") dropQueue();
-  note(p.outcome === "collision" ? "Bump! Something is in the way."
+  note(p.outcome === "collision" ? t("Bump! Something is in the way.")
     : p.outcome === "refused" ? friendlyError(p.reason) : "");
   showProgress();
   drain();
@@ -91,7 +92,7 @@ on("move_refused", (msg) => {
 });
 // Over the seat's rate the move was dropped unanswered: a press after the pause may go.
 on("error", (msg) => { if (msg.code === "rate_limited") { pending = null; showProgress(); drain(); } });
-on("target_claimed", () => note("Waiting for the Commander to confirm…"));
+on("target_claimed", () => note(t("Waiting for the Commander to confirm…")));
 // A decision answers the claim: a refusal shown while it was pending no longer applies.
-on("target_confirmed", () => { note("Confirmed! On to the next target."); showError(""); });
-on("target_rejected", () => { note("The Commander says that is not it. Keep looking."); showError(""); });
+on("target_confirmed", () => { note(t("Confirmed! On to the next target.")); showError(""); });
+on("target_rejected", () => { note(t("The Commander says that is not it. Keep looking.")); showError(""); });

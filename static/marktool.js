@@ -2,13 +2,14 @@
 // the robot is and drag towards where it faces (mouse or touch), or use the keyboard: arrows move
 // a cursor (Shift for small steps), [ and ] (or Q and E) turn it, Enter marks, Escape removes it.
 import {TableMap} from "./maputil.js";
-import {facing} from "./mapwords.js";
+import {facingWords, m} from "./mapwords.js";
+import {t} from "./i18n.js";
 
 const STEP_M = 0.05, TURN = Math.PI / 4;
 
 function describe(c) {
-  return `Cursor ${c.x.toFixed(2)} m from the left, ${c.y.toFixed(2)} m from the bottom, facing ${facing(c.heading)}. ` +
-    "Press Enter to mark the robot here.";
+  return t("Cursor {x} m from the left, {y} m from the bottom, {facing}. Press Enter to mark the robot here.",
+    {x: m(c.x), y: m(c.y), facing: facingWords(c.heading)});
 }
 
 // start(): the mark the keyboard cursor starts from (or null: the map's centre);
@@ -40,7 +41,7 @@ export function markTool(canvas, {start, mark, redraw, note}) {
     const turns = {"[": 1, q: 1, Q: 1, "]": -1, e: -1, E: -1};
     if (!(ev.key in moves) && !(ev.key in turns) && ev.key !== "Enter" && ev.key !== "Escape") return;
     ev.preventDefault();
-    if (ev.key === "Escape") { cursor = null; note("Cursor removed."); redraw(); return; }
+    if (ev.key === "Escape") { cursor = null; note(t("Cursor removed.")); redraw(); return; }
     if (!cursor) {
       const from = start() || {x: TableMap.W_M / 2, y: TableMap.H_M / 2};
       cursor = {x: from.x, y: from.y, heading: from.heading ?? 0};
@@ -49,7 +50,7 @@ export function markTool(canvas, {start, mark, redraw, note}) {
       const c = cursor;
       cursor = null;
       put(c.x, c.y, c.heading);
-      note("Marked: the robot is here.");
+      note(t("Marked: the robot is here."));
       redraw(); return;
     }
     if (ev.key in moves) {

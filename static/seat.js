@@ -3,6 +3,7 @@
 // (announced to screen readers when it changes). Page modules subscribe with on(kind, handler).
 import {applyStatus, clockSeconds, emptyStatus, foldEvent, formatClock, friendlyError, joinSecondsLeft, OVER,
         statusText} from "./trial.js";
+import {t} from "./i18n.js";
 
 export const $ = (id) => document.getElementById(id);
 const root = $("seat");
@@ -16,7 +17,7 @@ export function on(kind, fn) { (handlers[kind] = handlers[kind] || []).push(fn);
 function emit(kind, msg) { (handlers[kind] || []).forEach((fn) => fn(msg)); }
 
 export function send(type, fields = {}) {
-  if (!ws || ws.readyState !== WebSocket.OPEN) { showError("Not connected right now; reconnecting…"); return false; }
+  if (!ws || ws.readyState !== WebSocket.OPEN) { showError(t("Not connected right now; reconnecting…")); return false; }
   ws.send(JSON.stringify({type, token, ...fields}));
   return true;
 }
@@ -27,7 +28,7 @@ function addChat(p) {
   const li = document.createElement("li");
   li.className = p.role;
   const who = document.createElement("b");
-  who.textContent = p.role === role ? "You" : (p.role === "commander" ? "Commander" : "Driver");
+  who.textContent = p.role === role ? t("You") : (p.role === "commander" ? t("Commander") : t("Driver"));
   li.append(who, document.createTextNode(" " + p.text));
   $("messages").append(li);
   li.scrollIntoView({block: "nearest"});
@@ -35,7 +36,7 @@ function addChat(p) {
 
 let announced = "";
 function renderStatus() {
-  const text = statusText(status, role, after ? "Press Continue to go on." : undefined);
+  const text = statusText(status, role, after ? t("Press Continue to go on.") : undefined);
   $("status").textContent = text;
   $("status").dataset.phase = status.phase;
   document.body.dataset.phase = status.phase;
@@ -125,8 +126,8 @@ function handle(msg) {
 
 function elsewhere(show) {
   $("elsewhere").hidden = !show;
-  if (show) { $("status").textContent = "This seat is open in another window."; $("announce").textContent =
-    "This seat was opened in another window or device."; }
+  if (show) { $("status").textContent = t("This seat is open in another window."); $("announce").textContent =
+    t("This seat was opened in another window or device."); }
 }
 
 function connect() {
@@ -140,7 +141,7 @@ function connect() {
     if (ev.code === 4410) { location.reload(); return; }  // the trial ended: its link's page says so, and where to go on
     if (ev.code === 1008) { showError(friendlyError(ev.reason || "token refused")); return; }
     if (OVER.has(status.phase)) return;
-    $("status").textContent = "Connection lost; reconnecting…";
+    $("status").textContent = t("Connection lost; reconnecting…");
     setTimeout(connect, delay); delay = Math.min(delay * 2, 8000);
   };
 }

@@ -3,18 +3,19 @@
 // so nobody is paired with us once we have gone. Being paired raises an alert (title, beep, the
 // partner's seat) a moment before the seat opens, for one who looked away while waiting.
 import { beep, raise, unlockSound } from "./alert.js";
+import { t } from "./i18n.js";
 
 const lobby = document.getElementById("lobby");
 const status = document.getElementById("lobby-status");
 const csrf = document.querySelector('meta[name="csrf-token"]').content;
 const url = `/study/${encodeURIComponent(lobby.dataset.study)}/lobby`;
 let gone = false;  // seated, or left by the button: nothing to tell as the page closes
-const SEATS = { commander: "the Commander (you see the map)", driver: "the Driver (you see the camera and move)" };
+const SEATS = { commander: t("the Commander (you see the map)"), driver: t("the Driver (you see the camera and move)") };
 const OPEN_SEAT_AFTER_MS = 2000;  // the alert is seen and heard before the seat page replaces it
 
 document.getElementById("sound-on").addEventListener("click", async (event) => {
   await unlockSound();
-  event.target.textContent = beep() ? "Sound is on" : "Sound is blocked by this browser";
+  event.target.textContent = beep() ? t("Sound is on") : t("Sound is blocked by this browser");
 });
 
 document.getElementById("leave-lobby").addEventListener("submit", () => { gone = true; });
@@ -30,37 +31,41 @@ async function poll() {
   try {
     const reply = await fetch(url, { method: "POST", headers: { "X-CSRF-Token": csrf } });
     if (reply.status === 429) {  // over the lobby's rate: the server says when; ask again then
-      status.textContent = `Please wait: ${(await reply.json()).detail}.`;
+      status.textContent = t("Please wait: {why}.", { why: (await reply.json()).detail });
       setTimeout(poll, 1000 * Number(reply.headers.get("Retry-After") || 2));
       return;
     }
     if (!reply.ok) throw new Error((await reply.json()).detail || reply.statusText);
     state = await reply.json();
   } catch (err) {
-    status.textContent = `Cannot reach the server (${err.message}); retrying…`;
+    status.textContent = t("Cannot reach the server ({why}); retrying…", { why: err.message });
     setTimeout(poll, 2000);
     return;
   }
   if (state.state === "seated") {
     const partner = state.role === "commander" ? "driver" : "commander";
-    status.textContent = `Paired! You are ${SEATS[state.role]}; your partner is ${SEATS[partner]}. Opening your trial…`;
+    status.textContent = t("Paired! You are {seat}; your partner is {partner}. Opening your trial…",
+      { seat: SEATS[state.role], partner: SEATS[partner] });
     lobby.dataset.seat = state.role;
     lobby.dataset.partnerSeat = partner;
-    raise("Paired!");
+    raise(t("Paired!"));
     gone = true;
     setTimeout(() => window.location.assign(state.link), OPEN_SEAT_AFTER_MS);
   } else if (state.state === "all_played") {
-    status.textContent = `You have played all ${state.trials} of your trials. Answer the last questionnaire and get your completion code on your page.`;
+    status.textContent = t("You have played all {trials} of your trials. Answer the last questionnaire and get your completion code on your page.",
+      { trials: state.trials });
   } else if (state.state === "timed_out" || state.state === "ended") {
     // The end of the way, recorded already: its page gives the outcome's code.
     status.textContent = state.state === "timed_out"
-      ? `Nobody arrived within ${Math.round(state.waited_s / 60)} minutes. Thank you for waiting: your completion code is next.`
-      : "Your part in the study has ended. Your completion code is next.";
+      ? t("Nobody arrived within {minutes} minutes. Thank you for waiting: your completion code is next.",
+        { minutes: Math.round(state.waited_s / 60) })
+      : t("Your part in the study has ended. Your completion code is next.");
     gone = true;
     setTimeout(() => window.location.assign(state.next), 3000);
   } else {
     const others = state.waiting - 1;
-    status.textContent = others ? `${others} other participant(s) waiting: pairing…` : "You are the only one waiting. A partner will be found as soon as one arrives.";
+    status.textContent = others ? t("Others waiting: {others}. Pairing…", { others })
+      : t("You are the only one waiting. A partner will be found as soon as one arrives.");
     lobby.dataset.waiting = String(state.waiting);
     setTimeout(poll, 1000);
   }

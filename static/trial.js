@@ -1,6 +1,7 @@
 // One trial's status, as every page shows it: the event fold (the same rules as
 // app/trial/state.py), the server's `status` message, the trial clock and plain-language texts.
 // Shared by the seat pages, the experimenter's trial page and the replay.
+import {t} from "./i18n.js";
 
 export const RUNNING = new Set(["localizing", "navigating"]);
 export const OVER = new Set(["finished", "aborted"]);
@@ -70,66 +71,85 @@ export function formatClock(seconds) {
   return `${m}:${String(sec).padStart(2, "0")}`;
 }
 
-const PARTNER = {commander: "Driver", driver: "Commander"};
-
 // What is going on, in words a participant (or the experimenter) needs: what to do now.
 // `afterwards`: what to do once the trial ended early (a study's seat goes on from the page).
-export function statusText(s, role, afterwards = "You can close this page.") {
-  const partner = PARTNER[role];
-  const target = `target ${Math.min(s.target_index + 1, s.targets_total)} of ${s.targets_total}`;
-  if (s.phase === "finished") return "Finished: all three targets found. Thank you!";
+export function statusText(s, role, afterwards = t("You can close this page.")) {
+  const target = {n: Math.min(s.target_index + 1, s.targets_total), of: s.targets_total};
+  if (s.phase === "finished") return t("Finished: all three targets found. Thank you!");
   if (s.phase === "aborted") {
-    return `This trial has ended early${s.abort_reason ? ` (${s.abort_reason})` : ""}. ${afterwards}`;
+    return s.abort_reason
+      ? t("This trial has ended early ({why}). {afterwards}", {why: abortWords(s.abort_reason, role), afterwards})
+      : t("This trial has ended early. {afterwards}", {afterwards});
   }
   const missing = s.waiting_for.length ? s.waiting_for
     : (s.paused.filter((r) => r.startsWith("disconnect:")).map((r) => r.slice("disconnect:".length)));
   if (s.phase === "waiting") {
-    if (!missing.length) return "Starting…";
-    return `Waiting for ${missing.map((r) => who(r, role)).join(" and ")} to join.`;
+    if (!missing.length) return t("Starting…");
+    return t("Waiting for {who} to join.", {who: whom(missing, role)});
   }
-  if (s.paused.includes("experimenter")) return "Paused by the experimenter. The clock is stopped.";
-  if (missing.length) return `Paused: ${missing.map((r) => who(r, role)).join(" and ")} lost the connection. ` +
-    "The clock is stopped until they are back.";
+  if (s.paused.includes("experimenter")) return t("Paused by the experimenter. The clock is stopped.");
+  if (missing.length) {
+    return t("Paused: {who} lost the connection. The clock is stopped until they are back.", {who: whom(missing, role)});
+  }
   if (s.phase === "localizing") {
-    if (role === "commander") return "Find out where the robot is: ask the Driver what they see, then mark it on the map.";
-    if (role === "driver") return "Tell the Commander what you see, so they can find the robot on the map.";
-    return "Localizing: the Commander is finding the robot on the map.";
+    if (role === "commander") return t("Find out where the robot is: ask the Driver what they see, then mark it on the map.");
+    if (role === "driver") return t("Tell the Commander what you see, so they can find the robot on the map.");
+    return t("Localizing: the Commander is finding the robot on the map.");
   }
   if (s.claim_pending) {
-    if (role === "commander") return `The Driver says they found ${target}: confirm or reject it.`;
-    if (role === "driver") return "Waiting for the Commander to confirm your claim.";
-    return `The Driver claims ${target}: waiting for the Commander to decide.`;
+    if (role === "commander") return t("The Driver says they found target {n} of {of}: confirm or reject it.", target);
+    if (role === "driver") return t("Waiting for the Commander to confirm your claim.");
+    return t("The Driver claims target {n} of {of}: waiting for the Commander to decide.", target);
   }
-  if (role === "commander") return `Guide the Driver to ${target}.`;
-  if (role === "driver") return `Drive to ${target}. Press "I found the target" when you see it.`;
-  return `Navigating to ${target}.`;
+  if (role === "commander") return t("Guide the Driver to target {n} of {of}.", target);
+  if (role === "driver") return t("Drive to target {n} of {of}. Press \"I found the target\" when you see it.", target);
+  return t("Navigating to target {n} of {of}.", target);
 }
 
 function who(seat, role) {
-  if (seat === "robot") return "the robot";
-  if (seat === role) return "you";
-  return seat === "commander" ? "the Commander" : "the Driver";
+  if (seat === "robot") return t("the robot");
+  if (seat === role) return t("you");
+  return seat === "commander" ? t("the Commander") : t("the Driver");
+}
+const whom = (seats, role) => seats.map((seat) => who(seat, role)).join(t(" and "));
+
+// Why a trial ended early, as the server logs it (sim/trial/decide.py; the experimenter's own words after the colon).
+const ABORTS = [
+  [/^the (\w+)(?: and the (\w+))? never joined$/, (found, role) => t("{who} never joined",
+    {who: whom(found.slice(1).filter(Boolean), role)})],
+  [/^the (\w+) was away longer than the grace period$/, (found, role) => t("{who} was away longer than the grace period",
+    {who: who(found[1], role)})],
+  [/^stopped by the experimenter$/, () => t("stopped by the experimenter")],
+  [/^stopped by the experimenter: (.*)$/s, (found) => t("stopped by the experimenter: {said}", {said: found[1]})],
+];
+
+function abortWords(reason, role) {
+  for (const [pattern, words] of ABORTS) {
+    const found = pattern.exec(reason);
+    if (found) return words(found, role);
+  }
+  return reason;
 }
 
 // Server error strings to what the participant can do about them (no internal words).
 const ERRORS = [
-  [/only while navigating/, "Wait until the Commander has marked where the robot is."],
-  [/previous claim is still waiting/, "Wait: the Commander is still looking at your last claim."],
-  [/no camera frame/, "Wait until the camera picture appears."],
-  [/no claimed target/, "The Driver has not said they found the target yet."],
-  [/still executing|too soon after/, "Wait: the robot is still moving."],
-  [/robot is not connected/, "The robot is not connected. Tell the experimenter."],
-  [/waiting for the/, "Wait until everyone has joined."],
-  [/paused/, "The trial is paused. Wait until it goes on."],
-  [/cannot mark the robot while/, "You can mark the robot once the trial has started."],
-  [/the trial is (finished|aborted)/, "The trial is over."],
-  [/bytes; the limit is|at most \d+ characters|string_too_long/, "That message is too long. Please shorten it."],
-  [/too many messages/, "Slow down: that was not sent. Wait a moment and send it again."],
-  [/token|seat/, "This link no longer works. Ask the experimenter for a new one."],
-  [/server restart/, "The server restarted. Please try again."],
+  [/only while navigating/, t("Wait until the Commander has marked where the robot is.")],
+  [/previous claim is still waiting/, t("Wait: the Commander is still looking at your last claim.")],
+  [/no camera frame/, t("Wait until the camera picture appears.")],
+  [/no claimed target/, t("The Driver has not said they found the target yet.")],
+  [/still executing|too soon after/, t("Wait: the robot is still moving.")],
+  [/robot is not connected/, t("The robot is not connected. Tell the experimenter.")],
+  [/waiting for the/, t("Wait until everyone has joined.")],
+  [/paused/, t("The trial is paused. Wait until it goes on.")],
+  [/cannot mark the robot while/, t("You can mark the robot once the trial has started.")],
+  [/the trial is (finished|aborted)/, t("The trial is over.")],
+  [/bytes; the limit is|at most \d+ characters|string_too_long/, t("That message is too long. Please shorten it.")],
+  [/too many messages/, t("Slow down: that was not sent. Wait a moment and send it again.")],
+  [/token|seat/, t("This link no longer works. Ask the experimenter for a new one.")],
+  [/server restart/, t("The server restarted. Please try again.")],
 ];
 
 export function friendlyError(text) {
   for (const [pattern, words] of ERRORS) if (pattern.test(text || "")) return words;
-  return "That did not work. Try again, or tell the experimenter.";
+  return t("That did not work. Try again, or tell the experimenter.");
 }

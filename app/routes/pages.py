@@ -25,6 +25,7 @@ from app.deps import (
     StudyFilesDep,
 )
 from app.guard import csrf_protect
+from app.i18n import language_of, said
 from app.leaderboard import agent_standings, pair_standings, standings
 from app.login import TooManyAttempts
 from app.security import (
@@ -37,7 +38,7 @@ from app.security import (
     SeatTokens,
 )
 from app.study.config import StudyConfigError
-from app.web import over_reason, render, trial_or_404
+from app.web import over_reason, render, speak_study, trial_or_404
 from sim.trial.state import fold
 
 router = APIRouter()
@@ -46,9 +47,9 @@ router = APIRouter()
 class ClosedLink(HTTPException):
     """A genuine join link that opens nothing any more: expired, or its trial is over (410 Gone)."""
 
-    def __init__(self, reason: str, after_url: str | None = None) -> None:
+    def __init__(self, reason: str, after_url: str | None = None, study: str | None = None) -> None:
         super().__init__(410, reason)
-        self.after_url = after_url
+        self.after_url, self.study = after_url, study
 
 
 def after_trial_url(trial: Trial) -> str | None:
@@ -66,7 +67,7 @@ def seat_of(seats: SeatTokens, db: Session, token: str) -> tuple[Seat, Trial]:
         raise HTTPException(403, str(err)) from None
     trial = trial_or_404(db, seat.trial_id)
     if (reason := over_reason(trial.phase)) is not None:
-        raise ClosedLink(reason, after_trial_url(trial))
+        raise ClosedLink(reason, after_trial_url(trial), trial.study)
     return seat, trial
 
 
@@ -166,14 +167,23 @@ def leaderboard(
 
 @router.get("/play/{token}", response_class=HTMLResponse)
 def play(
-    request: Request, token: str, seats: SeatTokensDep, db: DbSession, mazes: MazesDep, settings: SettingsDep
+    request: Request,
+    token: str,
+    seats: SeatTokensDep,
+    db: DbSession,
+    mazes: MazesDep,
+    settings: SettingsDep,
+    files: StudyFilesDep,
 ) -> HTMLResponse:
     try:
         seat, trial = seat_of(seats, db, token)
     except ClosedLink as closed:
-        response = render(request, "link_closed.html", reason=closed.detail, after_url=closed.after_url)
+        speak_study(request, files, closed.study)
+        reason = said(closed.detail, language_of(request))
+        response = render(request, "link_closed.html", reason=reason, after_url=closed.after_url)
         response.status_code = 410
         return response
+    speak_study(request, files, trial.study)
     after_url = after_trial_url(trial)
     if seat.role == "commander":  # where the landmarks are: the Commander's to know, never the Driver's
         landmarks, walls = mazes.landmarks(trial.maze), mazes.map_walls(trial.maze)

@@ -32,6 +32,7 @@ from app.deps import (
     experimenter_id,
 )
 from app.guard import csrf_protect
+from app.i18n import Text
 from app.security import InvalidToken
 from app.study.answers import asked, items, study_answers
 from app.study.config import StudyConfig, StudyConfigError, StudyFiles, StudyOutcome, check_mazes, parse, template
@@ -54,8 +55,15 @@ from app.study.roster import roster, roster_csv
 from app.study.signups import SignupLimits, Step
 from app.trial.hub import TrialHub
 from app.trial.lifecycle import live_trial_of
+from app.web import speak_study
 
-router = APIRouter(dependencies=[Depends(csrf_protect)])
+
+def study_language(request: Request, files: StudyFilesDep, name: str) -> None:
+    speak_study(request, files, name)
+
+
+# A participant's pages and messages are in their study's language (`app.i18n`), its refusals too.
+router = APIRouter(dependencies=[Depends(study_language), Depends(csrf_protect)])
 experimenter_router = APIRouter(
     prefix="/experimenter/studies", dependencies=[Depends(experimenter_id), Depends(csrf_protect)]
 )
@@ -74,7 +82,9 @@ def study_or_404(files: StudyFiles, name: str) -> StudyConfig:
     except LookupError as err:
         raise HTTPException(404, str(err)) from None
     except StudyConfigError as err:
-        raise HTTPException(503, f"this study cannot run until the experimenter fixes it: {err}") from None
+        raise HTTPException(
+            503, Text("this study cannot run until the experimenter fixes it: {problem}", problem=err)
+        ) from None
 
 
 class Participation:
@@ -93,9 +103,11 @@ class Participation:
                 raise InvalidToken("another study's pass")
             self.enrolled = self.enrolment.get(study_pass.enrolment_id)
         except (InvalidToken, LookupError):
-            raise HTTPException(403, f"this browser has not joined the study yet: open /study/{name}") from None
+            raise HTTPException(
+                403, Text("this browser has not joined the study yet: open /study/{name}", name=name)
+            ) from None
         if self.enrolled.withdrawn_at is not None:
-            raise HTTPException(410, "you have withdrawn from this study; thank you for your time")
+            raise HTTPException(410, Text("you have withdrawn from this study; thank you for your time"))
         self.code = self.enrolment.code(self.enrolled)
         db.commit()  # end the reads' transaction (rows stay loaded) so a route may `with db.begin()`
 
@@ -111,9 +123,9 @@ def _page(templates: TemplatesDep, request: Request, name: str, status: int = 20
 def _busy(templates: TemplatesDep, request: Request, config: StudyConfig, limited: Limited) -> HTMLResponse:
     """The page for a sign-up over the study's rate: when to come back."""
     seconds = limited.retry_after_s
-    count, unit = (seconds, "second") if seconds < 60 else (math.ceil(seconds / 60), "minute")
-    wait = f"{count} {unit}{'s' * (count > 1)}"
-    response = _page(templates, request, "busy", status=429, study=config, wait=wait)
+    response = _page(
+        templates, request, "busy", status=429, study=config, seconds=seconds, minutes=math.ceil(seconds / 60)
+    )
     response.headers["Retry-After"] = str(limited.retry_after_s)
     return response
 
@@ -176,7 +188,7 @@ def consent(
     if config.closed(datetime.now(UTC)):
         return _page(templates, request, "closed", status=410, study=config)
     if consent_version != config.consent.version:
-        error = "the information changed while the page was open: please read it again"
+        error = Text("the information changed while the page was open: please read it again")
         return _page(templates, request, "consent", status=409, study=config, error=error)
     try:
         signups.take(Step.consent, name, _address(request))
@@ -269,7 +281,10 @@ def _enter_lobby(signups: SignupLimits, study: str, address: str) -> None:
     except Limited as limited:
         raise HTTPException(
             429,
-            f"more people are joining the lobby than it takes at once; trying again in {limited.retry_after_s} s",
+            Text(
+                "more people are joining the lobby than it takes at once; trying again in {seconds} s",
+                seconds=limited.retry_after_s,
+            ),
             headers={"Retry-After": str(limited.retry_after_s)},
         ) from None
 
@@ -344,7 +359,7 @@ def after_trial(me: ParticipationDep, trial_id: int) -> RedirectResponse:
     try:
         step = me.enrolment.after(me.enrolled, trial_id)
     except EnrolmentError as err:
-        raise HTTPException(404, str(err)) from err
+        raise HTTPException(404, err.args[0]) from err
     pages = {
         AfterTrial.questionnaire: f"trials/{trial_id}/questionnaire",
         AfterTrial.lobby: "lobby",
@@ -359,7 +374,7 @@ def questionnaire(me: ParticipationDep, trial_id: int, request: Request, templat
     try:
         me.enrolment.questionnaire_due(me.enrolled, trial_id)
     except EnrolmentError as err:
-        raise HTTPException(404, str(err)) from err
+        raise HTTPException(404, err.args[0]) from err
     return _page(templates, request, "questionnaire", study=me.config, code=me.code, trial_id=trial_id, form={})
 
 
@@ -379,7 +394,7 @@ async def answer(me: ParticipationDep, trial_id: int, request: Request, template
             code=me.code,
             trial_id=trial_id,
             form=form,
-            error=str(err),
+            error=err.args[0],
         )
     return RedirectResponse(f"/study/{me.config.name}/me", status_code=303)
 

@@ -16,6 +16,8 @@ from urllib.parse import quote
 
 from pydantic import AwareDatetime, BaseModel, Field, HttpUrl, ValidationError, field_validator, model_validator
 
+from app.i18n import Language
+
 NAME_PATTERN = re.compile(r"^[a-z0-9][a-z0-9_-]{0,79}$")
 RATING_SCALE = (1, 5)
 PARAM_PATTERN = r"^[A-Za-z0-9_.-]{1,60}$"  # a query parameter's name in a panel's link
@@ -150,6 +152,7 @@ class StudyConfig(BaseModel):
     closed_at: AwareDatetime | None = None
     purge_after_days: int | None = Field(default=None, ge=0)
     webhook_url: HttpUrl | None = None  # receives the study's events as JSON (`app.study.webhook`)
+    language: Language = Language.en  # of every page and message its participants see (`app.i18n`)
     panel: PanelLink | None = None  # participants recruited on a panel (Prolific, ...): its link and completion address
 
     @field_validator("name")
@@ -276,6 +279,13 @@ class StudyFiles:
         except LookupError:  # trials marked with a study's name that has no file
             own = None
         return default if own is None else own
+
+    def language(self, name: str) -> Language:
+        """The language of the study's participant pages (English for a name with no usable file)."""
+        try:
+            return self.load(name).language
+        except (LookupError, StudyConfigError):
+            return Language.en
 
     def version(self, name: str, version: int) -> StudyConfig:
         """The study as it was at `version` (the current one, or one kept before it)."""

@@ -13,6 +13,7 @@ from sqlalchemy.orm import Session
 
 from app.clock import ServerClock
 from app.db.models import Participant, StudyAnswer, StudyEvent, StudyParticipant, Trial
+from app.i18n import Text
 from app.study.config import RATING_SCALE, PanelIds, QuestionKind, StudyConfig, StudyOutcome
 from app.study.lobby import PRACTICE_REASON, end_wait
 from app.trial.setup import never_joined
@@ -139,7 +140,7 @@ class Enrolment:
         self._active(enrolled)
         name = name.strip()
         if len(name) > 120:
-            raise EnrolmentError("a name is at most 120 characters")
+            raise EnrolmentError(Text("a name is at most 120 characters"))
         enrolled.real_name = name or None
 
     def trials(self, enrolled: StudyParticipant) -> list[Trial]:
@@ -160,7 +161,7 @@ class Enrolment:
     def _own(self, enrolled: StudyParticipant, trial_id: int) -> Trial:
         trial = self.db.get(Trial, trial_id)
         if trial is None or trial not in self.trials(enrolled):
-            raise EnrolmentError(f"trial {trial_id} is not one of yours in this study")
+            raise EnrolmentError(Text("trial {trial} is not one of yours in this study", trial=trial_id))
         return trial
 
     def after(self, enrolled: StudyParticipant, trial_id: int) -> AfterTrial:
@@ -182,13 +183,13 @@ class Enrolment:
         self._active(enrolled)
         trial = self._own(enrolled, trial_id)
         if trial.excluded_reason == PRACTICE_REASON:
-            raise EnrolmentError("the practice trial has no questionnaire")
+            raise EnrolmentError(Text("the practice trial has no questionnaire"))
         if trial.phase not in ("finished", "aborted"):
-            raise EnrolmentError("the questionnaire opens when the trial is over")
+            raise EnrolmentError(Text("the questionnaire opens when the trial is over"))
         if self.unplayed([trial]):
-            raise EnrolmentError("this trial never started (a seat was never opened): it has no questionnaire")
+            raise EnrolmentError(Text("this trial never started (a seat was never opened): it has no questionnaire"))
         if trial_id in self.answered(enrolled):
-            raise EnrolmentError("you have already answered the questionnaire for this trial")
+            raise EnrolmentError(Text("you have already answered the questionnaire for this trial"))
 
     def answer(self, enrolled: StudyParticipant, trial_id: int, form: dict[str, str]) -> None:
         """The questionnaire after `trial_id`: every rating item answered 1-5, free text optional."""
@@ -199,13 +200,17 @@ class Enrolment:
             value = form.get(q.id, "").strip()
             if q.kind is QuestionKind.free_text:
                 if len(value) > MAX_FREE_TEXT:
-                    raise EnrolmentError(f"'{q.prompt}' takes at most {MAX_FREE_TEXT} characters")
+                    raise EnrolmentError(
+                        Text("'{prompt}' takes at most {n} characters", prompt=q.prompt, n=MAX_FREE_TEXT)
+                    )
                 if value:
                     free_text[q.id] = value
                 continue
             low, high = RATING_SCALE
             if not value.isdigit() or not low <= int(value) <= high:
-                raise EnrolmentError(f"'{q.prompt}' needs a rating from {low} to {high}")
+                raise EnrolmentError(
+                    Text("'{prompt}' needs a rating from {low} to {high}", prompt=q.prompt, low=low, high=high)
+                )
             ratings[q.id] = int(value)
         self.db.add(
             StudyAnswer(
@@ -256,7 +261,7 @@ class Enrolment:
 
     def _active(self, enrolled: StudyParticipant) -> None:
         if enrolled.withdrawn_at is not None:
-            raise EnrolmentError("you have withdrawn from this study; nothing more is recorded")
+            raise EnrolmentError(Text("you have withdrawn from this study; nothing more is recorded"))
 
     def participants(self) -> list[tuple[StudyParticipant, str, int]]:
         """Everyone enrolled: (enrolment, code, questionnaires answered), for the experimenter."""
