@@ -285,8 +285,8 @@ class TrialRuntime:
         return asked
 
     # -- experimenter -------------------------------------------------------------
-    def pause(self) -> None:
-        self.apply(c.Pause())
+    def pause(self, note: str | None = None) -> None:
+        self.apply(c.Pause(note))
 
     def resume(self) -> None:
         self.apply(c.Resume())

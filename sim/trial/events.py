@@ -79,7 +79,9 @@ class PhaseChanged(Event):
 
 class Paused(Event):
     kind = "paused"
+    omit_if_none = ("note",)
     reason: str
+    note: str | None = None  # the experimenter's words on why, where typed (seats see it)
 
 
 class Resumed(Event):
