@@ -15,7 +15,7 @@ import math
 import threading
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
@@ -39,7 +39,7 @@ class LocalizationStudyError(ValueError):
     """A study that cannot be made or an answer that cannot be taken, with the reason why."""
 
 
-class EventKind(str, Enum):
+class EventKind(StrEnum):
     CREATED = "study_created"
     INVITED = "participant_invited"
     ANSWERED = "answer"

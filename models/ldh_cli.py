@@ -6,7 +6,7 @@ torch is imported only where a checkpoint is trained or read.
 from __future__ import annotations
 
 import json
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -22,7 +22,7 @@ LEARNED = "learned"
 HUMANS_TD_M = 0.446  # the paper's people reading the dialogs
 
 
-class VariantOption(str, Enum):
+class VariantOption(StrEnum):
     prefix = "prefix"
     full = "full"
 

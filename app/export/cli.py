@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -23,7 +23,7 @@ if TYPE_CHECKING:  # the exporters load only for the command that runs
 console = Console(stderr=True)
 
 
-class Format(str, Enum):
+class Format(StrEnum):
     mcap = "mcap"
     ndh = "ndh"
     lerobot = "lerobot"

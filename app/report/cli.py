@@ -40,6 +40,7 @@ def agreement(
     """Cohen's kappa per phenomenon and the distance between localization cuts, over the trials
     two annotators submitted, and the disagreements (with the adjudicated value, if any)."""
     from app.annotation.agreement import agreement as compute
+    from app.annotation.agreement import answer_word
     from app.annotation.events import Phenomenon
     from app.annotation.log import AnnotationLog
     from app.annotation.study import annotator_names, study_trial_ids
@@ -60,8 +61,10 @@ def agreement(
     mean = "n/a" if cut["mean"] is None else f"{cut['mean']:.2f}"
     typer.echo(f"  localization cut distance: mean {mean} messages, max {cut['max']}")
     for d in result["disagreements"]:
-        said = "; ".join(f"{name}: {v}" for name, v in d["values"].items())
-        typer.echo(f"  disagreement trial {d['trial']} {d['item']}: {said} (adjudicated: {d['adjudicated']})")
+        said = "; ".join(f"{name}: {answer_word(v)}" for name, v in d["values"].items())
+        typer.echo(
+            f"  disagreement trial {d['trial']} {d['item']}: {said} (adjudicated: {answer_word(d['adjudicated'])})"
+        )
 
 
 def study(

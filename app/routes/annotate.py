@@ -17,7 +17,7 @@ from sqlalchemy import select
 
 from app.accounts import AccountError, create_account
 from app.annotation.access import AnnotatorId, annotator_login
-from app.annotation.agreement import agreement
+from app.annotation.agreement import agreement, answer_word
 from app.annotation.dialog import estimates, messages
 from app.annotation.events import Adjudicated, AnnotationEventModel, CutMarked, Phenomenon, Submitted, Tagged
 from app.annotation.study import annotator_names, study_trial_ids
@@ -215,6 +215,7 @@ def agreement_page(
         study=study,
         result=result,
         titles=titles,
+        answer=answer_word,  # a tag's answers as yes/no, as its adjudication asks
         annotators=annotators,
         created=created,
     )

@@ -164,6 +164,8 @@ def test_assign_agreement_and_the_adjudicated_cut_in_the_ldh_export(study, tmp_p
     ]
     printed = cli("report", "agreement", "--study", STUDY, env=env).stdout
     assert "kappa Communication Repair: 0.000" in printed and "mean 0.50 messages" in printed
+    # A tag's answers read as yes/no, as the page and its adjudication put them.
+    assert f"disagreement trial {d2} communication_repair: ann: yes; bob: no (adjudicated: —)" in printed
 
     server = start_server(settings)  # the experimenter's agreement page, and adjudication on it
     client = experimenter_client(server.services, server.url)
