@@ -37,6 +37,7 @@ from app.security import (
     SeatTokens,
 )
 from app.study.config import StudyConfigError
+from app.study.lobby import PRACTICE_REASON
 from app.web import over_reason, render, trial_or_404
 from sim.trial.state import fold
 
@@ -166,25 +167,40 @@ def leaderboard(
 
 @router.get("/play/{token}", response_class=HTMLResponse)
 def play(
-    request: Request, token: str, seats: SeatTokensDep, db: DbSession, mazes: MazesDep, settings: SettingsDep
+    request: Request,
+    token: str,
+    seats: SeatTokensDep,
+    db: DbSession,
+    log: LogDep,
+    mazes: MazesDep,
+    settings: SettingsDep,
 ) -> HTMLResponse:
     try:
         seat, trial = seat_of(seats, db, token)
     except ClosedLink as closed:
-        response = render(request, "link_closed.html", reason=closed.detail, after_url=closed.after_url)
+        response = render(
+            request,
+            "link_closed.html",
+            reason=closed.detail,
+            after_url=closed.after_url,
+            in_flow=bool(closed.after_url),
+        )
         response.status_code = 410
         return response
-    after_url = after_trial_url(trial)
+    # A study's seat: no link out of the study's way; its practice says so, and when it stops.
+    seat_page = {
+        "token": token,
+        "trial": trial,
+        "after_url": after_trial_url(trial),
+        "in_flow": trial.study is not None,
+        "practice": trial.excluded_reason == PRACTICE_REASON,
+        "time_cap_s": fold(log.load(trial.id)).time_cap_s,
+    }
     if seat.role == "commander":  # where the landmarks are: the Commander's to know, never the Driver's
         landmarks, walls = mazes.landmarks(trial.maze), mazes.map_walls(trial.maze)
-        return render(
-            request, "commander.html", token=token, trial=trial, landmarks=landmarks, walls=walls, after_url=after_url
-        )
+        return render(request, "commander.html", landmarks=landmarks, walls=walls, **seat_page)
     # The Driver's page sends a press no sooner than the server takes a move (`min_move_interval_s`).
-    interval = settings.min_move_interval_s
-    return render(
-        request, f"{seat.role}.html", token=token, trial=trial, after_url=after_url, min_move_interval_s=interval
-    )
+    return render(request, f"{seat.role}.html", min_move_interval_s=settings.min_move_interval_s, **seat_page)
 
 
 @router.get("/play/{token}/map.png")

@@ -32,7 +32,7 @@ from app.deps import (
     experimenter_id,
 )
 from app.guard import csrf_protect
-from app.security import InvalidToken
+from app.security import InvalidToken, SeatTokens
 from app.study.answers import asked, items, study_answers
 from app.study.config import StudyConfig, StudyConfigError, StudyFiles, StudyOutcome, check_mazes, parse, template
 from app.study.enrolment import AfterTrial, Enrolment, EnrolmentError, StudyFull
@@ -103,7 +103,11 @@ class Participation:
 ParticipationDep = Annotated[Participation, Depends(Participation)]
 
 
+EXPERIMENTER_PAGES = {"list", "edit"}  # the others are the participant's way: no link out of it
+
+
 def _page(templates: TemplatesDep, request: Request, name: str, status: int = 200, **context: object) -> HTMLResponse:
+    context = {"in_flow": name not in EXPERIMENTER_PAGES, **context}
     return templates.TemplateResponse(request, f"study/{name}.html", context, status_code=status)
 
 
@@ -225,7 +229,14 @@ def instructions(me: ParticipationDep, request: Request, templates: TemplatesDep
 
 
 @router.get("/study/{name}/me", response_class=HTMLResponse)
-def my_study(me: ParticipationDep, request: Request, templates: TemplatesDep, error: str | None = None) -> HTMLResponse:
+def my_study(
+    me: ParticipationDep,
+    request: Request,
+    templates: TemplatesDep,
+    seats: SeatTokensDep,
+    error: str | None = None,
+    saved: bool = False,
+) -> HTMLResponse:
     trials = me.enrolment.trials(me.enrolled)
     return _page(
         templates,
@@ -238,7 +249,9 @@ def my_study(me: ParticipationDep, request: Request, templates: TemplatesDep, er
         unplayed=me.enrolment.unplayed(trials),
         enrolled=me.enrolled,
         practice_reason=PRACTICE_REASON,
+        seat=_live_seat(me, seats),
         error=error,
+        saved=saved,
     )
 
 
@@ -254,8 +267,19 @@ def my_data(me: ParticipationDep) -> Response:
 
 
 @router.get("/study/{name}/lobby", response_class=HTMLResponse)
-def lobby_page(me: ParticipationDep, request: Request, templates: TemplatesDep) -> HTMLResponse:
-    return _page(templates, request, "lobby", study=me.config, code=me.code)
+def lobby_page(
+    me: ParticipationDep, request: Request, templates: TemplatesDep, clock: ClockDep, mazes: MazesDep
+) -> HTMLResponse:
+    lobby = Lobby(me.db, me.config, mazes.layouts(), clock.now_ns())
+    return _page(
+        templates,
+        request,
+        "lobby",
+        study=me.config,
+        code=me.code,
+        practice=lobby.needs_practice(me.enrolled),
+        number=lobby.played(me.enrolled) + 1,  # the practice not counted
+    )
 
 
 async def _open(hub: TrialHub, trial_id: int) -> None:
@@ -326,15 +350,20 @@ def lobby_leave(me: ParticipationDep, clock: ClockDep, mazes: MazesDep) -> Redir
     return RedirectResponse(f"/study/{me.config.name}/me", status_code=303)
 
 
-@router.get("/study/{name}/seat")
-def my_seat(me: ParticipationDep, seats: SeatTokensDep) -> dict[str, object]:
-    """The participant's live trial's seat, or none: the seat page of a trial that is over asks, and
-    follows the experimenter's restart of it to the new trial's seat."""
+def _live_seat(me: Participation, seats: SeatTokens) -> dict[str, object]:
+    """The participant's live trial's seat (`link`), or none."""
     live = live_trial_of(me.db, (me.enrolled.participant_id,))
     if live is None:
         return {"trial_id": None, "link": None}
     role = seat_of(live, me.enrolled.participant_id).role
     return {"trial_id": live.id, "role": role, "link": f"/play/{seats.issue(live.id, role)}"}
+
+
+@router.get("/study/{name}/seat")
+def my_seat(me: ParticipationDep, seats: SeatTokensDep) -> dict[str, object]:
+    """The participant's live trial's seat, or none: the seat page of a trial that is over asks, and
+    follows the experimenter's restart of it to the new trial's seat."""
+    return _live_seat(me, seats)
 
 
 @router.get("/study/{name}/trials/{trial_id}/next")
@@ -381,7 +410,7 @@ async def answer(me: ParticipationDep, trial_id: int, request: Request, template
             form=form,
             error=str(err),
         )
-    return RedirectResponse(f"/study/{me.config.name}/me", status_code=303)
+    return RedirectResponse(f"/study/{me.config.name}/me?saved=true", status_code=303)
 
 
 @router.post("/study/{name}/complete", response_class=HTMLResponse)
@@ -451,7 +480,16 @@ def done_page(me: ParticipationDep, request: Request, templates: TemplatesDep) -
 
 
 @router.post("/study/{name}/withdraw", response_class=HTMLResponse)
-def withdraw(me: ParticipationDep, request: Request, templates: TemplatesDep, webhooks: WebhooksDep) -> HTMLResponse:
+def withdraw(
+    me: ParticipationDep,
+    request: Request,
+    templates: TemplatesDep,
+    webhooks: WebhooksDep,
+    confirm: str = Form("", max_length=10),
+) -> Response:
+    if confirm != "yes":  # erasing is not undone: only on the box ticked beside the button
+        error = "To withdraw, tick the box that says you want to, then press Withdraw."
+        return RedirectResponse(f"/study/{me.config.name}/me?error={quote(error)}#withdraw-from-study", status_code=303)
     with me.db.begin():
         ended = me.enrolment.outcome(me.enrolled)
         me.enrolment.withdraw(me.enrolled)

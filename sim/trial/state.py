@@ -69,6 +69,7 @@ class TrialState:
     abort_reason: str | None = None  # why it was aborted, where the log says
     pause_note: str | None = None  # why the experimenter paused it (while paused), where they said
     join_by_ns: int | None = None  # a lobby's trial: when seats still unopened abort it
+    time_cap_s: float | None = None  # a practice: the trial clock's limit, past which it is aborted
     last_seq: int = 0
 
     # -- derived ------------------------------------------------------------------
@@ -132,7 +133,7 @@ class TrialState:
             case ev.TrialCreated():
                 self.maze, self.targets = event.maze, list(event.targets)
                 self.backend, self.driver, self.commander = event.backend, event.driver, event.commander
-                self.start, self.seed = event.start, event.seed
+                self.start, self.seed, self.time_cap_s = event.start, event.seed, event.time_cap_s
                 if event.join_timeout_s is not None:
                     self.join_by_ns = t_ns + round(event.join_timeout_s * 1e9)
             case ev.Connected(role=role):

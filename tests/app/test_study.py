@@ -271,7 +271,7 @@ def test_questionnaires_completion_and_withdrawal_erase_personal_data_only(serve
         assert written, f"{fmt}: the aborted study trial is exported"
         assert not [p for p in written if REAL_NAME.encode() in p.read_bytes()], fmt
 
-    gone = bob.post("/study/pilot/withdraw")
+    gone = bob.post("/study/pilot/withdraw", data={"confirm": "yes"})
     assert "You have withdrawn" in gone.text
     assert bob.get("/study/pilot/me").status_code == 403, "the pass is gone with the cookie"
     assert REAL_NAME not in every_text_in_db(server) and FREE_TEXT not in every_text_in_db(server)
