@@ -34,8 +34,18 @@ from app.deps import (
 from app.guard import csrf_protect
 from app.security import InvalidToken, SeatTokens
 from app.study.answers import asked, items, study_answers
-from app.study.config import StudyConfig, StudyConfigError, StudyFiles, StudyOutcome, check_mazes, parse, template
+from app.study.config import (
+    QuestionKind,
+    StudyConfig,
+    StudyConfigError,
+    StudyFiles,
+    StudyOutcome,
+    check_mazes,
+    parse,
+    template,
+)
 from app.study.enrolment import AfterTrial, Enrolment, EnrolmentError, StudyFull
+from app.study.form import form_values, from_form
 from app.study.lobby import (
     PRACTICE_REASON,
     AllPlayed,
@@ -48,6 +58,7 @@ from app.study.lobby import (
     Waiting,
     seat_of,
 )
+from app.study.overview import study_trials
 from app.study.own_data import own_data
 from app.study.passes import PANEL_COOKIE, PASS_COOKIE, ParticipantPasses
 from app.study.roster import roster, roster_csv
@@ -103,6 +114,7 @@ class Participation:
 ParticipationDep = Annotated[Participation, Depends(Participation)]
 
 
+MAX_JSON = 200_000  # characters of a study's JSON the editor takes
 EXPERIMENTER_PAGES = {"list", "edit"}  # the others are the participant's way: no link out of it
 
 
@@ -541,12 +553,16 @@ def _editor(
     files: StudyFiles,
     enrolment: Enrolment,
     text: str,
+    values: dict[str, object],
+    lobby: Lobby,
     status: int = 200,
     **context: object,
 ) -> HTMLResponse:
     name = enrolment.config.name
     answers = study_answers(enrolment.db, name)
     participants = enrolment.participants()
+    # Each participant's trials against the plan: study trials played (the practice not counted), practised.
+    progress = {e.id: (lobby.played(e), not lobby.needs_practice(e)) for e, _, _ in participants}
     return _page(
         templates,
         request,
@@ -554,6 +570,12 @@ def _editor(
         status=status,
         study=enrolment.config,
         text=text,
+        values=values,
+        kinds=list(QuestionKind),
+        outcomes_coded=[o for o in StudyOutcome if o is not StudyOutcome.completed],
+        link=request.url_for("information", name=name),
+        trials=study_trials(enrolment.db, name),
+        progress=progress,
         participants=participants,
         outcomes={e.id: enrolment.outcome(e) for e, _, _ in participants},
         answers=answers,
@@ -569,6 +591,7 @@ def edit_page(
     files: StudyFilesDep,
     db: DbSession,
     clock: ClockDep,
+    mazes: MazesDep,
     templates: TemplatesDep,
     saved: int | None = None,
     paired: int | None = None,
@@ -579,12 +602,22 @@ def edit_page(
     enrolment = Enrolment(db, clock, config)
     text = config.model_dump_json(indent=2)
     return _editor(
-        templates, request, files, enrolment, text, saved=saved, paired=paired, screened=screened, error=error
+        templates,
+        request,
+        files,
+        enrolment,
+        text,
+        form_values(config),
+        Lobby(db, config, mazes.layouts(), clock.now_ns()),
+        saved=saved,
+        paired=paired,
+        screened=screened,
+        error=error,
     )
 
 
 @experimenter_router.post("/{name}")
-def save_study(
+async def save_study(
     name: str,
     request: Request,
     files: StudyFilesDep,
@@ -592,18 +625,30 @@ def save_study(
     clock: ClockDep,
     mazes: MazesDep,
     templates: TemplatesDep,
-    config_json: str = Form(max_length=200_000),
 ) -> Response:
+    """The editor's form, or (`config_json`) the study's JSON whole, for power users."""
     current = study_or_404(files, name)
+    form = {k: v for k, v in (await request.form()).items() if isinstance(v, str)}
+    config_json = form.get("config_json")
+    text = current.model_dump_json(indent=2) if config_json is None else config_json  # shown again on an error
+    values = form_values(current)
     try:
-        config = parse(config_json)
+        if config_json is not None:
+            if len(config_json) > MAX_JSON:
+                raise StudyConfigError(f"the JSON is {len(config_json)} characters; at most {MAX_JSON}")
+            config = parse(config_json)
+        else:
+            values, made, problem = from_form(current, form)
+            if made is None:
+                raise StudyConfigError(problem)
+            config = made
         if config.name != name:
             raise StudyConfigError(f"the name is {name!r}; make a new study to use another name")
         bundled = {m for m in mazes.names() if mazes.library.source(m) == "bundled"}
         check_mazes(config, bundled, set(mazes.names()))
     except StudyConfigError as err:
-        enrolment = Enrolment(db, clock, current)
-        return _editor(templates, request, files, enrolment, config_json, status=400, error=str(err))
+        enrolment, lobby = Enrolment(db, clock, current), Lobby(db, current, mazes.layouts(), clock.now_ns())
+        return _editor(templates, request, files, enrolment, text, values, lobby, status=400, error=str(err))
     saved = files.save(config)
     return RedirectResponse(f"/experimenter/studies/{name}?saved={saved.version}", status_code=303)
 
