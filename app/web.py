@@ -37,7 +37,19 @@ def wants_html(request: Request) -> bool:
 
 def error_page(request: Request, status_code: int, detail: str | None) -> HTMLResponse:
     heading, advice = ADVICE.get(status_code, ("Something went wrong", "Go back and try again."))
-    response = render(request, "error.html", status_code=status_code, heading=heading, advice=advice, detail=detail)
+    # A participant's study page: back into the study's way, no link out of it.
+    _, first, *rest = request.url.path.split("/")
+    study = f"/study/{rest[0]}" if first == "study" and rest else None
+    response = render(
+        request,
+        "error.html",
+        status_code=status_code,
+        heading=heading,
+        advice=advice,
+        detail=detail,
+        study=study,
+        in_flow=study is not None,
+    )
     response.status_code = status_code
     return response
 

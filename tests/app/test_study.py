@@ -351,8 +351,11 @@ def test_the_questionnaire_opens_only_for_a_trial_the_participant_played_that_ha
     for trial_id in (ours, theirs):
         open_seats(server, trial_id, "commander", "driver")
         assert eve.post(f"/experimenter/trials/{trial_id}/abort").status_code == 200
-    other_pairs = bob.get(form.format(theirs))
+    other_pairs = bob.get(form.format(theirs), headers={"Accept": "text/html"})
     assert other_pairs.status_code == 404 and "not one of yours" in other_pairs.text
+    # The error page leads back into the study, and nowhere out of it.
+    assert '<a href="/study/pilot" id="back-to-study">' in other_pairs.text
+    assert 'href="/"' not in other_pairs.text and 'href="/leaderboard"' not in other_pairs.text
     assert bob.get(form.format(theirs + 1000)).status_code == 404, "no such trial"
     page = bob.get(form.format(ours))
     assert page.status_code == 200 and 'name="difficulty"' in page.text
