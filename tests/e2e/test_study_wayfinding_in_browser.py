@@ -34,6 +34,7 @@ def test_the_participants_pages_say_where_they_are(browser, server):
     wait_js(ann, "() => document.getElementById('next-step').textContent.includes('practice')")
     assert ann.inner_text("#next-step").startswith("Next: your practice trial (not scored, at most 0.1 minutes)")
     page_checks(ann, "study lobby, the practice next")
+    ann.screenshot(path=str(ARTIFACTS / "study-lobby-next-step.png"))
     no_way_out(ann)
     bob, _ = arrive(browser, server)
     pages = (ann, bob)
@@ -78,6 +79,7 @@ def test_the_participants_pages_say_where_they_are(browser, server):
     assert ann.inner_text("#answers-saved") == "Your answers are saved. Thank you."
     assert ann.locator("#my-trials tbody td:first-child").all_inner_texts() == ["practice", "1"]
     page_checks(ann, "study, my page, answers saved")
+    ann.screenshot(path=str(ARTIFACTS / "study-me-saved.png"), full_page=True)
     no_way_out(ann)
     ann.goto(server.url + "/study/pilot/lobby")
     wait_js(ann, "() => document.getElementById('next-step').textContent.includes('trial 2 of 2')")
