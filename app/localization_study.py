@@ -15,7 +15,7 @@ import math
 import threading
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, fields
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -40,7 +40,7 @@ class LocalizationStudyError(ValueError):
     """A study that cannot be made or an answer that cannot be taken, with the reason why."""
 
 
-class EventKind(str, Enum):
+class EventKind(StrEnum):
     CREATED = "study_created"
     INVITED = "participant_invited"
     ANSWERED = "answer"

@@ -53,6 +53,9 @@ def error_page(request: Request, status_code: int, detail: object) -> HTMLRespon
     """A page saying what went wrong and what to do, in the request's language (`app.i18n`)."""
     lang = language_of(request)
     heading, advice = (said(t, lang) for t in ADVICE.get(status_code, SOMETHING_WRONG))
+    # A participant's study page: back into the study's way, no link out of it.
+    _, first, *rest = request.url.path.split("/")
+    study = f"/study/{rest[0]}" if first == "study" and rest else None
     response = render(
         request,
         "error.html",
@@ -60,6 +63,8 @@ def error_page(request: Request, status_code: int, detail: object) -> HTMLRespon
         heading=heading,
         advice=advice,
         detail=said(detail, lang) if detail else None,
+        study=study,
+        in_flow=study is not None,
     )
     response.status_code = status_code
     return response

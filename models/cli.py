@@ -5,7 +5,7 @@ torch is imported inside the commands, so that `robotslang --help` stays fast.
 
 from __future__ import annotations
 
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
 
 import typer
@@ -14,29 +14,29 @@ from sim.cli.eval import BENCHMARK_OPTION, open_benchmark, parse_list, parse_see
 from sim.tasks.benchmark import Split
 
 
-class Feedback(str, Enum):
+class Feedback(StrEnum):
     teacher = "teacher"
     student = "student"
 
 
-class Blind(str, Enum):
+class Blind(StrEnum):
     none = "none"
     vision = "vision"
     language = "language"
 
 
-class Model(str, Enum):
+class Model(StrEnum):
     baseline = "baseline"
     improved = "improved"
     attention = "attention"
 
 
-class Executor(str, Enum):
+class Executor(StrEnum):
     local = "local"
     ray = "ray"
 
 
-class TrainOn(str, Enum):
+class TrainOn(StrEnum):
     train = "train"
     train_val = "train+val_seen"
 

@@ -6,7 +6,7 @@ torch is imported only where a checkpoint is trained or read.
 from __future__ import annotations
 
 import json
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 LEARNED = "learned"
 
 
-class VariantOption(str, Enum):
+class VariantOption(StrEnum):
     prefix = "prefix"
     full = "full"
 

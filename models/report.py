@@ -184,6 +184,7 @@ def plot_learning_curves(out: Path, path: Path) -> bool:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     curves: dict[str, dict[str, list]] = {}
     for hist in sorted((out / "runs").glob("*/*/seed*/val/history.json")):
@@ -202,7 +203,10 @@ def plot_learning_curves(out: Path, path: Path) -> bool:
                     if len([e for e in run if "val_td" in e]) >= len(iters)
                 ]
             )
-            ax.plot(iters, tds.mean(axis=0), marker="o", label=f"{config} ({len(tds)} seeds)")
+            ax.plot(
+                iters, tds.mean(axis=0), marker="o", label=f"{config} ({len(tds)} seed{'' if len(tds) == 1 else 's'})"
+            )
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # iterations are whole: no 1.5
         ax.set_xlabel("training iteration (batch of 100)")
         ax.set_ylabel("val_seen TD (m), mean over seeds")
         ax.set_title(f"learning curves: {model}")

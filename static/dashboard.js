@@ -38,7 +38,7 @@ function drawLive(t) {
 function phaseText(t) {
   if (t.waiting_for.length) return `waiting for ${t.waiting_for.join(", ")}`;
   if (t.paused.includes("disconnect:robot")) return `${t.phase} (paused: robot not connected)`;
-  return t.phase + (t.paused.length ? " (paused)" : "");
+  return t.phase + (t.paused.length ? ` (paused${t.pause_note ? `: ${t.pause_note}` : ""})` : "");
 }
 
 // -- robots -----------------------------------------------------------------------

@@ -26,8 +26,14 @@ export function foldEvent(s, e) {
       if (p.phase === "aborted") s.abort_reason = p.reason || null;
       if (p.target_index !== null && p.target_index !== undefined) s.target_index = p.target_index;
       break;
-    case "paused": if (!s.paused.includes(p.reason)) s.paused = [...s.paused, p.reason]; break;
-    case "resumed": s.paused = s.paused.filter((r) => r !== p.reason); break;
+    case "paused":
+      if (!s.paused.includes(p.reason)) s.paused = [...s.paused, p.reason];
+      if (p.reason === "experimenter") s.pause_note = p.note || null;
+      break;
+    case "resumed":
+      s.paused = s.paused.filter((r) => r !== p.reason);
+      if (p.reason === "experimenter") s.pause_note = null;
+      break;
     case "connect": if (!s.connected.includes(p.role)) s.connected = [...s.connected, p.role]; break;
     case "disconnect": s.connected = s.connected.filter((r) => r !== p.role); break;
     case "move_executed":
@@ -47,6 +53,7 @@ export function applyStatus(s, msg) {
   for (const key of ["phase", "target_index", "targets_total", "elapsed_s", "moves", "paused", "waiting_for", "claim_pending", "abort_reason"])
     if (msg[key] !== undefined && msg[key] !== null) s[key] = msg[key];
   s.join_left_s = msg.join_left_s ?? null;  // null once every seat is open
+  s.pause_note = msg.pause_note ?? null;
   s.from_server = true;
   s.status_at = performance.now();
   return s;
@@ -72,8 +79,10 @@ export function formatClock(seconds) {
 }
 
 // What is going on, in words a participant (or the experimenter) needs: what to do now.
-// `afterwards`: what to do once the trial ended early (a study's seat goes on from the page).
-export function statusText(s, role, afterwards = t("You can close this page.")) {
+// `afterwards`: what to do once the trial ended early (a study's seat goes on from the page; the
+// experimenter, whose pages are in English, decides what comes next).
+const EXPERIMENTER_AFTER = "It does not score. Restart it from the dashboard (the same seats on a layout they have not seen), or exclude it there.";
+export function statusText(s, role, afterwards = PARTNER[role] ? t("You can close this page.") : EXPERIMENTER_AFTER) {
   const target = {n: Math.min(s.target_index + 1, s.targets_total), of: s.targets_total};
   if (s.phase === "finished") return t("Finished: all three targets found. Thank you!");
   if (s.phase === "aborted") {
@@ -87,7 +96,11 @@ export function statusText(s, role, afterwards = t("You can close this page.")) 
     if (!missing.length) return t("Starting…");
     return t("Waiting for {who} to join.", {who: whom(missing, role)});
   }
-  if (s.paused.includes("experimenter")) return t("Paused by the experimenter. The clock is stopped.");
+  if (s.paused.includes("experimenter")) {
+    return s.pause_note
+      ? t("Paused by the experimenter ({note}). The clock is stopped.", {note: s.pause_note})
+      : t("Paused by the experimenter. The clock is stopped.");
+  }
   if (missing.length) {
     return t("Paused: {who} lost the connection. The clock is stopped until they are back.", {who: whom(missing, role)});
   }

@@ -27,6 +27,15 @@ def cohen_kappa(a: Sequence[bool], b: Sequence[bool]) -> float | None:
     return (observed - expected) / (1 - expected)
 
 
+def answer_word(value: int | bool | None) -> str:
+    """An answer as the adjudication asks it: a tag yes or no, a cut its message number, none a dash."""
+    if value is None:
+        return "—"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    return str(value)
+
+
 class DisagreementRow(TypedDict):
     trial: int
     item: str

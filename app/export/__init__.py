@@ -1,9 +1,9 @@
 """Exports of recorded trials: MCAP for Foxglove, NDH/LDH JSON in the benchmark's schema."""
 
-from enum import Enum
+from enum import StrEnum
 
 
-class Episode(str, Enum):
+class Episode(StrEnum):
     """What one exported LeRobot episode holds: an NDH instance, or a whole trial. Here, not in
     `app.export.lerobot`, so that the CLI declares its option without importing the exporter."""
 

@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -23,7 +23,7 @@ if TYPE_CHECKING:  # the exporters load only for the command that runs
 console = Console(stderr=True)
 
 
-class Format(str, Enum):
+class Format(StrEnum):
     mcap = "mcap"
     ndh = "ndh"
     lerobot = "lerobot"
@@ -58,7 +58,8 @@ def export(
         None,
         "--folds",
         help="NDH: split the study's layouts into folds with these shares, e.g. train:val:test=70:15:15 "
-        "(no layout in two folds); saved in the data directory (folds/<study>.json) and reused.",
+        "(no layout in two folds); saved in the data directory (folds/<study>.json) and reused. "
+        "A study's export without it keeps the study's saved split, or draws and saves the default one.",
     ),
     seed: int = typer.Option(0, "--seed", help="--folds: the seed of the draw."),
 ) -> None:
@@ -66,7 +67,7 @@ def export(
     NAME`, the study's questionnaire answers (questionnaires.csv and .json in --out) and its
     participants' roster for paying them (participants.csv) too."""
     from app.db.engine import make_engine, make_sessionmaker
-    from app.export.folds import FoldError, FoldShares, SavedFolds
+    from app.export.folds import DEFAULT_SHARES, FoldError, FoldShares, SavedFolds
     from app.export.record import ExportError
     from app.export.source import exported_trial_ids, load_trial
     from app.mazes import Mazes, UnknownMaze
@@ -81,6 +82,10 @@ def export(
             shares = FoldShares.parse(folds)
         except FoldError as err:
             _fail(str(err))
+    elif format is Format.ndh and study is not None and trial == "all":
+        # The study's split is one, export after export: the saved one, else the default drawn and saved.
+        saved = SavedFolds.of(settings.data_dir, study).load()
+        shares, seed = saved[:2] if saved is not None else (FoldShares.parse(DEFAULT_SHARES), seed)
     if settings.database_url is None and not settings.sqlite_path.exists():
         _fail(
             f"no database at {settings.sqlite_path}: set ROBOTSLANG_DATA_DIR to the data "

@@ -39,6 +39,7 @@ def agreement(
 ) -> None:
     """Cohen's kappa per phenomenon and the distance between localization cuts, over the trials
     two annotators submitted, and the disagreements (with the adjudicated value, if any)."""
+    from app.annotation.agreement import answer_word
     from app.annotation.events import TITLES
     from app.annotation.log import AnnotationLog
     from app.annotation.study import study_agreement
@@ -56,8 +57,10 @@ def agreement(
     mean = "n/a" if cut["mean"] is None else f"{cut['mean']:.2f}"
     typer.echo(f"  localization cut distance: mean {mean} messages, max {cut['max']}")
     for d in result["disagreements"]:
-        said = "; ".join(f"{name}: {v}" for name, v in d["values"].items())
-        typer.echo(f"  disagreement trial {d['trial']} {d['item']}: {said} (adjudicated: {d['adjudicated']})")
+        said = "; ".join(f"{name}: {answer_word(v)}" for name, v in d["values"].items())
+        typer.echo(
+            f"  disagreement trial {d['trial']} {d['item']}: {said} (adjudicated: {answer_word(d['adjudicated'])})"
+        )
 
 
 def study(

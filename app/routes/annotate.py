@@ -17,6 +17,7 @@ from sqlalchemy import select
 
 from app.accounts import AccountError, create_account
 from app.annotation.access import AnnotatorId, annotator_login
+from app.annotation.agreement import answer_word
 from app.annotation.dialog import estimates, messages
 from app.annotation.events import TITLES, Adjudicated, AnnotationEventModel, CutMarked, Submitted, Tagged
 from app.annotation.study import study_agreement
@@ -203,6 +204,7 @@ def agreement_page(
         study=study,
         result=result,
         titles=TITLES,
+        answer=answer_word,  # a tag's answers as yes/no, as its adjudication asks
         annotators=annotators,
         created=created,
     )

@@ -309,8 +309,10 @@ async def control(
         runtime.abort(
             f"stopped by the experimenter: {reason.strip()}" if reason.strip() else "stopped by the experimenter"
         )
+    elif action == "pause":
+        runtime.pause(reason.strip() or None)
     else:
-        getattr(runtime, action)()
+        runtime.resume()
     await log.settled()  # the pages and the lobby read the trial's phase from the database
     return RedirectResponse(page, status_code=303)
 

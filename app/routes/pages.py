@@ -38,6 +38,7 @@ from app.security import (
     SeatTokens,
 )
 from app.study.config import StudyConfigError
+from app.study.lobby import PRACTICE_REASON
 from app.web import over_reason, render, speak_study, trial_or_404
 from sim.trial.state import fold
 
@@ -171,6 +172,7 @@ def play(
     token: str,
     seats: SeatTokensDep,
     db: DbSession,
+    log: LogDep,
     mazes: MazesDep,
     settings: SettingsDep,
     files: StudyFilesDep,
@@ -180,21 +182,26 @@ def play(
     except ClosedLink as closed:
         speak_study(request, files, closed.study)
         reason = said(closed.detail, language_of(request))
-        response = render(request, "link_closed.html", reason=reason, after_url=closed.after_url)
+        response = render(
+            request, "link_closed.html", reason=reason, after_url=closed.after_url, in_flow=bool(closed.after_url)
+        )
         response.status_code = 410
         return response
     speak_study(request, files, trial.study)
-    after_url = after_trial_url(trial)
+    # A study's seat: no link out of the study's way; its practice says so, and when it stops.
+    seat_page = {
+        "token": token,
+        "trial": trial,
+        "after_url": after_trial_url(trial),
+        "in_flow": trial.study is not None,
+        "practice": trial.excluded_reason == PRACTICE_REASON,
+        "time_cap_s": fold(log.load(trial.id)).time_cap_s,
+    }
     if seat.role == "commander":  # where the landmarks are: the Commander's to know, never the Driver's
         landmarks, walls = mazes.landmarks(trial.maze), mazes.map_walls(trial.maze)
-        return render(
-            request, "commander.html", token=token, trial=trial, landmarks=landmarks, walls=walls, after_url=after_url
-        )
+        return render(request, "commander.html", landmarks=landmarks, walls=walls, **seat_page)
     # The Driver's page sends a press no sooner than the server takes a move (`min_move_interval_s`).
-    interval = settings.min_move_interval_s
-    return render(
-        request, f"{seat.role}.html", token=token, trial=trial, after_url=after_url, min_move_interval_s=interval
-    )
+    return render(request, f"{seat.role}.html", min_move_interval_s=settings.min_move_interval_s, **seat_page)
 
 
 @router.get("/play/{token}/map.png")

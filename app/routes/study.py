@@ -33,10 +33,20 @@ from app.deps import (
 )
 from app.guard import csrf_protect
 from app.i18n import Text
-from app.security import InvalidToken
+from app.security import InvalidToken, SeatTokens
 from app.study.answers import asked, items, study_answers
-from app.study.config import StudyConfig, StudyConfigError, StudyFiles, StudyOutcome, check_mazes, parse, template
+from app.study.config import (
+    QuestionKind,
+    StudyConfig,
+    StudyConfigError,
+    StudyFiles,
+    StudyOutcome,
+    check_mazes,
+    parse,
+    template,
+)
 from app.study.enrolment import AfterTrial, Enrolment, EnrolmentError, StudyFull
+from app.study.form import form_values, from_form
 from app.study.lobby import (
     PRACTICE_REASON,
     AllPlayed,
@@ -49,6 +59,7 @@ from app.study.lobby import (
     Waiting,
     seat_of,
 )
+from app.study.overview import study_trials
 from app.study.own_data import own_data
 from app.study.passes import PANEL_COOKIE, PASS_COOKIE, ParticipantPasses
 from app.study.roster import roster, roster_csv
@@ -115,7 +126,12 @@ class Participation:
 ParticipationDep = Annotated[Participation, Depends(Participation)]
 
 
+MAX_JSON = 200_000  # characters of a study's JSON the editor takes
+EXPERIMENTER_PAGES = {"list", "edit"}  # the others are the participant's way: no link out of it
+
+
 def _page(templates: TemplatesDep, request: Request, name: str, status: int = 200, **context: object) -> HTMLResponse:
+    context = {"in_flow": name not in EXPERIMENTER_PAGES, **context}
     return templates.TemplateResponse(request, f"study/{name}.html", context, status_code=status)
 
 
@@ -237,7 +253,14 @@ def instructions(me: ParticipationDep, request: Request, templates: TemplatesDep
 
 
 @router.get("/study/{name}/me", response_class=HTMLResponse)
-def my_study(me: ParticipationDep, request: Request, templates: TemplatesDep, error: str | None = None) -> HTMLResponse:
+def my_study(
+    me: ParticipationDep,
+    request: Request,
+    templates: TemplatesDep,
+    seats: SeatTokensDep,
+    error: str | None = None,
+    saved: bool = False,
+) -> HTMLResponse:
     trials = me.enrolment.trials(me.enrolled)
     return _page(
         templates,
@@ -250,7 +273,9 @@ def my_study(me: ParticipationDep, request: Request, templates: TemplatesDep, er
         unplayed=me.enrolment.unplayed(trials),
         enrolled=me.enrolled,
         practice_reason=PRACTICE_REASON,
+        seat=_live_seat(me, seats),
         error=error,
+        saved=saved,
     )
 
 
@@ -266,8 +291,19 @@ def my_data(me: ParticipationDep) -> Response:
 
 
 @router.get("/study/{name}/lobby", response_class=HTMLResponse)
-def lobby_page(me: ParticipationDep, request: Request, templates: TemplatesDep) -> HTMLResponse:
-    return _page(templates, request, "lobby", study=me.config, code=me.code)
+def lobby_page(
+    me: ParticipationDep, request: Request, templates: TemplatesDep, clock: ClockDep, mazes: MazesDep
+) -> HTMLResponse:
+    lobby = Lobby(me.db, me.config, mazes.layouts(), clock.now_ns())
+    return _page(
+        templates,
+        request,
+        "lobby",
+        study=me.config,
+        code=me.code,
+        practice=lobby.needs_practice(me.enrolled),
+        number=lobby.played(me.enrolled) + 1,  # the practice not counted
+    )
 
 
 async def _open(hub: TrialHub, trial_id: int) -> None:
@@ -341,15 +377,20 @@ def lobby_leave(me: ParticipationDep, clock: ClockDep, mazes: MazesDep) -> Redir
     return RedirectResponse(f"/study/{me.config.name}/me", status_code=303)
 
 
-@router.get("/study/{name}/seat")
-def my_seat(me: ParticipationDep, seats: SeatTokensDep) -> dict[str, object]:
-    """The participant's live trial's seat, or none: the seat page of a trial that is over asks, and
-    follows the experimenter's restart of it to the new trial's seat."""
+def _live_seat(me: Participation, seats: SeatTokens) -> dict[str, object]:
+    """The participant's live trial's seat (`link`), or none."""
     live = live_trial_of(me.db, (me.enrolled.participant_id,))
     if live is None:
         return {"trial_id": None, "link": None}
     role = seat_of(live, me.enrolled.participant_id).role
     return {"trial_id": live.id, "role": role, "link": f"/play/{seats.issue(live.id, role)}"}
+
+
+@router.get("/study/{name}/seat")
+def my_seat(me: ParticipationDep, seats: SeatTokensDep) -> dict[str, object]:
+    """The participant's live trial's seat, or none: the seat page of a trial that is over asks, and
+    follows the experimenter's restart of it to the new trial's seat."""
+    return _live_seat(me, seats)
 
 
 @router.get("/study/{name}/trials/{trial_id}/next")
@@ -396,7 +437,7 @@ async def answer(me: ParticipationDep, trial_id: int, request: Request, template
             form=form,
             error=err.args[0],
         )
-    return RedirectResponse(f"/study/{me.config.name}/me", status_code=303)
+    return RedirectResponse(f"/study/{me.config.name}/me?saved=true", status_code=303)
 
 
 @router.post("/study/{name}/complete", response_class=HTMLResponse)
@@ -466,7 +507,16 @@ def done_page(me: ParticipationDep, request: Request, templates: TemplatesDep) -
 
 
 @router.post("/study/{name}/withdraw", response_class=HTMLResponse)
-def withdraw(me: ParticipationDep, request: Request, templates: TemplatesDep, webhooks: WebhooksDep) -> HTMLResponse:
+def withdraw(
+    me: ParticipationDep,
+    request: Request,
+    templates: TemplatesDep,
+    webhooks: WebhooksDep,
+    confirm: str = Form("", max_length=10),
+) -> Response:
+    if confirm != "yes":  # erasing is not undone: only on the box ticked beside the button
+        error = Text("To withdraw, tick the box that says you want to, then press Withdraw.")
+        return RedirectResponse(f"/study/{me.config.name}/me?error={quote(error)}#withdraw-from-study", status_code=303)
     with me.db.begin():
         ended = me.enrolment.outcome(me.enrolled)
         me.enrolment.withdraw(me.enrolled)
@@ -518,12 +568,16 @@ def _editor(
     files: StudyFiles,
     enrolment: Enrolment,
     text: str,
+    values: dict[str, object],
+    lobby: Lobby,
     status: int = 200,
     **context: object,
 ) -> HTMLResponse:
     name = enrolment.config.name
     answers = study_answers(enrolment.db, name)
     participants = enrolment.participants()
+    # Each participant's trials against the plan: study trials played (the practice not counted), practised.
+    progress = {e.id: (lobby.played(e), not lobby.needs_practice(e)) for e, _, _ in participants}
     return _page(
         templates,
         request,
@@ -531,6 +585,12 @@ def _editor(
         status=status,
         study=enrolment.config,
         text=text,
+        values=values,
+        kinds=list(QuestionKind),
+        outcomes_coded=[o for o in StudyOutcome if o is not StudyOutcome.completed],
+        link=request.url_for("information", name=name),
+        trials=study_trials(enrolment.db, name),
+        progress=progress,
         participants=participants,
         outcomes={e.id: enrolment.outcome(e) for e, _, _ in participants},
         answers=answers,
@@ -546,6 +606,7 @@ def edit_page(
     files: StudyFilesDep,
     db: DbSession,
     clock: ClockDep,
+    mazes: MazesDep,
     templates: TemplatesDep,
     saved: int | None = None,
     paired: int | None = None,
@@ -556,12 +617,22 @@ def edit_page(
     enrolment = Enrolment(db, clock, config)
     text = config.model_dump_json(indent=2)
     return _editor(
-        templates, request, files, enrolment, text, saved=saved, paired=paired, screened=screened, error=error
+        templates,
+        request,
+        files,
+        enrolment,
+        text,
+        form_values(config),
+        Lobby(db, config, mazes.layouts(), clock.now_ns()),
+        saved=saved,
+        paired=paired,
+        screened=screened,
+        error=error,
     )
 
 
 @experimenter_router.post("/{name}")
-def save_study(
+async def save_study(
     name: str,
     request: Request,
     files: StudyFilesDep,
@@ -569,18 +640,30 @@ def save_study(
     clock: ClockDep,
     mazes: MazesDep,
     templates: TemplatesDep,
-    config_json: str = Form(max_length=200_000),
 ) -> Response:
+    """The editor's form, or (`config_json`) the study's JSON whole, for power users."""
     current = study_or_404(files, name)
+    form = {k: v for k, v in (await request.form()).items() if isinstance(v, str)}
+    config_json = form.get("config_json")
+    text = current.model_dump_json(indent=2) if config_json is None else config_json  # shown again on an error
+    values = form_values(current)
     try:
-        config = parse(config_json)
+        if config_json is not None:
+            if len(config_json) > MAX_JSON:
+                raise StudyConfigError(f"the JSON is {len(config_json)} characters; at most {MAX_JSON}")
+            config = parse(config_json)
+        else:
+            values, made, problem = from_form(current, form)
+            if made is None:
+                raise StudyConfigError(problem)
+            config = made
         if config.name != name:
             raise StudyConfigError(f"the name is {name!r}; make a new study to use another name")
         bundled = {m for m in mazes.names() if mazes.library.source(m) == "bundled"}
         check_mazes(config, bundled, set(mazes.names()))
     except StudyConfigError as err:
-        enrolment = Enrolment(db, clock, current)
-        return _editor(templates, request, files, enrolment, config_json, status=400, error=str(err))
+        enrolment, lobby = Enrolment(db, clock, current), Lobby(db, current, mazes.layouts(), clock.now_ns())
+        return _editor(templates, request, files, enrolment, text, values, lobby, status=400, error=str(err))
     saved = files.save(config)
     return RedirectResponse(f"/experimenter/studies/{name}?saved={saved.version}", status_code=303)
 

@@ -130,6 +130,7 @@ class StudyConfig(BaseModel):
     instructions: RoleInstructions
     # A bundled maze (the same on every install) for each participant's first, unscored trial; None: no practice.
     practice_maze: str | None = "gen-000"
+    practice_time_cap_s: float = Field(default=300.0, gt=0)  # the practice is stopped once its clock reaches this
     questionnaire: list[Question] = Field(default_factory=default_questionnaire)
     maze_pool: list[str] = Field(default_factory=list)  # maze names; empty: every maze the server has
     trials_per_participant: int = Field(default=5, ge=1, le=50)  # study trials a participant plays at most

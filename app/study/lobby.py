@@ -301,6 +301,7 @@ class Lobby:
             self.practice_layouts if practice else self.layouts,
             self.now_ns,
             join_timeout_s=self.config.join_timeout_s,
+            time_cap_s=self.config.practice_time_cap_s if practice else None,
         )
         if practice:
             trial.excluded_reason = PRACTICE_REASON
@@ -371,6 +372,7 @@ class Lobby:
                 layouts=layouts,
                 now_ns=self.now_ns,
                 join_timeout_s=self.config.join_timeout_s,
+                time_cap_s=self.config.practice_time_cap_s if practice else None,
             )
         except TrialSetupError:
             return None  # the other was seated by a poll of their own meanwhile

@@ -58,6 +58,7 @@ class StatusMessage(TypedDict):
     paused: list[str]
     waiting_for: list[str]
     abort_reason: str | None
+    pause_note: str | None
     claim_pending: bool
     join_left_s: float | None
 
@@ -103,6 +104,7 @@ class TrialSnapshot(TypedDict):
     collisions: int
     pose: tuple[float, float, float] | None
     paused: list[str]
+    pause_note: str | None
     seats: dict[str, bool]
     waiting_for: list[str]
     backend: str

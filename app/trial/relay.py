@@ -287,6 +287,8 @@ class RedisRelay:
             runtime.unwatch(seat) if seat.role == EXPERIMENTER else runtime.leave(seat)
         elif op == "control" and msg["action"] == "abort":
             runtime.abort(msg.get("reason"))
+        elif op == "control" and msg["action"] == "pause":
+            runtime.pause(msg.get("note"))
         elif op == "control":
             getattr(runtime, msg["action"])()
 
@@ -378,8 +380,11 @@ class RemoteTrial:
             return
         self._command("control", action=action)
 
-    def pause(self) -> None:
-        self._control("pause")
+    def pause(self, note: str | None = None) -> None:
+        if self.runtime is not None:
+            self.runtime.pause(note)
+            return
+        self._command("control", action="pause", note=note)
 
     def resume(self) -> None:
         self._control("resume")

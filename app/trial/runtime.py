@@ -91,6 +91,7 @@ class TrialRuntime:
         if self.state.over:
             return
         self.timers.expect_joins()
+        self.timers.expect_time_cap()
         self.agents = AgentSeats.of(self, self.parts.agents)  # before the backend: the first frame is seen
         await self.robot.start(self.parts.backends)
         if self.agents is not None:
@@ -285,8 +286,8 @@ class TrialRuntime:
         return asked
 
     # -- experimenter -------------------------------------------------------------
-    def pause(self) -> None:
-        self.apply(c.Pause())
+    def pause(self, note: str | None = None) -> None:
+        self.apply(c.Pause(note))
 
     def resume(self) -> None:
         self.apply(c.Resume())

@@ -117,6 +117,7 @@ def create_trial(
     start: tuple[float, float, float] | None = None,
     join_timeout_s: float | None = None,
     seed: int | None = None,
+    time_cap_s: float | None = None,
 ) -> Trial:
     """`layouts`: each maze of the library -> its layout (`Mazes.layouts()`); `agents` and
     `commanders` (`available_agents(services, role)`) are needed when an agent holds that seat.
@@ -125,7 +126,8 @@ def create_trial(
     stored). `start`: where the simulated robot starts (x, y, theta; snapped to the maze's graph),
     logged with the trial; None: the simulator backend draws a start. `join_timeout_s`: a seat a
     person has not opened this long after creation aborts the trial (a study's lobby pairs).
-    `seed`: the agents' (default the trial's id), logged with the trial."""
+    `seed`: the agents' (default the trial's id), logged with the trial. `time_cap_s`: the trial
+    clock's limit (a study's practice), past which the trial is aborted."""
     check_seat(Role.DRIVER, driver, agents)
     check_seat(Role.COMMANDER, commander, commanders)
     people = str(HUMAN) in (driver, commander)
@@ -176,6 +178,7 @@ def create_trial(
         start=start,
         join_timeout_s=join_timeout_s,
         seed=seed,
+        time_cap_s=time_cap_s,
     )
     db.add(Event(trial_id=trial.id, seq=1, kind=created.kind, t_ns=now_ns, payload=created.payload()))
     return trial
@@ -227,11 +230,12 @@ def restart_trial(
     commanders: Mapping[str, str | None] | None = None,
     join_timeout_s: float | None = None,
     seed: int | None = None,
+    time_cap_s: float | None = None,
 ) -> Trial:
     """A new trial for an aborted one: the same seats, targets, robot and study, on a layout of
     `layouts` the team has never seen (the aborted one's counts as seen: its Commander may have had
     the map), or on the same maze when the Commander's seat was never opened (nobody saw it).
-    `join_timeout_s`: as `create_trial`'s (a study's restart keeps its deadline)."""
+    `join_timeout_s`, `time_cap_s`: as `create_trial`'s (a study's restart keeps its deadline and cap)."""
     old = db.get(Trial, trial_id)
     if old is None:
         raise TrialSetupError(f"trial {trial_id} does not exist")
@@ -257,6 +261,7 @@ def restart_trial(
         commanders=commanders,
         join_timeout_s=join_timeout_s,
         seed=seed,
+        time_cap_s=time_cap_s,
     )
     trial.study = old.study
     return trial

@@ -1,7 +1,8 @@
 """`TrialTimers`: a live trial's clocks, all derived from its log so that they survive a restart:
 each away participant's grace period (`TrialState.away`), the `still_away` marks while anyone is
-away, and a lobby's join deadline (`TrialState.join_by_ns`). When one runs out it is a command for
-the referee (`GraceExpired`, `JoinsDue`); what that means for the trial is `decide`'s rule."""
+away, a lobby's join deadline (`TrialState.join_by_ns`) and a practice's time cap. When one runs
+out it is a command for the referee (`GraceExpired`, `JoinsDue`, `Abort`); what that means for the
+trial is `decide`'s rule."""
 
 from __future__ import annotations
 
@@ -40,6 +41,20 @@ class TrialTimers:
         if s.join_by_ns is not None and s.phase == Phase.WAITING:
             left_s = max(0.0, (s.join_by_ns - self.clock.now_ns()) / 1e9)
             self._join = asyncio.get_running_loop().call_later(left_s, self.trial.apply, c.JoinsDue())
+
+    def expect_time_cap(self) -> None:
+        """A practice: aborted once its clock reaches the cap (the clock stops while paused, so
+        sleep what is left and look again)."""
+        if self.trial.state.time_cap_s is not None and not self.trial.state.over:
+            self.trial.spawn(self._cap_clock(self.trial.state.time_cap_s))  # the trial's close cancels it
+
+    async def _cap_clock(self, cap_s: float) -> None:
+        while not self.trial.state.over:
+            left_s = cap_s - self.trial.state.active_s(self.clock.now_ns())
+            if left_s <= 0:
+                self.trial.apply(c.Abort(f"the practice's {cap_s / 60:g} minutes are up"))
+                return
+            await asyncio.sleep(max(left_s, 0.05))
 
     def sync(self) -> None:
         """After each change: a grace timer for each participant away, none for the others."""

@@ -89,6 +89,7 @@ def status_of(state: TrialState, now_ns: int) -> StatusMessage:
         "paused": sorted(state.pause_reasons),
         "waiting_for": [str(r) for r in state.waiting_for],
         "abort_reason": state.abort_reason,
+        "pause_note": state.pause_note,
         "claim_pending": state.pending_claim is not None,  # the Commander has a claim to decide
         "join_left_s": join_left_s,  # seconds until a seat still unopened calls the trial off
     }
@@ -160,6 +161,7 @@ def snapshot(
         "collisions": s.collisions,
         "pose": s.pose,
         "paused": sorted(s.pause_reasons),
+        "pause_note": s.pause_note,
         "seats": {r: r in here for r in s.seats_needed},
         "waiting_for": [str(r) for r in s.waiting_for],
         "backend": s.backend,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterable
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -31,12 +31,12 @@ def open_benchmark(path: Path) -> Benchmark:
         raise typer.BadParameter(str(e), param_hint="--benchmark") from None
 
 
-class StartMode(str, Enum):
+class StartMode(StrEnum):
     episode = "episode"
     recorded = "recorded"
 
 
-class EdgeMode(str, Enum):
+class EdgeMode(StrEnum):
     benchmark = "benchmark"
     exact = "exact"
 

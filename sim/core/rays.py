@@ -7,12 +7,12 @@ what a Driver's seat perceives of a frame, so it sits below everything that hand
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import Enum
+from enum import StrEnum
 
 import numpy as np
 
 
-class FrameProblem(str, Enum):
+class FrameProblem(StrEnum):
     DARK = "dark"
     OVEREXPOSED = "overexposed"
 

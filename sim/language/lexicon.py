@@ -13,14 +13,14 @@ from __future__ import annotations
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
-from enum import Enum
+from enum import StrEnum
 
 from sim.core.labels import Label
 from sim.language.sectors import SECTOR_HEADING_OFFSET, SECTOR_WORDS, Sector
 from sim.language.vocab import LABEL_WORDS, correct
 
 
-class ViewKind(str, Enum):
+class ViewKind(StrEnum):
     LABEL = "label"  # the label is seen in the sectors
     EDGE = "edge"  # the maze's edge (the table's white border) is seen in the sectors
     CORRIDOR = "corridor"  # open space: the sector's rays travel far
@@ -29,13 +29,13 @@ class ViewKind(str, Enum):
     NEXT_TO = "next_to"  # two labels side by side in one view
 
 
-class Distance(str, Enum):
+class Distance(StrEnum):
     ANY = "any"
     NEAR = "near"
     FAR = "far"
 
 
-class Source(str, Enum):
+class Source(StrEnum):
     DESCRIPTION = "description"  # the Driver's own words
     ANSWER = "answer"  # a Commander's question the Driver answered yes / no / with a side
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import re
 from dataclasses import dataclass
-from enum import Enum
+from enum import StrEnum
 from typing import NotRequired, TypedDict
 
 from sim.tasks.benchmark import Benchmark, BenchmarkError, NDHInstance, scan_run
@@ -24,7 +24,7 @@ HUMANS_TD_M = 0.446  # the paper's human study (8 people reading the dialogs)
 FIRST_TARGET = "jar"  # every benchmark trial visits jar, mug, paddle in that order
 
 
-class Variant(str, Enum):
+class Variant(StrEnum):
     PREFIX = "prefix"  # derived: the first sub-dialog cut by CUT_RULE
     FULL = "full"  # derived: the whole first sub-dialog
     EXACT = "exact"  # recorded: the dialog up to the Commander's first estimate

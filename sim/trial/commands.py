@@ -122,7 +122,7 @@ class Note:
 
 @dataclass(frozen=True)
 class Pause:
-    pass
+    note: str | None = None  # the experimenter's reason, logged and shown to the seats
 
 
 @dataclass(frozen=True)

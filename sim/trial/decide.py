@@ -73,8 +73,10 @@ def decide(state: TrialState, command: Command) -> list[ev.Event]:
             return _leave(state, role)
         case Note(event=event):
             return [event]
-        case Pause():
-            return [] if EXPERIMENTER_PAUSE in state.pause_reasons else [ev.Paused(reason=EXPERIMENTER_PAUSE)]
+        case Pause(note=note):
+            return (
+                [] if EXPERIMENTER_PAUSE in state.pause_reasons else [ev.Paused(reason=EXPERIMENTER_PAUSE, note=note)]
+            )
         case Resume():
             return [ev.Resumed(reason=EXPERIMENTER_PAUSE)] if EXPERIMENTER_PAUSE in state.pause_reasons else []
         case Abort(reason=reason):

@@ -43,7 +43,7 @@ class Event(BaseModel):
 
 class TrialCreated(Event):
     kind = "trial_created"
-    omit_if_none = ("start", "join_timeout_s", "seed")
+    omit_if_none = ("start", "join_timeout_s", "seed", "time_cap_s")
     maze: str
     targets: list[str]
     backend: str
@@ -57,6 +57,8 @@ class TrialCreated(Event):
     join_timeout_s: float | None = None
     # The agents' seed, where one was chosen (self-play repeats an offline trial); else the trial's id.
     seed: int | None = None
+    # A study's practice: once its clock has run this long the trial is aborted (the time is up).
+    time_cap_s: float | None = None
 
 
 class Connected(Event):
@@ -79,7 +81,9 @@ class PhaseChanged(Event):
 
 class Paused(Event):
     kind = "paused"
+    omit_if_none = ("note",)
     reason: str
+    note: str | None = None  # the experimenter's words on why, where typed (seats see it)
 
 
 class Resumed(Event):

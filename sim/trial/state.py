@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from sim.trial import events as ev
 from sim.trial.events import LoggedEvent
 from sim.trial.specs import BackendKind, BackendSpec
-from sim.trial.vocabulary import PARTICIPANTS, FrameSource, Move, Outcome, Phase, Role
+from sim.trial.vocabulary import EXPERIMENTER_PAUSE, PARTICIPANTS, FrameSource, Move, Outcome, Phase, Role
 
 __all__ = ["LoggedEvent", "TrialState", "fold", "trial_score"]
 
@@ -67,7 +67,9 @@ class TrialState:
     confirmed: list[ev.TargetConfirmed] = field(default_factory=list)
     finished_active_ns: int | None = None  # active time at the last confirmation
     abort_reason: str | None = None  # why it was aborted, where the log says
+    pause_note: str | None = None  # why the experimenter paused it (while paused), where they said
     join_by_ns: int | None = None  # a lobby's trial: when seats still unopened abort it
+    time_cap_s: float | None = None  # a practice: the trial clock's limit, past which it is aborted
     last_seq: int = 0
 
     # -- derived ------------------------------------------------------------------
@@ -131,7 +133,7 @@ class TrialState:
             case ev.TrialCreated():
                 self.maze, self.targets = event.maze, list(event.targets)
                 self.backend, self.driver, self.commander = event.backend, event.driver, event.commander
-                self.start, self.seed = event.start, event.seed
+                self.start, self.seed, self.time_cap_s = event.start, event.seed, event.time_cap_s
                 if event.join_timeout_s is not None:
                     self.join_by_ns = t_ns + round(event.join_timeout_s * 1e9)
             case ev.Connected(role=role):
@@ -156,10 +158,14 @@ class TrialState:
                     self.away.clear()
             case ev.Restarted(paused=reasons):
                 self.pause_reasons.update(reasons)
-            case ev.Paused(reason=reason):
+            case ev.Paused(reason=reason, note=note):
                 self.pause_reasons.add(reason)
+                if reason == EXPERIMENTER_PAUSE:
+                    self.pause_note = note
             case ev.Resumed(reason=reason):
                 self.pause_reasons.discard(reason)
+                if reason == EXPERIMENTER_PAUSE:
+                    self.pause_note = None
             case ev.MoveRequested(move_id=move_id, action=action):
                 self.move_ids.add(move_id)
                 self.moves_in_flight[move_id] = (action, t_ns)

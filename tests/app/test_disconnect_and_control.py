@@ -67,14 +67,22 @@ def test_experimenter_pauses_resumes_and_aborts(server, trial):
             trial.seat("driver") as driver,
         ):
             await start_trial(commander, driver)
-            await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial.id}/pause")
-            await driver.event("paused", reason="experimenter")
+            pause = f"/experimenter/trials/{trial.id}/pause"
+            await asyncio.to_thread(experimenter.post, pause, data={"reason": " the fire alarm "})
+            # The typed reason is logged with the pause and sent to the seats while it lasts.
+            await driver.event("paused", reason="experimenter", note="the fire alarm")
+            status = await commander.wait_for(lambda m: m.get("type") == "status" and m["paused"])
+            assert status["pause_note"] == "the fire alarm"
             refused = await move(driver, "left")
             assert refused["outcome"] == "refused" and "paused" in refused["reason"]
             live = (await asyncio.to_thread(experimenter.get, "/experimenter/api/trials")).json()["trials"]
             assert live[0]["paused"] == ["experimenter"] and live[0]["pose"] is not None
+            assert live[0]["pause_note"] == "the fire alarm"
+            seen = len(commander.received)
             await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial.id}/resume")
             await driver.event("resumed", reason="experimenter")
+            status = await commander.wait_for(lambda m: m.get("type") == "status" and not m["paused"], start=seen)
+            assert status["pause_note"] is None
             assert (await move(driver, "left"))["outcome"] == "ok"
             await asyncio.to_thread(
                 experimenter.post,

@@ -33,8 +33,9 @@ def test_seats_on_two_processes_play_one_trial(cluster, trials):
                 await commander.send("localize", x=1.0, y=1.0)
                 await driver.event("phase", phase="navigating")
                 # The experimenter's controls work from any process.
-                await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial.id}/pause")
-                await driver.event("paused", reason="experimenter")
+                pause = f"/experimenter/trials/{trial.id}/pause"
+                await asyncio.to_thread(experimenter.post, pause, data={"reason": "a phone call"})
+                await driver.event("paused", reason="experimenter", note="a phone call")
                 await asyncio.to_thread(experimenter.post, f"/experimenter/trials/{trial.id}/resume")
                 await commander.event("resumed", reason="experimenter")
                 await driver.send("confirm")  # a bad message through the relay

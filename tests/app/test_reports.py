@@ -164,6 +164,8 @@ def test_assign_agreement_and_the_adjudicated_cut_in_the_ldh_export(study, tmp_p
     ]
     printed = cli("report", "agreement", "--study", STUDY, env=env).stdout
     assert "kappa Communication Repair: 0.000" in printed and "mean 0.50 messages" in printed
+    # A tag's answers read as yes/no, as the page and its adjudication put them.
+    assert f"disagreement trial {d2} communication_repair: ann: yes; bob: no (adjudicated: —)" in printed
 
     server = start_server(settings)  # the experimenter's agreement page, and adjudication on it
     client = experimenter_client(server.services, server.url)
@@ -290,6 +292,9 @@ def test_the_ndh_export_splits_the_study_by_layout_saves_the_split_and_reuses_it
 
     again = cli("export", "all", "--format", "ndh", "--out", str(tmp_path / "again"), *folds, env=env)
     assert again.returncode == 0 and json.loads((tmp_path / "again" / "splits.json").read_text()) == by_maze
+    # Without --folds the study's export keeps the study's split.
+    plain = cli("export", "all", "--format", "ndh", "--out", str(tmp_path / "plain"), *folds[:2], env=env)
+    assert plain.returncode == 0 and json.loads((tmp_path / "plain" / "splits.json").read_text()) == by_maze
     other = cli("export", "all", "--format", "ndh", "--out", str(tmp_path / "other"), *folds[:-1], "3", env=env)
     assert other.returncode == 1 and "--seed 2" in other.stderr, "a study is split once"
     refused = cli("export", "all", "--format", "mcap", "--out", str(tmp_path / "m"), *folds, env=env)
@@ -299,3 +304,14 @@ def test_the_ndh_export_splits_the_study_by_layout_saves_the_split_and_reuses_it
     assert cli("report", "study", "--study", STUDY, "--out", str(report), env=env).returncode == 0
     table = json.loads((report / "study.json").read_text())["folds"]
     assert {layout: fold for fold, f in table.items() for layout in f["by_layout"]} == saved["layouts"]
+
+    # A study never split with --folds: its first export draws the default split and saves it, so
+    # the next export (and the report) give each layout the same fold.
+    (settings.data_dir / "folds" / f"{STUDY}.json").unlink()
+    for n in (1, 2):
+        made = cli("export", "all", "--format", "ndh", "--out", str(tmp_path / f"default{n}"), *folds[:2], env=env)
+        assert made.returncode == 0, made.stderr
+    first, second = (json.loads((tmp_path / f"default{n}" / "splits.json").read_text()) for n in (1, 2))
+    default = json.loads((settings.data_dir / "folds" / f"{STUDY}.json").read_text())
+    assert first == second == {maze: default["layouts"][layout_of[maze]] for maze in first}
+    assert (default["shares"], default["seed"]) == ("train:val_seen:test=70:15:15", 0)

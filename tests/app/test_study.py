@@ -120,6 +120,48 @@ def test_experimenter_writes_a_versioned_study_and_bad_input_changes_nothing(ser
     assert (server.settings.data_dir / "studies" / "pilot.json").read_text() == before
 
 
+def test_the_study_editor_is_a_form_over_the_same_study(server):
+    eve = experimenter_client(server.services, server.url)
+    page = eve.post("/experimenter/studies", data={"name": "pilot"}).text
+    assert f'value="{server.url}/study/pilot"' in page, "the participants' link, whole"
+    files = StudyFiles(server.settings.data_dir / "studies")
+    form = {
+        "title": "Robots in mazes",
+        "consent.version": "2",
+        "trials_per_participant": "3",
+        "max_participants": "",  # unset
+        "maze_pool": "gen-001\n gen-002 \n",
+        "questionnaire.0.id": "",  # the first item removed
+        "questionnaire.0.prompt": "",
+        "questionnaire.3.id": "fun",  # the blank row: an item added
+        "questionnaire.3.kind": "difficulty",
+        "questionnaire.3.prompt": "How much fun was it? (1-5)",
+        "outcome_codes.partial": "PART-1",
+        "outcome_codes.withdrew": "",
+        "panel_on": "on",
+        "panel.completion_url": "https://app.prolific.com/submissions/complete?cc={code}",
+    }
+    saved = eve.post("/experimenter/studies/pilot", data=form)
+    assert saved.status_code == 200 and "Saved as version 2" in saved.text
+    study = files.load("pilot")
+    assert (study.title, study.consent.version, study.trials_per_participant) == ("Robots in mazes", "2", 3)
+    assert study.max_participants is None and study.maze_pool == ["gen-001", "gen-002"]
+    assert [q.id for q in study.questionnaire] == ["partner", "comments", "fun"]
+    assert study.outcome_codes == {"partial": "PART-1"} and study.panel is not None
+    assert study.panel.participant_param == "PROLIFIC_PID", "the panel's defaults, shown in the form"
+    assert study.consent.text == template("pilot").consent.text, "a field not sent is kept"
+
+    # A bad value: said, the typed values shown again, nothing saved; without panel_on, no panel.
+    before = (server.settings.data_dir / "studies" / "pilot.json").read_text()
+    page = eve.post("/experimenter/studies/pilot", data={"title": "Renamed", "trials_per_participant": "0"})
+    shown = html.unescape(page.text)
+    assert page.status_code == 400 and "trials_per_participant: Input should be greater than or equal to 1" in shown
+    assert 'name="title" type="text" value="Renamed"' in shown
+    assert (server.settings.data_dir / "studies" / "pilot.json").read_text() == before
+    assert eve.post("/experimenter/studies/pilot", data={"title": "Renamed"}).status_code == 200
+    assert files.load("pilot").panel is None and files.load("pilot").title == "Renamed"
+
+
 def test_consent_is_recorded_with_its_version_and_declining_records_no_one(server):
     make_study(server.settings)
     assert browser(server.url).get("/study/nosuch").status_code == 404
@@ -271,7 +313,7 @@ def test_questionnaires_completion_and_withdrawal_erase_personal_data_only(serve
         assert written, f"{fmt}: the aborted study trial is exported"
         assert not [p for p in written if REAL_NAME.encode() in p.read_bytes()], fmt
 
-    gone = bob.post("/study/pilot/withdraw")
+    gone = bob.post("/study/pilot/withdraw", data={"confirm": "yes"})
     assert "You have withdrawn" in gone.text
     assert bob.get("/study/pilot/me").status_code == 403, "the pass is gone with the cookie"
     assert REAL_NAME not in every_text_in_db(server) and FREE_TEXT not in every_text_in_db(server)
@@ -309,8 +351,11 @@ def test_the_questionnaire_opens_only_for_a_trial_the_participant_played_that_ha
     for trial_id in (ours, theirs):
         open_seats(server, trial_id, "commander", "driver")
         assert eve.post(f"/experimenter/trials/{trial_id}/abort").status_code == 200
-    other_pairs = bob.get(form.format(theirs))
+    other_pairs = bob.get(form.format(theirs), headers={"Accept": "text/html"})
     assert other_pairs.status_code == 404 and "not one of yours" in other_pairs.text
+    # The error page leads back into the study, and nowhere out of it.
+    assert '<a href="/study/pilot" id="back-to-study">' in other_pairs.text
+    assert 'href="/"' not in other_pairs.text and 'href="/leaderboard"' not in other_pairs.text
     assert bob.get(form.format(theirs + 1000)).status_code == 404, "no such trial"
     page = bob.get(form.format(ours))
     assert page.status_code == 200 and 'name="difficulty"' in page.text
@@ -327,7 +372,7 @@ def poll(client, study: str = "pilot") -> dict:
 
 def test_newcomers_practise_together_on_the_bundled_maze_set_aside_from_scores(server):
     StudyFiles(server.settings.data_dir / "studies").save(template("pilot"))
-    (ann, _), (bob, _) = join(server, "pilot"), join(server, "pilot")
+    (ann, ann_code), (bob, bob_code) = join(server, "pilot"), join(server, "pilot")
     assert poll(ann)["state"] == "waiting" and poll(bob)["state"] == "seated"
     eve = experimenter_client(server.services, server.url)
     with server.services.db() as db:
@@ -339,7 +384,8 @@ def test_newcomers_practise_together_on_the_bundled_maze_set_aside_from_scores(s
     after = ann.get(f"/study/pilot/trials/{practice.id}/next", follow_redirects=False)
     assert after.headers["location"] == "/study/pilot/lobby", "on from the practice to the first real trial"
     assert "practice: no questionnaire" in ann.get("/study/pilot/me").text
-    cat, _ = join(server, "pilot")
+    cat, cat_code = join(server, "pilot")
+    codes = (ann_code, bob_code, cat_code)
     assert poll(ann)["state"] == "waiting" and poll(cat) == {"state": "waiting", "waiting": 2}, (
         "a newcomer is not paired with someone who has practised"
     )
@@ -348,6 +394,15 @@ def test_newcomers_practise_together_on_the_bundled_maze_set_aside_from_scores(s
     with server.services.db() as db:
         trial = db.scalars(select(Trial).where(Trial.study == "pilot").order_by(Trial.id.desc())).first()
     assert trial.maze != "gen-000" and trial.excluded_reason is None
+
+    # The study page lists its trials by kind, and each participant's trials against the plan.
+    page = eve.get("/experimenter/studies/pilot").text
+    assert f'<tr data-trial="{practice.id}" data-kind="practice">' in page
+    assert f'<tr data-trial="{trial.id}" data-kind="live">' in page
+    progress = {
+        code: page.split(f'<tr data-code="{code}">')[1].split('class="progress">')[1].split("<")[0] for code in codes
+    }
+    assert progress == {ann_code: "1 of 5, practised", bob_code: "1 of 5, practised", cat_code: "0 of 5"}
 
 
 def test_lobby_pairs_whoever_arrives_on_unseen_layouts_with_roles_balanced(any_db_settings, start_server):

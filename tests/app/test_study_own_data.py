@@ -144,7 +144,7 @@ def test_personal_data_are_purged_the_set_days_after_the_study_closes(start_serv
 def test_withdrawal_and_logout_clear_the_site_data(server):
     StudyFiles.of(server.settings.data_dir).save(study("pilot", practice_maze=None))
     ann, _ = join(server, "pilot")
-    gone = ann.post("/study/pilot/withdraw")
+    gone = ann.post("/study/pilot/withdraw", data={"confirm": "yes"})
     assert gone.headers["clear-site-data"] == '"cache", "cookies", "storage"'
     eve = experimenter_client(server.services, server.url)
     out = eve.post("/logout", follow_redirects=False)

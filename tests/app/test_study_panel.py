@@ -93,7 +93,7 @@ def test_a_panel_link_is_stored_with_the_pseudonym_on_no_public_page_and_each_en
         assert not any(secret in page for secret in ("PID-ANN", "PID-BOB", "ST-77", "SE-1", "SE-2"))
 
     cat, _ = arrive(server, "PID-CAT", "SE-3")
-    gone = cat.post("/study/pilot/withdraw").text
+    gone = cat.post("/study/pilot/withdraw", data={"confirm": "yes"}).text
     assert onward(gone) == (PROLIFIC.format(code="WITHDREW-3"), "10")
 
     dan, dan_code = arrive(server, "PID-DAN", "SE-4")
@@ -134,7 +134,7 @@ def test_the_roster_has_one_row_per_participant_with_the_panels_ids_outcome_code
     end(server, eve)
     assert finish(ann).url.path == "/study/pilot/done"
     cat, cat_code = arrive(server, "PID-CAT", "SE-3")
-    cat.post("/study/pilot/withdraw")
+    cat.post("/study/pilot/withdraw", data={"confirm": "yes"})
     dan, dan_code = arrive(server, "PID-DAN", "SE-4")  # still waiting at the export: counted to his last ask
     assert poll(dan)["state"] == "waiting"
 

@@ -230,7 +230,7 @@ def test_the_lobbys_time_the_studys_time_limit_withdrawal_and_screening_out_each
     assert 'id="completion-code">LATE-5<' in kim.get(state["next"]).text
 
     hal, _ = join(server, "pilot")
-    gone = hal.post("/study/pilot/withdraw")
+    gone = hal.post("/study/pilot/withdraw", data={"confirm": "yes"})
     assert "You have withdrawn" in gone.text and 'id="completion-code">WITHDREW-3<' in gone.text
 
     (ivy, ivy_code), (joe, _) = join(server, "pilot"), join(server, "pilot")

@@ -66,7 +66,7 @@ def test_the_studys_events_reach_its_webhook_as_json_with_codes_only(server):
         end(server, experimenter_client(server.services, server.url))
         over = received.get(timeout=10)
         assert (over["event"], over["trial_id"], over["phase"]) == ("trial_ended", paired["trial_id"], "aborted")
-        ann.post("/study/pilot/withdraw")
+        ann.post("/study/pilot/withdraw", data={"confirm": "yes"})
         gone = received.get(timeout=10)
         assert (gone["event"], gone["participant"]) == ("withdrawal", ann_code)
         for event in (paired, over, gone):
@@ -83,7 +83,7 @@ def test_a_slow_or_failing_webhook_delays_no_participant_and_is_logged(server, c
         assert poll(bob)["state"] == "seated"
         assert held.get(timeout=10)["event"] == "paired"  # its delivery is out, and held
         cat, _ = join(server, "pilot")
-        assert "You have withdrawn" in cat.post("/study/pilot/withdraw").text
+        assert "You have withdrawn" in cat.post("/study/pilot/withdraw", data={"confirm": "yes"}).text
         assert received.empty(), "participants were answered while the webhook still waited"
         hold.set()
         assert received.get(timeout=10)["event"] == "paired"
@@ -91,7 +91,7 @@ def test_a_slow_or_failing_webhook_delays_no_participant_and_is_logged(server, c
     caplog.set_level(logging.WARNING, logger="robotslang.study.webhook")
     StudyFiles.of(server.settings.data_dir).save(study("pilot", practice_maze=None, webhook_url=url))  # gone now
     dan, _ = join(server, "pilot")
-    assert "You have withdrawn" in dan.post("/study/pilot/withdraw").text
+    assert "You have withdrawn" in dan.post("/study/pilot/withdraw", data={"confirm": "yes"}).text
     deadline = time.monotonic() + 15
     while not any("webhook" in r.getMessage() and "failed" in r.getMessage() for r in caplog.records):
         assert time.monotonic() < deadline, "the failed delivery is logged"

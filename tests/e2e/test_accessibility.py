@@ -149,6 +149,7 @@ def test_every_page_has_no_serious_or_critical_axe_violation(browser, server, tr
         if choice == "withdraw":
             person.goto(server.url + "/study/pilot/me")
             person.click("#my-study summary")
+            person.check("#withdraw-confirm")
             person.click("#withdraw")
             person.wait_for_selector("#withdrawn")
             visits.check(person, "study withdrawn")

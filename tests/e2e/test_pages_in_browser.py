@@ -125,8 +125,8 @@ def test_participants_see_the_clock_their_moves_and_what_to_do(browser, server, 
     wait_js(driver, f"Number(document.getElementById('clock').dataset.seconds) > {before}")
     wait_js(commander, f"Number(document.getElementById('clock').dataset.seconds) > {before}")
 
-    # The experimenter pauses from the trial's page: the clocks stop, the status says so, and a
-    # refused move reads as what to do, not as the server's words.
+    # The experimenter pauses from the trial's page, saying why: the clocks stop, the status says
+    # so with their words, and a refused move reads as what to do, not as the server's words.
     admin = experimenter(browser, server)
     admin.goto(f"{server.url}/experimenter/trials/{trial_id}")
     admin.wait_for_selector("#status[data-phase=navigating]")
@@ -134,9 +134,10 @@ def test_participants_see_the_clock_their_moves_and_what_to_do(browser, server, 
     admin.wait_for_selector("#camera[src^='data:image/jpeg']")
     admin.wait_for_selector("#pose-note >> text=True pose")
     assert admin.is_hidden("form.control-resume")
+    admin.fill("form.control-pause input[name=reason]", "a short break")
     admin.click("form.control-pause button")
-    for page in (commander, driver):
-        page.wait_for_selector("#status >> text=Paused by the experimenter")
+    for page in (commander, driver, admin):
+        page.wait_for_selector("#status >> text=Paused by the experimenter (a short break). The clock is stopped.")
     admin.wait_for_selector("form.control-resume:not([hidden])")
     assert admin.is_hidden("form.control-pause")
     frozen = seconds(driver)
@@ -168,6 +169,9 @@ def test_participants_see_the_clock_their_moves_and_what_to_do(browser, server, 
         assert "ended early" in page.inner_text("#status")
     assert all(driver.is_disabled(b) for b in ("#forward", "#left", "#right", "#found"))
     admin.wait_for_selector("#status[data-phase=aborted]")  # the trial's page follows without a reload
+    # The experimenter is told what it means and what they can do, not to close the page.
+    assert "close this page" not in admin.inner_text("#status")
+    assert "Restart it from the dashboard" in admin.inner_text("#status")
     assert all(admin.is_hidden(f"form.control-{a}") for a in ("pause", "resume", "abort"))
     assert commander.is_disabled("#chat-input")
     admin.goto(f"{server.url}/experimenter")

@@ -161,6 +161,7 @@ def test_a_whole_study_with_four_strangers(browser, server, tmp_path):
 
     ada.goto(server.url + "/study/pilot/me")
     ada.click("#my-study summary")
+    ada.check("#withdraw-confirm")
     ada.click("#withdraw")
     ada.wait_for_selector("#withdrawn")
     with server.services.engine.connect() as conn:

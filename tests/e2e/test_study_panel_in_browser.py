@@ -40,6 +40,7 @@ def test_a_panel_link_leaves_a_clean_address_bar_and_the_end_lands_on_the_panel(
     page.wait_for_url("**/study/pilot/me")
     assert "PID-ZOE" not in page.content() and "SE-9" not in page.content()
     page.click("summary")
+    page.check("#withdraw-confirm")
     page.click("#withdraw")
     page.wait_for_selector("#withdrawn")
     page_checks(page, "withdrawn, on to the panel")  # axe: a countdown that can be stopped
@@ -53,6 +54,7 @@ def test_a_panel_link_leaves_a_clean_address_bar_and_the_end_lands_on_the_panel(
     page.click("#continue")
     page.goto(f"{server.url}/study/pilot/me")
     page.click("summary")
+    page.check("#withdraw-confirm")
     page.click("#withdraw")
     page.click("#stay")
     page.wait_for_timeout(11_000)
