@@ -155,7 +155,7 @@ def test_every_participant_page_of_a_german_study_is_in_german(browser, server):
     questionnaire = commander.url
     commander.check("fieldset[data-question=schwer] input[value='3']")
     commander.click("#send-answers")
-    commander.wait_for_url("**/me")
+    commander.wait_for_url("**/me?saved=true")
     in_german(commander, "my page")
     commander.goto(questionnaire)  # answered already: 404
     assert commander.locator("#error-page[data-status='404']").count() == 1
@@ -175,6 +175,7 @@ def test_every_participant_page_of_a_german_study_is_in_german(browser, server):
     driver.wait_for_url("**/questionnaire")
     driver.goto(server.url + "/study/roboter/me")
     driver.click("#my-study summary")
+    driver.check("#withdraw-confirm")
     driver.click("#withdraw")
     assert driver.inner_text("#completion-code") == "ZURUECK"
     in_german(driver, "withdrawn")
