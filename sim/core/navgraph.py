@@ -130,16 +130,18 @@ class NavGraph:
         """The graph of `maze` (cached by its contents); `objects_block=True`: `for_robot`."""
         if mode not in MODES:
             raise ValueError(f"unknown edge mode {mode!r}; expected one of {', '.join(MODES)}")
+        grid = maze.labels if objects_block else maze.walls
+        if not use_cache:  # no key to hash: the maze's hash is 5 ms
+            return cls._compute(grid, mode, objects_block)
         kind = f"{mode}-objects" if objects_block else mode
         path = default_cache_dir(cache_dir) / "navgraph" / f"{maze.content_hash}-{kind}-v{CACHE_VERSION}{ARRAYS_SUFFIX}"
-        if use_cache and path.exists():
+        if path.exists():
             try:
                 return cls(mode=mode, objects_block=objects_block, **load_arrays(path))
             except (OSError, ValueError, KeyError):
                 pass  # a torn or stale cache file is rebuilt below
-        graph = cls._compute(maze.labels if objects_block else maze.walls, mode, objects_block)
-        if use_cache:
-            graph._save(path)
+        graph = cls._compute(grid, mode, objects_block)
+        graph._save(path)
         return graph
 
     @classmethod

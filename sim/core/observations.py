@@ -190,8 +190,10 @@ def _block_min_px(distance: np.ndarray, block: int, scale: np.float32) -> np.nda
     h, w = distance.shape
     full_h, full_w = h // block, w // block
     least = np.zeros((-(-h // block), -(-w // block)), dtype=np.float32)
-    rows = distance[: full_h * block, : full_w * block].reshape(full_h, block, full_w * block).min(axis=1)
-    least[:full_h, :full_w] = rows.reshape(full_h, full_w, block).min(axis=2) * scale
+    # The least of strided slices: a reduction over an axis of 4 cost three times as much.
+    whole = distance[: full_h * block, : full_w * block]
+    rows = np.minimum.reduce([whole[k::block] for k in range(block)])
+    least[:full_h, :full_w] = np.minimum.reduce([rows[:, k::block] for k in range(block)]) * scale
     clearance: np.ndarray = np.minimum(np.floor(least), 255).astype(np.uint8)
     return clearance
 
@@ -242,11 +244,13 @@ class RayTable:
         cls, maze: Maze, graph: NavGraph, cache_dir: str | Path | None = None, use_cache: bool = True
     ) -> RayTable:
         """Every (node, heading) observation of `graph` on `maze`, cached by maze and nodes."""
-        key = hashlib.sha256(np.ascontiguousarray(graph.nodes).tobytes()).hexdigest()[:12]
-        path = default_cache_dir(cache_dir) / "rays" / f"{maze.content_hash}-{key}-v{CACHE_VERSION}{ARRAYS_SUFFIX}"
         labels: np.ndarray | None = None
         depth: np.ndarray | None = None
-        if use_cache and path.exists():
+        path = None  # no key to hash without the cache
+        if use_cache:
+            key = hashlib.sha256(np.ascontiguousarray(graph.nodes).tobytes()).hexdigest()[:12]
+            path = default_cache_dir(cache_dir) / "rays" / f"{maze.content_hash}-{key}-v{CACHE_VERSION}{ARRAYS_SUFFIX}"
+        if path is not None and path.exists():
             try:
                 data = load_arrays(path)
                 labels, depth = data["labels"], data["depth"]
@@ -254,7 +258,7 @@ class RayTable:
                 labels = None  # a torn or stale cache file is rebuilt below
         if labels is None or labels.shape != (graph.n, HEADINGS, N_RAYS):
             labels, depth = node_rays(maze, graph.nodes)
-            if use_cache:
+            if path is not None:
                 save_arrays(path, labels=labels, depth=depth)
         assert depth is not None  # read or built with the labels
         return cls(
