@@ -363,10 +363,10 @@ def test_every_response_carries_the_security_headers(server, trial):
 
 
 def test_inline_code_that_the_policy_would_block_is_absent_from_the_templates():
-    for template in (REPO / "templates").glob("*.html"):
-        text = template.read_text()
-        assert not re.search(r"<script(?![^>]*\bsrc=)[^>]*>", text), f"{template.name}: inline script"
-        assert "<style" not in text and " style=" not in text, f"{template.name}: inline style"
+    for page in (REPO / "templates").glob("*.html"):
+        text = page.read_text()
+        assert not re.search(r"<script(?![^>]*\bsrc=)[^>]*>", text), f"{page.name}: inline script"
+        assert "<style" not in text and " style=" not in text, f"{page.name}: inline style"
         assert not re.search(r"\son[a-z]+=", text), f"{template.name}: inline event handler"
 
 
