@@ -367,7 +367,7 @@ def test_inline_code_that_the_policy_would_block_is_absent_from_the_templates():
         text = page.read_text()
         assert not re.search(r"<script(?![^>]*\bsrc=)[^>]*>", text), f"{page.name}: inline script"
         assert "<style" not in text and " style=" not in text, f"{page.name}: inline style"
-        assert not re.search(r"\son[a-z]+=", text), f"{template.name}: inline event handler"
+        assert not re.search(r"\son[a-z]+=", text), f"{page.name}: inline event handler"
 
 
 @pytest.mark.settings(allowed_hosts=["lab.example"], allowed_origins=["https://study.example:8443"])
