@@ -25,6 +25,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from app.clock import ServerClock
 from app.db.models import LDHStudy, LDHStudyEvent, LDHStudyInstance, LDHStudyParticipant
+from app.i18n import Language, Text
 from app.mazes import commander_map_png
 from app.settings import Settings
 from sim.core.geometry import TABLE_HEIGHT_M, TABLE_WIDTH_M
@@ -115,9 +116,17 @@ class LocalizationStudies:
 
     # -- the experimenter -------------------------------------------------------------
     def create(
-        self, experimenter_id: int, name: str, source: str, split: str, variant: str, limit: int | None = None
+        self,
+        experimenter_id: int,
+        name: str,
+        source: str,
+        split: str,
+        variant: str,
+        limit: int | None = None,
+        language: Language = Language.en,
     ) -> int:
-        """A new study of the split's instances (the first `limit` of them); its id."""
+        """A new study of the split's instances (the first `limit` of them), its participant's pages
+        in `language`; its id."""
         name = name.strip()
         if not name:
             raise LocalizationStudyError("give the study a name")
@@ -141,6 +150,7 @@ class LocalizationStudies:
                 source=source,
                 split=split,
                 variant=instances[0].variant.value,
+                language=language,
                 experimenter_id=experimenter_id,
             )
             db.add(study)
@@ -231,15 +241,19 @@ class LocalizationStudies:
         with self._answering:
             expected = self.next_position(study_id, participant_id)
             if expected is None:
-                raise LocalizationStudyError("you have answered every instance of this study")
+                raise LocalizationStudyError(Text("you have answered every instance of this study"))
             if position != expected:
                 raise LocalizationStudyError(
-                    f"instance {position + 1} is not the one to answer now (that is {expected + 1})"
+                    Text(
+                        "instance {n} is not the one to answer now (that is {expected})",
+                        n=position + 1,
+                        expected=expected + 1,
+                    )
                 )
             if not (math.isfinite(x) and math.isfinite(y) and 0 <= x <= TABLE_WIDTH_M and 0 <= y <= TABLE_HEIGHT_M):
-                raise LocalizationStudyError("the mark must lie on the map")
+                raise LocalizationStudyError(Text("the mark must lie on the map"))
             if heading is not None and not math.isfinite(heading):
-                raise LocalizationStudyError("the heading must be a number of radians")
+                raise LocalizationStudyError(Text("the heading must be a number of radians"))
             study, inst = self.study(study_id), self.instances(study_id)[position]
             truth = LDHInstance(
                 inst.inst_idx, inst.run, inst.true_x, inst.true_y, inst.true_heading, (), Variant(study.variant)

@@ -18,6 +18,7 @@ from itsdangerous import BadSignature, SignatureExpired, URLSafeTimedSerializer
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.db.models import Experimenter
+from app.i18n import Text
 
 SEAT_ROLES = ("commander", "driver")
 SESSION_COOKIE = "robotslang_session"
@@ -71,7 +72,7 @@ class SeatTokens:
             data = self._serializer.loads(token, max_age=max_age)  # type: ignore[arg-type]
             seat = Seat(int(data["t"]), str(data["r"]))
         except SignatureExpired:
-            raise ExpiredLink("this join link has expired: ask the experimenter for a new one") from None
+            raise ExpiredLink(Text("this join link has expired: ask the experimenter for a new one")) from None
         except (BadSignature, KeyError, TypeError, ValueError):
             raise InvalidToken("seat token is not valid (forged or damaged link)") from None
         if seat.role not in SEAT_ROLES:

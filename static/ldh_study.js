@@ -2,6 +2,7 @@
 // Commander, and a submit that moves on to the next instance once the server has recorded it.
 import {csrfHeaders, TableMap} from "./maputil.js";
 import {markTool} from "./marktool.js";
+import {t} from "./i18n.js";
 
 const $ = (id) => document.getElementById(id);
 const root = $("ldh"), token = root.dataset.token, position = Number(root.dataset.position);
@@ -35,14 +36,14 @@ $("submit").addEventListener("click", async () => {
     });
     if (reply.ok) { location.reload(); return; }
     const body = await reply.json().catch(() => ({}));
-    $("error").textContent = body.detail || `The answer was not recorded (${reply.status}). Reload the page.`;
+    $("error").textContent = body.detail || t("The answer was not recorded ({status}). Reload the page.", {status: reply.status});
   } catch (err) {
-    $("error").textContent = "The answer was not sent (no connection). Try again.";
+    $("error").textContent = t("The answer was not sent (no connection). Try again.");
   }
   $("submit").disabled = false;
 });
 
 map.onload = draw;
-map.onerror = () => { $("map-hint").textContent = "The map could not be loaded. Reload the page."; };
+map.onerror = () => { $("map-hint").textContent = t("The map could not be loaded. Reload the page."); };
 map.src = `/ldh/${encodeURIComponent(token)}/map/${position}.png`;
 draw();

@@ -114,6 +114,7 @@ class LDHStudy(Created, Base):
     source: Mapped[str] = mapped_column(Text)  # the folder in the benchmark's layout it was drawn from
     split: Mapped[str] = mapped_column(String(16))
     variant: Mapped[str] = mapped_column(String(16))  # sim.tasks.ldh.Variant
+    language: Mapped[str] = mapped_column(String(8), default="en", server_default="en")  # app.i18n.Language
     experimenter_id: Mapped[int] = mapped_column(ForeignKey("experimenter.id"))
 
 

@@ -15,6 +15,7 @@ from pydantic import BaseModel, ConfigDict
 from app.db.models import LDHStudy
 from app.deps import ExperimenterId, LocalizationStudiesDep, StudyTokensDep, experimenter_id
 from app.guard import csrf_protect
+from app.i18n import Language
 from app.localization_study import CSV_COLUMNS, LocalizationStudyError
 from app.security import InvalidToken, StudyPass
 from app.web import render
@@ -41,7 +42,14 @@ def _back(study_id: int | None = None, error: str | None = None) -> RedirectResp
 # -- the experimenter -----------------------------------------------------------------------
 @studies_router.get("", response_class=HTMLResponse)
 def study_list(request: Request, s: LocalizationStudiesDep, error: str | None = None) -> HTMLResponse:
-    return render(request, "ldh_studies.html", studies=s.all_studies(), default_source=s.default_source(), error=error)
+    return render(
+        request,
+        "ldh_studies.html",
+        studies=s.all_studies(),
+        default_source=s.default_source(),
+        languages=list(Language),
+        error=error,
+    )
 
 
 @studies_router.post("")
@@ -53,9 +61,10 @@ def create_study(
     split: str = Form("val_seen"),
     variant: str = Form("prefix"),
     limit: int | None = Form(None),
+    language: Language = Form(Language.en),
 ) -> RedirectResponse:
     try:
-        study_id = studies.create(experimenter, name, source, split, variant, limit)
+        study_id = studies.create(experimenter, name, source, split, variant, limit, language)
     except LocalizationStudyError as err:
         return _back(error=str(err))
     return _back(study_id)
@@ -103,13 +112,15 @@ def export_csv(studies: LocalizationStudiesDep, study: ExistingStudy) -> Respons
 
 
 # -- the participant --------------------------------------------------------------------------
-def study_pass(token: str, tokens: StudyTokensDep, studies: LocalizationStudiesDep) -> StudyPass:
-    """The study and participant a link opens; 403 for a forged link or one naming another study's participant."""
+def study_pass(request: Request, token: str, tokens: StudyTokensDep, studies: LocalizationStudiesDep) -> StudyPass:
+    """The study and participant a link opens, its pages in the study's language; 403 for a forged
+    link or one naming another study's participant."""
     try:
         granted = tokens.verify(token)
         studies.participant(granted.study_id, granted.participant_id)
     except (InvalidToken, LookupError) as err:
         raise HTTPException(403, str(err)) from None
+    request.state.language = Language(studies.study(granted.study_id).language)
     return granted
 
 
@@ -165,7 +176,7 @@ def submit(granted: Granted, s: LocalizationStudiesDep, mark: Mark) -> dict[str,
     try:
         answer = s.answer(granted.study_id, granted.participant_id, mark.position, mark.x, mark.y, mark.heading)
     except LocalizationStudyError as err:
-        raise HTTPException(409, str(err)) from None
+        raise HTTPException(409, err.args[0]) from None  # a `Text`: said in the study's language
     return {"recorded": answer.seq, "next": s.next_position(granted.study_id, granted.participant_id)}
 
 

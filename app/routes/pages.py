@@ -62,8 +62,9 @@ def seat_of(seats: SeatTokens, db: Session, token: str) -> tuple[Seat, Trial]:
     """The seat a join link opens and its trial; 403 for a forged link, `ClosedLink` for a closed one."""
     try:
         seat = seats.admit(token)
-    except ExpiredLink as err:
-        raise ClosedLink(str(err)) from None
+    except ExpiredLink as err:  # genuine, so its trial says whose language the page speaks
+        expired = db.get(Trial, seats.verify(token).trial_id)
+        raise ClosedLink(err.args[0], study=expired.study if expired else None) from None
     except InvalidToken as err:
         raise HTTPException(403, str(err)) from None
     trial = trial_or_404(db, seat.trial_id)

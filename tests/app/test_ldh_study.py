@@ -13,7 +13,7 @@ from app.security import StudyTokens, hash_password
 from sim.tasks.benchmark import Benchmark
 from sim.tasks.ldh import LDHInstance, Variant
 from sim.tasks.ldh_eval import MazeContext, score
-from tests.app.live import browser, page_csrf_token, platform_settings
+from tests.app.live import browser, log_in, page_csrf_token, platform_settings
 
 
 def participant(base_url: str, link: str) -> tuple[httpx.Client, str]:
@@ -112,6 +112,19 @@ def test_bad_marks_are_refused_and_the_truth_is_hidden_until_done(server, benchm
     seqs = [e.seq for e in events(services, study_id)]
     stamps = [e.t_ns for e in events(services, study_id)]
     assert seqs == list(range(1, len(seqs) + 1)) and stamps == sorted(set(stamps))
+
+
+def test_a_study_created_in_german_speaks_german_to_its_participant(server, benchmark_path):
+    eve = log_in(server.url, "eve", "correct horse")
+    token = page_csrf_token(eve.get("/experimenter/ldh").text)
+    form = {"name": "wo", "source": str(benchmark_path), "limit": "1", "language": "de", "csrf_token": token}
+    created = eve.post("/experimenter/ldh", data=form, follow_redirects=False)
+    study_id = int(created.headers["location"].rsplit("/", 1)[1])
+    ann = server.services.studies.invite(study_id, "ann")
+    client, page = participant(server.url, link(server, study_id, ann))
+    assert '<html lang="de"' in page and "Wo ist der Roboter?" in page
+    off_map = client.post(link(server, study_id, ann) + "/answers", json={"position": 0, "x": 9.0, "y": 1.0})
+    assert off_map.status_code == 409 and off_map.json()["detail"] == "Die Markierung muss auf der Karte liegen."
 
 
 def test_study_pages_need_the_experimenter(server, benchmark_path):

@@ -10,6 +10,7 @@ import re
 import secrets
 import subprocess
 import sys
+import time
 
 import httpx
 import pytest
@@ -19,8 +20,10 @@ from sqlalchemy import select
 
 from app.db.engine import alembic_config, make_engine
 from app.db.models import Experimenter, Participant, Trial
+from app.i18n import Language
 from app.routes.seat_ws import TRIAL_OVER
 from app.security import SESSION_COOKIE, InvalidToken, Seat, SeatTokens
+from app.study.config import StudyFiles, template
 from bench.live import REPO
 from tests.app.live import (
     PASSWORD,
@@ -328,6 +331,17 @@ def test_a_join_link_expires_after_its_ttl_but_an_open_seat_keeps_working(server
     assert httpx.get(fresh.play_url("commander")).status_code == 200
 
 
+@pytest.mark.settings(join_link_ttl_s=1.0)
+def test_an_expired_join_link_of_a_study_says_so_in_the_study_language(server, trial):
+    StudyFiles.of(server.settings.data_dir).save(template("roboter").model_copy(update={"language": Language.de}))
+    with server.services.db.begin() as db:
+        db.get(Trial, trial.id).study = "roboter"
+    time.sleep(2.2)  # link timestamps count whole seconds
+    page = httpx.get(trial.play_url("commander"))
+    assert page.status_code == 410 and '<html lang="de"' in page.text
+    assert "Dieser Teilnahmelink ist abgelaufen" in page.text
+
+
 # -- headers and host names ------------------------------------------------------------
 def test_every_response_carries_the_security_headers(server, trial):
     paths = [
@@ -349,11 +363,11 @@ def test_every_response_carries_the_security_headers(server, trial):
 
 
 def test_inline_code_that_the_policy_would_block_is_absent_from_the_templates():
-    for template in (REPO / "templates").glob("*.html"):
-        text = template.read_text()
-        assert not re.search(r"<script(?![^>]*\bsrc=)[^>]*>", text), f"{template.name}: inline script"
-        assert "<style" not in text and " style=" not in text, f"{template.name}: inline style"
-        assert not re.search(r"\son[a-z]+=", text), f"{template.name}: inline event handler"
+    for page in (REPO / "templates").glob("*.html"):
+        text = page.read_text()
+        assert not re.search(r"<script(?![^>]*\bsrc=)[^>]*>", text), f"{page.name}: inline script"
+        assert "<style" not in text and " style=" not in text, f"{page.name}: inline style"
+        assert not re.search(r"\son[a-z]+=", text), f"{page.name}: inline event handler"
 
 
 @pytest.mark.settings(allowed_hosts=["lab.example"], allowed_origins=["https://study.example:8443"])

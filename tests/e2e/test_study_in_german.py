@@ -2,7 +2,7 @@
 their code, the instructions, the lobby, the Commander's and the Driver's seats as the trial runs
 and ends, the closed join link, the questionnaire, their page, finishing early, the end and
 withdrawal pages, a full and a closed study, the error pages) is in German, the scripts' words
-too: no word of the English messages is left on any of them."""
+too: no word of the English messages is left on any of them; so are an LDH study's pages."""
 
 from __future__ import annotations
 
@@ -11,9 +11,11 @@ from datetime import UTC, datetime
 
 import pytest
 
+from app.db.models import Experimenter
 from app.i18n import Language, catalog
+from app.security import StudyTokens, hash_password
 from app.study.config import Consent, Question, QuestionKind, RoleInstructions, StudyFiles, StudyOutcome, template
-from tests.app.live import wait_js
+from tests.app.live import platform_settings, wait_js
 from tests.e2e.pages import mark_on_map, page_checks
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
@@ -179,3 +181,29 @@ def test_every_participant_page_of_a_german_study_is_in_german(browser, server):
     driver.click("#withdraw")
     assert driver.inner_text("#completion-code") == "ZURUECK"
     in_german(driver, "withdrawn")
+
+
+# The dialog an LDH participant reads is the study's material, in the language it was typed: its
+# speakers are the page's words, what they said is not.
+WITHOUT_WHAT_WAS_SAID = """() => document.querySelectorAll('#messages li').forEach(
+  (li) => [...li.childNodes].filter((n) => n.nodeType === Node.TEXT_NODE).forEach((n) => n.remove()))"""
+
+
+def test_an_ldh_study_in_german_is_in_german(browser, start_server, tmp_path, benchmark_path):
+    server = start_server(platform_settings(tmp_path / "ldh", benchmark=benchmark_path))
+    with server.services.db.begin() as db:
+        db.add(Experimenter(name="eve", password_hash=hash_password("correct horse")))
+    studies = server.services.studies
+    study = studies.create(1, "wo", str(benchmark_path), "val_seen", "prefix", 1, Language.de)
+    token = StudyTokens(server.settings.signing_key()).issue(study, studies.invite(study, "ann"))
+    page = browser.new_context(viewport={"width": 1200, "height": 900}).new_page()
+    page.goto(f"{server.url}/ldh/{token}")
+    page.focus("#map")
+    page.keyboard.press("ArrowUp")  # the keyboard cursor says where it is
+    page.evaluate(WITHOUT_WHAT_WAS_SAID)
+    in_german(page, "LDH, an instance to answer")
+    page_checks(page, "LDH in German")
+    page.keyboard.press("Enter")
+    page.click("#submit")
+    page.wait_for_selector("#ldh-done")
+    in_german(page, "LDH, done")
