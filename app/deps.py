@@ -1,7 +1,7 @@
 """Typed request dependencies: what a route may ask of the server, as `Annotated` parameters.
 
 A route names what it needs (`db: DbSession`, `mazes: MazesDep`, `_: ExperimenterId`) instead of
-reading `request.app.state`; tests override a dependency with `app.dependency_overrides`.
+reading `request.app.state`; most read one part of `Services` (`_part`).
 Works for HTTP routes and websockets alike (both are an `HTTPConnection`). Helpers called outside
 a route's parameters (a template's context, a middleware's check) use `get_services`.
 """
@@ -46,9 +46,6 @@ def get_services(conn: HTTPConnection) -> Services:
     return services
 
 
-ServicesDep = Annotated[Services, Depends(get_services)]
-
-
 def _part(read: Callable[[Services], _Part]) -> Callable[[HTTPConnection], _Part]:
     """A dependency on one part of the server's services."""
 
@@ -58,19 +55,10 @@ def _part(read: Callable[[Services], _Part]) -> Callable[[HTTPConnection], _Part
     return part
 
 
-def get_db(services: ServicesDep) -> Iterator[Session]:
+def get_db(conn: HTTPConnection) -> Iterator[Session]:
     """A session for this request, closed after it; write inside `with db.begin():`."""
-    with services.db() as db:
+    with get_services(conn).db() as db:
         yield db
-
-
-def get_db_factory(services: ServicesDep) -> sessionmaker[Session]:
-    """Sessions to open as needed: for a socket, which must not hold one for its whole life."""
-    return services.db
-
-
-def get_study_files(settings: SettingsDep) -> StudyFiles:
-    return StudyFiles.of(settings.data_dir)
 
 
 def get_templates(conn: HTTPConnection) -> Jinja2Templates:
@@ -96,7 +84,8 @@ def experimenter_id(conn: HTTPConnection) -> int:
 
 SettingsDep = Annotated[Settings, Depends(_part(lambda s: s.settings))]
 DbSession = Annotated[Session, Depends(get_db)]
-DbFactory = Annotated[sessionmaker[Session], Depends(get_db_factory)]
+# Sessions to open as needed: for a socket, which must not hold one for its whole life.
+DbFactory = Annotated[sessionmaker[Session], Depends(_part(lambda s: s.db))]
 LogDep = Annotated[EventLog, Depends(_part(lambda s: s.log))]
 HubDep = Annotated[TrialHub, Depends(_part(lambda s: s.hub))]
 MazesDep = Annotated[Mazes, Depends(_part(lambda s: s.mazes))]
@@ -106,7 +95,7 @@ AgentsDep = Annotated[AgentParts, Depends(_part(lambda s: s.agents))]
 ClockDep = Annotated[ServerClock, Depends(_part(lambda s: s.clock))]
 SessionsDep = Annotated[Sessions, Depends(_part(lambda s: s.sessions))]
 AnnotationsDep = Annotated[AnnotationLog, Depends(_part(lambda s: s.annotations))]
-StudyFilesDep = Annotated[StudyFiles, Depends(get_study_files)]
+StudyFilesDep = Annotated[StudyFiles, Depends(_part(lambda s: StudyFiles.of(s.settings.data_dir)))]
 WebhooksDep = Annotated[StudyWebhooks, Depends(_part(lambda s: s.webhooks))]
 AnnotatorSessionsDep = Annotated[Sessions, Depends(_part(lambda s: s.annotator_sessions))]
 CsrfDep = Annotated[CsrfTokens, Depends(_part(lambda s: s.csrf))]
