@@ -14,6 +14,12 @@ if TYPE_CHECKING:
 # Packages under app/ that bring their own commands, each with `register(root)`.
 MOUNTED = ("app.export.cli", "app.demo.cli", "app.rover.commands", "app.study.cli")
 
+BENCHMARK_OPTION = typer.Option(
+    None,
+    "--benchmark",
+    help="A RobotSlangBenchmark clone whose mazes join the bundled ones (default ROBOTSLANG_BENCHMARK).",
+)
+
 
 def serve(
     host: str = typer.Option("127.0.0.1", help="Interface to listen on."),
@@ -21,11 +27,7 @@ def serve(
     data_dir: Path | None = typer.Option(
         None, "--data-dir", help="Database, frames and secret key (default ROBOTSLANG_DATA_DIR, else ./var)."
     ),
-    benchmark: Path | None = typer.Option(
-        None,
-        "--benchmark",
-        help="A RobotSlangBenchmark clone whose mazes join the bundled ones (default ROBOTSLANG_BENCHMARK).",
-    ),
+    benchmark: Path | None = BENCHMARK_OPTION,
     workers: int = typer.Option(
         1, min=1, help="Server processes sharing trials (over 1: needs ROBOTSLANG_REDIS_URL; see docs/platform.md)."
     ),
@@ -69,11 +71,7 @@ def serve(
 
 
 def mazes_prepare(
-    benchmark: Path | None = typer.Option(
-        None,
-        "--benchmark",
-        help="A RobotSlangBenchmark clone whose mazes join the bundled ones (default ROBOTSLANG_BENCHMARK).",
-    ),
+    benchmark: Path | None = BENCHMARK_OPTION,
     cache_dir: Path | None = typer.Option(
         None, "--cache-dir", help="Where to prepare them (default ROBOTSLANG_CACHE_DIR, else ~/.cache/robotslang)."
     ),

@@ -1,15 +1,15 @@
 """Typed request dependencies: what a route may ask of the server, as `Annotated` parameters.
 
 A route names what it needs (`db: DbSession`, `mazes: MazesDep`, `_: ExperimenterId`) instead of
-reading `request.app.state`; tests override a dependency with `app.dependency_overrides`.
+reading `request.app.state`; most read one part of `Services` (`_part`).
 Works for HTTP routes and websockets alike (both are an `HTTPConnection`). Helpers called outside
 a route's parameters (a template's context, a middleware's check) use `get_services`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from typing import Annotated
+from collections.abc import Callable, Iterator
+from typing import Annotated, TypeVar
 
 from fastapi import Depends
 from fastapi.templating import Jinja2Templates
@@ -34,6 +34,8 @@ from app.study.webhook import StudyWebhooks
 from app.trial.hub import TrialHub
 from app.trial.log import EventLog
 
+_Part = TypeVar("_Part")
+
 
 class LoginRequired(Exception):
     """Raised by `experimenter_id` for anonymous requests; create_app answers with a redirect home."""
@@ -44,94 +46,19 @@ def get_services(conn: HTTPConnection) -> Services:
     return services
 
 
-ServicesDep = Annotated[Services, Depends(get_services)]
+def _part(read: Callable[[Services], _Part]) -> Callable[[HTTPConnection], _Part]:
+    """A dependency on one part of the server's services."""
+
+    def part(conn: HTTPConnection) -> _Part:
+        return read(get_services(conn))
+
+    return part
 
 
-def get_settings(services: ServicesDep) -> Settings:
-    return services.settings
-
-
-def get_db(services: ServicesDep) -> Iterator[Session]:
+def get_db(conn: HTTPConnection) -> Iterator[Session]:
     """A session for this request, closed after it; write inside `with db.begin():`."""
-    with services.db() as db:
+    with get_services(conn).db() as db:
         yield db
-
-
-def get_db_factory(services: ServicesDep) -> sessionmaker[Session]:
-    """Sessions to open as needed: for a socket, which must not hold one for its whole life."""
-    return services.db
-
-
-def get_log(services: ServicesDep) -> EventLog:
-    return services.log
-
-
-def get_hub(services: ServicesDep) -> TrialHub:
-    return services.hub
-
-
-def get_mazes(services: ServicesDep) -> Mazes:
-    return services.mazes
-
-
-def get_seat_tokens(services: ServicesDep) -> SeatTokens:
-    return services.seats
-
-
-def get_robots(services: ServicesDep) -> RobotLinks:
-    return services.robots
-
-
-def get_agents(services: ServicesDep) -> AgentParts:
-    return services.agents
-
-
-def get_clock(services: ServicesDep) -> ServerClock:
-    return services.clock
-
-
-def get_study_files(settings: SettingsDep) -> StudyFiles:
-    return StudyFiles.of(settings.data_dir)
-
-
-def get_webhooks(services: ServicesDep) -> StudyWebhooks:
-    return services.webhooks
-
-
-def get_annotations(services: ServicesDep) -> AnnotationLog:
-    return services.annotations
-
-
-def get_annotator_sessions(services: ServicesDep) -> Sessions:
-    return services.annotator_sessions
-
-
-def get_sessions(services: ServicesDep) -> Sessions:
-    return services.sessions
-
-
-def get_csrf(services: ServicesDep) -> CsrfTokens:
-    return services.csrf
-
-
-def get_logins(services: ServicesDep) -> LoginGuard:
-    return services.logins
-
-
-def get_login_sockets(services: ServicesDep) -> LoginSockets:
-    return services.login_sockets
-
-
-def get_signups(services: ServicesDep) -> SignupLimits:
-    return services.signups
-
-
-def get_localization_studies(services: ServicesDep) -> LocalizationStudies:
-    return services.studies
-
-
-def get_study_tokens(services: ServicesDep) -> StudyTokens:
-    return services.study_tokens
 
 
 def get_templates(conn: HTTPConnection) -> Jinja2Templates:
@@ -155,27 +82,28 @@ def experimenter_id(conn: HTTPConnection) -> int:
     return login.experimenter_id
 
 
-SettingsDep = Annotated[Settings, Depends(get_settings)]
+SettingsDep = Annotated[Settings, Depends(_part(lambda s: s.settings))]
 DbSession = Annotated[Session, Depends(get_db)]
-DbFactory = Annotated[sessionmaker[Session], Depends(get_db_factory)]
-LogDep = Annotated[EventLog, Depends(get_log)]
-HubDep = Annotated[TrialHub, Depends(get_hub)]
-MazesDep = Annotated[Mazes, Depends(get_mazes)]
-SeatTokensDep = Annotated[SeatTokens, Depends(get_seat_tokens)]
-RobotLinksDep = Annotated[RobotLinks, Depends(get_robots)]
-AgentsDep = Annotated[AgentParts, Depends(get_agents)]
-ClockDep = Annotated[ServerClock, Depends(get_clock)]
-SessionsDep = Annotated[Sessions, Depends(get_sessions)]
-AnnotationsDep = Annotated[AnnotationLog, Depends(get_annotations)]
-StudyFilesDep = Annotated[StudyFiles, Depends(get_study_files)]
-WebhooksDep = Annotated[StudyWebhooks, Depends(get_webhooks)]
-AnnotatorSessionsDep = Annotated[Sessions, Depends(get_annotator_sessions)]
-CsrfDep = Annotated[CsrfTokens, Depends(get_csrf)]
-LoginsDep = Annotated[LoginGuard, Depends(get_logins)]
-LoginSocketsDep = Annotated[LoginSockets, Depends(get_login_sockets)]
-LocalizationStudiesDep = Annotated[LocalizationStudies, Depends(get_localization_studies)]
-StudyTokensDep = Annotated[StudyTokens, Depends(get_study_tokens)]
-SignupsDep = Annotated[SignupLimits, Depends(get_signups)]
+# Sessions to open as needed: for a socket, which must not hold one for its whole life.
+DbFactory = Annotated[sessionmaker[Session], Depends(_part(lambda s: s.db))]
+LogDep = Annotated[EventLog, Depends(_part(lambda s: s.log))]
+HubDep = Annotated[TrialHub, Depends(_part(lambda s: s.hub))]
+MazesDep = Annotated[Mazes, Depends(_part(lambda s: s.mazes))]
+SeatTokensDep = Annotated[SeatTokens, Depends(_part(lambda s: s.seats))]
+RobotLinksDep = Annotated[RobotLinks, Depends(_part(lambda s: s.robots))]
+AgentsDep = Annotated[AgentParts, Depends(_part(lambda s: s.agents))]
+ClockDep = Annotated[ServerClock, Depends(_part(lambda s: s.clock))]
+SessionsDep = Annotated[Sessions, Depends(_part(lambda s: s.sessions))]
+AnnotationsDep = Annotated[AnnotationLog, Depends(_part(lambda s: s.annotations))]
+StudyFilesDep = Annotated[StudyFiles, Depends(_part(lambda s: StudyFiles.of(s.settings.data_dir)))]
+WebhooksDep = Annotated[StudyWebhooks, Depends(_part(lambda s: s.webhooks))]
+AnnotatorSessionsDep = Annotated[Sessions, Depends(_part(lambda s: s.annotator_sessions))]
+CsrfDep = Annotated[CsrfTokens, Depends(_part(lambda s: s.csrf))]
+LoginsDep = Annotated[LoginGuard, Depends(_part(lambda s: s.logins))]
+LoginSocketsDep = Annotated[LoginSockets, Depends(_part(lambda s: s.login_sockets))]
+LocalizationStudiesDep = Annotated[LocalizationStudies, Depends(_part(lambda s: s.studies))]
+StudyTokensDep = Annotated[StudyTokens, Depends(_part(lambda s: s.study_tokens))]
+SignupsDep = Annotated[SignupLimits, Depends(_part(lambda s: s.signups))]
 TemplatesDep = Annotated[Jinja2Templates, Depends(get_templates)]
 CurrentLogin = Annotated[Login | None, Depends(current_login)]
 ExperimenterId = Annotated[int, Depends(experimenter_id)]

@@ -164,14 +164,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     i18n.install(app.state.templates.env)
     app.add_middleware(GuardMiddleware, settings=settings)
     app.mount("/static", StaticFiles(directory=str(shipped("static"))), name="static")
-    app.include_router(pages.router)
-    app.include_router(experimenter.router)
-    app.include_router(seat_ws.router)
-    app.include_router(robot_ws.router)
-    app.include_router(replay.router)
-    app.include_router(localization_study.router)
-    app.include_router(annotate.router)
-    app.include_router(study.router)
+    for routes in (pages, experimenter, seat_ws, robot_ws, replay, localization_study, annotate, study):
+        app.include_router(routes.router)
     app.include_router(study.experimenter_router)
 
     @app.exception_handler(LoginRequired)

@@ -100,10 +100,6 @@ def agent_names(role: Role) -> list[str]:
     return sorted(set(BUILTIN[role]) | set(_REGISTERED[role]))
 
 
-def driver_names() -> list[str]:
-    return agent_names(Role.DRIVER)
-
-
 def available_agents(parts: AgentParts, role: Role) -> dict[str, str | None]:
     """Every agent for the seat by spec, with the reason it cannot start now, or None when it can."""
     result = {}

@@ -28,6 +28,7 @@ from app.perception.cameras import CameraUnknown, driver_calibration
 from app.seats.base import Oracle, Seating
 from app.seats.registry import AgentParts, create_agent
 from app.trial.messages import Message
+from app.trial.port import TrialView
 from sim.core.rays import RayObservation
 from sim.robot.frames import FrameError, decode_jpeg
 from sim.robot.perception import PerceptionError, perceive
@@ -45,17 +46,10 @@ logger = logging.getLogger(__name__)
 FIRST_FRAME_S = 30.0  # two agents begin once the first frame is in (a render pool starting up)
 
 
-class TrialPort(Protocol):
+class TrialPort(TrialView, Protocol):
     """What the agent seats use of their trial's runtime."""
 
-    trial_id: int
-
-    @property
-    def state(self) -> TrialState: ...
-
     history: list[LoggedEvent]
-
-    def join(self, conn: AgentSeat) -> None: ...
 
     def apply(self, command: Command) -> Any: ...
 

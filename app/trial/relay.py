@@ -285,12 +285,8 @@ class RedisRelay:
         elif op == "leave" and conn_id in self.relayed:
             seat = self.relayed.pop(conn_id)
             runtime.unwatch(seat) if seat.role == EXPERIMENTER else runtime.leave(seat)
-        elif op == "control" and msg["action"] == "abort":
-            runtime.abort(msg.get("reason"))
-        elif op == "control" and msg["action"] == "pause":
-            runtime.pause(msg.get("note"))
-        elif op == "control":
-            getattr(runtime, msg["action"])()
+        elif op == "control":  # as RemoteTrial._control sent it: an abort's reason, a pause's note
+            getattr(runtime, msg["action"])(**{why: msg[why] for why in ("reason", "note") if why in msg})
 
 
 class RelayedSeat:
@@ -374,26 +370,20 @@ class RemoteTrial:
     def unwatch(self, conn: Connection) -> None:
         self.leave(conn)
 
-    def _control(self, action: str) -> None:
+    def _control(self, action: str, **why: str | None) -> None:
         if self.runtime is not None:
-            getattr(self.runtime, action)()
+            getattr(self.runtime, action)(**why)
             return
-        self._command("control", action=action)
+        self._command("control", action=action, **why)
 
     def pause(self, note: str | None = None) -> None:
-        if self.runtime is not None:
-            self.runtime.pause(note)
-            return
-        self._command("control", action="pause", note=note)
+        self._control("pause", note=note)
 
     def resume(self) -> None:
         self._control("resume")
 
     def abort(self, reason: str | None = None) -> None:
-        if self.runtime is not None:
-            self.runtime.abort(reason)
-            return
-        self._command("control", action="abort", reason=reason)
+        self._control("abort", reason=reason)
 
 
 def _attach(runtime: TrialRuntime, conn: Connection) -> None:

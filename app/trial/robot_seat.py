@@ -21,16 +21,12 @@ from app.trial.watch import Watch
 from sim.core.geometry import wrap_angle
 from sim.trial import commands as c
 from sim.trial import events as ev
-from sim.trial.state import TrialState
 from sim.trial.vocabulary import FrameSource, Move, Outcome, PoseSource, Role
 
 logger = logging.getLogger(__name__)
 
 
 class Recording(RobotTrial, Protocol):
-    @property
-    def state(self) -> TrialState: ...
-
     def apply(
         self, command: c.Command, attachments: Attachments | None = None, frame: FrameRow | None = None
     ) -> Any: ...

@@ -8,9 +8,9 @@ import pytest
 from sqlalchemy import select
 
 from app.db.models import Event
-from app.seats.registry import driver_names, register_driver
+from app.seats.registry import agent_names, register_driver
 from sim.agents.stepwise import StepwiseDriver
-from sim.trial.vocabulary import Move
+from sim.trial.vocabulary import Move, Role
 
 
 @pytest.mark.trial(driver="oracle:shortest")
@@ -54,7 +54,7 @@ def test_register_driver_adds_a_named_agent(server, trials):
 
     register_driver("agent:test-left", lambda services, seating: AlwaysLeft())
     assert {"agent:random", "agent:seq2seq", "agent:dialog", "oracle:shortest", "agent:test-left"} <= set(
-        driver_names()
+        agent_names(Role.DRIVER)
     )
     services = server.services
     trial = trials.new(driver="agent:test-left")
