@@ -97,7 +97,22 @@ def study_or_404(files: StudyFiles, name: str) -> StudyConfig:
         ) from None
 
 
-class Participation:
+class OpenStudy:
+    """The study a request names (404 where there is none): its file, enrolment and lobby."""
+
+    def __init__(self, name: str, files: StudyFilesDep, db: DbSession, clock: ClockDep, mazes: MazesDep) -> None:
+        self.config = study_or_404(files, name)
+        self.enrolment = Enrolment(db, clock, self.config)
+        self.files, self.db, self.clock, self.mazes = files, db, clock, mazes
+
+    def lobby(self) -> Lobby:
+        return Lobby(self.db, self.config, self.mazes.layouts(), self.clock.now_ns())
+
+
+StudyDep = Annotated[OpenStudy, Depends(OpenStudy)]
+
+
+class Participation(OpenStudy):
     """The participant a request comes from: their study, its enrolment and their record."""
 
     def __init__(
@@ -111,9 +126,8 @@ class Participation:
         mazes: MazesDep,
         templates: TemplatesDep,
     ) -> None:
-        self.config = study_or_404(files, name)
-        self.enrolment = Enrolment(db, clock, self.config)
-        self.db, self.clock, self.mazes, self.request, self.templates = db, clock, mazes, request, templates
+        super().__init__(name, files, db, clock, mazes)
+        self.request, self.templates = request, templates
         cookie = read_cookie(request, PASS_COOKIE)
         try:
             study_pass = passes.verify(cookie or "")
@@ -128,9 +142,6 @@ class Participation:
             raise HTTPException(410, Text("you have withdrawn from this study; thank you for your time"))
         self.code = self.enrolment.code(self.enrolled)
         db.commit()  # end the reads' transaction (rows stay loaded) so a route may `with db.begin()`
-
-    def lobby(self) -> Lobby:
-        return Lobby(self.db, self.config, self.mazes.layouts(), self.clock.now_ns())
 
     def page(self, name: str, status: int = 200, **context: object) -> HTMLResponse:
         """A page of the participant's way, with their study and code."""
@@ -165,17 +176,8 @@ def _address(request: Request) -> str:
 
 
 @router.get("/study/{name}", response_class=HTMLResponse)
-def information(
-    name: str,
-    request: Request,
-    files: StudyFilesDep,
-    passes: PassesDep,
-    db: DbSession,
-    clock: ClockDep,
-    templates: TemplatesDep,
-) -> Response:
-    config = study_or_404(files, name)
-    enrolment = Enrolment(db, clock, config)
+def information(name: str, request: Request, study: StudyDep, passes: PassesDep, templates: TemplatesDep) -> Response:
+    config, enrolment = study.config, study.enrolment
     try:
         study_pass = passes.verify(read_cookie(request, PASS_COOKIE) or "")
         enrolled = enrolment.get(study_pass.enrolment_id) if study_pass.study == name else None
@@ -188,7 +190,7 @@ def information(
         ids = config.panel.read(request.query_params)
         if ids is not None and enrolled is not None:
             enrolment.set_panel(enrolled, ids)
-            db.commit()
+            study.db.commit()
         elif ids is not None:
             set_cookie(response, request, PANEL_COOKIE, passes.issue_panel(name, ids), path="/study")
         return response
@@ -205,16 +207,14 @@ def information(
 def consent(
     name: str,
     request: Request,
-    files: StudyFilesDep,
+    study: StudyDep,
     passes: PassesDep,
-    db: DbSession,
-    clock: ClockDep,
     signups: SignupsDep,
     templates: TemplatesDep,
     choice: str = Form(pattern="^(agree|decline)$"),
     consent_version: str = Form(max_length=40),
 ) -> Response:
-    config = study_or_404(files, name)
+    config, enrolment = study.config, study.enrolment
     if config.closed(datetime.now(UTC)):
         return _page(templates, request, "closed", status=410, study=config)
     if consent_version != config.consent.version:
@@ -224,9 +224,8 @@ def consent(
         signups.take(Step.consent, name, _address(request))
     except Limited as limited:
         return _busy(templates, request, config, limited)
-    enrolment = Enrolment(db, clock, config)
     try:
-        with db.begin():
+        with study.db.begin():
             if choice == "decline":
                 enrolment.decline()
             else:
@@ -516,16 +515,14 @@ def create_study(files: StudyFilesDep, name: str = Form(max_length=80)) -> Redir
 def _editor(
     templates: Jinja2Templates,
     request: Request,
-    files: StudyFiles,
-    enrolment: Enrolment,
+    study: OpenStudy,
     text: str,
     values: dict[str, object],
-    lobby: Lobby,
     status: int = 200,
     **context: object,
 ) -> HTMLResponse:
-    name = enrolment.config.name
-    answers = study_answers(enrolment.db, name)
+    name, enrolment, lobby = study.config.name, study.enrolment, study.lobby()
+    answers = study_answers(study.db, name)
     participants = enrolment.participants()
     # Each participant's trials against the plan: study trials played (the practice not counted), practised.
     progress = {e.id: (lobby.played(e), not lobby.needs_practice(e)) for e, _, _ in participants}
@@ -534,66 +531,41 @@ def _editor(
         request,
         "edit",
         status=status,
-        study=enrolment.config,
+        study=study.config,
         text=text,
         values=values,
         kinds=list(QuestionKind),
         outcomes_coded=[o for o in StudyOutcome if o is not StudyOutcome.completed],
         link=request.url_for("information", name=name),
-        trials=study_trials(enrolment.db, name),
+        trials=study_trials(study.db, name),
         progress=progress,
         participants=participants,
         outcomes={e.id: enrolment.outcome(e) for e, _, _ in participants},
         answers=answers,
-        questions=items(asked(files, name, answers)),
+        questions=items(asked(study.files, name, answers)),
         **context,
     )
 
 
 @experimenter_router.get("/{name}", response_class=HTMLResponse)
 def edit_page(
-    name: str,
+    study: StudyDep,
     request: Request,
-    files: StudyFilesDep,
-    db: DbSession,
-    clock: ClockDep,
-    mazes: MazesDep,
     templates: TemplatesDep,
     saved: int | None = None,
     paired: int | None = None,
     screened: str | None = None,
     error: str | None = None,
 ) -> HTMLResponse:
-    config = study_or_404(files, name)
-    enrolment = Enrolment(db, clock, config)
-    text = config.model_dump_json(indent=2)
-    return _editor(
-        templates,
-        request,
-        files,
-        enrolment,
-        text,
-        form_values(config),
-        Lobby(db, config, mazes.layouts(), clock.now_ns()),
-        saved=saved,
-        paired=paired,
-        screened=screened,
-        error=error,
-    )
+    text = study.config.model_dump_json(indent=2)
+    values = form_values(study.config)
+    return _editor(templates, request, study, text, values, saved=saved, paired=paired, screened=screened, error=error)
 
 
 @experimenter_router.post("/{name}")
-async def save_study(
-    name: str,
-    request: Request,
-    files: StudyFilesDep,
-    db: DbSession,
-    clock: ClockDep,
-    mazes: MazesDep,
-    templates: TemplatesDep,
-) -> Response:
+async def save_study(name: str, study: StudyDep, request: Request, templates: TemplatesDep) -> Response:
     """The editor's form, or (`config_json`) the study's JSON whole, for power users."""
-    current = study_or_404(files, name)
+    current, mazes = study.config, study.mazes
     form = {k: v for k, v in (await request.form()).items() if isinstance(v, str)}
     config_json = form.get("config_json")
     text = current.model_dump_json(indent=2) if config_json is None else config_json  # shown again on an error
@@ -613,41 +585,34 @@ async def save_study(
         bundled = {m for m in mazes.names() if mazes.library.source(m) == "bundled"}
         check_mazes(config, bundled, set(mazes.names()))
     except StudyConfigError as err:
-        enrolment, lobby = Enrolment(db, clock, current), Lobby(db, current, mazes.layouts(), clock.now_ns())
-        return _editor(templates, request, files, enrolment, text, values, lobby, status=400, error=str(err))
-    saved = files.save(config)
+        return _editor(templates, request, study, text, values, status=400, error=str(err))
+    saved = study.files.save(config)
     return RedirectResponse(f"/experimenter/studies/{name}?saved={saved.version}", status_code=303)
 
 
 @experimenter_router.get("/{name}/participants.csv")
-def participants_csv(name: str, files: StudyFilesDep, db: DbSession, clock: ClockDep) -> Response:
+def participants_csv(name: str, study: StudyDep) -> Response:
     """The study's roster for paying its participants (`app.study.roster`)."""
-    enrolment = Enrolment(db, clock, study_or_404(files, name))
     return Response(
-        roster_csv(roster(enrolment, datetime.now(UTC))),
+        roster_csv(roster(study.enrolment, datetime.now(UTC))),
         media_type="text/csv",
         headers={"Content-Disposition": f'attachment; filename="{name}-participants.csv"'},
     )
 
 
 @experimenter_router.get("/{name}/lobby")
-def lobby_view(name: str, files: StudyFilesDep, db: DbSession, clock: ClockDep, mazes: MazesDep) -> dict[str, object]:
+def lobby_view(study: StudyDep) -> dict[str, object]:
     """Who waits in the study's lobby now, for the study page's live view (polled)."""
-    config = study_or_404(files, name)
-    return {"waiting": Lobby(db, config, mazes.layouts(), clock.now_ns()).view(datetime.now(UTC))}
+    return {"waiting": study.lobby().view(datetime.now(UTC))}
 
 
 @experimenter_router.post("/{name}/screen-out")
-def screen_out(
-    name: str, files: StudyFilesDep, db: DbSession, clock: ClockDep, mazes: MazesDep, code: str = Form(max_length=80)
-) -> RedirectResponse:
+def screen_out(name: str, study: StudyDep, code: str = Form(max_length=80)) -> RedirectResponse:
     """The experimenter screens a participant out: their way ends with that outcome (and its code,
     which their pages show from then on); a live trial of theirs is the experimenter's to stop."""
-    config = study_or_404(files, name)
-    enrolment = Enrolment(db, clock, config)
-    lobby = Lobby(db, config, mazes.layouts(), clock.now_ns())
+    enrolment, lobby = study.enrolment, study.lobby()
     try:
-        with db.begin():
+        with study.db.begin():
             enrolled = enrolment.by_code(code)
             before = enrolment.outcome(enrolled)
             if before is not None:
@@ -661,22 +626,17 @@ def screen_out(
 @experimenter_router.post("/{name}/pair")
 def pair_by_hand(
     name: str,
-    files: StudyFilesDep,
-    db: DbSession,
-    clock: ClockDep,
-    mazes: MazesDep,
+    study: StudyDep,
     hub: HubDep,
     webhooks: WebhooksDep,
     a: str = Form(max_length=80),
     b: str = Form(max_length=80),
 ) -> RedirectResponse:
     """Pair two of the study's participants (by code) now, by the lobby's rules."""
-    config = study_or_404(files, name)
-    enrolment = Enrolment(db, clock, config)
-    lobby = Lobby(db, config, mazes.layouts(), clock.now_ns())
+    lobby = study.lobby()
     try:
-        with db.begin():
-            first, second = (enrolment.by_code(code) for code in (a, b))
+        with study.db.begin():
+            first, second = (study.enrolment.by_code(code) for code in (a, b))
             trial = lobby.pair(first, second)
             trial_id = trial.id
     except (LookupError, LobbyError) as err:
