@@ -74,7 +74,7 @@ from app.db.models import Event, Experimenter, Participant, Team, Trial
 from app.main import build_services
 from app.security import SESSION_COOKIE, hash_password
 from app.settings import Settings
-from bench.live import ServerProcesses, wait_until_up
+from bench.live import ServerProcess, ServerProcesses, settings_env
 from bench.report import percentile
 from sim.core.cache import cache_dir
 
@@ -557,38 +557,19 @@ def run_load(
         benchmark = None
         if load.mazes == MazeChoice.DISTINCT:
             benchmark = distinct_mazes(trials, load.benchmark, Path(tmp))
-        env = {**os.environ, "ROBOTSLANG_DATA_DIR": str(Path(tmp) / "var"), "ROBOTSLANG_SECRET_KEY": "load"}
-        for name in ("ROBOTSLANG_DATABASE_URL", "ROBOTSLANG_REDIS_URL", "ROBOTSLANG_BENCHMARK"):
-            env.pop(name, None)
-        if workers > 1:
-            env["ROBOTSLANG_REDIS_URL"], env["ROBOTSLANG_DATABASE_URL"] = redis_url, url
-        if benchmark is not None:
-            env["ROBOTSLANG_BENCHMARK"] = str(benchmark)
         cache = Path(tmp) / "cache" if load.fresh_caches else cache_dir()
-        env["ROBOTSLANG_CACHE_DIR"] = str(cache)
         settings = Settings(
             data_dir=Path(tmp) / "var", secret_key="load", database_url=url, benchmark=benchmark, cache_dir=cache
         )
         services, chosen, maze_names = setup_services(settings, trials, load.mazes, load.fresh_caches)
-        server = subprocess.Popen(
-            [
-                sys.executable,
-                "-c",
-                "from app.cli import main; main()",
-                "serve",
-                "--port",
-                str(port),
-                "--workers",
-                str(workers),
-            ],
-            env=env,
-            stdout=subprocess.DEVNULL,
-        )
+        # Redis only for several processes, whatever this shell's environment names.
+        env = {**settings_env(settings), "ROBOTSLANG_REDIS_URL": redis_url if workers > 1 else None}
+        server = ServerProcess(env, port, workers)
         spy = None
         try:
-            wait_until_up(f"http://127.0.0.1:{port}", server)
-            processes = ServerProcesses(server.pid, workers)
-            tokens, creation = create_trials(f"http://127.0.0.1:{port}", services, chosen, load.agent_drivers)
+            server.start()
+            processes = ServerProcesses(server.proc.pid, workers)
+            tokens, creation = create_trials(server.url, services, chosen, load.agent_drivers)
             if profile:  # the whole run, warm-up included, sampled from every server process
                 spy = subprocess.Popen(
                     [
@@ -603,14 +584,14 @@ def run_load(
                         "-o",
                         profile,
                         "--pid",
-                        str(server.pid),
+                        str(server.proc.pid),
                     ],
                     stdout=subprocess.DEVNULL,
                     stderr=subprocess.DEVNULL,
                 )
             figures, committed, window, cpu, client_cpu, beliefs = asyncio.run(
                 drive(
-                    f"ws://127.0.0.1:{port}/ws/play",
+                    server.ws_url,
                     tokens,
                     load.pattern,
                     load.open_at_once,
@@ -625,8 +606,7 @@ def run_load(
             if spy is not None:
                 spy.send_signal(2)
                 spy.wait(timeout=60)
-            server.terminate()
-            server.wait(timeout=30)
+            server.stop()
             services.engine.dispose()
     handshakes = figures.handshake_ms
     return {

@@ -124,26 +124,26 @@ def _redirect(error: str | None = None) -> RedirectResponse:
     return RedirectResponse("/experimenter" + (f"?error={quote(error)}" if error else ""), status_code=303)
 
 
-@router.post("/participants")
-def add_participant(db: DbSession, name: str = Form(max_length=80)) -> RedirectResponse:
+def _create(db: Session, create: Callable[[Session], object]) -> RedirectResponse:
+    """One `setup.create_*` in a transaction; back to the dashboard, naming why where it is refused."""
     try:
         with db.begin():
-            create_participant(db, name)
+            create(db)
     except TrialSetupError as err:
         return _redirect(str(err))
     return _redirect()
+
+
+@router.post("/participants")
+def add_participant(db: DbSession, name: str = Form(max_length=80)) -> RedirectResponse:
+    return _create(db, lambda db: create_participant(db, name))
 
 
 @router.post("/teams")
 def add_team(
     db: DbSession, name: str = Form(max_length=80), member_a: int = Form(), member_b: int = Form()
 ) -> RedirectResponse:
-    try:
-        with db.begin():
-            create_team(db, name, member_a, member_b)
-    except TrialSetupError as err:
-        return _redirect(str(err))
-    return _redirect()
+    return _create(db, lambda db: create_team(db, name, member_a, member_b))
 
 
 @router.post("/trials")

@@ -64,7 +64,6 @@ from app.study.own_data import own_data
 from app.study.passes import PANEL_COOKIE, PASS_COOKIE, ParticipantPasses
 from app.study.roster import roster, roster_csv
 from app.study.signups import SignupLimits, Step
-from app.trial.hub import TrialHub
 from app.trial.lifecycle import live_trial_of
 from app.web import speak_study
 
@@ -98,15 +97,37 @@ def study_or_404(files: StudyFiles, name: str) -> StudyConfig:
         ) from None
 
 
-class Participation:
+class OpenStudy:
+    """The study a request names (404 where there is none): its file, enrolment and lobby."""
+
+    def __init__(self, name: str, files: StudyFilesDep, db: DbSession, clock: ClockDep, mazes: MazesDep) -> None:
+        self.config = study_or_404(files, name)
+        self.enrolment = Enrolment(db, clock, self.config)
+        self.files, self.db, self.clock, self.mazes = files, db, clock, mazes
+
+    def lobby(self) -> Lobby:
+        return Lobby(self.db, self.config, self.mazes.layouts(), self.clock.now_ns())
+
+
+StudyDep = Annotated[OpenStudy, Depends(OpenStudy)]
+
+
+class Participation(OpenStudy):
     """The participant a request comes from: their study, its enrolment and their record."""
 
     def __init__(
-        self, name: str, request: Request, files: StudyFilesDep, passes: PassesDep, db: DbSession, clock: ClockDep
+        self,
+        name: str,
+        request: Request,
+        files: StudyFilesDep,
+        passes: PassesDep,
+        db: DbSession,
+        clock: ClockDep,
+        mazes: MazesDep,
+        templates: TemplatesDep,
     ) -> None:
-        self.config = study_or_404(files, name)
-        self.enrolment = Enrolment(db, clock, self.config)
-        self.db = db
+        super().__init__(name, files, db, clock, mazes)
+        self.request, self.templates = request, templates
         cookie = read_cookie(request, PASS_COOKIE)
         try:
             study_pass = passes.verify(cookie or "")
@@ -121,6 +142,10 @@ class Participation:
             raise HTTPException(410, Text("you have withdrawn from this study; thank you for your time"))
         self.code = self.enrolment.code(self.enrolled)
         db.commit()  # end the reads' transaction (rows stay loaded) so a route may `with db.begin()`
+
+    def page(self, name: str, status: int = 200, **context: object) -> HTMLResponse:
+        """A page of the participant's way, with their study and code."""
+        return _page(self.templates, self.request, name, status, study=self.config, code=self.code, **context)
 
 
 ParticipationDep = Annotated[Participation, Depends(Participation)]
@@ -151,17 +176,8 @@ def _address(request: Request) -> str:
 
 
 @router.get("/study/{name}", response_class=HTMLResponse)
-def information(
-    name: str,
-    request: Request,
-    files: StudyFilesDep,
-    passes: PassesDep,
-    db: DbSession,
-    clock: ClockDep,
-    templates: TemplatesDep,
-) -> Response:
-    config = study_or_404(files, name)
-    enrolment = Enrolment(db, clock, config)
+def information(name: str, request: Request, study: StudyDep, passes: PassesDep, templates: TemplatesDep) -> Response:
+    config, enrolment = study.config, study.enrolment
     try:
         study_pass = passes.verify(read_cookie(request, PASS_COOKIE) or "")
         enrolled = enrolment.get(study_pass.enrolment_id) if study_pass.study == name else None
@@ -174,7 +190,7 @@ def information(
         ids = config.panel.read(request.query_params)
         if ids is not None and enrolled is not None:
             enrolment.set_panel(enrolled, ids)
-            db.commit()
+            study.db.commit()
         elif ids is not None:
             set_cookie(response, request, PANEL_COOKIE, passes.issue_panel(name, ids), path="/study")
         return response
@@ -191,16 +207,14 @@ def information(
 def consent(
     name: str,
     request: Request,
-    files: StudyFilesDep,
+    study: StudyDep,
     passes: PassesDep,
-    db: DbSession,
-    clock: ClockDep,
     signups: SignupsDep,
     templates: TemplatesDep,
     choice: str = Form(pattern="^(agree|decline)$"),
     consent_version: str = Form(max_length=40),
 ) -> Response:
-    config = study_or_404(files, name)
+    config, enrolment = study.config, study.enrolment
     if config.closed(datetime.now(UTC)):
         return _page(templates, request, "closed", status=410, study=config)
     if consent_version != config.consent.version:
@@ -210,9 +224,8 @@ def consent(
         signups.take(Step.consent, name, _address(request))
     except Limited as limited:
         return _busy(templates, request, config, limited)
-    enrolment = Enrolment(db, clock, config)
     try:
-        with db.begin():
+        with study.db.begin():
             if choice == "decline":
                 enrolment.decline()
             else:
@@ -229,12 +242,8 @@ def consent(
 
 
 @router.get("/study/{name}/code", response_class=HTMLResponse)
-def code_page(
-    me: ParticipationDep, request: Request, templates: TemplatesDep, error: str | None = None
-) -> HTMLResponse:
-    return _page(
-        templates, request, "code", study=me.config, code=me.code, real_name=me.enrolled.real_name, error=error
-    )
+def code_page(me: ParticipationDep, error: str | None = None) -> HTMLResponse:
+    return me.page("code", real_name=me.enrolled.real_name, error=error)
 
 
 @router.post("/study/{name}/name")
@@ -248,26 +257,15 @@ def real_name(me: ParticipationDep, real_name: str = Form("", max_length=200)) -
 
 
 @router.get("/study/{name}/instructions", response_class=HTMLResponse)
-def instructions(me: ParticipationDep, request: Request, templates: TemplatesDep) -> HTMLResponse:
-    return _page(templates, request, "instructions", study=me.config, code=me.code)
+def instructions(me: ParticipationDep) -> HTMLResponse:
+    return me.page("instructions")
 
 
 @router.get("/study/{name}/me", response_class=HTMLResponse)
-def my_study(
-    me: ParticipationDep,
-    request: Request,
-    templates: TemplatesDep,
-    seats: SeatTokensDep,
-    error: str | None = None,
-    saved: bool = False,
-) -> HTMLResponse:
+def my_study(me: ParticipationDep, seats: SeatTokensDep, error: str | None = None, saved: bool = False) -> HTMLResponse:
     trials = me.enrolment.trials(me.enrolled)
-    return _page(
-        templates,
-        request,
+    return me.page(
         "me",
-        study=me.config,
-        code=me.code,
         trials=trials,
         answered=me.enrolment.answered(me.enrolled),
         unplayed=me.enrolment.unplayed(trials),
@@ -291,24 +289,13 @@ def my_data(me: ParticipationDep) -> Response:
 
 
 @router.get("/study/{name}/lobby", response_class=HTMLResponse)
-def lobby_page(
-    me: ParticipationDep, request: Request, templates: TemplatesDep, clock: ClockDep, mazes: MazesDep
-) -> HTMLResponse:
-    lobby = Lobby(me.db, me.config, mazes.layouts(), clock.now_ns())
-    return _page(
-        templates,
-        request,
+def lobby_page(me: ParticipationDep) -> HTMLResponse:
+    lobby = me.lobby()
+    return me.page(
         "lobby",
-        study=me.config,
-        code=me.code,
         practice=lobby.needs_practice(me.enrolled),
         number=lobby.played(me.enrolled) + 1,  # the practice not counted
     )
-
-
-async def _open(hub: TrialHub, trial_id: int) -> None:
-    """Run a trial the lobby just paired, so its join deadline (in its log) runs even if no seat comes."""
-    await hub.get(trial_id)
 
 
 def _enter_lobby(signups: SignupLimits, study: str, address: str) -> None:
@@ -328,10 +315,7 @@ def _enter_lobby(signups: SignupLimits, study: str, address: str) -> None:
 @router.post("/study/{name}/lobby")
 def lobby_poll(
     me: ParticipationDep,
-    request: Request,
-    clock: ClockDep,
     seats: SeatTokensDep,
-    mazes: MazesDep,
     hub: HubDep,
     signups: SignupsDep,
     webhooks: WebhooksDep,
@@ -339,10 +323,10 @@ def lobby_poll(
     """The lobby page's poll (about once a second): the seat's link once paired, else the count
     waiting. Entering the lobby (a poll while neither waiting nor in a live trial) counts against
     the lobby's rates; over one, 429 and the page asks again."""
-    lobby = Lobby(me.db, me.config, mazes.layouts(), clock.now_ns())
+    lobby = me.lobby()
     with me.db.begin():
         if me.enrolled.lobby_since is None and live_trial_of(me.db, (me.enrolled.participant_id,)) is None:
-            _enter_lobby(signups, me.config.name, _address(request))
+            _enter_lobby(signups, me.config.name, _address(me.request))
         state = lobby.poll(me.enrolled, datetime.now(UTC))
         match state:  # the ends of a way that the lobby finds, recorded before anyone is told
             case TimedOut():
@@ -355,7 +339,8 @@ def lobby_poll(
     match state:
         case Seated(trial_id, role, paired_now):
             if paired_now:
-                from_thread.run(_open, hub, trial_id)
+                # Run it now, so its join deadline (in its log) runs even if no seat comes.
+                from_thread.run(hub.get, trial_id)
                 webhooks.paired(trial_id)
             return {"state": "seated", "role": role, "link": f"/play/{seats.issue(trial_id, role)}"}
         case Waiting(waiting):
@@ -369,11 +354,11 @@ def lobby_poll(
 
 
 @router.post("/study/{name}/lobby/leave")
-def lobby_leave(me: ParticipationDep, clock: ClockDep, mazes: MazesDep) -> RedirectResponse:
+def lobby_leave(me: ParticipationDep) -> RedirectResponse:
     """The lobby page's "Leave the lobby", and its beacon as the page closes: out of the lobby at
     once, so the next arrival is not paired with someone who has gone."""
     with me.db.begin():
-        Lobby(me.db, me.config, mazes.layouts(), clock.now_ns()).leave(me.enrolled)
+        me.lobby().leave(me.enrolled)
     return RedirectResponse(f"/study/{me.config.name}/me", status_code=303)
 
 
@@ -410,61 +395,40 @@ def after_trial(me: ParticipationDep, trial_id: int) -> RedirectResponse:
 
 
 @router.get("/study/{name}/trials/{trial_id}/questionnaire", response_class=HTMLResponse)
-def questionnaire(me: ParticipationDep, trial_id: int, request: Request, templates: TemplatesDep) -> HTMLResponse:
+def questionnaire(me: ParticipationDep, trial_id: int) -> HTMLResponse:
     """Served only where an answer would be taken: a trial of theirs, played and over, not rated yet."""
     try:
         me.enrolment.questionnaire_due(me.enrolled, trial_id)
     except EnrolmentError as err:
         raise HTTPException(404, err.args[0]) from err
-    return _page(templates, request, "questionnaire", study=me.config, code=me.code, trial_id=trial_id, form={})
+    return me.page("questionnaire", trial_id=trial_id, form={})
 
 
 @router.post("/study/{name}/trials/{trial_id}/questionnaire")
-async def answer(me: ParticipationDep, trial_id: int, request: Request, templates: TemplatesDep) -> Response:
+async def answer(me: ParticipationDep, trial_id: int, request: Request) -> Response:
     form = {k: v for k, v in (await request.form()).items() if isinstance(v, str)}
     try:
         with me.db.begin():
             me.enrolment.answer(me.enrolled, trial_id, form)
     except EnrolmentError as err:
-        return _page(
-            templates,
-            request,
-            "questionnaire",
-            status=400,
-            study=me.config,
-            code=me.code,
-            trial_id=trial_id,
-            form=form,
-            error=err.args[0],
-        )
+        return me.page("questionnaire", status=400, trial_id=trial_id, form=form, error=err.args[0])
     return RedirectResponse(f"/study/{me.config.name}/me?saved=true", status_code=303)
 
 
 @router.post("/study/{name}/complete", response_class=HTMLResponse)
-def complete(
-    me: ParticipationDep,
-    request: Request,
-    templates: TemplatesDep,
-    clock: ClockDep,
-    mazes: MazesDep,
-    confirm: str = Form("", max_length=10),
-) -> Response:
+def complete(me: ParticipationDep, confirm: str = Form("", max_length=10)) -> Response:
     """ "I have finished": the plan played ends the way at once; anything short of it is said
     first and ends only once confirmed (a partial completion, or the outcome it is); with nothing
     played there is nothing to finish. The code is shown only once the end is committed."""
-    lobby = Lobby(me.db, me.config, mazes.layouts(), clock.now_ns())
+    lobby = me.lobby()
     with me.db.begin():
         outcome = me.enrolment.outcome(me.enrolled) or lobby.finishing(me.enrolled, datetime.now(UTC))
         finished = lobby.finished(me.enrolled)
         if outcome is None or (
             me.enrolled.completed_at is None and outcome is not StudyOutcome.completed and confirm != "yes"
         ):
-            return _page(
-                templates,
-                request,
+            return me.page(
                 "finish",
-                study=me.config,
-                code=me.code,
                 outcome=outcome,
                 finished=finished,
                 live=live_trial_of(me.db, (me.enrolled.participant_id,)) is not None,
@@ -487,18 +451,14 @@ def onward(config: StudyConfig, completion: str | None) -> str | None:
 
 
 @router.get("/study/{name}/done", response_class=HTMLResponse)
-def done_page(me: ParticipationDep, request: Request, templates: TemplatesDep) -> Response:
+def done_page(me: ParticipationDep) -> Response:
     """The end of a participant's way: how it ended, and that outcome's code (recorded already)."""
     outcome = me.enrolment.outcome(me.enrolled)
     if outcome is None:
         return RedirectResponse(f"/study/{me.config.name}/me", status_code=303)
     completion = me.config.code_for(outcome)
-    return _page(
-        templates,
-        request,
+    return me.page(
         "done",
-        study=me.config,
-        code=me.code,
         outcome=outcome,
         completion=completion,
         onward=onward(me.config, completion),
@@ -507,13 +467,7 @@ def done_page(me: ParticipationDep, request: Request, templates: TemplatesDep) -
 
 
 @router.post("/study/{name}/withdraw", response_class=HTMLResponse)
-def withdraw(
-    me: ParticipationDep,
-    request: Request,
-    templates: TemplatesDep,
-    webhooks: WebhooksDep,
-    confirm: str = Form("", max_length=10),
-) -> Response:
+def withdraw(me: ParticipationDep, webhooks: WebhooksDep, confirm: str = Form("", max_length=10)) -> Response:
     if confirm != "yes":  # erasing is not undone: only on the box ticked beside the button
         error = Text("To withdraw, tick the box that says you want to, then press Withdraw.")
         return RedirectResponse(f"/study/{me.config.name}/me?error={quote(error)}#withdraw-from-study", status_code=303)
@@ -524,17 +478,13 @@ def withdraw(
     webhooks.withdrawal(me.config.name, me.code)
     # The withdrawal's code, for one whose way had not ended otherwise (that code they were given then).
     completion = me.config.code_for(StudyOutcome.withdrew) if ended is None else None
-    response = _page(
-        templates,
-        request,
+    response = me.page(
         "withdrawn",
-        study=me.config,
-        code=me.code,
         completion=completion,
         onward=onward(me.config, completion) if completion is not None else None,
         onward_after_s=ONWARD_AFTER_S,
     )
-    delete_cookie(response, request, PASS_COOKIE, path="/study")
+    delete_cookie(response, me.request, PASS_COOKIE, path="/study")
     clear_site_data(response)  # the browser keeps nothing of them: cookies, storage, cache
     return response
 
@@ -565,16 +515,14 @@ def create_study(files: StudyFilesDep, name: str = Form(max_length=80)) -> Redir
 def _editor(
     templates: Jinja2Templates,
     request: Request,
-    files: StudyFiles,
-    enrolment: Enrolment,
+    study: OpenStudy,
     text: str,
     values: dict[str, object],
-    lobby: Lobby,
     status: int = 200,
     **context: object,
 ) -> HTMLResponse:
-    name = enrolment.config.name
-    answers = study_answers(enrolment.db, name)
+    name, enrolment, lobby = study.config.name, study.enrolment, study.lobby()
+    answers = study_answers(study.db, name)
     participants = enrolment.participants()
     # Each participant's trials against the plan: study trials played (the practice not counted), practised.
     progress = {e.id: (lobby.played(e), not lobby.needs_practice(e)) for e, _, _ in participants}
@@ -583,66 +531,41 @@ def _editor(
         request,
         "edit",
         status=status,
-        study=enrolment.config,
+        study=study.config,
         text=text,
         values=values,
         kinds=list(QuestionKind),
         outcomes_coded=[o for o in StudyOutcome if o is not StudyOutcome.completed],
         link=request.url_for("information", name=name),
-        trials=study_trials(enrolment.db, name),
+        trials=study_trials(study.db, name),
         progress=progress,
         participants=participants,
         outcomes={e.id: enrolment.outcome(e) for e, _, _ in participants},
         answers=answers,
-        questions=items(asked(files, name, answers)),
+        questions=items(asked(study.files, name, answers)),
         **context,
     )
 
 
 @experimenter_router.get("/{name}", response_class=HTMLResponse)
 def edit_page(
-    name: str,
+    study: StudyDep,
     request: Request,
-    files: StudyFilesDep,
-    db: DbSession,
-    clock: ClockDep,
-    mazes: MazesDep,
     templates: TemplatesDep,
     saved: int | None = None,
     paired: int | None = None,
     screened: str | None = None,
     error: str | None = None,
 ) -> HTMLResponse:
-    config = study_or_404(files, name)
-    enrolment = Enrolment(db, clock, config)
-    text = config.model_dump_json(indent=2)
-    return _editor(
-        templates,
-        request,
-        files,
-        enrolment,
-        text,
-        form_values(config),
-        Lobby(db, config, mazes.layouts(), clock.now_ns()),
-        saved=saved,
-        paired=paired,
-        screened=screened,
-        error=error,
-    )
+    text = study.config.model_dump_json(indent=2)
+    values = form_values(study.config)
+    return _editor(templates, request, study, text, values, saved=saved, paired=paired, screened=screened, error=error)
 
 
 @experimenter_router.post("/{name}")
-async def save_study(
-    name: str,
-    request: Request,
-    files: StudyFilesDep,
-    db: DbSession,
-    clock: ClockDep,
-    mazes: MazesDep,
-    templates: TemplatesDep,
-) -> Response:
+async def save_study(name: str, study: StudyDep, request: Request, templates: TemplatesDep) -> Response:
     """The editor's form, or (`config_json`) the study's JSON whole, for power users."""
-    current = study_or_404(files, name)
+    current, mazes = study.config, study.mazes
     form = {k: v for k, v in (await request.form()).items() if isinstance(v, str)}
     config_json = form.get("config_json")
     text = current.model_dump_json(indent=2) if config_json is None else config_json  # shown again on an error
@@ -662,41 +585,34 @@ async def save_study(
         bundled = {m for m in mazes.names() if mazes.library.source(m) == "bundled"}
         check_mazes(config, bundled, set(mazes.names()))
     except StudyConfigError as err:
-        enrolment, lobby = Enrolment(db, clock, current), Lobby(db, current, mazes.layouts(), clock.now_ns())
-        return _editor(templates, request, files, enrolment, text, values, lobby, status=400, error=str(err))
-    saved = files.save(config)
+        return _editor(templates, request, study, text, values, status=400, error=str(err))
+    saved = study.files.save(config)
     return RedirectResponse(f"/experimenter/studies/{name}?saved={saved.version}", status_code=303)
 
 
 @experimenter_router.get("/{name}/participants.csv")
-def participants_csv(name: str, files: StudyFilesDep, db: DbSession, clock: ClockDep) -> Response:
+def participants_csv(name: str, study: StudyDep) -> Response:
     """The study's roster for paying its participants (`app.study.roster`)."""
-    enrolment = Enrolment(db, clock, study_or_404(files, name))
     return Response(
-        roster_csv(roster(enrolment, datetime.now(UTC))),
+        roster_csv(roster(study.enrolment, datetime.now(UTC))),
         media_type="text/csv",
         headers={"Content-Disposition": f'attachment; filename="{name}-participants.csv"'},
     )
 
 
 @experimenter_router.get("/{name}/lobby")
-def lobby_view(name: str, files: StudyFilesDep, db: DbSession, clock: ClockDep, mazes: MazesDep) -> dict[str, object]:
+def lobby_view(study: StudyDep) -> dict[str, object]:
     """Who waits in the study's lobby now, for the study page's live view (polled)."""
-    config = study_or_404(files, name)
-    return {"waiting": Lobby(db, config, mazes.layouts(), clock.now_ns()).view(datetime.now(UTC))}
+    return {"waiting": study.lobby().view(datetime.now(UTC))}
 
 
 @experimenter_router.post("/{name}/screen-out")
-def screen_out(
-    name: str, files: StudyFilesDep, db: DbSession, clock: ClockDep, mazes: MazesDep, code: str = Form(max_length=80)
-) -> RedirectResponse:
+def screen_out(name: str, study: StudyDep, code: str = Form(max_length=80)) -> RedirectResponse:
     """The experimenter screens a participant out: their way ends with that outcome (and its code,
     which their pages show from then on); a live trial of theirs is the experimenter's to stop."""
-    config = study_or_404(files, name)
-    enrolment = Enrolment(db, clock, config)
-    lobby = Lobby(db, config, mazes.layouts(), clock.now_ns())
+    enrolment, lobby = study.enrolment, study.lobby()
     try:
-        with db.begin():
+        with study.db.begin():
             enrolled = enrolment.by_code(code)
             before = enrolment.outcome(enrolled)
             if before is not None:
@@ -710,26 +626,21 @@ def screen_out(
 @experimenter_router.post("/{name}/pair")
 def pair_by_hand(
     name: str,
-    files: StudyFilesDep,
-    db: DbSession,
-    clock: ClockDep,
-    mazes: MazesDep,
+    study: StudyDep,
     hub: HubDep,
     webhooks: WebhooksDep,
     a: str = Form(max_length=80),
     b: str = Form(max_length=80),
 ) -> RedirectResponse:
     """Pair two of the study's participants (by code) now, by the lobby's rules."""
-    config = study_or_404(files, name)
-    enrolment = Enrolment(db, clock, config)
-    lobby = Lobby(db, config, mazes.layouts(), clock.now_ns())
+    lobby = study.lobby()
     try:
-        with db.begin():
-            first, second = (enrolment.by_code(code) for code in (a, b))
+        with study.db.begin():
+            first, second = (study.enrolment.by_code(code) for code in (a, b))
             trial = lobby.pair(first, second)
             trial_id = trial.id
     except (LookupError, LobbyError) as err:
         return RedirectResponse(f"/experimenter/studies/{name}?error={quote(str(err))}", status_code=303)
-    from_thread.run(_open, hub, trial_id)
+    from_thread.run(hub.get, trial_id)
     webhooks.paired(trial_id)
     return RedirectResponse(f"/experimenter/studies/{name}?paired={trial_id}", status_code=303)
