@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import Literal
 
 from starlette.requests import HTTPConnection
-from starlette.responses import Response
+from starlette.responses import RedirectResponse, Response
 
 HOST_PREFIX = "__Host-"
 CLEAR_SITE_DATA = '"cache", "cookies", "storage"'
@@ -53,3 +53,11 @@ def delete_cookie(response: Response, conn: HTTPConnection, base: str, path: str
 def clear_site_data(response: Response) -> None:
     """The browser forgets this site's cookies, storage and cache (a logout, a withdrawal)."""
     response.headers["Clear-Site-Data"] = CLEAR_SITE_DATA
+
+
+def logged_out(conn: HTTPConnection, base: str) -> RedirectResponse:
+    """Home, with the login's cookie `base` deleted and the browser told to forget the site."""
+    response = RedirectResponse("/", status_code=303)
+    delete_cookie(response, conn, base)
+    clear_site_data(response)
+    return response

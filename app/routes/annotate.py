@@ -21,7 +21,7 @@ from app.annotation.agreement import answer_word
 from app.annotation.dialog import estimates, messages
 from app.annotation.events import TITLES, Adjudicated, AnnotationEventModel, CutMarked, Submitted, Tagged
 from app.annotation.study import study_agreement
-from app.cookies import clear_site_data, delete_cookie
+from app.cookies import logged_out
 from app.db.models import AnnotationAssignment, Experimenter, Trial
 from app.deps import (
     AnnotationsDep,
@@ -179,10 +179,7 @@ def logout(
 ) -> RedirectResponse:
     if login is not None:
         sessions.end(login)
-    response = RedirectResponse("/", status_code=303)
-    delete_cookie(response, request, ANNOTATOR_COOKIE)
-    clear_site_data(response)
-    return response
+    return logged_out(request, ANNOTATOR_COOKIE)
 
 
 @router.get("/experimenter/annotation", response_class=HTMLResponse)

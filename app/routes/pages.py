@@ -8,7 +8,7 @@ from fastapi import APIRouter, Depends, Form, HTTPException, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 from sqlalchemy.orm import Session
 
-from app.cookies import clear_site_data, delete_cookie, read_cookie, set_cookie
+from app.cookies import logged_out, read_cookie, set_cookie
 from app.db.models import Experimenter, Trial
 from app.deps import (
     AnnotatorSessionsDep,
@@ -128,10 +128,7 @@ def logout(
     if login is not None:
         sessions.end(login)
         login_sockets.end(login)
-    response = RedirectResponse("/", status_code=303)
-    delete_cookie(response, request, SESSION_COOKIE)
-    clear_site_data(response)
-    return response
+    return logged_out(request, SESSION_COOKIE)
 
 
 @router.get("/leaderboard", response_class=HTMLResponse)
