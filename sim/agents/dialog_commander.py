@@ -39,7 +39,7 @@ from sim.language.understanding import Understanding, belief_facts
 from sim.language.vocab import OBJECT_WORDS, SIDE_SECTOR, Side, wall_name
 from sim.trial.agent import SeatInfo
 from sim.trial.commands import Action, Judge, Localize, Say
-from sim.trial.percepts import Claimed, Heard, Judged, Percept, PhaseBegan
+from sim.trial.percepts import Claimed, Heard, Percept, PhaseBegan
 from sim.trial.vocabulary import Phase, Role
 
 SETTLED_M = 0.3  # expected TD of the estimate under the belief: settled enough to mark and guide
@@ -137,9 +137,7 @@ class DialogCommander:
             return turns
         if isinstance(percept, Claimed):
             return self._claimed(percept)
-        if isinstance(percept, Judged):
-            return []  # its own verdict
-        return []  # Saw and Moved are the Driver seat's; a Commander never gets them
+        return []  # Judged: its own verdict; Saw and Moved are the Driver seat's, a Commander never gets them
 
     def _phase_changed(self, change: PhaseBegan) -> list[Action]:
         self._phase = change.phase

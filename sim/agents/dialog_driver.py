@@ -455,20 +455,16 @@ class DialogDriver:
         if task.home is None:
             task.home = self._odo.heading
         home = task.home
-        missing = [s for s in sides if (home + SIDE_STEPS[s]) % HEADINGS not in self._views]
+        around = {s: self._views[h] for s in Side if (h := (home + SIDE_STEPS[s]) % HEADINGS) in self._views}
+        missing = [s for s in sides if s not in around]
         facing = (home + SIDE_STEPS[missing[0]]) % HEADINGS if missing else home
         if self._odo.heading != facing:  # the shorter way round to the next side to see, then back
             return RequestMove(Move.LEFT if (facing - self._odo.heading) % HEADINGS <= 4 else Move.RIGHT)
-        views = {s: self._views[(home + SIDE_STEPS[s]) % HEADINGS] for s in sides}
         if ask.question == ins.AskedAbout.IS_THERE and ask.label is not None:
-            return Say(self._is_there(ask.label, sides[0], views[sides[0]]))
+            return Say(self._is_there(ask.label, sides[0], around[sides[0]]))
         if ask.question == ins.AskedAbout.VIEW and not ask.look_around:
-            views = {
-                s: self._views[(home + SIDE_STEPS[s]) % HEADINGS]
-                for s in Side
-                if (home + SIDE_STEPS[s]) % HEADINGS in self._views
-            }
-        return Say(describe(views))
+            return Say(describe(around))  # all it has seen from here
+        return Say(describe({s: around[s] for s in sides}))
 
     def _is_there(self, label: Label, side: Side, view: RayObservation | None) -> str:
         hits = [s for s in seen(view) if s.label == label] if view is not None else []
