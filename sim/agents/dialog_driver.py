@@ -26,7 +26,7 @@ from sim.language.sectors import NEAR_M
 from sim.language.understanding import Understanding, instructions, read_back
 from sim.language.vocab import SIDE_PHRASE, SIDE_STEPS, Side, wall_name
 from sim.trial.agent import SeatInfo
-from sim.trial.commands import Action, Claim, RequestMove, Say
+from sim.trial.commands import Action, Claim, RequestMove, Say, named
 from sim.trial.percepts import Declined, Heard, Judged, Moved, PauseSet, Percept, PhaseBegan, Saw
 from sim.trial.vocabulary import Move, Outcome, Phase, Role
 
@@ -180,7 +180,7 @@ class DialogDriver:
         if isinstance(refused.action, Claim) and self._paused:
             self._claim_on_resume = True
             return []
-        return [Say(f"i could not {refused.what} ({refused.reason}). what should i do?")]
+        return [Say(f"i could not {named(refused.action)} ({refused.reason}). what should i do?")]
 
     def _moved(self, moved: Moved) -> list[Action]:
         if moved.result != Outcome.OK:
