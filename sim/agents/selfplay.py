@@ -15,7 +15,6 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from enum import StrEnum
-from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
@@ -149,24 +148,6 @@ def measure(
     return out
 
 
-def seat_agents(
-    commander: CommanderName,
-    driver: DriverName,
-    maze: Maze,
-    graph: NavGraph,
-    rays: RayTable,
-    spec: TrialSpec,
-    cache_dir: str | Path | None = None,
-) -> tuple[Agent, Agent]:
-    c: Agent = (
-        DialogCommander(maze, spec.seed, cache_dir)
-        if commander == CommanderName.DIALOG
-        else OracleCommander(graph, rays, list(spec.targets), seed=spec.seed)
-    )
-    d: Agent = DialogDriver(spec.seed) if driver == DriverName.DIALOG else OracleDriver(rays, spec.seed)
-    return c, d
-
-
 def benchmark_trials(bench: Any, split: str) -> list[TrialSpec]:
     """One trial per maze of the split: from the recorded start of its first target's instance
     (the jar's where the split has it, snapped to the robot's graph), to the maze's three objects
@@ -274,6 +255,12 @@ def world(benchmark: str | None, name: str) -> tuple[Maze, NavGraph, RayTable]:
 
 
 def run_job(job: Job) -> TrialResult:
-    maze, graph, rays = world(job.benchmark, job.spec.maze)
-    commander, driver = seat_agents(job.commander, job.driver, maze, graph, rays, job.spec)
-    return play(commander, driver, graph, rays, job.spec)
+    spec = job.spec
+    maze, graph, rays = world(job.benchmark, spec.maze)
+    commander: Agent = (
+        DialogCommander(maze, spec.seed)
+        if job.commander == CommanderName.DIALOG
+        else OracleCommander(graph, rays, list(spec.targets), seed=spec.seed)
+    )
+    driver: Agent = DialogDriver(spec.seed) if job.driver == DriverName.DIALOG else OracleDriver(rays, spec.seed)
+    return play(commander, driver, graph, rays, spec)
