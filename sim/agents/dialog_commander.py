@@ -36,7 +36,7 @@ from sim.language.localizer import Belief, Scene
 from sim.language.phrases import PhraseKind, Phrases, Phrasing
 from sim.language.sectors import Sector
 from sim.language.understanding import Understanding, belief_facts
-from sim.language.vocab import OBJECT_WORDS, SIDE_SECTOR, Side, wall_name
+from sim.language.vocab import OBJECT_WORDS, wall_name
 from sim.trial.agent import SeatInfo
 from sim.trial.commands import Action, Judge, Localize, Say
 from sim.trial.percepts import Claimed, Heard, Percept, PhaseBegan
@@ -57,12 +57,11 @@ LOST_AFTER = 2  # instructions in a row not carried out: stop guiding and ask  #
 # A report of an instruction not carried out in full: the Driver stopped somewhere along the way.
 _STUCK = ("hit", "cannot", "can only", "could not", "do not", "not the one", "no opening", "still", "not turned")
 _BLOCKED = ("hit a wall", "can only go", "wall is in my way")
-_SECTOR = {sector: side for side, sector in SIDE_SECTOR.items()}
-_YOUR_SIDE = {
-    Side.AHEAD: "ahead of you",
-    Side.LEFT: "on your left",
-    Side.BEHIND: "behind you",
-    Side.RIGHT: "on your right",
+_YOUR_SIDE = {  # a question's sector as the Commander says it
+    Sector.FRONT: "ahead of you",
+    Sector.LEFT: "on your left",
+    Sector.BEHIND: "behind you",
+    Sector.RIGHT: "on your right",
 }
 LOOK_AROUND = "look around and tell me what you see"
 
@@ -334,7 +333,7 @@ class DialogCommander:
             return self._mark(self.estimate()) if self._phase == Phase.LOCALIZING else self._guide()
         self._asked.add(best)
         sector, label = best
-        return self._say(f"is there a {wall_name(label)} {_YOUR_SIDE[_SECTOR[sector]]}?")
+        return self._say(f"is there a {wall_name(label)} {_YOUR_SIDE[sector]}?")
 
     def goal(self, node: int) -> int:
         """Where it guides the Driver from `node`: the nearest place from which the target is in view
