@@ -15,6 +15,7 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from enum import StrEnum
+from functools import cache
 from typing import Any, TypeVar
 
 import numpy as np
@@ -233,25 +234,21 @@ class Job:
     benchmark: str | None = None  # a benchmark clone's root; None: the library's bundled mazes
 
 
-_worlds: dict[tuple[str | None, str], tuple[Maze, NavGraph, RayTable]] = {}
-
-
+@cache
 def world(benchmark: str | None, name: str) -> tuple[Maze, NavGraph, RayTable]:
     """A maze with the robot's graph and its views, loaded once per process (graphs and views
     cached on disk)."""
-    if (benchmark, name) not in _worlds:
-        if benchmark is not None:
-            from sim.tasks.benchmark import Benchmark
+    if benchmark is not None:
+        from sim.tasks.benchmark import Benchmark
 
-            bench = Benchmark(benchmark)
-            maze, cache = bench.maze(name), bench.cache_dir
-        else:
-            from sim.tasks.library import MazeLibrary
+        bench = Benchmark(benchmark)
+        maze, cache_dir = bench.maze(name), bench.cache_dir
+    else:
+        from sim.tasks.library import MazeLibrary
 
-            maze, cache = MazeLibrary().load(name), None
-        graph = NavGraph.for_robot(maze, cache_dir=cache)
-        _worlds[benchmark, name] = (maze, graph, RayTable.build(maze, graph, cache_dir=cache))
-    return _worlds[benchmark, name]
+        maze, cache_dir = MazeLibrary().load(name), None
+    graph = NavGraph.for_robot(maze, cache_dir=cache_dir)
+    return maze, graph, RayTable.build(maze, graph, cache_dir=cache_dir)
 
 
 def run_job(job: Job) -> TrialResult:
