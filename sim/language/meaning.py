@@ -10,7 +10,7 @@ trained reader and the rules are scored on the same terms.
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -245,23 +245,21 @@ class Score:
 
 def score_programs(pairs: Iterable[tuple[Sequence[Clause], Sequence[Clause]]]) -> Score:
     """(predicted, gold) programs: exact match in order, and clauses matched as multisets."""
-    turns = exact = matched = predicted = gold = 0
-    for got, want in pairs:
-        turns += 1
-        exact += tuple(got) == tuple(want)
-        matched += sum((Counter(got) & Counter(want)).values())
-        predicted += len(got)
-        gold += len(want)
-    return Score(turns, exact, matched, predicted, gold)
+    return _score((tuple(got), tuple(want)) for got, want in pairs)
 
 
 def score_facts(pairs: Iterable[tuple[frozenset[FactForm], frozenset[FactForm]]]) -> Score:
     """(predicted, gold) fact sets."""
+    return _score(pairs)
+
+
+def _score(pairs: Iterable[tuple[Collection[Clause | FactForm], Collection[Clause | FactForm]]]) -> Score:
+    """Equal readings are exact (a program's order counts, a fact set's cannot); items match as multisets."""
     turns = exact = matched = predicted = gold = 0
     for got, want in pairs:
         turns += 1
         exact += got == want
-        matched += len(got & want)
+        matched += sum((Counter(got) & Counter(want)).values())
         predicted += len(got)
         gold += len(want)
     return Score(turns, exact, matched, predicted, gold)
