@@ -88,6 +88,14 @@ _SECTOR_SIDE = {
 _QUESTION = {ins.AskedAbout.VIEW: "view", ins.AskedAbout.SIDE: "side", ins.AskedAbout.IS_THERE: "is_there"}
 
 
+def _exactly(item: Mapping[str, Value], head: Op | FactKind, fields: tuple[str, ...]) -> dict[str, Value]:
+    """A clause's (`head` an Op) or fact's fields from JSON; a `ValueError` where one is missing or another is there."""
+    key, what = ("op", "clause") if isinstance(head, Op) else ("kind", "fact")
+    if set(item) != {key, *fields}:
+        raise ValueError(f"{what} {dict(item)}: {head.value} takes exactly {', '.join(fields) or 'no fields'}")
+    return {name: item[name] for name in fields}
+
+
 @dataclass(frozen=True)
 class Clause:
     """One step of a Commander's program; `args` are its op's fields in CLAUSE_FIELDS' order."""
@@ -115,12 +123,7 @@ class Clause:
     @classmethod
     def from_json(cls, item: Mapping[str, Value]) -> Clause:
         op = Op(str(item["op"]))
-        missing = [name for name in CLAUSE_FIELDS[op] if name not in item]
-        if missing or set(item) - {"op", *CLAUSE_FIELDS[op]}:
-            raise ValueError(
-                f"clause {dict(item)}: {op.value} takes exactly {', '.join(CLAUSE_FIELDS[op]) or 'no fields'}"
-            )
-        return cls.of(op, **{name: item[name] for name in CLAUSE_FIELDS[op]})
+        return cls.of(op, **_exactly(item, op, CLAUSE_FIELDS[op]))
 
 
 @dataclass(frozen=True)
@@ -140,12 +143,7 @@ class FactForm:
     @classmethod
     def from_json(cls, item: Mapping[str, Value]) -> FactForm:
         kind = FactKind(str(item["kind"]))
-        missing = [name for name in FACT_FIELDS[kind] if name not in item]
-        if missing or set(item) - {"kind", *FACT_FIELDS[kind]}:
-            raise ValueError(
-                f"fact {dict(item)}: {kind.value} takes exactly {', '.join(FACT_FIELDS[kind]) or 'no fields'}"
-            )
-        return cls.of(kind, **{name: item[name] for name in FACT_FIELDS[kind]})
+        return cls.of(kind, **_exactly(item, kind, FACT_FIELDS[kind]))
 
 
 Program = tuple[Clause, ...]
