@@ -226,7 +226,8 @@ class DialogDriver:
         return [Say(f"i am not sure i got '{text.strip()}'. do you mean: {read_back(best)}?")]
 
     def _failure(self, text: str) -> Say:
-        """It could not carry out what it was told; after FAILED_TRIES in a row it asks for less at a time."""
+        """It could not carry out what it was told: it drops the plan; after FAILED_TRIES in a row it asks for less."""
+        self._plan.clear()
         self._failed += 1
         if self._failed >= FAILED_TRIES:
             return Say(f"{text} could you give me one move at a time?")
@@ -368,7 +369,6 @@ class DialogDriver:
                 self._done_words = f"went {task.done} steps"
                 return None
             if view is not None and view.forward_blocked:
-                self._plan.clear()
                 return self._failure(f"i can only go {task.done} steps, {brief(view)}. which way now?")
             task.done += 1
             return RequestMove(Move.FORWARD)
@@ -385,20 +385,16 @@ class DialogDriver:
         if reached:
             label = front.label if front is not None else None
             if task.until is not None and label != task.until and task.until not in OBJECT_LABELS:
-                self._plan.clear()
                 found = wall_name(label) if label is not None else "something"
                 return self._failure(f"i am at a {found}, i do not see a {wall_name(task.until)} ahead. which way now?")
             if label is not None and label in task.exclude:
-                self._plan.clear()
                 return self._failure(f"i am at the {wall_name(label)}, which you said is not the one. which way now?")
             self._done_words = f"at the {wall_name(label)}" if label is not None else "at the wall"
             return None
         wall = task.until if task.until not in OBJECT_LABELS else None
         if task.done == 0 and wall is not None and not any(s.label == wall for s in seen(view)):
-            self._plan.clear()
             return self._failure(f"i do not see a {wall_name(wall)} ahead, {brief(view)}. which way?")
         if task.done >= MAX_WALK:
-            self._plan.clear()
             return self._failure(f"i have gone {task.done} steps and still {brief(view)}. where am i going?")
         task.done += 1
         return RequestMove(Move.FORWARD)
@@ -419,7 +415,6 @@ class DialogDriver:
             )
             return None
         if view.forward_blocked or task.done >= MAX_WALK:
-            self._plan.clear()
             return self._failure(f"i found no opening on my {task.side}, {brief(view)}. which way now?")
         task.done += 1
         return RequestMove(Move.FORWARD)
@@ -435,7 +430,6 @@ class DialogDriver:
         turn = (wanted - self._odo.heading) % HEADINGS
         if turn == 0:
             if self._view is not None and self._view.forward_blocked:
-                self._plan.clear()
                 return self._failure(f"a wall is in my way {task.text}, {brief(self._view)}. which way?")
             return RequestMove(Move.FORWARD)
         return RequestMove(Move.LEFT if turn <= 4 else Move.RIGHT)
