@@ -304,11 +304,9 @@ class DialogCommander:
         return [Localize(estimate.x, estimate.y, float(heading_angle(estimate.pose.heading)))]
 
     def _revise(self, estimate: Estimate) -> list[Action]:
-        if self._marked is None or math.dist(self._marked, (estimate.x, estimate.y)) < REVISE_M:
-            return []
-        if estimate.spread_m > SETTLED_M:
-            return []
-        return self._mark(estimate)
+        """Mark the estimate again where it moved from the last mark and has settled."""
+        moved = self._marked is not None and math.dist(self._marked, (estimate.x, estimate.y)) >= REVISE_M
+        return self._mark(estimate) if moved and estimate.spread_m <= SETTLED_M else []
 
     def _ask(self) -> list[Action]:
         """The yes / no question that best halves the belief; first, a look around."""
