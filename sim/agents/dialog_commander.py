@@ -36,10 +36,10 @@ from sim.language.localizer import Belief, Scene
 from sim.language.phrases import PhraseKind, Phrases, Phrasing
 from sim.language.sectors import Sector
 from sim.language.understanding import Understanding, belief_facts
-from sim.language.vocab import OBJECT_WORDS, SIDE_SECTOR, Side, wall_name
+from sim.language.vocab import OBJECT_WORDS, wall_name
 from sim.trial.agent import SeatInfo
 from sim.trial.commands import Action, Judge, Localize, Say
-from sim.trial.percepts import Claimed, Heard, Judged, Percept, PhaseBegan
+from sim.trial.percepts import Claimed, Heard, Percept, PhaseBegan
 from sim.trial.vocabulary import Phase, Role
 
 SETTLED_M = 0.3  # expected TD of the estimate under the belief: settled enough to mark and guide
@@ -57,12 +57,11 @@ LOST_AFTER = 2  # instructions in a row not carried out: stop guiding and ask  #
 # A report of an instruction not carried out in full: the Driver stopped somewhere along the way.
 _STUCK = ("hit", "cannot", "can only", "could not", "do not", "not the one", "no opening", "still", "not turned")
 _BLOCKED = ("hit a wall", "can only go", "wall is in my way")
-_SECTOR = {sector: side for side, sector in SIDE_SECTOR.items()}
-_YOUR_SIDE = {
-    Side.AHEAD: "ahead of you",
-    Side.LEFT: "on your left",
-    Side.BEHIND: "behind you",
-    Side.RIGHT: "on your right",
+_YOUR_SIDE = {  # a question's sector as the Commander says it
+    Sector.FRONT: "ahead of you",
+    Sector.LEFT: "on your left",
+    Sector.BEHIND: "behind you",
+    Sector.RIGHT: "on your right",
 }
 LOOK_AROUND = "look around and tell me what you see"
 
@@ -137,9 +136,7 @@ class DialogCommander:
             return turns
         if isinstance(percept, Claimed):
             return self._claimed(percept)
-        if isinstance(percept, Judged):
-            return []  # its own verdict
-        return []  # Saw and Moved are the Driver seat's; a Commander never gets them
+        return []  # Judged: its own verdict; Saw and Moved are the Driver seat's, a Commander never gets them
 
     def _phase_changed(self, change: PhaseBegan) -> list[Action]:
         self._phase = change.phase
@@ -307,11 +304,9 @@ class DialogCommander:
         return [Localize(estimate.x, estimate.y, float(heading_angle(estimate.pose.heading)))]
 
     def _revise(self, estimate: Estimate) -> list[Action]:
-        if self._marked is None or math.dist(self._marked, (estimate.x, estimate.y)) < REVISE_M:
-            return []
-        if estimate.spread_m > SETTLED_M:
-            return []
-        return self._mark(estimate)
+        """Mark the estimate again where it moved from the last mark and has settled."""
+        moved = self._marked is not None and math.dist(self._marked, (estimate.x, estimate.y)) >= REVISE_M
+        return self._mark(estimate) if moved and estimate.spread_m <= SETTLED_M else []
 
     def _ask(self) -> list[Action]:
         """The yes / no question that best halves the belief; first, a look around."""
@@ -336,7 +331,7 @@ class DialogCommander:
             return self._mark(self.estimate()) if self._phase == Phase.LOCALIZING else self._guide()
         self._asked.add(best)
         sector, label = best
-        return self._say(f"is there a {wall_name(label)} {_YOUR_SIDE[_SECTOR[sector]]}?")
+        return self._say(f"is there a {wall_name(label)} {_YOUR_SIDE[sector]}?")
 
     def goal(self, node: int) -> int:
         """Where it guides the Driver from `node`: the nearest place from which the target is in view

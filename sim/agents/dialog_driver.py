@@ -26,7 +26,7 @@ from sim.language.sectors import NEAR_M
 from sim.language.understanding import Understanding, instructions, read_back
 from sim.language.vocab import SIDE_PHRASE, SIDE_STEPS, Side, wall_name
 from sim.trial.agent import SeatInfo
-from sim.trial.commands import Action, Claim, RequestMove, Say
+from sim.trial.commands import Action, Claim, RequestMove, Say, named
 from sim.trial.percepts import Declined, Heard, Judged, Moved, PauseSet, Percept, PhaseBegan, Saw
 from sim.trial.vocabulary import Move, Outcome, Phase, Role
 
@@ -180,7 +180,7 @@ class DialogDriver:
         if isinstance(refused.action, Claim) and self._paused:
             self._claim_on_resume = True
             return []
-        return [Say(f"i could not {refused.what} ({refused.reason}). what should i do?")]
+        return [Say(f"i could not {named(refused.action)} ({refused.reason}). what should i do?")]
 
     def _moved(self, moved: Moved) -> list[Action]:
         if moved.result != Outcome.OK:
@@ -226,7 +226,8 @@ class DialogDriver:
         return [Say(f"i am not sure i got '{text.strip()}'. do you mean: {read_back(best)}?")]
 
     def _failure(self, text: str) -> Say:
-        """It could not carry out what it was told; after FAILED_TRIES in a row it asks for less at a time."""
+        """It could not carry out what it was told: it drops the plan; after FAILED_TRIES in a row it asks for less."""
+        self._plan.clear()
         self._failed += 1
         if self._failed >= FAILED_TRIES:
             return Say(f"{text} could you give me one move at a time?")
@@ -368,7 +369,6 @@ class DialogDriver:
                 self._done_words = f"went {task.done} steps"
                 return None
             if view is not None and view.forward_blocked:
-                self._plan.clear()
                 return self._failure(f"i can only go {task.done} steps, {brief(view)}. which way now?")
             task.done += 1
             return RequestMove(Move.FORWARD)
@@ -385,20 +385,16 @@ class DialogDriver:
         if reached:
             label = front.label if front is not None else None
             if task.until is not None and label != task.until and task.until not in OBJECT_LABELS:
-                self._plan.clear()
                 found = wall_name(label) if label is not None else "something"
                 return self._failure(f"i am at a {found}, i do not see a {wall_name(task.until)} ahead. which way now?")
             if label is not None and label in task.exclude:
-                self._plan.clear()
                 return self._failure(f"i am at the {wall_name(label)}, which you said is not the one. which way now?")
             self._done_words = f"at the {wall_name(label)}" if label is not None else "at the wall"
             return None
         wall = task.until if task.until not in OBJECT_LABELS else None
         if task.done == 0 and wall is not None and not any(s.label == wall for s in seen(view)):
-            self._plan.clear()
             return self._failure(f"i do not see a {wall_name(wall)} ahead, {brief(view)}. which way?")
         if task.done >= MAX_WALK:
-            self._plan.clear()
             return self._failure(f"i have gone {task.done} steps and still {brief(view)}. where am i going?")
         task.done += 1
         return RequestMove(Move.FORWARD)
@@ -419,7 +415,6 @@ class DialogDriver:
             )
             return None
         if view.forward_blocked or task.done >= MAX_WALK:
-            self._plan.clear()
             return self._failure(f"i found no opening on my {task.side}, {brief(view)}. which way now?")
         task.done += 1
         return RequestMove(Move.FORWARD)
@@ -435,7 +430,6 @@ class DialogDriver:
         turn = (wanted - self._odo.heading) % HEADINGS
         if turn == 0:
             if self._view is not None and self._view.forward_blocked:
-                self._plan.clear()
                 return self._failure(f"a wall is in my way {task.text}, {brief(self._view)}. which way?")
             return RequestMove(Move.FORWARD)
         return RequestMove(Move.LEFT if turn <= 4 else Move.RIGHT)
@@ -455,20 +449,16 @@ class DialogDriver:
         if task.home is None:
             task.home = self._odo.heading
         home = task.home
-        missing = [s for s in sides if (home + SIDE_STEPS[s]) % HEADINGS not in self._views]
+        around = {s: self._views[h] for s in Side if (h := (home + SIDE_STEPS[s]) % HEADINGS) in self._views}
+        missing = [s for s in sides if s not in around]
         facing = (home + SIDE_STEPS[missing[0]]) % HEADINGS if missing else home
         if self._odo.heading != facing:  # the shorter way round to the next side to see, then back
             return RequestMove(Move.LEFT if (facing - self._odo.heading) % HEADINGS <= 4 else Move.RIGHT)
-        views = {s: self._views[(home + SIDE_STEPS[s]) % HEADINGS] for s in sides}
         if ask.question == ins.AskedAbout.IS_THERE and ask.label is not None:
-            return Say(self._is_there(ask.label, sides[0], views[sides[0]]))
+            return Say(self._is_there(ask.label, sides[0], around[sides[0]]))
         if ask.question == ins.AskedAbout.VIEW and not ask.look_around:
-            views = {
-                s: self._views[(home + SIDE_STEPS[s]) % HEADINGS]
-                for s in Side
-                if (home + SIDE_STEPS[s]) % HEADINGS in self._views
-            }
-        return Say(describe(views))
+            return Say(describe(around))  # all it has seen from here
+        return Say(describe({s: around[s] for s in sides}))
 
     def _is_there(self, label: Label, side: Side, view: RayObservation | None) -> str:
         hits = [s for s in seen(view) if s.label == label] if view is not None else []

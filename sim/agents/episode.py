@@ -109,7 +109,7 @@ def run(
     graph, targets = commander.graph, commander.targets
     if phase == Phase.NAVIGATING:
         goal = graph.nearest_node(*targets[0][1])
-        out.shortest = int(commander.moves_to_go(goal)[start.node, start.heading])
+        out.shortest = int(commander.router.moves_to_go(goal)[start.node, start.heading])
     # The bench stops first: the seats' caps lie beyond its own.
     caps = Caps(moves_per_target=max_moves + 1, messages_per_target=MAX_MESSAGES + 1)
     table = Table({Role.DRIVER: driver, Role.COMMANDER: commander}, [targets[0][0]], caps)

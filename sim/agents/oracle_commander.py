@@ -10,15 +10,12 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from sim.agents.route import Router
 from sim.core.dynamics import Pose
 from sim.core.geometry import SUCCESS_RADIUS_M
 from sim.core.labels import Label, object_label
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
-from sim.core.rays import RayObservation
 from sim.language.phrases import Persona, PhraseKind, Phrases, Phrasing
 from sim.language.vocab import OBJECT_WORDS
 from sim.trial.agent import SeatInfo
@@ -48,9 +45,6 @@ class OracleCommander:
 
     def reset(self, info: SeatInfo) -> None:
         self._index = None
-
-    def view(self, pose: Pose) -> RayObservation:
-        return self.router.view(pose)
 
     def _target(self) -> tuple[str, Label, tuple[float, float], int]:
         assert self._index is not None  # only while navigating
@@ -91,6 +85,3 @@ class OracleCommander:
         if self.distance(self.pose) <= THERE_M:
             return self.phrases.say(PhraseKind.THERE, thing=OBJECT_WORDS[label])
         return self.router.instruction(self.pose, label, goal, plain)
-
-    def moves_to_go(self, goal: int) -> np.ndarray:
-        return self.router.moves_to_go(goal)

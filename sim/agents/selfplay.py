@@ -15,7 +15,7 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from enum import StrEnum
-from pathlib import Path
+from functools import cache
 from typing import Any, TypeVar
 
 import numpy as np
@@ -149,24 +149,6 @@ def measure(
     return out
 
 
-def seat_agents(
-    commander: CommanderName,
-    driver: DriverName,
-    maze: Maze,
-    graph: NavGraph,
-    rays: RayTable,
-    spec: TrialSpec,
-    cache_dir: str | Path | None = None,
-) -> tuple[Agent, Agent]:
-    c: Agent = (
-        DialogCommander(maze, spec.seed, cache_dir)
-        if commander == CommanderName.DIALOG
-        else OracleCommander(graph, rays, list(spec.targets), seed=spec.seed)
-    )
-    d: Agent = DialogDriver(spec.seed) if driver == DriverName.DIALOG else OracleDriver(rays, spec.seed)
-    return c, d
-
-
 def benchmark_trials(bench: Any, split: str) -> list[TrialSpec]:
     """One trial per maze of the split: from the recorded start of its first target's instance
     (the jar's where the split has it, snapped to the robot's graph), to the maze's three objects
@@ -252,28 +234,30 @@ class Job:
     benchmark: str | None = None  # a benchmark clone's root; None: the library's bundled mazes
 
 
-_worlds: dict[tuple[str | None, str], tuple[Maze, NavGraph, RayTable]] = {}
-
-
+@cache
 def world(benchmark: str | None, name: str) -> tuple[Maze, NavGraph, RayTable]:
     """A maze with the robot's graph and its views, loaded once per process (graphs and views
     cached on disk)."""
-    if (benchmark, name) not in _worlds:
-        if benchmark is not None:
-            from sim.tasks.benchmark import Benchmark
+    if benchmark is not None:
+        from sim.tasks.benchmark import Benchmark
 
-            bench = Benchmark(benchmark)
-            maze, cache = bench.maze(name), bench.cache_dir
-        else:
-            from sim.tasks.library import MazeLibrary
+        bench = Benchmark(benchmark)
+        maze, cache_dir = bench.maze(name), bench.cache_dir
+    else:
+        from sim.tasks.library import MazeLibrary
 
-            maze, cache = MazeLibrary().load(name), None
-        graph = NavGraph.for_robot(maze, cache_dir=cache)
-        _worlds[benchmark, name] = (maze, graph, RayTable.build(maze, graph, cache_dir=cache))
-    return _worlds[benchmark, name]
+        maze, cache_dir = MazeLibrary().load(name), None
+    graph = NavGraph.for_robot(maze, cache_dir=cache_dir)
+    return maze, graph, RayTable.build(maze, graph, cache_dir=cache_dir)
 
 
 def run_job(job: Job) -> TrialResult:
-    maze, graph, rays = world(job.benchmark, job.spec.maze)
-    commander, driver = seat_agents(job.commander, job.driver, maze, graph, rays, job.spec)
-    return play(commander, driver, graph, rays, job.spec)
+    spec = job.spec
+    maze, graph, rays = world(job.benchmark, spec.maze)
+    commander: Agent = (
+        DialogCommander(maze, spec.seed)
+        if job.commander == CommanderName.DIALOG
+        else OracleCommander(graph, rays, list(spec.targets), seed=spec.seed)
+    )
+    driver: Agent = DialogDriver(spec.seed) if job.driver == DriverName.DIALOG else OracleDriver(rays, spec.seed)
+    return play(commander, driver, graph, rays, spec)

@@ -11,7 +11,7 @@ import re
 from sim.core.labels import OBJECTS
 from sim.core.rays import RayObservation
 from sim.trial.agent import SeatInfo
-from sim.trial.commands import Action, Claim, RequestMove, Say
+from sim.trial.commands import Action, Claim, RequestMove, Say, named
 from sim.trial.percepts import Claimed, Declined, Heard, Judged, Moved, PauseSet, Percept, PhaseBegan, Saw
 from sim.trial.vocabulary import Move, Outcome, Phase, Role
 
@@ -87,7 +87,7 @@ class StepwiseDriver:
         if isinstance(refused.action, Claim) and self.paused:
             self.claim_on_resume = True
             return []
-        return [Say(f"I could not {refused.what} ({refused.reason}). What should I do?")]
+        return [Say(f"I could not {named(refused.action)} ({refused.reason}). What should I do?")]
 
     def _act(self) -> list[Action]:
         if self.phase != Phase.NAVIGATING or not self.seen or self.moving or self.claiming or self.held:

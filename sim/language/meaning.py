@@ -10,7 +10,7 @@ trained reader and the rules are scored on the same terms.
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -88,6 +88,14 @@ _SECTOR_SIDE = {
 _QUESTION = {ins.AskedAbout.VIEW: "view", ins.AskedAbout.SIDE: "side", ins.AskedAbout.IS_THERE: "is_there"}
 
 
+def _exactly(item: Mapping[str, Value], head: Op | FactKind, fields: tuple[str, ...]) -> dict[str, Value]:
+    """A clause's (`head` an Op) or fact's fields from JSON; a `ValueError` where one is missing or another is there."""
+    key, what = ("op", "clause") if isinstance(head, Op) else ("kind", "fact")
+    if set(item) != {key, *fields}:
+        raise ValueError(f"{what} {dict(item)}: {head.value} takes exactly {', '.join(fields) or 'no fields'}")
+    return {name: item[name] for name in fields}
+
+
 @dataclass(frozen=True)
 class Clause:
     """One step of a Commander's program; `args` are its op's fields in CLAUSE_FIELDS' order."""
@@ -115,12 +123,7 @@ class Clause:
     @classmethod
     def from_json(cls, item: Mapping[str, Value]) -> Clause:
         op = Op(str(item["op"]))
-        missing = [name for name in CLAUSE_FIELDS[op] if name not in item]
-        if missing or set(item) - {"op", *CLAUSE_FIELDS[op]}:
-            raise ValueError(
-                f"clause {dict(item)}: {op.value} takes exactly {', '.join(CLAUSE_FIELDS[op]) or 'no fields'}"
-            )
-        return cls.of(op, **{name: item[name] for name in CLAUSE_FIELDS[op]})
+        return cls.of(op, **_exactly(item, op, CLAUSE_FIELDS[op]))
 
 
 @dataclass(frozen=True)
@@ -140,12 +143,7 @@ class FactForm:
     @classmethod
     def from_json(cls, item: Mapping[str, Value]) -> FactForm:
         kind = FactKind(str(item["kind"]))
-        missing = [name for name in FACT_FIELDS[kind] if name not in item]
-        if missing or set(item) - {"kind", *FACT_FIELDS[kind]}:
-            raise ValueError(
-                f"fact {dict(item)}: {kind.value} takes exactly {', '.join(FACT_FIELDS[kind]) or 'no fields'}"
-            )
-        return cls.of(kind, **{name: item[name] for name in FACT_FIELDS[kind]})
+        return cls.of(kind, **_exactly(item, kind, FACT_FIELDS[kind]))
 
 
 Program = tuple[Clause, ...]
@@ -245,23 +243,21 @@ class Score:
 
 def score_programs(pairs: Iterable[tuple[Sequence[Clause], Sequence[Clause]]]) -> Score:
     """(predicted, gold) programs: exact match in order, and clauses matched as multisets."""
-    turns = exact = matched = predicted = gold = 0
-    for got, want in pairs:
-        turns += 1
-        exact += tuple(got) == tuple(want)
-        matched += sum((Counter(got) & Counter(want)).values())
-        predicted += len(got)
-        gold += len(want)
-    return Score(turns, exact, matched, predicted, gold)
+    return _score((tuple(got), tuple(want)) for got, want in pairs)
 
 
 def score_facts(pairs: Iterable[tuple[frozenset[FactForm], frozenset[FactForm]]]) -> Score:
     """(predicted, gold) fact sets."""
+    return _score(pairs)
+
+
+def _score(pairs: Iterable[tuple[Collection[Clause | FactForm], Collection[Clause | FactForm]]]) -> Score:
+    """Equal readings are exact (a program's order counts, a fact set's cannot); items match as multisets."""
     turns = exact = matched = predicted = gold = 0
     for got, want in pairs:
         turns += 1
         exact += got == want
-        matched += len(got & want)
+        matched += sum((Counter(got) & Counter(want)).values())
         predicted += len(got)
         gold += len(want)
     return Score(turns, exact, matched, predicted, gold)

@@ -19,6 +19,7 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import StrEnum
+from functools import cache
 from pathlib import Path
 
 import numpy as np
@@ -323,11 +324,7 @@ def complete(tokens: list[str], role: Role) -> list[str]:
     return whole
 
 
-_shipped: dict[Role, Reader] = {}
-
-
+@cache
 def shipped(role: Role) -> Reader:
     """The reader shipped in the package, loaded once per process."""
-    if role not in _shipped:
-        _shipped[role] = Reader(SHIPPED_DIR / f"{role.value}.npz")
-    return _shipped[role]
+    return Reader(SHIPPED_DIR / f"{role.value}.npz")

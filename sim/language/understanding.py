@@ -19,7 +19,7 @@ from sim.language import lexicon
 from sim.language.meaning import CLAUSE_FIELDS, FACT_FIELDS, FactForm, FactKind, Op, Program, facts_of, program_of
 from sim.language.reader import Reader, Role, shipped
 from sim.language.sectors import Sector
-from sim.language.vocab import Side, wall_name
+from sim.language.vocab import SIDE_SECTOR, Side, wall_name
 
 M = TypeVar("M", Program, frozenset[FactForm])
 
@@ -130,13 +130,7 @@ def instructions(program: Program, text: str) -> list[ins.Instruction]:
     return out
 
 
-_SECTOR = {
-    "ahead": Sector.FRONT,
-    "left": Sector.LEFT,
-    "right": Sector.RIGHT,
-    "behind": Sector.BEHIND,
-    "any": Sector.ANY,
-}
+_SECTOR = {str(side): sector for side, sector in SIDE_SECTOR.items()} | {"any": Sector.ANY}  # a fact's side
 
 
 def belief_facts(facts: frozenset[FactForm]) -> list[lexicon.Fact]:

@@ -35,7 +35,7 @@ from sim.trial.commands import (
 )
 from sim.trial.specs import HUMAN
 from sim.trial.state import TrialState
-from sim.trial.vocabulary import EXPERIMENTER_PAUSE, Move, Outcome, Phase, Role, disconnect_pause
+from sim.trial.vocabulary import EXPERIMENTER_PAUSE, Outcome, Phase, Role, disconnect_pause
 
 
 class Refused(ValueError):
@@ -48,20 +48,9 @@ def decide(state: TrialState, command: Command) -> list[ev.Event]:
         case Reopen():
             return _reopen(state)
         case AbandonMoves(reason=reason):
-            return [_refused(move_id, action, reason) for move_id, (action, _) in state.moves_in_flight.items()]
+            return [_executed(state, move_id, Outcome.REFUSED, reason) for move_id in state.moves_in_flight]
         case FinishMove(move_id=move_id, outcome=outcome, reason=reason):
-            if move_id not in state.moves_in_flight:
-                return []
-            action, _ = state.moves_in_flight[move_id]
-            return [
-                ev.MoveExecuted(
-                    move_id=move_id,
-                    action=action,
-                    outcome=outcome,
-                    collision=outcome == Outcome.COLLISION,
-                    reason=reason,
-                )
-            ]
+            return [_executed(state, move_id, outcome, reason)] if move_id in state.moves_in_flight else []
     if isinstance(command, Act):
         return _act(state, command)
     if state.over:
@@ -188,8 +177,11 @@ def _request_move(state: TrialState, request: RequestMove, now: Now) -> list[ev.
     return [ev.MoveRequested(move_id=move_id, action=action)]
 
 
-def _refused(move_id: str, action: Move, reason: str) -> ev.MoveExecuted:
-    return ev.MoveExecuted(move_id=move_id, action=action, outcome=Outcome.REFUSED, reason=reason)
+def _executed(state: TrialState, move_id: str, outcome: Outcome, reason: str | None) -> ev.MoveExecuted:
+    """A move in flight finished (or never will: refused)."""
+    action, _ = state.moves_in_flight[move_id]
+    collision = outcome == Outcome.COLLISION
+    return ev.MoveExecuted(move_id=move_id, action=action, outcome=outcome, collision=collision, reason=reason)
 
 
 def _claim(state: TrialState) -> ev.TargetClaimed:

@@ -204,30 +204,7 @@ class BadMessage(Event):
     error: str
 
 
-KINDS: dict[str, type[Event]] = {
-    cls.kind: cls
-    for cls in (
-        TrialCreated,
-        Connected,
-        Disconnected,
-        PhaseChanged,
-        Paused,
-        Resumed,
-        Restarted,
-        StillAway,
-        Chat,
-        MoveRequested,
-        MoveExecuted,
-        MovesRefused,
-        FrameRecorded,
-        PoseSampled,
-        Localized,
-        TargetClaimed,
-        TargetConfirmed,
-        TargetRejected,
-        BadMessage,
-    )
-}
+KINDS: dict[str, type[Event]] = {cls.kind: cls for cls in Event.__subclasses__()}  # every kind above
 
 
 def typed(event: LoggedEvent) -> Event | None:

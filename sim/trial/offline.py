@@ -37,7 +37,6 @@ class OfflineTrial:
         graph: NavGraph,
         rays: RayTable,
         table: Table,
-        seats: tuple[str, str] = ("agent", "agent"),  # (driver, commander) as the log names them
         navigating: bool = False,
     ) -> None:
         self.graph, self.rays, self.table, self.targets = graph, rays, table, dict(targets)
@@ -45,14 +44,13 @@ class OfflineTrial:
         self.log: list[LoggedEvent] = []
         self.pose = start
         self._seated = False  # the table hears the events once the seats have taken their places
-        driver, commander = seats
         self._record(
             ev.TrialCreated(
                 maze=maze,
                 targets=[name for name, _ in targets],
                 backend="sim",
-                driver=driver,
-                commander=commander,
+                driver="agent",
+                commander="agent",
                 start=continuous_pose(graph, start),
             )
         )

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 from sim.core.rays import RayObservation
 from sim.trial import events as ev
-from sim.trial.commands import Action, RequestMove
+from sim.trial.commands import Action
 from sim.trial.state import TrialState
 from sim.trial.vocabulary import FrameSource, Move, Outcome, Phase, Role
 
@@ -74,11 +74,6 @@ class Declined:
 
     action: Action
     reason: str
-
-    @property
-    def what(self) -> str:
-        """The action in a word ("move", "claim"), for saying what could not be done."""
-        return "move" if isinstance(self.action, RequestMove) else type(self.action).__name__.lower()
 
 
 @dataclass(frozen=True)

@@ -53,10 +53,6 @@ class Referee(Protocol):
 Wake = Callable[[Role, Agent, Percept], Awaitable[list[Action]]]
 
 
-async def wake_here(role: Role, agent: Agent, percept: Percept) -> list[Action]:
-    return agent.perceive(percept)
-
-
 class Table:
     def __init__(self, agents: dict[Role, Agent], targets: list[str], caps: Caps | None = None) -> None:
         self.agents, self.caps = agents, caps or Caps()
@@ -79,7 +75,7 @@ class Table:
         view = self.views.get(Role.DRIVER)
         return view is not None and view.awaiting_frame
 
-    async def play(self, referee: Referee, wake: Wake = wake_here) -> None:
+    async def play(self, referee: Referee, wake: Wake) -> None:
         """Wake the agents with their percepts until the trial is over (or, where `referee.idle`
         says nothing more can come, until both wait for the other)."""
         while not referee.state.over:

@@ -60,8 +60,8 @@ def test_its_inputs_are_percepts_only():
 
 
 def _rays(world, pose):
-    _, graph, rays = world
-    return OracleCommander(graph, rays, []).view(pose)
+    _, _, rays = world
+    return rays.observation(*pose)
 
 
 def test_while_localized_it_answers_and_turns_in_place_but_does_not_drive_off(world):

@@ -66,7 +66,11 @@ def played(world, driver: Scripted, commander: Scripted, caps: Caps | None = Non
     targets = [(name, maze.objects[name]) for name in ("jar", "mug", "paddle")]
     table = Table({Role.DRIVER: driver, Role.COMMANDER: commander}, [name for name, _ in targets], caps)
     trial = OfflineTrial(maze.name, targets, Pose(0, 0), graph, rays, table)
-    asyncio.run(table.play(trial))
+
+    async def wake(role, agent, percept):
+        return agent.perceive(percept)
+
+    asyncio.run(table.play(trial, wake))
     return trial
 
 
