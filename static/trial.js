@@ -82,7 +82,7 @@ export function formatClock(seconds) {
 // `afterwards`: what to do once the trial ended early (a study's seat goes on from the page; the
 // experimenter, whose pages are in English, decides what comes next).
 const EXPERIMENTER_AFTER = "It does not score. Restart it from the dashboard (the same seats on a layout they have not seen), or exclude it there.";
-export function statusText(s, role, afterwards = PARTNER[role] ? t("You can close this page.") : EXPERIMENTER_AFTER) {
+export function statusText(s, role, afterwards = role === "experimenter" ? EXPERIMENTER_AFTER : t("You can close this page.")) {
   const target = {n: Math.min(s.target_index + 1, s.targets_total), of: s.targets_total};
   if (s.phase === "finished") return t("Finished: all three targets found. Thank you!");
   if (s.phase === "aborted") {
