@@ -26,6 +26,7 @@ FIELDS = {
     "waiting_for",
     "claim_pending",
     "abort_reason",
+    "pause_note",
     "join_left_s",
 }
 

@@ -145,7 +145,7 @@ def test_the_installed_server_serves_pages_static_files_migrations_and_bundled_m
         css = httpx.get(url + "/static/style.css")
         assert css.status_code == 200 and css.headers["content-type"].startswith("text/css")
         with sqlite3.connect(data / "robotslang.db") as db:
-            assert db.execute("select version_num from alembic_version").fetchone() == ("0010",)  # head
+            assert db.execute("select version_num from alembic_version").fetchone() == ("0011",)  # head
         server.terminate()
         first_lines = server.communicate(timeout=20)[0]
         password = re.search(r"experimenter 'admin' created with password (\S+)", first_lines).group(1)
