@@ -48,7 +48,9 @@ def _put(into: Any, path: list[str], value: str | None) -> None:
     *parents, last = path
     for step in parents:
         if isinstance(into, list):
-            while len(into) <= int(step):
+            if not step.isdigit() or int(step) > len(into):
+                return  # a row is only added at the end (the form's blank one): no forged index grows the list
+            if int(step) == len(into):
                 into.append({})
             into = into[int(step)]
         else:

@@ -118,6 +118,11 @@ def test_experimenter_writes_a_versioned_study_and_bad_input_changes_nothing(ser
         assert json.dumps(bad) in shown, "the posted text is shown again to fix"
     assert eve.post("/experimenter/studies/pilot", data={"config_json": "{not json"}).status_code == 400
     assert (server.settings.data_dir / "studies" / "pilot.json").read_text() == before
+    # A forged row index adds no rows: the form adds at most its one blank row at the end.
+    forged = eve.post(
+        "/experimenter/studies/pilot", data={"questionnaire.99999999.prompt": "x", "questionnaire.x.id": "y"}
+    )
+    assert forged.status_code == 200 and len(files.load("pilot").questionnaire) == 3
 
 
 def test_the_study_editor_is_a_form_over_the_same_study(server):
