@@ -117,7 +117,9 @@ def test_a_whole_panel_study_in_each_language(browser, server, tmp_path, languag
     lands(cat, CODES["withdrew"])
 
     dan, dan_code = arrive("PID-DAN", "SE-4", "Dan Real")  # Dan waits alone past the lobby's time
-    while stored(server, dan_code).lobby_since is None:  # his page's first ask puts him in the lobby
+    for _ in range(300):  # his page's first ask puts him in the lobby (at most 30 s)
+        if stored(server, dan_code).lobby_since is not None:
+            break
         dan.wait_for_timeout(100)
     backdate(server, dan_code, waiting_min=11, in_study_min=15)
     dan.wait_for_url("**/study/pilot/done", timeout=30_000)
