@@ -119,7 +119,8 @@ def normalize(text: str) -> tuple[list[str], list[int]]:
                 out.append("slightly" if w in SLIGHT_WORDS else "sharply" if w in SHARP_WORDS else w)
             continue
         n = found
-        unit = ws[i + 1] if i + 1 < len(ws) else ""
+        # The word after a number is its unit only where it is one ("5 more steps" is not 5 metres).
+        unit = ws[i + 1] if i + 1 < len(ws) and _UNIT.match(ws[i + 1]) else ""
         if unit.startswith("deg") or (n in (45, 90, 135, 180) and not unit.startswith(("c", "m"))):
             out.append(f"deg{min((45, 90, 135, 180), key=lambda a: abs(a - n))}")
             continue

@@ -134,6 +134,20 @@ KEYWORDS = frozenset(
 # Common words one edit from a keyword, never corrected.
 COMMON = frozenset(
     [
+        "nice",
+        "fine",
+        "line",
+        "live",
+        "give",
+        "dive",
+        "walk",
+        "call",
+        "fall",
+        "tall",
+        "ball",
+        "hall",
+        "grown",
+        "burn",
         "that",
         "this",
         "then",
