@@ -30,6 +30,7 @@ import torch
 from torch import nn
 from tqdm import tqdm
 
+from models.language_paraphrase import paraphrase_examples
 from sim.agents.dialog_commander import LOOK_AROUND, DialogCommander
 from sim.agents.dialog_driver import DialogDriver
 from sim.agents.oracle_commander import OracleCommander
@@ -80,6 +81,7 @@ class Config:
     dropout: float = 0.25
     word_dropout: float = 0.08  # source words replaced by <unk> while training
     selfplay_trials: int = 40  # train mazes played for the rules-labelled examples
+    paraphrases: int = 2500  # Commander turns by paraphrase, labelled as built
 
 
 def _example(role: Role, text: str, before: tuple[str, str] | None, meaning: Any) -> Example:
@@ -116,6 +118,17 @@ def hand_examples(bench: Benchmark, role: Role, labels_dir: Path = LABELS_DIR) -
             )
             out.append(_example(role, text, _before(dialog, int(index)), meaning))
     return out
+
+
+# What the dialog Driver says before a Commander speaks: the context a Commander turn is read in.
+DRIVER_REPORTS = [
+    None,
+    "ok, turned left, red wall close ahead. what next?",
+    "ok, went 3 steps, white wall far ahead, blue wall on my left. where to now?",
+    "i hit a wall, which way now?",
+    "i am in a corner, green wall close ahead, close white wall on my left",
+    "ok, not here then. where should i go?",
+]
 
 
 def vocabulary_examples(seed: int, n: int = 2500) -> list[Example]:
@@ -159,22 +172,25 @@ def vocabulary_examples(seed: int, n: int = 2500) -> list[Example]:
         lambda: f"take the {rng.choice(ordinals)} {rng.choice(['left', 'right'])}",
         lambda: rng.choice(["stop", "wait", "hold on", "you're there, that's it", "stop there and take a picture"]),
     ]
-    reports = [  # what the dialog Driver says before a Commander speaks
-        None,
-        "ok, turned left, red wall close ahead. what next?",
-        "ok, went 3 steps, white wall far ahead, blue wall on my left. where to now?",
-        "i hit a wall, which way now?",
-        "i am in a corner, green wall close ahead, close white wall on my left",
-        "ok, not here then. where should i go?",
-    ]
     out = []
     for _ in range(n):
         text = rng.choice(forms)()
-        report = rng.choice(reports)
+        report = rng.choice(DRIVER_REPORTS)
         out.append(
             _example(Role.COMMANDER, text, None if report is None else ("d", report), program_of(ins.parse(text)))
         )
     return out
+
+
+def paraphrased_examples(seed: int, n: int) -> list[Example]:
+    """Commander turns by paraphrase (`models.language_paraphrase`), labelled as they were built."""
+    rng = random.Random(seed)
+    return [
+        _example(
+            Role.COMMANDER, text, None if (report := rng.choice(DRIVER_REPORTS)) is None else ("d", report), program
+        )
+        for text, program in paraphrase_examples(seed, n)
+    ]
 
 
 def selfplay_examples(bench: Benchmark, trials: int, seed: int) -> dict[Role, list[Example]]:
@@ -357,11 +373,14 @@ def train(bench: Benchmark, cfg: Config, out: Path) -> dict[str, Any]:
     report: dict[str, Any] = {"config": cfg.__dict__, "readers": {}}
     for role in Role:
         hand = hand_examples(bench, role)
-        rules = silver[role] + (vocabulary_examples(cfg.seed) if role == Role.COMMANDER else [])
+        commander = role == Role.COMMANDER
+        rules = silver[role] + (vocabulary_examples(cfg.seed) if commander else [])
+        built = paraphrased_examples(cfg.seed, cfg.paraphrases) if commander else []
         report["readers"][role.value] = {
             "hand_labelled": len(hand),
             "rules_labelled": len(rules),
-            **train_reader(role, hand + rules, cfg, out),
+            "paraphrased": len(built),
+            **train_reader(role, hand + rules + built, cfg, out),
         }
     report["seconds"] = round(time.perf_counter() - t0, 1)
     (out / "training.json").write_text(json.dumps(report, indent=2))

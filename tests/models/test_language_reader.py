@@ -11,7 +11,8 @@ import pytest
 import torch
 
 from models.language import FIXED_SOURCE, LABELS_DIR, Config, Seq2Seq, export, hand_examples, train
-from sim.language.meaning import Clause, FactForm, Op
+from models.language_paraphrase import paraphrase_examples
+from sim.language.meaning import CLAUSE_FIELDS, Clause, FactForm, Op
 from sim.language.reader import (
     BOS,
     DOMAINS,
@@ -22,6 +23,7 @@ from sim.language.reader import (
     Role,
     complete,
     decode_meaning,
+    normalize,
     output_vocabulary,
     shipped,
     source_tokens,
@@ -105,6 +107,16 @@ def test_training_reads_no_turn_of_val_seen_or_test(benchmark_path, tmp_path):
     assert report["readers"]["commander"]["hand_labelled"] == sum(1 for _ in (LABELS_DIR / "commander.jsonl").open())
     assert Reader(tmp_path / "out" / "driver.npz").role == Role.DRIVER
     assert json.loads((tmp_path / "out" / "training.json").read_text())["readers"]["driver"]["rules_labelled"] > 0
+
+
+def test_paraphrased_turns_name_every_count_their_programs_hold():
+    # The reader copies a count from the turn: a paraphrase whose words lost its count (a slip on a
+    # digit, centimetres that round to another step count) would teach it to invent one.
+    for text, program in paraphrase_examples(seed=0, n=600):
+        _, numbers = normalize(text)
+        for clause in program:
+            steps = dict(zip(CLAUSE_FIELDS[clause.op], clause.args, strict=True)).get("steps")
+            assert steps is None or steps in numbers, (text, program)
 
 
 def test_hand_labels_hold_train_turns_only():
