@@ -9,8 +9,11 @@ full when the report says done, anywhere along the way when it says it could not
 question whose yes / no best halves its belief and marks its estimate on the map once the belief
 has settled, marking it again as the estimate moves. Guidance: the fewest-moves route from its
 estimate (`sim.agents.route`), one instruction at a time, each after the Driver's report; where
-the belief spreads out again it stops guiding and asks. Claims: the claim frame's rays decide
-(the target in view and within reach); a rejected frame is evidence of where the robot is."""
+the belief spreads out again it says it is unsure and asks; after two instructions not carried
+out it says one move at a time. A Driver's question ("why not?", "how far?", "left or right?",
+"where am i?") is answered before the instruction is said again. Claims: the claim frame's rays
+decide (the target in view and within reach), and a rejection says why at once; a rejected frame
+is evidence of where the robot is."""
 
 from __future__ import annotations
 
