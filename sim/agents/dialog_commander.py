@@ -204,7 +204,7 @@ class DialogCommander:
         if self._phase == Phase.LOCALIZING:
             if estimate.spread_m <= SETTLED_M or self._questions >= MAX_QUESTIONS:
                 return self._mark(estimate)
-            # A question of the Driver's here can only be "where am i?": not known yet.
+            # Asked anything while it localizes ("where am i?"), it says it does not know yet.
             return self._ask(prefix="i do not know yet where you are" if asked is not None else None)
         if self._phase != Phase.NAVIGATING or self._target is None:
             return []
