@@ -9,20 +9,25 @@ full when the report says done, anywhere along the way when it says it could not
 question whose yes / no best halves its belief and marks its estimate on the map once the belief
 has settled, marking it again as the estimate moves. Guidance: the fewest-moves route from its
 estimate (`sim.agents.route`), one instruction at a time, each after the Driver's report; where
-the belief spreads out again it stops guiding and asks. Claims: the claim frame's rays decide
-(the target in view and within reach); a rejected frame is evidence of where the robot is."""
+the belief spreads out again it says it is unsure and asks; after two instructions not carried
+out it says one move at a time. A Driver's question ("why not?", "how far?", "left or right?",
+"where am i?") is answered before the instruction is said again. Claims: the claim frame's rays
+decide (the target in view and within reach), and a rejection says why at once; a rejected frame
+is evidence of where the robot is."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import re
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from sim.agents.route import Router
+from sim.core.dynamics import Action as Move
 from sim.core.dynamics import Pose
-from sim.core.geometry import HEADINGS, heading_angle
+from sim.core.geometry import GRID_STEP_M, HEADINGS, heading_angle
 from sim.core.labels import OBJECT_LABELS, Label, object_label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
@@ -30,8 +35,9 @@ from sim.core.observations import RayTable
 from sim.core.rays import RayObservation
 from sim.language import instructions as ins
 from sim.language import lexicon
-from sim.language.describe import near, wall_close, within_reach
+from sim.language.describe import brief, near, wall_close, within_reach
 from sim.language.describe import seen as describe_seen
+from sim.language.lexicon import Asked
 from sim.language.localizer import Belief, Scene
 from sim.language.phrases import PhraseKind, Phrases, Phrasing
 from sim.language.sectors import Sector
@@ -53,10 +59,11 @@ VIEW_WEIGHT = 1.0
 ELSEWHERE = 1e-3  # after each instruction, the chance the belief lost the robot
 BLOCKED_PENALTY = 5.0  # log-likelihood against a pose whose way forward is free, when told it is not
 UNSEEN_PENALTY = 3.0  # ... against a pose with the target in reach, when the Driver speaks without claiming
-LOST_AFTER = 2  # instructions in a row not carried out: stop guiding and ask  # log-likelihood per mismatching ray of a claim frame
+REPHRASE_AFTER = 2  # instructions in a row not carried out: say the next one move at a time
+LOST_AFTER = 3  # ... stop guiding and ask
 # A report of an instruction not carried out in full: the Driver stopped somewhere along the way.
-_STUCK = ("hit", "cannot", "can only", "could not", "do not", "not the one", "no opening", "still", "not turned")
-_BLOCKED = ("hit a wall", "can only go", "wall is in my way")
+# Whole words: "hit" inside "white" made every report naming a white wall one not carried out.
+_STUCK = re.compile(r"\b(?:hit|cannot|can only|could not|do not|not the one|no opening|still|not turned)\b")
 _YOUR_SIDE = {  # a question's sector as the Commander says it
     Sector.FRONT: "ahead of you",
     Sector.LEFT: "on your left",
@@ -121,9 +128,10 @@ class DialogCommander:
         self._marked: tuple[float, float] | None = None
         self._plain = False
         self._looking = False  # the last question asked the Driver to look all around
+        self._looked_around = False  # on this target: a look around is eight moves, asked once a target
         self._stuck = 0  # reports in a row of instructions not carried out
         self._before: tuple[str, str] | None = None  # the dialog's last message, for the reader
-        self._why_not: str | None = None  # why it rejected the last claim, until it has said so
+        self._why_not: str | None = None  # why it rejected the last claim on this target ("why not?")
 
     # -- percepts -------------------------------------------------------------------------------
 
@@ -145,7 +153,11 @@ class DialogCommander:
         if change.phase == Phase.NAVIGATING and change.target is not None:
             self._target = change.target
             self._closer_than_m = math.inf
+            self._why_not = None
+            self._looked_around = False
             announce = self.phrases.say(PhraseKind.ANNOUNCE, thing=OBJECT_WORDS[object_label(change.target)])
+            if self.estimate().spread_m > SETTLED_M:  # marked after its questions ran out: it says so
+                return self._ask(prefix=f"{announce}. i am not sure where you are: my mark is a guess")
             return self._guide(prefix=announce)
         return []
 
@@ -153,7 +165,11 @@ class DialogCommander:
         lowered = text.lower()
         if "found" in lowered:
             return []  # a claim is on its way
-        stuck = any(w in lowered for w in _STUCK)
+        asked = lexicon.asks(text)
+        if asked is not None and lexicon.only_asks(text) and self._phase == Phase.NAVIGATING:
+            return self._answer(asked)  # it reports nothing done: the belief stays where it was
+        blocked = lexicon.blocked(text)  # its way forward is barred where it stands
+        stuck = blocked or bool(_STUCK.search(lowered))
         understood = self._understanding.facts(text, self._before)
         read = None if understood.by_rules else belief_facts(understood.meaning)  # None: the lexicon's
         view = lexicon.facts(text) if read is None else read
@@ -162,9 +178,13 @@ class DialogCommander:
             self._plain = stuck
             self._stuck = self._stuck + 1 if stuck else 0
             self._pending = None
-            # A report after moving names what is ahead; its sides are the edges of the view ahead, not
-            # the views to the left and right the belief's sectors are: only what is ahead counts.
-            self.belief.observe(f for f in view if set(f.sectors) <= {Sector.FRONT, Sector.ANY})
+            # A report after moving names what is ahead; its sides are the edges of the view ahead (the
+            # dialog Driver's "red wall on my right") or the sides themselves (a person's "i see the
+            # mug on my left"): either.
+            self.belief.observe(
+                f if set(f.sectors) <= {Sector.FRONT, Sector.ANY} else replace(f, sectors=(Sector.FRONT, *f.sectors))
+                for f in view
+            )
         else:
             self.belief.message("navigator", text, read)
             if self._looking:  # an object in view would have been named: those not named are not in view
@@ -178,21 +198,22 @@ class DialogCommander:
         if self._phase == Phase.NAVIGATING and self._target is not None:
             # A Driver told its target claims when it sees it within reach: it does not, so it is not.
             self.belief.log = self.belief.log - np.where(self._reach[object_label(self._target)], UNSEEN_PENALTY, 0.0)
-        if any(w in lowered for w in _BLOCKED):  # its way forward is barred where it stands
-            self.belief.log = self.belief.log - np.where(self.graph.forward < 0, 0.0, BLOCKED_PENALTY)
+        if blocked:
+            self._barred()
         estimate = self.estimate()
         if self._phase == Phase.LOCALIZING:
             if estimate.spread_m <= SETTLED_M or self._questions >= MAX_QUESTIONS:
                 return self._mark(estimate)
-            return self._ask()
+            # Asked anything while it localizes ("where am i?"), it says it does not know yet.
+            return self._ask(prefix="i do not know yet where you are" if asked is not None else None)
         if self._phase != Phase.NAVIGATING or self._target is None:
             return []
         turns = self._revise(estimate)
-        if (estimate.spread_m > LOST_M or self._stuck >= LOST_AFTER) and self._questions < MAX_QUESTIONS:
+        lost = estimate.spread_m > LOST_M
+        if (lost or self._stuck >= LOST_AFTER) and self._questions < MAX_QUESTIONS:
             self._stuck = 0
-            return turns + self._ask()
-        why_not, self._why_not = self._why_not, None
-        return turns + self._guide(prefix=why_not)
+            return turns + self._ask(prefix="i am not sure where you are now" if lost else None)
+        return turns + self._guide(one_move=self._stuck >= REPHRASE_AFTER)
 
     def _claimed(self, claim: Claimed) -> list[Action]:
         if self._pending is not None:
@@ -210,17 +231,32 @@ class DialogCommander:
             self._closer_than_m = min(
                 self._closer_than_m, math.dist(self.graph.nodes[self.estimate().pose.node], target)
             )
-            thing = OBJECT_WORDS[object_label(self._target)]
-            seen = any(s.label == object_label(self._target) for s in describe_seen(claim.rays))
-            why = (
-                f"the {thing} is in your picture but not close enough yet"
-                if seen
-                else f"i do not see the {thing} in your picture"
-            )
-            self._why_not = f"not yet: {why}"  # said with the next instruction
-        return [Judge(confirmed)]
+            label = object_label(self._target)
+            thing = OBJECT_WORDS[label]
+            seen = {s.label for s in describe_seen(claim.rays)}
+            other = next((OBJECT_WORDS[o] for o in OBJECT_LABELS if o in seen and o != label), None)
+            if label in seen:
+                why = f"not yet: the {thing} is in your picture but not close enough"
+            elif other is not None:
+                why = f"that is the {other}, not the {thing}"
+            else:
+                why = f"that is not the {thing}: i do not see it in your picture"
+            self._why_not = f"{why}. {self._where(self.estimate())}"
+            return [Judge(False), Say(self._why_not)]  # said at once: a person waits to hear why
+        return [Judge(True)]
 
     # -- belief ---------------------------------------------------------------------------------
+
+    def _barred(self) -> None:
+        """The Driver says its way forward is barred: poses with a free way ahead lose. Where the
+        belief had no such pose (it put the robot in the open), the robot faces some other way at
+        one of the places it thought likely: a person turned, or drifted off the line."""
+        free = self.graph.forward >= 0
+        p = np.exp(self.belief.log - np.logaddexp.reduce(self.belief.log, axis=None))
+        if p[~free].sum() < 0.5:
+            node = np.logaddexp.reduce(self.belief.log, axis=1, keepdims=True)
+            self.belief.log = np.logaddexp(self.belief.log, node - math.log(HEADINGS))
+        self.belief.log = self.belief.log - np.where(free, BLOCKED_PENALTY, 0.0)
 
     def _mass_near(self, xy: tuple[float, float]) -> float:
         log = self.belief.node_logits()
@@ -308,12 +344,14 @@ class DialogCommander:
         moved = self._marked is not None and math.dist(self._marked, (estimate.x, estimate.y)) >= REVISE_M
         return self._mark(estimate) if moved and estimate.spread_m <= SETTLED_M else []
 
-    def _ask(self) -> list[Action]:
-        """The yes / no question that best halves the belief; first, a look around."""
+    def _ask(self, prefix: str | None = None) -> list[Action]:
+        """The yes / no question that best halves the belief; first, once a target, a look around."""
         self._questions += 1
-        if self._phase == Phase.NAVIGATING and not self._asked:
+        lead = f"{prefix}. " if prefix else ""
+        if self._phase == Phase.NAVIGATING and not self._asked and not self._looked_around:
             self._asked.add((Sector.ANY, Label.FLOOR))  # the look around, at this stop
-            return self._say(f"stop there. {LOOK_AROUND}?")
+            self._looked_around = True
+            return self._say(f"{lead}stop there. {LOOK_AROUND}?")
         log = self.belief.node_logits()
         p = np.exp(log - log.max())
         p = p / p.sum()
@@ -331,7 +369,7 @@ class DialogCommander:
             return self._mark(self.estimate()) if self._phase == Phase.LOCALIZING else self._guide()
         self._asked.add(best)
         sector, label = best
-        return self._say(f"is there a {wall_name(label)} {_YOUR_SIDE[sector]}?")
+        return self._say(f"{lead}is there a {wall_name(label)} {_YOUR_SIDE[sector]}?")
 
     def goal(self, node: int) -> int:
         """Where it guides the Driver from `node`: the nearest place from which the target is in view
@@ -344,8 +382,9 @@ class DialogCommander:
         places = closer if closer.size else places
         return int(places[self._dist[node, places].argmin()])
 
-    def _guide(self, prefix: str | None = None) -> list[Action]:
-        """The next instruction from the estimate, towards the target."""
+    def _guide(self, prefix: str | None = None, one_move: bool = False) -> list[Action]:
+        """The next instruction from the estimate, towards the target: a leg of the route, or after
+        instructions not carried out, its first move alone in the simplest words."""
         assert self._target is not None
         self._questions = 0
         self._asked.clear()
@@ -361,6 +400,56 @@ class DialogCommander:
             turn = self.phrases.turn(eighths)
             until = self.phrases.say(PhraseKind.UNTIL_TARGET, thing=OBJECT_WORDS[label])
             text = f"{turn}, then {until}" if turn else until
+        elif one_move:
+            text = self.router.one_move(estimate.pose, label, goal)
         else:
             text = self.router.instruction(estimate.pose, label, goal, plain=self._plain)
         return self._say(f"{prefix}. {text}" if prefix else text)
+
+    # -- answers --------------------------------------------------------------------------------
+
+    def _answer(self, asked: Asked) -> list[Action]:
+        """A Driver's question answered, then the instruction again from where it still is (a
+        question reports nothing done)."""
+        assert self._target is not None
+        self._pending = None
+        estimate = self.estimate()
+        unsure = "i am not sure where you are, but " if estimate.spread_m > SETTLED_M else ""
+        reply: str | None
+        match asked:
+            case Asked.WHY:  # why it rejected the claim, else why this way
+                thing = OBJECT_WORDS[object_label(self._target)]
+                reply = self._why_not or f"that is the way to the {thing}. {unsure}{self._where(estimate)}"
+            case Asked.HOW_FAR:
+                reply = f"{unsure}{self._where(estimate)}"
+            case Asked.WHERE_AM_I:
+                seen_there = brief(self.router.view(estimate.pose)).replace(" my ", " your ")
+                guess = "i am not sure; my best guess (marked on the map) is" if unsure else "i think you are"
+                reply = f"{guess} where you see {seen_there}. {self._where(estimate)}"
+            case Asked.WHICH_WAY:
+                actions, _ = self.router.plan(estimate.pose, self.goal(estimate.pose.node))
+                first = actions[0] if actions else None
+                way = {Move.LEFT: "left", Move.RIGHT: "right", Move.FORWARD: "straight ahead"}
+                reply = f"{unsure}{way[first]} first" if first in way else None
+        return self._guide(prefix=reply)
+
+    def _where(self, estimate: Estimate) -> str:
+        """Where the target is from the estimate: how many steps' walk, and which side of the Driver."""
+        assert self._target is not None
+        label = object_label(self._target)
+        x, y = self.maze.objects[self._target]
+        steps = round(self._dist[estimate.pose.node, self.goal(estimate.pose.node)] / GRID_STEP_M)
+        bearing = math.degrees(math.atan2(y - estimate.y, x - estimate.x) - heading_angle(estimate.pose.heading))
+        bearing = (bearing + 180) % 360 - 180  # left positive
+        side = "left" if bearing > 0 else "right"
+        if abs(bearing) <= 30:
+            where = "ahead of you"
+        elif abs(bearing) <= 75:
+            where = f"ahead on your {side}"
+        elif abs(bearing) <= 120:
+            where = f"on your {side}"
+        elif abs(bearing) <= 160:
+            where = f"behind you on your {side}"
+        else:
+            where = "behind you"
+        return f"i think the {OBJECT_WORDS[label]} is {where}, about {steps} steps away"

@@ -6,6 +6,8 @@ It reads the map only (graph and the views each pose has), never the Driver's ca
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from sim.core.dynamics import Action, Pose
@@ -36,7 +38,8 @@ class Router:
         """The next instruction from `pose` towards the object `label` at node `goal`; `plain` (the
         Driver asked) counts steps. It picks "at the red wall" or "until you see the mug" only where
         a Driver stopping at the first close wall (or the object in reach) would stop where the path
-        turns; elsewhere it counts the steps."""
+        turns; elsewhere it counts the steps. (Legs of several such pieces, tried for a person's
+        sake, the trained Driver reader reads with clauses dropped: self-play doubled its moves.)"""
         thing = OBJECT_WORDS[label]
         actions, poses = self.plan(pose, goal)
         k = 0
@@ -59,18 +62,46 @@ class Router:
             after += 1 if actions[k] == Action.LEFT else -1
             k += 1
         next_turn = self.phrases.turn(after)
-        wall = self._walk_ends(poses[start], None)
-        if next_turn and not plain and wall == run:
-            front = self._ahead_label(poses[start + run])
-            # Only a wall is named to turn at: a landmark ahead (it blocks the robot) named there
-            # reads as the thing to find ("... at the ping-pong paddle": the Driver claims it).
-            if front in WALL_LABELS and any(s.label == front for s in seen(self.view(poses[start]))):
-                return ", then ".join(
-                    [*words, self.phrases.say(PhraseKind.TURN_AT_WALL, turn=next_turn, wall=wall_name(front))]
-                )
+        if next_turn and not plain and (front := self._wall_at_end(poses[start], poses[start + run], run)) is not None:
+            return ", then ".join(
+                [*words, self.phrases.say(PhraseKind.TURN_AT_WALL, turn=next_turn, wall=wall_name(front))]
+            )
         if next_turn:
             return ", then ".join([*words, self.phrases.say(PhraseKind.FORWARD_THEN_TURN, n=run, turn=next_turn)])
         return ", then ".join([*words, self.phrases.say(PhraseKind.FORWARD, n=run)])
+
+    def one_move(self, pose: Pose, label: Label, goal: int) -> str:
+        """The route's first move alone, in the simplest words (for a Driver that could not carry
+        out the last instructions): a turn, or a walk up to a wall named by its colour (a landmark,
+        not a count) where the walk ends at one, else the count."""
+        thing = OBJECT_WORDS[label]
+        actions, poses = self.plan(pose, goal)
+        if actions and actions[0] != Action.FORWARD:
+            turned = sum(
+                1 if a == Action.LEFT else -1 for a in itertools.takewhile(lambda a: a != Action.FORWARD, actions)
+            )
+            return self.phrases.turn(turned) or self.phrases.say(PhraseKind.THERE, thing=thing)
+        run = sum(1 for _ in itertools.takewhile(lambda a: a == Action.FORWARD, actions))
+        if run == 0:
+            return self.phrases.say(PhraseKind.THERE, thing=thing)
+        if run == len(actions) and self._walk_ends(pose, label) == run:
+            return self.phrases.say(PhraseKind.UNTIL_TARGET, thing=thing)
+        front = self._wall_at_end(pose, poses[run], run)
+        if front is not None:
+            return self.phrases.say(PhraseKind.UNTIL_WALL, wall=wall_name(front))
+        return self.phrases.say(PhraseKind.FORWARD, n=run)
+
+    def _wall_at_end(self, start: Pose, end: Pose, run: int) -> Label | None:
+        """The wall a Driver walking "until the wall" from `start` stops at, facing it at `end`,
+        where that walk is the `run` moves of the route and the wall is seen from `start`. Only a
+        wall is named: a landmark ahead (it blocks the robot) named there reads as the thing to
+        find ("... at the ping-pong paddle": the Driver claims it)."""
+        if self._walk_ends(start, None) != run:
+            return None
+        front = self._ahead_label(end)
+        if front in WALL_LABELS and any(s.label == front for s in seen(self.view(start))):
+            return front
+        return None
 
     def plan(self, start: Pose, goal: int) -> tuple[list[Action], list[Pose]]:
         """Fewest moves (turns count) to the goal node, forward first among equals: straight runs

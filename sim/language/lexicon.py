@@ -305,6 +305,54 @@ def is_question(text: str) -> bool:
     return text.strip().endswith("?") or bool(words and words[0] in _QUESTION_START)
 
 
+class Asked(StrEnum):
+    """What a Driver's question asks the Commander."""
+
+    WHY = "why"  # "why not?": why it rejected a claim, or why this way
+    WHICH_WAY = "which_way"  # "which way?", "left or right?", "where should i go?"
+    HOW_FAR = "how_far"  # "how far?", "how many steps?"
+    WHERE_AM_I = "where_am_i"  # "where am i?"
+
+
+# First match wins: "where am i" before "where to".
+_ASKED = (
+    (Asked.WHERE_AM_I, re.compile(r"\bwhere (?:am i|are we|i am)\b")),
+    (Asked.HOW_FAR, re.compile(r"\bhow (?:far|many|much|long)\b")),
+    (Asked.WHY, re.compile(r"\bwhy\b")),
+    (
+        Asked.WHICH_WAY,
+        re.compile(r"\b(?:which|what) (?:way|direction|side)\b|\bleft or right\b|\bright or left\b|\bwhere\b"),
+    ),
+)
+# A report that the way ahead is barred where the Driver stands ("i hit a wall", "i can only go 2
+# steps", "there is a wall right in front of me"); "close ahead" is not: a step may still be free.
+_BLOCKED = re.compile(
+    r"\b(?:hit|bumped|bump|crashed|ran into|blocked|stuck|can only go|in my way)\b"
+    r"|\b(?:can not|cannot|could not|unable to) (?:go|move|drive) (?:forward|ahead|on|further)\b"
+    r"|\bwall (?:is )?(?:right|directly|just|immediately) (?:in front|ahead)\b"
+    r"|\b(?:right|directly|just|immediately) (?:in front of me|ahead) (?:is|there is) (?:a|the) wall\b"
+    r"|\bfacing (?:a|the) wall\b"
+)
+
+
+def asks(text: str) -> Asked | None:
+    """What a Driver's message asks the Commander, where it asks one of `Asked`."""
+    said = " ".join(tokens(text))
+    return next((kind for kind, pattern in _ASKED if pattern.search(said)), None)
+
+
+def only_asks(text: str) -> bool:
+    """Whether every sentence of a message is a question ("why not?", "how far? which way?"): it
+    reports nothing done."""
+    sentences = [s for s in re.split(r"(?<=[.,;!?])", text) if tokens(s)]
+    return bool(sentences) and all(is_question(s) or asks(s) is not None for s in sentences)
+
+
+def blocked(text: str) -> bool:
+    """Whether a Driver's message says its way forward is barred where it stands."""
+    return bool(_BLOCKED.search(" ".join(tokens(text))))
+
+
 def question(text: str) -> QuestionFacts:
     """A Commander's question as the Driver would state its content ("your" read as "my")."""
     mine = " ".join("my" if w == "your" else w for w in re.findall(r"[^\s]+", text.lower()))

@@ -62,6 +62,7 @@ class PhraseKind(StrEnum):
     UNTIL_TARGET = "until_target"
     THERE = "there"
     REJECT = "reject"
+    UNTIL_WALL = "until_wall"  # added after the frozen sets: theirs is the scripted set's
 
 
 # A phrasing's JSON file (held_out_commander.json, personas/commander_*.json): per kind of
@@ -79,6 +80,7 @@ class PhrasingFile(TypedDict):
     until_target: list[str]
     there: list[str]
     reject: list[str]
+    until_wall: NotRequired[list[str]]
 
 
 @dataclass(frozen=True)
@@ -104,6 +106,7 @@ class Phrasebook:
                 PhraseKind.UNTIL_TARGET: data["until_target"],
                 PhraseKind.THERE: data["there"],
                 PhraseKind.REJECT: data["reject"],
+                PhraseKind.UNTIL_WALL: data.get("until_wall", SCRIPTED.kinds[PhraseKind.UNTIL_WALL]),
             },
             turns={int(steps): templates for steps, templates in data["turn"].items()},
             units=data.get("units"),
@@ -121,6 +124,7 @@ SCRIPTED = Phrasebook(
         PhraseKind.UNTIL_TARGET: ["go forward until you see the {thing}"],
         PhraseKind.THERE: ["the {thing} should be right there"],
         PhraseKind.REJECT: ["no, that is not it"],
+        PhraseKind.UNTIL_WALL: ["go forward until the {wall}"],
     },
     turns={1: ["turn slightly {d}"], 2: ["turn {d}"], 3: ["turn sharply {d}"], 4: ["turn around"]},
 )

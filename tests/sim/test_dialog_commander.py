@@ -21,6 +21,7 @@ from sim.core.observations import RayTable
 from sim.core.rays import RayObservation
 from sim.language import instructions as ins
 from sim.language.describe import near, seen
+from sim.language.sectors import Sector
 from sim.language.vocab import SIDE_STEPS
 from sim.tasks.library import BUNDLED_DIR
 from sim.trial.agent import SeatInfo
@@ -178,3 +179,119 @@ def test_its_inputs_hold_no_pose_frames_or_moves(world):
     assert result.moves > 0 and got
     assert {type(p) for p in got} <= {Heard, PhaseBegan, Claimed, Judged}
     assert all(isinstance(p.rays, RayObservation) for p in got if isinstance(p, Claimed))
+
+
+# -- a person in the Driver's seat (issue 33): it listens, answers and says why -------------------
+
+
+def _there(commander: DialogCommander, pose: Pose) -> None:
+    """The Commander's belief all on `pose` (as after a settled localization)."""
+    n = commander.graph.n
+    commander.belief.log = np.where((np.arange(n)[:, None] == pose.node) & (np.arange(8) == pose.heading), 0.0, -1e9)
+
+
+def _said(turns) -> str:
+    return " ".join(t.text for t in turns if isinstance(t, Say))
+
+
+def _walk_pose(world, steps: int) -> Pose:
+    """A pose from which the Commander's first instruction to the jar walks `steps` or more, counted."""
+    commander = _commander(world)
+    commander.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3, target="jar"))
+    for node in range(commander.graph.n):
+        for heading in range(8):
+            pose = Pose(node, heading)
+            if not commander.main[node]:
+                continue
+            said = ins.parse(commander.router.instruction(pose, Label.JAR, commander.goal(node), plain=False))
+            first = said.instructions[0] if said.instructions else None
+            if isinstance(first, ins.Forward) and first.steps is not None and first.steps >= steps:
+                return pose
+    raise AssertionError("no such pose")
+
+
+def _navigating(world, pose: Pose) -> tuple[DialogCommander, str]:
+    commander = _commander(world)
+    commander.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
+    _there(commander, pose)
+    return commander, _said(commander.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3, target="jar")))
+
+
+def test_a_wall_reported_right_in_front_changes_its_next_instruction(world):
+    """Told to walk on, the person says a wall is right in front: the Commander does not take the
+    walk as done or say it again; it puts the robot where a wall bars the way and guides from there."""
+    start = _walk_pose(world, 6)
+    commander, first = _navigating(world, start)
+    assert "go forward about" in first
+    turns = commander.perceive(Heard(Role.DRIVER, "there is a wall right in front of me"))
+    estimate = commander.estimate()
+    again = _said(turns)
+    assert commander.graph.forward[estimate.pose.node, estimate.pose.heading] < 0, "a wall bars its way there"
+    assert again and again not in first, (first, again)
+    assert not isinstance(ins.parse(again).instructions[0], ins.Forward), again  # it turns first
+
+
+def test_it_says_at_once_why_it_rejects_a_claim_and_again_when_asked_why_not(world):
+    maze, graph, rays, _ = world
+    jar = maze.objects["jar"]
+    far = next(
+        p for p in (Pose(n, h) for n in range(graph.n) for h in range(8)) if math.dist(graph.nodes[p.node], jar) > 1.0
+    )
+    commander, _ = _navigating(world, far)
+    turns = commander.perceive(Claimed(0, rays.observation(*far)))
+    assert turns[0] == Judge(False)
+    why = _said(turns)
+    assert "jar of blocks" in why and "i think the jar of blocks is" in why and "steps away" in why, why
+    before = commander.belief.log.copy()
+    answer = _said(commander.perceive(Heard(Role.DRIVER, "why not?")))
+    assert answer.startswith(why), answer  # the reason again, then where to go
+    assert ins.parse(answer.removeprefix(why)).moves, answer
+    assert np.array_equal(commander.belief.log, before), "a question moves nothing"
+
+
+@pytest.mark.parametrize("question", ["how far?", "left or right?", "where am i?"])
+def test_it_answers_a_question_then_says_the_instruction_again(world, question):
+    start = _walk_pose(world, 3)
+    commander, first = _navigating(world, start)
+    instruction = first.removeprefix("now find the jar of blocks. ")
+    before = commander.belief.log.copy()
+    answer = _said(commander.perceive(Heard(Role.DRIVER, question)))
+    assert answer.endswith(instruction) and len(answer) > len(instruction), answer
+    assert np.array_equal(commander.belief.log, before), "the person did nothing yet: the belief stays"
+    reply = answer.removesuffix(instruction)
+    if question == "how far?":
+        assert "about" in reply and "steps away" in reply, reply
+    if question == "left or right?":
+        assert "straight ahead first" in reply, reply  # the walk comes first
+    if question == "where am i?":
+        assert reply.startswith("i think you are where you see"), reply
+
+
+def test_unsure_where_the_robot_is_it_says_so_and_asks(world):
+    commander = _commander(world)
+    commander.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
+    said = _said(commander.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3, target="jar")))
+    assert "i am not sure where you are" in said and said.endswith("?"), said
+    assert not ins.parse(said).moves, "it asks before it guides"
+
+
+def test_after_two_failed_tries_it_says_one_move_at_a_time(world):
+    commander, first = _navigating(world, _walk_pose(world, 3))
+    said = [first]
+    for report in ("sorry, i could not do that", "i still could not do it"):
+        said.append(_said(commander.perceive(Heard(Role.DRIVER, report))))
+    moving = [i for i in ins.parse(said[-1]).instructions if isinstance(i, ins.Turn | ins.Forward)]
+    assert len(moving) == 1, said  # one move: a turn, or a walk up to a wall it names
+    assert isinstance(moving[0], ins.Turn) or moving[0].until is not None or moving[0].steps is not None
+
+
+def test_a_report_of_the_target_on_a_side_counts_after_an_instruction(world):
+    """A person's "i see the mug on my left" is where the mug is: poses that see it ahead or on
+    the left gain."""
+    commander, _ = _navigating(world, _walk_pose(world, 3))
+    commander.belief.log = np.where(commander.main[:, None], 0.0, -np.inf) * np.ones((1, 8))  # anywhere
+    commander.perceive(Heard(Role.DRIVER, "ok, i see the jar of blocks on my left"))
+    p = np.exp(commander.belief.log - commander.belief.log.max())
+    scene = commander.scene
+    sees = ((scene.near + scene.far)[..., [Sector.FRONT, Sector.LEFT], Label.JAR] > 0).any(axis=-1)
+    assert p[sees].mean() > 10 * p[~sees].mean()
