@@ -91,7 +91,9 @@ def eval_ldh(
             raise typer.BadParameter(str(e), param_hint="--checkpoint") from None
     bench = open_benchmark(benchmark)
     if DIALOG in names:
-        agents[DIALOG] = DialogLocalizer(bench)
+        from sim.language.understanding import Understanding
+
+        agents[DIALOG] = DialogLocalizer(bench, understanding=Understanding.trained())
     agents = {name: agents[name] for name in names}  # in the order asked for
     try:
         instances = load_split(bench, split.value, Variant(variant.value))

@@ -18,6 +18,7 @@ import numpy as np
 from sim.core.geometry import HEADINGS, TABLE_HEIGHT_M, TABLE_WIDTH_M, TURN_RAD
 from sim.core.labels import N_LABELS, Label
 from sim.core.observations import RAY_OFFSETS
+from sim.language.calibration import FITTED, Calibration, evidence
 from sim.language.lexicon import (
     NO,
     Distance,
@@ -41,7 +42,8 @@ ROLES = ("oracle", "navigator")  # Commander, Driver: the benchmark's role names
 
 @dataclass(frozen=True)
 class Weights:
-    """How much each kind of evidence counts; tuned on train and val_seen only."""
+    """How much each kind of evidence counts; tuned on train and val_seen only. With a
+    `calibration`, the evidence it was fitted for is scored by it instead."""
 
     floor: float = 0.005  # likelihood of a fact the pose does not bear out at all
     far_weight: float = 0.5  # a far hit's share, for a label named with no distance
@@ -56,9 +58,12 @@ class Weights:
     answer: float = 0.5  # a question answered, relative to the Driver's own words
     negated: float = 0.7  # a negated fact, relative to an asserted one
     sharpness: float = 1.0  # the belief's temperature when deciding
+    calibration: Calibration | None = None
 
 
 TUNED = Weights()
+# Human Drivers' words (LDH): the calibration fitted on train, at the sharpness best on train.
+HUMAN = Weights(calibration=FITTED, sharpness=2.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -145,6 +150,10 @@ def fact_share(fact: Fact, scene: Scene, w: Weights) -> np.ndarray:
 def fact_loglik(fact: Fact, scene: Scene, w: Weights) -> np.ndarray:
     """(N, 8) weighted log-likelihood of one fact at every pose."""
     share = fact_share(fact, scene, w)
+    kind = evidence(fact)
+    calibrated = None if w.calibration is None or kind is None else w.calibration.loglik(kind, share)
+    if calibrated is not None:
+        return calibrated * (w.answer if fact.source == Source.ANSWER else 1.0)
     if fact.negated:
         gain = w.negation_gain if fact.kind == ViewKind.LABEL else 1.0
         loglik = w.negated * np.log(w.floor + np.clip(1.0 - gain * share, 0.0, 1.0))
@@ -171,6 +180,7 @@ class Belief:
         self.weights = weights
         self.log = np.where(np.asarray(allowed, dtype=bool)[:, None], 0.0, -np.inf) * np.ones((1, HEADINGS))
         self._question: QuestionFacts | None = None
+        self.turned = 0  # heading steps turned since the start, mod 8
 
     def observe(self, facts: Iterable[Fact]) -> None:
         for fact in facts:
@@ -179,16 +189,18 @@ class Belief:
     def turn(self, steps: int) -> None:
         """The robot turned `steps` x 45 degrees counter-clockwise: what was heading h is h + steps."""
         self.log = np.roll(self.log, steps, axis=1)
+        self.turned = (self.turned + steps) % HEADINGS
 
-    def message(self, role: str, text: str, read: Iterable[Fact] | None = None) -> None:
+    def message(self, role: str, text: str, read: Iterable[Fact] | None = None) -> list[Fact]:
         """Update on one message of the dialog (role: oracle = Commander, navigator = Driver); a
-        Driver's facts are `read` where a reader made them, the lexicon's otherwise."""
+        Driver's facts are `read` where a reader made them, the lexicon's otherwise. Returns the
+        facts weighed (none for a Commander's message: its question counts when answered)."""
         if role not in ROLES:
             raise ValueError(f"unknown role {role!r}; expected one of {', '.join(ROLES)}")
         if role == "oracle":
             if is_question(text):
                 self._question = question(text)
-            return
+            return []
         q, self._question = self._question, None
         words = tokens(text)
         declined = bool(words) and words[0] in NO
@@ -197,7 +209,9 @@ class Belief:
             self.turn(reported)
         elif q is not None and q.turn and not declined:
             self.turn(q.turn)
-        self.observe(read if read is not None else answer(q, text) if q is not None else facts(text))
+        stated = list(read if read is not None else answer(q, text) if q is not None else facts(text))
+        self.observe(stated)
+        return stated
 
     def node_logits(self) -> np.ndarray:
         """(N, 8) logits at the weights' sharpness (softmax them for probabilities)."""

@@ -2,8 +2,11 @@
 
 `DialogLocalizer` runs the language-conditioned filter (`sim.language.localizer.Belief`) over an
 instance's dialog on the maze's main component and takes the node minimising the expected TD,
-as the other localizers do. `per_turn` scores any localizer on the dialog cut after each
-Driver turn: turn 0 is before the Driver has said anything.
+as the other localizers do. Given a second reading of the Driver's turns (the trained Driver
+reader), the belief weighs the mean of the two readings: a fact both read counts in full, one
+only one of them reads half. `per_turn` scores
+any localizer on the dialog cut after each Driver turn: turn 0 is before the Driver has said
+anything. `calibration_records` gathers what `sim.language.calibration.fit` is fitted on.
 """
 
 from __future__ import annotations
@@ -14,8 +17,11 @@ from typing import TypedDict
 
 import numpy as np
 
+from sim.core.geometry import HEADINGS, TURN_RAD
 from sim.core.observations import RayTable
-from sim.language.localizer import TUNED, Belief, Scene, Weights
+from sim.language.calibration import Record, evidence
+from sim.language.localizer import HUMAN, TUNED, Belief, Scene, Weights, fact_share
+from sim.language.understanding import Understanding, belief_facts
 from sim.tasks.benchmark import Benchmark
 from sim.tasks.ldh import HUMANS_TD_M, LDHInstance
 from sim.tasks.ldh_eval import ACC_RADII_M, Localizer, MazeContext, MazeContexts, score
@@ -24,11 +30,13 @@ DIALOG = "dialog"
 
 
 class DialogLocalizer:
-    """The filter over each maze's (node, heading) poses; scenes are built once per maze."""
+    """The filter over each maze's (node, heading) poses; scenes are built once per maze.
+    `understanding`: a second reading of each Driver turn, besides the rules' (None: the rules alone)."""
 
-    def __init__(self, bench: Benchmark, weights: Weights = TUNED):
+    def __init__(self, bench: Benchmark, weights: Weights = HUMAN, understanding: Understanding | None = None):
         self.bench = bench
         self.weights = weights
+        self.understanding = understanding
         self._scenes: dict[str, Scene] = {}
 
     def scene(self, ctx: MazeContext) -> Scene:
@@ -38,12 +46,40 @@ class DialogLocalizer:
         return self._scenes[ctx.run]
 
     def __call__(self, inst: LDHInstance, ctx: MazeContext) -> np.ndarray:
-        belief = Belief(self.scene(ctx), ctx.main, self.weights)
+        readings = 1 if self.understanding is None else 2
+        weights = replace(self.weights, sharpness=self.weights.sharpness / readings)
+        belief = Belief(self.scene(ctx), ctx.main, weights)
+        before: tuple[str, str] | None = None
         for role, message in inst.dialog:
             belief.message(role, message)
+            if role == "navigator" and self.understanding is not None:
+                belief.observe(belief_facts(self.understanding.facts(message, before).meaning))
+            before = ("c" if role == "oracle" else "d", message)
         if not np.isfinite(belief.log).any() or np.ptp(belief.log[np.isfinite(belief.log)]) == 0:
             return ctx.one_hot(ctx.center)  # nothing said yet: the map's centre
         return ctx.one_hot(ctx.decide(belief.node_logits()))
+
+
+def calibration_records(bench: Benchmark, instances: list[LDHInstance]) -> list[Record]:
+    """Every fact the rules read in the Driver's turns that the calibration fits, with the share
+    its true pose (the recorded start, turned as the Driver reported) bears out and every pose's."""
+    contexts, scenes = MazeContexts(bench), DialogLocalizer(bench, TUNED)
+    out = []
+    for inst in instances:
+        if inst.heading is None:
+            continue
+        ctx = contexts[inst.run]
+        scene = scenes.scene(ctx)
+        true, start = ctx.graph.nearest_node(inst.x, inst.y), round(inst.heading / TURN_RAD)
+        belief = Belief(scene, ctx.main, TUNED)
+        for role, message in inst.dialog:
+            for fact in belief.message(role, message):
+                kind = evidence(fact)
+                if kind is not None:
+                    share = fact_share(fact, scene, TUNED)
+                    heading = (start + belief.turned) % HEADINGS
+                    out.append(Record(kind, float(share[true, heading]), share[ctx.main].ravel()))
+    return out
 
 
 def driver_cuts(inst: LDHInstance) -> list[int]:

@@ -15,8 +15,9 @@ from sim.core.labels import Label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
+from sim.language.calibration import FITTED, SHARE_EDGES, Evidence, Record, evidence, fit
 from sim.language.lexicon import Fact, Source, ViewKind, answer, facts, question, turn_steps
-from sim.language.localizer import Belief, Scene
+from sim.language.localizer import HUMAN, TUNED, Belief, Scene, Weights
 from sim.language.sectors import Sector
 from sim.tasks.ldh_eval import MazeContext
 from sim.tasks.library import MazeLibrary
@@ -152,13 +153,14 @@ def description(scene: Scene, node: int, heading: int) -> list[str]:
     return out
 
 
-def test_the_belief_settles_on_the_pose_a_description_was_written_from(bundled):
+@pytest.mark.parametrize("weights", [TUNED, HUMAN], ids=["tuned", "calibrated"])
+def test_the_belief_settles_on_the_pose_a_description_was_written_from(bundled, weights: Weights):
     ctx, scene = bundled
     g = ctx.graph
     errors, gains = [], []
     for node in np.flatnonzero(ctx.main)[::37]:
         for heading in (0, 3):
-            belief = Belief(scene, ctx.main)
+            belief = Belief(scene, ctx.main, weights)
             for message in description(scene, node, heading):
                 belief.message("navigator", message)
             logits = belief.node_logits()
@@ -182,11 +184,32 @@ def test_a_reported_turn_moves_the_belief_to_the_new_heading(bundled):
     for message in description(scene, node, 4):
         belief.message("navigator", message)
     assert int(belief.log[node].argmax()) == 4
+    assert belief.turned == 4  # what the calibration reads the true heading by
     # without the turn the two descriptions contradict each other at this pose
     still = Belief(scene, ctx.main)
     for message in description(scene, node, 0) + description(scene, node, 4):
         still.message("navigator", message)
     assert still.log[node].max() < belief.log[node].max()
+
+
+def test_the_calibration_favours_the_shares_true_poses_show():
+    rng = np.random.default_rng(0)
+    records = [Record(Evidence.LABEL, 0.9, rng.uniform(0, 0.5, 200)) for _ in range(40)]
+    records.append(Record(Evidence.EDGE, 0.9, rng.uniform(0, 0.5, 200)))  # once: kept near even
+    fitted = fit(records)
+    high, low = fitted.loglik(Evidence.LABEL, np.array([0.9, 0.2]))
+    assert high > 2 and low < -2
+    assert abs(fitted.log_ratio[Evidence.EDGE][-1]) < abs(high)
+    assert fitted.loglik(Evidence.CORNER, np.array([0.9])) is None  # not fitted: the hand weights score it
+
+
+def test_the_fitted_calibration_scores_a_named_label_where_it_is_seen_above_where_it_is_not():
+    assert evidence(facts("a red wall to my left")[0]) == Evidence.LABEL
+    assert evidence(facts("no red wall")[0]) is None  # negation: the hand weights
+    assert len(FITTED.log_ratio[Evidence.LABEL]) == len(SHARE_EDGES) - 1
+    for kind in (Evidence.LABEL, Evidence.EDGE):
+        none, most = FITTED.loglik(kind, np.array([0.0, 1.0]))
+        assert none < 0 < most
 
 
 def test_eval_ldh_dialog_writes_the_summary_and_the_per_turn_curve(tmp_path):

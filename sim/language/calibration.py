@@ -1,0 +1,103 @@
+"""How much a human Driver's words say about a pose, fitted on the train split's dialogs.
+
+For each kind of evidence, the share of a fact a pose bears out (`localizer.fact_share`) is
+binned, and the fact's log-likelihood at a pose is the log ratio of how often the true pose's
+share falls in that bin to how often any pose's does: a red wall "to my left" where the pose's
+left view is mostly red is about five times as likely as at a random pose, where none of it is red
+about a fifth as likely. Negated facts and dead ends are too rare on train to fit: the hand
+weights score them.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from collections.abc import Iterable
+from dataclasses import dataclass
+from enum import StrEnum
+
+import numpy as np
+
+from sim.language.lexicon import Fact, ViewKind
+from sim.language.sectors import Sector
+
+SHARE_EDGES = (0.0, 1e-9, 0.15, 0.35, 0.65, 1.0 + 1e-9)  # bins: none of it, a little, ..., most of it
+PRIOR = 4.0  # pseudo-facts at the reference distribution: an evidence seen a few times stays near 0
+
+
+class Evidence(StrEnum):
+    LABEL = "label"  # a label in the sectors named
+    LABEL_ANYWHERE = "label_anywhere"  # a label with no direction
+    EDGE = "edge"
+    CORRIDOR = "corridor"
+    CORNER = "corner"
+    NEXT_TO = "next_to"
+
+
+_BY_KIND = {
+    ViewKind.EDGE: Evidence.EDGE,
+    ViewKind.CORRIDOR: Evidence.CORRIDOR,
+    ViewKind.CORNER: Evidence.CORNER,
+    ViewKind.NEXT_TO: Evidence.NEXT_TO,
+}
+
+
+def evidence(fact: Fact) -> Evidence | None:
+    """The fact's kind of evidence; None where the hand weights score it."""
+    if fact.negated:
+        return None
+    if fact.kind == ViewKind.LABEL:
+        return Evidence.LABEL_ANYWHERE if fact.sectors == (Sector.ANY,) else Evidence.LABEL
+    return _BY_KIND.get(fact.kind)
+
+
+def share_bin(share: np.ndarray) -> np.ndarray:
+    return np.clip(np.searchsorted(SHARE_EDGES, share, side="right") - 1, 0, len(SHARE_EDGES) - 2)
+
+
+@dataclass(frozen=True)
+class Calibration:
+    log_ratio: dict[Evidence, tuple[float, ...]]  # per bin of SHARE_EDGES
+
+    def loglik(self, kind: Evidence, share: np.ndarray) -> np.ndarray | None:
+        """Log-likelihood of a fact of this kind at shares `share`; None where none was fitted."""
+        if kind not in self.log_ratio:
+            return None
+        return np.asarray(np.asarray(self.log_ratio[kind], dtype=np.float64)[share_bin(share)])
+
+
+@dataclass(frozen=True)
+class Record:
+    """One fact a Driver stated: the share its true pose bears out, and every candidate pose's."""
+
+    kind: Evidence
+    true_share: float
+    shares: np.ndarray  # every allowed pose's
+
+
+def fit(records: Iterable[Record], prior: float = PRIOR) -> Calibration:
+    """Per kind: log of P(bin | true pose) over P(bin | any pose), the former smoothed toward the latter."""
+    by_kind: dict[Evidence, list[Record]] = defaultdict(list)
+    for r in records:
+        by_kind[r.kind].append(r)
+    out = {}
+    for kind, rows in by_kind.items():
+        bins = len(SHARE_EDGES) - 1
+        reference = np.mean([np.bincount(share_bin(r.shares), minlength=bins) / r.shares.size for r in rows], axis=0)
+        true = np.bincount(share_bin(np.array([r.true_share for r in rows])), minlength=bins)
+        stated = (true + prior * reference) / (len(rows) + prior)
+        ratio = np.log(np.maximum(stated, 1e-6) / np.maximum(reference, 1e-6))
+        out[kind] = tuple(round(float(v), 3) for v in ratio)
+    return Calibration(out)
+
+
+# `python -m bench.ldh_calibration --benchmark PATH` (train split, rules' reading, prefix variant).
+FITTED = Calibration(
+    {
+        Evidence.LABEL: (-1.59, 0.155, 0.373, 0.377, 1.586),
+        Evidence.LABEL_ANYWHERE: (-0.981, 0.29, 0.27, -0.293, 0.297),
+        Evidence.EDGE: (-0.889, -2.621, -0.795, -1.015, 1.14),
+        Evidence.CORRIDOR: (-0.341, -0.3, -0.038, 0.327, 0.191),
+        Evidence.CORNER: (-1.504, 0.008, 0.409, 0.355, -0.953),
+        Evidence.NEXT_TO: (-0.585, 0.0, 0.0, 1.126, 0.784),
+    }
+)
