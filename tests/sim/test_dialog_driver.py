@@ -53,8 +53,9 @@ def test_the_oracle_commander_guides_it_to_the_first_target(world, phrasing):
 
 
 def test_its_inputs_are_percepts_only():
-    # Its settings (its chance choices, saying a long plan back to a person, how it reads) are no percepts.
-    assert list(inspect.signature(DialogDriver).parameters) == ["seed", "read_back", "understanding"]
+    # Its settings (its chance choices, saying a long plan back to a person, how it reads, how it
+    # words what it says) are no percepts.
+    assert list(inspect.signature(DialogDriver).parameters) == ["seed", "read_back", "understanding", "phrasing"]
     assert list(inspect.signature(DialogDriver.perceive).parameters) == ["self", "percept"]
     assert inspect.signature(DialogDriver.perceive).parameters["percept"].annotation in ("Percept", Percept)
 
