@@ -274,10 +274,12 @@ class PersonaDriverPhrasing:
         return NUMBER_NAMES[n] if self.book.numbers == "words" and n < len(NUMBER_NAMES) else str(n)
 
     def _say(self, message: Message, **slots: str) -> str:
-        """A template of `message` that uses only the slots given (any when `slots` fill them all)."""
+        """A template of `message` that uses only the slots given: {view} is optional in "done" and
+        "blocked", {colour} and {side} in "yes" and "no"."""
         templates = self.book.says[message]
-        fitting = [t for t in templates if all(f"{{{name}}}" not in t or name in slots for name in _SLOTS)]
-        return self._pick(fitting or templates).format_map(_Slots(slots))
+        return self._pick(
+            [t for t in templates if all(f"{{{name}}}" not in t or name in slots for name in _SLOTS)]
+        ).format(**slots)
 
     # -- words for things, sides, colours -------------------------------------------------------
 
@@ -385,10 +387,3 @@ _SLOTS = ("colour", "side", "distance", "thing", "clauses", "view", "n")
 def _view(text: str) -> dict[str, str]:
     """The {view} slot where there is something to say."""
     return {"view": text} if text else {}
-
-
-class _Slots(dict[str, str]):
-    """A template's slots; one a template names but the fact has not (an optional slot) is said empty."""
-
-    def __missing__(self, key: str) -> str:
-        return ""
