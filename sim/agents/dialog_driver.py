@@ -6,7 +6,9 @@ graph: its inputs are the chat, its frames' rays and its moves' outcomes. Its ow
 steps and 45-degree headings relative to where it started, from its moves' results) serves the
 dialog's history ("go back to where you started") and tells it which views it has looked at from
 where it stands. One instruction set runs at a time; a new Commander message replaces what is left
-of the last one, as a person drops an old plan when told something new."""
+of the last one, as a person drops an old plan when told something new. What it says is decided
+here as typed facts and worded by its `DriverPhrasing` (`sim.language.driver_phrasing`): the
+scripted Driver's words by default, or a frozen Driver persona's, slips and all."""
 
 from __future__ import annotations
 
