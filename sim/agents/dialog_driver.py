@@ -154,6 +154,7 @@ class DialogDriver:
         self._offered: tuple[Program, str] | None = None  # a reading it asked about, and its message
         self._failed = 0  # instructions in a row it could not carry out
         self._walked = 0  # forward moves since the last instruction
+        self.refused_for_walls = 0  # walks it stopped short of what it was told, a wall in its way
 
     def _say(self, fact: Fact) -> Say:
         return Say(self._phrasing.say(fact))
@@ -254,6 +255,7 @@ class DialogDriver:
         """It could not carry out what it was told: it drops the plan; after FAILED_TRIES in a row it asks for less."""
         self._plan.clear()
         self._failed += 1
+        self.refused_for_walls += stuck.why in (Why.CANNOT_GO, Why.IN_THE_WAY)
         return self._say(replace(stuck, one_at_a_time=self._failed >= FAILED_TRIES))
 
     def _follow(self, program: Program, text: str, said_unclear: bool) -> list[Action]:

@@ -92,6 +92,9 @@ class TrialResult:
     false_confirmations: int = 0  # confirmed with the robot further than 2 robot lengths from the target
     rejections: int = 0
     bumps: int = 0  # moves that ran into a wall
+    # Forward moves the Driver would not make, a wall in its way: known from the dialog Driver
+    # offline (the log has only its words), None otherwise.
+    refused_for_walls: int | None = None
     instructions: int = 0  # the Commander's messages
     ended: str = "finished"  # or why it was aborted (an agent's cap, both seats silent)
     seconds: float = 0.0
@@ -126,6 +129,8 @@ def play(
         trial.apply(Abort(SILENCE))
     out = measure(trial.log, dict(spec.targets), graph, rays, time.perf_counter() - t0)
     out.update_s = update_s
+    if isinstance(driver, DialogDriver):
+        out.refused_for_walls = driver.refused_for_walls
     return out
 
 
@@ -211,7 +216,8 @@ def summarize(results: Sequence[TrialResult]) -> dict[str, Any]:
     """The figures `eval selfplay` prints; moves_ratio is all moves over all shortest moves of the
     legs begun; first_estimate_td_m the mean over trials whose Commander marked an estimate;
     first_mark_within_0_5m the share of all trials whose first mark was within MARK_WITHIN_M (TD);
-    bumps_per_instruction all moves into a wall over all the Commander's messages."""
+    bumps_per_instruction all moves into a wall or refused for one (where the Driver's refusals
+    are known) over all the Commander's messages."""
     firsts = [r.first_estimate_td_m for r in results if r.first_estimate_td_m is not None]
     return {
         "trials": len(results),
@@ -226,7 +232,8 @@ def summarize(results: Sequence[TrialResult]) -> dict[str, Any]:
         )
         if results
         else 0.0,
-        "bumps_per_instruction": sum(r.bumps for r in results) / max(1, sum(r.instructions for r in results)),
+        "bumps_per_instruction": sum(r.bumps + (r.refused_for_walls or 0) for r in results)
+        / max(1, sum(r.instructions for r in results)),
         "seconds_per_trial": float(np.mean([r.seconds for r in results])) if results else 0.0,
     }
 

@@ -255,7 +255,6 @@ class PersonaDriverPhrasing:
     object not mentioned, a step miscounted) and its choice of template drawn from `seed`."""
 
     def __init__(self, persona: DriverPersona, seed: int = 0) -> None:
-        self.persona = persona
         self.book: DriverPersonaBook = load_driver_persona(persona)
         self._rng = random.Random(seed)
 
