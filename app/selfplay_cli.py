@@ -44,7 +44,9 @@ def eval_selfplay(
         CommanderName.DIALOG, help="The Commander's seat: dialog, or oracle (cheats: the true pose)."
     ),
     driver: DriverName = typer.Option(
-        DriverName.DIALOG, help="The Driver's seat: dialog, or oracle (cheats: answers from its true view)."
+        DriverName.DIALOG,
+        help="The Driver's seat: dialog, oracle (cheats: answers from its true view), or persona:NAME "
+        "(the dialog Driver in a frozen Driver persona's words: terse, chatty, typos, landmarks, unsure).",
     ),
     limit: int | None = typer.Option(None, min=1, help="Only the first N trials."),
     processes: int = typer.Option(2, min=1, help="Trials in parallel processes."),
@@ -64,7 +66,8 @@ def eval_selfplay(
 ) -> None:
     """Play whole trials (localize, three targets in order, claims judged) with agents in both seats
     and print trials, completed, targets_confirmed_mean, moves_ratio, messages_mean,
-    first_estimate_td_m, false_confirmations and seconds_per_trial.
+    first_estimate_td_m, false_confirmations, first_mark_within_0_5m, bumps_per_instruction and
+    seconds_per_trial.
 
     Without --record the trials run on the offline runner (the trial core's rules on the
     simulator's graph, no server or event log) and are not recorded; with it they are ordinary

@@ -6,25 +6,41 @@ graph: its inputs are the chat, its frames' rays and its moves' outcomes. Its ow
 steps and 45-degree headings relative to where it started, from its moves' results) serves the
 dialog's history ("go back to where you started") and tells it which views it has looked at from
 where it stands. One instruction set runs at a time; a new Commander message replaces what is left
-of the last one, as a person drops an old plan when told something new."""
+of the last one, as a person drops an old plan when told something new. What it says is decided
+here as typed facts and worded by its `DriverPhrasing` (`sim.language.driver_phrasing`): the
+scripted Driver's words by default, or a frozen Driver persona's, slips and all."""
 
 from __future__ import annotations
 
 import math
-import random
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import StrEnum
 
 from sim.core.geometry import HEADING_DI, HEADING_DJ, HEADINGS
 from sim.core.labels import OBJECT_LABELS, Label
 from sim.core.rays import RayObservation
 from sim.language import instructions as ins
-from sim.language.describe import LEFT_EDGE, RIGHT_EDGE, ahead, at_wall, brief, describe, near, seen
+from sim.language.describe import LEFT_EDGE, RIGHT_EDGE, ahead, at_wall, near, seen
+from sim.language.driver_phrasing import (
+    Answered,
+    Claiming,
+    Described,
+    Done,
+    DriverPhrasing,
+    Fact,
+    NotHere,
+    ReadBack,
+    ScriptedDriverPhrasing,
+    Stopped,
+    Stuck,
+    Trouble,
+    Troubled,
+    Why,
+)
 from sim.language.meaning import Clause, Op, Program, program_of
-from sim.language.sectors import NEAR_M
 from sim.language.understanding import Understanding, instructions, read_back
-from sim.language.vocab import SIDE_PHRASE, SIDE_STEPS, Side, wall_name
+from sim.language.vocab import SIDE_STEPS, Side, wall_name
 from sim.trial.agent import SeatInfo
 from sim.trial.commands import Action, Claim, RequestMove, Say, named
 from sim.trial.percepts import Declined, Heard, Judged, Moved, PauseSet, Percept, PhaseBegan, Saw
@@ -45,9 +61,6 @@ _NO = Clause.of(Op.ANSWER, value="no")
 def _moves(program: Program) -> int:
     """How many of a program's clauses move the robot."""
     return sum(c.op in _MOVING_OPS for c in program)
-
-
-NEXT = ("what next?", "where to now?", "what should i do next?")
 
 
 class Task(StrEnum):
@@ -108,10 +121,17 @@ class _Odometry:
 class DialogDriver:
     """The Driver's seat agent (`sim.agents.turns.Agent`); deterministic given `seed`."""
 
-    def __init__(self, seed: int = 0, read_back: bool = False, understanding: Understanding | None = None) -> None:
+    def __init__(
+        self,
+        seed: int = 0,
+        read_back: bool = False,
+        understanding: Understanding | None = None,
+        phrasing: DriverPhrasing | None = None,
+    ) -> None:
         """`read_back`: say a long plan in short before carrying it out (for a person's benefit);
-        `understanding`: how it reads the Commander (the shipped readers by default)."""
-        self._rng = random.Random(seed)
+        `understanding`: how it reads the Commander (the shipped readers by default); `phrasing`:
+        how it words what it says (the scripted Driver's words by default)."""
+        self._phrasing = phrasing or ScriptedDriverPhrasing(seed)
         self._read_back = read_back
         self._understanding = understanding or Understanding.trained()
         self.reset(SeatInfo(Role.DRIVER, 0))
@@ -133,6 +153,11 @@ class DialogDriver:
         self._before: tuple[str, str] | None = None  # the dialog's last message, for the reader
         self._offered: tuple[Program, str] | None = None  # a reading it asked about, and its message
         self._failed = 0  # instructions in a row it could not carry out
+        self._walked = 0  # forward moves since the last instruction
+        self.refused_for_walls = 0  # walks it stopped short of what it was told, a wall in its way
+
+    def _say(self, fact: Fact) -> Say:
+        return Say(self._phrasing.say(fact))
 
     # -- percepts -------------------------------------------------------------------------------
 
@@ -158,7 +183,7 @@ class DialogDriver:
             if percept.confirmed:
                 return []
             self._rejected_at.add(self._odo.here)
-            return [Say("ok, not here then. where should i go?")]
+            return [self._say(NotHere())]
         if isinstance(percept, PauseSet):
             self._paused = percept.paused
             if percept.paused or not self._claim_on_resume:
@@ -180,18 +205,19 @@ class DialogDriver:
         if isinstance(refused.action, Claim) and self._paused:
             self._claim_on_resume = True
             return []
-        return [Say(f"i could not {named(refused.action)} ({refused.reason}). what should i do?")]
+        return [self._say(Troubled(Trouble.REFUSED, quoted=named(refused.action), detail=refused.reason))]
 
     def _moved(self, moved: Moved) -> list[Action]:
         if moved.result != Outcome.OK:
             self._plan.clear()
             if moved.result == Outcome.COLLISION:
-                return [self._failure("i hit a wall, which way now?")]
-            return [Say(f"i could not move ({moved.reason or 'refused'}). what should i do?")]
+                return [self._failure(Stuck(Why.COLLISION, self._walked, self._view))]
+            return [self._say(Troubled(Trouble.NOT_MOVED, detail=moved.reason or ""))]
         if moved.move == Move.FORWARD:
             self._odo.i += int(HEADING_DI[self._odo.heading])
             self._odo.j += int(HEADING_DJ[self._odo.heading])
             self._odo.trail.append(self._odo.here)
+            self._walked += 1
             self._views = {}
         else:
             self._odo.heading = (self._odo.heading + (1 if moved.move == Move.LEFT else -1)) % HEADINGS
@@ -206,7 +232,7 @@ class DialogDriver:
             program, text = offered  # "yes": the reading it asked about
         elif offered is not None and program == (_NO,):
             self._plan.clear()
-            return [Say("ok, i did not get it then. could you say it another way, one move at a time?")]
+            return [self._say(Troubled(Trouble.NOT_MEANT))]
         elif self._phase == Phase.NAVIGATING and (
             understood.confidence < ASK_BELOW or not _moves(program) and _moves(program_of(ins.parse(text)))
         ):
@@ -223,40 +249,32 @@ class DialogDriver:
             return self._follow(program, text, said_unclear=False)
         self._plan.clear()
         self._offered = (best, text)
-        return [Say(f"i am not sure i got '{text.strip()}'. do you mean: {read_back(best)}?")]
+        return [self._say(Troubled(Trouble.ASK_ABOUT, quoted=text.strip(), detail=read_back(best)))]
 
-    def _failure(self, text: str) -> Say:
+    def _failure(self, stuck: Stuck) -> Say:
         """It could not carry out what it was told: it drops the plan; after FAILED_TRIES in a row it asks for less."""
         self._plan.clear()
         self._failed += 1
-        if self._failed >= FAILED_TRIES:
-            return Say(f"{text} could you give me one move at a time?")
-        return Say(text)
+        self.refused_for_walls += stuck.why in (Why.CANNOT_GO, Why.IN_THE_WAY)
+        return self._say(replace(stuck, one_at_a_time=self._failed >= FAILED_TRIES))
 
     def _follow(self, program: Program, text: str, said_unclear: bool) -> list[Action]:
         parsed = ins.Parsed(tuple(instructions(program, text)))
         self._plan.clear()
         self._claim_on_resume = False
+        self._walked = 0
         tasks: list[_Task] = []
         for item in parsed.instructions:
             tasks += self._tasks(item)
         if parsed.unclear:
-            tasks = [
-                _Task(
-                    Task.SAY,
-                    text=f"sorry, i did not understand '{text.strip()}'. could you say it another way, "
-                    "for example 'turn left' or 'go forward to the red wall'?",
-                )
-            ]
+            tasks = [_Task(Task.SAY, text=self._phrasing.say(Troubled(Trouble.UNCLEAR, quoted=text.strip())))]
         elif said_unclear and tasks:
-            tasks.append(_Task(Task.SAY, text="i did the part i understood; i did not get the rest. what next?"))
+            tasks.append(_Task(Task.SAY, text=self._phrasing.say(Troubled(Trouble.PARTLY))))
         if self._read_back and _moves(program) >= READ_BACK_CLAUSES and self._phase == Phase.NAVIGATING:
-            tasks.insert(0, _Task(Task.SAY, text=f"ok: {read_back(program)}"))
+            tasks.insert(0, _Task(Task.SAY, text=self._phrasing.say(ReadBack(read_back(program)))))
         if self._phase == Phase.LOCALIZING and any(t.kind in MOVING for t in tasks):
             tasks = [t for t in tasks if t.kind not in MOVING]
-            tasks.append(
-                _Task(Task.SAY, text="i will stay here until you have found me on the map. what should i describe?")
-            )
+            tasks.append(_Task(Task.SAY, text=self._phrasing.say(Troubled(Trouble.STAYING))))
         if tasks and tasks[-1].kind not in (Task.SAY, Task.CLAIM, Task.LOOK):
             tasks.append(_Task(Task.SAY))  # the report when the moves are done
         self._plan.extend(tasks)
@@ -267,7 +285,8 @@ class DialogDriver:
         if isinstance(item, ins.Turn):
             return [_Task(Task.TURN, turns=item.eighths)]
         if isinstance(item, ins.Forward):
-            return [_Task(Task.WALK, steps=item.steps, until=item.until, exclude=item.exclude)]
+            steps = self._phrasing.count(item.steps) if item.steps is not None else None
+            return [_Task(Task.WALK, steps=steps, until=item.until, exclude=item.exclude)]
         if isinstance(item, ins.TakeOpening):
             return [_Task(Task.OPENING, side=item.side, nth=item.nth)]
         if isinstance(item, ins.Target):
@@ -286,7 +305,7 @@ class DialogDriver:
         if isinstance(item, ins.Stop):
             if item.claim:
                 return [_Task(Task.CLAIM)]
-            return [_Task(Task.SAY, text=f"ok, stopped. {brief(self._view)}. {self._rng.choice(NEXT)}")]
+            return [_Task(Task.SAY, text=self._phrasing.say(Stopped(self._view)))]
         return []
 
     def _go_back(self, item: ins.GoBack) -> _Task:
@@ -294,8 +313,7 @@ class DialogDriver:
             return _Task(Task.GOTO, route=self._odo.route_back(0), text="back where i started")
         turns = [index for side, index in self._odo.turns if item.side is None or side == item.side]
         if len(turns) < item.nth:
-            side = f" {item.side.value}" if item.side else ""
-            return _Task(Task.SAY, text=f"i have not turned{side} that many times yet. where should i go?")
+            return _Task(Task.SAY, text=self._phrasing.say(Troubled(Trouble.NOT_TURNED, side=item.side)))
         return _Task(Task.GOTO, route=self._odo.route_back(turns[item.nth - 1]), text="back where i turned")
 
     # -- carrying tasks out ---------------------------------------------------------------------
@@ -342,14 +360,13 @@ class DialogDriver:
             return self._look(task)
         if task.kind == Task.CLAIM:
             if self._phase != Phase.NAVIGATING:
-                return Say("you have not placed me on the map yet; tell me when i may go")
+                return self._say(Troubled(Trouble.NOT_PLACED))
             self._claiming = True
-            thing = wall_name(self._target) if self._target is not None else "target"
-            return [Say(f"i think i found the {thing}"), Claim()]
+            return [self._say(Claiming(self._target)), Claim()]
         if not task.text:
             self._failed = 0  # an instruction set carried out to its end
-        text = task.text or f"ok, {self._done_words or 'done'}, {brief(self._view)}. {self._rng.choice(NEXT)}"
-        return Say(text)
+            return self._say(Done(self._done_words, self._view))
+        return Say(task.text)
 
     def _turn(self, task: _Task) -> RequestMove | None:
         if task.turns == 0:
@@ -369,12 +386,12 @@ class DialogDriver:
                 self._done_words = f"went {task.done} steps"
                 return None
             if view is not None and view.forward_blocked:
-                return self._failure(f"i can only go {task.done} steps, {brief(view)}. which way now?")
+                return self._failure(Stuck(Why.CANNOT_GO, task.done, view))
             task.done += 1
             return RequestMove(Move.FORWARD)
         if view is None or view.problem is not None:
             self._plan.clear()
-            return Say("i cannot see clearly. what should i do?")
+            return self._say(Troubled(Trouble.BLIND))
         front = ahead(view)
         if task.until is not None and task.until in OBJECT_LABELS:
             # Where its claim was rejected it is not close enough yet: it goes on up to the target.
@@ -385,17 +402,16 @@ class DialogDriver:
         if reached:
             label = front.label if front is not None else None
             if task.until is not None and label != task.until and task.until not in OBJECT_LABELS:
-                found = wall_name(label) if label is not None else "something"
-                return self._failure(f"i am at a {found}, i do not see a {wall_name(task.until)} ahead. which way now?")
+                return self._failure(Stuck(Why.WRONG_WALL, self._walked, view, found=label, wanted=task.until))
             if label is not None and label in task.exclude:
-                return self._failure(f"i am at the {wall_name(label)}, which you said is not the one. which way now?")
+                return self._failure(Stuck(Why.EXCLUDED, self._walked, view, found=label))
             self._done_words = f"at the {wall_name(label)}" if label is not None else "at the wall"
             return None
         wall = task.until if task.until not in OBJECT_LABELS else None
         if task.done == 0 and wall is not None and not any(s.label == wall for s in seen(view)):
-            return self._failure(f"i do not see a {wall_name(wall)} ahead, {brief(view)}. which way?")
+            return self._failure(Stuck(Why.NOT_IN_VIEW, self._walked, view, wanted=wall))
         if task.done >= MAX_WALK:
-            return self._failure(f"i have gone {task.done} steps and still {brief(view)}. where am i going?")
+            return self._failure(Stuck(Why.TOO_FAR, task.done, view))
         task.done += 1
         return RequestMove(Move.FORWARD)
 
@@ -403,7 +419,7 @@ class DialogDriver:
         view = self._view
         if view is None or view.problem is not None:
             self._plan.clear()
-            return Say("i cannot see clearly. what should i do?")
+            return self._say(Troubled(Trouble.BLIND))
         ray = LEFT_EDGE if task.side == Side.LEFT else RIGHT_EDGE
         far = not view.valid[ray] or view.labels[ray] == Label.FLOOR or float(view.depth[ray]) > OPENING_M
         if task.edge_near and far:
@@ -415,7 +431,7 @@ class DialogDriver:
             )
             return None
         if view.forward_blocked or task.done >= MAX_WALK:
-            return self._failure(f"i found no opening on my {task.side}, {brief(view)}. which way now?")
+            return self._failure(Stuck(Why.NO_OPENING, self._walked, view, side=task.side))
         task.done += 1
         return RequestMove(Move.FORWARD)
 
@@ -430,7 +446,7 @@ class DialogDriver:
         turn = (wanted - self._odo.heading) % HEADINGS
         if turn == 0:
             if self._view is not None and self._view.forward_blocked:
-                return self._failure(f"a wall is in my way {task.text}, {brief(self._view)}. which way?")
+                return self._failure(Stuck(Why.IN_THE_WAY, self._walked, self._view, where=task.text))
             return RequestMove(Move.FORWARD)
         return RequestMove(Move.LEFT if turn <= 4 else Move.RIGHT)
 
@@ -455,13 +471,7 @@ class DialogDriver:
         if self._odo.heading != facing:  # the shorter way round to the next side to see, then back
             return RequestMove(Move.LEFT if (facing - self._odo.heading) % HEADINGS <= 4 else Move.RIGHT)
         if ask.question == ins.AskedAbout.IS_THERE and ask.label is not None:
-            return Say(self._is_there(ask.label, sides[0], around[sides[0]]))
+            return self._say(Answered(ask.label, sides[0], around[sides[0]]))
         if ask.question == ins.AskedAbout.VIEW and not ask.look_around:
-            return Say(describe(around))  # all it has seen from here
-        return Say(describe({s: around[s] for s in sides}))
-
-    def _is_there(self, label: Label, side: Side, view: RayObservation | None) -> str:
-        hits = [s for s in seen(view) if s.label == label] if view is not None else []
-        if hits:
-            return f"yes, {'close' if hits[0].depth <= NEAR_M else 'far'} {wall_name(label)} {SIDE_PHRASE[side]}"
-        return f"no, no {wall_name(label)} {SIDE_PHRASE[side]}. {describe({side: view})}"
+            return self._say(Described(around, look_around=False))  # all it has seen from here
+        return self._say(Described({s: around[s] for s in sides}, look_around=ask.look_around))

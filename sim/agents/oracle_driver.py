@@ -10,7 +10,7 @@ from sim.core.dynamics import Pose
 from sim.core.geometry import HEADINGS
 from sim.core.observations import RayTable
 from sim.language import instructions as ins
-from sim.language.describe import describe
+from sim.language.driver_phrasing import Answered, Described
 from sim.language.vocab import SIDE_STEPS, Side
 from sim.trial.commands import RequestMove, Say
 
@@ -32,7 +32,7 @@ class OracleDriver(DialogDriver):
         }
         if ask.question == ins.AskedAbout.IS_THERE and ask.label is not None:
             side = ask.side or Side.AHEAD
-            return Say(self._is_there(ask.label, side, views[side]))
+            return self._say(Answered(ask.label, side, views[side]))
         if ask.question == ins.AskedAbout.SIDE and ask.side is not None:
-            return Say(describe({ask.side: views[ask.side]}))
-        return Say(describe(views))
+            return self._say(Described({ask.side: views[ask.side]}, look_around=False))
+        return self._say(Described(views, look_around=ask.look_around))

@@ -5,7 +5,9 @@ and the seats are a `sim.trial.table.Table`, as on the platform; the figures are
 trial's log (`measure`), as a recorded trial's are.
 
 Agents are named: `dialog` in either seat (percepts only); `oracle` in either seat cheats (the
-Commander is handed the true pose, the Driver answers from its true view without turning)."""
+Commander is handed the true pose, the Driver answers from its true view without turning);
+`persona:NAME` in the Driver's seat is the dialog Driver speaking as a frozen Driver persona
+(`sim.language.driver_personas`), slips and all."""
 
 from __future__ import annotations
 
@@ -30,6 +32,8 @@ from sim.core.geometry import HEADINGS
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
+from sim.language.driver_personas import DriverPersona
+from sim.language.driver_phrasing import PersonaDriverPhrasing
 from sim.language.phrases import Phrases, Phrasing
 from sim.trial import events as ev
 from sim.trial.agent import Agent
@@ -39,12 +43,13 @@ from sim.trial.offline import OfflineTrial
 from sim.trial.percepts import Heard, Percept
 from sim.trial.state import fold
 from sim.trial.table import SILENCE, Caps, Table
-from sim.trial.vocabulary import Phase, Role
+from sim.trial.vocabulary import Outcome, Phase, Role
 
 J = TypeVar("J")  # a job of `iter_results`
 R = TypeVar("R")  # and its result
 TARGET_ORDER = ("jar", "mug", "paddle")  # every benchmark trial's order
 BUNDLED_START_MIN_M = 1.0  # a bundled maze's start: at least this far (path) from the first target
+MARK_WITHIN_M = 0.5  # a first mark this close (TD) to the true pose counts as a good one
 
 
 class CommanderName(StrEnum):
@@ -55,6 +60,16 @@ class CommanderName(StrEnum):
 class DriverName(StrEnum):
     DIALOG = "dialog"
     ORACLE = "oracle"  # cheats: answers from its true view
+    # The dialog Driver in a frozen persona's words.
+    PERSONA_TERSE = "persona:terse"
+    PERSONA_CHATTY = "persona:chatty"
+    PERSONA_TYPOS = "persona:typos"
+    PERSONA_LANDMARKS = "persona:landmarks"
+    PERSONA_UNSURE = "persona:unsure"
+
+    @property
+    def persona(self) -> DriverPersona | None:
+        return DriverPersona(self.removeprefix("persona:")) if self.startswith("persona:") else None
 
 
 @dataclass(frozen=True)
@@ -76,6 +91,11 @@ class TrialResult:
     first_estimate_td_m: float | None = None  # TD of the Commander's first mark from the true pose then
     false_confirmations: int = 0  # confirmed with the robot further than 2 robot lengths from the target
     rejections: int = 0
+    bumps: int = 0  # moves that ran into a wall
+    # Forward moves the Driver would not make, a wall in its way: known from the dialog Driver
+    # offline (the log has only its words), None otherwise.
+    refused_for_walls: int | None = None
+    instructions: int = 0  # the Commander's messages
     ended: str = "finished"  # or why it was aborted (an agent's cap, both seats silent)
     seconds: float = 0.0
     update_s: list[float] = field(default_factory=list)  # the Commander's time per Driver message
@@ -109,6 +129,8 @@ def play(
         trial.apply(Abort(SILENCE))
     out = measure(trial.log, dict(spec.targets), graph, rays, time.perf_counter() - t0)
     out.update_s = update_s
+    if isinstance(driver, DialogDriver):
+        out.refused_for_walls = driver.refused_for_walls
     return out
 
 
@@ -134,8 +156,11 @@ def measure(
                     out.shortest += int(router.moves_to_go(goal)[at.node, at.heading])
             case ev.Localized(x=x, y=y) if out.first_estimate_td_m is None and pose is not None:
                 out.first_estimate_td_m = graph.topological_distance((x, y), pose[:2])
+            case ev.MoveExecuted(outcome=Outcome.COLLISION):
+                out.bumps += 1
             case ev.Chat(role=role, text=text):
                 out.messages += 1
+                out.instructions += role == Role.COMMANDER
                 out.dialog.append((str(role), text))
             case ev.TargetConfirmed(truly_within=truly):
                 out.targets_confirmed += 1
@@ -189,7 +214,10 @@ def library_trials(mazes: Sequence[tuple[str, Maze]], graphs: Sequence[NavGraph]
 
 def summarize(results: Sequence[TrialResult]) -> dict[str, Any]:
     """The figures `eval selfplay` prints; moves_ratio is all moves over all shortest moves of the
-    legs begun; first_estimate_td_m the mean over trials whose Commander marked an estimate."""
+    legs begun; first_estimate_td_m the mean over trials whose Commander marked an estimate;
+    first_mark_within_0_5m the share of all trials whose first mark was within MARK_WITHIN_M (TD);
+    bumps_per_instruction all moves into a wall or refused for one (where the Driver's refusals
+    are known) over all the Commander's messages."""
     firsts = [r.first_estimate_td_m for r in results if r.first_estimate_td_m is not None]
     return {
         "trials": len(results),
@@ -199,6 +227,13 @@ def summarize(results: Sequence[TrialResult]) -> dict[str, Any]:
         "messages_mean": float(np.mean([r.messages for r in results])) if results else 0.0,
         "first_estimate_td_m": float(np.mean(firsts)) if firsts else None,
         "false_confirmations": sum(r.false_confirmations for r in results),
+        "first_mark_within_0_5m": float(
+            np.mean([r.first_estimate_td_m is not None and r.first_estimate_td_m <= MARK_WITHIN_M for r in results])
+        )
+        if results
+        else 0.0,
+        "bumps_per_instruction": sum(r.bumps + (r.refused_for_walls or 0) for r in results)
+        / max(1, sum(r.instructions for r in results)),
         "seconds_per_trial": float(np.mean([r.seconds for r in results])) if results else 0.0,
     }
 
@@ -259,5 +294,11 @@ def run_job(job: Job) -> TrialResult:
         if job.commander == CommanderName.DIALOG
         else OracleCommander(graph, rays, list(spec.targets), seed=spec.seed)
     )
-    driver: Agent = DialogDriver(spec.seed) if job.driver == DriverName.DIALOG else OracleDriver(rays, spec.seed)
+    driver: Agent
+    if job.driver == DriverName.ORACLE:
+        driver = OracleDriver(rays, spec.seed)
+    else:
+        persona = job.driver.persona
+        phrasing = PersonaDriverPhrasing(persona, spec.seed) if persona is not None else None
+        driver = DialogDriver(spec.seed, phrasing=phrasing)
     return play(commander, driver, graph, rays, spec)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from enum import StrEnum
 
 import numpy as np
 
@@ -49,6 +50,22 @@ def mentionable(obs: RayObservation) -> list[Seen]:
     return [s for s in seen(obs) if s.rays >= MIN_RAYS or s.label in OBJECT_LABELS]
 
 
+class Spot(StrEnum):
+    """Where the walls close round the Driver, as it says so."""
+
+    CORNER = "corner"
+    CORRIDOR = "corridor"
+
+
+@dataclass(frozen=True)
+class Sighting:
+    """What the Driver saw from where it stands: per side looked at, what is worth naming (none:
+    open floor), and whether the walls make it a corner or a corridor."""
+
+    spot: Spot | None
+    sides: dict[Side, list[Seen]]
+
+
 def _clause(s: Seen, side: Side) -> str:
     distance = "close" if s.depth <= NEAR_M else "far"
     name = wall_name(s.label)
@@ -59,32 +76,35 @@ def _clause(s: Seen, side: Side) -> str:
     return f"{distance} {name} {SIDE_PHRASE[side]}"
 
 
-def place(views: Mapping[Side, RayObservation]) -> str | None:
-    """ "in a corner" / "in a corridor" where the views say so, from how near the walls are."""
+def place(views: Mapping[Side, RayObservation]) -> Spot | None:
+    """A corner or a corridor where the views say so, from how near the walls are."""
     near = {side: bool((obs.valid & (obs.depth <= NEAR_M)).sum() >= 7) for side, obs in views.items()}
     if near.get(Side.LEFT) and near.get(Side.RIGHT) and not near.get(Side.AHEAD, True):
-        return "i am in a corridor"
+        return Spot.CORRIDOR
     if near.get(Side.AHEAD) and (near.get(Side.LEFT) or near.get(Side.RIGHT)):
-        return "i am in a corner"
+        return Spot.CORNER
     return None
 
 
-def describe(views: Mapping[Side, RayObservation | None]) -> str:
-    """What the Driver sees on each side it has looked at, ahead first."""
+def sighting(views: Mapping[Side, RayObservation | None]) -> Sighting | None:
+    """What the Driver sees on each side it has looked at, ahead first; None where it can make out
+    nothing."""
     readable = {side: obs for side, obs in views.items() if obs is not None and obs.problem is None}
-    clauses = []
-    for side in Side:
-        if side not in readable:
-            continue
-        items = mentionable(readable[side])
-        if items:
-            clauses += [_clause(s, side) for s in items]
-        else:
-            clauses.append(f"open floor {SIDE_PHRASE[side]}")
     if not readable:
+        return None
+    return Sighting(place(readable), {side: mentionable(readable[side]) for side in Side if side in readable})
+
+
+def describe(views: Mapping[Side, RayObservation | None]) -> str:
+    """What the Driver sees on each side it has looked at, in the scripted Driver's words."""
+    sight = sighting(views)
+    if sight is None:
         return "i cannot make out anything in the picture"
-    where = place(readable)
-    return ", ".join(([where] if where else []) + clauses)
+    clauses = []
+    for side, items in sight.sides.items():
+        clauses += [_clause(s, side) for s in items] if items else [f"open floor {SIDE_PHRASE[side]}"]
+    where = [f"i am in a {sight.spot}"] if sight.spot else []
+    return ", ".join(where + clauses)
 
 
 def ahead(obs: RayObservation) -> Seen | None:
@@ -97,24 +117,38 @@ def ahead(obs: RayObservation) -> Seen | None:
     return Seen(Label(int(obs.labels[i])), 1, float(obs.depth[i]))
 
 
-def brief(obs: RayObservation | None) -> str:
-    """A short report after a move: what is ahead and at each edge of the view."""
-    if obs is None or obs.problem is not None:
-        return "i cannot see clearly"
-    parts = []
+@dataclass(frozen=True)
+class Glance:
+    """A short look after a move: the nearest thing straight ahead, a wall close at either edge of
+    the view, and the objects in view not already named."""
+
+    front: Seen | None
+    edges: list[tuple[Side, Label]]
+    objects: list[Label]
+
+
+def glance(obs: RayObservation) -> Glance:
     front = ahead(obs)
-    if front is not None:
-        parts.append(f"{wall_name(front.label)} {'close' if front.depth <= NEAR_M else 'far'} ahead")
+    edges: list[tuple[Side, Label]] = []
     for ray, side in ((LEFT_EDGE, Side.LEFT), (RIGHT_EDGE, Side.RIGHT)):
         label = Label(int(obs.labels[ray]))
         if obs.valid[ray] and label != Label.FLOOR and obs.depth[ray] <= NEAR_M:
-            parts.append(f"{wall_name(label)} {SIDE_PHRASE[side]}")
-    named = " ".join(parts)
-    parts += [
-        f"i can see the {wall_name(s.label)}"
-        for s in seen(obs)
-        if s.label in OBJECT_LABELS and wall_name(s.label) not in named
-    ]
+            edges.append((side, label))
+    named = {label for _, label in edges} | ({front.label} if front is not None else set())
+    objects = [s.label for s in seen(obs) if s.label in OBJECT_LABELS and s.label not in named]
+    return Glance(front, edges, objects)
+
+
+def brief(obs: RayObservation | None) -> str:
+    """A short report after a move, in the scripted Driver's words."""
+    if obs is None or obs.problem is not None:
+        return "i cannot see clearly"
+    look = glance(obs)
+    parts = []
+    if look.front is not None:
+        parts.append(f"{wall_name(look.front.label)} {'close' if look.front.depth <= NEAR_M else 'far'} ahead")
+    parts += [f"{wall_name(label)} {SIDE_PHRASE[side]}" for side, label in look.edges]
+    parts += [f"i can see the {wall_name(label)}" for label in look.objects]
     return ", ".join(parts) if parts else "open floor ahead"
 
 

@@ -31,6 +31,8 @@ KEYS = {
     "messages_mean",
     "first_estimate_td_m",
     "false_confirmations",
+    "first_mark_within_0_5m",
+    "bumps_per_instruction",
     "seconds_per_trial",
 }
 

@@ -2,6 +2,7 @@
 still while being localized, and takes percepts only (no pose, map or graph)."""
 
 import inspect
+import re
 
 import numpy as np
 import pytest
@@ -15,6 +16,8 @@ from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
 from sim.language.describe import near
+from sim.language.driver_personas import DriverPersona
+from sim.language.driver_phrasing import PersonaDriverPhrasing
 from sim.language.phrases import Phrasing
 from sim.tasks.library import BUNDLED_DIR
 from sim.trial.agent import SeatInfo
@@ -53,8 +56,9 @@ def test_the_oracle_commander_guides_it_to_the_first_target(world, phrasing):
 
 
 def test_its_inputs_are_percepts_only():
-    # Its settings (its chance choices, saying a long plan back to a person, how it reads) are no percepts.
-    assert list(inspect.signature(DialogDriver).parameters) == ["seed", "read_back", "understanding"]
+    # Its settings (its chance choices, saying a long plan back to a person, how it reads, how it
+    # words what it says) are no percepts.
+    assert list(inspect.signature(DialogDriver).parameters) == ["seed", "read_back", "understanding", "phrasing"]
     assert list(inspect.signature(DialogDriver.perceive).parameters) == ["self", "percept"]
     assert inspect.signature(DialogDriver.perceive).parameters["percept"].annotation in ("Percept", Percept)
 
@@ -190,3 +194,25 @@ def test_rejected_where_it_sees_the_target_it_goes_on_up_to_it(world):
     driver.perceive(Moved(Move.FORWARD, Outcome.OK))
     turns = driver.perceive(Saw(1, _rays(world, graph.moves.step(start, Action.FORWARD)[0])))
     assert turns[-1] == Claim()
+
+
+@pytest.mark.parametrize("persona", [None, DriverPersona.TERSE])
+def test_told_to_walk_into_a_wall_it_stops_says_so_and_counts_it(world, persona):
+    """It looks before each step: told five steps with a wall after one, it drives one and stops,
+    says how far it got (in the persona's words where it has one) and counts a move refused for a
+    wall, what self-play's bumps per instruction count."""
+    _, graph, _ = world
+    pose = next(
+        Pose(n, 0) for n in range(graph.n) if graph.forward[n, 0] >= 0 and graph.forward[graph.forward[n, 0], 0] < 0
+    )
+    phrasing = PersonaDriverPhrasing(persona) if persona is not None else None
+    driver = DialogDriver(0, phrasing=phrasing)
+    driver.reset(SeatInfo(Role.DRIVER, 3))
+    driver.perceive(PhaseBegan(Phase.NAVIGATING, None, 3))
+    driver.perceive(Saw(0, _rays(world, pose)))
+    end, said = _carry_out(driver, world, pose, "go forward 5 steps")
+    assert end.node == graph.forward[pose.node, 0] and driver.refused_for_walls == 1
+    if persona is None:
+        assert said[0].startswith("i can only go 1 steps")
+    else:
+        assert re.match(r"(wall after|blocked at|stuck after|hit wall,) 1\b", said[0]), said

@@ -19,6 +19,8 @@ KEYS = [
     "messages_mean",
     "first_estimate_td_m",
     "false_confirmations",
+    "first_mark_within_0_5m",
+    "bumps_per_instruction",
     "seconds_per_trial",
 ]
 ROOT = Path(__file__).resolve().parents[2]
@@ -60,3 +62,18 @@ def test_selfplay_with_the_cheating_driver_and_a_bad_benchmark(tmp_path):
     assert json.loads(result.stdout)["trials"] == 1
     bad = _selfplay("--benchmark", str(tmp_path), "--json", cwd=tmp_path)
     assert bad.returncode == 2 and "NDH-data" in bad.stderr
+
+
+def test_selfplay_with_a_persona_driver(tmp_path):
+    """`--driver persona:NAME` seats the dialog Driver speaking as a frozen Driver persona; the
+    platform has no such seat, so --record refuses it."""
+    per_trial = tmp_path / "trials.jsonl"
+    args = ("--limit", "1", "--processes", "1", "--driver", "persona:chatty", "--json")
+    result = _selfplay(*args, "--per-trial", str(per_trial), cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    figures = json.loads(result.stdout)
+    assert figures["trials"] == 1 and 0.0 <= figures["bumps_per_instruction"] <= 1.0
+    dialog = json.loads(per_trial.read_text())["dialog"]
+    assert not any(text.startswith("ok, ") and text.endswith("what next?") for role, text in dialog if role == "driver")
+    refused = _selfplay(*args, "--record", str(tmp_path / "data"), cwd=tmp_path)
+    assert refused.returncode == 2 and "'persona:chatty' (it seats: dialog)" in refused.stderr
