@@ -69,6 +69,7 @@ class Task(StrEnum):
     OPENING = "opening"  # forward to the nth opening on a side, then turn into it
     GOTO = "goto"  # back to a place of its odometry
     LOOK = "look"  # turn in place to see what a question needs, then answer
+    SEEK = "seek"  # turn in place until the named target is in view, then go up to it
     SAY = "say"
     CLAIM = "claim"
 
@@ -275,6 +276,11 @@ class DialogDriver:
         if self._phase == Phase.LOCALIZING and any(t.kind in MOVING for t in tasks):
             tasks = [t for t in tasks if t.kind not in MOVING]
             tasks.append(_Task(Task.SAY, text=self._phrasing.say(Troubled(Trouble.STAYING))))
+        sought = next((i.label for i in parsed.instructions if isinstance(i, ins.Target) and i.side is None), None)
+        if not tasks and sought is not None and self._phase == Phase.NAVIGATING:
+            # Told it is at the target, or to go to it, with the target out of view: a person looks
+            # around for it rather than claim blind or say nothing.
+            tasks = [_Task(Task.SEEK, until=sought)]
         if tasks and tasks[-1].kind not in (Task.SAY, Task.CLAIM, Task.LOOK):
             tasks.append(_Task(Task.SAY))  # the report when the moves are done
         self._plan.extend(tasks)
@@ -358,6 +364,8 @@ class DialogDriver:
             return self._goto(task)
         if task.kind == Task.LOOK:
             return self._look(task)
+        if task.kind == Task.SEEK:
+            return self._seek(task)
         if task.kind == Task.CLAIM:
             if self._phase != Phase.NAVIGATING:
                 return self._say(Troubled(Trouble.NOT_PLACED))
@@ -449,6 +457,17 @@ class DialogDriver:
                 return self._failure(Stuck(Why.IN_THE_WAY, self._walked, self._view, where=task.text))
             return RequestMove(Move.FORWARD)
         return RequestMove(Move.LEFT if turn <= 4 else Move.RIGHT)
+
+    def _seek(self, task: _Task) -> RequestMove | Say | None:
+        """Left a turn at a time until the target is in view (then up to it), or all the way round."""
+        assert task.until is not None  # seek tasks are made from a named target
+        if self._view is not None and any(s.label == task.until for s in seen(self._view)):
+            self._plan.appendleft(_Task(Task.WALK, until=task.until))
+            return None
+        if task.done >= HEADINGS - 1:
+            return self._failure(Stuck(Why.NOWHERE, 0, self._view, wanted=task.until))
+        task.done += 1
+        return RequestMove(Move.LEFT)
 
     def _look(self, task: _Task) -> RequestMove | Say:
         """Action in place until the sides the question needs have been seen (and back), then answer."""

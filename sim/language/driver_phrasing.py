@@ -76,6 +76,7 @@ class Why(StrEnum):
     TOO_FAR = "too_far"  # walked a long way and not there yet
     NO_OPENING = "no_opening"
     IN_THE_WAY = "in_the_way"  # a wall on the way back
+    NOWHERE = "nowhere"  # looked all around for the target, and it is not in view
 
 
 @dataclass(frozen=True)
@@ -212,6 +213,8 @@ class ScriptedDriverPhrasing:
                 return f"i found no opening on my {fact.side}, {brief(view)}. which way now?"
             case Why.IN_THE_WAY:
                 return f"a wall is in my way {fact.where}, {brief(view)}. which way?"
+            case Why.NOWHERE:
+                return f"i looked all around and i do not see the {_name(fact.wanted)}. which way?"
 
     @staticmethod
     def _troubled(fact: Troubled) -> str:
