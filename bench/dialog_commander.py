@@ -6,8 +6,8 @@ before the Commander's parser was read), or against the scripted dialog Driver.
 
 Each trial is `robotslang eval selfplay`'s (`sim.agents.selfplay`): one per maze of the split, from
 its recorded start, localize and the three targets in order. Per Driver it prints completed (all
-three targets confirmed), targets_confirmed_mean, bumps_per_instruction (moves into a wall per
-Commander message), first_mark_within_0_5m (share of trials whose Commander's first mark was
+three targets confirmed), targets_confirmed_mean, bumps_per_instruction (moves into a wall, or
+the Driver refused for one, per Commander message), first_mark_within_0_5m (share of trials whose Commander's first mark was
 within 0.5 m TD of the robot), messages_mean, and the rest of `eval selfplay`'s figures, with the
 machine's load. The issue's goals per persona: completed >= 0.80, bumps per instruction <= 0.1,
 first mark within 0.5 m >= 0.8. Develop on val_seen.
