@@ -187,14 +187,16 @@ class RayCaster:
             reach -= _SAFE_PX
             np.maximum(t, reach, out=t)
             np.minimum(t, te, out=t)  # exits at the edge
-            stopped = np.flatnonzero(done & marching)  # a few of the many: indices, not masks
+            # A few of the many: indices, not masks (`nonzero` itself: `np.flatnonzero` is three Python calls
+            # around it, and most rounds march a few hundred rays, where the calls are the cost).
+            stopped = (done & marching).nonzero()[0]
             if stopped.size:
-                hit_label[ids[stopped]] = label[stopped]
-                hit_t[ids[stopped]] = at[stopped]
+                rays = ids[stopped]
+                hit_label[rays], hit_t[rays] = label[stopped], at[stopped]
                 marching[stopped] = False
                 left -= stopped.size
                 if left <= ids.size * 3 // 4:
-                    keep = np.flatnonzero(marching)
+                    keep = marching.nonzero()[0]
                     state, ids, t = state.take(keep, axis=1), ids.take(keep), t.take(keep)
                     marching = np.ones(left, dtype=bool)
         # Where the ray entered the pixel it stopped in.
