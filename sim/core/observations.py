@@ -81,7 +81,8 @@ class RayCaster:
         # 4x4 block, in whole pixels, at most 255 (0.1 MB a maze instead of 6.6 MB of float32;
         # a server holds one per live trial's maze). The rays meet the same pixels; they take a
         # few more jumps to get there.
-        chamfer = cv2.distanceTransform((self.labels == Label.FLOOR).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
+        floor = (self.labels == Label.FLOOR).view(np.uint8)  # the bools' bytes: no copy to convert
+        chamfer = cv2.distanceTransform(floor, cv2.DIST_L2, cv2.DIST_MASK_5)
         self.clearance = _block_min_px(chamfer, CLEARANCE_BLOCK, np.float32(CHAMFER_SAFETY))
 
     def cast(self, x: ArrayLike, y: ArrayLike, angles: ArrayLike, window: int = 1) -> tuple[np.ndarray, np.ndarray]:
@@ -94,92 +95,113 @@ class RayCaster:
         crossings (more per round helps rays that run along a wall), then jumps as far as the
         distance transform allows.
         """
-        x, y, angles = np.broadcast_arrays(
-            np.asarray(x, np.float64), np.asarray(y, np.float64), np.asarray(angles, np.float64)
-        )
-        shape = x.shape
-        x, y, angles = x.ravel(), y.ravel(), angles.ravel()
-        outside = (x < 0) | (x > TABLE_WIDTH_M) | (y < 0) | (y > TABLE_HEIGHT_M)
+        x, y, angles = (np.asarray(a, np.float64) for a in (x, y, angles))
+        shape = np.broadcast_shapes(x.shape, y.shape, angles.shape)
+        xs, ys = (a.ravel() for a in np.broadcast_arrays(x, y))
+        outside = (xs < 0) | (xs > TABLE_WIDTH_M) | (ys < 0) | (ys > TABLE_HEIGHT_M)
         if outside.any():
             i = int(np.argmax(outside))
             raise ValueError(
-                f"ray origin ({x[i]:.3f}, {y[i]:.3f}) m is off the {TABLE_WIDTH_M} x {TABLE_HEIGHT_M} m table"
+                f"ray origin ({xs[i]:.3f}, {ys[i]:.3f}) m is off the {TABLE_WIDTH_M} x {TABLE_HEIGHT_M} m table"
             )
         h, w = self.labels.shape
-        # Positions shifted by half a pixel: pixel (col, row) is the unit square at
-        # [col, col + 1) x [row, row + 1), so truncation finds the pixel a point is in.
-        # Marched in float32: a ten-thousandth of a pixel at the far edge.
         f32 = np.float32
-        col0 = (x * PX_PER_M_X + 0.5).astype(f32)
-        row0 = ((h - 0.5) - y * PX_PER_M_Y).astype(f32)
+        # What depends on the direction alone is computed on the angles' own shape (a node table
+        # has 104 of them), and broadcast into the state below.
         dc = np.cos(angles) * PX_PER_M_X
         dr = -np.sin(angles) * PX_PER_M_Y
         px_per_m = np.hypot(dc, dr)  # pixels travelled per metre along each ray
         uc, ur = (dc / px_per_m).astype(f32), (dr / px_per_m).astype(f32)
-        t_exit = np.minimum(_exit_time(col0, uc, w), _exit_time(row0, ur, h)).astype(f32)
         # Distance along the ray between successive column (row) boundaries, and which side
         # of its pixel the next boundary is on (1 ahead in +col, 0 behind).
         with np.errstate(divide="ignore"):
             gap_c = np.where(uc != 0, 1 / np.abs(uc), _FAR).astype(f32)
             gap_r = np.where(ur != 0, 1 / np.abs(ur), _FAR).astype(f32)
         side_c, side_r = (uc > 0).astype(f32), (ur > 0).astype(f32)
+        # The state of every ray, one row per quantity (column, row pairs side by side, so that
+        # one numpy call does both axes): origin, direction, boundary gaps, sides, exit. Positions
+        # shifted by half a pixel: pixel (col, row) is the unit square at [col, col + 1) x
+        # [row, row + 1), so truncation finds the pixel a point is in. Marched in float32: a
+        # ten-thousandth of a pixel at the far edge.
+        state = np.empty((9, *shape), dtype=f32)
+        state[0] = (x * PX_PER_M_X + 0.5).astype(f32)
+        state[1] = ((h - 0.5) - y * PX_PER_M_Y).astype(f32)
+        for row, part in enumerate((uc, ur, gap_c, gap_r, side_c, side_r), start=2):
+            state[row] = part
+        state[8] = np.minimum(_exit_time(state[0], state[2], w), _exit_time(state[1], state[3], h))
+        n = state[0].size
+        state = state.reshape(9, n)
         flat_labels, flat_clear = self.labels.ravel(), self.clearance.ravel()
         block_w = self.clearance.shape[1]
         k = np.arange(window, dtype=f32)
 
-        n = x.size
         hit_label = np.zeros(n, dtype=np.uint8)
         hit_t = np.zeros(n, dtype=f32)
-        # The rays still marching: id, origin, direction, boundaries, exit. Compacted once a
-        # quarter of them have stopped (every round cost more in copies than the stopped ones
-        # cost marching on: they stay on the table, clamped at its edge, and are not recorded again).
-        state: tuple[np.ndarray, ...] = (np.arange(n), col0, row0, uc, ur, gap_c, gap_r, side_c, side_r, t_exit)
+        # The rays still marching: their ids, state and t. Compacted once a quarter of them have
+        # stopped (every round cost more in copies than the stopped ones cost marching on: they
+        # stay on the table, clamped at its edge, and are not recorded again).
+        ids = np.arange(n)
         t = np.zeros(n, dtype=f32)
         marching = np.ones(n, dtype=bool)
         left = n
         while left:
-            ids, c, r, u, v, gc, gr, sc, sr, te = state
+            origin, direction, gap, side, te = state[0:2], state[2:4], state[4:6], state[6:8], state[8]
             # Samples: the point at t, then just past each of the next boundary crossings.
-            pc, pr = c + u * t, r + v * t
-            fc, fr = np.floor(pc), np.floor(pr)
-            to_c = np.abs(sc - (pc - fc)) * gc
-            to_r = np.abs(sr - (pr - fr)) * gr
+            to = direction * t
+            to += origin
+            corner = np.floor(to)
+            to -= corner
+            np.subtract(side, to, out=to)
+            np.abs(to, out=to)
+            to *= gap  # (2, n): distance to the next column boundary, and to the next row boundary
             if window == 1:
-                ts = t[:, None]
-                advance = np.minimum(to_c, to_r)
-                row_px, col_px = fr.astype(np.int32)[:, None], fc.astype(np.int32)[:, None]
+                ts, ends = t, te
+                advance = np.minimum(to[0], to[1])
+                px = corner.astype(np.intp)
             else:
                 cross = np.sort(
-                    np.concatenate([to_c[:, None] + k * gc[:, None], to_r[:, None] + k * gr[:, None]], axis=1), axis=1
+                    np.concatenate(
+                        [to[0][:, None] + k * gap[0][:, None], to[1][:, None] + k * gap[1][:, None]], axis=1
+                    ),
+                    axis=1,
                 )[:, :window]
                 advance = cross[:, -1]
                 cross[:, 1:] = cross[:, :-1] + _PAST_PX
                 cross[:, 0] = 0
-                ts = np.minimum(t[:, None] + cross, te[:, None])
-                row_px = (r[:, None] + v[:, None] * ts).astype(np.int32)
-                col_px = (c[:, None] + u[:, None] * ts).astype(np.int32)
-            label = flat_labels.take(row_px * w + col_px)
-            stop = (label != 0) | (ts >= te[:, None])
-            reach = ts + flat_clear.take((row_px >> BLOCK_SHIFT) * block_w + (col_px >> BLOCK_SHIFT))
+                ends = te[:, None]
+                ts = np.minimum(t[:, None] + cross, ends)
+                px = (origin[:, :, None] + direction[:, :, None] * ts).astype(np.intp)
+            # intp indices: numpy converts any other to intp first, which cost more than the gather.
+            label = flat_labels.take(px[1] * w + px[0])
+            stop = label != 0
+            stop |= ts >= ends
+            px >>= BLOCK_SHIFT
+            reach = ts + flat_clear.take(px[1] * block_w + px[0])
             if window == 1:
-                done, label, at, reach = stop[:, 0], label[:, 0], ts[:, 0], reach[:, 0]
+                done, at = stop, ts
             else:
                 rows, first = np.arange(ids.size), stop.argmax(axis=1)
                 done, label, at, reach = stop[rows, first], label[rows, first], ts[rows, first], reach.max(axis=1)
-            t = np.minimum(np.maximum(t + advance + _PAST_PX, reach - _SAFE_PX), te)  # exits at the edge
-            stopped = np.flatnonzero(done & marching)  # a few of the many: indices, not masks
+            t = t + advance
+            t += _PAST_PX
+            reach -= _SAFE_PX
+            np.maximum(t, reach, out=t)
+            np.minimum(t, te, out=t)  # exits at the edge
+            # A few of the many: indices, not masks (`nonzero` itself: `np.flatnonzero` is three Python calls
+            # around it, and most rounds march a few hundred rays, where the calls are the cost).
+            stopped = (done & marching).nonzero()[0]
             if stopped.size:
-                hit_label[ids[stopped]] = label[stopped]
-                hit_t[ids[stopped]] = at[stopped]
+                rays = ids[stopped]
+                hit_label[rays], hit_t[rays] = label[stopped], at[stopped]
                 marching[stopped] = False
                 left -= stopped.size
                 if left <= ids.size * 3 // 4:
-                    keep = np.flatnonzero(marching)
-                    state = tuple(a.take(keep) for a in state)
-                    t, marching = t.take(keep), np.ones(left, dtype=bool)
+                    keep = marching.nonzero()[0]
+                    state, ids, t = state.take(keep, axis=1), ids.take(keep), t.take(keep)
+                    marching = np.ones(left, dtype=bool)
         # Where the ray entered the pixel it stopped in.
         hit_t = np.where(hit_t > 0, hit_t - _PAST_PX, 0).astype(np.float64)
-        return hit_label.reshape(shape), (hit_t / px_per_m).reshape(shape)
+        return hit_label.reshape(shape), (hit_t / np.broadcast_to(px_per_m, shape).ravel()).reshape(shape)
 
 
 def _block_min_px(distance: np.ndarray, block: int, scale: np.float32) -> np.ndarray:
@@ -190,12 +212,21 @@ def _block_min_px(distance: np.ndarray, block: int, scale: np.float32) -> np.nda
     h, w = distance.shape
     full_h, full_w = h // block, w // block
     least = np.zeros((-(-h // block), -(-w // block)), dtype=np.float32)
-    # The least of strided slices: a reduction over an axis of 4 cost three times as much.
+    # The least of strided slices, pairwise into one buffer: a reduction over an axis of 4 cost
+    # three times as much, and `np.minimum.reduce` over a list of slices first copies them all.
     whole = distance[: full_h * block, : full_w * block]
-    rows = np.minimum.reduce([whole[k::block] for k in range(block)])
-    least[:full_h, :full_w] = np.minimum.reduce([rows[:, k::block] for k in range(block)]) * scale
+    rows = _least_of([whole[k::block] for k in range(block)])
+    least[:full_h, :full_w] = _least_of([rows[:, k::block] for k in range(block)]) * scale
     clearance: np.ndarray = np.minimum(np.floor(least), 255).astype(np.uint8)
     return clearance
+
+
+def _least_of(parts: list[np.ndarray]) -> np.ndarray:
+    """The elementwise least of same-shaped arrays, in a buffer of its own."""
+    least: np.ndarray = np.minimum(parts[0], parts[1])
+    for part in parts[2:]:
+        np.minimum(least, part, out=least)
+    return least
 
 
 def _exit_time(p0: np.ndarray, u: np.ndarray, size: int) -> np.ndarray:
