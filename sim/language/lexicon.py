@@ -103,7 +103,14 @@ AROUND_STEPS = SECTOR_HEADING_OFFSET[Sector.BEHIND]
 def tokens(text: str) -> list[str]:
     """Lower-case words, spelling corrected (`vocab.correct`); "n't" as "not", the objects'
     hyphenated names as one word."""
-    text = text.lower().replace("n't", " not").replace("ping-pong", "pong").replace("end of the maze", "edge")
+    text = (
+        text.lower()
+        .replace("can't", "can not")
+        .replace("won't", "will not")
+        .replace("n't", " not")
+        .replace("ping-pong", "pong")
+        .replace("end of the maze", "edge")
+    )
     return [correct(w) for w in _TOKEN.findall(text)]
 
 
@@ -327,8 +334,9 @@ _ASKED = (
 # A report that the way ahead is barred where the Driver stands ("i hit a wall", "i can only go 2
 # steps", "there is a wall right in front of me"); "close ahead" is not: a step may still be free.
 _BLOCKED = re.compile(
-    r"\b(?:hit|bumped|bump|crashed|ran into|blocked|stuck|can only go|in my way)\b"
-    r"|\b(?:can not|cannot|could not|unable to) (?:go|move|drive) (?:forward|ahead|on|further)\b"
+    r"\b(?:hit|bumped|bump|crashed|ran into|blocked|stuck|can only go|in my way|no way forward)\b"
+    r"|\b(?:can not|cannot|cant|could not|unable to) (?:go|move|drive) (?:any )?(?:forward|ahead|on|further|farther)\b"
+    r"|\b(?:wall|stopped|stuck) after (?:\d+|one|two|three|four|five|six|seven|eight|nine|ten|a few)\b"
     r"|\bwall (?:is )?(?:right|directly|just|immediately) (?:in front|ahead)\b"
     r"|\b(?:right|directly|just|immediately) (?:in front of me|ahead) (?:is|there is) (?:a|the) wall\b"
     r"|\bfacing (?:a|the) wall\b"

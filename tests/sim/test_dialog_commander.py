@@ -217,13 +217,22 @@ def _navigating(world, pose: Pose) -> tuple[DialogCommander, str]:
     return commander, _said(commander.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3, target="jar")))
 
 
-def test_a_wall_reported_right_in_front_changes_its_next_instruction(world):
+@pytest.mark.parametrize(
+    "report",
+    [
+        "there is a wall right in front of me",
+        "i can't go forward, there's a wall",
+        "cant go any further",
+        "stopped after 2 steps, wall",
+    ],
+)
+def test_a_wall_reported_right_in_front_changes_its_next_instruction(world, report):
     """Told to walk on, the person says a wall is right in front: the Commander does not take the
     walk as done or say it again; it puts the robot where a wall bars the way and guides from there."""
     start = _walk_pose(world, 6)
     commander, first = _navigating(world, start)
     assert "go forward about" in first
-    turns = commander.perceive(Heard(Role.DRIVER, "there is a wall right in front of me"))
+    turns = commander.perceive(Heard(Role.DRIVER, report))
     estimate = commander.estimate()
     again = _said(turns)
     assert commander.graph.forward[estimate.pose.node, estimate.pose.heading] < 0, "a wall bars its way there"
