@@ -155,6 +155,7 @@ class DialogDriver:
         self._offered: tuple[Program, str] | None = None  # a reading it asked about, and its message
         self._failed = 0  # instructions in a row it could not carry out
         self._walked = 0  # forward moves since the last instruction
+        self._not_found: Label | None = None  # the target it last looked all around for in vain
         self.refused_for_walls = 0  # walks it stopped short of what it was told, a wall in its way
 
     def _say(self, fact: Fact) -> Say:
@@ -279,8 +280,10 @@ class DialogDriver:
         sought = next((i.label for i in parsed.instructions if isinstance(i, ins.Target) and i.side is None), None)
         if not tasks and sought is not None and self._phase == Phase.NAVIGATING:
             # Told it is at the target, or to go to it, with the target out of view: a person looks
-            # around for it rather than claim blind or say nothing.
-            tasks = [_Task(Task.SEEK, until=sought)]
+            # around for it rather than claim blind or say nothing; told so again after looking in
+            # vain, it trusts the map over its camera and claims.
+            tasks = [_Task(Task.CLAIM if sought == self._not_found else Task.SEEK, until=sought)]
+        self._not_found = None
         if tasks and tasks[-1].kind not in (Task.SAY, Task.CLAIM, Task.LOOK):
             tasks.append(_Task(Task.SAY))  # the report when the moves are done
         self._plan.extend(tasks)
@@ -465,7 +468,9 @@ class DialogDriver:
             self._plan.appendleft(_Task(Task.WALK, until=task.until))
             return None
         if task.done >= HEADINGS - 1:
-            return self._failure(Stuck(Why.NOWHERE, 0, self._view, wanted=task.until))
+            failure = self._failure(Stuck(Why.NOWHERE, 0, self._view, wanted=task.until))
+            self._not_found = task.until
+            return failure
         task.done += 1
         return RequestMove(Move.LEFT)
 

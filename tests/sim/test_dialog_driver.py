@@ -216,3 +216,46 @@ def test_told_to_walk_into_a_wall_it_stops_says_so_and_counts_it(world, persona)
         assert said[0].startswith("i can only go 1 steps")
     else:
         assert re.match(r"(wall after|blocked at|stuck after|hit wall,) 1\b", said[0]), said
+
+
+def test_told_it_is_at_the_target_out_of_view_it_looks_around_for_it_and_claims(world):
+    """ "you're at the jar" with the jar behind it: it turns until the jar is in view and claims,
+    rather than saying nothing or claiming blind."""
+    _, graph, _ = world
+    start = next(
+        Pose(n, h)
+        for n in range(graph.n)
+        for h in range(8)
+        if near(_rays(world, Pose(n, (h + 4) % 8)), Label.JAR)
+        and not any(s == Label.JAR for s in _rays(world, Pose(n, h)).labels[_rays(world, Pose(n, h)).valid])
+    )
+    driver = DialogDriver(0)
+    driver.reset(SeatInfo(Role.DRIVER, 3))
+    driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
+    driver.perceive(Saw(0, _rays(world, start)))
+    turns = driver.perceive(Heard(Role.COMMANDER, "you're at the jar now"))
+    pose = start
+    for _ in range(8):
+        assert turns and isinstance(turns[0], RequestMove) and turns[0].move == Move.LEFT, turns
+        pose, _ = graph.moves.step(pose, Action.LEFT)
+        turns = driver.perceive(Moved(Move.LEFT, Outcome.OK)) + driver.perceive(Saw(0, _rays(world, pose)))
+        if any(isinstance(t, Claim) for t in turns):
+            break
+    assert any(isinstance(t, Claim) for t in turns) and near(_rays(world, pose), Label.JAR)
+
+
+def test_told_again_after_looking_all_around_in_vain_it_trusts_the_map_and_claims(world):
+    _, graph, _ = world
+    start = next(
+        Pose(n, 0)
+        for n in range(graph.n)
+        if not any(Label.JAR in _rays(world, Pose(n, h)).labels[_rays(world, Pose(n, h)).valid] for h in range(8))
+    )
+    driver = DialogDriver(0)
+    driver.reset(SeatInfo(Role.DRIVER, 3))
+    driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
+    driver.perceive(Saw(0, _rays(world, start)))
+    pose, said = _carry_out(driver, world, start, "you're at the jar")
+    assert pose.node == start.node and "do not see the jar of blocks" in said[0], said
+    turns = driver.perceive(Heard(Role.COMMANDER, "you are at the jar"))
+    assert any(isinstance(t, Claim) for t in turns), turns
