@@ -80,6 +80,7 @@ KEYWORDS = frozenset(
         "turn",
         "turned",
         "forward",
+        "stuck",
         "forwards",
         "straight",
         "around",
