@@ -56,6 +56,7 @@ FAILED_TRIES = 2  # instructions in a row it could not carry out: ask for one mo
 _MOVING_OPS = (Op.TURN, Op.FORWARD, Op.FOLLOW, Op.OPENING, Op.BACK)
 _YES = Clause.of(Op.ANSWER, value="yes")
 _NO = Clause.of(Op.ANSWER, value="no")
+_CLAIM = Clause.of(Op.STOP, claim=True)
 
 
 def _moves(program: Program) -> int:
@@ -238,6 +239,14 @@ class DialogDriver:
         elif self._phase == Phase.NAVIGATING and (
             understood.confidence < ASK_BELOW or not _moves(program) and _moves(program_of(ins.parse(text)))
         ):
+            if (
+                understood.confidence < ASK_BELOW
+                and _CLAIM in (rules := program_of(ins.parse(text)))
+                and not _moves(rules)
+            ):
+                # Unsure, where the rules hear "you are right by it": a claim costs no move and is
+                # judged, so it claims rather than offer the reader's guess ("turning right?").
+                return self._follow(rules, text, said_unclear=False)
             return self._ask_about(program, text)  # unsure, or the rules hear moves where the reader heard none
         unclear = [c for c in program if c.op == Op.UNCLEAR]
         if unclear and len(unclear) < len(program):
@@ -248,7 +257,8 @@ class DialogDriver:
         """Not sure what was meant: say its best reading (the rules' where it read no move) and ask."""
         best = program if _moves(program) else program_of(ins.parse(text))
         if not _moves(best):
-            return self._follow(program, text, said_unclear=False)
+            # No move at stake: the reader's reading, or the rules' where the reader read nothing.
+            return self._follow(program or best, text, said_unclear=False)
         self._plan.clear()
         self._offered = (best, text)
         return [self._say(Troubled(Trouble.ASK_ABOUT, quoted=text.strip(), detail=read_back(best)))]

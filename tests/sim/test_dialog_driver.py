@@ -259,3 +259,17 @@ def test_told_again_after_looking_all_around_in_vain_it_trusts_the_map_and_claim
     assert pose.node == start.node and "do not see the jar of blocks" in said[0], said
     turns = driver.perceive(Heard(Role.COMMANDER, "you are at the jar"))
     assert any(isinstance(t, Claim) for t in turns), turns
+
+
+@pytest.mark.parametrize("text", ["you are right by it", "got it, you are right by it now"])
+def test_told_it_is_right_by_the_target_it_claims_and_does_not_turn_right(world, text):
+    _, graph, _ = world
+    at_jar = next(Pose(n, h) for n in range(graph.n) for h in range(8) if near(_rays(world, Pose(n, h)), Label.JAR))
+    driver = DialogDriver(0)
+    driver.reset(SeatInfo(Role.DRIVER, 3))
+    driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
+    driver.perceive(Heard(Role.COMMANDER, "now find the jar"))
+    turns = driver.perceive(Saw(0, _rays(world, at_jar)))
+    turns += driver.perceive(Heard(Role.COMMANDER, text))
+    assert any(isinstance(t, Claim) for t in turns), turns
+    assert not any(isinstance(t, RequestMove) for t in turns), turns
