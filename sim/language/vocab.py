@@ -273,8 +273,23 @@ def _distance(a: str, b: str, limit: int) -> int:
     return prev[-1]
 
 
+# A chat's shorthand for the maze's words ("turn r", "fwd 3", "l 2"): one or two letters no
+# speller would correct, and "r" read as nothing made the reader guess a left turn.
+SHORTHAND = {
+    "l": "left",
+    "r": "right",
+    "lft": "left",
+    "rt": "right",
+    "fwd": "forward",
+    "fw": "forward",
+    "str8": "straight",
+}
+
+
 def correct(word: str) -> str:
-    """The vocabulary word a misspelling stands for, or the word itself."""
+    """The vocabulary word a misspelling or shorthand stands for, or the word itself."""
+    if word in SHORTHAND:
+        return SHORTHAND[word]
     if len(word) < 4 or word in KEYWORDS or word in COMMON or not word.isalpha():
         return word
     limit = 1 if len(word) < 8 else 2  # two edits turn "follow" into "yellow"

@@ -47,6 +47,14 @@ def test_typos_are_read_as_the_words_meant():
     assert parse("move forward untill the end of blue walls").instructions == (Forward(until=Label.BLUE),)
     assert correct("yelow") == "yellow" and correct("foward") == "forward"
     assert correct("that") == "that" and correct("black") == "black" and correct("follow") == "follow"
+    # Common words one edit from the maze's are left alone: "nice and straight" is not nine steps.
+    assert [correct(w) for w in ("nice", "fine", "walk", "give")] == ["nice", "fine", "walk", "give"]
+
+
+def test_a_chats_shorthand_is_read_as_the_words_it_stands_for():
+    assert parse("turn r").instructions == (Turn(-2),)
+    assert parse("fwd 3 then l").instructions == (Forward(3), Turn(2))
+    assert parse("u turn").instructions == (Turn(4),)
 
 
 def test_history_points_back_to_the_start_or_a_turn():
