@@ -13,6 +13,7 @@ scripted Driver's words by default, or a frozen Driver persona's, slips and all.
 from __future__ import annotations
 
 import math
+import re
 from collections import deque
 from dataclasses import dataclass, field, replace
 from enum import StrEnum
@@ -57,6 +58,7 @@ _MOVING_OPS = (Op.TURN, Op.FORWARD, Op.FOLLOW, Op.OPENING, Op.BACK)
 _YES = Clause.of(Op.ANSWER, value="yes")
 _NO = Clause.of(Op.ANSWER, value="no")
 _CLAIM = Clause.of(Op.STOP, claim=True)
+_NO_WORD = re.compile(r"^\W*(?:no+|nope|nah|n)\b\W*", re.IGNORECASE)
 
 
 def _moves(program: Program) -> int:
@@ -235,6 +237,10 @@ class DialogDriver:
             program, text = offered  # "yes": the reading it asked about
         elif offered is not None and program == (_NO,):
             self._plan.clear()
+            # "no, right": the correction after the "no", where the rules hear a move in it.
+            correction = program_of(ins.parse(_NO_WORD.sub("", text, count=1)))
+            if _moves(correction):
+                return self._follow(correction, text, said_unclear=False)
             return [self._say(Troubled(Trouble.NOT_MEANT))]
         elif self._phase == Phase.NAVIGATING and (
             understood.confidence < ASK_BELOW or not _moves(program) and _moves(program_of(ins.parse(text)))

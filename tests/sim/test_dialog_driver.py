@@ -273,3 +273,16 @@ def test_told_it_is_right_by_the_target_it_claims_and_does_not_turn_right(world,
     turns += driver.perceive(Heard(Role.COMMANDER, text))
     assert any(isinstance(t, Claim) for t in turns), turns
     assert not any(isinstance(t, RequestMove) for t in turns), turns
+
+
+def test_told_no_with_the_other_way_after_it_asked_it_takes_the_correction(world):
+    _, graph, _ = world
+    start = _room_for(graph, 2, 0)
+    driver = DialogDriver(0)
+    driver.reset(SeatInfo(Role.DRIVER, 3))
+    driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
+    driver.perceive(Saw(0, _rays(world, start)))
+    (asked,) = driver.perceive(Heard(Role.COMMANDER, "go leftish"))  # words it is unsure of
+    assert isinstance(asked, Say) and "do you mean" in asked.text, asked
+    turns = driver.perceive(Heard(Role.COMMANDER, "no right"))
+    assert turns and isinstance(turns[0], RequestMove) and turns[0].move == Move.RIGHT, turns
