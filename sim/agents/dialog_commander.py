@@ -212,7 +212,9 @@ class DialogCommander:
         lost = estimate.spread_m > LOST_M
         if (lost or self._stuck >= LOST_AFTER) and self._questions < MAX_QUESTIONS:
             self._stuck = 0
-            return turns + self._ask(prefix="i am not sure where you are now" if lost else None)
+            # Said once, with its first question: not again before every one that follows.
+            unsure = lost and self._questions == 0
+            return turns + self._ask(prefix="i am not sure where you are now" if unsure else None)
         return turns + self._guide(one_move=self._stuck >= REPHRASE_AFTER)
 
     def _claimed(self, claim: Claimed) -> list[Action]:
