@@ -61,6 +61,12 @@ _CLAIM = Clause.of(Op.STOP, claim=True)
 _NO_WORD = re.compile(r"^\W*(?:no+|nope|nah|n)\b\W*", re.IGNORECASE)
 
 
+def _unheard_by_rules(text: str) -> bool:
+    """The rules make nothing of the turn: with a first word the reader never met ("pirouette
+    till the wall ..."), a confident reading is a guess at what that word means."""
+    return all(c.op == Op.UNCLEAR for c in program_of(ins.parse(text)))
+
+
 def _moves(program: Program) -> int:
     """How many of a program's clauses move the robot."""
     return sum(c.op in _MOVING_OPS for c in program)
@@ -243,7 +249,12 @@ class DialogDriver:
                 return self._follow(correction, text, said_unclear=False)
             return [self._say(Troubled(Trouble.NOT_MEANT))]
         elif self._phase == Phase.NAVIGATING and (
-            understood.confidence < ASK_BELOW or not _moves(program) and _moves(program_of(ins.parse(text)))
+            understood.confidence < ASK_BELOW
+            or not _moves(program)
+            and _moves(program_of(ins.parse(text)))
+            or _moves(program)
+            and understood.strange_lead
+            and _unheard_by_rules(text)
         ):
             if (
                 understood.confidence < ASK_BELOW

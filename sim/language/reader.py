@@ -217,6 +217,7 @@ class Reading:
 
     meaning: Program | frozenset[FactForm]
     confidence: float
+    strange_lead: bool = False  # its first word is one the reader never met (a verb it cannot know)
 
 
 class Reader:
@@ -308,7 +309,9 @@ class Reader:
         if own and sum(t not in self._source_index for t in own) > STRANGE * len(own):
             return Reading((Clause.of(Op.UNCLEAR),) if self.role == Role.COMMANDER else frozenset(), 0.0)
         out, confidence = self.decode(tokens)
-        return Reading(decode_meaning(self.role, out, numbers), confidence)
+        return Reading(
+            decode_meaning(self.role, out, numbers), confidence, bool(own) and own[0] not in self._source_index
+        )
 
 
 def complete(tokens: list[str], role: Role) -> list[str]:

@@ -29,6 +29,7 @@ class Understood(Generic[M]):
     meaning: M
     confidence: float
     by_rules: bool  # read by the rules (no reader for this seat's words)
+    strange_lead: bool = False  # the reader never met the turn's first word
 
 
 class Understanding:
@@ -56,7 +57,7 @@ class Understanding:
             return Understood(program_of(ins.parse(text)), 1.0, True)
         reading = self.commander_reader.read(text, before)
         assert isinstance(reading.meaning, tuple)  # a Commander reader writes programs
-        return Understood(reading.meaning, reading.confidence, False)
+        return Understood(reading.meaning, reading.confidence, False, reading.strange_lead)
 
     def facts(
         self, text: str, before: tuple[str, str] | None = None, asked: str | None = None
