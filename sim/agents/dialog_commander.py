@@ -379,6 +379,9 @@ class DialogCommander:
         estimate was then (the frame's pixels can put the target beyond reach where its rays do not)."""
         assert self._target is not None
         places = np.flatnonzero(self._reach[object_label(self._target)].any(axis=1))
+        if not places.size:  # no place of the robot's graph has it in view within reach: the nearest
+            away = np.hypot(*(self.graph.nodes - self.maze.objects[self._target]).T)
+            places = np.flatnonzero(away <= away.min() + GRID_STEP_M)
         away = np.hypot(*(self.graph.nodes[places] - self.maze.objects[self._target]).T)
         closer = places[away < self._closer_than_m]
         places = closer if closer.size else places

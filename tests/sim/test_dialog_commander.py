@@ -23,6 +23,7 @@ from sim.language import instructions as ins
 from sim.language.describe import near, seen
 from sim.language.sectors import Sector
 from sim.language.vocab import SIDE_STEPS
+from sim.tasks.benchmark import Benchmark
 from sim.tasks.library import BUNDLED_DIR
 from sim.trial.agent import SeatInfo
 from sim.trial.commands import Judge, Localize, Say
@@ -304,3 +305,17 @@ def test_a_report_of_the_target_on_a_side_counts_after_an_instruction(world):
     scene = commander.scene
     sees = ((scene.near + scene.far)[..., [Sector.FRONT, Sector.LEFT], Label.JAR] > 0).any(axis=-1)
     assert p[sees].mean() > 10 * p[~sees].mean()
+
+
+def test_a_target_no_place_sees_within_reach_is_guided_to_the_nearest_place(benchmark_path):
+    """On Run_152 no node of the robot's graph has the jar in view within reach: the Commander
+    guides to the places nearest it instead of failing (it raised, and a person drove alone)."""
+    bench = Benchmark(benchmark_path)
+    commander = DialogCommander(bench.maze("Run_152"), 0, bench.cache_dir)
+    commander.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
+    said = _said(commander.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3, target="jar")))
+    assert said, said
+    jar = commander.maze.objects["jar"]
+    goal = commander.goal(0)
+    nearest = min(math.dist(commander.graph.nodes[n], jar) for n in range(commander.graph.n))
+    assert math.dist(commander.graph.nodes[goal], jar) <= nearest + 0.08
