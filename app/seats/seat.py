@@ -34,7 +34,7 @@ from sim.robot.frames import FrameError, decode_jpeg
 from sim.robot.perception import PerceptionError, perceive
 from sim.trial import events as ev
 from sim.trial.agent import Agent
-from sim.trial.commands import Abort, Act, Action, Command, Note, RequestMove, Say
+from sim.trial.commands import Abort, Act, Action, Command, Note, Pause, RequestMove, Say
 from sim.trial.events import LoggedEvent
 from sim.trial.percepts import Claimed, Percept, Saw
 from sim.trial.specs import BackendKind, BackendSpec, SeatKind, SeatSpec
@@ -140,6 +140,9 @@ class AgentSeats:
             if not self.trial.state.over:
                 error = f"agent {str(self.seats[failed.role][0])!r} failed: {failed.__cause__}"
                 self.trial.apply(Note(ev.BadMessage(role=failed.role, error=error[:500])))
+                # The person in the other seat would talk to nothing: the clock stops, and both
+                # seats and the experimenter are told why (the experimenter aborts or restarts).
+                self.trial.apply(Pause(f"the {failed.role}'s agent stopped working; the experimenter has been told"))
 
     async def _run(self) -> None:
         agents: dict[Role, Agent] = {}

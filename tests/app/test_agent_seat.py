@@ -77,7 +77,7 @@ def test_register_driver_adds_a_named_agent(server, trials):
     assert len(actions) >= 3 and {a["action"] for a in actions} == {"left"}
 
 
-def test_an_agent_that_fails_is_logged_and_the_trial_stays_open(server, trials):
+def test_an_agent_that_fails_is_logged_and_the_trial_pauses_saying_why(server, trials):
     def broken(services, seating):
         raise FileNotFoundError("no checkpoint at runs/missing.pt")
 
@@ -91,6 +91,8 @@ def test_an_agent_that_fails_is_logged_and_the_trial_stays_open(server, trials):
             await asyncio.sleep(0.5)
             await commander.send("chat", text="anyone there?")
             await commander.event("chat", text="anyone there?")
+            # The person is told: the trial pauses with the reason, not left talking to nothing.
+            await commander.wait_for(lambda m: "agent stopped working" in str(m))
 
     asyncio.run(command())
     with services.db() as db:
