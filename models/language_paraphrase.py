@@ -162,7 +162,7 @@ _THINGS = {
     "mug": ["mug", "coffee mug", "cup"],
     "paddle": ["paddle", "ping pong paddle", "ping-pong paddle", "bat", "racket"],
 }
-_WALL_WORDS = {"wall": ["wall", "end", "edge", "end of the hallway"]}
+_ANY_WALL = ["wall", "end", "edge", "end of the hallway"]  # a walk up to whatever wall is ahead
 
 
 def _number(rng: random.Random, n: int) -> str:
@@ -217,7 +217,7 @@ def paraphrase_examples(seed: int, n: int = 3000) -> list[tuple[str, Program]]:
             until = rng.choice(list(_THINGS))
             words = rng.choice(_THINGS[until])
         else:
-            until, words = "wall", rng.choice(_WALL_WORDS["wall"])
+            until, words = "wall", rng.choice(_ANY_WALL)
         return rng.choice(_UNTIL).format(x=words), (Clause.of(Op.FORWARD, steps=None, until=until),)
 
     def back() -> Move:

@@ -61,12 +61,6 @@ _CLAIM = Clause.of(Op.STOP, claim=True)
 _NO_WORD = re.compile(r"^\W*(?:no+|nope|nah|n)\b\W*", re.IGNORECASE)
 
 
-def _unheard_by_rules(text: str) -> bool:
-    """The rules make nothing of the turn: with a first word the reader never met ("pirouette
-    till the wall ..."), a confident reading is a guess at what that word means."""
-    return all(c.op == Op.UNCLEAR for c in program_of(ins.parse(text)))
-
-
 def _moves(program: Program) -> int:
     """How many of a program's clauses move the robot."""
     return sum(c.op in _MOVING_OPS for c in program)
@@ -248,31 +242,26 @@ class DialogDriver:
             if _moves(correction):
                 return self._follow(correction, text, said_unclear=False)
             return [self._say(Troubled(Trouble.NOT_MEANT))]
-        elif self._phase == Phase.NAVIGATING and (
-            understood.confidence < ASK_BELOW
-            or not _moves(program)
-            and _moves(program_of(ins.parse(text)))
-            or _moves(program)
-            and understood.strange_lead
-            and _unheard_by_rules(text)
-        ):
-            if (
-                understood.confidence < ASK_BELOW
-                and _CLAIM in (rules := program_of(ins.parse(text)))
-                and not _moves(rules)
-            ):
-                # Unsure, where the rules hear "you are right by it": a claim costs no move and is
-                # judged, so it claims rather than offer the reader's guess ("turning right?").
+        elif self._phase == Phase.NAVIGATING:
+            rules = program_of(ins.parse(text))  # the rules' reading: a second opinion, read once
+            unsure = understood.confidence < ASK_BELOW
+            if unsure and _CLAIM in rules and not _moves(rules):
+                # The rules hear "you are right by it": a claim costs no move and is judged, so it
+                # claims rather than offer the reader's guess ("turning right?").
                 return self._follow(rules, text, said_unclear=False)
-            return self._ask_about(program, text)  # unsure, or the rules hear moves where the reader heard none
+            # A guess where the rules make nothing of a turn led by a word the reader never met
+            # ("pirouette till the wall ...").
+            guessed = _moves(program) and understood.strange_lead and all(c.op == Op.UNCLEAR for c in rules)
+            if unsure or guessed or not _moves(program) and _moves(rules):
+                return self._ask_about(program, rules, text)  # or the rules hear moves the reader did not
         unclear = [c for c in program if c.op == Op.UNCLEAR]
         if unclear and len(unclear) < len(program):
             program = tuple(c for c in program if c.op != Op.UNCLEAR)  # act on what it understood
         return self._follow(program, text, said_unclear=bool(unclear))
 
-    def _ask_about(self, program: Program, text: str) -> list[Action]:
+    def _ask_about(self, program: Program, rules: Program, text: str) -> list[Action]:
         """Not sure what was meant: say its best reading (the rules' where it read no move) and ask."""
-        best = program if _moves(program) else program_of(ins.parse(text))
+        best = program if _moves(program) else rules
         if not _moves(best):
             # No move at stake: the reader's reading, or the rules' where the reader read nothing.
             return self._follow(program or best, text, said_unclear=False)
@@ -329,7 +318,7 @@ class DialogDriver:
             self._target = item.label
             if item.side is None:
                 # Told what to find: where it is in view, go up to it.
-                visible = self._view is not None and any(s.label == item.label for s in seen(self._view))
+                visible = self._in_view(item.label)
                 return [_Task(Task.WALK, until=item.label)] if visible and self._phase == Phase.NAVIGATING else []
             return [_Task(Task.TURN, turns=SIDE_STEPS[item.side] if item.side != Side.RIGHT else -2)] + [
                 _Task(Task.WALK, until=item.label)
@@ -374,6 +363,9 @@ class DialogDriver:
             if step is not None:
                 out += step if isinstance(step, list) else [step]
         return out
+
+    def _in_view(self, label: Label) -> bool:
+        return self._view is not None and any(s.label == label for s in seen(self._view))
 
     def _sees_target(self) -> bool:
         if self._target is None or self._phase != Phase.NAVIGATING or self._view is None:
@@ -491,7 +483,7 @@ class DialogDriver:
     def _seek(self, task: _Task) -> RequestMove | Say | None:
         """Left a turn at a time until the target is in view (then up to it), or all the way round."""
         assert task.until is not None  # seek tasks are made from a named target
-        if self._view is not None and any(s.label == task.until for s in seen(self._view)):
+        if self._in_view(task.until):
             self._plan.appendleft(_Task(Task.WALK, until=task.until))
             return None
         if task.done >= HEADINGS - 1:
