@@ -35,7 +35,9 @@ def test_a_slow_reader_gets_the_newest_frame_not_a_backlog():
     finally:
         grabber.stop()
     assert second.seq - first.seq >= 10  # frames in between were dropped, not queued
-    assert read_at - second.capture_ns < 100e6  # what is sent is fresh
+    # What is sent is fresh: a backlog's next frame would be about 0.5 s old; 0.3 s leaves room for
+    # a loaded machine to schedule the grabber late (two CI runs at once gave 176 ms).
+    assert read_at - second.capture_ns < 300e6
     assert second.capture_ns > first.capture_ns
 
 
