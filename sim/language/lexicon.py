@@ -67,6 +67,7 @@ SECTORS = {**SECTOR_WORDS, "infront": Sector.FRONT, "rear": Sector.BEHIND}
 _RIGHT_AS_NEAR = {"in", "behind", "ahead", "next", "by", "beside", "there", "here", "now", "at", "up", "on"}
 # "back" that is a move or a return, not the sector behind.
 _BACK_NOT_SECTOR = {"up", "to", "out", "into", "down"}
+_AT = (("am", "at"), ("m", "at"), ("found", "the"), ("found", "a"))  # "i'm at the jar": near it
 NEAR_WORDS = {"close", "closely", "directly", "immediately", "immediate", "near", "nearby", "just", "touching"}
 FAR_WORDS = {"far", "distance", "distant", "end", "down", "away", "across", "farther", "further", "long"}
 NEGATIONS = {
@@ -89,6 +90,8 @@ EDGE_WORDS = {"edge", "border", "boundary"}
 CORNER_WORDS = {"corner", "intersection", "junction"}
 DEAD_END = ("dead", "end")
 _NEGATED_NOUNS = {"wall", "walls", "more", "other", *CORRIDOR_WORDS, *CORNER_WORDS}
+_SAYING = {"i", "there", "it", "its", "is", "are", "see", "can", "have", "also"}
+_LISTED_FILLER = {"a", "an", "the", "some", "one", "two", "part", "of", "wall", "walls", "both", *_SAYING}
 RELATION_WORDS = {"next", "beside", "attached", "connected", "connect", "connects", "adjacent", "between", "joined"}
 YES = {"yes", "yeah", "yep", "yup", "yea", "ya", "correct", "affirmative", "sure", "indeed", "right"}
 NO = {"no", "nope", "nah", "negative"}
@@ -125,9 +128,14 @@ def _sectors(words: list[str]) -> list[tuple[int, Sector]]:
             continue
         if w in SECTORS:
             out.append((k, SECTORS[w]))
-        elif w == "sides":
+        elif w == "sides" or (w == "between" and _walls_of_one_colour(words[k + 1 : k + 4])):
             out += [(k, Sector.LEFT), (k, Sector.RIGHT)]
     return out
+
+
+def _walls_of_one_colour(words: list[str]) -> bool:
+    """ "(between) yellow walls": one colour on both sides, not "between blue and white"."""
+    return sum(w in LABELS for w in words) == 1 and "walls" in words and "and" not in words
 
 
 def _labels(words: list[str]) -> list[tuple[int, Label]]:
@@ -141,8 +149,14 @@ def _labels(words: list[str]) -> list[tuple[int, Label]]:
 
 
 def _distance(words: list[str]) -> Distance:
-    near = any(w in NEAR_WORDS for w in words) or any(
-        w == "right" and k + 1 < len(words) and words[k + 1] in _RIGHT_AS_NEAR for k, w in enumerate(words)
+    near = (
+        any(w in NEAR_WORDS for w in words)
+        or any(w == "right" and k + 1 < len(words) and words[k + 1] in _RIGHT_AS_NEAR for k, w in enumerate(words))
+        or any(_has(words, phrase) for phrase in _AT)
+        or any(
+            words[k : k + 3] == ["in", "front", "of"] and words[k + 3 : k + 4] not in (["me"], [])
+            for k in range(len(words))
+        )
     )
     far = any(w in FAR_WORDS for w in words) and not _has(words, DEAD_END)
     if near == far:
@@ -188,7 +202,7 @@ def _pieces(chunk: list[str]) -> list[_Piece]:
             parts[-1].append(w)
     pieces = [_Piece(p, _labels(p), _sectors(p)) for p in parts if p]
     merged: list[_Piece] = []
-    for piece in pieces:
+    for piece in _shared(pieces):
         if merged and not piece.labels and piece.sectors and not _negations(piece.words):
             prev = merged[-1]
             offset = len(prev.words)
@@ -200,6 +214,36 @@ def _pieces(chunk: list[str]) -> list[_Piece]:
     return merged
 
 
+def _listed(piece: _Piece) -> bool:
+    """A part that only names labels ("a brown", "i see red walls", "some part of white walls"):
+    the direction the next part names is theirs too."""
+    return bool(piece.labels) and not piece.sectors and all(w in LABELS or w in _LISTED_FILLER for w in piece.words)
+
+
+def _shared(pieces: list[_Piece]) -> list[_Piece]:
+    """Labels listed before a part that names labels and a direction are seen there too: "a brown
+    and red wall to my left", "green walls and a red wall are in front of me"."""
+    out: list[_Piece] = []
+    for piece in pieces:
+        if (
+            out
+            and _listed(out[-1])
+            and piece.labels
+            and piece.sectors
+            and piece.words[0] not in _SAYING  # "... and there is a blue wall on my left": a view of its own
+            and not _negations(out[-1].words)
+        ):
+            listed = out.pop()
+            offset = len(listed.words)
+            piece = _Piece(
+                listed.words + piece.words,
+                listed.labels + [(k + offset, lab) for k, lab in piece.labels],
+                [(k + offset, s) for k, s in piece.sectors],
+            )
+        out.append(piece)
+    return out
+
+
 def _label_facts(piece: _Piece, distance: Distance) -> list[Fact]:
     """Each label in the sectors named in its piece: every direction word counts. A piece naming
     as many directions as labels pairs them in order ("blue left, red right"); otherwise each
@@ -209,7 +253,7 @@ def _label_facts(piece: _Piece, distance: Distance) -> list[Fact]:
     neg_at = _negations(words)
     out = []
     sectors = [s for _, s in piece.sectors]
-    joined = len(set(sectors)) > 1 and (piece.joined or "sides" in words)
+    joined = len(set(sectors)) > 1 and (piece.joined or "sides" in words or "between" in words)
     for k, label in piece.labels:
         negated = any(n < k for n in neg_at)
         if not sectors:
@@ -247,6 +291,10 @@ def _relation_facts(words: list[str], sectors: tuple[Sector, ...]) -> list[Fact]
     for k, w in enumerate(words):
         if w == "between":
             pair = [lab for p, lab in labels if p > k][:2]
+        elif w == "and" and k > 0 and words[k - 1] in LABELS:
+            # "a brown and (a) red wall", "white and yellow": one thing of two colours
+            after = [lab for p, lab in labels if p == k + 1 or (p == k + 2 and words[k + 1] in ("a", "an", "the"))]
+            pair = [LABELS[words[k - 1]], *after[:1]]
         elif w in CORNER_WORDS:
             pair = [lab for p, lab in labels if k - 6 <= p < k][-2:]
         elif w in RELATION_WORDS and not (w == "next" and words[k + 1 : k + 3] == ["to", "me"]):

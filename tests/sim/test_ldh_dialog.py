@@ -58,6 +58,21 @@ def test_every_direction_word_counts():
     assert len(facts("The white edge wall is ahead")) == 1
 
 
+def test_labels_listed_before_a_direction_share_it():
+    # colours under one noun stand side by side and share the direction named after them
+    got = facts("There are yellow walls to my left and red and white walls to my right")
+    assert seen(got) == {((L,), Label.YELLOW, False), ((R,), Label.RED, False), ((R,), Label.WHITE, False)}
+    assert [(f.label, f.other) for f in got if f.kind == ViewKind.NEXT_TO] == [(Label.RED, Label.WHITE)]
+    # separate nouns share the direction too, but are not said to meet
+    got = facts("I can see one red wall and two yellow walls far ahead of me")
+    assert seen(got) == {((F,), Label.RED, False), ((F,), Label.YELLOW, False)}
+    assert {f.distance.value for f in got} == {"far"} and not [f for f in got if f.kind == ViewKind.NEXT_TO]
+    # a clause of its own keeps its own direction
+    assert ((ANY,), Label.RED, False) in seen(facts("i see a red wall and there is a blue wall on my left"))
+    # "between yellow walls": on both sides
+    assert seen(facts("I'm in between yellow walls")) == {((L,), Label.YELLOW, False), ((R,), Label.YELLOW, False)}
+
+
 def test_the_edge_of_the_maze_is_the_tables_border_not_any_white_wall():
     kinds = {
         f.kind: f for f in facts("I'm facing blue walls, with a white wall on my left and the edge of maze on my right")
@@ -69,6 +84,8 @@ def test_the_edge_of_the_maze_is_the_tables_border_not_any_white_wall():
 
 def test_near_and_far():
     (near,) = facts("To my immediate left i see a red wall")
+    (front,) = facts("I am in front of red walls")  # standing at them, not seeing them ahead
+    assert front.distance.value == "near" and facts("in front of me is a red wall")[0].distance.value == "any"
     (far,) = facts("blue far ahead")
     assert (near.sectors, near.label, near.distance.value) == ((L,), Label.RED, "near")
     assert (far.sectors, far.label, far.distance.value) == ((F,), Label.BLUE, "far")
