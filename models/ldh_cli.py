@@ -91,9 +91,9 @@ def eval_ldh(
             raise typer.BadParameter(str(e), param_hint="--checkpoint") from None
     bench = open_benchmark(benchmark)
     if DIALOG in names:
-        from sim.language.understanding import Understanding
+        from sim.language.reader import Role, shipped
 
-        agents[DIALOG] = DialogLocalizer(bench, understanding=Understanding.trained())
+        agents[DIALOG] = DialogLocalizer(bench, reader=shipped(Role.DRIVER))
     agents = {name: agents[name] for name in names}  # in the order asked for
     try:
         instances = load_split(bench, split.value, Variant(variant.value))

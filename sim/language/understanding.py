@@ -67,7 +67,21 @@ class Understanding:
             return Understood(facts_of(text, asked), 1.0, True)
         reading = self.driver_reader.read(text, before)
         assert isinstance(reading.meaning, frozenset)  # a Driver reader writes facts
-        return Understood(reading.meaning, reading.confidence, False)
+        return Understood(_joined(reading.meaning, facts_of(text, asked)), reading.confidence, False)
+
+
+VIEW_KINDS = frozenset(
+    {FactKind.LABEL, FactKind.EDGE, FactKind.CORRIDOR, FactKind.CORNER, FactKind.DEAD_END, FactKind.NEXT_TO}
+)
+
+
+def _joined(read: frozenset[FactForm], ruled: frozenset[FactForm]) -> frozenset[FactForm]:
+    """A Driver turn's dialog acts (answers, questions, claims) as the reader reads them, its view as
+    the rules do where they make anything of it: they bind each colour to the direction written
+    with it, where the reader learnt which colours go with which directions and now and then
+    swaps them ("white to my left, red to my right" read the other way round)."""
+    view = frozenset(f for f in ruled if f.kind in VIEW_KINDS) or frozenset(f for f in read if f.kind in VIEW_KINDS)
+    return frozenset(f for f in read if f.kind not in VIEW_KINDS) | view
 
 
 def _label(word: object) -> Label | None:
