@@ -93,11 +93,11 @@ def fit(records: Iterable[Record], prior: float = PRIOR) -> Calibration:
 # `python -m bench.ldh_calibration --benchmark PATH` (train split, rules' reading, prefix variant).
 FITTED = Calibration(
     {
-        Evidence.LABEL: (-1.59, 0.155, 0.373, 0.377, 1.586),
-        Evidence.LABEL_ANYWHERE: (-0.981, 0.29, 0.27, -0.293, 0.297),
+        Evidence.LABEL: (-1.501, 0.237, 0.351, 0.374, 1.571),
+        Evidence.LABEL_ANYWHERE: (-1.508, 0.325, 0.238, 0.014, 0.228),
         Evidence.EDGE: (-0.889, -2.621, -0.795, -1.015, 1.14),
         Evidence.CORRIDOR: (-0.341, -0.3, -0.038, 0.327, 0.191),
         Evidence.CORNER: (-1.504, 0.008, 0.409, 0.355, -0.953),
-        Evidence.NEXT_TO: (-0.585, 0.0, 0.0, 1.126, 0.784),
+        Evidence.NEXT_TO: (-0.411, 0.0, 1.162, 0.17, 0.764),
     }
 )
