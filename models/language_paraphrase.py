@@ -115,6 +115,50 @@ _UNTIL = [
     "go forward until the {x} is right in front of you",
     "go right up to the {x}",
 ]
+# A turn where something is reached: a walk to it, then the turn (docs/language_gold.md).
+_TURN_AT = [
+    "turn {d} at the {x}",
+    "make a {d} at the {x}",
+    "take a {d} at the {x}",
+    "turn {d} when you reach the {x}",
+    "once you reach the {x}, turn {d}",
+    "when you get to the {x} turn {d}",
+    "at the {x} turn {d}",
+    "turn {d} before the {x}",
+    "take a {d} after the {x}",
+    "make a {d} turn around the end of the {x}",
+    "turn {d} around the {x}",
+    "go to the {x} and turn {d}",
+]
+_TURN_AROUND_AT = ["u turn at the {x}", "turn around at the {x}", "make a u-turn after the {x}"]
+_AT_WALL = ["edge", "edge of the maze", "end", "wall", "end of the hallway", "other edge"]
+_BACK_TO = [
+    "go back to the {x}",
+    "head back to the {x}",
+    "return to the {x}",
+    "trace back to the {x}",
+    "back out to the {x}",
+    "now go back to the {x}",
+    "go back toward the {x}",
+]
+_FOLLOW = [
+    "follow the {c} walls",
+    "follow the {c} wall",
+    "go along the {c} walls",
+    "stay along the {c} walls",
+    "stay to the {s} of the {c} walls",
+    "keep the {c} walls on your {o}",
+    "follow along the {c} walls",
+    "keep following the {c} wall",
+    "hug the {c} wall",
+]
+_EXPECT = [
+    "you should see the {x} on your {s}",
+    "the {x} should be on your {s}",
+    "you will see the {x} on your {s}",
+    "{x} should be to your {s}",
+    "you should have the {x} to your {s}",
+]
 _BACK = ["back up {n} steps", "go back {n} steps", "reverse {n} steps", "back up {n}", "go backwards {n}"]
 _STOP = ["stop", "stop there", "wait", "hold on", "stop right there", "ok stop"]
 _JOIN = [", then ", " then ", " and ", ". ", " and then ", ", and then ", ". then ", ", after that ", ", "]
@@ -225,6 +269,44 @@ def paraphrase_examples(seed: int, n: int = 3000) -> list[tuple[str, Program]]:
         text = rng.choice(_BACK).format(n=_number(rng, steps)).replace("cm steps", "cm")
         return text, (Clause.of(Op.BACK, place="previous", steps=steps),)
 
+    def place() -> tuple[str, str]:
+        """Something a walk ends at, in words, and its `until`."""
+        kind = rng.random()
+        if kind < 0.65:
+            label = rng.choice(WALL_LABELS).word
+            return f"{label} wall{rng.choice(['', 's', 's'])}", label
+        if kind < 0.8:
+            until = rng.choice(list(_THINGS))
+            return rng.choice(_THINGS[until]), until
+        return rng.choice(_AT_WALL), "wall"
+
+    def turn_at() -> Move:
+        words, until = place()
+        walk = Clause.of(Op.FORWARD, steps=None, until=until)
+        if rng.random() < 0.15:
+            return rng.choice(_TURN_AROUND_AT).format(x=words), (walk, Clause.of(Op.TURN, eighths=4))
+        side = rng.choice(["left", "right"])
+        turning = Clause.of(Op.TURN, eighths=2 if side == "left" else -2)
+        return rng.choice(_TURN_AT).format(d=side, x=words), (walk, turning)
+
+    def back_to() -> Move:
+        words, until = place()
+        program = (Clause.of(Op.BACK, place="previous", steps=None), Clause.of(Op.FORWARD, steps=None, until=until))
+        return rng.choice(_BACK_TO).format(x=words), program
+
+    def follow() -> Move:
+        label = rng.choice(WALL_LABELS).word
+        side = rng.choice(["left", "right"])
+        other = "right" if side == "left" else "left"
+        return rng.choice(_FOLLOW).format(c=label, s=side, o=other), (Clause.of(Op.FOLLOW, label=label),)
+
+    def expect() -> Move:
+        words, label = place()
+        label = label if label != "wall" else rng.choice(WALL_LABELS).word
+        words = words if label in _THINGS or label in words else f"{label} walls"
+        side = rng.choice(["left", "right"])
+        return rng.choice(_EXPECT).format(x=words, s=side), (Clause.of(Op.EXPECT, label=label, side=side),)
+
     def stop() -> Move:
         return rng.choice(_STOP), (Clause.of(Op.STOP, claim=False),)
 
@@ -238,6 +320,7 @@ def paraphrase_examples(seed: int, n: int = 3000) -> list[tuple[str, Program]]:
         return f"{text}, {rng.choice(_AGAIN[op]).format(deg=degrees)}", program
 
     makers: list[Callable[[], Move]] = [turn, turn, forward, forward, until, until, back, stop]
+    makers += [turn_at, turn_at, back_to, follow, expect]
     out = []
     for _ in range(n):
         moves = [again(rng.choice(makers)()) for _ in range(rng.choice([1, 1, 2, 2, 3]))]

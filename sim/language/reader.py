@@ -42,7 +42,7 @@ STEP_M = 0.07  # one forward move
 MAX_CONTEXT = 12  # words of the turn before that the reader sees
 MAX_NUMBERS = 4
 MAX_OUTPUT = 48
-STRANGE = 0.5  # more than this share of a turn's words unknown to the reader: it is not understood
+STRANGE = 0.5  # this share of a turn's words or more unknown to the reader: it is not understood ("go leftish")
 SHIPPED_DIR = Path(__file__).with_name("reader")
 
 PAD, UNK, SEP, BOS, EOS = "<pad>", "<unk>", "<sep>", "<bos>", "<eos>"
@@ -302,11 +302,11 @@ class Reader:
 
     def read(self, text: str, before: tuple[str, str] | None = None) -> Reading:
         """`before`: the turn before this one, as (speaker "c" or "d", its text), if any. A turn
-        mostly of words the reader never met is not guessed at: a Commander's is `unclear`, a
+        half or more of words the reader never met is not guessed at: a Commander's is `unclear`, a
         Driver's states nothing."""
         tokens, numbers = source_tokens(text, before)
         own = tokens[tokens.index(SEP) + 1 :]
-        if own and sum(t not in self._source_index for t in own) > STRANGE * len(own):
+        if own and sum(t not in self._source_index for t in own) >= STRANGE * len(own):
             return Reading((Clause.of(Op.UNCLEAR),) if self.role == Role.COMMANDER else frozenset(), 0.0)
         out, confidence = self.decode(tokens)
         return Reading(
