@@ -22,7 +22,7 @@ from sim.core.geometry import HEADING_DI, HEADING_DJ, HEADINGS
 from sim.core.labels import OBJECT_LABELS, Label
 from sim.core.rays import RayObservation
 from sim.language import instructions as ins
-from sim.language.describe import LEFT_EDGE, RIGHT_EDGE, ahead, at_wall, near, seen
+from sim.language.describe import CENTRE_RAYS, LEFT_EDGE, RIGHT_EDGE, ahead, at_wall, near, seen
 from sim.language.driver_phrasing import (
     Answered,
     Claiming,
@@ -40,7 +40,15 @@ from sim.language.driver_phrasing import (
     Why,
 )
 from sim.language.meaning import Clause, Op, Program, program_of
-from sim.language.understanding import Understanding, instructions, read_back
+from sim.language.understanding import (
+    MOVING_OPS,
+    Understanding,
+    instructions,
+    read_back,
+    turn_words,
+    unread_counts,
+    with_count,
+)
 from sim.language.vocab import SIDE_STEPS, Side, wall_name
 from sim.trial.agent import SeatInfo
 from sim.trial.commands import Action, Claim, RequestMove, Say, named
@@ -54,7 +62,6 @@ MAX_WALK = 60  # forward moves one "until" may take before the Driver asks
 ASK_BELOW = 0.8
 READ_BACK_CLAUSES = 2  # with read-back on, a plan of this many moving clauses is said before it is done
 FAILED_TRIES = 2  # instructions in a row it could not carry out: ask for one move at a time
-_MOVING_OPS = (Op.TURN, Op.FORWARD, Op.FOLLOW, Op.OPENING, Op.BACK)
 _YES = Clause.of(Op.ANSWER, value="yes")
 _NO = Clause.of(Op.ANSWER, value="no")
 _CLAIM = Clause.of(Op.STOP, claim=True)
@@ -63,7 +70,7 @@ _NO_WORD = re.compile(r"^\W*(?:no+|nope|nah|n)\b\W*", re.IGNORECASE)
 
 def _moves(program: Program) -> int:
     """How many of a program's clauses move the robot."""
-    return sum(c.op in _MOVING_OPS for c in program)
+    return sum(c.op in MOVING_OPS for c in program)
 
 
 class Task(StrEnum):
@@ -87,7 +94,8 @@ class _Task:
     kind: Task
     turns: int = 0
     steps: int | None = None
-    until: Label | None = None
+    until: Label | None = None  # WALK, SEEK: what to go up to; TURN: what to turn until it is in view
+    facing: bool = False  # TURN until: until it is ahead
     exclude: frozenset[Label] = frozenset()
     side: Side | None = None
     nth: int = 0
@@ -97,6 +105,7 @@ class _Task:
     done: int = 0
     edge_near: bool = False  # OPENING: the side ray met a wall at the last step
     home: int | None = None  # LOOK: the heading to answer from
+    missed: tuple[str, str] | None = None  # SAY the report: words it did not get, and its best reading
 
 
 @dataclass
@@ -158,6 +167,7 @@ class DialogDriver:
         self._offered: tuple[Program, str] | None = None  # a reading it asked about, and its message
         self._failed = 0  # instructions in a row it could not carry out
         self._walked = 0  # forward moves since the last instruction
+        self._turned = 0  # eighths turned by turn tasks since it last moved forward, for its report
         self._not_found: Label | None = None  # the target it last looked all around for in vain
         self.refused_for_walls = 0  # walks it stopped short of what it was told, a wall in its way
 
@@ -223,6 +233,7 @@ class DialogDriver:
             self._odo.j += int(HEADING_DJ[self._odo.heading])
             self._odo.trail.append(self._odo.here)
             self._walked += 1
+            self._turned = 0
             self._views = {}
         else:
             self._odo.heading = (self._odo.heading + (1 if moved.move == Move.LEFT else -1)) % HEADINGS
@@ -257,6 +268,15 @@ class DialogDriver:
         unclear = [c for c in program if c.op == Op.UNCLEAR]
         if unclear and len(unclear) < len(program):
             program = tuple(c for c in program if c.op != Op.UNCLEAR)  # act on what it understood
+        unread = unread_counts(program, text) if _moves(program) and self._phase == Phase.NAVIGATING else []
+        if unread:
+            # A count its reading left unused ("left 3" read as a turn): where it comes after all
+            # it understood, it does that and then asks; before, it asks first (a walk done after
+            # the turn it belonged before would go elsewhere).
+            offer, after = with_count(program, text, unread[0])
+            if not after:
+                return self._ask(offer, text, quoted=unread[0].said)
+            return self._follow(program, text, said_unclear=bool(unclear), unread=(unread[0].said, offer[-1:]))
         return self._follow(program, text, said_unclear=bool(unclear))
 
     def _ask_about(self, program: Program, rules: Program, text: str) -> list[Action]:
@@ -265,9 +285,17 @@ class DialogDriver:
         if not _moves(best):
             # No move at stake: the reader's reading, or the rules' where the reader read nothing.
             return self._follow(program or best, text, said_unclear=False)
+        unread = unread_counts(best, text)
+        if unread:
+            best, _ = with_count(best, text, unread[0])
+        return self._ask(best, text, quoted=text.strip())
+
+    def _ask(self, reading: Program, text: str, quoted: str) -> list[Action]:
+        """Say its best reading of the words it did not get (`quoted`, of the message `text`) and
+        ask; a "yes" carries the reading out."""
         self._plan.clear()
-        self._offered = (best, text)
-        return [self._say(Troubled(Trouble.ASK_ABOUT, quoted=text.strip(), detail=read_back(best)))]
+        self._offered = (reading, text)
+        return [self._say(Troubled(Trouble.ASK_ABOUT, quoted=quoted, detail=read_back(instructions(reading, text))))]
 
     def _failure(self, stuck: Stuck) -> Say:
         """It could not carry out what it was told: it drops the plan; after FAILED_TRIES in a row it asks for less."""
@@ -276,11 +304,15 @@ class DialogDriver:
         self.refused_for_walls += stuck.why in (Why.CANNOT_GO, Why.IN_THE_WAY)
         return self._say(replace(stuck, one_at_a_time=self._failed >= FAILED_TRIES))
 
-    def _follow(self, program: Program, text: str, said_unclear: bool) -> list[Action]:
+    def _follow(
+        self, program: Program, text: str, said_unclear: bool, unread: tuple[str, Program] | None = None
+    ) -> list[Action]:
+        """Plan and start what it understood; `unread`: words it did not get and its reading of
+        them, asked about once it has done the rest."""
         parsed = ins.Parsed(tuple(instructions(program, text)))
         self._plan.clear()
         self._claim_on_resume = False
-        self._walked = 0
+        self._walked = self._turned = 0
         tasks: list[_Task] = []
         for item in parsed.instructions:
             tasks += self._tasks(item)
@@ -288,8 +320,9 @@ class DialogDriver:
             tasks = [_Task(Task.SAY, text=self._phrasing.say(Troubled(Trouble.UNCLEAR, quoted=text.strip())))]
         elif said_unclear and tasks:
             tasks.append(_Task(Task.SAY, text=self._phrasing.say(Troubled(Trouble.PARTLY))))
-        if self._read_back and _moves(program) >= READ_BACK_CLAUSES and self._phase == Phase.NAVIGATING:
-            tasks.insert(0, _Task(Task.SAY, text=self._phrasing.say(ReadBack(read_back(program)))))
+        moving = [i for i in parsed.instructions if isinstance(i, ins.MOVING)]
+        if self._read_back and len(moving) >= READ_BACK_CLAUSES and self._phase == Phase.NAVIGATING:
+            tasks.insert(0, _Task(Task.SAY, text=self._phrasing.say(ReadBack(read_back(parsed.instructions)))))
         if self._phase == Phase.LOCALIZING and any(t.kind in MOVING for t in tasks):
             tasks = [t for t in tasks if t.kind not in MOVING]
             tasks.append(_Task(Task.SAY, text=self._phrasing.say(Troubled(Trouble.STAYING))))
@@ -300,14 +333,22 @@ class DialogDriver:
             # vain, it trusts the map over its camera and claims.
             tasks = [_Task(Task.CLAIM if sought == self._not_found else Task.SEEK, until=sought)]
         self._not_found = None
-        if tasks and tasks[-1].kind not in (Task.SAY, Task.CLAIM, Task.LOOK):
-            tasks.append(_Task(Task.SAY))  # the report when the moves are done
+        missed = None
+        if unread is not None and tasks:
+            said, offer = unread
+            self._offered = (offer, said)  # a "yes" carries it out
+            missed = (said, read_back(instructions(offer, said)))
+        if tasks and (tasks[-1].kind not in (Task.SAY, Task.CLAIM, Task.LOOK) or missed is not None):
+            tasks.append(_Task(Task.SAY, missed=missed))  # the report when the moves are done
         self._plan.extend(tasks)
         self._done_words = ""
         return [] if self._moving else self._advance()
 
     def _tasks(self, item: ins.Instruction) -> list[_Task]:
         if isinstance(item, ins.Turn):
+            if item.until is not None:  # on until it is in view; all the way round at most
+                turns = (HEADINGS - 1) * (1 if item.eighths > 0 else -1)
+                return [_Task(Task.TURN, turns=turns, until=item.until, facing=item.facing)]
             return [_Task(Task.TURN, turns=item.eighths)]
         if isinstance(item, ins.Forward):
             steps = self._phrasing.count(item.steps) if item.steps is not None else None
@@ -395,19 +436,35 @@ class DialogDriver:
             return [self._say(Claiming(self._target)), Claim()]
         if not task.text:
             self._failed = 0  # an instruction set carried out to its end
-            return self._say(Done(self._done_words, self._view))
+            unread, offer = task.missed or ("", "")
+            return self._say(Done(self._done_words, self._view, unread, offer))
         return Say(task.text)
 
-    def _turn(self, task: _Task) -> RequestMove | None:
+    def _turn(self, task: _Task) -> RequestMove | Say | None:
+        if task.until is not None and self._turned_to(task.until, task.facing):
+            if task.until not in OBJECT_LABELS:  # its report names the objects in view, not every wall
+                self._done_words = ", ".join(filter(None, [self._done_words, f"i see the {wall_name(task.until)}"]))
+            return None
         if task.turns == 0:
+            if task.until is not None:
+                return self._failure(Stuck(Why.NOWHERE, 0, self._view, wanted=task.until))
             return None
         if task.done == 0 and abs(task.turns) >= 2:
             self._odo.turns.append((Side.LEFT if task.turns > 0 else Side.RIGHT, len(self._odo.trail) - 1))
         task.done += 1
         step = 1 if task.turns > 0 else -1
         task.turns -= step
-        self._done_words = f"turned {'left' if step > 0 else 'right'}"
+        self._turned += step
+        self._done_words = f"turned {turn_words(self._turned)}" if self._turned else ""
         return RequestMove(Move.LEFT if step > 0 else Move.RIGHT)
+
+    def _turned_to(self, label: Label, facing: bool) -> bool:
+        """Whether a turn that goes on until `label` is in view (where `facing`: in the middle of
+        the view) has come to it."""
+        view = self._view
+        if view is None or not facing:
+            return self._in_view(label)
+        return bool((view.valid[CENTRE_RAYS] & (view.labels[CENTRE_RAYS] == label)).any())
 
     def _walk(self, task: _Task) -> RequestMove | Say | None:
         view = self._view

@@ -51,11 +51,14 @@ class Answered:
 
 @dataclass(frozen=True)
 class Done:
-    """An instruction carried out: what it did last ("turned left", "at the red wall"; "" says
-    nothing of it) and what it sees now."""
+    """An instruction carried out: what it did last ("turned left 90 degrees", "at the red wall";
+    "" says nothing of it) and what it sees now; where it did only the part it understood, the
+    words it did not get and its best reading of them, asked."""
 
     did: str
     view: View
+    unread: str = ""
+    offer: str = ""
 
 
 @dataclass(frozen=True)
@@ -176,8 +179,11 @@ class ScriptedDriverPhrasing:
                 if (hit := _yes(label, view)) is not None:
                     return f"yes, {'close' if hit.depth <= NEAR_M else 'far'} {wall_name(label)} {SIDE_PHRASE[side]}"
                 return f"no, no {wall_name(label)} {SIDE_PHRASE[side]}. {describe({side: view})}"
-            case Done(did=did, view=view):
-                return f"ok, {did or 'done'}, {brief(view)}. {self._rng.choice(NEXT)}"
+            case Done(did=did, view=view, unread=unread, offer=offer):
+                then = self._rng.choice(NEXT)
+                if unread:
+                    then = f"i did not get '{unread}' - {offer}?"
+                return f"ok, {did or 'done'}, {brief(view)}. {then}"
             case Stopped(view=view):
                 return f"ok, stopped. {brief(view)}. {self._rng.choice(NEXT)}"
             case Stuck():

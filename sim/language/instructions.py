@@ -31,6 +31,10 @@ class Place(StrEnum):
 @dataclass(frozen=True)
 class Turn:
     eighths: int  # 45-degree steps, counter-clockwise (left) positive
+    # "turn left until you see the mug": on, 45 degrees at a time (the way `eighths` says), until
+    # `until` is in view (`facing`: until it is ahead); no walk.
+    until: Label | None = None
+    facing: bool = False
 
 
 @dataclass(frozen=True)
@@ -78,6 +82,7 @@ class Unclear:
 
 
 Instruction = Turn | Forward | TakeOpening | Target | Ask | GoBack | Stop | Unclear
+MOVING = (Turn, Forward, TakeOpening, GoBack)  # the instructions that move the robot
 
 
 @dataclass(frozen=True)
@@ -86,7 +91,7 @@ class Parsed:
 
     @property
     def moves(self) -> bool:
-        return any(isinstance(i, Turn | Forward | TakeOpening | GoBack) for i in self.instructions)
+        return any(isinstance(i, MOVING) for i in self.instructions)
 
     @property
     def unclear(self) -> bool:
@@ -149,6 +154,51 @@ def _turn_size(ws: list[str]) -> int:
 def asks_to_look(message: str) -> bool:
     """Whether a message asks the Driver to look all around (turn in place: eight moves)."""
     return bool(_LOOK.search(" ".join(words(message))))
+
+
+# A turn that goes on until something is seen: "turn left until you see the mug", "rotate till the
+# red wall is in front of you", "keep spinning right until blue is in view". Its "how" (the words
+# between the verb and "until") names no walk: "turn left and go until ..." is two clauses.
+_TURN_UNTIL = re.compile(
+    r"\b(?:keep (?:on )?)?(?:turn|turning|rotate|rotating|spin|spinning|pivot|pivoting|swivel|swivelling)\b"
+    r"(?P<how>(?: \w+){0,4}?) (?:until|till|til|untill) (?P<what>.+)$"
+)
+_SEEN = re.compile(r"\b(?:see|seeing|spot|notice|find|view|visible|sight|face|facing|front|ahead)\b")
+_FACING = re.compile(r"\b(?:face|facing|front|ahead)\b")
+
+
+@dataclass(frozen=True)
+class TurnUntil:
+    """A message's turn that goes on until `until` is in view (`facing`: ahead); `side`: the way
+    it names, if any; `walk`: the message also says to walk, elsewhere than in that clause
+    ("..., then go to it")."""
+
+    side: Side | None
+    until: Label
+    facing: bool
+    walk: bool
+
+
+def turn_until(message: str) -> TurnUntil | None:
+    """The message's turn until something is in view, where it has one: the trained reader has no
+    form for it (it reads a turn and a walk to the thing, or a turn and a check)."""
+    said = [" ".join(words(c)) for c in clauses(message)]
+    for k, clause in enumerate(said):
+        found = _TURN_UNTIL.search(clause)
+        if found is None or _GO.search(found.group("how")):
+            continue
+        what = found.group("what")
+        labels = _labels(what.split())
+        if not labels or not _SEEN.search(what):
+            continue
+        rest = [c for j, c in enumerate(said) if j != k] + [clause[: found.start()]]
+        return TurnUntil(
+            _side([w for w in found.group("how").split() if w in ("left", "right")]),
+            labels[0],
+            facing=bool(_FACING.search(what)),
+            walk=any(_GO.search(c) for c in rest),
+        )
+    return None
 
 
 def _question(text: str, ws: list[str]) -> Ask:
@@ -232,6 +282,11 @@ def _clause(text: str, prev: Instruction | None) -> list[Instruction]:
     return out
 
 
+def clauses(message: str) -> list[str]:
+    """A message cut into the clauses `parse` reads one at a time (lower case)."""
+    return _CLAUSE.split(message.strip().lower())
+
+
 def parse(message: str) -> Parsed:
     """The instructions of one Commander message, in order."""
     text = message.strip().lower()
@@ -242,7 +297,7 @@ def parse(message: str) -> Parsed:
             moves.append(Turn(4))
         return Parsed(tuple(moves) + (ask,))
     out: list[Instruction] = []
-    for clause in _CLAUSE.split(text):
+    for clause in clauses(text):
         last = next((k for k in range(len(out) - 1, -1, -1) if isinstance(out[k], Forward)), None)
         parsed = _clause(clause, out[last] if last is not None else None)
         if last is not None and parsed and isinstance(parsed[0], Forward) and parsed[0].exclude:

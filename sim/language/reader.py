@@ -103,14 +103,27 @@ def output_vocabulary(role: Role) -> list[str]:
     return tokens
 
 
+_TURNS = frozenset({"turns", "times"})  # "two right turns", "left 3 times"
 _UNIT = re.compile(r"^(cm|centimeters?|centimetres?|m|meters?|metres?|deg|degrees?)$")
 
 
-def normalize(text: str) -> tuple[list[str], list[int]]:
-    """The turn's words for the reader, and the numbers it names (in steps for distances)."""
+@dataclass(frozen=True)
+class Count:
+    """A number a turn names: in steps for distances (its angles are no counts), the words that
+    said it ("3", "35 cm"), and whether it may count steps: not where it counts turns ("two right
+    turns", "left 3 times", "an eighth of a turn": spelling correction reads "eighth" as "eight"),
+    nor a bare "one" ("the next one")."""
+
+    steps: int
+    said: str
+    of_steps: bool
+
+
+def _read_numbers(text: str) -> tuple[list[str], list[Count]]:
+    """`normalize`'s words, and the counts the turn names."""
     ws = words(text.replace("°", " degrees "))
     out: list[str] = []
-    numbers: list[int] = []
+    counts: list[Count] = []
     for i, w in enumerate(ws):
         found = number(w)
         if found is None:
@@ -128,11 +141,27 @@ def normalize(text: str) -> tuple[list[str], list[int]]:
             n = max(1, round(n / 100 / STEP_M))
         elif unit.startswith("m"):
             n = max(1, round(n / STEP_M))
+        numbers = [c.steps for c in counts]
         if n not in numbers:
+            after = ws[i + 1 : i + 4]
+            of_turns = bool(_TURNS.intersection(after[:2])) or after == ["of", "a", "turn"]
+            pronoun = w == "one" and not unit and after[:1] not in (["step"], ["steps"])  # "the next one"
+            counts.append(Count(n, f"{w} {unit}".strip(), not of_turns and not pronoun))
             numbers.append(n)
         k = numbers.index(n)
         out.append(f"<num{k}>" if k < MAX_NUMBERS else "<num>")
-    return out, numbers
+    return out, counts
+
+
+def normalize(text: str) -> tuple[list[str], list[int]]:
+    """The turn's words for the reader, and the numbers it names (in steps for distances)."""
+    out, counts = _read_numbers(text)
+    return out, [c.steps for c in counts]
+
+
+def counts(text: str) -> list[Count]:
+    """The counts a turn names, in the order first named."""
+    return _read_numbers(text)[1]
 
 
 def source_tokens(text: str, before: tuple[str, str] | None) -> tuple[list[str], list[int]]:

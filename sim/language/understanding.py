@@ -4,22 +4,34 @@ The Driver agent reads a Commander turn as a program (`program`) and carries it 
 rules' instructions (`instructions`), the executor it always had; the Commander agent reads a
 Driver turn as facts (`facts`) and weighs them in its belief through the lexicon's facts
 (`belief_facts`). The Driver reads with the trained reader (`sim.language.reader`) by default, the
-Commander by the rules (docs/model_card_language.md says why). `read_back` says a program in a few words, so an
-agent can tell a person what it understood before acting on it.
+Commander by the rules (docs/model_card_language.md says why). `read_back` says the Driver's
+instructions in a few words, so an agent can tell a person what it understood before acting on
+it; `unread_counts` are the counts a reading left unused, which it says it did not get.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
 from sim.core.labels import OBJECT_LABELS, Label
 from sim.language import instructions as ins
 from sim.language import lexicon
-from sim.language.meaning import CLAUSE_FIELDS, FACT_FIELDS, FactForm, FactKind, Op, Program, facts_of, program_of
-from sim.language.reader import Reader, Role, shipped
+from sim.language.meaning import (
+    CLAUSE_FIELDS,
+    FACT_FIELDS,
+    Clause,
+    FactForm,
+    FactKind,
+    Op,
+    Program,
+    facts_of,
+    program_of,
+)
+from sim.language.reader import Count, Reader, Role, counts, shipped
 from sim.language.sectors import Sector
-from sim.language.vocab import SIDE_SECTOR, Side, wall_name
+from sim.language.vocab import SIDE_PHRASE, SIDE_SECTOR, Side, wall_name, words
 
 M = TypeVar("M", Program, frozenset[FactForm])
 
@@ -96,7 +108,8 @@ _QUESTION = {"view": ins.AskedAbout.VIEW, "side": ins.AskedAbout.SIDE, "is_there
 
 
 def instructions(program: Program, text: str) -> list[ins.Instruction]:
-    """What the Driver's executor carries out for a program (clauses with nothing to do drop out)."""
+    """What the Driver's executor carries out for a program (clauses with nothing to do drop out),
+    with a turn the words say goes on until something is in view (`ins.turn_until`)."""
     out: list[ins.Instruction] = []
     for clause in program:
         args = dict(zip(CLAUSE_FIELDS[clause.op], clause.args, strict=True))
@@ -142,7 +155,35 @@ def instructions(program: Program, text: str) -> list[ins.Instruction]:
                 out.append(ins.Stop(claim=bool(args["claim"])))
             case Op.UNCLEAR:
                 out.append(ins.Unclear(text))
-    return out
+    found = ins.turn_until(text)
+    return out if found is None else _turning_until(out, found)
+
+
+def _turning_until(out: list[ins.Instruction], found: ins.TurnUntil) -> list[ins.Instruction]:
+    """The program's turn goes on until the thing is in view (the way the words name, else the
+    program's, else left); the walk to it or the check of it that the program read into "until
+    you see it" is dropped, unless the message also says to walk."""
+
+    def of_it(item: ins.Instruction) -> bool:
+        return (
+            isinstance(item, ins.Forward)
+            and item.until == found.until
+            or (isinstance(item, ins.Target) and item.label == found.until)
+        )
+
+    at = next((k for k, item in enumerate(out) if isinstance(item, ins.Turn)), None)
+    turned = out[at] if at is not None else None
+    if found.side is not None:
+        way = 1 if found.side == Side.LEFT else -1
+    else:
+        way = -1 if isinstance(turned, ins.Turn) and turned.eighths < 0 else 1
+    turn = ins.Turn(2 * way, found.until, found.facing)
+    if at is None:
+        at = next((k for k, item in enumerate(out) if of_it(item)), 0)
+        out = out[:at] + [turn] + out[at:]
+    else:
+        out = out[:at] + [turn] + out[at + 1 :]
+    return out if found.walk else [item for item in out if not of_it(item)]
 
 
 _SECTOR = {str(side): sector for side, sector in SIDE_SECTOR.items()} | {"any": Sector.ANY}  # a fact's side
@@ -175,31 +216,67 @@ def belief_facts(facts: frozenset[FactForm]) -> list[lexicon.Fact]:
     return out
 
 
-def read_back(program: Program) -> str:
-    """A program in a few words ("turning around, then forward to the yellow wall")."""
+def turn_words(eighths: int) -> str:
+    """A turn's way and size as the Driver says it: "left 90 degrees", "right 45 degrees", "around"."""
+    if abs(eighths) == 4:
+        return "around"
+    return f"{'left' if eighths > 0 else 'right'} {45 * abs(eighths)} degrees"
+
+
+def read_back(items: Sequence[ins.Instruction]) -> str:
+    """What the Driver will do, in a few words ("turning around, then forward to the yellow wall")."""
     parts: list[str] = []
-    for clause in program:
-        args = dict(zip(CLAUSE_FIELDS[clause.op], clause.args, strict=True))
-        match clause.op:
-            case Op.TURN:
-                e = int(args["eighths"] or 0)
-                size = {1: "slightly ", 2: "", 3: "sharply "}.get(abs(e), "")
-                parts.append("turning around" if abs(e) == 4 else f"turning {size}{'left' if e > 0 else 'right'}")
-            case Op.FORWARD:
-                until, steps = args["until"], args["steps"]
-                if isinstance(steps, int):
-                    parts.append(f"forward {steps} steps")
-                elif until in (None, "wall"):
-                    parts.append("forward to the wall")
-                else:
-                    label = _label(until)
-                    parts.append(f"forward to the {wall_name(label) if label is not None else until}")
-            case Op.FOLLOW:
-                parts.append(f"along the {args['label']} walls")
-            case Op.OPENING:
-                parts.append(f"into opening {args['nth']} on the {args['side']}")
-            case Op.BACK:
-                parts.append("back where i started" if args["place"] == "start" else "back the way i came")
-            case Op.STOP:
-                parts.append("claiming" if args["claim"] else "stopping")
+    for item in items:
+        match item:
+            case ins.Turn(eighths, until, facing) if until is not None:
+                way = "left" if eighths > 0 else "right"
+                seen = f"the {wall_name(until)} is ahead" if facing else f"i see the {wall_name(until)}"
+                parts.append(f"turning {way} until {seen}")
+            case ins.Turn(eighths) if eighths:
+                parts.append(f"turning {turn_words(eighths)}")
+            case ins.Forward(steps, until) if steps is not None:
+                parts.append(f"forward {steps} steps")
+            case ins.Forward(_, until):
+                parts.append(f"forward to the {wall_name(until) if until is not None else 'wall'}")
+            case ins.TakeOpening(side, nth):
+                parts.append(f"into opening {nth} on the {side}")
+            case ins.GoBack(place):
+                parts.append("back where i started" if place == ins.Place.START else "back where i turned")
+            case ins.Target(label, side) if side is not None:
+                parts.append(f"to the {wall_name(label)} {SIDE_PHRASE[side]}")
+            case ins.Stop(claim):
+                parts.append("claiming" if claim else "stopping")
     return ", then ".join(parts)
+
+
+MOVING_OPS = (Op.TURN, Op.FORWARD, Op.FOLLOW, Op.OPENING, Op.BACK)  # the clauses that move the robot
+
+
+def with_count(program: Program, text: str, count: Count) -> tuple[Program, bool]:
+    """The reading with a count it left unread put in as that many steps forward where the words
+    say it: before the moves the rules hear after it ("advance 14 cm and left 45": before the
+    turn; "left 3": after it). And whether it comes after every move, so that the Driver may do
+    the reading's moves first."""
+    parts = ins.clauses(text)
+    at = next((k for k, part in enumerate(parts) if any(c.said == count.said for c in counts(part))), len(parts))
+    later = sum(isinstance(i, ins.MOVING) for part in parts[at + 1 :] for i in ins.parse(part).instructions)
+    if at < len(parts):  # in its own clause, a side after the count ("3 left") is a move after it
+        said = words(parts[at])
+        number = count.said.split()[0]
+        later += number in said and any(w in ("left", "right", "around") for w in said[said.index(number) :])
+    moving = [k for k, clause in enumerate(program) if clause.op in MOVING_OPS]
+    where = len(program) if later == 0 else moving[max(len(moving) - later, 0)] if moving else 0
+    walk = Clause.of(Op.FORWARD, steps=count.steps, until=None)
+    return (*program[:where], walk, *program[where:]), later == 0
+
+
+def unread_counts(program: Program, text: str) -> list[Count]:
+    """The counts of steps a message names that its reading does not use ("left 3": the 3, where
+    it is read as a turn alone): the Driver says it did not get them rather than drop them."""
+    used = {
+        value
+        for clause in program
+        for name, value in zip(CLAUSE_FIELDS[clause.op], clause.args, strict=True)
+        if name in ("steps", "nth") and isinstance(value, int)
+    }
+    return [count for count in counts(text) if count.of_steps and count.steps not in used]

@@ -28,19 +28,29 @@ MAX_INSTRUCTIONS = 30
 pytestmark = pytest.mark.browser
 
 
-def driver_lines(page) -> list[str]:
-    """The Driver's messages as the Commander's page shows them ("Driver" and the text)."""
-    return [line.removeprefix("Driver ") for line in page.locator("#messages li.driver").all_inner_texts()]
+# The first Driver message after the Commander's message `text` among the chat's messages from
+# `sent` on (null until there is one).
+_ANSWER = """([sent, text]) => {
+  const items = [...document.querySelectorAll('#messages li')].slice(sent);
+  const mine = items.findIndex((li) => li.classList.contains('commander') && li.textContent.endsWith(text));
+  const answer = mine < 0 ? undefined : items.slice(mine + 1).find((li) => li.classList.contains('driver'));
+  return answer ? answer.innerText : null;
+}"""
 
 
 def say(page, text: str, timeout_s: float = 60.0) -> str:
-    """Type a message in the Commander's chat and wait for the Driver's next answer."""
-    before = len(driver_lines(page))
+    """Type a message in the Commander's chat and wait for the Driver's answer to it: its first
+    message after this one in the chat. (Counting the Driver's messages before typing took one
+    already on its way, sent before this message reached the Driver, for the answer.)"""
+    sent = page.locator("#messages li").count()
     page.fill("#chat-input", text)
     page.press("#chat-input", "Enter")
-    page.wait_for_selector(f"#messages li.commander >> text={text}")
-    wait_js(page, f"document.querySelectorAll('#messages li.driver').length > {before}", timeout_s)
-    return driver_lines(page)[before]
+    deadline = time.monotonic() + timeout_s
+    while (answer := page.evaluate(_ANSWER, [sent, text])) is None:
+        if time.monotonic() > deadline:
+            raise AssertionError(f"no answer from the Driver to {text!r} within {timeout_s} s")
+        page.wait_for_timeout(50)
+    return str(answer).removeprefix("Driver ")
 
 
 def held_still(runtime, seconds: float) -> bool:

@@ -15,7 +15,7 @@ from sim.core.labels import Label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
-from sim.language.describe import near
+from sim.language.describe import near, seen
 from sim.language.driver_personas import DriverPersona
 from sim.language.driver_phrasing import PersonaDriverPhrasing
 from sim.language.phrases import Phrasing
@@ -286,3 +286,72 @@ def test_told_no_with_the_other_way_after_it_asked_it_takes_the_correction(world
     assert isinstance(asked, Say) and "do you mean" in asked.text, asked
     turns = driver.perceive(Heard(Role.COMMANDER, "no right"))
     assert turns and isinstance(turns[0], RequestMove) and turns[0].move == Move.RIGHT, turns
+
+
+def _navigating(world, pose, read_back=False):
+    driver = DialogDriver(0, read_back=read_back)
+    driver.reset(SeatInfo(Role.DRIVER, 3))
+    driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
+    driver.perceive(Saw(0, _rays(world, pose)))
+    return driver
+
+
+def _sees(world, pose, label):
+    return any(s.label == label for s in seen(_rays(world, pose)))
+
+
+def test_told_to_turn_until_it_sees_the_mug_it_turns_until_then_and_does_not_walk(world):
+    """The reader reads "turn left until you see the coffee mug" as a turn and a walk to the mug:
+    the Driver turned 90 degrees and drove to the mug, a walk nobody asked for."""
+    _, graph, _ = world
+    start, heading = next(
+        (Pose(n, 0), h)
+        for n in range(graph.n)
+        for h in (2, 3)
+        if _sees(world, Pose(n, h), Label.MUG) and not any(_sees(world, Pose(n, k), Label.MUG) for k in range(h))
+    )
+    driver = _navigating(world, start)
+    pose, said = _carry_out(driver, world, start, "turn left until you see the coffee mug")
+    assert pose == Pose(start.node, heading), said
+    assert said[0].startswith(f"ok, turned left {45 * heading} degrees,") and "forward" not in said[0], said
+
+
+def test_its_report_and_read_back_say_how_far_it_turned(world):
+    _, graph, _ = world
+    start = _room_for(graph, 0, 2)
+    driver = _navigating(world, start, read_back=True)
+    turns = driver.perceive(Heard(Role.COMMANDER, "turn left 90, then go forward 2 steps"))
+    assert turns[0] == Say("ok: turning left 90 degrees, then forward 2 steps"), turns
+    driver = _navigating(world, start)
+    _, said = _carry_out(driver, world, start, "turn right 45 degrees")
+    assert said[0].startswith("ok, turned right 45 degrees,"), said
+    _, said = _carry_out(driver, world, start, "turn around")
+    assert said[0].startswith("ok, turned around,"), said
+
+
+def test_told_left_3_it_turns_says_it_did_not_get_the_3_and_walks_it_when_told_yes(world):
+    """ "left 3" read as a turn alone: the Driver turned and said "ok", the 3 dropped in silence."""
+    _, graph, _ = world
+    start = _room_for(graph, 0, 3)
+    driver = _navigating(world, start)
+    pose, said = _carry_out(driver, world, start, "left 3")
+    assert pose == Pose(start.node, 2) and said[0].endswith("i did not get '3' - forward 3 steps?"), said
+    pose, said = _carry_out(driver, world, pose, "yes")
+    end = start.node
+    for _ in range(3):
+        end = int(graph.forward[end, 2])
+    assert pose == Pose(end, 2) and said[0].startswith("ok, went 3 steps"), said
+
+
+def test_a_count_said_before_the_turn_it_did_get_is_asked_about_before_it_moves(world):
+    """Doing the turn it understood first would put the walk it did not get in the wrong place."""
+    _, graph, _ = world
+    start = _room_for(graph, 4, 0)
+    driver = _navigating(world, start)
+    (asked,) = driver.perceive(Heard(Role.COMMANDER, "advance 28 cm and left 45"))
+    assert asked == Say("i am not sure i got '28 cm'. do you mean: forward 4 steps, then turning left 45 degrees?")
+    pose, said = _carry_out(driver, world, start, "yes")
+    ahead = start.node
+    for _ in range(4):
+        ahead = int(graph.forward[ahead, 0])
+    assert pose == Pose(ahead, 1) and said[0].startswith("ok, turned left 45 degrees,"), said

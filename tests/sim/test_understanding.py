@@ -1,0 +1,67 @@
+"""What the Driver makes of a Commander's reading beyond its program form: a turn that goes on until
+something is in view, the counts a reading leaves unused and where they go, and the read-back of a
+plan with each turn's size. Sentences written for these tests, none from the benchmark's dialogs."""
+
+from sim.core.labels import Label
+from sim.language import instructions as ins
+from sim.language.meaning import Clause, Op
+from sim.language.reader import counts
+from sim.language.understanding import instructions, read_back, unread_counts, with_count
+from sim.language.vocab import Side
+
+TURN_LEFT = Clause.of(Op.TURN, eighths=2)
+TO_THE_MUG = Clause.of(Op.FORWARD, steps=None, until="mug")
+
+
+def _walk(steps: int) -> Clause:
+    return Clause.of(Op.FORWARD, steps=steps, until=None)
+
+
+def test_a_turn_until_something_is_seen_is_read_from_the_words():
+    assert ins.turn_until("turn left until you see the coffee mug") == ins.TurnUntil(
+        Side.LEFT, Label.MUG, facing=False, walk=False
+    )
+    assert ins.turn_until("rotate till the red wall is in front of you") == ins.TurnUntil(
+        None, Label.RED, facing=True, walk=False
+    )
+    assert ins.turn_until("keep spinning right till the jar is in view, then drive up to it") == ins.TurnUntil(
+        Side.RIGHT, Label.JAR, facing=False, walk=True
+    )
+    # A walk said in the turn's clause, or nothing to see: no turn until.
+    assert ins.turn_until("turn left and go until you see the mug") is None
+    assert ins.turn_until("turn left until the end of the corridor") is None
+
+
+def test_the_walk_read_into_until_you_see_it_is_dropped_and_the_turn_goes_on_until_then():
+    text = "turn left until you see the coffee mug"
+    assert instructions((TURN_LEFT, TO_THE_MUG), text) == [ins.Turn(2, Label.MUG)]
+    # Read as a walk alone, or with the turn the wrong way: the words' turn, their way.
+    assert instructions((TO_THE_MUG,), text) == [ins.Turn(2, Label.MUG)]
+    assert instructions((Clause.of(Op.TURN, eighths=-2), TO_THE_MUG), text) == [ins.Turn(2, Label.MUG)]
+    # A walk the message does say stays.
+    said = "turn left until you see the coffee mug, then go up to it"
+    assert instructions((TURN_LEFT, TO_THE_MUG), said) == [ins.Turn(2, Label.MUG), ins.Forward(until=Label.MUG)]
+    assert read_back(instructions((TURN_LEFT, TO_THE_MUG), text)) == "turning left until i see the coffee mug"
+
+
+def test_a_read_back_says_each_turn_with_its_size():
+    program = (TURN_LEFT, _walk(2), Clause.of(Op.TURN, eighths=-1), Clause.of(Op.TURN, eighths=4))
+    assert read_back(instructions(program, "")) == (
+        "turning left 90 degrees, then forward 2 steps, then turning right 45 degrees, then turning around"
+    )
+
+
+def test_counts_of_steps_exclude_angles_turns_and_the_word_one():
+    assert [(c.steps, c.said) for c in counts("roll 21 cm then left 90, then 4 more")] == [(3, "21 cm"), (4, "4")]
+    assert not any(c.of_steps for c in counts("make two right turns, the next one is an eighth of a turn"))
+
+
+def test_a_count_its_reading_left_unused_goes_where_the_words_say_it():
+    (three,) = unread_counts((TURN_LEFT,), "left 3")
+    assert three.said == "3" and with_count((TURN_LEFT,), "left 3", three) == ((TURN_LEFT, _walk(3)), True)
+    assert unread_counts((TURN_LEFT, _walk(3)), "left 3") == []
+    slight = Clause.of(Op.TURN, eighths=1)
+    text = "advance 28 cm and left 45"
+    (walk,) = unread_counts((slight,), text)
+    # Said before the turn: the walk goes first, so the Driver cannot do the turn alone first.
+    assert walk.said == "28 cm" and with_count((slight,), text, walk) == ((_walk(4), slight), False)
