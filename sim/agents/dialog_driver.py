@@ -177,6 +177,13 @@ class DialogDriver:
     # -- percepts -------------------------------------------------------------------------------
 
     def perceive(self, percept: Percept) -> list[Action]:
+        actions = self._perceive(percept)
+        said = [a.text for a in actions if isinstance(a, Say)]
+        if said:
+            self._before = ("d", said[-1])  # what a "yes" after its question is read with
+        return actions
+
+    def _perceive(self, percept: Percept) -> list[Action]:
         if isinstance(percept, PhaseBegan):
             if percept.phase == Phase.NAVIGATING and self._phase == Phase.NAVIGATING:
                 self._target = None  # a confirmed target: the next one is told anew
@@ -256,9 +263,10 @@ class DialogDriver:
         elif self._phase == Phase.NAVIGATING:
             rules = program_of(ins.parse(text))  # the rules' reading: a second opinion, read once
             unsure = understood.confidence < ASK_BELOW
-            if unsure and _CLAIM in rules and not _moves(rules):
+            if _CLAIM in rules and not _moves(rules) and (unsure or not _moves(program)) and _CLAIM not in program:
                 # The rules hear "you are right by it": a claim costs no move and is judged, so it
-                # claims rather than offer the reader's guess ("turning right?").
+                # claims rather than offer the reader's guess ("turning right?") or do nothing (the
+                # reader heard "got it, you found it, ..." as what it should see).
                 return self._follow(rules, text, said_unclear=False)
             # A guess where the rules make nothing of a turn led by a word the reader never met
             # ("pirouette till the wall ...").

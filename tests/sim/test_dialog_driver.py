@@ -261,7 +261,9 @@ def test_told_again_after_looking_all_around_in_vain_it_trusts_the_map_and_claim
     assert any(isinstance(t, Claim) for t in turns), turns
 
 
-@pytest.mark.parametrize("text", ["you are right by it", "got it, you are right by it now"])
+@pytest.mark.parametrize(
+    "text", ["you are right by it", "got it, you are right by it now", "got it, you found it, you are right by it"]
+)
 def test_told_it_is_right_by_the_target_it_claims_and_does_not_turn_right(world, text):
     _, graph, _ = world
     at_jar = next(Pose(n, h) for n in range(graph.n) for h in range(8) if near(_rays(world, Pose(n, h)), Label.JAR))
@@ -348,10 +350,10 @@ def test_a_count_said_before_the_turn_it_did_get_is_asked_about_before_it_moves(
     _, graph, _ = world
     start = _room_for(graph, 4, 0)
     driver = _navigating(world, start)
-    (asked,) = driver.perceive(Heard(Role.COMMANDER, "advance 28 cm and left 45"))
-    assert asked == Say("i am not sure i got '28 cm'. do you mean: forward 4 steps, then turning left 45 degrees?")
+    (asked,) = driver.perceive(Heard(Role.COMMANDER, "3 then left"))  # the reader reads a left turn
+    assert asked == Say("i am not sure i got '3'. do you mean: forward 3 steps, then turning left 90 degrees?")
     pose, said = _carry_out(driver, world, start, "yes")
     ahead = start.node
-    for _ in range(4):
+    for _ in range(3):
         ahead = int(graph.forward[ahead, 0])
-    assert pose == Pose(ahead, 1) and said[0].startswith("ok, turned left 45 degrees,"), said
+    assert pose == Pose(ahead, 2) and said[0].startswith("ok, turned left 90 degrees,"), said
