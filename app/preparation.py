@@ -10,18 +10,21 @@ prepared decodes nothing. The caches survive restarts and upgrades: a cache writ
 whose tables differ holds no marker of this version, and its mazes are prepared again, in the
 background.
 
-The building itself is done in a process of its own (spawned at the first maze that needs it):
-in the server's threads its Python and numpy held the GIL from the requests, and creating 200
-trials on a fresh install answered in 183 ms at p95 (36.5 ms with the builder process). The
-server's threads only check markers, and wait.
+The building itself is done in builder processes of their own, one per core by default
+(`Settings.maze_builders`; spawned at the first maze that needs them): in the server's threads
+its Python and numpy held the GIL from the requests, and creating 200 trials on a fresh install
+answered in 183 ms at p95 (36.5 ms with a builder process). With one builder, 200 new trials'
+mazes were built one after another, and their seats waited up to 45 s. The server's threads
+only check markers, and wait.
 
-`Preparation.run` does it in the server's warm-up thread (`Mazes.warm_up`), once the library is
-grouped into layouts (which the dashboard waits for, and which decodes every map): every maze of
-the library, in order, with its progress in the log and on the experimenter's dashboard. The
-maze of a trial just created (`first`) is prepared at once, in a thread of its own. A seat whose
-maze is not prepared yet (`ensure`) waits for the thread that has it in hand, else has it built
-at once: never behind the rest of the library. `robotslang mazes prepare` does the same on
-demand (`app.commands`).
+`Preparation.run` does it from the server's warm-up thread (`Mazes.warm_up`), once the library
+is grouped into layouts (which the dashboard waits for, and which decodes every map): every maze
+of the library, in order, one at a time per builder, with its progress in the log and on the
+experimenter's dashboard. The mazes of trials just created (`first`) are prepared at once, in
+threads of their own (as many as builders) that take them in turn. A seat whose maze is not
+prepared yet (`ensure`) waits for the thread that has it in hand, else has it built at once:
+behind at most a maze a thread, never behind the rest of the library. `robotslang mazes prepare`
+does the same on demand (`app.commands`).
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
+import os
 import threading
 import time
 from collections import deque
@@ -47,6 +51,11 @@ if TYPE_CHECKING:
 
 logger = logging.getLogger(__name__)
 LOG_EVERY_S = 5.0  # progress lines while preparing
+
+
+def builders_for(setting: int) -> int:
+    """The builder processes to use: `setting`, where 0 means one per core."""
+    return setting or max(1, os.cpu_count() or 1)
 
 
 def prepared_version() -> str:
@@ -99,9 +108,12 @@ class Progress:
 class Preparation:
     """Every maze of the library prepared in the server's warm-up thread, those of new trials at once."""
 
-    def __init__(self, library: Callable[[], MazeLibrary], benchmark: Path | None, cache_dir: Path) -> None:
+    def __init__(
+        self, library: Callable[[], MazeLibrary], benchmark: Path | None, cache_dir: Path, builders: int = 1
+    ) -> None:
         self._library, self.benchmark, self.cache_dir = library, benchmark, cache_dir
-        self._builder: ProcessPoolExecutor | None = None  # the process that builds, once one is needed
+        self.builders = builders  # processes, and threads taking the library's or new trials' mazes
+        self._builder: ProcessPoolExecutor | None = None  # the processes that build, once one is needed
         self._lock = threading.Lock()
         self._first: deque[str] = deque()  # mazes of trials created, in order
         self._ready: set[str] = set()
@@ -109,36 +121,39 @@ class Preparation:
         self._making: dict[str, Future[None]] = {}  # per maze, while it is prepared
         self._built = 0
         self._stop = threading.Event()
-        self._firsts: threading.Thread | None = None  # prepares new trials' mazes, while there are any
+        self._firsts: set[threading.Thread] = set()  # prepare new trials' mazes, while there are any
 
     def stop(self) -> None:
-        """`run` returns after the maze in hand (its caches are whole: each is written, then renamed),
-        and so does the thread on new trials' mazes, which this waits for."""
+        """`run` returns after the mazes in hand (their caches are whole: each is written, then
+        renamed), and so do the threads on new trials' mazes, which this waits for."""
         with self._lock:
             self._stop.set()
-            firsts, builder = self._firsts, self._builder
-        if firsts is not None:
-            firsts.join()
+            firsts, builder = list(self._firsts), self._builder
+        for thread in firsts:
+            thread.join()
         if builder is not None:
             builder.shutdown(wait=True, cancel_futures=True)
 
     def first(self, name: str) -> None:
-        """A trial was created on `name`: it is prepared now, in a thread of its own that takes the
-        new trials' mazes in turn (even while the library is still being grouped into layouts)."""
+        """A trial was created on `name`: it is prepared now, by one of the threads (one a builder)
+        that take the new trials' mazes in turn (even while the library is still being grouped
+        into layouts)."""
         with self._lock:
             if name in self._ready or name in self._first or self._stop.is_set():
                 return
             self._first.append(name)
-            if self._firsts is None:
-                self._firsts = threading.Thread(target=self._prepare_firsts, name="mazes-first", daemon=True)
-                self._firsts.start()
+            if len(self._firsts) < min(self.builders, len(self._first)):
+                thread = threading.Thread(target=self._prepare_firsts, name="mazes-first", daemon=True)
+                self._firsts.add(thread)
+                thread.start()
 
     def _prepare_firsts(self) -> None:
         while True:
             with self._lock:
                 name = self._next_locked(deque())
                 if name is None:
-                    self._firsts = None  # under the lock: a trial created from now on starts another
+                    # Under the lock: a trial created from now on starts another.
+                    self._firsts.discard(threading.current_thread())
                     return
             self.ensure(name)
 
@@ -222,11 +237,11 @@ class Preparation:
         return marker(self._library(), name, self.cache_dir).exists()
 
     def _submit(self, name: str) -> tuple[Future[bool], ProcessPoolExecutor]:
-        """`prepare_maze` in the builder process (started here the first time)."""
+        """`prepare_maze` in a builder process (started here the first time)."""
         with self._lock:
             if self._builder is None:
                 self._builder = ProcessPoolExecutor(
-                    1,
+                    self.builders,
                     mp_context=get_context("spawn"),
                     initializer=_start_builder,
                     initargs=(self.benchmark, self.cache_dir),
@@ -241,8 +256,8 @@ class Preparation:
             return self._lost(builder, name)
 
     def _lost(self, builder: ProcessPoolExecutor, name: str) -> bool:
-        """The builder process was lost (killed, out of memory): this maze is built here, the next
-        in a new one."""
+        """A builder process was lost (killed, out of memory), and with it the pool: this maze is
+        built here (and so is each other maze the pool had in hand), the next in a new pool."""
         logger.error("mazes: the process preparing them was lost; maze %s prepared in the server", name)
         with self._lock:
             if self._builder is builder:
@@ -250,16 +265,25 @@ class Preparation:
         return prepare_maze(self._library(), name, self.cache_dir)
 
     def run(self) -> None:
-        """Prepare every maze of the library, those of new trials first, logging the progress."""
+        """Prepare every maze of the library, those of new trials first, in a thread per builder,
+        logging the progress."""
         started = time.monotonic()
         names = self._library().names()
         logger.info("mazes: preparing what trials need of %d mazes in %s", len(names), self.cache_dir)
-        rest, logged = deque(names), started
-        while (name := self._next(rest)) is not None:
-            self.ensure(name)
-            if time.monotonic() - logged >= LOG_EVERY_S:
-                logger.info("mazes: %s", self.progress())
-                logged = time.monotonic()
+        rest = deque(names)
+
+        def sweep() -> None:
+            while (name := self._next(rest)) is not None:
+                self.ensure(name)
+
+        sweeps = [threading.Thread(target=sweep, name="mazes-sweep", daemon=True) for _ in range(self.builders)]
+        for thread in sweeps:
+            thread.start()
+        for thread in sweeps:
+            while thread.is_alive():
+                thread.join(LOG_EVERY_S)
+                if thread.is_alive():
+                    logger.info("mazes: %s", self.progress())
         if not self._stop.is_set():
             logger.info("mazes: %s in %.1f s", self.progress(), time.monotonic() - started)
 

@@ -141,11 +141,14 @@ def _walls(grid: np.ndarray) -> _Walls:
     return _Walls(tuple(edges), _Grid.of(grid))
 
 
-def _normal_field(walls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per-pixel wall normal (x, y in the table frame) of the smoothed walls."""
+def _normal_field(walls: np.ndarray, at: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pixel wall normal (x, y in the table frame) of the smoothed walls; `at`: only at these
+    flat pixel indices (the gradient's norm and the division on the whole map were half its cost)."""
     solid = cv2.GaussianBlur((walls != Label.FLOOR).astype(np.float32), (0, 0), 6)
     gx = cv2.Sobel(solid, cv2.CV_32F, 1, 0, ksize=3)
     gy = -cv2.Sobel(solid, cv2.CV_32F, 0, 1, ksize=3)  # rows grow downward, y upward
+    if at is not None:
+        gx, gy = gx.ravel()[at], gy.ravel()[at]
     norm = np.maximum(np.hypot(gx, gy), 1e-6)
     return -gx / norm, -gy / norm
 
@@ -167,8 +170,7 @@ class _Normals:
         kernel = np.ones((2 * NORMAL_BAND_PX + 1, 2 * NORMAL_BAND_PX + 1), np.uint8)
         near = np.logical_and(cv2.dilate(solid, kernel), cv2.dilate(1 - solid, kernel))
         band = np.flatnonzero(near).astype(np.int32)
-        nx, ny = _normal_field(walls)
-        return cls(band, nx.ravel()[band], ny.ravel()[band], _Grid.of(walls))
+        return cls(band, *_normal_field(walls, band), _Grid.of(walls))
 
     def at(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         flat = (rows * self.walls.shape[1] + cols).astype(np.int32)
