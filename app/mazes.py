@@ -141,7 +141,9 @@ class Mazes:
             if self._layouts is None:
                 from sim.tasks.layouts import layout_of
 
-                of = layout_of(self.library.layouts(cache_dir=self.settings.cache_dir, stop=stop))
+                of = layout_of(
+                    self.library.layouts(cache_dir=self.settings.cache_dir, stop=stop, preparing=self.preparation)
+                )
                 self._layouts = {name: of[name] for name in self.names()}
             return self._layouts
 
