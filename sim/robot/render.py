@@ -118,13 +118,20 @@ def _edge_runs(entered: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
 
 def _walls(grid: np.ndarray) -> _Walls:
     h, w = grid.shape
-    floor = grid == Label.FLOOR
+    # Edges only where the floor meets the rest: the box around what is not floor, and a pixel
+    # of floor round it (the objects' footprints are a few per cent of the map).
+    solid = grid != Label.FLOOR
+    rows, cols = np.flatnonzero(solid.any(axis=1)), np.flatnonzero(solid.any(axis=0))
+    r0, c0 = (max(int(rows[0]) - 1, 0), max(int(cols[0]) - 1, 0)) if rows.size else (0, 0)
+    r1, c1 = (int(rows[-1]) + 2, int(cols[-1]) + 2) if rows.size else (h, w)
+    box = grid[r0:r1, c0:c1]
+    floor = ~solid[r0:r1, c0:c1]
     # Pixel boundaries in metres: column boundary c (between pixels c - 1 and c), row boundary r.
-    col_x = (np.arange(w + 1) - 0.5) / PX_PER_M_X
-    row_y = ((h - 0.5) - np.arange(h + 1)) / PX_PER_M_Y
+    col_x = (np.arange(c0, min(c1, w) + 1) - 0.5) / PX_PER_M_X
+    row_y = ((h - 0.5) - np.arange(r0, min(r1, h) + 1)) / PX_PER_M_Y
     edges = []
     for vertical in (True, False):
-        lanes = grid.T if vertical else grid  # a lane runs along the edges' extent
+        lanes = box.T if vertical else box  # a lane runs along the edges' extent
         free = floor.T if vertical else floor
         for into_next in (True, False):  # the wall pixel is the next one across the lane, or the previous
             wall_px = lanes[1:] if into_next else lanes[:-1]
