@@ -27,7 +27,7 @@ experimenter's dashboard. The mazes of trials just created (`first`) are prepare
 threads of their own (as many as builders) that take them in turn. A seat whose maze is not
 prepared yet (`ensure`) waits for the thread that has it in hand, else has it built at once:
 behind at most a maze a thread, never behind the rest of the library. `robotslang mazes prepare`
-does the same on demand (`app.commands`).
+does the same on demand, in as many builders (`app.commands`).
 """
 
 from __future__ import annotations
@@ -250,14 +250,9 @@ class Preparation:
         """`prepare_maze` in a builder process (started here the first time)."""
         with self._lock:
             if self._builder is None:
-                self._builder = ProcessPoolExecutor(
-                    self.builders,
-                    mp_context=get_context("spawn"),
-                    initializer=_start_builder,
-                    initargs=(self.benchmark, self.cache_dir),
-                )
+                self._builder = builder_pool(self.benchmark, self.cache_dir, self.builders)
             builder = self._builder
-        return builder.submit(_build, name), builder
+        return builder.submit(build_maze, name), builder
 
     def _built_by(self, name: str, built: Future[bool], builder: ProcessPoolExecutor) -> bool:
         try:
@@ -311,6 +306,13 @@ class Preparation:
         return None
 
 
+def builder_pool(benchmark: Path | None, cache_dir: Path, builders: int) -> ProcessPoolExecutor:
+    """`builders` processes that prepare mazes of the library (`build_maze`) into `cache_dir`."""
+    return ProcessPoolExecutor(
+        builders, mp_context=get_context("spawn"), initializer=_start_builder, initargs=(benchmark, cache_dir)
+    )
+
+
 # -- in the builder process ----------------------------------------------------------------
 _builder_library: tuple[MazeLibrary, Path] | None = None
 
@@ -328,7 +330,8 @@ def _start_builder(benchmark: Path | None, cache_dir: Path) -> None:
     _builder_library = MazeLibrary(benchmark, cache=False, cache_dir=cache_dir), cache_dir
 
 
-def _build(name: str) -> bool:
+def build_maze(name: str) -> bool:
+    """`prepare_maze` in a process of `builder_pool`."""
     assert _builder_library is not None  # set by the pool's initializer
     library, cache_dir = _builder_library
     return prepare_maze(library, name, cache_dir)
