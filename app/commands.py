@@ -78,9 +78,11 @@ def mazes_prepare(
 ) -> None:
     """Prepare what trials need of every maze (graphs, all-pairs and ray tables, render scenes) in
     the cache, as a server does in the background from its start."""
+    from concurrent.futures import as_completed
+
     from rich.progress import track
 
-    from app.preparation import prepare_maze
+    from app.preparation import build_maze, builder_pool, builders_for
     from app.settings import Settings
     from sim.core.maze import MazeError
     from sim.tasks.library import MazeLibrary
@@ -95,12 +97,14 @@ def mazes_prepare(
     except FileNotFoundError as err:
         raise typer.BadParameter(str(err), param_hint="--benchmark") from None
     built, failed = 0, []
-    for name in track(names, description="Preparing mazes"):
-        try:
-            built += prepare_maze(library, name, settings.cache_dir)
-        except MazeError as err:
-            failed.append(name)
-            typer.echo(f"error: {err}", err=True)
+    with builder_pool(settings.benchmark, settings.cache_dir, builders_for(settings.maze_builders)) as pool:
+        building = {pool.submit(build_maze, name): name for name in names}
+        for done in track(as_completed(building), total=len(names), description="Preparing mazes"):
+            try:
+                built += done.result()
+            except MazeError as err:
+                failed.append(building[done])
+                typer.echo(f"error: {err}", err=True)
     ready = len(names) - len(failed)
     typer.echo(f"{ready} of {len(names)} mazes ready in {settings.cache_dir} ({built} prepared now)")
     if failed:

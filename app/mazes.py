@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 
 from app.map_text import walls
-from app.preparation import Preparation
+from app.preparation import Preparation, builders_for
 from app.settings import Settings
 from sim.core.dynamics import Pose
 from sim.core.geometry import TABLE_WIDTH_M, world_to_pixel
@@ -110,7 +110,9 @@ class Mazes:
         self._layouts_lock = threading.Lock()  # the startup warm-up and a page: one grouping
         self._warming: threading.Thread | None = None
         self._stop_warming = threading.Event()
-        self.preparation = Preparation(lambda: self.library, settings.benchmark, settings.cache_dir)
+        self.preparation = Preparation(
+            lambda: self.library, settings.benchmark, settings.cache_dir, builders_for(settings.maze_builders)
+        )
         self.load = Kept(self._load, MAZES_KEPT)
         self.graph = Kept(self._graph, MAZES_KEPT)
         self.rays = Kept(self._rays, MAZES_KEPT)
@@ -139,7 +141,9 @@ class Mazes:
             if self._layouts is None:
                 from sim.tasks.layouts import layout_of
 
-                of = layout_of(self.library.layouts(cache_dir=self.settings.cache_dir, stop=stop))
+                of = layout_of(
+                    self.library.layouts(cache_dir=self.settings.cache_dir, stop=stop, preparing=self.preparation)
+                )
                 self._layouts = {name: of[name] for name in self.names()}
             return self._layouts
 

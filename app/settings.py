@@ -37,6 +37,8 @@ class Settings(BaseSettings):
     gil_switch_interval_s: float = 0.001
     # Processes that draw the simulator's frames (app.backends.render); 0: a thread of the server.
     render_processes: int = Field(default=1, ge=0)
+    # Processes that prepare mazes for trials (app.preparation); 0: one per core.
+    maze_builders: int = Field(default=0, ge=0)
     # Caps on agents (shown on the experimenter's page; `sim.trial.table.Caps`): on any the agent
     # says so and the trial aborts. Messages: an agent's own, either seat (two may talk in circles).
     agent_moves_per_target: int = Field(default=Caps.moves_per_target, ge=1)

@@ -54,9 +54,11 @@ async def simulator_backend(trial: RobotTrial, parts: BackendParts) -> RobotBack
 
     mazes, state = parts.mazes, trial.state
     # Reading a maze and its graph take a while: off the loop, other trials keep moving. The maze
-    # is held from the start, so that the graph, the rays and the backend read it once.
-    maze = await asyncio.to_thread(mazes.load, state.maze)
+    # is prepared first (its decoded maps among what is cached), then held, so that the graph, the
+    # rays and the backend read it once: read before, on a fresh install each seat's server thread
+    # decoded the PNGs its builder was decoding too.
     await mazes.preparation.ready(state.maze)  # built, if it is not yet, without holding a thread
+    maze = await asyncio.to_thread(mazes.load, state.maze)
     graph = await asyncio.to_thread(mazes.graph, state.maze)  # hashes the maze too, off the loop
     parts.renderer.prepare(maze)  # the render process reads its scene while the rest loads here
     if state.pose is not None:  # resuming: the robot is where the log last saw it

@@ -13,6 +13,7 @@ import re
 from collections.abc import Iterable
 from pathlib import Path
 from threading import Event
+from typing import Protocol
 
 from sim.core.maze import FIXED_MAP, WALLS_MAP, Maze, map_files, maps_key
 from sim.core.validation import check_reachable
@@ -114,10 +115,14 @@ class MazeLibrary:
         with them, and costs a read and a hash, no decoding."""
         return maps_key(*map_files(self.path(name)))
 
-    def layouts(self, cache_dir: str | Path | None = None, stop: Event | None = None) -> list[Layout]:
+    def layouts(
+        self, cache_dir: str | Path | None = None, stop: Event | None = None, preparing: Preparing | None = None
+    ) -> list[Layout]:
         """Every maze grouped by physical layout (`sim.tasks.layouts`), in library order. Cached keyed on
         the map files: after the first call (about 0.2 s a maze), no map is decoded. Raises
-        `LayoutsStopped` once `stop` is set, between two maps (each map's signature is kept)."""
+        `LayoutsStopped` once `stop` is set, between two maps (each map's signature is kept).
+        `preparing`: the mazes it has in hand are read last, once it has cached their maps and
+        signatures, rather than decoded twice at once."""
         maps = {
             name: [f for f in (self.path(name) / "maze" / m for m in (FIXED_MAP, WALLS_MAP)) if f.is_file()]
             for name in self.names()
@@ -125,14 +130,36 @@ class MazeLibrary:
 
         def build() -> list[Layout]:
             signatures = {}
+            later = []
             for name in maps:
-                if stop is not None and stop.is_set():
-                    raise LayoutsStopped(f"stopped before {name}")
-                kind, run = self._entry(name)
-                signatures[name] = LayoutSignature.cached(Maze.from_dir(run, name=name, cache_dir=cache_dir), cache_dir)
-            return group_layouts(signatures)
+                if preparing is not None and preparing.in_hand(name):
+                    later.append(name)
+                    continue
+                signatures[name] = self._signature(name, cache_dir, stop)
+            for name in later:
+                assert preparing is not None  # nothing is put off without it
+                preparing.ensure(name)
+                signatures[name] = self._signature(name, cache_dir, stop)
+            return group_layouts({name: signatures[name] for name in maps})
 
         return cached_grouping(grouping_key(maps), build, cache_dir)
+
+    def _signature(self, name: str, cache_dir: str | Path | None, stop: Event | None) -> LayoutSignature:
+        if stop is not None and stop.is_set():
+            raise LayoutsStopped(f"stopped before {name}")
+        kind, run = self._entry(name)
+        return LayoutSignature.cached(Maze.from_dir(run, name=name, cache_dir=cache_dir), cache_dir)
+
+
+class Preparing(Protocol):
+    """What prepares mazes into the cache, their decoded maps and layout signatures among what
+    it caches (`app.preparation.Preparation`)."""
+
+    def in_hand(self, name: str) -> bool:
+        """Whether maze `name` is being prepared, or waits to be, ahead of the library."""
+
+    def ensure(self, name: str) -> None:
+        """Return once maze `name` is prepared."""
 
 
 class LayoutsStopped(Exception):

@@ -10,9 +10,10 @@ import logging
 import time
 from pathlib import Path
 
-from app.preparation import prepared_version
+from app.preparation import prepare_maze, prepared_version
 from bench.live import team_trial
 from sim.core import observations
+from sim.core.maze import map_files
 from sim.tasks.generator import generate_maze
 from sim.tasks.library import MazeLibrary
 from tests.app.live import cli, experimenter_client
@@ -144,3 +145,29 @@ def test_a_seat_whose_maze_is_not_prepared_yet_is_welcomed_once_it_is_built(star
     assert asyncio.run(driver_welcome())["type"] == "welcome"
     library = server.services.mazes.library
     assert (cache / "prepared" / f"{library.maps_key(maze)}-{prepared_version()}").exists()
+
+
+def test_the_grouping_into_layouts_reads_a_maze_being_prepared_last_and_decodes_each_map_once(tmp_path, monkeypatch):
+    """On a fresh install the server groups the library into layouts while the builders prepare
+    new trials' mazes: a maze they have in hand is read once they have cached it, not decoded by both."""
+    from sim.core import maze as maze_module
+
+    expected = MazeLibrary(cache=False).layouts(cache_dir=tmp_path / "other")
+    cache = tmp_path / "cache"
+    library = MazeLibrary(cache=False, cache_dir=cache)
+    in_hand = library.names()[0]
+    decoded: list[Path] = []
+    read = maze_module.read_label_png
+    monkeypatch.setattr(maze_module, "read_label_png", lambda path: decoded.append(path) or read(path))
+
+    class Builders:
+        def in_hand(self, name: str) -> bool:
+            return name == in_hand
+
+        def ensure(self, name: str) -> None:
+            prepare_maze(library, name, cache)
+
+    assert library.layouts(cache_dir=cache, preparing=Builders()) == expected
+    files = [f for name in library.names() for f in map_files(library.path(name)) if f is not None]
+    assert sorted(decoded) == sorted(files)  # each map decoded once
+    assert {f.parent.parent.name for f in decoded[-2:]} == {in_hand}  # the one in hand, last
