@@ -60,8 +60,7 @@ ELSEWHERE = 1e-3  # after each instruction, the chance the belief lost the robot
 BLOCKED_PENALTY = 5.0  # log-likelihood against a pose whose way forward is free, when told it is not
 UNSEEN_PENALTY = 3.0  # ... against a pose with the target in reach, when the Driver speaks without claiming
 CLOSE_STEPS = 3  # a rejected claim this few steps' walk from where it should be made: "close to it now"
-RISKY = 0.25  # the belief's chance of a counted walk meeting a wall before its count: walk less
-MAX_UNSURE_WALKS = 1  # questions in a row asked instead of a risky walk, before it says the walk anyway
+RISKY = 0.4  # the belief's chance of a counted walk meeting a wall before its count: walk less
 REPHRASE_AFTER = 2  # instructions in a row not carried out: say the next one move at a time
 LOST_AFTER = 3  # ... stop guiding and ask
 # A report of an instruction not carried out in full: the Driver stopped somewhere along the way.
@@ -139,7 +138,6 @@ class DialogCommander:
         self._stuck = 0  # reports in a row of instructions not carried out
         self._before: tuple[str, str] | None = None  # the dialog's last message, for the reader
         self._why_not: str | None = None  # why it rejected the last claim on this target ("why not?")
-        self._unsure_walks = 0  # questions asked in a row instead of a walk likely to meet a wall
 
     # -- percepts -------------------------------------------------------------------------------
 
@@ -427,6 +425,8 @@ class DialogCommander:
         """The next instruction from the estimate, towards the target: a leg of the route, or after
         instructions not carried out, its first move alone in the simplest words."""
         assert self._target is not None
+        self._questions = 0
+        self._asked.clear()
         estimate = self.estimate()
         label = object_label(self._target)
         reach = self._reach[label]
@@ -444,23 +444,15 @@ class DialogCommander:
                 text = self.router.one_move(estimate.pose, label, goal)
             else:
                 text = self.router.instruction(estimate.pose, label, goal, plain=self._plain)
-            safer = self._safer(text)
-            if safer is None and prefix is None and self._unsure_walks < MAX_UNSURE_WALKS:
-                # Not even a step ahead is likely free from where it may be: a question settles it.
-                # Not after an announcement or an answer: a Driver agent told "now find the jar"
-                # with a question took no target from it, and never claimed.
-                self._unsure_walks += 1
-                return self._ask(prefix="i am not sure which way you are facing")  # not what it asked at this stop
-            text = safer or text
-        self._unsure_walks = 0
-        self._questions = 0
-        self._asked.clear()
+            text = self._safer(text)
         return self._say(f"{prefix}. {text}" if prefix else text)
 
-    def _safer(self, text: str) -> str | None:
+    def _safer(self, text: str) -> str:
         """`text` where the belief gives its counted walk little chance of meeting a wall before its
         count; else its turn and as many steps as are likely free (then it says the rest from where
-        the Driver says it got to), or the turn alone; None where even one step ahead is risky."""
+        the Driver says it got to), or the turn alone. Where not even a step ahead is likely free,
+        `text` still: asking instead (once, "i am not sure which way you are facing") cost more
+        messages and moves on val_seen than the walks it spared."""
         said = ins.parse(text)
         if self._refusal(said.instructions) <= RISKY:
             return text
@@ -475,7 +467,7 @@ class DialogCommander:
         for n in range(steps - 1, 0, -1):
             if self._refusal((*lead, ins.Forward(n))) <= RISKY:
                 return ", then ".join([*turn, self.phrases.say(PhraseKind.FORWARD, n=n)])
-        return turn[0] if turn else None
+        return turn[0] if turn else text
 
     def _refusal(self, said: tuple[ins.Instruction, ...]) -> float:
         """The belief's chance that a counted walk of `said` meets a wall before its count (the

@@ -378,7 +378,7 @@ def _free_run(commander: DialogCommander, pose: Pose) -> int:
 
 
 def test_unsure_where_a_walk_ends_it_walks_no_further_than_is_likely_free(world):
-    """Its belief split 60/40 between where the route walks 6 steps or more and a place where a
+    """Its belief split 55/45 between where the route walks 6 steps or more and a place where a
     wall comes after fewer, it does not say the long counted walk (a person walks into the wall)."""
     start = _walk_pose(world, 6)
     commander, first = _navigating(world, start)
@@ -390,9 +390,9 @@ def test_unsure_where_a_walk_ends_it_walks_no_further_than_is_likely_free(world)
         if 1 <= _free_run(commander, Pose(int(n), start.heading)) < counted.steps - 1
     )
     _there(commander, short)
-    split = commander.belief.log + math.log(0.4)
+    split = commander.belief.log + math.log(0.45)
     _there(commander, start)
-    commander.belief.log = np.logaddexp(commander.belief.log + math.log(0.6), split)
+    commander.belief.log = np.logaddexp(commander.belief.log + math.log(0.55), split)
     said = ins.parse(_said(commander._guide()))
     walks = [i for i in said.instructions if isinstance(i, ins.Forward)]
     assert walks and walks[0].steps is not None and walks[0].steps <= _free_run(commander, short), said
