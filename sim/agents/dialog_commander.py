@@ -59,17 +59,23 @@ VIEW_WEIGHT = 1.0
 ELSEWHERE = 1e-3  # after each instruction, the chance the belief lost the robot
 BLOCKED_PENALTY = 5.0  # log-likelihood against a pose whose way forward is free, when told it is not
 UNSEEN_PENALTY = 3.0  # ... against a pose with the target in reach, when the Driver speaks without claiming
+CLOSE_STEPS = 3  # a rejected claim this few steps' walk from where it should be made: "close to it now"
+RISKY = 0.4  # the belief's chance of a counted walk meeting a wall before its count: walk less
 REPHRASE_AFTER = 2  # instructions in a row not carried out: say the next one move at a time
 LOST_AFTER = 3  # ... stop guiding and ask
 # A report of an instruction not carried out in full: the Driver stopped somewhere along the way.
 # Whole words: "hit" inside "white" made every report naming a white wall one not carried out.
-_STUCK = re.compile(r"\b(?:hit|cannot|can only|could not|do not|not the one|no opening|still|not turned)\b")
-_YOUR_SIDE = {  # a question's sector as the Commander says it
-    Sector.FRONT: "ahead of you",
-    Sector.LEFT: "on your left",
-    Sector.BEHIND: "behind you",
-    Sector.RIGHT: "on your right",
-}
+# "do not" only as the scripted Driver's "i do not see a red wall ahead": a person's "i don't think
+# there's anything on my left" describes.
+_STUCK = re.compile(
+    r"\b(?:hit|cannot|can only|could not|do not see (?:a|the)|not the one|no opening|still|not turned)\b"
+)
+# A report that says it did what it was told: a wall right in front then is where the walk ended.
+_DONE = re.compile(r"\b(?:done|did (?:it|that)|finished)\b")
+MISCOUNT = math.log(0.1)  # a person's count of the steps it made before it stopped, one off
+# A question's sector as the Commander says it; never behind: a person in the Driver's seat cannot
+# see behind (and a Driver agent turns around and back to answer, eight scored moves).
+_YOUR_SIDE = {Sector.FRONT: "ahead of you", Sector.LEFT: "on your left", Sector.RIGHT: "on your right"}
 LOOK_AROUND = "look around and tell me what you see"
 
 
@@ -169,12 +175,13 @@ class DialogCommander:
         if asked is not None and lexicon.only_asks(text) and self._phase == Phase.NAVIGATING:
             return self._answer(asked)  # it reports nothing done: the belief stays where it was
         blocked = lexicon.blocked(text)  # its way forward is barred where it stands
-        stuck = blocked or bool(_STUCK.search(lowered))
+        short = lexicon.fell_short(text) or bool(_STUCK.search(lowered))
+        stuck = short or (blocked and not _DONE.search(lowered))
         understood = self._understanding.facts(text, self._before)
         read = None if understood.by_rules else belief_facts(understood.meaning)  # None: the lexicon's
         view = lexicon.facts(text) if read is None else read
         if self._pending is not None:
-            self._move(self._pending, whole=not stuck)
+            self._move(self._pending, whole=not stuck, walked=lexicon.walked(text) if short else None)
             self._plain = stuck
             self._stuck = self._stuck + 1 if stuck else 0
             self._pending = None
@@ -233,17 +240,19 @@ class DialogCommander:
             self._closer_than_m = min(
                 self._closer_than_m, math.dist(self.graph.nodes[self.estimate().pose.node], target)
             )
-            label = object_label(self._target)
-            thing = OBJECT_WORDS[label]
+            # Said so that a Driver reads no move in it (the trained reader took "about 12 steps
+            # away" for a walk, an object named for one to go to): no count, no side, no name.
             seen = {s.label for s in describe_seen(claim.rays)}
-            other = next((OBJECT_WORDS[o] for o in OBJECT_LABELS if o in seen and o != label), None)
-            if label in seen:
-                why = f"not yet: the {thing} is in your picture but not close enough"
-            elif other is not None:
-                why = f"that is the {other}, not the {thing}"
+            if object_label(self._target) in seen:
+                why = "no, not yet: you see it, but you are not close enough"
+            elif seen & set(OBJECT_LABELS):
+                why = "no, not yet: you see something else, i do not see it in your picture"
             else:
-                why = f"that is not the {thing}: i do not see it in your picture"
-            self._why_not = f"{why}. {self._where(self.estimate())}"
+                why = "no, not yet: i do not see it in your picture"
+            steps = self._steps_to_go(self.estimate())
+            self._why_not = (
+                f"{why}. by my map you are {'close to it now' if steps <= CLOSE_STEPS else 'still far from it'}"
+            )
             return [Judge(False), Say(self._why_not)]  # said at once: a person waits to hear why
         return [Judge(True)]
 
@@ -279,20 +288,45 @@ class DialogCommander:
         x, y = self.graph.nodes[node]
         return Estimate(Pose(node, heading), float(x), float(y), float(expected[node]))
 
-    def _move(self, said: ins.Parsed, whole: bool) -> None:
-        """Carry the belief through the moves `said` asks for: to where they end (`whole`), or to
-        any pose along the way, each as likely."""
+    def _move(self, said: ins.Parsed, whole: bool, walked: int | None = None) -> None:
+        """Carry the belief through the moves `said` asks for (a counted walk a step short or long
+        less likely): to where they end (`whole`); where the Driver stopped short, `walked` steps
+        into one of its walks (a step either side less likely), or any pose along the way, each as
+        likely, where it did not say how far it got."""
         log = self.belief.log
         along = [log]
+        stops: list[np.ndarray] = []
         for item in said.instructions:
-            for step in self._steps(item):
-                log = self._shift(log, step)
+            steps = self._steps(item)
+            if walked is not None and isinstance(item, ins.Forward):
+                stops += self._stops(log, steps, walked)
+            previous = log
+            for step in steps:
+                previous, log = log, self._shift(log, step)
                 along.append(log)
-        moved = log if whole else np.logaddexp.reduce(np.stack(along), axis=0)
+            if isinstance(item, ins.Forward) and item.steps is not None and item.steps > 1:
+                # A person miscounts a counted walk now and then: a step fewer, or one more.
+                further = self._shift(log, np.zeros_like(self._at_wall))
+                log = np.logaddexp(log, MISCOUNT + np.logaddexp(previous, further))
+        if whole:
+            moved = log
+        else:
+            moved = np.logaddexp.reduce(np.stack(stops or along), axis=0)
         moved = moved - np.logaddexp.reduce(moved, axis=None)  # normalised, to mix with the rest
         # The robot may be anywhere else: a belief sure of a wrong place can still be talked out of it.
         anywhere = np.where(self.main[:, None], math.log(ELSEWHERE / self.main.sum() / HEADINGS), -np.inf)
         self.belief.log = np.logaddexp(moved + math.log(1 - ELSEWHERE), anywhere)
+
+    def _stops(self, log: np.ndarray, steps: list[np.ndarray | int], walked: int) -> list[np.ndarray]:
+        """Where a walk of `steps` from `log` stands after `walked` of them, and a step either side
+        (less likely: a person miscounts)."""
+        out = []
+        for k in range(min(walked + 1, len(steps)) + 1):
+            if k >= walked - 1:
+                out.append(log + (0.0 if k == walked else MISCOUNT))
+            if k < len(steps):
+                log = self._shift(log, steps[k])
+        return out
 
     def _steps(self, item: ins.Instruction) -> list[np.ndarray | int]:
         """An instruction as per-pose transitions: an int turns by that many eighths, an (N, 8)
@@ -359,7 +393,7 @@ class DialogCommander:
         p = p / p.sum()
         yes = np.einsum("nh,nhsl->sl", p, self._seen)  # (4 sectors, labels)
         best, best_split = None, -1.0
-        for sector in (Sector.FRONT, Sector.LEFT, Sector.RIGHT, Sector.BEHIND):
+        for sector in _YOUR_SIDE:
             for label in Label:
                 if label == Label.FLOOR or (sector, label) in self._asked:
                     continue
@@ -405,11 +439,52 @@ class DialogCommander:
             turn = self.phrases.turn(eighths)
             until = self.phrases.say(PhraseKind.UNTIL_TARGET, thing=OBJECT_WORDS[label])
             text = f"{turn}, then {until}" if turn else until
-        elif one_move:
-            text = self.router.one_move(estimate.pose, label, goal)
         else:
-            text = self.router.instruction(estimate.pose, label, goal, plain=self._plain)
+            if one_move:
+                text = self.router.one_move(estimate.pose, label, goal)
+            else:
+                text = self.router.instruction(estimate.pose, label, goal, plain=self._plain)
+            text = self._safer(text)
         return self._say(f"{prefix}. {text}" if prefix else text)
+
+    def _safer(self, text: str) -> str:
+        """`text` where the belief gives its counted walk little chance of meeting a wall before its
+        count; else its turn and as many steps as are likely free (then it says the rest from where
+        the Driver says it got to), or the turn alone. Where not even a step ahead is likely free,
+        `text` still: asking instead (once, "i am not sure which way you are facing") cost more
+        messages and moves on val_seen than the walks it spared."""
+        said = ins.parse(text)
+        if self._refusal(said.instructions) <= RISKY:
+            return text
+        walks = [(k, i) for k, i in enumerate(said.instructions) if isinstance(i, ins.Forward)]
+        if not walks:
+            return text
+        walk, first = walks[0]
+        lead = said.instructions[:walk]
+        steps = first.steps or 0  # a walk "until" stops at the wall: never risky
+        eighths = sum(i.eighths for i in lead if isinstance(i, ins.Turn))
+        turn = [t] if (t := self.phrases.turn(eighths)) else []
+        for n in range(steps - 1, 0, -1):
+            if self._refusal((*lead, ins.Forward(n))) <= RISKY:
+                return ", then ".join([*turn, self.phrases.say(PhraseKind.FORWARD, n=n)])
+        return turn[0] if turn else text
+
+    def _refusal(self, said: tuple[ins.Instruction, ...]) -> float:
+        """The belief's chance that a counted walk of `said` meets a wall before its count (the
+        Driver stops there: a walk into a wall)."""
+        log = self.belief.node_logits()
+        log = log - np.logaddexp.reduce(log, axis=None)
+        blocked = self.graph.forward < 0
+        refused = 0.0
+        for item in said:
+            if isinstance(item, ins.Forward) and item.steps is not None:
+                for _ in range(item.steps):
+                    refused += float(np.exp(np.logaddexp.reduce(log[blocked]))) if blocked.any() else 0.0
+                    log = self._shift(np.where(blocked, -np.inf, log), np.zeros_like(blocked))
+                continue
+            for step in self._steps(item):
+                log = self._shift(log, step)
+        return refused
 
     # -- answers --------------------------------------------------------------------------------
 
@@ -438,12 +513,15 @@ class DialogCommander:
                 reply = f"{unsure}{way[first]} first" if first in way else None
         return self._guide(prefix=reply)
 
+    def _steps_to_go(self, estimate: Estimate) -> int:
+        return int(round(self._dist[estimate.pose.node, self.goal(estimate.pose.node)] / GRID_STEP_M))
+
     def _where(self, estimate: Estimate) -> str:
         """Where the target is from the estimate: how many steps' walk, and which side of the Driver."""
         assert self._target is not None
         label = object_label(self._target)
         x, y = self.maze.objects[self._target]
-        steps = round(self._dist[estimate.pose.node, self.goal(estimate.pose.node)] / GRID_STEP_M)
+        steps = self._steps_to_go(estimate)
         bearing = math.degrees(math.atan2(y - estimate.y, x - estimate.x) - heading_angle(estimate.pose.heading))
         bearing = (bearing + 180) % 360 - 180  # left positive
         side = "left" if bearing > 0 else "right"

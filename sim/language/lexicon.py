@@ -17,7 +17,7 @@ from enum import StrEnum
 
 from sim.core.labels import Label
 from sim.language.sectors import SECTOR_HEADING_OFFSET, SECTOR_WORDS, Sector
-from sim.language.vocab import LABEL_WORDS, correct
+from sim.language.vocab import LABEL_WORDS, correct, number
 
 
 class ViewKind(StrEnum):
@@ -379,13 +379,23 @@ _ASKED = (
         re.compile(r"\b(?:which|what) (?:way|direction|side)\b|\bleft or right\b|\bright or left\b|\bwhere\b"),
     ),
 )
-# A report that the way ahead is barred where the Driver stands ("i hit a wall", "i can only go 2
-# steps", "there is a wall right in front of me"); "close ahead" is not: a step may still be free.
-_BLOCKED = re.compile(
+DISTANCE_WINDOW = 8  # words after "a wall right in front" that may still say how far it is
+_COUNT = r"(?:\d+|zero|one|two|three|four|five|six|seven|eight|nine|ten|a few)"
+# A report of an instruction not carried out in full, the Driver stopped on its way ("i hit a wall
+# after three steps", "only 2 steps, then a wall", "stopped at three", "i could not go further").
+_FELL_SHORT = re.compile(
     r"\b(?:hit|bumped|bump|crashed|ran into|blocked|stuck|can only go|in my way|no way forward)\b"
     r"|\b(?:can not|cannot|cant|could not|unable to) (?:go|move|drive) (?:any )?(?:forward|ahead|on|further|farther)\b"
-    r"|\b(?:wall|stopped|stuck) after (?:\d+|one|two|three|four|five|six|seven|eight|nine|ten|a few)\b"
-    r"|\bwall (?:is )?(?:right|directly|just|immediately) (?:in front|ahead)\b"
+    rf"|\b(?:wall|stopped|stuck|blocked) (?:after|at) {_COUNT}\b"
+    rf"|\bonly (?:got )?{_COUNT} steps?\b"
+)
+# The steps a Driver says it made before it stopped ("after three steps", "only got 2 steps in",
+# "stopped at 3", "2 done", "maybe two steps?").
+_WALKED = re.compile(rf"\b(?:after|at|got|only|maybe|go) ({_COUNT})\b|\b({_COUNT}) (?:steps? )?done\b")
+# A wall that bars the way where the Driver stands ("there is a wall right in front of me");
+# "close ahead" is not: a step may still be free.
+_WALL_RIGHT_AHEAD = re.compile(
+    r"\bwall (?:is )?(?:right|directly|just|immediately) (?:in front|ahead)\b"
     r"|\b(?:right|directly|just|immediately) (?:in front of me|ahead) (?:is|there is) (?:a|the) wall\b"
     r"|\bfacing (?:a|the) wall\b"
 )
@@ -404,9 +414,35 @@ def only_asks(text: str) -> bool:
     return bool(sentences) and all(is_question(s) or asks(s) is not None for s in sentences)
 
 
+def fell_short(text: str) -> bool:
+    """Whether a Driver's message says it stopped before it had done what it was told."""
+    return bool(_FELL_SHORT.search(" ".join(tokens(text))))
+
+
+def walked(text: str) -> int | None:
+    """The steps a Driver's report of stopping short says it made; None where it names none."""
+    found = _WALKED.search(" ".join(tokens(text)))
+    if found is None:
+        return None
+    word = found.group(1) or found.group(2)
+    return 0 if word == "zero" else number(word.removeprefix("a "))
+
+
 def blocked(text: str) -> bool:
-    """Whether a Driver's message says its way forward is barred where it stands."""
-    return bool(_BLOCKED.search(" ".join(tokens(text))))
+    """Whether a Driver's message says its way forward is barred where it stands: it stopped short
+    at a wall, or a wall is right in front of it, which it does not then call far off (a person's
+    "right in front of me" may only mean ahead: "... right in front of me, it's a good way off")."""
+    said = " ".join(tokens(text))
+    if _FELL_SHORT.search(said):
+        return True
+    for found in _WALL_RIGHT_AHEAD.finditer(said):
+        after = said[found.end() :].split()[:DISTANCE_WINDOW]
+        told = next((k for k, w in enumerate(after) if w in LABELS), len(after))  # up to the next wall named
+        # "right" there is "right there" (near) or "on the right" of another wall; "way off" is far.
+        words = ["far" if w == "off" else w for w in after[:told] if w != "right"]
+        if _distance(words) != Distance.FAR:
+            return True
+    return False
 
 
 def question(text: str) -> QuestionFacts:

@@ -12,7 +12,7 @@ from sim.agents.dialog_commander import DialogCommander
 from sim.agents.dialog_driver import DialogDriver
 from sim.agents.oracle_driver import OracleDriver
 from sim.agents.selfplay import TrialSpec, play
-from sim.core.dynamics import Pose
+from sim.core.dynamics import Action, Pose
 from sim.core.geometry import SUCCESS_RADIUS_M, world_to_pixel
 from sim.core.labels import OBJECT_LABELS, Label
 from sim.core.maze import Maze
@@ -26,7 +26,7 @@ from sim.language.vocab import SIDE_STEPS
 from sim.tasks.benchmark import Benchmark
 from sim.tasks.library import BUNDLED_DIR
 from sim.trial.agent import SeatInfo
-from sim.trial.commands import Judge, Localize, Say
+from sim.trial.commands import Judge, Localize, RequestMove, Say
 from sim.trial.percepts import Claimed, Heard, Judged, Moved, Percept, PhaseBegan, Saw
 from sim.trial.vocabulary import Move, Outcome, Phase, Role
 
@@ -74,6 +74,7 @@ def test_its_belief_settles_where_the_driver_is(world, node_xy, heading):
     mark, said = _localize(world, _commander(world), start)
     assert mark is not None, said
     assert graph.topological_distance((mark.x, mark.y), graph.nodes[start.node]) <= 0.5, said
+    assert not any("behind" in q for q in said[1:]), said  # a person cannot see behind without turning
 
 
 def test_it_asks_the_question_that_splits_its_belief(world):
@@ -237,7 +238,7 @@ def test_a_wall_reported_right_in_front_changes_its_next_instruction(world, repo
     estimate = commander.estimate()
     again = _said(turns)
     assert commander.graph.forward[estimate.pose.node, estimate.pose.heading] < 0, "a wall bars its way there"
-    assert again and again not in first, (first, again)
+    assert again and ins.parse(again) != ins.parse(first.removeprefix("now find the jar of blocks. ")), (first, again)
     assert not isinstance(ins.parse(again).instructions[0], ins.Forward), again  # it turns first
 
 
@@ -251,7 +252,16 @@ def test_it_says_at_once_why_it_rejects_a_claim_and_again_when_asked_why_not(wor
     turns = commander.perceive(Claimed(0, rays.observation(*far)))
     assert turns[0] == Judge(False)
     why = _said(turns)
-    assert "jar of blocks" in why and "i think the jar of blocks is" in why and "steps away" in why, why
+    assert why.startswith("no, not yet: ") and "by my map you are" in why, why
+    # A Driver agent reads the reason as no move: no count ("about 12 steps away" was read as a
+    # walk), no side, no object named to go to.
+    driver = DialogDriver(0)
+    driver.reset(SeatInfo(Role.DRIVER, 3))
+    driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
+    driver.perceive(Saw(0, rays.observation(*far)))
+    driver.perceive(Judged(False, 0))
+    assert not any(c.isdigit() for c in why), why
+    assert not [a for a in driver.perceive(Heard(Role.COMMANDER, why)) if isinstance(a, RequestMove)], why
     before = commander.belief.log.copy()
     answer = _said(commander.perceive(Heard(Role.DRIVER, "why not?")))
     assert answer.startswith(why), answer  # the reason again, then where to go
@@ -319,3 +329,70 @@ def test_a_target_no_place_sees_within_reach_is_guided_to_the_nearest_place(benc
     goal = commander.goal(0)
     nearest = min(math.dist(commander.graph.nodes[n], jar) for n in range(commander.graph.n))
     assert math.dist(commander.graph.nodes[goal], jar) <= nearest + 0.08
+
+
+def _end_of(commander: DialogCommander, start: Pose, said: str, walked: int | None = None) -> Pose:
+    """Where `said` leads from `start` on the map (`walked`: steps into its first walk, then stop)."""
+    pose = start
+    for item in ins.parse(said).instructions:
+        if isinstance(item, ins.Turn):
+            pose = Pose(pose.node, (pose.heading + item.eighths) % 8)
+        elif isinstance(item, ins.Forward):
+            assert item.steps is not None, said
+            for _ in range(item.steps if walked is None else walked):
+                pose, _ = commander.graph.moves.step(pose, Action.FORWARD)
+            if walked is not None:
+                return pose
+    return pose
+
+
+def test_a_done_report_naming_a_wall_right_in_front_takes_the_walk_as_done(world):
+    """A person's "done, there's a wall right in front of me" is where the walk ended, not a walk cut
+    short (it had the belief fall back to where the walk began)."""
+    start = _walk_pose(world, 6)
+    commander, first = _navigating(world, start)
+    end = _end_of(commander, start, first.removeprefix("now find the jar of blocks. "))
+    commander.perceive(Heard(Role.DRIVER, "Alright, I did that. Now there's a green wall right in front of me"))
+    assert commander.estimate().pose.node == end.node
+
+
+@pytest.mark.parametrize(
+    "report",
+    ["Hmm, I hit a wall after two steps, couldn't go any further", "Only two steps, then a wall.", "stuk after 2"],
+)
+def test_a_walk_cut_short_puts_the_robot_as_many_steps_along_as_the_driver_says(world, report):
+    start = _walk_pose(world, 6)
+    commander, first = _navigating(world, start)
+    two = _end_of(commander, start, first.removeprefix("now find the jar of blocks. "), walked=2)
+    commander.perceive(Heard(Role.DRIVER, report))
+    assert commander.estimate().pose.node == two.node, report
+
+
+def _free_run(commander: DialogCommander, pose: Pose) -> int:
+    """Forward steps free from `pose` before a wall bars the way."""
+    run = 0
+    while commander.graph.forward[pose.node, pose.heading] >= 0 and run < 60:
+        pose, _ = commander.graph.moves.step(pose, Action.FORWARD)
+        run += 1
+    return run
+
+
+def test_unsure_where_a_walk_ends_it_walks_no_further_than_is_likely_free(world):
+    """Its belief split 55/45 between where the route walks 6 steps or more and a place where a
+    wall comes after fewer, it does not say the long counted walk (a person walks into the wall)."""
+    start = _walk_pose(world, 6)
+    commander, first = _navigating(world, start)
+    counted = ins.parse(first.removeprefix("now find the jar of blocks. ")).instructions[0]
+    assert isinstance(counted, ins.Forward) and counted.steps is not None
+    short = next(
+        Pose(n, start.heading)
+        for n in np.flatnonzero(commander.main)
+        if 1 <= _free_run(commander, Pose(int(n), start.heading)) < counted.steps - 1
+    )
+    _there(commander, short)
+    split = commander.belief.log + math.log(0.45)
+    _there(commander, start)
+    commander.belief.log = np.logaddexp(commander.belief.log + math.log(0.55), split)
+    said = ins.parse(_said(commander._guide()))
+    walks = [i for i in said.instructions if isinstance(i, ins.Forward)]
+    assert walks and walks[0].steps is not None and walks[0].steps <= _free_run(commander, short), said
