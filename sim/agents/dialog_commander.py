@@ -241,17 +241,18 @@ class DialogCommander:
                 self._closer_than_m, math.dist(self.graph.nodes[self.estimate().pose.node], target)
             )
             # Said so that a Driver reads no move in it (the trained reader took "about 12 steps
-            # away" for a walk, an object named for one to go to): no count, no side, no name.
+            # away" for a walk, an object named for one to go to): no count, no side, no name, and
+            # in words the reader reads as no move after any of the Driver's own last messages.
             seen = {s.label for s in describe_seen(claim.rays)}
             if object_label(self._target) in seen:
-                why = "no, not yet: you see it, but you are not close enough"
+                why = "no, not yet. you see it, but you are not close enough"
             elif seen & set(OBJECT_LABELS):
-                why = "no, not yet: you see something else, i do not see it in your picture"
+                why = "no, not yet. you see something else, not it"
             else:
-                why = "no, not yet: i do not see it in your picture"
+                why = "no, not yet. it is not in your picture"
             steps = self._steps_to_go(self.estimate())
             self._why_not = (
-                f"{why}. by my map you are {'close to it now' if steps <= CLOSE_STEPS else 'still far from it'}"
+                f"{why}: by my map it is {'close to you now' if steps <= CLOSE_STEPS else 'still far from you'}"
             )
             return [Judge(False), Say(self._why_not)]  # said at once: a person waits to hear why
         return [Judge(True)]

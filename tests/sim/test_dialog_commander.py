@@ -252,7 +252,7 @@ def test_it_says_at_once_why_it_rejects_a_claim_and_again_when_asked_why_not(wor
     turns = commander.perceive(Claimed(0, rays.observation(*far)))
     assert turns[0] == Judge(False)
     why = _said(turns)
-    assert why.startswith("no, not yet: ") and "by my map you are" in why, why
+    assert why.startswith("no, not yet. ") and "by my map it is" in why, why
     # A Driver agent reads the reason as no move: no count ("about 12 steps away" was read as a
     # walk), no side, no object named to go to.
     driver = DialogDriver(0)
