@@ -22,6 +22,7 @@ from sim.core.geometry import HEADING_DI, HEADING_DJ, HEADINGS
 from sim.core.labels import OBJECT_LABELS, Label
 from sim.core.rays import RayObservation
 from sim.language import instructions as ins
+from sim.language import lexicon
 from sim.language.describe import CENTRE_RAYS, LEFT_EDGE, RIGHT_EDGE, ahead, at_wall, near, seen
 from sim.language.driver_phrasing import (
     Answered,
@@ -66,6 +67,20 @@ _YES = Clause.of(Op.ANSWER, value="yes")
 _NO = Clause.of(Op.ANSWER, value="no")
 _CLAIM = Clause.of(Op.STOP, claim=True)
 _NO_WORD = re.compile(r"^\W*(?:no+|nope|nah|n)\b\W*", re.IGNORECASE)
+
+
+_AGREE = lexicon.YES - {"right"}  # "right" after "turning left?" may be the other way
+
+
+def _answer(program: Program, text: str) -> Clause | None:
+    """A yes or no to its question: as the reader reads it, or a turn that moves nothing and opens
+    with a yes or no word the reader never met ("yep", "sure", "nope")."""
+    if program in ((_YES,), (_NO,)):
+        return program[0]
+    words = lexicon.tokens(text)
+    if not words or _moves(program):
+        return None
+    return _YES if words[0] in _AGREE else _NO if words[0] in lexicon.NO else None
 
 
 def _moves(program: Program) -> int:
@@ -251,9 +266,10 @@ class DialogDriver:
     def _heard(self, text: str) -> list[Action]:
         understood = self._understanding.program(text, self._before)
         program, offered, self._offered = understood.meaning, self._offered, None
-        if offered is not None and program == (_YES,):
+        answer = _answer(program, text) if offered is not None else None
+        if offered is not None and answer == _YES:
             program, text = offered  # "yes": the reading it asked about
-        elif offered is not None and program == (_NO,):
+        elif offered is not None and answer == _NO:
             self._plan.clear()
             # "no, right": the correction after the "no", where the rules hear a move in it.
             correction = program_of(ins.parse(_NO_WORD.sub("", text, count=1)))

@@ -345,14 +345,16 @@ def test_told_left_3_it_turns_says_it_did_not_get_the_3_and_walks_it_when_told_y
     assert pose == Pose(end, 2) and said[0].startswith("ok, went 3 steps"), said
 
 
-def test_a_count_said_before_the_turn_it_did_get_is_asked_about_before_it_moves(world):
-    """Doing the turn it understood first would put the walk it did not get in the wrong place."""
+@pytest.mark.parametrize("yes", ["yes", "yep", "sure thing"])
+def test_a_count_said_before_the_turn_it_did_get_is_asked_about_before_it_moves(world, yes):
+    """Doing the turn it understood first would put the walk it did not get in the wrong place; a
+    person's "yep" to the question is a yes."""
     _, graph, _ = world
     start = _room_for(graph, 4, 0)
     driver = _navigating(world, start)
     (asked,) = driver.perceive(Heard(Role.COMMANDER, "3 then left"))  # the reader reads a left turn
     assert asked == Say("i am not sure i got '3'. do you mean: forward 3 steps, then turning left 90 degrees?")
-    pose, said = _carry_out(driver, world, start, "yes")
+    pose, said = _carry_out(driver, world, start, yes)
     ahead = start.node
     for _ in range(3):
         ahead = int(graph.forward[ahead, 0])
