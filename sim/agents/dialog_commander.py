@@ -440,12 +440,10 @@ class DialogCommander:
             turn = self.phrases.turn(eighths)
             until = self.phrases.say(PhraseKind.UNTIL_TARGET, thing=OBJECT_WORDS[label])
             text = f"{turn}, then {until}" if turn else until
+        elif one_move:
+            text = self._safer(self.router.one_move(estimate.pose, label, goal))
         else:
-            if one_move:
-                text = self.router.one_move(estimate.pose, label, goal)
-            else:
-                text = self.router.instruction(estimate.pose, label, goal, plain=self._plain)
-            text = self._safer(text)
+            text = self._safer(self.router.instruction(estimate.pose, label, goal, plain=self._plain))
         return self._say(f"{prefix}. {text}" if prefix else text)
 
     def _safer(self, text: str) -> str:

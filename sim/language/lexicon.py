@@ -17,7 +17,7 @@ from enum import StrEnum
 
 from sim.core.labels import Label
 from sim.language.sectors import SECTOR_HEADING_OFFSET, SECTOR_WORDS, Sector
-from sim.language.vocab import LABEL_WORDS, correct, number
+from sim.language.vocab import LABEL_WORDS, NUMBER_WORDS, correct, number
 
 
 class ViewKind(StrEnum):
@@ -380,7 +380,7 @@ _ASKED = (
     ),
 )
 DISTANCE_WINDOW = 8  # words after "a wall right in front" that may still say how far it is
-_COUNT = r"(?:\d+|zero|one|two|three|four|five|six|seven|eight|nine|ten|a few)"
+_COUNT = rf"(?:\d+|zero|(?:a )?(?:{'|'.join(NUMBER_WORDS)}))"  # "3", "three", "a few"
 # A report of an instruction not carried out in full, the Driver stopped on its way ("i hit a wall
 # after three steps", "only 2 steps, then a wall", "stopped at three", "i could not go further").
 _FELL_SHORT = re.compile(

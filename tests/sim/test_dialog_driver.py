@@ -134,10 +134,7 @@ def _room_for(graph, ahead, left):
 def test_it_goes_back_to_where_it_started_by_its_own_odometry(world):
     _, graph, _ = world
     start = _room_for(graph, 3, 2)
-    driver = DialogDriver(0)
-    driver.reset(SeatInfo(Role.DRIVER, 3))
-    driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
-    driver.perceive(Saw(0, _rays(world, start)))
+    driver = _navigating(world, start)
     pose, said = _carry_out(driver, world, start, "go forward 3 steps, then turn left")
     pose, said = _carry_out(driver, world, pose, "go forward 2 steps")
     assert pose.node != start.node and said[0].startswith("ok")
@@ -280,10 +277,7 @@ def test_told_it_is_right_by_the_target_it_claims_and_does_not_turn_right(world,
 def test_told_no_with_the_other_way_after_it_asked_it_takes_the_correction(world):
     _, graph, _ = world
     start = _room_for(graph, 2, 0)
-    driver = DialogDriver(0)
-    driver.reset(SeatInfo(Role.DRIVER, 3))
-    driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
-    driver.perceive(Saw(0, _rays(world, start)))
+    driver = _navigating(world, start)
     (asked,) = driver.perceive(Heard(Role.COMMANDER, "go leftish"))  # words it is unsure of
     assert isinstance(asked, Say) and "do you mean" in asked.text, asked
     turns = driver.perceive(Heard(Role.COMMANDER, "no right"))
