@@ -13,7 +13,9 @@ from __future__ import annotations
 import asyncio
 import logging
 import random
+import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from urllib.parse import urlsplit, urlunsplit
 
@@ -37,6 +39,39 @@ from robot_client.protocol import (
 )
 
 log = logging.getLogger("robotslang.robot")
+
+
+class Pulse:
+    """One move's pulse: started, held for its calibrated time, ended exactly once.
+
+    `end` may come from the timer thread (the time is up) or the loop (stopped, link lost),
+    whichever is first; the other finds the pulse over and leaves the motors, which may by
+    then run the next move, alone.
+    """
+
+    def __init__(self, motors: MotorDriver, duration_s: float) -> None:
+        self._motors = motors
+        self._duration_s = duration_s
+        self._lock = threading.Lock()
+        self._over = threading.Event()
+        self.started_ns = 0
+        self.finished_ns = 0
+
+    def start(self, action: str) -> None:
+        self.started_ns = time.monotonic_ns()
+        self._motors.start(action)
+
+    def hold(self) -> None:
+        if not self._over.wait(self._duration_s):
+            self.end()
+
+    def end(self) -> None:
+        with self._lock:
+            if self._over.is_set():
+                return
+            self._motors.stop()
+            self.finished_ns = time.monotonic_ns()
+            self._over.set()
 
 
 class LinkRefused(RuntimeError):
@@ -90,6 +125,7 @@ class RobotClient:
         self.camera_info = camera_info or {}
         self._frame_ready = asyncio.Event()
         self._move: asyncio.Task | None = None
+        self._pulse_timer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="pulse")
         self._last_heard = time.monotonic()
         self._max_frame_bytes = DEFAULT_MAX_FRAME_BYTES
 
@@ -238,18 +274,20 @@ class RobotClient:
             self._move = asyncio.create_task(self._run_move(ws, self.motors, move_id, action))
 
     async def _run_move(self, ws: ClientConnection, motors: MotorDriver, move_id, action: str) -> None:
-        duration = motors.calibration.duration(action)
-        started_ns = time.monotonic_ns()
-        motors.start(action)
+        pulse = Pulse(motors, motors.calibration.duration(action))
+        pulse.start(action)
         try:
-            await asyncio.sleep(duration)
+            # The pulse is timed on a thread of its own: when it is due to end, the loop may be
+            # busy packing a frame, and every millisecond late is distance the rover drives on.
+            await asyncio.get_running_loop().run_in_executor(self._pulse_timer, pulse.hold)
             status, reason = "done", None
         except asyncio.CancelledError:
             status, reason = "refused", "stopped"
         finally:
-            motors.stop()
-        finished_ns = time.monotonic_ns()
-        self._send_later(ws, ack(move_id, action, status, reason, started_ns=started_ns, finished_ns=finished_ns))
+            pulse.end()
+        self._send_later(
+            ws, ack(move_id, action, status, reason, started_ns=pulse.started_ns, finished_ns=pulse.finished_ns)
+        )
 
     def _send_later(self, ws: ClientConnection, message: dict) -> None:
         # Acks must not wait behind a frame being written; a failed send means the link is
