@@ -21,7 +21,7 @@ mazes were built one after another, and their seats waited up to 45 s. The serve
 only check markers, and wait.
 
 `Preparation.run` does it from the server's warm-up thread (`Mazes.warm_up`), once the library
-is grouped into layouts (which the dashboard waits for, and which decodes every map): every maze
+is grouped into layouts (which decodes every map; the dashboard shows the mazes ungrouped meanwhile): every maze
 of the library, in order, one at a time per builder, with its progress in the log and on the
 experimenter's dashboard. The mazes of trials just created (`first`) are prepared at once, in
 threads of their own (as many as builders) that take them in turn. A seat whose maze is not

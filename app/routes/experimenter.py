@@ -94,8 +94,11 @@ def dashboard(
     rovers = db.scalars(select(Robot).where(Robot.role == Role.DRIVER).order_by(Robot.name)).all()
     names = {p.id: p.name for p in participants}
     team_names = {t.id: t.name for t in teams}
-    layouts = mazes.layouts()
-    suggestions = {t.id: suggest_maze(db, t, layouts) for t in teams}
+    # On a fresh install's first start the warm-up groups the library for a while (12 s for the
+    # benchmark's mazes): until then the page lists the mazes as they are and suggests none.
+    grouped = mazes.layouts_if_grouped()
+    layouts = grouped if grouped is not None else {name: name for name in mazes.names()}
+    suggestions = {t.id: suggest_maze(db, t, layouts) if grouped is not None else None for t in teams}
     # The robot seat: the simulator or a registered rover, by the trial's backend spec.
     backends = {str(SIM): "simulator", **{str(BackendSpec.robot(r.id)): f"{r.name} (rover)" for r in rovers}}
     return render(
@@ -107,6 +110,7 @@ def dashboard(
         names=names,
         team_names=team_names,
         layouts=layouts,
+        grouped=grouped is not None,
         suggestions=suggestions,
         backends=backends,
         seat_agents=available_seats(agents),

@@ -147,22 +147,32 @@ def grouping_key(maps: Mapping[str, Sequence[Path]]) -> str:
     return h.hexdigest()[:16]
 
 
+def stored_grouping(key: str, cache_dir: str | Path | None = None) -> list[Layout] | None:
+    """The grouping stored under `key`; None where there is none (or a torn or stale one)."""
+    try:
+        stored = json.loads(_grouping_path(key, cache_dir).read_text())
+        return [Layout(id=str(g["id"]), runs=tuple(str(r) for r in g["runs"])) for g in stored["layouts"]]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
 def cached_grouping(key: str, build: Callable[[], list[Layout]], cache_dir: str | Path | None = None) -> list[Layout]:
     """The grouping stored under `key`, else `build()` (a list of layouts) stored there."""
-    path = default_cache_dir(cache_dir) / "layouts" / f"grouping-{key}.json"
-    if path.exists():
-        try:
-            stored = json.loads(path.read_text())
-            return [Layout(id=str(g["id"]), runs=tuple(str(r) for r in g["runs"])) for g in stored["layouts"]]
-        except (OSError, ValueError, KeyError, TypeError):
-            pass  # torn or stale: grouped again below
+    stored = stored_grouping(key, cache_dir)
+    if stored is not None:
+        return stored
     layouts = build()
+    path = _grouping_path(key, cache_dir)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".json")
     with os.fdopen(fd, "w") as f:
         json.dump({"layouts": [layout.as_json() for layout in layouts]}, f)
     os.replace(tmp, path)
     return layouts
+
+
+def _grouping_path(key: str, cache_dir: str | Path | None) -> Path:
+    return default_cache_dir(cache_dir) / "layouts" / f"grouping-{key}.json"
 
 
 class FoldCount(TypedDict):

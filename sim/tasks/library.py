@@ -17,7 +17,7 @@ from typing import Protocol
 
 from sim.core.maze import FIXED_MAP, WALLS_MAP, Maze, map_files, maps_key
 from sim.core.validation import check_reachable
-from sim.tasks.layouts import Layout, LayoutSignature, cached_grouping, group_layouts, grouping_key
+from sim.tasks.layouts import Layout, LayoutSignature, cached_grouping, group_layouts, grouping_key, stored_grouping
 
 BUNDLED_DIR = Path(__file__).resolve().parent / "mazes"
 MANIFEST = "manifest.json"
@@ -123,10 +123,7 @@ class MazeLibrary:
         `LayoutsStopped` once `stop` is set, between two maps (each map's signature is kept).
         `preparing`: the mazes it has in hand are read last, once it has cached their maps and
         signatures, rather than decoded twice at once."""
-        maps = {
-            name: [f for f in (self.path(name) / "maze" / m for m in (FIXED_MAP, WALLS_MAP)) if f.is_file()]
-            for name in self.names()
-        }
+        maps = self._maps()
 
         def build() -> list[Layout]:
             signatures = {}
@@ -143,6 +140,16 @@ class MazeLibrary:
             return group_layouts({name: signatures[name] for name in maps})
 
         return cached_grouping(grouping_key(maps), build, cache_dir)
+
+    def stored_layouts(self, cache_dir: str | Path | None = None) -> list[Layout] | None:
+        """`layouts()` where the grouping of these very maps is cached; else None, decoding nothing."""
+        return stored_grouping(grouping_key(self._maps()), cache_dir)
+
+    def _maps(self) -> dict[str, list[Path]]:
+        return {
+            name: [f for f in (self.path(name) / "maze" / m for m in (FIXED_MAP, WALLS_MAP)) if f.is_file()]
+            for name in self.names()
+        }
 
     def _signature(self, name: str, cache_dir: str | Path | None, stop: Event | None) -> LayoutSignature:
         if stop is not None and stop.is_set():

@@ -173,3 +173,15 @@ def test_the_grouping_into_layouts_reads_a_maze_being_prepared_last_and_decodes_
     files = [f for name in library.names() for f in map_files(library.path(name)) if f is not None]
     assert sorted(decoded) == sorted(files)  # each map decoded once
     assert {f.parent.parent.name for f in decoded[-2:]} == {in_hand}  # the one in hand, last
+
+
+def test_the_dashboard_answers_while_a_fresh_install_still_groups_the_benchmarks_mazes(
+    start_server, tmp_path, benchmark_path
+):
+    # The warm-up decodes every map to group the library into layouts (12 s for the benchmark's
+    # 178 runs): the dashboard, asked at once, lists the mazes and says it is grouping them.
+    server = start_server(cache_dir=tmp_path / "cache", benchmark=benchmark_path)
+    page = experimenter_client(server.services, server.url).get("/experimenter")
+    assert page.status_code == 200
+    assert "Grouping the mazes into physical layouts" in page.text
+    assert '<option value="Run_114" data-layout="Run_114">' in page.text
