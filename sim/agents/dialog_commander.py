@@ -27,7 +27,7 @@ import numpy as np
 from sim.agents.route import Router
 from sim.core.dynamics import Action as Move
 from sim.core.dynamics import Pose
-from sim.core.geometry import GRID_STEP_M, HEADINGS, heading_angle
+from sim.core.geometry import GRID_STEP_M, HEADINGS, heading_angle, heading_index
 from sim.core.labels import OBJECT_LABELS, Label, object_label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
@@ -434,9 +434,11 @@ class DialogCommander:
         goal = self.goal(estimate.pose.node)
         if estimate.pose.node == goal:
             # There: face the target and go up to it; the Driver claims once it sees it within reach.
-            eighths = min(
-                ((int(h) - estimate.pose.heading + 4) % HEADINGS - 4 for h in np.flatnonzero(reach[goal])), key=abs
-            )
+            headings = np.flatnonzero(reach[goal])
+            if not headings.size:  # no place has it in view within reach (`goal`): face it from the nearest
+                dx, dy = self.maze.objects[self._target] - self.graph.nodes[goal]
+                headings = np.array([heading_index(math.atan2(dy, dx))])
+            eighths = min(((int(h) - estimate.pose.heading + 4) % HEADINGS - 4 for h in headings), key=abs)
             turn = self.phrases.turn(eighths)
             until = self.phrases.say(PhraseKind.UNTIL_TARGET, thing=OBJECT_WORDS[label])
             text = f"{turn}, then {until}" if turn else until

@@ -329,6 +329,13 @@ def test_a_target_no_place_sees_within_reach_is_guided_to_the_nearest_place(benc
     goal = commander.goal(0)
     nearest = min(math.dist(commander.graph.nodes[n], jar) for n in range(commander.graph.n))
     assert math.dist(commander.graph.nodes[goal], jar) <= nearest + 0.08
+    # Believed at that place, it says to face the jar and go up to it (no heading there has it
+    # within reach, and it raised: `robotslang train language --seed 1` stopped in its self-play).
+    commander = DialogCommander(bench.maze("Run_152"), 0, bench.cache_dir)
+    commander.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
+    _there(commander, Pose(goal, 0))
+    said = _said(commander.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3, target="jar")))
+    assert "jar" in said, said
 
 
 def _end_of(commander: DialogCommander, start: Pose, said: str, walked: int | None = None) -> Pose:
