@@ -175,6 +175,8 @@ class Mazes:
     def _warm(self) -> None:
         from sim.tasks.library import LayoutsStopped
 
+        if self._layouts is None and self.library.stored_layouts(self.settings.cache_dir) is None:
+            self.preparation.sign()  # the maps read by the builders, not in this process
         try:
             self.layouts(stop=self._stop_warming)
         except LayoutsStopped:  # the next process to ask goes on from the maps read

@@ -21,7 +21,9 @@ mazes were built one after another, and their seats waited up to 45 s. The serve
 only check markers, and wait.
 
 `Preparation.run` does it from the server's warm-up thread (`Mazes.warm_up`), once the library
-is grouped into layouts (which decodes every map; the dashboard shows the mazes ungrouped meanwhile): every maze
+is grouped into layouts (on a fresh install `Preparation.sign` has the builders decode every map
+for it first, 7 s for the benchmark's against 13 s in the server's thread; the dashboard shows the
+mazes ungrouped meanwhile): every maze
 of the library, in order, one at a time per builder, with its progress in the log and on the
 experimenter's dashboard. The mazes of trials just created (`first`) are prepared at once, in
 threads of their own (as many as builders) that take them in turn. A seat whose maze is not
@@ -92,6 +94,14 @@ def prepare_maze(library: MazeLibrary, name: str, cache_dir: Path) -> bool:
     done.parent.mkdir(parents=True, exist_ok=True)
     done.write_text(json.dumps({"maze": name, "content_hash": maze.content_hash}))
     return True
+
+
+def sign_maze(library: MazeLibrary, name: str, cache_dir: Path) -> None:
+    """Cache what grouping the library into layouts reads of maze `name`: its decoded maps and
+    layout signature. Raises `MazeError` for a malformed map."""
+    from sim.tasks.layouts import LayoutSignature
+
+    LayoutSignature.cached(library.load(name), cache_dir)
 
 
 @dataclass(frozen=True)
@@ -246,13 +256,13 @@ class Preparation:
     def _prepared(self, name: str) -> bool:
         return marker(self._library(), name, self.cache_dir).exists()
 
-    def _submit(self, name: str) -> tuple[Future[bool], ProcessPoolExecutor]:
-        """`prepare_maze` in a builder process (started here the first time)."""
+    def _submit(self, name: str, job: Callable[[str], bool] | None = None) -> tuple[Future[bool], ProcessPoolExecutor]:
+        """`job` (`build_maze` unless given) in a builder process (started here the first time)."""
         with self._lock:
             if self._builder is None:
                 self._builder = builder_pool(self.benchmark, self.cache_dir, self.builders)
             builder = self._builder
-        return builder.submit(build_maze, name), builder
+        return builder.submit(job or build_maze, name), builder
 
     def _built_by(self, name: str, built: Future[bool], builder: ProcessPoolExecutor) -> bool:
         try:
@@ -264,10 +274,49 @@ class Preparation:
         """A builder process was lost (killed, out of memory), and with it the pool: this maze is
         built here (and so is each other maze the pool had in hand), the next in a new pool."""
         logger.error("mazes: the process preparing them was lost; maze %s prepared in the server", name)
+        self._forget(builder)
+        return prepare_maze(self._library(), name, self.cache_dir)
+
+    def _forget(self, builder: ProcessPoolExecutor | None) -> None:
+        """A lost pool: the next maze starts a new one."""
         with self._lock:
             if self._builder is builder:
                 self._builder = None
-        return prepare_maze(self._library(), name, self.cache_dir)
+
+    def sign(self) -> None:
+        """Every maze's decoded maps and layout signature cached by the builders, a maze a builder
+        at a time (a new trial's maze goes between them): what grouping the library into layouts
+        reads. In the server's warm-up thread the same decoding took 12 s for the benchmark's mazes
+        and held the GIL from the requests; a maze it leaves undone (malformed, or its builder
+        lost) the grouping decodes itself."""
+        started = time.monotonic()
+        rest = deque(self._library().names())
+        logger.info("mazes: reading %d maps to group them into layouts", len(rest))
+
+        def next_map() -> str | None:  # the library's only: a new trial's maze is prepared, not just read
+            with self._lock:
+                return rest.popleft() if rest and not self._stop.is_set() else None
+
+        def sweep() -> None:
+            while (name := next_map()) is not None:
+                if self._prepared(name):
+                    continue  # its signature is among what it was prepared with
+                builder = None
+                try:
+                    signed, builder = self._submit(name, sign_built)
+                    signed.result()
+                except BrokenProcessPool:
+                    self._forget(builder or self._builder)
+                except Exception:  # noqa: BLE001 - malformed, or the pool stopped: the grouping sees to it
+                    pass
+
+        sweeps = [threading.Thread(target=sweep, name="mazes-sign", daemon=True) for _ in range(self.builders)]
+        for thread in sweeps:
+            thread.start()
+        for thread in sweeps:
+            thread.join()
+        if not self._stop.is_set():
+            logger.info("mazes: maps read in %.1f s", time.monotonic() - started)
 
     def run(self) -> None:
         """Prepare every maze of the library, those of new trials first, in a thread per builder,
@@ -335,3 +384,11 @@ def build_maze(name: str) -> bool:
     assert _builder_library is not None  # set by the pool's initializer
     library, cache_dir = _builder_library
     return prepare_maze(library, name, cache_dir)
+
+
+def sign_built(name: str) -> bool:
+    """`sign_maze` in a process of `builder_pool`."""
+    assert _builder_library is not None  # set by the pool's initializer
+    library, cache_dir = _builder_library
+    sign_maze(library, name, cache_dir)
+    return True

@@ -50,6 +50,11 @@ def test_a_server_on_an_empty_cache_prepares_every_maze_and_shows_how_far_it_is(
         assert time.monotonic() < deadline, preparation_log(caplog)
         time.sleep(0.1)
     assert f"mazes: preparing what trials need of {len(names)} mazes in {cache}" in preparation_log(caplog)
+    # The maps were read for the grouping into layouts by the builders, before the preparing.
+    log = preparation_log(caplog)
+    reading = log.index(f"mazes: reading {len(names)} maps to group them into layouts")
+    assert any(line.startswith("mazes: maps read in ") for line in log[reading:])
+    assert reading < log.index(f"mazes: preparing what trials need of {len(names)} mazes in {cache}")
     page = experimenter_client(server.services, server.url).get("/experimenter").text
     assert f"All {len(names)} mazes are ready" in page
     # Each maze's graph, rays and scene are in the cache, and a marker of this version says so.
@@ -70,6 +75,7 @@ def test_a_second_start_on_the_same_cache_prepares_nothing(start_server, tmp_pat
     wait_prepared(second)
     n = len(second.services.mazes.names())
     assert any(line.startswith(f"mazes: {n} of {n} mazes ready (0 prepared here)") for line in preparation_log(caplog))
+    assert not any(line.startswith("mazes: reading") for line in preparation_log(caplog))  # grouped already
     assert {p: p.stat().st_mtime_ns for p in cache.rglob("*") if p.is_file()} == before  # nothing written
 
 
