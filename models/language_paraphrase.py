@@ -159,11 +159,7 @@ _EXPECT = [
     "{x} should be to your {s}",
     "you should have the {x} to your {s}",
 ]
-_BACK = ["back up {n} steps", "go back {n} steps", "reverse {n} steps", "back up {n}", "go backwards {n}", "back {n}"]
-# Moves typed tersely, as into a chat ("right 3", "forward 2 left 4"): a side with a count is the
-# turn, then that many steps; a side with 45, 90 or 135 is a turn of that size ("left 45").
-_TERSE_TURN = ["{d} {n}", "{d} {n} steps", "{d} then {n}", "{d}, {n} steps", "{d} and {n}", "{d} {n} forward"]
-_TERSE_WALK = ["forward {n}", "fwd {n}", "straight {n}", "{n} forward", "ahead {n}"]
+_BACK = ["back up {n} steps", "go back {n} steps", "reverse {n} steps", "back up {n}", "go backwards {n}"]
 _STOP = ["stop", "stop there", "wait", "hold on", "stop right there", "ok stop"]
 _JOIN = [", then ", " then ", " and ", ". ", " and then ", ", and then ", ". then ", ", after that ", ", "]
 _OPEN = ["ok", "okay so", "alright", "great", "good job", "now", "perfect", "nice", "next", "so", "right now", "cool"]
@@ -273,29 +269,6 @@ def paraphrase_examples(seed: int, n: int = 3000) -> list[tuple[str, Program]]:
         text = rng.choice(_BACK).format(n=_number(rng, steps)).replace("cm steps", "cm")
         return text, (Clause.of(Op.BACK, place="previous", steps=steps),)
 
-    def terse() -> Move:
-        """One or two terse moves in a row, run together ("right 3 forward 2")."""
-        text, program = [], []
-        for _ in range(rng.choice([1, 1, 2])):
-            steps = rng.randint(1, 12)
-            n = NUMBER_NAMES[steps] if rng.random() < 0.3 else str(steps)
-            walk = Clause.of(Op.FORWARD, steps=steps, until=None)
-            side = rng.choice(["left", "right"])
-            way = 1 if side == "left" else -1
-            kind = rng.random()
-            if kind < 0.45:
-                text.append(rng.choice(_TERSE_TURN).format(d=side, n=n))
-                program += [Clause.of(Op.TURN, eighths=2 * way), walk]
-            elif kind < 0.7:  # a turn's size as its angle, alone or with a walk: "left 45", "right 90 then 3"
-                size = rng.choice([1, 2, 3])
-                said = rng.choice(["{d} {a}", "{d} {a} then {n}", "{d} {a}, {n}", "{d} {a} and {n} steps"])
-                text.append(said.format(d=side, a=45 * size, n=n))
-                program += [Clause.of(Op.TURN, eighths=size * way)] + ([walk] if "{n}" in said else [])
-            else:
-                text.append(rng.choice(_TERSE_WALK).format(n=n))
-                program.append(walk)
-        return rng.choice([" ", ", ", " then "]).join(text), tuple(program)
-
     def place() -> tuple[str, str]:
         """Something a walk ends at, in words, and its `until`."""
         kind = rng.random()
@@ -347,13 +320,10 @@ def paraphrase_examples(seed: int, n: int = 3000) -> list[tuple[str, Program]]:
         return f"{text}, {rng.choice(_AGAIN[op]).format(deg=degrees)}", program
 
     makers: list[Callable[[], Move]] = [turn, turn, forward, forward, until, until, back, stop]
-    makers += [turn_at, turn_at, back_to, follow, expect, terse]
+    makers += [turn_at, turn_at, back_to, follow, expect]
     out = []
     for _ in range(n):
-        moves = []
-        for _ in range(rng.choice([1, 1, 2, 2, 3])):
-            maker = rng.choice(makers)
-            moves.append(maker() if maker is terse else again(maker()))  # a size said again: not tersely
+        moves = [again(rng.choice(makers)()) for _ in range(rng.choice([1, 1, 2, 2, 3]))]
         if any(program[0].op == Op.STOP for _, program in moves) and len(moves) > 1:
             moves = [m for m in moves if m[1][0].op != Op.STOP] or moves[:1]
         text = moves[0][0] if rng.random() < 0.7 else f"{rng.choice(_ASK)} {moves[0][0]}"

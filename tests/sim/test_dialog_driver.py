@@ -19,7 +19,6 @@ from sim.language.describe import near, seen
 from sim.language.driver_personas import DriverPersona
 from sim.language.driver_phrasing import PersonaDriverPhrasing
 from sim.language.phrases import Phrasing
-from sim.language.understanding import Understanding
 from sim.tasks.library import BUNDLED_DIR
 from sim.trial.agent import SeatInfo
 from sim.trial.commands import Claim, RequestMove, Say
@@ -285,8 +284,8 @@ def test_told_no_with_the_other_way_after_it_asked_it_takes_the_correction(world
     assert turns and isinstance(turns[0], RequestMove) and turns[0].move == Move.RIGHT, turns
 
 
-def _navigating(world, pose, read_back=False, understanding=None):
-    driver = DialogDriver(0, read_back=read_back, understanding=understanding)
+def _navigating(world, pose, read_back=False):
+    driver = DialogDriver(0, read_back=read_back)
     driver.reset(SeatInfo(Role.DRIVER, 3))
     driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
     driver.perceive(Saw(0, _rays(world, pose)))
@@ -326,27 +325,11 @@ def test_its_report_and_read_back_say_how_far_it_turned(world):
     assert said[0].startswith("ok, turned around,"), said
 
 
-def test_told_right_3_it_turns_right_and_walks_3_steps(world):
-    """The reader read "right 3" as 3 steps forward, the turn dropped ("left 3" as the turn alone)."""
-    _, graph, _ = world
-
-    def three_to_the_right(node: int) -> int:  # -1 where a wall is in the way
-        for _ in range(3):
-            node = int(graph.forward[node, 6]) if node >= 0 else -1
-        return node
-
-    start = next(Pose(n, 0) for n in range(graph.n) if three_to_the_right(n) >= 0)
-    driver = _navigating(world, start)
-    pose, said = _carry_out(driver, world, start, "right 3")
-    assert pose == Pose(three_to_the_right(start.node), 6), said
-    assert said[0].startswith("ok, went 3 steps"), said
-
-
-def test_a_count_it_did_not_read_is_asked_about_after_the_moves_it_did_and_walked_when_told_yes(world):
-    """Read by the rules, "left 3" is a turn alone: the Driver turned and said "ok", the 3 dropped in silence."""
+def test_told_left_3_it_turns_says_it_did_not_get_the_3_and_walks_it_when_told_yes(world):
+    """ "left 3" read as a turn alone: the Driver turned and said "ok", the 3 dropped in silence."""
     _, graph, _ = world
     start = _room_for(graph, 0, 3)
-    driver = _navigating(world, start, understanding=Understanding.by_rules())
+    driver = _navigating(world, start)
     pose, said = _carry_out(driver, world, start, "left 3")
     assert pose == Pose(start.node, 2) and said[0].endswith("i did not get '3' - forward 3 steps?"), said
     pose, said = _carry_out(driver, world, pose, "yes")
@@ -362,8 +345,8 @@ def test_a_count_said_before_the_turn_it_did_get_is_asked_about_before_it_moves(
     person's "yep" to the question is a yes."""
     _, graph, _ = world
     start = _room_for(graph, 4, 0)
-    driver = _navigating(world, start, understanding=Understanding.by_rules())
-    (asked,) = driver.perceive(Heard(Role.COMMANDER, "after 3 turn left"))  # the rules read a left turn
+    driver = _navigating(world, start)
+    (asked,) = driver.perceive(Heard(Role.COMMANDER, "3 then left"))  # the reader reads a left turn
     assert asked == Say("i am not sure i got '3'. do you mean: forward 3 steps, then turning left 90 degrees?")
     pose, said = _carry_out(driver, world, start, yes)
     ahead = start.node
