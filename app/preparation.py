@@ -49,6 +49,7 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from app.children import follow
 from sim.core.maze import LABELS_CACHE_VERSION
 
 if TYPE_CHECKING:
@@ -358,7 +359,10 @@ class Preparation:
 def builder_pool(benchmark: Path | None, cache_dir: Path, builders: int) -> ProcessPoolExecutor:
     """`builders` processes that prepare mazes of the library (`build_maze`) into `cache_dir`."""
     return ProcessPoolExecutor(
-        builders, mp_context=get_context("spawn"), initializer=_start_builder, initargs=(benchmark, cache_dir)
+        builders,
+        mp_context=get_context("spawn"),
+        initializer=_start_builder,
+        initargs=(benchmark, cache_dir, os.getpid()),
     )
 
 
@@ -366,8 +370,10 @@ def builder_pool(benchmark: Path | None, cache_dir: Path, builders: int) -> Proc
 _builder_library: tuple[MazeLibrary, Path] | None = None
 
 
-def _start_builder(benchmark: Path | None, cache_dir: Path) -> None:
+def _start_builder(benchmark: Path | None, cache_dir: Path, server: int) -> None:
     from sim.tasks.library import MazeLibrary
+
+    follow(server)  # a builder outlives no server, killed or not (its caches are written, then renamed)
 
     # A batch job to the kernel: the server's requests and moves, waking, are not kept waiting behind
     # it (with a builder per core at normal priority, creating 200 trials on a fresh install

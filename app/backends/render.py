@@ -16,8 +16,6 @@ import asyncio
 import contextlib
 import logging
 import os
-import threading
-import time
 from collections import OrderedDict
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -27,6 +25,8 @@ from typing import TYPE_CHECKING, Protocol
 
 import cv2
 import numpy as np
+
+from app.children import follow
 
 if TYPE_CHECKING:
     from sim.core.maze import Maze
@@ -133,15 +133,7 @@ def _start_worker(benchmark: str | None, cache_dir: str | None, server: int) -> 
     global _library, _cache_dir
     _cache_dir = Path(cache_dir) if cache_dir else None
     _library = MazeLibrary(benchmark=Path(benchmark) if benchmark else None, cache=False, cache_dir=_cache_dir)
-    threading.Thread(target=_exit_with, args=(server,), daemon=True).start()
-
-
-def _exit_with(server: int) -> None:
-    """A server killed with SIGKILL cannot stop its render processes: each follows it itself
-    (`server` is the pid that started it: it may have died before this process got here)."""
-    while os.getppid() == server:
-        time.sleep(0.5)
-    os._exit(0)
+    follow(server)
 
 
 def _kept_scenes() -> int:

@@ -14,6 +14,7 @@ import pytest
 
 from app.backends.render import RenderProcesses, render_jpeg
 from app.mazes import Mazes
+from app.preparation import builders_for
 from app.settings import Settings
 from bench.live import ServerProcesses
 from sim.core.geometry import heading_angle
@@ -109,6 +110,19 @@ def test_the_driver_sees_frames_drawn_in_a_render_process(server, trials):
     assert set(seen) <= set(frames), "the Driver saw the frames recorded"
 
 
+def spawned(pids: list[int]) -> list[int]:
+    """The process pools' workers among `pids` (started by multiprocessing's spawn)."""
+    found = []
+    for pid in pids:
+        try:
+            with open(f"/proc/{pid}/cmdline", "rb") as f:
+                if b"spawn_main" in f.read():
+                    found.append(pid)
+        except OSError:
+            pass
+    return found
+
+
 def alive(pid: int) -> bool:
     try:
         with open(f"/proc/{pid}/status") as f:
@@ -118,19 +132,20 @@ def alive(pid: int) -> bool:
 
 
 @pytest.mark.slow
-def test_render_processes_end_with_a_server_killed_by_sigkill(tmp_path, server_process):
+def test_render_processes_and_maze_builders_end_with_a_server_killed_by_sigkill(tmp_path, server_process):
+    # On an empty cache the maze builders start with the server too (they read the maps for the
+    # grouping into layouts): a builder outlived a killed server before it followed it.
     server = server_process(platform_settings(tmp_path, render_processes=1, cache_dir=tmp_path / "cache")).start()
+    workers = 1 + builders_for(0)  # the render process and a builder per core
     try:
         deadline = time.monotonic() + 60
-        while (
-            not (renderers := set(ServerProcesses(server.proc.pid).pids()) - {server.proc.pid})
-            and time.monotonic() < deadline
-        ):
-            time.sleep(0.1)  # the pool starts its process at the server's start
-        assert renderers, "the server started a render process"
+        while len(spawned(children := ServerProcesses(server.proc.pid).pids())) < workers:
+            assert time.monotonic() < deadline, f"{len(spawned(children))} of {workers} child processes started"
+            time.sleep(0.1)
+        renderers = set(children) - {server.proc.pid}
     finally:
         server.kill()
     deadline = time.monotonic() + 60
     while any(alive(p) for p in renderers) and time.monotonic() < deadline:
         time.sleep(0.1)
-    assert not any(alive(p) for p in renderers), "a render process outlived its server"
+    assert not any(alive(p) for p in renderers), "a child process outlived its server"
