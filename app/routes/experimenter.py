@@ -94,7 +94,7 @@ def dashboard(
     rovers = db.scalars(select(Robot).where(Robot.role == Role.DRIVER).order_by(Robot.name)).all()
     names = {p.id: p.name for p in participants}
     team_names = {t.id: t.name for t in teams}
-    # On a fresh install's first start the warm-up groups the library for a while (12 s for the
+    # On a fresh install's first start the warm-up groups the library for a while (7 s for the
     # benchmark's mazes): until then the page lists the mazes as they are and suggests none.
     grouped = mazes.layouts_if_grouped()
     layouts = grouped if grouped is not None else {name: name for name in mazes.names()}
