@@ -175,7 +175,7 @@ class Mazes:
     def _warm(self) -> None:
         from sim.tasks.library import LayoutsStopped
 
-        if self._layouts is None and self.library.stored_layouts(self.settings.cache_dir) is None:
+        if self.layouts_if_grouped() is None:
             self.preparation.sign()  # the maps read by the builders, not in this process
         try:
             self.layouts(stop=self._stop_warming)

@@ -257,13 +257,13 @@ class Preparation:
     def _prepared(self, name: str) -> bool:
         return marker(self._library(), name, self.cache_dir).exists()
 
-    def _submit(self, name: str, job: Callable[[str], bool] | None = None) -> tuple[Future[bool], ProcessPoolExecutor]:
-        """`job` (`build_maze` unless given) in a builder process (started here the first time)."""
+    def _submit(self, name: str, only_signature: bool = False) -> tuple[Future[bool], ProcessPoolExecutor]:
+        """`build_maze` in a builder process (started here the first time)."""
         with self._lock:
             if self._builder is None:
                 self._builder = builder_pool(self.benchmark, self.cache_dir, self.builders)
             builder = self._builder
-        return builder.submit(job or build_maze, name), builder
+        return builder.submit(build_maze, name, only_signature), builder
 
     def _built_by(self, name: str, built: Future[bool], builder: ProcessPoolExecutor) -> bool:
         try:
@@ -304,17 +304,14 @@ class Preparation:
                     continue  # its signature is among what it was prepared with
                 builder = None
                 try:
-                    signed, builder = self._submit(name, sign_built)
+                    signed, builder = self._submit(name, only_signature=True)
                     signed.result()
                 except BrokenProcessPool:
                     self._forget(builder or self._builder)
                 except Exception:  # noqa: BLE001 - malformed, or the pool stopped: the grouping sees to it
                     pass
 
-        sweeps = [threading.Thread(target=sweep, name="mazes-sign", daemon=True) for _ in range(self.builders)]
-        for thread in sweeps:
-            thread.start()
-        for thread in sweeps:
+        for thread in self._sweeps(sweep, "mazes-sign"):
             thread.join()
         if not self._stop.is_set():
             logger.info("mazes: maps read in %.1f s", time.monotonic() - started)
@@ -331,16 +328,20 @@ class Preparation:
             while (name := self._next(rest)) is not None:
                 self.ensure(name)
 
-        sweeps = [threading.Thread(target=sweep, name="mazes-sweep", daemon=True) for _ in range(self.builders)]
-        for thread in sweeps:
-            thread.start()
-        for thread in sweeps:
+        for thread in self._sweeps(sweep, "mazes-sweep"):
             while thread.is_alive():
                 thread.join(LOG_EVERY_S)
                 if thread.is_alive():
                     logger.info("mazes: %s", self.progress())
         if not self._stop.is_set():
             logger.info("mazes: %s in %.1f s", self.progress(), time.monotonic() - started)
+
+    def _sweeps(self, sweep: Callable[[], None], name: str) -> list[threading.Thread]:
+        """`sweep` started in a thread per builder."""
+        threads = [threading.Thread(target=sweep, name=name, daemon=True) for _ in range(self.builders)]
+        for thread in threads:
+            thread.start()
+        return threads
 
     def _next(self, rest: deque[str]) -> str | None:
         """The next maze to prepare: a new trial's, else the library's next; None once stopped or done."""
@@ -385,16 +386,11 @@ def _start_builder(benchmark: Path | None, cache_dir: Path, server: int) -> None
     _builder_library = MazeLibrary(benchmark, cache=False, cache_dir=cache_dir), cache_dir
 
 
-def build_maze(name: str) -> bool:
-    """`prepare_maze` in a process of `builder_pool`."""
+def build_maze(name: str, only_signature: bool = False) -> bool:
+    """`prepare_maze` in a process of `builder_pool` (`sign_maze` where `only_signature`: False)."""
     assert _builder_library is not None  # set by the pool's initializer
     library, cache_dir = _builder_library
+    if only_signature:
+        sign_maze(library, name, cache_dir)
+        return False
     return prepare_maze(library, name, cache_dir)
-
-
-def sign_built(name: str) -> bool:
-    """`sign_maze` in a process of `builder_pool`."""
-    assert _builder_library is not None  # set by the pool's initializer
-    library, cache_dir = _builder_library
-    sign_maze(library, name, cache_dir)
-    return True

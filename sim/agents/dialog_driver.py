@@ -66,7 +66,8 @@ FAILED_TRIES = 2  # instructions in a row it could not carry out: ask for one mo
 _YES = Clause.of(Op.ANSWER, value="yes")
 _NO = Clause.of(Op.ANSWER, value="no")
 _CLAIM = Clause.of(Op.STOP, claim=True)
-_NO_WORD = re.compile(r"^\W*(?:no+|nope|nah|n)\b\W*", re.IGNORECASE)
+# The "no" a correction opens with ("no, right"): the lexicon's no-words, "nooo" and a bare "n".
+_NO_WORD = re.compile(rf"^\W*(?:no+|n|{'|'.join(sorted(lexicon.NO))})\b\W*", re.IGNORECASE)
 
 
 _AGREE = lexicon.YES - {"right"}  # "right" after "turning left?" may be the other way
