@@ -40,7 +40,7 @@ def serve(
     import uvicorn
 
     from app.main import create_app
-    from app.serving import uvicorn_options
+    from app.serving import log_config, uvicorn_options
     from app.settings import Settings
 
     # Flags override the environment (in every worker too); what is not given keeps its ROBOTSLANG_* value.
@@ -62,7 +62,13 @@ def serve(
         f"RobotSlang on http://{host}:{port} (data in {settings.data_dir.resolve()}"
         f"{f', {workers} processes' if workers > 1 else ''})"
     )
-    options = {"host": host, "port": port, "log_level": "warning", **uvicorn_options(settings)}
+    options = {
+        "host": host,
+        "port": port,
+        "log_level": "warning",
+        "log_config": log_config(),
+        **uvicorn_options(settings),
+    }
     if workers == 1:
         uvicorn.run(create_app(settings), **options)
     else:  # each worker builds its own app from the same environment

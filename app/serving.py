@@ -1,5 +1,6 @@
 """How uvicorn serves the app: `uvicorn_options(settings)` for `robotslang serve`, the demo and the
-tests, and `settle_collector()` once a server process has started.
+tests, `log_config()` for a served process's output, and `settle_collector()` once a server
+process has started.
 
 A websocket message over the transport limit (`ws_max_size`) is cut off by the websockets
 library before the app sees it, with a bare close 1009. `ReplyingWebSocketProtocol` sends the
@@ -12,6 +13,7 @@ over `max_message_bytes` are answered by the app itself.
 
 from __future__ import annotations
 
+import copy
 import gc
 import json
 import threading
@@ -56,6 +58,25 @@ def uvicorn_options(settings: Settings) -> dict[str, Any]:
         "proxy_headers": bool(settings.trusted_proxies),
         "forwarded_allow_ips": settings.trusted_proxies or [],
     }
+
+
+def log_config() -> dict[str, Any]:
+    """uvicorn's logging, and the platform's own loggers (`app.*`, `robotslang.*`) at INFO to the
+    same output: without a handler of their own only their warnings reached it, and a lab never
+    saw the mazes' preparation progress the docs promise, nor robots connecting. Applied by
+    uvicorn in each worker process; not in a test's in-thread server, whose log the test reads."""
+    from uvicorn.config import LOGGING_CONFIG
+
+    config = copy.deepcopy(LOGGING_CONFIG)
+    config["formatters"]["platform"] = {"format": "%(asctime)s %(levelname)s %(name)s: %(message)s"}
+    config["handlers"]["platform"] = {
+        "class": "logging.StreamHandler",
+        "formatter": "platform",
+        "stream": "ext://sys.stderr",
+    }
+    for name in ("app", "robotslang"):
+        config["loggers"][name] = {"handlers": ["platform"], "level": "INFO"}
+    return dict(config)
 
 
 def settle_collector() -> None:

@@ -95,13 +95,18 @@ class ServerProcess:
             wait_until_up(self.url, self.proc)
         except RuntimeError as error:
             self.stop()
-            self.output.seek(0)
-            raise RuntimeError(f"{error}: {self.output.read()}") from None
+            raise RuntimeError(f"{error}: {self.log()}") from None
         return self
 
     def kill(self) -> None:
         self.proc.kill()
         self.proc.wait(timeout=10)
+
+    def log(self) -> str:
+        """What the server has printed so far. Read at an offset of its own: the server writes
+        through the same open file, and a seek here would move where its next line lands."""
+        fd = self.output.fileno()
+        return os.pread(fd, os.fstat(fd).st_size, 0).decode(errors="replace")
 
     def stop(self) -> None:
         if self.proc and self.proc.poll() is None:

@@ -16,7 +16,7 @@ from sim.core import observations
 from sim.core.maze import map_files
 from sim.tasks.generator import generate_maze
 from sim.tasks.library import MazeLibrary
-from tests.app.live import cli, experimenter_client
+from tests.app.live import cli, experimenter_client, platform_settings
 
 PREPARED_WITHIN_S = 120  # a dozen mazes take a few seconds; a loaded machine many more
 
@@ -61,6 +61,18 @@ def test_a_server_on_an_empty_cache_prepares_every_maze_and_shows_how_far_it_is(
     assert len(markers(cache)) == len(names) and all(m.endswith(prepared_version()) for m in markers(cache))
     for folder in ("navgraph", "rays", "scene"):
         assert len(list((cache / folder).iterdir())) == len(names), folder
+
+
+def test_robotslang_serve_prints_how_far_the_preparation_is(server_process, tmp_path):
+    # What a lab sees in the terminal it started the server from: the platform's INFO lines too.
+    server = server_process(platform_settings(tmp_path, cache_dir=tmp_path / "cache")).start()
+    n = len(MazeLibrary(cache=False).names())
+    done = f"INFO app.preparation: mazes: {n} of {n} mazes ready ({n} prepared here) in "
+    deadline = time.monotonic() + PREPARED_WITHIN_S
+    while done not in (output := server.log()):
+        assert time.monotonic() < deadline, output
+        time.sleep(0.2)
+    assert f"INFO app.preparation: mazes: reading {n} maps to group them into layouts" in output
 
 
 def test_a_second_start_on_the_same_cache_prepares_nothing(start_server, tmp_path, caplog):
