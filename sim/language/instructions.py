@@ -4,7 +4,7 @@ A message is cut into clauses (at punctuation, "then", "and", "after that"); eac
 matched against the maze's closed vocabulary, with misspellings corrected (`vocab.words`). The
 result keeps the message's order: "turn right at the red wall" is a forward-until-red then a right
 turn. Negation excludes a colour from the wall to stop at ("turn left at the wall, not the red
-one"); counts say how many steps, turns ("twice") or openings ("the second left"); history points
+one"); counts say how many steps, turns ("twice", "two right turns") or openings ("the second left"); history points
 back to the start or to the place of an earlier turn ("go back to where you turned right first")."""
 
 from __future__ import annotations
@@ -14,7 +14,16 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 
 from sim.core.labels import OBJECT_LABELS, Label
-from sim.language.vocab import LABEL_WORDS, ORDINAL_WORDS, SHARP_WORDS, SLIGHT_WORDS, Side, number, words
+from sim.language.vocab import (
+    LABEL_WORDS,
+    ORDINAL_WORDS,
+    SHARP_WORDS,
+    SLIGHT_WORDS,
+    Side,
+    number,
+    times_turned,
+    words,
+)
 
 
 class AskedAbout(StrEnum):
@@ -272,7 +281,7 @@ def _clause(text: str, prev: Instruction | None) -> list[Instruction]:
             out.append(Forward(None, objects[0] if objects else None))
     if turn_side is not None:
         size = _turn_size(ws) * (1 if turn_side == Side.LEFT else -1)
-        out += [Turn(size)] * (2 if "twice" in ws else 1)
+        out += [Turn(size)] * times_turned(ws)
     if not out and _STOP.search(text):
         return [Stop(claim=False)]
     if not out and not re.search(

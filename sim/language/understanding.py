@@ -31,7 +31,7 @@ from sim.language.meaning import (
 )
 from sim.language.reader import Count, Reader, Role, counts, shipped
 from sim.language.sectors import Sector
-from sim.language.vocab import SIDE_PHRASE, SIDE_SECTOR, Side, wall_name, words
+from sim.language.vocab import SIDE_PHRASE, SIDE_SECTOR, Side, times_turned, wall_name, words
 
 M = TypeVar("M", Program, frozenset[FactForm])
 
@@ -69,7 +69,7 @@ class Understanding:
             return Understood(program_of(ins.parse(text)), 1.0, True)
         reading = self.commander_reader.read(text, before)
         assert isinstance(reading.meaning, tuple)  # a Commander reader writes programs
-        return Understood(reading.meaning, reading.confidence, False, reading.strange_lead)
+        return Understood(_turned_as_often(reading.meaning, text), reading.confidence, False, reading.strange_lead)
 
     def facts(
         self, text: str, before: tuple[str, str] | None = None, asked: str | None = None
@@ -80,6 +80,17 @@ class Understanding:
         reading = self.driver_reader.read(text, before)
         assert isinstance(reading.meaning, frozenset)  # a Driver reader writes facts
         return Understood(_joined(reading.meaning, facts_of(text, asked)), reading.confidence, False)
+
+
+def _turned_as_often(program: Program, text: str) -> Program:
+    """A program's one turn made as many times as the words say ("make two right turns", "turn
+    right 4 times"): the reader learnt these from the rules, which knew only "twice", and reads one."""
+    times = times_turned(words(text))
+    turns = [k for k, clause in enumerate(program) if clause.op == Op.TURN]
+    if times == 1 or len(turns) != 1:
+        return program
+    k = turns[0]
+    return (*program[:k], *[program[k]] * times, *program[k + 1 :])
 
 
 VIEW_KINDS = frozenset(

@@ -9,6 +9,7 @@ so "that" stays "that" rather than becoming "what"."""
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from enum import StrEnum
 
 from sim.core.labels import Label
@@ -312,6 +313,18 @@ def number(word: str) -> int | None:
     if word.isdigit():
         return int(word)
     return NUMBER_WORDS.get(word)
+
+
+def times_turned(ws: Sequence[str]) -> int:
+    """How many times words say to make their turn: 2 for "twice", "two right turns" or "left 2
+    times", and so on up to a whole circle's four; else 1."""
+    if "twice" in ws:
+        return 2
+    for i, w in enumerate(ws):
+        n = number(w)
+        if n is not None and 2 <= n <= 4 and {"turns", "times"} & set(ws[i + 1 : i + 3]):
+            return n
+    return 1
 
 
 def wall_name(label: Label) -> str:

@@ -6,7 +6,7 @@ from sim.core.labels import Label
 from sim.language import instructions as ins
 from sim.language.meaning import Clause, Op
 from sim.language.reader import counts
-from sim.language.understanding import instructions, read_back, unread_counts, with_count
+from sim.language.understanding import Understanding, instructions, read_back, unread_counts, with_count
 from sim.language.vocab import Side
 
 TURN_LEFT = Clause.of(Op.TURN, eighths=2)
@@ -42,6 +42,17 @@ def test_the_walk_read_into_until_you_see_it_is_dropped_and_the_turn_goes_on_unt
     said = "turn left until you see the coffee mug, then go up to it"
     assert instructions((TURN_LEFT, TO_THE_MUG), said) == [ins.Turn(2, Label.MUG), ins.Forward(until=Label.MUG)]
     assert read_back(instructions((TURN_LEFT, TO_THE_MUG), text)) == "turning left until i see the coffee mug"
+
+
+def test_a_turn_said_to_be_made_several_times_is_made_that_many_times():
+    # The reader learnt from the rules, which once knew only "twice": it reads one turn for these.
+    reader, right = Understanding.trained(), Clause.of(Op.TURN, eighths=-2)
+    assert reader.program("turn right 4 times").meaning == (right,) * 4
+    assert reader.program("make two left turns and go to the mug").meaning == (TURN_LEFT, TURN_LEFT, TO_THE_MUG)
+    assert ins.parse("left 3 times").instructions == (ins.Turn(2),) * 3
+    assert ins.parse("turn left twice").instructions == (ins.Turn(2),) * 2
+    # A number that counts no turns leaves the turn alone.
+    assert ins.parse("turn right and go 3 steps").instructions == (ins.Turn(-2), ins.Forward(3))
 
 
 def test_a_read_back_says_each_turn_with_its_size():
