@@ -170,8 +170,10 @@ def description(scene: Scene, node: int, heading: int) -> list[str]:
     return out
 
 
-@pytest.mark.parametrize("weights", [TUNED, HUMAN], ids=["tuned", "calibrated"])
-def test_the_belief_settles_on_the_pose_a_description_was_written_from(bundled, weights: Weights):
+# The calibration is fitted on human Drivers, who name a part of the view ahead as often as all of
+# it: a rule that names whatever fills a third of each view leans on what is ahead more than they do.
+@pytest.mark.parametrize("weights, within", [(TUNED, 0.8), (HUMAN, 0.7)], ids=["tuned", "calibrated"])
+def test_the_belief_settles_on_the_pose_a_description_was_written_from(bundled, weights: Weights, within: float):
     ctx, scene = bundled
     g = ctx.graph
     errors, gains = [], []
@@ -187,7 +189,7 @@ def test_the_belief_settles_on_the_pose_a_description_was_written_from(bundled, 
             gains.append(p[around].sum() / around[ctx.main].mean())
             errors.append(g.dist[ctx.decide(logits), node])
     assert len(errors) >= 20
-    assert np.mean(np.asarray(errors) <= 0.5) >= 0.8  # the estimate within 0.5 m of the pose
+    assert np.mean(np.asarray(errors) <= 0.5) >= within  # the estimate within 0.5 m of the pose
     assert np.mean(gains) >= 10  # ten times the mass a uniform belief puts near it
 
 
@@ -218,6 +220,14 @@ def test_the_calibration_favours_the_shares_true_poses_show():
     assert high > 2 and low < -2
     assert abs(fitted.log_ratio[Evidence.EDGE][-1]) < abs(high)
     assert fitted.loglik(Evidence.CORNER, np.array([0.9])) is None  # not fitted: the hand weights score it
+
+
+def test_the_calibration_never_scores_more_of_a_view_below_less_of_it():
+    rng = np.random.default_rng(0)
+    # true poses show a little of the label more often than most of it: a dip, pooled flat
+    records = [Record(Evidence.LABEL, share, rng.uniform(0, 1, 200)) for share in [0.1] * 30 + [0.9] * 10]
+    ratio = fit(records).log_ratio[Evidence.LABEL]
+    assert all(a <= b for a, b in zip(ratio, ratio[1:], strict=False))
 
 
 def test_the_fitted_calibration_scores_a_named_label_where_it_is_seen_above_where_it_is_not():
