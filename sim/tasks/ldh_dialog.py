@@ -20,7 +20,7 @@ import numpy as np
 from sim.core.geometry import HEADINGS, TURN_RAD
 from sim.core.observations import RayTable
 from sim.language.calibration import Record, evidence
-from sim.language.localizer import HUMAN, TUNED, Belief, Scene, Weights, fact_share
+from sim.language.localizer import HUMAN, Belief, Scene, Weights, fact_share
 from sim.language.reader import Reader
 from sim.language.understanding import belief_facts
 from sim.tasks.benchmark import Benchmark
@@ -69,7 +69,8 @@ class DialogLocalizer:
 def calibration_records(bench: Benchmark, instances: list[LDHInstance]) -> list[Record]:
     """Every fact the rules read in the Driver's turns that the calibration fits, with the share
     its true pose (the recorded start, turned as the Driver reported) bears out and every pose's."""
-    contexts, scenes = MazeContexts(bench), DialogLocalizer(bench, TUNED)
+    shares = replace(HUMAN, calibration=None)  # the shares the calibration will score
+    contexts, scenes = MazeContexts(bench), DialogLocalizer(bench, shares)
     out = []
     for inst in instances:
         if inst.heading is None:
@@ -77,12 +78,12 @@ def calibration_records(bench: Benchmark, instances: list[LDHInstance]) -> list[
         ctx = contexts[inst.run]
         scene = scenes.scene(ctx)
         true, start = ctx.graph.nearest_node(inst.x, inst.y), round(inst.heading / TURN_RAD)
-        belief = Belief(scene, ctx.main, TUNED)
+        belief = Belief(scene, ctx.main, shares)
         for role, message in inst.dialog:
             for fact in belief.message(role, message):
                 kind = evidence(fact)
                 if kind is not None:
-                    share = fact_share(fact, scene, TUNED)
+                    share = fact_share(fact, scene, shares)
                     heading = (start + belief.turned) % HEADINGS
                     out.append(Record(kind, float(share[true, heading]), share[ctx.main].ravel()))
     return out
