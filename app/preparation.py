@@ -82,7 +82,6 @@ def prepare_maze(library: MazeLibrary, name: str, cache_dir: Path) -> bool:
     from sim.core.navgraph import NavGraph
     from sim.core.observations import RayTable
     from sim.robot.render import cached_scene
-    from sim.tasks.layouts import LayoutSignature
 
     done = marker(library, name, cache_dir)
     if done.exists():
@@ -91,7 +90,7 @@ def prepare_maze(library: MazeLibrary, name: str, cache_dir: Path) -> bool:
     graph = NavGraph.for_robot(maze, cache_dir=cache_dir)
     RayTable.build(maze, graph, cache_dir=cache_dir)
     cached_scene(maze, cache_dir)
-    LayoutSignature.cached(maze, cache_dir)  # what grouping the library into layouts reads of it
+    library.signature(name, cache_dir, maze)  # what grouping the library into layouts reads of it
     done.parent.mkdir(parents=True, exist_ok=True)
     done.write_text(json.dumps({"maze": name, "content_hash": maze.content_hash}))
     return True
@@ -100,9 +99,7 @@ def prepare_maze(library: MazeLibrary, name: str, cache_dir: Path) -> bool:
 def sign_maze(library: MazeLibrary, name: str, cache_dir: Path) -> None:
     """Cache what grouping the library into layouts reads of maze `name`: its decoded maps and
     layout signature. Raises `MazeError` for a malformed map."""
-    from sim.tasks.layouts import LayoutSignature
-
-    LayoutSignature.cached(library.load(name), cache_dir)
+    library.signature(name, cache_dir)
 
 
 @dataclass(frozen=True)

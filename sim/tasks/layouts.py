@@ -42,7 +42,7 @@ LANDMARK_TOLERANCE_M = 0.09
 WALL_TOLERANCE_M = 0.04
 WALL_MISMATCH_MAX = 0.02
 CELL_PX = 6  # a wall grid cell: 6 map pixels, about 1.05 cm
-_SIGNATURE_VERSION = 1
+_SIGNATURE_VERSION = 2  # 2: keyed by the map files (1: by the maze's contents)
 _GROUPING_VERSION = 1
 
 
@@ -67,15 +67,19 @@ class LayoutSignature:
         return cls(landmarks=landmarks, walls=walls, distance_m=distance)
 
     @classmethod
-    def cached(cls, maze: Maze, cache_dir: str | Path | None = None) -> LayoutSignature:
-        path = default_cache_dir(cache_dir) / "layouts" / f"{maze.content_hash}-v{_SIGNATURE_VERSION}{ARRAYS_SUFFIX}"
+    def cached(cls, key: str, maze: Callable[[], Maze], cache_dir: str | Path | None = None) -> LayoutSignature:
+        """The signature of the maze whose map files have `key` (`MazeLibrary.maps_key`): read from
+        the cache, else made of `maze()` and stored. Keyed by the files, not by the maze's contents,
+        so that reading it loads no maze: grouping a prepared library of 200 mazes loaded each one's
+        grids in the server's warm-up thread, 3-4 s of the server's CPU while a crowd arrived."""
+        path = default_cache_dir(cache_dir) / "layouts" / f"{key}-v{_SIGNATURE_VERSION}{ARRAYS_SUFFIX}"
         if path.exists():
             try:
                 data = load_arrays(path)
                 return cls(**{f.name: data[f.name] for f in fields(cls)})
             except (OSError, ValueError, KeyError):
                 pass  # a torn or stale cache file is rebuilt below
-        signature = cls.of(maze)
+        signature = cls.of(maze())
         save_arrays(path, compressed=True, **{f.name: getattr(signature, f.name) for f in fields(signature)})
         return signature
 

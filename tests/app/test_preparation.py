@@ -194,6 +194,26 @@ def test_the_grouping_into_layouts_reads_a_maze_being_prepared_last_and_decodes_
     assert {f.parent.parent.name for f in decoded[-2:]} == {in_hand}  # the one in hand, last
 
 
+def test_grouping_a_prepared_library_loads_no_maze(tmp_path, monkeypatch):
+    """The server groups its library at each start where the grouping of these maps is not stored
+    (a maze added, say): with the mazes prepared, it reads their signatures and loads no maze's grids."""
+    from sim.core.maze import Maze
+
+    cache = tmp_path / "cache"
+    library = MazeLibrary(cache=False, cache_dir=cache)
+    for name in library.names():
+        prepare_maze(library, name, cache)
+    expected = library.layouts(cache_dir=tmp_path / "other")
+    for grouping in (cache / "layouts").glob("grouping-*.json"):
+        grouping.unlink()
+
+    def loaded(*args, **kwargs):
+        raise AssertionError("a maze was loaded to group the library")
+
+    monkeypatch.setattr(Maze, "from_dir", loaded)
+    assert library.layouts(cache_dir=cache) == expected
+
+
 def test_the_dashboard_answers_while_a_fresh_install_still_groups_the_benchmarks_mazes(
     start_server, tmp_path, benchmark_path
 ):
