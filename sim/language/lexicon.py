@@ -69,7 +69,7 @@ _RIGHT_AS_NEAR = {"in", "behind", "ahead", "next", "by", "beside", "there", "her
 _BACK_NOT_SECTOR = {"up", "to", "out", "into", "down"}
 _AT = (("am", "at"), ("m", "at"), ("found", "the"), ("found", "a"))  # "i'm at the jar": near it
 NEAR_WORDS = {"close", "closely", "directly", "immediately", "immediate", "near", "nearby", "just", "touching"}
-FAR_WORDS = {"far", "distance", "distant", "end", "down", "away", "across", "farther", "further", "long"}
+FAR_WORDS = {"far", "distance", "distant", "end", "down", "away", "across", "farther", "further", "long", "off"}
 NEGATIONS = {
     "no",
     "not",
@@ -97,6 +97,7 @@ YES = {"yes", "yeah", "yep", "yup", "yea", "ya", "correct", "affirmative", "sure
 NO = {"no", "nope", "nah", "negative"}
 _QUESTION_START = {"is", "are", "do", "does", "can", "could", "any", "have", "did", "would", "will", "what", "which"}
 _TOKEN = re.compile(r"[a-z0-9]+")
+_NOT_A_WAY = (("no", "way"), ("way", "off"), ("way", "away"))  # "no way through", "a good way off": no corridor
 _CHUNK = re.compile(r"[,.;!?:]|\bbut\b|\bthen\b")
 _TURN = re.compile(r"\b(?:turn(?:ed|ing)?|rotat(?:e|ed|ing)|spun|spin(?:ning)?|face[sd]?|facing)\b")
 LEFT_STEPS = SECTOR_HEADING_OFFSET[Sector.LEFT]
@@ -148,9 +149,22 @@ def _labels(words: list[str]) -> list[tuple[int, Label]]:
     return out
 
 
+def _few_steps(words: list[str]) -> bool:
+    """ "a step", "a step or two", "2 steps": a distance of at most two steps."""
+    counted = [n for n in (number(w) for w in words) if n is not None]
+    return bool({"step", "steps"} & set(words)) and all(n <= 2 for n in counted)
+
+
 def _distance(words: list[str]) -> Distance:
+    # "not far" is near: a far word after "not" counts for near; so does "a step or two away".
+    denied = {
+        k
+        for k, w in enumerate(words)
+        if w in FAR_WORDS and k > 0 and (words[k - 1] == "not" or _few_steps(words[max(0, k - 4) : k]))
+    }
     near = (
-        any(w in NEAR_WORDS for w in words)
+        bool(denied)
+        or any(w in NEAR_WORDS for w in words)
         or any(w == "right" and k + 1 < len(words) and words[k + 1] in _RIGHT_AS_NEAR for k, w in enumerate(words))
         or any(_has(words, phrase) for phrase in _AT)
         or any(
@@ -158,7 +172,7 @@ def _distance(words: list[str]) -> Distance:
             for k in range(len(words))
         )
     )
-    far = any(w in FAR_WORDS for w in words) and not _has(words, DEAD_END)
+    far = any(w in FAR_WORDS and k not in denied for k, w in enumerate(words)) and not _has(words, DEAD_END)
     if near == far:
         return Distance.ANY
     return Distance.NEAR if near else Distance.FAR
@@ -276,7 +290,7 @@ def _shape_facts(piece: _Piece, sectors: tuple[Sector, ...]) -> list[Fact]:
     out = []
     if _has(words, DEAD_END):
         out.append(Fact(ViewKind.DEAD_END, (Sector.FRONT,), negated=negated))
-    elif any(w in CORRIDOR_WORDS for w in words) and not _has(words, ("no", "way")):
+    elif any(w in CORRIDOR_WORDS for w in words) and not any(_has(words, p) for p in _NOT_A_WAY):
         out.append(Fact(ViewKind.CORRIDOR, sectors if sectors != (Sector.ANY,) else (Sector.FRONT,), negated=negated))
     if any(w in CORNER_WORDS for w in words):
         out.append(Fact(ViewKind.CORNER, (Sector.FRONT,), negated=negated))
@@ -309,8 +323,11 @@ def _relation_facts(words: list[str], sectors: tuple[Sector, ...]) -> list[Fact]
 
 
 def facts(text: str) -> list[Fact]:
-    """The facts one message states, in order."""
+    """The facts one message states, in order. A part that names only how far ("..., really
+    close", "... and it looks right there", "it's a good way off") says it of the labels the part
+    before named without a distance."""
     out: list[Fact] = []
+    last: list[int] = []  # where in `out` the last part's labels of no distance are
     for chunk in _CHUNK.split(text.lower().replace("n't", " not")):
         words = tokens(chunk)
         if not words:
@@ -319,7 +336,15 @@ def facts(text: str) -> list[Fact]:
         out += _relation_facts(words, named)
         for piece in _pieces(words):
             distance = _distance(piece.words)
-            out += _label_facts(piece, distance)
+            if not piece.labels and distance != Distance.ANY and last:
+                for k in last:
+                    out[k] = replace(out[k], distance=distance)
+                last = []
+                continue
+            said = _label_facts(piece, distance)
+            if piece.labels:
+                last = [len(out) + k for k, f in enumerate(said) if f.distance == Distance.ANY and not f.negated]
+            out += said
             own = tuple(dict.fromkeys(s for _, s in piece.sectors)) or (Sector.ANY,)
             out += _shape_facts(piece, own)
     return out
@@ -438,8 +463,8 @@ def blocked(text: str) -> bool:
     for found in _WALL_RIGHT_AHEAD.finditer(said):
         after = said[found.end() :].split()[:DISTANCE_WINDOW]
         told = next((k for k, w in enumerate(after) if w in LABELS), len(after))  # up to the next wall named
-        # "right" there is "right there" (near) or "on the right" of another wall; "way off" is far.
-        words = ["far" if w == "off" else w for w in after[:told] if w != "right"]
+        # "right" there is "right there" (near) or "on the right" of another wall.
+        words = [w for w in after[:told] if w != "right"]
         if _distance(words) != Distance.FAR:
             return True
     return False

@@ -91,6 +91,24 @@ def test_near_and_far():
     assert (far.sectors, far.label, far.distance.value) == ((F,), Label.BLUE, "far")
 
 
+def test_how_far_said_after_the_wall_is_of_that_wall():
+    # A part naming only how far says it of the wall before it; "a step or two away" and "not
+    # far" are near, "a good way off" far, "a little way off" neither (and no way through).
+    def distances(text: str) -> list[tuple[Label | None, str]]:
+        return [(f.label, f.distance.value) for f in facts(text)]
+
+    assert distances("white wall straight ahead of me, really close. a red wall to my left") == [
+        (Label.WHITE, "near"),
+        (Label.RED, "any"),
+    ]
+    assert distances("a blue wall ahead and it looks right there") == [(Label.BLUE, "near")]
+    assert distances("red wall in front, a step or two away") == [(Label.RED, "near")]
+    assert distances("maybe a yellow wall ahead? not far") == [(Label.YELLOW, "near")]
+    assert distances("a white wall ahead, a good way off") == [(Label.WHITE, "far")]
+    assert distances("a green wall in front of me, just a little way off") == [(Label.GREEN, "any")]
+    assert distances("a red wall 5 steps away") == [(Label.RED, "far")]
+
+
 def test_negation():
     got = facts("i dont see a opening with yellow on right and white on left")
     assert ((R,), Label.YELLOW, True) in seen(got)
