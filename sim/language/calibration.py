@@ -6,7 +6,8 @@ share falls in that bin to how often any pose's does: a red wall "to my left" wh
 left view is mostly red is about six times as likely as at a random pose, where none of it is
 red (nor of the views 45 degrees either way) about a seventh as likely. A label named ahead is
 fitted apart from one beside or behind: the view ahead reaches far and mixes colours, so a little
-of it bears the label out about as well as most of it does. Negated facts and dead ends are too rare on train to fit: the hand weights score them.
+of it bears the label out about as well as most of it does. Negated facts and dead ends are too
+rare on train to fit: the hand weights score them.
 """
 
 from __future__ import annotations

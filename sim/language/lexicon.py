@@ -69,7 +69,7 @@ _RIGHT_AS_NEAR = {"in", "behind", "ahead", "next", "by", "beside", "there", "her
 _BACK_NOT_SECTOR = {"up", "to", "out", "into", "down"}
 _AT = (("am", "at"), ("m", "at"), ("found", "the"), ("found", "a"))  # "i'm at the jar": near it
 NEAR_WORDS = {"close", "closely", "directly", "immediately", "immediate", "near", "nearby", "just", "touching"}
-FAR_WORDS = {"far", "distance", "distant", "end", "down", "away", "across", "farther", "further", "long", "off"}
+FAR_WORDS = {"far", "distance", "distant", "end", "down", "away", "across", "farther", "further", "long"}
 NEGATIONS = {
     "no",
     "not",
@@ -172,7 +172,9 @@ def _distance(words: list[str]) -> Distance:
             for k in range(len(words))
         )
     )
-    far = any(w in FAR_WORDS and k not in denied for k, w in enumerate(words)) and not _has(words, DEAD_END)
+    far = (
+        any(w in FAR_WORDS and k not in denied for k, w in enumerate(words)) or _has(words, ("way", "off"))
+    ) and not _has(words, DEAD_END)
     if near == far:
         return Distance.ANY
     return Distance.NEAR if near else Distance.FAR
