@@ -124,6 +124,8 @@ def _over(share: np.ndarray, sectors: tuple[Sector, ...], slack: float) -> np.nd
     if Sector.ANY in sectors:
         return np.asarray(share.max(axis=2))
     named = share[:, :, list(sectors)].mean(axis=2)
+    if not slack:  # the live Commander's weights: no headings beside to weigh on every fact
+        return np.asarray(named)
     beside = np.maximum(np.roll(named, 1, axis=1), np.roll(named, -1, axis=1))
     return np.asarray(np.maximum(named, slack * beside))
 
