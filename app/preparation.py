@@ -72,8 +72,9 @@ def prepared_version() -> str:
     return f"labels{LABELS_CACHE_VERSION}-graph{navgraph.CACHE_VERSION}-rays{observations.CACHE_VERSION}-scene{SCENE_CACHE_VERSION}"
 
 
-def marker(library: MazeLibrary, name: str, cache_dir: Path) -> Path:
-    return cache_dir / "prepared" / f"{library.maps_key(name)}-{prepared_version()}"
+def marker(key: str, cache_dir: Path) -> Path:
+    """The marker of a prepared maze whose map files have `key` (`MazeLibrary.maps_key`)."""
+    return cache_dir / "prepared" / f"{key}-{prepared_version()}"
 
 
 def prepare_maze(library: MazeLibrary, name: str, cache_dir: Path) -> bool:
@@ -82,24 +83,20 @@ def prepare_maze(library: MazeLibrary, name: str, cache_dir: Path) -> bool:
     from sim.core.navgraph import NavGraph
     from sim.core.observations import RayTable
     from sim.robot.render import cached_scene
+    from sim.tasks.layouts import LayoutSignature
 
-    done = marker(library, name, cache_dir)
+    key = library.maps_key(name)
+    done = marker(key, cache_dir)
     if done.exists():
         return False
     maze = library.load(name)
     graph = NavGraph.for_robot(maze, cache_dir=cache_dir)
     RayTable.build(maze, graph, cache_dir=cache_dir)
     cached_scene(maze, cache_dir)
-    library.signature(name, cache_dir, maze)  # what grouping the library into layouts reads of it
+    LayoutSignature.cached(key, lambda: maze, cache_dir)  # what grouping the library into layouts reads of it
     done.parent.mkdir(parents=True, exist_ok=True)
     done.write_text(json.dumps({"maze": name, "content_hash": maze.content_hash}))
     return True
-
-
-def sign_maze(library: MazeLibrary, name: str, cache_dir: Path) -> None:
-    """Cache what grouping the library into layouts reads of maze `name`: its decoded maps and
-    layout signature. Raises `MazeError` for a malformed map."""
-    library.signature(name, cache_dir)
 
 
 @dataclass(frozen=True)
@@ -252,7 +249,7 @@ class Preparation:
             logger.error("maze %s could not be prepared: %s", name, err)
 
     def _prepared(self, name: str) -> bool:
-        return marker(self._library(), name, self.cache_dir).exists()
+        return marker(self._library().maps_key(name), self.cache_dir).exists()
 
     def _submit(self, name: str, only_signature: bool = False) -> tuple[Future[bool], ProcessPoolExecutor]:
         """`build_maze` in a builder process (started here the first time)."""
@@ -384,10 +381,12 @@ def _start_builder(benchmark: Path | None, cache_dir: Path, server: int) -> None
 
 
 def build_maze(name: str, only_signature: bool = False) -> bool:
-    """`prepare_maze` in a process of `builder_pool` (`sign_maze` where `only_signature`: False)."""
+    """`prepare_maze` in a process of `builder_pool`; where `only_signature`, what grouping the
+    library reads of the maze (its decoded maps and layout signature) and False. Raises `MazeError`
+    for a malformed map."""
     assert _builder_library is not None  # set by the pool's initializer
     library, cache_dir = _builder_library
     if only_signature:
-        sign_maze(library, name, cache_dir)
+        library.signature(name, cache_dir)
         return False
     return prepare_maze(library, name, cache_dir)

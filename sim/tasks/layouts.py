@@ -71,7 +71,7 @@ class LayoutSignature:
         """The signature of the maze whose map files have `key` (`MazeLibrary.maps_key`): read from
         the cache, else made of `maze()` and stored. Keyed by the files, not by the maze's contents,
         so that reading it loads no maze: grouping a prepared library of 200 mazes loaded each one's
-        grids in the server's warm-up thread, 3-4 s of the server's own CPU."""
+        grids in the server's warm-up thread (3-4 s of that thread in a profile)."""
         path = default_cache_dir(cache_dir) / "layouts" / f"{key}-v{_SIGNATURE_VERSION}{ARRAYS_SUFFIX}"
         if path.exists():
             try:

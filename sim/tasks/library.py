@@ -151,13 +151,11 @@ class MazeLibrary:
             for name in self.names()
         }
 
-    def signature(self, name: str, cache_dir: str | Path | None = None, maze: Maze | None = None) -> LayoutSignature:
-        """Maze `name`'s layout signature (`maze`: the maze, where it is loaded already), cached by
-        its map files: once cached, reading it decodes and loads nothing."""
+    def signature(self, name: str, cache_dir: str | Path | None = None) -> LayoutSignature:
+        """Maze `name`'s layout signature, cached by its map files: once cached, reading it decodes
+        and loads nothing."""
         return LayoutSignature.cached(
-            self.maps_key(name),
-            lambda: maze or Maze.from_dir(self.path(name), name=name, cache_dir=cache_dir),
-            cache_dir,
+            self.maps_key(name), lambda: Maze.from_dir(self.path(name), name=name, cache_dir=cache_dir), cache_dir
         )
 
     def _signature(self, name: str, cache_dir: str | Path | None, stop: Event | None) -> LayoutSignature:
