@@ -76,7 +76,7 @@ def log_config() -> dict[str, Any]:
     }
     for name in ("app", "robotslang"):
         config["loggers"][name] = {"handlers": ["platform"], "level": "INFO"}
-    return dict(config)
+    return config
 
 
 def settle_collector() -> None:

@@ -13,7 +13,6 @@ from __future__ import annotations
 import hashlib
 import json
 import random
-import re
 from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
@@ -175,9 +174,9 @@ class Phrases:
         return self._pick(self.book.turns[min(abs(eighths), 4)]).format(d=side)
 
     def say(self, kind: PhraseKind, **slots: str | int) -> str:
-        one = "n" in slots and int(slots["n"]) == 1
-        if "n" in slots:
-            slots["n"] = self.number(int(slots["n"]))
+        n = int(slots["n"]) if "n" in slots else None
+        if n is not None:
+            slots["n"] = self.number(n)
         text = self._pick(self.book.kinds[kind]).format(**slots)
         # "about 1 steps" read as a machine's words: one step is a step.
-        return re.sub(rf"\b{re.escape(str(slots['n']))} steps\b", f"{slots['n']} step", text) if one else text
+        return text.replace(f"{slots['n']} steps", f"{slots['n']} step") if n == 1 else text
