@@ -99,6 +99,20 @@ def wait_until(predicate: Callable[[], bool], what: str, timeout: float = 10.0) 
         time.sleep(0.02)
 
 
+def still_box(page, selector: str) -> dict[str, float]:
+    """The element's box once it is where it was a moment before (a page still laying out moves
+    what a click or tap aims at between its aiming and its press)."""
+    boxes = [page.locator(selector).bounding_box()]
+
+    def still() -> bool:
+        time.sleep(0.05)
+        boxes.append(page.locator(selector).bounding_box())
+        return boxes[-1] == boxes[-2]
+
+    wait_until(still, f"{selector} to stay where it is")
+    return boxes[-1]
+
+
 KEYS = {Action.FORWARD: "ArrowUp", Action.LEFT: "ArrowLeft", Action.RIGHT: "ArrowRight"}
 BUTTONS = {Action.FORWARD: "#forward", Action.LEFT: "#left", Action.RIGHT: "#right"}
 
