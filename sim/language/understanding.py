@@ -69,7 +69,8 @@ class Understanding:
             return Understood(program_of(ins.parse(text)), 1.0, True)
         reading = self.commander_reader.read(text, before)
         assert isinstance(reading.meaning, tuple)  # a Commander reader writes programs
-        return Understood(_turned_as_often(reading.meaning, text), reading.confidence, False, reading.strange_lead)
+        program = _sided_walk(_turned_as_often(reading.meaning, text), text)
+        return Understood(program, reading.confidence, False, reading.strange_lead)
 
     def facts(
         self, text: str, before: tuple[str, str] | None = None, asked: str | None = None
@@ -91,6 +92,55 @@ def _turned_as_often(program: Program, text: str) -> Program:
         return program
     k = turns[0]
     return (*program[:k], *[program[k]] * times, *program[k + 1 :])
+
+
+_PLACE_WORDS = frozenset({"your", "my", "the", "on", "to", "its"})  # "on your right 3 steps on": where, not a turn
+
+
+def _sided_walk(program: Program, text: str) -> Program:
+    """A side said just before a count of steps ("right 3", "go left 2 steps") is a turn that way,
+    then the walk. No recorded Commander writes it, and the reader read "right 3" as the walk alone
+    (the Driver went straight), "left 3" as the turn alone and "forward 2 right 3" as the first walk
+    alone; each gets the part it dropped, in the order said."""
+    said, done = words(text), 0  # the clauses before `done` are those of sides and counts already seen
+    for side, count in _sides_with_counts(said, counts(text)):
+        left = side == "left"
+        turn = next((j for j in range(done, len(program)) if _turns(program[j], left)), None)
+        walk = next((j for j in range(done, len(program)) if _walks(program[j], count.steps)), None)
+        steps = Clause.of(Op.FORWARD, steps=count.steps, until=None)
+        if turn is not None and walk is not None:
+            done = max(turn, walk) + 1
+        elif turn is not None:
+            program, done = (*program[: turn + 1], steps, *program[turn + 1 :]), turn + 2
+        elif walk is not None:
+            program, done = (*program[:walk], Clause.of(Op.TURN, eighths=2 if left else -2), *program[walk:]), walk + 2
+        else:  # both dropped: the walk where the words put the count, the turn before it
+            placed, _ = with_count(program, text, count)
+            at = next((j for j, (a, b) in enumerate(zip(program, placed, strict=False)) if a != b), len(program))
+            program, done = (*program[:at], Clause.of(Op.TURN, eighths=2 if left else -2), *placed[at:]), at + 2
+    return program
+
+
+def _sides_with_counts(said: list[str], named: list[Count]) -> list[tuple[str, Count]]:
+    """Each count of steps said just after "left" or "right" (not "on your right 3 steps on"), in order."""
+    out, k = [], 0
+    for count in named:
+        number = count.said.split()[0]
+        k = next((j for j in range(max(k, 1), len(said)) if said[j] == number), len(said))
+        sided = k < len(said) and count.of_steps and said[k - 1] in ("left", "right")
+        if sided and (k < 2 or said[k - 2] not in _PLACE_WORDS):
+            out.append((said[k - 1], count))
+        k += 1
+    return out
+
+
+def _turns(clause: Clause, left: bool) -> bool:
+    eighths = clause.args[0] if clause.op == Op.TURN else None
+    return isinstance(eighths, int) and (eighths > 0) == left
+
+
+def _walks(clause: Clause, steps: int) -> bool:
+    return clause.op == Op.FORWARD and clause.args[0] == steps
 
 
 VIEW_KINDS = frozenset(

@@ -118,12 +118,12 @@ def _carry_out(driver, world, pose, text):
     raise AssertionError("the Driver never spoke")
 
 
-def _room_for(graph, ahead, left):
-    """A pose heading 0 with `ahead` free moves along +x, then `left` along +y."""
+def _room_for(graph, ahead, left, heading=2):
+    """A pose heading 0 with `ahead` free moves along +x, then `left` along `heading` (+y)."""
     for node in range(graph.n):
         n = node
         for k in range(ahead + left):
-            n = int(graph.forward[n, 0 if k < ahead else 2])
+            n = int(graph.forward[n, 0 if k < ahead else heading])
             if n < 0:
                 break
         else:
@@ -325,12 +325,26 @@ def test_its_report_and_read_back_say_how_far_it_turned(world):
     assert said[0].startswith("ok, turned around,"), said
 
 
-def test_told_left_3_it_turns_says_it_did_not_get_the_3_and_walks_it_when_told_yes(world):
-    """ "left 3" read as a turn alone: the Driver turned and said "ok", the 3 dropped in silence."""
+@pytest.mark.parametrize(("text", "heading"), [("left 3", 2), ("right 3", 6), ("go right 2 steps", 6)])
+def test_told_a_side_and_a_count_it_turns_that_way_and_walks_the_count(world, text, heading):
+    """A person's terse "left 3": the reader read it as the turn alone (the 3 asked about after
+    it), and "right 3" as the walk alone, straight ahead, with an "ok"."""
+    _, graph, _ = world
+    steps = int(next(w for w in text.split() if w.isdigit()))
+    start = _room_for(graph, 0, steps, heading)
+    pose, said = _carry_out(_navigating(world, start), world, start, text)
+    end = start.node
+    for _ in range(steps):
+        end = int(graph.forward[end, heading])
+    assert pose == Pose(end, heading) and said[0].startswith(f"ok, went {steps} steps"), said
+
+
+def test_told_left_then_3_it_turns_says_it_did_not_get_the_3_and_walks_it_when_told_yes(world):
+    """ "left, then 3" read as a turn alone: the Driver turned and said "ok", the 3 dropped in silence."""
     _, graph, _ = world
     start = _room_for(graph, 0, 3)
     driver = _navigating(world, start)
-    pose, said = _carry_out(driver, world, start, "left 3")
+    pose, said = _carry_out(driver, world, start, "left, then 3")
     assert pose == Pose(start.node, 2) and said[0].endswith("i did not get '3' - forward 3 steps?"), said
     pose, said = _carry_out(driver, world, pose, "yes")
     end = start.node

@@ -55,6 +55,18 @@ def test_a_turn_said_to_be_made_several_times_is_made_that_many_times():
     assert ins.parse("turn right and go 3 steps").instructions == (ins.Turn(-2), ins.Forward(3))
 
 
+def test_a_side_said_just_before_a_count_of_steps_is_a_turn_that_way_then_the_walk():
+    reader, right = Understanding.trained(), Clause.of(Op.TURN, eighths=-2)
+    assert reader.program("right 3").meaning == (right, _walk(3))
+    assert reader.program("left 3").meaning == (TURN_LEFT, _walk(3))
+    assert reader.program("forward 2 right 3").meaning == (_walk(2), right, _walk(3))
+    assert reader.program("forward 2, left 3, right 1").meaning == (_walk(2), TURN_LEFT, _walk(3), right, _walk(1))
+    # Where a wall is, a turn's size, and turns counted are no such walk.
+    assert Op.TURN not in {c.op for c in reader.program("keep the wall on your right 3 steps").meaning}
+    assert reader.program("right 45").meaning == (Clause.of(Op.TURN, eighths=-1),)
+    assert reader.program("turn right 3 times").meaning == (right,) * 3
+
+
 def test_a_read_back_says_each_turn_with_its_size():
     program = (TURN_LEFT, _walk(2), Clause.of(Op.TURN, eighths=-1), Clause.of(Op.TURN, eighths=4))
     assert read_back(instructions(program, "")) == (
