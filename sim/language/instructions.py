@@ -122,6 +122,11 @@ _GO = re.compile(
     r"\b(go|move|drive|continue|keep|head|proceed|straight|forward|forwards|reach|towards|toward"
     r"|until|steps|step|up to|follow|along)\b"
 )
+# "the second left", "the 2nd opening on your left", "the next gap to the right"
+_OPENING = re.compile(
+    rf"\b({'|'.join(ORDINAL_WORDS)}) (?:(?:opening|gap|hallway|hall|corridor|passage|turn|turning|way|entrance)s? )?"
+    r"(?:(?:on|to) (?:your|the) )?(left|right)\b"
+)
 _UNTIL = re.compile(r"\b(until|till|to|towards|toward|reach|reached|at|up to|see)\b")
 _BACK_START = re.compile(r"\b(start|started|beginning|began|starting)\b")
 _QUESTION = re.compile(
@@ -260,7 +265,7 @@ def _clause(text: str, prev: Instruction | None) -> list[Instruction]:
         return [Ask(AskedAbout.IS_THERE, _side(ws) or Side.AHEAD, labels[0])]
     if _UTURN.search(text):
         return [Turn(4)]
-    opening = re.search(r"\b(first|second|third|fourth|fifth|next) (left|right)\b", text)
+    opening = _OPENING.search(text)
     if opening and re.search(r"\b(take|make|turn|go)\b", text):
         return [TakeOpening(Side(opening.group(2)), ORDINAL_WORDS[opening.group(1)])]
     # "keep the red wall on your left" places a wall, it is no turn: drop the place before looking for one.

@@ -31,7 +31,7 @@ from sim.language.meaning import (
 )
 from sim.language.reader import Count, Reader, Role, counts, shipped
 from sim.language.sectors import Sector
-from sim.language.vocab import SIDE_PHRASE, SIDE_SECTOR, Side, times_turned, wall_name, words
+from sim.language.vocab import LABEL_WORDS, SIDE_PHRASE, SIDE_SECTOR, Side, times_turned, wall_name, words
 
 M = TypeVar("M", Program, frozenset[FactForm])
 
@@ -70,6 +70,7 @@ class Understanding:
         reading = self.commander_reader.read(text, before)
         assert isinstance(reading.meaning, tuple)  # a Commander reader writes programs
         program = _sided_walk(_turned_as_often(reading.meaning, text), text)
+        program = _openings_as_said(_grounded(program, text, before), text)
         return Understood(program, reading.confidence, False, reading.strange_lead)
 
     def facts(
@@ -92,6 +93,69 @@ def _turned_as_often(program: Program, text: str) -> Program:
         return program
     k = turns[0]
     return (*program[:k], *[program[k]] * times, *program[k + 1 :])
+
+
+# Words that point at something named earlier ("go there", "follow them", "the objective").
+_REFERRING = frozenset(
+    {"it", "its", "them", "they", "there", "that", "those", "these", "this", "one", "ones", "same", "object"}
+    | {"objective", "target", "goal", "thing", "item", "next", "again", "before", "previous", "last", "other"}
+)
+
+
+def _grounded(program: Program, text: str, before: tuple[str, str] | None) -> Program:
+    """The reading without a colour or object the words do not name: where the turn points back
+    ("go up to it"), the one the turn before names, where it names one of that kind (the reader
+    took "it" after "i can see the mug" for the jar); elsewhere the clause is dropped ("take the
+    second opening on your left" was read as "the paddle should be on your left"). Nothing left of
+    a reading: not understood."""
+    said = words(text)
+    own = _named(said)
+    earlier = _named(words(before[1])) if before else []
+    if _REFERRING.intersection(said):
+        return tuple(_as_referred(c, own, earlier) for c in program)
+    kept = tuple(c for c in program if all(_label(v) in own + earlier for v in _labels_named(c)))
+    return kept if kept or not program else (Clause.of(Op.UNCLEAR),)
+
+
+def _named(said: list[str]) -> list[Label]:
+    return [label for w in said if (label := LABEL_WORDS.get(w)) is not None]
+
+
+def _as_referred(clause: Clause, own: list[Label], earlier: list[Label]) -> Clause:
+    """`clause` with a colour or object it names that the turn does not replaced by the one of
+    its kind the turn before names, where that names exactly one."""
+    args = list(clause.args)
+    for k, (name, value) in enumerate(zip(CLAUSE_FIELDS[clause.op], clause.args, strict=True)):
+        label = _label(value) if name in ("label", "until") and value != "wall" else None
+        if label is None or label in own:
+            continue
+        kind = set(OBJECT_LABELS) if label in OBJECT_LABELS else set(Label) - set(OBJECT_LABELS)
+        candidates = {e for e in earlier if e in kind}
+        if len(candidates) == 1:
+            args[k] = candidates.pop().name.lower()
+    return Clause(clause.op, tuple(args))
+
+
+def _labels_named(clause: Clause) -> list[str]:
+    """The colours and objects a clause names (a walk "until" any wall names none)."""
+    fields = zip(CLAUSE_FIELDS[clause.op], clause.args, strict=True)
+    return [v for name, v in fields if name in ("label", "until") and isinstance(v, str) and v != "wall"]
+
+
+def _openings_as_said(program: Program, text: str) -> Program:
+    """The openings the words count ("the 2nd opening on your left"), which the rules read and
+    the reader, having met almost none in people's words, reads with another count or not at all."""
+    ruled = program_of(ins.parse(text))
+    said = [c for c in ruled if c.op == Op.OPENING]
+    read = [k for k, c in enumerate(program) if c.op == Op.OPENING]
+    if not said or [program[k] for k in read] == said:
+        return program
+    if len(read) != len(said):  # the reader missed one: the rules' reading, which has them all
+        return ruled
+    out = list(program)
+    for k, opening in zip(read, said, strict=True):
+        out[k] = opening
+    return tuple(out)
 
 
 _PLACE_WORDS = frozenset({"your", "my", "the", "on", "to", "its"})  # "on your right 3 steps on": where, not a turn

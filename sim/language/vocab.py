@@ -40,6 +40,7 @@ LABEL_WORDS: dict[str, Label] = {
     "gray": Label.WHITE,
     "blocks": Label.JAR,
     "cubes": Label.JAR,
+    "bat": Label.PADDLE,  # "ping-pong bat" (val_seen)
     "racket": Label.PADDLE,  # "table-tennis-racket" (train split)
     "racquet": Label.PADDLE,
 }
@@ -70,7 +71,10 @@ NUMBER_WORDS = {
     "couple": 2,
     "few": 3,
 }
-ORDINAL_WORDS = {"first": 1, "second": 2, "third": 3, "fourth": 4, "fifth": 5, "next": 1}
+ORDINAL_WORDS = {
+    **{"first": 1, "second": 2, "third": 3, "fourth": 4, "fifth": 5, "next": 1},
+    **{"1st": 1, "2nd": 2, "3rd": 3, "4th": 4, "5th": 5},
+}
 # Words that make a turn an eighth ("veer left a bit") or three ("a hard right") rather than two.
 SLIGHT_WORDS = frozenset({"slightly", "slight", "bit", "little", "veer", "bear"})
 SHARP_WORDS = frozenset({"sharply", "sharp", "hard"})

@@ -67,6 +67,26 @@ def test_a_side_said_just_before_a_count_of_steps_is_a_turn_that_way_then_the_wa
     assert reader.program("turn right 3 times").meaning == (right,) * 3
 
 
+def test_an_opening_counted_in_words_is_taken_as_counted():
+    reader = Understanding.trained()
+    for text, side, nth in [
+        ("take the second opening on your left", "left", 2),
+        ("take the 2nd opening on the left", "left", 2),
+        ("turn into the third gap to the right", "right", 3),
+        ("take the next left", "left", 1),
+    ]:
+        assert Clause.of(Op.OPENING, side=side, nth=nth) in reader.program(text).meaning, text
+
+
+def test_a_reading_names_no_colour_or_object_the_words_do_not():
+    reader = Understanding.trained()
+    # It read "the paddle should be on your left" into a turn that names no object.
+    assert "paddle" not in str(reader.program("take the second opening on your left").meaning)
+    # A turn that points back ("follow them") may name what an earlier turn did; "bat" is the paddle.
+    assert reader.program("go up to it", ("d", "i can see the mug")).meaning == (TO_THE_MUG,)
+    assert Clause.of(Op.FORWARD, steps=None, until="paddle") in reader.program("go to the ping pong bat").meaning
+
+
 def test_a_read_back_says_each_turn_with_its_size():
     program = (TURN_LEFT, _walk(2), Clause.of(Op.TURN, eighths=-1), Clause.of(Op.TURN, eighths=4))
     assert read_back(instructions(program, "")) == (
