@@ -324,15 +324,16 @@ def _relation_facts(words: list[str], sectors: tuple[Sector, ...]) -> list[Fact]
     return out
 
 
-def facts(text: str) -> list[Fact]:
-    """The facts one message states, in order. A part that names only how far ("..., really
-    close", "... and it looks right there", "it's a good way off") says it of the labels the part
-    before named without a distance."""
+def facts(text: str, asked: bool = False) -> list[Fact]:
+    """The facts one message states, in order; a part that asks about what it names ("where is
+    the edge?") states none, unless `asked`: then the facts a question asks about are read too. A
+    part that names only how far ("..., really close", "... and it looks right there", "it's a good
+    way off") says it of the labels the part before named without a distance."""
     out: list[Fact] = []
     last: list[int] = []  # where in `out` the last part's labels of no distance are
     for chunk in _CHUNK.split(text.lower().replace("n't", " not")):
         words = tokens(chunk)
-        if not words:
+        if not words or not asked and asks_about(words):
             continue
         named = tuple(dict.fromkeys(s for _, s in _sectors(words))) or (Sector.ANY,)
         out += _relation_facts(words, named)
@@ -380,6 +381,18 @@ def asked(before: Iterable[tuple[bool, str]]) -> str | None:
         if is_question(text):
             return text
     return None
+
+
+_WH = {"where", "what", "which", "how", "why"}
+_AUX = {"is", "are", "should", "shall", "does", "do", "can", "could", "would", "will", "was", "were"}
+_POINTING = {"the", "that", "this", "those", "these", "it", "they", "there"}
+
+
+def asks_about(words: list[str]) -> bool:
+    """A question about what it names, which states none of it: "where is the edge", "should the
+    red walls be on my left", "is that the right way" (where "should I turn right at the white
+    wall" says there is a white wall)."""
+    return words[0] in _WH or words[0] in _AUX and len(words) > 1 and words[1] in _POINTING
 
 
 def is_question(text: str) -> bool:
@@ -475,7 +488,7 @@ def blocked(text: str) -> bool:
 def question(text: str) -> QuestionFacts:
     """A Commander's question as the Driver would state its content ("your" read as "my")."""
     mine = " ".join("my" if w == "your" else w for w in re.findall(r"[^\s]+", text.lower()))
-    asked = tuple(replace(f, source=Source.ANSWER) for f in facts(mine))
+    asked = tuple(replace(f, source=Source.ANSWER) for f in facts(mine, asked=True))
     words = tokens(mine)
     return QuestionFacts(
         facts=asked,

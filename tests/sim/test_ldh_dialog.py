@@ -120,6 +120,17 @@ def test_negation():
     assert seen(facts("no red wall")) == {((ANY,), Label.RED, True)}
 
 
+def test_a_question_about_what_it_names_states_none_of_it():
+    # Sentences of our own, in the kinds the gold guide gives (docs/language_gold.md).
+    assert seen(facts("should the red walls be on my left?")) == set()
+    assert seen(facts("where is the edge")) == set()
+    assert seen(facts("is that the yellow wall? i see a blue wall on my right")) == {((R,), Label.BLUE, False)}
+    # A question at a place it names says the place is there; a question's own facts are read for
+    # the answer to it.
+    assert seen(facts("should i turn right at the white wall?")) == {((ANY,), Label.WHITE, False)}
+    assert seen(answer(question("is there a green wall on your left?"), "no")) == {((L,), Label.GREEN, True)}
+
+
 def test_relations_and_shapes():
     got = facts("a yellow wall directly in front of me and a red wall next to it")
     assert [(f.label, f.other) for f in got if f.kind == ViewKind.NEXT_TO] == [(Label.YELLOW, Label.RED)]
