@@ -119,7 +119,8 @@ def tokens(text: str) -> list[str]:
 
 
 def _sectors(words: list[str]) -> list[tuple[int, Sector]]:
-    """(position, sector) of each direction word; "sides" ("both sides") is left and right."""
+    """(position, sector) of each direction word; "sides" ("both sides"), "either side" and "each
+    side" are left and right."""
     out = []
     for k, w in enumerate(words):
         nxt = words[k + 1] if k + 1 < len(words) else ""
@@ -129,9 +130,14 @@ def _sectors(words: list[str]) -> list[tuple[int, Sector]]:
             continue
         if w in SECTORS:
             out.append((k, SECTORS[w]))
-        elif w == "sides" or (w == "between" and _walls_of_one_colour(words[k + 1 : k + 4])):
+        elif _both_sides(words, k) or (w == "between" and _walls_of_one_colour(words[k + 1 : k + 4])):
             out += [(k, Sector.LEFT), (k, Sector.RIGHT)]
     return out
+
+
+def _both_sides(words: list[str], k: int) -> bool:
+    """Whether `words[k]` says both sides: "sides" ("both sides", "the sides"), "either side"."""
+    return words[k] == "sides" or words[k] == "side" and k > 0 and words[k - 1] in ("either", "each")
 
 
 def _walls_of_one_colour(words: list[str]) -> bool:
@@ -269,7 +275,8 @@ def _label_facts(piece: _Piece, distance: Distance) -> list[Fact]:
     neg_at = _negations(words)
     out = []
     sectors = [s for _, s in piece.sectors]
-    joined = len(set(sectors)) > 1 and (piece.joined or "sides" in words or "between" in words)
+    both = "between" in words or any(_both_sides(words, k) for k in range(len(words)))
+    joined = len(set(sectors)) > 1 and (piece.joined or both)
     for k, label in piece.labels:
         negated = any(n < k for n in neg_at)
         if not sectors:

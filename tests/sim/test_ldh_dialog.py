@@ -43,6 +43,7 @@ def test_every_direction_word_counts():
         ((R,), Label.WHITE, False),
     }
     assert seen(facts("white on both sides")) == {((L,), Label.WHITE, False), ((R,), Label.WHITE, False)}
+    assert seen(facts("green walls on either side")) == {((L,), Label.GREEN, False), ((R,), Label.GREEN, False)}
     assert seen(facts("white wall to the left and right")) == {
         ((L,), Label.WHITE, False),
         ((R,), Label.WHITE, False),
