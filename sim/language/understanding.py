@@ -81,7 +81,7 @@ class Understanding:
             return Understood(facts_of(text, asked), 1.0, True)
         reading = self.driver_reader.read(text, before)
         assert isinstance(reading.meaning, frozenset)  # a Driver reader writes facts
-        return Understood(_joined(reading.meaning, facts_of(text, asked)), reading.confidence, False)
+        return Understood(_joined(reading.meaning, facts_of(text, asked), text), reading.confidence, False)
 
 
 def _turned_as_often(program: Program, text: str) -> Program:
@@ -212,12 +212,17 @@ VIEW_KINDS = frozenset(
 )
 
 
-def _joined(read: frozenset[FactForm], ruled: frozenset[FactForm]) -> frozenset[FactForm]:
+def _joined(read: frozenset[FactForm], ruled: frozenset[FactForm], text: str) -> frozenset[FactForm]:
     """A Driver turn's dialog acts (answers, questions, claims) as the reader reads them, its view as
     the rules do where they make anything of it: they bind each colour to the direction written
     with it, where the reader learnt which colours go with which directions and now and then
-    swaps them ("white to my left, red to my right" read the other way round)."""
-    view = frozenset(f for f in ruled if f.kind in VIEW_KINDS) or frozenset(f for f in read if f.kind in VIEW_KINDS)
+    swaps them ("white to my left, red to my right" read the other way round). Where they make
+    nothing of it, the reader's view only for a "yes" or "no", which it reads against the turn
+    before; of other words it guessed ("and took a left" read as a dead end)."""
+    view = frozenset(f for f in ruled if f.kind in VIEW_KINDS)
+    said = lexicon.tokens(text)
+    if not view and said and said[0] in lexicon.YES | lexicon.NO:
+        view = frozenset(f for f in read if f.kind in VIEW_KINDS)
     return frozenset(f for f in read if f.kind not in VIEW_KINDS) | view
 
 

@@ -4,7 +4,7 @@ plan with each turn's size. Sentences written for these tests, none from the ben
 
 from sim.core.labels import Label
 from sim.language import instructions as ins
-from sim.language.meaning import Clause, Op
+from sim.language.meaning import Clause, FactForm, FactKind, Op
 from sim.language.reader import counts
 from sim.language.understanding import Understanding, instructions, read_back, unread_counts, with_count
 from sim.language.vocab import Side
@@ -85,6 +85,16 @@ def test_a_reading_names_no_colour_or_object_the_words_do_not():
     # A turn that points back ("follow them") may name what an earlier turn did; "bat" is the paddle.
     assert reader.program("go up to it", ("d", "i can see the mug")).meaning == (TO_THE_MUG,)
     assert Clause.of(Op.FORWARD, steps=None, until="paddle") in reader.program("go to the ping pong bat").meaning
+
+
+def test_a_driver_turn_states_a_view_only_in_words_that_state_one():
+    reader = Understanding.trained()
+    kinds = {FactKind.LABEL, FactKind.EDGE, FactKind.CORRIDOR, FactKind.CORNER, FactKind.DEAD_END}
+    for text in ("and then i took a left", "where is the edge of the maze?", "i cannot turn right here"):
+        assert not {f for f in reader.facts(text).meaning if f.kind in kinds}, text
+    # A "yes" is read against what it answers.
+    yes = reader.facts("yes", ("c", "is there a red wall on your left?"), "is there a red wall on your left?")
+    assert FactForm.of(FactKind.LABEL, label="red", side="left", distance="any", negated=False) in yes.meaning
 
 
 def test_a_read_back_says_each_turn_with_its_size():
