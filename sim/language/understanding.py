@@ -31,7 +31,16 @@ from sim.language.meaning import (
 )
 from sim.language.reader import Count, Reader, Role, counts, shipped
 from sim.language.sectors import Sector
-from sim.language.vocab import LABEL_WORDS, SIDE_PHRASE, SIDE_SECTOR, Side, times_turned, wall_name, words
+from sim.language.vocab import (
+    LABEL_WORDS,
+    ORDINAL_WORDS,
+    SIDE_PHRASE,
+    SIDE_SECTOR,
+    Side,
+    times_turned,
+    wall_name,
+    words,
+)
 
 M = TypeVar("M", Program, frozenset[FactForm])
 
@@ -145,6 +154,8 @@ def _labels_named(clause: Clause) -> list[str]:
 def _openings_as_said(program: Program, text: str) -> Program:
     """The openings the words count ("the 2nd opening on your left"), which the rules read and
     the reader, having met almost none in people's words, reads with another count or not at all."""
+    if not ORDINAL_WORDS.keys() & set(words(text)):
+        return program  # no count of openings: the rules' reading, a few milliseconds, is not needed
     ruled = program_of(ins.parse(text))
     said = [c for c in ruled if c.op == Op.OPENING]
     read = [k for k, c in enumerate(program) if c.op == Op.OPENING]

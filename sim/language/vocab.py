@@ -11,6 +11,7 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 from enum import StrEnum
+from functools import lru_cache
 
 from sim.core.labels import Label
 from sim.language import sectors
@@ -291,8 +292,11 @@ SHORTHAND = {
 }
 
 
+@lru_cache(maxsize=1 << 16)
 def correct(word: str) -> str:
-    """The vocabulary word a misspelling or shorthand stands for, or the word itself."""
+    """The vocabulary word a misspelling or shorthand stands for, or the word itself (remembered:
+    an unknown word is measured against every keyword, and the agents read each message's words
+    several times over)."""
     if word in SHORTHAND:
         return SHORTHAND[word]
     if len(word) < 4 or word in KEYWORDS or word in COMMON or not word.isalpha():
