@@ -47,6 +47,7 @@ from sim.language.understanding import (
     instructions,
     read_back,
     turn_words,
+    turns_missed,
     unread_counts,
     with_count,
 )
@@ -66,6 +67,8 @@ FAILED_TRIES = 2  # instructions in a row it could not carry out: ask for one mo
 _YES = Clause.of(Op.ANSWER, value="yes")
 _NO = Clause.of(Op.ANSWER, value="no")
 _CLAIM = Clause.of(Op.STOP, claim=True)
+_UNCLEAR = Clause.of(Op.UNCLEAR)
+_HOLD = Clause.of(Op.STOP, claim=False)
 # The "no" a correction opens with ("no, right"): the lexicon's no-words, "nooo" and a bare "n".
 _NO_WORD = re.compile(rf"^\W*(?:no+|n|{'|'.join(sorted(lexicon.NO))})\b\W*", re.IGNORECASE)
 
@@ -279,17 +282,27 @@ class DialogDriver:
             return [self._say(Troubled(Trouble.NOT_MEANT))]
         elif self._phase == Phase.NAVIGATING:
             rules = program_of(ins.parse(text))  # the rules' reading: a second opinion, read once
-            unsure = understood.confidence < ASK_BELOW
+            unsure = understood.confidence < ASK_BELOW or understood.ambiguous
             if _CLAIM in rules and not _moves(rules) and (unsure or not _moves(program)) and _CLAIM not in program:
                 # The rules hear "you are right by it": a claim costs no move and is judged, so it
                 # claims rather than offer the reader's guess ("turning right?") or do nothing (the
                 # reader heard "got it, you found it, ..." as what it should see).
                 return self._follow(rules, text, said_unclear=False)
+            if not _moves(rules) and any(c.op == Op.ASK for c in rules) and _moves(program):
+                # A question ("can you see the mug anywhere? maybe look around") the reader read
+                # moves into: answered, with no move it was not asked for.
+                return self._follow(rules, text, said_unclear=False)
+            if not program and rules == (_UNCLEAR,):
+                program = rules  # words the reader read nothing in and the rules find no chat in ("say found")
+            if program == (_HOLD,) and not rules:
+                program = rules  # chat the reader read as "stop" ("thanks"): nothing to answer "ok, stopped" to
             # A guess where the rules make nothing of a turn led by a word the reader never met
             # ("pirouette till the wall ...").
             guessed = _moves(program) and understood.strange_lead and all(c.op == Op.UNCLEAR for c in rules)
             if unsure or guessed or not _moves(program) and _moves(rules):
                 return self._ask_about(program, rules, text)  # or the rules hear moves the reader did not
+            if turns_missed(program, rules):  # or a turn it did not: its reading clause by clause, asked about
+                return self._ask_about(self._understanding.mended(text), rules, text)
         unclear = [c for c in program if c.op == Op.UNCLEAR]
         if unclear and len(unclear) < len(program):
             program = tuple(c for c in program if c.op != Op.UNCLEAR)  # act on what it understood

@@ -22,6 +22,7 @@ from sim.language.vocab import (
     Side,
     number,
     times_turned,
+    turns_to,
     words,
 )
 
@@ -108,10 +109,11 @@ class Parsed:
         return bool(self.instructions) and all(isinstance(i, Unclear) for i in self.instructions)
 
 
-_CLAUSE = re.compile(r"[,.;!]+|(?<!should )\bthen\b|\band\b|\bafter that\b|\bnow\b")
+_CLAUSE = re.compile(r"[,.;!]+|(?<!should )\bthen\b|\band\b|\bafter that\b|(?<!right )\bnow\b|\bright now\b")
 _CLAIM = re.compile(
     r"\b(you(?:re| are) (?:there|here|right by it|at it)|(?:should be|is) right (?:there|here)|thats it|thats the spot|you found it|found it"
-    r"|claim|take (?:a |the )?(?:picture|photo|snapshot)|send (?:a )?(?:picture|photo))\b"
+    r"|claim|take (?:a |the )?(?:picture|photo|snapshot)|send (?:a )?(?:picture|photo)"
+    r"|(?:say|press|hit|click|tap|push) (?:the )?found|(?:thats|this is|that is) (?:the (?:target|one|spot)|it))\b"
 )
 _STOP = re.compile(r"\b(stop|halt|hold on|wait)\b")
 _UTURN = re.compile(r"\b(u-turn|u turn|turn around|spin around|180|turn back|about face|uturn)\b")
@@ -128,7 +130,7 @@ _OPENING = re.compile(
     r"(?:(?:on|to) (?:your|the) )?(left|right)\b"
 )
 _UNTIL = re.compile(r"\b(until|till|to|towards|toward|reach|reached|at|up to|see)\b")
-_BACK_START = re.compile(r"\b(start|started|beginning|began|starting)\b")
+BACK_START = re.compile(r"\b(start|started|beginning|began|starting)\b")
 _QUESTION = re.compile(
     r"\?|^(what|whats|where|is|are|do|does|can you see|describe|any|how)\b|\bsurroundings\b|^location\b|\byour location\b"
     r"|\btell me (?:what|your|about)\b|\bdescribe\b"
@@ -239,8 +241,8 @@ def _clause(text: str, prev: Instruction | None) -> list[Instruction]:
         return [Unclear(text)]
     if _CLAIM.search(text):
         return [Stop(claim=True)]
-    if re.search(r"\b(back|return)\b", text) and (_BACK_START.search(text) or "where" in ws):
-        if _BACK_START.search(text):
+    if re.search(r"\b(back|return)\b", text) and (BACK_START.search(text) or "where" in ws):
+        if BACK_START.search(text):
             return [GoBack(Place.START)]
         side = _side([w for w in ws if w in ("left", "right")])
         nth = next((ORDINAL_WORDS[w] for w in ws if w in ORDINAL_WORDS and w != "next"), 1)
@@ -270,7 +272,8 @@ def _clause(text: str, prev: Instruction | None) -> list[Instruction]:
         return [TakeOpening(Side(opening.group(2)), ORDINAL_WORDS[opening.group(1)])]
     # "keep the red wall on your left" places a wall, it is no turn: drop the place before looking for one.
     unplaced = _SIDE_PHRASE.sub(" ", text)
-    turn_side = _side([w for w in unplaced.split() if w in ("left", "right")])
+    unplaced_ws = unplaced.split()
+    turn_side = _side([w for k, w in enumerate(unplaced_ws) if turns_to(unplaced_ws, k)])
     steps = next((n for n in (number(w) for w in ws) if n is not None and n not in (45, 90, 135, 180)), None)
     out: list[Instruction] = []
     wants_forward = bool(_GO.search(unplaced)) or steps is not None
@@ -290,7 +293,7 @@ def _clause(text: str, prev: Instruction | None) -> list[Instruction]:
     if not out and _STOP.search(text):
         return [Stop(claim=False)]
     if not out and not re.search(
-        r"\b(ok|okay|good|great|yes|yeah|nice|perfect|awesome|correct|right|cool|got it)\b", text
+        r"\b(ok|okay|good|great|yes|yeah|nice|perfect|awesome|correct|right|cool|got it|thanks|thank you|thx)\b", text
     ):
         return [Unclear(text)]
     return out

@@ -11,6 +11,7 @@ it; `unread_counts` are the counts a reading left unused, which it says it did n
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Generic, TypeVar
@@ -51,6 +52,7 @@ class Understood(Generic[M]):
     confidence: float
     by_rules: bool  # read by the rules (no reader for this seat's words)
     strange_lead: bool = False  # the reader never met the turn's first word
+    ambiguous: bool = False  # the words may well mean another move ("left 1": a turn, or a turn and a step)
 
 
 class Understanding:
@@ -78,9 +80,39 @@ class Understanding:
             return Understood(program_of(ins.parse(text)), 1.0, True)
         reading = self.commander_reader.read(text, before)
         assert isinstance(reading.meaning, tuple)  # a Commander reader writes programs
-        program = _sided_walk(_turned_as_often(reading.meaning, text), text)
-        program = _openings_as_said(_grounded(program, text, before), text)
-        return Understood(program, reading.confidence, False, reading.strange_lead)
+        read = _turned_as_often(reading.meaning, text)
+        sided = _sided_walk(read, text)  # a guess between readings a person may mean: asked about
+        program = _back_as_said(_openings_as_said(_grounded(sided, text, before), text), text)
+        return Understood(program, reading.confidence, False, reading.strange_lead, ambiguous=sided != read)
+
+    def mended(self, text: str) -> Program:
+        """The best reading to offer where the whole reading missed a turn the rules hear (`turns_missed`):
+        clause by clause as the rules cut the words, each as the reader reads it alone with the turns
+        the rules hear in it and that reading lacks put where the rules put them (before its walks
+        or after them); a clause that says not to do something, or that it was not needed ("you
+        didn't need to turn around"), gives no move."""
+        out: list[Clause] = []
+        for part in ins.clauses(text):
+            said = words(part)
+            if not said or _NOT_DONE.intersection(said):
+                continue
+            read = [c for c in self.program(part).meaning if c.op != Op.UNCLEAR]
+            ruled = program_of(ins.parse(part))
+            for left in (True, False):
+                turns = [c for c in ruled if _turns(c, left)]
+                missing = turns[sum(_turns(c, left) for c in read) :]
+                if not missing:
+                    continue
+                first_walk = next((k for k, c in enumerate(ruled) if c.op == Op.FORWARD), len(ruled))
+                before_walks = ruled.index(missing[0]) < first_walk
+                at = (
+                    next((k for k, c in enumerate(read) if c.op == Op.FORWARD), len(read))
+                    if before_walks
+                    else len(read)
+                )
+                read[at:at] = missing
+            out += read
+        return tuple(out)
 
     def facts(
         self, text: str, before: tuple[str, str] | None = None, asked: str | None = None
@@ -102,6 +134,28 @@ def _turned_as_often(program: Program, text: str) -> Program:
         return program
     k = turns[0]
     return (*program[:k], *[program[k]] * times, *program[k + 1 :])
+
+
+_LATELY = re.compile(r"\b(ago|just were|were before|where you were|way you came|came from|last spot)\b")
+
+
+def _back_as_said(program: Program, text: str) -> Program:
+    """Back to where the Driver just was, where the words say so ("where you were a moment ago"):
+    the reader read it as back to the start, 38 moves back to where the trial began."""
+    if not _LATELY.search(" ".join(words(text))) or ins.BACK_START.search(text.lower()):
+        return program
+    return tuple(
+        Clause(Op.BACK, ("previous", c.args[1])) if c.op == Op.BACK and c.args[0] != "previous" else c for c in program
+    )
+
+
+_NOT_DONE = frozenset({"not", "dont", "didnt", "never", "shouldnt", "neednt", "without"})
+
+
+def turns_missed(program: Program, rules: Program) -> bool:
+    """Whether the rules hear more turns one way than the reading makes ("about face, fwd 2, then
+    right, fwd 10" was read as the two walks alone)."""
+    return any(sum(_turns(c, left) for c in rules) > sum(_turns(c, left) for c in program) for left in (True, False))
 
 
 # Words that point at something named earlier ("go there", "follow them", "the objective").
@@ -173,8 +227,8 @@ _PLACE_WORDS = frozenset({"your", "my", "the", "on", "to", "its"})  # "on your r
 
 
 def _sided_walk(program: Program, text: str) -> Program:
-    """A side said just before a count of steps ("right 3", "go left 2 steps") is a turn that way,
-    then the walk. No recorded Commander writes it, and the reader read "right 3" as the walk alone
+    """A side said just before a count of steps ("right 3", "go left 2 steps") is most likely a turn
+    that way, then the walk (a person may mean a turn counted: "left 1 then fwd 2"). No recorded Commander writes it, and the reader read "right 3" as the walk alone
     (the Driver went straight), "left 3" as the turn alone and "forward 2 right 3" as the first walk
     alone; each gets the part it dropped, in the order said."""
     said, done = words(text), 0  # the clauses before `done` are those of sides and counts already seen

@@ -260,6 +260,7 @@ COMMON = frozenset(
         "order",
     ]
 )
+_YOU = re.compile(r"\bu\b(?![\s-]*tu)")  # "what do u see": "you", where "u turn" (and "u tuen") is a u-turn
 _WORD = re.compile(r"[a-z0-9]+(?:-[a-z]+)?|[?]")
 
 
@@ -282,6 +283,7 @@ def _distance(a: str, b: str, limit: int) -> int:
 # A chat's shorthand for the maze's words ("turn r", "fwd 3", "l 2"): one or two letters no
 # speller would correct, and "r" read as nothing made the reader guess a left turn.
 SHORTHAND = {
+    "ur": "your",
     "l": "left",
     "r": "right",
     "lft": "left",
@@ -312,7 +314,7 @@ def correct(word: str) -> str:
 
 def words(text: str) -> list[str]:
     """Lower-case words of `text`, spelling corrected; "?" kept as a word."""
-    text = text.lower().replace("'", "").replace("u-turn", "uturn").replace("-", " ")
+    text = _YOU.sub("you", text.lower().replace("'", "").replace("u-turn", "uturn")).replace("-", " ")
     return [correct(w) for w in _WORD.findall(text)]
 
 
@@ -321,6 +323,30 @@ def number(word: str) -> int | None:
     if word.isdigit():
         return int(word)
     return NUMBER_WORDS.get(word)
+
+
+# "right" that means "directly" ("right up to the jar", "right in front", "right now") or "correct"
+# ("that's right") in a Commander's instruction, not a turn: by the word after it, or before it.
+# ("right at the red wall" is a turn there; a Driver's "right at" is where a wall is not,
+# `lexicon`'s own test.)
+_RIGHT_AS_DIRECTLY = frozenset({"in", "behind", "ahead", "next", "by", "beside", "there", "here", "now", "up", "on"})
+_RIGHT_AS_CORRECT = frozenset({"thats", "its", "is", "alright", "all"})
+# Words before "right" that make it the turn whatever follows ("take a right in front of the jar").
+_TURN_LEAD = frozenset(
+    {"a", "the", "your", "turn", "turning", "take", "make", "look", "hang", "bear", "veer", "hard", "sharp"}
+)
+
+
+def turns_to(ws: Sequence[str], k: int) -> bool:
+    """Whether `ws[k]` can be the side of a turn: "left", or "right" that does not mean "directly"
+    or "correct"."""
+    if ws[k] == "left":
+        return True
+    if ws[k] != "right":
+        return False
+    after = ws[k + 1] if k + 1 < len(ws) else ""
+    before = ws[k - 1] if k > 0 else ""
+    return before in _TURN_LEAD or after not in _RIGHT_AS_DIRECTLY and before not in _RIGHT_AS_CORRECT
 
 
 def times_turned(ws: Sequence[str]) -> int:

@@ -326,17 +326,71 @@ def test_its_report_and_read_back_say_how_far_it_turned(world):
 
 
 @pytest.mark.parametrize(("text", "heading"), [("left 3", 2), ("right 3", 6), ("go right 2 steps", 6)])
-def test_told_a_side_and_a_count_it_turns_that_way_and_walks_the_count(world, text, heading):
-    """A person's terse "left 3": the reader read it as the turn alone (the 3 asked about after
-    it), and "right 3" as the walk alone, straight ahead, with an "ok"."""
+def test_told_a_side_and_a_count_it_asks_whether_to_turn_that_way_and_walk_the_count(world, text, heading):
+    """A person's terse "left 3": the reader read it as the turn alone, and "right 3" as the walk
+    alone, straight ahead, with an "ok". "left 1 then fwd 2" meant a turn counted, so it asks."""
     _, graph, _ = world
     steps = int(next(w for w in text.split() if w.isdigit()))
     start = _room_for(graph, 0, steps, heading)
-    pose, said = _carry_out(_navigating(world, start), world, start, text)
+    driver = _navigating(world, start)
+    (asked,) = driver.perceive(Heard(Role.COMMANDER, text))
+    side = "left" if heading == 2 else "right"
+    assert asked == Say(
+        f"i am not sure i got '{text}'. do you mean: turning {side} 90 degrees, then forward {steps} steps?"
+    )
+    pose, said = _carry_out(driver, world, start, "yes")
     end = start.node
     for _ in range(steps):
         end = int(graph.forward[end, heading])
     assert pose == Pose(end, heading) and said[0].startswith(f"ok, went {steps} steps"), said
+
+
+def test_a_turn_its_reading_dropped_is_asked_about_with_the_words_read_clause_by_clause(world):
+    """A person's "right, fwd 2" was read as the walk alone: the Driver went straight and said "ok"."""
+    _, graph, _ = world
+    start = _room_for(graph, 0, 2, 6)
+    driver = _navigating(world, start)
+    (asked,) = driver.perceive(Heard(Role.COMMANDER, "right, fwd 2"))
+    assert asked == Say(
+        "i am not sure i got 'right, fwd 2'. do you mean: turning right 90 degrees, then forward 2 steps?"
+    )
+    pose, said = _carry_out(driver, world, start, "yes")
+    end = start.node
+    for _ in range(2):
+        end = int(graph.forward[end, 6])
+    assert pose == Pose(end, 6) and said[0].startswith("ok, went 2 steps"), said
+
+
+@pytest.mark.parametrize("text", ["what do u see", "thats right, go forward 1", "right now go forward 1"])
+def test_u_and_right_that_mean_you_and_directly_move_nothing_and_turn_nothing(world, text):
+    _, graph, _ = world
+    start = _room_for(graph, 1, 0)
+    pose, said = _carry_out(_navigating(world, start), world, start, text)
+    assert pose.heading == start.heading and "turn" not in said[0], said
+
+
+def test_a_question_is_answered_with_no_move_it_was_not_asked_for(world):
+    """ "can you see the mug or the jar or the paddle anywhere? maybe look around a bit" was read
+    as "the mug should be on your left" and a u-turn: the Driver turned round and said "ok"."""
+    _, graph, _ = world
+    start = _room_for(graph, 1, 0)
+    driver = _navigating(world, start)
+    turns = driver.perceive(Heard(Role.COMMANDER, "can you see the mug or the jar or the paddle anywhere?"))
+    assert not [t for t in turns if isinstance(t, RequestMove)] and [t for t in turns if isinstance(t, Say)], turns
+
+
+@pytest.mark.parametrize("text", ["say found", "thats the target", "this is it", "press found"])
+def test_told_in_other_words_that_it_is_there_it_claims(world, text):
+    _, graph, _ = world
+    start = _room_for(graph, 1, 0)
+    _, said = _carry_out(_navigating(world, start), world, start, text)
+    assert said[0].startswith("i think i found"), said
+
+
+def test_thanks_is_chat_not_a_stop_it_did_not_make(world):
+    _, graph, _ = world
+    start = _room_for(graph, 1, 0)
+    assert _navigating(world, start).perceive(Heard(Role.COMMANDER, "thanks")) == []
 
 
 def test_told_left_then_3_it_turns_says_it_did_not_get_the_3_and_walks_it_when_told_yes(world):

@@ -97,6 +97,12 @@ def test_a_driver_turn_states_a_view_only_in_words_that_state_one():
     assert FactForm.of(FactKind.LABEL, label="red", side="left", distance="any", negated=False) in yes.meaning
 
 
+def test_back_to_where_it_just_was_is_the_way_it_came_not_the_start():
+    reader = Understanding.trained()
+    assert [c.args[0] for c in reader.program("go back to where you were a moment ago").meaning] == ["previous"]
+    assert reader.program("go back to where you started").meaning == (Clause.of(Op.BACK, place="start", steps=None),)
+
+
 def test_a_read_back_says_each_turn_with_its_size():
     program = (TURN_LEFT, _walk(2), Clause.of(Op.TURN, eighths=-1), Clause.of(Op.TURN, eighths=4))
     assert read_back(instructions(program, "")) == (
