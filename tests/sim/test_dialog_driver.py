@@ -118,6 +118,13 @@ def _carry_out(driver, world, pose, text):
     raise AssertionError("the Driver never spoke")
 
 
+def _ahead(graph, node, heading, steps):
+    """The node `steps` forward moves from `node` along `heading`."""
+    for _ in range(steps):
+        node = int(graph.forward[node, heading])
+    return node
+
+
 def _room_for(graph, ahead, left, heading=2):
     """A pose heading 0 with `ahead` free moves along +x, then `left` along `heading` (+y)."""
     for node in range(graph.n):
@@ -339,9 +346,7 @@ def test_told_a_side_and_a_count_it_asks_whether_to_turn_that_way_and_walk_the_c
         f"i am not sure i got '{text}'. do you mean: turning {side} 90 degrees, then forward {steps} steps?"
     )
     pose, said = _carry_out(driver, world, start, "yes")
-    end = start.node
-    for _ in range(steps):
-        end = int(graph.forward[end, heading])
+    end = _ahead(graph, start.node, heading, steps)
     assert pose == Pose(end, heading) and said[0].startswith(f"ok, went {steps} steps"), said
 
 
@@ -355,9 +360,7 @@ def test_a_turn_its_reading_dropped_is_asked_about_with_the_words_read_clause_by
         "i am not sure i got 'right, fwd 2'. do you mean: turning right 90 degrees, then forward 2 steps?"
     )
     pose, said = _carry_out(driver, world, start, "yes")
-    end = start.node
-    for _ in range(2):
-        end = int(graph.forward[end, 6])
+    end = _ahead(graph, start.node, 6, 2)
     assert pose == Pose(end, 6) and said[0].startswith("ok, went 2 steps"), said
 
 
@@ -401,9 +404,7 @@ def test_told_left_then_3_it_turns_says_it_did_not_get_the_3_and_walks_it_when_t
     pose, said = _carry_out(driver, world, start, "left, then 3")
     assert pose == Pose(start.node, 2) and said[0].endswith("i did not get '3' - forward 3 steps?"), said
     pose, said = _carry_out(driver, world, pose, "yes")
-    end = start.node
-    for _ in range(3):
-        end = int(graph.forward[end, 2])
+    end = _ahead(graph, start.node, 2, 3)
     assert pose == Pose(end, 2) and said[0].startswith("ok, went 3 steps"), said
 
 
