@@ -83,6 +83,7 @@ class Understanding:
         read = _turned_as_often(reading.meaning, text)
         sided = _sided_walk(read, text)  # a guess between readings a person may mean: asked about
         program = _back_as_said(_openings_as_said(_grounded(sided, text, before), text), text)
+        program = _turned_between(_pairs_as_said(program, text), text)
         return Understood(program, reading.confidence, False, reading.strange_lead, ambiguous=sided != read)
 
     def mended(self, text: str) -> Program:
@@ -221,6 +222,66 @@ def _openings_as_said(program: Program, text: str) -> Program:
     for k, opening in zip(read, said, strict=True):
         out[k] = opening
     return tuple(out)
+
+
+# Colour words proper: "the edge" is a wall of the map too, but never one of a pair ("red and white").
+_COLOUR_WORDS = {
+    w: label
+    for w, label in LABEL_WORDS.items()
+    if label not in OBJECT_LABELS and w not in ("edge", "border", "boundary")
+}
+
+
+def _pairs(said: list[str]) -> list[tuple[Label, Label]]:
+    """Colours said as a pair, in the order said ("the green and yellow walls", "white and a green wall")."""
+    out = []
+    for k in range(1, len(said) - 1):
+        if said[k] != "and" or said[k - 1] not in _COLOUR_WORDS:
+            continue
+        nxt = said[k + 2] if said[k + 1] in ("a", "the") and k + 2 < len(said) else said[k + 1]
+        if nxt in _COLOUR_WORDS:
+            out.append((_COLOUR_WORDS[said[k - 1]], _COLOUR_WORDS[nxt]))
+    return out
+
+
+def _pairs_as_said(program: Program, text: str) -> Program:
+    """Both colours of a pair the Driver should see ("green and yellow walls to your left"): the reader
+    keeps one of two colours said together, as the rules' single-colour views taught it."""
+    for first, second in _pairs(words(text)):
+        out: list[Clause] = []
+        for clause in program:
+            if clause.op == Op.EXPECT and _label(clause.args[0]) in (first, second):
+                pair = [Clause.of(Op.EXPECT, label=label.word, side=clause.args[1]) for label in (first, second)]
+                out += [c for c in pair if c == clause or c not in program]
+            else:
+                out.append(clause)
+        program = tuple(out)
+    return program
+
+
+_TURN_BETWEEN = re.compile(r"\b(?:turn (left|right)|(left|right) turn) (?:in )?between (?:the )?(\w+)")
+
+
+def _turned_between(program: Program, text: str) -> Program:
+    """A turn made between walls ("turn left between the red and brown walls"): a walk to the first
+    colour, then the turn, as "turn left at the red wall" is (the reader walks to any wall, or drops
+    the walk)."""
+    found = _TURN_BETWEEN.search(" ".join(words(text)))
+    colour = _COLOUR_WORDS.get(found.group(3)) if found else None
+    if found is None or colour is None:
+        return program
+    left = (found.group(1) or found.group(2)) == "left"
+    walk = Clause.of(Op.FORWARD, steps=None, until=colour.word)
+    turn = next((j for j, c in enumerate(program) if _turns(c, left)), None)
+    if turn is None:  # the turn dropped too: where the reading ends on a walk to a wall, after it
+        if not program or program[-1] != Clause.of(Op.FORWARD, steps=None, until="wall"):
+            return program
+        return (*program[:-1], walk, Clause.of(Op.TURN, eighths=2 if left else -2))
+    if turn > 0 and program[turn - 1].op == Op.FORWARD:
+        if program[turn - 1].args[0] is not None:
+            return program  # a count of steps said
+        return (*program[: turn - 1], walk, *program[turn:])
+    return (*program[:turn], walk, *program[turn:])
 
 
 _PLACE_WORDS = frozenset({"your", "my", "the", "on", "to", "its"})  # "on your right 3 steps on": where, not a turn

@@ -97,6 +97,19 @@ def test_a_driver_turn_states_a_view_only_in_words_that_state_one():
     assert FactForm.of(FactKind.LABEL, label="red", side="left", distance="any", negated=False) in yes.meaning
 
 
+def test_both_colours_of_a_pair_are_expected_and_a_turn_between_walls_is_made_at_the_first():
+    reader = Understanding.trained()
+    expected = [c for c in reader.program("now the orange and blue walls should be on your right").meaning]
+    assert set(expected) >= {Clause.of(Op.EXPECT, label=colour, side="right") for colour in ("red", "blue")}
+    assert reader.program("drive on, then take a left turn in between the yellow and white walls").meaning[-2:] == (
+        Clause.of(Op.FORWARD, steps=None, until="yellow"),
+        TURN_LEFT,
+    )
+    # Looking is not turning at a place.
+    looked = reader.program("look left between the brown walls").meaning
+    assert Clause.of(Op.FORWARD, steps=None, until="brown") not in looked
+
+
 def test_back_to_where_it_just_was_is_the_way_it_came_not_the_start():
     reader = Understanding.trained()
     assert [c.args[0] for c in reader.program("go back to where you were a moment ago").meaning] == ["previous"]
