@@ -83,7 +83,7 @@ class Understanding:
         read = _turned_as_often(reading.meaning, text)
         sided = _sided_walk(read, text)  # a guess between readings a person may mean: asked about
         program = _back_as_said(_openings_as_said(_grounded(sided, text, before), text), text)
-        program = _turned_between(_pairs_as_said(program, text), text)
+        program = _walked_first(_turned_between(_pairs_as_said(program, text), text), text)
         return Understood(program, reading.confidence, False, reading.strange_lead, ambiguous=sided != read)
 
     def mended(self, text: str) -> Program:
@@ -274,7 +274,7 @@ def _turned_between(program: Program, text: str) -> Program:
     walk = Clause.of(Op.FORWARD, steps=None, until=colour.word)
     turn = next((j for j, c in enumerate(program) if _turns(c, left)), None)
     if turn is None:  # the turn dropped too: where the reading ends on a walk to a wall, after it
-        if not program or program[-1] != Clause.of(Op.FORWARD, steps=None, until="wall"):
+        if not program or program[-1] != _TO_A_WALL:
             return program
         return (*program[:-1], walk, Clause.of(Op.TURN, eighths=2 if left else -2))
     if turn > 0 and program[turn - 1].op == Op.FORWARD:
@@ -282,6 +282,21 @@ def _turned_between(program: Program, text: str) -> Program:
             return program  # a count of steps said
         return (*program[: turn - 1], walk, *program[turn:])
     return (*program[:turn], walk, *program[turn:])
+
+
+_TO_A_WALL = Clause.of(Op.FORWARD, steps=None, until="wall")
+_STRAIGHT_ON = frozenset({"forward", "straight", "ahead", "forwards"})
+
+
+def _walked_first(program: Program, text: str) -> Program:
+    """The walk a turn opens with ("go straight, then turn left", "move forward and follow the red
+    walls"), which the reader folds into what follows it and drops."""
+    if not program or program[0].op in (Op.FORWARD, Op.BACK) or not _STRAIGHT_ON.intersection(words(text)):
+        return program
+    first = next((part for part in ins.clauses(text) if words(part)), "")
+    if not _STRAIGHT_ON.intersection(words(first)) or program_of(ins.parse(first)) != (_TO_A_WALL,):
+        return program
+    return (_TO_A_WALL, *program)
 
 
 _PLACE_WORDS = frozenset({"your", "my", "the", "on", "to", "its"})  # "on your right 3 steps on": where, not a turn

@@ -11,6 +11,7 @@ from sim.language.vocab import Side
 
 TURN_LEFT = Clause.of(Op.TURN, eighths=2)
 TO_THE_MUG = Clause.of(Op.FORWARD, steps=None, until="mug")
+_TO_A_WALL = Clause.of(Op.FORWARD, steps=None, until="wall")
 
 
 def _walk(steps: int) -> Clause:
@@ -108,6 +109,15 @@ def test_both_colours_of_a_pair_are_expected_and_a_turn_between_walls_is_made_at
     # Looking is not turning at a place.
     looked = reader.program("look left between the brown walls").meaning
     assert Clause.of(Op.FORWARD, steps=None, until="brown") not in looked
+
+
+def test_a_walk_said_first_is_made_first():
+    reader = Understanding.trained()
+    assert reader.program("drive straight on and then follow the blue walls").meaning[0] == _TO_A_WALL
+    assert reader.program("go forward, then turn right").meaning[0] == _TO_A_WALL
+    # Following alone, or going back, is no walk first.
+    assert reader.program("keep following the green walls").meaning[0] != _TO_A_WALL
+    assert reader.program("go back the way you came").meaning[0].op == Op.BACK
 
 
 def test_back_to_where_it_just_was_is_the_way_it_came_not_the_start():
