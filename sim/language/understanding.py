@@ -80,7 +80,7 @@ class Understanding:
             return Understood(program_of(ins.parse(text)), 1.0, True)
         reading = self.commander_reader.read(text, before)
         assert isinstance(reading.meaning, tuple)  # a Commander reader writes programs
-        read = _turned_as_often(reading.meaning, text)
+        read = _turned_as_often(_turned_around_as_said(reading.meaning, text), text)
         sided = _sided_walk(read, text)  # a guess between readings a person may mean: asked about
         program = _back_as_said(_openings_as_said(_grounded(sided, text, before), text), text)
         program = _walked_first(_turned_between(_pairs_as_said(program, text), text), text)
@@ -135,6 +135,24 @@ def _turned_as_often(program: Program, text: str) -> Program:
         return program
     k = turns[0]
     return (*program[:k], *[program[k]] * times, *program[k + 1 :])
+
+
+_SIDED_U_TURN = re.compile(r"\b(left|right) u[ -]?turn\b")  # on the words as written: "uturn" is no keyword
+_AROUND = Clause.of(Op.TURN, eighths=4)
+
+
+def _turned_around_as_said(program: Program, text: str) -> Program:
+    """A u-turn said with a side ("take a right u turn"): turning around, which the reader read as a
+    quarter turn that way."""
+    found = _SIDED_U_TURN.search(text.lower())
+    if found is None or _AROUND in program:
+        return program
+    left = found.group(1) == "left"
+    quarter = Clause.of(Op.TURN, eighths=2 if left else -2)
+    if quarter not in program:
+        return program
+    last = len(program) - 1 - program[::-1].index(quarter)  # "turn right, then a right u-turn"
+    return (*program[:last], _AROUND, *program[last + 1 :])
 
 
 _LATELY = re.compile(r"\b(ago|just were|were before|where you were|way you came|came from|last spot)\b")

@@ -285,6 +285,7 @@ def _distance(a: str, b: str, limit: int) -> int:
 SHORTHAND = {
     "ur": "your",
     "l": "left",
+    "lef": "left",
     "r": "right",
     "lft": "left",
     "rt": "right",

@@ -120,6 +120,18 @@ def test_a_walk_said_first_is_made_first():
     assert reader.program("go back the way you came").meaning[0].op == Op.BACK
 
 
+def test_a_u_turn_said_with_a_side_turns_around_and_a_dropped_letter_keeps_the_side():
+    reader = Understanding.trained()
+    assert reader.program("now do a left u-turn").meaning == (Clause.of(Op.TURN, eighths=4),)
+    assert reader.program("turn right and then a right uturn").meaning == (
+        Clause.of(Op.TURN, eighths=-2),
+        Clause.of(Op.TURN, eighths=4),
+    )
+    assert reader.program("the yellow walls will be on your lef").meaning == (
+        Clause.of(Op.EXPECT, label="yellow", side="left"),
+    )
+
+
 def test_back_to_where_it_just_was_is_the_way_it_came_not_the_start():
     reader = Understanding.trained()
     assert [c.args[0] for c in reader.program("go back to where you were a moment ago").meaning] == ["previous"]
