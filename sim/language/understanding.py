@@ -83,7 +83,8 @@ class Understanding:
         read = _turned_as_often(_turned_around_as_said(reading.meaning, text), text)
         sided = _sided_walk(read, text)  # a guess between readings a person may mean: asked about
         program = _back_as_said(_openings_as_said(_grounded(sided, text, before), text), text)
-        program = _walked_first(_turned_between(_pairs_as_said(program, text), text), text)
+        program = _walked_last(_walked_first(_turned_between(_pairs_as_said(program, text), text), text), text)
+        program = _facing_as_said(program, text)
         return Understood(program, reading.confidence, False, reading.strange_lead, ambiguous=sided != read)
 
     def mended(self, text: str) -> Program:
@@ -315,6 +316,34 @@ def _walked_first(program: Program, text: str) -> Program:
     if not _STRAIGHT_ON.intersection(words(first)) or program_of(ins.parse(first)) != (_TO_A_WALL,):
         return program
     return (_TO_A_WALL, *program)
+
+
+def _walked_last(program: Program, text: str) -> Program:
+    """The walk a turn ends on ("turn around and follow the corridor", "..., then keep going"), which
+    the reader drops after a turn."""
+    if not program or program[-1].op not in (Op.TURN, Op.OPENING):
+        return program
+    parts = [part for part in ins.clauses(text) if words(part)]
+    if len(parts) < 2 or program_of(ins.parse(parts[-1])) != (_TO_A_WALL,):
+        return program
+    return (*program, _TO_A_WALL)
+
+
+_FACING = re.compile(r"\b(?:facing|face) (?:the |a |an )?(\w+)")
+_UNTIL = frozenset({"until", "till", "til", "when", "unless"})
+
+
+def _facing_as_said(program: Program, text: str) -> Program:
+    """What the Driver is to face once there ("turn around so you are facing the blue walls"): a
+    check that it is ahead, where the reader walked up to it."""
+    said = words(text)
+    found = _FACING.search(" ".join(said))
+    label = LABEL_WORDS.get(found.group(1)) if found else None
+    if label is None or _UNTIL.intersection(said):  # "go on until you are facing the red wall": a walk
+        return program
+    walk = Clause.of(Op.FORWARD, steps=None, until=label.word)
+    faced = Clause.of(Op.EXPECT, label=label.word, side="ahead")
+    return tuple(faced if c == walk else c for c in program)
 
 
 _PLACE_WORDS = frozenset({"your", "my", "the", "on", "to", "its"})  # "on your right 3 steps on": where, not a turn

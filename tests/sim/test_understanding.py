@@ -120,6 +120,22 @@ def test_a_walk_said_first_is_made_first():
     assert reader.program("go back the way you came").meaning[0].op == Op.BACK
 
 
+def test_a_walk_said_last_is_made_last_and_what_to_face_is_checked_not_walked_to():
+    reader = Understanding.trained()
+    assert reader.program("spin around and then follow the hallway").meaning == (
+        Clause.of(Op.TURN, eighths=4),
+        _TO_A_WALL,
+    )
+    assert reader.program("turn around so that you face the yellow walls").meaning == (
+        Clause.of(Op.TURN, eighths=4),
+        Clause.of(Op.EXPECT, label="yellow", side="ahead"),
+    )
+    # Until it faces something: a walk there.
+    assert reader.program("drive on until you are facing the red wall").meaning == (
+        Clause.of(Op.FORWARD, steps=None, until="red"),
+    )
+
+
 def test_a_u_turn_said_with_a_side_turns_around_and_a_dropped_letter_keeps_the_side():
     reader = Understanding.trained()
     assert reader.program("now do a left u-turn").meaning == (Clause.of(Op.TURN, eighths=4),)
