@@ -99,6 +99,9 @@ _QUESTION_START = {"is", "are", "do", "does", "can", "could", "any", "have", "di
 _TOKEN = re.compile(r"[a-z0-9]+")
 _NOT_A_WAY = (("no", "way"), ("way", "off"), ("way", "away"))  # "no way through", "a good way off": no corridor
 _CHUNK = re.compile(r"[,.;!?:]|\bbut\b|\bthen\b")
+# A comma in a list of labels ("green, white and blue walls ahead") is an "and", not a new part.
+_LISTED = "|".join(LABELS)
+_LISTED_COMMA = re.compile(rf"\b({_LISTED})\s*,\s*(?:and\s+)?(?=(?:a |the )?(?:{_LISTED})\b)")
 _TURN = re.compile(r"\b(?:turn(?:ed|ing)?|rotat(?:e|ed|ing)|spun|spin(?:ning)?|face[sd]?|facing)\b")
 LEFT_STEPS = SECTOR_HEADING_OFFSET[Sector.LEFT]
 AROUND_STEPS = SECTOR_HEADING_OFFSET[Sector.BEHIND]
@@ -247,7 +250,8 @@ def _shared(pieces: list[_Piece]) -> list[_Piece]:
     and red wall to my left", "green walls and a red wall are in front of me"."""
     out: list[_Piece] = []
     for piece in pieces:
-        if (
+        # every listed part before it, "green and white and blue walls ahead"
+        while (
             out
             and _listed(out[-1])
             and piece.labels
@@ -338,7 +342,7 @@ def facts(text: str, asked: bool = False) -> list[Fact]:
     way off") says it of the labels the part before named without a distance."""
     out: list[Fact] = []
     last: list[int] = []  # where in `out` the last part's labels of no distance are
-    for chunk in _CHUNK.split(text.lower().replace("n't", " not")):
+    for chunk in _CHUNK.split(_LISTED_COMMA.sub(r"\1 and ", text.lower().replace("n't", " not"))):
         words = tokens(chunk)
         if not words or not asked and asks_about(words):
             continue

@@ -68,8 +68,16 @@ def test_labels_listed_before_a_direction_share_it():
     got = facts("I can see one red wall and two yellow walls far ahead of me")
     assert seen(got) == {((F,), Label.RED, False), ((F,), Label.YELLOW, False)}
     assert {f.distance.value for f in got} == {"far"} and not [f for f in got if f.kind == ViewKind.NEXT_TO]
+    # a list of three, with commas or "and"s, shares it to its first colour
+    for said in (
+        "i see brown, red and yellow walls ahead",
+        "brown,red,yellow in front",
+        "brown and red and yellow ahead",
+    ):
+        assert seen(facts(said)) == {((F,), label, False) for label in (Label.BROWN, Label.RED, Label.YELLOW)}, said
     # a clause of its own keeps its own direction
     assert ((ANY,), Label.RED, False) in seen(facts("i see a red wall and there is a blue wall on my left"))
+    assert ((ANY,), Label.RED, False) in seen(facts("i see red, then a blue wall on my left"))
     # "between yellow walls": on both sides
     assert seen(facts("I'm in between yellow walls")) == {((L,), Label.YELLOW, False), ((R,), Label.YELLOW, False)}
 
