@@ -411,7 +411,8 @@ def _joined(read: frozenset[FactForm], ruled: frozenset[FactForm], text: str) ->
     said = lexicon.tokens(text)
     if not view and said and said[0] in lexicon.YES | lexicon.NO:
         view = frozenset(f for f in read if f.kind in VIEW_KINDS)
-    return frozenset(f for f in read if f.kind not in VIEW_KINDS) | view
+    asked = frozenset(f for f in ruled if f.kind == FactKind.QUESTION)  # a question's first word, or its "?"
+    return frozenset(f for f in read if f.kind not in VIEW_KINDS) | asked | view
 
 
 def _label(word: object) -> Label | None:

@@ -93,6 +93,9 @@ def test_a_driver_turn_states_a_view_only_in_words_that_state_one():
     kinds = {FactKind.LABEL, FactKind.EDGE, FactKind.CORRIDOR, FactKind.CORNER, FactKind.DEAD_END}
     for text in ("and then i took a left", "where is the edge of the maze?", "i cannot turn right here"):
         assert not {f for f in reader.facts(text).meaning if f.kind in kinds}, text
+    # A question without its "?" is still one.
+    for text in ("where is the edge of the maze", "how many steps now", "should i take the next left"):
+        assert FactForm.of(FactKind.QUESTION) in reader.facts(text).meaning, text
     # A "yes" is read against what it answers.
     yes = reader.facts("yes", ("c", "is there a red wall on your left?"), "is there a red wall on your left?")
     assert FactForm.of(FactKind.LABEL, label="red", side="left", distance="any", negated=False) in yes.meaning
