@@ -222,7 +222,10 @@ class DialogCommander:
             # Said once, with its first question: not again before every one that follows.
             unsure = lost and self._questions == 0
             return turns + self._ask(prefix="i am not sure where you are now" if unsure else None)
-        return turns + self._guide(one_move=self._stuck >= REPHRASE_AFTER)
+        one_move = self._stuck >= REPHRASE_AFTER
+        if asked is not None:  # asked along with a report ("bumped again. where is the jar?"): answered too
+            return turns + self._answer(asked, one_move=one_move)
+        return turns + self._guide(one_move=one_move)
 
     def _claimed(self, claim: Claimed) -> list[Action]:
         if self._pending is not None:
@@ -489,7 +492,7 @@ class DialogCommander:
 
     # -- answers --------------------------------------------------------------------------------
 
-    def _answer(self, asked: Asked) -> list[Action]:
+    def _answer(self, asked: Asked, one_move: bool = False) -> list[Action]:
         """A Driver's question answered, then the instruction again from where it still is (a
         question reports nothing done)."""
         assert self._target is not None
@@ -512,7 +515,7 @@ class DialogCommander:
                 first = actions[0] if actions else None
                 way = {Move.LEFT: "left", Move.RIGHT: "right", Move.FORWARD: "straight ahead"}
                 reply = f"{unsure}{way[first]} first" if first in way else None
-        return self._guide(prefix=reply)
+        return self._guide(prefix=reply, one_move=one_move)
 
     def _steps_to_go(self, estimate: Estimate) -> int:
         return int(round(self._dist[estimate.pose.node, self.goal(estimate.pose.node)] / GRID_STEP_M))

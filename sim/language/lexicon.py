@@ -417,14 +417,21 @@ class Asked(StrEnum):
 
     WHY = "why"  # "why not?": why it rejected a claim, or why this way
     WHICH_WAY = "which_way"  # "which way?", "left or right?", "where should i go?"
-    HOW_FAR = "how_far"  # "how far?", "how many steps?"
+    HOW_FAR = "how_far"  # "how far?", "how many steps?", "where is the jar?", "what do i look for?"
     WHERE_AM_I = "where_am_i"  # "where am i?"
 
 
 # First match wins: "where am i" before "where to".
 _ASKED = (
     (Asked.WHERE_AM_I, re.compile(r"\bwhere (?:am i|are we|i am)\b")),
-    (Asked.HOW_FAR, re.compile(r"\bhow (?:far|many|much|long)\b")),
+    (
+        Asked.HOW_FAR,  # and where the target is, or what to look for: the same answer
+        re.compile(
+            r"\bhow (?:far|many|much|long)\b"
+            r"|\bwhere(?:s| is)?(?: the| my)? (?:jar|blocks|mug|cup|paddle|bat|racket|target|objective|goal|it)\b"
+            r"|\bwhat (?:do|should) i (?:look|search) for\b|\bwhat am i looking for\b"
+        ),
+    ),
     (Asked.WHY, re.compile(r"\bwhy\b")),
     (
         Asked.WHICH_WAY,

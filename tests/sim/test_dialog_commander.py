@@ -269,7 +269,9 @@ def test_it_says_at_once_why_it_rejects_a_claim_and_again_when_asked_why_not(wor
     assert np.array_equal(commander.belief.log, before), "a question moves nothing"
 
 
-@pytest.mark.parametrize("question", ["how far?", "left or right?", "where am i?"])
+@pytest.mark.parametrize(
+    "question", ["how far?", "left or right?", "where am i?", "wheres the jar", "what do i look for?"]
+)
 def test_it_answers_a_question_then_says_the_instruction_again(world, question):
     start = _walk_pose(world, 3)
     commander, first = _navigating(world, start)
@@ -279,12 +281,19 @@ def test_it_answers_a_question_then_says_the_instruction_again(world, question):
     assert answer.endswith(instruction) and len(answer) > len(instruction), answer
     assert np.array_equal(commander.belief.log, before), "the person did nothing yet: the belief stays"
     reply = answer.removesuffix(instruction)
-    if question == "how far?":
-        assert "about" in reply and "steps away" in reply, reply
+    if question in ("how far?", "wheres the jar", "what do i look for?"):
+        assert "the jar of blocks is" in reply and "steps away" in reply, reply
     if question == "left or right?":
         assert "straight ahead first" in reply, reply  # the walk comes first
     if question == "where am i?":
         assert reply.startswith("i think you are where you see"), reply
+
+
+def test_a_question_asked_with_a_report_is_answered_after_the_report_counts(world):
+    commander, first = _navigating(world, _walk_pose(world, 6))
+    said = _said(commander.perceive(Heard(Role.DRIVER, "ok did that, red wall far ahead. how far is the jar now?")))
+    assert "i think the jar of blocks is" in said and "steps away" in said, said
+    assert ins.parse(said.split("steps away")[-1]).moves, "then the next instruction"
 
 
 def test_unsure_where_the_robot_is_it_says_so_and_asks(world):
