@@ -223,7 +223,9 @@ class DialogCommander:
             unsure = lost and self._questions == 0
             return turns + self._ask(prefix="i am not sure where you are now" if unsure else None)
         one_move = self._stuck >= REPHRASE_AFTER
-        if asked is not None:  # asked along with a report ("bumped again. where is the jar?"): answered too
+        # Asked along with a report ("bumped again. where is the jar?"): answered too, but "where to
+        # now?" by the instruction itself ("right first. turn right" reads as two turns).
+        if asked is not None and asked != Asked.WHICH_WAY:
             return turns + self._answer(asked, one_move=one_move)
         return turns + self._guide(one_move=one_move)
 

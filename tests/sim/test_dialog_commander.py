@@ -294,6 +294,9 @@ def test_a_question_asked_with_a_report_is_answered_after_the_report_counts(worl
     said = _said(commander.perceive(Heard(Role.DRIVER, "ok did that, red wall far ahead. how far is the jar now?")))
     assert "i think the jar of blocks is" in said and "steps away" in said, said
     assert ins.parse(said.split("steps away")[-1]).moves, "then the next instruction"
+    # "where to now?" after a report: the instruction is the answer ("right first. turn right" read as two turns).
+    said = _said(commander.perceive(Heard(Role.DRIVER, "ok, went 2 steps, white wall far ahead. where to now?")))
+    assert "first" not in said and ins.parse(said).moves, said
 
 
 def test_unsure_where_the_robot_is_it_says_so_and_asks(world):
