@@ -106,6 +106,11 @@ def test_participants_see_the_clock_their_moves_and_what_to_do(browser, server, 
     assert "mark it on the map" in commander.inner_text("#status")
     assert "Tell the Commander what you see" in driver.inner_text("#status")
     assert driver.is_disabled("#found"), "nothing to claim before the robot is found"
+    # On a laptop the Driver's chat shows a dozen messages or more, not six; both inputs on the screen.
+    assert driver.locator(".chat ol").bounding_box()["height"] >= 450
+    for page in (commander, driver):
+        box = page.locator(".chat input").bounding_box()
+        assert box["y"] + box["height"] <= 900, "the chat's input is on the screen without scrolling"
 
     click_map(commander, 0.5, 0.5)
     driver.wait_for_selector("#status[data-phase=navigating]")
