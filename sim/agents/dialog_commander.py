@@ -58,8 +58,9 @@ DEPTH_SCALE_M = 0.15  # a claim frame's ray this far off the map's depth counts 
 VIEW_WEIGHT = 1.0
 ELSEWHERE = 1e-3  # after each instruction, the chance the belief lost the robot
 BLOCKED_PENALTY = 5.0  # log-likelihood against a pose whose way forward is free, when told it is not
+CLOSE_PENALTY = 3.0  # ... against a pose with a longer way ahead than the steps to a wall the Driver counts
 UNSEEN_PENALTY = 3.0  # ... against a pose with the target in reach, when the Driver speaks without claiming
-CLOSE_STEPS = 3  # a rejected claim this few steps' walk from where it should be made: "close to it now"
+NEAR_TARGET_STEPS = 3  # a rejected claim this few steps' walk from where it should be made: "close to it now"
 RISKY = 0.4  # the belief's chance of a counted walk meeting a wall before its count: walk less
 REPHRASE_AFTER = 2  # instructions in a row not carried out: say the next one move at a time
 LOST_AFTER = 3  # ... stop guiding and ask
@@ -85,6 +86,17 @@ class Estimate:
     x: float
     y: float
     spread_m: float  # the belief's expected TD from the estimate's node
+
+
+def _wall_close_ahead(fact: lexicon.Fact) -> bool:
+    """A wall (or the edge), not an object, said to be close ahead."""
+    return (
+        fact.kind in (lexicon.ViewKind.LABEL, lexicon.ViewKind.EDGE)
+        and fact.label not in OBJECT_LABELS
+        and fact.distance == lexicon.Distance.NEAR
+        and Sector.FRONT in fact.sectors
+        and not fact.negated
+    )
 
 
 class DialogCommander:
@@ -207,6 +219,10 @@ class DialogCommander:
             self.belief.log = self.belief.log - np.where(self._reach[object_label(self._target)], UNSEEN_PENALTY, 0.0)
         if blocked:
             self._barred()
+        elif (away := lexicon.steps_away(text)) is not None and any(_wall_close_ahead(f) for f in view):
+            # Only where counted: "close ahead" alone is any wall in the view's front within 0.5 m,
+            # off to the side too, which no more bars the way ahead than it did the dialog Driver's.
+            self._wall_within(away + 1, CLOSE_PENALTY)  # a person's count one off
         estimate = self.estimate()
         if self._phase == Phase.LOCALIZING:
             if estimate.spread_m <= SETTLED_M or self._questions >= MAX_QUESTIONS:
@@ -257,7 +273,7 @@ class DialogCommander:
                 why = "no, not yet. it is not in your picture"
             steps = self._steps_to_go(self.estimate())
             self._why_not = (
-                f"{why}: by my map it is {'close to you now' if steps <= CLOSE_STEPS else 'still far from you'}"
+                f"{why}: by my map it is {'close to you now' if steps <= NEAR_TARGET_STEPS else 'still far from you'}"
             )
             return [Judge(False), Say(self._why_not)]  # said at once: a person waits to hear why
         return [Judge(True)]
@@ -265,15 +281,29 @@ class DialogCommander:
     # -- belief ---------------------------------------------------------------------------------
 
     def _barred(self) -> None:
-        """The Driver says its way forward is barred: poses with a free way ahead lose. Where the
-        belief had no such pose (it put the robot in the open), the robot faces some other way at
-        one of the places it thought likely: a person turned, or drifted off the line."""
-        free = self.graph.forward >= 0
+        """The Driver says its way forward is barred: poses with a free way ahead lose."""
+        self._wall_within(0, BLOCKED_PENALTY)
+
+    def _wall_within(self, steps: int, penalty: float) -> None:
+        """The Driver says a wall is `steps` ahead (0: barred, right in front): poses with a longer
+        free way ahead lose `penalty`. Where the belief had no such pose (it put the robot in the
+        open), the robot faces some other way at one of the places it thought likely: a person
+        turned, or drifted off the line. (A person said "a white wall right in front, maybe 3
+        steps away" and was told to go forward 9 steps: the views alone had not moved the belief.)"""
+        run = np.zeros(self.graph.forward.shape, dtype=int)
+        at = np.repeat(np.arange(self.graph.n)[:, None], HEADINGS, axis=1)
+        headings = np.arange(HEADINGS)[None, :]
+        for k in range(steps + 1):  # the free steps ahead, counted up to one more than said
+            ahead = self.graph.forward[at, headings]
+            free = (ahead >= 0) & (run == k)
+            run = run + free
+            at = np.where(free, ahead, at)
+        longer = run > steps
         p = np.exp(self.belief.log - np.logaddexp.reduce(self.belief.log, axis=None))
-        if p[~free].sum() < 0.5:
+        if p[~longer].sum() < 0.5:
             node = np.logaddexp.reduce(self.belief.log, axis=1, keepdims=True)
             self.belief.log = np.logaddexp(self.belief.log, node - math.log(HEADINGS))
-        self.belief.log = self.belief.log - np.where(free, BLOCKED_PENALTY, 0.0)
+        self.belief.log = self.belief.log - np.where(longer, penalty, 0.0)
 
     def _mass_near(self, xy: tuple[float, float]) -> float:
         log = self.belief.node_logits()

@@ -487,6 +487,15 @@ def walked(text: str) -> int | None:
     return 0 if word == "zero" else number(word.removeprefix("a "))
 
 
+_STEPS_AWAY = re.compile(rf"\b({_COUNT}) steps? (?:away|ahead|in front|off|from)\b")
+
+
+def steps_away(text: str) -> int | None:
+    """How many steps off a Driver says what is ahead is ("wall 1 step away", "maybe 3 steps ahead")."""
+    found = _STEPS_AWAY.search(" ".join(tokens(text)))
+    return None if found is None else number(found.group(1).removeprefix("a "))
+
+
 def blocked(text: str) -> bool:
     """Whether a Driver's message says its way forward is barred where it stands: it stopped short
     at a wall, or a wall is right in front of it, which it does not then call far off (a person's

@@ -20,6 +20,7 @@ from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
 from sim.core.rays import RayObservation
 from sim.language import instructions as ins
+from sim.language import lexicon
 from sim.language.describe import near, seen
 from sim.language.sectors import Sector
 from sim.language.vocab import SIDE_STEPS
@@ -240,6 +241,21 @@ def test_a_wall_reported_right_in_front_changes_its_next_instruction(world, repo
     assert commander.graph.forward[estimate.pose.node, estimate.pose.heading] < 0, "a wall bars its way there"
     assert again and ins.parse(again) != ins.parse(first.removeprefix("now find the jar of blocks. ")), (first, again)
     assert not isinstance(ins.parse(again).instructions[0], ins.Forward), again  # it turns first
+
+
+def test_a_wall_said_to_be_close_ahead_keeps_its_next_walk_short(world):
+    """Told to walk on, the person says a wall is a few steps ahead: poses with a long way ahead
+    lose, so the next instruction walks no further than the wall said to be there."""
+    commander, first = _navigating(world, _walk_pose(world, 6))
+    assert lexicon.steps_away("theres a white wall like right in front, maybe 2 steps away") == 2
+    said = _said(commander.perceive(Heard(Role.DRIVER, "theres a white wall like right in front, maybe 2 steps away")))
+    estimate = commander.estimate()
+    free, node = 0, estimate.pose.node
+    while free <= 3 and (node := commander.graph.forward[node, estimate.pose.heading]) >= 0:
+        free += 1
+    assert free <= 3, "the estimate faces a wall a few steps off"
+    walks = [i.steps for i in ins.parse(said).instructions[:1] if isinstance(i, ins.Forward)]
+    assert not walks or (walks[0] or 0) <= 3, said
 
 
 def test_it_says_at_once_why_it_rejects_a_claim_and_again_when_asked_why_not(world):
