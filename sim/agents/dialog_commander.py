@@ -217,8 +217,8 @@ class DialogCommander:
         if self._phase == Phase.NAVIGATING and self._target is not None:
             # A Driver told its target claims when it sees it within reach: it does not, so it is not.
             self.belief.log = self.belief.log - np.where(self._reach[object_label(self._target)], UNSEEN_PENALTY, 0.0)
-        if blocked:
-            self._barred()
+        if blocked:  # its way forward barred: a wall no step ahead
+            self._wall_within(0, BLOCKED_PENALTY)
         elif (away := lexicon.steps_away(text)) is not None and any(_wall_close_ahead(f) for f in view):
             # Only where counted: "close ahead" alone is any wall in the view's front within 0.5 m,
             # off to the side too, which no more bars the way ahead than it did the dialog Driver's.
@@ -279,10 +279,6 @@ class DialogCommander:
         return [Judge(True)]
 
     # -- belief ---------------------------------------------------------------------------------
-
-    def _barred(self) -> None:
-        """The Driver says its way forward is barred: poses with a free way ahead lose."""
-        self._wall_within(0, BLOCKED_PENALTY)
 
     def _wall_within(self, steps: int, penalty: float) -> None:
         """The Driver says a wall is `steps` ahead (0: barred, right in front): poses with a longer
