@@ -243,6 +243,9 @@ def _openings_as_said(program: Program, text: str) -> Program:
     return tuple(out)
 
 
+_TO_A_WALL = Clause.of(Op.FORWARD, steps=None, until="wall")
+
+
 # Colour words proper: "the edge" is a wall of the map too, but never one of a pair ("red and white").
 _COLOUR_WORDS = {
     w: label
@@ -303,12 +306,11 @@ def _turned_between(program: Program, text: str) -> Program:
     return (*program[:turn], walk, *program[turn:])
 
 
-_TO_A_WALL = Clause.of(Op.FORWARD, steps=None, until="wall")
 _STRAIGHT_ON = frozenset({"forward", "straight", "ahead", "forwards"})
 
 
 def _walked_first(program: Program, text: str) -> Program:
-    """The walk a turn opens with ("go straight, then turn left", "move forward and follow the red
+    """The walk a Commander's message opens with ("go straight, then turn left", "move forward and follow the red
     walls"), which the reader folds into what follows it and drops."""
     if not program or program[0].op in (Op.FORWARD, Op.BACK) or not _STRAIGHT_ON.intersection(words(text)):
         return program
@@ -319,7 +321,7 @@ def _walked_first(program: Program, text: str) -> Program:
 
 
 def _walked_last(program: Program, text: str) -> Program:
-    """The walk a turn ends on ("turn around and follow the corridor", "..., then keep going"), which
+    """The walk a Commander's message ends on ("turn around and follow the corridor", "..., then keep going"), which
     the reader drops after a turn."""
     if not program or program[-1].op not in (Op.TURN, Op.OPENING):
         return program
