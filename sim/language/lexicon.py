@@ -95,8 +95,9 @@ _LISTED_FILLER = {"a", "an", "the", "some", "one", "two", "part", "of", "wall", 
 RELATION_WORDS = {"next", "beside", "attached", "connected", "connect", "connects", "adjacent", "between", "joined"}
 YES = {"yes", "yeah", "yep", "yup", "yea", "ya", "correct", "affirmative", "sure", "indeed", "right"}
 NO = {"no", "nope", "nah", "negative"}
-_QUESTION_AUX = {"is", "are", "am", "do", "does", "did", "can", "could", "would", "will", "shall", "should", "have"}
-_QUESTION_START = _QUESTION_AUX | {"any", "what", "which", "where", "how", "why"}
+_WH = {"where", "what", "which", "how", "why"}
+_AUX = {"is", "are", "should", "shall", "does", "do", "can", "could", "would", "will", "was", "were"}
+_QUESTION_START = _WH | _AUX | {"am", "did", "have", "any"}
 _TOKEN = re.compile(r"[a-z0-9]+")
 _NOT_A_WAY = (("no", "way"), ("way", "off"), ("way", "away"))  # "no way through", "a good way off": no corridor
 _CHUNK = re.compile(r"[,.;!?:]|\bbut\b|\bthen\b")
@@ -395,8 +396,6 @@ def asked(before: Iterable[tuple[bool, str]]) -> str | None:
     return None
 
 
-_WH = {"where", "what", "which", "how", "why"}
-_AUX = {"is", "are", "should", "shall", "does", "do", "can", "could", "would", "will", "was", "were"}
 _POINTING = {"the", "that", "this", "those", "these", "it", "they", "there"}
 
 
@@ -483,8 +482,12 @@ def walked(text: str) -> int | None:
     found = _WALKED.search(" ".join(tokens(text)))
     if found is None:
         return None
-    word = found.group(1) or found.group(2)
-    return 0 if word == "zero" else number(word.removeprefix("a "))
+    return _count(found.group(1) or found.group(2))
+
+
+def _count(said: str) -> int | None:
+    """The number a `_COUNT` match says ("3", "three", "a few", "zero")."""
+    return 0 if said == "zero" else number(said.removeprefix("a "))
 
 
 _STEPS_AWAY = re.compile(rf"\b({_COUNT}) steps? (?:away|ahead|in front|off|from)\b")
@@ -493,7 +496,7 @@ _STEPS_AWAY = re.compile(rf"\b({_COUNT}) steps? (?:away|ahead|in front|off|from)
 def steps_away(text: str) -> int | None:
     """How many steps off a Driver says what is ahead is ("wall 1 step away", "maybe 3 steps ahead")."""
     found = _STEPS_AWAY.search(" ".join(tokens(text)))
-    return None if found is None else number(found.group(1).removeprefix("a "))
+    return None if found is None else _count(found.group(1))
 
 
 def blocked(text: str) -> bool:

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
-from sim.core.labels import OBJECT_LABELS, Label
+from sim.core.labels import OBJECT_LABELS, WALL_LABELS, Label
 from sim.language import instructions as ins
 from sim.language import lexicon
 from sim.language.meaning import (
@@ -83,8 +83,9 @@ class Understanding:
         read = _turned_as_often(_turned_around_as_said(reading.meaning, text), text)
         sided = _sided_walk(read, text)  # a guess between readings a person may mean: asked about
         program = _back_as_said(_openings_as_said(_grounded(sided, text, before), text), text)
-        program = _walked_last(_walked_first(_turned_between(_pairs_as_said(program, text), text), text), text)
-        program = _facing_as_said(program, text)
+        said = words(text)
+        program = _walks_as_said(_turned_between(_pairs_as_said(program, said), said), text, said)
+        program = _facing_as_said(program, said)
         return Understood(program, reading.confidence, False, reading.strange_lead, ambiguous=sided != read)
 
     def mended(self, text: str) -> Program:
@@ -248,9 +249,7 @@ _TO_A_WALL = Clause.of(Op.FORWARD, steps=None, until="wall")
 
 # Colour words proper: "the edge" is a wall of the map too, but never one of a pair ("red and white").
 _COLOUR_WORDS = {
-    w: label
-    for w, label in LABEL_WORDS.items()
-    if label not in OBJECT_LABELS and w not in ("edge", "border", "boundary")
+    w: label for w, label in LABEL_WORDS.items() if label in WALL_LABELS and w not in ("edge", "border", "boundary")
 }
 
 
@@ -266,10 +265,10 @@ def _pairs(said: list[str]) -> list[tuple[Label, Label]]:
     return out
 
 
-def _pairs_as_said(program: Program, text: str) -> Program:
+def _pairs_as_said(program: Program, said: list[str]) -> Program:
     """Both colours of a pair the Driver should see ("green and yellow walls to your left"): the reader
     keeps one of two colours said together, as the rules' single-colour views taught it."""
-    for first, second in _pairs(words(text)):
+    for first, second in _pairs(said):
         out: list[Clause] = []
         for clause in program:
             if clause.op == Op.EXPECT and _label(clause.args[0]) in (first, second):
@@ -284,11 +283,11 @@ def _pairs_as_said(program: Program, text: str) -> Program:
 _TURN_BETWEEN = re.compile(r"\b(?:turn (left|right)|(left|right) turn) (?:in )?between (?:the )?(\w+)")
 
 
-def _turned_between(program: Program, text: str) -> Program:
+def _turned_between(program: Program, said: list[str]) -> Program:
     """A turn made between walls ("turn left between the red and brown walls"): a walk to the first
     colour, then the turn, as "turn left at the red wall" is (the reader walks to any wall, or drops
     the walk)."""
-    found = _TURN_BETWEEN.search(" ".join(words(text)))
+    found = _TURN_BETWEEN.search(" ".join(said))
     colour = _COLOUR_WORDS.get(found.group(3)) if found else None
     if found is None or colour is None:
         return program
@@ -309,36 +308,32 @@ def _turned_between(program: Program, text: str) -> Program:
 _STRAIGHT_ON = frozenset({"forward", "straight", "ahead", "forwards"})
 
 
-def _walked_first(program: Program, text: str) -> Program:
-    """The walk a Commander's message opens with ("go straight, then turn left", "move forward and follow the red
-    walls"), which the reader folds into what follows it and drops."""
-    if not program or program[0].op in (Op.FORWARD, Op.BACK) or not _STRAIGHT_ON.intersection(words(text)):
+def _walks_as_said(program: Program, text: str, said: list[str]) -> Program:
+    """The walk a Commander's message opens with ("go straight, then turn left", "move forward and
+    follow the red walls") or ends on after a turn ("turn around and follow the corridor"), where
+    the rules read that part as a walk alone: the reader folds the first into what follows it, and
+    drops the last."""
+    if not program:
         return program
-    first = next((part for part in ins.clauses(text) if words(part)), "")
-    if not _STRAIGHT_ON.intersection(words(first)) or program_of(ins.parse(first)) != (_TO_A_WALL,):
-        return program
-    return (_TO_A_WALL, *program)
-
-
-def _walked_last(program: Program, text: str) -> Program:
-    """The walk a Commander's message ends on ("turn around and follow the corridor", "..., then keep going"), which
-    the reader drops after a turn."""
-    if not program or program[-1].op not in (Op.TURN, Op.OPENING):
-        return program
+    opens = program[0].op not in (Op.FORWARD, Op.BACK) and bool(_STRAIGHT_ON.intersection(said))
+    ends = program[-1].op in (Op.TURN, Op.OPENING)
+    if not (opens or ends):
+        return program  # the rules' cutting and parsing, a few milliseconds, are not needed
     parts = [part for part in ins.clauses(text) if words(part)]
-    if len(parts) < 2 or program_of(ins.parse(parts[-1])) != (_TO_A_WALL,):
-        return program
-    return (*program, _TO_A_WALL)
+    if opens and _STRAIGHT_ON.intersection(words(parts[0])) and program_of(ins.parse(parts[0])) == (_TO_A_WALL,):
+        program = (_TO_A_WALL, *program)
+    if ends and len(parts) >= 2 and program_of(ins.parse(parts[-1])) == (_TO_A_WALL,):
+        program = (*program, _TO_A_WALL)
+    return program
 
 
 _FACING = re.compile(r"\b(?:facing|face) (?:the |a |an )?(\w+)")
 _UNTIL = frozenset({"until", "till", "til", "when", "unless"})
 
 
-def _facing_as_said(program: Program, text: str) -> Program:
+def _facing_as_said(program: Program, said: list[str]) -> Program:
     """What the Driver is to face once there ("turn around so you are facing the blue walls"): a
     check that it is ahead, where the reader walked up to it."""
-    said = words(text)
     found = _FACING.search(" ".join(said))
     label = LABEL_WORDS.get(found.group(1)) if found else None
     if label is None or _UNTIL.intersection(said):  # "go on until you are facing the red wall": a walk
