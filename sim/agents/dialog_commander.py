@@ -57,6 +57,7 @@ MAX_WALK = 60  # the Driver's own cap on a walk "until"
 DEPTH_SCALE_M = 0.15  # a claim frame's ray this far off the map's depth counts as a wrong label
 VIEW_WEIGHT = 1.0
 ELSEWHERE = 1e-3  # after each instruction, the chance the belief lost the robot
+DOUBTED = 0.5  # ... after the Driver said no to the check of its mark
 BLOCKED_PENALTY = 5.0  # log-likelihood against a pose whose way forward is free, when told it is not
 CLOSE_PENALTY = 3.0  # ... against a pose with a longer way ahead than the steps to a wall the Driver counts
 UNSEEN_PENALTY = 3.0  # ... against a pose with the target in reach, when the Driver speaks without claiming
@@ -123,6 +124,7 @@ class DialogCommander:
         self.main = reach[int(reach.sum(axis=1).argmax())]
         self._dist = np.where(np.isfinite(self.graph.dist), self.graph.dist, 1e3)
         self._seen = (self.scene.near + self.scene.far) > 0  # (N, 8, 4, labels): "is there ...?" yes
+        self._common = self._seen[self.main].mean(axis=(0, 1))  # (4, labels): how often the answer is yes
         # Where a walk "until the wall" / "until you see the mug" stops, by the Driver's rules.
         every = np.ones(rays.labels.shape, dtype=bool)
         blocked = np.asarray(rays.forward_blocked, dtype=bool)
@@ -148,6 +150,9 @@ class DialogCommander:
         self._looking = False  # the last question asked the Driver to look all around
         self._looked_around = False  # on this target: a look around is eight moves, asked once a target
         self._stuck = 0  # reports in a row of instructions not carried out
+        self._checked = False  # its mark checked with the Driver before the first leg
+        self._announce: str | None = None  # the target, named with the first leg after the check
+        self._checking = False  # the Driver's next message answers the check
         self._before: tuple[str, str] | None = None  # the dialog's last message, for the reader
         self._why_not: str | None = None  # why it rejected the last claim on this target ("why not?")
 
@@ -174,8 +179,12 @@ class DialogCommander:
             self._why_not = None
             self._looked_around = False
             announce = self.phrases.say(PhraseKind.ANNOUNCE, thing=OBJECT_WORDS[object_label(change.target)])
-            if self.estimate().spread_m > SETTLED_M:  # marked after its questions ran out: it says so
+            estimate = self.estimate()
+            if estimate.spread_m > SETTLED_M:  # marked after its questions ran out: it says so
                 return self._ask(prefix=f"{announce}. i am not sure where you are: my mark is a guess")
+            if not self._checked:  # the target named with the first leg: a Driver told it looks for it
+                self._announce = announce
+                return self._check(estimate)
             return self._guide(prefix=announce)
         return []
 
@@ -183,6 +192,10 @@ class DialogCommander:
         lowered = text.lower()
         if "found" in lowered:
             return []  # a claim is on its way
+        checked, self._checking = self._checking, False
+        doubted = checked and lexicon.says_no(text)
+        if doubted:  # its mark was wrong: the robot may be anywhere the answer allows
+            self._elsewhere(DOUBTED)
         asked = lexicon.asks(text)
         if asked is not None and lexicon.only_asks(text) and self._phase == Phase.NAVIGATING:
             return self._answer(asked)  # it reports nothing done: the belief stays where it was
@@ -232,6 +245,8 @@ class DialogCommander:
         if self._phase != Phase.NAVIGATING or self._target is None:
             return []
         turns = self._revise(estimate)
+        if doubted:
+            return turns + self._ask(prefix="then i am not sure where you are")
         lost = estimate.spread_m > LOST_M
         if (lost or self._stuck >= LOST_AFTER) and self._questions < MAX_QUESTIONS:
             self._stuck = 0
@@ -344,10 +359,15 @@ class DialogCommander:
             moved = log
         else:
             moved = np.logaddexp.reduce(np.stack(stops or along), axis=0)
-        moved = moved - np.logaddexp.reduce(moved, axis=None)  # normalised, to mix with the rest
+        self.belief.log = moved
         # The robot may be anywhere else: a belief sure of a wrong place can still be talked out of it.
-        anywhere = np.where(self.main[:, None], math.log(ELSEWHERE / self.main.sum() / HEADINGS), -np.inf)
-        self.belief.log = np.logaddexp(moved + math.log(1 - ELSEWHERE), anywhere)
+        self._elsewhere(ELSEWHERE)
+
+    def _elsewhere(self, share: float) -> None:
+        """`share` of the belief spread evenly over every pose of the maze's main part."""
+        log = self.belief.log - np.logaddexp.reduce(self.belief.log, axis=None)
+        anywhere = np.where(self.main[:, None], math.log(share / self.main.sum() / HEADINGS), -np.inf)
+        self.belief.log = np.logaddexp(log + math.log(1 - share), anywhere)
 
     def _stops(self, log: np.ndarray, steps: list[np.ndarray | int], walked: int) -> list[np.ndarray]:
         """Where a walk of `steps` from `log` stands after `walked` of them, and a step either side
@@ -439,6 +459,21 @@ class DialogCommander:
         sector, label = best
         return self._say(f"{lead}is there a {wall_name(label)} {_YOUR_SIDE[sector]}?")
 
+    def _check(self, estimate: Estimate) -> list[Action]:
+        """Before the first leg, a question its estimate answers yes and most of the maze no: a
+        belief sure of the wrong place (a person's words misread) shows before the Driver is walked
+        into walls (a person playing Driver met that twice in four trials). The answer moves the
+        belief as any answer does; a no spreads it, and the Commander asks on."""
+        self._checked = True
+        seen = self._seen[estimate.pose.node, estimate.pose.heading]
+        asked = [(s, label) for s in _YOUR_SIDE for label in Label if label != Label.FLOOR and seen[s, label]]
+        if not asked:
+            return self._guide()
+        sector, label = min(asked, key=lambda q: self._common[q])
+        self._asked.add((sector, label))
+        self._checking = True
+        return self._say(f"i think i know where you are. to check: is there a {wall_name(label)} {_YOUR_SIDE[sector]}?")
+
     def goal(self, node: int) -> int:
         """Where it guides the Driver from `node`: the nearest place from which the target is in view
         within reach; after a rejected claim, the nearest such place closer to the target than the
@@ -459,6 +494,9 @@ class DialogCommander:
         assert self._target is not None
         self._questions = 0
         self._asked.clear()
+        if self._announce is not None:
+            prefix = f"{self._announce}. {prefix}" if prefix else self._announce
+            self._announce = None
         estimate = self.estimate()
         label = object_label(self._target)
         reach = self._reach[label]

@@ -530,6 +530,12 @@ def question(text: str) -> QuestionFacts:
     )
 
 
+def says_no(text: str) -> bool:
+    """A reply that opens with a no ("no", "nope, ...")."""
+    words = tokens(text)
+    return bool(words) and words[0] in NO
+
+
 def answer(q: QuestionFacts, text: str) -> list[Fact]:
     """The facts a Driver's reply to `q` states: the question's own facts on "yes", each of them
     negated on "no" (pairs side by side left out: either label may be the one missing), and

@@ -20,7 +20,6 @@ from sim.core.labels import N_LABELS, Label
 from sim.core.observations import RAY_OFFSETS
 from sim.language.calibration import FITTED, Calibration, evidence
 from sim.language.lexicon import (
-    NO,
     Distance,
     Fact,
     QuestionFacts,
@@ -30,7 +29,7 @@ from sim.language.lexicon import (
     facts,
     is_question,
     question,
-    tokens,
+    says_no,
     turn_steps,
 )
 from sim.language.sectors import NEAR_M, SECTOR_HEADING_OFFSET, Sector
@@ -211,8 +210,7 @@ class Belief:
                 self._question = question(text)
             return []
         q, self._question = self._question, None
-        words = tokens(text)
-        declined = bool(words) and words[0] in NO
+        declined = says_no(text)
         reported = turn_steps(text)
         if reported:
             self.turn(reported)

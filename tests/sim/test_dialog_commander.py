@@ -214,10 +214,41 @@ def _walk_pose(world, steps: int) -> Pose:
 
 
 def _navigating(world, pose: Pose) -> tuple[DialogCommander, str]:
+    """The Commander sure the robot is at `pose`, its check answered yes: its first leg to the jar."""
+    commander, check = _checking(world, pose)
+    assert "to check" in check, check
+    return commander, _said(commander.perceive(Heard(Role.DRIVER, "yes")))
+
+
+def _checking(world, pose: Pose) -> tuple[DialogCommander, str]:
     commander = _commander(world)
     commander.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
     _there(commander, pose)
     return commander, _said(commander.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3, target="jar")))
+
+
+def test_before_the_first_leg_it_checks_its_mark_with_a_question_true_there(world):
+    """A belief sure of the wrong place (a person's words misread) would walk the person into
+    walls: before the first leg it asks about something its mark has in view, then names the
+    target with the first leg once told yes."""
+    _, graph, rays, _ = world
+    start = _walk_pose(world, 3)
+    commander, check = _checking(world, start)
+    assert check.startswith("i think i know where you are") and check.endswith("?"), check
+    assert not ins.parse(check).moves, "a check moves nobody"
+    asked = lexicon.question(check).facts
+    in_view = seen(rays.observation(*start))
+    assert asked and all(any(s.label == f.label for s in in_view) for f in asked), (check, in_view)
+    first = _said(commander.perceive(Heard(Role.DRIVER, "yep, that's right")))
+    assert first.startswith("now find the jar") and ins.parse(first).moves, first
+
+
+@pytest.mark.parametrize("reply", ["no", "nope, nothing there"])
+def test_told_its_mark_is_wrong_it_says_it_is_unsure_and_asks(world, reply):
+    commander, check = _checking(world, _walk_pose(world, 3))
+    said = _said(commander.perceive(Heard(Role.DRIVER, reply)))
+    assert said.startswith("then i am not sure where you are") and said.endswith("?"), said
+    assert not ins.parse(said).moves, "it asks before it guides"
 
 
 @pytest.mark.parametrize(
@@ -362,7 +393,9 @@ def test_a_target_no_place_sees_within_reach_is_guided_to_the_nearest_place(benc
     commander = DialogCommander(bench.maze("Run_152"), 0, bench.cache_dir)
     commander.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
     _there(commander, Pose(goal, 0))
-    said = _said(commander.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3, target="jar")))
+    check = _said(commander.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3, target="jar")))
+    assert "to check" in check, check
+    said = _said(commander.perceive(Heard(Role.DRIVER, "yes")))
     assert "jar" in said, said
 
 
