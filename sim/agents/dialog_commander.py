@@ -42,7 +42,7 @@ from sim.language.localizer import Belief, Scene
 from sim.language.phrases import PhraseKind, Phrases, Phrasing
 from sim.language.sectors import Sector
 from sim.language.understanding import Understanding, belief_facts
-from sim.language.vocab import OBJECT_WORDS, wall_name
+from sim.language.vocab import OBJECT_LOOKS, OBJECT_WORDS, wall_name
 from sim.trial.agent import SeatInfo
 from sim.trial.commands import Action, Judge, Localize, Say
 from sim.trial.percepts import Claimed, Heard, Percept, PhaseBegan
@@ -252,7 +252,10 @@ class DialogCommander:
             self._stuck = 0
             # Said once, with its first question: not again before every one that follows.
             unsure = lost and self._questions == 0
-            return turns + self._ask(prefix="i am not sure where you are now" if unsure else None)
+            prefix = "i am not sure where you are now" if unsure else None
+            if asked is not None:  # not left unanswered: why not yet
+                prefix = "i am not sure where you are yet, so first this"
+            return turns + self._ask(prefix=prefix)
         one_move = self._stuck >= REPHRASE_AFTER
         # Asked along with a report ("bumped again. where is the jar?"): answered too, but "where to
         # now?" by the instruction itself ("right first. turn right" reads as two turns).
@@ -576,12 +579,20 @@ class DialogCommander:
                 seen_there = brief(self.router.view(estimate.pose)).replace(" my ", " your ")
                 guess = "i am not sure; my best guess (marked on the map) is" if unsure else "i think you are"
                 reply = f"{guess} where you see {seen_there}. {self._where(estimate)}"
+            case Asked.LOOKS:
+                reply = self._looks()
             case Asked.WHICH_WAY:
                 actions, _ = self.router.plan(estimate.pose, self.goal(estimate.pose.node))
                 first = actions[0] if actions else None
                 way = {Move.LEFT: "left", Move.RIGHT: "right", Move.FORWARD: "straight ahead"}
                 reply = f"{unsure}{way[first]} first" if first in way else None
         return self._guide(prefix=reply, one_move=one_move)
+
+    def _looks(self) -> str:
+        """What the target looks like, in words the Driver agent reads as the target named, no move."""
+        assert self._target is not None
+        label = object_label(self._target)
+        return f"the {OBJECT_WORDS[label]} is {OBJECT_LOOKS[label]} in the camera"
 
     def _steps_to_go(self, estimate: Estimate) -> int:
         return int(round(self._dist[estimate.pose.node, self.goal(estimate.pose.node)] / GRID_STEP_M))

@@ -418,9 +418,10 @@ class Asked(StrEnum):
     WHICH_WAY = "which_way"  # "which way?", "left or right?", "where should i go?"
     HOW_FAR = "how_far"  # "how far?", "how many steps?", "where is the jar?", "what do i look for?"
     WHERE_AM_I = "where_am_i"  # "where am i?"
+    LOOKS = "looks"  # "what does the mug look like?"
 
 
-# First match wins: "where am i" before "where to".
+# First match wins: "where am i" before "where to", "what do i look for" before "what does it look like".
 _ASKED = (
     (Asked.WHERE_AM_I, re.compile(r"\bwhere (?:am i|are we|i am)\b")),
     (
@@ -431,6 +432,8 @@ _ASKED = (
             r"|\bwhat (?:do|should) i (?:look|search) for\b|\bwhat am i looking for\b"
         ),
     ),
+    # Asked, not said: "looks like a dead end" describes.
+    (Asked.LOOKS, re.compile(r"\b(?:what|how) (?:does|do|did|will) (?:\w+ ){0,4}look(?: like)?\b")),
     (Asked.WHY, re.compile(r"\bwhy\b")),
     (
         Asked.WHICH_WAY,

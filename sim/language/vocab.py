@@ -47,6 +47,8 @@ LABEL_WORDS: dict[str, Label] = {
 }
 # How the Commander and the Driver name each object.
 OBJECT_WORDS = {Label.JAR: "jar of blocks", Label.MUG: "coffee mug", Label.PADDLE: "ping-pong paddle"}
+# What each looks like in the simulator's camera: a solid in its map colour (`sim.core.labels`).
+OBJECT_LOOKS = {Label.JAR: "light blue", Label.MUG: "pink", Label.PADDLE: "olive green"}
 
 NUMBER_WORDS = {
     "one": 1,

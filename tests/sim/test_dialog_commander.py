@@ -464,3 +464,32 @@ def test_unsure_where_a_walk_ends_it_walks_no_further_than_is_likely_free(world)
     said = ins.parse(_said(commander._guide()))
     walks = [i for i in said.instructions if isinstance(i, ins.Forward)]
     assert walks and walks[0].steps is not None and walks[0].steps <= _free_run(commander, short), said
+
+
+def test_asked_what_the_target_looks_like_it_says_its_colour_then_the_instruction(world):
+    commander, first = _navigating(world, _walk_pose(world, 3))
+    said = _said(commander.perceive(Heard(Role.DRIVER, "what does the jar look like?")))
+    assert said.startswith("the jar of blocks is light blue in the camera"), said
+    assert ins.parse(said).moves, said
+
+
+def test_a_question_asked_while_it_is_unsure_gets_a_word_before_its_own_question(world):
+    commander = _commander(world)
+    commander.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
+    commander.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3, target="jar"))  # unsure: it asks
+    said = _said(commander.perceive(Heard(Role.DRIVER, "green wall on my left. how about you tell me where to go?")))
+    assert said.startswith("i am not sure where you are yet") and said.endswith("?"), said
+
+
+@pytest.mark.parametrize(
+    "text, asked",
+    [
+        ("what does the mug look like?", lexicon.Asked.LOOKS),
+        ("how does the paddle look", lexicon.Asked.LOOKS),
+        ("what do i look for?", lexicon.Asked.HOW_FAR),
+        ("looks like a dead end", None),
+        ("it looks like the jar", None),
+    ],
+)
+def test_a_question_about_how_the_target_looks_is_told_from_a_view_that_looks_like_something(text, asked):
+    assert lexicon.asks(text) == asked
