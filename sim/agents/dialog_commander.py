@@ -11,7 +11,7 @@ has settled, marking it again as the estimate moves. Guidance: the fewest-moves 
 estimate (`sim.agents.route`), one instruction at a time, each after the Driver's report; where
 the belief spreads out again it says it is unsure and asks; after two instructions not carried
 out it says one move at a time. A Driver's question ("why not?", "how far?", "left or right?",
-"where am i?") is answered before the instruction is said again. Claims: the claim frame's rays
+"where am i?", "what does the mug look like?") is answered before the instruction is said again. Claims: the claim frame's rays
 decide (the target in view and within reach), and a rejection says why at once; a rejected frame
 is evidence of where the robot is."""
 
