@@ -290,8 +290,13 @@ class DialogDriver:
                 return self._follow(rules, text, said_unclear=False)
             if not _moves(rules) and any(c.op == Op.ASK for c in rules) and _moves(program):
                 # A question ("can you see the mug anywhere? maybe look around") the reader read
-                # moves into: answered, with no move it was not asked for.
-                return self._follow(rules, text, said_unclear=False)
+                # moves into: answered, with no move it was not asked for, and the reader's moves
+                # asked about (a person's "go straight like 10 steps and tell me what u see" got
+                # the view alone, twice, with no word of the walk).
+                answered = self._follow(rules, text, said_unclear=False)
+                if self._plan or self._moving:  # it turns to look first: the walk is left unsaid
+                    return answered
+                return answered + self._ask(program, text, quoted=text.strip())
             if not program and rules == (_UNCLEAR,):
                 program = rules  # words the reader read nothing in and the rules find no chat in ("say found")
             if program == (_HOLD,) and not rules:

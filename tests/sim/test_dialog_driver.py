@@ -422,3 +422,24 @@ def test_a_count_said_before_the_turn_it_did_get_is_asked_about_before_it_moves(
     for _ in range(3):
         ahead = int(graph.forward[ahead, 0])
     assert pose == Pose(ahead, 2) and said[0].startswith("ok, turned left 90 degrees,"), said
+
+
+def test_a_walk_said_with_a_question_it_answers_alone_is_asked_about_not_dropped(world):
+    """A person's "go straight ahead like 10 steps and tell me what u see" got the view alone, twice,
+    with no word of the walk: the view comes, then its reading of the walk is asked about."""
+    _, graph, _ = world
+    pose = Pose(
+        next(n for n in range(graph.n) if graph.forward[n, 0] >= 0 and graph.forward[graph.forward[n, 0], 0] >= 0), 0
+    )
+    driver = DialogDriver(0)
+    driver.reset(SeatInfo(Role.DRIVER, 3))
+    driver.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
+    driver.perceive(Saw(0, _rays(world, pose)))
+    driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
+    said = driver.perceive(Heard(Role.COMMANDER, "go straight ahead like 10 steps and tell me what u see"))
+    assert not any(isinstance(t, RequestMove) for t in said)
+    texts = [t.text for t in said if isinstance(t, Say)]
+    assert len(texts) == 2 and "ahead" in texts[0] and "do you mean: forward 10 steps?" in texts[1], texts
+    assert not any("done" in t or t.startswith("ok") for t in texts), "nothing was done"
+    moved = driver.perceive(Heard(Role.COMMANDER, "yes"))
+    assert moved and isinstance(moved[0], RequestMove) and moved[0].move == Move.FORWARD, moved
