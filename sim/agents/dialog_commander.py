@@ -150,7 +150,6 @@ class DialogCommander:
         self._looking = False  # the last question asked the Driver to look all around
         self._looked_around = False  # on this target: a look around is eight moves, asked once a target
         self._stuck = 0  # reports in a row of instructions not carried out
-        self._checked = False  # its mark checked with the Driver before the first leg
         self._announce: str | None = None  # the target, named with the first leg after the check
         self._checking = False  # the Driver's next message answers the check
         self._before: tuple[str, str] | None = None  # the dialog's last message, for the reader
@@ -182,7 +181,7 @@ class DialogCommander:
             estimate = self.estimate()
             if estimate.spread_m > SETTLED_M:  # marked after its questions ran out: it says so
                 return self._ask(prefix=f"{announce}. i am not sure where you are: my mark is a guess")
-            if not self._checked:  # the target named with the first leg: a Driver told it looks for it
+            if change.target_index == 0:  # its mark checked first; a Driver told the target looks for it
                 self._announce = announce
                 return self._check(estimate)
             return self._guide(prefix=announce)
@@ -467,7 +466,6 @@ class DialogCommander:
         belief sure of the wrong place (a person's words misread) shows before the Driver is walked
         into walls (a person playing Driver met that twice in four trials). The answer moves the
         belief as any answer does; a no spreads it, and the Commander asks on."""
-        self._checked = True
         seen = self._seen[estimate.pose.node, estimate.pose.heading]
         asked = [(s, label) for s in _YOUR_SIDE for label in Label if label != Label.FLOOR and seen[s, label]]
         if not asked:
