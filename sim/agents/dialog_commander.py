@@ -11,7 +11,9 @@ has settled, marking it again as the estimate moves. Guidance: the fewest-moves 
 estimate (`sim.agents.route`), one instruction at a time, each after the Driver's report; where
 the belief spreads out again it says it is unsure and asks; after two instructions not carried
 out it says one move at a time. A Driver's question ("why not?", "how far?", "left or right?",
-"where am i?", "what does the mug look like?") is answered before the instruction is said again. Claims: the claim frame's rays
+"where am i?", "what does the mug look like?", "which white wall?") is answered before the
+instruction is said again; a Driver that says it is lost, or is unsure of the check of its mark,
+gets its questions again. Claims: the claim frame's rays
 decide (the target in view and within reach), and a rejection says why at once; a rejected frame
 is evidence of where the robot is."""
 
@@ -192,8 +194,17 @@ class DialogCommander:
         if "found" in lowered:
             return []  # a claim is on its way
         checked, self._checking = self._checking, False
-        doubted = checked and lexicon.says_no(text)
-        if doubted:  # its mark was wrong: the robot may be anywhere the answer allows
+        # Its mark doubted: the check answered no or unsure ("sort of?"), or the Driver says it is
+        # lost ("i feel like im going in circles"). The robot may be anywhere the words allow.
+        if checked and lexicon.says_no(text):
+            doubted = "then i am not sure where you are"
+        elif checked and lexicon.hedges(text):
+            doubted = "ok, then i am not sure where you are"
+        elif self._phase == Phase.NAVIGATING and lexicon.doubts(text):
+            doubted = "sorry, i may have lost you. let me find you again"
+        else:
+            doubted = None
+        if doubted:
             self._elsewhere(DOUBTED)
         asked = lexicon.asks(text)
         if asked is not None and lexicon.only_asks(text) and self._phase == Phase.NAVIGATING:
@@ -245,7 +256,7 @@ class DialogCommander:
             return []
         turns = self._revise(estimate)
         if doubted:
-            return turns + self._ask(prefix="then i am not sure where you are")
+            return turns + self._ask(prefix=doubted)
         lost = estimate.spread_m > LOST_M
         if (lost or self._stuck >= LOST_AFTER) and self._questions < MAX_QUESTIONS:
             self._stuck = 0
@@ -579,6 +590,9 @@ class DialogCommander:
                 reply = f"{guess} where you see {seen_there}. {self._where(estimate)}"
             case Asked.LOOKS:
                 reply = self._looks()
+            case Asked.WHICH_ONE:  # the wall it named is not clear: the leg in counted steps instead
+                self._plain = True
+                reply = "let me say it in steps"
             case Asked.WHICH_WAY:
                 actions, _ = self.router.plan(estimate.pose, self.goal(estimate.pose.node))
                 first = actions[0] if actions else None

@@ -419,6 +419,7 @@ class Asked(StrEnum):
     HOW_FAR = "how_far"  # "how far?", "how many steps?", "where is the jar?", "what do i look for?"
     WHERE_AM_I = "where_am_i"  # "where am i?"
     LOOKS = "looks"  # "what does the mug look like?"
+    WHICH_ONE = "which_one"  # "which white wall?": the thing the instruction named is not clear
 
 
 # First match wins: "where am i" before "where to", "what do i look for" before "what does it look like".
@@ -435,6 +436,7 @@ _ASKED = (
     # Asked, not said: "looks like a dead end" describes.
     (Asked.LOOKS, re.compile(r"\b(?:what|how) (?:does|do|did|will) (?:\w+ ){0,4}look(?: like)?\b")),
     (Asked.WHY, re.compile(r"\bwhy\b")),
+    (Asked.WHICH_ONE, re.compile(r"\bwhich (?:\w+ ){0,2}(?:wall|walls|one|ones|corner|corridor|opening|gap|turn)\b")),
     (
         Asked.WHICH_WAY,
         re.compile(r"\b(?:which|what) (?:way|direction|side)\b|\bleft or right\b|\bright or left\b|\bwhere\b"),
@@ -537,6 +539,33 @@ def says_no(text: str) -> bool:
     """A reply that opens with a no ("no", "nope, ...")."""
     words = tokens(text)
     return bool(words) and words[0] in NO
+
+
+# A reply that neither says yes nor no: "sort of?", "not sure", "i dont know", "maybe".
+_HEDGE = re.compile(
+    r"^(?:um+ |uh+ |hmm+ |well )?(?:sort of|kind of|kinda|maybe|perhaps|not sure|not really sure|i (?:am|m) not sure"
+    r"|i (?:do not|dont|don t) know|dunno|idk|hard to (?:say|tell)|i (?:can not|cannot|cant|can t) tell)\b"
+)
+
+
+def hedges(text: str) -> bool:
+    """A reply that opens unsure, neither yes nor no."""
+    return bool(_HEDGE.search(" ".join(tokens(text))))
+
+
+# A Driver that doubts the way it is led: lost, going round, or back where it was before.
+_DOUBTS = re.compile(
+    r"\b(?:(?:we|i) (?:are|re|am|m|feel|think|got|get|getting) (?:\w+ ){0,3}lost|lost again"
+    r"|(?:going|go|went|walking|driving|run|running) (?:\w+ ){0,2}in (?:a )?circles?"
+    r"|are you sure|(?:been|was|were) here before|back (?:to |at )?where (?:i|we) (?:was|were|started)"
+    r"|same (?:place|spot|view) (?:as )?(?:again|before)|wrong way)\b"
+)
+
+
+def doubts(text: str) -> bool:
+    """Whether a Driver's message says it is lost or doubts the way it is led ("we're lost", "i
+    feel like im going in circles", "are you sure this is the way?")."""
+    return bool(_DOUBTS.search(" ".join(tokens(text))))
 
 
 def answer(q: QuestionFacts, text: str) -> list[Fact]:

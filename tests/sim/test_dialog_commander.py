@@ -251,6 +251,37 @@ def test_told_its_mark_is_wrong_it_says_it_is_unsure_and_asks(world, reply):
     assert not ins.parse(said).moves, "it asks before it guides"
 
 
+@pytest.mark.parametrize("reply", ["sort of?", "not sure", "i don't know, maybe"])
+def test_an_unsure_answer_to_its_check_is_not_taken_for_a_yes(world, reply):
+    """A person's "sort of?" had been read as a yes, and the first leg led them in a loop."""
+    commander, _ = _checking(world, _walk_pose(world, 3))
+    said = _said(commander.perceive(Heard(Role.DRIVER, reply)))
+    assert "not sure where you are" in said and said.endswith("?"), said
+    assert not ins.parse(said).moves, "it asks before it guides"
+
+
+@pytest.mark.parametrize(
+    "report", ["i feel like im going in circles", "we're lost", "are you sure this is the right way?"]
+)
+def test_a_driver_that_says_it_is_lost_is_heard_and_asked_where_it_is(world, report):
+    """A person's "we're lost" and "are you sure im going the right way?" got the next leg as if
+    nothing was said: now the Commander owns it and asks before it guides on."""
+    commander, _ = _navigating(world, _walk_pose(world, 3))
+    spread = commander.estimate().spread_m
+    said = _said(commander.perceive(Heard(Role.DRIVER, report)))
+    assert said.startswith("sorry, i may have lost you") and said.endswith("?"), said
+    assert not ins.parse(said).moves, said
+    assert commander.estimate().spread_m > spread, "its belief spreads out"
+
+
+def test_asked_which_wall_it_says_the_leg_again_in_counted_steps(world):
+    commander, first = _navigating(world, _walk_pose(world, 3))
+    said = _said(commander.perceive(Heard(Role.DRIVER, "which white wall?")))
+    assert said.startswith("let me say it in steps"), said
+    walks = [i for i in ins.parse(said).instructions if isinstance(i, ins.Forward)]
+    assert walks and all(w.steps is not None for w in walks), said
+
+
 @pytest.mark.parametrize(
     "report",
     [
