@@ -14,11 +14,11 @@ import json
 import os
 import struct
 import tempfile
-import zlib
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike
+from zlib_ng import zlib_ng as zlib  # zlib's format, 3 to 9 times faster to write and to read
 
 ARRAYS_SUFFIX = ".arrays"
 _MAGIC = b"RSARRAY1"
@@ -70,7 +70,7 @@ def load_arrays(path: Path) -> dict[str, np.ndarray]:
     try:
         header = json.loads(data[start : start + length])
         body = memoryview(zlib.decompress(raw)) if header["zlib"] else raw
-    except (json.JSONDecodeError, zlib.error) as err:
+    except (json.JSONDecodeError, zlib.error) as err:  # type: ignore[misc]  # zlib-ng's stub: an instance
         raise ValueError(f"{path}: torn") from err
     if len(body) != header["size"]:
         raise ValueError(f"{path}: torn ({len(body)} of {header['size']} bytes)")

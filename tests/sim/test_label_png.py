@@ -22,6 +22,24 @@ def test_every_palette_colour_reads_back_as_its_label(tmp_path):
     assert np.array_equal(read_label_png(path), labels)
 
 
+@pytest.mark.parametrize("mode", ["RGB", "RGBA", "P"])
+def test_a_map_reads_alike_whatever_png_encoder_wrote_it(tmp_path, mode):
+    """The benchmark's maps (8-bit RGB, rows filtered None or Sub) are read by a decoder of their
+    own; a map saved by another tool (Pillow filters rows by Paeth and Up too, or saves a palette
+    or an alpha channel) reads the same."""
+    from PIL import Image
+
+    labels = wall_at_x(open_table(), 1.2, Label.BROWN)
+    for k, label in enumerate(Label):
+        labels[100 + 10 * k : 108 + 10 * k, 300 + 7 * k : 340 + 3 * k] = label
+    rgb = np.ascontiguousarray(PALETTE_BGR[labels][..., ::-1])
+    path = tmp_path / "map.png"
+    image = Image.fromarray(rgb)
+    image = image.quantize(colors=len(Label), method=Image.Quantize.FASTOCTREE) if mode == "P" else image.convert(mode)
+    image.save(path, optimize=True)
+    assert np.array_equal(read_label_png(path), labels)
+
+
 def test_benchmark_maps_repaint_exactly(benchmark_path):
     for path in sorted((benchmark_path / "mazedata").glob("*/maze/maze.map*.png"))[:6]:
         assert np.array_equal(PALETTE_BGR[read_label_png(path)], cv2.imread(str(path)))
