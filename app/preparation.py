@@ -125,6 +125,7 @@ class Preparation:
         self.builders = builders  # processes, and threads taking the library's or new trials' mazes
         self._builder: ProcessPoolExecutor | None = None  # the processes that build, once one is needed
         self._lock = threading.Lock()
+        self._quiet = threading.Condition(self._lock)  # notified when no new trial's maze waits
         self._first: deque[str] = deque()  # mazes of trials created, in order
         self._ready: set[str] = set()
         self._failed: set[str] = set()
@@ -138,6 +139,7 @@ class Preparation:
         renamed), and so do the threads on new trials' mazes, which this waits for."""
         with self._lock:
             self._stop.set()
+            self._quiet.notify_all()
             firsts, builder = list(self._firsts), self._builder
         for thread in firsts:
             thread.join()
@@ -164,6 +166,7 @@ class Preparation:
                 if name is None:
                     # Under the lock: a trial created from now on starts another.
                     self._firsts.discard(threading.current_thread())
+                    self._quiet.notify_all()
                     return
             self.ensure(name)
 
@@ -288,9 +291,19 @@ class Preparation:
         rest = deque(self._library().names())
         logger.info("mazes: reading %d maps to group them into layouts", len(rest))
 
-        def next_map() -> str | None:  # the library's only: a new trial's maze is prepared, not just read
+        def next_map() -> str | None:
+            """The library's next maze not in hand; none while new trials' mazes wait for the
+            builders: their seats wait on them, and a maze prepared is read for its signature too
+            (with 200 new trials on a fresh install, the reading shared the builders with them, and
+            the last seat was welcomed after 14 s)."""
             with self._lock:
-                return rest.popleft() if rest and not self._stop.is_set() else None
+                while self._firsts and not self._stop.is_set():
+                    self._quiet.wait()
+                while rest and not self._stop.is_set():
+                    name = rest.popleft()
+                    if name not in self._making and name not in self._first and name not in self._ready:
+                        return name
+                return None
 
         def sweep() -> None:
             while (name := next_map()) is not None:

@@ -7,10 +7,12 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import threading
 import time
+from concurrent.futures import Future
 from pathlib import Path
 
-from app.preparation import prepare_maze, prepared_version
+from app.preparation import Preparation, prepare_maze, prepared_version
 from bench.live import team_trial
 from sim.core import observations
 from sim.core.maze import map_files
@@ -130,6 +132,47 @@ def test_a_new_trials_maze_is_prepared_before_the_rest_of_the_library(start_serv
         for name in names
     }
     assert sorted(names, key=done_at.get).index(names[-1]) < len(names) // 2
+
+
+def test_reading_the_library_for_layouts_waits_while_new_trials_mazes_are_built(tmp_path, monkeypatch):
+    """On a fresh install the server reads every map to group the library into layouts; new
+    trials' mazes are built first, the reading waits for them (it shared the builders with them,
+    and a crowd's seats waited longer), and reads none of them: building one reads it too."""
+    library = MazeLibrary(cache=False, cache_dir=tmp_path)
+    names = library.names()
+    preparation = Preparation(lambda: library, None, tmp_path, builders=1)
+    submitted: list[tuple[str, bool]] = []
+    builds: dict[str, Future] = {}
+
+    def submit(name: str, only_signature: bool = False) -> tuple[Future, None]:
+        submitted.append((name, only_signature))
+        future: Future = Future()
+        if only_signature:
+            future.set_result(False)
+        else:
+            builds[name] = future
+        return future, None
+
+    monkeypatch.setattr(preparation, "_submit", submit)
+
+    def built(name: str) -> None:
+        deadline = time.monotonic() + 10
+        while name not in builds:
+            assert time.monotonic() < deadline, submitted
+            time.sleep(0.01)
+        builds[name].set_result(True)
+
+    preparation.first(names[0])
+    preparation.first(names[1])
+    reading = threading.Thread(target=preparation.sign)
+    reading.start()
+    built(names[0])
+    time.sleep(0.2)
+    assert all(not signature for _, signature in submitted), submitted  # a new trial's maze still waits
+    built(names[1])
+    reading.join(10)
+    assert not reading.is_alive()
+    assert [name for name, signature in submitted if signature] == names[2:]
 
 
 def test_mazes_prepare_prepares_into_the_cache_dir_with_a_progress_bar(tmp_path):
