@@ -73,6 +73,14 @@ _HOLD = Clause.of(Op.STOP, claim=False)
 _NO_WORD = re.compile(rf"^\W*(?:no+|n|{'|'.join(sorted(lexicon.NO))})\b\W*", re.IGNORECASE)
 
 
+# Words that name a new thing to find ("now find the mug", "i meant the jar"): only these change the
+# target in the middle of a leg.
+# "next to the jar" places the robot.
+_NEW_TARGET = re.compile(
+    r"\b(?:find|look(?:ing)? for|search|next (?:one|target|objective|goal|thing|object)|target|objective|goal"
+    r"|instead|i mean|meant)\b",
+    re.I,
+)
 _AGREE = lexicon.YES - {"right"}  # "right" after "turning left?" may be the other way
 
 
@@ -358,7 +366,7 @@ class DialogDriver:
         self._walked = self._turned = 0
         tasks: list[_Task] = []
         for item in parsed.instructions:
-            tasks += self._tasks(item)
+            tasks += self._tasks(item, text)
         if parsed.unclear:
             tasks = [_Task(Task.SAY, text=self._phrasing.say(Troubled(Trouble.UNCLEAR, quoted=text.strip())))]
         elif said_unclear and tasks:
@@ -387,7 +395,7 @@ class DialogDriver:
         self._done_words = ""
         return [] if self._moving else self._advance()
 
-    def _tasks(self, item: ins.Instruction) -> list[_Task]:
+    def _tasks(self, item: ins.Instruction, text: str) -> list[_Task]:
         if isinstance(item, ins.Turn):
             if item.until is not None:  # on until it is in view; all the way round at most
                 turns = (HEADINGS - 1) * (1 if item.eighths > 0 else -1)
@@ -399,6 +407,12 @@ class DialogDriver:
         if isinstance(item, ins.TakeOpening):
             return [_Task(Task.OPENING, side=item.side, nth=item.nth)]
         if isinstance(item, ins.Target):
+            if self._target not in (None, item.label) and not _NEW_TARGET.search(text):
+                # Another object than this leg's target, named but not to find, places the robot ("i
+                # think you are facing the red wall near the mug", "you are next to the jar"): said
+                # whether it is seen, and nothing more (a person's words made the agent look all
+                # around for the mug, and claim the jar when the mug was next).
+                return [_Task(Task.LOOK, question=ins.Ask(ins.AskedAbout.IS_THERE, item.side, item.label))]
             self._target = item.label
             if item.side is None:
                 # Told what to find: where it is in view, go up to it.
@@ -528,14 +542,19 @@ class DialogDriver:
             close = near(view, task.until) and self._odo.here not in self._rejected_at
             reached = close or view.forward_blocked
         else:
-            reached = at_wall(view)
+            close, reached = False, at_wall(view)
         if reached:
             label = front.label if front is not None else None
-            if task.until is not None and label != task.until and task.until not in OBJECT_LABELS:
+            # Stopped by a wall short of the thing it was sent to: not done ("ok, at the white wall"
+            # with no step made, when told it was next to the jar).
+            if task.until is not None and label != task.until and (task.until not in OBJECT_LABELS or not close):
                 return self._failure(Stuck(Why.WRONG_WALL, self._walked, view, found=label, wanted=task.until))
             if label is not None and label in task.exclude:
                 return self._failure(Stuck(Why.EXCLUDED, self._walked, view, found=label))
-            self._done_words = f"at the {wall_name(label)}" if label is not None else "at the wall"
+            if close:  # up to the thing itself, or there already
+                self._done_words = f"{'' if task.done else 'already '}at the {wall_name(task.until)}"
+            else:
+                self._done_words = f"at the {wall_name(label)}" if label is not None else "at the wall"
             return None
         wall = task.until if task.until not in OBJECT_LABELS else None
         if task.done == 0 and wall is not None and not any(s.label == wall for s in seen(view)):

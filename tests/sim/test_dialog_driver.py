@@ -443,3 +443,46 @@ def test_a_walk_said_with_a_question_it_answers_alone_is_asked_about_not_dropped
     assert not any("done" in t or t.startswith("ok") for t in texts), "nothing was done"
     moved = driver.perceive(Heard(Role.COMMANDER, "yes"))
     assert moved and isinstance(moved[0], RequestMove) and moved[0].move == Move.FORWARD, moved
+
+
+def test_another_object_said_to_be_in_view_is_answered_not_sought_or_claimed(world):
+    """A person placing the robot by a landmark ("i think you are facing the red wall near the mug",
+    "you are next to the jar") made the agent look all around for the mug, and claim the jar when
+    the mug was next: another object than the leg's target is answered from the view, no move."""
+    _, graph, _ = world
+    pose = next(
+        Pose(n, h)
+        for n in range(graph.n)
+        for h in range(8)
+        if near(_rays(world, Pose(n, h)), Label.JAR) and not _sees(world, Pose(n, h), Label.MUG)
+    )
+    driver = DialogDriver(0)
+    driver.reset(SeatInfo(Role.DRIVER, 3))
+    driver.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
+    driver.perceive(Saw(0, _rays(world, pose)))
+    driver.perceive(Heard(Role.COMMANDER, "your target is the coffee mug"))
+    driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
+    for text in ("you are next to the jar", "i think you are facing the jar", "the jar should be ahead of you"):
+        turns = driver.perceive(Heard(Role.COMMANDER, text))
+        assert not any(isinstance(t, RequestMove | Claim) for t in turns), (text, turns)
+        (answer,) = [t.text for t in turns if isinstance(t, Say)]
+        assert "jar" in answer and "found" not in answer, (text, answer)
+    # Named to find, it is the target again.
+    turns = driver.perceive(Heard(Role.COMMANDER, "sorry, i meant find the jar"))
+    assert any(isinstance(t, Claim) for t in turns), turns
+
+
+def test_a_walk_to_an_object_stopped_by_a_wall_short_of_it_is_not_reported_done(world):
+    """Told to go up to the jar facing a wall, it had answered "ok, at the white wall" with no step made."""
+    _, graph, _ = world
+    pose = next(
+        Pose(n, h)
+        for n in range(graph.n)
+        for h in range(8)
+        if graph.forward[n, h] < 0 and not _sees(world, Pose(n, h), Label.JAR)
+    )
+    driver = _navigating(world, pose)
+    turns = driver.perceive(Heard(Role.COMMANDER, "go forward until you reach the jar"))
+    assert not any(isinstance(t, RequestMove) for t in turns), turns
+    (said,) = [t.text for t in turns if isinstance(t, Say)]
+    assert not said.startswith("ok") and "do not see a jar" in said, said
