@@ -551,7 +551,7 @@ class DialogDriver:
                 return self._failure(Stuck(Why.WRONG_WALL, self._walked, view, found=label, wanted=task.until))
             if label is not None and label in task.exclude:
                 return self._failure(Stuck(Why.EXCLUDED, self._walked, view, found=label))
-            if close:  # up to the thing itself, or there already
+            if close and task.until is not None:  # up to the thing itself, or there already
                 self._done_words = f"{'' if task.done else 'already '}at the {wall_name(task.until)}"
             else:
                 self._done_words = f"at the {wall_name(label)}" if label is not None else "at the wall"
