@@ -628,4 +628,11 @@ class DialogCommander:
             where = f"behind you on your {side}"
         else:
             where = "behind you"
-        return f"i think the {OBJECT_WORDS[label]} is {where}, about {steps} steps away"
+        said = f"i think the {OBJECT_WORDS[label]} is {where}, about {steps} steps away"
+        # A target on one side and a route that turns the other way first ("the paddle is on your
+        # right ... turn sharply left") left a person driving unsure which to trust: both are said.
+        actions, _ = self.router.plan(estimate.pose, self.goal(estimate.pose.node))
+        first = actions[0] if actions else None
+        if 30 < abs(bearing) <= 160 and first == (Move.RIGHT if bearing > 0 else Move.LEFT):
+            said += f", but the way there starts to your {'right' if first == Move.RIGHT else 'left'}"
+        return said

@@ -524,3 +524,25 @@ def test_a_question_asked_while_it_is_unsure_gets_a_word_before_its_own_question
 )
 def test_a_question_about_how_the_target_looks_is_told_from_a_view_that_looks_like_something(text, asked):
     assert lexicon.asks(text) == asked
+
+
+def test_a_target_on_one_side_with_a_route_that_turns_the_other_way_first_is_said_so(world):
+    """ "the paddle is on your right ... turn sharply left" left a person unsure which to trust."""
+    commander = _commander(world)
+    commander.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3, target="jar"))
+    found = 0
+    for node in np.flatnonzero(commander.main)[::7]:
+        for heading in range(8):
+            pose = Pose(int(node), heading)
+            _there(commander, pose)
+            where = commander._where(commander.estimate())
+            actions, _ = commander.router.plan(pose, commander.goal(pose.node))
+            side = "left" if "on your left" in where or "ahead on your left" in where else None
+            side = "right" if "on your right" in where or "ahead on your right" in where else side
+            if side and actions and actions[0] == (Action.RIGHT if side == "left" else Action.LEFT):
+                found += 1
+                other = "right" if side == "left" else "left"
+                assert where.endswith(f"but the way there starts to your {other}"), where
+            elif "starts to your" in where:
+                raise AssertionError(where)
+    assert found, "no pose of the maze has its target on one side and its route turning the other way"
