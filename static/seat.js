@@ -4,6 +4,7 @@
 import {applyStatus, clockSeconds, emptyStatus, foldEvent, formatClock, friendlyError, joinSecondsLeft, OVER,
         statusText} from "./trial.js";
 import {t} from "./i18n.js";
+import {thing} from "./mapwords.js";
 
 export const $ = (id) => document.getElementById(id);
 const root = $("seat");
@@ -32,6 +33,26 @@ function addChat(p) {
   li.append(who, document.createTextNode(" " + p.text));
   $("messages").append(li);
   li.scrollIntoView({block: "nearest"});
+}
+
+// A claim's verdict as a line of the chat, in the dialog's order, for both seats (a person who
+// pressed Confirm or Reject saw nothing of it there, nor did its partner).
+const VERDICTS = {
+  target_confirmed: (p) => t("Confirmed: the {thing} is found.", {thing: thing(p.target)}),
+  target_rejected: (p) => t("Not confirmed: that is not the {thing} yet.", {thing: thing(p.target)}),
+};
+
+function addNote(text) {
+  const li = document.createElement("li");
+  li.className = "note";
+  li.textContent = text;
+  $("messages").append(li);
+  li.scrollIntoView({block: "nearest"});
+}
+
+function addLine(e) {
+  if (e.kind === "chat") addChat(e.payload);
+  else if (e.kind in VERDICTS) addNote(VERDICTS[e.kind](e.payload));
 }
 
 let announced = "";
@@ -97,7 +118,7 @@ function welcome(msg) {
   status.waiting_for = waitingFor();
   if (msg.status) applyStatus(status, msg.status);
   $("messages").innerHTML = "";
-  msg.history.forEach((e) => { if (e.kind === "chat") addChat(e.payload); });
+  msg.history.forEach(addLine);
   renderStatus();
   emit("welcome", msg);
 }
@@ -119,7 +140,7 @@ function handle(msg) {
   }
   foldEvent(status, msg);
   if (!status.from_server) status.waiting_for = waitingFor();
-  if (msg.kind === "chat") addChat(msg.payload);
+  addLine(msg);
   renderStatus();
   emit(msg.kind, msg);
 }

@@ -108,6 +108,9 @@ def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, server):
         if index == 0:
             driver.wait_for_selector("#forward:enabled")
             assert driver.inner_text("#error") == ""
+            # The verdict is a line of both seats' chat, in the dialog's order.
+            for page in (commander, driver):
+                page.wait_for_selector(f"#messages li.note >> text=Confirmed: the {target} is found.")
         commander.wait_for_selector("#claim[hidden]", state="attached")
     commander.wait_for_selector("#status[data-phase=finished]")
     driver.wait_for_selector("#status[data-phase=finished]")
