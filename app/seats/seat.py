@@ -44,6 +44,7 @@ from sim.trial.vocabulary import Phase, Role
 
 logger = logging.getLogger(__name__)
 FIRST_FRAME_S = 30.0  # two agents begin once the first frame is in (a render pool starting up)
+CAP_WARNING_S = 120.0  # an agent Driver says this long before its trial-clock cap (at most a fifth of the cap)
 
 
 class TrialPort(TrialView, Protocol):
@@ -251,10 +252,21 @@ class AgentSeats:
         return percept
 
     async def _clock(self) -> None:
-        """The Driver's trial-clock cap: the clock runs only while the trial does, so sleep what is left."""
+        """The Driver's trial-clock cap: the clock runs only while the trial does, so sleep what is
+        left; said in the chat ahead (a person commanding the agent did not know the cap, and the
+        trial ended with the paddle close ahead)."""
         minutes = self.parts.settings.agent_minutes_per_trial
+        warn_s = min(CAP_WARNING_S, minutes * 60 / 5)
+        warned = False
         while not self.state.over:
             left_s = minutes * 60 - self.state.active_s(self.parts.clock.now_ns())
+            if not warned and left_s <= warn_s:
+                warned = True
+                said = f"i can drive for {left_s:.0f} more seconds in this trial: my cap is {minutes:g} minutes"
+                await self.trial.act(Act(Role.DRIVER, Say(said)))
+            if left_s > warn_s:
+                await asyncio.sleep(left_s - warn_s)
+                continue
             if left_s <= 0:
                 await self.trial.act(
                     Act(Role.DRIVER, Say(f"my {minutes:g} minutes for this trial are over; I stop here"))

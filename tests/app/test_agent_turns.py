@@ -231,7 +231,11 @@ def test_the_minutes_cap_ends_the_trial_aborted_with_the_reason_logged(server, t
     phases, said = aborted_with(services, trial.id)
     runtime = services.hub.peek(trial.id)
     assert phases[-1]["reason"] == "agent Driver's cap: 0.02 minutes per trial"
-    assert said == ["my 0.02 minutes for this trial are over; I stop here"]
+    # Said ahead too (at most two minutes, a fifth of the cap here), so a person commanding knows.
+    assert said == [
+        "i can drive for 0 more seconds in this trial: my cap is 0.02 minutes",
+        "my 0.02 minutes for this trial are over; I stop here",
+    ]
     assert runtime is None or runtime.state.active_s(services.clock.now_ns()) >= 1.2
 
 
