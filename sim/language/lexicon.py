@@ -17,7 +17,7 @@ from enum import StrEnum
 
 from sim.core.labels import Label
 from sim.language.sectors import SECTOR_HEADING_OFFSET, SECTOR_WORDS, Sector
-from sim.language.vocab import LABEL_WORDS, NUMBER_WORDS, correct, number
+from sim.language.vocab import CAMERA_COLOUR_WORDS, LABEL_WORDS, NUMBER_WORDS, correct, number
 
 
 class ViewKind(StrEnum):
@@ -60,7 +60,7 @@ class QuestionFacts:
     turn: int  # heading steps the question asks for first ("turn around: what do you see?")
 
 
-LABELS = {**LABEL_WORDS, "pong": Label.PADDLE}  # "ping-pong" is read as one word
+LABELS = {**LABEL_WORDS, **CAMERA_COLOUR_WORDS, "pong": Label.PADDLE}  # "ping-pong" is read as one word
 # ldh_features' sector words, and the variants that a parser of free text also meets.
 SECTORS = {**SECTOR_WORDS, "infront": Sector.FRONT, "rear": Sector.BEHIND}
 # "right" that means "directly" ("right in front", "right behind"), not the side.
@@ -111,7 +111,8 @@ AROUND_STEPS = SECTOR_HEADING_OFFSET[Sector.BEHIND]
 
 def tokens(text: str) -> list[str]:
     """Lower-case words, spelling corrected (`vocab.correct`); "n't" as "not", the objects'
-    hyphenated names as one word."""
+    hyphenated names as one word, and the two-word colours the landmarks have in the simulator's
+    camera as one (`vocab.OBJECT_LOOKS`: "light blue" is the jar there, not a blue wall)."""
     text = (
         text.lower()
         .replace("can't", "can not")
@@ -119,6 +120,8 @@ def tokens(text: str) -> list[str]:
         .replace("n't", " not")
         .replace("ping-pong", "pong")
         .replace("end of the maze", "edge")
+        .replace("light blue", "cyan")
+        .replace("olive green", "olive")
     )
     return [correct(w) for w in _TOKEN.findall(text)]
 

@@ -45,6 +45,17 @@ LABEL_WORDS: dict[str, Label] = {
     "racket": Label.PADDLE,  # "table-tennis-racket" (train split)
     "racquet": Label.PADDLE,
 }
+# The landmarks as the simulator's camera shows them, solids in their map colours (`OBJECT_LOOKS`):
+# a person driving names them so ("something pink ahead"). Read only as written, never as what a
+# misspelling stands for ("real" is not "teal"); no benchmark turn uses them.
+CAMERA_COLOUR_WORDS = {
+    "pink": Label.MUG,
+    "cyan": Label.JAR,
+    "turquoise": Label.JAR,
+    "teal": Label.JAR,
+    "olive": Label.PADDLE,
+    "khaki": Label.PADDLE,
+}
 # How the Commander and the Driver name each object.
 OBJECT_WORDS = {Label.JAR: "jar of blocks", Label.MUG: "coffee mug", Label.PADDLE: "ping-pong paddle"}
 # What each looks like in the simulator's camera: a solid in its map colour (`sim.core.labels`).

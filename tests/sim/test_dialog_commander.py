@@ -546,3 +546,20 @@ def test_a_target_on_one_side_with_a_route_that_turns_the_other_way_first_is_sai
             elif "starts to your" in where:
                 raise AssertionError(where)
     assert found, "no pose of the maze has its target on one side and its route turning the other way"
+
+
+@pytest.mark.parametrize(
+    "report, label",
+    [
+        ("i see something pink ahead", Label.MUG),
+        ("there's a light blue cylinder ahead", Label.JAR),
+        ("turquoise thing in front of me", Label.JAR),
+        ("an olive green thing ahead", Label.PADDLE),
+    ],
+)
+def test_a_landmark_named_by_its_colour_in_the_camera_is_read_as_that_landmark(report, label):
+    """The simulator's camera shows the landmarks as solids in their map colours, and the Commander
+    tells a person so ("the coffee mug is pink in the camera"): their "something pink ahead" is
+    the mug, "light blue" the jar and not a blue wall; "real close" is still no "teal"."""
+    assert [(f.label, f.sectors) for f in lexicon.facts(report)] == [(label, (Sector.FRONT,))]
+    assert [f.label for f in lexicon.facts("a red wall real close ahead")] == [Label.RED]
