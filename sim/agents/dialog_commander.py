@@ -72,7 +72,7 @@ LOST_AFTER = 3  # ... stop guiding and ask
 # "do not" only as the scripted Driver's "i do not see a red wall ahead": a person's "i don't think
 # there's anything on my left" describes.
 _STUCK = re.compile(
-    r"\b(?:hit|cannot|can only|could not|do not see (?:a|the)|not the one|no opening|still|not turned)\b"
+    r"\b(?:hit|cannot|can only|could not|do not see (?:a|the)|not the one|no opening|still|not turned|did the part)\b"
 )
 # A report that says it did what it was told: a wall right in front then is where the walk ended.
 _DONE = re.compile(r"\b(?:done|did (?:it|that)|finished)\b")
@@ -89,6 +89,11 @@ class Estimate:
     x: float
     y: float
     spread_m: float  # the belief's expected TD from the estimate's node
+
+
+def _moves(said: ins.Parsed) -> list[ins.Instruction]:
+    """The moves of an instruction, without the words around them."""
+    return [i for i in said.instructions if isinstance(i, ins.MOVING)]
 
 
 def _wall_close_ahead(fact: lexicon.Fact) -> bool:
@@ -156,6 +161,8 @@ class DialogCommander:
         self._checking = False  # the Driver's next message answers the check
         self._before: tuple[str, str] | None = None  # the dialog's last message, for the reader
         self._why_not: str | None = None  # why it rejected the last claim on this target ("why not?")
+        self._instructed: str | None = None  # the last instruction said
+        self._question_out = False  # the last thing it said asks the Driver something
 
     # -- percepts -------------------------------------------------------------------------------
 
@@ -191,7 +198,7 @@ class DialogCommander:
 
     def _heard(self, text: str) -> list[Action]:
         lowered = text.lower()
-        if "found" in lowered:
+        if lexicon.claims(text):
             return []  # a claim is on its way
         checked, self._checking = self._checking, False
         # Its mark doubted: the check answered no or unsure ("sort of?"), or the Driver says it is
@@ -207,15 +214,39 @@ class DialogCommander:
         if doubted:
             self._elsewhere(DOUBTED)
         asked = lexicon.asks(text)
-        if asked is not None and lexicon.only_asks(text) and self._phase == Phase.NAVIGATING:
-            return self._answer(asked)  # it reports nothing done: the belief stays where it was
+        navigating = self._phase == Phase.NAVIGATING and self._target is not None
+        instructed = navigating and self._pending is not None and not doubted
+        if instructed and (reading := lexicon.asked_back(text)) is not None:
+            return self._confirm(reading)  # nothing done yet: yes, or no and the instruction again
+        # ("did it gren wall in front" is a report, its "did" no question.)
+        # An answer to its own question may end in "?" ("I think so?").
+        unknown = asked is None and (lexicon.reports_done(text) or self._question_out)
+        if lexicon.only_asks(text) and navigating and not doubted and not unknown:
+            # It reports nothing done: the belief stays where it was. (A question it has no answer
+            # for, "sharply right = like 90 degrees?" before there was one, was taken for a report
+            # of the instruction carried out, and the next one was given from where it was not.)
+            return self._answer(asked)
         blocked = lexicon.blocked(text)  # its way forward is barred where it stands
         short = lexicon.fell_short(text) or bool(_STUCK.search(lowered))
         stuck = short or (blocked and not _DONE.search(lowered))
+        # A question about the instruction out, with what the Driver sees, before carrying it out
+        # ("theres a blue wall on my right, wont i just hit it?"): not a report of it done. (It was
+        # taken for one, and the next instruction was given from where the robot was not.)
+        if instructed and not stuck and lexicon.not_understood(text):
+            # Nothing done: said again from where it still is, one move in the simplest words (it
+            # was taken for the instruction carried out).
+            self._stuck += 1
+            return self._guide(prefix="sorry. let me say it more simply", one_move=True)
+        asks_first = (
+            instructed
+            and not stuck
+            and (asked is not None or lexicon.has_question(text))
+            and not lexicon.reports_done(text)
+        )
         understood = self._understanding.facts(text, self._before)
         read = None if understood.by_rules else belief_facts(understood.meaning)  # None: the lexicon's
         view = lexicon.facts(text) if read is None else read
-        if self._pending is not None:
+        if self._pending is not None and not asks_first:
             self._move(self._pending, whole=not stuck, walked=lexicon.walked(text) if short else None)
             self._plain = stuck
             self._stuck = self._stuck + 1 if stuck else 0
@@ -257,6 +288,10 @@ class DialogCommander:
         turns = self._revise(estimate)
         if doubted:
             return turns + self._ask(prefix=doubted)
+        if asks_first and estimate.spread_m <= LOST_M:
+            if asked is not None and asked not in (Asked.WHICH_WAY, Asked.WHY):
+                return turns + self._answer(asked)
+            return turns + self._guide(doubted=True)
         lost = estimate.spread_m > LOST_M
         if (lost or self._stuck >= LOST_AFTER) and self._questions < MAX_QUESTIONS:
             self._stuck = 0
@@ -426,10 +461,14 @@ class DialogCommander:
 
     # -- turns ----------------------------------------------------------------------------------
 
-    def _say(self, text: str) -> list[Action]:
-        """Say `text`; a question is read by the belief with the answer to it."""
+    def _say(self, text: str, instruction: str | None = None) -> list[Action]:
+        """Say `text`; a question is read by the belief with the answer to it. `instruction`: the part
+        of `text` the Driver is to carry out, after an answer or an announcement. (The whole text
+        was parsed: "about 9 steps away" in an answer to "how far?" was a walk of 9 steps more, and
+        the belief went 9 steps further than the Driver once it said it was done.)"""
         self.belief.message("oracle", text)
-        parsed = ins.parse(text)
+        self._question_out = text.rstrip().endswith("?")
+        parsed = ins.parse(text if instruction is None else instruction)
         self._looking = any(isinstance(i, ins.Ask) and i.look_around for i in parsed.instructions)
         self._pending = parsed if parsed.moves else None
         return [Say(text)]
@@ -500,9 +539,10 @@ class DialogCommander:
         places = closer if closer.size else places
         return int(places[self._dist[node, places].argmin()])
 
-    def _guide(self, prefix: str | None = None, one_move: bool = False) -> list[Action]:
+    def _guide(self, prefix: str | None = None, one_move: bool = False, doubted: bool = False) -> list[Action]:
         """The next instruction from the estimate, towards the target: a leg of the route, or after
-        instructions not carried out, its first move alone in the simplest words."""
+        instructions not carried out, its first move alone in the simplest words; `doubted` (the
+        Driver questioned the last one before carrying it out): said whether it still stands."""
         assert self._target is not None
         self._questions = 0
         self._asked.clear()
@@ -527,7 +567,10 @@ class DialogCommander:
             text = self._safer(self.router.one_move(estimate.pose, label, goal))
         else:
             text = self._safer(self.router.instruction(estimate.pose, label, goal, plain=self._plain))
-        return self._say(f"{prefix}. {text}" if prefix else text)
+        if doubted:
+            prefix = "by my map that is still the way" if text == self._instructed else "thanks, that changes it"
+        self._instructed = text
+        return self._say(f"{prefix}. {text}" if prefix else text, instruction=text)
 
     def _safer(self, text: str) -> str:
         """`text` where the belief gives its counted walk little chance of meeting a wall before its
@@ -570,11 +613,11 @@ class DialogCommander:
 
     # -- answers --------------------------------------------------------------------------------
 
-    def _answer(self, asked: Asked, one_move: bool = False) -> list[Action]:
-        """A Driver's question answered, then the instruction again from where it still is (a
-        question reports nothing done)."""
+    def _answer(self, asked: Asked | None, one_move: bool = False) -> list[Action]:
+        """A Driver's question answered (one it has no answer for, said so), then the instruction
+        again from where it still is (a question reports nothing done)."""
         assert self._target is not None
-        self._pending = None
+        pending, self._pending = self._pending, None
         estimate = self.estimate()
         unsure = "i am not sure where you are, but " if estimate.spread_m > SETTLED_M else ""
         reply: str | None
@@ -593,12 +636,36 @@ class DialogCommander:
             case Asked.WHICH_ONE:  # the wall it named is not clear: the leg in counted steps instead
                 self._plain = True
                 reply = "let me say it in steps"
+            case Asked.TURN_SIZE:
+                reply = self._turn_size(pending)
+            case None:
+                reply = "sorry, i did not get your question. again"
             case Asked.WHICH_WAY:
                 actions, _ = self.router.plan(estimate.pose, self.goal(estimate.pose.node))
                 first = actions[0] if actions else None
                 way = {Move.LEFT: "left", Move.RIGHT: "right", Move.FORWARD: "straight ahead"}
                 reply = f"{unsure}{way[first]} first" if first in way else None
         return self._guide(prefix=reply, one_move=one_move)
+
+    def _confirm(self, reading: str) -> list[Action]:
+        """A Driver's reading of the instruction out, said back and asked about: "yes" where it
+        moves as the instruction does, else "no" and the instruction again."""
+        assert self._pending is not None and self._instructed is not None
+        if _moves(ins.parse(reading)) == _moves(self._pending):
+            return self._say("yes", instruction=self._instructed)
+        return self._guide(prefix="no")
+
+    def _turn_size(self, said: ins.Parsed | None) -> str:
+        """How far the turns of the instruction out turn, in degrees and presses of Left or Right."""
+        turns = [i.eighths for i in (said.instructions if said else ()) if isinstance(i, ins.Turn) and i.eighths]
+        if not turns:
+            return "each press of left or right turns 45 degrees"
+        sizes = []
+        for eighths in turns:
+            side = "left" if eighths > 0 else "right"
+            presses = f"{abs(eighths)} time{'s' if abs(eighths) > 1 else ''}"
+            sizes.append(f"{self.phrases.turn(eighths)} is {45 * abs(eighths)} degrees: press {side} {presses}")
+        return ", and ".join(sizes)
 
     def _looks(self) -> str:
         """What the target looks like, in words the Driver agent reads as the target named, no move."""

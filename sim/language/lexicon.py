@@ -15,7 +15,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from enum import StrEnum
 
-from sim.core.labels import Label
+from sim.core.labels import OBJECT_LABELS, Label
 from sim.language.sectors import SECTOR_HEADING_OFFSET, SECTOR_WORDS, Sector
 from sim.language.vocab import CAMERA_COLOUR_WORDS, LABEL_WORDS, NUMBER_WORDS, correct, number
 
@@ -423,11 +423,21 @@ class Asked(StrEnum):
     WHERE_AM_I = "where_am_i"  # "where am i?"
     LOOKS = "looks"  # "what does the mug look like?"
     WHICH_ONE = "which_one"  # "which white wall?": the thing the instruction named is not clear
+    TURN_SIZE = "turn_size"  # "sharply right = like 90 degrees?", "how many times do i press right?"
 
 
 # First match wins: "where am i" before "where to", "what do i look for" before "what does it look like".
 _ASKED = (
     (Asked.WHERE_AM_I, re.compile(r"\bwhere (?:am i|are we|i am)\b")),
+    (
+        Asked.TURN_SIZE,  # before "how many": how far to turn, not to go
+        # Asked, not said: "turned right 45 degrees" reports.
+        re.compile(
+            r"\bhow (?:many|much) degrees\b|\b(?:is that|is it|so|like|thats|that is|about) \d+ degrees\b"
+            r"|\bhow (?:sharp(?:ly)?|much|far|many times) (?:do i |should i |to )?turn\b"
+            r"|\bhow many (?:times|clicks|presses)\b|\bhow sharp(?:ly)?\b"
+        ),
+    ),
     (
         Asked.HOW_FAR,  # and where the target is, or what to look for: the same answer
         re.compile(
@@ -478,6 +488,56 @@ def only_asks(text: str) -> bool:
     reports nothing done."""
     sentences = [s for s in re.split(r"(?<=[.,;!?])", text) if tokens(s)]
     return bool(sentences) and all(is_question(s) or asks(s) is not None for s in sentences)
+
+
+# A Driver saying back what it understood, and asking ("i am not sure i got 'x'. do you mean:
+# turning left 90 degrees?", "you mean turn left?"): its reading.
+_ASKED_BACK = re.compile(r"\b(?:do you mean|did you mean|you mean)\b[:,]?\s*(.+?)\s*\??\s*$")
+# A Driver that did not understand the last instruction ("sorry, i did not understand '...'").
+_NOT_UNDERSTOOD = re.compile(
+    r"\b(?:did not|do not|dont|didnt) (?:understand|get)\b|\bwhat do you mean\b|\bconfused\b"
+    r"|\bsay (?:it|that) (?:another|a different) way\b"
+)
+
+
+def asked_back(text: str) -> str | None:
+    """The reading a Driver says back and asks about, if it does ("do you mean: ...?")."""
+    found = _ASKED_BACK.search(text.lower())
+    return found.group(1) if found else None
+
+
+def not_understood(text: str) -> bool:
+    """Whether a Driver's message says it did not understand what it was told."""
+    return bool(_NOT_UNDERSTOOD.search(" ".join(tokens(text))))
+
+
+_OBJECTS = "|".join(w for w, label in LABELS.items() if label in OBJECT_LABELS and w not in CAMERA_COLOUR_WORDS)
+# A Driver's words with its claim: "found it", "is this the jar?", "i think i'm at the cup?".
+_CLAIMS = re.compile(
+    rf"\bfound\b|\b(?:is this|this is|i am at|im at|i m at) the (?:{_OBJECTS})\b|\bi (?:am|m) there\b|\bim there\b"
+)
+
+
+def claims(text: str) -> bool:
+    """Whether a Driver's message goes with its claim of the target."""
+    return bool(_CLAIMS.search(" ".join(tokens(text))))
+
+
+def has_question(text: str) -> bool:
+    """Whether any sentence of a message is a question."""
+    return any(is_question(s) for s in re.split(r"(?<=[.,;!?])", text) if tokens(s))
+
+
+# A report of moves made: it opens with an "ok" or names what was done.
+_REPORTS_DONE = re.compile(
+    r"^(?:ok+|okay|k|alright|all right|done|donee|yes|yep|right|sure)\b"
+    r"|\b(?:done|did|went|turned|moved|walked|reached|arrived|finished|made it|now i|i am now|im now)\b"
+)
+
+
+def reports_done(text: str) -> bool:
+    """Whether a Driver's message reports moves made ("ok, at the red wall", "turned left, now ...")."""
+    return bool(_REPORTS_DONE.search(" ".join(tokens(text))))
 
 
 def fell_short(text: str) -> bool:

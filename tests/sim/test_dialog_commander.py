@@ -563,3 +563,49 @@ def test_a_landmark_named_by_its_colour_in_the_camera_is_read_as_that_landmark(r
     the mug, "light blue" the jar and not a blue wall; "real close" is still no "teal"."""
     assert [(f.label, f.sectors) for f in lexicon.facts(report)] == [(label, (Sector.FRONT,))]
     assert [f.label for f in lexicon.facts("a red wall real close ahead")] == [Label.RED]
+
+
+def test_an_answer_said_before_the_instruction_is_not_carried_out_with_it(world):
+    """Its answer to "how far?" ("..., about 9 steps away. go forward about 4 steps") was parsed
+    with the instruction: once the Driver said done, the belief went 9 steps further than it did."""
+    start = _walk_pose(world, 3)
+    asked, _ = _navigating(world, start)
+    asked.perceive(Heard(Role.DRIVER, "how far?"))
+    told, _ = _navigating(world, start)
+    for commander in (asked, told):
+        commander.perceive(Heard(Role.DRIVER, "done"))
+    assert np.allclose(asked.belief.log, told.belief.log)
+
+
+def test_a_question_before_carrying_out_the_instruction_is_not_taken_for_it_done(world):
+    """ "sharply right = like 90 degrees? theres a blue wall on my right, wont i just hit it?" was
+    taken for a report of the instruction carried out, and the next one given from where the
+    robot was not: now the belief stays, and the instruction is said to stand or changed."""
+    start = _walk_pose(world, 3)
+    commander, first = _navigating(world, start)
+    instruction = first.removeprefix("now find the jar of blocks. ")
+    said = _said(commander.perceive(Heard(Role.DRIVER, "hold on, should i really go forward?")))
+    assert said == f"by my map that is still the way. {instruction}", said
+    assert commander.estimate().pose == start
+    said = _said(commander.perceive(Heard(Role.DRIVER, "how many times do i press left?")))
+    turns = [i for i in ins.parse(instruction).instructions if isinstance(i, ins.Turn)]
+    if turns:
+        assert f"is {45 * abs(turns[0].eighths)} degrees: press" in said, said
+    else:
+        assert said.startswith("each press of left or right turns 45 degrees"), said
+    assert said.endswith(instruction) and commander.estimate().pose == start, said
+
+
+@pytest.mark.parametrize("said", ["I think I'm at the cup?", "is this the jar? I think I'm there", "found it!"])
+def test_words_that_go_with_a_claim_wait_for_the_claim(world, said):
+    commander, _ = _navigating(world, _walk_pose(world, 3))
+    before = commander.belief.log.copy()
+    assert commander.perceive(Heard(Role.DRIVER, said)) == []
+    assert np.array_equal(commander.belief.log, before)
+
+
+def test_an_answer_to_its_question_that_ends_in_a_question_mark_is_an_answer(world):
+    """ "I think so?" to the check of its mark is a yes, not a question it did not get."""
+    commander, _ = _checking(world, _walk_pose(world, 3))
+    said = _said(commander.perceive(Heard(Role.DRIVER, "I think so?")))
+    assert said.startswith("now find the jar") and ins.parse(said).moves, said
