@@ -29,8 +29,16 @@ import numpy as np
 from sim.agents.route import Router
 from sim.core.dynamics import Action as Move
 from sim.core.dynamics import Pose
-from sim.core.geometry import GRID_STEP_M, HEADINGS, heading_angle, heading_index
-from sim.core.labels import OBJECT_LABELS, Label, object_label
+from sim.core.geometry import (
+    GRID_STEP_M,
+    HEADINGS,
+    MAP_WIDTH_PX,
+    TABLE_WIDTH_M,
+    heading_angle,
+    heading_index,
+    world_to_pixel,
+)
+from sim.core.labels import OBJECT_LABELS, WALL_LABELS, Label, object_label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
@@ -65,6 +73,9 @@ CLOSE_PENALTY = 3.0  # ... against a pose with a longer way ahead than the steps
 UNSEEN_PENALTY = 3.0  # ... against a pose with the target in reach, when the Driver speaks without claiming
 NEAR_TARGET_STEPS = 3  # a rejected claim this few steps' walk from where it should be made: "close to it now"
 RISKY = 0.4  # the belief's chance of a counted walk meeting a wall before its count: walk less
+NEAR_ENOUGH = 0.5  # the belief's share within SURE_M of the target to say "press i found the target"
+LANDMARK_M = 0.5  # walls this close to the target name where it stands ("next to the red wall") ...
+ALSO_NEAR_M = 0.1  # ... the nearest, and another no further than this beyond it
 REPHRASE_AFTER = 2  # instructions in a row not carried out: say the next one move at a time
 LOST_AFTER = 3  # ... stop guiding and ask
 # A report of an instruction not carried out in full: the Driver stopped somewhere along the way.
@@ -198,7 +209,7 @@ class DialogCommander:
 
     def _heard(self, text: str) -> list[Action]:
         lowered = text.lower()
-        if lexicon.claims(text):
+        if lexicon.claims(text) and lexicon.asks(text) != Asked.SHOULD_CLAIM:
             return []  # a claim is on its way
         checked, self._checking = self._checking, False
         # Its mark doubted: the check answered no or unsure ("sort of?"), or the Driver says it is
@@ -631,8 +642,14 @@ class DialogCommander:
                 seen_there = brief(self.router.view(estimate.pose)).replace(" my ", " your ")
                 guess = "i am not sure; my best guess (marked on the map) is" if unsure else "i think you are"
                 reply = f"{guess} where you see {seen_there}. {self._where(estimate)}"
-            case Asked.LOOKS:
+            case Asked.LOOKS | Asked.IS_IT:  # it cannot see the camera: it says what to look for
                 reply = self._looks()
+            case Asked.SHOULD_CLAIM:
+                near_it = self._mass_near(self.maze.objects[self._target]) >= NEAR_ENOUGH
+                reply = "yes, if it is right in front of you, press i found the target" if near_it else None
+                reply = reply or f"not yet, by my map. {unsure}{self._where(estimate)}"
+            case Asked.NEAR_WHAT:
+                reply = self._landmark()
             case Asked.WHICH_ONE:  # the wall it named is not clear: the leg in counted steps instead
                 self._plain = True
                 reply = "let me say it in steps"
@@ -666,6 +683,25 @@ class DialogCommander:
             presses = f"{abs(eighths)} time{'s' if abs(eighths) > 1 else ''}"
             sizes.append(f"{self.phrases.turn(eighths)} is {45 * abs(eighths)} degrees: press {side} {presses}")
         return ", and ".join(sizes)
+
+    def _landmark(self) -> str:
+        """The walls nearest the target on the map, by colour: the nearest, and another about as near."""
+        assert self._target is not None
+        col, row = (int(round(float(v))) for v in world_to_pixel(*self.maze.objects[self._target]))
+        r = int(LANDMARK_M / TABLE_WIDTH_M * MAP_WIDTH_PX)
+        top, left = max(row - r, 0), max(col - r, 0)
+        around = self.maze.labels[top : row + r + 1, left : col + r + 1]
+        rows, cols = np.indices(around.shape)
+        away = np.hypot(rows + top - row, cols + left - col) * TABLE_WIDTH_M / MAP_WIDTH_PX
+        nearest = {label: float(away[around == label].min()) for label in WALL_LABELS if (around == label).any()}
+        thing = OBJECT_WORDS[object_label(self._target)]
+        if not nearest:
+            return f"the {thing} stands in the open, away from the walls"
+        first = min(nearest.values())
+        walls = [
+            wall_name(label) for label, d in sorted(nearest.items(), key=lambda kv: kv[1]) if d <= first + ALSO_NEAR_M
+        ]
+        return f"the {thing} is next to the {' and the '.join(walls[:2])}"
 
     def _looks(self) -> str:
         """What the target looks like, in words the Driver agent reads as the target named, no move."""

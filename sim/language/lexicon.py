@@ -424,11 +424,36 @@ class Asked(StrEnum):
     LOOKS = "looks"  # "what does the mug look like?"
     WHICH_ONE = "which_one"  # "which white wall?": the thing the instruction named is not clear
     TURN_SIZE = "turn_size"  # "sharply right = like 90 degrees?", "how many times do i press right?"
+    IS_IT = "is_it"  # "is that the jar?", "is the red thing the jar?": what it looks like in the camera
+    SHOULD_CLAIM = "should_claim"  # "should i press i found the target?"
+    NEAR_WHAT = "near_what"  # "which wall colour is the paddle next to?", "near what?"
 
 
 # First match wins: "where am i" before "where to", "what do i look for" before "what does it look like".
+_TARGET_WORDS = r"(?:jar|blocks|mug|cup|paddle|bat|racket|target|objective|goal)"
 _ASKED = (
     (Asked.WHERE_AM_I, re.compile(r"\bwhere (?:am i|are we|i am)\b")),
+    (
+        Asked.SHOULD_CLAIM,
+        re.compile(
+            r"\b(?:should|do|can|shall) i (?:claim|say found)\b"
+            r"|\b(?:should|do|can|shall) i (?:press|click|hit) (?:\w+ ){0,3}(?:found|target)\b"
+        ),
+    ),
+    (
+        Asked.NEAR_WHAT,
+        re.compile(
+            rf"\b(?:near|next to|by|beside) what\b|\bwhich (?:wall )?colou?r(?: wall)? (?:is )?(?:the )?{_TARGET_WORDS}\b"
+            rf"|\bwhat (?:colou?r )?(?:wall )?is (?:the )?{_TARGET_WORDS} (?:near|next to|by|beside)\b"
+        ),
+    ),
+    (
+        Asked.IS_IT,
+        re.compile(
+            rf"\b(?:is|are) (?:that|this|it|those|these|the \w+(?: \w+)?) (?:the )?{_TARGET_WORDS}\b"
+            rf"|\bwhich (?:one|thing) is (?:the )?{_TARGET_WORDS}\b"
+        ),
+    ),
     (
         Asked.TURN_SIZE,  # before "how many": how far to turn, not to go
         # Asked, not said: "turned right 45 degrees" reports.
@@ -441,7 +466,7 @@ _ASKED = (
     (
         Asked.HOW_FAR,  # and where the target is, or what to look for: the same answer
         re.compile(
-            r"\bhow (?:far|many|much|long)\b"
+            r"\bhow (?:far|many|much|long)\b|\b(?:is it|am i|are we) (?:close|near|far)\b"
             r"|\bwhere(?:s| is)?(?: the| my)? (?:jar|blocks|mug|cup|paddle|bat|racket|target|objective|goal|it)\b"
             r"|\bwhat (?:do|should) i (?:look|search) for\b|\bwhat am i looking for\b"
         ),

@@ -4,6 +4,7 @@ and it never gets a pose, the Driver's frames or its moves."""
 
 import inspect
 import math
+import re
 
 import numpy as np
 import pytest
@@ -13,7 +14,7 @@ from sim.agents.dialog_driver import DialogDriver
 from sim.agents.oracle_driver import OracleDriver
 from sim.agents.selfplay import TrialSpec, play
 from sim.core.dynamics import Action, Pose
-from sim.core.geometry import SUCCESS_RADIUS_M, world_to_pixel
+from sim.core.geometry import MAP_WIDTH_PX, SUCCESS_RADIUS_M, TABLE_WIDTH_M, world_to_pixel
 from sim.core.labels import OBJECT_LABELS, Label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
@@ -609,3 +610,31 @@ def test_an_answer_to_its_question_that_ends_in_a_question_mark_is_an_answer(wor
     commander, _ = _checking(world, _walk_pose(world, 3))
     said = _said(commander.perceive(Heard(Role.DRIVER, "I think so?")))
     assert said.startswith("now find the jar") and ins.parse(said).moves, said
+
+
+def test_asked_whether_what_it_sees_is_the_target_it_says_what_the_target_looks_like(world):
+    """ "is the red thing the jar?", asked three times by a person driving, went unanswered."""
+    commander, first = _navigating(world, _walk_pose(world, 3))
+    instruction = first.removeprefix("now find the jar of blocks. ")
+    for question in ("is that the jar??", "is the red thing the jar?", "which one is the jar"):
+        said = _said(commander.perceive(Heard(Role.DRIVER, question)))
+        assert said == f"the jar of blocks is light blue in the camera. {instruction}", (question, said)
+
+
+def test_asked_what_the_target_stands_by_it_names_the_nearest_walls_on_the_map(world):
+    maze = world[0]
+    commander, _ = _navigating(world, _walk_pose(world, 3))
+    said = _said(commander.perceive(Heard(Role.DRIVER, "which wall colour is the jar next to?")))
+    named = re.findall(r"the (\w+) wall", said.split(". ")[0])
+    assert said.startswith("the jar of blocks is next to the") and named, said
+    col, row = (float(v) for v in world_to_pixel(*maze.objects["jar"]))
+    rows, cols = np.indices(maze.labels.shape)
+    metres = np.hypot(rows - row, cols - col) * TABLE_WIDTH_M / MAP_WIDTH_PX
+    for colour in named:
+        assert metres[maze.labels == Label[colour.upper()]].min() <= 0.5, colour
+
+
+def test_asked_whether_to_claim_far_from_the_target_it_says_not_yet_and_where(world):
+    commander, _ = _navigating(world, _walk_pose(world, 3))
+    said = _said(commander.perceive(Heard(Role.DRIVER, "should i press i found the target?")))
+    assert said.startswith("not yet, by my map. i think the jar of blocks is"), said
