@@ -285,13 +285,19 @@ class DialogDriver:
             self._plan.clear()
             # "no, right": the correction after the "no", where the rules hear a move in it.
             correction = program_of(ins.parse(_NO_WORD.sub("", text, count=1)))
-            if _moves(correction):
+            if _moves(correction) or _CLAIM in correction:  # "no. you are at the paddle. claim it"
                 return self._follow(correction, text, said_unclear=False)
             return [self._say(Troubled(Trouble.NOT_MEANT))]
         elif self._phase == Phase.NAVIGATING:
             rules = program_of(ins.parse(text))  # the rules' reading: a second opinion, read once
             unsure = understood.confidence < ASK_BELOW or understood.ambiguous
-            if _CLAIM in rules and not _moves(rules) and (unsure or not _moves(program)) and _CLAIM not in program:
+            at_one = self._view is not None and any(near(self._view, label) for label in OBJECT_LABELS)
+            if (
+                _CLAIM in rules
+                and not _moves(rules)
+                and (unsure or not _moves(program) or at_one)
+                and _CLAIM not in program
+            ):
                 # The rules hear "you are right by it": a claim costs no move and is judged, so it
                 # claims rather than offer the reader's guess ("turning right?") or do nothing (the
                 # reader heard "got it, you found it, ..." as what it should see).
@@ -334,8 +340,10 @@ class DialogDriver:
         """Not sure what was meant: say its best reading (the rules' where it read no move) and ask."""
         best = program if _moves(program) else rules
         if not _moves(best):
-            # No move at stake: the reader's reading, or the rules' where the reader read nothing.
-            return self._follow(program or best, text, said_unclear=False)
+            # No move at stake: the reader's reading, or the rules' where the reader read nothing or
+            # nothing it understood ("Hello. What do you see in front of you?" was "not understood").
+            lost = all(c.op == Op.UNCLEAR for c in program)
+            return self._follow(rules if lost and rules else program or best, text, said_unclear=False)
         unread = unread_counts(best, text)
         if unread:
             best, _ = with_count(best, text, unread[0])

@@ -445,9 +445,11 @@ def instructions(program: Program, text: str) -> list[ins.Instruction]:
                 out.append(ins.GoBack(ins.Place.START))
             case Op.BACK if args["place"] == "turn":
                 out.append(ins.GoBack(ins.Place.TURN))
-            case Op.BACK:  # the way it came: turn around and walk
+            case Op.BACK:  # the way it came: turn around (unless just told to) and walk
                 steps = args["steps"]
-                out += [ins.Turn(4), ins.Forward(steps if isinstance(steps, int) else None)]
+                if not (out and out[-1] == ins.Turn(4)):  # "turn around and go back the way you came"
+                    out.append(ins.Turn(4))
+                out.append(ins.Forward(steps if isinstance(steps, int) else None))
             case Op.TARGET:
                 label = _label(args["label"])
                 if label is not None:

@@ -15,10 +15,13 @@ from sim.core.labels import Label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
+from sim.language import instructions as ins
 from sim.language.describe import near, seen
 from sim.language.driver_personas import DriverPersona
 from sim.language.driver_phrasing import PersonaDriverPhrasing
+from sim.language.meaning import Clause, Op
 from sim.language.phrases import Phrasing
+from sim.language.understanding import instructions
 from sim.tasks.library import BUNDLED_DIR
 from sim.trial.agent import SeatInfo
 from sim.trial.commands import Claim, RequestMove, Say
@@ -486,3 +489,57 @@ def test_a_walk_to_an_object_stopped_by_a_wall_short_of_it_is_not_reported_done(
     assert not any(isinstance(t, RequestMove) for t in turns), turns
     (said,) = [t.text for t in turns if isinstance(t, Say)]
     assert not said.startswith("ok") and "do not see a jar" in said, said
+
+
+def _at_object(world) -> Pose:
+    _, graph, _ = world
+    return next(Pose(n, h) for n in range(graph.n) for h in range(8) if near(_rays(world, Pose(n, h)), Label.JAR))
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "Great, that's it. Tell the system you found it.",
+        "press the I found the target button please",
+        "you found the target",
+    ],
+)
+def test_at_an_object_told_in_a_persons_words_to_claim_it_claims(world, text):
+    """A person commanding said each of these four times at the paddle, and the agent said "ok,
+    already at the ping-pong paddle" or asked "do you mean: forward to the wall?"."""
+    driver = _navigating(world, _at_object(world))
+    turns = driver.perceive(Heard(Role.COMMANDER, text))
+    assert any(isinstance(t, Claim) for t in turns), turns
+    assert not any(isinstance(t, RequestMove) for t in turns), turns
+
+
+def test_a_no_that_says_claim_it_is_a_claim(world):
+    driver = _navigating(world, _at_object(world))
+    (asked,) = driver.perceive(Heard(Role.COMMANDER, "go leftish"))
+    assert "do you mean" in asked.text, asked
+    turns = driver.perceive(Heard(Role.COMMANDER, "no. you are at the jar. claim it"))
+    assert any(isinstance(t, Claim) for t in turns), turns
+
+
+def test_a_greeting_with_a_question_is_answered_not_called_unclear(world):
+    """ "Hello. What do you see in front of you? Describe the walls and any objects please." was
+    the first thing a person said to it, and it said it did not understand."""
+    _, graph, _ = world
+    driver = _navigating(world, _room_for(graph, 2, 0))
+    turns = driver.perceive(
+        Heard(Role.COMMANDER, "Hello. What do you see in front of you? Describe the walls and any objects please.")
+    )
+    (said,) = [t.text for t in turns if isinstance(t, Say)]
+    assert "did not understand" not in said and "ahead" in said, said
+    assert not any(isinstance(t, RequestMove) for t in turns), turns
+
+
+def test_turn_around_and_go_back_the_way_you_came_turns_around_once():
+    program = (
+        Clause.of(Op.TURN, eighths=4),
+        Clause.of(Op.BACK, place="previous", steps=18),
+    )
+    assert instructions(program, "turn around and go back the way you came, about 18 steps") == [
+        ins.Turn(4),
+        ins.Forward(18),
+    ]
