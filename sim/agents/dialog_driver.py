@@ -18,6 +18,8 @@ from collections import deque
 from dataclasses import dataclass, field, replace
 from enum import StrEnum
 
+import numpy as np
+
 from sim.core.geometry import HEADING_DI, HEADING_DJ, HEADINGS
 from sim.core.labels import OBJECT_LABELS, Label
 from sim.core.rays import RayObservation
@@ -81,6 +83,7 @@ _NEW_TARGET = re.compile(
     r"|instead|i mean|meant)\b",
     re.I,
 )
+_STRAIGHT_ON = re.compile(r"\b(?:until|till|til|straight|forward)\b", re.I)
 _AGREE = lexicon.YES - {"right"}  # "right" after "turning left?" may be the other way
 
 
@@ -411,7 +414,10 @@ class DialogDriver:
             return [_Task(Task.TURN, turns=item.eighths)]
         if isinstance(item, ins.Forward):
             steps = self._phrasing.count(item.steps) if item.steps is not None else None
-            return [_Task(Task.WALK, steps=steps, until=item.until, exclude=item.exclude)]
+            walk = _Task(Task.WALK, steps=steps, until=item.until, exclude=item.exclude)
+            # "go to the paddle" heads for it; "go forward until you see the jar" walks on straight.
+            heads = steps is None and not _STRAIGHT_ON.search(text)
+            return [*self._toward(item.until), walk] if heads else [walk]
         if isinstance(item, ins.TakeOpening):
             return [_Task(Task.OPENING, side=item.side, nth=item.nth)]
         if isinstance(item, ins.Target):
@@ -425,7 +431,9 @@ class DialogDriver:
             if item.side is None:
                 # Told what to find: where it is in view, go up to it.
                 visible = self._in_view(item.label)
-                return [_Task(Task.WALK, until=item.label)] if visible and self._phase == Phase.NAVIGATING else []
+                if not visible or self._phase != Phase.NAVIGATING:
+                    return []
+                return [*self._toward(item.label), _Task(Task.WALK, until=item.label)]
             return [_Task(Task.TURN, turns=SIDE_STEPS[item.side] if item.side != Side.RIGHT else -2)] + [
                 _Task(Task.WALK, until=item.label)
             ]
@@ -522,6 +530,19 @@ class DialogDriver:
         self._turned += step
         self._done_words = f"turned {turn_words(self._turned)}" if self._turned else ""
         return RequestMove(Move.LEFT if step > 0 else Move.RIGHT)
+
+    def _toward(self, label: Label | None) -> list[_Task]:
+        """Where an object to walk up to is in view off to one side: the turn that brings it to the
+        middle of the view first (told "go to the paddle" with it at the edge of its view, it walked
+        straight on into the wall beside it)."""
+        view = self._view
+        if label not in OBJECT_LABELS or view is None:
+            return []
+        rays = np.flatnonzero(view.valid & (view.labels == label))
+        if not rays.size or (view.valid[CENTRE_RAYS] & (view.labels[CENTRE_RAYS] == label)).any():
+            return []
+        way = 1 if rays.mean() > (LEFT_EDGE + RIGHT_EDGE) / 2 else -1  # ray 0 is on the right
+        return [_Task(Task.TURN, turns=(HEADINGS - 1) * way, until=label, facing=True)]
 
     def _turned_to(self, label: Label, facing: bool) -> bool:
         """Whether a turn that goes on until `label` is in view (where `facing`: in the middle of

@@ -16,7 +16,7 @@ from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
 from sim.language import instructions as ins
-from sim.language.describe import near, seen
+from sim.language.describe import CENTRE_RAYS, near, seen
 from sim.language.driver_personas import DriverPersona
 from sim.language.driver_phrasing import PersonaDriverPhrasing
 from sim.language.meaning import Clause, Op
@@ -543,3 +543,23 @@ def test_turn_around_and_go_back_the_way_you_came_turns_around_once():
         ins.Turn(4),
         ins.Forward(18),
     ]
+
+
+def test_told_to_go_to_an_object_at_the_edge_of_its_view_it_turns_to_it_first(world):
+    """ "Great! Go to the paddle." with the paddle at the edge of its view: it walked straight on
+    into the wall beside it, and said it did not see the paddle ahead."""
+    _, graph, _ = world
+
+    def off_centre(pose: Pose) -> int:  # the side the jar is on, 0 where it is not off to one side
+        view = _rays(world, pose)
+        rays = np.flatnonzero(view.valid & (view.labels == Label.JAR))
+        if not rays.size or (view.labels[CENTRE_RAYS] == Label.JAR).any():
+            return 0
+        return 1 if rays.mean() > 6 else -1
+
+    pose = next(Pose(n, h) for n in range(graph.n) for h in range(8) if off_centre(Pose(n, h)))
+    driver = _navigating(world, pose)
+    (move,) = driver.perceive(Heard(Role.COMMANDER, "go to the jar"))
+    assert isinstance(move, RequestMove) and move.move == (Move.LEFT if off_centre(pose) > 0 else Move.RIGHT), move
+    _, said = _carry_out(_navigating(world, pose), world, pose, "go up to the jar of blocks")
+    assert said and "do not see" not in said[0], said
