@@ -78,6 +78,7 @@ LANDMARK_M = 0.5  # walls this close to the target name where it stands ("next t
 ALSO_NEAR_M = 0.1  # ... the nearest, and another no further than this beyond it
 REPHRASE_AFTER = 2  # instructions in a row not carried out: say the next one move at a time
 LOST_AFTER = 3  # ... stop guiding and ask
+CIRCLING_AFTER = 3  # the same instruction this many times in a row, each reported done: lost
 # A report of an instruction not carried out in full: the Driver stopped somewhere along the way.
 # Whole words: "hit" inside "white" made every report naming a white wall one not carried out.
 # "do not" only as the scripted Driver's "i do not see a red wall ahead": a person's "i don't think
@@ -174,6 +175,7 @@ class DialogCommander:
         self._why_not: str | None = None  # why it rejected the last claim on this target ("why not?")
         self._instructed: str | None = None  # the last instruction said
         self._question_out = False  # the last thing it said asks the Driver something
+        self._repeats = 0  # times in a row the last instruction was said again after a report
 
     # -- percepts -------------------------------------------------------------------------------
 
@@ -317,7 +319,7 @@ class DialogCommander:
         # now?" by the instruction itself ("right first. turn right" reads as two turns).
         if asked is not None and asked != Asked.WHICH_WAY:
             return turns + self._answer(asked, one_move=one_move)
-        return turns + self._guide(one_move=one_move)
+        return turns + self._guide(one_move=one_move, reported=True)
 
     def _claimed(self, claim: Claimed) -> list[Action]:
         if self._pending is not None:
@@ -550,10 +552,15 @@ class DialogCommander:
         places = closer if closer.size else places
         return int(places[self._dist[node, places].argmin()])
 
-    def _guide(self, prefix: str | None = None, one_move: bool = False, doubted: bool = False) -> list[Action]:
+    def _guide(
+        self, prefix: str | None = None, one_move: bool = False, doubted: bool = False, reported: bool = False
+    ) -> list[Action]:
         """The next instruction from the estimate, towards the target: a leg of the route, or after
         instructions not carried out, its first move alone in the simplest words; `doubted` (the
-        Driver questioned the last one before carrying it out): said whether it still stands."""
+        Driver questioned the last one before carrying it out): said whether it still stands;
+        `reported` (after a report of the last one done): the same instruction a third time in a
+        row is a belief gone wrong (a person was led round in circles by "go forward about 1 step,
+        then turn slightly left", four times): it says so and asks instead."""
         assert self._target is not None
         self._questions = 0
         self._asked.clear()
@@ -580,6 +587,11 @@ class DialogCommander:
             text = self._safer(self.router.instruction(estimate.pose, label, goal, plain=self._plain))
         if doubted:
             prefix = "by my map that is still the way" if text == self._instructed else "thanks, that changes it"
+        self._repeats = self._repeats + 1 if reported and text == self._instructed else 0
+        if self._repeats >= CIRCLING_AFTER - 1:
+            self._repeats = 0
+            self._elsewhere(DOUBTED)
+            return self._ask(prefix="i keep saying the same thing, so i may have lost you")
         self._instructed = text
         return self._say(f"{prefix}. {text}" if prefix else text, instruction=text)
 

@@ -638,3 +638,16 @@ def test_asked_whether_to_claim_far_from_the_target_it_says_not_yet_and_where(wo
     commander, _ = _navigating(world, _walk_pose(world, 3))
     said = _said(commander.perceive(Heard(Role.DRIVER, "should i press i found the target?")))
     assert said.startswith("not yet, by my map. i think the jar of blocks is"), said
+
+
+def test_the_same_instruction_a_third_time_after_reports_of_it_done_makes_it_ask(world, monkeypatch):
+    """A person was led round in circles by "go forward about 1 step, then turn slightly left",
+    said four times in a row, each reported done: the third time, it says so and asks instead."""
+    commander, first = _navigating(world, _walk_pose(world, 3))
+    same = "go forward about 1 step, then turn slightly left"
+    monkeypatch.setattr(commander.router, "instruction", lambda *args, **kwargs: same)
+    monkeypatch.setattr(commander, "_safer", lambda text: text)
+    assert _said(commander.perceive(Heard(Role.DRIVER, "done"))) == same
+    assert _said(commander.perceive(Heard(Role.DRIVER, "ok done"))) == same
+    said = _said(commander.perceive(Heard(Role.DRIVER, "done, red wall ahead")))
+    assert said.startswith("i keep saying the same thing, so i may have lost you") and said.endswith("?"), said
