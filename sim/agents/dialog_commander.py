@@ -89,6 +89,9 @@ _STUCK = re.compile(
 # A report that says it did what it was told: a wall right in front then is where the walk ended.
 _DONE = re.compile(r"\b(?:done|did (?:it|that)|finished)\b")
 MISCOUNT = math.log(0.1)  # a person's count of the steps it made before it stopped, one off
+# Questions on how to carry out the instruction out: asked before doing it, whatever else is said
+# ("ok. turn right how much, one click or two?").
+_HOW_TO = (Asked.TURN_SIZE, Asked.WHICH_ONE, Asked.LOOKS)
 # A question's sector as the Commander says it; never behind: a person in the Driver's seat cannot
 # see behind (and a Driver agent turns around and back to answer, eight scored moves).
 _YOUR_SIDE = {Sector.FRONT: "ahead of you", Sector.LEFT: "on your left", Sector.RIGHT: "on your right"}
@@ -253,8 +256,9 @@ class DialogCommander:
         asks_first = (
             instructed
             and not stuck
-            and (asked is not None or lexicon.has_question(text))
-            and not lexicon.reports_done(text)
+            and (
+                asked in _HOW_TO or (asked is not None or lexicon.has_question(text)) and not lexicon.reports_done(text)
+            )
         )
         understood = self._understanding.facts(text, self._before)
         read = None if understood.by_rules else belief_facts(understood.meaning)  # None: the lexicon's
@@ -271,6 +275,8 @@ class DialogCommander:
                 f if set(f.sectors) <= {Sector.FRONT, Sector.ANY} else replace(f, sectors=(Sector.FRONT, *f.sectors))
                 for f in view
             )
+        elif asks_first:  # what it sees from where it stands; its words of moves are the question's
+            self.belief.observe(view)
         else:
             self.belief.message("navigator", text, read)
             if self._looking:  # an object in view would have been named: those not named are not in view

@@ -461,6 +461,7 @@ _ASKED = (
             r"\bhow (?:many|much) degrees\b|\b(?:is that|is it|so|like|thats|that is|about) \d+ degrees\b"
             r"|\bhow (?:sharp(?:ly)?|much|far|many times) (?:do i |should i |to )?turn\b"
             r"|\bhow many (?:times|clicks|presses)\b|\bhow sharp(?:ly)?\b"
+            r"|\bturn (?:left|right) how (?:much|far|many)\b|\bone (?:click|press|time) or two\b"
         ),
     ),
     (
@@ -472,7 +473,13 @@ _ASKED = (
         ),
     ),
     # Asked, not said: "looks like a dead end" describes.
-    (Asked.LOOKS, re.compile(r"\b(?:what|how) (?:does|do|did|will) (?:\w+ ){0,4}look(?: like)?\b")),
+    (
+        Asked.LOOKS,
+        re.compile(
+            r"\b(?:what|how) (?:does|do|did|will) (?:\w+ ){0,4}look(?: like)?\b"
+            r"|\bhow (?:do|will|would|can) i (?:know|tell|recogni[sz]e)\b|\bwill i (?:actually |even )?see (?:it|the)\b"
+        ),
+    ),
     (Asked.WHY, re.compile(r"\bwhy\b")),
     (Asked.WHICH_ONE, re.compile(r"\bwhich (?:\w+ ){0,2}(?:wall|walls|one|ones|corner|corridor|opening|gap|turn)\b")),
     (
@@ -538,14 +545,18 @@ def not_understood(text: str) -> bool:
 
 _OBJECTS = "|".join(w for w, label in LABELS.items() if label in OBJECT_LABELS and w not in CAMERA_COLOUR_WORDS)
 # A Driver's words with its claim: "found it", "is this the jar?", "i think i'm at the cup?".
-_CLAIMS = re.compile(
-    rf"\bfound\b|\b(?:is this|this is|i am at|im at|i m at) the (?:{_OBJECTS})\b|\bi (?:am|m) there\b|\bim there\b"
-)
+_CLAIMS = re.compile(rf"\bfound\b|\b(?:i am at|im at|i m at) the (?:{_OBJECTS})\b")
+# ... said, not asked: "this is the jar", "i think i'm there" (not "how do i know when im there?").
+_CLAIMS_SAID = re.compile(rf"\bthis is the (?:{_OBJECTS})\b|\bi (?:am|m) there\b|\bim there\b")
 
 
 def claims(text: str) -> bool:
     """Whether a Driver's message goes with its claim of the target."""
-    return bool(_CLAIMS.search(" ".join(tokens(text))))
+    sentences = [s for s in re.split(r"(?<=[.,;!?])", text) if tokens(s)]
+    return any(
+        _CLAIMS.search(said := " ".join(tokens(s))) or (not is_question(s) and _CLAIMS_SAID.search(said))
+        for s in sentences
+    )
 
 
 def has_question(text: str) -> bool:

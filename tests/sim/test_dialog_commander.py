@@ -651,3 +651,25 @@ def test_the_same_instruction_a_third_time_after_reports_of_it_done_makes_it_ask
     assert _said(commander.perceive(Heard(Role.DRIVER, "ok done"))) == same
     said = _said(commander.perceive(Heard(Role.DRIVER, "done, red wall ahead")))
     assert said.startswith("i keep saying the same thing, so i may have lost you") and said.endswith("?"), said
+
+
+@pytest.mark.parametrize(
+    "question, answer",
+    [
+        ("ok. turn right how much, one click or two?", "turn right is 90 degrees: press right 2 times"),
+        (
+            "will i actually see the jar on my camera or how do i know when im there?",
+            "the jar of blocks is light blue in the camera",
+        ),
+    ],
+)
+def test_a_question_on_how_to_carry_out_the_instruction_is_answered_before_it_is_done(world, question, answer):
+    """ "ok. turn right how much, one click or two? and what does the mug look like" was taken for
+    the turn done; "... how do i know when im there?" for words with a claim, and got no reply."""
+    start = _walk_pose(world, 3)
+    commander, _ = _navigating(world, start)
+    instruction = "turn right, then go forward about 3 steps"
+    commander._instructed, commander._pending = instruction, ins.parse(instruction)
+    said = _said(commander.perceive(Heard(Role.DRIVER, question)))
+    assert said.startswith(answer), said
+    assert commander.estimate().pose == start
