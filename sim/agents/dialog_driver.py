@@ -84,6 +84,11 @@ _NEW_TARGET = re.compile(
     re.I,
 )
 _STRAIGHT_ON = re.compile(r"\b(?:until|till|til|straight|forward)\b", re.I)
+_AGREEMENT = re.compile(
+    r"^\W*(?:(?:yes|yeah|yep|yup|correct|exactly|ok|okay|good|great)\W+)*"
+    r"(?:(?:that|this|it)\W*(?:is|s|was)?\W*(?:the\W+)?right(?:\W+(?:way|one|direction|path|spot))?|correct|exactly)\W*$",
+    re.I,
+)
 _AGREE = lexicon.YES - {"right"}  # "right" after "turning left?" may be the other way
 
 
@@ -188,6 +193,8 @@ class DialogDriver:
         self._plan: deque[_Task] = deque()
         self._moving = False  # a move is out; wait for its outcome and frame
         self._target: Label | None = None
+        self._claimed: Label | None = None  # what its claim out names
+        self._found: set[Label] = set()  # targets confirmed: none is sought or claimed again
         self._claiming = False
         self._paused = False
         self._claim_on_resume = False  # its claim was refused while paused: claim again once it runs
@@ -233,6 +240,8 @@ class DialogDriver:
         if isinstance(percept, Judged):
             self._claiming = False
             if percept.confirmed:
+                if self._claimed is not None:
+                    self._found.add(self._claimed)
                 return []
             self._rejected_at.add(self._odo.here)
             return [self._say(NotHere())]
@@ -291,6 +300,10 @@ class DialogDriver:
             if _moves(correction) or _CLAIM in correction:  # "no. you are at the paddle. claim it"
                 return self._follow(correction, text, said_unclear=False)
             return [self._say(Troubled(Trouble.NOT_MEANT))]
+        elif self._phase == Phase.NAVIGATING and _AGREEMENT.match(text.strip()):
+            # "Yes, that is right.", "that is the right way": agreement, not a turn nor a claim (the
+            # reader read one or the other, and a person's agent turned 90 or 135 degrees).
+            return []
         elif self._phase == Phase.NAVIGATING:
             rules = program_of(ins.parse(text))  # the rules' reading: a second opinion, read once
             unsure = understood.confidence < ASK_BELOW or understood.ambiguous
@@ -421,7 +434,8 @@ class DialogDriver:
         if isinstance(item, ins.TakeOpening):
             return [_Task(Task.OPENING, side=item.side, nth=item.nth)]
         if isinstance(item, ins.Target):
-            if self._target not in (None, item.label) and not _NEW_TARGET.search(text):
+            found = item.label in self._found  # "great, that's the jar!" after its confirmation: not again
+            if found or self._target not in (None, item.label) and not _NEW_TARGET.search(text):
                 # Another object than this leg's target, named but not to find, places the robot ("i
                 # think you are facing the red wall near the mug", "you are next to the jar"): said
                 # whether it is seen, and nothing more (a person's words made the agent look all
@@ -505,7 +519,7 @@ class DialogDriver:
         if task.kind == Task.CLAIM:
             if self._phase != Phase.NAVIGATING:
                 return self._say(Troubled(Trouble.NOT_PLACED))
-            self._claiming = True
+            self._claiming, self._claimed = True, self._target
             return [self._say(Claiming(self._target)), Claim()]
         if not task.text:
             self._failed = 0  # an instruction set carried out to its end

@@ -563,3 +563,24 @@ def test_told_to_go_to_an_object_at_the_edge_of_its_view_it_turns_to_it_first(wo
     assert isinstance(move, RequestMove) and move.move == (Move.LEFT if off_centre(pose) > 0 else Move.RIGHT), move
     _, said = _carry_out(_navigating(world, pose), world, pose, "go up to the jar of blocks")
     assert said and "do not see" not in said[0], said
+
+
+@pytest.mark.parametrize("text", ["Yes, that is right.", "that is the right way", "correct, that is right"])
+def test_agreement_is_neither_a_turn_nor_a_claim(world, text):
+    """A person's "Yes, that is right." made the agent turn right 90 degrees, "that is the right
+    way" 135."""
+    driver = _navigating(world, _at_object(world))
+    turns = driver.perceive(Heard(Role.COMMANDER, text))
+    assert not any(isinstance(t, RequestMove | Claim) for t in turns), turns
+
+
+def test_a_confirmed_target_named_again_is_not_claimed_again(world):
+    """Right after the jar was confirmed, "great, that's the jar!" made it claim the jar again,
+    as the next target."""
+    driver = _navigating(world, _at_object(world))
+    turns = driver.perceive(Heard(Role.COMMANDER, "now find the jar"))
+    assert any(isinstance(t, Claim) for t in turns), turns
+    driver.perceive(Judged(True, 0))
+    driver.perceive(PhaseBegan(Phase.NAVIGATING, 1, 3))
+    turns = driver.perceive(Heard(Role.COMMANDER, "great, you are at the jar of blocks!"))
+    assert not any(isinstance(t, Claim | RequestMove) for t in turns), turns
