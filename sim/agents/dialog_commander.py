@@ -234,8 +234,8 @@ class DialogCommander:
         instructed = navigating and self._pending is not None and not doubted
         if instructed and (reading := lexicon.asked_back(text)) is not None:
             return self._confirm(reading)  # nothing done yet: yes, or no and the instruction again
-        # ("did it gren wall in front" is a report, its "did" no question.)
-        # An answer to its own question may end in "?" ("I think so?").
+        # Not a question however it reads: a report ("did it gren wall in front"), or an answer to its
+        # own question ("I think so?").
         unknown = asked is None and (lexicon.reports_done(text) or self._question_out)
         if lexicon.only_asks(text) and navigating and not doubted and not unknown:
             # It reports nothing done: the belief stays where it was. (A question it has no answer
@@ -245,14 +245,14 @@ class DialogCommander:
         blocked = lexicon.blocked(text)  # its way forward is barred where it stands
         short = lexicon.fell_short(text) or bool(_STUCK.search(lowered))
         stuck = short or (blocked and not _DONE.search(lowered))
-        # A question about the instruction out, with what the Driver sees, before carrying it out
-        # ("theres a blue wall on my right, wont i just hit it?"): not a report of it done. (It was
-        # taken for one, and the next instruction was given from where the robot was not.)
         if instructed and not stuck and lexicon.not_understood(text):
             # Nothing done: said again from where it still is, one move in the simplest words (it
             # was taken for the instruction carried out).
             self._stuck += 1
             return self._guide(prefix="sorry. let me say it more simply", one_move=True)
+        # A question about the instruction out, with what the Driver sees, before carrying it out
+        # ("theres a blue wall on my right, wont i just hit it?"): not a report of it done. (It was
+        # taken for one, and the next instruction was given from where the robot was not.)
         asks_first = (
             instructed
             and not stuck

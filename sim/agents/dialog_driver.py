@@ -76,8 +76,7 @@ _NO_WORD = re.compile(rf"^\W*(?:no+|n|{'|'.join(sorted(lexicon.NO))})\b\W*", re.
 
 
 # Words that name a new thing to find ("now find the mug", "i meant the jar"): only these change the
-# target in the middle of a leg.
-# "next to the jar" places the robot.
+# target in the middle of a leg ("next to the jar" places the robot).
 _NEW_TARGET = re.compile(
     r"\b(?:find|look(?:ing)? for|search|next (?:one|target|objective|goal|thing|object)|target|objective|goal"
     r"|instead|i mean|meant)\b",

@@ -455,8 +455,8 @@ _ASKED = (
         ),
     ),
     (
-        Asked.TURN_SIZE,  # before "how many": how far to turn, not to go
-        # Asked, not said: "turned right 45 degrees" reports.
+        # Before "how many": how far to turn, not to go. Asked, not said: "turned right 45 degrees" reports.
+        Asked.TURN_SIZE,
         re.compile(
             r"\bhow (?:many|much) degrees\b|\b(?:is that|is it|so|like|thats|that is|about) \d+ degrees\b"
             r"|\bhow (?:sharp(?:ly)?|much|far|many times) (?:do i |should i |to )?turn\b"
