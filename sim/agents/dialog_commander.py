@@ -214,7 +214,8 @@ class DialogCommander:
 
     def _heard(self, text: str) -> list[Action]:
         lowered = text.lower()
-        if lexicon.claims(text) and lexicon.asks(text) != Asked.SHOULD_CLAIM:
+        asked = lexicon.asks(text)
+        if lexicon.claims(text) and asked != Asked.SHOULD_CLAIM:
             return []  # a claim is on its way
         checked, self._checking = self._checking, False
         # Its mark doubted: the check answered no or unsure ("sort of?"), or the Driver says it is
@@ -229,7 +230,6 @@ class DialogCommander:
             doubted = None
         if doubted:
             self._elsewhere(DOUBTED)
-        asked = lexicon.asks(text)
         navigating = self._phase == Phase.NAVIGATING and self._target is not None
         instructed = navigating and self._pending is not None and not doubted
         if instructed and (reading := lexicon.asked_back(text)) is not None:
@@ -253,13 +253,8 @@ class DialogCommander:
         # A question about the instruction out, with what the Driver sees, before carrying it out
         # ("theres a blue wall on my right, wont i just hit it?"): not a report of it done. (It was
         # taken for one, and the next instruction was given from where the robot was not.)
-        asks_first = (
-            instructed
-            and not stuck
-            and (
-                asked in _HOW_TO or (asked is not None or lexicon.has_question(text)) and not lexicon.reports_done(text)
-            )
-        )
+        asking = asked is not None or lexicon.has_question(text)
+        asks_first = instructed and not stuck and (asked in _HOW_TO or asking and not lexicon.reports_done(text))
         understood = self._understanding.facts(text, self._before)
         read = None if understood.by_rules else belief_facts(understood.meaning)  # None: the lexicon's
         view = lexicon.facts(text) if read is None else read
@@ -310,7 +305,7 @@ class DialogCommander:
         if asks_first and estimate.spread_m <= LOST_M:
             if asked is not None and asked not in (Asked.WHICH_WAY, Asked.WHY):
                 return turns + self._answer(asked)
-            return turns + self._guide(doubted=True)
+            return turns + self._guide(questioned=True)
         lost = estimate.spread_m > LOST_M
         if (lost or self._stuck >= LOST_AFTER) and self._questions < MAX_QUESTIONS:
             self._stuck = 0
@@ -559,10 +554,10 @@ class DialogCommander:
         return int(places[self._dist[node, places].argmin()])
 
     def _guide(
-        self, prefix: str | None = None, one_move: bool = False, doubted: bool = False, reported: bool = False
+        self, prefix: str | None = None, one_move: bool = False, questioned: bool = False, reported: bool = False
     ) -> list[Action]:
         """The next instruction from the estimate, towards the target: a leg of the route, or after
-        instructions not carried out, its first move alone in the simplest words; `doubted` (the
+        instructions not carried out, its first move alone in the simplest words; `questioned` (the
         Driver questioned the last one before carrying it out): said whether it still stands;
         `reported` (after a report of the last one done): the same instruction a third time in a
         row is a belief gone wrong (a person was led round in circles by "go forward about 1 step,
@@ -591,7 +586,7 @@ class DialogCommander:
             text = self._safer(self.router.one_move(estimate.pose, label, goal))
         else:
             text = self._safer(self.router.instruction(estimate.pose, label, goal, plain=self._plain))
-        if doubted:
+        if questioned:
             prefix = "by my map that is still the way" if text == self._instructed else "thanks, that changes it"
         self._repeats = self._repeats + 1 if reported and text == self._instructed else 0
         if self._repeats >= CIRCLING_AFTER - 1:

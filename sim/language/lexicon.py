@@ -430,7 +430,9 @@ class Asked(StrEnum):
 
 
 # First match wins: "where am i" before "where to", "what do i look for" before "what does it look like".
-_TARGET_WORDS = r"(?:jar|blocks|mug|cup|paddle|bat|racket|target|objective|goal)"
+# The landmarks by any of their names ("cup", "bat", "pong"), and the target by its roles.
+_OBJECTS = "|".join(w for w, label in LABELS.items() if label in OBJECT_LABELS and w not in CAMERA_COLOUR_WORDS)
+_TARGET_WORDS = rf"(?:{_OBJECTS}|target|objective|goal)"
 _ASKED = (
     (Asked.WHERE_AM_I, re.compile(r"\bwhere (?:am i|are we|i am)\b")),
     (
@@ -468,7 +470,7 @@ _ASKED = (
         Asked.HOW_FAR,  # and where the target is, or what to look for: the same answer
         re.compile(
             r"\bhow (?:far|many|much|long)\b|\b(?:is it|am i|are we) (?:close|near|far)\b"
-            r"|\bwhere(?:s| is)?(?: the| my)? (?:jar|blocks|mug|cup|paddle|bat|racket|target|objective|goal|it)\b"
+            rf"|\bwhere(?:s| is)?(?: the| my)? (?:{_TARGET_WORDS}|it)\b"
             r"|\bwhat (?:do|should) i (?:look|search) for\b|\bwhat am i looking for\b"
         ),
     ),
@@ -543,7 +545,6 @@ def not_understood(text: str) -> bool:
     return bool(_NOT_UNDERSTOOD.search(" ".join(tokens(text))))
 
 
-_OBJECTS = "|".join(w for w, label in LABELS.items() if label in OBJECT_LABELS and w not in CAMERA_COLOUR_WORDS)
 # A Driver's words with its claim: "found it", "is this the jar?", "i think i'm at the cup?".
 _CLAIMS = re.compile(rf"\bfound\b|\b(?:i am at|im at|i m at) the (?:{_OBJECTS})\b")
 # ... said, not asked: "this is the jar", "i think i'm there" (not "how do i know when im there?").
