@@ -83,12 +83,13 @@ _NEW_TARGET = re.compile(
     re.I,
 )
 _STRAIGHT_ON = re.compile(r"\b(?:until|till|til|straight|forward)\b", re.I)
+_AGREE = lexicon.YES - {"right"}  # "right" after "turning left?" may be the other way
+# A message that only agrees ("Yes, that is right.", "that is the right way"): no turn, no claim.
 _AGREEMENT = re.compile(
-    r"^\W*(?:(?:yes|yeah|yep|yup|correct|exactly|ok|okay|good|great)\W+)*"
+    rf"^\W*(?:(?:{'|'.join(sorted(_AGREE))}|ok|okay|good|great|exactly)\W+)*"
     r"(?:(?:that|this|it)\W*(?:is|s|was)?\W*(?:the\W+)?right(?:\W+(?:way|one|direction|path|spot))?|correct|exactly)\W*$",
     re.I,
 )
-_AGREE = lexicon.YES - {"right"}  # "right" after "turning left?" may be the other way
 
 
 def _answer(program: Program, text: str) -> Clause | None:
@@ -552,7 +553,7 @@ class DialogDriver:
         if label not in OBJECT_LABELS or view is None:
             return []
         rays = np.flatnonzero(view.valid & (view.labels == label))
-        if not rays.size or (view.valid[CENTRE_RAYS] & (view.labels[CENTRE_RAYS] == label)).any():
+        if not rays.size or self._turned_to(label, facing=True):
             return []
         way = 1 if rays.mean() > (LEFT_EDGE + RIGHT_EDGE) / 2 else -1  # ray 0 is on the right
         return [_Task(Task.TURN, turns=(HEADINGS - 1) * way, until=label, facing=True)]

@@ -64,7 +64,6 @@ class TakeOpening:
 class Target:
     label: Label  # "the next objective is a mug"
     side: Side | None = None  # "the mug is on your right"
-    expected: bool = False  # said to be in view ("you are facing the mug"), not named to find
 
 
 @dataclass(frozen=True)

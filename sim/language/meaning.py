@@ -161,9 +161,9 @@ def _clause(instruction: ins.Instruction) -> Clause:
             return Clause.of(Op.FORWARD, steps=steps, until=None if until is None else until.word)
         case ins.TakeOpening(side, nth):
             return Clause.of(Op.OPENING, side=side.value, nth=nth)
-        case ins.Target(label, None, False):
+        case ins.Target(label, None):
             return Clause.of(Op.TARGET, label=label.word)
-        case ins.Target(label, side, _):
+        case ins.Target(label, side):
             return Clause.of(Op.EXPECT, label=label.word, side=_side(side))
         case ins.Ask(question, side, label, look_around):
             asked = "look_around" if look_around else _QUESTION[question]

@@ -457,7 +457,7 @@ def instructions(program: Program, text: str) -> list[ins.Instruction]:
             case Op.EXPECT:
                 label = _label(args["label"])
                 if label in OBJECT_LABELS:
-                    out.append(ins.Target(label, _side(args["side"]), expected=True))
+                    out.append(ins.Target(label, _side(args["side"])))
             case Op.ASK:
                 question = str(args["question"])
                 out.append(
