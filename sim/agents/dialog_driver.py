@@ -103,6 +103,23 @@ def _answer(program: Program, text: str) -> Clause | None:
     return _YES if words[0] in _AGREE else _NO if words[0] in lexicon.NO else None
 
 
+# A clause that asks something of the view ("then tell me what you see", "what's on your left?"),
+# where "could you ...?" only asks politely.
+_ASKS = re.compile(r"\b(?:what|whats|where|which|how|describe|tell me|see|any|is there|are there)\b")
+
+
+def _asked_in(text: str) -> Program:
+    """The questions of a message's clauses, each read alone: the message's moves do not make
+    its side or its look all around ("turn around and tell me what you see")."""
+    return tuple(
+        clause
+        for part in ins.clauses(text)
+        if _ASKS.search(part)
+        for clause in program_of(ins.parse(part))
+        if clause.op == Op.ASK
+    )
+
+
 def _moves(program: Program) -> int:
     """How many of a program's clauses move the robot."""
     return sum(c.op in MOVING_OPS for c in program)
@@ -319,14 +336,21 @@ class DialogDriver:
                 # reader heard "got it, you found it, ..." as what it should see).
                 return self._follow(rules, text, said_unclear=False)
             if not _moves(rules) and any(c.op == Op.ASK for c in rules) and _moves(program):
-                # A question ("can you see the mug anywhere? maybe look around") the reader read
-                # moves into: answered, with no move it was not asked for, and the reader's moves
-                # asked about (a person's "go straight like 10 steps and tell me what u see" got
-                # the view alone, twice, with no word of the walk).
-                answered = self._follow(rules, text, said_unclear=False)
-                if self._plan or self._moving:  # it turns to look first: the walk is left unsaid
-                    return answered
-                return answered + self._ask(program, text, quoted=text.strip())
+                if not unsure:
+                    # The rules hear a whole message as a question where it has one in it, or is a
+                    # polite request ("could you turn around and go to the red wall?", "turn left,
+                    # 3 steps, then tell me what you see"): the moves the reader is sure of, then
+                    # the questions its clauses ask, answered from where the moves end (a person's
+                    # polite messages got "do you mean: ...?" one time in three, and "turn around
+                    # and tell me what you see" a look all around).
+                    program += tuple(c for c in _asked_in(text) if c not in program)
+                else:
+                    # A question the reader read moves into, unsure: answered, with no move it was
+                    # not asked for, and the reader's moves asked about.
+                    answered = self._follow(rules, text, said_unclear=False)
+                    if self._plan or self._moving:  # it turns to look first: the walk is left unsaid
+                        return answered
+                    return answered + self._ask(program, text, quoted=text.strip())
             if not program and rules == (_UNCLEAR,):
                 program = rules  # words the reader read nothing in and the rules find no chat in ("say found")
             if program == (_HOLD,) and not rules:

@@ -427,25 +427,31 @@ def test_a_count_said_before_the_turn_it_did_get_is_asked_about_before_it_moves(
     assert pose == Pose(ahead, 2) and said[0].startswith("ok, turned left 90 degrees,"), said
 
 
-def test_a_walk_said_with_a_question_it_answers_alone_is_asked_about_not_dropped(world):
+@pytest.mark.parametrize(
+    "text",
+    [
+        "go straight ahead like 3 steps and tell me what u see",
+        "Great, thank you! Could you please go forward 3 steps and then tell me what you see?",
+    ],
+)
+def test_a_walk_said_with_a_question_is_walked_and_the_view_told_from_where_it_ends(world, text):
     """A person's "go straight ahead like 10 steps and tell me what u see" got the view alone, twice,
-    with no word of the walk: the view comes, then its reading of the walk is asked about."""
+    with no word of the walk; polite requests worded as questions got "do you mean: ...?" about one
+    time in three."""
     _, graph, _ = world
-    pose = Pose(
-        next(n for n in range(graph.n) if graph.forward[n, 0] >= 0 and graph.forward[graph.forward[n, 0], 0] >= 0), 0
-    )
-    driver = DialogDriver(0)
-    driver.reset(SeatInfo(Role.DRIVER, 3))
-    driver.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
-    driver.perceive(Saw(0, _rays(world, pose)))
-    driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
-    said = driver.perceive(Heard(Role.COMMANDER, "go straight ahead like 10 steps and tell me what u see"))
-    assert not any(isinstance(t, RequestMove) for t in said)
-    texts = [t.text for t in said if isinstance(t, Say)]
-    assert len(texts) == 2 and "ahead" in texts[0] and "do you mean: forward 10 steps?" in texts[1], texts
-    assert not any("done" in t or t.startswith("ok") for t in texts), "nothing was done"
-    moved = driver.perceive(Heard(Role.COMMANDER, "yes"))
-    assert moved and isinstance(moved[0], RequestMove) and moved[0].move == Move.FORWARD, moved
+    start = _room_for(graph, 3, 0)
+    driver = _navigating(world, start)
+    pose, said = _carry_out(driver, world, start, text)
+    assert pose == Pose(_ahead(graph, start.node, 0, 3), 0), said
+    assert "ahead" in said[-1] and not any("do you mean" in s for s in said), said
+
+
+def test_turn_around_and_tell_me_what_you_see_turns_half_way_round_and_tells(world):
+    """A person's "Turn around and tell me what you see" made the agent look all around (eight moves)."""
+    _, graph, _ = world
+    start = _room_for(graph, 1, 0)
+    pose, said = _carry_out(_navigating(world, start), world, start, "Turn around and tell me what you see.")
+    assert pose == Pose(start.node, 4) and "ahead" in said[-1] and not any("do you mean" in s for s in said), said
 
 
 def test_another_object_said_to_be_in_view_is_answered_not_sought_or_claimed(world):
