@@ -120,6 +120,10 @@ def _asked_in(text: str) -> Program:
     )
 
 
+def _sees(view: RayObservation | None, label: Label) -> bool:
+    return view is not None and any(s.label == label for s in seen(view))
+
+
 def _moves(program: Program) -> int:
     """How many of a program's clauses move the robot."""
     return sum(c.op in MOVING_OPS for c in program)
@@ -700,7 +704,17 @@ class DialogDriver:
         if self._odo.heading != facing:  # the shorter way round to the next side to see, then back
             return RequestMove(Move.LEFT if (facing - self._odo.heading) % HEADINGS <= 4 else Move.RIGHT)
         if ask.question == ins.AskedAbout.IS_THERE and ask.label is not None:
-            return self._say(Answered(ask.label, sides[0], around[sides[0]]))
+            if ask.side is not None:
+                return self._say(Answered(ask.label, ask.side, around[ask.side]))
+            # "can you see the mug anywhere?": every side it has looked at from here (a person's got
+            # "no" from the view ahead with the mug on its left); not seen, it offers to look around
+            # rather than spend eight scored moves unasked.
+            side = next((s for s in around if _sees(around[s], ask.label)), Side.AHEAD)
+            unlooked = () if _sees(around[side], ask.label) else tuple(s for s in Side if s not in around)
+            if unlooked:
+                look = Clause.of(Op.ASK, question="look_around", side=None, label=ask.label.word)
+                self._offered = ((look,), "look around")  # a "yes" looks
+            return self._say(Answered(ask.label, side, around[side], anywhere=True, unlooked=unlooked))
         if ask.question == ins.AskedAbout.VIEW and not ask.look_around:
             return self._say(Described(around, look_around=False))  # all it has seen from here
         return self._say(Described({s: around[s] for s in sides}, look_around=ask.look_around))

@@ -47,6 +47,8 @@ class Answered:
     label: Label
     side: Side
     view: View
+    anywhere: bool = False  # asked with no side: every side it has looked at (`side`: where it is seen)
+    unlooked: tuple[Side, ...] = ()  # asked anywhere and not seen: the sides it has not looked at
 
 
 @dataclass(frozen=True)
@@ -175,10 +177,18 @@ class ScriptedDriverPhrasing:
         match fact:
             case Described(views=views):
                 return describe(views)
-            case Answered(label=label, side=side, view=view):
+            case Answered(label=label, side=side, view=view, anywhere=anywhere, unlooked=unlooked):
                 if (hit := _yes(label, view)) is not None:
                     return f"yes, {'close' if hit.depth <= NEAR_M else 'far'} {wall_name(label)} {SIDE_PHRASE[side]}"
-                return f"no, no {wall_name(label)} {SIDE_PHRASE[side]}. {describe({side: view})}"
+                if not anywhere:
+                    return f"no, no {wall_name(label)} {SIDE_PHRASE[side]}. {describe({side: view})}"
+                if not unlooked:
+                    return f"no, i do not see the {wall_name(label)} on any side. {describe({side: view})}"
+                where = " or ".join(SIDE_PHRASE[s].removeprefix("on my ") for s in unlooked)
+                return (
+                    f"no, no {wall_name(label)} {SIDE_PHRASE[side]}. {describe({side: view})} "
+                    f"i have not looked {where}. should i look around?"
+                )
             case Done(did=did, view=view, unread=unread, offer=offer):
                 then = self._rng.choice(NEXT)
                 if unread:

@@ -385,6 +385,35 @@ def test_a_question_is_answered_with_no_move_it_was_not_asked_for(world):
     assert not [t for t in turns if isinstance(t, RequestMove)] and [t for t in turns if isinstance(t, Say)], turns
 
 
+def test_asked_if_it_sees_an_object_anywhere_it_answers_from_every_side_it_has_looked_at(world):
+    """A person's "can you see the mug anywhere?" got "no" from the view ahead, with the mug on the
+    agent's left where it had just looked; not seen, it offers to look around and does when told yes."""
+    _, graph, _ = world
+    start = next(
+        Pose(n, 0)
+        for n in range(graph.n)
+        if _sees(world, Pose(n, 2), Label.MUG) and not any(_sees(world, Pose(n, h), Label.MUG) for h in (0, 1))
+    )
+    driver = _navigating(world, start)
+    pose, said = _carry_out(driver, world, start, "what is on your left?")
+    assert pose == start, said
+    _, said = _carry_out(driver, world, pose, "can you see the mug anywhere?")
+    assert len(said) == 1 and said[0].startswith("yes") and said[0].endswith("mug on my left"), said
+
+    elsewhere = next(
+        Pose(n, 0)
+        for n in range(graph.n)
+        if not any(_sees(world, Pose(n, h), Label.MUG) for h in (0, 1, 7)) and _sees(world, Pose(n, 4), Label.MUG)
+    )
+    driver = _navigating(world, elsewhere)
+    turns = driver.perceive(Heard(Role.COMMANDER, "can you see the mug anywhere?"))
+    assert not any(isinstance(t, RequestMove) for t in turns), "no scored move unasked"
+    (answer,) = [t.text for t in turns if isinstance(t, Say)]
+    assert answer.startswith("no, no coffee mug ahead") and answer.endswith("should i look around?"), answer
+    pose, said = _carry_out(driver, world, elsewhere, "yes")
+    assert pose.node == elsewhere.node and "mug behind me" in said[0], said
+
+
 @pytest.mark.parametrize("text", ["say found", "thats the target", "this is it", "press found"])
 def test_told_in_other_words_that_it_is_there_it_claims(world, text):
     _, graph, _ = world
