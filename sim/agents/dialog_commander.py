@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections import deque
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -78,7 +79,10 @@ LANDMARK_M = 0.5  # walls this close to the target name where it stands ("next t
 ALSO_NEAR_M = 0.1  # ... the nearest, and another no further than this beyond it
 REPHRASE_AFTER = 2  # instructions in a row not carried out: say the next one move at a time
 LOST_AFTER = 3  # ... stop guiding and ask
-CIRCLING_AFTER = 3  # the same instruction this many times in a row, each reported done: lost
+# The same instruction this many times within the last CIRCLING_WITHIN said in a row, each after a
+# report of the last one done: lost, going round in circles.
+CIRCLING_AFTER = 3
+CIRCLING_WITHIN = 5
 # A report of an instruction not carried out in full: the Driver stopped somewhere along the way.
 # Whole words: "hit" inside "white" made every report naming a white wall one not carried out.
 # "do not" only as the scripted Driver's "i do not see a red wall ahead": a person's "i don't think
@@ -178,7 +182,8 @@ class DialogCommander:
         self._why_not: str | None = None  # why it rejected the last claim on this target ("why not?")
         self._instructed: str | None = None  # the last instruction said
         self._question_out = False  # the last thing it said asks the Driver something
-        self._repeats = 0  # times in a row the last instruction was said again after a report
+        # The last instructions said in a row, each after a report of the last one done.
+        self._reported: deque[str] = deque(maxlen=CIRCLING_WITHIN)
 
     # -- percepts -------------------------------------------------------------------------------
 
@@ -588,13 +593,24 @@ class DialogCommander:
             text = self._safer(self.router.instruction(estimate.pose, label, goal, plain=self._plain))
         if questioned:
             prefix = "by my map that is still the way" if text == self._instructed else "thanks, that changes it"
-        self._repeats = self._repeats + 1 if reported and text == self._instructed else 0
-        if self._repeats >= CIRCLING_AFTER - 1:
-            self._repeats = 0
+        if self._circling(text, reported):
             self._elsewhere(DOUBTED)
-            return self._ask(prefix="i keep saying the same thing, so i may have lost you")
+            return self._ask(prefix="i keep saying the same things, so i may have lost you")
         self._instructed = text
         return self._say(f"{prefix}. {text}" if prefix else text, instruction=text)
+
+    def _circling(self, text: str, reported: bool) -> bool:
+        """Whether the instruction `text`, said after a report of the last one done, goes round in
+        circles: said a third time in a short row of such (a person was led round by "go forward
+        about 1 step, then turn slightly left", four times, and another by two that alternated)."""
+        if not reported:
+            self._reported.clear()
+            return False
+        self._reported.append(text)
+        if self._reported.count(text) < CIRCLING_AFTER:
+            return False
+        self._reported.clear()
+        return True
 
     def _safer(self, text: str) -> str:
         """`text` where the belief gives its counted walk little chance of meeting a wall before its

@@ -653,17 +653,28 @@ def test_asked_whether_to_claim_far_from_the_target_it_says_not_yet_and_where(wo
     assert said.startswith("not yet, by my map. i think the jar of blocks is"), said
 
 
-def test_the_same_instruction_a_third_time_after_reports_of_it_done_makes_it_ask(world, monkeypatch):
+@pytest.mark.parametrize(
+    "instructions",
+    [
+        ["go forward about 1 step, then turn slightly left"],
+        ["turn left, then go forward until the red wall", "turn right, then go forward until the blue wall"],
+    ],
+)
+def test_an_instruction_a_third_time_in_a_short_row_after_reports_of_it_done_makes_it_ask(
+    world, monkeypatch, instructions
+):
     """A person was led round in circles by "go forward about 1 step, then turn slightly left",
-    said four times in a row, each reported done: the third time, it says so and asks instead."""
+    said four times in a row, each reported done; another by two instructions that alternated. The
+    third time, it says so and asks instead."""
     commander, first = _navigating(world, _walk_pose(world, 3))
-    same = "go forward about 1 step, then turn slightly left"
-    monkeypatch.setattr(commander.router, "instruction", lambda *args, **kwargs: same)
+    said_next = iter(instructions * 3)
+    monkeypatch.setattr(commander.router, "instruction", lambda *args, **kwargs: next(said_next))
     monkeypatch.setattr(commander, "_safer", lambda text: text)
-    assert _said(commander.perceive(Heard(Role.DRIVER, "done"))) == same
-    assert _said(commander.perceive(Heard(Role.DRIVER, "ok done"))) == same
-    said = _said(commander.perceive(Heard(Role.DRIVER, "done, red wall ahead")))
-    assert said.startswith("i keep saying the same thing, so i may have lost you") and said.endswith("?"), said
+    rounds = 2 * len(instructions)  # each said twice
+    for k, report in enumerate(["done", "ok done", "done, red wall ahead", "did it"][:rounds]):
+        assert _said(commander.perceive(Heard(Role.DRIVER, report))) == instructions[k % len(instructions)]
+    said = _said(commander.perceive(Heard(Role.DRIVER, "done")))
+    assert said.startswith("i keep saying the same things, so i may have lost you") and said.endswith("?"), said
 
 
 @pytest.mark.parametrize(
