@@ -38,6 +38,7 @@ from sim.language.vocab import (
     SIDE_PHRASE,
     SIDE_SECTOR,
     Side,
+    number,
     times_turned,
     wall_name,
     words,
@@ -78,6 +79,8 @@ class Understanding:
         """A Commander turn; `before` the turn before it as ("c" or "d", text)."""
         if self.commander_reader is None:
             return Understood(program_of(ins.parse(text)), 1.0, True)
+        if (pressed := self._pressed(text, before)) is not None:
+            return Understood(pressed, 1.0, False)
         reading = self.commander_reader.read(text, before)
         assert isinstance(reading.meaning, tuple)  # a Commander reader writes programs
         read = _turned_as_often(_turned_around_as_said(reading.meaning, text), text)
@@ -87,6 +90,28 @@ class Understanding:
         program = _walks_as_said(_turned_between(_pairs_as_said(program, said), said), text, said)
         program = _facing_as_said(program, said)
         return Understood(program, reading.confidence, False, reading.strange_lead, ambiguous=sided != read)
+
+    def _pressed(self, text: str, before: tuple[str, str] | None) -> Program | None:
+        """A message that counts presses of the Driver's buttons ("press left twice", "click forward
+        3 times, then right once"), clause by clause: each press one move, a step or a turn of 45
+        degrees (the reader read "press left twice" as two quarter turns, "press forward" as a walk
+        to the wall, and "click forward 4 times" as nothing). Clauses with no press are read as
+        alone; None where no button is pressed."""
+        parts = [(part, " ".join(words(part))) for part in ins.clauses(text)]
+        if not any(_press_verb(said) for _, said in parts):
+            return None
+        out: list[Clause] = []
+        pressing = False
+        for part, said in parts:
+            verb = _press_verb(said)
+            pressing = pressing or verb is not None
+            if verb is not None:
+                out += _presses(said[verb.end() :])
+            elif pressing and _BARE_PRESS.fullmatch(said):  # "..., then left once"
+                out += _presses(said)
+            elif said:
+                out += [c for c in self.program(part, before).meaning if c.op != Op.UNCLEAR]
+        return tuple(out)
 
     def mended(self, text: str) -> Program:
         """The best reading to offer where the whole reading missed a turn the rules hear (`turns_missed`):
@@ -126,6 +151,37 @@ class Understanding:
         reading = self.driver_reader.read(text, before)
         assert isinstance(reading.meaning, frozenset)  # a Driver reader writes facts
         return Understood(_joined(reading.meaning, facts_of(text, asked), text), reading.confidence, False)
+
+
+_PRESS = re.compile(
+    r"\b(?:press|pressing|click|clicking|tap|tapping|hit|hitting)\b(?= (?:\w+ ){0,2}(?:forward|up|left|right)\b)"
+)
+_BUTTON = re.compile(
+    r"\b(forward|up|left|right)(?: (?:button|arrow|key))?(?: (once|twice|thrice|\d+|\w+)(?: (?:times|time|x))?)?"
+)
+_BARE_PRESS = re.compile(
+    r"(?:then |and |now )?(?:the )?(?:forward|up|left|right)(?: (?:button|arrow|key))?(?: \w+(?: times| time| x)?)?"
+)
+_PRESSES = {"once": 1, "twice": 2, "thrice": 3}
+_WALK_ON = re.compile(r"\b(?:until|till|til|untill|all the way)\b")
+
+
+def _press_verb(said: str) -> re.Match[str] | None:
+    """Where words press a button; none in "press forward until the red wall", a walk."""
+    return None if _WALK_ON.search(said) else _PRESS.search(said)
+
+
+def _presses(said: str) -> list[Clause]:
+    """The moves of the buttons named in `said` (words after a press verb), each as often as said."""
+    out: list[Clause] = []
+    for found in _BUTTON.finditer(said):
+        button, times = found.group(1), found.group(2)
+        n = _PRESSES.get(times or "", number(times or "") or 1)
+        if button in ("forward", "up"):
+            out.append(Clause.of(Op.FORWARD, steps=n, until=None))
+        else:  # a turn clause a press, as the rules count turns
+            out += [Clause.of(Op.TURN, eighths=1 if button == "left" else -1)] * n
+    return out
 
 
 def _turned_as_often(program: Program, text: str) -> Program:

@@ -414,6 +414,26 @@ def test_asked_if_it_sees_an_object_anywhere_it_answers_from_every_side_it_has_l
     assert pose.node == elsewhere.node and "mug behind me" in said[0], said
 
 
+@pytest.mark.parametrize(
+    ("text", "steps", "eighths"),
+    [
+        ("press left twice", 0, 2),
+        ("hit the right button once", 0, -1),
+        ("click forward 2 times", 2, 0),
+        ("press forward", 1, 0),
+        ("tap forward twice then left once", 2, 1),
+    ],
+)
+def test_button_presses_counted_by_a_person_are_one_move_each(world, text, steps, eighths):
+    """A person who knows the Driver's buttons counts presses: "press left twice" was two quarter
+    turns, "press forward" a walk to the wall and "click forward 2 times" not understood."""
+    _, graph, _ = world
+    start = _room_for(graph, 3, 0)
+    pose, said = _carry_out(_navigating(world, start), world, start, text)
+    assert pose == Pose(_ahead(graph, start.node, 0, steps), eighths % 8), said
+    assert said[0].startswith("ok"), said
+
+
 @pytest.mark.parametrize("text", ["say found", "thats the target", "this is it", "press found"])
 def test_told_in_other_words_that_it_is_there_it_claims(world, text):
     _, graph, _ = world

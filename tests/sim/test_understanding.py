@@ -56,6 +56,15 @@ def test_a_turn_said_to_be_made_several_times_is_made_that_many_times():
     assert ins.parse("turn right and go 3 steps").instructions == (ins.Turn(-2), ins.Forward(3))
 
 
+def test_button_presses_are_counted_one_move_each_and_a_press_until_a_wall_is_a_walk():
+    reader, left, right = Understanding.trained(), Clause.of(Op.TURN, eighths=1), Clause.of(Op.TURN, eighths=-1)
+    assert reader.program("press left twice").meaning == (left, left)
+    assert reader.program("Click the forward button 4 times, then right once").meaning == (_walk(4), right)
+    assert reader.program("press left twice and go to the mug").meaning == (left, left, TO_THE_MUG)
+    assert reader.program("press forward until you reach the mug").meaning == (TO_THE_MUG,)
+    assert reader.program("go until you hit the mug").meaning == (TO_THE_MUG,)  # no button: a walk
+
+
 def test_a_side_said_just_before_a_count_of_steps_is_a_turn_that_way_then_the_walk():
     reader, right = Understanding.trained(), Clause.of(Op.TURN, eighths=-2)
     assert reader.program("right 3").meaning == (right, _walk(3))
