@@ -658,7 +658,8 @@ _DOUBTS = re.compile(
     r"\b(?:(?:we|i) (?:are|re|am|m|feel|think|got|get|getting) (?:\w+ ){0,3}lost|lost again"
     r"|(?:going|go|went|walking|driving|run|running) (?:\w+ ){0,2}in (?:a )?circles?"
     r"|are you sure|(?:been|was|were) here before|back (?:to |at )?where (?:i|we) (?:was|were|started)"
-    r"|same (?:place|spot|view) (?:as )?(?:again|before)|wrong way)\b"
+    r"|same (?:place|spot|view) (?:as )?(?:again|before)|wrong way|back and forth"
+    r"|(?:really|actually) (?:\w+ ){0,3}(?:this|that|the right) way|(?:the )?way i came from)\b"
 )
 
 

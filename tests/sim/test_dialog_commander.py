@@ -275,7 +275,15 @@ def test_an_unsure_answer_to_its_check_is_not_taken_for_a_yes(world, reply):
 
 
 @pytest.mark.parametrize(
-    "report", ["i feel like im going in circles", "we're lost", "are you sure this is the right way?"]
+    "report",
+    [
+        "i feel like im going in circles",
+        "we're lost",
+        "are you sure this is the right way?",
+        "I think this is the way back to the jar. Is the mug really this way?",
+        "That's the way I came from the paddle.",
+        "I've been going back and forth for a while.",
+    ],
 )
 def test_a_driver_that_says_it_is_lost_is_heard_and_asked_where_it_is(world, report):
     """A person's "we're lost" and "are you sure im going the right way?" got the next leg as if

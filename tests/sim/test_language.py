@@ -49,6 +49,10 @@ def test_typos_are_read_as_the_words_meant():
     assert correct("that") == "that" and correct("black") == "black" and correct("follow") == "follow"
     # Common words one edit from the maze's are left alone: "nice and straight" is not nine steps.
     assert [correct(w) for w in ("nice", "fine", "walk", "give")] == ["nice", "fine", "walk", "give"]
+    # A person's chat: "for a while" had a white wall in it, "no clue" no blue one, "back and forth"
+    # an ordinal, and "sounds good" was a claim.
+    chat = ("while", "clue", "forth", "sound", "read", "year", "ground", "fellow")
+    assert [correct(w) for w in chat] == list(chat)
 
 
 def test_a_chats_shorthand_is_read_as_the_words_it_stands_for():
