@@ -90,8 +90,6 @@ CIRCLING_WITHIN = 5
 _STUCK = re.compile(
     r"\b(?:hit|cannot|can only|could not|do not see (?:a|the)|not the one|no opening|still|not turned|did the part)\b"
 )
-# A report that says it did what it was told: a wall right in front then is where the walk ended.
-_DONE = re.compile(r"\b(?:done|did (?:it|that)|finished)\b")
 MISCOUNT = math.log(0.1)  # a person's count of the steps it made before it stopped, one off
 # Questions on how to carry out the instruction out: asked before doing it, whatever else is said
 # ("ok. turn right how much, one click or two?").
@@ -249,7 +247,9 @@ class DialogCommander:
             return self._answer(asked)
         blocked = lexicon.blocked(text)  # its way forward is barred where it stands
         short = lexicon.fell_short(text) or bool(_STUCK.search(lowered))
-        stuck = short or (blocked and not _DONE.search(lowered))
+        # A wall right in front after a report of moves made ("done, ...", "ok, i went forward, but now
+        # i'm right up against a wall") is where they ended, else where the Driver was stopped.
+        stuck = short or (blocked and not lexicon.reports_done(text))
         if instructed and not stuck and lexicon.not_understood(text):
             # Nothing done: said again from where it still is, one move in the simplest words (it
             # was taken for the instruction carried out).

@@ -508,6 +508,10 @@ _WALL_RIGHT_AHEAD = re.compile(
     r"\bwall (?:is )?(?:right|directly|just|immediately) (?:in front|ahead)\b"
     r"|\b(?:right|directly|just|immediately) (?:in front of me|ahead) (?:is|there is) (?:a|the) wall\b"
     r"|\bfacing (?:a|the) wall\b"
+    # A person's words for a wall that fills the camera: "right up against a wall", "nose to nose with
+    # a big red wall", "it fills most of the picture" ("really close" alone is near, a step or more).
+    r"|\bup against (?:a|the) (?:\w+ ){0,2}wall\b|\bnose to nose with\b"
+    r"|\b(?:fills|filling|covers|all over) (?:\w+ ){0,2}(?:the )?(?:picture|screen|view|camera|image)\b"
 )
 
 

@@ -311,6 +311,10 @@ def test_asked_which_wall_it_says_the_leg_again_in_counted_steps(world):
         "i can't go forward, there's a wall",
         "cant go any further",
         "stopped after 2 steps, wall",
+        # A person's, each followed by another walk into the wall.
+        "Okay, I went forward, but now I'm right up against a wall, half red and half green.",
+        "The red and green wall is really close now, it fills most of the picture.",
+        "I'm now nose to nose with a big red wall.",
     ],
 )
 def test_a_wall_reported_right_in_front_changes_its_next_instruction(world, report):
