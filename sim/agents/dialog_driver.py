@@ -46,6 +46,7 @@ from sim.language.meaning import Clause, Op, Program, program_of
 from sim.language.understanding import (
     MOVING_OPS,
     Understanding,
+    instructing,
     instructions,
     read_back,
     turn_words,
@@ -326,7 +327,8 @@ class DialogDriver:
             # reader read one or the other, and a person's agent turned 90 or 135 degrees).
             return []
         elif self._phase == Phase.NAVIGATING:
-            rules = program_of(ins.parse(text))  # the rules' reading: a second opinion, read once
+            # The rules' reading, of what the reader reads: a second opinion, read once.
+            rules = program_of(ins.parse(instructing(text)))
             unsure = understood.confidence < ASK_BELOW or understood.ambiguous
             at_one = self._view is not None and any(near(self._view, label) for label in OBJECT_LABELS)
             if (

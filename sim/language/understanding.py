@@ -81,6 +81,7 @@ class Understanding:
             return Understood(program_of(ins.parse(text)), 1.0, True)
         if (pressed := self._pressed(text, before)) is not None:
             return Understood(pressed, 1.0, False)
+        text = instructing(text)
         reading = self.commander_reader.read(text, before)
         assert isinstance(reading.meaning, tuple)  # a Commander reader writes programs
         read = _turned_as_often(_turned_around_as_said(reading.meaning, text), text)
@@ -164,6 +165,55 @@ _BARE_PRESS = re.compile(
 )
 _PRESSES = {"once": 1, "twice": 2, "thrice": 3}
 _WALK_ON = re.compile(r"\b(?:until|till|til|untill|all the way)\b")
+
+
+# A clause that says where the Driver is, or what a move is for, and asks nothing done ("i think
+# you're in the corridor at the top left", "so you get above the white wall", "if you're right next
+# to the mug"), and the clauses that go on describing ("..., facing a red wall"): a person's, into
+# which the reader read turns and walks.
+_STATE = re.compile(
+    r"^(?:if |when |since |as |so (?:that )?)?(?:i think |i guess |i believe |it looks like |looks like )?"
+    r"(?:you are|youre|you re|you have|youve|you get|you will be|youll be)\b"
+)
+_CLAIMS = ins.Stop(claim=True)
+_GOES_ON = re.compile(r"^(?:facing|with|which|where|near|next|at|in|by)\b")
+_DOES = re.compile(
+    r"\b(?:turn|turning|go|going|move|drive|walk|head|take|press|continue|keep|back|stop|claim|find|look"
+    r"|looking|spin|rotate|face|target|objective|goal)\b"
+)
+
+
+# "go ahead and tell me": do; "the olive green paddle", "the pink mug": the object's colour, no wall.
+_GO_AHEAD = re.compile(r"\bgo ahead and\b", re.I)
+_OBJECT_COLOUR = re.compile(
+    r"\b(?:(?:light|dark|olive|bright|pale) )?(?:red|green|blue|yellow|pink|cyan|teal|olive|purple|white|brown"
+    r"|black|grey|gray|orange)(?: coloured| colored)? (?=(?:jar|mug|cup|paddle|bat|cylinder)s?\b)",
+    re.I,
+)
+
+
+def instructing(text: str) -> str:
+    """`text` without its clauses that only say where the Driver is or what a move is for, its
+    objects' colours and its "go ahead and"; the text itself where it has none of these."""
+    plain = _OBJECT_COLOUR.sub("", _GO_AHEAD.sub("", text))
+    kept: list[str] = []
+    dropped = describing = False
+    for part in (p for piece in re.split(r"[:?]", plain) for p in ins.clauses(piece)):
+        said = " ".join(words(part))
+        if not said:
+            continue
+        state = _STATE.match(said) or (describing and _GOES_ON.match(said))
+        # One that names an object or claims stays: "you're at the jar", "you are right by it" claim,
+        # "you are next to the jar" places.
+        kept_for = (
+            any(label in OBJECT_LABELS for label in _named(said.split())) or _CLAIMS in ins.parse(said).instructions
+        )
+        if state and not _DOES.search(said) and not kept_for:
+            dropped = describing = True
+            continue
+        describing = False
+        kept.append(part.strip())
+    return ". ".join(kept) if dropped else plain
 
 
 def _press_verb(said: str) -> re.Match[str] | None:

@@ -82,6 +82,9 @@ NUMBER_WORDS = {
     "eighteen": 18,
     "nineteen": 19,
     "twenty": 20,
+    "thirty": 30,
+    "forty": 40,
+    "dozen": 12,
     "couple": 2,
     "few": 3,
 }

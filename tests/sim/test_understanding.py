@@ -6,7 +6,7 @@ from sim.core.labels import Label
 from sim.language import instructions as ins
 from sim.language.meaning import Clause, FactForm, FactKind, Op
 from sim.language.reader import counts
-from sim.language.understanding import Understanding, instructions, read_back, unread_counts, with_count
+from sim.language.understanding import Understanding, instructing, instructions, read_back, unread_counts, with_count
 from sim.language.vocab import Side
 
 TURN_LEFT = Clause.of(Op.TURN, eighths=2)
@@ -63,6 +63,26 @@ def test_button_presses_are_counted_one_move_each_and_a_press_until_a_wall_is_a_
     assert reader.program("press left twice and go to the mug").meaning == (left, left, TO_THE_MUG)
     assert reader.program("press forward until you reach the mug").meaning == (TO_THE_MUG,)
     assert reader.program("go until you hit the mug").meaning == (TO_THE_MUG,)  # no button: a walk
+
+
+def test_clauses_that_say_where_the_driver_is_or_what_a_move_is_for_give_no_moves():
+    """A person's, in the browser: "so you get above the white wall" had been a walk to it, "you're in
+    the right place" a right turn, "facing a red wall" at the top left a left turn, "a dozen" and
+    "thirty" no count, and the olive green paddle a green wall."""
+    reader, right = Understanding.trained(), Clause.of(Op.TURN, eighths=-2)
+    said = "Lovely. Now turn right and go forward about 4 steps, so you get above the white wall."
+    assert reader.program(said).meaning == (right, _walk(4))
+    said = "That's fine, you're in the right place. Now turn right and go forward about a dozen steps."
+    assert reader.program(said).meaning == (right, _walk(12))
+    said = "I've put my mark: I think you're in the corridor at the top left, facing a red wall. Let's find the paddle now."
+    assert not [c for c in reader.program(said).meaning if c.op in (Op.TURN, Op.FORWARD)]
+    assert (
+        Clause.of(Op.EXPECT, label="green", side="any")
+        not in reader.program("can you see the olive green paddle?").meaning
+    )
+    # What places or claims stays.
+    assert instructing("you're at the jar now") == "you're at the jar now"
+    assert instructing("got it, you are right by it") == "got it, you are right by it"
 
 
 def test_a_side_said_just_before_a_count_of_steps_is_a_turn_that_way_then_the_walk():
