@@ -326,6 +326,14 @@ class DialogDriver:
             # "Yes, that is right.", "that is the right way": agreement, not a turn nor a claim (the
             # reader read one or the other, and a person's agent turned 90 or 135 degrees).
             return []
+        elif self._phase == Phase.LOCALIZING and not any(c.op == Op.ASK for c in program):
+            # While it is being found, what it is asked to describe is what matters: a question the
+            # rules hear and the reader did not is answered ("Hello there! ... Could you please tell
+            # me what you can see in front of you? And maybe turn around slowly and tell me ..." was
+            # answered about a yellow wall nobody named).
+            rules = program_of(ins.parse(instructing(text)))
+            if any(c.op == Op.ASK for c in rules):
+                program = rules
         elif self._phase == Phase.NAVIGATING:
             # The rules' reading, of what the reader reads: a second opinion, read once.
             rules = program_of(ins.parse(instructing(text)))

@@ -302,8 +302,14 @@ def _grounded(program: Program, text: str, before: tuple[str, str] | None) -> Pr
     own = _named(said)
     earlier = _named(words(before[1])) if before else []
     if _REFERRING.intersection(said):
-        return tuple(_as_referred(c, own, earlier) for c in program)
-    kept = tuple(c for c in program if all(_label(v) in own + earlier for v in _labels_named(c)))
+        # "it", "there" point at objects: a wall colour neither turn names is dropped all the same (a
+        # person's "Hello there! ... tell me what you can see" was asked back about a yellow wall).
+        referred = (_as_referred(c, own, earlier) for c in program)
+        kept = tuple(
+            c for c in referred if all(_label(v) in own + earlier + list(OBJECT_LABELS) for v in _labels_named(c))
+        )
+    else:
+        kept = tuple(c for c in program if all(_label(v) in own + earlier for v in _labels_named(c)))
     return kept if kept or not program else (Clause.of(Op.UNCLEAR),)
 
 

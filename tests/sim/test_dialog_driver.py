@@ -105,6 +105,33 @@ def test_asked_before_its_first_frame_it_answers_once_the_frame_comes(world):
     assert isinstance(answer, Say) and "ahead" in answer.text
 
 
+def test_while_being_found_a_long_polite_request_to_look_is_answered_by_looking(world):
+    """A person's first message was answered "no, no yellow wall ahead": the reader read a question
+    about a yellow wall nobody named into it."""
+    driver = DialogDriver(0)
+    driver.reset(SeatInfo(Role.DRIVER, 3))
+    driver.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
+    node, heading = 100, 0
+    driver.perceive(Saw(0, _rays(world, Pose(node, heading))))
+    turns = driver.perceive(
+        Heard(
+            Role.COMMANDER,
+            "Hello there, nice to meet you! I'm looking at the map now but I can't see where you are yet. Could "
+            "you please tell me what you can see in front of you? And maybe turn around slowly and tell me "
+            "what colours the walls are on each side?",
+        )
+    )
+    for _ in range(12):
+        if not turns or not isinstance(turns[0], RequestMove):
+            break
+        assert turns[0].move != Move.FORWARD
+        heading = (heading + (1 if turns[0].move == Move.LEFT else -1)) % 8
+        driver.perceive(Moved(turns[0].move, Outcome.OK))
+        turns = driver.perceive(Saw(1, _rays(world, Pose(node, heading))))
+    (said,) = [t.text for t in turns if isinstance(t, Say)]
+    assert "behind me" in said and "on my left" in said and "no, no" not in said, said
+
+
 def _carry_out(driver, world, pose, text):
     """The Commander says `text`; the Driver's moves are stepped on the graph until it speaks."""
     _, graph, _ = world
