@@ -236,10 +236,13 @@ class ScriptedDriverPhrasing:
     def _troubled(fact: Troubled) -> str:
         match fact.trouble:
             case Trouble.ASK_ABOUT:
-                return f"i am not sure i got '{fact.quoted}'. do you mean: {fact.detail}?"
+                # A whole long message said back is a wall of text to read again: a person's were.
+                got = f"'{fact.quoted}'" if len(fact.quoted) <= QUOTED_CHARS else "all of that"
+                return f"i am not sure i got {got}. do you mean: {fact.detail}?"
             case Trouble.UNCLEAR:
+                got = f"'{fact.quoted}'" if len(fact.quoted) <= QUOTED_CHARS else "that"
                 return (
-                    f"sorry, i did not understand '{fact.quoted}'. could you say it another way, "
+                    f"sorry, i did not understand {got}. could you say it another way, "
                     "for example 'turn left' or 'go forward to the red wall'?"
                 )
             case Trouble.PARTLY:
@@ -266,6 +269,7 @@ def _name(label: Label | None) -> str:
 
 
 OTHER_SIDE = {Side.LEFT: Side.RIGHT, Side.RIGHT: Side.LEFT}
+QUOTED_CHARS = 60  # words it did not get, said back up to this long
 _SAYS_QUESTION = (Trouble.STAYING, Trouble.NOT_PLACED)  # troubles a person words as a question
 
 

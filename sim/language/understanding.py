@@ -40,6 +40,7 @@ from sim.language.vocab import (
     Side,
     number,
     times_turned,
+    turns_to,
     wall_name,
     words,
 )
@@ -89,7 +90,7 @@ class Understanding:
         program = _back_as_said(_openings_as_said(_grounded(sided, text, before), text), text)
         said = words(text)
         program = _walks_as_said(_turned_between(_pairs_as_said(program, said), said), text, said)
-        program = _facing_as_said(program, said)
+        program = _right_as_said(_facing_as_said(program, said), said)
         return Understood(program, reading.confidence, False, reading.strange_lead, ambiguous=sided != read)
 
     def _pressed(self, text: str, before: tuple[str, str] | None) -> Program | None:
@@ -176,6 +177,10 @@ _STATE = re.compile(
     r"(?:you are|youre|you re|you have|youve|you get|you will be|youll be)\b"
 )
 _CLAIMS = ins.Stop(claim=True)
+_NOT_TO = re.compile(
+    r"\b(?:dont|didnt|do not|did not|never|shouldnt|no need to|neednt)\b (?:\w+ ){0,3}?"
+    r"(?:turn|turned|go|went|move|moved|walk|drive|head|press)\b"
+)
 _GOES_ON = re.compile(r"^(?:facing|with|which|where|near|next|at|in|by)\b")
 _DOES = re.compile(
     r"\b(?:turn|turning|go|going|move|drive|walk|head|take|press|continue|keep|back|stop|claim|find|look"
@@ -203,6 +208,9 @@ def instructing(text: str) -> str:
         if not said:
             continue
         state = _STATE.match(said) or (describing and _GOES_ON.match(said))
+        if _NOT_TO.search(said):  # "i didn't ask you to turn right!", "don't turn left": nothing to do
+            dropped = True
+            continue
         # One that names an object or claims stays: "you're at the jar", "you are right by it" claim,
         # "you are next to the jar" places.
         kept_for = (
@@ -232,6 +240,14 @@ def _presses(said: str) -> list[Clause]:
         else:  # a turn clause a press, as the rules count turns
             out += [Clause.of(Op.TURN, eighths=1 if button == "left" else -1)] * n
     return out
+
+
+def _right_as_said(program: Program, said: list[str]) -> Program:
+    """The reading without right turns where no "right" of the words is a turn ("if you're right next
+    to the mug, go ahead and tell me you found it" was read as a right turn and a walk)."""
+    if any(w == "right" and turns_to(said, k) for k, w in enumerate(said)):
+        return program
+    return tuple(c for c in program if not _turns(c, left=False))
 
 
 def _turned_as_often(program: Program, text: str) -> Program:

@@ -85,6 +85,19 @@ def test_clauses_that_say_where_the_driver_is_or_what_a_move_is_for_give_no_move
     assert instructing("got it, you are right by it") == "got it, you are right by it"
 
 
+def test_a_move_said_not_to_be_made_and_a_right_that_means_directly_turn_nothing():
+    """A person's "Oh no, I didn't ask you to turn right! ... Please turn left again and go to the mug."
+    turned the agent right, and "If you're right next to the mug, go ahead and tell me you found it."
+    turned it right and walked it off."""
+    reader = Understanding.trained()
+    said = "Oh no, I didn't ask you to turn right! The mug was just in front of you. Please turn left again and go to the mug."
+    assert [c for c in reader.program(said).meaning if c.op != Op.TARGET] == [TURN_LEFT, TO_THE_MUG]
+    said = "Brilliant! If you're right next to the mug, go ahead and tell me you found it."
+    assert not [c for c in reader.program(said).meaning if c.op == Op.TURN]
+    assert reader.program("don't turn left, turn right").meaning == (Clause.of(Op.TURN, eighths=-2),)
+    assert reader.program("take a sharp right").meaning == (Clause.of(Op.TURN, eighths=-3),)
+
+
 def test_a_side_said_just_before_a_count_of_steps_is_a_turn_that_way_then_the_walk():
     reader, right = Understanding.trained(), Clause.of(Op.TURN, eighths=-2)
     assert reader.program("right 3").meaning == (right, _walk(3))
