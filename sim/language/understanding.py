@@ -190,17 +190,21 @@ _DOES = re.compile(
 
 # "go ahead and tell me": do; "the olive green paddle", "the pink mug": the object's colour, no wall.
 _GO_AHEAD = re.compile(r"\bgo ahead and\b", re.I)
-_OBJECT_COLOUR = re.compile(
-    r"\b(?:(?:light|dark|olive|bright|pale) )?(?:red|green|blue|yellow|pink|cyan|teal|olive|purple|white|brown"
-    r"|black|grey|gray|orange)(?: coloured| colored)? (?=(?:jar|mug|cup|paddle|bat|cylinder)s?\b)",
-    re.I,
+_COLOUR = (
+    r"(?:(?:light|dark|olive|bright|pale) )?(?:red|green|blue|yellow|pink|cyan|teal|olive|purple|white|brown"
+    r"|black|grey|gray|orange)(?: coloured| colored)?"
 )
+_OBJECT = r"(?:jar|mug|cup|paddle|bat|cylinder)s?"
+_OBJECT_COLOUR = re.compile(rf"\b{_COLOUR} (?={_OBJECT}\b)", re.I)  # "the olive green paddle"
+_OBJECT_THEN_COLOUR = re.compile(
+    rf"\b({_OBJECT}),? (?:the |a )?{_COLOUR} (?:one|thing)\b", re.I
+)  # "the jar, the light blue one"
 
 
 def instructing(text: str) -> str:
     """`text` without its clauses that only say where the Driver is or what a move is for, its
     objects' colours and its "go ahead and"; the text itself where it has none of these."""
-    plain = _OBJECT_COLOUR.sub("", _GO_AHEAD.sub("", text))
+    plain = _OBJECT_THEN_COLOUR.sub(r"\1", _OBJECT_COLOUR.sub("", _GO_AHEAD.sub("", text)))
     kept: list[str] = []
     dropped = describing = False
     for part in (p for piece in re.split(r"[:?]", plain) for p in ins.clauses(piece)):

@@ -80,6 +80,9 @@ def test_clauses_that_say_where_the_driver_is_or_what_a_move_is_for_give_no_move
         Clause.of(Op.EXPECT, label="green", side="any")
         not in reader.program("can you see the olive green paddle?").meaning
     )
+    said = "Nearly there! Turn right and go up to the jar, the light blue one."
+    assert not [c for c in reader.program(said).meaning if "blue" in c.args]  # it went to a blue wall
+    assert instructing("go past the blue one") == "go past the blue one"  # a wall, maybe
     # What places or claims stays.
     assert instructing("you're at the jar now") == "you're at the jar now"
     assert instructing("got it, you are right by it") == "got it, you are right by it"
