@@ -93,7 +93,7 @@ _NEGATED_NOUNS = {"wall", "walls", "more", "other", *CORRIDOR_WORDS, *CORNER_WOR
 _SAYING = {"i", "there", "it", "its", "is", "are", "see", "can", "have", "also"}
 _LISTED_FILLER = {"a", "an", "the", "some", "one", "two", "part", "of", "wall", "walls", "both", *_SAYING}
 RELATION_WORDS = {"next", "beside", "attached", "connected", "connect", "connects", "adjacent", "between", "joined"}
-YES = {"yes", "yeah", "yep", "yup", "yea", "ya", "correct", "affirmative", "sure", "indeed", "right"}
+YES = {"yes", "y", "yeah", "yep", "yup", "yea", "ya", "correct", "affirmative", "sure", "indeed", "right"}
 NO = {"no", "nope", "nah", "negative"}
 _WH = {"where", "what", "which", "how", "why"}
 _AUX = {"is", "are", "should", "shall", "does", "do", "can", "could", "would", "will", "was", "were"}
@@ -494,7 +494,9 @@ _COUNT = rf"(?:\d+|zero|(?:a )?(?:{'|'.join(NUMBER_WORDS)}))"  # "3", "three", "
 # A report of an instruction not carried out in full, the Driver stopped on its way ("i hit a wall
 # after three steps", "only 2 steps, then a wall", "stopped at three", "i could not go further").
 _FELL_SHORT = re.compile(
-    r"\b(?:hit|bumped|bump|crashed|ran into|blocked|stuck|can only go|in my way|no way forward)\b"
+    r"\b(?:hit|bumped|bump|bumps|bumping|bumpd|crashed|ran into|blocked|stuck|can only go|in my way|no way forward)\b"
+    r"|\bforward (?:\w+ ){0,2}(?:does not|doesnt|wont|will not|isnt|is not) work"
+    r"|^(?:i )?(?:cant|cannot|can not)\b(?! (?:see|find|tell|understand|say))"  # "cant, wall rite there"
     r"|\b(?:can not|cannot|cant|could not|unable to) (?:go|move|drive) (?:any )?(?:forward|ahead|on|further|farther)\b"
     rf"|\b(?:wall|stopped|stuck|blocked) (?:after|at) {_COUNT}\b"
     rf"|\bonly (?:got )?{_COUNT} steps?\b"

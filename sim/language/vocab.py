@@ -339,6 +339,7 @@ SHORTHAND = {
     "fwd": "forward",
     "fw": "forward",
     "str8": "straight",
+    "lil": "little",
 }
 
 

@@ -315,6 +315,8 @@ def test_asked_which_wall_it_says_the_leg_again_in_counted_steps(world):
         "Okay, I went forward, but now I'm right up against a wall, half red and half green.",
         "The red and green wall is really close now, it fills most of the picture.",
         "I'm now nose to nose with a big red wall.",
+        "Forward just bumps here, three times now",
+        "cant, wall rite there. i give up srry",
     ],
 )
 def test_a_wall_reported_right_in_front_changes_its_next_instruction(world, report):

@@ -487,7 +487,7 @@ def test_told_left_then_3_it_turns_says_it_did_not_get_the_3_and_walks_it_when_t
     assert pose == Pose(end, 2) and said[0].startswith("ok, went 3 steps"), said
 
 
-@pytest.mark.parametrize("yes", ["yes", "yep", "sure thing"])
+@pytest.mark.parametrize("yes", ["yes", "yep", "sure thing", "y"])
 def test_a_count_said_before_the_turn_it_did_get_is_asked_about_before_it_moves(world, yes):
     """Doing the turn it understood first would put the walk it did not get in the wrong place; a
     person's "yep" to the question is a yes."""
