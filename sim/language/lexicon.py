@@ -471,6 +471,7 @@ _ASKED = (
         re.compile(
             r"\bhow (?:far|many|much|long)\b|\b(?:is it|am i|are we) (?:close|near|far)\b"
             rf"|\bwhere(?:s| is)?(?: the| my)? (?:{_TARGET_WORDS}|it)\b"
+            rf"|\b(?:which|what) (?:way|direction|side) (?:\w+ ){{0,2}}(?:{_TARGET_WORDS})\b"  # "which direction the jar is"
             r"|\bwhat (?:do|should) i (?:look|search) for\b|\bwhat am i looking for\b"
         ),
     ),

@@ -376,7 +376,16 @@ def test_it_says_at_once_why_it_rejects_a_claim_and_again_when_asked_why_not(wor
 
 
 @pytest.mark.parametrize(
-    "question", ["how far?", "left or right?", "where am i?", "wheres the jar", "what do i look for?"]
+    "question",
+    [
+        "how far?",
+        "left or right?",
+        "where am i?",
+        "wheres the jar",
+        "what do i look for?",
+        # A person's, answered "turn sharply right".
+        "Could you tell me which direction the jar is from me?",
+    ],
 )
 def test_it_answers_a_question_then_says_the_instruction_again(world, question):
     start = _walk_pose(world, 3)
@@ -387,7 +396,7 @@ def test_it_answers_a_question_then_says_the_instruction_again(world, question):
     assert answer.endswith(instruction) and len(answer) > len(instruction), answer
     assert np.array_equal(commander.belief.log, before), "the person did nothing yet: the belief stays"
     reply = answer.removesuffix(instruction)
-    if question in ("how far?", "wheres the jar", "what do i look for?"):
+    if question in ("how far?", "wheres the jar", "what do i look for?") or "direction" in question:
         assert "the jar of blocks is" in reply and "steps away" in reply, reply
     if question == "left or right?":
         assert "straight ahead first" in reply, reply  # the walk comes first
