@@ -269,7 +269,7 @@ def _name(label: Label | None) -> str:
 
 
 OTHER_SIDE = {Side.LEFT: Side.RIGHT, Side.RIGHT: Side.LEFT}
-QUOTED_CHARS = 60  # words it did not get, said back up to this long
+QUOTED_CHARS = 100  # words it did not get, said back up to this long (a sentence, not a whole message)
 _SAYS_QUESTION = (Trouble.STAYING, Trouble.NOT_PLACED)  # troubles a person words as a question
 
 

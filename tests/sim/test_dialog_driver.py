@@ -461,6 +461,21 @@ def test_button_presses_counted_by_a_person_are_one_move_each(world, text, steps
     assert said[0].startswith("ok"), said
 
 
+def test_a_long_message_it_is_unsure_of_is_not_said_back_whole(world):
+    """A person's four-sentence messages came back whole inside "i am not sure i got '...'"."""
+    _, graph, _ = world
+    start = _room_for(graph, 1, 0)
+    turns = _navigating(world, start).perceive(
+        Heard(
+            Role.COMMANDER,
+            "Oops, I think I sent you too far, sorry! The paddle is on the other side of that white wall on "
+            "your left. Please turn around and go back about 8 steps.",
+        )
+    )
+    (said,) = [t.text for t in turns if isinstance(t, Say)]
+    assert said.startswith("i am not sure i got all of that. do you mean: ") and "Oops" not in said, said
+
+
 @pytest.mark.parametrize("text", ["say found", "thats the target", "this is it", "press found"])
 def test_told_in_other_words_that_it_is_there_it_claims(world, text):
     _, graph, _ = world
