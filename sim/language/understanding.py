@@ -241,7 +241,7 @@ def _presses(said: str) -> list[Clause]:
         n = _PRESSES.get(times or "", number(times or "") or 1)
         if button in ("forward", "up"):
             out.append(Clause.of(Op.FORWARD, steps=n, until=None))
-        else:  # a turn clause a press, as the rules count turns
+        else:  # a turn clause per press, as the rules count turns
             out += [Clause.of(Op.TURN, eighths=1 if button == "left" else -1)] * n
     return out
 
