@@ -464,6 +464,7 @@ _ASKED = (
             r"|\bhow (?:sharp(?:ly)?|much|far|many times) (?:do i |should i |to )?turn\b"
             r"|\bhow many (?:times|clicks|presses)\b|\bhow sharp(?:ly)?\b"
             r"|\bturn (?:left|right) how (?:much|far|many)\b|\bone (?:click|press|time) or two\b"
+            r"|\bone (?:click|press|time)\b(?: \w+){0,4} or two\b"  # "one press of the left button, or two presses?"
         ),
     ),
     (
@@ -662,7 +663,7 @@ def hedges(text: str) -> bool:
 
 # A Driver that doubts the way it is led: lost, going round, or back where it was before.
 _DOUBTS = re.compile(
-    r"\b(?:(?:we|i) (?:are|re|am|m|feel|think|got|get|getting) (?:\w+ ){0,3}lost|lost again"
+    r"\b(?:(?:we|i) (?:are|re|am|m|feel|think|got|get|getting) (?:\w+ ){0,3}lost|(?:im|iam) (?:\w+ ){0,2}lost|lost again"
     r"|(?:going|go|went|walking|driving|run|running) (?:\w+ ){0,2}in (?:a )?circles?"
     r"|are you sure|(?:been|was|were) here before|back (?:to |at )?where (?:i|we) (?:was|were|started)"
     r"|same (?:place|spot|view) (?:as )?(?:again|before)|wrong way|back and forth"

@@ -179,7 +179,11 @@ _STATE = re.compile(
 _CLAIMS = ins.Stop(claim=True)
 _NOT_TO = re.compile(
     r"\b(?:dont|didnt|do not|did not|never|shouldnt|no need to|neednt)\b (?:\w+ ){0,3}?"
-    r"(?:turn|turned|go|went|move|moved|walk|drive|head|press)\b"
+    r"(?:turn|turned|go|went|move|moved|walk|drive|head|press|mean|meant)\b"
+)
+# Chat about the game, not a move: "two down and one to go", "u went 2 far".
+_CHATTER = re.compile(
+    r"^(?:\w+ )?(?:one|two|three|1|2|3) (?:down|done|(?:more |left )?to go)$|^(?:you|u) went (?:\w+ )?(?:too|to|2) far\b"
 )
 _GOES_ON = re.compile(r"^(?:facing|with|which|where|near|next|at|in|by)\b")
 _DOES = re.compile(
@@ -212,7 +216,8 @@ def instructing(text: str) -> str:
         if not said:
             continue
         state = _STATE.match(said) or (describing and _GOES_ON.match(said))
-        if _NOT_TO.search(said):  # "i didn't ask you to turn right!", "don't turn left": nothing to do
+        # "i didn't ask you to turn right!", "don't turn left", "i didn't mean forward": nothing to do
+        if _NOT_TO.search(said) or _CHATTER.search(said):
             dropped = True
             continue
         # One that names an object or claims stays: "you're at the jar", "you are right by it" claim,

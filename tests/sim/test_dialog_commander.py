@@ -283,6 +283,7 @@ def test_an_unsure_answer_to_its_check_is_not_taken_for_a_yes(world, reply):
         "I think this is the way back to the jar. Is the mug really this way?",
         "That's the way I came from the paddle.",
         "I've been going back and forth for a while.",
+        "im lost tbh",
     ],
 )
 def test_a_driver_that_says_it_is_lost_is_heard_and_asked_where_it_is(world, report):
@@ -701,7 +702,12 @@ def test_an_instruction_a_third_time_in_a_short_row_after_reports_of_it_done_mak
 
 
 @pytest.mark.parametrize(
-    "question", ["ok. turn how much, one click or two?", "will i actually see the jar or how do i know when im there?"]
+    "question",
+    [
+        "ok. turn how much, one click or two?",
+        "one press of the left button, or two presses?",  # answered "no. turn left, ..."
+        "will i actually see the jar or how do i know when im there?",
+    ],
 )
 def test_a_question_on_how_to_carry_out_the_instruction_is_answered_before_it_is_done(world, question):
     """ "ok. turn right how much, one click or two? and what does the mug look like" was taken for
@@ -710,7 +716,7 @@ def test_a_question_on_how_to_carry_out_the_instruction_is_answered_before_it_is
     commander, first = _navigating(world, start)
     instruction = first.removeprefix("now find the jar of blocks. ")
     said = _said(commander.perceive(Heard(Role.DRIVER, question)))
-    if "click" in question:
+    if "click" in question or "press" in question:
         (turn, *_) = [i for i in ins.parse(instruction).instructions if isinstance(i, ins.Turn)]
         assert said.startswith(f"{commander.phrases.turn(turn.eighths)} is {45 * abs(turn.eighths)} degrees"), said
     else:

@@ -99,6 +99,13 @@ def test_a_move_said_not_to_be_made_and_a_right_that_means_directly_turn_nothing
     assert not [c for c in reader.program(said).meaning if c.op == Op.TURN]
     assert reader.program("don't turn left, turn right").meaning == (Clause.of(Op.TURN, eighths=-2),)
     assert reader.program("take a sharp right").meaning == (Clause.of(Op.TURN, eighths=-3),)
+    # Chat and a correction of what was meant, from a second play: each had added a walk.
+    around = Clause.of(Op.TURN, eighths=4)
+    said = "Marvellous, two down and one to go! Now please turn around and go back up those twelve steps."
+    assert reader.program(said).meaning == (around, Clause.of(Op.BACK, place="previous", steps=12))
+    assert reader.program("u went 2 far lol. turn around n go back 2").meaning[0] == around
+    said = "I didn't mean forward just then. Please press the right button three times."
+    assert reader.program(said).meaning == (Clause.of(Op.TURN, eighths=-1),) * 3
 
 
 def test_a_side_said_just_before_a_count_of_steps_is_a_turn_that_way_then_the_walk():
