@@ -31,6 +31,8 @@ def test_a_held_key_is_one_move_and_a_press_while_moving_waits_its_turn(browser,
     driver = pages["driver"]
     driver.wait_for_selector("#status[data-phase=localizing]")
     wait_js(driver, "() => !document.getElementById('left').disabled")
+    # What a press does, on the page: both plays' people guessed at it, and disagreed with the agents.
+    assert "45 degrees" in driver.inner_text("#move-sizes") and "7 cm" in driver.inner_text("#move-sizes")
 
     driver.keyboard.down("ArrowLeft")  # held: the browser repeats the keydown
     for _ in range(12):
