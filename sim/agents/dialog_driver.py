@@ -46,7 +46,6 @@ from sim.language.meaning import Clause, Op, Program, program_of
 from sim.language.understanding import (
     MOVING_OPS,
     Understanding,
-    instructing,
     instructions,
     read_back,
     turn_words,
@@ -331,12 +330,12 @@ class DialogDriver:
             # rules hear and the reader did not is answered ("Hello there! ... Could you please tell
             # me what you can see in front of you? And maybe turn around slowly and tell me ..." was
             # answered about a yellow wall nobody named).
-            rules = program_of(ins.parse(instructing(text)))
+            rules = program_of(ins.parse(understood.read))
             if any(c.op == Op.ASK for c in rules):
                 program = rules
         elif self._phase == Phase.NAVIGATING:
             # The rules' reading, of what the reader reads: a second opinion, read once.
-            rules = program_of(ins.parse(instructing(text)))
+            rules = program_of(ins.parse(understood.read))
             unsure = understood.confidence < ASK_BELOW or understood.ambiguous
             at_one = self._view is not None and any(near(self._view, label) for label in OBJECT_LABELS)
             if (
@@ -482,7 +481,7 @@ class DialogDriver:
             self._target = item.label
             if item.side is None:
                 # Told what to find: where it is in view, go up to it.
-                visible = self._in_view(item.label)
+                visible = _sees(self._view, item.label)
                 if not visible or self._phase != Phase.NAVIGATING:
                     return []
                 return [*self._toward(item.label), _Task(Task.WALK, until=item.label)]
@@ -529,9 +528,6 @@ class DialogDriver:
             if step is not None:
                 out += step if isinstance(step, list) else [step]
         return out
-
-    def _in_view(self, label: Label) -> bool:
-        return self._view is not None and any(s.label == label for s in seen(self._view))
 
     def _sees_target(self) -> bool:
         if self._target is None or self._phase != Phase.NAVIGATING or self._view is None:
@@ -601,7 +597,7 @@ class DialogDriver:
         the view) has come to it."""
         view = self._view
         if view is None or not facing:
-            return self._in_view(label)
+            return _sees(self._view, label)
         return bool((view.valid[CENTRE_RAYS] & (view.labels[CENTRE_RAYS] == label)).any())
 
     def _walk(self, task: _Task) -> RequestMove | Say | None:
@@ -683,7 +679,7 @@ class DialogDriver:
     def _seek(self, task: _Task) -> RequestMove | Say | None:
         """Left a turn at a time until the target is in view (then up to it), or all the way round."""
         assert task.until is not None  # seek tasks are made from a named target
-        if self._in_view(task.until):
+        if _sees(self._view, task.until):
             self._plan.appendleft(_Task(Task.WALK, until=task.until))
             return None
         if task.done >= HEADINGS - 1:

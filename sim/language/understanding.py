@@ -33,6 +33,7 @@ from sim.language.meaning import (
 from sim.language.reader import Count, Reader, Role, counts, shipped
 from sim.language.sectors import Sector
 from sim.language.vocab import (
+    CAMERA_COLOUR_WORDS,
     LABEL_WORDS,
     ORDINAL_WORDS,
     SIDE_PHRASE,
@@ -55,6 +56,7 @@ class Understood(Generic[M]):
     by_rules: bool  # read by the rules (no reader for this seat's words)
     strange_lead: bool = False  # the reader never met the turn's first word
     ambiguous: bool = False  # the words may well mean another move ("left 1": a turn, or a turn and a step)
+    read: str = ""  # a Commander turn's words read, without what `instructing` leaves out
 
 
 class Understanding:
@@ -79,9 +81,9 @@ class Understanding:
     def program(self, text: str, before: tuple[str, str] | None = None) -> Understood[Program]:
         """A Commander turn; `before` the turn before it as ("c" or "d", text)."""
         if self.commander_reader is None:
-            return Understood(program_of(ins.parse(text)), 1.0, True)
+            return Understood(program_of(ins.parse(text)), 1.0, True, read=text)
         if (pressed := self._pressed(text, before)) is not None:
-            return Understood(pressed, 1.0, False)
+            return Understood(pressed, 1.0, False, read=text)
         text = instructing(text)
         reading = self.commander_reader.read(text, before)
         assert isinstance(reading.meaning, tuple)  # a Commander reader writes programs
@@ -91,7 +93,7 @@ class Understanding:
         said = words(text)
         program = _walks_as_said(_turned_between(_pairs_as_said(program, said), said), text, said)
         program = _right_as_said(_facing_as_said(program, said), said)
-        return Understood(program, reading.confidence, False, reading.strange_lead, ambiguous=sided != read)
+        return Understood(program, reading.confidence, False, reading.strange_lead, ambiguous=sided != read, read=text)
 
     def _pressed(self, text: str, before: tuple[str, str] | None) -> Program | None:
         """A message that counts presses of the Driver's buttons ("press left twice", "click forward
@@ -109,7 +111,7 @@ class Understanding:
             pressing = pressing or verb is not None
             if verb is not None:
                 out += _presses(said[verb.end() :])
-            elif pressing and _BARE_PRESS.fullmatch(said):  # "..., then left once"
+            elif pressing and _BARE_PRESS.fullmatch(said):
                 out += _presses(said)
             elif said:
                 out += [c for c in self.program(part, before).meaning if c.op != Op.UNCLEAR]
@@ -158,12 +160,8 @@ class Understanding:
 _PRESS = re.compile(
     r"\b(?:press|pressing|click|clicking|tap|tapping|hit|hitting)\b(?= (?:\w+ ){0,2}(?:forward|up|left|right)\b)"
 )
-_BUTTON = re.compile(
-    r"\b(forward|up|left|right)(?: (?:button|arrow|key))?(?: (once|twice|thrice|\d+|\w+)(?: (?:times|time|x))?)?"
-)
-_BARE_PRESS = re.compile(
-    r"(?:then |and |now )?(?:the )?(?:forward|up|left|right)(?: (?:button|arrow|key))?(?: \w+(?: times| time| x)?)?"
-)
+_BUTTON = re.compile(r"\b(forward|up|left|right)(?: (?:button|arrow|key))?(?: (\w+)(?: (?:times|time|x))?)?")
+_BARE_PRESS = re.compile(rf"(?:then |and |now )?(?:the )?{_BUTTON.pattern}")  # "..., then left once"
 _PRESSES = {"once": 1, "twice": 2, "thrice": 3}
 _WALK_ON = re.compile(r"\b(?:until|till|til|untill|all the way)\b")
 
@@ -194,11 +192,16 @@ _DOES = re.compile(
 
 # "go ahead and tell me": do; "the olive green paddle", "the pink mug": the object's colour, no wall.
 _GO_AHEAD = re.compile(r"\bgo ahead and\b", re.I)
+# Colour words proper: "the edge" is a wall of the map too, but never one of a pair ("red and white").
+_COLOUR_WORDS = {
+    w: label for w, label in LABEL_WORDS.items() if label in WALL_LABELS and w not in ("edge", "border", "boundary")
+}
+
+
 _COLOUR = (
-    r"(?:(?:light|dark|olive|bright|pale) )?(?:red|green|blue|yellow|pink|cyan|teal|olive|purple|white|brown"
-    r"|black|grey|gray|orange)(?: coloured| colored)?"
+    rf"(?:(?:light|dark|bright|pale) )?(?:{'|'.join([*_COLOUR_WORDS, *CAMERA_COLOUR_WORDS])})(?: coloured| colored)?"
 )
-_OBJECT = r"(?:jar|mug|cup|paddle|bat|cylinder)s?"
+_OBJECT = rf"(?:{'|'.join(w for w, label in LABEL_WORDS.items() if label in OBJECT_LABELS)}|cylinder)s?"
 _OBJECT_COLOUR = re.compile(rf"\b{_COLOUR} (?={_OBJECT}\b)", re.I)  # "the olive green paddle"
 _OBJECT_THEN_COLOUR = re.compile(
     rf"\b({_OBJECT}),? (?:the |a )?{_COLOUR} (?:one|thing)\b", re.I
@@ -222,15 +225,16 @@ def instructing(text: str) -> str:
             continue
         # One that names an object or claims stays: "you're at the jar", "you are right by it" claim,
         # "you are next to the jar" places.
-        kept_for = (
-            any(label in OBJECT_LABELS for label in _named(said.split())) or _CLAIMS in ins.parse(said).instructions
-        )
-        if state and not _DOES.search(said) and not kept_for:
+        if state and not _DOES.search(said) and not _places_or_claims(said):
             dropped = describing = True
             continue
         describing = False
         kept.append(part.strip())
     return ". ".join(kept) if dropped else plain
+
+
+def _places_or_claims(said: str) -> bool:
+    return any(label in OBJECT_LABELS for label in _named(said.split())) or _CLAIMS in ins.parse(said).instructions
 
 
 def _press_verb(said: str) -> re.Match[str] | None:
@@ -382,12 +386,6 @@ def _openings_as_said(program: Program, text: str) -> Program:
 
 
 _TO_A_WALL = Clause.of(Op.FORWARD, steps=None, until="wall")
-
-
-# Colour words proper: "the edge" is a wall of the map too, but never one of a pair ("red and white").
-_COLOUR_WORDS = {
-    w: label for w, label in LABEL_WORDS.items() if label in WALL_LABELS and w not in ("edge", "border", "boundary")
-}
 
 
 def _pairs(said: list[str]) -> list[tuple[Label, Label]]:
