@@ -39,7 +39,10 @@ def test_a_whole_panel_study_in_each_language(browser, server, tmp_path, languag
     plan = {
         "practice_maze": None,
         "trials_per_participant": 1,
-        "lobby_presence_s": 3.0,
+        # The default: with 3 s, a lobby page's ask delayed on a loaded machine (it asks each 1-2 s)
+        # counted Bob as gone when Cat arrived, and twice in a day they were not paired in 30 s. Ann
+        # leaves by her button, so nothing here waits on the window.
+        "lobby_presence_s": 10.0,
         "completion_code": DONE,
         "outcome_codes": CODES,
         "panel": {"completion_url": PROLIFIC},
