@@ -19,6 +19,7 @@ is evidence of where the robot is."""
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from collections import deque
@@ -142,7 +143,7 @@ class DialogCommander:
         rays = RayTable.build(maze, self.graph, cache_dir=cache_dir)
         self.rays = rays
         self.scene = Scene.from_rays(rays.labels, rays.depth, self.graph.nodes)
-        self.phrases = Phrases(Phrasing.SCRIPTED, seed)
+        self.phrases = Phrases(Phrasing.BUTTONS, seed)
         self.router = Router(self.graph, rays, self.phrases)
         reach = np.isfinite(self.graph.dist)
         self.main = reach[int(reach.sum(axis=1).argmax())]
@@ -702,16 +703,13 @@ class DialogCommander:
         return self._guide(prefix="no")
 
     def _turn_size(self, said: ins.Parsed | None) -> str:
-        """How far the turns of the instruction out turn, in degrees and presses of Left or Right."""
+        """How far the turns of the instruction out turn, in degrees, each as its presses of Left or
+        Right (a run of presses one way is one turn)."""
         turns = [i.eighths for i in (said.instructions if said else ()) if isinstance(i, ins.Turn) and i.eighths]
         if not turns:
             return "each press of left or right turns 45 degrees"
-        sizes = []
-        for eighths in turns:
-            side = "left" if eighths > 0 else "right"
-            presses = f"{abs(eighths)} time{'s' if abs(eighths) > 1 else ''}"
-            sizes.append(f"{self.phrases.turn(eighths)} is {45 * abs(eighths)} degrees: press {side} {presses}")
-        return ", and ".join(sizes)
+        sizes = [sum(run) for _, run in itertools.groupby(turns, key=lambda eighths: eighths > 0)]
+        return ", and ".join(f"{self.phrases.turn(e)}: that turns {45 * abs(e)} degrees, 45 a press" for e in sizes)
 
     def _landmark(self) -> str:
         """The walls nearest the target on the map, by colour: the nearest, and another about as near."""

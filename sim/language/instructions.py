@@ -218,6 +218,42 @@ def turn_until(message: str) -> TurnUntil | None:
     return None
 
 
+# Presses of the Driver's buttons counted ("press left twice", "click forward 3 times, then right
+# once"): each press one move, a step or a turn of 45 degrees, however a turn is said elsewhere. The
+# dialog Commander says its turns so (`Phrasing.BUTTONS`): people told "turn left" pressed once.
+_PRESS = re.compile(
+    r"\b(?:press|pressing|click|clicking|tap|tapping|hit|hitting)\b(?= (?:\w+ ){0,2}(?:forward|up|left|right)\b)"
+)
+_BUTTON = re.compile(r"\b(forward|up|left|right)(?: (?:button|arrow|key))?(?: (\w+)(?: (?:times|time|x))?)?")
+_BARE_PRESS = re.compile(rf"(?:then |and |now )?(?:the )?{_BUTTON.pattern}")  # "..., then left once"
+_PRESSES = {"once": 1, "twice": 2, "thrice": 3}
+_WALK_ON = re.compile(r"\b(?:until|till|til|untill|all the way)\b")
+
+
+def press_verb(said: str) -> re.Match[str] | None:
+    """Where words (a clause, cleaned) press a button; none in "press forward until the red wall", a walk."""
+    return None if _WALK_ON.search(said) else _PRESS.search(said)
+
+
+def pressed(said: str, pressing: bool) -> list[Instruction] | None:
+    """The moves of a clause (cleaned) that presses buttons, or, `pressing` (a clause before it
+    did), names them alone ("..., then right once"); None for any other clause."""
+    if (verb := press_verb(said)) is not None:
+        return _presses(said[verb.end() :])
+    return _presses(said) if pressing and _BARE_PRESS.fullmatch(said) else None
+
+
+def _presses(said: str) -> list[Instruction]:
+    """The moves of the buttons named in `said`, each as often as said: a turn per press, as the
+    turns of "twice" are counted."""
+    out: list[Instruction] = []
+    for found in _BUTTON.finditer(said):
+        button, times = found.group(1), found.group(2)
+        n = _PRESSES.get(times or "", number(times or "") or 1)
+        out += [Forward(n)] if button in ("forward", "up") else [Turn(1 if button == "left" else -1)] * n
+    return out
+
+
 def _question(text: str, ws: list[str]) -> Ask:
     look = bool(_LOOK.search(text))
     labels = _labels(ws)
@@ -315,9 +351,12 @@ def parse(message: str) -> Parsed:
             moves.append(Turn(4))
         return Parsed(tuple(moves) + (ask,))
     out: list[Instruction] = []
+    pressing = False
     for clause in clauses(text):
         last = next((k for k in range(len(out) - 1, -1, -1) if isinstance(out[k], Forward)), None)
-        parsed = _clause(clause, out[last] if last is not None else None)
+        moves = pressed(" ".join(words(clause)), pressing)
+        pressing = pressing or moves is not None
+        parsed = moves if moves is not None else _clause(clause, out[last] if last is not None else None)
         if last is not None and parsed and isinstance(parsed[0], Forward) and parsed[0].exclude:
             out[last] = parsed[0]  # "..., not the red one" narrows the wall to stop at
             continue

@@ -1,5 +1,5 @@
-"""The Commander's words: the scripted templates (app/demo's Commander), the frozen held-out set
-and the frozen personas.
+"""The Commander's words: the scripted templates (app/demo's Commander), the same with turns said as
+presses of the buttons (the dialog Commander's), the frozen held-out set and the frozen personas.
 
 Each kind of instruction has its templates; the scripted set is one template per kind, the words the
 project's scripted Commander has always used; the held-out set (`held_out_commander.json`) was
@@ -25,6 +25,7 @@ NUMBER_NAMES = "zero one two three four five six seven eight nine ten eleven twe
 class Phrasing(StrEnum):
     SCRIPTED = "scripted"
     HELD_OUT = "held_out"
+    BUTTONS = "buttons"  # the scripted words with each turn as presses of Left or Right: the dialog Commander's
 
 
 class Persona(StrEnum):
@@ -130,9 +131,22 @@ SCRIPTED = Phrasebook(
 )
 
 
+# The dialog Commander's words: people driving for it took "turn left" for one press of Left (45
+# degrees) as often as for two, and were lost from the first leg; a count of presses is read one
+# way. A turn at a wall is a walk to it, then the presses ("press left twice at the white wall"
+# reads as pressing there, wherever that is).
+BUTTONS = Phrasebook(
+    numbers="digits",
+    kinds=SCRIPTED.kinds | {PhraseKind.TURN_AT_WALL: ["go forward until the {wall}, then {turn}"]},
+    turns={1: ["press {d} once"], 2: ["press {d} twice"], 3: ["press {d} 3 times"], 4: ["press left 4 times"]},
+)
+
+
 def load(phrasing: Phrasing | Persona) -> Phrasebook:
     if phrasing == Phrasing.SCRIPTED:
         return SCRIPTED
+    if phrasing == Phrasing.BUTTONS:
+        return BUTTONS
     if isinstance(phrasing, Persona):
         raw = phrasing.path.read_bytes()
         if hashlib.sha256(raw).hexdigest() != PERSONA_SHA256[phrasing]:

@@ -39,7 +39,6 @@ from sim.language.vocab import (
     SIDE_PHRASE,
     SIDE_SECTOR,
     Side,
-    number,
     times_turned,
     turns_to,
     wall_name,
@@ -102,17 +101,15 @@ class Understanding:
         to the wall, and "click forward 4 times" as nothing). Clauses with no press are read as
         alone; None where no button is pressed."""
         parts = [(part, " ".join(words(part))) for part in ins.clauses(text)]
-        if not any(_press_verb(said) for _, said in parts):
+        if not any(ins.press_verb(said) for _, said in parts):
             return None
         out: list[Clause] = []
         pressing = False
         for part, said in parts:
-            verb = _press_verb(said)
-            pressing = pressing or verb is not None
-            if verb is not None:
-                out += _presses(said[verb.end() :])
-            elif pressing and _BARE_PRESS.fullmatch(said):
-                out += _presses(said)
+            moves = ins.pressed(said, pressing)
+            pressing = pressing or moves is not None
+            if moves is not None:
+                out += program_of(ins.Parsed(tuple(moves)))
             elif said:
                 out += [c for c in self.program(part, before).meaning if c.op != Op.UNCLEAR]
         return tuple(out)
@@ -155,15 +152,6 @@ class Understanding:
         reading = self.driver_reader.read(text, before)
         assert isinstance(reading.meaning, frozenset)  # a Driver reader writes facts
         return Understood(_joined(reading.meaning, facts_of(text, asked), text), reading.confidence, False)
-
-
-_PRESS = re.compile(
-    r"\b(?:press|pressing|click|clicking|tap|tapping|hit|hitting)\b(?= (?:\w+ ){0,2}(?:forward|up|left|right)\b)"
-)
-_BUTTON = re.compile(r"\b(forward|up|left|right)(?: (?:button|arrow|key))?(?: (\w+)(?: (?:times|time|x))?)?")
-_BARE_PRESS = re.compile(rf"(?:then |and |now )?(?:the )?{_BUTTON.pattern}")  # "..., then left once"
-_PRESSES = {"once": 1, "twice": 2, "thrice": 3}
-_WALK_ON = re.compile(r"\b(?:until|till|til|untill|all the way)\b")
 
 
 # A clause that says where the Driver is, or what a move is for, and asks nothing done ("i think
@@ -235,24 +223,6 @@ def instructing(text: str) -> str:
 
 def _places_or_claims(said: str) -> bool:
     return any(label in OBJECT_LABELS for label in _named(said.split())) or _CLAIMS in ins.parse(said).instructions
-
-
-def _press_verb(said: str) -> re.Match[str] | None:
-    """Where words press a button; none in "press forward until the red wall", a walk."""
-    return None if _WALK_ON.search(said) else _PRESS.search(said)
-
-
-def _presses(said: str) -> list[Clause]:
-    """The moves of the buttons named in `said` (words after a press verb), each as often as said."""
-    out: list[Clause] = []
-    for found in _BUTTON.finditer(said):
-        button, times = found.group(1), found.group(2)
-        n = _PRESSES.get(times or "", number(times or "") or 1)
-        if button in ("forward", "up"):
-            out.append(Clause.of(Op.FORWARD, steps=n, until=None))
-        else:  # a turn clause per press, as the rules count turns
-            out += [Clause.of(Op.TURN, eighths=1 if button == "left" else -1)] * n
-    return out
 
 
 def _right_as_said(program: Program, said: list[str]) -> Program:

@@ -3,6 +3,7 @@ Driver's words, it asks questions that split its belief, it judges claims from t
 and it never gets a pose, the Driver's frames or its moves."""
 
 import inspect
+import itertools
 import math
 import re
 
@@ -615,6 +616,13 @@ def test_an_answer_said_before_the_instruction_is_not_carried_out_with_it(world)
     assert np.allclose(asked.belief.log, told.belief.log)
 
 
+def _first_turn(instruction: str) -> int:
+    """The instruction's first turn in eighths: its first run of presses one way (0: none)."""
+    turns = [i.eighths for i in ins.parse(instruction).instructions if isinstance(i, ins.Turn)]
+    first = list(itertools.takewhile(lambda e: (e > 0) == (turns[0] > 0), turns))
+    return sum(first)
+
+
 def test_a_question_before_carrying_out_the_instruction_is_not_taken_for_it_done(world):
     """ "sharply right = like 90 degrees? theres a blue wall on my right, wont i just hit it?" was
     taken for a report of the instruction carried out, and the next one given from where the
@@ -626,12 +634,24 @@ def test_a_question_before_carrying_out_the_instruction_is_not_taken_for_it_done
     assert said == f"by my map that is still the way. {instruction}", said
     assert commander.estimate().pose == start
     said = _said(commander.perceive(Heard(Role.DRIVER, "how many times do i press left?")))
-    turns = [i for i in ins.parse(instruction).instructions if isinstance(i, ins.Turn)]
+    turns = _first_turn(instruction)
     if turns:
-        assert f"is {45 * abs(turns[0].eighths)} degrees: press" in said, said
+        assert f"{commander.phrases.turn(turns)}: that turns {45 * abs(turns)} degrees" in said, said
     else:
         assert said.startswith("each press of left or right turns 45 degrees"), said
     assert said.endswith(instruction) and commander.estimate().pose == start, said
+
+
+def test_it_says_each_turn_as_presses_of_left_or_right(world):
+    """People driving for it took "turn left" for one press of Left (45 degrees) as often as for two,
+    and were lost from the first leg: it says how many presses, and means what it says."""
+    start = _turning_pose(world)
+    commander, first = _navigating(world, start)
+    instruction = first.removeprefix("now find the jar of blocks. ")
+    assert re.match(r"press (left|right) (once|twice|3 times)|press left 4 times", instruction), instruction
+    actions, _ = commander.router.plan(start, commander.goal(start.node))
+    turned = sum(1 if a == Action.LEFT else -1 for a in itertools.takewhile(lambda a: a != Action.FORWARD, actions))
+    assert _first_turn(instruction) == (turned + 4) % 8 - 4, instruction
 
 
 @pytest.mark.parametrize("said", ["I think I'm at the cup?", "is this the jar? I think I'm there", "found it!"])
@@ -717,8 +737,8 @@ def test_a_question_on_how_to_carry_out_the_instruction_is_answered_before_it_is
     instruction = first.removeprefix("now find the jar of blocks. ")
     said = _said(commander.perceive(Heard(Role.DRIVER, question)))
     if "click" in question or "press" in question:
-        (turn, *_) = [i for i in ins.parse(instruction).instructions if isinstance(i, ins.Turn)]
-        assert said.startswith(f"{commander.phrases.turn(turn.eighths)} is {45 * abs(turn.eighths)} degrees"), said
+        turn = _first_turn(instruction)
+        assert said.startswith(f"{commander.phrases.turn(turn)}: that turns {45 * abs(turn)} degrees"), said
     else:
         assert said.startswith("the jar of blocks is light blue in the camera"), said
     assert said.endswith(instruction) and commander.estimate().pose == start, said

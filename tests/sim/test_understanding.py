@@ -63,6 +63,17 @@ def test_button_presses_are_counted_one_move_each_and_a_press_until_a_wall_is_a_
     assert reader.program("press left twice and go to the mug").meaning == (left, left, TO_THE_MUG)
     assert reader.program("press forward until you reach the mug").meaning == (TO_THE_MUG,)
     assert reader.program("go until you hit the mug").meaning == (TO_THE_MUG,)  # no button: a walk
+    # The rules count them the same way: they read the dialog Commander's own turns, said as presses.
+    assert ins.parse("press left twice, then go forward about 3 steps").instructions == (
+        ins.Turn(1),
+        ins.Turn(1),
+        ins.Forward(3),
+    )
+    assert ins.parse("go forward until the white wall, then press right 3 times").instructions == (
+        ins.Forward(None, Label.WHITE),
+        *[ins.Turn(-1)] * 3,
+    )
+    assert ins.parse("click forward 4 times, then right once").instructions == (ins.Forward(4), ins.Turn(-1))
 
 
 def test_clauses_that_say_where_the_driver_is_or_what_a_move_is_for_give_no_moves():
