@@ -78,6 +78,7 @@ RISKY = 0.4  # the belief's chance of a counted walk meeting a wall before its c
 NEAR_ENOUGH = 0.5  # the belief's share within SURE_M of the target to say "press i found the target"
 LANDMARK_M = 0.5  # walls this close to the target name where it stands ("next to the red wall") ...
 ALSO_NEAR_M = 0.1  # ... the nearest, and another no further than this beyond it
+DESCRIBED_SPLIT = 0.1  # a question on a side the Driver has not described, unless none splits the belief this well
 REPHRASE_AFTER = 2  # instructions in a row not carried out: say the next one move at a time
 LOST_AFTER = 3  # ... stop guiding and ask
 # The same instruction this many times within the last CIRCLING_WITHIN said in a row, each after a
@@ -170,6 +171,7 @@ class DialogCommander:
         self._pending: ins.Parsed | None = None  # the instruction out, not yet reported on
         self._questions = 0  # asked since the belief last settled
         self._asked: set[tuple[Sector, Label]] = set()  # at this stop
+        self._described: set[Sector] = set()  # sides the Driver has said what it sees on since the last instruction
         self._marked: tuple[float, float] | None = None
         self._plain = False
         self._looking = False  # the last question asked the Driver to look all around
@@ -264,6 +266,7 @@ class DialogCommander:
         understood = self._understanding.facts(text, self._before)
         read = None if understood.by_rules else belief_facts(understood.meaning)  # None: the lexicon's
         view = lexicon.facts(text) if read is None else read
+        self._described |= {s for f in view for s in f.sectors if s in _YOUR_SIDE}
         if self._pending is not None and not asks_first:
             self._move(self._pending, whole=not stuck, walked=lexicon.walked(text) if short else None)
             self._plain = stuck
@@ -516,15 +519,20 @@ class DialogCommander:
         p = np.exp(log - log.max())
         p = p / p.sum()
         yes = np.einsum("nh,nhsl->sl", p, self._seen)  # (4 sectors, labels)
-        best, best_split = None, -1.0
-        for sector in _YOUR_SIDE:
-            for label in Label:
-                if label == Label.FLOOR or (sector, label) in self._asked:
-                    continue
-                split = min(float(yes[sector, label]), 1.0 - float(yes[sector, label]))
-                if split > best_split:
-                    best, best_split = (sector, label), split
-        if best is None or best_split < 0.02:
+
+        def split(question: tuple[Sector, Label]) -> float:
+            return min(float(yes[question]), 1.0 - float(yes[question]))
+
+        open_ = [
+            (s, label) for s in _YOUR_SIDE for label in Label if label != Label.FLOOR and (s, label) not in self._asked
+        ]
+        # A side the Driver has told what it sees on is asked about again only where no other side
+        # splits the belief: a person told "no, green on my right" was asked "is there a white wall
+        # on your right?", and asked about its left after saying "white on my left".
+        best = max((q for q in open_ if q[0] not in self._described), key=split, default=None)
+        if best is None or split(best) < DESCRIBED_SPLIT:
+            best = max(open_, key=split, default=None)
+        if best is None or split(best) < 0.02:
             self._questions = MAX_QUESTIONS
             return self._mark(self.estimate()) if self._phase == Phase.LOCALIZING else self._guide()
         self._asked.add(best)
@@ -540,6 +548,9 @@ class DialogCommander:
         asked = [(s, label) for s in _YOUR_SIDE for label in Label if label != Label.FLOOR and seen[s, label]]
         if not asked:
             return self._guide()
+        # On a side the Driver has not described where there is one: told "a long white wall straight
+        # ahead", a person was asked "to check: is there a yellow wall ahead of you?"
+        asked = [q for q in asked if q[0] not in self._described] or asked
         sector, label = min(asked, key=lambda q: self._common[q])
         self._asked.add((sector, label))
         self._checking = True
@@ -571,6 +582,7 @@ class DialogCommander:
         assert self._target is not None
         self._questions = 0
         self._asked.clear()
+        self._described.clear()
         if self._announce is not None:
             prefix = f"{self._announce}. {prefix}" if prefix else self._announce
             self._announce = None

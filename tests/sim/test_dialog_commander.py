@@ -25,7 +25,7 @@ from sim.language import instructions as ins
 from sim.language import lexicon
 from sim.language.describe import near, seen
 from sim.language.sectors import Sector
-from sim.language.vocab import SIDE_STEPS
+from sim.language.vocab import SIDE_STEPS, Side
 from sim.tasks.benchmark import Benchmark
 from sim.tasks.library import BUNDLED_DIR
 from sim.trial.agent import SeatInfo
@@ -652,6 +652,34 @@ def test_it_says_each_turn_as_presses_of_left_or_right(world):
     actions, _ = commander.router.plan(start, commander.goal(start.node))
     turned = sum(1 if a == Action.LEFT else -1 for a in itertools.takewhile(lambda a: a != Action.FORWARD, actions))
     assert _first_turn(instruction) == (turned + 4) % 8 - 4, instruction
+
+
+@pytest.mark.parametrize(
+    ("description", "sides"),
+    [("green wall on my right", {Side.RIGHT}), ("yellow wall ahead, white on my right", {Side.AHEAD, Side.RIGHT})],
+)
+def test_it_does_not_ask_about_a_side_the_driver_just_described(world, description, sides):
+    """A person who said "no, green on my right" was asked "is there a white wall on your right?",
+    and after "white on my LEFT. green on my right", about its left (on gen-000 it asked "is there
+    a white wall on your right?" after the first of these, and about ahead after the second)."""
+    commander = _commander(world)
+    commander.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
+    said = _said(commander.perceive(Heard(Role.DRIVER, description)))
+    asked = ins.parse(said).instructions[0]
+    assert isinstance(asked, ins.Ask) and asked.side not in sides, said
+
+
+def test_its_check_asks_about_a_side_the_driver_has_not_described(world):
+    """Told "a long white wall straight ahead", a person was asked "to check: is there a yellow wall
+    ahead of you?", and answered "no, straight ahead of me is the white wall"."""
+    start = _walk_pose(world, 3)
+    commander = _commander(world)
+    assert commander._seen[start.node, start.heading][[Sector.LEFT, Sector.RIGHT]].any()  # a side to ask about
+    commander.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
+    commander.perceive(Heard(Role.DRIVER, "there is a long white wall straight ahead of me"))
+    _there(commander, start)
+    check = _said(commander.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3, target="jar")))
+    assert "to check" in check and "ahead" not in check, check
 
 
 @pytest.mark.parametrize("said", ["I think I'm at the cup?", "is this the jar? I think I'm there", "found it!"])
