@@ -493,9 +493,16 @@ _ASKED = (
 )
 DISTANCE_WINDOW = 8  # words after "a wall right in front" that may still say how far it is
 _COUNT = rf"(?:\d+|zero|(?:a )?(?:{'|'.join(NUMBER_WORDS)}))"  # "3", "three", "a few"
+# A report of not having moved at all ("I pressed forward six times but I don't think I actually
+# moved", "nothing happened", "it didnt budge"): a walk cut short before its first step.
+_NOT_MOVED = re.compile(
+    r"\b(?:did not|didnt|dont think i|do not think i|does not|doesnt|wont|will not|would not|wouldnt)"
+    r" (?:actually |really |even )?(?:move|moved|budge|budged|go anywhere)\b|\bnothing (?:happened|happens)\b"
+)
 # A report of an instruction not carried out in full, the Driver stopped on its way ("i hit a wall
 # after three steps", "only 2 steps, then a wall", "stopped at three", "i could not go further").
 _FELL_SHORT = re.compile(
+    rf"{_NOT_MOVED.pattern}|"
     r"\b(?:hit|bumped|bump|bumps|bumping|bumpd|crashed|ran into|blocked|stuck|can only go|in my way|no way forward)\b"
     r"|\bforward (?:\w+ ){0,2}(?:does not|doesnt|wont|will not|isnt|is not) work"
     r"|^(?:i )?(?:cant|cannot|can not)\b(?! (?:see|find|tell|understand|say))"  # "cant, wall rite there"
@@ -592,7 +599,10 @@ def fell_short(text: str) -> bool:
 
 def walked(text: str) -> int | None:
     """The steps a Driver's report of stopping short says it made; None where it names none."""
-    found = _WALKED.search(" ".join(tokens(text)))
+    said = " ".join(tokens(text))
+    if _NOT_MOVED.search(said):
+        return 0
+    found = _WALKED.search(said)
     if found is None:
         return None
     return _count(found.group(1) or found.group(2))

@@ -506,6 +506,23 @@ def test_a_walk_cut_short_puts_the_robot_as_many_steps_along_as_the_driver_says(
     assert commander.estimate().pose.node == two.node, report
 
 
+@pytest.mark.parametrize(
+    "report",
+    [
+        "Hmm, I pressed forward six times but I don't think I actually moved, I think the white wall was in the way.",
+        "nothing happened when i pressed forward",
+        "it didnt budge",
+    ],
+)
+def test_a_report_of_not_moving_at_all_keeps_the_robot_where_the_walk_began(world, report):
+    """A person who pressed forward six times into a wall said so in these words; the next
+    instruction was given from six steps on."""
+    start = _walk_pose(world, 6)
+    commander, first = _navigating(world, start)
+    commander.perceive(Heard(Role.DRIVER, report))
+    assert commander.estimate().pose.node == start.node, report
+
+
 def _free_run(commander: DialogCommander, pose: Pose) -> int:
     """Forward steps free from `pose` before a wall bars the way."""
     run = 0
