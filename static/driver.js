@@ -13,6 +13,16 @@ const minIntervalMs = 1000 * Number($("seat").dataset.minMoveIntervalS || 0);
 // last move than the server takes one) waits in `queued` and goes once the server would take it.
 let pending = null, pendingAction = null, pendingSince = -Infinity, queued = null, timer = null;
 const note = (text) => { $("move-note").textContent = text; };
+// Presses in a row that bumped: a person pressing Forward as often as told could not tell how many
+// had moved the robot, and reported a walk done that never began.
+let bumps = 0;
+function bumped(collided) {
+  bumps = collided ? bumps + 1 : 0;
+  $("seat").dataset.bumped = String(collided);
+  if (!collided) return "";
+  return bumps > 1 ? t("Bump! Something is in the way: the last {n} presses did not move the robot.", {n: bumps})
+    : t("Bump! Something is in the way.");
+}
 
 function showProgress() {
   const moving = pending !== null;
@@ -80,8 +90,7 @@ on("move_executed", (msg) => {
   if (p.move_id !== pending) return;  // not this page's (another window of the seat), or given up on
   pending = null;
   if (p.outcome === "refused") dropQueue();
-  note(p.outcome === "collision" ? t("Bump! Something is in the way.")
-    : p.outcome === "refused" ? friendlyError(p.reason) : "");
+  note(p.outcome === "refused" ? friendlyError(p.reason) : bumped(p.outcome === "collision"));
   showProgress();
   drain();
 });

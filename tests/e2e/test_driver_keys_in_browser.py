@@ -62,3 +62,39 @@ def test_a_held_key_is_one_move_and_a_press_while_moving_waits_its_turn(browser,
     assert moves(server, trial.id) == (["left", "right", "left", "right", "left"], 0)
     wait_js(driver, "() => document.getElementById('move-progress').hidden")
     assert driver.get_attribute("#seat", "data-moving") == "false"
+
+
+@pytest.mark.settings(min_move_interval_s=0.05)
+def test_presses_that_bump_say_so_and_count_those_in_a_row_until_one_moves(browser, server, trial):
+    """A person pressing Forward as often as told into a wall could not tell how many presses had
+    moved the robot ("I pressed forward six times but I don't think I actually moved")."""
+    pages = {}
+    for role in ("commander", "driver"):
+        pages[role] = browser.new_context().new_page()
+        pages[role].goto(trial.play_url(role))
+    driver = pages["driver"]
+    driver.wait_for_selector("#status[data-phase=localizing]")
+    wait_js(driver, "() => !document.getElementById('forward').disabled")
+
+    def press(button: str) -> str:
+        """Press `button` and wait for its move: its outcome."""
+        done = len(server.services.log.load(trial.id))
+        driver.click(f"#{button}")
+        wait_until(
+            lambda: any(e.is_(ev.MoveExecuted) for e in server.services.log.load(trial.id)[done:]), f"{button} executed"
+        )
+        wait_js(driver, "() => document.getElementById('seat').dataset.moving === 'false'")
+        (executed,) = [e for e in server.services.log.load(trial.id)[done:] if e.is_(ev.MoveExecuted)]
+        return str(executed.payload["outcome"])
+
+    outcomes = [press("forward") for _ in range(2)]
+    for _ in range(80):  # forward until a wall: the trial's start pose is drawn at random
+        if outcomes[-2:] == ["collision", "collision"]:
+            break
+        outcomes.append(press("forward"))
+    assert outcomes[-2:] == ["collision", "collision"], outcomes
+    assert driver.get_attribute("#seat", "data-bumped") == "true"
+    assert "the last 2 presses did not move the robot" in driver.inner_text("#move-note")
+    assert press("left") == "ok"  # a turn in place always moves it
+    assert driver.get_attribute("#seat", "data-bumped") == "false"
+    assert driver.inner_text("#move-note") == ""
