@@ -81,6 +81,7 @@ class Understanding:
         """A Commander turn; `before` the turn before it as ("c" or "d", text)."""
         if self.commander_reader is None:
             return Understood(program_of(ins.parse(text)), 1.0, True, read=text)
+        text = plainly(text)
         if (pressed := self._pressed(text, before)) is not None:
             return Understood(pressed, 1.0, False, read=text)
         text = instructing(text)
@@ -170,12 +171,29 @@ _NOT_TO = re.compile(
 # Chat about the game, not a move: "two down and one to go", "u went 2 far".
 _CHATTER = re.compile(
     r"^(?:\w+ )?(?:one|two|three|1|2|3) (?:down|done|(?:more |left )?to go)$|^(?:you|u) went (?:\w+ )?(?:too|to|2) far\b"
+    r"|\b(?:out of time|times up|time is up)\b"  # "ok we're out of time, stopping here": it had driven off
 )
 _GOES_ON = re.compile(r"^(?:facing|with|which|where|near|next|at|in|by)\b")
 _DOES = re.compile(
     r"\b(?:turn|turning|go|going|move|drive|walk|head|take|press|continue|keep|back|stop|claim|find|look"
     r"|looking|spin|rotate|face|target|objective|goal)\b"
 )
+
+
+# A turn's size in degrees or in clicks of a button, said as the words the reader knows: a person's
+# "turn left 45, forward 5" was a quarter turn, and "turn left one click, go forward 4" a quarter
+# turn and a step.
+_SIZE_WORDS = {1: "turn slightly {side}", 2: "turn {side}", 3: "turn sharply {side}", 4: "turn around"}
+_DEGREES = {"45": 1, "90": 2, "135": 3, "180": 4}
+_CLICKS = {"one": 1, "a": 1, "1": 1, "two": 2, "2": 2, "three": 3, "3": 3, "four": 4, "4": 4}
+_TURN_VERB = r"(?:(?:turn|go|rotate|spin|veer) )?"
+_SIDE_DEGREES = re.compile(rf"\b{_TURN_VERB}(left|right) (?:by )?(45|90|135|180)(?: ?degrees?| ?deg)?\b")
+_DEGREES_SIDE = re.compile(rf"\b{_TURN_VERB}(45|90|135|180)(?: ?degrees?| ?deg)? (?:to (?:the |your )?)?(left|right)\b")
+_SIDE_CLICKS = re.compile(
+    rf"\b{_TURN_VERB}(left|right) ({'|'.join(_CLICKS)}) (?:click|clicks|press|presses|tap|taps|notch|notches)\b"
+)
+# "next is the mug": the next target named, not a walk to it (read as "forward to the coffee mug").
+_NEXT_IS = re.compile(r"\b(?:the )?next (?:one |target |up )?is (?:the )?(jar|mug|cup|paddle)\b")
 
 
 # "go ahead and tell me": do; "the olive green paddle", "the pink mug": the object's colour, no wall.
@@ -219,6 +237,22 @@ def instructing(text: str) -> str:
         describing = False
         kept.append(part.strip())
     return ". ".join(kept) if dropped else plain
+
+
+def plainly(text: str) -> str:
+    """`text` (in lower case) with a turn's size in degrees or clicks said in words ("turn left
+    45" -> "turn slightly left", "right two clicks" -> "turn right") and "next is the X" said as
+    "now find the X"; as it is where it has none of these."""
+    said = text.lower()  # its punctuation kept: it cuts the clauses
+    plain = _SIDE_DEGREES.sub(lambda m: _sized(m.group(1), _DEGREES[m.group(2)]), said)
+    plain = _DEGREES_SIDE.sub(lambda m: _sized(m.group(2), _DEGREES[m.group(1)]), plain)
+    plain = _SIDE_CLICKS.sub(lambda m: _sized(m.group(1), _CLICKS[m.group(2)]), plain)
+    plain = _NEXT_IS.sub(r"now find the \1", plain)
+    return text if plain == said else plain
+
+
+def _sized(side: str, eighths: int) -> str:
+    return _SIZE_WORDS[eighths].format(side=side)
 
 
 def _places_or_claims(said: str) -> bool:

@@ -241,3 +241,27 @@ def test_a_count_its_reading_left_unused_goes_where_the_words_say_it():
     (walk,) = unread_counts((slight,), text)
     # Said before the turn: the walk goes first, so the Driver cannot do the turn alone first.
     assert walk.said == "28 cm" and with_count((slight,), text, walk) == ((_walk(4), slight), False)
+
+
+def test_a_turn_sized_in_degrees_or_clicks_is_that_size():
+    """From a browser play: "turn left 45, forward 5" was a quarter turn, and "turn left one click,
+    go forward 4. then turn right two clicks ..." a quarter turn, a step and two walks."""
+    reader = Understanding.trained()
+    slight_left, right = Clause.of(Op.TURN, eighths=1), Clause.of(Op.TURN, eighths=-2)
+    assert reader.program("turn left 45, forward 5").meaning == (slight_left, _walk(5))
+    assert reader.program("turn 90 degrees to the right and go 3 steps").meaning == (right, _walk(3))
+    said = "ok got you. turn left one click, go forward 4. then turn right two clicks and go straight like 10"
+    assert reader.program(said).meaning[:3] == (slight_left, _walk(4), right)
+
+
+def test_a_goodbye_and_the_next_target_named_move_nothing_of_their_own():
+    """ "ok we're out of time, stopping here. thanks" had the agent turn around and drive to a wall;
+    "next is the mug" was a walk to the mug before the turn around that followed it."""
+    reader = Understanding.trained()
+    moves = (Op.TURN, Op.FORWARD, Op.BACK, Op.FOLLOW, Op.OPENING)
+    assert not [c for c in reader.program("ok we're out of time, stopping here. thanks").meaning if c.op in moves]
+    said = "nice one. next is the mug, long way. turn around and go straight until the green wall on your left ends"
+    assert reader.program(said).meaning == (
+        Clause.of(Op.TURN, eighths=4),
+        Clause.of(Op.FORWARD, steps=None, until="green"),
+    )
