@@ -115,6 +115,17 @@ def _moves(said: ins.Parsed) -> list[ins.Instruction]:
     return [i for i in said.instructions if isinstance(i, ins.MOVING)]
 
 
+def _same_first_move(proposed: str, instruction: str) -> bool | None:
+    """Whether a move a Driver proposes starts as the instruction does (a walk, or a turn the same
+    way); None where the words propose no move."""
+    theirs, ours = _moves(ins.parse(proposed)), _moves(ins.parse(instruction))
+    if not theirs or not ours:
+        return None
+    if isinstance(theirs[0], ins.Turn) and isinstance(ours[0], ins.Turn):
+        return (theirs[0].eighths > 0) == (ours[0].eighths > 0)
+    return type(theirs[0]) is type(ours[0])
+
+
 def _wall_close_ahead(fact: lexicon.Fact) -> bool:
     """A wall (or the edge), not an object, said to be close ahead."""
     return (
@@ -247,7 +258,7 @@ class DialogCommander:
             # It reports nothing done: the belief stays where it was. (A question it has no answer
             # for, "sharply right = like 90 degrees?" before there was one, was taken for a report
             # of the instruction carried out, and the next one was given from where it was not.)
-            return self._answer(asked)
+            return self._answer(asked, proposed=lexicon.proposed(text))
         blocked = lexicon.blocked(text)  # its way forward is barred where it stands
         short = lexicon.fell_short(text) or bool(_STUCK.search(lowered))
         # A wall right in front after a report of moves made ("done, ...", "ok, i went forward, but now
@@ -329,7 +340,7 @@ class DialogCommander:
         # now?" by the instruction itself ("right first. turn right" reads as two turns).
         if asked is not None and asked != Asked.WHICH_WAY:
             return turns + self._answer(asked, one_move=one_move)
-        return turns + self._guide(one_move=one_move, reported=True)
+        return turns + self._guide(one_move=one_move, reported=True, proposed=lexicon.proposed(text))
 
     def _claimed(self, claim: Claimed) -> list[Action]:
         if self._pending is not None:
@@ -571,14 +582,20 @@ class DialogCommander:
         return int(places[self._dist[node, places].argmin()])
 
     def _guide(
-        self, prefix: str | None = None, one_move: bool = False, questioned: bool = False, reported: bool = False
+        self,
+        prefix: str | None = None,
+        one_move: bool = False,
+        questioned: bool = False,
+        reported: bool = False,
+        proposed: str | None = None,
     ) -> list[Action]:
         """The next instruction from the estimate, towards the target: a leg of the route, or after
         instructions not carried out, its first move alone in the simplest words; `questioned` (the
         Driver questioned the last one before carrying it out): said whether it still stands;
         `reported` (after a report of the last one done): the same instruction a third time in a
         row is a belief gone wrong (a person was led round in circles by "go forward about 1 step,
-        then turn slightly left", four times): it says so and asks instead."""
+        then turn slightly left", four times): it says so and asks instead; `proposed`: a move the
+        Driver asked whether to make ("go straight?"), answered yes or no by the instruction's first."""
         assert self._target is not None
         self._questions = 0
         self._asked.clear()
@@ -606,6 +623,8 @@ class DialogCommander:
             text = self._safer(self.router.instruction(estimate.pose, label, goal, plain=self._plain))
         if questioned:
             prefix = "by my map that is still the way" if text == self._instructed else "thanks, that changes it"
+        elif proposed is not None and (agrees := _same_first_move(proposed, text)) is not None:
+            prefix = "yes" if agrees else "no"
         if self._circling(text, reported):
             self._elsewhere(DOUBTED)
             return self._ask(prefix="i keep saying the same things, so i may have lost you")
@@ -666,9 +685,9 @@ class DialogCommander:
 
     # -- answers --------------------------------------------------------------------------------
 
-    def _answer(self, asked: Asked | None, one_move: bool = False) -> list[Action]:
-        """A Driver's question answered (one it has no answer for, said so), then the instruction
-        again from where it still is (a question reports nothing done)."""
+    def _answer(self, asked: Asked | None, one_move: bool = False, proposed: str | None = None) -> list[Action]:
+        """A Driver's question answered (one it has no answer for, said so; a move it `proposed`,
+        yes or no), then the instruction again from where it still is (a question reports nothing done)."""
         assert self._target is not None
         pending, self._pending = self._pending, None
         estimate = self.estimate()
@@ -697,6 +716,8 @@ class DialogCommander:
                 reply = "let me say it in steps"
             case Asked.TURN_SIZE:
                 reply = self._turn_size(pending)
+            case None if proposed is not None:
+                return self._guide(one_move=one_move, proposed=proposed)
             case None:
                 reply = "sorry, i did not get your question. again"
             case Asked.WHICH_WAY:

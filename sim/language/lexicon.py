@@ -575,6 +575,22 @@ def claims(text: str) -> bool:
     )
 
 
+# A move the Driver proposes at the end of its message and asks about ("go straight?", "should i
+# turn left?", "im gonna go straight down the hallway ok?"): a person asking so was given the next
+# instruction without a yes or a no.
+_PROPOSED = re.compile(
+    r"(?:^|[.!?,;]\s*)(?:(?:so|ok|okay|then|and) )?(?:(?:should|shall|do|can|could) i |i(?:'?m| am) (?:gonna|going to) "
+    r"|i(?:'?ll| will) |maybe )?((?:go|turn|keep going|head|drive|move|continue)\b[^.!?,;]*?)(?:,? (?:ok|okay|then))?\s*\?\s*$"
+)
+
+
+def proposed(text: str) -> str | None:
+    """The move a Driver's message ends by proposing and asking about, in its words; None where it
+    proposes none."""
+    found = _PROPOSED.search(text.lower().strip())
+    return found.group(1) if found and " or " not in found.group(1) else None  # "go straight or left?" asks which
+
+
 def has_question(text: str) -> bool:
     """Whether any sentence of a message is a question."""
     return any(is_question(s) for s in re.split(r"(?<=[.,;!?])", text) if tokens(s))

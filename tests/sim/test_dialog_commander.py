@@ -523,6 +523,28 @@ def test_a_report_of_not_moving_at_all_keeps_the_robot_where_the_walk_began(worl
     assert commander.estimate().pose.node == start.node, report
 
 
+@pytest.mark.parametrize(
+    "report",
+    [
+        "ok, white wall on my left, green wall on my right. go straight?",
+        "done. im gonna turn left ok?",
+        "should i turn right?",
+    ],
+)
+def test_a_move_the_driver_proposes_after_its_report_is_answered_yes_or_no(world, report):
+    """ "... another white wall way at the end. go straight?" and "im gonna go straight down the
+    hallway ok?" got the next instruction with neither a yes nor a no."""
+    commander, _ = _navigating(world, _walk_pose(world, 3))
+    said = _said(commander.perceive(Heard(Role.DRIVER, report)))
+    answer, _, instruction = said.partition(". ")
+    proposed = ins.parse(lexicon.proposed(report) or "").instructions[0]
+    first = ins.parse(instruction).instructions[0]
+    agrees = type(first) is type(proposed) and (
+        not isinstance(first, ins.Turn) or (first.eighths > 0) == (proposed.eighths > 0)
+    )
+    assert answer == ("yes" if agrees else "no"), said
+
+
 def _free_run(commander: DialogCommander, pose: Pose) -> int:
     """Forward steps free from `pose` before a wall bars the way."""
     run = 0
