@@ -194,6 +194,12 @@ _SIDE_CLICKS = re.compile(
 )
 # "next is the mug": the next target named, not a walk to it (read as "forward to the coffee mug").
 _NEXT_IS = re.compile(r"\b(?:the )?next (?:one |target |up )?is (?:the )?(jar|mug|cup|paddle)\b")
+# A whole circle, slowly: a look around ("turn all the way around slowly and tell me every color you
+# see" was a half turn and one view; "spin around 360" a half turn and "forward 360 steps?").
+_FULL_CIRCLE = re.compile(
+    r"\b(?:(?:turn|spin|rotate|go) )?(?:all the way |fully |right )?(?:a)?round (?:slowly|in a (?:full )?circle)\b"
+    r"|\b(?:(?:turn|spin|rotate) )?(?:(?:all the way |a)?round )?(?:a |do a |full )?360(?: ?degrees?)?\b|\b(?:a )?full circle\b"
+)
 
 
 # "go ahead and tell me": do; "the olive green paddle", "the pink mug": the object's colour, no wall.
@@ -241,13 +247,14 @@ def instructing(text: str) -> str:
 
 def plainly(text: str) -> str:
     """`text` (in lower case) with a turn's size in degrees or clicks said in words ("turn left
-    45" -> "turn slightly left", "right two clicks" -> "turn right") and "next is the X" said as
-    "now find the X"; as it is where it has none of these."""
+    45" -> "turn slightly left", "right two clicks" -> "turn right"), "next is the X" said as
+    "now find the X" and a whole circle as a look around; as it is where it has none of these."""
     said = text.lower()  # its punctuation kept: it cuts the clauses
     plain = _SIDE_DEGREES.sub(lambda m: _sized(m.group(1), _DEGREES[m.group(2)]), said)
     plain = _DEGREES_SIDE.sub(lambda m: _sized(m.group(2), _DEGREES[m.group(1)]), plain)
     plain = _SIDE_CLICKS.sub(lambda m: _sized(m.group(1), _CLICKS[m.group(2)]), plain)
     plain = _NEXT_IS.sub(r"now find the \1", plain)
+    plain = _FULL_CIRCLE.sub("look around", plain)
     return text if plain == said else plain
 
 
@@ -605,7 +612,7 @@ def instructions(program: Program, text: str) -> list[ins.Instruction]:
                         _side(args["side"]),
                         _label(args["label"]),
                         # Looking all around is eight scored moves: only when the words ask for it.
-                        look_around=question == "look_around" and ins.asks_to_look(text),
+                        look_around=question == "look_around" and ins.asks_to_look(plainly(text)),
                     )
                 )
             case Op.STOP:

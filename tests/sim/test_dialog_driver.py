@@ -545,6 +545,18 @@ def test_turn_around_and_tell_me_what_you_see_turns_half_way_round_and_tells(wor
     assert pose == Pose(start.node, 4) and "ahead" in said[-1] and not any("do you mean" in s for s in said), said
 
 
+@pytest.mark.parametrize(
+    "text",
+    ["turn all the way around slowly and tell me every color you see", "spin around 360 and tell me what you see"],
+)
+def test_a_whole_circle_asked_for_is_a_look_all_around(world, text):
+    """A person's "turn all the way around slowly and tell me every color you see" got a half turn
+    and one view; "spin around 360 ..." a half turn and "forward 360 steps?"."""
+    start = Pose(100, 0)
+    pose, said = _carry_out(_navigating(world, start), world, start, text)
+    assert pose == start and "behind me" in said[0] and "360" not in " ".join(said), said
+
+
 def test_another_object_said_to_be_in_view_is_answered_not_sought_or_claimed(world):
     """A person placing the robot by a landmark ("i think you are facing the red wall near the mug",
     "you are next to the jar") made the agent look all around for the mug, and claim the jar when
