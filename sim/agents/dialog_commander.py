@@ -565,7 +565,10 @@ class DialogCommander:
         sector, label = min(asked, key=lambda q: self._common[q])
         self._asked.add((sector, label))
         self._checking = True
-        return self._say(f"i think i know where you are. to check: is there a {wall_name(label)} {_YOUR_SIDE[sector]}?")
+        # The trial moves on with the mark: "stay where you are", or a person's page says "drive to
+        # target 1 of 3" while it checks (two people did not know whether to drive).
+        where = f"is there a {wall_name(label)} {_YOUR_SIDE[sector]}?"
+        return self._say(f"i think i know where you are, but stay where you are for now. to check: {where}")
 
     def goal(self, node: int) -> int:
         """Where it guides the Driver from `node`: the nearest place from which the target is in view
