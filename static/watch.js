@@ -67,7 +67,17 @@ function onClaimEvent(kind, p) {
     const truth = p.within_m === undefined ? "" : ` (truly ${p.truly_within ? "within" : "not within"} reach, ${Number(p.within_m).toFixed(2)} m)`;
     claimPending = null;
     $("claim-note").dataset.last = `${kind === "target_confirmed" ? "Confirmed" : "Rejected"}${truth}.`;
+    // A line of the chat too, where it came in the dialog (at the top alone, it read out of order).
+    const name = p.target || targets[p.target_index];
+    addNote(`${kind === "target_confirmed" ? "Confirmed" : "Rejected"}: target ${p.target_index + 1} (${name})${truth}.`);
   }
+}
+
+function addNote(text) {
+  const li = document.createElement("li");
+  li.className = "note";
+  li.textContent = text;
+  $("messages").append(li);
 }
 
 function render() {

@@ -111,6 +111,8 @@ def test_two_browsers_complete_a_trial_to_the_leaderboard(browser, server):
             # The verdict is a line of both seats' chat, in the dialog's order.
             for page in (commander, driver):
                 page.wait_for_selector(f"#messages li.note >> text=Confirmed: the {target} is found.")
+            # ... and of the experimenter's, with the ground truth (it had been a note at the top alone).
+            admin.wait_for_selector(f"#messages li.note >> text=Confirmed: target 1 ({target}) (truly within reach")
         commander.wait_for_selector("#claim[hidden]", state="attached")
     commander.wait_for_selector("#status[data-phase=finished]")
     driver.wait_for_selector("#status[data-phase=finished]")
