@@ -354,9 +354,9 @@ def parse(message: str) -> Parsed:
     pressing = False
     for clause in clauses(text):
         last = next((k for k in range(len(out) - 1, -1, -1) if isinstance(out[k], Forward)), None)
-        moves = pressed(" ".join(words(clause)), pressing)
-        pressing = pressing or moves is not None
-        parsed = moves if moves is not None else _clause(clause, out[last] if last is not None else None)
+        presses = pressed(" ".join(words(clause)), pressing)
+        pressing = pressing or presses is not None
+        parsed = presses if presses is not None else _clause(clause, out[last] if last is not None else None)
         if last is not None and parsed and isinstance(parsed[0], Forward) and parsed[0].exclude:
             out[last] = parsed[0]  # "..., not the red one" narrows the wall to stop at
             continue
