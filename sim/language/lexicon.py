@@ -454,6 +454,9 @@ _ASKED = (
         re.compile(
             rf"\b(?:is|are) (?:that|this|it|those|these|the \w+(?: \w+)?) (?:the )?{_TARGET_WORDS}\b"
             rf"|\bwhich (?:one|thing) is (?:the )?{_TARGET_WORDS}\b"
+            # "yo i see smth yellowish olive way off on the left. is that it?" (not "is this it?", said
+            # with a claim at the target)
+            r"|\b(?:is|could) that (?:be )?(?:it|the one|the target)\b"
         ),
     ),
     (

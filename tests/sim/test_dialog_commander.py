@@ -742,7 +742,8 @@ def test_asked_whether_what_it_sees_is_the_target_it_says_what_the_target_looks_
     """ "is the red thing the jar?", asked three times by a person driving, went unanswered."""
     commander, first = _navigating(world, _walk_pose(world, 3))
     instruction = first.removeprefix("now find the jar of blocks. ")
-    for question in ("is that the jar??", "is the red thing the jar?", "which one is the jar"):
+    # "is that it?": a person who saw something olive far off got "sorry, i did not get your question".
+    for question in ("is that the jar??", "is the red thing the jar?", "which one is the jar", "is that it?"):
         said = _said(commander.perceive(Heard(Role.DRIVER, question)))
         assert said == f"the jar of blocks is light blue in the camera. {instruction}", (question, said)
 
