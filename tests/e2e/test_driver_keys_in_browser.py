@@ -13,24 +13,32 @@ from tests.e2e.pages import wait_until
 pytestmark = pytest.mark.browser
 
 
+def executed(server, trial: int) -> list[dict]:
+    """The payloads of the trial's executed moves, refused ones too, in order."""
+    return [e.payload for e in server.services.log.load(trial) if e.is_(ev.MoveExecuted)]
+
+
 def moves(server, trial: int) -> tuple[list[str], int]:
     """The actions executed, in order, and the number of move requests refused."""
-    log = server.services.log.load(trial)
-    executed = [e.payload for e in log if e.is_(ev.MoveExecuted)]
-    return [p["action"] for p in executed if p["outcome"] != "refused"], sum(
-        p["outcome"] == "refused" for p in executed
-    )
+    done = executed(server, trial)
+    return [p["action"] for p in done if p["outcome"] != "refused"], sum(p["outcome"] == "refused" for p in done)
 
 
-@pytest.mark.settings(min_move_interval_s=0.4)
-def test_a_held_key_is_one_move_and_a_press_while_moving_waits_its_turn(browser, server, trial):
+def driver_page(browser, trial, button: str):
+    """Both seats' pages opened; the Driver's, once the trial localizes and `button` is enabled."""
     pages = {}
     for role in ("commander", "driver"):
         pages[role] = browser.new_context().new_page()
         pages[role].goto(trial.play_url(role))
     driver = pages["driver"]
     driver.wait_for_selector("#status[data-phase=localizing]")
-    wait_js(driver, "() => !document.getElementById('left').disabled")
+    wait_js(driver, f"() => !document.getElementById('{button}').disabled")
+    return driver
+
+
+@pytest.mark.settings(min_move_interval_s=0.4)
+def test_a_held_key_is_one_move_and_a_press_while_moving_waits_its_turn(browser, server, trial):
+    driver = driver_page(browser, trial, "left")
     # What a press does, on the page: both plays' people guessed at it, and disagreed with the agents.
     assert "45 degrees" in driver.inner_text("#move-sizes") and "7 cm" in driver.inner_text("#move-sizes")
 
@@ -68,24 +76,15 @@ def test_a_held_key_is_one_move_and_a_press_while_moving_waits_its_turn(browser,
 def test_presses_that_bump_say_so_and_count_those_in_a_row_until_one_moves(browser, server, trial):
     """A person pressing Forward as often as told into a wall could not tell how many presses had
     moved the robot ("I pressed forward six times but I don't think I actually moved")."""
-    pages = {}
-    for role in ("commander", "driver"):
-        pages[role] = browser.new_context().new_page()
-        pages[role].goto(trial.play_url(role))
-    driver = pages["driver"]
-    driver.wait_for_selector("#status[data-phase=localizing]")
-    wait_js(driver, "() => !document.getElementById('forward').disabled")
+    driver = driver_page(browser, trial, "forward")
 
     def press(button: str) -> str:
         """Press `button` and wait for its move: its outcome."""
-        done = len(server.services.log.load(trial.id))
+        done = len(executed(server, trial.id))
         driver.click(f"#{button}")
-        wait_until(
-            lambda: any(e.is_(ev.MoveExecuted) for e in server.services.log.load(trial.id)[done:]), f"{button} executed"
-        )
+        wait_until(lambda: len(executed(server, trial.id)) > done, f"{button} executed")
         wait_js(driver, "() => document.getElementById('seat').dataset.moving === 'false'")
-        (executed,) = [e for e in server.services.log.load(trial.id)[done:] if e.is_(ev.MoveExecuted)]
-        return str(executed.payload["outcome"])
+        return str(executed(server, trial.id)[done]["outcome"])
 
     outcomes = [press("forward") for _ in range(2)]
     for _ in range(80):  # forward until a wall: the trial's start pose is drawn at random
