@@ -315,8 +315,16 @@ class DialogCommander:
         if self._phase == Phase.LOCALIZING:
             if estimate.spread_m <= SETTLED_M or self._questions >= MAX_QUESTIONS:
                 return self._mark(estimate)
-            # Asked anything while it localizes ("where am i?"), it says it does not know yet.
-            return self._ask(prefix="i do not know yet where you are" if asked is not None else None)
+            # Asked anything while it localizes ("where am i?"), it says it does not know yet; called
+            # ("hello??"), that it is there; asked to say it again, it asks (it has no instruction out).
+            match asked:
+                case None | Asked.AGAIN:
+                    prefix = None
+                case Asked.THERE:
+                    prefix = "i am here"
+                case _:
+                    prefix = "i do not know yet where you are"
+            return self._ask(prefix=prefix)
         if self._phase != Phase.NAVIGATING or self._target is None:
             return []
         turns = self._revise(estimate)
@@ -719,6 +727,10 @@ class DialogCommander:
                 reply = "let me say it in steps"
             case Asked.TURN_SIZE:
                 reply = self._turn_size(pending)
+            case Asked.THERE:  # "hello??", "u there?" had been "sorry, i did not get your question"
+                reply = "i am here"
+            case Asked.AGAIN:
+                reply = "again"
             case None if proposed is not None:
                 return self._guide(one_move=one_move, proposed=proposed)
             case None:

@@ -427,6 +427,8 @@ class Asked(StrEnum):
     IS_IT = "is_it"  # "is that the jar?", "is the red thing the jar?": what it looks like in the camera
     SHOULD_CLAIM = "should_claim"  # "should i press i found the target?"
     NEAR_WHAT = "near_what"  # "which wall colour is the paddle next to?", "near what?"
+    THERE = "there"  # "hello??", "u there?": a message that only calls the Commander
+    AGAIN = "again"  # "say again?", "u said right once then left once?? which": the instruction again
 
 
 # First match wins: "where am i" before "where to", "what do i look for" before "what does it look like".
@@ -434,7 +436,23 @@ class Asked(StrEnum):
 _OBJECTS = "|".join(w for w, label in LABELS.items() if label in OBJECT_LABELS and w not in CAMERA_COLOUR_WORDS)
 _TARGET_WORDS = rf"(?:{_OBJECTS}|target|objective|goal)"
 _ASKED = (
-    (Asked.WHERE_AM_I, re.compile(r"\bwhere (?:am i|are we|i am)\b")),
+    # Whole messages only: "hi, red wall on my left" reports.
+    (
+        Asked.THERE,
+        re.compile(
+            r"^(?:(?:hello+|helo|hi+|hey+|yo|um+|uh+) ?)*(?:(?:are|r) )?(?:you|u|ya) (?:still )?(?:there|here|with me|around)$"
+            r"|^(?:hello+|helo|hi+|hey+|yo)(?: there| again| commander)?$|^(?:anyone|anybody|someone|somebody) (?:there|home)$"
+        ),
+    ),
+    (
+        Asked.WHERE_AM_I,
+        re.compile(
+            r"\bwhere (?:am i|are we|i am)\b|\bdo you know where (?:i am|im|i m|we are|the robot is)\b"
+            # "could you tell me whether you have a position estimate?" went unanswered
+            r"|\b(?:position|location) estimate\b|\b(?:know|found) (?:my|our|the robot s) (?:position|location)\b"
+            r"|\bhave you (?:localized|localised|found) (?:me|us|the robot)\b"
+        ),
+    ),
     (
         Asked.SHOULD_CLAIM,
         re.compile(
@@ -492,6 +510,13 @@ _ASKED = (
     (
         Asked.WHICH_WAY,
         re.compile(r"\b(?:which|what) (?:way|direction|side)\b|\bleft or right\b|\bright or left\b|\bwhere\b"),
+    ),
+    (
+        Asked.AGAIN,
+        re.compile(
+            r"^(?:what|huh|pardon|come again|again|what did you say)(?: please)?$|\bwhich$"
+            r"|\b(?:say|tell me) (?:that|it) again\b|\brepeat (?:that|it|the (?:last )?instruction|please)\b|^repeat$"
+        ),
     ),
 )
 DISTANCE_WINDOW = 8  # words after "a wall right in front" that may still say how far it is

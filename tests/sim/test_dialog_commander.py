@@ -601,6 +601,55 @@ def test_a_question_about_how_the_target_looks_is_told_from_a_view_that_looks_li
     assert lexicon.asks(text) == asked
 
 
+@pytest.mark.parametrize(
+    "text, asked",
+    [
+        ("hello??", lexicon.Asked.THERE),
+        ("u there??", lexicon.Asked.THERE),
+        ("hi, red wall on my left", None),  # a greeting with a report reports
+        ("u said right once then left once?? which", lexicon.Asked.AGAIN),
+        ("say that again?", lexicon.Asked.AGAIN),
+        ("which wall?", lexicon.Asked.WHICH_ONE),
+        ("could you tell me whether you have a position estimate?", lexicon.Asked.WHERE_AM_I),
+        ("do you know where i am?", lexicon.Asked.WHERE_AM_I),
+    ],
+)
+def test_a_call_a_repeat_or_a_question_about_its_estimate_is_a_question(text, asked):
+    """Words from the browser plays, answered "sorry, i did not get your question" ("hello??") or
+    not at all (the position estimate)."""
+    assert lexicon.asks(text) == asked
+
+
+@pytest.mark.parametrize(
+    "text, reply",
+    [("u there??", "i am here. "), ("hello", "i am here. "), ("say that again?", "again. ")],
+)
+def test_called_or_asked_again_it_answers_and_gives_the_instruction_again_from_where_the_robot_is(world, text, reply):
+    """ "hello??" and "u there??" from a person waiting had been "sorry, i did not get your
+    question"; "hello" alone was taken for the instruction done."""
+    start = _walk_pose(world, 3)
+    commander, first = _navigating(world, start)
+    instruction = first.removeprefix("now find the jar of blocks. ")
+    said = _said(commander.perceive(Heard(Role.DRIVER, text)))
+    assert said == f"{reply}{instruction}", said
+    assert commander.estimate().pose == start
+
+
+def test_called_while_it_localizes_it_says_it_is_there_and_asks_on(world):
+    commander = _commander(world)
+    commander.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
+    said = _said(commander.perceive(Heard(Role.DRIVER, "hello??")))
+    assert said.startswith("i am here. ") and said.endswith("?"), said
+
+
+def test_asked_for_its_estimate_it_says_where_it_thinks_the_robot_is(world):
+    start = _walk_pose(world, 3)
+    commander, first = _navigating(world, start)
+    said = _said(commander.perceive(Heard(Role.DRIVER, "could you tell me whether you have a position estimate?")))
+    assert said.startswith("i think you are where you see"), said
+    assert said.endswith(first.removeprefix("now find the jar of blocks. ")) and commander.estimate().pose == start
+
+
 def test_a_target_on_one_side_with_a_route_that_turns_the_other_way_first_is_said_so(world):
     """ "the paddle is on your right ... turn sharply left" left a person unsure which to trust."""
     commander = _commander(world)
