@@ -115,6 +115,17 @@ async function refreshRobots() {
   } catch (e) { /* the next tick retries */ }
 }
 
+// An ended trial's join links lead only to a closed page: its replay takes their place, as on reload.
+function offerReplay(row) {
+  const cell = row.querySelector(".links");
+  if (cell.querySelector(".replay")) return;
+  const replay = document.createElement("a");
+  replay.className = "replay";
+  replay.href = `/experimenter/trials/${row.dataset.trial}/replay`;
+  replay.textContent = "replay";
+  cell.replaceChildren(replay);
+}
+
 async function refresh() {
   let trials, phases;
   try {
@@ -129,6 +140,7 @@ async function refresh() {
     if (open.has(row.dataset.trial) || !phase) continue;
     row.querySelector(".phase").textContent = phase;
     showControls(row, phase, []);
+    if (phase === "finished" || phase === "aborted") offerReplay(row);
   }
   const running = new Set();
   for (const t of trials) {

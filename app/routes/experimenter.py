@@ -46,7 +46,7 @@ from app.trial.setup import (
 from app.web import render, trial_or_404
 from sim.trial.specs import HUMAN, SIM, BackendSpec, SeatSpec
 from sim.trial.state import TrialState, fold
-from sim.trial.vocabulary import Role
+from sim.trial.vocabulary import Phase, Role
 
 # Every state-changing request also needs this server's Origin and the page's CSRF token.
 MAX_NOTES = 10_000  # characters of a trial's notes
@@ -118,7 +118,8 @@ def dashboard(
         controls_for=controls_for,
         robots=robot_links.status(),
         preparation=mazes.preparation.progress(),
-        links={t.id: join_links(request, seats, t) for t in trials},
+        # An ended trial's links only lead to a closed page: it offers its replay instead.
+        links={t.id: join_links(request, seats, t) for t in trials if not Phase(t.phase).over},
         holders={t.id: seat_holders(t, names) for t in trials},
         error=error,
     )

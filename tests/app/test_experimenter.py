@@ -90,6 +90,8 @@ def test_experimenter_forms_make_a_trial_with_join_links(server):
     assert second.driver == "oracle:shortest" and second.driver_id is None
     row = re.search(rf'data-trial="{second.id}".*?</tr>', client.get("/experimenter").text, re.S).group(0)
     assert "join-commander" in row and "join-driver" not in row, "an agent drives: no Driver link"
+    row = re.search(rf'data-trial="{first.id}".*?</tr>', client.get("/experimenter").text, re.S).group(0)
+    assert "join-" not in row and "/replay" in row, "an aborted trial offers its replay, not its join links"
 
 
 @pytest.mark.parametrize("kind", ["sqlite", "postgres"])

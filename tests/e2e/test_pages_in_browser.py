@@ -162,6 +162,9 @@ def test_participants_see_the_clock_their_moves_and_what_to_do(browser, server, 
     assert runtime.state.moves == 2
 
     # Abort asks first: dismissed, nothing happens; accepted, every page says the trial ended.
+    board = admin.context.new_page()  # the dashboard, open meanwhile
+    board.goto(f"{server.url}/experimenter")
+    board.locator(f"tr[data-trial='{trial_id}'] a.join-driver").wait_for()
     admin.wait_for_selector("form.control-abort:not([hidden])")
     admin.once("dialog", lambda d: d.dismiss())
     admin.click("form.control-abort button")
@@ -179,10 +182,16 @@ def test_participants_see_the_clock_their_moves_and_what_to_do(browser, server, 
     assert "Restart it from the dashboard" in admin.inner_text("#status")
     assert all(admin.is_hidden(f"form.control-{a}") for a in ("pause", "resume", "abort"))
     assert commander.is_disabled("#chat-input")
-    admin.goto(f"{server.url}/experimenter")
-    row = admin.locator(f"tr[data-trial='{trial_id}']")
-    row.locator(".phase", has_text="aborted").wait_for()
-    assert all(row.locator(f"form.control-{a}").is_hidden() for a in ("pause", "resume", "abort"))
+    # The dashboard open meanwhile and one opened now: the ended trial's join links (which lead only
+    # to a closed page) give way to its replay.
+    for page in (board, admin):
+        if page is admin:
+            admin.goto(f"{server.url}/experimenter")
+        row = page.locator(f"tr[data-trial='{trial_id}']")
+        row.locator(".phase", has_text="aborted").wait_for()
+        row.locator("a.replay").wait_for()
+        assert row.locator("a.join-commander, a.join-driver").count() == 0
+        assert all(row.locator(f"form.control-{a}").is_hidden() for a in ("pause", "resume", "abort"))
     for page in (commander, driver, admin):
         page.context.close()
 
