@@ -20,8 +20,9 @@ function bumped(collided) {
   bumps = collided ? bumps + 1 : 0;
   $("seat").dataset.bumped = String(collided);
   if (!collided) return "";
-  return bumps > 1 ? t("Bump! Something is in the way: the last {n} presses did not move the robot.", {n: bumps})
-    : t("Bump! Something is in the way.");
+  // Each still counts as a move: a person who saw the count rise took a bump for a step made.
+  return bumps > 1 ? t("Bump! Something is in the way: the last {n} presses did not move the robot (each still counts as a move).", {n: bumps})
+    : t("Bump! Something is in the way. The press still counts as a move.");
 }
 
 function showProgress() {

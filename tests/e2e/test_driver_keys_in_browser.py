@@ -93,7 +93,9 @@ def test_presses_that_bump_say_so_and_count_those_in_a_row_until_one_moves(brows
         outcomes.append(press("forward"))
     assert outcomes[-2:] == ["collision", "collision"], outcomes
     assert driver.get_attribute("#seat", "data-bumped") == "true"
-    assert "the last 2 presses did not move the robot" in driver.inner_text("#move-note")
+    assert "the last 2 presses did not move the robot (each still counts as a move)" in driver.inner_text("#move-note")
+    # ... as the page's move count shows (a person took the count rising for steps made)
+    wait_js(driver, f"() => document.getElementById('moves').dataset.moves === '{len(outcomes)}'")
     assert press("left") == "ok"  # a turn in place always moves it
     assert driver.get_attribute("#seat", "data-bumped") == "false"
     assert driver.inner_text("#move-note") == ""
