@@ -126,6 +126,13 @@ def _same_first_move(proposed: str, instruction: str) -> bool | None:
     return type(theirs[0]) is type(ours[0])
 
 
+def _counted(said: ins.Parsed) -> int | None:
+    """The count of an instruction's one counted walk, which presses said to have bumped are taken
+    from ("done, but the last 2 presses did not move"); None where it has none or several."""
+    counts = [i.steps for i in said.instructions if isinstance(i, ins.Forward)]
+    return counts[0] if len(counts) == 1 else None
+
+
 def _wall_close_ahead(fact: lexicon.Fact) -> bool:
     """A wall (or the edge), not an object, said to be close ahead."""
     return (
@@ -279,7 +286,8 @@ class DialogCommander:
         view = lexicon.facts(text) if read is None else read
         self._described |= {s for f in view for s in f.sectors if s in _YOUR_SIDE}
         if self._pending is not None and not asks_first:
-            self._move(self._pending, whole=not stuck, walked=lexicon.walked(text) if short else None)
+            walked = lexicon.walked(text, _counted(self._pending)) if short else None
+            self._move(self._pending, whole=not stuck, walked=walked)
             self._plain = stuck
             self._stuck = self._stuck + 1 if stuck else 0
             self._pending = None

@@ -540,7 +540,16 @@ _FELL_SHORT = re.compile(
 )
 # The steps a Driver says it made before it stopped ("after three steps", "only got 2 steps in",
 # "stopped at 3", "2 done", "maybe two steps?").
-_WALKED = re.compile(rf"\b(?:after|at|got|only|maybe|go) ({_COUNT})\b|\b({_COUNT}) (?:steps? )?done\b")
+# "only moved 3 times then bump": "moved" is read as "move".
+_WALKED = re.compile(rf"\b(?:after|at|got|only|maybe|go|move|made) ({_COUNT})\b|\b({_COUNT}) (?:steps? )?done\b")
+# The presses of a walk a Driver says bumped: its last ones, the robot at a wall ("the last 3 presses
+# did not move the robot", as the Driver's page says it; "bumped twice", "2 of them bumped").
+_TIMES = {"once": 1, "twice": 2, "thrice": 3}
+_BUMPED = re.compile(
+    rf"\blast ({_COUNT}|one|press) (?:\w+ ){{0,2}}(?:did not|didnt|do not|dont|were|was|are|just) (?:\w+ )?(?:move|moved|bump|bumps|bumped|blocked)\b"
+    rf"|\bbump(?:ed|s)? ({_COUNT}|{'|'.join(_TIMES)})(?: times)?\b(?! (?:steps|presses))"
+    rf"|\b({_COUNT}) (?:of them |presses |steps |times |were |of those )?(?:bumped|were bumps|bumps)\b"
+)
 # A wall that bars the way where the Driver stands ("there is a wall right in front of me");
 # "close ahead" is not: a step may still be free.
 _WALL_RIGHT_AHEAD = re.compile(
@@ -641,15 +650,21 @@ def fell_short(text: str) -> bool:
     return bool(_FELL_SHORT.search(" ".join(tokens(text))))
 
 
-def walked(text: str) -> int | None:
-    """The steps a Driver's report of stopping short says it made; None where it names none."""
+def walked(text: str, counted: int | None = None) -> int | None:
+    """The steps a Driver's report of stopping short says it made: those it names, else where it says
+    how many presses of a walk of `counted` steps bumped, the rest; None where it says neither."""
     said = " ".join(tokens(text))
+    bumped = _BUMPED.search(said)
+    if bumped is not None:  # before "did not move": its last presses, not all of them
+        said_bumped = next(g for g in bumped.groups() if g is not None)
+        presses = _TIMES.get(said_bumped) or (1 if said_bumped in ("one", "press") else _count(said_bumped))
+        return max(counted - presses, 0) if counted is not None and presses is not None else None
     if _NOT_MOVED.search(said):
         return 0
     found = _WALKED.search(said)
     if found is None:
         return None
-    return _count(found.group(1) or found.group(2))
+    return _count(next(g for g in found.groups() if g is not None))
 
 
 def _count(said: str) -> int | None:

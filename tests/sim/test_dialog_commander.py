@@ -521,6 +521,28 @@ def test_a_walk_cut_short_puts_the_robot_as_many_steps_along_as_the_driver_says(
 
 
 @pytest.mark.parametrize(
+    ("report", "bumped"),
+    [
+        ("done, but the last 2 presses did not move the robot", 2),  # the Driver page's words
+        ("did it but bumped twice", 2),
+        ("ok, 3 of them bumped", 3),
+        ("the last one was a bump", 1),
+    ],
+)
+def test_presses_said_to_have_bumped_are_the_walks_last(world, report, bumped):
+    """The Driver's page counts the presses in a row that bumped; a person passing that on had the
+    belief carry the whole count ("the last 3 presses did not move" was even read as no step made)."""
+    start = _walk_pose(world, 6)
+    commander, first = _navigating(world, start)
+    instruction = first.removeprefix("now find the jar of blocks. ")
+    walks = [i.steps for i in ins.parse(instruction).instructions if isinstance(i, ins.Forward)]
+    assert len(walks) == 1 and walks[0] is not None, instruction
+    end = _end_of(commander, start, instruction, walked=walks[0] - bumped)
+    commander.perceive(Heard(Role.DRIVER, report))
+    assert commander.estimate().pose.node == end.node, report
+
+
+@pytest.mark.parametrize(
     "report",
     [
         "ok, white wall on my left, green wall on my right. go straight?",
