@@ -126,6 +126,18 @@ def _same_first_move(proposed: str, instruction: str) -> bool | None:
     return type(theirs[0]) is type(ours[0])
 
 
+def _is_there(label: Label, sector: Sector) -> str:
+    """Its yes / no question about `label` on a side; a landmark with its colour in the camera (a
+    person asked about the paddle said "no paddle. the olive cylinder is right-ish behind me")."""
+    thing = f"{OBJECT_LOOKS[label]} {wall_name(label)}" if label in OBJECT_LOOKS else wall_name(label)
+    return f"is there {'an' if thing[0] in 'aeiou' else 'a'} {thing} {_YOUR_SIDE[sector]}?"
+
+
+def _object_named(text: str) -> Label | None:
+    """The landmark a Driver's question names first ("is the olive cylinder the paddle?"), if any."""
+    return next((label for label in lexicon.question(text).labels if label in OBJECT_LABELS), None)
+
+
 def _counted(said: ins.Parsed) -> int | None:
     """The count of an instruction's one counted walk, which presses said to have bumped are taken
     from ("done, but the last 2 presses did not move"); None where it has none or several."""
@@ -265,7 +277,7 @@ class DialogCommander:
             # It reports nothing done: the belief stays where it was. (A question it has no answer
             # for, "sharply right = like 90 degrees?" before there was one, was taken for a report
             # of the instruction carried out, and the next one was given from where it was not.)
-            return self._answer(asked, proposed=lexicon.proposed(text))
+            return self._answer(asked, proposed=lexicon.proposed(text), about=_object_named(text))
         blocked = lexicon.blocked(text)  # its way forward is barred where it stands
         short = lexicon.fell_short(text) or bool(_STUCK.search(lowered))
         # A wall right in front after a report of moves made ("done, ...", "ok, i went forward, but now
@@ -337,10 +349,14 @@ class DialogCommander:
             return []
         turns = self._revise(estimate)
         if doubted:
+            # "no paddle. the olive cylinder is right-ish behind me. is that your paddle?", asked at its
+            # check, went unanswered, and was asked again: what it looks like goes with the doubt.
+            if asked in (Asked.IS_IT, Asked.LOOKS):
+                doubted = f"{doubted}. {self._looks(_object_named(text))}"
             return turns + self._ask(prefix=doubted)
         if asks_first and estimate.spread_m <= LOST_M:
             if asked is not None and asked not in (Asked.WHICH_WAY, Asked.WHY):
-                return turns + self._answer(asked)
+                return turns + self._answer(asked, about=_object_named(text))
             return turns + self._guide(questioned=True)
         lost = estimate.spread_m > LOST_M
         if (lost or self._stuck >= LOST_AFTER) and self._questions < MAX_QUESTIONS:
@@ -355,7 +371,7 @@ class DialogCommander:
         # Asked along with a report ("bumped again. where is the jar?"): answered too, but "where to
         # now?" by the instruction itself ("right first. turn right" reads as two turns).
         if asked is not None and asked != Asked.WHICH_WAY:
-            return turns + self._answer(asked, one_move=one_move)
+            return turns + self._answer(asked, one_move=one_move, about=_object_named(text))
         return turns + self._guide(one_move=one_move, reported=True, proposed=lexicon.proposed(text))
 
     def _claimed(self, claim: Claimed) -> list[Action]:
@@ -564,7 +580,7 @@ class DialogCommander:
             return self._mark(self.estimate()) if self._phase == Phase.LOCALIZING else self._guide()
         self._asked.add(best)
         sector, label = best
-        return self._say(f"{lead}is there a {wall_name(label)} {_YOUR_SIDE[sector]}?")
+        return self._say(f"{lead}{_is_there(label, sector)}")
 
     def _check(self, estimate: Estimate) -> list[Action]:
         """Before the first leg, a question its estimate answers yes and most of the maze no: a
@@ -583,7 +599,7 @@ class DialogCommander:
         self._checking = True
         # The trial moves on with the mark: "stay where you are", or a person's page says "drive to
         # target 1 of 3" while it checks (two people did not know whether to drive).
-        where = f"is there a {wall_name(label)} {_YOUR_SIDE[sector]}?"
+        where = _is_there(label, sector)
         return self._say(f"i think i know where you are, but stay where you are for now. to check: {where}")
 
     def goal(self, node: int) -> int:
@@ -704,9 +720,12 @@ class DialogCommander:
 
     # -- answers --------------------------------------------------------------------------------
 
-    def _answer(self, asked: Asked | None, one_move: bool = False, proposed: str | None = None) -> list[Action]:
+    def _answer(
+        self, asked: Asked | None, one_move: bool = False, proposed: str | None = None, about: Label | None = None
+    ) -> list[Action]:
         """A Driver's question answered (one it has no answer for, said so; a move it `proposed`,
-        yes or no), then the instruction again from where it still is (a question reports nothing done)."""
+        yes or no; what the landmark it is `about` looks like), then the instruction again from where
+        it still is (a question reports nothing done)."""
         assert self._target is not None
         pending, self._pending = self._pending, None
         estimate = self.estimate()
@@ -723,7 +742,7 @@ class DialogCommander:
                 guess = "i am not sure; my best guess (marked on the map) is" if unsure else "i think you are"
                 reply = f"{guess} where you see {seen_there}. {self._where(estimate)}"
             case Asked.LOOKS | Asked.IS_IT:  # it cannot see the camera: it says what to look for
-                reply = self._looks()
+                reply = self._looks(about)
             case Asked.SHOULD_CLAIM:
                 near_it = self._mass_near(self.maze.objects[self._target]) >= NEAR_ENOUGH
                 reply = "yes, if it is right in front of you, press i found the target" if near_it else None
@@ -786,10 +805,13 @@ class DialogCommander:
         ]
         return f"the {thing} is next to the {' and the '.join(walls[:2])}"
 
-    def _looks(self) -> str:
-        """What the target looks like, in words the Driver agent reads as the target named, no move."""
-        assert self._target is not None
-        label = object_label(self._target)
+    def _looks(self, label: Label | None = None) -> str:
+        """What landmark `label` looks like (the target's where None), in words the Driver agent reads
+        as that landmark named, no move ("is that the jar?" while the mug was next had been told
+        what the mug looks like)."""
+        if label is None:
+            assert self._target is not None
+            label = object_label(self._target)
         return f"the {OBJECT_WORDS[label]} is {OBJECT_LOOKS[label]} in the camera"
 
     def _steps_to_go(self, estimate: Estimate) -> int:

@@ -470,7 +470,7 @@ _ASKED = (
     (
         Asked.IS_IT,
         re.compile(
-            rf"\b(?:is|are) (?:that|this|it|those|these|the \w+(?: \w+)?) (?:the )?{_TARGET_WORDS}\b"
+            rf"\b(?:is|are) (?:that|this|it|those|these|the \w+(?: \w+)?) (?:the |your |my |our )?{_TARGET_WORDS}\b"
             rf"|\bwhich (?:one|thing) is (?:the )?{_TARGET_WORDS}\b"
             # "yo i see smth yellowish olive way off on the left. is that it?" (not "is this it?", said
             # with a claim at the target)
@@ -548,8 +548,11 @@ _TIMES = {"once": 1, "twice": 2, "thrice": 3}
 _BUMPED = re.compile(
     rf"\blast ({_COUNT}|one|press) (?:\w+ ){{0,2}}(?:did not|didnt|do not|dont|were|was|are|just) (?:\w+ )?(?:move|moved|bump|bumps|bumped|blocked)\b"
     rf"|\bbump(?:ed|s)? ({_COUNT}|{'|'.join(_TIMES)})(?: times)?\b(?! (?:steps|presses))"
-    rf"|\b({_COUNT}) (?:of them |presses |steps |times |were |of those )?(?:bumped|were bumps|bumps)\b"
+    # "the 2 forwards bumped", "those 7 forwards all bumped", "bumped again both forwards"
+    rf"|\b({_COUNT}|both) (?:\w+ ){{0,2}}(?:bumped|were bumps|bumps)\b|\bbumped (?:again )?(both)\b"
 )
+# A walk that bumped at its first press: no step made ("bumped on the very first forward").
+_FIRST_BUMPED = re.compile(r"\b(?:bumped|bump|hit|blocked|stuck) (?:\w+ ){0,2}(?:on|at) the (?:very )?first\b")
 # A wall that bars the way where the Driver stands ("there is a wall right in front of me");
 # "close ahead" is not: a step may still be free.
 _WALL_RIGHT_AHEAD = re.compile(
@@ -558,7 +561,8 @@ _WALL_RIGHT_AHEAD = re.compile(
     r"|\bfacing (?:a|the) wall\b"
     # A person's words for a wall that fills the camera: "right up against a wall", "nose to nose with
     # a big red wall", "it fills most of the picture" ("really close" alone is near, a step or more).
-    r"|\bup against (?:a|the) (?:\w+ ){0,2}wall\b|\bnose to nose with\b"
+    r"|\bup against (?:a|the) (?:\w+ ){0,2}wall\b|\bnose to nose with\b|\bnose (?:against|on|into|at) (?:a|the)\b"
+    r"|\bwall (?:right |just )?in my face\b"  # "white wall in my face. gap on the left"
     r"|\b(?:fills|filling|covers|all over) (?:\w+ ){0,2}(?:the )?(?:picture|screen|view|camera|image)\b"
 )
 
@@ -657,9 +661,9 @@ def walked(text: str, counted: int | None = None) -> int | None:
     bumped = _BUMPED.search(said)
     if bumped is not None:  # before "did not move": its last presses, not all of them
         said_bumped = next(g for g in bumped.groups() if g is not None)
-        presses = _TIMES.get(said_bumped) or (1 if said_bumped in ("one", "press") else _count(said_bumped))
+        presses = _TIMES.get(said_bumped) or {"one": 1, "press": 1, "both": 2}.get(said_bumped) or _count(said_bumped)
         return max(counted - presses, 0) if counted is not None and presses is not None else None
-    if _NOT_MOVED.search(said):
+    if _NOT_MOVED.search(said) or _FIRST_BUMPED.search(said):
         return 0
     found = _WALKED.search(said)
     if found is None:
@@ -736,6 +740,10 @@ _DOUBTS = re.compile(
     r"|(?:going|go|went|walking|driving|run|running) (?:\w+ ){0,2}in (?:a )?circles?"
     r"|are you sure|(?:been|was|were) here before|back (?:to |at )?where (?:i|we) (?:was|were|started)"
     r"|same (?:place|spot|view) (?:as )?(?:again|before)|wrong way|back and forth"
+    # "facing that same white wall again, looks exactly like before", "i think you have me in the
+    # wrong spot": a person led round in circles, who was given the next counted walk
+    r"|same (?:\w+ ){0,2}(?:wall|corner|place|spot|view) (?:as )?again|(?:exactly|just) like before"
+    r"|wrong (?:spot|place|position|location)|(?:have|got) me (?:\w+ ){0,2}wrong"
     r"|(?:really|actually) (?:\w+ ){0,3}(?:this|that|the right) way|(?:the )?way i came from)\b"
 )
 

@@ -268,6 +268,33 @@ def test_told_its_mark_is_wrong_it_says_it_is_unsure_and_asks(world, reply):
     assert not ins.parse(said).moves, "it asks before it guides"
 
 
+def test_its_check_names_a_landmark_with_its_colour_and_a_no_that_asks_about_one_is_answered(world):
+    """Asked "is there a ping-pong paddle on your right?", a person said "no paddle. the olive
+    cylinder is right-ish behind me. is that your paddle?", twice, and was never told."""
+    for node in range(world[1].n):
+        for heading in range(8):
+            commander, check = _checking(world, Pose(node, heading))
+            if "paddle" in check:
+                break
+        else:
+            continue
+        break
+    else:
+        raise AssertionError("no pose whose check asks about the paddle")
+    assert "is there an olive green ping-pong paddle" in check, check
+    said = _said(
+        commander.perceive(Heard(Role.DRIVER, "no paddle. the olive cylinder is behind me. is that your paddle?"))
+    )
+    assert said.startswith("then i am not sure where you are. the ping-pong paddle is olive green in the camera"), said
+    assert said.endswith("?"), said
+
+
+def test_asked_whether_another_landmark_is_the_target_it_says_how_that_one_looks(world):
+    commander, _ = _navigating(world, _walk_pose(world, 3))  # the jar is next
+    said = _said(commander.perceive(Heard(Role.DRIVER, "is that the mug?")))
+    assert said.startswith("the coffee mug is pink in the camera"), said
+
+
 @pytest.mark.parametrize("reply", ["sort of?", "not sure", "i don't know, maybe"])
 def test_an_unsure_answer_to_its_check_is_not_taken_for_a_yes(world, reply):
     """A person's "sort of?" had been read as a yes, and the first leg led them in a loop."""
@@ -287,6 +314,9 @@ def test_an_unsure_answer_to_its_check_is_not_taken_for_a_yes(world, reply):
         "That's the way I came from the paddle.",
         "I've been going back and forth for a while.",
         "im lost tbh",
+        # The ninth play's, each answered with the next counted walk.
+        "did that. now facing that same white wall again, looks exactly like before",
+        "bumped again. just white wall now. i think you have me in the wrong spot",
     ],
 )
 def test_a_driver_that_says_it_is_lost_is_heard_and_asked_where_it_is(world, report):
@@ -321,6 +351,9 @@ def test_asked_which_wall_it_says_the_leg_again_in_counted_steps(world):
         "I'm now nose to nose with a big red wall.",
         "Forward just bumps here, three times now",
         "cant, wall rite there. i give up srry",
+        # The ninth play's, each followed by a walk into that wall.
+        "white wall in my face. gap on the left",
+        "bumped again. nose against a blue wall now, thats all i see",
     ],
 )
 def test_a_wall_reported_right_in_front_changes_its_next_instruction(world, report):
@@ -510,6 +543,7 @@ def test_a_done_report_naming_a_wall_right_in_front_takes_the_walk_as_done(world
         ),
         ("nothing happened when i pressed forward", 0),
         ("it didnt budge", 0),
+        ("bumped on the very first forward, the white wall was right there diagonally", 0),
     ],
 )
 def test_a_walk_cut_short_puts_the_robot_as_many_steps_along_as_the_driver_says(world, report, walked):
@@ -527,6 +561,8 @@ def test_a_walk_cut_short_puts_the_robot_as_many_steps_along_as_the_driver_says(
         ("did it but bumped twice", 2),
         ("ok, 3 of them bumped", 3),
         ("the last one was a bump", 1),
+        ("the 2 forwards bumped. now staring right at the wall", 2),  # the ninth play's
+        ("bumped again both forwards", 2),
     ],
 )
 def test_presses_said_to_have_bumped_are_the_walks_last(world, report, bumped):
@@ -633,6 +669,7 @@ def test_a_question_about_how_the_target_looks_is_told_from_a_view_that_looks_li
         ("say that again?", lexicon.Asked.AGAIN),
         ("which wall?", lexicon.Asked.WHICH_ONE),
         ("could you tell me whether you have a position estimate?", lexicon.Asked.WHERE_AM_I),
+        ("no paddle. the olive cylinder is right-ish behind me. is that your paddle?", lexicon.Asked.IS_IT),
         ("do you know where i am?", lexicon.Asked.WHERE_AM_I),
     ],
 )
