@@ -491,7 +491,7 @@ _ASKED = (
     (
         Asked.HOW_FAR,  # and where the target is, or what to look for: the same answer
         re.compile(
-            r"\bhow (?:far|many|much|long)\b|\b(?:is it|am i|are we) (?:close|near|far)\b"
+            rf"\bhow (?:far|many|much|long)\b|\b(?:is it|am i|are we|is the (?:{_OBJECTS}|target)) (?:\w+ )?(?:close|near|far)\b"
             rf"|\bwhere(?:s| is)?(?: the| my)? (?:{_TARGET_WORDS}|it)\b"
             rf"|\b(?:which|what) (?:way|direction|side) (?:\w+ ){{0,2}}(?:{_TARGET_WORDS})\b"  # "which direction the jar is"
             r"|\bwhat (?:do|should) i (?:look|search) for\b|\bwhat am i looking for\b"
@@ -502,11 +502,17 @@ _ASKED = (
         Asked.LOOKS,
         re.compile(
             r"\b(?:what|how) (?:does|do|did|will) (?:\w+ ){0,4}look(?: like)?\b"
+            rf"|\bwhat colou?r (?:is|s) (?:it|the (?:{_OBJECTS}|target))\b"  # "what color is the mug"
             r"|\bhow (?:do|will|would|can) i (?:know|tell|recogni[sz]e)\b|\bwill i (?:actually |even )?see (?:it|the)\b"
         ),
     ),
     (Asked.WHY, re.compile(r"\bwhy\b")),
-    (Asked.WHICH_ONE, re.compile(r"\bwhich (?:\w+ ){0,2}(?:wall|walls|one|ones|corner|corridor|opening|gap|turn)\b")),
+    (
+        Asked.WHICH_ONE,  # and where a walk ends: "so go fwd till where exactly?"
+        re.compile(
+            r"\bwhich (?:\w+ ){0,2}(?:wall|walls|one|ones|corner|corridor|opening|gap|turn)\b|\b(?:till|until|up to) where\b"
+        ),
+    ),
     (
         Asked.WHICH_WAY,
         re.compile(r"\b(?:which|what) (?:way|direction|side)\b|\bleft or right\b|\bright or left\b|\bwhere\b"),
@@ -569,8 +575,14 @@ _WALL_RIGHT_AHEAD = re.compile(
 
 def asks(text: str) -> Asked | None:
     """What a Driver's message asks the Commander, where it asks one of `Asked`."""
+    return next(iter(asks_all(text)), None)
+
+
+def asks_all(text: str) -> list[Asked]:
+    """Each of `Asked` a Driver's message asks, first first ("what color is the mug n is it
+    close?": how far, and how it looks)."""
     said = " ".join(tokens(text))
-    return next((kind for kind, pattern in _ASKED if pattern.search(said)), None)
+    return [kind for kind, pattern in _ASKED if pattern.search(said)]
 
 
 def only_asks(text: str) -> bool:
@@ -625,11 +637,16 @@ _PROPOSED = re.compile(
 )
 
 
+_WHERE_TO = re.compile(r"\b(?:where|what|which|how)\b")
+
+
 def proposed(text: str) -> str | None:
     """The move a Driver's message ends by proposing and asking about, in its words; None where it
     proposes none."""
     found = _PROPOSED.search(text.lower().strip())
-    return found.group(1) if found and " or " not in found.group(1) else None  # "go straight or left?" asks which
+    if found is None or _WHERE_TO.search(found.group(1)):  # "go fwd till where exactly?" asks where
+        return None
+    return found.group(1) if " or " not in found.group(1) else None  # "go straight or left?" asks which
 
 
 def has_question(text: str) -> bool:
@@ -716,10 +733,17 @@ def question(text: str) -> QuestionFacts:
     )
 
 
+# "not straight ahead, no. ahead is white" answered "is there a red wall ahead of you?" (the
+# check went on as if told yes).
+_NOT_SO = re.compile(
+    r"^not (?:\w+ ){0,3}no\b|^(?:not|never) (?:there|ahead|on (?:my|the) (?:left|right)|straight ahead|in front)\b"
+)
+
+
 def says_no(text: str) -> bool:
-    """A reply that opens with a no ("no", "nope, ...")."""
+    """A reply that opens with a no ("no", "nope, ...", "not straight ahead, no")."""
     words = tokens(text)
-    return bool(words) and words[0] in NO
+    return bool(words) and (words[0] in NO or bool(_NOT_SO.search(" ".join(words))))
 
 
 # A reply that neither says yes nor no: "sort of?", "not sure", "i dont know", "maybe".
@@ -744,6 +768,10 @@ _DOUBTS = re.compile(
     # wrong spot": a person led round in circles, who was given the next counted walk
     r"|same (?:\w+ ){0,2}(?:wall|corner|place|spot|view) (?:as )?again|(?:exactly|just) like before"
     r"|wrong (?:spot|place|position|location)|(?:have|got) me (?:\w+ ){0,2}wrong"
+    # "r u sure u know where i am??" ("r" is read as "right"), "are we goin in circles?", "i think
+    # we went backwards?", "this looks like the same hallway as b4"
+    r"|right (?:you|u) sure|goin in circles|went backwards|going backwards|gone backwards"
+    r"|same (?:hallway|corridor|hall|room) (?:as )?(?:before|b4|again)"
     r"|(?:really|actually) (?:\w+ ){0,3}(?:this|that|the right) way|(?:the )?way i came from)\b"
 )
 

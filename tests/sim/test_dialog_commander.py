@@ -260,7 +260,7 @@ def test_before_the_first_leg_it_checks_its_mark_with_a_question_true_there(worl
     assert first.startswith("now find the jar") and ins.parse(first).moves, first
 
 
-@pytest.mark.parametrize("reply", ["no", "nope, nothing there"])
+@pytest.mark.parametrize("reply", ["no", "nope, nothing there", "not str8 ahead no, ahead is white"])
 def test_told_its_mark_is_wrong_it_says_it_is_unsure_and_asks(world, reply):
     commander, check = _checking(world, _walk_pose(world, 3))
     said = _said(commander.perceive(Heard(Role.DRIVER, reply)))
@@ -317,6 +317,8 @@ def test_an_unsure_answer_to_its_check_is_not_taken_for_a_yes(world, reply):
         # The ninth play's, each answered with the next counted walk.
         "did that. now facing that same white wall again, looks exactly like before",
         "bumped again. just white wall now. i think you have me in the wrong spot",
+        "ok done. hey this looks like the same hallway as b4 lol. are we goin in circles?",
+        "umm im lookin at a white wall again lol. i think we went backwards?",
     ],
 )
 def test_a_driver_that_says_it_is_lost_is_heard_and_asked_where_it_is(world, report):
@@ -670,6 +672,8 @@ def test_a_question_about_how_the_target_looks_is_told_from_a_view_that_looks_li
         ("which wall?", lexicon.Asked.WHICH_ONE),
         ("could you tell me whether you have a position estimate?", lexicon.Asked.WHERE_AM_I),
         ("no paddle. the olive cylinder is right-ish behind me. is that your paddle?", lexicon.Asked.IS_IT),
+        ("so go fwd till where exactly?", lexicon.Asked.WHICH_ONE),  # not a move proposed
+        ("ok. is the mug close? what color is it", lexicon.Asked.HOW_FAR),
         ("do you know where i am?", lexicon.Asked.WHERE_AM_I),
     ],
 )
@@ -699,6 +703,35 @@ def test_called_while_it_localizes_it_says_it_is_there_and_asks_on(world):
     commander.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
     said = _said(commander.perceive(Heard(Role.DRIVER, "hello??")))
     assert said.startswith("i am here. ") and said.endswith("?"), said
+
+
+def test_asked_how_far_and_what_colour_it_answers_both(world):
+    """ "ok. is the mug close? what color is it" went unanswered, and "u didnt answer, what color is
+    the mug n is it close?" got how far alone."""
+    commander, _ = _navigating(world, _walk_pose(world, 3))
+    said = _said(commander.perceive(Heard(Role.DRIVER, "u didnt answer, what color is the jar n is it close?")))
+    assert said.startswith("i think the jar of blocks is") and "the jar of blocks is light blue in the camera" in said
+    assert lexicon.proposed("so go fwd till where exactly?") is None
+
+
+@pytest.mark.parametrize(
+    "said_ahead, question",
+    [
+        ("i can see a light blue cylinder way ahead!! is that the jar??", None),
+        ("jar is dead ahead now, maybe a foot away. go at it?", None),
+        # "it" is the jar said ahead the message before, nothing done since
+        ("i see the jar straight ahead", "its str8 ahead of me rn, why turn right? cant i just drive at it?"),
+    ],
+)
+def test_with_the_target_said_ahead_a_driver_asking_to_drive_at_it_is_sent_up_to_it(world, said_ahead, question):
+    """A person who saw the paddle straight ahead asked "cant i just drive at it?" and was told "by my
+    map that is still the way. go forward about 1 step, then press left once", twice in a trial."""
+    commander, _ = _navigating(world, _walk_pose(world, 3))
+    said = _said(commander.perceive(Heard(Role.DRIVER, said_ahead)))
+    if question is not None:
+        said = _said(commander.perceive(Heard(Role.DRIVER, question)))
+    assert said.endswith("go up to the jar of blocks"), said
+    assert ins.parse(said.rpartition(". ")[2]).instructions == (ins.Forward(until=Label.JAR),), said
 
 
 def test_asked_for_its_estimate_it_says_where_it_thinks_the_robot_is(world):
