@@ -67,6 +67,9 @@ SECTORS = {**SECTOR_WORDS, "infront": Sector.FRONT, "rear": Sector.BEHIND}
 _RIGHT_AS_NEAR = {"in", "behind", "ahead", "next", "by", "beside", "there", "here", "now", "at", "up", "on"}
 # "back" that is a move or a return, not the sector behind.
 _BACK_NOT_SECTOR = {"up", "to", "out", "into", "down"}
+# "behind" a thing, not the Driver's back: "a bit of green peekin out behind it" (on its left) put
+# green behind a person, and the Commander's mark 45 degrees off.
+_BEHIND_A_THING = {"it", "that", "this", "them", "those", "these", "the", "a"}
 _AT = (("am", "at"), ("m", "at"), ("found", "the"), ("found", "a"))  # "i'm at the jar": near it
 NEAR_WORDS = {"close", "closely", "directly", "immediately", "immediate", "near", "nearby", "just", "touching"}
 FAR_WORDS = {"far", "distance", "distant", "end", "down", "away", "across", "farther", "further", "long"}
@@ -134,7 +137,7 @@ def _sectors(words: list[str]) -> list[tuple[int, Sector]]:
         nxt = words[k + 1] if k + 1 < len(words) else ""
         if w == "right" and nxt in _RIGHT_AS_NEAR:
             continue
-        if w == "back" and nxt in _BACK_NOT_SECTOR:
+        if w == "back" and nxt in _BACK_NOT_SECTOR or w == "behind" and nxt in _BEHIND_A_THING:
             continue
         if w in SECTORS:
             out.append((k, SECTORS[w]))

@@ -44,6 +44,16 @@ LABEL_WORDS: dict[str, Label] = {
     "bat": Label.PADDLE,  # "ping-pong bat" (val_seen)
     "racket": Label.PADDLE,  # "table-tennis-racket" (train split)
     "racquet": Label.PADDLE,
+    # "a brownish wall way in the back" (a person driving in the ninth play) was no wall at all
+    "reddish": Label.RED,
+    "bluish": Label.BLUE,
+    "blueish": Label.BLUE,
+    "greenish": Label.GREEN,
+    "brownish": Label.BROWN,
+    "yellowish": Label.YELLOW,
+    "whitish": Label.WHITE,
+    "greyish": Label.WHITE,
+    "grayish": Label.WHITE,
 }
 # The landmarks as the simulator's camera shows them, solids in their map colours (`OBJECT_LOOKS`):
 # a person driving names them so ("something pink ahead"). Read only as written, never as what a

@@ -781,6 +781,18 @@ def test_a_landmark_named_by_its_colour_in_the_camera_is_read_as_that_landmark(r
     assert [f.label for f in lexicon.facts("a red wall real close ahead")] == [Label.RED]
 
 
+def test_a_colour_said_with_ish_is_that_colour_and_behind_a_thing_is_not_behind_the_driver():
+    """A person's first view in the ninth play, "... a brownish wall way in the back. to my left theres
+    a short white wall thingy stickin out and a bit of green peekin out behind it", read as no brown
+    wall and green behind them: the mark was 45 degrees off."""
+    assert [(f.label, f.sectors) for f in lexicon.facts("a brownish wall way in the back") if f.label] == [
+        (Label.BROWN, (Sector.BEHIND,))
+    ]
+    said = lexicon.facts("to my left theres a short white wall and a bit of green peekin out behind it")
+    assert (Label.GREEN, (Sector.BEHIND,)) not in [(f.label, f.sectors) for f in said], said
+    assert [f.sectors for f in lexicon.facts("a green wall behind me")] == [(Sector.BEHIND,)]
+
+
 def test_an_answer_said_before_the_instruction_is_not_carried_out_with_it(world):
     """Its answer to "how far?" ("..., about 9 steps away. go forward about 4 steps") was parsed
     with the instruction: once the Driver said done, the belief went 9 steps further than it did."""
