@@ -64,6 +64,7 @@ LABELS = {**LABEL_WORDS, **CAMERA_COLOUR_WORDS, "pong": Label.PADDLE}  # "ping-p
 # ldh_features' sector words, and the variants that a parser of free text also meets.
 SECTORS = {**SECTOR_WORDS, "infront": Sector.FRONT, "rear": Sector.BEHIND}
 # "right" that means "directly" ("right in front", "right behind"), not the side.
+_SIDE_OF = {"my", "your", "ur", "the", "to", "on"}  # "to my right", "on the right": the side
 _RIGHT_AS_NEAR = {"in", "behind", "ahead", "next", "by", "beside", "there", "here", "now", "at", "up", "on"}
 # "back" that is a move or a return, not the sector behind.
 _BACK_NOT_SECTOR = {"up", "to", "out", "into", "down"}
@@ -129,13 +130,24 @@ def tokens(text: str) -> list[str]:
     return [correct(w) for w in _TOKEN.findall(text)]
 
 
+def _right_as_near(words: list[str], k: int) -> bool:
+    """Whether `words[k]` is "right" that says near ("right there", "right in front"), not the side
+    ("to my right there is a blue wall")."""
+    return (
+        words[k] == "right"
+        and k + 1 < len(words)
+        and words[k + 1] in _RIGHT_AS_NEAR
+        and not (k and words[k - 1] in _SIDE_OF)
+    )
+
+
 def _sectors(words: list[str]) -> list[tuple[int, Sector]]:
     """(position, sector) of each direction word; "sides" ("both sides"), "either side" and "each
     side" are left and right."""
     out = []
     for k, w in enumerate(words):
         nxt = words[k + 1] if k + 1 < len(words) else ""
-        if w == "right" and nxt in _RIGHT_AS_NEAR:
+        if _right_as_near(words, k):
             continue
         if w == "back" and nxt in _BACK_NOT_SECTOR or w == "behind" and nxt in _BEHIND_A_THING:
             continue
@@ -182,7 +194,7 @@ def _distance(words: list[str]) -> Distance:
     near = (
         bool(denied)
         or any(w in NEAR_WORDS for w in words)
-        or any(w == "right" and k + 1 < len(words) and words[k + 1] in _RIGHT_AS_NEAR for k, w in enumerate(words))
+        or any(_right_as_near(words, k) for k in range(len(words)))
         or any(_has(words, phrase) for phrase in _AT)
         or any(
             words[k : k + 3] == ["in", "front", "of"] and words[k + 3 : k + 4] not in (["me"], [])
@@ -343,6 +355,22 @@ def _relation_facts(words: list[str], sectors: tuple[Sector, ...]) -> list[Fact]
     return out
 
 
+_SENTENCE = re.compile(r"[.!?]")
+
+
+def _chunks(text: str) -> list[tuple[str, list[str]]]:
+    """The parts of a message, each with the words of a heading its sentence opened with, where
+    one names where and no label: "straight ahead, far away: a brown wall, a thin yellow post" (a
+    person's list of what was ahead was read as seen anywhere)."""
+    out = []
+    for sentence in _SENTENCE.split(text):
+        head, colon, rest = sentence.partition(":")
+        said = tokens(head)
+        header = said if colon and _sectors(said) and not _labels(said) else []
+        out += [(chunk, header) for chunk in _CHUNK.split(rest if header else sentence)]
+    return out
+
+
 def facts(text: str, asked: bool = False) -> list[Fact]:
     """The facts one message states, in order; a part that asks about what it names ("where is
     the edge?") states none, unless `asked`: then the facts a question asks about are read too. A
@@ -350,10 +378,12 @@ def facts(text: str, asked: bool = False) -> list[Fact]:
     way off") says it of the labels the part before named without a distance."""
     out: list[Fact] = []
     last: list[int] = []  # where in `out` the last part's labels of no distance are
-    for chunk in _CHUNK.split(_LISTED_COMMA.sub(r"\1 and ", text.lower().replace("n't", " not"))):
+    for chunk, header in _chunks(_LISTED_COMMA.sub(r"\1 and ", text.lower().replace("n't", " not"))):
         words = tokens(chunk)
         if not words or not asked and asks_about(words):
             continue
+        if header and _labels(words) and not _sectors(words):
+            words += header
         named = tuple(dict.fromkeys(s for _, s in _sectors(words))) or (Sector.ANY,)
         out += _relation_facts(words, named)
         for piece in _pieces(words):

@@ -793,6 +793,25 @@ def test_a_colour_said_with_ish_is_that_colour_and_behind_a_thing_is_not_behind_
     assert [f.sectors for f in lexicon.facts("a green wall behind me")] == [(Sector.BEHIND,)]
 
 
+def test_a_side_said_before_right_there_and_a_heading_before_a_list_are_where_those_walls_are():
+    """A person's first view in the ninth play, "Straight ahead, far away: a brown wall, a thin yellow
+    post, and a long red wall on the right side. To my right there is a blue wall, fairly close.",
+    read as brown and yellow anywhere and blue anywhere ("right there" as near): the mark was 0.36 m
+    off and the person was led into walls for the rest of the trial."""
+    said = lexicon.facts(
+        "Straight ahead, far away: a brown wall, a thin yellow post, and a long red wall on the right side."
+    )
+    assert [(f.label, f.sectors, f.distance) for f in said if f.label] == [
+        (Label.BROWN, (Sector.FRONT,), lexicon.Distance.FAR),
+        (Label.YELLOW, (Sector.FRONT,), lexicon.Distance.FAR),
+        (Label.RED, (Sector.RIGHT,), lexicon.Distance.FAR),
+    ]
+    assert [(f.label, f.sectors) for f in lexicon.facts("To my right there is a blue wall.")] == [
+        (Label.BLUE, (Sector.RIGHT,))
+    ]
+    assert [f.distance for f in lexicon.facts("the jar is right there")] == [lexicon.Distance.NEAR]
+
+
 def test_an_answer_said_before_the_instruction_is_not_carried_out_with_it(world):
     """Its answer to "how far?" ("..., about 9 steps away. go forward about 4 steps") was parsed
     with the instruction: once the Driver said done, the belief went 9 steps further than it did."""
