@@ -481,6 +481,7 @@ _ASKED = (
         Asked.WHERE_AM_I,
         re.compile(
             r"\bwhere (?:am i|are we|i am)\b|\bdo you know where (?:i am|im|i m|we are|the robot is)\b"
+            r"|\bwhat do you see me (?:near|at|by)\b"  # "What do you see me near now?"
             # "could you tell me whether you have a position estimate?" went unanswered
             r"|\b(?:position|location) estimate\b|\b(?:know|found) (?:my|our|the robot s) (?:position|location)\b"
             r"|\bhave you (?:localized|localised|found) (?:me|us|the robot)\b"
@@ -498,6 +499,7 @@ _ASKED = (
         re.compile(
             rf"\b(?:near|next to|by|beside) what\b|\bwhich (?:wall )?colou?r(?: wall)? (?:is )?(?:the )?{_TARGET_WORDS}\b"
             rf"|\bwhat (?:colou?r )?(?:wall )?is (?:the )?{_TARGET_WORDS} (?:near|next to|by|beside)\b"
+            rf"|\bis (?:the )?{_TARGET_WORDS} (?:near|next to|by|beside|close to) (?:the |a )?\w+ walls?\b"  # "Is the paddle near the red wall?"
         ),
     ),
     (
@@ -537,6 +539,8 @@ _ASKED = (
             r"\b(?:what|how) (?:does|do|did|will) (?:\w+ ){0,4}look(?: like)?\b"
             rf"|\bwhat colou?r (?:is|s) (?:it|the (?:{_OBJECTS}|target))\b"  # "what color is the mug"
             r"|\bhow (?:do|will|would|can) i (?:know|tell|recogni[sz]e)\b|\bwill i (?:actually |even )?see (?:it|the)\b"
+            # "What colour should I look for?", "what I should see when I get close to the paddle?"
+            r"|\bwhat colou?r (?:\w+ ){0,3}(?:look|search|watch) (?:out )?for\b|\bwhat (?:should|will|would) i see\b|\bwhat i (?:should|will|would) see\b"
         ),
     ),
     (Asked.WHY, re.compile(r"\bwhy\b")),
@@ -591,7 +595,11 @@ _BUMPED = re.compile(
     rf"|\b({_COUNT}|both) (?:\w+ ){{0,2}}(?:bumped|were bumps|bumps)\b|\bbumped (?:again )?(both)\b"
 )
 # A walk that bumped at its first press: no step made ("bumped on the very first forward").
-_FIRST_BUMPED = re.compile(r"\b(?:bumped|bump|hit|blocked|stuck) (?:\w+ ){0,2}(?:on|at) the (?:very )?first\b")
+_FIRST_BUMPED = re.compile(
+    r"\b(?:bumped|bump|hit|blocked|stuck) (?:\w+ ){0,2}(?:on|at) the (?:very )?first\b"
+    # "tried to go forward but I bumped into the green wall right away", "the fwd bumped rite away"
+    r"|\b(?:bumped|bump|hit) (?:\w+ ){0,4}(?:right|rite|straight) away\b|\b(?:bumped|bump|hit) (?:\w+ ){0,4}immediately\b"
+)
 # A wall that bars the way where the Driver stands ("there is a wall right in front of me");
 # "close ahead" is not: a step may still be free.
 _WALL_RIGHT_AHEAD = re.compile(

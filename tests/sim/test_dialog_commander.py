@@ -546,6 +546,7 @@ def test_a_done_report_naming_a_wall_right_in_front_takes_the_walk_as_done(world
         ("nothing happened when i pressed forward", 0),
         ("it didnt budge", 0),
         ("bumped on the very first forward, the white wall was right there diagonally", 0),
+        ("I tried to go forward but I bumped into the green wall right away, twice.", 0),
     ],
 )
 def test_a_walk_cut_short_puts_the_robot_as_many_steps_along_as_the_driver_says(world, report, walked):
@@ -673,6 +674,11 @@ def test_a_question_about_how_the_target_looks_is_told_from_a_view_that_looks_li
         ("could you tell me whether you have a position estimate?", lexicon.Asked.WHERE_AM_I),
         ("no paddle. the olive cylinder is right-ish behind me. is that your paddle?", lexicon.Asked.IS_IT),
         ("so go fwd till where exactly?", lexicon.Asked.WHICH_ONE),  # not a move proposed
+        # The ninth play's third trial ("you keep not answering my questions, by the way")
+        ("Done. Is the paddle close now? What colour should I look for?", lexicon.Asked.HOW_FAR),
+        ("Can you tell me what I should see when I get close to the paddle?", lexicon.Asked.LOOKS),
+        ("Is the paddle near the red wall?", lexicon.Asked.NEAR_WHAT),
+        ("I bumped. Done. What do you see me near now?", lexicon.Asked.WHERE_AM_I),
         ("ok. is the mug close? what color is it", lexicon.Asked.HOW_FAR),
         ("do you know where i am?", lexicon.Asked.WHERE_AM_I),
     ],
