@@ -166,12 +166,16 @@ _STATE = re.compile(
 _CLAIMS = ins.Stop(claim=True)
 _NOT_TO = re.compile(
     r"\b(?:dont|didnt|do not|did not|never|shouldnt|no need to|neednt)\b (?:\w+ ){0,3}?"
-    r"(?:turn|turned|go|went|move|moved|walk|drive|head|press|mean|meant)\b"
+    r"(?:turn|turned|go|went|move|moved|walk|drive|head|press|mean|meant|ask|asked)\b"  # "i didn't ask for 10 more steps"
 )
 # Chat about the game, not a move: "two down and one to go", "u went 2 far".
 _CHATTER = re.compile(
-    r"^(?:\w+ )?(?:one|two|three|1|2|3) (?:down|done|(?:more |left )?to go)$|^(?:you|u) went (?:\w+ )?(?:too|to|2) far\b"
+    r"^(?:\w+ )?(?:one|two|three|1|2|3) (?:down|done|(?:more |left )?to go)$|^(?:you|u) went (?:\w+ ){0,2}(?:too|to|2) far\b"
     r"|\b(?:out of time|times up|time is up)\b"  # "ok we're out of time, stopping here": it had driven off
+    # Said of what was done: "that was more than 10 steps i think!", "oops that's too much", "you
+    # went a bit far but fine", "i was just commenting" (each had been carried out as a move)
+    r"|^(?:\w+ )?(?:that (?:was|s|is)|thats) (?:\w+ ){0,2}(?:too|more|less|much|enough)\b|^(?:\w+ )?(?:you|u) went (?:\w+ ){0,3}far\b"
+    r"|^i (?:was|am|m) (?:just )?(?:commenting|saying|kidding)\b"
 )
 _GOES_ON = re.compile(r"^(?:facing|with|which|where|near|next|at|in|by)\b")
 _DOES = re.compile(

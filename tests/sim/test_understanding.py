@@ -2,6 +2,8 @@
 something is in view, the counts a reading leaves unused and where they go, and the read-back of a
 plan with each turn's size. Sentences written for these tests, none from the benchmark's dialogs."""
 
+import pytest
+
 from sim.core.labels import Label
 from sim.language import instructions as ins
 from sim.language.meaning import Clause, FactForm, FactKind, Op
@@ -252,6 +254,20 @@ def test_a_turn_sized_in_degrees_or_clicks_is_that_size():
     assert reader.program("turn 90 degrees to the right and go 3 steps").meaning == (right, _walk(3))
     said = "ok got you. turn left one click, go forward 4. then turn right two clicks and go straight like 10"
     assert reader.program(said).meaning[:3] == (slight_left, _walk(4), right)
+
+
+@pytest.mark.parametrize(
+    "said",
+    [
+        # The ninth play: each was carried out as "forward 10 steps" into a wall, then the turn
+        "that was more than 10 steps i think! ok, turn left a quarter turn",
+        "no, I didn't ask for 10 more steps, i was just commenting. turn left first (quarter turn)",
+        "ok you went a bit far but fine. turn left a quarter turn",
+    ],
+)
+def test_words_about_what_was_done_move_nothing(said):
+    reader = Understanding.trained()
+    assert reader.program(said).meaning == (Clause.of(Op.TURN, eighths=2),), said
 
 
 def test_a_goodbye_and_the_next_target_named_move_nothing_of_their_own():
