@@ -160,7 +160,9 @@ class Understanding:
 # to the mug"), and the clauses that go on describing ("..., facing a red wall"): a person's, into
 # which the reader read turns and walks.
 _STATE = re.compile(
-    r"^(?:if |when |since |as |so (?:that )?)?(?:i think |i guess |i believe |it looks like |looks like )?"
+    r"^(?:ok |okay |so |then )*(?:if |when |since |as |so (?:that )?)?"
+    # "ok i'm guessing you're at the bottom of the map" was a walk to the wall
+    r"(?:i think |i guess |i believe |it looks like |looks like |(?:i m|im|i am) guessing |i bet |probably |maybe )?"
     r"(?:you are|youre|you re|you have|youve|you get|you will be|youll be)\b"
 )
 _CLAIMS = ins.Stop(claim=True)

@@ -263,11 +263,14 @@ def test_a_turn_sized_in_degrees_or_clicks_is_that_size():
         "that was more than 10 steps i think! ok, turn left a quarter turn",
         "no, I didn't ask for 10 more steps, i was just commenting. turn left first (quarter turn)",
         "ok you went a bit far but fine. turn left a quarter turn",
+        # ... and a guess of where the Driver is, carried out as a walk to the wall
+        "ok i'm guessing you're at the bottom of the map in a little white corner. turn left a quarter turn",
     ],
 )
-def test_words_about_what_was_done_move_nothing(said):
+def test_words_about_what_was_done_or_where_the_driver_is_move_nothing(said):
     reader = Understanding.trained()
-    assert reader.program(said).meaning == (Clause.of(Op.TURN, eighths=2),), said
+    before = ("d", "white wall close ahead, green wall far ahead, yellow wall far ahead")
+    assert reader.program(said, before).meaning == (Clause.of(Op.TURN, eighths=2),), said
 
 
 def test_a_goodbye_and_the_next_target_named_move_nothing_of_their_own():
