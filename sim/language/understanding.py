@@ -92,7 +92,7 @@ class Understanding:
         program = _back_as_said(_openings_as_said(_grounded(sided, text, before), text), text)
         said = words(text)
         program = _walks_as_said(_turned_between(_pairs_as_said(program, said), said), text, said)
-        program = _right_as_said(_facing_as_said(program, said), said)
+        program = _claimed_as_said(_right_as_said(_facing_as_said(program, said), said), said)
         return Understood(program, reading.confidence, False, reading.strange_lead, ambiguous=sided != read, read=text)
 
     def _pressed(self, text: str, before: tuple[str, str] | None) -> Program | None:
@@ -270,6 +270,28 @@ def _sized(side: str, eighths: int) -> str:
 
 def _places_or_claims(said: str) -> bool:
     return any(label in OBJECT_LABELS for label in _named(said.split())) or _CLAIMS in ins.parse(said).instructions
+
+
+_PRESS_FOUND = re.compile(r"\b(?:press|hit|click|tap|push) (?:the )?(?:i )?found\b")
+_CLAIM_NOW = Clause.of(Op.STOP, claim=True)
+_TO_WALL_SAID = frozenset({"wall", "walls", "end", "until", "till", "til"})
+_WALK_SAID = frozenset({"go", "forward", "drive", "walk", "move", "straight", "ahead", "head", "keep"})
+
+
+def _claimed_as_said(program: Program, said: list[str]) -> Program:
+    """The Driver told to press its "I found the target" button ("go up to it and press the found
+    button"), as the rules hear it: a claim, after the moves; the reader read it as nothing clear,
+    or as a walk to a wall or a target it named (a person typed the button's label to be heard)."""
+    if not _PRESS_FOUND.search(" ".join(said)) or _CLAIM_NOW in program:
+        return program
+    named = {label for w in said if (label := LABEL_WORDS.get(w)) in OBJECT_LABELS}
+    kept = [c for c in program if c.op != Op.UNCLEAR and not (c.op == Op.TARGET and _label(c.args[0]) not in named)]
+    # "go up to it and press the found button", "click i found the target": no walk on to a wall
+    # that no word names, after the walk said or where none is
+    walks_said = any(c.op == Op.FORWARD for c in kept[:-1]) or not _WALK_SAID.intersection(said)
+    if kept and kept[-1] == _TO_A_WALL and walks_said and not _TO_WALL_SAID.intersection(said):
+        kept.pop()
+    return (*kept, _CLAIM_NOW)
 
 
 def _right_as_said(program: Program, said: list[str]) -> Program:

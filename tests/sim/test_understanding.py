@@ -13,6 +13,7 @@ from sim.language.vocab import Side
 
 TURN_LEFT = Clause.of(Op.TURN, eighths=2)
 TO_THE_MUG = Clause.of(Op.FORWARD, steps=None, until="mug")
+TO_THE_JAR = Clause.of(Op.FORWARD, steps=None, until="jar")
 _TO_A_WALL = Clause.of(Op.FORWARD, steps=None, until="wall")
 
 
@@ -271,6 +272,21 @@ def test_words_about_what_was_done_or_where_the_driver_is_move_nothing(said):
     reader = Understanding.trained()
     before = ("d", "white wall close ahead, green wall far ahead, yellow wall far ahead")
     assert reader.program(said, before).meaning == (Clause.of(Op.TURN, eighths=2),), said
+
+
+@pytest.mark.parametrize(
+    "said, moves",
+    [
+        # The ninth play: a walk to the jar and on to the wall, and no claim until the person typed
+        # the button's label
+        ("great!! if the jar is right in front of you, go up to it and press the found button", [TO_THE_JAR]),
+        ("click i found the target", []),
+        ("go forward and press found", [Clause.of(Op.FORWARD, steps=None, until=None)]),
+    ],
+)
+def test_told_to_press_its_found_button_the_driver_claims_after_the_moves(said, moves):
+    before = ("d", "i am at a jar of blocks, i do not see a red wall ahead. which way now?")
+    assert Understanding.trained().program(said, before).meaning == (*moves, Clause.of(Op.STOP, claim=True)), said
 
 
 def test_a_goodbye_and_the_next_target_named_move_nothing_of_their_own():
