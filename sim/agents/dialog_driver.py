@@ -331,7 +331,12 @@ class DialogDriver:
             # me what you can see in front of you? And maybe turn around slowly and tell me ..." was
             # answered about a yellow wall nobody named).
             rules = program_of(ins.parse(understood.read))
-            if any(c.op == Op.ASK for c in rules):
+            if any(c.op == Op.TURN for c in program) and any(c.op == Op.ASK for c in rules):
+                # "please turn to your left a quarter turn and tell me what is in front of you": the
+                # turn, then the view from there (the rules' reading, a question about its left
+                # alone, had it stay put and describe the same view again)
+                program = (*program, Clause.of(Op.ASK, question="view", side=None, label=None))
+            elif any(c.op == Op.ASK for c in rules):
                 program = rules
         elif self._phase == Phase.NAVIGATING:
             # The rules' reading, of what the reader reads: a second opinion, read once.

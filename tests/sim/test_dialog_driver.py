@@ -95,6 +95,31 @@ def test_while_localized_it_answers_and_turns_in_place_but_does_not_drive_off(wo
     assert said and "behind me" in said[0].text and heading == 0
 
 
+def test_while_localized_told_to_turn_and_say_what_is_ahead_it_turns_and_describes_the_new_view(world):
+    """A person's "please turn to your left a quarter turn and tell me what is in front of you then"
+    got the same description again and no turn: the rules' reading (a question about its left)
+    had replaced the reader's turn."""
+    driver = DialogDriver(0)
+    driver.reset(SeatInfo(Role.DRIVER, 3))
+    driver.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
+    driver.perceive(Saw(0, _rays(world, Pose(100, 0))))
+    driver.perceive(Heard(Role.COMMANDER, "what do you see?"))
+    said_text = "ok. please turn to your left a quarter turn and tell me what is in front of you then"
+    turns, heading, said = driver.perceive(Heard(Role.COMMANDER, said_text)), 0, []
+    for _ in range(12):
+        if not turns or not isinstance(turns[0], RequestMove):
+            break
+        assert turns[0].move == Move.LEFT, turns
+        heading += 1
+        driver.perceive(Moved(turns[0].move, Outcome.OK))
+        turns = driver.perceive(Saw(heading, _rays(world, Pose(100, heading))))
+        said = [t for t in turns if isinstance(t, Say)]
+        if said:
+            break
+    assert heading == 2 and said, (heading, turns)
+    assert "ahead" in said[0].text and "stay here" not in said[0].text, said
+
+
 def test_asked_before_its_first_frame_it_answers_once_the_frame_comes(world):
     # On a rover the Commander can speak before the Driver's camera has sent a frame.
     driver = DialogDriver(0)
