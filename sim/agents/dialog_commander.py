@@ -201,6 +201,11 @@ class DialogCommander:
         self._pending: ins.Parsed | None = None  # the instruction out, not yet reported on
         self._questions = 0  # asked since the belief last settled
         self._asked: set[tuple[Sector, Label]] = set()  # at this stop
+        # What the Driver said is not there since it last moved ("no blue anywhere", a no to "is there
+        # a blue wall on your right?"): not asked again when the mark is doubted (a person was asked
+        # about blue on their right after saying so, twice).
+        self._denied: set[tuple[Sector, Label]] = set()
+        self._asking: tuple[Sector, Label] | None = None  # the yes / no question out
         self._described: set[Sector] = set()  # sides the Driver has said what it sees on since the last instruction
         self._marked: tuple[float, float] | None = None
         self._plain = False
@@ -299,6 +304,15 @@ class DialogCommander:
         read = None if understood.by_rules else belief_facts(understood.meaning)  # None: the lexicon's
         view = lexicon.facts(text) if read is None else read
         self._described |= {s for f in view for s in f.sectors if s in _YOUR_SIDE}
+        answered, self._asking = self._asking, None
+        denied = {
+            (side, f.label)
+            for f in view
+            if f.negated and f.label is not None
+            for side in (_YOUR_SIDE if Sector.ANY in f.sectors else f.sectors)
+        }
+        if answered is not None and lexicon.says_no(text):
+            denied.add(answered)
         if self._target is not None:
             # Kept through a question that names it no more ("its str8 ahead of me rn, why turn left?
             # cant i just drive at it?"), as nothing was done since it was said.
@@ -308,6 +322,7 @@ class DialogCommander:
         if self._pending is not None and not asks_first:
             walked = lexicon.walked(text, _counted(self._pending)) if short else None
             self._move(self._pending, whole=not stuck, walked=walked)
+            self._denied.clear()  # said of where it was
             self._plain = stuck
             self._stuck = self._stuck + 1 if stuck else 0
             self._pending = None
@@ -329,6 +344,7 @@ class DialogCommander:
                     for label in OBJECT_LABELS
                     if label not in named
                 )
+        self._denied |= denied
         self._looking = False
         if self._phase == Phase.NAVIGATING and self._target is not None:
             # A Driver told its target claims when it sees it within reach: it does not, so it is not.
@@ -575,7 +591,10 @@ class DialogCommander:
             return min(float(yes[question]), 1.0 - float(yes[question]))
 
         open_ = [
-            (s, label) for s in _YOUR_SIDE for label in Label if label != Label.FLOOR and (s, label) not in self._asked
+            (s, label)
+            for s in _YOUR_SIDE
+            for label in Label
+            if label != Label.FLOOR and (s, label) not in self._asked and (s, label) not in self._denied
         ]
         # A side the Driver has told what it sees on is asked about again only where no other side
         # splits the belief: a person told "no, green on my right" was asked "is there a white wall
@@ -587,6 +606,7 @@ class DialogCommander:
             self._questions = MAX_QUESTIONS
             return self._mark(self.estimate()) if self._phase == Phase.LOCALIZING else self._guide()
         self._asked.add(best)
+        self._asking = best
         sector, label = best
         return self._say(f"{lead}{_is_there(label, sector)}")
 
@@ -604,6 +624,7 @@ class DialogCommander:
         asked = [q for q in asked if q[0] not in self._described] or asked
         sector, label = min(asked, key=lambda q: self._common[q])
         self._asked.add((sector, label))
+        self._asking = (sector, label)
         self._checking = True
         # The trial moves on with the mark: "stay where you are", or a person's page says "drive to
         # target 1 of 3" while it checks (two people did not know whether to drive).

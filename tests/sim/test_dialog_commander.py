@@ -295,6 +295,33 @@ def test_asked_whether_another_landmark_is_the_target_it_says_how_that_one_looks
     assert said.startswith("the coffee mug is pink in the camera"), said
 
 
+_YES_NO = re.compile(r"is there an? (.+?) (ahead of you|on your left|on your right)\?")
+
+
+def test_its_mark_doubted_it_does_not_ask_again_what_the_driver_said_is_not_there(benchmark_path):
+    """The ninth play's first trial, a person's words on Run_231: after "no. right side is white" and
+    "no blue anywhere", its mark doubted, it asked "is there a blue wall on your right?" again (the
+    mark had cleared what it had asked)."""
+    bench = Benchmark(benchmark_path)
+    commander = DialogCommander(bench.maze("Run_231"), 1, bench.cache_dir)
+    commander.reset(SeatInfo(Role.COMMANDER, 3))
+    commander.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
+    asked = []
+    for reply in [
+        "red wall right behind me and on my left. white walls ahead. olive green cylinder off to my right, not too far",
+        "no. right side is white",
+        "no blue anywhere. just red, white, and the olive cylinder",
+    ]:
+        asked.append(_said(commander.perceive(Heard(Role.DRIVER, reply))))
+    assert asked[1] == "is there a blue wall on your right?", asked  # answered "no blue anywhere"
+    check = _said(commander.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3, target="mug")))
+    assert "to check" in check, check
+    reply = "no paddle. the olive cylinder is right-ish behind me. is that your paddle?"
+    said = _said(commander.perceive(Heard(Role.DRIVER, reply)))
+    question = _YES_NO.search(said)
+    assert question and "blue" not in question.group(1) and "red wall on your right" not in said, said
+
+
 @pytest.mark.parametrize("reply", ["sort of?", "not sure", "i don't know, maybe"])
 def test_an_unsure_answer_to_its_check_is_not_taken_for_a_yes(world, reply):
     """A person's "sort of?" had been read as a yes, and the first leg led them in a loop."""
