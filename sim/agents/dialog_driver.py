@@ -33,6 +33,7 @@ from sim.language.driver_phrasing import (
     Done,
     DriverPhrasing,
     Fact,
+    Measured,
     NotHere,
     ReadBack,
     ScriptedDriverPhrasing,
@@ -728,4 +729,6 @@ class DialogDriver:
             return self._say(Answered(ask.label, side, around[side], anywhere=True, unlooked=unlooked))
         if ask.question == ins.AskedAbout.VIEW and not ask.look_around:
             return self._say(Described(around, look_around=False))  # all it has seen from here
+        if ask.question == ins.AskedAbout.DISTANCE:
+            return self._say(Measured(around[Side.AHEAD]))
         return self._say(Described({s: around[s] for s in sides}, look_around=ask.look_around))

@@ -14,6 +14,9 @@ from dataclasses import dataclass
 from enum import StrEnum
 from typing import Protocol
 
+import numpy as np
+
+from sim.core.geometry import GRID_STEP_M
 from sim.core.labels import OBJECT_LABELS, WALL_LABELS, Label
 from sim.core.rays import RayObservation
 from sim.language.describe import Seen, Sighting, Spot, brief, describe, glance, seen, sighting
@@ -49,6 +52,34 @@ class Answered:
     view: View
     anywhere: bool = False  # asked with no side: every side it has looked at (`side`: where it is seen)
     unlooked: tuple[Side, ...] = ()  # asked anywhere and not seen: the sides it has not looked at
+
+
+@dataclass(frozen=True)
+class Measured:
+    """An answer to "how many steps to the wall ahead?" from the view ahead."""
+
+    view: View
+
+
+# The three middle rays, about 5 degrees either side: the way a forward press goes (the five of
+# `CENTRE_RAYS` met side walls the robot passes).
+STRAIGHT_RAYS = slice(5, 8)
+
+
+def measured(view: View) -> str:
+    """How far the nearest thing straight ahead is, in forward presses: a step is 7 cm and the robot
+    stops a step short of a wall (on a diagonal a press goes further, and a wall at a slant can stop
+    it sooner: "about")."""
+    met = view.valid[STRAIGHT_RAYS] & (view.labels[STRAIGHT_RAYS] != Label.FLOOR) if view is not None else None
+    if view is None or met is None or not met.any():
+        return f"i cannot tell how far it is. {brief(view)}"
+    depth = np.where(met, view.depth[STRAIGHT_RAYS], np.inf)
+    k = int(depth.argmin())
+    steps = max(int(float(depth[k]) / GRID_STEP_M) - 1, 0)
+    thing = wall_name(Label(int(view.labels[STRAIGHT_RAYS][k])))
+    if steps == 0:
+        return f"the {thing} is right in front of me: forward would bump"
+    return f"the {thing} ahead is about {steps} {'step' if steps == 1 else 'steps'} away"
 
 
 @dataclass(frozen=True)
@@ -145,7 +176,7 @@ class ReadBack:
     text: str
 
 
-Fact = Described | Answered | Done | Stopped | Stuck | Claiming | NotHere | Troubled | ReadBack
+Fact = Described | Answered | Measured | Done | Stopped | Stuck | Claiming | NotHere | Troubled | ReadBack
 
 
 class DriverPhrasing(Protocol):
@@ -189,6 +220,8 @@ class ScriptedDriverPhrasing:
                     f"no, no {wall_name(label)} {SIDE_PHRASE[side]}. {describe({side: view})} "
                     f"i have not looked {where}. should i look around?"
                 )
+            case Measured(view=view):
+                return measured(view)
             case Done(did=did, view=view, unread=unread, offer=offer):
                 then = self._rng.choice(NEXT)
                 if unread:
@@ -374,6 +407,8 @@ class PersonaDriverPhrasing:
                 return self._say(Message.LOOK_AROUND, clauses=clauses) if look_around else clauses
             case Answered(label=label, side=side, view=view):
                 return self._answer(label, side, view)
+            case Measured(view=view):  # the personas were frozen with no words for it
+                return measured(view)
             case Done(view=view) | Stopped(view=view):
                 return self._say(Message.DONE, **_view(self._glance(view)))
             case Stuck(steps=steps, view=view):

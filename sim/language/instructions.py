@@ -31,6 +31,7 @@ class AskedAbout(StrEnum):
     VIEW = "view"  # what do you see?
     SIDE = "side"  # what is on your left?
     IS_THERE = "is_there"  # is there a red wall ahead?
+    DISTANCE = "distance"  # how many steps to the wall in front of you?
 
 
 class Place(StrEnum):
@@ -168,6 +169,18 @@ def _turn_size(ws: list[str]) -> int:
     return 2
 
 
+# "how many steps until the wall in front of you?", "how far away is the white wall in front of
+# you, a few steps or far?": a person commanding the agent got its view again, never a count.
+_HOW_FAR_AHEAD = re.compile(
+    r"\bhow (?:far|many steps|many moves|many forwards|close)\b(?: \w+){0,8} (?:wall|ahead|in front|front of)\b"
+)
+
+
+def asks_distance(message: str) -> bool:
+    """Whether a message asks how far the wall ahead is."""
+    return bool(_HOW_FAR_AHEAD.search(" ".join(words(message))))
+
+
 def asks_to_look(message: str) -> bool:
     """Whether a message asks the Driver to look all around (turn in place: eight moves)."""
     return bool(_LOOK.search(" ".join(words(message))))
@@ -255,6 +268,8 @@ def _presses(said: str) -> list[Instruction]:
 
 
 def _question(text: str, ws: list[str]) -> Ask:
+    if _HOW_FAR_AHEAD.search(text):
+        return Ask(AskedAbout.DISTANCE)
     look = bool(_LOOK.search(text))
     labels = _labels(ws)
     side = _side([w for w in ws if w not in ("forward",)])

@@ -601,6 +601,11 @@ def instructions(program: Program, text: str) -> list[ins.Instruction]:
     """What the Driver's executor carries out for a program (clauses with nothing to do drop out),
     with a turn the words say goes on until something is in view (`ins.turn_until`)."""
     out: list[ins.Instruction] = []
+    if ins.asks_distance(text):
+        # "how many steps until the wall in front of you?" asks, it does not send the Driver there
+        program = tuple(c for c in program if c.op not in (Op.FORWARD, Op.FOLLOW))
+        if not any(c.op == Op.ASK for c in program):
+            program = (*program, Clause.of(Op.ASK, question="other", side=None, label=None))
     for clause in program:
         args = dict(zip(CLAUSE_FIELDS[clause.op], clause.args, strict=True))
         match clause.op:
@@ -632,6 +637,8 @@ def instructions(program: Program, text: str) -> list[ins.Instruction]:
                 label = _label(args["label"])
                 if label in OBJECT_LABELS:
                     out.append(ins.Target(label, _side(args["side"])))
+            case Op.ASK if ins.asks_distance(text):
+                out.append(ins.Ask(ins.AskedAbout.DISTANCE))
             case Op.ASK:
                 question = str(args["question"])
                 out.append(

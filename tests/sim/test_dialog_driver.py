@@ -11,7 +11,7 @@ from sim.agents.dialog_driver import DialogDriver
 from sim.agents.episode import run
 from sim.agents.oracle_commander import OracleCommander
 from sim.core.dynamics import Action, Pose
-from sim.core.labels import Label
+from sim.core.labels import OBJECT_LABELS, Label
 from sim.core.maze import Maze
 from sim.core.navgraph import NavGraph
 from sim.core.observations import RayTable
@@ -118,6 +118,43 @@ def test_while_localized_told_to_turn_and_say_what_is_ahead_it_turns_and_describ
             break
     assert heading == 2 and said, (heading, turns)
     assert "ahead" in said[0].text and "stay here" not in said[0].text, said
+
+
+def _free_run(graph, pose: Pose) -> int:
+    """The forward moves free from `pose` before a wall bars the way."""
+    node, steps = pose.node, 0
+    while (node := int(graph.forward[node, pose.heading])) >= 0 and steps < 100:
+        steps += 1
+    return steps
+
+
+def _squarely_at_a_wall(view) -> bool:
+    depth, labels = view.depth[CENTRE_RAYS], view.labels[CENTRE_RAYS]
+    return float(np.ptp(depth)) <= 0.05 and not set(labels.tolist()) & {int(label) for label in OBJECT_LABELS}
+
+
+@pytest.mark.parametrize(
+    "question", ["how many steps until the wall in front of you?", "how far away is the white wall in front of you?"]
+)
+def test_asked_how_far_the_wall_ahead_is_it_says_in_steps(world, question):
+    """A person commanding it asked "how many steps until the wall in front of you?" and got its view
+    again, never a count."""
+    _, graph, _ = world
+    poses = [  # facing a wall squarely, not a landmark (this graph does not stop at them)
+        Pose(n, h)
+        for n in range(0, graph.n, 11)
+        for h in (0, 2, 4, 6)
+        if 2 <= _free_run(graph, Pose(n, h)) <= 12 and _squarely_at_a_wall(_rays(world, Pose(n, h)))
+    ]
+    assert len(poses) >= 5
+    for pose in poses[:5]:
+        driver = DialogDriver(0)
+        driver.reset(SeatInfo(Role.DRIVER, 3))
+        driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
+        driver.perceive(Saw(0, _rays(world, pose)))
+        (answer,) = driver.perceive(Heard(Role.COMMANDER, question))
+        steps = int(re.search(r"ahead is about (\d+) steps? away", answer.text).group(1))
+        assert abs(steps - _free_run(graph, pose)) <= 1, (pose, answer.text, _free_run(graph, pose))
 
 
 def test_asked_before_its_first_frame_it_answers_once_the_frame_comes(world):
