@@ -197,6 +197,21 @@ _SEEN = re.compile(r"\b(?:see|seeing|spot|notice|find|view|visible|sight|face|fa
 _FACING = re.compile(r"\b(?:face|facing|front|ahead)\b")
 
 
+# "turn so the green wall is behind you", "turn around so the yellow wall is behind you": a person
+# commanding the agent Driver got a walk and no turn.
+_BACK_TO = re.compile(
+    r"\b(?:turn|rotate|spin)\b(?: \w+){0,3}? so (?:that )?(?:the )?(?P<what>(?:\w+ ){1,3}?)(?:is|are) "
+    r"(?:right |directly )?(?:behind you|at your back|behind)\b"
+)
+
+
+def turned_back_to(message: str) -> Label | None:
+    """The wall or object a message says to turn one's back to, where it says so."""
+    found = _BACK_TO.search(" ".join(words(message)))
+    labels = _labels(found.group("what").split()) if found else []
+    return labels[0] if labels else None
+
+
 @dataclass(frozen=True)
 class TurnUntil:
     """A message's turn that goes on until `until` is in view (`facing`: ahead); `side`: the way

@@ -654,8 +654,20 @@ def instructions(program: Program, text: str) -> list[ins.Instruction]:
                 out.append(ins.Stop(claim=bool(args["claim"])))
             case Op.UNCLEAR:
                 out.append(ins.Unclear(text))
+    if (back_to := ins.turned_back_to(text)) is not None:
+        return _turning_back_to(out, back_to)
     found = ins.turn_until(text)
     return out if found is None else _turning_until(out, found)
+
+
+def _turning_back_to(out: list[ins.Instruction], label: Label) -> list[ins.Instruction]:
+    """ "turn so the green wall is behind you": on until it is ahead (the Driver's camera sees only
+    ahead), then around, in place of the program's turns and of a walk to it that the reader read
+    in the words."""
+    kept = [i for i in out if not isinstance(i, ins.Turn) and not (isinstance(i, ins.Forward) and i.until == label)]
+    at = next((k for k, i in enumerate(out) if isinstance(i, ins.Turn)), 0)
+    at = min(at, len(kept))
+    return kept[:at] + [ins.Turn(2, label, facing=True), ins.Turn(4)] + kept[at:]
 
 
 def _turning_until(out: list[ins.Instruction], found: ins.TurnUntil) -> list[ins.Instruction]:

@@ -120,6 +120,31 @@ def test_while_localized_told_to_turn_and_say_what_is_ahead_it_turns_and_describ
     assert "ahead" in said[0].text and "stay here" not in said[0].text, said
 
 
+def test_told_to_turn_its_back_to_a_wall_it_turns_until_it_faces_it_then_around(world):
+    """ "turn so the green wall is behind you and go straight" was carried out as a walk, no turn."""
+    driver = DialogDriver(0)
+    driver.reset(SeatInfo(Role.DRIVER, 3))
+    driver.perceive(PhaseBegan(Phase.NAVIGATING, 0, 3))
+    node = 100
+    ahead = {h: {s.label for s in seen(_rays(world, Pose(node, h)))} for h in range(8)}
+    label = next(
+        lab
+        for lab in (Label.RED, Label.BLUE, Label.GREEN, Label.YELLOW, Label.WHITE)
+        if lab not in ahead[0] and any(lab in ahead[h] for h in range(1, 8))
+    )
+    driver.perceive(Saw(0, _rays(world, Pose(node, 0))))
+    turns, heading = driver.perceive(Heard(Role.COMMANDER, f"turn so the {label.word} wall is behind you")), 0
+    for _ in range(16):
+        moves = [t for t in turns if isinstance(t, RequestMove)]
+        if not moves:
+            break
+        assert moves[0].move != Move.FORWARD, turns
+        heading = (heading + (1 if moves[0].move == Move.LEFT else -1)) % 8
+        driver.perceive(Moved(moves[0].move, Outcome.OK))
+        turns = driver.perceive(Saw(1, _rays(world, Pose(node, heading))))
+    assert label in ahead[(heading + 4) % 8] and label not in ahead[heading], (label, heading, turns)
+
+
 def _free_run(graph, pose: Pose) -> int:
     """The forward moves free from `pose` before a wall bars the way."""
     node, steps = pose.node, 0
