@@ -111,11 +111,12 @@ class Parsed:
 
 
 _CLAUSE = re.compile(r"[,.;!]+|(?<!should )\bthen\b|\band\b|\bafter that\b|(?<!right )\bnow\b|\bright now\b")
+PRESS_FOUND = r"(?:say|press|hit|click|tap|push) (?:the )?(?:i )?found"  # the Driver's "I found the target" button
 _CLAIM = re.compile(
     r"\b(you(?:re| are) (?:there|here|right by it|at it)|(?:should be|is) right (?:there|here)|thats it|thats the spot|you found it|found it"
     r"|you found the (?:target|jar|mug|cup|paddle|bat|one)"
     r"|claim|take (?:a |the )?(?:picture|photo|snapshot)|send (?:a )?(?:picture|photo)"
-    r"|(?:say|press|hit|click|tap|push) (?:the )?(?:i )?found|(?:thats|this is|that is) (?:the (?:target|one|spot)|it))\b"
+    rf"|{PRESS_FOUND}|(?:thats|this is|that is) (?:the (?:target|one|spot)|it))\b"
 )
 _STOP = re.compile(r"\b(stop|halt|hold on|wait)\b")
 _UTURN = re.compile(r"\b(u-turn|u turn|turn around|spin around|180|turn back|about face|uturn)\b")

@@ -272,7 +272,7 @@ def _places_or_claims(said: str) -> bool:
     return any(label in OBJECT_LABELS for label in _named(said.split())) or _CLAIMS in ins.parse(said).instructions
 
 
-_PRESS_FOUND = re.compile(r"\b(?:press|hit|click|tap|push) (?:the )?(?:i )?found\b")
+_PRESS_FOUND = re.compile(rf"\b{ins.PRESS_FOUND}\b")
 _CLAIM_NOW = Clause.of(Op.STOP, claim=True)
 _TO_WALL_SAID = frozenset({"wall", "walls", "end", "until", "till", "til"})
 _WALK_SAID = frozenset({"go", "forward", "drive", "walk", "move", "straight", "ahead", "head", "keep"})
