@@ -377,11 +377,13 @@ class DialogCommander:
             # check, went unanswered, and was asked again: what it looks like goes with the doubt.
             if asked in (Asked.IS_IT, Asked.LOOKS):
                 doubted = f"{doubted}. {self._looks(_object_named(text))}"
+            elif asked == Asked.NEAR_WHAT:  # "... going in circles. what colour walls are near the mug?"
+                doubted = f"{doubted}. {self._landmark()}"
             return turns + self._ask(prefix=doubted)
         if asks_first and estimate.spread_m <= LOST_M:
             if asked is not None and asked not in (Asked.WHICH_WAY, Asked.WHY):
                 return turns + self._answer(asked, about=_object_named(text), message=text)
-            return turns + self._guide(questioned=True)
+            return turns + self._guide(questioned=True, proposed=lexicon.proposed(text))
         lost = estimate.spread_m > LOST_M
         if (lost or self._stuck >= LOST_AFTER) and self._questions < MAX_QUESTIONS:
             self._stuck = 0
@@ -696,10 +698,10 @@ class DialogCommander:
             text = self._safer(self.router.instruction(estimate.pose, label, goal, plain=self._plain))
         if questioned and self._target_ahead:
             prefix = "yes, you see it"
+        elif proposed is not None and (agrees := _same_first_move(proposed, text)) is not None:
+            prefix = "yes" if agrees else "no"  # "should I just drive straight down this gap?" asked with a report
         elif questioned:
             prefix = "by my map that is still the way" if text == self._instructed else "thanks, that changes it"
-        elif proposed is not None and (agrees := _same_first_move(proposed, text)) is not None:
-            prefix = "yes" if agrees else "no"
         if self._circling(text, reported):
             self._elsewhere(DOUBTED)
             return self._ask(prefix="i keep saying the same things, so i may have lost you")

@@ -499,6 +499,8 @@ _ASKED = (
         re.compile(
             rf"\b(?:near|next to|by|beside) what\b|\bwhich (?:wall )?colou?r(?: wall)? (?:is )?(?:the )?{_TARGET_WORDS}\b"
             rf"|\bwhat (?:colou?r )?(?:wall )?is (?:the )?{_TARGET_WORDS} (?:near|next to|by|beside)\b"
+            # "what colour walls are near the mug? I can look for them"
+            rf"|\bwhat colou?r (?:walls? )?(?:are|is) (?:\w+ )?(?:near|next to|by|beside|around) (?:the )?{_TARGET_WORDS}\b"
             rf"|\bis (?:the )?{_TARGET_WORDS} (?:near|next to|by|beside|close to) (?:the |a )?\w+ walls?\b"  # "Is the paddle near the red wall?"
         ),
     ),
@@ -673,7 +675,7 @@ def claims(text: str) -> bool:
 # turn left?", "im gonna go straight down the hallway ok?"): a person asking so was given the next
 # instruction without a yes or a no.
 _PROPOSED = re.compile(
-    r"(?:^|[.!?,;]\s*)(?:(?:so|ok|okay|then|and) )?(?:(?:should|shall|do|can|could) i |i(?:'?m| am) (?:gonna|going to) "
+    r"(?:^|[.!?,;]\s*)(?:(?:so|ok|okay|then|and) )?(?:(?:should|shall|do|can|could) i (?:just )?|i(?:'?m| am) (?:gonna|going to) "
     r"|i(?:'?ll| will) |maybe )?((?:go|turn|keep going|head|drive|move|continue)\b[^.!?,;]*?)(?:,? (?:ok|okay|then))?\s*\?\s*$"
 )
 

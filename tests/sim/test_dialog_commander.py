@@ -614,6 +614,7 @@ def test_presses_said_to_have_bumped_are_the_walks_last(world, report, bumped):
         "ok, white wall on my left, green wall on my right. go straight?",
         "done. im gonna turn left ok?",
         "should i turn right?",
+        "red wall left, white wall right. should I just drive straight down this gap?",  # the tenth play
     ],
 )
 def test_a_move_the_driver_proposes_after_its_report_is_answered_yes_or_no(world, report):
@@ -706,6 +707,8 @@ def test_a_question_about_how_the_target_looks_is_told_from_a_view_that_looks_li
         ("Can you tell me what I should see when I get close to the paddle?", lexicon.Asked.LOOKS),
         ("Is the paddle near the red wall?", lexicon.Asked.NEAR_WHAT),
         ("I bumped. Done. What do you see me near now?", lexicon.Asked.WHERE_AM_I),
+        # The tenth play's: answered with a question about a red wall
+        ("honestly I think we're going in circles. what colour walls are near the mug?", lexicon.Asked.NEAR_WHAT),
         ("ok. is the mug close? what color is it", lexicon.Asked.HOW_FAR),
         ("do you know where i am?", lexicon.Asked.WHERE_AM_I),
     ],
@@ -736,6 +739,15 @@ def test_called_while_it_localizes_it_says_it_is_there_and_asks_on(world):
     commander.perceive(PhaseBegan(Phase.LOCALIZING, None, 3))
     said = _said(commander.perceive(Heard(Role.DRIVER, "hello??")))
     assert said.startswith("i am here. ") and said.endswith("?"), said
+
+
+def test_lost_and_asked_what_the_target_stands_by_it_says_so_before_its_question(world):
+    commander, _ = _navigating(world, _walk_pose(world, 3))
+    said = _said(
+        commander.perceive(Heard(Role.DRIVER, "i think we're going in circles. what colour walls are near the jar?"))
+    )
+    assert said.startswith("sorry, i may have lost you") and "the jar of blocks is next to the" in said, said
+    assert said.endswith("?"), said
 
 
 def test_asked_how_far_and_what_colour_it_answers_both(world):
