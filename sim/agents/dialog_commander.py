@@ -23,6 +23,7 @@ import itertools
 import math
 import re
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -257,7 +258,8 @@ class DialogCommander:
 
     def _heard(self, text: str) -> list[Action]:
         lowered = text.lower()
-        asked = lexicon.asks(text)
+        asked_all = lexicon.asks_all(text)
+        asked = asked_all[0] if asked_all else None
         if lexicon.claims(text) and asked != Asked.SHOULD_CLAIM:
             return []  # a claim is on its way
         checked, self._checking = self._checking, False
@@ -284,7 +286,7 @@ class DialogCommander:
             # It reports nothing done: the belief stays where it was. (A question it has no answer
             # for, "sharply right = like 90 degrees?" before there was one, was taken for a report
             # of the instruction carried out, and the next one was given from where it was not.)
-            return self._answer(asked, proposed=lexicon.proposed(text), about=_object_named(text), message=text)
+            return self._answer(asked, proposed=lexicon.proposed(text), about=_object_named(text), also=asked_all)
         blocked = lexicon.blocked(text)  # its way forward is barred where it stands
         short = lexicon.fell_short(text) or bool(_STUCK.search(lowered))
         # A wall right in front after a report of moves made ("done, ...", "ok, i went forward, but now
@@ -382,7 +384,7 @@ class DialogCommander:
             return turns + self._ask(prefix=doubted)
         if asks_first and estimate.spread_m <= LOST_M:
             if asked is not None and asked not in (Asked.WHICH_WAY, Asked.WHY):
-                return turns + self._answer(asked, about=_object_named(text), message=text)
+                return turns + self._answer(asked, about=_object_named(text), also=asked_all)
             return turns + self._guide(questioned=True, proposed=lexicon.proposed(text))
         lost = estimate.spread_m > LOST_M
         if (lost or self._stuck >= LOST_AFTER) and self._questions < MAX_QUESTIONS:
@@ -397,7 +399,7 @@ class DialogCommander:
         # Asked along with a report ("bumped again. where is the jar?"): answered too, but "where to
         # now?" by the instruction itself ("right first. turn right" reads as two turns).
         if asked is not None and asked != Asked.WHICH_WAY:
-            return turns + self._answer(asked, one_move=one_move, about=_object_named(text), message=text)
+            return turns + self._answer(asked, one_move=one_move, about=_object_named(text), also=asked_all)
         return turns + self._guide(one_move=one_move, reported=True, proposed=lexicon.proposed(text))
 
     def _claimed(self, claim: Claimed) -> list[Action]:
@@ -768,11 +770,11 @@ class DialogCommander:
         one_move: bool = False,
         proposed: str | None = None,
         about: Label | None = None,
-        message: str = "",
+        also: Sequence[Asked] = (),
     ) -> list[Action]:
         """A Driver's question answered (one it has no answer for, said so; a move it `proposed`,
-        yes or no; what the landmark it is `about` looks like, also where the `message` asks
-        that besides), then the instruction again from where it still is (a question reports nothing
+        yes or no; what the landmark it is `about` looks like, also where the message asks that among
+        what it asks, `also`), then the instruction again from where it still is (a question reports nothing
         done)."""
         assert self._target is not None
         pending, self._pending = self._pending, None
@@ -817,7 +819,7 @@ class DialogCommander:
                 first = actions[0] if actions else None
                 way = {Move.LEFT: "left", Move.RIGHT: "right", Move.FORWARD: "straight ahead"}
                 reply = f"{unsure}{way[first]} first" if first in way else None
-        if asked not in (Asked.LOOKS, Asked.IS_IT) and Asked.LOOKS in lexicon.asks_all(message):
+        if asked not in (Asked.LOOKS, Asked.IS_IT) and Asked.LOOKS in also:
             # "u didnt answer, what color is the mug n is it close?": told how far, not the colour
             reply = f"{reply}. {self._looks(about)}" if reply else self._looks(about)
         return self._guide(prefix=reply, one_move=one_move)

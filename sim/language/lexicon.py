@@ -590,6 +590,7 @@ _WALKED = re.compile(rf"\b(?:after|at|got|only|maybe|go|move|made) ({_COUNT})\b|
 # The presses of a walk a Driver says bumped: its last ones, the robot at a wall ("the last 3 presses
 # did not move the robot", as the Driver's page says it; "bumped twice", "2 of them bumped").
 _TIMES = {"once": 1, "twice": 2, "thrice": 3}
+_PRESSES_SAID = {**_TIMES, "press": 1, "both": 2}  # "the last press ...", "both forwards bumped"
 _BUMPED = re.compile(
     rf"\blast ({_COUNT}|one|press) (?:\w+ ){{0,2}}(?:did not|didnt|do not|dont|were|was|are|just) (?:\w+ )?(?:move|moved|bump|bumps|bumped|blocked)\b"
     rf"|\bbump(?:ed|s)? ({_COUNT}|{'|'.join(_TIMES)})(?: times)?\b(?! (?:steps|presses))"
@@ -721,7 +722,7 @@ def walked(text: str, counted: int | None = None) -> int | None:
     bumped = _BUMPED.search(said)
     if bumped is not None:  # before "did not move": its last presses, not all of them
         said_bumped = next(g for g in bumped.groups() if g is not None)
-        presses = _TIMES.get(said_bumped) or {"one": 1, "press": 1, "both": 2}.get(said_bumped) or _count(said_bumped)
+        presses = _PRESSES_SAID.get(said_bumped) or _count(said_bumped)
         return max(counted - presses, 0) if counted is not None and presses is not None else None
     if _NOT_MOVED.search(said) or _FIRST_BUMPED.search(said):
         return 0

@@ -284,7 +284,7 @@ def _claimed_as_said(program: Program, said: list[str]) -> Program:
     or as a walk to a wall or a target it named (a person typed the button's label to be heard)."""
     if not _PRESS_FOUND.search(" ".join(said)) or _CLAIM_NOW in program:
         return program
-    named = {label for w in said if (label := LABEL_WORDS.get(w)) in OBJECT_LABELS}
+    named = set(_named(said))
     kept = [c for c in program if c.op != Op.UNCLEAR and not (c.op == Op.TARGET and _label(c.args[0]) not in named)]
     # "go up to it and press the found button", "click i found the target": no walk on to a wall
     # that no word names, after the walk said or where none is
